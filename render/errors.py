@@ -1,0 +1,9 @@
+"""Errors of the signal path that a person can act on; the message says what to do."""
+
+
+class ModelError(ValueError):
+    """A friction model, calibration or measurement file that cannot be used."""
+
+
+class RenderError(ValueError):
+    """Settings or input that the renderer cannot honour."""

@@ -1,0 +1,285 @@
+"""Friction models: amplitude and force → friction ratio, and back.
+
+Every model maps a vibration amplitude (µm peak-to-peak) and a normal force (N) to the friction
+ratio mu/mu0 (1 = plate at rest), and inverts that: which amplitude gives a target ratio. All
+functions are vectorised over numpy arrays; the inverse is the real-time hot path.
+
+Example::
+
+    >>> from render.friction_models import ExponentialModel
+    >>> model = ExponentialModel()
+    >>> result = model.amplitude_um_pp([1.0, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
+    >>> result.amplitude_um_pp.round(2).tolist(), result.clamped
+    ([0.0, 3.11, 5.0], 1)
+
+Ratios the plate cannot reach (below the ratio at the amplitude limit) are clamped to the limit
+and counted in ``clamped``; NaN ratios give 0 µm (plate at rest). No amplitude ever exceeds
+``limit_um_pp`` or the model's own validity range ``max_amplitude_um_pp``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+from scipy.optimize import isotonic_regression
+
+from render.errors import ModelError
+from render.fingerprint import FingerParams, detach_amplitude_um_pp
+from render.measurements import Measurements
+from render.normal_contact import relative_friction_of_u
+
+DEFAULT_FORCE_N = 0.5
+MIN_FORCE_N = 0.01  # lighter touches are treated as 10 mN: the finger is lifting off
+MAX_FORCE_N = 10.0
+CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
+RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
+
+
+@dataclass(frozen=True)
+class Inversion:
+    """Amplitudes for target ratios, and how many ratios were out of reach."""
+
+    amplitude_um_pp: np.ndarray
+    clamped: int
+
+
+class UniformTable:
+    """Piecewise-linear lookup on a uniform grid: cheap enough for tens of millions of calls a second."""
+
+    def __init__(self, start: float, stop: float, values: np.ndarray):
+        values = np.asarray(values, dtype=float)
+        self.start = float(start)
+        self.intervals = values.shape[-1] - 1
+        self.scale = self.intervals / (float(stop) - self.start)
+        self.values = values
+        self.slopes = np.diff(values, axis=-1)
+
+    def __call__(self, x, row: int = 0) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        position = (x.reshape(-1) - self.start) * self.scale
+        np.clip(position, 0.0, self.intervals, out=position)
+        index = position.astype(np.intp)
+        np.minimum(index, self.intervals - 1, out=index)
+        position -= index
+        values = self.values if self.values.ndim == 1 else self.values[row]
+        slopes = self.slopes if self.slopes.ndim == 1 else self.slopes[row]
+        position *= slopes.take(index)
+        position += values.take(index)
+        return position.reshape(x.shape)
+
+
+def _clip_force(force_n):
+    return np.clip(np.asarray(force_n, dtype=float), MIN_FORCE_N, MAX_FORCE_N)
+
+
+class FrictionModel(ABC):
+    """The interface every friction model offers; see the module docstring."""
+
+    name: str = "model"
+    max_amplitude_um_pp: float = CEILING_UM_PP
+
+    @abstractmethod
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N) -> np.ndarray:
+        """Forward model: friction ratio at each amplitude (µm p-p) and force (N)."""
+
+    @abstractmethod
+    def _amplitude_in_reach(self, ratio: np.ndarray, force_n) -> np.ndarray:
+        """Inverse for ratios already inside the reachable range."""
+
+    @abstractmethod
+    def describe(self) -> str:
+        """One line naming the model and its parameters."""
+
+    def parameters(self) -> dict[str, float | str]:
+        """The model's parameters as plain values, for calibration files and JSON."""
+        return {}
+
+    def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+        """Lowest ratio reachable at this force within the amplitude limit."""
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        return self.relative_friction(limit, force_n)
+
+    def amplitude_um_pp(
+        self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf
+    ) -> Inversion:
+        """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force."""
+        if not limit_um_pp >= 0:
+            raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        shape = np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
+        ratio = np.array(ratio, dtype=float, ndmin=1)  # a copy: cleaned in place below
+        ratio[np.isnan(ratio)] = 1.0
+        floor = self.relative_friction(limit, force_n)
+        clamped = int(np.count_nonzero(ratio < floor))
+        np.clip(ratio, floor, 1.0, out=ratio)
+        amplitude = np.array(self._amplitude_in_reach(ratio, force_n), dtype=float, ndmin=1)
+        np.clip(amplitude, 0.0, limit, out=amplitude)
+        return Inversion(amplitude.reshape(shape), clamped)
+
+
+class PaperModel(FrictionModel):
+    """The seed paper's non-Coulombic bed-of-springs model (section IV), tabulated.
+
+    The ratio depends on amplitude and force only through u = a_pp / detach_amplitude_um_pp(F)
+    (see :mod:`render.normal_contact`), so one table over u serves every force. It predicts
+    a modest reduction (to about 0.72 at 10 µm and 0.5 N) and never full levitation.
+    """
+
+    name = "paper"
+    U_MAX = 64.0  # covers CEILING_UM_PP down to MIN_FORCE_N
+    U_NODES = 384
+
+    def __init__(self, params: FingerParams = FingerParams()):
+        self.params = params
+        self.u_nodes = self.U_MAX * np.linspace(0.0, 1.0, self.U_NODES) ** 2
+        ratio = relative_friction_of_u(self.u_nodes, params, phase_points=192, ring_nodes=32)
+        self.ratio_nodes = np.minimum.accumulate(ratio)  # guard monotonicity against rounding
+        ratio_grid = np.linspace(self.ratio_nodes[-1], 1.0, RATIO_GRID_POINTS)
+        # the inverse of a flat stretch is its smallest amplitude: interp on reversed nodes
+        u_of_ratio = np.interp(ratio_grid, self.ratio_nodes[::-1], self.u_nodes[::-1])
+        self._u_table = UniformTable(ratio_grid[0], 1.0, u_of_ratio)
+        self._detach_per_cbrt_force = float(detach_amplitude_um_pp(1.0, params))
+
+    def _detach_um_pp(self, force_n):
+        return self._detach_per_cbrt_force * np.cbrt(_clip_force(force_n))
+
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        u = np.asarray(amplitude_um_pp, dtype=float) / self._detach_um_pp(force_n)
+        return np.interp(u, self.u_nodes, self.ratio_nodes)
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        return self._u_table(ratio) * self._detach_um_pp(force_n)
+
+    def describe(self) -> str:
+        p = self.params
+        return (
+            f"paper: ridge springs with non-Coulombic friction (E = {p.youngs_modulus_pa / 1e6:g} MPa, "
+            f"n = {p.friction_exponent:.3g}, {p.contact} contact)"
+        )
+
+    def parameters(self):
+        p = self.params
+        return {
+            "youngs_modulus_pa": p.youngs_modulus_pa,
+            "friction_exponent": p.friction_exponent,
+            "contact": p.contact,
+        }
+
+
+class ExponentialModel(FrictionModel):
+    """Empirical law of Monnoyer et al. (IEEE Trans. Haptics 2018): mu/mu0 = exp(-a²/(2 tau²)).
+
+    The published a and tau are zero-to-peak (tau = 1.32 µm); here a = a_pp / 2. The fit has no
+    force term, so the force is accepted and ignored.
+    """
+
+    name = "exponential"
+
+    def __init__(self, tau_um_zp: float = 1.32):
+        if not tau_um_zp > 0:
+            raise ModelError(f"tau must be positive, got {tau_um_zp} µm")
+        self.tau_um_zp = float(tau_um_zp)
+        self._factor = -1.0 / (8.0 * self.tau_um_zp**2)  # (a_pp/2)² / (2 tau²)
+
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        return np.exp(self._factor * amplitude * amplitude)
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        amplitude = np.log(np.asarray(ratio, dtype=float))
+        amplitude *= 1.0 / self._factor
+        return np.sqrt(amplitude)
+
+    def describe(self) -> str:
+        return f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
+
+    def parameters(self):
+        return {"tau_um_zp": self.tau_um_zp}
+
+
+class TableModel(FrictionModel):
+    """Measured points, interpolated monotonically (PCHIP) in amplitude and linearly in force.
+
+    Points that rise with amplitude (measurement noise) are first made non-increasing by isotonic
+    regression, per force. With several forces, amplitudes for a ratio are interpolated linearly
+    between the neighbouring forces and held beyond the ends; the forward model is the exact
+    inverse of that, found by bisection. The reachable range ends at the largest measured amplitude.
+    """
+
+    name = "table"
+
+    def __init__(self, data: Measurements):
+        forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
+        self.source = data.source
+        self.forces = np.unique(forces)
+        self.max_amplitude_um_pp = float(min(
+            data.amplitude_um_pp[forces == f].max() for f in self.forces
+        ))
+        rows = []
+        self.floors = []
+        for force in self.forces:
+            pick = forces == force
+            amplitude = data.amplitude_um_pp[pick]
+            if len(np.unique(amplitude)) < 2:
+                raise ModelError(f"{self.source}: at {force:g} N there must be two amplitudes or more")
+            order = np.argsort(amplitude)
+            amplitude, ratio = amplitude[order], data.relative_friction[pick][order]
+            amplitude, first = np.unique(amplitude, return_index=True)
+            ratio = np.minimum(isotonic_regression(ratio[first], increasing=False).x, 1.0)
+            curve = PchipInterpolator(amplitude, ratio, extrapolate=False)
+            fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
+            fine_ratio = curve(np.clip(fine, amplitude[0], amplitude[-1]))
+            fine_ratio = np.minimum.accumulate(np.minimum(fine_ratio, 1.0))
+            self.floors.append(fine_ratio[-1])
+            rows.append(fine_ratio)
+        self.floor = float(max(self.floors))
+        grid = np.linspace(min(self.floors), 1.0, RATIO_GRID_POINTS)
+        fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
+        inverse = np.array([np.interp(grid, r[::-1], fine[::-1]) for r in rows])
+        self._table = UniformTable(grid[0], 1.0, inverse)
+
+    def _row_weights(self, force_n):
+        force = np.clip(np.asarray(force_n, dtype=float), self.forces[0], self.forces[-1])
+        upper = np.clip(np.searchsorted(self.forces, force), 1, max(len(self.forces) - 1, 1))
+        if len(self.forces) == 1:
+            return np.zeros_like(force, dtype=np.intp), np.zeros_like(force)
+        lower = upper - 1
+        weight = (force - self.forces[lower]) / (self.forces[upper] - self.forces[lower])
+        return lower, weight
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        if len(self.forces) == 1:
+            return self._table(ratio)
+        lower, weight = self._row_weights(force_n)
+        shape = np.broadcast(ratio, lower).shape
+        ratio, lower, weight = (np.broadcast_to(x, shape).ravel() for x in (ratio, lower, weight))
+        low = np.empty(len(ratio))
+        high = np.empty(len(ratio))
+        for row in np.unique(lower):  # a handful of force rows, not samples
+            pick = lower == row
+            low[pick] = self._table(ratio[pick], int(row))
+            high[pick] = self._table(ratio[pick], int(row) + 1)
+        return ((1.0 - weight) * low + weight * high).reshape(shape)
+
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        shape = np.broadcast(amplitude, np.asarray(force_n)).shape
+        low = np.full(shape, float(self._table.start))
+        high = np.ones(shape)
+        target = np.broadcast_to(np.minimum(amplitude, self.max_amplitude_um_pp), shape)
+        for _ in range(48):  # bisection on the monotone inverse: exact to ~1e-14
+            middle = 0.5 * (low + high)
+            above = self._amplitude_in_reach(middle, force_n) > target
+            low = np.where(above, middle, low)
+            high = np.where(above, high, middle)
+        return 0.5 * (low + high)
+
+    def describe(self) -> str:
+        forces = ", ".join(f"{f:g}" for f in self.forces)
+        return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
+
+    def parameters(self):
+        return {"source": self.source}
