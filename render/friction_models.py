@@ -113,10 +113,13 @@ class FrictionModel(ABC):
         ratio = np.array(ratio, dtype=float, ndmin=1)  # a copy: cleaned in place below
         ratio[np.isnan(ratio)] = 1.0
         floor = self.relative_friction(limit, force_n)
-        clamped = int(np.count_nonzero(ratio < floor))
+        out_of_reach = ratio < floor
+        clamped = int(np.count_nonzero(out_of_reach))
         np.clip(ratio, floor, 1.0, out=ratio)
         amplitude = np.array(self._amplitude_in_reach(ratio, force_n), dtype=float, ndmin=1)
         np.clip(amplitude, 0.0, limit, out=amplitude)
+        if clamped:
+            amplitude[np.broadcast_to(out_of_reach, amplitude.shape)] = limit
         return Inversion(amplitude.reshape(shape), clamped)
 
 

@@ -117,7 +117,7 @@ def normalised_reaction(u, phase_rad, contact: str = "hertz"):
 def cycle_reaction_n(amplitude_um_pp, force_n, phase_rad, params: FingerParams = FingerParams()):
     """Figs. 5 (uniform) and its Hertzian counterpart: plate reaction force over a cycle, N."""
     u = np.asarray(amplitude_um_pp, dtype=float) / detach_amplitude_um_pp(force_n, params)
-    return force_n * normalised_reaction(np.asarray(u)[..., None], phase_rad, params.contact)
+    return force_n * normalised_reaction(u, phase_rad, params.contact)
 
 
 def relative_friction_of_u(

@@ -1,0 +1,36 @@
+"""Which exceptions are a person's mistake (one line, exit 1) rather than our bug (a traceback)."""
+
+from __future__ import annotations
+
+import importlib
+
+
+class UsageError(ValueError):
+    """Options that make no sense together, found after parsing."""
+
+
+_ERROR_CLASSES = (
+    ("render.errors", "ModelError"),
+    ("render.errors", "RenderError"),
+    ("textures.errors", "TextureError"),
+    ("devices.errors", "DeviceError"),
+)
+
+
+def user_errors() -> tuple[type[BaseException], ...]:
+    """The exception types to report as one line; imported lazily to keep start-up fast."""
+    found: list[type[BaseException]] = [UsageError, OSError]
+    for module_name, class_name in _ERROR_CLASSES:
+        try:
+            found.append(getattr(importlib.import_module(module_name), class_name))
+        except (ImportError, AttributeError):
+            continue
+    return tuple(found)
+
+
+def describe(error: BaseException) -> str:
+    """One line for an error: OSErrors name the file and the reason."""
+    if isinstance(error, OSError) and error.strerror:
+        where = f"{error.filename}: " if error.filename else ""
+        return f"{where}{error.strerror.lower()}"
+    return str(error).splitlines()[0] if str(error) else type(error).__name__

@@ -1,0 +1,93 @@
+"""``ultraglide model`` and ``ultraglide calibrate`` end to end, as a person runs them."""
+
+import json
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error, run_cli
+from PIL import Image
+
+
+def test_help_and_version_start_fast():
+    start = time.perf_counter()
+    result = subprocess.run([".venv/bin/ultraglide", "--help"], capture_output=True, text=True)
+    assert result.returncode == 0 and "model" in result.stdout
+    assert run_cli("--version").stdout.startswith("ultraglide ")
+    # the help path must not import numpy; checked by importing it and looking
+    probe = subprocess.run(
+        [".venv/bin/python", "-c", "import sys, apps.cli; apps.cli.build_parser(); print('numpy' in sys.modules)"],
+        capture_output=True, text=True)
+    assert probe.stdout.strip() == "False"
+    assert time.perf_counter() - start < 30
+
+
+def test_model_text_has_the_paper_worked_example():
+    result = run_cli("model", "--force", "0.15", check=True)
+    assert "detach amplitude" in result.stdout
+    assert "1.15 µm p-p" in result.stdout
+
+
+def test_model_json_keys_and_values():
+    result = run_cli("model", "--force", "0.4", "--json", "--ratio", "0.85", check=True)
+    data = json.loads(result.stdout)
+    assert data["force_n"] == 0.4
+    assert data["contact_area_mm2"] == pytest.approx(138.1 * 0.4 ** (2 / 3), rel=1e-9)
+    assert data["normal_stiffness_n_per_m"] / data["tangential_stiffness_n_per_m"] == pytest.approx(2.8)
+    assert 3.6 < data["glide_threshold_um_pp"] < 4.8
+    curve = np.array(data["curve"])
+    assert curve[0].tolist() == [0.0, 1.0] and curve[-1, 0] >= 8
+    assert np.all(np.diff(curve[:, 1]) <= 0)
+    a = data["amplitude_for_ratio_um_pp"]
+    assert np.interp(a, curve[:, 0], curve[:, 1]) == pytest.approx(0.85, abs=5e-3)
+
+
+def test_model_choice_and_unreachable_ratio():
+    exp = json.loads(run_cli("model", "--model", "exponential", "--json", "--ratio", "0.2", check=True).stdout)
+    assert exp["ratio_reachable"] is True
+    paper = run_cli("model", "--ratio", "0.2", check=True).stdout
+    assert "out of reach" in paper
+
+
+def test_model_plots_writes_figures_2_to_9(tmp_path):
+    result = run_cli("model", "--plots", tmp_path / "figs", check=True)
+    files = sorted((tmp_path / "figs").glob("*.png"))
+    assert [f.name[:4] for f in files] == [f"fig{n}" for n in range(2, 10)]
+    for file in files:
+        with Image.open(file) as image:
+            assert image.format == "PNG" and image.width >= 600 and image.height >= 400
+            assert len(image.convert("L").getcolors(1 << 16)) > 10  # something was drawn
+    assert "wrote" in result.stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["model", "--force", "-0.5"], "positive"),
+    (["model", "--ratio", "1.5"], "ratio"),
+    (["model", "--model", "squeeze"], "unknown model"),
+    (["model", "--model", "table:/nonexistent.csv"], "no such file"),
+    (["calibrate", "/nonexistent.csv", "-o", "x.toml"], "no such file"),
+    (["model", "--force", "abc"], "not a number"),
+])
+def test_bad_input_is_one_line(args, fragment):
+    assert fragment in assert_one_line_error(run_cli(*args))
+
+
+def test_calibrate_end_to_end(tmp_path):
+    data = tmp_path / "data.csv"
+    rows = ["# synthetic, tau = 1.1 µm zero-to-peak", "amplitude_um_pp,relative_friction,force_n"]
+    rows += [f"{a},{np.exp(-(a / 2) ** 2 / (2 * 1.1**2)):.6f},0.5" for a in np.linspace(0, 6, 9)]
+    data.write_text("\n".join(rows) + "\n")
+    cal = tmp_path / "cal.toml"
+    result = run_cli("calibrate", data, "--model", "exponential", "-o", cal, check=True)
+    assert "tau_um_zp = 1.1" in result.stdout and "rms residual" in result.stdout
+    model = json.loads(run_cli("model", "--model", cal, "--json", "--ratio", "0.5", check=True).stdout)
+    assert model["amplitude_for_ratio_um_pp"] == pytest.approx(2 * 1.1 * np.sqrt(2 * np.log(2)), rel=1e-3)
+
+
+def test_calibrate_bad_csv_leaves_no_output(tmp_path):
+    data = tmp_path / "bad.csv"
+    data.write_text("amplitude_um_pp,friction\n1,0.5\n")
+    cal = tmp_path / "cal.toml"
+    assert "missing column" in assert_one_line_error(run_cli("calibrate", data, "-o", cal))
+    assert not cal.exists()

@@ -1,0 +1,107 @@
+"""Section IV: equilibrium (7), detachment, Hertz (8), relative friction (9), against independent integrals."""
+
+import numpy as np
+import pytest
+from scipy import integrate, optimize
+
+from render.fingerprint import FingerParams, detach_amplitude_um_pp
+from render.normal_contact import (
+    bed_reaction,
+    cycle_reaction_n,
+    relative_friction,
+    relative_friction_of_u,
+)
+
+PHASE = np.linspace(0.0, 2.0 * np.pi, 8192, endpoint=False)
+UNIFORM = FingerParams(contact="uniform")
+HERTZ = FingerParams(contact="hertz")
+
+
+@pytest.mark.parametrize("params", [UNIFORM, HERTZ], ids=["uniform", "hertz"])
+@pytest.mark.parametrize("amplitude", [0.1, 1.0, 2.0, 4.0, 8.0, 15.0])
+def test_equilibrium_eq7_mean_reaction_equals_load(params, amplitude):
+    reaction = cycle_reaction_n(amplitude, 0.5, PHASE, params)
+    assert np.mean(reaction) == pytest.approx(0.5, rel=2e-4)
+    assert np.all(reaction >= 0)
+
+
+def test_uniform_bed_detaches_exactly_above_eq6():
+    force = 0.5
+    critical = float(detach_amplitude_um_pp(force))
+    assert cycle_reaction_n(0.98 * critical, force, PHASE, UNIFORM).min() > 0
+    assert cycle_reaction_n(1.02 * critical, force, PHASE, UNIFORM).min() == 0
+
+
+def test_hertz_contact_periphery_detaches_first():
+    # Below eq. (6) the uniform bed stays attached and its reaction is linear in the plate
+    # position. The Hertzian rim (zero static pressure at r = b) lets go at any amplitude, so its
+    # total reaction is clipped on the unloading half: its minimum sits above the linear one.
+    reaction = cycle_reaction_n(0.5, 0.5, PHASE, HERTZ)
+    uniform = cycle_reaction_n(0.5, 0.5, PHASE, UNIFORM)
+    u = 0.5 / float(detach_amplitude_um_pp(0.5))
+    assert uniform == pytest.approx(0.5 * (1 + u * np.sin(PHASE)))
+    assert reaction.min() > uniform.min() + 1e-3
+    assert reaction.max() == pytest.approx(uniform.max(), abs=1e-3)  # the loading half is alike
+    assert reaction.min() > 0
+
+
+def _brute_force_hertz_reaction(u, phase):
+    """Independent route: annuli in r with eq. (8), each solved by brentq, integrated by quad."""
+    def ring(rho, theta):
+        local_pressure = 1.5 * np.sqrt(1 - rho**2)  # P / mean pressure
+        v = u / local_pressure  # local amplitude over local static compression
+        if v <= 1:
+            value = local_pressure * (1 + v * np.sin(theta))
+        else:
+            def mean_load(s):
+                return integrate.quad(lambda t: max(s + np.sin(t), 0.0), 0, 2 * np.pi, limit=200)[0] / (2 * np.pi)
+            s = optimize.brentq(lambda s: mean_load(s) - 1 / v, -1, 1, xtol=1e-12)
+            value = local_pressure * v * max(s + np.sin(theta), 0.0)
+        return value * 2 * rho  # annulus 2 pi r dr over pi b²
+    return [integrate.quad(ring, 0, 1, args=(t,), limit=100, epsabs=1e-7)[0] for t in phase]
+
+
+@pytest.mark.parametrize("u", [0.6, 1.4, 3.0])
+def test_hertz_reaction_matches_brute_force_integration(u):
+    phase = np.array([-1.2, 0.7, 4.0])
+    expected = _brute_force_hertz_reaction(u, phase)
+    amplitude = u * float(detach_amplitude_um_pp(0.5))
+    assert cycle_reaction_n(amplitude, 0.5, phase, HERTZ) / 0.5 == pytest.approx(expected, abs=2e-4)
+
+
+def test_uniform_relative_friction_without_detachment_is_mean_of_power():
+    # below detachment F(t) = F (1 + v sin θ): ratio = (1/2π) ∫ (1 + v sin θ)^n dθ
+    n = 2 / 3
+    for v in (0.3, 0.9):
+        expected = integrate.quad(lambda t, v=v: (1 + v * np.sin(t)) ** n, 0, 2 * np.pi)[0] / (2 * np.pi)
+        assert relative_friction_of_u(v, UNIFORM)[0] == pytest.approx(expected, abs=1e-6)
+
+
+@pytest.mark.parametrize("params", [UNIFORM, HERTZ], ids=["uniform", "hertz"])
+def test_coulomb_friction_gives_no_reduction(params):
+    # n = 1: the mean friction force is mu times the mean load, which equilibrium fixes
+    coulomb = params.with_(friction_exponent=1.0)
+    assert relative_friction(np.array([0.5, 3.0, 10.0]), 0.5, coulomb) == pytest.approx(1.0, abs=1e-4)
+
+
+@pytest.mark.parametrize("params", [UNIFORM, HERTZ], ids=["uniform", "hertz"])
+def test_relative_friction_falls_modestly_and_never_levitates(params):
+    amplitude = np.linspace(0, 20, 81)
+    ratio = relative_friction(amplitude, 0.5, params)
+    assert ratio[0] == pytest.approx(1.0)
+    assert np.all(np.diff(ratio) <= 1e-9)
+    assert 0.55 < ratio[-1] < 0.85  # tens of percent, not levitation
+    assert 0.65 < relative_friction(8.0, 0.5, params) < 0.85
+
+
+def test_ratio_depends_on_amplitude_only_through_the_detach_amplitude():
+    for force in (0.1, 0.35, 1.0):
+        u = 2.5
+        amplitude = u * float(detach_amplitude_um_pp(force))
+        assert relative_friction(amplitude, force) == pytest.approx(relative_friction_of_u(u)[0], abs=1e-9)
+
+
+def test_bed_reaction_closed_form_mean():
+    # g(s) closed form: the mean of the normalised reaction is 1 for any amplitude
+    for v in (0.5, 1.0, 1.5, 10.0, 100.0):
+        assert np.mean(bed_reaction(v, PHASE)) == pytest.approx(1.0, rel=1e-4)
