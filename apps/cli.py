@@ -90,7 +90,114 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument("-o", "--output", required=True, metavar="CAL.toml")
     calibrate.set_defaults(handler="apps.calibrate_command:run")
 
+    _add_texture_commands(commands)
     return parser
+
+
+def size_mm(text: str) -> tuple[float, float]:
+    """WIDTHxHEIGHT in millimetres, e.g. 80x50."""
+    parts = text.lower().replace("×", "x").split("x")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"size is WIDTHxHEIGHT in mm, e.g. 80x50, got {text!r}")
+    return positive(parts[0]), positive(parts[1])
+
+
+def crop_box(text: str) -> tuple[int, int, int, int]:
+    """X,Y,WIDTH,HEIGHT in pixels."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"crop is X,Y,WIDTH,HEIGHT in whole pixels, got {text!r}") from None
+    if len(values) != 4 or min(values) < 0 or min(values[2:]) == 0:
+        raise argparse.ArgumentTypeError(f"crop is X,Y,WIDTH,HEIGHT with a positive size, got {text!r}")
+    return values
+
+
+def _add_range(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:
+    parser.add_argument("--range", nargs=2, type=finite, default=list(default), metavar=("LOW", "HIGH"),
+                        help="friction ratio where the pattern is off (slippery) and on (sticky), each in 0..1 "
+                             f"(default: {default[0]} {default[1]})")
+
+
+def _add_texture_commands(commands) -> None:
+    author = commands.add_parser(
+        "author", help="make a texture from an image",
+        description="Turn any image Pillow reads into a texture file (16-bit PNG with metadata). "
+                    "By default white is sticky (at rest) and black slippery.")
+    author.add_argument("image", metavar="IMAGE")
+    author.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+    size = author.add_mutually_exclusive_group()
+    size.add_argument("--width-mm", type=positive, help="physical width, mm (default: 80)")
+    size.add_argument("--dpi", type=positive, help="physical size from the image's pixels per inch")
+    author.add_argument("--mode", choices=["brightness", "edges", "gradient"], default="brightness",
+                        help="brightness: luminance is friction; edges: edges are sticky; "
+                             "gradient: luminance is height, felt through its slope")
+    author.add_argument("--invert", action="store_true", help="swap sticky and slippery")
+    author.add_argument("--levels", nargs=2, type=finite, default=[0.0, 1.0], metavar=("BLACK", "WHITE"),
+                        help="input black and white points in 0..1 (default: 0 1)")
+    author.add_argument("--gamma", type=finite, default=1.0, help="gamma > 0 applied after levels (default: 1)")
+    author.add_argument("--blur-mm", type=finite, default=0.0, help="Gaussian blur sigma, mm (default: 0)")
+    _add_range(author)
+    author.add_argument("--crop", type=crop_box, metavar="X,Y,W,H", help="crop the source, in pixels")
+    author.add_argument("--background", default="white", choices=["white", "black"],
+                        help="what transparent parts are composited on (default: white = at rest)")
+    author.add_argument("--outside", choices=["tile", "clamp", "fixed"], default="tile",
+                        help="what lies beyond the edges (default: tile)")
+    author.add_argument("--max-pixels", type=positive, default=40e6,
+                        help="refuse larger images, a guard against decompression bombs (default: 40e6)")
+    author.add_argument("--name", help="texture name (default: the image's file name)")
+    author.add_argument("--preview", metavar="PREVIEW.png",
+                        help="also write a picture of the source, the friction map and a swipe")
+    author.set_defaults(handler="apps.author_command:run")
+
+    listing = commands.add_parser("textures", help="list the bundled texture library",
+                                  description="The textures that ship with ultraglide; use their names "
+                                              "wherever a texture file is accepted.")
+    listing.add_argument("--json", action="store_true", help="print a JSON list")
+    listing.set_defaults(handler="apps.texture_command:list_library")
+
+    texture = commands.add_parser("texture", help="make procedural textures",
+                                  description="Make textures from parameters.")
+    texture_commands = texture.add_subparsers(dest="texture_command", metavar="ACTION", required=True,
+                                              parser_class=OneLineParser)
+    new = texture_commands.add_parser("new", help="a new procedural texture",
+                                      description="Make a procedural texture and save it as a texture file.")
+    kinds = new.add_subparsers(dest="kind", metavar="KIND", required=True, parser_class=OneLineParser)
+    specs = {
+        "grating": ("parallel ridges", [("--wavelength-mm", positive, 1.0), ("--angle-deg", finite, 0.0),
+                                        ("--shape", ["sine", "square"], "sine")]),
+        "checkerboard": ("alternating squares", [("--square-mm", positive, 5.0)]),
+        "dots": ("sticky dots", [("--pitch-mm", positive, 4.0), ("--diameter-mm", positive, 2.0)]),
+        "bumps": ("round bumps, a gradient texture", [("--pitch-mm", positive, 10.0),
+                                                      ("--diameter-mm", positive, 8.0)]),
+        "noise": ("band-limited roughness", [("--cutoff-mm", positive, 2.0), ("--seed", int, 0)]),
+        "chirp": ("wavelength sweeping across the width", [("--start-mm", positive, 4.0),
+                                                           ("--end-mm", positive, 0.5)]),
+        "button": ("a button with raised edges", [("--edge-mm", positive, 1.5)]),
+        "slider": ("a slider with detents", [("--detents", int, 5), ("--detent-mm", positive, 1.0)]),
+        "toggle": ("a toggle switch", []),
+        "keyboard": ("a small keyboard with key edges", [("--edge-mm", positive, 0.8)]),
+    }
+    default_sizes = {"button": "60x40", "slider": "80x20", "toggle": "40x24", "keyboard": "90x30"}
+    for kind, (summary, options) in specs.items():
+        sub = kinds.add_parser(kind, help=summary, description=f"A procedural texture: {summary}.")
+        for flag, kind_type, default in options:
+            if isinstance(kind_type, list):
+                sub.add_argument(flag, choices=kind_type, default=default, help=f"(default: {default})")
+            else:
+                sub.add_argument(flag, type=kind_type, default=default, help=f"(default: {default})")
+        sub.add_argument("--size-mm", type=size_mm, default=size_mm(default_sizes.get(kind, "80x50")),
+                         metavar="WxH", help=f"physical size in mm (default: {default_sizes.get(kind, '80x50')})")
+        _add_range(sub)
+        sub.add_argument("--px-per-mm", type=positive, help="resolution (default: 8 pixels on the finest feature)")
+        sub.add_argument("--name", help="texture name (default: the output's file name)")
+        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+        sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
+        sub.set_defaults(handler="apps.texture_command:new")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"ultraglide: warning: {message}", file=file or sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -99,6 +206,9 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "handler", None):
         parser.print_help()
         return 0
+    import warnings
+
+    warnings.showwarning = _show_warning
     module_name, function_name = args.handler.split(":")
     try:
         handler = getattr(importlib.import_module(module_name), function_name)

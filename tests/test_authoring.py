@@ -1,0 +1,187 @@
+"""Authoring from images: every Pillow mode, every bad input, and the CLI end to end."""
+
+import io
+import json
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error, run_cli
+from PIL import Image
+
+from textures.authoring import AuthoringOptions, author_image
+from textures.errors import TextureError
+from textures.fileformat import load_texture
+
+# a left-to-right ramp, dark to light, 64 × 32 pixels
+RAMP = np.tile(np.linspace(0, 255, 64), (32, 1)).astype(np.uint8)
+
+
+def save(image, path, **kw):
+    image.save(path, **kw)
+    return path
+
+
+def ramp_luminance(texture, options=AuthoringOptions()):
+    low, high = options.ratio_range
+    return (texture.values - low) / (high - low)
+
+
+@pytest.mark.parametrize("mode", ["L", "RGB", "CMYK", "P", "1", "I;16", "LA", "RGBA"])
+def test_every_mode_reads_as_the_same_ramp(tmp_path, mode):
+    if mode == "I;16":
+        image = Image.fromarray(RAMP.astype(np.uint16) * 257)
+    else:
+        image = Image.fromarray(RAMP).convert(mode)  # LA and RGBA come out fully opaque
+    suffix = ".tif" if mode == "CMYK" else ".png"
+    path = save(image, tmp_path / f"ramp{suffix}")
+    texture = author_image(path)
+    values = ramp_luminance(texture)
+    assert texture.values.shape == (32, 64)
+    if mode == "1":  # dithered black and white: the mean still follows the ramp
+        assert values[:, :16].mean() < 0.3 and values[:, -16:].mean() > 0.7
+    elif mode == "P":
+        assert values[0] == pytest.approx(np.linspace(0, 1, 64), abs=0.03)
+    else:
+        assert values[0] == pytest.approx(np.linspace(0, 1, 64), abs=0.01)
+
+
+def test_sixteen_bit_keeps_its_precision(tmp_path):
+    fine = np.tile(np.arange(1000, 1064, dtype=np.uint16), (4, 1))  # steps far below 8-bit resolution
+    texture = author_image(save(Image.fromarray(fine), tmp_path / "fine.png"), AuthoringOptions(ratio_range=(0, 1)))
+    assert np.all(np.diff(texture.values[0]) > 0)
+
+
+def test_alpha_is_composited_on_the_background(tmp_path):
+    rgba = np.zeros((8, 8, 4), np.uint8)  # black, fully transparent on the left half
+    rgba[:, 4:, 3] = 255
+    path = save(Image.fromarray(rgba, "RGBA"), tmp_path / "alpha.png")
+    white = ramp_luminance(author_image(path))
+    assert white[:, :4] == pytest.approx(1.0) and white[:, 4:] == pytest.approx(0.0)
+    black = ramp_luminance(author_image(path, AuthoringOptions(background=(0, 0, 0))))
+    assert black[:, :4] == pytest.approx(0.0)
+
+
+def test_palette_with_transparency(tmp_path):
+    image = Image.new("P", (4, 4), 0)
+    image.putpalette([0, 0, 0, 255, 255, 255])
+    image.info["transparency"] = 0
+    path = save(image, tmp_path / "p.png", transparency=0)
+    assert ramp_luminance(author_image(path)) == pytest.approx(1.0)  # transparent → background white
+
+
+def test_exif_rotation_is_honoured(tmp_path):
+    image = Image.fromarray(RAMP)  # 64 wide, 32 tall, dark on the left
+    exif = Image.Exif()
+    exif[0x0112] = 6  # "rotate 90° clockwise to display"
+    path = save(image, tmp_path / "rot.jpg", exif=exif, quality=95)
+    texture = author_image(path)
+    assert texture.values.shape == (64, 32)  # now tall
+    values = ramp_luminance(texture)
+    assert values[0].mean() < 0.1 and values[-1].mean() > 0.9  # dark at the top after rotation
+
+
+def test_animated_image_uses_first_frame_with_a_warning(tmp_path):
+    frames = [Image.fromarray(np.full((8, 8), v, np.uint8)) for v in (0, 255)]
+    path = tmp_path / "anim.gif"
+    frames[0].save(path, save_all=True, append_images=frames[1:])
+    with pytest.warns(UserWarning, match="animated"):
+        texture = author_image(path)
+    assert ramp_luminance(texture).max() < 0.05
+
+
+def test_float_tiff(tmp_path):
+    values = np.linspace(0, 1, 32, dtype=np.float32)[None, :].repeat(4, 0)
+    texture = author_image(save(Image.fromarray(values, "F"), tmp_path / "f.tif"))
+    assert ramp_luminance(texture)[0] == pytest.approx(values[0], abs=1e-6)
+
+
+def test_mappings_levels_gamma_invert_blur_crop(tmp_path):
+    path = save(Image.fromarray(RAMP), tmp_path / "ramp.png")
+    base = dict(ratio_range=(0.0, 1.0))
+    levels = author_image(path, AuthoringOptions(black=0.25, white=0.75, **base)).values[0]
+    assert levels[:16].max() == 0.0 and levels[-16:].min() == 1.0
+    gamma = author_image(path, AuthoringOptions(gamma=2.0, **base)).values[0]
+    assert gamma[32] == pytest.approx(np.sqrt(RAMP[0, 32] / 255), abs=1e-3)
+    inverted = author_image(path, AuthoringOptions(invert=True, **base)).values[0]
+    assert inverted[0] == pytest.approx(1.0) and inverted[-1] == pytest.approx(0.0)
+    step = save(Image.fromarray(np.where(np.arange(64) < 32, 0, 255).astype(np.uint8)[None, :].repeat(16, 0)),
+                tmp_path / "step.png")
+    edges = author_image(step, AuthoringOptions(mode="edges", **base)).values[8]
+    assert np.argmax(edges) in (31, 32) and edges[5] == 0.0
+    cropped = author_image(path, AuthoringOptions(crop=(16, 0, 32, 8), width_mm=10, **base))
+    assert cropped.values.shape == (8, 32) and cropped.height_mm == pytest.approx(2.5)
+    # 64 px over 80 mm: a 2.5 mm sigma is 2 px; a unit step then rises at most 1/(2 sqrt(2 pi)) a pixel
+    blurred = author_image(step, AuthoringOptions(blur_mm=2.5, **base)).values[8]
+    assert np.max(np.diff(blurred)) == pytest.approx(1 / (2 * np.sqrt(2 * np.pi)), abs=0.02)
+    gradient = author_image(path, AuthoringOptions(mode="gradient", **base))
+    assert gradient.kind == "gradient"
+    dpi = author_image(path, AuthoringOptions(dpi=254))
+    assert dpi.width_mm == pytest.approx(6.4)
+
+
+def test_bad_images(tmp_path):
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "text.png").write_text("hello, I am not a picture")
+    data = io.BytesIO()
+    Image.fromarray(RAMP).save(data, format="PNG")
+    (tmp_path / "truncated.png").write_bytes(data.getvalue()[: len(data.getvalue()) // 2])
+    for name, message in (("empty.png", "not an image"), ("text.png", "not an image"),
+                          ("truncated.png", "damaged or truncated"), ("missing.png", "no such file")):
+        with pytest.raises(TextureError, match=message):
+            author_image(tmp_path / name)
+    with pytest.raises(TextureError, match="directory"):
+        author_image(tmp_path)
+    big = save(Image.fromarray(RAMP), tmp_path / "big.png")
+    with pytest.raises(TextureError, match="max-pixels"):
+        author_image(big, AuthoringOptions(max_pixels=1000))
+
+
+@pytest.mark.parametrize("options", [dict(width_mm=-5), dict(ratio_range=(0.2, 1.4)), dict(gamma=0),
+                                     dict(black=0.8, white=0.2), dict(blur_mm=-1), dict(mode="sparkle"),
+                                     dict(width_mm=10, dpi=100)])
+def test_nonsensical_options(options):
+    with pytest.raises(TextureError):
+        AuthoringOptions(**options)
+
+
+def test_author_cli_end_to_end(tmp_path):
+    source = save(Image.fromarray(RAMP).convert("RGB"), tmp_path / "ramp.jpg", quality=95)
+    out, preview = tmp_path / "t.png", tmp_path / "preview.png"
+    result = run_cli("author", source, "-o", out, "--width-mm", "64", "--range", "0.3", "0.9",
+                     "--preview", preview, check=True)
+    assert "wrote" in result.stdout
+    texture = load_texture(out)
+    assert texture.width_mm == 64 and texture.height_mm == 32
+    assert texture.values.min() == pytest.approx(0.3, abs=0.01) and texture.values.max() == pytest.approx(0.9, abs=0.01)
+    with Image.open(preview) as image:
+        assert image.width > 800
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--width-mm", "-3"], "positive"), (["--range", "0.2", "1.5"], "0..1"), (["--gamma", "0"], "gamma"),
+    (["--crop", "0,0,0,5"], "crop"), (["--max-pixels", "10"], "max-pixels"),
+])
+def test_author_cli_bad_options_leave_no_file(tmp_path, args, fragment):
+    source = save(Image.fromarray(RAMP), tmp_path / "ramp.png")
+    out = tmp_path / "t.png"
+    assert fragment in assert_one_line_error(run_cli("author", source, "-o", out, *args))
+    assert not out.exists()
+    assert not list(tmp_path.glob(".t*"))  # no temporary left behind
+
+
+def test_author_cli_bad_files(tmp_path):
+    (tmp_path / "empty.jpg").write_bytes(b"")
+    assert "not an image" in assert_one_line_error(run_cli("author", tmp_path / "empty.jpg", "-o", tmp_path / "o.png"))
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_texture_new_and_textures_cli(tmp_path):
+    out = tmp_path / "g.png"
+    run_cli("texture", "new", "grating", "--wavelength-mm", "2", "--size-mm", "40x20", "-o", out, check=True)
+    texture = load_texture(out)
+    assert (texture.width_mm, texture.height_mm) == (40, 20)
+    assert texture.authoring["wavelength_mm"] == 2
+    bad = run_cli("texture", "new", "grating", "--wavelength-mm", "0", "-o", out)
+    assert "positive" in assert_one_line_error(bad)
+    listing = json.loads(run_cli("textures", "--json", check=True).stdout)
+    assert len(listing) >= 10 and {"name", "width_mm", "height_mm", "description"} <= set(listing[0])

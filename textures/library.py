@@ -1,0 +1,72 @@
+"""The bundled texture library, and finding a texture by name or path.
+
+The library is the PNG texture files in ``textures/library/``; ``scripts/build_library.py``
+regenerates them (procedural ones from parameters, the rest from the source images there).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+from PIL import Image
+
+from textures.authoring import AuthoringOptions, author_image
+from textures.errors import TextureError
+from textures.fileformat import CHUNK, load_texture
+from textures.texture import Texture
+
+LIBRARY_DIR = Path(__file__).parent / "library"
+
+
+@dataclass(frozen=True)
+class LibraryEntry:
+    """A bundled texture, described without loading its pixels."""
+
+    name: str
+    path: Path
+    width_mm: float
+    height_mm: float
+    kind: str
+    description: str
+
+
+def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
+    """Every texture in the library, sorted by name."""
+    entries = []
+    for path in sorted(directory.glob("*.png")):
+        with Image.open(path) as image:
+            meta = json.loads(image.info.get(CHUNK, "{}"))
+        entries.append(LibraryEntry(path.stem, path, float(meta.get("width_mm", 0)), float(meta.get("height_mm", 0)),
+                                    meta.get("kind", "friction"), meta.get("description", "")))
+    return entries
+
+
+def has_metadata(path: Path) -> bool:
+    try:
+        with Image.open(path) as image:
+            return image.format == "PNG" and CHUNK in image.info
+    except OSError:
+        return False
+
+
+def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Texture:
+    """A texture from a file path or a library name.
+
+    A texture file loads as it is; any other image is authored on the fly with ``options``
+    (the defaults of ``ultraglide author`` unless given), with a warning saying so.
+    """
+    path = Path(spec)
+    if path.is_file():
+        if has_metadata(path):
+            return load_texture(path)
+        warnings.warn(f"{path} is a plain image: authoring it with default options "
+                      "(see `ultraglide author` for control)", stacklevel=2)
+        return author_image(path, options or AuthoringOptions())
+    bundled = LIBRARY_DIR / f"{spec}.png"
+    if "/" not in spec and bundled.is_file():
+        return load_texture(bundled)
+    names = ", ".join(entry.name for entry in library_entries())
+    raise TextureError(f"no texture file or library texture named {spec!r}; library: {names}")

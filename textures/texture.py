@@ -1,0 +1,102 @@
+"""The texture: a map of target friction ratios with a physical size.
+
+Coordinates are millimetres from the top-left corner, x to the right and y downwards, as on a
+screen and in an image; pixel (row, col) covers [col, col+1) × [row, row+1) pixels and its value
+holds at its centre. Values are float32 in [0, 1].
+
+A ``friction`` texture stores the friction ratio itself (1 = plate at rest). A ``gradient``
+texture stores a height map (0..1); friction then follows the slope along the finger's motion,
+uphill stickier and downhill slipperier, so a bump feels like a bump from every direction
+(the TPad's gradient mode, see :mod:`textures.sampling`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from textures.errors import TextureError
+
+KINDS = ("friction", "gradient")
+OUTSIDE_RULES = ("tile", "clamp", "fixed")
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    """A friction map (or height map) with its physical size and metadata."""
+
+    values: np.ndarray  # (rows, cols) float32 in [0, 1]
+    width_mm: float
+    height_mm: float
+    kind: str = "friction"
+    outside: str = "tile"  # what lies beyond the edges: repeat, extend the edge, or a fixed ratio
+    outside_ratio: float = 1.0
+    ratio_range: tuple[float, float] = (0.0, 1.0)  # gradient kind: ratios at steepest down/uphill
+    full_slope_per_mm: float = 0.0  # gradient kind: slope reaching the range ends; 0 = the map's steepest
+    name: str = ""
+    description: str = ""
+    source: str = ""
+    authoring: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        values = np.asarray(self.values, dtype=np.float32)
+        if values.ndim != 2 or min(values.shape) < 1:
+            raise TextureError(f"a texture needs a 2-D map, got shape {values.shape}")
+        if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
+            raise TextureError("texture values must be finite and within 0..1")
+        if not (self.width_mm > 0 and self.height_mm > 0 and np.isfinite(self.width_mm * self.height_mm)):
+            raise TextureError(f"texture size must be positive, got {self.width_mm} × {self.height_mm} mm")
+        if self.kind not in KINDS:
+            raise TextureError(f"texture kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
+        if self.outside not in OUTSIDE_RULES:
+            raise TextureError(f"outside rule must be one of {', '.join(OUTSIDE_RULES)}, got {self.outside!r}")
+        if not 0 <= self.outside_ratio <= 1:
+            raise TextureError(f"outside ratio must lie in 0..1, got {self.outside_ratio}")
+        low, high = self.ratio_range
+        if not 0 <= low <= high <= 1:
+            raise TextureError(f"ratio range must satisfy 0 <= low <= high <= 1, got {low} {high}")
+        values.setflags(write=False)
+        object.__setattr__(self, "values", values)
+        if self.kind == "gradient" and not self.full_slope_per_mm > 0:
+            slope_y, slope_x = np.gradient(values.astype(float), *self.pixel_mm[::-1])
+            steepest = float(np.max(np.hypot(slope_x, slope_y)))
+            object.__setattr__(self, "full_slope_per_mm", steepest if steepest > 0 else 1.0)
+        object.__setattr__(self, "ratio_range", (float(low), float(high)))
+
+    @property
+    def rows(self) -> int:
+        return self.values.shape[0]
+
+    @property
+    def cols(self) -> int:
+        return self.values.shape[1]
+
+    @property
+    def pixel_mm(self) -> tuple[float, float]:
+        """Pixel size (x, y) in millimetres."""
+        return self.width_mm / self.cols, self.height_mm / self.rows
+
+    def with_(self, **changes) -> Texture:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def ratio_map(self) -> np.ndarray:
+        """The friction ratio at every pixel; for a gradient texture, under a left-to-right swipe."""
+        if self.kind == "friction":
+            return self.values
+        from textures.sampling import gradient_maps
+
+        slope_x, _ = gradient_maps(self)
+        return gradient_ratio(self, slope_x)
+
+
+def gradient_ratio(texture: Texture, slope):
+    """Friction ratio for a slope along the motion (height units per mm) on a gradient texture.
+
+    The steepest slope in the map reaches the ends of ``ratio_range``; flat ground is its middle.
+    """
+    low, high = texture.ratio_range
+    middle, half = 0.5 * (low + high), 0.5 * (high - low)
+    ratio = middle + (half / texture.full_slope_per_mm) * np.asarray(slope, dtype=np.float32)
+    return np.clip(ratio, low, high).astype(np.float32, copy=False)
