@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import math
 import sys
 from importlib import metadata
 
 from apps import errors
+from apps.cli_types import crop_box, finite, positive, ratio, size_mm
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -20,32 +20,6 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def _number(kind: str, test, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or not test(value):
-        raise argparse.ArgumentTypeError(f"must be {kind}, got {text}")
-    return value
-
-
-def positive(text: str) -> float:
-    return _number("a positive number", lambda v: v > 0, text)
-
-
-def non_negative(text: str) -> float:
-    return _number("zero or more", lambda v: v >= 0, text)
-
-
-def ratio(text: str) -> float:
-    return _number("a friction ratio in (0, 1]", lambda v: 0 < v <= 1, text)
-
-
-def finite(text: str) -> float:
-    return _number("a finite number", lambda v: True, text)
 
 
 MODEL_HELP = "friction model: paper, paper-uniform, exponential, table:FILE.csv or CAL.toml"
@@ -91,26 +65,21 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.set_defaults(handler="apps.calibrate_command:run")
 
     _add_texture_commands(commands)
+
+    from apps.swipes import add_render_options
+
+    export = commands.add_parser(
+        "export", help="render a swipe or a touch log to a WAV file",
+        description="Render the modulated carrier a plate would get for a swipe across a texture (or a "
+                    "recorded touch log) to a WAV file, faster than real time, in bounded memory.")
+    add_render_options(export)
+    export.add_argument("-o", "--output", required=True, metavar="OUT.wav")
+    export.add_argument("--format", choices=["float32", "int24", "int16"], default="float32")
+    export.add_argument("--envelope-csv", metavar="FILE.csv",
+                        help="also write target friction, amplitudes and position at the control rate")
+    export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    export.set_defaults(handler="apps.export_command:run")
     return parser
-
-
-def size_mm(text: str) -> tuple[float, float]:
-    """WIDTHxHEIGHT in millimetres, e.g. 80x50."""
-    parts = text.lower().replace("×", "x").split("x")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"size is WIDTHxHEIGHT in mm, e.g. 80x50, got {text!r}")
-    return positive(parts[0]), positive(parts[1])
-
-
-def crop_box(text: str) -> tuple[int, int, int, int]:
-    """X,Y,WIDTH,HEIGHT in pixels."""
-    try:
-        values = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"crop is X,Y,WIDTH,HEIGHT in whole pixels, got {text!r}") from None
-    if len(values) != 4 or min(values) < 0 or min(values[2:]) == 0:
-        raise argparse.ArgumentTypeError(f"crop is X,Y,WIDTH,HEIGHT with a positive size, got {text!r}")
-    return values
 
 
 def _add_range(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:

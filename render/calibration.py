@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 import tomli_w
-from scipy.optimize import least_squares
 
 from render.errors import ModelError
 from render.fingerprint import FingerParams
@@ -64,6 +63,8 @@ def fit_model(data: Measurements, kind: str) -> Fit:
     the detachment amplitude) and the friction exponent n, the two quantities the paper takes
     from other work.
     """
+    from scipy.optimize import least_squares  # only fitting needs it; keep model loading light
+
     forces = _forces(data)
     if kind == "exponential":
         def residual(x):

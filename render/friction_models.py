@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
-from scipy.optimize import isotonic_regression
 
 from render.errors import ModelError
 from render.fingerprint import FingerParams, detach_amplitude_um_pp
@@ -215,6 +214,8 @@ class TableModel(FrictionModel):
     name = "table"
 
     def __init__(self, data: Measurements):
+        from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
+
         forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
         self.source = data.source
         self.forces = np.unique(forces)

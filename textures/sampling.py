@@ -1,7 +1,7 @@
 """Sampling a texture at finger positions: bilinear, band-limited, and along the motion.
 
 A :class:`Sampler` is built once per texture and then answers vectorised queries fast enough for
-the real-time path. Band limiting uses a pyramid of prefiltered levels (each a Gaussian-blurred,
+the real-time path; the interpolation itself is scipy's ``map_coordinates`` (order 1). Band limiting uses a pyramid of prefiltered levels (each a Gaussian-blurred,
 half-resolution copy of the one before); a query that moves ``step_mm`` between successive samples
 reads the level whose pixels are ``step_mm`` wide, blending the two nearest (trilinear), so detail
 finer than the sampling can follow averages out instead of aliasing to a false low frequency.
@@ -59,66 +59,51 @@ class Sampler:
             channels = gradient_maps(texture)
         else:
             channels = (texture.values,)
-        pyramids = [_pyramid(c, self.tile, max_levels if band_limited else 1) for c in channels]
-        levels = pyramids[0]
+        self.pyramids = [_pyramid(c, self.tile, max_levels if band_limited else 1) for c in channels]
+        levels = self.pyramids[0]
         self.levels = len(levels)
-        self.rows = np.array([level.shape[0] for level in levels], dtype=np.intp)
-        self.cols = np.array([level.shape[1] for level in levels], dtype=np.intp)
-        self.offset = np.concatenate([[0], np.cumsum(self.rows * self.cols)[:-1]]).astype(np.intp)
-        self.per_mm_x = self.cols / texture.width_mm
-        self.per_mm_y = self.rows / texture.height_mm
-        self.buffers = [np.concatenate([level.ravel() for level in p]) for p in pyramids]
+        self.per_mm_x = [level.shape[1] / texture.width_mm for level in levels]
+        self.per_mm_y = [level.shape[0] / texture.height_mm for level in levels]
+        self.mode = "grid-wrap" if self.tile else "nearest"  # nearest: the edge pixel continues
         self.base_pixel_mm = max(texture.pixel_mm)
 
-    def _bilinear(self, buffer, x_mm, y_mm, level):
-        """Bilinear interpolation at one pyramid level (a scalar) or per-sample levels (an array)."""
-        rows, cols = self.rows[level], self.cols[level]
-        u = x_mm * self.per_mm_x[level] - 0.5
-        v = y_mm * self.per_mm_y[level] - 0.5
-        col0 = np.floor(u)
-        row0 = np.floor(v)
-        fu = (u - col0).astype(np.float32)
-        fv = (v - row0).astype(np.float32)
-        col0 = col0.astype(np.intp)
-        row0 = row0.astype(np.intp)
-        if self.tile:
-            col0 %= cols
-            row0 %= rows
-            col1 = col0 + 1
-            row1 = row0 + 1
-            col1[col1 >= cols] = 0
-            row1[row1 >= rows] = 0
-        else:
-            col1 = np.clip(col0 + 1, 0, cols - 1)
-            row1 = np.clip(row0 + 1, 0, rows - 1)
-            np.clip(col0, 0, cols - 1, out=col0)
-            np.clip(row0, 0, rows - 1, out=row0)
-        top = self.offset[level] + row0 * cols
-        bottom = self.offset[level] + row1 * cols
-        a = buffer.take(top + col0)
-        b = buffer.take(top + col1)
-        c = buffer.take(bottom + col0)
-        d = buffer.take(bottom + col1)
-        upper = a + fu * (b - a)
-        lower = c + fu * (d - c)
-        return upper + fv * (lower - upper)
+    def _bilinear(self, channel: int, x_mm, y_mm, level: int):
+        """Bilinear interpolation at one pyramid level (scipy's map_coordinates, order 1)."""
+        image = self.pyramids[channel][level]
+        coordinates = np.empty((2,) + np.shape(x_mm))
+        np.multiply(y_mm, self.per_mm_y[level], out=coordinates[0])
+        np.multiply(x_mm, self.per_mm_x[level], out=coordinates[1])
+        coordinates -= 0.5  # pixel centres sit half a pixel in
+        return ndimage.map_coordinates(image, coordinates, order=1, mode=self.mode, prefilter=False)
 
-    def _channel(self, buffer, x_mm, y_mm, step_mm):
+    def _channel(self, channel: int, x_mm, y_mm, step_mm):
         if step_mm is None or self.levels == 1:
-            return self._bilinear(buffer, x_mm, y_mm, 0)
+            return self._bilinear(channel, x_mm, y_mm, 0)
         level = np.log2(np.maximum(np.asarray(step_mm, dtype=float), 1e-12) / self.base_pixel_mm)
         level = np.clip(level, 0.0, self.levels - 1.0)
         low = np.floor(level).astype(np.intp)
-        high = np.minimum(low + 1, self.levels - 1)
         weight = (level - low).astype(np.float32)
         if np.ndim(level) == 0:
-            low, high = int(low), int(high)
-        else:
-            low = np.broadcast_to(low, np.shape(x_mm))
-            high = np.broadcast_to(high, np.shape(x_mm))
-        near = self._bilinear(buffer, x_mm, y_mm, low)
-        far = self._bilinear(buffer, x_mm, y_mm, high)
-        return near + weight * (far - near)
+            low = int(low)
+            near = self._bilinear(channel, x_mm, y_mm, low)
+            if weight == 0:
+                return near
+            far = self._bilinear(channel, x_mm, y_mm, min(low + 1, self.levels - 1))
+            return near + weight * (far - near)
+        if not level.any():  # every step finer than a pixel: the full-resolution level alone
+            return self._bilinear(channel, x_mm, y_mm, 0)
+        low = np.broadcast_to(low, np.shape(x_mm))
+        weight = np.broadcast_to(weight, np.shape(x_mm))
+        result = np.empty(np.shape(x_mm), dtype=np.float32)
+        for index in np.unique(low):  # one pass per pyramid level present, not per sample
+            pick = low == index
+            near = self._bilinear(channel, x_mm[pick], y_mm[pick], int(index))
+            if not weight[pick].any():
+                result[pick] = near
+                continue
+            far = self._bilinear(channel, x_mm[pick], y_mm[pick], min(int(index) + 1, self.levels - 1))
+            result[pick] = near + weight[pick] * (far - near)
+        return result
 
     def ratio(self, x_mm, y_mm, step_mm=None, direction=None) -> np.ndarray:
         """Friction ratio at positions (mm), float32.
@@ -131,10 +116,10 @@ class Sampler:
         y_mm = np.asarray(y_mm, dtype=float)
         texture = self.texture
         if texture.kind == "friction":
-            ratio = self._channel(self.buffers[0], x_mm, y_mm, step_mm)
+            ratio = self._channel(0, x_mm, y_mm, step_mm)
         else:
-            slope_x = self._channel(self.buffers[0], x_mm, y_mm, step_mm)
-            slope_y = self._channel(self.buffers[1], x_mm, y_mm, step_mm)
+            slope_x = self._channel(0, x_mm, y_mm, step_mm)
+            slope_y = self._channel(1, x_mm, y_mm, step_mm)
             if direction is None:
                 slope = np.zeros_like(slope_x)
             else:

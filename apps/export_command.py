@@ -1,0 +1,93 @@
+"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import soundfile
+from tqdm import tqdm
+
+from apps.atomic import atomic_path
+from apps.errors import UsageError
+from apps.render_setup import build
+from render.renderer import ControlBlock
+
+SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
+BLOCK_S = 1.0
+PLOT_POINTS = 200_000
+ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
+                    "drive_um_pp", "plate_um_pp")
+
+
+class EnvelopeLog:
+    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot."""
+
+    def __init__(self, stream, total_samples: int, keep_plot: bool):
+        self.stream = stream
+        if stream:
+            stream.write(",".join(ENVELOPE_COLUMNS) + "\n")
+        self.every = max(1, math.ceil(total_samples / PLOT_POINTS))
+        self.keep_plot = keep_plot
+        self.kept: list[np.ndarray] = []
+        self._offset = 0
+
+    def __call__(self, block: ControlBlock) -> None:
+        columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
+                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp])
+        if self.stream:
+            np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+        if self.keep_plot:
+            start = (-self._offset) % self.every
+            self.kept.append(columns[start::self.every])
+        self._offset += len(columns)
+
+    def plot_data(self) -> np.ndarray:
+        return np.concatenate(self.kept) if self.kept else np.zeros((0, len(ENVELOPE_COLUMNS)))
+
+
+def run(args) -> int:
+    if args.format not in SUBTYPES:
+        raise UsageError(f"format must be one of {', '.join(SUBTYPES)}")
+    output = Path(args.output)
+    if output.suffix.lower() != ".wav":
+        raise UsageError(f"the output must be a .wav file, got {output}")
+    renderer, trajectory = build(args)
+    rate = args.rate
+    duration_s = trajectory.end_s - trajectory.start_s + renderer.tail_s
+    total = int(round(duration_s * rate))
+    block = int(BLOCK_S * rate)
+    control_total = math.ceil(total / renderer.settings.upsampling)
+    with contextlib.ExitStack() as stack:
+        wav_path = stack.enter_context(atomic_path(output))
+        csv_stream = None
+        if args.envelope_csv:
+            csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv)))
+            csv_stream = stack.enter_context(open(csv_path, "w", newline=""))
+        log = EnvelopeLog(csv_stream, control_total, keep_plot=bool(args.plot))
+        renderer.observers.append(log)
+        format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
+        with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
+                                 format=format_) as wav, \
+                tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
+                     disable=None, leave=False) as progress:
+            done = 0
+            while done < total:
+                frames = min(block, total - done)
+                wav.write(renderer.audio(frames))
+                done += frames
+                progress.update(frames)
+        if args.plot:
+            from apps.export_plot import plot_envelope
+
+            plot_envelope(log.plot_data(), Path(args.plot), renderer)
+    counters = renderer.counters
+    print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
+          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps")
+    for extra in (args.envelope_csv, args.plot):
+        if extra:
+            print(f"wrote {extra}")
+    return 0

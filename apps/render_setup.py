@@ -1,0 +1,49 @@
+"""Build a renderer from the options of ``export`` and ``play``."""
+
+from __future__ import annotations
+
+import warnings
+
+from apps.errors import UsageError
+from devices.profiles import load_profile
+from render.calibration import load_model
+from render.paths import SwipePath
+from render.renderer import Renderer, RenderSettings
+from render.touch_log import read_touch_log
+from textures.library import resolve_texture
+from textures.texture import Texture
+
+
+def swipe_of(args, texture: Texture) -> SwipePath:
+    """The swipe the options describe; by default it starts left of centre and crosses the middle."""
+    start = args.start
+    if start is None:
+        if args.path == "circle":
+            start = (texture.width_mm / 2 - args.radius_mm, texture.height_mm / 2)
+        elif args.path == "zigzag":
+            start = (max(0.0, (texture.width_mm - args.zigzag_width_mm) / 2), texture.height_mm * 0.2)
+        else:
+            start = (texture.width_mm * 0.1, texture.height_mm / 2)
+    return SwipePath(args.path, args.speed_mm_s, args.duration_s, start, args.direction_deg,
+                     radius_mm=args.radius_mm, width_mm=args.zigzag_width_mm, force_n=args.force)
+
+
+def build(args, live: bool = False):
+    """(renderer, trajectory) from parsed options. ``live`` leaves the trajectory to be fed in real time."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        texture = resolve_texture(args.texture)
+    model = load_model(args.model)
+    profile = load_profile(args.profile)
+    if args.trajectory:
+        trajectory = read_touch_log(args.trajectory)
+        if args.force is not None:
+            raise UsageError("--force sets the swipe's force; a --trajectory brings its own (or the 0.5 N default)")
+    else:
+        trajectory = swipe_of(args, texture)
+    settings = RenderSettings(
+        audio_rate_hz=args.rate, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
+        precompensate=not args.no_precompensation, lookahead_s=args.lookahead_ms / 1000.0,
+    )
+    renderer = Renderer(texture, model, profile, settings, trajectory=None if live else trajectory)
+    return renderer, trajectory

@@ -1,0 +1,72 @@
+"""Synthetic finger paths for export and tests: straight swipes, circles, zig-zags.
+
+Each is analytic (constant memory whatever its duration) and answers ``state(times_s)`` like a
+recorded trajectory. Positions in mm, speed in mm/s, the finger touching from 0 to ``duration_s``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from render.errors import RenderError
+from render.trajectory import FingerState
+
+PATH_KINDS = ("straight", "circle", "zigzag")
+
+
+@dataclass(frozen=True)
+class SwipePath:
+    """A path at constant speed. ``direction_deg`` (straight, zigzag) is 0 for left-to-right."""
+
+    kind: str
+    speed_mm_s: float
+    duration_s: float
+    start_mm: tuple[float, float]
+    direction_deg: float = 0.0
+    radius_mm: float = 15.0  # circle
+    width_mm: float = 40.0  # zigzag: length of each pass
+    pitch_mm: float = 3.0  # zigzag: distance between passes
+    force_n: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in PATH_KINDS:
+            raise RenderError(f"path must be one of {', '.join(PATH_KINDS)}, got {self.kind!r}")
+        for name in ("speed_mm_s", "duration_s", "radius_mm", "width_mm", "pitch_mm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise RenderError(f"{name} must be a positive number, got {value}")
+        if self.force_n is not None and not self.force_n > 0:
+            raise RenderError(f"force must be positive, got {self.force_n} N")
+
+    start_s = 0.0
+
+    @property
+    def end_s(self) -> float:
+        return self.duration_s
+
+    def state(self, times_s) -> FingerState:
+        times = np.asarray(times_s, dtype=float)
+        t = np.clip(times, 0.0, self.duration_s)
+        distance = self.speed_mm_s * t
+        x0, y0 = self.start_mm
+        if self.kind == "circle":  # start on the circle's left, counter-clockwise on screen
+            angle = distance / self.radius_mm
+            x = x0 + self.radius_mm * (1.0 - np.cos(angle))
+            y = y0 - self.radius_mm * np.sin(angle)
+        else:
+            heading = math.radians(self.direction_deg)
+            along = distance
+            across = np.zeros_like(distance)
+            if self.kind == "zigzag":  # back and forth, stepping sideways at each end
+                cycle = 2.0 * self.width_mm
+                phase = np.mod(distance, cycle)
+                along = np.where(phase < self.width_mm, phase, cycle - phase)
+                across = np.floor(distance / self.width_mm) * self.pitch_mm
+            x = x0 + along * math.cos(heading) - across * math.sin(heading)
+            y = y0 + along * math.sin(heading) + across * math.cos(heading)
+        force = np.full(times.shape, np.nan if self.force_n is None else self.force_n)
+        down = (times >= 0.0) & (times <= self.duration_s)
+        return FingerState(x, y, force, down)

@@ -1,0 +1,239 @@
+"""The renderer: finger → friction → amplitude → envelope → carrier, block by block.
+
+A :class:`Renderer` owns one texture, one friction model and one plate profile. Devices pull from
+it: ``control(n)`` gives the next n envelope samples at the control rate (for a plate driver that
+makes its own carrier), ``audio(frames)`` the next frames of modulated carrier at the audio rate
+(for a DAC or a WAV file). Both compute just in time, from the finger state at that moment, so a
+touch report pushed now shapes the very next block.
+
+Example, offline::
+
+    >>> from render.friction_models import ExponentialModel
+    >>> from render.trajectory import RecordedTrajectory
+    >>> from textures.procedural import grating
+    >>> from devices.profiles import load_profile
+    >>> path = RecordedTrajectory([0, 1], [10, 110], [25, 25])   # 100 mm/s
+    >>> r = Renderer(grating(1.0), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
+    >>> samples = r.audio(96000)    # one second at 96 kHz, float32 in [-1, 1]
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from devices.profiles import PlateProfile
+from render.carrier import Carrier, check_carrier
+from render.envelope import Gate, PlateEnvelope, Precompensator, Smoother
+from render.errors import RenderError
+from render.friction_models import FrictionModel
+from render.paths import SwipePath
+from render.trajectory import LiveTrajectory, RecordedTrajectory
+from textures.sampling import Sampler
+from textures.texture import Texture
+
+RESYNC_S = 0.02  # re-anchor the live clock when the device's clock has drifted this far
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How the renderer turns friction into drive. Rates in Hz, times in s, amplitudes µm p-p."""
+
+    control_rate_hz: float = 12000.0
+    audio_rate_hz: int = 96000
+    carrier_hz: float | None = None  # None: the plate's resonance
+    default_force_n: float = 0.5
+    attack_s: float = 0.005
+    release_s: float = 0.010
+    band_hz: float = 1000.0
+    slew_um_per_ms: float = 30.0
+    precompensate: bool = True
+    band_limited_lookup: bool = True
+    predictor: str = "lsq"
+    lookahead_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.control_rate_hz < 10000:
+            raise RenderError(f"the control rate must be at least 10 kHz, got {self.control_rate_hz:g} Hz")
+        ratio = self.audio_rate_hz / self.control_rate_hz
+        if abs(ratio - round(ratio)) > 1e-9 or ratio < 1:
+            raise RenderError(f"the audio rate ({self.audio_rate_hz}) must be a whole multiple of the "
+                              f"control rate ({self.control_rate_hz:g})")
+        if not self.default_force_n > 0:
+            raise RenderError("the default force must be positive")
+
+    @property
+    def upsampling(self) -> int:
+        return round(self.audio_rate_hz / self.control_rate_hz)
+
+
+@dataclass
+class Counters:
+    """What a person watching the renderer wants to know."""
+
+    control_samples: int = 0
+    audio_frames: int = 0
+    clipped_samples: int = 0  # target ratio below what the plate reaches: amplitude held at the limit
+    drive_clipped_samples: int = 0  # pre-compensation wanted more than the drive's headroom
+    ramps: int = 0
+    late_blocks: int = 0
+    render_times_s: list[float] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ControlBlock:
+    """One block of the envelope and how it came about; amplitudes µm p-p."""
+
+    time_s: np.ndarray
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    down: np.ndarray
+    ratio: np.ndarray  # target friction ratio under the finger
+    target_um_pp: np.ndarray  # the model's amplitude for that ratio, within the limit
+    amplitude_um_pp: np.ndarray  # after ramps and band/slew limits: what the plate should do
+    drive_um_pp: np.ndarray  # what is sent: pre-compensated for the plate's dynamics
+    plate_um_pp: np.ndarray  # what the plate model says it does
+
+
+class Renderer:
+    """See the module docstring. Thread use: ``push`` from any thread; one thread pulls."""
+
+    def __init__(self, texture: Texture, model: FrictionModel, profile: PlateProfile,
+                 settings: RenderSettings = RenderSettings(),
+                 trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None):
+        self.texture, self.model, self.profile, self.settings = texture, model, profile, settings
+        self.carrier_hz = settings.carrier_hz or profile.resonance_hz
+        try:
+            profile.check_carrier(self.carrier_hz)
+        except ValueError as error:
+            raise RenderError(str(error)) from None
+        except RuntimeError as error:  # DeviceError: the profile refuses the carrier
+            raise RenderError(str(error)) from None
+        check_carrier(self.carrier_hz, settings.audio_rate_hz)
+        rate = settings.control_rate_hz
+        self.limit_um_pp = profile.max_amplitude_um_pp
+        self.sampler = Sampler(texture, band_limited=settings.band_limited_lookup)
+        self.trajectory = trajectory or LiveTrajectory(settings.predictor, settings.lookahead_s)
+        self.gate = Gate(rate, settings.attack_s, settings.release_s)
+        self.smoother = Smoother(rate, settings.band_hz, settings.slew_um_per_ms, self.limit_um_pp)
+        if settings.precompensate:
+            self.precompensator = Precompensator(rate, profile.time_constant_s, profile.full_scale_um_pp)
+        else:
+            self.precompensator = None
+            self.plate_model = PlateEnvelope(rate, profile.time_constant_s)
+        self.carrier = Carrier(self.carrier_hz, settings.audio_rate_hz)
+        self.counters = Counters()
+        self.offline = not isinstance(self.trajectory, LiveTrajectory)
+        self.observers: list = []  # callables given each ControlBlock as it is rendered
+        self._next_time = self.trajectory.start_s if self.offline else None
+        self._last_xy = None
+        self._running = True
+        self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
+        self._pending = np.zeros(0)  # control samples computed but not yet played out
+        self._played = 0  # audio frames already produced from the pending block
+        self._fractions = (np.arange(settings.upsampling) / settings.upsampling).astype(np.float32)
+
+    # ---- input -------------------------------------------------------------------------------
+    def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
+        """A touch report (perf_counter seconds, mm, N). Only for live rendering."""
+        if self.offline:
+            raise RenderError("this renderer plays a recorded trajectory; it takes no live reports")
+        self.trajectory.push(t_s, x_mm, y_mm, force_n, down)
+
+    @property
+    def tail_s(self) -> float:
+        """How long the output takes to come to rest after the finger lifts."""
+        return self.settings.release_s + 7.0 * self.profile.time_constant_s + 5.0 / self.settings.band_hz
+
+    def stop(self) -> None:
+        """Ramp the output down (release); :attr:`finished` turns true when it is at rest."""
+        self._running = False
+
+    @property
+    def finished(self) -> bool:
+        plate = self.precompensator.plate if self.precompensator else float(self.plate_model._state[0])
+        return (not self._running) and self.gate.closed and plate < 1e-6 and abs(self._last_drive) < 1e-6
+
+    # ---- control rate ----------------------------------------------------------------------------
+    def _times(self, n: int, now_s: float | None) -> np.ndarray:
+        period = 1.0 / self.settings.control_rate_hz
+        if self._next_time is None or (now_s is not None and abs(self._next_time - now_s) > RESYNC_S):
+            if self._next_time is not None and now_s > self._next_time:
+                self.counters.late_blocks += 1
+            self._next_time = now_s if now_s is not None else time.perf_counter()
+        times = self._next_time + np.arange(n) * period
+        self._next_time += n * period
+        return times
+
+    def control(self, n: int, now_s: float | None = None) -> ControlBlock:
+        """The next ``n`` control-rate samples. ``now_s``: the perf_counter time the first of them
+        will reach the plate (live rendering); the renderer re-anchors its clock to it if needed."""
+        started = time.perf_counter()
+        times = self._times(n, now_s)
+        finger = self.trajectory.state(times)
+        x, y = finger.x_mm, finger.y_mm
+        previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
+        dx = np.diff(x, prepend=previous[0])
+        dy = np.diff(y, prepend=previous[1])
+        self._last_xy = (x[-1], y[-1])
+        step = np.hypot(dx, dy) if self.settings.band_limited_lookup else None
+        ratio = self.sampler.ratio(x, y, step_mm=step, direction=(dx, dy))
+        force = np.where(np.isnan(finger.force_n), self.settings.default_force_n, finger.force_n)
+        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp)
+        down = finger.down & self._running
+        if inversion.clamped and not down.all():
+            floor = self.model.floor_ratio(force, self.limit_um_pp)
+            self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
+        elif down.all():
+            self.counters.clipped_samples += inversion.clamped
+        target = inversion.amplitude_um_pp
+        amplitude = self.smoother.process(target * self.gate.process(down))
+        np.clip(amplitude, 0.0, self.limit_um_pp, out=amplitude)
+        if self.precompensator is not None:
+            before = self.precompensator.clipped
+            drive, plate = self.precompensator.process(amplitude)
+            self.counters.drive_clipped_samples += self.precompensator.clipped - before
+        else:
+            drive = amplitude
+            plate = self.plate_model.process(drive)
+        self.counters.ramps = self.gate.ramps
+        self.counters.control_samples += n
+        self.counters.render_times_s.append(time.perf_counter() - started)
+        if len(self.counters.render_times_s) > 100_000:
+            del self.counters.render_times_s[:50_000]
+        block = ControlBlock(times, x, y, finger.down, ratio, target, amplitude, drive, plate)
+        for observer in self.observers:
+            observer(block)
+        return block
+
+    # ---- audio rate ------------------------------------------------------------------------------
+    def audio(self, frames: int, now_s: float | None = None) -> np.ndarray:
+        """The next ``frames`` of carrier modulated by the drive, float32 in [-1, 1]
+        (1 = the plate's full-scale drive). The envelope is interpolated linearly between control
+        samples, one control period behind them."""
+        up = self.settings.upsampling
+        available = len(self._pending) * up - self._played
+        if frames > available:
+            needed = -(-(frames - available) // up)
+            block = self.control(needed, now_s)
+            self._pending = np.concatenate((self._pending, block.drive_um_pp))
+        # frame m of the pending stretch lies between knots m // up and m // up + 1, where knot 0 is
+        # the last control sample already played out and knot i + 1 is pending sample i
+        first, last = self._played // up, (self._played + frames - 1) // up
+        knots = np.concatenate(([self._last_drive], self._pending[:last + 1])).astype(np.float32)
+        start = knots[first:last + 1]
+        rise = knots[first + 1:last + 2] - start
+        envelope = (start[:, None] + rise[:, None] * self._fractions[None, :]).ravel()
+        offset = self._played - first * up
+        envelope = envelope[offset:offset + frames]
+        consumed = (self._played + frames) // up
+        if consumed:
+            self._last_drive = float(self._pending[consumed - 1])
+            self._pending = self._pending[consumed:]
+        self._played = (self._played + frames) % up
+        envelope *= np.float32(1.0 / self.profile.full_scale_um_pp)
+        np.clip(envelope, 0.0, 1.0, out=envelope)
+        self.counters.audio_frames += frames
+        return envelope * self.carrier.block(frames)
