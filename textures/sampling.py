@@ -1,8 +1,10 @@
 """Sampling a texture at finger positions: bilinear, band-limited, and along the motion.
 
 A :class:`Sampler` is built once per texture and then answers vectorised queries fast enough for
-the real-time path; the interpolation itself is scipy's ``map_coordinates`` (order 1). Band limiting uses a pyramid of prefiltered levels (each a Gaussian-blurred,
-half-resolution copy of the one before); a query that moves ``step_mm`` between successive samples
+the real-time path; the interpolation itself is scipy's ``map_coordinates`` (order 1).
+
+Band limiting uses a pyramid of prefiltered levels (each a Gaussian-blurred, half-resolution
+copy of the one before); a query that moves ``step_mm`` between successive samples
 reads the level whose pixels are ``step_mm`` wide, blending the two nearest (trilinear), so detail
 finer than the sampling can follow averages out instead of aliasing to a false low frequency.
 
