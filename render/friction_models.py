@@ -193,6 +193,7 @@ class ExponentialModel(FrictionModel):
     def _amplitude_in_reach(self, ratio, force_n):
         amplitude = np.log(np.asarray(ratio, dtype=float))
         amplitude *= 1.0 / self._factor
+        amplitude += 0.0  # log(1) / negative is -0.0; adding +0.0 makes it +0.0
         return np.sqrt(amplitude)
 
     def describe(self) -> str:

@@ -13,8 +13,8 @@ Example::
     >>> import numpy as np
     >>> from textures.procedural import grating
     >>> sampler = Sampler(grating(wavelength_mm=2.0, size_mm=(20, 10)))
-    >>> sampler.ratio(np.array([0.5, 1.5]), np.array([5.0, 5.0])).round(2).tolist()
-    [1.0, 0.0]
+    >>> [round(float(r), 2) for r in sampler.ratio(np.array([1.0, 2.0]), np.array([5.0, 5.0]))]
+    [0.4, 1.0]
 """
 
 from __future__ import annotations
