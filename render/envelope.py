@@ -35,8 +35,14 @@ class Gate:
         self.ramps = 0  # ramps started (finger down, finger up, start, stop)
         self._target = 0.0
 
-    def process(self, open_: np.ndarray) -> np.ndarray:
-        """Gain (0..1) for each sample, given whether the gate is open at each sample."""
+    def process(self, open_: np.ndarray | bool, n: int) -> np.ndarray | float:
+        """Gain (0..1) for each of ``n`` samples, given whether the gate is open at each sample
+        (or for all of them). A steady gain comes back as a plain number."""
+        if not isinstance(open_, np.ndarray) or open_.ndim == 0:
+            goal = 1.0 if open_ else 0.0
+            if goal == self.gain == self._target:
+                return goal
+            open_ = np.full(n, goal)
         target = np.asarray(open_, dtype=float)
         out = np.empty(target.shape)
         changes = np.flatnonzero(np.diff(target)) + 1
@@ -69,6 +75,8 @@ class Smoother:
     k <= slew * dt / limit bounds the slew rate exactly, while k from ``band_hz`` sets the corner.
     """
 
+    SMALL = 64  # blocks up to this size use a cached matrix: cheaper than lfilter's set-up
+
     def __init__(self, rate_hz: float, band_hz: float, slew_um_per_ms: float, limit_um_pp: float):
         if band_hz <= 0 or slew_um_per_ms <= 0:
             raise RenderError("band and slew limits must be positive")
@@ -77,10 +85,28 @@ class Smoother:
         self.k = min(k_band, k_slew, 1.0)
         self._b = np.array([self.k])
         self._a = np.array([1.0, self.k - 1.0])
-        self._state = np.zeros(1)
+        self._previous = 0.0  # the last output, y[-1]
+        self._matrices: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _matrix(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """y = M x + p y[-1] for a block of n: M[i, j] = k (1-k)^(i-j), p[i] = (1-k)^(i+1)."""
+        if n not in self._matrices:
+            lag = np.subtract.outer(np.arange(n), np.arange(n))
+            keep = (1.0 - self.k) ** np.maximum(lag, 0)
+            self._matrices[n] = (np.tril(self.k * keep), (1.0 - self.k) ** np.arange(1, n + 1))
+        return self._matrices[n]
 
     def process(self, x: np.ndarray) -> np.ndarray:
-        y, self._state = lfilter(self._b, self._a, x, zi=self._state)
+        n = len(x)
+        if n == 0:
+            return np.zeros(0)
+        if n <= self.SMALL:
+            matrix, carry = self._matrix(n)
+            y = matrix @ x
+            y += carry * self._previous
+        else:  # lfilter's state for this filter is (1 - k) y[-1]
+            y, _ = lfilter(self._b, self._a, x, zi=[(1.0 - self.k) * self._previous])
+        self._previous = float(y[-1])
         return y
 
 
@@ -103,6 +129,7 @@ class Precompensator:
         self.plate = 0.0  # modelled plate amplitude, µm p-p
         self.clipped = 0
         self._powers = self.alpha ** np.arange(1, self._WINDOW + 1)
+        self._steps = np.zeros(0)
 
     def _lower_clip_only(self, target: np.ndarray) -> np.ndarray:
         """The plate when only the drive's floor (0) can bind: a[n] = max(t[n], alpha a[n-1]).
@@ -111,10 +138,14 @@ class Precompensator:
         log a[n] = n log(alpha) + max over k <= n of (log t[k] - k log(alpha)).
         """
         n = len(target)
-        log_alpha = math.log(self.alpha)
-        steps = np.arange(-1, n) * log_alpha
-        with np.errstate(divide="ignore"):
-            logs = np.log(np.concatenate(([self.plate], target)))
+        if len(self._steps) < n + 1:
+            self._steps = np.arange(-1, 2 * n + 1) * math.log(self.alpha)
+        steps = self._steps[:n + 1]
+        logs = np.empty(n + 1)
+        logs[0] = self.plate
+        logs[1:] = target
+        np.maximum(logs, 1e-300, out=logs)  # log(0) would warn; 1e-300 µm is rest all the same
+        np.log(logs, out=logs)
         logs -= steps
         np.maximum.accumulate(logs, out=logs)
         logs += steps

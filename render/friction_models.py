@@ -96,6 +96,17 @@ class FrictionModel(ABC):
         """The model's parameters as plain values, for calibration files and JSON."""
         return {}
 
+    def _floor(self, force_n, limit: float):
+        """The floor ratio, remembered for the last scalar force and limit (the live case)."""
+        if isinstance(force_n, np.ndarray) and force_n.ndim:
+            return self.relative_friction(limit, force_n)
+        key = (float(force_n), limit)
+        cached = getattr(self, "_floor_cache", None)
+        if cached is None or cached[0] != key:
+            cached = (key, float(self.relative_friction(limit, force_n)))
+            self._floor_cache = cached
+        return cached[1]
+
     def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
         """Lowest ratio reachable at this force within the amplitude limit."""
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
@@ -108,15 +119,20 @@ class FrictionModel(ABC):
         if not limit_um_pp >= 0:
             raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        shape = np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
-        ratio = np.array(ratio, dtype=float, ndmin=1)  # a copy: cleaned in place below
-        ratio[np.isnan(ratio)] = 1.0
-        floor = self.relative_friction(limit, force_n)
+        scalar_force = not isinstance(force_n, np.ndarray) or force_n.ndim == 0
+        shape = np.shape(ratio) if scalar_force else np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
+        ratio = np.fmin(np.asarray(ratio, dtype=float), 1.0)  # fmin drops NaN: NaN means rest (1)
+        if ratio.ndim == 0:
+            ratio = ratio.reshape(1)
+        floor = self._floor(force_n, limit)
         out_of_reach = ratio < floor
         clamped = int(np.count_nonzero(out_of_reach))
-        np.clip(ratio, floor, 1.0, out=ratio)
-        amplitude = np.array(self._amplitude_in_reach(ratio, force_n), dtype=float, ndmin=1)
-        np.clip(amplitude, 0.0, limit, out=amplitude)
+        np.maximum(ratio, floor, out=ratio)
+        amplitude = np.asarray(self._amplitude_in_reach(ratio, force_n), dtype=float)
+        if amplitude.ndim == 0:
+            amplitude = amplitude.reshape(1)
+        np.minimum(amplitude, limit, out=amplitude)
+        np.maximum(amplitude, 0.0, out=amplitude)
         if clamped:
             amplitude[np.broadcast_to(out_of_reach, amplitude.shape)] = limit
         return Inversion(amplitude.reshape(shape), clamped)

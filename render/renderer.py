@@ -19,6 +19,7 @@ Example, offline::
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -82,7 +83,7 @@ class Counters:
     render_times_s: list[float] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ControlBlock:
     """One block of the envelope and how it came about; amplitudes µm p-p."""
 
@@ -133,6 +134,7 @@ class Renderer:
         self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
         self._pending = np.zeros(0)  # control samples computed but not yet played out
         self._played = 0  # audio frames already produced from the pending block
+        self._offsets = np.zeros(0)
         self._fractions = (np.arange(settings.upsampling) / settings.upsampling).astype(np.float32)
 
     # ---- input -------------------------------------------------------------------------------
@@ -163,7 +165,9 @@ class Renderer:
             if self._next_time is not None and now_s > self._next_time:
                 self.counters.late_blocks += 1
             self._next_time = now_s if now_s is not None else time.perf_counter()
-        times = self._next_time + np.arange(n) * period
+        if len(self._offsets) < n:
+            self._offsets = np.arange(n) * period
+        times = self._offsets[:n] + self._next_time
         self._next_time += n * period
         return times
 
@@ -174,23 +178,35 @@ class Renderer:
         times = self._times(n, now_s)
         finger = self.trajectory.state(times)
         x, y = finger.x_mm, finger.y_mm
-        previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
-        dx = np.diff(x, prepend=previous[0])
-        dy = np.diff(y, prepend=previous[1])
+        if finger.velocity_mm_s is not None:  # a straight line over the block: one step, one direction
+            dx, dy = finger.velocity_mm_s
+            step = math.hypot(dx, dy) / self.settings.control_rate_hz
+        else:
+            previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
+            dx = np.diff(x, prepend=previous[0])
+            dy = np.diff(y, prepend=previous[1])
+            if n > 1:  # a jump between blocks (a corrected prediction, a new stroke) is not motion
+                dx[0], dy[0] = dx[1], dy[1]
+            step = np.hypot(dx, dy)
         self._last_xy = (x[-1], y[-1])
-        step = np.hypot(dx, dy) if self.settings.band_limited_lookup else None
-        ratio = self.sampler.ratio(x, y, step_mm=step, direction=(dx, dy))
-        force = np.where(np.isnan(finger.force_n), self.settings.default_force_n, finger.force_n)
+        ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
+                                   direction=(dx, dy))
+        force = finger.force_n
+        if not isinstance(force, np.ndarray):
+            force = self.settings.default_force_n if math.isnan(force) else float(force)
+        else:
+            force = np.where(np.isnan(force), self.settings.default_force_n, force)
         inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp)
         down = finger.down & self._running
-        if inversion.clamped and not down.all():
+        if np.all(down):
+            self.counters.clipped_samples += inversion.clamped
+        elif inversion.clamped:
             floor = self.model.floor_ratio(force, self.limit_um_pp)
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
-        elif down.all():
-            self.counters.clipped_samples += inversion.clamped
         target = inversion.amplitude_um_pp
-        amplitude = self.smoother.process(target * self.gate.process(down))
-        np.clip(amplitude, 0.0, self.limit_um_pp, out=amplitude)
+        amplitude = self.smoother.process(target * self.gate.process(down, n))
+        np.minimum(amplitude, self.limit_um_pp, out=amplitude)
+        np.maximum(amplitude, 0.0, out=amplitude)
         if self.precompensator is not None:
             before = self.precompensator.clipped
             drive, plate = self.precompensator.process(amplitude)
@@ -222,7 +238,12 @@ class Renderer:
         # frame m of the pending stretch lies between knots m // up and m // up + 1, where knot 0 is
         # the last control sample already played out and knot i + 1 is pending sample i
         first, last = self._played // up, (self._played + frames - 1) // up
-        knots = np.concatenate(([self._last_drive], self._pending[:last + 1])).astype(np.float32)
+        knots = np.empty(last + 2, dtype=np.float32)
+        knots[0] = self._last_drive
+        knots[1:] = self._pending[:last + 1]
+        knots *= np.float32(1.0 / self.profile.full_scale_um_pp)  # drive as a fraction of full scale
+        np.minimum(knots, np.float32(1.0), out=knots)  # between knots in [0, 1], so is every frame
+        np.maximum(knots, np.float32(0.0), out=knots)
         start = knots[first:last + 1]
         rise = knots[first + 1:last + 2] - start
         envelope = (start[:, None] + rise[:, None] * self._fractions[None, :]).ravel()
@@ -233,7 +254,5 @@ class Renderer:
             self._last_drive = float(self._pending[consumed - 1])
             self._pending = self._pending[consumed:]
         self._played = (self._played + frames) % up
-        envelope *= np.float32(1.0 / self.profile.full_scale_um_pp)
-        np.clip(envelope, 0.0, 1.0, out=envelope)
         self.counters.audio_frames += frames
         return envelope * self.carrier.block(frames)

@@ -8,13 +8,15 @@ reports, :class:`LiveTrajectory` predicts: a least-squares line through the last
 the current stroke (which averages out the panel's jitter, unlike the TPad's two-point
 extrapolation) evaluated ``lookahead_s`` ahead, so the panel's latency is cancelled. A finger that
 stops moving usually stops producing reports, so prediction never runs further than
-``max_extrapolation_s`` past the newest report.
+``max_extrapolation_s`` (plus the look-ahead) past the newest report.
 """
 
 from __future__ import annotations
 
+import math
 import threading
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -26,12 +28,28 @@ PREDICTORS = ("lsq", "linear", "hold")
 
 @dataclass(frozen=True)
 class FingerState:
-    """The finger at a set of instants."""
+    """The finger at a set of instants. ``force_n`` and ``down`` may be scalars (the same for all);
+    ``velocity_mm_s`` is set when the motion is a straight line over these instants (live prediction)."""
 
     x_mm: np.ndarray
     y_mm: np.ndarray
-    force_n: np.ndarray  # NaN where the panel does not measure force
-    down: np.ndarray  # bool
+    force_n: np.ndarray | float  # NaN where the panel does not measure force
+    down: np.ndarray | bool
+    velocity_mm_s: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """The prediction line through the latest reports: position at t_ref plus velocity."""
+
+    t_ref: float
+    x_ref: float
+    y_ref: float
+    vx: float
+    vy: float
+    t_last: float
+    force_n: float
+    down: bool
 
 
 class RecordedTrajectory:
@@ -84,8 +102,6 @@ class RecordedTrajectory:
 class LiveTrajectory:
     """Touch reports pushed from any thread; predicted at the instants the renderer asks for."""
 
-    CAPACITY = 64
-
     def __init__(self, predictor: str = "lsq", lookahead_s: float = 0.0, fit_reports: int = 5,
                  fit_window_s: float = 0.06, max_extrapolation_s: float = 0.05):
         if predictor not in PREDICTORS:
@@ -98,59 +114,65 @@ class LiveTrajectory:
         self.fit_window_s = fit_window_s
         self.max_extrapolation_s = max_extrapolation_s
         self._lock = threading.Lock()
-        self._records = np.zeros((self.CAPACITY, 4))  # t, x, y, force per report of this stroke
-        self._count = 0
+        self._records: deque[tuple[float, float, float, float]] = deque(maxlen=fit_reports)  # t, x, y, force
         self._down = False
+        self._fit: _Fit | None = None
         self.reports = 0
 
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
-        """Record one touch report (time in perf_counter seconds). ``down=False`` lifts the finger."""
-        record = (t_s, x_mm, y_mm, np.nan if force_n is None else force_n)
+        """Record one touch report (time in perf_counter seconds). ``down=False`` lifts the finger.
+
+        The prediction line is fitted here, on the thread that reports touches, in plain floats
+        (a handful of points), so the real-time thread only evaluates it and the GIL is held briefly.
+        """
         with self._lock:
             self.reports += 1
             if not down:
                 self._down = False
+                if self._fit is not None:
+                    self._fit = replace(self._fit, down=False, vx=0.0, vy=0.0)
                 return
             if not self._down:  # a new stroke: never fit across strokes
-                self._count = 0
+                self._records.clear()
                 self._down = True
-            if self._count and t_s <= self._records[(self._count - 1) % self.CAPACITY, 0]:
+            if self._records and t_s <= self._records[-1][0]:
                 return  # out of order or duplicate: the newer report already stands
-            self._records[self._count % self.CAPACITY] = record
-            self._count += 1
+            self._records.append((float(t_s), float(x_mm), float(y_mm),
+                                  math.nan if force_n is None else float(force_n)))
+            self._fit = self._line()
 
-    def _snapshot(self) -> tuple[np.ndarray, bool]:
-        with self._lock:  # held for a copy of at most 64 rows
-            count, down = self._count, self._down
-            n = min(count, self.fit_reports)
-            index = np.arange(count - n, count) % self.CAPACITY
-            return self._records[index].copy(), down
-
-    def state(self, times_s) -> FingerState:
-        times = np.asarray(times_s, dtype=float)
-        records, down = self._snapshot()
-        shape = times.shape
-        if len(records) == 0:
-            nothing = np.zeros(shape)
-            return FingerState(nothing, nothing.copy(), np.full(shape, np.nan), np.zeros(shape, bool))
-        last = records[-1]
-        recent = records[records[:, 0] >= last[0] - self.fit_window_s]
-        horizon = np.minimum(times + self.lookahead_s, last[0] + self.max_extrapolation_s)
+    def _line(self) -> _Fit:
+        last = self._records[-1]
+        recent = [r for r in self._records if r[0] >= last[0] - self.fit_window_s]
+        force = last[3]
         if self.predictor == "hold" or len(recent) < 2:
-            x = np.full(shape, last[1])
-            y = np.full(shape, last[2])
-        elif self.predictor == "linear":  # the TPad's: through the last two reports
+            return _Fit(last[0], last[1], last[2], 0.0, 0.0, last[0], force, True)
+        if self.predictor == "linear":  # the TPad's: through the last two reports
             before = recent[-2]
             span = last[0] - before[0]
-            x = last[1] + (last[1] - before[1]) / span * (horizon - last[0])
-            y = last[2] + (last[2] - before[2]) / span * (horizon - last[0])
-        else:
-            t = recent[:, 0] - recent[:, 0].mean()
-            spread = np.dot(t, t)
-            mean_x, mean_y = recent[:, 1].mean(), recent[:, 2].mean()
-            vx = np.dot(t, recent[:, 1] - mean_x) / spread
-            vy = np.dot(t, recent[:, 2] - mean_y) / spread
-            offset = horizon - recent[:, 0].mean()
-            x = mean_x + vx * offset
-            y = mean_y + vy * offset
-        return FingerState(x, y, np.full(shape, last[3]), np.full(shape, down))
+            return _Fit(last[0], last[1], last[2], (last[1] - before[1]) / span, (last[2] - before[2]) / span,
+                        last[0], force, True)
+        count = len(recent)
+        mean_t = sum(r[0] for r in recent) / count
+        mean_x = sum(r[1] for r in recent) / count
+        mean_y = sum(r[2] for r in recent) / count
+        spread = sum((r[0] - mean_t) ** 2 for r in recent)
+        vx = sum((r[0] - mean_t) * (r[1] - mean_x) for r in recent) / spread
+        vy = sum((r[0] - mean_t) * (r[2] - mean_y) for r in recent) / spread
+        return _Fit(mean_t, mean_x, mean_y, vx, vy, last[0], force, True)
+
+    def state(self, times_s) -> FingerState:
+        fit = self._fit  # one reference, swapped whole by push: no lock needed to read it
+        times = np.asarray(times_s, dtype=float)
+        if fit is None:
+            nothing = np.zeros(times.shape)
+            return FingerState(nothing, nothing, np.nan, False, (0.0, 0.0))
+        horizon = np.minimum(times, fit.t_last + self.max_extrapolation_s)
+        horizon += self.lookahead_s - fit.t_ref
+        x = horizon * fit.vx
+        x += fit.x_ref
+        y = horizon * fit.vy
+        y += fit.y_ref
+        moving = times[-1] <= fit.t_last + self.max_extrapolation_s if times.ndim else True
+        velocity = (fit.vx, fit.vy) if moving else (0.0, 0.0)
+        return FingerState(x, y, fit.force_n, fit.down, velocity)

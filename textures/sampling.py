@@ -19,6 +19,8 @@ Example::
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import ndimage
 
@@ -76,22 +78,27 @@ class Sampler:
         np.multiply(y_mm, self.per_mm_y[level], out=coordinates[0])
         np.multiply(x_mm, self.per_mm_x[level], out=coordinates[1])
         coordinates -= 0.5  # pixel centres sit half a pixel in
-        return ndimage.map_coordinates(image, coordinates, order=1, mode=self.mode, prefilter=False)
+        output = np.empty(np.shape(x_mm), dtype=np.float32)
+        return ndimage.map_coordinates(image, coordinates, output=output, order=1, mode=self.mode, prefilter=False)
 
     def _channel(self, channel: int, x_mm, y_mm, step_mm):
         if step_mm is None or self.levels == 1:
             return self._bilinear(channel, x_mm, y_mm, 0)
+        if not isinstance(step_mm, np.ndarray):  # one step for the whole query: the level is one number
+            level = min(max(math.log2(max(float(step_mm), 1e-12) / self.base_pixel_mm), 0.0), self.levels - 1.0)
+            low = int(level)
+            near = self._bilinear(channel, x_mm, y_mm, low)
+            if level == low:
+                return near
+            far = self._bilinear(channel, x_mm, y_mm, min(low + 1, self.levels - 1))
+            far -= near
+            far *= np.float32(level - low)
+            far += near
+            return far
         level = np.log2(np.maximum(np.asarray(step_mm, dtype=float), 1e-12) / self.base_pixel_mm)
         level = np.clip(level, 0.0, self.levels - 1.0)
         low = np.floor(level).astype(np.intp)
         weight = (level - low).astype(np.float32)
-        if np.ndim(level) == 0:
-            low = int(low)
-            near = self._bilinear(channel, x_mm, y_mm, low)
-            if weight == 0:
-                return near
-            far = self._bilinear(channel, x_mm, y_mm, min(low + 1, self.levels - 1))
-            return near + weight * (far - near)
         if not level.any():  # every step finer than a pixel: the full-resolution level alone
             return self._bilinear(channel, x_mm, y_mm, 0)
         low = np.broadcast_to(low, np.shape(x_mm))
