@@ -47,7 +47,8 @@ def measure(texture_name: str, model, frames: int, rate: int) -> np.ndarray:
 
 
 def main() -> None:
-    print(f"{'texture':14} {'model':12} {'block':>12} {'median µs':>10} {'p99 µs':>8} {'p99.9 µs':>9} {'budget µs':>10}")
+    header = ("texture", "model", "block", "median µs", "p99 µs", "p99.9 µs", "budget µs")
+    print("{:14} {:12} {:>12} {:>10} {:>8} {:>9} {:>10}".format(*header))
     for texture in ("grating-1mm", "bumps"):
         for name, model in (("exponential", ExponentialModel()), ("paper", PaperModel())):
             for frames, rate in ((64, 96000), (128, 192000)):

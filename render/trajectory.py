@@ -102,8 +102,8 @@ class RecordedTrajectory:
 class LiveTrajectory:
     """Touch reports pushed from any thread; predicted at the instants the renderer asks for."""
 
-    def __init__(self, predictor: str = "lsq", lookahead_s: float = 0.0, fit_reports: int = 5,
-                 fit_window_s: float = 0.06, max_extrapolation_s: float = 0.05):
+    def __init__(self, predictor: str = "lsq", lookahead_s: float = 0.0, fit_reports: int = 8,
+                 fit_window_s: float = 0.1, max_extrapolation_s: float = 0.05):
         if predictor not in PREDICTORS:
             raise RenderError(f"predictor must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
         if lookahead_s < 0 or fit_reports < 2 or fit_window_s <= 0 or max_extrapolation_s < 0:
