@@ -79,6 +79,30 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
     export.set_defaults(handler="apps.export_command:run")
+
+    play = commands.add_parser(
+        "play", help="render a swipe or a touch log to a device in real time",
+        description="Feed a swipe (as 120 Hz touch reports) or a touch log (at its own times) to the live "
+                    "renderer and play it on a device.")
+    add_render_options(play)
+    play.add_argument("--device", default="sim", metavar="URL",
+                      help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null "
+                           "(default: sim)")
+    play.add_argument("--json", action="store_true", help="print the final status as JSON")
+    play.set_defaults(handler="apps.play_command:run")
+
+    devices = commands.add_parser("devices", help="list outputs: audio, serial ports, the simulator",
+                                  description="Audio outputs with the sample rates they accept, serial ports "
+                                              "and the simulated plate.")
+    devices.add_argument("--json", action="store_true", help="print one JSON object")
+    devices.set_defaults(handler="apps.devices_command:list_all")
+
+    sim = commands.add_parser("plate-sim", help="serve the simulated plate on a pseudo-terminal",
+                              description="Run the simulated plate driver on a pty and print its path; "
+                                          "connect with --device serial:PATH. Runs until stopped.")
+    sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
+    sim.set_defaults(handler="apps.devices_command:plate_sim")
     return parser
 
 

@@ -155,12 +155,16 @@ class Renderer:
 
     @property
     def finished(self) -> bool:
+        """At rest after a stop, or (offline) after the path's end."""
         plate = self.precompensator.plate if self.precompensator else float(self.plate_model._state[0])
-        return (not self._running) and self.gate.closed and plate < 1e-6 and abs(self._last_drive) < 1e-6
+        ended = not self._running or (self.offline and self._next_time > self.trajectory.end_s)
+        return ended and self.gate.closed and plate < 1e-6 and abs(self._last_drive) < 1e-6
 
     # ---- control rate ----------------------------------------------------------------------------
     def _times(self, n: int, now_s: float | None) -> np.ndarray:
         period = 1.0 / self.settings.control_rate_hz
+        if self.offline:
+            now_s = None  # a recorded path runs on its own sample clock, whoever pulls it
         if self._next_time is None or (now_s is not None and abs(self._next_time - now_s) > RESYNC_S):
             if self._next_time is not None and now_s > self._next_time:
                 self.counters.late_blocks += 1

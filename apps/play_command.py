@@ -1,0 +1,55 @@
+"""``ultraglide play``: render a swipe or a touch log to a device in real time."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from apps.render_setup import build
+from apps.sources import source_for
+from devices.profiles import load_profile
+from devices.urls import open_device
+
+REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
+
+
+def report_times(trajectory) -> np.ndarray:
+    """When the touch panel reports: the log's own times, or every 1/120 s along a swipe."""
+    own = getattr(trajectory, "t_s", None)
+    if own is not None:
+        return np.asarray(own)
+    return np.arange(trajectory.start_s, trajectory.end_s, 1.0 / REPORT_HZ)
+
+
+def run(args) -> int:
+    profile = load_profile(args.profile)
+    device = open_device(args.device, profile, control_rate_hz=12000, carrier_hz=args.carrier_hz)
+    if device.signal == "audio":
+        args.rate = device.rate_hz
+    renderer, trajectory = build(args, live=True)
+    source = source_for(device, renderer)
+    times = report_times(trajectory)
+    states = trajectory.state(times)
+    forces = np.broadcast_to(states.force_n, times.shape)
+    device.start(source)
+    started = time.perf_counter()
+    try:
+        for t, x, y, force in zip(times - times[0], states.x_mm, states.y_mm, forces, strict=True):
+            delay = started + t - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            renderer.push(time.perf_counter(), float(x), float(y), None if np.isnan(force) else float(force))
+        renderer.push(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
+        time.sleep(renderer.tail_s)
+    finally:
+        device.stop()  # ramps down through the renderer, then rests the plate, on every way out
+    status = {**device.status(), "clipped_samples": renderer.counters.clipped_samples,
+              "ramps": renderer.counters.ramps, "late_blocks": renderer.counters.late_blocks,
+              "played_s": round(time.perf_counter() - started, 3)}
+    if args.json:
+        print(json.dumps(status))
+    else:
+        print(" ".join(f"{key}={value}" for key, value in status.items()))
+    return 0

@@ -1,0 +1,124 @@
+"""Devices that consume in real time without hardware: a WAV recorder and a null sink.
+
+A thread pulls blocks at the pace of the wall clock, as a sound card would, so what they record
+is what a plate would get, with the same timing and the same live input.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from devices.errors import DeviceError
+from devices.source import BlockSource
+
+BLOCK_S = 0.005
+STOP_TIMEOUT_S = 1.0
+
+
+class PacedSink:
+    """Pulls ``rate_hz`` values a second from a source in small blocks; hands them to ``consume``."""
+
+    signal = "audio"
+
+    def __init__(self, rate_hz: int = 96000, name: str = "null"):
+        self.rate_hz = rate_hz
+        self.name = name
+        self.blocks = 0
+        self.late_blocks = 0
+        self.errors: list[str] = []
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._source: BlockSource | None = None
+
+    def consume(self, block: np.ndarray) -> None:
+        """What to do with each block; the null sink drops it."""
+
+    def start(self, source: BlockSource) -> None:
+        self._source = source
+        self._thread = threading.Thread(target=self._run, name=f"{self.name}-sink", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        started = time.perf_counter()
+        done = 0
+        block = max(1, int(BLOCK_S * self.rate_hz))
+        try:
+            while not self._stop.is_set():
+                now = time.perf_counter()
+                due = int((now - started) * self.rate_hz) - done
+                if due < block:
+                    time.sleep((done + block) / self.rate_hz - (now - started))
+                    continue
+                if due > 4 * block:
+                    self.late_blocks += 1
+                self.consume(np.asarray(self._source.pull(due, now), dtype=np.float32))
+                done += due
+                self.blocks += 1
+                if self._source.finished:
+                    break
+        except Exception as error:  # noqa: BLE001 - reported by status(), the recording is kept
+            self.errors.append(f"{type(error).__name__}: {error}")
+
+    def stop(self) -> None:
+        if self._thread is not None and self._thread.is_alive():
+            self._source.request_stop()
+            deadline = time.monotonic() + STOP_TIMEOUT_S
+            while self._thread.is_alive() and not self._source.finished and time.monotonic() < deadline:
+                time.sleep(0.005)
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+        self.close()
+
+    def close(self) -> None:
+        """Release what the sink holds."""
+
+    def status(self) -> dict:
+        return {"device": self.name, "rate_hz": self.rate_hz, "blocks": self.blocks,
+                "late_blocks": self.late_blocks, "errors": self.errors[:5]}
+
+
+class WavRecorder(PacedSink):
+    """``wav:PATH``: records in real time what a plate would get; the file appears, whole, at stop."""
+
+    def __init__(self, path: str | Path, rate_hz: int = 96000):
+        super().__init__(rate_hz, f"wav:{path}")
+        import soundfile
+
+        self.path = Path(path)
+        if self.path.suffix.lower() != ".wav":
+            raise DeviceError(f"wav device path must end in .wav, got {self.path}")
+        directory = self.path.parent if str(self.path.parent) else Path(".")
+        if not directory.is_dir():
+            raise DeviceError(f"wav device: no directory {directory}")
+        handle, self._temporary = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=".wav", dir=directory)
+        os.close(handle)
+        self._file = soundfile.SoundFile(self._temporary, "w", samplerate=rate_hz, channels=1, subtype="FLOAT")
+
+    def consume(self, block: np.ndarray) -> None:
+        self._file.write(block)
+
+    def close(self) -> None:
+        if self._file is None:
+            return
+        self._file.close()
+        self._file = None
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self._temporary, 0o666 & ~umask)
+        os.replace(self._temporary, self.path)
+
+    def discard(self) -> None:
+        """Drop the recording (an error before anything worth keeping)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self._temporary)

@@ -1,0 +1,93 @@
+"""Devices by URL: ``sim``, ``serial:PORT[?baud=N]``, ``audio[:NAME_OR_INDEX][?rate=N]``, ``wav:PATH``, ``null``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl
+
+from devices.errors import DeviceError
+from devices.profiles import PlateProfile
+
+KINDS = ("sim", "serial", "audio", "wav", "null")
+
+
+@dataclass(frozen=True)
+class DeviceUrl:
+    kind: str
+    target: str = ""
+    options: dict = field(default_factory=dict)
+
+
+def parse_device_url(url: str) -> DeviceUrl:
+    """Split a device URL; DeviceError says what forms there are."""
+    body, _, query = url.partition("?")
+    kind, _, target = body.partition(":")
+    if kind not in KINDS:
+        raise DeviceError(f"unknown device {url!r}; use sim, serial:PORT, audio[:NAME], wav:PATH or null")
+    options = dict(parse_qsl(query))
+    if kind in ("serial", "wav") and not target:
+        raise DeviceError(f"{kind} needs a {'port' if kind == 'serial' else 'path'}: {kind}:...")
+    for key in ("baud", "rate"):
+        if key in options:
+            try:
+                options[key] = int(options[key])
+            except ValueError:
+                raise DeviceError(f"{key} must be a whole number in {url!r}") from None
+    return DeviceUrl(kind, target, options)
+
+
+class SimPlate:
+    """``sim``: the simulated plate on an in-process pty, driven by the real serial driver."""
+
+    signal = "control"
+
+    def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None):
+        from devices.plate_sim import PtyPlate
+        from devices.serial_plate import SerialPlate
+
+        self.plate = PtyPlate(profile).start()
+        self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz)
+        self.rate_hz = control_rate_hz
+
+    @property
+    def telemetry(self):
+        return self.driver.telemetry
+
+    def start(self, source) -> None:
+        try:
+            self.driver.start(source)
+        except Exception:
+            self.plate.stop()
+            raise
+
+    def stop(self) -> None:
+        try:
+            self.driver.stop()
+        finally:
+            self.plate.stop()
+
+    def status(self) -> dict:
+        return {**self.driver.status(), "device": "sim", "pty": self.plate.pty_name}
+
+
+def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None):
+    """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks."""
+    spec = parse_device_url(url)
+    carrier = carrier_hz or profile.resonance_hz
+    if spec.kind == "sim":
+        return SimPlate(profile, control_rate_hz, carrier_hz)
+    if spec.kind == "serial":
+        from devices.serial_plate import SerialPlate
+
+        return SerialPlate(spec.target, profile, control_rate_hz, carrier_hz, baudrate=spec.options.get("baud", 921600))
+    if spec.kind == "audio":
+        from devices.audio import AudioPlate
+
+        target = int(spec.target) if spec.target.isdigit() else (spec.target or None)
+        return AudioPlate(target, carrier, spec.options.get("rate"))
+    from devices.paced import PacedSink, WavRecorder
+
+    rate = spec.options.get("rate", 96000)
+    if spec.kind == "wav":
+        return WavRecorder(spec.target, rate)
+    return PacedSink(rate, "null")

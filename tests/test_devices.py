@@ -1,0 +1,297 @@
+"""Devices against real parts: the simulator on a real pty, PortAudio through ALSA, WAV files."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import ROOT, assert_one_line_error, run_cli
+from scipy import signal as sps
+
+from devices import protocol as p
+from devices.errors import DeviceError
+from devices.plate_sim import PlateSimulator, PtyPlate
+from devices.profiles import PlateProfile, load_profile
+from devices.serial_plate import SerialPlate
+from devices.urls import parse_device_url
+
+PROFILE = load_profile("sim-plate")
+
+
+class Constant:
+    """A source of a steady amplitude (µm p-p) that ramps to rest when asked."""
+
+    def __init__(self, amplitude_um_pp=3.0):
+        self.amplitude = amplitude_um_pp
+        self.stopping = False
+        self.pulled = 0
+
+    def pull(self, n, now_s):
+        self.pulled += n
+        if self.stopping:
+            self.amplitude = max(0.0, self.amplitude - 0.01 * n)
+        return np.full(n, self.amplitude)
+
+    def request_stop(self):
+        self.stopping = True
+
+    @property
+    def finished(self):
+        return self.stopping and self.amplitude == 0.0
+
+
+@pytest.fixture
+def plate():
+    served = PtyPlate(PROFILE).start()
+    yield served
+    served.stop()
+
+
+def wait_for(condition, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_clean_link_streams_at_the_control_rate_with_no_lost_frame(plate):
+    driver = SerialPlate(plate.path, PROFILE)
+    driver.start(Constant(3.0))
+    time.sleep(3.0)
+    sim = plate.simulator
+    assert abs(sim.amplitude_um_pp - 3.0) < 0.01  # the plate follows the setpoint
+    driver.stop()
+    assert wait_for(lambda: sim.counters.frames_ok == driver.counters.frames_sent)
+    assert sim.counters.lost_setpoints == 0 and sim.counters.crc_errors == 0
+    assert sim.counters.framing_errors == 0
+    assert sim.counters.setpoints >= 0.98 * 3.0 * 12000  # ≥ 10 kHz of setpoints, all of them there
+    assert not sim.enabled  # zero and disable at the end
+    assert wait_for(lambda: sim.amplitude_um_pp < 0.01)
+
+
+@pytest.mark.parametrize("fault, check", [
+    (p.SIM_DROP, lambda sim, drv: sim.counters.lost_setpoints > 0),
+    (p.SIM_CORRUPT, lambda sim, drv: sim.counters.crc_errors + sim.counters.framing_errors > 0),
+    (p.SIM_HANG, lambda sim, drv: drv.counters.silences >= 1 and drv.counters.reconnects >= 1),
+    (p.SIM_DISCONNECT, lambda sim, drv: drv.counters.disconnects >= 1 and drv.counters.reconnects >= 1),
+])
+def test_injected_faults_are_detected_counted_and_recovered(plate, fault, check):
+    driver = SerialPlate(plate.path, PROFILE)
+    source = Constant(3.0)
+    driver.start(source)
+    time.sleep(0.5)
+    duration = {p.SIM_DROP: 0.3, p.SIM_CORRUPT: 0.3, p.SIM_HANG: 0.8, p.SIM_DISCONNECT: 0.6}[fault]
+    plate.inject(fault, duration)
+    time.sleep(duration + 0.1)
+    # detected and counted, and recovered: streaming again with the plate back at its amplitude
+    assert wait_for(lambda: check(plate.simulator, driver) and driver.status()["connected"]
+                    and driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05
+                    and plate.simulator.enabled, timeout=4.0), (driver.status(), plate.simulator.counters)
+    pulled = source.pulled
+    time.sleep(0.2)
+    assert source.pulled > pulled  # the renderer kept running throughout
+    driver.stop()
+
+
+def test_fault_injection_by_protocol_frame(plate):
+    driver = SerialPlate(plate.path, PROFILE)
+    driver.start(Constant(2.0))
+    time.sleep(0.3)
+    driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
+    assert wait_for(lambda: plate.simulator.counters.lost_setpoints > 0)
+    assert plate.simulator.counters.faults_injected == {"drop": 1}
+    driver.stop()
+
+
+def test_watchdog_ramps_to_zero_after_100_ms_of_silence():
+    sim = PlateSimulator(PROFILE)
+    sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
+    t = sim._clock
+    for k in range(50):  # 0.25 s of setpoints at 4 µm, delivered on time
+        sim.receive(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(k * 60, 12000, np.full(60, 0.5))))
+        sim._heard = t + k * 0.005
+        sim.advance(t + (k + 1) * 0.005)
+    assert sim.amplitude_um_pp == pytest.approx(4.0, abs=0.01)
+    last_heard = sim._heard
+    sim.advance(last_heard + 0.09)
+    assert sim.amplitude_um_pp > 3.9 and sim.counters.watchdog_trips == 0  # silence shorter than 100 ms
+    reports = sim.advance(last_heard + 0.15)
+    assert sim.counters.watchdog_trips == 1
+    faults = [p.parse_telemetry(p.decode_frame(frame[:-1]).payload).faults for frame in reports]
+    assert faults and faults[-1] & p.FAULT_WATCHDOG
+    sim.advance(last_heard + 0.15 + 0.02 + 8 * PROFILE.time_constant_s)
+    assert sim.amplitude_um_pp < 0.01
+
+
+def test_device_side_limit_rests_an_over_driven_plate():
+    profile = PlateProfile("weak", 25000.0, 200.0, 8.0, 4.0)
+    sim = PlateSimulator(profile)
+    sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
+    t = sim._clock
+    for k in range(100):  # full scale: 8 µm wanted on a plate whose limit is 4
+        sim.receive(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(k * 60, 12000, np.ones(60))))
+        sim._heard = t + k * 0.005
+        sim.advance(t + (k + 1) * 0.005)
+    assert not sim.enabled
+    assert sim.counters.frames_ok == 101
+    assert sim.peak_um_pp < 4.0 * 1.02  # caught on the way up, at the sample it crossed
+
+
+def test_a_failing_source_still_rests_the_plate(plate):
+    class Failing(Constant):
+        def pull(self, n, now_s):
+            if self.pulled > 6000:
+                raise RuntimeError("renderer crashed")
+            return super().pull(n, now_s)
+
+    driver = SerialPlate(plate.path, PROFILE)
+    driver.start(Failing(3.0))
+    assert wait_for(lambda: not plate.simulator.enabled and driver.counters.errors)
+    assert "renderer crashed" in driver.counters.errors[0]
+    assert wait_for(lambda: plate.simulator.amplitude_um_pp < 0.01)
+    driver.stop()
+
+
+def test_handshake_failures_are_clear(tmp_path):
+    with pytest.raises(DeviceError, match="cannot open serial port"):
+        SerialPlate(str(tmp_path / "nothing"), PROFILE).start(Constant())
+    master, slave = os.openpty()  # a port with nobody answering
+    try:
+        with pytest.raises(DeviceError, match="no answer to the handshake"):
+            SerialPlate(os.ttyname(slave), PROFILE).start(Constant())
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+@pytest.mark.parametrize("url, fragment", [("bluetooth", "unknown device"), ("serial:", "needs a port"),
+                                           ("audio?rate=fast", "whole number")])
+def test_bad_device_urls(url, fragment):
+    with pytest.raises(DeviceError, match=fragment):
+        parse_device_url(url)
+
+
+def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
+    link = tmp_path / "plate"
+    server = subprocess.Popen([sys.executable, "-m", "apps.cli", "plate-sim", "--link", str(link)],
+                              stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        banner = server.stdout.readline()
+        assert str(link) in banner and "/dev/pts/" in banner
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0", "--json",
+                         check=True)
+        status = json.loads(result.stdout)
+        assert status["setpoints_sent"] >= 12000 and status["disconnects"] == 0
+        assert status["device_faults"] == [] and status["ramps"] == 2
+    finally:
+        server.send_signal(signal.SIGINT)
+        out, _ = server.communicate(timeout=10)
+    assert server.returncode == 0
+    assert "setpoints lost 0" in out.replace(", ", " ") or " 0 setpoints lost" in out
+
+
+def test_play_to_wav_device_in_real_time(tmp_path):
+    out = tmp_path / "live.wav"
+    started = time.perf_counter()
+    run_cli("play", "grating-2mm", "--device", f"wav:{out}", "--duration-s", "1.0", check=True)
+    assert time.perf_counter() - started >= 1.0  # real time, not faster
+    samples, rate = soundfile.read(out)
+    assert rate == 96000 and len(samples) / rate == pytest.approx(1.05, abs=0.1)
+    sox = subprocess.run(["sox", str(out), "-n", "stat"], capture_output=True, text=True)
+    assert sox.returncode == 0 and "Maximum amplitude" in sox.stderr
+
+
+ASOUNDRC = """pcm.!default {{
+    type plug
+    slave {{ pcm "capture"; format FLOAT_LE; channels 1 }}
+}}
+pcm.capture {{
+    type file
+    slave.pcm "null"
+    file "{path}"
+    format "raw"
+}}
+"""
+
+
+AUDIO_SCRIPT = """
+import sys, time, numpy as np
+from apps.sources import AudioSource
+from devices.audio import AudioPlate
+from devices.profiles import load_profile
+from render.friction_models import ExponentialModel
+from render.paths import SwipePath
+from render.renderer import Renderer
+from textures.library import resolve_texture
+
+def renderer():
+    path = SwipePath("straight", 100.0, 0.5, (5.0, 25.0))
+    return Renderer(resolve_texture("grating-1mm"), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
+
+reference = renderer()
+expected = reference.audio(int((0.5 + reference.tail_s) * 96000) + 9600)
+np.save(sys.argv[1], expected)
+plate = AudioPlate(None, 25000.0)
+source = AudioSource(renderer())
+plate.start(source)
+while not source.finished:
+    time.sleep(0.01)
+plate.stop()
+print(plate.rate_hz, plate.callbacks, len(plate.errors))
+"""
+
+
+def test_audio_output_through_real_portaudio_and_alsa(tmp_path):
+    """The audio device through real PortAudio and ALSA: what reaches the PCM is what was rendered.
+
+    ALSA's null PCM is not paced (it takes samples as fast as they come), so the source is a
+    renderer on a recorded swipe, whose time base is its own sample count: the capture must then
+    equal the offline render sample for sample."""
+    capture = tmp_path / "capture.raw"
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=capture))
+    result = subprocess.run([sys.executable, "-c", AUDIO_SCRIPT, str(tmp_path / "expected.npy")], cwd=ROOT,
+                            capture_output=True, text=True, env={**os.environ, "HOME": str(tmp_path)}, timeout=120)
+    assert result.returncode == 0, result.stderr
+    rate, callbacks, errors = map(int, result.stdout.split())
+    assert rate == 96000 and callbacks > 10 and errors == 0
+    captured = np.frombuffer(capture.read_bytes(), dtype="<f4")
+    expected = np.load(tmp_path / "expected.npy")
+    lag = int(np.argmax(np.correlate(captured[:20000], expected[:4000], "valid")))  # PortAudio's silent prefill
+    assert np.all(captured[:lag] == 0)
+    played = captured[lag:]
+    n = min(len(played), len(expected))
+    assert n > 0.5 * 96000
+    assert np.max(np.abs(played[:n] - expected[:n])) < 1e-6  # bit-faithful through PortAudio
+    spectrum = np.abs(np.fft.rfft(played[12000:60000] * np.hanning(48000)))
+    assert np.argmax(spectrum) * 2 == pytest.approx(25000, abs=2)  # 2 Hz bins: the carrier
+    envelope = np.abs(sps.hilbert(played[:n].astype(float)))
+    assert envelope[:48].max() < 0.5 * np.median(envelope[12000:40000])  # ramps up, no click
+    assert np.max(np.abs(played[-960:])) < 1e-3  # at rest when the stream closes
+
+
+def test_play_on_the_audio_device_from_the_command_line(tmp_path):
+    capture = tmp_path / "capture.raw"
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=capture))
+    env = {"HOME": str(tmp_path)}
+    listing = json.loads(run_cli("devices", "--json", env=env, check=True).stdout)
+    assert any(96000 in output["rates_hz"] for output in listing["audio"])
+    status = json.loads(run_cli("play", "grating-1mm", "--device", "audio", "--duration-s", "0.3", "--json",
+                                env=env, check=True).stdout)
+    assert status["rate_hz"] == 96000 and status["errors"] == []
+    played = np.frombuffer(capture.read_bytes(), dtype="<f4")
+    assert len(played) > 0 and np.max(np.abs(played)) <= 1.0
+    assert np.max(np.abs(played[-960:])) < 1e-3  # rests at the end
+
+
+def test_audio_refuses_a_rate_that_cannot_carry_the_carrier(tmp_path):
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "c.raw"))
+    result = run_cli("play", "grating-1mm", "--device", "audio?rate=48000", "--duration-s", "0.2",
+                     env={"HOME": str(tmp_path)})
+    assert "cannot carry" in assert_one_line_error(result)
