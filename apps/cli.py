@@ -103,6 +103,21 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
     sim.set_defaults(handler="apps.devices_command:plate_sim")
+
+    demo = commands.add_parser(
+        "demo", help="feel textures on the plate: the touch-panel demo",
+        description="A full-screen demo on the touch panel under the plate: a gallery of textures, each at "
+                    "its physical size, and a widgets scene. Keys: G gallery, T texture, W widgets, arrows "
+                    "switch texture and change the force, M model, space pause, Esc quit.")
+    demo.add_argument("textures", nargs="*", metavar="TEXTURE",
+                      help="texture files or images to add to the library's (images are authored with defaults)")
+    demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
+    demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    demo.add_argument("--model", default="exponential", help="friction model (default: exponential)")
+    demo.add_argument("--screen-width-mm", type=positive, help="the display's width in mm, so textures show at "
+                                                               "their physical size (default: a 96 dpi screen)")
+    demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
+    demo.set_defaults(handler="apps.demo_app:run")
     return parser
 
 

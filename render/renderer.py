@@ -128,6 +128,8 @@ class Renderer:
         self.counters = Counters()
         self.offline = not isinstance(self.trajectory, LiveTrajectory)
         self.observers: list = []  # callables given each ControlBlock as it is rendered
+        self.default_force_n = settings.default_force_n
+        self.paused = False
         self._next_time = self.trajectory.start_s if self.offline else None
         self._last_xy = None
         self._running = True
@@ -152,6 +154,25 @@ class Renderer:
     def stop(self) -> None:
         """Ramp the output down (release); :attr:`finished` turns true when it is at rest."""
         self._running = False
+
+    # ---- live changes (from the UI thread; each is one reference swap) ------------------------------
+    def set_texture(self, texture: Texture) -> None:
+        """Render another texture from the next block on (its lookup tables are built here)."""
+        sampler = Sampler(texture, band_limited=self.settings.band_limited_lookup)
+        self.texture, self.sampler = texture, sampler
+
+    def set_model(self, model: FrictionModel) -> None:
+        self.model = model
+
+    def set_default_force(self, force_n: float) -> None:
+        """The force assumed when the panel does not measure it, N."""
+        if not force_n > 0:
+            raise RenderError(f"the default force must be positive, got {force_n}")
+        self.default_force_n = float(force_n)
+
+    def pause(self, paused: bool = True) -> None:
+        """Ramp the output to rest while paused, and back when resumed."""
+        self.paused = paused
 
     @property
     def finished(self) -> bool:
@@ -197,11 +218,11 @@ class Renderer:
                                    direction=(dx, dy))
         force = finger.force_n
         if not isinstance(force, np.ndarray):
-            force = self.settings.default_force_n if math.isnan(force) else float(force)
+            force = self.default_force_n if math.isnan(force) else float(force)
         else:
-            force = np.where(np.isnan(force), self.settings.default_force_n, force)
+            force = np.where(np.isnan(force), self.default_force_n, force)
         inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp)
-        down = finger.down & self._running
+        down = finger.down & self._running & (not self.paused)
         if np.all(down):
             self.counters.clipped_samples += inversion.clamped
         elif inversion.clamped:

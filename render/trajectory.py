@@ -24,6 +24,8 @@ from scipy.interpolate import PchipInterpolator
 from render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
+MERGE_S = 0.002  # reports closer than this are one instant (events read from a queue in one go)
+MAX_SPEED_MM_S = 3000.0  # exploring fingers move at 40-200 mm/s; flicks reach about 1 m/s
 
 
 @dataclass(frozen=True)
@@ -137,6 +139,8 @@ class LiveTrajectory:
                 self._down = True
             if self._records and t_s <= self._records[-1][0]:
                 return  # out of order or duplicate: the newer report already stands
+            if self._records and t_s - self._records[-1][0] < MERGE_S:
+                self._records.pop()  # queued events read in one go: the same instant, keep the newest
             self._records.append((float(t_s), float(x_mm), float(y_mm),
                                   math.nan if force_n is None else float(force_n)))
             self._fit = self._line()
@@ -150,8 +154,9 @@ class LiveTrajectory:
         if self.predictor == "linear":  # the TPad's: through the last two reports
             before = recent[-2]
             span = last[0] - before[0]
-            return _Fit(last[0], last[1], last[2], (last[1] - before[1]) / span, (last[2] - before[2]) / span,
-                        last[0], force, True)
+            vx, vy = (last[1] - before[1]) / span, (last[2] - before[2]) / span
+            scale = min(1.0, MAX_SPEED_MM_S / max(math.hypot(vx, vy), 1e-12))
+            return _Fit(last[0], last[1], last[2], vx * scale, vy * scale, last[0], force, True)
         count = len(recent)
         mean_t = sum(r[0] for r in recent) / count
         mean_x = sum(r[1] for r in recent) / count
@@ -159,6 +164,9 @@ class LiveTrajectory:
         spread = sum((r[0] - mean_t) ** 2 for r in recent)
         vx = sum((r[0] - mean_t) * (r[1] - mean_x) for r in recent) / spread
         vy = sum((r[0] - mean_t) * (r[2] - mean_y) for r in recent) / spread
+        speed = math.hypot(vx, vy)
+        if speed > MAX_SPEED_MM_S:  # no finger explores this fast: a glitch, not motion
+            vx, vy = vx * MAX_SPEED_MM_S / speed, vy * MAX_SPEED_MM_S / speed
         return _Fit(mean_t, mean_x, mean_y, vx, vy, last[0], force, True)
 
     def state(self, times_s) -> FingerState:
