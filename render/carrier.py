@@ -4,7 +4,7 @@ A carrier of f Hz at a rate of fs repeats exactly every fs / gcd(f, fs) samples 
 25 kHz at 96 kHz), so one period is computed once, in float64, and every block is a slice of it:
 the phase is an integer sample offset, exact forever and seamless at every block join. Carriers
 whose period would be longer than ``MAX_TABLE`` samples (non-integer frequencies) keep a float64
-phase accumulator instead.
+phase accumulator instead (a compiled loop, :func:`render.kernels.sine_block`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from fractions import Fraction
 import numpy as np
 
 from render.errors import RenderError
+from render.kernels import sine_block
 
 MAX_CARRIER_FRACTION = 0.4  # a DAC's anti-imaging filter starts near 0.45 fs: stay below 0.4 fs
 MAX_TABLE = 1 << 20
@@ -61,9 +62,6 @@ class Carrier:
             start = self.offset
             self.offset = (start + frames) % self.period
             return table[start:start + frames]
-        cycles = np.arange(frames, dtype=np.float64) * (self.carrier_hz / self.rate_hz)
-        cycles += self.phase
-        self.phase = (self.phase + frames * self.carrier_hz / self.rate_hz) % 1.0
-        cycles %= 1.0
-        radians = (cycles * (2.0 * np.pi)).astype(np.float32)
-        return np.sin(radians, out=radians)
+        out = np.empty(frames, dtype=np.float32)
+        self.phase = sine_block(self.phase, self.carrier_hz / self.rate_hz, out)
+        return out

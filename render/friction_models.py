@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from render import kernels
 from render.errors import ModelError
 from render.fingerprint import FingerParams, detach_amplitude_um_pp
 from render.measurements import Measurements
@@ -171,6 +172,18 @@ class PaperModel(FrictionModel):
     def _amplitude_in_reach(self, ratio, force_n):
         return self._u_table(ratio) * self._detach_um_pp(force_n)
 
+    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+        if not (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
+                and not isinstance(force_n, np.ndarray) and limit_um_pp >= 0):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        table = self._u_table
+        out = np.empty(len(ratio))
+        clamped = kernels.inverse_uniform(ratio.astype(np.float64, copy=False), self._floor(force_n, limit), limit,
+                                          table.start, table.scale, table.values, table.slopes,
+                                          float(self._detach_um_pp(force_n)), out)
+        return Inversion(out, clamped)
+
     def describe(self) -> str:
         p = self.params
         return (
@@ -205,6 +218,16 @@ class ExponentialModel(FrictionModel):
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         return np.exp(self._factor * amplitude * amplitude)
+
+    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+        if not (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
+                and not isinstance(force_n, np.ndarray) and limit_um_pp >= 0):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        out = np.empty(len(ratio))
+        clamped = kernels.inverse_exponential(ratio.astype(np.float64, copy=False), self._floor(force_n, limit),
+                                              limit, self._factor, out)
+        return Inversion(out, clamped)
 
     def _amplitude_in_reach(self, ratio, force_n):
         amplitude = np.log(np.asarray(ratio, dtype=float))

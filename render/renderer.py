@@ -26,8 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from devices.profiles import PlateProfile
+from render import kernels
 from render.carrier import Carrier, check_carrier
-from render.envelope import Gate, PlateEnvelope, Precompensator, Smoother
+from render.envelope import EnvelopeChain
 from render.errors import RenderError
 from render.friction_models import FrictionModel
 from render.paths import SwipePath
@@ -117,13 +118,9 @@ class Renderer:
         self.limit_um_pp = profile.max_amplitude_um_pp
         self.sampler = Sampler(texture, band_limited=settings.band_limited_lookup)
         self.trajectory = trajectory or LiveTrajectory(settings.predictor, settings.lookahead_s)
-        self.gate = Gate(rate, settings.attack_s, settings.release_s)
-        self.smoother = Smoother(rate, settings.band_hz, settings.slew_um_per_ms, self.limit_um_pp)
-        if settings.precompensate:
-            self.precompensator = Precompensator(rate, profile.time_constant_s, profile.full_scale_um_pp)
-        else:
-            self.precompensator = None
-            self.plate_model = PlateEnvelope(rate, profile.time_constant_s)
+        self.envelope = EnvelopeChain(rate, settings.attack_s, settings.release_s, settings.band_hz,
+                                      settings.slew_um_per_ms, self.limit_um_pp, profile.time_constant_s,
+                                      profile.full_scale_um_pp, settings.precompensate)
         self.carrier = Carrier(self.carrier_hz, settings.audio_rate_hz)
         self.counters = Counters()
         self.offline = not isinstance(self.trajectory, LiveTrajectory)
@@ -137,7 +134,6 @@ class Renderer:
         self._pending = np.zeros(0)  # control samples computed but not yet played out
         self._played = 0  # audio frames already produced from the pending block
         self._offsets = np.zeros(0)
-        self._fractions = (np.arange(settings.upsampling) / settings.upsampling).astype(np.float32)
 
     # ---- input -------------------------------------------------------------------------------
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
@@ -177,9 +173,8 @@ class Renderer:
     @property
     def finished(self) -> bool:
         """At rest after a stop, or (offline) after the path's end."""
-        plate = self.precompensator.plate if self.precompensator else float(self.plate_model._state[0])
         ended = not self._running or (self.offline and self._next_time > self.trajectory.end_s)
-        return ended and self.gate.closed and plate < 1e-6 and abs(self._last_drive) < 1e-6
+        return ended and self.envelope.at_rest and abs(self._last_drive) < 1e-6
 
     # ---- control rate ----------------------------------------------------------------------------
     def _times(self, n: int, now_s: float | None) -> np.ndarray:
@@ -229,22 +224,15 @@ class Renderer:
             floor = self.model.floor_ratio(force, self.limit_um_pp)
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
         target = inversion.amplitude_um_pp
-        amplitude = self.smoother.process(target * self.gate.process(down, n))
-        np.minimum(amplitude, self.limit_um_pp, out=amplitude)
-        np.maximum(amplitude, 0.0, out=amplitude)
-        if self.precompensator is not None:
-            before = self.precompensator.clipped
-            drive, plate = self.precompensator.process(amplitude)
-            self.counters.drive_clipped_samples += self.precompensator.clipped - before
-        else:
-            drive = amplitude
-            plate = self.plate_model.process(drive)
-        self.counters.ramps = self.gate.ramps
+        envelope = self.envelope.process(target, down)
+        self.counters.ramps = self.envelope.ramps
+        self.counters.drive_clipped_samples = self.envelope.drive_clipped
         self.counters.control_samples += n
         self.counters.render_times_s.append(time.perf_counter() - started)
         if len(self.counters.render_times_s) > 100_000:
             del self.counters.render_times_s[:50_000]
-        block = ControlBlock(times, x, y, finger.down, ratio, target, amplitude, drive, plate)
+        block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp, envelope.drive_um_pp,
+                             envelope.plate_um_pp)
         for observer in self.observers:
             observer(block)
         return block
@@ -260,24 +248,18 @@ class Renderer:
             needed = -(-(frames - available) // up)
             block = self.control(needed, now_s)
             self._pending = np.concatenate((self._pending, block.drive_um_pp))
-        # frame m of the pending stretch lies between knots m // up and m // up + 1, where knot 0 is
-        # the last control sample already played out and knot i + 1 is pending sample i
-        first, last = self._played // up, (self._played + frames - 1) // up
-        knots = np.empty(last + 2, dtype=np.float32)
+        # knot 0 is the last control sample already played out, knot i + 1 is pending sample i
+        last = (self._played + frames - 1) // up
+        knots = np.empty(last + 2)
         knots[0] = self._last_drive
         knots[1:] = self._pending[:last + 1]
-        knots *= np.float32(1.0 / self.profile.full_scale_um_pp)  # drive as a fraction of full scale
-        np.minimum(knots, np.float32(1.0), out=knots)  # between knots in [0, 1], so is every frame
-        np.maximum(knots, np.float32(0.0), out=knots)
-        start = knots[first:last + 1]
-        rise = knots[first + 1:last + 2] - start
-        envelope = (start[:, None] + rise[:, None] * self._fractions[None, :]).ravel()
-        offset = self._played - first * up
-        envelope = envelope[offset:offset + frames]
+        out = np.empty(frames, dtype=np.float32)
+        kernels.modulate(knots, self._played, up, 1.0 / self.profile.full_scale_um_pp, self.carrier.block(frames), 0,
+                         out)
         consumed = (self._played + frames) // up
         if consumed:
             self._last_drive = float(self._pending[consumed - 1])
             self._pending = self._pending[consumed:]
         self._played = (self._played + frames) % up
         self.counters.audio_frames += frames
-        return envelope * self.carrier.block(frames)
+        return out

@@ -1,7 +1,8 @@
 """Sampling a texture at finger positions: bilinear, band-limited, and along the motion.
 
 A :class:`Sampler` is built once per texture and then answers vectorised queries fast enough for
-the real-time path; the interpolation itself is scipy's ``map_coordinates`` (order 1).
+the real-time path; the interpolation is a compiled bilinear kernel (:mod:`textures.kernels`),
+identical to scipy's ``map_coordinates(order=1)`` with grid-wrap or nearest edges.
 
 Band limiting uses a pyramid of prefiltered levels (each a Gaussian-blurred, half-resolution
 copy of the one before); a query that moves ``step_mm`` between successive samples
@@ -24,6 +25,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from textures import kernels
 from textures.texture import Texture, gradient_ratio
 
 MIN_LEVEL_PIXELS = 2
@@ -68,18 +70,14 @@ class Sampler:
         self.levels = len(levels)
         self.per_mm_x = [level.shape[1] / texture.width_mm for level in levels]
         self.per_mm_y = [level.shape[0] / texture.height_mm for level in levels]
-        self.mode = "grid-wrap" if self.tile else "nearest"  # nearest: the edge pixel continues
         self.base_pixel_mm = max(texture.pixel_mm)
 
     def _bilinear(self, channel: int, x_mm, y_mm, level: int):
-        """Bilinear interpolation at one pyramid level (scipy's map_coordinates, order 1)."""
-        image = self.pyramids[channel][level]
-        coordinates = np.empty((2,) + np.shape(x_mm))
-        np.multiply(y_mm, self.per_mm_y[level], out=coordinates[0])
-        np.multiply(x_mm, self.per_mm_x[level], out=coordinates[1])
-        coordinates -= 0.5  # pixel centres sit half a pixel in
+        """Bilinear interpolation at one pyramid level (:func:`textures.kernels.bilinear`)."""
         output = np.empty(np.shape(x_mm), dtype=np.float32)
-        return ndimage.map_coordinates(image, coordinates, output=output, order=1, mode=self.mode, prefilter=False)
+        kernels.bilinear(self.pyramids[channel][level], x_mm.reshape(-1), y_mm.reshape(-1), self.per_mm_x[level],
+                         self.per_mm_y[level], self.tile, output.reshape(-1))
+        return output
 
     def _channel(self, channel: int, x_mm, y_mm, step_mm):
         if step_mm is None or self.levels == 1:
@@ -114,6 +112,23 @@ class Sampler:
             result[pick] = near + weight[pick] * (far - near)
         return result
 
+    def _one_level(self, step_mm) -> bool:
+        """True when the query reads the full-resolution level alone."""
+        if step_mm is None or self.levels == 1:
+            return True
+        return not isinstance(step_mm, np.ndarray) and float(step_mm) <= self.base_pixel_mm
+
+    def _directional(self, x_mm, y_mm, dx: float, dy: float) -> np.ndarray:
+        """A gradient texture along one direction of motion, in one compiled pass."""
+        length = math.hypot(dx, dy)
+        ux, uy = (dx / length, dy / length) if length > 0 else (0.0, 0.0)
+        low, high = self.texture.ratio_range
+        out = np.empty(len(x_mm), dtype=np.float32)
+        kernels.gradient_ratio(self.pyramids[0][0], self.pyramids[1][0], x_mm, y_mm, self.per_mm_x[0],
+                               self.per_mm_y[0], self.tile, ux, uy, 0.5 * (low + high),
+                               0.5 * (high - low) / self.texture.full_slope_per_mm, low, high, out)
+        return out
+
     def ratio(self, x_mm, y_mm, step_mm=None, direction=None) -> np.ndarray:
         """Friction ratio at positions (mm), float32.
 
@@ -121,11 +136,13 @@ class Sampler:
         it to band-limit the lookup. ``direction`` is a pair of arrays (dx, dy) of the motion,
         needed by gradient textures (any length; zero means at rest, which reads as flat ground).
         """
-        x_mm = np.asarray(x_mm, dtype=float)
-        y_mm = np.asarray(y_mm, dtype=float)
+        x_mm = np.asarray(x_mm, dtype=np.float64)
+        y_mm = np.asarray(y_mm, dtype=np.float64)
         texture = self.texture
         if texture.kind == "friction":
             ratio = self._channel(0, x_mm, y_mm, step_mm)
+        elif self._one_level(step_mm) and direction is not None and np.ndim(direction[0]) == 0 and x_mm.ndim == 1:
+            ratio = self._directional(x_mm, y_mm, float(direction[0]), float(direction[1]))
         else:
             slope_x = self._channel(0, x_mm, y_mm, step_mm)
             slope_y = self._channel(1, x_mm, y_mm, step_mm)
