@@ -12,29 +12,34 @@ import math
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _corners(u, v, rows, cols, wrap):
+    """The four pixels around (u, v) in pixel units (centres at integers) and the fractions."""
+    c0 = math.floor(u)
+    r0 = math.floor(v)
+    fu = u - c0
+    fv = v - r0
+    c0 = int(c0)
+    r0 = int(r0)
+    if wrap:
+        c0 %= cols
+        r0 %= rows
+        c1 = c0 + 1 if c0 + 1 < cols else 0
+        r1 = r0 + 1 if r0 + 1 < rows else 0
+    else:
+        c1 = min(max(c0 + 1, 0), cols - 1)
+        r1 = min(max(r0 + 1, 0), rows - 1)
+        c0 = min(max(c0, 0), cols - 1)
+        r0 = min(max(r0, 0), rows - 1)
+    return r0, r1, c0, c1, fu, fv
+
+
 @njit(cache=True, nogil=True)
 def bilinear(image, x_mm, y_mm, per_mm_x, per_mm_y, wrap, out):
     """Bilinear interpolation of ``image`` (rows × cols, pixel centres at half-pixels) at mm positions."""
     rows, cols = image.shape
     for i in range(x_mm.shape[0]):
-        u = x_mm[i] * per_mm_x - 0.5
-        v = y_mm[i] * per_mm_y - 0.5
-        c0 = math.floor(u)
-        r0 = math.floor(v)
-        fu = u - c0
-        fv = v - r0
-        c0 = int(c0)
-        r0 = int(r0)
-        if wrap:
-            c0 %= cols
-            r0 %= rows
-            c1 = c0 + 1 if c0 + 1 < cols else 0
-            r1 = r0 + 1 if r0 + 1 < rows else 0
-        else:
-            c1 = min(max(c0 + 1, 0), cols - 1)
-            r1 = min(max(r0 + 1, 0), rows - 1)
-            c0 = min(max(c0, 0), cols - 1)
-            r0 = min(max(r0, 0), rows - 1)
+        r0, r1, c0, c1, fu, fv = _corners(x_mm[i] * per_mm_x - 0.5, y_mm[i] * per_mm_y - 0.5, rows, cols, wrap)
         top = image[r0, c0] + fu * (image[r0, c1] - image[r0, c0])
         bottom = image[r1, c0] + fu * (image[r1, c1] - image[r1, c0])
         out[i] = top + fv * (bottom - top)
@@ -46,24 +51,7 @@ def gradient_ratio(slope_x, slope_y, x_mm, y_mm, per_mm_x, per_mm_y, wrap, ux, u
     ratio = clip(middle + gain * slope along the motion, low, high), the slope read bilinearly."""
     rows, cols = slope_x.shape
     for i in range(x_mm.shape[0]):
-        u = x_mm[i] * per_mm_x - 0.5
-        v = y_mm[i] * per_mm_y - 0.5
-        c0 = math.floor(u)
-        r0 = math.floor(v)
-        fu = u - c0
-        fv = v - r0
-        c0 = int(c0)
-        r0 = int(r0)
-        if wrap:
-            c0 %= cols
-            r0 %= rows
-            c1 = c0 + 1 if c0 + 1 < cols else 0
-            r1 = r0 + 1 if r0 + 1 < rows else 0
-        else:
-            c1 = min(max(c0 + 1, 0), cols - 1)
-            r1 = min(max(r0 + 1, 0), rows - 1)
-            c0 = min(max(c0, 0), cols - 1)
-            r0 = min(max(r0, 0), rows - 1)
+        r0, r1, c0, c1, fu, fv = _corners(x_mm[i] * per_mm_x - 0.5, y_mm[i] * per_mm_y - 0.5, rows, cols, wrap)
         w00 = (1.0 - fu) * (1.0 - fv)
         w01 = fu * (1.0 - fv)
         w10 = (1.0 - fu) * fv
