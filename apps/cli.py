@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "renderer and play it on a device.")
     add_render_options(play)
     play.add_argument("--device", default="sim", metavar="URL",
-                      help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null "
+                      help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
+                           "wav:PATH or null "
                            "(default: sim)")
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
     play.set_defaults(handler="apps.play_command:run")

@@ -117,4 +117,5 @@ class AudioPlate:
 
     def status(self) -> dict:
         return {"device": f"audio:{self.device if self.device is not None else 'default'}", "rate_hz": self.rate_hz,
-                "underruns": self.underruns, "callbacks": self.callbacks, "errors": self.errors[:5]}
+                "latency_s": self._output_latency, "blocksize": self.blocksize, "underruns": self.underruns,
+                "callbacks": self.callbacks, "errors": self.errors[:5]}

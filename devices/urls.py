@@ -1,4 +1,5 @@
-"""Devices by URL: ``sim``, ``serial:PORT[?baud=N]``, ``audio[:NAME_OR_INDEX][?rate=N]``, ``wav:PATH``, ``null``."""
+"""Devices by URL: ``sim``, ``serial:PORT[?baud=N]``, ``wav:PATH``, ``null``, and
+``audio[:NAME_OR_INDEX][?rate=N&latency=SECONDS|low|high&blocksize=FRAMES]``."""
 
 from __future__ import annotations
 
@@ -27,12 +28,17 @@ def parse_device_url(url: str) -> DeviceUrl:
     options = dict(parse_qsl(query))
     if kind in ("serial", "wav") and not target:
         raise DeviceError(f"{kind} needs a {'port' if kind == 'serial' else 'path'}: {kind}:...")
-    for key in ("baud", "rate"):
+    for key in ("baud", "rate", "blocksize"):
         if key in options:
             try:
                 options[key] = int(options[key])
             except ValueError:
                 raise DeviceError(f"{key} must be a whole number in {url!r}") from None
+    if "latency" in options and options["latency"] not in ("low", "high"):
+        try:
+            options["latency"] = float(options["latency"])
+        except ValueError:
+            raise DeviceError(f"latency is seconds, low or high in {url!r}") from None
     return DeviceUrl(kind, target, options)
 
 
@@ -84,7 +90,8 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         from devices.audio import AudioPlate
 
         target = int(spec.target) if spec.target.isdigit() else (spec.target or None)
-        return AudioPlate(target, carrier, spec.options.get("rate"))
+        return AudioPlate(target, carrier, spec.options.get("rate"), spec.options.get("latency", "low"),
+                          spec.options.get("blocksize", 0))
     from devices.paced import PacedSink, WavRecorder
 
     rate = spec.options.get("rate", 96000)

@@ -172,7 +172,7 @@ def test_handshake_failures_are_clear(tmp_path):
 
 
 @pytest.mark.parametrize("url, fragment", [("bluetooth", "unknown device"), ("serial:", "needs a port"),
-                                           ("audio?rate=fast", "whole number")])
+                                           ("audio?rate=fast", "whole number"), ("audio?latency=soon", "latency")])
 def test_bad_device_urls(url, fragment):
     with pytest.raises(DeviceError, match=fragment):
         parse_device_url(url)
@@ -282,8 +282,8 @@ def test_play_on_the_audio_device_from_the_command_line(tmp_path):
     env = {"HOME": str(tmp_path)}
     listing = json.loads(run_cli("devices", "--json", env=env, check=True).stdout)
     assert any(96000 in output["rates_hz"] for output in listing["audio"])
-    status = json.loads(run_cli("play", "grating-1mm", "--device", "audio", "--duration-s", "0.3", "--json",
-                                env=env, check=True).stdout)
+    status = json.loads(run_cli("play", "grating-1mm", "--device", "audio?latency=0.02&blocksize=256",
+                                "--duration-s", "0.3", "--json", env=env, check=True).stdout)
     assert status["rate_hz"] == 96000 and status["errors"] == []
     played = np.frombuffer(capture.read_bytes(), dtype="<f4")
     assert len(played) > 0 and np.max(np.abs(played)) <= 1.0
