@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from render.calibration import fit_model, write_calibration
+from pathlib import Path
+
+from apps.atomic import atomic_path
+from render.calibration import calibration_toml, fit_model
 from render.measurements import read_measurements
 
 POOR_FIT_RMS = 0.05
@@ -25,6 +28,7 @@ def run(args) -> int:
     if fit.rms_residual > POOR_FIT_RMS:
         print(f"warning: the {args.model} model does not follow these data well "
               f"(rms residual {fit.rms_residual:.3f}); consider --model exponential or table:FILE")
-    write_calibration(fit, args.output)
+    with atomic_path(Path(args.output)) as temporary:
+        temporary.write_text(calibration_toml(fit))
     print(f"wrote {args.output}")
     return 0

@@ -17,8 +17,6 @@ Every command that takes ``--model`` accepts such a file (see :func:`load_model`
 from __future__ import annotations
 
 import datetime as _dt
-import os
-import tempfile
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,9 +86,8 @@ def fit_model(data: Measurements, kind: str) -> Fit:
     return Fit(model, residual(result.x), data)
 
 
-def write_calibration(fit: Fit, path: str | Path) -> None:
-    """Write a calibration file atomically (a temporary file renamed into place)."""
-    path = Path(path)
+def calibration_toml(fit: Fit) -> str:
+    """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically)."""
     document = {
         "ultraglide_calibration": CALIBRATION_VERSION,
         "model": fit.model.name if fit.model.name != "paper" else
@@ -104,15 +101,7 @@ def write_calibration(fit: Fit, path: str | Path) -> None:
             "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         },
     }
-    directory = path.parent if str(path.parent) else Path(".")
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=directory)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            tomli_w.dump(document, stream)
-        os.replace(temporary, path)
-    except BaseException:
-        os.unlink(temporary)
-        raise
+    return tomli_w.dumps(document)
 
 
 def read_calibration(path: str | Path) -> FrictionModel:
