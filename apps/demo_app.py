@@ -95,10 +95,15 @@ class DemoApp:
         self.widgets = self._widgets()
         self.profile = load_profile(profile)
         self.model_name = model
+        friction_model = load_model(model)  # bad options fail here, before a device is opened
         self.device = open_device(device_url, self.profile)
-        rate = self.device.rate_hz if self.device.signal == "audio" else 96000
-        settings = RenderSettings(audio_rate_hz=rate)
-        self.renderer = Renderer(self.textures[0], load_model(model), self.profile, settings)
+        try:
+            rate = self.device.rate_hz if self.device.signal == "audio" else 96000
+            self.renderer = Renderer(self.textures[0], friction_model, self.profile,
+                                     RenderSettings(audio_rate_hz=rate))
+        except BaseException:
+            self.device.stop()
+            raise
         self.renderer.pause(True)  # at rest until a finger is on a texture
         self.chart = collections.deque(maxlen=4000)
         self.measured = collections.deque(maxlen=400)

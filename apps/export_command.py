@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from apps.atomic import atomic_path
 from apps.errors import UsageError
-from apps.render_setup import build
+from apps.render_setup import load_inputs, make_renderer
 from render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
@@ -55,7 +55,8 @@ def run(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
-    renderer, trajectory = build(args)
+    inputs = load_inputs(args)
+    renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
     rate = args.rate
     duration_s = trajectory.end_s - trajectory.start_s + renderer.tail_s
     total = int(round(duration_s * rate))

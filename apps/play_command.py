@@ -7,9 +7,8 @@ import time
 
 import numpy as np
 
-from apps.render_setup import build
+from apps.render_setup import load_inputs, make_renderer
 from apps.sources import source_for
-from devices.profiles import load_profile
 from devices.urls import open_device
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
@@ -24,18 +23,17 @@ def report_times(trajectory) -> np.ndarray:
 
 
 def run(args) -> int:
-    profile = load_profile(args.profile)
-    device = open_device(args.device, profile, control_rate_hz=12000, carrier_hz=args.carrier_hz)
-    if device.signal == "audio":
-        args.rate = device.rate_hz
-    renderer, trajectory = build(args, live=True)
-    source = source_for(device, renderer)
+    inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
+    trajectory = inputs.trajectory
     times = report_times(trajectory)
     states = trajectory.state(times)
     forces = np.broadcast_to(states.force_n, times.shape)
-    device.start(source)
-    started = time.perf_counter()
+    device = open_device(args.device, inputs.profile, control_rate_hz=12000, carrier_hz=args.carrier_hz)
     try:
+        rate = device.rate_hz if device.signal == "audio" else args.rate
+        renderer = make_renderer(inputs, args, rate, live=True)
+        device.start(source_for(device, renderer))
+        started = time.perf_counter()
         for t, x, y, force in zip(times - times[0], states.x_mm, states.y_mm, forces, strict=True):
             delay = started + t - time.perf_counter()
             if delay > 0:

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 from apps.errors import UsageError
-from devices.profiles import load_profile
+from devices.profiles import PlateProfile, load_profile
 from render.calibration import load_model
+from render.friction_models import FrictionModel
 from render.paths import SwipePath
 from render.renderer import Renderer, RenderSettings
 from render.touch_log import read_touch_log
+from render.trajectory import RecordedTrajectory
 from textures.library import resolve_texture
 from textures.texture import Texture
 
@@ -28,22 +31,37 @@ def swipe_of(args, texture: Texture) -> SwipePath:
                      radius_mm=args.radius_mm, width_mm=args.zigzag_width_mm, force_n=args.force)
 
 
-def build(args, live: bool = False):
-    """(renderer, trajectory) from parsed options. ``live`` leaves the trajectory to be fed in real time."""
+@dataclass(frozen=True)
+class Inputs:
+    """Everything the options name, loaded and checked: where a person's mistakes show up."""
+
+    texture: Texture
+    model: FrictionModel
+    profile: PlateProfile
+    trajectory: RecordedTrajectory | SwipePath
+
+
+def load_inputs(args) -> Inputs:
+    """Texture, model, profile and path from parsed options; one-line errors for bad ones."""
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         texture = resolve_texture(args.texture)
     model = load_model(args.model)
     profile = load_profile(args.profile)
     if args.trajectory:
-        trajectory = read_touch_log(args.trajectory)
         if args.force is not None:
             raise UsageError("--force sets the swipe's force; a --trajectory brings its own (or the 0.5 N default)")
+        trajectory = read_touch_log(args.trajectory)
     else:
         trajectory = swipe_of(args, texture)
+    return Inputs(texture, model, profile, trajectory)
+
+
+def make_renderer(inputs: Inputs, args, rate_hz: int, live: bool = False) -> Renderer:
+    """A renderer at ``rate_hz``; ``live`` leaves the path to be fed in real time, as touches."""
     settings = RenderSettings(
-        audio_rate_hz=args.rate, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
+        audio_rate_hz=rate_hz, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
         precompensate=not args.no_precompensation, lookahead_s=args.lookahead_ms / 1000.0,
     )
-    renderer = Renderer(texture, model, profile, settings, trajectory=None if live else trajectory)
-    return renderer, trajectory
+    return Renderer(inputs.texture, inputs.model, inputs.profile, settings,
+                    trajectory=None if live else inputs.trajectory)

@@ -11,11 +11,10 @@ from __future__ import annotations
 import time
 
 from devices.errors import DeviceError
-from devices.source import BlockSource
+from devices.source import BlockSource, ramp_down
 
 CANDIDATE_RATES = (96000, 192000, 88200, 176400, 384000)
 MAX_CARRIER_FRACTION = 0.4
-STOP_TIMEOUT_S = 1.0
 
 
 def import_sounddevice():
@@ -106,10 +105,7 @@ class AudioPlate:
         if self._stream is None:
             return
         if self._source is not None and self._stream.active:
-            self._source.request_stop()
-            deadline = time.monotonic() + STOP_TIMEOUT_S
-            while not self._source.finished and self._stream.active and time.monotonic() < deadline:
-                time.sleep(0.005)
+            ramp_down(self._source, lambda: self._stream.active)
             time.sleep(max(self._output_latency, 0.01))  # let the last blocks reach the DAC
         self._stream.stop()
         self._stream.close()

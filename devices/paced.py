@@ -16,10 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from devices.errors import DeviceError
-from devices.source import BlockSource
+from devices.source import BlockSource, ramp_down
 
 BLOCK_S = 0.005
-STOP_TIMEOUT_S = 1.0
 
 
 class PacedSink:
@@ -68,10 +67,7 @@ class PacedSink:
 
     def stop(self) -> None:
         if self._thread is not None and self._thread.is_alive():
-            self._source.request_stop()
-            deadline = time.monotonic() + STOP_TIMEOUT_S
-            while self._thread.is_alive() and not self._source.finished and time.monotonic() < deadline:
-                time.sleep(0.005)
+            ramp_down(self._source, self._thread.is_alive)
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2)
@@ -107,6 +103,9 @@ class WavRecorder(PacedSink):
 
     def close(self) -> None:
         if self._file is None:
+            return
+        if self._source is None:  # never started: a recording of nothing is no recording
+            self.discard()
             return
         self._file.close()
         self._file = None

@@ -28,12 +28,11 @@ import serial.threaded
 from devices import protocol as p
 from devices.errors import DeviceError
 from devices.profiles import PlateProfile
-from devices.source import BlockSource
+from devices.source import BlockSource, ramp_down
 
 HANDSHAKE_TIMEOUT_S = 1.0
 SILENCE_S = 0.5  # no telemetry for this long while connected: the device has hung
 BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
-STOP_TIMEOUT_S = 1.0
 
 
 @dataclass
@@ -260,10 +259,7 @@ class SerialPlate:
     def stop(self) -> None:
         """Ramp down through the source, then send zero and disable and close the port."""
         if self._source is not None and self._thread is not None and self._thread.is_alive():
-            self._source.request_stop()
-            deadline = time.monotonic() + STOP_TIMEOUT_S
-            while self._thread.is_alive() and time.monotonic() < deadline and not self._source.finished:
-                time.sleep(0.005)
+            ramp_down(self._source, self._thread.is_alive)
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Protocol
 
 import numpy as np
@@ -20,3 +21,15 @@ class BlockSource(Protocol):
     @property
     def finished(self) -> bool:
         """True once the ramp down has reached rest."""
+
+
+STOP_TIMEOUT_S = 1.0  # a ramp down that has not reached rest by then is cut off
+
+
+def ramp_down(source: BlockSource, consuming, timeout_s: float = STOP_TIMEOUT_S) -> None:
+    """Ask ``source`` to ramp to rest and wait while ``consuming()`` (the device still pulls) until it is
+    finished or ``timeout_s`` has passed. Every device stops through this before resting its hardware."""
+    source.request_stop()
+    deadline = time.monotonic() + timeout_s
+    while consuming() and not source.finished and time.monotonic() < deadline:
+        time.sleep(0.005)

@@ -295,3 +295,20 @@ def test_audio_refuses_a_rate_that_cannot_carry_the_carrier(tmp_path):
     result = run_cli("play", "grating-1mm", "--device", "audio?rate=48000", "--duration-s", "0.2",
                      env={"HOME": str(tmp_path)})
     assert "cannot carry" in assert_one_line_error(result)
+
+
+def test_a_failed_play_leaves_no_recording_and_no_temporary(tmp_path):
+    out = tmp_path / "live.wav"
+    result = run_cli("play", "no-such-texture", "--device", f"wav:{out}", "--duration-s", "0.2")
+    assert "no texture file or library texture" in assert_one_line_error(result)
+    result = run_cli("play", "grating-1mm", "--device", f"wav:{out}", "--carrier-hz", "35000", "--duration-s", "0.2")
+    assert "outside" in assert_one_line_error(result)  # fails after the device was opened
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_recorder_that_never_started_writes_nothing(tmp_path):
+    from devices.paced import WavRecorder
+
+    recorder = WavRecorder(tmp_path / "never.wav")
+    recorder.stop()
+    assert list(tmp_path.iterdir()) == []
