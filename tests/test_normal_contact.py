@@ -105,3 +105,13 @@ def test_bed_reaction_closed_form_mean():
     # g(s) closed form: the mean of the normalised reaction is 1 for any amplitude
     for v in (0.5, 1.0, 1.5, 10.0, 100.0):
         assert np.mean(bed_reaction(v, PHASE)) == pytest.approx(1.0, rel=1e-4)
+
+
+@pytest.mark.parametrize("amplitude", [0.5, 3.0, 8.0])
+def test_cycle_friction_averages_to_the_relative_friction(amplitude):
+    # the mean of mu(F) F over a cycle, over mu(F_n) F_n at rest, is the relative coefficient (eq. 9)
+    from render.fingerprint import friction_force_n
+    from render.normal_contact import cycle_friction_n
+
+    friction = cycle_friction_n(amplitude, 0.5, PHASE, HERTZ)
+    assert np.mean(friction) / friction_force_n(0.5) == pytest.approx(relative_friction(amplitude, 0.5), abs=2e-4)
