@@ -8,6 +8,8 @@ and fill numpy arrays and return the state to carry to the next block; they allo
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numba import njit
 
@@ -127,3 +129,16 @@ def inverse_uniform(ratio, floor, limit, start, per_step, values, slopes, amplit
         a = (values[index] + (position - index) * slopes[index]) * amplitude_scale
         out[i] = min(max(a, 0.0), limit)
     return clamped
+
+
+@functools.cache
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel here with the types the renderer passes,
+    so the first real-time block never waits for the compiler. Called when a renderer is built."""
+    f64, f32 = np.zeros(4), np.zeros(4, dtype=np.float32)
+    envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
+             np.empty(4), np.empty(4), np.empty(4))
+    modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
+    sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))
+    inverse_exponential(f64 + 0.5, 0.1, 6.0, -0.1, np.empty(4))
+    inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))

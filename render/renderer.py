@@ -114,6 +114,7 @@ class Renderer:
         except RuntimeError as error:  # DeviceError: the profile refuses the carrier
             raise RenderError(str(error)) from None
         check_carrier(self.carrier_hz, settings.audio_rate_hz)
+        kernels.warm_up()
         rate = settings.control_rate_hz
         self.limit_um_pp = profile.max_amplitude_um_pp
         self.sampler = Sampler(texture, band_limited=settings.band_limited_lookup)

@@ -7,8 +7,10 @@ wrapper costs about 5 µs a call, a tenth of a live block's budget, where this c
 
 from __future__ import annotations
 
+import functools
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -59,3 +61,16 @@ def gradient_ratio(slope_x, slope_y, x_mm, y_mm, per_mm_x, per_mm_y, wrap, ux, u
         sx = w00 * slope_x[r0, c0] + w01 * slope_x[r0, c1] + w10 * slope_x[r1, c0] + w11 * slope_x[r1, c1]
         sy = w00 * slope_y[r0, c0] + w01 * slope_y[r0, c1] + w10 * slope_y[r1, c0] + w11 * slope_y[r1, c1]
         out[i] = min(max(middle + gain * (sx * ux + sy * uy), low), high)
+
+
+@functools.cache
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the lookups with the types a Sampler passes, so the first
+    real-time block never waits for the compiler. Called when a sampler is built."""
+    image = np.zeros((2, 2), dtype=np.float32)
+    image.setflags(write=False)  # pyramid levels are read-only
+    where = np.zeros(1)
+    for wrap in (True, False):
+        bilinear(image, where, where, 1.0, 1.0, wrap, np.empty(1, dtype=np.float32))
+        gradient_ratio(image, image, where, where, 1.0, 1.0, wrap, 1.0, 0.0, 0.5, 0.1, 0.0, 1.0,
+                       np.empty(1, dtype=np.float32))

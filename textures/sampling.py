@@ -52,6 +52,8 @@ def _pyramid(image: np.ndarray, wrap: bool, levels: int) -> list[np.ndarray]:
         shape = (max(1, round(previous.shape[0] / 2)), max(1, round(previous.shape[1] / 2)))
         zoom = (shape[0] / previous.shape[0], shape[1] / previous.shape[1])
         pyramid.append(ndimage.zoom(blurred, zoom, order=1, mode=grid_mode, grid_mode=True).astype(np.float32))
+    for level in pyramid:  # immutable lookup data; also one array type for the compiled lookups
+        level.setflags(write=False)
     return pyramid
 
 
@@ -59,6 +61,7 @@ class Sampler:
     """Vectorised lookups of the friction ratio of one texture; see the module docstring."""
 
     def __init__(self, texture: Texture, band_limited: bool = True, max_levels: int = 16):
+        kernels.warm_up()
         self.texture = texture
         self.tile = texture.outside == "tile"
         if texture.kind == "gradient":
