@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from apps.errors import UsageError
-from textures.authoring import AuthoringOptions, read_image_luminance, texture_from_luminance
-from textures.fileformat import save_texture
+from ultraglide.apps.errors import UsageError
+from ultraglide.textures.authoring import AuthoringOptions, read_image_luminance, texture_from_luminance
+from ultraglide.textures.fileformat import save_texture
 
 
 def run(args) -> int:
@@ -25,7 +25,7 @@ def run(args) -> int:
     name = args.name or output.stem
     texture = texture_from_luminance(luminance, options, name, str(args.image), info)
     if args.preview:
-        from apps.preview import write_preview
+        from ultraglide.apps.preview import write_preview
 
         crop = options.crop
         source = luminance if crop is None else luminance[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from apps.atomic import atomic_path
-from render.calibration import calibration_toml, fit_model
-from render.measurements import read_measurements
+from ultraglide.apps.atomic import atomic_path
+from ultraglide.render.calibration import calibration_toml, fit_model
+from ultraglide.render.measurements import read_measurements
 
 POOR_FIT_RMS = 0.05
 

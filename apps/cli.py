@@ -9,10 +9,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-from importlib import metadata
 
-from apps import errors
-from apps.cli_types import crop_box, finite, positive, ratio, size_mm
+from ultraglide.apps import errors
+from ultraglide.apps.cli_types import crop_box, finite, positive, ratio, size_mm
+
+from ultraglide import __version__
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -36,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Tactile texture rendering for ultrasonic friction displays.",
     )
     parser.add_argument("--version", action="version",
-                        version=f"ultraglide {metadata.version('ultraglide')}")
+                        version=f"ultraglide {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
 
     model = commands.add_parser(
@@ -52,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     model.add_argument("--plots", metavar="DIR", help="write the paper's figures 2-9 as PNGs here")
     model.add_argument("--data", metavar="CSV",
                        help="measured points for figure 9 (default: the bundled Monnoyer 2018 fit)")
-    model.set_defaults(handler="apps.model_command:run")
+    model.set_defaults(handler="ultraglide.apps.model_command:run")
 
     calibrate = commands.add_parser(
         "calibrate", help="fit a friction model to measured points",
@@ -62,11 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument("--model", default="exponential",
                            choices=["exponential", "paper", "paper-uniform"])
     calibrate.add_argument("-o", "--output", required=True, metavar="CAL.toml")
-    calibrate.set_defaults(handler="apps.calibrate_command:run")
+    calibrate.set_defaults(handler="ultraglide.apps.calibrate_command:run")
 
     _add_texture_commands(commands)
 
-    from apps.swipes import add_render_options
+    from ultraglide.apps.swipes import add_render_options
 
     export = commands.add_parser(
         "export", help="render a swipe or a touch log to a WAV file",
@@ -78,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
-    export.set_defaults(handler="apps.export_command:run")
+    export.set_defaults(handler="ultraglide.apps.export_command:run")
 
     play = commands.add_parser(
         "play", help="render a swipe or a touch log to a device in real time",
@@ -90,20 +91,20 @@ def build_parser() -> argparse.ArgumentParser:
                            "wav:PATH or null "
                            "(default: sim)")
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
-    play.set_defaults(handler="apps.play_command:run")
+    play.set_defaults(handler="ultraglide.apps.play_command:run")
 
     devices = commands.add_parser("devices", help="list outputs: audio, serial ports, the simulator",
                                   description="Audio outputs with the sample rates they accept, serial ports "
                                               "and the simulated plate.")
     devices.add_argument("--json", action="store_true", help="print one JSON object")
-    devices.set_defaults(handler="apps.devices_command:list_all")
+    devices.set_defaults(handler="ultraglide.apps.devices_command:list_all")
 
     sim = commands.add_parser("plate-sim", help="serve the simulated plate on a pseudo-terminal",
                               description="Run the simulated plate driver on a pty and print its path; "
                                           "connect with --device serial:PATH. Runs until stopped.")
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
-    sim.set_defaults(handler="apps.devices_command:plate_sim")
+    sim.set_defaults(handler="ultraglide.apps.devices_command:plate_sim")
 
     demo = commands.add_parser(
         "demo", help="feel textures on the plate: the touch-panel demo",
@@ -118,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--screen-width-mm", type=positive, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
-    demo.set_defaults(handler="apps.demo_app:run")
+    demo.set_defaults(handler="ultraglide.apps.demo_app:run")
     return parser
 
 
@@ -157,13 +158,13 @@ def _add_texture_commands(commands) -> None:
     author.add_argument("--name", help="texture name (default: the image's file name)")
     author.add_argument("--preview", metavar="PREVIEW.png",
                         help="also write a picture of the source, the friction map and a swipe")
-    author.set_defaults(handler="apps.author_command:run")
+    author.set_defaults(handler="ultraglide.apps.author_command:run")
 
     listing = commands.add_parser("textures", help="list the bundled texture library",
                                   description="The textures that ship with ultraglide; use their names "
                                               "wherever a texture file is accepted.")
     listing.add_argument("--json", action="store_true", help="print a JSON list")
-    listing.set_defaults(handler="apps.texture_command:list_library")
+    listing.set_defaults(handler="ultraglide.apps.texture_command:list_library")
 
     texture = commands.add_parser("texture", help="make procedural textures",
                                   description="Make textures from parameters.")
@@ -202,7 +203,7 @@ def _add_texture_commands(commands) -> None:
         sub.add_argument("--name", help="texture name (default: the output's file name)")
         sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
         sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
-        sub.set_defaults(handler="apps.texture_command:new")
+        sub.set_defaults(handler="ultraglide.apps.texture_command:new")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -19,8 +19,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-
-from apps.demo_draw import (
+from ultraglide.apps.demo_draw import (
     ACCENT,
     BACKGROUND,
     DIM,
@@ -33,16 +32,16 @@ from apps.demo_draw import (
     friction_colours,
     texture_surface,
 )
-from apps.errors import UsageError
-from apps.sources import source_for
-from devices.profiles import load_profile
-from devices.urls import open_device
-from render.calibration import load_model
-from render.renderer import Renderer, RenderSettings
-from textures import procedural
-from textures.compose import Placement, compose
-from textures.library import library_entries, resolve_texture
-from textures.texture import Texture
+from ultraglide.apps.errors import UsageError
+from ultraglide.apps.sources import source_for
+from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.urls import open_device
+from ultraglide.render.calibration import load_model
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.textures import procedural
+from ultraglide.textures.compose import Placement, compose
+from ultraglide.textures.library import library_entries, resolve_texture
+from ultraglide.textures.texture import Texture
 
 DEFAULT_MM_PER_PX = 25.4 / 96  # when the screen's size is not given: a 96 dpi screen
 FRAME_S = 1 / 60

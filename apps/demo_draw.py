@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pygame
-
-from textures.texture import Texture
+from ultraglide.textures.texture import Texture
 
 BACKGROUND = (18, 20, 26)
 PANEL = (32, 36, 46)

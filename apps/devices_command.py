@@ -6,9 +6,9 @@ import json
 import signal
 import threading
 
-from devices.listing import list_devices
-from devices.plate_sim import PtyPlate
-from devices.profiles import load_profile
+from ultraglide.devices.listing import list_devices
+from ultraglide.devices.plate_sim import PtyPlate
+from ultraglide.devices.profiles import load_profile
 
 
 def list_all(args) -> int:

@@ -10,10 +10,10 @@ class UsageError(ValueError):
 
 
 _ERROR_CLASSES = (
-    ("render.errors", "ModelError"),
-    ("render.errors", "RenderError"),
-    ("textures.errors", "TextureError"),
-    ("devices.errors", "DeviceError"),
+    ("ultraglide.render.errors", "ModelError"),
+    ("ultraglide.render.errors", "RenderError"),
+    ("ultraglide.textures.errors", "TextureError"),
+    ("ultraglide.devices.errors", "DeviceError"),
 )
 
 

@@ -10,11 +10,10 @@ from pathlib import Path
 import numpy as np
 import soundfile
 from tqdm import tqdm
-
-from apps.atomic import atomic_path
-from apps.errors import UsageError
-from apps.render_setup import load_inputs, make_renderer
-from render.renderer import ControlBlock
+from ultraglide.apps.atomic import atomic_path
+from ultraglide.apps.errors import UsageError
+from ultraglide.apps.render_setup import load_inputs, make_renderer
+from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0
@@ -82,7 +81,7 @@ def run(args) -> int:
                 done += frames
                 progress.update(frames)
         if args.plot:
-            from apps.export_plot import plot_envelope
+            from ultraglide.apps.export_plot import plot_envelope
 
             plot_envelope(log.plot_data(), Path(args.plot), renderer)
     counters = renderer.counters

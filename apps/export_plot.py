@@ -9,8 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-from apps.atomic import atomic_path  # noqa: E402
+from ultraglide.apps.atomic import atomic_path  # noqa: E402
 
 
 def plot_envelope(data: np.ndarray, path: Path, renderer) -> Path:

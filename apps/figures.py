@@ -9,22 +9,21 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-from apps.atomic import atomic_path  # noqa: E402
-from render.calibration import load_model  # noqa: E402
-from render.fingerprint import (  # noqa: E402
+from ultraglide.apps.atomic import atomic_path  # noqa: E402
+from ultraglide.render.calibration import load_model  # noqa: E402
+from ultraglide.render.fingerprint import (  # noqa: E402
     FingerParams,
     detach_amplitude_um_pp,
     friction_coefficient,
     glide_threshold_um_pp,
 )
-from render.lateral import (  # noqa: E402
+from ultraglide.render.lateral import (  # noqa: E402
     simulate_lateral,
     simulated_glide_threshold_um_pp,
     steady_glide_threshold_um_pp,
 )
-from render.measurements import read_measurements  # noqa: E402
-from render.normal_contact import cycle_reaction_n, relative_friction  # noqa: E402
+from ultraglide.render.measurements import read_measurements  # noqa: E402
+from ultraglide.render.normal_contact import cycle_reaction_n, relative_friction  # noqa: E402
 
 FIGURE_AMPLITUDES_UM_PP = (0.1, 0.5, 1.0, 2.0, 4.0, 8.0)
 FORCES_N = np.linspace(0.05, 1.0, 96)

@@ -6,9 +6,8 @@ import json
 from pathlib import Path
 
 import numpy as np
-
-from render.calibration import load_model
-from render.fingerprint import (
+from ultraglide.render.calibration import load_model
+from ultraglide.render.fingerprint import (
     FingerParams,
     contact_area_mm2,
     detach_amplitude_um_pp,
@@ -16,7 +15,7 @@ from render.fingerprint import (
     normal_stiffness_n_per_m,
     tangential_stiffness_n_per_m,
 )
-from render.friction_models import CEILING_UM_PP, PaperModel
+from ultraglide.render.friction_models import CEILING_UM_PP, PaperModel
 
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0
@@ -76,7 +75,7 @@ def format_text(result: dict) -> str:
 def run(args) -> int:
     result = summary(args.force, args.model, args.ratio)
     if args.plots:
-        from apps.figures import write_paper_figures
+        from ultraglide.apps.figures import write_paper_figures
 
         data = Path(args.data) if args.data else EXAMPLE_DATA
         written = write_paper_figures(Path(args.plots), args.model, data)

@@ -6,10 +6,9 @@ import json
 import time
 
 import numpy as np
-
-from apps.render_setup import load_inputs, make_renderer
-from apps.sources import source_for
-from devices.urls import open_device
+from ultraglide.apps.render_setup import load_inputs, make_renderer
+from ultraglide.apps.sources import source_for
+from ultraglide.devices.urls import open_device
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
 

@@ -9,10 +9,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-from apps.atomic import atomic_path  # noqa: E402
-from textures.sampling import Sampler  # noqa: E402
-from textures.texture import Texture  # noqa: E402
+from ultraglide.apps.atomic import atomic_path  # noqa: E402
+from ultraglide.textures.sampling import Sampler  # noqa: E402
+from ultraglide.textures.texture import Texture  # noqa: E402
 
 
 def write_preview(texture: Texture, path: Path, source: np.ndarray | None = None) -> Path:

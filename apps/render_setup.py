@@ -5,16 +5,16 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
-from apps.errors import UsageError
-from devices.profiles import PlateProfile, load_profile
-from render.calibration import load_model
-from render.friction_models import FrictionModel
-from render.paths import SwipePath
-from render.renderer import Renderer, RenderSettings
-from render.touch_log import read_touch_log
-from render.trajectory import RecordedTrajectory
-from textures.library import resolve_texture
-from textures.texture import Texture
+from ultraglide.apps.errors import UsageError
+from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.render.calibration import load_model
+from ultraglide.render.friction_models import FrictionModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.render.touch_log import read_touch_log
+from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.textures.library import resolve_texture
+from ultraglide.textures.texture import Texture
 
 
 def swipe_of(args, texture: Texture) -> SwipePath:

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-
-from render.renderer import Renderer
+from ultraglide.render.renderer import Renderer
 
 
 class ControlSource:

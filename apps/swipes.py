@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from apps.cli_types import finite, non_negative, point_mm, positive
+from ultraglide.apps.cli_types import finite, non_negative, point_mm, positive
 
 
 def add_render_options(parser: argparse.ArgumentParser) -> None:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from apps.errors import UsageError
-from textures import procedural
-from textures.fileformat import save_texture
-from textures.library import library_entries
+from ultraglide.apps.errors import UsageError
+from ultraglide.textures import procedural
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.library import library_entries
 
 OPTION_NAMES = {  # CLI option → generator keyword
     "wavelength_mm": "wavelength_mm", "angle_deg": "angle_deg", "shape": "shape", "square_mm": "square_mm",
@@ -30,7 +30,7 @@ def new(args) -> int:
     print(f"wrote {output}: {texture.description}, {texture.width_mm:g} × {texture.height_mm:g} mm, "
           f"{texture.cols}×{texture.rows} px")
     if args.preview:
-        from apps.preview import write_preview
+        from ultraglide.apps.preview import write_preview
 
         write_preview(texture, Path(args.preview))
         print(f"wrote {args.preview}")

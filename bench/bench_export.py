@@ -31,7 +31,7 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0)
     minutes = parser.parse_args().minutes
     seconds = int(minutes * 60)
-    ultraglide = [sys.executable, "-m", "apps.cli", "export", "wood", "--path", "zigzag"]
+    ultraglide = [sys.executable, "-m", "ultraglide", "export", "wood", "--path", "zigzag"]
     with tempfile.TemporaryDirectory() as directory:
         out = os.path.join(directory, "out.wav")
         sox_s, sox_mb = min(run(["sox", "-n", "-r", "96000", out, "synth", str(seconds), "sine", "25000"])

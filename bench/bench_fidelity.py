@@ -13,13 +13,12 @@ largest spectral line up to 2 kHz is compared with the ideal's 100 Hz line.
 from __future__ import annotations
 
 import numpy as np
-
-from devices.profiles import load_profile
-from render.friction_models import ExponentialModel
-from render.paths import SwipePath
-from render.renderer import Renderer, RenderSettings
-from render.trajectory import LiveTrajectory
-from textures.procedural import grating
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.render.trajectory import LiveTrajectory
+from ultraglide.textures.procedural import grating
 
 SPEED, WAVELENGTH, DURATION, LATENCY, JITTER = 100.0, 1.0, 2.0, 0.05, 0.05
 RATE = 12000.0

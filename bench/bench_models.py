@@ -13,9 +13,8 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-
-from render.friction_models import ExponentialModel, PaperModel, TableModel  # noqa: E402
-from render.measurements import read_measurements  # noqa: E402
+from ultraglide.render.friction_models import ExponentialModel, PaperModel, TableModel  # noqa: E402
+from ultraglide.render.measurements import read_measurements  # noqa: E402
 
 N = 1_000_000
 REPEATS = 15

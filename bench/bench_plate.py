@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import signal
-
-from devices.profiles import PlateProfile
-from render.friction_models import ExponentialModel
-from render.paths import SwipePath
-from render.renderer import Renderer, RenderSettings
-from textures.procedural import grating
+from ultraglide.devices.profiles import PlateProfile
+from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.textures.procedural import grating
 
 RATE = 96000
 

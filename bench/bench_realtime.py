@@ -11,11 +11,10 @@ import threading
 import time
 
 import numpy as np
-
-from devices.profiles import load_profile
-from render.friction_models import ExponentialModel, PaperModel
-from render.renderer import Renderer, RenderSettings
-from textures.library import resolve_texture
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.friction_models import ExponentialModel, PaperModel
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.textures.library import resolve_texture
 
 BLOCKS = 20000
 

@@ -9,9 +9,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from textures.library import resolve_texture
-from textures.sampling import Sampler
+from ultraglide.textures.library import resolve_texture
+from ultraglide.textures.sampling import Sampler
 
 N = 1_000_000
 REPEATS = 10

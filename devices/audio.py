@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import time
 
-from devices.errors import DeviceError
-from devices.source import BlockSource, ramp_down
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.source import BlockSource, ramp_down
 
 CANDIDATE_RATES = (96000, 192000, 88200, 176400, 384000)
 MAX_CARRIER_FRACTION = 0.4

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from devices.errors import DeviceError
+from ultraglide.devices.errors import DeviceError
 
 
 def list_devices() -> dict:
@@ -15,7 +15,7 @@ def list_devices() -> dict:
         result["serial"].append({"url": f"serial:{port.device}", "description": port.description,
                                  "hwid": port.hwid})
     try:
-        from devices.audio import import_sounddevice, supported_rates
+        from ultraglide.devices.audio import import_sounddevice, supported_rates
 
         sd = import_sounddevice()
         for index, device in enumerate(sd.query_devices()):

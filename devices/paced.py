@@ -14,9 +14,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from devices.errors import DeviceError
-from devices.source import BlockSource, ramp_down
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.source import BlockSource, ramp_down
 
 BLOCK_S = 0.005
 

@@ -27,9 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import lfilter
-
-from devices import protocol as p
-from devices.profiles import PlateProfile
+from ultraglide.devices import protocol as p
+from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002
 TELEMETRY_S = 0.02

@@ -24,11 +24,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import serial
 import serial.threaded
-
-from devices import protocol as p
-from devices.errors import DeviceError
-from devices.profiles import PlateProfile
-from devices.source import BlockSource, ramp_down
+from ultraglide.devices import protocol as p
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.source import BlockSource, ramp_down
 
 HANDSHAKE_TIMEOUT_S = 1.0
 SILENCE_S = 0.5  # no telemetry for this long while connected: the device has hung

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl
 
-from devices.errors import DeviceError
-from devices.profiles import PlateProfile
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.profiles import PlateProfile
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
 
@@ -48,8 +48,8 @@ class SimPlate:
     signal = "control"
 
     def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None):
-        from devices.plate_sim import PtyPlate
-        from devices.serial_plate import SerialPlate
+        from ultraglide.devices.plate_sim import PtyPlate
+        from ultraglide.devices.serial_plate import SerialPlate
 
         self.plate = PtyPlate(profile).start()
         self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz)
@@ -83,16 +83,16 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
     if spec.kind == "sim":
         return SimPlate(profile, control_rate_hz, carrier_hz)
     if spec.kind == "serial":
-        from devices.serial_plate import SerialPlate
+        from ultraglide.devices.serial_plate import SerialPlate
 
         return SerialPlate(spec.target, profile, control_rate_hz, carrier_hz, baudrate=spec.options.get("baud", 921600))
     if spec.kind == "audio":
-        from devices.audio import AudioPlate
+        from ultraglide.devices.audio import AudioPlate
 
         target = int(spec.target) if spec.target.isdigit() else (spec.target or None)
         return AudioPlate(target, carrier, spec.options.get("rate"), spec.options.get("latency", "low"),
                           spec.options.get("blocksize", 0))
-    from devices.paced import PacedSink, WavRecorder
+    from ultraglide.devices.paced import PacedSink, WavRecorder
 
     rate = spec.options.get("rate", 96000)
     if spec.kind == "wav":

@@ -23,11 +23,10 @@ from pathlib import Path
 
 import numpy as np
 import tomli_w
-
-from render.errors import ModelError
-from render.fingerprint import FingerParams
-from render.friction_models import DEFAULT_FORCE_N, ExponentialModel, FrictionModel, PaperModel, TableModel
-from render.measurements import Measurements, read_measurements
+from ultraglide.render.errors import ModelError
+from ultraglide.render.fingerprint import FingerParams
+from ultraglide.render.friction_models import DEFAULT_FORCE_N, ExponentialModel, FrictionModel, PaperModel, TableModel
+from ultraglide.render.measurements import Measurements, read_measurements
 
 CALIBRATION_VERSION = 1
 MODEL_NAMES = ("paper", "paper-uniform", "exponential")

@@ -13,9 +13,8 @@ import math
 from fractions import Fraction
 
 import numpy as np
-
-from render.errors import RenderError
-from render.kernels import sine_block
+from ultraglide.render.errors import RenderError
+from ultraglide.render.kernels import sine_block
 
 MAX_CARRIER_FRACTION = 0.4  # a DAC's anti-imaging filter starts near 0.45 fs: stay below 0.4 fs
 MAX_TABLE = 1 << 20

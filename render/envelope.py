@@ -25,9 +25,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from render import kernels
-from render.errors import RenderError
+from ultraglide.render import kernels
+from ultraglide.render.errors import RenderError
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ and amplitudes in micrometres **peak-to-peak** (see ``docs/physics.md``).
 
 Example::
 
-    >>> from render.fingerprint import FingerParams, detach_amplitude_um_pp
+    >>> from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
     >>> round(float(detach_amplitude_um_pp(0.15, FingerParams())), 2)
     1.15
 """

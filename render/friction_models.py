@@ -6,7 +6,7 @@ functions are vectorised over numpy arrays; the inverse is the real-time hot pat
 
 Example::
 
-    >>> from render.friction_models import ExponentialModel
+    >>> from ultraglide.render.friction_models import ExponentialModel
     >>> model = ExponentialModel()
     >>> result = model.amplitude_um_pp([1.0, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
     >>> result.amplitude_um_pp.round(2).tolist(), result.clamped
@@ -24,12 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
-
-from render import kernels
-from render.errors import ModelError
-from render.fingerprint import FingerParams, detach_amplitude_um_pp
-from render.measurements import Measurements
-from render.normal_contact import relative_friction_of_u
+from ultraglide.render import kernels
+from ultraglide.render.errors import ModelError
+from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
+from ultraglide.render.measurements import Measurements
+from ultraglide.render.normal_contact import relative_friction_of_u
 
 DEFAULT_FORCE_N = 0.5
 MIN_FORCE_N = 0.01  # lighter touches are treated as 10 mN: the finger is lifting off

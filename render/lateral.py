@@ -14,8 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from render.fingerprint import M_TO_UM, FingerParams, tangential_stiffness_n_per_m
+from ultraglide.render.fingerprint import M_TO_UM, FingerParams, tangential_stiffness_n_per_m
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from render.csv_table import read_numeric_csv
-from render.errors import ModelError
+from ultraglide.render.csv_table import read_numeric_csv
+from ultraglide.render.errors import ModelError
 
 REQUIRED_COLUMNS = ("amplitude_um_pp", "relative_friction")
 

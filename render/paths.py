@@ -10,9 +10,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from render.errors import RenderError
-from render.trajectory import FingerState
+from ultraglide.render.errors import RenderError
+from ultraglide.render.trajectory import FingerState
 
 PATH_KINDS = ("straight", "circle", "zigzag")
 

@@ -8,10 +8,10 @@ touch report pushed now shapes the very next block.
 
 Example, offline::
 
-    >>> from render.friction_models import ExponentialModel
-    >>> from render.trajectory import RecordedTrajectory
-    >>> from textures.procedural import grating
-    >>> from devices.profiles import load_profile
+    >>> from ultraglide.render.friction_models import ExponentialModel
+    >>> from ultraglide.render.trajectory import RecordedTrajectory
+    >>> from ultraglide.textures.procedural import grating
+    >>> from ultraglide.devices.profiles import load_profile
     >>> path = RecordedTrajectory([0, 1], [10, 110], [25, 25])   # 100 mm/s
     >>> r = Renderer(grating(1.0), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
     >>> samples = r.audio(96000)    # one second at 96 kHz, float32 in [-1, 1]
@@ -24,17 +24,16 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from devices.profiles import PlateProfile
-from render import kernels
-from render.carrier import Carrier, check_carrier
-from render.envelope import EnvelopeChain
-from render.errors import RenderError
-from render.friction_models import FrictionModel
-from render.paths import SwipePath
-from render.trajectory import LiveTrajectory, RecordedTrajectory
-from textures.sampling import Sampler
-from textures.texture import Texture
+from ultraglide.devices.profiles import PlateProfile
+from ultraglide.render import kernels
+from ultraglide.render.carrier import Carrier, check_carrier
+from ultraglide.render.envelope import EnvelopeChain
+from ultraglide.render.errors import RenderError
+from ultraglide.render.friction_models import FrictionModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
+from ultraglide.textures.sampling import Sampler
+from ultraglide.textures.texture import Texture
 
 RESYNC_S = 0.02  # re-anchor the live clock when the device's clock has drifted this far
 

@@ -5,10 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from render.csv_table import read_numeric_csv
-from render.errors import RenderError
-from render.trajectory import RecordedTrajectory
+from ultraglide.render.csv_table import read_numeric_csv
+from ultraglide.render.errors import RenderError
+from ultraglide.render.trajectory import RecordedTrajectory
 
 COLUMNS = ("t_s", "x_mm", "y_mm")
 

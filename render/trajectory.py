@@ -20,8 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
-
-from render.errors import RenderError
+from ultraglide.render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
 MERGE_S = 0.002  # reports closer than this are one instant (events read from a queue in one go)

@@ -12,10 +12,9 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
-
-from textures import procedural
-from textures.authoring import AuthoringOptions, author_image
-from textures.fileformat import save_texture
+from ultraglide.textures import procedural
+from ultraglide.textures.authoring import AuthoringOptions, author_image
+from ultraglide.textures.fileformat import save_texture
 
 LIBRARY = Path("textures/library")
 SOURCES = LIBRARY / "sources"

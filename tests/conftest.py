@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def run_cli(*args, check=False, env=None, timeout=300, **kwargs):
     """Run the installed ``ultraglide`` command as a user would, in a subprocess."""
     merged = {**os.environ, **(env or {})}
-    result = subprocess.run([sys.executable, "-m", "apps.cli", *map(str, args)], capture_output=True,
+    result = subprocess.run([sys.executable, "-m", "ultraglide", *map(str, args)], capture_output=True,
                             text=True, env=merged, timeout=timeout, cwd=kwargs.get("cwd", ROOT))
     if check and result.returncode != 0:
         raise AssertionError(f"ultraglide {' '.join(map(str, args))} failed:\n{result.stderr}")

@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_cli
 from PIL import Image
-
-from textures.authoring import AuthoringOptions, author_image
-from textures.errors import TextureError
-from textures.fileformat import load_texture
+from ultraglide.textures.authoring import AuthoringOptions, author_image
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.fileformat import load_texture
 
 # a left-to-right ramp, dark to light, 64 × 32 pixels
 RAMP = np.tile(np.linspace(0, 255, 64), (32, 1)).astype(np.uint8)

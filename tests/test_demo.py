@@ -10,9 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
-
-from textures.fileformat import save_texture
-from textures.texture import Texture
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.texture import Texture
 
 ARTIFACTS = ROOT / "artifacts" / "screenshots"
 
@@ -28,7 +27,7 @@ def halves(tmp_path):
 @pytest.fixture
 def app(halves, monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from apps.demo_app import DemoApp
+    from ultraglide.apps.demo_app import DemoApp
 
     demo = DemoApp([halves], windowed=True, screen_width_mm=338.7)  # 1280 px: 0.2646 mm a pixel
     yield demo
@@ -162,7 +161,7 @@ def test_closing_rests_the_plate(app):
 
 def test_no_display_is_one_clear_line():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
-    result = subprocess.run([sys.executable, "-m", "apps.cli", "demo"], capture_output=True, text=True, env=env,
+    result = subprocess.run([sys.executable, "-m", "ultraglide", "demo"], capture_output=True, text=True, env=env,
                             cwd=ROOT, timeout=60)
     assert "ultraglide export" in assert_one_line_error(result)
 
@@ -177,7 +176,7 @@ def test_demo_under_xvfb_driven_by_xdotool(tmp_path):
     env.pop("SDL_VIDEODRIVER", None)
     try:
         time.sleep(1.0)
-        demo = subprocess.Popen([sys.executable, "-m", "apps.cli", "demo", "--windowed"], env=env, cwd=ROOT,
+        demo = subprocess.Popen([sys.executable, "-m", "ultraglide", "demo", "--windowed"], env=env, cwd=ROOT,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(1.0)
         assert demo.poll() is None, demo.communicate()[1]

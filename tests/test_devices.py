@@ -12,13 +12,12 @@ import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli
 from scipy import signal as sps
-
-from devices import protocol as p
-from devices.errors import DeviceError
-from devices.plate_sim import PlateSimulator, PtyPlate
-from devices.profiles import PlateProfile, load_profile
-from devices.serial_plate import SerialPlate
-from devices.urls import parse_device_url
+from ultraglide.devices import protocol as p
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.plate_sim import PlateSimulator, PtyPlate
+from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.urls import parse_device_url
 
 PROFILE = load_profile("sim-plate")
 
@@ -180,7 +179,7 @@ def test_bad_device_urls(url, fragment):
 
 def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
     link = tmp_path / "plate"
-    server = subprocess.Popen([sys.executable, "-m", "apps.cli", "plate-sim", "--link", str(link)],
+    server = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link)],
                               stdout=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         banner = server.stdout.readline()
@@ -223,13 +222,13 @@ pcm.capture {{
 
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
-from apps.sources import AudioSource
-from devices.audio import AudioPlate
-from devices.profiles import load_profile
-from render.friction_models import ExponentialModel
-from render.paths import SwipePath
-from render.renderer import Renderer
-from textures.library import resolve_texture
+from ultraglide.apps.sources import AudioSource
+from ultraglide.devices.audio import AudioPlate
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import Renderer
+from ultraglide.textures.library import resolve_texture
 
 def renderer():
     path = SwipePath("straight", 100.0, 0.5, (5.0, 25.0))
@@ -307,7 +306,7 @@ def test_a_failed_play_leaves_no_recording_and_no_temporary(tmp_path):
 
 
 def test_a_recorder_that_never_started_writes_nothing(tmp_path):
-    from devices.paced import WavRecorder
+    from ultraglide.devices.paced import WavRecorder
 
     recorder = WavRecorder(tmp_path / "never.wav")
     recorder.stop()

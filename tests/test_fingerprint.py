@@ -4,8 +4,7 @@ import math
 
 import numpy as np
 import pytest
-
-from render.fingerprint import (
+from ultraglide.render.fingerprint import (
     FingerParams,
     contact_area_mm2,
     detach_amplitude_um_pp,
@@ -15,7 +14,7 @@ from render.fingerprint import (
     shear_modulus_pa,
     tangential_stiffness_n_per_m,
 )
-from render.lateral import (
+from ultraglide.render.lateral import (
     simulate_lateral,
     simulated_glide_threshold_um_pp,
     steady_glide_threshold_um_pp,

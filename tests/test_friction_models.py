@@ -4,13 +4,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from render.calibration import calibration_toml, fit_model, load_model, read_calibration
-from render.errors import ModelError
-from render.fingerprint import FingerParams
-from render.friction_models import ExponentialModel, PaperModel, TableModel
-from render.measurements import Measurements, read_measurements
-from render.normal_contact import relative_friction
+from ultraglide.render.calibration import calibration_toml, fit_model, load_model, read_calibration
+from ultraglide.render.errors import ModelError
+from ultraglide.render.fingerprint import FingerParams
+from ultraglide.render.friction_models import ExponentialModel, PaperModel, TableModel
+from ultraglide.render.measurements import Measurements, read_measurements
+from ultraglide.render.normal_contact import relative_friction
 
 SHARED_DATA = "apps/data/monnoyer2018-fit.csv"
 MODELS = {

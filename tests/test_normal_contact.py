@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 from scipy import integrate, optimize
-
-from render.fingerprint import FingerParams, detach_amplitude_um_pp
-from render.normal_contact import (
+from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
+from ultraglide.render.normal_contact import (
     bed_reaction,
     cycle_reaction_n,
     relative_friction,
@@ -110,8 +109,8 @@ def test_bed_reaction_closed_form_mean():
 @pytest.mark.parametrize("amplitude", [0.5, 3.0, 8.0])
 def test_cycle_friction_averages_to_the_relative_friction(amplitude):
     # the mean of mu(F) F over a cycle, over mu(F_n) F_n at rest, is the relative coefficient (eq. 9)
-    from render.fingerprint import friction_force_n
-    from render.normal_contact import cycle_friction_n
+    from ultraglide.render.fingerprint import friction_force_n
+    from ultraglide.render.normal_contact import cycle_friction_n
 
     friction = cycle_friction_n(amplitude, 0.5, PHASE, HERTZ)
     assert np.mean(friction) / friction_force_n(0.5) == pytest.approx(relative_friction(amplitude, 0.5), abs=2e-4)

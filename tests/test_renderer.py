@@ -5,16 +5,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
-
-from devices.profiles import PlateProfile, load_profile
-from render.carrier import Carrier
-from render.errors import RenderError
-from render.friction_models import ExponentialModel, PaperModel
-from render.paths import SwipePath
-from render.renderer import Renderer, RenderSettings
-from render.trajectory import LiveTrajectory, RecordedTrajectory
-from textures import procedural
-from textures.texture import Texture
+from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.render.carrier import Carrier
+from ultraglide.render.errors import RenderError
+from ultraglide.render.friction_models import ExponentialModel, PaperModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
+from ultraglide.textures import procedural
+from ultraglide.textures.texture import Texture
 
 SIM = load_profile("sim-plate")
 RATE = 96000

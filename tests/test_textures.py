@@ -5,13 +5,12 @@ import json
 import numpy as np
 import pytest
 from PIL import Image
-
-from textures import procedural
-from textures.errors import TextureError
-from textures.fileformat import load_texture, save_texture
-from textures.library import library_entries, resolve_texture
-from textures.sampling import Sampler
-from textures.texture import Texture
+from ultraglide.textures import procedural
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.fileformat import load_texture, save_texture
+from ultraglide.textures.library import library_entries, resolve_texture
+from ultraglide.textures.sampling import Sampler
+from ultraglide.textures.texture import Texture
 
 # 2 × 2 pixels of 1 mm: centres at x = 0.5, 1.5 and y = 0.5, 1.5
 SMALL = np.array([[0.0, 1.0], [0.5, 0.25]], dtype=np.float32)

@@ -21,9 +21,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 from scipy import ndimage
-
-from textures.errors import TextureError
-from textures.texture import Texture
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.texture import Texture
 
 MODES = ("brightness", "edges", "gradient")
 DEFAULT_WIDTH_MM = 80.0

@@ -5,9 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from textures.sampling import Sampler
-from textures.texture import Texture
+from ultraglide.textures.sampling import Sampler
+from ultraglide.textures.texture import Texture
 
 
 @dataclass(frozen=True)

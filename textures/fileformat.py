@@ -23,9 +23,8 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, PngImagePlugin, UnidentifiedImageError
-
-from textures.errors import TextureError
-from textures.texture import KINDS, OUTSIDE_RULES, Texture
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.texture import KINDS, OUTSIDE_RULES, Texture
 
 FORMAT_VERSION = 1
 CHUNK = "ultraglide"

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from PIL import Image
-
-from textures.authoring import AuthoringOptions, author_image
-from textures.errors import TextureError
-from textures.fileformat import CHUNK, load_texture
-from textures.texture import Texture
+from ultraglide.textures.authoring import AuthoringOptions, author_image
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.fileformat import CHUNK, load_texture
+from ultraglide.textures.texture import Texture
 
 LIBRARY_DIR = Path(__file__).parent / "library"
 

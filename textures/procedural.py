@@ -8,9 +8,8 @@ chosen so that the finest feature spans at least 8 pixels, unless ``px_per_mm`` 
 from __future__ import annotations
 
 import numpy as np
-
-from textures.errors import TextureError
-from textures.texture import Texture
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.texture import Texture
 
 DEFAULT_SIZE_MM = (80.0, 50.0)
 DEFAULT_RANGE = (0.4, 1.0)

@@ -12,7 +12,7 @@ finer than the sampling can follow averages out instead of aliasing to a false l
 Example::
 
     >>> import numpy as np
-    >>> from textures.procedural import grating
+    >>> from ultraglide.textures.procedural import grating
     >>> sampler = Sampler(grating(wavelength_mm=2.0, size_mm=(20, 10)))
     >>> [round(float(r), 2) for r in sampler.ratio(np.array([1.0, 2.0]), np.array([5.0, 5.0]))]
     [0.4, 1.0]
@@ -24,9 +24,8 @@ import math
 
 import numpy as np
 from scipy import ndimage
-
-from textures import kernels
-from textures.texture import Texture, gradient_ratio
+from ultraglide.textures import kernels
+from ultraglide.textures.texture import Texture, gradient_ratio
 
 MIN_LEVEL_PIXELS = 2
 

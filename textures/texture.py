@@ -15,8 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-
-from textures.errors import TextureError
+from ultraglide.textures.errors import TextureError
 
 KINDS = ("friction", "gradient")
 OUTSIDE_RULES = ("tile", "clamp", "fixed")
@@ -85,7 +84,7 @@ class Texture:
         """The friction ratio at every pixel; for a gradient texture, under a left-to-right swipe."""
         if self.kind == "friction":
             return self.values
-        from textures.sampling import gradient_maps
+        from ultraglide.textures.sampling import gradient_maps
 
         slope_x, _ = gradient_maps(self)
         return gradient_ratio(self, slope_x)

@@ -1,0 +1,27 @@
+"""The examples in the docstrings run and print what they say, module by module of the installed package."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import pkgutil
+
+import pytest
+
+PACKAGES = ("textures", "devices", "render", "apps")
+MODULES = sorted(
+    f"ultraglide.{package}.{info.name}"
+    for package in PACKAGES
+    for info in pkgutil.iter_modules(importlib.import_module(f"ultraglide.{package}").__path__)
+)
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name: str) -> None:
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0, f"{result.failed} of {result.attempted} examples failed in {name}"
+
+
+def test_every_signal_module_is_checked() -> None:
+    assert {"ultraglide.render.renderer", "ultraglide.textures.sampling", "ultraglide.devices.protocol"} <= set(MODULES)
