@@ -104,6 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
                                           "connect with --device serial:PATH. Runs until stopped.")
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
+    sim.add_argument("--resonance-hz", type=positive, metavar="F",
+                     help="the simulated plate's real resonance, Hz (default: the profile's)")
+    sim.add_argument("--q", type=positive, metavar="Q", help="its real quality factor (default: the profile's)")
+    sim.add_argument("--drift-hz-per-s", type=finite, default=0.0, metavar="D",
+                     help="its resonance drifts by D Hz every second (default: 0)")
+    sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
     sim.set_defaults(handler="ultraglide.apps.devices_command:plate_sim")
 
     demo = commands.add_parser(

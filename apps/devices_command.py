@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import queue
 import signal
 import threading
 
 from ultraglide.devices.listing import list_devices
-from ultraglide.devices.plate_sim import PtyPlate
+from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
 from ultraglide.devices.profiles import load_profile
 
 
@@ -31,20 +32,58 @@ def list_all(args) -> int:
     return 0
 
 
+def describe_event(event: dict) -> str:
+    """One event of the simulated plate as a line for people: its time, what happened, the details."""
+    details = ", ".join(f"{key} {value}" for key, value in event.items() if key not in ("t_s", "event"))
+    return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
+
+
+def _stop_gracefully(done: threading.Event) -> None:
+    """Ctrl-C stops the simulator cleanly; so do SIGTERM and SIGHUP unless the command line handles them."""
+    signal.signal(signal.SIGINT, lambda *_: done.set())
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(signum) in (signal.SIG_DFL, None):
+            signal.signal(signum, lambda *_: done.set())
+
+
 def plate_sim(args) -> int:
-    plate = PtyPlate(load_profile(args.profile), args.link).start()
+    profile = load_profile(args.profile)
+    truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
     done = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: done.set())
-    print(f"simulated plate {plate.simulator.profile.name} on {plate.path} (pty {plate.pty_name}); "
-          "Ctrl-C stops it", flush=True)
-    try:
-        while not done.wait(0.2):
-            pass
+    _stop_gracefully(done)
+    plate = PtyPlate(profile, args.link, truth).start()
+    sim = plate.simulator
+
+    def show(event: dict) -> None:
+        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+
+    try:  # whatever ends the loop (a signal turned exception included), the pty and its link go
+        if args.json:
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
+                  "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
+                  "drift_hz_per_s": truth.drift_hz_per_s})
+        else:
+            print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
+                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; Ctrl-C stops it",
+                  flush=True)
+        while not done.is_set():
+            try:
+                show(sim.events.get(timeout=0.1))
+            except queue.Empty:
+                continue
     finally:
         plate.stop()
-    c = plate.simulator.counters
-    print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
-          f"{c.lost_setpoints} setpoints lost, {c.watchdog_trips} watchdog trips, peak "
-          f"{plate.simulator.peak_um_pp:.2f} µm p-p")
+        while not sim.events.empty():
+            show(sim.events.get())
+    c = sim.counters
+    faults = {name: count for name, count in sim.fault_counts().items() if count}
+    if args.json:
+        show({"t_s": round(sim.elapsed_s(), 4), "event": "stopped", "frames": c.frames_ok, "setpoints": c.setpoints,
+              "crc_errors": c.crc_errors, "lost_setpoints": c.lost_setpoints, "late_setpoints": c.late_setpoints,
+              "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
+    else:
+        fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"
+        print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
+              f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
+              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p")
     return 0

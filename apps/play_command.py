@@ -45,8 +45,26 @@ def run(args) -> int:
     status = {**device.status(), "clipped_samples": renderer.counters.clipped_samples,
               "ramps": renderer.counters.ramps, "late_blocks": renderer.counters.late_blocks,
               "played_s": round(time.perf_counter() - started, 3)}
+    status["faults"] = fault_counts(device)
     if args.json:
         print(json.dumps(status))
     else:
-        print(" ".join(f"{key}={value}" for key, value in status.items()))
+        print(" ".join(f"{key}={value}" for key, value in status.items() if key != "faults"))
+        print(describe_faults(status["faults"]))
     return 0
+
+
+def fault_counts(device) -> dict[str, int]:
+    """Each fault the device reported over the run, with its count; empty for devices that report none."""
+    counts = getattr(device, "fault_counts", None)
+    return counts() if counts else {}
+
+
+def describe_faults(counts: dict[str, int]) -> str:
+    """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``."""
+    from ultraglide.devices.protocol import FAULT_WORDS
+
+    happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
+    if not counts:
+        return "device faults: this device reports none"
+    return "device faults: " + ("; ".join(happened) if happened else "none")

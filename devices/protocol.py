@@ -1,23 +1,45 @@
-"""The plate-driver wire protocol, version 1: framing, messages, encoding and decoding.
+"""The plate-driver wire protocol, version 2: framing, messages, encoding and decoding.
 
 A frame is ``COBS(type u8 | seq u16 | payload | crc32 u32) 0x00``: COBS removes every zero
 byte from the body, so 0x00 only ever ends a frame and a receiver resynchronises at the next one
 after any garbage. The CRC-32 (IEEE 802.3, zlib's) covers type, seq and payload; all integers
-and floats are little-endian. ``docs/protocol.md`` is the specification firmware authors follow.
+and floats are little-endian. ``docs/protocol.md`` is the normative specification firmware authors
+follow; the constants below are the ones it names (a test checks the two against each other).
+
+A 12 kHz stream is sent as one SETPOINTS frame of 24 values every 2 ms:
+
+>>> len(encode_frame(SETPOINTS, 1, setpoints_payload(0, 12000, np.zeros(24))))
+67
+>>> setpoint_codes(np.array([0.0, 0.5, 1.0, 1.2]))
+array([    0, 32768, 65535, 65535], dtype=uint16)
 """
 
 from __future__ import annotations
 
 import binascii
+import math
 import struct
 from dataclasses import dataclass
 
 import numpy as np
 from cobs import cobs
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
+SUPPORTED_VERSIONS = (2,)
 MAX_BODY = 1024  # bytes of a decoded frame, header and CRC included
 SETPOINT_SCALE = 65535  # a setpoint of 65535 is the plate's full-scale drive
+MAX_SETPOINTS_PER_FRAME = 240
+BATCH_S = 0.002  # the host sends one SETPOINTS frame every 2 ms
+TELEMETRY_HZ = 50
+WATCHDOG_MS = 100  # no valid frame for this long while enabled: the device ramps to zero
+WATCHDOG_RAMP_MS = 20
+BUFFER_MS = 250  # setpoints beyond this much playing time are dropped (overrun)
+PREFILL_MS = 10  # after running dry, the device plays again once this much is buffered (jitter buffer)
+ACK_DEADLINE_MS = 50  # the device answers a command within this long
+HOST_ACK_TIMEOUT_S = 2.0  # the host gives up on an answer after this long
+HOST_SILENCE_MS = 500  # no telemetry for this long: the host treats the device as gone
+MAX_SIM_FAULT_MS = 5000
+TRIP_MARGIN = 0.01  # the device trips above max_amplitude_um_pp × (1 + margin)
 
 # host → device
 HELLO = 0x01
@@ -25,30 +47,66 @@ SET_CARRIER = 0x02
 ENABLE = 0x03
 SETPOINTS = 0x04
 HEARTBEAT = 0x05
+CLEAR_FAULTS = 0x06
 SIM_FAULT = 0x7E  # simulator only: inject a fault for tests
+HOST_COMMANDS = (HELLO, SET_CARRIER, ENABLE, SETPOINTS, HEARTBEAT, CLEAR_FAULTS, SIM_FAULT)
 # device → host
 HELLO_REPLY = 0x81
 ACK = 0x82
+NAK = 0x83
 TELEMETRY = 0x90
 
-ACK_OK, ACK_BAD_VALUE, ACK_UNSUPPORTED = 0, 1, 2
+# NAK reasons
+NAK_UNKNOWN_TYPE = 1  # no such command
+NAK_BAD_LENGTH = 2  # the payload's length is wrong for the command
+NAK_BAD_VALUE = 3  # a field is out of range (carrier, enable flag, rate, count, fault kind)
+NAK_UNSUPPORTED = 4  # a known command this device does not do (SIM_FAULT on real firmware)
+NAK_INTERNAL = 5  # the device failed handling the frame; it carries on
+NAK_REASONS = {NAK_UNKNOWN_TYPE: "unknown command", NAK_BAD_LENGTH: "wrong payload length",
+               NAK_BAD_VALUE: "value out of range", NAK_UNSUPPORTED: "not supported by this device",
+               NAK_INTERNAL: "internal error on the device"}
 
-FAULT_WATCHDOG = 1 << 0  # nothing heard for 100 ms: output ramped to zero
-FAULT_OVER_AMPLITUDE = 1 << 1  # measured amplitude above the plate's safe maximum
-FAULT_OVERRUN = 1 << 2  # setpoints arrived faster than they play: some were dropped
-FAULT_UNDERRUN = 1 << 3  # the setpoint buffer ran dry: last value held
-FAULT_BAD_COMMAND = 1 << 4
-FAULT_NAMES = {FAULT_WATCHDOG: "watchdog", FAULT_OVER_AMPLITUDE: "over-amplitude", FAULT_OVERRUN: "overrun",
-               FAULT_UNDERRUN: "underrun", FAULT_BAD_COMMAND: "bad-command"}
+# Fault bits: each latches in TELEMETRY.faults until CLEAR_FAULTS clears it; each has a counter.
+FAULT_WATCHDOG = 1 << 0  # no valid frame for WATCHDOG_MS while enabled: output ramped to zero
+FAULT_TRIP = 1 << 1  # measured amplitude above the plate's safe maximum: output cut, disabled
+FAULT_OVER_LIMIT = 1 << 2  # measured amplitude rose above the safe maximum (by less than the trip margin)
+FAULT_OVERRUN = 1 << 3  # setpoints arrived faster than they play: some were dropped
+FAULT_UNDERRUN = 1 << 4  # the setpoint buffer ran dry: last value held
+FAULT_BAD_COMMAND = 1 << 5  # a frame was refused with a NAK
+FAULT_OVERHEAT = 1 << 6  # the driver stage is too hot: output cut, disabled
+FAULT_BITS = 8  # TELEMETRY carries one counter per bit; bit 7 is reserved
+FAULT_NAMES = {FAULT_WATCHDOG: "watchdog", FAULT_TRIP: "trip", FAULT_OVER_LIMIT: "over-limit",
+               FAULT_OVERRUN: "overrun", FAULT_UNDERRUN: "underrun", FAULT_BAD_COMMAND: "bad-command",
+               FAULT_OVERHEAT: "overheat"}
+FAULT_WORDS = {
+    "watchdog": "watchdog trip (no valid frame for 100 ms; output ramped to zero)",
+    "trip": "over-amplitude trip (measured amplitude above the plate's limit; output cut and disabled)",
+    "over-limit": "excursion above the plate's amplitude limit (within the trip margin)",
+    "overrun": "buffer overrun (setpoints dropped)",
+    "underrun": "buffer underrun (last value held)",
+    "bad-command": "frame refused by the device (NAK)",
+    "overheat": "overheat (output cut and disabled)",
+}
 
-SIM_DROP, SIM_CORRUPT, SIM_HANG, SIM_DISCONNECT = 1, 2, 3, 4
+SIM_DROP, SIM_CORRUPT, SIM_HANG, SIM_DISCONNECT, SIM_OVERHEAT = 1, 2, 3, 4, 5
+SIM_FAULT_KINDS = {SIM_DROP: "drop", SIM_CORRUPT: "corrupt", SIM_HANG: "hang", SIM_DISCONNECT: "disconnect",
+                   SIM_OVERHEAT: "overheat"}
 
 _HEADER = struct.Struct("<BH")
 _CRC = struct.Struct("<I")
 _SETPOINT_HEADER = struct.Struct("<IIH")
-_HELLO_REPLY = struct.Struct("<BfffI")
-_ACK = struct.Struct("<HB")
-_TELEMETRY = struct.Struct("<ffHIIIIIB")
+_HELLO_REPLY = struct.Struct("<BfffIIffHH")
+_ACK = struct.Struct("<H")
+_NAK = struct.Struct("<HB")
+_TELEMETRY = struct.Struct(f"<ffHB7I{FAULT_BITS}I")
+_CARRIER = struct.Struct("<f")
+_CLEAR = struct.Struct("<H")
+_SIM_FAULT = struct.Struct("<BH")
+MAX_NAME_BYTES = 64
+
+# exact payload lengths, where a command has one
+PAYLOAD_LENGTHS = {HELLO: 1, SET_CARRIER: _CARRIER.size, ENABLE: 1, HEARTBEAT: 0, CLEAR_FAULTS: _CLEAR.size,
+                   SIM_FAULT: _SIM_FAULT.size}
 
 
 class ProtocolError(ValueError):
@@ -87,6 +145,12 @@ def decode_frame(packet: bytes) -> Frame:
         raise ProtocolError("CRC mismatch")
     kind, seq = _HEADER.unpack_from(body)
     return Frame(kind, seq, body[_HEADER.size:-_CRC.size])
+
+
+def frame_bytes_on_wire(payload_bytes: int) -> int:
+    """Bytes one frame takes on the wire: COBS adds one byte per started 254 of body, plus the 0x00."""
+    body = _HEADER.size + payload_bytes + _CRC.size
+    return body + max(1, math.ceil(body / 254)) + 1
 
 
 class FrameDecoder:
@@ -139,28 +203,42 @@ class FrameDecoder:
 
 @dataclass(frozen=True)
 class HelloReply:
+    """What the device says about itself; amplitudes in µm peak-to-peak."""
+
     version: int
-    resonance_hz: float
+    resonance_hz: float  # the resonance the firmware was configured with (nominal)
     full_scale_um_pp: float
     max_amplitude_um_pp: float
+    min_setpoint_rate_hz: int
     max_setpoint_rate_hz: int
+    carrier_min_hz: float
+    carrier_max_hz: float
+    watchdog_ms: int
+    buffer_ms: int
     name: str
 
 
 @dataclass(frozen=True)
 class Telemetry:
     measured_um_pp: float
-    resonance_hz: float
-    faults: int
+    carrier_hz: float
+    faults: int  # latched fault bits
+    enabled: bool
     frames_ok: int
     crc_errors: int
     framing_errors: int
-    underruns: int
-    setpoints: int
-    enabled: bool
+    setpoints: int  # accepted into the buffer
+    lost_setpoints: int  # skipped over by a forward jump of first_index
+    late_setpoints: int  # arrived behind the stream (index already passed): dropped
+    discarded_setpoints: int  # arrived while the output was disabled: dropped
+    fault_counts: tuple[int, ...]  # one counter per fault bit, since power-up
 
     def fault_names(self) -> list[str]:
+        """The latched faults by name."""
         return [name for bit, name in FAULT_NAMES.items() if self.faults & bit]
+
+    def counts_by_name(self) -> dict[str, int]:
+        return {name: self.fault_counts[bit.bit_length() - 1] for bit, name in FAULT_NAMES.items()}
 
 
 def hello_payload(version: int = PROTOCOL_VERSION) -> bytes:
@@ -168,62 +246,121 @@ def hello_payload(version: int = PROTOCOL_VERSION) -> bytes:
 
 
 def carrier_payload(carrier_hz: float) -> bytes:
-    return struct.pack("<f", carrier_hz)
+    return _CARRIER.pack(carrier_hz)
+
+
+def parse_carrier(payload: bytes) -> float:
+    if len(payload) != _CARRIER.size:
+        raise ProtocolError("SET_CARRIER payload is not 4 bytes")
+    return _CARRIER.unpack(payload)[0]
 
 
 def enable_payload(enabled: bool) -> bytes:
     return bytes([1 if enabled else 0])
 
 
+def setpoint_codes(fractions: np.ndarray) -> np.ndarray:
+    """Fractions of full scale → u16 codes: clipped to [0, 1], times 65535, rounded to nearest (ties to even)."""
+    return np.round(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0) * SETPOINT_SCALE).astype("<u2")
+
+
 def setpoints_payload(first_index: int, rate_hz: int, fractions: np.ndarray) -> bytes:
-    """Amplitude setpoints as fractions of full scale (clipped to 0..1), quantised to u16."""
-    values = np.round(np.clip(fractions, 0.0, 1.0) * SETPOINT_SCALE).astype("<u2")
+    """Amplitude setpoints as fractions of full scale, quantised by :func:`setpoint_codes`."""
+    values = setpoint_codes(fractions)
     return _SETPOINT_HEADER.pack(first_index & 0xFFFFFFFF, rate_hz, len(values)) + values.tobytes()
 
 
-def parse_setpoints(payload: bytes) -> tuple[int, int, np.ndarray]:
+def parse_setpoint_codes(payload: bytes) -> tuple[int, int, np.ndarray]:
+    """``(first_index, rate_hz, codes u16)``; ProtocolError if the lengths disagree."""
     if len(payload) < _SETPOINT_HEADER.size:
         raise ProtocolError("setpoint frame too short")
     first, rate, count = _SETPOINT_HEADER.unpack_from(payload)
     data = payload[_SETPOINT_HEADER.size:]
     if len(data) != 2 * count:
-        raise ProtocolError(f"setpoint frame says {count} values but carries {len(data) // 2}")
-    return first, rate, np.frombuffer(data, dtype="<u2").astype(float) / SETPOINT_SCALE
+        raise ProtocolError(f"setpoint frame says {count} values but carries {len(data) / 2:g}")
+    return first, rate, np.frombuffer(data, dtype="<u2")
+
+
+def parse_setpoints(payload: bytes) -> tuple[int, int, np.ndarray]:
+    """``(first_index, rate_hz, fractions of full scale)``."""
+    first, rate, codes = parse_setpoint_codes(payload)
+    return first, rate, codes.astype(float) / SETPOINT_SCALE
 
 
 def hello_reply_payload(reply: HelloReply) -> bytes:
-    return _HELLO_REPLY.pack(reply.version, reply.resonance_hz, reply.full_scale_um_pp,
-                             reply.max_amplitude_um_pp, reply.max_setpoint_rate_hz) + reply.name.encode()
+    return _HELLO_REPLY.pack(reply.version, reply.resonance_hz, reply.full_scale_um_pp, reply.max_amplitude_um_pp,
+                             reply.min_setpoint_rate_hz, reply.max_setpoint_rate_hz, reply.carrier_min_hz,
+                             reply.carrier_max_hz, reply.watchdog_ms, reply.buffer_ms) + \
+        reply.name.encode()[:MAX_NAME_BYTES]
+
+
+def hello_reply_version(payload: bytes) -> int:
+    """The version a HELLO_REPLY speaks: its first byte, the same in every version."""
+    if not payload:
+        raise ProtocolError("empty hello reply")
+    return payload[0]
 
 
 def parse_hello_reply(payload: bytes) -> HelloReply:
     if len(payload) < _HELLO_REPLY.size:
-        raise ProtocolError("hello reply too short")
+        raise ProtocolError(f"hello reply of {len(payload)} bytes is shorter than v2's {_HELLO_REPLY.size}")
     fields = _HELLO_REPLY.unpack_from(payload)
     return HelloReply(*fields, payload[_HELLO_REPLY.size:].decode("utf-8", "replace"))
 
 
-def ack_payload(seq: int, status: int) -> bytes:
-    return _ACK.pack(seq & 0xFFFF, status)
+def ack_payload(seq: int) -> bytes:
+    return _ACK.pack(seq & 0xFFFF)
 
 
-def parse_ack(payload: bytes) -> tuple[int, int]:
+def parse_ack(payload: bytes) -> int:
     if len(payload) != _ACK.size:
         raise ProtocolError("bad ack")
-    return _ACK.unpack(payload)
+    return _ACK.unpack(payload)[0]
+
+
+def nak_payload(seq: int, reason: int) -> bytes:
+    return _NAK.pack(seq & 0xFFFF, reason)
+
+
+def parse_nak(payload: bytes) -> tuple[int, int]:
+    if len(payload) != _NAK.size:
+        raise ProtocolError("bad nak")
+    return _NAK.unpack(payload)
+
+
+def clear_faults_payload(mask: int) -> bytes:
+    return _CLEAR.pack(mask & 0xFFFF)
+
+
+def parse_clear_faults(payload: bytes) -> int:
+    if len(payload) != _CLEAR.size:
+        raise ProtocolError("CLEAR_FAULTS payload is not 2 bytes")
+    return _CLEAR.unpack(payload)[0]
 
 
 def telemetry_payload(t: Telemetry) -> bytes:
-    return _TELEMETRY.pack(t.measured_um_pp, t.resonance_hz, t.faults, t.frames_ok, t.crc_errors,
-                           t.framing_errors, t.underruns, t.setpoints & 0xFFFFFFFF, 1 if t.enabled else 0)
+    counters = (t.frames_ok, t.crc_errors, t.framing_errors, t.setpoints, t.lost_setpoints, t.late_setpoints,
+                t.discarded_setpoints)
+    return _TELEMETRY.pack(t.measured_um_pp, t.carrier_hz, t.faults, 1 if t.enabled else 0,
+                           *(c & 0xFFFFFFFF for c in counters), *(c & 0xFFFFFFFF for c in t.fault_counts))
 
 
 def parse_telemetry(payload: bytes) -> Telemetry:
     if len(payload) != _TELEMETRY.size:
-        raise ProtocolError("bad telemetry length")
+        raise ProtocolError(f"telemetry of {len(payload)} bytes, not {_TELEMETRY.size}")
     values = _TELEMETRY.unpack(payload)
-    return Telemetry(*values[:-1], bool(values[-1]))
+    return Telemetry(values[0], values[1], values[2], bool(values[3]), *values[4:11], tuple(values[11:]))
 
 
 def sim_fault_payload(kind: int, duration_ms: int = 0) -> bytes:
-    return struct.pack("<BH", kind, duration_ms)
+    return _SIM_FAULT.pack(kind, duration_ms)
+
+
+def parse_sim_fault(payload: bytes) -> tuple[int, int]:
+    if len(payload) != _SIM_FAULT.size:
+        raise ProtocolError("SIM_FAULT payload is not 3 bytes")
+    return _SIM_FAULT.unpack(payload)
+
+
+PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY.size, "ACK": _ACK.size, "NAK": _NAK.size,
+                 "TELEMETRY": _TELEMETRY.size, "SETPOINTS header": _SETPOINT_HEADER.size}

@@ -1,10 +1,11 @@
-"""The serial plate driver: streams amplitude setpoints to plate-driver firmware (docs/protocol.md).
+"""The serial plate driver: streams amplitude setpoints to plate-driver firmware (protocol v2, docs/protocol.md).
 
 A writer thread pulls the envelope from its source at the control rate and sends it in batches
 (every ``batch_s``); pyserial's ReaderThread decodes telemetry and acknowledgements. When the port
 vanishes or the device stops answering, the driver counts it, keeps pulling from the source (the
 renderer keeps its clock), and reconnects with exponential backoff when the port is back. On every
-way out it sends zero amplitude and disable.
+way out it sends zero amplitude and disable. It counts every fault the device reports over the whole
+run (from the device's fault counters, across reconnections) and clears the device's latched bits.
 
 Example::
 
@@ -29,8 +30,7 @@ from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource, ramp_down
 
-HANDSHAKE_TIMEOUT_S = 1.0
-SILENCE_S = 0.5  # no telemetry for this long while connected: the device has hung
+SILENCE_S = p.HOST_SILENCE_MS / 1000.0  # no telemetry for this long while connected: the device has hung
 BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
 
 
@@ -44,6 +44,8 @@ class SerialCounters:
     silences: int = 0  # device stopped answering
     bad_frames: int = 0  # received frames that did not decode
     late_batches: int = 0
+    naks: int = 0  # frames the device refused
+    send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
     errors: list[str] = field(default_factory=list)
 
 
@@ -69,13 +71,14 @@ class SerialPlate:
     signal = "control"
 
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
-                 baudrate: int = 921600, batch_s: float = 0.002):
+                 baudrate: int = 921600, batch_s: float = p.BATCH_S, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S):
         self.port = port
         self.profile = profile
         self.rate_hz = int(control_rate_hz)
         self.carrier_hz = carrier_hz or profile.resonance_hz
         self.baudrate = baudrate
         self.batch_s = batch_s
+        self.ack_timeout_s = ack_timeout_s
         self.counters = SerialCounters()
         self.telemetry: p.Telemetry | None = None
         self.device: p.HelloReply | None = None
@@ -83,33 +86,67 @@ class SerialPlate:
         self._reader: serial.threaded.ReaderThread | None = None
         self._write_lock = threading.Lock()
         self._reply = threading.Condition()
-        self._acks: dict[int, int] = {}
-        self._hello: p.HelloReply | None = None
+        self._awaiting: set[int] = set()
+        self._answers: dict[int, int | None] = {}  # seq → None (ACK) or a NAK reason
+        self._hello: bytes | None = None
+        self._session = False  # this connection's HELLO_REPLY has arrived: its telemetry counts
+        self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
+        self._frames_ok_last = 0
+        self._fault_run = [0] * p.FAULT_BITS  # faults over the run
+        self._clear_pending = 0
         self._seq = 0
         self._index = 0
         self._connected = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_heard = 0.0
+        self._first_telemetry: threading.Event | None = None
         self._source: BlockSource | None = None
 
     # ---- frames from the device ----------------------------------------------------------------
     def _frame(self, frame: p.Frame) -> None:
         self._last_heard = time.monotonic()
         try:
-            if frame.kind == p.TELEMETRY:
-                self.telemetry = p.parse_telemetry(frame.payload)
+            if frame.kind == p.TELEMETRY and self._session:
+                self._take_telemetry(p.parse_telemetry(frame.payload))
             elif frame.kind == p.HELLO_REPLY:
                 with self._reply:
-                    self._hello = p.parse_hello_reply(frame.payload)
+                    self._hello = frame.payload
                     self._reply.notify_all()
             elif frame.kind == p.ACK:
-                seq, status = p.parse_ack(frame.payload)
-                with self._reply:
-                    self._acks[seq] = status
-                    self._reply.notify_all()
+                self._answer(p.parse_ack(frame.payload), None)
+            elif frame.kind == p.NAK:
+                seq, reason = p.parse_nak(frame.payload)
+                self.counters.naks += 1
+                self._answer(seq, reason)
         except p.ProtocolError:
             self.counters.bad_frames += 1
+
+    def _answer(self, seq: int, reason: int | None) -> None:
+        with self._reply:
+            if seq in self._awaiting:
+                self._answers[seq] = reason
+                self._reply.notify_all()
+
+    def _take_telemetry(self, telemetry: p.Telemetry) -> None:
+        """Add the faults since the previous telemetry to the run's counts (counters wrap at 2**32)."""
+        counts = telemetry.fault_counts
+        if self._fault_last is not None:
+            if telemetry.frames_ok < self._frames_ok_last:  # the device restarted: its counters began again
+                new = counts
+            else:
+                new = [(now - before) & 0xFFFFFFFF for now, before in zip(counts, self._fault_last, strict=True)]
+            self._fault_run = [run + n for run, n in zip(self._fault_run, new, strict=True)]
+        self._fault_last = counts
+        self._frames_ok_last = telemetry.frames_ok
+        self._clear_pending |= telemetry.faults
+        self.telemetry = telemetry
+        if self._first_telemetry is not None:
+            self._first_telemetry.set()
+
+    def fault_counts(self) -> dict[str, int]:
+        """Each fault the device can report, by name, with how often it happened over this run."""
+        return {name: self._fault_run[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
 
     def _lost(self, exc) -> None:
         if self._connected.is_set():
@@ -117,25 +154,36 @@ class SerialPlate:
             self.counters.disconnects += 1
 
     # ---- sending ---------------------------------------------------------------------------------
-    def _send(self, kind: int, payload: bytes = b"") -> int:
-        self._seq = (self._seq + 1) & 0xFFFF
-        frame = p.encode_frame(kind, self._seq, payload)
+    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False) -> int:
+        """Write one frame; returns its seq. ``awaited``: its ACK or NAK will be waited for."""
         with self._write_lock:
             port = self._serial
             if port is None:
                 raise serial.SerialException("not connected")
-            port.write(frame)
+            self._seq = seq = (self._seq + 1) & 0xFFFF
+            if awaited:
+                with self._reply:
+                    self._awaiting.add(seq)
+            port.write(p.encode_frame(kind, seq, payload))
         self.counters.frames_sent += 1
-        return self._seq
+        return seq
 
     def _command(self, kind: int, payload: bytes) -> None:
-        seq = self._send(kind, payload)
-        with self._reply:
-            if not self._reply.wait_for(lambda: seq in self._acks, HANDSHAKE_TIMEOUT_S):
-                raise DeviceError(f"{self.port}: no acknowledgement from the plate driver")
-            status = self._acks.pop(seq)
-        if status != p.ACK_OK:
-            raise DeviceError(f"{self.port}: the plate driver refused command {kind:#04x} (status {status})")
+        """Send a command and wait for its ACK; DeviceError on a NAK or no answer within ``ack_timeout_s``."""
+        seq = self._send(kind, payload, awaited=True)
+        try:
+            with self._reply:
+                if not self._reply.wait_for(lambda: seq in self._answers, self.ack_timeout_s):
+                    raise DeviceError(f"{self.port}: no acknowledgement from the plate driver within "
+                                      f"{self.ack_timeout_s:g} s")
+                reason = self._answers.pop(seq)
+        finally:
+            with self._reply:
+                self._awaiting.discard(seq)
+                self._answers.pop(seq, None)
+        if reason is not None:
+            raise DeviceError(f"{self.port}: the plate driver refused command {kind:#04x}: "
+                              f"{p.NAK_REASONS.get(reason, f'reason {reason}')}")
 
     # ---- connection ------------------------------------------------------------------------------
     def _connect(self) -> None:
@@ -144,8 +192,11 @@ class SerialPlate:
         except (serial.SerialException, OSError, ValueError) as error:
             raise DeviceError(f"cannot open serial port {self.port}: {error}; check the path and "
                               "permissions (the dialout group), or list ports with `ultraglide devices`") from None
+        with contextlib.suppress(serial.SerialException, OSError):
+            port.reset_input_buffer()  # what a previous session left unread is not ours
         self._serial = port
         self.telemetry = None  # only what this connection reports counts
+        self._session = False
         self._reader = serial.threaded.ReaderThread(port, lambda: _FrameReader(self))
         self._reader.daemon = True
         self._reader.start()
@@ -154,14 +205,17 @@ class SerialPlate:
                 self._hello = None
             self._send(p.HELLO, p.hello_payload())
             with self._reply:
-                if not self._reply.wait_for(lambda: self._hello is not None, HANDSHAKE_TIMEOUT_S):
+                if not self._reply.wait_for(lambda: self._hello is not None, self.ack_timeout_s):
                     raise DeviceError(f"{self.port}: no answer to the handshake; is a plate driver there, "
-                                      "speaking ultraglide protocol v1?")
-                hello = self._hello
-            if hello.version != p.PROTOCOL_VERSION:
-                raise DeviceError(f"{self.port}: the plate driver speaks protocol v{hello.version}; "
-                                  f"this ultraglide speaks v{p.PROTOCOL_VERSION}")
+                                      f"speaking ultraglide protocol v{p.PROTOCOL_VERSION}?")
+                raw = self._hello
+            hello = self._check_device(raw)
             self.device = hello
+            first = self._fault_last is None
+            self._first_telemetry = threading.Event() if first else None
+            self._session = True
+            if first and not self._first_telemetry.wait(self.ack_timeout_s):  # the run's fault baseline
+                raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
             self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
             self._command(p.ENABLE, p.enable_payload(True))
             self._last_heard = time.monotonic()
@@ -172,6 +226,24 @@ class SerialPlate:
         except DeviceError:
             self._disconnect()
             raise
+
+    def _check_device(self, raw: bytes) -> p.HelloReply:
+        """The device's HELLO_REPLY, if it speaks our version and can play what we will send."""
+        try:
+            version = p.hello_reply_version(raw)
+            if version not in p.SUPPORTED_VERSIONS:
+                raise DeviceError(f"{self.port}: the plate driver speaks protocol v{version}; this ultraglide "
+                                  f"speaks v{p.PROTOCOL_VERSION}: update the firmware (see docs/protocol.md)")
+            hello = p.parse_hello_reply(raw)
+        except p.ProtocolError as error:
+            raise DeviceError(f"{self.port}: the plate driver's handshake reply is malformed ({error})") from None
+        if not hello.carrier_min_hz <= self.carrier_hz <= hello.carrier_max_hz:
+            raise DeviceError(f"{self.port}: carrier {self.carrier_hz:g} Hz is outside what the plate driver "
+                              f"accepts, {hello.carrier_min_hz:g}-{hello.carrier_max_hz:g} Hz")
+        if not hello.min_setpoint_rate_hz <= self.rate_hz <= hello.max_setpoint_rate_hz:
+            raise DeviceError(f"{self.port}: the plate driver plays {hello.min_setpoint_rate_hz}-"
+                              f"{hello.max_setpoint_rate_hz} setpoints/s, not {self.rate_hz}")
+        return hello
 
     def _disconnect(self) -> None:
         self._connected.clear()
@@ -208,6 +280,7 @@ class SerialPlate:
         attempt = 0
         retry_at = 0.0
         batch = max(1, int(self.batch_s * self.rate_hz))
+        last_sent = None
         try:
             while not self._stop.is_set():
                 now = time.perf_counter()
@@ -224,6 +297,7 @@ class SerialPlate:
                     self._disconnect()
                     self.counters.disconnects += 1
                 if not self._connected.is_set():
+                    last_sent = None
                     self.counters.setpoints_discarded += due
                     self._index += due
                     if time.monotonic() >= retry_at:
@@ -240,14 +314,22 @@ class SerialPlate:
                     continue
                 fractions = np.asarray(values, dtype=float) / self.profile.full_scale_um_pp
                 try:
-                    for start in range(0, due, 240):  # at most 240 setpoints (480 bytes) a frame
-                        chunk = fractions[start:start + 240]
+                    if self._clear_pending:  # latched faults seen in telemetry (already counted): clear them
+                        mask, self._clear_pending = self._clear_pending, 0
+                        self._send(p.CLEAR_FAULTS, p.clear_faults_payload(mask))
+                    for start in range(0, due, p.MAX_SETPOINTS_PER_FRAME):  # at most 480 bytes of values a frame
+                        chunk = fractions[start:start + p.MAX_SETPOINTS_PER_FRAME]
                         self._send(p.SETPOINTS, p.setpoints_payload(self._index, self.rate_hz, chunk))
                         self._index += len(chunk)
                         self.counters.setpoints_sent += len(chunk)
+                    sent_at = time.perf_counter()
+                    if last_sent is not None and sent_at - last_sent > self.device.watchdog_ms / 1000.0:
+                        self.counters.send_stalls += 1
+                    last_sent = sent_at
                 except (serial.SerialException, OSError):
                     self._lost(None)
                     retry_at = time.monotonic() + BACKOFF_S[0]
+                    last_sent = None
                 if source.finished:
                     break
         except Exception as error:  # the source failed: rest the plate, then report
@@ -268,12 +350,17 @@ class SerialPlate:
     def status(self) -> dict:
         c = self.counters
         t = self.telemetry
+        faults = self.fault_counts()
         return {
             "device": f"serial:{self.port}", "connected": self._connected.is_set(),
             "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
             "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
+            "naks_received": c.naks, "send_stalls": c.send_stalls,
             "measured_um_pp": None if t is None else t.measured_um_pp,
             "device_frames_ok": None if t is None else t.frames_ok,
             "device_crc_errors": None if t is None else t.crc_errors,
-            "device_faults": [] if t is None else t.fault_names(),
+            "device_lost_setpoints": None if t is None else t.lost_setpoints,
+            "device_late_setpoints": None if t is None else t.late_setpoints,
+            "faults": faults,
+            "device_faults": [name for name, count in faults.items() if count],
         }

@@ -59,6 +59,9 @@ class SimPlate:
     def telemetry(self):
         return self.driver.telemetry
 
+    def fault_counts(self) -> dict[str, int]:
+        return self.driver.fault_counts()
+
     def start(self, source) -> None:
         try:
             self.driver.start(source)

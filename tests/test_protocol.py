@@ -54,11 +54,13 @@ def test_decoder_counts_and_bounds_garbage():
 
 
 def test_messages_round_trip():
-    reply = p.HelloReply(1, 25000.0, 8.0, 6.0, 48000, "plate")
+    reply = p.HelloReply(2, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate")
     assert p.parse_hello_reply(p.hello_reply_payload(reply)) == reply
-    telemetry = p.Telemetry(2.5, 25000.0, p.FAULT_WATCHDOG, 10, 1, 2, 3, 4000, True)
+    telemetry = p.Telemetry(2.5, 25000.0, p.FAULT_WATCHDOG, True, 10, 1, 2, 4000, 3, 4, 5, (1, 0, 0, 0, 7, 0, 0, 0))
     assert p.parse_telemetry(p.telemetry_payload(telemetry)) == telemetry
     assert telemetry.fault_names() == ["watchdog"]
-    assert p.parse_ack(p.ack_payload(9, p.ACK_OK)) == (9, p.ACK_OK)
+    assert telemetry.counts_by_name()["watchdog"] == 1 and telemetry.counts_by_name()["underrun"] == 7
+    assert p.parse_ack(p.ack_payload(9)) == 9
+    assert p.parse_nak(p.nak_payload(9, p.NAK_BAD_VALUE)) == (9, p.NAK_BAD_VALUE)
     with pytest.raises(p.ProtocolError):
         p.parse_setpoints(p.setpoints_payload(0, 12000, np.ones(4))[:-1])
