@@ -4,6 +4,7 @@ import binascii
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from ultraglide.devices import protocol as p
@@ -64,3 +65,87 @@ def test_messages_round_trip():
     assert p.parse_nak(p.nak_payload(9, p.NAK_BAD_VALUE)) == (9, p.NAK_BAD_VALUE)
     with pytest.raises(p.ProtocolError):
         p.parse_setpoints(p.setpoints_payload(0, 12000, np.ones(4))[:-1])
+
+
+# ---- docs/protocol.md is normative: its tables must say what the code does --------------------------
+
+DOC = (ROOT / "docs" / "protocol.md").read_text()
+SIZES = {"u8": 1, "u16": 2, "u32": 4, "f32": 4}
+
+
+def _rows(header: str) -> list[list[str]]:
+    """The rows of the first table whose header row starts with ``header``."""
+    lines = [line.strip() for line in DOC.splitlines()]
+    start = next(i for i, line in enumerate(lines) if line.startswith(header))
+    rows = []
+    for line in lines[start + 2:]:
+        if not line.startswith("|"):
+            break
+        rows.append([cell.strip() for cell in line.strip("|").split("|")])
+    return rows
+
+
+def _fixed_size(fields: str) -> int:
+    """Bytes of the fixed part of a payload written as ``name:u32, n × name:u16, name:utf-8 (rest)``."""
+    if fields.startswith("("):
+        return 0
+    size = 0
+    for field in fields.strip("`").split(", "):
+        kind = field.split(":")[-1].strip().split(" ")[-1].strip("`")
+        if "utf-8" in field or field.startswith("count ×"):
+            continue  # variable parts
+        repeat = int(field.split(":")[1].split("×")[0]) if "×" in field else 1
+        size += repeat * SIZES[kind]
+    return size
+
+
+def test_the_documents_constants_are_the_codes():
+    rows = _rows("| constant |")
+    assert len(rows) >= 10
+    for name, value, _ in rows:
+        assert getattr(p, name.strip("`")) == pytest.approx(float(value)), name
+
+
+def test_the_documents_message_tables_are_the_codes():
+    host = _rows("| type | name | payload | answer |")
+    device = _rows("| type | name | payload |")
+    assert {name for _, name, *_ in host} == {"HELLO", "SET_CARRIER", "ENABLE", "SETPOINTS", "HEARTBEAT",
+                                              "CLEAR_FAULTS", "SIM_FAULT"}
+    for kind, name, payload, *_ in host + device:
+        assert getattr(p, name) == int(kind, 16), name
+        fixed = _fixed_size(payload.split("`")[1] if "`" in payload else payload)
+        expected = p.PAYLOAD_SIZES["SETPOINTS header"] if name == "SETPOINTS" else \
+            p.PAYLOAD_LENGTHS.get(getattr(p, name), p.PAYLOAD_SIZES.get(name))
+        assert fixed == expected, (name, fixed, expected)
+
+
+def test_the_documents_fault_bits_and_nak_reasons_are_the_codes():
+    faults = _rows("| bit | fault |")
+    assert {int(bit, 16): name for bit, name, *_ in faults} == p.FAULT_NAMES
+    reasons = _rows("| reason | meaning |")
+    assert {int(reason): meaning for reason, meaning in reasons} == p.NAK_REASONS
+
+
+def test_the_documents_byte_budget_is_the_framing():
+    per_frame = len(p.encode_frame(p.SETPOINTS, 0xFFFF, p.setpoints_payload(0, 12000, np.full(24, 0.5))))
+    frames_per_s = round(1 / p.BATCH_S)
+    assert per_frame == 67 and per_frame * frames_per_s == 33500
+    assert "= 33 500 bytes/s" in DOC and "67 bytes × 500 frames" in DOC
+    telemetry = len(p.encode_frame(p.TELEMETRY, 1, p.telemetry_payload(
+        p.Telemetry(1.0, 25000.0, 0, True, *([1] * 7), (0,) * p.FAULT_BITS))))
+    assert telemetry == 80 and telemetry * p.TELEMETRY_HZ == 4000 and "4 000 bytes/s" in DOC
+    for n in (1, 24, 96, 118):  # the general formula on the page, against real frames
+        assert len(p.encode_frame(p.SETPOINTS, 1, p.setpoints_payload(0, 12000, np.full(n, 0.3)))) == 19 + 2 * n
+    for link, bytes_per_s, _, fastest in _rows("| link | bytes/s |")[:4]:
+        baud = int(link.split()[1])
+        assert int(bytes_per_s.replace(" ", "")) == baud // 10  # 8N1: ten bits a byte
+        assert int(fastest.removesuffix(" setpoints/s").replace(" ", "")) == round((baud // 10 - 9500) / 2, -1)
+
+
+def test_setpoint_codes_round_to_nearest_with_ties_to_even():
+    lsb = 1 / p.SETPOINT_SCALE
+    fractions = np.array([-0.1, 0.0, lsb, 1.5 * lsb, 2.5 * lsb, 0.5, 1.0, 7.0])
+    # hand-computed: clipped to [0, 1], × 65535, 1.5 → 2 and 2.5 → 2 (ties to even), 32767.5 → 32768
+    assert p.setpoint_codes(fractions).tolist() == [0, 0, 1, 2, 2, 32768, 65535, 65535]
+    first, rate, values = p.parse_setpoints(p.setpoints_payload(7, 12000, np.array([0.25])))
+    assert (first, rate) == (7, 12000) and values[0] == 16384 / 65535  # round(16383.75)
