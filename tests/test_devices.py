@@ -51,7 +51,8 @@ def plate():
     served.stop()
 
 
-def wait_for(condition, timeout=3.0):
+def wait_for(condition, timeout=15.0):
+    """Wait on a condition, with a deadline generous enough for a loaded machine."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if condition():
@@ -61,11 +62,11 @@ def wait_for(condition, timeout=3.0):
 
 
 def test_clean_link_streams_at_the_control_rate_with_no_lost_frame(plate):
-    driver = SerialPlate(plate.path, PROFILE)
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
     driver.start(Constant(3.0))
     time.sleep(3.0)
     sim = plate.simulator
-    assert abs(sim.amplitude_um_pp - 3.0) < 0.01  # the plate follows the setpoint
+    assert wait_for(lambda: abs(sim.amplitude_um_pp - 3.0) < 0.01)  # the plate follows the setpoint
     driver.stop()
     assert wait_for(lambda: sim.counters.frames_ok == driver.counters.frames_sent)
     assert sim.counters.lost_setpoints == 0 and sim.counters.crc_errors == 0
@@ -82,27 +83,26 @@ def test_clean_link_streams_at_the_control_rate_with_no_lost_frame(plate):
     (p.SIM_DISCONNECT, lambda sim, drv: drv.counters.disconnects >= 1 and drv.counters.reconnects >= 1),
 ])
 def test_injected_faults_are_detected_counted_and_recovered(plate, fault, check):
-    driver = SerialPlate(plate.path, PROFILE)
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
     source = Constant(3.0)
     driver.start(source)
-    time.sleep(0.5)
+    assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
     duration = {p.SIM_DROP: 0.3, p.SIM_CORRUPT: 0.3, p.SIM_HANG: 0.8, p.SIM_DISCONNECT: 0.6}[fault]
     plate.inject(fault, duration)
     time.sleep(duration + 0.1)
     # detected and counted, and recovered: streaming again with the plate back at its amplitude
     assert wait_for(lambda: check(plate.simulator, driver) and driver.status()["connected"]
                     and driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05
-                    and plate.simulator.enabled, timeout=4.0), (driver.status(), plate.simulator.counters)
+                    and plate.simulator.enabled), (driver.status(), plate.simulator.counters)
     pulled = source.pulled
-    time.sleep(0.2)
-    assert source.pulled > pulled  # the renderer kept running throughout
+    assert wait_for(lambda: source.pulled > pulled)  # the renderer kept running throughout
     driver.stop()
 
 
 def test_fault_injection_by_protocol_frame(plate):
-    driver = SerialPlate(plate.path, PROFILE)
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)  # the ACK waits on a condition, 10 s at most
     driver.start(Constant(2.0))
-    time.sleep(0.3)
+    assert wait_for(lambda: plate.simulator.counters.setpoints > 0)  # streaming: a gap can be seen
     driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
     assert wait_for(lambda: plate.simulator.counters.lost_setpoints > 0)
     assert plate.simulator.counters.faults_injected == {"drop": 1}
@@ -187,8 +187,14 @@ def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
         result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0", "--json",
                          check=True)
         status = json.loads(result.stdout)
-        assert status["setpoints_sent"] >= 12000 and status["disconnects"] == 0
-        assert status["device_faults"] == [] and status["ramps"] == 2
+        assert status["setpoints_sent"] >= 12000 and status["disconnects"] == 0 and status["ramps"] == 2
+        faults = status["faults"]
+        assert set(faults) == set(p.FAULT_NAMES.values())  # every fault by name, with its count over the run
+        # a clean run trips no watchdog (v1 reported two: before the host came and after it left), unless
+        # this host could not send for longer than the watchdog's timeout (a stalled, overloaded machine)
+        assert faults["watchdog"] <= status["send_stalls"]
+        assert faults["trip"] == faults["over-limit"] == faults["bad-command"] == faults["overrun"] == 0
+        assert set(status["device_faults"]) <= {"underrun", "watchdog"}  # underruns: only from late batches
     finally:
         server.send_signal(signal.SIGINT)
         out, _ = server.communicate(timeout=10)
@@ -311,3 +317,41 @@ def test_a_recorder_that_never_started_writes_nothing(tmp_path):
     recorder = WavRecorder(tmp_path / "never.wav")
     recorder.stop()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_every_fault_over_a_run_is_counted(plate):
+    """Faults injected one after another: the host's counts over the run equal what was injected."""
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+    source = Constant(3.0)
+    driver.start(source)
+    sim = plate.simulator
+
+    def playing():
+        t = driver.telemetry
+        return t is not None and t.enabled and abs(t.measured_um_pp - 3.0) < 0.05 and driver.status()["connected"]
+
+    assert wait_for(playing)
+    for trips in (1, 2, 3):  # three 300 ms drops of everything the host sends: three watchdog trips
+        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
+        assert wait_for(lambda n=trips: sim.counters.watchdog_trips >= n and time.monotonic() > plate._drop_until)
+        assert wait_for(playing)
+    driver._send(0x42)  # two frames the device must refuse
+    driver._send(p.HEARTBEAT, b"\x01")
+    assert wait_for(lambda: driver.counters.naks == 2)
+    driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))  # cuts and disables the output
+    assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled)
+    driver._command(p.ENABLE, p.enable_payload(True))
+    assert wait_for(playing)
+    source.amplitude = 7.0  # above the 6 µm limit: one excursion over it, then the trip
+    assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled)
+    assert wait_for(lambda: driver.fault_counts() == sim.fault_counts())  # the host has heard it all
+    counts = driver.fault_counts()
+    stalls = driver.counters.send_stalls
+    assert 3 <= counts["watchdog"] <= 3 + stalls, (counts, stalls)
+    assert (counts["bad-command"], counts["overheat"], counts["over-limit"], counts["trip"]) == (2, 1, 1, 1), counts
+    assert counts["overrun"] == 0 and counts["underrun"] >= 3  # each drop also starved the buffer
+    assert wait_for(lambda: driver.telemetry.faults == 0)  # the latched bits were read and cleared
+    assert driver.status()["faults"] == counts and set(driver.status()["device_faults"]) >= {
+        "watchdog", "bad-command", "overheat", "over-limit", "trip", "underrun"}
+    driver.stop()
+    assert driver.fault_counts() == counts  # the run's total, not the last telemetry frame's
