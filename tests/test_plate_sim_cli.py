@@ -1,0 +1,198 @@
+"""``ultraglide plate-sim`` as a real subprocess: its event log, its options, its clean-up on signals;
+and the host's one-line refusals and fault summary on the command line."""
+
+import dataclasses
+import json
+import math
+import os
+import queue
+import re
+import select
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from conftest import ROOT, assert_one_line_error, run_cli
+from test_devices import Constant, wait_for
+from ultraglide.apps.play_command import describe_faults
+from ultraglide.devices import protocol as p
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.serial_plate import SerialPlate
+
+PROFILE = load_profile("sim-plate")
+
+
+class Server:
+    """``ultraglide plate-sim`` in a subprocess; its stdout lines collected by a thread."""
+
+    def __init__(self, *args):
+        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", *map(str, args)],
+                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.lines: queue.SimpleQueue = queue.SimpleQueue()
+        self.seen: list[str] = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.put(line.rstrip("\n"))
+
+    def wait_line(self, matches, timeout=30.0) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            self.seen.append(line)
+            if matches(line):
+                return line
+        raise AssertionError(f"no such line within {timeout} s; saw {self.seen}")
+
+    def finish(self, signum) -> int:
+        self.process.send_signal(signum)
+        self.process.wait(timeout=30)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not self.process.stdout.closed:
+            try:
+                self.seen.append(self.lines.get(timeout=0.2))
+            except queue.Empty:
+                break
+        return self.process.returncode
+
+    def kill(self):
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait(timeout=10)
+
+
+def test_plate_sim_logs_every_event_as_json_and_removes_its_link_on_sigterm(tmp_path):
+    link = tmp_path / "plate"
+    server = Server("--link", link, "--json")
+    try:
+        banner = json.loads(server.wait_line(lambda line: '"serving"' in line))
+        assert banner["path"] == str(link) and banner["pty"].startswith("/dev/pts/")
+        driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)
+        driver.start(Constant(3.0))
+        server.wait_line(lambda line: '"stream_started"' in line)
+        assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
+        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))  # silence: the watchdog trips
+        server.wait_line(lambda line: '"watchdog"' in line)
+        server.wait_line(lambda line: '"stream_started"' in line)  # the drop is over: setpoints arrive again
+        assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
+        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))
+        server.wait_line(lambda line: '"overheat"' in line)
+        driver.stop()
+        server.wait_line(lambda line: '"disconnected"' in line)
+        assert server.finish(signal.SIGTERM) == 0
+    finally:
+        server.kill()
+    assert not os.path.lexists(link)  # the pty's symlink went with it
+    events = [json.loads(line) for line in server.seen]
+    assert all(isinstance(e["t_s"], float) and e["t_s"] >= 0 and isinstance(e["event"], str) for e in events)
+    names = [e["event"] for e in events]
+    for expected in ("connected", "carrier", "enabled", "stream_started", "watchdog", "stream_stopped", "fault",
+                     "disabled", "disconnected", "stopped"):
+        assert expected in names, names
+    assert next(e for e in events if e["event"] == "carrier")["carrier_hz"] == 25000.0
+    assert {"watchdog", "overheat"} <= {e.get("fault") for e in events}
+    assert next(e for e in events if e["event"] == "disabled")["reason"] == "overheat"
+    assert events[-1]["event"] == "stopped" and events[-1]["faults"]["watchdog"] == 1
+
+
+def test_plate_sim_speaks_in_words_and_cleans_up_on_sighup(tmp_path):
+    link = tmp_path / "plate"
+    server = Server("--link", link)
+    try:
+        assert str(link) in server.wait_line(lambda line: line.startswith("simulated plate"))
+        driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)
+        driver.start(Constant(1.0))
+        line = server.wait_line(lambda line: "enabled" in line)
+        assert re.fullmatch(r"\s*\d+\.\d{3} s  enabled", line), line
+        driver.stop()
+        server.wait_line(lambda line: "disconnected" in line)
+        assert server.finish(signal.SIGHUP) == 0
+    finally:
+        server.kill()
+    assert not os.path.lexists(link)
+    assert any(line.startswith("stopped:") and "0 watchdog trips" in line for line in server.seen), server.seen
+
+
+def test_plate_sim_plays_its_own_resonance_not_the_profiles(tmp_path):
+    link = tmp_path / "plate"
+    f0, q = 25250.0, 100.0
+    server = Server("--link", link, "--json", "--resonance-hz", f0, "--q", q)
+    try:
+        banner = json.loads(server.wait_line(lambda line: '"serving"' in line))
+        assert (banner["resonance_hz"], banner["q"]) == (f0, q)
+        driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)  # believes 25 kHz: drives there
+        driver.start(Constant(4.0))
+        gain = 1 / math.sqrt(1 + (2 * q * (25000.0 - f0) / f0) ** 2)  # 0.451: two half-bandwidths off
+        assert wait_for(lambda: driver.telemetry is not None
+                        and driver.telemetry.measured_um_pp == pytest.approx(4.0 * gain, rel=0.01)), driver.telemetry
+        driver.stop()
+        assert server.finish(signal.SIGINT) == 0
+    finally:
+        server.kill()
+
+
+def test_plate_sim_refuses_a_bad_option_in_one_line():
+    assert "--q" in assert_one_line_error(run_cli("plate-sim", "--q", "0"))
+
+
+def test_the_host_refuses_a_v1_device_in_one_line():
+    master, slave = os.openpty()
+    name = os.ttyname(slave)
+    stop = threading.Event()
+
+    def old_firmware():  # answers HELLO as a v1 plate driver did
+        decoder = p.FrameDecoder()
+        while not stop.is_set():
+            if not select.select([master], [], [], 0.05)[0]:
+                continue
+            for frame in decoder.feed(os.read(master, 4096)):
+                if frame.kind == p.HELLO:
+                    v1 = struct.pack("<BfffI", 1, 25000.0, 8.0, 6.0, 48000) + b"old plate"
+                    os.write(master, p.encode_frame(p.HELLO_REPLY, 1, v1))
+
+    thread = threading.Thread(target=old_firmware, daemon=True)
+    thread.start()
+    try:
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{name}", "--duration-s", "0.2")
+        line = assert_one_line_error(result)
+        assert "speaks protocol v1" in line and "v2" in line and "update the firmware" in line
+    finally:
+        stop.set()
+        thread.join(timeout=5)
+        os.close(master)
+        os.close(slave)
+
+
+def test_play_names_the_runs_faults_in_words():
+    result = run_cli("play", "grating-1mm", "--duration-s", "0.3", check=True)  # the built-in simulated plate
+    (summary,) = [line for line in result.stdout.splitlines() if line.startswith("device faults: ")]
+    assert summary == "device faults: none" or "×" in summary
+    words = describe_faults({"watchdog": 2, "trip": 0, "underrun": 1})
+    assert words == ("device faults: 2 × watchdog trip (no valid frame for 100 ms; output ramped to zero); "
+                     "1 × buffer underrun (last value held)")
+    assert describe_faults({name: 0 for name in p.FAULT_NAMES.values()}) == "device faults: none"
+
+
+def test_the_host_refuses_a_carrier_the_device_cannot_make(tmp_path):
+    """The carrier range comes in HELLO_REPLY: a carrier outside it is refused before anything is enabled."""
+    link = tmp_path / "plate"
+    server = Server("--link", link, "--json")
+    try:
+        server.wait_line(lambda line: '"serving"' in line)
+        wide = dataclasses.replace(PROFILE, carrier_max_hz=30000.0)  # the host's profile is wrong
+        driver = SerialPlate(str(link), wide, carrier_hz=29000.0, ack_timeout_s=10)
+        with pytest.raises(DeviceError, match="outside what the plate driver accepts, 20000-28000 Hz"):
+            driver.start(Constant(1.0))
+        assert server.finish(signal.SIGINT) == 0
+    finally:
+        server.kill()
+    assert "enabled" not in [json.loads(line)["event"] for line in server.seen]
