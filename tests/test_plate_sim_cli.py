@@ -35,7 +35,8 @@ class Server:
                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.lines: queue.SimpleQueue = queue.SimpleQueue()
         self.seen: list[str] = []
-        threading.Thread(target=self._read, daemon=True).start()
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
 
     def _read(self):
         for line in self.process.stdout:
@@ -56,12 +57,9 @@ class Server:
     def finish(self, signum) -> int:
         self.process.send_signal(signum)
         self.process.wait(timeout=30)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not self.process.stdout.closed:
-            try:
-                self.seen.append(self.lines.get(timeout=0.2))
-            except queue.Empty:
-                break
+        self.reader.join(timeout=30)  # every line it printed, to the end
+        while not self.lines.empty():
+            self.seen.append(self.lines.get())
         return self.process.returncode
 
     def kill(self):
