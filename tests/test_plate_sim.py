@@ -383,7 +383,7 @@ def test_fuzzed_frames_through_the_real_pty_never_stop_its_threads():
         for k in range(100):
             host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.4))))
             time.sleep(0.002)
-        assert wait_until(lambda: sim.fault_counts()["watchdog"] == trips + 1 and sim.amplitude_um_pp < 0.01)
+        assert wait_until(lambda: sim.fault_counts()["watchdog"] > trips and sim.amplitude_um_pp < 0.01)
         assert sim.peak_um_pp > 0  # it did play
         assert plate.alive and sim.counters.handler_errors == 0
     finally:
