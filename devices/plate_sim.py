@@ -49,6 +49,7 @@ PREFILL_S = p.PREFILL_MS / 1000.0
 STALL_S = 0.02  # the output thread woke this late: the whole simulator was descheduled (a loaded machine)
 STREAM_GAP_S = 0.05  # no setpoints for this long: the stream has stopped (an event, not a fault)
 MIN_RATE_HZ, MAX_RATE_HZ = 1000, 48000
+MAX_EVENTS = 10000  # events kept for a reader (plate-sim prints them); beyond that they are counted, not kept
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,8 @@ class PlateSimulator:
 
     ``receive`` (the frame handler) and ``advance`` (the output stage and watchdog) may run on
     different threads; a lock held for a frame's handling or one block's physics keeps them apart.
-    Events (``connected`` … ``disconnected``, see ``EVENTS``) go to ``events``, a queue of dicts.
+    Events (``connected``, ``enabled``, ``fault`` …, each a dict with ``t_s`` and ``event``) go to the
+    bounded queue ``events``.
     """
 
     def __init__(self, profile: PlateProfile, name: str = "ultraglide plate simulator",
@@ -108,7 +110,8 @@ class PlateSimulator:
         self.name = name
         self.decoder = p.FrameDecoder()
         self.counters = SimCounters()
-        self.events: queue.SimpleQueue = queue.SimpleQueue()
+        self.events: queue.Queue = queue.Queue(MAX_EVENTS)  # bounded: nobody need drain it
+        self.events_dropped = 0
         self.enabled = False
         self.carrier_hz = profile.resonance_hz
         self.rate_hz = 12000
@@ -141,7 +144,10 @@ class PlateSimulator:
 
     def _event(self, event: str, now: float | None = None, **fields) -> None:
         now = time.perf_counter() if now is None else now
-        self.events.put({"t_s": round(now - self._started, 4), "event": event, **fields})
+        try:
+            self.events.put_nowait({"t_s": round(now - self._started, 4), "event": event, **fields})
+        except queue.Full:
+            self.events_dropped += 1
 
     def _fault(self, bit: int, now: float | None = None, **fields) -> None:
         self._faults |= bit
