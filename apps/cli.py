@@ -101,7 +101,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = commands.add_parser("plate-sim", help="serve the simulated plate on a pseudo-terminal",
                               description="Run the simulated plate driver on a pty and print its path; "
-                                          "connect with --device serial:PATH. Runs until stopped.")
+                                          "connect with --device serial:PATH. Prints one line per event "
+                                          "(connected, enabled, carrier, stream started/stopped, fault, "
+                                          "watchdog, disabled, disconnected) with its time. Runs until stopped.")
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
     sim.add_argument("--resonance-hz", type=positive, metavar="F",

@@ -65,7 +65,7 @@ class PlateTruth:
         return cls(profile.resonance_hz, profile.q)
 
     def resonance_at(self, elapsed_s: float) -> float:
-        return self.resonance_hz + self.drift_hz_per_s * elapsed_s
+        return max(self.resonance_hz + self.drift_hz_per_s * elapsed_s, 1.0)  # a long drift down stops at 1 Hz
 
     def gain(self, carrier_hz: float, elapsed_s: float) -> float:
         """Steady amplitude at ``carrier_hz`` relative to that at resonance."""
