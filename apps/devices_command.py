@@ -34,7 +34,10 @@ def list_all(args) -> int:
 
 def describe_event(event: dict) -> str:
     """One event of the simulated plate as a line for people: its time, what happened, the details."""
-    details = ", ".join(f"{key} {value}" for key, value in event.items() if key not in ("t_s", "event"))
+    fields = {key: value for key, value in event.items() if key not in ("t_s", "event")}
+    if event["event"] == "watchdog":
+        fields.pop("fault", None)  # the event's name says it
+    details = ", ".join(str(value) if key == "fault" else f"{key} {value}" for key, value in fields.items())
     return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
 
 
