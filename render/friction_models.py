@@ -13,8 +13,10 @@ Example::
     ([0.0, 3.11, 5.0], 1)
 
 Ratios the plate cannot reach (below the ratio at the amplitude limit) are clamped to the limit
-and counted in ``clamped``; NaN ratios give 0 µm (plate at rest). No amplitude ever exceeds
-``limit_um_pp`` or the model's own validity range ``max_amplitude_um_pp``.
+and counted in ``clamped``; ratios above 1 mean rest (0 µm). No amplitude ever exceeds
+``limit_um_pp`` or the model's own validity range ``max_amplitude_um_pp``. Forces may be one
+number or one per sample (a pressure-sensing panel); forces below 10 mN count as 10 mN.
+NaN, infinite or negative forces, ratios or amplitudes raise :class:`ModelError` with one line.
 """
 
 from __future__ import annotations
@@ -74,6 +76,47 @@ def _clip_force(force_n):
     return np.clip(np.asarray(force_n, dtype=float), MIN_FORCE_N, MAX_FORCE_N)
 
 
+def _is_scalar(value) -> bool:
+    return not isinstance(value, np.ndarray) or value.ndim == 0
+
+
+def check_force(force_n) -> None:
+    """Raise :class:`ModelError` unless every force is a finite number >= 0 N."""
+    if _is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
+        value = float(force_n)
+        if not (0.0 <= value < np.inf):
+            raise ModelError(f"normal force must be a finite number >= 0 N, got {value}")
+        return
+    force = np.asarray(force_n, dtype=float)
+    bad = ~((force >= 0.0) & (force < np.inf))
+    if bad.any():
+        raise ModelError(f"normal force must be a finite number >= 0 N, got {force[bad].flat[0]}")
+
+
+def check_ratio(ratio: np.ndarray) -> None:
+    """Raise :class:`ModelError` unless every friction ratio is a finite number >= 0."""
+    bad = ~((ratio >= 0.0) & (ratio < np.inf))
+    if bad.any():
+        raise ModelError(f"friction ratio must be a finite number >= 0 (1 = plate at rest), got {ratio[bad].flat[0]}")
+
+
+def check_amplitude(amplitude: np.ndarray) -> None:
+    """Raise :class:`ModelError` unless every amplitude is a finite number >= 0 µm."""
+    bad = ~((amplitude >= 0.0) & (amplitude < np.inf))
+    if bad.any():
+        raise ModelError(f"amplitude must be a finite number >= 0 µm p-p, got {amplitude[bad].flat[0]}")
+
+
+def _kernel_result(code: int, ratio: np.ndarray, force: np.ndarray) -> int:
+    """A kernel's return value: a count of clamped ratios, or -1 - i for a bad sample i."""
+    if code >= 0:
+        return code
+    i = -1 - code
+    check_force(force[min(i, len(force) - 1)])
+    check_ratio(ratio[i:i + 1])
+    raise AssertionError("a kernel reported a bad sample that passes the checks")  # pragma: no cover
+
+
 class FrictionModel(ABC):
     """The interface every friction model offers; see the module docstring."""
 
@@ -112,16 +155,24 @@ class FrictionModel(ABC):
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         return self.relative_friction(limit, force_n)
 
+    def _fast_path(self, ratio, force_n, limit_um_pp) -> bool:
+        """True when the compiled kernel can take the call: a 1-d float ratio array."""
+        return (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
+                and (_is_scalar(force_n) or (force_n.ndim == 1 and len(force_n) == len(ratio)))
+                and limit_um_pp >= 0)
+
     def amplitude_um_pp(
         self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf
     ) -> Inversion:
         """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force."""
         if not limit_um_pp >= 0:
             raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
+        check_force(force_n)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        scalar_force = not isinstance(force_n, np.ndarray) or force_n.ndim == 0
-        shape = np.shape(ratio) if scalar_force else np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
-        ratio = np.fmin(np.asarray(ratio, dtype=float), 1.0)  # fmin drops NaN: NaN means rest (1)
+        shape = np.shape(ratio) if _is_scalar(force_n) else np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
+        ratio = np.asarray(ratio, dtype=float)
+        check_ratio(ratio)
+        ratio = np.minimum(ratio, 1.0)
         if ratio.ndim == 0:
             ratio = ratio.reshape(1)
         floor = self._floor(force_n, limit)
@@ -142,52 +193,64 @@ class PaperModel(FrictionModel):
     """The seed paper's non-Coulombic bed-of-springs model (section IV), tabulated.
 
     The ratio depends on amplitude and force only through u = a_pp / detach_amplitude_um_pp(F)
-    (see :mod:`render.normal_contact`), so one table over u serves every force. It predicts
+    (see :mod:`render.normal_contact`), so one table over u serves every force. The detachment
+    amplitude scales as F^(1 - area_exponent) (F^(1/3) with the paper's A = k F^(2/3)). It predicts
     a modest reduction (to about 0.72 at 10 µm and 0.5 N) and never full levitation.
     """
 
     name = "paper"
-    U_MAX = 64.0  # covers CEILING_UM_PP down to MIN_FORCE_N
     U_NODES = 384
 
     def __init__(self, params: FingerParams = FingerParams()):
         self.params = params
-        self.u_nodes = self.U_MAX * np.linspace(0.0, 1.0, self.U_NODES) ** 2
+        self._detach_exponent = 1.0 - params.area_exponent
+        self._detach_at_1n = float(detach_amplitude_um_pp(1.0, params))
+        # the table covers every amplitude up to the ceiling at every force in range
+        smallest_detach = float(np.min(self._detach_um_pp(np.array([MIN_FORCE_N, MAX_FORCE_N]))))
+        u_max = max(CEILING_UM_PP / smallest_detach, 4.0)
+        self.u_nodes = u_max * np.linspace(0.0, 1.0, self.U_NODES) ** 2
         ratio = relative_friction_of_u(self.u_nodes, params, phase_points=192, ring_nodes=32)
         self.ratio_nodes = np.minimum.accumulate(ratio)  # guard monotonicity against rounding
         ratio_grid = np.linspace(self.ratio_nodes[-1], 1.0, RATIO_GRID_POINTS)
         # the inverse of a flat stretch is its smallest amplitude: interp on reversed nodes
         u_of_ratio = np.interp(ratio_grid, self.ratio_nodes[::-1], self.u_nodes[::-1])
         self._u_table = UniformTable(ratio_grid[0], 1.0, u_of_ratio)
-        self._detach_per_cbrt_force = float(detach_amplitude_um_pp(1.0, params))
 
     def _detach_um_pp(self, force_n):
-        return self._detach_per_cbrt_force * np.cbrt(_clip_force(force_n))
+        return self._detach_at_1n * np.power(_clip_force(force_n), self._detach_exponent)
 
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
-        u = np.asarray(amplitude_um_pp, dtype=float) / self._detach_um_pp(force_n)
-        return np.interp(u, self.u_nodes, self.ratio_nodes)
+        check_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        return np.interp(amplitude / self._detach_um_pp(force_n), self.u_nodes, self.ratio_nodes)
 
     def _amplitude_in_reach(self, ratio, force_n):
         return self._u_table(ratio) * self._detach_um_pp(force_n)
 
     def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
-        if not (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
-                and not isinstance(force_n, np.ndarray) and limit_um_pp >= 0):
+        if not self._fast_path(ratio, force_n, limit_um_pp):
             return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         table = self._u_table
+        ratio = ratio.astype(np.float64, copy=False)
         out = np.empty(len(ratio))
-        clamped = kernels.inverse_uniform(ratio.astype(np.float64, copy=False), self._floor(force_n, limit), limit,
-                                          table.start, table.scale, table.values, table.slopes,
-                                          float(self._detach_um_pp(force_n)), out)
-        return Inversion(out, clamped)
+        if _is_scalar(force_n):
+            check_force(force_n)
+            code = kernels.inverse_uniform(ratio, self._floor(force_n, limit), limit, table.start, table.scale,
+                                           table.values, table.slopes, float(self._detach_um_pp(force_n)), out)
+            return Inversion(out, _kernel_result(code, ratio, np.atleast_1d(force_n)))
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_uniform_forces(ratio, force, limit, table.start, table.scale, table.values,
+                                              table.slopes, self._detach_at_1n, self._detach_exponent,
+                                              MIN_FORCE_N, MAX_FORCE_N, out)
+        return Inversion(out, _kernel_result(code, ratio, force))
 
     def describe(self) -> str:
         p = self.params
         return (
             f"paper: ridge springs with non-Coulombic friction (E = {p.youngs_modulus_pa / 1e6:g} MPa, "
-            f"n = {p.friction_exponent:.3g}, {p.contact} contact)"
+            f"n = {p.friction_exponent:.3g}, A ∝ F^{p.area_exponent:.3g}, {p.contact} contact)"
         )
 
     def parameters(self):
@@ -195,44 +258,101 @@ class PaperModel(FrictionModel):
         return {
             "youngs_modulus_pa": p.youngs_modulus_pa,
             "friction_exponent": p.friction_exponent,
-            "contact": p.contact,
+            "area_exponent": p.area_exponent,
         }
 
 
-class ExponentialModel(FrictionModel):
+REFERENCE_FORCE_N = 0.5  # the force at which a stretched model's scale is stated
+MONNOYER_TAU_UM_ZP = 1.32  # Monnoyer et al. 2018, zero-to-peak
+MONNOYER_SCALE_UM_PP = 2.0 * np.sqrt(2.0) * MONNOYER_TAU_UM_ZP  # exp(-a²/2tau²) = exp(-(a_pp/scale)²)
+# Allowed ranges, the same for the constructor, calibration files and the fit's bounds.
+SCALE_RANGE_UM_PP = (0.05, 100.0)
+SHAPE_RANGE = (0.3, 8.0)
+FORCE_EXPONENT_RANGE = (-2.0, 2.0)
+
+
+def _in_range(name: str, value: float, allowed: tuple[float, float], unit: str = "") -> float:
+    value = float(value)
+    if not allowed[0] <= value <= allowed[1]:
+        raise ModelError(f"{name} must lie in [{allowed[0]:g}, {allowed[1]:g}]{unit}, got {value}")
+    return value
+
+
+class StretchedExponentialModel(FrictionModel):
+    """A force-aware empirical law: mu/mu0 = exp(-(a_pp / s(F))^beta), s(F) = s0 (F / 0.5 N)^p.
+
+    ``scale_um_pp`` s0 is the amplitude (µm p-p) at which friction falls to 1/e at 0.5 N; ``shape``
+    beta sets how sudden the fall is (2 is Gaussian, Monnoyer's law; below 1 it starts steeply);
+    ``force_exponent`` p makes harder presses need more vibration. The defaults are Monnoyer et al.'s
+    published curve at 0.5 N (s0 = 2 sqrt 2 x 1.32 µm = 3.73 µm p-p, beta = 2) with p = 1/3, the
+    force law of the paper's detachment amplitude (W_c = F / k_n with A ∝ F^(2/3)), since the
+    bundled curve has a single force. Any s0 > 0, beta > 0 gives a strictly decreasing curve; values
+    outside the allowed ranges are refused.
+    """
+
+    name = "stretched"
+
+    def __init__(self, scale_um_pp: float = MONNOYER_SCALE_UM_PP, shape: float = 2.0,
+                 force_exponent: float = 1.0 / 3.0):
+        self.scale_um_pp = _in_range("scale_um_pp", scale_um_pp, SCALE_RANGE_UM_PP, " µm p-p")
+        self.shape = _in_range("shape", shape, SHAPE_RANGE)
+        self.force_exponent = _in_range("force_exponent", force_exponent, FORCE_EXPONENT_RANGE)
+
+    def scale_at_um_pp(self, force_n):
+        """s(F), µm p-p: the amplitude that brings friction to 1/e at this force."""
+        return self.scale_um_pp * np.power(_clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
+
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        check_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        return np.exp(-np.power(amplitude / self.scale_at_um_pp(force_n), self.shape))
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        depth = -np.log(np.asarray(ratio, dtype=float)) + 0.0  # +0.0: log(1) gives -0.0
+        return self.scale_at_um_pp(force_n) * np.power(depth, 1.0 / self.shape)
+
+    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        ratio = ratio.astype(np.float64, copy=False)
+        out = np.empty(len(ratio))
+        if _is_scalar(force_n):
+            check_force(force_n)
+            code = kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit,
+                                             float(self.scale_at_um_pp(force_n)), 1.0 / self.shape, out)
+            return Inversion(out, _kernel_result(code, ratio, np.atleast_1d(force_n)))
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_stretched_forces(ratio, force, limit, self.scale_um_pp, 1.0 / self.shape,
+                                                self.force_exponent, REFERENCE_FORCE_N, MIN_FORCE_N, MAX_FORCE_N,
+                                                out)
+        return Inversion(out, _kernel_result(code, ratio, force))
+
+    def describe(self) -> str:
+        return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
+                f"{self.force_exponent:.3g}, beta = {self.shape:.3g}")
+
+    def parameters(self):
+        return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent}
+
+
+TAU_RANGE_UM_ZP = (SCALE_RANGE_UM_PP[0] / (2 * np.sqrt(2)), SCALE_RANGE_UM_PP[1] / (2 * np.sqrt(2)))
+
+
+class ExponentialModel(StretchedExponentialModel):
     """Empirical law of Monnoyer et al. (IEEE Trans. Haptics 2018): mu/mu0 = exp(-a²/(2 tau²)).
 
     The published a and tau are zero-to-peak (tau = 1.32 µm); here a = a_pp / 2. The fit has no
-    force term, so the force is accepted and ignored.
+    force term, so the force is checked and otherwise ignored: the stretched model with beta = 2,
+    p = 0 and s0 = 2 sqrt 2 tau.
     """
 
     name = "exponential"
 
-    def __init__(self, tau_um_zp: float = 1.32):
-        if not tau_um_zp > 0:
-            raise ModelError(f"tau must be positive, got {tau_um_zp} µm")
-        self.tau_um_zp = float(tau_um_zp)
-        self._factor = -1.0 / (8.0 * self.tau_um_zp**2)  # (a_pp/2)² / (2 tau²)
-
-    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
-        amplitude = np.asarray(amplitude_um_pp, dtype=float)
-        return np.exp(self._factor * amplitude * amplitude)
-
-    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
-        if not (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
-                and not isinstance(force_n, np.ndarray) and limit_um_pp >= 0):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        out = np.empty(len(ratio))
-        clamped = kernels.inverse_exponential(ratio.astype(np.float64, copy=False), self._floor(force_n, limit),
-                                              limit, self._factor, out)
-        return Inversion(out, clamped)
-
-    def _amplitude_in_reach(self, ratio, force_n):
-        amplitude = np.log(np.asarray(ratio, dtype=float))
-        amplitude *= 1.0 / self._factor
-        amplitude += 0.0  # log(1) / negative is -0.0; adding +0.0 makes it +0.0
-        return np.sqrt(amplitude)
+    def __init__(self, tau_um_zp: float = MONNOYER_TAU_UM_ZP):
+        self.tau_um_zp = _in_range("tau_um_zp", tau_um_zp, TAU_RANGE_UM_ZP, " µm zero-to-peak")
+        super().__init__(2.0 * np.sqrt(2.0) * self.tau_um_zp, 2.0, 0.0)
 
     def describe(self) -> str:
         return f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
@@ -308,14 +428,18 @@ class TableModel(FrictionModel):
         return ((1.0 - weight) * low + weight * high).reshape(shape)
 
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
         shape = np.broadcast(amplitude, np.asarray(force_n)).shape
         low = np.full(shape, float(self._table.start))
         high = np.ones(shape)
         target = np.broadcast_to(np.minimum(amplitude, self.max_amplitude_um_pp), shape)
-        for _ in range(48):  # bisection on the monotone inverse: exact to ~1e-14
+        # bisection for the largest ratio whose amplitude reaches the target: where a force's curve
+        # ends above the lowest floor, its inverse holds the end amplitude, and the answer is its floor
+        for _ in range(48):
             middle = 0.5 * (low + high)
-            above = self._amplitude_in_reach(middle, force_n) > target
+            above = self._amplitude_in_reach(middle, force_n) >= target
             low = np.where(above, middle, low)
             high = np.where(above, high, middle)
         return 0.5 * (low + high)

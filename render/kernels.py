@@ -1,4 +1,4 @@
-"""Compiled inner loops of the renderer (numba): the envelope recursion and the carrier.
+"""Compiled inner loops of the renderer (numba): the envelope recursion, the carrier, model inverses.
 
 The envelope stages are recursions (each sample depends on the previous one, with clipping), which
 numpy cannot vectorise exactly; compiled, one exact loop is both the simplest code and the fastest
@@ -91,33 +91,61 @@ def sine_block(phase, increment, out):
 
 
 @njit(cache=True, nogil=True)
-def inverse_exponential(ratio, floor, limit, factor, out):
-    """Amplitudes for ratios under mu/mu0 = exp(factor a²): NaN → 0, below ``floor`` → ``limit``.
-    Returns how many were below the floor."""
+def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
+    """Amplitudes for ratios under mu/mu0 = exp(-(a / scale)^shape) at one force: ratios >= 1 → 0,
+    below ``floor`` → ``limit``. Returns how many were below the floor, or -1 - i if ratio i is
+    NaN, negative or infinite (the caller raises)."""
     clamped = 0
     for i in range(ratio.shape[0]):
         r = ratio[i]
-        if r != r or r >= 1.0:  # NaN or at rest
+        if not (0.0 <= r < np.inf):
+            return -1 - i
+        if r >= 1.0:
             out[i] = 0.0
         elif r < floor:
             out[i] = limit
             clamped += 1
         else:
-            out[i] = min(np.sqrt(np.log(r) / factor), limit)
+            out[i] = min(scale * (-np.log(r)) ** inverse_shape, limit)
+    return clamped
+
+
+@njit(cache=True, nogil=True)
+def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_exponent, reference_force,
+                             min_force, max_force, out):
+    """As :func:`inverse_stretched` with a force per sample: scale × (F / reference)^force_exponent.
+    A ratio is clamped (and counted) when the amplitude it needs exceeds ``limit``; a bad ratio or
+    force (NaN, negative, infinite) returns -1 - i."""
+    clamped = 0
+    for i in range(ratio.shape[0]):
+        r = ratio[i]
+        f = force[i]
+        if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
+            return -1 - i
+        if r >= 1.0:
+            out[i] = 0.0
+            continue
+        f = min(max(f, min_force), max_force)
+        a = scale * (f / reference_force) ** force_exponent * (-np.log(r)) ** inverse_shape
+        if a > limit:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = a
     return clamped
 
 
 @njit(cache=True, nogil=True)
 def inverse_uniform(ratio, floor, limit, start, per_step, values, slopes, amplitude_scale, out):
     """Amplitudes from a uniform-grid table of the inverse (value at ratio ``start + i / per_step``),
-    times ``amplitude_scale``; NaN → 0, below ``floor`` → ``limit``. Returns how many were below."""
+    times ``amplitude_scale``; ratios >= 1 → 0, below ``floor`` → ``limit``. Returns how many were
+    below, or -1 - i if ratio i is NaN, negative or infinite."""
     clamped = 0
     last = values.shape[0] - 2
     for i in range(ratio.shape[0]):
         r = ratio[i]
-        if r != r:
-            out[i] = 0.0
-            continue
+        if not (0.0 <= r < np.inf):
+            return -1 - i
         if r < floor:
             out[i] = limit
             clamped += 1
@@ -131,6 +159,32 @@ def inverse_uniform(ratio, floor, limit, start, per_step, values, slopes, amplit
     return clamped
 
 
+@njit(cache=True, nogil=True)
+def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes, scale_at_1n, force_exponent,
+                           min_force, max_force, out):
+    """As :func:`inverse_uniform` with a force per sample: the table's value times
+    scale_at_1n × F^force_exponent. Clamped (and counted) where that exceeds ``limit``."""
+    clamped = 0
+    last = values.shape[0] - 2
+    for i in range(ratio.shape[0]):
+        r = ratio[i]
+        f = force[i]
+        if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
+            return -1 - i
+        f = min(max(f, min_force), max_force)
+        position = (min(r, 1.0) - start) * per_step
+        if position < 0.0:
+            position = 0.0
+        index = min(int(position), last)
+        a = (values[index] + (position - index) * slopes[index]) * scale_at_1n * f ** force_exponent
+        if a > limit:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = max(a, 0.0)
+    return clamped
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel here with the types the renderer passes,
@@ -140,5 +194,8 @@ def warm_up() -> None:
              np.empty(4), np.empty(4), np.empty(4))
     modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
     sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))
-    inverse_exponential(f64 + 0.5, 0.1, 6.0, -0.1, np.empty(4))
+    inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
+    inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, np.empty(4))
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
+    inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 0.01, 10.0,
+                           np.empty(4))

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from ultraglide.render.calibration import calibration_toml, fit_model, load_model, read_calibration
 from ultraglide.render.errors import ModelError
 from ultraglide.render.fingerprint import FingerParams
-from ultraglide.render.friction_models import ExponentialModel, PaperModel, TableModel
+from ultraglide.render.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel, TableModel
 from ultraglide.render.measurements import Measurements, read_measurements
 from ultraglide.render.normal_contact import relative_friction
 
@@ -16,6 +16,7 @@ MODELS = {
     "paper": PaperModel(),
     "paper-uniform": PaperModel(FingerParams(contact="uniform")),
     "exponential": ExponentialModel(),
+    "stretched": StretchedExponentialModel(),
     "table": TableModel(read_measurements(SHARED_DATA)),
 }
 
@@ -87,6 +88,10 @@ def test_inverse_is_exact_monotone_and_finite_over_the_reachable_range(name):
 )
 def test_inverse_never_exceeds_the_limit_and_counts_what_it_clamps(name, ratio, force, limit):
     model = MODELS[name]
+    if not all(0 <= r < np.inf for r in ratio):  # NaN, infinite or negative: refused in one line
+        with pytest.raises(ModelError, match="friction ratio must be a finite number >= 0"):
+            model.amplitude_um_pp(np.array(ratio), force, limit)
+        return
     result = model.amplitude_um_pp(np.array(ratio), force, limit)
     amplitude = result.amplitude_um_pp
     assert amplitude.shape == (len(ratio),)
@@ -104,8 +109,8 @@ def test_ratio_below_reach_clamps_to_the_limit():
     assert 0 < result.amplitude_um_pp[1] < 6.0
 
 
-def test_nan_ratio_means_rest():
-    assert MODELS["exponential"].amplitude_um_pp([np.nan], 0.5, 5.0).amplitude_um_pp[0] == 0.0
+def test_ratio_above_one_means_rest():
+    assert MODELS["exponential"].amplitude_um_pp([1.2], 0.5, 5.0).amplitude_um_pp[0] == 0.0
 
 
 def test_calibration_recovers_known_parameters(tmp_path):
