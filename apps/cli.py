@@ -23,7 +23,7 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-MODEL_HELP = "friction model: paper, paper-uniform, exponential, table:FILE.csv or CAL.toml"
+MODEL_HELP = "friction model: paper, paper-uniform, exponential, stretched, table:FILE.csv or CAL.toml"
 
 
 def _add_model(parser: argparse.ArgumentParser, default: str = "paper") -> None:
@@ -58,11 +58,20 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate = commands.add_parser(
         "calibrate", help="fit a friction model to measured points",
         description="Fit a model's free parameters to a CSV of amplitude_um_pp,relative_friction"
-                    "[,force_n] and write a calibration file usable as --model.")
+                    "[,force_n][,participant] by least squares; report each parameter with its standard "
+                    "error and the cross-validated error (k-fold, leave-one-force-out); write a calibration "
+                    "file usable as --model and a figure beside it (CAL.png at 300 dpi and CAL.pdf).")
     calibrate.add_argument("data", metavar="DATA.csv")
-    calibrate.add_argument("--model", default="exponential",
-                           choices=["exponential", "paper", "paper-uniform"])
-    calibrate.add_argument("-o", "--output", required=True, metavar="CAL.toml")
+    calibrate.add_argument("--model", default="stretched",
+                           choices=["stretched", "exponential", "paper", "paper-uniform", "table"],
+                           help="the model to fit (default: stretched)")
+    calibrate.add_argument("--compare", action="store_true",
+                           help="fit every model and rank them by cross-validated error; -o keeps the best")
+    calibrate.add_argument("--participant", type=finite, metavar="ID",
+                           help="use only this participant's points (the participant column)")
+    calibrate.add_argument("--json", action="store_true", help="print one JSON object")
+    calibrate.add_argument("-o", "--output", metavar="CAL.toml",
+                           help="write the calibration here, and its figure as CAL.png and CAL.pdf")
     calibrate.set_defaults(handler="ultraglide.apps.calibrate_command:run")
 
     _add_texture_commands(commands)

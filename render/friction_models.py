@@ -219,6 +219,11 @@ class PaperModel(FrictionModel):
     def _detach_um_pp(self, force_n):
         return self._detach_at_1n * np.power(_clip_force(force_n), self._detach_exponent)
 
+    @staticmethod
+    def detach_um_pp_for(params: FingerParams, force_n):
+        """Detachment amplitude (µm p-p) at each force, forces clipped to the models' range."""
+        return detach_amplitude_um_pp(_clip_force(force_n), params)
+
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
         check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
