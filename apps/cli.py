@@ -44,13 +44,16 @@ def build_parser() -> argparse.ArgumentParser:
         "model", help="the fingerprint physics at one normal force",
         description="Contact area, ridge stiffness, detachment amplitude, glide threshold and "
                     "relative friction against amplitude, from the paper's model.")
-    model.add_argument("--force", type=positive, default=0.5, metavar="N",
-                       help="normal force of the finger, N (default: 0.5)")
+    model.add_argument("--force", type=positive, default=None, metavar="N",
+                       help="normal force of the finger, N (default: 0.5; figures: the paper's force for each)")
     _add_model(model)
     model.add_argument("--ratio", type=ratio, metavar="R",
                        help="also give the amplitude that yields friction ratio R")
     model.add_argument("--json", action="store_true", help="print one JSON object")
-    model.add_argument("--plots", metavar="DIR", help="write the paper's figures 2-9 as PNGs here")
+    model.add_argument("--plots", metavar="DIR",
+                       help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF")
+    model.add_argument("--report", metavar="FILE.pdf",
+                       help="write one page on the model at this force: parameters, curve, inverse, contact")
     model.add_argument("--data", metavar="CSV",
                        help="measured points for figure 9 (default: the bundled Monnoyer 2018 fit)")
     model.set_defaults(handler="ultraglide.apps.model_command:run")

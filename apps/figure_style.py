@@ -35,6 +35,12 @@ def figure(*args, **kwargs):
         return plt.subplots(*args, **kwargs)
 
 
+def mosaic(layout, **kwargs):
+    """plt.subplot_mosaic under the house style, with constrained layout."""
+    with plt.rc_context(STYLE):
+        return plt.subplot_mosaic(layout, layout="constrained", **kwargs)
+
+
 def save(fig, path: Path, vector: str | None = "pdf") -> list[Path]:
     """Write ``path`` (its suffix names the format; PNG at 300 dpi) and, if ``vector`` is given and
     ``path`` is a PNG, the same figure as a vector file beside it. Each is written atomically."""
@@ -44,7 +50,8 @@ def save(fig, path: Path, vector: str | None = "pdf") -> list[Path]:
     if vector and path.suffix.lower() == ".png":
         targets.append(path.with_suffix(f".{vector}"))
     with plt.rc_context(STYLE):
-        fig.tight_layout()
+        if fig.get_layout_engine() is None:
+            fig.tight_layout()
         for target in targets:
             with atomic_path(target) as temporary:
                 fig.savefig(temporary, dpi=PNG_DPI, format=target.suffix.lstrip(".").lower())

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from ultraglide.apps.errors import UsageError
 from ultraglide.render.calibration import load_model
 from ultraglide.render.fingerprint import (
     FingerParams,
@@ -15,17 +16,22 @@ from ultraglide.render.fingerprint import (
     normal_stiffness_n_per_m,
     tangential_stiffness_n_per_m,
 )
-from ultraglide.render.friction_models import CEILING_UM_PP, PaperModel
+from ultraglide.render.friction_models import CEILING_UM_PP, DEFAULT_FORCE_N, FrictionModel, PaperModel
 
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0
 EXAMPLE_DATA = Path(__file__).parent / "data" / "monnoyer2018-fit.csv"
 
 
-def summary(force_n: float, model_spec: str, ratio: float | None) -> dict:
+def _finger(model: FrictionModel) -> FingerParams:
+    """The ridge model's parameters: the model's own for the paper model, else the paper's Table I."""
+    return model.params if isinstance(model, PaperModel) else FingerParams()
+
+
+def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> dict:
     """Everything ``ultraglide model`` reports, as plain JSON-able values."""
-    model = load_model(model_spec)
-    params = model.params if isinstance(model, PaperModel) else FingerParams()
+    model = load_model(model) if isinstance(model, str) else model
+    params = _finger(model)
     amplitude = np.arange(0.0, CURVE_END_UM + 1e-9, CURVE_STEP_UM)
     curve = model.relative_friction(amplitude, force_n)
     result = {
@@ -73,13 +79,22 @@ def format_text(result: dict) -> str:
 
 
 def run(args) -> int:
-    result = summary(args.force, args.model, args.ratio)
+    force = DEFAULT_FORCE_N if args.force is None else args.force
+    if args.report and Path(args.report).suffix.lower() not in (".pdf", ".svg", ".png"):
+        raise UsageError(f"{args.report}: the report is a .pdf (or .svg, or .png at 300 dpi)")
+    model = load_model(args.model)
+    result = summary(force, model, args.ratio)
     if args.plots:
         from ultraglide.apps.figures import write_paper_figures
 
         data = Path(args.data) if args.data else EXAMPLE_DATA
-        written = write_paper_figures(Path(args.plots), args.model, data)
+        written = write_paper_figures(Path(args.plots), data, _finger(model), args.force, model)
         result["plots"] = [str(path) for path in written]
+    if args.report:
+        from ultraglide.apps.model_report import write_report
+
+        result["plots"] = result.get("plots", []) + [str(p) for p in write_report(Path(args.report), model, result,
+                                                                                  _finger(model))]
     if args.json:
         print(json.dumps(result))
     else:
