@@ -147,3 +147,28 @@ def relative_friction(amplitude_um_pp, force_n, params: FingerParams = FingerPar
 def cycle_friction_n(amplitude_um_pp, force_n, phase_rad, params: FingerParams = FingerParams()):
     """Instantaneous friction force over a cycle under the non-Coulombic law, N."""
     return friction_force_n(cycle_reaction_n(amplitude_um_pp, force_n, phase_rad, params), params)
+
+
+def rigid_hertz_reaction(u, phase_rad, ring_nodes: int = 256):
+    """The other reading of eq. (8): the pad moves as one rigid body at a single mean height.
+
+    Annulus m = sqrt(1 - r²/b²) is compressed 1.5 m (in units of the mean static compression) at
+    rest; under vibration every annulus shares one offset d, solved so that the cycle-mean total
+    reaction equals the load (eq. 7). Used to quantify the choice in ``docs/physics.md``; the model
+    itself uses :func:`hertz_reaction` (each annulus settles to its own mean pressure).
+    ``u`` is a scalar; returns the total reaction at each phase in units of the load.
+    """
+    from scipy.optimize import brentq
+
+    nodes, weights = np.polynomial.legendre.leggauss(ring_nodes)
+    m = 0.5 * (nodes + 1.0)
+    w = 0.5 * weights * 2.0 * m  # area weight 2 m dm
+    sin_phase = np.sin(np.asarray(phase_rad, dtype=float))[..., None]
+    cycle = np.sin((np.arange(512) + 0.5) / 512 * np.pi - np.pi / 2.0)[:, None]
+
+    def total(offset, s):
+        return np.sum(w * np.maximum(_HERTZ_PEAK * m + offset + u * s, 0.0), axis=-1)
+
+    offset = 0.0 if u == 0 else brentq(lambda d: np.mean(total(d, cycle)) - 1.0, -_HERTZ_PEAK - u, 1.0 + u,
+                                       xtol=1e-14)
+    return total(offset, sin_phase)

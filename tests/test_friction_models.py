@@ -152,3 +152,100 @@ def test_bad_model_specs_say_what_is_wrong(tmp_path):
     (tmp_path / "x.toml").write_text("model = 'paper'\n")
     with pytest.raises(ModelError, match="calibration file"):
         load_model(str(tmp_path / "x.toml"))
+
+
+# ---- the force-aware model, forces per sample, checks at the edge ------------------------------------------
+
+
+def test_stretched_model_by_hand():
+    model = StretchedExponentialModel(scale_um_pp=3.0, shape=1.5, force_exponent=0.5)
+    for force in (0.2, 0.5, 1.0):
+        scale = 3.0 * (force / 0.5) ** 0.5  # the 1/e amplitude at this force
+        assert model.relative_friction(scale, force) == pytest.approx(np.exp(-1), rel=1e-12)
+        half = scale * np.log(2) ** (1 / 1.5)  # exp(-(a/s)^1.5) = 1/2
+        assert model.amplitude_um_pp(np.array([0.5]), force).amplitude_um_pp[0] == pytest.approx(half, rel=1e-12)
+
+
+def test_stretched_defaults_are_the_published_curve_at_half_a_newton():
+    data = read_measurements(SHARED_DATA)
+    assert StretchedExponentialModel().relative_friction(data.amplitude_um_pp, 0.5) == pytest.approx(
+        data.relative_friction, abs=1e-4)
+    # harder presses need more vibration for the same reduction: s grows as F^(1/3)
+    model = StretchedExponentialModel()
+    a1 = model.amplitude_um_pp(np.array([0.5]), 0.2).amplitude_um_pp[0]
+    a2 = model.amplitude_um_pp(np.array([0.5]), 1.6).amplitude_um_pp[0]
+    assert a2 / a1 == pytest.approx(8 ** (1 / 3), rel=1e-12)
+
+
+def test_paper_model_area_law_is_a_parameter():
+    amplitude = np.linspace(0, 8, 9)
+    flat = PaperModel(FingerParams(area_exponent=1.0))  # A ∝ F: W_c = F / k_n does not depend on F
+    assert flat.relative_friction(amplitude, 0.2) == pytest.approx(flat.relative_friction(amplitude, 1.0), abs=1e-12)
+    half = PaperModel(FingerParams(area_exponent=0.5))  # W_c ∝ F^(1/2): 4× the force, 2× the amplitude
+    assert half.relative_friction(2 * amplitude, 0.8) == pytest.approx(half.relative_friction(amplitude, 0.2),
+                                                                        abs=1e-12)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_force_per_sample_matches_one_force_at_a_time(name):
+    model = MODELS[name]
+    rng = np.random.default_rng(3)
+    force = rng.uniform(0.05, 1.5, 400)
+    ratio = rng.uniform(0.0, 1.0, 400)
+    together = model.amplitude_um_pp(ratio, force, 6.0)
+    alone = [model.amplitude_um_pp(np.array([r]), float(f), 6.0) for r, f in zip(ratio, force, strict=True)]
+    assert together.amplitude_um_pp == pytest.approx([a.amplitude_um_pp[0] for a in alone], abs=1e-9)
+    assert abs(together.clamped - sum(a.clamped for a in alone)) <= 1  # a ratio on the floor may round either way
+    forward = model.relative_friction(np.full(400, 2.0), force)
+    assert forward == pytest.approx([float(model.relative_friction(2.0, float(f))) for f in force], abs=1e-12)
+
+
+@pytest.mark.parametrize("name", MODELS)
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -0.1])
+def test_bad_forces_ratios_and_amplitudes_raise_one_line(name, bad):
+    model = MODELS[name]
+    with pytest.raises(ModelError, match="normal force must be a finite number >= 0 N"):
+        model.amplitude_um_pp(np.array([0.5, 0.6]), bad)
+    with pytest.raises(ModelError, match="normal force must be a finite number >= 0 N"):
+        model.amplitude_um_pp(np.array([0.5, 0.6]), np.array([0.5, bad]))  # the per-sample kernels check too
+    with pytest.raises(ModelError, match="normal force"):
+        model.relative_friction(1.0, bad)
+    with pytest.raises(ModelError, match="friction ratio must be a finite number >= 0"):
+        model.amplitude_um_pp(np.array([0.5, bad]), np.array([0.5, 0.5]))
+    with pytest.raises(ModelError, match="amplitude must be a finite number >= 0"):
+        model.relative_friction(np.array([1.0, bad]), 0.5)
+
+
+@pytest.mark.parametrize("kwargs, key", [
+    ({"shape": 0.0}, "shape"), ({"shape": -1.0}, "shape"), ({"scale_um_pp": 0.0}, "scale_um_pp"),
+    ({"scale_um_pp": np.inf}, "scale_um_pp"), ({"force_exponent": np.nan}, "force_exponent"),
+])
+def test_stretched_parameters_that_break_the_model_are_refused(kwargs, key):
+    with pytest.raises(ModelError, match=rf"^{key} must lie in \["):
+        StretchedExponentialModel(**kwargs)
+
+
+@settings(max_examples=80, deadline=None)
+@given(scale=st.floats(0.05, 100.0), shape=st.floats(0.3, 8.0), exponent=st.floats(-2.0, 2.0),
+       force=st.lists(st.floats(0.0, 20.0), min_size=1, max_size=30))
+def test_every_valid_stretched_model_is_monotone_and_its_inverse_exact(scale, shape, exponent, force):
+    model = StretchedExponentialModel(scale, shape, exponent)
+    force = np.array(force)
+    amplitude = np.linspace(0.0, 20.0, 200)
+    for f in np.unique(force):
+        assert np.all(np.diff(model.relative_friction(amplitude, f)) <= 0)
+    ratio = np.linspace(0.0, 1.0, len(force))
+    result = model.amplitude_um_pp(ratio, force, 20.0)
+    reached = result.amplitude_um_pp < 20.0
+    assert np.all(np.abs(model.relative_friction(result.amplitude_um_pp, force) - ratio)[reached] <= 1e-3)
+
+
+def test_table_with_several_forces_is_exact_at_the_end_of_each_range():
+    # at 0.2 N friction falls to 0.4 by 6 µm, at 0.6 N only to 0.7: each force's curve ends at its own point
+    amplitude = np.array([0, 2, 4, 6.0] * 2)
+    ratio = np.array([1, 0.8, 0.6, 0.4, 1, 0.9, 0.8, 0.7])
+    force = np.array([0.2] * 4 + [0.6] * 4)
+    model = TableModel(Measurements(amplitude, ratio, force, "two forces"))
+    assert model.relative_friction(np.array([5.0, 6.0]), 0.6) == pytest.approx([0.75, 0.7], abs=1e-6)
+    assert model.relative_friction(np.array([5.0, 6.0]), 0.2) == pytest.approx([0.5, 0.4], abs=1e-6)
+    assert float(model.floor_ratio(0.6)) == pytest.approx(0.7, abs=1e-6)
