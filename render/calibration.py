@@ -137,8 +137,10 @@ class Parameter:
 
     @property
     def at_bound(self) -> bool:
+        """Within 0.1 % of a bound (ranges span decades, so relative to the bound itself)."""
         span = self.spec.high - self.spec.low
-        return not self.fixed and min(self.value - self.spec.low, self.spec.high - self.value) <= 1e-3 * span
+        return not self.fixed and any(abs(self.value - bound) <= (1e-3 * abs(bound) if bound else 1e-6 * span)
+                                      for bound in (self.spec.low, self.spec.high))
 
 
 @dataclass(frozen=True)

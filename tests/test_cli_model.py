@@ -1,6 +1,7 @@
 """``ultraglide model`` and ``ultraglide calibrate`` end to end, as a person runs them."""
 
 import json
+import re
 import subprocess
 import time
 
@@ -58,6 +59,8 @@ def test_model_plots_writes_figures_2_to_9(tmp_path):
         with Image.open(file) as image:
             assert image.format == "PNG" and image.width >= 600 and image.height >= 400
             assert len(image.convert("L").getcolors(1 << 16)) > 10  # something was drawn
+            assert image.info["dpi"][0] == pytest.approx(300, abs=1)  # print quality
+        assert file.with_suffix(".pdf").read_bytes().startswith(b"%PDF")  # and a vector copy
     assert "wrote" in result.stdout
 
 
@@ -91,3 +94,60 @@ def test_calibrate_bad_csv_leaves_no_output(tmp_path):
     cal = tmp_path / "cal.toml"
     assert "missing column" in assert_one_line_error(run_cli("calibrate", data, "-o", cal))
     assert not cal.exists()
+
+
+def _multi_force_csv(path, scale=3.4, shape=1.7, exponent=0.4, noise=0.01):
+    rng = np.random.default_rng(5)
+    rows = ["amplitude_um_pp,relative_friction,force_n"]
+    for force in (0.25, 0.5, 1.0):
+        for a in np.linspace(0, 7, 11):
+            r = np.exp(-(a / (scale * (force / 0.5) ** exponent)) ** shape) + rng.normal(0, noise)
+            rows.append(f"{a:.3f},{max(r, 0.005):.5f},{force}")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_calibrate_compare_ranks_models_and_writes_the_best_with_its_figure(tmp_path):
+    data = _multi_force_csv(tmp_path / "three-forces.csv")
+    cal = tmp_path / "cal.toml"
+    result = json.loads(run_cli("calibrate", data, "--compare", "--json", "-o", cal, check=True).stdout)
+    ranking = result["ranking"]
+    assert ranking[0]["model"] == "stretched"
+    scores = [r["cross_validation_rms"]["leave_one_force_out"] for r in ranking]
+    assert scores == sorted(scores)
+    assert ranking[0]["cross_validation_rms"]["leave_one_force_out"] < 0.03
+    assert {"exponential", "paper", "paper-uniform", "table"} <= {r["model"] for r in ranking}
+    fitted = ranking[0]["parameters"]
+    assert fitted["force_exponent"]["value"] == pytest.approx(0.4, abs=4 * fitted["force_exponent"]["stderr"])
+    assert set(result["written"]) == {str(cal), str(cal.with_suffix(".png")), str(cal.with_suffix(".pdf"))}
+    with Image.open(cal.with_suffix(".png")) as image:
+        assert image.info["dpi"][0] == pytest.approx(300, abs=1)
+    assert cal.with_suffix(".pdf").read_bytes().startswith(b"%PDF")
+    text = run_cli("calibrate", "apps/data/monnoyer2018-fit.csv", "--compare", check=True).stdout
+    assert "ranked by k-fold cross-validated rms" in text
+    assert "1. exponential" in text or "1. stretched" in text  # the published Gaussian law and its superset
+
+
+def test_calibrate_warns_in_one_line_and_never_advises_what_was_asked(tmp_path):
+    paper = run_cli("calibrate", "apps/data/monnoyer2018-fit.csv", "--model", "paper", check=True).stdout
+    warnings = [line for line in paper.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "friction_exponent" in warnings[0] and "physics" in warnings[0]
+    data = _multi_force_csv(tmp_path / "three-forces.csv", exponent=0.8)
+    exp = run_cli("calibrate", data, "--model", "exponential", check=True).stdout
+    assert "leave-one-force-out" in exp
+    assert "--model exponential" not in exp and "--compare" in exp  # poor across forces: points to --compare
+
+
+def test_model_report_is_one_pdf_page(tmp_path):
+    report = tmp_path / "report.pdf"
+    run_cli("model", "--model", "stretched", "--force", "0.3", "--report", report, check=True)
+    content = report.read_bytes()
+    assert content.startswith(b"%PDF")
+    assert len(re.findall(rb"/Type\s*/Page\b", content)) == 1
+
+
+def test_calibration_file_with_an_infinite_parameter_is_one_line(tmp_path):
+    cal = tmp_path / "cal.toml"
+    cal.write_text("ultraglide_calibration = 1\nmodel = \"stretched\"\n[parameters]\nscale_um_pp = inf\nshape = 2.0\n")
+    line = assert_one_line_error(run_cli("model", "--model", cal))
+    assert "scale_um_pp" in line and "[0.05, 100]" in line
