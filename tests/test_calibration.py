@@ -23,9 +23,10 @@ from ultraglide.render.measurements import Measurements, read_measurements
 
 SHARED_DATA = "apps/data/monnoyer2018-fit.csv"
 FORCES = (0.2, 0.5, 1.0)
+AMPLITUDES = np.linspace(0.0, 7.0, 12)
 
 
-def synthetic(truth, noise=0.01, seed=1, forces=FORCES, amplitudes=np.linspace(0.0, 7.0, 12)) -> Measurements:
+def synthetic(truth, noise=0.01, seed=1, forces=FORCES, amplitudes=AMPLITUDES) -> Measurements:
     rng = np.random.default_rng(seed)
     amplitude = np.tile(amplitudes, len(forces))
     force = np.repeat(forces, len(amplitudes))
