@@ -432,6 +432,18 @@ class TableModel(FrictionModel):
             high[pick] = self._table(ratio[pick], int(row) + 1)
         return ((1.0 - weight) * low + weight * high).reshape(shape)
 
+    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp) or _is_scalar(force_n):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        table = self._table
+        out = np.empty(len(ratio))
+        code = kernels.inverse_table_forces(ratio, force, limit, table.start, table.scale, table.values,
+                                            table.slopes, self.forces, out)
+        return Inversion(out, _kernel_result(code, ratio, force))
+
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
         check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)

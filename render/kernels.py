@@ -106,7 +106,9 @@ def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
             out[i] = limit
             clamped += 1
         else:
-            out[i] = min(scale * (-np.log(r)) ** inverse_shape, limit)
+            depth = -np.log(r)
+            root = np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape  # sqrt: the Gaussian law
+            out[i] = min(scale * root, limit)
     return clamped
 
 
@@ -125,8 +127,10 @@ def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_ex
         if r >= 1.0:
             out[i] = 0.0
             continue
-        f = min(max(f, min_force), max_force)
-        a = scale * (f / reference_force) ** force_exponent * (-np.log(r)) ** inverse_shape
+        depth = -np.log(r)
+        a = scale * (np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape)
+        if force_exponent != 0.0:
+            a *= (min(max(f, min_force), max_force) / reference_force) ** force_exponent
         if a > limit:
             out[i] = limit
             clamped += 1
@@ -185,6 +189,45 @@ def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes,
     return clamped
 
 
+@njit(cache=True, nogil=True)
+def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, force_nodes, out):
+    """Amplitudes from a table with one uniform-grid inverse per measured force (rows of ``values``),
+    interpolated linearly between the neighbouring forces and held beyond the ends. A ratio is
+    clamped (and counted) where the amplitude reaches ``limit``; a bad ratio or force returns -1 - i."""
+    clamped = 0
+    last = values.shape[1] - 2
+    rows = force_nodes.shape[0]
+    for i in range(ratio.shape[0]):
+        r = ratio[i]
+        f = force[i]
+        if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
+            return -1 - i
+        if r >= 1.0:
+            out[i] = 0.0
+            continue
+        f = min(max(f, force_nodes[0]), force_nodes[rows - 1])
+        upper = 1
+        while upper < rows - 1 and force_nodes[upper] < f:
+            upper += 1
+        lower = upper - 1 if rows > 1 else 0
+        upper = upper if rows > 1 else 0
+        weight = 0.0 if rows == 1 else (f - force_nodes[lower]) / (force_nodes[upper] - force_nodes[lower])
+        position = (r - start) * per_step
+        if position < 0.0:
+            position = 0.0
+        index = min(int(position), last)
+        fraction = position - index
+        low = values[lower, index] + fraction * slopes[lower, index]
+        high = values[upper, index] + fraction * slopes[upper, index]
+        a = max((1.0 - weight) * low + weight * high, 0.0)
+        if a >= limit:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = a
+    return clamped
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel here with the types the renderer passes,
@@ -199,3 +242,5 @@ def warm_up() -> None:
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
     inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 0.01, 10.0,
                            np.empty(4))
+    inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
+                         np.array([0.2, 0.6]), np.empty(4))
