@@ -114,3 +114,17 @@ def test_cycle_friction_averages_to_the_relative_friction(amplitude):
 
     friction = cycle_friction_n(amplitude, 0.5, PHASE, HERTZ)
     assert np.mean(friction) / friction_force_n(0.5) == pytest.approx(relative_friction(amplitude, 0.5), abs=2e-4)
+
+
+def test_rigid_pad_reading_of_eq_8_differs_by_the_documented_amounts():
+    # docs/physics.md quotes these numbers; both readings must satisfy eq. (7)
+    from ultraglide.render.normal_contact import rigid_hertz_reaction
+
+    phase = (np.arange(512) + 0.5) / 512 * np.pi - np.pi / 2
+    assert np.mean(rigid_hertz_reaction(3.0, phase)) == pytest.approx(1.0, abs=1e-9)
+    u = np.array([1.4, 2.0, 4.0, 6.0])
+    rigid = np.array([np.mean(np.maximum(rigid_hertz_reaction(x, phase), 0) ** (2 / 3)) for x in u])
+    difference = relative_friction_of_u(u) - rigid
+    assert difference == pytest.approx([0.0144, 0.0123, 0.0122, 0.0120], abs=3e-4)
+    # zero amplitude: both are the plate at rest
+    assert np.mean(rigid_hertz_reaction(0.0, phase)) == pytest.approx(1.0, abs=1e-12)
