@@ -342,7 +342,7 @@ class StretchedExponentialModel(FrictionModel):
         return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent}
 
 
-TAU_RANGE_UM_ZP = (SCALE_RANGE_UM_PP[0] / (2 * np.sqrt(2)), SCALE_RANGE_UM_PP[1] / (2 * np.sqrt(2)))
+TAU_RANGE_UM_ZP = (0.02, 35.0)  # within the scale range once converted: s0 = 2 sqrt 2 tau
 
 
 class ExponentialModel(StretchedExponentialModel):
