@@ -119,6 +119,8 @@ def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_ex
     A ratio is clamped (and counted) when the amplitude it needs exceeds ``limit``; a bad ratio or
     force (NaN, negative, infinite) returns -1 - i."""
     clamped = 0
+    last_force = -1.0  # the force factor is kept while the force repeats (a panel without force sensing)
+    factor = 1.0
     for i in range(ratio.shape[0]):
         r = ratio[i]
         f = force[i]
@@ -127,10 +129,11 @@ def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_ex
         if r >= 1.0:
             out[i] = 0.0
             continue
+        if f != last_force:
+            last_force = f
+            factor = scale * (min(max(f, min_force), max_force) / reference_force) ** force_exponent
         depth = -np.log(r)
-        a = scale * (np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape)
-        if force_exponent != 0.0:
-            a *= (min(max(f, min_force), max_force) / reference_force) ** force_exponent
+        a = factor * (np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape)
         if a > limit:
             out[i] = limit
             clamped += 1
@@ -170,17 +173,21 @@ def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes,
     scale_at_1n × F^force_exponent. Clamped (and counted) where that exceeds ``limit``."""
     clamped = 0
     last = values.shape[0] - 2
+    last_force = -1.0  # the force factor is kept while the force repeats
+    factor = 1.0
     for i in range(ratio.shape[0]):
         r = ratio[i]
         f = force[i]
         if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
             return -1 - i
-        f = min(max(f, min_force), max_force)
+        if f != last_force:
+            last_force = f
+            factor = scale_at_1n * min(max(f, min_force), max_force) ** force_exponent
         position = (min(r, 1.0) - start) * per_step
         if position < 0.0:
             position = 0.0
         index = min(int(position), last)
-        a = (values[index] + (position - index) * slopes[index]) * scale_at_1n * f ** force_exponent
+        a = (values[index] + (position - index) * slopes[index]) * factor
         if a > limit:
             out[i] = limit
             clamped += 1
