@@ -163,6 +163,21 @@ def _add_texture_commands(commands) -> None:
                         help="what lies beyond the edges (default: tile)")
     author.add_argument("--max-pixels", type=positive, default=40e6,
                         help="refuse larger images, a guard against decompression bombs (default: 40e6)")
+    author.add_argument("--seamless", action="store_true",
+                        help="make the image tile without a seam (a finger would feel the jump where the tile "
+                             "repeats), by --seam-method; features keep their size: --width-mm/--dpi give the "
+                             "scale of the image as read")
+    author.add_argument("--seam-method", choices=["crossfade", "mirror"], default="crossfade",
+                        help="crossfade: a band at each end is blended into the opposite end, the tile is shorter "
+                             "by the band and keeps its look; mirror: the image with mirror images right and "
+                             "below, a tile twice as wide and high (default: crossfade)")
+    author.add_argument("--seam-band", type=positive, default=0.125, metavar="FRACTION",
+                        help="crossfade band, a fraction of each side in (0, 0.5] (default: 0.125)")
+    author.add_argument("--auto-levels", action="store_true",
+                        help="stretch the range (a percentile stretch) for images that use part of it; "
+                             "replaces --levels")
+    author.add_argument("--auto-levels-clip", type=finite, default=1.0, metavar="PERCENT",
+                        help="with --auto-levels, the percentage of pixels clipped at each end (default: 1)")
     author.add_argument("--name", help="texture name (default: the image's file name)")
     author.add_argument("--preview", metavar="PREVIEW.png",
                         help="also write a picture of the source, the friction map and a swipe")
