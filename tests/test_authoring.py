@@ -10,6 +10,7 @@ from PIL import Image
 from ultraglide.textures.authoring import AuthoringOptions, author_image
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
+from ultraglide.textures.seams import measure_seams
 
 # a left-to-right ramp, dark to light, 64 × 32 pixels
 RAMP = np.tile(np.linspace(0, 255, 64), (32, 1)).astype(np.uint8)
@@ -184,3 +185,96 @@ def test_texture_new_and_textures_cli(tmp_path):
     assert "positive" in assert_one_line_error(bad)
     listing = json.loads(run_cli("textures", "--json", check=True).stdout)
     assert len(listing) >= 10 and {"name", "width_mm", "height_mm", "description"} <= set(listing[0])
+
+
+# ---- seamless tiles, auto-levels, invert: through the command --------------------------------------
+
+def _photo(tmp_path, name="photo.png"):
+    """A photo-like image that does not tile: smooth random blobs plus a left-to-right shading."""
+    rng = np.random.default_rng(11)
+    from scipy import ndimage
+
+    field = ndimage.gaussian_filter(rng.standard_normal((120, 160)), 6)
+    field = (field - field.min()) / (field.max() - field.min())
+    field = 0.7 * field + 0.3 * np.linspace(0, 1, 160)[None, :]
+    return save(Image.fromarray((field * 255).astype(np.uint8)), tmp_path / name)
+
+
+def test_author_warns_of_a_seam_and_seamless_removes_it(tmp_path):
+    photo = _photo(tmp_path)
+    plain, tiled = tmp_path / "plain.png", tmp_path / "tiled.png"
+    result = run_cli("author", photo, "-o", plain, "--width-mm", "80", check=True)
+    assert "tiles with a seam" in result.stderr and "--seamless" in result.stderr
+    assert measure_seams(load_texture(plain).values).visible
+    result = run_cli("author", photo, "-o", tiled, "--width-mm", "80", "--seamless", "--blur-mm", "0.5", check=True)
+    assert "seam" not in result.stderr
+    texture = load_texture(tiled)
+    report = measure_seams(texture.values)
+    assert report.seam_max <= report.interior_max + 1e-6 and not report.visible
+    # cross-fade: the tile is shorter by the 12.5 % band, and features keep their size (0.5 mm a pixel)
+    assert (texture.cols, texture.rows) == (140, 105)
+    assert texture.width_mm == pytest.approx(70.0) and texture.height_mm == pytest.approx(52.5)
+    # away from the bands the picture is the photo's own (same pixels, in the same place)
+    source = np.asarray(Image.open(photo), dtype=float) / 255
+    assert texture.values[40:60, 60:80] == pytest.approx(0.4 + 0.6 * ndimage_blur(source, 1.0)[40:60, 60:80],
+                                                         abs=0.01)
+
+
+def ndimage_blur(values, sigma_px):
+    from scipy import ndimage
+
+    return ndimage.gaussian_filter(values, sigma_px, mode="nearest")
+
+
+def test_author_seamless_mirror(tmp_path):
+    photo = _photo(tmp_path)
+    out = tmp_path / "m.png"
+    run_cli("author", photo, "-o", out, "--width-mm", "80", "--seamless", "--seam-method", "mirror",
+            "--range", "0", "1", check=True)
+    texture = load_texture(out)
+    assert (texture.cols, texture.rows) == (320, 240) and texture.width_mm == pytest.approx(160)
+    values = texture.values
+    assert np.array_equal(values[:, ::-1], values) and np.array_equal(values[::-1], values)
+    source = np.asarray(Image.open(photo), dtype=np.float32) / 255
+    assert values[:120, :160] == pytest.approx(source, abs=1e-3)
+
+
+def test_author_auto_levels_stretches_a_narrow_image(tmp_path):
+    narrow = np.tile(np.linspace(0.3, 0.6, 101), (10, 1))  # uses 30 % of the range
+    path = save(Image.fromarray(np.round(narrow * 65535).astype(np.uint16)), tmp_path / "narrow.png")
+    out = tmp_path / "a.png"
+    run_cli("author", path, "-o", out, "--auto-levels", "--auto-levels-clip", "0", "--range", "0.2", "1",
+            "--outside", "clamp", check=True)
+    texture = load_texture(out)
+    assert texture.values[0] == pytest.approx(0.2 + 0.8 * np.linspace(0, 1, 101), abs=1e-3)
+    run_cli("author", path, "-o", out, "--auto-levels", "--range", "0", "1", "--outside", "clamp", check=True)
+    # 1 % clipped at each end: the 1st and 99th percentiles of the ramp become 0 and 1
+    values = load_texture(out).values[0]
+    assert values[0] == 0 and values[-1] == 1
+    assert values[50] == pytest.approx(0.5, abs=1e-3) and values[2] == pytest.approx(1 / 98, abs=2e-3)
+    both = run_cli("author", path, "-o", tmp_path / "b.png", "--auto-levels", "--levels", "0.1", "0.9")
+    assert "not both" in assert_one_line_error(both)
+    uniform = save(Image.fromarray(np.full((8, 8), 99, np.uint8)), tmp_path / "flat.png")
+    assert "uniform" in assert_one_line_error(run_cli("author", uniform, "-o", tmp_path / "c.png", "--auto-levels"))
+    assert not (tmp_path / "b.png").exists() and not (tmp_path / "c.png").exists()
+
+
+def test_author_invert_through_the_command(tmp_path):
+    source = save(Image.fromarray(RAMP), tmp_path / "ramp.png")
+    straight, inverted = tmp_path / "s.png", tmp_path / "i.png"
+    run_cli("author", source, "-o", straight, "--range", "0.3", "0.9", "--outside", "clamp", check=True)
+    run_cli("author", source, "-o", inverted, "--range", "0.3", "0.9", "--outside", "clamp", "--invert", check=True)
+    a, b = load_texture(straight).values, load_texture(inverted).values
+    assert a[0, 0] == pytest.approx(0.3, abs=1e-4) and b[0, 0] == pytest.approx(0.9, abs=1e-4)  # black: slippery
+    assert a + b == pytest.approx(np.full_like(a, 1.2), abs=1e-4)  # mirrored within the range
+    assert load_texture(inverted).authoring["invert"] is True
+
+
+@pytest.mark.parametrize("args, fragment", [(["--seam-band", "0.7"], "seam-band"),
+                                            (["--seam-method", "twirl"], "invalid choice"),
+                                            (["--auto-levels", "--auto-levels-clip", "60"], "auto-levels")])
+def test_author_seamless_bad_options(tmp_path, args, fragment):
+    photo = _photo(tmp_path)
+    out = tmp_path / "x.png"
+    assert fragment in assert_one_line_error(run_cli("author", photo, "-o", out, "--seamless", *args))
+    assert not out.exists()
