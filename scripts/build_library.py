@@ -82,10 +82,11 @@ def library_textures() -> dict:
         "keyboard": procedural.keyboard(),
     }
     wood = author_image(SOURCES / "wood.jpg", AuthoringOptions(width_mm=90, blur_mm=0.1, invert=True,
-                                                                  seamless="crossfade"))
+                                                                  seamless="crossfade", auto_levels=1.0))
     textures["wood"] = wood.with_(description="wood grain from a photo-like JPEG: dark rings sticky; "
                                               "cross-faded into a seamless tile")
-    fabric = author_image(SOURCES / "fabric.png", AuthoringOptions(width_mm=40, gamma=0.8, seamless="crossfade"))
+    fabric = author_image(SOURCES / "fabric.png", AuthoringOptions(width_mm=40, gamma=0.8, seamless="crossfade",
+                                                                     auto_levels=1.0))
     textures["fabric"] = fabric.with_(description="woven twill from a 16-bit PNG, cross-faded into a seamless tile")
     icons = author_image(SOURCES / "icons.png",
                          AuthoringOptions(width_mm=80, mode="edges", blur_mm=0.3, outside="fixed"))
