@@ -2,6 +2,11 @@
 
 import io
 import json
+import os
+import shutil
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -10,6 +15,7 @@ from PIL import Image
 from ultraglide.textures.authoring import AuthoringOptions, author_image
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
+from ultraglide.textures.library import LIBRARY_DIR
 from ultraglide.textures.seams import measure_seams
 
 # a left-to-right ramp, dark to light, 64 × 32 pixels
@@ -278,3 +284,105 @@ def test_author_seamless_bad_options(tmp_path, args, fragment):
     out = tmp_path / "x.png"
     assert fragment in assert_one_line_error(run_cli("author", photo, "-o", out, "--seamless", *args))
     assert not out.exists()
+
+
+# ---- looking at textures: texture show and texture info ---------------------------------------------
+
+def _colourful_run(picture: np.ndarray, row: int) -> tuple[int, int]:
+    """First and last column of the first run of saturated colour on a row of an RGB picture."""
+    line = picture[row].astype(int)
+    colourful = (line.max(axis=1) - line.min(axis=1)) > 40
+    start = int(np.argmax(colourful))
+    stop = start + int(np.argmin(colourful[start:]))
+    return start, stop
+
+
+def test_texture_show_png_is_print_quality_and_at_physical_size(tmp_path):
+    out = tmp_path / "show.png"
+    result = run_cli("texture", "show", "grating-2mm", "-o", out, "--force", "0.4", check=True)
+    assert "at physical size" in result.stdout
+    with Image.open(out) as image:
+        assert image.format == "PNG"
+        assert image.info["dpi"][0] == pytest.approx(300, abs=0.5)
+        picture = np.asarray(image.convert("RGB"))
+    # the page: 22 mm margin + 90 mm panel + 34 mm for the colour bar = 146 mm at 300 dpi
+    assert picture.shape[1] == pytest.approx(146 / 25.4 * 300, abs=2)
+    # the 80 mm wide friction map spans 80 mm of the page: 945 pixels at 300 dpi
+    rows = np.flatnonzero(((picture.max(axis=2).astype(int) - picture.min(axis=2)) > 40).sum(axis=1) > 500)
+    start, stop = _colourful_run(picture, int(rows[10]))
+    assert stop - start == pytest.approx(80 / 25.4 * 300, abs=4)
+    assert start == pytest.approx(22 / 25.4 * 300, abs=4)
+
+
+def test_texture_show_vector_formats_and_a_large_texture_scaled(tmp_path):
+    big = tmp_path / "big.png"
+    run_cli("texture", "new", "checkerboard", "--size-mm", "340x100", "--px-per-mm", "2", "-o", big, check=True)
+    pdf, svg = tmp_path / "show.pdf", tmp_path / "show.svg"
+    result = run_cli("texture", "show", big, "-o", pdf, "--model", "paper", check=True)
+    assert "at 1:2" in result.stdout  # 340 mm does not fit a 170 mm page width: half size
+    assert pdf.read_bytes().startswith(b"%PDF")
+    run_cli("texture", "show", "bumps", "-o", svg, check=True)
+    import xml.etree.ElementTree as ElementTree
+
+    root = ElementTree.parse(svg).getroot()
+    assert root.tag.endswith("svg") and root.get("width").endswith("pt")
+    assert float(root.get("width")[:-2]) == pytest.approx(146 / 25.4 * 72, abs=1)  # the page, in points
+    text = svg.read_text()
+    assert "x (mm)" in text and "friction ratio" in text
+
+
+@pytest.mark.parametrize("args, fragment", [(["-o", "x.jpg"], ".png, .pdf or .svg"),
+                                            (["-o", "x.png", "--model", "nonsense"], "unknown model"),
+                                            (["-o", "x.png", "--profile", "nonsense"], "plate profile")])
+def test_texture_show_bad_options(tmp_path, args, fragment):
+    args = [str(tmp_path / a) if a.startswith("x.") else a for a in args]
+    assert fragment in assert_one_line_error(run_cli("texture", "show", "grating-1mm", *args))
+    assert not list(tmp_path.iterdir())
+
+
+def test_texture_info_words_and_json(tmp_path):
+    words = run_cli("texture", "info", "grating-diagonal-2mm", check=True).stdout
+    assert "80 × 50 mm" in words and "seamless" in words and "it repeats" in words
+    facts = json.loads(run_cli("texture", "info", "wood", "--json", check=True).stdout)
+    wood = load_texture(LIBRARY_DIR / "wood.png")
+    assert facts["width_mm"] == pytest.approx(wood.width_mm) and facts["cols"] == wood.cols
+    assert facts["friction"]["mean"] == pytest.approx(float(wood.values.mean()), abs=1e-6)
+    assert facts["seams"]["seamless"] is True and facts["outside"] == "tile"
+    assert facts["authoring"]["seamless"] == "crossfade"
+    assert "no texture file" in assert_one_line_error(run_cli("texture", "info", "nothing-here"))
+
+
+@pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool") and shutil.which("import")),
+                    reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+def test_texture_show_window_under_xvfb(tmp_path):
+    read, write = os.pipe()
+    xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+                            pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    with os.fdopen(read) as stream:
+        display = ":" + stream.readline().strip()  # Xvfb picks a free display and says which when ready
+    env = {**os.environ, "DISPLAY": display}
+    env.pop("SDL_VIDEODRIVER", None)
+    show = subprocess.Popen([sys.executable, "-m", "ultraglide", "texture", "show", "dots", "--window"], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        window = subprocess.run(["xdotool", "search", "--sync", "--pid", str(show.pid)], env=env,
+                                capture_output=True, text=True, timeout=60).stdout.split()
+        assert window, "the window did not appear"
+        shot = tmp_path / "window.png"
+        deadline = time.monotonic() + 30
+        while True:  # wait until the figure is drawn: a large share of viridis colour on the screen
+            subprocess.run(["import", "-window", "root", str(shot)], env=env, check=True, timeout=20)
+            picture = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+            colourful = np.mean((picture.max(axis=2) - picture.min(axis=2)) > 40)
+            if colourful > 0.05 or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)
+        assert colourful > 0.05
+        subprocess.run(["xdotool", "key", "--window", window[0], "Escape"], env=env, check=True, timeout=10)
+        assert show.wait(timeout=30) == 0, show.stderr.read()
+    finally:
+        if show.poll() is None:
+            show.kill()
+        xvfb.terminate()
+        xvfb.wait(timeout=10)
