@@ -234,6 +234,10 @@ def _add_texture_commands(commands) -> None:
                                  help=f"(default: {' '.join(map(str, default))})")
             else:
                 sub.add_argument(flag, type=kind_type, default=default, help=f"(default: {default})")
+        if kind == "grating":
+            sub.add_argument("--exact", action="store_true",
+                             help="keep the wavelength and angle exactly as given; the texture then does not tile "
+                                  "(its edges extend) instead of snapping to whole cycles across the tile")
         sub.add_argument("--size-mm", type=size_mm, default=size_mm(default_sizes.get(kind, "80x50")),
                          metavar="WxH", help=f"physical size in mm (default: {default_sizes.get(kind, '80x50')})")
         _add_range(sub)

@@ -24,6 +24,8 @@ def new(args) -> int:
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
     options = {key: getattr(args, key) for key in OPTION_NAMES if hasattr(args, key)}
+    if getattr(args, "exact", False):
+        options["tile"] = False
     texture = procedural.GENERATORS[args.kind](size_mm=args.size_mm, ratio_range=tuple(args.range),
                                                px_per_mm=args.px_per_mm, **options)
     texture = texture.with_(name=args.name or output.stem)

@@ -386,3 +386,23 @@ def test_texture_show_window_under_xvfb(tmp_path):
             show.kill()
         xvfb.terminate()
         xvfb.wait(timeout=10)
+
+
+def test_texture_new_grating_tiles_unless_exact_and_the_new_kinds(tmp_path):
+    tiled, exact = tmp_path / "t.png", tmp_path / "e.png"
+    result = run_cli("texture", "new", "grating", "--wavelength-mm", "3", "--angle-deg", "30", "-o", tiled,
+                     check=True)
+    assert "snapped from 3 mm at 30°" in result.stdout
+    run_cli("texture", "new", "grating", "--wavelength-mm", "3", "--angle-deg", "30", "--exact", "-o", exact,
+            check=True)
+    snapped, kept = load_texture(tiled), load_texture(exact)
+    assert snapped.outside == "tile" and measure_seams(snapped.values).seamless
+    assert kept.outside == "clamp" and measure_seams(kept.values).visible
+    assert kept.authoring["tile_wavelength_mm"] == pytest.approx(3.0)
+    for kind, extra in (("fractal", ["--hurst", "0.6"]), ("gabor", []), ("bump", []), ("edge", []),
+                        ("lines", ["--widths-mm", "1", "3"])):
+        out = tmp_path / f"{kind}.png"
+        run_cli("texture", "new", kind, *extra, "-o", out, check=True)
+        assert load_texture(out).authoring["generator"] == kind
+    bad = run_cli("texture", "new", "fractal", "--hurst", "1.5", "-o", tmp_path / "x.png")
+    assert "Hurst" in assert_one_line_error(bad)
