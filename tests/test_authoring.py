@@ -379,7 +379,19 @@ def test_texture_show_window_under_xvfb(tmp_path):
                 break
             time.sleep(0.2)
         assert colourful > 0.05
-        subprocess.run(["xdotool", "key", "--window", window[0], "Escape"], env=env, check=True, timeout=10)
+        # SDL may make more than one X window for the process: press Esc in the focused one, and in each of
+        # the process's that still exists, until the program ends
+        deadline = time.monotonic() + 30
+        while show.poll() is None and time.monotonic() < deadline:
+            subprocess.run(["xdotool", "key", "Escape"], env=env, timeout=10)
+            for candidate in subprocess.run(["xdotool", "search", "--pid", str(show.pid)], env=env,
+                                            capture_output=True, text=True, timeout=10).stdout.split():
+                subprocess.run(["xdotool", "key", "--window", candidate, "Escape"], env=env, timeout=10,
+                               capture_output=True)
+            try:
+                show.wait(timeout=1)
+            except subprocess.TimeoutExpired:
+                pass
         assert show.wait(timeout=30) == 0, show.stderr.read()
     finally:
         if show.poll() is None:
