@@ -63,7 +63,7 @@ def library_textures() -> dict:
         "grating-square-4mm": procedural.grating(4.0, shape="square"),
         "grating-square-2mm-duty25": procedural.grating(2.0, shape="square", duty=0.25),
         "grating-square-2mm-duty75": procedural.grating(2.0, shape="square", duty=0.75),
-        "checkerboard-2mm": procedural.checkerboard(2.0),
+        "checkerboard-2mm": procedural.checkerboard(2.0, size_mm=(80, 48)),
         "checkerboard-5mm": procedural.checkerboard(5.0),
         "dots": procedural.dots(size_mm=(80, 48)),
         "dots-fine": procedural.dots(pitch_mm=1.5, diameter_mm=0.6, size_mm=(60, 30)),
