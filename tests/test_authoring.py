@@ -418,3 +418,10 @@ def test_texture_new_grating_tiles_unless_exact_and_the_new_kinds(tmp_path):
         assert load_texture(out).authoring["generator"] == kind
     bad = run_cli("texture", "new", "fractal", "--hurst", "1.5", "-o", tmp_path / "x.png")
     assert "Hurst" in assert_one_line_error(bad)
+
+
+def test_texture_show_window_without_a_display_is_one_line(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
+    result = subprocess.run([sys.executable, "-m", "ultraglide", "texture", "show", "dots", "--window"],
+                            capture_output=True, text=True, env=env, timeout=120)
+    assert "-o FILE.png" in assert_one_line_error(result)
