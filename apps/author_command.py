@@ -17,6 +17,8 @@ def run(args) -> int:
         gamma=args.gamma, blur_mm=args.blur_mm, ratio_range=(low, high), crop=args.crop,
         background=(255, 255, 255) if args.background == "white" else (0, 0, 0),
         max_pixels=int(args.max_pixels), outside=args.outside,
+        seamless=args.seam_method if args.seamless else None, seam_band=args.seam_band,
+        auto_levels=args.auto_levels_clip if args.auto_levels else None,
     )
     output = Path(args.output)
     if output.suffix.lower() != ".png":
@@ -29,6 +31,8 @@ def run(args) -> int:
 
         crop = options.crop
         source = luminance if crop is None else luminance[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
+        if options.seamless:  # the tile no longer matches the source pixel for pixel
+            source = None
         write_preview(texture, Path(args.preview), source)
     save_texture(texture, output)
     print(f"wrote {output}: {texture.name}, {texture.width_mm:.1f} × {texture.height_mm:.1f} mm, "

@@ -175,6 +175,21 @@ def _add_texture_commands(commands) -> None:
                         help="what lies beyond the edges (default: tile)")
     author.add_argument("--max-pixels", type=positive, default=40e6,
                         help="refuse larger images, a guard against decompression bombs (default: 40e6)")
+    author.add_argument("--seamless", action="store_true",
+                        help="make the image tile without a seam (a finger would feel the jump where the tile "
+                             "repeats), by --seam-method; features keep their size: --width-mm/--dpi give the "
+                             "scale of the image as read")
+    author.add_argument("--seam-method", choices=["crossfade", "mirror"], default="crossfade",
+                        help="crossfade: a band at each end is blended into the opposite end, the tile is shorter "
+                             "by the band and keeps its look; mirror: the image with mirror images right and "
+                             "below, a tile twice as wide and high (default: crossfade)")
+    author.add_argument("--seam-band", type=positive, default=0.125, metavar="FRACTION",
+                        help="crossfade band, a fraction of each side in (0, 0.5] (default: 0.125)")
+    author.add_argument("--auto-levels", action="store_true",
+                        help="stretch the range (a percentile stretch) for images that use part of it; "
+                             "replaces --levels")
+    author.add_argument("--auto-levels-clip", type=finite, default=1.0, metavar="PERCENT",
+                        help="with --auto-levels, the percentage of pixels clipped at each end (default: 1)")
     author.add_argument("--name", help="texture name (default: the image's file name)")
     author.add_argument("--preview", metavar="PREVIEW.png",
                         help="also write a picture of the source, the friction map and a swipe")
@@ -186,21 +201,32 @@ def _add_texture_commands(commands) -> None:
     listing.add_argument("--json", action="store_true", help="print a JSON list")
     listing.set_defaults(handler="ultraglide.apps.texture_command:list_library")
 
-    texture = commands.add_parser("texture", help="make procedural textures",
-                                  description="Make textures from parameters.")
+    texture = commands.add_parser("texture", help="make, combine, draw and describe textures",
+                                  description="Make textures from parameters, combine them, draw them, "
+                                              "describe them.")
     texture_commands = texture.add_subparsers(dest="texture_command", metavar="ACTION", required=True,
                                               parser_class=OneLineParser)
     new = texture_commands.add_parser("new", help="a new procedural texture",
                                       description="Make a procedural texture and save it as a texture file.")
     kinds = new.add_subparsers(dest="kind", metavar="KIND", required=True, parser_class=OneLineParser)
     specs = {
-        "grating": ("parallel ridges", [("--wavelength-mm", positive, 1.0), ("--angle-deg", finite, 0.0),
-                                        ("--shape", ["sine", "square"], "sine")]),
+        "grating": ("parallel ridges; the wavelength and angle snap to whole cycles across the tile",
+                    [("--wavelength-mm", positive, 1.0), ("--angle-deg", finite, 0.0),
+                     ("--shape", ["sine", "square"], "sine"), ("--duty", finite, 0.5)]),
         "checkerboard": ("alternating squares", [("--square-mm", positive, 5.0)]),
         "dots": ("sticky dots", [("--pitch-mm", positive, 4.0), ("--diameter-mm", positive, 2.0)]),
         "bumps": ("round bumps, a gradient texture", [("--pitch-mm", positive, 10.0),
                                                       ("--diameter-mm", positive, 8.0)]),
         "noise": ("band-limited roughness", [("--cutoff-mm", positive, 2.0), ("--seed", int, 0)]),
+        "fractal": ("fractal roughness of a Hurst exponent (spectral synthesis, seeded)",
+                    [("--hurst", finite, 0.5), ("--cutoff-mm", positive, 0.5), ("--seed", int, 0)]),
+        "gabor": ("a Gabor patch: a grating under a Gaussian window", [("--wavelength-mm", positive, 2.0),
+                                                                      ("--sigma-mm", positive, 4.0),
+                                                                      ("--angle-deg", finite, 0.0)]),
+        "bump": ("one smooth bump, a gradient texture", [("--diameter-mm", positive, 10.0)]),
+        "edge": ("one edge, slippery to sticky", [("--width-mm", positive, 0.5)]),
+        "lines": ("single lines of several widths", [("--widths-mm", positive, [0.25, 0.5, 1.0, 2.0, 4.0]),
+                                                     ("--spacing-mm", positive, 10.0)]),
         "chirp": ("wavelength sweeping across the width", [("--start-mm", positive, 4.0),
                                                            ("--end-mm", positive, 0.5)]),
         "button": ("a button with raised edges", [("--edge-mm", positive, 1.5)]),
@@ -208,14 +234,22 @@ def _add_texture_commands(commands) -> None:
         "toggle": ("a toggle switch", []),
         "keyboard": ("a small keyboard with key edges", [("--edge-mm", positive, 0.8)]),
     }
-    default_sizes = {"button": "60x40", "slider": "80x20", "toggle": "40x24", "keyboard": "90x30"}
+    default_sizes = {"button": "60x40", "slider": "80x20", "toggle": "40x24", "keyboard": "90x30", "fractal": "40x40",
+                     "gabor": "30x30", "bump": "30x30", "edge": "40x30", "lines": "80x40"}
     for kind, (summary, options) in specs.items():
         sub = kinds.add_parser(kind, help=summary, description=f"A procedural texture: {summary}.")
         for flag, kind_type, default in options:
             if isinstance(kind_type, list):
                 sub.add_argument(flag, choices=kind_type, default=default, help=f"(default: {default})")
+            elif isinstance(default, list):
+                sub.add_argument(flag, type=kind_type, nargs="+", default=default,
+                                 help=f"(default: {' '.join(map(str, default))})")
             else:
                 sub.add_argument(flag, type=kind_type, default=default, help=f"(default: {default})")
+        if kind == "grating":
+            sub.add_argument("--exact", action="store_true",
+                             help="keep the wavelength and angle exactly as given; the texture then does not tile "
+                                  "(its edges extend) instead of snapping to whole cycles across the tile")
         sub.add_argument("--size-mm", type=size_mm, default=size_mm(default_sizes.get(kind, "80x50")),
                          metavar="WxH", help=f"physical size in mm (default: {default_sizes.get(kind, '80x50')})")
         _add_range(sub)
@@ -224,6 +258,93 @@ def _add_texture_commands(commands) -> None:
         sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
         sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
         sub.set_defaults(handler="ultraglide.apps.texture_command:new")
+    _add_compose(texture_commands)
+    _add_show_and_info(texture_commands)
+
+
+COMPOSE_SIZES = ("Sizes are reconciled on a common grid: the result covers the first input's area (or --size-mm) "
+                 "at the finest pixel pitch of the inputs (or --px-per-mm); each input lies from the top-left "
+                 "corner at its own physical size, read by bilinear interpolation, and beyond its edges its own "
+                 "rule holds (a tile repeats, a clamped texture extends its edge, a fixed one gives its ratio).")
+
+
+def region_mm(text: str) -> tuple[float, float, float, float]:
+    """X,Y,WIDTH,HEIGHT in millimetres."""
+    parts = text.split(",")
+    if len(parts) != 4:
+        raise argparse.ArgumentTypeError(f"a region is X,Y,WIDTH,HEIGHT in mm, e.g. 10,10,30,20, got {text!r}")
+    return finite(parts[0]), finite(parts[1]), positive(parts[2]), positive(parts[3])
+
+
+def _add_compose(texture_commands) -> None:
+    compose = texture_commands.add_parser(
+        "compose", help="combine textures and images into a new texture",
+        description="Combine textures (files, images or library names) into a new texture file. " + COMPOSE_SIZES)
+    operations = compose.add_subparsers(dest="operation", metavar="OPERATION", required=True,
+                                        parser_class=OneLineParser)
+    specs = {
+        "mix": "the weighted mean of the inputs (equal weights unless --weights)",
+        "min": "the lowest friction of the inputs at each point",
+        "max": "the highest friction of the inputs at each point",
+        "multiply": "the product of the inputs' friction ratios (reductions compound: 0.5 × 0.8 = 0.4)",
+        "mask": "TEXTURE where MASK is white, --else (a texture, or the ratio --else-ratio) where it is black",
+        "tile": "INNER repeated inside --region of OUTER; elsewhere OUTER",
+    }
+    for operation, summary in specs.items():
+        sub = operations.add_parser(operation, help=summary, description=f"{summary[0].upper()}{summary[1:]}. "
+                                    + ("" if operation == "tile" else COMPOSE_SIZES))
+        if operation in ("mix", "min", "max", "multiply"):
+            sub.add_argument("inputs", nargs="+", metavar="TEXTURE", help="two textures or more")
+        if operation == "mix":
+            sub.add_argument("--weights", nargs="+", type=finite, metavar="W",
+                             help="one weight (0 or more) per texture, normalised to sum to 1")
+        if operation == "mask":
+            sub.add_argument("inputs", nargs=1, metavar="TEXTURE")
+            sub.add_argument("mask", metavar="MASK",
+                             help="an image (its luminance, white = TEXTURE, stretched over the result) or a "
+                                  "texture file or name (its values, at its physical size)")
+            other = sub.add_mutually_exclusive_group()
+            other.add_argument("--else", dest="other", metavar="TEXTURE", help="what shows where the mask is black")
+            other.add_argument("--else-ratio", type=finite, default=1.0, metavar="R",
+                               help="the friction ratio where the mask is black (default: 1, at rest)")
+        if operation == "tile":
+            sub.add_argument("inputs", nargs=2, metavar=("INNER", "OUTER"))
+            sub.add_argument("--region", type=region_mm, required=True, metavar="X,Y,W,H",
+                             help="the rectangle of OUTER to fill, in mm from its top-left corner")
+        else:
+            sub.add_argument("--size-mm", type=size_mm, metavar="WxH", help="the result's size (default: the first "
+                                                                            "input's)")
+        sub.add_argument("--px-per-mm", type=positive, help="the result's resolution (default: the finest input's)")
+        sub.add_argument("--outside", choices=["tile", "clamp", "fixed"],
+                         help="what lies beyond the result's edges (default: the first input's rule)")
+        sub.add_argument("--name", help="texture name (default: the output's file name)")
+        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+        sub.set_defaults(handler="ultraglide.apps.texture_command:compose")
+
+
+def _add_show_and_info(texture_commands) -> None:
+    show = texture_commands.add_parser(
+        "show", help="draw a texture: friction map, amplitude map, histogram",
+        description="Draw a texture for print: the friction map at its physical size (printed at 100 %%, "
+                    "1 mm on the axes is 1 mm on paper, when it fits the page) with mm axes and a colour bar, "
+                    "the vibration amplitude it needs under a model, plate profile and force, and the "
+                    "histogram of its friction. PNG at 300 dpi, or PDF/SVG by the output's extension.")
+    show.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    where = show.add_mutually_exclusive_group(required=True)
+    where.add_argument("-o", "--output", metavar="FILE.png|pdf|svg")
+    where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
+    _add_model(show, default="exponential")
+    show.add_argument("--profile", default="sim-plate", help="plate profile: its amplitude limit (default: sim-plate)")
+    show.add_argument("--force", type=positive, default=0.5, metavar="N", help="normal force, N (default: 0.5)")
+    show.add_argument("--dpi", type=positive, default=300.0, help="PNG resolution (default: 300)")
+    show.set_defaults(handler="ultraglide.apps.texture_show:run")
+
+    info = texture_commands.add_parser("info", help="a texture's metadata, in words or JSON",
+                                       description="Print what a texture is: size, pixels, kind, what lies "
+                                                   "beyond its edges, friction statistics, seams, how it was made.")
+    info.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.set_defaults(handler="ultraglide.apps.texture_command:info")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

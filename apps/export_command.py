@@ -67,8 +67,13 @@ def run(args) -> int:
         if args.envelope_csv:
             csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv)))
             csv_stream = stack.enter_context(open(csv_path, "w", newline=""))
-        log = EnvelopeLog(csv_stream, control_total, keep_plot=bool(args.plot))
+        log = EnvelopeLog(csv_stream, control_total, keep_plot=False)
         renderer.observers.append(log)
+        if args.plot:
+            from ultraglide.apps.export_plot import PlotRecorder
+
+            plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
+            renderer.observers.append(plot)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
         with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
                                  format=format_) as wav, \
@@ -81,9 +86,7 @@ def run(args) -> int:
                 done += frames
                 progress.update(frames)
         if args.plot:
-            from ultraglide.apps.export_plot import plot_envelope
-
-            plot_envelope(log.plot_data(), Path(args.plot), renderer)
+            plot.write(renderer)
     counters = renderer.counters
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
           f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps")

@@ -1,15 +1,19 @@
 """Textures: sampling by hand, band limiting, gradients, procedural patterns, the file format."""
 
 import json
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 from PIL import Image
 from ultraglide.textures import procedural
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture, save_texture
-from ultraglide.textures.library import library_entries, resolve_texture
+from ultraglide.textures.library import LIBRARY_DIR, library_entries, resolve_texture
 from ultraglide.textures.sampling import Sampler
+from ultraglide.textures.seams import measure_seams
 from ultraglide.textures.texture import Texture
 
 # 2 × 2 pixels of 1 mm: centres at x = 0.5, 1.5 and y = 0.5, 1.5
@@ -179,3 +183,173 @@ def test_library_has_the_promised_textures():
     assert resolve_texture("grating-1mm").width_mm == 80.0
     with pytest.raises(TextureError, match="library"):
         resolve_texture("no-such-texture")
+
+
+# ---- seamless tiles -------------------------------------------------------------------------------
+
+TILING_CASES = {  # generators and parameters whose textures repeat; odd sizes and angles on purpose
+    "grating": dict(wavelength_mm=2.0),
+    "grating-45": dict(wavelength_mm=2.0, angle_deg=45),
+    "grating-30-square-duty": dict(wavelength_mm=3.0, angle_deg=30, shape="square", duty=0.3),
+    "grating-100": dict(wavelength_mm=1.7, angle_deg=100, size_mm=(37, 23)),
+    "checkerboard": dict(square_mm=3.0, size_mm=(41, 29)),
+    "dots": dict(pitch_mm=4.0, diameter_mm=2.0, size_mm=(50, 33)),
+    "bumps": dict(pitch_mm=7.0, diameter_mm=5.0, size_mm=(45, 30)),
+    "noise": dict(cutoff_mm=2.0),
+    "fractal": dict(hurst=0.4),
+}
+
+
+def _generator(case):
+    return procedural.GENERATORS[case.split("-")[0]]
+
+
+@pytest.mark.parametrize("case", TILING_CASES)
+def test_tiling_procedural_textures_have_no_seam(case):
+    texture = _generator(case)(**TILING_CASES[case])
+    assert texture.outside == "tile"
+    report = measure_seams(texture.values)
+    # the step across the tile's edge is no larger than the largest step between neighbours inside
+    assert report.seam_max <= report.interior_max + 1e-6, (case, report)
+    assert not report.visible, (case, report)
+
+
+@pytest.mark.parametrize("case", [c for c in TILING_CASES if c.startswith("grating")])
+def test_a_snapped_grating_repeated_is_its_exact_pattern_made_larger(case):
+    # periodic within the tile: 2 × 2 copies equal the unsnapped grating of the realised wavelength and
+    # angle generated over twice the size
+    params = dict(TILING_CASES[case])
+    width, height = params.pop("size_mm", procedural.DEFAULT_SIZE_MM)
+    tile = procedural.grating(size_mm=(width, height), px_per_mm=10, **params)
+    params.update(wavelength_mm=tile.authoring["tile_wavelength_mm"], angle_deg=tile.authoring["tile_angle_deg"])
+    double = procedural.grating(size_mm=(2 * width, 2 * height), px_per_mm=10, tile=False, **params)
+    mismatch = np.abs(np.tile(tile.values, (2, 2)) - double.values)
+    assert np.mean(mismatch > 1e-3) < 1e-3  # square gratings may flip a pixel lying exactly on an edge
+
+
+@pytest.mark.parametrize("kind, params", [("checkerboard", dict(square_mm=3.0)), ("dots", dict(pitch_mm=4.0)),
+                                          ("bumps", dict(pitch_mm=7.0, diameter_mm=5.0))])
+def test_lattices_repeat_exactly(kind, params):
+    # sides that hold whole periods (84 and 42 mm hold 6, 4 and 7 mm periods): the pattern over twice
+    # the size is the tile repeated
+    size = (84, 48) if kind == "dots" else (84, 42)
+    tile = procedural.GENERATORS[kind](size_mm=size, px_per_mm=10, **params)
+    double = procedural.GENERATORS[kind](size_mm=(2 * size[0], 2 * size[1]), px_per_mm=10, **params)
+    assert np.max(np.abs(np.tile(tile.values, (2, 2)) - double.values)) < 1e-4
+
+
+def test_an_unsnapped_diagonal_grating_jumps_at_its_seam():
+    # what the issue reported: 0.30-0.38 of relative friction at the seam of the 2 mm diagonal grating
+    exact = procedural.grating(2.0, angle_deg=45, tile=False)
+    assert exact.outside == "clamp" and exact.authoring["tile_wavelength_mm"] == pytest.approx(2.0)
+    report = measure_seams(exact.values)
+    assert report.seam_max > 0.3 and report.seam_max > 5 * report.interior_max
+    assert report.visible
+
+
+def test_grating_snaps_to_whole_cycles_and_says_so():
+    texture = procedural.grating(2.0, size_mm=(80, 50), angle_deg=45)
+    wavelength, angle = texture.authoring["tile_wavelength_mm"], texture.authoring["tile_angle_deg"]
+    # whole cycles across each side: 80 cos(θ)/λ and 50 sin(θ)/λ are integers (28 and 18)
+    cycles_x = 80 * np.cos(np.deg2rad(angle)) / wavelength
+    cycles_y = 50 * np.sin(np.deg2rad(angle)) / wavelength
+    assert cycles_x == pytest.approx(28) and cycles_y == pytest.approx(18)
+    assert wavelength == pytest.approx(1 / np.hypot(28 / 80, 18 / 50)) and abs(wavelength - 2.0) < 0.05
+    assert "snapped" in texture.description
+    assert "snapped" not in procedural.grating(1.0).description  # 80 whole cycles already
+
+
+def test_square_grating_duty_cycle():
+    texture = procedural.grating(2.0, size_mm=(20, 4), shape="square", duty=0.25, ratio_range=(0.0, 1.0), px_per_mm=40)
+    assert texture.values.mean() == pytest.approx(0.25, abs=0.01)
+    # sticky for a quarter period around each crest (x = 0, 2, 4 ...): x = 0.2 sticky, x = 0.3 not
+    sampler = Sampler(texture, band_limited=False)
+    assert list(sampler.ratio([0.2, 0.3, 2.2, 1.0], [2, 2, 2, 2])) == [1.0, 0.0, 1.0, 0.0]
+
+
+def test_fractal_spectrum_follows_its_hurst_exponent():
+    # a fractional Brownian surface has radial power P(f) ∝ f^-(2H + 2)
+    for hurst in (0.3, 0.8):
+        texture = procedural.fractal(hurst, cutoff_mm=0.5, size_mm=(64, 64), px_per_mm=8, seed=4,
+                                     ratio_range=(0, 1))
+        power = np.abs(np.fft.fft2(texture.values - texture.values.mean())) ** 2
+        fy = np.fft.fftfreq(texture.rows, d=64 / texture.rows)[:, None]
+        fx = np.fft.fftfreq(texture.cols, d=64 / texture.cols)[None, :]
+        f = np.hypot(fx, fy)
+        bands = np.geomspace(0.05, 1.5, 12)
+        centres, means = [], []
+        for low, high in zip(bands[:-1], bands[1:], strict=True):
+            pick = (f >= low) & (f < high)
+            centres.append(np.sqrt(low * high))
+            means.append(power[pick].mean())
+        slope = np.polyfit(np.log(centres), np.log(means), 1)[0]
+        assert slope == pytest.approx(-(2 * hurst + 2), abs=0.25), hurst
+    with pytest.raises(TextureError, match="Hurst"):
+        procedural.fractal(1.2)
+
+
+def test_single_features_by_hand():
+    gabor = Sampler(procedural.gabor(2.0, sigma_mm=4.0, size_mm=(30, 30), ratio_range=(0.2, 1.0)),
+                    band_limited=False)
+    # centre: crest under a full window → 1.0; half a wavelength off: trough at exp(-1/32) of the swing;
+    # far away: the window is zero → middle of the range, and outside the texture too
+    x = np.array([15.0, 16.0, 15.0, 40.0])
+    y = np.array([15.0, 15.0, 29.9, 15.0])
+    expected = [1.0, 0.6 - 0.4 * np.exp(-1 / 32), 0.6, 0.6]
+    assert gabor.ratio(x, y) == pytest.approx(expected, abs=0.01)
+    edge = Sampler(procedural.edge(0.5, size_mm=(40, 30), ratio_range=(0.2, 1.0)), band_limited=False)
+    assert edge.ratio([5, 19.7, 20.0, 20.3, 35, 60], [15] * 6) == pytest.approx([0.2, 0.2, 0.6, 1.0, 1.0, 1.0],
+                                                                                abs=0.03)
+    lines = procedural.lines((1.0, 2.0), spacing_mm=10, size_mm=(40, 10), ratio_range=(0.2, 1.0), px_per_mm=20)
+    row = Sampler(lines, band_limited=False).ratio([15.0, 15.6, 25.0, 25.9, 20.0, -5.0], [5] * 6)
+    assert row == pytest.approx([1.0, 0.2, 1.0, 1.0, 0.2, 0.2], abs=0.01)  # lines at 15 (1 mm) and 25 (2 mm)
+    bump = procedural.bump(10.0, size_mm=(30, 30))
+    assert bump.kind == "gradient" and bump.values.max() == pytest.approx(1.0, abs=0.01)
+    assert bump.values[0, 0] == 0.0 and bump.outside == "fixed" and bump.outside_ratio == pytest.approx(0.7)
+
+
+# ---- the bundled library --------------------------------------------------------------------------
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+
+
+def _documented_names():
+    text = (DOCS / "textures.md").read_text()
+    return re.findall(r"^\| !\[[^]]*\]\(textures/[^)]+\.png\) \| `([^`]+)` \|", text, flags=re.MULTILINE)
+
+
+def test_library_listing_matches_the_files_and_the_docs():
+    files = sorted(path.stem for path in LIBRARY_DIR.glob("*.png"))
+    listed = [entry["name"] for entry in json.loads(run_cli("textures", "--json", check=True).stdout)]
+    documented = _documented_names()
+    thumbnails = sorted(path.stem for path in (DOCS / "textures").glob("*.png"))
+    assert len(files) >= 20
+    assert sorted(listed) == files and len(set(listed)) == len(listed)  # every file, once
+    assert sorted(documented) == files  # and the docs describe exactly these
+    assert thumbnails == files
+    for name in files:
+        assert (DOCS / "textures" / f"{name}.png").stat().st_size <= 10_500, name
+
+
+def test_library_covers_what_researchers_use():
+    textures = [resolve_texture(name) for name in _documented_names()]
+    generators = {t.authoring.get("generator") for t in textures}
+    assert {"grating", "checkerboard", "dots", "fractal", "gabor", "bump", "edge", "lines", "button", "slider",
+            "toggle"} <= generators
+    gratings = [t for t in textures if t.authoring.get("generator") == "grating"]
+    assert {t.authoring["shape"] for t in gratings} == {"sine", "square"}
+    assert len({t.authoring["wavelength_mm"] for t in gratings}) >= 3
+    assert len({t.authoring["duty"] for t in gratings if t.authoring["shape"] == "square"}) >= 3
+    assert len({t.authoring["hurst"] for t in textures if t.authoring.get("generator") == "fractal"}) >= 2
+
+
+@pytest.mark.parametrize("entry", library_entries(), ids=lambda e: e.name)
+def test_every_bundled_texture_loads_is_described_and_tiles_seamlessly(entry):
+    texture = resolve_texture(entry.name)
+    assert texture.name == entry.name
+    assert len(texture.description) > 10
+    assert texture.width_mm > 0 and texture.height_mm > 0
+    if texture.outside == "tile":
+        report = measure_seams(texture.values)
+        assert report.seam_max <= report.interior_max + 1e-6, report
+        assert not report.visible

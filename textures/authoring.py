@@ -2,12 +2,15 @@
 
 The pipeline, in order: read (first frame; EXIF rotation applied; alpha composited on
 ``background``, white by default, so transparent parts read as "at rest"), luminance
-(ITU-R 601: 0.299 R + 0.587 G + 0.114 B, 16-bit kept at 16 bits), crop (pixels), blur
-(Gaussian, ``blur_mm`` is its sigma), mapping (``brightness``: the luminance; ``edges``: the
-Sobel edge strength, normalised; ``gradient``: the luminance as a height map, felt through its
-slope), levels (black and white points), gamma (v ** (1/gamma)), invert, and finally the friction
+(ITU-R 601: 0.299 R + 0.587 G + 0.114 B, 16-bit kept at 16 bits), crop (pixels), seamless
+(optional: cross-fade or mirror into a tile, :mod:`textures.seams`), blur (Gaussian, ``blur_mm``
+is its sigma; across the seam for a seamless tile), mapping (``brightness``: the luminance;
+``edges``: the Sobel edge strength, normalised; ``gradient``: the luminance as a height map, felt
+through its slope), levels (black and white points, or ``auto_levels``: the percentiles that clip
+that percentage at each end), gamma (v ** (1/gamma)), invert, and finally the friction
 range: v = 0 gives ``ratio_range[0]`` (slippery), v = 1 gives ``ratio_range[1]`` (sticky).
-So by default white is sticky (at rest) and black is slippery.
+So by default white is sticky (at rest) and black is slippery. A texture that tiles but has a
+seam a finger would feel gets a warning.
 
 Its size is ``width_mm`` (default 80 mm, a typical plate) or follows from ``dpi``.
 """
@@ -22,6 +25,7 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 from scipy import ndimage
 from ultraglide.textures.errors import TextureError
+from ultraglide.textures.seams import DEFAULT_BAND, METHODS, make_seamless, measure_seams
 from ultraglide.textures.texture import Texture
 
 MODES = ("brightness", "edges", "gradient")
@@ -46,6 +50,9 @@ class AuthoringOptions:
     background: tuple[int, int, int] = (255, 255, 255)
     max_pixels: int = DEFAULT_MAX_PIXELS
     outside: str = "tile"
+    seamless: str | None = None  # "crossfade" or "mirror": make the image tile (textures.seams)
+    seam_band: float = DEFAULT_BAND  # crossfade: the blended band, a fraction of each side
+    auto_levels: float | None = None  # percent of pixels clipped at each end by a percentile stretch
 
     def __post_init__(self) -> None:
         if self.width_mm is not None and self.dpi is not None:
@@ -71,6 +78,17 @@ class AuthoringOptions:
             raise TextureError("crop is X,Y,WIDTH,HEIGHT in pixels, with a positive width and height")
         if self.max_pixels <= 0:
             raise TextureError("the pixel limit must be positive")
+        self._check_seamless_and_auto_levels()
+
+    def _check_seamless_and_auto_levels(self) -> None:
+        if self.seamless is not None and self.seamless not in METHODS:
+            raise TextureError(f"--seamless must be one of {', '.join(METHODS)}, got {self.seamless!r}")
+        if not (np.isfinite(self.seam_band) and 0 < self.seam_band <= 0.5):
+            raise TextureError(f"--seam-band is a fraction of the side in (0, 0.5], got {self.seam_band}")
+        if self.auto_levels is not None and not (np.isfinite(self.auto_levels) and 0 <= self.auto_levels < 50):
+            raise TextureError(f"--auto-levels clips a percentage in [0, 50) at each end, got {self.auto_levels}")
+        if self.auto_levels is not None and (self.black, self.white) != (0.0, 1.0):
+            raise TextureError("give --levels or --auto-levels, not both")
 
 
 def _luminance(image: Image.Image, background) -> np.ndarray:
@@ -129,8 +147,8 @@ def read_image_luminance(path: str | Path, options: AuthoringOptions = Authoring
     return luminance, info
 
 
-def _edges(values: np.ndarray) -> np.ndarray:
-    strength = np.hypot(ndimage.sobel(values, axis=1, mode="nearest"), ndimage.sobel(values, axis=0, mode="nearest"))
+def _edges(values: np.ndarray, mode: str = "nearest") -> np.ndarray:
+    strength = np.hypot(ndimage.sobel(values, axis=1, mode=mode), ndimage.sobel(values, axis=0, mode=mode))
     top = strength.max()
     return strength / top if top > 0 else strength
 
@@ -150,12 +168,16 @@ def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, nam
         width_mm = cols / options.dpi * 25.4
     else:
         width_mm = options.width_mm or DEFAULT_WIDTH_MM
+    values, width_mm = _seamless_step(values, width_mm, options)
+    rows, cols = values.shape
     height_mm = width_mm * rows / cols
+    edge_mode = "wrap" if options.seamless else "nearest"  # a tile's neighbours are across its seam
     if options.blur_mm > 0:
-        values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode="nearest")
+        values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode=edge_mode)
     if options.mode == "edges":
-        values = _edges(values)
-    values = np.clip((values - options.black) / (options.white - options.black), 0.0, 1.0)
+        values = _edges(values, edge_mode)
+    black, white = _auto_levels(values, options)
+    values = np.clip((values - black) / (white - black), 0.0, 1.0)
     if options.gamma != 1.0:
         values = values ** (1.0 / options.gamma)
     if options.invert:
@@ -166,9 +188,46 @@ def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, nam
         values = low + (high - low) * values
     authoring = {key: value for key, value in asdict(options).items() if value is not None}
     authoring.update(info or {})
-    return Texture(values.astype(np.float32), width_mm, height_mm, kind=kind, outside=options.outside,
-                   ratio_range=(low, high), name=name, description=f"authored from {Path(source).name}",
-                   source=source, authoring=authoring)
+    if options.auto_levels is not None:
+        authoring.update(black=black, white=white)
+    texture = Texture(values.astype(np.float32), width_mm, height_mm, kind=kind, outside=options.outside,
+                      ratio_range=(low, high), name=name, description=f"authored from {Path(source).name}",
+                      source=source, authoring=authoring)
+    warn_if_seam(texture)
+    return texture
+
+
+def _seamless_step(values: np.ndarray, width_mm: float, options: AuthoringOptions) -> tuple[np.ndarray, float]:
+    """Make the image a tile (``options.seamless``); features keep their physical size, so the
+    width follows the tile's pixels (shorter by the cross-fade band, or twice as wide mirrored)."""
+    if options.seamless is None:
+        return values, width_mm
+    pixel_mm = width_mm / values.shape[1]
+    values = make_seamless(values, options.seamless, options.seam_band)
+    return values, pixel_mm * values.shape[1]
+
+
+def _auto_levels(values: np.ndarray, options: AuthoringOptions) -> tuple[float, float]:
+    """Black and white points: the given levels, or with ``auto_levels`` the percentiles that clip
+    that percentage of pixels at each end (a percentile stretch to the full range)."""
+    if options.auto_levels is None:
+        return options.black, options.white
+    black, white = np.percentile(values, [options.auto_levels, 100.0 - options.auto_levels])
+    if not white > black:
+        raise TextureError("--auto-levels found a uniform image (no range to stretch); drop it or use --levels")
+    return float(black), float(white)
+
+
+def warn_if_seam(texture: Texture) -> None:
+    """Warn when a texture that tiles has a seam a finger would feel (see :mod:`textures.seams`)."""
+    if texture.outside != "tile":
+        return
+    report = measure_seams(texture.values)
+    if report.visible:
+        warnings.warn(f"{texture.name or 'the texture'} tiles with a seam: its step across the tile's edge is "
+                      f"{report.ratio:.1f}× the typical step inside (largest {report.seam_max:.2f} against "
+                      f"{report.interior_max:.2f}); use --seamless, or --outside clamp if it should not repeat",
+                      stacklevel=3)
 
 
 def author_image(path: str | Path, options: AuthoringOptions = AuthoringOptions(), name: str | None = None) -> Texture:

@@ -1,12 +1,33 @@
-"""Several textures placed on one canvas: the widgets scene of the demo, UI mock-ups."""
+"""
+Combining textures and images into one texture: weighted mix, minimum, maximum, product, masking by
+an image, and one texture tiled inside a region of another; also several textures placed on one
+canvas (the demo's widgets scene, UI mock-ups).
+
+Sizes are reconciled on a common millimetre grid. The result covers the first texture's area (or
+``size_mm``; for :func:`tile_inside`, the outer texture's), with square pixels at the finest pitch
+among the inputs (or ``px_per_mm``). Every input lies with its top-left corner at the origin at its
+own physical size and is read at the result's pixel centres by bilinear interpolation,
+band-limited (the sampler's pyramid) where the result's pixels are coarser than its own; beyond its
+edges its own rule holds: a tiling input repeats, a clamped one extends its edge, a fixed one gives
+its fixed ratio. Friction textures combine their friction ratios, gradient textures their heights
+(the result is a gradient texture); the two kinds do not mix. The result takes the first input's
+rule beyond its edges (``outside`` overrides it), so a composition of tiles tiles when every tile
+fits a whole number of times; a tiling result with a seam gets the authoring warning.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from ultraglide.textures.authoring import warn_if_seam
+from ultraglide.textures.errors import TextureError
 from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
+
+OPERATIONS = ("mix", "min", "max", "multiply", "mask", "tile")
+MAX_PIXELS = 16_000_000
 
 
 @dataclass(frozen=True)
@@ -41,3 +62,178 @@ def compose(size_mm: tuple[float, float], placements: list[Placement], backgroun
         canvas[np.ix_(inside_y, inside_x)] = ratio
     return Texture(canvas, float(size_mm[0]), float(size_mm[1]), outside="fixed", outside_ratio=background_ratio,
                    name=name, description=", ".join(p.texture.name for p in placements), source="composed")
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The common grid of a composition: its size in mm and its pixels (square, ``px_per_mm`` a side)."""
+
+    width_mm: float
+    height_mm: float
+    px_per_mm: float
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return max(1, round(self.height_mm * self.px_per_mm)), max(1, round(self.width_mm * self.px_per_mm))
+
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """x and y (mm) of every pixel centre, rows × cols each."""
+        rows, cols = self.shape
+        x = (np.arange(cols) + 0.5) * (self.width_mm / cols)
+        y = (np.arange(rows) + 0.5) * (self.height_mm / rows)
+        return np.meshgrid(x, y)
+
+
+def common_grid(textures: Sequence[Texture], size_mm: tuple[float, float] | None = None,
+                px_per_mm: float | None = None) -> Grid:
+    """The grid a composition of ``textures`` is made on (see the module docstring)."""
+    if not textures:
+        raise TextureError("a composition needs at least one texture")
+    width_mm, height_mm = size_mm or (textures[0].width_mm, textures[0].height_mm)
+    density = px_per_mm or max(1.0 / min(t.pixel_mm) for t in textures)
+    if not (np.isfinite(density) and density > 0 and width_mm > 0 and height_mm > 0):
+        raise TextureError("a composition needs a positive size and resolution")
+    grid = Grid(float(width_mm), float(height_mm), float(density))
+    rows, cols = grid.shape
+    if rows * cols > MAX_PIXELS:
+        raise TextureError(f"the composition would be {cols}×{rows} pixels, too many; give a smaller --px-per-mm")
+    return grid
+
+
+def _kind_of(textures: Sequence[Texture]) -> str:
+    kinds = {t.kind for t in textures}
+    if len(kinds) > 1:
+        names = ", ".join(f"{t.name or '?'} ({t.kind})" for t in textures)
+        raise TextureError(f"friction and gradient textures do not combine: {names}")
+    return kinds.pop()
+
+
+def resample(texture: Texture, grid: Grid, x_mm: float = 0.0, y_mm: float = 0.0,
+             outside: str | None = None) -> np.ndarray:
+    """The texture's friction ratio (a gradient texture's height) at the grid's pixel centres, with its
+    top-left corner at (``x_mm``, ``y_mm``) and its own rule beyond its edges (or ``outside``)."""
+    rule = outside or texture.outside
+    if texture.kind == "gradient":  # heights: flat ground beyond a fixed height map is its edge extended
+        texture = texture.with_(kind="friction", outside="clamp" if rule == "fixed" else rule)
+    elif rule != texture.outside:
+        texture = texture.with_(outside=rule)
+    x, y = grid.centres()
+    step_mm = 1.0 / grid.px_per_mm
+    sampler = Sampler(texture, band_limited=step_mm > min(texture.pixel_mm))
+    return sampler.ratio(x - x_mm, y - y_mm, step_mm=step_mm)
+
+
+def _result(values: np.ndarray, grid: Grid, base: Texture, kind: str, name: str, description: str,
+            outside: str | None, **authoring) -> Texture:
+    values = np.clip(values, 0.0, 1.0).astype(np.float32)
+    if kind == "friction":
+        ratio_range = (float(values.min()), float(values.max()))
+    else:
+        ratio_range = base.ratio_range
+    texture = Texture(values, grid.width_mm, grid.height_mm, kind=kind, outside=outside or base.outside,
+                      outside_ratio=base.outside_ratio, ratio_range=ratio_range, name=name,
+                      description=description, source="composed",
+                      authoring={"operation": authoring.pop("operation"), "px_per_mm": grid.px_per_mm, **authoring})
+    warn_if_seam(texture)
+    return texture
+
+
+def _names(textures: Sequence[Texture]) -> list[str]:
+    return [t.name or f"input {i + 1}" for i, t in enumerate(textures)]
+
+
+def _combine(operation: str, textures: Sequence[Texture], size_mm, px_per_mm):
+    if len(textures) < 2:
+        raise TextureError(f"{operation} needs two textures or more, got {len(textures)}")
+    kind = _kind_of(textures)
+    grid = common_grid(textures, size_mm, px_per_mm)
+    return grid, kind, np.stack([resample(t, grid) for t in textures])
+
+
+def mix(textures: Sequence[Texture], weights: Sequence[float] | None = None, size_mm=None,
+        px_per_mm: float | None = None, name: str = "mix", outside: str | None = None) -> Texture:
+    """The weighted mean Σ wᵢ vᵢ / Σ wᵢ of the inputs (equal weights unless given)."""
+    weights = np.ones(len(textures)) if weights is None else np.asarray(weights, dtype=float)
+    if weights.shape != (len(textures),):
+        raise TextureError(f"give one weight per texture: {len(textures)} textures, {weights.size} weights")
+    if not (np.all(np.isfinite(weights)) and np.all(weights >= 0) and weights.sum() > 0):
+        raise TextureError("weights must be zero or more, and not all zero")
+    grid, kind, stack = _combine("mix", textures, size_mm, px_per_mm)
+    weights = weights / weights.sum()
+    values = np.tensordot(weights, stack, axes=1)
+    parts = ", ".join(f"{n} ({w:.3g})" for n, w in zip(_names(textures), weights, strict=True))
+    return _result(values, grid, textures[0], kind, name, f"weighted mix of {parts}", outside, operation="mix",
+                   inputs=_names(textures), weights=weights.tolist())
+
+
+def minimum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "min",
+            outside: str | None = None) -> Texture:
+    """The lowest value of the inputs at each point (for friction: the slipperiest)."""
+    grid, kind, stack = _combine("min", textures, size_mm, px_per_mm)
+    return _result(stack.min(axis=0), grid, textures[0], kind, name, f"minimum of {', '.join(_names(textures))}",
+                   outside, operation="min", inputs=_names(textures))
+
+
+def maximum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "max",
+            outside: str | None = None) -> Texture:
+    """The highest value of the inputs at each point (for friction: the stickiest)."""
+    grid, kind, stack = _combine("max", textures, size_mm, px_per_mm)
+    return _result(stack.max(axis=0), grid, textures[0], kind, name, f"maximum of {', '.join(_names(textures))}",
+                   outside, operation="max", inputs=_names(textures))
+
+
+def multiply(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "multiply",
+             outside: str | None = None) -> Texture:
+    """The product of the inputs: friction reductions compound (0.5 × 0.8 = 0.4)."""
+    grid, kind, stack = _combine("multiply", textures, size_mm, px_per_mm)
+    return _result(stack.prod(axis=0), grid, textures[0], kind, name, f"product of {', '.join(_names(textures))}",
+                   outside, operation="multiply", inputs=_names(textures))
+
+
+def mask(texture: Texture, weights: Texture | np.ndarray, other: Texture | None = None, other_ratio: float = 1.0,
+         size_mm=None, px_per_mm: float | None = None, name: str = "mask", outside: str | None = None) -> Texture:
+    """``texture`` where the mask is 1, ``other`` (or the constant ``other_ratio``) where it is 0, blended
+    in between: m·A + (1 − m)·B.
+
+    ``weights`` is a texture (its values, 0..1, at its physical size with its rule beyond its edges)
+    or an image's luminance (rows × cols in 0..1), stretched over the whole result.
+    """
+    inputs = [texture] + ([other] if other is not None else [])
+    kind = _kind_of(inputs)
+    if other is None and not 0 <= other_ratio <= 1:
+        raise TextureError(f"the ratio outside the mask must lie in 0..1, got {other_ratio}")
+    sized = inputs + ([weights] if isinstance(weights, Texture) else [])
+    grid = common_grid(sized, size_mm, px_per_mm)
+    if isinstance(weights, Texture):
+        m, mask_name = resample(weights.with_(kind="friction"), grid), weights.name or "a mask"
+    else:
+        weights = np.asarray(weights, dtype=np.float32)
+        stretched = Texture(np.clip(weights, 0, 1), grid.width_mm, grid.height_mm, outside="clamp")
+        m, mask_name = resample(stretched, grid), "an image"
+    a = resample(texture, grid)
+    b = resample(other, grid) if other is not None else np.full_like(a, other_ratio)
+    values = m * a + (1 - m) * b
+    where_not = other.name if other is not None else f"ratio {other_ratio:g}"
+    return _result(values, grid, texture, kind, name, f"{texture.name} masked by {mask_name}, else {where_not}",
+                   outside, operation="mask", inputs=_names(inputs), mask=mask_name,
+                   **({} if other is not None else {"other_ratio": other_ratio}))
+
+
+def tile_inside(inner: Texture, outer: Texture, region_mm: tuple[float, float, float, float],
+                px_per_mm: float | None = None, name: str = "tiled", outside: str | None = None) -> Texture:
+    """``outer`` with the rectangle ``region_mm`` (x, y, width, height) filled by ``inner`` repeated
+    from the region's top-left corner; the result has the outer texture's size."""
+    x0, y0, width, height = (float(v) for v in region_mm)
+    if not (width > 0 and height > 0 and np.isfinite([x0, y0, width, height]).all()):
+        raise TextureError(f"the region is X,Y,WIDTH,HEIGHT in mm with a positive size, got {region_mm}")
+    kind = _kind_of([outer, inner])
+    grid = common_grid([outer, inner], None, px_per_mm)
+    x, y = grid.centres()
+    inside = (x >= x0) & (x < x0 + width) & (y >= y0) & (y < y0 + height)
+    if not inside.any():
+        raise TextureError(f"the region {x0:g},{y0:g},{width:g},{height:g} mm misses the "
+                           f"{outer.width_mm:g} × {outer.height_mm:g} mm texture")
+    values = np.where(inside, resample(inner, grid, x0, y0, outside="tile"), resample(outer, grid))
+    return _result(values, grid, outer, kind, name,
+                   f"{inner.name} tiled in {width:g} × {height:g} mm at ({x0:g}, {y0:g}) of {outer.name}",
+                   outside, operation="tile", inputs=[inner.name, outer.name], region_mm=[x0, y0, width, height])

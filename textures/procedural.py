@@ -1,8 +1,16 @@
-"""Textures from parameters: gratings, checkerboards, dots, bumps, noise, a chirp, UI elements.
+"""Textures from parameters: gratings, checkerboards, dots, bumps, noise, fractal roughness, Gabor
+patches, single bumps, edges and lines, a chirp, UI elements.
 
 Every generator takes a physical size in millimetres and a friction range ``ratio_range`` (low,
 high): the ratio where the pattern is "off" (slippery) and "on" (sticky). The resolution is
 chosen so that the finest feature spans at least 8 pixels, unless ``px_per_mm`` says otherwise.
+
+Textures that tile (gratings, checkerboards, dots, bumps, noise, fractal roughness) are exactly
+periodic within their tile: the tile keeps the size asked for, and the period snaps to the nearest
+one that fits a whole number of times across each side (gratings snap their wave vector, so the
+wavelength and the angle may both move a little; lattices snap their pitch per axis). The
+realised periods are in the description and in the metadata (``tile_*``). The rest (chirp, Gabor
+patch, single bump, edge, lines, widgets) do not repeat: beyond their edges lies their ground.
 """
 
 from __future__ import annotations
@@ -35,54 +43,98 @@ def _grid(size_mm, finest_mm: float, px_per_mm: float | None):
     return np.meshgrid(x, y)
 
 
-def _finish(pattern, size_mm, ratio_range, name, description, kind="friction", outside="tile", **authoring):
+def _finish(pattern, size_mm, ratio_range, name, description, kind="friction", outside="tile",
+            outside_ratio: float | None = None, **authoring):
     low, high = ratio_range
     if not 0 <= low <= high <= 1:
         raise TextureError(f"range must satisfy 0 <= low <= high <= 1, got {low} {high}")
     pattern = np.clip(pattern, 0.0, 1.0)
     values = pattern if kind == "gradient" else low + (high - low) * pattern
+    if outside_ratio is None:  # beyond a fixed texture lies its ground, so its edge has no step
+        outside_ratio = low if kind == "friction" else 0.5 * (low + high)
     return Texture(values.astype(np.float32), float(size_mm[0]), float(size_mm[1]), kind=kind,
-                   outside=outside, ratio_range=(low, high), name=name, description=description,
+                   outside=outside, outside_ratio=float(outside_ratio), ratio_range=(low, high), name=name,
+                   description=description,
                    source="procedural", authoring={"generator": name.split("-")[0], **authoring})
 
 
+def _whole(period_mm: float, length_mm: float) -> tuple[int, float]:
+    """How many periods fit a side (at least one), and the period that makes them fit exactly."""
+    count = max(1, int(np.floor(length_mm / period_mm + 0.5)))
+    return count, length_mm / count
+
+
 def grating(wavelength_mm: float = 1.0, size_mm=DEFAULT_SIZE_MM, angle_deg: float = 0.0,
-            shape: str = "sine", ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
-    """Parallel ridges of one wavelength; ``angle_deg`` turns the direction across them."""
+            shape: str = "sine", ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None,
+            duty: float = 0.5, tile: bool = True) -> Texture:
+    """Parallel ridges of one wavelength; ``angle_deg`` turns the direction across them.
+
+    ``duty`` is the sticky fraction of each period of a square grating. With ``tile`` (the
+    default) the wave vector snaps to the nearest one with whole cycles across the width and the
+    height, so the texture repeats without a seam: the wavelength and angle change by at most
+    half a cycle over the tile (both realised values are in the description and metadata);
+    ``tile=False`` keeps them exact and extends the edges instead of repeating.
+    """
     _check_positive(wavelength_mm=wavelength_mm)
     if shape not in ("sine", "square"):
         raise TextureError(f"grating shape must be sine or square, got {shape!r}")
-    x, y = _grid(size_mm, wavelength_mm, px_per_mm)
+    if not (np.isfinite(duty) and 0 < duty < 1):
+        raise TextureError(f"duty cycle must lie strictly between 0 and 1, got {duty}")
+    x, y = _grid(size_mm, wavelength_mm * (min(duty, 1 - duty) * 2 if shape == "square" else 1), px_per_mm)
     angle = np.deg2rad(angle_deg)
-    across = x * np.cos(angle) + y * np.sin(angle)
-    wave = np.cos(2 * np.pi * across / wavelength_mm)
-    pattern = 0.5 + 0.5 * wave if shape == "sine" else (wave >= 0).astype(float)
-    return _finish(pattern, size_mm, ratio_range, f"grating-{shape}",
-                   f"{shape} grating, {wavelength_mm:g} mm wavelength at {angle_deg:g}°",
-                   wavelength_mm=wavelength_mm, angle_deg=angle_deg, shape=shape)
+    fx, fy = np.cos(angle) / wavelength_mm, np.sin(angle) / wavelength_mm  # cycles per mm
+    if tile:
+        width_mm, height_mm = size_mm
+        nx, ny = np.floor(fx * width_mm + 0.5), np.floor(fy * height_mm + 0.5)
+        if nx == 0 and ny == 0:  # longer than the tile: one cycle along the nearer axis
+            nx, ny = (np.sign(fx) or 1.0, 0.0) if abs(fx) * width_mm >= abs(fy) * height_mm else (0.0, np.sign(fy))
+        fx, fy = nx / width_mm, ny / height_mm
+    realised_mm, realised_deg = 1.0 / np.hypot(fx, fy), float(np.rad2deg(np.arctan2(fy, fx)))
+    wave = np.cos(2 * np.pi * (fx * x + fy * y))
+    pattern = 0.5 + 0.5 * wave if shape == "sine" else (wave >= np.cos(np.pi * duty)).astype(float)
+    description = f"{shape} grating, {realised_mm:.4g} mm wavelength at {realised_deg:.3g}°"
+    if shape == "square" and duty != 0.5:
+        description += f", {duty:.0%} sticky"
+    if tile and (not np.isclose(realised_mm, wavelength_mm, rtol=1e-9) or not np.isclose(realised_deg, angle_deg)):
+        description += f" (snapped from {wavelength_mm:g} mm at {angle_deg:g}° to tile)"
+    return _finish(pattern, size_mm, ratio_range, f"grating-{shape}", description,
+                   outside="tile" if tile else "clamp", wavelength_mm=wavelength_mm, angle_deg=angle_deg,
+                   shape=shape, duty=duty, tile_wavelength_mm=float(realised_mm), tile_angle_deg=realised_deg)
 
 
 def checkerboard(square_mm: float = 5.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
                  px_per_mm: float | None = None) -> Texture:
-    """Alternating sticky and slippery squares."""
+    """Alternating sticky and slippery squares; the square snaps (per axis) to an even number across
+    each side so the texture tiles."""
     _check_positive(square_mm=square_mm)
     x, y = _grid(size_mm, square_mm, px_per_mm)
-    pattern = ((np.floor(x / square_mm) + np.floor(y / square_mm)) % 2 == 0).astype(float)
-    return _finish(pattern, size_mm, ratio_range, "checkerboard", f"checkerboard of {square_mm:g} mm squares",
-                   square_mm=square_mm)
+    across, square_x = _whole(2 * square_mm, size_mm[0])
+    down, square_y = _whole(2 * square_mm, size_mm[1])
+    square_x, square_y = square_x / 2, square_y / 2
+    pattern = ((np.floor(x / square_x) + np.floor(y / square_y)) % 2 == 0).astype(float)
+    return _finish(pattern, size_mm, ratio_range, "checkerboard",
+                   f"checkerboard of {square_x:.3g} × {square_y:.3g} mm squares", square_mm=square_mm,
+                   tile_square_mm=[square_x, square_y])
+
+
+def _lattice(size_mm, pitch_mm: float, x, y):
+    """Offsets from the nearest lattice site, the pitch snapped per axis to whole cells per side."""
+    _, pitch_x = _whole(pitch_mm, size_mm[0])
+    _, pitch_y = _whole(pitch_mm, size_mm[1])
+    return (x % pitch_x) - pitch_x / 2, (y % pitch_y) - pitch_y / 2, [pitch_x, pitch_y]
 
 
 def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
          px_per_mm: float | None = None) -> Texture:
-    """Sticky round dots on a slippery ground, on a square lattice."""
+    """Sticky round dots on a slippery ground, on a lattice whose pitch snaps to whole cells per side."""
     _check_positive(pitch_mm=pitch_mm, diameter_mm=diameter_mm)
     x, y = _grid(size_mm, min(pitch_mm, diameter_mm), px_per_mm)
-    dx = (x % pitch_mm) - pitch_mm / 2
-    dy = (y % pitch_mm) - pitch_mm / 2
+    dx, dy, pitches = _lattice(size_mm, pitch_mm, x, y)
     pixel = size_mm[0] / x.shape[1]
     pattern = np.clip((diameter_mm / 2 - np.hypot(dx, dy)) / pixel + 0.5, 0, 1)  # antialiased edge
-    return _finish(pattern, size_mm, ratio_range, "dots", f"{diameter_mm:g} mm dots every {pitch_mm:g} mm",
-                   pitch_mm=pitch_mm, diameter_mm=diameter_mm)
+    return _finish(pattern, size_mm, ratio_range, "dots",
+                   f"{diameter_mm:g} mm dots every {pitches[0]:.3g} × {pitches[1]:.3g} mm",
+                   pitch_mm=pitch_mm, diameter_mm=diameter_mm, tile_pitch_mm=pitches)
 
 
 def bumps(pitch_mm: float = 10.0, diameter_mm: float = 8.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
@@ -90,10 +142,17 @@ def bumps(pitch_mm: float = 10.0, diameter_mm: float = 8.0, size_mm=DEFAULT_SIZE
     """Smooth round bumps as a height map: a gradient texture, felt as bumps in every direction."""
     _check_positive(pitch_mm=pitch_mm, diameter_mm=diameter_mm)
     x, y = _grid(size_mm, diameter_mm / 4, px_per_mm)
-    radius = np.hypot((x % pitch_mm) - pitch_mm / 2, (y % pitch_mm) - pitch_mm / 2)
+    dx, dy, pitches = _lattice(size_mm, pitch_mm, x, y)
+    radius = np.hypot(dx, dy)
     height = np.where(radius < diameter_mm / 2, np.cos(np.pi * radius / diameter_mm) ** 2, 0.0)
-    return _finish(height, size_mm, ratio_range, "bumps", f"{diameter_mm:g} mm bumps every {pitch_mm:g} mm",
-                   kind="gradient", pitch_mm=pitch_mm, diameter_mm=diameter_mm)
+    return _finish(height, size_mm, ratio_range, "bumps",
+                   f"{diameter_mm:g} mm bumps every {pitches[0]:.3g} × {pitches[1]:.3g} mm",
+                   kind="gradient", pitch_mm=pitch_mm, diameter_mm=diameter_mm, tile_pitch_mm=pitches)
+
+
+def _normalised(field: np.ndarray) -> np.ndarray:
+    span = field.max() - field.min()
+    return (field - field.min()) / span if span > 0 else np.full_like(field, 0.5)
 
 
 def noise(cutoff_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, seed: int = 0, ratio_range=DEFAULT_RANGE,
@@ -107,10 +166,96 @@ def noise(cutoff_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, seed: int = 0, ratio_
     fx = np.fft.rfftfreq(cols, d=size_mm[0] / cols)[None, :]
     spectrum[np.hypot(fx, fy) > 1.0 / cutoff_mm] = 0.0
     field = np.fft.irfft2(spectrum, s=(rows, cols))
-    span = field.max() - field.min()
-    pattern = (field - field.min()) / span if span > 0 else np.full_like(field, 0.5)
-    return _finish(pattern, size_mm, ratio_range, "noise", f"random roughness above {cutoff_mm:g} mm, seed {seed}",
-                   cutoff_mm=cutoff_mm, seed=seed)
+    return _finish(_normalised(field), size_mm, ratio_range, "noise",
+                   f"random roughness above {cutoff_mm:g} mm, seed {seed}", cutoff_mm=cutoff_mm, seed=seed)
+
+
+def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm=(40.0, 40.0), seed: int = 0,
+            ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
+    """Fractal (self-affine) roughness with Hurst exponent ``hurst`` in (0, 1), by spectral synthesis.
+
+    Seeded white noise is shaped in the Fourier domain to the power spectrum of a 2-D
+    fractional Brownian surface, P(f) ∝ |f|^-(2H+2), from the tile's size down to ``cutoff_mm``,
+    with no mean (f = 0) term; low H is rough and jagged, high H smooth and rolling. Periodic by
+    construction, so it tiles seamlessly.
+    """
+    _check_positive(cutoff_mm=cutoff_mm)
+    if not (np.isfinite(hurst) and 0 < hurst < 1):
+        raise TextureError(f"the Hurst exponent must lie strictly between 0 and 1, got {hurst}")
+    x, _ = _grid(size_mm, cutoff_mm, px_per_mm)
+    rows, cols = x.shape
+    spectrum = np.fft.rfft2(np.random.default_rng(seed).standard_normal((rows, cols)))
+    fy = np.fft.fftfreq(rows, d=size_mm[1] / rows)[:, None]
+    fx = np.fft.rfftfreq(cols, d=size_mm[0] / cols)[None, :]
+    f = np.hypot(fx, fy)
+    with np.errstate(divide="ignore"):
+        gain = np.where((f > 0) & (f <= 1.0 / cutoff_mm), f ** -(hurst + 1.0), 0.0)
+    field = np.fft.irfft2(spectrum * gain, s=(rows, cols))
+    return _finish(_normalised(field), size_mm, ratio_range, "fractal",
+                   f"fractal roughness, Hurst exponent {hurst:g}, down to {cutoff_mm:g} mm, seed {seed}",
+                   hurst=hurst, cutoff_mm=cutoff_mm, seed=seed)
+
+
+def gabor(wavelength_mm: float = 2.0, sigma_mm: float = 4.0, size_mm=(30.0, 30.0), angle_deg: float = 0.0,
+          ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
+    """A Gabor patch: a sine grating under a round Gaussian window of ``sigma_mm``, centred; beyond
+    the window the friction is the middle of the range, also outside the texture."""
+    _check_positive(wavelength_mm=wavelength_mm, sigma_mm=sigma_mm)
+    x, y = _grid(size_mm, min(wavelength_mm, sigma_mm), px_per_mm)
+    cx, cy = x - size_mm[0] / 2, y - size_mm[1] / 2
+    angle = np.deg2rad(angle_deg)
+    across = cx * np.cos(angle) + cy * np.sin(angle)
+    window = np.exp(-(cx ** 2 + cy ** 2) / (2 * sigma_mm ** 2))
+    pattern = 0.5 + 0.5 * window * np.cos(2 * np.pi * across / wavelength_mm)
+    low, high = ratio_range
+    return _finish(pattern, size_mm, ratio_range, "gabor",
+                   f"Gabor patch, {wavelength_mm:g} mm wavelength at {angle_deg:g}°, σ {sigma_mm:g} mm",
+                   outside="fixed", outside_ratio=0.5 * (low + high), wavelength_mm=wavelength_mm,
+                   sigma_mm=sigma_mm, angle_deg=angle_deg)
+
+
+def bump(diameter_mm: float = 10.0, size_mm=(30.0, 30.0), ratio_range=DEFAULT_RANGE,
+         px_per_mm: float | None = None) -> Texture:
+    """One smooth round bump (cos² profile) in the middle of flat ground: a gradient texture."""
+    _check_positive(diameter_mm=diameter_mm)
+    x, y = _grid(size_mm, diameter_mm / 4, px_per_mm)
+    radius = np.hypot(x - size_mm[0] / 2, y - size_mm[1] / 2)
+    height = np.where(radius < diameter_mm / 2, np.cos(np.pi * radius / diameter_mm) ** 2, 0.0)
+    low, high = ratio_range
+    return _finish(height, size_mm, ratio_range, "bump", f"a single {diameter_mm:g} mm bump", kind="gradient",
+                   outside="fixed", outside_ratio=0.5 * (low + high), diameter_mm=diameter_mm)
+
+
+def edge(width_mm: float = 0.5, size_mm=(40.0, 30.0), ratio_range=DEFAULT_RANGE,
+         px_per_mm: float | None = None) -> Texture:
+    """One straight edge down the middle: slippery on the left, sticky on the right, the step
+    spread over ``width_mm`` (a raised-cosine ramp); the two sides extend beyond the texture."""
+    _check_positive(width_mm=width_mm)
+    x, _ = _grid(size_mm, width_mm, px_per_mm)
+    t = np.clip((x - size_mm[0] / 2) / width_mm + 0.5, 0.0, 1.0)
+    pattern = 0.5 - 0.5 * np.cos(np.pi * t)
+    return _finish(pattern, size_mm, ratio_range, "edge", f"one edge, slippery to sticky over {width_mm:g} mm",
+                   outside="clamp", width_mm=width_mm)
+
+
+def lines(widths_mm=(0.25, 0.5, 1.0, 2.0, 4.0), spacing_mm: float = 10.0, size_mm=(80.0, 40.0),
+          ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
+    """Single sticky vertical lines of the given widths, ``spacing_mm`` apart (centre to centre),
+    centred on a slippery ground: a chart for the finest line a finger finds."""
+    widths = [float(w) for w in widths_mm]
+    if not widths:
+        raise TextureError("lines needs at least one width")
+    _check_positive(spacing_mm=spacing_mm, **{f"width_{i}": w for i, w in enumerate(widths)})
+    x, _ = _grid(size_mm, min(widths), px_per_mm)
+    pixel = size_mm[0] / x.shape[1]
+    centres = size_mm[0] / 2 + spacing_mm * (np.arange(len(widths)) - (len(widths) - 1) / 2)
+    pattern = np.zeros_like(x)
+    for centre, width in zip(centres, widths, strict=True):  # a handful of lines, each antialiased
+        pattern = np.maximum(pattern, np.clip((width / 2 - np.abs(x - centre)) / pixel + 0.5, 0, 1))
+    low, _ = ratio_range
+    return _finish(pattern, size_mm, ratio_range, "lines",
+                   f"single lines {', '.join(f'{w:g}' for w in widths)} mm wide, {spacing_mm:g} mm apart",
+                   outside="fixed", outside_ratio=low, widths_mm=widths, spacing_mm=spacing_mm)
 
 
 def chirp(start_mm: float = 4.0, end_mm: float = 0.5, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
@@ -201,6 +346,11 @@ GENERATORS = {
     "dots": dots,
     "bumps": bumps,
     "noise": noise,
+    "fractal": fractal,
+    "gabor": gabor,
+    "bump": bump,
+    "edge": edge,
+    "lines": lines,
     "chirp": chirp,
     "button": button,
     "slider": slider,
