@@ -1,8 +1,12 @@
-"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time."""
+"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
+
+The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
+(limiter, then carrier) as every live device."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import sys
 from pathlib import Path
@@ -12,7 +16,9 @@ import soundfile
 from tqdm import tqdm
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
+from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
+from ultraglide.apps.sources import offline_stage
 from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
@@ -56,6 +62,7 @@ def run(args) -> int:
         raise UsageError(f"the output must be a .wav file, got {output}")
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
+    stage = offline_stage(renderer)
     rate = args.rate
     duration_s = trajectory.end_s - trajectory.start_s + renderer.tail_s
     total = int(round(duration_s * rate))
@@ -77,7 +84,7 @@ def run(args) -> int:
             done = 0
             while done < total:
                 frames = min(block, total - done)
-                wav.write(renderer.audio(frames))
+                wav.write(stage.pull(frames, None))
                 done += frames
                 progress.update(frames)
         if args.plot:
@@ -85,8 +92,19 @@ def run(args) -> int:
 
             plot_envelope(log.plot_data(), Path(args.plot), renderer)
     counters = renderer.counters
+    warning = clipping_warning(renderer, args.model, trajectory)
+    if warning:
+        print(warning, file=sys.stderr)
+    if args.json:
+        print(json.dumps({"output": str(output), "duration_s": round(duration_s, 6), "rate_hz": rate,
+                          "format": args.format, "carrier_hz": renderer.carrier_hz,
+                          "clipped_samples": counters.clipped_samples,
+                          "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
+                          **limiter_fields(stage),
+                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
+        return 0
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
-          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps")
+          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps; {stage.limiter.summary()}")
     for extra in (args.envelope_csv, args.plot):
         if extra:
             print(f"wrote {extra}")

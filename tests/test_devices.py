@@ -222,7 +222,7 @@ pcm.capture {{
 
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
-from ultraglide.apps.sources import AudioSource
+from ultraglide.apps.sources import EnvelopeSource, offline_stage
 from ultraglide.devices.audio import AudioPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.friction_models import ExponentialModel
@@ -235,10 +235,10 @@ def renderer():
     return Renderer(resolve_texture("grating-1mm"), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
 
 reference = renderer()
-expected = reference.audio(int((0.5 + reference.tail_s) * 96000) + 9600)
+expected = offline_stage(reference).pull(int((0.5 + reference.tail_s) * 96000) + 9600, None)
 np.save(sys.argv[1], expected)
-plate = AudioPlate(None, 25000.0)
-source = AudioSource(renderer())
+plate = AudioPlate(None, load_profile("sim-plate"), 25000.0)
+source = EnvelopeSource(renderer())  # a bare envelope: the device puts it through its own output stage
 plate.start(source)
 while not source.finished:
     time.sleep(0.01)
@@ -308,6 +308,6 @@ def test_a_failed_play_leaves_no_recording_and_no_temporary(tmp_path):
 def test_a_recorder_that_never_started_writes_nothing(tmp_path):
     from ultraglide.devices.paced import WavRecorder
 
-    recorder = WavRecorder(tmp_path / "never.wav")
+    recorder = WavRecorder(tmp_path / "never.wav", PROFILE)
     recorder.stop()
     assert list(tmp_path.iterdir()) == []
