@@ -223,6 +223,7 @@ pcm.capture {{
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
 from ultraglide.apps.sources import EnvelopeSource, offline_stage
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.audio import AudioPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.friction_models import ExponentialModel
@@ -238,9 +239,10 @@ reference = renderer()
 expected = offline_stage(reference).pull(int((0.5 + reference.tail_s) * 96000) + 9600, None)
 np.save(sys.argv[1], expected)
 plate = AudioPlate(None, load_profile("sim-plate"), 25000.0)
-source = EnvelopeSource(renderer())  # a bare envelope: the device puts it through its own output stage
-plate.start(source)
-while not source.finished:
+stage = OutputStage(EnvelopeSource(renderer()), load_profile("sim-plate"), "audio", 96000, 25000.0)
+plate.start(stage)  # built for this device, so it plays it as it is
+deadline = time.monotonic() + 60
+while (not stage.finished or stage.frames < len(expected)) and time.monotonic() < deadline:
     time.sleep(0.01)
 plate.stop()
 print(plate.rate_hz, plate.callbacks, len(plate.errors))
