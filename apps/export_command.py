@@ -25,11 +25,13 @@ SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
-                    "drive_um_pp", "plate_um_pp")
+                    "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
+PLOT_COLUMNS = len(ENVELOPE_COLUMNS) - 1
 
 
 class EnvelopeLog:
-    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot."""
+    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot.
+    Observes the renderer's blocks (``__call__``) and then the output stage's limited drive (``sent``)."""
 
     def __init__(self, stream, total_samples: int, keep_plot: bool):
         self.stream = stream
@@ -39,19 +41,25 @@ class EnvelopeLog:
         self.keep_plot = keep_plot
         self.kept: list[np.ndarray] = []
         self._offset = 0
+        self._block: ControlBlock | None = None
 
     def __call__(self, block: ControlBlock) -> None:
+        self._block = block
+
+    def sent(self, drive_um_pp: np.ndarray) -> None:
+        block = self._block
         columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
-                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp])
+                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
+                                   drive_um_pp])
         if self.stream:
             np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
         if self.keep_plot:
             start = (-self._offset) % self.every
-            self.kept.append(columns[start::self.every])
+            self.kept.append(columns[start::self.every, :PLOT_COLUMNS])
         self._offset += len(columns)
 
     def plot_data(self) -> np.ndarray:
-        return np.concatenate(self.kept) if self.kept else np.zeros((0, len(ENVELOPE_COLUMNS)))
+        return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
 
 
 def run(args) -> int:
@@ -76,6 +84,7 @@ def run(args) -> int:
             csv_stream = stack.enter_context(open(csv_path, "w", newline=""))
         log = EnvelopeLog(csv_stream, control_total, keep_plot=bool(args.plot))
         renderer.observers.append(log)
+        stage.observers.append(log.sent)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
         with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
                                  format=format_) as wav, \

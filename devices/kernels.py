@@ -14,12 +14,13 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def limit_drive(drive, limit, max_drive, gain, fast_plate, out):
+def limit_drive(drive, limit, max_drive, gain, fast_plate, tolerance, out):
     """Clamp each drive sample to [0, max_drive] and so that the fast plate model
     p[n] = p[n-1] + gain (u[n] - p[n-1]) stays at or below ``limit``:
     u[n] <= p[n-1] + (limit - p[n-1]) / gain. NaN and negative requests become 0.
 
-    Returns (fast_plate, samples limited, worst excess: the most a request went above its ceiling).
+    Returns (fast_plate, samples lowered by more than ``tolerance``, worst excess: the most a
+    request went above its ceiling).
     """
     limited = 0
     worst = 0.0
@@ -33,7 +34,8 @@ def limit_drive(drive, limit, max_drive, gain, fast_plate, out):
         if ceiling < 0.0:
             ceiling = 0.0
         if wanted > ceiling:
-            limited += 1
+            if wanted - ceiling > tolerance:
+                limited += 1
             if wanted - ceiling > worst:
                 worst = wanted - ceiling
             wanted = ceiling
@@ -80,6 +82,6 @@ def sine_block(phase, increment, out):
 def warm_up() -> None:
     """Compile every kernel here with the types the output stage passes."""
     f32 = np.zeros(4, dtype=np.float32)
-    limit_drive(np.zeros(4), 6.0, 8.0, 0.1, 0.0, np.empty(4))
+    limit_drive(np.zeros(4), 6.0, 8.0, 0.1, 0.0, 0.006, np.empty(4))
     modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
     sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))

@@ -23,8 +23,9 @@ over one control period (a non-negative, unit-integral filter again). A plate wh
 off the carrier responds less, never more (its envelope's impulse response has the same decay and a
 magnitude no larger).
 
-Counted: samples limited, and the worst excess (how far a request went above what was let
-through, µm p-p of drive).
+Counted: samples limited (lowered by more than 0.1 % of the limit: with overdrive, a request
+settling onto the limit is lowered by ever smaller amounts that nobody feels), and the worst
+excess (how far a request went above what was let through, µm p-p of drive).
 
 Example::
 
@@ -46,6 +47,7 @@ from ultraglide.devices import kernels
 from ultraglide.devices.profiles import PlateProfile
 
 Q_UNCERTAINTY = 0.5  # the fastest plausible plate has this fraction of the profile's Q
+COUNT_ABOVE = 1e-3  # a sample counts as limited when lowered by more than this fraction of the limit
 
 
 def fastest_time_constant_s(profile: PlateProfile) -> float:
@@ -74,7 +76,8 @@ class DriveLimiter:
         if out is None:
             out = np.empty(len(drive))
         self.fast_plate_um_pp, limited, worst = kernels.limit_drive(
-            drive, self.limit_um_pp, self.max_drive_um_pp, self.gain, self.fast_plate_um_pp, out)
+            drive, self.limit_um_pp, self.max_drive_um_pp, self.gain, self.fast_plate_um_pp,
+            COUNT_ABOVE * self.limit_um_pp, out)
         self.samples += len(drive)
         self.limited_samples += limited
         self.worst_excess_um_pp = max(self.worst_excess_um_pp, worst)
@@ -82,7 +85,7 @@ class DriveLimiter:
 
     @property
     def limited_fraction(self) -> float:
-        """The fraction of samples (of time) the limiter lowered."""
+        """The fraction of samples (of time) the limiter lowered by more than 0.1 % of the limit."""
         return self.limited_samples / self.samples if self.samples else 0.0
 
     def status(self) -> dict:

@@ -65,6 +65,7 @@ class OutputStage:
             profile.check_carrier(self.carrier_hz)
             self.carrier = Carrier(self.carrier_hz, self.rate_hz)
         self.limiter = DriveLimiter(profile, self.control_rate_hz)
+        self.observers: list = []  # callables given each block of limited drive (µm p-p, control rate)
         self.frames = 0
         self._scale = 1.0 / profile.full_scale_um_pp
         self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
@@ -80,19 +81,25 @@ class OutputStage:
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         """The next ``n`` values of the device's signal; ``now_s``: when (perf_counter s) the first plays."""
         if self.signal == "control":
-            out = self.limiter.process(self.source.pull(n, now_s))
+            out = self._limited(n, now_s)
             if n:
                 self._last_drive = float(out[-1])
             self.frames += n
             return out
         return self._audio(n, now_s)
 
+    def _limited(self, n: int, now_s: float | None) -> np.ndarray:
+        drive = self.limiter.process(self.source.pull(n, now_s))
+        for observer in self.observers:
+            observer(drive)
+        return drive
+
     def _audio(self, frames: int, now_s: float | None) -> np.ndarray:
         up = self.upsampling
         available = len(self._pending) * up - self._played
         if frames > available:
             needed = -(-(frames - available) // up)
-            drive = self.limiter.process(self.source.pull(needed, now_s))
+            drive = self._limited(needed, now_s)
             self._pending = np.concatenate((self._pending, drive)) if len(self._pending) else drive
         # knot 0 is the last control sample already played out, knot i + 1 is pending sample i
         last = (self._played + frames - 1) // up
