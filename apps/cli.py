@@ -91,6 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.set_defaults(handler="ultraglide.apps.export_command:run")
 
     play = commands.add_parser(

@@ -1,8 +1,12 @@
-"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time."""
+"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
+
+The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
+(limiter, then carrier) as every live device."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import sys
 from pathlib import Path
@@ -12,18 +16,22 @@ import soundfile
 from tqdm import tqdm
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
+from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
+from ultraglide.apps.sources import offline_stage
 from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
-                    "drive_um_pp", "plate_um_pp")
+                    "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
+PLOT_COLUMNS = len(ENVELOPE_COLUMNS) - 1
 
 
 class EnvelopeLog:
-    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot."""
+    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot.
+    Observes the renderer's blocks (``__call__``) and then the output stage's limited drive (``sent``)."""
 
     def __init__(self, stream, total_samples: int, keep_plot: bool):
         self.stream = stream
@@ -33,19 +41,25 @@ class EnvelopeLog:
         self.keep_plot = keep_plot
         self.kept: list[np.ndarray] = []
         self._offset = 0
+        self._block: ControlBlock | None = None
 
     def __call__(self, block: ControlBlock) -> None:
+        self._block = block
+
+    def sent(self, drive_um_pp: np.ndarray) -> None:
+        block = self._block
         columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
-                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp])
+                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
+                                   drive_um_pp])
         if self.stream:
             np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
         if self.keep_plot:
             start = (-self._offset) % self.every
-            self.kept.append(columns[start::self.every])
+            self.kept.append(columns[start::self.every, :PLOT_COLUMNS])
         self._offset += len(columns)
 
     def plot_data(self) -> np.ndarray:
-        return np.concatenate(self.kept) if self.kept else np.zeros((0, len(ENVELOPE_COLUMNS)))
+        return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
 
 
 def run(args) -> int:
@@ -56,6 +70,7 @@ def run(args) -> int:
         raise UsageError(f"the output must be a .wav file, got {output}")
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
+    stage = offline_stage(renderer)
     rate = args.rate
     duration_s = trajectory.end_s - trajectory.start_s + renderer.tail_s
     total = int(round(duration_s * rate))
@@ -74,6 +89,7 @@ def run(args) -> int:
 
             plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
             renderer.observers.append(plot)
+        stage.observers.append(log.sent)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
         with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
                                  format=format_) as wav, \
@@ -82,14 +98,25 @@ def run(args) -> int:
             done = 0
             while done < total:
                 frames = min(block, total - done)
-                wav.write(renderer.audio(frames))
+                wav.write(stage.pull(frames, None))
                 done += frames
                 progress.update(frames)
         if args.plot:
             plot.write(renderer)
     counters = renderer.counters
+    warning = clipping_warning(renderer, args.model, trajectory)
+    if warning:
+        print(warning, file=sys.stderr)
+    if args.json:
+        print(json.dumps({"output": str(output), "duration_s": round(duration_s, 6), "rate_hz": rate,
+                          "format": args.format, "carrier_hz": renderer.carrier_hz,
+                          "clipped_samples": counters.clipped_samples,
+                          "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
+                          **limiter_fields(stage),
+                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
+        return 0
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
-          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps")
+          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps; {stage.limiter.summary()}")
     for extra in (args.envelope_csv, args.plot):
         if extra:
             print(f"wrote {extra}")

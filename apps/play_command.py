@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 
 import numpy as np
+from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import source_for
 from ultraglide.devices.urls import open_device
@@ -31,7 +33,8 @@ def run(args) -> int:
     try:
         rate = device.rate_hz if device.signal == "audio" else args.rate
         renderer = make_renderer(inputs, args, rate, live=True)
-        device.start(source_for(device, renderer))
+        stage = source_for(device, renderer)  # the limiter every output passes
+        device.start(stage)
         started = time.perf_counter()
         for t, x, y, force in zip(times - times[0], states.x_mm, states.y_mm, forces, strict=True):
             delay = started + t - time.perf_counter()
@@ -43,13 +46,18 @@ def run(args) -> int:
     finally:
         device.stop()  # ramps down through the renderer, then rests the plate, on every way out
     status = {**device.status(), "clipped_samples": renderer.counters.clipped_samples,
+              "clipped_fraction": round(clipped_fraction(renderer), 6), **limiter_fields(stage),
               "ramps": renderer.counters.ramps, "late_blocks": renderer.counters.late_blocks,
               "played_s": round(time.perf_counter() - started, 3)}
     status["faults"] = fault_counts(device)
+    warning = clipping_warning(renderer, args.model, trajectory)
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         print(json.dumps(status))
     else:
         print(" ".join(f"{key}={value}" for key, value in status.items() if key != "faults"))
+        print(stage.limiter.summary())
         print(describe_faults(status["faults"]))
     return 0
 

@@ -1,22 +1,21 @@
-"""Adapters that let devices pull from a renderer without knowing it (devices.source.BlockSource)."""
+"""A renderer as the envelope source devices are started with, behind the device's output stage."""
 
 from __future__ import annotations
 
 import numpy as np
+from ultraglide.devices.output_stage import OutputStage, output_stage
 from ultraglide.render.renderer import Renderer
 
 
-class ControlSource:
-    """Amplitude setpoints (µm p-p) at the control rate, for plate drivers."""
+class EnvelopeSource:
+    """The renderer's drive envelope, µm p-p at its control rate (a devices.source.BlockSource)."""
 
     def __init__(self, renderer: Renderer):
         self.renderer = renderer
-        self.last_block = None
+        self.control_rate_hz = renderer.settings.control_rate_hz
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        block = self.renderer.control(n, now_s)
-        self.last_block = block
-        return block.drive_um_pp
+        return self.renderer.control(n, now_s).drive_um_pp
 
     def request_stop(self) -> None:
         self.renderer.stop()
@@ -26,19 +25,14 @@ class ControlSource:
         return self.renderer.finished
 
 
-class AudioSource(ControlSource):
-    """Modulated carrier at the audio rate, float32 in [-1, 1], for sound cards and WAV files."""
-
-    def __init__(self, renderer: Renderer):
-        super().__init__(renderer)
-        renderer.observers.append(self._remember)
-
-    def _remember(self, block) -> None:
-        self.last_block = block
-
-    def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        return self.renderer.audio(n, now_s)
+def source_for(device, renderer: Renderer) -> OutputStage:
+    """What to start ``device`` with: the renderer behind the limiter, as the device's signal. The device
+    would wrap a bare envelope source the same way; built here, the app can read the limiter's counters."""
+    carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
+    return output_stage(EnvelopeSource(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
 
 
-def source_for(device, renderer: Renderer) -> ControlSource:
-    return AudioSource(renderer) if device.signal == "audio" else ControlSource(renderer)
+def offline_stage(renderer: Renderer) -> OutputStage:
+    """The audio a plate would get from ``renderer`` at its own audio rate, for export."""
+    return OutputStage(EnvelopeSource(renderer), renderer.profile, "audio", renderer.settings.audio_rate_hz,
+                       renderer.carrier_hz)

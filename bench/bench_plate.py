@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import signal
+from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath
@@ -21,13 +22,13 @@ RATE = 96000
 
 
 def plate_error(precompensate: bool, full_scale_um_pp: float, wavelength_mm: float) -> tuple[float, float, float]:
-    profile = PlateProfile("bench", 25000.0, 200.0, full_scale_um_pp, 6.0)
+    profile = PlateProfile("bench", 25000.0, 200.0, full_scale_um_pp, 6.0, max_drive_um_pp=full_scale_um_pp)
     path = SwipePath("straight", 100.0, 1.2, (5.0, 25.0))
     renderer = Renderer(grating(wavelength_mm, ratio_range=(0.3, 0.9)), ExponentialModel(), profile,
                         RenderSettings(precompensate=precompensate), trajectory=path)
     blocks = []
     renderer.observers.append(blocks.append)
-    audio = renderer.audio(RATE).astype(float)
+    audio = offline_stage(renderer).pull(RATE, None).astype(float)
     b, a = signal.iirpeak(profile.resonance_hz, profile.q, fs=RATE)
     plate = np.abs(signal.hilbert(signal.lfilter(b, a, audio)))[12::8] * profile.full_scale_um_pp
     wanted = np.concatenate([block.amplitude_um_pp for block in blocks])

@@ -1,8 +1,9 @@
-"""Real-time rendering: time to render one block for a live finger, and latency.
+"""Real-time rendering: time to render one block for a live finger, through the output stage.
 
 Run: .venv/bin/python bench/bench_realtime.py
 Aim (issue 4): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs).
-A feeder thread pushes touch reports at 120 Hz while the main thread pulls blocks, as a device would.
+A feeder thread pushes touch reports at 120 Hz while the main thread pulls blocks from the output
+stage (limiter and carrier), as an audio device would.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import threading
 import time
 
 import numpy as np
+from ultraglide.apps.sources import EnvelopeSource
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.friction_models import ExponentialModel, PaperModel
 from ultraglide.render.renderer import Renderer, RenderSettings
@@ -21,7 +24,9 @@ BLOCKS = 20000
 
 def measure(texture_name: str, model, frames: int, rate: int) -> np.ndarray:
     settings = RenderSettings(audio_rate_hz=rate)
-    renderer = Renderer(resolve_texture(texture_name), model, load_profile("sim-plate"), settings)
+    profile = load_profile("sim-plate")
+    renderer = Renderer(resolve_texture(texture_name), model, profile, settings)
+    stage = OutputStage(EnvelopeSource(renderer), profile, "audio", rate, renderer.carrier_hz)
     stop = threading.Event()
 
     def feeder():
@@ -38,7 +43,7 @@ def measure(texture_name: str, model, frames: int, rate: int) -> np.ndarray:
     times = np.empty(BLOCKS)
     for i in range(BLOCKS):
         started = time.perf_counter()
-        renderer.audio(frames)
+        stage.pull(frames, started)
         times[i] = time.perf_counter() - started
     stop.set()
     thread.join()

@@ -1,7 +1,8 @@
 """The audio-DAC fallback: a sound card at 96/192 kHz and an amplifier drive the piezo directly.
 
-A sounddevice OutputStream pulls the modulated carrier from its source in the callback (which
-only copies: no allocation beyond the source's, no I/O, no locks). The sample rate is the first
+A sounddevice OutputStream pulls the modulated carrier in the callback from the output stage
+(:mod:`ultraglide.devices.output_stage`: the limiter, then the carrier) that wraps its source; the
+callback only copies: no allocation beyond the stage's, no I/O, no locks. The sample rate is the first
 the device accepts that can carry the carrier; underruns are counted; stopping ramps down
 through the source before the stream closes.
 """
@@ -11,6 +12,8 @@ from __future__ import annotations
 import time
 
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.output_stage import output_stage
+from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource, ramp_down
 
 CANDIDATE_RATES = (96000, 192000, 88200, 176400, 384000)
@@ -64,10 +67,14 @@ class AudioPlate:
 
     signal = "audio"
 
-    def __init__(self, device=None, carrier_hz: float = 25000.0, rate_hz: int | None = None,
+    def __init__(self, device, profile: PlateProfile, carrier_hz: float | None = None, rate_hz: int | None = None,
                  latency: float | str = "low", blocksize: int = 0):
         self.sd = import_sounddevice()
         self.device = device
+        self.profile = profile
+        carrier_hz = carrier_hz or profile.resonance_hz
+        profile.check_carrier(carrier_hz)
+        self.carrier_hz = carrier_hz
         self.rate_hz = choose_rate(device, carrier_hz, rate_hz)
         self.latency = latency
         self.blocksize = blocksize
@@ -90,7 +97,8 @@ class AudioPlate:
             raise self.sd.CallbackAbort from None
 
     def start(self, source: BlockSource) -> None:
-        self._source = source
+        """Play ``source``'s drive envelope (µm p-p) through the limiter and the carrier."""
+        self._source = output_stage(source, self.profile, self.signal, self.rate_hz, self.carrier_hz)
         try:
             self._stream = self.sd.OutputStream(samplerate=self.rate_hz, channels=1, dtype="float32",
                                                 device=self.device, latency=self.latency,

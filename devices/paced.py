@@ -1,7 +1,8 @@
 """Devices that consume in real time without hardware: a WAV recorder and a null sink.
 
-A thread pulls blocks at the pace of the wall clock, as a sound card would, so what they record
-is what a plate would get, with the same timing and the same live input.
+A thread pulls blocks at the pace of the wall clock, as a sound card would, from the output stage
+(the limiter, then the carrier) that wraps its source, so what they record is what a plate would
+get, with the same timing and the same live input.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.output_stage import output_stage
+from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource, ramp_down
 
 BLOCK_S = 0.005
@@ -25,9 +28,13 @@ class PacedSink:
 
     signal = "audio"
 
-    def __init__(self, rate_hz: int = 96000, name: str = "null"):
+    def __init__(self, profile: PlateProfile, rate_hz: int = 96000, name: str = "null",
+                 carrier_hz: float | None = None):
+        self.profile = profile
         self.rate_hz = rate_hz
         self.name = name
+        self.carrier_hz = carrier_hz or profile.resonance_hz
+        profile.check_carrier(self.carrier_hz)
         self.blocks = 0
         self.late_blocks = 0
         self.errors: list[str] = []
@@ -39,7 +46,8 @@ class PacedSink:
         """What to do with each block; the null sink drops it."""
 
     def start(self, source: BlockSource) -> None:
-        self._source = source
+        """Consume ``source``'s drive envelope (µm p-p) through the limiter and the carrier."""
+        self._source = output_stage(source, self.profile, self.signal, self.rate_hz, self.carrier_hz)
         self._thread = threading.Thread(target=self._run, name=f"{self.name}-sink", daemon=True)
         self._thread.start()
 
@@ -83,8 +91,8 @@ class PacedSink:
 class WavRecorder(PacedSink):
     """``wav:PATH``: records in real time what a plate would get; the file appears, whole, at stop."""
 
-    def __init__(self, path: str | Path, rate_hz: int = 96000):
-        super().__init__(rate_hz, f"wav:{path}")
+    def __init__(self, path: str | Path, profile: PlateProfile, rate_hz: int = 96000, carrier_hz: float | None = None):
+        super().__init__(profile, rate_hz, f"wav:{path}", carrier_hz)
         import soundfile
 
         self.path = Path(path)

@@ -1,8 +1,14 @@
-"""Plate profiles: what is true of one plate, from a TOML file.
+"""Plate profiles: what is true of one plate, from a TOML file, typed and range-checked.
 
 A profile gives the plate's resonance f0 and quality factor Q, its amplitude at full-scale drive
-(µm peak-to-peak), its safe maximum amplitude, and the carrier range it accepts. The envelope of a
-resonator driven near f0 follows a first-order low-pass with time constant tau = Q / (pi f0).
+(µm peak-to-peak), its safe maximum amplitude, how far above that maximum the drive may go for a
+moment (``max_drive_um_pp``, overdrive for pre-compensation; by default no overdrive), and the
+carrier range it accepts. The envelope of a resonator driven near f0 follows a first-order low-pass
+with time constant tau = Q / (pi f0).
+
+Every value is checked when a profile is made: a wrong one is a :class:`DeviceError` naming the
+key, the value and the allowed range. Resonances and carriers below 20 kHz are audible and refused
+unless the profile says ``allow_audible = true``.
 
 Bundled: ``sim-plate`` (25 kHz, Q = 200) and ``audio-generic``; any other name is a file path.
 """
@@ -19,10 +25,24 @@ from ultraglide.devices.errors import DeviceError
 PROFILE_DIR = Path(__file__).parent / "profiles"
 DEFAULT_PROFILE = "sim-plate"
 
+AUDIBLE_HZ = 20000.0  # below this a plate sings: refused unless allow_audible
+LOWEST_HZ = 1000.0  # the lowest resonance or carrier even with allow_audible
+HIGHEST_HZ = 100000.0
+Q_RANGE = (5.0, 5000.0)
+FULL_SCALE_RANGE_UM_PP = (0.01, 100.0)
+REQUIRED = ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp")
+NUMBERS = ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp", "carrier_min_hz", "carrier_max_hz",
+           "max_drive_um_pp")
+
 
 @dataclass(frozen=True)
 class PlateProfile:
-    """One plate's facts; amplitudes in µm peak-to-peak."""
+    """One plate's facts; amplitudes in µm peak-to-peak, frequencies in Hz.
+
+    ``max_amplitude_um_pp`` is the plate's safe limit: the steady amplitude the drive commands
+    never exceeds it. ``max_drive_um_pp`` (between the limit and full scale; None: the limit)
+    is the overdrive granted for pre-compensation, see :mod:`ultraglide.devices.limiter`.
+    """
 
     name: str
     resonance_hz: float
@@ -32,17 +52,53 @@ class PlateProfile:
     carrier_min_hz: float = 20000.0
     carrier_max_hz: float = 28000.0
     description: str = ""
+    max_drive_um_pp: float | None = None
+    allow_audible: bool = False
 
     def __post_init__(self) -> None:
-        for field_name in ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp",
-                           "carrier_min_hz", "carrier_max_hz"):
-            value = getattr(self, field_name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise DeviceError(f"profile {self.name}: {field_name} must be a positive number, got {value!r}")
-        if self.max_amplitude_um_pp > self.full_scale_um_pp:
-            raise DeviceError(f"profile {self.name}: max_amplitude_um_pp cannot exceed full_scale_um_pp")
-        if not self.carrier_min_hz <= self.resonance_hz <= self.carrier_max_hz:
-            raise DeviceError(f"profile {self.name}: the resonance must lie within the carrier range")
+        if not isinstance(self.name, str) or not self.name:
+            raise DeviceError(f"profile name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.description, str):
+            raise DeviceError(f"profile {self.name}: description must be a string, got {self.description!r}")
+        if not isinstance(self.allow_audible, bool):
+            raise DeviceError(f"profile {self.name}: allow_audible must be true or false, got {self.allow_audible!r}")
+        if self.max_drive_um_pp is None:
+            object.__setattr__(self, "max_drive_um_pp", self.max_amplitude_um_pp)
+        for key in NUMBERS:
+            object.__setattr__(self, key, self._number(key))
+        lowest = LOWEST_HZ if self.allow_audible else AUDIBLE_HZ
+        for key in ("resonance_hz", "carrier_min_hz", "carrier_max_hz"):
+            value = getattr(self, key)
+            if value < AUDIBLE_HZ and not self.allow_audible:
+                raise DeviceError(f"profile {self.name}: {key} = {value:g} Hz is audible (below 20000 Hz); "
+                                  "a plate there sings: set allow_audible = true in the profile if you mean it")
+            self._within(key, value, lowest, HIGHEST_HZ, "Hz")
+        self._within("q", self.q, *Q_RANGE)
+        self._within("full_scale_um_pp", self.full_scale_um_pp, *FULL_SCALE_RANGE_UM_PP, "µm p-p")
+        self._within("max_amplitude_um_pp", self.max_amplitude_um_pp, 0.0, self.full_scale_um_pp,
+                     "µm p-p (above 0, at most full_scale_um_pp)", open_low=True)
+        self._within("max_drive_um_pp", self.max_drive_um_pp, self.max_amplitude_um_pp, self.full_scale_um_pp,
+                     "µm p-p (from max_amplitude_um_pp to full_scale_um_pp)")
+        self._within("carrier_max_hz", self.carrier_max_hz, self.carrier_min_hz, HIGHEST_HZ,
+                     "Hz (from carrier_min_hz)")
+        self._within("resonance_hz", self.resonance_hz, self.carrier_min_hz, self.carrier_max_hz,
+                     "Hz (the resonance must lie within the carrier range)")
+
+    def _number(self, key: str) -> float:
+        value = getattr(self, key)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise DeviceError(f"profile {self.name}: {key} must be a number, got {value!r}")
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf
+        if not math.isfinite(number):
+            raise DeviceError(f"profile {self.name}: {key} must be a finite number, got {value!r}")
+        return number
+
+    def _within(self, key: str, value: float, low: float, high: float, unit: str = "", open_low: bool = False):
+        if value < low or value > high or (open_low and value == low):
+            raise DeviceError(f"profile {self.name}: {key} = {value:g} is outside {low:g}..{high:g} {unit}".rstrip())
 
     @property
     def time_constant_s(self) -> float:
@@ -65,7 +121,7 @@ def bundled_profiles() -> list[str]:
 
 
 def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
-    """A profile by bundled name or TOML path."""
+    """A profile by bundled name or TOML path; DeviceError (one line) for anything wrong with it."""
     path = Path(spec)
     if not path.is_file():
         bundled = PROFILE_DIR / f"{spec}.toml"
@@ -76,13 +132,14 @@ def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
     try:
         with path.open("rb") as stream:
             data = tomllib.load(stream)
-    except (OSError, tomllib.TOMLDecodeError) as error:
-        raise DeviceError(f"{path}: not a readable plate profile ({error})") from None
+    except (OSError, ValueError) as error:  # TOMLDecodeError and UnicodeDecodeError are ValueErrors
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise DeviceError(f"{path}: not a readable plate profile ({reason})") from None
     known = set(PlateProfile.__dataclass_fields__)
     unknown = sorted(set(data) - known)
     if unknown:
         raise DeviceError(f"{path}: unknown profile keys {', '.join(unknown)}; known: {', '.join(sorted(known))}")
-    missing = [key for key in ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp") if key not in data]
+    missing = [key for key in REQUIRED if key not in data]
     if missing:
         raise DeviceError(f"{path}: profile lacks {', '.join(missing)}")
     data.setdefault("name", path.stem)

@@ -27,6 +27,7 @@ import serial
 import serial.threaded
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource, ramp_down
 
@@ -268,7 +269,7 @@ class SerialPlate:
     def start(self, source: BlockSource) -> None:
         """Connect (handshake, carrier, enable) and start streaming; raises DeviceError if it cannot."""
         self.profile.check_carrier(self.carrier_hz)
-        self._source = source
+        self._source = output_stage(source, self.profile, self.signal, self.rate_hz)
         self._connect()
         self._thread = threading.Thread(target=self._run, name="serial-plate", daemon=True)
         self._thread.start()

@@ -1,4 +1,4 @@
-"""What a device pulls from: it never sees the renderer, only this protocol (see DESIGN.md)."""
+"""What a device pulls from: it never sees the renderer, only this protocol (see docs/design.md)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,11 @@ import numpy as np
 
 
 class BlockSource(Protocol):
-    """A stream of blocks. Audio devices get float32 samples in [-1, 1] (1 = full-scale drive);
-    control devices get amplitude setpoints in µm peak-to-peak."""
+    """A stream of blocks. A device is started with an *envelope source*: drive amplitudes in µm
+    peak-to-peak at the control rate (``control_rate_hz`` if it says, else 12 kHz). The device wraps
+    it in its output stage (:mod:`ultraglide.devices.output_stage`), itself a BlockSource, which
+    limits it and gives audio devices float32 samples in [-1, 1] (1 = full-scale drive) and control
+    devices limited setpoints in µm peak-to-peak."""
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         """The next ``n`` values; ``now_s`` is when (perf_counter s) the first reaches the plate."""

@@ -93,11 +93,11 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         from ultraglide.devices.audio import AudioPlate
 
         target = int(spec.target) if spec.target.isdigit() else (spec.target or None)
-        return AudioPlate(target, carrier, spec.options.get("rate"), spec.options.get("latency", "low"),
+        return AudioPlate(target, profile, carrier, spec.options.get("rate"), spec.options.get("latency", "low"),
                           spec.options.get("blocksize", 0))
     from ultraglide.devices.paced import PacedSink, WavRecorder
 
     rate = spec.options.get("rate", 96000)
     if spec.kind == "wav":
-        return WavRecorder(spec.target, rate)
-    return PacedSink(rate, "null")
+        return WavRecorder(spec.target, profile, rate, carrier)
+    return PacedSink(profile, rate, "null", carrier)

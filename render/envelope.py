@@ -15,8 +15,10 @@ this class holds its settings and state between blocks.
   the corner frequency.
 * **Plate**: a resonator's vibration envelope follows a[n] = alpha a[n-1] + (1 - alpha) d[n],
   alpha = exp(-dt / tau), tau = Q / (pi f0). Pre-compensation drives the exact inverse while it lies
-  within [0, full scale]; beyond, the drive is clipped and the modelled plate carries on from what
-  really happened, so it never exceeds the target or its own previous value, hence never the limit.
+  within [0, max drive] (the profile's ``max_drive_um_pp``); beyond, the drive is clipped and the
+  modelled plate carries on from what really happened, so it never exceeds the target or its own
+  previous value, hence never the limit. The output stage's limiter (``devices/limiter.py``) then
+  guards the real plate, whose Q may differ from the profile's.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Compiled inner loops of the renderer (numba): the envelope recursion, the carrier, model inverses.
+"""Compiled inner loops of the renderer (numba): the envelope recursion and the model inverses.
 
 The envelope stages are recursions (each sample depends on the previous one, with clipping), which
 numpy cannot vectorise exactly; compiled, one exact loop is both the simplest code and the fastest
@@ -54,40 +54,6 @@ def envelope(target, gate_open, open_all, gain, goal, up_step, down_step, k, smo
         drive_out[i] = d
         plate_out[i] = plate
     return gain, goal, smoothed, plate, ramps, clipped
-
-
-@njit(cache=True, nogil=True)
-def modulate(knots, first_frame, up, scale, carrier, offset, out):
-    """Carrier × envelope: the envelope interpolated linearly between control samples.
-
-    Frame m (counted from ``first_frame`` within the knots' span) lies between knots m // up and
-    m // up + 1; knot values are drive amplitudes, scaled by ``scale`` to a fraction of full scale
-    and limited to [0, 1]. ``carrier`` is one exact period of the carrier, read from ``offset``.
-    """
-    period = carrier.shape[0]
-    position = offset
-    for m in range(out.shape[0]):
-        frame = first_frame + m
-        index = frame // up
-        fraction = (frame - index * up) / up
-        a = min(max(knots[index] * scale, 0.0), 1.0)
-        b = min(max(knots[index + 1] * scale, 0.0), 1.0)
-        out[m] = (a + (b - a) * fraction) * carrier[position]
-        position += 1
-        if position == period:
-            position = 0
-    return position
-
-
-@njit(cache=True, nogil=True)
-def sine_block(phase, increment, out):
-    """sin(2 pi phase) for consecutive samples (carriers with no short exact period); returns the phase."""
-    for m in range(out.shape[0]):
-        out[m] = np.sin(2.0 * np.pi * phase)
-        phase += increment
-        if phase >= 1.0:
-            phase -= 1.0
-    return phase
 
 
 @njit(cache=True, nogil=True)
@@ -239,11 +205,9 @@ def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, f
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel here with the types the renderer passes,
     so the first real-time block never waits for the compiler. Called when a renderer is built."""
-    f64, f32 = np.zeros(4), np.zeros(4, dtype=np.float32)
+    f64 = np.zeros(4)
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))
-    modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
-    sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))
     inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
     inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, np.empty(4))
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))

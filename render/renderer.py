@@ -1,10 +1,10 @@
-"""The renderer: finger → friction → amplitude → envelope → carrier, block by block.
+"""The renderer: finger → friction → amplitude → drive envelope, block by block.
 
-A :class:`Renderer` owns one texture, one friction model and one plate profile. Devices pull from
-it: ``control(n)`` gives the next n envelope samples at the control rate (for a plate driver that
-makes its own carrier), ``audio(frames)`` the next frames of modulated carrier at the audio rate
-(for a DAC or a WAV file). Both compute just in time, from the finger state at that moment, so a
-touch report pushed now shapes the very next block.
+A :class:`Renderer` owns one texture, one friction model and one plate profile. ``control(n)``
+gives the next n samples of the drive envelope at the control rate (µm p-p), computed just in
+time from the finger state at that moment, so a touch report pushed now shapes the very next
+block. Devices pull it through their output stage (:mod:`ultraglide.devices.output_stage`), which
+limits the drive and, for audio devices, puts it on the carrier; the renderer makes no carrier.
 
 Example, offline::
 
@@ -14,7 +14,9 @@ Example, offline::
     >>> from ultraglide.devices.profiles import load_profile
     >>> path = RecordedTrajectory([0, 1], [10, 110], [25, 25])   # 100 mm/s
     >>> r = Renderer(grating(1.0), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
-    >>> samples = r.audio(96000)    # one second at 96 kHz, float32 in [-1, 1]
+    >>> block = r.control(12000)    # one second at 12 kHz
+    >>> bool(block.drive_um_pp.max() <= 8.0)   # the plate's max_drive_um_pp
+    True
 """
 
 from __future__ import annotations
@@ -24,9 +26,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from ultraglide.devices.carrier import check_carrier
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render import kernels
-from ultraglide.render.carrier import Carrier, check_carrier
 from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.friction_models import FrictionModel
@@ -43,7 +45,7 @@ class RenderSettings:
     """How the renderer turns friction into drive. Rates in Hz, times in s, amplitudes µm p-p."""
 
     control_rate_hz: float = 12000.0
-    audio_rate_hz: int = 96000
+    audio_rate_hz: int = 96000  # of the audio the output stage makes from the envelope (checked here, early)
     carrier_hz: float | None = None  # None: the plate's resonance
     default_force_n: float = 0.5
     attack_s: float = 0.005
@@ -75,9 +77,8 @@ class Counters:
     """What a person watching the renderer wants to know."""
 
     control_samples: int = 0
-    audio_frames: int = 0
     clipped_samples: int = 0  # target ratio below what the plate reaches: amplitude held at the limit
-    drive_clipped_samples: int = 0  # pre-compensation wanted more than the drive's headroom
+    drive_clipped_samples: int = 0  # pre-compensation wanted more than the drive's headroom (max_drive_um_pp)
     ramps: int = 0
     late_blocks: int = 0
     render_times_s: list[float] = field(default_factory=list)
@@ -94,7 +95,7 @@ class ControlBlock:
     ratio: np.ndarray  # target friction ratio under the finger
     target_um_pp: np.ndarray  # the model's amplitude for that ratio, within the limit
     amplitude_um_pp: np.ndarray  # after ramps and band/slew limits: what the plate should do
-    drive_um_pp: np.ndarray  # what is sent: pre-compensated for the plate's dynamics
+    drive_um_pp: np.ndarray  # what is asked of the output stage: pre-compensated for the plate's dynamics
     plate_um_pp: np.ndarray  # what the plate model says it does
 
 
@@ -112,7 +113,10 @@ class Renderer:
             raise RenderError(str(error)) from None
         except RuntimeError as error:  # DeviceError: the profile refuses the carrier
             raise RenderError(str(error)) from None
-        check_carrier(self.carrier_hz, settings.audio_rate_hz)
+        try:
+            check_carrier(self.carrier_hz, settings.audio_rate_hz)
+        except RuntimeError as error:  # DeviceError: the audio rate cannot carry it
+            raise RenderError(str(error)) from None
         kernels.warm_up()
         rate = settings.control_rate_hz
         self.limit_um_pp = profile.max_amplitude_um_pp
@@ -120,8 +124,7 @@ class Renderer:
         self.trajectory = trajectory or LiveTrajectory(settings.predictor, settings.lookahead_s)
         self.envelope = EnvelopeChain(rate, settings.attack_s, settings.release_s, settings.band_hz,
                                       settings.slew_um_per_ms, self.limit_um_pp, profile.time_constant_s,
-                                      profile.full_scale_um_pp, settings.precompensate)
-        self.carrier = Carrier(self.carrier_hz, settings.audio_rate_hz)
+                                      profile.max_drive_um_pp, settings.precompensate)
         self.counters = Counters()
         self.offline = not isinstance(self.trajectory, LiveTrajectory)
         self.observers: list = []  # callables given each ControlBlock as it is rendered
@@ -130,9 +133,7 @@ class Renderer:
         self._next_time = self.trajectory.start_s if self.offline else None
         self._last_xy = None
         self._running = True
-        self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
-        self._pending = np.zeros(0)  # control samples computed but not yet played out
-        self._played = 0  # audio frames already produced from the pending block
+        self._last_drive = 0.0  # the last drive sample rendered
         self._offsets = np.zeros(0)
 
     # ---- input -------------------------------------------------------------------------------
@@ -231,35 +232,10 @@ class Renderer:
         self.counters.render_times_s.append(time.perf_counter() - started)
         if len(self.counters.render_times_s) > 100_000:
             del self.counters.render_times_s[:50_000]
+        if n:
+            self._last_drive = float(envelope.drive_um_pp[-1])
         block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp, envelope.drive_um_pp,
                              envelope.plate_um_pp)
         for observer in self.observers:
             observer(block)
         return block
-
-    # ---- audio rate ------------------------------------------------------------------------------
-    def audio(self, frames: int, now_s: float | None = None) -> np.ndarray:
-        """The next ``frames`` of carrier modulated by the drive, float32 in [-1, 1]
-        (1 = the plate's full-scale drive). The envelope is interpolated linearly between control
-        samples, one control period behind them."""
-        up = self.settings.upsampling
-        available = len(self._pending) * up - self._played
-        if frames > available:
-            needed = -(-(frames - available) // up)
-            block = self.control(needed, now_s)
-            self._pending = np.concatenate((self._pending, block.drive_um_pp))
-        # knot 0 is the last control sample already played out, knot i + 1 is pending sample i
-        last = (self._played + frames - 1) // up
-        knots = np.empty(last + 2)
-        knots[0] = self._last_drive
-        knots[1:] = self._pending[:last + 1]
-        out = np.empty(frames, dtype=np.float32)
-        kernels.modulate(knots, self._played, up, 1.0 / self.profile.full_scale_um_pp, self.carrier.block(frames), 0,
-                         out)
-        consumed = (self._played + frames) // up
-        if consumed:
-            self._last_drive = float(self._pending[consumed - 1])
-            self._pending = self._pending[consumed:]
-        self._played = (self._played + frames) % up
-        self.counters.audio_frames += frames
-        return out

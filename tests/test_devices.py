@@ -228,7 +228,8 @@ pcm.capture {{
 
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
-from ultraglide.apps.sources import AudioSource
+from ultraglide.apps.sources import EnvelopeSource, offline_stage
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.audio import AudioPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.friction_models import ExponentialModel
@@ -241,12 +242,13 @@ def renderer():
     return Renderer(resolve_texture("grating-1mm"), ExponentialModel(), load_profile("sim-plate"), trajectory=path)
 
 reference = renderer()
-expected = reference.audio(int((0.5 + reference.tail_s) * 96000) + 9600)
+expected = offline_stage(reference).pull(int((0.5 + reference.tail_s) * 96000) + 9600, None)
 np.save(sys.argv[1], expected)
-plate = AudioPlate(None, 25000.0)
-source = AudioSource(renderer())
-plate.start(source)
-while not source.finished:
+plate = AudioPlate(None, load_profile("sim-plate"), 25000.0)
+stage = OutputStage(EnvelopeSource(renderer()), load_profile("sim-plate"), "audio", 96000, 25000.0)
+plate.start(stage)  # built for this device, so it plays it as it is
+deadline = time.monotonic() + 60
+while (not stage.finished or stage.frames < len(expected)) and time.monotonic() < deadline:
     time.sleep(0.01)
 plate.stop()
 print(plate.rate_hz, plate.callbacks, len(plate.errors))
@@ -314,7 +316,7 @@ def test_a_failed_play_leaves_no_recording_and_no_temporary(tmp_path):
 def test_a_recorder_that_never_started_writes_nothing(tmp_path):
     from ultraglide.devices.paced import WavRecorder
 
-    recorder = WavRecorder(tmp_path / "never.wav")
+    recorder = WavRecorder(tmp_path / "never.wav", PROFILE)
     recorder.stop()
     assert list(tmp_path.iterdir()) == []
 

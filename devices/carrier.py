@@ -4,7 +4,7 @@ A carrier of f Hz at a rate of fs repeats exactly every fs / gcd(f, fs) samples 
 25 kHz at 96 kHz), so one period is computed once, in float64, and every block is a slice of it:
 the phase is an integer sample offset, exact forever and seamless at every block join. Carriers
 whose period would be longer than ``MAX_TABLE`` samples (non-integer frequencies) keep a float64
-phase accumulator instead (a compiled loop, :func:`render.kernels.sine_block`).
+phase accumulator instead (a compiled loop, :func:`ultraglide.devices.kernels.sine_block`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import math
 from fractions import Fraction
 
 import numpy as np
-from ultraglide.render.errors import RenderError
-from ultraglide.render.kernels import sine_block
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.kernels import sine_block
 
 MAX_CARRIER_FRACTION = 0.4  # a DAC's anti-imaging filter starts near 0.45 fs: stay below 0.4 fs
 MAX_TABLE = 1 << 20
@@ -23,10 +23,10 @@ MAX_TABLE = 1 << 20
 def check_carrier(carrier_hz: float, rate_hz: float) -> None:
     """Refuse a carrier that this sample rate cannot carry, saying what rate would."""
     if not carrier_hz > 0:
-        raise RenderError(f"the carrier must be a positive frequency, got {carrier_hz} Hz")
+        raise DeviceError(f"the carrier must be a positive frequency, got {carrier_hz} Hz")
     if carrier_hz > MAX_CARRIER_FRACTION * rate_hz:
         needed = carrier_hz / MAX_CARRIER_FRACTION
-        raise RenderError(f"a {carrier_hz:g} Hz carrier needs a sample rate of at least {needed:,.0f} Hz "
+        raise DeviceError(f"a {carrier_hz:g} Hz carrier needs a sample rate of at least {needed:,.0f} Hz "
                           f"(got {rate_hz:,.0f} Hz); use 96000 or 192000")
 
 

@@ -1,0 +1,40 @@
+"""What ``export`` and ``play`` say about safety: how much the limiter acted, and unreachable friction."""
+
+from __future__ import annotations
+
+import numpy as np
+from ultraglide.devices.output_stage import OutputStage
+from ultraglide.render.renderer import Renderer
+
+
+def limiter_fields(stage: OutputStage) -> dict:
+    """``limited_fraction`` (of the time) and ``worst_excess_um_pp`` (drive asked above what was let through)."""
+    limiter = stage.limiter
+    return {"limited_fraction": round(limiter.limited_fraction, 6),
+            "worst_excess_um_pp": round(limiter.worst_excess_um_pp, 6)}
+
+
+def clipped_fraction(renderer: Renderer) -> float:
+    """The fraction of control samples whose target friction was below what the model reaches."""
+    counters = renderer.counters
+    return counters.clipped_samples / counters.control_samples if counters.control_samples else 0.0
+
+
+def force_words(trajectory, renderer: Renderer) -> str:
+    """The finger's force in words: one value, or the logged range."""
+    force = getattr(trajectory, "force_n", None)
+    if force is None:
+        return f"{renderer.default_force_n:g} N"
+    values = np.atleast_1d(np.asarray(force, dtype=float))
+    low, high = float(values.min()), float(values.max())
+    return f"{low:g} N" if np.isclose(low, high) else f"{low:g}-{high:g} N"
+
+
+def clipping_warning(renderer: Renderer, model_name: str, trajectory) -> str | None:
+    """One line when the texture asked for less friction than the model reaches within the plate's limit."""
+    fraction = clipped_fraction(renderer)
+    if not renderer.counters.clipped_samples:
+        return None
+    return (f"warning: {100 * fraction:.1f} % of the time the texture asked for less friction than model "
+            f"{model_name} reaches at {force_words(trajectory, renderer)} within "
+            f"{renderer.profile.max_amplitude_um_pp:g} µm p-p; held at the limit")

@@ -1,0 +1,87 @@
+"""Compiled inner loops of the output stage (numba): the drive limiter and the carrier.
+
+Like :mod:`ultraglide.render.kernels`, each function takes and fills numpy arrays, returns the state
+to carry to the next block, and allocates nothing; :func:`warm_up` compiles them (or loads them from
+numba's cache) when an output stage is built, never inside a real-time block.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def limit_drive(drive, limit, max_drive, gain, fast_plate, tolerance, out):
+    """Clamp each drive sample to [0, max_drive] and so that the fast plate model
+    p[n] = p[n-1] + gain (u[n] - p[n-1]) stays at or below ``limit``:
+    u[n] <= p[n-1] + (limit - p[n-1]) / gain. NaN and negative requests become 0.
+
+    Returns (fast_plate, samples lowered by more than ``tolerance``, worst excess: the most a
+    request went above its ceiling).
+    """
+    limited = 0
+    worst = 0.0
+    for i in range(drive.shape[0]):
+        wanted = drive[i]
+        if not wanted > 0.0:  # NaN, zero or negative
+            wanted = 0.0
+        ceiling = fast_plate + (limit - fast_plate) / gain
+        if ceiling > max_drive:
+            ceiling = max_drive
+        if ceiling < 0.0:
+            ceiling = 0.0
+        if wanted > ceiling:
+            if wanted - ceiling > tolerance:
+                limited += 1
+            if wanted - ceiling > worst:
+                worst = wanted - ceiling
+            wanted = ceiling
+        fast_plate += gain * (wanted - fast_plate)
+        out[i] = wanted
+    return fast_plate, limited, worst
+
+
+@njit(cache=True, nogil=True)
+def modulate(knots, first_frame, up, scale, carrier, offset, out):
+    """Carrier × envelope: the envelope interpolated linearly between control samples.
+
+    Frame m (counted from ``first_frame`` within the knots' span) lies between knots m // up and
+    m // up + 1; knot values are drive amplitudes, scaled by ``scale`` to a fraction of full scale
+    and limited to [0, 1]. ``carrier`` is one exact period of the carrier, read from ``offset``.
+    """
+    period = carrier.shape[0]
+    position = offset
+    for m in range(out.shape[0]):
+        frame = first_frame + m
+        index = frame // up
+        fraction = (frame - index * up) / up
+        a = min(max(knots[index] * scale, 0.0), 1.0)
+        b = min(max(knots[index + 1] * scale, 0.0), 1.0)
+        out[m] = (a + (b - a) * fraction) * carrier[position]
+        position += 1
+        if position == period:
+            position = 0
+    return position
+
+
+@njit(cache=True, nogil=True)
+def sine_block(phase, increment, out):
+    """sin(2 pi phase) for consecutive samples (carriers with no short exact period); returns the phase."""
+    for m in range(out.shape[0]):
+        out[m] = np.sin(2.0 * np.pi * phase)
+        phase += increment
+        if phase >= 1.0:
+            phase -= 1.0
+    return phase
+
+
+@functools.cache
+def warm_up() -> None:
+    """Compile every kernel here with the types the output stage passes."""
+    f32 = np.zeros(4, dtype=np.float32)
+    limit_drive(np.zeros(4), 6.0, 8.0, 0.1, 0.0, 0.006, np.empty(4))
+    modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
+    sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))

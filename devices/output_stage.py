@@ -1,0 +1,143 @@
+"""The output stage: the one path from a drive envelope to any device.
+
+Every device hands the source it is started with to :func:`output_stage` first thing, so whatever
+feeds it, its output has passed the :class:`~ultraglide.devices.limiter.DriveLimiter`. The stage
+pulls the drive envelope (µm p-p at the control rate) from an *envelope source*, limits it, and
+gives the device what it wants:
+
+* control devices (serial and simulated plates, whose firmware makes the carrier): the limited
+  envelope, µm p-p at the control rate;
+* audio devices (sound card, WAV file) and offline export: the limited envelope, interpolated
+  linearly between control samples (one control period behind them) and riding a phase-continuous
+  carrier, float32 in [-1, 1] (1 = the plate's full-scale drive).
+
+An envelope source is a :class:`~ultraglide.devices.source.BlockSource` of drive amplitudes
+(µm p-p); it may say its rate as ``control_rate_hz`` (default 12 kHz).
+
+Example, one second of a steady 3 µm p-p drive at 96 kHz::
+
+    >>> import numpy as np
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> class Steady:
+    ...     finished = False
+    ...     def pull(self, n, now_s): return np.full(n, 3.0)
+    ...     def request_stop(self): pass
+    >>> stage = OutputStage(Steady(), load_profile("sim-plate"), "audio", rate_hz=96000, carrier_hz=25000.0)
+    >>> samples = stage.pull(96000, None)
+    >>> round(float(np.abs(samples[96:]).max()), 3)      # 3 of 8 µm full scale
+    0.375
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from ultraglide.devices import kernels
+from ultraglide.devices.carrier import Carrier
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.limiter import DriveLimiter
+from ultraglide.devices.profiles import PlateProfile
+
+CONTROL_RATE_HZ = 12000.0  # an envelope source's rate unless it says otherwise
+SIGNALS = ("control", "audio")
+
+
+class OutputStage:
+    """Limits an envelope source's drive and turns it into a device's signal (see the module docstring)."""
+
+    def __init__(self, source, profile: PlateProfile, signal: str, rate_hz: float | None = None,
+                 carrier_hz: float | None = None):
+        if signal not in SIGNALS:
+            raise DeviceError(f"a device's signal is control or audio, got {signal!r}")
+        self.source = source
+        self.profile = profile
+        self.signal = signal
+        self.control_rate_hz = float(getattr(source, "control_rate_hz", CONTROL_RATE_HZ))
+        self.rate_hz = float(rate_hz or self.control_rate_hz)
+        self.carrier_hz = float(carrier_hz or profile.resonance_hz)
+        if signal == "control" and self.rate_hz != self.control_rate_hz:
+            raise DeviceError(f"the device takes setpoints at {self.rate_hz:g} Hz but the envelope comes at "
+                              f"{self.control_rate_hz:g} Hz")
+        self.upsampling = round(self.rate_hz / self.control_rate_hz)
+        if signal == "audio":
+            if self.upsampling < 1 or abs(self.rate_hz - self.upsampling * self.control_rate_hz) > 1e-6:
+                raise DeviceError(f"the audio rate ({self.rate_hz:g} Hz) must be a whole multiple of the "
+                                  f"control rate ({self.control_rate_hz:g} Hz)")
+            profile.check_carrier(self.carrier_hz)
+            self.carrier = Carrier(self.carrier_hz, self.rate_hz)
+        self.limiter = DriveLimiter(profile, self.control_rate_hz)
+        self.observers: list = []  # callables given each block of limited drive (µm p-p, control rate)
+        self.frames = 0
+        self._scale = 1.0 / profile.full_scale_um_pp
+        self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
+        self._pending = np.zeros(0)  # limited control samples not yet played out
+        self._played = 0  # audio frames already produced from the first pending sample's period
+
+    def matches(self, profile: PlateProfile, signal: str, rate_hz: float, carrier_hz: float | None) -> bool:
+        """Whether this stage already gives what a device with these facts needs."""
+        return (self.profile == profile and self.signal == signal and self.rate_hz == float(rate_hz)
+                and (signal == "control" or self.carrier_hz == float(carrier_hz or profile.resonance_hz)))
+
+    # ---- what a device pulls ---------------------------------------------------------------------
+    def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        """The next ``n`` values of the device's signal; ``now_s``: when (perf_counter s) the first plays."""
+        if self.signal == "control":
+            out = self._limited(n, now_s)
+            if n:
+                self._last_drive = float(out[-1])
+            self.frames += n
+            return out
+        return self._audio(n, now_s)
+
+    def _limited(self, n: int, now_s: float | None) -> np.ndarray:
+        drive = self.limiter.process(self.source.pull(n, now_s))
+        for observer in self.observers:
+            observer(drive)
+        return drive
+
+    def _audio(self, frames: int, now_s: float | None) -> np.ndarray:
+        up = self.upsampling
+        available = len(self._pending) * up - self._played
+        if frames > available:
+            needed = -(-(frames - available) // up)
+            drive = self._limited(needed, now_s)
+            self._pending = np.concatenate((self._pending, drive)) if len(self._pending) else drive
+        # knot 0 is the last control sample already played out, knot i + 1 is pending sample i
+        last = (self._played + frames - 1) // up
+        knots = np.empty(last + 2)
+        knots[0] = self._last_drive
+        knots[1:] = self._pending[:last + 1]
+        out = np.empty(frames, dtype=np.float32)
+        kernels.modulate(knots, self._played, up, self._scale, self.carrier.block(frames), 0, out)
+        consumed = (self._played + frames) // up
+        if consumed:
+            self._last_drive = float(self._pending[consumed - 1])
+            self._pending = self._pending[consumed:]
+        self._played = (self._played + frames) % up
+        self.frames += frames
+        return out
+
+    def request_stop(self) -> None:
+        self.source.request_stop()
+
+    @property
+    def finished(self) -> bool:
+        """The source is at rest and so is everything it gave that is still to play."""
+        return (self.source.finished and self._last_drive < 1e-6
+                and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
+
+    def status(self) -> dict:
+        return self.limiter.status()
+
+
+def output_stage(source, profile: PlateProfile, signal: str, rate_hz: float,
+                 carrier_hz: float | None = None) -> OutputStage:
+    """What every device's ``start(source)`` calls first: ``source`` behind the limiter, as this device's
+    signal. A stage built for the same profile, signal and rates (by an app that wants its counters)
+    is used as it is; any other source is wrapped."""
+    if isinstance(source, OutputStage):
+        if not source.matches(profile, signal, rate_hz, carrier_hz):
+            raise DeviceError(f"this output stage gives {source.signal} at {source.rate_hz:g} Hz for plate "
+                              f"{source.profile.name}; the device needs {signal} at {float(rate_hz):g} Hz for "
+                              f"plate {profile.name}")
+        return source
+    return OutputStage(source, profile, signal, rate_hz, carrier_hz)
