@@ -1,4 +1,4 @@
-"""Drawing for the demo: friction maps at physical size, the finger trace, the strip chart."""
+"""Drawing for the demo: friction maps at physical size, thumbnails, the finger trace, the chart, help."""
 
 from __future__ import annotations
 
@@ -8,12 +8,15 @@ from ultraglide.textures.texture import Texture
 
 BACKGROUND = (18, 20, 26)
 PANEL = (32, 36, 46)
+GRID = (58, 64, 80)
 TEXT = (225, 228, 235)
 DIM = (140, 146, 160)
 ACCENT = (255, 170, 60)
 TRACE = (255, 90, 90)
 OTHER_FINGER = (120, 180, 255)
-CHART_COLOURS = {"friction": (110, 200, 255), "amplitude": (255, 170, 60), "measured": (120, 230, 130)}
+LIMIT = (235, 80, 80)
+CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130)}
+THUMB_PX = 256  # thumbnails are made from at most this many pixels across, then smooth-scaled
 
 
 def friction_colours(ratio: np.ndarray) -> np.ndarray:
@@ -24,12 +27,41 @@ def friction_colours(ratio: np.ndarray) -> np.ndarray:
     return (slippery + (sticky - slippery) * r).astype(np.uint8)
 
 
+def _surface_of(rgb: np.ndarray) -> pygame.Surface:
+    return pygame.surfarray.make_surface(np.ascontiguousarray(rgb.transpose(1, 0, 2)))
+
+
 def texture_surface(texture: Texture, mm_per_px: float) -> pygame.Surface:
     """The friction map as a surface whose pixels match the screen's millimetres."""
-    rgb = friction_colours(texture.ratio_map())
-    surface = pygame.surfarray.make_surface(np.ascontiguousarray(rgb.transpose(1, 0, 2)))
+    surface = _surface_of(friction_colours(texture.ratio_map()))
     size = (max(1, round(texture.width_mm / mm_per_px)), max(1, round(texture.height_mm / mm_per_px)))
     return pygame.transform.smoothscale(surface, size)
+
+
+def thumbnail(texture: Texture, size: tuple[int, int]) -> pygame.Surface:
+    """The texture fitted into ``size`` px keeping its aspect, smooth-scaled (area-averaged, no aliasing)."""
+    ratio = texture.ratio_map()
+    step = max(1, max(ratio.shape) // (4 * THUMB_PX))  # drop only what smoothscale would average anyway
+    surface = _surface_of(friction_colours(ratio[::step, ::step]))
+    scale = min(size[0] / texture.width_mm, size[1] / texture.height_mm)
+    fitted = (max(1, round(texture.width_mm * scale)), max(1, round(texture.height_mm * scale)))
+    while surface.get_width() > 2 * fitted[0] and surface.get_height() > 2 * fitted[1]:
+        surface = pygame.transform.smoothscale_by(surface, 0.5)  # halving steps keep every pixel in the average
+    return pygame.transform.smoothscale(surface, fitted)
+
+
+def fit_text(font: pygame.font.Font, text: str, width_px: int) -> str:
+    """``text``, shortened with an ellipsis if it is wider than ``width_px``."""
+    if font.size(text)[0] <= width_px:
+        return text
+    low, high = 0, len(text)
+    while low < high:  # the longest prefix that fits with the ellipsis
+        mid = (low + high + 1) // 2
+        if font.size(text[:mid].rstrip() + "…")[0] <= width_px:
+            low = mid
+        else:
+            high = mid - 1
+    return text[:low].rstrip() + "…"
 
 
 def blit_texture(screen: pygame.Surface, surface: pygame.Surface, area: pygame.Rect, tiled: bool,
@@ -47,27 +79,58 @@ def blit_texture(screen: pygame.Surface, surface: pygame.Surface, area: pygame.R
     screen.set_clip(clip)
 
 
+def _ticks(top: float, step: float) -> np.ndarray:
+    return np.arange(0.0, top + step * 0.01, step)
+
+
 def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect, series: dict[str, np.ndarray],
-               span_s: float, amplitude_max: float) -> None:
-    """A strip chart: friction (0..1) and amplitudes (0..amplitude_max µm) over the last ``span_s``."""
+               span_s: float, amplitude_max_um_pp: float, limit_um_pp: float, plate_label: str) -> None:
+    """A strip chart with scales: target friction (ratio, left axis) and the commanded and plate amplitudes
+    (µm p-p, right axis, with the profile's limit) over the last ``span_s``, time in ms up to now.
+
+    ``series`` maps "friction", "commanded", "plate" to rows of (t_s, value); the newest time is 0 ms."""
     pygame.draw.rect(screen, PANEL, area)
-    inner = area.inflate(-16, -24)
-    inner.top = area.top + 18
-    x = 10
+    line_h = font.get_linesize()
+    plot = pygame.Rect(area.left + 64, area.top + line_h + 6, area.width - 64 - 70, area.height - 2 * line_h - 12)
+    labels = {"friction": "target friction (ratio)", "commanded": "commanded µm p-p", "plate": plate_label}
+    x = plot.left
     for name, colour in CHART_COLOURS.items():
-        label = {"friction": "target friction (0-1)", "amplitude": f"commanded µm (0-{amplitude_max:g})",
-                 "measured": "plate measured µm"}[name]
-        rendered = font.render(label, True, colour)
-        screen.blit(rendered, (area.left + x, area.top + 2))
-        x += rendered.get_width() + 24
+        rendered = font.render(labels[name], True, colour)
+        screen.blit(rendered, (x, area.top + 3))
+        x += rendered.get_width() + 28
+    screen.blit(font.render(f"limit {limit_um_pp:g} µm p-p", True, LIMIT), (x, area.top + 3))
+    for value in _ticks(1.0, 0.25):  # friction: left axis
+        y = plot.bottom - value * plot.height
+        pygame.draw.line(screen, GRID, (plot.left, y), (plot.right, y), 1)
+        text = font.render(f"{value:.2f}", True, CHART_COLOURS["friction"])
+        screen.blit(text, text.get_rect(midright=(plot.left - 6, y)))
+    step = 1.0 if amplitude_max_um_pp <= 6 else 2.0 if amplitude_max_um_pp <= 12 else 5.0
+    for value in _ticks(amplitude_max_um_pp, step):  # amplitude: right axis
+        y = plot.bottom - value / amplitude_max_um_pp * plot.height
+        pygame.draw.line(screen, GRID, (plot.right, y), (plot.right + 4, y), 1)
+        text = font.render(f"{value:g} µm", True, CHART_COLOURS["commanded"])
+        screen.blit(text, text.get_rect(midleft=(plot.right + 8, y)))
+    span_ms = span_s * 1000
+    for ms in _ticks(span_ms, 500.0):  # time: bottom axis, now at the right
+        x = plot.right - ms / span_ms * plot.width
+        pygame.draw.line(screen, GRID, (x, plot.top), (x, plot.bottom + 3), 1)
+        text = font.render("now" if ms == 0 else f"−{ms:.0f}", True, DIM)
+        screen.blit(text, text.get_rect(midtop=(x, plot.bottom + 4)))
+    axis = font.render("time, ms", True, DIM)
+    screen.blit(axis, axis.get_rect(bottomleft=(area.left + 6, area.bottom - 2)))
+    pygame.draw.rect(screen, DIM, plot, 1)
+    y_limit = plot.bottom - min(limit_um_pp / amplitude_max_um_pp, 1.0) * plot.height
+    for x0 in range(plot.left, plot.right, 12):  # the limit as a dashed line
+        pygame.draw.line(screen, LIMIT, (x0, y_limit), (min(x0 + 6, plot.right), y_limit), 1)
+    latest = max((values[-1, 0] for values in series.values() if len(values)), default=0.0)
     for name, values in series.items():
         if len(values) < 2:
             continue
         t, v = values[:, 0], values[:, 1]
-        scale = 1.0 if name == "friction" else amplitude_max
-        px = inner.right - (t[-1] - t) / span_s * inner.width
-        py = inner.bottom - np.clip(v / scale, 0, 1) * inner.height
-        keep = px >= inner.left
+        scale = 1.0 if name == "friction" else amplitude_max_um_pp
+        px = plot.right - (latest - t) / span_s * plot.width
+        py = plot.bottom - np.clip(v / scale, 0, 1) * plot.height
+        keep = px >= plot.left
         if keep.sum() >= 2:
             pygame.draw.lines(screen, CHART_COLOURS[name], False, np.column_stack((px[keep], py[keep])).tolist(), 2)
 
@@ -77,3 +140,24 @@ def draw_trace(screen: pygame.Surface, points: list[tuple[float, float]]) -> Non
         pygame.draw.lines(screen, TRACE, False, points, 3)
     if points:
         pygame.draw.circle(screen, TRACE, (int(points[-1][0]), int(points[-1][1])), 14, 3)
+
+
+def draw_help(screen: pygame.Surface, font: pygame.font.Font, title_font: pygame.font.Font,
+              lines: list[tuple[str, str]]) -> pygame.Rect:
+    """A panel in the middle of the screen listing keys (or gestures) and what they do; returns its rect."""
+    key_w = max(font.size(key)[0] for key, _ in lines)
+    text_w = max(font.size(what)[0] for _, what in lines)
+    line_h = font.get_linesize() + 4
+    title = title_font.render("ultraglide demo: keys and gestures (H to close)", True, ACCENT)
+    width = max(key_w + text_w + 60, title.get_width() + 40)
+    panel = pygame.Rect(0, 0, width, len(lines) * line_h + title.get_height() + 40)
+    panel.center = screen.get_rect().center
+    pygame.draw.rect(screen, PANEL, panel, border_radius=10)
+    pygame.draw.rect(screen, ACCENT, panel, 2, border_radius=10)
+    screen.blit(title, (panel.left + 20, panel.top + 14))
+    y = panel.top + title.get_height() + 26
+    for key, what in lines:
+        screen.blit(font.render(key, True, ACCENT), (panel.left + 20, y))
+        screen.blit(font.render(what, True, TEXT), (panel.left + 40 + key_w, y))
+        y += line_h
+    return panel

@@ -30,6 +30,7 @@ def app(halves, monkeypatch):
     from ultraglide.apps.demo_app import DemoApp
 
     demo = DemoApp([halves], windowed=True, screen_width_mm=338.7)  # 1280 px: 0.2646 mm a pixel
+    demo.wait_ready()
     yield demo
     demo.close()
 
@@ -50,7 +51,7 @@ def finger(pg, kind, x, y, finger_id=1):
 
 
 def measured(app):
-    return app.device.telemetry.measured_um_pp
+    return app.link.device.telemetry.measured_um_pp
 
 
 def test_touch_positions_reach_the_renderer_in_millimetres(app):
@@ -60,7 +61,7 @@ def test_touch_positions_reach_the_renderer_in_millimetres(app):
     x_px, y_px = 200, app.area.top + 100
     finger(pg, pg.FINGERDOWN, x_px / w, y_px / h)
     run_for(app, 0.05)
-    fit = app.renderer.trajectory._fit
+    fit = app.link.renderer.trajectory._fit
     assert fit.x_ref == pytest.approx(x_px * app.mm_per_px, abs=0.3)
     assert fit.y_ref == pytest.approx(100 * app.mm_per_px, abs=0.3)
     assert fit.down
@@ -100,7 +101,7 @@ def test_mouse_drives_but_its_copies_of_touches_are_ignored(app):
     post(pg, pg.MOUSEMOTION, pos=(110, y), rel=(10, 0), buttons=(1, 0, 0), touch=False)
     run_for(app, 0.3)
     assert app.pushed == 2 and measured(app) > 3.0
-    assert app.renderer.trajectory._fit.x_ref == pytest.approx(110 * app.mm_per_px, abs=0.1)  # merged
+    assert app.link.renderer.trajectory._fit.x_ref == pytest.approx(110 * app.mm_per_px, abs=0.1)  # merged
     post(pg, pg.MOUSEBUTTONUP, pos=(110, y), button=1, touch=False)
     run_for(app, 0.2)
     assert measured(app) < 0.05
@@ -125,16 +126,16 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert app.scene == "gallery"
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("widgets"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "widgets" and app.renderer.texture.name == "widgets"
-    force = app.renderer.default_force_n
+    assert app.scene == "widgets" and app.link.renderer.texture.name == "widgets"
+    force = app.link.renderer.default_force_n
     post(pg, pg.KEYDOWN, key=pg.K_UP, mod=0, unicode="", scancode=0)
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("model"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.renderer.default_force_n == pytest.approx(force * 1.25)
-    assert app.model_name == "paper" and app.renderer.model.name == "paper"
+    assert app.link.renderer.default_force_n == pytest.approx(force * 1.25)
+    assert app.model_name == "paper" and app.link.renderer.model.name == "paper"
     post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=0)
     run_for(app, 0.05)
-    assert app.user_paused and app.renderer.paused
+    assert app.user_paused and app.link.renderer.paused
     post(pg, pg.KEYDOWN, key=pg.K_ESCAPE, mod=0, unicode="", scancode=0)
     run_for(app, 0.05)
     assert not app.running
@@ -145,7 +146,7 @@ def test_gallery_tap_chooses_a_texture(app):
     tile = app.tiles[0]
     post(pg, pg.MOUSEBUTTONDOWN, pos=tile.center, button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "texture" and app.renderer.texture.name == "halves"
+    assert app.scene == "texture" and app.link.renderer.texture.name == "halves"
 
 
 def test_closing_rests_the_plate(app):
@@ -154,7 +155,7 @@ def test_closing_rests_the_plate(app):
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
     run_for(app, 0.3)
     assert measured(app) > 3.0
-    plate = app.device.plate
+    plate = app.link.device.plate
     app.close()
     assert not plate.simulator.enabled and plate.simulator.amplitude_um_pp < 0.5
 
