@@ -18,6 +18,9 @@ from __future__ import annotations
 import os
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # before pygame is imported: no banner
+# The window's pixels go to X directly (shared memory). Otherwise SDL may put them through OpenGL,
+# which without a GPU is Mesa's llvmpipe: two software-rendering threads costing a third of a core.
+os.environ.setdefault("SDL_FRAMEBUFFER_ACCELERATION", "0")
 
 import collections  # noqa: E402
 import json  # noqa: E402
@@ -64,8 +67,8 @@ HELP = [
     ("second finger", "shown, but only the first finger drives the plate"),
     ("pressure", "sets the force where the panel reports it"),
     ("G  T  W", "gallery, texture, widgets"),
-    ("←  →", "previous, next texture"),
-    ("↑  ↓", "force up, down (×1.25) when the panel has no pressure"),
+    ("Left  Right", "previous, next texture"),
+    ("Up  Down", "force up, down (×1.25) when the panel reports no pressure"),
     ("M", "switch the friction model (exponential, paper)"),
     ("Space", "pause: the plate rests"),
     ("H", "this help"),
@@ -157,15 +160,21 @@ class DemoApp:
 
     # ---- set-up --------------------------------------------------------------------------------
     def _load_textures(self, specs) -> list[Texture]:
-        from ultraglide.textures.library import library_entries, resolve_texture
+        """The textures named on the command line, then the bundled library's. The library's files are
+        read directly (textures.library would import scipy for authoring, which the first frame does not need)."""
+        from importlib.resources import files
+
+        from ultraglide.textures.fileformat import load_texture
 
         textures = []
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # plain images are authored with defaults, as documented
-            for spec in specs:
-                textures.append(resolve_texture(str(spec)))
-            for entry in library_entries():
-                textures.append(resolve_texture(entry.name))
+        if specs:
+            from ultraglide.textures.library import resolve_texture
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # plain images are authored with defaults, as documented
+                textures.extend(resolve_texture(str(spec)) for spec in specs)
+        library = Path(str(files("ultraglide.textures") / "library"))
+        textures.extend(load_texture(path) for path in sorted(library.glob("*.png")))
         return textures
 
     def wait_ready(self, timeout_s: float = 60.0) -> DemoLink:
@@ -185,6 +194,8 @@ class DemoApp:
             if self.scene != "gallery":
                 link.set_texture(self.current)
             self._next_status = 0.0
+            if self.report_frames:
+                print(f"renderer ready {seconds_since_launch():.2f} s after launch", flush=True)
 
     def _check_link(self) -> None:
         if self.link is None and self.starter.ready.is_set():
@@ -509,14 +520,14 @@ class DemoApp:
         s = self.link.status(0.0)
         device = {"sim": "simulated plate"}.get(s.device, s.device.replace("serial:", "plate on serial ")
                                                 .replace("audio:", "audio output ").replace("wav:", "recording "))
-        source = "touch pressure" if self.pressure_seen else "↑↓ keys"
-        faults = ", ".join(s.faults) if s.faults else "no faults"
-        words = (f"{device}: {'paused' if self.user_paused else s.state}   ·   model {s.model}   ·   "
-                 f"force {s.force_n:.2f} N ({source})   ·   limited {s.limited_pct:.0f} % of the last second "
-                 f"({s.limited_samples} samples on this texture)   ·   {s.underruns} underruns, "
-                 f"{s.late_blocks} late blocks   ·   {faults}")
+        source = "touch pressure" if self.pressure_seen else "Up/Down keys"
+        faults = "faults: " + ", ".join(s.faults) if s.faults else "no faults"
+        words = (f"{device} {'paused' if self.user_paused else s.state}, {faults}   ·   {s.model} model   ·   "
+                 f"{s.force_n:.2f} N ({source})   ·   limited {s.limited_pct:.0f} % of the last second, "
+                 f"{s.limited_samples} samples on this texture   ·   {s.underruns} underruns, "
+                 f"{s.late_blocks} late blocks")
         if self.recorder is not None:
-            words += f"   ·   recording {self.recorder.rows} touches"
+            words += f"   ·   recording: {self.recorder.rows} touches"
         return words + "   ·   H: help"
 
     def _draw_status(self, force: bool = False) -> bool:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pygame
-from ultraglide.textures.texture import Texture
+from ultraglide.textures.texture import Texture, gradient_ratio
 
 BACKGROUND = (18, 20, 26)
 PANEL = (32, 36, 46)
@@ -40,9 +40,14 @@ def texture_surface(texture: Texture, mm_per_px: float) -> pygame.Surface:
 
 def thumbnail(texture: Texture, size: tuple[int, int]) -> pygame.Surface:
     """The texture fitted into ``size`` px keeping its aspect, smooth-scaled (area-averaged, no aliasing)."""
-    ratio = texture.ratio_map()
-    step = max(1, max(ratio.shape) // (4 * THUMB_PX))  # drop only what smoothscale would average anyway
-    surface = _surface_of(friction_colours(ratio[::step, ::step]))
+    step = max(1, max(texture.values.shape) // (4 * THUMB_PX))  # drop only what smoothscale would average anyway
+    values = texture.values[::step, ::step]
+    if texture.kind == "gradient":  # under a left-to-right swipe, as Texture.ratio_map, on the fewer pixels
+        pixel_x, pixel_y = texture.pixel_mm
+        ratio = gradient_ratio(texture, np.gradient(values.astype(float), pixel_x * step, axis=1))
+    else:
+        ratio = texture.ratio_map()[::step, ::step]
+    surface = _surface_of(friction_colours(ratio))
     scale = min(size[0] / texture.width_mm, size[1] / texture.height_mm)
     fitted = (max(1, round(texture.width_mm * scale)), max(1, round(texture.height_mm * scale)))
     while surface.get_width() > 2 * fitted[0] and surface.get_height() > 2 * fitted[1]:
@@ -114,10 +119,9 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
     for ms in _ticks(span_ms, 500.0):  # time: bottom axis, now at the right
         x = plot.right - ms / span_ms * plot.width
         pygame.draw.line(screen, GRID, (x, plot.top), (x, plot.bottom + 3), 1)
-        text = font.render("now" if ms == 0 else f"−{ms:.0f}", True, DIM)
+        words = "now" if ms == 0 else f"−{ms:.0f} ms" if ms >= span_ms else f"−{ms:.0f}"
+        text = font.render(words, True, DIM)
         screen.blit(text, text.get_rect(midtop=(x, plot.bottom + 4)))
-    axis = font.render("time, ms", True, DIM)
-    screen.blit(axis, axis.get_rect(bottomleft=(area.left + 6, area.bottom - 2)))
     pygame.draw.rect(screen, DIM, plot, 1)
     y_limit = plot.bottom - min(limit_um_pp / amplitude_max_um_pp, 1.0) * plot.height
     for x0 in range(plot.left, plot.right, 12):  # the limit as a dashed line

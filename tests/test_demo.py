@@ -1,7 +1,6 @@
 """The demo: headless with SDL's dummy driver, and a real window under Xvfb driven by xdotool."""
 
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -12,6 +11,7 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
+from xvfb_demo import XvfbDemo, tools_missing
 
 ARTIFACTS = ROOT / "artifacts" / "screenshots"
 
@@ -167,60 +167,98 @@ def test_no_display_is_one_clear_line():
     assert "ultraglide export" in assert_one_line_error(result)
 
 
-@pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool") and shutil.which("import")),
-                    reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+needs_xvfb = pytest.mark.skipif(bool(tools_missing()), reason="needs Xvfb, xdotool and ImageMagick "
+                                                                  "(./run tests installs them)")
+
+
+@needs_xvfb
 def test_demo_under_xvfb_driven_by_xdotool(tmp_path):
-    display = ":97"
-    xvfb = subprocess.Popen(["Xvfb", display, "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    env = {**os.environ, "DISPLAY": display}
-    env.pop("SDL_VIDEODRIVER", None)
-    try:
-        time.sleep(1.0)
-        demo = subprocess.Popen([sys.executable, "-m", "ultraglide", "demo", "--windowed"], env=env, cwd=ROOT,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(1.0)
-        assert demo.poll() is None, demo.communicate()[1]
+    """Each scene is on screen when the demo says it has drawn it: no sleeps, screenshots never black."""
+    with XvfbDemo() as demo:
+        demo.wait_for("first frame drawn", 60)
+        demo.wait_for("^frame drawn: gallery", 30)
+        screenshots = [demo.shot(ARTIFACTS / "1-gallery.png")]
+        demo.wait_for("^renderer ready", 60)
+        demo.xdo("mousemove", 110, 100, "click", 1)  # the first tile
+        demo.wait_for("^frame drawn: texture", 30)
+        demo.drag([(x, 300) for x in range(200, 700, 10)])
+        screenshots.append(demo.shot(ARTIFACTS / "2-texture.png"))
+        demo.xdo("key", "w")
+        demo.wait_for("^frame drawn: widgets$", 30)
+        screenshots.append(demo.shot(ARTIFACTS / "3-widgets.png"))
+        demo.xdo("key", "h")
+        demo.wait_for("^frame drawn: widgets help", 30)
+        screenshots.append(demo.shot(ARTIFACTS / "4-help.png"))
+        assert demo.quit() == 0
+    from PIL import Image
 
-        def xdo(*args):
-            subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=10)
+    pictures = [np.asarray(Image.open(path).convert("RGB"), dtype=float) for path in screenshots]
+    for picture in pictures:
+        assert picture.shape == (800, 1280, 3) and picture.std() > 10  # something was drawn
+    for before, after in zip(pictures, pictures[1:], strict=False):
+        assert np.abs(before - after).mean() > 3  # and each scene differs from the one before
 
-        def shot(name):
-            ARTIFACTS.mkdir(parents=True, exist_ok=True)
-            path = ARTIFACTS / f"{name}.png"
-            subprocess.run(["import", "-window", "root", str(path)], env=env, check=True, timeout=20)
-            return path
 
-        # SDL types WM_NAME as UTF-8, which xdotool's --name does not match: find the window by its process
-        window = subprocess.run(["xdotool", "search", "--sync", "--pid", str(demo.pid)], env=env,
-                                capture_output=True, text=True, timeout=30).stdout.split()
-        assert window, "the demo window did not appear"
-        time.sleep(1.0)
-        screenshots = [shot("1-gallery")]
-        xdo("mousemove", 110, 100, "click", 1)  # the first tile
-        time.sleep(0.5)
-        xdo("mousemove", 200, 300, "mousedown", 1)
-        for x in range(200, 700, 25):
-            xdo("mousemove", x, 300)
-            time.sleep(0.02)
-        screenshots.append(shot("2-texture"))
-        xdo("mouseup", 1)
-        xdo("key", "w")
-        time.sleep(0.5)
-        screenshots.append(shot("3-widgets"))
-        xdo("key", "Escape")
-        assert demo.wait(timeout=15) == 0
-        from PIL import Image
+@needs_xvfb
+def test_demo_idles_cold_under_xvfb():
+    """Nothing moves: the process (window, event loop, renderer on the null device) uses at most 10 % of a core."""
+    with XvfbDemo("--device", "null") as demo:
+        demo.wait_for("^renderer ready", 60)  # after the first frames
+        cpu_before, wall_before = demo.cpu_s(), time.perf_counter()
+        deadline = wall_before + 4.0
+        while time.perf_counter() < deadline:  # CPU time, not wall time: sleeping costs nothing
+            time.sleep(0.2)
+        share = (demo.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
+        assert share <= 0.10, f"{share:.1%} of a core while idle"
+        assert demo.quit() == 0
 
-        pictures = [np.asarray(Image.open(path).convert("RGB"), dtype=float) for path in screenshots]
-        for picture in pictures:
-            assert picture.shape == (800, 1280, 3) and picture.std() > 10  # something was drawn
-        assert np.abs(pictures[0] - pictures[1]).mean() > 5 and np.abs(pictures[1] - pictures[2]).mean() > 5
-    finally:
-        if demo.poll() is None:
-            demo.kill()
-        xvfb.terminate()
-        xvfb.wait(timeout=10)
+
+@needs_xvfb
+def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
+    """A drag from the slippery half into the sticky half, recorded, exported: the WAV's envelope is high
+    exactly while the recorded finger was over the slippery half, and the log's positions are the pointer's."""
+    import json
+
+    import soundfile
+    from ultraglide.render.touch_log import read_touch_log
+
+    record, stats = tmp_path / "drag.csv", tmp_path / "stats.json"
+    with XvfbDemo(str(halves), "--device", "null", "--record", str(record), "--stats", str(stats)) as demo:
+        demo.wait_for("^renderer ready", 60)
+        demo.xdo("key", "t")  # the first texture: halves
+        demo.wait_for("^frame drawn: texture", 30)
+        demo.drag([(x, 300) for x in range(100, 704, 4)])  # 1.26 s at 120 Hz across the boundary (378 px)
+        assert demo.quit() == 0
+    assert record.exists() and not (tmp_path / "drag.csv.part").exists()
+    comments = [line for line in record.read_text().splitlines() if line.startswith("#")]
+    meta = json.loads(comments[1][1:])
+    assert meta["texture"] == "halves" and meta["screen_px"] == [1280, 800]
+    log = read_touch_log(record)
+    mm_per_px = meta["mm_per_px"]
+    assert mm_per_px == pytest.approx(25.4 / 96)
+    assert log.x_mm[0] == pytest.approx(100 * mm_per_px, abs=0.01)
+    assert log.x_mm[-1] == pytest.approx(700 * mm_per_px, abs=0.01)
+    assert np.allclose(log.y_mm, (300 - meta["texture_area_px"][1]) * mm_per_px, atol=0.01)
+    assert len(log.t_s) > 50 and np.all(log.force_n == 0.5)
+
+    wav = tmp_path / "drag.wav"
+    run_cli("export", halves, "--trajectory", record, "-o", wav, check=True)
+    signal, rate = soundfile.read(wav)
+    window = rate // 1000  # 1 ms: 25 carrier periods
+    envelope = np.abs(signal[: len(signal) // window * window]).reshape(-1, window).max(axis=1)
+    t_ms = np.arange(len(envelope)) + 0.5
+    x_at = np.interp(t_ms / 1000, log.t_s, log.x_mm)
+    crossing_ms = 1000 * np.interp(100.0, log.x_mm, log.t_s)
+    settled = (t_ms > 30) & (np.abs(t_ms - crossing_ms) > 30) & (t_ms < 1000 * log.t_s[-1])
+    slippery, sticky = settled & (x_at < 100), settled & (x_at > 100)
+    assert slippery.sum() > 50 and sticky.sum() > 50
+    assert envelope[slippery].min() > 0.3, envelope[slippery].min()  # strong vibration over 0.2 friction
+    assert envelope[sticky].max() < 0.02, envelope[sticky].max()  # at rest over 1.0
+
+    figures = json.loads(stats.read_text())
+    assert figures["blocks_rendered"] > 100 and figures["touches"] == len(log.t_s)
+    assert 0 < figures["block_p50_us"] <= figures["block_p99_us"]
+    assert figures["underruns"] >= 0 and figures["late_blocks"] >= 0
 
 
 def test_bad_demo_texture_is_one_line(tmp_path):
