@@ -455,7 +455,9 @@ class DemoApp:
         self._dirty = False
         self.frames_drawn += 1
         if self.frames_drawn == 1:
-            print(f"ultraglide demo: first frame drawn {seconds_since_launch():.2f} s after launch", flush=True)
+            cpu = os.times()
+            print(f"ultraglide demo: first frame drawn {seconds_since_launch():.2f} s after launch "
+                  f"({cpu.user + cpu.system:.2f} s of CPU)", flush=True)
         if self.report_frames:
             print(f"frame drawn: {self.scene}{' help' if self.show_help else ''}", flush=True)
 
@@ -476,7 +478,7 @@ class DemoApp:
         texture = self.current
         outside = friction_colours(np.array([[texture.outside_ratio]]))[0, 0].tolist()
         blit_texture(screen, self._surface(texture), self.area, texture.outside == "tile", outside)
-        words = f"{texture.name}: {texture.width_mm:g} × {texture.height_mm:g} mm"
+        words = f"{texture.name}: {texture.width_mm:.4g} × {texture.height_mm:.4g} mm"
         if texture.description:
             words += f", {texture.description}"
         text = self.font.render(fit_text(self.font, words, self.area.width - 40), True, ACCENT)

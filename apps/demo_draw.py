@@ -16,15 +16,31 @@ TRACE = (255, 90, 90)
 OTHER_FINGER = (120, 180, 255)
 LIMIT = (235, 80, 80)
 CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130)}
-THUMB_PX = 256  # thumbnails are made from at most this many pixels across, then smooth-scaled
+
+
+def _palette() -> np.ndarray:
+    slippery = np.array([20, 40, 110], dtype=float)
+    sticky = np.array([235, 228, 210], dtype=float)
+    return (slippery + (sticky - slippery) * np.linspace(0.0, 1.0, 256)[:, None]).astype(np.uint8)
+
+
+PALETTE = _palette()
 
 
 def friction_colours(ratio: np.ndarray) -> np.ndarray:
-    """RGB for friction ratios: light = sticky (at rest), dark blue = slippery; (rows, cols, 3) uint8."""
-    r = np.clip(ratio, 0.0, 1.0)[..., None]
-    slippery = np.array([20, 40, 110], dtype=float)
-    sticky = np.array([235, 228, 210], dtype=float)
-    return (slippery + (sticky - slippery) * r).astype(np.uint8)
+    """RGB for friction ratios: light = sticky (at rest), dark blue = slippery; (rows, cols, 3) uint8.
+    A 256-entry palette (ratios to 1/255) keeps this cheap on whole textures."""
+    index = np.clip(ratio, 0.0, 1.0) * 255.0 + 0.5
+    return PALETTE[index.astype(np.uint8)]
+
+
+def box_reduce(values: np.ndarray, factor: int) -> np.ndarray:
+    """Mean over ``factor`` × ``factor`` blocks: shrinking without aliasing fine patterns."""
+    if factor <= 1:
+        return values
+    rows, cols = values.shape[0] // factor * factor, values.shape[1] // factor * factor
+    blocks = values[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
+    return blocks.mean(axis=(1, 3), dtype=np.float32)
 
 
 def _surface_of(rgb: np.ndarray) -> pygame.Surface:
@@ -40,19 +56,15 @@ def texture_surface(texture: Texture, mm_per_px: float) -> pygame.Surface:
 
 def thumbnail(texture: Texture, size: tuple[int, int]) -> pygame.Surface:
     """The texture fitted into ``size`` px keeping its aspect, smooth-scaled (area-averaged, no aliasing)."""
-    step = max(1, max(texture.values.shape) // (4 * THUMB_PX))  # drop only what smoothscale would average anyway
-    values = texture.values[::step, ::step]
-    if texture.kind == "gradient":  # under a left-to-right swipe, as Texture.ratio_map, on the fewer pixels
-        pixel_x, pixel_y = texture.pixel_mm
-        ratio = gradient_ratio(texture, np.gradient(values.astype(float), pixel_x * step, axis=1))
-    else:
-        ratio = texture.ratio_map()[::step, ::step]
-    surface = _surface_of(friction_colours(ratio))
     scale = min(size[0] / texture.width_mm, size[1] / texture.height_mm)
     fitted = (max(1, round(texture.width_mm * scale)), max(1, round(texture.height_mm * scale)))
-    while surface.get_width() > 2 * fitted[0] and surface.get_height() > 2 * fitted[1]:
-        surface = pygame.transform.smoothscale_by(surface, 0.5)  # halving steps keep every pixel in the average
-    return pygame.transform.smoothscale(surface, fitted)
+    factor = max(1, min(texture.cols // fitted[0], texture.rows // fitted[1]))  # averaged down to about the tile
+    values = box_reduce(texture.values, factor)
+    if texture.kind == "gradient":  # under a left-to-right swipe, as Texture.ratio_map, on fewer pixels
+        ratio = gradient_ratio(texture, np.gradient(values.astype(float), texture.pixel_mm[0] * factor, axis=1))
+    else:
+        ratio = values
+    return pygame.transform.smoothscale(_surface_of(friction_colours(ratio)), fitted)
 
 
 def fit_text(font: pygame.font.Font, text: str, width_px: int) -> str:

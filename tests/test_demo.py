@@ -160,6 +160,119 @@ def test_closing_rests_the_plate(app):
     assert not plate.simulator.enabled and plate.simulator.amplitude_um_pp < 0.5
 
 
+def test_panel_pressure_sets_the_force_only_where_the_panel_reports_it(app):
+    pg = app.pg
+    app._act("texture")
+    w, h = app.screen.get_size()
+    y = (app.area.top + 150) / h
+    post(pg, pg.FINGERDOWN, x=100 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+    run_for(app, 0.05)
+    assert np.isnan(app.link.renderer.trajectory._fit.force_n)  # 1.0 from a panel without a sensor: the default
+    assert "Up/Down keys" in app.status_words()
+    post(pg, pg.FINGERMOTION, x=120 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=0.3)
+    run_for(app, 0.05)
+    assert app.link.renderer.trajectory._fit.force_n == pytest.approx(0.3 * 2.0)  # PRESSURE_FULL_SCALE_N
+    assert "touch pressure" in app.status_words()
+
+
+def test_status_line_says_device_state_model_force_limits_and_faults(app):
+    words = app.status_words()
+    for phrase in ("simulated plate running", "no faults", "exponential model", "0.50 N (Up/Down keys)",
+                   "limited 0 % of the last second", "0 underruns"):
+        assert phrase in words, words
+    app._act("force+")
+    app._act("model")
+    run_for(app, 0.05)
+    assert "0.62 N" in app.status_words() and "paper model" in app.status_words()
+
+
+def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeypatch, halves):
+    """A texture asking for no friction at all is beyond any plate: every sample is limited, until the texture
+    changes, when the count starts again."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo_app import DemoApp
+
+    unreachable = save_texture(Texture(np.zeros((50, 80), np.float32), 80.0, 50.0, outside="clamp",
+                                       name="unreachable"), tmp_path / "unreachable.png")
+    app = DemoApp([unreachable, halves], windowed=True, screen_width_mm=338.7)
+    try:
+        app.wait_ready()
+        pg = app.pg
+        app._act("texture")
+        y = app.area.top + 50
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(60, y), button=1, touch=False)
+        for i in range(40):
+            post(pg, pg.MOUSEMOTION, pos=(60 + i, y), rel=(1, 0), buttons=(1, 0, 0), touch=False)
+            run_for(app, 0.02)
+        status = app.link.status()
+        assert status.limited_pct > 90 and status.limited_samples > 0.5 * 12000 * 0.9, status
+        post(pg, pg.MOUSEBUTTONUP, pos=(100, y), button=1, touch=False)
+        run_for(app, 0.05)
+        app._act("next")  # halves: the right half is at rest, nothing to limit
+        assert app.link.status().limited_samples == 0
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(900, y), button=1, touch=False)
+        run_for(app, 0.5)
+        assert app.link.status().limited_samples == 0 and app.link.status().limited_pct == 0
+    finally:
+        app.close()
+
+
+def test_widgets_are_laid_out_for_the_screen(app):
+    app._act("widgets")
+    texture, placements = app.widgets
+    assert texture.width_mm == pytest.approx(app.area.width * app.mm_per_px, rel=1e-3)
+    assert texture.height_mm == pytest.approx(app.area.height * app.mm_per_px, rel=1e-3)
+    boxes = [(p.x_mm, p.y_mm, p.x_mm + p.texture.width_mm, p.y_mm + p.texture.height_mm) for p in placements]
+    for left, top, right, bottom in boxes:
+        assert 0 <= left < right <= texture.width_mm and 0 <= top < bottom <= texture.height_mm
+    for i, a in enumerate(boxes):  # no two overlap
+        for b in boxes[i + 1:]:
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+    used = sum((r - left) * (b - t) for left, t, r, b in boxes)
+    assert used > 0.25 * texture.width_mm * texture.height_mm  # they use the screen, not a corner of it
+
+
+def test_labels_are_shortened_to_fit(app):
+    from ultraglide.apps.demo_draw import fit_text
+
+    long = "a texture with a very long name indeed, longer than any tile"
+    short = fit_text(app.font, long, 120)
+    assert short.endswith("…") and app.font.size(short)[0] <= 120 and long.startswith(short[:-1])
+    assert fit_text(app.font, "wood", 120) == "wood"
+    for tile, texture in zip(app.tiles, app.textures, strict=True):
+        assert app.font.size(fit_text(app.font, texture.name, tile.width - 8))[0] <= tile.width - 8
+
+
+def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):
+    from ultraglide.apps.demo_record import TouchRecorder
+    from ultraglide.render.touch_log import read_touch_log
+
+    path = tmp_path / "log.csv"
+    recorder = TouchRecorder(path)
+    geometry = {"screen_px": [1280, 800], "mm_per_px": 0.25}
+    recorder.touch(10.0, 1.0, 2.0, None, "wood", geometry)
+    recorder.touch(10.5, 3.0, 2.5, 0.7, "wood", geometry)
+    recorder.lift(10.6)
+    recorder.touch(11.0, 4.0, 2.0, None, "grating-1mm", geometry)
+    partial = read_touch_log(tmp_path / "log.csv.part")  # as a crash would leave it: every row there
+    assert list(partial.t_s) == [0.0, 0.5, 1.0] and list(partial.x_mm) == [1.0, 3.0, 4.0]
+    assert list(partial.force_n) == [0.5, 0.7, 0.5]
+    assert not path.exists()
+    assert recorder.close() == path and path.exists() and not (tmp_path / "log.csv.part").exists()
+    text = path.read_text()
+    assert '"texture": "wood"' in text and "# lift at t_s=0.600000" in text and '# texture "grating-1mm"' in text
+    empty = TouchRecorder(tmp_path / "empty.csv")
+    assert empty.close() is None and not list(tmp_path.glob("empty.csv*"))
+
+
+def test_bad_record_and_stats_names_are_one_line(tmp_path):
+    result = run_cli("demo", "--record", tmp_path / "log.txt", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "--record needs a .csv file" in assert_one_line_error(result)
+    result = run_cli("demo", "--stats", tmp_path / "s.txt", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "--stats needs a .json file" in assert_one_line_error(result)
+    assert not list(tmp_path.iterdir())
+
+
 def test_no_display_is_one_clear_line():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
     result = subprocess.run([sys.executable, "-m", "ultraglide", "demo"], capture_output=True, text=True, env=env,
