@@ -70,7 +70,7 @@ class _History:
 
     def recent(self, after_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         count = self.count
-        kept = min(count, len(self.rows), count - self.since)
+        kept = min(count, len(self.rows) - 1, count - self.since)  # not the slot being written next
         order = (np.arange(count - kept, count)) % len(self.rows)
         rows, samples = self.rows[order], self.samples[order]
         if after_s is not None:

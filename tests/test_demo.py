@@ -265,6 +265,13 @@ def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):
     assert empty.close() is None and not list(tmp_path.glob("empty.csv*"))
 
 
+def test_bad_model_found_after_the_first_frame_is_still_one_line():
+    """The renderer starts after the window is up; its errors still end the demo with one line."""
+    result = run_cli("demo", "--windowed", "--model", "table:/nonexistent.csv", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "nonexistent.csv" in assert_one_line_error(result)
+    assert "first frame drawn" in result.stdout
+
+
 def test_bad_record_and_stats_names_are_one_line(tmp_path):
     result = run_cli("demo", "--record", tmp_path / "log.txt", env={"SDL_VIDEODRIVER": "dummy"})
     assert "--record needs a .csv file" in assert_one_line_error(result)
