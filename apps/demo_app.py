@@ -613,7 +613,7 @@ class DemoApp:
         """The engine's figures for ``--stats``."""
         if self.link is None:
             return {"started": False}
-        s = self.link.status(0.0)
+        s = self.link.status(0.0, all_blocks=True)
         return {"started": True, "device": s.device, "blocks_rendered": s.blocks, "late_blocks": s.late_blocks,
                 "underruns": s.underruns, "block_p50_us": round(s.block_p50_us, 2),
                 "block_p99_us": round(s.block_p99_us, 2), "limited_samples_on_last_texture": s.limited_samples,

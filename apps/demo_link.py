@@ -152,8 +152,9 @@ class DemoLink:
     def pause(self, flag: bool) -> None:
         self.renderer.pause(flag)
 
-    def status(self, chart_span_s: float = 3.0) -> LinkStatus:
-        """What the device and the renderer are doing now, and the last ``chart_span_s`` of the chart."""
+    def status(self, chart_span_s: float = 3.0, all_blocks: bool = False) -> LinkStatus:
+        """What the device and the renderer are doing now, and the last ``chart_span_s`` of the chart.
+        Block times are over the last 500 blocks, or every block the renderer keeps with ``all_blocks``."""
         renderer, counters = self.renderer, self.renderer.counters
         device = self.device.status()
         telemetry = getattr(self.device, "telemetry", None)
@@ -162,7 +163,7 @@ class DemoLink:
         last_second = rows[:, 0] > latest - 1.0
         down = samples[last_second, 0].sum()
         limited_pct = 100.0 * samples[last_second, 1].sum() / down if down else 0.0
-        times = counters.render_times_s[-TIMES_KEPT:]
+        times = counters.render_times_s[:] if all_blocks else counters.render_times_s[-TIMES_KEPT:]
         p50, p99 = (np.percentile(times, [50, 99]) * 1e6) if times else (0.0, 0.0)
         underruns = device.get("underruns", 0) or (telemetry.underruns if telemetry is not None else 0)
         faults = [*device.get("device_faults", []), *device.get("errors", [])]
