@@ -153,8 +153,11 @@ class DemoApp:
         self._active_until = 0.0  # the chart scrolls until then
         self._next_area = self._next_chart = self._next_status = 0.0
         self.frames_drawn = 0
-        self.recorder = TouchRecorder(record) if record else None
         self._layout()
+        try:  # last, so that nothing above can leave a recording behind
+            self.recorder = TouchRecorder(record) if record else None
+        except OSError as error:
+            raise UsageError(f"cannot write the recording {record}: {error.strerror}") from None
         self._draw_all()  # the first frame, before anything heavy is imported
         self.starter = LinkStarter(LinkConfig(self.textures[0], model, profile, device_url))
 
