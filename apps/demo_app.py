@@ -196,7 +196,7 @@ class DemoApp:
                 link.set_model(self.model_name)
             if self.scene != "gallery":
                 link.set_texture(self.current)
-            self._next_status = 0.0
+            self._dirty = True  # the chart's scale and the status come from the device's profile now
             if self.report_frames:
                 print(f"renderer ready {seconds_since_launch():.2f} s after launch", flush=True)
 
