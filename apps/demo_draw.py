@@ -101,11 +101,12 @@ def _ticks(top: float, step: float) -> np.ndarray:
 
 
 def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect, series: dict[str, np.ndarray],
-               span_s: float, amplitude_max_um_pp: float, limit_um_pp: float, plate_label: str) -> None:
+               span_s: float, amplitude_max_um_pp: float, limit_um_pp: float, plate_label: str) -> pygame.Rect:
     """A strip chart with scales: target friction (ratio, left axis) and the commanded and plate amplitudes
     (µm p-p, right axis, with the profile's limit) over the last ``span_s``, time in ms up to now.
 
-    ``series`` maps "friction", "commanded", "plate" to rows of (t_s, value); the newest time is 0 ms."""
+    ``series`` maps "friction", "commanded", "plate" to rows of (t_s, value); the newest time is 0 ms.
+    Returns the plotting rectangle (inside the axes)."""
     pygame.draw.rect(screen, PANEL, area)
     line_h = font.get_linesize()
     plot = pygame.Rect(area.left + 64, area.top + line_h + 6, area.width - 64 - 70, area.height - 2 * line_h - 12)
@@ -149,6 +150,7 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
         keep = px >= plot.left
         if keep.sum() >= 2:
             pygame.draw.lines(screen, CHART_COLOURS[name], False, np.column_stack((px[keep], py[keep])).tolist(), 2)
+    return plot
 
 
 def draw_trace(screen: pygame.Surface, points: list[tuple[float, float]]) -> None:

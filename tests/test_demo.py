@@ -243,6 +243,32 @@ def test_labels_are_shortened_to_fit(app):
         assert app.font.size(fit_text(app.font, texture.name, tile.width - 8))[0] <= tile.width - 8
 
 
+def test_chart_puts_values_on_its_scales(app):
+    """Friction steps from 1 to 0.25 at -1500 ms; 3 µm commanded on a 6 µm full scale; the limit at 4.5 µm."""
+    from ultraglide.apps.demo_draw import CHART_COLOURS, LIMIT, draw_chart
+
+    surface = app.pg.Surface((1000, 200))
+    t = np.linspace(10.0, 13.0, 3001)
+    friction = np.column_stack((t, np.where(t < 11.5, 1.0, 0.25)))
+    commanded = np.column_stack((t, np.full_like(t, 3.0)))
+    plot = draw_chart(surface, app.font, surface.get_rect(), {"friction": friction, "commanded": commanded},
+                      3.0, 6.0, 4.5, "plate µm p-p")
+    pixels = app.pg.surfarray.array3d(surface)  # (x, y, rgb)
+
+    def rows_of(colour, x):
+        return np.flatnonzero(np.all(pixels[x, plot.top:plot.bottom + 1] == colour, axis=1)) + plot.top
+
+    quarter, three_quarters = plot.left + plot.width // 4, plot.left + 3 * plot.width // 4
+    assert abs(np.median(rows_of(CHART_COLOURS["friction"], quarter)) - plot.top) <= 2  # ratio 1 at the top
+    assert abs(np.median(rows_of(CHART_COLOURS["friction"], three_quarters)) - (plot.bottom - 0.25 * plot.height)) <= 2
+    assert abs(np.median(rows_of(CHART_COLOURS["commanded"], quarter)) - (plot.bottom - 0.5 * plot.height)) <= 2
+    limit_rows = [rows_of(LIMIT, x) for x in range(plot.left, plot.left + 12)]
+    assert abs(np.median(np.concatenate(limit_rows)) - (plot.bottom - 0.75 * plot.height)) <= 1
+    step_row = int(plot.bottom - 0.6 * plot.height)  # the step's vertical edge, halfway along the time axis
+    edge = np.flatnonzero(np.all(pixels[plot.left:plot.right, step_row] == CHART_COLOURS["friction"], axis=1))
+    assert abs(np.median(edge) + plot.left - plot.centerx) <= 2
+
+
 def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):
     from ultraglide.apps.demo_record import TouchRecorder
     from ultraglide.render.touch_log import read_touch_log
