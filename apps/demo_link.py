@@ -41,12 +41,12 @@ class LinkStatus:
     paused: bool
     blocks: int
     late_blocks: int
-    underruns: int
+    underruns: int  # the sound card's, the plate driver's buffer underruns, or a paced sink's late blocks
     block_p50_us: float
     block_p99_us: float
     limited_pct: float  # of the control samples of the last second with the finger down
     limited_samples: int  # since the texture was last changed
-    faults: tuple[str, ...]
+    faults: tuple[str, ...]  # each fault the device reported over this run, with its count; errors
     limit_um_pp: float
     full_scale_um_pp: float
     measured_um_pp: float | None
@@ -165,8 +165,9 @@ class DemoLink:
         limited_pct = 100.0 * samples[last_second, 1].sum() / down if down else 0.0
         times = counters.render_times_s[:] if all_blocks else counters.render_times_s[-TIMES_KEPT:]
         p50, p99 = (np.percentile(times, [50, 99]) * 1e6) if times else (0.0, 0.0)
-        underruns = device.get("underruns", 0) or (telemetry.underruns if telemetry is not None else 0)
-        faults = [*device.get("device_faults", []), *device.get("errors", [])]
+        counts = device.get("faults") if isinstance(device.get("faults"), dict) else {}  # plate drivers, by name
+        underruns = device.get("underruns", counts.get("underrun", device.get("late_blocks", 0)))
+        faults = [f"{name} ×{count}" for name, count in counts.items() if count] + list(device.get("errors", []))
         if self._stopped:
             state = "stopped"
         elif device.get("connected", True) is False:
