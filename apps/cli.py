@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="feel textures on the plate: the touch-panel demo",
         description="A full-screen demo on the touch panel under the plate: a gallery of textures, each at "
                     "its physical size, and a widgets scene. Keys: G gallery, T texture, W widgets, arrows "
-                    "switch texture and change the force, M model, space pause, Esc quit.")
+                    "switch texture and change the force, M model, space pause, H help, Esc quit.")
     demo.add_argument("textures", nargs="*", metavar="TEXTURE",
                       help="texture files or images to add to the library's (images are authored with defaults)")
     demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
@@ -140,6 +140,14 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--screen-width-mm", type=positive, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
+    demo.add_argument("--record", metavar="FILE.csv",
+                      help="write the touches as a touch log (t_s,x_mm,y_mm,force_n) that export and play "
+                           "--trajectory replay; flushed as it goes, renamed into place at exit")
+    demo.add_argument("--stats", metavar="FILE.json",
+                      help="at exit, write the renderer's figures: blocks, late blocks, underruns, block time "
+                           "p50/p99 (over the last 50 000 blocks or more, 100 s at 2 ms a block)")
+    demo.add_argument("--report-frames", action="store_true",
+                      help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
     demo.set_defaults(handler="ultraglide.apps.demo_app:run")
     return parser
 

@@ -1,35 +1,84 @@
-"""Drawing for the demo: friction maps at physical size, the finger trace, the strip chart."""
+"""Drawing for the demo: friction maps at physical size, thumbnails, the finger trace, the chart, help."""
 
 from __future__ import annotations
 
 import numpy as np
 import pygame
-from ultraglide.textures.texture import Texture
+from ultraglide.textures.texture import Texture, gradient_ratio
 
 BACKGROUND = (18, 20, 26)
 PANEL = (32, 36, 46)
+GRID = (58, 64, 80)
 TEXT = (225, 228, 235)
 DIM = (140, 146, 160)
 ACCENT = (255, 170, 60)
 TRACE = (255, 90, 90)
 OTHER_FINGER = (120, 180, 255)
-CHART_COLOURS = {"friction": (110, 200, 255), "amplitude": (255, 170, 60), "measured": (120, 230, 130)}
+LIMIT = (235, 80, 80)
+CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130)}
+
+
+def _palette() -> np.ndarray:
+    slippery = np.array([20, 40, 110], dtype=float)
+    sticky = np.array([235, 228, 210], dtype=float)
+    return (slippery + (sticky - slippery) * np.linspace(0.0, 1.0, 256)[:, None]).astype(np.uint8)
+
+
+PALETTE = _palette()
 
 
 def friction_colours(ratio: np.ndarray) -> np.ndarray:
-    """RGB for friction ratios: light = sticky (at rest), dark blue = slippery; (rows, cols, 3) uint8."""
-    r = np.clip(ratio, 0.0, 1.0)[..., None]
-    slippery = np.array([20, 40, 110], dtype=float)
-    sticky = np.array([235, 228, 210], dtype=float)
-    return (slippery + (sticky - slippery) * r).astype(np.uint8)
+    """RGB for friction ratios: light = sticky (at rest), dark blue = slippery; (rows, cols, 3) uint8.
+    A 256-entry palette (ratios to 1/255) keeps this cheap on whole textures."""
+    index = np.clip(ratio, 0.0, 1.0) * 255.0 + 0.5
+    return PALETTE[index.astype(np.uint8)]
+
+
+def box_reduce(values: np.ndarray, factor: int) -> np.ndarray:
+    """Mean over ``factor`` × ``factor`` blocks: shrinking without aliasing fine patterns."""
+    if factor <= 1:
+        return values
+    rows, cols = values.shape[0] // factor * factor, values.shape[1] // factor * factor
+    blocks = values[:rows, :cols].reshape(rows // factor, factor, cols // factor, factor)
+    return blocks.mean(axis=(1, 3), dtype=np.float32)
+
+
+def _surface_of(rgb: np.ndarray) -> pygame.Surface:
+    return pygame.surfarray.make_surface(np.ascontiguousarray(rgb.transpose(1, 0, 2)))
 
 
 def texture_surface(texture: Texture, mm_per_px: float) -> pygame.Surface:
     """The friction map as a surface whose pixels match the screen's millimetres."""
-    rgb = friction_colours(texture.ratio_map())
-    surface = pygame.surfarray.make_surface(np.ascontiguousarray(rgb.transpose(1, 0, 2)))
+    surface = _surface_of(friction_colours(texture.ratio_map()))
     size = (max(1, round(texture.width_mm / mm_per_px)), max(1, round(texture.height_mm / mm_per_px)))
     return pygame.transform.smoothscale(surface, size)
+
+
+def thumbnail(texture: Texture, size: tuple[int, int]) -> pygame.Surface:
+    """The texture fitted into ``size`` px keeping its aspect, smooth-scaled (area-averaged, no aliasing)."""
+    scale = min(size[0] / texture.width_mm, size[1] / texture.height_mm)
+    fitted = (max(1, round(texture.width_mm * scale)), max(1, round(texture.height_mm * scale)))
+    factor = max(1, min(texture.cols // fitted[0], texture.rows // fitted[1]))  # averaged down to about the tile
+    values = box_reduce(texture.values, factor)
+    if texture.kind == "gradient":  # under a left-to-right swipe, as Texture.ratio_map, on fewer pixels
+        ratio = gradient_ratio(texture, np.gradient(values.astype(float), texture.pixel_mm[0] * factor, axis=1))
+    else:
+        ratio = values
+    return pygame.transform.smoothscale(_surface_of(friction_colours(ratio)), fitted)
+
+
+def fit_text(font: pygame.font.Font, text: str, width_px: int) -> str:
+    """``text``, shortened with an ellipsis if it is wider than ``width_px``."""
+    if font.size(text)[0] <= width_px:
+        return text
+    low, high = 0, len(text)
+    while low < high:  # the longest prefix that fits with the ellipsis
+        mid = (low + high + 1) // 2
+        if font.size(text[:mid].rstrip() + "…")[0] <= width_px:
+            low = mid
+        else:
+            high = mid - 1
+    return text[:low].rstrip() + "…"
 
 
 def blit_texture(screen: pygame.Surface, surface: pygame.Surface, area: pygame.Rect, tiled: bool,
@@ -47,29 +96,61 @@ def blit_texture(screen: pygame.Surface, surface: pygame.Surface, area: pygame.R
     screen.set_clip(clip)
 
 
+def _ticks(top: float, step: float) -> np.ndarray:
+    return np.arange(0.0, top + step * 0.01, step)
+
+
 def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect, series: dict[str, np.ndarray],
-               span_s: float, amplitude_max: float) -> None:
-    """A strip chart: friction (0..1) and amplitudes (0..amplitude_max µm) over the last ``span_s``."""
+               span_s: float, amplitude_max_um_pp: float, limit_um_pp: float, plate_label: str) -> pygame.Rect:
+    """A strip chart with scales: target friction (ratio, left axis) and the commanded and plate amplitudes
+    (µm p-p, right axis, with the profile's limit) over the last ``span_s``, time in ms up to now.
+
+    ``series`` maps "friction", "commanded", "plate" to rows of (t_s, value); the newest time is 0 ms.
+    Returns the plotting rectangle (inside the axes)."""
     pygame.draw.rect(screen, PANEL, area)
-    inner = area.inflate(-16, -24)
-    inner.top = area.top + 18
-    x = 10
+    line_h = font.get_linesize()
+    plot = pygame.Rect(area.left + 64, area.top + line_h + 6, area.width - 64 - 70, area.height - 2 * line_h - 12)
+    labels = {"friction": "target friction (ratio)", "commanded": "commanded µm p-p", "plate": plate_label}
+    x = plot.left
     for name, colour in CHART_COLOURS.items():
-        label = {"friction": "target friction (0-1)", "amplitude": f"commanded µm (0-{amplitude_max:g})",
-                 "measured": "plate measured µm"}[name]
-        rendered = font.render(label, True, colour)
-        screen.blit(rendered, (area.left + x, area.top + 2))
-        x += rendered.get_width() + 24
+        rendered = font.render(labels[name], True, colour)
+        screen.blit(rendered, (x, area.top + 3))
+        x += rendered.get_width() + 28
+    screen.blit(font.render(f"limit {limit_um_pp:g} µm p-p", True, LIMIT), (x, area.top + 3))
+    for value in _ticks(1.0, 0.25):  # friction: left axis
+        y = plot.bottom - value * plot.height
+        pygame.draw.line(screen, GRID, (plot.left, y), (plot.right, y), 1)
+        text = font.render(f"{value:.2f}", True, CHART_COLOURS["friction"])
+        screen.blit(text, text.get_rect(midright=(plot.left - 6, y)))
+    step = 1.0 if amplitude_max_um_pp <= 6 else 2.0 if amplitude_max_um_pp <= 12 else 5.0
+    for value in _ticks(amplitude_max_um_pp, step):  # amplitude: right axis
+        y = plot.bottom - value / amplitude_max_um_pp * plot.height
+        pygame.draw.line(screen, GRID, (plot.right, y), (plot.right + 4, y), 1)
+        text = font.render(f"{value:g} µm", True, CHART_COLOURS["commanded"])
+        screen.blit(text, text.get_rect(midleft=(plot.right + 8, y)))
+    span_ms = span_s * 1000
+    for ms in _ticks(span_ms, 500.0):  # time: bottom axis, now at the right
+        x = plot.right - ms / span_ms * plot.width
+        pygame.draw.line(screen, GRID, (x, plot.top), (x, plot.bottom + 3), 1)
+        words = "now" if ms == 0 else f"−{ms:.0f} ms" if ms >= span_ms else f"−{ms:.0f}"
+        text = font.render(words, True, DIM)
+        screen.blit(text, text.get_rect(midtop=(x, plot.bottom + 4)))
+    pygame.draw.rect(screen, DIM, plot, 1)
+    y_limit = plot.bottom - min(limit_um_pp / amplitude_max_um_pp, 1.0) * plot.height
+    for x0 in range(plot.left, plot.right, 12):  # the limit as a dashed line
+        pygame.draw.line(screen, LIMIT, (x0, y_limit), (min(x0 + 6, plot.right), y_limit), 1)
+    latest = max((values[-1, 0] for values in series.values() if len(values)), default=0.0)
     for name, values in series.items():
         if len(values) < 2:
             continue
         t, v = values[:, 0], values[:, 1]
-        scale = 1.0 if name == "friction" else amplitude_max
-        px = inner.right - (t[-1] - t) / span_s * inner.width
-        py = inner.bottom - np.clip(v / scale, 0, 1) * inner.height
-        keep = px >= inner.left
+        scale = 1.0 if name == "friction" else amplitude_max_um_pp
+        px = plot.right - (latest - t) / span_s * plot.width
+        py = plot.bottom - np.clip(v / scale, 0, 1) * plot.height
+        keep = px >= plot.left
         if keep.sum() >= 2:
             pygame.draw.lines(screen, CHART_COLOURS[name], False, np.column_stack((px[keep], py[keep])).tolist(), 2)
+    return plot
 
 
 def draw_trace(screen: pygame.Surface, points: list[tuple[float, float]]) -> None:
@@ -77,3 +158,24 @@ def draw_trace(screen: pygame.Surface, points: list[tuple[float, float]]) -> Non
         pygame.draw.lines(screen, TRACE, False, points, 3)
     if points:
         pygame.draw.circle(screen, TRACE, (int(points[-1][0]), int(points[-1][1])), 14, 3)
+
+
+def draw_help(screen: pygame.Surface, font: pygame.font.Font, title_font: pygame.font.Font,
+              lines: list[tuple[str, str]]) -> pygame.Rect:
+    """A panel in the middle of the screen listing keys (or gestures) and what they do; returns its rect."""
+    key_w = max(font.size(key)[0] for key, _ in lines)
+    text_w = max(font.size(what)[0] for _, what in lines)
+    line_h = font.get_linesize() + 4
+    title = title_font.render("ultraglide demo: keys and gestures (H to close)", True, ACCENT)
+    width = max(key_w + text_w + 60, title.get_width() + 40)
+    panel = pygame.Rect(0, 0, width, len(lines) * line_h + title.get_height() + 40)
+    panel.center = screen.get_rect().center
+    pygame.draw.rect(screen, PANEL, panel, border_radius=10)
+    pygame.draw.rect(screen, ACCENT, panel, 2, border_radius=10)
+    screen.blit(title, (panel.left + 20, panel.top + 14))
+    y = panel.top + title.get_height() + 26
+    for key, what in lines:
+        screen.blit(font.render(key, True, ACCENT), (panel.left + 20, y))
+        screen.blit(font.render(what, True, TEXT), (panel.left + 40 + key_w, y))
+        y += line_h
+    return panel

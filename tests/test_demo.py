@@ -1,7 +1,6 @@
 """The demo: headless with SDL's dummy driver, and a real window under Xvfb driven by xdotool."""
 
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -12,6 +11,7 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
+from xvfb_demo import XvfbDemo, tools_missing
 
 ARTIFACTS = ROOT / "artifacts" / "screenshots"
 
@@ -30,6 +30,7 @@ def app(halves, monkeypatch):
     from ultraglide.apps.demo_app import DemoApp
 
     demo = DemoApp([halves], windowed=True, screen_width_mm=338.7)  # 1280 px: 0.2646 mm a pixel
+    demo.wait_ready()
     yield demo
     demo.close()
 
@@ -50,7 +51,7 @@ def finger(pg, kind, x, y, finger_id=1):
 
 
 def measured(app):
-    return app.device.telemetry.measured_um_pp
+    return app.link.device.telemetry.measured_um_pp
 
 
 def test_touch_positions_reach_the_renderer_in_millimetres(app):
@@ -60,7 +61,7 @@ def test_touch_positions_reach_the_renderer_in_millimetres(app):
     x_px, y_px = 200, app.area.top + 100
     finger(pg, pg.FINGERDOWN, x_px / w, y_px / h)
     run_for(app, 0.05)
-    fit = app.renderer.trajectory._fit
+    fit = app.link.renderer.trajectory._fit
     assert fit.x_ref == pytest.approx(x_px * app.mm_per_px, abs=0.3)
     assert fit.y_ref == pytest.approx(100 * app.mm_per_px, abs=0.3)
     assert fit.down
@@ -100,7 +101,7 @@ def test_mouse_drives_but_its_copies_of_touches_are_ignored(app):
     post(pg, pg.MOUSEMOTION, pos=(110, y), rel=(10, 0), buttons=(1, 0, 0), touch=False)
     run_for(app, 0.3)
     assert app.pushed == 2 and measured(app) > 3.0
-    assert app.renderer.trajectory._fit.x_ref == pytest.approx(110 * app.mm_per_px, abs=0.1)  # merged
+    assert app.link.renderer.trajectory._fit.x_ref == pytest.approx(110 * app.mm_per_px, abs=0.1)  # merged
     post(pg, pg.MOUSEBUTTONUP, pos=(110, y), button=1, touch=False)
     run_for(app, 0.2)
     assert measured(app) < 0.05
@@ -125,16 +126,16 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert app.scene == "gallery"
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("widgets"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "widgets" and app.renderer.texture.name == "widgets"
-    force = app.renderer.default_force_n
+    assert app.scene == "widgets" and app.link.renderer.texture.name == "widgets"
+    force = app.link.renderer.default_force_n
     post(pg, pg.KEYDOWN, key=pg.K_UP, mod=0, unicode="", scancode=0)
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("model"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.renderer.default_force_n == pytest.approx(force * 1.25)
-    assert app.model_name == "paper" and app.renderer.model.name == "paper"
+    assert app.link.renderer.default_force_n == pytest.approx(force * 1.25)
+    assert app.model_name == "paper" and app.link.renderer.model.name == "paper"
     post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=0)
     run_for(app, 0.05)
-    assert app.user_paused and app.renderer.paused
+    assert app.user_paused and app.link.renderer.paused
     post(pg, pg.KEYDOWN, key=pg.K_ESCAPE, mod=0, unicode="", scancode=0)
     run_for(app, 0.05)
     assert not app.running
@@ -145,7 +146,7 @@ def test_gallery_tap_chooses_a_texture(app):
     tile = app.tiles[0]
     post(pg, pg.MOUSEBUTTONDOWN, pos=tile.center, button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "texture" and app.renderer.texture.name == "halves"
+    assert app.scene == "texture" and app.link.renderer.texture.name == "halves"
 
 
 def test_closing_rests_the_plate(app):
@@ -154,9 +155,161 @@ def test_closing_rests_the_plate(app):
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
     run_for(app, 0.3)
     assert measured(app) > 3.0
-    plate = app.device.plate
+    plate = app.link.device.plate
     app.close()
     assert not plate.simulator.enabled and plate.simulator.amplitude_um_pp < 0.5
+
+
+def test_panel_pressure_sets_the_force_only_where_the_panel_reports_it(app):
+    pg = app.pg
+    app._act("texture")
+    w, h = app.screen.get_size()
+    y = (app.area.top + 150) / h
+    post(pg, pg.FINGERDOWN, x=100 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+    run_for(app, 0.05)
+    assert np.isnan(app.link.renderer.trajectory._fit.force_n)  # 1.0 from a panel without a sensor: the default
+    assert "Up/Down keys" in app.status_words()
+    post(pg, pg.FINGERMOTION, x=120 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=0.3)
+    run_for(app, 0.05)
+    assert app.link.renderer.trajectory._fit.force_n == pytest.approx(0.3 * 2.0)  # PRESSURE_FULL_SCALE_N
+    assert "touch pressure" in app.status_words()
+
+
+def test_status_line_says_device_state_model_force_limits_and_faults(app):
+    import re
+
+    words = app.status_words()
+    for phrase in ("simulated plate running", "exponential model", "0.50 N (Up/Down keys)",
+                   "limited 0 % of the last second"):
+        assert phrase in words, words
+    # a loaded machine may starve the simulated plate: then its faults are named and counted
+    assert re.search(r"running, (no faults|faults: [a-z-]+ ×\d+)", words) and re.search(r"\d+ underruns", words)
+    app._act("force+")
+    app._act("model")
+    run_for(app, 0.05)
+    assert "0.62 N" in app.status_words() and "paper model" in app.status_words()
+
+
+def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeypatch, halves):
+    """A texture asking for no friction at all is beyond any plate: every sample is limited, until the texture
+    changes, when the count starts again."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo_app import DemoApp
+
+    unreachable = save_texture(Texture(np.zeros((50, 80), np.float32), 80.0, 50.0, outside="clamp",
+                                       name="unreachable"), tmp_path / "unreachable.png")
+    app = DemoApp([unreachable, halves], windowed=True, screen_width_mm=338.7)
+    try:
+        app.wait_ready()
+        pg = app.pg
+        app._act("texture")
+        y = app.area.top + 50
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(60, y), button=1, touch=False)
+        for i in range(40):
+            post(pg, pg.MOUSEMOTION, pos=(60 + i, y), rel=(1, 0), buttons=(1, 0, 0), touch=False)
+            run_for(app, 0.02)
+        status = app.link.status()
+        assert status.limited_pct > 90 and status.limited_samples > 0.5 * 12000 * 0.9, status
+        post(pg, pg.MOUSEBUTTONUP, pos=(100, y), button=1, touch=False)
+        run_for(app, 0.05)
+        app._act("next")  # halves: the right half is at rest, nothing to limit
+        assert app.link.status().limited_samples == 0
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(900, y), button=1, touch=False)
+        run_for(app, 0.5)
+        assert app.link.status().limited_samples == 0 and app.link.status().limited_pct == 0
+    finally:
+        app.close()
+
+
+def test_widgets_are_laid_out_for_the_screen(app):
+    app._act("widgets")
+    texture, placements = app.widgets
+    assert texture.width_mm == pytest.approx(app.area.width * app.mm_per_px, rel=1e-3)
+    assert texture.height_mm == pytest.approx(app.area.height * app.mm_per_px, rel=1e-3)
+    boxes = [(p.x_mm, p.y_mm, p.x_mm + p.texture.width_mm, p.y_mm + p.texture.height_mm) for p in placements]
+    for left, top, right, bottom in boxes:
+        assert 0 <= left < right <= texture.width_mm and 0 <= top < bottom <= texture.height_mm
+    for i, a in enumerate(boxes):  # no two overlap
+        for b in boxes[i + 1:]:
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+    used = sum((r - left) * (b - t) for left, t, r, b in boxes)
+    assert used > 0.25 * texture.width_mm * texture.height_mm  # they use the screen, not a corner of it
+
+
+def test_labels_are_shortened_to_fit(app):
+    from ultraglide.apps.demo_draw import fit_text
+
+    long = "a texture with a very long name indeed, longer than any tile"
+    short = fit_text(app.font, long, 120)
+    assert short.endswith("…") and app.font.size(short)[0] <= 120 and long.startswith(short[:-1])
+    assert fit_text(app.font, "wood", 120) == "wood"
+    for tile, texture in zip(app.tiles, app.textures, strict=True):
+        assert app.font.size(fit_text(app.font, texture.name, tile.width - 8))[0] <= tile.width - 8
+
+
+def test_chart_puts_values_on_its_scales(app):
+    """Friction steps from 1 to 0.25 at -1500 ms; 3 µm commanded on a 6 µm full scale; the limit at 4.5 µm."""
+    from ultraglide.apps.demo_draw import CHART_COLOURS, LIMIT, draw_chart
+
+    surface = app.pg.Surface((1000, 200))
+    t = np.linspace(10.0, 13.0, 3001)
+    friction = np.column_stack((t, np.where(t < 11.5, 1.0, 0.25)))
+    commanded = np.column_stack((t, np.full_like(t, 3.0)))
+    plot = draw_chart(surface, app.font, surface.get_rect(), {"friction": friction, "commanded": commanded},
+                      3.0, 6.0, 4.5, "plate µm p-p")
+    pixels = app.pg.surfarray.array3d(surface)  # (x, y, rgb)
+
+    def rows_of(colour, x):
+        return np.flatnonzero(np.all(pixels[x, plot.top:plot.bottom + 1] == colour, axis=1)) + plot.top
+
+    quarter, three_quarters = plot.left + plot.width // 4, plot.left + 3 * plot.width // 4
+    assert abs(np.median(rows_of(CHART_COLOURS["friction"], quarter)) - plot.top) <= 2  # ratio 1 at the top
+    assert abs(np.median(rows_of(CHART_COLOURS["friction"], three_quarters)) - (plot.bottom - 0.25 * plot.height)) <= 2
+    assert abs(np.median(rows_of(CHART_COLOURS["commanded"], quarter)) - (plot.bottom - 0.5 * plot.height)) <= 2
+    limit_rows = [rows_of(LIMIT, x) for x in range(plot.left, plot.left + 12)]
+    assert abs(np.median(np.concatenate(limit_rows)) - (plot.bottom - 0.75 * plot.height)) <= 1
+    step_row = int(plot.bottom - 0.6 * plot.height)  # the step's vertical edge, halfway along the time axis
+    edge = np.flatnonzero(np.all(pixels[plot.left:plot.right, step_row] == CHART_COLOURS["friction"], axis=1))
+    assert abs(np.median(edge) + plot.left - plot.centerx) <= 2
+
+
+def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):
+    from ultraglide.apps.demo_record import TouchRecorder
+    from ultraglide.render.touch_log import read_touch_log
+
+    path = tmp_path / "log.csv"
+    recorder = TouchRecorder(path)
+    geometry = {"screen_px": [1280, 800], "mm_per_px": 0.25}
+    recorder.touch(10.0, 1.0, 2.0, None, "wood", geometry)
+    recorder.touch(10.5, 3.0, 2.5, 0.7, "wood", geometry)
+    recorder.lift(10.6)
+    recorder.touch(11.0, 4.0, 2.0, None, "grating-1mm", geometry)
+    partial = read_touch_log(tmp_path / "log.csv.part")  # as a crash would leave it: every row there
+    assert list(partial.t_s) == [0.0, 0.5, 1.0] and list(partial.x_mm) == [1.0, 3.0, 4.0]
+    assert list(partial.force_n) == [0.5, 0.7, 0.5]
+    assert not path.exists()
+    assert recorder.close() == path and path.exists() and not (tmp_path / "log.csv.part").exists()
+    text = path.read_text()
+    assert '"texture": "wood"' in text and "# lift at t_s=0.600000" in text and '# texture "grating-1mm"' in text
+    empty = TouchRecorder(tmp_path / "empty.csv")
+    assert empty.close() is None and not list(tmp_path.glob("empty.csv*"))
+
+
+def test_bad_model_found_after_the_first_frame_is_still_one_line():
+    """The renderer starts after the window is up; its errors still end the demo with one line."""
+    result = run_cli("demo", "--windowed", "--model", "table:/nonexistent.csv", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "nonexistent.csv" in assert_one_line_error(result)
+    assert "first frame drawn" in result.stdout
+
+
+def test_bad_record_and_stats_names_are_one_line(tmp_path):
+    result = run_cli("demo", "--record", tmp_path / "log.txt", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "--record needs a .csv file" in assert_one_line_error(result)
+    result = run_cli("demo", "--stats", tmp_path / "s.txt", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "--stats needs a .json file" in assert_one_line_error(result)
+    result = run_cli("demo", "--record", tmp_path / "missing" / "log.csv", env={"SDL_VIDEODRIVER": "dummy"})
+    assert "cannot write the recording" in assert_one_line_error(result)
+    assert not list(tmp_path.iterdir())
 
 
 def test_no_display_is_one_clear_line():
@@ -166,60 +319,98 @@ def test_no_display_is_one_clear_line():
     assert "ultraglide export" in assert_one_line_error(result)
 
 
-@pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool") and shutil.which("import")),
-                    reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+needs_xvfb = pytest.mark.skipif(bool(tools_missing()), reason="needs Xvfb, xdotool and ImageMagick "
+                                                                  "(./run tests installs them)")
+
+
+@needs_xvfb
 def test_demo_under_xvfb_driven_by_xdotool(tmp_path):
-    display = ":97"
-    xvfb = subprocess.Popen(["Xvfb", display, "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    env = {**os.environ, "DISPLAY": display}
-    env.pop("SDL_VIDEODRIVER", None)
-    try:
-        time.sleep(1.0)
-        demo = subprocess.Popen([sys.executable, "-m", "ultraglide", "demo", "--windowed"], env=env, cwd=ROOT,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(1.0)
-        assert demo.poll() is None, demo.communicate()[1]
+    """Each scene is on screen when the demo says it has drawn it: no sleeps, screenshots never black."""
+    with XvfbDemo() as demo:
+        demo.wait_for("first frame drawn", 60)
+        demo.wait_for("^frame drawn: gallery", 30)
+        screenshots = [demo.shot(ARTIFACTS / "1-gallery.png")]
+        demo.wait_for("^renderer ready", 60)
+        demo.xdo("mousemove", 110, 100, "click", 1)  # the first tile
+        demo.wait_for("^frame drawn: texture", 30)
+        demo.drag([(x, 300) for x in range(200, 700, 10)])
+        screenshots.append(demo.shot(ARTIFACTS / "2-texture.png"))
+        demo.xdo("key", "w")
+        demo.wait_for("^frame drawn: widgets$", 30)
+        screenshots.append(demo.shot(ARTIFACTS / "3-widgets.png"))
+        demo.xdo("key", "h")
+        demo.wait_for("^frame drawn: widgets help", 30)
+        screenshots.append(demo.shot(ARTIFACTS / "4-help.png"))
+        assert demo.quit() == 0
+    from PIL import Image
 
-        def xdo(*args):
-            subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=10)
+    pictures = [np.asarray(Image.open(path).convert("RGB"), dtype=float) for path in screenshots]
+    for picture in pictures:
+        assert picture.shape == (800, 1280, 3) and picture.std() > 10  # something was drawn
+    for before, after in zip(pictures, pictures[1:], strict=False):
+        assert np.abs(before - after).mean() > 3  # and each scene differs from the one before
 
-        def shot(name):
-            ARTIFACTS.mkdir(parents=True, exist_ok=True)
-            path = ARTIFACTS / f"{name}.png"
-            subprocess.run(["import", "-window", "root", str(path)], env=env, check=True, timeout=20)
-            return path
 
-        # SDL types WM_NAME as UTF-8, which xdotool's --name does not match: find the window by its process
-        window = subprocess.run(["xdotool", "search", "--sync", "--pid", str(demo.pid)], env=env,
-                                capture_output=True, text=True, timeout=30).stdout.split()
-        assert window, "the demo window did not appear"
-        time.sleep(1.0)
-        screenshots = [shot("1-gallery")]
-        xdo("mousemove", 110, 100, "click", 1)  # the first tile
-        time.sleep(0.5)
-        xdo("mousemove", 200, 300, "mousedown", 1)
-        for x in range(200, 700, 25):
-            xdo("mousemove", x, 300)
-            time.sleep(0.02)
-        screenshots.append(shot("2-texture"))
-        xdo("mouseup", 1)
-        xdo("key", "w")
-        time.sleep(0.5)
-        screenshots.append(shot("3-widgets"))
-        xdo("key", "Escape")
-        assert demo.wait(timeout=15) == 0
-        from PIL import Image
+@needs_xvfb
+def test_demo_idles_cold_under_xvfb():
+    """Nothing moves: the process (window, event loop, renderer on the null device) uses at most 10 % of a core."""
+    with XvfbDemo("--device", "null") as demo:
+        demo.wait_for("^renderer ready", 60)  # after the first frames
+        cpu_before, wall_before = demo.cpu_s(), time.perf_counter()
+        deadline = wall_before + 4.0
+        while time.perf_counter() < deadline:  # CPU time, not wall time: sleeping costs nothing
+            time.sleep(0.2)
+        share = (demo.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
+        assert share <= 0.10, f"{share:.1%} of a core while idle"
+        assert demo.quit() == 0
 
-        pictures = [np.asarray(Image.open(path).convert("RGB"), dtype=float) for path in screenshots]
-        for picture in pictures:
-            assert picture.shape == (800, 1280, 3) and picture.std() > 10  # something was drawn
-        assert np.abs(pictures[0] - pictures[1]).mean() > 5 and np.abs(pictures[1] - pictures[2]).mean() > 5
-    finally:
-        if demo.poll() is None:
-            demo.kill()
-        xvfb.terminate()
-        xvfb.wait(timeout=10)
+
+@needs_xvfb
+def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
+    """A drag from the slippery half into the sticky half, recorded, exported: the WAV's envelope is high
+    exactly while the recorded finger was over the slippery half, and the log's positions are the pointer's."""
+    import json
+
+    import soundfile
+    from ultraglide.render.touch_log import read_touch_log
+
+    record, stats = tmp_path / "drag.csv", tmp_path / "stats.json"
+    with XvfbDemo(str(halves), "--device", "null", "--record", str(record), "--stats", str(stats)) as demo:
+        demo.wait_for("^renderer ready", 60)
+        demo.xdo("key", "t")  # the first texture: halves
+        demo.wait_for("^frame drawn: texture", 30)
+        demo.drag([(x, 300) for x in range(100, 704, 4)])  # 1.26 s at 120 Hz across the boundary (378 px)
+        assert demo.quit() == 0
+    assert record.exists() and not (tmp_path / "drag.csv.part").exists()
+    comments = [line for line in record.read_text().splitlines() if line.startswith("#")]
+    meta = json.loads(comments[1][1:])
+    assert meta["texture"] == "halves" and meta["screen_px"] == [1280, 800]
+    log = read_touch_log(record)
+    mm_per_px = meta["mm_per_px"]
+    assert mm_per_px == pytest.approx(25.4 / 96)
+    assert log.x_mm[0] == pytest.approx(100 * mm_per_px, abs=0.01)
+    assert log.x_mm[-1] == pytest.approx(700 * mm_per_px, abs=0.01)
+    assert np.allclose(log.y_mm, (300 - meta["texture_area_px"][1]) * mm_per_px, atol=0.01)
+    assert len(log.t_s) > 50 and np.all(log.force_n == 0.5)
+
+    wav = tmp_path / "drag.wav"
+    run_cli("export", halves, "--trajectory", record, "-o", wav, check=True)
+    signal, rate = soundfile.read(wav)
+    window = rate // 1000  # 1 ms: 25 carrier periods
+    envelope = np.abs(signal[: len(signal) // window * window]).reshape(-1, window).max(axis=1)
+    t_ms = np.arange(len(envelope)) + 0.5
+    x_at = np.interp(t_ms / 1000, log.t_s, log.x_mm)
+    crossing_ms = 1000 * np.interp(100.0, log.x_mm, log.t_s)
+    settled = (t_ms > 30) & (np.abs(t_ms - crossing_ms) > 30) & (t_ms < 1000 * log.t_s[-1])
+    slippery, sticky = settled & (x_at < 100), settled & (x_at > 100)
+    assert slippery.sum() > 50 and sticky.sum() > 50
+    assert envelope[slippery].min() > 0.3, envelope[slippery].min()  # strong vibration over 0.2 friction
+    assert envelope[sticky].max() < 0.02, envelope[sticky].max()  # at rest over 1.0
+
+    figures = json.loads(stats.read_text())
+    assert figures["blocks_rendered"] > 100 and figures["touches"] == len(log.t_s)
+    assert 0 < figures["block_p50_us"] <= figures["block_p99_us"]
+    assert figures["underruns"] >= 0 and figures["late_blocks"] >= 0
 
 
 def test_bad_demo_texture_is_one_line(tmp_path):
