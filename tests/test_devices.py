@@ -322,8 +322,15 @@ def test_a_recorder_that_never_started_writes_nothing(tmp_path):
 
 
 def test_every_fault_over_a_run_is_counted(plate):
-    """Faults injected one after another: the host's counts over the run equal what was injected."""
-    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+    """Faults injected one after another: the host's counts over the run equal what was injected.
+
+    The host's own limiter keeps its drive within its profile's limit, so to reach the device's trip the
+    host is given a profile that believes in a 7.9 µm limit while the simulated firmware keeps 6 µm: the
+    firmware's limit is the second line of defence against a wrong profile."""
+    import dataclasses
+
+    believed = dataclasses.replace(PROFILE, max_amplitude_um_pp=7.9, max_drive_um_pp=8.0)
+    driver = SerialPlate(plate.path, believed, ack_timeout_s=10)
     source = Constant(3.0)
     driver.start(source)
     sim = plate.simulator
