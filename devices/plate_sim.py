@@ -348,7 +348,10 @@ class PlateSimulator:
                 if self.enabled:
                     self.counters.underruns += 1
                     self._fault(p.FAULT_UNDERRUN, now)
-            played = np.concatenate((played, np.full(n - len(played), self._last_value)))
+            # a held overdrive (pre-compensation above the steady limit) would carry the plate past its
+            # limit: the held value is capped at the limit's share of full scale
+            hold = min(self._last_value, self.profile.max_amplitude_um_pp / self.profile.full_scale_um_pp)
+            played = np.concatenate((played, np.full(n - len(played), hold)))
         if len(played):
             self._last_value = float(played[-1])
         if self.enabled and now - self._heard > WATCHDOG_S:  # armed only while enabled

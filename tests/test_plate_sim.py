@@ -179,6 +179,22 @@ def test_over_limit_then_trip_on_the_measured_amplitude():
     assert sim.peak_um_pp <= 6.0 * 1.01 + 0.05  # cut at the sample it crossed
 
 
+def test_an_underrun_never_holds_an_overdrive_above_the_limit():
+    """The host may overdrive briefly (pre-compensation); if the stream then runs dry, the held value is
+    capped at the steady limit's share of full scale, so the plate settles at the limit, not at full scale."""
+    sim = PlateSimulator(PROFILE)
+    host = Host(sim)
+    host.send(p.ENABLE, p.enable_payload(True))
+    t = host.stream(sim._clock, 0.05, 3.0 / 8.0)
+    t = host.stream(t, 0.001, 1.0, step=0.001)  # 1 ms at full scale (8 µm p-p): 4.65 µm, then nothing more
+    for _ in range(40):  # 40 ms starved: 16 time constants of this plate
+        t += 0.001
+        sim.advance(t)
+    assert sim.fault_counts()["underrun"] == 1
+    assert sim.fault_counts()["over-limit"] == 0 and sim.fault_counts()["trip"] == 0 and sim.enabled
+    assert 5.9 < sim.amplitude_um_pp <= 6.0  # held at the limit (6 µm p-p), not at the 8 µm burst
+
+
 def test_the_plates_truth_is_a_detuned_drifting_resonator():
     f0, q = 25062.5, 100.0  # not the profile's 25 kHz and Q 200
     sim = PlateSimulator(PROFILE, truth=PlateTruth(f0, q))
