@@ -63,10 +63,11 @@ class EnvelopeChain:
         self.ramps = 0
         self.drive_clipped = 0
 
-    def process(self, target: np.ndarray, gate_open: np.ndarray | bool) -> EnvelopeBlock:
-        """One block: ``target`` amplitudes and whether the gate is open (per sample, or for all)."""
+    def process(self, target: np.ndarray, gate_open: np.ndarray | bool, out=None) -> EnvelopeBlock:
+        """One block: ``target`` amplitudes and whether the gate is open (per sample, or for all).
+        ``out``: three preallocated float64 arrays of the block's length (amplitude, drive, plate)."""
         n = len(target)
-        amplitude, drive, plate = np.empty(n), np.empty(n), np.empty(n)
+        amplitude, drive, plate = out if out is not None else (np.empty(n), np.empty(n), np.empty(n))
         if isinstance(gate_open, np.ndarray) and gate_open.ndim:
             open_all, flags = -1, gate_open.astype(np.uint8)
         else:

@@ -99,6 +99,33 @@ class ControlBlock:
     plate_um_pp: np.ndarray  # what the plate model says it does
 
 
+class ControlBuffers:
+    """Preallocated outputs for :meth:`Renderer.control`, so a live block allocates no arrays of its own.
+
+    The block it returns is reused: its arrays are overwritten by the next block of the same length.
+    (The texture lookup and the model inverse still return a small array each; see docs/design.md.)
+    """
+
+    def __init__(self, capacity: int):
+        self.capacity = capacity
+        self.time_s, self.x_mm, self.y_mm = np.empty(capacity), np.empty(capacity), np.empty(capacity)
+        self.amplitude_um_pp, self.drive_um_pp, self.plate_um_pp = (np.empty(capacity), np.empty(capacity),
+                                                                    np.empty(capacity))
+        self._blocks: dict[int, ControlBlock] = {}
+
+    def block(self, n: int) -> ControlBlock:
+        """The reusable block of length ``n`` (views of the buffers; built once per length)."""
+        block = self._blocks.get(n)
+        if block is None:
+            if n > self.capacity:
+                raise RenderError(f"a block of {n} samples exceeds the preallocated {self.capacity}")
+            block = ControlBlock(self.time_s[:n], self.x_mm[:n], self.y_mm[:n], False, None, None,
+                                 self.amplitude_um_pp[:n], self.drive_um_pp[:n], self.plate_um_pp[:n])
+            if len(self._blocks) < 64:
+                self._blocks[n] = block
+        return block
+
+
 class Renderer:
     """See the module docstring. Thread use: ``push`` from any thread; one thread pulls."""
 
@@ -135,6 +162,12 @@ class Renderer:
         self._running = True
         self._last_drive = 0.0  # the last drive sample rendered
         self._offsets = np.zeros(0)
+        self.last_block: ControlBlock | None = None  # the newest block rendered
+
+    def control_buffers(self, capacity: int = 4096) -> ControlBuffers:
+        """Preallocated outputs to pass as ``control(..., out=)`` on a real-time path."""
+        self._offsets = np.arange(capacity) * (1.0 / self.settings.control_rate_hz)
+        return ControlBuffers(capacity)
 
     # ---- input -------------------------------------------------------------------------------
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
@@ -178,7 +211,7 @@ class Renderer:
         return ended and self.envelope.at_rest and abs(self._last_drive) < 1e-6
 
     # ---- control rate ----------------------------------------------------------------------------
-    def _times(self, n: int, now_s: float | None) -> np.ndarray:
+    def _times(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
         period = 1.0 / self.settings.control_rate_hz
         if self.offline:
             now_s = None  # a recorded path runs on its own sample clock, whoever pulls it
@@ -188,16 +221,21 @@ class Renderer:
             self._next_time = now_s if now_s is not None else time.perf_counter()
         if len(self._offsets) < n:
             self._offsets = np.arange(n) * period
-        times = self._offsets[:n] + self._next_time
+        times = np.add(self._offsets[:n], self._next_time, out=out)
         self._next_time += n * period
         return times
 
-    def control(self, n: int, now_s: float | None = None) -> ControlBlock:
+    def control(self, n: int, now_s: float | None = None, out: ControlBuffers | None = None) -> ControlBlock:
         """The next ``n`` control-rate samples. ``now_s``: the perf_counter time the first of them
-        will reach the plate (live rendering); the renderer re-anchors its clock to it if needed."""
+        will reach the plate (live rendering); the renderer re-anchors its clock to it if needed.
+        ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused."""
         started = time.perf_counter()
-        times = self._times(n, now_s)
-        finger = self.trajectory.state(times)
+        reuse = out.block(n) if out is not None else None
+        times = self._times(n, now_s, None if reuse is None else reuse.time_s)
+        if reuse is not None and not self.offline:
+            finger = self.trajectory.state(times, out=(reuse.x_mm, reuse.y_mm))
+        else:
+            finger = self.trajectory.state(times)
         x, y = finger.x_mm, finger.y_mm
         if finger.velocity_mm_s is not None:  # a straight line over the block: one step, one direction
             dx, dy = finger.velocity_mm_s
@@ -225,17 +263,25 @@ class Renderer:
             floor = self.model.floor_ratio(force, self.limit_um_pp)
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
         target = inversion.amplitude_um_pp
-        envelope = self.envelope.process(target, down)
+        if reuse is not None:  # the real-time path: timed by its caller, nothing appended
+            self.envelope.process(target, down, out=(reuse.amplitude_um_pp, reuse.drive_um_pp, reuse.plate_um_pp))
+            if reuse.x_mm is not x:
+                reuse.x_mm[:], reuse.y_mm[:] = x, y
+            reuse.down, reuse.ratio, reuse.target_um_pp = finger.down, ratio, target
+            block = reuse
+        else:
+            envelope = self.envelope.process(target, down)
+            self.counters.render_times_s.append(time.perf_counter() - started)
+            if len(self.counters.render_times_s) > 100_000:
+                del self.counters.render_times_s[:50_000]
+            block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp,
+                                 envelope.drive_um_pp, envelope.plate_um_pp)
         self.counters.ramps = self.envelope.ramps
         self.counters.drive_clipped_samples = self.envelope.drive_clipped
         self.counters.control_samples += n
-        self.counters.render_times_s.append(time.perf_counter() - started)
-        if len(self.counters.render_times_s) > 100_000:
-            del self.counters.render_times_s[:50_000]
         if n:
-            self._last_drive = float(envelope.drive_um_pp[-1])
-        block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp, envelope.drive_um_pp,
-                             envelope.plate_um_pp)
+            self._last_drive = float(block.drive_um_pp[-1])
+        self.last_block = block
         for observer in self.observers:
             observer(block)
         return block

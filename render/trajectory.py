@@ -168,17 +168,23 @@ class LiveTrajectory:
             vx, vy = vx * MAX_SPEED_MM_S / speed, vy * MAX_SPEED_MM_S / speed
         return _Fit(mean_t, mean_x, mean_y, vx, vy, last[0], force, True)
 
-    def state(self, times_s) -> FingerState:
+    def state(self, times_s, out=None) -> FingerState:
+        """The finger at ``times_s``; ``out``: two preallocated arrays (x, y) to fill (no allocation)."""
         fit = self._fit  # one reference, swapped whole by push: no lock needed to read it
         times = np.asarray(times_s, dtype=float)
         if fit is None:
+            if out is not None:
+                out[0].fill(0.0)
+                out[1].fill(0.0)
+                return FingerState(out[0], out[1], np.nan, False, (0.0, 0.0))
             nothing = np.zeros(times.shape)
             return FingerState(nothing, nothing, np.nan, False, (0.0, 0.0))
-        horizon = np.minimum(times, fit.t_last + self.max_extrapolation_s)
-        horizon += self.lookahead_s - fit.t_ref
-        x = horizon * fit.vx
+        x, y = out if out is not None else (np.empty(times.shape), np.empty(times.shape))
+        np.minimum(times, fit.t_last + self.max_extrapolation_s, out=x)
+        x += self.lookahead_s - fit.t_ref  # x holds the horizon until it is scaled
+        np.multiply(x, fit.vy, out=y)
+        x *= fit.vx
         x += fit.x_ref
-        y = horizon * fit.vy
         y += fit.y_ref
         moving = times[-1] <= fit.t_last + self.max_extrapolation_s if times.ndim else True
         velocity = (fit.vx, fit.vy) if moving else (0.0, 0.0)

@@ -1,0 +1,356 @@
+"""The real-time engine in its own process: touches in, status out, the device kept fed whatever the UI does.
+
+The renderer and the device run in a spawned process (:mod:`render.engine_process`), so drawing,
+event handling and garbage in the UI never hold the GIL the block path needs. Two doors:
+
+* **in**: :meth:`Engine.touch` writes a touch report into a shared-memory ring (never waits);
+  rare commands (texture, model, force, pause, stop) go over a pipe;
+* **out**: :meth:`Engine.status` reads a seqlock'd snapshot from shared memory: counters, block
+  times, the recent history for a live chart, and the device's own status.
+
+Example (what an app needs; the demo draws ``status.history`` and prints ``status.words()``)::
+
+    from ultraglide.render.engine import Engine, EngineConfig
+    with Engine.start(EngineConfig(texture="grating-1mm", device="null")) as engine:
+        engine.wait_ready(30)
+        engine.touch(time.perf_counter(), 10.0, 25.0)        # mm; force from the config
+        status = engine.status()
+        status.history.time_s, status.history.commanded_um_pp   # the live chart
+        print(status.words())          # "null running | 1234 blocks, 0 late, 0 underruns | ..."
+        engine.set_texture("bumps"); engine.pause(True); engine.set_force(0.4)
+    # leaving the block stops it: ramps to rest, rests the hardware, joins the process
+
+Time is ``time.perf_counter`` seconds in both processes (one monotonic clock on Linux).
+If the parent dies, the engine sees its pipe close, ramps to rest, rests the hardware and exits.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import multiprocessing
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from ultraglide.render import engine_shm as shm
+from ultraglide.render.engine_process import engine_main
+from ultraglide.render.engine_shm import SharedBlock, ring_order
+from ultraglide.render.errors import RenderError
+
+START_TIMEOUT_S = 120.0  # spawning, importing numpy/scipy/numba and loading a texture on a loaded machine
+COMMAND_TIMEOUT_S = 30.0
+
+
+class EngineError(RenderError):
+    """The engine could not start, or refused a command; the message is one line for a person."""
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """What the engine renders and where. Plain picklable values only (they cross to the engine process).
+
+    ``texture``: a library name or a file; ``model``: a model name or file; ``profile``: a plate profile;
+    ``device``: a device URL (sim, serial:PORT, audio[...], wav:PATH, null). ``rate_hz`` is the audio rate
+    of the wav and null sinks (an audio device picks its own). ``probe_plate`` watches the simulated
+    plate's amplitude (``sim`` only; for latency measurement).
+    """
+
+    texture: str = "grating-1mm"
+    model: str = "exponential"
+    profile: str = "sim-plate"
+    device: str = "sim"
+    default_force_n: float = 0.5
+    carrier_hz: float | None = None
+    rate_hz: int = 96000
+    control_rate_hz: float = 12000.0
+    lookahead_s: float = 0.0
+    precompensate: bool = True
+    predictor: str = "lsq"
+    start_paused: bool = False
+    realtime_priority: bool = True
+    probe_plate: bool = False
+
+
+@dataclass(frozen=True)
+class History:
+    """The recent blocks, oldest first: one row per block (its first sample's time, its last values)."""
+
+    time_s: np.ndarray
+    target_ratio: np.ndarray
+    commanded_um_pp: np.ndarray
+    plate_um_pp: np.ndarray
+    limited_samples: np.ndarray
+
+
+@dataclass(frozen=True)
+class EngineStatus:
+    """A snapshot of the engine. Times in µs or s as named; amplitudes µm p-p."""
+
+    device: str
+    state: str  # starting, running, paused, stopping, stopped, failed
+    priority: str  # the scheduling the block thread got: SCHED_FIFO n, nice n, or normal
+    blocks: int
+    late_blocks: int
+    underruns: int  # the device's: audio underflows or xruns, plate-driver underruns
+    block_p50_us: float | None
+    block_p99_us: float | None
+    limited_percent: float  # samples held at the plate's limit in the last second, %
+    clipped_samples: int
+    drive_clipped_samples: int
+    touches: int
+    touches_dropped: int
+    faults: list[str]
+    control_samples: int
+    history: History = field(repr=False)
+    device_status: dict = field(repr=False, default_factory=dict)
+
+    def words(self) -> str:
+        """One line for people."""
+        p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
+        p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
+        faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
+        return (f"{self.device} {self.state} | {self.blocks} blocks, {self.late_blocks} late, "
+                f"{self.underruns} underruns | block {p50}/{p99} µs p50/p99 | "
+                f"{self.limited_percent:.0f}% at the limit | {self.priority}{faults}")
+
+    def summary(self) -> dict:
+        """The figures as plain JSON values (no history)."""
+        values = asdict(self)
+        del values["history"]
+        return values
+
+
+def _underruns(device_status: dict) -> int:
+    count = 0
+    for key in ("underruns", "xruns", "late_blocks", "late_batches"):
+        value = device_status.get(key)
+        if isinstance(value, int | float):
+            count += int(value)
+    return count
+
+
+class Engine:
+    """A running engine process; see the module docstring. Use from one thread of the app."""
+
+    def __init__(self, process, conn, shared: SharedBlock, config: EngineConfig, info: dict):
+        self.process = process
+        self.conn = conn
+        self.shared = shared
+        self.config = config
+        self.info = info
+        self.ready_info: dict | None = None
+        self.final_status: EngineStatus | None = None
+        self._failure: str | None = None
+        self._stopped = False
+
+    # ---- life --------------------------------------------------------------------------------------
+    @classmethod
+    def start(cls, config: EngineConfig, timeout_s: float = START_TIMEOUT_S) -> Engine:
+        """Spawn the engine; returns once its inputs are loaded and its device is open.
+        Raises :class:`EngineError` (one line) if the texture, model, profile or device is bad."""
+        context = multiprocessing.get_context("spawn")
+        shared = SharedBlock.create()
+        parent, child = context.Pipe()
+        process = context.Process(target=engine_main, args=(config, shared.name, child), daemon=True,
+                                  name="ultraglide-engine")
+        try:
+            with _main_module_hidden():
+                process.start()
+        except Exception:
+            shared.close()
+            raise
+        child.close()
+        try:
+            kind, payload = _receive(parent, process, timeout_s)
+        except EngineError:
+            _reap(process)
+            shared.close()
+            raise
+        if kind != "up":
+            _reap(process)
+            shared.close()
+            raise EngineError(payload)
+        return cls(process, parent, shared, config, payload)
+
+    def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> None:
+        """Wait until the kernels are compiled and the device runs; EngineError if it failed."""
+        if self.ready_info is not None:
+            return
+        if self._failure is not None:
+            raise EngineError(self._failure)
+        kind, payload = _receive(self.conn, self.process, timeout_s)
+        self._take(kind, payload)
+        if self._failure is not None:
+            raise EngineError(self._failure)
+
+    @property
+    def ready(self) -> bool:
+        if self.ready_info is None and self._failure is None and self.conn.poll(0):
+            with contextlib.suppress(EngineError):
+                self._take(*_receive(self.conn, self.process, 0.0))
+        return self.ready_info is not None
+
+    def _take(self, kind: str, payload) -> None:
+        if kind == "ready":
+            self.ready_info = payload
+        elif kind == "failed":
+            self._failure = payload
+        else:
+            raise EngineError(f"the engine answered {kind!r} out of turn")
+
+    def stop(self, timeout_s: float = COMMAND_TIMEOUT_S) -> EngineStatus | None:
+        """Ramp to rest, rest the hardware, end the process; returns the last status. Idempotent."""
+        if self._stopped:
+            return self.final_status
+        self._stopped = True
+        try:
+            if self.process.is_alive():
+                with contextlib.suppress(OSError, EOFError, EngineError):
+                    if self.ready_info is None and self._failure is None:
+                        self.wait_ready(timeout_s)
+                    self.conn.send(("stop",))
+                    while True:
+                        kind, _ = _receive(self.conn, self.process, timeout_s)
+                        if kind == "stopped":
+                            break
+            self.final_status = self.status()
+        finally:
+            _reap(self.process, timeout_s)
+            self.conn.close()
+            self.shared.close()
+        return self.final_status
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
+    # ---- in ----------------------------------------------------------------------------------------
+    def touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> bool:
+        """A touch report (perf_counter s, mm, N or None for the default). Never waits; False if the
+        ring was full (the engine has stalled) and the report was dropped."""
+        return self.shared.push_touch(t_s, x_mm, y_mm, math.nan if force_n is None else force_n, 1.0 if down else 0.0)
+
+    def set_texture(self, spec: str) -> None:
+        """Render another texture (a library name or a file); EngineError if it cannot be loaded."""
+        self._command("texture", str(spec))
+
+    def set_model(self, spec: str) -> None:
+        self._command("model", str(spec))
+
+    def set_force(self, force_n: float) -> None:
+        """The force assumed when touches carry none, N."""
+        self._command("force", float(force_n))
+
+    def pause(self, flag: bool = True) -> None:
+        """Ramp the output to rest while paused, and back when resumed."""
+        self._command("pause", bool(flag))
+
+    def _command(self, *message) -> None:
+        if self._stopped:
+            raise EngineError("the engine has stopped")
+        self.conn.send(message)
+        while True:
+            kind, payload = _receive(self.conn, self.process, COMMAND_TIMEOUT_S)
+            if kind == "ok":
+                return
+            if kind == "error":
+                raise EngineError(payload)
+            self._take(kind, payload)  # "ready" may still be on its way
+
+    # ---- out ---------------------------------------------------------------------------------------
+    def status(self, history_s: float = 5.0) -> EngineStatus:
+        """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds)."""
+        header, block_times, history_ring, _ = self.shared.read_fast()
+        device_status = self.shared.read_slow()
+        return _status(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
+                       self.config.device, history_s)
+
+    def latencies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each recent touch: (touch time, time its block was rendered, time that block's first sample
+        is presented by the device), perf_counter s, oldest first."""
+        header, _, _, latency = self.shared.read_fast()
+        rows = ring_order(latency, int(header[shm.LATENCY_INDEX]))
+        rows = rows[np.isfinite(rows[:, 1])]
+        return rows[:, 0], rows[:, 1], rows[:, 2]
+
+    def plate_probe(self) -> tuple[float, float]:
+        """(simulated plate amplitude µm p-p, perf_counter time it last rose above 0.05 µm); probe_plate only."""
+        fast = self.shared.fast
+        return float(fast[shm.PLATE_PROBE_UM_PP]), float(fast[shm.PROBE_RISE_S])
+
+
+def _status(header, block_times, history_ring, device_status, dropped, device_name, history_s) -> EngineStatus:
+    blocks = int(header[shm.BLOCKS])
+    times = ring_order(block_times, int(header[shm.BLOCK_TIME_INDEX]))
+    p50 = p99 = None
+    if len(times):
+        p50, p99 = (float(v) * 1e6 for v in np.percentile(times, [50, 99]))
+    rows = ring_order(history_ring, int(header[shm.HISTORY_INDEX]))
+    if len(rows):
+        rows = rows[rows[:, 0] >= rows[-1, 0] - history_s]
+    last_second = rows[rows[:, 0] >= rows[-1, 0] - 1.0] if len(rows) else rows
+    limited = 0.0
+    if len(last_second) > 1:
+        span_samples = (last_second[-1, 0] - last_second[0, 0]) * 12000.0
+        limited = float(min(100.0, 100.0 * last_second[:, 4].sum() / max(span_samples, 1.0)))
+    faults = list(device_status.get("device_faults") or []) + list(device_status.get("errors") or [])
+    state = shm.STATES[int(header[shm.STATE])]
+    return EngineStatus(
+        device=str(device_status.get("device", device_name)), state=state,
+        priority=str(device_status.get("priority", "not yet running")), blocks=blocks,
+        late_blocks=int(header[shm.LATE_BLOCKS]), underruns=_underruns(device_status),
+        block_p50_us=p50, block_p99_us=p99, limited_percent=limited,
+        clipped_samples=int(header[shm.CLIPPED]), drive_clipped_samples=int(header[shm.DRIVE_CLIPPED]),
+        touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
+        control_samples=int(header[shm.CONTROL_SAMPLES]),
+        history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
+        device_status=device_status)
+
+
+@contextlib.contextmanager
+def _main_module_hidden():
+    """Spawn without re-running the app's main module in the engine (which needs nothing from it), so
+    scripts work without an ``if __name__ == "__main__"`` guard and the engine starts sooner."""
+    main = sys.modules.get("__main__")
+    saved = {name: main.__dict__.pop(name) for name in ("__file__", "__spec__") if main and name in main.__dict__}
+    if main is not None:
+        main.__spec__ = None
+    try:
+        yield
+    finally:
+        if main is not None:
+            main.__dict__.pop("__spec__", None)
+            main.__dict__.update(saved)
+
+
+def _receive(conn, process, timeout_s: float):
+    """The next message from the engine, or EngineError if it died or stayed silent."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        if conn.poll(min(0.05, max(0.0, deadline - time.monotonic()))):
+            try:
+                return conn.recv()
+            except (EOFError, OSError):
+                raise EngineError(f"the engine process ended unexpectedly (exit code {process.exitcode})") from None
+        if not process.is_alive() and not conn.poll(0):
+            raise EngineError(f"the engine process ended unexpectedly (exit code {process.exitcode})")
+        if time.monotonic() >= deadline:
+            raise EngineError(f"the engine did not answer within {timeout_s:g} s")
+
+
+def _reap(process, timeout_s: float = 10.0) -> None:
+    process.join(timeout_s)
+    if process.is_alive():
+        process.terminate()  # SIGTERM: the engine rests its hardware on the way out
+        process.join(timeout_s)
+    if process.is_alive():
+        process.kill()
+        process.join(1.0)

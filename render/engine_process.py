@@ -1,0 +1,331 @@
+"""The engine's own process: the renderer and the device, fed through shared memory.
+
+:func:`engine_main` is what :class:`render.engine.Engine` spawns. Its main thread loads the inputs,
+opens the device, answers rare commands from the pipe and publishes the device's status; the
+device's own thread (PortAudio's callback, the serial writer, the paced sink) pulls blocks from
+:class:`EngineSource`, whose ``pull`` is the block path: drain the touch ring into the renderer,
+render, publish the block's figures. The block path never waits on the UI or on the command thread.
+
+If the pipe to the parent closes (the parent died) or SIGTERM arrives, the engine ramps to rest,
+rests the hardware and exits.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import os
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+from ultraglide.render import engine_shm as shm
+from ultraglide.render.engine_shm import SharedBlock
+
+SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
+STATUS_PERIOD_S = 0.1
+FIFO_PRIORITY = 60
+PROBE_THRESHOLD_UM_PP = 0.05
+PROBE_PERIOD_S = 0.0002
+
+
+def raise_priority() -> str:
+    """Raise the calling thread's scheduling priority as far as the OS allows; says what it got."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FIFO_PRIORITY))
+        return f"SCHED_FIFO {FIFO_PRIORITY}"
+    except (OSError, AttributeError):
+        pass
+    for nice in (-15, -10, -5):
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)  # per thread on Linux
+            return f"nice {nice}"
+        except (OSError, AttributeError):
+            continue
+    return "normal (no permission to raise it)"
+
+
+class EngineSource:
+    """The block path (a devices.source.BlockSource): touches in, one block out, figures published."""
+
+    def __init__(self, renderer, shared: SharedBlock, audio: bool, device, raise_priority_: bool = True):
+        self.renderer = renderer
+        self.shared = shared
+        self.audio = audio
+        self.device = device
+        self.priority = "not yet running"
+        self._raise = raise_priority_
+        self._first = True
+        self._paused = False
+        self._stopping = False
+        capacity = 4096
+        self._control = renderer.control_buffers(capacity) if not audio else None
+
+    def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        started = time.perf_counter()
+        if self._first:
+            self._first = False
+            if self._raise:
+                self.priority = raise_priority()
+        touched = self._drain()
+        renderer = self.renderer
+        clipped_before = renderer.counters.clipped_samples
+        if self.audio:
+            out = renderer.audio(n, now_s)
+        else:
+            out = renderer.control(n, now_s, out=self._control).drive_um_pp
+        done = time.perf_counter()
+        self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
+        return out
+
+    def _drain(self) -> float:
+        """Push the touches that arrived since the last block; returns how many."""
+        index = self.shared.touch_index
+        head = int(index[0])
+        tail = int(index[1])
+        if head == tail:
+            return 0
+        touches = self.shared.touches
+        latency = self.shared.latency
+        fast = self.shared.fast
+        row = int(fast[shm.LATENCY_INDEX])
+        for k in range(tail, head):
+            t, x, y, force, down = touches[k % shm.TOUCH_SLOTS]
+            self.renderer.push(t, x, y, None if math.isnan(force) else force, down > 0.5)
+            latency[row % shm.LATENCY_ROWS, 0] = t
+            latency[row % shm.LATENCY_ROWS, 1] = math.nan  # filled in when the block is rendered
+            row += 1
+        index[1] = head
+        self._latency_from = int(fast[shm.LATENCY_INDEX])
+        self._latency_to = row
+        return head - tail
+
+    def _publish(self, started: float, done: float, now_s: float | None, touched: int, clipped: int) -> None:
+        fast = self.shared.fast
+        renderer = self.renderer
+        counters = renderer.counters
+        block = renderer.last_block
+        fast[shm.SEQ] += 1  # odd: being written
+        blocks = int(fast[shm.BLOCKS])
+        fast[shm.BLOCKS] = blocks + 1
+        fast[shm.LATE_BLOCKS] = counters.late_blocks
+        fast[shm.CONTROL_SAMPLES] = counters.control_samples
+        fast[shm.CLIPPED] = counters.clipped_samples
+        fast[shm.DRIVE_CLIPPED] = counters.drive_clipped_samples
+        fast[shm.RAMPS] = counters.ramps
+        fast[shm.LAST_BLOCK_S] = done
+        fast[shm.STATE] = 3 if self._stopping else (2 if renderer.paused else 1)
+        self.shared.block_times[blocks % shm.BLOCK_TIMES] = done - started
+        fast[shm.BLOCK_TIME_INDEX] = blocks + 1
+        if block is not None:
+            row = self.shared.history[int(fast[shm.HISTORY_INDEX]) % shm.HISTORY_ROWS]
+            row[0] = block.time_s[0] if now_s is None else now_s
+            row[1] = block.ratio[-1]
+            row[2] = block.amplitude_um_pp[-1]
+            telemetry = getattr(self.device, "telemetry", None)
+            row[3] = block.plate_um_pp[-1] if telemetry is None else telemetry.measured_um_pp
+            row[4] = clipped
+            fast[shm.HISTORY_INDEX] += 1
+        if touched:
+            latency = self.shared.latency
+            present = done if now_s is None or not self.audio else now_s
+            for k in range(self._latency_from, self._latency_to):
+                latency[k % shm.LATENCY_ROWS, 1] = done
+                latency[k % shm.LATENCY_ROWS, 2] = present
+            fast[shm.LATENCY_INDEX] = self._latency_to
+            fast[shm.TOUCHES] += touched
+        fast[shm.SEQ] += 1  # even: whole
+
+    # ---- BlockSource ---------------------------------------------------------------------------
+    def request_stop(self) -> None:
+        self._stopping = True
+        self.renderer.stop()
+
+    @property
+    def finished(self) -> bool:
+        return self.renderer.finished
+
+
+class _PlateProbe(threading.Thread):
+    """Watches the simulated plate's amplitude and publishes when it last rose above a threshold
+    (for ``ultraglide latency`` on ``sim``: the end-to-end measurement)."""
+
+    def __init__(self, simulator, fast: np.ndarray):
+        super().__init__(name="plate-probe", daemon=True)
+        self.simulator = simulator
+        self.fast = fast
+        self.stop_event = threading.Event()
+
+    def run(self) -> None:
+        above = False
+        while not self.stop_event.wait(PROBE_PERIOD_S):
+            amplitude = self.simulator.amplitude_um_pp
+            self.fast[shm.PLATE_PROBE_UM_PP] = amplitude
+            if amplitude > PROBE_THRESHOLD_UM_PP and not above:
+                self.fast[shm.PROBE_RISE_S] = time.perf_counter()
+            above = amplitude > PROBE_THRESHOLD_UM_PP
+
+
+def _load(config):
+    """Texture, model, profile and an opened device; one-line errors for bad ones."""
+    import warnings
+
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.urls import open_device
+    from ultraglide.render.calibration import load_model
+    from ultraglide.textures.library import resolve_texture
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        texture = resolve_texture(config.texture)
+    model = load_model(config.model)
+    profile = load_profile(config.profile)
+    device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
+                         carrier_hz=config.carrier_hz)
+    return texture, model, profile, device
+
+
+def _user_errors():
+    from ultraglide.devices.errors import DeviceError
+    from ultraglide.render.errors import ModelError, RenderError
+    from ultraglide.textures.errors import TextureError
+
+    return (DeviceError, ModelError, RenderError, TextureError, OSError, ValueError)
+
+
+def _describe(error: BaseException) -> str:
+    if isinstance(error, OSError) and error.strerror:
+        where = f"{error.filename}: " if error.filename else ""
+        return f"{where}{error.strerror.lower()}"
+    return str(error).splitlines()[0] if str(error) else type(error).__name__
+
+
+def engine_main(config, shared_name: str, conn) -> None:
+    """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    stop_requested = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop_requested.set())
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the app, which stops the engine in order
+    shared = SharedBlock.attach(shared_name)
+    errors = _user_errors()
+    device = None
+    try:
+        texture, model, profile, device = _load(config)
+    except errors as error:
+        conn.send(("error", _describe(error)))
+        shared.close()
+        return
+    conn.send(("up", {"pid": os.getpid(), "device": config.device}))
+    from ultraglide.render.renderer import Renderer, RenderSettings
+
+    try:
+        rate = device.rate_hz if device.signal == "audio" else config.rate_hz
+        settings = RenderSettings(audio_rate_hz=int(rate), control_rate_hz=config.control_rate_hz,
+                                  carrier_hz=config.carrier_hz, default_force_n=config.default_force_n,
+                                  precompensate=config.precompensate, predictor=config.predictor,
+                                  lookahead_s=config.lookahead_s)
+        renderer = Renderer(texture, model, profile, settings)
+        renderer.pause(config.start_paused)
+        source = EngineSource(renderer, shared, device.signal == "audio", device, config.realtime_priority)
+        gc.collect()
+        gc.freeze()  # everything built so far is permanent: later collections never walk it
+        gc.disable()  # no collection can start inside a block; the command thread collects when idle
+        device.start(source)
+    except errors as error:
+        _close_device(device)
+        conn.send(("failed", _describe(error)))
+        shared.fast[shm.STATE] = shm.STATES.index("failed")
+        shared.close()
+        return
+    probe = None
+    if config.probe_plate and hasattr(device, "plate"):
+        probe = _PlateProbe(device.plate.simulator, shared.fast)
+        probe.start()
+    conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
+                         "tail_s": renderer.tail_s, "device_status": _device_status(device)}))
+    _serve(config, conn, shared, renderer, source, device, stop_requested)
+    if probe is not None:
+        probe.stop_event.set()
+        probe.join(timeout=1)
+    shared.close()
+
+
+def _device_status(device) -> dict:
+    try:
+        return device.status()
+    except Exception as error:  # noqa: BLE001 - a status that fails to build must not stop the engine
+        return {"errors": [f"status: {type(error).__name__}: {error}"]}
+
+
+def _close_device(device) -> None:
+    if device is None:
+        return
+    try:
+        device.stop()
+    except Exception:  # noqa: BLE001, S110 - resting the hardware is best effort on the way out
+        pass
+
+
+def _serve(config, conn, shared, renderer, source, device, stop_requested) -> None:
+    """The command loop: rare commands, the device's status ten times a second, idle collection."""
+    errors = _user_errors()
+    next_status = 0.0
+    next_collect = time.monotonic() + 1.0
+    while True:
+        now = time.monotonic()
+        if now >= next_status:
+            shared.write_slow({**_device_status(device), "priority": source.priority, "pid": os.getpid()})
+            next_status = now + STATUS_PERIOD_S
+        if now >= next_collect:
+            gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
+            next_collect = now + 1.0
+        if stop_requested.is_set():
+            _finish(shared, source, device, None)
+            return
+        try:
+            if not conn.poll(STATUS_PERIOD_S / 2):
+                continue
+            command, *args = conn.recv()
+        except (EOFError, OSError):  # the parent is gone: rest the plate and leave
+            _finish(shared, source, device, None)
+            return
+        if command == "stop":
+            _finish(shared, source, device, conn)
+            return
+        try:
+            if command == "texture":
+                from ultraglide.textures.library import resolve_texture
+
+                renderer.set_texture(resolve_texture(args[0]))
+            elif command == "model":
+                from ultraglide.render.calibration import load_model
+
+                renderer.set_model(load_model(args[0]))
+            elif command == "force":
+                renderer.set_default_force(float(args[0]))
+            elif command == "pause":
+                renderer.pause(bool(args[0]))
+            else:
+                raise ValueError(f"unknown engine command {command!r}")
+            conn.send(("ok", None))
+        except errors as error:
+            conn.send(("error", _describe(error)))
+
+
+def _finish(shared, source, device, conn) -> None:
+    """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
+    source._stopping = True
+    _close_device(device)
+    status = {**_device_status(device), "priority": source.priority, "pid": os.getpid()}
+    shared.write_slow(status)
+    fast = shared.fast
+    fast[shm.SEQ] += 1
+    fast[shm.STATE] = shm.STATES.index("stopped")
+    fast[shm.SEQ] += 1
+    if conn is not None:
+        try:
+            conn.send(("stopped", status))
+        except (OSError, EOFError):
+            pass

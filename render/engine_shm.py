@@ -1,0 +1,170 @@
+"""The engine's shared memory: a touch ring (UI → engine) and two seqlock'd status blocks (engine → UI).
+
+Everything is float64 in one ``multiprocessing.shared_memory`` segment, so either side maps it as
+numpy arrays and no message is pickled on the real-time path.
+
+* **Touch ring**: single producer (the UI process), single consumer (the engine's block path).
+  The producer writes a slot, then advances ``head``; the consumer reads slots up to ``head``, then
+  advances ``tail``. Each index has one writer, and x86-64 and ARM64 Python both store an aligned
+  float64 whole, so neither side ever waits on the other. A full ring drops the newest touch and
+  counts it (the consumer drains every block, so it fills only if the engine has stalled).
+* **Fast status** (written by the block path after every block): counters, the last block's time,
+  a ring of recent block times and a ring of history rows (time, target friction, commanded and
+  plate µm p-p, samples limited), and a ring of touch-to-output times.
+* **Slow status** (written by the engine's command thread ten times a second): the device's own
+  status as JSON text (names, underruns, faults).
+
+A seqlock: the writer makes the sequence odd, writes, makes it even; a reader copies, then retries
+while the sequence was odd or changed. The writer never waits; the reader retries only if it raced.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from multiprocessing import shared_memory
+
+import numpy as np
+
+TOUCH_SLOTS = 1024
+TOUCH_FIELDS = 5  # t_s, x_mm, y_mm, force_n (NaN: the default), down (1/0)
+BLOCK_TIMES = 4096  # recent block render times, s
+HISTORY_ROWS = 8192  # about 5 s at 64-frame blocks and 96 kHz
+HISTORY_FIELDS = 5  # t_s, target ratio, commanded µm p-p, plate µm p-p, samples limited in the block
+LATENCY_ROWS = 1024  # touch t_s, block rendered at s, block's first sample presented at s
+SLOW_BYTES = 16384
+
+# fast status header, by index
+SEQ, BLOCKS, LATE_BLOCKS, CONTROL_SAMPLES, CLIPPED, DRIVE_CLIPPED, RAMPS, TOUCHES, STATE, \
+    BLOCK_TIME_INDEX, HISTORY_INDEX, LATENCY_INDEX, LAST_BLOCK_S = range(13)
+# written outside the seqlock, each a single word with a single writer (the simulated plate's probe)
+PLATE_PROBE_UM_PP, PROBE_RISE_S = 14, 15
+HEADER = 16
+
+STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Offsets (in float64 slots) of each part in the segment."""
+
+    touch_head: int = 0
+    touch_tail: int = 1
+    touch_dropped: int = 2
+    touches: int = 4
+    fast: int = 4 + TOUCH_SLOTS * TOUCH_FIELDS
+    block_times: int = fast + HEADER
+    history: int = block_times + BLOCK_TIMES
+    latency: int = history + HISTORY_ROWS * HISTORY_FIELDS
+    slow: int = latency + LATENCY_ROWS * 3  # seq, length, then bytes
+    size: int = slow + 2 + SLOW_BYTES // 8
+
+
+LAYOUT = Layout()
+
+
+class SharedBlock:
+    """The segment, mapped as numpy views. ``create`` in the UI process, ``attach`` in the engine."""
+
+    def __init__(self, memory: shared_memory.SharedMemory, owner: bool):
+        self.memory = memory
+        self.owner = owner
+        self.name = memory.name
+        words = np.ndarray((LAYOUT.size,), dtype=np.float64, buffer=memory.buf)
+        L = LAYOUT
+        self.words = words
+        self.touch_index = words[L.touch_head:L.touch_head + 4]  # head, tail, dropped
+        self.touches = words[L.touches:L.fast].reshape(TOUCH_SLOTS, TOUCH_FIELDS)
+        self.fast = words[L.fast:L.fast + HEADER]
+        self.block_times = words[L.block_times:L.history]
+        self.history = words[L.history:L.latency].reshape(HISTORY_ROWS, HISTORY_FIELDS)
+        self.latency = words[L.latency:L.slow].reshape(LATENCY_ROWS, 3)
+        self.slow_header = words[L.slow:L.slow + 2]
+        self.slow_bytes = np.ndarray((SLOW_BYTES,), dtype=np.uint8, buffer=memory.buf, offset=(L.slow + 2) * 8)
+
+    @classmethod
+    def create(cls) -> SharedBlock:
+        memory = shared_memory.SharedMemory(create=True, size=LAYOUT.size * 8)
+        block = cls(memory, owner=True)
+        block.words[:] = 0.0
+        return block
+
+    @classmethod
+    def attach(cls, name: str) -> SharedBlock:
+        # a spawned engine shares its parent's resource tracker, so attaching registers nothing new;
+        # only the owner unlinks
+        return cls(shared_memory.SharedMemory(name=name), owner=False)
+
+    def close(self) -> None:
+        for name in ("words", "touch_index", "touches", "fast", "block_times", "history", "latency",
+                     "slow_header", "slow_bytes"):
+            setattr(self, name, None)
+        self.memory.close()
+        if self.owner:
+            self.memory.unlink()
+
+    # ---- the touch ring ------------------------------------------------------------------------
+    def push_touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float, down: float) -> bool:
+        """Producer side (one thread of the UI process). False when the ring is full (dropped)."""
+        index = self.touch_index
+        head = int(index[0])
+        if head - int(index[1]) >= TOUCH_SLOTS:
+            index[2] += 1
+            return False
+        slot = self.touches[head % TOUCH_SLOTS]
+        slot[0] = t_s
+        slot[1] = x_mm
+        slot[2] = y_mm
+        slot[3] = force_n
+        slot[4] = down
+        index[0] = head + 1  # published after the slot is whole
+        return True
+
+    # ---- the slow status -----------------------------------------------------------------------
+    def write_slow(self, status: dict) -> None:
+        """Writer side (the engine's command thread); truncated statuses are replaced by a note."""
+        data = json.dumps(status, default=str).encode()
+        if len(data) > SLOW_BYTES:
+            data = json.dumps({"note": "device status too long to share"}).encode()
+        header = self.slow_header
+        header[0] += 1
+        self.slow_bytes[:len(data)] = np.frombuffer(data, dtype=np.uint8)
+        header[1] = len(data)
+        header[0] += 1
+
+    def read_slow(self) -> dict:
+        for _ in range(1000):
+            before = self.slow_header[0]
+            length = int(self.slow_header[1])
+            data = bytes(self.slow_bytes[:length])
+            if before % 2 == 0 and self.slow_header[0] == before:
+                return json.loads(data) if data else {}
+        return {}
+
+    def read_fast(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A consistent copy of (header, block times, history, latency rows)."""
+        for _ in range(10000):
+            before = self.fast[SEQ]
+            if before % 2:
+                continue
+            header = self.fast.copy()
+            times = self.block_times.copy()
+            history = self.history.copy()
+            latency = self.latency.copy()
+            if self.fast[SEQ] == before:
+                return header, times, history, latency
+        raise TimeoutError("the engine's status kept changing while being read")
+
+
+def ring_order(ring: np.ndarray, written: int) -> np.ndarray:
+    """The rows of a ring in the order written, oldest first (``written`` = rows written in all)."""
+    size = len(ring)
+    if written <= size:
+        return ring[:written]
+    start = written % size
+    return np.concatenate((ring[start:], ring[:start]))
+
+
+def finite_or_none(value: float) -> float | None:
+    return None if not math.isfinite(value) else float(value)
