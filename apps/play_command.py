@@ -1,16 +1,17 @@
-"""``ultraglide play``: render a swipe or a touch log to a device in real time."""
+"""``ultraglide play``: render a swipe or a touch log to a device in real time, through the engine.
+
+The swipe or log is replayed as touch reports, at their own times, into the real-time engine
+(:mod:`render.engine`, its own process), exactly as the demo's touch panel feeds it.
+"""
 
 from __future__ import annotations
 
 import json
-import sys
 import time
 
 import numpy as np
-from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
-from ultraglide.apps.render_setup import load_inputs, make_renderer
-from ultraglide.apps.sources import source_for
-from ultraglide.devices.urls import open_device
+from ultraglide.apps.render_setup import load_inputs
+from ultraglide.render.engine import Engine, EngineConfig
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
 
@@ -23,56 +24,53 @@ def report_times(trajectory) -> np.ndarray:
     return np.arange(trajectory.start_s, trajectory.end_s, 1.0 / REPORT_HZ)
 
 
+def engine_config(args) -> EngineConfig:
+    return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
+                        carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
+                        precompensate=not args.no_precompensation)
+
+
 def run(args) -> int:
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
     trajectory = inputs.trajectory
     times = report_times(trajectory)
     states = trajectory.state(times)
     forces = np.broadcast_to(states.force_n, times.shape)
-    device = open_device(args.device, inputs.profile, control_rate_hz=12000, carrier_hz=args.carrier_hz)
+    engine = Engine.start(engine_config(args))
     try:
-        rate = device.rate_hz if device.signal == "audio" else args.rate
-        renderer = make_renderer(inputs, args, rate, live=True)
-        stage = source_for(device, renderer)  # the limiter every output passes
-        device.start(stage)
+        engine.wait_ready()
         started = time.perf_counter()
         for t, x, y, force in zip(times - times[0], states.x_mm, states.y_mm, forces, strict=True):
             delay = started + t - time.perf_counter()
             if delay > 0:
                 time.sleep(delay)
-            renderer.push(time.perf_counter(), float(x), float(y), None if np.isnan(force) else float(force))
-        renderer.push(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
-        time.sleep(renderer.tail_s)
+            engine.touch(time.perf_counter(), float(x), float(y), None if np.isnan(force) else float(force))
+        engine.touch(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
+        time.sleep(engine.ready_info["tail_s"])
     finally:
-        device.stop()  # ramps down through the renderer, then rests the plate, on every way out
-    status = {**device.status(), "clipped_samples": renderer.counters.clipped_samples,
-              "clipped_fraction": round(clipped_fraction(renderer), 6), **limiter_fields(stage),
-              "ramps": renderer.counters.ramps, "late_blocks": renderer.counters.late_blocks,
-              "played_s": round(time.perf_counter() - started, 3)}
-    status["faults"] = fault_counts(device)
-    warning = clipping_warning(renderer, args.model, trajectory)
-    if warning:
-        print(warning, file=sys.stderr)
+        final = engine.stop()  # ramps down, rests the plate and ends the engine, on every way out
+    played_s = round(time.perf_counter() - started, 3)
+    figures = final.summary()
+    figures["fault_words"] = figures.pop("faults")
+    device_status = figures.pop("device_status")
+    counts = device_status.pop("fault_counts", None)
+    status = {**device_status, **figures, "faults": counts or {}, "played_s": played_s}
     if args.json:
         print(json.dumps(status))
     else:
-        print(" ".join(f"{key}={value}" for key, value in status.items() if key != "faults"))
-        print(stage.limiter.summary())
-        print(describe_faults(status["faults"]))
+        print(f"played {played_s:.2f} s on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
+              f"{final.underruns} device underruns; block time {final.block_p50_us:.0f} µs median, "
+              f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit; "
+              f"engine priority {final.priority}")
+        print(describe_faults(counts))
     return 0
 
 
-def fault_counts(device) -> dict[str, int]:
-    """Each fault the device reported over the run, with its count; empty for devices that report none."""
-    counts = getattr(device, "fault_counts", None)
-    return counts() if counts else {}
-
-
-def describe_faults(counts: dict[str, int]) -> str:
+def describe_faults(counts: dict[str, int] | None) -> str:
     """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``."""
     from ultraglide.devices.protocol import FAULT_WORDS
 
-    happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
-    if not counts:
+    if counts is None:
         return "device faults: this device reports none"
+    happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
     return "device faults: " + ("; ".join(happened) if happened else "none")

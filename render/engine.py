@@ -99,6 +99,7 @@ class EngineStatus:
     limited_percent: float  # samples held at the plate's limit in the last second, %
     clipped_samples: int
     drive_clipped_samples: int
+    ramps: int  # the gate's ramps (finger down, up, pause)
     touches: int
     touches_dropped: int
     faults: list[str]
@@ -309,6 +310,7 @@ def _status(header, block_times, history_ring, device_status, dropped, device_na
         late_blocks=int(header[shm.LATE_BLOCKS]), underruns=_underruns(device_status),
         block_p50_us=p50, block_p99_us=p99, limited_percent=limited,
         clipped_samples=int(header[shm.CLIPPED]), drive_clipped_samples=int(header[shm.DRIVE_CLIPPED]),
+        ramps=int(header[shm.RAMPS]),
         touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
         control_samples=int(header[shm.CONTROL_SAMPLES]),
         history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
