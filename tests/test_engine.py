@@ -1,0 +1,166 @@
+"""The real-time engine in its own process: real spawned processes, the simulated plate on a real pty,
+real signals. Every wait is on a condition with a generous deadline."""
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from conftest import ROOT, assert_one_line_error, run_cli
+from ultraglide.devices.plate_sim import PtyPlate
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.engine import Engine, EngineConfig, EngineError
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.texture import Texture
+
+# the exponential law mu/mu0 = exp(-(a_pp/2)^2 / (2 tau^2)), tau = 1.32 µm zero-to-peak, solved by hand for 0.5
+HALF_FRICTION_UM_PP = 2 * 1.32 * math.sqrt(2 * math.log(2))  # 3.108 µm p-p
+STICKY = (20.0, 25.0)  # ratio 1: the plate at rest
+SLIPPERY = (60.0, 25.0)  # ratio 0.5
+
+
+@pytest.fixture
+def steps(tmp_path):
+    """A texture whose left half is at rest (1.0) and right half halves friction (0.5)."""
+    texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="steps")
+    return str(save_texture(texture, tmp_path / "steps.png"))
+
+
+def wait_for(condition, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def hold(engine, where, until, timeout=30.0):
+    """Keep a finger at ``where`` (120 Hz reports) until ``until(status)`` or the deadline."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        engine.touch(time.perf_counter(), *where)
+        status = engine.status()
+        if until(status):
+            return status
+        time.sleep(1 / 120)
+    raise AssertionError(f"not reached in {timeout} s: {engine.status().words()}")
+
+
+def test_touches_reach_the_simulated_plate_and_stop_rests_it(steps):
+    with Engine.start(EngineConfig(texture=steps, device="sim")) as engine:
+        engine.wait_ready(60)
+        assert engine.ready
+        # on the slippery half the plate settles at the amplitude the model gives for ratio 0.5
+        status = hold(engine, SLIPPERY, lambda s: len(s.history.plate_um_pp)
+                      and abs(s.history.plate_um_pp[-1] - HALF_FRICTION_UM_PP) < 0.05)
+        assert status.history.target_ratio[-1] == pytest.approx(0.5, abs=1e-3)
+        assert status.history.commanded_um_pp[-1] == pytest.approx(HALF_FRICTION_UM_PP, abs=0.01)
+        assert status.state == "running" and status.device == "sim" and status.touches > 0
+        # on the sticky half it comes back to rest
+        hold(engine, STICKY, lambda s: s.history.plate_um_pp[-1] < 0.02)
+        hold(engine, SLIPPERY, lambda s: s.history.plate_um_pp[-1] > 3.0)
+    final = engine.final_status
+    assert final.state == "stopped" and not engine.alive
+    assert final.device_status["measured_um_pp"] < 0.05  # ramped to rest before zero and disable
+    assert final.device_status["device_faults"] == []
+
+
+def test_status_counts_blocks_at_the_devices_pace_and_pause_rests(steps):
+    with Engine.start(EngineConfig(texture=steps, device="null", rate_hz=96000)) as engine:
+        engine.wait_ready(60)
+        first = hold(engine, SLIPPERY, lambda s: s.blocks > 10 and s.history.commanded_um_pp[-1] > 3.0)
+        started = time.perf_counter()
+        second = hold(engine, SLIPPERY, lambda s: time.perf_counter() - started > 1.0)
+        elapsed = second.history.time_s[-1] - first.history.time_s[-1]
+        # the null sink pulls 96 000 frames a second: 12 000 control samples a second, whatever the load
+        rendered = second.control_samples - first.control_samples
+        assert rendered == pytest.approx(12000 * elapsed, rel=0.05, abs=240)
+        assert second.blocks > first.blocks
+        assert second.block_p50_us is not None and 0 < second.block_p50_us <= second.block_p99_us
+        assert "SCHED_FIFO" in second.priority or "nice" in second.priority or "normal" in second.priority
+        engine.pause(True)
+        paused = hold(engine, SLIPPERY, lambda s: s.history.commanded_um_pp[-1] < 1e-3)
+        assert paused.state == "paused"
+        engine.pause(False)
+        hold(engine, SLIPPERY, lambda s: s.history.commanded_um_pp[-1] > 3.0)
+        engine.set_texture("grating-1mm")  # a live change; a bad one is one line
+        with pytest.raises(EngineError, match="no texture"):
+            engine.set_texture("no-such-texture")
+        engine.set_force(0.3)
+        with pytest.raises(EngineError, match="positive"):
+            engine.set_force(-1.0)
+
+
+@pytest.mark.parametrize("config, fragment", [
+    (EngineConfig(texture="no-such-texture", device="null"), "no texture"),
+    (EngineConfig(texture="grating-1mm", device="bluetooth"), "unknown device"),
+    (EngineConfig(texture="grating-1mm", model="no-such-model", device="null"), "model"),
+])
+def test_a_bad_config_is_one_line(config, fragment):
+    with pytest.raises(EngineError, match=fragment) as caught:
+        Engine.start(config)
+    assert "\n" not in str(caught.value)
+
+
+def test_a_device_that_fails_to_start_is_reported_at_wait_ready(tmp_path):
+    engine = Engine.start(EngineConfig(texture="grating-1mm", device=f"wav:{tmp_path / 'x.wav'}", carrier_hz=35000))
+    with pytest.raises(EngineError, match="outside"):
+        engine.wait_ready(60)
+    engine.stop()
+    assert not engine.alive and list(tmp_path.iterdir()) == []  # no partial recording
+
+
+def test_play_reports_the_engine_figures(tmp_path):
+    import json
+
+    status = json.loads(run_cli("play", "grating-1mm", "--device", "null", "--duration-s", "0.5", "--json",
+                                check=True).stdout)
+    assert status["blocks"] > 50 and status["block_p99_us"] >= status["block_p50_us"] > 0
+    assert status["touches"] >= 0.5 * 120 - 2 and status["state"] == "stopped"
+    assert {"late_blocks", "underruns", "priority"} <= status.keys()
+    assert "unknown device" in assert_one_line_error(run_cli("play", "grating-1mm", "--device", "bluetooth"))
+
+
+PARENT = """
+import sys, time
+from ultraglide.render.engine import Engine, EngineConfig
+engine = Engine.start(EngineConfig(texture=sys.argv[1], device="serial:" + sys.argv[2]))
+engine.wait_ready(60)
+print(engine.info["pid"], flush=True)
+while True:
+    engine.touch(time.perf_counter(), 60.0, 25.0)
+    time.sleep(1 / 120)
+"""
+
+
+def test_killing_the_parent_makes_the_engine_rest_the_plate_and_exit(steps):
+    plate = PtyPlate(load_profile("sim-plate")).start()
+    parent = subprocess.Popen([sys.executable, "-c", PARENT, steps, plate.path], stdout=subprocess.PIPE, text=True,
+                              cwd=ROOT)
+    try:
+        engine_pid = int(parent.stdout.readline())
+        sim = plate.simulator
+        assert wait_for(lambda: abs(sim.amplitude_um_pp - HALF_FRICTION_UM_PP) < 0.1), sim.amplitude_um_pp
+        parent.send_signal(signal.SIGKILL)  # no clean-up at all on the parent's side
+        parent.wait(timeout=30)
+        # disabled: only the driver's "enable off" does that (the plate's watchdog ramps but stays enabled)
+        assert wait_for(lambda: not sim.enabled and sim.amplitude_um_pp < 0.01)
+
+        def gone():
+            try:
+                os.kill(engine_pid, 0)
+            except ProcessLookupError:
+                return True
+            return False
+
+        assert wait_for(gone)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()
+        plate.stop()
