@@ -106,6 +106,18 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
     play.set_defaults(handler="ultraglide.apps.play_command:run")
 
+    latency = commands.add_parser(
+        "latency", help="time from a touch to the first output sample that reflects it",
+        description="Step a finger from a sticky to a slippery region many times and report the time from "
+                    "each touch entering the real-time engine to the first output sample that reflects it: "
+                    "the engine's part and the device's buffering part (end to end on the simulated plate).")
+    latency.add_argument("--device", default="sim", metavar="URL",
+                         help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
+    latency.add_argument("--steps", type=int, default=40, help="how many steps to time (default: 40)")
+    latency.add_argument("--profile", default="sim-plate", metavar="PROFILE", help="plate profile (default: sim-plate)")
+    latency.add_argument("--json", action="store_true", help="print one JSON object")
+    latency.set_defaults(handler="ultraglide.apps.latency_command:run")
+
     devices = commands.add_parser("devices", help="list outputs: audio, serial ports, the simulator",
                                   description="Audio outputs with the sample rates they accept, serial ports "
                                               "and the simulated plate.")

@@ -130,7 +130,9 @@ class EngineSource:
             fast[shm.HISTORY_INDEX] += 1
         if touched:
             latency = self.shared.latency
-            present = done if now_s is None or not self.audio else now_s
+            # when the block's first sample leaves the device: an audio stream says (callback time plus its
+            # output latency); paced sinks and plate drivers pull samples already due, so: now
+            present = done if now_s is None or now_s < done else now_s
             for k in range(self._latency_from, self._latency_to):
                 latency[k % shm.LATENCY_ROWS, 1] = done
                 latency[k % shm.LATENCY_ROWS, 2] = present

@@ -164,3 +164,35 @@ def test_killing_the_parent_makes_the_engine_rest_the_plate_and_exit(steps):
             parent.kill()
             parent.wait()
         plate.stop()
+
+
+@pytest.mark.parametrize("device", ["sim", "null"])
+def test_latency_from_touch_to_output(device):
+    import json
+
+    figures = json.loads(run_cli("latency", "--device", device, "--steps", "12", "--json", check=True).stdout)
+    engine, device_part, total = figures["engine_ms"], figures["device_ms"], figures["total_ms"]
+    # a touch waits for the device's next pull, then one block is rendered: never less than 0, and
+    # (median) not more than a device period plus a generous allowance for a loaded machine
+    assert 0 < engine["p50"] <= engine["p99"]
+    assert engine["p50"] < figures["block_ms"] + 20
+    if device == "null":
+        assert device_part == {"p50": 0.0, "p99": 0.0}  # the null sink holds nothing back
+    else:  # the simulated plate responds after the engine: writer batch, link, jitter buffer
+        assert device_part["p50"] > 0 and total["p50"] > engine["p50"]
+        assert total["p50"] < 100  # tens of ms would be a broken link, not buffering
+    human = run_cli("latency", "--device", device, "--steps", "3", check=True).stdout
+    assert "engine" in human and "ms median" in human
+
+
+def test_latency_on_the_audio_device_reports_portaudios_output_latency(tmp_path):
+    import json
+
+    from test_devices import ASOUNDRC
+
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "capture.raw"))
+    figures = json.loads(run_cli("latency", "--device", "audio?latency=0.02&blocksize=256", "--steps", "5", "--json",
+                                 env={"HOME": str(tmp_path)}, check=True).stdout)
+    # PortAudio's output latency for a 20 ms request is about 20 ms (ALSA rounds to its periods)
+    assert 10 < figures["device_ms"]["p50"] < 60
+    assert figures["total_ms"]["p50"] > figures["device_ms"]["p50"]  # each step: engine part + device part
