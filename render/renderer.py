@@ -117,8 +117,6 @@ class ControlBuffers:
         """The reusable block of length ``n`` (views of the buffers; built once per length)."""
         block = self._blocks.get(n)
         if block is None:
-            if n > self.capacity:
-                raise RenderError(f"a block of {n} samples exceeds the preallocated {self.capacity}")
             block = ControlBlock(self.time_s[:n], self.x_mm[:n], self.y_mm[:n], False, None, None,
                                  self.amplitude_um_pp[:n], self.drive_um_pp[:n], self.plate_um_pp[:n])
             if len(self._blocks) < 64:
@@ -230,7 +228,7 @@ class Renderer:
         will reach the plate (live rendering); the renderer re-anchors its clock to it if needed.
         ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused."""
         started = time.perf_counter()
-        reuse = out.block(n) if out is not None else None
+        reuse = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
         times = self._times(n, now_s, None if reuse is None else reuse.time_s)
         if reuse is not None and not self.offline:
             finger = self.trajectory.state(times, out=(reuse.x_mm, reuse.y_mm))

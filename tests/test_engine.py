@@ -196,3 +196,29 @@ def test_latency_on_the_audio_device_reports_portaudios_output_latency(tmp_path)
     # PortAudio's output latency for a 20 ms request is about 20 ms (ALSA rounds to its periods)
     assert 10 < figures["device_ms"]["p50"] < 60
     assert figures["total_ms"]["p50"] > figures["device_ms"]["p50"]  # each step: engine part + device part
+
+
+def test_preallocated_control_blocks_match_the_allocating_path():
+    from ultraglide.render.friction_models import ExponentialModel
+    from ultraglide.render.renderer import Renderer
+    from ultraglide.textures.library import resolve_texture
+
+    def renderer():
+        r = Renderer(resolve_texture("grating-1mm"), ExponentialModel(), load_profile("sim-plate"))
+        for k in range(8):  # a finger moving at 100 mm/s, reported at 120 Hz
+            r.push(100.0 + k / 120, 10.0 + k * 100 / 120, 25.0)
+        return r
+
+    plain, reused = renderer(), renderer()
+    buffers = reused.control_buffers(64)
+    first = None
+    for k in range(50):
+        now = 100.07 + k * 24 / 12000
+        a = plain.control(24, now)
+        b = reused.control(24, now, out=buffers)
+        for name in ("time_s", "x_mm", "y_mm", "ratio", "target_um_pp", "amplitude_um_pp", "drive_um_pp",
+                     "plate_um_pp"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        first = first or b
+        assert b is first and np.shares_memory(b.drive_um_pp, buffers.drive_um_pp)  # the same arrays, refilled
+    assert reused.control(100, 101.0, out=buffers).drive_um_pp.shape == (100,)  # beyond capacity: still served
