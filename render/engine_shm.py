@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import dataclass
 from multiprocessing import shared_memory
 
@@ -134,17 +135,17 @@ class SharedBlock:
         header[0] += 1
 
     def read_slow(self) -> dict:
-        for _ in range(1000):
+        for _ in _attempts():
             before = self.slow_header[0]
             length = int(self.slow_header[1])
             data = bytes(self.slow_bytes[:length])
             if before % 2 == 0 and self.slow_header[0] == before:
                 return json.loads(data) if data else {}
-        return {}
+        raise TimeoutError("the engine's device status kept changing while being read")
 
     def read_fast(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A consistent copy of (header, block times, history, latency rows)."""
-        for _ in range(10000):
+        for _ in _attempts():
             before = self.fast[SEQ]
             if before % 2:
                 continue
@@ -155,6 +156,18 @@ class SharedBlock:
             if self.fast[SEQ] == before:
                 return header, times, history, latency
         raise TimeoutError("the engine's status kept changing while being read")
+
+
+def _attempts(timeout_s: float = 2.0):
+    """Retries for a seqlock reader: a few at once, then yielding the CPU (the writer may have been
+    preempted mid-write on a loaded machine), until ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    attempt = 0
+    while attempt < 8 or time.monotonic() < deadline:
+        if attempt >= 8:
+            time.sleep(0.0002)
+        yield attempt
+        attempt += 1
 
 
 def ring_order(ring: np.ndarray, written: int) -> np.ndarray:

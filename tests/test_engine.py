@@ -222,3 +222,39 @@ def test_preallocated_control_blocks_match_the_allocating_path():
         first = first or b
         assert b is first and np.shares_memory(b.drive_um_pp, buffers.drive_um_pp)  # the same arrays, refilled
     assert reused.control(100, 101.0, out=buffers).drive_um_pp.shape == (100,)  # beyond capacity: still served
+
+
+def _tearing_writer(name, rounds):
+    from ultraglide.render import engine_shm as shm
+    from ultraglide.render.engine_shm import SharedBlock
+
+    shared = SharedBlock.attach(name)
+    for k in range(1, rounds + 1):
+        shared.fast[shm.SEQ] += 1
+        shared.block_times[:] = k  # thousands of stores: a reader without the seqlock sees them half done
+        shared.history[:] = k
+        shared.fast[shm.BLOCKS] = k
+        shared.fast[shm.SEQ] += 1
+    shared.close()
+
+
+def test_status_snapshots_are_never_torn_by_a_writer_in_another_process():
+    import multiprocessing
+
+    from ultraglide.render import engine_shm as shm
+    from ultraglide.render.engine_shm import SharedBlock
+
+    shared = SharedBlock.create()
+    writer = multiprocessing.get_context("spawn").Process(target=_tearing_writer, args=(shared.name, 20000))
+    writer.start()
+    seen = set()
+    try:
+        while writer.is_alive() or not seen:
+            header, times, history, _ = shared.read_fast()
+            k = header[shm.BLOCKS]
+            assert np.all(times == k) and np.all(history == k)  # one writer's round, whole
+            seen.add(k)
+    finally:
+        writer.join(30)
+        shared.close()
+    assert len(seen) > 2  # it did read while the writer was writing
