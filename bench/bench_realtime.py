@@ -1,6 +1,6 @@
 """Real-time rendering: the engine's block path, in its own process, for a live finger.
 
-Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000]
+Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000] [--paced]
 Aim (issue 4): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs).
 
 For each case a spawned process builds the engine's block path (render.engine_process.EngineSource:
@@ -19,7 +19,8 @@ import time
 import numpy as np
 
 
-def worker(shared_name: str, texture_name: str, model_name: str, frames: int, rate: int, blocks: int, conn) -> None:
+def worker(shared_name: str, texture_name: str, model_name: str, frames: int, rate: int, blocks: int, paced: bool,
+           conn) -> None:
     import gc
 
     from ultraglide.devices.profiles import load_profile
@@ -39,7 +40,10 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
     gc.disable()
     conn.send("ready")
     conn.recv()  # the feeder is running
+    period = frames / rate
     for i in range(blocks):
+        if paced:
+            time.sleep(period)
         started = time.perf_counter()
         source.pull(frames, None)
         times[i] = time.perf_counter() - started
@@ -47,13 +51,14 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
     shared.close()
 
 
-def measure(texture: str, model: str, frames: int, rate: int, blocks: int) -> tuple[np.ndarray, str]:
+def measure(texture: str, model: str, frames: int, rate: int, blocks: int, paced: bool = False
+            ) -> tuple[np.ndarray, str]:
     from ultraglide.render.engine_shm import SharedBlock
 
     context = multiprocessing.get_context("spawn")
     shared = SharedBlock.create()
     parent, child = context.Pipe()
-    process = context.Process(target=worker, args=(shared.name, texture, model, frames, rate, blocks, child))
+    process = context.Process(target=worker, args=(shared.name, texture, model, frames, rate, blocks, paced, child))
     process.start()
     try:
         assert parent.recv() == "ready"
@@ -73,6 +78,9 @@ def measure(texture: str, model: str, frames: int, rate: int, blocks: int) -> tu
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--blocks", type=int, default=20000)
+    parser.add_argument("--paced", action="store_true",
+                        help="sleep one block period before each block, as a device's thread does: caches and the "
+                             "CPU's clock go cold in between, which back-to-back blocks hide")
     args = parser.parse_args()
     header = ("texture", "model", "block", "median µs", "p99 µs", "p99.9 µs", "budget µs")
     print("{:14} {:12} {:>12} {:>10} {:>8} {:>9} {:>10}".format(*header))
@@ -80,11 +88,12 @@ def main() -> None:
     for texture in ("grating-1mm", "bumps"):
         for model in ("exponential", "paper"):
             for frames, rate in ((64, 96000), (128, 192000)):
-                t, priority = measure(texture, model, frames, rate, args.blocks)
+                t, priority = measure(texture, model, frames, rate, args.blocks, args.paced)
                 budget = 0.1 * frames / rate * 1e6
                 print(f"{texture:14} {model:12} {frames:4} @ {rate // 1000:3} kHz {np.median(t):10.1f} "
                       f"{np.percentile(t, 99):8.1f} {np.percentile(t, 99.9):9.1f} {budget:10.1f}", flush=True)
-    print(f"({args.blocks} blocks each, back to back, in the engine's own process at {priority}; "
+    print(f"({args.blocks} blocks each, {'one period apart' if args.paced else 'back to back'}, in the engine's own "
+          f"process at {priority}; "
           "touch reports at 120 Hz through the shared ring)")
 
 
