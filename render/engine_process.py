@@ -32,7 +32,16 @@ PROBE_PERIOD_S = 0.0002
 
 
 def raise_priority() -> str:
-    """Raise the calling thread's scheduling priority as far as the OS allows; says what it got."""
+    """Raise the calling thread's scheduling priority as far as the OS allows; says what it got.
+    A thread the audio system already runs in real time (JACK's clients) keeps the priority it was given,
+    which JACK orders below its own server thread."""
+    try:
+        policy = os.sched_getscheduler(0)
+        if policy in (os.SCHED_FIFO, os.SCHED_RR):
+            name = "SCHED_FIFO" if policy == os.SCHED_FIFO else "SCHED_RR"
+            return f"{name} {os.sched_getparam(0).sched_priority} (given by the audio system)"
+    except (OSError, AttributeError):
+        pass
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FIFO_PRIORITY))
         return f"SCHED_FIFO {FIFO_PRIORITY}"
