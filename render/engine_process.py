@@ -70,7 +70,7 @@ class EngineSource:
         self._paused = False
         self._stopping = False
         capacity = 4096
-        self._control = renderer.control_buffers(capacity) if not audio else None
+        self._control = renderer.control_buffers(capacity, always=True)
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         started = time.perf_counter()

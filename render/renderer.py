@@ -161,11 +161,17 @@ class Renderer:
         self._last_drive = 0.0  # the last drive sample rendered
         self._offsets = np.zeros(0)
         self.last_block: ControlBlock | None = None  # the newest block rendered
+        self._buffers: ControlBuffers | None = None  # used by every block when set (control_buffers(always=True))
 
-    def control_buffers(self, capacity: int = 4096) -> ControlBuffers:
-        """Preallocated outputs to pass as ``control(..., out=)`` on a real-time path."""
+    def control_buffers(self, capacity: int = 4096, always: bool = False) -> ControlBuffers:
+        """Preallocated outputs to pass as ``control(..., out=)`` on a real-time path. ``always``: every
+        block is written into them, also those ``audio()`` asks for (which copies what it keeps); only
+        for a renderer whose observers, if any, do not keep blocks (the engine's)."""
         self._offsets = np.arange(capacity) * (1.0 / self.settings.control_rate_hz)
-        return ControlBuffers(capacity)
+        buffers = ControlBuffers(capacity)
+        if always:
+            self._buffers = buffers
+        return buffers
 
     # ---- input -------------------------------------------------------------------------------
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
@@ -228,6 +234,7 @@ class Renderer:
         will reach the plate (live rendering); the renderer re-anchors its clock to it if needed.
         ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused."""
         started = time.perf_counter()
+        out = out or self._buffers
         reuse = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
         times = self._times(n, now_s, None if reuse is None else reuse.time_s)
         if reuse is not None and not self.offline:
