@@ -26,6 +26,7 @@ If the parent dies, the engine sees its pipe close, ramps to rest, rests the har
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import math
 import multiprocessing
@@ -173,7 +174,9 @@ class Engine:
             _reap(process)
             shared.close()
             raise EngineError(payload)
-        return cls(process, parent, shared, config, payload)
+        engine = cls(process, parent, shared, config, payload)
+        atexit.register(engine.stop)  # an app that forgets stop() still rests the plate on its way out
+        return engine
 
     def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> None:
         """Wait until the kernels are compiled and the device runs; EngineError if it failed."""
@@ -206,6 +209,7 @@ class Engine:
         if self._stopped:
             return self.final_status
         self._stopped = True
+        atexit.unregister(self.stop)
         try:
             if self.process.is_alive():
                 with contextlib.suppress(OSError, EOFError, EngineError):

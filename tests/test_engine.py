@@ -132,22 +132,26 @@ from ultraglide.render.engine import Engine, EngineConfig
 engine = Engine.start(EngineConfig(texture=sys.argv[1], device="serial:" + sys.argv[2]))
 engine.wait_ready(60)
 print(engine.info["pid"], flush=True)
-while True:
+started = time.perf_counter()
+while time.perf_counter() - started < float(sys.argv[3]):  # then leave without engine.stop()
     engine.touch(time.perf_counter(), 60.0, 25.0)
     time.sleep(1 / 120)
 """
 
 
-def test_killing_the_parent_makes_the_engine_rest_the_plate_and_exit(steps):
+@pytest.mark.parametrize("ending", ["killed", "forgets to stop"])
+def test_when_the_parent_goes_the_engine_rests_the_plate_and_exits(steps, ending):
     plate = PtyPlate(load_profile("sim-plate")).start()
-    parent = subprocess.Popen([sys.executable, "-c", PARENT, steps, plate.path], stdout=subprocess.PIPE, text=True,
-                              cwd=ROOT)
+    seconds = 1e9 if ending == "killed" else 8.0
+    parent = subprocess.Popen([sys.executable, "-c", PARENT, steps, plate.path, str(seconds)],
+                              stdout=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         engine_pid = int(parent.stdout.readline())
         sim = plate.simulator
         assert wait_for(lambda: abs(sim.amplitude_um_pp - HALF_FRICTION_UM_PP) < 0.1), sim.amplitude_um_pp
-        parent.send_signal(signal.SIGKILL)  # no clean-up at all on the parent's side
-        parent.wait(timeout=30)
+        if ending == "killed":
+            parent.send_signal(signal.SIGKILL)  # no clean-up at all on the parent's side
+        assert parent.wait(timeout=60) == (-signal.SIGKILL if ending == "killed" else 0)
         # disabled: only the driver's "enable off" does that (the plate's watchdog ramps but stays enabled)
         assert wait_for(lambda: not sim.enabled and sim.amplitude_um_pp < 0.01)
 
