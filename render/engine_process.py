@@ -27,6 +27,7 @@ from ultraglide.render.engine_shm import SharedBlock
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
 STATUS_PERIOD_S = 0.1
 FIFO_PRIORITY = 60
+OTHER_THREADS_PRIORITY = 1
 PROBE_THRESHOLD_UM_PP = 0.05
 PROBE_PERIOD_S = 0.0002
 
@@ -37,7 +38,8 @@ def raise_priority() -> str:
     which JACK orders below its own server thread."""
     try:
         policy = os.sched_getscheduler(0)
-        if policy in (os.SCHED_FIFO, os.SCHED_RR):
+        # (priority OTHER_THREADS_PRIORITY is ours, from raise_other_threads racing the first block)
+        if policy in (os.SCHED_FIFO, os.SCHED_RR) and os.sched_getparam(0).sched_priority > OTHER_THREADS_PRIORITY:
             name = "SCHED_FIFO" if policy == os.SCHED_FIFO else "SCHED_RR"
             return f"{name} {os.sched_getparam(0).sched_priority} (given by the audio system)"
     except (OSError, AttributeError):
@@ -54,6 +56,27 @@ def raise_priority() -> str:
         except (OSError, AttributeError):
             continue
     return "normal (no permission to raise it)"
+
+
+def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
+    """Run every other thread of this process in real time too, at the lowest real-time priority.
+
+    All of them take the GIL now and then (the command thread, a serial reader, the simulated plate);
+    one preempted by an ordinary process while it holds the GIL would stall the block thread for a
+    whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
+    audio server, above everything ordinary, and they sleep almost all the time."""
+    raised = 0
+    try:
+        for tid in map(int, os.listdir("/proc/self/task")):
+            try:
+                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
+                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+                    raised += 1
+            except (ProcessLookupError, PermissionError):
+                continue
+    except (OSError, AttributeError):
+        return "other threads: normal"
+    return f"other threads: SCHED_FIFO {priority} ({raised})" if raised else "other threads: normal"
 
 
 class EngineSource:
@@ -254,9 +277,10 @@ def engine_main(config, shared_name: str, conn) -> None:
     if config.probe_plate and hasattr(device, "plate"):
         probe = _PlateProbe(device.plate.simulator, shared.fast)
         probe.start()
+    threads = raise_other_threads() if config.realtime_priority else "other threads: normal"
     conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
                          "tail_s": renderer.tail_s, "device_status": _device_status(device)}))
-    _serve(config, conn, shared, renderer, source, device, stop_requested)
+    _serve(config, conn, shared, renderer, source, device, stop_requested, threads)
     if probe is not None:
         probe.stop_event.set()
         probe.join(timeout=1)
@@ -279,7 +303,7 @@ def _close_device(device) -> None:
         pass
 
 
-def _serve(config, conn, shared, renderer, source, device, stop_requested) -> None:
+def _serve(config, conn, shared, renderer, source, device, stop_requested, threads: str) -> None:
     """The command loop: rare commands, the device's status ten times a second, idle collection."""
     errors = _user_errors()
     next_status = 0.0
@@ -287,7 +311,8 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested) -> No
     while True:
         now = time.monotonic()
         if now >= next_status:
-            shared.write_slow({**_device_status(device), "priority": source.priority, "pid": os.getpid()})
+            shared.write_slow({**_device_status(device), "priority": f"{source.priority}; {threads}",
+                               "pid": os.getpid()})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
