@@ -288,8 +288,13 @@ def engine_main(config, shared_name: str, conn) -> None:
 
 
 def _device_status(device) -> dict:
+    """The device's own status, with its fault counts over the run when it keeps them."""
     try:
-        return device.status()
+        status = device.status()
+        counts = getattr(device, "fault_counts", None)
+        if counts is not None:
+            status["fault_counts"] = counts()
+        return status
     except Exception as error:  # noqa: BLE001 - a status that fails to build must not stop the engine
         return {"errors": [f"status: {type(error).__name__}: {error}"]}
 
