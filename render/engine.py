@@ -130,7 +130,7 @@ def _underruns(device_status: dict) -> int:
         value = device_status.get(key)
         if isinstance(value, int | float):
             count += int(value)
-    return count
+    return count + int((device_status.get("fault_counts") or {}).get("underrun", 0))  # a plate's own buffer
 
 
 class Engine:
