@@ -88,6 +88,7 @@ class EngineSource:
         self.audio = audio
         self.device = device
         self.priority = "not yet running"
+        self.threads = "other threads: normal"
         self._raise = raise_priority_
         self._first = True
         self._paused = False
@@ -278,6 +279,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         probe = _PlateProbe(device.plate.simulator, shared.fast)
         probe.start()
     threads = raise_other_threads() if config.realtime_priority else "other threads: normal"
+    source.threads = threads
     conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
                          "tail_s": renderer.tail_s, "device_status": _device_status(device)}))
     _serve(config, conn, shared, renderer, source, device, stop_requested, threads)
@@ -359,7 +361,7 @@ def _finish(shared, source, device, conn) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     _close_device(device)
-    status = {**_device_status(device), "priority": source.priority, "pid": os.getpid()}
+    status = {**_device_status(device), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
     shared.write_slow(status)
     fast = shared.fast
     fast[shm.SEQ] += 1

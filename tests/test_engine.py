@@ -51,23 +51,30 @@ def hold(engine, where, until, timeout=30.0):
     raise AssertionError(f"not reached in {timeout} s: {engine.status().words()}")
 
 
-def test_touches_reach_the_simulated_plate_and_stop_rests_it(steps):
-    with Engine.start(EngineConfig(texture=steps, device="sim")) as engine:
-        engine.wait_ready(60)
-        assert engine.ready
-        # on the slippery half the plate settles at the amplitude the model gives for ratio 0.5
-        status = hold(engine, SLIPPERY, lambda s: len(s.history.plate_um_pp)
-                      and abs(s.history.plate_um_pp[-1] - HALF_FRICTION_UM_PP) < 0.05)
-        assert status.history.target_ratio[-1] == pytest.approx(0.5, abs=1e-3)
-        assert status.history.commanded_um_pp[-1] == pytest.approx(HALF_FRICTION_UM_PP, abs=0.01)
-        assert status.state == "running" and status.device == "sim" and status.touches > 0
-        # on the sticky half it comes back to rest
-        hold(engine, STICKY, lambda s: s.history.plate_um_pp[-1] < 0.02)
-        hold(engine, SLIPPERY, lambda s: s.history.plate_um_pp[-1] > 3.0)
-    final = engine.final_status
-    assert final.state == "stopped" and not engine.alive
-    assert final.device_status["measured_um_pp"] < 0.05  # ramped to rest before zero and disable
-    assert final.device_status["device_faults"] == []
+def test_touches_reach_the_plate_and_stop_rests_it(steps):
+    """The simulated plate served here, on a real pty: what it does is observed beside the engine."""
+    plate = PtyPlate(load_profile("sim-plate")).start()
+    sim = plate.simulator
+    try:
+        with Engine.start(EngineConfig(texture=steps, device=f"serial:{plate.path}")) as engine:
+            engine.wait_ready(60)
+            assert engine.ready
+            # on the slippery half the plate settles at the amplitude the model gives for ratio 0.5
+            status = hold(engine, SLIPPERY, lambda s: abs(sim.amplitude_um_pp - HALF_FRICTION_UM_PP) < 0.02)
+            assert status.history.target_ratio[-1] == pytest.approx(0.5, abs=1e-3)
+            assert status.history.commanded_um_pp[-1] == pytest.approx(HALF_FRICTION_UM_PP, abs=0.01)
+            assert status.state == "running" and status.touches > 0
+            # on the sticky half it comes back to rest, and up again
+            hold(engine, STICKY, lambda s: sim.amplitude_um_pp < 0.02)
+            hold(engine, SLIPPERY, lambda s: sim.amplitude_um_pp > 3.0)
+            assert sim.enabled
+        final = engine.final_status
+        assert final.state == "stopped" and not engine.alive
+        assert not sim.enabled  # zero and disable, acknowledged before stop() returned
+        assert wait_for(lambda: sim.amplitude_um_pp < 0.01)
+        assert final.device_status["fault_counts"]["over-limit"] == 0
+    finally:
+        plate.stop()
 
 
 def test_status_counts_blocks_at_the_devices_pace_and_pause_rests(steps):
