@@ -7,9 +7,12 @@ The swipe or log is replayed as touch reports, at their own times, into the real
 from __future__ import annotations
 
 import json
+import sys
 import time
+from types import SimpleNamespace
 
 import numpy as np
+from ultraglide.apps.output_report import force_words  # (takes anything with default_force_n)
 from ultraglide.apps.render_setup import load_inputs
 from ultraglide.render.engine import Engine, EngineConfig
 
@@ -54,7 +57,15 @@ def run(args) -> int:
     figures["fault_words"] = figures.pop("faults")
     device_status = figures.pop("device_status")
     counts = device_status.pop("fault_counts", None)
-    status = {**device_status, **figures, "faults": counts or {}, "played_s": played_s}
+    limiter = device_status.pop("limiter", "")
+    clipped = final.clipped_samples / final.control_samples if final.control_samples else 0.0
+    status = {**device_status, **figures, "clipped_fraction": round(clipped, 6), "faults": counts or {},
+              "played_s": played_s}
+    if final.clipped_samples:
+        force = force_words(trajectory, SimpleNamespace(default_force_n=engine.config.default_force_n))
+        print(f"warning: {100 * clipped:.1f} % of the time the texture asked for less friction than model "
+              f"{args.model} reaches at {force} within "
+              f"{inputs.profile.max_amplitude_um_pp:g} µm p-p; held at the limit", file=sys.stderr)
     if args.json:
         print(json.dumps(status))
     else:
@@ -62,15 +73,16 @@ def run(args) -> int:
               f"{final.underruns} device underruns; block time {final.block_p50_us:.0f} µs median, "
               f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit; "
               f"engine priority {final.priority}")
-        print(describe_faults(counts))
+        print(limiter)
+        print(describe_faults(counts or {}))
     return 0
 
 
-def describe_faults(counts: dict[str, int] | None) -> str:
+def describe_faults(counts: dict[str, int]) -> str:
     """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``."""
     from ultraglide.devices.protocol import FAULT_WORDS
 
-    if counts is None:
-        return "device faults: this device reports none"
     happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
+    if not counts:
+        return "device faults: this device reports none"
     return "device faults: " + ("; ".join(happened) if happened else "none")

@@ -4,9 +4,10 @@ Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000] [--paced]
 Aim (issue 4): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs).
 
 For each case a spawned process builds the engine's block path (render.engine_process.EngineSource:
-drain the touch ring, render, publish the status) exactly as the engine does (gc frozen and off,
-priority raised where allowed) and pulls blocks back to back; this process writes touch reports
-into the shared ring at 120 Hz meanwhile, as the UI would. The times are the pull's own.
+drain the touch ring, render, limit and put on the carrier (the output stage), publish the status)
+exactly as the engine does (gc frozen and off, priority raised where allowed) and pulls blocks back
+to back; this process writes touch reports into the shared ring at 120 Hz meanwhile, as the UI
+would. The times are the pull's own.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import argparse
 import math
 import multiprocessing
 import time
+import types
 
 import numpy as np
 
@@ -33,7 +35,8 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
     shared = SharedBlock.attach(shared_name)
     renderer = Renderer(resolve_texture(texture_name), load_model(model_name), load_profile("sim-plate"),
                         RenderSettings(audio_rate_hz=rate))
-    source = EngineSource(renderer, shared, audio=True, device=None)
+    device = types.SimpleNamespace(signal="audio", rate_hz=rate, carrier_hz=None)  # what a sound card says of itself
+    source = EngineSource(renderer, shared, device)
     times = np.empty(blocks)
     gc.collect()
     gc.freeze()

@@ -21,6 +21,7 @@ import threading
 import time
 
 import numpy as np
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_shm import SharedBlock
 
@@ -79,22 +80,40 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
     return f"other threads: SCHED_FIFO {priority} ({raised})" if raised else "other threads: normal"
 
 
-class EngineSource:
-    """The block path (a devices.source.BlockSource): touches in, one block out, figures published."""
+class _Envelope:
+    """The renderer's drive envelope (µm p-p, control rate), rendered into preallocated buffers."""
 
-    def __init__(self, renderer, shared: SharedBlock, audio: bool, device, raise_priority_: bool = True):
+    def __init__(self, renderer, capacity: int = 4096):
+        self.renderer = renderer
+        self.control_rate_hz = renderer.settings.control_rate_hz
+        self.buffers = renderer.control_buffers(capacity, always=True)
+
+    def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        return self.renderer.control(n, now_s, out=self.buffers).drive_um_pp
+
+    def request_stop(self) -> None:
+        self.renderer.stop()
+
+    @property
+    def finished(self) -> bool:
+        return self.renderer.finished
+
+
+class EngineSource(OutputStage):
+    """The block path: the device's output stage (limiter, carrier for audio) with the touch ring drained
+    before each block and the block's figures published after it. Devices take it as their stage."""
+
+    def __init__(self, renderer, shared: SharedBlock, device, raise_priority_: bool = True):
+        carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
+        super().__init__(_Envelope(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
         self.renderer = renderer
         self.shared = shared
-        self.audio = audio
         self.device = device
         self.priority = "not yet running"
         self.threads = "other threads: normal"
         self._raise = raise_priority_
         self._first = True
-        self._paused = False
         self._stopping = False
-        capacity = 4096
-        self._control = renderer.control_buffers(capacity, always=True)
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         started = time.perf_counter()
@@ -105,10 +124,7 @@ class EngineSource:
         touched = self._drain()
         renderer = self.renderer
         clipped_before = renderer.counters.clipped_samples
-        if self.audio:
-            out = renderer.audio(n, now_s)
-        else:
-            out = renderer.control(n, now_s, out=self._control).drive_um_pp
+        out = super().pull(n, now_s)
         done = time.perf_counter()
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
@@ -173,14 +189,9 @@ class EngineSource:
             fast[shm.TOUCHES] += touched
         fast[shm.SEQ] += 1  # even: whole
 
-    # ---- BlockSource ---------------------------------------------------------------------------
     def request_stop(self) -> None:
         self._stopping = True
-        self.renderer.stop()
-
-    @property
-    def finished(self) -> bool:
-        return self.renderer.finished
+        super().request_stop()
 
 
 class _PlateProbe(threading.Thread):
@@ -263,7 +274,7 @@ def engine_main(config, shared_name: str, conn) -> None:
                                   lookahead_s=config.lookahead_s)
         renderer = Renderer(texture, model, profile, settings)
         renderer.pause(config.start_paused)
-        source = EngineSource(renderer, shared, device.signal == "audio", device, config.realtime_priority)
+        source = EngineSource(renderer, shared, device, config.realtime_priority)
         gc.collect()
         gc.freeze()  # everything built so far is permanent: later collections never walk it
         gc.disable()  # no collection can start inside a block; the command thread collects when idle
@@ -289,10 +300,13 @@ def engine_main(config, shared_name: str, conn) -> None:
     shared.close()
 
 
-def _device_status(device) -> dict:
-    """The device's own status, with its fault counts over the run when it keeps them."""
+def _device_status(device, stage=None) -> dict:
+    """The device's own status, with its fault counts over the run when it keeps them, and the limiter's."""
     try:
         status = device.status()
+        if stage is not None:
+            status.update(stage.limiter.status())
+            status["limiter"] = stage.limiter.summary()
         counts = getattr(device, "fault_counts", None)
         if counts is not None:
             status["fault_counts"] = counts()
@@ -318,7 +332,7 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
     while True:
         now = time.monotonic()
         if now >= next_status:
-            shared.write_slow({**_device_status(device), "priority": f"{source.priority}; {threads}",
+            shared.write_slow({**_device_status(device, source), "priority": f"{source.priority}; {threads}",
                                "pid": os.getpid()})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
@@ -361,7 +375,7 @@ def _finish(shared, source, device, conn) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     _close_device(device)
-    status = {**_device_status(device), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
+    status = {**_device_status(device, source), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
     shared.write_slow(status)
     fast = shared.fast
     fast[shm.SEQ] += 1
