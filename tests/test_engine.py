@@ -114,12 +114,20 @@ def test_a_bad_config_is_one_line(config, fragment):
     assert "\n" not in str(caught.value)
 
 
-def test_a_device_that_fails_to_start_is_reported_at_wait_ready(tmp_path):
-    engine = Engine.start(EngineConfig(texture="grating-1mm", device=f"wav:{tmp_path / 'x.wav'}", carrier_hz=35000))
-    with pytest.raises(EngineError, match="outside"):
-        engine.wait_ready(60)
-    engine.stop()
-    assert not engine.alive and list(tmp_path.iterdir()) == []  # no partial recording
+def test_a_device_that_fails_is_one_line_and_leaves_nothing(tmp_path):
+    with pytest.raises(EngineError, match="outside") as caught:  # refused when the device is opened
+        Engine.start(EngineConfig(texture="grating-1mm", device=f"wav:{tmp_path / 'x.wav'}", carrier_hz=35000))
+    assert "\n" not in str(caught.value) and list(tmp_path.iterdir()) == []  # no partial recording
+    master, slave = os.openpty()  # a port where nobody answers: the handshake fails when the device starts
+    try:
+        engine = Engine.start(EngineConfig(texture="grating-1mm", device=f"serial:{os.ttyname(slave)}"))
+        with pytest.raises(EngineError, match="no answer"):
+            engine.wait_ready(60)
+        engine.stop()
+        assert not engine.alive
+    finally:
+        os.close(master)
+        os.close(slave)
 
 
 def test_play_reports_the_engine_figures(tmp_path):
