@@ -19,6 +19,7 @@ from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import offline_stage
+from ultraglide.devices.atomic_file import write_failure
 from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
@@ -91,16 +92,19 @@ def run(args) -> int:
             renderer.observers.append(plot)
         stage.observers.append(log.sent)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
-        with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
-                                 format=format_) as wav, \
-                tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
-                     disable=None, leave=False) as progress:
-            done = 0
-            while done < total:
-                frames = min(block, total - done)
-                wav.write(stage.pull(frames, None))
-                done += frames
-                progress.update(frames)
+        try:
+            with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
+                                     format=format_) as wav, \
+                    tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
+                         disable=None, leave=False) as progress:
+                done = 0
+                while done < total:
+                    frames = min(block, total - done)
+                    wav.write(stage.pull(frames, None))
+                    done += frames
+                    progress.update(frames)
+        except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
+            raise write_failure(output, wav_path, error) from None
         if args.plot:
             plot.write(renderer)
     counters = renderer.counters

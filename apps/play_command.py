@@ -10,6 +10,7 @@ import numpy as np
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import source_for
+from ultraglide.apps.stop_signals import held
 from ultraglide.devices.urls import open_device
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
@@ -44,7 +45,8 @@ def run(args) -> int:
         renderer.push(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
         time.sleep(renderer.tail_s)
     finally:
-        device.stop()  # ramps down through the renderer, then rests the plate, on every way out
+        with held():  # a stop signal arriving now waits until the plate is at rest
+            device.stop()  # ramps down through the renderer, then rests the plate, on every way out
     status = {**device.status(), "clipped_samples": renderer.counters.clipped_samples,
               "clipped_fraction": round(clipped_fraction(renderer), 6), **limiter_fields(stage),
               "ramps": renderer.counters.ramps, "late_blocks": renderer.counters.late_blocks,
