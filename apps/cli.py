@@ -13,6 +13,7 @@ import sys
 
 from ultraglide.apps import errors
 from ultraglide.apps.cli_types import crop_box, finite, positive, ratio, size_mm
+from ultraglide.apps.stop_signals import StopSignals
 
 from ultraglide import __version__
 
@@ -369,8 +370,6 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     import warnings
 
-    from ultraglide.apps.stop_signals import StopSignals
-
     warnings.showwarning = _show_warning
     module_name, function_name = args.handler.split(":")
     stop = StopSignals()  # SIGTERM and SIGHUP stop a command as Ctrl-C does, through every finally
@@ -392,6 +391,7 @@ def _stopped(signum: int) -> int:
     """One line and the shell's status for a command stopped by a signal: 130 for Ctrl-C, 143 for SIGTERM."""
     print(f"ultraglide: stopped ({signal.Signals(signum).name})", file=sys.stderr)
     return 128 + signum
+
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -77,12 +77,11 @@ def run(args) -> int:
     total = int(round(duration_s * rate))
     block = int(BLOCK_S * rate)
     control_total = math.ceil(total / renderer.settings.upsampling)
-    with contextlib.ExitStack() as stack:
+    with contextlib.ExitStack() as stack:  # the outputs are renamed into place only once all are complete
         wav_path = stack.enter_context(atomic_path(output))
-        csv_stream = None
-        if args.envelope_csv:
-            csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv)))
-            csv_stream = stack.enter_context(open(csv_path, "w", newline=""))
+        csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
+        plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
+        csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
         log = EnvelopeLog(csv_stream, control_total, keep_plot=False)
         renderer.observers.append(log)
         if args.plot:
@@ -105,8 +104,10 @@ def run(args) -> int:
                     progress.update(frames)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
+        if csv_stream:
+            csv_stream.close()  # a write that fails on the last flush fails here, before anything is renamed
         if args.plot:
-            plot.write(renderer)
+            plot.write(renderer, plot_path)
     counters = renderer.counters
     warning = clipping_warning(renderer, args.model, trajectory)
     if warning:

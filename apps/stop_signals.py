@@ -66,9 +66,11 @@ class StopSignals:
         return True
 
     def restore(self) -> None:
-        """Put back the handlers that were there before ``install``."""
+        """Put back the handlers that were there before ``install``; once a stop signal has come, ignore
+        the stop signals instead: the process is on its way out (and the interpreter, as it shuts down,
+        would put back default handlers that kill it with another status)."""
         for signum, previous in self._previous.items():
-            signal.signal(signum, previous)
+            signal.signal(signum, previous if self.received is None else signal.SIG_IGN)
         self._previous.clear()
 
 
