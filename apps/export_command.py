@@ -34,8 +34,9 @@ class EnvelopeLog:
     """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot.
     Observes the renderer's blocks (``__call__``) and then the output stage's limited drive (``sent``)."""
 
-    def __init__(self, stream, total_samples: int, keep_plot: bool):
+    def __init__(self, stream, total_samples: int, keep_plot: bool, path: Path | None = None):
         self.stream = stream
+        self.path = path  # named in write errors (the stream writes a hidden temporary file)
         if stream:
             stream.write(",".join(ENVELOPE_COLUMNS) + "\n")
         self.every = max(1, math.ceil(total_samples / PLOT_POINTS))
@@ -53,7 +54,10 @@ class EnvelopeLog:
                                    block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
                                    drive_um_pp])
         if self.stream:
-            np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+            try:
+                np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(self.path)) from None
         if self.keep_plot:
             start = (-self._offset) % self.every
             self.kept.append(columns[start::self.every, :PLOT_COLUMNS])
@@ -82,7 +86,7 @@ def run(args) -> int:
         csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
         plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
         csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
-        log = EnvelopeLog(csv_stream, control_total, keep_plot=False)
+        log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
         renderer.observers.append(log)
         if args.plot:
             from ultraglide.apps.export_plot import PlotRecorder
@@ -105,7 +109,10 @@ def run(args) -> int:
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
         if csv_stream:
-            csv_stream.close()  # a write that fails on the last flush fails here, before anything is renamed
+            try:
+                csv_stream.close()  # a write that fails on the last flush fails here, before anything is renamed
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(args.envelope_csv)) from None
         if args.plot:
             plot.write(renderer, plot_path)
     counters = renderer.counters
