@@ -378,6 +378,7 @@ def main(argv: list[str] | None = None) -> int:
         handler = getattr(importlib.import_module(module_name), function_name)
         status = int(handler(args) or 0)
     except KeyboardInterrupt as interrupt:
+        stop.restore()  # from here on the stop signals are ignored: the command has stopped
         return _stopped(stop.received or getattr(interrupt, "signum", signal.SIGINT))
     except errors.user_errors() as error:
         print(f"ultraglide {args.command}: error: {errors.describe(error)}", file=sys.stderr)

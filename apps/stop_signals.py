@@ -1,12 +1,12 @@
-"""SIGINT, SIGTERM and SIGHUP stop every command the way Ctrl-C does, and only once.
+"""SIGINT, SIGTERM and SIGHUP stop every command the way Ctrl-C does.
 
-``ultraglide``'s ``main`` installs :class:`StopSignals` for the length of a command. The first of
-those signals raises :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, so every
-``try``/``finally`` and ``with`` on the way out runs: devices ramp down and rest the plate, temporary
-files go. Later signals are noted and ignored, so a second Ctrl-C or a ``kill`` during that
-clean-up cannot cut it short and leave a plate running. Clean-up that must not be entered by the
-first signal either (resting a device at the normal end, removing a temporary file) runs inside
-:func:`held`: a signal that arrives there is raised when the block ends.
+``ultraglide``'s ``main`` installs :class:`StopSignals` for the length of a command. A stop signal
+raises :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, so every ``try``/``finally``
+and ``with`` on the way out runs: devices ramp down and rest the plate, temporary files go.
+Clean-up that must not be cut short (resting a device, removing a temporary file) runs inside
+:func:`held`: a signal that arrives there, the first or a second one, is raised when the block ends.
+A signal outside such a block raises again, so a second Ctrl-C still stops a command whose first
+was swallowed (Python drops exceptions raised while it runs a finaliser).
 """
 
 from __future__ import annotations
@@ -34,17 +34,17 @@ class StopSignals:
 
     def __init__(self):
         self.received: int | None = None  # the first stop signal, once one has come
-        self.raised = False
         self._held = 0
+        self._pending = False  # a signal came during a held block
         self._previous: dict[int, object] = {}
 
     def __call__(self, signum: int, frame) -> None:
-        if self.received is not None:
-            return  # already stopping: let the clean-up finish
-        self.received = signum
-        if not self._held:
-            self.raised = True
-            raise Stopped(signum)
+        if self.received is None:
+            self.received = signum
+        if self._held:
+            self._pending = True
+            return
+        raise Stopped(self.received)
 
     @contextlib.contextmanager
     def holding(self) -> Iterator[None]:
@@ -53,8 +53,8 @@ class StopSignals:
             yield
         finally:
             self._held -= 1
-        if not self._held and self.received is not None and not self.raised:
-            self.raised = True
+        if not self._held and self._pending:
+            self._pending = False
             raise Stopped(self.received)
 
     def install(self) -> bool:

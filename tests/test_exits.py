@@ -93,7 +93,7 @@ def size_of_hidden(directory, suffix):
 
 
 # ---- the handler itself, with real signals to this process --------------------------------------------------
-def test_first_signal_raises_once_later_ones_are_ignored_and_held_blocks_finish():
+def test_signals_inside_a_held_block_wait_for_its_end_and_later_ones_raise_again():
     before = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
     stop = StopSignals()
     assert stop.install()
@@ -106,10 +106,13 @@ def test_first_signal_raises_once_later_ones_are_ignored_and_held_blocks_finish(
                 for _ in range(100):  # let the interpreter run the handlers inside the block
                     time.sleep(0.001)
                 reached_end_of_block = True
-        assert reached_end_of_block  # the signal waited for the held block
+        assert reached_end_of_block  # both signals waited for the held block, which raised once
         assert caught.value.signum == signal.SIGTERM and caught.value.exit_status == 143
-        os.kill(os.getpid(), signal.SIGHUP)  # a later signal: noted, ignored
-        time.sleep(0.01)
+        with pytest.raises(Stopped) as again:  # a later signal outside a held block stops again
+            os.kill(os.getpid(), signal.SIGHUP)
+            for _ in range(100):
+                time.sleep(0.001)
+        assert again.value.signum == signal.SIGTERM  # named after the first
     finally:
         stop.restore()
         ignored = [signal.getsignal(signum) for signum in STOP_SIGNALS]
