@@ -3,10 +3,13 @@
 ``ultraglide``'s ``main`` installs :class:`StopSignals` for the length of a command. A stop signal
 raises :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, so every ``try``/``finally``
 and ``with`` on the way out runs: devices ramp down and rest the plate, temporary files go.
-Clean-up that must not be cut short (resting a device, removing a temporary file) runs inside
-:func:`held`: a signal that arrives there, the first or a second one, is raised when the block ends.
-A signal outside such a block raises again, so a second Ctrl-C still stops a command whose first
-was swallowed (Python drops exceptions raised while it runs a finaliser).
+
+A second signal must not cut that clean-up short. Clean-up that must finish (resting a device,
+removing a temporary file) runs inside :func:`held`: a signal arriving there is raised when the
+block ends. Signals that follow the first within ``grace_s`` (a burst: several kills, an impatient
+double Ctrl-C) are ignored wherever they land, since the first is still on its way out and may
+be between two held blocks. A signal after that raises again, so a command whose first stop was
+swallowed (Python drops exceptions raised while it runs a finaliser) can still be stopped.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+import time
 from collections.abc import Iterator
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
@@ -32,15 +36,20 @@ class Stopped(KeyboardInterrupt):
 class StopSignals:
     """The handler for the stop signals while a command runs (see the module's docstring)."""
 
-    def __init__(self):
+    def __init__(self, grace_s: float = 2.0):
+        self.grace_s = grace_s
         self.received: int | None = None  # the first stop signal, once one has come
+        self._first_s = 0.0
         self._held = 0
         self._pending = False  # a signal came during a held block
         self._previous: dict[int, object] = {}
 
     def __call__(self, signum: int, frame) -> None:
+        now = time.monotonic()
         if self.received is None:
-            self.received = signum
+            self.received, self._first_s = signum, now
+        elif now - self._first_s < self.grace_s:
+            return  # part of a burst: the first is still being handled
         if self._held:
             self._pending = True
             return
