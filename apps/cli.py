@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 from ultraglide.apps import errors
 from ultraglide.apps.cli_types import crop_box, finite, positive, ratio, size_mm
+from ultraglide.apps.stop_signals import StopSignals
 
 from ultraglide import __version__
 
@@ -382,15 +384,26 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = _show_warning
     module_name, function_name = args.handler.split(":")
+    stop = StopSignals()  # SIGTERM and SIGHUP stop a command as Ctrl-C does, through every finally
+    stop.install()
     try:
         handler = getattr(importlib.import_module(module_name), function_name)
-        return int(handler(args) or 0)
-    except KeyboardInterrupt:
-        print("ultraglide: stopped", file=sys.stderr)
-        return 130
+        status = int(handler(args) or 0)
+    except KeyboardInterrupt as interrupt:
+        stop.restore()  # from here on the stop signals are ignored: the command has stopped
+        return _stopped(stop.received or getattr(interrupt, "signum", signal.SIGINT))
     except errors.user_errors() as error:
         print(f"ultraglide {args.command}: error: {errors.describe(error)}", file=sys.stderr)
         return 1
+    finally:
+        stop.restore()
+    return _stopped(stop.received) if stop.received is not None else status
+
+
+def _stopped(signum: int) -> int:
+    """One line and the shell's status for a command stopped by a signal: 130 for Ctrl-C, 143 for SIGTERM."""
+    print(f"ultraglide: stopped ({signal.Signals(signum).name})", file=sys.stderr)
+    return 128 + signum
 
 
 if __name__ == "__main__":

@@ -50,6 +50,7 @@ from ultraglide.apps.demo_draw import (  # noqa: E402
 from ultraglide.apps.demo_link import DemoLink, LinkConfig, LinkStarter  # noqa: E402
 from ultraglide.apps.demo_record import TouchRecorder  # noqa: E402
 from ultraglide.apps.errors import UsageError  # noqa: E402
+from ultraglide.apps.stop_signals import held  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
 
 DEFAULT_MM_PER_PX = 25.4 / 96  # when the screen's size is not given: a 96 dpi screen
@@ -657,7 +658,8 @@ def run(args) -> int:
     try:
         app.run()
     finally:
-        app.close()  # window closed, Escape, Ctrl-C or an exception: the plate comes to rest
+        with held():  # a second Ctrl-C or SIGTERM does not cut this short
+            app.close()  # window closed, Escape, Ctrl-C or an exception: the plate comes to rest
     if args.stats:
         write_stats(args.stats, app.stats())
     return 0

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import json
 import queue
-import signal
-import threading
 
+from ultraglide.apps.stop_signals import held
 from ultraglide.devices.listing import list_devices
 from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
 from ultraglide.devices.profiles import load_profile
@@ -41,19 +40,9 @@ def describe_event(event: dict) -> str:
     return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
 
 
-def _stop_gracefully(done: threading.Event) -> None:
-    """Ctrl-C stops the simulator cleanly; so do SIGTERM and SIGHUP unless the command line handles them."""
-    signal.signal(signal.SIGINT, lambda *_: done.set())
-    for signum in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(signum) in (signal.SIG_DFL, None):
-            signal.signal(signum, lambda *_: done.set())
-
-
 def plate_sim(args) -> int:
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
-    done = threading.Event()
-    _stop_gracefully(done)
     plate = PtyPlate(profile, args.link, truth).start()
     sim = plate.simulator
 
@@ -69,18 +58,23 @@ def plate_sim(args) -> int:
             print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
                   f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; Ctrl-C stops it",
                   flush=True)
-        while not done.is_set():
+        while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
             try:
                 show(sim.events.get(timeout=0.1))
             except queue.Empty:
                 continue
     finally:
-        plate.stop()
-        while not sim.events.empty():
-            show(sim.events.get())
+        with held():  # a second signal does not cut this short
+            plate.stop()
+            while not sim.events.empty():
+                show(sim.events.get())
+            _summary(sim, args.json, show)
+
+
+def _summary(sim, as_json: bool, show) -> None:
     c = sim.counters
     faults = {name: count for name, count in sim.fault_counts().items() if count}
-    if args.json:
+    if as_json:
         show({"t_s": round(sim.elapsed_s(), 4), "event": "stopped", "frames": c.frames_ok, "setpoints": c.setpoints,
               "crc_errors": c.crc_errors, "lost_setpoints": c.lost_setpoints, "late_setpoints": c.late_setpoints,
               "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
@@ -88,5 +82,4 @@ def plate_sim(args) -> int:
         fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"
         print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
               f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
-              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p")
-    return 0
+              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p", flush=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import importlib
 
 
@@ -15,6 +16,9 @@ _ERROR_CLASSES = (
     ("ultraglide.textures.errors", "TextureError"),
     ("ultraglide.devices.errors", "DeviceError"),
 )
+
+
+_NO_ROOM = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)  # every output is atomic, so none is left half-written
 
 
 def user_errors() -> tuple[type[BaseException], ...]:
@@ -32,5 +36,6 @@ def describe(error: BaseException) -> str:
     """One line for an error: OSErrors name the file and the reason."""
     if isinstance(error, OSError) and error.strerror:
         where = f"{error.filename}: " if error.filename else ""
-        return f"{where}{error.strerror.lower()}"
+        advice = "; nothing was saved: free some space or write elsewhere" if error.errno in _NO_ROOM else ""
+        return f"{where}{error.strerror.lower()}{advice}"
     return str(error).splitlines()[0] if str(error) else type(error).__name__

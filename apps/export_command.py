@@ -19,6 +19,7 @@ from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import offline_stage
+from ultraglide.devices.atomic_file import write_failure
 from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
@@ -33,8 +34,9 @@ class EnvelopeLog:
     """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot.
     Observes the renderer's blocks (``__call__``) and then the output stage's limited drive (``sent``)."""
 
-    def __init__(self, stream, total_samples: int, keep_plot: bool):
+    def __init__(self, stream, total_samples: int, keep_plot: bool, path: Path | None = None):
         self.stream = stream
+        self.path = path  # named in write errors (the stream writes a hidden temporary file)
         if stream:
             stream.write(",".join(ENVELOPE_COLUMNS) + "\n")
         self.every = max(1, math.ceil(total_samples / PLOT_POINTS))
@@ -52,7 +54,10 @@ class EnvelopeLog:
                                    block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
                                    drive_um_pp])
         if self.stream:
-            np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+            try:
+                np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(self.path)) from None
         if self.keep_plot:
             start = (-self._offset) % self.every
             self.kept.append(columns[start::self.every, :PLOT_COLUMNS])
@@ -76,13 +81,12 @@ def run(args) -> int:
     total = int(round(duration_s * rate))
     block = int(BLOCK_S * rate)
     control_total = math.ceil(total / renderer.settings.upsampling)
-    with contextlib.ExitStack() as stack:
+    with contextlib.ExitStack() as stack:  # the outputs are renamed into place only once all are complete
         wav_path = stack.enter_context(atomic_path(output))
-        csv_stream = None
-        if args.envelope_csv:
-            csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv)))
-            csv_stream = stack.enter_context(open(csv_path, "w", newline=""))
-        log = EnvelopeLog(csv_stream, control_total, keep_plot=False)
+        csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
+        plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
+        csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
+        log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
         renderer.observers.append(log)
         if args.plot:
             from ultraglide.apps.export_plot import PlotRecorder
@@ -91,18 +95,26 @@ def run(args) -> int:
             renderer.observers.append(plot)
         stage.observers.append(log.sent)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
-        with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
-                                 format=format_) as wav, \
-                tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
-                     disable=None, leave=False) as progress:
-            done = 0
-            while done < total:
-                frames = min(block, total - done)
-                wav.write(stage.pull(frames, None))
-                done += frames
-                progress.update(frames)
+        try:
+            with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
+                                     format=format_) as wav, \
+                    tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
+                         disable=None, leave=False) as progress:
+                done = 0
+                while done < total:
+                    frames = min(block, total - done)
+                    wav.write(stage.pull(frames, None))
+                    done += frames
+                    progress.update(frames)
+        except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
+            raise write_failure(output, wav_path, error) from None
+        if csv_stream:
+            try:
+                csv_stream.close()  # a write that fails on the last flush fails here, before anything is renamed
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(args.envelope_csv)) from None
         if args.plot:
-            plot.write(renderer)
+            plot.write(renderer, plot_path)
     counters = renderer.counters
     warning = clipping_warning(renderer, args.model, trajectory)
     if warning:

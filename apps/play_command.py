@@ -14,6 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 from ultraglide.apps.output_report import force_words  # (takes anything with default_force_n)
 from ultraglide.apps.render_setup import load_inputs
+from ultraglide.apps.stop_signals import held
 from ultraglide.render.engine import Engine, EngineConfig
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
@@ -51,7 +52,8 @@ def run(args) -> int:
         engine.touch(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
         time.sleep(engine.ready_info["tail_s"])
     finally:
-        final = engine.stop()  # ramps down, rests the plate and ends the engine, on every way out
+        with held():  # a stop signal arriving now waits until the plate is at rest
+            final = engine.stop()  # ramps down, rests the plate and ends the engine, on every way out
     played_s = round(time.perf_counter() - started, 3)
     figures = final.summary()
     figures["fault_words"] = figures.pop("faults")

@@ -7,14 +7,12 @@ get, with the same timing and the same live input.
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
+from ultraglide.devices.atomic_file import AtomicFile, write_failure
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
@@ -89,7 +87,11 @@ class PacedSink:
 
 
 class WavRecorder(PacedSink):
-    """``wav:PATH``: records in real time what a plate would get; the file appears, whole, at stop."""
+    """``wav:PATH``: records in real time what a plate would get; the file appears, whole, at stop.
+
+    The recording goes to a hidden temporary file beside PATH (:class:`AtomicFile`), renamed into
+    place by :meth:`close`. If a write fails (a full disk, a file too large) the recording stops,
+    the temporary file is removed and :meth:`close` raises the system's OSError naming PATH."""
 
     def __init__(self, path: str | Path, profile: PlateProfile, rate_hz: int = 96000, carrier_hz: float | None = None):
         super().__init__(profile, rate_hz, f"wav:{path}", carrier_hz)
@@ -101,12 +103,22 @@ class WavRecorder(PacedSink):
         directory = self.path.parent if str(self.path.parent) else Path(".")
         if not directory.is_dir():
             raise DeviceError(f"wav device: no directory {directory}")
-        handle, self._temporary = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=".wav", dir=directory)
-        os.close(handle)
-        self._file = soundfile.SoundFile(self._temporary, "w", samplerate=rate_hz, channels=1, subtype="FLOAT")
+        self._target = AtomicFile(self.path)
+        self._write_error: Exception | None = None
+        self._failed = soundfile.LibsndfileError
+        try:
+            self._file = soundfile.SoundFile(self._target.temporary, "w", samplerate=rate_hz, channels=1,
+                                             subtype="FLOAT")
+        except BaseException:
+            self._target.discard()
+            raise
 
     def consume(self, block: np.ndarray) -> None:
-        self._file.write(block)
+        try:
+            self._file.write(block)
+        except self._failed as error:  # the pacing thread stops here; close() reports it
+            self._write_error = error
+            raise
 
     def close(self) -> None:
         if self._file is None:
@@ -114,17 +126,20 @@ class WavRecorder(PacedSink):
         if self._source is None:  # never started: a recording of nothing is no recording
             self.discard()
             return
-        self._file.close()
-        self._file = None
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(self._temporary, 0o666 & ~umask)
-        os.replace(self._temporary, self.path)
+        file, self._file = self._file, None
+        try:
+            file.close()
+        except self._failed as error:
+            self._write_error = self._write_error or error
+        if self._write_error is not None:
+            failure = write_failure(self.path, self._target.temporary, self._write_error)
+            self._target.discard()
+            raise failure
+        self._target.commit()
 
     def discard(self) -> None:
         """Drop the recording (an error before anything worth keeping)."""
         if self._file is not None:
             self._file.close()
             self._file = None
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(self._temporary)
+        self._target.discard()

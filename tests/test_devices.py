@@ -198,7 +198,7 @@ def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
     finally:
         server.send_signal(signal.SIGINT)
         out, _ = server.communicate(timeout=10)
-    assert server.returncode == 0
+    assert server.returncode == 128 + signal.SIGINT  # stopped by Ctrl-C, as the shell reports it
     assert "setpoints lost 0" in out.replace(", ", " ") or " 0 setpoints lost" in out
 
 

@@ -86,7 +86,7 @@ def test_plate_sim_logs_every_event_as_json_and_removes_its_link_on_sigterm(tmp_
         server.wait_line(lambda line: '"overheat"' in line)
         driver.stop()
         server.wait_line(lambda line: '"disconnected"' in line)
-        assert server.finish(signal.SIGTERM) == 0
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM  # stopped by the signal, as a shell reports it
     finally:
         server.kill()
     assert not os.path.lexists(link)  # the pty's symlink went with it
@@ -113,7 +113,7 @@ def test_plate_sim_speaks_in_words_and_cleans_up_on_sighup(tmp_path):
         assert re.fullmatch(r"\s*\d+\.\d{3} s  enabled", line), line
         driver.stop()
         server.wait_line(lambda line: "disconnected" in line)
-        assert server.finish(signal.SIGHUP) == 0
+        assert server.finish(signal.SIGHUP) == 128 + signal.SIGHUP
     finally:
         server.kill()
     assert not os.path.lexists(link)
@@ -133,7 +133,7 @@ def test_plate_sim_plays_its_own_resonance_not_the_profiles(tmp_path):
         assert wait_for(lambda: driver.telemetry is not None
                         and driver.telemetry.measured_um_pp == pytest.approx(4.0 * gain, rel=0.01)), driver.telemetry
         driver.stop()
-        assert server.finish(signal.SIGINT) == 0
+        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT
     finally:
         server.kill()
 
@@ -190,7 +190,7 @@ def test_the_host_refuses_a_carrier_the_device_cannot_make(tmp_path):
         driver = SerialPlate(str(link), wide, carrier_hz=29000.0, ack_timeout_s=10)
         with pytest.raises(DeviceError, match="outside what the plate driver accepts, 20000-28000 Hz"):
             driver.start(Constant(1.0))
-        assert server.finish(signal.SIGINT) == 0
+        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT
     finally:
         server.kill()
     assert "enabled" not in [json.loads(line)["event"] for line in server.seen]

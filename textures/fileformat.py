@@ -71,6 +71,10 @@ def save_texture(texture: Texture, path: str | Path) -> Path:
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)
         os.replace(temporary, path)
+    except OSError as error:  # a failed write names nothing: name the file asked for
+        if error.filename is not None and error.filename != temporary:
+            raise
+        raise OSError(error.errno, error.strerror, str(path)) from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temporary)
