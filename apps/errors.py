@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import errno
 import importlib
 
 
@@ -18,7 +17,6 @@ _ERROR_CLASSES = (
 )
 
 
-_NO_ROOM = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)  # every output is atomic, so none is left half-written
 
 
 def user_errors() -> tuple[type[BaseException], ...]:
@@ -33,9 +31,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
 
 
 def describe(error: BaseException) -> str:
-    """One line for an error: OSErrors name the file and the reason."""
-    if isinstance(error, OSError) and error.strerror:
-        where = f"{error.filename}: " if error.filename else ""
-        advice = "; nothing was saved: free some space or write elsewhere" if error.errno in _NO_ROOM else ""
-        return f"{where}{error.strerror.lower()}{advice}"
-    return str(error).splitlines()[0] if str(error) else type(error).__name__
+    """One line for an error: OSErrors name the file and the reason (see :func:`devices.errors.describe`)."""
+    from ultraglide.devices.errors import describe as describe_error
+
+    return describe_error(error)

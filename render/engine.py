@@ -205,11 +205,14 @@ class Engine:
             raise EngineError(f"the engine answered {kind!r} out of turn")
 
     def stop(self, timeout_s: float = COMMAND_TIMEOUT_S) -> EngineStatus | None:
-        """Ramp to rest, rest the hardware, end the process; returns the last status. Idempotent."""
+        """Ramp to rest, rest the hardware, end the process; returns the last status. Idempotent.
+        Raises :class:`EngineError` afterwards if the device's output failed (e.g. a WAV recording that
+        did not fit on the disk: nothing was saved)."""
         if self._stopped:
             return self.final_status
         self._stopped = True
         atexit.unregister(self.stop)
+        output_error = None
         try:
             if self.process.is_alive():
                 with contextlib.suppress(OSError, EOFError, EngineError):
@@ -217,14 +220,17 @@ class Engine:
                         self.wait_ready(timeout_s)
                     self.conn.send(("stop",))
                     while True:
-                        kind, _ = _receive(self.conn, self.process, timeout_s)
+                        kind, payload = _receive(self.conn, self.process, timeout_s)
                         if kind == "stopped":
+                            output_error = (payload or {}).get("output_error")
                             break
             self.final_status = self.status()
         finally:
             _reap(self.process, timeout_s)
             self.conn.close()
             self.shared.close()
+        if output_error:  # the hardware is at rest and the process has ended; the output itself failed
+            raise EngineError(output_error)
         return self.final_status
 
     def __enter__(self) -> Engine:

@@ -21,6 +21,7 @@ import threading
 import time
 
 import numpy as np
+from ultraglide.devices.errors import describe
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_shm import SharedBlock
@@ -241,13 +242,6 @@ def _user_errors():
     return (DeviceError, ModelError, RenderError, TextureError, OSError, ValueError)
 
 
-def _describe(error: BaseException) -> str:
-    if isinstance(error, OSError) and error.strerror:
-        where = f"{error.filename}: " if error.filename else ""
-        return f"{where}{error.strerror.lower()}"
-    return str(error).splitlines()[0] if str(error) else type(error).__name__
-
-
 def engine_main(config, shared_name: str, conn) -> None:
     """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -260,7 +254,7 @@ def engine_main(config, shared_name: str, conn) -> None:
     try:
         texture, model, profile, device = _load(config)
     except errors as error:
-        conn.send(("error", _describe(error)))
+        conn.send(("error", describe(error)))
         shared.close()
         return
     conn.send(("up", {"pid": os.getpid(), "device": config.device}))
@@ -281,7 +275,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         device.start(source)
     except errors as error:
         _close_device(device)
-        conn.send(("failed", _describe(error)))
+        conn.send(("failed", describe(error)))
         shared.fast[shm.STATE] = shm.STATES.index("failed")
         shared.close()
         return
@@ -315,13 +309,18 @@ def _device_status(device, stage=None) -> dict:
         return {"errors": [f"status: {type(error).__name__}: {error}"]}
 
 
-def _close_device(device) -> None:
+def _close_device(device) -> str | None:
+    """Stop the device; what went wrong that a person can act on (e.g. a recording that did not fit on
+    the disk), or None. Resting the hardware is best effort on the way out: nothing here raises."""
     if device is None:
-        return
+        return None
     try:
         device.stop()
-    except Exception:  # noqa: BLE001, S110 - resting the hardware is best effort on the way out
-        pass
+    except _user_errors() as error:
+        return describe(error)
+    except Exception as error:  # noqa: BLE001 - reported, never raised past the hardware's rest
+        return f"the device failed while stopping: {type(error).__name__}: {error}"
+    return None
 
 
 def _serve(config, conn, shared, renderer, source, device, stop_requested, threads: str) -> None:
@@ -368,14 +367,16 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
                 raise ValueError(f"unknown engine command {command!r}")
             conn.send(("ok", None))
         except errors as error:
-            conn.send(("error", _describe(error)))
+            conn.send(("error", describe(error)))
 
 
 def _finish(shared, source, device, conn) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
-    _close_device(device)
+    failure = _close_device(device)
     status = {**_device_status(device, source), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
+    if failure:
+        status["output_error"] = failure
     shared.write_slow(status)
     fast = shared.fast
     fast[shm.SEQ] += 1

@@ -365,7 +365,9 @@ def test_export_renames_no_output_when_another_fails(tmp_path):
 
 def test_play_to_wav_on_a_full_disk(tmp_path):
     out = tmp_path / "live.wav"
-    result = run_limited(96000 * 4 // 2, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "1")
+    # the limit lets the engine's shared-memory segment (0.44 MB in /dev/shm, which the file-size limit also
+    # counts) be made, and stops the 1.2 MB recording of a 3 s swipe halfway
+    result = run_limited(96000 * 4 * 3 // 2, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "3")
     assert_refused_and_nothing_left(result, tmp_path, "live.wav")
 
 
