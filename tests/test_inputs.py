@@ -313,24 +313,51 @@ def test_unknown_url_keys_and_absurd_rates_are_refused():
 
 # ---- every numeric option through the real parser --------------------------------------------------
 
-# The documented range of every option that is not free text: (low, high, low excluded, whole).
+# The documented range of every option that is not free text:
+# (low, high, low excluded, whole number, high excluded); OVERRIDES where a flag means another thing.
+FEATURE = (0.01, 10_000, False, False, False)
 RANGES = {
-    "--force": (0, 50, True, False), "--ratio": (0, 1, True, False), "--screen-width-mm": (10, 10_000, False, False),
-    "--range": (0, 1, False, False), "--levels": (0, 1, False, False), "--width-mm": (0.1, 10_000, False, False),
-    "--dpi": (1, 100_000, False, False), "--gamma": (0.01, 100, False, False), "--blur-mm": (0, 1000, False, False),
-    "--max-pixels": (1, 100_000_000, False, True), "--px-per-mm": (0.1, 1000, False, False),
-    "--angle-deg": (-360, 360, False, False), "--direction-deg": (-360, 360, False, False),
-    "--seed": (0, 2**32 - 1, False, True), "--detents": (1, 100, False, True),
-    "--speed-mm-s": (0, 10_000, True, False), "--duration-s": (0, 3600, True, False),
-    "--radius-mm": (0, 10_000, True, False), "--zigzag-width-mm": (0, 10_000, True, False),
-    "--carrier-hz": (1000, 200_000, False, False), "--rate": (12_000, 768_000, False, True),
-    "--lookahead-ms": (0, 1000, False, False),
-    **{flag: (0.01, 10_000, False, False) for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm",
-                                                       "--diameter-mm", "--cutoff-mm", "--start-mm", "--end-mm",
-                                                       "--edge-mm", "--detent-mm")},
-    "--start": (-10_000, 10_000, False, False), "--size-mm": (0.1, 10_000, False, False),
+    "--force": (0, 50, True, False, False), "--ratio": (0, 1, True, False, False),
+    "--screen-width-mm": (10, 10_000, False, False, False), "--range": (0, 1, False, False, False),
+    "--levels": (0, 1, False, False, False), "--width-mm": (0.1, 10_000, False, False, False),
+    "--dpi": (1, 100_000, False, False, False), "--gamma": (0.01, 100, False, False, False),
+    "--blur-mm": (0, 1000, False, False, False), "--max-pixels": (1, 100_000_000, False, True, False),
+    "--px-per-mm": (0.1, 1000, False, False, False), "--angle-deg": (-360, 360, False, False, False),
+    "--direction-deg": (-360, 360, False, False, False), "--seed": (0, 2**32 - 1, False, True, False),
+    "--detents": (1, 100, False, True, False), "--speed-mm-s": (0, 10_000, True, False, False),
+    "--duration-s": (0, 3600, True, False, False), "--radius-mm": (0, 10_000, True, False, False),
+    "--zigzag-width-mm": (0, 10_000, True, False, False), "--carrier-hz": (1000, 200_000, False, False, False),
+    "--rate": (12_000, 768_000, False, True, False), "--lookahead-ms": (0, 1000, False, False, False),
+    "--start": (-10_000, 10_000, False, False, False), "--size-mm": (0.1, 10_000, False, False, False),
+    "--participant": (-1e9, 1e9, False, False, False), "--resonance-hz": (1000, 200_000, False, False, False),
+    "--q": (1, 100_000, False, False, False), "--drift-hz-per-s": (-10_000, 10_000, False, False, False),
+    "--seam-band": (0, 0.5, True, False, False), "--auto-levels-clip": (0, 50, False, False, True),
+    "--duty": (0, 1, True, False, True), "--hurst": (0, 1, True, False, True),
+    "--weights": (0, 1e6, False, False, False), "--else-ratio": (0, 1, False, False, False),
+    **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
+                                  "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
+                                  "--widths-mm", "--spacing-mm")},
 }
+OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
+             (("texture", "new", "edge"), "--width-mm"): FEATURE}
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
+TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
+         ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
+         ("texture", "compose", "mask"): ["a", "m", "-o", "o.png"],
+         ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
+         ("texture", "compose"): ["a", "b", "-o", "o.png"]}
+
+
+def range_of(words, flag):
+    return OVERRIDES.get((tuple(words), flag), RANGES.get(flag))
+
+
+def tail_for(words):
+    """The positional arguments and required options of a command, so that only the option under test varies."""
+    for length in range(len(words), 0, -1):
+        if tuple(words[:length]) in TAILS:
+            return TAILS[tuple(words[:length])]
+    return []
 
 
 def typed_options(parser=None, prefix=()):
@@ -347,14 +374,14 @@ def typed_options(parser=None, prefix=()):
 
 
 OPTIONS = typed_options()
-REQUIRED = {"author": ["in.png", "-o", "o.png"], "export": ["g", "-o", "o.wav"], "play": ["g"],
-            "new": ["-o", "o.png"]}
 
 
 def test_every_typed_option_has_a_documented_range():
-    flags = {action.option_strings[-1] for _, action in OPTIONS} - {"--crop"}
-    assert flags <= set(RANGES), f"options without a range here: {flags - set(RANGES)}"
-    assert len(OPTIONS) > 40
+    missing = {(words, action.option_strings[-1]) for words, action in OPTIONS
+               if action.option_strings[-1] not in ("--crop", "--region")
+               and range_of(words, action.option_strings[-1]) is None}
+    assert not missing, f"options without a range here: {missing}"
+    assert len(OPTIONS) > 60
 
 
 number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(str),
@@ -366,13 +393,14 @@ number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(
 def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
     words, action = choice
     flag = action.option_strings[-1]
-    if flag == "--crop":
+    if flag == "--crop":  # whole pixels, checked by test_authoring
         return
-    tail = REQUIRED["new"] if words[:2] == ("texture", "new") else REQUIRED.get(words[0], [])
-    if action.nargs == 2:
+    tail = tail_for(words)
+    if action.nargs in (2, "+"):
         argv = [*words, *tail, flag, first, second]
     else:
-        value = f"{first}{PAIRS[flag]}{second}" if flag in PAIRS else first
+        value = {"--start": f"{first},{second}", "--size-mm": f"{first}x{second}",
+                 "--region": f"{first},{second},{second},{first}"}.get(flag, first)
         argv = [*words, *tail, f"{flag}={value}"]  # --flag=VALUE: a value may start with a minus
     stderr = io.StringIO()
     with no_hang(), contextlib.redirect_stderr(stderr):
@@ -383,10 +411,15 @@ def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
             lines = stderr.getvalue().strip().splitlines()
             assert len(lines) == 1 and flag in lines[0], stderr.getvalue()
             return
-    low, high, low_open, whole = RANGES[flag]
     parsed = getattr(args, action.dest)
-    for value in parsed if isinstance(parsed, list | tuple) else [parsed]:
-        assert math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+    values = list(parsed) if isinstance(parsed, list | tuple) else [parsed]
+    if flag == "--region":  # X,Y within ±10 000 mm, the size positive up to 10 000 mm
+        limits = [(-10_000, 10_000, False, False, False)] * 2 + [(0, 10_000, True, False, False)] * 2
+    else:
+        limits = [range_of(words, flag)] * len(values)
+    for value, (low, high, low_open, whole, high_open) in zip(values, limits, strict=True):
+        assert math.isfinite(value)
+        assert (value > low if low_open else value >= low) and (value < high if high_open else value <= high)
         assert not whole or value == int(value)
 
 
