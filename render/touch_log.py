@@ -9,6 +9,7 @@ Unix time alike); the trajectory starts at zero.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ class TouchLog:
     first_s: float
     last_s: float
     rows: int
+    force_range_n: tuple[float, float] | None = None  # lowest and highest force, N, when logged
 
     @property
     def has_force(self) -> bool:
@@ -53,7 +55,8 @@ class TouchLog:
             yield (t - self.first_s, values["x_mm"], values["y_mm"], values.get("force_n"))
 
     def trajectory(self) -> RecordedTrajectory:
-        return RecordedTrajectory.streaming(self.chunks, 0.0, self.last_s - self.first_s, self.has_force)
+        return RecordedTrajectory.streaming(self.chunks, 0.0, self.last_s - self.first_s, self.has_force,
+                                            self.force_range_n)
 
 
 def check_touch_log(path: str | Path) -> TouchLog:
@@ -61,10 +64,13 @@ def check_touch_log(path: str | Path) -> TouchLog:
     table = NumericCsv(path, (TIME, X, Y), (FORCE,), RenderError, "trajectory file")
     first = previous = None
     rows = 0
+    forces = [math.inf, -math.inf]
     for block in table.blocks():
         t = block.values["t_s"]
         if not len(t):
             continue
+        if "force_n" in block.values:
+            forces = [min(forces[0], block.values["force_n"].min()), max(forces[1], block.values["force_n"].max())]
         if first is None:
             first = previous = float(t[0])
         backwards = np.flatnonzero(np.diff(t, prepend=previous) < 0)
@@ -82,7 +88,8 @@ def check_touch_log(path: str | Path) -> TouchLog:
     if previous - first > MAX_SPAN_S:
         raise RenderError(f"{path}: the log spans {previous - first:.3g} s, more than a day ({MAX_SPAN_S:g} s); "
                           "t_s is in seconds (divide milliseconds by 1000)")
-    return TouchLog(table, first, previous, rows)
+    span = (float(forces[0]), float(forces[1])) if "force_n" in table.names else None
+    return TouchLog(table, first, previous, rows, span)
 
 
 def read_touch_log(path: str | Path) -> RecordedTrajectory:

@@ -96,22 +96,25 @@ class RecordedTrajectory:
         if force is not None and np.any(force < 0):
             raise RenderError("trajectory forces must not be negative")
         chunk = (t, x, y, force)
-        self._setup(lambda: iter([chunk]), float(t[0]), float(t[-1]), force is not None)
+        span = None if force is None else (float(force.min()), float(force.max()))
+        self._setup(lambda: iter([chunk]), float(t[0]), float(t[-1]), force is not None, span)
 
     @classmethod
-    def streaming(cls, open_chunks, start_s: float, end_s: float, has_force: bool) -> RecordedTrajectory:
+    def streaming(cls, open_chunks, start_s: float, end_s: float, has_force: bool,
+                  force_range_n: tuple[float, float] | None = None) -> RecordedTrajectory:
         """A trajectory read in chunks: ``open_chunks()`` returns a fresh iterator of
         ``(t_s, x_mm, y_mm, force_n or None)`` arrays, checked already (finite, time never going
-        back, from ``start_s`` to ``end_s``)."""
+        back, from ``start_s`` to ``end_s``); ``force_range_n`` is the lowest and highest force."""
         if not end_s > start_s:
             raise RenderError("a trajectory needs records at two different times at least")
         trajectory = cls.__new__(cls)
-        trajectory._setup(open_chunks, float(start_s), float(end_s), has_force)
+        trajectory._setup(open_chunks, float(start_s), float(end_s), has_force, force_range_n)
         return trajectory
 
-    def _setup(self, open_chunks, start_s: float, end_s: float, has_force: bool) -> None:
+    def _setup(self, open_chunks, start_s: float, end_s: float, has_force: bool, force_range_n) -> None:
         self._open_chunks = open_chunks
         self.start_s, self.end_s, self.has_force = start_s, end_s, has_force
+        self.force_range_n = force_range_n  # (lowest, highest) logged force, N; None when not logged
         self._rewind()
 
     def _rewind(self) -> None:
