@@ -40,6 +40,7 @@ class Bounded:
     low_open: bool = False
     whole: bool = False
     high_open: bool = False
+    what: str = ""  # what the number is, when its name helps ("Hurst exponent")
 
     @property
     def __name__(self) -> str:  # argparse names a type by it in some messages
@@ -48,7 +49,7 @@ class Bounded:
     def describe(self) -> str:
         """The range in words: "a positive number up to 50 N", "a whole number in 1..100"."""
         unit = f" {self.unit}" if self.unit else ""
-        kind = "whole number" if self.whole else "number"
+        kind = self.what or ("whole number" if self.whole else "number")
         low, high = _show(self.low), _show(self.high)
         if self.low_open and self.high_open:
             return f"a {kind} strictly between {low} and {high}{unit}"
@@ -97,8 +98,8 @@ SCREEN_WIDTH_MM = Bounded(10.0, 10_000.0, "mm")
 PRINT_DPI = Bounded(10.0, 2_400.0, "dpi")  # a figure's resolution, not a texture's
 Q_FACTOR = Bounded(1.0, 100_000.0)
 DRIFT_HZ_PER_S = Bounded(-10_000.0, 10_000.0, "Hz/s")
-DUTY = Bounded(0.0, 1.0, low_open=True, high_open=True)
-HURST = Bounded(0.0, 1.0, low_open=True, high_open=True)
+DUTY = Bounded(0.0, 1.0, low_open=True, high_open=True, what="duty cycle")
+HURST = Bounded(0.0, 1.0, low_open=True, high_open=True, what="Hurst exponent")
 SEAM_BAND = Bounded(0.0, 0.5, low_open=True)
 CLIP_PERCENT = Bounded(0.0, 50.0, "%", high_open=True)
 WEIGHT = Bounded(0.0, 1e6)

@@ -114,7 +114,7 @@ class NumericCsv:
         try:
             return open(self.path, "rb")  # noqa: SIM115 - closed by the callers' with-blocks
         except FileNotFoundError:
-            raise self.error(f"{self.path}: no such {self.what}") from None
+            raise self.error(f"{self.path}: no such file (a {self.what} was expected)") from None
         except IsADirectoryError:
             raise self.error(f"{self.path}: is a directory, not a {self.what}") from None
         except OSError as problem:
