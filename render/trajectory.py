@@ -127,6 +127,19 @@ class RecordedTrajectory:
         """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays."""
         return self._open_chunks()
 
+    def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Every record at once, ``(t_s, x_mm, y_mm, force_n or None)``: the whole log in memory, for
+        small logs and tests (rendering and ``play`` stream it instead)."""
+        parts = list(self.chunks())
+        t, x, y = (np.concatenate([part[k] for part in parts]) for k in range(3))
+        return t, x, y, np.concatenate([part[3] for part in parts]) if self.has_force else None
+
+    t_s = property(lambda self: self.records()[0], doc="Every record's time, s (reads the whole log).")
+    x_mm = property(lambda self: self.records()[1], doc="Every record's x, mm (reads the whole log).")
+    y_mm = property(lambda self: self.records()[2], doc="Every record's y, mm (reads the whole log).")
+    force_n = property(lambda self: self.records()[3] if self.has_force else None,
+                       doc="Every record's force, N, or None (reads the whole log).")
+
     def _extend(self, high: float) -> None:
         """Read chunks until the window holds MARGIN + 1 records after ``high`` (or the end)."""
         pending = []
