@@ -34,6 +34,7 @@ from ultraglide.apps.cli_types import (
     SCREEN_WIDTH_MM,
     SEAM_BAND,
     SEED,
+    STEPS,
     TEXTURE_SIDE_MM,
     UNIT_INTERVAL,
     WEIGHT,
@@ -143,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "the engine's part and the device's buffering part (end to end on the simulated plate).")
     latency.add_argument("--device", default="sim", metavar="URL",
                          help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
-    latency.add_argument("--steps", type=int, default=40, help="how many steps to time (default: 40)")
+    latency.add_argument("--steps", type=STEPS, default=40, help="how many steps to time, 1 to 10000 (default: 40)")
     latency.add_argument("--profile", default="sim-plate", metavar="PROFILE", help="plate profile (default: sim-plate)")
     latency.add_argument("--json", action="store_true", help="print one JSON object")
     latency.set_defaults(handler="ultraglide.apps.latency_command:run")
