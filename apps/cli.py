@@ -12,7 +12,38 @@ import signal
 import sys
 
 from ultraglide.apps import errors
-from ultraglide.apps.cli_types import crop_box, finite, positive, ratio, size_mm
+from ultraglide.apps.cli_types import (
+    ANGLE_DEG,
+    BLUR_MM,
+    CARRIER_HZ,
+    CLIP_PERCENT,
+    COORDINATE_MM,
+    DETENTS,
+    DPI,
+    DRIFT_HZ_PER_S,
+    DUTY,
+    FEATURE_MM,
+    FORCE_N,
+    GAMMA,
+    HURST,
+    LENGTH_MM,
+    MAX_PIXELS,
+    PARTICIPANT,
+    PRINT_DPI,
+    PX_PER_MM,
+    Q_FACTOR,
+    SCREEN_WIDTH_MM,
+    SEAM_BAND,
+    SEED,
+    STEPS,
+    TEXTURE_SIDE_MM,
+    UNIT_INTERVAL,
+    WEIGHT,
+    crop_box,
+    ratio,
+    size_mm,
+    texture_name,
+)
 from ultraglide.apps.stop_signals import StopSignals
 
 from ultraglide import __version__
@@ -46,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
         "model", help="the fingerprint physics at one normal force",
         description="Contact area, ridge stiffness, detachment amplitude, glide threshold and "
                     "relative friction against amplitude, from the paper's model.")
-    model.add_argument("--force", type=positive, default=None, metavar="N",
+    model.add_argument("--force", type=FORCE_N, default=None, metavar="N",
                        help="normal force of the finger, N (default: 0.5; figures: the paper's force for each)")
     _add_model(model)
     model.add_argument("--ratio", type=ratio, metavar="R",
@@ -72,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
                            help="the model to fit (default: stretched)")
     calibrate.add_argument("--compare", action="store_true",
                            help="fit every model and rank them by cross-validated error; -o keeps the best")
-    calibrate.add_argument("--participant", type=finite, metavar="ID",
+    calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
                            help="use only this participant's points (the participant column)")
     calibrate.add_argument("--json", action="store_true", help="print one JSON object")
     calibrate.add_argument("-o", "--output", metavar="CAL.toml",
@@ -115,7 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "the engine's part and the device's buffering part (end to end on the simulated plate).")
     latency.add_argument("--device", default="sim", metavar="URL",
                          help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
-    latency.add_argument("--steps", type=int, default=40, help="how many steps to time (default: 40)")
+    latency.add_argument("--steps", type=STEPS, default=40, help="how many steps to time, 1 to 10000 (default: 40)")
     latency.add_argument("--profile", default="sim-plate", metavar="PROFILE", help="plate profile (default: sim-plate)")
     latency.add_argument("--json", action="store_true", help="print one JSON object")
     latency.set_defaults(handler="ultraglide.apps.latency_command:run")
@@ -133,10 +164,10 @@ def build_parser() -> argparse.ArgumentParser:
                                           "watchdog, disabled, disconnected) with its time. Runs until stopped.")
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
-    sim.add_argument("--resonance-hz", type=positive, metavar="F",
+    sim.add_argument("--resonance-hz", type=CARRIER_HZ, metavar="F",
                      help="the simulated plate's real resonance, Hz (default: the profile's)")
-    sim.add_argument("--q", type=positive, metavar="Q", help="its real quality factor (default: the profile's)")
-    sim.add_argument("--drift-hz-per-s", type=finite, default=0.0, metavar="D",
+    sim.add_argument("--q", type=Q_FACTOR, metavar="Q", help="its real quality factor (default: the profile's)")
+    sim.add_argument("--drift-hz-per-s", type=DRIFT_HZ_PER_S, default=0.0, metavar="D",
                      help="its resonance drifts by D Hz every second (default: 0)")
     sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
     sim.set_defaults(handler="ultraglide.apps.devices_command:plate_sim")
@@ -151,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
     demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     demo.add_argument("--model", default="exponential", help="friction model (default: exponential)")
-    demo.add_argument("--screen-width-mm", type=positive, help="the display's width in mm, so textures show at "
+    demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
     demo.add_argument("--record", metavar="FILE.csv",
@@ -167,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_range(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:
-    parser.add_argument("--range", nargs=2, type=finite, default=list(default), metavar=("LOW", "HIGH"),
+    parser.add_argument("--range", nargs=2, type=UNIT_INTERVAL, default=list(default), metavar=("LOW", "HIGH"),
                         help="friction ratio where the pattern is off (slippery) and on (sticky), each in 0..1 "
                              f"(default: {default[0]} {default[1]})")
 
@@ -180,24 +211,27 @@ def _add_texture_commands(commands) -> None:
     author.add_argument("image", metavar="IMAGE")
     author.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
     size = author.add_mutually_exclusive_group()
-    size.add_argument("--width-mm", type=positive, help="physical width, mm (default: 80)")
-    size.add_argument("--dpi", type=positive, help="physical size from the image's pixels per inch")
+    size.add_argument("--width-mm", type=TEXTURE_SIDE_MM, help="physical width, 0.1 to 10000 mm (default: 80)")
+    size.add_argument("--dpi", type=DPI, help="physical size from the image's pixels per inch")
     author.add_argument("--mode", choices=["brightness", "edges", "gradient"], default="brightness",
                         help="brightness: luminance is friction; edges: edges are sticky; "
                              "gradient: luminance is height, felt through its slope")
     author.add_argument("--invert", action="store_true", help="swap sticky and slippery")
-    author.add_argument("--levels", nargs=2, type=finite, default=[0.0, 1.0], metavar=("BLACK", "WHITE"),
+    author.add_argument("--levels", nargs=2, type=UNIT_INTERVAL, default=[0.0, 1.0], metavar=("BLACK", "WHITE"),
                         help="input black and white points in 0..1 (default: 0 1)")
-    author.add_argument("--gamma", type=finite, default=1.0, help="gamma > 0 applied after levels (default: 1)")
-    author.add_argument("--blur-mm", type=finite, default=0.0, help="Gaussian blur sigma, mm (default: 0)")
+    author.add_argument("--gamma", type=GAMMA, default=1.0,
+                        help="gamma, 0.01 to 100, applied after levels (default: 1)")
+    author.add_argument("--blur-mm", type=BLUR_MM, default=0.0,
+                        help="Gaussian blur sigma, mm, at most the texture's width (default: 0)")
     _add_range(author)
     author.add_argument("--crop", type=crop_box, metavar="X,Y,W,H", help="crop the source, in pixels")
     author.add_argument("--background", default="white", choices=["white", "black"],
                         help="what transparent parts are composited on (default: white = at rest)")
     author.add_argument("--outside", choices=["tile", "clamp", "fixed"], default="tile",
                         help="what lies beyond the edges (default: tile)")
-    author.add_argument("--max-pixels", type=positive, default=40e6,
-                        help="refuse larger images, a guard against decompression bombs (default: 40e6)")
+    author.add_argument("--max-pixels", type=MAX_PIXELS, default=40_000_000,
+                        help="refuse larger images, a guard against decompression bombs; at most 100e6, "
+                             "the texture file's own limit (default: 40e6)")
     author.add_argument("--seamless", action="store_true",
                         help="make the image tile without a seam (a finger would feel the jump where the tile "
                              "repeats), by --seam-method; features keep their size: --width-mm/--dpi give the "
@@ -206,14 +240,14 @@ def _add_texture_commands(commands) -> None:
                         help="crossfade: a band at each end is blended into the opposite end, the tile is shorter "
                              "by the band and keeps its look; mirror: the image with mirror images right and "
                              "below, a tile twice as wide and high (default: crossfade)")
-    author.add_argument("--seam-band", type=positive, default=0.125, metavar="FRACTION",
+    author.add_argument("--seam-band", type=SEAM_BAND, default=0.125, metavar="FRACTION",
                         help="crossfade band, a fraction of each side in (0, 0.5] (default: 0.125)")
     author.add_argument("--auto-levels", action="store_true",
                         help="stretch the range (a percentile stretch) for images that use part of it; "
                              "replaces --levels")
-    author.add_argument("--auto-levels-clip", type=finite, default=1.0, metavar="PERCENT",
+    author.add_argument("--auto-levels-clip", type=CLIP_PERCENT, default=1.0, metavar="PERCENT",
                         help="with --auto-levels, the percentage of pixels clipped at each end (default: 1)")
-    author.add_argument("--name", help="texture name (default: the image's file name)")
+    author.add_argument("--name", type=texture_name, help="texture name (default: the image's file name)")
     author.add_argument("--preview", metavar="PREVIEW.png",
                         help="also write a picture of the source, the friction map and a swipe")
     author.set_defaults(handler="ultraglide.apps.author_command:run")
@@ -234,28 +268,28 @@ def _add_texture_commands(commands) -> None:
     kinds = new.add_subparsers(dest="kind", metavar="KIND", required=True, parser_class=OneLineParser)
     specs = {
         "grating": ("parallel ridges; the wavelength and angle snap to whole cycles across the tile",
-                    [("--wavelength-mm", positive, 1.0), ("--angle-deg", finite, 0.0),
-                     ("--shape", ["sine", "square"], "sine"), ("--duty", finite, 0.5)]),
-        "checkerboard": ("alternating squares", [("--square-mm", positive, 5.0)]),
-        "dots": ("sticky dots", [("--pitch-mm", positive, 4.0), ("--diameter-mm", positive, 2.0)]),
-        "bumps": ("round bumps, a gradient texture", [("--pitch-mm", positive, 10.0),
-                                                      ("--diameter-mm", positive, 8.0)]),
-        "noise": ("band-limited roughness", [("--cutoff-mm", positive, 2.0), ("--seed", int, 0)]),
+                    [("--wavelength-mm", FEATURE_MM, 1.0), ("--angle-deg", ANGLE_DEG, 0.0),
+                     ("--shape", ["sine", "square"], "sine"), ("--duty", DUTY, 0.5)]),
+        "checkerboard": ("alternating squares", [("--square-mm", FEATURE_MM, 5.0)]),
+        "dots": ("sticky dots", [("--pitch-mm", FEATURE_MM, 4.0), ("--diameter-mm", FEATURE_MM, 2.0)]),
+        "bumps": ("round bumps, a gradient texture", [("--pitch-mm", FEATURE_MM, 10.0),
+                                                      ("--diameter-mm", FEATURE_MM, 8.0)]),
+        "noise": ("band-limited roughness", [("--cutoff-mm", FEATURE_MM, 2.0), ("--seed", SEED, 0)]),
         "fractal": ("fractal roughness of a Hurst exponent (spectral synthesis, seeded)",
-                    [("--hurst", finite, 0.5), ("--cutoff-mm", positive, 0.5), ("--seed", int, 0)]),
-        "gabor": ("a Gabor patch: a grating under a Gaussian window", [("--wavelength-mm", positive, 2.0),
-                                                                      ("--sigma-mm", positive, 4.0),
-                                                                      ("--angle-deg", finite, 0.0)]),
-        "bump": ("one smooth bump, a gradient texture", [("--diameter-mm", positive, 10.0)]),
-        "edge": ("one edge, slippery to sticky", [("--width-mm", positive, 0.5)]),
-        "lines": ("single lines of several widths", [("--widths-mm", positive, [0.25, 0.5, 1.0, 2.0, 4.0]),
-                                                     ("--spacing-mm", positive, 10.0)]),
-        "chirp": ("wavelength sweeping across the width", [("--start-mm", positive, 4.0),
-                                                           ("--end-mm", positive, 0.5)]),
-        "button": ("a button with raised edges", [("--edge-mm", positive, 1.5)]),
-        "slider": ("a slider with detents", [("--detents", int, 5), ("--detent-mm", positive, 1.0)]),
+                    [("--hurst", HURST, 0.5), ("--cutoff-mm", FEATURE_MM, 0.5), ("--seed", SEED, 0)]),
+        "gabor": ("a Gabor patch: a grating under a Gaussian window", [("--wavelength-mm", FEATURE_MM, 2.0),
+                                                                      ("--sigma-mm", FEATURE_MM, 4.0),
+                                                                      ("--angle-deg", ANGLE_DEG, 0.0)]),
+        "bump": ("one smooth bump, a gradient texture", [("--diameter-mm", FEATURE_MM, 10.0)]),
+        "edge": ("one edge, slippery to sticky", [("--width-mm", FEATURE_MM, 0.5)]),
+        "lines": ("single lines of several widths", [("--widths-mm", FEATURE_MM, [0.25, 0.5, 1.0, 2.0, 4.0]),
+                                                     ("--spacing-mm", FEATURE_MM, 10.0)]),
+        "chirp": ("wavelength sweeping across the width", [("--start-mm", FEATURE_MM, 4.0),
+                                                           ("--end-mm", FEATURE_MM, 0.5)]),
+        "button": ("a button with raised edges", [("--edge-mm", FEATURE_MM, 1.5)]),
+        "slider": ("a slider with detents", [("--detents", DETENTS, 5), ("--detent-mm", FEATURE_MM, 1.0)]),
         "toggle": ("a toggle switch", []),
-        "keyboard": ("a small keyboard with key edges", [("--edge-mm", positive, 0.8)]),
+        "keyboard": ("a small keyboard with key edges", [("--edge-mm", FEATURE_MM, 0.8)]),
     }
     default_sizes = {"button": "60x40", "slider": "80x20", "toggle": "40x24", "keyboard": "90x30", "fractal": "40x40",
                      "gabor": "30x30", "bump": "30x30", "edge": "40x30", "lines": "80x40"}
@@ -266,9 +300,10 @@ def _add_texture_commands(commands) -> None:
                 sub.add_argument(flag, choices=kind_type, default=default, help=f"(default: {default})")
             elif isinstance(default, list):
                 sub.add_argument(flag, type=kind_type, nargs="+", default=default,
-                                 help=f"(default: {' '.join(map(str, default))})")
+                                 help=f"each {kind_type.describe()} (default: {' '.join(map(str, default))})")
             else:
-                sub.add_argument(flag, type=kind_type, default=default, help=f"(default: {default})")
+                sub.add_argument(flag, type=kind_type, default=default,
+                                 help=f"{kind_type.describe()} (default: {default})")
         if kind == "grating":
             sub.add_argument("--exact", action="store_true",
                              help="keep the wavelength and angle exactly as given; the texture then does not tile "
@@ -276,8 +311,8 @@ def _add_texture_commands(commands) -> None:
         sub.add_argument("--size-mm", type=size_mm, default=size_mm(default_sizes.get(kind, "80x50")),
                          metavar="WxH", help=f"physical size in mm (default: {default_sizes.get(kind, '80x50')})")
         _add_range(sub)
-        sub.add_argument("--px-per-mm", type=positive, help="resolution (default: 8 pixels on the finest feature)")
-        sub.add_argument("--name", help="texture name (default: the output's file name)")
+        sub.add_argument("--px-per-mm", type=PX_PER_MM, help="resolution (default: 8 pixels on the finest feature)")
+        sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
         sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
         sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
         sub.set_defaults(handler="ultraglide.apps.texture_command:new")
@@ -292,11 +327,11 @@ COMPOSE_SIZES = ("Sizes are reconciled on a common grid: the result covers the f
 
 
 def region_mm(text: str) -> tuple[float, float, float, float]:
-    """X,Y,WIDTH,HEIGHT in millimetres."""
+    """X,Y,WIDTH,HEIGHT in millimetres: X and Y within ±10 000, the size positive up to 10 000."""
     parts = text.split(",")
     if len(parts) != 4:
         raise argparse.ArgumentTypeError(f"a region is X,Y,WIDTH,HEIGHT in mm, e.g. 10,10,30,20, got {text!r}")
-    return finite(parts[0]), finite(parts[1]), positive(parts[2]), positive(parts[3])
+    return COORDINATE_MM(parts[0]), COORDINATE_MM(parts[1]), LENGTH_MM(parts[2]), LENGTH_MM(parts[3])
 
 
 def _add_compose(texture_commands) -> None:
@@ -319,7 +354,7 @@ def _add_compose(texture_commands) -> None:
         if operation in ("mix", "min", "max", "multiply"):
             sub.add_argument("inputs", nargs="+", metavar="TEXTURE", help="two textures or more")
         if operation == "mix":
-            sub.add_argument("--weights", nargs="+", type=finite, metavar="W",
+            sub.add_argument("--weights", nargs="+", type=WEIGHT, metavar="W",
                              help="one weight (0 or more) per texture, normalised to sum to 1")
         if operation == "mask":
             sub.add_argument("inputs", nargs=1, metavar="TEXTURE")
@@ -328,7 +363,7 @@ def _add_compose(texture_commands) -> None:
                                   "texture file or name (its values, at its physical size)")
             other = sub.add_mutually_exclusive_group()
             other.add_argument("--else", dest="other", metavar="TEXTURE", help="what shows where the mask is black")
-            other.add_argument("--else-ratio", type=finite, default=1.0, metavar="R",
+            other.add_argument("--else-ratio", type=UNIT_INTERVAL, default=1.0, metavar="R",
                                help="the friction ratio where the mask is black (default: 1, at rest)")
         if operation == "tile":
             sub.add_argument("inputs", nargs=2, metavar=("INNER", "OUTER"))
@@ -337,10 +372,10 @@ def _add_compose(texture_commands) -> None:
         else:
             sub.add_argument("--size-mm", type=size_mm, metavar="WxH", help="the result's size (default: the first "
                                                                             "input's)")
-        sub.add_argument("--px-per-mm", type=positive, help="the result's resolution (default: the finest input's)")
+        sub.add_argument("--px-per-mm", type=PX_PER_MM, help="the result's resolution (default: the finest input's)")
         sub.add_argument("--outside", choices=["tile", "clamp", "fixed"],
                          help="what lies beyond the result's edges (default: the first input's rule)")
-        sub.add_argument("--name", help="texture name (default: the output's file name)")
+        sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
         sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
         sub.set_defaults(handler="ultraglide.apps.texture_command:compose")
 
@@ -358,8 +393,8 @@ def _add_show_and_info(texture_commands) -> None:
     where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
     _add_model(show, default="exponential")
     show.add_argument("--profile", default="sim-plate", help="plate profile: its amplitude limit (default: sim-plate)")
-    show.add_argument("--force", type=positive, default=0.5, metavar="N", help="normal force, N (default: 0.5)")
-    show.add_argument("--dpi", type=positive, default=300.0, help="PNG resolution (default: 300)")
+    show.add_argument("--force", type=FORCE_N, default=0.5, metavar="N", help="normal force, N (default: 0.5)")
+    show.add_argument("--dpi", type=PRINT_DPI, default=300.0, help="PNG resolution (default: 300)")
     show.set_defaults(handler="ultraglide.apps.texture_show:run")
 
     info = texture_commands.add_parser("info", help="a texture's metadata, in words or JSON",

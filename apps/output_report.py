@@ -22,7 +22,9 @@ def clipped_fraction(renderer: Renderer) -> float:
 
 def force_words(trajectory, renderer: Renderer) -> str:
     """The finger's force in words: one value, or the logged range."""
-    force = getattr(trajectory, "force_n", None)
+    force = getattr(trajectory, "force_range_n", None)  # a recorded log: known without reading it again
+    if force is None and not hasattr(trajectory, "force_range_n"):
+        force = getattr(trajectory, "force_n", None)
     if force is None:
         return f"{renderer.default_force_n:g} N"
     values = np.atleast_1d(np.asarray(force, dtype=float))

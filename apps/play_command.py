@@ -6,7 +6,9 @@ The swipe or log is replayed as touch reports, at their own times, into the real
 
 from __future__ import annotations
 
+import itertools
 import json
+import math
 import sys
 import time
 from types import SimpleNamespace
@@ -16,16 +18,48 @@ from ultraglide.apps.output_report import force_words  # (takes anything with de
 from ultraglide.apps.render_setup import load_inputs
 from ultraglide.apps.stop_signals import held
 from ultraglide.render.engine import Engine, EngineConfig
+from ultraglide.render.trajectory import RecordedTrajectory
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
 
 
-def report_times(trajectory) -> np.ndarray:
-    """When the touch panel reports: the log's own times, or every 1/120 s along a swipe."""
-    own = getattr(trajectory, "t_s", None)
-    if own is not None:
-        return np.asarray(own)
-    return np.arange(trajectory.start_s, trajectory.end_s, 1.0 / REPORT_HZ)
+def report_chunks(trajectory):
+    """The touch reports to replay, in chunks of ``(t_s, x_mm, y_mm, force_n)`` arrays: a log's own
+    rows as they stream from its file, or every 1/120 s along a swipe. Force is NaN where unknown."""
+    if isinstance(trajectory, RecordedTrajectory):
+        for t, x, y, force in trajectory.chunks():
+            yield t, x, y, np.full(len(t), np.nan) if force is None else force
+        return
+    per_chunk = int(REPORT_HZ * 10)
+    for first in itertools.count(0, per_chunk):
+        times = trajectory.start_s + (first + np.arange(per_chunk)) / REPORT_HZ
+        times = times[times < trajectory.end_s]
+        if not len(times):
+            return
+        states = trajectory.state(times)
+        yield times, states.x_mm, states.y_mm, np.broadcast_to(states.force_n, times.shape)
+
+
+def replay(touch, chunks, started: float) -> tuple[float, float]:
+    """Call ``touch(t, x, y, force)`` for each report when its time comes (the first at ``started``,
+    perf_counter seconds); when several are due at once (a log denser than this loop), only the
+    newest, as a touch panel's late reader gets the newest touch. Returns the last position (mm)."""
+    origin = last = None
+    for times, xs, ys, forces in chunks:
+        origin = times[0] if origin is None else origin
+        due = times - origin
+        k = 0
+        while k < len(due):
+            now = time.perf_counter() - started
+            if due[k] > now:
+                time.sleep(due[k] - now)
+                continue
+            k = int(np.searchsorted(due, now, side="right")) - 1  # the newest report already due
+            force = float(forces[k])
+            touch(time.perf_counter(), float(xs[k]), float(ys[k]), None if math.isnan(force) else force)
+            k += 1
+        last = (xs[-1], ys[-1])
+    return last
 
 
 def engine_config(args) -> EngineConfig:
@@ -37,19 +71,12 @@ def engine_config(args) -> EngineConfig:
 def run(args) -> int:
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
     trajectory = inputs.trajectory
-    times = report_times(trajectory)
-    states = trajectory.state(times)
-    forces = np.broadcast_to(states.force_n, times.shape)
     engine = Engine.start(engine_config(args))
     try:
         engine.wait_ready()
         started = time.perf_counter()
-        for t, x, y, force in zip(times - times[0], states.x_mm, states.y_mm, forces, strict=True):
-            delay = started + t - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-            engine.touch(time.perf_counter(), float(x), float(y), None if np.isnan(force) else float(force))
-        engine.touch(time.perf_counter(), float(states.x_mm[-1]), float(states.y_mm[-1]), down=False)
+        last = replay(engine.touch, report_chunks(trajectory), started)
+        engine.touch(time.perf_counter(), float(last[0]), float(last[1]), down=False)
         time.sleep(engine.ready_info["tail_s"])
     finally:
         with held():  # a stop signal arriving now waits until the plate is at rest

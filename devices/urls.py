@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from urllib.parse import parse_qsl
 
@@ -10,6 +11,60 @@ from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
+USAGE = "use sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], wav:PATH[?rate=N] or null"
+
+
+@dataclass(frozen=True)
+class Whole:
+    """A whole-number option and its range."""
+
+    low: int
+    high: int
+    unit: str = ""
+
+    def parse(self, key: str, text: str, url: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or not self.low <= value <= self.high:
+            raise DeviceError(f"{key} must be a whole number in {self.low}..{self.high}{self.unit} in {url!r}, "
+                              f"got {text!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class Seconds:
+    """A duration in seconds (or one of ``words``) and its range, ``low`` excluded."""
+
+    low: float
+    high: float
+    words: tuple[str, ...] = ()
+
+    def parse(self, key: str, text: str, url: str) -> float | str:
+        if text in self.words:
+            return text
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not self.low < value <= self.high:  # NaN fails too
+            either = f" or {' or '.join(self.words)}" if self.words else ""
+            raise DeviceError(f"{key} is seconds, more than {self.low:g} and up to {self.high:g}{either}, "
+                              f"in {url!r}, got {text!r}")
+        return value
+
+
+SAMPLE_RATE = Whole(12_000, 768_000, " Hz")  # a whole multiple of the 12 kHz control rate carries the carrier
+OPTIONS = {  # the keys each kind of device takes, and their ranges
+    "sim": {},
+    "serial": {"baud": Whole(50, 12_000_000, " baud")},
+    "audio": {"rate": Whole(8_000, 768_000, " Hz"), "latency": Seconds(0.0, 10.0, ("low", "high")),
+              "blocksize": Whole(0, 65_536, " frames")},
+    "wav": {"rate": SAMPLE_RATE},
+    "null": {"rate": SAMPLE_RATE},
+}
+TARGETS = {"sim": None, "serial": "a port", "audio": "", "wav": "a path", "null": None}  # None: takes none
 
 
 @dataclass(frozen=True)
@@ -20,25 +75,30 @@ class DeviceUrl:
 
 
 def parse_device_url(url: str) -> DeviceUrl:
-    """Split a device URL; DeviceError says what forms there are."""
+    """Split a device URL and check it: the kind, its target, and each option's key and range.
+    :class:`DeviceError` says what forms there are."""
     body, _, query = url.partition("?")
-    kind, _, target = body.partition(":")
+    kind, colon, target = body.partition(":")
     if kind not in KINDS:
-        raise DeviceError(f"unknown device {url!r}; use sim, serial:PORT, audio[:NAME], wav:PATH or null")
-    options = dict(parse_qsl(query))
-    if kind in ("serial", "wav") and not target:
-        raise DeviceError(f"{kind} needs a {'port' if kind == 'serial' else 'path'}: {kind}:...")
-    for key in ("baud", "rate", "blocksize"):
+        raise DeviceError(f"unknown device {url!r}; {USAGE}")
+    wants = TARGETS[kind]
+    if wants is None and (colon or target):
+        raise DeviceError(f"{kind} takes no port or path, got {url!r}; {USAGE}")
+    if wants and not target:
+        raise DeviceError(f"{kind} needs {wants}: {kind}:{'PORT' if kind == 'serial' else 'PATH'}")
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
+    except ValueError:
+        raise DeviceError(f"options are KEY=VALUE joined by &, got {query!r} in {url!r}") from None
+    known = OPTIONS[kind]
+    options: dict = {}
+    for key, text in pairs:
+        if key not in known:
+            takes = f"takes {', '.join(known)}" if known else "takes no options"
+            raise DeviceError(f"unknown option {key!r} for {kind} in {url!r}; {kind} {takes}")
         if key in options:
-            try:
-                options[key] = int(options[key])
-            except ValueError:
-                raise DeviceError(f"{key} must be a whole number in {url!r}") from None
-    if "latency" in options and options["latency"] not in ("low", "high"):
-        try:
-            options["latency"] = float(options["latency"])
-        except ValueError:
-            raise DeviceError(f"latency is seconds, low or high in {url!r}") from None
+            raise DeviceError(f"option {key} is given twice in {url!r}")
+        options[key] = known[key].parse(key, text, url)
     return DeviceUrl(kind, target, options)
 
 

@@ -1,50 +1,231 @@
-"""Numeric CSV files with a header line and ``#`` comments, read with errors that name the line."""
+"""Numeric CSV files with a header line and ``#`` comments, read in chunks with typed, ranged columns.
+
+The numbers are parsed by numpy's compiled reader (``np.loadtxt``) a block of a quarter megabyte
+at a time, so a file of any length is read in bounded memory at a few million rows a second.
+Each column has a range; the first value outside it (NaN and infinities included), a cell that
+is not a number, a short row, a line that is not text, or a missing header column is reported
+as ``error(message)`` naming the file and line, in one line. Only the error path reads lines one
+by one, and only within the block at fault.
+"""
 
 from __future__ import annotations
 
 import csv
 import io
 import math
+import re
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+BLOCK_BYTES = 1 << 18  # 256 KiB: as fast as larger blocks, a quarter of the memory
+MAX_LINE_BYTES = 1 << 16  # no line of a numeric CSV is this long; a longer one is not such a file
+BLANK_LINE = re.compile(r"^[ \t]+(?=\r?$)", re.MULTILINE)
 
-def read_numeric_csv(path: str | Path, required: tuple[str, ...], optional: tuple[str, ...], error: type,
-                     what: str) -> dict[str, np.ndarray]:
-    """The named columns as float arrays; ``error(message)`` is raised with the file and line at fault."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise error(f"{path}: no such {what}") from None
-    except (OSError, UnicodeDecodeError) as problem:
-        raise error(f"{path}: cannot read it as text ({problem})") from None
-    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1)
-             if line.strip() and not line.lstrip().startswith("#")]
-    expected = ",".join(required) + "".join(f"[,{name}]" for name in optional)
-    if not lines:
-        raise error(f"{path}: no data; expected a header line {expected}")
-    header = [name.strip() for name in next(csv.reader(io.StringIO(lines[0][1])))]
-    missing = [name for name in required if name not in header]
-    if missing:
-        raise error(f"{path}:{lines[0][0]}: missing column {', '.join(missing)}; the header must be {expected}")
-    wanted = list(required) + [name for name in optional if name in header]
-    index = [header.index(name) for name in wanted]
-    values: dict[str, list[float]] = {name: [] for name in wanted}
-    for number, line in lines[1:]:
-        cells = next(csv.reader(io.StringIO(line)))
-        if len(cells) < len(header):
-            raise error(f"{path}:{number}: expected {len(header)} values, found {len(cells)}")
-        for name, column in zip(wanted, index, strict=True):
-            cell = cells[column].strip()
+
+@dataclass(frozen=True)
+class Column:
+    """A column's name and the range its values must lie in (``low`` excluded when ``low_open``)."""
+
+    name: str
+    low: float
+    high: float
+    unit: str = ""
+    low_open: bool = False
+
+    def describe(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        low = f"more than {self.low:g}" if self.low_open else f"from {self.low:g}"
+        return f"{low} to {self.high:g}{unit}"
+
+    def outside(self, values: np.ndarray) -> np.ndarray:
+        """True where a value is outside the range or not a number."""
+        above_low = values > self.low if self.low_open else values >= self.low
+        return ~(above_low & (values <= self.high))
+
+
+@dataclass(frozen=True)
+class Block:
+    """Rows of one block: ``values[name]`` arrays; ``line_of(k)`` is the file line of row k."""
+
+    values: dict[str, np.ndarray]
+    text: str
+    first_line: int
+
+    def __len__(self) -> int:
+        return len(next(iter(self.values.values())))
+
+    def line_of(self, row: int) -> int:
+        """The file line number of data row ``row`` (counts lines; used only to report errors)."""
+        seen = -1
+        for offset, line in enumerate(self.text.split("\n")):
+            if _is_data(line):
+                seen += 1
+                if seen == row:
+                    return self.first_line + offset
+        return self.first_line
+
+
+def _is_data(line: str) -> bool:
+    stripped = line.strip()
+    return bool(stripped) and not stripped.startswith("#")
+
+
+class NumericCsv:
+    """A numeric CSV file whose header has been read and checked; :meth:`blocks` streams its rows.
+
+    ``required`` columns must be in the header, ``optional`` ones may be; the header may hold other
+    columns too, in any order. ``error`` is the exception type raised, ``what`` names the file's
+    kind in messages ("trajectory file").
+    """
+
+    def __init__(self, path: str | Path, required: tuple[Column, ...], optional: tuple[Column, ...],
+                 error: type[Exception], what: str):
+        self.path = Path(path)
+        self.error = error
+        self.what = what
+        expected = ",".join(c.name for c in required) + "".join(f"[,{c.name}]" for c in optional)
+        with self._open() as stream:
+            header, self.header_line = self._header(stream, expected)
+            self._data_offset = stream.tell()
+        names = [name.strip() for name in next(csv.reader([header.split("#", 1)[0]]))]
+        duplicated = sorted({name for name in names if names.count(name) > 1 and name})
+        if duplicated:
+            self._fail(self.header_line, f"column {', '.join(duplicated)} appears twice in the header")
+        missing = [c.name for c in required if c.name not in names]
+        if missing:
+            self._fail(self.header_line, f"missing column {', '.join(missing)}; the header must be {expected}")
+        self.columns = list(required) + [c for c in optional if c.name in names]
+        self.header_width = len(names)
+        self._index = [names.index(c.name) for c in self.columns]
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.columns]
+
+    def _fail(self, line: int | None, message: str):
+        where = f"{self.path}:{line}" if line else f"{self.path}"
+        raise self.error(f"{where}: {message}")
+
+    def _open(self):
+        try:
+            return open(self.path, "rb")  # noqa: SIM115 - closed by the callers' with-blocks
+        except FileNotFoundError:
+            raise self.error(f"{self.path}: no such file (a {self.what} was expected)") from None
+        except IsADirectoryError:
+            raise self.error(f"{self.path}: is a directory, not a {self.what}") from None
+        except OSError as problem:
+            raise self.error(f"{self.path}: cannot open it ({problem.strerror or problem})") from None
+
+    def _header(self, stream, expected: str) -> tuple[str, int]:
+        number = 0
+        while True:
+            raw = stream.readline(MAX_LINE_BYTES + 1)
+            number += 1
+            if not raw:
+                self._fail(None, f"no data; expected a header line {expected}")
+            if len(raw) > MAX_LINE_BYTES:
+                self._fail(number, f"line longer than {MAX_LINE_BYTES} bytes: not a {self.what} (a CSV file)")
+            line = self._decode(raw, number)
+            if number == 1:
+                line = line.removeprefix("\ufeff")
+            if _is_data(line):
+                return line.strip(), number
+
+    def _decode(self, raw: bytes, first_line: int) -> str:
+        try:
+            return raw.decode("utf-8")
+        except UnicodeDecodeError as problem:
+            line = first_line + raw.count(b"\n", 0, problem.start)
+            self._fail(line, f"not UTF-8 text: a {self.what} is a CSV file")
+
+    def _raw_blocks(self) -> Iterator[tuple[bytes, int]]:
+        """Whole lines in blocks of about BLOCK_BYTES, each with its first line number."""
+        with self._open() as stream:
+            stream.seek(self._data_offset)
+            line = self.header_line + 1
+            rest = b""
+            while True:
+                chunk = stream.read(BLOCK_BYTES)
+                data = rest + chunk
+                if not chunk:
+                    if data:
+                        yield data, line
+                    return
+                cut = data.rfind(b"\n") + 1
+                if cut == 0:
+                    if len(data) > MAX_LINE_BYTES:
+                        self._fail(line, f"line longer than {MAX_LINE_BYTES} bytes: not a {self.what} (a CSV file)")
+                    rest = data
+                    continue
+                rest = data[cut:]
+                yield data[:cut], line
+                line += data.count(b"\n", 0, cut)
+
+    def blocks(self) -> Iterator[Block]:
+        """The data rows, block by block, every value checked against its column's range."""
+        for raw, first_line in self._raw_blocks():
+            text = self._decode(raw, first_line)
+            if "\n " in text or "\n\t" in text or text.startswith((" ", "\t")):  # a fast test for the rare case
+                text = BLANK_LINE.sub("", text)  # numpy reads a line of spaces as an empty cell
             try:
-                value = float(cell)
-            except ValueError:
-                raise error(f"{path}:{number}: {name} is not a number: {cell!r}") from None
-            if not math.isfinite(value):
-                raise error(f"{path}:{number}: {name} must be a finite number, got {cell}")
-            values[name].append(value)
-    columns = {name: np.array(column) for name, column in values.items()}
-    columns["_line"] = np.array([number for number, _ in lines[1:]], dtype=int)
-    return columns
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # a block of comments only: "input contained no data"
+                    table = np.loadtxt(io.StringIO(text), delimiter=",", comments="#", usecols=self._index,
+                                       ndmin=2, dtype=np.float64, quotechar='"')
+            except ValueError as problem:
+                self._explain(text, first_line, problem)
+            block = Block({c.name: table[:, k] for k, c in enumerate(self.columns)}, text, first_line)
+            for column in self.columns:
+                bad = np.flatnonzero(column.outside(block.values[column.name]))
+                if len(bad):
+                    value = block.values[column.name][bad[0]]
+                    if not math.isfinite(value):
+                        problem = "is not a finite number"
+                    elif value < 0 <= column.low:
+                        problem = "must not be negative"
+                    else:
+                        problem = "is out of range"
+                    self._fail(block.line_of(int(bad[0])),
+                               f"{column.name} {problem} ({value:g}); it must be {column.describe()}")
+            yield block
+
+    def _explain(self, text: str, first_line: int, problem: ValueError):
+        """Find the line numpy refused and say what is wrong with it."""
+        for offset, line in enumerate(text.split("\n")):
+            if not _is_data(line):
+                continue
+            number = first_line + offset
+            cells = next(csv.reader([line.split("#", 1)[0]]))
+            if len(cells) <= max(self._index):
+                self._fail(number, f"expected {self.header_width} values, found {len(cells)}")
+            for column, index in zip(self.columns, self._index, strict=True):
+                cell = cells[index].strip()
+                if not cell:
+                    self._fail(number, f"{column.name} is empty")
+                try:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        np.loadtxt([cell], dtype=np.float64, ndmin=1)
+                except ValueError:
+                    self._fail(number, f"{column.name} is not a number: {cell[:40]!r}")
+        self._fail(first_line, f"cannot read the numbers ({str(problem).splitlines()[0]})")
+
+
+def read_numeric_csv(path: str | Path, required: tuple[Column, ...], optional: tuple[Column, ...],
+                     error: type[Exception], what: str, max_rows: int) -> dict[str, np.ndarray]:
+    """A whole (small) numeric CSV as arrays; more than ``max_rows`` data rows is an error.
+    Long files are streamed with :meth:`NumericCsv.blocks` instead."""
+    table = NumericCsv(path, required, optional, error, what)
+    parts: dict[str, list[np.ndarray]] = {name: [] for name in table.names}
+    count = 0
+    for block in table.blocks():
+        count += len(block)
+        if count > max_rows:
+            raise error(f"{path}: more than {max_rows} rows; a {what} holds at most {max_rows}")
+        for name in table.names:
+            parts[name].append(block.values[name])
+    return {name: np.concatenate(chunks) if chunks else np.zeros(0) for name, chunks in parts.items()}

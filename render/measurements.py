@@ -11,10 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from ultraglide.render.csv_table import read_numeric_csv
+from ultraglide.render.csv_table import Column, read_numeric_csv
 from ultraglide.render.errors import ModelError
 
-REQUIRED_COLUMNS = ("amplitude_um_pp", "relative_friction")
+AMPLITUDE = Column("amplitude_um_pp", 0.0, 100.0, "µm p-p")  # plates reach a few µm; 100 is no plate
+RELATIVE_FRICTION = Column("relative_friction", 0.0, 1.2, low_open=True)  # above 1: measurement noise
+FORCE = Column("force_n", 0.0, 50.0, "N", low_open=True)
+PARTICIPANT = Column("participant", -1e9, 1e9)  # a number naming whose finger it is
+REQUIRED_COLUMNS = (AMPLITUDE.name, RELATIVE_FRICTION.name)
+MAX_ROWS = 100_000  # measured tables hold tens to thousands of points
+MIN_STEP_UM = 0.001  # distinct amplitudes at one force closer than a nanometre are one measurement, or noise
 
 
 @dataclass(frozen=True)
@@ -39,17 +45,31 @@ class Measurements:
 
 
 def read_measurements(path: str | Path) -> Measurements:
-    """Read and validate a measurement CSV; raise :class:`ModelError` with the line at fault."""
-    columns = read_numeric_csv(path, REQUIRED_COLUMNS, ("force_n", "participant"), ModelError, "file")
+    """Read and validate a measurement CSV; raise :class:`ModelError` with the line at fault.
+
+    Ranges: amplitude_um_pp 0..100, relative_friction in (0, 1.2], force_n in (0, 50], at most
+    100 000 rows. There must be two different amplitudes or more, at one force never closer than
+    0.001 µm, and the friction must fall below 1 somewhere (a flat table says nothing about how
+    friction falls, so it can neither be inverted nor fitted).
+    """
+    columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE, PARTICIPANT), ModelError,
+                               "measurement file", MAX_ROWS)
     amplitude = columns["amplitude_um_pp"]
     ratio = columns["relative_friction"]
     force = columns.get("force_n")
     if len(amplitude) < 2:
         raise ModelError(f"{path}: at least two data rows are needed, found {len(amplitude)}")
-    if np.any(amplitude < 0):
-        raise ModelError(f"{path}: amplitude_um_pp must not be negative")
-    if np.any((ratio <= 0) | (ratio > 1.2)):
-        raise ModelError(f"{path}: relative_friction must lie in (0, 1.2]")
-    if force is not None and np.any(force <= 0):
-        raise ModelError(f"{path}: force_n must be positive")
+    if len(np.unique(amplitude)) < 2:
+        raise ModelError(f"{path}: every row has the same amplitude; two different amplitudes or more are needed")
+    if not np.min(ratio) < 1.0:
+        raise ModelError(f"{path}: relative_friction never falls below 1: a flat table cannot be inverted or "
+                         "fitted; measure at amplitudes where the finger glides")
+    for value in np.unique(force) if force is not None else [None]:
+        distinct = np.unique(amplitude if value is None else amplitude[force == value])
+        steps = np.diff(distinct)
+        if len(steps) and steps.min() < MIN_STEP_UM:
+            k = int(np.argmin(steps))
+            at = "" if value is None else f" at {value:g} N"
+            raise ModelError(f"{path}: amplitudes {distinct[k]:g} and {distinct[k + 1]:g} µm{at} differ by less than "
+                             f"{MIN_STEP_UM:g} µm, below any vibrometer's resolution; merge them")
     return Measurements(amplitude, ratio, force, str(path), columns.get("participant"))

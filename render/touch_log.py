@@ -1,29 +1,98 @@
-"""Touch logs: CSV files of ``t_s,x_mm,y_mm[,force_n]`` as a touch logger records them."""
+"""Touch logs: CSV files of ``t_s,x_mm,y_mm[,force_n]`` as a touch logger records them.
+
+A log of any length is read in bounded memory: :func:`read_touch_log` checks the whole file in
+one streaming pass (every value in range, time never going back, two instants at least), then
+returns a :class:`~ultraglide.render.trajectory.RecordedTrajectory` that reads it again in
+chunks as the renderer moves along. Times are seconds on the logger's clock (perf_counter or
+Unix time alike); the trajectory starts at zero.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from ultraglide.render.csv_table import read_numeric_csv
+from ultraglide.render.csv_table import Column, NumericCsv
 from ultraglide.render.errors import RenderError
 from ultraglide.render.trajectory import RecordedTrajectory
 
-COLUMNS = ("t_s", "x_mm", "y_mm")
+TIME = Column("t_s", -1e10, 1e10, "s")  # Unix time is 1.7e9 s; 1e10 s is three centuries on
+X = Column("x_mm", -10_000.0, 10_000.0, "mm")  # no plate is 10 m across
+Y = Column("y_mm", -10_000.0, 10_000.0, "mm")
+FORCE = Column("force_n", 0.0, 50.0, "N")  # fingers press with 0.1 to a few newtons
+COLUMNS = (TIME.name, X.name, Y.name)
+MAX_SPAN_S = 86_400.0  # a day of touches; longer logs are someone's clock in milliseconds
+
+
+@dataclass(frozen=True)
+class TouchLog:
+    """A checked touch-log file: where it is, its first and last time (s) and its row count."""
+
+    table: NumericCsv
+    first_s: float
+    last_s: float
+    rows: int
+    force_range_n: tuple[float, float] | None = None  # lowest and highest force, N, when logged
+
+    @property
+    def has_force(self) -> bool:
+        return "force_n" in self.table.names
+
+    def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
+        """``(t_s from zero, x_mm, y_mm, force_n or None)`` arrays, a block of the file at a time.
+        Each block's values are checked again (ranges, time order), in case the file changed since."""
+        previous = self.first_s
+        for block in self.table.blocks():
+            values = block.values
+            t = values["t_s"]
+            if len(t) and (t[0] < previous or np.any(np.diff(t) < 0) or t[-1] > self.last_s):
+                raise RenderError(f"{self.table.path}: the file changed while it was being read; "
+                                  "copy the log somewhere else and read the copy")
+            previous = t[-1] if len(t) else previous
+            yield (t - self.first_s, values["x_mm"], values["y_mm"], values.get("force_n"))
+
+    def trajectory(self) -> RecordedTrajectory:
+        return RecordedTrajectory.streaming(self.chunks, 0.0, self.last_s - self.first_s, self.has_force,
+                                            self.force_range_n)
+
+
+def check_touch_log(path: str | Path) -> TouchLog:
+    """Read a touch log through once, checking it; :class:`RenderError` names the line at fault."""
+    table = NumericCsv(path, (TIME, X, Y), (FORCE,), RenderError, "trajectory file")
+    first = previous = None
+    rows = 0
+    forces = [math.inf, -math.inf]
+    for block in table.blocks():
+        t = block.values["t_s"]
+        if not len(t):
+            continue
+        if "force_n" in block.values:
+            forces = [min(forces[0], block.values["force_n"].min()), max(forces[1], block.values["force_n"].max())]
+        if first is None:
+            first = previous = float(t[0])
+        backwards = np.flatnonzero(np.diff(t, prepend=previous) < 0)
+        if len(backwards):
+            k = int(backwards[0])
+            before = t[k - 1] if k else previous
+            raise RenderError(f"{path}:{block.line_of(k)}: time goes backwards ({t[k]:g} s after {before:g} s); "
+                              "sort the log by time")
+        previous = float(t[-1])
+        rows += len(t)
+    if rows < 2:
+        raise RenderError(f"{path}: at least two rows are needed, found {rows}")
+    if previous == first:
+        raise RenderError(f"{path}: every row has the same time ({first:g} s); a trajectory needs two instants")
+    if previous - first > MAX_SPAN_S:
+        raise RenderError(f"{path}: the log spans {previous - first:.3g} s, more than a day ({MAX_SPAN_S:g} s); "
+                          "t_s is in seconds (divide milliseconds by 1000)")
+    span = (float(forces[0]), float(forces[1])) if "force_n" in table.names else None
+    return TouchLog(table, first, previous, rows, span)
 
 
 def read_touch_log(path: str | Path) -> RecordedTrajectory:
-    """A recorded trajectory from a CSV; errors name the line at fault. ``#`` lines are comments."""
-    columns = read_numeric_csv(path, COLUMNS, ("force_n",), RenderError, "trajectory file")
-    t, lines = columns["t_s"], columns["_line"]
-    backwards = np.flatnonzero(np.diff(t) <= 0)
-    if len(backwards):
-        k = backwards[0] + 1
-        raise RenderError(f"{path}:{lines[k]}: time goes backwards or repeats ({t[k]:g} s after {t[k - 1]:g} s); "
-                          "sort the log by time")
-    force = columns.get("force_n")
-    if force is not None and np.any(force < 0):
-        raise RenderError(f"{path}:{lines[np.argmax(force < 0)]}: force_n must not be negative")
-    if len(t) < 2:
-        raise RenderError(f"{path}: at least two rows are needed, found {len(t)}")
-    return RecordedTrajectory(t - t[0], columns["x_mm"], columns["y_mm"], force)  # the log's clock from zero
+    """A recorded trajectory streamed from a CSV, checked whole first; errors name the line at fault.
+    ``#`` lines are comments."""
+    return check_touch_log(path).trajectory()

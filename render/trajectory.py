@@ -57,8 +57,19 @@ class RecordedTrajectory:
     """A path known in advance, as a touch logger records it (uneven rate allowed).
 
     Positions between records are interpolated monotonically (PCHIP, no overshoot); the finger
-    touches from the first record to the last.
+    touches from the first record to the last. Records with the same time are one instant: the
+    last of them stands (a logger that reads queued events in one go writes such rows).
+
+    The records come in chunks, from arrays in memory or streamed from a file
+    (:meth:`streaming`), and only a window of them is held: the rows around the instants asked
+    for, which moves forward as the renderer pulls blocks. PCHIP is local (the slope at a record
+    depends on its neighbours only), so interpolating within the window, with two records of
+    margin either side, gives what interpolating the whole path would. Asking for an earlier
+    instant than the window holds re-reads the chunks from the start.
     """
+
+    MARGIN = 2  # records kept either side of the instants asked for
+    PIECE_ROWS = 1 << 15  # records interpolated at once, at most (plus margins)
 
     def __init__(self, t_s, x_mm, y_mm, force_n=None):
         t = np.asarray(t_s, dtype=float)
@@ -69,35 +80,126 @@ class RecordedTrajectory:
         columns = {"t_s": t, "x_mm": x, "y_mm": y}
         if force_n is not None:
             columns["force_n"] = np.asarray(force_n, dtype=float)
+            if columns["force_n"].shape != t.shape:
+                raise RenderError("a trajectory's force_n needs one value per record")
         for name, values in columns.items():
             bad = np.flatnonzero(~np.isfinite(values))
             if len(bad):
                 raise RenderError(f"trajectory record {bad[0] + 1}: {name} is not a finite number")
-        backwards = np.flatnonzero(np.diff(t) <= 0)
+        backwards = np.flatnonzero(np.diff(t) < 0)
         if len(backwards):
             raise RenderError(f"trajectory record {backwards[0] + 2}: time does not increase "
                               f"({t[backwards[0] + 1]:g} s after {t[backwards[0]]:g} s)")
-        if force_n is not None and np.any(columns["force_n"] < 0):
+        if t[-1] == t[0]:
+            raise RenderError("a trajectory needs records at two different times at least")
+        force = columns.get("force_n")
+        if force is not None and np.any(force < 0):
             raise RenderError("trajectory forces must not be negative")
-        self.t_s, self.x_mm, self.y_mm = t, x, y
-        self.force_n = columns.get("force_n")
-        self._x = PchipInterpolator(t, x, extrapolate=False)
-        self._y = PchipInterpolator(t, y, extrapolate=False)
+        chunk = (t, x, y, force)
+        span = None if force is None else (float(force.min()), float(force.max()))
+        self._setup(lambda: iter([chunk]), float(t[0]), float(t[-1]), force is not None, span)
 
-    @property
-    def start_s(self) -> float:
-        return float(self.t_s[0])
+    @classmethod
+    def streaming(cls, open_chunks, start_s: float, end_s: float, has_force: bool,
+                  force_range_n: tuple[float, float] | None = None) -> RecordedTrajectory:
+        """A trajectory read in chunks: ``open_chunks()`` returns a fresh iterator of
+        ``(t_s, x_mm, y_mm, force_n or None)`` arrays, checked already (finite, time never going
+        back, from ``start_s`` to ``end_s``); ``force_range_n`` is the lowest and highest force."""
+        if not end_s > start_s:
+            raise RenderError("a trajectory needs records at two different times at least")
+        trajectory = cls.__new__(cls)
+        trajectory._setup(open_chunks, float(start_s), float(end_s), has_force, force_range_n)
+        return trajectory
 
-    @property
-    def end_s(self) -> float:
-        return float(self.t_s[-1])
+    def _setup(self, open_chunks, start_s: float, end_s: float, has_force: bool, force_range_n) -> None:
+        self._open_chunks = open_chunks
+        self.start_s, self.end_s, self.has_force = start_s, end_s, has_force
+        self.force_range_n = force_range_n  # (lowest, highest) logged force, N; None when not logged
+        self._rewind()
+
+    def _rewind(self) -> None:
+        self._chunks = self._open_chunks()
+        self._exhausted = False
+        self._trimmed = False  # whether rows before the window were dropped
+        self._t = self._x = self._y = self._f = np.zeros(0)
+
+    def chunks(self):
+        """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays."""
+        return self._open_chunks()
+
+    def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Every record at once, ``(t_s, x_mm, y_mm, force_n or None)``: the whole log in memory, for
+        small logs and tests (rendering and ``play`` stream it instead)."""
+        parts = list(self.chunks())
+        t, x, y = (np.concatenate([part[k] for part in parts]) for k in range(3))
+        return t, x, y, np.concatenate([part[3] for part in parts]) if self.has_force else None
+
+    t_s = property(lambda self: self.records()[0], doc="Every record's time, s (reads the whole log).")
+    x_mm = property(lambda self: self.records()[1], doc="Every record's x, mm (reads the whole log).")
+    y_mm = property(lambda self: self.records()[2], doc="Every record's y, mm (reads the whole log).")
+    force_n = property(lambda self: self.records()[3] if self.has_force else None,
+                       doc="Every record's force, N, or None (reads the whole log).")
+
+    def _extend(self, high: float) -> None:
+        """Read chunks until the window holds MARGIN + 1 records after ``high`` (or the end)."""
+        pending = []
+        beyond = np.count_nonzero(self._t > high)
+        while not self._exhausted and beyond <= self.MARGIN:
+            try:
+                t, x, y, force = next(self._chunks)
+            except StopIteration:
+                self._exhausted = True
+                break
+            pending.append((t, x, y, np.full(len(t), np.nan) if force is None else force))
+            beyond += np.count_nonzero(t > high)
+        if not pending:
+            return
+        columns = [np.concatenate([held, *(chunk[k] for chunk in pending)])  # one copy, however many chunks
+                   for k, held in enumerate((self._t, self._x, self._y, self._f))]
+        keep = np.ones(len(columns[0]), dtype=bool)
+        keep[:-1] = columns[0][1:] != columns[0][:-1]  # an instant logged twice: the last row stands
+        if not keep.all():
+            columns = [column[keep] for column in columns]
+        self._t, self._x, self._y, self._f = columns
+
+    def _cover(self, low: float, high: float) -> int:
+        """Hold the records around [low, high], from the window's start; return where they end in it."""
+        if self._trimmed and low < self._t[0]:
+            self._rewind()
+        for _ in range(2):  # drop what lies behind (the window moves forward), before and after reading on
+            first = max(int(np.searchsorted(self._t, low, side="right")) - 1 - self.MARGIN, 0)
+            if first > 0:
+                self._t, self._x, self._y, self._f = (a[first:].copy() for a in (self._t, self._x, self._y, self._f))
+                self._trimmed = True
+            self._extend(high)
+        return min(int(np.searchsorted(self._t, high, side="left")) + 1 + self.MARGIN, len(self._t))
 
     def state(self, times_s) -> FingerState:
-        times = np.clip(np.asarray(times_s, dtype=float), self.t_s[0], self.t_s[-1])
-        down = (np.asarray(times_s) >= self.t_s[0]) & (np.asarray(times_s) <= self.t_s[-1])
-        force = (np.interp(times, self.t_s, self.force_n) if self.force_n is not None
-                 else np.full(times.shape, np.nan))
-        return FingerState(self._x(times), self._y(times), force, down)
+        requested = np.asarray(times_s, dtype=float)
+        times = np.clip(requested, self.start_s, self.end_s)
+        down = (requested >= self.start_s) & (requested <= self.end_s)
+        if times.size == 0:
+            return FingerState(times, times, times, down)
+        last = self._cover(float(times.min()), float(times.max()))
+        t = self._t[:last]
+        force = np.interp(times, t, self._f[:last]) if self.has_force else np.full(times.shape, np.nan)
+        if last <= self.PIECE_ROWS or np.any(np.diff(times) < 0):
+            x = PchipInterpolator(t, self._x[:last], extrapolate=False)(times)
+            y = PchipInterpolator(t, self._y[:last], extrapolate=False)(times)
+            return FingerState(x, y, force, down)
+        # a log far denser than the instants asked for: interpolate piece by piece, each piece's
+        # records with their margin, so the interpolator's arrays stay small (PCHIP is local)
+        x, y = np.empty(times.shape), np.empty(times.shape)
+        row = np.searchsorted(t, times)
+        cuts = np.searchsorted(row, np.arange(self.PIECE_ROWS, last, self.PIECE_ROWS))
+        for begin, end in zip((0, *cuts), (*cuts, len(times)), strict=True):
+            if begin == end:
+                continue
+            low = max(int(row[begin]) - 1 - self.MARGIN, 0)
+            high = min(int(row[end - 1]) + 1 + self.MARGIN, last)
+            x[begin:end] = PchipInterpolator(t[low:high], self._x[low:high], extrapolate=False)(times[begin:end])
+            y[begin:end] = PchipInterpolator(t[low:high], self._y[low:high], extrapolate=False)(times[begin:end])
+        return FingerState(x, y, force, down)
 
 
 class LiveTrajectory:

@@ -31,6 +31,8 @@ from ultraglide.textures.texture import Texture
 MODES = ("brightness", "edges", "gradient")
 DEFAULT_WIDTH_MM = 80.0
 DEFAULT_MAX_PIXELS = 40_000_000
+MAX_PIXELS_LIMIT = 100_000_000  # what a texture file may hold (textures.fileformat.MAX_PIXELS)
+MAX_SIDE_MM = 10_000.0  # what a texture file may measure
 
 
 @dataclass(frozen=True)
@@ -76,8 +78,9 @@ class AuthoringOptions:
             raise TextureError(f"blur must be 0 mm or more, got {self.blur_mm}")
         if self.crop is not None and (len(self.crop) != 4 or min(self.crop[2:]) <= 0 or min(self.crop[:2]) < 0):
             raise TextureError("crop is X,Y,WIDTH,HEIGHT in pixels, with a positive width and height")
-        if self.max_pixels <= 0:
-            raise TextureError("the pixel limit must be positive")
+        if not 0 < self.max_pixels <= MAX_PIXELS_LIMIT:
+            raise TextureError(f"the pixel limit must be 1 to {MAX_PIXELS_LIMIT:,} (the texture file's own limit), "
+                               f"got {self.max_pixels}")
         self._check_seamless_and_auto_levels()
 
     def _check_seamless_and_auto_levels(self) -> None:
@@ -171,6 +174,14 @@ def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, nam
     values, width_mm = _seamless_step(values, width_mm, options)
     rows, cols = values.shape
     height_mm = width_mm * rows / cols
+    if max(width_mm, height_mm) > MAX_SIDE_MM:
+        raise TextureError(f"the texture would be {width_mm:.6g} × {height_mm:.6g} mm, more than {MAX_SIDE_MM:g} mm; "
+                           "give a larger --dpi or a --width-mm")
+    if options.mode == "gradient" and min(rows, cols) < 2:
+        raise TextureError(f"gradient mode needs an image of 2×2 pixels or more (its slope is felt), got {cols}×{rows}")
+    if options.blur_mm > max(width_mm, height_mm):
+        raise TextureError(f"a blur of {options.blur_mm:g} mm is wider than the texture ({width_mm:.4g} × "
+                           f"{height_mm:.4g} mm): it would flatten it; use at most {max(width_mm, height_mm):.4g} mm")
     edge_mode = "wrap" if options.seamless else "nearest"  # a tile's neighbours are across its seam
     if options.blur_mm > 0:
         values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode=edge_mode)

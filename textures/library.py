@@ -14,7 +14,7 @@ from pathlib import Path
 from PIL import Image
 from ultraglide.textures.authoring import AuthoringOptions, author_image
 from ultraglide.textures.errors import TextureError
-from ultraglide.textures.fileformat import CHUNK, load_texture
+from ultraglide.textures.fileformat import CHUNK, has_texture_metadata, load_texture
 from ultraglide.textures.texture import Texture
 
 LIBRARY_DIR = Path(__file__).parent / "library"
@@ -44,11 +44,7 @@ def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
 
 
 def has_metadata(path: Path) -> bool:
-    try:
-        with Image.open(path) as image:
-            return image.format == "PNG" and CHUNK in image.info
-    except OSError:
-        return False
+    return has_texture_metadata(path)  # a damaged chunk counts: loading it then says what is wrong
 
 
 def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Texture:

@@ -48,6 +48,9 @@ class Texture:
             raise TextureError(f"texture size must be positive, got {self.width_mm} × {self.height_mm} mm")
         if self.kind not in KINDS:
             raise TextureError(f"texture kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
+        if self.kind == "gradient" and min(values.shape) < 2:
+            raise TextureError(f"a gradient texture needs 2×2 pixels or more (its slope is felt), got "
+                               f"{values.shape[1]}×{values.shape[0]}; use a larger size or --px-per-mm")
         if self.outside not in OUTSIDE_RULES:
             raise TextureError(f"outside rule must be one of {', '.join(OUTSIDE_RULES)}, got {self.outside!r}")
         if not 0 <= self.outside_ratio <= 1:
