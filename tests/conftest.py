@@ -6,6 +6,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# Property tests check behaviour, never speed: no per-example deadline, which a loaded machine would miss.
+settings.register_profile("ultraglide", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("ultraglide")
 
 ROOT = Path(__file__).resolve().parent.parent
 
