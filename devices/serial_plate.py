@@ -115,6 +115,8 @@ class SerialPlate:
         self._drive_lock = threading.Lock()  # held only to add to or take the two sums below
         self._drive_sum_um_pp = 0.0  # commanded amplitude (clipped to full scale) sent since the last telemetry
         self._drive_count = 0
+        self._telemetry_arrived = threading.Condition()
+        self.telemetry_frames = 0  # TELEMETRY frames taken over the run
 
     # ---- frames from the device ----------------------------------------------------------------
     def _frame(self, frame: p.Frame) -> None:
@@ -153,7 +155,10 @@ class SerialPlate:
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         self._clear_pending |= telemetry.faults
-        self.telemetry = telemetry
+        with self._telemetry_arrived:
+            self.telemetry = telemetry
+            self.telemetry_frames += 1
+            self._telemetry_arrived.notify_all()
         if self.tracker is not None:
             with self._drive_lock:
                 total, count = self._drive_sum_um_pp, self._drive_count
@@ -162,6 +167,16 @@ class SerialPlate:
                 self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count)
         if self._first_telemetry is not None:
             self._first_telemetry.set()
+
+    def next_telemetry(self, timeout_s: float | None = None) -> p.Telemetry:
+        """Wait for the next TELEMETRY frame and return it; DeviceError if none comes within ``timeout_s``
+        (default: the ACK timeout)."""
+        timeout_s = self.ack_timeout_s if timeout_s is None else timeout_s
+        with self._telemetry_arrived:
+            seen = self.telemetry_frames
+            if not self._telemetry_arrived.wait_for(lambda: self.telemetry_frames > seen, timeout_s):
+                raise DeviceError(f"{self.port}: no telemetry from the plate driver for {timeout_s:g} s")
+            return self.telemetry
 
     def fault_counts(self) -> dict[str, int]:
         """Each fault the device can report, by name, with how often it happened over this run."""
