@@ -280,9 +280,9 @@ def run_sweep(args) -> int:
     write_profile(output, found, fit)
     faults = {name: count for name, count in sweeper.fault_counts().items() if count}
     summary = {
-        "resonance_hz": round(fit.resonance_hz, 3), "resonance_sigma_hz": round(fit.resonance_sigma_hz, 3),
-        "q": round(fit.q, 3), "q_sigma": round(fit.q_sigma, 3), "bandwidth_hz": round(fit.bandwidth_hz, 3),
-        "full_scale_um_pp": round(fit.peak_um_pp, 5), "full_scale_sigma_um_pp": round(fit.peak_sigma_um_pp, 5),
+        "resonance_hz": round(fit.resonance_hz, 3), "resonance_sigma_hz": float(f"{fit.resonance_sigma_hz:.4g}"),
+        "q": round(fit.q, 3), "q_sigma": float(f"{fit.q_sigma:.4g}"), "bandwidth_hz": round(fit.bandwidth_hz, 3),
+        "full_scale_um_pp": round(fit.peak_um_pp, 5), "full_scale_sigma_um_pp": float(f"{fit.peak_sigma_um_pp:.4g}"),
         "max_amplitude_um_pp": found.max_amplitude_um_pp, "rms_residual_um_pp": round(fit.rms_residual_um_pp, 5),
         "points": len(points), "unsettled_points": sweeper.unsettled, "from_hz": low, "to_hz": high,
         "drive_um_pp": round(level_fraction * profile.full_scale_um_pp, 4), "profile": str(output),
