@@ -9,13 +9,16 @@ scipy.optimize.curve_fit and gives their standard uncertainties.
 (protocol v2's telemetry reports the measured amplitude and the carrier, not the phase). It dithers
 the carrier between fc + δ and fc − δ, measures the gain (mean measured amplitude over mean
 commanded amplitude, so a texture's changing drive cancels) on each side, and steps fc along the
-gradient of log gain by a Newton step on the resonance curve. Phase would give the sign of the
+gradient of log gain by a Newton step on the resonance curve. The steps also estimate how fast the
+resonance drifts (an integral term, as in a second-order phase-locked loop), and between steps the
+centre moves on at that rate, so a steady thermal drift is followed without lag. Phase would give the sign of the
 detuning without dithering, but no telemetry here reports it.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,16 +96,22 @@ class TrackerSettings:
     ``frames_per_side``: telemetry frames averaged on each side of the dither, after the first one
     at a new carrier is skipped (it may not have settled: the envelope needs several Q/(π f0));
     ``step_gain``: fraction of the Newton step taken (below 1 for a Q that may be off by a factor 2);
-    ``max_step_fraction``: the largest step, as a fraction of the half bandwidth;
+    ``max_step_fraction``: the largest step, as a fraction of the half bandwidth (0.25 costs at most 3 %
+    of amplitude if a step goes the wrong way);
     ``min_drive_fraction``: windows whose mean commanded amplitude is below this fraction of the
-    limit carry too little signal and are skipped (finger lifted).
+    limit carry too little signal and are skipped (finger lifted);
+    ``rate_gain``: each step (Hz) times this (per second) is added to the drift-rate estimate (with the
+    step gain 0.7 and a 0.12 s dither cycle, 0.8 makes an over-damped second-order loop, ζ ≈ 1.3);
+    ``max_rate_hz_per_s``: the drift rate believed at most.
     """
 
     dither_fraction: float = 0.2
     frames_per_side: int = 2
     step_gain: float = 0.7
-    max_step_fraction: float = 0.5
+    max_step_fraction: float = 0.25
     min_drive_fraction: float = 0.02
+    rate_gain: float = 0.8
+    max_rate_hz_per_s: float = 200.0
 
 
 class ResonanceTracker:
@@ -124,6 +133,9 @@ class ResonanceTracker:
         self.carrier_min_hz = carrier_min_hz
         self.carrier_max_hz = carrier_max_hz
         self.updates = 0
+        self.rejected = 0  # dither pairs whose difference no resonance curve can give
+        self.rate_hz_per_s = 0.0  # the drift rate the steps have shown
+        self._center_s: float | None = None  # when center_hz was estimated
         self._side = 1
         self._gains: dict[int, float] = {}
         self._skip = True
@@ -139,9 +151,14 @@ class ResonanceTracker:
     def _clamp(self, carrier_hz: float) -> float:
         return min(max(carrier_hz, self.carrier_min_hz), self.carrier_max_hz)
 
-    def observe(self, carrier_hz: float, measured_um_pp: float, commanded_um_pp: float) -> None:
+    def observe(self, carrier_hz: float, measured_um_pp: float, commanded_um_pp: float,
+                now_s: float | None = None) -> None:
         """One telemetry frame: the carrier it reports, the amplitude it measured, and the mean amplitude
-        the host commanded (µm p-p at resonance) over the interval it covers."""
+        the host commanded (µm p-p at resonance) over the interval it covers; ``now_s`` is when
+        (perf_counter seconds, the default now)."""
+        now_s = time.perf_counter() if now_s is None else now_s
+        if self._center_s is None:
+            self._center_s = now_s
         if abs(carrier_hz - self.carrier_hz) > 0.01:  # the device has not taken the new carrier yet
             return
         if self._skip:  # the first frame at a new carrier: the envelope may still be settling
@@ -160,8 +177,24 @@ class ResonanceTracker:
         if len(self._gains) == 2:
             self._step()
         self._side = -self._side
+        self._restart_side(now_s)
+
+    def _restart_side(self, now_s: float) -> None:
+        """Move the centre on by the drift rate and set this side's carrier; its first frame will be skipped."""
         self._skip = True
+        self.center_hz = self._clamp(self.center_hz + self.rate_hz_per_s * (now_s - self._center_s))
+        self._center_s = now_s
         self.carrier_hz = self._clamp(self.center_hz + self._side * self.dither_hz)
+
+    def disturbed(self, now_s: float | None = None) -> None:
+        """The device did not play what was commanded (underrun, watchdog, lost setpoints): this side's
+        frames so far measure that, not the resonance; start the side again (the centre still drifts on)."""
+        now_s = time.perf_counter() if now_s is None else now_s
+        self._measured = self._commanded = 0.0
+        self._frames = 0
+        if self._center_s is None:
+            self._center_s = now_s
+        self._restart_side(now_s)
 
     def _step(self) -> None:
         """Newton step on log A(f): d log A/df = −k²x/(1 + k²x²) with k = 2Q/f0, x = f − f0; near the
@@ -169,11 +202,20 @@ class ResonanceTracker:
         upper, lower = self._gains.pop(1), self._gains.pop(-1)
         if upper <= 0 or lower <= 0:
             return
+        # |d log A/df| is at most k/2 (at the half-power points), so two carriers 2δ apart differ by at
+        # most δk = dither_fraction in log A: a larger difference is not the plate's response (the drive
+        # was cut or held meanwhile), and is discarded
+        difference = math.log(upper) - math.log(lower)
+        if abs(difference) > 1.2 * self.settings.dither_fraction:
+            self.rejected += 1
+            return
         delta = self.dither_hz
-        slope = (math.log(upper) - math.log(lower)) / (2.0 * delta)
+        slope = difference / (2.0 * delta)
         k = 2.0 * self.q / self.center_hz
         half_band = self.center_hz / (2.0 * self.q)
-        step = self.settings.step_gain * slope / (k * k)
         limit = self.settings.max_step_fraction * half_band
-        self.center_hz = self._clamp(self.center_hz + max(-limit, min(limit, step)))
+        step = max(-limit, min(limit, self.settings.step_gain * slope / (k * k)))
+        self.center_hz = self._clamp(self.center_hz + step)
+        rate = self.rate_hz_per_s + self.settings.rate_gain * step
+        self.rate_hz_per_s = max(-self.settings.max_rate_hz_per_s, min(self.settings.max_rate_hz_per_s, rate))
         self.updates += 1

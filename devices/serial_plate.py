@@ -39,6 +39,10 @@ from ultraglide.devices.source import BlockSource, ramp_down
 
 SILENCE_S = p.HOST_SILENCE_MS / 1000.0  # no telemetry for this long while connected: the device has hung
 BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+# faults after which the plate played far from what was commanded (ramped or cut to zero): the tracker
+# discards what it was measuring. An underrun holds the last value and an overrun drops a few: both leave
+# the mean drive nearly as commanded, and on a loaded host they come often, so they do not count.
+TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
 
 
 @dataclass
@@ -146,6 +150,7 @@ class SerialPlate:
     def _take_telemetry(self, telemetry: p.Telemetry) -> None:
         """Add the faults since the previous telemetry to the run's counts (counters wrap at 2**32)."""
         counts = telemetry.fault_counts
+        previous = self._fault_last
         if self._fault_last is not None:
             if telemetry.frames_ok < self._frames_ok_last:  # the device restarted: its counters began again
                 new = counts
@@ -163,8 +168,11 @@ class SerialPlate:
             with self._drive_lock:
                 total, count = self._drive_sum_um_pp, self._drive_count
                 self._drive_sum_um_pp, self._drive_count = 0.0, 0
-            if count:
-                self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count)
+            if previous is None or any(counts[bit.bit_length() - 1] != previous[bit.bit_length() - 1]
+                                       for bit in TRACKING_DISTURBANCES):
+                self.tracker.disturbed(time.perf_counter())
+            elif count:
+                self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
         if self._first_telemetry is not None:
             self._first_telemetry.set()
 
