@@ -185,7 +185,11 @@ def _add_plate_commands(commands) -> None:
     sweep.add_argument("--device", default="sim", metavar="URL",
                        help="sim or serial:PORT[?baud=N]; audio[:NAME] needs --sensor (default: sim)")
     sweep.add_argument("--sensor", metavar="audio:NAME",
-                       help="for an audio output: the input wired to a vibration sensor")
+                       help="for an audio output: the input wired to a vibration sensor (one pass over the "
+                            "grid, 0.1 s a carrier, amplitude by a single-bin DFT)")
+    sweep.add_argument("--sensor-um-per-unit", type=positive, metavar="K",
+                       help="the sensor's sensitivity: µm p-p of vibration per unit of input amplitude (peak, "
+                            "full scale 1); without it an audio sweep keeps the profile's full scale")
     sweep.add_argument("--profile", default="sim-plate",
                        help="the plate's present profile: its range, limit and gain (default: sim-plate)")
     sweep.add_argument("--from-hz", type=positive, metavar="A", help="lowest carrier, Hz (default: the profile's)")

@@ -133,6 +133,98 @@ class TelemetrySweeper:
         return self.driver.fault_counts()
 
 
+AUDIO_DWELL_S = 0.1  # each carrier of an audio sweep plays this long
+AUDIO_SETTLE_FRACTION = 0.4  # the first 40 % of each dwell (settling, the interface's latency) is not analysed
+AUDIO_RAMP_S = 0.01
+
+
+def sweep_signal(carriers_hz: np.ndarray, level: float, rate_hz: int) -> np.ndarray:
+    """The carrier stepping through ``carriers_hz``, AUDIO_DWELL_S each, phase-continuous, at ``level`` of full
+    scale, ramped in and out over 10 ms (float32, for the audio output)."""
+    dwell = int(round(AUDIO_DWELL_S * rate_hz))
+    frequency = np.repeat(np.asarray(carriers_hz, dtype=float), dwell)
+    phase = 2.0 * np.pi * np.cumsum(frequency) / rate_hz
+    signal_ = level * np.sin(phase)
+    ramp = int(AUDIO_RAMP_S * rate_hz)
+    envelope = np.ones_like(signal_)
+    envelope[:ramp] = np.linspace(0.0, 1.0, ramp)
+    tail = level * np.sin(phase[-1] + 2.0 * np.pi * frequency[-1] * np.arange(1, ramp + 1) / rate_hz)
+    return np.concatenate((signal_ * envelope, tail * np.linspace(1.0, 0.0, ramp))).astype(np.float32)
+
+
+def lock_in_amplitude(recorded: np.ndarray, carrier_hz: float, rate_hz: int) -> float:
+    """The amplitude (peak, in the recording's units) of the component at ``carrier_hz``: a single-bin DFT
+    with a Hann window, normalised so that a pure sine of amplitude A gives A."""
+    n = np.arange(len(recorded))
+    window = np.hanning(len(recorded))
+    component = np.sum(recorded * window * np.exp(-2j * np.pi * carrier_hz * n / rate_hz))
+    return float(2.0 * np.abs(component) / window.sum())
+
+
+def audio_sweep(output, sensor, carriers_hz: np.ndarray, level: float, rate_hz: int) -> np.ndarray:
+    """Play the stepped carrier on ``output`` while recording ``sensor``; the sensor's amplitude at each carrier."""
+    from ultraglide.devices.audio import import_sounddevice
+
+    sd = import_sounddevice()
+    played = sweep_signal(carriers_hz, level, rate_hz)
+    try:
+        recorded = sd.playrec(played, samplerate=rate_hz, channels=1, dtype="float32", device=(sensor, output),
+                              blocking=True)[:, 0]
+    except sd.PortAudioError as error:
+        raise DeviceError(f"audio sweep: {error}; list devices with `ultraglide devices`") from None
+    finally:
+        sd.stop()
+    dwell = int(round(AUDIO_DWELL_S * rate_hz))
+    skip = int(AUDIO_SETTLE_FRACTION * dwell)
+    return np.array([lock_in_amplitude(recorded[i * dwell + skip:(i + 1) * dwell], f, rate_hz)
+                     for i, f in enumerate(carriers_hz)])
+
+
+def _audio_device(target: str):
+    """sounddevice's name for an audio URL's target: an index, a name, or None for the default."""
+    return int(target) if target.isdigit() else (target or None)
+
+
+def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output: Path) -> int:
+    """One pass over a fixed grid (no refinement: the audio path has no telemetry to settle on); the sensor
+    gives f0 and Q, and the full scale too when ``--sensor-um-per-unit`` calibrates it."""
+    device = parse_device_url(args.device)
+    sensor = parse_device_url(args.sensor)
+    if sensor.kind != "audio" or not sensor.target:
+        raise UsageError(f"--sensor {args.sensor}: give the input as audio:NAME_OR_INDEX")
+    rate = int(device.options.get("rate", 96000))
+    if rate < high / 0.4:
+        raise UsageError(f"{rate} Hz cannot carry {high:g} Hz; use ?rate=96000 or 192000")
+    level = SWEEP_LEVEL * profile.max_amplitude_um_pp / profile.full_scale_um_pp
+    carriers = _grid(low, high, args.steps)
+    amplitudes = audio_sweep(_audio_device(device.target), _audio_device(sensor.target), carriers, level, rate)
+    fit = _fit([SweepPoint(float(f), float(a), 1.0, True) for f, a in zip(carriers, amplitudes, strict=True)],
+               low, high)
+    if args.sensor_um_per_unit:
+        full_scale = fit.peak_um_pp * args.sensor_um_per_unit / level
+        fit = ResonanceFit(fit.resonance_hz, fit.q, full_scale, fit.resonance_sigma_hz, fit.q_sigma,
+                           fit.peak_sigma_um_pp * args.sensor_um_per_unit / level, fit.rms_residual_um_pp)
+    else:
+        fit = ResonanceFit(fit.resonance_hz, fit.q, profile.full_scale_um_pp, fit.resonance_sigma_hz, fit.q_sigma,
+                           0.0, fit.rms_residual_um_pp)
+    found = measured_profile(profile, fit, output.stem)
+    write_profile(output, found, fit)
+    summary = {"resonance_hz": round(fit.resonance_hz, 3), "resonance_sigma_hz": float(f"{fit.resonance_sigma_hz:.4g}"),
+               "q": round(fit.q, 3), "q_sigma": float(f"{fit.q_sigma:.4g}"), "bandwidth_hz": round(fit.bandwidth_hz, 3),
+               "full_scale_um_pp": found.full_scale_um_pp, "full_scale_measured": bool(args.sensor_um_per_unit),
+               "max_amplitude_um_pp": found.max_amplitude_um_pp, "points": len(carriers), "from_hz": low,
+               "to_hz": high, "drive_fraction": round(level, 5), "profile": str(output)}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"resonance {fit.resonance_hz:.1f} ± {fit.resonance_sigma_hz:.1f} Hz, Q {fit.q:.1f} ± {fit.q_sigma:.1f} "
+              f"from the sensor, {len(carriers)} carriers at {level:.1%} of full-scale drive")
+        if not args.sensor_um_per_unit:
+            print("full scale kept from the profile: give --sensor-um-per-unit to measure it")
+        print(f"profile written to {output}")
+    return 0
+
+
 def _grid(low_hz: float, high_hz: float, steps: int) -> np.ndarray:
     return np.linspace(low_hz, high_hz, steps)
 
@@ -253,8 +345,7 @@ def run_sweep(args) -> int:
         if not args.sensor:
             raise UsageError("an audio output reports no amplitude: sweeping it needs a vibration sensor on an audio "
                              "input, given as --sensor audio:NAME")
-        raise UsageError("sweeping through an audio output with --sensor is not implemented yet; use a plate driver "
-                         "(serial:PORT) or the simulator (sim)")
+        return run_audio_sweep(args, profile, low, high, output)
     if kind not in ("sim", "serial"):
         raise UsageError(f"{kind} measures nothing: sweep a plate driver (sim or serial:PORT), or audio with --sensor")
     say = (lambda message: None) if args.json else print

@@ -144,3 +144,58 @@ def test_bad_sweep_options_are_one_line(tmp_path, args, words):
     line = assert_one_line_error(run_cli("plate", "sweep", "-o", output, *args, cwd=tmp_path))
     assert words in line
     assert not output.exists()
+
+
+AUDIO_ASOUNDRC = """pcm.out {{
+    type plug
+    slave {{ pcm "outfile"; format FLOAT_LE; channels 1 }}
+}}
+pcm.outfile {{
+    type file
+    slave.pcm "null"
+    file "{played}"
+    format "raw"
+}}
+pcm.sensor {{
+    type plug
+    slave {{ pcm "sensorfile"; format FLOAT_LE; channels 1; rate 96000 }}
+}}
+pcm.sensorfile {{
+    type file
+    slave.pcm "null"
+    file "/dev/null"
+    infile "{sensor}"
+    format "raw"
+}}
+"""
+
+
+def test_an_audio_sweep_reads_the_resonance_from_a_sensor_on_an_alsa_input(tmp_path):
+    """Real PortAudio through ALSA: the output goes to a ``file`` PCM, the sensor input is an ALSA ``file``
+    PCM whose ``infile`` holds what a sensor on a 23.7 kHz, Q 150 plate would give for the sweep's schedule
+    (each carrier 0.1 s, amplitude from the resonance curve, with noise)."""
+    rate, dwell = 96000, 9600
+    carriers = np.linspace(23200.0, 24200.0, 51)
+    rng = np.random.default_rng(5)
+    frequency = np.repeat(carriers, dwell)
+    amplitude = np.repeat(resonance_curve(carriers, 0.4, 23700.0, 150.0), dwell)
+    sensor = amplitude * np.sin(2 * np.pi * np.cumsum(frequency) / rate) + rng.normal(0.0, 0.01, frequency.size)
+    sensor_file, played_file = tmp_path / "sensor.raw", tmp_path / "played.raw"
+    np.concatenate((sensor, np.zeros(rate))).astype("<f4").tofile(sensor_file)
+    (tmp_path / ".asoundrc").write_text(AUDIO_ASOUNDRC.format(played=played_file, sensor=sensor_file))
+    result = run_cli("plate", "sweep", "--device", "audio:out", "--sensor", "audio:sensor", "--from-hz", 23200,
+                     "--to-hz", 24200, "--steps", 51, "--sensor-um-per-unit", 2.0, "-o", tmp_path / "p.toml", "--json",
+                     env={"HOME": str(tmp_path)})
+    assert result.returncode == 0, result.stderr
+    found = json.loads(result.stdout)
+    assert abs(found["resonance_hz"] - 23700.0) <= 20.0 and abs(found["q"] - 150.0) <= 15.0, found
+    # full scale: the sensor's 0.4 peak × 2 µm p-p per unit at the sweep's drive (15 % of 6 of 8 µm p-p)
+    assert found["full_scale_um_pp"] == pytest.approx(0.4 * 2.0 / (0.15 * 6.0 / 8.0), rel=0.03)
+    assert load_profile(str(tmp_path / "p.toml")).max_amplitude_um_pp == 6.0
+    # what reached the output: the carrier steps, at the low sweep level, ending at rest
+    played = np.fromfile(played_file, dtype="<f4")
+    assert np.max(np.abs(played)) <= 0.15 * 6.0 / 8.0 + 1e-6 and np.max(np.abs(played[-96:])) < 0.01
+    start = int(np.flatnonzero(np.abs(played) > 0)[0])
+    first = played[start + 2000:start + dwell]
+    spectrum = np.abs(np.fft.rfft(first * np.hanning(first.size)))
+    assert np.argmax(spectrum) * rate / first.size == pytest.approx(carriers[0], abs=rate / first.size)
