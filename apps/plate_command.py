@@ -345,7 +345,12 @@ def run_sweep(args) -> int:
         if not args.sensor:
             raise UsageError("an audio output reports no amplitude: sweeping it needs a vibration sensor on an audio "
                              "input, given as --sensor audio:NAME")
-        return run_audio_sweep(args, profile, low, high, output)
+        previous = {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGTERM, signal.SIGHUP)}
+        try:  # a signal stops the stream (sd.stop in audio_sweep's finally) and writes nothing
+            return run_audio_sweep(args, profile, low, high, output)
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
     if kind not in ("sim", "serial"):
         raise UsageError(f"{kind} measures nothing: sweep a plate driver (sim or serial:PORT), or audio with --sensor")
     say = (lambda message: None) if args.json else print
