@@ -4,14 +4,13 @@ The carrier steps across a range while the plate is driven at a low constant amp
 its limit); at each step, once telemetry shows the amplitude settled at the new carrier, the
 measured amplitude is read. A resonance curve is fitted (devices/resonance.py), a finer sweep is
 made around the peak, and the final fit over all points gives f0, Q and the amplitude at full-scale
-drive, with uncertainties. The plate is rested (zero, disable) on every way out, signals included.
+drive, with uncertainties. The plate is rested (zero, disable) on every way out, stop signals included.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +19,7 @@ import numpy as np
 import tomli_w
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
+from ultraglide.apps.stop_signals import held
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.resonance import FitError, ResonanceFit, fit_resonance
@@ -173,7 +173,8 @@ def audio_sweep(output, sensor, carriers_hz: np.ndarray, level: float, rate_hz: 
     except sd.PortAudioError as error:
         raise DeviceError(f"audio sweep: {error}; list devices with `ultraglide devices`") from None
     finally:
-        sd.stop()
+        with held():
+            sd.stop()
     dwell = int(round(AUDIO_DWELL_S * rate_hz))
     skip = int(AUDIO_SETTLE_FRACTION * dwell)
     return np.array([lock_in_amplitude(recorded[i * dwell + skip:(i + 1) * dwell], f, rate_hz)
@@ -318,10 +319,6 @@ def plot_sweep(path: Path, points: list[SweepPoint], fit: ResonanceFit, level_fr
     plt.close(figure)
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def run_sweep(args) -> int:
     profile = load_profile(args.profile)
     low = args.from_hz if args.from_hz is not None else profile.carrier_min_hz
@@ -345,30 +342,21 @@ def run_sweep(args) -> int:
         if not args.sensor:
             raise UsageError("an audio output reports no amplitude: sweeping it needs a vibration sensor on an audio "
                              "input, given as --sensor audio:NAME")
-        previous = {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGTERM, signal.SIGHUP)}
-        try:  # a signal stops the stream (sd.stop in audio_sweep's finally) and writes nothing
-            return run_audio_sweep(args, profile, low, high, output)
-        finally:
-            for signum, handler in previous.items():
-                signal.signal(signum, handler)
+        return run_audio_sweep(args, profile, low, high, output)  # a stop signal ends the stream, writes nothing
     if kind not in ("sim", "serial"):
         raise UsageError(f"{kind} measures nothing: sweep a plate driver (sim or serial:PORT), or audio with --sensor")
     say = (lambda message: None) if args.json else print
 
     device = open_device(args.device, profile, carrier_hz=low)
     sweeper = TelemetrySweeper(device, profile)
-    previous = {signum: signal.signal(signum, _raise_interrupt) for signum in (signal.SIGTERM, signal.SIGHUP)}
-    try:
+    try:  # a stop signal (Ctrl-C, SIGTERM, SIGHUP: apps/stop_signals.py) leaves through the finally
         sweeper.start(low)
         say(f"sweeping {low:g}-{high:g} Hz in {args.steps} steps at {sweeper.level_um_pp:.2f} µm p-p "
             f"({SWEEP_LEVEL:.0%} of the {profile.max_amplitude_um_pp:g} µm p-p limit)")
         points, fit = sweep(sweeper, low, high, args.steps, say)
     finally:
-        try:
+        with held():  # a stop signal arriving now waits until the plate is at rest
             sweeper.stop()  # ramp to rest, zero, disable
-        finally:
-            for signum, handler in previous.items():
-                signal.signal(signum, handler)
     found = measured_profile(profile, fit, output.stem)
     level_fraction = points[0].drive_fraction
     if args.plot:

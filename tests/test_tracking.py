@@ -12,6 +12,7 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from test_devices import Constant, wait_for
 from test_plate_sim_cli import Server
+from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.resonance import ResonanceTracker, resonance_curve
 from ultraglide.devices.serial_plate import SerialPlate
@@ -73,6 +74,8 @@ def _play_drifting(track: bool, results: dict, folder, drift_hz_per_s=20.0, run_
     record of its amplitude while the target was held, and the driver's status."""
     link = folder / f"plate-{track}"
     recording = folder / f"record-{track}.json"
+    output_stage(Constant(target_um_pp), PROFILE, "control", 12000).pull(24, None)  # compile the limiter now:
+    # the plate drifts from the moment it starts, and the driver should start streaming at once
     recorder = subprocess.Popen([sys.executable, str(ROOT / "tests" / "sim_recorder.py"), str(link), "25000", "200",
                                  str(drift_hz_per_s), str(recording)], stdout=subprocess.PIPE, text=True)
     try:
