@@ -136,6 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
                            "wav:PATH or null "
                            "(default: sim)")
+    play.add_argument("--track-resonance", action="store_true",
+                      help="follow the plate's drifting resonance from its telemetry (a small dither of the "
+                           "carrier, stepping toward more amplitude per unit drive); plate drivers only")
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
     play.set_defaults(handler="ultraglide.apps.play_command:run")
 
@@ -172,6 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
     sim.set_defaults(handler="ultraglide.apps.devices_command:plate_sim")
 
+    _add_plate_commands(commands)
+
     demo = commands.add_parser(
         "demo", help="feel textures on the plate: the touch-panel demo",
         description="A full-screen demo on the touch panel under the plate: a gallery of textures, each at "
@@ -195,6 +200,36 @@ def build_parser() -> argparse.ArgumentParser:
                       help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
     demo.set_defaults(handler="ultraglide.apps.demo_app:run")
     return parser
+
+
+def _add_plate_commands(commands) -> None:
+    plate = commands.add_parser("plate", help="characterise a plate: resonance sweep",
+                                description="Measure a plate before trusting its profile.")
+    actions = plate.add_subparsers(dest="plate_command", metavar="ACTION", required=True, parser_class=OneLineParser)
+    sweep = actions.add_parser(
+        "sweep", help="find the resonance, Q and gain; write a profile",
+        description="Step the carrier across the profile's range (or --from-hz..--to-hz) driving 15 % of the "
+                    "plate's limit, read the settled amplitude from telemetry at each step, fit "
+                    "A(f) = A0 / sqrt(1 + (2Q(f - f0)/f0)^2), refine around the peak, and write a profile with "
+                    "the measured resonance, Q and full scale (the limit is kept, never raised). The plate is "
+                    "rested (zero, disable) on every way out.")
+    sweep.add_argument("--device", default="sim", metavar="URL",
+                       help="sim or serial:PORT[?baud=N]; audio[:NAME] needs --sensor (default: sim)")
+    sweep.add_argument("--sensor", metavar="audio:NAME",
+                       help="for an audio output: the input wired to a vibration sensor (one pass over the "
+                            "grid, 0.1 s a carrier, amplitude by a single-bin DFT)")
+    sweep.add_argument("--sensor-um-per-unit", type=positive, metavar="K",
+                       help="the sensor's sensitivity: µm p-p of vibration per unit of input amplitude (peak, "
+                            "full scale 1); without it an audio sweep keeps the profile's full scale")
+    sweep.add_argument("--profile", default="sim-plate",
+                       help="the plate's present profile: its range, limit and gain (default: sim-plate)")
+    sweep.add_argument("--from-hz", type=positive, metavar="A", help="lowest carrier, Hz (default: the profile's)")
+    sweep.add_argument("--to-hz", type=positive, metavar="B", help="highest carrier, Hz (default: the profile's)")
+    sweep.add_argument("--steps", type=int, default=41, metavar="N", help="coarse steps (default: 41)")
+    sweep.add_argument("-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
+    sweep.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
+    sweep.add_argument("--json", action="store_true", help="print one JSON object")
+    sweep.set_defaults(handler="ultraglide.apps.plate_command:run_sweep")
 
 
 def _add_range(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:

@@ -65,7 +65,8 @@ def replay(touch, chunks, started: float) -> tuple[float, float]:
 def engine_config(args) -> EngineConfig:
     return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
                         carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
-                        precompensate=not args.no_precompensation)
+                        precompensate=not args.no_precompensation,
+                        track_resonance=getattr(args, "track_resonance", False))
 
 
 def run(args) -> int:

@@ -7,6 +7,11 @@ renderer keeps its clock), and reconnects with exponential backoff when the port
 way out it sends zero amplitude and disable. It counts every fault the device reports over the whole
 run (from the device's fault counters, across reconnections) and clears the device's latched bits.
 
+The carrier can change while it runs: :meth:`set_carrier` (acknowledged; the plate sweep uses it),
+or a :class:`~ultraglide.devices.resonance.ResonanceTracker` given as ``tracker``, which is fed every
+telemetry frame (carrier, measured amplitude, mean commanded amplitude since the previous frame) and
+whose carrier the writer thread sends when it changes (unacknowledged: telemetry confirms it).
+
 Example::
 
     plate = SerialPlate("/dev/ttyACM0", profile)
@@ -29,10 +34,15 @@ from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.resonance import ResonanceTracker
 from ultraglide.devices.source import BlockSource, ramp_down
 
 SILENCE_S = p.HOST_SILENCE_MS / 1000.0  # no telemetry for this long while connected: the device has hung
 BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+# faults after which the plate played far from what was commanded (ramped or cut to zero): the tracker
+# discards what it was measuring. An underrun holds the last value and an overrun drops a few: both leave
+# the mean drive nearly as commanded, and on a loaded host they come often, so they do not count.
+TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
 
 
 @dataclass
@@ -46,6 +56,7 @@ class SerialCounters:
     bad_frames: int = 0  # received frames that did not decode
     late_batches: int = 0
     naks: int = 0  # frames the device refused
+    carrier_changes: int = 0  # SET_CARRIER sent while streaming (sweep or tracking)
     send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
     errors: list[str] = field(default_factory=list)
 
@@ -72,11 +83,13 @@ class SerialPlate:
     signal = "control"
 
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
-                 baudrate: int = 921600, batch_s: float = p.BATCH_S, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S):
+                 baudrate: int = 921600, batch_s: float = p.BATCH_S, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
+                 tracker: ResonanceTracker | None = None):
         self.port = port
         self.profile = profile
         self.rate_hz = int(control_rate_hz)
-        self.carrier_hz = carrier_hz or profile.resonance_hz
+        self.tracker = tracker
+        self.carrier_hz = tracker.carrier_hz if tracker is not None else (carrier_hz or profile.resonance_hz)
         self.baudrate = baudrate
         self.batch_s = batch_s
         self.ack_timeout_s = ack_timeout_s
@@ -103,6 +116,11 @@ class SerialPlate:
         self._last_heard = 0.0
         self._first_telemetry: threading.Event | None = None
         self._source: BlockSource | None = None
+        self._drive_lock = threading.Lock()  # held only to add to or take the two sums below
+        self._drive_sum_um_pp = 0.0  # commanded amplitude (clipped to full scale) sent since the last telemetry
+        self._drive_count = 0
+        self._telemetry_arrived = threading.Condition()
+        self.telemetry_frames = 0  # TELEMETRY frames taken over the run
 
     # ---- frames from the device ----------------------------------------------------------------
     def _frame(self, frame: p.Frame) -> None:
@@ -132,6 +150,7 @@ class SerialPlate:
     def _take_telemetry(self, telemetry: p.Telemetry) -> None:
         """Add the faults since the previous telemetry to the run's counts (counters wrap at 2**32)."""
         counts = telemetry.fault_counts
+        previous = self._fault_last
         if self._fault_last is not None:
             if telemetry.frames_ok < self._frames_ok_last:  # the device restarted: its counters began again
                 new = counts
@@ -141,9 +160,31 @@ class SerialPlate:
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         self._clear_pending |= telemetry.faults
-        self.telemetry = telemetry
+        with self._telemetry_arrived:
+            self.telemetry = telemetry
+            self.telemetry_frames += 1
+            self._telemetry_arrived.notify_all()
+        if self.tracker is not None:
+            with self._drive_lock:
+                total, count = self._drive_sum_um_pp, self._drive_count
+                self._drive_sum_um_pp, self._drive_count = 0.0, 0
+            if previous is None or any(counts[bit.bit_length() - 1] != previous[bit.bit_length() - 1]
+                                       for bit in TRACKING_DISTURBANCES):
+                self.tracker.disturbed(time.perf_counter())
+            elif count:
+                self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
         if self._first_telemetry is not None:
             self._first_telemetry.set()
+
+    def next_telemetry(self, timeout_s: float | None = None) -> p.Telemetry:
+        """Wait for the next TELEMETRY frame and return it; DeviceError if none comes within ``timeout_s``
+        (default: the ACK timeout)."""
+        timeout_s = self.ack_timeout_s if timeout_s is None else timeout_s
+        with self._telemetry_arrived:
+            seen = self.telemetry_frames
+            if not self._telemetry_arrived.wait_for(lambda: self.telemetry_frames > seen, timeout_s):
+                raise DeviceError(f"{self.port}: no telemetry from the plate driver for {timeout_s:g} s")
+            return self.telemetry
 
     def fault_counts(self) -> dict[str, int]:
         """Each fault the device can report, by name, with how often it happened over this run."""
@@ -185,6 +226,27 @@ class SerialPlate:
         if reason is not None:
             raise DeviceError(f"{self.port}: the plate driver refused command {kind:#04x}: "
                               f"{p.NAK_REASONS.get(reason, f'reason {reason}')}")
+
+    def set_carrier(self, carrier_hz: float) -> None:
+        """Change the carrier now (Hz) and wait for the device's ACK; DeviceError if it refuses or is gone."""
+        self.profile.check_carrier(carrier_hz)
+        if self.device is not None and not self.device.carrier_min_hz <= carrier_hz <= self.device.carrier_max_hz:
+            raise DeviceError(f"{self.port}: carrier {carrier_hz:g} Hz is outside what the plate driver accepts, "
+                              f"{self.device.carrier_min_hz:g}-{self.device.carrier_max_hz:g} Hz")
+        self.carrier_hz = float(carrier_hz)
+        try:
+            self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
+        except (serial.SerialException, OSError) as error:
+            raise DeviceError(f"{self.port}: lost while setting the carrier ({error})") from None
+        self.counters.carrier_changes += 1
+
+    def _follow_tracker(self) -> None:
+        """Send the tracker's carrier if it moved (writer thread; the ACK is not waited for)."""
+        wanted = self.tracker.carrier_hz
+        if wanted != self.carrier_hz:
+            self.carrier_hz = wanted
+            self._send(p.SET_CARRIER, p.carrier_payload(wanted))
+            self.counters.carrier_changes += 1
 
     # ---- connection ------------------------------------------------------------------------------
     def _connect(self) -> None:
@@ -314,7 +376,14 @@ class SerialPlate:
                                 self.counters.errors.append(str(error))
                     continue
                 fractions = np.asarray(values, dtype=float) / self.profile.full_scale_um_pp
+                if self.tracker is not None:
+                    played = float(np.clip(fractions, 0.0, 1.0).sum()) * self.profile.full_scale_um_pp
+                    with self._drive_lock:
+                        self._drive_sum_um_pp += played
+                        self._drive_count += len(fractions)
                 try:
+                    if self.tracker is not None:
+                        self._follow_tracker()
                     if self._clear_pending:  # latched faults seen in telemetry (already counted): clear them
                         mask, self._clear_pending = self._clear_pending, 0
                         self._send(p.CLEAR_FAULTS, p.clear_faults_payload(mask))
@@ -356,7 +425,8 @@ class SerialPlate:
             "device": f"serial:{self.port}", "connected": self._connected.is_set(),
             "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
             "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
-            "naks_received": c.naks, "send_stalls": c.send_stalls,
+            "naks_received": c.naks, "send_stalls": c.send_stalls, "carrier_hz": round(self.carrier_hz, 2),
+            "carrier_changes": c.carrier_changes,
             "measured_um_pp": None if t is None else t.measured_um_pp,
             "device_frames_ok": None if t is None else t.frames_ok,
             "device_crc_errors": None if t is None else t.crc_errors,

@@ -107,12 +107,12 @@ class SimPlate:
 
     signal = "control"
 
-    def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None):
+    def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None, tracker=None):
         from ultraglide.devices.plate_sim import PtyPlate
         from ultraglide.devices.serial_plate import SerialPlate
 
         self.plate = PtyPlate(profile).start()
-        self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz)
+        self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz, tracker=tracker)
         self.rate_hz = control_rate_hz
 
     @property
@@ -139,16 +139,32 @@ class SimPlate:
         return {**self.driver.status(), "device": "sim", "pty": self.plate.pty_name}
 
 
-def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None):
-    """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks."""
+def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
+                track_resonance: bool = False):
+    """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks.
+
+    ``track_resonance``: a plate driver (sim, serial) follows its plate's drifting resonance from
+    telemetry, starting from ``carrier_hz`` or the profile's; other devices report no amplitude, so
+    asking them is a DeviceError."""
     spec = parse_device_url(url)
     carrier = carrier_hz or profile.resonance_hz
+    tracker = None
+    if track_resonance:
+        if spec.kind not in ("sim", "serial"):
+            raise DeviceError(f"{spec.kind} reports no measured amplitude, so it cannot track the resonance; "
+                              "use a plate driver (sim or serial:PORT) or leave out resonance tracking")
+        from ultraglide.devices.resonance import ResonanceTracker
+
+        profile.check_carrier(carrier)
+        tracker = ResonanceTracker(carrier, profile.q, profile.max_amplitude_um_pp, profile.carrier_min_hz,
+                                   profile.carrier_max_hz)
     if spec.kind == "sim":
-        return SimPlate(profile, control_rate_hz, carrier_hz)
+        return SimPlate(profile, control_rate_hz, carrier_hz, tracker)
     if spec.kind == "serial":
         from ultraglide.devices.serial_plate import SerialPlate
 
-        return SerialPlate(spec.target, profile, control_rate_hz, carrier_hz, baudrate=spec.options.get("baud", 921600))
+        return SerialPlate(spec.target, profile, control_rate_hz, carrier_hz, baudrate=spec.options.get("baud", 921600),
+                           tracker=tracker)
     if spec.kind == "audio":
         from ultraglide.devices.audio import AudioPlate
 

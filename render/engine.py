@@ -72,6 +72,7 @@ class EngineConfig:
     start_paused: bool = False
     realtime_priority: bool = True
     probe_plate: bool = False
+    track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (devices/resonance.py)
 
 
 @dataclass(frozen=True)

@@ -230,7 +230,7 @@ def _load(config):
     model = load_model(config.model)
     profile = load_profile(config.profile)
     device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
-                         carrier_hz=config.carrier_hz)
+                         carrier_hz=config.carrier_hz, track_resonance=config.track_resonance)
     return texture, model, profile, device
 
 

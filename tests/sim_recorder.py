@@ -1,0 +1,45 @@
+"""The simulated plate in its own process, recording its own amplitude: for tests that judge what a plate
+delivered by the plate's account rather than the host's.
+
+    python tests/sim_recorder.py LINK RESONANCE_HZ Q DRIFT_HZ_PER_S RECORD.json
+
+Serves ``PtyPlate`` (sim-plate profile, the given physical truth) at LINK, prints ``ready`` once the
+link exists (with the perf_counter time its clock counts from), samples the simulator's amplitude
+every 5 ms until SIGTERM, then writes
+``{"record": [[t_s, amplitude_um_pp, resonance_hz, drive_um_pp], ...], "events": [...]}`` to RECORD.json,
+where drive_um_pp is the setpoint the plate was playing (its amplitude at resonance, once settled).
+"""
+
+import json
+import signal
+import sys
+import threading
+
+from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+from ultraglide.devices.profiles import load_profile
+
+
+def main() -> None:
+    link, resonance_hz, q, drift, output = sys.argv[1:6]
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    profile = load_profile("sim-plate")
+    plate = PtyPlate(profile, link, PlateTruth(float(resonance_hz), float(q), float(drift))).start()
+    sim = plate.simulator
+    record, events = [], []
+    print(f"ready {sim._started!r}", flush=True)  # perf_counter is the system's monotonic clock: comparable
+    while not done.wait(0.005):
+        now = sim.elapsed_s()
+        drive = sim._last_value * sim._watchdog_gain * profile.full_scale_um_pp if sim.enabled else 0.0
+        record.append((now, sim.amplitude_um_pp, sim.truth.resonance_at(now), drive))
+        while not sim.events.empty():
+            events.append(sim.events.get())
+    plate.stop()
+    while not sim.events.empty():
+        events.append(sim.events.get())
+    with open(output, "w") as stream:
+        json.dump({"record": record, "events": events}, stream)
+
+
+if __name__ == "__main__":
+    main()
