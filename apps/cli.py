@@ -35,7 +35,9 @@ from ultraglide.apps.cli_types import (
     SCREEN_WIDTH_MM,
     SEAM_BAND,
     SEED,
+    SENSITIVITY,
     STEPS,
+    SWEEP_STEPS,
     TEXTURE_SIDE_MM,
     UNIT_INTERVAL,
     WEIGHT,
@@ -218,14 +220,14 @@ def _add_plate_commands(commands) -> None:
     sweep.add_argument("--sensor", metavar="audio:NAME",
                        help="for an audio output: the input wired to a vibration sensor (one pass over the "
                             "grid, 0.1 s a carrier, amplitude by a single-bin DFT)")
-    sweep.add_argument("--sensor-um-per-unit", type=positive, metavar="K",
+    sweep.add_argument("--sensor-um-per-unit", type=SENSITIVITY, metavar="K",
                        help="the sensor's sensitivity: µm p-p of vibration per unit of input amplitude (peak, "
                             "full scale 1); without it an audio sweep keeps the profile's full scale")
     sweep.add_argument("--profile", default="sim-plate",
                        help="the plate's present profile: its range, limit and gain (default: sim-plate)")
-    sweep.add_argument("--from-hz", type=positive, metavar="A", help="lowest carrier, Hz (default: the profile's)")
-    sweep.add_argument("--to-hz", type=positive, metavar="B", help="highest carrier, Hz (default: the profile's)")
-    sweep.add_argument("--steps", type=int, default=41, metavar="N", help="coarse steps (default: 41)")
+    sweep.add_argument("--from-hz", type=CARRIER_HZ, metavar="A", help="lowest carrier, Hz (default: the profile's)")
+    sweep.add_argument("--to-hz", type=CARRIER_HZ, metavar="B", help="highest carrier, Hz (default: the profile's)")
+    sweep.add_argument("--steps", type=SWEEP_STEPS, default=41, metavar="N", help="coarse steps (default: 41)")
     sweep.add_argument("-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
     sweep.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
     sweep.add_argument("--json", action="store_true", help="print one JSON object")

@@ -104,6 +104,8 @@ HURST = Bounded(0.0, 1.0, low_open=True, high_open=True, what="Hurst exponent")
 SEAM_BAND = Bounded(0.0, 0.5, low_open=True)
 CLIP_PERCENT = Bounded(0.0, 50.0, "%", high_open=True)
 WEIGHT = Bounded(0.0, 1e6)
+SWEEP_STEPS = Bounded(5, 2_000, whole=True)  # carriers in a resonance sweep
+SENSITIVITY = Bounded(1e-6, 1e6, "µm p-p per unit")
 PARTICIPANT = Bounded(-1e9, 1e9)  # a number naming whose finger (the participant column)
 
 

@@ -340,13 +340,17 @@ RANGES = {
                                   "--widths-mm", "--spacing-mm")},
 }
 OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
-             (("texture", "new", "edge"), "--width-mm"): FEATURE}
+             (("texture", "new", "edge"), "--width-mm"): FEATURE,
+             (("plate", "sweep"), "--steps"): (5, 2000, False, True, False),
+             (("plate", "sweep"), "--from-hz"): (1000, 200_000, False, False, False),
+             (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
+             (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False)}
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
          ("texture", "compose", "mask"): ["a", "m", "-o", "o.png"],
          ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
-         ("texture", "compose"): ["a", "b", "-o", "o.png"]}
+         ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"]}
 
 
 def range_of(words, flag):
