@@ -1,0 +1,154 @@
+"""Tests for mistakes the rest of the suite once let through (each was made on purpose, one at a time):
+integer WAVs at the wrong scale, a bundled texture gone, a slew limit the defaults never reach, a
+band-limited lookup one pyramid level too coarse, attack and release swapped."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+import soundfile
+from conftest import ROOT, run_cli
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.envelope import EnvelopeChain
+from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.textures import procedural
+from ultraglide.textures.library import library_entries
+from ultraglide.textures.sampling import Sampler
+
+# ---- integer exports carry the same samples as float ones, to within one step -----------------------
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fmt, bits", [("int16", 16), ("int24", 24)])
+def test_integer_export_samples_match_the_float_export(tmp_path, fmt, bits):
+    common = ("checkerboard-5mm", "--duration-s", "0.4", "--speed-mm-s", "150")
+    run_cli("export", *common, "-o", tmp_path / "f.wav", check=True)
+    run_cli("export", *common, "-o", tmp_path / "i.wav", "--format", fmt, check=True)
+    reference, _ = soundfile.read(tmp_path / "f.wav", dtype="float64")
+    integer, _ = soundfile.read(tmp_path / "i.wav", dtype="float64")  # libsndfile scales by 2**(bits-1)
+    assert len(integer) == len(reference)
+    assert np.max(np.abs(reference)) > 0.3  # a real signal, not silence that any scale would match
+    step = 2.0 ** -(bits - 1)
+    assert np.max(np.abs(integer - reference)) <= step  # rounding only: not half (or double) scale
+
+
+# ---- the bundled library is the one the documentation lists ---------------------------------------
+
+
+def _documented_library() -> list[str]:
+    table = (ROOT / "docs" / "textures.md").read_text(encoding="utf-8")
+    return re.findall(r"^\|[^|]*\| `([^`]+)` \|", table, flags=re.MULTILINE)
+
+
+def test_every_documented_texture_is_bundled_and_listed_by_the_command():
+    documented = _documented_library()
+    assert len(documented) >= 20  # the page's table was read (29 textures when this was written)
+    bundled = [entry.name for entry in library_entries()]
+    assert sorted(documented) == bundled
+    listed = run_cli("textures", check=True).stdout
+    missing = [name for name in documented if not re.search(rf"(^|\s){re.escape(name)}(\s|$)", listed, re.M)]
+    assert not missing, f"`ultraglide textures` does not list {missing}"
+    for name in documented:  # each thumbnail the page shows exists
+        assert (ROOT / "docs" / "textures" / f"{name}.png").is_file(), name
+
+
+# ---- the slew limit holds when it binds (the defaults never reach it) -------------------------------
+
+RATE = 12000.0
+
+
+def _chain(**overrides) -> EnvelopeChain:
+    settings = dict(rate_hz=RATE, attack_s=1 / RATE, release_s=1 / RATE, band_hz=5000.0, slew_um_per_ms=1.0,
+                    limit_um_pp=6.0, time_constant_s=0.0025, drive_max_um_pp=8.0, precompensate=False)
+    settings.update(overrides)
+    return EnvelopeChain(**settings)
+
+
+def test_slew_limit_bounds_every_step_and_is_reached():
+    chain = _chain()
+    target = np.concatenate([np.full(2400, 6.0), np.zeros(2400)])  # full scale up, then down
+    amplitude = chain.process(target, np.concatenate([np.ones(2400, bool), np.ones(2400, bool)])).amplitude_um_pp
+    steps = np.abs(np.diff(np.concatenate([[0.0], amplitude])))
+    bound = 1.0 * 1e3 / RATE  # 1 µm/ms at 12 kHz: 0.0833 µm a sample
+    assert steps.max() <= bound * (1 + 1e-9)
+    assert steps.max() == pytest.approx(bound, rel=1e-6)  # the first step from rest is exactly the bound
+    # a one-pole smoother with k = bound / limit: 63 % of the way after 1/k samples, not after a 5 kHz corner
+    k = bound / 6.0
+    reached = np.argmax(amplitude >= 6.0 * (1 - np.exp(-1.0)))
+    assert reached == pytest.approx(1 / k, abs=2)
+
+
+def test_renderer_applies_a_slew_limit_it_is_given():
+    texture = procedural.checkerboard(5.0, size_mm=(80, 50), ratio_range=(0.2, 1.0))
+    path = RecordedTrajectory([0.0, 0.5], [10.0, 60.0], [25.0, 25.0])  # 100 mm/s: an edge every 50 ms
+    slew = 2.0  # µm/ms; the defaults (30 µm/ms) leave the band limit in charge
+    settings = RenderSettings(slew_um_per_ms=slew, precompensate=False)
+    renderer = Renderer(texture, ExponentialModel(), load_profile("sim-plate"), settings, trajectory=path)
+    amplitude = renderer.control(6000).amplitude_um_pp
+    steps = np.abs(np.diff(amplitude))
+    assert steps.max() <= slew * 1e3 / settings.control_rate_hz * (1 + 1e-9)
+    assert steps.max() > 0.9 * slew * 1e3 / settings.control_rate_hz  # the edges do push it to the bound
+
+
+# ---- the band-limited lookup reads the level the step asks for --------------------------------------
+
+
+def _swing(sampler, step_px, pixel_mm, samples=4000):
+    x = 0.37 * pixel_mm + np.arange(samples) * step_px * pixel_mm
+    y = np.full_like(x, 20.0)
+    values = sampler.ratio(x, y, step_mm=step_px * pixel_mm)
+    return (values.max() - values.min()) / 2
+
+
+@pytest.mark.parametrize("step_px, smallest", [(0.25, 0.999), (1.0, 0.999), (2.0, 0.85)])
+def test_band_limited_lookup_keeps_what_the_step_can_follow(step_px, smallest):
+    # a sine grating of 16 pixels a period. A step of one pixel or less reads full resolution; a
+    # step of two pixels reads level 1, whose Gaussian (sigma 1 pixel) keeps exp(-2 pi^2 / 16^2) = 0.93
+    # of the swing; one level coarser would keep about 0.7 (sigma 2 pixels more at level 2).
+    texture = procedural.grating(2.0, size_mm=(64.0, 40.0), px_per_mm=8.0, ratio_range=(0.0, 1.0))
+    pixel_mm = texture.pixel_mm[0]
+    assert pixel_mm == pytest.approx(0.125)
+    swing = _swing(Sampler(texture), step_px, pixel_mm)
+    assert swing >= 0.5 * smallest
+    if step_px == 2.0:
+        assert swing == pytest.approx(0.5 * np.exp(-2 * np.pi ** 2 / 16 ** 2), abs=0.03)
+
+
+# ---- attack and release: each takes its own time --------------------------------------------------
+
+
+def _ramp_lengths(attack_s, release_s):
+    chain = _chain(attack_s=attack_s, release_s=release_s, band_hz=1e9, slew_um_per_ms=1e9)
+    gate = np.concatenate([np.ones(1200, bool), np.zeros(1200, bool)])
+    amplitude = chain.process(np.full(2400, 4.0), gate).amplitude_um_pp
+    rising = np.flatnonzero(amplitude[:1200] >= 4.0 - 1e-9)[0] + 1  # samples to full
+    falling = np.flatnonzero(amplitude[1200:] <= 1e-9)[0] + 1  # samples to rest
+    return rising, falling
+
+
+def test_attack_opens_and_release_closes_in_their_own_times():
+    rising, falling = _ramp_lengths(attack_s=0.002, release_s=0.007)
+    assert rising == pytest.approx(0.002 * RATE, abs=1)
+    assert falling == pytest.approx(0.007 * RATE, abs=1)
+    rising, falling = _ramp_lengths(attack_s=0.008, release_s=0.001)
+    assert rising == pytest.approx(0.008 * RATE, abs=1)
+    assert falling == pytest.approx(0.001 * RATE, abs=1)
+
+
+def test_renderer_passes_attack_and_release_through():
+    texture = procedural.grating(2.0, size_mm=(80, 50), ratio_range=(0.5, 0.5))  # uniform: 0.5 everywhere
+    path = RecordedTrajectory([0.0, 0.3], [10.0, 40.0], [25.0, 25.0])
+    settings = RenderSettings(attack_s=0.003, release_s=0.012, band_hz=5000.0, slew_um_per_ms=1000.0,
+                              precompensate=False)
+    renderer = Renderer(texture, ExponentialModel(), load_profile("sim-plate"), settings, trajectory=path)
+    amplitude = renderer.control(int(0.4 * RATE)).amplitude_um_pp
+    full = amplitude[int(0.2 * RATE)]
+    assert full == pytest.approx(ExponentialModel().amplitude_um_pp(0.5).amplitude_um_pp, rel=1e-3)
+    rise = np.flatnonzero(amplitude >= 0.95 * full)[0] / RATE
+    lifted = np.flatnonzero(amplitude[int(0.3 * RATE):] <= 0.05 * full)[0] / RATE
+    assert rise == pytest.approx(0.95 * 0.003, abs=0.0006)  # the gate's linear ramp, a little smoothed
+    assert lifted == pytest.approx(0.95 * 0.012, abs=0.0006)
