@@ -1,10 +1,9 @@
 """A custom device: anything with ``signal``, ``rate_hz``, ``start(source)``, ``stop()`` and ``status()``.
 
-This one pulls the drive envelope (µm peak-to-peak at the control rate, as a plate driver making its
-own carrier would) on its own thread and logs it to CSV. Run: python examples/custom_device.py
+This one takes the drive envelope (µm peak-to-peak at 12 kHz, as a plate driver that makes its own
+carrier would), puts it behind the drive limiter as every device does, and logs it to CSV.
+Run: python examples/custom_device.py
 """
-
-import threading
 
 import numpy as np
 
@@ -12,34 +11,28 @@ import ultraglide
 
 
 class CsvPlate:
-    signal, rate_hz, block = "control", 12000, 120               # 10 ms blocks of envelope at 12 kHz
+    signal, rate_hz = "control", 12000
 
-    def __init__(self, path):
-        self.stream, self.pulled = open(path, "w"), 0
-        self.stream.write("drive_um_pp\n")
+    def __init__(self, path, profile):
+        self.path, self.profile, self.samples = path, profile, []
 
-    def start(self, source):
-        self.thread = threading.Thread(target=self._run, args=(source,))
-        self.thread.start()
-
-    def _run(self, source):                                       # faster than real time: an offline path
-        while not source.finished:
-            np.savetxt(self.stream, source.pull(self.block, None), fmt="%.5f")
-            self.pulled += self.block
+    def start(self, source):  # a real device would pull from its own thread, at the plate's pace
+        stage = ultraglide.output_stage(source, self.profile, self.signal, self.rate_hz)
+        while not stage.finished:
+            self.samples.append(stage.pull(120, None))              # 10 ms blocks
 
     def stop(self):
-        self.thread.join()
-        self.stream.close()
+        np.savetxt(self.path, np.concatenate(self.samples), fmt="%.5f", header="drive_um_pp", comments="")
 
     def status(self):
-        return {"device": "csv", "samples": self.pulled}
+        return {"device": "csv", "samples": sum(map(len, self.samples))}
 
 
-texture = ultraglide.resolve_texture("dots")
+profile = ultraglide.load_profile("sim-plate")
 swipe = ultraglide.SwipePath("straight", speed_mm_s=80.0, duration_s=0.5, start_mm=(10.0, 24.0))
-renderer = ultraglide.Renderer(texture, ultraglide.ExponentialModel(), ultraglide.load_profile("sim-plate"),
+renderer = ultraglide.Renderer(ultraglide.resolve_texture("dots"), ultraglide.ExponentialModel(), profile,
                                trajectory=swipe)
-device = CsvPlate("envelope.csv")
-device.start(ultraglide.renderer_source(device, renderer))
+device = CsvPlate("envelope.csv", profile)
+device.start(ultraglide.EnvelopeSource(renderer))
 device.stop()
 print(device.status())

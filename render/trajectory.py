@@ -19,6 +19,7 @@ from collections import deque
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 from ultraglide.render.errors import RenderError
 
@@ -71,7 +72,7 @@ class RecordedTrajectory:
     MARGIN = 2  # records kept either side of the instants asked for
     PIECE_ROWS = 1 << 15  # records interpolated at once, at most (plus margins)
 
-    def __init__(self, t_s, x_mm, y_mm, force_n=None):
+    def __init__(self, t_s: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, force_n: ArrayLike | None = None) -> None:
         t = np.asarray(t_s, dtype=float)
         x = np.asarray(x_mm, dtype=float)
         y = np.asarray(y_mm, dtype=float)
@@ -174,7 +175,8 @@ class RecordedTrajectory:
             self._extend(high)
         return min(int(np.searchsorted(self._t, high, side="left")) + 1 + self.MARGIN, len(self._t))
 
-    def state(self, times_s) -> FingerState:
+    def state(self, times_s: ArrayLike) -> FingerState:
+        """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged)."""
         requested = np.asarray(times_s, dtype=float)
         times = np.clip(requested, self.start_s, self.end_s)
         down = (requested >= self.start_s) & (requested <= self.end_s)

@@ -29,12 +29,28 @@ def test_every_public_name_resolves_and_is_documented():
     assert set(dir(ultraglide)) >= set(ultraglide.__all__)
 
 
-def test_public_functions_have_type_hints():
+def _public_callables():
     for name in ultraglide.__all__:
         value = getattr(ultraglide, name)
         if inspect.isfunction(value):
-            hints = inspect.signature(value)
-            assert hints.return_annotation is not inspect.Signature.empty, f"ultraglide.{name} has no return type"
+            yield name, value
+        elif inspect.isclass(value) and value.__module__.startswith("ultraglide."):
+            for member, function in vars(value).items():
+                if inspect.isfunction(function) and not member.startswith("_"):
+                    yield f"{name}.{member}", function
+
+
+def test_public_functions_have_type_hints_and_docstrings():
+    missing = []
+    for name, function in _public_callables():
+        signature = inspect.signature(function)
+        unannotated = [p for p, parameter in signature.parameters.items()
+                       if p not in ("self", "cls") and parameter.annotation is inspect.Parameter.empty]
+        if unannotated or signature.return_annotation is inspect.Signature.empty:
+            missing.append(f"{name}: {unannotated or 'return'}")
+        if not inspect.getdoc(function):
+            missing.append(f"{name}: docstring")
+    assert not missing, missing
 
 
 def test_unknown_names_raise_attribute_error():

@@ -65,6 +65,7 @@ _EXPORTS: dict[str, str] = {
     "load_profile": "ultraglide.devices.profiles",
     "open_device": "ultraglide.devices.urls",
     "BlockSource": "ultraglide.devices.source",
+    "Device": "ultraglide.devices.source",
     "OutputStage": "ultraglide.devices.output_stage",
     "output_stage": "ultraglide.devices.output_stage",
     "DeviceError": "ultraglide.devices.errors",
@@ -97,7 +98,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.output_stage import OutputStage, output_stage
     from ultraglide.devices.profiles import PlateProfile, load_profile
-    from ultraglide.devices.source import BlockSource
+    from ultraglide.devices.source import BlockSource, Device
     from ultraglide.devices.urls import open_device
     from ultraglide.render.calibration import calibration_toml, compare_models, fit_model, load_model, read_calibration
     from ultraglide.render.errors import ModelError, RenderError

@@ -29,6 +29,7 @@ import soundfile
 
 from ultraglide.devices.output_stage import OutputStage, output_stage
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.source import Device
 from ultraglide.render.calibration import load_model
 from ultraglide.render.errors import RenderError
 from ultraglide.render.friction_models import FrictionModel
@@ -107,7 +108,7 @@ class EnvelopeSource:
         return self.renderer.finished
 
 
-def renderer_source(device, renderer: Renderer) -> OutputStage:
+def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
     """What to ``device.start()`` with so that it plays ``renderer``: the renderer behind the drive limiter,
     as the signal the device wants (``device.signal``, ``device.rate_hz``). Starting the device with an
     :class:`EnvelopeSource` does the same; built here, the caller can read the limiter's counters."""
