@@ -101,7 +101,7 @@ def test_renderer_applies_a_slew_limit_it_is_given():
 # ---- the band-limited lookup reads the level the step asks for --------------------------------------
 
 
-def _gain(step_px: float) -> float:
+def _gain(step_px: float, per_sample: bool = False) -> float:
     """How much of a 16-pixel sine grating's swing the band-limited lookup keeps at this step,
     against the plain bilinear lookup at the same points (projection on the grating's frequency)."""
     texture = procedural.grating(2.0, size_mm=(64.0, 40.0), px_per_mm=8.0, ratio_range=(0.0, 1.0))
@@ -109,23 +109,26 @@ def _gain(step_px: float) -> float:
     assert pixel_mm == pytest.approx(0.125)
     x = 0.37 * pixel_mm + np.arange(4000) * step_px * pixel_mm
     y = np.full_like(x, 20.0)
-    limited = Sampler(texture).ratio(x, y, step_mm=step_px * pixel_mm)
+    step_mm = np.full_like(x, step_px * pixel_mm) if per_sample else step_px * pixel_mm
+    limited = Sampler(texture).ratio(x, y, step_mm=step_mm)
     plain = Sampler(texture, band_limited=False).ratio(x, y)
     tone = np.exp(-2j * np.pi * x / 2.0)
     return abs(np.mean((limited - limited.mean()) * tone)) / abs(np.mean((plain - plain.mean()) * tone))
 
 
+@pytest.mark.parametrize("per_sample", [False, True], ids=["one-step", "step-per-sample"])
 @pytest.mark.parametrize("step_px", [0.25, 1.0])
-def test_band_limited_lookup_reads_full_resolution_while_the_step_is_a_pixel_or_less(step_px):
-    assert _gain(step_px) == pytest.approx(1.0, abs=1e-6)
+def test_band_limited_lookup_reads_full_resolution_while_the_step_is_a_pixel_or_less(step_px, per_sample):
+    assert _gain(step_px, per_sample) == pytest.approx(1.0, abs=1e-6)
 
 
-def test_band_limited_lookup_reads_the_level_the_step_asks_for():
+@pytest.mark.parametrize("per_sample", [False, True], ids=["one-step", "step-per-sample"])
+def test_band_limited_lookup_reads_the_level_the_step_asks_for(per_sample):
     # a step of two pixels reads pyramid level 1: a Gaussian of sigma 1 pixel keeps exp(-2 pi^2 / 16^2)
     # of a 16-pixel period, the 2:1 linear decimation cos(pi / 16), and linear interpolation between
     # level-1 pixels (8 a period) sinc^2(1/8) on average. One level coarser keeps about 0.5.
     expected = np.exp(-2 * np.pi ** 2 / 16 ** 2) * np.cos(np.pi / 16) * np.sinc(1 / 8) ** 2
-    assert _gain(2.0) == pytest.approx(expected, abs=0.03)
+    assert _gain(2.0, per_sample) == pytest.approx(expected, abs=0.03)
 
 
 # ---- attack and release: each takes its own time --------------------------------------------------
