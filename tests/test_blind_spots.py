@@ -14,7 +14,7 @@ from ultraglide.devices.profiles import load_profile
 from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
-from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
 from ultraglide.textures import procedural
 from ultraglide.textures.library import library_entries
 from ultraglide.textures.sampling import Sampler
@@ -165,3 +165,64 @@ def test_renderer_passes_attack_and_release_through():
     lifted = np.flatnonzero(amplitude[int(0.3 * RATE):] <= 0.05 * full)[0] / RATE
     assert rise == pytest.approx(0.95 * 0.003, abs=0.0006)  # the gate's linear ramp, a little smoothed
     assert lifted == pytest.approx(0.95 * 0.012, abs=0.0006)
+
+
+# ---- export options through the command (each was tested only in the library, or not at all) ----------
+
+
+def _export_envelope(tmp_path, *options):
+    csv = tmp_path / "env.csv"
+    run_cli("export", "grating-2mm", "-o", tmp_path / "out.wav", "--duration-s", "0.5", "--envelope-csv", csv,
+            *options, check=True)
+    return np.genfromtxt(csv, delimiter=",", names=True)
+
+
+@pytest.mark.slow
+def test_export_no_precompensation_drives_the_amplitude_itself(tmp_path):
+    plain = _export_envelope(tmp_path, "--no-precompensation")
+    np.testing.assert_allclose(plain["drive_um_pp"], plain["amplitude_um_pp"], atol=1e-5)
+    compensated = _export_envelope(tmp_path)
+    # pre-compensated, the drive leads the plate: it differs from the amplitude wherever the texture moves
+    assert np.max(np.abs(compensated["drive_um_pp"] - compensated["amplitude_um_pp"])) > 0.1
+
+
+@pytest.mark.slow
+def test_export_swipe_geometry_options(tmp_path):
+    down = _export_envelope(tmp_path, "--direction-deg", "90", "--start", "20,5", "--speed-mm-s", "60")
+    touching = down["down"] > 0
+    t = down["t_s"][touching] - down["t_s"][touching][0]
+    np.testing.assert_allclose(down["x_mm"][touching], 20.0, atol=1e-6)  # 90°: straight down the screen
+    np.testing.assert_allclose(down["y_mm"][touching], 5.0 + 60.0 * t, atol=0.02)
+
+    circle = _export_envelope(tmp_path, "--path", "circle", "--radius-mm", "7", "--start", "30,25")
+    touching = circle["down"] > 0
+    radius = np.hypot(circle["x_mm"][touching] - 37.0, circle["y_mm"][touching] - 25.0)  # starts on its left
+    np.testing.assert_allclose(radius, 7.0, atol=0.01)
+
+    zigzag = _export_envelope(tmp_path, "--path", "zigzag", "--zigzag-width-mm", "12", "--start", "10,10",
+                              "--speed-mm-s", "100")
+    touching = zigzag["down"] > 0
+    assert zigzag["x_mm"][touching].min() == pytest.approx(10.0, abs=0.01)
+    assert zigzag["x_mm"][touching].max() == pytest.approx(22.0, abs=0.01)  # passes of 12 mm
+
+
+# ---- live prediction: the speed cap and the merging of near-simultaneous reports (defaults never reach them)
+
+
+@pytest.mark.parametrize("predictor", ["linear", "lsq"])
+def test_a_glitch_faster_than_any_finger_is_capped_at_3_m_per_s(predictor):
+    track = LiveTrajectory(predictor)
+    track.push(0.0, 10.0, 20.0)
+    track.push(0.010, 60.0, 20.0 + 50.0 * np.tan(np.radians(30)))  # 5.8 m/s at 30° below the x axis
+    vx, vy = track.state(np.array([0.010, 0.011])).velocity_mm_s
+    assert np.hypot(vx, vy) == pytest.approx(3000.0, rel=1e-9)
+    assert np.degrees(np.arctan2(vy, vx)) == pytest.approx(30.0, abs=1e-9)  # capped, not turned
+
+
+def test_reports_within_2_ms_are_one_instant_and_the_newest_stands():
+    track = LiveTrajectory("linear")
+    track.push(0.0, 0.0, 0.0)
+    track.push(0.010, 1.0, 0.0)
+    track.push(0.0115, 5.0, 0.0)  # 1.5 ms later: queued with the one before, read in one go
+    vx, _ = track.state(np.array([0.0115, 0.012])).velocity_mm_s
+    assert vx == pytest.approx(5.0 / 0.0115, rel=1e-9)  # through the first report and the newest
