@@ -2,7 +2,7 @@
 # Mutation testing of the signal path with mutmut (a periodic check, not run in CI).
 #   scripts/mutation.sh [FILE ...]     default: the envelope, renderer, drive limiter and texture sampling
 # Works on a copy of the repository in a temporary directory (mutmut 2 edits files in place), with the
-# namespace laid out as one tree there so that the tests import the mutated copy; prints mutmut's
+# namespace laid out as one tree there (links in the copy's ultraglide/) so that the tests import the mutated copy; prints mutmut's
 # results and the score (killed / total). Needs .venv (./run tests) and installs mutmut 2 into it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,14 +15,14 @@ tests=${MUTATION_TESTS:-"tests/test_renderer.py tests/test_blind_spots.py tests/
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 git ls-files -z | xargs -0 cp --parents -t "$work"
-mkdir -p "$work/.ns/ultraglide"
-cp "$work"/ultraglide/*.py "$work/.ns/ultraglide/"
-for folder in render textures devices apps; do ln -s "$work/$folder" "$work/.ns/ultraglide/$folder"; done
+for folder in render textures devices apps; do ln -s "$work/$folder" "$work/ultraglide/$folder"; done
 cd "$work"
-export PYTHONPATH="$work/.ns"   # found before the editable install's finder: the tests import this copy
+export PYTHONPATH="$work"   # the copy's ultraglide/, now holding the whole namespace, comes before the editable install
 export NUMBA_CACHE_DIR="$work/.numba-cache"
 runner="$root/.venv/bin/python -m pytest -x -q -p no:cacheprovider -m 'not slow' $tests"
 paths=$(IFS=,; echo "${files[*]}")
+"$root/.venv/bin/python" -c 'import ultraglide.render.envelope as m, sys; sys.exit(not m.__file__.startswith(sys.argv[1]))' "$work" \
+    || { echo "mutation.sh: the tests would import the original tree, not the copy" >&2; exit 1; }
 "$root/.venv/bin/mutmut" run --paths-to-mutate "$paths" --runner "$runner" --tests-dir tests --no-progress || true
 "$root/.venv/bin/mutmut" results || true
 "$root/.venv/bin/python" - <<'PY'
