@@ -60,6 +60,11 @@ _EXPORTS: dict[str, str] = {
     "SwipePath": "ultraglide.render.paths",
     "read_touch_log": "ultraglide.render.touch_log",
     "RenderError": "ultraglide.render.errors",
+    # the real-time engine: renderer and device in their own process, fed touches
+    "Engine": "ultraglide.render.engine",
+    "EngineConfig": "ultraglide.render.engine",
+    "EngineStatus": "ultraglide.render.engine",
+    "EngineError": "ultraglide.render.engine",
     # devices
     "PlateProfile": "ultraglide.devices.profiles",
     "load_profile": "ultraglide.devices.profiles",
@@ -101,6 +106,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from ultraglide.devices.source import BlockSource, Device
     from ultraglide.devices.urls import open_device
     from ultraglide.render.calibration import calibration_toml, compare_models, fit_model, load_model, read_calibration
+    from ultraglide.render.engine import Engine, EngineConfig, EngineError, EngineStatus
     from ultraglide.render.errors import ModelError, RenderError
     from ultraglide.render.friction_models import (
         ExponentialModel,
