@@ -12,6 +12,7 @@ import soundfile
 from conftest import ROOT, run_cli
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.envelope import EnvelopeChain
+from ultraglide.render.errors import RenderError
 from ultraglide.render.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
@@ -226,3 +227,27 @@ def test_reports_within_2_ms_are_one_instant_and_the_newest_stands():
     track.push(0.0115, 5.0, 0.0)  # 1.5 ms later: queued with the one before, read in one go
     vx, _ = track.state(np.array([0.0115, 0.012])).velocity_mm_s
     assert vx == pytest.approx(5.0 / 0.0115, rel=1e-9)  # through the first report and the newest
+
+
+# ---- mutants that survived the suite (scripts/mutation.sh), killed --------------------------------------
+
+
+@pytest.mark.parametrize("attack_s, release_s", [(0.0, 0.01), (0.005, 0.0), (-0.001, 0.01), (0.005, -0.001)])
+def test_a_ramp_of_no_length_is_refused_alone(attack_s, release_s):
+    with pytest.raises(RenderError, match="attack and release must be longer than 0 s"):
+        _chain(attack_s=attack_s, release_s=release_s)
+
+
+@pytest.mark.parametrize("band_hz, slew", [(0.0, 30.0), (1000.0, 0.0), (-1.0, 30.0), (1000.0, -1.0)])
+def test_a_band_or_slew_limit_of_zero_is_refused_alone(band_hz, slew):
+    with pytest.raises(RenderError, match="band and slew limits must be positive"):
+        _chain(band_hz=band_hz, slew_um_per_ms=slew)
+
+
+def test_the_envelope_pre_compensates_unless_told_not_to():
+    settings = dict(rate_hz=RATE, attack_s=1 / RATE, release_s=0.01, band_hz=1e9, slew_um_per_ms=1e9,
+                    limit_um_pp=6.0, time_constant_s=0.0025, drive_max_um_pp=8.0)
+    block = EnvelopeChain(**settings).process(np.full(10, 3.0), True)
+    # a step to 3 µm drives the plate's inverse first: d = (y - alpha a) / (1 - alpha), clipped at 8 µm
+    alpha = np.exp(-1 / (RATE * 0.0025))
+    assert block.drive_um_pp[0] == pytest.approx(min(3.0 / (1 - alpha), 8.0))
