@@ -17,16 +17,15 @@ Example, a 1 mm grating swiped at 100 mm/s for half a second::
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import soundfile
 
+from ultraglide.devices.atomic_file import AtomicFile, write_failure
 from ultraglide.devices.output_stage import OutputStage, output_stage
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.source import Device
@@ -146,22 +145,6 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
     return frames / rate
 
 
-@contextlib.contextmanager
-def _replaced_on_success(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path``, renamed to it if the block succeeds (no partial file)."""
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(handle)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(temporary, 0o666 & ~umask)
-    try:
-        yield Path(temporary)
-        os.replace(temporary, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
-
-
 def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
                trajectory: RecordedTrajectory | SwipePath | None = None, *,
                model: FrictionModel | str = "exponential", profile: PlateProfile | str = "sim-plate",
@@ -193,8 +176,11 @@ def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
     renderer.observers.extend(observers)
     stage = offline_stage(renderer)
     frames = int(round(export_duration_s(renderer) * settings.audio_rate_hz))
-    with _replaced_on_success(path) as temporary:
-        written_s = write_wav(stage, temporary, frames, format)
+    with AtomicFile(path) as target:  # the one atomic writer: the file appears whole or not at all
+        try:
+            written_s = write_wav(stage, target.temporary, frames, format)
+        except soundfile.LibsndfileError as error:  # a full disk or a file too large: one line naming the file
+            raise write_failure(path, target.temporary, error) from None
     counters, limiter = renderer.counters, stage.limiter
     return ExportResult(path, written_s, settings.audio_rate_hz, format, renderer.carrier_hz,
                         counters.clipped_samples, counters.ramps, limiter.limited_fraction, limiter.worst_excess_um_pp)
