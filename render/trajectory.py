@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,6 +27,7 @@ from ultraglide.render.errors import RenderError
 PREDICTORS = ("lsq", "linear", "hold")
 MERGE_S = 0.002  # reports closer than this are one instant (events read from a queue in one go)
 MAX_SPEED_MM_S = 3000.0  # exploring fingers move at 40-200 mm/s; flicks reach about 1 m/s
+Chunk = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]  # t_s, x_mm, y_mm, force_n or None
 
 
 @dataclass(frozen=True)
@@ -101,7 +103,7 @@ class RecordedTrajectory:
         self._setup(lambda: iter([chunk]), float(t[0]), float(t[-1]), force is not None, span)
 
     @classmethod
-    def streaming(cls, open_chunks, start_s: float, end_s: float, has_force: bool,
+    def streaming(cls, open_chunks: Callable[[], Iterator[Chunk]], start_s: float, end_s: float, has_force: bool,
                   force_range_n: tuple[float, float] | None = None) -> RecordedTrajectory:
         """A trajectory read in chunks: ``open_chunks()`` returns a fresh iterator of
         ``(t_s, x_mm, y_mm, force_n or None)`` arrays, checked already (finite, time never going
@@ -124,7 +126,7 @@ class RecordedTrajectory:
         self._trimmed = False  # whether rows before the window were dropped
         self._t = self._x = self._y = self._f = np.zeros(0)
 
-    def chunks(self):
+    def chunks(self) -> Iterator[Chunk]:
         """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays."""
         return self._open_chunks()
 
