@@ -18,12 +18,11 @@ from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
-from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.atomic_file import write_failure
 from ultraglide.render.renderer import ControlBlock
 
-SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
-BLOCK_S = 1.0
+from ultraglide.api import WAV_SUBTYPES, export_duration_s, offline_stage, write_wav
+
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
                     "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
@@ -68,8 +67,8 @@ class EnvelopeLog:
 
 
 def run(args) -> int:
-    if args.format not in SUBTYPES:
-        raise UsageError(f"format must be one of {', '.join(SUBTYPES)}")
+    if args.format not in WAV_SUBTYPES:
+        raise UsageError(f"format must be one of {', '.join(WAV_SUBTYPES)}")
     output = Path(args.output)
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
@@ -77,9 +76,8 @@ def run(args) -> int:
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
     stage = offline_stage(renderer)
     rate = args.rate
-    duration_s = trajectory.end_s - trajectory.start_s + renderer.tail_s
+    duration_s = export_duration_s(renderer)
     total = int(round(duration_s * rate))
-    block = int(BLOCK_S * rate)
     control_total = math.ceil(total / renderer.settings.upsampling)
     with contextlib.ExitStack() as stack:  # the outputs are renamed into place only once all are complete
         wav_path = stack.enter_context(atomic_path(output))
@@ -94,18 +92,10 @@ def run(args) -> int:
             plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
             renderer.observers.append(plot)
         stage.observers.append(log.sent)
-        format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
         try:
-            with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
-                                     format=format_) as wav, \
-                    tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
-                         disable=None, leave=False) as progress:
-                done = 0
-                while done < total:
-                    frames = min(block, total - done)
-                    wav.write(stage.pull(frames, None))
-                    done += frames
-                    progress.update(frames)
+            with tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr, disable=None,
+                      leave=False) as progress:
+                write_wav(stage, wav_path, total, args.format, progress=progress.update)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
         if csv_stream:

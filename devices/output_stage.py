@@ -36,6 +36,7 @@ from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.limiter import DriveLimiter
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.source import BlockSource
 
 CONTROL_RATE_HZ = 12000.0  # an envelope source's rate unless it says otherwise
 SIGNALS = ("control", "audio")
@@ -44,7 +45,7 @@ SIGNALS = ("control", "audio")
 class OutputStage:
     """Limits an envelope source's drive and turns it into a device's signal (see the module docstring)."""
 
-    def __init__(self, source, profile: PlateProfile, signal: str, rate_hz: float | None = None,
+    def __init__(self, source: BlockSource, profile: PlateProfile, signal: str, rate_hz: float | None = None,
                  carrier_hz: float | None = None):
         if signal not in SIGNALS:
             raise DeviceError(f"a device's signal is control or audio, got {signal!r}")
@@ -117,6 +118,7 @@ class OutputStage:
         return out
 
     def request_stop(self) -> None:
+        """Ask the envelope source to ramp down to rest."""
         self.source.request_stop()
 
     @property
@@ -126,10 +128,11 @@ class OutputStage:
                 and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
 
     def status(self) -> dict:
+        """The limiter's counters: how often and how far it lowered the drive."""
         return self.limiter.status()
 
 
-def output_stage(source, profile: PlateProfile, signal: str, rate_hz: float,
+def output_stage(source: BlockSource, profile: PlateProfile, signal: str, rate_hz: float,
                  carrier_hz: float | None = None) -> OutputStage:
     """What every device's ``start(source)`` calls first: ``source`` behind the limiter, as this device's
     signal. A stage built for the same profile, signal and rates (by an app that wants its counters)

@@ -111,6 +111,7 @@ class PlateProfile:
         return 1.0 / (2.0 * math.pi * self.time_constant_s)
 
     def check_carrier(self, carrier_hz: float) -> None:
+        """DeviceError unless ``carrier_hz`` lies within the plate's carrier range."""
         if not self.carrier_min_hz <= carrier_hz <= self.carrier_max_hz:
             raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")

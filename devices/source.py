@@ -26,6 +26,26 @@ class BlockSource(Protocol):
         """True once the ramp down has reached rest."""
 
 
+class Device(Protocol):
+    """What every device offers (:func:`ultraglide.devices.urls.open_device` returns one; a device of
+    one's own needs only this). ``signal`` is ``"control"`` (drive envelope in µm p-p, for plate drivers
+    that make their own carrier) or ``"audio"`` (float32 samples in [-1, 1]); ``rate_hz`` the rate it
+    pulls at. ``start(source)`` begins pulling from an envelope source on the device's own thread, behind
+    its output stage; ``stop()`` ramps the source to rest, then rests the hardware."""
+
+    signal: str
+    rate_hz: float
+
+    def start(self, source: BlockSource) -> None:
+        """Begin pulling from ``source``."""
+
+    def stop(self) -> None:
+        """Ramp down through the source, then rest the hardware."""
+
+    def status(self) -> dict:
+        """Counters and state, as plain values."""
+
+
 STOP_TIMEOUT_S = 1.0  # a ramp down that has not reached rest by then is cut off
 
 

@@ -9,6 +9,7 @@ from urllib.parse import parse_qsl
 
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.source import Device
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
 USAGE = "use sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], wav:PATH[?rate=N] or null"
@@ -140,7 +141,7 @@ class SimPlate:
 
 
 def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
-                track_resonance: bool = False):
+                track_resonance: bool = False) -> Device:
     """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks.
 
     ``track_resonance``: a plate driver (sim, serial) follows its plate's drifting resonance from

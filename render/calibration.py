@@ -323,7 +323,7 @@ def cross_validation_errors(data: Measurements, kind: str) -> dict[str, float]:
     return errors
 
 
-def compare_models(data: Measurements, kinds=COMPARED_MODELS) -> list[Fit]:
+def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS) -> list[Fit]:
     """Every model fitted and cross-validated, best first (by leave-one-force-out RMS when the data
     hold several forces, else by k-fold RMS). Models that cannot be fitted to these data are left out."""
     fits = []

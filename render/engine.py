@@ -255,6 +255,7 @@ class Engine:
         self._command("texture", str(spec))
 
     def set_model(self, spec: str) -> None:
+        """Use another friction model (a name or a file, as ``--model``); EngineError if it cannot be loaded."""
         self._command("model", str(spec))
 
     def set_force(self, force_n: float) -> None:

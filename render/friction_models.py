@@ -25,6 +25,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 from ultraglide.render import kernels
 from ultraglide.render.errors import ModelError
@@ -124,7 +125,7 @@ class FrictionModel(ABC):
     max_amplitude_um_pp: float = CEILING_UM_PP
 
     @abstractmethod
-    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N) -> np.ndarray:
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         """Forward model: friction ratio at each amplitude (µm p-p) and force (N)."""
 
     @abstractmethod
@@ -150,7 +151,7 @@ class FrictionModel(ABC):
             self._floor_cache = cached
         return cached[1]
 
-    def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """Lowest ratio reachable at this force within the amplitude limit."""
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         return self.relative_friction(limit, force_n)
@@ -162,7 +163,7 @@ class FrictionModel(ABC):
                 and limit_um_pp >= 0)
 
     def amplitude_um_pp(
-        self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf
+        self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf
     ) -> Inversion:
         """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force."""
         if not limit_um_pp >= 0:
@@ -224,7 +225,7 @@ class PaperModel(FrictionModel):
         """Detachment amplitude (µm p-p) at each force, forces clipped to the models' range."""
         return detach_amplitude_um_pp(_clip_force(force_n), params)
 
-    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -233,7 +234,8 @@ class PaperModel(FrictionModel):
     def _amplitude_in_reach(self, ratio, force_n):
         return self._u_table(ratio) * self._detach_um_pp(force_n)
 
-    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf) -> Inversion:
         if not self._fast_path(ratio, force_n, limit_um_pp):
             return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
@@ -258,7 +260,7 @@ class PaperModel(FrictionModel):
             f"n = {p.friction_exponent:.3g}, A ∝ F^{p.area_exponent:.3g}, {p.contact} contact)"
         )
 
-    def parameters(self):
+    def parameters(self) -> dict[str, float | str]:
         p = self.params
         return {
             "youngs_modulus_pa": p.youngs_modulus_pa,
@@ -303,11 +305,11 @@ class StretchedExponentialModel(FrictionModel):
         self.shape = _in_range("shape", shape, SHAPE_RANGE)
         self.force_exponent = _in_range("force_exponent", force_exponent, FORCE_EXPONENT_RANGE)
 
-    def scale_at_um_pp(self, force_n):
+    def scale_at_um_pp(self, force_n: ArrayLike) -> np.ndarray | float:
         """s(F), µm p-p: the amplitude that brings friction to 1/e at this force."""
         return self.scale_um_pp * np.power(_clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
 
-    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -317,7 +319,8 @@ class StretchedExponentialModel(FrictionModel):
         depth = -np.log(np.asarray(ratio, dtype=float)) + 0.0  # +0.0: log(1) gives -0.0
         return self.scale_at_um_pp(force_n) * np.power(depth, 1.0 / self.shape)
 
-    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf) -> Inversion:
         if not self._fast_path(ratio, force_n, limit_um_pp):
             return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
@@ -338,7 +341,7 @@ class StretchedExponentialModel(FrictionModel):
         return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
                 f"{self.force_exponent:.3g}, beta = {self.shape:.3g}")
 
-    def parameters(self):
+    def parameters(self) -> dict[str, float | str]:
         return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent}
 
 
@@ -362,7 +365,7 @@ class ExponentialModel(StretchedExponentialModel):
     def describe(self) -> str:
         return f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
 
-    def parameters(self):
+    def parameters(self) -> dict[str, float | str]:
         return {"tau_um_zp": self.tau_um_zp}
 
 
@@ -432,7 +435,8 @@ class TableModel(FrictionModel):
             high[pick] = self._table(ratio[pick], int(row) + 1)
         return ((1.0 - weight) * low + weight * high).reshape(shape)
 
-    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> Inversion:
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf) -> Inversion:
         if not self._fast_path(ratio, force_n, limit_um_pp) or _is_scalar(force_n):
             return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
@@ -444,7 +448,7 @@ class TableModel(FrictionModel):
                                             table.slopes, self.forces, out)
         return Inversion(out, _kernel_result(code, ratio, force))
 
-    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         check_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -465,5 +469,5 @@ class TableModel(FrictionModel):
         forces = ", ".join(f"{f:g}" for f in self.forces)
         return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
 
-    def parameters(self):
+    def parameters(self) -> dict[str, float | str]:
         return {"source": self.source}

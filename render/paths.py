@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from ultraglide.render.errors import RenderError
 from ultraglide.render.trajectory import FingerState
 
@@ -46,7 +47,8 @@ class SwipePath:
     def end_s(self) -> float:
         return self.duration_s
 
-    def state(self, times_s) -> FingerState:
+    def state(self, times_s: ArrayLike) -> FingerState:
+        """Where the finger is at each time (s from the swipe's start), and whether it touches."""
         times = np.asarray(times_s, dtype=float)
         t = np.clip(times, 0.0, self.duration_s)
         distance = self.speed_mm_s * t

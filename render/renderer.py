@@ -196,6 +196,7 @@ class Renderer:
         self.texture, self.sampler = texture, sampler
 
     def set_model(self, model: FrictionModel) -> None:
+        """Use another friction model from the next block on."""
         self.model = model
 
     def set_default_force(self, force_n: float) -> None:

@@ -16,15 +16,18 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import PchipInterpolator
 from ultraglide.render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
 MERGE_S = 0.002  # reports closer than this are one instant (events read from a queue in one go)
 MAX_SPEED_MM_S = 3000.0  # exploring fingers move at 40-200 mm/s; flicks reach about 1 m/s
+Chunk = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]  # t_s, x_mm, y_mm, force_n or None
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,7 @@ class RecordedTrajectory:
     MARGIN = 2  # records kept either side of the instants asked for
     PIECE_ROWS = 1 << 15  # records interpolated at once, at most (plus margins)
 
-    def __init__(self, t_s, x_mm, y_mm, force_n=None):
+    def __init__(self, t_s: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, force_n: ArrayLike | None = None) -> None:
         t = np.asarray(t_s, dtype=float)
         x = np.asarray(x_mm, dtype=float)
         y = np.asarray(y_mm, dtype=float)
@@ -100,7 +103,7 @@ class RecordedTrajectory:
         self._setup(lambda: iter([chunk]), float(t[0]), float(t[-1]), force is not None, span)
 
     @classmethod
-    def streaming(cls, open_chunks, start_s: float, end_s: float, has_force: bool,
+    def streaming(cls, open_chunks: Callable[[], Iterator[Chunk]], start_s: float, end_s: float, has_force: bool,
                   force_range_n: tuple[float, float] | None = None) -> RecordedTrajectory:
         """A trajectory read in chunks: ``open_chunks()`` returns a fresh iterator of
         ``(t_s, x_mm, y_mm, force_n or None)`` arrays, checked already (finite, time never going
@@ -123,7 +126,7 @@ class RecordedTrajectory:
         self._trimmed = False  # whether rows before the window were dropped
         self._t = self._x = self._y = self._f = np.zeros(0)
 
-    def chunks(self):
+    def chunks(self) -> Iterator[Chunk]:
         """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays."""
         return self._open_chunks()
 
@@ -174,7 +177,8 @@ class RecordedTrajectory:
             self._extend(high)
         return min(int(np.searchsorted(self._t, high, side="left")) + 1 + self.MARGIN, len(self._t))
 
-    def state(self, times_s) -> FingerState:
+    def state(self, times_s: ArrayLike) -> FingerState:
+        """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged)."""
         requested = np.asarray(times_s, dtype=float)
         times = np.clip(requested, self.start_s, self.end_s)
         down = (requested >= self.start_s) & (requested <= self.end_s)

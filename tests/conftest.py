@@ -37,3 +37,37 @@ def assert_one_line_error(result):
 @pytest.fixture
 def cli():
     return run_cli
+
+
+# ---- slow tests ---------------------------------------------------------------------------------------
+# `-m "not slow"` is the quick loop. A test is slow when it says so (@pytest.mark.slow) or when it, or a
+# module-level helper it calls, starts a process (the command, a server, Xvfb): those take seconds each,
+# more on a loaded machine. Marked here from the source, so new test files need no bookkeeping.
+SLOW_WORDS = ("run_cli", "subprocess.", "Popen", "XvfbDemo", "cli(")
+
+
+def _starts_processes(function, module, seen=None) -> bool:
+    import inspect
+
+    seen = seen if seen is not None else set()
+    if function in seen:
+        return False
+    seen.add(function)
+    try:
+        source = inspect.getsource(function)
+    except (OSError, TypeError):
+        return False
+    if any(word in source for word in SLOW_WORDS):
+        return True
+    helpers = [getattr(module, name) for name in vars(module) if name in source and name != function.__name__]
+    return any(inspect.isfunction(h) and h.__module__ == module.__name__ and _starts_processes(h, module, seen)
+               for h in helpers)
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        function = getattr(item, "function", None)
+        if function is None or item.get_closest_marker("slow"):
+            continue
+        if "cli" in getattr(item, "fixturenames", ()) or _starts_processes(function, item.module):
+            item.add_marker(pytest.mark.slow)

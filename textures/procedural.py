@@ -21,6 +21,8 @@ from ultraglide.textures.texture import Texture
 
 DEFAULT_SIZE_MM = (80.0, 50.0)
 DEFAULT_RANGE = (0.4, 1.0)
+Size = tuple[float, float]  # width, height in mm
+Range = tuple[float, float]  # friction ratios, low and high
 MAX_PIXELS = 16_000_000
 FEATURE_PIXELS = 8
 
@@ -64,8 +66,8 @@ def _whole(period_mm: float, length_mm: float) -> tuple[int, float]:
     return count, length_mm / count
 
 
-def grating(wavelength_mm: float = 1.0, size_mm=DEFAULT_SIZE_MM, angle_deg: float = 0.0,
-            shape: str = "sine", ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None,
+def grating(wavelength_mm: float = 1.0, size_mm: Size = DEFAULT_SIZE_MM, angle_deg: float = 0.0,
+            shape: str = "sine", ratio_range: Range = DEFAULT_RANGE, px_per_mm: float | None = None,
             duty: float = 0.5, tile: bool = True) -> Texture:
     """Parallel ridges of one wavelength; ``angle_deg`` turns the direction across them.
 
@@ -102,7 +104,7 @@ def grating(wavelength_mm: float = 1.0, size_mm=DEFAULT_SIZE_MM, angle_deg: floa
                    shape=shape, duty=duty, tile_wavelength_mm=float(realised_mm), tile_angle_deg=realised_deg)
 
 
-def checkerboard(square_mm: float = 5.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
+def checkerboard(square_mm: float = 5.0, size_mm: Size = DEFAULT_SIZE_MM, ratio_range: Range = DEFAULT_RANGE,
                  px_per_mm: float | None = None) -> Texture:
     """Alternating sticky and slippery squares; the square snaps (per axis) to an even number across
     each side so the texture tiles."""
@@ -124,8 +126,8 @@ def _lattice(size_mm, pitch_mm: float, x, y):
     return (x % pitch_x) - pitch_x / 2, (y % pitch_y) - pitch_y / 2, [pitch_x, pitch_y]
 
 
-def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
-         px_per_mm: float | None = None) -> Texture:
+def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm: Size = DEFAULT_SIZE_MM,
+         ratio_range: Range = DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
     """Sticky round dots on a slippery ground, on a lattice whose pitch snaps to whole cells per side."""
     _check_positive(pitch_mm=pitch_mm, diameter_mm=diameter_mm)
     x, y = _grid(size_mm, min(pitch_mm, diameter_mm), px_per_mm)
@@ -155,7 +157,7 @@ def _normalised(field: np.ndarray) -> np.ndarray:
     return (field - field.min()) / span if span > 0 else np.full_like(field, 0.5)
 
 
-def noise(cutoff_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, seed: int = 0, ratio_range=DEFAULT_RANGE,
+def noise(cutoff_mm: float = 2.0, size_mm: Size = DEFAULT_SIZE_MM, seed: int = 0, ratio_range: Range = DEFAULT_RANGE,
           px_per_mm: float | None = None) -> Texture:
     """Band-limited random roughness: no wavelength shorter than ``cutoff_mm``; tiles seamlessly."""
     _check_positive(cutoff_mm=cutoff_mm)
@@ -170,8 +172,8 @@ def noise(cutoff_mm: float = 2.0, size_mm=DEFAULT_SIZE_MM, seed: int = 0, ratio_
                    f"random roughness above {cutoff_mm:g} mm, seed {seed}", cutoff_mm=cutoff_mm, seed=seed)
 
 
-def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm=(40.0, 40.0), seed: int = 0,
-            ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
+def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm: Size = (40.0, 40.0), seed: int = 0,
+            ratio_range: Range = DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
     """Fractal (self-affine) roughness with Hurst exponent ``hurst`` in (0, 1), by spectral synthesis.
 
     Seeded white noise is shaped in the Fourier domain to the power spectrum of a 2-D

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import ndimage
 from ultraglide.textures import kernels
 from ultraglide.textures.texture import Texture, gradient_ratio
@@ -131,7 +132,8 @@ class Sampler:
                                0.5 * (high - low) / self.texture.full_slope_per_mm, low, high, out)
         return out
 
-    def ratio(self, x_mm, y_mm, step_mm=None, direction=None) -> np.ndarray:
+    def ratio(self, x_mm: ArrayLike, y_mm: ArrayLike, step_mm: ArrayLike | None = None,
+              direction: tuple[ArrayLike, ArrayLike] | None = None) -> np.ndarray:
         """Friction ratio at positions (mm), float32.
 
         ``step_mm`` (scalar or per sample) is the distance the finger moves between samples; give

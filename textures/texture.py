@@ -79,7 +79,7 @@ class Texture:
         """Pixel size (x, y) in millimetres."""
         return self.width_mm / self.cols, self.height_mm / self.rows
 
-    def with_(self, **changes) -> Texture:
+    def with_(self, **changes: object) -> Texture:
         """A copy with some fields changed."""
         return replace(self, **changes)
 

@@ -1,8 +1,129 @@
 """ultraglide: tactile texture rendering for ultrasonic friction displays.
 
-The packages ``ultraglide.textures``, ``ultraglide.render``, ``ultraglide.devices`` and
-``ultraglide.apps`` live in the repository's top-level folders of the same names (setuptools'
-package-dir mapping in pyproject.toml).
+The public API is the names in ``__all__``, importable from ``ultraglide`` itself::
+
+    >>> import ultraglide
+    >>> texture = ultraglide.grating(wavelength_mm=2.0, size_mm=(20.0, 10.0))
+    >>> model = ultraglide.load_model("exponential")
+    >>> round(float(model.amplitude_um_pp(0.5, 0.5).amplitude_um_pp), 2)    # µm p-p for half the friction
+    3.11
+
+Each name is imported when first used (PEP 562), so ``import ultraglide`` and the command stay
+quick. Everything else (``ultraglide.render.kernels``, ``ultraglide.apps``, ...) is internal and
+may change between versions. The packages ``ultraglide.textures``, ``ultraglide.render``,
+``ultraglide.devices`` and ``ultraglide.apps`` live in the repository's top-level folders of the
+same names (setuptools' package-dir mapping in pyproject.toml); :mod:`ultraglide.api` holds the
+few functions that span them (export to a WAV, a renderer as a device's source).
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
 __version__ = "0.2.0"
+
+# public name -> the module that defines it
+_EXPORTS: dict[str, str] = {
+    # textures: the type, files, the library, authoring, procedural patterns, composition, sampling
+    "Texture": "ultraglide.textures.texture",
+    "load_texture": "ultraglide.textures.fileformat",
+    "save_texture": "ultraglide.textures.fileformat",
+    "resolve_texture": "ultraglide.textures.library",
+    "library_entries": "ultraglide.textures.library",
+    "AuthoringOptions": "ultraglide.textures.authoring",
+    "author_image": "ultraglide.textures.authoring",
+    "grating": "ultraglide.textures.procedural",
+    "checkerboard": "ultraglide.textures.procedural",
+    "dots": "ultraglide.textures.procedural",
+    "noise": "ultraglide.textures.procedural",
+    "fractal": "ultraglide.textures.procedural",
+    "Sampler": "ultraglide.textures.sampling",
+    "TextureError": "ultraglide.textures.errors",
+    # models, their inverse, measurements and calibration
+    "FrictionModel": "ultraglide.render.friction_models",
+    "PaperModel": "ultraglide.render.friction_models",
+    "ExponentialModel": "ultraglide.render.friction_models",
+    "StretchedExponentialModel": "ultraglide.render.friction_models",
+    "TableModel": "ultraglide.render.friction_models",
+    "load_model": "ultraglide.render.calibration",
+    "read_measurements": "ultraglide.render.measurements",
+    "fit_model": "ultraglide.render.calibration",
+    "compare_models": "ultraglide.render.calibration",
+    "calibration_toml": "ultraglide.render.calibration",
+    "read_calibration": "ultraglide.render.calibration",
+    "ModelError": "ultraglide.render.errors",
+    # the renderer and the finger's path
+    "Renderer": "ultraglide.render.renderer",
+    "RenderSettings": "ultraglide.render.renderer",
+    "RecordedTrajectory": "ultraglide.render.trajectory",
+    "SwipePath": "ultraglide.render.paths",
+    "read_touch_log": "ultraglide.render.touch_log",
+    "RenderError": "ultraglide.render.errors",
+    # the real-time engine: renderer and device in their own process, fed touches
+    "Engine": "ultraglide.render.engine",
+    "EngineConfig": "ultraglide.render.engine",
+    "EngineStatus": "ultraglide.render.engine",
+    "EngineError": "ultraglide.render.engine",
+    # devices
+    "PlateProfile": "ultraglide.devices.profiles",
+    "load_profile": "ultraglide.devices.profiles",
+    "open_device": "ultraglide.devices.urls",
+    "BlockSource": "ultraglide.devices.source",
+    "Device": "ultraglide.devices.source",
+    "OutputStage": "ultraglide.devices.output_stage",
+    "output_stage": "ultraglide.devices.output_stage",
+    "DeviceError": "ultraglide.devices.errors",
+    # what spans the packages
+    "export_wav": "ultraglide.api",
+    "ExportResult": "ultraglide.api",
+    "EnvelopeSource": "ultraglide.api",
+    "renderer_source": "ultraglide.api",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str):
+    """Import a public name on first use and keep it (PEP 562)."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'ultraglide' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
+    from ultraglide.api import EnvelopeSource, ExportResult, export_wav, renderer_source
+    from ultraglide.devices.errors import DeviceError
+    from ultraglide.devices.output_stage import OutputStage, output_stage
+    from ultraglide.devices.profiles import PlateProfile, load_profile
+    from ultraglide.devices.source import BlockSource, Device
+    from ultraglide.devices.urls import open_device
+    from ultraglide.render.calibration import calibration_toml, compare_models, fit_model, load_model, read_calibration
+    from ultraglide.render.engine import Engine, EngineConfig, EngineError, EngineStatus
+    from ultraglide.render.errors import ModelError, RenderError
+    from ultraglide.render.friction_models import (
+        ExponentialModel,
+        FrictionModel,
+        PaperModel,
+        StretchedExponentialModel,
+        TableModel,
+    )
+    from ultraglide.render.measurements import read_measurements
+    from ultraglide.render.paths import SwipePath
+    from ultraglide.render.renderer import Renderer, RenderSettings
+    from ultraglide.render.touch_log import read_touch_log
+    from ultraglide.render.trajectory import RecordedTrajectory
+    from ultraglide.textures.authoring import AuthoringOptions, author_image
+    from ultraglide.textures.errors import TextureError
+    from ultraglide.textures.fileformat import load_texture, save_texture
+    from ultraglide.textures.library import library_entries, resolve_texture
+    from ultraglide.textures.procedural import checkerboard, dots, fractal, grating, noise
+    from ultraglide.textures.sampling import Sampler
+    from ultraglide.textures.texture import Texture

@@ -1,0 +1,186 @@
+"""The functions of the public API that span packages: render a texture to a WAV file, and hand a
+renderer to a device.
+
+They live here, in the namespace's root, because ``apps`` is a leaf nothing imports; the commands
+use them (``export`` writes through :func:`offline_stage` and :func:`write_wav`, ``play`` starts its
+device with :func:`renderer_source`), so the library and the commands share one path.
+
+Example, a 1 mm grating swiped at 100 mm/s for half a second::
+
+    >>> import soundfile, tempfile, pathlib
+    >>> import ultraglide
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "swipe.wav"
+    >>> result = ultraglide.export_wav("grating-1mm", out, duration_s=0.5)
+    >>> soundfile.info(out).samplerate, round(result.duration_s, 2)
+    (96000, 0.52)
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import soundfile
+
+from ultraglide.devices.atomic_file import AtomicFile, write_failure
+from ultraglide.devices.output_stage import OutputStage, output_stage
+from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.source import Device
+from ultraglide.render.calibration import load_model
+from ultraglide.render.errors import RenderError
+from ultraglide.render.friction_models import FrictionModel
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.renderer import ControlBlock, Renderer, RenderSettings
+from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.textures.library import resolve_texture
+from ultraglide.textures.texture import Texture
+
+WAV_SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
+BLOCK_S = 1.0  # rendered and written a second at a time: memory stays flat whatever the length
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """What :func:`export_wav` wrote: the file, its length (s), rate (Hz), sample format, the carrier
+    (Hz), how often the plate's limit held the amplitude back (control samples), how often the envelope
+    ramped, and what the drive limiter did."""
+
+    path: Path
+    duration_s: float
+    rate_hz: int
+    format: str
+    carrier_hz: float
+    clipped_samples: int
+    ramps: int
+    limited_fraction: float  # of the time the drive limiter lowered the drive
+    worst_excess_um_pp: float  # most drive asked above what the limiter let through
+
+
+def default_swipe(texture: Texture, speed_mm_s: float = 100.0, duration_s: float = 5.0,
+                  force_n: float | None = None) -> SwipePath:
+    """A straight left-to-right swipe across the middle of ``texture``, from 10 % of its width
+    (mm/s, s, N; ``force_n`` None: the renderer's default, 0.5 N)."""
+    return SwipePath("straight", speed_mm_s, duration_s, (texture.width_mm * 0.1, texture.height_mm / 2),
+                     force_n=force_n)
+
+
+def _as_texture(texture: Texture | str | os.PathLike) -> Texture:
+    return texture if isinstance(texture, Texture) else resolve_texture(os.fspath(texture))
+
+
+def _as_model(model: FrictionModel | str) -> FrictionModel:
+    return model if isinstance(model, FrictionModel) else load_model(str(model))
+
+
+def _as_profile(profile: PlateProfile | str) -> PlateProfile:
+    return profile if isinstance(profile, PlateProfile) else load_profile(str(profile))
+
+
+def export_duration_s(renderer: Renderer) -> float:
+    """How long an export of ``renderer``'s path lasts: the path, then the output coming to rest (s)."""
+    trajectory = renderer.trajectory
+    return trajectory.end_s - trajectory.start_s + renderer.tail_s
+
+
+class EnvelopeSource:
+    """A renderer's drive envelope, µm p-p at its control rate: the source a device is started with
+    (a :class:`~ultraglide.devices.source.BlockSource`). The device puts it behind its output stage."""
+
+    def __init__(self, renderer: Renderer):
+        self.renderer = renderer
+        self.control_rate_hz = renderer.settings.control_rate_hz
+
+    def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        """The next ``n`` drive samples (µm p-p); ``now_s``: when the first reaches the plate (perf_counter s)."""
+        return self.renderer.control(n, now_s).drive_um_pp
+
+    def request_stop(self) -> None:
+        """Ramp the renderer down to rest."""
+        self.renderer.stop()
+
+    @property
+    def finished(self) -> bool:
+        """True once the renderer is at rest after a stop or the end of its path."""
+        return self.renderer.finished
+
+
+def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
+    """What to ``device.start()`` with so that it plays ``renderer``: the renderer behind the drive limiter,
+    as the signal the device wants (``device.signal``, ``device.rate_hz``). Starting the device with an
+    :class:`EnvelopeSource` does the same; built here, the caller can read the limiter's counters."""
+    carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
+    return output_stage(EnvelopeSource(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
+
+
+def offline_stage(renderer: Renderer) -> OutputStage:
+    """The audio a plate would get from ``renderer`` (limiter, then carrier) at its own audio rate, for export."""
+    return OutputStage(EnvelopeSource(renderer), renderer.profile, "audio", renderer.settings.audio_rate_hz,
+                       renderer.carrier_hz)
+
+
+def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: str = "float32",
+              progress: Callable[[int], None] | None = None) -> float:
+    """Pull ``frames`` of audio from ``stage`` into a mono WAV at ``path``, as it is given (no temporary
+    file), a second at a time. ``progress`` is called with the frames written after each block.
+    Returns the duration written (s). RF64 is used beyond 4 GB."""
+    if format not in WAV_SUBTYPES:
+        raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
+    if stage.signal != "audio":
+        raise RenderError("a WAV file takes audio: give an output stage whose signal is audio")
+    rate = int(stage.rate_hz)
+    block = int(BLOCK_S * rate)
+    container = "RF64" if frames * 4 > 4_000_000_000 else "WAV"
+    with soundfile.SoundFile(path, "w", samplerate=rate, channels=1, subtype=WAV_SUBTYPES[format],
+                             format=container) as wav:
+        done = 0
+        while done < frames:
+            size = min(block, frames - done)
+            wav.write(stage.pull(size, None))
+            done += size
+            if progress:
+                progress(size)
+    return frames / rate
+
+
+def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
+               trajectory: RecordedTrajectory | SwipePath | None = None, *,
+               model: FrictionModel | str = "exponential", profile: PlateProfile | str = "sim-plate",
+               settings: RenderSettings | None = None, rate_hz: int = 96000, format: str = "float32",
+               speed_mm_s: float = 100.0, duration_s: float = 5.0, force_n: float | None = None,
+               observers: Iterable[Callable[[ControlBlock], None]] = ()) -> ExportResult:
+    """Render a texture along a finger's path to a WAV file: what a plate driven by a DAC would get.
+
+    ``texture``: a :class:`Texture`, a texture file, an image (authored with default options) or a
+    library name. ``trajectory``: a recorded path (:func:`read_touch_log`) or a :class:`SwipePath`;
+    by default a straight swipe across the middle at ``speed_mm_s`` (mm/s) for ``duration_s`` (s)
+    at ``force_n`` (N). ``model``: a model or its name (``exponential``, ``paper``, ``table:F.csv``,
+    ``CAL.toml`` ...); ``profile``: the plate's profile or its name. ``settings`` overrides the
+    renderer's (its ``audio_rate_hz`` wins over ``rate_hz``). ``format``: ``float32``, ``int24`` or
+    ``int16``, full scale = the plate's full-scale drive. ``observers`` are given each control block.
+    The file appears whole or not at all (a temporary file renamed into place).
+    """
+    texture = _as_texture(texture)
+    if settings is None:
+        settings = RenderSettings(audio_rate_hz=rate_hz)
+    if trajectory is None:
+        trajectory = default_swipe(texture, speed_mm_s, duration_s, force_n)
+    if format not in WAV_SUBTYPES:
+        raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
+    path = Path(path)
+    if path.suffix.lower() != ".wav":
+        raise RenderError(f"the output must be a .wav file, got {path}")
+    renderer = Renderer(texture, _as_model(model), _as_profile(profile), settings, trajectory=trajectory)
+    renderer.observers.extend(observers)
+    stage = offline_stage(renderer)
+    frames = int(round(export_duration_s(renderer) * settings.audio_rate_hz))
+    with AtomicFile(path) as target:  # the one atomic writer: the file appears whole or not at all
+        try:
+            written_s = write_wav(stage, target.temporary, frames, format)
+        except soundfile.LibsndfileError as error:  # a full disk or a file too large: one line naming the file
+            raise write_failure(path, target.temporary, error) from None
+    counters, limiter = renderer.counters, stage.limiter
+    return ExportResult(path, written_s, settings.audio_rate_hz, format, renderer.carrier_hz,
+                        counters.clipped_samples, counters.ramps, limiter.limited_fraction, limiter.worst_excess_um_pp)
