@@ -45,7 +45,7 @@ def _threshold_band(ax, result: dict, horizontal: bool) -> None:
 
 
 def _track(path: Path, config, design, levels, correct, rows, result) -> list[Path]:
-    fig, ax = figure_style.figure(figsize=(7.0, 3.2))
+    fig, ax = figure_style.figure(figsize=(6.0, 3.6))
     trials = np.arange(1, len(levels) + 1)
     ax.plot(trials, levels, color="0.6", lw=0.8, zorder=1)
     ax.scatter(trials[correct], levels[correct], color=CORRECT, s=14, zorder=3, label="correct")
@@ -64,15 +64,19 @@ def _track(path: Path, config, design, levels, correct, rows, result) -> list[Pa
     ax.set_xlabel("trial")
     ax.set_ylabel(_level_label(design))
     ax.set_title(f"{config.condition}: participant {config.participant}, session {config.session}")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, frameon=False)
     return figure_style.save(fig, path)
 
 
 def _psychometric(path: Path, config, design, levels, positive, result) -> list[Path]:
-    fig, ax = figure_style.figure(figsize=(6.6, 3.4))
+    fig, ax = figure_style.figure(figsize=(4.8, 4.2))
     x, n, k = pf.aggregate(levels, positive)
     ax.scatter(x, k / n, s=12 + 60 * n / n.max(), color=CORRECT, alpha=0.8, zorder=3,
                label="observed (area ∝ trials)")
+    if len(x) <= 8:  # few levels (constant stimuli): say how many answers each point holds
+        for level, count, hits in zip(x, n, k, strict=True):
+            ax.annotate(f"{int(hits)}/{int(count)}", (level, hits / count), textcoords="offset points",
+                        xytext=(6, -10), fontsize=7)
     fit = result.get("fit")
     if fit:
         top = max(x.max(), result["ci"][1] if result.get("ci") else 0) * 1.15
@@ -88,5 +92,5 @@ def _psychometric(path: Path, config, design, levels, positive, result) -> list[
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel(_level_label(design))
     ax.set_title(f"{config.condition}, {len(levels)} trials")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=1, frameon=False)
     return figure_style.save(fig, path)

@@ -72,19 +72,18 @@ class Staircase:
 
     def update(self, level: float, outcome: int) -> None:
         """Record the outcome at ``level`` (which must be the level this procedure asked for)."""
-        step = self._step_db()
+        steps = max(1, round(self._step_db() / self.params.min_step_db))  # whole grid units
         move = 0
         if self.params.rule == "weighted":
             p = self.params.weighted_target
             move = -1 if outcome else +1
-            step = step if outcome else step * p / (1 - p)
+            steps = steps if outcome else max(1, round(steps * p / (1 - p)))
         elif outcome:
             self.run += 1
             if self.run >= RULES[self.params.rule][0]:
                 move, self.run = -1, 0
         else:
             move, self.run = +1, 0
-        steps = max(1, round(step / self.params.min_step_db))
         self.last_was_reversal = bool(move and self.direction and move != self.direction)
         if self.last_was_reversal:
             self.reversals.append((self.trials, level))
