@@ -59,7 +59,7 @@ def _config_from_args(args, kind: str) -> SessionConfig:
     level_range = tuple(args.range) if args.range else None
     if level_range and not 0 < level_range[0] < level_range[1]:
         raise UsageError(f"--range needs 0 < LOW < HIGH, got {level_range[0]:g} {level_range[1]:g}")
-    if args.vary == "contrast" and level_range and level_range[1] > 1:
+    if (args.vary or "contrast") == "contrast" and level_range and level_range[1] > 1:
         raise UsageError("a friction contrast is at most 1: --range HIGH must be ≤ 1")
     question = "Which zone felt different? (tap it, or press its number)"
     return SessionConfig(texture=args.texture, method=args.method, parameter=args.vary or "contrast",

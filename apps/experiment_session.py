@@ -164,6 +164,7 @@ def run_session(config: SessionConfig, design: StimulusDesign, responder, direct
     """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
     and the end, result.json and the figures when it ends."""
     directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
     rows = read_trials(directory) if resume else []
     procedure = make_procedure(config)
     try:
