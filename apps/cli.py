@@ -252,6 +252,10 @@ def _add_experiment_commands(commands) -> None:
     threshold.add_argument("--start", type=positive, metavar="LEVEL", help="staircase start level")
     threshold.add_argument("--reference", metavar="TEXTURE",
                            help="what the other zones show (default: plain glass)")
+    threshold.add_argument("--preset", choices=["grating-contrast", "grating-period"],
+                           help="a common question: grating-contrast, the detection threshold of a 1 mm grating's "
+                                "friction contrast; grating-period, the discrimination threshold of its period "
+                                "(Δλ in mm against 1 mm); both 3 zones")
     _add_experiment_options(threshold)
     threshold.set_defaults(handler="ultraglide.apps.experiment_command:run")
     constant = kinds.add_parser(

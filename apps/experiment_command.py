@@ -21,6 +21,15 @@ PRESETS = {
 }
 
 
+THRESHOLD_PRESETS = {
+    # the common questions: TEXTURE, --vary, --range and --afc come from the preset unless given
+    "grating-contrast": {"texture": "grating-1mm", "parameter": "contrast", "level_range": (0.005, 0.6),
+                         "intervals": 3},
+    "grating-period": {"texture": "grating-1mm", "parameter": "wavelength", "level_range": (0.01, 1.0),
+                       "intervals": 3},
+}
+
+
 def _config_from_args(args, kind: str) -> SessionConfig:
     common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
               "participant": args.participant, "session": args.session, "break_every": args.break_every,
@@ -52,8 +61,14 @@ def _config_from_args(args, kind: str) -> SessionConfig:
         if any(level < 0 for level in config.levels):
             raise UsageError("--levels must not be negative")
         return config
+    preset = THRESHOLD_PRESETS.get(args.preset, {}) if args.preset else {}
+    if preset:
+        args.texture = args.texture or preset["texture"]
+        args.vary = args.vary or preset["parameter"]
+        args.range = args.range or list(preset["level_range"])
+        args.afc = args.afc or preset["intervals"]
     if not args.texture:
-        raise UsageError("threshold needs a TEXTURE (a library name or a texture file), or --resume DIR")
+        raise UsageError("threshold needs a TEXTURE (a library name or a texture file), a --preset, or --resume DIR")
     if args.trials is None or args.trials < 1:
         raise UsageError("--trials N is needed, N ≥ 1")
     level_range = tuple(args.range) if args.range else None
@@ -64,7 +79,8 @@ def _config_from_args(args, kind: str) -> SessionConfig:
     question = "Which zone felt different? (tap it, or press its number)"
     return SessionConfig(texture=args.texture, method=args.method, parameter=args.vary or "contrast",
                          intervals=args.afc or 2, rule=args.rule, trials=args.trials, level_range=level_range,
-                         start_level=args.start, reference=args.reference, question=question, **common)
+                         start_level=args.start, reference=args.reference, question=question,
+                         preset=args.preset, **common)
 
 
 def design_for(config: SessionConfig) -> StimulusDesign:

@@ -11,7 +11,7 @@ the stimulus at the procedure's level, the others the reference. What the level 
   model gives for it at the finger's force); reference: the plate at rest.
 
 :func:`render_offline` renders a swipe across the trial's texture through the real renderer and its
-output stage (envelope, plate model, carrier) into a buffer, as a null device would receive it,
+output stage (envelope, plate model, drive limiter, carrier) into a buffer, as a null device would receive it,
 and measures what each zone really rendered.
 """
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.friction_models import FrictionModel
 from ultraglide.render.paths import SwipePath
@@ -176,6 +177,7 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
     path = SwipePath("straight", speed_mm_s, duration, (1.0, height / 2), force_n=force_n)
     settings = RenderSettings(audio_rate_hz=rate_hz, default_force_n=force_n)
     renderer = Renderer(texture, model, profile, settings, trajectory=path)
+    stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
     xs, plate = [], []
     renderer.observers.append(lambda block: (xs.append(block.x_mm), plate.append(block.plate_um_pp)))
     total = int(np.ceil((duration + renderer.tail_s) * rate_hz))
@@ -183,7 +185,7 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
     done = 0
     while done < total:
         n = min(block_frames, total - done)
-        buffer[done:done + n] = renderer.audio(n)
+        buffer[done:done + n] = stage.pull(n, None)
         done += n
     x, amplitude = np.concatenate(xs), np.concatenate(plate)
     ratio = model.relative_friction(amplitude, force_n)
