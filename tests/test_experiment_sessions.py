@@ -227,3 +227,10 @@ def test_the_log_is_on_disk_after_each_trial(tmp_path):
                                          0.5), tmp_path)
     assert seen == list(range(8))
 
+
+
+def test_a_live_session_without_a_display_says_so_and_writes_nothing(tmp_path):
+    out = tmp_path / "live"
+    result = run_cli("experiment", "threshold", "grating-1mm", "--trials", "5", "--out", out,
+                     env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "SDL_VIDEODRIVER": ""})
+    assert "no display" in assert_one_line_error(result) and not out.exists()
