@@ -69,7 +69,7 @@ def _track(path: Path, config, design, levels, correct, rows, result) -> list[Pa
 
 
 def _psychometric(path: Path, config, design, levels, positive, result) -> list[Path]:
-    fig, ax = figure_style.figure(figsize=(4.8, 4.2))
+    fig, ax = figure_style.figure(figsize=(6.4, 3.8))
     x, n, k = pf.aggregate(levels, positive)
     ax.scatter(x, k / n, s=12 + 60 * n / n.max(), color=CORRECT, alpha=0.8, zorder=3,
                label="observed (area ∝ trials)")
@@ -82,7 +82,7 @@ def _psychometric(path: Path, config, design, levels, positive, result) -> list[
         top = max(x.max(), result["ci"][1] if result.get("ci") else 0) * 1.15
         grid = np.linspace(0, top, 400)
         curve = pf.probability(fit["function"], grid, fit["threshold"], fit["slope"], fit["guess"], fit["lapse"])
-        ax.plot(grid, curve, color=FIT, label=f"ML {fit['function']} fit")
+        ax.plot(grid, curve, color=FIT, label=f"ML {fit['function']} fit, α = {fit['threshold']:.3g}")
     _threshold_band(ax, result, horizontal=False)
     if config.intervals > 1:
         ax.axhline(1.0 / config.intervals, color="0.5", lw=0.6, ls=":", label="chance")
@@ -92,5 +92,5 @@ def _psychometric(path: Path, config, design, levels, positive, result) -> list[
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel(_level_label(design))
     ax.set_title(f"{config.condition}, {len(levels)} trials")
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=1, frameon=False)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=2, frameon=False)
     return figure_style.save(fig, path)
