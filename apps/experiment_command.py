@@ -30,7 +30,17 @@ THRESHOLD_PRESETS = {
 }
 
 
+def _check_counts(args) -> None:
+    if args.break_every < 0:
+        raise UsageError(f"--break-every must be 0 (no breaks) or more, got {args.break_every}")
+    if args.bootstrap < 20:
+        raise UsageError(f"--bootstrap needs at least 20 samples for a 95 % interval, got {args.bootstrap}")
+    if getattr(args, "repeats", None) is not None and args.repeats < 1:
+        raise UsageError(f"--repeats must be at least 1, got {args.repeats}")
+
+
 def _config_from_args(args, kind: str) -> SessionConfig:
+    _check_counts(args)
     common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
               "participant": args.participant, "session": args.session, "break_every": args.break_every,
               "speed_mm_s": args.speed_mm_s, "function": args.function, "bootstrap": args.bootstrap}

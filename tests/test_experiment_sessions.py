@@ -186,6 +186,10 @@ def test_resume_can_extend_a_session(tmp_path):
     (["threshold", "grating-1mm", "--observer", SIM], "--trials"),
     (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--range", "0.1", "2"], "at most 1"),
     (["constant", "--observer", SIM], "--preset"),
+    (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--repeats", "0"], "--repeats"),
+    (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--levels", "0", "-1"], "negative"),
+    (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--break-every", "-1"], "--break-every"),
+    (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--bootstrap", "5"], "--bootstrap"),
     (["threshold", "grating-1mm", "--afc", "4"], "invalid choice"),
 ])
 def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
@@ -202,7 +206,7 @@ def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
 def test_an_existing_session_is_not_overwritten(tmp_path):
     out = tmp_path / "s"
     run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM, "--trials", "6", "--out", out,
-            "--bootstrap", "10", check=True)
+            "--bootstrap", "20", check=True)
     before = (out / "trials.csv").read_bytes()
     line = assert_one_line_error(run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM,
                                          "--trials", "6", "--out", out))
