@@ -219,8 +219,12 @@ def _add_experiment_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--session", default="1", help="session label for the log (default: 1)")
     parser.add_argument("--function", choices=["weibull", "logistic"], default="weibull",
                         help="psychometric function fitted (default: weibull)")
+    parser.add_argument("--interval", choices=["posterior", "bootstrap"], default="posterior",
+                        help="the threshold's 95 %% interval for staircases and constant stimuli: the grid "
+                             "posterior's credible interval, or a parametric bootstrap of the ML fit "
+                             "(default: posterior; QUEST+ always gives its posterior)")
     parser.add_argument("--bootstrap", type=int, default=200, metavar="N",
-                        help="bootstrap samples for the threshold's interval (default: 200)")
+                        help="bootstrap samples with --interval bootstrap (default: 200)")
     parser.add_argument("--model", default="exponential", metavar="MODEL", help=f"{MODEL_HELP} (default: exponential)")
     parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     parser.add_argument("--force", type=positive, metavar="N", help="the finger's normal force, N (default: 0.5)")

@@ -43,7 +43,8 @@ def _config_from_args(args, kind: str) -> SessionConfig:
     _check_counts(args)
     common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
               "participant": args.participant, "session": args.session, "break_every": args.break_every,
-              "speed_mm_s": args.speed_mm_s, "function": args.function, "bootstrap": args.bootstrap}
+              "speed_mm_s": args.speed_mm_s, "function": args.function, "bootstrap": args.bootstrap,
+              "interval": args.interval}
     if args.observer:
         common["device"] = args.device or "null"
         if common["device"] != "null":

@@ -159,3 +159,45 @@ def bootstrap(fitted: Fit, levels, samples: int = 200, seed: int = 0, fit_guess:
     low_ci, high_ci = np.percentile(thresholds, [2.5, 97.5])
     return Fit(fitted.function, fitted.threshold, fitted.slope, fitted.guess, fitted.lapse, fitted.log_likelihood,
                (float(low_ci), float(high_ci)), samples)
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """The threshold's posterior on a grid: its mean on the log scale and 95 % credible interval."""
+
+    threshold: float
+    ci: tuple[float, float]
+    slope: float
+    lapse: float
+    guess: float
+
+
+def posterior(levels, outcomes, function: str = "weibull", guess: float | None = 0.5,
+              level_range: tuple[float, float] = (1e-3, 1.0), max_lapse: float = MAX_LAPSE) -> Posterior:
+    """Bayes on a grid: 200 thresholds over ``level_range`` (log-spaced for the Weibull), 24 slopes
+    (log-spaced), lapse rates 0..``max_lapse``, and the false-alarm rate 0..0.5 when ``guess`` is None;
+    uniform priors on log threshold and log slope. Slope, lapse and guess are marginalised out, so the
+    interval carries their uncertainty (the likelihood is that of the trials as run, whatever chose
+    their levels, so it holds for staircase data too)."""
+    x, n, k = aggregate(levels, outcomes)
+    low, high = level_range
+    if function == "weibull":
+        thresholds, slopes = np.geomspace(max(low, 1e-6), high, 200), np.geomspace(0.7, 12.0, 24)
+    else:
+        span = max(high - low, 1e-6)
+        thresholds, slopes = np.linspace(low, high, 200), np.geomspace(0.5 / span, 60.0 / span, 24)
+    guesses = np.array([guess]) if guess is not None else np.linspace(0.0, MAX_FALSE_ALARM, 11)
+    lapses = np.linspace(0.0, max_lapse, 4)
+    grid = np.array(np.meshgrid(thresholds, np.log(slopes), guesses, lapses, indexing="ij")).reshape(4, -1)
+    log_likelihood = _grid_log_likelihood(function, grid, x, n, k)[0]
+    weights = np.exp(log_likelihood - log_likelihood.max())
+    weights /= weights.sum()
+    marginal = weights.reshape(len(thresholds), -1).sum(axis=1)
+    scale = np.log(thresholds) if function == "weibull" else thresholds
+    cumulative = np.cumsum(marginal)
+    low_ci, high_ci = np.interp([0.025, 0.975], cumulative, scale)
+    mean = float(np.sum(marginal * scale))
+    back = np.exp if function == "weibull" else (lambda value: value)
+    return Posterior(float(back(mean)), (float(back(low_ci)), float(back(high_ci))),
+                     float(np.exp(np.sum(weights * grid[1]))), float(np.sum(weights * grid[3])),
+                     float(np.sum(weights * grid[2])))

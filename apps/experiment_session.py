@@ -67,6 +67,7 @@ class SessionConfig:
     preset: str | None = None
     question: str = "Which zone felt different?"
     bootstrap: int = 200
+    interval: str = "posterior"  # posterior or bootstrap (staircases and constant stimuli)
 
     @property
     def range(self) -> tuple[float, float]:
@@ -245,18 +246,26 @@ def analyse(config: SessionConfig, design: StimulusDesign, rows: list[dict], pro
         result["note"] = "fewer than 5 trials: no threshold"
         return result
     guess = 1.0 / config.intervals if config.intervals > 1 else None
-    low, high = config.range if config.method != "constant" else (0.0, max(config.levels))
+    # constant stimuli: the threshold may lie up to half as far again as the largest level
+    low, high = config.range if config.method != "constant" else (0.0, 1.5 * max(config.levels))
     fitted = pf.fit(levels, outcomes, config.function, guess, (low, high))
     if config.method == "quest":
         estimate = procedure.estimate()
         result.update(threshold=estimate["threshold"], ci=estimate["ci"],
                       ci_kind="95 % credible interval of the QUEST+ posterior (grid, uniform prior on log threshold)",
                       posterior=estimate)
-    else:
+    elif config.interval == "bootstrap":
         fitted = pf.bootstrap(fitted, levels, config.bootstrap, config.seed, fit_guess=guess is None,
                               level_range=(low, high))
         result.update(threshold=fitted.threshold, ci=list(fitted.ci),
                       ci_kind=f"95 % parametric bootstrap ({fitted.bootstrap_samples} samples) of the ML fit")
+    else:
+        bayes = pf.posterior(levels, outcomes, config.function, guess, (max(low, 1e-3 * high), high))
+        result.update(threshold=bayes.threshold, ci=list(bayes.ci),
+                      ci_kind="95 % credible interval of the posterior on a grid (slope, lapse"
+                              + (", false alarms" if guess is None else "") + " marginalised; uniform prior on "
+                              "log threshold and log slope); threshold: its posterior mean",
+                      posterior={"slope": bayes.slope, "lapse": bayes.lapse, "guess": bayes.guess})
     result["fit"] = fitted.as_dict()
     if isinstance(procedure, Staircase):
         result.update(rule=config.rule, target_p=procedure.target_p, reversals=len(procedure.reversals),

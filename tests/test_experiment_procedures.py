@@ -165,3 +165,25 @@ def test_simulated_observer_answers_with_its_psychometric_function():
 def test_bad_observer_specs_say_what_is_wrong(spec):
     with pytest.raises(UsageError):
         SimObserver.parse(spec)
+
+
+def test_posterior_and_bootstrap_intervals_hold_the_truth_and_shrink_with_data():
+    rng = np.random.default_rng(3)
+    widths = {}
+    for trials in (100, 3000):
+        levels = rng.choice(np.geomspace(0.02, 0.4, 10), trials)
+        outcomes = rng.random(trials) < pf.probability("weibull", levels, 0.1, 3.0, 0.5, 0.02)
+        bayes = pf.posterior(levels, outcomes, "weibull", 0.5, (0.005, 0.6))
+        boot = pf.bootstrap(pf.fit(levels, outcomes, "weibull", 0.5, (0.005, 0.6)), levels, 200, seed=1,
+                            level_range=(0.005, 0.6))
+        for low, high in (bayes.ci, boot.ci):
+            assert low <= 0.1 <= high
+        widths[trials] = (bayes.ci[1] - bayes.ci[0], boot.ci[1] - boot.ci[0])
+    assert widths[3000][0] < widths[100][0] / 3 and widths[3000][1] < widths[100][1] / 3
+
+
+def test_posterior_without_trials_is_the_prior():
+    """No data: the marginal is the prior, uniform on log threshold, so the interval is its 2.5-97.5 % span."""
+    bayes = pf.posterior(np.array([]), np.array([]), "weibull", 0.5, (0.01, 1.0))
+    assert math.log(bayes.threshold) == pytest.approx(math.log(0.1), abs=0.03)
+    assert math.log(bayes.ci[0]) == pytest.approx(math.log(0.01) + 0.025 * math.log(100), abs=0.05)
