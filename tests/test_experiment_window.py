@@ -148,3 +148,35 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
     rows = read_rows(tmp_path)
     assert [r["trial"] for r in rows] == ["1", "2", "3", "4"] and outcome.complete
     assert [r["response"] for r in rows] == ["1", "2", "1", "2"]
+
+
+def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
+    """The default output is the engine process (device null): a swipe over the target zone reaches it and
+    the engine looks up the trial's texture there (1 - contrast at the grating's most slippery)."""
+    from ultraglide.apps.experiment_output import EngineOutput
+    from ultraglide.apps.experiment_window import WindowResponder
+
+    config = SessionConfig(texture="grating-1mm", method="staircase", intervals=2, trials=1, seed=1, device="null",
+                           start_level=0.4)
+    design = design_for(config)
+    window = WindowResponder(config, design, screen_width_mm=338.7, windowed=True)
+    assert isinstance(window.output, EngineOutput)
+    target = interval_positions(config.seed, 1, 2)[0]
+
+    def participant():
+        wait_for(window, "trial", 1)
+        swipe(pg, window, target)
+        time.sleep(0.2)
+        post(pg, pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="", scancode=0)
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        run_session(config, design, window, tmp_path)
+        status = window.output.engine.status(history_s=30.0)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    assert status.touches >= 40 and status.touches_dropped == 0
+    assert float(status.history.target_ratio.min()) == pytest.approx(0.6, abs=0.05)
+    assert read_rows(tmp_path)[0]["correct"] == "1"
