@@ -161,7 +161,7 @@ def now_utc() -> str:
 
 
 def run_session(config: SessionConfig, design: StimulusDesign, responder, directory: Path,
-                resume: bool = False, say=print) -> SessionResult:
+                resume: bool = False) -> SessionResult:
     """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
     and the end, result.json and the figures when it ends."""
     directory = Path(directory)

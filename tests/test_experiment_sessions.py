@@ -29,7 +29,7 @@ def dry_run(tmp_path, **options):
     design = design_for(config)
     responder = SimResponder(SimObserver.parse(config.observer, config.seed), design.model,
                              load_profile(config.profile), config.speed_mm_s, config.force_n)
-    return run_session(config, design, responder, tmp_path, say=lambda *_: None), responder
+    return run_session(config, design, responder, tmp_path), responder
 
 
 def read_csv(path):
