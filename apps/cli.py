@@ -35,11 +35,14 @@ from ultraglide.apps.cli_types import (
     SCREEN_WIDTH_MM,
     SEAM_BAND,
     SEED,
+    SPEED_MM_S,
     STEPS,
     TEXTURE_SIDE_MM,
     UNIT_INTERVAL,
     WEIGHT,
     crop_box,
+    finite,
+    positive,
     ratio,
     size_mm,
     texture_name,
@@ -227,10 +230,10 @@ def _add_experiment_options(parser: argparse.ArgumentParser) -> None:
                         help="bootstrap samples with --interval bootstrap (default: 200)")
     parser.add_argument("--model", default="exponential", metavar="MODEL", help=f"{MODEL_HELP} (default: exponential)")
     parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
-    parser.add_argument("--force", type=positive, metavar="N", help="the finger's normal force, N (default: 0.5)")
-    parser.add_argument("--speed-mm-s", type=positive, default=100.0,
+    parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
+    parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,
                         help="swipe speed of the simulated observer's finger (default: 100)")
-    parser.add_argument("--screen-width-mm", type=positive, help="the display's width in mm (window)")
+    parser.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
     parser.add_argument("--windowed", action="store_true", help="a window instead of full screen")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
