@@ -15,6 +15,7 @@ from ultraglide.apps import errors
 from ultraglide.apps.cli_types import (
     ANGLE_DEG,
     BLUR_MM,
+    BOOTSTRAP_SAMPLES,
     CARRIER_HZ,
     CLIP_PERCENT,
     COORDINATE_MM,
@@ -27,22 +28,27 @@ from ultraglide.apps.cli_types import (
     GAMMA,
     HURST,
     LENGTH_MM,
+    LEVEL,
     MAX_PIXELS,
     PARTICIPANT,
     PRINT_DPI,
     PX_PER_MM,
     Q_FACTOR,
+    REPEATS,
     SCREEN_WIDTH_MM,
     SEAM_BAND,
     SEED,
     SENSITIVITY,
+    SPEED_MM_S,
     STEPS,
     SWEEP_STEPS,
     TEXTURE_SIDE_MM,
+    TRIALS,
+    TRIALS_BETWEEN_BREAKS,
     UNIT_INTERVAL,
     WEIGHT,
+    ZONES,
     crop_box,
-    positive,
     ratio,
     size_mm,
     texture_name,
@@ -202,6 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--report-frames", action="store_true",
                       help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
     demo.set_defaults(handler="ultraglide.apps.demo_app:run")
+    _add_experiment_commands(commands)
     return parser
 
 
@@ -233,6 +240,82 @@ def _add_plate_commands(commands) -> None:
     sweep.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
     sweep.add_argument("--json", action="store_true", help="print one JSON object")
     sweep.set_defaults(handler="ultraglide.apps.plate_command:run_sweep")
+def _add_experiment_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--vary", choices=["contrast", "wavelength", "amplitude"],
+                        help="the parameter the procedure varies: the friction contrast of TEXTURE (default), "
+                             "the wavelength of a grating (discrimination, mm), or a uniform vibration "
+                             "amplitude (µm p-p)")
+    parser.add_argument("--observer", metavar="sim:threshold=T,slope=S,lapse=L",
+                        help="a simulated observer (dry run, offline through the renderer; default: a person "
+                             "at the window)")
+    parser.add_argument("--device", metavar="URL",
+                        help="output device: sim, serial:PORT, audio[...], wav:PATH or null "
+                             "(default: sim; null with a simulated observer)")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of every random choice (default: 0)")
+    parser.add_argument("--out", metavar="DIR", help="where trials.csv, session.json, result.json and the "
+                                                     "figures go (a new directory)")
+    parser.add_argument("--resume", metavar="DIR", help="continue the session in DIR (its options are kept)")
+    parser.add_argument("--break-every", type=TRIALS_BETWEEN_BREAKS, default=0, metavar="N",
+                        help="a pause screen every N trials (default: none)")
+    parser.add_argument("--participant", default="P01", help="participant code for the log (default: P01)")
+    parser.add_argument("--session", default="1", help="session label for the log (default: 1)")
+    parser.add_argument("--function", choices=["weibull", "logistic"], default="weibull",
+                        help="psychometric function fitted (default: weibull)")
+    parser.add_argument("--interval", choices=["posterior", "bootstrap"], default="posterior",
+                        help="the threshold's 95 %% interval for staircases and constant stimuli: the grid "
+                             "posterior's credible interval, or a parametric bootstrap of the ML fit "
+                             "(default: posterior; QUEST+ always gives its posterior)")
+    parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
+                        help="bootstrap samples with --interval bootstrap (default: 200)")
+    parser.add_argument("--model", default="exponential", metavar="MODEL", help=f"{MODEL_HELP} (default: exponential)")
+    parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
+    parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,
+                        help="swipe speed of the simulated observer's finger (default: 100)")
+    parser.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
+    parser.add_argument("--windowed", action="store_true", help="a window instead of full screen")
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+def _add_experiment_commands(commands) -> None:
+    experiment = commands.add_parser(
+        "experiment", help="threshold experiments: staircases, QUEST+, constant stimuli",
+        description="Psychophysics on the plate: adaptive thresholds and the method of constant stimuli, "
+                    "with a person at the touch panel or a simulated observer (dry run).")
+    kinds = experiment.add_subparsers(dest="experiment", metavar="KIND", required=True, parser_class=OneLineParser)
+    threshold = kinds.add_parser(
+        "threshold", help="an adaptive threshold: staircase or QUEST+, 2 or 3 zones (forced choice)",
+        description="Find the level of one parameter a finger detects: zones side by side, one holds the "
+                    "stimulus; the participant swipes each and taps the odd one.")
+    threshold.add_argument("texture", nargs="?", metavar="TEXTURE", help="a texture file or a library name")
+    threshold.add_argument("--method", choices=["staircase", "quest"], default="staircase")
+    threshold.add_argument("--afc", type=ZONES, help="zones (forced-choice intervals) (default: 2)")
+    threshold.add_argument("--rule", choices=["1u2d", "1u3d", "weighted"], default="1u2d",
+                           help="staircase rule (default: 1u2d; weighted targets 75 %% correct)")
+    threshold.add_argument("--trials", type=TRIALS, metavar="N", help="number of trials")
+    threshold.add_argument("--range", nargs=2, type=LEVEL, metavar=("LOW", "HIGH"),
+                           help="levels the procedure may use (default: by parameter)")
+    threshold.add_argument("--start-level", type=LEVEL, metavar="LEVEL", help="staircase start level")
+    threshold.add_argument("--reference", metavar="TEXTURE",
+                           help="what the other zones show (default: plain glass)")
+    threshold.add_argument("--preset", choices=["grating-contrast", "grating-period"],
+                           help="a common question: grating-contrast, the detection threshold of a 1 mm grating's "
+                                "friction contrast; grating-period, the discrimination threshold of its period "
+                                "(Δλ in mm against 1 mm); both 3 zones")
+    _add_experiment_options(threshold)
+    threshold.set_defaults(handler="ultraglide.apps.experiment_command:run")
+    constant = kinds.add_parser(
+        "constant", help="the method of constant stimuli (preset: the paper's own assessment)",
+        description="Fixed levels, each presented a set number of times in random order, a yes/no answer; "
+                    "a psychometric function fitted by maximum likelihood. --preset vezzoli2015: 0, 2 and "
+                    "4 µm p-p at the plate's resonance, 10 times each, \"more slippery?\".")
+    constant.add_argument("texture", nargs="?", metavar="TEXTURE", help="a texture (not needed by the preset)")
+    constant.add_argument("--preset", choices=["vezzoli2015"])
+    constant.add_argument("--levels", nargs="+", type=LEVEL, metavar="L", help="the fixed levels")
+    constant.add_argument("--repeats", type=REPEATS, metavar="N", help="presentations of each level")
+    constant.add_argument("--afc", type=ZONES, help="forced choice instead of yes/no")
+    _add_experiment_options(constant)
+    constant.set_defaults(handler="ultraglide.apps.experiment_command:run")
 
 
 def _add_range(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:

@@ -106,6 +106,12 @@ CLIP_PERCENT = Bounded(0.0, 50.0, "%", high_open=True)
 WEIGHT = Bounded(0.0, 1e6)
 SWEEP_STEPS = Bounded(5, 2_000, whole=True)  # carriers in a resonance sweep
 SENSITIVITY = Bounded(1e-6, 1e6, "µm p-p per unit")
+TRIALS = Bounded(1, 100_000, whole=True)
+TRIALS_BETWEEN_BREAKS = Bounded(0, 100_000, whole=True)  # 0: no breaks
+BOOTSTRAP_SAMPLES = Bounded(10, 100_000, whole=True)
+REPEATS = Bounded(1, 10_000, whole=True)
+ZONES = Bounded(2, 3, whole=True)
+LEVEL = Bounded(0.0, 10_000.0, what="level (in the varied parameter's unit)")
 PARTICIPANT = Bounded(-1e9, 1e9)  # a number naming whose finger (the participant column)
 
 

@@ -335,6 +335,9 @@ RANGES = {
     "--duty": (0, 1, True, False, True), "--hurst": (0, 1, True, False, True),
     "--weights": (0, 1e6, False, False, False), "--else-ratio": (0, 1, False, False, False),
     "--steps": (1, 10_000, False, True, False),
+    "--trials": (1, 100_000, False, True, False), "--break-every": (0, 100_000, False, True, False),
+    "--bootstrap": (10, 100_000, False, True, False), "--repeats": (1, 10_000, False, True, False),
+    "--afc": (2, 3, False, True, False), "--start-level": (0, 10_000, False, False, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
                                   "--widths-mm", "--spacing-mm")},
@@ -342,6 +345,9 @@ RANGES = {
 OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("texture", "new", "edge"), "--width-mm"): FEATURE,
              (("plate", "sweep"), "--steps"): (5, 2000, False, True, False),
+             (("experiment", "threshold"), "--range"): (0, 10_000, False, False, False),
+             (("experiment", "constant"), "--range"): (0, 10_000, False, False, False),
+             (("experiment", "constant"), "--levels"): (0, 10_000, False, False, False),
              (("plate", "sweep"), "--from-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False)}
@@ -350,7 +356,8 @@ TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
          ("texture", "compose", "mask"): ["a", "m", "-o", "o.png"],
          ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
-         ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"]}
+         ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"],
+         ("experiment",): ["--out", "o"]}
 
 
 def range_of(words, flag):

@@ -1,0 +1,86 @@
+"""Where a live session's trials are felt: the real-time engine, or the renderer and device in process.
+
+The window needs three verbs: ``touch`` (a finger report), ``show`` (the trial's texture: one per
+trial) and ``stop``. With :mod:`ultraglide.render.engine` present, the engine process renders (the
+texture crosses as a file in a private temporary directory); otherwise a renderer in this process
+feeds the device (as ``ultraglide play`` does).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+from ultraglide.textures.texture import Texture
+
+
+class EngineOutput:
+    def __init__(self, device: str, profile: str, model: str, force_n: float):
+        from ultraglide.render.engine import Engine, EngineConfig
+
+        self._folder = Path(tempfile.mkdtemp(prefix="ultraglide-trials-"))
+        self.engine = Engine.start(EngineConfig(texture="grating-1mm", model=model, profile=profile, device=device,
+                                                default_force_n=force_n))
+        self.engine.wait_ready(120)
+        self.kind = "engine"
+        self.touches = 0
+
+    def touch(self, t_s: float, x_mm: float, y_mm: float, down: bool = True) -> None:
+        self.engine.touch(t_s, x_mm, y_mm, None, down)
+        self.touches += 1
+
+    def show(self, texture: Texture, trial: int) -> None:
+        from ultraglide.textures.fileformat import save_texture
+
+        path = save_texture(texture, self._folder / f"trial-{trial % 2}.png")
+        self.engine.set_texture(str(path))
+
+    def stop(self) -> None:
+        try:
+            self.engine.stop()
+        finally:
+            shutil.rmtree(self._folder, ignore_errors=True)
+
+
+class LocalOutput:
+    def __init__(self, device: str, profile: str, model: str, force_n: float):
+        from ultraglide.apps.sources import source_for
+        from ultraglide.devices.profiles import load_profile
+        from ultraglide.devices.urls import open_device
+        from ultraglide.render.calibration import load_model
+        from ultraglide.render.renderer import Renderer, RenderSettings
+        from ultraglide.textures.procedural import grating
+
+        plate = load_profile(profile)
+        friction = load_model(model)
+        self.device = open_device(device, plate)
+        try:
+            rate = self.device.rate_hz if self.device.signal == "audio" else 96000
+            self.renderer = Renderer(grating(1.0, (10.0, 10.0)), friction, plate,
+                                     RenderSettings(audio_rate_hz=rate, default_force_n=force_n))
+            self.device.start(source_for(self.device, self.renderer))
+        except BaseException:
+            self.device.stop()
+            raise
+        self.kind = "in-process renderer"
+        self.touches = 0
+
+    def touch(self, t_s: float, x_mm: float, y_mm: float, down: bool = True) -> None:
+        self.renderer.push(t_s, x_mm, y_mm, None, down)
+        self.touches += 1
+
+    def show(self, texture: Texture, trial: int) -> None:
+        self.renderer.set_texture(texture)
+
+    def stop(self) -> None:
+        self.device.stop()
+
+
+def open_output(device: str, profile: str, model: str, force_n: float):
+    """The engine when this installation has it, else the renderer in process."""
+    try:
+        import ultraglide.render.engine  # noqa: F401
+    except ImportError:
+        return LocalOutput(device, profile, model, force_n)
+    return EngineOutput(device, profile, model, force_n)

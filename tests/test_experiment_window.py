@@ -1,0 +1,182 @@
+"""The participant's window under SDL's dummy driver: real pygame events in, the log checked."""
+
+import csv
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+from ultraglide.apps.experiment_command import design_for
+from ultraglide.apps.experiment_procedures import interval_positions
+from ultraglide.apps.experiment_session import SessionConfig, run_session
+
+DEADLINE_S = 30.0
+
+
+@pytest.fixture
+def pg(monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    import pygame
+
+    return pygame
+
+
+def make_window(config):
+    from ultraglide.apps.experiment_output import LocalOutput
+    from ultraglide.apps.experiment_window import WindowResponder
+
+    design = design_for(config)
+    output = LocalOutput("null", config.profile, config.model, config.force_n)
+    felt = []  # the friction ratio the renderer looked up under the finger, while it was down
+
+    def observe(block):  # on the device's thread: a block's down may be one bool before any touch
+        down = np.broadcast_to(block.down, block.ratio.shape)
+        if down.any():
+            felt.append(float(block.ratio[down].min()))
+
+    output.renderer.observers.append(observe)
+    return WindowResponder(config, design, screen_width_mm=338.7, windowed=True, output=output), design, felt
+
+
+def wait_for(window, what, number):
+    deadline = time.monotonic() + DEADLINE_S
+    while time.monotonic() < deadline:
+        if window.ready.is_set() and window.showing == (what, number):
+            return
+        time.sleep(0.005)
+    raise AssertionError(f"the window never showed {what} {number}")
+
+
+def post(pg, kind, **fields):
+    pg.event.post(pg.event.Event(kind, **fields))
+
+
+def swipe(pg, window, zone_index):
+    """A finger across one zone's middle, left to right, as touch events (normalised coordinates)."""
+    w, h = window.screen.get_size()
+    zone = window.zones[zone_index]
+    xs = np.linspace(zone.left + 5, zone.right - 5, 40)
+    y = zone.centery / h
+    post(pg, pg.FINGERDOWN, x=xs[0] / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+    for x in xs[1:]:
+        post(pg, pg.FINGERMOTION, x=x / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+        time.sleep(0.008)
+    post(pg, pg.FINGERUP, x=xs[-1] / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+
+
+def read_rows(directory):
+    with open(directory / "trials.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_a_participant_swipes_taps_clicks_and_keys_through_a_session_with_a_break(pg, tmp_path):
+    config = SessionConfig(texture="grating-1mm", method="staircase", intervals=3, trials=6, seed=5,
+                           break_every=4, device="null", bootstrap=20, start_level=0.5)
+    window, design, felt = make_window(config)
+    targets = interval_positions(config.seed, 6, 3)
+    # the answers the participant gives: right, wrong, right, right, wrong, right; each a different way
+    plan = [("key", True), ("tap", False), ("click", True), ("key", True), ("click", False), ("tap", True)]
+
+    def participant():
+        for trial, (how, right) in enumerate(plan, start=1):
+            if trial == 5:
+                wait_for(window, "break", 5)
+                post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=44)
+            wait_for(window, "trial", trial)
+            target = targets[trial - 1]
+            if trial == 1:
+                swipe(pg, window, target)
+            answer = target if right else (target + 1) % 3
+            time.sleep(0.15)
+            if how == "key":
+                key = pg.key.key_code(str(answer + 1))
+                post(pg, pg.KEYDOWN, key=key, mod=0, unicode=str(answer + 1), scancode=0)
+            else:
+                x, y = window.buttons[answer][1].center
+                if how == "click":
+                    post(pg, pg.MOUSEBUTTONDOWN, pos=(x, y), button=1, touch=False)
+                else:
+                    w, h = window.screen.get_size()
+                    post(pg, pg.FINGERDOWN, x=x / w, y=y / h, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        outcome = run_session(config, design, window, tmp_path)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    rows = read_rows(tmp_path)
+    assert [r["correct"] for r in rows] == ["1", "0", "1", "1", "0", "1"]
+    assert [int(r["target"]) for r in rows] == [t + 1 for t in targets]
+    assert all(float(r["rt_s"]) >= 0.15 for r in rows)
+    assert [r["break_before"] for r in rows] == ["0", "0", "0", "0", "1", "0"]
+    assert outcome.complete and json.loads((tmp_path / "session.json").read_text())["status"] == "complete"
+    assert window.output.touches >= 40
+    assert min(felt) == pytest.approx(0.5, abs=0.08)  # the first trial's grating at contrast 0.5, under the finger
+
+
+def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
+    config = SessionConfig(texture="grating-1mm", method="quest", intervals=2, trials=4, seed=2, device="null",
+                           bootstrap=20)
+    window, design, _ = make_window(config)
+
+    def participant(keys):
+        for trial, key in keys:
+            wait_for(window, "trial", trial)
+            post(pg, pg.KEYDOWN, key=key, mod=0, unicode="", scancode=0)
+
+    helper = threading.Thread(target=participant, args=([(1, pg.K_1), (2, pg.K_ESCAPE)],), daemon=True)
+    helper.start()
+    try:
+        outcome = run_session(config, design, window, tmp_path)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    assert not outcome.complete and len(read_rows(tmp_path)) == 1
+    assert json.loads((tmp_path / "session.json").read_text())["status"] == "stopped"
+
+    window, design, _ = make_window(config)
+    helper = threading.Thread(target=participant, args=([(2, pg.K_2), (3, pg.K_1), (4, pg.K_2)],), daemon=True)
+    helper.start()
+    try:
+        outcome = run_session(config, design, window, tmp_path, resume=True)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    rows = read_rows(tmp_path)
+    assert [r["trial"] for r in rows] == ["1", "2", "3", "4"] and outcome.complete
+    assert [r["response"] for r in rows] == ["1", "2", "1", "2"]
+
+
+def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
+    """The default output is the engine process (device null): a swipe over the target zone reaches it and
+    the engine looks up the trial's texture there (1 - contrast at the grating's most slippery)."""
+    from ultraglide.apps.experiment_output import EngineOutput
+    from ultraglide.apps.experiment_window import WindowResponder
+
+    config = SessionConfig(texture="grating-1mm", method="staircase", intervals=2, trials=1, seed=1, device="null",
+                           start_level=0.4)
+    design = design_for(config)
+    window = WindowResponder(config, design, screen_width_mm=338.7, windowed=True)
+    assert isinstance(window.output, EngineOutput)
+    target = interval_positions(config.seed, 1, 2)[0]
+
+    def participant():
+        wait_for(window, "trial", 1)
+        swipe(pg, window, target)
+        time.sleep(0.2)
+        post(pg, pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="", scancode=0)
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        run_session(config, design, window, tmp_path)
+        status = window.output.engine.status(history_s=30.0)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    assert status.touches >= 40 and status.touches_dropped == 0
+    assert float(status.history.target_ratio.min()) == pytest.approx(0.6, abs=0.05)
+    assert read_rows(tmp_path)[0]["correct"] == "1"
