@@ -125,6 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    export.add_argument("--threads", type=int, metavar="N",
+                        help="threads that put the envelope on the carrier (default: one per CPU available)")
     export.set_defaults(handler="ultraglide.apps.export_command:run")
 
     play = commands.add_parser(

@@ -1,29 +1,40 @@
 """``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
 
 The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
-(limiter, then carrier) as every live device."""
+(limiter, then carrier) as every live device.
+
+Work is split by what it depends on. The control-rate envelope is a recursion, computed in order on
+this thread, block by block, and limited there by the output stage. Putting it on the carrier at the
+audio rate (eight times as many samples) depends on each frame's index alone, so each block is
+rendered in chunks on a pool of threads (a compiled kernel that releases the GIL) while this thread
+computes the next block's envelope, and a writer thread writes finished blocks in order. At most
+``IN_FLIGHT`` blocks are held, so memory does not grow with the length."""
 
 from __future__ import annotations
 
 import contextlib
 import json
 import math
+import os
 import sys
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import soundfile
-from tqdm import tqdm
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.atomic_file import write_failure
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render.renderer import ControlBlock
 
 SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0
+IN_FLIGHT = 3  # blocks rendered or being written ahead of this thread, at most
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
                     "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
@@ -67,12 +78,75 @@ class EnvelopeLog:
         return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def chunk_bounds(frames: int, chunks: int) -> list[tuple[int, int]]:
+    """``frames`` split into ``chunks`` nearly equal, consecutive (start, stop) ranges."""
+    cuts = [round(i * frames / chunks) for i in range(chunks + 1)]
+    return [(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
+
+
+def write_audio(stage: OutputStage, wav, total: int, block: int, threads: int, advance) -> None:
+    """Pull ``total`` frames from an audio output stage into ``wav`` (a soundfile.SoundFile), ``block`` at
+    a time: the envelope here, the carrier in ``threads`` chunks per block on a pool, the writes in order
+    on a writer thread (see the module docstring). ``advance(frames)`` is told of each block written."""
+    renderers = ThreadPoolExecutor(threads, thread_name_prefix="export-render")
+    writer = ThreadPoolExecutor(1, thread_name_prefix="export-write")
+
+    def write(out: np.ndarray, parts) -> int:
+        for part in parts:
+            part.result()
+        wav.write(out)
+        return len(out)
+
+    written: deque = deque()
+    try:
+        done = 0
+        while done < total:
+            frames = min(block, total - done)
+            job = stage.modulation(frames)
+            out = np.empty(frames, dtype=np.float32)
+            parts = [renderers.submit(job.render, out, start, stop) for start, stop in chunk_bounds(frames, threads)]
+            written.append(writer.submit(write, out, parts))
+            done += frames
+            while len(written) >= IN_FLIGHT or (written and written[0].done()):
+                advance(written.popleft().result())
+        while written:
+            advance(written.popleft().result())
+    finally:  # on an error or a stop signal: nothing more starts, and nothing runs on once this returns
+        renderers.shutdown(wait=True, cancel_futures=True)
+        writer.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def progress_bar(total: int):
+    """A tqdm bar on stderr when it is a terminal; nothing (and no tqdm import) in a pipe or a file."""
+    if not sys.stderr.isatty():
+        yield _NoProgress()
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr, leave=False) as bar:
+        yield bar
+
+
+class _NoProgress:
+    def update(self, frames: int) -> None:
+        pass
+
+
 def run(args) -> int:
     if args.format not in SUBTYPES:
         raise UsageError(f"format must be one of {', '.join(SUBTYPES)}")
     output = Path(args.output)
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
+    threads = available_cpus() if args.threads is None else args.threads
+    if threads < 1:
+        raise UsageError(f"--threads must be 1 or more, got {threads}")
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
     stage = offline_stage(renderer)
@@ -86,26 +160,21 @@ def run(args) -> int:
         csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
         plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
         csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
-        log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
-        renderer.observers.append(log)
+        if csv_stream:
+            log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
+            renderer.observers.append(log)
+            stage.observers.append(log.sent)
         if args.plot:
             from ultraglide.apps.export_plot import PlotRecorder
 
             plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
             renderer.observers.append(plot)
-        stage.observers.append(log.sent)
         format_ = "RF64" if total * 4 > 4_000_000_000 else "WAV"
         try:
             with soundfile.SoundFile(wav_path, "w", samplerate=rate, channels=1, subtype=SUBTYPES[args.format],
                                      format=format_) as wav, \
-                    tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr,
-                         disable=None, leave=False) as progress:
-                done = 0
-                while done < total:
-                    frames = min(block, total - done)
-                    wav.write(stage.pull(frames, None))
-                    done += frames
-                    progress.update(frames)
+                    progress_bar(total) as progress:
+                write_audio(stage, wav, total, block, threads, progress.update)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
         if csv_stream:

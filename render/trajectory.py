@@ -19,7 +19,6 @@ from collections import deque
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 from ultraglide.render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
@@ -180,6 +179,8 @@ class RecordedTrajectory:
         down = (requested >= self.start_s) & (requested <= self.end_s)
         if times.size == 0:
             return FingerState(times, times, times, down)
+        from scipy.interpolate import PchipInterpolator  # here, not at the top: only recorded paths need it
+
         last = self._cover(float(times.min()), float(times.max()))
         t = self._t[:last]
         force = np.interp(times, t, self._f[:last]) if self.has_force else np.full(times.shape, np.nan)
