@@ -155,3 +155,15 @@ def test_threads_must_be_one_or_more(tmp_path):
     out = tmp_path / "out.wav"
     assert "--threads" in assert_one_line_error(run_cli("export", "grating-1mm", "-o", out, "--threads", "0"))
     assert not out.exists()
+
+
+def test_the_second_export_loads_every_kernel_from_numbas_cache(tmp_path):
+    out = tmp_path / "out.wav"
+    argv = ["export", "grating-1mm", "--duration-s", "0.2", "-o", out]
+    run_cli(*argv, check=True)  # compiles what is not cached yet (a fresh checkout), and saves it
+    second = run_cli(*argv, check=True, env={"NUMBA_DEBUG_CACHE": "1"})
+    log = second.stdout + second.stderr
+    loaded = {line.split("kernels.")[1].split("-")[0] for line in log.splitlines()
+              if "[cache] data loaded" in line and "kernels." in line}
+    assert {"envelope", "bilinear", "limit_drive", "modulate", "inverse_stretched"} <= loaded, log
+    assert "data saved" not in log and "index saved" not in log  # nothing was compiled again
