@@ -119,8 +119,9 @@ class OutputStage:
         return drive
 
     def _audio(self, frames: int, now_s: float | None) -> np.ndarray:
+        knots, first_frame, carrier, offset = self._span(frames, now_s)
         out = np.empty(frames, dtype=np.float32)
-        self.modulation(frames, now_s).render(out)
+        kernels.modulate(knots, first_frame, self.upsampling, self._scale, carrier, offset, out)
         return out
 
     def modulation(self, frames: int, now_s: float | None = None) -> Modulation:
@@ -128,6 +129,12 @@ class OutputStage:
         The envelope is pulled and limited here, in order: only the carrier's modulation is left."""
         if self.signal != "audio":
             raise DeviceError("only an audio output stage modulates a carrier")
+        knots, first_frame, carrier, offset = self._span(frames, now_s)
+        return Modulation(knots, first_frame, self.upsampling, self._scale, carrier, offset, frames)
+
+    def _span(self, frames: int, now_s: float | None) -> tuple[np.ndarray, int, np.ndarray, int]:
+        """Pull and limit what the next ``frames`` audio frames need; return their knots, the first frame's
+        place among them, and the carrier (table and offset)."""
         up = self.upsampling
         available = len(self._pending) * up - self._played
         if frames > available:
@@ -139,15 +146,15 @@ class OutputStage:
         knots = np.empty(last + 2)
         knots[0] = self._last_drive
         knots[1:] = self._pending[:last + 1]
+        first_frame = self._played
         carrier, offset = self.carrier.span(frames)
-        job = Modulation(knots, self._played, up, self._scale, carrier, offset, frames)
         consumed = (self._played + frames) // up
         if consumed:
             self._last_drive = float(self._pending[consumed - 1])
             self._pending = self._pending[consumed:]
         self._played = (self._played + frames) % up
         self.frames += frames
-        return job
+        return knots, first_frame, carrier, offset
 
     def request_stop(self) -> None:
         self.source.request_stop()
