@@ -60,6 +60,25 @@ def test_parallel_export_equals_a_single_chunk_render_sample_for_sample(tmp_path
     assert np.max(np.abs(whole)) > 0.1  # a real signal, not silence on both sides
 
 
+def test_a_touch_log_export_equals_a_single_chunk_render(tmp_path):
+    # a recorded path at 192 kHz (16 frames a control sample), in 3 chunks a block
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(1 / 240, 1 / 60, 400))  # 60-240 Hz, about 3 s
+    x = 10 + 60 * (t - t[0]) + 3 * np.sin(7 * t)
+    y = 25 + 10 * np.sin(2 * t)
+    log = tmp_path / "touch.csv"
+    log.write_text("t_s,x_mm,y_mm,force_n\n" + "".join(f"{a:.6f},{b:.4f},{c:.4f},0.4\n" for a, b, c in zip(t, x, y,
+                                                                                                           strict=True)))
+    out = tmp_path / "log.wav"
+    argv = ["checkerboard-5mm", "--trajectory", str(log), "-o", str(out), "--rate", "192000"]
+    run_cli("export", *argv, "--threads", "3", check=True)
+    written, rate = soundfile.read(out, dtype="float32")
+    assert rate == 192000
+    pulled, whole = references(argv)
+    assert np.array_equal(written, pulled) and np.array_equal(written, whole)
+    assert np.max(np.abs(whole)) > 0.1
+
+
 @pytest.fixture(scope="module")
 def uniform_texture(tmp_path_factory):
     """Friction 0.7 everywhere: a steady amplitude whatever the finger does."""
