@@ -37,6 +37,7 @@ from ultraglide.apps.cli_types import (
     SEED,
     STEPS,
     TEXTURE_SIDE_MM,
+    THREADS,
     UNIT_INTERVAL,
     WEIGHT,
     crop_box,
@@ -125,8 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    export.add_argument("--threads", type=int, metavar="N",
-                        help="threads that put the envelope on the carrier (default: one per CPU available)")
+    export.add_argument("--threads", type=THREADS, metavar="N",
+                        help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
     export.set_defaults(handler="ultraglide.apps.export_command:run")
 
     play = commands.add_parser(

@@ -144,9 +144,7 @@ def run(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
-    threads = available_cpus() if args.threads is None else args.threads
-    if threads < 1:
-        raise UsageError(f"--threads must be 1 or more, got {threads}")
+    threads = available_cpus() if args.threads is None else int(args.threads)
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
     stage = offline_stage(renderer)

@@ -335,6 +335,7 @@ RANGES = {
     "--duty": (0, 1, True, False, True), "--hurst": (0, 1, True, False, True),
     "--weights": (0, 1e6, False, False, False), "--else-ratio": (0, 1, False, False, False),
     "--steps": (1, 10_000, False, True, False),
+    "--threads": (1, 256, False, True, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
                                   "--widths-mm", "--spacing-mm")},
