@@ -41,6 +41,7 @@ from ultraglide.apps.cli_types import (
     UNIT_INTERVAL,
     WEIGHT,
     crop_box,
+    positive,
     ratio,
     size_mm,
     texture_name,
