@@ -43,6 +43,7 @@ from ultraglide.apps.cli_types import (
     STEPS,
     SWEEP_STEPS,
     TEXTURE_SIDE_MM,
+    THREADS,
     TRIALS,
     TRIALS_BETWEEN_BREAKS,
     UNIT_INTERVAL,
@@ -134,6 +135,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    export.add_argument("--threads", type=THREADS, metavar="N",
+                        help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
     export.set_defaults(handler="ultraglide.apps.export_command:run")
 
     play = commands.add_parser(

@@ -94,6 +94,7 @@ MAX_PIXELS = Bounded(1, 100_000_000, "pixels", whole=True)  # the texture file's
 PX_PER_MM = Bounded(0.1, 1_000.0, "pixels per mm")
 SEED = Bounded(0, 2**32 - 1, whole=True)
 DETENTS = Bounded(1, 100, whole=True)
+THREADS = Bounded(1, 256, whole=True)  # export's carrier threads
 STEPS = Bounded(1, 10_000, whole=True)  # latency measurements: each takes a fraction of a second
 SCREEN_WIDTH_MM = Bounded(10.0, 10_000.0, "mm")
 PRINT_DPI = Bounded(10.0, 2_400.0, "dpi")  # a figure's resolution, not a texture's

@@ -1,7 +1,10 @@
 """``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
 
 The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
-(limiter, then carrier) as every live device."""
+(limiter, then carrier) as every live device.
+
+The writing itself is :func:`ultraglide.api.write_wav`, the library's path too: the envelope in order,
+the carrier in parallel chunks on both cores, the writes in order, memory flat whatever the length."""
 
 from __future__ import annotations
 
@@ -13,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import soundfile
-from tqdm import tqdm
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
@@ -21,7 +23,7 @@ from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.devices.atomic_file import write_failure
 from ultraglide.render.renderer import ControlBlock
 
-from ultraglide.api import WAV_SUBTYPES, export_duration_s, offline_stage, write_wav
+from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, offline_stage, write_wav
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
@@ -66,12 +68,30 @@ class EnvelopeLog:
         return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
 
 
+@contextlib.contextmanager
+def progress_bar(total: int):
+    """A tqdm bar on stderr when it is a terminal; nothing (and no tqdm import) in a pipe or a file."""
+    if not sys.stderr.isatty():
+        yield _NoProgress()
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr, leave=False) as bar:
+        yield bar
+
+
+class _NoProgress:
+    def update(self, frames: int) -> None:
+        pass
+
+
 def run(args) -> int:
     if args.format not in WAV_SUBTYPES:
         raise UsageError(f"format must be one of {', '.join(WAV_SUBTYPES)}")
     output = Path(args.output)
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
+    threads = available_cpus() if args.threads is None else int(args.threads)
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
     stage = offline_stage(renderer)
@@ -84,18 +104,18 @@ def run(args) -> int:
         csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
         plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
         csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
-        log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
-        renderer.observers.append(log)
+        if csv_stream:
+            log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
+            renderer.observers.append(log)
+            stage.observers.append(log.sent)
         if args.plot:
             from ultraglide.apps.export_plot import PlotRecorder
 
             plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
             renderer.observers.append(plot)
-        stage.observers.append(log.sent)
         try:
-            with tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr, disable=None,
-                      leave=False) as progress:
-                write_wav(stage, wav_path, total, args.format, progress=progress.update)
+            with progress_bar(total) as progress:
+                write_wav(stage, wav_path, total, args.format, progress=progress.update, threads=threads)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
         if csv_stream:

@@ -51,19 +51,29 @@ def modulate(knots, first_frame, up, scale, carrier, offset, out):
     Frame m (counted from ``first_frame`` within the knots' span) lies between knots m // up and
     m // up + 1; knot values are drive amplitudes, scaled by ``scale`` to a fraction of full scale
     and limited to [0, 1]. ``carrier`` is one exact period of the carrier, read from ``offset``.
+    Every frame's value depends on its own index alone, so a span rendered in chunks (each with its
+    own ``first_frame`` and ``offset``, on any thread) equals the span rendered at once.
+    Returns the carrier position after the last frame.
     """
     period = carrier.shape[0]
     position = offset
-    for m in range(out.shape[0]):
-        frame = first_frame + m
-        index = frame // up
-        fraction = (frame - index * up) / up
+    frames = out.shape[0]
+    index = first_frame // up  # one integer division per control period, not per frame
+    within = first_frame - index * up
+    m = 0
+    while m < frames:
         a = min(max(knots[index] * scale, 0.0), 1.0)
         b = min(max(knots[index + 1] * scale, 0.0), 1.0)
-        out[m] = (a + (b - a) * fraction) * carrier[position]
-        position += 1
-        if position == period:
-            position = 0
+        rise = b - a
+        stop = min(frames, m + up - within)
+        for k in range(m, stop):
+            out[k] = (a + rise * ((within + k - m) / up)) * carrier[position]
+            position += 1
+            if position == period:
+                position = 0
+        m = stop
+        index += 1
+        within = 0
     return position
 
 

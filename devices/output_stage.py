@@ -30,6 +30,8 @@ Example, one second of a steady 3 µm p-p drive at 96 kHz::
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from ultraglide.devices import kernels
 from ultraglide.devices.carrier import Carrier
@@ -40,6 +42,28 @@ from ultraglide.devices.source import BlockSource
 
 CONTROL_RATE_HZ = 12000.0  # an envelope source's rate unless it says otherwise
 SIGNALS = ("control", "audio")
+
+
+@dataclass(frozen=True, eq=False)
+class Modulation:
+    """A span of audio frames, its envelope already limited: ready to be put on the carrier whole or in
+    chunks, on any threads (:meth:`render` runs a compiled kernel that releases the GIL). Each frame
+    depends on its own index alone (its control samples and the carrier's exact phase there), so
+    chunks join seamlessly and give what one call gives, sample for sample."""
+
+    knots: np.ndarray  # limited drive, µm p-p: the control sample before the span, then those it reaches
+    first_frame: int  # the span's first frame, counted in audio frames from knot 0
+    upsampling: int
+    scale: float  # 1 / full-scale drive (µm p-p)
+    carrier: np.ndarray  # one exact period of the carrier (or the span's own carrier samples)
+    carrier_offset: int  # where in it the span starts
+    frames: int
+
+    def render(self, out: np.ndarray, start: int = 0, stop: int | None = None) -> None:
+        """Frames ``start`` to ``stop`` of the span into ``out[start:stop]`` (float32, in [-1, 1])."""
+        stop = self.frames if stop is None else stop
+        kernels.modulate(self.knots, self.first_frame + start, self.upsampling, self.scale, self.carrier,
+                         (self.carrier_offset + start) % len(self.carrier), out[start:stop])
 
 
 class OutputStage:
@@ -96,6 +120,22 @@ class OutputStage:
         return drive
 
     def _audio(self, frames: int, now_s: float | None) -> np.ndarray:
+        knots, first_frame, carrier, offset = self._span(frames, now_s)
+        out = np.empty(frames, dtype=np.float32)
+        kernels.modulate(knots, first_frame, self.upsampling, self._scale, carrier, offset, out)
+        return out
+
+    def modulation(self, frames: int, now_s: float | None = None) -> Modulation:
+        """The next ``frames`` of an audio stage, to render later (whole, or in chunks on other threads).
+        The envelope is pulled and limited here, in order: only the carrier's modulation is left."""
+        if self.signal != "audio":
+            raise DeviceError("only an audio output stage modulates a carrier")
+        knots, first_frame, carrier, offset = self._span(frames, now_s)
+        return Modulation(knots, first_frame, self.upsampling, self._scale, carrier, offset, frames)
+
+    def _span(self, frames: int, now_s: float | None) -> tuple[np.ndarray, int, np.ndarray, int]:
+        """Pull and limit what the next ``frames`` audio frames need; return their knots, the first frame's
+        place among them, and the carrier (table and offset)."""
         up = self.upsampling
         available = len(self._pending) * up - self._played
         if frames > available:
@@ -107,15 +147,15 @@ class OutputStage:
         knots = np.empty(last + 2)
         knots[0] = self._last_drive
         knots[1:] = self._pending[:last + 1]
-        out = np.empty(frames, dtype=np.float32)
-        kernels.modulate(knots, self._played, up, self._scale, self.carrier.block(frames), 0, out)
+        first_frame = self._played
+        carrier, offset = self.carrier.span(frames)
         consumed = (self._played + frames) // up
         if consumed:
             self._last_drive = float(self._pending[consumed - 1])
             self._pending = self._pending[consumed:]
         self._played = (self._played + frames) % up
         self.frames += frames
-        return out
+        return knots, first_frame, carrier, offset
 
     def request_stop(self) -> None:
         """Ask the envelope source to ramp down to rest."""

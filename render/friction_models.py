@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.interpolate import PchipInterpolator
 from ultraglide.render import kernels
 from ultraglide.render.errors import ModelError
 from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
@@ -381,6 +380,7 @@ class TableModel(FrictionModel):
     name = "table"
 
     def __init__(self, data: Measurements):
+        from scipy.interpolate import PchipInterpolator  # imported here: scipy.interpolate takes 0.3-0.8 s to load
         from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
 
         forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)

@@ -21,7 +21,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.interpolate import PchipInterpolator
 from ultraglide.render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
@@ -184,6 +183,8 @@ class RecordedTrajectory:
         down = (requested >= self.start_s) & (requested <= self.end_s)
         if times.size == 0:
             return FingerState(times, times, times, down)
+        from scipy.interpolate import PchipInterpolator  # here, not at the top: only recorded paths need it
+
         last = self._cover(float(times.min()), float(times.max()))
         t = self._t[:last]
         force = np.interp(times, t, self._f[:last]) if self.has_force else np.full(times.shape, np.nan)

@@ -338,6 +338,7 @@ RANGES = {
     "--trials": (1, 100_000, False, True, False), "--break-every": (0, 100_000, False, True, False),
     "--bootstrap": (10, 100_000, False, True, False), "--repeats": (1, 10_000, False, True, False),
     "--afc": (2, 3, False, True, False), "--start-level": (0, 10_000, False, False, False),
+    "--threads": (1, 256, False, True, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
                                   "--widths-mm", "--spacing-mm")},

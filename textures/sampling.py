@@ -105,7 +105,7 @@ class Sampler:
         low = np.broadcast_to(low, np.shape(x_mm))
         weight = np.broadcast_to(weight, np.shape(x_mm))
         result = np.empty(np.shape(x_mm), dtype=np.float32)
-        for index in np.unique(low):  # one pass per pyramid level present, not per sample
+        for index in np.flatnonzero(np.bincount(low.reshape(-1))):  # one pass per level present, not per sample
             pick = low == index
             near = self._bilinear(channel, x_mm[pick], y_mm[pick], int(index))
             if not weight[pick].any():

@@ -18,7 +18,9 @@ Example, a 1 mm grating swiped at 100 mm/s for half a second::
 from __future__ import annotations
 
 import os
+from collections import deque
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +42,7 @@ from ultraglide.textures.texture import Texture
 
 WAV_SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0  # rendered and written a second at a time: memory stays flat whatever the length
+IN_FLIGHT = 3  # blocks rendered or being written ahead of the envelope, at most
 
 
 @dataclass(frozen=True)
@@ -121,28 +124,70 @@ def offline_stage(renderer: Renderer) -> OutputStage:
                        renderer.carrier_hz)
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def chunk_bounds(frames: int, chunks: int) -> list[tuple[int, int]]:
+    """``frames`` split into ``chunks`` nearly equal, consecutive (start, stop) ranges."""
+    cuts = [round(i * frames / chunks) for i in range(chunks + 1)]
+    return [(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
+
+
 def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: str = "float32",
-              progress: Callable[[int], None] | None = None) -> float:
+              progress: Callable[[int], None] | None = None, threads: int | None = None) -> float:
     """Pull ``frames`` of audio from ``stage`` into a mono WAV at ``path``, as it is given (no temporary
-    file), a second at a time. ``progress`` is called with the frames written after each block.
-    Returns the duration written (s). RF64 is used beyond 4 GB."""
+    file), a second at a time. Returns the duration written (s). RF64 is used beyond 4 GB.
+
+    Work is split by what it depends on: the control-rate envelope (a recursion) and the limiter run in
+    order on this thread; putting each block on the carrier depends on each frame's index alone, so it
+    runs in ``threads`` chunks (default: one per CPU) on a pool while this thread computes the next
+    block, and a writer thread writes finished blocks in order. At most ``IN_FLIGHT`` blocks are held,
+    so memory does not grow with the length. ``progress`` is told of the frames of each block written."""
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     if stage.signal != "audio":
         raise RenderError("a WAV file takes audio: give an output stage whose signal is audio")
+    threads = available_cpus() if threads is None else int(threads)
+    if threads < 1:
+        raise RenderError(f"threads must be at least 1, got {threads}")
     rate = int(stage.rate_hz)
     block = int(BLOCK_S * rate)
     container = "RF64" if frames * 4 > 4_000_000_000 else "WAV"
     with soundfile.SoundFile(path, "w", samplerate=rate, channels=1, subtype=WAV_SUBTYPES[format],
                              format=container) as wav:
-        done = 0
-        while done < frames:
-            size = min(block, frames - done)
-            wav.write(stage.pull(size, None))
-            done += size
-            if progress:
-                progress(size)
+        _write_blocks(stage, wav, frames, block, threads, progress or (lambda frames: None))
     return frames / rate
+
+
+def _write_blocks(stage: OutputStage, wav, total: int, block: int, threads: int, advance) -> None:
+    renderers = ThreadPoolExecutor(threads, thread_name_prefix="export-render")
+    writer = ThreadPoolExecutor(1, thread_name_prefix="export-write")
+
+    def write(out: np.ndarray, parts) -> int:
+        for part in parts:
+            part.result()
+        wav.write(out)
+        return len(out)
+
+    written: deque = deque()
+    try:
+        done = 0
+        while done < total:
+            frames = min(block, total - done)
+            job = stage.modulation(frames)
+            out = np.empty(frames, dtype=np.float32)
+            parts = [renderers.submit(job.render, out, start, stop) for start, stop in chunk_bounds(frames, threads)]
+            written.append(writer.submit(write, out, parts))
+            done += frames
+            while len(written) >= IN_FLIGHT or (written and written[0].done()):
+                advance(written.popleft().result())
+        while written:
+            advance(written.popleft().result())
+    finally:  # on an error or a stop signal: nothing more starts, and nothing runs on once this returns
+        renderers.shutdown(wait=True, cancel_futures=True)
+        writer.shutdown(wait=True, cancel_futures=True)
 
 
 def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
