@@ -144,6 +144,10 @@ class EngineSource(OutputStage):
         for k in range(tail, head):
             t, x, y, force, down = touches[k % shm.TOUCH_SLOTS]
             self.renderer.push(t, x, y, None if math.isnan(force) else force, down > 0.5)
+            fast[shm.LAST_TOUCH_X] = x
+            fast[shm.LAST_TOUCH_Y] = y
+            fast[shm.LAST_TOUCH_FORCE] = force
+            fast[shm.LAST_TOUCH_DOWN] = down
             latency[row % shm.LATENCY_ROWS, 0] = t
             latency[row % shm.LATENCY_ROWS, 1] = math.nan  # filled in when the block is rendered
             row += 1
@@ -168,6 +172,7 @@ class EngineSource(OutputStage):
         fast[shm.LAST_BLOCK_S] = done
         fast[shm.STATE] = 3 if self._stopping else (2 if renderer.paused else 1)
         self.shared.block_times[blocks % shm.BLOCK_TIMES] = done - started
+        self.shared.histogram[shm.histogram_bin(done - started)] += 1
         fast[shm.BLOCK_TIME_INDEX] = blocks + 1
         if block is not None:
             row = self.shared.history[int(fast[shm.HISTORY_INDEX]) % shm.HISTORY_ROWS]
@@ -222,16 +227,27 @@ def _load(config):
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import open_device
     from ultraglide.render.calibration import load_model
-    from ultraglide.textures.library import resolve_texture
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        texture = resolve_texture(config.texture)
+        texture = _texture(config.texture)
     model = load_model(config.model)
     profile = load_profile(config.profile)
     device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
                          carrier_hz=config.carrier_hz)
     return texture, model, profile, device
+
+
+def _texture(spec):
+    """A library name or file, loaded here; or a Texture the app composed in memory (it came pickled)."""
+    if isinstance(spec, str):
+        from ultraglide.textures.library import resolve_texture
+
+        return resolve_texture(spec)
+    from ultraglide.textures.texture import Texture
+
+    if not isinstance(spec, Texture):
+        raise ValueError(f"a texture must be a name, a file or a Texture, not {type(spec).__name__}")
+    return spec
 
 
 def _user_errors():
@@ -309,6 +325,12 @@ def _device_status(device, stage=None) -> dict:
         return {"errors": [f"status: {type(error).__name__}: {error}"]}
 
 
+def _renderer_status(renderer) -> dict:
+    """What the renderer renders with: texture, model, the default force (N)."""
+    return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),
+            "force_n": renderer.default_force_n}
+
+
 def _close_device(device) -> str | None:
     """Stop the device; what went wrong that a person can act on (e.g. a recording that did not fit on
     the disk), or None. Resting the hardware is best effort on the way out: nothing here raises."""
@@ -331,8 +353,8 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
     while True:
         now = time.monotonic()
         if now >= next_status:
-            shared.write_slow({**_device_status(device, source), "priority": f"{source.priority}; {threads}",
-                               "pid": os.getpid()})
+            shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
+                               "priority": f"{source.priority}; {threads}", "pid": os.getpid()})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
@@ -352,9 +374,7 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
             return
         try:
             if command == "texture":
-                from ultraglide.textures.library import resolve_texture
-
-                renderer.set_texture(resolve_texture(args[0]))
+                renderer.set_texture(_texture(args[0]))
             elif command == "model":
                 from ultraglide.render.calibration import load_model
 
@@ -374,7 +394,8 @@ def _finish(shared, source, device, conn) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     failure = _close_device(device)
-    status = {**_device_status(device, source), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
+    status = {**_device_status(device, source), **_renderer_status(source.renderer),
+              "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
     if failure:
         status["output_error"] = failure
     shared.write_slow(status)
