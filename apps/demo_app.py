@@ -664,9 +664,10 @@ class DemoApp:
             return {"started": False, "touches_not_felt_before_ready": self.unfelt}
         s = final if final is not None else self.link.status(0.0).engine
         return {"started": True, "device": s.device, "blocks_rendered": s.blocks, "late_blocks": s.late_blocks,
+                "resting_blocks": s.resting_blocks,
                 "underruns": s.underruns, "underruns_at_first_touch": self.underruns_at_first_touch,
                 "block_p50_us": _rounded(s.run_block_p50_us), "block_p99_us": _rounded(s.run_block_p99_us),
-                "block_times": "over every block of the run, ±1 % (a histogram)",
+                "block_times": "over every block rendered in the run (not the resting ones), ±1 % (a histogram)",
                 "limited_samples": s.clipped_samples, "faults": list(s.faults), "priority": s.priority,
                 "touches": self.pushed, "touches_received_by_engine": s.touches,
                 "touches_dropped_by_engine": s.touches_dropped, "touches_not_felt_before_ready": self.unfelt}

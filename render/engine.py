@@ -114,6 +114,7 @@ class EngineStatus:
     last_touch: tuple[float, float, float, bool] | None = None  # as drained: x mm, y mm, force N (NaN), down
     run_block_p50_us: float | None = None  # over every block of the run (±1 %: a histogram)
     run_block_p99_us: float | None = None
+    resting_blocks: int = 0  # of ``blocks``, those served as zeros while paused at rest (not in block times)
 
     def words(self, priority: bool = True) -> str:
         """One line for people."""
@@ -338,7 +339,8 @@ def _status(header, block_times, history_ring, device_status, dropped, device_na
         touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
         control_samples=int(header[shm.CONTROL_SAMPLES]),
         history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
-        device_status=device_status, texture=str(device_status.get("texture", "")),
+        device_status=device_status, resting_blocks=int(header[shm.RESTING_BLOCKS]),
+        texture=str(device_status.get("texture", "")),
         model=str(device_status.get("model", "")), force_n=float(device_status.get("force_n", math.nan)),
         last_touch=(float(header[shm.LAST_TOUCH_X]), float(header[shm.LAST_TOUCH_Y]),
                     float(header[shm.LAST_TOUCH_FORCE]), bool(header[shm.LAST_TOUCH_DOWN] > 0.5)) if touched else None)

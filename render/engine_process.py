@@ -32,6 +32,7 @@ FIFO_PRIORITY = 60
 OTHER_THREADS_PRIORITY = 1
 PROBE_THRESHOLD_UM_PP = 0.05
 PROBE_PERIOD_S = 0.0002
+RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
 
 
 def raise_priority() -> str:
@@ -115,6 +116,8 @@ class EngineSource(OutputStage):
         self._raise = raise_priority_
         self._first = True
         self._stopping = False
+        self._resting = False
+        self._rest = np.zeros(RESTING_CAPACITY, dtype=np.float32 if device.signal == "audio" else np.float64)
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         started = time.perf_counter()
@@ -123,12 +126,34 @@ class EngineSource(OutputStage):
             if self._raise:
                 self.priority = raise_priority()
         touched = self._drain()
+        if not touched and n <= len(self._rest) and self._at_rest():
+            # paused with everything at zero: the plate gets zeros (a device's heartbeat goes on) and the
+            # renderer is not run; the first touch or resume renders again from here
+            if not self._resting:
+                self._rest[:] = 0.0  # a device may have written into what it was given
+            self._resting = True
+            self.frames += n
+            self.limiter.samples += n if self.signal == "control" else n // self.upsampling  # time at rest counts
+            self._publish(started, time.perf_counter(), now_s, 0, 0)
+            return self._rest[:n]
         renderer = self.renderer
+        if self._resting:
+            self._resting = False
+            renderer._next_time = None  # its clock starts again at this block, not counted as late
         clipped_before = renderer.counters.clipped_samples
         out = super().pull(n, now_s)
         done = time.perf_counter()
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
+
+    def _at_rest(self) -> bool:
+        """Paused, and the renderer, the stage and the limiter's model of the plate all at zero."""
+        renderer = self.renderer
+        block = renderer.last_block
+        return (renderer.paused and not self._stopping and block is not None and renderer.envelope.at_rest
+                and block.drive_um_pp[-1] < 1e-6 and self._last_drive < 1e-6
+                and self.limiter.fast_plate_um_pp < 1e-6
+                and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
 
     def _drain(self) -> float:
         """Push the touches that arrived since the last block; returns how many."""
@@ -171,16 +196,21 @@ class EngineSource(OutputStage):
         fast[shm.RAMPS] = counters.ramps
         fast[shm.LAST_BLOCK_S] = done
         fast[shm.STATE] = 3 if self._stopping else (2 if renderer.paused else 1)
-        self.shared.block_times[blocks % shm.BLOCK_TIMES] = done - started
-        self.shared.histogram[shm.histogram_bin(done - started)] += 1
-        fast[shm.BLOCK_TIME_INDEX] = blocks + 1
+        if self._resting:  # served as zeros, not rendered: counted apart, out of the block times
+            fast[shm.RESTING_BLOCKS] += 1
+        else:
+            timed = int(fast[shm.BLOCK_TIME_INDEX])
+            self.shared.block_times[timed % shm.BLOCK_TIMES] = done - started
+            self.shared.histogram[shm.histogram_bin(done - started)] += 1
+            fast[shm.BLOCK_TIME_INDEX] = timed + 1
         if block is not None:
             row = self.shared.history[int(fast[shm.HISTORY_INDEX]) % shm.HISTORY_ROWS]
-            row[0] = block.time_s[0] if now_s is None else now_s
+            resting = self._resting
+            row[0] = (done if resting else block.time_s[0]) if now_s is None else now_s
             row[1] = block.ratio[-1]
-            row[2] = block.amplitude_um_pp[-1]
+            row[2] = 0.0 if resting else block.amplitude_um_pp[-1]
             telemetry = getattr(self.device, "telemetry", None)
-            row[3] = block.plate_um_pp[-1] if telemetry is None else telemetry.measured_um_pp
+            row[3] = (0.0 if resting else block.plate_um_pp[-1]) if telemetry is None else telemetry.measured_um_pp
             row[4] = clipped
             fast[shm.HISTORY_INDEX] += 1
         if touched:

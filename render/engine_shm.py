@@ -45,6 +45,7 @@ SEQ, BLOCKS, LATE_BLOCKS, CONTROL_SAMPLES, CLIPPED, DRIVE_CLIPPED, RAMPS, TOUCHE
 PLATE_PROBE_UM_PP, PROBE_RISE_S = 14, 15
 # the last touch the block path drained (as the renderer got it: mm, N or NaN for the default, 1/0 down)
 LAST_TOUCH_X, LAST_TOUCH_Y, LAST_TOUCH_FORCE, LAST_TOUCH_DOWN = 16, 17, 18, 19
+RESTING_BLOCKS = 20  # blocks served as zeros while paused and at rest (the renderer not run)
 HEADER = 24
 
 STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")
