@@ -78,6 +78,13 @@ class DemoLink:
                                            device=config.device, start_paused=True), START_TIMEOUT_S)
         try:
             engine.wait_ready(START_TIMEOUT_S)
+            deadline = time.monotonic() + START_TIMEOUT_S
+            while engine.status(0.0).blocks == 0:  # ready for the demo: the device pulls blocks
+                if time.monotonic() > deadline or not engine.alive:
+                    from ultraglide.render.engine import EngineError
+
+                    raise EngineError(f"the device {config.device} took no block within {START_TIMEOUT_S:g} s")
+                time.sleep(0.005)
         except BaseException:
             engine.stop()
             raise
