@@ -257,6 +257,7 @@ def _load(config):
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import open_device
     from ultraglide.render.calibration import load_model
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         texture = _texture(config.texture)
