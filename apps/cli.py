@@ -206,8 +206,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="write the touches as a touch log (t_s,x_mm,y_mm,force_n) that export and play "
                            "--trajectory replay; flushed as it goes, renamed into place at exit")
     demo.add_argument("--stats", metavar="FILE.json",
-                      help="at exit, write the renderer's figures: blocks, late blocks, underruns, block time "
-                           "p50/p99 (over the last 50 000 blocks or more, 100 s at 2 ms a block)")
+                      help="at exit, write the engine's figures over the run: blocks, late blocks, underruns "
+                           "(also as they were at the first touch), block time p50/p99, touches")
+    demo.add_argument("--watch", action="store_true",
+                      help="reload a texture given as a file when it (or the image it was authored from) changes, "
+                           "checked every 200 ms: edit it in any image editor and feel the change")
     demo.add_argument("--report-frames", action="store_true",
                       help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
     demo.set_defaults(handler="ultraglide.apps.demo_app:run")

@@ -6,11 +6,14 @@ other fingers are drawn but ignored; a held mouse button counts as a finger, and
 synthesised from touches are ignored so nothing counts twice. Touch pressure sets the force where
 the panel reports it, the arrow keys otherwise.
 
-The window comes first: the gallery is drawn, then the renderer starts on a thread (its kernels load
-while the gallery is on screen). The loop sleeps in ``pygame.event.wait`` and redraws only what
-changed: the texture area while a finger moves or its trace fades, the chart while the plate is
-active, the status line when its words change. All contact with the renderer and the device goes
-through :class:`ultraglide.apps.demo_link.DemoLink`. Every way out rests the plate.
+The window comes first: the gallery is drawn, then the real-time engine (renderer and device in their
+own process) starts from a thread and compiles its kernels while the gallery is on screen; touches
+before it is ready are drawn, counted and not felt. The loop sleeps in ``pygame.event.wait`` and
+redraws only what changed: the texture area while a finger moves or its trace fades, the chart while
+the plate is active, the status line when its words change. All contact with the renderer and the
+device goes through :class:`ultraglide.apps.demo_link.DemoLink`. With ``watch``, texture files (and
+the images they were authored from) are polled every 200 ms and reloaded when they change. Every
+way out rests the plate.
 """
 
 from __future__ import annotations
@@ -107,12 +110,13 @@ class DemoApp:
 
     def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="exponential",
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
-                 record: str | None = None, report_frames: bool = False):
+                 record: str | None = None, report_frames: bool = False, watch: bool = False):
         if not display_available():
             raise UsageError("no display to show the demo on (set DISPLAY or run under Xvfb); to render "
                              "without a screen use `ultraglide export`")
         if record is not None and Path(record).suffix.lower() != ".csv":
             raise UsageError(f"--record needs a .csv file, got {record}")
+        self.texture_files: dict[int, tuple[Path, Texture]] = {}  # index → (file, texture) for --watch
         self.textures = self._load_textures(texture_specs)  # bad files fail here, before a window opens
         import pygame
 
@@ -139,11 +143,14 @@ class DemoApp:
         self.fingers: dict[int, tuple[float, float]] = {}
         self.driving: int | None = None  # the finger (or -1 for the mouse) that drives the plate
         self.trace: collections.deque = collections.deque()
-        self.measured: collections.deque = collections.deque(maxlen=400)
         self.user_paused = False
         self.show_help = False
         self.running = True
         self.pushed = 0
+        self.unfelt = 0  # touches made before the engine was ready: drawn, not felt
+        self.watcher = None
+        self.watch_errors: list[str] = []
+        self._next_watch = 0.0
         self.link: DemoLink | None = None
         self._closed = False
         self._widgets: tuple[Texture, list] | None = None
@@ -154,6 +161,8 @@ class DemoApp:
         self._active_until = 0.0  # the chart scrolls until then
         self._next_area = self._next_chart = self._next_status = 0.0
         self.frames_drawn = 0
+        self.final_status = None  # the engine's last status, once stopped
+        self.underruns_at_first_touch: int | None = None
         self._layout()
         try:  # last, so that nothing above can leave a recording behind
             self.recorder = TouchRecorder(record) if record else None
@@ -161,6 +170,10 @@ class DemoApp:
             raise UsageError(f"cannot write the recording {record}: {error.strerror}") from None
         self._draw_all()  # the first frame, before anything heavy is imported
         self.starter = LinkStarter(LinkConfig(self.textures[0], model, profile, device_url))
+        if watch:
+            from ultraglide.apps.demo_watch import TextureWatcher
+
+            self.watcher = TextureWatcher(self.texture_files)
 
     # ---- set-up --------------------------------------------------------------------------------
     def _load_textures(self, specs) -> list[Texture]:
@@ -176,16 +189,19 @@ class DemoApp:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # plain images are authored with defaults, as documented
-                textures.extend(resolve_texture(str(spec)) for spec in specs)
+                for spec in specs:
+                    textures.append(resolve_texture(str(spec)))
+                    if Path(spec).is_file():
+                        self.texture_files[len(textures) - 1] = (Path(spec), textures[-1])
         library = Path(str(files("ultraglide.textures") / "library"))
         textures.extend(load_texture(path) for path in sorted(library.glob("*.png")))
         return textures
 
-    def wait_ready(self, timeout_s: float = 60.0) -> DemoLink:
-        """Block until the renderer runs (for scripts and tests); raises what starting it raised."""
+    def wait_ready(self, timeout_s: float = 120.0) -> DemoLink:
+        """Block until the engine runs (for scripts and tests); raises what starting it raised."""
         link = self.starter.wait(timeout_s)
         if link is None:
-            raise TimeoutError(f"the renderer did not start within {timeout_s:g} s")
+            raise TimeoutError(f"the engine did not start within {timeout_s:g} s")
         self._adopt(link)
         return link
 
@@ -199,7 +215,8 @@ class DemoApp:
                 link.set_texture(self.current)
             self._dirty = True  # the chart's scale and the status come from the device's profile now
             if self.report_frames:
-                print(f"renderer ready {seconds_since_launch():.2f} s after launch", flush=True)
+                print(f"renderer ready {seconds_since_launch():.2f} s after launch "
+                      f"({self.unfelt} touches before it, not felt)", flush=True)
 
     def _check_link(self) -> None:
         if self.link is None and self.starter.ready.is_set():
@@ -294,8 +311,9 @@ class DemoApp:
         now = time.perf_counter()
         self._active_until = now + CHART_SPAN_S + 0.2
         self._area_dirty = True
-        if self.link is None:
-            return  # the renderer is still starting: the touch is drawn but not felt
+        if self.link is None:  # the engine is still starting: the touch is drawn, counted, not felt
+            self.unfelt += down
+            return
         where = self._to_mm(x_px, y_px) if down else None
         if where is None:
             self.link.touch(now, 0.0, 0.0, down=False)
@@ -304,6 +322,8 @@ class DemoApp:
                 self.recorder.lift(now)
             return
         force = self._force_from(pressure)
+        if self.underruns_at_first_touch is None:
+            self.underruns_at_first_touch = self.link.status(0.0).underruns
         self.link.pause(self.user_paused)
         self.link.touch(now, where[0], where[1], force)
         self.pushed += 1
@@ -502,38 +522,38 @@ class DemoApp:
 
     def _draw_chart(self) -> None:
         if self.link is None:
-            chart, limit, full_scale, measured = np.zeros((0, 4)), 6.0, 6.0, None
+            chart, limit, full_scale, measured = np.zeros((0, 4)), 6.0, 6.0, False
         else:
             status = self.link.status(CHART_SPAN_S)
             chart, limit, full_scale, measured = (status.chart, status.limit_um_pp, status.full_scale_um_pp,
-                                                  status.measured_um_pp)
-        series = {"friction": chart[:, [0, 1]], "commanded": chart[:, [0, 2]]}
-        if measured is not None:  # the device measures the plate: chart what it says
-            if len(chart):
-                self.measured.append((chart[-1, 0], measured))
-            values = np.array(self.measured) if self.measured else np.zeros((0, 2))
-            series["plate"] = values[values[:, 0] > chart[-1, 0] - CHART_SPAN_S] if len(chart) else values[:0]
-            label = "plate measured µm p-p"
-        else:
-            series["plate"] = chart[:, [0, 3]]
-            label = "plate (model) µm p-p"
+                                                  status.plate_measured)
+        series = {"friction": chart[:, [0, 1]], "commanded": chart[:, [0, 2]], "plate": chart[:, [0, 3]]}
+        label = "plate measured µm p-p" if measured else "plate (model) µm p-p"
         draw_chart(self.screen, self.font, self.chart_rect, series, CHART_SPAN_S, full_scale, limit, label)
 
     def status_words(self) -> str:
-        """The status line: device and its state, model, force, percent limited in the last second, faults."""
+        """The status line: device and its state, model, force, percent limited in the last second, faults,
+        then the engine's own figures."""
         if self.link is None:
-            return "starting the renderer (loading its compiled kernels)…"
+            words = "starting the engine (its own process; compiling its kernels)…"
+            if self.unfelt:
+                words += f"   ·   {self.unfelt} touches before it was ready: not felt"
+            return words
         s = self.link.status(0.0)
         device = {"sim": "simulated plate"}.get(s.device, s.device.replace("serial:", "plate on serial ")
                                                 .replace("audio:", "audio output ").replace("wav:", "recording "))
         source = "touch pressure" if self.pressure_seen else "Up/Down keys"
         faults = "faults: " + ", ".join(s.faults) if s.faults else "no faults"
-        words = (f"{device} {'paused' if self.user_paused else s.state}, {faults}   ·   {s.model} model   ·   "
-                 f"{s.force_n:.2f} N ({source})   ·   limited {s.limited_pct:.0f} % of the last second, "
+        # the engine is paused between touches (the plate rests); the user's pause is the Space key's
+        state = "paused" if self.user_paused else ("running" if s.state == "paused" else s.state)
+        words = (f"{device} {state}, {faults}   ·   {self.link.model_name} model   ·   "
+                 f"{self.force_n:.2f} N ({source})   ·   limited {s.limited_pct:.0f} % of the last second, "
                  f"{s.limited_samples} samples on this texture   ·   {s.underruns} underruns, "
-                 f"{s.late_blocks} late blocks")
+                 f"{s.late_blocks} late blocks, block {s.block_p50_us:.0f}/{s.block_p99_us:.0f} µs p50/p99")
         if self.recorder is not None:
             words += f"   ·   recording: {self.recorder.rows} touches"
+        if self.watch_errors:
+            words += "   ·   " + "; ".join(self.watch_errors)
         return words + "   ·   H: help"
 
     def _draw_status(self, force: bool = False) -> bool:
@@ -595,14 +615,39 @@ class DemoApp:
         if now < self._active_until:
             due.append(self._next_chart)
         if self.link is None:
-            due.append(now + 0.05)  # look for the renderer having started
+            due.append(now + 0.05)  # look for the engine having started
+        if self.watcher is not None:
+            due.append(self._next_watch)
         return min(max(min(due) - now, 0.001), IDLE_WAIT_S)
+
+    def _watch(self) -> None:
+        """Every 200 ms with ``--watch``: reload the textures whose files changed; the plate feels the one shown."""
+        now = time.perf_counter()
+        if self.watcher is None or now < self._next_watch:
+            return
+        from ultraglide.apps.demo_watch import POLL_S
+
+        self._next_watch = now + POLL_S
+        reloaded = self.watcher.poll()
+        self.watch_errors = self.watcher.errors
+        for index, texture in reloaded:
+            old = self.textures[index]
+            self.textures[index] = texture
+            self._surfaces.pop(id(old), None)
+            tile = self.tiles[index]
+            self.thumbs[index] = thumbnail(texture, (tile.width - 4, tile.height - self.font.get_linesize() - 8))
+            self._dirty = True
+            if self.link is not None and self.scene == "texture" and self.index == index:
+                self.link.set_texture(texture)
+            if self.report_frames:
+                print(f"texture reloaded: {texture.name}", flush=True)
 
     # ---- the loop --------------------------------------------------------------------------------
     def step(self, wait_s: float = 0.0) -> None:
         """Handle the events that arrive within ``wait_s`` (0: only those pending), then redraw what is due."""
         pg = self.pg
         self._check_link()
+        self._watch()
         event = pg.event.wait(max(1, round(wait_s * 1000))) if wait_s > 0 else pg.event.poll()
         while event.type != pg.NOEVENT:
             self.handle(event)
@@ -613,15 +658,19 @@ class DemoApp:
         while self.running:
             self.step(self._wait_s())
 
-    def stats(self) -> dict:
-        """The engine's figures for ``--stats``."""
+    def stats(self, final=None) -> dict:
+        """The engine's figures over the run for ``--stats`` (``final``: its last status, after stop)."""
         if self.link is None:
-            return {"started": False}
-        s = self.link.status(0.0, all_blocks=True)
+            return {"started": False, "touches_not_felt_before_ready": self.unfelt}
+        s = final if final is not None else self.link.status(0.0).engine
         return {"started": True, "device": s.device, "blocks_rendered": s.blocks, "late_blocks": s.late_blocks,
-                "underruns": s.underruns, "block_p50_us": round(s.block_p50_us, 2),
-                "block_p99_us": round(s.block_p99_us, 2), "limited_samples_on_last_texture": s.limited_samples,
-                "faults": list(s.faults), "touches": self.pushed}
+                "resting_blocks": s.resting_blocks,
+                "underruns": s.underruns, "underruns_at_first_touch": self.underruns_at_first_touch,
+                "block_p50_us": _rounded(s.run_block_p50_us), "block_p99_us": _rounded(s.run_block_p99_us),
+                "block_times": "over every block rendered in the run (not the resting ones), ±1 % (a histogram)",
+                "limited_samples": s.clipped_samples, "faults": list(s.faults), "priority": s.priority,
+                "touches": self.pushed, "touches_received_by_engine": s.touches,
+                "touches_dropped_by_engine": s.touches_dropped, "touches_not_felt_before_ready": self.unfelt}
 
     def close(self) -> None:
         """Rest the plate, finish the recording and close the window; safe to call more than once."""
@@ -634,13 +683,17 @@ class DemoApp:
                 self.starter.ready.wait(60)
                 link = self.starter.link
             if link is not None:
-                link.stop()
+                self.final_status = link.stop()
         finally:
             if self.recorder is not None:
                 saved = self.recorder.close()
                 print(f"recorded {self.recorder.rows} touches to {saved}" if saved else
                       "recorded fewer than two touches: no touch log written", file=sys.stderr)
             self.pg.display.quit()
+
+
+def _rounded(value: float | None) -> float | None:
+    return None if value is None else round(value, 2)
 
 
 def write_stats(path: str, stats: dict) -> None:
@@ -654,12 +707,12 @@ def run(args) -> int:
     if args.stats and Path(args.stats).suffix.lower() != ".json":
         raise UsageError(f"--stats needs a .json file, got {args.stats}")
     app = DemoApp(args.textures, args.device, args.profile, args.model, args.screen_width_mm, args.windowed,
-                  record=args.record, report_frames=args.report_frames)
+                  record=args.record, report_frames=args.report_frames, watch=args.watch)
     try:
         app.run()
     finally:
         with held():  # a second Ctrl-C or SIGTERM does not cut this short
             app.close()  # window closed, Escape, Ctrl-C or an exception: the plate comes to rest
     if args.stats:
-        write_stats(args.stats, app.stats())
+        write_stats(args.stats, app.stats(app.final_status))
     return 0

@@ -1,27 +1,28 @@
-"""The demo's one contact with the renderer and the device.
+"""The demo's one contact with the renderer and the device: the real-time engine.
 
-:class:`DemoLink` has the verbs of ``ultraglide.render.engine.Engine`` (``start(config)``, ``touch``,
-``set_texture``, ``set_model``, ``set_force``, ``pause``, ``status``, ``stop``), implemented here in
-process with a :class:`~ultraglide.render.renderer.Renderer` pulled by a device, so that moving the
-demo onto the engine is a change of this module alone. Everything heavy (the renderer, numba's
-kernels) is imported in :meth:`DemoLink.start`, after the demo's first frame is on screen.
+:class:`DemoLink` wraps :class:`ultraglide.render.engine.Engine` (the renderer and the device in their
+own process, touches through shared memory) with what the demo's status line and chart need. The
+engine is started on a thread (:class:`LinkStarter`) after the first frame is on screen; its process
+imports numpy and numba and compiles the kernels while the window already responds. Touches made
+before it is ready are not queued (a finger's old positions would be felt late): the demo draws them
+and counts them as not felt, and says so on its status line.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-CHART_BLOCKS = 4096  # blocks of history kept for the chart (a 2 ms batch each: about 8 s)
-TIMES_KEPT = 500  # block render times used for p50/p99
+START_TIMEOUT_S = 120.0  # spawning the engine and compiling its kernels on a loaded machine
 
 
 @dataclass(frozen=True)
 class LinkConfig:
-    """What the link starts with: a texture (a Texture), a model spec, a profile spec, a device URL."""
+    """What the link starts with: a texture (a Texture or a name/file), a model spec, a profile spec, a device URL."""
 
     texture: object
     model: str = "exponential"
@@ -34,7 +35,7 @@ class LinkStatus:
     """A snapshot for the status line and the chart. Amplitudes µm p-p, times perf_counter s."""
 
     device: str
-    state: str  # "running", "disconnected", "stopped"
+    state: str  # the engine's: starting, running, paused, stopping, stopped, failed; or disconnected
     model: str
     texture: str
     force_n: float
@@ -42,157 +43,134 @@ class LinkStatus:
     blocks: int
     late_blocks: int
     underruns: int  # the sound card's, the plate driver's buffer underruns, or a paced sink's late blocks
-    block_p50_us: float
+    block_p50_us: float  # over the engine's recent blocks (the last 4096)
     block_p99_us: float
-    limited_pct: float  # of the control samples of the last second with the finger down
+    limited_pct: float  # of the control samples of the last second
     limited_samples: int  # since the texture was last changed
     faults: tuple[str, ...]  # each fault the device reported over this run, with its count; errors
     limit_um_pp: float
     full_scale_um_pp: float
-    measured_um_pp: float | None
+    plate_measured: bool  # the chart's plate column is the device's measurement (else the renderer's model)
+    words: str  # the engine's own line
     chart: np.ndarray = field(repr=False)  # rows of (t_s, target ratio, commanded µm p-p, plate µm p-p)
-
-
-class _History:
-    """Per-block figures in preallocated rings, written by the device's thread, read by the UI's."""
-
-    def __init__(self, size: int = CHART_BLOCKS):
-        self.rows = np.zeros((size, 4))  # t_s, ratio, commanded, plate
-        self.samples = np.zeros((size, 2))  # finger-down samples, limited samples
-        self.count = 0
-        self.since = 0  # first block counted after the last reset
-
-    def add(self, t_s, ratio, commanded, plate, down_samples, limited) -> None:
-        i = self.count % len(self.rows)
-        self.rows[i, 0], self.rows[i, 1], self.rows[i, 2], self.rows[i, 3] = t_s, ratio, commanded, plate
-        self.samples[i, 0], self.samples[i, 1] = down_samples, limited
-        self.count += 1  # published last: a reader never sees a half-written row as new
-
-    def recent(self, after_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        count = self.count
-        kept = min(count, len(self.rows) - 1, count - self.since)  # not the slot being written next
-        order = (np.arange(count - kept, count)) % len(self.rows)
-        rows, samples = self.rows[order], self.samples[order]
-        if after_s is not None:
-            keep = rows[:, 0] > after_s
-            rows, samples = rows[keep], samples[keep]
-        return rows, samples
+    engine: object = field(repr=False, default=None)  # the engine's EngineStatus
 
 
 class DemoLink:
-    """The renderer and its device behind the engine's verbs. Call from the UI thread."""
+    """The engine behind the demo's verbs. Call from the UI thread."""
 
-    def __init__(self, renderer, device, config: LinkConfig, profile):
-        self.renderer, self.device, self.config, self.profile = renderer, device, config, profile
+    def __init__(self, engine, config: LinkConfig, profile):
+        self.engine, self.config, self.profile = engine, config, profile
         self.model_name = config.model
-        self.history = _History()
-        self.limited_total = 0
-        self._clipped_before = 0
+        self.paused = True
+        self._clipped_at_texture = 0
+        self._texture_since_s = 0.0  # the engine's clock at the last change of texture
         self._stopped = False
-        renderer.observers.append(self._observe)
 
     @classmethod
     def start(cls, config: LinkConfig) -> DemoLink:
-        """Load the model and profile (bad specs raise here, before a device opens), open the device,
-        build the renderer (which compiles or loads its kernels) and start the device pulling."""
-        from ultraglide.apps.sources import source_for
+        """Start the engine (bad specs and devices raise here, one line) and wait until it renders."""
         from ultraglide.devices.profiles import load_profile
-        from ultraglide.devices.urls import open_device
-        from ultraglide.render.calibration import load_model
-        from ultraglide.render.renderer import Renderer, RenderSettings
+        from ultraglide.render.engine import Engine, EngineConfig
 
         profile = load_profile(config.profile)
-        model = load_model(config.model)
-        device = open_device(config.device, profile)
+        engine = Engine.start(EngineConfig(texture=config.texture, model=config.model, profile=config.profile,
+                                           device=config.device, start_paused=True), START_TIMEOUT_S)
         try:
-            rate = device.rate_hz if device.signal == "audio" else 96000
-            renderer = Renderer(config.texture, model, profile, RenderSettings(audio_rate_hz=rate))
-            renderer.pause(True)  # at rest until a finger is on a texture
-            link = cls(renderer, device, config, profile)
-            device.start(source_for(device, renderer))
-        except BaseException:
-            device.stop()
-            raise
-        return link
+            engine.wait_ready(START_TIMEOUT_S)
+            deadline = time.monotonic() + START_TIMEOUT_S
+            while engine.status(0.0).blocks == 0:  # ready for the demo: the device pulls blocks
+                if time.monotonic() > deadline or not engine.alive:
+                    from ultraglide.render.engine import EngineError
 
-    # ---- the device's thread ---------------------------------------------------------------------
-    def _observe(self, block) -> None:
-        """Runs on the device's thread for every block: a few scalar copies, no allocation."""
-        clipped = self.renderer.counters.clipped_samples
-        limited = clipped - self._clipped_before
-        self._clipped_before = clipped
-        down = len(block.ratio) if (block.down is True or np.all(block.down)) else 0
-        self.history.add(block.time_s[-1], block.ratio[-1], block.amplitude_um_pp[-1], block.plate_um_pp[-1],
-                         down, limited)
+                    raise EngineError(f"the device {config.device} took no block within {START_TIMEOUT_S:g} s")
+                time.sleep(0.005)
+        except BaseException:
+            engine.stop()
+            raise
+        return cls(engine, config, profile)
 
     # ---- the engine's verbs ----------------------------------------------------------------------
-    def touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
-        """A touch report (perf_counter s, mm on the texture, N or None for the default); down=False lifts."""
-        if not down:
-            self.renderer.push(t_s, 0.0, 0.0, down=False)
-            return
-        self.renderer.push(t_s, x_mm, y_mm, force_n)
+    def touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> bool:
+        """A touch report (perf_counter s, mm on the texture, N or None for the default); down=False lifts.
+        Never waits; False if the engine's ring was full and the report dropped."""
+        return self.engine.touch(t_s, x_mm, y_mm, force_n, down)
 
     def set_texture(self, texture) -> None:
-        """Render another texture; the limited counters start again from zero."""
-        self.renderer.set_texture(texture)
-        self.history.since = self.history.count
-        self.limited_total = self.renderer.counters.clipped_samples
+        """Render another texture (a Texture); the limited count starts again from zero."""
+        self.engine.set_texture(texture)
+        after = self.engine.status(0.0)
+        self._clipped_at_texture = after.clipped_samples
+        self._texture_since_s = after.history.time_s[-1] if len(after.history.time_s) else 0.0
 
     def set_model(self, spec: str) -> None:
-        from ultraglide.render.calibration import load_model
-
-        self.renderer.set_model(load_model(spec))
+        self.engine.set_model(spec)
         self.model_name = spec
 
     def set_force(self, force_n: float) -> None:
         """The force assumed when the touch panel does not measure it, N."""
-        self.renderer.set_default_force(force_n)
+        self.engine.set_force(force_n)
 
     def pause(self, flag: bool) -> None:
-        self.renderer.pause(flag)
+        """Ramp to rest (or back); a pipe round trip, so only sent when it changes."""
+        if bool(flag) != self.paused:
+            self.engine.pause(bool(flag))
+            self.paused = bool(flag)
 
-    def status(self, chart_span_s: float = 3.0, all_blocks: bool = False) -> LinkStatus:
-        """What the device and the renderer are doing now, and the last ``chart_span_s`` of the chart.
-        Block times are over the last 500 blocks, or every block the renderer keeps with ``all_blocks``."""
-        renderer, counters = self.renderer, self.renderer.counters
-        device = self.device.status()
-        telemetry = getattr(self.device, "telemetry", None)
-        rows, samples = self.history.recent()
-        latest = rows[-1, 0] if len(rows) else 0.0
-        last_second = rows[:, 0] > latest - 1.0
-        down = samples[last_second, 0].sum()
-        limited_pct = 100.0 * samples[last_second, 1].sum() / down if down else 0.0
-        times = counters.render_times_s[:] if all_blocks else counters.render_times_s[-TIMES_KEPT:]
-        p50, p99 = (np.percentile(times, [50, 99]) * 1e6) if times else (0.0, 0.0)
-        counts = device.get("faults") if isinstance(device.get("faults"), dict) else {}  # plate drivers, by name
-        underruns = device.get("underruns", counts.get("underrun", device.get("late_blocks", 0)))
-        faults = [f"{name} ×{count}" for name, count in counts.items() if count] + list(device.get("errors", []))
-        if self._stopped:
-            state = "stopped"
-        elif device.get("connected", True) is False:
+    def status(self, chart_span_s: float = 3.0) -> LinkStatus:
+        """What the engine and its device are doing now, and the last ``chart_span_s`` of the chart."""
+        s = self.engine.status(max(chart_span_s, 1.0) + 0.1)
+        history = s.history
+        chart = np.column_stack((history.time_s, history.target_ratio, history.commanded_um_pp, history.plate_um_pp))
+        if len(chart):
+            chart = chart[chart[:, 0] > chart[-1, 0] - chart_span_s]
+        state = s.state
+        if s.device_status.get("connected", True) is False:
             state = "disconnected"
-        else:
-            state = "running"
         return LinkStatus(
-            device=device.get("device", self.config.device), state=state, model=self.model_name,
-            texture=renderer.texture.name, force_n=renderer.default_force_n, paused=renderer.paused,
-            blocks=self.history.count, late_blocks=counters.late_blocks, underruns=int(underruns),
-            block_p50_us=float(p50), block_p99_us=float(p99), limited_pct=float(limited_pct),
-            limited_samples=counters.clipped_samples - self.limited_total, faults=tuple(faults),
-            limit_um_pp=self.profile.max_amplitude_um_pp, full_scale_um_pp=self.profile.full_scale_um_pp,
-            measured_um_pp=None if telemetry is None else telemetry.measured_um_pp,
-            chart=rows[rows[:, 0] > latest - chart_span_s])
+            device=s.device, state=state, model=s.model or self.model_name, texture=s.texture,
+            force_n=s.force_n, paused=s.state == "paused", blocks=s.blocks, late_blocks=s.late_blocks,
+            underruns=s.underruns, block_p50_us=_or_zero(s.block_p50_us), block_p99_us=_or_zero(s.block_p99_us),
+            limited_pct=self._limited_percent(s), limited_samples=s.clipped_samples - self._clipped_at_texture,
+            faults=tuple(_fault_words(s)), limit_um_pp=self.profile.max_amplitude_um_pp,
+            full_scale_um_pp=self.profile.full_scale_um_pp,
+            plate_measured="measured_um_pp" in s.device_status, words=s.words(priority=False), chart=chart, engine=s)
 
-    def stop(self) -> None:
-        """Ramp the plate to rest and release the device; safe to call more than once."""
+    def _limited_percent(self, s) -> float:
+        """Of the control samples of the last second on this texture, the share the plate's limit held, %."""
+        history = s.history
+        if not len(history.time_s):
+            return 0.0
+        keep = history.time_s > max(history.time_s[-1] - 1.0, self._texture_since_s)
+        times, limited = history.time_s[keep], history.limited_samples[keep]
+        if len(times) < 2:
+            return 0.0
+        samples = (times[-1] - times[0]) * self.engine.config.control_rate_hz
+        return float(min(100.0, 100.0 * limited[1:].sum() / max(samples, 1.0)))
+
+    def stop(self):
+        """Ramp the plate to rest, rest the hardware, end the engine; returns its last EngineStatus."""
         if not self._stopped:
             self._stopped = True
-            self.device.stop()
+            return self.engine.stop()
+        return self.engine.final_status
+
+
+def _or_zero(value: float | None) -> float:
+    return 0.0 if value is None or not math.isfinite(value) else float(value)
+
+
+def _fault_words(s) -> list[str]:
+    """Each fault the device counted over the run with its count (plate drivers), else the engine's names."""
+    counts = s.device_status.get("fault_counts") or s.device_status.get("faults")
+    if isinstance(counts, dict):
+        return ([f"{name} ×{count}" for name, count in counts.items() if count]
+                + list(s.device_status.get("errors") or []))
+    return list(s.faults)
 
 
 class LinkStarter:
-    """Starts a :class:`DemoLink` on a thread so the window stays responsive while kernels load."""
+    """Starts a :class:`DemoLink` on a thread so the window stays responsive while the engine starts."""
 
     def __init__(self, config: LinkConfig):
         self.link: DemoLink | None = None

@@ -1,6 +1,6 @@
 """The engine against a real, paced sink: JACK's dummy backend, xruns counted by the clients.
 
-Run: .venv/bin/python bench/bench_jack.py [--seconds 20] [--periods 64 256] [--ui-cmd "COMMAND"]
+Run: .venv/bin/python bench/bench_jack.py [--seconds 20] [--periods 64 256] [--ui-cmd "COMMAND"] [--demo]
 
 Starts ``jackd -d dummy -r 96000 -p PERIOD`` (realtime if allowed), then for each period, with and
 without a CPU hog (``python3 -c 'while 1: pass'``) beside it, runs for ``--seconds``:
@@ -10,6 +10,10 @@ without a CPU hog (``python3 -c 'while 1: pass'``) beside it, runs for ``--secon
 * the engine (its own process) on the same JACK output through PortAudio, with a scripted finger
   (touch reports at 120 Hz from this process, circling over a grating) and, with ``--ui-cmd``, a
   given command running beside it as the UI's load (e.g. the demo's scripted drag under Xvfb).
+
+With ``--demo`` the engine measured is the demo's own: ``ultraglide demo --device audio:JACK`` under
+Xvfb, the finger a 20 s xdotool drag at 120 Hz sweeping the first texture (the harness of
+tests/xvfb_demo.py); its figures come from ``--stats`` (xruns counted from the first touch on).
 
 Prints block time p50/p99 (the callback's own time for the do-nothing client) and xruns per minute,
 counted by the client (PortAudio's output-underflow flag, which JACK's xrun callback raises) and by
@@ -155,11 +159,39 @@ def run_engine(seconds: float, device: str, ui_cmd: str | None, jack: Jack) -> d
             "priority": status.priority}
 
 
+def run_demo(seconds: float, device: str, jack: Jack) -> dict:
+    """The demo on JACK under Xvfb, dragged by xdotool for ``seconds``; its own --stats figures."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from xvfb_demo import XvfbDemo
+
+    with tempfile.TemporaryDirectory() as folder:
+        stats_path = Path(folder) / "stats.json"
+        with XvfbDemo("--device", f"audio:{device}", "--stats", str(stats_path)) as demo:
+            demo.wait_for("^renderer ready", 120)
+            demo.xdo("key", "t")
+            demo.wait_for("^frame drawn: texture", 30)
+            steps = int(seconds * 120)
+            points = [(round(640 + 300 * math.sin(2 * math.pi * i / 240)), 320) for i in range(steps)]  # 1 Hz
+            before = jack.xruns()
+            started = time.perf_counter()
+            demo.drag(points)
+            dragged_s = time.perf_counter() - started
+            server = jack.xruns() - before
+            if demo.quit() != 0:
+                raise RuntimeError(f"the demo failed: {demo.demo.stderr.read().strip()[-300:]}")
+        stats = json.loads(stats_path.read_text())
+    return {"callbacks": stats["blocks_rendered"], "xruns": stats["underruns"] - stats["underruns_at_first_touch"],
+            "server_xruns": server, "p50_us": stats["block_p50_us"], "p99_us": stats["block_p99_us"],
+            "priority": f"{stats['priority']}; drag {dragged_s:.1f} s at {steps / dragged_s:.0f} Hz",
+            "seconds": dragged_s}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--periods", type=int, nargs="+", default=[64, 256])
     parser.add_argument("--ui-cmd", help="a shell command to run beside the engine as the UI's load")
+    parser.add_argument("--demo", action="store_true", help="measure the demo's engine under Xvfb, dragged by xdotool")
     args = parser.parse_args()
     missing = [tool for tool in ("jackd", "jack_lsp") if shutil.which(tool) is None]
     if missing:
@@ -174,12 +206,14 @@ def main() -> None:
             for hog in (False, True):
                 hogger = subprocess.Popen(HOG) if hog else None
                 try:
-                    for name in ("do-nothing", "engine"):
+                    for name in ("do-nothing", "demo" if args.demo else "engine"):
                         if name == "do-nothing":
                             figures = run_do_nothing(args.seconds, jack)
+                        elif name == "demo":
+                            figures = run_demo(args.seconds, device, jack)
                         else:
                             figures = run_engine(args.seconds, device, args.ui_cmd, jack)
-                        minutes = args.seconds / 60
+                        minutes = figures.get("seconds", args.seconds) / 60  # a loaded xdotool drags slower
                         print(f"{period:6} {'yes' if hog else 'no':>4} {name:>10} {figures['callbacks']:8} "
                               f"{figures['p50_us']:8.1f} {figures['p99_us']:8.1f} "
                               f"{figures['xruns'] / minutes:17.1f} {figures['server_xruns'] / minutes:7.1f}  "

@@ -32,7 +32,7 @@ import math
 import multiprocessing
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from ultraglide.render import engine_shm as shm
@@ -52,13 +52,14 @@ class EngineError(RenderError):
 class EngineConfig:
     """What the engine renders and where. Plain picklable values only (they cross to the engine process).
 
-    ``texture``: a library name or a file; ``model``: a model name or file; ``profile``: a plate profile;
+    ``texture``: a library name or a file, or a ``Texture`` composed in memory (pickled across);
+    ``model``: a model name or file; ``profile``: a plate profile;
     ``device``: a device URL (sim, serial:PORT, audio[...], wav:PATH, null). ``rate_hz`` is the audio rate
     of the wav and null sinks (an audio device picks its own). ``probe_plate`` watches the simulated
     plate's amplitude (``sim`` only; for latency measurement).
     """
 
-    texture: str = "grating-1mm"
+    texture: object = "grating-1mm"  # str or textures.texture.Texture
     model: str = "exponential"
     profile: str = "sim-plate"
     device: str = "sim"
@@ -108,15 +109,22 @@ class EngineStatus:
     control_samples: int
     history: History = field(repr=False)
     device_status: dict = field(repr=False, default_factory=dict)
+    texture: str = ""  # what the renderer renders with (as of the command thread's last status, ≤ 0.1 s old)
+    model: str = ""
+    force_n: float = math.nan  # the default force, N
+    last_touch: tuple[float, float, float, bool] | None = None  # as drained: x mm, y mm, force N (NaN), down
+    run_block_p50_us: float | None = None  # over every block of the run (±1 %: a histogram)
+    run_block_p99_us: float | None = None
+    resting_blocks: int = 0  # of ``blocks``, those served as zeros while paused at rest (not in block times)
 
-    def words(self) -> str:
+    def words(self, priority: bool = True) -> str:
         """One line for people."""
         p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
         p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
         faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
         return (f"{self.device} {self.state} | {self.blocks} blocks, {self.late_blocks} late, "
                 f"{self.underruns} underruns | block {p50}/{p99} µs p50/p99 | "
-                f"{self.limited_percent:.0f}% at the limit | {self.priority}{faults}")
+                f"{self.limited_percent:.0f}% at the limit" + (f" | {self.priority}" if priority else "") + faults)
 
     def summary(self) -> dict:
         """The figures as plain JSON values (no history)."""
@@ -250,9 +258,10 @@ class Engine:
         ring was full (the engine has stalled) and the report was dropped."""
         return self.shared.push_touch(t_s, x_mm, y_mm, math.nan if force_n is None else force_n, 1.0 if down else 0.0)
 
-    def set_texture(self, spec: str) -> None:
-        """Render another texture (a library name or a file); EngineError if it cannot be loaded."""
-        self._command("texture", str(spec))
+    def set_texture(self, spec) -> None:
+        """Render another texture: a library name or a file (EngineError if it cannot be loaded), or a
+        ``Texture`` built in memory (sent pickled: a 2000 × 1500 texture is 12 MB, some 10 ms)."""
+        self._command("texture", spec if _is_texture(spec) else str(spec))
 
     def set_model(self, spec: str) -> None:
         """Use another friction model (a name or a file, as ``--model``); EngineError if it cannot be loaded."""
@@ -281,10 +290,15 @@ class Engine:
     # ---- out ---------------------------------------------------------------------------------------
     def status(self, history_s: float = 5.0) -> EngineStatus:
         """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds)."""
+        if self.shared.words is None:  # stopped: the last status read before the segment was released
+            return self.final_status
         header, block_times, history_ring, _ = self.shared.read_fast()
         device_status = self.shared.read_slow()
-        return _status(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
-                       self.config.device, history_s)
+        status = _status(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
+                         self.config.device, history_s)
+        run_p50, run_p99 = (None if v is None else v * 1e6
+                            for v in shm.histogram_percentiles(self.shared.read_histogram(), (50, 99)))
+        return replace(status, run_block_p50_us=run_p50, run_block_p99_us=run_p99)
 
     def latencies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each recent touch: (touch time, time its block was rendered, time that block's first sample
@@ -316,6 +330,7 @@ def _status(header, block_times, history_ring, device_status, dropped, device_na
         limited = float(min(100.0, 100.0 * last_second[:, 4].sum() / max(span_samples, 1.0)))
     faults = list(device_status.get("device_faults") or []) + list(device_status.get("errors") or [])
     state = shm.STATES[int(header[shm.STATE])]
+    touched = int(header[shm.TOUCHES]) > 0
     return EngineStatus(
         device=str(device_status.get("device", device_name)), state=state,
         priority=str(device_status.get("priority", "not yet running")), blocks=blocks,
@@ -326,7 +341,17 @@ def _status(header, block_times, history_ring, device_status, dropped, device_na
         touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
         control_samples=int(header[shm.CONTROL_SAMPLES]),
         history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
-        device_status=device_status)
+        device_status=device_status, resting_blocks=int(header[shm.RESTING_BLOCKS]),
+        texture=str(device_status.get("texture", "")),
+        model=str(device_status.get("model", "")), force_n=float(device_status.get("force_n", math.nan)),
+        last_touch=(float(header[shm.LAST_TOUCH_X]), float(header[shm.LAST_TOUCH_Y]),
+                    float(header[shm.LAST_TOUCH_FORCE]), bool(header[shm.LAST_TOUCH_DOWN] > 0.5)) if touched else None)
+
+
+def _is_texture(spec) -> bool:
+    from ultraglide.textures.texture import Texture
+
+    return isinstance(spec, Texture)
 
 
 @contextlib.contextmanager

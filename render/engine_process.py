@@ -32,6 +32,7 @@ FIFO_PRIORITY = 60
 OTHER_THREADS_PRIORITY = 1
 PROBE_THRESHOLD_UM_PP = 0.05
 PROBE_PERIOD_S = 0.0002
+RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
 
 
 def raise_priority() -> str:
@@ -115,6 +116,8 @@ class EngineSource(OutputStage):
         self._raise = raise_priority_
         self._first = True
         self._stopping = False
+        self._resting = False
+        self._rest = np.zeros(RESTING_CAPACITY, dtype=np.float32 if device.signal == "audio" else np.float64)
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         started = time.perf_counter()
@@ -123,12 +126,34 @@ class EngineSource(OutputStage):
             if self._raise:
                 self.priority = raise_priority()
         touched = self._drain()
+        if not touched and n <= len(self._rest) and self._at_rest():
+            # paused with everything at zero: the plate gets zeros (a device's heartbeat goes on) and the
+            # renderer is not run; the first touch or resume renders again from here
+            if not self._resting:
+                self._rest[:] = 0.0  # a device may have written into what it was given
+            self._resting = True
+            self.frames += n
+            self.limiter.samples += n if self.signal == "control" else n // self.upsampling  # time at rest counts
+            self._publish(started, time.perf_counter(), now_s, 0, 0)
+            return self._rest[:n]
         renderer = self.renderer
+        if self._resting:
+            self._resting = False
+            renderer._next_time = None  # its clock starts again at this block, not counted as late
         clipped_before = renderer.counters.clipped_samples
         out = super().pull(n, now_s)
         done = time.perf_counter()
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
+
+    def _at_rest(self) -> bool:
+        """Paused, and the renderer, the stage and the limiter's model of the plate all at zero."""
+        renderer = self.renderer
+        block = renderer.last_block
+        return (renderer.paused and not self._stopping and block is not None and renderer.envelope.at_rest
+                and block.drive_um_pp[-1] < 1e-6 and self._last_drive < 1e-6
+                and self.limiter.fast_plate_um_pp < 1e-6
+                and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
 
     def _drain(self) -> float:
         """Push the touches that arrived since the last block; returns how many."""
@@ -144,6 +169,10 @@ class EngineSource(OutputStage):
         for k in range(tail, head):
             t, x, y, force, down = touches[k % shm.TOUCH_SLOTS]
             self.renderer.push(t, x, y, None if math.isnan(force) else force, down > 0.5)
+            fast[shm.LAST_TOUCH_X] = x
+            fast[shm.LAST_TOUCH_Y] = y
+            fast[shm.LAST_TOUCH_FORCE] = force
+            fast[shm.LAST_TOUCH_DOWN] = down
             latency[row % shm.LATENCY_ROWS, 0] = t
             latency[row % shm.LATENCY_ROWS, 1] = math.nan  # filled in when the block is rendered
             row += 1
@@ -167,15 +196,21 @@ class EngineSource(OutputStage):
         fast[shm.RAMPS] = counters.ramps
         fast[shm.LAST_BLOCK_S] = done
         fast[shm.STATE] = 3 if self._stopping else (2 if renderer.paused else 1)
-        self.shared.block_times[blocks % shm.BLOCK_TIMES] = done - started
-        fast[shm.BLOCK_TIME_INDEX] = blocks + 1
+        if self._resting:  # served as zeros, not rendered: counted apart, out of the block times
+            fast[shm.RESTING_BLOCKS] += 1
+        else:
+            timed = int(fast[shm.BLOCK_TIME_INDEX])
+            self.shared.block_times[timed % shm.BLOCK_TIMES] = done - started
+            self.shared.histogram[shm.histogram_bin(done - started)] += 1
+            fast[shm.BLOCK_TIME_INDEX] = timed + 1
         if block is not None:
             row = self.shared.history[int(fast[shm.HISTORY_INDEX]) % shm.HISTORY_ROWS]
-            row[0] = block.time_s[0] if now_s is None else now_s
+            resting = self._resting
+            row[0] = (done if resting else block.time_s[0]) if now_s is None else now_s
             row[1] = block.ratio[-1]
-            row[2] = block.amplitude_um_pp[-1]
+            row[2] = 0.0 if resting else block.amplitude_um_pp[-1]
             telemetry = getattr(self.device, "telemetry", None)
-            row[3] = block.plate_um_pp[-1] if telemetry is None else telemetry.measured_um_pp
+            row[3] = (0.0 if resting else block.plate_um_pp[-1]) if telemetry is None else telemetry.measured_um_pp
             row[4] = clipped
             fast[shm.HISTORY_INDEX] += 1
         if touched:
@@ -222,16 +257,28 @@ def _load(config):
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import open_device
     from ultraglide.render.calibration import load_model
-    from ultraglide.textures.library import resolve_texture
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        texture = resolve_texture(config.texture)
+        texture = _texture(config.texture)
     model = load_model(config.model)
     profile = load_profile(config.profile)
     device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
                          carrier_hz=config.carrier_hz, track_resonance=config.track_resonance)
     return texture, model, profile, device
+
+
+def _texture(spec):
+    """A library name or file, loaded here; or a Texture the app composed in memory (it came pickled)."""
+    if isinstance(spec, str):
+        from ultraglide.textures.library import resolve_texture
+
+        return resolve_texture(spec)
+    from ultraglide.textures.texture import Texture
+
+    if not isinstance(spec, Texture):
+        raise ValueError(f"a texture must be a name, a file or a Texture, not {type(spec).__name__}")
+    return spec
 
 
 def _user_errors():
@@ -309,6 +356,12 @@ def _device_status(device, stage=None) -> dict:
         return {"errors": [f"status: {type(error).__name__}: {error}"]}
 
 
+def _renderer_status(renderer) -> dict:
+    """What the renderer renders with: texture, model, the default force (N)."""
+    return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),
+            "force_n": renderer.default_force_n}
+
+
 def _close_device(device) -> str | None:
     """Stop the device; what went wrong that a person can act on (e.g. a recording that did not fit on
     the disk), or None. Resting the hardware is best effort on the way out: nothing here raises."""
@@ -331,8 +384,8 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
     while True:
         now = time.monotonic()
         if now >= next_status:
-            shared.write_slow({**_device_status(device, source), "priority": f"{source.priority}; {threads}",
-                               "pid": os.getpid()})
+            shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
+                               "priority": f"{source.priority}; {threads}", "pid": os.getpid()})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
@@ -352,9 +405,7 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
             return
         try:
             if command == "texture":
-                from ultraglide.textures.library import resolve_texture
-
-                renderer.set_texture(resolve_texture(args[0]))
+                renderer.set_texture(_texture(args[0]))
             elif command == "model":
                 from ultraglide.render.calibration import load_model
 
@@ -374,7 +425,8 @@ def _finish(shared, source, device, conn) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     failure = _close_device(device)
-    status = {**_device_status(device, source), "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
+    status = {**_device_status(device, source), **_renderer_status(source.renderer),
+              "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
     if failure:
         status["output_error"] = failure
     shared.write_slow(status)

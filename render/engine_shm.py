@@ -31,6 +31,8 @@ import numpy as np
 TOUCH_SLOTS = 1024
 TOUCH_FIELDS = 5  # t_s, x_mm, y_mm, force_n (NaN: the default), down (1/0)
 BLOCK_TIMES = 4096  # recent block render times, s
+HISTOGRAM_BINS = 1024  # block render times over the whole run, in 2 % wide bins from 1 µs
+HISTOGRAM_RATIO = 1.02
 HISTORY_ROWS = 8192  # about 5 s at 64-frame blocks and 96 kHz
 HISTORY_FIELDS = 5  # t_s, target ratio, commanded µm p-p, plate µm p-p, samples limited in the block
 LATENCY_ROWS = 1024  # touch t_s, block rendered at s, block's first sample presented at s
@@ -41,7 +43,10 @@ SEQ, BLOCKS, LATE_BLOCKS, CONTROL_SAMPLES, CLIPPED, DRIVE_CLIPPED, RAMPS, TOUCHE
     BLOCK_TIME_INDEX, HISTORY_INDEX, LATENCY_INDEX, LAST_BLOCK_S = range(13)
 # written outside the seqlock, each a single word with a single writer (the simulated plate's probe)
 PLATE_PROBE_UM_PP, PROBE_RISE_S = 14, 15
-HEADER = 16
+# the last touch the block path drained (as the renderer got it: mm, N or NaN for the default, 1/0 down)
+LAST_TOUCH_X, LAST_TOUCH_Y, LAST_TOUCH_FORCE, LAST_TOUCH_DOWN = 16, 17, 18, 19
+RESTING_BLOCKS = 20  # blocks served as zeros while paused and at rest (the renderer not run)
+HEADER = 24
 
 STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")
 
@@ -56,7 +61,8 @@ class Layout:
     touches: int = 4
     fast: int = 4 + TOUCH_SLOTS * TOUCH_FIELDS
     block_times: int = fast + HEADER
-    history: int = block_times + BLOCK_TIMES
+    histogram: int = block_times + BLOCK_TIMES
+    history: int = histogram + HISTOGRAM_BINS
     latency: int = history + HISTORY_ROWS * HISTORY_FIELDS
     slow: int = latency + LATENCY_ROWS * 3  # seq, length, then bytes
     size: int = slow + 2 + SLOW_BYTES // 8
@@ -78,7 +84,8 @@ class SharedBlock:
         self.touch_index = words[L.touch_head:L.touch_head + 4]  # head, tail, dropped
         self.touches = words[L.touches:L.fast].reshape(TOUCH_SLOTS, TOUCH_FIELDS)
         self.fast = words[L.fast:L.fast + HEADER]
-        self.block_times = words[L.block_times:L.history]
+        self.block_times = words[L.block_times:L.histogram]
+        self.histogram = words[L.histogram:L.history]
         self.history = words[L.history:L.latency].reshape(HISTORY_ROWS, HISTORY_FIELDS)
         self.latency = words[L.latency:L.slow].reshape(LATENCY_ROWS, 3)
         self.slow_header = words[L.slow:L.slow + 2]
@@ -98,7 +105,7 @@ class SharedBlock:
         return cls(shared_memory.SharedMemory(name=name), owner=False)
 
     def close(self) -> None:
-        for name in ("words", "touch_index", "touches", "fast", "block_times", "history", "latency",
+        for name in ("words", "touch_index", "touches", "fast", "block_times", "histogram", "history", "latency",
                      "slow_header", "slow_bytes"):
             setattr(self, name, None)
         self.memory.close()
@@ -156,6 +163,37 @@ class SharedBlock:
             if self.fast[SEQ] == before:
                 return header, times, history, latency
         raise TimeoutError("the engine's status kept changing while being read")
+
+    def read_histogram(self) -> np.ndarray:
+        """A consistent copy of the run's block-time histogram (counts per bin)."""
+        for _ in _attempts():
+            before = self.fast[SEQ]
+            if before % 2:
+                continue
+            counts = self.histogram.copy()
+            if self.fast[SEQ] == before:
+                return counts
+        raise TimeoutError("the engine's status kept changing while being read")
+
+
+_LOG_RATIO = math.log(HISTOGRAM_RATIO)
+
+
+def histogram_bin(seconds: float) -> int:
+    """The histogram bin of a block time, s (bin k holds 1 µs·1.02^k up to 1 µs·1.02^(k+1))."""
+    if seconds <= 1e-6:
+        return 0
+    return min(int(math.log(seconds * 1e6) / _LOG_RATIO), HISTOGRAM_BINS - 1)
+
+
+def histogram_percentiles(counts: np.ndarray, percents) -> list[float | None]:
+    """Percentiles (s) of the times counted in ``counts``, each the geometric middle of its bin (±1 %)."""
+    total = counts.sum()
+    if total == 0:
+        return [None for _ in percents]
+    cumulative = np.cumsum(counts)
+    bins = [int(np.searchsorted(cumulative, total * p / 100.0)) for p in percents]
+    return [1e-6 * HISTOGRAM_RATIO ** (k + 0.5) for k in bins]
 
 
 def _attempts(timeout_s: float = 2.0):

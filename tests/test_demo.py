@@ -11,7 +11,7 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
-from xvfb_demo import XvfbDemo, tools_missing
+from xvfb_demo import XvfbDemo, descendants, tools_missing
 
 ARTIFACTS = ROOT / "artifacts" / "screenshots"
 
@@ -35,6 +35,31 @@ def app(halves, monkeypatch):
     demo.close()
 
 
+@pytest.fixture
+def plate():
+    """The simulated plate served in the test's process on a real pty: the demo's engine drives it through
+    the real serial driver, and the test reads the plate's own amplitude beside it."""
+    from ultraglide.devices.plate_sim import PtyPlate
+    from ultraglide.devices.profiles import load_profile
+
+    served = PtyPlate(load_profile("sim-plate")).start()
+    yield served
+    served.stop()
+
+
+@pytest.fixture
+def plated(halves, plate, monkeypatch):
+    """The demo on the plate above."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo_app import DemoApp
+
+    demo = DemoApp([halves], device_url=f"serial:{plate.path}", windowed=True, screen_width_mm=338.7)
+    demo.wait_ready()
+    demo.plate = plate
+    yield demo
+    demo.close()
+
+
 def post(pg, kind, **fields):
     pg.event.post(pg.event.Event(kind, **fields))
 
@@ -51,7 +76,23 @@ def finger(pg, kind, x, y, finger_id=1):
 
 
 def measured(app):
-    return app.link.device.telemetry.measured_um_pp
+    """The plate's own amplitude, µm p-p (the simulated plate served beside the demo)."""
+    return app.plate.simulator.amplitude_um_pp
+
+
+def run_until(app, condition, timeout_s=30.0):
+    """Step the demo until ``condition()`` holds (True) or the deadline passes (False)."""
+    deadline = time.perf_counter() + timeout_s
+    while time.perf_counter() < deadline:
+        app.step()
+        if condition():
+            return True
+        time.sleep(0.002)
+    return False
+
+
+def engine(app):
+    return app.link.status(0.0).engine
 
 
 def test_touch_positions_reach_the_renderer_in_millimetres(app):
@@ -60,14 +101,15 @@ def test_touch_positions_reach_the_renderer_in_millimetres(app):
     w, h = app.screen.get_size()
     x_px, y_px = 200, app.area.top + 100
     finger(pg, pg.FINGERDOWN, x_px / w, y_px / h)
-    run_for(app, 0.05)
-    fit = app.link.renderer.trajectory._fit
-    assert fit.x_ref == pytest.approx(x_px * app.mm_per_px, abs=0.3)
-    assert fit.y_ref == pytest.approx(100 * app.mm_per_px, abs=0.3)
-    assert fit.down
+    assert run_until(app, lambda: engine(app).last_touch is not None)  # the engine's block path took it
+    x_mm, y_mm, force_n, down = engine(app).last_touch
+    assert x_mm == pytest.approx(x_px * app.mm_per_px, abs=0.3)
+    assert y_mm == pytest.approx(100 * app.mm_per_px, abs=0.3)
+    assert down
 
 
-def test_the_plate_follows_the_texture_under_the_finger(app):
+def test_the_plate_follows_the_texture_under_the_finger(plated):
+    app = plated
     pg = app.pg
     app._act("texture")
     w, h = app.screen.get_size()
@@ -76,20 +118,17 @@ def test_the_plate_follows_the_texture_under_the_finger(app):
     for i in range(30):
         finger(pg, pg.FINGERMOTION, (100 + i) / w, y)
         run_for(app, 0.01)
-    run_for(app, 0.3)
-    slippery = measured(app)
+    assert run_until(app, lambda: measured(app) > 3.0), measured(app)  # slippery: strong vibration
     for i in range(60):  # slide across into the right half: at rest
         finger(pg, pg.FINGERMOTION, (130 + i * 10) / w, y)
         run_for(app, 0.01)
-    run_for(app, 0.3)
-    at_rest = measured(app)
-    assert slippery > 3.0 and at_rest < 0.3, (slippery, at_rest)
+    assert run_until(app, lambda: measured(app) < 0.3), measured(app)
     finger(pg, pg.FINGERUP, 700 / w, y)
-    run_for(app, 0.2)
-    assert measured(app) < 0.05
+    assert run_until(app, lambda: measured(app) < 0.05), measured(app)
 
 
-def test_mouse_drives_but_its_copies_of_touches_are_ignored(app):
+def test_mouse_drives_but_its_copies_of_touches_are_ignored(plated):
+    app = plated
     pg = app.pg
     app._act("texture")
     y = app.area.top + 150
@@ -99,15 +138,15 @@ def test_mouse_drives_but_its_copies_of_touches_are_ignored(app):
     assert app.pushed == 0  # synthesised from a touch: not counted twice
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, y), button=1, touch=False)
     post(pg, pg.MOUSEMOTION, pos=(110, y), rel=(10, 0), buttons=(1, 0, 0), touch=False)
-    run_for(app, 0.3)
-    assert app.pushed == 2 and measured(app) > 3.0
-    assert app.link.renderer.trajectory._fit.x_ref == pytest.approx(110 * app.mm_per_px, abs=0.1)  # merged
+    assert run_until(app, lambda: measured(app) > 3.0), measured(app)
+    assert app.pushed == 2 and engine(app).touches == 2
+    assert engine(app).last_touch[0] == pytest.approx(110 * app.mm_per_px, abs=0.1)
     post(pg, pg.MOUSEBUTTONUP, pos=(110, y), button=1, touch=False)
-    run_for(app, 0.2)
-    assert measured(app) < 0.05
+    assert run_until(app, lambda: measured(app) < 0.05), measured(app)
 
 
-def test_second_finger_is_shown_but_does_not_drive(app):
+def test_second_finger_is_shown_but_does_not_drive(plated):
+    app = plated
     pg = app.pg
     app._act("texture")
     w, h = app.screen.get_size()
@@ -115,8 +154,10 @@ def test_second_finger_is_shown_but_does_not_drive(app):
     finger(pg, pg.FINGERDOWN, 700 / w, y, finger_id=1)  # at rest side
     finger(pg, pg.FINGERDOWN, 100 / w, y, finger_id=2)  # slippery side, but second
     finger(pg, pg.FINGERMOTION, 105 / w, y, finger_id=2)
+    assert run_until(app, lambda: engine(app).touches >= 1)
     run_for(app, 0.3)
     assert set(app.fingers) == {1, 2} and app.driving == 1
+    assert engine(app).touches == 1 and engine(app).last_touch[0] == pytest.approx(700 * app.mm_per_px, abs=0.3)
     assert measured(app) < 0.3
 
 
@@ -126,16 +167,18 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert app.scene == "gallery"
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("widgets"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "widgets" and app.link.renderer.texture.name == "widgets"
-    force = app.link.renderer.default_force_n
+    assert app.scene == "widgets" and run_until(app, lambda: engine(app).texture == "widgets"), engine(app).texture
+    force = engine(app).force_n
     post(pg, pg.KEYDOWN, key=pg.K_UP, mod=0, unicode="", scancode=0)
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("model"), button=1, touch=False)
     run_for(app, 0.05)
-    assert app.link.renderer.default_force_n == pytest.approx(force * 1.25)
-    assert app.model_name == "paper" and app.link.renderer.model.name == "paper"
+    assert run_until(app, lambda: engine(app).force_n == pytest.approx(force * 1.25)), engine(app).force_n
+    assert app.model_name == "paper" and run_until(app, lambda: engine(app).model == "paper"), engine(app).model
+    post(pg, pg.MOUSEBUTTONDOWN, pos=(600, app.area.top + 100), button=1, touch=False)  # a finger on: it runs
+    assert run_until(app, lambda: engine(app).state == "running"), engine(app).state
     post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=0)
     run_for(app, 0.05)
-    assert app.user_paused and app.link.renderer.paused
+    assert app.user_paused and run_until(app, lambda: engine(app).state == "paused"), engine(app).state
     post(pg, pg.KEYDOWN, key=pg.K_ESCAPE, mod=0, unicode="", scancode=0)
     run_for(app, 0.05)
     assert not app.running
@@ -146,18 +189,19 @@ def test_gallery_tap_chooses_a_texture(app):
     tile = app.tiles[0]
     post(pg, pg.MOUSEBUTTONDOWN, pos=tile.center, button=1, touch=False)
     run_for(app, 0.05)
-    assert app.scene == "texture" and app.link.renderer.texture.name == "halves"
+    assert app.scene == "texture" and run_until(app, lambda: engine(app).texture == "halves"), engine(app).texture
 
 
-def test_closing_rests_the_plate(app):
+def test_closing_rests_the_plate(plated):
+    app = plated
     pg = app.pg
     app._act("texture")
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
-    run_for(app, 0.3)
-    assert measured(app) > 3.0
-    plate = app.link.device.plate
+    assert run_until(app, lambda: measured(app) > 3.0), measured(app)
+    simulator = app.plate.simulator
     app.close()
-    assert not plate.simulator.enabled and plate.simulator.amplitude_um_pp < 0.5
+    assert not simulator.enabled and simulator.amplitude_um_pp < 0.5  # disabled before close() returned
+    assert not app.link.engine.alive and app.final_status.state == "stopped"
 
 
 def test_panel_pressure_sets_the_force_only_where_the_panel_reports_it(app):
@@ -166,12 +210,12 @@ def test_panel_pressure_sets_the_force_only_where_the_panel_reports_it(app):
     w, h = app.screen.get_size()
     y = (app.area.top + 150) / h
     post(pg, pg.FINGERDOWN, x=100 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
-    run_for(app, 0.05)
-    assert np.isnan(app.link.renderer.trajectory._fit.force_n)  # 1.0 from a panel without a sensor: the default
+    assert run_until(app, lambda: engine(app).touches == 1)
+    assert np.isnan(engine(app).last_touch[2])  # 1.0 from a panel without a sensor: the default
     assert "Up/Down keys" in app.status_words()
     post(pg, pg.FINGERMOTION, x=120 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=0.3)
-    run_for(app, 0.05)
-    assert app.link.renderer.trajectory._fit.force_n == pytest.approx(0.3 * 2.0)  # PRESSURE_FULL_SCALE_N
+    assert run_until(app, lambda: engine(app).touches == 2)
+    assert engine(app).last_touch[2] == pytest.approx(0.3 * 2.0)  # PRESSURE_FULL_SCALE_N
     assert "touch pressure" in app.status_words()
 
 
@@ -208,8 +252,10 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
         for i in range(40):
             post(pg, pg.MOUSEMOTION, pos=(60 + i, y), rel=(1, 0), buttons=(1, 0, 0), touch=False)
             run_for(app, 0.02)
+        # the engine's share is of the last second's samples: a finger held a second longer fills it
+        assert run_until(app, lambda: app.link.status().limited_pct > 90, 10), app.link.status()
         status = app.link.status()
-        assert status.limited_pct > 90 and status.limited_samples > 0.5 * 12000 * 0.9, status
+        assert status.limited_samples > 0.5 * 12000 * 0.9, status
         post(pg, pg.MOUSEBUTTONUP, pos=(100, y), button=1, touch=False)
         run_for(app, 0.05)
         app._act("next")  # halves: the right half is at rest, nothing to limit
@@ -217,6 +263,67 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
         post(pg, pg.MOUSEBUTTONDOWN, pos=(900, y), button=1, touch=False)
         run_for(app, 0.5)
         assert app.link.status().limited_samples == 0 and app.link.status().limited_pct == 0
+    finally:
+        app.close()
+
+
+def test_touches_before_the_engine_is_ready_are_drawn_counted_and_not_felt(halves, monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo_app import DemoApp
+
+    app = DemoApp([halves], windowed=True, screen_width_mm=338.7)
+    try:
+        pg = app.pg
+        app._act("texture")
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
+        post(pg, pg.MOUSEMOTION, pos=(110, app.area.top + 150), rel=(10, 0), buttons=(1, 0, 0), touch=False)
+        app.step()
+        assert app.link is None  # the engine process is still importing numpy: it cannot be ready yet
+        assert app.unfelt == 2 and "2 touches before it was ready: not felt" in app.status_words()
+        app.wait_ready()
+        assert engine(app).touches == 0  # nothing queued: a finger's old positions are never felt late
+        post(pg, pg.MOUSEMOTION, pos=(120, app.area.top + 150), rel=(10, 0), buttons=(1, 0, 0), touch=False)
+        assert run_until(app, lambda: engine(app).touches == 1)
+    finally:
+        app.close()
+
+
+def _rewrite(path, left_ratio, in_place):
+    """Save the halves texture with another left half: atomically (a new file renamed over it, as most
+    editors save) or in place (the same file truncated and written, as others do)."""
+    values = np.ones((150, 200), np.float32)
+    values[:, :100] = left_ratio
+    other = save_texture(Texture(values, 200.0, 150.0, outside="clamp", name="halves"),
+                         path.with_name("next-" + path.name))
+    if in_place:
+        data = other.read_bytes()
+        other.unlink()
+        with open(path, "r+b") as file:
+            file.truncate(0)
+            file.write(data)
+    else:
+        os.replace(other, path)
+
+
+def test_watch_reloads_a_changed_texture_file_and_the_plate_feels_it(halves, plate, monkeypatch):
+    """The finger rests on the left half; the file is rewritten under it (atomically, then in place):
+    the plate's own amplitude follows each new texture."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo_app import DemoApp
+
+    app = DemoApp([halves], device_url=f"serial:{plate.path}", windowed=True, screen_width_mm=338.7, watch=True)
+    try:
+        app.plate = plate
+        app.wait_ready()
+        pg = app.pg
+        app._act("texture")
+        post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
+        assert run_until(app, lambda: measured(app) > 3.0), measured(app)  # 0.2: slippery
+        _rewrite(Path(halves), 1.0, in_place=False)
+        assert run_until(app, lambda: measured(app) < 0.3), measured(app)  # 1.0: at rest
+        _rewrite(Path(halves), 0.2, in_place=True)
+        assert run_until(app, lambda: measured(app) > 3.0), measured(app)
+        assert app.textures[0].values[0, 0] == pytest.approx(0.2, abs=1e-3) and not app.watch_errors
     finally:
         app.close()
 
@@ -353,14 +460,16 @@ def test_demo_under_xvfb_driven_by_xdotool(tmp_path):
 
 @needs_xvfb
 def test_demo_idles_cold_under_xvfb():
-    """Nothing moves: the process (window, event loop, renderer on the null device) uses at most 10 % of a core."""
+    """Nothing moves: the whole process tree (window, event loop, and the engine process with the renderer
+    and the null device) uses at most 10 % of a core."""
     with XvfbDemo("--device", "null") as demo:
-        demo.wait_for("^renderer ready", 60)  # after the first frames
-        cpu_before, wall_before = demo.cpu_s(), time.perf_counter()
+        demo.wait_for("^renderer ready", 120)  # after the first frames
+        assert descendants(demo.demo.pid)  # the engine is a process of its own, counted below
+        cpu_before, wall_before = demo.tree_cpu_s(), time.perf_counter()
         deadline = wall_before + 4.0
         while time.perf_counter() < deadline:  # CPU time, not wall time: sleeping costs nothing
             time.sleep(0.2)
-        share = (demo.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
+        share = (demo.tree_cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
         assert share <= 0.10, f"{share:.1%} of a core while idle"
         assert demo.quit() == 0
 
@@ -409,8 +518,9 @@ def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
 
     figures = json.loads(stats.read_text())
     assert figures["blocks_rendered"] > 100 and figures["touches"] == len(log.t_s)
+    assert figures["touches_received_by_engine"] == figures["touches"] + 1  # all, and the lift
     assert 0 < figures["block_p50_us"] <= figures["block_p99_us"]
-    assert figures["underruns"] >= 0 and figures["late_blocks"] >= 0
+    assert figures["underruns"] >= figures["underruns_at_first_touch"] >= 0 and figures["late_blocks"] >= 0
 
 
 def test_bad_demo_texture_is_one_line(tmp_path):

@@ -29,6 +29,32 @@ def process_cpu_s(pid: int, thread: int | None = None) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def descendants(pid: int) -> list[int]:
+    """A process's children, their children and so on (Linux's /proc/PID/task/*/children)."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = [int(c) for c in (task / "children").read_text().split()]
+            except OSError:
+                continue
+            found += children
+            todo += children
+    return found
+
+
+def tree_cpu_s(pid: int) -> float:
+    """CPU time of a process and all its descendants still running, s (the demo, its engine, their helpers)."""
+    total = 0.0
+    for member in [pid, *descendants(pid)]:
+        try:
+            total += process_cpu_s(member)
+        except (OSError, IndexError):
+            continue  # ended between listing and reading
+    return total
+
+
 class XvfbDemo:
     """Xvfb on a free display and ``ultraglide demo --windowed --report-frames ARGS`` on it."""
 
@@ -92,6 +118,10 @@ class XvfbDemo:
 
     def cpu_s(self) -> float:
         return process_cpu_s(self.demo.pid)
+
+    def tree_cpu_s(self) -> float:
+        """The demo's process and its descendants (the engine process: renderer, device, simulated plate)."""
+        return tree_cpu_s(self.demo.pid)
 
     def main_thread_cpu_s(self) -> float:
         return process_cpu_s(self.demo.pid, self.demo.pid)
