@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import lfilter
 from ultraglide.devices import protocol as p
+from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002
@@ -414,6 +415,10 @@ class PtyPlate:
         if link_path is None:
             self._own_dir = tempfile.mkdtemp(prefix="ultraglide-plate-")
             link_path = os.path.join(self._own_dir, "plate")
+        directory = os.path.dirname(os.path.abspath(link_path))
+        if not os.path.isdir(directory):
+            raise DeviceError(f"no directory {directory} for the plate's link {link_path}: create it or choose "
+                              "another --link")
         self.path = link_path
         self.pty_name = ""
         self._master = -1
