@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
 
@@ -554,6 +555,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as interrupt:
         stop.restore()  # from here on the stop signals are ignored: the command has stopped
         return _stopped(stop.received or getattr(interrupt, "signum", signal.SIGINT))
+    except BrokenPipeError:  # the reader left (``ultraglide textures | head``): stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
+        return 128 + signal.SIGPIPE
     except errors.user_errors() as error:
         print(f"ultraglide {args.command}: error: {errors.describe(error)}", file=sys.stderr)
         return 1

@@ -29,3 +29,15 @@ def test_python_dash_m_matches_the_command(tmp_path) -> None:
                             cwd=tmp_path, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == f"ultraglide {ultraglide.__version__}"
+
+
+def test_a_reader_that_leaves_stops_the_command_quietly(tmp_path):
+    """``ultraglide textures | head -1``: the pipe closes before the listing is written; no error, 128 + SIGPIPE."""
+    import signal
+
+    command = subprocess.Popen([sys.executable, "-m", "ultraglide", "textures"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, cwd=tmp_path)
+    command.stdout.close()  # the only reader leaves before the command has even started writing
+    _, stderr = command.communicate(timeout=120)
+    assert command.returncode == 128 + signal.SIGPIPE
+    assert stderr == b""
