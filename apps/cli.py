@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import signal
 import sys
 
@@ -59,9 +60,17 @@ from ultraglide.apps.stop_signals import StopSignals
 
 from ultraglide import __version__
 
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
 
 class OneLineParser(argparse.ArgumentParser):
-    """An ArgumentParser whose usage errors are one line, as every error of ours is."""
+    """An ArgumentParser whose usage errors are one line, as every error of ours is, and which reads any
+    negative number (``-1e+16``, ``-inf`` too, not only ``-3`` and ``-.5``) as a value, so that an option's
+    own range check names the option instead of argparse calling the number an unknown option."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -30,15 +30,20 @@ import atexit
 import contextlib
 import math
 import multiprocessing
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_process import engine_main
 from ultraglide.render.engine_shm import SharedBlock, ring_order
 from ultraglide.render.errors import RenderError
+
+if TYPE_CHECKING:
+    from ultraglide.textures.texture import Texture
 
 START_TIMEOUT_S = 120.0  # spawning, importing numpy/scipy/numba and loading a texture on a loaded machine
 COMMAND_TIMEOUT_S = 30.0
@@ -258,7 +263,7 @@ class Engine:
         ring was full (the engine has stalled) and the report was dropped."""
         return self.shared.push_touch(t_s, x_mm, y_mm, math.nan if force_n is None else force_n, 1.0 if down else 0.0)
 
-    def set_texture(self, spec) -> None:
+    def set_texture(self, spec: str | os.PathLike | Texture) -> None:
         """Render another texture: a library name or a file (EngineError if it cannot be loaded), or a
         ``Texture`` built in memory (sent pickled: a 2000 × 1500 texture is 12 MB, some 10 ms)."""
         self._command("texture", spec if _is_texture(spec) else str(spec))

@@ -244,6 +244,8 @@ def test_preallocated_control_blocks_match_the_allocating_path():
 
 
 def _tearing_writer(name, stop):
+    import time
+
     from ultraglide.render import engine_shm as shm
     from ultraglide.render.engine_shm import SharedBlock
 
@@ -256,6 +258,7 @@ def _tearing_writer(name, stop):
         shared.history[:] = k
         shared.fast[shm.BLOCKS] = k
         shared.fast[shm.SEQ] += 1
+        time.sleep(0.0002)  # as the engine does, a round per block: a reader gets its turn between them
     shared.close()
 
 

@@ -187,10 +187,10 @@ def test_resume_can_extend_a_session(tmp_path):
     (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--range", "0.1", "2"], "at most 1"),
     (["constant", "--observer", SIM], "--preset"),
     (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--repeats", "0"], "--repeats"),
-    (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--levels", "0", "-1"], "negative"),
+    (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--levels", "0", "-1"], "in 0..10000, got -1"),
     (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--break-every", "-1"], "--break-every"),
     (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--bootstrap", "5"], "--bootstrap"),
-    (["threshold", "grating-1mm", "--afc", "4"], "invalid choice"),
+    (["threshold", "grating-1mm", "--afc", "4"], "from 2 to 3, got 4"),
 ])
 def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
     out = tmp_path / "out"

@@ -13,13 +13,14 @@ import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli
 from ultraglide.apps.cli import build_parser
-from ultraglide.apps.export_command import BLOCK_S
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.output_stage import Modulation
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
+
+from ultraglide.api import BLOCK_S
 
 RATE = 96000
 CARRIER_HZ = 25000.0

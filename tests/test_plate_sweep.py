@@ -136,7 +136,7 @@ def test_a_resonance_outside_the_sweep_is_one_line_and_no_profile(tmp_path):
     (["--device", "wav:x.wav"], "measures nothing"),
     (["--from-hz", "26000", "--to-hz", "24000"], "must be below"),
     (["--from-hz", "19000"], "outside plate"),
-    (["--steps", "2"], "at least 5"),
+    (["--steps", "2"], "from 5 to 2000, got 2"),
     (["--plot", "x.jpg"], "PNG, PDF or SVG"),
 ])
 def test_bad_sweep_options_are_one_line(tmp_path, args, words):

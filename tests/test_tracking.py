@@ -110,6 +110,8 @@ def _driven_as_asked(record: np.ndarray, target_um_pp: float, held_s: float = 0.
     gaps = t[1:][np.diff(t) > 0.01]  # the recorder itself was descheduled: what happened then is unknown
     bad = np.sort(np.concatenate((off, gaps)))
     since = np.searchsorted(bad, t, side="right")  # the last bad time at or before each sample
+    if bad.size == 0:  # a clean run: the plate was asked for the target throughout
+        return np.ones(t.shape, dtype=bool)
     last_bad = np.where(since > 0, bad[np.maximum(since - 1, 0)], -np.inf)
     return t - last_bad >= held_s
 
