@@ -13,8 +13,8 @@
 :class:`EffectPlayer` is what the renderer runs each block: it finds the triggers in the finger's path
 (compiled, sample-exact), starts and ends voices (a fixed pool), evaluates them into preallocated
 buffers and subtracts their sum from the texture's ratio, clipping to [0, 1] and counting what went
-above 1 (the model's inverse then clamps below its floor and counts it, as for textures). Nothing on its block path allocates, except
-the rare named event (a deque entry, from the thread that reports it).
+above 1 (the model's inverse then clamps below its floor and counts it, as for textures). Nothing on
+its block path allocates, except the rare named event (a deque entry, from the thread that reports it).
 """
 
 from __future__ import annotations

@@ -373,6 +373,25 @@ def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
         raise TextureError(f"{where}: {error}") from None
 
 
+def load_effects(path) -> tuple[Binding, ...]:
+    """Bindings from a JSON file holding :func:`to_json`'s description; one-line TextureError for a bad one."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise TextureError(f"{path}: no such effects file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise TextureError(f"{path}: cannot read it ({error})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise TextureError(f"{path}: not valid JSON ({error})") from None
+    return from_json(data, where=str(path))
+
+
 def _binding_from_dict(item) -> Binding:
     if not isinstance(item, dict) or not isinstance(item.get("trigger"), dict) or "effect" not in item:
         raise TextureError("each binding is an object with a 'trigger' object and an 'effect'")
@@ -391,3 +410,25 @@ def _binding_from_dict(item) -> Binding:
         raise TextureError("trigger: name must be a string")
     release = item.get("release_s", 0.02)
     return Binding(Trigger(**trigger), effect_from_dict(item["effect"]), release, str(item.get("label", "")))
+
+
+# ---- a few effects for interfaces (what the demo's widgets play) ------------------------------------------
+def click(depth: float = 0.5) -> Effect:
+    """A button's click: a 250 Hz square burst under a 15 ms envelope (friction drops by up to ``depth``)."""
+    return Square(250.0, depth) * ADSR(0.001, 0.004, 0.0, 0.010, sustain_level=0.5)
+
+
+def pulse(depth: float = 0.4, length_s: float = 0.012) -> Effect:
+    """A detent's pulse: friction ``depth`` lower for ``length_s``."""
+    return Constant(depth, length_s)
+
+
+def buzz(frequency_hz: float = 150.0, depth: float = 0.25) -> Effect:
+    """A buzz for as long as it is held (bind it to a ``while`` trigger)."""
+    return Sine(frequency_hz, depth)
+
+
+def snap(depth: float = 0.6) -> Effect:
+    """A toggle's snap: two sharp drops 20 ms apart."""
+    hit = Sawtooth(100.0, depth) * ADSR(0.0, 0.0, 0.008, 0.004, sustain_level=1.0)
+    return hit >> Constant(0.0, 0.008) >> hit
