@@ -39,6 +39,7 @@ from ultraglide.textures.effects import (
 )
 
 VOICES = 16  # effects playing at once; a new one beyond takes the oldest's place
+LOG = 1024  # voice starts remembered (for tests and status)
 TWO_PI = 2.0 * math.pi
 
 
@@ -140,7 +141,8 @@ class _Oscillator(_Plan):
         if self.kind is Square:
             flag = self.flag[:n]
             np.greater_equal(out, 0.5, out=flag)
-            np.multiply(flag, self.depth, out=out)
+            out.fill(0.0)
+            np.copyto(out, self.depth, where=flag)
         elif self.kind is Sawtooth:
             np.multiply(out, self.depth, out=out)
         elif self.kind is Triangle:  # depth (1 − |1 − 2 phase|)
@@ -162,7 +164,8 @@ class _Constant(_Plan):
             return
         flag = self.flag[:len(t)]
         np.less(t, self.length, out=flag)
-        np.multiply(flag, self.level, out=out)
+        out.fill(0.0)
+        np.copyto(out, self.level, where=flag)
 
 
 class _ADSR(_Plan):
@@ -204,10 +207,10 @@ class _Sequence(_Plan):
         for child, (start, end) in zip(self.children, self.spans, strict=True):
             np.subtract(t, start, out=local)
             child.evaluate(local, scratch)
-            np.greater_equal(t, start, out=flag)
-            np.less(t, end, out=flag2)
-            np.logical_and(flag, flag2, out=flag)
-            np.multiply(scratch, flag, out=scratch)
+            np.less(t, start, out=flag)  # outside the part's span: nothing of it
+            np.greater_equal(t, end, out=flag2)
+            np.logical_or(flag, flag2, out=flag)
+            np.copyto(scratch, 0.0, where=flag)
             np.add(out, scratch, out=out)
 
 
@@ -246,7 +249,7 @@ class EffectPlayer:
     """Finds triggers in the finger's path, plays their effects and mixes them into the friction ratio.
 
     One thread calls :meth:`mix` (the block path); :meth:`trigger` may be called from any thread.
-    ``starts`` records (binding index, start time s) of the most recent voices, for tests and status;
+    ``starts`` gives (binding index, start time s) of the most recent voices, for tests and status;
     ``clipped_samples`` counts mixed ratios above 1 (more friction than the plate at rest), clipped to 1
     (ratios below the model's floor are clamped and counted by the inverse, as for textures)."""
 
@@ -264,7 +267,7 @@ class EffectPlayer:
                 self._names.setdefault(b.trigger.name, []).append(k)
         self._inside = [False] * len(self.bindings)
         self._cell = [-1] * len(self.bindings)
-        self._prev_xy = (math.nan, math.nan)
+        self._prev_xy = np.full(2, math.nan)  # the finger's last position in the previous block, mm
         self._lines = [np.asarray(b.trigger.lines_mm, dtype=np.float64) for b in self.bindings]
         self._rises = np.empty(capacity, dtype=np.int64)
         self._falls = np.empty(capacity, dtype=np.int64)
@@ -280,7 +283,7 @@ class EffectPlayer:
         self.voice_start = np.zeros(VOICES)
         self.voice_gate_off = np.full(VOICES, math.inf)
         self.started = 0
-        self.starts = collections.deque(maxlen=1024)
+        self._log = np.zeros((LOG, 2))  # (binding, start s) of the latest voices, a ring
         self.clipped_samples = 0
 
     def trigger(self, name: str, t_s: float) -> bool:
@@ -304,8 +307,10 @@ class EffectPlayer:
         self.voice_binding[slot] = binding
         self.voice_start[slot] = t_s
         self.voice_gate_off[slot] = math.inf if held else -math.inf
+        row = self._log[self.started % LOG]
+        row[0] = binding
+        row[1] = t_s
         self.started += 1
-        self.starts.append((binding, t_s))
 
     def _release(self, binding: int, t_s: float) -> None:
         for v in range(VOICES):
@@ -313,7 +318,7 @@ class EffectPlayer:
                 self.voice_gate_off[v] = t_s
 
     def _find_triggers(self, times, x, y, down, n) -> None:
-        prev_x, prev_y = self._prev_xy
+        prev_x, prev_y = float(self._prev_xy[0]), float(self._prev_xy[1])
         if math.isnan(prev_x):
             prev_x, prev_y = float(x[0]), float(y[0])
         for k, b in enumerate(self.bindings):
@@ -353,7 +358,8 @@ class EffectPlayer:
                     else:
                         self._release(k, float(times[self._falls[j_fall]]))
                         j_fall += 1
-        self._prev_xy = (float(x[n - 1]), float(y[n - 1]))
+        self._prev_xy[0] = x[n - 1]
+        self._prev_xy[1] = y[n - 1]
 
     # ---- the block path ----------------------------------------------------------------------------------
     def mix(self, times, x, y, down, ratio) -> np.ndarray:
@@ -388,16 +394,15 @@ class EffectPlayer:
             start, gate_off = float(self.voice_start[v]), float(self.voice_gate_off[v])
             np.subtract(times, start, out=local)
             self.plans[k].evaluate(local, value)
-            np.greater_equal(local, 0.0, out=flag)
+            np.less(local, 0.0, out=flag)  # before the start: nothing (masks, not products: no casts, no buffers)
+            np.copyto(value, 0.0, where=flag)
             if gate_off == -math.inf:  # once: for its duration
-                np.multiply(value, flag, out=value)
                 duration = self.durations[k]
-                np.less(local, duration, out=flag)
-                np.multiply(value, flag, out=value)
+                np.greater_equal(local, duration, out=flag)
+                np.copyto(value, 0.0, where=flag)
                 if last - start >= duration:
                     self.voice_binding[v] = -1
             else:  # held: full until the gate is off, then a linear release
-                np.multiply(value, flag, out=value)
                 release = self.bindings[k].release_s
                 if gate_off != math.inf:
                     np.subtract(times, gate_off, out=gain)
@@ -406,8 +411,9 @@ class EffectPlayer:
                         np.add(gain, 1.0, out=gain)
                         np.clip(gain, 0.0, 1.0, out=gain)
                     else:
-                        np.less(gain, 0.0, out=flag)
-                        np.multiply(flag, 1.0, out=gain)
+                        np.greater_equal(gain, 0.0, out=flag)
+                        gain.fill(1.0)
+                        np.copyto(gain, 0.0, where=flag)
                     np.multiply(value, gain, out=value)
                     if last >= gate_off + release:
                         self.voice_binding[v] = -1
@@ -418,6 +424,12 @@ class EffectPlayer:
         self.clipped_samples += int(np.count_nonzero(flag))  # above rest; below the model's floor is counted there
         np.clip(mixed, 0.0, 1.0, out=mixed)
         return mixed
+
+    @property
+    def starts(self) -> list[tuple[int, float]]:
+        """(binding index, start time s) of the latest voices (up to 1024), oldest first."""
+        first = max(0, self.started - LOG)
+        return [(int(self._log[k % LOG, 0]), float(self._log[k % LOG, 1])) for k in range(first, self.started)]
 
     @property
     def playing(self) -> int:

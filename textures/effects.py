@@ -316,7 +316,7 @@ def effect_from_dict(data, depth: int = 0) -> Effect:
                     raise TextureError(f"a {kind} effect needs a non-empty list '{key}'")
                 return cls(tuple(effect_from_dict(child, depth + 1) for child in children))
     except TypeError as error:  # a missing field
-        raise TextureError(f"{kind} effect: {error}".replace("__init__() ", "")) from None
+        raise TextureError(f"{kind} effect: {str(error).split('__init__() ')[-1]}") from None
     raise TextureError(f"unknown effect type {kind!r} (sine, square, sawtooth, triangle, constant, adsr, sum, "
                        "product, sequence)")
 
