@@ -348,14 +348,18 @@ def test_the_engine_plays_a_named_event(tmp_path):
         assert engine.trigger("pressed") is True
         assert engine.trigger("released") is False
         deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline:  # until the pulse has come and gone
             status = engine.status()
-            if status.device_status.get("effects_started") == 1 and len(status.history.target_ratio) \
-                    and status.history.target_ratio.min() < 0.5:
+            ratio = status.history.target_ratio
+            if status.device_status.get("effects_started") == 1 and len(ratio) and ratio.min() < 0.5 \
+                    and ratio[-1] > 0.5 and np.argmin(ratio) < len(ratio) - 1:
                 break
             time.sleep(0.05)
-        assert status.history.target_ratio.min() == pytest.approx(0.4, abs=1e-4)  # (16-bit texture values)
-        assert status.history.target_ratio.max() == pytest.approx(0.9, abs=1e-4)
+        ratio, t = status.history.target_ratio, status.history.time_s
+        assert ratio.min() == pytest.approx(0.4, abs=1e-4)  # (16-bit texture values)
+        assert ratio[-1] == pytest.approx(0.9, abs=1e-4)
+        during = t[ratio < 0.5]
+        assert during[-1] - during[0] == pytest.approx(0.4, abs=0.02)  # the pulse's length, in blocks of 5 ms
         with pytest.raises(EngineError, match="effects version 9"):
             engine.set_effects({"effects_version": 9, "bindings": []})
         engine.set_effects({"effects_version": 1, "bindings": []})
