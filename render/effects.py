@@ -26,6 +26,7 @@ import numba
 import numpy as np
 from ultraglide.textures.effects import (
     ADSR,
+    ON,
     Binding,
     Constant,
     Effect,
@@ -40,6 +41,7 @@ from ultraglide.textures.effects import (
 
 VOICES = 16  # effects playing at once; a new one beyond takes the oldest's place
 LOG = 1024  # voice starts remembered (for tests and status)
+EVENTS = 1024  # events found in one block at most (a catch-up block of a wild path may drop some)
 TWO_PI = 2.0 * math.pi
 
 
@@ -65,46 +67,108 @@ def _adsr(t, attack, decay, sustain, release, peak, level, out):  # pragma: no c
             out[i] = held * (1.0 - (s - t3) / release)
 
 
-@numba.njit(cache=True, nogil=True)
-def _zone_edges(x, y, down, n, x0, y0, x1, y1, min_step, prev_inside, prev_x, prev_y, rises, falls):  # pragma: no cover
-    """Where the finger (down, inside the box, moving at least ``min_step`` mm a sample) starts and stops
-    being so. Returns (rises found, falls found, inside at the end)."""
-    n_rise = 0
-    n_fall = 0
-    inside = prev_inside
-    for i in range(n):
-        step = math.hypot(x[i] - prev_x, y[i] - prev_y)
-        prev_x = x[i]
-        prev_y = y[i]
-        now = down[i] and x0 <= x[i] < x1 and y0 <= y[i] < y1 and (min_step <= 0.0 or step >= min_step)
-        if now and not inside:
-            rises[n_rise] = i
-            n_rise += 1
-        elif inside and not now:
-            falls[n_fall] = i
-            n_fall += 1
-        inside = now
-    return n_rise, n_fall, inside
+ON_START, ON_END, ON_WHILE, ON_CROSS, ON_EVENT = range(5)  # a trigger's kind, as the kernel knows it
+PLAY_ONCE, PLAY_HELD, RELEASE = range(3)  # what an event found in the path does
 
 
 @numba.njit(cache=True, nogil=True)
-def _crossings(along, across, down, n, lo, hi, lines, prev_cell, rises):  # pragma: no cover - compiled
-    """Where the finger, down and within [lo, hi) across, moves from between one pair of lines to another.
-    ``prev_cell`` −1: not yet placed. Returns (crossings found, cell at the end)."""
+def _find_events(x, y, down, n, previous, kinds, boxes, min_steps, across_y, lines, line_counts, state,
+                 event_binding, event_index, event_action):  # pragma: no cover - compiled
+    """Every binding's events in one block, in sample order per binding; returns how many (at most the
+    event arrays' length). ``previous``: the finger's last (x, y) before the block, updated; ``state``:
+    per binding, 1/0 inside its zone (start, end, while) or the cell between its lines (cross, −1: not yet
+    placed), updated. A zone is down, inside the box and moving at ``min_steps`` mm a sample or more."""
     count = 0
-    cell = prev_cell
-    for i in range(n):
-        if not down[i] or not (lo <= across[i] < hi):
-            cell = -1
+    room = len(event_binding)
+    for k in range(len(kinds)):
+        kind = kinds[k]
+        if kind == ON_EVENT:
             continue
-        now = 0
-        while now < len(lines) and lines[now] <= along[i]:
-            now += 1
-        if cell >= 0 and now != cell:
-            rises[count] = i
-            count += 1
-        cell = now
-    return count, cell
+        x0, y0, x1, y1 = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 3]
+        prev_x, prev_y = previous[0], previous[1]
+        current = state[k]
+        for i in range(n):
+            inside = down[i] and x0 <= x[i] < x1 and y0 <= y[i] < y1
+            if kind == ON_CROSS:
+                now = -1
+                if inside:
+                    along = y[i] if across_y[k] else x[i]
+                    now = 0
+                    while now < line_counts[k] and lines[k, now] <= along:
+                        now += 1
+                    if current >= 0 and now != current and count < room:
+                        event_binding[count], event_index[count], event_action[count] = k, i, PLAY_ONCE
+                        count += 1
+                current = now
+                continue
+            if inside and min_steps[k] > 0.0:
+                inside = math.hypot(x[i] - prev_x, y[i] - prev_y) >= min_steps[k]
+            prev_x, prev_y = x[i], y[i]
+            now = 1 if inside else 0
+            if now != current and count < room:
+                action = -1
+                if kind == ON_START and now == 1:
+                    action = PLAY_ONCE
+                elif kind == ON_END and now == 0:
+                    action = PLAY_ONCE
+                elif kind == ON_WHILE:
+                    action = PLAY_HELD if now == 1 else RELEASE
+                if action >= 0:
+                    event_binding[count], event_index[count], event_action[count] = k, i, action
+                    count += 1
+            current = now
+        state[k] = current
+    if n:
+        previous[0], previous[1] = x[n - 1], y[n - 1]
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def _oscillate(t, kind, frequency, depth, out):  # pragma: no cover - compiled
+    """kind 0 sine, 1 square, 2 sawtooth, 3 triangle; each from 0 at phase 0, swinging to ``depth``."""
+    for i in range(len(t)):
+        phase = t[i] * frequency
+        phase -= math.floor(phase)
+        if kind == 0:
+            out[i] = 0.5 * depth * (1.0 - math.cos(TWO_PI * phase))
+        elif kind == 1:
+            out[i] = depth if phase >= 0.5 else 0.0
+        elif kind == 2:
+            out[i] = depth * phase
+        else:
+            out[i] = depth * (1.0 - abs(1.0 - 2.0 * phase))
+
+
+@numba.njit(cache=True, nogil=True)
+def _accumulate(times, start, duration, gate_off, release, value, total):  # pragma: no cover - compiled
+    """Add one voice's ``value`` (evaluated at times − start) into ``total``: nothing before its start or after
+    its duration; a held voice whose gate went off at ``gate_off`` fades linearly over ``release`` s."""
+    released = -math.inf < gate_off < math.inf
+    for i in range(len(times)):
+        s = times[i] - start
+        if s < 0.0 or s >= duration:
+            continue
+        gain = 1.0
+        if released and times[i] >= gate_off:
+            gain = 1.0 - (times[i] - gate_off) / release if release > 0.0 else 0.0
+            if gain <= 0.0:
+                continue
+        total[i] += gain * value[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _subtract_clipped(ratio, total, out):  # pragma: no cover - compiled
+    """out = ratio − total within [0, 1]; returns how many were above 1."""
+    above = 0
+    for i in range(len(out)):
+        r = ratio[i] - total[i]
+        if r > 1.0:
+            above += 1
+            r = 1.0
+        elif r < 0.0:
+            r = 0.0
+        out[i] = r
+    return above
 
 
 def warm_up() -> None:
@@ -112,9 +176,14 @@ def warm_up() -> None:
     t = np.zeros(2)
     _adsr(t, 0.1, 0.1, 0.1, 0.1, 1.0, 0.5, np.empty(2))
     flags = np.ones(2, dtype=np.bool_)
-    idx = np.empty(2, dtype=np.int64)
-    _zone_edges(t, t, flags, 2, -1.0, -1.0, 1.0, 1.0, 0.0, False, 0.0, 0.0, idx, idx)
-    _crossings(t, t, flags, 2, -1.0, 1.0, np.array([0.5]), -1, idx)
+    ints = np.zeros(2, dtype=np.int64)
+    _find_events(t, t, flags, 2, np.zeros(2), ints, np.zeros((2, 4)), t, flags, np.zeros((2, 1)), ints,
+                 np.zeros(2, dtype=np.int64), ints.copy(), ints.copy(), ints.copy())
+    out = np.empty(2)
+    _oscillate(t, 0, 1.0, 1.0, out)
+    _accumulate(t, 0.0, 1.0, math.inf, 0.1, out, np.zeros(2))
+    _subtract_clipped(t, t, out)
+    _subtract_clipped(t.astype(np.float32), t, out)  # the texture's ratio comes as float32
 
 
 # ---- evaluation plans: each node owns its scratch buffers --------------------------------------------------
@@ -124,33 +193,13 @@ class _Plan:
 
 
 class _Oscillator(_Plan):
+    KINDS = {Sine: 0, Square: 1, Sawtooth: 2, Triangle: 3}
+
     def __init__(self, effect, capacity: int):
-        self.f, self.depth, self.kind = effect.frequency_hz, effect.depth, type(effect)
-        self.flag = np.empty(capacity, dtype=np.bool_)
+        self.args = (self.KINDS[type(effect)], effect.frequency_hz, effect.depth)
 
     def evaluate(self, t, out):
-        n = len(t)
-        if self.kind is Sine:  # depth (1 − cos 2πft) / 2
-            np.multiply(t, TWO_PI * self.f, out=out)
-            np.cos(out, out=out)
-            np.multiply(out, -0.5 * self.depth, out=out)
-            np.add(out, 0.5 * self.depth, out=out)
-            return
-        np.multiply(t, self.f, out=out)
-        np.mod(out, 1.0, out=out)  # the phase in [0, 1)
-        if self.kind is Square:
-            flag = self.flag[:n]
-            np.greater_equal(out, 0.5, out=flag)
-            out.fill(0.0)
-            np.copyto(out, self.depth, where=flag)
-        elif self.kind is Sawtooth:
-            np.multiply(out, self.depth, out=out)
-        elif self.kind is Triangle:  # depth (1 − |1 − 2 phase|)
-            np.multiply(out, -2.0, out=out)
-            np.add(out, 1.0, out=out)
-            np.abs(out, out=out)
-            np.multiply(out, -self.depth, out=out)
-            np.add(out, self.depth, out=out)
+        _oscillate(t, *self.args, out)
 
 
 class _Constant(_Plan):
@@ -265,23 +314,35 @@ class EffectPlayer:
         for k, b in enumerate(self.bindings):
             if b.trigger.on == "event":
                 self._names.setdefault(b.trigger.name, []).append(k)
-        self._inside = [False] * len(self.bindings)
-        self._cell = [-1] * len(self.bindings)
-        self._prev_xy = np.full(2, math.nan)  # the finger's last position in the previous block, mm
-        self._lines = [np.asarray(b.trigger.lines_mm, dtype=np.float64) for b in self.bindings]
-        self._rises = np.empty(capacity, dtype=np.int64)
-        self._falls = np.empty(capacity, dtype=np.int64)
+        count = len(self.bindings)
+        self._kinds = np.array([ON.index(b.trigger.on) for b in self.bindings], dtype=np.int64)
+        self._boxes = np.empty((count, 4))
+        for k, b in enumerate(self.bindings):
+            region = b.trigger.region_mm
+            self._boxes[k] = ((-np.inf, -np.inf, np.inf, np.inf) if region is None else
+                              (region[0], region[1], region[0] + region[2], region[1] + region[3]))
+        self._min_steps = np.array([b.trigger.min_speed_mm_s / self.control_rate_hz for b in self.bindings])
+        self._across_y = np.array([b.trigger.axis == "y" for b in self.bindings], dtype=np.bool_)
+        self._lines = np.zeros((count, max([1] + [len(b.trigger.lines_mm) for b in self.bindings])))
+        self._line_counts = np.array([len(b.trigger.lines_mm) for b in self.bindings], dtype=np.int64)
+        for k, b in enumerate(self.bindings):
+            self._lines[k, :len(b.trigger.lines_mm)] = b.trigger.lines_mm
+        self._state = np.array([-1 if b.trigger.on == "cross" else 0 for b in self.bindings], dtype=np.int64)
+        self._previous = np.full(2, math.nan)  # the finger's last position before this block, mm
+        self._event_binding = np.empty(EVENTS, dtype=np.int64)
+        self._event_index = np.empty(EVENTS, dtype=np.int64)
+        self._event_action = np.empty(EVENTS, dtype=np.int64)
         self._down = np.empty(capacity, dtype=np.bool_)
         self._sum = np.empty(capacity)
         self._local = np.empty(capacity)
         self._value = np.empty(capacity)
-        self._gain = np.empty(capacity)
-        self._flag = np.empty(capacity, dtype=np.bool_)
         self._mixed = np.empty(capacity)
         # the voice pool: binding index (−1 free), start s, gate off s (inf while held)
-        self.voice_binding = np.full(VOICES, -1, dtype=np.int64)
-        self.voice_start = np.zeros(VOICES)
-        self.voice_gate_off = np.full(VOICES, math.inf)
+        # (lists: read per block from Python, where numpy scalars would cost more than they save)
+        self.voice_binding = [-1] * VOICES
+        self.voice_start = [0.0] * VOICES
+        self.voice_gate_off = [math.inf] * VOICES
+        self._active = 0  # voices playing
         self.started = 0
         self._log = np.zeros((LOG, 2))  # (binding, start s) of the latest voices, a ring
         self.clipped_samples = 0
@@ -304,6 +365,8 @@ class EffectPlayer:
             if self.voice_start[v] < self.voice_start[oldest]:
                 oldest = v
         slot = oldest if slot < 0 else slot
+        if self.voice_binding[slot] < 0:
+            self._active += 1
         self.voice_binding[slot] = binding
         self.voice_start[slot] = t_s
         self.voice_gate_off[slot] = math.inf if held else -math.inf
@@ -318,48 +381,17 @@ class EffectPlayer:
                 self.voice_gate_off[v] = t_s
 
     def _find_triggers(self, times, x, y, down, n) -> None:
-        prev_x, prev_y = float(self._prev_xy[0]), float(self._prev_xy[1])
-        if math.isnan(prev_x):
-            prev_x, prev_y = float(x[0]), float(y[0])
-        for k, b in enumerate(self.bindings):
-            trig = b.trigger
-            on = trig.on
-            if on == "event":
-                continue
-            region = trig.region_mm
-            if region is None:
-                x0 = y0 = -math.inf
-                x1 = y1 = math.inf
+        if math.isnan(self._previous[0]):
+            self._previous[0], self._previous[1] = x[0], y[0]
+        found = _find_events(x, y, down, n, self._previous, self._kinds, self._boxes, self._min_steps,
+                             self._across_y, self._lines, self._line_counts, self._state, self._event_binding,
+                             self._event_index, self._event_action)
+        for j in range(found):  # a loop over events (a few a second), not samples
+            k, t_s, action = int(self._event_binding[j]), float(times[self._event_index[j]]), self._event_action[j]
+            if action == RELEASE:
+                self._release(k, t_s)
             else:
-                x0, y0, x1, y1 = region[0], region[1], region[0] + region[2], region[1] + region[3]
-            if on == "cross":
-                along, across = (x, y) if trig.axis == "x" else (y, x)
-                lo, hi = (y0, y1) if trig.axis == "x" else (x0, x1)
-                count, self._cell[k] = _crossings(along, across, down, n, lo, hi, self._lines[k], self._cell[k],
-                                                  self._rises)
-                for j in range(count):
-                    self._start(k, float(times[self._rises[j]]), False)
-                continue
-            min_step = trig.min_speed_mm_s / self.control_rate_hz
-            n_rise, n_fall, self._inside[k] = _zone_edges(x, y, down, n, x0, y0, x1, y1, min_step, self._inside[k],
-                                                          prev_x, prev_y, self._rises, self._falls)
-            if on == "start":
-                for j in range(n_rise):
-                    self._start(k, float(times[self._rises[j]]), False)
-            elif on == "end":
-                for j in range(n_fall):
-                    self._start(k, float(times[self._falls[j]]), False)
-            else:  # while: each rise starts a held voice, each fall releases it (in time order)
-                j_rise = j_fall = 0
-                while j_rise < n_rise or j_fall < n_fall:
-                    if j_fall >= n_fall or (j_rise < n_rise and self._rises[j_rise] < self._falls[j_fall]):
-                        self._start(k, float(times[self._rises[j_rise]]), True)
-                        j_rise += 1
-                    else:
-                        self._release(k, float(times[self._falls[j_fall]]))
-                        j_fall += 1
-        self._prev_xy[0] = x[n - 1]
-        self._prev_xy[1] = y[n - 1]
+                self._start(k, t_s, action == PLAY_HELD)
 
     # ---- the block path ----------------------------------------------------------------------------------
     def mix(self, times, x, y, down, ratio) -> np.ndarray:
@@ -385,44 +417,22 @@ class EffectPlayer:
         self._find_triggers(times, x, y, flags, n)
         total = self._sum[:n]
         total.fill(0.0)
-        local, value, gain, flag = self._local[:n], self._value[:n], self._gain[:n], self._flag[:n]
+        local, value = self._local[:n], self._value[:n]
         last = float(times[n - 1])
-        for v in range(VOICES):
-            k = int(self.voice_binding[v])
+        for v in range(VOICES if self._active else 0):
+            k = self.voice_binding[v]
             if k < 0:
                 continue
-            start, gate_off = float(self.voice_start[v]), float(self.voice_gate_off[v])
+            start, gate_off = self.voice_start[v], self.voice_gate_off[v]
             np.subtract(times, start, out=local)
             self.plans[k].evaluate(local, value)
-            np.less(local, 0.0, out=flag)  # before the start: nothing (masks, not products: no casts, no buffers)
-            np.copyto(value, 0.0, where=flag)
-            if gate_off == -math.inf:  # once: for its duration
-                duration = self.durations[k]
-                np.greater_equal(local, duration, out=flag)
-                np.copyto(value, 0.0, where=flag)
-                if last - start >= duration:
-                    self.voice_binding[v] = -1
-            else:  # held: full until the gate is off, then a linear release
-                release = self.bindings[k].release_s
-                if gate_off != math.inf:
-                    np.subtract(times, gate_off, out=gain)
-                    if release > 0:
-                        np.multiply(gain, -1.0 / release, out=gain)
-                        np.add(gain, 1.0, out=gain)
-                        np.clip(gain, 0.0, 1.0, out=gain)
-                    else:
-                        np.greater_equal(gain, 0.0, out=flag)
-                        gain.fill(1.0)
-                        np.copyto(gain, 0.0, where=flag)
-                    np.multiply(value, gain, out=value)
-                    if last >= gate_off + release:
-                        self.voice_binding[v] = -1
-            np.add(total, value, out=total)
+            duration, release = self.durations[k], self.bindings[k].release_s
+            _accumulate(times, start, duration, gate_off, release, value, total)
+            if last - start >= duration or (-math.inf < gate_off < math.inf and last >= gate_off + release):
+                self.voice_binding[v] = -1
+                self._active -= 1
         mixed = self._mixed[:n]
-        np.subtract(ratio, total, out=mixed)
-        np.greater(mixed, 1.0, out=flag)
-        self.clipped_samples += int(np.count_nonzero(flag))  # above rest; below the model's floor is counted there
-        np.clip(mixed, 0.0, 1.0, out=mixed)
+        self.clipped_samples += _subtract_clipped(ratio, total, mixed)  # above rest; below the floor: the inverse's
         return mixed
 
     @property
@@ -434,4 +444,4 @@ class EffectPlayer:
     @property
     def playing(self) -> int:
         """Voices playing now."""
-        return int(np.count_nonzero(self.voice_binding >= 0))
+        return self._active
