@@ -359,7 +359,9 @@ def test_the_engine_plays_a_named_event(tmp_path):
         assert ratio.min() == pytest.approx(0.4, abs=1e-4)  # (16-bit texture values)
         assert ratio[-1] == pytest.approx(0.9, abs=1e-4)
         during = t[ratio < 0.5]
-        assert during[-1] - during[0] == pytest.approx(0.4, abs=0.02)  # the pulse's length, in blocks of 5 ms
+        # the pulse's length, seen in one history row a block (5 ms, longer when a loaded machine makes the
+        # null sink catch up): never longer than 0.4 s, and not much shorter
+        assert 0.3 <= during[-1] - during[0] <= 0.42
         with pytest.raises(EngineError, match="effects version 9"):
             engine.set_effects({"effects_version": 9, "bindings": []})
         engine.set_effects({"effects_version": 1, "bindings": []})
