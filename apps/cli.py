@@ -144,6 +144,12 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    effects = export.add_mutually_exclusive_group()
+    effects.add_argument("--effects", metavar="EFFECTS.json",
+                         help="play these temporal effects (a versioned JSON description, see docs/effects.md) "
+                              "instead of those saved with the texture")
+    effects.add_argument("--no-effects", action="store_true",
+                         help="leave out the temporal effects saved with the texture")
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.add_argument("--threads", type=THREADS, metavar="N",
                         help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")

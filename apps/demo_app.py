@@ -225,7 +225,7 @@ class DemoApp:
     def _widgets_for_area(self) -> tuple[Texture, list]:
         """Button, slider, toggle and keyboard in a 2 × 2 grid that fills the texture area (mm)."""
         from ultraglide.textures import procedural
-        from ultraglide.textures.compose import Placement, compose
+        from ultraglide.textures.compose import Placement
 
         width_mm, height_mm = self.area.width * self.mm_per_px, self.area.height * self.mm_per_px
         margin = 8.0
@@ -248,7 +248,7 @@ class DemoApp:
             Placement(procedural.toggle(size_mm=toggle_size), *at(toggle_size, 0, 1)),
             Placement(procedural.keyboard(size_mm=keyboard_size, keys=(10, 3)), *at(keyboard_size, 1, 1)),
         ]
-        return compose((width_mm, height_mm), placements, name="widgets"), placements
+        return compose_widgets((width_mm, height_mm), placements), placements
 
     @property
     def widgets(self) -> tuple[Texture, list]:
@@ -366,7 +366,7 @@ class DemoApp:
 
     def _maybe_flip_toggle(self, x_px: float, y_px: float) -> None:
         from ultraglide.textures import procedural
-        from ultraglide.textures.compose import Placement, compose
+        from ultraglide.textures.compose import Placement
 
         where = self._to_mm(x_px, y_px)
         texture, placements = self.widgets
@@ -376,7 +376,7 @@ class DemoApp:
             size = (toggle.texture.width_mm, toggle.texture.height_mm)
             placements[2] = Placement(procedural.toggle(size_mm=size, on=on), toggle.x_mm, toggle.y_mm)
             self._surfaces.pop(id(texture), None)
-            self._widgets = (compose((texture.width_mm, texture.height_mm), placements, name="widgets"), placements)
+            self._widgets = (compose_widgets((texture.width_mm, texture.height_mm), placements), placements)
             self._dirty = True
             if self.link is not None:
                 self.link.set_texture(self._widgets[0])
@@ -694,6 +694,37 @@ class DemoApp:
 
 def _rounded(value: float | None) -> float | None:
     return None if value is None else round(value, 2)
+
+
+def widget_effects(placements: list) -> tuple:
+    """The widgets' temporal effects (mm on the composed texture): a click when the button is pressed,
+    a pulse at each of the slider's detents and a buzz while it moves, a snap when the toggle is touched
+    (it flips on press). ``placements``: button, slider, toggle, keyboard, as the widgets scene lays them."""
+    from ultraglide.textures import effects
+
+    button, slider, toggle = placements[:3]
+    bw, bh = button.texture.width_mm, button.texture.height_mm
+    face = (button.x_mm + bw * 0.15, button.y_mm + bh * 0.2, bw * 0.7, bh * 0.6)  # button_mm = 0.7 w × 0.6 h
+    sw, sh = slider.texture.width_mm, slider.texture.height_mm
+    detents = int(slider.texture.authoring.get("detents", 6))
+    stops = slider.x_mm + np.linspace(0.08 * sw, 0.92 * sw, detents)  # as procedural.slider places them
+    track = (slider.x_mm, slider.y_mm + 0.3 * sh, sw, 0.4 * sh)
+    knob = (toggle.x_mm, toggle.y_mm, toggle.texture.width_mm, toggle.texture.height_mm)
+    return (
+        effects.Binding(effects.Trigger("start", face), effects.click(), label="button click"),
+        effects.Binding(effects.Trigger("cross", track, lines_mm=tuple(float(v) for v in stops)), effects.pulse(),
+                        label="slider detent"),
+        effects.Binding(effects.Trigger("while", track, min_speed_mm_s=20.0), effects.buzz(), release_s=0.04,
+                        label="slider buzz"),
+        effects.Binding(effects.Trigger("start", knob), effects.snap(), label="toggle snap"),
+    )
+
+
+def compose_widgets(size_mm: tuple[float, float], placements: list) -> Texture:
+    """The widgets scene's texture: the placed widgets with their effects."""
+    from ultraglide.textures.compose import compose
+
+    return compose(size_mm, placements, name="widgets").with_(effects=widget_effects(placements))
 
 
 def write_stats(path: str, stats: dict) -> None:

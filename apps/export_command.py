@@ -1,7 +1,8 @@
 """``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
 
 The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
-(limiter, then carrier) as every live device.
+(limiter, then carrier) as every live device, with the temporal effects saved with the texture (or
+given by ``--effects``) mixed into the friction before the model's inverse.
 
 The writing itself is :func:`ultraglide.api.write_wav`, the library's path too: the envelope in order,
 the carrier in parallel chunks on both cores, the writes in order, memory flat whatever the length."""
@@ -22,6 +23,7 @@ from ultraglide.apps.output_report import clipped_fraction, clipping_warning, li
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.devices.atomic_file import write_failure
 from ultraglide.render.renderer import ControlBlock
+from ultraglide.textures.effects import load_effects
 
 from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, offline_stage, write_wav
 
@@ -92,8 +94,11 @@ def run(args) -> int:
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
     threads = available_cpus() if args.threads is None else int(args.threads)
+    effects = load_effects(args.effects) if getattr(args, "effects", None) else None
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
+    if effects is not None or getattr(args, "no_effects", False):
+        renderer.set_effects(effects or ())
     stage = offline_stage(renderer)
     rate = args.rate
     duration_s = export_duration_s(renderer)
@@ -134,11 +139,13 @@ def run(args) -> int:
                           "format": args.format, "carrier_hz": renderer.carrier_hz,
                           "clipped_samples": counters.clipped_samples,
                           "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
+                          "effects_started": 0 if renderer.effects is None else renderer.effects.started,
                           **limiter_fields(stage),
                           "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
         return 0
+    played = "" if renderer.effects is None else f", {renderer.effects.started} effects played"
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
-          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps; {stage.limiter.summary()}")
+          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps{played}; {stage.limiter.summary()}")
     for extra in (args.envelope_csv, args.plot):
         if extra:
             print(f"wrote {extra}")

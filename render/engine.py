@@ -280,14 +280,24 @@ class Engine:
         """Ramp the output to rest while paused, and back when resumed."""
         self._command("pause", bool(flag))
 
-    def _command(self, *message) -> None:
+    def trigger(self, name: str) -> bool:
+        """The app's named event now (a widget's value changing): plays the effects bound to ``name``
+        (``textures.effects.Trigger(on="event")``). False if no effect is bound to it."""
+        return bool(self._command("trigger", str(name), time.perf_counter()))
+
+    def set_effects(self, description: dict | None) -> None:
+        """Play these effects (``textures.effects.to_json``'s description) instead of the texture's own;
+        None: the texture's own again. EngineError (one line) for a bad description."""
+        self._command("effects", description)
+
+    def _command(self, *message):
         if self._stopped:
             raise EngineError("the engine has stopped")
         self.conn.send(message)
         while True:
             kind, payload = _receive(self.conn, self.process, COMMAND_TIMEOUT_S)
             if kind == "ok":
-                return
+                return payload
             if kind == "error":
                 raise EngineError(payload)
             self._take(kind, payload)  # "ready" may still be on its way

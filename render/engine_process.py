@@ -384,8 +384,10 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
     while True:
         now = time.monotonic()
         if now >= next_status:
+            player = renderer.effects
             shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
-                               "priority": f"{source.priority}; {threads}", "pid": os.getpid()})
+                               "priority": f"{source.priority}; {threads}", "pid": os.getpid(),
+                               "effects_started": 0 if player is None else player.started})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
@@ -414,6 +416,13 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
                 renderer.set_default_force(float(args[0]))
             elif command == "pause":
                 renderer.pause(bool(args[0]))
+            elif command == "trigger":
+                conn.send(("ok", renderer.trigger(str(args[0]), float(args[1]))))
+                continue
+            elif command == "effects":
+                from ultraglide.textures.effects import from_json
+
+                renderer.set_effects(None if args[0] is None else from_json(args[0]))
             else:
                 raise ValueError(f"unknown engine command {command!r}")
             conn.send(("ok", None))

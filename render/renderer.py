@@ -29,6 +29,7 @@ import numpy as np
 from ultraglide.devices.carrier import check_carrier
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render import kernels
+from ultraglide.render.effects import EffectPlayer
 from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.friction_models import FrictionModel
@@ -129,7 +130,9 @@ class Renderer:
 
     def __init__(self, texture: Texture, model: FrictionModel, profile: PlateProfile,
                  settings: RenderSettings = RenderSettings(),
-                 trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None):
+                 trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None,
+                 effects: tuple | None = None):
+        """``effects``: temporal effects (``textures.effects.Binding``) to play instead of the texture's own."""
         self.texture, self.model, self.profile, self.settings = texture, model, profile, settings
         self.carrier_hz = settings.carrier_hz or profile.resonance_hz
         try:
@@ -162,6 +165,23 @@ class Renderer:
         self._offsets = np.zeros(0)
         self.last_block: ControlBlock | None = None  # the newest block rendered
         self._buffers: ControlBuffers | None = None  # used by every block when set (control_buffers(always=True))
+        self._effects_override = effects
+        self.effects = self._player(texture)
+
+    def _player(self, texture: Texture) -> EffectPlayer | None:
+        bindings = texture.effects if self._effects_override is None else self._effects_override
+        return EffectPlayer(bindings, self.settings.control_rate_hz) if bindings else None
+
+    def set_effects(self, effects: tuple | None) -> None:
+        """Play these effects (``textures.effects.Binding``) from the next block on; None: the texture's own."""
+        self._effects_override = None if effects is None else tuple(effects)
+        self.effects = self._player(self.texture)
+
+    def trigger(self, name: str, t_s: float | None = None) -> bool:
+        """The app's named event (a widget's value changing) at ``t_s`` (perf_counter s, default now):
+        starts the effects bound to it. False if none is."""
+        player = self.effects
+        return player is not None and player.trigger(name, time.perf_counter() if t_s is None else t_s)
 
     def control_buffers(self, capacity: int = 4096, always: bool = False) -> ControlBuffers:
         """Preallocated outputs to pass as ``control(..., out=)`` on a real-time path. ``always``: every
@@ -193,7 +213,8 @@ class Renderer:
     def set_texture(self, texture: Texture) -> None:
         """Render another texture from the next block on (its lookup tables are built here)."""
         sampler = Sampler(texture, band_limited=self.settings.band_limited_lookup)
-        self.texture, self.sampler = texture, sampler
+        player = self._player(texture)
+        self.texture, self.sampler, self.effects = texture, sampler, player
 
     def set_model(self, model: FrictionModel) -> None:
         """Use another friction model from the next block on."""
@@ -256,6 +277,13 @@ class Renderer:
         self._last_xy = (x[-1], y[-1])
         ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
                                    direction=(dx, dy))
+        player = self.effects
+        if player is not None:  # mixed before the inverse: the same envelope, clamps and limiter as the texture
+            above = player.clipped_samples
+            ratio = player.mix(times, x, y, finger.down, ratio)
+            self.counters.clipped_samples += player.clipped_samples - above
+            if reuse is None:
+                ratio = ratio.copy()  # the player's buffer is overwritten by the next block
         force = finger.force_n
         if not isinstance(force, np.ndarray):
             force = self.default_force_n if math.isnan(force) else float(force)

@@ -5,7 +5,11 @@ textures, the height). The rest is JSON in an ``iTXt`` chunk named ``ultraglide`
 
     {"format_version": 1, "kind": "friction", "width_mm": 80.0, "height_mm": 50.0,
      "outside": "tile", "outside_ratio": 1.0, "ratio_range": [0.4, 1.0], "full_slope_per_mm": 0.0,
-     "name": "...", "description": "...", "source": "...", "authoring": {...}}
+     "name": "...", "description": "...", "source": "...", "authoring": {...},
+     "effects": {"effects_version": 1, "bindings": [...]}}
+
+``effects`` (present only when the texture has some) is the description of
+:mod:`ultraglide.textures.effects`, validated on loading like the rest.
 
 A PNG without that chunk (any image that is not ours) loads with documented defaults: brightness
 is the friction ratio (white = 1, at rest), its DPI gives its size or else 10 pixels per
@@ -24,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, PngImagePlugin, UnidentifiedImageError
+from ultraglide.textures import effects as effects_format
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.texture import KINDS, OUTSIDE_RULES, Texture
 
@@ -40,7 +45,7 @@ def quantise(values: np.ndarray) -> np.ndarray:
 
 
 def metadata_of(texture: Texture) -> dict:
-    return {
+    meta = {
         "format_version": FORMAT_VERSION,
         "kind": texture.kind,
         "width_mm": texture.width_mm,
@@ -54,6 +59,9 @@ def metadata_of(texture: Texture) -> dict:
         "source": texture.source,
         "authoring": texture.authoring,
     }
+    if texture.effects:
+        meta["effects"] = effects_format.to_json(texture.effects)
+    return meta
 
 
 def save_texture(texture: Texture, path: str | Path) -> Path:
@@ -225,4 +233,6 @@ def load_texture(path: str | Path) -> Texture:
         raise TextureError(f"{path}: a gradient texture needs 2×2 pixels or more, this one is "
                            f"{values.shape[1]}×{values.shape[0]}")
     fields["name"] = fields["name"] if "name" in meta else path.stem
+    if meta.get("effects") is not None:
+        fields["effects"] = effects_format.from_json(meta["effects"], where=f"{path}: effects")
     return Texture(values.astype(np.float32), **fields)

@@ -37,6 +37,7 @@ class Texture:
     description: str = ""
     source: str = ""
     authoring: dict = field(default_factory=dict)
+    effects: tuple = ()  # textures.effects.Binding: temporal effects played with this texture
 
     def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=np.float32)
@@ -58,6 +59,12 @@ class Texture:
         low, high = self.ratio_range
         if not 0 <= low <= high <= 1:
             raise TextureError(f"ratio range must satisfy 0 <= low <= high <= 1, got {low} {high}")
+        from ultraglide.textures.effects import Binding
+
+        effects = tuple(self.effects)
+        if not all(isinstance(binding, Binding) for binding in effects):
+            raise TextureError("a texture's effects must be textures.effects.Binding values")
+        object.__setattr__(self, "effects", effects)
         values.setflags(write=False)
         object.__setattr__(self, "values", values)
         if self.kind == "gradient" and not self.full_slope_per_mm > 0:
