@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,17 @@ settings.register_profile("ultraglide", deadline=None, suppress_health_check=[He
 settings.load_profile("ultraglide")
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def wait_for(condition, timeout: float = 30.0) -> bool:
+    """Wait on a condition (polled every 10 ms) with a deadline generous enough for a loaded machine;
+    True once it holds, False at the deadline. Tests wait on what they need, never on a fixed sleep."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return False
 
 
 def run_cli(*args, check=False, env=None, timeout=300, **kwargs):

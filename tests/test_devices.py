@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 import soundfile
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -50,15 +50,6 @@ def plate():
     yield served
     served.stop()
 
-
-def wait_for(condition, timeout=15.0):
-    """Wait on a condition, with a deadline generous enough for a loaded machine."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_clean_link_streams_at_the_control_rate_with_no_lost_frame(plate):

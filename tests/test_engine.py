@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from ultraglide.devices.plate_sim import PtyPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.engine import Engine, EngineConfig, EngineError
@@ -29,14 +29,6 @@ def steps(tmp_path):
     texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="steps")
     return str(save_texture(texture, tmp_path / "steps.png"))
 
-
-def wait_for(condition, timeout=30.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def hold(engine, where, until, timeout=30.0):

@@ -10,13 +10,12 @@ import math
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 import soundfile
 import tomli_w
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
@@ -259,14 +258,6 @@ class RecordingSimulator(PlateSimulator):
                 self.received.append(p.parse_setpoints(frame.payload)[2])
         return super().receive(data)
 
-
-def wait_for(condition, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_setpoints_the_simulated_plate_receives_keep_any_plate_within_the_limit():

@@ -11,6 +11,7 @@ import tty
 
 import numpy as np
 import pytest
+from conftest import wait_for
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ultraglide.devices import protocol as p
@@ -418,20 +419,12 @@ def test_fuzzed_frames_through_the_real_pty_never_stop_its_threads():
         for k in range(100):
             host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.4))))
             time.sleep(0.002)
-        assert wait_until(lambda: sim.fault_counts()["watchdog"] > trips and sim.amplitude_um_pp < 0.01)
+        assert wait_for(lambda: sim.fault_counts()["watchdog"] > trips and sim.amplitude_um_pp < 0.01)
         assert sim.peak_um_pp > 0  # it did play
         assert plate.alive and sim.counters.handler_errors == 0
     finally:
         plate.stop()
 
-
-def wait_until(condition, timeout: float = 15.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def test_a_hung_frame_handler_still_rests_the_plate():
@@ -443,7 +436,7 @@ def test_a_hung_frame_handler_still_rests_the_plate():
         for k in range(50):
             host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.5))))
             time.sleep(0.002)
-        assert wait_until(lambda: sim.amplitude_um_pp > 1.0)
+        assert wait_for(lambda: sim.amplitude_um_pp > 1.0)
         host.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_HANG, 5000), 10)
         hung_until = time.monotonic() + 5.0
         for k in range(50, 500):  # the host keeps streaming; the handler reads none of it
@@ -452,7 +445,7 @@ def test_a_hung_frame_handler_still_rests_the_plate():
             host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.5))))
             time.sleep(0.002)
         assert time.monotonic() < plate._hang_until  # still hung
-        assert wait_until(lambda: sim.fault_counts()["watchdog"] == 1 and sim.amplitude_um_pp < 0.01,
+        assert wait_for(lambda: sim.fault_counts()["watchdog"] == 1 and sim.amplitude_um_pp < 0.01,
                           plate._hang_until - time.monotonic())
     finally:
         plate.stop()

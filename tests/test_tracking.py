@@ -9,8 +9,8 @@ import time
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli
-from test_devices import Constant, wait_for
+from conftest import ROOT, assert_one_line_error, run_cli, wait_for
+from test_devices import Constant
 from test_plate_sim_cli import Server
 from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import load_profile
