@@ -12,11 +12,14 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from mkdocs.plugins import event_priority
+
 ROOT = Path(__file__).resolve().parent.parent
 TREE = ROOT / "build" / "api-namespace" / "ultraglide"
 FOLDERS = ("render", "textures", "devices", "apps")
 
 
+@event_priority(100)  # before mkdocstrings reads its paths: a path that does not exist yet is dropped
 def on_config(config):
     shutil.rmtree(TREE, ignore_errors=True)
     TREE.mkdir(parents=True)
