@@ -19,6 +19,7 @@ from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
+from test_devices import ASOUNDRC  # the ALSA file-PCM capture, one definition
 from ultraglide.apps.sources import EnvelopeSource, offline_stage
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -172,18 +173,6 @@ def test_play_to_the_wav_device_is_limited_and_reports_it(tmp_path):
                     "--duration-s", "0.3", check=True)
     assert "limiter" in words.stdout and "held at the limit" in words.stderr
 
-
-ASOUNDRC = """pcm.!default {{
-    type plug
-    slave {{ pcm "capture"; format FLOAT_LE; channels 1 }}
-}}
-pcm.capture {{
-    type file
-    slave.pcm "null"
-    file "{path}"
-    format "raw"
-}}
-"""
 
 AUDIO_SCRIPT = """
 import sys, time
