@@ -54,24 +54,26 @@ class Carrier:
             self._table = np.tile(self._one_period, copies)
         return self._table
 
-    def span(self, frames: int) -> tuple[np.ndarray, int]:
+    def span(self, frames: int, out: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """The next ``frames`` samples as ``(table, offset)``: sample k of them is
         ``table[(offset + k) % len(table)]``. In table mode the table is the one exact period (read-only)
         and the offset the span's exact place in it, so any part of the span can be made on its own;
-        otherwise the table is the span's samples and the offset 0."""
+        otherwise the table is the span's samples (written into ``out``, float32, if given) and the offset 0."""
         if self.period:
             start = self.offset
             self.offset = (start + frames) % self.period
             return self._one_period, start
-        return self.block(frames), 0
+        return self.block(frames, out), 0
 
-    def block(self, frames: int) -> np.ndarray:
-        """The next ``frames`` samples (a read-only view in table mode: copy before writing)."""
+    def block(self, frames: int, out: np.ndarray | None = None) -> np.ndarray:
+        """The next ``frames`` samples (a read-only view in table mode: copy before writing); without an
+        exact period they are written into ``out`` (float32, ``frames`` long) if given."""
         if self.period:
             table = self._tiled(frames)
             start = self.offset
             self.offset = (start + frames) % self.period
             return table[start:start + frames]
-        out = np.empty(frames, dtype=np.float32)
+        if out is None:
+            out = np.empty(frames, dtype=np.float32)
         self.phase = sine_block(self.phase, self.carrier_hz / self.rate_hz, out)
         return out

@@ -41,6 +41,7 @@ from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource
 
 CONTROL_RATE_HZ = 12000.0  # an envelope source's rate unless it says otherwise
+KNOTS_CAPACITY = 1024  # control samples held for the audio path before its buffer grows (a live block: 8 or 16)
 SIGNALS = ("control", "audio")
 
 
@@ -90,12 +91,16 @@ class OutputStage:
             profile.check_carrier(self.carrier_hz)
             self.carrier = Carrier(self.carrier_hz, self.rate_hz)
         self.limiter = DriveLimiter(profile, self.control_rate_hz)
-        self.observers: list = []  # callables given each block of limited drive (µm p-p, control rate)
+        self.observers: list = []  # callables given each block of limited drive (µm p-p, control rate), to keep
         self.frames = 0
         self._scale = 1.0 / profile.full_scale_um_pp
         self._last_drive = 0.0  # the control sample before the pending ones, for interpolation
-        self._pending = np.zeros(0)  # limited control samples not yet played out
+        # knots[0]: the last control sample played out (= _last_drive); knots[1:1 + _count]: limited control
+        # samples not yet played out. Grown only when a longer block than any before comes.
+        self._knots = np.zeros(KNOTS_CAPACITY + 1)
+        self._count = 0
         self._played = 0  # audio frames already produced from the first pending sample's period
+        self._carrier_samples = np.zeros(0, dtype=np.float32)  # the span's carrier when it has no exact period
 
     def matches(self, profile: PlateProfile, signal: str, rate_hz: float, carrier_hz: float | None) -> bool:
         """Whether this stage already gives what a device with these facts needs."""
@@ -103,26 +108,32 @@ class OutputStage:
                 and (signal == "control" or self.carrier_hz == float(carrier_hz or profile.resonance_hz)))
 
     # ---- what a device pulls ---------------------------------------------------------------------
-    def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        """The next ``n`` values of the device's signal; ``now_s``: when (perf_counter s) the first plays."""
+    def pull(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
+        """The next ``n`` values of the device's signal; ``now_s``: when (perf_counter s) the first plays.
+        ``out``: an array of ``n`` to write them into (float64 µm p-p for control, float32 for audio), so the
+        block allocates nothing (the real-time path); without it a new array is returned."""
         if self.signal == "control":
-            out = self._limited(n, now_s)
+            out = self._limited(n, now_s, out)
             if n:
-                self._last_drive = float(out[-1])
+                self._last_drive = float(out[n - 1])
             self.frames += n
             return out
-        return self._audio(n, now_s)
+        return self._audio(n, now_s, out)
 
-    def _limited(self, n: int, now_s: float | None) -> np.ndarray:
-        drive = self.limiter.process(self.source.pull(n, now_s))
-        for observer in self.observers:
-            observer(drive)
+    def _limited(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
+        drive = self.limiter.process(self.source.pull(n, now_s), out)
+        if self.observers:
+            kept = drive.copy() if out is not None else drive  # theirs to keep: the stage's buffers move on
+            for observer in self.observers:
+                observer(kept)
         return drive
 
-    def _audio(self, frames: int, now_s: float | None) -> np.ndarray:
+    def _audio(self, frames: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
         knots, first_frame, carrier, offset = self._span(frames, now_s)
-        out = np.empty(frames, dtype=np.float32)
+        if out is None:
+            out = np.empty(frames, dtype=np.float32)
         kernels.modulate(knots, first_frame, self.upsampling, self._scale, carrier, offset, out)
+        self._consume(frames)
         return out
 
     def modulation(self, frames: int, now_s: float | None = None) -> Modulation:
@@ -131,31 +142,56 @@ class OutputStage:
         if self.signal != "audio":
             raise DeviceError("only an audio output stage modulates a carrier")
         knots, first_frame, carrier, offset = self._span(frames, now_s)
+        knots = knots.copy()  # the stage's buffer moves on; the span is rendered later
+        if not self.carrier.period:
+            carrier = carrier.copy()
+        self._consume(frames)
         return Modulation(knots, first_frame, self.upsampling, self._scale, carrier, offset, frames)
 
+    @property
+    def _pending(self) -> np.ndarray:
+        """Limited control samples not yet played out (a view of the stage's buffer)."""
+        return self._knots[1:1 + self._count]
+
     def _span(self, frames: int, now_s: float | None) -> tuple[np.ndarray, int, np.ndarray, int]:
-        """Pull and limit what the next ``frames`` audio frames need; return their knots, the first frame's
-        place among them, and the carrier (table and offset)."""
+        """Pull and limit what the next ``frames`` audio frames need; return their knots (a view of the
+        stage's buffer, valid until :meth:`_consume`), the first frame's place among them, and the carrier
+        (table and offset)."""
         up = self.upsampling
-        available = len(self._pending) * up - self._played
+        count = self._count
+        available = count * up - self._played
         if frames > available:
             needed = -(-(frames - available) // up)
-            drive = self._limited(needed, now_s)
-            self._pending = np.concatenate((self._pending, drive)) if len(self._pending) else drive
+            if 1 + count + needed > len(self._knots):  # a longer block than any before: grow once
+                grown = np.zeros(max(2 * len(self._knots), 1 + count + needed))
+                grown[:1 + count] = self._knots[:1 + count]
+                self._knots = grown
+            self._limited(needed, now_s, self._knots[1 + count:1 + count + needed])
+            self._count = count + needed
         # knot 0 is the last control sample already played out, knot i + 1 is pending sample i
         last = (self._played + frames - 1) // up
-        knots = np.empty(last + 2)
-        knots[0] = self._last_drive
-        knots[1:] = self._pending[:last + 1]
-        first_frame = self._played
-        carrier, offset = self.carrier.span(frames)
+        if self.carrier.period:
+            carrier, offset = self.carrier.span(frames)
+        else:
+            if len(self._carrier_samples) < frames:
+                self._carrier_samples = np.zeros(frames, dtype=np.float32)
+            carrier, offset = self.carrier.span(frames, self._carrier_samples[:frames])
+        return self._knots[:last + 2], self._played, carrier, offset
+
+    def _consume(self, frames: int) -> None:
+        """Move past ``frames`` audio frames: the control samples they used up leave the knots."""
+        up = self.upsampling
         consumed = (self._played + frames) // up
         if consumed:
-            self._last_drive = float(self._pending[consumed - 1])
-            self._pending = self._pending[consumed:]
+            knots = self._knots
+            self._last_drive = float(knots[consumed])
+            knots[0] = knots[consumed]
+            remaining = self._count - consumed
+            for k in range(1, remaining + 1):  # at most a control period's worth: no block-sized copy
+                knots[k] = knots[consumed + k]
+            self._count = remaining
         self._played = (self._played + frames) % up
         self.frames += frames
-        return knots, first_frame, carrier, offset
 
     def request_stop(self) -> None:
         """Ask the envelope source to ramp down to rest."""

@@ -117,7 +117,18 @@ class EngineSource(OutputStage):
         self._first = True
         self._stopping = False
         self._resting = False
-        self._rest = np.zeros(RESTING_CAPACITY, dtype=np.float32 if device.signal == "audio" else np.float64)
+        dtype = np.float32 if device.signal == "audio" else np.float64
+        self._rest = np.zeros(RESTING_CAPACITY, dtype=dtype)
+        self._out = np.zeros(RESTING_CAPACITY, dtype=dtype)  # what a rendered block is written into
+        self._views: dict[int, np.ndarray] = {}  # of _out, one per block length (a device asks for one or two)
+
+    def _view(self, n: int) -> np.ndarray:
+        view = self._views.get(n)
+        if view is None:
+            view = self._out[:n]
+            if len(self._views) < 64:
+                self._views[n] = view
+        return view
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         started = time.perf_counter()
@@ -141,7 +152,8 @@ class EngineSource(OutputStage):
             self._resting = False
             renderer._next_time = None  # its clock starts again at this block, not counted as late
         clipped_before = renderer.counters.clipped_samples
-        out = super().pull(n, now_s)
+        # the device copies or sends the block before it pulls the next: the same buffer serves every block
+        out = super().pull(n, now_s, self._view(n) if n <= len(self._out) else None)
         done = time.perf_counter()
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out

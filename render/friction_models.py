@@ -107,11 +107,12 @@ def check_amplitude(amplitude: np.ndarray) -> None:
         raise ModelError(f"amplitude must be a finite number >= 0 µm p-p, got {amplitude[bad].flat[0]}")
 
 
-def _kernel_result(code: int, ratio: np.ndarray, force: np.ndarray) -> int:
+def _kernel_result(code: int, ratio: np.ndarray, force) -> int:
     """A kernel's return value: a count of clamped ratios, or -1 - i for a bad sample i."""
     if code >= 0:
         return code
     i = -1 - code
+    force = np.atleast_1d(force)
     check_force(force[min(i, len(force) - 1)])
     check_ratio(ratio[i:i + 1])
     raise AssertionError("a kernel reported a bad sample that passes the checks")  # pragma: no cover
@@ -155,16 +156,28 @@ class FrictionModel(ABC):
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         return self.relative_friction(limit, force_n)
 
-    def _fast_path(self, ratio, force_n, limit_um_pp) -> bool:
-        """True when the compiled kernel can take the call: a 1-d float ratio array."""
+    def _fast_path(self, ratio, force_n, limit_um_pp, out=None) -> bool:
+        """True when the compiled kernel can take the call: a 1-d float ratio array (and ``out`` a float64
+        array of its length)."""
         return (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
                 and (_is_scalar(force_n) or (force_n.ndim == 1 and len(force_n) == len(ratio)))
-                and limit_um_pp >= 0)
+                and limit_um_pp >= 0
+                and (out is None or (out.dtype == np.float64 and out.shape == ratio.shape)))
+
+    @staticmethod
+    def _result(amplitude: np.ndarray, clamped: int, out: np.ndarray | None) -> Inversion:
+        if out is not None and amplitude is not out:
+            out[...] = amplitude
+            amplitude = out
+        return Inversion(amplitude, clamped)
 
     def amplitude_um_pp(
-        self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf
+        self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
+        out: np.ndarray | None = None,
     ) -> Inversion:
-        """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force."""
+        """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force.
+        ``out``: a float64 array of the result's shape to write the amplitudes into; with a 1-d float ratio
+        (a live block) the compiled models then allocate no array."""
         if not limit_um_pp >= 0:
             raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
         check_force(force_n)
@@ -186,7 +199,7 @@ class FrictionModel(ABC):
         np.maximum(amplitude, 0.0, out=amplitude)
         if clamped:
             amplitude[np.broadcast_to(out_of_reach, amplitude.shape)] = limit
-        return Inversion(amplitude.reshape(shape), clamped)
+        return self._result(amplitude.reshape(shape), clamped, out)
 
 
 class PaperModel(FrictionModel):
@@ -233,19 +246,28 @@ class PaperModel(FrictionModel):
     def _amplitude_in_reach(self, ratio, force_n):
         return self._u_table(ratio) * self._detach_um_pp(force_n)
 
+    def _detach_at(self, force_n) -> float:
+        """The detachment amplitude at one force, remembered for the last force (the live case)."""
+        force = float(force_n)
+        cached = getattr(self, "_detach_cache", None)
+        if cached is None or cached[0] != force:
+            cached = self._detach_cache = (force, float(self._detach_um_pp(force)))
+        return cached[1]
+
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         table = self._u_table
-        ratio = ratio.astype(np.float64, copy=False)
-        out = np.empty(len(ratio))
+        if out is None:
+            out = np.empty(len(ratio))
         if _is_scalar(force_n):
             check_force(force_n)
             code = kernels.inverse_uniform(ratio, self._floor(force_n, limit), limit, table.start, table.scale,
-                                           table.values, table.slopes, float(self._detach_um_pp(force_n)), out)
-            return Inversion(out, _kernel_result(code, ratio, np.atleast_1d(force_n)))
+                                           table.values, table.slopes, self._detach_at(force_n), out)
+            return Inversion(out, _kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
         force = force_n.astype(np.float64, copy=False)
         code = kernels.inverse_uniform_forces(ratio, force, limit, table.start, table.scale, table.values,
                                               table.slopes, self._detach_at_1n, self._detach_exponent,
@@ -318,18 +340,27 @@ class StretchedExponentialModel(FrictionModel):
         depth = -np.log(np.asarray(ratio, dtype=float)) + 0.0  # +0.0: log(1) gives -0.0
         return self.scale_at_um_pp(force_n) * np.power(depth, 1.0 / self.shape)
 
+    def _scale_at(self, force_n) -> float:
+        """s(F) at one force as a float, remembered for the last force (the live case)."""
+        force = float(force_n)
+        cached = getattr(self, "_scale_cache", None)
+        if cached is None or cached[0] != force:
+            cached = self._scale_cache = (force, float(self.scale_at_um_pp(force)))
+        return cached[1]
+
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        ratio = ratio.astype(np.float64, copy=False)
-        out = np.empty(len(ratio))
+        if out is None:
+            out = np.empty(len(ratio))
         if _is_scalar(force_n):
             check_force(force_n)
-            code = kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit,
-                                             float(self.scale_at_um_pp(force_n)), 1.0 / self.shape, out)
-            return Inversion(out, _kernel_result(code, ratio, np.atleast_1d(force_n)))
+            code = kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit, self._scale_at(force_n),
+                                             1.0 / self.shape, out)
+            return Inversion(out, _kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
         force = force_n.astype(np.float64, copy=False)
         code = kernels.inverse_stretched_forces(ratio, force, limit, self.scale_um_pp, 1.0 / self.shape,
                                                 self.force_exponent, REFERENCE_FORCE_N, MIN_FORCE_N, MAX_FORCE_N,
@@ -436,14 +467,15 @@ class TableModel(FrictionModel):
         return ((1.0 - weight) * low + weight * high).reshape(shape)
 
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp) or _is_scalar(force_n):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp)
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out) or _is_scalar(force_n):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         ratio = ratio.astype(np.float64, copy=False)
         force = force_n.astype(np.float64, copy=False)
         table = self._table
-        out = np.empty(len(ratio))
+        if out is None:
+            out = np.empty(len(ratio))
         code = kernels.inverse_table_forces(ratio, force, limit, table.start, table.scale, table.values,
                                             table.slopes, self.forces, out)
         return Inversion(out, _kernel_result(code, ratio, force))

@@ -63,7 +63,7 @@ def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
     NaN, negative or infinite (the caller raises)."""
     clamped = 0
     for i in range(ratio.shape[0]):
-        r = ratio[i]
+        r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         if not (0.0 <= r < np.inf):
             return -1 - i
         if r >= 1.0:
@@ -88,7 +88,7 @@ def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_ex
     last_force = -1.0  # the force factor is kept while the force repeats (a panel without force sensing)
     factor = 1.0
     for i in range(ratio.shape[0]):
-        r = ratio[i]
+        r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         f = force[i]
         if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
             return -1 - i
@@ -116,7 +116,7 @@ def inverse_uniform(ratio, floor, limit, start, per_step, values, slopes, amplit
     clamped = 0
     last = values.shape[0] - 2
     for i in range(ratio.shape[0]):
-        r = ratio[i]
+        r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         if not (0.0 <= r < np.inf):
             return -1 - i
         if r < floor:
@@ -142,7 +142,7 @@ def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes,
     last_force = -1.0  # the force factor is kept while the force repeats
     factor = 1.0
     for i in range(ratio.shape[0]):
-        r = ratio[i]
+        r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         f = force[i]
         if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
             return -1 - i
@@ -171,7 +171,7 @@ def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, f
     last = values.shape[1] - 2
     rows = force_nodes.shape[0]
     for i in range(ratio.shape[0]):
-        r = ratio[i]
+        r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         f = force[i]
         if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
             return -1 - i
@@ -208,7 +208,10 @@ def warm_up() -> None:
     f64 = np.zeros(4)
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))
+    f32 = np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
     inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
+    inverse_stretched(f32 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
+    inverse_uniform(f32 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
     inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, np.empty(4))
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
     inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 0.01, 10.0,

@@ -104,25 +104,36 @@ class ControlBuffers:
     """Preallocated outputs for :meth:`Renderer.control`, so a live block allocates no arrays of its own.
 
     The block it returns is reused: its arrays are overwritten by the next block of the same length.
-    (The texture lookup and the model inverse still return a small array each; see docs/design.md.)
+    Every stage writes into them (the texture lookup, the model inverse, the envelope), so a live block
+    allocates no array.
     """
 
     def __init__(self, capacity: int):
         self.capacity = capacity
         self.time_s, self.x_mm, self.y_mm = np.empty(capacity), np.empty(capacity), np.empty(capacity)
+        self.ratio = np.empty(capacity, dtype=np.float32)  # as the texture's lookup gives it
+        self.target_um_pp = np.empty(capacity)
         self.amplitude_um_pp, self.drive_um_pp, self.plate_um_pp = (np.empty(capacity), np.empty(capacity),
                                                                     np.empty(capacity))
         self._blocks: dict[int, ControlBlock] = {}
+        self._ratio_views: dict[int, np.ndarray] = {}
 
     def block(self, n: int) -> ControlBlock:
         """The reusable block of length ``n`` (views of the buffers; built once per length)."""
         block = self._blocks.get(n)
         if block is None:
-            block = ControlBlock(self.time_s[:n], self.x_mm[:n], self.y_mm[:n], False, None, None,
-                                 self.amplitude_um_pp[:n], self.drive_um_pp[:n], self.plate_um_pp[:n])
+            block = ControlBlock(self.time_s[:n], self.x_mm[:n], self.y_mm[:n], False, self.ratio[:n],
+                                 self.target_um_pp[:n], self.amplitude_um_pp[:n], self.drive_um_pp[:n],
+                                 self.plate_um_pp[:n])
             if len(self._blocks) < 64:
                 self._blocks[n] = block
+                self._ratio_views[n] = block.ratio
         return block
+
+    def ratio_view(self, n: int) -> np.ndarray:
+        """The lookup's buffer for a block of length ``n`` (the block's own ratio may be an effect player's)."""
+        view = self._ratio_views.get(n)
+        return self.ratio[:n] if view is None else view
 
 
 class Renderer:
@@ -258,11 +269,10 @@ class Renderer:
         started = time.perf_counter()
         out = out or self._buffers
         reuse = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
-        times = self._times(n, now_s, None if reuse is None else reuse.time_s)
         if reuse is not None and not self.offline:
-            finger = self.trajectory.state(times, out=(reuse.x_mm, reuse.y_mm))
-        else:
-            finger = self.trajectory.state(times)
+            return self._live(n, now_s, out, reuse)
+        times = self._times(n, now_s, None if reuse is None else reuse.time_s)
+        finger = self.trajectory.state(times)
         x, y = finger.x_mm, finger.y_mm
         if finger.velocity_mm_s is not None:  # a straight line over the block: one step, one direction
             dx, dy = finger.velocity_mm_s
@@ -315,6 +325,44 @@ class Renderer:
         self.counters.control_samples += n
         if n:
             self._last_drive = float(block.drive_um_pp[-1])
+        self.last_block = block
+        for observer in self.observers:
+            observer(block)
+        return block
+
+    def _live(self, n: int, now_s: float | None, buffers: ControlBuffers, block: ControlBlock) -> ControlBlock:
+        """:meth:`control` for a live finger into preallocated buffers: every stage writes into the block's
+        arrays, so nothing is allocated but a few Python numbers. The same stages as the general path; the
+        finger's line over the block gives one step and one direction for the lookup."""
+        times = self._times(n, now_s, block.time_s)
+        finger = self.trajectory.state(times, out=(block.x_mm, block.y_mm))
+        x, y = block.x_mm, block.y_mm
+        dx, dy = finger.velocity_mm_s
+        step = math.hypot(dx, dy) / self.settings.control_rate_hz
+        if n:
+            self._last_xy = (x[n - 1], y[n - 1])
+        ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
+                                   direction=(dx, dy), out=buffers.ratio_view(n))
+        player = self.effects
+        if player is not None:  # mixed before the inverse: the same envelope, clamps and limiter as the texture
+            above = player.clipped_samples
+            ratio = player.mix(times, x, y, finger.down, ratio)
+            self.counters.clipped_samples += player.clipped_samples - above
+        force = finger.force_n
+        force = self.default_force_n if math.isnan(force) else float(force)
+        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp, out=block.target_um_pp)
+        down = bool(finger.down) and self._running and not self.paused
+        if down:
+            self.counters.clipped_samples += inversion.clamped
+        self.envelope.process(block.target_um_pp, down,
+                              out=(block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp))
+        block.down, block.ratio = finger.down, ratio
+        counters = self.counters
+        counters.ramps = self.envelope.ramps
+        counters.drive_clipped_samples = self.envelope.drive_clipped
+        counters.control_samples += n
+        if n:
+            self._last_drive = float(block.drive_um_pp[n - 1])
         self.last_block = block
         for observer in self.observers:
             observer(block)

@@ -67,6 +67,58 @@ def gradient_ratio(slope_x, slope_y, x_mm, y_mm, per_mm_x, per_mm_y, wrap, ux, u
         out[i] = min(max(middle + gain * (sx * ux + sy * uy), low), high)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _level(image, u, v, wrap):
+    """Bilinear value of one pyramid level at (u, v) in its pixel units (float64)."""
+    rows, cols = image.shape
+    r0, r1, c0, c1, fu, fv = _corners(u, v, rows, cols, wrap)
+    top = image[r0, c0] + fu * (image[r0, c1] - image[r0, c0])
+    bottom = image[r1, c0] + fu * (image[r1, c1] - image[r1, c0])
+    return top + fv * (bottom - top)
+
+
+@njit(cache=True, nogil=True)
+def trilinear(near, far, weight, x_mm, y_mm, near_per_mm_x, near_per_mm_y, far_per_mm_x, far_per_mm_y, wrap,
+              fixed, width_mm, height_mm, outside, out):
+    """Friction at mm positions read from two pyramid levels and blended, near + weight (far − near)
+    (weight 0: ``near`` alone), in float32 steps exactly as the sampler's numpy path; where ``fixed``,
+    positions beyond [0, width) × [0, height) read ``outside``. One pass, no temporaries."""
+    w32 = np.float32(weight)
+    for i in range(x_mm.shape[0]):
+        x = x_mm[i]
+        y = y_mm[i]
+        if fixed and (x < 0.0 or x >= width_mm or y < 0.0 or y >= height_mm):
+            out[i] = outside
+            continue
+        value = np.float32(_level(near, x * near_per_mm_x - 0.5, y * near_per_mm_y - 0.5, wrap))
+        if weight > 0.0:
+            beyond = np.float32(_level(far, x * far_per_mm_x - 0.5, y * far_per_mm_y - 0.5, wrap))
+            value = np.float32(np.float32(np.float32(beyond - value) * w32) + value)
+        out[i] = value
+
+
+@njit(cache=True, nogil=True)
+def gradient_levels(near_x, near_y, far_x, far_y, weight, x_mm, y_mm, near_per_mm_x, near_per_mm_y, far_per_mm_x,
+                    far_per_mm_y, wrap, ux, uy, middle, gain, low, high, fixed, width_mm, height_mm, outside, out):
+    """Friction on a height map along one direction of motion (ux, uy: a unit vector, or zero), its slopes
+    read from two pyramid levels and blended as :func:`trilinear` does: clip(middle + gain × slope along
+    the motion, low, high); ``outside`` beyond the edges where ``fixed``."""
+    for i in range(x_mm.shape[0]):
+        x = x_mm[i]
+        y = y_mm[i]
+        if fixed and (x < 0.0 or x >= width_mm or y < 0.0 or y >= height_mm):
+            out[i] = outside
+            continue
+        u, v = x * near_per_mm_x - 0.5, y * near_per_mm_y - 0.5
+        sx = _level(near_x, u, v, wrap)
+        sy = _level(near_y, u, v, wrap)
+        if weight > 0.0:
+            u, v = x * far_per_mm_x - 0.5, y * far_per_mm_y - 0.5
+            sx += weight * (_level(far_x, u, v, wrap) - sx)
+            sy += weight * (_level(far_y, u, v, wrap) - sy)
+        out[i] = min(max(middle + gain * (sx * ux + sy * uy), low), high)
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) the lookups with the types a Sampler passes, so the first
@@ -78,3 +130,8 @@ def warm_up() -> None:
         bilinear(image, where, where, 1.0, 1.0, wrap, np.empty(1, dtype=np.float32))
         gradient_ratio(image, image, where, where, 1.0, 1.0, wrap, 1.0, 0.0, 0.5, 0.1, 0.0, 1.0,
                        np.empty(1, dtype=np.float32))
+        for fixed in (True, False):
+            trilinear(image, image, 0.5, where, where, 1.0, 1.0, 1.0, 1.0, wrap, fixed, 1.0, 1.0,
+                      np.float32(1.0), np.empty(1, dtype=np.float32))
+            gradient_levels(image, image, image, image, 0.5, where, where, 1.0, 1.0, 1.0, 1.0, wrap, 1.0, 0.0,
+                            0.5, 0.1, 0.0, 1.0, fixed, 1.0, 1.0, np.float32(1.0), np.empty(1, dtype=np.float32))

@@ -74,6 +74,11 @@ class Sampler:
         self.per_mm_x = [level.shape[1] / texture.width_mm for level in levels]
         self.per_mm_y = [level.shape[0] / texture.height_mm for level in levels]
         self.base_pixel_mm = max(texture.pixel_mm)
+        self._fixed = texture.outside == "fixed"
+        self._outside = np.float32(texture.outside_ratio if self._fixed else 1.0)
+        if texture.kind == "gradient":
+            low, high = texture.ratio_range
+            self._gradient = (0.5 * (low + high), 0.5 * (high - low) / texture.full_slope_per_mm, low, high)
 
     def _bilinear(self, channel: int, x_mm, y_mm, level: int):
         """Bilinear interpolation at one pyramid level (:func:`textures.kernels.bilinear`)."""
@@ -115,6 +120,35 @@ class Sampler:
             result[pick] = near + weight[pick] * (far - near)
         return result
 
+    def _levels(self, step_mm) -> tuple[int, int, float]:
+        """The two pyramid levels a scalar step reads and the far one's weight (0: the near one alone)."""
+        if step_mm is None or self.levels == 1:
+            return 0, 0, 0.0
+        level = min(max(math.log2(max(float(step_mm), 1e-12) / self.base_pixel_mm), 0.0), self.levels - 1.0)
+        low = int(level)
+        return low, min(low + 1, self.levels - 1), level - low
+
+    def _block(self, x_mm: np.ndarray, y_mm: np.ndarray, step_mm, direction, out: np.ndarray) -> np.ndarray:
+        """One compiled pass over a live block: one step (band limit) and one direction for every sample."""
+        near, far, weight = self._levels(step_mm)
+        texture = self.texture
+        if texture.kind == "friction":
+            levels = self.pyramids[0]
+            kernels.trilinear(levels[near], levels[far], weight, x_mm, y_mm, self.per_mm_x[near], self.per_mm_y[near],
+                              self.per_mm_x[far], self.per_mm_y[far], self.tile, self._fixed, texture.width_mm,
+                              texture.height_mm, self._outside, out)
+            return out
+        dx, dy = (0.0, 0.0) if direction is None else (float(direction[0]), float(direction[1]))
+        length = math.hypot(dx, dy)
+        ux, uy = (dx / length, dy / length) if length > 0 else (0.0, 0.0)
+        middle, gain, low, high = self._gradient
+        slope_x, slope_y = self.pyramids
+        kernels.gradient_levels(slope_x[near], slope_y[near], slope_x[far], slope_y[far], weight, x_mm, y_mm,
+                                self.per_mm_x[near], self.per_mm_y[near], self.per_mm_x[far], self.per_mm_y[far],
+                                self.tile, ux, uy, middle, gain, low, high, self._fixed, texture.width_mm,
+                                texture.height_mm, self._outside, out)
+        return out
+
     def _one_level(self, step_mm) -> bool:
         """True when the query reads the full-resolution level alone."""
         if step_mm is None or self.levels == 1:
@@ -133,13 +167,24 @@ class Sampler:
         return out
 
     def ratio(self, x_mm: ArrayLike, y_mm: ArrayLike, step_mm: ArrayLike | None = None,
-              direction: tuple[ArrayLike, ArrayLike] | None = None) -> np.ndarray:
+              direction: tuple[ArrayLike, ArrayLike] | None = None, out: np.ndarray | None = None) -> np.ndarray:
         """Friction ratio at positions (mm), float32.
 
         ``step_mm`` (scalar or per sample) is the distance the finger moves between samples; give
         it to band-limit the lookup. ``direction`` is a pair of arrays (dx, dy) of the motion,
         needed by gradient textures (any length; zero means at rest, which reads as flat ground).
+        ``out``: a float32 array of the positions' length to write into. A live block's query (1-d
+        float64 positions, one step and one direction for the block) then runs in one compiled pass
+        and allocates nothing; any other query is computed as without ``out`` and copied there.
         """
+        if out is not None:
+            if (isinstance(x_mm, np.ndarray) and x_mm.ndim == 1 and x_mm.dtype == np.float64
+                    and isinstance(y_mm, np.ndarray) and y_mm.dtype == np.float64
+                    and not isinstance(step_mm, np.ndarray)
+                    and (direction is None or not isinstance(direction[0], np.ndarray) or direction[0].ndim == 0)):
+                return self._block(x_mm, y_mm, step_mm, direction, out)
+            out[:] = self.ratio(x_mm, y_mm, step_mm, direction)
+            return out
         x_mm = np.asarray(x_mm, dtype=np.float64)
         y_mm = np.asarray(y_mm, dtype=np.float64)
         texture = self.texture
