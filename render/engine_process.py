@@ -179,7 +179,7 @@ class EngineSource(OutputStage):
         fast = self.shared.fast
         row = int(fast[shm.LATENCY_INDEX])
         for k in range(tail, head):
-            t, x, y, force, down = touches[k % shm.TOUCH_SLOTS]
+            t, x, y, force, down = touches[k % shm.TOUCH_SLOTS].tolist()  # plain floats: a tenth of the unpacking
             self.renderer.push(t, x, y, None if math.isnan(force) else force, down > 0.5)
             fast[shm.LAST_TOUCH_X] = x
             fast[shm.LAST_TOUCH_Y] = y

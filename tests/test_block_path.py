@@ -11,6 +11,7 @@ import types
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.profiles import load_profile
@@ -91,3 +92,88 @@ def test_the_engine_block_path_allocates_nothing_once_running(texture, model, si
     assert large[1] - small[1] < 1024
     assert small[2] == large[2] == longer[2] == 0  # no array data kept
     assert abs(longer[0] - small[0]) < 512  # nothing kept per block
+
+
+def textures_for_lookup():
+    ramp = np.linspace(0.2, 1.0, 64 * 48, dtype=np.float32).reshape(48, 64)
+    noise = np.random.default_rng(3).random((48, 64)).astype(np.float32)
+    return [resolve_texture("grating-1mm"), resolve_texture("bumps"),
+            Texture(noise, 64.0, 48.0, outside="fixed", outside_ratio=0.3, name="fixed"),
+            Texture(ramp * noise, 64.0, 48.0, outside="clamp", name="clamped"),
+            Texture(noise, 64.0, 48.0, kind="gradient", outside="fixed", outside_ratio=0.7, name="hills")]
+
+
+@pytest.mark.parametrize("texture", textures_for_lookup(), ids=lambda t: t.name)
+def test_the_lookup_into_a_buffer_gives_what_the_allocating_lookup_gives(texture):
+    """Positions inside and beyond the edges; steps finer than a pixel, between levels and beyond the
+    coarsest; directions along x, diagonal and at rest. Friction maps: bit for bit (the same float32
+    steps); height maps: to float32 rounding (the compiled pass blends in float64)."""
+    sampler = Sampler(texture)
+    x = np.linspace(-3.0, texture.width_mm + 3.0, 40)
+    y = np.linspace(texture.height_mm + 2.0, -2.0, 40)
+    out = np.empty(40, dtype=np.float32)
+    for step in (None, 0.001, 0.37 * sampler.base_pixel_mm, 1.5 * sampler.base_pixel_mm, 5.0, 1e4):
+        for direction in ((1.0, 0.0), (0.3, -0.3), (0.0, 0.0)):
+            expected = sampler.ratio(x, y, step_mm=step, direction=direction)
+            got = sampler.ratio(x, y, step_mm=step, direction=direction, out=out)
+            assert got is out
+            if texture.kind == "friction":
+                np.testing.assert_array_equal(got, expected)
+            else:
+                np.testing.assert_allclose(got, expected, atol=2e-6)
+    if texture.outside == "fixed":  # beyond the edges: the texture's outside ratio
+        assert out[0] == out[-1] == np.float32(texture.outside_ratio)
+
+
+@pytest.mark.parametrize("model", [ExponentialModel(), PaperModel(), StretchedExponentialModel(shape=1.3),
+                                   load_model(f"table:{ROOT / 'apps' / 'data' / 'monnoyer2018-fit.csv'}")],
+                         ids=lambda m: m.name)
+def test_the_inverse_into_a_buffer_gives_what_the_allocating_inverse_gives(model):
+    ratio = np.array([1.2, 1.0, 0.97, 0.6, 0.3, 0.05, 0.0], dtype=np.float32)
+    out = np.empty(len(ratio))
+    for force in (0.5, 0.2, np.array([0.5, 0.1, 0.3, 2.0, 0.5, 0.5, 0.05])):
+        expected = model.amplitude_um_pp(ratio, force, 6.0)
+        got = model.amplitude_um_pp(ratio, force, 6.0, out=out)
+        assert got.amplitude_um_pp is out and got.clamped == expected.clamped
+        np.testing.assert_array_equal(out, expected.amplitude_um_pp)
+    assert out[0] == out[1] == 0.0 and out[-1] == 6.0  # rest at 1 and above; out of reach: the limit
+
+
+class Ramp:
+    """An envelope source: a drive rising 0.05 µm p-p a control sample, past the limit."""
+
+    control_rate_hz = 12000.0
+    finished = False
+
+    def __init__(self):
+        self.sent = 0
+
+    def pull(self, n, now_s):
+        values = 0.05 * np.arange(self.sent, self.sent + n)
+        self.sent += n
+        return values
+
+    def request_stop(self):
+        pass
+
+
+@pytest.mark.parametrize("carrier_hz", [25000.0, 25000.123456])  # one exact period; an accumulated phase
+def test_the_output_stage_into_a_buffer_gives_what_it_gives_without(carrier_hz):
+    """Blocks that end inside control periods and whole ones, through the limiter and onto the carrier."""
+    profile = load_profile("sim-plate")
+    plain = OutputStage(Ramp(), profile, "audio", RATE_HZ, carrier_hz)
+    buffered = OutputStage(Ramp(), profile, "audio", RATE_HZ, carrier_hz)
+    assert (plain.carrier.period > 0) == (carrier_hz == 25000.0)
+    out = np.empty(4096, dtype=np.float32)
+    for frames in (64, 61, 3, 8, 128, 1000, 64, 2048, 7):
+        expected = plain.pull(frames, None)
+        got = buffered.pull(frames, None, out[:frames])
+        np.testing.assert_array_equal(got, expected)
+    assert plain.limiter.limited_samples == buffered.limiter.limited_samples > 0  # the ramp passed the limit
+    # and on the carrier the envelope reaches the limit, no more: |sample| <= limit / full scale
+    assert np.abs(out[:7]).max() <= profile.max_amplitude_um_pp / profile.full_scale_um_pp + 1e-6
+    carrier = Carrier(carrier_hz, RATE_HZ)
+    first = carrier.block(100)
+    again = Carrier(carrier_hz, RATE_HZ)
+    into = np.empty(100, dtype=np.float32)
+    np.testing.assert_array_equal(again.block(100, into if not again.period else None), first)
