@@ -1,7 +1,8 @@
 """Real-time rendering: the engine's block path, in its own process, for a live finger.
 
 Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000] [--paced]
-Aim (issue 4): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs).
+Aim (issues 4, 11): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs); the block path
+allocates nothing once running (tests/test_block_path.py).
 
 For each case a spawned process builds the engine's block path (render.engine_process.EngineSource:
 drain the touch ring, render, limit and put on the carrier (the output stage), publish the status)
