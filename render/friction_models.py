@@ -468,14 +468,19 @@ class TableModel(FrictionModel):
 
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
                         limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp, out) or _is_scalar(force_n):
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
             return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        ratio = ratio.astype(np.float64, copy=False)
-        force = force_n.astype(np.float64, copy=False)
         table = self._table
         if out is None:
             out = np.empty(len(ratio))
+        if _is_scalar(force_n):
+            check_force(force_n)
+            code = kernels.inverse_table_force(ratio, float(force_n), limit, table.start, table.scale, table.values,
+                                               table.slopes, self.forces, out)
+            return Inversion(out, _kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
         code = kernels.inverse_table_forces(ratio, force, limit, table.start, table.scale, table.values,
                                             table.slopes, self.forces, out)
         return Inversion(out, _kernel_result(code, ratio, force))

@@ -163,13 +163,34 @@ def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes,
 
 
 @njit(cache=True, nogil=True)
-def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, force_nodes, out):
-    """Amplitudes from a table with one uniform-grid inverse per measured force (rows of ``values``),
-    interpolated linearly between the neighbouring forces and held beyond the ends. A ratio is
-    clamped (and counted) where the amplitude reaches ``limit``; a bad ratio or force returns -1 - i."""
-    clamped = 0
+def _table_point(r, f, start, per_step, values, slopes, force_nodes):
+    """One amplitude from the per-force inverse tables (rows of ``values``): linear between the
+    neighbouring measured forces, held beyond the ends."""
     last = values.shape[1] - 2
     rows = force_nodes.shape[0]
+    f = min(max(f, force_nodes[0]), force_nodes[rows - 1])
+    upper = 1
+    while upper < rows - 1 and force_nodes[upper] < f:
+        upper += 1
+    lower = upper - 1 if rows > 1 else 0
+    upper = upper if rows > 1 else 0
+    weight = 0.0 if rows == 1 else (f - force_nodes[lower]) / (force_nodes[upper] - force_nodes[lower])
+    position = (r - start) * per_step
+    if position < 0.0:
+        position = 0.0
+    index = min(int(position), last)
+    fraction = position - index
+    low = values[lower, index] + fraction * slopes[lower, index]
+    high = values[upper, index] + fraction * slopes[upper, index]
+    return max((1.0 - weight) * low + weight * high, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, force_nodes, out):
+    """Amplitudes from a table with one uniform-grid inverse per measured force, a force per sample.
+    A ratio is clamped (and counted) where the amplitude reaches ``limit``; a bad ratio or force
+    returns -1 - i."""
+    clamped = 0
     for i in range(ratio.shape[0]):
         r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         f = force[i]
@@ -178,21 +199,28 @@ def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, f
         if r >= 1.0:
             out[i] = 0.0
             continue
-        f = min(max(f, force_nodes[0]), force_nodes[rows - 1])
-        upper = 1
-        while upper < rows - 1 and force_nodes[upper] < f:
-            upper += 1
-        lower = upper - 1 if rows > 1 else 0
-        upper = upper if rows > 1 else 0
-        weight = 0.0 if rows == 1 else (f - force_nodes[lower]) / (force_nodes[upper] - force_nodes[lower])
-        position = (r - start) * per_step
-        if position < 0.0:
-            position = 0.0
-        index = min(int(position), last)
-        fraction = position - index
-        low = values[lower, index] + fraction * slopes[lower, index]
-        high = values[upper, index] + fraction * slopes[upper, index]
-        a = max((1.0 - weight) * low + weight * high, 0.0)
+        a = _table_point(r, f, start, per_step, values, slopes, force_nodes)
+        if a >= limit:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = a
+    return clamped
+
+
+@njit(cache=True, nogil=True)
+def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, force_nodes, out):
+    """:func:`inverse_table_forces` at one force for the whole block (a panel that does not sense
+    pressure): no force array to allocate."""
+    clamped = 0
+    for i in range(ratio.shape[0]):
+        r = np.float64(ratio[i])
+        if not (0.0 <= r < np.inf):
+            return -1 - i
+        if r >= 1.0:
+            out[i] = 0.0
+            continue
+        a = _table_point(r, force, start, per_step, values, slopes, force_nodes)
         if a >= limit:
             out[i] = limit
             clamped += 1
@@ -216,5 +244,8 @@ def warm_up() -> None:
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
     inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 0.01, 10.0,
                            np.empty(4))
+    for ratio in (f64 + 0.5, f32 + 0.5):
+        inverse_table_force(ratio, 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)), np.array([0.2, 1.0]),
+                            np.empty(4))
     inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))

@@ -34,6 +34,9 @@ def finger(t_s: float) -> tuple[float, float]:
     return 40 + 30 * math.cos(speed * t_s * 20), 25 + 15 * math.sin(speed * t_s * 20)
 
 
+TABLE = f"table:{ROOT / 'apps' / 'data' / 'monnoyer2018-fit.csv'}"
+
+
 def block_path_memory(texture: str, model: str, signal: str, frames: int, blocks: int) -> tuple[int, int, int]:
     """(bytes kept, peak bytes above the start, numpy data bytes kept) over ``blocks`` pulls of ``frames``."""
     ui = SharedBlock.create()
@@ -80,7 +83,9 @@ def block_path_memory(texture: str, model: str, signal: str, frames: int, blocks
 
 @pytest.mark.parametrize("texture, model, signal", [("grating-1mm", "exponential", "audio"),
                                                     ("bumps", "paper", "audio"),
-                                                    ("bumps", "stretched", "control")])
+                                                    ("bumps", "stretched", "control"),
+                                                    ("grating-1mm", TABLE, "audio")],
+                         ids=["exponential", "paper", "stretched", "table"])
 def test_the_engine_block_path_allocates_nothing_once_running(texture, model, signal):
     """A block of 8 control samples (64 audio frames) and one of 1024 (8192 frames) use the same memory:
     one array of the block's length made anywhere on the path (a lookup, an inverse, the envelope, knots,
@@ -137,6 +142,20 @@ def test_the_inverse_into_a_buffer_gives_what_the_allocating_inverse_gives(model
         assert got.amplitude_um_pp is out and got.clamped == expected.clamped
         np.testing.assert_array_equal(out, expected.amplitude_um_pp)
     assert out[0] == out[1] == 0.0 and out[-1] == 6.0  # rest at 1 and above; out of reach: the limit
+
+
+def test_the_table_models_compiled_inverse_at_one_force_gives_the_interpolated_tables():
+    """The scalar-force kernel (a panel without pressure sensing) against the model's general numpy path
+    (interpolating the same per-force tables in numpy) at forces between, on and beyond the measured ones."""
+    from ultraglide.render.friction_models import FrictionModel
+    model = load_model(TABLE)
+    ratio = np.linspace(1.1, 0.0, 400)
+    out = np.empty(len(ratio))
+    for force in (0.05, *model.forces, 0.37, 3.0):
+        expected = FrictionModel.amplitude_um_pp(model, ratio, force, 4.0)
+        got = model.amplitude_um_pp(ratio, force, 4.0, out=out)
+        np.testing.assert_allclose(out, expected.amplitude_um_pp, rtol=1e-12, atol=1e-12)
+        assert got.clamped == expected.clamped > 0
 
 
 class Ramp:
