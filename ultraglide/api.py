@@ -18,15 +18,14 @@ Example, a 1 mm grating swiped at 100 mm/s for half a second::
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import soundfile
 
+from ultraglide import _wav_writer
 from ultraglide.devices.atomic_file import AtomicFile, write_failure
 from ultraglide.devices.output_stage import OutputStage, output_stage
 from ultraglide.devices.profiles import PlateProfile, load_profile
@@ -42,7 +41,6 @@ from ultraglide.textures.texture import Texture
 
 WAV_SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
 BLOCK_S = 1.0  # rendered and written a second at a time: memory stays flat whatever the length
-IN_FLIGHT = 3  # blocks rendered or being written ahead of the envelope, at most
 
 
 @dataclass(frozen=True)
@@ -129,22 +127,19 @@ def available_cpus() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def chunk_bounds(frames: int, chunks: int) -> list[tuple[int, int]]:
-    """``frames`` split into ``chunks`` nearly equal, consecutive (start, stop) ranges."""
-    cuts = [round(i * frames / chunks) for i in range(chunks + 1)]
-    return [(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
-
-
 def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: str = "float32",
-              progress: Callable[[int], None] | None = None, threads: int | None = None) -> float:
+              progress: Callable[[int], None] | None = None, threads: int | None = None,
+              process: bool | None = None) -> float:
     """Pull ``frames`` of audio from ``stage`` into a mono WAV at ``path``, as it is given (no temporary
     file), a second at a time. Returns the duration written (s). RF64 is used beyond 4 GB.
 
     Work is split by what it depends on: the control-rate envelope (a recursion) and the limiter run in
     order on this thread; putting each block on the carrier depends on each frame's index alone, so it
-    runs in ``threads`` chunks (default: one per CPU) on a pool while this thread computes the next
-    block, and a writer thread writes finished blocks in order. At most ``IN_FLIGHT`` blocks are held,
-    so memory does not grow with the length. ``progress`` is told of the frames of each block written."""
+    runs in ``threads`` chunks (default: one per CPU) while this thread computes the next block, and
+    the blocks are written in order. With ``process`` (the default where ``fork`` exists: Linux) the
+    carrier and the writing are done by a forked writer process, otherwise by threads of this one
+    (:mod:`ultraglide._wav_writer`). A few blocks are held at most, so memory does not grow with the
+    length. ``progress`` is told of the frames of each block written."""
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     if stage.signal != "audio":
@@ -155,39 +150,11 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
     rate = int(stage.rate_hz)
     block = int(BLOCK_S * rate)
     container = "RF64" if frames * 4 > 4_000_000_000 else "WAV"
-    with soundfile.SoundFile(path, "w", samplerate=rate, channels=1, subtype=WAV_SUBTYPES[format],
-                             format=container) as wav:
-        _write_blocks(stage, wav, frames, block, threads, progress or (lambda frames: None))
+    jobs = (stage.modulation(min(block, frames - done)) for done in range(0, frames, block))
+    write = _wav_writer.write_in_process if (_wav_writer.fork_available() if process is None else process) \
+        else _wav_writer.write_file
+    write(jobs, os.fspath(path), rate, WAV_SUBTYPES[format], container, threads, progress or (lambda frames: None))
     return frames / rate
-
-
-def _write_blocks(stage: OutputStage, wav, total: int, block: int, threads: int, advance) -> None:
-    renderers = ThreadPoolExecutor(threads, thread_name_prefix="export-render")
-    writer = ThreadPoolExecutor(1, thread_name_prefix="export-write")
-
-    def write(out: np.ndarray, parts) -> int:
-        for part in parts:
-            part.result()
-        wav.write(out)
-        return len(out)
-
-    written: deque = deque()
-    try:
-        done = 0
-        while done < total:
-            frames = min(block, total - done)
-            job = stage.modulation(frames)
-            out = np.empty(frames, dtype=np.float32)
-            parts = [renderers.submit(job.render, out, start, stop) for start, stop in chunk_bounds(frames, threads)]
-            written.append(writer.submit(write, out, parts))
-            done += frames
-            while len(written) >= IN_FLIGHT or (written and written[0].done()):
-                advance(written.popleft().result())
-        while written:
-            advance(written.popleft().result())
-    finally:  # on an error or a stop signal: nothing more starts, and nothing runs on once this returns
-        renderers.shutdown(wait=True, cancel_futures=True)
-        writer.shutdown(wait=True, cancel_futures=True)
 
 
 def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
