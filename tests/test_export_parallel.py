@@ -7,6 +7,7 @@ import struct
 import subprocess
 import sys
 import termios
+import time
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ from ultraglide.devices.output_stage import Modulation
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
 
-from ultraglide.api import BLOCK_S
+from ultraglide.api import BLOCK_S, write_wav
 
 RATE = 96000
 CARRIER_HZ = 25000.0
@@ -187,3 +188,53 @@ def test_the_second_export_loads_every_kernel_from_numbas_cache(tmp_path):
               if "[cache] data loaded" in line and "kernels." in line}
     assert {"envelope", "bilinear", "limit_drive", "modulate", "inverse_stretched"} <= loaded, log
     assert "data saved" not in log and "index saved" not in log  # nothing was compiled again
+
+
+@pytest.mark.parametrize("process, threads", [(True, 7), (False, 3)])
+def test_the_writer_process_and_the_writer_threads_write_the_same_samples(tmp_path, process, threads):
+    # the library's write_wav both ways: a forked writer process (the default on Linux) and threads of this
+    # process; each equals the single-chunk render, over block joins and a last, shorter block
+    argv = ["grating-1mm", "--path", "zigzag", "--duration-s", "2.3", "-o", str(tmp_path / "unused.wav")]
+    args = build_parser().parse_args(["export", *argv])
+    renderer = make_renderer(load_inputs(args), args, args.rate)
+    total = int(round((renderer.trajectory.end_s - renderer.trajectory.start_s + renderer.tail_s) * args.rate))
+    out, frames_told = tmp_path / "lib.wav", []
+    write_wav(offline_stage(renderer), out, total, progress=frames_told.append, threads=threads, process=process)
+    written, rate = soundfile.read(out, dtype="float32")
+    _, whole = references(argv)
+    assert rate == RATE and np.array_equal(written, whole)
+    assert frames_told == [RATE, RATE, total - 2 * RATE]  # the progress bar hears of every block once
+
+
+def _children(pid: int) -> set[int]:
+    return {int(child) for child in open(f"/proc/{pid}/task/{pid}/children").read().split()}
+
+
+def _gone(pid: int) -> bool:
+    try:
+        return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the writer is a forked process on Linux only")
+def test_the_writer_process_does_not_outlive_a_killed_export(tmp_path):
+    out = tmp_path / "long.wav"
+    child = subprocess.Popen([sys.executable, "-m", "ultraglide", "export", "grating-1mm", "--duration-s", "600",
+                              "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 60
+        while not _children(child.pid) and time.monotonic() < deadline and child.poll() is None:
+            time.sleep(0.01)
+        writers = _children(child.pid)
+        assert writers, "the export started no writer process"
+        child.kill()  # SIGKILL: the export cleans nothing up; the writer must notice its pipe close
+        child.wait(timeout=60)
+        deadline = time.monotonic() + 30
+        while not all(_gone(pid) for pid in writers) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert all(_gone(pid) for pid in writers)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
