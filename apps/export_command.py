@@ -4,8 +4,9 @@ The WAV holds what a plate would get: the renderer's drive envelope through the 
 (limiter, then carrier) as every live device, with the temporal effects saved with the texture (or
 given by ``--effects``) mixed into the friction before the model's inverse.
 
-The writing itself is :func:`ultraglide.api.write_wav`, the library's path too: the envelope in order,
-the carrier in parallel chunks on both cores, the writes in order, memory flat whatever the length."""
+The writing itself is :func:`ultraglide.api.write_wav`, the library's path too: the envelope in order on
+this thread, the carrier and the writes in a forked writer process on the other core (threads where
+there is no fork), memory flat whatever the length."""
 
 from __future__ import annotations
 
