@@ -9,6 +9,7 @@ and fill numpy arrays and return the state to carry to the next block; they allo
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 from numba import njit
@@ -229,6 +230,32 @@ def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, fo
     return clamped
 
 
+@njit(cache=True, nogil=True)
+def swipe_path(kind, times, duration_s, speed_mm_s, x0, y0, cos_h, sin_h, radius_mm, width_mm, pitch_mm,
+               x_out, y_out, down_out):
+    """Positions (mm) along a constant-speed path at ``times`` (s; held at the ends), and whether the
+    finger touches: kind 0 straight, 1 circle (from its left, counter-clockwise on screen), 2 zig-zag
+    (back and forth over ``width_mm``, stepping ``pitch_mm`` sideways at each end). One pass."""
+    for i in range(times.shape[0]):
+        t = times[i]
+        down_out[i] = 0.0 <= t <= duration_s
+        distance = speed_mm_s * min(max(t, 0.0), duration_s)
+        if kind == 1:
+            angle = distance / radius_mm
+            x_out[i] = x0 + radius_mm * (1.0 - math.cos(angle))
+            y_out[i] = y0 - radius_mm * math.sin(angle)
+            continue
+        along = distance
+        across = 0.0
+        if kind == 2:
+            cycle = 2.0 * width_mm
+            phase = distance % cycle
+            along = phase if phase < width_mm else cycle - phase
+            across = math.floor(distance / width_mm) * pitch_mm
+        x_out[i] = x0 + along * cos_h - across * sin_h
+        y_out[i] = y0 + along * sin_h + across * cos_h
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel here with the types the renderer passes,
@@ -249,3 +276,6 @@ def warm_up() -> None:
                             np.empty(4))
     inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))
+    for kind in range(3):
+        swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
+                   np.empty(4, dtype=np.bool_))

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from ultraglide.render import kernels
 from ultraglide.render.errors import RenderError
 from ultraglide.render.trajectory import FingerState
 
@@ -50,24 +51,13 @@ class SwipePath:
     def state(self, times_s: ArrayLike) -> FingerState:
         """Where the finger is at each time (s from the swipe's start), and whether it touches."""
         times = np.asarray(times_s, dtype=float)
-        t = np.clip(times, 0.0, self.duration_s)
-        distance = self.speed_mm_s * t
+        flat = times.reshape(-1)
+        x, y = np.empty(flat.shape), np.empty(flat.shape)
+        down = np.empty(flat.shape, dtype=bool)
+        heading = math.radians(self.direction_deg)
         x0, y0 = self.start_mm
-        if self.kind == "circle":  # start on the circle's left, counter-clockwise on screen
-            angle = distance / self.radius_mm
-            x = x0 + self.radius_mm * (1.0 - np.cos(angle))
-            y = y0 - self.radius_mm * np.sin(angle)
-        else:
-            heading = math.radians(self.direction_deg)
-            along = distance
-            across = np.zeros_like(distance)
-            if self.kind == "zigzag":  # back and forth, stepping sideways at each end
-                cycle = 2.0 * self.width_mm
-                phase = np.mod(distance, cycle)
-                along = np.where(phase < self.width_mm, phase, cycle - phase)
-                across = np.floor(distance / self.width_mm) * self.pitch_mm
-            x = x0 + along * math.cos(heading) - across * math.sin(heading)
-            y = y0 + along * math.sin(heading) + across * math.cos(heading)
-        force = np.full(times.shape, np.nan if self.force_n is None else self.force_n)
-        down = (times >= 0.0) & (times <= self.duration_s)
-        return FingerState(x, y, force, down)
+        kernels.swipe_path(PATH_KINDS.index(self.kind), flat, self.duration_s, self.speed_mm_s, float(x0), float(y0),
+                           math.cos(heading), math.sin(heading), self.radius_mm, self.width_mm, self.pitch_mm,
+                           x, y, down)
+        force = math.nan if self.force_n is None else float(self.force_n)
+        return FingerState(x.reshape(times.shape), y.reshape(times.shape), force, down.reshape(times.shape))

@@ -196,3 +196,22 @@ def test_the_output_stage_into_a_buffer_gives_what_it_gives_without(carrier_hz):
     again = Carrier(carrier_hz, RATE_HZ)
     into = np.empty(100, dtype=np.float32)
     np.testing.assert_array_equal(again.block(100, into if not again.period else None), first)
+
+
+@pytest.mark.parametrize("texture", [t for t in textures_for_lookup() if t.kind == "friction"], ids=lambda t: t.name)
+def test_a_step_per_sample_reads_what_each_sample_reads_alone(texture):
+    """An export's lookup (a step per sample, one compiled pass over the pyramid) against asking for each
+    sample alone with its step as one number (the per-level numpy path): the same float32 values, at steps
+    from finer than a pixel to coarser than the whole pyramid, inside and beyond the texture's edges."""
+    sampler = Sampler(texture)
+    rng = np.random.default_rng(11)
+    n = 400
+    x = rng.uniform(-0.2 * texture.width_mm, 1.2 * texture.width_mm, n)
+    y = rng.uniform(-0.2 * texture.height_mm, 1.2 * texture.height_mm, n)
+    step = np.exp(rng.uniform(math.log(1e-3), math.log(4 * texture.width_mm), n))
+    step[::9] = 0.0
+    together = sampler.ratio(x, y, step)
+    alone = np.concatenate([sampler.ratio(x[i:i + 1], y[i:i + 1], float(step[i])) for i in range(n)])
+    assert together.dtype == np.float32
+    np.testing.assert_array_equal(together, alone)
+    assert len(np.unique(together)) > n // 3  # the positions and levels really differ

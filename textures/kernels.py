@@ -119,6 +119,42 @@ def gradient_levels(near_x, near_y, far_x, far_y, weight, x_mm, y_mm, near_per_m
         out[i] = min(max(middle + gain * (sx * ux + sy * uy), low), high)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _flat_level(flat, start, rows, cols, u, v, wrap):
+    """Bilinear value at (u, v) (pixel units) of the level stored row-major in ``flat`` from ``start``."""
+    r0, r1, c0, c1, fu, fv = _corners(u, v, rows, cols, wrap)
+    top = flat[start + r0 * cols + c0] + fu * (flat[start + r0 * cols + c1] - flat[start + r0 * cols + c0])
+    bottom = flat[start + r1 * cols + c0] + fu * (flat[start + r1 * cols + c1] - flat[start + r1 * cols + c0])
+    return top + fv * (bottom - top)
+
+
+@njit(cache=True, nogil=True)
+def trilinear_steps(flat, starts, rows, cols, per_mm_x, per_mm_y, base_pixel_mm, step_mm, x_mm, y_mm, wrap,
+                    fixed, width_mm, height_mm, outside, out):
+    """:func:`trilinear` with a step (mm, the band limit) per sample: each sample reads the two pyramid
+    levels its step falls between, level = log2(step / base pixel) clipped to the pyramid, and blends
+    them in float32 as the sampler's numpy path does. The levels lie one after another in ``flat``
+    (level k from ``starts[k]``, ``rows[k]`` × ``cols[k]``, ``per_mm_x[k]``, ``per_mm_y[k]`` pixels a mm)."""
+    top = starts.shape[0] - 1
+    for i in range(x_mm.shape[0]):
+        x = x_mm[i]
+        y = y_mm[i]
+        if fixed and (x < 0.0 or x >= width_mm or y < 0.0 or y >= height_mm):
+            out[i] = outside
+            continue
+        level = min(max(math.log2(max(step_mm[i], 1e-12) / base_pixel_mm), 0.0), float(top))
+        near = int(math.floor(level))
+        weight = np.float32(level - near)
+        value = np.float32(_flat_level(flat, starts[near], rows[near], cols[near], x * per_mm_x[near] - 0.5,
+                                       y * per_mm_y[near] - 0.5, wrap))
+        if weight > 0.0:
+            far = min(near + 1, top)
+            beyond = np.float32(_flat_level(flat, starts[far], rows[far], cols[far], x * per_mm_x[far] - 0.5,
+                                            y * per_mm_y[far] - 0.5, wrap))
+            value = np.float32(np.float32(np.float32(beyond - value) * weight) + value)
+        out[i] = value
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) the lookups with the types a Sampler passes, so the first
@@ -135,3 +171,6 @@ def warm_up() -> None:
                       np.float32(1.0), np.empty(1, dtype=np.float32))
             gradient_levels(image, image, image, image, 0.5, where, where, 1.0, 1.0, 1.0, 1.0, wrap, 1.0, 0.0,
                             0.5, 0.1, 0.0, 1.0, fixed, 1.0, 1.0, np.float32(1.0), np.empty(1, dtype=np.float32))
+            trilinear_steps(image.reshape(-1), np.zeros(1, dtype=np.intp), np.full(1, 2, dtype=np.intp),
+                            np.full(1, 2, dtype=np.intp), where + 1.0, where + 1.0, 1.0, where, where, where, wrap,
+                            fixed, 1.0, 1.0, np.float32(1.0), np.empty(1, dtype=np.float32))

@@ -71,9 +71,17 @@ class Sampler:
         self.pyramids = [_pyramid(c, self.tile, max_levels if band_limited else 1) for c in channels]
         levels = self.pyramids[0]
         self.levels = len(levels)
+        if texture.kind == "friction":  # the levels one after another, for the compiled per-sample-step lookup
+            sizes = [level.size for level in levels]
+            self._flat = np.concatenate([level.reshape(-1) for level in levels])
+            self._flat.setflags(write=False)
+            self._starts = np.cumsum([0, *sizes[:-1]]).astype(np.intp)
+            self._rows = np.array([level.shape[0] for level in levels], dtype=np.intp)
+            self._cols = np.array([level.shape[1] for level in levels], dtype=np.intp)
         self.per_mm_x = [level.shape[1] / texture.width_mm for level in levels]
         self.per_mm_y = [level.shape[0] / texture.height_mm for level in levels]
         self.base_pixel_mm = max(texture.pixel_mm)
+        self._per_mm = (np.array(self.per_mm_x), np.array(self.per_mm_y))
         self._fixed = texture.outside == "fixed"
         self._outside = np.float32(texture.outside_ratio if self._fixed else 1.0)
         if texture.kind == "gradient":
@@ -119,6 +127,14 @@ class Sampler:
             far = self._bilinear(channel, x_mm[pick], y_mm[pick], min(int(index) + 1, self.levels - 1))
             result[pick] = near + weight[pick] * (far - near)
         return result
+
+    def _stepped(self, x_mm: np.ndarray, y_mm: np.ndarray, step_mm: np.ndarray) -> np.ndarray:
+        """A friction map read along a path with a step per sample (an export's): one compiled pass."""
+        out = np.empty(len(x_mm), dtype=np.float32)
+        kernels.trilinear_steps(self._flat, self._starts, self._rows, self._cols, *self._per_mm, self.base_pixel_mm,
+                                step_mm.astype(np.float64, copy=False), x_mm, y_mm, self.tile, self._fixed,
+                                self.texture.width_mm, self.texture.height_mm, self._outside, out)
+        return out
 
     def _levels(self, step_mm) -> tuple[int, int, float]:
         """The two pyramid levels a scalar step reads and the far one's weight (0: the near one alone)."""
@@ -188,6 +204,9 @@ class Sampler:
         x_mm = np.asarray(x_mm, dtype=np.float64)
         y_mm = np.asarray(y_mm, dtype=np.float64)
         texture = self.texture
+        if (texture.kind == "friction" and isinstance(step_mm, np.ndarray) and x_mm.ndim == 1
+                and step_mm.shape == x_mm.shape == y_mm.shape):
+            return self._stepped(x_mm, y_mm, step_mm)
         if texture.kind == "friction":
             ratio = self._channel(0, x_mm, y_mm, step_mm)
         elif self._one_level(step_mm) and direction is not None and np.ndim(direction[0]) == 0 and x_mm.ndim == 1:
