@@ -52,6 +52,7 @@ from ultraglide.apps.demo_draw import (  # noqa: E402
 )
 from ultraglide.apps.demo_link import DemoLink, LinkConfig, LinkStarter  # noqa: E402
 from ultraglide.apps.demo_record import TouchRecorder  # noqa: E402
+from ultraglide.apps.demo_wait import EventWaiter  # noqa: E402
 from ultraglide.apps.errors import UsageError  # noqa: E402
 from ultraglide.apps.stop_signals import held  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
@@ -132,6 +133,7 @@ class DemoApp:
         pygame.display.set_caption("ultraglide demo")
         width_px = self.screen.get_width()
         self.mm_per_px = screen_width_mm / width_px if screen_width_mm else DEFAULT_MM_PER_PX
+        self.waiter = EventWaiter(pygame)
         self.font = pygame.font.Font(None, 22)
         self.big_font = pygame.font.Font(None, 30)
         self.report_frames = report_frames
@@ -648,7 +650,7 @@ class DemoApp:
         pg = self.pg
         self._check_link()
         self._watch()
-        event = pg.event.wait(max(1, round(wait_s * 1000))) if wait_s > 0 else pg.event.poll()
+        event = self.waiter.wait(wait_s) if wait_s > 0 else pg.event.poll()
         while event.type != pg.NOEVENT:
             self.handle(event)
             event = pg.event.poll()

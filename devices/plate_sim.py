@@ -327,7 +327,9 @@ class PlateSimulator:
             self._clock = now
             n = int(self._owed)
             self._owed -= n
-            if n > 0:
+            if n > 0 and not self.enabled and self._plate_state <= REST_UM_PP and len(self._buffer) == 0:
+                self._plate_state = self.amplitude_um_pp = 0.0  # disabled and still: nothing to play or watch
+            elif n > 0:
                 self._play(n, now)
             if self._streaming and now - self._last_setpoints > STREAM_GAP_S:
                 self._stop_stream(now)

@@ -48,6 +48,9 @@ TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
 # runs while disabled, and telemetry (which the host's silence check needs) goes on.
 IDLE_AFTER_S = 0.05
 ZERO_FRACTION = 0.5 / p.SETPOINT_SCALE  # at most this fraction of full scale is sent as code 0
+# while idle the writer pulls once per prefill (10 ms) rather than per batch: the first non-zero block then
+# fills the device's prefill at once, so the plate starts as soon as it arrives (no 10 ms wait after ENABLE)
+IDLE_PULL_S = p.PREFILL_MS / 1000.0
 CUT_FAULTS = (p.FAULT_TRIP, p.FAULT_OVERHEAT)  # the device disabled itself: the host never re-enables it
 
 
@@ -356,16 +359,19 @@ class SerialPlate:
         attempt = 0
         retry_at = 0.0
         batch = max(1, int(self.batch_s * self.rate_hz))
+        idle_batch = max(batch, int(IDLE_PULL_S * self.rate_hz))
         last_sent = None
         quiet_since = None  # when the run of all-zero setpoints began (perf_counter s)
         try:
             while not self._stop.is_set():
                 now = time.perf_counter()
                 due = int((now - started) * self.rate_hz) - sent_samples
-                if due < batch:
-                    time.sleep((sent_samples + batch) / self.rate_hz - (now - started))
+                resting = not self._output_on and not self._cut and self._connected.is_set()
+                wanted = idle_batch if resting else batch
+                if due < wanted:
+                    time.sleep((sent_samples + wanted) / self.rate_hz - (now - started))
                     continue
-                if due > 4 * self.batch_s * self.rate_hz:
+                if due > 4 * max(self.batch_s * self.rate_hz, wanted):
                     self.counters.late_batches += 1
                 values = source.pull(due, now)
                 sent_samples += due
