@@ -87,7 +87,7 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
 
     engine.touch(time.perf_counter(), *STICKY_MM)
     _wait(at_rest)
-    time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # land at a random phase of the device's blocks
+    time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # a random phase of the blocks
     touched = time.perf_counter()
     engine.touch(touched, *SLIPPERY_MM)
 
