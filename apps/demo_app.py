@@ -8,7 +8,7 @@ the panel reports it, the arrow keys otherwise.
 
 The window comes first: the gallery is drawn, then the real-time engine (renderer and device in their
 own process) starts from a thread and compiles its kernels while the gallery is on screen; touches
-before it is ready are drawn, counted and not felt. The loop sleeps in ``pygame.event.wait`` and
+before it is ready are drawn, counted and not felt. The loop sleeps in SDL (``demo_wait``) and
 redraws only what changed: the texture area while a finger moves or its trace fades, the chart while
 the plate is active, the status line when its words change. All contact with the renderer and the
 device goes through :class:`ultraglide.apps.demo_link.DemoLink`. With ``watch``, texture files (and
@@ -609,7 +609,7 @@ class DemoApp:
             self.pg.display.update(changed)
 
     def _wait_s(self) -> float:
-        """How long the loop may sleep in ``event.wait`` before something is due."""
+        """How long the loop may sleep waiting for an event before something is due."""
         now = time.perf_counter()
         due = [self._next_status]
         if self.scene != "gallery" and (self._area_dirty or self.trace or self.fingers):
