@@ -8,7 +8,7 @@ the panel reports it, the arrow keys otherwise.
 
 The window comes first: the gallery is drawn, then the real-time engine (renderer and device in their
 own process) starts from a thread and compiles its kernels while the gallery is on screen; touches
-before it is ready are drawn, counted and not felt. The loop sleeps in ``pygame.event.wait`` and
+before it is ready are drawn, counted and not felt. The loop sleeps in SDL (``demo_wait``) and
 redraws only what changed: the texture area while a finger moves or its trace fades, the chart while
 the plate is active, the status line when its words change. All contact with the renderer and the
 device goes through :class:`ultraglide.apps.demo_link.DemoLink`. With ``watch``, texture files (and
@@ -52,6 +52,7 @@ from ultraglide.apps.demo_draw import (  # noqa: E402
 )
 from ultraglide.apps.demo_link import DemoLink, LinkConfig, LinkStarter  # noqa: E402
 from ultraglide.apps.demo_record import TouchRecorder  # noqa: E402
+from ultraglide.apps.demo_wait import EventWaiter  # noqa: E402
 from ultraglide.apps.errors import UsageError  # noqa: E402
 from ultraglide.apps.stop_signals import held  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
@@ -132,6 +133,7 @@ class DemoApp:
         pygame.display.set_caption("ultraglide demo")
         width_px = self.screen.get_width()
         self.mm_per_px = screen_width_mm / width_px if screen_width_mm else DEFAULT_MM_PER_PX
+        self.waiter = EventWaiter(pygame)
         self.font = pygame.font.Font(None, 22)
         self.big_font = pygame.font.Font(None, 30)
         self.report_frames = report_frames
@@ -607,7 +609,7 @@ class DemoApp:
             self.pg.display.update(changed)
 
     def _wait_s(self) -> float:
-        """How long the loop may sleep in ``event.wait`` before something is due."""
+        """How long the loop may sleep waiting for an event before something is due."""
         now = time.perf_counter()
         due = [self._next_status]
         if self.scene != "gallery" and (self._area_dirty or self.trace or self.fingers):
@@ -648,7 +650,7 @@ class DemoApp:
         pg = self.pg
         self._check_link()
         self._watch()
-        event = pg.event.wait(max(1, round(wait_s * 1000))) if wait_s > 0 else pg.event.poll()
+        event = self.waiter.wait(wait_s) if wait_s > 0 else pg.event.poll()
         while event.type != pg.NOEVENT:
             self.handle(event)
             event = pg.event.poll()

@@ -48,8 +48,10 @@ def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine"
         time.sleep(0.0005)
 
 
-def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: int = 96000) -> dict:
-    """Step the finger ``steps`` times; returns the figures (ms) as a plain dict."""
+def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: int = 96000,
+            rest_s: float = 0.0) -> dict:
+    """Step the finger ``steps`` times; returns the figures (ms) as a plain dict. ``rest_s``: how long the
+    plate rests before each step beyond the few ms it needs (0.1 lets a serial link go idle, disabled)."""
     kind = device.partition(":")[0].partition("?")[0]
     with tempfile.TemporaryDirectory(prefix="ultraglide-latency-") as folder:
         texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="step")
@@ -60,7 +62,7 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
             engine.wait_ready()
             engine_s, device_s, total_s = [], [], []
             for _ in range(steps):
-                engine_s_, device_s_, total_s_ = _one_step(engine, kind)
+                engine_s_, device_s_, total_s_ = _one_step(engine, kind, rest_s)
                 engine_s.append(engine_s_)
                 device_s.append(device_s_)
                 total_s.append(total_s_)
@@ -75,7 +77,7 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
     }
 
 
-def _one_step(engine: Engine, kind: str) -> tuple[float, float, float]:
+def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, float, float]:
     def at_rest() -> bool:
         history = engine.status(history_s=0.05).history
         resting = len(history.commanded_um_pp) > 0 and history.commanded_um_pp[-1] < 0.01
@@ -85,7 +87,7 @@ def _one_step(engine: Engine, kind: str) -> tuple[float, float, float]:
 
     engine.touch(time.perf_counter(), *STICKY_MM)
     _wait(at_rest)
-    time.sleep(0.005 + np.random.default_rng().uniform(0, 0.003))  # land at a random phase of the device's blocks
+    time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # a random phase of the blocks
     touched = time.perf_counter()
     engine.touch(touched, *SLIPPERY_MM)
 

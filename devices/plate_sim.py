@@ -41,7 +41,9 @@ from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
 
-TICK_S = 0.002
+TICK_S = 0.002  # the output stage's clock while it has work: enabled, or the plate still moving
+LISTEN_S = 0.02  # the frame handler's longest wait for bytes (it wakes on them at once)
+REST_UM_PP = 1e-6  # below this a disabled plate is at rest: the output stage wakes only for telemetry
 TELEMETRY_S = 1.0 / p.TELEMETRY_HZ
 WATCHDOG_S = p.WATCHDOG_MS / 1000.0
 WATCHDOG_RAMP_S = p.WATCHDOG_RAMP_MS / 1000.0
@@ -325,7 +327,9 @@ class PlateSimulator:
             self._clock = now
             n = int(self._owed)
             self._owed -= n
-            if n > 0:
+            if n > 0 and not self.enabled and self._plate_state <= REST_UM_PP and len(self._buffer) == 0:
+                self._plate_state = self.amplitude_um_pp = 0.0  # disabled and still: nothing to play or watch
+            elif n > 0:
                 self._play(n, now)
             if self._streaming and now - self._last_setpoints > STREAM_GAP_S:
                 self._stop_stream(now)
@@ -394,6 +398,14 @@ class PlateSimulator:
         self.amplitude_um_pp = self._plate_state
         self.peak_um_pp = max(self.peak_um_pp, float(amplitude.max()))
 
+    def next_wake_s(self, now: float) -> float:
+        """How long the output stage may sleep from ``now`` (s): one tick while enabled or while the plate
+        still moves; otherwise until the next telemetry frame (the plate at rest, disabled, has nothing
+        else to do; ENABLE wakes it early, see :class:`PtyPlate`)."""
+        if self.enabled or self._plate_state > REST_UM_PP:
+            return TICK_S
+        return min(max(self._telemetry_due - now, 0.0), TELEMETRY_S)
+
     def telemetry(self) -> p.Telemetry:
         c = self.counters
         return p.Telemetry(self.amplitude_um_pp, self.carrier_hz, self._faults, self.enabled, c.frames_ok,
@@ -425,6 +437,8 @@ class PtyPlate:
         self._port_lock = threading.Lock()
         self._client = False
         self._stop = threading.Event()
+        self._wake = threading.Event()  # the output stage's sleep ends early: stop, or the output enabled
+        self._sleeping_long = False  # the output stage waits for telemetry, not the next tick
         self._threads: list[threading.Thread] = []
         self._drop_until = 0.0
         self._corrupt_until = 0.0
@@ -529,7 +543,7 @@ class PtyPlate:
         if now < self._hang_until:
             time.sleep(TICK_S)
             return
-        ready, _, _ = select.select([self._master], [], [], TICK_S)
+        ready, _, _ = select.select([self._master], [], [], LISTEN_S)
         if not ready and self._client:
             return
         try:
@@ -547,20 +561,32 @@ class PtyPlate:
         self._write(self._incoming(data))
 
     def _serve_output(self) -> None:
-        """The output stage's thread: plays setpoints, runs the watchdog, sends telemetry."""
-        last = time.perf_counter()
-        while not self._stop.wait(TICK_S):
+        """The output stage's thread: plays setpoints, runs the watchdog, sends telemetry.
+
+        It ticks every ``TICK_S`` while the output is enabled or the plate still moves; a disabled plate
+        at rest wakes only for telemetry (50 a second), or at once when a frame enables the output."""
+        simulator = self.simulator
+        wait = TICK_S
+        planned = time.perf_counter() + wait
+        while True:
+            self._wake.wait(wait)
+            if self._stop.is_set():
+                return
+            self._wake.clear()
             try:
                 now = time.perf_counter()
-                if now - last > STALL_S:  # this process was not running: real firmware's clock stops too
-                    self.simulator.excuse(now - last - TICK_S)
-                last = now
+                if now - planned > STALL_S - TICK_S:  # this process was not running: real firmware's clock stops too
+                    simulator.excuse(now - planned)
                 hung = time.monotonic() < self._hang_until
-                frames = self.simulator.advance(telemetry=not hung)
+                frames = simulator.advance(telemetry=not hung)
                 if frames and self._client:
                     self._write(frames)
+                wait = simulator.next_wake_s(time.perf_counter())
+                self._sleeping_long = wait > TICK_S
             except Exception as error:
-                self.simulator._event("output_error", error=f"{type(error).__name__}: {error}")
+                simulator._event("output_error", error=f"{type(error).__name__}: {error}")
+                wait = TICK_S
+            planned = time.perf_counter() + wait
 
     def _incoming(self, data: bytes) -> list[bytes]:
         now = time.monotonic()
@@ -573,12 +599,16 @@ class PtyPlate:
                 corrupted[index] ^= 1 << int(self._rng.integers(0, 8))
             data = bytes(corrupted)
         replies = self.simulator.receive(data)
+        if self._sleeping_long and self.simulator.enabled:  # the output stage waits for telemetry: its clock starts now
+            self._sleeping_long = False
+            self._wake.set()
         while self.simulator.fault_requests:
             self.inject(*self.simulator.fault_requests.pop(0))
         return replies
 
     def stop(self) -> None:
         self._stop.set()
+        self._wake.set()
         for thread in self._threads:
             thread.join(timeout=2)
         self._close_pty()

@@ -43,6 +43,15 @@ BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
 # discards what it was measuring. An underrun holds the last value and an overrun drops a few: both leave
 # the mean drive nearly as commanded, and on a loaded host they come often, so they do not count.
 TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
+# setpoints that all round to code 0 for this long: the host stops the stream and disables the output (the
+# plate rests either way); the first non-zero setpoint enables it again. Well inside nothing: no watchdog
+# runs while disabled, and telemetry (which the host's silence check needs) goes on.
+IDLE_AFTER_S = 0.05
+ZERO_FRACTION = 0.5 / p.SETPOINT_SCALE  # at most this fraction of full scale is sent as code 0
+# while idle the writer pulls once per prefill (10 ms) rather than per batch: the first non-zero block then
+# fills the device's prefill at once, so the plate starts as soon as it arrives (no 10 ms wait after ENABLE)
+IDLE_PULL_S = p.PREFILL_MS / 1000.0
+CUT_FAULTS = (p.FAULT_TRIP, p.FAULT_OVERHEAT)  # the device disabled itself: the host never re-enables it
 
 
 @dataclass
@@ -58,6 +67,8 @@ class SerialCounters:
     naks: int = 0  # frames the device refused
     carrier_changes: int = 0  # SET_CARRIER sent while streaming (sweep or tracking)
     send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
+    idle_rests: int = 0  # the stream stopped and the output disabled while the drive was zero
+    idle_wakes: int = 0  # ... and enabled again by a non-zero drive
     errors: list[str] = field(default_factory=list)
 
 
@@ -121,6 +132,8 @@ class SerialPlate:
         self._drive_count = 0
         self._telemetry_arrived = threading.Condition()
         self.telemetry_frames = 0  # TELEMETRY frames taken over the run
+        self._output_on = False  # the host enabled the output and streams setpoints (False: idle, or not yet)
+        self._cut = False  # the device disabled itself over this run (trip, overheat): never re-enabled by idling
 
     # ---- frames from the device ----------------------------------------------------------------
     def _frame(self, frame: p.Frame) -> None:
@@ -157,6 +170,8 @@ class SerialPlate:
             else:
                 new = [(now - before) & 0xFFFFFFFF for now, before in zip(counts, self._fault_last, strict=True)]
             self._fault_run = [run + n for run, n in zip(self._fault_run, new, strict=True)]
+            if any(self._fault_run[bit.bit_length() - 1] for bit in CUT_FAULTS):
+                self._cut = True
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         self._clear_pending |= telemetry.faults
@@ -281,6 +296,7 @@ class SerialPlate:
                 raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
             self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
             self._command(p.ENABLE, p.enable_payload(True))
+            self._output_on = True
             self._last_heard = time.monotonic()
             self._connected.set()
         except (serial.SerialException, OSError) as error:
@@ -343,15 +359,19 @@ class SerialPlate:
         attempt = 0
         retry_at = 0.0
         batch = max(1, int(self.batch_s * self.rate_hz))
+        idle_batch = max(batch, int(IDLE_PULL_S * self.rate_hz))
         last_sent = None
+        quiet_since = None  # when the run of all-zero setpoints began (perf_counter s)
         try:
             while not self._stop.is_set():
                 now = time.perf_counter()
                 due = int((now - started) * self.rate_hz) - sent_samples
-                if due < batch:
-                    time.sleep((sent_samples + batch) / self.rate_hz - (now - started))
+                resting = not self._output_on and not self._cut and self._connected.is_set()
+                wanted = idle_batch if resting else batch
+                if due < wanted:
+                    time.sleep((sent_samples + wanted) / self.rate_hz - (now - started))
                     continue
-                if due > 4 * self.batch_s * self.rate_hz:
+                if due > 4 * max(self.batch_s * self.rate_hz, wanted):
                     self.counters.late_batches += 1
                 values = source.pull(due, now)
                 sent_samples += due
@@ -376,7 +396,13 @@ class SerialPlate:
                                 self.counters.errors.append(str(error))
                     continue
                 fractions = np.asarray(values, dtype=float) / self.profile.full_scale_um_pp
-                if self.tracker is not None:
+                if float(fractions.max()) > ZERO_FRACTION:
+                    quiet_since = None
+                elif quiet_since is None:
+                    quiet_since = now
+                idle = quiet_since is not None and now - quiet_since >= IDLE_AFTER_S and not self._cut
+                stream = self._output_on or not idle or self._cut
+                if self.tracker is not None and stream:
                     played = float(np.clip(fractions, 0.0, 1.0).sum()) * self.profile.full_scale_um_pp
                     with self._drive_lock:
                         self._drive_sum_um_pp += played
@@ -387,15 +413,24 @@ class SerialPlate:
                     if self._clear_pending:  # latched faults seen in telemetry (already counted): clear them
                         mask, self._clear_pending = self._clear_pending, 0
                         self._send(p.CLEAR_FAULTS, p.clear_faults_payload(mask))
-                    for start in range(0, due, p.MAX_SETPOINTS_PER_FRAME):  # at most 480 bytes of values a frame
-                        chunk = fractions[start:start + p.MAX_SETPOINTS_PER_FRAME]
-                        self._send(p.SETPOINTS, p.setpoints_payload(self._index, self.rate_hz, chunk))
-                        self._index += len(chunk)
-                        self.counters.setpoints_sent += len(chunk)
-                    sent_at = time.perf_counter()
-                    if last_sent is not None and sent_at - last_sent > self.device.watchdog_ms / 1000.0:
-                        self.counters.send_stalls += 1
-                    last_sent = sent_at
+                    if not stream:  # idle: nothing sent, the index runs on (the next ENABLE starts a new stream)
+                        self._index += due
+                        last_sent = None
+                    else:
+                        if not self._output_on and not self._cut:  # the drive left zero: enable, unacknowledged,
+                            self._send(p.ENABLE, p.enable_payload(True))  # and stream at once (frames keep order)
+                            self._output_on = True
+                            self.counters.idle_wakes += 1
+                        self._send_setpoints(fractions)
+                        sent_at = time.perf_counter()
+                        if last_sent is not None and sent_at - last_sent > self.device.watchdog_ms / 1000.0:
+                            self.counters.send_stalls += 1
+                        last_sent = sent_at
+                        if idle and self._output_on:  # zeros long enough, the last of them sent: rest the output
+                            self._send(p.ENABLE, p.enable_payload(False))
+                            self._output_on = False
+                            self.counters.idle_rests += 1
+                            last_sent = None
                 except (serial.SerialException, OSError):
                     self._lost(None)
                     retry_at = time.monotonic() + BACKOFF_S[0]
@@ -406,6 +441,14 @@ class SerialPlate:
             self.counters.errors.append(f"{type(error).__name__}: {error}")
         finally:
             self._rest()
+
+    def _send_setpoints(self, fractions: np.ndarray) -> None:
+        """Send values (fractions of full scale) in frames of at most 240, continuing the stream's index."""
+        for start in range(0, len(fractions), p.MAX_SETPOINTS_PER_FRAME):  # at most 480 bytes of values a frame
+            chunk = fractions[start:start + p.MAX_SETPOINTS_PER_FRAME]
+            self._send(p.SETPOINTS, p.setpoints_payload(self._index, self.rate_hz, chunk))
+            self._index += len(chunk)
+            self.counters.setpoints_sent += len(chunk)
 
     def stop(self) -> None:
         """Ramp down through the source, then send zero and disable and close the port."""
@@ -427,6 +470,8 @@ class SerialPlate:
             "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
             "naks_received": c.naks, "send_stalls": c.send_stalls, "carrier_hz": round(self.carrier_hz, 2),
             "carrier_changes": c.carrier_changes,
+            "output": "cut by the device" if self._cut else ("streaming" if self._output_on else "idle (disabled)"),
+            "idle_rests": c.idle_rests,
             "measured_um_pp": None if t is None else t.measured_um_pp,
             "device_frames_ok": None if t is None else t.frames_ok,
             "device_crc_errors": None if t is None else t.crc_errors,

@@ -250,7 +250,9 @@ def test_a_signalled_demo_rests_the_plate(tmp_path, tap):
     command = Command(tmp_path, "demo", "--device", f"serial:{tap.plate.path}", "--windowed",
                       env={"SDL_VIDEODRIVER": "dummy", "SDL_AUDIODRIVER": "dummy"})
     try:
-        wait_until(lambda: len(tap.setpoint_frames()) > 50, "the demo to stream setpoints")
+        # nothing touched: the demo's link enables the output, sends 50 ms of zeros, then rests it (ENABLE 0)
+        wait_until(lambda: any(kind == p.ENABLE and payload == p.enable_payload(False)
+                               for kind, payload, _ in list(tap.frames)), "the demo to connect and rest its output")
         sent = command.signal(signal.SIGTERM, repeat=2)  # the demo may be blocked in SDL's event wait
         assert_stopped_by(command, signal.SIGTERM, burst=sent)
     finally:
