@@ -48,9 +48,9 @@ TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
 # runs while disabled, and telemetry (which the host's silence check needs) goes on.
 IDLE_AFTER_S = 0.05
 ZERO_FRACTION = 0.5 / p.SETPOINT_SCALE  # at most this fraction of full scale is sent as code 0
-# while idle the writer pulls once per prefill (10 ms) rather than per batch: the first non-zero block then
-# fills the device's prefill at once, so the plate starts as soon as it arrives (no 10 ms wait after ENABLE)
-IDLE_PULL_S = p.PREFILL_MS / 1000.0
+# when the drive leaves zero, the writer pulls a whole prefill (10 ms) at once, so the plate, which plays once it
+# holds that much, starts as soon as it arrives; while idle it still pulls every batch, so a touch waits no longer
+WAKE_PULL_S = p.PREFILL_MS / 1000.0
 CUT_FAULTS = (p.FAULT_TRIP, p.FAULT_OVERHEAT)  # the device disabled itself: the host never re-enables it
 
 
@@ -359,7 +359,9 @@ class SerialPlate:
         attempt = 0
         retry_at = 0.0
         batch = max(1, int(self.batch_s * self.rate_hz))
-        idle_batch = max(batch, int(IDLE_PULL_S * self.rate_hz))
+        wake_batch = max(batch, int(WAKE_PULL_S * self.rate_hz))
+        wake = np.empty(wake_batch)
+        wake_level = ZERO_FRACTION * self.profile.full_scale_um_pp
         last_sent = None
         quiet_since = None  # when the run of all-zero setpoints began (perf_counter s)
         try:
@@ -367,13 +369,16 @@ class SerialPlate:
                 now = time.perf_counter()
                 due = int((now - started) * self.rate_hz) - sent_samples
                 resting = not self._output_on and not self._cut and self._connected.is_set()
-                wanted = idle_batch if resting else batch
-                if due < wanted:
-                    time.sleep((sent_samples + wanted) / self.rate_hz - (now - started))
+                if due < batch:
+                    time.sleep((sent_samples + batch) / self.rate_hz - (now - started))
                     continue
-                if due > 4 * max(self.batch_s * self.rate_hz, wanted):
+                if due > 4 * batch:
                     self.counters.late_batches += 1
                 values = source.pull(due, now)
+                if resting and due < wake_batch and float(values.max()) > wake_level:  # the drive leaves zero
+                    wake[:due] = values
+                    wake[due:] = source.pull(wake_batch - due, now + due / self.rate_hz)
+                    values, due = wake, wake_batch
                 sent_samples += due
                 if self._connected.is_set() and time.monotonic() - self._last_heard > SILENCE_S:
                     self.counters.silences += 1
