@@ -435,6 +435,7 @@ class PtyPlate:
         self.pty_name = ""
         self._master = -1
         self._port_lock = threading.Lock()
+        self._input_lock = threading.Lock()  # bytes read and decoded in order, by whichever thread takes them
         self._client = False
         self._stop = threading.Event()
         self._wake = threading.Event()  # the output stage's sleep ends early: stop, or the output enabled
@@ -546,19 +547,39 @@ class PtyPlate:
         ready, _, _ = select.select([self._master], [], [], LISTEN_S)
         if not ready and self._client:
             return
-        try:
-            data = os.read(self._master, 65536)
-        except BlockingIOError:  # someone has the port open and is quiet
-            self._set_client(True)
+        with self._input_lock:
+            try:
+                data = os.read(self._master, 65536)
+            except BlockingIOError:  # someone has the port open and is quiet (or the output stage took the bytes)
+                self._set_client(True)
+                return
+            except OSError as error:
+                if error.errno != errno.EIO:
+                    raise
+                self._set_client(False)  # nobody has the port open
+                data = None
+            if data is not None:
+                self._set_client(True)
+                self._write(self._incoming(data))
+                return
+        time.sleep(TICK_S)
+
+    def _take_waiting_frames(self) -> None:
+        """Frames already waiting on the link are handled before time advances, as a UART's interrupt
+        comes before real firmware's output loop: a frame handler thread that has not been scheduled yet
+        (a loaded machine) is not the host's silence, and must not trip the watchdog."""
+        now = time.monotonic()
+        master = self._master
+        if master < 0 or now < self._hang_until or now < self._disconnect_until:
             return
-        except OSError as error:
-            if error.errno != errno.EIO:
-                raise
-            self._set_client(False)  # nobody has the port open
-            time.sleep(TICK_S)
-            return
-        self._set_client(True)
-        self._write(self._incoming(data))
+        with self._input_lock:
+            try:
+                ready, _, _ = select.select([master], [], [], 0)
+                data = os.read(master, 65536) if ready else b""
+            except OSError:  # nothing after all, nobody on the port, or the port just closed
+                return
+            if data:
+                self._write(self._incoming(data))
 
     def _serve_output(self) -> None:
         """The output stage's thread: plays setpoints, runs the watchdog, sends telemetry.
@@ -578,6 +599,7 @@ class PtyPlate:
                 if now - planned > STALL_S - TICK_S:  # this process was not running: real firmware's clock stops too
                     simulator.excuse(now - planned)
                 hung = time.monotonic() < self._hang_until
+                self._take_waiting_frames()
                 frames = simulator.advance(telemetry=not hung)
                 if frames and self._client:
                     self._write(frames)
