@@ -8,7 +8,8 @@
 # survivors, the score per file and overall (killed / total) and the seconds per mutant.
 # MUTATION_QUICK=1 skips that second run (about half an hour less; survivors may then be killed elsewhere).
 # MUTATION_WORKDIR=DIR keeps the copy (and mutmut's cache) in DIR: run again after adding tests and
-# only the survivors are tested again. Runs under `nice -n 19`; run one at a time.
+# only the survivors are tested again. Runs under `nice -n 19`; run one at a time, and run no other mutmut
+# command (not even `mutmut show`) in DIR while it runs: that breaks its cache ("Mutant.line is required").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
