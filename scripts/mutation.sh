@@ -15,10 +15,11 @@ cd "$(dirname "$0")/.."
 root=$PWD
 files=("$@")
 [ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/limiter.py textures/sampling.py)
+# the second run's tests: the quick signal-path ones, without the real-time device and engine tests, which a
+# process at nice 19 on a loaded machine starves (a missed watchdog deadline fails the baseline)
 tests=${MUTATION_TESTS:-"tests/test_mutants_*.py tests/test_renderer.py tests/test_blind_spots.py \
 tests/test_limiter.py tests/test_textures.py tests/test_effects.py tests/test_friction_models.py tests/test_doctests.py \
-tests/test_export_parallel.py tests/test_engine.py tests/test_engine_rest.py tests/test_devices.py tests/test_plate_sim.py \
-tests/test_api.py"}
+tests/test_export_parallel.py tests/test_api.py"}
 [ -x .venv/bin/python ] || { echo "mutation.sh: no .venv here; run ./run tests first" >&2; exit 1; }
 .venv/bin/python -c 'import mutmut' 2>/dev/null || .venv/bin/python -m pip install -q -e ".[mutation]"
 
