@@ -1,5 +1,7 @@
 """Texture sampling, pinned where scripts/mutation.sh found the quick tests silent: a thin strip (a 1-D
-grating a few pixels tall) is band-limited like any other texture, down to a pyramid level 2 pixels tall."""
+grating a few pixels tall) is band-limited like any other texture, down to a pyramid level 2 pixels tall;
+a step between two whole pyramid levels blends them in proportion, along x and along y, with pixels that
+are not square, by every query path; the pyramid's level shapes are the halves rounded."""
 
 from __future__ import annotations
 
@@ -52,3 +54,74 @@ def test_slopes_of_a_clamped_height_map_are_one_sided_at_the_edges():
     np.testing.assert_allclose(slope_y[1:-1, :], np.broadcast_to(inner_y, (8, 16)), atol=2e-6)
     np.testing.assert_allclose(slope_x[:, 0], (values[:, 1] - values[:, 0]) / 0.5, atol=2e-6)  # no wrap
     np.testing.assert_allclose(slope_y[-1, :], (values[-1, :] - values[-2, :]) / 2.0, atol=2e-6)
+
+
+def _level_gain(level: int, period_px: float = 16.0) -> float:
+    """Amplitude kept by pyramid level ``level`` of a sine ``period_px`` pixels long, read bilinearly: each
+    level down, a Gaussian of sigma 1 pixel keeps exp(-2 pi^2 / P^2) and the 2:1 linear decimation (a
+    midpoint of two pixels) cos(pi / P); linear interpolation at P pixels a period keeps sinc^2(1 / P)."""
+    gain = 1.0
+    for _ in range(level):
+        gain *= np.exp(-2 * np.pi ** 2 / period_px ** 2) * np.cos(np.pi / period_px)
+        period_px /= 2
+    return gain * np.sinc(1 / period_px) ** 2
+
+
+# pyramid level read (a fraction blends the two around it; 5 is beyond the top level, 2) -> expected gain
+BLENDS = {0.0: _level_gain(0), 0.75: 0.25 * _level_gain(0) + 0.75 * _level_gain(1),
+          1.25: 0.75 * _level_gain(1) + 0.25 * _level_gain(2), 5.0: _level_gain(2)}
+
+
+def _sine_strip(axis: str):
+    """A sine of 16 pixels (4 mm) along ``axis``, 64 x 8 pixels of 0.25 mm along it by 0.5 mm across
+    (three pyramid levels: 8, 4 and 2 pixels across); positions 16 a pixel along it, one across."""
+    wave = (0.5 + 0.4 * np.sin(2 * np.pi * np.arange(64) / 16)).astype(np.float32)
+    along = (np.arange(4096) + 0.5) * 16.0 / 4096
+    across = np.full_like(along, 1.3)
+    if axis == "x":
+        return Texture(np.broadcast_to(wave, (8, 64)).copy(), 16.0, 4.0), along, across, along
+    return Texture(np.broadcast_to(wave[:, None], (64, 8)).copy(), 4.0, 16.0), across, along, along
+
+
+def _gain(ratio: np.ndarray, along: np.ndarray) -> float:
+    """The amplitude of the 4 mm sine in ``ratio`` over the texture's 0.4."""
+    return 2 * abs(np.mean(ratio * np.exp(-2j * np.pi * along / 4.0))) / 0.4
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+@pytest.mark.parametrize("path", ["scalar step", "step per sample", "2-d step per sample", "live block"])
+def test_a_step_between_pyramid_levels_blends_them_in_proportion(axis, path):
+    texture, x, y, along = _sine_strip(axis)
+    sampler = Sampler(texture)
+    assert sampler.levels == 3
+    for level, expected in BLENDS.items():
+        step_mm = 0.5 * 2 ** level  # the level is log2 of the step over the larger pixel side, 0.5 mm
+        if path == "scalar step":
+            ratio = sampler.ratio(x, y, step_mm=step_mm)
+        elif path == "step per sample":
+            ratio = sampler.ratio(x, y, step_mm=np.full(x.shape, step_mm))
+        elif path == "2-d step per sample":
+            ratio = sampler.ratio(x.reshape(64, 64), y.reshape(64, 64), step_mm=np.full((64, 64), step_mm))
+        else:
+            ratio = sampler.ratio(x, y, step_mm=step_mm, out=np.empty(x.shape, dtype=np.float32))
+        assert _gain(ratio.reshape(-1), along) == pytest.approx(expected, abs=2e-3), (level, path)
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_one_query_with_steps_at_several_levels_blends_each_sample_by_its_own(axis):
+    texture, x, y, along = _sine_strip(axis)
+    steps = 0.5 * 2 ** np.array(list(BLENDS))[:, None]  # a row of 4096 samples for each level
+    rows = (np.broadcast_to(x, (4, 4096)), np.broadcast_to(y, (4, 4096)), np.broadcast_to(steps, (4, 4096)))
+    ratio = Sampler(texture).ratio(*rows)
+    for row, expected in zip(ratio, BLENDS.values(), strict=True):
+        assert _gain(row, along) == pytest.approx(expected, abs=2e-3)
+
+
+def test_each_pyramid_level_is_half_the_one_before_rounded_until_a_side_is_under_4_pixels():
+    values = np.random.default_rng(3).random((11, 27)).astype(np.float32)
+    sampler = Sampler(Texture(values, 27.0, 11.0))
+    # 11 x 27 -> round(5.5) = 6 x round(13.5) = 14 -> 3 x 7, which is under 4 pixels tall: the top level
+    assert [level.shape for level in sampler.pyramids[0]] == [(11, 27), (6, 14), (3, 7)]
+    assert Sampler(Texture(values, 27.0, 11.0), band_limited=False).levels == 1
+    assert [level.shape for level in Sampler(Texture(values, 27.0, 11.0), max_levels=2).pyramids[0]] == [(11, 27),
+                                                                                                      (6, 14)]
