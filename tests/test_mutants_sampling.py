@@ -105,6 +105,8 @@ def test_a_step_between_pyramid_levels_blends_them_in_proportion(axis, path):
         else:
             ratio = sampler.ratio(x, y, step_mm=step_mm, out=np.empty(x.shape, dtype=np.float32))
         assert _gain(ratio.reshape(-1), along) == pytest.approx(expected, abs=2e-3), (level, path)
+    unlimited = sampler.ratio(x, y) if path != "live block" else sampler.ratio(x, y, out=np.empty(x.shape, np.float32))
+    assert _gain(unlimited, along) == pytest.approx(BLENDS[0.0], abs=2e-3)  # no step: full resolution
 
 
 @pytest.mark.parametrize("axis", ["x", "y"])
