@@ -72,15 +72,18 @@ BLENDS = {0.0: _level_gain(0), 0.75: 0.25 * _level_gain(0) + 0.75 * _level_gain(
           1.25: 0.75 * _level_gain(1) + 0.25 * _level_gain(2), 5.0: _level_gain(2)}
 
 
-def _sine_strip(axis: str):
-    """A sine of 16 pixels (4 mm) along ``axis``, 64 x 8 pixels of 0.25 mm along it by 0.5 mm across
-    (three pyramid levels: 8, 4 and 2 pixels across); positions 16 a pixel along it, one across."""
+def _sine_strip(axis: str, across_px: int = 8, **kind):
+    """A sine of 16 pixels (4 mm) along ``axis``, 64 x ``across_px`` pixels of 0.25 mm along it by 0.5 mm
+    across (with 8 pixels across three pyramid levels, 8, 4 and 2 pixels; with 4, two); positions 16 a pixel
+    along it, one across. ``kind``: the texture's kind and its options."""
     wave = (0.5 + 0.4 * np.sin(2 * np.pi * np.arange(64) / 16)).astype(np.float32)
     along = (np.arange(4096) + 0.5) * 16.0 / 4096
     across = np.full_like(along, 1.3)
     if axis == "x":
-        return Texture(np.broadcast_to(wave, (8, 64)).copy(), 16.0, 4.0), along, across, along
-    return Texture(np.broadcast_to(wave[:, None], (64, 8)).copy(), 4.0, 16.0), across, along, along
+        texture = Texture(np.broadcast_to(wave, (across_px, 64)).copy(), 16.0, across_px / 2, **kind)
+        return texture, along, across, along
+    texture = Texture(np.broadcast_to(wave[:, None], (64, across_px)).copy(), across_px / 2, 16.0, **kind)
+    return texture, across, along, along
 
 
 def _gain(ratio: np.ndarray, along: np.ndarray) -> float:
@@ -110,13 +113,47 @@ def test_a_step_between_pyramid_levels_blends_them_in_proportion(axis, path):
 
 
 @pytest.mark.parametrize("axis", ["x", "y"])
-def test_one_query_with_steps_at_several_levels_blends_each_sample_by_its_own(axis):
+@pytest.mark.parametrize("levels", [(0.0, 0.75, 1.25, 5.0), (0.0, 1.25, 5.0)])  # the second: level 0 unblended
+def test_one_query_with_steps_at_several_levels_blends_each_sample_by_its_own(axis, levels):
     texture, x, y, along = _sine_strip(axis)
-    steps = 0.5 * 2 ** np.array(list(BLENDS))[:, None]  # a row of 4096 samples for each level
-    rows = (np.broadcast_to(x, (4, 4096)), np.broadcast_to(y, (4, 4096)), np.broadcast_to(steps, (4, 4096)))
-    ratio = Sampler(texture).ratio(*rows)
-    for row, expected in zip(ratio, BLENDS.values(), strict=True):
-        assert _gain(row, along) == pytest.approx(expected, abs=2e-3)
+    steps = 0.5 * 2 ** np.array(levels)[:, None]  # a row of 4096 samples for each level
+    shape = (len(levels), 4096)
+    ratio = Sampler(texture).ratio(np.broadcast_to(x, shape), np.broadcast_to(y, shape), np.broadcast_to(steps, shape))
+    for row, level in zip(ratio, levels, strict=True):
+        assert _gain(row, along) == pytest.approx(BLENDS[level], abs=2e-3), level
+
+
+@pytest.mark.parametrize("path", ["scalar step", "live block"])
+def test_a_strip_of_two_levels_blends_them_and_stops_at_the_second(path):
+    texture, x, y, along = _sine_strip("x", across_px=4)
+    sampler = Sampler(texture)
+    assert sampler.levels == 2
+    # level 0.75: a quarter of level 0 and three quarters of level 1; beyond, level 1 alone
+    for level, expected in ((0.75, BLENDS[0.75]), (5.0, _level_gain(1))):
+        out = np.empty(x.shape, dtype=np.float32) if path == "live block" else None
+        assert _gain(sampler.ratio(x, y, step_mm=0.5 * 2 ** level, out=out), along) == pytest.approx(expected, abs=2e-3)
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+@pytest.mark.parametrize("path", ["scalar step", "live block", "direction per sample"])
+def test_a_height_map_read_between_pyramid_levels_blends_its_slopes_in_proportion(axis, path):
+    texture, x, y, along = _sine_strip(axis, kind="gradient", ratio_range=(0.1, 0.9), full_slope_per_mm=1.0)
+    sampler = Sampler(texture)
+    direction = (1.0, 0.0) if axis == "x" else (0.0, -1.0)
+    # the central difference of 0.4 sin(2 pi i / 16) over 0.25 mm pixels: 0.4 sin(2 pi / 16) / 0.25 per mm;
+    # a slope of 1 per mm reaches the range's end, 0.4 from its middle
+    slope_ratio = 0.4 * (0.4 * np.sin(2 * np.pi / 16) / 0.25)
+    for level, expected in [(None, BLENDS[0.0]), *BLENDS.items()]:
+        step_mm = None if level is None else 0.5 * 2 ** level
+        if path == "scalar step":
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=direction)
+        elif path == "live block":
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=direction, out=np.empty(x.shape, np.float32))
+        else:
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=tuple(np.full(x.shape, d) for d in direction))
+        assert np.mean(ratio) == pytest.approx(0.5, abs=1e-3)  # flat on average: the range's middle
+        assert 2 * abs(np.mean(ratio * np.exp(-2j * np.pi * along / 4.0))) == pytest.approx(
+            slope_ratio * expected, abs=1e-3), (level, path)
 
 
 def test_each_pyramid_level_is_half_the_one_before_rounded_until_a_side_is_under_4_pixels():
