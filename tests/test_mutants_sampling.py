@@ -67,6 +67,14 @@ def _level_gain(level: int, period_px: float = 16.0) -> float:
     return gain * np.sinc(1 / period_px) ** 2
 
 
+def _blend(level: float, top: int = 2) -> float:
+    """The gain read at a fractional ``level``: the two levels around it in proportion (trilinear); a level
+    beyond the top one reads the top one alone."""
+    level = min(level, top)
+    low = int(level)
+    return (1 - (level - low)) * _level_gain(low) + (level - low) * _level_gain(min(low + 1, top))
+
+
 # pyramid level read (a fraction blends the two around it; 5 is beyond the top level, 2) -> expected gain
 BLENDS = {0.0: _level_gain(0), 0.75: 0.25 * _level_gain(0) + 0.75 * _level_gain(1),
           1.25: 0.75 * _level_gain(1) + 0.25 * _level_gain(2), 5.0: _level_gain(2)}
@@ -129,22 +137,26 @@ def test_a_strip_of_two_levels_blends_them_and_stops_at_the_second(path):
     sampler = Sampler(texture)
     assert sampler.levels == 2
     # level 0.75: a quarter of level 0 and three quarters of level 1; beyond, level 1 alone
-    for level, expected in ((0.75, BLENDS[0.75]), (5.0, _level_gain(1))):
+    for level, expected in ((0.75, _blend(0.75, top=1)), (1.25, _blend(1.25, top=1)), (5.0, _level_gain(1))):
         out = np.empty(x.shape, dtype=np.float32) if path == "live block" else None
         assert _gain(sampler.ratio(x, y, step_mm=0.5 * 2 ** level, out=out), along) == pytest.approx(expected, abs=2e-3)
 
 
 @pytest.mark.parametrize("axis", ["x", "y"])
 @pytest.mark.parametrize("path", ["scalar step", "live block", "direction per sample"])
-def test_a_height_map_read_between_pyramid_levels_blends_its_slopes_in_proportion(axis, path):
-    texture, x, y, along = _sine_strip(axis, kind="gradient", ratio_range=(0.1, 0.9), full_slope_per_mm=1.0)
+@pytest.mark.parametrize("across_px", [8, 4])
+def test_a_height_map_read_between_pyramid_levels_blends_its_slopes_in_proportion(axis, path, across_px):
+    texture, x, y, along = _sine_strip(axis, across_px, kind="gradient", ratio_range=(0.1, 0.9), full_slope_per_mm=1.0)
     sampler = Sampler(texture)
+    top = sampler.levels - 1
+    assert top == {8: 2, 4: 1}[across_px]
     direction = (1.0, 0.0) if axis == "x" else (0.0, -1.0)
     # the central difference of 0.4 sin(2 pi i / 16) over 0.25 mm pixels: 0.4 sin(2 pi / 16) / 0.25 per mm;
     # a slope of 1 per mm reaches the range's end, 0.4 from its middle
     slope_ratio = 0.4 * (0.4 * np.sin(2 * np.pi / 16) / 0.25)
-    for level, expected in [(None, BLENDS[0.0]), *BLENDS.items()]:
+    for level in (None, 0.0, 0.75, 1.25, 5.0):
         step_mm = None if level is None else 0.5 * 2 ** level
+        expected = _blend(level or 0.0, top)
         if path == "scalar step":
             ratio = sampler.ratio(x, y, step_mm=step_mm, direction=direction)
         elif path == "live block":
