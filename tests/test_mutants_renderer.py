@@ -126,17 +126,21 @@ def _live(texture, **settings):
 
 
 def _blocks(renderer, buffers, count, n=240, start_s=100.0):
-    """``count`` live blocks of ``n`` samples at the control clock from ``start_s``, as (ratio, amplitude) copies."""
+    """``count`` live blocks of ``n`` samples at the control clock from ``start_s``: (ratio, amplitude, drive)
+    copies of each."""
     rate = renderer.settings.control_rate_hz
-    return [(lambda b: (b.ratio.copy(), b.amplitude_um_pp.copy()))(renderer.control(n, start_s + i * n / rate, buffers))
-            for i in range(count)]
+    blocks = (renderer.control(n, start_s + i * n / rate, buffers) for i in range(count))
+    return [(block.ratio.copy(), block.amplitude_um_pp.copy(), block.drive_um_pp.copy()) for block in blocks]
 
 
 def test_a_live_block_into_buffers_counts_its_samples_and_clips_and_reaches_its_observers():
     renderer, buffers, seen = _live(_uniform(0.0))  # a ratio of 0 is below what the plate reaches: all clipped
-    _blocks(renderer, buffers, 2)
+    blocks = _blocks(renderer, buffers, 2)
     assert renderer.counters.control_samples == 480
     assert renderer.counters.clipped_samples == 480
+    # the limit's 6 µm asked at once: the pre-compensated attack wants more than the 8 µm of drive headroom
+    at_headroom = sum(int(np.count_nonzero(drive >= SIM.max_drive_um_pp - 1e-9)) for _, _, drive in blocks)
+    assert at_headroom > 0 and renderer.counters.drive_clipped_samples == at_headroom
     assert len(seen) == 2 and seen[-1] is renderer.last_block and renderer.last_block.time_s[0] == pytest.approx(
         100.0 + 240 / 12000, abs=1e-12)
 
@@ -145,12 +149,17 @@ def test_a_live_finger_drives_the_plate_and_a_pause_releases_it():
     renderer, buffers, _ = _live(_uniform(0.5))
     target = ExponentialModel().amplitude_um_pp(0.5, 0.5).amplitude_um_pp  # exp(-(a_pp / 2)^2 / (2 tau^2)) = 0.5
     assert target == pytest.approx(2 * 1.32 * np.sqrt(2 * np.log(2)), rel=1e-3)
-    (_, amplitude), = _blocks(renderer, buffers, 1)  # 20 ms: past the 5 ms attack and the band's settling
+    (_, amplitude, _), = _blocks(renderer, buffers, 1)  # 20 ms: past the 5 ms attack and the band's settling
     assert amplitude[-1] == pytest.approx(target, rel=0.02)
     renderer.pause()
-    (_, amplitude), = _blocks(renderer, buffers, 1, start_s=100.02)  # the 10 ms release, then rest
+    (_, amplitude, _), = _blocks(renderer, buffers, 1, start_s=100.02)  # the 10 ms release, then rest
     assert amplitude[-1] == pytest.approx(0.0, abs=1e-3)
     assert renderer.counters.ramps >= 2  # up and down
+    assert not renderer.finished  # paused, not stopped
+    renderer.stop()
+    assert renderer.tail_s < 0.06
+    _blocks(renderer, buffers, 3, start_s=100.04)  # 60 ms: longer than the output's tail
+    assert renderer.finished
 
 
 def test_a_live_finger_reads_a_fine_grating_in_full_at_its_own_speed():
@@ -158,5 +167,5 @@ def test_a_live_finger_reads_a_fine_grating_in_full_at_its_own_speed():
     # lookup reads the full-resolution texture and a 20 ms block (one period) swings across the range
     texture = procedural.grating(2.0, size_mm=(80, 50), ratio_range=(0.3, 0.9))
     renderer, buffers, _ = _live(texture)
-    (ratio, _), = _blocks(renderer, buffers, 1)
+    (ratio, _, _), = _blocks(renderer, buffers, 1)
     assert ratio.max() == pytest.approx(0.9, abs=0.02) and ratio.min() == pytest.approx(0.3, abs=0.02)
