@@ -12,6 +12,7 @@ from ultraglide.render.friction_models import ExponentialModel, StretchedExponen
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures import procedural
+from ultraglide.textures.effects import Binding, Constant, Trigger
 
 RATE = 12000.0
 SIM = load_profile("sim-plate")
@@ -169,3 +170,14 @@ def test_a_live_finger_reads_a_fine_grating_in_full_at_its_own_speed():
     renderer, buffers, _ = _live(texture)
     (ratio, _, _), = _blocks(renderer, buffers, 1)
     assert ratio.max() == pytest.approx(0.9, abs=0.02) and ratio.min() == pytest.approx(0.3, abs=0.02)
+
+
+def test_a_live_block_mixes_the_effects_and_counts_what_they_push_above_rest():
+    renderer, buffers, _ = _live(_uniform(0.5))
+    # a constant -0.7 subtracted while the finger is down: 0.5 + 0.7 is more friction than at rest, held at 1
+    renderer.set_effects((Binding(Trigger("while"), Constant(-0.7), release_s=0.0),))
+    blocks = _blocks(renderer, buffers, 2)
+    for ratio, amplitude, _ in blocks:
+        np.testing.assert_array_equal(ratio, 1.0)
+        np.testing.assert_array_equal(amplitude, 0.0)  # the plate at rest
+    assert renderer.counters.clipped_samples == 480
