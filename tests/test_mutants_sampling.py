@@ -176,3 +176,19 @@ def test_each_pyramid_level_is_half_the_one_before_rounded_until_a_side_is_under
     assert Sampler(Texture(values, 27.0, 11.0), band_limited=False).levels == 1
     assert [level.shape for level in Sampler(Texture(values, 27.0, 11.0), max_levels=2).pyramids[0]] == [(11, 27),
                                                                                                       (6, 14)]
+
+
+@pytest.mark.parametrize("kind", ["friction", "gradient"])
+def test_a_fixed_outside_starts_exactly_at_the_edges(kind):
+    # 10 x 5 mm of 0.75 (flat ground for a height map: the middle of 0.5..1), 0.25 beyond its edges:
+    # the texture covers [0, 10) x [0, 5), so 0 is inside and 10 (or 5) outside, on each axis alone
+    values = np.full((20, 40), 0.75, dtype=np.float32)
+    extra = {"ratio_range": (0.5, 1.0)} if kind == "gradient" else {}
+    texture = Texture(values, 10.0, 5.0, kind=kind, outside="fixed", outside_ratio=0.25, **extra)
+    points = {(-0.001, 2.0): 0.25, (0.0, 2.0): 0.75, (0.5, 2.0): 0.75, (9.999, 2.0): 0.75, (10.0, 2.0): 0.25,
+              (4.0, -0.001): 0.25, (4.0, 0.0): 0.75, (4.0, 0.5): 0.75, (4.0, 4.999): 0.75, (4.0, 5.0): 0.25}
+    x, y = (np.array(axis) for axis in zip(*points, strict=True))
+    direction = (np.ones_like(x), np.zeros_like(x))  # per sample: the general path, where the mask is applied
+    for step_mm in (None, 1.0):
+        ratio = Sampler(texture).ratio(x, y, step_mm=step_mm, direction=direction)
+        np.testing.assert_allclose(ratio, list(points.values()), atol=1e-6)
