@@ -142,6 +142,7 @@ def test_a_live_block_into_buffers_counts_its_samples_and_clips_and_reaches_its_
     # the limit's 6 µm asked at once: the pre-compensated attack wants more than the 8 µm of drive headroom
     at_headroom = sum(int(np.count_nonzero(drive >= SIM.max_drive_um_pp - 1e-9)) for _, _, drive in blocks)
     assert at_headroom > 0 and renderer.counters.drive_clipped_samples == at_headroom
+    np.testing.assert_allclose(np.diff(renderer.last_block.time_s), 1 / 12000, rtol=1e-6)  # the control clock
     assert len(seen) == 2 and seen[-1] is renderer.last_block and renderer.last_block.time_s[0] == pytest.approx(
         100.0 + 240 / 12000, abs=1e-12)
 
@@ -158,7 +159,8 @@ def test_a_live_finger_drives_the_plate_and_a_pause_releases_it():
     assert renderer.counters.ramps >= 2  # up and down
     assert not renderer.finished  # paused, not stopped
     renderer.stop()
-    assert renderer.tail_s < 0.06
+    # the tail: the 10 ms release, 7 time constants of the plate, 5 periods of the 1 kHz band limit
+    assert renderer.tail_s == pytest.approx(0.010 + 7 * SIM.time_constant_s + 0.005, rel=1e-12) < 0.06
     _blocks(renderer, buffers, 3, start_s=100.04)  # 60 ms: longer than the output's tail
     assert renderer.finished
 
