@@ -12,6 +12,7 @@ from ultraglide.render.friction_models import ExponentialModel, StretchedExponen
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures import procedural
+from ultraglide.textures.effects import Binding, Constant, Trigger
 
 RATE = 12000.0
 SIM = load_profile("sim-plate")
@@ -111,3 +112,75 @@ def test_a_live_renderer_does_not_look_ahead_unless_told():
         renderer.push(k / 60, 10.0 + 120.0 * k / 60, 20.0)
     block = renderer.control(12, now_s=9 / 60 + 0.004)
     np.testing.assert_allclose(block.x_mm, 10.0 + 120.0 * block.time_s, atol=1e-6)
+
+
+def _live(texture, **settings):
+    """A live renderer writing into preallocated buffers (the engine's real-time path), a finger swiping
+    along x at 100 mm/s reported at 120 Hz for the 50 ms up to t = 100 s, and the blocks its observer saw."""
+    renderer = Renderer(texture, ExponentialModel(), SIM, RenderSettings(**settings))
+    buffers = renderer.control_buffers(256)
+    seen = []
+    renderer.observers.append(seen.append)
+    for k in range(7):
+        renderer.push(100.0 - (6 - k) / 120, 15.0 - 100.0 * (6 - k) / 120, 25.0)
+    return renderer, buffers, seen
+
+
+def _blocks(renderer, buffers, count, n=240, start_s=100.0):
+    """``count`` live blocks of ``n`` samples at the control clock from ``start_s``: (ratio, amplitude, drive)
+    copies of each."""
+    rate = renderer.settings.control_rate_hz
+    blocks = (renderer.control(n, start_s + i * n / rate, buffers) for i in range(count))
+    return [(block.ratio.copy(), block.amplitude_um_pp.copy(), block.drive_um_pp.copy()) for block in blocks]
+
+
+def test_a_live_block_into_buffers_counts_its_samples_and_clips_and_reaches_its_observers():
+    renderer, buffers, seen = _live(_uniform(0.0))  # a ratio of 0 is below what the plate reaches: all clipped
+    blocks = _blocks(renderer, buffers, 2)
+    assert renderer.counters.control_samples == 480
+    assert renderer.counters.clipped_samples == 480
+    # the limit's 6 µm asked at once: the pre-compensated attack wants more than the 8 µm of drive headroom
+    at_headroom = sum(int(np.count_nonzero(drive >= SIM.max_drive_um_pp - 1e-9)) for _, _, drive in blocks)
+    assert at_headroom > 0 and renderer.counters.drive_clipped_samples == at_headroom
+    np.testing.assert_allclose(np.diff(renderer.last_block.time_s), 1 / 12000, rtol=1e-6)  # the control clock
+    assert len(seen) == 2 and seen[-1] is renderer.last_block and renderer.last_block.time_s[0] == pytest.approx(
+        100.0 + 240 / 12000, abs=1e-12)
+
+
+def test_a_live_finger_drives_the_plate_and_a_pause_releases_it():
+    renderer, buffers, _ = _live(_uniform(0.5))
+    target = ExponentialModel().amplitude_um_pp(0.5, 0.5).amplitude_um_pp  # exp(-(a_pp / 2)^2 / (2 tau^2)) = 0.5
+    assert target == pytest.approx(2 * 1.32 * np.sqrt(2 * np.log(2)), rel=1e-3)
+    (_, amplitude, _), = _blocks(renderer, buffers, 1)  # 20 ms: past the 5 ms attack and the band's settling
+    assert amplitude[-1] == pytest.approx(target, rel=0.02)
+    renderer.pause()
+    (_, amplitude, _), = _blocks(renderer, buffers, 1, start_s=100.02)  # the 10 ms release, then rest
+    assert amplitude[-1] == pytest.approx(0.0, abs=1e-3)
+    assert renderer.counters.ramps >= 2  # up and down
+    assert not renderer.finished  # paused, not stopped
+    renderer.stop()
+    # the tail: the 10 ms release, 7 time constants of the plate, 5 periods of the 1 kHz band limit
+    assert renderer.tail_s == pytest.approx(0.010 + 7 * SIM.time_constant_s + 0.005, rel=1e-12)
+    assert renderer.tail_s < 0.06
+    _blocks(renderer, buffers, 3, start_s=100.04)  # 60 ms: longer than the output's tail
+    assert renderer.finished
+
+
+def test_a_live_finger_reads_a_fine_grating_in_full_at_its_own_speed():
+    # a 2 mm grating from 0.3 to 0.9 at 100 mm/s: 8.3 µm a sample, far finer than a pixel, so the band-limited
+    # lookup reads the full-resolution texture and a 20 ms block (one period) swings across the range
+    texture = procedural.grating(2.0, size_mm=(80, 50), ratio_range=(0.3, 0.9))
+    renderer, buffers, _ = _live(texture)
+    (ratio, _, _), = _blocks(renderer, buffers, 1)
+    assert ratio.max() == pytest.approx(0.9, abs=0.02) and ratio.min() == pytest.approx(0.3, abs=0.02)
+
+
+def test_a_live_block_mixes_the_effects_and_counts_what_they_push_above_rest():
+    renderer, buffers, _ = _live(_uniform(0.5))
+    # a constant -0.7 subtracted while the finger is down: 0.5 + 0.7 is more friction than at rest, held at 1
+    renderer.set_effects((Binding(Trigger("while"), Constant(-0.7), release_s=0.0),))
+    blocks = _blocks(renderer, buffers, 2)
+    for ratio, amplitude, _ in blocks:
+        np.testing.assert_array_equal(ratio, 1.0)
+        np.testing.assert_array_equal(amplitude, 0.0)  # the plate at rest
+    assert renderer.counters.clipped_samples == 480

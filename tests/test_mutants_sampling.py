@@ -1,5 +1,7 @@
 """Texture sampling, pinned where scripts/mutation.sh found the quick tests silent: a thin strip (a 1-D
-grating a few pixels tall) is band-limited like any other texture, down to a pyramid level 2 pixels tall."""
+grating a few pixels tall) is band-limited like any other texture, down to a pyramid level 2 pixels tall;
+a step between two whole pyramid levels blends them in proportion, along x and along y, with pixels that
+are not square, by every query path; the pyramid's level shapes are the halves rounded."""
 
 from __future__ import annotations
 
@@ -52,3 +54,141 @@ def test_slopes_of_a_clamped_height_map_are_one_sided_at_the_edges():
     np.testing.assert_allclose(slope_y[1:-1, :], np.broadcast_to(inner_y, (8, 16)), atol=2e-6)
     np.testing.assert_allclose(slope_x[:, 0], (values[:, 1] - values[:, 0]) / 0.5, atol=2e-6)  # no wrap
     np.testing.assert_allclose(slope_y[-1, :], (values[-1, :] - values[-2, :]) / 2.0, atol=2e-6)
+
+
+def _level_gain(level: int, period_px: float = 16.0) -> float:
+    """Amplitude kept by pyramid level ``level`` of a sine ``period_px`` pixels long, read bilinearly: each
+    level down, a Gaussian of sigma 1 pixel keeps exp(-2 pi^2 / P^2) and the 2:1 linear decimation (a
+    midpoint of two pixels) cos(pi / P); linear interpolation at P pixels a period keeps sinc^2(1 / P)."""
+    gain = 1.0
+    for _ in range(level):
+        gain *= np.exp(-2 * np.pi ** 2 / period_px ** 2) * np.cos(np.pi / period_px)
+        period_px /= 2
+    return gain * np.sinc(1 / period_px) ** 2
+
+
+def _blend(level: float, top: int = 2) -> float:
+    """The gain read at a fractional ``level``: the two levels around it in proportion (trilinear); a level
+    beyond the top one reads the top one alone."""
+    level = min(level, top)
+    low = int(level)
+    return (1 - (level - low)) * _level_gain(low) + (level - low) * _level_gain(min(low + 1, top))
+
+
+# pyramid level read (a fraction blends the two around it; 5 is beyond the top level, 2) -> expected gain
+BLENDS = {0.0: _level_gain(0), 0.75: 0.25 * _level_gain(0) + 0.75 * _level_gain(1),
+          1.25: 0.75 * _level_gain(1) + 0.25 * _level_gain(2), 5.0: _level_gain(2)}
+
+
+def _sine_strip(axis: str, across_px: int = 8, **kind):
+    """A sine of 16 pixels (4 mm) along ``axis``, 64 x ``across_px`` pixels of 0.25 mm along it by 0.5 mm
+    across (with 8 pixels across three pyramid levels, 8, 4 and 2 pixels; with 4, two); positions 16 a pixel
+    along it, one across. ``kind``: the texture's kind and its options."""
+    wave = (0.5 + 0.4 * np.sin(2 * np.pi * np.arange(64) / 16)).astype(np.float32)
+    along = (np.arange(4096) + 0.5) * 16.0 / 4096
+    across = np.full_like(along, 1.3)
+    if axis == "x":
+        texture = Texture(np.broadcast_to(wave, (across_px, 64)).copy(), 16.0, across_px / 2, **kind)
+        return texture, along, across, along
+    texture = Texture(np.broadcast_to(wave[:, None], (64, across_px)).copy(), across_px / 2, 16.0, **kind)
+    return texture, across, along, along
+
+
+def _gain(ratio: np.ndarray, along: np.ndarray) -> float:
+    """The amplitude of the 4 mm sine in ``ratio`` over the texture's 0.4."""
+    return 2 * abs(np.mean(ratio * np.exp(-2j * np.pi * along / 4.0))) / 0.4
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+@pytest.mark.parametrize("path", ["scalar step", "step per sample", "2-d step per sample", "live block"])
+def test_a_step_between_pyramid_levels_blends_them_in_proportion(axis, path):
+    texture, x, y, along = _sine_strip(axis)
+    sampler = Sampler(texture)
+    assert sampler.levels == 3
+    for level, expected in BLENDS.items():
+        step_mm = 0.5 * 2 ** level  # the level is log2 of the step over the larger pixel side, 0.5 mm
+        if path == "scalar step":
+            ratio = sampler.ratio(x, y, step_mm=step_mm)
+        elif path == "step per sample":
+            ratio = sampler.ratio(x, y, step_mm=np.full(x.shape, step_mm))
+        elif path == "2-d step per sample":
+            ratio = sampler.ratio(x.reshape(64, 64), y.reshape(64, 64), step_mm=np.full((64, 64), step_mm))
+        else:
+            ratio = sampler.ratio(x, y, step_mm=step_mm, out=np.empty(x.shape, dtype=np.float32))
+        assert _gain(ratio.reshape(-1), along) == pytest.approx(expected, abs=2e-3), (level, path)
+    unlimited = sampler.ratio(x, y) if path != "live block" else sampler.ratio(x, y, out=np.empty(x.shape, np.float32))
+    assert _gain(unlimited, along) == pytest.approx(BLENDS[0.0], abs=2e-3)  # no step: full resolution
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+@pytest.mark.parametrize("levels", [(0.0, 0.75, 1.25, 5.0), (0.0, 1.25, 5.0)])  # the second: level 0 unblended
+def test_one_query_with_steps_at_several_levels_blends_each_sample_by_its_own(axis, levels):
+    texture, x, y, along = _sine_strip(axis)
+    steps = 0.5 * 2 ** np.array(levels)[:, None]  # a row of 4096 samples for each level
+    shape = (len(levels), 4096)
+    ratio = Sampler(texture).ratio(np.broadcast_to(x, shape), np.broadcast_to(y, shape), np.broadcast_to(steps, shape))
+    for row, level in zip(ratio, levels, strict=True):
+        assert _gain(row, along) == pytest.approx(BLENDS[level], abs=2e-3), level
+
+
+@pytest.mark.parametrize("path", ["scalar step", "live block"])
+def test_a_strip_of_two_levels_blends_them_and_stops_at_the_second(path):
+    texture, x, y, along = _sine_strip("x", across_px=4)
+    sampler = Sampler(texture)
+    assert sampler.levels == 2
+    # level 0.75: a quarter of level 0 and three quarters of level 1; beyond, level 1 alone
+    for level, expected in ((0.75, _blend(0.75, top=1)), (1.25, _blend(1.25, top=1)), (5.0, _level_gain(1))):
+        out = np.empty(x.shape, dtype=np.float32) if path == "live block" else None
+        assert _gain(sampler.ratio(x, y, step_mm=0.5 * 2 ** level, out=out), along) == pytest.approx(expected, abs=2e-3)
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+@pytest.mark.parametrize("path", ["scalar step", "live block", "direction per sample"])
+@pytest.mark.parametrize("across_px", [8, 4])
+def test_a_height_map_read_between_pyramid_levels_blends_its_slopes_in_proportion(axis, path, across_px):
+    texture, x, y, along = _sine_strip(axis, across_px, kind="gradient", ratio_range=(0.2, 0.9), full_slope_per_mm=2.0)
+    sampler = Sampler(texture)
+    top = sampler.levels - 1
+    assert top == {8: 2, 4: 1}[across_px]
+    direction = (3.0, 0.0) if axis == "x" else (0.0, -3.0)  # any length: only the direction counts
+    # the central difference of 0.4 sin(2 pi i / 16) over 0.25 mm pixels: 0.4 sin(2 pi / 16) / 0.25 per mm;
+    # a slope of 2 per mm would reach the range's end, 0.35 from its middle (0.55): no clipping here
+    slope_ratio = 0.35 / 2.0 * (0.4 * np.sin(2 * np.pi / 16) / 0.25)
+    for level in (None, 0.0, 0.75, 1.25, 5.0):
+        step_mm = None if level is None else 0.5 * 2 ** level
+        expected = _blend(level or 0.0, top)
+        if path == "scalar step":
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=direction)
+        elif path == "live block":
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=direction, out=np.empty(x.shape, np.float32))
+        else:
+            ratio = sampler.ratio(x, y, step_mm=step_mm, direction=tuple(np.full(x.shape, d) for d in direction))
+        assert np.mean(ratio) == pytest.approx(0.55, abs=1e-3)  # flat on average: the range's middle
+        assert 2 * abs(np.mean(ratio * np.exp(-2j * np.pi * along / 4.0))) == pytest.approx(
+            slope_ratio * expected, abs=1e-3), (level, path)
+
+
+def test_each_pyramid_level_is_half_the_one_before_rounded_until_a_side_is_under_4_pixels():
+    values = np.random.default_rng(3).random((11, 27)).astype(np.float32)
+    sampler = Sampler(Texture(values, 27.0, 11.0))
+    # 11 x 27 -> round(5.5) = 6 x round(13.5) = 14 -> 3 x 7, which is under 4 pixels tall: the top level
+    assert [level.shape for level in sampler.pyramids[0]] == [(11, 27), (6, 14), (3, 7)]
+    assert Sampler(Texture(values, 27.0, 11.0), band_limited=False).levels == 1
+    assert [level.shape for level in Sampler(Texture(values, 27.0, 11.0), max_levels=2).pyramids[0]] == [(11, 27),
+                                                                                                      (6, 14)]
+
+
+@pytest.mark.parametrize("kind", ["friction", "gradient"])
+def test_a_fixed_outside_starts_exactly_at_the_edges(kind):
+    # 10 x 5 mm of 0.75 (flat ground for a height map: the middle of 0.5..1), 0.25 beyond its edges:
+    # the texture covers [0, 10) x [0, 5), so 0 is inside and 10 (or 5) outside, on each axis alone
+    values = np.full((20, 40), 0.75, dtype=np.float32)
+    extra = {"ratio_range": (0.5, 1.0)} if kind == "gradient" else {}
+    texture = Texture(values, 10.0, 5.0, kind=kind, outside="fixed", outside_ratio=0.25, **extra)
+    points = {(-0.001, 2.0): 0.25, (0.0, 2.0): 0.75, (0.5, 2.0): 0.75, (9.999, 2.0): 0.75, (10.0, 2.0): 0.25,
+              (4.0, -0.001): 0.25, (4.0, 0.0): 0.75, (4.0, 0.5): 0.75, (4.0, 4.999): 0.75, (4.0, 5.0): 0.25}
+    x, y = (np.array(axis) for axis in zip(*points, strict=True))
+    direction = (np.ones_like(x), np.zeros_like(x))  # per sample: the general path, where the mask is applied
+    for step_mm in (None, 1.0):
+        ratio = Sampler(texture).ratio(x, y, step_mm=step_mm, direction=direction)
+        np.testing.assert_allclose(ratio, list(points.values()), atol=1e-6)
