@@ -6,10 +6,13 @@ after any garbage. The CRC-32 (IEEE 802.3, zlib's) covers type, seq and payload;
 and floats are little-endian. ``docs/protocol.md`` is the normative specification firmware authors
 follow; the constants below are the ones it names (a test checks the two against each other).
 
-A 12 kHz stream is sent as one SETPOINTS frame of 24 values every 2 ms:
+A 12 kHz stream is sent as one SETPOINTS frame of 12 values every 1 ms on a link with room for it
+(921 600 baud), else of 24 values every 2 ms:
 
->>> len(encode_frame(SETPOINTS, 1, setpoints_payload(0, 12000, np.zeros(24))))
-67
+>>> batch_s_for(921600, 12000), batch_s_for(460800, 12000)
+(0.001, 0.002)
+>>> len(encode_frame(SETPOINTS, 1, setpoints_payload(0, 12000, np.zeros(12))))
+43
 >>> setpoint_codes(np.array([0.0, 0.5, 1.0, 1.2]))
 array([    0, 32768, 65535, 65535], dtype=uint16)
 """
@@ -29,7 +32,9 @@ SUPPORTED_VERSIONS = (2,)
 MAX_BODY = 1024  # bytes of a decoded frame, header and CRC included
 SETPOINT_SCALE = 65535  # a setpoint of 65535 is the plate's full-scale drive
 MAX_SETPOINTS_PER_FRAME = 240
-BATCH_S = 0.002  # the host sends one SETPOINTS frame every 2 ms
+FAST_BATCH_S = 0.001  # the host sends one SETPOINTS frame every 1 ms where the link has room (batch_s_for)
+BATCH_S = 0.002  # and every 2 ms where it has not: fewer frames, less framing overhead
+FRAME_OVERHEAD_BYTES = 19  # a SETPOINTS frame of n <= 118 values is 19 + 2n bytes on the wire
 TELEMETRY_HZ = 50
 WATCHDOG_MS = 100  # no valid frame for this long while enabled: the device ramps to zero
 WATCHDOG_RAMP_MS = 20
@@ -38,6 +43,13 @@ PREFILL_MS = 10  # after running dry, the device plays again once this much is b
 ACK_DEADLINE_MS = 50  # the device answers a command within this long
 HOST_ACK_TIMEOUT_S = 2.0  # the host gives up on an answer after this long
 HOST_SILENCE_MS = 500  # no telemetry for this long: the host treats the device as gone
+
+
+def batch_s_for(baud: int, rate_hz: int) -> float:
+    """The host's frame period (s): 1 ms where a stream of ``rate_hz`` setpoints/s in 1 ms frames takes at most
+    half of a ``baud`` link (8N1, ten bits a byte), so a touch waits less for the next frame; else 2 ms."""
+    fast_bytes_per_s = FRAME_OVERHEAD_BYTES / FAST_BATCH_S + 2 * rate_hz
+    return FAST_BATCH_S if fast_bytes_per_s <= 0.5 * baud / 10 else BATCH_S
 MAX_SIM_FAULT_MS = 5000
 TRIP_MARGIN = 0.01  # the device trips above max_amplitude_um_pp × (1 + margin)
 

@@ -94,7 +94,7 @@ class SerialPlate:
     signal = "control"
 
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
-                 baudrate: int = 921600, batch_s: float = p.BATCH_S, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
+                 baudrate: int = 921600, batch_s: float | None = None, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
                  tracker: ResonanceTracker | None = None):
         self.port = port
         self.profile = profile
@@ -102,7 +102,7 @@ class SerialPlate:
         self.tracker = tracker
         self.carrier_hz = tracker.carrier_hz if tracker is not None else (carrier_hz or profile.resonance_hz)
         self.baudrate = baudrate
-        self.batch_s = batch_s
+        self.batch_s = batch_s or p.batch_s_for(baudrate, self.rate_hz)  # s between SETPOINTS frames
         self.ack_timeout_s = ack_timeout_s
         self.counters = SerialCounters()
         self.telemetry: p.Telemetry | None = None

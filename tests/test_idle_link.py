@@ -151,3 +151,29 @@ def test_the_firmware_output_stage_ticks_only_while_it_has_work():
     assert sim.amplitude_um_pp > 0.1 and sim.next_wake_s(t + 0.042) == TICK_S  # disabled, still ringing down
     sim.advance(t + 0.042 + 20 * PROFILE.q / (np.pi * PROFILE.resonance_hz))  # 20 time constants: e^-20 of it
     assert sim.amplitude_um_pp < 1e-6 and sim.next_wake_s(sim._clock) > TICK_S
+
+
+def test_a_921600_baud_link_streams_a_frame_every_millisecond(plate):
+    # 12 kHz in 1 ms frames is 43 000 bytes/s, under half of 921 600 baud (46 080 bytes/s): 12 values a frame,
+    # so a touch waits about 1 ms at most for the next one
+    sim = plate.simulator
+    receive, decoder, counts = sim.receive, p.FrameDecoder(), []
+
+    def tapped(data):
+        counts.extend(len(p.parse_setpoints(frame.payload)[2]) for frame in decoder.feed(data)
+                      if frame.kind == p.SETPOINTS)
+        return receive(data)
+
+    sim.receive = tapped
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)  # the default baud rate, 921 600
+    driver.start(Level(2.0))
+    try:
+        assert wait_for(lambda: len(counts) >= 200, timeout=60)
+    finally:
+        driver.stop()
+    assert driver.batch_s == 0.001
+    # a batch is pulled once 12 values are due; the writer's wake-up lands a little after, so 12-13 values;
+    # 2 ms frames would carry 24 or more
+    assert 12 <= np.median(counts[:200]) < 18
+    slow = SerialPlate(plate.path, PROFILE, baudrate=460800)  # half the link would not hold 1 ms frames
+    assert slow.batch_s == 0.002

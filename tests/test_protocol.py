@@ -140,6 +140,19 @@ def test_the_documents_byte_budget_is_the_framing():
         baud = int(link.split()[1])
         assert int(bytes_per_s.replace(" ", "")) == baud // 10  # 8N1: ten bits a byte
         assert int(fastest.removesuffix(" setpoints/s").replace(" ", "")) == round((baud // 10 - 9500) / 2, -1)
+    fast = len(p.encode_frame(p.SETPOINTS, 0xFFFF, p.setpoints_payload(0, 12000, np.full(12, 0.5))))
+    assert fast == 43 and fast * round(1 / p.FAST_BATCH_S) == 43000 and "43 bytes × 1000 frames = 43 000 bytes/s" in DOC
+
+
+def test_the_frame_period_is_1_ms_only_where_the_link_has_room():
+    # a 12 kHz stream in 1 ms frames: 1000 × (19 + 2 × 12) = 43 000 bytes/s; a 921 600 baud link carries
+    # 92 160 bytes/s, half of it 46 080 (fits); 460 800 baud: 23 040 (does not)
+    assert p.batch_s_for(921600, 12000) == 0.001
+    assert p.batch_s_for(460800, 12000) == 0.002
+    # 24 kHz: 19 000 + 48 000 = 67 000 bytes/s > 46 080: the 2 ms frames' smaller overhead; at 2 Mbaud it fits
+    assert p.batch_s_for(921600, 24000) == 0.002 and p.batch_s_for(2_000_000, 24000) == 0.001
+    # the boundary: 46 080 bytes/s is half of 921 600 baud; 43 000 + 2 × 1540 = 46 080 exactly
+    assert p.batch_s_for(921600, 13540) == 0.001 and p.batch_s_for(921600, 13541) == 0.002
 
 
 def test_setpoint_codes_round_to_nearest_with_ties_to_even():
