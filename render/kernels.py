@@ -187,6 +187,21 @@ def _table_point(r, f, start, per_step, values, slopes, force_nodes):
 
 
 @njit(cache=True, nogil=True)
+def _table_sample(r, f, limit, start, per_step, values, slopes, force_nodes, out, i):
+    """Writes one table amplitude (0 at a ratio of 1 or more, at most ``limit``) into ``out[i]``;
+    returns 1 where it was clamped at the limit."""
+    if r >= 1.0:
+        out[i] = 0.0
+        return 0
+    a = _table_point(r, f, start, per_step, values, slopes, force_nodes)
+    if a >= limit:
+        out[i] = limit
+        return 1
+    out[i] = a
+    return 0
+
+
+@njit(cache=True, nogil=True)
 def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, force_nodes, out):
     """Amplitudes from a table with one uniform-grid inverse per measured force, a force per sample.
     A ratio is clamped (and counted) where the amplitude reaches ``limit``; a bad ratio or force
@@ -197,15 +212,7 @@ def inverse_table_forces(ratio, force, limit, start, per_step, values, slopes, f
         f = force[i]
         if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
             return -1 - i
-        if r >= 1.0:
-            out[i] = 0.0
-            continue
-        a = _table_point(r, f, start, per_step, values, slopes, force_nodes)
-        if a >= limit:
-            out[i] = limit
-            clamped += 1
-        else:
-            out[i] = a
+        clamped += _table_sample(r, f, limit, start, per_step, values, slopes, force_nodes, out, i)
     return clamped
 
 
@@ -218,15 +225,7 @@ def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, fo
         r = np.float64(ratio[i])
         if not (0.0 <= r < np.inf):
             return -1 - i
-        if r >= 1.0:
-            out[i] = 0.0
-            continue
-        a = _table_point(r, force, start, per_step, values, slopes, force_nodes)
-        if a >= limit:
-            out[i] = limit
-            clamped += 1
-        else:
-            out[i] = a
+        clamped += _table_sample(r, force, limit, start, per_step, values, slopes, force_nodes, out, i)
     return clamped
 
 
