@@ -43,6 +43,8 @@ PREFILL_MS = 10  # after running dry, the device plays again once this much is b
 ACK_DEADLINE_MS = 50  # the device answers a command within this long
 HOST_ACK_TIMEOUT_S = 2.0  # the host gives up on an answer after this long
 HOST_SILENCE_MS = 500  # no telemetry for this long: the host treats the device as gone
+MAX_SIM_FAULT_MS = 5000
+TRIP_MARGIN = 0.01  # the device trips above max_amplitude_um_pp × (1 + margin)
 
 
 def batch_s_for(baud: int, rate_hz: int) -> float:
@@ -50,8 +52,7 @@ def batch_s_for(baud: int, rate_hz: int) -> float:
     half of a ``baud`` link (8N1, ten bits a byte), so a touch waits less for the next frame; else 2 ms."""
     fast_bytes_per_s = FRAME_OVERHEAD_BYTES / FAST_BATCH_S + 2 * rate_hz
     return FAST_BATCH_S if fast_bytes_per_s <= 0.5 * baud / 10 else BATCH_S
-MAX_SIM_FAULT_MS = 5000
-TRIP_MARGIN = 0.01  # the device trips above max_amplitude_um_pp × (1 + margin)
+
 
 # host → device
 HELLO = 0x01
