@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Mutation testing of the signal path with mutmut 2 (a periodic check, not run in CI).
-#   scripts/mutation.sh [FILE ...]     default: the envelope, renderer, drive limiter and texture sampling
+#   scripts/mutation.sh [FILE ...]     default: the envelope, renderer, drive limiter, texture sampling, carrier and
+#                                      friction models (the signal path in Python; the numba kernels only on request)
 # Works on a copy of the repository (mutmut 2 edits files in place), with the namespace laid out as one
 # tree there (links in the copy's ultraglide/) so that the tests import the mutated copy. Each mutant
 # runs only the quick tests of its file (scripts/mutmut_config.py, `-x`, numba's cache warm); a mutant
@@ -14,12 +15,13 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 files=("$@")
-[ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/limiter.py textures/sampling.py)
+[ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/limiter.py textures/sampling.py devices/carrier.py
+                                  render/friction_models.py)
 # the second run's tests: the quick signal-path ones, without the real-time device and engine tests, which a
 # process at nice 19 on a loaded machine starves (a missed watchdog deadline fails the baseline)
 tests=${MUTATION_TESTS:-"tests/test_mutants_*.py tests/test_renderer.py tests/test_blind_spots.py \
 tests/test_limiter.py tests/test_textures.py tests/test_effects.py tests/test_friction_models.py tests/test_doctests.py \
-tests/test_export_parallel.py tests/test_api.py"}
+tests/test_export_parallel.py tests/test_api.py tests/test_block_path.py tests/test_calibration.py"}
 [ -x .venv/bin/python ] || { echo "mutation.sh: no .venv here; run ./run tests first" >&2; exit 1; }
 .venv/bin/python -c 'import mutmut' 2>/dev/null || .venv/bin/python -m pip install -q -e ".[mutation]"
 

@@ -26,6 +26,10 @@ TESTS = {
     "textures/sampling.py": ["tests/test_mutants_sampling.py",
                              "tests/test_doctests.py::test_docstring_examples[ultraglide.textures.sampling]",
                              "tests/test_textures.py", "tests/test_blind_spots.py"],
+    "devices/carrier.py": ["tests/test_mutants_carrier.py", "tests/test_renderer.py", "tests/test_block_path.py"],
+    "render/friction_models.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
+                                  "tests/test_doctests.py::test_docstring_examples[ultraglide.render.friction_models]",
+                                  "tests/test_calibration.py"],
 }
 
 
