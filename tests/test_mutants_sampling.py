@@ -192,3 +192,69 @@ def test_a_fixed_outside_starts_exactly_at_the_edges(kind):
     for step_mm in (None, 1.0):
         ratio = Sampler(texture).ratio(x, y, step_mm=step_mm, direction=direction)
         np.testing.assert_allclose(ratio, list(points.values()), atol=1e-6)
+
+
+def _two_way_slopes():
+    """Heights 0.5 + 0.25 sin(2 pi i / 16) + 0.2 cos(2 pi j / 10), tiled, on 16 x 10 pixels of 0.5 x 2 mm,
+    read at the pixel centres, where bilinear reads a pixel's own slope: the central differences
+    d/dx = 0.25 cos(2 pi i / 16) sin(2 pi / 16) / 0.5 and d/dy = -0.2 sin(2 pi j / 10) sin(2 pi / 10) / 2
+    per mm; ratios 0.2..0.9 with a slope of 1 per mm reaching an end (0.35 from flat ground, 0.55)."""
+    i, j = np.meshgrid(np.arange(16), np.arange(10))
+    values = (0.5 + 0.25 * np.sin(2 * np.pi * i / 16) + 0.2 * np.cos(2 * np.pi * j / 10)).astype(np.float32)
+    texture = Texture(values, 8.0, 20.0, kind="gradient", ratio_range=(0.2, 0.9), full_slope_per_mm=1.0)
+    x, y = (i.ravel() + 0.5) * 0.5, (j.ravel() + 0.5) * 2.0
+    slope_x = 0.25 * np.cos(2 * np.pi * i.ravel() / 16) * np.sin(2 * np.pi / 16) / 0.5
+    slope_y = -0.2 * np.sin(2 * np.pi * j.ravel() / 10) * np.sin(2 * np.pi / 10) / 2.0
+    return Sampler(texture), x, y, slope_x, slope_y
+
+
+HEIGHT_PATHS = ["live block", "one direction", "direction per sample"]
+
+
+def _read_along(sampler, x, y, step_mm, direction, path):
+    """A height map read by one of its paths: the live block's compiled pass (``out=``), one direction for
+    the query (compiled at full resolution), or a direction per sample (numpy)."""
+    if path == "live block":
+        return sampler.ratio(x, y, step_mm, direction, out=np.empty(x.shape, np.float32))
+    if path == "direction per sample" and direction is not None:
+        direction = tuple(np.full(x.shape, d) for d in direction)
+    return sampler.ratio(x, y, step_mm, direction)
+
+
+@pytest.mark.parametrize("path", HEIGHT_PATHS)
+@pytest.mark.parametrize("direction", [None, (0.0, 0.0)], ids=["absent", "zero"])
+def test_a_height_map_read_at_rest_is_flat_ground_by_every_path(path, direction):
+    sampler, x, y, _, _ = _two_way_slopes()
+    assert sampler.levels == 3  # 10 x 16, 5 x 8, 2 x 4 pixels; the larger side of a pixel is 2 mm
+    for step_mm in (None, 1.0, 3.0, 5.0, 100.0):  # full resolution, blends of two levels, the top one
+        np.testing.assert_allclose(_read_along(sampler, x, y, step_mm, direction, path), 0.55, atol=1e-6)
+
+
+@pytest.mark.parametrize("path", HEIGHT_PATHS)
+@pytest.mark.parametrize("direction", [(0.5, 0.0), (0.0, -0.25), (0.3, 0.4), (-3.0, 4.0)])
+def test_a_height_map_reads_its_slope_along_the_motion_whatever_the_length_of_the_direction(path, direction):
+    sampler, x, y, slope_x, slope_y = _two_way_slopes()
+    length = np.hypot(*direction)  # under 1, 1 and over 1: only the direction counts
+    expected = 0.55 + 0.35 * (slope_x * direction[0] + slope_y * direction[1]) / length
+    np.testing.assert_allclose(_read_along(sampler, x, y, None, direction, path), expected, atol=2e-6)
+
+
+@pytest.mark.parametrize(("kind", "path"), [("friction", "live block"), ("gradient", "live block"),
+                                            ("friction", "step per sample")])
+def test_a_fixed_outside_starts_exactly_at_the_edges_in_the_compiled_passes(kind, path):
+    """As the general path above, through the live block's compiled pass (any kind, one step and one
+    direction for the block) and the compiled per-sample pass (an export's, friction maps)."""
+    values = np.full((20, 40), 0.75, dtype=np.float32)
+    extra = {"ratio_range": (0.5, 1.0)} if kind == "gradient" else {}
+    texture = Texture(values, 10.0, 5.0, kind=kind, outside="fixed", outside_ratio=0.25, **extra)
+    points = {(-0.001, 2.0): 0.25, (0.0, 2.0): 0.75, (0.5, 2.0): 0.75, (9.999, 2.0): 0.75, (10.0, 2.0): 0.25,
+              (4.0, -0.001): 0.25, (4.0, 0.0): 0.75, (4.0, 0.5): 0.75, (4.0, 4.999): 0.75, (4.0, 5.0): 0.25,
+              (-30.0, -30.0): 0.25, (55.0, 2.0): 0.25}
+    x, y = (np.array(axis, dtype=np.float64) for axis in zip(*points, strict=True))
+    sampler = Sampler(texture)
+    for step_mm in (None, 0.1, 1.0):
+        if path == "live block":
+            ratio = sampler.ratio(x, y, step_mm, (1.0, 0.0), out=np.empty(x.shape, np.float32))
+        else:
+            ratio = sampler.ratio(x, y, np.full(x.shape, 0.1 if step_mm is None else step_mm))
+        np.testing.assert_allclose(ratio, list(points.values()), atol=1e-6)
