@@ -208,12 +208,14 @@ def _two_way_slopes():
     return Sampler(texture), x, y, slope_x, slope_y
 
 
-HEIGHT_PATHS = ["live block", "one direction", "direction per sample"]
+HEIGHT_PATHS = ["live block", "one direction", "direction per sample", "grid, one direction"]
 
 
 def _read_along(sampler, x, y, step_mm, direction, path):
     """A height map read by one of its paths: the live block's compiled pass (``out=``), one direction for
-    the query (compiled at full resolution), or a direction per sample (numpy)."""
+    the query (compiled at full resolution), a direction per sample (numpy), or positions in a grid (numpy)."""
+    if path == "grid, one direction":
+        return sampler.ratio(x.reshape(10, 16), y.reshape(10, 16), step_mm, direction).ravel()
     if path == "live block":
         return sampler.ratio(x, y, step_mm, direction, out=np.empty(x.shape, np.float32))
     if path == "direction per sample" and direction is not None:
@@ -258,3 +260,19 @@ def test_a_fixed_outside_starts_exactly_at_the_edges_in_the_compiled_passes(kind
         else:
             ratio = sampler.ratio(x, y, np.full(x.shape, 0.1 if step_mm is None else step_mm))
         np.testing.assert_allclose(ratio, list(points.values()), atol=1e-6)
+
+
+def test_a_query_that_is_not_a_live_block_writes_its_ratios_into_out():
+    """``out=`` with positions in a grid, in float32 or as lists, or a step per sample: not the live block's
+    one compiled pass, but the same ratios, written into ``out``. Read at the pixel centres of a 4 x 5 map
+    of 1 mm pixels, bilinear gives each pixel's own value."""
+    values = (np.arange(20).reshape(4, 5) / 20).astype(np.float32)
+    sampler = Sampler(Texture(values, 5.0, 4.0))
+    x, y = np.meshgrid(np.arange(5) + 0.5, np.arange(4) + 0.5)
+    queries = {"grid": (x, y, None), "float32": (x.ravel().astype(np.float32), y.ravel().astype(np.float32), None),
+               "lists": (list(x.ravel()), list(y.ravel()), None), "step per sample": (x.ravel(), y.ravel(),
+                                                                                    np.zeros(20))}
+    for name, (qx, qy, step_mm) in queries.items():
+        out = np.full(np.shape(qx), np.nan, dtype=np.float32)
+        assert sampler.ratio(qx, qy, step_mm, out=out) is out
+        np.testing.assert_allclose(out, values.reshape(out.shape), atol=1e-6, err_msg=name)
