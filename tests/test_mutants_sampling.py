@@ -276,3 +276,17 @@ def test_a_query_that_is_not_a_live_block_writes_its_ratios_into_out():
         out = np.full(np.shape(qx), np.nan, dtype=np.float32)
         assert sampler.ratio(qx, qy, step_mm, out=out) is out
         np.testing.assert_allclose(out, values.reshape(out.shape), atol=1e-6, err_msg=name)
+
+
+@pytest.mark.parametrize("kind", [{}, {"kind": "gradient", "ratio_range": (0.2, 0.9), "full_slope_per_mm": 2.0}],
+                         ids=["friction", "gradient"])
+def test_a_lookup_that_is_not_band_limited_reads_full_resolution_in_a_live_block_at_any_step(kind):
+    texture, x, y, along = _sine_strip("x", **kind)
+    sampler = Sampler(texture, band_limited=False)
+    assert sampler.levels == 1
+    plain = sampler.ratio(x, y, direction=(1.0, 0.0))
+    for step_mm in (None, 0.25, 2.0):
+        live = sampler.ratio(x, y, step_mm, (1.0, 0.0), out=np.empty(x.shape, np.float32))
+        np.testing.assert_allclose(live, plain, atol=1e-6)
+    if not kind:  # a friction map: the sine itself, its amplitude read bilinearly at 16 pixels a period
+        assert _gain(plain, along) == pytest.approx(_level_gain(0), abs=2e-3)
