@@ -290,3 +290,14 @@ def test_a_lookup_that_is_not_band_limited_reads_full_resolution_in_a_live_block
         np.testing.assert_allclose(live, plain, atol=1e-6)
     if not kind:  # a friction map: the sine itself, its amplitude read bilinearly at 16 pixels a period
         assert _gain(plain, along) == pytest.approx(_level_gain(0), abs=2e-3)
+
+
+def test_a_height_map_with_a_step_or_a_direction_per_sample_reads_its_slopes_also_into_out():
+    sampler, x, y, slope_x, slope_y = _two_way_slopes()
+    direction = (np.full(x.shape, 0.6), np.full(x.shape, -0.8))
+    expected = 0.55 + 0.35 * (0.6 * slope_x - 0.8 * slope_y)
+    steps = np.full(x.shape, 0.5)  # finer than the 2 mm pixels: full resolution
+    np.testing.assert_allclose(sampler.ratio(x, y, steps, direction), expected, atol=2e-6)
+    out = np.full(x.shape, np.nan, dtype=np.float32)
+    assert sampler.ratio(x, y, None, direction, out=out) is out
+    np.testing.assert_allclose(out, expected, atol=2e-6)
