@@ -1,0 +1,82 @@
+"""Friction models, pinned where scripts/mutation.sh found the quick tests silent: the default force (0.5 N)
+and the force range (10 mN to 10 N), the 20 µm ceiling no model is evaluated beyond, the uniform table's
+first and last intervals, and the one-line refusals word for word (the first bad value named). Expected
+values come from the laws by hand: the stretched law exp(-(a / s)^beta) with s = s0 (F / 0.5 N)^p gives
+a = s (ln(1 / ratio))^(1 / beta)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from ultraglide.render.errors import ModelError
+from ultraglide.render.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel, UniformTable
+
+S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
+
+
+def _stretched_amplitude(ratio: float, force_n: float) -> float:
+    return S0 * (force_n / 0.5) ** (1 / 3) * np.sqrt(np.log(1 / ratio))
+
+
+def test_a_model_asked_without_a_force_works_at_half_a_newton():
+    model = StretchedExponentialModel()
+    assert float(model.amplitude_um_pp(0.5).amplitude_um_pp[()]) == pytest.approx(_stretched_amplitude(0.5, 0.5))
+    assert float(model.relative_friction(S0)) == pytest.approx(np.exp(-1.0))  # 1/e at s0, at 0.5 N
+    assert float(model.floor_ratio(limit_um_pp=S0)) == pytest.approx(np.exp(-1.0))
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["compiled", "numpy"])
+def test_forces_beyond_10_n_count_as_10_n_and_below_10_mn_as_10_mn(fast):
+    model = StretchedExponentialModel()
+    ratio = np.array([0.5, 0.5, 0.5, 0.5])
+    forces = np.array([10.0, 25.0, 0.01, 0.001])
+    if fast:
+        got = model.amplitude_um_pp(ratio, forces).amplitude_um_pp
+    else:  # a 2-d query takes the numpy path
+        got = model.amplitude_um_pp(ratio.reshape(2, 2), forces.reshape(2, 2)).amplitude_um_pp.ravel()
+    expected = [_stretched_amplitude(0.5, 10.0)] * 2 + [_stretched_amplitude(0.5, 0.01)] * 2
+    np.testing.assert_allclose(got, expected, rtol=1e-9)
+    assert float(model.scale_at_um_pp(40.0)) == pytest.approx(S0 * 20 ** (1 / 3))
+
+
+@pytest.mark.parametrize("fast", [True, False], ids=["compiled", "numpy"])
+def test_no_model_asks_for_more_than_20_um_without_a_limit(fast):
+    model = StretchedExponentialModel()
+    floor = np.exp(-(20.0 / S0) ** 2)  # the ratio at 20 µm p-p, 0.5 N: about 3e-13
+    assert float(model.floor_ratio()) == pytest.approx(floor, rel=1e-9)
+    ratio = np.array([0.0, 0.0, 0.5, 1.0])
+    result = model.amplitude_um_pp(ratio if fast else ratio.reshape(2, 2))
+    np.testing.assert_allclose(result.amplitude_um_pp.ravel(), [20.0, 20.0, _stretched_amplitude(0.5, 0.5), 0.0],
+                               rtol=1e-9)
+    assert result.clamped == 2  # a ratio of 0 is a valid target, out of reach: held at the ceiling, counted
+    assert PaperModel().max_amplitude_um_pp == 20.0
+
+
+def test_a_uniform_table_interpolates_in_its_first_and_last_intervals():
+    table = UniformTable(0.0, 4.0, np.array([0.0, 1.0, 4.0, 9.0, 16.0]))  # x^2 at 0, 1, 2, 3, 4
+    np.testing.assert_allclose(table(np.array([-1.0, 0.0, 0.25, 0.5, 3.5, 3.75, 4.0, 5.0])),
+                               [0.0, 0.0, 0.25, 0.5, 12.5, 14.25, 16.0, 16.0])  # held beyond the ends
+    rows = UniformTable(1.0, 3.0, np.array([[0.0, 2.0, 6.0], [1.0, 1.0, 0.0]]))
+    np.testing.assert_allclose(rows(np.array([1.5, 3.0]), row=1), [1.0, 0.0])
+    np.testing.assert_allclose(rows(2.5), 4.0)
+
+
+def test_bad_forces_are_refused_naming_the_first_bad_value():
+    model = StretchedExponentialModel()
+    with pytest.raises(ModelError) as error:
+        model.relative_friction(1.0, -0.1)
+    assert str(error.value) == "normal force must be a finite number >= 0 N, got -0.1"
+    for forces, named in (([0.5, -1.0, np.nan], "-1.0"), ([0.5, np.inf], "inf"), ([np.nan, -2.0], "nan")):
+        with pytest.raises(ModelError) as error:
+            model.relative_friction(1.0, np.array(forces))
+        assert str(error.value) == f"normal force must be a finite number >= 0 N, got {named}"
+    model.relative_friction(1.0, np.array([0.0, 0.5, 1e6]))  # zero and huge forces are fine (clipped)
+
+
+def test_bad_ratios_are_refused_in_words_and_zero_is_a_ratio():
+    model = ExponentialModel()
+    with pytest.raises(ModelError) as error:
+        model.amplitude_um_pp(np.array([[0.5, -0.25]]))
+    assert str(error.value) == "friction ratio must be a finite number >= 0 (1 = plate at rest), got -0.25"
+    assert model.amplitude_um_pp(np.array([[0.0]]), limit_um_pp=5.0).amplitude_um_pp[0, 0] == 5.0
+
