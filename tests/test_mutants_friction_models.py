@@ -9,7 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ultraglide.render.errors import ModelError
-from ultraglide.render.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel, UniformTable
+from ultraglide.render.friction_models import (
+    ExponentialModel,
+    FrictionModel,
+    PaperModel,
+    StretchedExponentialModel,
+    UniformTable,
+)
 
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
@@ -80,3 +86,47 @@ def test_bad_ratios_are_refused_in_words_and_zero_is_a_ratio():
     assert str(error.value) == "friction ratio must be a finite number >= 0 (1 = plate at rest), got -0.25"
     assert model.amplitude_um_pp(np.array([[0.0]]), limit_um_pp=5.0).amplitude_um_pp[0, 0] == 5.0
 
+
+
+def test_bad_amplitudes_and_limits_are_refused_in_words_and_a_zero_limit_is_a_limit():
+    model = ExponentialModel()
+    with pytest.raises(ModelError) as error:
+        model.relative_friction(np.array([1.0, -3.0]))
+    assert str(error.value) == "amplitude must be a finite number >= 0 µm p-p, got -3.0"
+    with pytest.raises(ModelError) as error:
+        model.amplitude_um_pp(np.array([0.5]), limit_um_pp=-1.0)
+    assert str(error.value) == "the amplitude limit must be >= 0 µm, got -1.0"
+    for ratio in (np.array([0.5, 1.0]), np.array([[0.5, 1.0]])):  # the compiled path and the numpy path
+        stopped = model.amplitude_um_pp(ratio, limit_um_pp=0.0)  # a plate that may not move: every ratio under 1
+        np.testing.assert_array_equal(stopped.amplitude_um_pp.ravel(), [0.0, 0.0])  # is out of reach
+        assert stopped.clamped == 1
+        half = model.amplitude_um_pp(ratio, limit_um_pp=0.5)
+        np.testing.assert_allclose(half.amplitude_um_pp.ravel(), [0.5, 0.0])
+        assert half.clamped == 1
+
+
+@pytest.mark.parametrize("shape", [(4,), (2, 2)], ids=["compiled", "numpy"])
+def test_amplitudes_are_written_into_out_by_every_path(shape):
+    model = StretchedExponentialModel()
+    ratio = np.array([0.5, 0.8, 1.0, 0.5]).reshape(shape)
+    forces = np.array([0.5, 0.5, 2.0, 4.0]).reshape(shape)
+    out = np.full(shape, np.nan)
+    result = model.amplitude_um_pp(ratio, forces, out=out)
+    assert result.amplitude_um_pp is out
+    expected = [_stretched_amplitude(0.5, 0.5), _stretched_amplitude(0.8, 0.5), 0.0, _stretched_amplitude(0.5, 4.0)]
+    np.testing.assert_allclose(out.ravel(), expected, rtol=1e-9)
+    single = np.full(shape, np.nan, dtype=np.float32)  # float32: not the kernels' type, written all the same
+    assert model.amplitude_um_pp(ratio, forces, out=single).amplitude_um_pp is single
+    np.testing.assert_allclose(single.ravel(), expected, rtol=1e-6)
+
+
+@pytest.mark.parametrize("missing", ["relative_friction", "_amplitude_in_reach", "describe"])
+def test_a_model_must_give_its_forward_law_its_inverse_and_a_description(missing):
+    methods = {"relative_friction": lambda self, amplitude_um_pp, force_n=0.5: np.ones(np.shape(amplitude_um_pp)),
+               "_amplitude_in_reach": lambda self, ratio, force_n: np.zeros(np.shape(ratio)),
+               "describe": lambda self: "a model"}
+    del methods[missing]
+    with pytest.raises(TypeError, match=missing):
+        type("Incomplete", (FrictionModel,), methods)()
+    methods[missing] = lambda *args: None
+    type("Complete", (FrictionModel,), methods)()
