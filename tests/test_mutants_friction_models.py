@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from ultraglide.render.calibration import load_model, model_kind
 from ultraglide.render.errors import ModelError
+from ultraglide.render.fingerprint import FingerParams
 from ultraglide.render.friction_models import (
     ExponentialModel,
     FrictionModel,
@@ -16,6 +18,7 @@ from ultraglide.render.friction_models import (
     StretchedExponentialModel,
     UniformTable,
 )
+from ultraglide.render.normal_contact import relative_friction
 
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
@@ -130,3 +133,50 @@ def test_a_model_must_give_its_forward_law_its_inverse_and_a_description(missing
         type("Incomplete", (FrictionModel,), methods)()
     methods[missing] = lambda *args: None
     type("Complete", (FrictionModel,), methods)()
+
+
+def test_the_paper_models_table_follows_the_direct_integration_over_every_force_and_amplitude():
+    """The tabulated law against :func:`render.normal_contact.relative_friction` (the paper's integral done
+    afresh at each point) from 10 mN to 10 N and 0 to the 20 µm ceiling: the 384 nodes, dense where the
+    curve bends near rest, keep it within 2e-4 of the ratio."""
+    model = PaperModel()
+    amplitude = np.linspace(0.0, 20.0, 81)
+    for force in (0.01, 0.1, 0.5, 2.0, 10.0):
+        np.testing.assert_allclose(model.relative_friction(amplitude, force), relative_friction(amplitude, force),
+                                   atol=2e-4, err_msg=f"{force} N")
+    # and its inverse by the numpy path (a 2-d query) gives the amplitude that the law maps back to the ratio
+    ratio = np.linspace(float(model.floor_ratio(0.5)) + 1e-3, 1.0, 40).reshape(5, 8)
+    found = model.amplitude_um_pp(ratio, 0.5).amplitude_um_pp
+    np.testing.assert_allclose(relative_friction(found, 0.5), ratio, atol=2e-4)
+    np.testing.assert_allclose(found.ravel(), model.amplitude_um_pp(ratio.ravel(), 0.5).amplitude_um_pp, rtol=1e-9)
+
+
+def test_the_paper_model_describes_itself_and_gives_its_finger_parameters():
+    params = FingerParams(youngs_modulus_pa=2.5e6, friction_exponent=0.5, area_exponent=0.6, contact="uniform")
+    model = PaperModel(params)
+    assert model.describe() == ("paper: ridge springs with non-Coulombic friction (E = 2.5 MPa, n = 0.5, A ∝ F^0.6, "
+                                "uniform contact)")
+    assert model.parameters() == {"youngs_modulus_pa": 2.5e6, "friction_exponent": 0.5, "area_exponent": 0.6}
+    assert model_kind(model) == "paper-uniform"
+
+
+@pytest.mark.parametrize(("model", "kind"), [(StretchedExponentialModel(), "stretched"),
+                                             (ExponentialModel(), "exponential")])
+def test_a_model_is_named_in_calibration_files_by_its_kind(model, kind):
+    assert model_kind(model) == kind
+    assert type(load_model(kind)) is type(model)
+
+
+def test_the_stretched_models_parameters_are_refused_outside_their_ranges_in_words():
+    for exponent in (-2.0, 2.0):  # the ends are allowed
+        assert StretchedExponentialModel(force_exponent=exponent).force_exponent == exponent
+    refusals = {"force_exponent": (2.01, "force_exponent must lie in [-2, 2], got 2.01"),
+                "shape": (9.0, "shape must lie in [0.3, 8], got 9.0"),
+                "scale_um_pp": (200.0, "scale_um_pp must lie in [0.05, 100] µm p-p, got 200.0")}
+    for name, (value, message) in refusals.items():
+        with pytest.raises(ModelError) as error:
+            StretchedExponentialModel(**{name: value})
+        assert str(error.value) == message
+    with pytest.raises(ModelError) as error:
+        StretchedExponentialModel(force_exponent=-2.01)
+    assert str(error.value) == "force_exponent must lie in [-2, 2], got -2.01"
