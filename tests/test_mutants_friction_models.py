@@ -16,8 +16,10 @@ from ultraglide.render.friction_models import (
     FrictionModel,
     PaperModel,
     StretchedExponentialModel,
+    TableModel,
     UniformTable,
 )
+from ultraglide.render.measurements import Measurements
 from ultraglide.render.normal_contact import relative_friction
 
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
@@ -180,3 +182,52 @@ def test_the_stretched_models_parameters_are_refused_outside_their_ranges_in_wor
     with pytest.raises(ModelError) as error:
         StretchedExponentialModel(force_exponent=-2.01)
     assert str(error.value) == "force_exponent must lie in [-2, 2], got -2.01"
+
+
+def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_um():
+    model = ExponentialModel(1.0)
+    at_rest_force = model.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp
+    np.testing.assert_allclose(model.amplitude_um_pp(np.array([0.5]), 4.0).amplitude_um_pp, at_rest_force)
+    np.testing.assert_allclose(at_rest_force, 2 * np.sqrt(2) * np.sqrt(np.log(2)))  # a_pp = 2 sqrt 2 tau sqrt(ln 2)
+    assert model.describe() == "exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak"
+    assert model.parameters() == {"tau_um_zp": 1.0}
+    assert ExponentialModel(35.0).tau_um_zp == 35.0
+    with pytest.raises(ModelError) as error:
+        ExponentialModel(35.5)
+    assert str(error.value) == "tau_um_zp must lie in [0.02, 35] µm zero-to-peak, got 35.5"
+
+
+def test_the_stretched_model_describes_itself():
+    model = StretchedExponentialModel(3.0, 1.5, 0.25)
+    assert model.describe() == "stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5"
+
+
+def test_a_table_model_needs_two_amplitudes_a_force_and_names_its_source():
+    two = Measurements(np.array([0.0, 4.0]), np.array([1.0, 0.2]), None, "two.csv")
+    model = TableModel(two)
+    assert model_kind(model) == "table"
+    assert model.describe() == "table: two.csv (0.5 N, up to 4 µm p-p)"
+    assert float(model.relative_friction(4.0)) == pytest.approx(0.2, abs=1e-6)
+    with pytest.raises(ModelError) as error:
+        TableModel(Measurements(np.array([2.0, 2.0]), np.array([1.0, 0.5]), None, "one.csv"))
+    assert str(error.value) == "one.csv: at 0.5 N there must be two amplitudes or more"
+
+
+@pytest.mark.parametrize("shape", [(5,), (5, 1)], ids=["compiled", "numpy"])
+def test_a_table_at_three_forces_interpolates_the_amplitude_linearly_in_force(shape):
+    # ratio = 1 - a / (10 F) at 0.5, 1 and 2 N, measured at 0, 2 and 4 µm: a ratio of 0.9 needs a = F µm
+    amplitude = np.tile([0.0, 2.0, 4.0], 3)
+    forces = np.repeat([0.5, 1.0, 2.0], 3)
+    model = TableModel(Measurements(amplitude, 1 - amplitude / (10 * forces), forces, "three.csv"))
+    asked = np.array([0.5, 1.0, 1.5, 2.0, 3.0]).reshape(shape)  # 3 N: beyond the last force, held at 2 N
+    found = model.amplitude_um_pp(np.full(shape, 0.9), asked).amplitude_um_pp
+    np.testing.assert_allclose(found.ravel(), [0.5, 1.0, 1.5, 2.0, 2.0], rtol=1e-3)
+    assert model.describe() == "table: three.csv (0.5, 1, 2 N, up to 4 µm p-p)"
+    assert model.parameters() == {"source": "three.csv"}
+
+
+def test_a_table_measured_above_1_near_rest_still_rests_at_a_ratio_of_1():
+    # measurement noise above 1 at 0 µm: friction cannot rise above the plate at rest, so 1 needs no vibration
+    model = TableModel(Measurements(np.array([0.0, 2.0, 4.0]), np.array([1.1, 0.5, 0.2]), None, "noisy.csv"))
+    assert float(model.relative_friction(0.0)) == pytest.approx(1.0, abs=1e-9)
+    assert model.amplitude_um_pp(np.array([1.0, 1.0])).amplitude_um_pp.tolist() == [0.0, 0.0]
