@@ -226,6 +226,22 @@ def test_a_table_at_three_forces_interpolates_the_amplitude_linearly_in_force(sh
     assert model.parameters() == {"source": "three.csv"}
 
 
+@pytest.mark.parametrize("shape", [(4,), (4, 1)], ids=["compiled", "numpy"])
+def test_a_table_at_three_forces_reads_between_the_two_forces_around_each_force(shape):
+    # ratio = 1 - a / (10 g) with g = 0.5, 1 and 4 at 0.5, 1 and 2 N: not linear in force, so the pair of rows
+    # matters. A ratio of 0.95 needs a = g / 2: 0.25, 0.5 and 2 µm; between rows, linear in force:
+    # 0.75 N -> (0.25 + 0.5) / 2 = 0.375; 1.5 N -> (0.5 + 2) / 2 = 1.25. Extrapolating from the wrong pair
+    # would give 0.125 at 0.75 N (rows at 1 and 2 N) and 0.75 at 1.5 N (rows at 0.5 and 1 N).
+    amplitude = np.tile([0.0, 2.0, 4.0], 3)
+    forces = np.repeat([0.5, 1.0, 2.0], 3)
+    g = np.repeat([0.5, 1.0, 4.0], 3)
+    model = TableModel(Measurements(amplitude, 1 - amplitude / (10 * g), forces, "curved.csv"))
+    asked = np.array([0.6, 0.75, 1.5, 1.9]).reshape(shape)
+    found = model.amplitude_um_pp(np.full(shape, 0.95), asked).amplitude_um_pp
+    expected = [0.25 + 0.25 * 0.2, 0.375, 1.25, 0.5 + 1.5 * 0.9]
+    np.testing.assert_allclose(found.ravel(), expected, rtol=1e-3)
+
+
 def test_a_table_measured_above_1_near_rest_still_rests_at_a_ratio_of_1():
     # measurement noise above 1 at 0 µm: friction cannot rise above the plate at rest, so 1 needs no vibration
     model = TableModel(Measurements(np.array([0.0, 2.0, 4.0]), np.array([1.1, 0.5, 0.2]), None, "noisy.csv"))
