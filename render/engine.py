@@ -41,6 +41,7 @@ from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_process import engine_main
 from ultraglide.render.engine_shm import SharedBlock, ring_order
 from ultraglide.render.errors import RenderError
+from ultraglide.render.realtime import keep_huge_pages_out
 
 if TYPE_CHECKING:
     from ultraglide.textures.texture import Texture
@@ -61,7 +62,9 @@ class EngineConfig:
     ``model``: a model name or file; ``profile``: a plate profile;
     ``device``: a device URL (sim, serial:PORT, audio[...], wav:PATH, null). ``rate_hz`` is the audio rate
     of the wav and null sinks (an audio device picks its own). ``probe_plate`` watches the simulated
-    plate's amplitude (``sim`` only; for latency measurement).
+    plate's amplitude (``sim`` only; for latency measurement). ``realtime_priority`` runs the block thread
+    in real time where the OS allows and keeps the kernel's huge-page work away from the engine and from
+    the process that starts it (:mod:`render.realtime`).
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
@@ -165,7 +168,11 @@ class Engine:
     @classmethod
     def start(cls, config: EngineConfig, timeout_s: float = START_TIMEOUT_S) -> Engine:
         """Spawn the engine; returns once its inputs are loaded and its device is open.
-        Raises :class:`EngineError` (one line) if the texture, model, profile or device is bad."""
+        Raises :class:`EngineError` (one line) if the texture, model, profile or device is bad.
+        With ``config.realtime_priority`` the calling process (the UI beside the engine) gets transparent
+        huge pages turned off too: khugepaged collapsing its memory holds a CPU the block thread needs."""
+        if config.realtime_priority:
+            keep_huge_pages_out()
         context = multiprocessing.get_context("spawn")
         shared = SharedBlock.create()
         parent, child = context.Pipe()

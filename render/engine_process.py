@@ -25,61 +25,13 @@ from ultraglide.devices.errors import describe
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_shm import SharedBlock
+from ultraglide.render.realtime import keep_huge_pages_out, raise_other_threads, raise_priority
 
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
 STATUS_PERIOD_S = 0.1
-FIFO_PRIORITY = 60
-OTHER_THREADS_PRIORITY = 1
 PROBE_THRESHOLD_UM_PP = 0.05
 PROBE_PERIOD_S = 0.0002
 RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
-
-
-def raise_priority() -> str:
-    """Raise the calling thread's scheduling priority as far as the OS allows; says what it got.
-    A thread the audio system already runs in real time (JACK's clients) keeps the priority it was given,
-    which JACK orders below its own server thread."""
-    try:
-        policy = os.sched_getscheduler(0)
-        # (priority OTHER_THREADS_PRIORITY is ours, from raise_other_threads racing the first block)
-        if policy in (os.SCHED_FIFO, os.SCHED_RR) and os.sched_getparam(0).sched_priority > OTHER_THREADS_PRIORITY:
-            name = "SCHED_FIFO" if policy == os.SCHED_FIFO else "SCHED_RR"
-            return f"{name} {os.sched_getparam(0).sched_priority} (given by the audio system)"
-    except (OSError, AttributeError):
-        pass
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FIFO_PRIORITY))
-        return f"SCHED_FIFO {FIFO_PRIORITY}"
-    except (OSError, AttributeError):
-        pass
-    for nice in (-15, -10, -5):
-        try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)  # per thread on Linux
-            return f"nice {nice}"
-        except (OSError, AttributeError):
-            continue
-    return "normal (no permission to raise it)"
-
-
-def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
-    """Run every other thread of this process in real time too, at the lowest real-time priority.
-
-    All of them take the GIL now and then (the command thread, a serial reader, the simulated plate);
-    one preempted by an ordinary process while it holds the GIL would stall the block thread for a
-    whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
-    audio server, above everything ordinary, and they sleep almost all the time."""
-    raised = 0
-    try:
-        for tid in map(int, os.listdir("/proc/self/task")):
-            try:
-                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
-                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-                    raised += 1
-            except (ProcessLookupError, PermissionError):
-                continue
-    except (OSError, AttributeError):
-        return "other threads: normal"
-    return f"other threads: SCHED_FIFO {priority} ({raised})" if raised else "other threads: normal"
 
 
 class _Envelope:
@@ -304,6 +256,7 @@ def _user_errors():
 def engine_main(config, shared_name: str, conn) -> None:
     """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
+    pages = keep_huge_pages_out() if config.realtime_priority else "huge pages: as the system has them"
     stop_requested = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop_requested.set())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the app, which stops the engine in order
@@ -343,6 +296,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         probe = _PlateProbe(device.plate.simulator, shared.fast)
         probe.start()
     threads = raise_other_threads() if config.realtime_priority else "other threads: normal"
+    threads = f"{threads}; {pages}"
     source.threads = threads
     conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
                          "tail_s": renderer.tail_s, "device_status": _device_status(device)}))

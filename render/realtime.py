@@ -1,0 +1,89 @@
+"""What a process does to keep the block thread on time: its scheduling, and the kernel's huge-page work
+kept away from its memory.
+
+The block thread runs at a real-time priority where the OS allows (SCHED_FIFO), and so, lower, do the
+engine's other threads, which take the GIL now and then. Priority is not enough on kernels built without
+full preemption (``CONFIG_PREEMPT_NONE``, Debian's cloud kernels and many VMs): a kernel thread holds its
+CPU until it reaches a preemption point, whatever waits to run there. ``khugepaged`` is the one that bites.
+numpy asks for transparent huge pages on every array of 4 MiB or more (``madvise(MADV_HUGEPAGE)``),
+and khugepaged collapses such memory 2 MiB at a time; measured here (ftrace, demo dragged under Xvfb,
+JACK at 256 frames), it kept the JACK thread off its CPU for 2.3 and 4.7 ms, and each time the callback
+missed its 2.7 ms period. :func:`keep_huge_pages_out` turns huge pages off for the whole process
+(``prctl(PR_SET_THP_DISABLE)``, inherited by the processes it starts), so khugepaged has nothing of ours to
+collapse: the engine's memory and the UI's beside it.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import threading
+
+FIFO_PRIORITY = 60
+OTHER_THREADS_PRIORITY = 1
+PR_SET_THP_DISABLE = 41  # <linux/prctl.h>
+PR_GET_THP_DISABLE = 42
+
+
+def raise_priority() -> str:
+    """Raise the calling thread's scheduling priority as far as the OS allows; says what it got.
+    A thread the audio system already runs in real time (JACK's clients) keeps the priority it was given,
+    which JACK orders below its own server thread."""
+    try:
+        policy = os.sched_getscheduler(0)
+        # (priority OTHER_THREADS_PRIORITY is ours, from raise_other_threads racing the first block)
+        if policy in (os.SCHED_FIFO, os.SCHED_RR) and os.sched_getparam(0).sched_priority > OTHER_THREADS_PRIORITY:
+            name = "SCHED_FIFO" if policy == os.SCHED_FIFO else "SCHED_RR"
+            return f"{name} {os.sched_getparam(0).sched_priority} (given by the audio system)"
+    except (OSError, AttributeError):
+        pass
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(FIFO_PRIORITY))
+        return f"SCHED_FIFO {FIFO_PRIORITY}"
+    except (OSError, AttributeError):
+        pass
+    for nice in (-15, -10, -5):
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)  # per thread on Linux
+            return f"nice {nice}"
+        except (OSError, AttributeError):
+            continue
+    return "normal (no permission to raise it)"
+
+
+def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
+    """Run every other thread of this process in real time too, at the lowest real-time priority.
+
+    All of them take the GIL now and then (the command thread, a serial reader, the simulated plate);
+    one preempted by an ordinary process while it holds the GIL would stall the block thread for a
+    whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
+    audio server, above everything ordinary, and they sleep almost all the time."""
+    raised = 0
+    try:
+        for tid in map(int, os.listdir("/proc/self/task")):
+            try:
+                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
+                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+                    raised += 1
+            except (ProcessLookupError, PermissionError):
+                continue
+    except (OSError, AttributeError):
+        return "other threads: normal"
+    return f"other threads: SCHED_FIFO {priority} ({raised})" if raised else "other threads: normal"
+
+
+
+def keep_huge_pages_out() -> str:
+    """Turn transparent huge pages off for this process and the processes it starts (Linux); says what it got.
+
+    Memory already in huge pages stays as it is; khugepaged skips the process from now on, and new
+    allocations take ordinary pages (numpy's large arrays are as fast for the engine's block sizes)."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return "huge pages: as the system has them (no prctl)"
+    prctl.restype = ctypes.c_int
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+    if prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) != 0:
+        return f"huge pages: as the system has them ({os.strerror(ctypes.get_errno())})"
+    return "huge pages off" if prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0) == 1 else "huge pages: as the system has them"

@@ -1,0 +1,109 @@
+"""The engine's process hygiene (render/realtime.py), read back from the kernel's own accounts in /proc:
+huge pages off for the engine and the app beside it, so khugepaged has nothing of ours to collapse."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+THP_MODE = Path("/sys/kernel/mm/transparent_hugepage/enabled")
+
+# Run in a fresh interpreter: the setting is per process and inherited, so the test process stays as it was.
+PROBE = """
+import json, subprocess, sys
+import numpy as np
+
+def thp_enabled(pid="self"):
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("THP_enabled:"):
+            return int(line.split()[1])
+
+def huge_kib(array):
+    # AnonHugePages of the mappings that hold the array (numpy madvises arrays of 4 MiB or more, which
+    # splits malloc's mapping: the first page apart, the aligned rest marked for huge pages)
+    start = array.__array_interface__["data"][0]
+    end = start + array.nbytes
+    mine, total = False, 0
+    for line in open("/proc/self/smaps"):
+        fields = line.split()
+        if "-" in fields[0] and ":" not in fields[0]:
+            low, high = (int(x, 16) for x in fields[0].split("-"))
+            mine = low < end and start < high
+        elif mine and fields[0] == "AnonHugePages:":
+            total += int(fields[1])
+    return total
+
+if sys.argv[1] == "off":
+    from ultraglide.render.realtime import keep_huge_pages_out
+    said = keep_huge_pages_out()
+else:
+    said = ""
+array = np.ones(64 << 20, dtype=np.uint8)  # 64 MiB, written: every page faulted in
+ASK = "print(open('/proc/self/status').read().split('THP_enabled:')[1].split()[0])"
+child = subprocess.run([sys.executable, "-c", ASK], capture_output=True, text=True).stdout.strip()
+print(json.dumps({"said": said, "thp_enabled": thp_enabled(), "child": int(child), "huge_kib": huge_kib(array)}))
+"""
+
+ENGINE = """
+import json, sys
+from ultraglide.render.engine import Engine, EngineConfig
+def thp_enabled(pid):
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("THP_enabled:"):
+            return int(line.split()[1])
+realtime = sys.argv[1] == "realtime"
+with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=realtime)) as engine:
+    engine.wait_ready(120)
+    pid = engine.info["pid"]
+    figures = {"app": thp_enabled("self"), "engine": thp_enabled(pid)}
+    import time
+    deadline = time.monotonic() + 60
+    while "huge pages" not in engine.status().priority and time.monotonic() < deadline:
+        time.sleep(0.02)
+    figures["priority"] = engine.status().priority
+print(json.dumps(figures))
+"""
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/status").exists() or "THP_enabled" not in
+                                Path("/proc/self/status").read_text(), reason="needs Linux 5.0+ (/proc THP_enabled)")
+
+
+def probe(*args: str, script: str = PROBE) -> dict:
+    result = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, cwd=ROOT,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return json.loads(result.stdout.splitlines()[-1])
+
+
+def test_huge_pages_off_for_the_process_and_its_children():
+    off = probe("off")
+    assert off["said"] == "huge pages off"
+    assert off["thp_enabled"] == 0 and off["child"] == 0  # the kernel's word, for it and what it starts
+    assert off["huge_kib"] == 0  # a 64 MiB numpy array sits in ordinary pages
+
+
+def test_without_it_numpy_arrays_get_huge_pages():
+    """The control: on this kernel the same array would be in huge pages (what khugepaged works on)."""
+    mode = THP_MODE.read_text() if THP_MODE.exists() else "[never]"
+    if "[never]" in mode:
+        pytest.skip("transparent huge pages are off on this system: nothing to keep out")
+    on = probe("on")
+    assert on["thp_enabled"] == 1 and on["child"] == 1
+    if on["huge_kib"] == 0:
+        pytest.skip("the kernel found no free huge page for the control array just now (fragmented memory)")
+    assert on["huge_kib"] >= 2048
+
+
+def test_engine_turns_huge_pages_off_for_itself_and_the_app():
+    figures = probe("realtime", script=ENGINE)
+    assert figures == {**figures, "app": 0, "engine": 0}
+    assert "huge pages off" in figures["priority"]
+
+
+def test_engine_without_realtime_leaves_huge_pages_alone():
+    figures = probe("plain", script=ENGINE)
+    assert figures["app"] == 1 and figures["engine"] == 1
+    assert "huge pages: as the system has them" in figures["priority"]
