@@ -1,6 +1,6 @@
 """The engine against a real, paced sink: JACK's dummy backend, xruns counted by the clients.
 
-Run: .venv/bin/python bench/bench_jack.py [--seconds 20] [--periods 64 256] [--ui-cmd "COMMAND"] [--demo]
+Run: .venv/bin/python bench/bench_jack.py [--seconds 20] [--periods 64 256] [--repeat N] [--ui-cmd "COMMAND"] [--demo]
 
 Starts ``jackd -d dummy -r 96000 -p PERIOD`` (realtime if allowed), then for each period, with and
 without a CPU hog (``python3 -c 'while 1: pass'``) beside it, runs for ``--seconds``:
@@ -17,7 +17,10 @@ tests/xvfb_demo.py); its figures come from ``--stats`` (xruns counted from the f
 
 Prints block time p50/p99 (the callback's own time for the do-nothing client) and xruns per minute,
 counted by the client (PortAudio's output-underflow flag, which JACK's xrun callback raises) and by
-the server (its "XRun" log lines). Needs jackd (Debian: apt-get install jackd2).
+the server (its "XRun" log lines). Xruns come a few a minute, so one 20 s run says little: with
+``--repeat N`` the two clients take turns N times in each case, and a last table adds their runs up
+(xruns over minutes) and says whether the engine stayed within the do-nothing client's count.
+Needs jackd (Debian: apt-get install jackd2).
 """
 
 from __future__ import annotations
@@ -186,10 +189,35 @@ def run_demo(seconds: float, device: str, jack: Jack) -> dict:
             "seconds": dragged_s}
 
 
+def system_context() -> str:
+    """What shapes wake-up latency here: the transparent huge page mode and the idle driver."""
+    def read(path: str) -> str:
+        try:
+            return Path(path).read_text().strip()
+        except OSError:
+            return "unknown"
+    return (f"transparent huge pages: {read('/sys/kernel/mm/transparent_hugepage/enabled')}; "
+            f"cpuidle: {read('/sys/devices/system/cpu/cpuidle/current_driver')}; kernel {os.uname().release}")
+
+
+def print_totals(totals: dict) -> None:
+    """Each case's runs added up: xruns over minutes, the engine's beside the do-nothing client's."""
+    print("\nAdded up over the runs of each case (client-side xruns):")
+    print(f"{'period':>6} {'hog':>4} {'runs':>5} {'do-nothing':>28} {'engine':>28}  "
+          "within the do-nothing client's count?")
+    for (period, hog), cases in totals.items():
+        idle, busy = cases["do-nothing"], cases["engine"]
+        words = [f"{c['xruns']:4d} in {c['minutes']:5.2f} min ({c['xruns'] / c['minutes']:5.1f}/min)"
+                 for c in (idle, busy)]
+        verdict = "yes" if busy["xruns"] / busy["minutes"] <= idle["xruns"] / idle["minutes"] else "no"
+        print(f"{period:6} {'yes' if hog else 'no':>4} {busy['runs']:5} {words[0]:>28} {words[1]:>28}  {verdict}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--periods", type=int, nargs="+", default=[64, 256])
+    parser.add_argument("--repeat", type=int, default=1, help="runs of each client in each case, taking turns")
     parser.add_argument("--ui-cmd", help="a shell command to run beside the engine as the UI's load")
     parser.add_argument("--demo", action="store_true", help="measure the demo's engine under Xvfb, dragged by xdotool")
     args = parser.parse_args()
@@ -197,16 +225,20 @@ def main() -> None:
     if missing:
         print(f"bench_jack: missing {', '.join(missing)}; on Debian: sudo apt-get install jackd2")
         sys.exit(1)
+    print(system_context())
     print(f"{'period':>6} {'hog':>4} {'client':>10} {'blocks':>8} {'p50 µs':>8} {'p99 µs':>8} "
           f"{'xruns/min client':>17} {'server':>7}  priority")
+    totals: dict = {}
     for period in args.periods:
         jack = Jack(period)
         try:
             device = jack_device()
             for hog in (False, True):
                 hogger = subprocess.Popen(HOG) if hog else None
+                case = totals.setdefault((period, hog), {kind: {"xruns": 0, "minutes": 0.0, "runs": 0}
+                                                         for kind in ("do-nothing", "engine")})
                 try:
-                    for name in ("do-nothing", "demo" if args.demo else "engine"):
+                    for name in ("do-nothing", "demo" if args.demo else "engine") * max(1, args.repeat):
                         if name == "do-nothing":
                             figures = run_do_nothing(args.seconds, jack)
                         elif name == "demo":
@@ -214,6 +246,10 @@ def main() -> None:
                         else:
                             figures = run_engine(args.seconds, device, args.ui_cmd, jack)
                         minutes = figures.get("seconds", args.seconds) / 60  # a loaded xdotool drags slower
+                        added = case["do-nothing" if name == "do-nothing" else "engine"]
+                        added["xruns"] += figures["xruns"]
+                        added["minutes"] += minutes
+                        added["runs"] += 1
                         print(f"{period:6} {'yes' if hog else 'no':>4} {name:>10} {figures['callbacks']:8} "
                               f"{figures['p50_us']:8.1f} {figures['p99_us']:8.1f} "
                               f"{figures['xruns'] / minutes:17.1f} {figures['server_xruns'] / minutes:7.1f}  "
@@ -224,6 +260,8 @@ def main() -> None:
                         hogger.wait()
         finally:
             jack.stop()
+    if args.repeat > 1:
+        print_totals(totals)
     print(f"({args.seconds:g} s each at {RATE} Hz; jackd {'realtime' if jack.realtime else 'not realtime'}; "
           f"{os.cpu_count()} cores; server xruns are its log's XRun lines per minute of the run)")
 

@@ -64,7 +64,8 @@ class EngineConfig:
     of the wav and null sinks (an audio device picks its own). ``probe_plate`` watches the simulated
     plate's amplitude (``sim`` only; for latency measurement). ``realtime_priority`` runs the block thread
     in real time where the OS allows and keeps the kernel's huge-page work away from the engine and from
-    the process that starts it (:mod:`render.realtime`).
+    the process that starts it, and, while the block path renders, asks idle CPUs to wake within
+    ``cpu_wake_latency_us`` (:mod:`render.realtime`; None makes no such request).
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
@@ -81,6 +82,7 @@ class EngineConfig:
     start_paused: bool = False
     realtime_priority: bool = True
     probe_plate: bool = False
+    cpu_wake_latency_us: int | None = 0  # asked of idle CPUs while rendering (with realtime_priority); None: not
     track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (devices/resonance.py)
 
 

@@ -25,7 +25,7 @@ from ultraglide.devices.errors import describe
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render import engine_shm as shm
 from ultraglide.render.engine_shm import SharedBlock
-from ultraglide.render.realtime import keep_huge_pages_out, raise_other_threads, raise_priority
+from ultraglide.render.realtime import CpuWakeLatency, keep_huge_pages_out, raise_other_threads, raise_priority
 
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
 STATUS_PERIOD_S = 0.1
@@ -343,16 +343,26 @@ def _close_device(device) -> str | None:
 
 
 def _serve(config, conn, shared, renderer, source, device, stop_requested, threads: str) -> None:
-    """The command loop: rare commands, the device's status ten times a second, idle collection."""
+    """The command loop: rare commands, the device's status ten times a second, idle collection, and the
+    CPUs kept quick to wake while the block path renders (released while it serves zeros at rest)."""
+    wake = CpuWakeLatency(config.cpu_wake_latency_us if config.realtime_priority else None)
+    try:
+        _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads, wake)
+    finally:
+        wake.close()
+
+
+def _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads: str, wake) -> None:
     errors = _user_errors()
     next_status = 0.0
     next_collect = time.monotonic() + 1.0
     while True:
         now = time.monotonic()
+        wake.hold(not source._resting)
         if now >= next_status:
             player = renderer.effects
             shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
-                               "priority": f"{source.priority}; {threads}", "pid": os.getpid(),
+                               "priority": f"{source.priority}; {threads}; {wake.words()}", "pid": os.getpid(),
                                "effects_started": 0 if player is None else player.started})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:

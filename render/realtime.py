@@ -11,18 +11,27 @@ JACK at 256 frames), it kept the JACK thread off its CPU for 2.3 and 4.7 ms, and
 missed its 2.7 ms period. :func:`keep_huge_pages_out` turns huge pages off for the whole process
 (``prctl(PR_SET_THP_DISABLE)``, inherited by the processes it starts), so khugepaged has nothing of ours to
 collapse: the engine's memory and the UI's beside it.
+
+An idle CPU is the other delay. In a VM an idle vCPU halts, and the host takes 100–450 µs to run it
+again when the block thread's wake-up lands there (ftrace, cpuidle ``haltpoll``): most of a 64-frame
+period at 96 kHz (667 µs). :class:`CpuWakeLatency` asks the kernel, while a finger is on the plate, to
+keep every CPU in idle states that wake within the given latency (a PM QoS request through
+``/dev/cpu_dma_latency``, held while its file is open); 0 µs keeps idle CPUs polling. At rest it is
+released, so the machine idles as its power governor likes.
 """
 
 from __future__ import annotations
 
 import ctypes
 import os
+import struct
 import threading
 
 FIFO_PRIORITY = 60
 OTHER_THREADS_PRIORITY = 1
 PR_SET_THP_DISABLE = 41  # <linux/prctl.h>
 PR_GET_THP_DISABLE = 42
+CPU_LATENCY_QOS = "/dev/cpu_dma_latency"
 
 
 def raise_priority() -> str:
@@ -87,3 +96,48 @@ def keep_huge_pages_out() -> str:
     if prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) != 0:
         return f"huge pages: as the system has them ({os.strerror(ctypes.get_errno())})"
     return "huge pages off" if prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0) == 1 else "huge pages: as the system has them"
+
+
+class CpuWakeLatency:
+    """A PM QoS request bounding how long an idle CPU takes to wake (µs), held only while wanted.
+
+    ``hold(True)`` opens ``/dev/cpu_dma_latency`` and writes the bound; ``hold(False)`` closes it, which
+    withdraws the request (so does the process's end). Writing needs root or a udev rule granting the
+    file; without it the request is not made and :meth:`words` says why. Not for the block path: it
+    opens a file (the engine's command thread calls it)."""
+
+    def __init__(self, latency_us: int | None = 0):
+        self.latency_us = latency_us
+        self._fd: int | None = None
+        self._refused: str | None = None if latency_us is not None else "not asked"
+
+    @property
+    def held(self) -> bool:
+        return self._fd is not None
+
+    def hold(self, wanted: bool) -> None:
+        if wanted and self._fd is None and self._refused is None:
+            try:
+                fd = os.open(CPU_LATENCY_QOS, os.O_WRONLY | os.O_CLOEXEC)
+            except OSError as error:
+                self._refused = error.strerror or str(error)
+                return
+            try:
+                os.write(fd, struct.pack("=i", int(self.latency_us)))
+            except OSError as error:
+                os.close(fd)
+                self._refused = error.strerror or str(error)
+                return
+            self._fd = fd
+        elif not wanted and self._fd is not None:
+            self.close()
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def words(self) -> str:
+        if self._refused is not None:
+            return f"CPU wake-up: as the system has it ({self._refused})"
+        return f"CPU wake-up within {self.latency_us} µs while touched ({'held' if self.held else 'at rest: released'})"

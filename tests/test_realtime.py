@@ -2,8 +2,11 @@
 huge pages off for the engine and the app beside it, so khugepaged has nothing of ours to collapse."""
 
 import json
+import os
+import struct
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -107,3 +110,66 @@ def test_engine_without_realtime_leaves_huge_pages_alone():
     figures = probe("plain", script=ENGINE)
     assert figures["app"] == 1 and figures["engine"] == 1
     assert "huge pages: as the system has them" in figures["priority"]
+
+
+def qos_fds(pid: int) -> int:
+    """How many of a process's open files are the CPU latency request (the kernel's view, /proc/PID/fd)."""
+    count = 0
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            count += os.readlink(fd) == "/dev/cpu_dma_latency"
+        except OSError:
+            continue
+    return count
+
+
+def cpu_latency_target_us() -> int:
+    """The kernel's aggregate of every process's request (2e9: none)."""
+    return struct.unpack("=i", Path("/dev/cpu_dma_latency").read_bytes()[:4])[0]
+
+
+@pytest.mark.skipif(not os.access("/dev/cpu_dma_latency", os.W_OK), reason="needs write access to /dev/cpu_dma_latency")
+def test_engine_keeps_cpus_quick_to_wake_only_while_rendering():
+    from ultraglide.render.engine import Engine, EngineConfig
+
+    def until(condition, what):
+        deadline = time.monotonic() + 60
+        while not condition():
+            assert time.monotonic() < deadline, f"not within 60 s: {what}"
+            time.sleep(0.01)
+
+    with Engine.start(EngineConfig(texture="grating-1mm", device="null", start_paused=True)) as engine:
+        engine.wait_ready(120)
+        pid = engine.info["pid"]
+        until(lambda: engine.status().resting_blocks > 0 and qos_fds(pid) == 0, "paused at rest, no request")
+        engine.pause(False)
+        engine.touch(time.perf_counter(), 40.0, 25.0)
+        until(lambda: qos_fds(pid) == 1, "a request while rendering")
+        assert cpu_latency_target_us() == 0  # the kernel now keeps every idle CPU polling
+        until(lambda: "CPU wake-up within 0 µs while touched (held)" in engine.status().priority, "said in the status")
+        engine.pause(True)
+        until(lambda: qos_fds(pid) == 0, "released at rest again")
+        until(lambda: "(at rest: released)" in engine.status().priority, "said in the status")
+
+
+def test_a_refused_request_is_said_and_nothing_is_held():
+    """As an unprivileged user the file cannot be opened: no request, and the words say why."""
+    if os.geteuid() != 0 and os.access("/dev/cpu_dma_latency", os.W_OK):
+        pytest.skip("this user may write the request")
+    drop = "import os; os.setgroups([]); os.setgid(65534); os.setuid(65534)\n" if os.geteuid() == 0 else ""
+    script = ("from ultraglide.render.realtime import CpuWakeLatency\n" + drop +  # imported first, then nobody
+              "w = CpuWakeLatency(0); w.hold(True); print(w.held, '|', w.words())")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    held, words = result.stdout.strip().split(" | ")
+    assert held == "False"
+    assert words == "CPU wake-up: as the system has it (Permission denied)"
+
+
+def test_no_request_when_not_asked():
+    from ultraglide.render.realtime import CpuWakeLatency
+
+    wake = CpuWakeLatency(None)
+    wake.hold(True)
+    assert not wake.held and qos_fds(os.getpid()) == 0
+    assert wake.words() == "CPU wake-up: as the system has it (not asked)"
