@@ -358,7 +358,7 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
     next_collect = time.monotonic() + 1.0
     while True:
         now = time.monotonic()
-        wake.hold(not source._resting)
+        wake.hold(not source._first and not source._resting)  # rendering (not before the first block, nor at rest)
         if now >= next_status:
             player = renderer.effects
             shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
@@ -369,17 +369,17 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
             next_collect = now + 1.0
         if stop_requested.is_set():
-            _finish(shared, source, device, None)
+            _finish(shared, source, device, None, wake)
             return
         try:
             if not conn.poll(STATUS_PERIOD_S / 2):
                 continue
             command, *args = conn.recv()
         except (EOFError, OSError):  # the parent is gone: rest the plate and leave
-            _finish(shared, source, device, None)
+            _finish(shared, source, device, None, wake)
             return
         if command == "stop":
-            _finish(shared, source, device, conn)
+            _finish(shared, source, device, conn, wake)
             return
         try:
             if command == "texture":
@@ -406,12 +406,13 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
             conn.send(("error", describe(error)))
 
 
-def _finish(shared, source, device, conn) -> None:
+def _finish(shared, source, device, conn, wake) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     failure = _close_device(device)
+    wake.close()
     status = {**_device_status(device, source), **_renderer_status(source.renderer),
-              "priority": f"{source.priority}; {source.threads}", "pid": os.getpid()}
+              "priority": f"{source.priority}; {source.threads}; {wake.words()}", "pid": os.getpid()}
     if failure:
         status["output_error"] = failure
     shared.write_slow(status)

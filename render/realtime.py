@@ -26,6 +26,7 @@ import ctypes
 import os
 import struct
 import threading
+import time
 
 FIFO_PRIORITY = 60
 OTHER_THREADS_PRIORITY = 1
@@ -108,7 +109,10 @@ class CpuWakeLatency:
 
     def __init__(self, latency_us: int | None = 0):
         self.latency_us = latency_us
+        self.holds = 0  # how many times the request was made
+        self.held_s = 0.0  # for how long in all, s (up to the last release)
         self._fd: int | None = None
+        self._since = 0.0
         self._refused: str | None = None if latency_us is not None else "not asked"
 
     @property
@@ -129,6 +133,8 @@ class CpuWakeLatency:
                 self._refused = error.strerror or str(error)
                 return
             self._fd = fd
+            self._since = time.monotonic()
+            self.holds += 1
         elif not wanted and self._fd is not None:
             self.close()
 
@@ -136,8 +142,11 @@ class CpuWakeLatency:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+            self.held_s += time.monotonic() - self._since
 
     def words(self) -> str:
         if self._refused is not None:
             return f"CPU wake-up: as the system has it ({self._refused})"
-        return f"CPU wake-up within {self.latency_us} µs while touched ({'held' if self.held else 'at rest: released'})"
+        held_s = self.held_s + (time.monotonic() - self._since if self.held else 0.0)
+        return (f"CPU wake-up within {self.latency_us} µs while rendering ({'held' if self.held else 'released'}; "
+                f"{self.holds} {'time' if self.holds == 1 else 'times'}, {held_s:.1f} s in all)")

@@ -146,10 +146,13 @@ def test_engine_keeps_cpus_quick_to_wake_only_while_rendering():
         engine.touch(time.perf_counter(), 40.0, 25.0)
         until(lambda: qos_fds(pid) == 1, "a request while rendering")
         assert cpu_latency_target_us() == 0  # the kernel now keeps every idle CPU polling
-        until(lambda: "CPU wake-up within 0 µs while touched (held)" in engine.status().priority, "said in the status")
+        until(lambda: "CPU wake-up within 0 µs while rendering (held; 1 time," in engine.status().priority,
+              "said in the status")
         engine.pause(True)
         until(lambda: qos_fds(pid) == 0, "released at rest again")
-        until(lambda: "(at rest: released)" in engine.status().priority, "said in the status")
+        until(lambda: "(released; 1 time," in engine.status().priority, "said in the status")
+        final = engine.stop()
+    assert "CPU wake-up within 0 µs while rendering (released; 1 time," in final.priority  # the run's account
 
 
 def test_a_refused_request_is_said_and_nothing_is_held():
