@@ -6,9 +6,11 @@ allocates nothing once running (tests/test_block_path.py).
 
 For each case a spawned process builds the engine's block path (render.engine_process.EngineSource:
 drain the touch ring, render, limit and put on the carrier (the output stage), publish the status)
-exactly as the engine does (gc frozen and off, priority raised where allowed) and pulls blocks back
-to back; this process writes touch reports into the shared ring at 120 Hz meanwhile, as the UI
-would. The times are the pull's own.
+exactly as the engine does (gc frozen and off, priority raised where allowed, huge pages off, the CPU
+wake-up request held as the engine holds it while rendering) and pulls blocks back to back, or with
+``--paced`` one period apart; this process writes touch reports into the shared ring at 120 Hz
+meanwhile, as the UI would. The times are the pull's own. ``--no-wake-request`` leaves the CPUs to
+their governor (on this VM an idle vCPU halts, and a block after a halt runs on cold caches).
 """
 
 from __future__ import annotations
@@ -23,13 +25,14 @@ import numpy as np
 
 
 def worker(shared_name: str, texture_name: str, model_name: str, frames: int, rate: int, blocks: int, paced: bool,
-           conn) -> None:
+           wake_request: bool, conn) -> None:
     import gc
 
     from ultraglide.devices.profiles import load_profile
     from ultraglide.render.calibration import load_model
     from ultraglide.render.engine_process import EngineSource
     from ultraglide.render.engine_shm import SharedBlock
+    from ultraglide.render.realtime import CpuWakeLatency, keep_huge_pages_out
     from ultraglide.render.renderer import Renderer, RenderSettings
     from ultraglide.textures.library import resolve_texture
 
@@ -38,6 +41,9 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
                         RenderSettings(audio_rate_hz=rate))
     device = types.SimpleNamespace(signal="audio", rate_hz=rate, carrier_hz=None)  # what a sound card says of itself
     source = EngineSource(renderer, shared, device)
+    pages = keep_huge_pages_out()
+    wake = CpuWakeLatency(0 if wake_request else None)
+    wake.hold(True)
     times = np.empty(blocks)
     gc.collect()
     gc.freeze()
@@ -51,18 +57,20 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
         started = time.perf_counter()
         source.pull(frames, None)
         times[i] = time.perf_counter() - started
-    conn.send((times, source.priority))
+    conn.send((times, f"{source.priority}; {pages}; {wake.words()}"))
+    wake.close()
     shared.close()
 
 
-def measure(texture: str, model: str, frames: int, rate: int, blocks: int, paced: bool = False
-            ) -> tuple[np.ndarray, str]:
+def measure(texture: str, model: str, frames: int, rate: int, blocks: int, paced: bool = False,
+            wake_request: bool = True) -> tuple[np.ndarray, str]:
     from ultraglide.render.engine_shm import SharedBlock
 
     context = multiprocessing.get_context("spawn")
     shared = SharedBlock.create()
     parent, child = context.Pipe()
-    process = context.Process(target=worker, args=(shared.name, texture, model, frames, rate, blocks, paced, child))
+    process = context.Process(target=worker, args=(shared.name, texture, model, frames, rate, blocks, paced,
+                                                          wake_request, child))
     process.start()
     try:
         assert parent.recv() == "ready"
@@ -85,6 +93,8 @@ def main() -> None:
     parser.add_argument("--paced", action="store_true",
                         help="sleep one block period before each block, as a device's thread does: caches and the "
                              "CPU's clock go cold in between, which back-to-back blocks hide")
+    parser.add_argument("--no-wake-request", dest="wake_request", action="store_false",
+                        help="do not ask idle CPUs to wake within 0 µs (the engine asks while it renders)")
     args = parser.parse_args()
     header = ("texture", "model", "block", "median µs", "p99 µs", "p99.9 µs", "budget µs")
     print("{:14} {:12} {:>12} {:>10} {:>8} {:>9} {:>10}".format(*header))
@@ -92,7 +102,7 @@ def main() -> None:
     for texture in ("grating-1mm", "bumps"):
         for model in ("exponential", "paper"):
             for frames, rate in ((64, 96000), (128, 192000)):
-                t, priority = measure(texture, model, frames, rate, args.blocks, args.paced)
+                t, priority = measure(texture, model, frames, rate, args.blocks, args.paced, args.wake_request)
                 budget = 0.1 * frames / rate * 1e6
                 print(f"{texture:14} {model:12} {frames:4} @ {rate // 1000:3} kHz {np.median(t):10.1f} "
                       f"{np.percentile(t, 99):8.1f} {np.percentile(t, 99.9):9.1f} {budget:10.1f}", flush=True)
