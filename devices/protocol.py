@@ -283,6 +283,42 @@ def setpoints_payload(first_index: int, rate_hz: int, fractions: np.ndarray) -> 
     return _SETPOINT_HEADER.pack(first_index & 0xFFFFFFFF, rate_hz, len(values)) + values.tobytes()
 
 
+class SetpointFramer:
+    """SETPOINTS frames of one stream, built in buffers made once: the serial writer's path makes no array.
+
+    ``frame(seq, first_index, fractions)`` gives the same bytes as
+    ``encode_frame(SETPOINTS, seq, setpoints_payload(first_index, rate_hz, fractions))`` for at most
+    :data:`MAX_SETPOINTS_PER_FRAME` values. What it allocates is bytes of the frame's own size (the body
+    handed to COBS, COBS's output, the terminator added), no array, whatever the number of values."""
+
+    _CODES_AT = _HEADER.size + _SETPOINT_HEADER.size
+
+    def __init__(self, rate_hz: int):
+        self.rate_hz = rate_hz
+        self._body = bytearray(MAX_BODY)
+        self._body_view = memoryview(self._body)
+        self._scaled = np.empty(MAX_SETPOINTS_PER_FRAME)
+        self._codes = np.empty(MAX_SETPOINTS_PER_FRAME, dtype="<u2")
+        self._code_bytes = memoryview(self._codes).cast("B")
+
+    def frame(self, seq: int, first_index: int, fractions: np.ndarray) -> bytes:
+        count = len(fractions)
+        if count > MAX_SETPOINTS_PER_FRAME:
+            raise ValueError(f"{count} setpoints do not fit one frame (at most {MAX_SETPOINTS_PER_FRAME})")
+        scaled = self._scaled[:count]
+        np.clip(fractions, 0.0, 1.0, out=scaled)  # as setpoint_codes: clipped, scaled, rounded (ties to even)
+        np.multiply(scaled, SETPOINT_SCALE, out=scaled)
+        np.rint(scaled, out=scaled)
+        np.copyto(self._codes[:count], scaled, casting="unsafe")
+        body = self._body
+        _HEADER.pack_into(body, 0, SETPOINTS, seq & 0xFFFF)
+        _SETPOINT_HEADER.pack_into(body, _HEADER.size, first_index & 0xFFFFFFFF, self.rate_hz, count)
+        end = self._CODES_AT + 2 * count
+        body[self._CODES_AT:end] = self._code_bytes[:2 * count]
+        _CRC.pack_into(body, end, binascii.crc32(self._body_view[:end]))
+        return cobs.encode(bytes(self._body_view[:end + _CRC.size])) + b"\x00"  # its C code takes no memoryview
+
+
 def parse_setpoint_codes(payload: bytes) -> tuple[int, int, np.ndarray]:
     """``(first_index, rate_hz, codes u16)``; ProtocolError if the lengths disagree."""
     if len(payload) < _SETPOINT_HEADER.size:

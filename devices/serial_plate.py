@@ -121,6 +121,9 @@ class SerialPlate:
         self._clear_pending = 0
         self._seq = 0
         self._index = 0
+        self._framer = p.SetpointFramer(self.rate_hz)  # SETPOINTS frames built in buffers made once
+        self._fractions = np.empty(self.rate_hz)  # the writer's batch as fractions of full scale (up to 1 s)
+        self._clipped = np.empty(self.rate_hz)
         self._connected = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -211,8 +214,9 @@ class SerialPlate:
             self.counters.disconnects += 1
 
     # ---- sending ---------------------------------------------------------------------------------
-    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False) -> int:
-        """Write one frame; returns its seq. ``awaited``: its ACK or NAK will be waited for."""
+    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False, setpoints: np.ndarray | None = None) -> int:
+        """Write one frame; returns its seq. ``awaited``: its ACK or NAK will be waited for. ``setpoints``
+        (fractions of full scale, at the stream's index): a SETPOINTS frame built by the framer instead."""
         with self._write_lock:
             port = self._serial
             if port is None:
@@ -221,7 +225,10 @@ class SerialPlate:
             if awaited:
                 with self._reply:
                     self._awaiting.add(seq)
-            port.write(p.encode_frame(kind, seq, payload))
+            if setpoints is None:
+                port.write(p.encode_frame(kind, seq, payload))
+            else:
+                port.write(self._framer.frame(seq, self._index, setpoints))
         self.counters.frames_sent += 1
         return seq
 
@@ -400,7 +407,10 @@ class SerialPlate:
                             if len(self.counters.errors) < 20:
                                 self.counters.errors.append(str(error))
                     continue
-                fractions = np.asarray(values, dtype=float) / self.profile.full_scale_um_pp
+                if due <= len(self._fractions):  # (a longer batch comes only after a stall: it may allocate)
+                    fractions = np.divide(values, self.profile.full_scale_um_pp, out=self._fractions[:due])
+                else:
+                    fractions = np.asarray(values, dtype=float) / self.profile.full_scale_um_pp
                 if float(fractions.max()) > ZERO_FRACTION:
                     quiet_since = None
                 elif quiet_since is None:
@@ -408,7 +418,8 @@ class SerialPlate:
                 idle = quiet_since is not None and now - quiet_since >= IDLE_AFTER_S and not self._cut
                 stream = self._output_on or not idle or self._cut
                 if self.tracker is not None and stream:
-                    played = float(np.clip(fractions, 0.0, 1.0).sum()) * self.profile.full_scale_um_pp
+                    clipped = self._clipped[:due] if due <= len(self._clipped) else None
+                    played = float(np.clip(fractions, 0.0, 1.0, out=clipped).sum()) * self.profile.full_scale_um_pp
                     with self._drive_lock:
                         self._drive_sum_um_pp += played
                         self._drive_count += len(fractions)
@@ -451,7 +462,7 @@ class SerialPlate:
         """Send values (fractions of full scale) in frames of at most 240, continuing the stream's index."""
         for start in range(0, len(fractions), p.MAX_SETPOINTS_PER_FRAME):  # at most 480 bytes of values a frame
             chunk = fractions[start:start + p.MAX_SETPOINTS_PER_FRAME]
-            self._send(p.SETPOINTS, p.setpoints_payload(self._index, self.rate_hz, chunk))
+            self._send(p.SETPOINTS, setpoints=chunk)
             self._index += len(chunk)
             self.counters.setpoints_sent += len(chunk)
 

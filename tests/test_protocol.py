@@ -162,3 +162,49 @@ def test_setpoint_codes_round_to_nearest_with_ties_to_even():
     assert p.setpoint_codes(fractions).tolist() == [0, 0, 1, 2, 2, 32768, 65535, 65535]
     first, rate, values = p.parse_setpoints(p.setpoints_payload(7, 12000, np.array([0.25])))
     assert (first, rate) == (7, 12000) and values[0] == 16384 / 65535  # round(16383.75)
+
+
+TIES = [k + 0.5 for k in range(4)] + [32767.5, 65534.5]  # codes exactly half-way: rounded to even
+
+
+@given(seq=st.integers(0, 1 << 20), first=st.integers(0, 1 << 40), rate=st.integers(1000, 100000),
+       fractions=st.lists(st.one_of(st.floats(-2.0, 3.0), st.sampled_from(TIES).map(lambda c: c / 65535)),
+                          max_size=p.MAX_SETPOINTS_PER_FRAME))
+def test_setpoint_framer_sends_the_bytes_of_the_plain_encoder(seq, first, rate, fractions):
+    """The writer's framer against the plain path (payload, then frame), for any values, indices and seqs."""
+    values = np.array(fractions, dtype=float)
+    framer = p.SetpointFramer(rate)
+    expected = p.encode_frame(p.SETPOINTS, seq, p.setpoints_payload(first, rate, values))
+    assert framer.frame(seq, first, values) == expected
+    assert framer.frame(seq, first, values) == expected  # its buffers carry nothing from one frame to the next
+
+
+def test_setpoint_framer_refuses_more_than_a_frame():
+    with pytest.raises(ValueError, match="241 setpoints do not fit one frame"):
+        p.SetpointFramer(12000).frame(1, 0, np.zeros(241))
+
+
+def test_setpoint_framer_makes_no_array():
+    """Framing 240 values allocates only bytes of the frame's size (body, COBS output, terminator: under
+    3 × 500 B at the peak); the plain path's arrays of clipped, scaled and rounded values take more."""
+    import tracemalloc
+
+    values = np.linspace(-0.1, 1.1, p.MAX_SETPOINTS_PER_FRAME)
+    framer = p.SetpointFramer(12000)
+    wire = len(framer.frame(1, 0, values))  # warm: first-call caches are not the frame's cost
+
+    def peak(encode) -> int:
+        tracemalloc.start()
+        try:
+            before, _ = tracemalloc.get_traced_memory()
+            tracemalloc.reset_peak()
+            encode()
+            _, top = tracemalloc.get_traced_memory()
+        finally:
+            tracemalloc.stop()
+        return top - before
+
+    framed = peak(lambda: framer.frame(2, 240, values))
+    plain = peak(lambda: p.encode_frame(p.SETPOINTS, 2, p.setpoints_payload(240, 12000, values)))
+    assert framed < 3 * wire + 512
+    assert plain > 3 * wire + 512  # the bound tells the two apart
