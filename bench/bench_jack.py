@@ -13,7 +13,9 @@ without a CPU hog (``python3 -c 'while 1: pass'``) beside it, runs for ``--secon
 
 With ``--demo`` the engine measured is the demo's own: ``ultraglide demo --device audio:JACK`` under
 Xvfb, the finger a 20 s xdotool drag at 120 Hz sweeping the first texture (the harness of
-tests/xvfb_demo.py); its figures come from ``--stats`` (xruns counted from the first touch on).
+tests/xvfb_demo.py); its figures come from ``--stats`` (xruns counted from the first touch on). A
+third client, ``nothing+UI``, is the do-nothing client again while the demo is dragged the same way on
+the null device: the machine as busy as in the demo's run, without the demo's engine on JACK.
 
 Prints block time p50/p99 (the callback's own time for the do-nothing client) and xruns per minute,
 counted by the client (PortAudio's output-underflow flag, which JACK's xrun callback raises) and by
@@ -39,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 RATE = 96000
+BESIDE_UI = "nothing+UI"  # the do-nothing client beside the demo's UI dragged on the null device
 HOG = [sys.executable, "-c", "while 1: pass"]
 
 DO_NOTHING = """
@@ -162,19 +165,48 @@ def run_engine(seconds: float, device: str, ui_cmd: str | None, jack: Jack) -> d
             "priority": status.priority}
 
 
-def run_demo(seconds: float, device: str, jack: Jack) -> dict:
-    """The demo on JACK under Xvfb, dragged by xdotool for ``seconds``; its own --stats figures."""
+def _xvfb_demo():
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
     from xvfb_demo import XvfbDemo
 
+    return XvfbDemo
+
+
+def _drag_ready(demo, seconds: float) -> list[tuple[int, int]]:
+    """Wait for the demo's texture scene; the drag's points, 120 a second, sweeping it at 1 Hz."""
+    demo.wait_for("^renderer ready", 120)
+    demo.xdo("key", "t")
+    demo.wait_for("^frame drawn: texture", 30)
+    return [(round(640 + 300 * math.sin(2 * math.pi * i / 240)), 320) for i in range(int(seconds * 120))]
+
+
+def run_do_nothing_beside_demo(seconds: float, jack: Jack) -> dict:
+    """The do-nothing client while the demo, on the null device (no JACK client of its own), is dragged as
+    in :func:`run_demo`: the machine as busy as in the demo's run, without the demo's engine on JACK."""
+    with _xvfb_demo()("--device", "null") as demo:
+        points = _drag_ready(demo, seconds)
+        client = subprocess.Popen([sys.executable, "-c", DO_NOTHING, str(seconds), str(WARM_UP_S)],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        if client.stdout.readline().strip() != "warm":
+            raise RuntimeError(f"the do-nothing client failed: {client.stderr.read().strip()[-300:]}")
+        before = jack.xruns()
+        demo.drag(points)
+        out, err = client.communicate(timeout=seconds + 60)
+        server = jack.xruns() - before
+        if demo.quit() != 0:
+            raise RuntimeError(f"the demo failed: {demo.demo.stderr.read().strip()[-300:]}")
+    figures = json.loads(out)
+    figures["server_xruns"] = server
+    return figures
+
+
+def run_demo(seconds: float, device: str, jack: Jack) -> dict:
+    """The demo on JACK under Xvfb, dragged by xdotool for ``seconds``; its own --stats figures."""
     with tempfile.TemporaryDirectory() as folder:
         stats_path = Path(folder) / "stats.json"
-        with XvfbDemo("--device", f"audio:{device}", "--stats", str(stats_path)) as demo:
-            demo.wait_for("^renderer ready", 120)
-            demo.xdo("key", "t")
-            demo.wait_for("^frame drawn: texture", 30)
-            steps = int(seconds * 120)
-            points = [(round(640 + 300 * math.sin(2 * math.pi * i / 240)), 320) for i in range(steps)]  # 1 Hz
+        with _xvfb_demo()("--device", f"audio:{device}", "--stats", str(stats_path)) as demo:
+            points = _drag_ready(demo, seconds)
+            steps = len(points)
             before = jack.xruns()
             started = time.perf_counter()
             demo.drag(points)
@@ -201,16 +233,18 @@ def system_context() -> str:
 
 
 def print_totals(totals: dict) -> None:
-    """Each case's runs added up: xruns over minutes, the engine's beside the do-nothing client's."""
+    """Each case's runs added up: xruns over minutes, the engine's beside the do-nothing client's (and with
+    ``--demo``, beside the do-nothing client's while the demo's UI is dragged on the null device)."""
     print("\nAdded up over the runs of each case (client-side xruns):")
-    print(f"{'period':>6} {'hog':>4} {'runs':>5} {'do-nothing':>28} {'engine':>28}  "
-          "within the do-nothing client's count?")
     for (period, hog), cases in totals.items():
-        idle, busy = cases["do-nothing"], cases["engine"]
-        words = [f"{c['xruns']:4d} in {c['minutes']:5.2f} min ({c['xruns'] / c['minutes']:5.1f}/min)"
-                 for c in (idle, busy)]
-        verdict = "yes" if busy["xruns"] / busy["minutes"] <= idle["xruns"] / idle["minutes"] else "no"
-        print(f"{period:6} {'yes' if hog else 'no':>4} {busy['runs']:5} {words[0]:>28} {words[1]:>28}  {verdict}")
+        rates = {kind: c["xruns"] / c["minutes"] for kind, c in cases.items() if c["runs"]}
+        counts = "; ".join(f"{kind} {c['xruns']} in {c['minutes']:.2f} min ({rates[kind]:.1f}/min)"
+                           for kind, c in cases.items() if c["runs"])
+        within = "yes" if rates["engine"] <= rates["do-nothing"] else "no"
+        print(f"{period:4} frames, {'with' if hog else 'no'} hog, {cases['engine']['runs']} runs each: {counts}. "
+              f"Engine within the do-nothing client's count: {within}"
+              + (f"; within its count beside the UI: {'yes' if rates['engine'] <= rates[BESIDE_UI] else 'no'}"
+                 if BESIDE_UI in rates else ""))
 
 
 def main() -> None:
@@ -236,17 +270,20 @@ def main() -> None:
             for hog in (False, True):
                 hogger = subprocess.Popen(HOG) if hog else None
                 case = totals.setdefault((period, hog), {kind: {"xruns": 0, "minutes": 0.0, "runs": 0}
-                                                         for kind in ("do-nothing", "engine")})
+                                                         for kind in ("do-nothing", BESIDE_UI, "engine")})
+                clients = ("do-nothing", BESIDE_UI, "demo") if args.demo else ("do-nothing", "engine")
                 try:
-                    for name in ("do-nothing", "demo" if args.demo else "engine") * max(1, args.repeat):
+                    for name in clients * max(1, args.repeat):
                         if name == "do-nothing":
                             figures = run_do_nothing(args.seconds, jack)
+                        elif name == BESIDE_UI:
+                            figures = run_do_nothing_beside_demo(args.seconds, jack)
                         elif name == "demo":
                             figures = run_demo(args.seconds, device, jack)
                         else:
                             figures = run_engine(args.seconds, device, args.ui_cmd, jack)
                         minutes = figures.get("seconds", args.seconds) / 60  # a loaded xdotool drags slower
-                        added = case["do-nothing" if name == "do-nothing" else "engine"]
+                        added = case[name if name in ("do-nothing", BESIDE_UI) else "engine"]
                         added["xruns"] += figures["xruns"]
                         added["minutes"] += minutes
                         added["runs"] += 1
