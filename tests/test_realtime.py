@@ -15,7 +15,10 @@ from conftest import ROOT
 THP_MODE = Path("/sys/kernel/mm/transparent_hugepage/enabled")
 
 # Run in a fresh interpreter: the setting is per process and inherited, so the test process stays as it was.
-PROBE = """
+# Each starts as a fresh app would: huge pages as the system has them (a test process that started an
+# engine has them off, and its children inherit that).
+FRESH = "import ctypes; ctypes.CDLL(None).prctl(41, 0, 0, 0, 0)\n"  # PR_SET_THP_DISABLE, 0
+PROBE = FRESH + """
 import json, subprocess, sys
 import numpy as np
 
@@ -50,7 +53,7 @@ child = subprocess.run([sys.executable, "-c", ASK], capture_output=True, text=Tr
 print(json.dumps({"said": said, "thp_enabled": thp_enabled(), "child": int(child), "huge_kib": huge_kib(array)}))
 """
 
-ENGINE = """
+ENGINE = FRESH + """
 import json, sys
 from ultraglide.render.engine import Engine, EngineConfig
 def thp_enabled(pid):
