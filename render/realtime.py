@@ -14,10 +14,10 @@ collapse: the engine's memory and the UI's beside it.
 
 An idle CPU is the other delay. In a VM an idle vCPU halts, and the host takes 100–450 µs to run it
 again when the block thread's wake-up lands there (ftrace, cpuidle ``haltpoll``): most of a 64-frame
-period at 96 kHz (667 µs). :class:`CpuWakeLatency` asks the kernel, while a finger is on the plate, to
-keep every CPU in idle states that wake within the given latency (a PM QoS request through
-``/dev/cpu_dma_latency``, held while its file is open); 0 µs keeps idle CPUs polling. At rest it is
-released, so the machine idles as its power governor likes.
+period at 96 kHz (667 µs). :class:`CpuWakeLatency` asks the kernel, while the engine renders (a finger
+on the plate, or the ramp to rest after it), to keep every CPU in idle states that wake within the
+given latency (a PM QoS request through ``/dev/cpu_dma_latency``, held while its file is open); 0 µs
+keeps idle CPUs polling. At rest it is released, so the machine idles as its power governor likes.
 """
 
 from __future__ import annotations
