@@ -127,11 +127,17 @@ class Jack:
                 self.process.wait()
 
 
-def run_do_nothing(seconds: float, jack: Jack) -> dict:
+def start_do_nothing(seconds: float) -> subprocess.Popen:
+    """The do-nothing client, warmed up: it measures for ``seconds`` from when this returns."""
     client = subprocess.Popen([sys.executable, "-c", DO_NOTHING, str(seconds), str(WARM_UP_S)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if client.stdout.readline().strip() != "warm":
         raise RuntimeError(f"the do-nothing client failed: {client.stderr.read().strip()[-300:]}")
+    return client
+
+
+def run_do_nothing(seconds: float, jack: Jack) -> dict:
+    client = start_do_nothing(seconds)
     before = jack.xruns()
     out, err = client.communicate(timeout=seconds + 60)
     figures = json.loads(out)
@@ -185,10 +191,7 @@ def run_do_nothing_beside_demo(seconds: float, jack: Jack) -> dict:
     in :func:`run_demo`: the machine as busy as in the demo's run, without the demo's engine on JACK."""
     with _xvfb_demo()("--device", "null") as demo:
         points = _drag_ready(demo, seconds)
-        client = subprocess.Popen([sys.executable, "-c", DO_NOTHING, str(seconds), str(WARM_UP_S)],
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        if client.stdout.readline().strip() != "warm":
-            raise RuntimeError(f"the do-nothing client failed: {client.stderr.read().strip()[-300:]}")
+        client = start_do_nothing(seconds)
         before = jack.xruns()
         demo.drag(points)
         out, err = client.communicate(timeout=seconds + 60)
