@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 from ultraglide.apps.atomic import atomic_path
 from ultraglide.apps.errors import UsageError
-from ultraglide.render.calibration import Fit, calibration_toml, compare_models, fit_model, fit_summary
-from ultraglide.render.measurements import read_measurements
+from ultraglide.render.physics.calibration import Fit, calibration_toml, compare_models, fit_model, fit_summary
+from ultraglide.render.physics.measurements import read_measurements
 
 POOR_FIT_RMS = 0.05
 CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",

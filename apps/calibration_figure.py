@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.figure_style import figure, save
-from ultraglide.render.calibration import Fit
+from ultraglide.render.physics.calibration import Fit
 
 CV_LABELS = {"k_fold": "k-fold", "leave_one_force_out": "leave one force out",
              "leave_one_participant_out": "leave one participant out"}

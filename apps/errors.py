@@ -10,7 +10,7 @@ class UsageError(ValueError):
 
 
 _ERROR_CLASSES = (
-    ("ultraglide.render.errors", "ModelError"),
+    ("ultraglide.render.physics.errors", "ModelError"),
     ("ultraglide.render.errors", "RenderError"),
     ("ultraglide.textures.errors", "TextureError"),
     ("ultraglide.devices.errors", "DeviceError"),

@@ -96,7 +96,7 @@ def _config_from_args(args, kind: str) -> SessionConfig:
 
 def design_for(config: SessionConfig) -> StimulusDesign:
     """Load what the config names (texture, reference, model, profile): one-line errors for mistakes."""
-    from ultraglide.render.calibration import load_model
+    from ultraglide.render.physics.calibration import load_model
     from ultraglide.textures.library import resolve_texture
 
     with warnings.catch_warnings():

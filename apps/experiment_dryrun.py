@@ -14,7 +14,7 @@ from ultraglide.apps.experiment_observer import SimObserver
 from ultraglide.apps.experiment_session import Answer
 from ultraglide.apps.experiment_stimuli import StimulusDesign, render_offline
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.render.friction_models import FrictionModel
+from ultraglide.render.physics.friction_models import FrictionModel
 
 
 class SimResponder:

@@ -45,10 +45,10 @@ class EngineOutput:
 
 class LocalOutput:
     def __init__(self, device: str, profile: str, model: str, force_n: float):
-        from ultraglide.apps.sources import source_for
         from ultraglide.devices.profiles import load_profile
         from ultraglide.devices.urls import open_device
-        from ultraglide.render.calibration import load_model
+        from ultraglide.render.engine.sources import renderer_source
+        from ultraglide.render.physics.calibration import load_model
         from ultraglide.render.renderer import Renderer, RenderSettings
         from ultraglide.textures.procedural import grating
 
@@ -59,7 +59,7 @@ class LocalOutput:
             rate = self.device.rate_hz if self.device.signal == "audio" else 96000
             self.renderer = Renderer(grating(1.0, (10.0, 10.0)), friction, plate,
                                      RenderSettings(audio_rate_hz=rate, default_force_n=force_n))
-            self.device.start(source_for(self.device, self.renderer))
+            self.device.start(renderer_source(self.device, self.renderer))
         except BaseException:
             self.device.stop()
             raise

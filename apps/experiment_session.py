@@ -134,7 +134,7 @@ def versions() -> dict:
 
 def metadata(config: SessionConfig, design: StimulusDesign, status: str, started_utc: str, extra: dict) -> dict:
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.render.calibration import load_model
+    from ultraglide.render.physics.calibration import load_model
 
     profile = load_profile(config.profile)
     model = load_model(config.model)

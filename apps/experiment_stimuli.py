@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.render.friction_models import FrictionModel
+from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.textures import procedural
 from ultraglide.textures.compose import Placement, compose

@@ -23,10 +23,11 @@ from ultraglide.apps.errors import UsageError
 from ultraglide.apps.output_report import clipped_fraction, clipping_warning, limiter_fields
 from ultraglide.apps.render_setup import load_inputs, make_renderer
 from ultraglide.devices.atomic_file import write_failure
+from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.renderer import ControlBlock
 from ultraglide.textures.effects import load_effects
 
-from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, offline_stage, write_wav
+from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, write_wav
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",

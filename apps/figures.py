@@ -12,19 +12,19 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.figure_style import figure, save
-from ultraglide.render.fingerprint import (
+from ultraglide.render.physics.fingerprint import (
     FingerParams,
     detach_amplitude_um_pp,
     friction_coefficient,
     glide_threshold_um_pp,
 )
-from ultraglide.render.lateral import (
+from ultraglide.render.physics.lateral import (
     simulate_lateral,
     simulated_glide_threshold_um_pp,
     steady_glide_threshold_um_pp,
 )
-from ultraglide.render.measurements import read_measurements
-from ultraglide.render.normal_contact import cycle_friction_n, cycle_reaction_n, relative_friction
+from ultraglide.render.physics.measurements import read_measurements
+from ultraglide.render.physics.normal_contact import cycle_friction_n, cycle_reaction_n, relative_friction
 
 FIGURE_AMPLITUDES_UM_PP = (0.1, 0.5, 1.0, 2.0, 4.0, 8.0)  # Figs. 5-6: 0.1 µm (blue) to 8 µm (red)
 FORCES_N = np.linspace(0.02, 1.0, 99)

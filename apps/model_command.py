@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.errors import UsageError
-from ultraglide.render.calibration import load_model
-from ultraglide.render.fingerprint import (
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.fingerprint import (
     FingerParams,
     contact_area_mm2,
     detach_amplitude_um_pp,
@@ -16,7 +16,7 @@ from ultraglide.render.fingerprint import (
     normal_stiffness_n_per_m,
     tangential_stiffness_n_per_m,
 )
-from ultraglide.render.friction_models import CEILING_UM_PP, DEFAULT_FORCE_N, FrictionModel, PaperModel
+from ultraglide.render.physics.friction_models import CEILING_UM_PP, DEFAULT_FORCE_N, FrictionModel, PaperModel
 
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.figure_style import mosaic, save
-from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp, glide_threshold_um_pp
-from ultraglide.render.friction_models import FrictionModel
-from ultraglide.render.normal_contact import cycle_reaction_n
+from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp, glide_threshold_um_pp
+from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.render.physics.normal_contact import cycle_reaction_n
 
 A4_PORTRAIT_IN = (8.27, 11.69)
 

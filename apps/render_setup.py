@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 from ultraglide.apps.errors import UsageError
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.render.calibration import load_model
-from ultraglide.render.friction_models import FrictionModel
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.touch_log import read_touch_log
 from ultraglide.render.trajectory import RecordedTrajectory

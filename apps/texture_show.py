@@ -157,7 +157,7 @@ def show_window(figure, title: str) -> None:
 
 def run(args) -> int:
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.render.calibration import load_model
+    from ultraglide.render.physics.calibration import load_model
     from ultraglide.textures.library import resolve_texture
 
     output = Path(args.output) if args.output else None

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.textures import effects as fx
 from ultraglide.textures import procedural

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import LiveTrajectory
 from ultraglide.textures.procedural import grating

@@ -14,13 +14,13 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from ultraglide.render.friction_models import (  # noqa: E402
+from ultraglide.render.physics.friction_models import (  # noqa: E402
     ExponentialModel,
     PaperModel,
     StretchedExponentialModel,
     TableModel,
 )
-from ultraglide.render.measurements import read_measurements  # noqa: E402
+from ultraglide.render.physics.measurements import read_measurements  # noqa: E402
 
 N = 1_000_000
 REPEATS = 15

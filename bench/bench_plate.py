@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import signal
-from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.textures.procedural import grating
 

@@ -4,7 +4,7 @@ Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000] [--paced]
 Aim (issues 4, 11): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs); the block path
 allocates nothing once running (tests/test_block_path.py).
 
-For each case a spawned process builds the engine's block path (render.engine_process.EngineSource:
+For each case a spawned process builds the engine's block path (render.engine.process.EngineSource:
 drain the touch ring, render, limit and put on the carrier (the output stage), publish the status)
 exactly as the engine does (gc frozen and off, priority raised where allowed, huge pages off, the CPU
 wake-up request held as the engine holds it while rendering) and pulls blocks back to back, or with
@@ -29,10 +29,10 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
     import gc
 
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.render.calibration import load_model
-    from ultraglide.render.engine_process import EngineSource
-    from ultraglide.render.engine_shm import SharedBlock
-    from ultraglide.render.realtime import CpuWakeLatency, keep_huge_pages_out
+    from ultraglide.render.engine.process import EngineSource
+    from ultraglide.render.engine.realtime import CpuWakeLatency, keep_huge_pages_out
+    from ultraglide.render.engine.shm import SharedBlock
+    from ultraglide.render.physics.calibration import load_model
     from ultraglide.render.renderer import Renderer, RenderSettings
     from ultraglide.textures.library import resolve_texture
 
@@ -64,7 +64,7 @@ def worker(shared_name: str, texture_name: str, model_name: str, frames: int, ra
 
 def measure(texture: str, model: str, frames: int, rate: int, blocks: int, paced: bool = False,
             wake_request: bool = True) -> tuple[np.ndarray, str]:
-    from ultraglide.render.engine_shm import SharedBlock
+    from ultraglide.render.engine.shm import SharedBlock
 
     context = multiprocessing.get_context("spawn")
     shared = SharedBlock.create()

@@ -110,11 +110,16 @@ class PlateProfile:
         """The envelope's -3 dB frequency, 1 / (2 pi tau) = f0 / (2 Q)."""
         return 1.0 / (2.0 * math.pi * self.time_constant_s)
 
-    def check_carrier(self, carrier_hz: float) -> None:
-        """DeviceError unless ``carrier_hz`` lies within the plate's carrier range."""
+    def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
+        """DeviceError unless ``carrier_hz`` lies within the plate's carrier range and, given an audio rate
+        (Hz), that rate can carry it."""
         if not self.carrier_min_hz <= carrier_hz <= self.carrier_max_hz:
             raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")
+        if audio_rate_hz is not None:
+            from ultraglide.devices.carrier import check_carrier
+
+            check_carrier(carrier_hz, audio_rate_hz)
 
 
 def bundled_profiles() -> list[str]:

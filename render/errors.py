@@ -1,8 +1,6 @@
-"""Errors of the signal path that a person can act on; the message says what to do."""
+"""Errors of the signal path that a person can act on; the message says what to do.
 
-
-class ModelError(ValueError):
-    """A friction model, calibration or measurement file that cannot be used."""
+The physics has its own, :class:`ultraglide.render.physics.errors.ModelError`."""
 
 
 class RenderError(ValueError):

@@ -8,7 +8,7 @@ limits the drive and, for audio devices, puts it on the carrier; the renderer ma
 
 Example, offline::
 
-    >>> from ultraglide.render.friction_models import ExponentialModel
+    >>> from ultraglide.render.physics.friction_models import ExponentialModel
     >>> from ultraglide.render.trajectory import RecordedTrajectory
     >>> from ultraglide.textures.procedural import grating
     >>> from ultraglide.devices.profiles import load_profile
@@ -24,21 +24,34 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
-from ultraglide.devices.carrier import check_carrier
-from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render import kernels
 from ultraglide.render.effects import EffectPlayer
 from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
-from ultraglide.render.friction_models import FrictionModel
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
 from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
 
 RESYNC_S = 0.02  # re-anchor the live clock when the device's clock has drifted this far
+
+
+class Plate(Protocol):
+    """What the renderer needs to know of the plate it renders for (a ``devices.profiles.PlateProfile`` is
+    one): its resonance (Hz), the steady limit and the drive's ceiling (µm p-p), its envelope's time
+    constant (s), and which carriers it takes."""
+
+    name: str
+    resonance_hz: float
+    max_amplitude_um_pp: float
+    max_drive_um_pp: float | None  # None: the limit
+    time_constant_s: float
+
+    def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -139,7 +152,7 @@ class ControlBuffers:
 class Renderer:
     """See the module docstring. Thread use: ``push`` from any thread; one thread pulls."""
 
-    def __init__(self, texture: Texture, model: FrictionModel, profile: PlateProfile,
+    def __init__(self, texture: Texture, model: FrictionModel, profile: Plate,
                  settings: RenderSettings = RenderSettings(),
                  trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None,
                  effects: tuple | None = None):
@@ -147,14 +160,8 @@ class Renderer:
         self.texture, self.model, self.profile, self.settings = texture, model, profile, settings
         self.carrier_hz = settings.carrier_hz or profile.resonance_hz
         try:
-            profile.check_carrier(self.carrier_hz)
-        except ValueError as error:
-            raise RenderError(str(error)) from None
-        except RuntimeError as error:  # DeviceError: the profile refuses the carrier
-            raise RenderError(str(error)) from None
-        try:
-            check_carrier(self.carrier_hz, settings.audio_rate_hz)
-        except RuntimeError as error:  # DeviceError: the audio rate cannot carry it
+            profile.check_carrier(self.carrier_hz, settings.audio_rate_hz)
+        except (ValueError, RuntimeError) as error:  # DeviceError: the plate or the audio rate refuses the carrier
             raise RenderError(str(error)) from None
         kernels.warm_up()
         rate = settings.control_rate_hz

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from ultraglide.render.csv_table import Column, NumericCsv
 from ultraglide.render.errors import RenderError
+from ultraglide.render.physics.csv_table import Column, NumericCsv
 from ultraglide.render.trajectory import RecordedTrajectory
 
 TIME = Column("t_s", -1e10, 1e10, "s")  # Unix time is 1.7e9 s; 1e10 s is three centuries on

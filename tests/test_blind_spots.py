@@ -13,7 +13,7 @@ from conftest import ROOT, run_cli
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
 from ultraglide.textures import procedural

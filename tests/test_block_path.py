@@ -1,7 +1,7 @@
 """The engine's block path allocates nothing once running, and its allocation-free stages (``out=``)
 give what the allocating ones give.
 
-The block path is :class:`render.engine_process.EngineSource`'s ``pull``: drain the shared touch ring,
+The block path is :class:`render.engine.process.EngineSource`'s ``pull``: drain the shared touch ring,
 render (finger line, texture lookup, model inverse, envelope), limit, put on the carrier, publish the
 status. Memory is measured with tracemalloc, which sees numpy's array data too (its own domain)."""
 
@@ -15,10 +15,10 @@ from conftest import ROOT
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.calibration import load_model
-from ultraglide.render.engine_process import EngineSource
-from ultraglide.render.engine_shm import SharedBlock
-from ultraglide.render.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel
+from ultraglide.render.engine.process import EngineSource
+from ultraglide.render.engine.shm import SharedBlock
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.textures.library import resolve_texture
 from ultraglide.textures.sampling import Sampler
@@ -147,7 +147,7 @@ def test_the_inverse_into_a_buffer_gives_what_the_allocating_inverse_gives(model
 def test_the_table_models_compiled_inverse_at_one_force_gives_the_interpolated_tables():
     """The scalar-force kernel (a panel without pressure sensing) against the model's general numpy path
     (interpolating the same per-force tables in numpy) at forces between, on and beyond the measured ones."""
-    from ultraglide.render.friction_models import FrictionModel
+    from ultraglide.render.physics.friction_models import FrictionModel
     model = load_model(TABLE)
     ratio = np.linspace(1.1, 0.0, 400)
     out = np.empty(len(ratio))

@@ -9,7 +9,7 @@ import tomli_w
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import curve_fit
-from ultraglide.render.calibration import (
+from ultraglide.render.physics.calibration import (
     PARAMETERS,
     calibration_toml,
     compare_models,
@@ -17,9 +17,9 @@ from ultraglide.render.calibration import (
     fit_model,
     read_calibration,
 )
-from ultraglide.render.errors import ModelError
-from ultraglide.render.friction_models import PaperModel, StretchedExponentialModel
-from ultraglide.render.measurements import Measurements, read_measurements
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.friction_models import PaperModel, StretchedExponentialModel
+from ultraglide.render.physics.measurements import Measurements, read_measurements
 
 SHARED_DATA = "apps/data/monnoyer2018-fit.csv"
 FORCES = (0.2, 0.5, 1.0)

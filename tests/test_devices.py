@@ -220,11 +220,11 @@ pcm.capture {{
 
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
-from ultraglide.apps.sources import EnvelopeSource, offline_stage
+from ultraglide.render.engine.sources import EnvelopeSource, offline_stage
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.audio import AudioPlate
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.renderer import Renderer
 from ultraglide.textures.library import resolve_texture

@@ -210,7 +210,7 @@ def test_latency_on_the_audio_device_reports_portaudios_output_latency(tmp_path)
 
 
 def test_preallocated_control_blocks_match_the_allocating_path():
-    from ultraglide.render.friction_models import ExponentialModel
+    from ultraglide.render.physics.friction_models import ExponentialModel
     from ultraglide.render.renderer import Renderer
     from ultraglide.textures.library import resolve_texture
 
@@ -238,8 +238,8 @@ def test_preallocated_control_blocks_match_the_allocating_path():
 def _tearing_writer(name, stop):
     import time
 
-    from ultraglide.render import engine_shm as shm
-    from ultraglide.render.engine_shm import SharedBlock
+    from ultraglide.render.engine import shm
+    from ultraglide.render.engine.shm import SharedBlock
 
     shared = SharedBlock.attach(name)
     k = 0
@@ -257,8 +257,8 @@ def _tearing_writer(name, stop):
 def test_status_snapshots_are_never_torn_by_a_writer_in_another_process():
     import multiprocessing
 
-    from ultraglide.render import engine_shm as shm
-    from ultraglide.render.engine_shm import SharedBlock
+    from ultraglide.render.engine import shm
+    from ultraglide.render.engine.shm import SharedBlock
 
     context = multiprocessing.get_context("spawn")
     shared = SharedBlock.create()

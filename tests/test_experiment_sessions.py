@@ -17,7 +17,7 @@ from ultraglide.apps.experiment_observer import SimObserver
 from ultraglide.apps.experiment_session import SessionConfig, run_session
 from ultraglide.apps.experiment_stimuli import Layout, StimulusDesign, render_offline, with_contrast
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.textures.library import resolve_texture
 from ultraglide.textures.sampling import Sampler
 

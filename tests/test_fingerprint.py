@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from ultraglide.render.fingerprint import (
+from ultraglide.render.physics.fingerprint import (
     FingerParams,
     contact_area_mm2,
     detach_amplitude_um_pp,
@@ -14,7 +14,7 @@ from ultraglide.render.fingerprint import (
     shear_modulus_pa,
     tangential_stiffness_n_per_m,
 )
-from ultraglide.render.lateral import (
+from ultraglide.render.physics.lateral import (
     simulate_lateral,
     simulated_glide_threshold_um_pp,
     steady_glide_threshold_um_pp,

@@ -4,12 +4,17 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from ultraglide.render.calibration import calibration_toml, fit_model, load_model, read_calibration
-from ultraglide.render.errors import ModelError
-from ultraglide.render.fingerprint import FingerParams
-from ultraglide.render.friction_models import ExponentialModel, PaperModel, StretchedExponentialModel, TableModel
-from ultraglide.render.measurements import Measurements, read_measurements
-from ultraglide.render.normal_contact import relative_friction
+from ultraglide.render.physics.calibration import calibration_toml, fit_model, load_model, read_calibration
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import FingerParams
+from ultraglide.render.physics.friction_models import (
+    ExponentialModel,
+    PaperModel,
+    StretchedExponentialModel,
+    TableModel,
+)
+from ultraglide.render.physics.measurements import Measurements, read_measurements
+from ultraglide.render.physics.normal_contact import relative_friction
 
 SHARED_DATA = "apps/data/monnoyer2018-fit.csv"
 MODELS = {

@@ -30,9 +30,10 @@ from ultraglide.apps.cli import build_parser
 from ultraglide.apps.cli_types import texture_name
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.urls import parse_device_url
-from ultraglide.render import csv_table
-from ultraglide.render.calibration import load_model
-from ultraglide.render.errors import ModelError, RenderError
+from ultraglide.render.physics import csv_table
+from ultraglide.render.errors import RenderError
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.touch_log import check_touch_log, read_touch_log
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.errors import TextureError

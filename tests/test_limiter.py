@@ -20,7 +20,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
 from test_devices import ASOUNDRC  # the ALSA file-PCM capture, one definition
-from ultraglide.apps.sources import EnvelopeSource, offline_stage
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.limiter import DriveLimiter
@@ -29,8 +28,9 @@ from ultraglide.devices.paced import WavRecorder
 from ultraglide.devices.plate_sim import PlateSimulator, PtyPlate
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.serial_plate import SerialPlate
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.engine.sources import EnvelopeSource, offline_stage
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.renderer import Renderer
 from ultraglide.textures.library import resolve_texture
 
@@ -176,10 +176,10 @@ def test_play_to_the_wav_device_is_limited_and_reports_it(tmp_path):
 
 AUDIO_SCRIPT = """
 import sys, time
-from ultraglide.apps.sources import EnvelopeSource
+from ultraglide.render.engine.sources import EnvelopeSource
 from ultraglide.devices.audio import AudioPlate
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.render.friction_models import ExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.renderer import Renderer
 from ultraglide.textures.library import resolve_texture

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ultraglide.render.calibration import load_model, model_kind
-from ultraglide.render.errors import ModelError
-from ultraglide.render.fingerprint import FingerParams
-from ultraglide.render.friction_models import (
+from ultraglide.render.physics.calibration import load_model, model_kind
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import FingerParams
+from ultraglide.render.physics.friction_models import (
     ExponentialModel,
     FrictionModel,
     PaperModel,
@@ -19,8 +19,8 @@ from ultraglide.render.friction_models import (
     TableModel,
     UniformTable,
 )
-from ultraglide.render.measurements import Measurements
-from ultraglide.render.normal_contact import relative_friction
+from ultraglide.render.physics.measurements import Measurements
+from ultraglide.render.physics.normal_contact import relative_friction
 
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
@@ -138,7 +138,7 @@ def test_a_model_must_give_its_forward_law_its_inverse_and_a_description(missing
 
 
 def test_the_paper_models_table_follows_the_direct_integration_over_every_force_and_amplitude():
-    """The tabulated law against :func:`render.normal_contact.relative_friction` (the paper's integral done
+    """The tabulated law against :func:`render.physics.normal_contact.relative_friction` (the paper's integral done
     afresh at each point) from 10 mN to 10 N and 0 to the 20 µm ceiling: the 384 nodes, dense where the
     curve bends near rest, keep it within 2e-4 of the ratio."""
     model = PaperModel()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.errors import RenderError
-from ultraglide.render.friction_models import ExponentialModel, StretchedExponentialModel
+from ultraglide.render.physics.friction_models import ExponentialModel, StretchedExponentialModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures import procedural

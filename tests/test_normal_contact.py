@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 from scipy import integrate, optimize
-from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
-from ultraglide.render.normal_contact import (
+from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp
+from ultraglide.render.physics.normal_contact import (
     bed_reaction,
     cycle_reaction_n,
     relative_friction,
@@ -109,8 +109,8 @@ def test_bed_reaction_closed_form_mean():
 @pytest.mark.parametrize("amplitude", [0.5, 3.0, 8.0])
 def test_cycle_friction_averages_to_the_relative_friction(amplitude):
     # the mean of mu(F) F over a cycle, over mu(F_n) F_n at rest, is the relative coefficient (eq. 9)
-    from ultraglide.render.fingerprint import friction_force_n
-    from ultraglide.render.normal_contact import cycle_friction_n
+    from ultraglide.render.physics.fingerprint import friction_force_n
+    from ultraglide.render.physics.normal_contact import cycle_friction_n
 
     friction = cycle_friction_n(amplitude, 0.5, PHASE, HERTZ)
     assert np.mean(friction) / friction_force_n(0.5) == pytest.approx(relative_friction(amplitude, 0.5), abs=2e-4)
@@ -118,7 +118,7 @@ def test_cycle_friction_averages_to_the_relative_friction(amplitude):
 
 def test_rigid_pad_reading_of_eq_8_differs_by_the_documented_amounts():
     # docs/physics.md quotes these numbers; both readings must satisfy eq. (7)
-    from ultraglide.render.normal_contact import rigid_hertz_reaction
+    from ultraglide.render.physics.normal_contact import rigid_hertz_reaction
 
     phase = (np.arange(512) + 0.5) / 512 * np.pi - np.pi / 2
     assert np.mean(rigid_hertz_reaction(3.0, phase)) == pytest.approx(1.0, abs=1e-9)

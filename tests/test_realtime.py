@@ -1,4 +1,4 @@
-"""The engine's process hygiene (render/realtime.py), read back from the kernel's own accounts in /proc:
+"""The engine's process hygiene (render/engine/realtime.py), read back from the kernel's own accounts in /proc:
 huge pages off for the engine and the app beside it, so khugepaged has nothing of ours to collapse."""
 
 import json
@@ -43,7 +43,7 @@ def huge_kib(array):
     return total
 
 if sys.argv[1] == "off":
-    from ultraglide.render.realtime import keep_huge_pages_out
+    from ultraglide.render.engine.realtime import keep_huge_pages_out
     said = keep_huge_pages_out()
 else:
     said = ""
@@ -163,7 +163,7 @@ def test_a_refused_request_is_said_and_nothing_is_held():
     if os.geteuid() != 0 and os.access("/dev/cpu_dma_latency", os.W_OK):
         pytest.skip("this user may write the request")
     drop = "import os; os.setgroups([]); os.setgid(65534); os.setuid(65534)\n" if os.geteuid() == 0 else ""
-    script = ("from ultraglide.render.realtime import CpuWakeLatency\n" + drop +  # imported first, then nobody
+    script = ("from ultraglide.render.engine.realtime import CpuWakeLatency\n" + drop +  # imported first, then nobody
               "w = CpuWakeLatency(0); w.hold(True); print(w.held, '|', w.words())")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert result.returncode == 0, result.stderr[-2000:]
@@ -173,7 +173,7 @@ def test_a_refused_request_is_said_and_nothing_is_held():
 
 
 def test_no_request_when_not_asked():
-    from ultraglide.render.realtime import CpuWakeLatency
+    from ultraglide.render.engine.realtime import CpuWakeLatency
 
     wake = CpuWakeLatency(None)
     wake.hold(True)

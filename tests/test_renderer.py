@@ -5,12 +5,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
-from ultraglide.apps.sources import offline_stage
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError
-from ultraglide.render.friction_models import ExponentialModel, PaperModel
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.friction_models import ExponentialModel, PaperModel
 from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
 from ultraglide.textures import procedural

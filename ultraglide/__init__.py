@@ -41,18 +41,18 @@ _EXPORTS: dict[str, str] = {
     "Sampler": "ultraglide.textures.sampling",
     "TextureError": "ultraglide.textures.errors",
     # models, their inverse, measurements and calibration
-    "FrictionModel": "ultraglide.render.friction_models",
-    "PaperModel": "ultraglide.render.friction_models",
-    "ExponentialModel": "ultraglide.render.friction_models",
-    "StretchedExponentialModel": "ultraglide.render.friction_models",
-    "TableModel": "ultraglide.render.friction_models",
-    "load_model": "ultraglide.render.calibration",
-    "read_measurements": "ultraglide.render.measurements",
-    "fit_model": "ultraglide.render.calibration",
-    "compare_models": "ultraglide.render.calibration",
-    "calibration_toml": "ultraglide.render.calibration",
-    "read_calibration": "ultraglide.render.calibration",
-    "ModelError": "ultraglide.render.errors",
+    "FrictionModel": "ultraglide.render.physics.friction_models",
+    "PaperModel": "ultraglide.render.physics.friction_models",
+    "ExponentialModel": "ultraglide.render.physics.friction_models",
+    "StretchedExponentialModel": "ultraglide.render.physics.friction_models",
+    "TableModel": "ultraglide.render.physics.friction_models",
+    "load_model": "ultraglide.render.physics.calibration",
+    "read_measurements": "ultraglide.render.physics.measurements",
+    "fit_model": "ultraglide.render.physics.calibration",
+    "compare_models": "ultraglide.render.physics.calibration",
+    "calibration_toml": "ultraglide.render.physics.calibration",
+    "read_calibration": "ultraglide.render.physics.calibration",
+    "ModelError": "ultraglide.render.physics.errors",
     # the renderer and the finger's path
     "Renderer": "ultraglide.render.renderer",
     "RenderSettings": "ultraglide.render.renderer",
@@ -77,8 +77,8 @@ _EXPORTS: dict[str, str] = {
     # what spans the packages
     "export_wav": "ultraglide.api",
     "ExportResult": "ultraglide.api",
-    "EnvelopeSource": "ultraglide.api",
-    "renderer_source": "ultraglide.api",
+    "EnvelopeSource": "ultraglide.render.engine.sources",
+    "renderer_source": "ultraglide.render.engine.sources",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -99,24 +99,32 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
-    from ultraglide.api import EnvelopeSource, ExportResult, export_wav, renderer_source
+    from ultraglide.api import ExportResult, export_wav
     from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.output_stage import OutputStage, output_stage
     from ultraglide.devices.profiles import PlateProfile, load_profile
     from ultraglide.devices.source import BlockSource, Device
     from ultraglide.devices.urls import open_device
-    from ultraglide.render.calibration import calibration_toml, compare_models, fit_model, load_model, read_calibration
     from ultraglide.render.engine import Engine, EngineConfig, EngineError, EngineStatus
-    from ultraglide.render.errors import ModelError, RenderError
-    from ultraglide.render.friction_models import (
+    from ultraglide.render.engine.sources import EnvelopeSource, renderer_source
+    from ultraglide.render.errors import RenderError
+    from ultraglide.render.paths import SwipePath
+    from ultraglide.render.physics.calibration import (
+        calibration_toml,
+        compare_models,
+        fit_model,
+        load_model,
+        read_calibration,
+    )
+    from ultraglide.render.physics.errors import ModelError
+    from ultraglide.render.physics.friction_models import (
         ExponentialModel,
         FrictionModel,
         PaperModel,
         StretchedExponentialModel,
         TableModel,
     )
-    from ultraglide.render.measurements import read_measurements
-    from ultraglide.render.paths import SwipePath
+    from ultraglide.render.physics.measurements import read_measurements
     from ultraglide.render.renderer import Renderer, RenderSettings
     from ultraglide.render.touch_log import read_touch_log
     from ultraglide.render.trajectory import RecordedTrajectory

@@ -22,18 +22,17 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import soundfile
 
 from ultraglide import _wav_writer
 from ultraglide.devices.atomic_file import AtomicFile, write_failure
-from ultraglide.devices.output_stage import OutputStage, output_stage
+from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.source import Device
-from ultraglide.render.calibration import load_model
+from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError
-from ultraglide.render.friction_models import FrictionModel
 from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.render.renderer import ControlBlock, Renderer, RenderSettings
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.library import resolve_texture
@@ -84,42 +83,6 @@ def export_duration_s(renderer: Renderer) -> float:
     """How long an export of ``renderer``'s path lasts: the path, then the output coming to rest (s)."""
     trajectory = renderer.trajectory
     return trajectory.end_s - trajectory.start_s + renderer.tail_s
-
-
-class EnvelopeSource:
-    """A renderer's drive envelope, µm p-p at its control rate: the source a device is started with
-    (a :class:`~ultraglide.devices.source.BlockSource`). The device puts it behind its output stage."""
-
-    def __init__(self, renderer: Renderer):
-        self.renderer = renderer
-        self.control_rate_hz = renderer.settings.control_rate_hz
-
-    def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        """The next ``n`` drive samples (µm p-p); ``now_s``: when the first reaches the plate (perf_counter s)."""
-        return self.renderer.control(n, now_s).drive_um_pp
-
-    def request_stop(self) -> None:
-        """Ramp the renderer down to rest."""
-        self.renderer.stop()
-
-    @property
-    def finished(self) -> bool:
-        """True once the renderer is at rest after a stop or the end of its path."""
-        return self.renderer.finished
-
-
-def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
-    """What to ``device.start()`` with so that it plays ``renderer``: the renderer behind the drive limiter,
-    as the signal the device wants (``device.signal``, ``device.rate_hz``). Starting the device with an
-    :class:`EnvelopeSource` does the same; built here, the caller can read the limiter's counters."""
-    carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
-    return output_stage(EnvelopeSource(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
-
-
-def offline_stage(renderer: Renderer) -> OutputStage:
-    """The audio a plate would get from ``renderer`` (limiter, then carrier) at its own audio rate, for export."""
-    return OutputStage(EnvelopeSource(renderer), renderer.profile, "audio", renderer.settings.audio_rate_hz,
-                       renderer.carrier_hz)
 
 
 def available_cpus() -> int:

@@ -7,7 +7,7 @@ and amplitudes in micrometres **peak-to-peak** (see ``docs/physics.md``).
 
 Example::
 
-    >>> from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
+    >>> from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp
     >>> round(float(detach_amplitude_um_pp(0.15, FingerParams())), 2)
     1.15
 """
@@ -112,7 +112,7 @@ def glide_threshold_um_pp(force_n, params: FingerParams = FingerParams()):
     A plate oscillating about the finger's rest position stretches the springs by its
     zero-to-peak amplitude, so the peak-to-peak threshold is twice Delta x_t. At 0.4 N this is
     4.5 µm, the "about 4 µm at about 0.4 N" of the paper's psychophysics; the steady-state
-    threshold after the first slip, see :func:`render.lateral.steady_glide_threshold_um_pp`, is 3.8 µm.
+    threshold after the first slip, see :func:`render.physics.lateral.steady_glide_threshold_um_pp`, is 3.8 µm.
     """
     force = np.asarray(force_n, dtype=float)
     return 2.0 * params.static_friction * force / tangential_stiffness_n_per_m(force, params) * M_TO_UM

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from ultraglide.render.csv_table import Column, read_numeric_csv
-from ultraglide.render.errors import ModelError
+from ultraglide.render.physics.csv_table import Column, read_numeric_csv
+from ultraglide.render.physics.errors import ModelError
 
 AMPLITUDE = Column("amplitude_um_pp", 0.0, 100.0, "µm p-p")  # plates reach a few µm; 100 is no plate
 RELATIVE_FRICTION = Column("relative_friction", 0.0, 1.2, low_open=True)  # above 1: measurement noise

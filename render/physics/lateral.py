@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ultraglide.render.fingerprint import M_TO_UM, FingerParams, tangential_stiffness_n_per_m
+from ultraglide.render.physics.fingerprint import M_TO_UM, FingerParams, tangential_stiffness_n_per_m
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def simulated_glide_threshold_um_pp(
     """The smallest amplitude (µm p-p) whose simulation from rest slips at all, by bisection.
 
     This is the numerical route of Fig. 3a; it agrees with the closed form of eq. (5),
-    :func:`render.fingerprint.glide_threshold_um_pp`.
+    :func:`render.physics.fingerprint.glide_threshold_um_pp`.
     """
     low, high = 0.0, 1.0
     while simulate_lateral(high, force_n, cycles=1, steps_per_cycle=2000, params=params).slid is False:

@@ -23,9 +23,10 @@ import time
 import numpy as np
 from ultraglide.devices.errors import describe
 from ultraglide.devices.output_stage import OutputStage
-from ultraglide.render import engine_shm as shm
-from ultraglide.render.engine_shm import SharedBlock
-from ultraglide.render.realtime import CpuWakeLatency, keep_huge_pages_out, raise_other_threads, raise_priority
+from ultraglide.render.engine import shm
+from ultraglide.render.engine.realtime import CpuWakeLatency, keep_huge_pages_out, raise_other_threads, raise_priority
+from ultraglide.render.engine.shm import SharedBlock
+from ultraglide.render.engine.sources import EnvelopeSource
 
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
 STATUS_PERIOD_S = 0.1
@@ -34,32 +35,14 @@ PROBE_PERIOD_S = 0.0002
 RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
 
 
-class _Envelope:
-    """The renderer's drive envelope (µm p-p, control rate), rendered into preallocated buffers."""
-
-    def __init__(self, renderer, capacity: int = 4096):
-        self.renderer = renderer
-        self.control_rate_hz = renderer.settings.control_rate_hz
-        self.buffers = renderer.control_buffers(capacity, always=True)
-
-    def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        return self.renderer.control(n, now_s, out=self.buffers).drive_um_pp
-
-    def request_stop(self) -> None:
-        self.renderer.stop()
-
-    @property
-    def finished(self) -> bool:
-        return self.renderer.finished
-
-
 class EngineSource(OutputStage):
     """The block path: the device's output stage (limiter, carrier for audio) with the touch ring drained
     before each block and the block's figures published after it. Devices take it as their stage."""
 
     def __init__(self, renderer, shared: SharedBlock, device, raise_priority_: bool = True):
         carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
-        super().__init__(_Envelope(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
+        super().__init__(EnvelopeSource(renderer, realtime_capacity=4096), renderer.profile, device.signal,
+                         device.rate_hz, carrier_hz)
         self.renderer = renderer
         self.shared = shared
         self.device = device
@@ -220,7 +203,7 @@ def _load(config):
 
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import open_device
-    from ultraglide.render.calibration import load_model
+    from ultraglide.render.physics.calibration import load_model
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -247,7 +230,8 @@ def _texture(spec):
 
 def _user_errors():
     from ultraglide.devices.errors import DeviceError
-    from ultraglide.render.errors import ModelError, RenderError
+    from ultraglide.render.errors import RenderError
+    from ultraglide.render.physics.errors import ModelError
     from ultraglide.textures.errors import TextureError
 
     return (DeviceError, ModelError, RenderError, TextureError, OSError, ValueError)
@@ -385,7 +369,7 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
             if command == "texture":
                 renderer.set_texture(_texture(args[0]))
             elif command == "model":
-                from ultraglide.render.calibration import load_model
+                from ultraglide.render.physics.calibration import load_model
 
                 renderer.set_model(load_model(args[0]))
             elif command == "force":

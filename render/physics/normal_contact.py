@@ -29,7 +29,7 @@ that a table over u serves every force.
 from __future__ import annotations
 
 import numpy as np
-from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp, friction_force_n
+from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp, friction_force_n
 
 _HERTZ_PEAK = 1.5  # peak of the Hertzian profile relative to the mean pressure, eq. (8)
 

@@ -1,6 +1,6 @@
 """The real-time engine in its own process: touches in, status out, the device kept fed whatever the UI does.
 
-The renderer and the device run in a spawned process (:mod:`render.engine_process`), so drawing,
+The renderer and the device run in a spawned process (:mod:`render.engine.process`), so drawing,
 event handling and garbage in the UI never hold the GIL the block path needs. Two doors:
 
 * **in**: :meth:`Engine.touch` writes a touch report into a shared-memory ring (never waits);
@@ -33,15 +33,16 @@ import multiprocessing
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from ultraglide.render import engine_shm as shm
-from ultraglide.render.engine_process import engine_main
-from ultraglide.render.engine_shm import SharedBlock, ring_order
+from ultraglide.render.engine import shm
+from ultraglide.render.engine.process import engine_main
+from ultraglide.render.engine.realtime import keep_huge_pages_out
+from ultraglide.render.engine.shm import SharedBlock, ring_order
+from ultraglide.render.engine.status import EngineStatus, status_from_shared
 from ultraglide.render.errors import RenderError
-from ultraglide.render.realtime import keep_huge_pages_out
 
 if TYPE_CHECKING:
     from ultraglide.textures.texture import Texture
@@ -65,7 +66,7 @@ class EngineConfig:
     plate's amplitude (``sim`` only; for latency measurement). ``realtime_priority`` runs the block thread
     in real time where the OS allows and keeps the kernel's huge-page work away from the engine and from
     the process that starts it, and, while the block path renders, asks idle CPUs to wake within
-    ``cpu_wake_latency_us`` (:mod:`render.realtime`; None makes no such request).
+    ``cpu_wake_latency_us`` (:mod:`render.engine.realtime`; None makes no such request).
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
@@ -84,72 +85,6 @@ class EngineConfig:
     probe_plate: bool = False
     cpu_wake_latency_us: int | None = 0  # asked of idle CPUs while rendering (with realtime_priority); None: not
     track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (devices/resonance.py)
-
-
-@dataclass(frozen=True)
-class History:
-    """The recent blocks, oldest first: one row per block (its first sample's time, its last values)."""
-
-    time_s: np.ndarray
-    target_ratio: np.ndarray
-    commanded_um_pp: np.ndarray
-    plate_um_pp: np.ndarray
-    limited_samples: np.ndarray
-
-
-@dataclass(frozen=True)
-class EngineStatus:
-    """A snapshot of the engine. Times in µs or s as named; amplitudes µm p-p."""
-
-    device: str
-    state: str  # starting, running, paused, stopping, stopped, failed
-    priority: str  # the scheduling the block thread got: SCHED_FIFO n, nice n, or normal
-    blocks: int
-    late_blocks: int
-    underruns: int  # the device's: audio underflows or xruns, plate-driver underruns
-    block_p50_us: float | None
-    block_p99_us: float | None
-    limited_percent: float  # samples held at the plate's limit in the last second, %
-    clipped_samples: int
-    drive_clipped_samples: int
-    ramps: int  # the gate's ramps (finger down, up, pause)
-    touches: int
-    touches_dropped: int
-    faults: list[str]
-    control_samples: int
-    history: History = field(repr=False)
-    device_status: dict = field(repr=False, default_factory=dict)
-    texture: str = ""  # what the renderer renders with (as of the command thread's last status, ≤ 0.1 s old)
-    model: str = ""
-    force_n: float = math.nan  # the default force, N
-    last_touch: tuple[float, float, float, bool] | None = None  # as drained: x mm, y mm, force N (NaN), down
-    run_block_p50_us: float | None = None  # over every block of the run (±1 %: a histogram)
-    run_block_p99_us: float | None = None
-    resting_blocks: int = 0  # of ``blocks``, those served as zeros while paused at rest (not in block times)
-
-    def words(self, priority: bool = True) -> str:
-        """One line for people."""
-        p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
-        p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
-        faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
-        return (f"{self.device} {self.state} | {self.blocks} blocks, {self.late_blocks} late, "
-                f"{self.underruns} underruns | block {p50}/{p99} µs p50/p99 | "
-                f"{self.limited_percent:.0f}% at the limit" + (f" | {self.priority}" if priority else "") + faults)
-
-    def summary(self) -> dict:
-        """The figures as plain JSON values (no history)."""
-        values = asdict(self)
-        del values["history"]
-        return values
-
-
-def _underruns(device_status: dict) -> int:
-    count = 0
-    for key in ("underruns", "xruns", "late_blocks", "late_batches"):
-        value = device_status.get(key)
-        if isinstance(value, int | float):
-            count += int(value)
-    return count + int((device_status.get("fault_counts") or {}).get("underrun", 0))  # a plate's own buffer
 
 
 class Engine:
@@ -318,7 +253,7 @@ class Engine:
             return self.final_status
         header, block_times, history_ring, _ = self.shared.read_fast()
         device_status = self.shared.read_slow()
-        status = _status(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
+        status = status_from_shared(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
                          self.config.device, history_s)
         run_p50, run_p99 = (None if v is None else v * 1e6
                             for v in shm.histogram_percentiles(self.shared.read_histogram(), (50, 99)))
@@ -336,40 +271,6 @@ class Engine:
         """(simulated plate amplitude µm p-p, perf_counter time it last rose above 0.05 µm); probe_plate only."""
         fast = self.shared.fast
         return float(fast[shm.PLATE_PROBE_UM_PP]), float(fast[shm.PROBE_RISE_S])
-
-
-def _status(header, block_times, history_ring, device_status, dropped, device_name, history_s) -> EngineStatus:
-    blocks = int(header[shm.BLOCKS])
-    times = ring_order(block_times, int(header[shm.BLOCK_TIME_INDEX]))
-    p50 = p99 = None
-    if len(times):
-        p50, p99 = (float(v) * 1e6 for v in np.percentile(times, [50, 99]))
-    rows = ring_order(history_ring, int(header[shm.HISTORY_INDEX]))
-    if len(rows):
-        rows = rows[rows[:, 0] >= rows[-1, 0] - history_s]
-    last_second = rows[rows[:, 0] >= rows[-1, 0] - 1.0] if len(rows) else rows
-    limited = 0.0
-    if len(last_second) > 1:
-        span_samples = (last_second[-1, 0] - last_second[0, 0]) * 12000.0
-        limited = float(min(100.0, 100.0 * last_second[:, 4].sum() / max(span_samples, 1.0)))
-    faults = list(device_status.get("device_faults") or []) + list(device_status.get("errors") or [])
-    state = shm.STATES[int(header[shm.STATE])]
-    touched = int(header[shm.TOUCHES]) > 0
-    return EngineStatus(
-        device=str(device_status.get("device", device_name)), state=state,
-        priority=str(device_status.get("priority", "not yet running")), blocks=blocks,
-        late_blocks=int(header[shm.LATE_BLOCKS]), underruns=_underruns(device_status),
-        block_p50_us=p50, block_p99_us=p99, limited_percent=limited,
-        clipped_samples=int(header[shm.CLIPPED]), drive_clipped_samples=int(header[shm.DRIVE_CLIPPED]),
-        ramps=int(header[shm.RAMPS]),
-        touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
-        control_samples=int(header[shm.CONTROL_SAMPLES]),
-        history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
-        device_status=device_status, resting_blocks=int(header[shm.RESTING_BLOCKS]),
-        texture=str(device_status.get("texture", "")),
-        model=str(device_status.get("model", "")), force_n=float(device_status.get("force_n", math.nan)),
-        last_touch=(float(header[shm.LAST_TOUCH_X]), float(header[shm.LAST_TOUCH_Y]),
-                    float(header[shm.LAST_TOUCH_FORCE]), bool(header[shm.LAST_TOUCH_DOWN] > 0.5)) if touched else None)
 
 
 def _is_texture(spec) -> bool:

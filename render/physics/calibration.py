@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 import tomli_w
-from ultraglide.render.errors import ModelError
-from ultraglide.render.fingerprint import FingerParams
-from ultraglide.render.friction_models import (
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import FingerParams
+from ultraglide.render.physics.friction_models import (
     DEFAULT_FORCE_N,
     FORCE_EXPONENT_RANGE,
     SCALE_RANGE_UM_PP,
@@ -48,8 +48,8 @@ from ultraglide.render.friction_models import (
     StretchedExponentialModel,
     TableModel,
 )
-from ultraglide.render.measurements import Measurements, read_measurements
-from ultraglide.render.normal_contact import relative_friction_of_u
+from ultraglide.render.physics.measurements import Measurements, read_measurements
+from ultraglide.render.physics.normal_contact import relative_friction_of_u
 
 CALIBRATION_VERSION = 1
 MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched")

@@ -6,7 +6,7 @@ functions are vectorised over numpy arrays; the inverse is the real-time hot pat
 
 Example::
 
-    >>> from ultraglide.render.friction_models import ExponentialModel
+    >>> from ultraglide.render.physics.friction_models import ExponentialModel
     >>> model = ExponentialModel()
     >>> result = model.amplitude_um_pp([1.0, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
     >>> result.amplitude_um_pp.round(2).tolist(), result.clamped
@@ -26,11 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from ultraglide.render import kernels
-from ultraglide.render.errors import ModelError
-from ultraglide.render.fingerprint import FingerParams, detach_amplitude_um_pp
-from ultraglide.render.measurements import Measurements
-from ultraglide.render.normal_contact import relative_friction_of_u
+from ultraglide.render.physics import kernels
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp
+from ultraglide.render.physics.measurements import Measurements
+from ultraglide.render.physics.normal_contact import relative_friction_of_u
 
 DEFAULT_FORCE_N = 0.5
 MIN_FORCE_N = 0.01  # lighter touches are treated as 10 mN: the finger is lifting off
@@ -206,7 +206,7 @@ class PaperModel(FrictionModel):
     """The seed paper's non-Coulombic bed-of-springs model (section IV), tabulated.
 
     The ratio depends on amplitude and force only through u = a_pp / detach_amplitude_um_pp(F)
-    (see :mod:`render.normal_contact`), so one table over u serves every force. The detachment
+    (see :mod:`render.physics.normal_contact`), so one table over u serves every force. The detachment
     amplitude scales as F^(1 - area_exponent) (F^(1/3) with the paper's A = k F^(2/3)). It predicts
     a modest reduction (to about 0.72 at 10 µm and 0.5 N) and never full levitation.
     """

@@ -1,0 +1,59 @@
+"""A renderer as the source a device is started with (``devices.source.BlockSource``), and the output
+stages that put it behind a device's limiter: the one place where a renderer meets a device.
+
+:class:`EnvelopeSource` serves every path: a device started by a command or a script
+(:func:`renderer_source`), an export (:func:`offline_stage`) and the engine's block path, which gives
+it preallocated buffers so that a real-time block allocates nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from ultraglide.devices.output_stage import OutputStage, output_stage
+from ultraglide.devices.source import Device
+from ultraglide.render.renderer import Renderer
+
+
+class EnvelopeSource:
+    """A renderer's drive envelope, µm p-p at its control rate: the source a device is started with
+    (a :class:`~ultraglide.devices.source.BlockSource`). The device puts it behind its output stage.
+
+    ``realtime_capacity`` (control samples): render every block into buffers made here once, for a
+    real-time path (:meth:`Renderer.control_buffers` with ``always``); the array :meth:`pull` returns
+    is then overwritten by the next pull. None (the default): each pull returns a new array.
+    """
+
+    def __init__(self, renderer: Renderer, realtime_capacity: int | None = None):
+        self.renderer = renderer
+        self.control_rate_hz = renderer.settings.control_rate_hz
+        self.buffers = None if realtime_capacity is None else renderer.control_buffers(realtime_capacity, always=True)
+
+    def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        """The next ``n`` drive samples (µm p-p); ``now_s``: when the first reaches the plate (perf_counter s)."""
+        return self.renderer.control(n, now_s, out=self.buffers).drive_um_pp
+
+    def request_stop(self) -> None:
+        """Ramp the renderer down to rest."""
+        self.renderer.stop()
+
+    @property
+    def finished(self) -> bool:
+        """True once the renderer is at rest after a stop or the end of its path."""
+        return self.renderer.finished
+
+    def __repr__(self) -> str:
+        return f"EnvelopeSource({self.renderer!r})"
+
+
+def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
+    """What to ``device.start()`` with so that it plays ``renderer``: the renderer behind the drive limiter,
+    as the signal the device wants (``device.signal``, ``device.rate_hz``). Starting the device with an
+    :class:`EnvelopeSource` does the same; built here, the caller can read the limiter's counters."""
+    carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
+    return output_stage(EnvelopeSource(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
+
+
+def offline_stage(renderer: Renderer) -> OutputStage:
+    """The audio a plate would get from ``renderer`` (limiter, then carrier) at its own audio rate, for export."""
+    return OutputStage(EnvelopeSource(renderer), renderer.profile, "audio", renderer.settings.audio_rate_hz,
+                       renderer.carrier_hz)

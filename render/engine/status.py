@@ -1,0 +1,112 @@
+"""What the engine reports: :class:`EngineStatus`, a snapshot read from its shared memory, and the recent
+:class:`History` a live chart draws."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from ultraglide.render.engine import shm
+from ultraglide.render.engine.shm import ring_order
+
+
+@dataclass(frozen=True)
+class History:
+    """The recent blocks, oldest first: one row per block (its first sample's time, its last values)."""
+
+    time_s: np.ndarray
+    target_ratio: np.ndarray
+    commanded_um_pp: np.ndarray
+    plate_um_pp: np.ndarray
+    limited_samples: np.ndarray
+
+
+@dataclass(frozen=True)
+class EngineStatus:
+    """A snapshot of the engine. Times in µs or s as named; amplitudes µm p-p."""
+
+    device: str
+    state: str  # starting, running, paused, stopping, stopped, failed
+    priority: str  # the scheduling the block thread got: SCHED_FIFO n, nice n, or normal
+    blocks: int
+    late_blocks: int
+    underruns: int  # the device's: audio underflows or xruns, plate-driver underruns
+    block_p50_us: float | None
+    block_p99_us: float | None
+    limited_percent: float  # samples held at the plate's limit in the last second, %
+    clipped_samples: int
+    drive_clipped_samples: int
+    ramps: int  # the gate's ramps (finger down, up, pause)
+    touches: int
+    touches_dropped: int
+    faults: list[str]
+    control_samples: int
+    history: History = field(repr=False)
+    device_status: dict = field(repr=False, default_factory=dict)
+    texture: str = ""  # what the renderer renders with (as of the command thread's last status, ≤ 0.1 s old)
+    model: str = ""
+    force_n: float = math.nan  # the default force, N
+    last_touch: tuple[float, float, float, bool] | None = None  # as drained: x mm, y mm, force N (NaN), down
+    run_block_p50_us: float | None = None  # over every block of the run (±1 %: a histogram)
+    run_block_p99_us: float | None = None
+    resting_blocks: int = 0  # of ``blocks``, those served as zeros while paused at rest (not in block times)
+
+    def words(self, priority: bool = True) -> str:
+        """One line for people."""
+        p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
+        p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
+        faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
+        return (f"{self.device} {self.state} | {self.blocks} blocks, {self.late_blocks} late, "
+                f"{self.underruns} underruns | block {p50}/{p99} µs p50/p99 | "
+                f"{self.limited_percent:.0f}% at the limit" + (f" | {self.priority}" if priority else "") + faults)
+
+    def summary(self) -> dict:
+        """The figures as plain JSON values (no history)."""
+        values = asdict(self)
+        del values["history"]
+        return values
+
+
+def _underruns(device_status: dict) -> int:
+    count = 0
+    for key in ("underruns", "xruns", "late_blocks", "late_batches"):
+        value = device_status.get(key)
+        if isinstance(value, int | float):
+            count += int(value)
+    return count + int((device_status.get("fault_counts") or {}).get("underrun", 0))  # a plate's own buffer
+
+
+def status_from_shared(header, block_times, history_ring, device_status, dropped, device_name,
+                       history_s) -> EngineStatus:
+    blocks = int(header[shm.BLOCKS])
+    times = ring_order(block_times, int(header[shm.BLOCK_TIME_INDEX]))
+    p50 = p99 = None
+    if len(times):
+        p50, p99 = (float(v) * 1e6 for v in np.percentile(times, [50, 99]))
+    rows = ring_order(history_ring, int(header[shm.HISTORY_INDEX]))
+    if len(rows):
+        rows = rows[rows[:, 0] >= rows[-1, 0] - history_s]
+    last_second = rows[rows[:, 0] >= rows[-1, 0] - 1.0] if len(rows) else rows
+    limited = 0.0
+    if len(last_second) > 1:
+        span_samples = (last_second[-1, 0] - last_second[0, 0]) * 12000.0
+        limited = float(min(100.0, 100.0 * last_second[:, 4].sum() / max(span_samples, 1.0)))
+    faults = list(device_status.get("device_faults") or []) + list(device_status.get("errors") or [])
+    state = shm.STATES[int(header[shm.STATE])]
+    touched = int(header[shm.TOUCHES]) > 0
+    return EngineStatus(
+        device=str(device_status.get("device", device_name)), state=state,
+        priority=str(device_status.get("priority", "not yet running")), blocks=blocks,
+        late_blocks=int(header[shm.LATE_BLOCKS]), underruns=_underruns(device_status),
+        block_p50_us=p50, block_p99_us=p99, limited_percent=limited,
+        clipped_samples=int(header[shm.CLIPPED]), drive_clipped_samples=int(header[shm.DRIVE_CLIPPED]),
+        ramps=int(header[shm.RAMPS]),
+        touches=int(header[shm.TOUCHES]), touches_dropped=dropped, faults=faults,
+        control_samples=int(header[shm.CONTROL_SAMPLES]),
+        history=History(*(rows[:, k].copy() for k in range(shm.HISTORY_FIELDS))),
+        device_status=device_status, resting_blocks=int(header[shm.RESTING_BLOCKS]),
+        texture=str(device_status.get("texture", "")),
+        model=str(device_status.get("model", "")), force_n=float(device_status.get("force_n", math.nan)),
+        last_touch=(float(header[shm.LAST_TOUCH_X]), float(header[shm.LAST_TOUCH_Y]),
+                    float(header[shm.LAST_TOUCH_FORCE]), bool(header[shm.LAST_TOUCH_DOWN] > 0.5)) if touched else None)

@@ -1,0 +1,5 @@
+"""Errors of the physics that a person can act on; the message says what to do."""
+
+
+class ModelError(ValueError):
+    """A friction model, calibration or measurement file that cannot be used."""
