@@ -10,10 +10,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from ultraglide.apps.experiment_command import design_for
-from ultraglide.apps.experiment_dryrun import SimResponder
-from ultraglide.apps.experiment_observer import SimObserver
-from ultraglide.apps.experiment_session import SessionConfig, run_session
+from ultraglide.apps.commands.experiment import design_for
+from ultraglide.apps.experiment.dryrun import SimResponder
+from ultraglide.apps.experiment.observer import SimObserver
+from ultraglide.apps.experiment.session import SessionConfig, run_session
 from ultraglide.devices.profiles import load_profile
 
 

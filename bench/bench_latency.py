@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-from ultraglide.apps.latency_command import measure
+from ultraglide.apps.commands.latency import measure
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Files that appear whole or not at all: written to a temporary file beside the target, renamed into place.
 
-This is the one implementation; ``ultraglide.apps.atomic`` wraps it for the commands (and holds the
+This is the one implementation; ``ultraglide.apps.cli.files`` wraps it for the commands (and holds the
 clean-up against stop signals). It lives here because the WAV recorder needs it and ``devices``
 imports nothing else of ours.
 

@@ -61,7 +61,7 @@ def test_unknown_names_raise_attribute_error():
 
 def test_import_is_lazy():
     code = ("import sys, ultraglide; heavy = [m for m in ('numpy', 'scipy', 'numba', 'matplotlib', "
-            "'ultraglide.render.renderer', 'ultraglide.apps.cli') if m in sys.modules]; print(heavy); "
+            "'ultraglide.render.renderer', 'ultraglide.apps.cli.main') if m in sys.modules]; print(heavy); "
             "ultraglide.grating; print('numpy' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr

@@ -27,7 +27,7 @@ def halves(tmp_path):
 @pytest.fixture
 def app(halves, monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     demo = DemoApp([halves], windowed=True, screen_width_mm=338.7)  # 1280 px: 0.2646 mm a pixel
     demo.wait_ready()
@@ -51,7 +51,7 @@ def plate():
 def plated(halves, plate, monkeypatch):
     """The demo on the plate above."""
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     demo = DemoApp([halves], device_url=f"serial:{plate.path}", windowed=True, screen_width_mm=338.7)
     demo.wait_ready()
@@ -238,7 +238,7 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
     """A texture asking for no friction at all is beyond any plate: every sample is limited, until the texture
     changes, when the count starts again."""
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     unreachable = save_texture(Texture(np.zeros((50, 80), np.float32), 80.0, 50.0, outside="clamp",
                                        name="unreachable"), tmp_path / "unreachable.png")
@@ -269,7 +269,7 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
 
 def test_touches_before_the_engine_is_ready_are_drawn_counted_and_not_felt(halves, monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     app = DemoApp([halves], windowed=True, screen_width_mm=338.7)
     try:
@@ -309,7 +309,7 @@ def test_watch_reloads_a_changed_texture_file_and_the_plate_feels_it(halves, pla
     """The finger rests on the left half; the file is rewritten under it (atomically, then in place):
     the plate's own amplitude follows each new texture."""
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     app = DemoApp([halves], device_url=f"serial:{plate.path}", windowed=True, screen_width_mm=338.7, watch=True)
     try:
@@ -344,7 +344,7 @@ def test_widgets_are_laid_out_for_the_screen(app):
 
 
 def test_labels_are_shortened_to_fit(app):
-    from ultraglide.apps.demo_draw import fit_text
+    from ultraglide.apps.demo.draw import fit_text
 
     long = "a texture with a very long name indeed, longer than any tile"
     short = fit_text(app.font, long, 120)
@@ -356,7 +356,7 @@ def test_labels_are_shortened_to_fit(app):
 
 def test_chart_puts_values_on_its_scales(app):
     """Friction steps from 1 to 0.25 at -1500 ms; 3 µm commanded on a 6 µm full scale; the limit at 4.5 µm."""
-    from ultraglide.apps.demo_draw import CHART_COLOURS, LIMIT, draw_chart
+    from ultraglide.apps.demo.draw import CHART_COLOURS, LIMIT, draw_chart
 
     surface = app.pg.Surface((1000, 200))
     t = np.linspace(10.0, 13.0, 3001)
@@ -381,7 +381,7 @@ def test_chart_puts_values_on_its_scales(app):
 
 
 def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):
-    from ultraglide.apps.demo_record import TouchRecorder
+    from ultraglide.apps.demo.record import TouchRecorder
     from ultraglide.render.touch_log import read_touch_log
 
     path = tmp_path / "log.csv"

@@ -10,9 +10,10 @@ import pytest
 
 PACKAGES = ("textures", "devices", "render", "apps")
 MODULES = sorted(
-    f"ultraglide.{package}.{info.name}"
+    info.name
     for package in PACKAGES
-    for info in pkgutil.iter_modules(importlib.import_module(f"ultraglide.{package}").__path__)
+    for info in pkgutil.walk_packages(importlib.import_module(f"ultraglide.{package}").__path__, f"ultraglide.{package}.")
+    if not info.ispkg
 )
 
 
@@ -24,4 +25,6 @@ def test_docstring_examples(name: str) -> None:
 
 
 def test_every_signal_module_is_checked() -> None:
-    assert {"ultraglide.render.renderer", "ultraglide.textures.sampling", "ultraglide.devices.protocol"} <= set(MODULES)
+    assert {"ultraglide.render.renderer", "ultraglide.textures.sampling", "ultraglide.devices.protocol",
+            "ultraglide.render.physics.friction_models", "ultraglide.render.engine.engine",
+            "ultraglide.apps.demo.app"} <= set(MODULES)

@@ -372,7 +372,7 @@ def test_the_engine_plays_a_named_event(tmp_path):
 
 def test_the_widgets_scene_clicks_pulses_at_detents_buzzes_and_snaps(monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
-    from ultraglide.apps.demo_app import DemoApp
+    from ultraglide.apps.demo.app import DemoApp
 
     demo = DemoApp([], device_url="null", windowed=True, screen_width_mm=338.7)
     try:

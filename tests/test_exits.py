@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli
-from ultraglide.apps.stop_signals import Stopped, StopSignals, held
+from ultraglide.apps.cli.signals import Stopped, StopSignals, held
 from ultraglide.devices import protocol as p
 from ultraglide.devices.plate_sim import PtyPlate
 from ultraglide.devices.profiles import load_profile
@@ -228,7 +228,7 @@ def test_play_on_serial_rests_the_plate_at_its_normal_end(tmp_path, tap):
 
 def test_play_on_serial_rests_the_plate_when_the_command_fails(tap, monkeypatch):
     """An exception in the command's loop (injected: the real renderer never fails on valid input)."""
-    from ultraglide.apps.cli import main
+    from ultraglide.apps.cli.main import main
     from ultraglide.render.engine import Engine
 
     touch = Engine.touch

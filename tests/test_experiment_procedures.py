@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from ultraglide.apps import experiment_psychometric as pf
-from ultraglide.apps.errors import UsageError
-from ultraglide.apps.experiment_observer import SimObserver
-from ultraglide.apps.experiment_procedures import (
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.experiment import psychometric as pf
+from ultraglide.apps.experiment.observer import SimObserver
+from ultraglide.apps.experiment.procedures import (
     ConstantParams,
     ConstantStimuli,
     QuestParams,

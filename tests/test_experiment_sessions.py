@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image
-from ultraglide.apps.experiment_command import design_for
-from ultraglide.apps.experiment_dryrun import SimResponder
-from ultraglide.apps.experiment_observer import SimObserver
-from ultraglide.apps.experiment_session import SessionConfig, run_session
-from ultraglide.apps.experiment_stimuli import Layout, StimulusDesign, render_offline, with_contrast
+from ultraglide.apps.commands.experiment import design_for
+from ultraglide.apps.experiment.dryrun import SimResponder
+from ultraglide.apps.experiment.observer import SimObserver
+from ultraglide.apps.experiment.session import SessionConfig, run_session
+from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign, render_offline, with_contrast
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.textures.library import resolve_texture

@@ -7,9 +7,9 @@ import time
 
 import numpy as np
 import pytest
-from ultraglide.apps.experiment_command import design_for
-from ultraglide.apps.experiment_procedures import interval_positions
-from ultraglide.apps.experiment_session import SessionConfig, run_session
+from ultraglide.apps.commands.experiment import design_for
+from ultraglide.apps.experiment.procedures import interval_positions
+from ultraglide.apps.experiment.session import SessionConfig, run_session
 
 DEADLINE_S = 30.0
 
@@ -23,8 +23,8 @@ def pg(monkeypatch):
 
 
 def make_window(config):
-    from ultraglide.apps.experiment_output import LocalOutput
-    from ultraglide.apps.experiment_window import WindowResponder
+    from ultraglide.apps.experiment.output import LocalOutput
+    from ultraglide.apps.experiment.window import WindowResponder
 
     design = design_for(config)
     output = LocalOutput("null", config.profile, config.model, config.force_n)
@@ -153,8 +153,8 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
 def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
     """The default output is the engine process (device null): a swipe over the target zone reaches it and
     the engine looks up the trial's texture there (1 - contrast at the grating's most slippery)."""
-    from ultraglide.apps.experiment_output import EngineOutput
-    from ultraglide.apps.experiment_window import WindowResponder
+    from ultraglide.apps.experiment.output import EngineOutput
+    from ultraglide.apps.experiment.window import WindowResponder
 
     config = SessionConfig(texture="grating-1mm", method="staircase", intervals=2, trials=1, seed=1, device="null",
                            start_level=0.4)

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli
-from ultraglide.apps.cli import build_parser
-from ultraglide.apps.render_setup import load_inputs, make_renderer
+from ultraglide.apps.cli.main import build_parser
+from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.output_stage import Modulation
 from ultraglide.render.engine.sources import offline_stage
@@ -157,7 +157,7 @@ def test_help_loads_no_numerical_library():
     loaded = {line.split("|")[-1].strip() for line in result.stderr.splitlines() if line.startswith("import time:")}
     heavy = {name for name in loaded if name.split(".")[0] in {"numpy", "scipy", "numba", "tqdm", "soundfile",
                                                                 "matplotlib", "pygame", "PIL"}}
-    assert "ultraglide.apps.cli" in loaded and not heavy
+    assert "ultraglide.apps.cli.main" in loaded and not heavy
 
 
 def test_a_swipe_export_does_not_load_scipy_interpolate():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_cli
 from PIL import Image
-from ultraglide.apps.export_plot import BUCKETS, SEGMENT, PlotRecorder
+from ultraglide.apps.figures.export_plot import BUCKETS, SEGMENT, PlotRecorder
 
 RATE = 12000.0
 

@@ -26,12 +26,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image, PngImagePlugin
 from scipy.interpolate import PchipInterpolator
-from ultraglide.apps.cli import build_parser
-from ultraglide.apps.cli_types import texture_name
+from ultraglide.apps.cli.main import build_parser
+from ultraglide.apps.cli.types import texture_name
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.urls import parse_device_url
-from ultraglide.render.physics import csv_table
 from ultraglide.render.errors import RenderError
+from ultraglide.render.physics import csv_table
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.touch_log import check_touch_log, read_touch_log

@@ -14,7 +14,7 @@ def _run(code: str, cwd) -> subprocess.CompletedProcess:
 
 def test_subpackages_import_under_the_namespace(tmp_path) -> None:
     result = _run("import ultraglide.render.renderer, ultraglide.textures.texture, ultraglide.devices.protocol, "
-                  "ultraglide.apps.cli; print('ok')", tmp_path)
+                  "ultraglide.apps.cli.main; print('ok')", tmp_path)
     assert result.stdout.strip() == "ok", result.stderr
 
 

@@ -18,7 +18,7 @@ import time
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from test_devices import Constant
-from ultraglide.apps.play_command import describe_faults
+from ultraglide.apps.commands.play import describe_faults
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import load_profile

@@ -1,0 +1,123 @@
+"""``ultraglide calibrate``: fit a model (or every model) to measured points, report each parameter
+with its uncertainty and the cross-validated error, and write a calibration file and its figure."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import atomic_path
+from ultraglide.render.physics.calibration import Fit, calibration_toml, compare_models, fit_model, fit_summary
+from ultraglide.render.physics.measurements import read_measurements
+
+POOR_FIT_RMS = 0.05
+CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
+            "leave_one_participant_out": "leave-one-participant-out"}
+
+
+def _select_participant(data, participant):
+    if participant is None:
+        return data
+    if data.participant is None:
+        raise UsageError(f"{data.source}: --participant needs a participant column")
+    pick = data.participant == participant
+    if not pick.any():
+        known = ", ".join(f"{p:g}" for p in np.unique(data.participant))
+        raise UsageError(f"{data.source}: no points of participant {participant:g}; the file has {known}")
+    return data.subset(pick)
+
+
+def _cv_text(fit: Fit) -> str:
+    if not fit.cross_validation:
+        return "not available (too few points)"
+    return ", ".join(f"{CV_NAMES[k]} {v:.4f}" for k, v in fit.cross_validation.items())
+
+
+def _fit_lines(fit: Fit) -> list[str]:
+    forces = sorted({float(f) for f in (fit.data.force_n if fit.data.force_n is not None else [0.5])})
+    lines = [f"fitted {fit.model.describe()}"]
+    for p in fit.parameters:
+        allowed = f"allowed [{p.spec.low:g}, {p.spec.high:g}]{p.spec.unit}"
+        if p.fixed:
+            lines.append(f"  {p.spec.key} = {p.value:.6g}  held: one force cannot fix it ({allowed})")
+        else:
+            lines.append(f"  {p.spec.key} = {p.value:.6g} ± {p.stderr:.2g}  (1 standard error; {allowed})")
+    lines.append(f"  {len(fit.data)} points at {', '.join(f'{f:g}' for f in forces)} N; rms residual "
+                 f"{fit.rms_residual:.4f}, largest {fit.max_abs_residual:.4f} (relative friction)")
+    lines.append(f"  cross-validated rms: {_cv_text(fit)}")
+    return lines
+
+
+def _residual_table(fit: Fit) -> list[str]:
+    data = fit.data
+    lines = ["  amplitude µm p-p   force N   measured   model    residual"]
+    forces = data.force_n if data.force_n is not None else [None] * len(data)
+    for a, r, f, e in zip(data.amplitude_um_pp, data.relative_friction, forces, fit.residuals, strict=True):
+        force = f"{f:7.3g}" if f is not None else "      -"
+        lines.append(f"  {a:16.2f}   {force}   {r:8.4f}   {r - e:7.4f}   {e:+8.4f}")
+    return lines
+
+
+def _write(fit: Fit, fits: list[Fit], output: Path) -> list[Path]:
+    from ultraglide.apps.figures.calibration import write_calibration_figure
+
+    with atomic_path(output) as temporary:
+        temporary.write_text(calibration_toml(fit))
+    return [output, *write_calibration_figure(fits, output.with_suffix(".png"))]
+
+
+def run(args) -> int:
+    data = _select_participant(read_measurements(args.data), args.participant)
+    output = Path(args.output) if args.output else None
+    if output is not None and output.suffix != ".toml":
+        raise UsageError(f"{output}: a calibration file must end in .toml")
+    if args.compare:
+        fits = compare_models(data)
+        if not fits:
+            raise UsageError(f"{data.source}: no model can be fitted to these points")
+        chosen = next((f for f in fits if f.kind != "table"), None)
+        written = _write(chosen, fits, output) if output is not None and chosen is not None else []
+        result = {"ranking": [fit_summary(f) for f in fits], "written": [str(p) for p in written]}
+        if args.json:
+            print(json.dumps(result))
+            return 0
+        ranked_by = "leave-one-force-out" if "leave_one_force_out" in fits[0].cross_validation else "k-fold"
+        print(f"{len(data)} points from {data.source}; models ranked by {ranked_by} cross-validated rms error:")
+        for rank, fit in enumerate(fits, 1):
+            print(f"  {rank}. {fit.kind:14} {_cv_text(fit)}; in-sample {fit.rms_residual:.4f}")
+        print()
+        for line in _fit_lines(fits[0]):
+            print(line)
+        for fit in fits:
+            for warning in fit.warnings():
+                print(f"warning: {warning}")
+        if written:
+            if chosen is not fits[0]:
+                print(f"the table model ranks first; a table is its CSV (--model table:{data.source}); "
+                      f"the calibration file holds the best fitted model, {chosen.kind}")
+            print(f"wrote {', '.join(map(str, written))}")
+        return 0
+
+    fit = fit_model(data, args.model, cross_validate=True)
+    if fit.kind == "table" and output is not None:
+        raise UsageError("a table model is its CSV: use --model table:FILE.csv rather than a calibration file")
+    written = _write(fit, [fit], output) if output is not None else []
+    if args.json:
+        print(json.dumps({"fit": fit_summary(fit), "written": [str(p) for p in written]}))
+        return 0
+    for line in _fit_lines(fit) + _residual_table(fit):
+        print(line)
+    for warning in fit.warnings():
+        print(f"warning: {warning}; --compare ranks every model on these data")
+    cv = fit.cv_rms
+    if not fit.warnings() and (fit.rms_residual > POOR_FIT_RMS or (not math.isnan(cv) and cv > POOR_FIT_RMS)):
+        print(f"warning: the {fit.kind} model follows these data poorly (rms {fit.rms_residual:.3f}, "
+              f"cross-validated {cv:.3f}); --compare ranks every model on them")
+    if written:
+        print(f"wrote {', '.join(map(str, written))}")
+    else:
+        print("no file written (give -o CAL.toml to keep the calibration)")
+    return 0

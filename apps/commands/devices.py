@@ -1,0 +1,85 @@
+"""``ultraglide devices`` and ``ultraglide plate-sim``."""
+
+from __future__ import annotations
+
+import json
+import queue
+
+from ultraglide.apps.cli.signals import held
+from ultraglide.devices.listing import list_devices
+from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+from ultraglide.devices.profiles import load_profile
+
+
+def list_all(args) -> int:
+    found = list_devices()
+    if args.json:
+        print(json.dumps(found))
+        return 0
+    print(f"sim          {found['simulator']['description']}")
+    for port in found["serial"]:
+        print(f"{port['url']:12} {port['description']}")
+    if not found["serial"]:
+        print("(no serial ports)")
+    for output in found["audio"]:
+        rates = ", ".join(f"{r // 1000:g} kHz" for r in output["rates_hz"]) or "no rate that carries 20-28 kHz"
+        print(f"{output['url']:12} {output['name']} ({output['hostapi']}): {rates}")
+    if found["audio_error"]:
+        print(f"(audio: {found['audio_error']})")
+    elif not found["audio"]:
+        print("(no audio outputs)")
+    return 0
+
+
+def describe_event(event: dict) -> str:
+    """One event of the simulated plate as a line for people: its time, what happened, the details."""
+    fields = {key: value for key, value in event.items() if key not in ("t_s", "event")}
+    if event["event"] == "watchdog":
+        fields.pop("fault", None)  # the event's name says it
+    details = ", ".join(str(value) if key == "fault" else f"{key} {value}" for key, value in fields.items())
+    return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
+
+
+def plate_sim(args) -> int:
+    profile = load_profile(args.profile)
+    truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
+    plate = PtyPlate(profile, args.link, truth).start()
+    sim = plate.simulator
+
+    def show(event: dict) -> None:
+        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+
+    try:  # whatever ends the loop (a signal turned exception included), the pty and its link go
+        if args.json:
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
+                  "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
+                  "drift_hz_per_s": truth.drift_hz_per_s})
+        else:
+            print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
+                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; Ctrl-C stops it",
+                  flush=True)
+        while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
+            try:
+                show(sim.events.get(timeout=0.1))
+            except queue.Empty:
+                continue
+    finally:
+        with held():  # a second signal does not cut this short
+            plate.stop()
+            while not sim.events.empty():
+                show(sim.events.get())
+            _summary(sim, args.json, show)
+
+
+def _summary(sim, as_json: bool, show) -> None:
+    c = sim.counters
+    faults = {name: count for name, count in sim.fault_counts().items() if count}
+    if as_json:
+        show({"t_s": round(sim.elapsed_s(), 4), "event": "stopped", "frames": c.frames_ok, "setpoints": c.setpoints,
+              "crc_errors": c.crc_errors, "lost_setpoints": c.lost_setpoints, "late_setpoints": c.late_setpoints,
+              "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
+    else:
+        fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"
+        print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
+              f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
+              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p", flush=True)

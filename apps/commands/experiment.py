@@ -1,0 +1,194 @@
+"""``ultraglide experiment threshold|constant``: run, dry-run or resume a psychophysics session."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.experiment.log import TRIALS, read_session
+from ultraglide.apps.experiment.session import SessionConfig, resumed_config, run_session
+from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign
+
+PRESETS = {
+    # Vezzoli et al. (2015), section II.D: 0, 2 and 4 µm at the actuator's resonance, in random order,
+    # "more slippery?"; about 0.4 N. The paper gives no number of presentations: 10 each is our choice.
+    "vezzoli2015": {"parameter": "amplitude", "levels": (0.0, 2.0, 4.0), "repeats": 10, "intervals": 1,
+                    "force_n": 0.4, "question": "More slippery than the plate at rest? (yes / no)",
+                    "zone_mm": (60.0, 40.0)},
+}
+
+
+THRESHOLD_PRESETS = {
+    # the common questions: TEXTURE, --vary, --range and --afc come from the preset unless given
+    "grating-contrast": {"texture": "grating-1mm", "parameter": "contrast", "level_range": (0.005, 0.6),
+                         "intervals": 3},
+    "grating-period": {"texture": "grating-1mm", "parameter": "wavelength", "level_range": (0.01, 1.0),
+                       "intervals": 3},
+}
+
+
+def _check_counts(args) -> None:
+    if args.break_every < 0:
+        raise UsageError(f"--break-every must be 0 (no breaks) or more, got {args.break_every}")
+    if args.bootstrap < 20:
+        raise UsageError(f"--bootstrap needs at least 20 samples for a 95 % interval, got {args.bootstrap}")
+    if getattr(args, "repeats", None) is not None and args.repeats < 1:
+        raise UsageError(f"--repeats must be at least 1, got {args.repeats}")
+
+
+def _config_from_args(args, kind: str) -> SessionConfig:
+    _check_counts(args)
+    common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
+              "participant": args.participant, "session": args.session, "break_every": args.break_every,
+              "speed_mm_s": args.speed_mm_s, "function": args.function, "bootstrap": args.bootstrap,
+              "interval": args.interval}
+    if args.observer:
+        common["device"] = args.device or "null"
+        if common["device"] != "null":
+            raise UsageError("a simulated observer renders offline: use --device null (or leave --device out)")
+    else:
+        common["device"] = args.device or "sim"
+    if args.force is not None:
+        common["force_n"] = args.force
+    if kind == "constant":
+        preset = dict(PRESETS[args.preset]) if args.preset else {}
+        if not preset and (not args.texture or not args.levels):
+            raise UsageError("constant needs --preset vezzoli2015, or TEXTURE with --levels L1 L2 ...")
+        if args.levels:
+            preset["levels"] = tuple(args.levels)
+        if args.repeats:
+            preset["repeats"] = args.repeats
+        if args.vary:
+            preset["parameter"] = args.vary
+        if args.afc:
+            preset["intervals"] = args.afc
+        if args.force is not None:
+            preset["force_n"] = args.force
+        texture = args.texture or "grating-1mm"
+        config = SessionConfig(texture=texture, method="constant", preset=args.preset, **{**common, **preset})
+        if any(level < 0 for level in config.levels):
+            raise UsageError("--levels must not be negative")
+        return config
+    preset = THRESHOLD_PRESETS.get(args.preset, {}) if args.preset else {}
+    if preset:
+        args.texture = args.texture or preset["texture"]
+        args.vary = args.vary or preset["parameter"]
+        args.range = args.range or list(preset["level_range"])
+        args.afc = args.afc or preset["intervals"]
+    if not args.texture:
+        raise UsageError("threshold needs a TEXTURE (a library name or a texture file), a --preset, or --resume DIR")
+    if args.trials is None or args.trials < 1:
+        raise UsageError("--trials N is needed, N ≥ 1")
+    level_range = tuple(args.range) if args.range else None
+    if level_range and not 0 < level_range[0] < level_range[1]:
+        raise UsageError(f"--range needs 0 < LOW < HIGH, got {level_range[0]:g} {level_range[1]:g}")
+    if (args.vary or "contrast") == "contrast" and level_range and level_range[1] > 1:
+        raise UsageError("a friction contrast is at most 1: --range HIGH must be ≤ 1")
+    question = "Which zone felt different? (tap it, or press its number)"
+    return SessionConfig(texture=args.texture, method=args.method, parameter=args.vary or "contrast",
+                         intervals=args.afc or 2, rule=args.rule, trials=args.trials, level_range=level_range,
+                         start_level=args.start_level, reference=args.reference, question=question,
+                         preset=args.preset, **common)
+
+
+def design_for(config: SessionConfig) -> StimulusDesign:
+    """Load what the config names (texture, reference, model, profile): one-line errors for mistakes."""
+    from ultraglide.render.physics.calibration import load_model
+    from ultraglide.textures.library import resolve_texture
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        texture = resolve_texture(config.texture)
+        reference = resolve_texture(config.reference) if config.reference else None
+    model = load_model(config.model)
+    layout = Layout(config.intervals, tuple(config.zone_mm), config.gap_mm)
+    design = StimulusDesign(texture, config.parameter, layout, reference, model, config.force_n)
+    low, high = config.range
+    if config.parameter == "wavelength" and config.method != "constant" and design.base_wavelength_mm + low <= 0:
+        raise UsageError("the wavelength range must keep the target's wavelength positive")
+    return design
+
+
+def _prepare_directory(args) -> Path:
+    if not args.out:
+        raise UsageError("--out DIR is needed (where the log, results and figures go)")
+    directory = Path(args.out)
+    if (directory / TRIALS).exists():
+        raise UsageError(f"{directory} already holds a session; continue it with --resume {directory} "
+                         "or choose another --out")
+    if directory.exists() and not directory.is_dir():
+        raise UsageError(f"--out {directory} is a file, not a directory")
+    return directory
+
+
+def _responder(config: SessionConfig, design: StimulusDesign, args):
+    from ultraglide.devices.profiles import load_profile
+
+    if config.observer:
+        from ultraglide.apps.experiment.dryrun import SimResponder
+        from ultraglide.apps.experiment.observer import SimObserver
+
+        observer = SimObserver.parse(config.observer, config.seed)
+        return SimResponder(observer, design.model, load_profile(config.profile), config.speed_mm_s, config.force_n)
+    from ultraglide.apps.experiment.window import WindowResponder
+
+    return WindowResponder(config, design, screen_width_mm=getattr(args, "screen_width_mm", None),
+                           windowed=getattr(args, "windowed", False))
+
+
+def run(args) -> int:
+    kind = args.experiment
+    if args.resume:
+        directory = Path(args.resume)
+        saved = read_session(directory)
+        config = resumed_config(saved, getattr(args, "trials", None))
+        if args.observer:
+            config = replace(config, observer=args.observer)
+        resume = True
+    else:
+        config = _config_from_args(args, kind)
+        directory = _prepare_directory(args)
+        resume = False
+    if config.observer:
+        from ultraglide.apps.experiment.observer import SimObserver
+
+        SimObserver.parse(config.observer, config.seed)  # a bad spec fails before any file is written
+    design = design_for(config)
+    from ultraglide.devices.profiles import load_profile
+
+    load_profile(config.profile)
+    responder = _responder(config, design, args)
+    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        outcome = run_session(config, design, responder, directory, resume)
+    finally:
+        close = getattr(responder, "close", None)
+        if close:
+            close()
+    result = outcome.result
+    if args.json:
+        print(json.dumps({**result, "directory": str(directory), "figures": [str(p) for p in outcome.figures]}))
+    else:
+        print(summary(config, result, directory, outcome))
+    return 0
+
+
+def summary(config: SessionConfig, result: dict, directory: Path, outcome) -> str:
+    state = "complete" if outcome.complete else f"stopped after {len(outcome.rows)} trials (resume with --resume)"
+    lines = [f"{config.condition}: {len(outcome.rows)} trials, {state}"]
+    if result.get("threshold") is not None:
+        low, high = result["ci"]
+        lines.append(f"threshold {result['threshold']:.4g} {result['unit']} (95 % CI {low:.4g} to {high:.4g}; "
+                     f"{result['ci_kind']})")
+    else:
+        lines.append(f"no threshold: {result.get('note', 'not enough trials')}")
+    for item in result.get("proportions", []):
+        lines.append(f"  level {item['level']:g} {result['unit']}: {item['positive']}/{item['n']} "
+                     f"{'yes' if config.intervals == 1 else 'correct'} ({100 * item['p']:.0f} %)")
+    lines.append(f"median reaction time {result.get('rt_s_median', float('nan')):.2f} s")
+    lines.append(f"files in {directory}: trials.csv, session.json, result.json, "
+                 + ", ".join(p.name for p in outcome.figures))
+    return "\n".join(lines)

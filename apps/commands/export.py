@@ -1,0 +1,154 @@
+"""``ultraglide export``: render a swipe or a touch log to a WAV file, faster than real time.
+
+The WAV holds what a plate would get: the renderer's drive envelope through the same output stage
+(limiter, then carrier) as every live device, with the temporal effects saved with the texture (or
+given by ``--effects``) mixed into the friction before the model's inverse.
+
+The writing itself is :func:`ultraglide.api.write_wav`, the library's path too: the envelope in order on
+this thread, the carrier and the writes in a forked writer process on the other core (threads where
+there is no fork), memory flat whatever the length."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import soundfile
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.commands.output_report import clipped_fraction, clipping_warning, limiter_fields
+from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
+from ultraglide.devices.atomic_file import write_failure
+from ultraglide.render.engine.sources import offline_stage
+from ultraglide.render.renderer import ControlBlock
+from ultraglide.textures.effects import load_effects
+
+from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, write_wav
+
+PLOT_POINTS = 200_000
+ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
+                    "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
+PLOT_COLUMNS = len(ENVELOPE_COLUMNS) - 1
+
+
+class EnvelopeLog:
+    """Streams the control-rate envelope to CSV and keeps a bounded, decimated copy for a plot.
+    Observes the renderer's blocks (``__call__``) and then the output stage's limited drive (``sent``)."""
+
+    def __init__(self, stream, total_samples: int, keep_plot: bool, path: Path | None = None):
+        self.stream = stream
+        self.path = path  # named in write errors (the stream writes a hidden temporary file)
+        if stream:
+            stream.write(",".join(ENVELOPE_COLUMNS) + "\n")
+        self.every = max(1, math.ceil(total_samples / PLOT_POINTS))
+        self.keep_plot = keep_plot
+        self.kept: list[np.ndarray] = []
+        self._offset = 0
+        self._block: ControlBlock | None = None
+
+    def __call__(self, block: ControlBlock) -> None:
+        self._block = block
+
+    def sent(self, drive_um_pp: np.ndarray) -> None:
+        block = self._block
+        columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
+                                   block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
+                                   drive_um_pp])
+        if self.stream:
+            try:
+                np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(self.path)) from None
+        if self.keep_plot:
+            start = (-self._offset) % self.every
+            self.kept.append(columns[start::self.every, :PLOT_COLUMNS])
+        self._offset += len(columns)
+
+    def plot_data(self) -> np.ndarray:
+        return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
+
+
+@contextlib.contextmanager
+def progress_bar(total: int):
+    """A tqdm bar on stderr when it is a terminal; nothing (and no tqdm import) in a pipe or a file."""
+    if not sys.stderr.isatty():
+        yield _NoProgress()
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=total, unit="frame", unit_scale=True, desc="export", file=sys.stderr, leave=False) as bar:
+        yield bar
+
+
+class _NoProgress:
+    def update(self, frames: int) -> None:
+        pass
+
+
+def run(args) -> int:
+    if args.format not in WAV_SUBTYPES:
+        raise UsageError(f"format must be one of {', '.join(WAV_SUBTYPES)}")
+    output = Path(args.output)
+    if output.suffix.lower() != ".wav":
+        raise UsageError(f"the output must be a .wav file, got {output}")
+    threads = available_cpus() if args.threads is None else int(args.threads)
+    effects = load_effects(args.effects) if getattr(args, "effects", None) else None
+    inputs = load_inputs(args)
+    renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
+    if effects is not None or getattr(args, "no_effects", False):
+        renderer.set_effects(effects or ())
+    stage = offline_stage(renderer)
+    rate = args.rate
+    duration_s = export_duration_s(renderer)
+    total = int(round(duration_s * rate))
+    control_total = math.ceil(total / renderer.settings.upsampling)
+    with contextlib.ExitStack() as stack:  # the outputs are renamed into place only once all are complete
+        wav_path = stack.enter_context(atomic_path(output))
+        csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
+        plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
+        csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
+        if csv_stream:
+            log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
+            renderer.observers.append(log)
+            stage.observers.append(log.sent)
+        if args.plot:
+            from ultraglide.apps.figures.export_plot import PlotRecorder
+
+            plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
+            renderer.observers.append(plot)
+        try:
+            with progress_bar(total) as progress:
+                write_wav(stage, wav_path, total, args.format, progress=progress.update, threads=threads)
+        except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
+            raise write_failure(output, wav_path, error) from None
+        if csv_stream:
+            try:
+                csv_stream.close()  # a write that fails on the last flush fails here, before anything is renamed
+            except OSError as error:
+                raise OSError(error.errno, error.strerror, str(args.envelope_csv)) from None
+        if args.plot:
+            plot.write(renderer, plot_path)
+    counters = renderer.counters
+    warning = clipping_warning(renderer, args.model, trajectory)
+    if warning:
+        print(warning, file=sys.stderr)
+    if args.json:
+        print(json.dumps({"output": str(output), "duration_s": round(duration_s, 6), "rate_hz": rate,
+                          "format": args.format, "carrier_hz": renderer.carrier_hz,
+                          "clipped_samples": counters.clipped_samples,
+                          "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
+                          "effects_started": 0 if renderer.effects is None else renderer.effects.started,
+                          **limiter_fields(stage),
+                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
+        return 0
+    played = "" if renderer.effects is None else f", {renderer.effects.started} effects played"
+    print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
+          f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps{played}; {stage.limiter.summary()}")
+    for extra in (args.envelope_csv, args.plot):
+        if extra:
+            print(f"wrote {extra}")
+    return 0

@@ -1,0 +1,131 @@
+"""``ultraglide latency``: from a touch entering the engine to the first output sample that reflects it.
+
+A finger rests on the sticky half of a two-region texture, then a touch report puts it on the
+slippery half; each step is timed from the report (``Engine.touch``) in two parts:
+
+* **engine**: until the block computed from it is handed to the device (waiting for the device's
+  next pull, then rendering);
+* **device**: the device's buffering from there to the plate: for audio, PortAudio's output latency;
+  for the simulated plate, measured end to end on the plate model's amplitude (the serial writer's
+  batch, the link and the firmware's jitter buffer); for null, nothing.
+
+The engine uses the "hold" predictor here, so a report moves the finger at once (the predictor's own
+smoothing is the fidelity benchmark's subject, not the pipeline's).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.render.engine import Engine, EngineConfig
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.texture import Texture
+
+STICKY_MM = (20.0, 25.0)
+SLIPPERY_MM = (60.0, 25.0)
+STEP_TIMEOUT_S = 10.0
+ENGINE_AIM_MS = 2.0
+
+DEVICE_PART = {
+    "sim": "serial writer batch, link and the plate's jitter buffer, measured on the simulated plate",
+    "audio": "PortAudio's output latency",
+    "null": "none (the null sink keeps nothing)",
+    "wav": "none (the recorder writes what it pulls)",
+    "serial": "not measured: the writer batch and the plate driver's own buffer come on top",
+}
+
+
+def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine") -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise UsageError(f"{what} did not respond within {timeout_s:g} s; is the device running?")
+        time.sleep(0.0005)
+
+
+def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: int = 96000,
+            rest_s: float = 0.0) -> dict:
+    """Step the finger ``steps`` times; returns the figures (ms) as a plain dict. ``rest_s``: how long the
+    plate rests before each step beyond the few ms it needs (0.1 lets a serial link go idle, disabled)."""
+    kind = device.partition(":")[0].partition("?")[0]
+    with tempfile.TemporaryDirectory(prefix="ultraglide-latency-") as folder:
+        texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="step")
+        path = save_texture(texture, Path(folder) / "step.png")
+        config = EngineConfig(texture=str(path), device=device, profile=profile, predictor="hold", rate_hz=rate_hz,
+                              probe_plate=kind == "sim")
+        with Engine.start(config) as engine:
+            engine.wait_ready()
+            engine_s, device_s, total_s = [], [], []
+            for _ in range(steps):
+                engine_s_, device_s_, total_s_ = _one_step(engine, kind, rest_s)
+                engine_s.append(engine_s_)
+                device_s.append(device_s_)
+                total_s.append(total_s_)
+            status = engine.status()
+    periods = np.diff(status.history.time_s)
+    block_ms = float(np.median(periods) * 1e3) if len(periods) else None
+    return {
+        "device": status.device, "steps": steps,
+        "engine_ms": _percentiles(engine_s), "device_ms": _percentiles(device_s), "total_ms": _percentiles(total_s),
+        "device_part": DEVICE_PART.get(kind, ""), "block_ms": block_ms, "priority": status.priority,
+        "engine_aim_ms": ENGINE_AIM_MS,
+    }
+
+
+def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, float, float]:
+    def at_rest() -> bool:
+        history = engine.status(history_s=0.05).history
+        resting = len(history.commanded_um_pp) > 0 and history.commanded_um_pp[-1] < 0.01
+        if kind == "sim":
+            resting = resting and engine.plate_probe()[0] < 0.01
+        return resting
+
+    engine.touch(time.perf_counter(), *STICKY_MM)
+    _wait(at_rest)
+    time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # a random phase of the blocks
+    touched = time.perf_counter()
+    engine.touch(touched, *SLIPPERY_MM)
+
+    def rendered():
+        times, done, _ = engine.latencies()
+        return np.any(times == touched)
+
+    _wait(rendered)
+    times, done, presented = engine.latencies()
+    row = np.flatnonzero(times == touched)[-1]
+    engine_part = done[row] - touched
+    if kind == "sim":
+        _wait(lambda: engine.plate_probe()[1] > touched, what="the simulated plate")
+        total = engine.plate_probe()[1] - touched
+        return engine_part, total - engine_part, total
+    device_part = presented[row] - done[row]
+    return engine_part, device_part, engine_part + device_part
+
+
+def _percentiles(values_s: list[float]) -> dict:
+    values = np.asarray(values_s) * 1e3
+    return {"p50": round(float(np.percentile(values, 50)), 3), "p99": round(float(np.percentile(values, 99)), 3)}
+
+
+def describe(figures: dict) -> str:
+    e, d, t = figures["engine_ms"], figures["device_ms"], figures["total_ms"]
+    verdict = "within" if e["p99"] < figures["engine_aim_ms"] else "over"
+    block = f" (the device pulls every {figures['block_ms']:.2f} ms)" if figures["block_ms"] else ""
+    return (f"touch to first output sample on {figures['device']}, {figures['steps']} steps:\n"
+            f"  engine  {e['p50']:.2f} ms median, {e['p99']:.2f} ms p99: waiting for the next pull and "
+            f"rendering{block}; {verdict} the {figures['engine_aim_ms']:g} ms aim\n"
+            f"  device  {d['p50']:.2f} ms median, {d['p99']:.2f} ms p99: {figures['device_part']}\n"
+            f"  total   {t['p50']:.2f} ms median, {t['p99']:.2f} ms p99 (engine priority: {figures['priority']})")
+
+
+def run(args) -> int:
+    if args.steps < 2:
+        raise UsageError("--steps must be at least 2")
+    figures = measure(args.device, args.steps, args.profile)
+    print(json.dumps(figures) if args.json else describe(figures))
+    return 0

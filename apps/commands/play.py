@@ -1,0 +1,120 @@
+"""``ultraglide play``: render a swipe or a touch log to a device in real time, through the engine.
+
+The swipe or log is replayed as touch reports, at their own times, into the real-time engine
+(:mod:`render.engine`, its own process), exactly as the demo's touch panel feeds it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import sys
+import time
+from types import SimpleNamespace
+
+import numpy as np
+from ultraglide.apps.cli.signals import held
+from ultraglide.apps.commands.output_report import force_words  # (takes anything with default_force_n)
+from ultraglide.apps.commands.render_setup import load_inputs
+from ultraglide.render.engine import Engine, EngineConfig
+from ultraglide.render.trajectory import RecordedTrajectory
+
+REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
+
+
+def report_chunks(trajectory):
+    """The touch reports to replay, in chunks of ``(t_s, x_mm, y_mm, force_n)`` arrays: a log's own
+    rows as they stream from its file, or every 1/120 s along a swipe. Force is NaN where unknown."""
+    if isinstance(trajectory, RecordedTrajectory):
+        for t, x, y, force in trajectory.chunks():
+            yield t, x, y, np.full(len(t), np.nan) if force is None else force
+        return
+    per_chunk = int(REPORT_HZ * 10)
+    for first in itertools.count(0, per_chunk):
+        times = trajectory.start_s + (first + np.arange(per_chunk)) / REPORT_HZ
+        times = times[times < trajectory.end_s]
+        if not len(times):
+            return
+        states = trajectory.state(times)
+        yield times, states.x_mm, states.y_mm, np.broadcast_to(states.force_n, times.shape)
+
+
+def replay(touch, chunks, started: float) -> tuple[float, float]:
+    """Call ``touch(t, x, y, force)`` for each report when its time comes (the first at ``started``,
+    perf_counter seconds); when several are due at once (a log denser than this loop), only the
+    newest, as a touch panel's late reader gets the newest touch. Returns the last position (mm)."""
+    origin = last = None
+    for times, xs, ys, forces in chunks:
+        origin = times[0] if origin is None else origin
+        due = times - origin
+        k = 0
+        while k < len(due):
+            now = time.perf_counter() - started
+            if due[k] > now:
+                time.sleep(due[k] - now)
+                continue
+            k = int(np.searchsorted(due, now, side="right")) - 1  # the newest report already due
+            force = float(forces[k])
+            touch(time.perf_counter(), float(xs[k]), float(ys[k]), None if math.isnan(force) else force)
+            k += 1
+        last = (xs[-1], ys[-1])
+    return last
+
+
+def engine_config(args) -> EngineConfig:
+    return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
+                        carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
+                        precompensate=not args.no_precompensation,
+                        track_resonance=getattr(args, "track_resonance", False))
+
+
+def run(args) -> int:
+    inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
+    trajectory = inputs.trajectory
+    engine = Engine.start(engine_config(args))
+    try:
+        chunks = report_chunks(trajectory)
+        first = list(itertools.islice(chunks, 1))  # made before the clock starts, while the engine gets ready:
+        engine.wait_ready()  # the first chunk's work (loading a compiled path) must not make the first reports late
+        started = time.perf_counter()
+        last = replay(engine.touch, itertools.chain(first, chunks), started)
+        engine.touch(time.perf_counter(), float(last[0]), float(last[1]), down=False)
+        time.sleep(engine.ready_info["tail_s"])
+    finally:
+        with held():  # a stop signal arriving now waits until the plate is at rest
+            final = engine.stop()  # ramps down, rests the plate and ends the engine, on every way out
+    played_s = round(time.perf_counter() - started, 3)
+    figures = final.summary()
+    figures["fault_words"] = figures.pop("faults")
+    device_status = figures.pop("device_status")
+    counts = device_status.pop("fault_counts", None)
+    limiter = device_status.pop("limiter", "")
+    clipped = final.clipped_samples / final.control_samples if final.control_samples else 0.0
+    status = {**device_status, **figures, "clipped_fraction": round(clipped, 6), "faults": counts or {},
+              "played_s": played_s}
+    if final.clipped_samples:
+        force = force_words(trajectory, SimpleNamespace(default_force_n=engine.config.default_force_n))
+        print(f"warning: {100 * clipped:.1f} % of the time the texture asked for less friction than model "
+              f"{args.model} reaches at {force} within "
+              f"{inputs.profile.max_amplitude_um_pp:g} µm p-p; held at the limit", file=sys.stderr)
+    if args.json:
+        print(json.dumps(status))
+    else:
+        print(f"played {played_s:.2f} s on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
+              f"{final.underruns} device underruns; block time {final.block_p50_us:.0f} µs median, "
+              f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit; "
+              f"engine priority {final.priority}")
+        print(limiter)
+        print(describe_faults(counts or {}))
+    return 0
+
+
+def describe_faults(counts: dict[str, int]) -> str:
+    """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``."""
+    from ultraglide.devices.protocol import FAULT_WORDS
+
+    happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
+    if not counts:
+        return "device faults: this device reports none"
+    return "device faults: " + ("; ".join(happened) if happened else "none")

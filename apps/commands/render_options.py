@@ -1,0 +1,45 @@
+"""Options shared by ``export`` and ``play``: the texture, model, profile, and the finger's path."""
+
+from __future__ import annotations
+
+import argparse
+
+from ultraglide.apps.cli.types import (
+    ANGLE_DEG,
+    AUDIO_RATE_HZ,
+    CARRIER_HZ,
+    DURATION_S,
+    FORCE_N,
+    LENGTH_MM,
+    LOOKAHEAD_MS,
+    SPEED_MM_S,
+    point_mm,
+)
+
+
+def add_render_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    path = parser.add_argument_group("the finger's path (a swipe, unless --trajectory)")
+    path.add_argument("--trajectory", metavar="FILE.csv",
+                      help="a touch log with columns t_s,x_mm,y_mm[,force_n], at any rate")
+    path.add_argument("--path", choices=["straight", "circle", "zigzag"], default="straight")
+    path.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0, help="finger speed (default: 100)")
+    path.add_argument("--direction-deg", type=ANGLE_DEG, default=0.0, help="0 = left to right (default: 0)")
+    path.add_argument("--start", type=point_mm, metavar="X,Y", help="start point in mm (default: left of centre)")
+    path.add_argument("--duration-s", type=DURATION_S, default=5.0, help="length of the swipe (default: 5)")
+    path.add_argument("--radius-mm", type=LENGTH_MM, default=15.0, help="circle radius (default: 15)")
+    path.add_argument("--zigzag-width-mm", type=LENGTH_MM, default=40.0, help="zig-zag pass length (default: 40)")
+    path.add_argument("--force", type=FORCE_N, metavar="N",
+                      help="normal force of the swipe, N (default: 0.5, or the log's force_n column)")
+    signal = parser.add_argument_group("the signal")
+    signal.add_argument("--model", default="exponential", metavar="MODEL",
+                        help="friction model: paper, paper-uniform, exponential, table:FILE.csv or CAL.toml "
+                             "(default: exponential)")
+    signal.add_argument("--profile", default="sim-plate", metavar="PROFILE",
+                        help="plate profile: a bundled name or a TOML file (default: sim-plate)")
+    signal.add_argument("--carrier-hz", type=CARRIER_HZ, help="carrier frequency (default: the plate's resonance)")
+    signal.add_argument("--rate", type=AUDIO_RATE_HZ, default=96000, help="audio sample rate, Hz (default: 96000)")
+    signal.add_argument("--lookahead-ms", type=LOOKAHEAD_MS, default=0.0,
+                        help="predict the finger this far ahead, cancelling the panel's latency (default: 0)")
+    signal.add_argument("--no-precompensation", action="store_true",
+                        help="do not pre-compensate the plate's slow response")

@@ -1,0 +1,67 @@
+"""Build a renderer from the options of ``export`` and ``play``."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.render.paths import SwipePath
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.render.renderer import Renderer, RenderSettings
+from ultraglide.render.touch_log import read_touch_log
+from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.textures.library import resolve_texture
+from ultraglide.textures.texture import Texture
+
+
+def swipe_of(args, texture: Texture) -> SwipePath:
+    """The swipe the options describe; by default it starts left of centre and crosses the middle."""
+    start = args.start
+    if start is None:
+        if args.path == "circle":
+            start = (texture.width_mm / 2 - args.radius_mm, texture.height_mm / 2)
+        elif args.path == "zigzag":
+            start = (max(0.0, (texture.width_mm - args.zigzag_width_mm) / 2), texture.height_mm * 0.2)
+        else:
+            start = (texture.width_mm * 0.1, texture.height_mm / 2)
+    return SwipePath(args.path, args.speed_mm_s, args.duration_s, start, args.direction_deg,
+                     radius_mm=args.radius_mm, width_mm=args.zigzag_width_mm, force_n=args.force)
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Everything the options name, loaded and checked: where a person's mistakes show up."""
+
+    texture: Texture
+    model: FrictionModel
+    profile: PlateProfile
+    trajectory: RecordedTrajectory | SwipePath
+
+
+def load_inputs(args) -> Inputs:
+    """Texture, model, profile and path from parsed options; one-line errors for bad ones."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        texture = resolve_texture(args.texture)
+    model = load_model(args.model)
+    profile = load_profile(args.profile)
+    if args.trajectory:
+        if args.force is not None:
+            raise UsageError("--force sets the swipe's force; a --trajectory brings its own (or the 0.5 N default)")
+        trajectory = read_touch_log(args.trajectory)
+    else:
+        trajectory = swipe_of(args, texture)
+    return Inputs(texture, model, profile, trajectory)
+
+
+def make_renderer(inputs: Inputs, args, rate_hz: int, live: bool = False) -> Renderer:
+    """A renderer at ``rate_hz``; ``live`` leaves the path to be fed in real time, as touches."""
+    settings = RenderSettings(
+        audio_rate_hz=rate_hz, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
+        precompensate=not args.no_precompensation, lookahead_s=args.lookahead_ms / 1000.0,
+    )
+    return Renderer(inputs.texture, inputs.model, inputs.profile, settings,
+                    trajectory=None if live else inputs.trajectory)

@@ -1,0 +1,284 @@
+"""A threshold session: the procedure, the schedule, the responder, the log; then the analysis.
+
+The responder presents a trial and returns the answer: :class:`SimResponder` renders the trial
+offline through the real renderer and lets a simulated observer answer; the window
+(:mod:`apps.experiment.window`) shows it on the touch panel through the live engine. Everything that
+defines the procedure lives in :class:`SessionConfig`, saved in ``session.json``, so ``--resume``
+rebuilds the same procedure and replays the log into it.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import platform
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.experiment import psychometric as pf
+from ultraglide.apps.experiment.log import RESULT, SESSION, TrialLog, read_trials, write_json
+from ultraglide.apps.experiment.procedures import (
+    ConstantParams,
+    ConstantStimuli,
+    QuestParams,
+    QuestPlus,
+    Staircase,
+    StaircaseParams,
+    interval_positions,
+    replay,
+)
+from ultraglide.apps.experiment.stimuli import StimulusDesign
+
+from ultraglide import __version__
+
+DEFAULT_RANGES = {"contrast": (0.005, 0.6), "wavelength": (0.01, 2.0), "amplitude": (0.05, 6.0)}
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """Plain values only: it is written to and read back from session.json."""
+
+    texture: str
+    method: str = "staircase"  # staircase, quest, constant
+    parameter: str = "contrast"
+    intervals: int = 2  # 1: yes/no; 2 or 3: forced choice
+    rule: str = "1u2d"
+    trials: int = 60
+    seed: int = 0
+    start_level: float | None = None
+    level_range: tuple[float, float] | None = None
+    levels: tuple[float, ...] = ()  # constant stimuli
+    repeats: int = 10
+    function: str = "weibull"
+    reference: str | None = None
+    zone_mm: tuple[float, float] = (40.0, 40.0)
+    gap_mm: float = 10.0
+    speed_mm_s: float = 100.0
+    force_n: float = 0.5
+    model: str = "exponential"
+    profile: str = "sim-plate"
+    device: str = "null"
+    observer: str | None = None
+    participant: str = "P01"
+    session: str = "1"
+    break_every: int = 0
+    preset: str | None = None
+    question: str = "Which zone felt different?"
+    bootstrap: int = 200
+    interval: str = "posterior"  # posterior or bootstrap (staircases and constant stimuli)
+
+    @property
+    def range(self) -> tuple[float, float]:
+        return tuple(self.level_range) if self.level_range else DEFAULT_RANGES[self.parameter]
+
+    @property
+    def total_trials(self) -> int:
+        return len(self.levels) * self.repeats if self.method == "constant" else self.trials
+
+    @property
+    def condition(self) -> str:
+        task = "yes/no" if self.intervals == 1 else f"{self.intervals}AFC"
+        how = self.rule if self.method == "staircase" else self.method
+        return f"{self.parameter} {task} {how}"
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @staticmethod
+    def from_dict(values: dict) -> SessionConfig:
+        known = {key: values[key] for key in SessionConfig.__dataclass_fields__ if key in values}
+        for key in ("level_range", "levels", "zone_mm"):
+            if known.get(key) is not None:
+                known[key] = tuple(known[key])
+        return SessionConfig(**known)
+
+
+def make_procedure(config: SessionConfig):
+    low, high = config.range
+    if config.method == "constant":
+        return ConstantStimuli(ConstantParams(tuple(config.levels), config.repeats, config.seed))
+    guess = 1.0 / config.intervals if config.intervals > 1 else 0.0
+    if config.method == "quest":
+        return QuestPlus(QuestParams.log_grid(low, high, function=config.function, guess=guess))
+    start = config.start_level if config.start_level is not None else math.sqrt(low * high) * 4
+    return Staircase(StaircaseParams(min(start, high), config.rule, min_level=low, max_level=high))
+
+
+@dataclass
+class Answer:
+    response: int
+    rt_s: float
+    rendered_um_pp: float | None = None
+    rendered_contrast: float | None = None
+    quit: bool = False
+
+
+@dataclass
+class SessionResult:
+    directory: Path
+    rows: list[dict]
+    result: dict
+    figures: list[Path] = field(default_factory=list)
+    complete: bool = True
+
+
+def versions() -> dict:
+    import matplotlib
+    import scipy
+
+    return {"ultraglide": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "matplotlib": matplotlib.__version__}
+
+
+def metadata(config: SessionConfig, design: StimulusDesign, status: str, started_utc: str, extra: dict) -> dict:
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.render.physics.calibration import load_model
+
+    profile = load_profile(config.profile)
+    model = load_model(config.model)
+    calibration = None
+    if config.model.endswith(".toml"):
+        calibration = {"file": str(Path(config.model).resolve()), "text": Path(config.model).read_text("utf-8")}
+    return {
+        "status": status, "started_utc": started_utc, "updated_utc": now_utc(),
+        "config": config.as_dict(), "unit": design.unit, "condition": config.condition,
+        "question": config.question,
+        "profile": {"name": config.profile, "resonance_hz": profile.resonance_hz, "q": profile.q,
+                    "max_amplitude_um_pp": profile.max_amplitude_um_pp},
+        "model": {"spec": config.model, "description": model.describe(), "parameters": model.parameters()},
+        "calibration": calibration,
+        "device": config.device, "observer": config.observer or "participant",
+        "layout": {"zones": design.layout.zones, "zone_mm": list(design.layout.zone_mm),
+                   "gap_mm": design.layout.gap_mm, "canvas_mm": list(design.layout.size_mm)},
+        "versions": versions(), "seed": config.seed, **extra,
+    }
+
+
+def now_utc() -> str:
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="milliseconds")
+
+
+def run_session(config: SessionConfig, design: StimulusDesign, responder, directory: Path,
+                resume: bool = False) -> SessionResult:
+    """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
+    and the end, result.json and the figures when it ends."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    rows = read_trials(directory) if resume else []
+    procedure = make_procedure(config)
+    try:
+        replay(procedure, [float(r["level"]) for r in rows], [outcome(config, r) for r in rows])
+    except ValueError as error:
+        raise UsageError(f"--resume {directory}: {error}") from None
+    total = config.total_trials
+    positions = interval_positions(config.seed, total, max(config.intervals, 1))
+    started = now_utc()
+    extra = {"resumed_at_trial": len(rows) + 1} if resume else {}
+    write_json(directory / SESSION, metadata(config, design, "running", started, extra))
+    log = TrialLog(directory)
+    complete = True
+    try:
+        for trial in range(len(rows) + 1, total + 1):
+            if getattr(procedure, "finished", False):
+                break
+            pause = bool(config.break_every and trial > 1 and (trial - 1) % config.break_every == 0)
+            if pause and not responder.take_break(trial):
+                complete = False
+                break
+            level = procedure.next_level()
+            target = positions[trial - 1] if config.intervals > 1 else 0
+            answer = responder.present(trial, level, target, design)
+            if answer.quit:
+                complete = False
+                break
+            row = make_row(config, design, trial, level, target, answer, pause)
+            procedure.update(level, outcome(config, row))
+            row["reversal"] = int(getattr(procedure, "last_was_reversal", False))
+            log.write(row)
+            rows.append(row)
+    finally:
+        log.close()
+    result = analyse(config, design, rows, procedure, complete)
+    write_json(directory / RESULT, result)
+    from ultraglide.apps.experiment.figures import draw_figures
+
+    figures = draw_figures(directory, config, design, rows, result) if rows else []
+    write_json(directory / SESSION, metadata(config, design, "complete" if complete else "stopped", started,
+                                             {**extra, "trials_logged": len(rows)}))
+    return SessionResult(directory, rows, result, figures, complete)
+
+
+def make_row(config: SessionConfig, design: StimulusDesign, trial: int, level: float, target: int, answer: Answer,
+             pause: bool) -> dict:
+    correct = answer.response == target if config.intervals > 1 else answer.response == int(level > 0)
+    return {"participant": config.participant, "session": config.session, "trial": trial,
+            "condition": config.condition, "level": repr(float(level)),
+            "stimulus": design.describe(level, target),
+            "target": target + 1 if config.intervals > 1 else "",
+            "response": answer.response + 1 if config.intervals > 1 else ("yes" if answer.response else "no"),
+            "correct": int(correct), "rt_s": f"{answer.rt_s:.4f}", "reversal": 0, "break_before": int(pause),
+            "rendered_um_pp": "" if answer.rendered_um_pp is None else f"{answer.rendered_um_pp:.4f}",
+            "rendered_contrast": "" if answer.rendered_contrast is None else f"{answer.rendered_contrast:.4f}",
+            "time_utc": now_utc()}
+
+
+def outcome(config: SessionConfig, row: dict) -> int:
+    """What the procedure and the fit count: correct in forced choice, "yes" in yes/no."""
+    if config.intervals > 1:
+        return int(row["correct"])
+    return int(row["response"] == "yes")
+
+
+def analyse(config: SessionConfig, design: StimulusDesign, rows: list[dict], procedure, complete: bool) -> dict:
+    """The threshold with its 95 % interval, the fit, and how they were obtained."""
+    levels = np.array([float(r["level"]) for r in rows])
+    outcomes = np.array([outcome(config, r) for r in rows])
+    result = {"threshold": None, "ci": None, "unit": design.unit, "parameter": config.parameter,
+              "method": config.method, "condition": config.condition, "trials": len(rows),
+              "complete": complete, "function": config.function,
+              "threshold_definition": ("the level where the detection function F reaches 1 - 1/e = 63.2 % "
+                                       "(Weibull alpha)" if config.function == "weibull" else
+                                       "the level where the detection function F reaches 50 % (logistic)"),
+              "guess": (1.0 / config.intervals) if config.intervals > 1 else "fitted false-alarm rate"}
+    if len(rows) < 5:
+        result["note"] = "fewer than 5 trials: no threshold"
+        return result
+    guess = 1.0 / config.intervals if config.intervals > 1 else None
+    # constant stimuli: the threshold may lie up to half as far again as the largest level
+    low, high = config.range if config.method != "constant" else (0.0, 1.5 * max(config.levels))
+    fitted = pf.fit(levels, outcomes, config.function, guess, (low, high))
+    if config.method == "quest":
+        estimate = procedure.estimate()
+        result.update(threshold=estimate["threshold"], ci=estimate["ci"],
+                      ci_kind="95 % credible interval of the QUEST+ posterior (grid, uniform prior on log threshold)",
+                      posterior=estimate)
+    elif config.interval == "bootstrap":
+        fitted = pf.bootstrap(fitted, levels, config.bootstrap, config.seed, fit_guess=guess is None,
+                              level_range=(low, high))
+        result.update(threshold=fitted.threshold, ci=list(fitted.ci),
+                      ci_kind=f"95 % parametric bootstrap ({fitted.bootstrap_samples} samples) of the ML fit")
+    else:
+        bayes = pf.posterior(levels, outcomes, config.function, guess, (max(low, 1e-3 * high), high))
+        result.update(threshold=bayes.threshold, ci=list(bayes.ci),
+                      ci_kind="95 % credible interval of the posterior on a grid (slope, lapse"
+                              + (", false alarms" if guess is None else "") + " marginalised; uniform prior on "
+                              "log threshold and log slope); threshold: its posterior mean",
+                      posterior={"slope": bayes.slope, "lapse": bayes.lapse, "guess": bayes.guess})
+    result["fit"] = fitted.as_dict()
+    if isinstance(procedure, Staircase):
+        result.update(rule=config.rule, target_p=procedure.target_p, reversals=len(procedure.reversals),
+                      reversal_mean=procedure.reversal_mean())
+    if config.method == "constant":
+        x, n, k = pf.aggregate(levels, outcomes)
+        result["proportions"] = [{"level": float(a), "n": int(b), "positive": int(c), "p": float(c / b)}
+                                 for a, b, c in zip(x, n, k, strict=True)]
+    rts = np.array([float(r["rt_s"]) for r in rows])
+    result["rt_s_median"] = float(np.median(rts))
+    return result
+
+
+def resumed_config(saved: dict, trials: int | None) -> SessionConfig:
+    config = SessionConfig.from_dict(saved.get("config", {}))
+    return replace(config, trials=trials) if trials else config
