@@ -12,7 +12,8 @@ PACKAGES = ("textures", "devices", "render", "apps")
 MODULES = sorted(
     info.name
     for package in PACKAGES
-    for info in pkgutil.walk_packages(importlib.import_module(f"ultraglide.{package}").__path__, f"ultraglide.{package}.")
+    for info in pkgutil.walk_packages(importlib.import_module(f"ultraglide.{package}").__path__,
+                                      f"ultraglide.{package}.")
     if not info.ispkg
 )
 
