@@ -255,7 +255,7 @@ class PlateSimulator:
 
     def _hello(self, frame: p.Frame) -> bytes:
         # the host's highest version; this device speaks only v2, and says so whatever was asked
-        reply = p.HelloReply(p.PROTOCOL_VERSION, self.profile.resonance_hz, self.profile.full_scale_um_pp,
+        reply = p.HelloReply(2, self.profile.resonance_hz, self.profile.full_scale_um_pp,
                              self.profile.max_amplitude_um_pp, MIN_RATE_HZ, MAX_RATE_HZ, self.profile.carrier_min_hz,
                              self.profile.carrier_max_hz, p.WATCHDOG_MS, p.BUFFER_MS, self.name)
         self._event("hello", host_version=frame.payload[0])
@@ -336,7 +336,7 @@ class PlateSimulator:
             if now >= self._telemetry_due:
                 self._telemetry_due = now + TELEMETRY_S
                 if telemetry:
-                    return [self._reply(p.TELEMETRY, p.telemetry_payload(self.telemetry()))]
+                    return [self._reply(p.TELEMETRY, p.telemetry_payload(self.telemetry(), 2))]
             return []
 
     def _play(self, n: int, now: float) -> None:

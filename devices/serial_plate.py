@@ -319,7 +319,8 @@ class SerialPlate:
             version = p.hello_reply_version(raw)
             if version not in p.SUPPORTED_VERSIONS:
                 raise DeviceError(f"{self.port}: the plate driver speaks protocol v{version}; this ultraglide "
-                                  f"speaks v{p.PROTOCOL_VERSION}: update the firmware (see docs/protocol.md)")
+                                  f"speaks {' and '.join(f'v{v}' for v in p.SUPPORTED_VERSIONS)}: update the firmware "
+                                  "(see docs/protocol.md)")
             hello = p.parse_hello_reply(raw)
         except p.ProtocolError as error:
             raise DeviceError(f"{self.port}: the plate driver's handshake reply is malformed ({error})") from None

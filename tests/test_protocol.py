@@ -1,6 +1,9 @@
 """The wire protocol: round trips, and any bytes at all into the decoder (hypothesis)."""
 
 import binascii
+import dataclasses
+import re
+import struct
 
 import numpy as np
 import pytest
@@ -57,14 +60,69 @@ def test_decoder_counts_and_bounds_garbage():
 def test_messages_round_trip():
     reply = p.HelloReply(2, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate")
     assert p.parse_hello_reply(p.hello_reply_payload(reply)) == reply
-    telemetry = p.Telemetry(2.5, 25000.0, p.FAULT_WATCHDOG, True, 10, 1, 2, 4000, 3, 4, 5, (1, 0, 0, 0, 7, 0, 0, 0))
-    assert p.parse_telemetry(p.telemetry_payload(telemetry)) == telemetry
+    assert reply.max_drive_um_pp == 6.0 and reply.sensors == 0 and not reply.has_amplitude_loop  # v2: none
+    telemetry = p.Telemetry(2.5, 25000.0, p.FAULT_WATCHDOG, True, 10, 1, 2, 4000, 3, 4, 5, (1, 0, 0, 0, 7, 0, 0, 0),
+                            version=2)
+    assert p.parse_telemetry(p.telemetry_payload(telemetry, 2)) == telemetry
     assert telemetry.fault_names() == ["watchdog"]
     assert telemetry.counts_by_name()["watchdog"] == 1 and telemetry.counts_by_name()["underrun"] == 7
     assert p.parse_ack(p.ack_payload(9)) == 9
     assert p.parse_nak(p.nak_payload(9, p.NAK_BAD_VALUE)) == (9, p.NAK_BAD_VALUE)
     with pytest.raises(p.ProtocolError):
         p.parse_setpoints(p.setpoints_payload(0, 12000, np.ones(4))[:-1])
+
+
+def test_v3_messages_round_trip_and_extend_v2s_layouts_at_their_ends():
+    reply = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate", 7.5,
+                         p.SENSOR_AMPLITUDE | p.SENSOR_NORMAL_FORCE, 1000, p.FEATURE_AMPLITUDE_LOOP)
+    v3 = p.hello_reply_payload(reply)
+    assert p.parse_hello_reply(v3) == reply and reply.has_amplitude_loop
+    v2 = p.hello_reply_payload(dataclasses.replace(reply, version=2))
+    # 33 bytes of v2's fields, then max_drive f32, sensors u8, sensor rate u16, features u8: 8 more, then the name
+    assert (len(v2), len(v3)) == (33 + 5, 41 + 5) and v3[1:33] == v2[1:33] and v3[-5:] == v2[-5:] == b"plate"
+    assert struct.unpack_from("<fBHB", v3, 33) == (7.5, 3, 1000, 1)
+    telemetry = p.Telemetry(2.5, 25000.0, 0, True, 10, 1, 2, 4000, 3, 4, 5, (0,) * 8, 6, 123456, 12000, 120, 32768,
+                            p.PLAYBACK_PLAYING, p.LOOP_AMPLITUDE)
+    payload = p.telemetry_payload(telemetry)
+    assert len(payload) == 71 + 18 and payload[:71] == p.telemetry_payload(telemetry, 2)
+    assert struct.unpack_from("<IIIHHBB", payload, 71) == (6, 123456, 12000, 120, 32768, 2, 1)
+    assert p.parse_telemetry(payload) == telemetry
+    with pytest.raises(p.ProtocolError, match="telemetry of 70 bytes"):
+        p.parse_telemetry(payload[:70])
+    samples = p.sensor_samples([1.0, 2.0, 3.5], normal_force_n=[0.1, 0.2, 0.3])
+    sensors = p.parse_sensors(p.sensors_payload(1000, p.NOT_PLAYING, samples))
+    assert sensors == p.Sensors(1000, 0xFFFFFFFF, samples) and len(p.sensors_payload(0, 0, samples)) == 9 + 36
+    assert np.isnan(sensors.samples["lateral_force_n"]).all()
+    assert sensors.samples["normal_force_n"].tolist() == pytest.approx([0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="1 to 80 samples"):
+        p.sensors_payload(0, 0, p.sensor_samples(np.zeros(81)))
+    with pytest.raises(p.ProtocolError):
+        p.parse_sensors(p.sensors_payload(0, 0, samples)[:-1])
+
+
+def test_the_name_is_at_most_64_bytes_of_utf8_and_a_host_replaces_what_is_invalid():
+    base = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "")
+    long = "é" * 40  # 80 bytes: cut to 32 whole characters (64 bytes), never half of one
+    assert p.parse_hello_reply(p.hello_reply_payload(dataclasses.replace(base, name=long))).name == "é" * 32
+    assert p.parse_hello_reply(p.hello_reply_payload(base)).name == ""  # 0 bytes is a name too
+    raw = p.hello_reply_payload(base) + b"plate \xff" + b"x" * 100  # invalid UTF-8, and more than 64 bytes
+    name = p.parse_hello_reply(raw).name
+    assert name == "plate \ufffd" + "x" * 57  # 64 bytes taken, the bad byte replaced
+
+
+def test_a_frame_of_max_body_decoded_bytes_passes_and_a_longer_run_is_one_framing_error():
+    decoder = p.FrameDecoder()
+    biggest = p.encode_frame(p.HEARTBEAT, 1, bytes(range(1, 256)) * 3 + bytes(range(1, 253)))  # 1024 decoded
+    assert len(biggest) - 1 == 1029 <= p.MAX_ENCODED == 1024 + 5 + 1
+    assert [f.kind for f in decoder.feed(biggest)] == [p.HEARTBEAT]
+    with pytest.raises(ValueError, match="exceeds 1024"):
+        p.encode_frame(p.HEARTBEAT, 1, bytes(1018))
+    decoder.feed(b"\x07" * 1030)  # 1030 bytes without a delimiter: still a frame in the making
+    assert decoder.framing_errors == 0
+    decoder.feed(b"\x07" * 2000)  # over 1030: dropped, one error however long it goes on
+    assert decoder.framing_errors == 1
+    assert [f.seq for f in decoder.feed(b"\x00" + p.encode_frame(p.HEARTBEAT, 5))] == [5]
+    assert decoder.framing_errors == 1
 
 
 # ---- docs/protocol.md is normative: its tables must say what the code does --------------------------
@@ -74,9 +132,11 @@ SIZES = {"u8": 1, "u16": 2, "u32": 4, "f32": 4}
 
 
 def _rows(header: str) -> list[list[str]]:
-    """The rows of the first table whose header row starts with ``header``."""
+    """The rows of the first table whose header row is ``header``, cell for cell."""
+    wanted = [cell.strip() for cell in header.strip().strip("|").split("|")]
     lines = [line.strip() for line in DOC.splitlines()]
-    start = next(i for i, line in enumerate(lines) if line.startswith(header))
+    start = next(i for i, line in enumerate(lines)
+                 if line.startswith("|") and [cell.strip() for cell in line.strip("|").split("|")] == wanted)
     rows = []
     for line in lines[start + 2:]:
         if not line.startswith("|"):
@@ -100,30 +160,53 @@ def _fixed_size(fields: str) -> int:
 
 
 def test_the_documents_constants_are_the_codes():
-    rows = _rows("| constant |")
-    assert len(rows) >= 10
+    rows = _rows("| constant | value | meaning |")
+    assert len(rows) >= 20
     for name, value, _ in rows:
         assert getattr(p, name.strip("`")) == pytest.approx(float(value)), name
+    assert p.MAX_ENCODED == p.MAX_BODY + -(-p.MAX_BODY // 254) + 1
 
 
 def test_the_documents_message_tables_are_the_codes():
     host = _rows("| type | name | payload | answer |")
     device = _rows("| type | name | payload |")
+    v2 = _rows("| type | name | v2 payload |")
     assert {name for _, name, *_ in host} == {"HELLO", "SET_CARRIER", "ENABLE", "SETPOINTS", "HEARTBEAT",
-                                              "CLEAR_FAULTS", "SIM_FAULT"}
+                                              "CLEAR_FAULTS", "SET_LOOP", "SIM_FAULT"}
+    assert {getattr(p, name) for _, name, *_ in host} == set(p.HOST_COMMANDS)
+    assert {name for _, name, *_ in device} == {"HELLO_REPLY", "ACK", "NAK", "TELEMETRY", "SENSORS"}
+    assert {name for _, name, *_ in v2} == {"HELLO_REPLY", "TELEMETRY"}
     for kind, name, payload, *_ in host + device:
         assert getattr(p, name) == int(kind, 16), name
         fixed = _fixed_size(payload.split("`")[1] if "`" in payload else payload)
         expected = p.PAYLOAD_SIZES["SETPOINTS header"] if name == "SETPOINTS" else \
             p.PAYLOAD_LENGTHS.get(getattr(p, name), p.PAYLOAD_SIZES.get(name))
         assert fixed == expected, (name, fixed, expected)
+    for kind, name, payload in v2:
+        assert getattr(p, name) == int(kind, 16)
+        assert _fixed_size(payload.split("`")[1]) == p.V2_PAYLOAD_SIZES[name], name
+    sample = re.search(r"each `sample` is\s+`([^`]+)`", DOC).group(1)
+    assert _fixed_size(sample.replace(" | ", ", ")) == p.PAYLOAD_SIZES["SENSORS sample"] == 12
 
 
 def test_the_documents_fault_bits_and_nak_reasons_are_the_codes():
-    faults = _rows("| bit | fault |")
+    faults = _rows("| bit | fault | raised when | what the device did "
+                   "| a condition that re-sets it while it persists |")
     assert {int(bit, 16): name for bit, name, *_ in faults} == p.FAULT_NAMES
     reasons = _rows("| reason | meaning |")
     assert {int(reason): meaning for reason, meaning in reasons} == p.NAK_REASONS
+
+
+def test_every_rule_is_in_the_conformance_table_and_tagged_in_the_text():
+    table = _rows("| rule | section | what the device must do | the simulator's break |")
+    rules = [rule for rule, *_ in table]
+    assert len(rules) == len(set(rules)) >= 25
+    text = DOC[:DOC.index("## Conformance")]
+    tagged = set(re.findall(r"\[(R-[A-Z0-9-]+)\]", text))
+    assert tagged == set(rules)  # each rule's sentence carries its identifier, and nothing else is tagged
+    headings = {line.lstrip("#").strip() for line in DOC.splitlines() if line.startswith("## ")}
+    for rule, section, *_ in table:
+        assert any(heading.startswith(section) for heading in headings), (rule, section)
 
 
 def test_the_documents_byte_budget_is_the_framing():
@@ -131,15 +214,31 @@ def test_the_documents_byte_budget_is_the_framing():
     frames_per_s = round(1 / p.BATCH_S)
     assert per_frame == 67 and per_frame * frames_per_s == 33500
     assert "= 33 500 bytes/s" in DOC and "67 bytes × 500 frames" in DOC
-    telemetry = len(p.encode_frame(p.TELEMETRY, 1, p.telemetry_payload(
-        p.Telemetry(1.0, 25000.0, 0, True, *([1] * 7), (0,) * p.FAULT_BITS))))
-    assert telemetry == 80 and telemetry * p.TELEMETRY_HZ == 4000 and "4 000 bytes/s" in DOC
+    blank = p.Telemetry(1.0, 25000.0, 0, True, *([1] * 7), (0,) * p.FAULT_BITS)
+    telemetry = len(p.encode_frame(p.TELEMETRY, 1, p.telemetry_payload(blank)))
+    assert telemetry == 98 and telemetry * p.TELEMETRY_HZ == 4900 and "98 bytes\n  on the wire) 50 times" in DOC
+    assert "4 900 bytes/s" in DOC
+    telemetry_v2 = len(p.encode_frame(p.TELEMETRY, 1, p.telemetry_payload(blank, 2)))
+    assert telemetry_v2 == 80 and telemetry_v2 * p.TELEMETRY_HZ == 4000 and "80 bytes, 4 000 bytes/s" in DOC
+    sensors = {n: len(p.encode_frame(p.SENSORS, 1, p.sensors_payload(0, 0, p.sensor_samples(np.ones(n)))))
+               for n in range(1, p.MAX_SENSOR_SAMPLES + 1)}
+    assert all(sensors[n] == 18 + 12 * n for n in range(1, 20))
+    assert all(18 + 12 * n <= sensors[n] <= 18 + 12 * n + (16 + 12 * n) // 254 for n in sensors)  # COBS: ≤ 1 per 254
+    assert sensors[10] == 138 and 138 * round(1000 / p.SENSORS_PERIOD_MS) == 13800 and "13 800 bytes/s" in DOC
+    assert sensors[50] == 618 and 618 * round(1000 / p.SENSORS_REST_PERIOD_MS) == 12360 and "12 360 bytes/s" in DOC
+    assert 13800 + 4900 == 18700 and "18 700 bytes/s in all" in DOC and "17 260 in all" in DOC
     for n in (1, 24, 96, 118):  # the general formula on the page, against real frames
         assert len(p.encode_frame(p.SETPOINTS, 1, p.setpoints_payload(0, 12000, np.full(n, 0.3)))) == 19 + 2 * n
-    for link, bytes_per_s, _, fastest in _rows("| link | bytes/s |")[:4]:
+    rows = _rows("| link | bytes/s | 12 kHz stream in 2 ms frames (33 500 bytes/s) | fastest stream that fits "
+                 "(2 ms frames) | device to host, v3 with 1 kHz sensors (18 700 bytes/s) |")
+    for link, bytes_per_s, _, fastest, device in rows[:4]:
         baud = int(link.split()[1])
         assert int(bytes_per_s.replace(" ", "")) == baud // 10  # 8N1: ten bits a byte
         assert int(fastest.removesuffix(" setpoints/s").replace(" ", "")) == round((baud // 10 - 9500) / 2, -1)
+        if baud // 10 < 18700:
+            assert device.startswith("does not fit")
+        else:
+            assert device == f"{round(100 * 18700 / (baud // 10))} % of the link"
     fast = len(p.encode_frame(p.SETPOINTS, 0xFFFF, p.setpoints_payload(0, 12000, np.full(12, 0.5))))
     assert fast == 43 and fast * round(1 / p.FAST_BATCH_S) == 43000 and "43 bytes × 1000 frames = 43 000 bytes/s" in DOC
 
