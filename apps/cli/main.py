@@ -202,7 +202,30 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--drift-hz-per-s", type=DRIFT_HZ_PER_S, default=0.0, metavar="D",
                      help="its resonance drifts by D Hz every second (default: 0)")
     sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
+    sim.add_argument("--board", choices=["sim", "qemu"], default="sim",
+                     help="sim: the firmware's core on this machine; qemu: the netduinoplus2 board image under "
+                          "QEMU (built first if needed), its UART on the pty (default: sim)")
     sim.set_defaults(handler="ultraglide.apps.commands.devices:plate_sim")
+
+    firmware = commands.add_parser("firmware", help="the plate-driver firmware: build the board images",
+                                   description="The reference firmware's board ports.")
+    firmware_actions = firmware.add_subparsers(dest="firmware_command", metavar="ACTION", required=True,
+                                               parser_class=OneLineParser)
+    build = firmware_actions.add_parser(
+        "build", help="cross-build the board images; print their paths and sizes",
+        description="Build the board's images with arm-none-eabi-gcc (Debian's gcc-arm-none-eabi and "
+                    "libnewlib-arm-none-eabi): hardware (the real DAC, DMA and ADC) and qemu (what "
+                    "`plate-sim --board qemu` runs). Prints each image's path and its flash and RAM "
+                    "from the linker map. Without -o the images go to a cache reused while the sources stay "
+                    "the same.")
+    build.add_argument("--board", default="netduinoplus2", choices=["netduinoplus2"],
+                       help="the board port (default: netduinoplus2)")
+    build.add_argument("--variant", action="append", choices=["hardware", "qemu", "bench"],
+                       help="build only this variant (repeatable; default: hardware and qemu)")
+    build.add_argument("-o", "--output", metavar="DIR", help="build into DIR (default: the cache)")
+    build.add_argument("--rebuild", action="store_true", help="build even if the cache has the images")
+    build.add_argument("--json", action="store_true", help="print one JSON object")
+    build.set_defaults(handler="ultraglide.apps.commands.firmware:run_build")
 
     _add_plate_commands(commands)
 

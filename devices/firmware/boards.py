@@ -1,0 +1,182 @@
+"""Cross-building the firmware's board images: ``ultraglide firmware build`` and ``plate-sim --board qemu``.
+
+A board port lives in ``devices/firmware/ports/BOARD/`` with a Makefile that builds each variant (``hardware``:
+the real peripherals; ``qemu``: what QEMU runs, with the emulated plate standing in for the ADC; ``bench``: the
+budget image). Images are built with Debian's ``gcc-arm-none-eabi`` into a cache keyed by the sources and the
+compiler, so a second build is a lookup; sizes come from the linker map.
+
+Example::
+
+    image = build_images("netduinoplus2", ["qemu"])[0]
+    image.elf_path, image.flash_bytes, image.ram_bytes
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from ultraglide.devices.errors import DeviceError
+
+FIRMWARE_DIR = Path(__file__).resolve().parent
+BOARDS = ("netduinoplus2",)
+VARIANTS = ("hardware", "qemu", "bench")
+TOOLCHAIN_HINT = "install gcc-arm-none-eabi and libnewlib-arm-none-eabi (apt-get; ./run tests does)"
+BUILD_TIMEOUT_S = 300.0
+FLASH_ORIGIN, FLASH_END = 0x0800_0000, 0x0810_0000
+RAM_ORIGIN, RAM_END = 0x2000_0000, 0x2002_0000
+_SECTION = re.compile(r"^(\.[\w.]+)\s+0x([0-9a-fA-F]+)\s+0x([0-9a-fA-F]+)(?:\s+load address 0x([0-9a-fA-F]+))?",
+                      re.MULTILINE)
+
+
+@dataclass(frozen=True)
+class FirmwareImage:
+    """One built image: its files and its sizes in bytes (flash: code, constants and the initial values
+    of data; RAM: data, zeroed data and the reserved stack)."""
+
+    board: str
+    variant: str
+    elf_path: str
+    bin_path: str | None
+    map_path: str
+    flash_bytes: int
+    ram_bytes: int
+    stack_bytes: int
+
+    def __repr__(self) -> str:
+        return (f"FirmwareImage({self.board} {self.variant}: {self.elf_path}, flash {self.flash_bytes} B, "
+                f"RAM {self.ram_bytes} B of which stack {self.stack_bytes} B)")
+
+    def as_dict(self) -> dict:
+        return {"board": self.board, "variant": self.variant, "elf": self.elf_path, "bin": self.bin_path,
+                "map": self.map_path, "flash_bytes": self.flash_bytes, "ram_bytes": self.ram_bytes,
+                "stack_bytes": self.stack_bytes}
+
+
+def map_sizes(map_text: str) -> tuple[int, int, int]:
+    """Flash, RAM and stack bytes from a GNU ld map: each output section counted where it lives (an
+    initialised section in RAM also takes its load image's bytes in flash)."""
+    flash = ram = stack = 0
+    for name, address, size, load in _SECTION.findall(map_text):
+        start, length = int(address, 16), int(size, 16)
+        if FLASH_ORIGIN <= start < FLASH_END:
+            flash += length
+        elif RAM_ORIGIN <= start < RAM_END:
+            ram += length
+            if load and FLASH_ORIGIN <= int(load, 16) < FLASH_END:
+                flash += length
+            if name == ".stack":
+                stack = length
+    return flash, ram, stack
+
+
+def port_dir(board: str) -> Path:
+    if board not in BOARDS:
+        raise DeviceError(f"no board port {board!r}: the ports are {', '.join(BOARDS)}")
+    return FIRMWARE_DIR / "ports" / board
+
+
+def _sources_digest(board: str) -> str:
+    digest = hashlib.sha256()
+    for folder in (FIRMWARE_DIR / "include", FIRMWARE_DIR / "core", port_dir(board)):
+        for path in sorted(folder.glob("*")) if folder.is_dir() else []:
+            if path.is_file() and path.suffix in (".c", ".h", ".ld", "") and path.name != "build":
+                digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    digest.update(_compiler_version().encode())
+    return digest.hexdigest()[:16]
+
+
+def _compiler_version() -> str:
+    compiler = shutil.which("arm-none-eabi-gcc")
+    if compiler is None or shutil.which("make") is None:
+        raise DeviceError(f"the cross compiler arm-none-eabi-gcc (and make) is not installed: {TOOLCHAIN_HINT}")
+    return subprocess.run([compiler, "--version"], capture_output=True, text=True, check=False).stdout
+
+
+def cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "ultraglide" / "firmware"
+
+
+def build_images(board: str = "netduinoplus2", variants=("hardware", "qemu"), out_dir: str | None = None,
+                 rebuild: bool = False) -> list[FirmwareImage]:
+    """Build ``variants`` of ``board`` and return the images. Without ``out_dir`` the images go to the cache
+    (``~/.cache/ultraglide/firmware/BOARD-DIGEST``) and are reused while the sources and compiler stay the
+    same; with it they are built there. Raises :class:`DeviceError` (one line) when the toolchain is missing
+    or the build fails."""
+    for variant in variants:
+        if variant not in VARIANTS:
+            raise DeviceError(f"no variant {variant!r}: the variants are {', '.join(VARIANTS)}")
+    port = port_dir(board)
+    if out_dir is None:
+        target = cache_dir() / f"{board}-{_sources_digest(board)}"
+        missing = [v for v in variants if rebuild or not (target / _elf_name(board, v)).is_file()]
+        if missing:
+            _build_atomically(port, target, board, tuple(dict.fromkeys(tuple(variants) + tuple(missing))))
+    else:
+        target = Path(out_dir).resolve()
+        if target.exists() and not target.is_dir():
+            raise DeviceError(f"{out_dir} is not a directory: give -o a directory for the images")
+        target.mkdir(parents=True, exist_ok=True)
+        _compiler_version()
+        _make(port, target, variants)
+    return [_image(board, variant, target) for variant in variants]
+
+
+def _elf_name(board: str, variant: str) -> str:
+    return f"ultraglide-{board}-{variant}.elf"
+
+
+def _build_atomically(port: Path, target: Path, board: str, variants) -> None:
+    """Build in a fresh folder beside the cache entry and move it into place, so two builds at once (two
+    test workers) never see each other's half-written files."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=target.name + ".", dir=target.parent))
+    try:
+        if target.is_dir():  # keep the variants already built there
+            for path in target.iterdir():
+                if path.is_file():
+                    shutil.copy2(path, scratch / path.name)
+        _make(port, scratch, variants)
+        for path in scratch.iterdir():  # objects are not kept: only images and maps
+            if path.is_dir():
+                shutil.rmtree(path)
+        if target.is_dir():
+            old = Path(tempfile.mkdtemp(prefix=target.name + ".old.", dir=target.parent))
+            with contextlib.suppress(OSError):
+                os.replace(target, old / "entry")
+            shutil.rmtree(old, ignore_errors=True)
+        try:
+            os.replace(scratch, target)
+        except OSError:  # another build put its entry in place first: theirs stands
+            pass
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _make(port: Path, out: Path, variants) -> None:
+    command = ["make", "--no-print-directory", "-f", str(port / "Makefile"), f"O={out}", *variants]
+    try:
+        result = subprocess.run(command, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired as error:
+        raise DeviceError(f"the firmware build took over {BUILD_TIMEOUT_S:g} s and was stopped") from error
+    if result.returncode != 0:
+        lines = [line for line in (result.stderr + result.stdout).splitlines() if "error" in line.lower()]
+        first = lines[0] if lines else (result.stderr.strip().splitlines() or ["(no output)"])[-1]
+        raise DeviceError(f"the firmware build failed: {first.strip()}")
+
+
+def _image(board: str, variant: str, target: Path) -> FirmwareImage:
+    elf = target / _elf_name(board, variant)
+    map_path = elf.with_suffix(".map")
+    binary = elf.with_suffix(".bin")
+    flash, ram, stack = map_sizes(map_path.read_text())
+    return FirmwareImage(board, variant, str(elf), str(binary) if binary.is_file() else None, str(map_path),
+                         flash, ram, stack)

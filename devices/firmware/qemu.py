@@ -1,0 +1,199 @@
+"""A board image run under QEMU, its host link (USART1) on a pseudo-terminal: ``plate-sim --board qemu``.
+
+QEMU's ``netduinoplus2`` machine runs the image; ``-serial pty`` puts USART1 (the protocol link) on a new
+pty, which :class:`QemuPlate` serves behind a stable symlink as the simulated plate does, and ``-serial
+stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/netduinoplus2/main.c``) on
+a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan.
+
+Example::
+
+    with QemuPlate(image.elf_path) as plate:
+        print(plate.path)            # drive it with --device serial:PATH
+        event = plate.events.get()   # {"t_s": ..., "event": "enabled", ...}
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import queue
+import re
+import shutil
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+
+from ultraglide.devices.errors import DeviceError
+
+QEMU = "qemu-system-arm"
+MACHINE = "netduinoplus2"
+START_TIMEOUT_S = 20.0
+STOP_TIMEOUT_S = 5.0
+MAX_EVENTS = 10000
+_PTY_LINE = re.compile(rb"char device redirected to (/dev/pts/\d+) \(label serial0\)")
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    os.setpgrp()  # the terminal's Ctrl-C goes to the command, which stops QEMU in order
+
+
+def parse_event(line: str, t_s: float) -> dict | None:
+    """One debug-console line of the board (``ev NAME key=value ...``) as an event dict, or None for other
+    lines. Numbers become ints or floats."""
+    parts = line.strip().split()
+    if len(parts) < 2 or parts[0] != "ev":
+        return None
+    event: dict = {"t_s": round(t_s, 4), "event": parts[1]}
+    for part in parts[2:]:
+        key, _, value = part.partition("=")
+        try:
+            event[key] = int(value)
+        except ValueError:
+            try:
+                event[key] = float(value)
+            except ValueError:
+                event[key] = value
+    return event
+
+
+class QemuPlate:
+    """The board image running in QEMU; ``path`` is the link to give ``--device serial:PATH``.
+
+    ``events`` receives the board's events (dicts with ``t_s`` and ``event``) and ``lines`` every line of
+    its debug console. ``icount_shift``: run with QEMU's instruction counting (each instruction 2^shift ns of
+    virtual time), for budgets; None runs at the host's speed on the host's clock.
+    """
+
+    def __init__(self, elf_path: str, link_path: str | None = None, icount_shift: int | None = None):
+        if shutil.which(QEMU) is None:
+            raise DeviceError(f"{QEMU} is not installed: install qemu-system-arm (apt-get; ./run tests does)")
+        if not os.path.isfile(elf_path):
+            raise DeviceError(f"no firmware image at {elf_path}: build it with `ultraglide firmware build`")
+        self.elf_path = elf_path
+        self._own_dir = None
+        if link_path is None:
+            self._own_dir = tempfile.mkdtemp(prefix="ultraglide-qemu-")
+            link_path = os.path.join(self._own_dir, "plate")
+        directory = os.path.dirname(os.path.abspath(link_path))
+        if not os.path.isdir(directory):
+            raise DeviceError(f"no directory {directory} for the plate's link {link_path}: create it or choose "
+                              "another --link")
+        self.path = link_path
+        self.pty_name = ""
+        self.icount_shift = icount_shift
+        self.events: queue.Queue = queue.Queue(MAX_EVENTS)
+        self.lines: queue.Queue = queue.Queue(MAX_EVENTS)
+        self.process: subprocess.Popen | None = None
+        self._started_at = 0.0
+        self._reader: threading.Thread | None = None
+        self._stderr = b""
+
+    def __repr__(self) -> str:
+        state = f"pid {self.process.pid}" if self.process and self.process.poll() is None else "stopped"
+        return f"QemuPlate({self.elf_path!r} on {self.path}, {state})"
+
+    def command(self) -> list[str]:
+        command = [QEMU, "-M", MACHINE, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
+                   "-kernel", self.elf_path]
+        if self.icount_shift is not None:
+            command += ["-icount", f"shift={self.icount_shift}"]
+        return command
+
+    def start(self) -> QemuPlate:
+        self.process = subprocess.Popen(self.command(), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, preexec_fn=_die_with_parent)
+        self._started_at = time.perf_counter()
+        try:
+            self.pty_name = self._wait_for_pty()
+        except BaseException:
+            self.stop()
+            raise
+        temporary = self.path + ".new"
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temporary)
+        os.symlink(self.pty_name, temporary)
+        os.replace(temporary, self.path)
+        self._reader = threading.Thread(target=self._read_console, name="qemu-console", daemon=True)
+        self._reader.start()
+        return self
+
+    def _wait_for_pty(self) -> str:
+        """QEMU names the pty on its standard output as it starts, before the console's first byte."""
+        assert self.process is not None and self.process.stdout is not None
+        threading.Thread(target=self._drain_stderr, name="qemu-stderr", daemon=True).start()
+        found: list[str] = []
+        reader = threading.Thread(target=lambda: found.append(self.process.stdout.readline().decode(errors="replace")),
+                                  daemon=True)
+        reader.start()
+        reader.join(START_TIMEOUT_S)
+        line = found[0] if found else ""
+        match = _PTY_LINE.search(line.encode())
+        if match:
+            return match.group(1).decode()
+        if self.process.poll() is not None or not reader.is_alive():
+            self.process.wait(STOP_TIMEOUT_S)
+            message = self._stderr.decode(errors="replace").strip().splitlines()
+            raise DeviceError(f"QEMU stopped at start: {message[-1] if message else line.strip() or 'no message'}")
+        raise DeviceError(f"QEMU did not name its pseudo-terminal within {START_TIMEOUT_S:g} s")
+
+    def _drain_stderr(self) -> None:
+        assert self.process is not None and self.process.stderr is not None
+        for line in self.process.stderr:
+            self._stderr = (self._stderr + line)[-4096:]
+
+    def _read_console(self) -> None:
+        assert self.process is not None and self.process.stdout is not None
+        for raw in self.process.stdout:
+            text = raw.decode(errors="replace").rstrip("\r\n")
+            t_s = time.perf_counter() - self._started_at
+            with contextlib.suppress(queue.Full):
+                self.lines.put_nowait(text)
+            event = parse_event(text, t_s)
+            if event is not None:
+                with contextlib.suppress(queue.Full):
+                    self.events.put_nowait(event)
+
+    def elapsed_s(self) -> float:
+        return time.perf_counter() - self._started_at
+
+    @property
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def stop(self) -> int | None:
+        """Stop QEMU (SIGTERM, then SIGKILL after 5 s) and remove the link; returns QEMU's exit status."""
+        status = None
+        if self.process is not None:
+            if self.process.poll() is None:
+                self.process.terminate()
+                try:
+                    self.process.wait(STOP_TIMEOUT_S)
+                except subprocess.TimeoutExpired:
+                    self.process.kill()
+                    self.process.wait()
+            status = self.process.returncode
+            if self._reader is not None:
+                self._reader.join(STOP_TIMEOUT_S)
+            for stream in (self.process.stdout, self.process.stderr):
+                with contextlib.suppress(OSError, ValueError):
+                    if stream is not None:
+                        stream.close()
+        with contextlib.suppress(FileNotFoundError):
+            if os.path.islink(self.path):
+                os.unlink(self.path)
+        if self._own_dir is not None:
+            shutil.rmtree(self._own_dir, ignore_errors=True)
+            self._own_dir = None
+        return status
+
+    def __enter__(self) -> QemuPlate:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
