@@ -6,6 +6,7 @@ import json
 import queue
 
 from ultraglide.apps.cli.signals import held
+from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.listing import list_devices
 from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
 from ultraglide.devices.profiles import load_profile
@@ -41,6 +42,8 @@ def describe_event(event: dict) -> str:
 
 
 def plate_sim(args) -> int:
+    if getattr(args, "board", "sim") == "qemu":
+        return _plate_sim_qemu(args)
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
     plate = PtyPlate(profile, args.link, truth).start()
@@ -83,3 +86,60 @@ def _summary(sim, as_json: bool, show) -> None:
         print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
               f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
               f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p", flush=True)
+
+
+def _plate_sim_qemu(args) -> int:
+    """The netduinoplus2 image under QEMU, its UART on a pty; the board's debug console gives the events."""
+    from ultraglide.devices.firmware.boards import build_images
+    from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
+
+    profile = load_profile(args.profile)
+    truth = EmulatedPlate.of(profile, args.resonance_hz, args.q, args.drift_hz_per_s)
+    image = build_images("netduinoplus2", ["qemu"])[0]
+    plate = QemuPlate(image.elf_path, args.link, plate=truth)
+
+    def show(event: dict) -> None:
+        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+
+    last: dict = {}
+    plate.start()
+    try:
+        if args.json:
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name, "board": "netduinoplus2",
+                  "image": image.elf_path, "profile": profile.name, "resonance_hz": truth.resonance_hz,
+                  "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s})
+        else:
+            print(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
+                  f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
+                  "Ctrl-C stops it", flush=True)
+        while True:  # until a stop signal raises through here, or QEMU dies
+            try:
+                event = plate.events.get(timeout=0.1)
+            except queue.Empty:
+                if not plate.alive:
+                    raise DeviceError(f"QEMU stopped unexpectedly (exit status {plate.process.returncode})")  # noqa: B904
+                continue
+            if event["event"] == "stats":
+                last = event
+            else:
+                show(event)
+    finally:
+        with held():
+            plate.stop()
+            while not plate.events.empty():
+                event = plate.events.get()
+                if event["event"] == "stats":
+                    last = event
+                else:
+                    show(event)
+            _qemu_summary(last, plate.elapsed_s(), args.json, show)
+
+
+def _qemu_summary(stats: dict, elapsed_s: float, as_json: bool, show) -> None:
+    """The board's last statistics line (it prints one every second) as plate-sim's closing line."""
+    fields = {key: value for key, value in stats.items() if key not in ("t_s", "event")}
+    if as_json:
+        show({"t_s": round(elapsed_s, 4), "event": "stopped", **fields})
+        return
+    words = ", ".join(f"{value} {key.replace('_', ' ')}" for key, value in fields.items()) or "no statistics yet"
+    print(f"stopped: {words}", flush=True)

@@ -32,6 +32,7 @@ TOOLCHAIN_HINT = "install gcc-arm-none-eabi and libnewlib-arm-none-eabi (apt-get
 BUILD_TIMEOUT_S = 300.0
 FLASH_ORIGIN, FLASH_END = 0x0800_0000, 0x0810_0000
 RAM_ORIGIN, RAM_END = 0x2000_0000, 0x2002_0000
+_ZEROED = (".bss", ".stack", ".noinit", ".heap")  # RAM sections with no initial image in flash
 _SECTION = re.compile(r"^(\.[\w.]+)\s+0x([0-9a-fA-F]+)\s+0x([0-9a-fA-F]+)(?:\s+load address 0x([0-9a-fA-F]+))?",
                       re.MULTILINE)
 
@@ -70,7 +71,7 @@ def map_sizes(map_text: str) -> tuple[int, int, int]:
             flash += length
         elif RAM_ORIGIN <= start < RAM_END:
             ram += length
-            if load and FLASH_ORIGIN <= int(load, 16) < FLASH_END:
+            if load and FLASH_ORIGIN <= int(load, 16) < FLASH_END and name not in _ZEROED:
                 flash += length
             if name == ".stack":
                 stack = length

@@ -21,10 +21,12 @@ import queue
 import re
 import shutil
 import signal
+import struct
 import subprocess
 import tempfile
 import threading
 import time
+from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
 
@@ -35,6 +37,45 @@ STOP_TIMEOUT_S = 5.0
 MAX_EVENTS = 10000
 _PTY_LINE = re.compile(rb"char device redirected to (/dev/pts/\d+) \(label serial0\)")
 _PR_SET_PDEATHSIG = 1
+CONFIG_ADDRESS = 0x1000_0000  # the board's emulation block, first bytes of CCM RAM (ports/netduinoplus2/main.c)
+CONFIG_MAGIC = 0x5547_4550  # "UGEP"
+
+
+@dataclass(frozen=True)
+class EmulatedPlate:
+    """What the QEMU image's emulated plate is (its truth: resonance in Hz drifting by ``drift_hz_per_s``,
+    quality factor) and the profile the firmware declares in HELLO_REPLY (µm peak-to-peak, Hz). QEMU's
+    generic loader writes it into CCM RAM before the image starts."""
+
+    resonance_hz: float
+    q: float
+    drift_hz_per_s: float
+    profile_resonance_hz: float
+    full_scale_um_pp: float
+    max_amplitude_um_pp: float
+    max_drive_um_pp: float
+    carrier_min_hz: float
+    carrier_max_hz: float
+
+    @classmethod
+    def of(cls, profile, resonance_hz: float | None = None, q: float | None = None,
+           drift_hz_per_s: float = 0.0) -> EmulatedPlate:
+        return cls(resonance_hz or profile.resonance_hz, q or profile.q, drift_hz_per_s, profile.resonance_hz,
+                   profile.full_scale_um_pp, profile.max_amplitude_um_pp,
+                   profile.max_drive_um_pp or profile.max_amplitude_um_pp, profile.carrier_min_hz,
+                   profile.carrier_max_hz)
+
+    def words(self) -> list[int]:
+        """The block as little-endian 32-bit words: the magic, then each field as an IEEE binary32."""
+        floats = [self.resonance_hz, self.q, self.drift_hz_per_s, self.profile_resonance_hz, self.full_scale_um_pp,
+                  self.max_amplitude_um_pp, self.max_drive_um_pp, self.carrier_min_hz, self.carrier_max_hz]
+        return [CONFIG_MAGIC] + [struct.unpack("<I", struct.pack("<f", value))[0] for value in floats]
+
+    def qemu_arguments(self) -> list[str]:
+        arguments = []
+        for index, word in enumerate(self.words()):
+            arguments += ["-device", f"loader,addr={CONFIG_ADDRESS + 4 * index:#x},data={word:#x},data-len=4"]
+        return arguments
 
 
 def _die_with_parent() -> None:  # runs in the child between fork and exec
@@ -65,12 +106,14 @@ def parse_event(line: str, t_s: float) -> dict | None:
 class QemuPlate:
     """The board image running in QEMU; ``path`` is the link to give ``--device serial:PATH``.
 
+    ``plate``: the emulated plate and declared profile (default: the image's own, the sim-plate profile).
     ``events`` receives the board's events (dicts with ``t_s`` and ``event``) and ``lines`` every line of
     its debug console. ``icount_shift``: run with QEMU's instruction counting (each instruction 2^shift ns of
     virtual time), for budgets; None runs at the host's speed on the host's clock.
     """
 
-    def __init__(self, elf_path: str, link_path: str | None = None, icount_shift: int | None = None):
+    def __init__(self, elf_path: str, link_path: str | None = None, icount_shift: int | None = None,
+                 plate: EmulatedPlate | None = None):
         if shutil.which(QEMU) is None:
             raise DeviceError(f"{QEMU} is not installed: install qemu-system-arm (apt-get; ./run tests does)")
         if not os.path.isfile(elf_path):
@@ -87,6 +130,7 @@ class QemuPlate:
         self.path = link_path
         self.pty_name = ""
         self.icount_shift = icount_shift
+        self.plate = plate
         self.events: queue.Queue = queue.Queue(MAX_EVENTS)
         self.lines: queue.Queue = queue.Queue(MAX_EVENTS)
         self.process: subprocess.Popen | None = None
@@ -101,6 +145,8 @@ class QemuPlate:
     def command(self) -> list[str]:
         command = [QEMU, "-M", MACHINE, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
                    "-kernel", self.elf_path]
+        if self.plate is not None:
+            command += self.plate.qemu_arguments()
         if self.icount_shift is not None:
             command += ["-icount", f"shift={self.icount_shift}"]
         return command

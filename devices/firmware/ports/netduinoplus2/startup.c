@@ -17,6 +17,7 @@ void HardFault_Handler(void);
 void SysTick_Handler(void) __attribute__((weak, alias("Default_Handler")));
 void USART1_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 void TIM2_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
+void USART2_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 void DMA1_Stream5_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 void DMA2_Stream0_IRQHandler(void) __attribute__((weak, alias("Default_Handler")));
 
@@ -41,6 +42,7 @@ static const vector_t vector_table[VECTORS] = {
     [15] = SysTick_Handler,
     [16 + TIM2_IRQn] = TIM2_IRQHandler,
     [16 + USART1_IRQn] = USART1_IRQHandler,
+    [16 + USART2_IRQn] = USART2_IRQHandler,
     [16 + DMA1_Stream5_IRQn] = DMA1_Stream5_IRQHandler,
     [16 + 56] = DMA2_Stream0_IRQHandler,
 };

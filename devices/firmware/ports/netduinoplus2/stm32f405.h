@@ -92,6 +92,22 @@
 #define USART_CR1_TXEIE (1u << 7)
 #define USART_CR1_UE    (1u << 13)
 
+#define USART2_BASE     0x40004400u
+#define USART2_IRQn     38u
+#define RCC_APB1ENR_USART2EN (1u << 17)
+#define ADC_CR2_CONT    (1u << 1)
+#define ADC_CR2_DMA     (1u << 8)
+#define ADC_CR2_DDS     (1u << 9)
+#define ADC_CCR         UG_REG(0x40012304u)
+#define ADC_CCR_ADCPRE_DIV4 (1u << 16)
+#define DMA2_BASE       0x40026400u
+#define DMA2_Stream0_IRQn 56u
+#define DMA_LISR(base)  UG_REG((base) + 0x00u)
+#define DMA_LIFCR(base) UG_REG((base) + 0x08u)
+#define DMA_LIFCR_ALL0  (0x3Du << 0)
+#define DMA_SxCR_DIR_P2M (0u << 6)
+#define GPIOA_PIN_ANALOG(pin) (GPIO_MODE_ANALOG << (2u * (pin)))
+
 /* ---- General-purpose timers TIM2..TIM5 and basic timer TIM6 (RM0090 §18.4, §20.4) ---- */
 #define TIM2_BASE       0x40000000u
 #define TIM2_IRQn       28u
