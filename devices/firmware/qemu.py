@@ -37,15 +37,14 @@ STOP_TIMEOUT_S = 5.0
 MAX_EVENTS = 10000
 _PTY_LINE = re.compile(rb"char device redirected to (/dev/pts/\d+) \(label serial0\)")
 _PR_SET_PDEATHSIG = 1
-CONFIG_ADDRESS = 0x1000_0000  # the board's emulation block, first bytes of CCM RAM (ports/netduinoplus2/main.c)
 CONFIG_MAGIC = 0x5547_4550  # "UGEP"
 
 
 @dataclass(frozen=True)
 class EmulatedPlate:
     """What the QEMU image's emulated plate is (its truth: resonance in Hz drifting by ``drift_hz_per_s``,
-    quality factor) and the profile the firmware declares in HELLO_REPLY (µm peak-to-peak, Hz). QEMU's
-    generic loader writes it into CCM RAM before the image starts."""
+    quality factor) and the profile the firmware declares in HELLO_REPLY (µm peak-to-peak, Hz); written into
+    the image's ``.emulation`` section (``ports/netduinoplus2/emulation_config.h``) in a copy of the ELF file."""
 
     resonance_hz: float
     q: float
@@ -71,11 +70,32 @@ class EmulatedPlate:
                   self.max_amplitude_um_pp, self.max_drive_um_pp, self.carrier_min_hz, self.carrier_max_hz]
         return [CONFIG_MAGIC] + [struct.unpack("<I", struct.pack("<f", value))[0] for value in floats]
 
-    def qemu_arguments(self) -> list[str]:
-        arguments = []
-        for index, word in enumerate(self.words()):
-            arguments += ["-device", f"loader,addr={CONFIG_ADDRESS + 4 * index:#x},data={word:#x},data-len=4"]
-        return arguments
+    def write_into(self, elf_path: str) -> None:
+        """Write the block into the ``.emulation`` section of the ELF file at ``elf_path`` (a copy)."""
+        block = b"".join(struct.pack("<I", word) for word in self.words())
+        with open(elf_path, "r+b") as elf:
+            offset, size = _section(elf, ".emulation")
+            if size != len(block):
+                raise DeviceError(f"{elf_path}: its emulation block is {size} bytes, not {len(block)}: rebuild it")
+            elf.seek(offset)
+            elf.write(block)
+
+
+def _section(elf, wanted: str) -> tuple[int, int]:
+    """File offset and size of a section of a 32-bit little-endian ELF file, by name."""
+    header = elf.read(52)
+    if header[:6] != b"\x7fELF\x01\x01":
+        raise DeviceError(f"{elf.name} is not a 32-bit little-endian ELF image")
+    shoff, = struct.unpack_from("<I", header, 0x20)
+    shentsize, shnum, shstrndx = struct.unpack_from("<HHH", header, 0x2E)
+    elf.seek(shoff)
+    sections = [struct.unpack_from("<10I", elf.read(shentsize)) for _ in range(shnum)]
+    names_offset = sections[shstrndx][4]
+    for name, _type, _flags, _addr, offset, size, *_rest in sections:
+        elf.seek(names_offset + name)
+        if elf.read(len(wanted) + 1) == wanted.encode() + b"\0":
+            return offset, size
+    raise DeviceError(f"{elf.name} has no {wanted} section: is it the qemu variant?")
 
 
 def _die_with_parent() -> None:  # runs in the child between fork and exec
@@ -145,13 +165,18 @@ class QemuPlate:
     def command(self) -> list[str]:
         command = [QEMU, "-M", MACHINE, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
                    "-kernel", self.elf_path]
-        if self.plate is not None:
-            command += self.plate.qemu_arguments()
         if self.icount_shift is not None:
             command += ["-icount", f"shift={self.icount_shift}"]
         return command
 
     def start(self) -> QemuPlate:
+        if self.plate is not None:  # QEMU runs a copy of the image with the plate's truth written in
+            if self._own_dir is None:
+                self._own_dir = tempfile.mkdtemp(prefix="ultraglide-qemu-")
+            copy = os.path.join(self._own_dir, os.path.basename(self.elf_path))
+            shutil.copyfile(self.elf_path, copy)
+            self.plate.write_into(copy)
+            self.elf_path = copy
         self.process = subprocess.Popen(self.command(), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                         stderr=subprocess.PIPE, preexec_fn=_die_with_parent)
         self._started_at = time.perf_counter()

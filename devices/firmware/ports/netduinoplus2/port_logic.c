@@ -63,3 +63,27 @@ uint32_t ug_adc_peak_to_peak(const uint16_t *codes, uint32_t count)
     }
     return (uint32_t)(high - low);
 }
+
+char *ug_append_text(char *out, char *end, const char *text)
+{
+    while (*text != '\0' && out < end - 1) {
+        *out++ = *text++;
+    }
+    *out = '\0';
+    return out;
+}
+
+char *ug_append_u32(char *out, char *end, uint32_t value)
+{
+    char digits[10];
+    uint32_t n = 0;
+    do {
+        digits[n++] = (char)('0' + value % 10u);
+        value /= 10u;
+    } while (value != 0u);
+    while (n > 0u && out < end - 1) {
+        *out++ = digits[--n];
+    }
+    *out = '\0';
+    return out;
+}

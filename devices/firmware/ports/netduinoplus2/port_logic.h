@@ -34,4 +34,11 @@ void ug_dac_block(const int16_t *samples, uint16_t *codes, uint32_t count);
    codes (a peak detector over the block; at least one carrier period must fit in it). */
 uint32_t ug_adc_peak_to_peak(const uint16_t *codes, uint32_t count);
 
+
+
+/* Text for the debug console without printf (newlib's pulls in malloc, and the image links no heap):
+   append a string or an unsigned decimal at ``out``, never writing past ``end`` (which stays for the
+   terminating NUL); return the new end of the text. */
+char *ug_append_text(char *out, char *end, const char *text);
+char *ug_append_u32(char *out, char *end, uint32_t value);
 #endif

@@ -50,6 +50,7 @@ static const vector_t vector_table[VECTORS] = {
 
 void Reset_Handler(void)
 {
+    __asm__ volatile("ldr sp, =_stack_top");  /* as the vector table says; a debugger's reset may not load it */
     uint32_t *from = &_data_load;
     for (uint32_t *to = &_data_start; to < &_data_end;) {
         *to++ = *from++;
