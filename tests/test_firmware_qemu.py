@@ -24,11 +24,22 @@ pytestmark = [
 ]
 
 
-def gnu_size(elf: str) -> tuple[int, int, int]:
-    """text, data, bss of an ELF as binutils' size reads them (Berkeley format): an independent reading."""
-    out = subprocess.run(["arm-none-eabi-size", elf], capture_output=True, text=True, check=True).stdout
-    text, data, bss = out.splitlines()[1].split()[:3]
-    return int(text), int(data), int(bss)
+def elf_sizes(elf: str) -> tuple[int, int]:
+    """Flash and RAM bytes from the ELF file's sections as binutils' size lists them (``-A``: name, size,
+    address), an independent reading of what the linker map says: flash holds the sections addressed there
+    and the initial image of .data; RAM holds every section addressed in SRAM."""
+    out = subprocess.run(["arm-none-eabi-size", "-A", elf], capture_output=True, text=True, check=True).stdout
+    flash = ram = 0
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[1].isdigit() and parts[2].isdigit():
+            name, size, address = parts[0], int(parts[1]), int(parts[2])
+            if 0x0800_0000 <= address < 0x0810_0000:
+                flash += size
+            elif 0x2000_0000 <= address < 0x2002_0000:
+                ram += size
+                flash += size if name == ".data" else 0
+    return flash, ram
 
 
 def test_firmware_build_prints_each_image_with_the_sizes_binutils_reads(tmp_path):
@@ -37,9 +48,7 @@ def test_firmware_build_prints_each_image_with_the_sizes_binutils_reads(tmp_path
     assert [image["variant"] for image in report["images"]] == ["hardware", "qemu"]
     for image in report["images"]:
         assert os.path.dirname(image["elf"]) == str(tmp_path)
-        text, data, bss = gnu_size(image["elf"])
-        assert image["flash_bytes"] == text + data  # code, constants and the initial values of .data
-        assert image["ram_bytes"] == data + bss  # .data, .bss and the reserved stack (NOLOAD, counted in bss)
+        assert (image["flash_bytes"], image["ram_bytes"]) == elf_sizes(image["elf"])
         assert image["stack_bytes"] >= 8192
         with open(image["bin"], "rb") as binary:  # the raw image starts with the vector table: SP then reset PC
             sp, pc = int.from_bytes(binary.read(4), "little"), int.from_bytes(binary.read(4), "little")
@@ -139,3 +148,23 @@ def test_killing_plate_sim_leaves_no_qemu_behind():
     board.process.kill()  # SIGKILL: no clean-up runs in the command; the kernel must take QEMU with it
     board.process.wait(timeout=30)
     assert wait_for(lambda: not alive(qemu), timeout=30), "QEMU outlived its parent"
+
+
+def test_the_emulated_plate_runs_with_the_truth_given_on_the_command_line():
+    board = Board("--json", "--resonance-hz", "24000", "--q", "150")
+    try:
+        assert json.loads(board.first)["resonance_hz"] == 24000
+        boot = json.loads(board.process.stdout.readline())
+        assert (boot["event"], boot["plate_resonance_hz"], boot["plate_q"]) == ("boot", 24000, 150)  # read back
+    finally:
+        board.process.send_signal(signal.SIGINT)
+        assert board.process.wait(timeout=60) == 128 + signal.SIGINT
+
+
+def test_budget_measurement_reads_a_loop_of_known_length_exactly():
+    from ultraglide.devices.firmware.budgets import CALIBRATION, measure
+
+    figures = measure()
+    name, instructions = CALIBRATION
+    assert figures[name] == pytest.approx(instructions, abs=2)  # 1000 × (subs, bne) + the call, counted by QEMU
+    assert 250 * 3 < figures["dac_block_250"] < 250 * 40  # a few instructions a sample, not a few hundred
