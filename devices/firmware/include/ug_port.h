@@ -1,0 +1,78 @@
+/*
+ * ug_port.h - the port interface between ultraglide's portable firmware core and a board.
+ *
+ * The core (devices/firmware/core/) never touches hardware. A board port (ports/<board>/) owns the
+ * UART, a 1 kHz timer, the DAC or PWM that plays the carrier and the ADC that reads the sensing
+ * piezo and force sensors, and joins them to the core through the calls below. The protocol the
+ * core speaks is docs/protocol.md (version 3, and 2 for old hosts); docs/firmware.md describes the
+ * architecture and how to port it.
+ *
+ * Calls INTO the core (declared in ug_core.h), and the context each may be called from:
+ *
+ *   ug_core_init()          once, before any interrupt that calls the core is enabled.
+ *   ug_core_uart_rx()       UART receive interrupt (or DMA idle-line handler): bytes as they come.
+ *                           Bounded: copies into the core's receive ring, nothing else.
+ *   ug_core_uart_tx()       UART transmit interrupt or DMA completion, or the main loop: takes up to
+ *                           max bytes the core has queued for the host.
+ *   ug_core_tick()          a timer interrupt every UG_TICK_US microseconds (1 ms). Runs the watchdog,
+ *                           fault timers and telemetry/SENSORS scheduling. Bounded, no allocation.
+ *   ug_core_dac_block()     the DAC/PWM DMA half- or full-transfer interrupt: fills the next block of
+ *                           carrier samples (int16, full-scale drive = +-32767). Bounded by the block.
+ *   ug_core_drive_block()   instead of ug_core_dac_block() on a board (or the simulator) that makes
+ *                           the carrier itself: the drive envelope, fraction of full scale.
+ *   ug_core_adc_block()     the ADC DMA interrupt: measured vibration amplitude (um peak-to-peak) and
+ *                           forces (N) for the samples most recently produced, one per drive sample.
+ *   ug_core_set_stage_hot() wherever the board measures its driver stage's temperature.
+ *   ug_core_poll()          the main loop, as often as it can: decodes and handles host frames,
+ *                           sends telemetry and SENSORS frames. Takes critical sections (below).
+ *
+ * The tick, DAC and ADC interrupts (and ug_core_set_stage_hot if called from an interrupt) MUST
+ * share one priority, so that none of them preempts another inside the core; the UART receive
+ * interrupt may have any priority (it only writes the receive ring). Drive and ADC blocks are
+ * sample-aligned: the i-th sample of an ADC block measures the plate while the i-th sample of
+ * the drive block produced UG_SENSE_DELAY samples earlier was playing (config.sense_delay_samples).
+ *
+ * Calls OUT of the core, which a port implements (the context pointer is the one given to
+ * ug_core_init):
+ */
+#ifndef UG_PORT_H
+#define UG_PORT_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Microseconds between two ug_core_tick() calls. */
+#define UG_TICK_US 1000u
+
+/*
+ * Enter and leave a critical section: mask the interrupts that call into the core (tick, DAC, ADC)
+ * on this CPU. Called from ug_core_poll() and ug_core_set_stage_hot() only, around the handling of
+ * one frame (a few microseconds: at most one SETPOINTS frame of 240 values copied). MUST nest
+ * (save and restore the previous mask, e.g. PRIMASK on Cortex-M).
+ */
+void ug_port_critical_enter(void *port);
+void ug_port_critical_exit(void *port);
+
+/*
+ * The core queued bytes for the host (a frame ended in its transmit ring): start the UART's
+ * transmission if it is idle. Called from ug_core_poll() (main loop). May do nothing on a port that
+ * drains ug_core_uart_tx() from its main loop anyway.
+ */
+void ug_port_tx_ready(void *port);
+
+/*
+ * Simulator only (config.sim_faults = 1): the host asked for an injected transport fault, kind 1 drop,
+ * 2 corrupt, 3 hang, 4 disconnect, for duration_ms. Called from ug_core_poll() after the SIM_FAULT's
+ * ACK was queued. A board port (sim_faults = 0, SIM_FAULT answered NAK 4) never sees it and may leave
+ * it empty.
+ */
+void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* UG_PORT_H */

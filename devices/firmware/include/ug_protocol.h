@@ -1,0 +1,91 @@
+/*
+ * ug_protocol.h - the wire protocol's numbers (docs/protocol.md, version 3). The host's copy is
+ * devices/protocol.py; tests/test_firmware_core.py checks the two against each other.
+ */
+#ifndef UG_PROTOCOL_H
+#define UG_PROTOCOL_H
+
+#define UG_PROTOCOL_VERSION 3u
+#define UG_LOWEST_VERSION 2u
+#define UG_MAX_BODY 1024u      /* decoded bytes: type, seq, payload, CRC */
+#define UG_MAX_ENCODED 1030u   /* MAX_BODY + ceil(MAX_BODY / 254) + 1 */
+#define UG_MIN_BODY 7u         /* type, seq, CRC */
+#define UG_SETPOINT_SCALE 65535u
+#define UG_MAX_SETPOINTS_PER_FRAME 240u
+#define UG_TELEMETRY_HZ 50u
+#define UG_WATCHDOG_MS 100u
+#define UG_WATCHDOG_RAMP_MS 20u
+#define UG_BUFFER_MS 250u
+#define UG_PREFILL_MS 10u
+#define UG_TRIP_MARGIN 0.01f
+#define UG_OVER_LIMIT_REARM 0.98f
+#define UG_SENSORS_PERIOD_MS 10u
+#define UG_SENSORS_REST_PERIOD_MS 50u
+#define UG_MIN_SENSOR_RATE_HZ 1000u
+#define UG_MAX_SENSOR_SAMPLES 80u
+#define UG_MAX_NAME_BYTES 64u
+#define UG_NOT_PLAYING 0xFFFFFFFFu
+#define UG_MAX_SIM_FAULT_MS 5000u
+
+/* host -> device */
+#define UG_HELLO 0x01u
+#define UG_SET_CARRIER 0x02u
+#define UG_ENABLE 0x03u
+#define UG_SETPOINTS 0x04u
+#define UG_HEARTBEAT 0x05u
+#define UG_CLEAR_FAULTS 0x06u
+#define UG_SET_LOOP 0x07u
+#define UG_SIM_FAULT 0x7Eu
+/* device -> host */
+#define UG_HELLO_REPLY 0x81u
+#define UG_ACK 0x82u
+#define UG_NAK 0x83u
+#define UG_TELEMETRY 0x90u
+#define UG_SENSORS 0x91u
+
+/* NAK reasons, checked in this order */
+#define UG_NAK_UNKNOWN_TYPE 1u
+#define UG_NAK_UNSUPPORTED 4u
+#define UG_NAK_BAD_LENGTH 2u
+#define UG_NAK_BAD_VALUE 3u
+#define UG_NAK_INTERNAL 5u
+
+/* fault bits */
+#define UG_FAULT_WATCHDOG 0x0001u
+#define UG_FAULT_TRIP 0x0002u
+#define UG_FAULT_OVER_LIMIT 0x0004u
+#define UG_FAULT_OVERRUN 0x0008u
+#define UG_FAULT_UNDERRUN 0x0010u
+#define UG_FAULT_BAD_COMMAND 0x0020u
+#define UG_FAULT_OVERHEAT 0x0040u
+#define UG_FAULT_BITS 8u
+
+/* HELLO_REPLY v3 */
+#define UG_SENSOR_AMPLITUDE 0x01u
+#define UG_SENSOR_NORMAL_FORCE 0x02u
+#define UG_SENSOR_LATERAL_FORCE 0x04u
+#define UG_FEATURE_AMPLITUDE_LOOP 0x01u
+
+/* SIM_FAULT kinds */
+#define UG_SIM_DROP 1u
+#define UG_SIM_CORRUPT 2u
+#define UG_SIM_HANG 3u
+#define UG_SIM_DISCONNECT 4u
+#define UG_SIM_OVERHEAT 5u
+
+/* TELEMETRY.playback: the output's state (docs/protocol.md, "State machine") */
+#define UG_OFF 0u
+#define UG_PREFILL 1u
+#define UG_PLAYING 2u
+#define UG_DRY 3u
+#define UG_RAMP 4u
+
+/* payload sizes (v3; v2's HELLO_REPLY 33 and TELEMETRY 71) */
+#define UG_HELLO_REPLY_V2_SIZE 33u
+#define UG_HELLO_REPLY_V3_SIZE 41u
+#define UG_TELEMETRY_V2_SIZE 71u
+#define UG_TELEMETRY_V3_SIZE 89u
+#define UG_SENSORS_HEADER_SIZE 9u
+#define UG_SENSOR_SAMPLE_SIZE 12u
+
+#endif /* UG_PROTOCOL_H */
