@@ -19,7 +19,7 @@ def test_help_and_version_start_fast():
     # the help path must not import numpy; checked by importing it and looking
     probe = subprocess.run(
         [".venv/bin/python", "-c",
-         "import sys, ultraglide.apps.cli.main as cli; cli.build_parser(); print('numpy' in sys.modules)"],
+         "import sys, ultraglide.apps.cli.parser as cli; cli.build_parser(); print('numpy' in sys.modules)"],
         capture_output=True, text=True)
     assert probe.stdout.strip() == "False"
     assert time.perf_counter() - start < 30

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli
-from ultraglide.apps.cli.main import build_parser
+from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
 from ultraglide.devices.carrier import Carrier
 from ultraglide.devices.output_stage import Modulation

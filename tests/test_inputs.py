@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image, PngImagePlugin
 from scipy.interpolate import PchipInterpolator
-from ultraglide.apps.cli.main import build_parser
+from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.types import texture_name
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.urls import parse_device_url

@@ -2,14 +2,80 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.textures.authoring import AuthoringOptions, read_image_luminance, texture_from_luminance
-from ultraglide.textures.fileformat import save_texture
+from ultraglide.apps.cli.options import add_range_option
+from ultraglide.apps.cli.types import (
+    BLUR_MM,
+    CLIP_PERCENT,
+    DPI,
+    GAMMA,
+    MAX_PIXELS,
+    SEAM_BAND,
+    TEXTURE_SIDE_MM,
+    UNIT_INTERVAL,
+    crop_box,
+    texture_name,
+)
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide author``: its options."""
+    author = commands.add_parser(
+        "author", help="make a texture from an image",
+        description="Turn any image Pillow reads into a texture file (16-bit PNG with metadata). "
+                    "By default white is sticky (at rest) and black slippery.")
+    author.add_argument("image", metavar="IMAGE")
+    author.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+    size = author.add_mutually_exclusive_group()
+    size.add_argument("--width-mm", type=TEXTURE_SIDE_MM, help="physical width, 0.1 to 10000 mm (default: 80)")
+    size.add_argument("--dpi", type=DPI, help="physical size from the image's pixels per inch")
+    author.add_argument("--mode", choices=["brightness", "edges", "gradient"], default="brightness",
+                        help="brightness: luminance is friction; edges: edges are sticky; "
+                             "gradient: luminance is height, felt through its slope")
+    author.add_argument("--invert", action="store_true", help="swap sticky and slippery")
+    author.add_argument("--levels", nargs=2, type=UNIT_INTERVAL, default=[0.0, 1.0], metavar=("BLACK", "WHITE"),
+                        help="input black and white points in 0..1 (default: 0 1)")
+    author.add_argument("--gamma", type=GAMMA, default=1.0,
+                        help="gamma, 0.01 to 100, applied after levels (default: 1)")
+    author.add_argument("--blur-mm", type=BLUR_MM, default=0.0,
+                        help="Gaussian blur sigma, mm, at most the texture's width (default: 0)")
+    add_range_option(author)
+    author.add_argument("--crop", type=crop_box, metavar="X,Y,W,H", help="crop the source, in pixels")
+    author.add_argument("--background", default="white", choices=["white", "black"],
+                        help="what transparent parts are composited on (default: white = at rest)")
+    author.add_argument("--outside", choices=["tile", "clamp", "fixed"], default="tile",
+                        help="what lies beyond the edges (default: tile)")
+    author.add_argument("--max-pixels", type=MAX_PIXELS, default=40_000_000,
+                        help="refuse larger images, a guard against decompression bombs; at most 100e6, "
+                             "the texture file's own limit (default: 40e6)")
+    author.add_argument("--seamless", action="store_true",
+                        help="make the image tile without a seam (a finger would feel the jump where the tile "
+                             "repeats), by --seam-method; features keep their size: --width-mm/--dpi give the "
+                             "scale of the image as read")
+    author.add_argument("--seam-method", choices=["crossfade", "mirror"], default="crossfade",
+                        help="crossfade: a band at each end is blended into the opposite end, the tile is shorter "
+                             "by the band and keeps its look; mirror: the image with mirror images right and "
+                             "below, a tile twice as wide and high (default: crossfade)")
+    author.add_argument("--seam-band", type=SEAM_BAND, default=0.125, metavar="FRACTION",
+                        help="crossfade band, a fraction of each side in (0, 0.5] (default: 0.125)")
+    author.add_argument("--auto-levels", action="store_true",
+                        help="stretch the range (a percentile stretch) for images that use part of it; "
+                             "replaces --levels")
+    author.add_argument("--auto-levels-clip", type=CLIP_PERCENT, default=1.0, metavar="PERCENT",
+                        help="with --auto-levels, the percentage of pixels clipped at each end (default: 1)")
+    author.add_argument("--name", type=texture_name, help="texture name (default: the image's file name)")
+    author.add_argument("--preview", metavar="PREVIEW.png",
+                        help="also write a picture of the source, the friction map and a swipe")
+    author.set_defaults(run=run)
 
 
 def run(args) -> int:
+    from ultraglide.textures.authoring import AuthoringOptions, read_image_luminance, texture_from_luminance
+    from ultraglide.textures.fileformat import save_texture
+
     low, high = args.range
     black, white = args.levels
     options = AuthoringOptions(

@@ -3,22 +3,49 @@ with its uncertainty and the cross-validated error, and write a calibration file
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from ultraglide.apps.cli.types import PARTICIPANT
+
+if TYPE_CHECKING:
+    from ultraglide.render.physics.calibration import Fit
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
-from ultraglide.render.physics.calibration import Fit, calibration_toml, compare_models, fit_model, fit_summary
-from ultraglide.render.physics.measurements import read_measurements
 
 POOR_FIT_RMS = 0.05
 CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
             "leave_one_participant_out": "leave-one-participant-out"}
 
 
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide calibrate``: its options."""
+    calibrate = commands.add_parser(
+        "calibrate", help="fit a friction model to measured points",
+        description="Fit a model's free parameters to a CSV of amplitude_um_pp,relative_friction"
+                    "[,force_n][,participant] by least squares; report each parameter with its standard "
+                    "error and the cross-validated error (k-fold, leave-one-force-out); write a calibration "
+                    "file usable as --model and a figure beside it (CAL.png at 300 dpi and CAL.pdf).")
+    calibrate.add_argument("data", metavar="DATA.csv")
+    calibrate.add_argument("--model", default="stretched",
+                           choices=["stretched", "exponential", "paper", "paper-uniform", "table"],
+                           help="the model to fit (default: stretched)")
+    calibrate.add_argument("--compare", action="store_true",
+                           help="fit every model and rank them by cross-validated error; -o keeps the best")
+    calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
+                           help="use only this participant's points (the participant column)")
+    calibrate.add_argument("--json", action="store_true", help="print one JSON object")
+    calibrate.add_argument("-o", "--output", metavar="CAL.toml",
+                           help="write the calibration here, and its figure as CAL.png and CAL.pdf")
+    calibrate.set_defaults(run=run)
+
+
 def _select_participant(data, participant):
+    import numpy as np
+
     if participant is None:
         return data
     if data.participant is None:
@@ -63,6 +90,7 @@ def _residual_table(fit: Fit) -> list[str]:
 
 def _write(fit: Fit, fits: list[Fit], output: Path) -> list[Path]:
     from ultraglide.apps.figures.calibration import write_calibration_figure
+    from ultraglide.render.physics.calibration import calibration_toml
 
     with atomic_path(output) as temporary:
         temporary.write_text(calibration_toml(fit))
@@ -70,6 +98,9 @@ def _write(fit: Fit, fits: list[Fit], output: Path) -> list[Path]:
 
 
 def run(args) -> int:
+    from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary
+    from ultraglide.render.physics.measurements import read_measurements
+
     data = _select_participant(read_measurements(args.data), args.participant)
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix != ".toml":

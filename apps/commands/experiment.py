@@ -2,15 +2,31 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import warnings
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.experiment.log import TRIALS, read_session
-from ultraglide.apps.experiment.session import SessionConfig, resumed_config, run_session
-from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign
+from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser
+from ultraglide.apps.cli.types import (
+    BOOTSTRAP_SAMPLES,
+    FORCE_N,
+    LEVEL,
+    REPEATS,
+    SCREEN_WIDTH_MM,
+    SEED,
+    SPEED_MM_S,
+    TRIALS_BETWEEN_BREAKS,
+    ZONES,
+)
+from ultraglide.apps.cli.types import TRIALS as TRIALS_OPTION
+
+if TYPE_CHECKING:
+    from ultraglide.apps.experiment.session import SessionConfig
+    from ultraglide.apps.experiment.stimuli import StimulusDesign
 
 PRESETS = {
     # Vezzoli et al. (2015), section II.D: 0, 2 and 4 µm at the actuator's resonance, in random order,
@@ -30,6 +46,86 @@ THRESHOLD_PRESETS = {
 }
 
 
+def _add_shared_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--vary", choices=["contrast", "wavelength", "amplitude"],
+                        help="the parameter the procedure varies: the friction contrast of TEXTURE (default), "
+                             "the wavelength of a grating (discrimination, mm), or a uniform vibration "
+                             "amplitude (µm p-p)")
+    parser.add_argument("--observer", metavar="sim:threshold=T,slope=S,lapse=L",
+                        help="a simulated observer (dry run, offline through the renderer; default: a person "
+                             "at the window)")
+    parser.add_argument("--device", metavar="URL",
+                        help="output device: sim, serial:PORT, audio[...], wav:PATH or null "
+                             "(default: sim; null with a simulated observer)")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of every random choice (default: 0)")
+    parser.add_argument("--out", metavar="DIR", help="where trials.csv, session.json, result.json and the "
+                                                     "figures go (a new directory)")
+    parser.add_argument("--resume", metavar="DIR", help="continue the session in DIR (its options are kept)")
+    parser.add_argument("--break-every", type=TRIALS_BETWEEN_BREAKS, default=0, metavar="N",
+                        help="a pause screen every N trials (default: none)")
+    parser.add_argument("--participant", default="P01", help="participant code for the log (default: P01)")
+    parser.add_argument("--session", default="1", help="session label for the log (default: 1)")
+    parser.add_argument("--function", choices=["weibull", "logistic"], default="weibull",
+                        help="psychometric function fitted (default: weibull)")
+    parser.add_argument("--interval", choices=["posterior", "bootstrap"], default="posterior",
+                        help="the threshold's 95 %% interval for staircases and constant stimuli: the grid "
+                             "posterior's credible interval, or a parametric bootstrap of the ML fit "
+                             "(default: posterior; QUEST+ always gives its posterior)")
+    parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
+                        help="bootstrap samples with --interval bootstrap (default: 200)")
+    parser.add_argument("--model", default="exponential", metavar="MODEL", help=f"{MODEL_HELP} (default: exponential)")
+    parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
+    parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,
+                        help="swipe speed of the simulated observer's finger (default: 100)")
+    parser.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
+    parser.add_argument("--windowed", action="store_true", help="a window instead of full screen")
+    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide experiment``: its kinds and their options."""
+    experiment = commands.add_parser(
+        "experiment", help="threshold experiments: staircases, QUEST+, constant stimuli",
+        description="Psychophysics on the plate: adaptive thresholds and the method of constant stimuli, "
+                    "with a person at the touch panel or a simulated observer (dry run).")
+    kinds = experiment.add_subparsers(dest="experiment", metavar="KIND", required=True, parser_class=OneLineParser)
+    threshold = kinds.add_parser(
+        "threshold", help="an adaptive threshold: staircase or QUEST+, 2 or 3 zones (forced choice)",
+        description="Find the level of one parameter a finger detects: zones side by side, one holds the "
+                    "stimulus; the participant swipes each and taps the odd one.")
+    threshold.add_argument("texture", nargs="?", metavar="TEXTURE", help="a texture file or a library name")
+    threshold.add_argument("--method", choices=["staircase", "quest"], default="staircase")
+    threshold.add_argument("--afc", type=ZONES, help="zones (forced-choice intervals) (default: 2)")
+    threshold.add_argument("--rule", choices=["1u2d", "1u3d", "weighted"], default="1u2d",
+                           help="staircase rule (default: 1u2d; weighted targets 75 %% correct)")
+    threshold.add_argument("--trials", type=TRIALS_OPTION, metavar="N", help="number of trials")
+    threshold.add_argument("--range", nargs=2, type=LEVEL, metavar=("LOW", "HIGH"),
+                           help="levels the procedure may use (default: by parameter)")
+    threshold.add_argument("--start-level", type=LEVEL, metavar="LEVEL", help="staircase start level")
+    threshold.add_argument("--reference", metavar="TEXTURE",
+                           help="what the other zones show (default: plain glass)")
+    threshold.add_argument("--preset", choices=["grating-contrast", "grating-period"],
+                           help="a common question: grating-contrast, the detection threshold of a 1 mm grating's "
+                                "friction contrast; grating-period, the discrimination threshold of its period "
+                                "(Δλ in mm against 1 mm); both 3 zones")
+    _add_shared_options(threshold)
+    threshold.set_defaults(run=run)
+    constant = kinds.add_parser(
+        "constant", help="the method of constant stimuli (preset: the paper's own assessment)",
+        description="Fixed levels, each presented a set number of times in random order, a yes/no answer; "
+                    "a psychometric function fitted by maximum likelihood. --preset vezzoli2015: 0, 2 and "
+                    "4 µm p-p at the plate's resonance, 10 times each, \"more slippery?\".")
+    constant.add_argument("texture", nargs="?", metavar="TEXTURE", help="a texture (not needed by the preset)")
+    constant.add_argument("--preset", choices=["vezzoli2015"])
+    constant.add_argument("--levels", nargs="+", type=LEVEL, metavar="L", help="the fixed levels")
+    constant.add_argument("--repeats", type=REPEATS, metavar="N", help="presentations of each level")
+    constant.add_argument("--afc", type=ZONES, help="forced choice instead of yes/no")
+    _add_shared_options(constant)
+    constant.set_defaults(run=run)
+
+
 def _check_counts(args) -> None:
     if args.break_every < 0:
         raise UsageError(f"--break-every must be 0 (no breaks) or more, got {args.break_every}")
@@ -40,6 +136,8 @@ def _check_counts(args) -> None:
 
 
 def _config_from_args(args, kind: str) -> SessionConfig:
+    from ultraglide.apps.experiment.session import SessionConfig
+
     _check_counts(args)
     common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
               "participant": args.participant, "session": args.session, "break_every": args.break_every,
@@ -96,6 +194,7 @@ def _config_from_args(args, kind: str) -> SessionConfig:
 
 def design_for(config: SessionConfig) -> StimulusDesign:
     """Load what the config names (texture, reference, model, profile): one-line errors for mistakes."""
+    from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign
     from ultraglide.render.physics.calibration import load_model
     from ultraglide.textures.library import resolve_texture
 
@@ -113,10 +212,12 @@ def design_for(config: SessionConfig) -> StimulusDesign:
 
 
 def _prepare_directory(args) -> Path:
+    from ultraglide.apps.experiment.log import TRIALS as TRIALS_FILE
+
     if not args.out:
         raise UsageError("--out DIR is needed (where the log, results and figures go)")
     directory = Path(args.out)
-    if (directory / TRIALS).exists():
+    if (directory / TRIALS_FILE).exists():
         raise UsageError(f"{directory} already holds a session; continue it with --resume {directory} "
                          "or choose another --out")
     if directory.exists() and not directory.is_dir():
@@ -140,6 +241,9 @@ def _responder(config: SessionConfig, design: StimulusDesign, args):
 
 
 def run(args) -> int:
+    from ultraglide.apps.experiment.log import read_session
+    from ultraglide.apps.experiment.session import resumed_config, run_session
+
     kind = args.experiment
     if args.resume:
         directory = Path(args.resume)

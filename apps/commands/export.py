@@ -10,29 +10,51 @@ there is no fork), memory flat whatever the length."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-import soundfile
+from ultraglide.apps.cli.types import THREADS
+from ultraglide.apps.commands.render_options import add_render_options
+
+if TYPE_CHECKING:
+    import numpy as np
+    from ultraglide.render.renderer import ControlBlock
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
-from ultraglide.apps.commands.output_report import clipped_fraction, clipping_warning, limiter_fields
-from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
-from ultraglide.devices.atomic_file import write_failure
-from ultraglide.render.engine.sources import offline_stage
-from ultraglide.render.renderer import ControlBlock
-from ultraglide.textures.effects import load_effects
-
-from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, write_wav
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
                     "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
 PLOT_COLUMNS = len(ENVELOPE_COLUMNS) - 1
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide export``: its options."""
+    export = commands.add_parser(
+        "export", help="render a swipe or a touch log to a WAV file",
+        description="Render the modulated carrier a plate would get for a swipe across a texture (or a "
+                    "recorded touch log) to a WAV file, faster than real time, in bounded memory.")
+    add_render_options(export)
+    export.add_argument("-o", "--output", required=True, metavar="OUT.wav")
+    export.add_argument("--format", choices=["float32", "int24", "int16"], default="float32")
+    export.add_argument("--envelope-csv", metavar="FILE.csv",
+                        help="also write target friction, amplitudes and position at the control rate")
+    export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    effects = export.add_mutually_exclusive_group()
+    effects.add_argument("--effects", metavar="EFFECTS.json",
+                         help="play these temporal effects (a versioned JSON description, see docs/effects.md) "
+                              "instead of those saved with the texture")
+    effects.add_argument("--no-effects", action="store_true",
+                         help="leave out the temporal effects saved with the texture")
+    export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    export.add_argument("--threads", type=THREADS, metavar="N",
+                        help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
+    export.set_defaults(run=run)
 
 
 class EnvelopeLog:
@@ -54,6 +76,8 @@ class EnvelopeLog:
         self._block = block
 
     def sent(self, drive_um_pp: np.ndarray) -> None:
+        import numpy as np
+
         block = self._block
         columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
                                    block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
@@ -69,6 +93,8 @@ class EnvelopeLog:
         self._offset += len(columns)
 
     def plot_data(self) -> np.ndarray:
+        import numpy as np
+
         return np.concatenate(self.kept) if self.kept else np.zeros((0, PLOT_COLUMNS))
 
 
@@ -90,6 +116,15 @@ class _NoProgress:
 
 
 def run(args) -> int:
+    import soundfile
+    from ultraglide.apps.commands.output_report import clipped_fraction, clipping_warning, limiter_fields
+    from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
+    from ultraglide.devices.atomic_file import write_failure
+    from ultraglide.render.engine.sources import offline_stage
+    from ultraglide.textures.effects import load_effects
+
+    from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, write_wav
+
     if args.format not in WAV_SUBTYPES:
         raise UsageError(f"format must be one of {', '.join(WAV_SUBTYPES)}")
     output = Path(args.output)

@@ -2,12 +2,38 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
-from ultraglide.devices.firmware.boards import build_images
+from ultraglide.apps.cli.options import OneLineParser
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide firmware``: its actions and their options."""
+    firmware = commands.add_parser("firmware", help="the plate-driver firmware: build the board images",
+                                   description="The reference firmware's board ports.")
+    firmware_actions = firmware.add_subparsers(dest="firmware_command", metavar="ACTION", required=True,
+                                               parser_class=OneLineParser)
+    build = firmware_actions.add_parser(
+        "build", help="cross-build the board images; print their paths and sizes",
+        description="Build the board's images with arm-none-eabi-gcc (Debian's gcc-arm-none-eabi and "
+                    "libnewlib-arm-none-eabi): hardware (the real DAC, DMA and ADC) and qemu (what "
+                    "`plate-sim --board qemu` runs). Prints each image's path and its flash and RAM "
+                    "from the linker map. Without -o the images go to a cache reused while the sources stay "
+                    "the same.")
+    build.add_argument("--board", default="netduinoplus2", choices=["netduinoplus2"],
+                       help="the board port (default: netduinoplus2)")
+    build.add_argument("--variant", action="append", choices=["hardware", "qemu", "bench"],
+                       help="build only this variant (repeatable; default: hardware and qemu)")
+    build.add_argument("-o", "--output", metavar="DIR", help="build into DIR (default: the cache)")
+    build.add_argument("--rebuild", action="store_true", help="build even if the cache has the images")
+    build.add_argument("--json", action="store_true", help="print one JSON object")
+    build.set_defaults(run=run_build)
 
 
 def run_build(args) -> int:
+    from ultraglide.devices.firmware.boards import build_images
+
     variants = args.variant or ["hardware", "qemu"]
     images = build_images(args.board, variants, out_dir=args.output, rebuild=args.rebuild)
     if args.json:

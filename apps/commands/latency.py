@@ -15,16 +15,18 @@ smoothing is the fidelity benchmark's subject, not the pipeline's).
 
 from __future__ import annotations
 
+import argparse
 import json
 import tempfile
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from ultraglide.apps.cli.types import STEPS
+
+if TYPE_CHECKING:
+    from ultraglide.render.engine import Engine
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.render.engine import Engine, EngineConfig
-from ultraglide.textures.fileformat import save_texture
-from ultraglide.textures.texture import Texture
 
 STICKY_MM = (20.0, 25.0)
 SLIPPERY_MM = (60.0, 25.0)
@@ -40,6 +42,21 @@ DEVICE_PART = {
 }
 
 
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide latency``: its options."""
+    latency = commands.add_parser(
+        "latency", help="time from a touch to the first output sample that reflects it",
+        description="Step a finger from a sticky to a slippery region many times and report the time from "
+                    "each touch entering the real-time engine to the first output sample that reflects it: "
+                    "the engine's part and the device's buffering part (end to end on the simulated plate).")
+    latency.add_argument("--device", default="sim", metavar="URL",
+                         help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
+    latency.add_argument("--steps", type=STEPS, default=40, help="how many steps to time, 1 to 10000 (default: 40)")
+    latency.add_argument("--profile", default="sim-plate", metavar="PROFILE", help="plate profile (default: sim-plate)")
+    latency.add_argument("--json", action="store_true", help="print one JSON object")
+    latency.set_defaults(run=run)
+
+
 def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine") -> None:
     deadline = time.monotonic() + timeout_s
     while not condition():
@@ -52,6 +69,11 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
             rest_s: float = 0.0) -> dict:
     """Step the finger ``steps`` times; returns the figures (ms) as a plain dict. ``rest_s``: how long the
     plate rests before each step beyond the few ms it needs (0.1 lets a serial link go idle, disabled)."""
+    import numpy as np
+    from ultraglide.render.engine import Engine, EngineConfig
+    from ultraglide.textures.fileformat import save_texture
+    from ultraglide.textures.texture import Texture
+
     kind = device.partition(":")[0].partition("?")[0]
     with tempfile.TemporaryDirectory(prefix="ultraglide-latency-") as folder:
         texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="step")
@@ -78,6 +100,8 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
 
 
 def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, float, float]:
+    import numpy as np
+
     def at_rest() -> bool:
         history = engine.status(history_s=0.05).history
         resting = len(history.commanded_um_pp) > 0 and history.commanded_um_pp[-1] < 0.01
@@ -108,6 +132,8 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
 
 
 def _percentiles(values_s: list[float]) -> dict:
+    import numpy as np
+
     values = np.asarray(values_s) * 1e3
     return {"p50": round(float(np.percentile(values, 50)), 3), "p99": round(float(np.percentile(values, 99)), 3)}
 

@@ -2,34 +2,65 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from ultraglide.apps.cli.options import add_model_option
+from ultraglide.apps.cli.types import FORCE_N, ratio
+
+if TYPE_CHECKING:
+    from ultraglide.render.physics.fingerprint import FingerParams
+    from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.render.physics.calibration import load_model
-from ultraglide.render.physics.fingerprint import (
-    FingerParams,
-    contact_area_mm2,
-    detach_amplitude_um_pp,
-    glide_threshold_um_pp,
-    normal_stiffness_n_per_m,
-    tangential_stiffness_n_per_m,
-)
-from ultraglide.render.physics.friction_models import CEILING_UM_PP, DEFAULT_FORCE_N, FrictionModel, PaperModel
 
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0
 EXAMPLE_DATA = Path(__file__).parent.parent / "data" / "monnoyer2018-fit.csv"
 
 
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide model``: its options."""
+    model = commands.add_parser(
+        "model", help="the fingerprint physics at one normal force",
+        description="Contact area, ridge stiffness, detachment amplitude, glide threshold and "
+                    "relative friction against amplitude, from the paper's model.")
+    model.add_argument("--force", type=FORCE_N, default=None, metavar="N",
+                       help="normal force of the finger, N (default: 0.5; figures: the paper's force for each)")
+    add_model_option(model)
+    model.add_argument("--ratio", type=ratio, metavar="R",
+                       help="also give the amplitude that yields friction ratio R")
+    model.add_argument("--json", action="store_true", help="print one JSON object")
+    model.add_argument("--plots", metavar="DIR",
+                       help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF")
+    model.add_argument("--report", metavar="FILE.pdf",
+                       help="write one page on the model at this force: parameters, curve, inverse, contact")
+    model.add_argument("--data", metavar="CSV",
+                       help="measured points for figure 9 (default: the bundled Monnoyer 2018 fit)")
+    model.set_defaults(run=run)
+
+
 def _finger(model: FrictionModel) -> FingerParams:
     """The ridge model's parameters: the model's own for the paper model, else the paper's Table I."""
+    from ultraglide.render.physics.fingerprint import FingerParams
+    from ultraglide.render.physics.friction_models import PaperModel
+
     return model.params if isinstance(model, PaperModel) else FingerParams()
 
 
 def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> dict:
     """Everything ``ultraglide model`` reports, as plain JSON-able values."""
+    import numpy as np
+    from ultraglide.render.physics.calibration import load_model
+    from ultraglide.render.physics.fingerprint import (
+        contact_area_mm2,
+        detach_amplitude_um_pp,
+        glide_threshold_um_pp,
+        normal_stiffness_n_per_m,
+        tangential_stiffness_n_per_m,
+    )
+
     model = load_model(model) if isinstance(model, str) else model
     params = _finger(model)
     amplitude = np.arange(0.0, CURVE_END_UM + 1e-9, CURVE_STEP_UM)
@@ -54,6 +85,8 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> 
 
 
 def format_text(result: dict) -> str:
+    from ultraglide.render.physics.friction_models import CEILING_UM_PP
+
     lines = [
         f"Finger at {result['force_n']:g} N  (model: {result['model']})",
         f"  contact area          {result['contact_area_mm2']:10.2f} mm²      eq. (3)",
@@ -79,6 +112,9 @@ def format_text(result: dict) -> str:
 
 
 def run(args) -> int:
+    from ultraglide.render.physics.calibration import load_model
+    from ultraglide.render.physics.friction_models import DEFAULT_FORCE_N
+
     force = DEFAULT_FORCE_N if args.force is None else args.force
     if args.report and Path(args.report).suffix.lower() not in (".pdf", ".svg", ".png"):
         raise UsageError(f"{args.report}: the report is a .pdf (or .svg, or .png at 300 dpi)")

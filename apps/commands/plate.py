@@ -7,27 +7,53 @@ figure and the summary.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import tomli_w
+from ultraglide.apps.cli.options import OneLineParser
+from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
+
+if TYPE_CHECKING:
+    from ultraglide.devices.profiles import PlateProfile
+    from ultraglide.devices.resonance import ResonanceFit
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
 from ultraglide.apps.cli.signals import held
-from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.resonance import ResonanceFit
-from ultraglide.devices.sweep import (
-    MAX_FRAMES_PER_STEP,
-    SWEEP_LEVEL,
-    SweepPoint,
-    TelemetrySweeper,
-    audio_sweep,
-    fit_sweep,
-    measured_profile,
-    sweep,
-    sweep_grid,
-)
-from ultraglide.devices.urls import open_device, parse_device_url
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide plate``: its actions and their options."""
+    plate = commands.add_parser("plate", help="characterise a plate: resonance sweep",
+                                description="Measure a plate before trusting its profile.")
+    actions = plate.add_subparsers(dest="plate_command", metavar="ACTION", required=True, parser_class=OneLineParser)
+    sweep_parser = actions.add_parser(
+        "sweep", help="find the resonance, Q and gain; write a profile",
+        description="Step the carrier across the profile's range (or --from-hz..--to-hz) driving 15 % of the "
+                    "plate's limit, read the settled amplitude from telemetry at each step, fit "
+                    "A(f) = A0 / sqrt(1 + (2Q(f - f0)/f0)^2), refine around the peak, and write a profile with "
+                    "the measured resonance, Q and full scale (the limit is kept, never raised). The plate is "
+                    "rested (zero, disable) on every way out.")
+    sweep_parser.add_argument("--device", default="sim", metavar="URL",
+                              help="sim or serial:PORT[?baud=N]; audio[:NAME] needs --sensor (default: sim)")
+    sweep_parser.add_argument("--sensor", metavar="audio:NAME",
+                              help="for an audio output: the input wired to a vibration sensor (one pass over the "
+                                   "grid, 0.1 s a carrier, amplitude by a single-bin DFT)")
+    sweep_parser.add_argument("--sensor-um-per-unit", type=SENSITIVITY, metavar="K",
+                              help="the sensor's sensitivity: µm p-p of vibration per unit of input amplitude (peak, "
+                                   "full scale 1); without it an audio sweep keeps the profile's full scale")
+    sweep_parser.add_argument("--profile", default="sim-plate",
+                              help="the plate's present profile: its range, limit and gain (default: sim-plate)")
+    sweep_parser.add_argument("--from-hz", type=CARRIER_HZ, metavar="A",
+                              help="lowest carrier, Hz (default: the profile's)")
+    sweep_parser.add_argument("--to-hz", type=CARRIER_HZ, metavar="B",
+                              help="highest carrier, Hz (default: the profile's)")
+    sweep_parser.add_argument("--steps", type=SWEEP_STEPS, default=41, metavar="N", help="coarse steps (default: 41)")
+    sweep_parser.add_argument("-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
+    sweep_parser.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
+    sweep_parser.add_argument("--json", action="store_true", help="print one JSON object")
+    sweep_parser.set_defaults(run=run_sweep)
 
 
 def _audio_device(target: str):
@@ -38,6 +64,10 @@ def _audio_device(target: str):
 def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output: Path) -> int:
     """One pass over a fixed grid (no refinement: the audio path has no telemetry to settle on); the sensor
     gives f0 and Q, and the full scale too when ``--sensor-um-per-unit`` calibrates it."""
+    from ultraglide.devices.resonance import ResonanceFit
+    from ultraglide.devices.sweep import SWEEP_LEVEL, SweepPoint, audio_sweep, fit_sweep, measured_profile, sweep_grid
+    from ultraglide.devices.urls import parse_device_url
+
     device = parse_device_url(args.device)
     sensor = parse_device_url(args.sensor)
     if sensor.kind != "audio" or not sensor.target:
@@ -77,6 +107,9 @@ def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output
 
 
 def write_profile(path: Path, profile: PlateProfile, fit: ResonanceFit) -> None:
+    import tomli_w
+    from ultraglide.devices.profiles import PlateProfile
+
     document = {key: getattr(profile, key) for key in PlateProfile.__dataclass_fields__}
     header = (f"# Plate profile measured by `ultraglide plate sweep` (load with --profile {path.name}).\n"
               f"# resonance {fit.resonance_hz:.2f} ± {fit.resonance_sigma_hz:.2f} Hz, "
@@ -87,6 +120,10 @@ def write_profile(path: Path, profile: PlateProfile, fit: ResonanceFit) -> None:
 
 
 def run_sweep(args) -> int:
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.sweep import MAX_FRAMES_PER_STEP, SWEEP_LEVEL, TelemetrySweeper, measured_profile, sweep
+    from ultraglide.devices.urls import open_device, parse_device_url
+
     profile = load_profile(args.profile)
     low = args.from_hz if args.from_hz is not None else profile.carrier_min_hz
     high = args.to_hz if args.to_hz is not None else profile.carrier_max_hz

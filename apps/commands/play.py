@@ -6,26 +6,48 @@ The swipe or log is replayed as touch reports, at their own times, into the real
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import json
 import math
 import sys
 import time
 from types import SimpleNamespace
+from typing import TYPE_CHECKING
 
-import numpy as np
+from ultraglide.apps.commands.render_options import add_render_options
+
+if TYPE_CHECKING:
+    from ultraglide.render.engine import EngineConfig
 from ultraglide.apps.cli.signals import held
-from ultraglide.apps.commands.output_report import force_words  # (takes anything with default_force_n)
-from ultraglide.apps.commands.render_setup import load_inputs
-from ultraglide.render.engine import Engine, EngineConfig
-from ultraglide.render.trajectory import RecordedTrajectory
 
 REPORT_HZ = 120.0  # a synthetic swipe is reported like a 120 Hz touch panel
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide play``: its options."""
+    play = commands.add_parser(
+        "play", help="render a swipe or a touch log to a device in real time",
+        description="Feed a swipe (as 120 Hz touch reports) or a touch log (at its own times) to the live "
+                    "renderer and play it on a device.")
+    add_render_options(play)
+    play.add_argument("--device", default="sim", metavar="URL",
+                      help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
+                           "wav:PATH or null "
+                           "(default: sim)")
+    play.add_argument("--track-resonance", action="store_true",
+                      help="follow the plate's drifting resonance from its telemetry (a small dither of the "
+                           "carrier, stepping toward more amplitude per unit drive); plate drivers only")
+    play.add_argument("--json", action="store_true", help="print the final status as JSON")
+    play.set_defaults(run=run)
 
 
 def report_chunks(trajectory):
     """The touch reports to replay, in chunks of ``(t_s, x_mm, y_mm, force_n)`` arrays: a log's own
     rows as they stream from its file, or every 1/120 s along a swipe. Force is NaN where unknown."""
+    import numpy as np
+    from ultraglide.render.trajectory import RecordedTrajectory
+
     if isinstance(trajectory, RecordedTrajectory):
         for t, x, y, force in trajectory.chunks():
             yield t, x, y, np.full(len(t), np.nan) if force is None else force
@@ -44,6 +66,8 @@ def replay(touch, chunks, started: float) -> tuple[float, float]:
     """Call ``touch(t, x, y, force)`` for each report when its time comes (the first at ``started``,
     perf_counter seconds); when several are due at once (a log denser than this loop), only the
     newest, as a touch panel's late reader gets the newest touch. Returns the last position (mm)."""
+    import numpy as np
+
     origin = last = None
     for times, xs, ys, forces in chunks:
         origin = times[0] if origin is None else origin
@@ -63,6 +87,8 @@ def replay(touch, chunks, started: float) -> tuple[float, float]:
 
 
 def engine_config(args) -> EngineConfig:
+    from ultraglide.render.engine import EngineConfig
+
     return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
                         carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
                         precompensate=not args.no_precompensation,
@@ -70,6 +96,10 @@ def engine_config(args) -> EngineConfig:
 
 
 def run(args) -> int:
+    from ultraglide.apps.commands.output_report import force_words
+    from ultraglide.apps.commands.render_setup import load_inputs
+    from ultraglide.render.engine import Engine
+
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
     trajectory = inputs.trajectory
     engine = Engine.start(engine_config(args))

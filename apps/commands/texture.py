@@ -2,13 +2,29 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.textures import procedural
-from ultraglide.textures.fileformat import save_texture
-from ultraglide.textures.library import library_entries
+from ultraglide.apps.cli.options import OneLineParser, add_model_option, add_range_option
+from ultraglide.apps.cli.types import (
+    ANGLE_DEG,
+    COORDINATE_MM,
+    DETENTS,
+    DUTY,
+    FEATURE_MM,
+    FORCE_N,
+    HURST,
+    LENGTH_MM,
+    PRINT_DPI,
+    PX_PER_MM,
+    SEED,
+    UNIT_INTERVAL,
+    WEIGHT,
+    size_mm,
+    texture_name,
+)
 
 OPTION_NAMES = {  # CLI option → generator keyword
     "wavelength_mm": "wavelength_mm", "angle_deg": "angle_deg", "shape": "shape", "square_mm": "square_mm",
@@ -19,7 +35,175 @@ OPTION_NAMES = {  # CLI option → generator keyword
 }
 
 
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide textures`` and ``ultraglide texture`` (new, compose, show, info): their options."""
+    listing = commands.add_parser("textures", help="list the bundled texture library",
+                                  description="The textures that ship with ultraglide; use their names "
+                                              "wherever a texture file is accepted.")
+    listing.add_argument("--json", action="store_true", help="print a JSON list")
+    listing.set_defaults(run=list_library)
+
+    texture = commands.add_parser("texture", help="make, combine, draw and describe textures",
+                                  description="Make textures from parameters, combine them, draw them, "
+                                              "describe them.")
+    texture_commands = texture.add_subparsers(dest="texture_command", metavar="ACTION", required=True,
+                                              parser_class=OneLineParser)
+    new_parser = texture_commands.add_parser("new", help="a new procedural texture",
+                                      description="Make a procedural texture and save it as a texture file.")
+    kinds = new_parser.add_subparsers(dest="kind", metavar="KIND", required=True, parser_class=OneLineParser)
+    specs = {
+        "grating": ("parallel ridges; the wavelength and angle snap to whole cycles across the tile",
+                    [("--wavelength-mm", FEATURE_MM, 1.0), ("--angle-deg", ANGLE_DEG, 0.0),
+                     ("--shape", ["sine", "square"], "sine"), ("--duty", DUTY, 0.5)]),
+        "checkerboard": ("alternating squares", [("--square-mm", FEATURE_MM, 5.0)]),
+        "dots": ("sticky dots", [("--pitch-mm", FEATURE_MM, 4.0), ("--diameter-mm", FEATURE_MM, 2.0)]),
+        "bumps": ("round bumps, a gradient texture", [("--pitch-mm", FEATURE_MM, 10.0),
+                                                      ("--diameter-mm", FEATURE_MM, 8.0)]),
+        "noise": ("band-limited roughness", [("--cutoff-mm", FEATURE_MM, 2.0), ("--seed", SEED, 0)]),
+        "fractal": ("fractal roughness of a Hurst exponent (spectral synthesis, seeded)",
+                    [("--hurst", HURST, 0.5), ("--cutoff-mm", FEATURE_MM, 0.5), ("--seed", SEED, 0)]),
+        "gabor": ("a Gabor patch: a grating under a Gaussian window", [("--wavelength-mm", FEATURE_MM, 2.0),
+                                                                      ("--sigma-mm", FEATURE_MM, 4.0),
+                                                                      ("--angle-deg", ANGLE_DEG, 0.0)]),
+        "bump": ("one smooth bump, a gradient texture", [("--diameter-mm", FEATURE_MM, 10.0)]),
+        "edge": ("one edge, slippery to sticky", [("--width-mm", FEATURE_MM, 0.5)]),
+        "lines": ("single lines of several widths", [("--widths-mm", FEATURE_MM, [0.25, 0.5, 1.0, 2.0, 4.0]),
+                                                     ("--spacing-mm", FEATURE_MM, 10.0)]),
+        "chirp": ("wavelength sweeping across the width", [("--start-mm", FEATURE_MM, 4.0),
+                                                           ("--end-mm", FEATURE_MM, 0.5)]),
+        "button": ("a button with raised edges", [("--edge-mm", FEATURE_MM, 1.5)]),
+        "slider": ("a slider with detents", [("--detents", DETENTS, 5), ("--detent-mm", FEATURE_MM, 1.0)]),
+        "toggle": ("a toggle switch", []),
+        "keyboard": ("a small keyboard with key edges", [("--edge-mm", FEATURE_MM, 0.8)]),
+    }
+    default_sizes = {"button": "60x40", "slider": "80x20", "toggle": "40x24", "keyboard": "90x30", "fractal": "40x40",
+                     "gabor": "30x30", "bump": "30x30", "edge": "40x30", "lines": "80x40"}
+    for kind, (summary, options) in specs.items():
+        sub = kinds.add_parser(kind, help=summary, description=f"A procedural texture: {summary}.")
+        for flag, kind_type, default in options:
+            if isinstance(kind_type, list):
+                sub.add_argument(flag, choices=kind_type, default=default, help=f"(default: {default})")
+            elif isinstance(default, list):
+                sub.add_argument(flag, type=kind_type, nargs="+", default=default,
+                                 help=f"each {kind_type.describe()} (default: {' '.join(map(str, default))})")
+            else:
+                sub.add_argument(flag, type=kind_type, default=default,
+                                 help=f"{kind_type.describe()} (default: {default})")
+        if kind == "grating":
+            sub.add_argument("--exact", action="store_true",
+                             help="keep the wavelength and angle exactly as given; the texture then does not tile "
+                                  "(its edges extend) instead of snapping to whole cycles across the tile")
+        sub.add_argument("--size-mm", type=size_mm, default=size_mm(default_sizes.get(kind, "80x50")),
+                         metavar="WxH", help=f"physical size in mm (default: {default_sizes.get(kind, '80x50')})")
+        add_range_option(sub)
+        sub.add_argument("--px-per-mm", type=PX_PER_MM, help="resolution (default: 8 pixels on the finest feature)")
+        sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
+        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+        sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
+        sub.set_defaults(run=new)
+    _add_compose(texture_commands)
+    _add_show_and_info(texture_commands)
+
+
+COMPOSE_SIZES = ("Sizes are reconciled on a common grid: the result covers the first input's area (or --size-mm) "
+                 "at the finest pixel pitch of the inputs (or --px-per-mm); each input lies from the top-left "
+                 "corner at its own physical size, read by bilinear interpolation, and beyond its edges its own "
+                 "rule holds (a tile repeats, a clamped texture extends its edge, a fixed one gives its ratio).")
+
+
+def region_mm(text: str) -> tuple[float, float, float, float]:
+    """X,Y,WIDTH,HEIGHT in millimetres: X and Y within ±10 000, the size positive up to 10 000."""
+    parts = text.split(",")
+    if len(parts) != 4:
+        raise argparse.ArgumentTypeError(f"a region is X,Y,WIDTH,HEIGHT in mm, e.g. 10,10,30,20, got {text!r}")
+    return COORDINATE_MM(parts[0]), COORDINATE_MM(parts[1]), LENGTH_MM(parts[2]), LENGTH_MM(parts[3])
+
+
+def _add_compose(texture_commands) -> None:
+    compose_parser = texture_commands.add_parser(
+        "compose", help="combine textures and images into a new texture",
+        description="Combine textures (files, images or library names) into a new texture file. " + COMPOSE_SIZES)
+    operations = compose_parser.add_subparsers(dest="operation", metavar="OPERATION", required=True,
+                                        parser_class=OneLineParser)
+    specs = {
+        "mix": "the weighted mean of the inputs (equal weights unless --weights)",
+        "min": "the lowest friction of the inputs at each point",
+        "max": "the highest friction of the inputs at each point",
+        "multiply": "the product of the inputs' friction ratios (reductions compound: 0.5 × 0.8 = 0.4)",
+        "mask": "TEXTURE where MASK is white, --else (a texture, or the ratio --else-ratio) where it is black",
+        "tile": "INNER repeated inside --region of OUTER; elsewhere OUTER",
+    }
+    for operation, summary in specs.items():
+        sub = operations.add_parser(operation, help=summary, description=f"{summary[0].upper()}{summary[1:]}. "
+                                    + ("" if operation == "tile" else COMPOSE_SIZES))
+        if operation in ("mix", "min", "max", "multiply"):
+            sub.add_argument("inputs", nargs="+", metavar="TEXTURE", help="two textures or more")
+        if operation == "mix":
+            sub.add_argument("--weights", nargs="+", type=WEIGHT, metavar="W",
+                             help="one weight (0 or more) per texture, normalised to sum to 1")
+        if operation == "mask":
+            sub.add_argument("inputs", nargs=1, metavar="TEXTURE")
+            sub.add_argument("mask", metavar="MASK",
+                             help="an image (its luminance, white = TEXTURE, stretched over the result) or a "
+                                  "texture file or name (its values, at its physical size)")
+            other = sub.add_mutually_exclusive_group()
+            other.add_argument("--else", dest="other", metavar="TEXTURE", help="what shows where the mask is black")
+            other.add_argument("--else-ratio", type=UNIT_INTERVAL, default=1.0, metavar="R",
+                               help="the friction ratio where the mask is black (default: 1, at rest)")
+        if operation == "tile":
+            sub.add_argument("inputs", nargs=2, metavar=("INNER", "OUTER"))
+            sub.add_argument("--region", type=region_mm, required=True, metavar="X,Y,W,H",
+                             help="the rectangle of OUTER to fill, in mm from its top-left corner")
+        else:
+            sub.add_argument("--size-mm", type=size_mm, metavar="WxH", help="the result's size (default: the first "
+                                                                            "input's)")
+        sub.add_argument("--px-per-mm", type=PX_PER_MM, help="the result's resolution (default: the finest input's)")
+        sub.add_argument("--outside", choices=["tile", "clamp", "fixed"],
+                         help="what lies beyond the result's edges (default: the first input's rule)")
+        sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
+        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+        sub.set_defaults(run=compose)
+
+
+def _add_show_and_info(texture_commands) -> None:
+    show_parser = texture_commands.add_parser(
+        "show", help="draw a texture: friction map, amplitude map, histogram",
+        description="Draw a texture for print: the friction map at its physical size (printed at 100 %%, "
+                    "1 mm on the axes is 1 mm on paper, when it fits the page) with mm axes and a colour bar, "
+                    "the vibration amplitude it needs under a model, plate profile and force, and the "
+                    "histogram of its friction. PNG at 300 dpi, or PDF/SVG by the output's extension.")
+    show_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    where = show_parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("-o", "--output", metavar="FILE.png|pdf|svg")
+    where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
+    add_model_option(show_parser, default="exponential")
+    show_parser.add_argument("--profile", default="sim-plate",
+                             help="plate profile: its amplitude limit (default: sim-plate)")
+    show_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",
+                             help="normal force, N (default: 0.5)")
+    show_parser.add_argument("--dpi", type=PRINT_DPI, default=300.0, help="PNG resolution (default: 300)")
+    show_parser.set_defaults(run=show)
+
+    info_parser = texture_commands.add_parser("info", help="a texture's metadata, in words or JSON",
+                                              description="Print what a texture is: size, pixels, kind, what lies "
+                                                          "beyond its edges, friction statistics, seams, how it "
+                                                          "was made.")
+    info_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    info_parser.add_argument("--json", action="store_true", help="print one JSON object")
+    info_parser.set_defaults(run=info)
+
+
+def show(args) -> int:
+    """``ultraglide texture show`` (matplotlib and pygame load here, not when the parser is built)."""
+    from ultraglide.apps.figures.texture_show import run
+
+    return run(args)
+
+
 def new(args) -> int:
+    from ultraglide.textures import procedural
+    from ultraglide.textures.fileformat import save_texture
+
     output = Path(args.output)
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
@@ -41,6 +225,8 @@ def new(args) -> int:
 
 
 def list_library(args) -> int:
+    from ultraglide.textures.library import library_entries
+
     entries = library_entries()
     if args.json:
         print(json.dumps([{"name": e.name, "width_mm": e.width_mm, "height_mm": e.height_mm, "kind": e.kind,
@@ -73,6 +259,7 @@ def _mask_weights(spec: str):
 
 def compose(args) -> int:
     from ultraglide.textures import compose as combine
+    from ultraglide.textures.fileformat import save_texture
 
     output = Path(args.output)
     if output.suffix.lower() != ".png":

@@ -1,0 +1,37 @@
+"""What the commands' parsers share: the parser class, and options several commands take."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+from ultraglide.apps.cli.types import UNIT_INTERVAL
+
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line, as every error of ours is, and which reads any
+    negative number (``-1e+16``, ``-inf`` too, not only ``-3`` and ``-.5``) as a value, so that an option's
+    own range check names the option instead of argparse calling the number an unknown option."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+MODEL_HELP = "friction model: paper, paper-uniform, exponential, stretched, table:FILE.csv or CAL.toml"
+
+
+def add_model_option(parser: argparse.ArgumentParser, default: str = "paper") -> None:
+    parser.add_argument("--model", default=default, metavar="MODEL",
+                        help=f"{MODEL_HELP} (default: {default})")
+
+
+def add_range_option(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:
+    parser.add_argument("--range", nargs=2, type=UNIT_INTERVAL, default=list(default), metavar=("LOW", "HIGH"),
+                        help="friction ratio where the pattern is off (slippery) and on (sticky), each in 0..1 "
+                             f"(default: {default[0]} {default[1]})")

@@ -1,0 +1,45 @@
+"""``ultraglide demo``: the touch-panel demo (its window and loop are :mod:`ultraglide.apps.demo`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ultraglide.apps.cli.types import SCREEN_WIDTH_MM
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide demo``: its options."""
+    demo = commands.add_parser(
+        "demo", help="feel textures on the plate: the touch-panel demo",
+        description="A full-screen demo on the touch panel under the plate: a gallery of textures, each at "
+                    "its physical size, and a widgets scene. Keys: G gallery, T texture, W widgets, arrows "
+                    "switch texture and change the force, M model, space pause, H help, Esc quit.")
+    demo.add_argument("textures", nargs="*", metavar="TEXTURE",
+                      help="texture files or images to add to the library's (images are authored with defaults)")
+    demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
+    demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    demo.add_argument("--model", default="exponential", help="friction model (default: exponential)")
+    demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
+                                                               "their physical size (default: a 96 dpi screen)")
+    demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
+    demo.add_argument("--record", metavar="FILE.csv",
+                      help="write the touches as a touch log (t_s,x_mm,y_mm,force_n) that export and play "
+                           "--trajectory replay; flushed as it goes, renamed into place at exit")
+    demo.add_argument("--stats", metavar="FILE.json",
+                      help="at exit, write the engine's figures over the run: blocks, late blocks, underruns "
+                           "(also as they were at the first touch), block time p50/p99, touches")
+    demo.add_argument("--watch", action="store_true",
+                      help="reload a texture given as a file when it (or the image it was authored from) changes, "
+                           "checked every 200 ms: edit it in any image editor and feel the change")
+    demo.add_argument("--report-frames", action="store_true",
+                      help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
+    demo.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Start the demo (pygame and the engine load here, not when the parser is built)."""
+    from ultraglide.apps.demo.app import run as run_demo
+
+    return run_demo(args)
+
+

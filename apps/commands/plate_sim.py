@@ -1,0 +1,149 @@
+"""``ultraglide plate-sim``: the simulated plate driver on a pseudo-terminal, one line per event."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import queue
+
+from ultraglide.apps.cli.signals import held
+from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide plate-sim``: its options."""
+    sim = commands.add_parser("plate-sim", help="serve the simulated plate on a pseudo-terminal",
+                              description="Run the simulated plate driver on a pty and print its path; "
+                                          "connect with --device serial:PATH. Prints one line per event "
+                                          "(connected, enabled, carrier, stream started/stopped, fault, "
+                                          "watchdog, disabled, disconnected) with its time. Runs until stopped.")
+    sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
+    sim.add_argument("--resonance-hz", type=CARRIER_HZ, metavar="F",
+                     help="the simulated plate's real resonance, Hz (default: the profile's)")
+    sim.add_argument("--q", type=Q_FACTOR, metavar="Q", help="its real quality factor (default: the profile's)")
+    sim.add_argument("--drift-hz-per-s", type=DRIFT_HZ_PER_S, default=0.0, metavar="D",
+                     help="its resonance drifts by D Hz every second (default: 0)")
+    sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
+    sim.add_argument("--board", choices=["sim", "qemu"], default="sim",
+                     help="sim: the firmware's core on this machine; qemu: the netduinoplus2 board image under "
+                          "QEMU (built first if needed), its UART on the pty (default: sim)")
+    sim.set_defaults(run=run)
+
+
+def describe_event(event: dict) -> str:
+    """One event of the simulated plate as a line for people: its time, what happened, the details."""
+    fields = {key: value for key, value in event.items() if key not in ("t_s", "event")}
+    if event["event"] == "watchdog":
+        fields.pop("fault", None)  # the event's name says it
+    details = ", ".join(str(value) if key == "fault" else f"{key} {value}" for key, value in fields.items())
+    return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
+
+
+def run(args) -> int:
+    if args.board == "qemu":
+        return _plate_sim_qemu(args)
+    from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+    from ultraglide.devices.profiles import load_profile
+
+    profile = load_profile(args.profile)
+    truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
+    plate = PtyPlate(profile, args.link, truth).start()
+    sim = plate.simulator
+
+    def show(event: dict) -> None:
+        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+
+    try:  # whatever ends the loop (a signal turned exception included), the pty and its link go
+        if args.json:
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
+                  "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
+                  "drift_hz_per_s": truth.drift_hz_per_s})
+        else:
+            print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
+                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; Ctrl-C stops it",
+                  flush=True)
+        while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
+            try:
+                show(sim.events.get(timeout=0.1))
+            except queue.Empty:
+                continue
+    finally:
+        with held():  # a second signal does not cut this short
+            plate.stop()
+            while not sim.events.empty():
+                show(sim.events.get())
+            _summary(sim, args.json, show)
+
+
+def _summary(sim, as_json: bool, show) -> None:
+    c = sim.counters
+    faults = {name: count for name, count in sim.fault_counts().items() if count}
+    if as_json:
+        show({"t_s": round(sim.elapsed_s(), 4), "event": "stopped", "frames": c.frames_ok, "setpoints": c.setpoints,
+              "crc_errors": c.crc_errors, "lost_setpoints": c.lost_setpoints, "late_setpoints": c.late_setpoints,
+              "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
+    else:
+        fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"
+        print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
+              f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
+              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p", flush=True)
+
+
+def _plate_sim_qemu(args) -> int:
+    """The netduinoplus2 image under QEMU, its UART on a pty; the board's debug console gives the events."""
+    from ultraglide.devices.errors import DeviceError
+    from ultraglide.devices.firmware.boards import build_images
+    from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
+    from ultraglide.devices.profiles import load_profile
+
+    profile = load_profile(args.profile)
+    truth = EmulatedPlate.of(profile, args.resonance_hz, args.q, args.drift_hz_per_s)
+    image = build_images("netduinoplus2", ["qemu"])[0]
+    plate = QemuPlate(image.elf_path, args.link, plate=truth)
+
+    def show(event: dict) -> None:
+        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+
+    last: dict = {}
+    plate.start()
+    try:
+        if args.json:
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name, "board": "netduinoplus2",
+                  "image": image.elf_path, "profile": profile.name, "resonance_hz": truth.resonance_hz,
+                  "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s})
+        else:
+            print(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
+                  f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
+                  "Ctrl-C stops it", flush=True)
+        while True:  # until a stop signal raises through here, or QEMU dies
+            try:
+                event = plate.events.get(timeout=0.1)
+            except queue.Empty:
+                if not plate.alive:
+                    raise DeviceError(f"QEMU stopped unexpectedly (exit status {plate.process.returncode})")  # noqa: B904
+                continue
+            if event["event"] == "stats":
+                last = event
+            else:
+                show(event)
+    finally:
+        with held():
+            plate.stop()
+            while not plate.events.empty():
+                event = plate.events.get()
+                if event["event"] == "stats":
+                    last = event
+                else:
+                    show(event)
+            _qemu_summary(last, plate.elapsed_s(), args.json, show)
+
+
+def _qemu_summary(stats: dict, elapsed_s: float, as_json: bool, show) -> None:
+    """The board's last statistics line (it prints one every second) as plate-sim's closing line."""
+    fields = {key: value for key, value in stats.items() if key not in ("t_s", "event")}
+    if as_json:
+        show({"t_s": round(elapsed_s, 4), "event": "stopped", **fields})
+        return
+    words = ", ".join(f"{value} {key.replace('_', ' ')}" for key, value in fields.items()) or "no statistics yet"
+    print(f"stopped: {words}", flush=True)
