@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from cobs import cobs
 
+from ultraglide.errors import UltraglideError
+
 PROTOCOL_VERSION = 3  # the version docs/protocol.md describes, and the highest ultraglide speaks
 SUPPORTED_VERSIONS = (2, 3)
 MAX_BODY = 1024  # bytes of a decoded frame (type, seq, payload, CRC)
@@ -157,7 +159,7 @@ PAYLOAD_LENGTHS = {HELLO: 1, SET_CARRIER: _CARRIER.size, ENABLE: 1, HEARTBEAT: 0
                    SET_LOOP: 1, SIM_FAULT: _SIM_FAULT.size}
 
 
-class ProtocolError(ValueError):
+class ProtocolError(UltraglideError, ValueError):
     """A frame that cannot be decoded."""
 
 

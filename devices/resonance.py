@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import curve_fit
 
+from ultraglide.errors import UltraglideError
+
 
 def resonance_curve(carrier_hz, peak_um_pp: float, resonance_hz: float, q: float):
     """A(f) = A0 / sqrt(1 + (2Q(f − f0)/f0)²), amplitudes in µm p-p, frequencies in Hz."""
@@ -31,7 +33,7 @@ def resonance_curve(carrier_hz, peak_um_pp: float, resonance_hz: float, q: float
     return peak_um_pp / np.sqrt(1.0 + detuning * detuning)
 
 
-class FitError(ValueError):
+class FitError(UltraglideError, ValueError):
     """The measurements do not show a resonance that can be fitted."""
 
 

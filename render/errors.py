@@ -2,6 +2,8 @@
 
 The physics has its own, :class:`ultraglide.render.physics.errors.ModelError`."""
 
+from ultraglide.errors import UltraglideError
 
-class RenderError(ValueError):
+
+class RenderError(UltraglideError, ValueError):
     """Settings or input that the renderer cannot honour."""

@@ -25,6 +25,8 @@ __version__ = "0.2.0"
 
 # public name -> the module that defines it
 _EXPORTS: dict[str, str] = {
+    # the root of every error of ours: ``except ultraglide.UltraglideError`` catches anything refused
+    "UltraglideError": "ultraglide.errors",
     # textures: the type, files, the library, authoring, procedural patterns, composition, sampling
     "Texture": "ultraglide.textures.texture",
     "load_texture": "ultraglide.textures.fileformat",
@@ -65,6 +67,8 @@ _EXPORTS: dict[str, str] = {
     "EngineConfig": "ultraglide.render.engine",
     "EngineStatus": "ultraglide.render.engine",
     "EngineError": "ultraglide.render.engine",
+    "FitError": "ultraglide.devices.resonance",
+    "ProtocolError": "ultraglide.devices.protocol",
     # devices
     "PlateProfile": "ultraglide.devices.profiles",
     "load_profile": "ultraglide.devices.profiles",
@@ -103,8 +107,11 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.output_stage import OutputStage, output_stage
     from ultraglide.devices.profiles import PlateProfile, load_profile
+    from ultraglide.devices.protocol import ProtocolError
+    from ultraglide.devices.resonance import FitError
     from ultraglide.devices.source import BlockSource, Device
     from ultraglide.devices.urls import open_device
+    from ultraglide.errors import UltraglideError
     from ultraglide.render.engine import Engine, EngineConfig, EngineError, EngineStatus
     from ultraglide.render.engine.sources import EnvelopeSource, renderer_source
     from ultraglide.render.errors import RenderError

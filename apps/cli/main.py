@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader left (``ultraglide textures | head``): stop quietly, as Unix tools do
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
         return 128 + signal.SIGPIPE
-    except errors.user_errors() as error:
+    except errors.USER_ERRORS as error:
         print(f"ultraglide {args.command}: error: {errors.describe(error)}", file=sys.stderr)
         return 1
     finally:

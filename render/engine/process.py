@@ -21,17 +21,20 @@ import threading
 import time
 
 import numpy as np
-from ultraglide.devices.errors import describe
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render.engine import shm
 from ultraglide.render.engine.realtime import CpuWakeLatency, keep_huge_pages_out, raise_other_threads, raise_priority
 from ultraglide.render.engine.shm import SharedBlock
 from ultraglide.render.engine.sources import EnvelopeSource
 
+from ultraglide.errors import UltraglideError, describe
+
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
 STATUS_PERIOD_S = 0.1
 PROBE_THRESHOLD_UM_PP = 0.05
 PROBE_PERIOD_S = 0.0002
+# what the engine reports to the app as one line (a plain ValueError too: a bad texture spec from a script)
+USER_ERRORS = (UltraglideError, OSError, ValueError)
 RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
 
 
@@ -228,15 +231,6 @@ def _texture(spec):
     return spec
 
 
-def _user_errors():
-    from ultraglide.devices.errors import DeviceError
-    from ultraglide.render.errors import RenderError
-    from ultraglide.render.physics.errors import ModelError
-    from ultraglide.textures.errors import TextureError
-
-    return (DeviceError, ModelError, RenderError, TextureError, OSError, ValueError)
-
-
 def engine_main(config, shared_name: str, conn) -> None:
     """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -245,7 +239,7 @@ def engine_main(config, shared_name: str, conn) -> None:
     signal.signal(signal.SIGTERM, lambda *_: stop_requested.set())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the app, which stops the engine in order
     shared = SharedBlock.attach(shared_name)
-    errors = _user_errors()
+    errors = USER_ERRORS
     device = None
     try:
         texture, model, profile, device = _load(config)
@@ -319,7 +313,7 @@ def _close_device(device) -> str | None:
         return None
     try:
         device.stop()
-    except _user_errors() as error:
+    except USER_ERRORS as error:
         return describe(error)
     except Exception as error:  # noqa: BLE001 - reported, never raised past the hardware's rest
         return f"the device failed while stopping: {type(error).__name__}: {error}"
@@ -337,7 +331,7 @@ def _serve(config, conn, shared, renderer, source, device, stop_requested, threa
 
 
 def _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads: str, wake) -> None:
-    errors = _user_errors()
+    errors = USER_ERRORS
     next_status = 0.0
     next_collect = time.monotonic() + 1.0
     while True:
