@@ -97,7 +97,7 @@ def engine(app):
 
 def test_touch_positions_reach_the_renderer_in_millimetres(app):
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     w, h = app.screen.get_size()
     x_px, y_px = 200, app.area.top + 100
     finger(pg, pg.FINGERDOWN, x_px / w, y_px / h)
@@ -111,7 +111,7 @@ def test_touch_positions_reach_the_renderer_in_millimetres(app):
 def test_the_plate_follows_the_texture_under_the_finger(plated):
     app = plated
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     w, h = app.screen.get_size()
     y = (app.area.top + 150) / h
     finger(pg, pg.FINGERDOWN, 100 / w, y)  # left: slippery, strong vibration
@@ -130,7 +130,7 @@ def test_the_plate_follows_the_texture_under_the_finger(plated):
 def test_mouse_drives_but_its_copies_of_touches_are_ignored(plated):
     app = plated
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     y = app.area.top + 150
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, y), button=1, touch=True)
     post(pg, pg.MOUSEMOTION, pos=(110, y), rel=(10, 0), buttons=(1, 0, 0), touch=True)
@@ -148,7 +148,7 @@ def test_mouse_drives_but_its_copies_of_touches_are_ignored(plated):
 def test_second_finger_is_shown_but_does_not_drive(plated):
     app = plated
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     w, h = app.screen.get_size()
     y = (app.area.top + 150) / h
     finger(pg, pg.FINGERDOWN, 700 / w, y, finger_id=1)  # at rest side
@@ -195,7 +195,7 @@ def test_gallery_tap_chooses_a_texture(app):
 def test_closing_rests_the_plate(plated):
     app = plated
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
     assert run_until(app, lambda: measured(app) > 3.0), measured(app)
     simulator = app.plate.simulator
@@ -206,7 +206,7 @@ def test_closing_rests_the_plate(plated):
 
 def test_panel_pressure_sets_the_force_only_where_the_panel_reports_it(app):
     pg = app.pg
-    app._act("texture")
+    app.act("texture")
     w, h = app.screen.get_size()
     y = (app.area.top + 150) / h
     post(pg, pg.FINGERDOWN, x=100 / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
@@ -228,8 +228,8 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
         assert phrase in words, words
     # a loaded machine may starve the simulated plate: then its faults are named and counted
     assert re.search(r"running, (no faults|faults: [a-z-]+ ×\d+)", words) and re.search(r"\d+ underruns", words)
-    app._act("force+")
-    app._act("model")
+    app.act("force+")
+    app.act("model")
     run_for(app, 0.05)
     assert "0.62 N" in app.status_words() and "paper model" in app.status_words()
 
@@ -246,7 +246,7 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
     try:
         app.wait_ready()
         pg = app.pg
-        app._act("texture")
+        app.act("texture")
         y = app.area.top + 50
         post(pg, pg.MOUSEBUTTONDOWN, pos=(60, y), button=1, touch=False)
         for i in range(40):
@@ -258,7 +258,7 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
         assert status.limited_samples > 0.5 * 12000 * 0.9, status
         post(pg, pg.MOUSEBUTTONUP, pos=(100, y), button=1, touch=False)
         run_for(app, 0.05)
-        app._act("next")  # halves: the right half is at rest, nothing to limit
+        app.act("next")  # halves: the right half is at rest, nothing to limit
         assert app.link.status().limited_samples == 0
         post(pg, pg.MOUSEBUTTONDOWN, pos=(900, y), button=1, touch=False)
         run_for(app, 0.5)
@@ -274,7 +274,7 @@ def test_touches_before_the_engine_is_ready_are_drawn_counted_and_not_felt(halve
     app = DemoApp([halves], windowed=True, screen_width_mm=338.7)
     try:
         pg = app.pg
-        app._act("texture")
+        app.act("texture")
         post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
         post(pg, pg.MOUSEMOTION, pos=(110, app.area.top + 150), rel=(10, 0), buttons=(1, 0, 0), touch=False)
         app.step()
@@ -316,7 +316,7 @@ def test_watch_reloads_a_changed_texture_file_and_the_plate_feels_it(halves, pla
         app.plate = plate
         app.wait_ready()
         pg = app.pg
-        app._act("texture")
+        app.act("texture")
         post(pg, pg.MOUSEBUTTONDOWN, pos=(100, app.area.top + 150), button=1, touch=False)
         assert run_until(app, lambda: measured(app) > 3.0), measured(app)  # 0.2: slippery
         _rewrite(Path(halves), 1.0, in_place=False)
@@ -329,7 +329,7 @@ def test_watch_reloads_a_changed_texture_file_and_the_plate_feels_it(halves, pla
 
 
 def test_widgets_are_laid_out_for_the_screen(app):
-    app._act("widgets")
+    app.act("widgets")
     texture, placements = app.widgets
     assert texture.width_mm == pytest.approx(app.area.width * app.mm_per_px, rel=1e-3)
     assert texture.height_mm == pytest.approx(app.area.height * app.mm_per_px, rel=1e-3)

@@ -1,0 +1,159 @@
+"""The demo's input: keys, toolbar presses and gallery taps become actions; touches and the held mouse button
+become the finger that drives the plate.
+
+The first finger down drives the plate; other fingers are drawn but ignored; a held mouse button counts as a
+finger, and SDL's mouse events synthesised from touches are ignored so nothing counts twice. Touch pressure
+sets the force where the panel reports it, the arrow keys otherwise.
+"""
+
+from __future__ import annotations
+
+import collections
+import time
+
+from ultraglide.apps.demo.options import FORCE_RANGE_N, PRESSURE_FULL_SCALE_N
+
+MOUSE = -1  # the driving "finger" when it is the mouse
+
+
+class Input:
+    """Turns pygame events into the app's actions (``app.act``) and the driving finger's touches (``driver``)."""
+
+    def __init__(self, app, driver: FingerDriver):
+        self.app = app
+        self.pg = app.pg
+        self.driver = driver
+        self.fingers: dict[int, tuple[float, float]] = {}  # every finger down, px
+        self.driving: int | None = None  # the finger (or MOUSE) that drives the plate
+        self.keys = {self.pg.K_ESCAPE: "quit", self.pg.K_q: "quit", self.pg.K_g: "gallery", self.pg.K_t: "texture",
+                     self.pg.K_w: "widgets", self.pg.K_LEFT: "prev", self.pg.K_RIGHT: "next",
+                     self.pg.K_DOWN: "force-", self.pg.K_UP: "force+", self.pg.K_m: "model",
+                     self.pg.K_SPACE: "pause", self.pg.K_h: "help"}
+
+    def handle(self, event) -> None:
+        pg, app = self.pg, self.app
+        w, h = app.screen.get_size()
+        if event.type == pg.QUIT:
+            app.running = False
+        elif event.type in (pg.WINDOWEXPOSED, pg.VIDEOEXPOSE, pg.WINDOWRESTORED):
+            app.redraw.everything()
+        elif event.type == pg.KEYDOWN:
+            if event.key == pg.K_ESCAPE and app.show_help:
+                app.act("help")
+            elif event.key in self.keys:
+                app.act(self.keys[event.key])
+        elif event.type in (pg.FINGERDOWN, pg.FINGERMOTION, pg.FINGERUP):
+            self._finger(event, event.x * w, event.y * h)
+        elif event.type in (pg.MOUSEBUTTONDOWN, pg.MOUSEMOTION, pg.MOUSEBUTTONUP):
+            if not getattr(event, "touch", False):  # SDL's copy of a touch: the finger events already count it
+                self._mouse(event, *event.pos)
+
+    def _finger(self, event, x: float, y: float) -> None:
+        pg = self.pg
+        self.app.redraw.area()
+        pressure = getattr(event, "pressure", None)
+        if event.type == pg.FINGERUP:
+            self.fingers.pop(event.finger_id, None)
+            if event.finger_id == self.driving:
+                self.driving = None
+                self.driver.drive(x, y, False)
+            return
+        self.fingers[event.finger_id] = (x, y)
+        if event.type == pg.FINGERDOWN:
+            if self.driving is None and not self.press(x, y):
+                self._start(event.finger_id, x, y, pressure)
+        elif event.finger_id == self.driving:
+            self.driver.drive(x, y, True, pressure)
+
+    def _mouse(self, event, x: float, y: float) -> None:
+        pg = self.pg
+        if event.type == pg.MOUSEBUTTONDOWN and event.button == 1 and self.driving is None:
+            if not self.press(x, y):
+                self._start(MOUSE, x, y, None)
+        elif event.type == pg.MOUSEMOTION and self.driving == MOUSE:
+            self.driver.drive(x, y, True)
+        elif event.type == pg.MOUSEBUTTONUP and event.button == 1 and self.driving == MOUSE:
+            self.driving = None
+            self.driver.drive(x, y, False)
+
+    def _start(self, finger: int, x: float, y: float, pressure: float | None) -> None:
+        self.driving = finger
+        self.driver.trace.clear()
+        self.driver.drive(x, y, True, pressure)
+
+    def press(self, x_px: float, y_px: float) -> bool:
+        """Toolbar buttons, gallery tiles and closing the help; True when the press was for the interface."""
+        app = self.app
+        if app.show_help:
+            app.act("help")
+            return True
+        button = app.layout.button_at(x_px, y_px)
+        if button is not None:
+            app.act(button.action)
+            return True
+        if app.scenes.scene == "gallery":
+            tile = app.layout.tile_at(x_px, y_px)
+            if tile is not None:
+                app.show("texture", tile)
+                return True
+        app.flip_toggle_at(x_px, y_px)
+        return False
+
+
+class FingerDriver:
+    """The driving finger's positions to the engine (mm on the texture, a force) and to the recording;
+    a finger that lifts or leaves the texture area rests the plate. Counts touches sent and touches made
+    before the engine was ready (drawn, not felt)."""
+
+    def __init__(self, app):
+        self.app = app
+        self.trace: collections.deque = collections.deque()  # (perf_counter s, x px, y px) of the driving finger
+        self.pushed = 0
+        self.unfelt = 0  # touches made before the engine was ready: drawn, not felt
+        self.pressure_seen = False  # set once the panel reports a pressure other than 0 or 1
+        self.underruns_at_first_touch: int | None = None
+
+    def drive(self, x_px: float, y_px: float, down: bool, pressure: float | None = None) -> None:
+        app = self.app
+        now = time.perf_counter()
+        app.redraw.activity(now)
+        link = app.link
+        if link is None:  # the engine is still starting: the touch is drawn, counted, not felt
+            self.unfelt += down
+            return
+        where = app.scenes.to_mm(x_px, y_px) if down else None
+        if where is None:
+            link.touch(now, 0.0, 0.0, down=False)
+            link.pause(True)
+            if app.recorder is not None:
+                app.recorder.lift(now)
+            return
+        force = self.force_from(pressure)
+        if self.underruns_at_first_touch is None:
+            self.underruns_at_first_touch = link.status(0.0).underruns
+        link.pause(app.user_paused)
+        link.touch(now, where[0], where[1], force)
+        self.pushed += 1
+        self.trace.append((now, x_px, y_px))
+        if app.recorder is not None:
+            area = app.layout.area
+            geometry = {"screen_px": list(app.screen.get_size()), "mm_per_px": app.mm_per_px,
+                        "texture_area_px": [area.left, area.top, area.width, area.height]}
+            app.recorder.touch(now, where[0], where[1], app.force_n if force is None else force,
+                               app.scenes.current.name, geometry)
+
+    def force_from(self, pressure: float | None) -> float | None:
+        """The force for a touch: from the panel's pressure once it has shown it measures one, else None."""
+        if pressure is None:
+            return None
+        if 0.0 < pressure < 1.0:
+            self.pressure_seen = True
+        if not self.pressure_seen:
+            return None  # panels without a sensor report 1.0 (or 0): the arrow keys' force applies
+        return max(FORCE_RANGE_N[0], min(pressure * PRESSURE_FULL_SCALE_N, FORCE_RANGE_N[1]))
+
+    def fade(self, now: float, span_s: float) -> list[tuple[float, float]]:
+        """The trace's points of the last ``span_s`` (older ones dropped), px."""
+        while self.trace and now - self.trace[0][0] > span_s:
+            self.trace.popleft()
+        return [(x, y) for _, x, y in self.trace]

@@ -1,0 +1,85 @@
+"""The demo's set-up: its options, checked before a window opens, and the textures it shows."""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+from ultraglide.apps.cli.errors import UsageError
+
+DEFAULT_MM_PER_PX = 25.4 / 96  # when the screen's size is not given: a 96 dpi screen
+MODELS = ("exponential", "paper")  # the M key cycles through these
+PRESSURE_FULL_SCALE_N = 2.0  # a panel's pressure 1.0 is taken as this force
+FORCE_RANGE_N = (0.05, 5.0)
+START_FORCE_N = 0.5
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    """What the demo starts with: texture files or names (shown before the library's), device URL, profile and
+    model specs, the screen's width (mm, else 96 dpi), a window of ``size`` px instead of full screen, a touch
+    log to record (.csv), a line printed for each full frame (for scripts), and reloading changed files."""
+
+    textures: tuple = ()
+    device: str = "sim"
+    profile: str = "sim-plate"
+    model: str = "exponential"
+    screen_width_mm: float | None = None
+    windowed: bool = False
+    size: tuple[int, int] = (1280, 800)
+    record: str | None = None
+    report_frames: bool = False
+    watch: bool = False
+
+    def check(self) -> None:
+        """Refuse, in one line, what would fail after the window opened."""
+        if not display_available():
+            raise UsageError("no display to show the demo on (set DISPLAY or run under Xvfb); to render "
+                             "without a screen use `ultraglide export`")
+        if self.record is not None and Path(self.record).suffix.lower() != ".csv":
+            raise UsageError(f"--record needs a .csv file, got {self.record}")
+
+
+def display_available() -> bool:
+    driver = os.environ.get("SDL_VIDEODRIVER", "")
+    return bool(driver or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def seconds_since_launch() -> float:
+    """Seconds since this process started (Linux's /proc), or since this module loaded elsewhere."""
+    try:
+        start_ticks = float(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+        return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return time.perf_counter() - _LOADED_S
+
+
+_LOADED_S = time.perf_counter()
+
+
+def load_textures(specs) -> tuple[list, dict[int, tuple[Path, object]]]:
+    """The textures named on the command line, then the bundled library's; and for those given as files, their
+    index → (file, texture), which ``--watch`` follows. Bad files fail here, before a window opens. The
+    library's files are read directly (textures.library would import scipy for authoring, which the first
+    frame does not need)."""
+    from importlib.resources import files
+
+    from ultraglide.textures.fileformat import load_texture
+
+    textures, from_files = [], {}
+    if specs:
+        from ultraglide.textures.library import resolve_texture
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # plain images are authored with defaults, as documented
+            for spec in specs:
+                textures.append(resolve_texture(str(spec)))
+                if Path(spec).is_file():
+                    from_files[len(textures) - 1] = (Path(spec), textures[-1])
+    library = Path(str(files("ultraglide.textures") / "library"))
+    textures.extend(load_texture(path) for path in sorted(library.glob("*.png")))
+    return textures, from_files
