@@ -102,6 +102,12 @@ class OutputStage:
         self._played = 0  # audio frames already produced from the first pending sample's period
         self._carrier_samples = np.zeros(0, dtype=np.float32)  # the span's carrier when it has no exact period
 
+    def __repr__(self) -> str:
+        """``OutputStage(audio at 96000 Hz, carrier 25000 Hz, plate 'sim-plate', limit 6 µm p-p)``."""
+        carrier = f", carrier {self.carrier_hz:g} Hz" if self.signal == "audio" else ""
+        return (f"OutputStage({self.signal} at {self.rate_hz:g} Hz{carrier}, plate {self.profile.name!r}, "
+                f"limit {self.limiter.limit_um_pp:g} µm p-p)")
+
     def matches(self, profile: PlateProfile, signal: str, rate_hz: float, carrier_hz: float | None) -> bool:
         """Whether this stage already gives what a device with these facts needs."""
         return (self.profile == profile and self.signal == signal and self.rate_hz == float(rate_hz)

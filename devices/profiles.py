@@ -55,6 +55,13 @@ class PlateProfile:
     max_drive_um_pp: float | None = None
     allow_audible: bool = False
 
+    def __repr__(self) -> str:
+        """``PlateProfile('sim-plate', 25 kHz, Q 200, limit 6 µm p-p)``."""
+        overdrive = "" if self.max_drive_um_pp in (None, self.max_amplitude_um_pp) else \
+            f", drive up to {self.max_drive_um_pp:g}"
+        return (f"PlateProfile({self.name!r}, {self.resonance_hz / 1000:g} kHz, Q {self.q:g}, "
+                f"limit {self.max_amplitude_um_pp:g} µm p-p{overdrive})")
+
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise DeviceError(f"profile name must be a non-empty string, got {self.name!r}")

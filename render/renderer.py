@@ -248,6 +248,13 @@ class Renderer:
         """Ramp the output to rest while paused, and back when resumed."""
         self.paused = paused
 
+    def __repr__(self) -> str:
+        """``Renderer(Texture('wood', ...), ExponentialModel(...), plate 'sim-plate', live)``."""
+        path = "live"
+        if self.offline:
+            path = f"{type(self.trajectory).__name__} of {self.trajectory.end_s - self.trajectory.start_s:.3g} s"
+        return f"Renderer({self.texture!r}, {self.model!r}, plate {self.profile.name!r}, {path})"
+
     @property
     def finished(self) -> bool:
         """At rest after a stop, or (offline) after the path's end."""

@@ -39,6 +39,12 @@ class Texture:
     authoring: dict = field(default_factory=dict)
     effects: tuple = ()  # textures.effects.Binding: temporal effects played with this texture
 
+    def __repr__(self) -> str:
+        """``Texture('wood', 90 × 60 mm, 1024 × 683 px)``: its name, size and pixels, not its array."""
+        kind = "" if self.kind == "friction" else f", {self.kind}"
+        return (f"Texture({self.name!r}, {self.width_mm:g} × {self.height_mm:g} mm, "
+                f"{self.cols} × {self.rows} px{kind})")
+
     def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=np.float32)
         if values.ndim != 2 or min(values.shape) < 1:

@@ -194,6 +194,14 @@ class Engine:
     def __enter__(self) -> Engine:
         return self
 
+    def __repr__(self) -> str:
+        """``Engine<sim, running, 1234 blocks>``: its device, state and blocks rendered so far."""
+        try:
+            status = self.final_status or self.status(history_s=0.0)
+        except (OSError, ValueError, TypeError):  # its shared memory already closed
+            return f"Engine<{self.config.device}, stopped>"
+        return f"Engine<{self.config.device}, {status.state}, {status.blocks} blocks>"
+
     def __exit__(self, *exc) -> None:
         self.stop()
 

@@ -140,6 +140,10 @@ class FrictionModel(ABC):
         """The model's parameters as plain values, for calibration files and JSON."""
         return {}
 
+    def __repr__(self) -> str:
+        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)``."""
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.parameters().items())})"
+
     def _floor(self, force_n, limit: float):
         """The floor ratio, remembered for the last scalar force and limit (the live case)."""
         if isinstance(force_n, np.ndarray) and force_n.ndim:
@@ -288,6 +292,13 @@ class PaperModel(FrictionModel):
             "friction_exponent": p.friction_exponent,
             "area_exponent": p.area_exponent,
         }
+
+    def __repr__(self) -> str:
+        """``PaperModel()`` with the paper's parameters, else ``PaperModel(FingerParams(...))`` with those that
+        differ."""
+        changed = {k: v for k, v in vars(self.params).items() if v != getattr(FingerParams(), k)}
+        inner = f"FingerParams({', '.join(f'{k}={v!r}' for k, v in changed.items())})" if changed else ""
+        return f"PaperModel({inner})"
 
 
 REFERENCE_FORCE_N = 0.5  # the force at which a stretched model's scale is stated
@@ -508,3 +519,9 @@ class TableModel(FrictionModel):
 
     def parameters(self) -> dict[str, float | str]:
         return {"source": self.source}
+
+    def __repr__(self) -> str:
+        """``TableModel('finger.csv', forces 0.2–1 N)``: where its points came from."""
+        forces = (f"force {self.forces[0]:g} N" if len(self.forces) == 1
+                  else f"forces {self.forces[0]:g}–{self.forces[-1]:g} N")
+        return f"TableModel({self.source!r}, {forces})"
