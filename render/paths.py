@@ -44,6 +44,23 @@ class SwipePath:
 
     start_s = 0.0
 
+    @classmethod
+    def across(cls, width_mm: float, height_mm: float, kind: str = "straight", speed_mm_s: float = 100.0,
+               duration_s: float = 5.0, start_mm: tuple[float, float] | None = None, direction_deg: float = 0.0,
+               radius_mm: float = 15.0, width_of_pass_mm: float = 40.0, force_n: float | None = None) -> SwipePath:
+        """The default swipe over a texture of ``width_mm`` × ``height_mm``: a straight one starts at 10 % of the
+        width and crosses the middle; a circle is centred; a zig-zag starts at a fifth of the height with its
+        passes centred. ``start_mm`` overrides where it starts (mm from the texture's top-left corner)."""
+        if start_mm is None:
+            if kind == "circle":
+                start_mm = (width_mm / 2 - radius_mm, height_mm / 2)
+            elif kind == "zigzag":
+                start_mm = (max(0.0, (width_mm - width_of_pass_mm) / 2), height_mm * 0.2)
+            else:
+                start_mm = (width_mm * 0.1, height_mm / 2)
+        return cls(kind, speed_mm_s, duration_s, start_mm, direction_deg, radius_mm=radius_mm,
+                   width_mm=width_of_pass_mm, force_n=force_n)
+
     @property
     def end_s(self) -> float:
         return self.duration_s

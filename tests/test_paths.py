@@ -46,3 +46,15 @@ def test_a_path_with_nonsense_parameters_is_refused():
         SwipePath("straight", speed_mm_s=-1.0, duration_s=1.0, start_mm=(0.0, 0.0))
     with pytest.raises(RenderError, match="path must be one of"):
         SwipePath("spiral", speed_mm_s=1.0, duration_s=1.0, start_mm=(0.0, 0.0))
+
+
+def test_the_default_swipe_over_a_texture_is_one_rule_for_the_api_and_the_commands():
+    from ultraglide.render.paths import SwipePath
+
+    straight = SwipePath.across(80.0, 50.0)
+    assert straight.start_mm == (8.0, 25.0) and straight.kind == "straight" and straight.speed_mm_s == 100.0
+    circle = SwipePath.across(80.0, 50.0, "circle", radius_mm=10.0)
+    assert circle.start_mm == (30.0, 25.0)  # the circle's leftmost point, so it is centred on the texture
+    zigzag = SwipePath.across(80.0, 50.0, "zigzag", width_of_pass_mm=40.0)
+    assert zigzag.start_mm == (20.0, 10.0)
+    assert SwipePath.across(80.0, 50.0, start_mm=(1.0, 2.0)).start_mm == (1.0, 2.0)

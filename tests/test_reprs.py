@@ -8,9 +8,9 @@ import time
 
 import numpy as np
 import pytest
+from ultraglide.render.physics.fingerprint import FingerParams
 
 import ultraglide
-from ultraglide.render.physics.fingerprint import FingerParams
 
 ADDRESS = re.compile(r"0x[0-9a-f]{6,}|object at")
 

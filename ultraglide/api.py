@@ -59,14 +59,6 @@ class ExportResult:
     worst_excess_um_pp: float  # most drive asked above what the limiter let through
 
 
-def default_swipe(texture: Texture, speed_mm_s: float = 100.0, duration_s: float = 5.0,
-                  force_n: float | None = None) -> SwipePath:
-    """A straight left-to-right swipe across the middle of ``texture``, from 10 % of its width
-    (mm/s, s, N; ``force_n`` None: the renderer's default, 0.5 N)."""
-    return SwipePath("straight", speed_mm_s, duration_s, (texture.width_mm * 0.1, texture.height_mm / 2),
-                     force_n=force_n)
-
-
 def _as_texture(texture: Texture | str | os.PathLike) -> Texture:
     return texture if isinstance(texture, Texture) else resolve_texture(os.fspath(texture))
 
@@ -141,7 +133,8 @@ def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
     if settings is None:
         settings = RenderSettings(audio_rate_hz=rate_hz)
     if trajectory is None:
-        trajectory = default_swipe(texture, speed_mm_s, duration_s, force_n)
+        trajectory = SwipePath.across(texture.width_mm, texture.height_mm, speed_mm_s=speed_mm_s, duration_s=duration_s,
+                                       force_n=force_n)
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     path = Path(path)

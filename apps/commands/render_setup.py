@@ -18,17 +18,9 @@ from ultraglide.textures.texture import Texture
 
 
 def swipe_of(args, texture: Texture) -> SwipePath:
-    """The swipe the options describe; by default it starts left of centre and crosses the middle."""
-    start = args.start
-    if start is None:
-        if args.path == "circle":
-            start = (texture.width_mm / 2 - args.radius_mm, texture.height_mm / 2)
-        elif args.path == "zigzag":
-            start = (max(0.0, (texture.width_mm - args.zigzag_width_mm) / 2), texture.height_mm * 0.2)
-        else:
-            start = (texture.width_mm * 0.1, texture.height_mm / 2)
-    return SwipePath(args.path, args.speed_mm_s, args.duration_s, start, args.direction_deg,
-                     radius_mm=args.radius_mm, width_mm=args.zigzag_width_mm, force_n=args.force)
+    """The swipe the options describe (:meth:`SwipePath.across`: by default left of centre, across the middle)."""
+    return SwipePath.across(texture.width_mm, texture.height_mm, args.path, args.speed_mm_s, args.duration_s,
+                            args.start, args.direction_deg, args.radius_mm, args.zigzag_width_mm, args.force)
 
 
 @dataclass(frozen=True)
