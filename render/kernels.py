@@ -85,6 +85,68 @@ def swipe_path(kind, times, duration_s, speed_mm_s, x0, y0, cos_h, sin_h, radius
         y_out[i] = y0 + along * sin_h + across * cos_h
 
 
+@njit(cache=True, nogil=True)
+def _pchip_slope(t, v, k, last):
+    """PCHIP's derivative at record ``k`` of records 0..``last`` (Fritsch–Carlson's weighted harmonic mean
+    inside, the shape-preserving three-point formula at the ends), as scipy's PchipInterpolator has it."""
+    if last == 1:
+        return (v[1] - v[0]) / (t[1] - t[0])
+    if k == 0 or k == last:
+        if k == 0:
+            h0, h1 = t[1] - t[0], t[2] - t[1]
+            m0, m1 = (v[1] - v[0]) / h0, (v[2] - v[1]) / h1
+        else:
+            h0, h1 = t[last] - t[last - 1], t[last - 1] - t[last - 2]
+            m0, m1 = (v[last] - v[last - 1]) / h0, (v[last - 1] - v[last - 2]) / h1
+        d = ((2.0 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
+        if np.sign(d) != np.sign(m0):
+            return 0.0
+        if np.sign(m0) != np.sign(m1) and abs(d) > 3.0 * abs(m0):
+            return 3.0 * m0
+        return d
+    h0, h1 = t[k] - t[k - 1], t[k + 1] - t[k]
+    m0, m1 = (v[k] - v[k - 1]) / h0, (v[k + 1] - v[k]) / h1
+    if np.sign(m0) != np.sign(m1) or m0 == 0.0 or m1 == 0.0:
+        return 0.0
+    w1, w2 = 2.0 * h1 + h0, h1 + 2.0 * h0
+    return (w1 + w2) / (w1 / m0 + w2 / m1)
+
+
+@njit(cache=True, nogil=True)
+def _hermite(t, v, k, last):
+    """The interval [t[k], t[k+1]]'s cubic in powers of (time − t[k]), highest first, as scipy's PPoly has it."""
+    h = t[k + 1] - t[k]
+    d0, d1 = _pchip_slope(t, v, k, last), _pchip_slope(t, v, k + 1, last)
+    slope = (v[k + 1] - v[k]) / h
+    c = (d0 + d1 - 2.0 * slope) / h
+    return c / h, (slope - d0) / h - c, d0, v[k]
+
+
+@njit(cache=True, nogil=True)
+def pchip(t, x, y, times, x_out, y_out):
+    """Monotone piecewise-cubic (PCHIP) interpolation of two series recorded at ``t`` (increasing, at least two
+    records) at each of ``times`` (within ``t[0]..t[-1]``), into ``x_out`` and ``y_out``: what scipy's
+    PchipInterpolator over the same records gives (the same slopes, the same Horner form), without building
+    an interpolator per block. Each interval's slopes come from its neighbours alone (PCHIP is local)."""
+    last = len(t) - 1
+    k = 0
+    cached = -1
+    a3 = a2 = a1 = a0 = b3 = b2 = b1 = b0 = 0.0
+    for i in range(len(times)):
+        s = times[i]
+        if k > last - 1 or t[k] > s or (k < last - 1 and t[k + 1] <= s):  # usually the same interval or the next
+            k = np.searchsorted(t, s, side="right") - 1
+            k = min(max(k, 0), last - 1)
+        if k != cached:
+            a3, a2, a1, a0 = _hermite(t, x, k, last)
+            b3, b2, b1, b0 = _hermite(t, y, k, last)
+            cached = k
+        u = s - t[k]
+        x_out[i] = ((a3 * u + a2) * u + a1) * u + a0
+        y_out[i] = ((b3 * u + b2) * u + b1) * u + b0
+    return k
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of the signal path and the model inverses with the
@@ -94,6 +156,8 @@ def warm_up() -> None:
     f64 = np.zeros(4)
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))
+    three = np.array([0.0, 1.0, 3.0])
+    pchip(three, three, three, f64 + 0.5, np.empty(4), np.empty(4))
     for kind in range(3):
         swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
                    np.empty(4, dtype=np.bool_))

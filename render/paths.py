@@ -65,11 +65,12 @@ class SwipePath:
     def end_s(self) -> float:
         return self.duration_s
 
-    def state(self, times_s: ArrayLike) -> FingerState:
-        """Where the finger is at each time (s from the swipe's start), and whether it touches."""
+    def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:
+        """Where the finger is at each time (s from the swipe's start), and whether it touches. ``out``: two
+        one-dimensional arrays (x, y) of the times' length to fill instead of new ones."""
         times = np.asarray(times_s, dtype=float)
         flat = times.reshape(-1)
-        x, y = np.empty(flat.shape), np.empty(flat.shape)
+        x, y = out if out is not None else (np.empty(flat.shape), np.empty(flat.shape))
         down = np.empty(flat.shape, dtype=bool)
         heading = math.radians(self.direction_deg)
         x0, y0 = self.start_mm

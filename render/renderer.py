@@ -33,7 +33,7 @@ from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.friction_models import FrictionModel
-from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
+from ultraglide.render.trajectory import FingerState, LiveTrajectory, RecordedTrajectory
 from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
 
@@ -279,98 +279,50 @@ class Renderer:
     def control(self, n: int, now_s: float | None = None, out: ControlBuffers | None = None) -> ControlBlock:
         """The next ``n`` control-rate samples. ``now_s``: the perf_counter time the first of them
         will reach the plate (live rendering); the renderer re-anchors its clock to it if needed.
-        ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused."""
+        ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused, and a
+        live finger's block allocates no array (every stage writes into the block's own).
+
+        One pipeline for every source of finger positions (a live finger, a recorded log, a swipe): times,
+        the finger, the lookup (with the finger's step and direction), the effects, the model's inverse at
+        the finger's force, the envelope."""
         started = time.perf_counter()
         out = out or self._buffers
-        reuse = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
-        if reuse is not None and not self.offline:
-            return self._live(n, now_s, out, reuse)
-        times = self._times(n, now_s, None if reuse is None else reuse.time_s)
-        finger = self.trajectory.state(times)
+        block = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
+        times = self._times(n, now_s, None if block is None else block.time_s)
+        finger = self.trajectory.state(times, out=None if block is None else (block.x_mm, block.y_mm))
         x, y = finger.x_mm, finger.y_mm
-        if finger.velocity_mm_s is not None:  # a straight line over the block: one step, one direction
-            dx, dy = finger.velocity_mm_s
-            step = math.hypot(dx, dy) / self.settings.control_rate_hz
-        else:
-            previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
-            dx = np.diff(x, prepend=previous[0])
-            dy = np.diff(y, prepend=previous[1])
-            if n > 1:  # a jump between blocks (a corrected prediction, a new stroke) is not motion
-                dx[0], dy[0] = dx[1], dy[1]
-            step = np.hypot(dx, dy)
-        self._last_xy = (x[-1], y[-1])
+        step, direction = self._motion(finger, n)
         ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
-                                   direction=(dx, dy))
+                                   direction=direction, out=None if block is None else out.ratio_view(n))
         player = self.effects
         if player is not None:  # mixed before the inverse: the same envelope, clamps and limiter as the texture
             above = player.clipped_samples
             ratio = player.mix(times, x, y, finger.down, ratio)
             self.counters.clipped_samples += player.clipped_samples - above
-            if reuse is None:
+            if block is None:
                 ratio = ratio.copy()  # the player's buffer is overwritten by the next block
-        force = finger.force_n
-        if not isinstance(force, np.ndarray):
-            force = self.default_force_n if math.isnan(force) else float(force)
-        else:
-            force = np.where(np.isnan(force), self.default_force_n, force)
-        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp)
-        down = finger.down & self._running & (not self.paused)
+        force = self._force(finger.force_n)
+        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp,
+                                               out=None if block is None else block.target_um_pp)
+        down = finger.down & self._running & (not self.paused)  # a bool for a live finger, else one per sample
         if np.all(down):
             self.counters.clipped_samples += inversion.clamped
-        elif inversion.clamped:
+        elif inversion.clamped and np.any(down):  # count only the clamps while the finger touches
             floor = self.model.floor_ratio(force, self.limit_um_pp)
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
         target = inversion.amplitude_um_pp
-        if reuse is not None:  # the real-time path: timed by its caller, nothing appended
-            self.envelope.process(target, down, out=(reuse.amplitude_um_pp, reuse.drive_um_pp, reuse.plate_um_pp))
-            if reuse.x_mm is not x:
-                reuse.x_mm[:], reuse.y_mm[:] = x, y
-            reuse.down, reuse.ratio, reuse.target_um_pp = finger.down, ratio, target
-            block = reuse
+        if block is not None:  # the real-time path: timed by its caller, nothing appended
+            self.envelope.process(target, down, out=(block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp))
+            if block.x_mm is not x:
+                block.x_mm[:], block.y_mm[:] = x, y
+            block.down, block.ratio, block.target_um_pp = finger.down, ratio, target
         else:
             envelope = self.envelope.process(target, down)
+            block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp,
+                                 envelope.drive_um_pp, envelope.plate_um_pp)
             self.counters.render_times_s.append(time.perf_counter() - started)
             if len(self.counters.render_times_s) > 100_000:
                 del self.counters.render_times_s[:50_000]
-            block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp,
-                                 envelope.drive_um_pp, envelope.plate_um_pp)
-        self.counters.ramps = self.envelope.ramps
-        self.counters.drive_clipped_samples = self.envelope.drive_clipped
-        self.counters.control_samples += n
-        if n:
-            self._last_drive = float(block.drive_um_pp[-1])
-        self.last_block = block
-        for observer in self.observers:
-            observer(block)
-        return block
-
-    def _live(self, n: int, now_s: float | None, buffers: ControlBuffers, block: ControlBlock) -> ControlBlock:
-        """:meth:`control` for a live finger into preallocated buffers: every stage writes into the block's
-        arrays, so nothing is allocated but a few Python numbers. The same stages as the general path; the
-        finger's line over the block gives one step and one direction for the lookup."""
-        times = self._times(n, now_s, block.time_s)
-        finger = self.trajectory.state(times, out=(block.x_mm, block.y_mm))
-        x, y = block.x_mm, block.y_mm
-        dx, dy = finger.velocity_mm_s
-        step = math.hypot(dx, dy) / self.settings.control_rate_hz
-        if n:
-            self._last_xy = (x[n - 1], y[n - 1])
-        ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
-                                   direction=(dx, dy), out=buffers.ratio_view(n))
-        player = self.effects
-        if player is not None:  # mixed before the inverse: the same envelope, clamps and limiter as the texture
-            above = player.clipped_samples
-            ratio = player.mix(times, x, y, finger.down, ratio)
-            self.counters.clipped_samples += player.clipped_samples - above
-        force = finger.force_n
-        force = self.default_force_n if math.isnan(force) else float(force)
-        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp, out=block.target_um_pp)
-        down = bool(finger.down) and self._running and not self.paused
-        if down:
-            self.counters.clipped_samples += inversion.clamped
-        self.envelope.process(block.target_um_pp, down,
-                              out=(block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp))
-        block.down, block.ratio = finger.down, ratio
         counters = self.counters
         counters.ramps = self.envelope.ramps
         counters.drive_clipped_samples = self.envelope.drive_clipped
@@ -381,3 +333,30 @@ class Renderer:
         for observer in self.observers:
             observer(block)
         return block
+
+    def _motion(self, finger: FingerState, n: int) -> tuple:
+        """The finger's step per control sample (mm) and its direction, for the band-limited lookup: one step and
+        one direction when the finger moves on a line over the block (a live prediction), else one per sample,
+        from each sample to the next (a jump between blocks, a corrected prediction or a new stroke, is not
+        motion: the first sample takes the second's)."""
+        x, y = finger.x_mm, finger.y_mm
+        if finger.velocity_mm_s is not None:
+            dx, dy = finger.velocity_mm_s
+            step = math.hypot(dx, dy) / self.settings.control_rate_hz
+        else:
+            previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
+            dx = np.diff(x, prepend=previous[0])
+            dy = np.diff(y, prepend=previous[1])
+            if n > 1:
+                dx[0], dy[0] = dx[1], dy[1]
+            step = np.hypot(dx, dy)
+        if n:
+            self._last_xy = (x[n - 1], y[n - 1])
+        return step, (dx, dy)
+
+    def _force(self, force_n):
+        """The finger's force, N: the touch's where it was measured, else the default (a number, or one per
+        sample)."""
+        if not isinstance(force_n, np.ndarray):
+            return self.default_force_n if math.isnan(force_n) else float(force_n)
+        return np.where(np.isnan(force_n), self.default_force_n, force_n)

@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
+from ultraglide.render import kernels
 from ultraglide.render.errors import RenderError
 
 PREDICTORS = ("lsq", "linear", "hold")
@@ -67,12 +68,13 @@ class RecordedTrajectory:
     (:meth:`streaming`), and only a window of them is held: the rows around the instants asked
     for, which moves forward as the renderer pulls blocks. PCHIP is local (the slope at a record
     depends on its neighbours only), so interpolating within the window, with two records of
-    margin either side, gives what interpolating the whole path would. Asking for an earlier
-    instant than the window holds re-reads the chunks from the start.
+    margin either side, gives what interpolating the whole path would (a compiled kernel,
+    :func:`ultraglide.render.kernels.pchip`, the slopes and the Horner form of scipy's
+    PchipInterpolator). Asking for an earlier instant than the window holds re-reads the chunks
+    from the start.
     """
 
     MARGIN = 2  # records kept either side of the instants asked for
-    PIECE_ROWS = 1 << 15  # records interpolated at once, at most (plus margins)
 
     def __init__(self, t_s: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, force_n: ArrayLike | None = None) -> None:
         t = np.asarray(t_s, dtype=float)
@@ -177,34 +179,19 @@ class RecordedTrajectory:
             self._extend(high)
         return min(int(np.searchsorted(self._t, high, side="left")) + 1 + self.MARGIN, len(self._t))
 
-    def state(self, times_s: ArrayLike) -> FingerState:
-        """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged)."""
+    def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:
+        """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged).
+        ``out``: two arrays (x, y) of the times' length to fill instead of new ones."""
         requested = np.asarray(times_s, dtype=float)
         times = np.clip(requested, self.start_s, self.end_s)
         down = (requested >= self.start_s) & (requested <= self.end_s)
         if times.size == 0:
             return FingerState(times, times, times, down)
-        from scipy.interpolate import PchipInterpolator  # here, not at the top: only recorded paths need it
-
         last = self._cover(float(times.min()), float(times.max()))
         t = self._t[:last]
         force = np.interp(times, t, self._f[:last]) if self.has_force else np.full(times.shape, np.nan)
-        if last <= self.PIECE_ROWS or np.any(np.diff(times) < 0):
-            x = PchipInterpolator(t, self._x[:last], extrapolate=False)(times)
-            y = PchipInterpolator(t, self._y[:last], extrapolate=False)(times)
-            return FingerState(x, y, force, down)
-        # a log far denser than the instants asked for: interpolate piece by piece, each piece's
-        # records with their margin, so the interpolator's arrays stay small (PCHIP is local)
-        x, y = np.empty(times.shape), np.empty(times.shape)
-        row = np.searchsorted(t, times)
-        cuts = np.searchsorted(row, np.arange(self.PIECE_ROWS, last, self.PIECE_ROWS))
-        for begin, end in zip((0, *cuts), (*cuts, len(times)), strict=True):
-            if begin == end:
-                continue
-            low = max(int(row[begin]) - 1 - self.MARGIN, 0)
-            high = min(int(row[end - 1]) + 1 + self.MARGIN, last)
-            x[begin:end] = PchipInterpolator(t[low:high], self._x[low:high], extrapolate=False)(times[begin:end])
-            y[begin:end] = PchipInterpolator(t[low:high], self._y[low:high], extrapolate=False)(times[begin:end])
+        x, y = out if out is not None else (np.empty(times.shape), np.empty(times.shape))
+        kernels.pchip(t, self._x[:last], self._y[:last], times.reshape(-1), x.reshape(-1), y.reshape(-1))
         return FingerState(x, y, force, down)
 
 

@@ -35,7 +35,6 @@ from ultraglide.render.physics import csv_table
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.touch_log import check_touch_log, read_touch_log
-from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
 
@@ -516,7 +515,6 @@ def write_log(path, t, x, y, force=None, comment_every=0):
 
 def test_streamed_state_matches_whole_path_pchip_across_many_blocks(tmp_path, monkeypatch):
     monkeypatch.setattr(csv_table, "BLOCK_BYTES", 2048)  # dozens of blocks, so the window moves through them
-    monkeypatch.setattr(RecordedTrajectory, "PIECE_ROWS", 40)  # and each block is interpolated in pieces
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(1 / 240, 1 / 60, 3000))
     t[700] = t[699]  # a repeated instant: the later row stands
