@@ -88,7 +88,8 @@ def main() -> None:
         ratios = [o[0] / s[0] for s, o in zip(sox, runs, strict=True)]
         print(f"{'export, ' + name:34} {mine[0]:8.2f} {mine[1]:8.2f} {mine[2]:8.0f}   "
               f"({mine[0] / median[0]:.2f}x sox's median; pairwise {', '.join(f'{r:.2f}' for r in ratios)})")
-    print(f"{'export, zig-zag a tenth as long':34} {'':>8} {'':>8} {short_mb:8.0f}   (memory does not grow with length)")
+    print(f"{'export, zig-zag a tenth as long':34} {'':>8} {'':>8} {short_mb:8.0f}   "
+          "(memory does not grow with length)")
     print(f"{'ultraglide --help':34} {statistics.median(helps):8.2f}")
     print(f"({seconds} s at 96 kHz, float32 WAV, the log {rows} rows at 120 Hz; medians of {options.runs} runs in "
           f"turn; load average {before} before, {load_average()} after, on {os.cpu_count()} CPUs)")
