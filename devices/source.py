@@ -16,7 +16,28 @@ class BlockSource(Protocol):
     devices limited setpoints in µm peak-to-peak."""
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        """The next ``n`` values; ``now_s`` is when (perf_counter s) the first reaches the plate."""
+        """The next ``n`` values; ``now_s`` is when (perf_counter s) the first reaches the plate.
+
+        **The real-time contract** (the one place it is written; every source and device keeps it):
+
+        * *Who calls it*: the device's own thread, never the app's: PortAudio's callback thread (audio),
+          the serial writer thread (plate drivers: every 1 or 2 ms), the pacing thread of the WAV and null
+          sinks (every 10 ms), or, offline, the exporter's thread. One thread pulls a source; the device
+          copies or sends the block before it pulls the next, so a source may return the same buffer
+          every time (the engine's does).
+        * *Its deadline*: the block's own duration (``n`` / rate) minus the device's margin: an audio
+          callback of 256 frames at 96 kHz has 2.7 ms, including the device's own work. A late block is
+          an underrun the person feels.
+        * *What it must not do*: allocate arrays (preallocate at start; small Python numbers are the
+          only change), do file or network I/O, wait for anything, hold a lock longer than a copy (the
+          engine's touch ring and status are lock-free; a live trajectory's lock is only ever taken by
+          this same thread, so it is never contended), run a per-sample Python loop (compiled kernels do
+          the per-sample work).
+        * *What an exception does*: the device stops pulling, rests the hardware (zero, disabled) and
+          reports the error in its ``status()["errors"]``; the command or the engine then says so and
+          exits non-zero. A source never raises on purpose to stop: it ramps down when asked
+          (:meth:`request_stop`) and says :attr:`finished`.
+        """
 
     def request_stop(self) -> None:
         """Start ramping down to rest."""

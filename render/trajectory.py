@@ -218,8 +218,12 @@ class LiveTrajectory:
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
         """Record one touch report (time in perf_counter seconds). ``down=False`` lifts the finger.
 
-        The prediction line is fitted here, on the thread that reports touches, in plain floats
-        (a handful of points), so the real-time thread only evaluates it and the GIL is held briefly.
+        The prediction line is fitted here, on whichever thread calls ``push``, in plain floats (a handful
+        of reports: 5–10 µs a report on this machine), and swapped in whole, so :meth:`state` reads it
+        without the lock. In the engine the thread that pushes is the block thread itself, as it drains
+        the touch ring before each block (at 60–240 reports a second: one report every few blocks), which
+        keeps the engine to one real-time thread and leaves the lock uncontended; an app that renders in
+        its own process pushes from its UI thread. See ``BlockSource.pull`` for the real-time contract.
         """
         with self._lock:
             self.reports += 1
