@@ -103,6 +103,11 @@ def parse_device_url(url: str) -> DeviceUrl:
     return DeviceUrl(kind, target, options)
 
 
+# The simulated plate is a thread of this process: on a loaded machine it answers late, but it answers. The
+# driver waits this long for it (a plate driver on a port gets the protocol's 2 s).
+SIM_ANSWER_TIMEOUT_S = 60.0
+
+
 class SimPlate:
     """``sim``: the simulated plate on an in-process pty, driven by the real serial driver."""
 
@@ -113,7 +118,8 @@ class SimPlate:
         from ultraglide.devices.serial_plate import SerialPlate
 
         self.plate = PtyPlate(profile).start()
-        self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz, tracker=tracker)
+        self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz, tracker=tracker,
+                                  ack_timeout_s=SIM_ANSWER_TIMEOUT_S)
         self.rate_hz = control_rate_hz
 
     @property

@@ -164,6 +164,8 @@ def test_second_finger_is_shown_but_does_not_drive(plated):
 def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     pg = app.pg
     center = lambda action: next(b.rect.center for b in app.buttons if b.action == action)  # noqa: E731
+    post(pg, pg.KEYDOWN, key=pg.K_g, mod=0, unicode="g", scancode=0)
+    run_for(app, 0.05)
     assert app.scene == "gallery"
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("widgets"), button=1, touch=False)
     run_for(app, 0.05)
@@ -184,8 +186,15 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert not app.running
 
 
+def test_a_texture_named_on_the_command_line_is_on_screen_at_once(app):
+    """``demo halves.png --record drag.csv``: the finger is on halves at once, not on the gallery."""
+    assert app.scene == "texture" and app.scenes.current.name == "halves"
+    assert run_until(app, lambda: engine(app).texture == "halves"), engine(app).texture
+
+
 def test_gallery_tap_chooses_a_texture(app):
     pg = app.pg
+    app.act("gallery")
     tile = app.tiles[0]
     post(pg, pg.MOUSEBUTTONDOWN, pos=tile.center, button=1, touch=False)
     run_for(app, 0.05)
@@ -485,8 +494,7 @@ def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
 
     record, stats = tmp_path / "drag.csv", tmp_path / "stats.json"
     with XvfbDemo(str(halves), "--device", "null", "--record", str(record), "--stats", str(stats)) as demo:
-        demo.wait_for("^renderer ready", 60)
-        demo.xdo("key", "t")  # the first texture: halves
+        demo.wait_for("^renderer ready", 60)  # halves is on screen from the start, as the README runs it
         demo.wait_for("^frame drawn: texture", 30)
         demo.drag([(x, 300) for x in range(100, 704, 4)])  # 1.26 s at 120 Hz across the boundary (378 px)
         assert demo.quit() == 0

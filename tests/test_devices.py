@@ -356,3 +356,20 @@ def test_every_fault_over_a_run_is_counted(plate):
         "watchdog", "bad-command", "overheat", "over-limit", "trip", "underrun"}
     driver.stop()
     assert driver.fault_counts() == counts  # the run's total, not the last telemetry frame's
+
+
+def test_the_sim_device_waits_for_its_plate_however_late_it_answers():
+    """The simulated plate is a thread of this process: on a loaded machine its answers come late, but they
+    come. Here it reads nothing for 3 s (its own hang injection), past the protocol's 2 s for a plate on a
+    port: sim still starts, and plays."""
+    from ultraglide.devices.urls import open_device
+
+    device = open_device("sim", PROFILE)
+    device.plate.inject(p.SIM_HANG, 3.0)
+    started = time.monotonic()
+    device.start(Constant(1.0))
+    try:
+        assert time.monotonic() - started >= 3.0  # it did wait for the plate
+        assert wait_for(lambda: device.plate.simulator.amplitude_um_pp > 0.5) and not device.driver.counters.errors
+    finally:
+        device.stop()

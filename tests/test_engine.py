@@ -278,3 +278,13 @@ def test_status_snapshots_are_never_torn_by_a_writer_in_another_process():
         writer.join(30)
         shared.close()
     assert len(seen) >= 200  # it did read while the writer was writing
+
+
+@pytest.mark.parametrize("device", ["sim", "null"])
+def test_wait_ready_returns_once_the_device_has_taken_a_block(device):
+    """As the module's example promises: right after ``wait_ready()`` the status says the engine runs."""
+    with Engine.start(EngineConfig(texture="grating-1mm", device=device)) as engine:
+        engine.wait_ready(60)
+        status = engine.status()
+        assert status.state == "running" and status.blocks >= 1, status.words()
+        assert status.words().startswith(f"{device} running | ")

@@ -115,6 +115,8 @@ class DemoApp:
         self.painter = Painter(self)
         self.layout = Layout(pygame, self.screen.get_size(), self.painter.font.get_linesize(), len(textures))
         self.scenes = Scenes(textures, self.layout.area, self.mm_per_px)
+        if texture_specs:  # the user's own textures: the first is on screen at once, ready to feel and record
+            self.scenes.show("texture", 0)
         self.driver = FingerDriver(self)
         self.input = Input(self, self.driver)
         self.painter.make_thumbnails()
@@ -193,7 +195,7 @@ class DemoApp:
             link.set_force(self.force_n)
             if self.model_name != link.model_name:
                 link.set_model(self.model_name)
-            if self.scenes.scene != "gallery":
+            if self.scenes.scene != "gallery" and self.scenes.current is not link.config.texture:
                 link.set_texture(self.scenes.current)
             self.redraw.everything()  # the chart's scale and the status come from the device's profile now
             if self.options.report_frames:

@@ -137,15 +137,20 @@ class Engine:
         return engine
 
     def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> None:
-        """Wait until the kernels are compiled and the device runs; EngineError if it failed."""
-        if self.ready_info is not None:
-            return
-        if self._failure is not None:
-            raise EngineError(self._failure)
-        kind, payload = _receive(self.conn, self.process, timeout_s)
-        self._take(kind, payload)
-        if self._failure is not None:
-            raise EngineError(self._failure)
+        """Wait until the kernels are compiled and the device runs (it has taken its first block, so the
+        status says running or paused); EngineError if it failed or did not within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        if self.ready_info is None:
+            if self._failure is not None:
+                raise EngineError(self._failure)
+            kind, payload = _receive(self.conn, self.process, timeout_s)
+            self._take(kind, payload)
+            if self._failure is not None:
+                raise EngineError(self._failure)
+        while self.shared.words is not None and shm.STATES[int(self.shared.fast[shm.STATE])] == "starting":
+            if not self.process.is_alive() or time.monotonic() > deadline:
+                raise EngineError(f"the device {self.config.device} took no block within {timeout_s:g} s")
+            time.sleep(0.002)
 
     @property
     def ready(self) -> bool:
