@@ -233,10 +233,10 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
 
     words = app.status_words()
     for phrase in ("simulated plate running", "exponential model", "0.50 N (Up/Down keys)",
-                   "limited 0 % of the last second"):
+                   "within the plate's limit on this texture", "H: help"):
         assert phrase in words, words
     # a loaded machine may starve the simulated plate: then its faults are named and counted
-    assert re.search(r"running, (no faults|faults: [a-z-]+ ×\d+)", words) and re.search(r"\d+ underruns", words)
+    assert re.search(r"running, (no faults|faults: [a-z-]+ ×\d+)", words) and re.search(r"\d+ underruns?,", words)
     app.act("force+")
     app.act("model")
     run_for(app, 0.05)
@@ -265,6 +265,7 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
         assert run_until(app, lambda: app.link.status().limited_pct > 90, 10), app.link.status()
         status = app.link.status()
         assert status.limited_samples > 0.5 * 12000 * 0.9, status
+        assert "held at the limit" in app.status_words() and "samples on this texture" in app.status_words()
         post(pg, pg.MOUSEBUTTONUP, pos=(100, y), button=1, touch=False)
         run_for(app, 0.05)
         app.act("next")  # halves: the right half is at rest, nothing to limit
@@ -272,6 +273,39 @@ def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeyp
         post(pg, pg.MOUSEBUTTONDOWN, pos=(900, y), button=1, touch=False)
         run_for(app, 0.5)
         assert app.link.status().limited_samples == 0 and app.link.status().limited_pct == 0
+    finally:
+        app.close()
+
+
+@pytest.mark.parametrize("width_px", [1024, 1280, 1600])
+def test_the_status_line_fits_and_keeps_help_the_recording_and_watch_errors(halves, tmp_path, monkeypatch, width_px):
+    """Two lines at any common width: each fits; help, the recording and --watch's errors are always on them."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo.app import DemoApp
+    from ultraglide.apps.demo.draw import ACCENT
+    from ultraglide.apps.demo.status import HELP, SEPARATOR, status_lines
+
+    app = DemoApp([halves], windowed=True, size=(width_px, 800), record=str(tmp_path / "drag.csv"))
+    try:
+        app.wait_ready()
+        app.watch_errors = ["cannot reload halves.png: the file is not a PNG image (it may be half-written)",
+                            "cannot reload wood.png: no such file"]
+        app.user_paused = True
+        first, second = status_lines(app, app.font, width_px)
+        help_w = app.font.size(SEPARATOR + HELP)[0]
+        assert app.font.size(SEPARATOR.join(text for text, _ in first))[0] <= width_px - 16 - help_w
+        assert app.font.size(SEPARATOR.join(text for text, _ in second))[0] <= width_px - 16
+        line = SEPARATOR.join(text for text, _ in first + second)
+        assert "simulated plate paused" in line or "sim paused" in line
+        assert "recording drag.csv: 0 touches" in line or "rec 0" in line
+        assert "cannot reload halves.png" in line and "cannot reload wood.png" in line
+        if width_px >= 1280:  # everything the plate does, in words, at the widths of common screens
+            assert "exponential model" in line and "0.50 N" in line and "within the plate's limit" in line
+        app.painter.status(force=True)
+        pixels = app.pg.surfarray.array3d(app.screen)
+        rect = app.layout.status_rect
+        help_area = pixels[rect.right - 8 - app.font.size(HELP)[0]:rect.right - 8, rect.top:rect.top + 25]
+        assert np.all(help_area == ACCENT, axis=-1).sum() > 20  # "H: help" drawn at the right end
     finally:
         app.close()
 
@@ -387,6 +421,67 @@ def test_chart_puts_values_on_its_scales(app):
     step_row = int(plot.bottom - 0.6 * plot.height)  # the step's vertical edge, halfway along the time axis
     edge = np.flatnonzero(np.all(pixels[plot.left:plot.right, step_row] == CHART_COLOURS["friction"], axis=1))
     assert abs(np.median(edge) + plot.left - plot.centerx) <= 2
+
+
+def test_chart_draws_a_fine_texture_as_its_envelope_not_an_aliased_block(app):
+    """A 1 mm grating under a finger at 100 mm/s: friction swings 0.4-1.0 at 100 Hz, 3 periods in 10 columns.
+    Drawn as lines it filled the plot in solid colour; drawn as its envelope it is a translucent band from
+    0.4 to 1.0 with an outline, and a steady stretch after it is still a line."""
+    from ultraglide.apps.demo.draw import BAND_ALPHA, CHART_COLOURS, GRID, LIMIT, PANEL, draw_chart
+
+    surface = app.pg.Surface((1000, 200))
+    t = np.arange(0.0, 3.0, 1 / 12000)
+    friction = np.where(t < 2.0, 0.7 + 0.3 * np.sin(2 * np.pi * 100 * t), 0.5)
+    plot = draw_chart(surface, app.font, surface.get_rect(), {"friction": np.column_stack((t, friction))},
+                      3.0, 8.0, 6.0, "plate µm p-p")
+    pixels = app.pg.surfarray.array3d(surface).astype(int)
+    colour = np.array(CHART_COLOURS["friction"])
+    blended = (np.array(PANEL) * (1 - BAND_ALPHA) + colour * BAND_ALPHA).astype(int)  # the band over the panel
+    over_grid = (np.array(GRID) * (1 - BAND_ALPHA) + colour * BAND_ALPHA).astype(int)  # and over a gridline
+    row_of = lambda ratio: plot.bottom - ratio * plot.height  # noqa: E731
+    for x in range(plot.left + 50, plot.left + plot.width * 2 // 3 - 10, 7):
+        column = pixels[x, plot.top + 1:plot.bottom]
+        solid = np.flatnonzero(np.all(column == colour, axis=1)) + plot.top + 1
+        assert len(solid) <= 3, (x, solid)  # the outline's top and bottom, not a block of line
+        band = np.flatnonzero(np.minimum(np.abs(column - blended).sum(axis=1),
+                                         np.abs(column - over_grid).sum(axis=1)) <= 6) + plot.top + 1
+        assert abs(band.min() - row_of(1.0)) <= 2 and abs(band.max() - row_of(0.4)) <= 2, (x, band.min(), band.max())
+    steady = plot.left + plot.width * 5 // 6
+    solid = np.flatnonzero(np.all(pixels[steady, plot.top:plot.bottom] == colour, axis=1)) + plot.top
+    assert abs(np.median(solid) - row_of(0.5)) <= 1.5 and len(solid) <= 3  # a line at 0.5
+    y_limit = round(row_of(0.75))  # the limit, 6 of 8 µm, where the friction axis has its 0.75 gridline
+    assert not np.all(pixels[plot.left + 1:plot.right - 1, y_limit] == GRID, axis=1).any()
+    assert np.all(pixels[plot.left:plot.left + 6, y_limit] == LIMIT, axis=1).all()  # the limit's first dash
+
+
+@pytest.mark.parametrize("outside", ["tile", "clamp"])
+def test_a_texture_smaller_than_the_screen_shows_its_edge(tmp_path, monkeypatch, outside):
+    """A 40 × 30 mm texture on a 338 mm wide screen: outlined where it ends; its repeats, when it tiles, are
+    drawn fainter than itself, so the eye tells the texture from what lies beyond it."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo.app import DemoApp
+    from ultraglide.apps.demo.draw import EDGE
+
+    values = np.tile(np.linspace(0.2, 1.0, 40, dtype=np.float32), (30, 1))
+    small = save_texture(Texture(values, 40.0, 30.0, outside=outside, name="small"), tmp_path / "small.png")
+    app = DemoApp([small], device_url="null", windowed=True, screen_width_mm=338.7)
+    try:
+        app.painter.area()
+        pixels = app.pg.surfarray.array3d(app.screen).astype(int)
+        area = app.layout.area
+        w, h = round(40.0 / app.mm_per_px), round(30.0 / app.mm_per_px)
+        right = pixels[area.left + w, area.top + 5:area.top + h - 5]
+        bottom = pixels[area.left + 5:area.left + w - 5, area.top + h]
+        assert np.all(right == EDGE) and np.all(bottom == EDGE)
+        inside = pixels[area.left + 5:area.left + w - 5, area.top + 5:area.top + h - 5]
+        beyond = pixels[area.left + w + 5:area.left + 2 * w - 5, area.top + 5:area.top + h - 5]
+        if outside == "tile":  # the same pattern, fainter
+            assert 0.3 * inside.mean() < inside.mean() - beyond.mean()
+            assert np.corrcoef(inside.mean(axis=(1, 2)), beyond.mean(axis=(1, 2)))[0, 1] > 0.99
+        else:  # the outside rule's colour: the edge's own friction (1.0), flat
+            assert beyond.std(axis=(0, 1)).max() < 1
+    finally:
+        app.close()
 
 
 def test_recording_survives_a_crash_and_is_renamed_when_done(tmp_path):

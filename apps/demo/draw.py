@@ -15,7 +15,13 @@ ACCENT = (255, 170, 60)
 TRACE = (255, 90, 90)
 OTHER_FINGER = (120, 180, 255)
 LIMIT = (235, 80, 80)
+EDGE = ACCENT  # where a texture smaller than the screen ends
+EDGE_PX = 2
+REPEAT_VEIL = 110  # of 255: how far a tiled texture's repeats fade towards the background
 CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130)}
+BAND_ALPHA = 0.35  # the opacity of a series' min-to-max band
+ENVELOPE_COLUMNS = 5  # a band where a series swings within this many pixel columns (3 s on 1100 px: 13 ms, 75 Hz)
+BAND_MIN_PX = 4  # and by at least this much
 
 
 def _palette() -> np.ndarray:
@@ -82,18 +88,33 @@ def fit_text(font: pygame.font.Font, text: str, width_px: int) -> str:
 
 
 def blit_texture(screen: pygame.Surface, surface: pygame.Surface, area: pygame.Rect, tiled: bool,
-                 outside_colour) -> None:
-    """Draw from the area's top-left corner: repeated if the texture tiles, once otherwise."""
+                 outside_colour, repeat: pygame.Surface | None = None) -> pygame.Rect:
+    """Draw from the area's top-left corner, outlined where it ends inside the area; beyond it, what the finger
+    feels there: the texture's repeats (``repeat``: a dimmed copy, see :func:`dimmed`) when it tiles, else its
+    outside colour. Returns the texture's own rectangle."""
     screen.fill(outside_colour, area)
     clip = screen.get_clip()
     screen.set_clip(area)
+    own = pygame.Rect(area.topleft, surface.get_size())
     if tiled:
         for y in range(area.top, area.bottom, surface.get_height()):
             for x in range(area.left, area.right, surface.get_width()):
-                screen.blit(surface, (x, y))
-    else:
-        screen.blit(surface, area.topleft)
+                screen.blit(repeat or surface, (x, y))
+    screen.blit(surface, area.topleft)
+    if own.right < area.right or own.bottom < area.bottom:  # its edge, just outside its own pixels
+        pygame.draw.rect(screen, EDGE, own.inflate(2 * EDGE_PX, 2 * EDGE_PX), EDGE_PX)
     screen.set_clip(clip)
+    return own
+
+
+def dimmed(surface: pygame.Surface) -> pygame.Surface:
+    """A copy of ``surface`` faded towards the background: a texture's repeats beyond its edge."""
+    copy = surface.copy()
+    veil = pygame.Surface(surface.get_size())
+    veil.fill(BACKGROUND)
+    veil.set_alpha(REPEAT_VEIL)
+    copy.blit(veil, (0, 0))
+    return copy
 
 
 def _ticks(top: float, step: float) -> np.ndarray:
@@ -117,9 +138,11 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
         screen.blit(rendered, (x, area.top + 3))
         x += rendered.get_width() + 28
     screen.blit(font.render(f"limit {limit_um_pp:g} µm p-p", True, LIMIT), (x, area.top + 3))
+    y_limit = round(plot.bottom - min(limit_um_pp / amplitude_max_um_pp, 1.0) * plot.height)
     for value in _ticks(1.0, 0.25):  # friction: left axis
         y = plot.bottom - value * plot.height
-        pygame.draw.line(screen, GRID, (plot.left, y), (plot.right, y), 1)
+        if abs(y - y_limit) > 2:  # a gridline never runs along the limit's line, where it would look like it
+            pygame.draw.line(screen, GRID, (plot.left, y), (plot.right, y), 1)
         text = font.render(f"{value:.2f}", True, CHART_COLOURS["friction"])
         screen.blit(text, text.get_rect(midright=(plot.left - 6, y)))
     step = 1.0 if amplitude_max_um_pp <= 6 else 2.0 if amplitude_max_um_pp <= 12 else 5.0
@@ -136,21 +159,78 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
         text = font.render(words, True, DIM)
         screen.blit(text, text.get_rect(midtop=(x, plot.bottom + 4)))
     pygame.draw.rect(screen, DIM, plot, 1)
-    y_limit = plot.bottom - min(limit_um_pp / amplitude_max_um_pp, 1.0) * plot.height
-    for x0 in range(plot.left, plot.right, 12):  # the limit as a dashed line
-        pygame.draw.line(screen, LIMIT, (x0, y_limit), (min(x0 + 6, plot.right), y_limit), 1)
     latest = max((values[-1, 0] for values in series.values() if len(values)), default=0.0)
+    columns = {}
     for name, values in series.items():
-        if len(values) < 2:
-            continue
-        t, v = values[:, 0], values[:, 1]
         scale = 1.0 if name == "friction" else amplitude_max_um_pp
-        px = plot.right - (latest - t) / span_s * plot.width
-        py = plot.bottom - np.clip(v / scale, 0, 1) * plot.height
-        keep = px >= plot.left
-        if keep.sum() >= 2:
-            pygame.draw.lines(screen, CHART_COLOURS[name], False, np.column_stack((px[keep], py[keep])).tolist(), 2)
+        envelope = column_envelope(values, latest, span_s, plot, scale)
+        if envelope is not None:
+            columns[name] = envelope
+    for name, envelope in columns.items():
+        draw_envelope(screen, plot, CHART_COLOURS[name], *envelope)
+    for x0 in range(plot.left, plot.right, 12):  # the limit as a dashed line, over what reaches it
+        pygame.draw.line(screen, LIMIT, (x0, y_limit), (min(x0 + 6, plot.right), y_limit), 1)
     return plot
+
+
+def draw_envelope(screen: pygame.Surface, plot: pygame.Rect, colour, x: np.ndarray, low: np.ndarray,
+                  high: np.ndarray, mean: np.ndarray) -> None:
+    """One series from :func:`column_envelope`: where it swings within a few columns (a fine texture under a
+    moving finger), a translucent band from its smallest to its largest value, outlined; elsewhere a line
+    through the columns' means."""
+    half = ENVELOPE_COLUMNS // 2
+    padded_low = np.pad(low, half, mode="edge")
+    padded_high = np.pad(high, half, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view
+    low, high = windows(padded_low, ENVELOPE_COLUMNS).max(axis=1), windows(padded_high, ENVELOPE_COLUMNS).min(axis=1)
+    wide = low - high >= BAND_MIN_PX
+    if wide.any():
+        rows = np.arange(plot.top, plot.bottom + 1)
+        inside = (rows[None, :] >= high[wide, None]) & (rows[None, :] <= low[wide, None])
+        pixels = pygame.surfarray.pixels3d(screen)  # (x, y, rgb), the screen locked while it lives
+        region = pixels[x[wide], plot.top:plot.bottom + 1]
+        region[inside] = (region[inside] * (1 - BAND_ALPHA) + np.array(colour) * BAND_ALPHA).astype(np.uint8)
+        pixels[x[wide], plot.top:plot.bottom + 1] = region
+        del pixels
+    for run in _runs(wide):
+        xs = x[run]
+        if wide[run.start]:  # the band's outline: along its top, back along its bottom
+            outline = np.concatenate((np.column_stack((xs, high[run])), np.column_stack((xs, low[run]))[::-1]))
+            pygame.draw.lines(screen, colour, True, outline.tolist(), 1)
+        elif len(xs) >= 2:
+            pygame.draw.lines(screen, colour, False, np.column_stack((xs, mean[run])).tolist(), 2)
+        else:
+            pygame.draw.line(screen, colour, (xs[0], mean[run][0]), (xs[0], mean[run][0]), 2)
+
+
+def _runs(flags: np.ndarray) -> list[slice]:
+    """The runs of equal values in ``flags``, as slices."""
+    edges = np.flatnonzero(np.diff(flags.astype(np.int8))) + 1
+    bounds = np.concatenate(([0], edges, [len(flags)]))
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+
+
+def column_envelope(values: np.ndarray, latest_s: float, span_s: float, plot: pygame.Rect,
+                    scale: float) -> tuple[np.ndarray, ...] | None:
+    """Rows of (t_s, value) as one entry per pixel column of ``plot`` (now at its right edge, ``span_s`` across,
+    values over ``scale`` from the bottom): the columns' x and the rows (px) of their smallest, largest and mean
+    value. Thousands of samples a column (a 1 mm grating under a finger) drawn as lines alias into a solid
+    block; their envelope shows what they span, and the mean where they sit. None with nothing to draw."""
+    if len(values) < 2:
+        return None
+    t, v = values[:, 0], values[:, 1]
+    x = plot.right - (latest_s - t) / span_s * plot.width
+    keep = x >= plot.left
+    if keep.sum() < 2:
+        return None
+    column = np.minimum(np.floor(x[keep]).astype(np.int64), plot.right - 1)
+    y = plot.bottom - np.clip(v[keep] / scale, 0.0, 1.0) * plot.height
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(column)) + 1))  # times rise: columns come in order
+    counts = np.diff(np.append(starts, len(y)))
+    high = np.minimum.reduceat(y, starts)  # rows grow downwards: the largest value is the smallest row
+    low = np.maximum.reduceat(y, starts)
+    mean = np.add.reduceat(y, starts) / counts
+    return column[starts], low, high, mean
 
 
 def draw_trace(screen: pygame.Surface, points: list[tuple[float, float]]) -> None:

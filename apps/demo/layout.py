@@ -24,7 +24,7 @@ class Layout:
     def __init__(self, pg, size: tuple[int, int], line_h: int, tile_count: int):
         w, h = size
         self.line_h = line_h
-        self.status_rect = pg.Rect(0, 0, w, line_h + 10)
+        self.status_rect = pg.Rect(0, 0, w, 2 * line_h + 12)  # two lines: the plate, and what is around it
         self.toolbar_rect = pg.Rect(0, h - 64, w, 64)
         chart_h = max(120, min(200, h // 5))
         self.chart_rect = pg.Rect(0, self.toolbar_rect.top - chart_h, w, chart_h)

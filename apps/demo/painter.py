@@ -11,10 +11,12 @@ from ultraglide.apps.demo.draw import (
     ACCENT,
     BACKGROUND,
     DIM,
+    LIMIT,
     OTHER_FINGER,
     PANEL,
     TEXT,
     blit_texture,
+    dimmed,
     draw_chart,
     draw_help,
     draw_trace,
@@ -24,10 +26,12 @@ from ultraglide.apps.demo.draw import (
     thumbnail,
 )
 from ultraglide.apps.demo.options import seconds_since_launch
-from ultraglide.apps.demo.status import status_words
+from ultraglide.apps.demo.status import HELP as HELP_KEY
+from ultraglide.apps.demo.status import SEPARATOR, status_lines
 
 CHART_SPAN_S = 3.0
 TRACE_S = 1.5  # the driving finger's trace fades over this
+STATUS_MARGIN_PX = 8
 HELP = [
     ("touch / mouse", "drag on a texture to feel it; tap a tile in the gallery to open it"),
     ("second finger", "shown, but only the first finger drives the plate"),
@@ -68,9 +72,11 @@ class Painter:
         self._surfaces.pop(id(texture), None)
 
     def _surface(self, texture):
+        """The texture at the screen's pitch, and its dimmed copy for the repeats beyond its edge."""
         key = id(texture)
         if key not in self._surfaces:
-            self._surfaces[key] = texture_surface(texture, self.app.mm_per_px)
+            surface = texture_surface(texture, self.app.mm_per_px)
+            self._surfaces[key] = surface, dimmed(surface) if texture.outside == "tile" else None
         return self._surfaces[key]
 
     def everything(self) -> None:
@@ -112,7 +118,8 @@ class Painter:
         pg, screen, area = self.pg, self.screen, app.layout.area
         texture = app.scenes.current
         outside = friction_colours(np.array([[texture.outside_ratio]]))[0, 0].tolist()
-        blit_texture(screen, self._surface(texture), area, texture.outside == "tile", outside)
+        surface, repeat = self._surface(texture)
+        blit_texture(screen, surface, area, texture.outside == "tile", outside, repeat)
         words = f"{texture.name}: {texture.width_mm:.4g} × {texture.height_mm:.4g} mm"
         if texture.description:
             words += f", {texture.description}"
@@ -142,16 +149,29 @@ class Painter:
         draw_chart(self.screen, self.font, app.layout.chart_rect, series, CHART_SPAN_S, full_scale, limit, label)
 
     def status(self, force: bool = False) -> bool:
-        """The status line, when its words changed (or ``force``); True when drawn."""
-        words = status_words(self.app)
+        """The status line's two lines, when their words changed (or ``force``); True when drawn."""
+        rect = self.app.layout.status_rect
+        first, second = status_lines(self.app, self.font, rect.width)
+        words = (first, second)
         if words == self._status_words and not force:
             return False
         self._status_words = words
-        rect = self.app.layout.status_rect
         self.pg.draw.rect(self.screen, PANEL, rect)
-        text = fit_text(self.font, words, rect.width - 16)
-        self.screen.blit(self.font.render(text, True, TEXT), (8, 5))
+        line_h = self.font.get_linesize()
+        for row, parts in enumerate(words):
+            x, y = rect.left + STATUS_MARGIN_PX, rect.top + 5 + row * (line_h + 2)
+            for i, (text, part) in enumerate(parts):
+                if i:
+                    x += self._blit(SEPARATOR, DIM, x, y)
+                x += self._blit(text, LIMIT if part.warn else TEXT, x, y)
+        help_text = self.font.render(HELP_KEY, True, ACCENT)
+        self.screen.blit(help_text, help_text.get_rect(topright=(rect.right - STATUS_MARGIN_PX, rect.top + 5)))
         return True
+
+    def _blit(self, text: str, colour, x: int, y: int) -> int:
+        rendered = self.font.render(text, True, colour)
+        self.screen.blit(rendered, (x, y))
+        return rendered.get_width()
 
     def toolbar(self) -> None:
         pg, app = self.pg, self.app
