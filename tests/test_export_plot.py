@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_cli
 from PIL import Image
-from ultraglide.apps.figures.export_plot import BUCKETS, SEGMENT, PlotRecorder
+from ultraglide.apps.figures.export_plot import BUCKETS, CANDIDATES, SEGMENT, ZOOMS, PlotRecorder
 
 RATE = 12000.0
 
@@ -57,7 +57,76 @@ def test_recorder_memory_does_not_grow_with_the_run():
     short, long = PlotRecorder(int(RATE * 10), RATE), PlotRecorder(int(RATE * 3600), RATE)
     for recorder in (short, long):
         assert recorder.low.shape[1] <= BUCKETS and recorder.power.shape[0] <= 602
-        assert recorder.windows.shape == (3, 6, 1200)
+        assert recorder.window_length == 1200 and recorder._hop_buffer.shape == (6, 600)
+    n = int(RATE * 60)
+    _feed(long, _signals(n), [4096] * (n // 4096))
+    kept = [window for candidates in long.candidates.values() for _, _, window in candidates]
+    assert len(kept) <= 3 * CANDIDATES and all(window.shape == (6, 1200) for window in kept)
+
+
+def _events(n):
+    """20 s at rest but for two events: at 4.2 s the target steps up to 4 µm and the drive overshoots to 7 µm
+    for 5 ms (pre-compensation's overdrive, the limit being 6); at 13.3 s it steps back down and the plate
+    takes 20 ms to follow."""
+    t = np.arange(n) / RATE
+    target = np.where((t >= 4.2) & (t < 13.3), 4.0, 0.0)
+    drive = target + np.where((t >= 4.2) & (t < 4.205), 3.0, 0.0)
+    plate = np.where((t >= 13.3) & (t < 13.32), 4.0, target)
+    return SimpleNamespace(time_s=t, x_mm=50 * t, y_mm=np.full(n, 25.0), down=np.ones(n, bool),
+                           ratio=np.where(target > 0, 0.3, 1.0), target_um_pp=target, amplitude_um_pp=target,
+                           drive_um_pp=drive, plate_um_pp=plate)
+
+
+def _renderer():
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.render.physics.calibration import load_model
+    from ultraglide.render.renderer import Renderer
+    from ultraglide.textures.library import resolve_texture
+
+    return Renderer(resolve_texture("grating-1mm"), load_model("exponential"), load_profile("sim-plate"))
+
+
+def test_zooms_land_where_something_happens_and_say_why():
+    n = int(RATE * 20)
+    recorder = PlotRecorder(n, RATE)
+    _feed(recorder, _events(n), [1000] * (n // 1000))
+    zooms = recorder.zooms(limit_um_pp=6.0)
+    spans = [(first / RATE, (first + window.shape[1]) / RATE) for _, first, window in zooms]
+    assert len(zooms) == 2  # two events, two windows: no third on a stretch where nothing happens
+    assert spans[0][0] < 4.2 < spans[0][1] and spans[1][0] < 13.3 < 13.32 < spans[1][1], spans
+    assert zooms[0][0] in (ZOOMS["change"], ZOOMS["overdrive"]) and zooms[1][0] in (ZOOMS["change"], ZOOMS["lag"])
+    quiet = PlotRecorder(n, RATE)
+    flat = _events(n)
+    for name in ("target_um_pp", "drive_um_pp", "plate_um_pp", "amplitude_um_pp"):
+        getattr(flat, name)[:] = 1.0
+    _feed(quiet, flat, [1000] * (n // 1000))
+    assert [(why, first) for why, first, _ in quiet.zooms(6.0)] == [("the start: nothing changes in this run", 0)]
+
+
+def test_the_figure_draws_the_target_over_the_plate_and_explains_overdrive():
+    import matplotlib.pyplot as plt
+
+    n = int(RATE * 20)
+    recorder = PlotRecorder(n, RATE)
+    _feed(recorder, _events(n), [1000] * (n // 1000))
+    figure = recorder.draw(_renderer())
+    try:
+        amplitude = next(axes for axes in figure.axes if axes.get_ylabel() == "amplitude (µm p-p)")
+        target = [line for line in amplitude.lines if line.get_color() == "k"]
+        assert target and all(line.get_zorder() > artist.get_zorder()
+                              for line in target for artist in amplitude.collections)  # bands under the target
+        labels = amplitude.get_legend_handles_labels()[1]
+        assert any("overdrive" in label for label in labels), labels
+        zooms = [axes for axes in figure.axes if axes.get_title().startswith("zoom")]
+        assert len(zooms) == 2
+        for zoom in zooms:
+            black = [line for line in zoom.lines if line.get_color() == "k"]
+            assert black and black[0].get_zorder() > max(line.get_zorder() for line in zoom.lines if line not in black)
+            assert zoom.get_ylim() == zooms[0].get_ylim() and 7.0 < zoom.get_ylim()[1] <= 7.0 * 1.2  # one scale
+        assert "overdrive" in " ".join(text.get_text() for text in zooms[0].texts)
+        assert not zooms[1].texts  # no overdrive there
+    finally:
+        plt.close(figure)
 
 
 @pytest.mark.parametrize("suffix", [".png", ".pdf", ".svg"])

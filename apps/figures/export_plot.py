@@ -3,8 +3,15 @@
 A :class:`PlotRecorder` watches the renderer's control blocks and keeps, in memory that does not
 grow with the run: an overview (the minimum, maximum and mean of each signal over about 2000
 stretches of time, drawn as a band with its mean, so that no peak is lost however long the run),
-three zoomed windows at full control rate (near the start, the middle and the end), and a
-spectrogram of the drive (Hann-windowed segments whose power is averaged over about 600 columns).
+three zoomed windows at full control rate where something happens (:data:`ZOOMS`: where the target
+changes most, where the drive goes furthest above the plate's limit, where the plate lags the target
+most; 100 ms windows looked at every 50 ms, the best few of each kind kept), and a spectrogram of the
+drive (Hann-windowed segments whose power is averaged over about 600 columns).
+
+The target is drawn over the plate and the drive (black), so it is never hidden under them. The drive
+may rise above the plate's limit: that is pre-compensation's overdrive (up to the profile's
+``max_drive_um_pp``), which speeds the plate's slow response while its own amplitude stays within the
+limit; the figure says so where it happens.
 """
 
 from __future__ import annotations
@@ -22,9 +29,17 @@ from ultraglide.apps.cli.errors import UsageError  # noqa: E402
 from ultraglide.apps.cli.files import atomic_path  # noqa: E402
 
 CHANNELS = ("ratio", "target_um_pp", "drive_um_pp", "plate_um_pp", "x_mm", "y_mm")
+RATIO, TARGET, DRIVE, PLATE, X, Y = range(len(CHANNELS))
 BUCKETS = 2000
-WINDOWS = (0.1, 0.5, 0.9)  # where the zoomed windows are centred, as fractions of the run
 WINDOW_S = 0.1
+ZOOMS = {  # what a zoomed window shows, and how a window scores for it (the highest wins)
+    "change": "where the target changes most",
+    "overdrive": "where the drive goes furthest above the plate's limit",
+    "lag": "where the plate lags the target most",
+}
+CANDIDATES = 3  # windows kept for each kind, so that three distinct ones can be chosen
+NOTHING_UM_PP = 0.05  # a window whose target changes less, and whose plate lags less, shows nothing
+TARGET_STYLE = {"color": "k", "lw": 0.8, "zorder": 5}  # over the plate and the drive
 SEGMENT = 1024  # spectrogram segment, control samples (85 ms at 12 kHz)
 COLUMNS = 600
 SPECTRUM_TOP_HZ = 1000.0
@@ -50,11 +65,12 @@ class PlotRecorder:
         self.high = np.full((len(CHANNELS), buckets), -np.inf)
         self.sum = np.zeros((len(CHANNELS), buckets))
         self.count = np.zeros(buckets)
-        window = max(2, min(round(WINDOW_S * self.rate), self.total // 4 or 2))
-        starts = [min(max(0, round(f * self.total) - window // 2), max(0, self.total - window)) for f in WINDOWS]
-        self.window_starts = sorted(set(starts))
-        self.windows = np.full((len(self.window_starts), len(CHANNELS), window), np.nan)
-        self.window_length = window
+        self.hop = max(1, min(round(WINDOW_S * self.rate), self.total // 4 or 2) // 2)
+        self.window_length = 2 * self.hop  # a window is two hops: looked at every hop, half overlapping
+        self.candidates: dict[str, list[tuple[float, int, np.ndarray]]] = {kind: [] for kind in ZOOMS}
+        self._hop_buffer = np.zeros((len(CHANNELS), self.hop))
+        self._hop_fill = 0
+        self._last_hop: np.ndarray | None = None
         segments = max(1, self.total // SEGMENT)
         self.per_column = max(1, math.ceil(segments / COLUMNS))
         self.power = np.zeros((math.ceil(segments / self.per_column) + 1, SEGMENT // 2 + 1))
@@ -91,11 +107,75 @@ class PlotRecorder:
         self.count[ids] += np.diff(np.concatenate([cuts, [len(index)]]))
 
     def _zoom(self, columns: np.ndarray, start: int) -> None:
-        stop = start + columns.shape[1]
-        for k, first in enumerate(self.window_starts):
-            a, b = max(start, first), min(stop, first + self.window_length)
-            if a < b:
-                self.windows[k, :, a - first:b - first] = columns[:, a - start:b - start]
+        """Collect hops; each window of two hops is scored for every kind of zoom."""
+        done = 0
+        while done < columns.shape[1]:
+            take = min(self.hop - self._hop_fill, columns.shape[1] - done)
+            self._hop_buffer[:, self._hop_fill:self._hop_fill + take] = columns[:, done:done + take]
+            self._hop_fill += take
+            done += take
+            if self._hop_fill == self.hop:
+                hop_start = start + done - self.hop
+                if self._last_hop is not None:
+                    self._consider(np.concatenate([self._last_hop, self._hop_buffer], axis=1), hop_start - self.hop)
+                self._last_hop = self._hop_buffer.copy()
+                self._hop_fill = 0
+
+    def _consider(self, window: np.ndarray, first: int) -> None:
+        target, drive, plate = window[TARGET], window[DRIVE], window[PLATE]
+        scores = {"change": float(np.ptp(target)), "overdrive": float(drive.max()),
+                  "lag": float(np.sqrt(np.mean((plate - target) ** 2)))}
+        for kind, score in scores.items():
+            kept = self.candidates[kind]
+            rival = next((c for c in kept if abs(c[1] - first) < self.window_length), None)  # overlapping
+            if rival is not None:
+                if score <= rival[0]:
+                    continue
+                kept.remove(rival)
+            if len(kept) < CANDIDATES or score > kept[-1][0]:
+                kept.append((score, first, window))
+                kept.sort(key=lambda c: -c[0])
+                del kept[CANDIDATES:]
+
+    def zooms(self, limit_um_pp: float | None = None) -> list[tuple[str, int, np.ndarray]]:
+        """Up to three windows that do not overlap, in time order: (why, first sample, channels × samples).
+        One of each kind where it can; overdrive only where the drive went above ``limit_um_pp``."""
+        chosen: list[tuple[str, int, np.ndarray]] = []
+
+        def free(first):
+            return all(abs(first - other) >= self.window_length for _, other, _ in chosen)
+
+        least = {"change": NOTHING_UM_PP, "lag": NOTHING_UM_PP,
+                 "overdrive": math.inf if limit_um_pp is None else limit_um_pp + 1e-9}
+        for kind in ZOOMS:
+            for score, first, window in self.candidates[kind]:
+                if score <= least[kind]:
+                    break
+                if free(first):
+                    chosen.append((ZOOMS[kind], first, window))
+                    break
+        rest = sorted(((score, kind, first, window) for kind in ("change", "lag")
+                       for score, first, window in self.candidates[kind]), key=lambda c: -c[0])
+        for score, kind, first, window in rest:  # fewer kinds than three: more of what happens most
+            if len(chosen) == len(ZOOMS) or score <= least[kind]:
+                break
+            if free(first):
+                chosen.append((ZOOMS[kind], first, window))
+        if not chosen:  # nothing happens: the start, to show that
+            window = next((c[2] for c in self.candidates["change"] if c[1] == 0), None)
+            if window is None and self._last_hop is not None:  # a run shorter than a window
+                window = self._last_hop
+            if window is not None:
+                chosen.append(("the start: nothing changes in this run", 0, window))
+        return sorted(chosen, key=lambda zoom: zoom[1])
+
+    @property
+    def window_starts(self) -> list[int]:
+        return [first for _, first, _ in self.zooms()]
+
+    @property
+    def windows(self) -> np.ndarray:
+        return np.array([window for _, _, window in self.zooms()])
 
     def _spectrum(self, drive: np.ndarray) -> None:
         samples = np.concatenate([self._pending, drive])
@@ -136,49 +216,65 @@ class PlotRecorder:
         figure = plt.figure(figsize=(11, 12.5))
         grid = figure.add_gridspec(5, 3, height_ratios=[1, 1.2, 0.8, 1.2, 1.4], hspace=0.6, wspace=0.3, top=0.94,
                                    bottom=0.05, left=0.08, right=0.92)
-        ratio, target, drive, plate, x, y = range(len(CHANNELS))
         limit = renderer.limit_um_pp
+        max_drive = renderer.profile.max_drive_um_pp
         duration_s = self.total / self.rate
+        overdriven = bool(len(high[DRIVE])) and float(high[DRIVE].max()) > limit + 1e-9
+        drive_label = ("drive (pre-compensated; above the limit: overdrive, which speeds the plate up)" if overdriven
+                       else "drive (pre-compensated)")
 
-        def band(axes, channel, label, colour):
-            axes.fill_between(times, low[channel], high[channel], color=colour, alpha=0.3, lw=0)
-            axes.plot(times, mean[channel], color=colour, lw=0.8, label=label)
+        def band(axes, channel, label, colour, line=True, alpha=0.3):
+            axes.fill_between(times, low[channel], high[channel], color=colour, alpha=alpha, lw=0,
+                              label=None if line else label)
+            if line:
+                axes.plot(times, mean[channel], color=colour, lw=0.8, label=label)
 
         top = figure.add_subplot(grid[0, :])
-        band(top, ratio, "target friction ratio", "C0")
+        band(top, RATIO, "target friction ratio", "C0")
         top.set(ylabel="friction ratio", ylim=(0, 1.05), xlim=(0, duration_s))
         top.set_title(f"{renderer.texture.name}, {renderer.model.describe()}\noverview of {duration_s:.3g} s: "
                       f"shaded, the range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean",
                       fontsize=9, loc="left")
         amplitude = figure.add_subplot(grid[1, :], sharex=top)
-        for channel, label, colour in ((target, "model target", "C1"), (drive, "drive (pre-compensated)", "C2"),
-                                       (plate, "plate (modelled)", "C3")):
-            band(amplitude, channel, label, colour)
-        amplitude.axhline(limit, color="r", ls="--", lw=0.8, label="plate limit")
-        amplitude.set(ylabel="amplitude (µm p-p)")
-        amplitude.legend(fontsize=7, loc="upper right", ncol=4)
+        band(amplitude, DRIVE, drive_label, "C2", line=False, alpha=0.35)  # ranges: a mean of a fast swing
+        band(amplitude, PLATE, "plate (modelled)", "C3", line=False, alpha=0.5)  # would only scribble over them
+        amplitude.plot(times, high[TARGET], **TARGET_STYLE, label="model target (its range: the lines)")
+        amplitude.plot(times, low[TARGET], **TARGET_STYLE)
+        amplitude.axhline(limit, color="r", ls="--", lw=0.8, label="plate limit (the plate's own amplitude)")
+        if overdriven and max_drive:
+            amplitude.axhline(max_drive, color="C2", ls=":", lw=0.8, label="max drive (the profile's overdrive)")
+        amplitude.set(ylabel="amplitude (µm p-p)", ylim=(0, 1.3 * max(limit, (max_drive or 0.0) if overdriven else 0.0,
+                                                                       float(high[TARGET:PLATE + 1].max(initial=0.0)))))
+        amplitude.legend(fontsize=7, loc="upper right", ncol=3)
         position = figure.add_subplot(grid[2, :], sharex=top)
-        band(position, x, "x", "C0")
-        band(position, y, "y", "C4")
+        band(position, X, "x", "C0")
+        band(position, Y, "y", "C4")
         position.set(ylabel="position (mm)", xlabel="time (s)")
         position.legend(fontsize=7, loc="upper right")
-        for k, first in enumerate(self.window_starts):
-            start_s, stop_s = first / self.rate, (first + self.window_length) / self.rate
+        zooms = self.zooms(limit)
+        shown = max([limit] + [float(np.nanmax(w[[TARGET, DRIVE, PLATE]])) for _, _, w in zooms]) * 1.15
+        for k, (why, first, window) in enumerate(zooms):
+            start_s, stop_s = first / self.rate, (first + window.shape[1]) / self.rate
             for axes in (top, amplitude, position):
                 axes.axvspan(start_s, stop_s, color="k", alpha=0.12, lw=0)
             zoom = figure.add_subplot(grid[3, k])
-            t = np.arange(self.window_length) / self.rate * 1000  # ms from the window's start
-            for channel, colour in ((target, "C1"), (drive, "C2"), (plate, "C3")):
-                zoom.plot(t, self.windows[k, channel], color=colour, lw=0.8)
+            t = np.arange(window.shape[1]) / self.rate * 1000  # ms from the window's start
+            zoom.plot(t, window[DRIVE], color="C2", lw=0.8)
+            zoom.plot(t, window[PLATE], color="C3", lw=0.8)
+            zoom.plot(t, window[TARGET], **TARGET_STYLE)
             zoom.axhline(limit, color="r", ls="--", lw=0.8)
-            zoom.set_title(f"zoom {k + 1}: {start_s:.3f}–{stop_s:.3f} s (shaded above)", fontsize=8)
+            zoom.set_ylim(0, shown)  # one scale for the three, the limit on it
+            if float(np.nanmax(window[DRIVE])) > limit + 1e-9:
+                zoom.text(0.02, 0.97, "drive above the limit: overdrive,\nthe plate itself stays below it",
+                          transform=zoom.transAxes, fontsize=6.5, va="top", color="C2")
+            zoom.set_title(f"zoom {k + 1}, {start_s:.3f}–{stop_s:.3f} s:\n{why}", fontsize=8)
             zoom.set_xlabel(f"time from {start_s:.3f} s (ms)", fontsize=8)
             if k == 0:
                 zoom.set_ylabel("amplitude (µm p-p)", fontsize=8)
             twin = zoom.twinx()
-            twin.plot(t, self.windows[k, ratio], color="C0", lw=0.6, alpha=0.7)
+            twin.plot(t, window[RATIO], color="C0", lw=0.6, alpha=0.7)
             twin.set_ylim(0, 1.05)
-            if k == len(self.window_starts) - 1:
+            if k == len(zooms) - 1:
                 twin.set_ylabel("friction ratio (blue)", fontsize=8)
             for axes in (zoom, twin):
                 axes.tick_params(labelsize=7)
