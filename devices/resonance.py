@@ -130,6 +130,7 @@ class ResonanceTracker:
                  carrier_max_hz: float, settings: TrackerSettings = TrackerSettings()):
         self.settings = settings
         self.q = q
+        self.start_hz = float(resonance_hz)
         self.center_hz = float(resonance_hz)
         self.limit_um_pp = limit_um_pp
         self.carrier_min_hz = carrier_min_hz
@@ -149,6 +150,13 @@ class ResonanceTracker:
     @property
     def dither_hz(self) -> float:
         return self.settings.dither_fraction * self.center_hz / (2.0 * self.q)
+
+    def summary(self) -> dict:
+        """What it tracked, as plain JSON values: where it started and where the resonance is now (Hz), the
+        drift between them, the drift rate it has seen (Hz/s), its steps and the steps it discarded."""
+        return {"start_hz": round(self.start_hz, 2), "resonance_hz": round(self.center_hz, 2),
+                "drift_hz": round(self.center_hz - self.start_hz, 2), "rate_hz_per_s": round(self.rate_hz_per_s, 3),
+                "steps": self.updates, "discarded_steps": self.rejected}
 
     def _clamp(self, carrier_hz: float) -> float:
         return min(max(carrier_hz, self.carrier_min_hz), self.carrier_max_hz)

@@ -496,4 +496,5 @@ class SerialPlate:
             "device_late_setpoints": None if t is None else t.late_setpoints,
             "faults": faults,
             "device_faults": [name for name, count in faults.items() if count],
+            **({"tracking": self.tracker.summary()} if self.tracker is not None else {}),
         }

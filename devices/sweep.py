@@ -220,9 +220,12 @@ def fit_sweep(points: list[SweepPoint], low_hz: float, high_hz: float) -> Resona
 
 def measured_profile(old: PlateProfile, fit: ResonanceFit, name: str) -> PlateProfile:
     """The profile the sweep found: its resonance, Q and full scale; the old limit kept (lowered only to the
-    full scale if the plate cannot reach it), the carrier range kept."""
-    full_scale = fit.peak_um_pp
-    return PlateProfile(name, round(fit.resonance_hz, 2), round(fit.q, 2), round(full_scale, 4),
-                        min(old.max_amplitude_um_pp, round(full_scale, 4)), old.carrier_min_hz, old.carrier_max_hz,
-                        f"measured by ultraglide plate sweep from {old.name}, "
-                        f"{time.strftime('%Y-%m-%d %H:%M:%S', time.gmtime())} UTC")
+    full scale if the plate cannot reach it), the old overdrive headroom (``max_drive_um_pp``) kept (lowered
+    only to the full scale, never below the limit), the carrier range and ``allow_audible`` kept."""
+    full_scale = round(fit.peak_um_pp, 4)
+    limit = min(old.max_amplitude_um_pp, full_scale)
+    return PlateProfile(name, round(fit.resonance_hz, 2), round(fit.q, 2), full_scale, limit, old.carrier_min_hz,
+                        old.carrier_max_hz, f"measured by ultraglide plate sweep from {old.name}, "
+                        f"{time.strftime('%Y-%m-%d %H:%M:%S', time.gmtime())} UTC",
+                        max_drive_um_pp=max(limit, min(old.max_drive_um_pp, full_scale)),
+                        allow_audible=old.allow_audible)

@@ -5,6 +5,7 @@ import math
 import signal
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -41,6 +42,23 @@ def test_the_fit_recovers_a_noisy_resonance_within_its_stated_uncertainty():
     assert fits[0].bandwidth_hz == pytest.approx(fits[0].resonance_hz / fits[0].q)
 
 
+@pytest.mark.parametrize("believed, measured_full_scale, limit, drive", [
+    ({}, 8.02, 6.0, 8.0),  # sim-plate: limit 6, drive up to 8, kept
+    ({}, 7.5, 6.0, 7.5),  # the plate reaches less than the drive asked: the headroom lowered to its full scale
+    ({}, 5.0, 5.0, 5.0),  # less than the limit: both lowered
+    ({"max_drive_um_pp": None}, 9.0, 6.0, 6.0),  # no overdrive in the profile: none in the measured one
+])
+def test_the_measured_profile_keeps_the_limit_and_the_overdrive_headroom(believed, measured_full_scale, limit,
+                                                                         drive):
+    from ultraglide.devices.resonance import ResonanceFit
+    from ultraglide.devices.sweep import measured_profile
+
+    old = replace(load_profile("sim-plate"), **believed)
+    found = measured_profile(old, ResonanceFit(24900.0, 180.0, measured_full_scale, 1.0, 2.0, 0.01, 0.001), "m")
+    assert (found.full_scale_um_pp, found.max_amplitude_um_pp, found.max_drive_um_pp) == \
+        (measured_full_scale, limit, drive)
+
+
 def test_the_fit_refuses_what_has_no_peak():
     with pytest.raises(FitError, match="did not move"):
         fit_resonance(np.linspace(20000, 28000, 9), np.zeros(9))
@@ -62,7 +80,8 @@ def test_a_sweep_finds_the_simulated_plates_resonance_q_and_gain_and_writes_its_
     # the host's profile is wrong on purpose: resonance 25 kHz, Q 200, full scale 16 µm p-p, limit 5 µm p-p;
     # the plate (plate-sim's sim-plate profile) really has 23.7 kHz, Q 150 and 8 µm p-p at full scale
     believed = tmp_path / "believed.toml"
-    believed.write_text('resonance_hz = 25000.0\nq = 200.0\nfull_scale_um_pp = 16.0\nmax_amplitude_um_pp = 5.0\n')
+    believed.write_text('resonance_hz = 25000.0\nq = 200.0\nfull_scale_um_pp = 16.0\nmax_amplitude_um_pp = 5.0\n'
+                        'max_drive_um_pp = 7.0\n')
     link = tmp_path / "plate"
     server = Server("--link", link, "--resonance-hz", 23700, "--q", 150, "--json")
     try:
@@ -82,6 +101,7 @@ def test_a_sweep_finds_the_simulated_plates_resonance_q_and_gain_and_writes_its_
     assert profile.q == pytest.approx(found["q"], abs=0.01)
     assert profile.full_scale_um_pp == pytest.approx(8.0, rel=0.02)  # from the measured gain, not the 16 believed
     assert profile.max_amplitude_um_pp == 5.0  # the user's limit, kept
+    assert profile.max_drive_um_pp == found["max_drive_um_pp"] == 7.0  # and the overdrive headroom
     # safe throughout: the plate never moved more than the sweep's low drive (15 % of 5 µm p-p at the
     # believed gain, so half that on this plate), and the sweep ended by resting it
     assert stopped["peak_um_pp"] <= 0.15 * 5.0 + 1e-6

@@ -146,7 +146,9 @@ def test_play_tracks_a_drifting_plate_from_the_command_line(tmp_path):
     server = Server("--link", link, "--drift-hz-per-s", 15, "--json")
     try:
         banner = json.loads(server.wait_line(lambda line: '"serving"' in line))
-        result = run_cli("play", flat, "--device", f"serial:{link}", "--track-resonance", "--duration-s", 5, "--json")
+        saved = tmp_path / "tracked.toml"
+        result = run_cli("play", flat, "--device", f"serial:{link}", "--track-resonance", "--duration-s", 5, "--json",
+                         "--save-profile", saved)
         assert result.returncode == 0, result.stderr
         status = json.loads(result.stdout)
         server.finish(signal.SIGTERM)
@@ -163,6 +165,34 @@ def test_play_tracks_a_drifting_plate_from_the_command_line(tmp_path):
     assert drift > 60 and status["carrier_changes"] > 10
     assert abs(status["carrier_hz"] - resonance_at_end) < 30.0, (status["carrier_hz"], resonance_at_end, enabled)
     assert status["faults"]["bad-command"] == 0
+    # and it says what it tracked: from the profile's resonance to where it ended, and saves that for next time
+    tracking = status["tracking"]
+    assert tracking["start_hz"] == 25000.0 and abs(tracking["resonance_hz"] - resonance_at_end) < 30.0
+    assert tracking["drift_hz"] == pytest.approx(tracking["resonance_hz"] - 25000.0, abs=0.011)
+    assert tracking["drift_hz"] > 60 and tracking["rate_hz_per_s"] > 0 and tracking["steps"] > 5
+    profile, played = load_profile(str(saved)), load_profile("sim-plate")
+    assert profile.resonance_hz == tracking["resonance_hz"]
+    assert (profile.q, profile.max_amplitude_um_pp, profile.max_drive_um_pp, profile.full_scale_um_pp) == \
+        (played.q, played.max_amplitude_um_pp, played.max_drive_um_pp, played.full_scale_um_pp)
+
+
+def test_tracking_is_said_in_words():
+    from ultraglide.apps.commands.play import tracking_words
+
+    words = tracking_words({"start_hz": 25000.0, "resonance_hz": 25081.5, "drift_hz": 81.5, "rate_hz_per_s": 14.8,
+                            "steps": 21, "discarded_steps": 1})
+    assert words == ("resonance tracked from 25000.0 Hz to 25081.5 Hz (drift +81.5 Hz, +14.80 Hz/s at the end; "
+                     "21 steps, 1 discarded)")
+    assert "no step taken" in tracking_words({"start_hz": 25000.0, "resonance_hz": 25000.0, "drift_hz": 0.0,
+                                              "rate_hz_per_s": 0.0, "steps": 0, "discarded_steps": 0})
+
+
+def test_save_profile_needs_tracking_and_a_toml_name(tmp_path):
+    line = assert_one_line_error(run_cli("play", "grating-1mm", "--save-profile", tmp_path / "p.toml"))
+    assert "--track-resonance" in line
+    line = assert_one_line_error(run_cli("play", "grating-1mm", "--track-resonance", "--save-profile",
+                                         tmp_path / "p.txt"))
+    assert "TOML" in line and not list(tmp_path.iterdir())
 
 
 def test_tracking_needs_a_device_that_measures():

@@ -93,7 +93,8 @@ def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output
     summary = {"resonance_hz": round(fit.resonance_hz, 3), "resonance_sigma_hz": float(f"{fit.resonance_sigma_hz:.4g}"),
                "q": round(fit.q, 3), "q_sigma": float(f"{fit.q_sigma:.4g}"), "bandwidth_hz": round(fit.bandwidth_hz, 3),
                "full_scale_um_pp": found.full_scale_um_pp, "full_scale_measured": bool(args.sensor_um_per_unit),
-               "max_amplitude_um_pp": found.max_amplitude_um_pp, "points": len(carriers), "from_hz": low,
+               "max_amplitude_um_pp": found.max_amplitude_um_pp, "max_drive_um_pp": found.max_drive_um_pp,
+               "points": len(carriers), "from_hz": low,
                "to_hz": high, "drive_fraction": round(level, 5), "profile": str(output)}
     if args.json:
         print(json.dumps(summary))
@@ -102,21 +103,48 @@ def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output
               f"from the sensor, {len(carriers)} carriers at {level:.1%} of full-scale drive")
         if not args.sensor_um_per_unit:
             print("full scale kept from the profile: give --sensor-um-per-unit to measure it")
+        print(overdrive_words(profile, found))
         print(f"profile written to {output}")
     return 0
 
 
+def overdrive_words(old: PlateProfile, found: PlateProfile) -> str:
+    """What became of the profile's overdrive headroom for pre-compensation (``max_drive_um_pp``)."""
+    if old.max_drive_um_pp <= old.max_amplitude_um_pp:
+        return "no overdrive in the profile: the drive stays within the limit"
+    if found.max_drive_um_pp < old.max_drive_um_pp:
+        return (f"overdrive lowered from {old.max_drive_um_pp:g} to {found.max_drive_um_pp:g} µm p-p: the plate's full "
+                "scale")
+    return f"overdrive kept: the drive may reach {found.max_drive_um_pp:g} µm p-p to pre-compensate"
+
+
 def write_profile(path: Path, profile: PlateProfile, fit: ResonanceFit) -> None:
+    """The sweep's profile, with the fit and its uncertainties in a comment."""
+    save_profile(path, profile, "measured by `ultraglide plate sweep`",
+                 f"resonance {fit.resonance_hz:.2f} ± {fit.resonance_sigma_hz:.2f} Hz, "
+                 f"Q {fit.q:.2f} ± {fit.q_sigma:.2f}, "
+                 f"full scale {fit.peak_um_pp:.4f} ± {fit.peak_sigma_um_pp:.4f} µm p-p (one sigma)")
+
+
+def save_profile(path: Path, profile: PlateProfile, made_by: str, *notes: str) -> None:
+    """A profile as TOML that ``--profile`` loads, written atomically, with comment lines saying where it came
+    from."""
     import tomli_w
     from ultraglide.devices.profiles import PlateProfile
 
     document = {key: getattr(profile, key) for key in PlateProfile.__dataclass_fields__}
-    header = (f"# Plate profile measured by `ultraglide plate sweep` (load with --profile {path.name}).\n"
-              f"# resonance {fit.resonance_hz:.2f} ± {fit.resonance_sigma_hz:.2f} Hz, "
-              f"Q {fit.q:.2f} ± {fit.q_sigma:.2f}, "
-              f"full scale {fit.peak_um_pp:.4f} ± {fit.peak_sigma_um_pp:.4f} µm p-p (one sigma)\n")
+    header = "".join(f"# {line}\n" for line in (f"Plate profile {made_by} (load with --profile {path.name}).", *notes))
     with atomic_path(path) as temporary:
         temporary.write_text(header + tomli_w.dumps(document), encoding="utf-8")
+
+
+def check_profile_path(path: Path, option: str) -> Path:
+    """Refuse, before anything runs, a profile path that cannot be written as asked."""
+    if path.suffix.lower() != ".toml":
+        raise UsageError(f"{option} {path}: the profile is written as TOML; name it PROFILE.toml")
+    if not path.resolve().parent.is_dir():
+        raise UsageError(f"{option} {path}: its folder does not exist")
+    return path
 
 
 def run_sweep(args) -> int:
@@ -133,9 +161,7 @@ def run_sweep(args) -> int:
     profile.check_carrier(high)
     if args.steps < 5:
         raise UsageError("--steps must be at least 5")
-    output = Path(args.output)
-    if output.suffix.lower() != ".toml":
-        raise UsageError(f"{output}: the profile is written as TOML; name it PROFILE.toml")
+    output = check_profile_path(Path(args.output), "-o")
     if args.plot and Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
         raise UsageError(f"{args.plot}: the plot is drawn as PNG, PDF or SVG; name it so")
     for path in filter(None, (output, args.plot and Path(args.plot))):
@@ -173,7 +199,8 @@ def run_sweep(args) -> int:
         "resonance_hz": round(fit.resonance_hz, 3), "resonance_sigma_hz": float(f"{fit.resonance_sigma_hz:.4g}"),
         "q": round(fit.q, 3), "q_sigma": float(f"{fit.q_sigma:.4g}"), "bandwidth_hz": round(fit.bandwidth_hz, 3),
         "full_scale_um_pp": round(fit.peak_um_pp, 5), "full_scale_sigma_um_pp": float(f"{fit.peak_sigma_um_pp:.4g}"),
-        "max_amplitude_um_pp": found.max_amplitude_um_pp, "rms_residual_um_pp": round(fit.rms_residual_um_pp, 5),
+        "max_amplitude_um_pp": found.max_amplitude_um_pp, "max_drive_um_pp": found.max_drive_um_pp,
+        "rms_residual_um_pp": round(fit.rms_residual_um_pp, 5),
         "points": len(points), "unsettled_points": sweeper.unsettled, "from_hz": low, "to_hz": high,
         "drive_um_pp": round(level_fraction * profile.full_scale_um_pp, 4), "profile": str(output),
         "plot": args.plot, "faults": faults,
@@ -189,6 +216,7 @@ def run_sweep(args) -> int:
               "cannot reach more at full-scale drive")
     else:
         print(f"limit kept at {found.max_amplitude_um_pp:g} µm p-p (a sweep never raises it)")
+    print(overdrive_words(profile, found))
     if sweeper.unsettled:
         print(f"warning: {sweeper.unsettled} points did not settle within {MAX_FRAMES_PER_STEP} telemetry frames")
     if faults:

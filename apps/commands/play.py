@@ -38,6 +38,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     play.add_argument("--track-resonance", action="store_true",
                       help="follow the plate's drifting resonance from its telemetry (a small dither of the "
                            "carrier, stepping toward more amplitude per unit drive); plate drivers only")
+    play.add_argument("--save-profile", metavar="PROFILE.toml",
+                      help="with --track-resonance: write the profile with the resonance it ended on, for the next "
+                           "run's --profile")
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
     play.set_defaults(run=run)
 
@@ -101,6 +104,16 @@ def run(args) -> int:
     from ultraglide.render.engine import Engine
 
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
+    save_to = None
+    if args.save_profile:
+        from pathlib import Path
+
+        from ultraglide.apps.cli.errors import UsageError
+        from ultraglide.apps.commands.plate import check_profile_path
+
+        if not args.track_resonance:
+            raise UsageError("--save-profile saves the resonance that --track-resonance found; give both")
+        save_to = check_profile_path(Path(args.save_profile), "--save-profile")
     trajectory = inputs.trajectory
     engine = Engine.start(engine_config(args))
     try:
@@ -128,6 +141,9 @@ def run(args) -> int:
         print(f"warning: {100 * clipped:.1f} % of the time the texture asked for less friction than model "
               f"{args.model} reaches at {force} within "
               f"{inputs.profile.max_amplitude_um_pp:g} µm p-p; held at the limit", file=sys.stderr)
+    tracking = device_status.get("tracking")
+    if save_to is not None and tracking is not None:
+        save_tracked_profile(save_to, inputs.profile, tracking)
     if args.json:
         print(json.dumps(status))
     else:
@@ -137,7 +153,32 @@ def run(args) -> int:
               f"engine priority {final.priority}")
         print(limiter)
         print(describe_faults(counts or {}))
+        if tracking is not None:
+            print(tracking_words(tracking))
+        if save_to is not None and tracking is not None:
+            print(f"profile with the tracked resonance written to {save_to}: use --profile {save_to} next time")
     return 0
+
+
+def tracking_words(tracking: dict) -> str:
+    """What ``--track-resonance`` followed, from the tracker's summary, in one line."""
+    if not tracking["steps"]:
+        return (f"resonance tracking: no step taken (the drive was too low or too short to measure); still at "
+                f"{tracking['start_hz']:.1f} Hz")
+    return (f"resonance tracked from {tracking['start_hz']:.1f} Hz to {tracking['resonance_hz']:.1f} Hz "
+            f"(drift {tracking['drift_hz']:+.1f} Hz, {tracking['rate_hz_per_s']:+.2f} Hz/s at the end; "
+            f"{tracking['steps']} steps, {tracking['discarded_steps']} discarded)")
+
+
+def save_tracked_profile(path, profile, tracking: dict) -> None:
+    """The profile played with, its resonance replaced by the one tracking ended on."""
+    from dataclasses import replace
+
+    from ultraglide.apps.commands.plate import save_profile
+
+    found = replace(profile, name=path.stem, resonance_hz=tracking["resonance_hz"],
+                    description=f"{profile.name} with the resonance tracked by ultraglide play")
+    save_profile(path, found, "written by `ultraglide play --track-resonance`", tracking_words(tracking))
 
 
 def describe_faults(counts: dict[str, int]) -> str:
