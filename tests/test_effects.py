@@ -401,3 +401,98 @@ def test_the_widgets_scene_clicks_pulses_at_detents_buzzes_and_snaps(monkeypatch
     tx, ty = toggle.x_mm + toggle.texture.width_mm * 0.75, toggle.y_mm + toggle.texture.height_mm / 2
     player, _, _ = run_player(texture.effects, RecordedTrajectory([0.0, 0.1], [tx, tx], [ty, ty]), 8, end_s=0.1)
     assert [k for k, _ in player.starts] == [3]
+
+
+# ---- effects beyond the library: play, texture effects, texture compose ------------------------------------
+BUZZ = {"effects_version": 1, "bindings": [{"trigger": {"on": "while"}, "label": "buzz everywhere",
+                                            "effect": {"type": "sine", "frequency_hz": 40.0, "depth": 0.6}}]}
+
+
+def _at_rest(tmp_path, bindings=()):
+    """A 80 × 50 mm texture at rest everywhere (ratio 1): the plate only moves for its effects."""
+    return save_texture(Texture(np.ones((50, 80), np.float32), 80.0, 50.0, name="rest", effects=bindings),
+                        tmp_path / "rest.png")
+
+
+def _peak(wav):
+    samples, _ = soundfile.read(wav)
+    return float(np.abs(samples).max())
+
+
+def test_play_plays_effects_from_a_file_and_leaves_them_out_when_asked(tmp_path):
+    (tmp_path / "buzz.json").write_text(json.dumps(BUZZ))
+    rest = _at_rest(tmp_path)
+    result = run_cli("play", rest, "--device", f"wav:{tmp_path / 'buzz.wav'}", "--effects", tmp_path / "buzz.json",
+                     "--duration-s", 1, "--json", check=True)
+    assert json.loads(result.stdout)["effects_started"] == 1 and _peak(tmp_path / "buzz.wav") > 0.2
+    with_buzz = _at_rest(tmp_path, fx.from_json(BUZZ))  # saved with the texture, left out on request
+    result = run_cli("play", with_buzz, "--device", f"wav:{tmp_path / 'none.wav'}", "--no-effects",
+                     "--duration-s", 1, "--json", check=True)
+    assert json.loads(result.stdout)["effects_started"] == 0 and _peak(tmp_path / "none.wav") < 1e-6
+    line = assert_one_line_error(run_cli("play", rest, "--effects", tmp_path / "missing.json"))
+    assert "no such effects file" in line
+
+
+def test_texture_effects_lists_sets_adds_and_clears(tmp_path):
+    (tmp_path / "buzz.json").write_text(json.dumps(BUZZ))
+    rest = _at_rest(tmp_path)
+    assert "rest: no temporal effects" in run_cli("texture", "effects", rest, check=True).stdout
+    run_cli("texture", "effects", rest, "--set", tmp_path / "buzz.json", "-o", tmp_path / "one.png", check=True)
+    assert [b.label for b in load_texture(tmp_path / "one.png").effects] == ["buzz everywhere"]
+    words = run_cli("texture", "effects", tmp_path / "one.png", check=True).stdout
+    assert words.splitlines() == ["rest: 1 temporal effect", "  1. buzz everywhere: while the finger is down anywhere"]
+    listed = json.loads(run_cli("texture", "effects", tmp_path / "one.png", "--json", check=True).stdout)
+    assert fx.from_json(listed) == fx.from_json(BUZZ)
+    other = {"effects_version": 1, "bindings": [{"trigger": {"on": "cross", "lines_mm": [20.0]}, "label": "edge",
+                                                 "effect": {"type": "constant", "level": 0.5, "length_s": 0.02}}]}
+    (tmp_path / "edge.json").write_text(json.dumps(other))
+    run_cli("texture", "effects", tmp_path / "one.png", "--add", tmp_path / "edge.json", "-o", tmp_path / "one.png",
+            check=True)  # in place
+    assert [b.label for b in load_texture(tmp_path / "one.png").effects] == ["buzz everywhere", "edge"]
+    run_cli("texture", "effects", tmp_path / "one.png", "--clear", "-o", tmp_path / "none.png", check=True)
+    assert load_texture(tmp_path / "none.png").effects == ()
+    assert load_texture(tmp_path / "none.png").values.tolist() == load_texture(rest).values.tolist()
+    assert "give -o" in assert_one_line_error(run_cli("texture", "effects", rest, "--clear"))
+    assert "--set, --add or --clear" in assert_one_line_error(run_cli("texture", "effects", rest, "-o",
+                                                                      tmp_path / "x.png"))
+
+
+def _binding(label, region=None, lines=()):
+    trigger = Trigger("cross", region, lines_mm=lines) if lines else Trigger("start", region)
+    return Binding(trigger, fx.click(), label=label)
+
+
+def test_composing_keeps_every_inputs_effects_where_they_were():
+    from ultraglide.textures import compose as combine
+
+    a = procedural.grating(size_mm=(40.0, 30.0)).with_(name="a", effects=(_binding("a anywhere"),))
+    b = procedural.grating(size_mm=(40.0, 30.0)).with_(name="b", effects=(_binding("b box", (5.0, 5.0, 10.0, 10.0)),
+                                                                         _binding("a anywhere")))
+    mixed = combine.mix([a, b])
+    assert [binding.label for binding in mixed.effects] == ["a anywhere", "b box"]  # each once
+    assert mixed.effects[1].trigger.region_mm == (5.0, 5.0, 10.0, 10.0)  # where it was: inputs lie from the origin
+    assert [binding.label for binding in combine.multiply([a, b]).effects] == ["a anywhere", "b box"]
+    # tiled inside a region: what played anywhere plays in the region; a box is repeated in every tile there
+    inner = procedural.grating(size_mm=(10.0, 10.0)).with_(name="inner", effects=(
+        _binding("inner anywhere"), _binding("inner box", (2.0, 2.0, 4.0, 4.0)), _binding("line", lines=(5.0,))))
+    tiled = combine.tile_inside(inner, a, (10.0, 5.0, 20.0, 10.0))
+    regions = {binding.trigger.region_mm for binding in tiled.effects if binding.label == "inner box"}
+    assert regions == {(12.0, 7.0, 4.0, 4.0), (22.0, 7.0, 4.0, 4.0)}  # two tiles across, one down
+    anywhere = next(binding for binding in tiled.effects if binding.label == "inner anywhere")
+    assert anywhere.trigger.region_mm == (10.0, 5.0, 20.0, 10.0)
+    assert {binding.trigger.lines_mm for binding in tiled.effects if binding.label == "line"} == {(15.0,), (25.0,)}
+    assert tiled.effects[0].label == "a anywhere"  # the outer's own, kept
+    # placed on a canvas: moved to where each texture sits
+    canvas = combine.compose((100.0, 60.0), [combine.Placement(b, 30.0, 20.0)])
+    moved = {binding.label: binding.trigger.region_mm for binding in canvas.effects}
+    assert moved == {"b box": (35.0, 25.0, 10.0, 10.0), "a anywhere": (30.0, 20.0, 40.0, 30.0)}
+
+
+def test_compose_from_the_command_line_keeps_effects_or_leaves_them_out(tmp_path):
+    with_buzz = _at_rest(tmp_path, fx.from_json(BUZZ))
+    result = run_cli("texture", "compose", "mix", with_buzz, "grating-1mm", "-o", tmp_path / "mix.png", check=True)
+    assert "the inputs' 1 temporal effect kept" in result.stdout
+    assert [b.label for b in load_texture(tmp_path / "mix.png").effects] == ["buzz everywhere"]
+    run_cli("texture", "compose", "mix", with_buzz, "grating-1mm", "--no-effects", "-o", tmp_path / "bare.png",
+            check=True)
+    assert load_texture(tmp_path / "bare.png").effects == ()

@@ -13,14 +13,22 @@ its fixed ratio. Friction textures combine their friction ratios, gradient textu
 (the result is a gradient texture); the two kinds do not mix. The result takes the first input's
 rule beyond its edges (``outside`` overrides it), so a composition of tiles tiles when every tile
 fits a whole number of times; a tiling result with a seam gets the authoring warning.
+
+The result keeps every input's temporal effects (:mod:`ultraglide.textures.effects`), each once: the
+inputs lie from the top-left corner at their own size, so their regions and lines stay where they were
+(a mask keeps both sides' effects, wherever the mask shows them). :func:`tile_inside` moves the inner
+texture's effects into the region, repeated in every tile; :func:`compose` moves each placed texture's
+effects to where it sits. More than a texture keeps (32) is an error; ``texture.with_(effects=())``
+drops them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from ultraglide.textures import effects
 from ultraglide.textures.authoring import warn_if_seam
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.sampling import Sampler
@@ -46,7 +54,8 @@ class Placement:
 def compose(size_mm: tuple[float, float], placements: list[Placement], background_ratio: float = 1.0,
             px_per_mm: float = 10.0, name: str = "composition") -> Texture:
     """A friction texture of ``size_mm`` with each placed texture's friction pasted where it sits;
-    elsewhere ``background_ratio`` (1: bare glass, at rest)."""
+    elsewhere ``background_ratio`` (1: bare glass, at rest). Each placed texture's effects come with it,
+    moved to where it sits (those that played anywhere on it play on it)."""
     cols, rows = round(size_mm[0] * px_per_mm), round(size_mm[1] * px_per_mm)
     x = (np.arange(cols) + 0.5) / px_per_mm
     y = (np.arange(rows) + 0.5) / px_per_mm
@@ -60,8 +69,12 @@ def compose(size_mm: tuple[float, float], placements: list[Placement], backgroun
         gx, gy = np.meshgrid(x[inside_x] - placement.x_mm, y[inside_y] - placement.y_mm)
         ratio = Sampler(t, band_limited=False).ratio(gx, gy, direction=(np.ones_like(gx), np.zeros_like(gx)))
         canvas[np.ix_(inside_y, inside_x)] = ratio
+    placed = effects.combined(*(effects.moved(p.texture.effects, p.x_mm, p.y_mm,
+                                              (p.x_mm, p.y_mm, p.texture.width_mm, p.texture.height_mm))
+                                for p in placements))
     return Texture(canvas, float(size_mm[0]), float(size_mm[1]), outside="fixed", outside_ratio=background_ratio,
-                   name=name, description=", ".join(p.texture.name for p in placements), source="composed")
+                   name=name, description=", ".join(p.texture.name for p in placements), source="composed",
+                   effects=placed)
 
 
 @dataclass(frozen=True)
@@ -124,7 +137,7 @@ def resample(texture: Texture, grid: Grid, x_mm: float = 0.0, y_mm: float = 0.0,
 
 
 def _result(values: np.ndarray, grid: Grid, base: Texture, kind: str, name: str, description: str,
-            outside: str | None, **authoring) -> Texture:
+            outside: str | None, effects: tuple = (), **authoring) -> Texture:
     values = np.clip(values, 0.0, 1.0).astype(np.float32)
     if kind == "friction":
         ratio_range = (float(values.min()), float(values.max()))
@@ -132,7 +145,7 @@ def _result(values: np.ndarray, grid: Grid, base: Texture, kind: str, name: str,
         ratio_range = base.ratio_range
     texture = Texture(values, grid.width_mm, grid.height_mm, kind=kind, outside=outside or base.outside,
                       outside_ratio=base.outside_ratio, ratio_range=ratio_range, name=name,
-                      description=description, source="composed",
+                      description=description, source="composed", effects=effects,
                       authoring={"operation": authoring.pop("operation"), "px_per_mm": grid.px_per_mm, **authoring})
     warn_if_seam(texture)
     return texture
@@ -163,7 +176,8 @@ def mix(textures: Sequence[Texture], weights: Sequence[float] | None = None, siz
     values = np.tensordot(weights, stack, axes=1)
     parts = ", ".join(f"{n} ({w:.3g})" for n, w in zip(_names(textures), weights, strict=True))
     return _result(values, grid, textures[0], kind, name, f"weighted mix of {parts}", outside, operation="mix",
-                   inputs=_names(textures), weights=weights.tolist())
+                   inputs=_names(textures), weights=weights.tolist(),
+                   effects=effects.combined(*(t.effects for t in textures)))
 
 
 def minimum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "min",
@@ -171,7 +185,8 @@ def minimum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None =
     """The lowest value of the inputs at each point (for friction: the slipperiest)."""
     grid, kind, stack = _combine("min", textures, size_mm, px_per_mm)
     return _result(stack.min(axis=0), grid, textures[0], kind, name, f"minimum of {', '.join(_names(textures))}",
-                   outside, operation="min", inputs=_names(textures))
+                   outside, operation="min", inputs=_names(textures),
+                   effects=effects.combined(*(t.effects for t in textures)))
 
 
 def maximum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "max",
@@ -179,7 +194,8 @@ def maximum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None =
     """The highest value of the inputs at each point (for friction: the stickiest)."""
     grid, kind, stack = _combine("max", textures, size_mm, px_per_mm)
     return _result(stack.max(axis=0), grid, textures[0], kind, name, f"maximum of {', '.join(_names(textures))}",
-                   outside, operation="max", inputs=_names(textures))
+                   outside, operation="max", inputs=_names(textures),
+                   effects=effects.combined(*(t.effects for t in textures)))
 
 
 def multiply(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "multiply",
@@ -187,7 +203,8 @@ def multiply(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None 
     """The product of the inputs: friction reductions compound (0.5 × 0.8 = 0.4)."""
     grid, kind, stack = _combine("multiply", textures, size_mm, px_per_mm)
     return _result(stack.prod(axis=0), grid, textures[0], kind, name, f"product of {', '.join(_names(textures))}",
-                   outside, operation="multiply", inputs=_names(textures))
+                   outside, operation="multiply", inputs=_names(textures),
+                   effects=effects.combined(*(t.effects for t in textures)))
 
 
 def mask(texture: Texture, weights: Texture | np.ndarray, other: Texture | None = None, other_ratio: float = 1.0,
@@ -216,6 +233,7 @@ def mask(texture: Texture, weights: Texture | np.ndarray, other: Texture | None 
     where_not = other.name if other is not None else f"ratio {other_ratio:g}"
     return _result(values, grid, texture, kind, name, f"{texture.name} masked by {mask_name}, else {where_not}",
                    outside, operation="mask", inputs=_names(inputs), mask=mask_name,
+                   effects=effects.combined(*(t.effects for t in inputs)),
                    **({} if other is not None else {"other_ratio": other_ratio}))
 
 
@@ -236,4 +254,30 @@ def tile_inside(inner: Texture, outer: Texture, region_mm: tuple[float, float, f
     values = np.where(inside, resample(inner, grid, x0, y0, outside="tile"), resample(outer, grid))
     return _result(values, grid, outer, kind, name,
                    f"{inner.name} tiled in {width:g} × {height:g} mm at ({x0:g}, {y0:g}) of {outer.name}",
-                   outside, operation="tile", inputs=[inner.name, outer.name], region_mm=[x0, y0, width, height])
+                   outside, operation="tile", inputs=[inner.name, outer.name], region_mm=[x0, y0, width, height],
+                   effects=effects.combined(outer.effects, _tiled_effects(inner, (x0, y0, width, height))))
+
+
+def _tiled_effects(inner: Texture, region_mm: tuple[float, float, float, float]) -> tuple:
+    """``inner``'s effects where it is tiled in ``region_mm``: those that played anywhere on it play once in the
+    whole region (a finger sliding from tile to tile stays in it); those in a region of it, and crossings of
+    its lines, in every tile, as far as the tiled region goes."""
+    x0, y0, width, height = region_mm
+    whole = [b for b in inner.effects if b.trigger.region_mm is None and b.trigger.on != "cross"]
+    each = [b for b in inner.effects if b not in whole]
+    out = list(effects.moved(whole, x0, y0, region_mm))
+    columns, rows = int(np.ceil(width / inner.width_mm)), int(np.ceil(height / inner.height_mm))
+    if each and columns * rows * len(each) > effects.MAX_BINDINGS:
+        raise TextureError(f"{inner.name}'s {len(each)} effects in {columns * rows} tiles are more than the "
+                           f"{effects.MAX_BINDINGS} a texture keeps; tile it without them (--no-effects)")
+    for row in range(rows):
+        for column in range(columns):
+            dx, dy = x0 + column * inner.width_mm, y0 + row * inner.height_mm
+            for binding in effects.moved(each, dx, dy, (dx, dy, inner.width_mm, inner.height_mm)):
+                bx, by, bw, bh = binding.trigger.region_mm  # clipped to the tiled region
+                left, top = max(bx, x0), max(by, y0)
+                right, bottom = min(bx + bw, x0 + width), min(by + bh, y0 + height)
+                if right > left and bottom > top:
+                    trigger = replace(binding.trigger, region_mm=(left, top, right - left, bottom - top))
+                    out.append(replace(binding, trigger=trigger))
+    return tuple(out)

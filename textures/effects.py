@@ -432,3 +432,38 @@ def snap(depth: float = 0.6) -> Effect:
     """A toggle's snap: two sharp drops 20 ms apart."""
     hit = Sawtooth(100.0, depth) * ADSR(0.0, 0.0, 0.008, 0.004, sustain_level=1.0)
     return hit >> Constant(0.0, 0.008) >> hit
+
+
+# ---- effects when textures are combined ---------------------------------------------------------------------
+def moved(bindings, dx_mm: float, dy_mm: float, region_mm: tuple[float, float, float, float] | None = None,
+          ) -> tuple[Binding, ...]:
+    """``bindings`` for a texture whose top-left corner moves to (``dx_mm``, ``dy_mm``): regions and crossing
+    lines shifted with it. A binding that played anywhere plays in ``region_mm`` (where the texture now lies),
+    or still anywhere if that is None."""
+    out = []
+    for binding in bindings:
+        t = binding.trigger
+        if t.region_mm is None:
+            region = region_mm
+        else:
+            x, y, w, h = t.region_mm
+            region = (x + dx_mm, y + dy_mm, w, h)
+        lines = tuple(v + (dx_mm if t.axis == "x" else dy_mm) for v in t.lines_mm)
+        trigger = Trigger(t.on, region, t.min_speed_mm_s, lines, t.axis, t.name)
+        out.append(Binding(trigger, binding.effect, binding.release_s, binding.label))
+    return tuple(out)
+
+
+def combined(*groups) -> tuple[Binding, ...]:
+    """Every binding of ``groups`` in order, each once (an input given twice brings its effects once);
+    TextureError beyond the :data:`MAX_BINDINGS` a texture keeps."""
+    out, seen = [], set()
+    for binding in (binding for group in groups for binding in group):
+        key = repr(binding_to_dict(binding))
+        if key not in seen:
+            seen.add(key)
+            out.append(binding)
+    if len(out) > MAX_BINDINGS:
+        raise TextureError(f"the inputs have {len(out)} temporal effects together, more than the {MAX_BINDINGS} a "
+                           "texture keeps; leave them out (--no-effects) or attach fewer (texture effects)")
+    return tuple(out)

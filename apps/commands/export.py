@@ -45,12 +45,6 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     export.add_argument("--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
-    effects = export.add_mutually_exclusive_group()
-    effects.add_argument("--effects", metavar="EFFECTS.json",
-                         help="play these temporal effects (a versioned JSON description, see docs/effects.md) "
-                              "instead of those saved with the texture")
-    effects.add_argument("--no-effects", action="store_true",
-                         help="leave out the temporal effects saved with the texture")
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.add_argument("--threads", type=THREADS, metavar="N",
                         help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
@@ -131,10 +125,10 @@ def run(args) -> int:
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
     threads = available_cpus() if args.threads is None else int(args.threads)
-    effects = load_effects(args.effects) if getattr(args, "effects", None) else None
+    effects = load_effects(args.effects) if args.effects else None
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
-    if effects is not None or getattr(args, "no_effects", False):
+    if effects is not None or args.no_effects:
         renderer.set_effects(effects or ())
     stage = offline_stage(renderer)
     rate = args.rate
@@ -180,7 +174,8 @@ def run(args) -> int:
                           **limiter_fields(stage),
                           "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
         return 0
-    played = "" if renderer.effects is None else f", {renderer.effects.started} effects played"
+    started = 0 if renderer.effects is None else renderer.effects.started
+    played = "" if renderer.effects is None else f", {started} effect{'s' if started != 1 else ''} played"
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
           f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps{played}; {stage.limiter.summary()}")
     for extra in (args.envelope_csv, args.plot):

@@ -104,6 +104,11 @@ def run(args) -> int:
     from ultraglide.render.engine import Engine
 
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
+    effects = None
+    if args.effects or args.no_effects:
+        from ultraglide.textures.effects import load_effects, to_json
+
+        effects = to_json(load_effects(args.effects) if args.effects else ())
     save_to = None
     if args.save_profile:
         from pathlib import Path
@@ -117,6 +122,8 @@ def run(args) -> int:
     trajectory = inputs.trajectory
     engine = Engine.start(engine_config(args))
     try:
+        if effects is not None:
+            engine.set_effects(effects)  # instead of the texture's own
         chunks = report_chunks(trajectory)
         first = list(itertools.islice(chunks, 1))  # made before the clock starts, while the engine gets ready:
         engine.wait_ready()  # the first chunk's work (loading a compiled path) must not make the first reports late
@@ -147,9 +154,11 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(status))
     else:
+        effects_started = device_status.get("effects_started", 0)
+        played = f"; {effects_started} effect{'s' if effects_started != 1 else ''} played" if effects_started else ""
         print(f"played {played_s:.2f} s on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
               f"{final.underruns} device underruns; block time {final.block_p50_us:.0f} µs median, "
-              f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit; "
+              f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit{played}; "
               f"engine priority {final.priority}")
         print(limiter)
         print(describe_faults(counts or {}))

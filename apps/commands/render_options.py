@@ -1,4 +1,4 @@
-"""Options shared by ``export`` and ``play``: the texture, model, profile, and the finger's path."""
+"""Options shared by ``export`` and ``play``: the texture, model, profile, effects, and the finger's path."""
 
 from __future__ import annotations
 
@@ -43,3 +43,9 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
                         help="predict the finger this far ahead, cancelling the panel's latency (default: 0)")
     signal.add_argument("--no-precompensation", action="store_true",
                         help="do not pre-compensate the plate's slow response")
+    effects = signal.add_mutually_exclusive_group()
+    effects.add_argument("--effects", metavar="EFFECTS.json",
+                         help="play these temporal effects (a versioned JSON description, see docs/effects.md) "
+                              "instead of those saved with the texture")
+    effects.add_argument("--no-effects", action="store_true",
+                         help="leave out the temporal effects saved with the texture")

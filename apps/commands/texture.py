@@ -1,4 +1,4 @@
-"""``ultraglide texture new`` and ``ultraglide textures``."""
+"""``ultraglide textures`` and ``ultraglide texture`` (new, compose, show, info; effects in its own module)."""
 
 from __future__ import annotations
 
@@ -103,6 +103,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         sub.set_defaults(run=new)
     _add_compose(texture_commands)
     _add_show_and_info(texture_commands)
+    from ultraglide.apps.commands import texture_effects
+
+    texture_effects.add_parser(texture_commands)
 
 
 COMPOSE_SIZES = ("Sizes are reconciled on a common grid: the result covers the first input's area (or --size-mm) "
@@ -161,6 +164,8 @@ def _add_compose(texture_commands) -> None:
         sub.add_argument("--outside", choices=["tile", "clamp", "fixed"],
                          help="what lies beyond the result's edges (default: the first input's rule)")
         sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
+        sub.add_argument("--no-effects", action="store_true",
+                         help="leave out the inputs' temporal effects (by default the result keeps them all)")
         sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
         sub.set_defaults(run=compose)
 
@@ -265,7 +270,8 @@ def compose(args) -> int:
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
     name = args.name or output.stem
-    inputs = [_input(spec) for spec in args.inputs]
+    bare = (lambda texture: texture.with_(effects=())) if args.no_effects else (lambda texture: texture)
+    inputs = [bare(_input(spec)) for spec in args.inputs]
     common = dict(px_per_mm=args.px_per_mm, name=name, outside=args.outside)
     operation = args.operation
     if operation == "mix":
@@ -274,14 +280,16 @@ def compose(args) -> int:
         function = {"min": combine.minimum, "max": combine.maximum, "multiply": combine.multiply}[operation]
         texture = function(inputs, size_mm=args.size_mm, **common)
     elif operation == "mask":
-        other = _input(args.other) if args.other else None
+        other = bare(_input(args.other)) if args.other else None
         texture = combine.mask(inputs[0], _mask_weights(args.mask), other, args.else_ratio, size_mm=args.size_mm,
                                **common)
     else:
         texture = combine.tile_inside(inputs[0], inputs[1], args.region, **common)
     save_texture(texture, output)
+    count = len(texture.effects)
+    kept = f"; the inputs' {count} temporal effect{'s' if count != 1 else ''} kept" if count else ""
     print(f"wrote {output}: {texture.description}; {texture.width_mm:g} × {texture.height_mm:g} mm, "
-          f"{texture.cols}×{texture.rows} px ({texture.authoring['px_per_mm']:g} px/mm), {texture.kind}")
+          f"{texture.cols}×{texture.rows} px ({texture.authoring['px_per_mm']:g} px/mm), {texture.kind}{kept}")
     return 0
 
 

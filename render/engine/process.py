@@ -301,9 +301,10 @@ def _device_status(device, stage=None) -> dict:
 
 
 def _renderer_status(renderer) -> dict:
-    """What the renderer renders with: texture, model, the default force (N)."""
+    """What the renderer renders with: texture, model, the default force (N); the temporal effects started."""
+    player = renderer.effects
     return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),
-            "force_n": renderer.default_force_n}
+            "force_n": renderer.default_force_n, "effects_started": 0 if player is None else player.started}
 
 
 def _close_device(device) -> str | None:
@@ -338,10 +339,8 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
         now = time.monotonic()
         wake.hold(not source._first and not source._resting)  # rendering (not before the first block, nor at rest)
         if now >= next_status:
-            player = renderer.effects
             shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
-                               "priority": f"{source.priority}; {threads}; {wake.words()}", "pid": os.getpid(),
-                               "effects_started": 0 if player is None else player.started})
+                               "priority": f"{source.priority}; {threads}; {wake.words()}", "pid": os.getpid()})
             next_status = now + STATUS_PERIOD_S
         if now >= next_collect:
             gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
