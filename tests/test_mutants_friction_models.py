@@ -189,7 +189,8 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
     at_rest_force = model.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp
     np.testing.assert_allclose(model.amplitude_um_pp(np.array([0.5]), 4.0).amplitude_um_pp, at_rest_force)
     np.testing.assert_allclose(at_rest_force, 2 * np.sqrt(2) * np.sqrt(np.log(2)))  # a_pp = 2 sqrt 2 tau sqrt(ln 2)
-    assert model.describe() == "exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak"
+    assert model.describe() == ("exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak; force law: none: "
+                                "the same curve at every force (Monnoyer et al. did not state theirs)")
     assert model.parameters() == {"tau_um_zp": 1.0}
     assert ExponentialModel(35.0).tau_um_zp == 35.0
     with pytest.raises(ModelError) as error:
@@ -199,7 +200,8 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
 
 def test_the_stretched_model_describes_itself():
     model = StretchedExponentialModel(3.0, 1.5, 0.25)
-    assert model.describe() == "stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5"
+    assert model.describe() == ("stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5; "
+                                "force law: s ∝ F^0.25, as given")
 
 
 def test_a_table_model_needs_two_amplitudes_a_force_and_names_its_source():

@@ -5,3 +5,11 @@ from ultraglide.errors import UltraglideError
 
 class ModelError(UltraglideError, ValueError):
     """A friction model, calibration or measurement file that cannot be used."""
+
+
+class ForceRangeWarning(UserWarning):
+    """A model was asked about a force outside the range it was fitted on or holds on (said once per model)."""
+
+
+class QuasiStaticWarning(UserWarning):
+    """The lateral analysis ran at a frequency where the ridges' inertia makes it an estimate."""

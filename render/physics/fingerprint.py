@@ -26,14 +26,17 @@ M_TO_UM = 1e6
 class FingerParams:
     """Parameters of the finger model; defaults are the paper's Table I and its fits.
 
-    ``density_kg_m3`` is listed in Table I but the paper's quasi-static model (and so ours)
-    never uses it: ridge inertia is neglected, as the paper says in its introduction.
+    ``density_kg_m3`` (Table I) does not enter the paper's quasi-static model, which neglects ridge
+    inertia; it sets the ridge layer's shear resonance (:func:`ridge_shear_resonance_hz`), which
+    says at which carriers that quasi-static reading fails. ``max_contact_area_mm2`` caps eq. (3):
+    k F^(2/3) passes an adult index fingertip's pad (about 20 × 16 mm, 250 mm²) at 2.4 N, and a
+    pad cannot touch more than itself.
     """
 
     youngs_modulus_pa: float = 1.0e6  # E_e, stratum corneum (Table I, i)
     poisson_ratio: float = 0.4  # nu (Table I, ii)
     ridge_height_m: float = 150e-6  # h_e (Table I, iii)
-    density_kg_m3: float = 900.0  # rho (Table I, iv); unused, see above
+    density_kg_m3: float = 900.0  # rho (Table I, iv); the ridge layer's shear resonance
     area_coefficient_mm2: float = 138.1  # k in A = k F^(2/3), mm²/N^(2/3), eq. (3)
     area_exponent: float = 2.0 / 3.0  # the 2/3 of eq. (3)
     static_friction: float = 1.0  # mu_s, section III.C
@@ -43,6 +46,7 @@ class FingerParams:
     friction_exponent: float = 2.0 / 3.0  # n
     friction_coefficient_at_1n: float = 0.8  # mu at 1 N; 1.0 at 0.5 N, typical of moist fingers
     contact: str = "hertz"  # pressure profile for eq. (9): "hertz" (eq. 8) or "uniform"
+    max_contact_area_mm2: float = 250.0  # a fingertip's pad; eq. (3) is held here (see above)
 
     def __post_init__(self) -> None:
         positive = {
@@ -54,6 +58,8 @@ class FingerParams:
             "dynamic_friction": self.dynamic_friction,
             "friction_exponent": self.friction_exponent,
             "friction_coefficient_at_1n": self.friction_coefficient_at_1n,
+            "density_kg_m3": self.density_kg_m3,
+            "max_contact_area_mm2": self.max_contact_area_mm2,
         }
         for name, value in positive.items():
             if not np.isfinite(value) or value <= 0:
@@ -73,8 +79,15 @@ class FingerParams:
 
 
 def contact_area_mm2(force_n, params: FingerParams = FingerParams()):
-    """Eq. (3): apparent contact area A = k F^(2/3) of the ridges, mm²."""
-    return params.area_coefficient_mm2 * np.power(force_n, params.area_exponent)
+    """Eq. (3): apparent contact area A = k F^(2/3) of the ridges, mm², at most a fingertip's
+    (``max_contact_area_mm2``)."""
+    area = params.area_coefficient_mm2 * np.power(force_n, params.area_exponent)
+    return np.minimum(area, params.max_contact_area_mm2)
+
+
+def area_saturation_force_n(params: FingerParams = FingerParams()) -> float:
+    """The force (N) at which eq. (3) reaches a fingertip's whole pad; above it the area is held."""
+    return float((params.max_contact_area_mm2 / params.area_coefficient_mm2) ** (1.0 / params.area_exponent))
 
 
 def shear_modulus_pa(params: FingerParams = FingerParams()) -> float:
@@ -105,17 +118,78 @@ def detach_amplitude_um_pp(force_n, params: FingerParams = FingerParams()):
     return 2.0 * force / normal_stiffness_n_per_m(force, params) * M_TO_UM
 
 
-def glide_threshold_um_pp(force_n, params: FingerParams = FingerParams()):
+def glide_threshold_um_pp(force_n, params: FingerParams = FingerParams(), preload_n=0.0):
     """Eq. (5): lateral vibration amplitude at which the ridges start to slip, µm peak-to-peak.
 
     Delta x_t = mu_s F_n / k_t is the largest spring extension that static friction can hold.
     A plate oscillating about the finger's rest position stretches the springs by its
-    zero-to-peak amplitude, so the peak-to-peak threshold is twice Delta x_t. At 0.4 N this is
-    4.5 µm, the "about 4 µm at about 0.4 N" of the paper's psychophysics; the steady-state
-    threshold after the first slip, see :func:`render.physics.lateral.steady_glide_threshold_um_pp`, is 3.8 µm.
+    zero-to-peak amplitude, so the peak-to-peak threshold is twice Delta x_t: 4.48 µm at 0.4 N.
+
+    ``preload_n`` is the tangential force T (N) the finger already holds on the plate (the
+    paper's "small tangential force", which it could not measure and left out). The springs then
+    start at T and slip on the side of T once T + k_t x exceeds mu_s F_n: the threshold is
+    2 (mu_s F_n - T) / k_t. With T = 0.1 N at 0.4 N it is 3.36 µm, between the paper's 2 µm
+    (not felt) and 4 µm (felt); any T from 0.043 to 0.22 N puts it there. A preload at or above
+    mu_s F_n is gross slip already (threshold 0).
     """
     force = np.asarray(force_n, dtype=float)
-    return 2.0 * params.static_friction * force / tangential_stiffness_n_per_m(force, params) * M_TO_UM
+    margin = np.maximum(params.static_friction * force - np.abs(np.asarray(preload_n, dtype=float)), 0.0)
+    return 2.0 * margin / tangential_stiffness_n_per_m(force, params) * M_TO_UM
+
+
+def shear_wave_speed_m_per_s(params: FingerParams = FingerParams()) -> float:
+    """sqrt(G_e / rho): the speed of shear waves in the ridge layer, m/s (about 20 m/s for Table I)."""
+    return float(np.sqrt(shear_modulus_pa(params) / params.density_kg_m3))
+
+
+def ridge_shear_resonance_hz(params: FingerParams = FingerParams(), lumped: bool = False) -> float:
+    """The ridge layer's first shear resonance, Hz, from Table I's density.
+
+    The layer (thickness h_e, shear modulus G_e, density rho) is held by the finger's bulk on one
+    face and driven by the plate on the other. Its dynamic stiffness seen from the plate,
+    k_t (kh) cot(kh) with k = 2 pi f / c_s, falls to zero at kh = pi/2: f = c_s / (4 h_e),
+    33.2 kHz for Table I. ``lumped`` gives the single spring-mass estimate with the layer's whole
+    mass at the plate, c_s / (2 pi h_e) = 21.1 kHz, a lower bound.
+    """
+    speed = shear_wave_speed_m_per_s(params)
+    if lumped:
+        return speed / (2.0 * np.pi * params.ridge_height_m)
+    return speed / (4.0 * params.ridge_height_m)
+
+
+def dynamic_stiffness_ratio(frequency_hz, params: FingerParams = FingerParams()):
+    """k_t(f) / k_t(0) of the ridge layer: (kh) cot(kh), 1 at low frequency, 0 at the resonance,
+    negative above it (the layer's inertia wins). The quasi-static analysis of section III assumes 1."""
+    kh = 0.5 * np.pi * np.asarray(frequency_hz, dtype=float) / ridge_shear_resonance_hz(params)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(kh == 0, 1.0, kh / np.tan(kh))
+
+
+QUASI_STATIC_TOLERANCE = 0.1  # the quasi-static stiffness may be off by this share before we warn
+
+
+def quasi_static_limit_hz(params: FingerParams = FingerParams(), tolerance: float = QUASI_STATIC_TOLERANCE) -> float:
+    """The highest lateral frequency (Hz) at which the ridges' quasi-static stiffness is within
+    ``tolerance`` of their dynamic one (11.2 kHz for Table I at 10 %)."""
+    from scipy.optimize import brentq
+
+    resonance = ridge_shear_resonance_hz(params)
+    return float(brentq(lambda f: 1.0 - float(dynamic_stiffness_ratio(f, params)) - tolerance, 1e-6 * resonance,
+                        resonance))
+
+
+def quasi_static_warning(frequency_hz: float, params: FingerParams = FingerParams()) -> str | None:
+    """One line when the lateral quasi-static reading fails at this frequency (its stiffness off by
+    more than 10 %), else None."""
+    ratio = float(dynamic_stiffness_ratio(frequency_hz, params))
+    if abs(1.0 - ratio) <= QUASI_STATIC_TOLERANCE:
+        return None
+    resonance = ridge_shear_resonance_hz(params)
+    return (f"{frequency_hz / 1e3:.4g} kHz is {frequency_hz / resonance:.2f} of the ridge layer's shear resonance "
+            f"({resonance / 1e3:.3g} kHz from rho = {params.density_kg_m3:g} kg/m³, G = "
+            f"{shear_modulus_pa(params) / 1e6:.3g} MPa, h = {params.ridge_height_m * 1e6:g} µm): the ridges' "
+            f"dynamic stiffness there is {ratio:.2f} of the quasi-static k_t, so the lateral analysis "
+            f"(eqs. 4-5) is only a quasi-static estimate")
 
 
 def friction_coefficient(force_n, params: FingerParams = FingerParams()):

@@ -14,11 +14,12 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
-    """Amplitudes for ratios under mu/mu0 = exp(-(a / scale)^shape) at one force: ratios >= 1 → 0,
-    below ``floor`` → ``limit``. Returns how many were below the floor, or -1 - i if ratio i is
-    NaN, negative or infinite (the caller raises)."""
+def inverse_stretched(ratio, floor, limit, scale, inverse_shape, residual, out):
+    """Amplitudes for ratios under mu/mu0 = d + (1 - d) exp(-(a / scale)^shape) at one force (d:
+    ``residual``, below ``floor``): ratios >= 1 → 0, below ``floor`` → ``limit``. Returns how many
+    were below the floor, or -1 - i if ratio i is NaN, negative or infinite (the caller raises)."""
     clamped = 0
+    reducible = 1.0 - residual
     for i in range(ratio.shape[0]):
         r = np.float64(ratio[i])  # a float32 ratio (the texture's) is read as float64, as numpy would
         if not (0.0 <= r < np.inf):
@@ -29,7 +30,7 @@ def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
             out[i] = limit
             clamped += 1
         else:
-            depth = -np.log(r)
+            depth = -np.log(r if residual == 0.0 else (r - residual) / reducible)
             root = np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape  # sqrt: the Gaussian law
             out[i] = min(scale * root, limit)
     return clamped
@@ -37,11 +38,12 @@ def inverse_stretched(ratio, floor, limit, scale, inverse_shape, out):
 
 @njit(cache=True, nogil=True)
 def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_exponent, reference_force,
-                             min_force, max_force, out):
+                             min_force, max_force, residual, out):
     """As :func:`inverse_stretched` with a force per sample: scale × (F / reference)^force_exponent.
-    A ratio is clamped (and counted) when the amplitude it needs exceeds ``limit``; a bad ratio or
-    force (NaN, negative, infinite) returns -1 - i."""
+    A ratio is clamped (and counted) when the amplitude it needs exceeds ``limit`` (or it lies at or
+    below the floor ``residual``); a bad ratio or force (NaN, negative, infinite) returns -1 - i."""
     clamped = 0
+    reducible = 1.0 - residual
     last_force = -1.0  # the force factor is kept while the force repeats (a panel without force sensing)
     factor = 1.0
     for i in range(ratio.shape[0]):
@@ -52,10 +54,14 @@ def inverse_stretched_forces(ratio, force, limit, scale, inverse_shape, force_ex
         if r >= 1.0:
             out[i] = 0.0
             continue
+        if r <= residual:
+            out[i] = limit
+            clamped += 1
+            continue
         if f != last_force:
             last_force = f
             factor = scale * (min(max(f, min_force), max_force) / reference_force) ** force_exponent
-        depth = -np.log(r)
+        depth = -np.log(r if residual == 0.0 else (r - residual) / reducible)
         a = factor * (np.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape)
         if a > limit:
             out[i] = limit
@@ -91,9 +97,10 @@ def inverse_uniform(ratio, floor, limit, start, per_step, values, slopes, amplit
 
 @njit(cache=True, nogil=True)
 def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes, scale_at_1n, force_exponent,
-                           min_force, max_force, out):
+                           saturation_force, min_force, max_force, out):
     """As :func:`inverse_uniform` with a force per sample: the table's value times
-    scale_at_1n × F^force_exponent. Clamped (and counted) where that exceeds ``limit``."""
+    scale_at_1n × F^force_exponent, which grows as F instead above ``saturation_force`` (the contact
+    area is then a fingertip's). Clamped (and counted) where that exceeds ``limit``."""
     clamped = 0
     last = values.shape[0] - 2
     last_force = -1.0  # the force factor is kept while the force repeats
@@ -105,7 +112,9 @@ def inverse_uniform_forces(ratio, force, limit, start, per_step, values, slopes,
             return -1 - i
         if f != last_force:
             last_force = f
-            factor = scale_at_1n * min(max(f, min_force), max_force) ** force_exponent
+            clipped = min(max(f, min_force), max_force)
+            factor = scale_at_1n * min(clipped, saturation_force) ** force_exponent * max(clipped / saturation_force,
+                                                                                          1.0)
         position = (min(r, 1.0) - start) * per_step
         if position < 0.0:
             position = 0.0
@@ -185,20 +194,117 @@ def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, fo
     return clamped
 
 
+@njit(cache=True, nogil=True)
+def _grid_row(f, log_start, per_log, min_force, max_force, rows):
+    """The force row below ``f`` and the weight of the row above, in a table over log-spaced forces."""
+    position = (np.log(min(max(f, min_force), max_force)) - log_start) * per_log
+    if position < 0.0:
+        position = 0.0
+    row = min(int(position), rows - 2)
+    return row, position - row
+
+
+@njit(cache=True, nogil=True)
+def levitation_scale(f, film):
+    """The amplitude (µm p-p) at which a squeeze film carries the whole force ``f`` (N), or 1 without a
+    film: the scale the squeeze-film table is stored in. ``film`` holds the area law's coefficient
+    (mm²), exponent and cap (mm²), the film's fraction times the ambient pressure (Pa) and its gap (µm).
+    Where the film's mean overpressure equals F / A_film, sqrt((1 + 1.5 eps²) / (1 - eps²)) = 1 + q with
+    q = F / (fraction p_a A), so eps² = ((1 + q)² - 1) / ((1 + q)² + 1.5)."""
+    if film[3] <= 0.0:
+        return 1.0
+    area_m2 = min(film[0] * f ** film[1], film[2]) * 1e-6
+    q = f / (film[3] * area_m2)
+    w = (1.0 + q) * (1.0 + q)
+    return 2.0 * film[4] * np.sqrt((w - 1.0) / (w + 1.5))
+
+
+@njit(cache=True, nogil=True)
+def _grid_point(r, row, weight, power, per_column, table):
+    """Bilinear reading of the table at z = sqrt(1 - r^power) (columns) between force rows ``row`` and
+    ``row + 1``."""
+    position = np.sqrt(1.0 - r**power) * per_column
+    column = min(int(position), table.shape[1] - 2)
+    fraction = position - column
+    low = table[row, column] + fraction * (table[row, column + 1] - table[row, column])
+    high = table[row + 1, column] + fraction * (table[row + 1, column + 1] - table[row + 1, column])
+    return low + weight * (high - low)
+
+
+@njit(cache=True, nogil=True)
+def inverse_grid_forces(ratio, force, limit, log_start, per_log, min_force, max_force, power, per_column, table,
+                        film, out):
+    """Amplitudes from a table over log-spaced forces (rows) and z = sqrt(1 - ratio^power) (columns), stored
+    in units of :func:`levitation_scale`, a force per sample; ratios >= 1 → 0. A ratio is clamped (and counted) where its amplitude reaches ``limit``; a bad
+    ratio or force returns -1 - i."""
+    clamped = 0
+    rows = table.shape[0]
+    last_force = -1.0
+    row = 0
+    weight = 0.0
+    scale = 1.0
+    for i in range(ratio.shape[0]):
+        r = np.float64(ratio[i])
+        f = force[i]
+        if not (0.0 <= r < np.inf and 0.0 <= f < np.inf):
+            return -1 - i
+        if r >= 1.0:
+            out[i] = 0.0
+            continue
+        if f != last_force:
+            last_force = f
+            row, weight = _grid_row(f, log_start, per_log, min_force, max_force, rows)
+            scale = levitation_scale(min(max(f, min_force), max_force), film)
+        a = _grid_point(r, row, weight, power, per_column, table) * scale
+        if a >= limit:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = max(a, 0.0)
+    return clamped
+
+
+@njit(cache=True, nogil=True)
+def inverse_grid_force(ratio, force, floor, limit, log_start, per_log, min_force, max_force, power, per_column,
+                       table, film, out):
+    """:func:`inverse_grid_forces` at one force for the whole block: ratios below ``floor`` → ``limit``
+    (counted), as the other single-force inverses do."""
+    clamped = 0
+    row, weight = _grid_row(force, log_start, per_log, min_force, max_force, table.shape[0])
+    scale = levitation_scale(min(max(force, min_force), max_force), film)
+    for i in range(ratio.shape[0]):
+        r = np.float64(ratio[i])
+        if not (0.0 <= r < np.inf):
+            return -1 - i
+        if r >= 1.0:
+            out[i] = 0.0
+        elif r < floor:
+            out[i] = limit
+            clamped += 1
+        else:
+            out[i] = min(max(_grid_point(r, row, weight, power, per_column, table) * scale, 0.0), limit)
+    return clamped
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every inverse with the types the renderer passes."""
     f64 = np.zeros(4)
     f32 = np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
-    inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
-    inverse_stretched(f32 + 0.5, 0.1, 6.0, 3.7, 0.5, np.empty(4))
+    inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, 0.0, np.empty(4))
+    inverse_stretched(f32 + 0.5, 0.1, 6.0, 3.7, 0.5, 0.0, np.empty(4))
     inverse_uniform(f32 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
-    inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, np.empty(4))
+    inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, 0.0, np.empty(4))
     inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
-    inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 0.01, 10.0,
+    inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 2.4, 0.01, 10.0,
                            np.empty(4))
     for ratio in (f64 + 0.5, f32 + 0.5):
         inverse_table_force(ratio, 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)), np.array([0.2, 1.0]),
                             np.empty(4))
     inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))
+    grid = np.zeros((3, 5))
+    film = np.array([138.1, 2.0 / 3.0, 250.0, 4e4, 10.0])
+    for ratio in (f64 + 0.5, f32 + 0.5):
+        inverse_grid_force(ratio, 0.5, 0.1, 6.0, -4.6, 8.7, 0.01, 10.0, 0.5, 4.0, grid, film, np.empty(4))
+    inverse_grid_forces(f64 + 0.5, f64 + 0.5, 6.0, -4.6, 8.7, 0.01, 10.0, 0.5, 4.0, grid, film, np.empty(4))

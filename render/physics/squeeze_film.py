@@ -1,0 +1,259 @@
+"""Intermittent contact cushioned by a squeeze film of air: the ``squeeze-film`` friction model.
+
+The paper's bed of springs (eqs. 1, 3, 6-9) never takes friction below about 0.67: its only
+mechanism is the non-Coulombic law swinging about the load. Measured fingers fall to 0.1-0.2
+within a few µm. Wiertlewski, Friesen and Colgate (PNAS 113:9210, 2016, "Partial squeeze film
+levitation modulates fingertip friction") imaged the contact and found the load at the interface
+shared between the elastic compression of the skin's asperities and a squeeze film of air that has
+no time to escape: fewer asperities touch, and friction falls with them. Friesen et al. (2018)
+showed that evacuating the air takes most of the reduction away.
+
+This model puts the two together, with parameters that are physical:
+
+* The film. Over a share ``film_fraction`` of the apparent contact area A(F) (eq. 3), the skin
+  stands a mean gap ``gap_um`` off the glass (the air pockets its ridges and asperities leave).
+  A plate moving by a_pp / 2 about that gap compresses the air faster than it can leak away when
+  the squeeze number sigma = 12 eta omega L² / (p_a h²) is large (L the contact's radius: about
+  90 at 27 kHz, 0.5 N and a 10 µm gap). In that limit the gas keeps p h constant through a cycle,
+  and a zero net flow at the contact's edge gives the mean pressure
+  p̄ = p_a sqrt((1 + 3/2 eps²) / (1 - eps²)), eps = (a_pp / 2) / h, the isothermal squeeze-film
+  result that Biet, Giraud and Lemaire-Semail (IEEE TUFFC 54:2678, 2007) used for tactile plates.
+  The film carries L(a, F) = film_fraction A(F) (p̄ - p_a).
+* The contact. The ridges carry what the film does not, F_c = F - L (zero once the film carries
+  all: levitation), and touch and leave the plate as in the paper's section IV at that load, with
+  its non-Coulombic friction mu_1N F^n. Friction over friction at rest is then
+  (F_c / F)^n R(a / W_c(F_c)), R the paper's relative friction (Fig. 8) and W_c its detachment
+  amplitude (eq. 6) at the contact's own load.
+
+With ``film_fraction`` 0 (or ``ambient_pressure_pa`` 0, a vacuum) the film carries nothing and the
+model is the paper's, exactly. Because A ∝ F^(2/3), the film's share of the load falls as
+F^(-1/3): lighter touches levitate more, as measured fingers do (Vezzoli et al. 2015, ref. [8] of
+the paper). Frequency enters only through the condition sigma >> 1, which holds on ultrasonic plates
+(:func:`squeeze_number`). Left out: the skin's compliance under the film (the gap is held), its
+inertia and viscoelasticity, and the film's edge losses.
+
+The inverse is a table over the force (log-spaced nodes, one of them where the contact area
+saturates) and z = sqrt(1 - sqrt(ratio)), filled by inverting the exact forward model when the
+model is made (about 0.1 s), and read by a compiled kernel. Rows are stored in units of the
+amplitude that levitates the finger at their force (closed form), so that near levitation, where the
+ratio falls steeply, every row ends alike and interpolating between forces stays exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import MM2_TO_M2, FingerParams, contact_area_mm2
+from ultraglide.render.physics.friction_models import (
+    CEILING_UM_PP,
+    DEFAULT_FORCE_N,
+    MAX_FORCE_N,
+    MIN_FORCE_N,
+    FrictionModel,
+    Inversion,
+    PaperModel,
+    _clip_force,
+    _is_scalar,
+    _kernel_result,
+    check_amplitude,
+)
+
+AMBIENT_PRESSURE_PA = 101_325.0
+AIR_VISCOSITY_PA_S = 1.81e-5  # at 20 °C
+GAP_RANGE_UM = (1.0, 100.0)
+FILM_FRACTION_RANGE = (0.0, 1.0)
+AMBIENT_RANGE_PA = (0.0, 2.0e5)
+FORCE_NODES_PER_DECADE = 20
+COLUMN_NODES = 2049  # nodes of z = sqrt(1 - sqrt(ratio)) in the inverse table
+AMPLITUDE_SAMPLES = 4001  # forward samples per force row from which the table is inverted
+
+
+@dataclass(frozen=True)
+class FilmParams:
+    """The air film under the finger: ``gap_um``, the mean gap between skin and glass over the film's
+    area at rest (µm); ``film_fraction``, the share of the apparent contact area (eq. 3) over which the
+    film builds pressure; ``ambient_pressure_pa``, the air's pressure (0: a vacuum, no film).
+
+    The defaults (a 10 µm gap over 40 % of the contact) are chosen, within what skin on glass
+    allows, so that the model reaches the reductions measured fingers show (0.2 at 6 µm p-p and
+    0.5 N); a calibration fits the gap and the share from a person's data."""
+
+    gap_um: float = 10.0
+    film_fraction: float = 0.4
+    ambient_pressure_pa: float = AMBIENT_PRESSURE_PA
+
+    def __post_init__(self) -> None:
+        for name, value, allowed in (("gap_um", self.gap_um, GAP_RANGE_UM),
+                                     ("film_fraction", self.film_fraction, FILM_FRACTION_RANGE),
+                                     ("ambient_pressure_pa", self.ambient_pressure_pa, AMBIENT_RANGE_PA)):
+            if not (np.isfinite(value) and allowed[0] <= value <= allowed[1]):
+                raise ModelError(f"{name} must lie in [{allowed[0]:g}, {allowed[1]:g}], got {value}")
+
+    def with_(self, **changes: float) -> FilmParams:
+        """A copy with some parameters changed."""
+        return replace(self, **changes)
+
+
+def film_overpressure_ratio(eps: ArrayLike) -> np.ndarray:
+    """(p̄ - p_a) / p_a of an isothermal squeeze film at large squeeze number, for a plate moving by
+    ``eps`` times the mean gap (zero-to-peak over gap): sqrt((1 + 1.5 eps²) / (1 - eps²)) - 1,
+    infinite from eps = 1 (the plate reaches the skin)."""
+    eps = np.asarray(eps, dtype=float)
+    square = eps * eps
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
+    return np.where(eps < 1.0, ratio, np.inf)
+
+
+def levitation_force_n(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
+                       finger: FingerParams = FingerParams()) -> np.ndarray:
+    """The mean load (N) the air film carries at this amplitude (µm p-p) and normal force (N)."""
+    eps = np.asarray(amplitude_um_pp, dtype=float) / 2.0 / film.gap_um
+    area_m2 = contact_area_mm2(np.asarray(force_n, dtype=float), finger) * MM2_TO_M2
+    pressure = film.ambient_pressure_pa * film_overpressure_ratio(eps)
+    with np.errstate(invalid="ignore"):  # no film (0 x inf) carries nothing
+        lift = film.film_fraction * area_m2 * pressure
+    return np.where(film.film_fraction * film.ambient_pressure_pa > 0, lift, 0.0)
+
+
+def contact_share(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
+                  finger: FingerParams = FingerParams()) -> np.ndarray:
+    """F_c / F: the share of the load the ridges still carry, 1 at rest, 0 once the film carries it all."""
+    force = np.asarray(force_n, dtype=float)
+    return np.clip(1.0 - levitation_force_n(amplitude_um_pp, force, film, finger) / force, 0.0, 1.0)
+
+
+def squeeze_number(carrier_hz: float, force_n: float, film: FilmParams = FilmParams(),
+                   finger: FingerParams = FingerParams()) -> float:
+    """sigma = 12 eta omega L² / (p_a h²), L the radius of the apparent contact: the film's pressure
+    follows the large-sigma law this model uses when sigma >> 1 (about 90 at 27 kHz, 0.5 N, 10 µm)."""
+    radius_m = np.sqrt(float(contact_area_mm2(force_n, finger)) * MM2_TO_M2 / np.pi)
+    gap_m = film.gap_um * 1e-6
+    if film.ambient_pressure_pa == 0:
+        return float("inf")
+    return float(12.0 * AIR_VISCOSITY_PA_S * 2.0 * np.pi * carrier_hz * radius_m**2
+                 / (film.ambient_pressure_pa * gap_m**2))
+
+
+class SqueezeFilmModel(FrictionModel):
+    """Intermittent contact of the paper's ridges, cushioned by a squeeze film of air (module docstring).
+
+    ``film``: the air film (:class:`FilmParams`); ``finger``: the paper's ridge model (Table I).
+    """
+
+    name = "squeeze-film"
+
+    def __init__(self, film: FilmParams = FilmParams(), finger: FingerParams = FingerParams()):
+        self.film = film
+        self.finger = finger
+        self._contact = PaperModel(finger)  # the paper's R(u) table and its detachment law
+        # log-spaced force nodes from 10 mN to 10 N and a little beyond, one of them at the area's
+        # saturation (a kink); the rows are filled at the nodes' own forces
+        self._per_log = FORCE_NODES_PER_DECADE / np.log(10.0)
+        saturation = np.log(self._contact._saturation_n)
+        below = np.ceil((saturation - np.log(MIN_FORCE_N)) * self._per_log)
+        above = np.ceil((np.log(MAX_FORCE_N) - saturation) * self._per_log)
+        self._log_start = saturation - below / self._per_log
+        self._force_nodes = np.exp(self._log_start + np.arange(below + above + 1) / self._per_log)
+        self._per_column = COLUMN_NODES - 1.0
+        self._power = 0.5  # z = sqrt(1 - sqrt(ratio)): amplitudes near levitation stay smooth in z
+        self._film = np.array([finger.area_coefficient_mm2, finger.area_exponent, finger.max_contact_area_mm2,
+                               film.film_fraction * film.ambient_pressure_pa, film.gap_um])
+        self._table = self._inverse_table()
+
+    # ---- the forward model ------------------------------------------------------------------------
+    def _ratio(self, amplitude: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """The forward model at forces already clipped to the models' range (or at a table node)."""
+        share = contact_share(amplitude, force, self.film, self.finger)
+        detach = self._contact._detach_um_pp(share * force, clip=False)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.where(amplitude > 0, amplitude / detach, 0.0)
+        rolling = np.interp(u, self._contact.u_nodes, self._contact.ratio_nodes)
+        return np.power(share, self.finger.friction_exponent) * rolling
+
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        self._checked_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        return self._ratio(amplitude, _clip_force(force_n))
+
+    # ---- the inverse ---------------------------------------------------------------------------------
+    def _inverse_table(self) -> np.ndarray:
+        """Amplitudes at each force node (rows) and each node of z = sqrt(1 - ratio^(1/2)) (columns), in
+        units of the amplitude that levitates the finger at that force (:func:`kernels.levitation_scale`):
+        near levitation every row then ends alike. Each row inverts the forward model sampled densely up
+        to levitation (or the 20 µm ceiling), closest near the end, where the ratio falls steeply;
+        ratios beyond reach within the ceiling hold the ceiling."""
+        column = np.linspace(0.0, 1.0, COLUMN_NODES)
+        target = np.power(1.0 - column**2, 1.0 / self._power)
+        scale = np.array([kernels.levitation_scale(float(f), self._film) for f in self._force_nodes])
+        end = np.minimum(np.where(scale > 1.0, scale, CEILING_UM_PP), CEILING_UM_PP)
+        t = np.linspace(0.0, 1.0, AMPLITUDE_SAMPLES)
+        amplitude = end[:, None] * (1.0 - (1.0 - t[None, :]) ** 2)
+        ratio = self._ratio(amplitude, np.broadcast_to(self._force_nodes[:, None], amplitude.shape))
+        ratio = np.minimum.accumulate(ratio, axis=1)  # guard monotonicity against rounding
+        table = np.empty((len(self._force_nodes), COLUMN_NODES))
+        for k in range(len(self._force_nodes)):
+            table[k] = np.interp(target, ratio[k, ::-1], amplitude[k, ::-1], left=end[k], right=0.0)
+        table[:, 0] = 0.0  # a ratio of 1 is rest
+        return np.ascontiguousarray(table / scale[:, None])
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        ratio = np.asarray(ratio, dtype=float)
+        force = np.asarray(force_n, dtype=float)
+        shape = np.broadcast(ratio, force).shape
+        out = np.empty(int(np.prod(shape)))
+        ratio = np.ascontiguousarray(np.broadcast_to(ratio, shape), dtype=float).ravel()
+        force = np.ascontiguousarray(np.broadcast_to(force, shape), dtype=float).ravel()
+        kernels.inverse_grid_forces(ratio, force, np.inf, self._log_start, self._per_log, MIN_FORCE_N, MAX_FORCE_N,
+                                    self._power, self._per_column, self._table, self._film, out)
+        return out.reshape(shape)
+
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        if out is None:
+            out = np.empty(len(ratio))
+        if _is_scalar(force_n):
+            self._checked_force(force_n)
+            code = kernels.inverse_grid_force(ratio, float(force_n), self._floor(force_n, limit), limit,
+                                              self._log_start, self._per_log, MIN_FORCE_N, MAX_FORCE_N,
+                                              self._power, self._per_column, self._table, self._film, out)
+            return Inversion(out, _kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_grid_forces(ratio, force, limit, self._log_start, self._per_log, MIN_FORCE_N,
+                                           MAX_FORCE_N, self._power, self._per_column, self._table, self._film, out)
+        result = Inversion(out, _kernel_result(code, ratio, force))
+        self._note_force_range(force)
+        return result
+
+    # ---- words ----------------------------------------------------------------------------------------
+    def force_law(self) -> str:
+        return ("the film's share of the load falls as F^(-1/3) (its area A ∝ F^(2/3), eq. 3); the ridges' "
+                "detachment W_c ∝ F_c^(1/3) at their own load (eq. 6)")
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        return self._contact._own_force_range_n()
+
+    def _range_reason(self) -> str:
+        return self._contact._range_reason()
+
+    def describe(self) -> str:
+        f, p = self.film, self.finger
+        return (f"squeeze-film: the paper's ridges (E = {p.youngs_modulus_pa / 1e6:g} MPa, n = "
+                f"{p.friction_exponent:.3g}, {p.contact} contact) sharing the load with an air film "
+                f"(gap {f.gap_um:.3g} µm over {f.film_fraction:.3g} of the contact, {f.ambient_pressure_pa / 1e3:.4g} "
+                f"kPa); after Wiertlewski et al. 2016 and Biet et al. 2007")
+
+    def parameters(self) -> dict[str, float | str]:
+        return {"gap_um": self.film.gap_um, "film_fraction": self.film.film_fraction,
+                "ambient_pressure_pa": self.film.ambient_pressure_pa,
+                "youngs_modulus_pa": self.finger.youngs_modulus_pa,
+                "friction_exponent": self.finger.friction_exponent}
