@@ -191,7 +191,7 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
     np.testing.assert_allclose(at_rest_force, 2 * np.sqrt(2) * np.sqrt(np.log(2)))  # a_pp = 2 sqrt 2 tau sqrt(ln 2)
     assert model.describe() == ("exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak; force law: none: "
                                 "the same curve at every force (Monnoyer et al. did not state theirs)")
-    assert model.parameters() == {"tau_um_zp": 1.0}
+    assert model.parameters() == {"tau_um_zp": 1.0, "residual_ratio": 0.0}
     assert ExponentialModel(35.0).tau_um_zp == 35.0
     with pytest.raises(ModelError) as error:
         ExponentialModel(35.5)

@@ -1,10 +1,18 @@
 """Fitting friction models to measured points, and calibration files that act as models.
 
 A fit is scipy's bounded least squares on the measured relative friction; each free parameter gets
-a standard error from the covariance s² (JᵀJ)⁻¹ at the optimum, and the fit is judged by how well it
-predicts points it did not see: k-fold cross-validation, and, when the data hold several forces
-(or participants), leave-one-force-out (leave-one-participant-out). A parameter that ends at a bound
-of its allowed range is named in a warning: the data push the model outside what it describes.
+a standard error from the covariance s² (JᵀJ)⁻¹ at the optimum, and, since that is optimistic when
+the residuals have structure, bootstrap standard errors beside it: points resampled, and whole
+forces or participants resampled when there are three or more (:func:`bootstrap_errors`). The fit is
+judged by how well it predicts points it did not see: k-fold cross-validation with the folds drawn
+within each force, leave-one-force-out when the data hold three forces or more, and
+leave-one-participant-out with several participants. Two forces fix a force law's exponent but
+cannot test it: with two, models are ranked by k-fold error within each force and the selection
+says that the force law was not tested (:func:`selection_note`). A parameter that ends at a bound of
+its allowed range is named in a warning: the data push the model outside what it describes.
+
+A fitted model remembers the forces it was fitted on (:class:`FitRange`, also in the calibration
+file), and says so once when it is used outside them.
 
 A calibration file is TOML::
 
@@ -17,6 +25,9 @@ A calibration file is TOML::
     [fit]
     source = "monnoyer2018-fit.csv"
     points = 11
+    forces_n = [0.5]
+    force_range_n = [0.5, 0.5]
+    force_law = "s ∝ F^0.333, assumed from the paper's detachment law ..."
     ...
 
 Every command that takes ``--model`` accepts such a file (see :func:`load_model`). Reading one is
@@ -29,7 +40,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +50,13 @@ from ultraglide.render.physics.fingerprint import FingerParams
 from ultraglide.render.physics.friction_models import (
     DEFAULT_FORCE_N,
     FORCE_EXPONENT_RANGE,
+    MAX_FORCE_N,
+    RESIDUAL_RANGE,
     SCALE_RANGE_UM_PP,
     SHAPE_RANGE,
     TAU_RANGE_UM_ZP,
     ExponentialModel,
+    FitRange,
     FrictionModel,
     PaperModel,
     StretchedExponentialModel,
@@ -50,11 +64,21 @@ from ultraglide.render.physics.friction_models import (
 )
 from ultraglide.render.physics.measurements import Measurements, read_measurements
 from ultraglide.render.physics.normal_contact import relative_friction_of_u
+from ultraglide.render.physics.squeeze_film import (
+    AMBIENT_RANGE_PA,
+    FILM_FRACTION_RANGE,
+    GAP_RANGE_UM,
+    FilmParams,
+    SqueezeFilmModel,
+    film_ratio,
+)
 
 CALIBRATION_VERSION = 1
-MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched")
-COMPARED_MODELS = ("stretched", "exponential", "paper", "paper-uniform", "table")
+MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched", "squeeze-film")
+COMPARED_MODELS = ("stretched", "exponential", "squeeze-film", "paper", "paper-uniform", "table")
 K_FOLDS = 5
+BOOTSTRAP_SAMPLES = 200
+MIN_BOOTSTRAP_GROUPS = 3  # resampling two groups mostly draws the same one twice
 
 
 @dataclass(frozen=True)
@@ -69,6 +93,9 @@ class ParameterSpec:
     needs_forces: bool = False  # only identifiable from data at two forces or more
     physical: tuple[float, float] | None = None  # where the model still describes its physics
     reason: str = ""  # what the physical range rests on
+    optional: bool = False  # calibration files may leave it out (older ones do): the default applies
+    fitted: bool = True  # False: held at the default by every fit (the file may still set it)
+    zero_ok: bool = False  # a value at the lower bound 0 is a finding (no floor, no film), not a warning
 
     def check(self, value, where: str) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -87,29 +114,46 @@ _PAPER = (
                   physical=(0.5, 1.0), reason="finger-pad friction grows as F^n with n from about 2/3 (Hertzian "
                   "asperities) to 1 (Coulomb)"),
     ParameterSpec("area_exponent", "", 0.3, 1.0, FingerParams().area_exponent, needs_forces=True,
-                  physical=(0.5, 1.0), reason="contact area grows as F^(2/3) (Hertz) to F (many asperities)"),
+                  physical=(0.5, 1.0), reason="contact area grows as F^(2/3) (Hertz) to F (many asperities)",
+                  optional=True),
 )
+_RESIDUAL = ParameterSpec("residual_ratio", "", *RESIDUAL_RANGE, 0.0, optional=True, zero_ok=True)
 PARAMETERS: dict[str, tuple[ParameterSpec, ...]] = {
-    "exponential": (ParameterSpec("tau_um_zp", " µm zero-to-peak", *TAU_RANGE_UM_ZP, 1.32),),
+    "exponential": (ParameterSpec("tau_um_zp", " µm zero-to-peak", *TAU_RANGE_UM_ZP, 1.32), _RESIDUAL),
     "stretched": (
         ParameterSpec("scale_um_pp", " µm p-p", *SCALE_RANGE_UM_PP, StretchedExponentialModel().scale_um_pp),
         ParameterSpec("shape", "", *SHAPE_RANGE, 2.0),
-        ParameterSpec("force_exponent", "", *FORCE_EXPONENT_RANGE, 1.0 / 3.0, needs_forces=True),
+        ParameterSpec("force_exponent", "", *FORCE_EXPONENT_RANGE, 1.0 / 3.0, needs_forces=True, optional=True),
+        _RESIDUAL,
     ),
     "paper": _PAPER,
     "paper-uniform": _PAPER,
+    "squeeze-film": (
+        ParameterSpec("gap_um", " µm", *GAP_RANGE_UM, FilmParams().gap_um, physical=(2.0, 50.0),
+                      reason="skin on glass leaves air pockets of a few to tens of µm"),
+        ParameterSpec("film_fraction", "", *FILM_FRACTION_RANGE, FilmParams().film_fraction, zero_ok=True),
+        ParameterSpec("ambient_pressure_pa", " Pa", *AMBIENT_RANGE_PA, FilmParams().ambient_pressure_pa,
+                      optional=True, fitted=False),
+        ParameterSpec("youngs_modulus_pa", " Pa", 1e5, 1e8, FingerParams().youngs_modulus_pa, optional=True,
+                      fitted=False),  # the ridges' physical ranges (the paper model's warnings) are the limits here
+        ParameterSpec("friction_exponent", "", 0.5, 1.0, FingerParams().friction_exponent, optional=True,
+                      fitted=False),
+    ),
 }
-OPTIONAL_KEYS = {"area_exponent", "force_exponent"}  # older files lack them: the defaults apply
+OPTIONAL_KEYS = {s.key for specs in PARAMETERS.values() for s in specs if s.optional}
 
 
 def build_model(kind: str, values: dict[str, float]) -> FrictionModel:
     """A model of ``kind`` from parameter values keyed as in :data:`PARAMETERS`."""
     if kind == "exponential":
-        return ExponentialModel(values["tau_um_zp"])
+        return ExponentialModel(values["tau_um_zp"], values.get("residual_ratio", 0.0))
     if kind == "stretched":
-        return StretchedExponentialModel(values["scale_um_pp"], values["shape"], values["force_exponent"])
+        return StretchedExponentialModel(values["scale_um_pp"], values["shape"], values["force_exponent"],
+                                         values.get("residual_ratio", 0.0))
     if kind in ("paper", "paper-uniform"):
         return PaperModel(_finger(kind, values))
+    if kind == "squeeze-film":
+        return SqueezeFilmModel(_film(values), _film_finger(values))
     raise ModelError(f"cannot build model {kind!r}; choose one of: {', '.join(MODEL_NAMES)}")
 
 
@@ -117,6 +161,14 @@ def _finger(kind: str, values: dict[str, float]) -> FingerParams:
     return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"],
                         area_exponent=values["area_exponent"],
                         contact="uniform" if kind == "paper-uniform" else "hertz")
+
+
+def _film(values: dict[str, float]) -> FilmParams:
+    return FilmParams(values["gap_um"], values["film_fraction"], values["ambient_pressure_pa"])
+
+
+def _film_finger(values: dict[str, float]) -> FingerParams:
+    return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"])
 
 
 def model_kind(model: FrictionModel) -> str:
@@ -139,8 +191,9 @@ class Parameter:
     def at_bound(self) -> bool:
         """Within 0.1 % of a bound (ranges span decades, so relative to the bound itself)."""
         span = self.spec.high - self.spec.low
+        bounds = (self.spec.high,) if self.spec.zero_ok and self.spec.low == 0 else (self.spec.low, self.spec.high)
         return not self.fixed and any(abs(self.value - bound) <= (1e-3 * abs(bound) if bound else 1e-6 * span)
-                                      for bound in (self.spec.low, self.spec.high))
+                                      for bound in bounds)
 
 
 @dataclass(frozen=True)
@@ -153,6 +206,7 @@ class Fit:
     kind: str = ""
     parameters: tuple[Parameter, ...] = ()
     cross_validation: dict[str, float] = field(default_factory=dict)  # name → RMS of held-out residuals
+    bootstrap: dict[str, dict[str, float]] = field(default_factory=dict)  # scheme → parameter → standard error
 
     @property
     def rms_residual(self) -> float:
@@ -200,17 +254,43 @@ def _prediction(kind: str, values: dict[str, float], data: Measurements):
         params = _finger(kind, values)
         detach = PaperModel.detach_um_pp_for(params, forces)
         return relative_friction_of_u(data.amplitude_um_pp / detach, params, phase_points=96, ring_nodes=24)
-    return build_model(kind, values).relative_friction(data.amplitude_um_pp, forces)
+    if kind == "squeeze-film":  # the film's forward model on the ridges' table, no inverse table to build
+        return film_ratio(data.amplitude_um_pp, np.clip(forces, 0.01, MAX_FORCE_N), _film(values),
+                          _ridges(_film_finger(values)))
+    return _forward_model(kind, values).relative_friction(data.amplitude_um_pp, forces)
 
 
-def fit_model(data: Measurements, kind: str, cross_validate: bool = False) -> Fit:
+_RIDGES: dict[FingerParams, PaperModel] = {}
+
+
+def _ridges(finger: FingerParams) -> PaperModel:
+    """The paper's model for these ridges, made once (a squeeze-film fit evaluates it many times)."""
+    if finger not in _RIDGES:
+        _RIDGES.clear()
+        _RIDGES[finger] = PaperModel(finger)
+    return _RIDGES[finger]
+
+
+def _forward_model(kind: str, values: dict[str, float]) -> FrictionModel:
+    """A model for evaluating a fit's residuals: its force-range warning silenced (fits sweep freely)."""
+    model = build_model(kind, values)
+    model._range_said = True
+    return model
+
+
+def fit_model(data: Measurements, kind: str, cross_validate: bool = False, bootstrap: int = 0,
+              hold: dict[str, float] | None = None) -> Fit:
     """Least-squares fit of a model's free parameters to measured points.
 
     ``exponential`` fits tau; ``stretched`` fits its scale and shape, and its force exponent when
     the data hold two forces or more; ``paper`` fits the ridge modulus E_e (which sets the
     detachment amplitude) and the friction exponent n, and the area exponent with several forces.
-    ``table`` builds the table model (nothing to fit). With ``cross_validate`` the fit also carries
-    its k-fold and leave-one-force-out (-participant-out) errors.
+    ``exponential`` and ``stretched`` also fit their floor (``residual_ratio``, Huloux et al. 2018; it
+    may come out 0); ``squeeze-film`` fits its air gap and the film's share of the contact, the ridges
+    held at Table I. ``table`` builds the table model (nothing to fit). With ``cross_validate`` the fit
+    also carries its cross-validated errors (:func:`cross_validation_errors`); with ``bootstrap`` (a
+    number of resamples) its bootstrap standard errors (:func:`bootstrap_errors`). ``hold`` fixes
+    parameters at given values (``{"residual_ratio": 0.0}``: the law without a floor).
     """
     if kind == "table":
         model: FrictionModel = TableModel(data)
@@ -218,20 +298,28 @@ def fit_model(data: Measurements, kind: str, cross_validate: bool = False) -> Fi
             np.minimum(data.amplitude_um_pp, model.max_amplitude_um_pp), _forces(data))
         fit = Fit(model, residuals, data, kind)
     else:
-        fit = _least_squares_fit(data, kind)
+        fit = _least_squares_fit(data, kind, hold)
     if cross_validate:
-        fit = Fit(fit.model, fit.residuals, fit.data, fit.kind, fit.parameters, cross_validation_errors(data, kind))
+        fit = replace(fit, cross_validation=cross_validation_errors(data, kind, hold))
+    if bootstrap:
+        fit = replace(fit, bootstrap=bootstrap_errors(data, kind, bootstrap, hold=hold))
     return fit
 
 
-def _least_squares_fit(data: Measurements, kind: str) -> Fit:
+def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> Fit:
     from scipy.optimize import least_squares  # only fitting needs it; keep model loading light
 
     if kind not in PARAMETERS:
         raise ModelError(f"cannot fit model {kind!r}; choose one of: {', '.join((*MODEL_NAMES, 'table'))}")
     specs = PARAMETERS[kind]
     several_forces = _distinct_forces(data) >= 2
-    free = [s for s in specs if several_forces or not s.needs_forces]
+    hold = dict(hold or {})
+    unknown = sorted(set(hold) - {s.key for s in specs})
+    if unknown:
+        raise ModelError(f"the {kind} model has no parameter {unknown[0]} to hold; its parameters are "
+                         f"{', '.join(s.key for s in specs)}")
+    held_values = {key: next(s for s in specs if s.key == key).check(value, "hold") for key, value in hold.items()}
+    free = [s for s in specs if s.fitted and s.key not in hold and (several_forces or not s.needs_forces)]
     if len(data) <= len(free):
         raise ModelError(f"{data.source}: {len(data)} points cannot fit the {len(free)} parameters of the "
                          f"{kind} model; measure more amplitudes")
@@ -240,6 +328,7 @@ def _least_squares_fit(data: Measurements, kind: str) -> Fit:
 
     def values_of(x) -> dict[str, float]:
         values = {s.key: s.default for s in specs}
+        values.update(held_values)
         values.update({s.key: float(v) * unit[s.key] for s, v in zip(free, x, strict=True)})
         return values
 
@@ -265,16 +354,32 @@ def _least_squares_fit(data: Measurements, kind: str) -> Fit:
         model = build_model(kind, values)
     except ValueError as error:  # FingerParams refuses a combination
         raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
+    model.fitted = fit_range(data)
     return Fit(model, residuals, data, kind, parameters)
+
+
+def fit_range(data: Measurements) -> FitRange:
+    """The forces (N) a fit to ``data`` rests on."""
+    return FitRange(tuple(float(f) for f in np.unique(_forces(data))), len(data))
 
 
 def _starts(kind, x0, low, high, free):
     """Starting points: the defaults, and for the stretched law also a shallow and a sharp shape."""
     yield x0
+    keys = [s.key for s in free]
     if kind == "stretched":
         for shape in (1.0, 3.0):
             start = x0.copy()
-            start[[s.key for s in free].index("shape")] = shape
+            start[keys.index("shape")] = shape
+            yield start
+    if "residual_ratio" in keys:  # a floor: start from one that is there
+        start = x0.copy()
+        start[keys.index("residual_ratio")] = 0.15
+        yield start
+    if kind == "squeeze-film":
+        for gap, fraction in ((5.0, 0.2), (20.0, 0.8)):
+            start = x0.copy()
+            start[keys.index("gap_um")], start[keys.index("film_fraction")] = gap, fraction
             yield start
 
 
@@ -288,65 +393,134 @@ def _standard_errors(jacobian: np.ndarray, residuals: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(np.diag(covariance), 0.0))
 
 
-def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray) -> float:
+def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray, hold: dict[str, float] | None = None) -> float:
     """RMS over all points of the residual each gets from a fit to the other groups."""
     residuals = np.empty(len(data))
     for group in np.unique(groups):
         held = groups == group
-        fit = fit_model(data.subset(~held), kind)
+        fit = fit_model(data.subset(~held), kind, hold=hold)
+        fit.model._range_said = True  # held-out forces lie outside the training range by design
         test = data.subset(held)
         amplitude = np.minimum(test.amplitude_um_pp, fit.model.max_amplitude_um_pp)
         residuals[held] = test.relative_friction - fit.model.relative_friction(amplitude, _forces(test))
     return float(np.sqrt(np.mean(residuals**2)))
 
 
-def cross_validation_errors(data: Measurements, kind: str) -> dict[str, float]:
-    """Out-of-sample RMS errors in relative friction: ``k_fold`` (5 folds, or leave-one-out for
-    fewer than 10 points), ``leave_one_force_out`` with several forces, and
-    ``leave_one_participant_out`` with several participants. A scheme whose training sets are too
-    small for the model is left out."""
-    errors = {}
-    folds = min(K_FOLDS, len(data)) if len(data) >= 10 else len(data)
-    order = np.random.default_rng(0).permutation(len(data))
+def k_fold_groups(data: Measurements, folds: int = K_FOLDS) -> np.ndarray:
+    """The fold of each point: drawn within each force (so every fold holds points of every force),
+    5 folds, or leave-one-out below 10 points; the same seed every time."""
+    if len(data) < 10:
+        return np.arange(len(data))
     groups = np.empty(len(data), dtype=int)
-    groups[order] = np.arange(len(data)) % folds
-    schemes = [("k_fold", groups)]
-    if _distinct_forces(data) >= 2:
+    rng = np.random.default_rng(0)
+    forces = _forces(data)
+    offset = 0
+    for force in np.unique(forces):
+        where = np.flatnonzero(forces == force)
+        groups[where[rng.permutation(len(where))]] = (offset + np.arange(len(where))) % folds
+        offset += len(where)
+    return groups
+
+
+def cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> dict[str, float]:
+    """Out-of-sample RMS errors in relative friction: ``k_fold`` (5 folds drawn within each force, or
+    leave-one-out for fewer than 10 points), ``leave_one_force_out`` with three forces or more (with
+    two, predicting one force from the other tests the two fingers' difference more than any law), and
+    ``leave_one_participant_out`` with several participants. A scheme whose training sets are too small
+    for the model is left out."""
+    errors = {}
+    schemes = [("k_fold", k_fold_groups(data))]
+    if _distinct_forces(data) >= 3:
         schemes.append(("leave_one_force_out", _forces(data)))
     if data.participant is not None and len(np.unique(data.participant)) >= 2:
         schemes.append(("leave_one_participant_out", data.participant))
     for name, grouping in schemes:
         try:
-            errors[name] = _held_out_rms(data, kind, grouping)
+            errors[name] = _held_out_rms(data, kind, grouping, hold)
         except ModelError:  # a training set too small for this model
             continue
     return errors
 
 
+def selection_note(data: Measurements) -> str:
+    """What the data can and cannot test about force laws, and how models are therefore ranked."""
+    count = _distinct_forces(data)
+    if count >= 3:
+        return (f"{count} forces: force laws ranked by leave-one-force-out error (each force predicted from the "
+                "others)")
+    if count == 2:
+        return ("2 forces: the force law could not be tested (two forces fix an exponent, they do not test it); "
+                "ranked by k-fold error within each force")
+    return ("1 force: the force law could not be tested (force exponents held at their assumed values); ranked by "
+            "k-fold error")
+
+
 def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS) -> list[Fit]:
-    """Every model fitted and cross-validated, best first (by leave-one-force-out RMS when the data
-    hold several forces, else by k-fold RMS). Models that cannot be fitted to these data are left out."""
+    """Every model fitted and cross-validated, best first: by leave-one-force-out RMS when the data hold
+    three forces or more, else by k-fold RMS (within each force); :func:`selection_note` says which and
+    why. Models that cannot be fitted to these data are left out."""
     fits = []
     for kind in kinds:
         try:
             fits.append(fit_model(data, kind, cross_validate=True))
         except ModelError:
             continue
+    ranked_by = "leave_one_force_out" if _distinct_forces(data) >= 3 else "k_fold"
 
     def score(fit: Fit) -> float:
-        value = fit.cross_validation.get("leave_one_force_out", fit.cv_rms)
+        value = fit.cross_validation.get(ranked_by, math.nan)
         return math.inf if math.isnan(value) else value
     return sorted(fits, key=score)
 
 
+def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAMPLES, seed: int = 0,
+                     hold: dict[str, float] | None = None) -> dict[str, dict[str, float]]:
+    """Bootstrap standard errors of each fitted parameter: ``points`` (points resampled with
+    replacement) and, with three groups or more, ``force`` and ``participant`` (whole groups resampled,
+    which keeps what the points of one finger or one force share). A resample the model cannot be
+    fitted to is skipped; a parameter free in fewer than half the resamples gets no value."""
+    if kind == "table" or samples < 2:
+        return {}
+    rng = np.random.default_rng(seed)
+    schemes: list[tuple[str, np.ndarray]] = [("points", np.arange(len(data)))]
+    if _distinct_forces(data) >= MIN_BOOTSTRAP_GROUPS:
+        schemes.append(("force", _forces(data)))
+    if data.participant is not None and len(np.unique(data.participant)) >= MIN_BOOTSTRAP_GROUPS:
+        schemes.append(("participant", data.participant))
+    result = {}
+    for scheme, groups in schemes:
+        names = np.unique(groups)
+        members = [np.flatnonzero(groups == name) for name in names]
+        values: dict[str, list[float]] = {}
+        for _ in range(samples):
+            drawn = rng.integers(0, len(names), len(names))
+            pick = np.concatenate([members[k] for k in drawn])
+            try:
+                fit = _least_squares_fit(data.subset(pick), kind, hold)
+            except ModelError:
+                continue
+            for p in fit.parameters:
+                if not p.fixed:
+                    values.setdefault(p.spec.key, []).append(p.value)
+        result[scheme] = {key: float(np.std(found, ddof=1)) for key, found in values.items()
+                          if len(found) >= max(2, samples // 2)}
+    return result
+
+
 def fit_summary(fit: Fit) -> dict:
     """A fit as plain values (JSON and the calibration file's [fit] table)."""
+    forces = [float(f) for f in np.unique(_forces(fit.data))]
     return {
         "model": fit.kind,
         "description": fit.model.describe(),
         "source": str(fit.data.source),
         "points": len(fit.data),
-        "forces_n": [float(f) for f in np.unique(_forces(fit.data))],
+        "forces_n": forces,
+        "force_range_n": [min(forces), max(forces)],
+        "force_law": fit.model.force_law(),
+        "selection": selection_note(fit.data),
+        "noise": fit.data.noise_words(),
+        "bootstrap_stderr": fit.bootstrap,
         "parameters": {p.spec.key: {"value": p.value, "stderr": None if math.isnan(p.stderr) else p.stderr,
                                     "fixed": p.fixed, "allowed": [p.spec.low, p.spec.high]}
                        for p in fit.parameters},
@@ -372,6 +546,8 @@ def calibration_toml(fit: Fit) -> str:
             "source": summary["source"],
             "points": summary["points"],
             "forces_n": summary["forces_n"],
+            "force_range_n": summary["force_range_n"],
+            "force_law": summary["force_law"],
             "rms_residual": fit.rms_residual,
             "max_abs_residual": fit.max_abs_residual,
             "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -379,6 +555,11 @@ def calibration_toml(fit: Fit) -> str:
     }
     if fit.parameters:
         document["fit"]["stderr"] = {p.spec.key: p.stderr for p in fit.parameters if not p.fixed}
+    if fit.bootstrap:
+        document["fit"]["bootstrap_stderr"] = {scheme: dict(values) for scheme, values in fit.bootstrap.items()
+                                               if values}
+    if summary["noise"]:
+        document["fit"]["noise"] = summary["noise"]
     if fit.cross_validation:
         document["fit"]["cross_validation_rms"] = dict(fit.cross_validation)
     if fit.warnings():
@@ -420,21 +601,42 @@ def calibration_from_document(document: dict, where: str) -> FrictionModel:
     values = {}
     for key, spec in specs.items():
         if key not in parameters:
-            if key in OPTIONAL_KEYS:
+            if spec.optional:
                 values[key] = spec.default
                 continue
             raise ModelError(f"{where}: parameter {key} is missing (allowed range [{spec.low:g}, {spec.high:g}]"
                              f"{spec.unit})")
         values[key] = spec.check(parameters[key], where)
+    fitted = _fitted_forces(document.get("fit"), where)
     try:
-        return build_model(kind, values)
+        model = build_model(kind, values)
     except ValueError as error:  # FingerParams: a combination it refuses
         raise ModelError(f"{where}: {str(error).splitlines()[0]}") from None
+    model.fitted = fitted
+    return model
+
+
+MAX_FITTED_FORCES = 10_000  # a calibration's data hold at most 100 000 points
+
+
+def _fitted_forces(fit, where: str) -> FitRange | None:
+    """The forces a calibration file says its model was fitted on ([fit] forces_n), checked; None when
+    the file does not say (files written before the range was kept)."""
+    if not isinstance(fit, dict) or "forces_n" not in fit:
+        return None
+    forces = fit["forces_n"]
+    if (not isinstance(forces, list) or not 1 <= len(forces) <= MAX_FITTED_FORCES
+            or not all(isinstance(f, (int, float)) and not isinstance(f, bool) and math.isfinite(f) and 0 < f <= 50
+                       for f in forces)):
+        raise ModelError(f"{where}: [fit] forces_n must be a list of the forces fitted on, each in (0, 50] N")
+    points = fit.get("points", 0)
+    points = int(points) if isinstance(points, int) and not isinstance(points, bool) and points >= 0 else 0
+    return FitRange(tuple(sorted(float(f) for f in set(forces))), points)
 
 
 def load_model(spec: str) -> FrictionModel:
-    """A model by name or file: ``paper``, ``paper-uniform``, ``exponential``, ``stretched``,
-    ``table:FILE.csv`` or a calibration file ``CAL.toml``."""
+    """A model by name or file: ``stretched`` (the default for rendering), ``squeeze-film``,
+    ``exponential``, ``paper``, ``paper-uniform``, ``table:FILE.csv`` or a calibration file ``CAL.toml``."""
     if spec == "paper":
         return PaperModel()
     if spec == "paper-uniform":
@@ -443,11 +645,14 @@ def load_model(spec: str) -> FrictionModel:
         return ExponentialModel()
     if spec == "stretched":
         return StretchedExponentialModel()
+    if spec == "squeeze-film":
+        return SqueezeFilmModel()
     if spec.startswith("table:"):
         return TableModel(read_measurements(spec.removeprefix("table:")))
     if spec.endswith(".toml"):
         return read_calibration(spec)
     raise ModelError(
-        f"unknown model {spec!r}; use paper, paper-uniform, exponential, stretched, table:FILE.csv or CAL.toml"
+        f"unknown model {spec!r}; use stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
+        "CAL.toml"
     )
 

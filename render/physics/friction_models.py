@@ -42,7 +42,7 @@ from ultraglide.render.physics.fingerprint import (
     contact_area_mm2,
     detach_amplitude_um_pp,
 )
-from ultraglide.render.physics.measurements import Measurements
+from ultraglide.render.physics.measurements import Measurements, check_describes_reduction
 from ultraglide.render.physics.normal_contact import relative_friction_of_u
 
 DEFAULT_FORCE_N = 0.5
@@ -585,6 +585,7 @@ class TableModel(FrictionModel):
         from scipy.interpolate import PchipInterpolator  # imported here: scipy.interpolate takes 0.3-0.8 s to load
         from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
 
+        check_describes_reduction(data, data.source)
         forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
         self.source = data.source
         self.forces = np.unique(forces)

@@ -194,55 +194,91 @@ def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, fo
     return clamped
 
 
-@njit(cache=True, nogil=True)
-def _grid_row(f, log_start, per_log, min_force, max_force, rows):
-    """The force row below ``f`` and the weight of the row above, in a table over log-spaced forces."""
-    position = (np.log(min(max(f, min_force), max_force)) - log_start) * per_log
-    if position < 0.0:
-        position = 0.0
-    row = min(int(position), rows - 2)
-    return row, position - row
+# The squeeze-film model's parameters, packed for the kernels (see render.physics.squeeze_film):
+FILM_LIFT, FILM_GAP, AREA_K, AREA_EXPONENT, AREA_MAX, DETACH_AT_1N, DETACH_EXPONENT, SATURATION, FRICTION_N, \
+    U_MAX, MIN_F, MAX_F = range(12)
 
 
 @njit(cache=True, nogil=True)
-def levitation_scale(f, film):
-    """The amplitude (µm p-p) at which a squeeze film carries the whole force ``f`` (N), or 1 without a
-    film: the scale the squeeze-film table is stored in. ``film`` holds the area law's coefficient
-    (mm²), exponent and cap (mm²), the film's fraction times the ambient pressure (Pa) and its gap (µm).
-    Where the film's mean overpressure equals F / A_film, sqrt((1 + 1.5 eps²) / (1 - eps²)) = 1 + q with
-    q = F / (fraction p_a A), so eps² = ((1 + q)² - 1) / ((1 + q)² + 1.5)."""
-    if film[3] <= 0.0:
-        return 1.0
-    area_m2 = min(film[0] * f ** film[1], film[2]) * 1e-6
-    q = f / (film[3] * area_m2)
-    w = (1.0 + q) * (1.0 + q)
-    return 2.0 * film[4] * np.sqrt((w - 1.0) / (w + 1.5))
+def film_forward(a, f, p, ratio_nodes):
+    """Friction over friction at rest of the squeeze-film model at amplitude ``a`` (µm p-p) and force ``f``
+    (N, clipped to the models' range): the ridges' share of the load to the power n times the paper's
+    R(a / W_c(F_c)), read from its table over u (nodes u_max (k / (N - 1))², linear in u between them)."""
+    f = min(max(f, p[MIN_F]), p[MAX_F])
+    share = 1.0
+    if p[FILM_LIFT] > 0.0 and a > 0.0:
+        eps = 0.5 * a / p[FILM_GAP]
+        if eps >= 1.0:
+            return 0.0
+        square = eps * eps
+        pressure = np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
+        area_m2 = min(p[AREA_K] * f ** p[AREA_EXPONENT], p[AREA_MAX]) * 1e-6
+        share = 1.0 - p[FILM_LIFT] * area_m2 * pressure / f
+        if share <= 0.0:
+            return 0.0
+    contact = share * f
+    detach = p[DETACH_AT_1N] * min(contact, p[SATURATION]) ** p[DETACH_EXPONENT] * max(contact / p[SATURATION], 1.0)
+    u = a / detach
+    last = ratio_nodes.shape[0] - 1
+    if u >= p[U_MAX]:
+        rolling = ratio_nodes[last]
+    else:
+        k = min(int(np.sqrt(u / p[U_MAX]) * last), last - 1)
+        low = p[U_MAX] * (k / last) ** 2
+        if low > u and k > 0:  # rounding of the square root: step back to the node below
+            k -= 1
+            low = p[U_MAX] * (k / last) ** 2
+        high = p[U_MAX] * ((k + 1) / last) ** 2
+        rolling = ratio_nodes[k] + (u - low) / (high - low) * (ratio_nodes[k + 1] - ratio_nodes[k])
+    return share ** p[FRICTION_N] * rolling
 
 
 @njit(cache=True, nogil=True)
-def _grid_point(r, row, weight, power, per_column, table):
-    """Bilinear reading of the table at z = sqrt(1 - r^power) (columns) between force rows ``row`` and
-    ``row + 1``."""
-    position = np.sqrt(1.0 - r**power) * per_column
-    column = min(int(position), table.shape[1] - 2)
-    fraction = position - column
-    low = table[row, column] + fraction * (table[row, column + 1] - table[row, column])
-    high = table[row + 1, column] + fraction * (table[row + 1, column + 1] - table[row + 1, column])
-    return low + weight * (high - low)
+def _film_root(r, f, limit, p, ratio_nodes):
+    """The smallest amplitude in [0, limit] whose ratio is at most ``r``: regula falsi with the Illinois
+    step on the bracket (about ten evaluations), then bisection until it closes to 1e-13 of the limit.
+    ``limit`` when even that leaves more friction than ``r``."""
+    low, high = 0.0, limit
+    g_low, g_high = 1.0 - r, film_forward(limit, f, p, ratio_nodes) - r
+    if g_high > 0.0:
+        return limit
+    side = 0
+    tolerance = 1e-13 * limit  # near levitation the ratio may fall from 1 to 0 within nanometres
+    for _ in range(60):
+        if high - low <= tolerance:
+            return high
+        if g_low - g_high > 0.0:
+            middle = high - g_high * (high - low) / (g_high - g_low)
+        else:
+            middle = 0.5 * (low + high)
+        if not (low < middle < high):
+            middle = 0.5 * (low + high)
+        g = film_forward(middle, f, p, ratio_nodes) - r
+        if g > 0.0:
+            low, g_low = middle, g
+            if side == -1:
+                g_high *= 0.5
+            side = -1
+        else:
+            high, g_high = middle, g
+            if side == 1:
+                g_low *= 0.5
+            side = 1
+    while high - low > tolerance:
+        middle = 0.5 * (low + high)
+        if film_forward(middle, f, p, ratio_nodes) > r:
+            low = middle
+        else:
+            high = middle
+    return high
 
 
 @njit(cache=True, nogil=True)
-def inverse_grid_forces(ratio, force, limit, log_start, per_log, min_force, max_force, power, per_column, table,
-                        film, out):
-    """Amplitudes from a table over log-spaced forces (rows) and z = sqrt(1 - ratio^power) (columns), stored
-    in units of :func:`levitation_scale`, a force per sample; ratios >= 1 → 0. A ratio is clamped (and counted) where its amplitude reaches ``limit``; a bad
-    ratio or force returns -1 - i."""
+def inverse_film_forces(ratio, force, limit, p, ratio_nodes, out):
+    """Amplitudes of the squeeze-film model, a force per sample, by bisection of its forward model; ratios
+    >= 1 → 0. A ratio is clamped (and counted) where even ``limit`` leaves more friction; a bad ratio or
+    force returns -1 - i."""
     clamped = 0
-    rows = table.shape[0]
-    last_force = -1.0
-    row = 0
-    weight = 0.0
-    scale = 1.0
     for i in range(ratio.shape[0]):
         r = np.float64(ratio[i])
         f = force[i]
@@ -250,28 +286,19 @@ def inverse_grid_forces(ratio, force, limit, log_start, per_log, min_force, max_
             return -1 - i
         if r >= 1.0:
             out[i] = 0.0
-            continue
-        if f != last_force:
-            last_force = f
-            row, weight = _grid_row(f, log_start, per_log, min_force, max_force, rows)
-            scale = levitation_scale(min(max(f, min_force), max_force), film)
-        a = _grid_point(r, row, weight, power, per_column, table) * scale
-        if a >= limit:
+        elif film_forward(limit, f, p, ratio_nodes) > r:
             out[i] = limit
             clamped += 1
         else:
-            out[i] = max(a, 0.0)
+            out[i] = _film_root(r, f, limit, p, ratio_nodes)
     return clamped
 
 
 @njit(cache=True, nogil=True)
-def inverse_grid_force(ratio, force, floor, limit, log_start, per_log, min_force, max_force, power, per_column,
-                       table, film, out):
-    """:func:`inverse_grid_forces` at one force for the whole block: ratios below ``floor`` → ``limit``
-    (counted), as the other single-force inverses do."""
+def inverse_film_force(ratio, force, floor, limit, p, ratio_nodes, out):
+    """:func:`inverse_film_forces` at one force for the whole block: ratios below ``floor`` (the ratio at
+    ``limit``) → ``limit``, counted."""
     clamped = 0
-    row, weight = _grid_row(force, log_start, per_log, min_force, max_force, table.shape[0])
-    scale = levitation_scale(min(max(force, min_force), max_force), film)
     for i in range(ratio.shape[0]):
         r = np.float64(ratio[i])
         if not (0.0 <= r < np.inf):
@@ -282,7 +309,7 @@ def inverse_grid_force(ratio, force, floor, limit, log_start, per_log, min_force
             out[i] = limit
             clamped += 1
         else:
-            out[i] = min(max(_grid_point(r, row, weight, power, per_column, table) * scale, 0.0), limit)
+            out[i] = _film_root(r, force, limit, p, ratio_nodes)
     return clamped
 
 
@@ -303,8 +330,8 @@ def warm_up() -> None:
                             np.empty(4))
     inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))
-    grid = np.zeros((3, 5))
-    film = np.array([138.1, 2.0 / 3.0, 250.0, 4e4, 10.0])
+    film = np.array([4e4, 10.0, 138.1, 2.0 / 3.0, 250.0, 1.6, 1.0 / 3.0, 2.4, 2.0 / 3.0, 40.0, 0.01, 10.0])
+    nodes = np.linspace(1.0, 0.6, 5)
     for ratio in (f64 + 0.5, f32 + 0.5):
-        inverse_grid_force(ratio, 0.5, 0.1, 6.0, -4.6, 8.7, 0.01, 10.0, 0.5, 4.0, grid, film, np.empty(4))
-    inverse_grid_forces(f64 + 0.5, f64 + 0.5, 6.0, -4.6, 8.7, 0.01, 10.0, 0.5, 4.0, grid, film, np.empty(4))
+        inverse_film_force(ratio, 0.5, 0.1, 6.0, film, nodes, np.empty(4))
+    inverse_film_forces(f64 + 0.5, f64 + 0.5, 6.0, film, nodes, np.empty(4))

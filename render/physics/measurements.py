@@ -3,6 +3,12 @@
 Lines starting with ``#`` are comments. Amplitudes are peak-to-peak; convert zero-to-peak data
 (as many published fits are) by doubling before saving. ``participant`` is a number naming whose
 finger each point is (for cross-validation across people).
+
+Measurement noise is accepted within a stated tolerance: a ratio down to -0.05 (a tribometer's
+noise about a finger that glides almost freely) is clipped to 0 and counted, and ratios up to 1.2
+(noise about rest) are kept as measured and counted. A file that does not describe friction
+reduction is refused with the reason: at rest (amplitudes up to 0.5 µm p-p) the ratio must be
+near 1 (it is friction over friction at rest), and at each force it must fall with amplitude.
 """
 
 from __future__ import annotations
@@ -15,12 +21,16 @@ from ultraglide.render.physics.csv_table import Column, read_numeric_csv
 from ultraglide.render.physics.errors import ModelError
 
 AMPLITUDE = Column("amplitude_um_pp", 0.0, 100.0, "µm p-p")  # plates reach a few µm; 100 is no plate
-RELATIVE_FRICTION = Column("relative_friction", 0.0, 1.2, low_open=True)  # above 1: measurement noise
+NOISE_BELOW_ZERO = 0.05  # ratios down to -0.05 are noise about a finger that glides almost freely: clipped to 0
+RELATIVE_FRICTION = Column("relative_friction", -NOISE_BELOW_ZERO, 1.2)  # above 1: noise about rest
 FORCE = Column("force_n", 0.0, 50.0, "N", low_open=True)
 PARTICIPANT = Column("participant", -1e9, 1e9)  # a number naming whose finger it is
 REQUIRED_COLUMNS = (AMPLITUDE.name, RELATIVE_FRICTION.name)
 MAX_ROWS = 100_000  # measured tables hold tens to thousands of points
 MIN_STEP_UM = 0.001  # distinct amplitudes at one force closer than a nanometre are one measurement, or noise
+REST_UM_PP = 0.5  # amplitudes up to this are "at rest" for the check below (Monnoyer's law: 0.98 there)
+REST_TOLERANCE = 0.15  # at rest the ratio must be within this of 1
+MIN_FALL = 0.05  # at each force the ratio must fall by at least this over the amplitudes measured
 
 
 @dataclass(frozen=True)
@@ -32,6 +42,8 @@ class Measurements:
     force_n: np.ndarray | None
     source: str
     participant: np.ndarray | None = None
+    clipped_below_zero: int = 0  # ratios read below 0 (within the noise tolerance) and set to 0
+    above_one: int = 0  # ratios above 1 (noise about rest), kept as measured
 
     def __len__(self) -> int:
         return len(self.amplitude_um_pp)
@@ -43,19 +55,54 @@ class Measurements:
         return Measurements(self.amplitude_um_pp[pick], self.relative_friction[pick], take(self.force_n),
                             self.source, take(self.participant))
 
+    def noise_words(self) -> str:
+        """What the reading did with noisy ratios, in words ("" when nothing)."""
+        parts = []
+        if self.clipped_below_zero:
+            parts.append(f"{self.clipped_below_zero} ratio(s) below 0 (down to -{NOISE_BELOW_ZERO:g}, measurement "
+                         "noise) clipped to 0")
+        if self.above_one:
+            parts.append(f"{self.above_one} ratio(s) above 1 (noise about rest) kept as measured")
+        return "; ".join(parts)
+
+
+def check_describes_reduction(data: Measurements, where: str) -> None:
+    """Refuse points that do not describe friction reduction, with the reason: far from 1 at rest
+    (not friction over friction at rest), or not falling with amplitude at some force."""
+    forces = data.force_n if data.force_n is not None else np.zeros(len(data))
+    for value in np.unique(forces):
+        pick = forces == value
+        amplitude, ratio = data.amplitude_um_pp[pick], data.relative_friction[pick]
+        at = "" if data.force_n is None else f" at {value:g} N"
+        rest = amplitude <= REST_UM_PP
+        if rest.any() and np.mean(ratio[rest]) < 1.0 - REST_TOLERANCE:
+            raise ModelError(f"{where}: at rest (amplitudes up to {REST_UM_PP:g} µm p-p){at} relative_friction is "
+                             f"{np.mean(ratio[rest]):.3g}, not about 1: it must be friction over friction at rest "
+                             "(mu/mu0); divide by the value at rest")
+        order = np.argsort(amplitude, kind="stable")
+        third = max(1, len(order) // 3)
+        first, last = np.mean(ratio[order[:third]]), np.mean(ratio[order[-third:]])
+        if first - last < MIN_FALL:
+            raise ModelError(f"{where}: relative_friction{at} does not fall with amplitude ({first:.3g} at the "
+                             f"smallest amplitudes, {last:.3g} at the largest): the points do not describe friction "
+                             "reduction; measure up to amplitudes where the finger glides")
+
 
 def read_measurements(path: str | Path) -> Measurements:
     """Read and validate a measurement CSV; raise :class:`ModelError` with the line at fault.
 
-    Ranges: amplitude_um_pp 0..100, relative_friction in (0, 1.2], force_n in (0, 50], at most
-    100 000 rows. There must be two different amplitudes or more, at one force never closer than
-    0.001 µm, and the friction must fall below 1 somewhere (a flat table says nothing about how
-    friction falls, so it can neither be inverted nor fitted).
+    Ranges: amplitude_um_pp 0..100, relative_friction in [-0.05, 1.2] (below 0: noise, clipped to
+    0 and counted), force_n in (0, 50], at most 100 000 rows. There must be two different
+    amplitudes or more, at one force never closer than 0.001 µm, and the points must describe
+    friction reduction (:func:`check_describes_reduction`): a flat table says nothing about how
+    friction falls, so it can neither be inverted nor fitted.
     """
     columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE, PARTICIPANT), ModelError,
                                "measurement file", MAX_ROWS)
     amplitude = columns["amplitude_um_pp"]
     ratio = columns["relative_friction"]
+    below, above = int(np.count_nonzero(ratio < 0.0)), int(np.count_nonzero(ratio > 1.0))
+    ratio = np.maximum(ratio, 0.0)
     force = columns.get("force_n")
     if len(amplitude) < 2:
         raise ModelError(f"{path}: at least two data rows are needed, found {len(amplitude)}")
@@ -72,4 +119,6 @@ def read_measurements(path: str | Path) -> Measurements:
             at = "" if value is None else f" at {value:g} N"
             raise ModelError(f"{path}: amplitudes {distinct[k]:g} and {distinct[k + 1]:g} µm{at} differ by less than "
                              f"{MIN_STEP_UM:g} µm, below any vibrometer's resolution; merge them")
-    return Measurements(amplitude, ratio, force, str(path), columns.get("participant"))
+    data = Measurements(amplitude, ratio, force, str(path), columns.get("participant"), below, above)
+    check_describes_reduction(data, str(path))
+    return data

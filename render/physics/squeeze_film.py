@@ -25,18 +25,16 @@ This model puts the two together, with parameters that are physical:
   (F_c / F)^n R(a / W_c(F_c)), R the paper's relative friction (Fig. 8) and W_c its detachment
   amplitude (eq. 6) at the contact's own load.
 
-With ``film_fraction`` 0 (or ``ambient_pressure_pa`` 0, a vacuum) the film carries nothing and the
+With ``film_fraction`` 0 the film carries nothing and the
 model is the paper's, exactly. Because A ∝ F^(2/3), the film's share of the load falls as
 F^(-1/3): lighter touches levitate more, as measured fingers do (Vezzoli et al. 2015, ref. [8] of
 the paper). Frequency enters only through the condition sigma >> 1, which holds on ultrasonic plates
 (:func:`squeeze_number`). Left out: the skin's compliance under the film (the gap is held), its
 inertia and viscoelasticity, and the film's edge losses.
 
-The inverse is a table over the force (log-spaced nodes, one of them where the contact area
-saturates) and z = sqrt(1 - sqrt(ratio)), filled by inverting the exact forward model when the
-model is made (about 0.1 s), and read by a compiled kernel. Rows are stored in units of the
-amplitude that levitates the finger at their force (closed form), so that near levitation, where the
-ratio falls steeply, every row ends alike and interpolating between forces stays exact.
+The inverse is exact: a compiled kernel bisects the forward model itself (closed forms and the
+paper's table over u) for each sample, 40 halvings of the amplitude range, about a microsecond a
+sample, with no table of its own to build.
 """
 
 from __future__ import annotations
@@ -66,17 +64,14 @@ AMBIENT_PRESSURE_PA = 101_325.0
 AIR_VISCOSITY_PA_S = 1.81e-5  # at 20 °C
 GAP_RANGE_UM = (1.0, 100.0)
 FILM_FRACTION_RANGE = (0.0, 1.0)
-AMBIENT_RANGE_PA = (0.0, 2.0e5)
-FORCE_NODES_PER_DECADE = 20
-COLUMN_NODES = 2049  # nodes of z = sqrt(1 - sqrt(ratio)) in the inverse table
-AMPLITUDE_SAMPLES = 4001  # forward samples per force row from which the table is inverted
+AMBIENT_RANGE_PA = (1.0e3, 2.0e5)  # down to a 99 % vacuum (Friesen et al. 2018 used 98 %); no film: film_fraction 0
 
 
 @dataclass(frozen=True)
 class FilmParams:
     """The air film under the finger: ``gap_um``, the mean gap between skin and glass over the film's
     area at rest (µm); ``film_fraction``, the share of the apparent contact area (eq. 3) over which the
-    film builds pressure; ``ambient_pressure_pa``, the air's pressure (0: a vacuum, no film).
+    film builds pressure (0: no film, the paper's model); ``ambient_pressure_pa``, the air's pressure (1 kPa, a 99 % vacuum, to 200 kPa).
 
     The defaults (a 10 µm gap over 40 % of the contact) are chosen, within what skin on glass
     allows, so that the model reaches the reductions measured fingers show (0.2 at 6 µm p-p and
@@ -139,6 +134,20 @@ def squeeze_number(carrier_hz: float, force_n: float, film: FilmParams = FilmPar
                  / (film.ambient_pressure_pa * gap_m**2))
 
 
+def film_ratio(amplitude_um_pp: np.ndarray, force_n: np.ndarray, film: FilmParams, contact: PaperModel) -> np.ndarray:
+    """Friction over friction at rest, (F_c / F)^n R(a / W_c(F_c)), with the paper's model ``contact``
+    (its R table and detachment law) for the ridges; forces as given (not clipped)."""
+    finger = contact.params
+    amplitude = np.asarray(amplitude_um_pp, dtype=float)
+    force = np.asarray(force_n, dtype=float)
+    share = contact_share(amplitude, force, film, finger)
+    detach = contact._detach_um_pp(share * force, clip=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(amplitude > 0, amplitude / detach, 0.0)
+    rolling = np.interp(u, contact.u_nodes, contact.ratio_nodes)
+    return np.power(share, finger.friction_exponent) * rolling
+
+
 class SqueezeFilmModel(FrictionModel):
     """Intermittent contact of the paper's ridges, cushioned by a squeeze film of air (module docstring).
 
@@ -151,29 +160,22 @@ class SqueezeFilmModel(FrictionModel):
         self.film = film
         self.finger = finger
         self._contact = PaperModel(finger)  # the paper's R(u) table and its detachment law
-        # log-spaced force nodes from 10 mN to 10 N and a little beyond, one of them at the area's
-        # saturation (a kink); the rows are filled at the nodes' own forces
-        self._per_log = FORCE_NODES_PER_DECADE / np.log(10.0)
-        saturation = np.log(self._contact._saturation_n)
-        below = np.ceil((saturation - np.log(MIN_FORCE_N)) * self._per_log)
-        above = np.ceil((np.log(MAX_FORCE_N) - saturation) * self._per_log)
-        self._log_start = saturation - below / self._per_log
-        self._force_nodes = np.exp(self._log_start + np.arange(below + above + 1) / self._per_log)
-        self._per_column = COLUMN_NODES - 1.0
-        self._power = 0.5  # z = sqrt(1 - sqrt(ratio)): amplitudes near levitation stay smooth in z
-        self._film = np.array([finger.area_coefficient_mm2, finger.area_exponent, finger.max_contact_area_mm2,
-                               film.film_fraction * film.ambient_pressure_pa, film.gap_um])
-        self._table = self._inverse_table()
+        contact = self._contact
+        packed = np.zeros(12)
+        packed[[kernels.FILM_LIFT, kernels.FILM_GAP]] = film.film_fraction * film.ambient_pressure_pa, film.gap_um
+        packed[[kernels.AREA_K, kernels.AREA_EXPONENT, kernels.AREA_MAX]] = (
+            finger.area_coefficient_mm2, finger.area_exponent, finger.max_contact_area_mm2)
+        packed[[kernels.DETACH_AT_1N, kernels.DETACH_EXPONENT, kernels.SATURATION]] = (
+            contact._detach_at_1n, contact._detach_exponent, contact._saturation_n)
+        packed[[kernels.FRICTION_N, kernels.U_MAX]] = finger.friction_exponent, contact.u_nodes[-1]
+        packed[[kernels.MIN_F, kernels.MAX_F]] = MIN_FORCE_N, MAX_FORCE_N
+        self._packed = packed
+        self._nodes = np.ascontiguousarray(contact.ratio_nodes)
 
     # ---- the forward model ------------------------------------------------------------------------
     def _ratio(self, amplitude: np.ndarray, force: np.ndarray) -> np.ndarray:
         """The forward model at forces already clipped to the models' range (or at a table node)."""
-        share = contact_share(amplitude, force, self.film, self.finger)
-        detach = self._contact._detach_um_pp(share * force, clip=False)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(amplitude > 0, amplitude / detach, 0.0)
-        rolling = np.interp(u, self._contact.u_nodes, self._contact.ratio_nodes)
-        return np.power(share, self.finger.friction_exponent) * rolling
+        return film_ratio(amplitude, force, self.film, self._contact)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         self._checked_force(force_n)
@@ -182,26 +184,6 @@ class SqueezeFilmModel(FrictionModel):
         return self._ratio(amplitude, _clip_force(force_n))
 
     # ---- the inverse ---------------------------------------------------------------------------------
-    def _inverse_table(self) -> np.ndarray:
-        """Amplitudes at each force node (rows) and each node of z = sqrt(1 - ratio^(1/2)) (columns), in
-        units of the amplitude that levitates the finger at that force (:func:`kernels.levitation_scale`):
-        near levitation every row then ends alike. Each row inverts the forward model sampled densely up
-        to levitation (or the 20 µm ceiling), closest near the end, where the ratio falls steeply;
-        ratios beyond reach within the ceiling hold the ceiling."""
-        column = np.linspace(0.0, 1.0, COLUMN_NODES)
-        target = np.power(1.0 - column**2, 1.0 / self._power)
-        scale = np.array([kernels.levitation_scale(float(f), self._film) for f in self._force_nodes])
-        end = np.minimum(np.where(scale > 1.0, scale, CEILING_UM_PP), CEILING_UM_PP)
-        t = np.linspace(0.0, 1.0, AMPLITUDE_SAMPLES)
-        amplitude = end[:, None] * (1.0 - (1.0 - t[None, :]) ** 2)
-        ratio = self._ratio(amplitude, np.broadcast_to(self._force_nodes[:, None], amplitude.shape))
-        ratio = np.minimum.accumulate(ratio, axis=1)  # guard monotonicity against rounding
-        table = np.empty((len(self._force_nodes), COLUMN_NODES))
-        for k in range(len(self._force_nodes)):
-            table[k] = np.interp(target, ratio[k, ::-1], amplitude[k, ::-1], left=end[k], right=0.0)
-        table[:, 0] = 0.0  # a ratio of 1 is rest
-        return np.ascontiguousarray(table / scale[:, None])
-
     def _amplitude_in_reach(self, ratio, force_n):
         ratio = np.asarray(ratio, dtype=float)
         force = np.asarray(force_n, dtype=float)
@@ -209,8 +191,7 @@ class SqueezeFilmModel(FrictionModel):
         out = np.empty(int(np.prod(shape)))
         ratio = np.ascontiguousarray(np.broadcast_to(ratio, shape), dtype=float).ravel()
         force = np.ascontiguousarray(np.broadcast_to(force, shape), dtype=float).ravel()
-        kernels.inverse_grid_forces(ratio, force, np.inf, self._log_start, self._per_log, MIN_FORCE_N, MAX_FORCE_N,
-                                    self._power, self._per_column, self._table, self._film, out)
+        kernels.inverse_film_forces(ratio, force, CEILING_UM_PP, self._packed, self._nodes, out)
         return out.reshape(shape)
 
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
@@ -222,14 +203,12 @@ class SqueezeFilmModel(FrictionModel):
             out = np.empty(len(ratio))
         if _is_scalar(force_n):
             self._checked_force(force_n)
-            code = kernels.inverse_grid_force(ratio, float(force_n), self._floor(force_n, limit), limit,
-                                              self._log_start, self._per_log, MIN_FORCE_N, MAX_FORCE_N,
-                                              self._power, self._per_column, self._table, self._film, out)
+            code = kernels.inverse_film_force(ratio, float(force_n), self._floor(force_n, limit), limit, self._packed,
+                                              self._nodes, out)
             return Inversion(out, _kernel_result(code, ratio, force_n))
         ratio = ratio.astype(np.float64, copy=False)
         force = force_n.astype(np.float64, copy=False)
-        code = kernels.inverse_grid_forces(ratio, force, limit, self._log_start, self._per_log, MIN_FORCE_N,
-                                           MAX_FORCE_N, self._power, self._per_column, self._table, self._film, out)
+        code = kernels.inverse_film_forces(ratio, force, limit, self._packed, self._nodes, out)
         result = Inversion(out, _kernel_result(code, ratio, force))
         self._note_force_range(force)
         return result
