@@ -196,7 +196,7 @@ def inverse_table_force(ratio, force, limit, start, per_step, values, slopes, fo
 
 # The squeeze-film model's parameters, packed for the kernels (see render.physics.squeeze_film):
 FILM_LIFT, FILM_GAP, AREA_K, AREA_EXPONENT, AREA_MAX, DETACH_AT_1N, DETACH_EXPONENT, SATURATION, FRICTION_N, \
-    U_MAX, MIN_F, MAX_F = range(12)
+    U_MAX, MIN_F, MAX_F, EPS_MAX = range(13)
 
 
 @njit(cache=True, nogil=True)
@@ -207,9 +207,7 @@ def film_forward(a, f, p, ratio_nodes):
     f = min(max(f, p[MIN_F]), p[MAX_F])
     share = 1.0
     if p[FILM_LIFT] > 0.0 and a > 0.0:
-        eps = 0.5 * a / p[FILM_GAP]
-        if eps >= 1.0:
-            return 0.0
+        eps = min(0.5 * a / p[FILM_GAP], p[EPS_MAX])
         square = eps * eps
         pressure = np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
         area_m2 = min(p[AREA_K] * f ** p[AREA_EXPONENT], p[AREA_MAX]) * 1e-6
@@ -330,7 +328,7 @@ def warm_up() -> None:
                             np.empty(4))
     inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))
-    film = np.array([4e4, 10.0, 138.1, 2.0 / 3.0, 250.0, 1.6, 1.0 / 3.0, 2.4, 2.0 / 3.0, 40.0, 0.01, 10.0])
+    film = np.array([4e4, 10.0, 138.1, 2.0 / 3.0, 250.0, 1.6, 1.0 / 3.0, 2.4, 2.0 / 3.0, 40.0, 0.01, 10.0, 0.95])
     nodes = np.linspace(1.0, 0.6, 5)
     for ratio in (f64 + 0.5, f32 + 0.5):
         inverse_film_force(ratio, 0.5, 0.1, 6.0, film, nodes, np.empty(4))

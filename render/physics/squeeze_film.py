@@ -62,6 +62,7 @@ from ultraglide.render.physics.friction_models import (
 
 AMBIENT_PRESSURE_PA = 101_325.0
 AIR_VISCOSITY_PA_S = 1.81e-5  # at 20 °C
+EPS_MAX = 0.95  # the film's law is held beyond this share of the gap (see film_overpressure_ratio)
 GAP_RANGE_UM = (1.0, 100.0)
 FILM_FRACTION_RANGE = (0.0, 1.0)
 AMBIENT_RANGE_PA = (1.0e3, 2.0e5)  # down to a 99 % vacuum (Friesen et al. 2018 used 98 %); no film: film_fraction 0
@@ -95,13 +96,11 @@ class FilmParams:
 
 def film_overpressure_ratio(eps: ArrayLike) -> np.ndarray:
     """(p̄ - p_a) / p_a of an isothermal squeeze film at large squeeze number, for a plate moving by
-    ``eps`` times the mean gap (zero-to-peak over gap): sqrt((1 + 1.5 eps²) / (1 - eps²)) - 1,
-    infinite from eps = 1 (the plate reaches the skin)."""
-    eps = np.asarray(eps, dtype=float)
-    square = eps * eps
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
-    return np.where(eps < 1.0, ratio, np.inf)
+    ``eps`` times the mean gap (zero-to-peak over gap): sqrt((1 + 1.5 eps²) / (1 - eps²)) - 1.
+    Beyond eps = 0.95 the plate all but touches the skin, the film's law no longer holds, and its
+    pressure is held at that value (3.9 p_a): the model stays continuous."""
+    square = np.square(np.minimum(np.asarray(eps, dtype=float), EPS_MAX))
+    return np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
 
 
 def levitation_force_n(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
@@ -109,10 +108,7 @@ def levitation_force_n(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: Fil
     """The mean load (N) the air film carries at this amplitude (µm p-p) and normal force (N)."""
     eps = np.asarray(amplitude_um_pp, dtype=float) / 2.0 / film.gap_um
     area_m2 = contact_area_mm2(np.asarray(force_n, dtype=float), finger) * MM2_TO_M2
-    pressure = film.ambient_pressure_pa * film_overpressure_ratio(eps)
-    with np.errstate(invalid="ignore"):  # no film (0 x inf) carries nothing
-        lift = film.film_fraction * area_m2 * pressure
-    return np.where(film.film_fraction * film.ambient_pressure_pa > 0, lift, 0.0)
+    return film.film_fraction * area_m2 * film.ambient_pressure_pa * film_overpressure_ratio(eps)
 
 
 def contact_share(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
@@ -161,7 +157,7 @@ class SqueezeFilmModel(FrictionModel):
         self.finger = finger
         self._contact = PaperModel(finger)  # the paper's R(u) table and its detachment law
         contact = self._contact
-        packed = np.zeros(12)
+        packed = np.zeros(13)
         packed[[kernels.FILM_LIFT, kernels.FILM_GAP]] = film.film_fraction * film.ambient_pressure_pa, film.gap_um
         packed[[kernels.AREA_K, kernels.AREA_EXPONENT, kernels.AREA_MAX]] = (
             finger.area_coefficient_mm2, finger.area_exponent, finger.max_contact_area_mm2)
@@ -169,6 +165,7 @@ class SqueezeFilmModel(FrictionModel):
             contact._detach_at_1n, contact._detach_exponent, contact._saturation_n)
         packed[[kernels.FRICTION_N, kernels.U_MAX]] = finger.friction_exponent, contact.u_nodes[-1]
         packed[[kernels.MIN_F, kernels.MAX_F]] = MIN_FORCE_N, MAX_FORCE_N
+        packed[kernels.EPS_MAX] = EPS_MAX
         self._packed = packed
         self._nodes = np.ascontiguousarray(contact.ratio_nodes)
 
