@@ -175,7 +175,8 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("model"), button=1, touch=False)
     run_for(app, 0.05)
     assert run_until(app, lambda: engine(app).force_n == pytest.approx(force * 1.25)), engine(app).force_n
-    assert app.model_name == "paper" and run_until(app, lambda: engine(app).model == "paper"), engine(app).model
+    assert app.model_name == "squeeze-film" and run_until(app, lambda: engine(app).model == "squeeze-film"), \
+        engine(app).model  # the model button steps from the default, stretched, to the next
     post(pg, pg.MOUSEBUTTONDOWN, pos=(600, app.area.top + 100), button=1, touch=False)  # a finger on: it runs
     assert run_until(app, lambda: engine(app).state == "running"), engine(app).state
     post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=0)
@@ -232,7 +233,7 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
     import re
 
     words = app.status_words()
-    for phrase in ("simulated plate running", "exponential model", "0.50 N (Up/Down keys)",
+    for phrase in ("simulated plate running", "stretched model", "0.50 N (Up/Down keys)",
                    "within the plate's limit on this texture", "H: help"):
         assert phrase in words, words
     # a loaded machine may starve the simulated plate: then its faults are named and counted

@@ -317,7 +317,7 @@ def test_unknown_url_keys_and_absurd_rates_are_refused():
 # (low, high, low excluded, whole number, high excluded); OVERRIDES where a flag means another thing.
 FEATURE = (0.01, 10_000, False, False, False)
 RANGES = {
-    "--force": (0, 50, True, False, False), "--ratio": (0, 1, True, False, False),
+    "--force": (0, 10, True, False, False), "--preload-n": (0, 10, False, False, False), "--ratio": (0, 1, True, False, False),
     "--screen-width-mm": (10, 10_000, False, False, False), "--range": (0, 1, False, False, False),
     "--levels": (0, 1, False, False, False), "--width-mm": (0.1, 10_000, False, False, False),
     "--dpi": (1, 100_000, False, False, False), "--gamma": (0.01, 100, False, False, False),
@@ -351,7 +351,8 @@ OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("experiment", "constant"), "--levels"): (0, 10_000, False, False, False),
              (("plate", "sweep"), "--from-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
-             (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False)}
+             (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False),
+             (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False)}
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],

@@ -48,6 +48,9 @@ _EXPORTS: dict[str, str] = {
     "ExponentialModel": "ultraglide.render.physics.friction_models",
     "StretchedExponentialModel": "ultraglide.render.physics.friction_models",
     "TableModel": "ultraglide.render.physics.friction_models",
+    "SqueezeFilmModel": "ultraglide.render.physics.squeeze_film",
+    "FilmParams": "ultraglide.render.physics.squeeze_film",
+    "ForceRangeWarning": "ultraglide.render.physics.errors",
     "load_model": "ultraglide.render.physics.calibration",
     "read_measurements": "ultraglide.render.physics.measurements",
     "fit_model": "ultraglide.render.physics.calibration",
@@ -123,7 +126,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
         load_model,
         read_calibration,
     )
-    from ultraglide.render.physics.errors import ModelError
+    from ultraglide.render.physics.errors import ForceRangeWarning, ModelError
     from ultraglide.render.physics.friction_models import (
         ExponentialModel,
         FrictionModel,
@@ -132,6 +135,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
         TableModel,
     )
     from ultraglide.render.physics.measurements import read_measurements
+    from ultraglide.render.physics.squeeze_film import FilmParams, SqueezeFilmModel
     from ultraglide.render.renderer import Renderer, RenderSettings
     from ultraglide.render.touch_log import read_touch_log
     from ultraglide.render.trajectory import RecordedTrajectory

@@ -17,6 +17,7 @@ Example, a 1 mm grating swiped at 100 mm/s for half a second::
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
-from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.render.physics.friction_models import MAX_FORCE_N, FrictionModel
 from ultraglide.render.renderer import ControlBlock, Renderer, RenderSettings
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.library import resolve_texture
@@ -114,7 +115,7 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
 
 def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
                trajectory: RecordedTrajectory | SwipePath | None = None, *,
-               model: FrictionModel | str = "exponential", profile: PlateProfile | str = "sim-plate",
+               model: FrictionModel | str = "stretched", profile: PlateProfile | str = "sim-plate",
                settings: RenderSettings | None = None, rate_hz: int = 96000, format: str = "float32",
                speed_mm_s: float = 100.0, duration_s: float = 5.0, force_n: float | None = None,
                observers: Iterable[Callable[[ControlBlock], None]] = ()) -> ExportResult:
@@ -123,7 +124,9 @@ def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
     ``texture``: a :class:`Texture`, a texture file, an image (authored with default options) or a
     library name. ``trajectory``: a recorded path (:func:`read_touch_log`) or a :class:`SwipePath`;
     by default a straight swipe across the middle at ``speed_mm_s`` (mm/s) for ``duration_s`` (s)
-    at ``force_n`` (N). ``model``: a model or its name (``exponential``, ``paper``, ``table:F.csv``,
+    at ``force_n`` (N); with a recorded path that logs no force, ``force_n`` is its force (a path that
+    logs its own force and a ``force_n`` are refused together). ``model``: a model or its name
+    (``stretched``, the force-aware default; ``squeeze-film``, ``exponential``, ``paper``, ``table:F.csv``,
     ``CAL.toml`` ...); ``profile``: the plate's profile or its name. ``settings`` overrides the
     renderer's (its ``audio_rate_hz`` wins over ``rate_hz``). ``format``: ``float32``, ``int24`` or
     ``int16``, full scale = the plate's full-scale drive. ``observers`` are given each control block.
@@ -135,6 +138,13 @@ def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
     if trajectory is None:
         trajectory = SwipePath.across(texture.width_mm, texture.height_mm, speed_mm_s=speed_mm_s, duration_s=duration_s,
                                        force_n=force_n)
+    elif force_n is not None:
+        if (trajectory.has_force if isinstance(trajectory, RecordedTrajectory) else trajectory.force_n is not None):
+            raise RenderError("the trajectory brings its own force; give force_n only for one that logs none")
+        if not 0 < force_n <= MAX_FORCE_N:
+            raise RenderError(f"force_n must be a positive force up to {MAX_FORCE_N:g} N, a fingertip's touch range, "
+                              f"got {force_n}")
+        settings = dataclasses.replace(settings, default_force_n=float(force_n))
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     path = Path(path)

@@ -23,7 +23,8 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-MODEL_HELP = "friction model: paper, paper-uniform, exponential, stretched, table:FILE.csv or CAL.toml"
+MODEL_HELP = ("friction model: stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
+              "CAL.toml")
 
 
 def add_model_option(parser: argparse.ArgumentParser, default: str = "paper") -> None:

@@ -74,7 +74,8 @@ class Bounded:
 
 # The ranges of the project's options: wide enough for any real plate, finger or image, narrow
 # enough that no value can overflow, exhaust memory or run for days.
-FORCE_N = Bounded(0.0, 50.0, "N", low_open=True)
+FORCE_N = Bounded(0.0, 10.0, "N", low_open=True, what="normal force (a fingertip's touch range)")
+PRELOAD_N = Bounded(0.0, 10.0, "N", what="tangential preload")
 RATIO = Bounded(0.0, 1.0, low_open=True)
 UNIT_INTERVAL = Bounded(0.0, 1.0)
 LENGTH_MM = Bounded(0.0, 10_000.0, "mm", low_open=True)

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.types import PARTICIPANT
+from ultraglide.apps.cli.types import PARTICIPANT, Bounded
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.calibration import Fit
@@ -17,6 +17,8 @@ from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
 
 POOR_FIT_RMS = 0.05
+BOOTSTRAP_RESAMPLES = Bounded(0, 10_000, whole=True)
+BOOTSTRAP_WORDS = {"points": "points resampled", "force": "forces resampled", "participant": "participants resampled"}
 CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
             "leave_one_participant_out": "leave-one-participant-out"}
 
@@ -27,17 +29,22 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         "calibrate", help="fit a friction model to measured points",
         description="Fit a model's free parameters to a CSV of amplitude_um_pp,relative_friction"
                     "[,force_n][,participant] by least squares; report each parameter with its standard "
-                    "error and the cross-validated error (k-fold, leave-one-force-out); write a calibration "
-                    "file usable as --model and a figure beside it (CAL.png at 300 dpi and CAL.pdf).")
+                    "error (from JᵀJ and by bootstrap) and the cross-validated error (k-fold within each force; "
+                    "leave-one-force-out with three forces or more); write a calibration file usable as --model "
+                    "and a figure beside it (CAL.png at 300 dpi and CAL.pdf). Ratios down to -0.05 are taken as "
+                    "noise: clipped to 0 and counted.")
     calibrate.add_argument("data", metavar="DATA.csv")
     calibrate.add_argument("--model", default="stretched",
-                           choices=["stretched", "exponential", "paper", "paper-uniform", "table"],
+                           choices=["stretched", "exponential", "squeeze-film", "paper", "paper-uniform", "table"],
                            help="the model to fit (default: stretched)")
     calibrate.add_argument("--compare", action="store_true",
                            help="fit every model and rank them by cross-validated error; -o keeps the best")
     calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
                            help="use only this participant's points (the participant column)")
     calibrate.add_argument("--json", action="store_true", help="print one JSON object")
+    calibrate.add_argument("--bootstrap", type=BOOTSTRAP_RESAMPLES, default=200, metavar="N",
+                           help="bootstrap resamples for the uncertainties (points; forces and participants when "
+                                "there are three or more), 0 to skip (default: 200)")
     calibrate.add_argument("-o", "--output", metavar="CAL.toml",
                            help="write the calibration here, and its figure as CAL.png and CAL.pdf")
     calibrate.set_defaults(run=run)
@@ -69,11 +76,18 @@ def _fit_lines(fit: Fit) -> list[str]:
     for p in fit.parameters:
         allowed = f"allowed [{p.spec.low:g}, {p.spec.high:g}]{p.spec.unit}"
         if p.fixed:
-            lines.append(f"  {p.spec.key} = {p.value:.6g}  held: one force cannot fix it ({allowed})")
-        else:
-            lines.append(f"  {p.spec.key} = {p.value:.6g} ± {p.stderr:.2g}  (1 standard error; {allowed})")
+            why = "one force cannot fix it" if p.spec.needs_forces and p.spec.fitted else "not fitted"
+            lines.append(f"  {p.spec.key} = {p.value:.6g}  held: {why} ({allowed})")
+            continue
+        boot = "; ".join(f"{values[p.spec.key]:.2g} with {BOOTSTRAP_WORDS[scheme]}"
+                         for scheme, values in fit.bootstrap.items() if p.spec.key in values)
+        lines.append(f"  {p.spec.key} = {p.value:.6g} ± {p.stderr:.2g} from JᵀJ" + (f", ± {boot}" if boot else "")
+                     + f"  (1 standard error; {allowed})")
     lines.append(f"  {len(fit.data)} points at {', '.join(f'{f:g}' for f in forces)} N; rms residual "
                  f"{fit.rms_residual:.4f}, largest {fit.max_abs_residual:.4f} (relative friction)")
+    if fit.data.noise_words():
+        lines.append(f"  noise: {fit.data.noise_words()}")
+    lines.append(f"  force law: {fit.model.force_law()}")
     lines.append(f"  cross-validated rms: {_cv_text(fit)}")
     return lines
 
@@ -98,7 +112,7 @@ def _write(fit: Fit, fits: list[Fit], output: Path) -> list[Path]:
 
 
 def run(args) -> int:
-    from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary
+    from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary, selection_note
     from ultraglide.render.physics.measurements import read_measurements
 
     data = _select_participant(read_measurements(args.data), args.participant)
@@ -110,17 +124,20 @@ def run(args) -> int:
         if not fits:
             raise UsageError(f"{data.source}: no model can be fitted to these points")
         chosen = next((f for f in fits if f.kind != "table"), None)
+        if chosen is not None and args.bootstrap:
+            chosen = fit_model(data, chosen.kind, cross_validate=True, bootstrap=args.bootstrap)
+            fits = [chosen if f.kind == chosen.kind else f for f in fits]
         written = _write(chosen, fits, output) if output is not None and chosen is not None else []
-        result = {"ranking": [fit_summary(f) for f in fits], "written": [str(p) for p in written]}
+        note = selection_note(data)
+        result = {"ranking": [fit_summary(f) for f in fits], "selection": note, "written": [str(p) for p in written]}
         if args.json:
             print(json.dumps(result))
             return 0
-        ranked_by = "leave-one-force-out" if "leave_one_force_out" in fits[0].cross_validation else "k-fold"
-        print(f"{len(data)} points from {data.source}; models ranked by {ranked_by} cross-validated rms error:")
+        print(f"{len(data)} points from {data.source}; {note}:")
         for rank, fit in enumerate(fits, 1):
             print(f"  {rank}. {fit.kind:14} {_cv_text(fit)}; in-sample {fit.rms_residual:.4f}")
         print()
-        for line in _fit_lines(fits[0]):
+        for line in _fit_lines(chosen if chosen is not None else fits[0]):
             print(line)
         for fit in fits:
             for warning in fit.warnings():
@@ -132,13 +149,14 @@ def run(args) -> int:
             print(f"wrote {', '.join(map(str, written))}")
         return 0
 
-    fit = fit_model(data, args.model, cross_validate=True)
+    fit = fit_model(data, args.model, cross_validate=True, bootstrap=args.bootstrap)
     if fit.kind == "table" and output is not None:
         raise UsageError("a table model is its CSV: use --model table:FILE.csv rather than a calibration file")
     written = _write(fit, [fit], output) if output is not None else []
     if args.json:
         print(json.dumps({"fit": fit_summary(fit), "written": [str(p) for p in written]}))
         return 0
+    print(f"{selection_note(data)}")
     for line in _fit_lines(fit) + _residual_table(fit):
         print(line)
     for warning in fit.warnings():

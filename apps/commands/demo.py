@@ -18,7 +18,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                       help="texture files or images to add to the library's (images are authored with defaults)")
     demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
     demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
-    demo.add_argument("--model", default="exponential", help="friction model (default: exponential)")
+    demo.add_argument("--model", default="stretched", help="friction model (default: stretched, force-aware)")
     demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")

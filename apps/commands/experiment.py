@@ -73,7 +73,7 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                              "(default: posterior; QUEST+ always gives its posterior)")
     parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
                         help="bootstrap samples with --interval bootstrap (default: 200)")
-    parser.add_argument("--model", default="exponential", metavar="MODEL", help=f"{MODEL_HELP} (default: exponential)")
+    parser.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
     parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
     parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,

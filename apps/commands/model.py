@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.options import add_model_option
-from ultraglide.apps.cli.types import FORCE_N, ratio
+from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.fingerprint import FingerParams
@@ -24,8 +25,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     """``ultraglide model``: its options."""
     model = commands.add_parser(
         "model", help="the fingerprint physics at one normal force",
-        description="Contact area, ridge stiffness, detachment amplitude, glide threshold and "
-                    "relative friction against amplitude, from the paper's model.")
+        description="A friction model at one normal force: its force law and where it holds, relative friction "
+                    "against amplitude, and, for the models built on the paper's ridges (paper, paper-uniform, "
+                    "squeeze-film), contact area, ridge stiffness, detachment amplitude, glide threshold and the "
+                    "ridge layer's shear resonance.")
     model.add_argument("--force", type=FORCE_N, default=None, metavar="N",
                        help="normal force of the finger, N (default: 0.5; figures: the paper's force for each)")
     add_model_option(model)
@@ -38,26 +41,41 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        help="write one page on the model at this force: parameters, curve, inverse, contact")
     model.add_argument("--data", metavar="CSV",
                        help="measured points for figure 9 (default: the bundled Monnoyer 2018 fit)")
+    model.add_argument("--preload-n", type=PRELOAD_N, default=0.0, metavar="T",
+                       help="tangential preload the finger holds on a lateral vibrator, N, for the glide threshold "
+                            "(default: 0, the paper's eq. 5; the paper's psychophysics needs about 0.1 N at 0.4 N)")
+    model.add_argument("--carrier-hz", type=CARRIER_HZ, metavar="F",
+                       help="lateral vibration frequency to check the quasi-static glide threshold against the ridge "
+                            "layer's shear resonance (a warning when it fails there)")
     model.set_defaults(run=run)
 
 
-def _finger(model: FrictionModel) -> FingerParams:
-    """The ridge model's parameters: the model's own for the paper model, else the paper's Table I."""
-    from ultraglide.render.physics.fingerprint import FingerParams
+def _finger(model: FrictionModel) -> FingerParams | None:
+    """The ridge model's parameters of a model built on the paper's ridges, else None."""
     from ultraglide.render.physics.friction_models import PaperModel
+    from ultraglide.render.physics.squeeze_film import SqueezeFilmModel
 
-    return model.params if isinstance(model, PaperModel) else FingerParams()
+    if isinstance(model, PaperModel):
+        return model.params
+    if isinstance(model, SqueezeFilmModel):
+        return model.finger
+    return None
 
 
-def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> dict:
-    """Everything ``ultraglide model`` reports, as plain JSON-able values."""
+def summary(force_n: float, model: FrictionModel | str, ratio: float | None, preload_n: float = 0.0,
+            carrier_hz: float | None = None) -> dict:
+    """Everything ``ultraglide model`` reports, as plain JSON-able values: what the chosen model has."""
     import numpy as np
     from ultraglide.render.physics.calibration import load_model
     from ultraglide.render.physics.fingerprint import (
         contact_area_mm2,
         detach_amplitude_um_pp,
+        dynamic_stiffness_ratio,
         glide_threshold_um_pp,
         normal_stiffness_n_per_m,
+        quasi_static_limit_hz,
+        quasi_static_warning,
+        ridge_shear_resonance_hz,
         tangential_stiffness_n_per_m,
     )
 
@@ -65,16 +83,33 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> 
     params = _finger(model)
     amplitude = np.arange(0.0, CURVE_END_UM + 1e-9, CURVE_STEP_UM)
     curve = model.relative_friction(amplitude, force_n)
+    low, high = model.valid_force_range_n()
     result = {
         "force_n": force_n,
         "model": model.describe(),
-        "contact_area_mm2": float(contact_area_mm2(force_n, params)),
-        "normal_stiffness_n_per_m": float(normal_stiffness_n_per_m(force_n, params)),
-        "tangential_stiffness_n_per_m": float(tangential_stiffness_n_per_m(force_n, params)),
-        "detach_amplitude_um_pp": float(detach_amplitude_um_pp(force_n, params)),
-        "glide_threshold_um_pp": float(glide_threshold_um_pp(force_n, params)),
-        "curve": [[float(a), round(float(r), 6)] for a, r in zip(amplitude, curve, strict=True)],
+        "force_law": model.force_law(),
+        "valid_force_range_n": [low, high],
     }
+    if params is not None:
+        result.update({
+            "contact_area_mm2": float(contact_area_mm2(force_n, params)),
+            "normal_stiffness_n_per_m": float(normal_stiffness_n_per_m(force_n, params)),
+            "tangential_stiffness_n_per_m": float(tangential_stiffness_n_per_m(force_n, params)),
+            "detach_amplitude_um_pp": float(detach_amplitude_um_pp(force_n, params)),
+            "glide_threshold_um_pp": float(glide_threshold_um_pp(force_n, params)),
+            "preload_n": preload_n,
+            "glide_threshold_with_preload_um_pp": float(glide_threshold_um_pp(force_n, params, preload_n)),
+            "ridge_shear_resonance_hz": ridge_shear_resonance_hz(params),
+            "ridge_shear_resonance_lumped_hz": ridge_shear_resonance_hz(params, lumped=True),
+            "quasi_static_limit_hz": quasi_static_limit_hz(params),
+        })
+        if carrier_hz is not None:
+            result["carrier_hz"] = carrier_hz
+            result["dynamic_stiffness_ratio"] = float(dynamic_stiffness_ratio(carrier_hz, params))
+            problem = quasi_static_warning(carrier_hz, params)
+            if problem:
+                result["quasi_static_warning"] = problem
+    result["curve"] = [[float(a), round(float(r), 6)] for a, r in zip(amplitude, curve, strict=True)]
     if ratio is not None:
         inversion = model.amplitude_um_pp(ratio, force_n)
         result["ratio"] = ratio
@@ -87,16 +122,29 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None) -> 
 def format_text(result: dict) -> str:
     from ultraglide.render.physics.friction_models import CEILING_UM_PP
 
+    low, high = result["valid_force_range_n"]
     lines = [
         f"Finger at {result['force_n']:g} N  (model: {result['model']})",
-        f"  contact area          {result['contact_area_mm2']:10.2f} mm²      eq. (3)",
-        f"  normal stiffness      {result['normal_stiffness_n_per_m']:10.4g} N/m      eq. (1)",
-        f"  tangential stiffness  {result['tangential_stiffness_n_per_m']:10.4g} N/m      eq. (2)",
-        f"  detach amplitude      {result['detach_amplitude_um_pp']:10.2f} µm p-p   eq. (6)",
-        f"  glide threshold       {result['glide_threshold_um_pp']:10.2f} µm p-p   eq. (5)",
-        "",
-        "  amplitude µm p-p   relative friction",
+        f"  force law: {result['force_law']}; holds on {low:.3g}-{high:.3g} N",
     ]
+    if "contact_area_mm2" in result:
+        lines += [
+            f"  contact area          {result['contact_area_mm2']:10.2f} mm²      eq. (3), at most a fingertip's",
+            f"  normal stiffness      {result['normal_stiffness_n_per_m']:10.4g} N/m      eq. (1)",
+            f"  tangential stiffness  {result['tangential_stiffness_n_per_m']:10.4g} N/m      eq. (2)",
+            f"  detach amplitude      {result['detach_amplitude_um_pp']:10.2f} µm p-p   eq. (6)",
+            f"  glide threshold       {result['glide_threshold_um_pp']:10.2f} µm p-p   eq. (5), no tangential preload",
+        ]
+        if result["preload_n"]:
+            lines.append(f"  glide threshold       {result['glide_threshold_with_preload_um_pp']:10.2f} µm p-p   "
+                         f"with a {result['preload_n']:g} N tangential preload")
+        lines.append(f"  ridge shear resonance {result['ridge_shear_resonance_hz'] / 1e3:10.1f} kHz      from rho "
+                     f"(lumped estimate {result['ridge_shear_resonance_lumped_hz'] / 1e3:.1f} kHz); the lateral "
+                     f"analysis is quasi-static within 10 % below {result['quasi_static_limit_hz'] / 1e3:.1f} kHz")
+        if "carrier_hz" in result:
+            lines.append(f"  at {result['carrier_hz'] / 1e3:g} kHz the ridges' dynamic stiffness is "
+                         f"{result['dynamic_stiffness_ratio']:.2f} of k_t")
+    lines += ["", "  amplitude µm p-p   relative friction"]
     lines += [f"  {a:16.1f}   {r:17.3f}" for a, r in result["curve"][::2]]
     if "ratio" in result:
         lines.append("")
@@ -119,18 +167,26 @@ def run(args) -> int:
     if args.report and Path(args.report).suffix.lower() not in (".pdf", ".svg", ".png"):
         raise UsageError(f"{args.report}: the report is a .pdf (or .svg, or .png at 300 dpi)")
     model = load_model(args.model)
-    result = summary(force, model, args.ratio)
+    params = _finger(model)
+    if args.preload_n and params is not None and not args.preload_n < params.static_friction * force:
+        raise UsageError(f"--preload-n {args.preload_n:g} N is gross slip already at {force:g} N: it must be below "
+                         f"mu_s F = {params.static_friction * force:g} N")
+    result = summary(force, model, args.ratio, args.preload_n, args.carrier_hz)
     if args.plots:
         from ultraglide.apps.figures.paper import write_paper_figures
 
         data = Path(args.data) if args.data else EXAMPLE_DATA
-        written = write_paper_figures(Path(args.plots), data, _finger(model), args.force, model)
+        from ultraglide.render.physics.fingerprint import FingerParams
+
+        written = write_paper_figures(Path(args.plots), data, params or FingerParams(), args.force, model)
         result["plots"] = [str(path) for path in written]
     if args.report:
         from ultraglide.apps.figures.model_report import write_report
 
         result["plots"] = result.get("plots", []) + [str(p) for p in write_report(Path(args.report), model, result,
-                                                                                  _finger(model))]
+                                                                                  params)]
+    if "quasi_static_warning" in result:
+        print(f"warning: {result['quasi_static_warning']}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:

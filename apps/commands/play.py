@@ -95,7 +95,8 @@ def engine_config(args) -> EngineConfig:
     return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
                         carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
                         precompensate=not args.no_precompensation,
-                        track_resonance=getattr(args, "track_resonance", False))
+                        track_resonance=getattr(args, "track_resonance", False),
+                        default_force_n=0.5 if args.force is None else args.force)
 
 
 def run(args) -> int:

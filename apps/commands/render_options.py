@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ultraglide.apps.cli.options import MODEL_HELP
 from ultraglide.apps.cli.types import (
     ANGLE_DEG,
     AUDIO_RATE_HZ,
@@ -30,11 +31,12 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
     path.add_argument("--radius-mm", type=LENGTH_MM, default=15.0, help="circle radius (default: 15)")
     path.add_argument("--zigzag-width-mm", type=LENGTH_MM, default=40.0, help="zig-zag pass length (default: 40)")
     path.add_argument("--force", type=FORCE_N, metavar="N",
-                      help="normal force of the swipe, N (default: 0.5, or the log's force_n column)")
+                      help="normal force of the swipe, or of a --trajectory without a force_n column, N "
+                           "(default: 0.5, or the log's force_n column)")
     signal = parser.add_argument_group("the signal")
-    signal.add_argument("--model", default="exponential", metavar="MODEL",
-                        help="friction model: paper, paper-uniform, exponential, table:FILE.csv or CAL.toml "
-                             "(default: exponential)")
+    signal.add_argument("--model", default="stretched", metavar="MODEL",
+                        help=f"{MODEL_HELP} (default: stretched, force-aware: its force law is the paper's "
+                             "detachment law W_c ∝ F^(1/3), assumed)")
     signal.add_argument("--profile", default="sim-plate", metavar="PROFILE",
                         help="plate profile: a bundled name or a TOML file (default: sim-plate)")
     signal.add_argument("--carrier-hz", type=CARRIER_HZ, help="carrier frequency (default: the plate's resonance)")

@@ -41,9 +41,9 @@ def load_inputs(args) -> Inputs:
     model = load_model(args.model)
     profile = load_profile(args.profile)
     if args.trajectory:
-        if args.force is not None:
-            raise UsageError("--force sets the swipe's force; a --trajectory brings its own (or the 0.5 N default)")
         trajectory = read_touch_log(args.trajectory)
+        if args.force is not None and trajectory.has_force:
+            raise UsageError(f"{args.trajectory} logs its own force_n; --force is for a swipe or a log without one")
     else:
         trajectory = swipe_of(args, texture)
     return Inputs(texture, model, profile, trajectory)
@@ -54,6 +54,7 @@ def make_renderer(inputs: Inputs, args, rate_hz: int, live: bool = False) -> Ren
     settings = RenderSettings(
         audio_rate_hz=rate_hz, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
         precompensate=not args.no_precompensation, lookahead_s=args.lookahead_ms / 1000.0,
+        default_force_n=0.5 if args.force is None else args.force,  # touches without a force: a log without one
     )
     return Renderer(inputs.texture, inputs.model, inputs.profile, settings,
                     trajectory=None if live else inputs.trajectory)

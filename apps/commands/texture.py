@@ -181,7 +181,7 @@ def _add_show_and_info(texture_commands) -> None:
     where = show_parser.add_mutually_exclusive_group(required=True)
     where.add_argument("-o", "--output", metavar="FILE.png|pdf|svg")
     where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
-    add_model_option(show_parser, default="exponential")
+    add_model_option(show_parser, default="stretched")
     show_parser.add_argument("--profile", default="sim-plate",
                              help="plate profile: its amplitude limit (default: sim-plate)")
     show_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",

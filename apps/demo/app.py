@@ -78,7 +78,7 @@ class Redraw:
 class DemoApp:
     """The demo's state and loop; ``step()`` handles pending events and redraws what is due."""
 
-    def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="exponential",
+    def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="stretched",
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
                  record: str | None = None, report_frames: bool = False, watch: bool = False):
         self.options = DemoOptions(tuple(texture_specs), device_url, profile, model, screen_width_mm, windowed,

@@ -25,7 +25,7 @@ class LinkConfig:
     """What the link starts with: a texture (a Texture or a name/file), a model spec, a profile spec, a device URL."""
 
     texture: object
-    model: str = "exponential"
+    model: str = "stretched"
     profile: str = "sim-plate"
     device: str = "sim"
 

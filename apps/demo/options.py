@@ -11,7 +11,7 @@ from pathlib import Path
 from ultraglide.apps.cli.errors import UsageError
 
 DEFAULT_MM_PER_PX = 25.4 / 96  # when the screen's size is not given: a 96 dpi screen
-MODELS = ("exponential", "paper")  # the M key cycles through these
+MODELS = ("stretched", "squeeze-film", "exponential", "paper")  # the M key cycles through these
 PRESSURE_FULL_SCALE_N = 2.0  # a panel's pressure 1.0 is taken as this force
 FORCE_RANGE_N = (0.05, 5.0)
 START_FORCE_N = 0.5

@@ -39,7 +39,7 @@ HELP = [
     ("G  T  W", "gallery, texture, widgets"),
     ("Left  Right", "previous, next texture"),
     ("Up  Down", "force up, down (×1.25) when the panel reports no pressure"),
-    ("M", "switch the friction model (exponential, paper)"),
+    ("M", "switch the friction model (stretched, squeeze-film, exponential, paper)"),
     ("Space", "pause: the plate rests"),
     ("H", "this help"),
     ("Esc  Q", "quit (the plate ramps to rest)"),

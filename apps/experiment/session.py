@@ -57,7 +57,7 @@ class SessionConfig:
     gap_mm: float = 10.0
     speed_mm_s: float = 100.0
     force_n: float = 0.5
-    model: str = "exponential"
+    model: str = "stretched"
     profile: str = "sim-plate"
     device: str = "null"
     observer: str | None = None

@@ -70,7 +70,7 @@ class EngineConfig:
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
-    model: str = "exponential"
+    model: str = "stretched"
     profile: str = "sim-plate"
     device: str = "sim"
     default_force_n: float = 0.5

@@ -39,7 +39,6 @@ from ultraglide.render.physics.fingerprint import (
     MM2_TO_M2,
     FingerParams,
     area_saturation_force_n,
-    contact_area_mm2,
     detach_amplitude_um_pp,
 )
 from ultraglide.render.physics.measurements import Measurements, check_describes_reduction

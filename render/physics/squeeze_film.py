@@ -72,7 +72,8 @@ AMBIENT_RANGE_PA = (1.0e3, 2.0e5)  # down to a 99 % vacuum (Friesen et al. 2018 
 class FilmParams:
     """The air film under the finger: ``gap_um``, the mean gap between skin and glass over the film's
     area at rest (µm); ``film_fraction``, the share of the apparent contact area (eq. 3) over which the
-    film builds pressure (0: no film, the paper's model); ``ambient_pressure_pa``, the air's pressure (1 kPa, a 99 % vacuum, to 200 kPa).
+    film builds pressure (0: no film, the paper's model); ``ambient_pressure_pa``, the air's pressure
+    (1 kPa, a 99 % vacuum, to 200 kPa).
 
     The defaults (a 10 µm gap over 40 % of the contact) are chosen, within what skin on glass
     allows, so that the model reaches the reductions measured fingers show (0.2 at 6 µm p-p and
