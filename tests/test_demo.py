@@ -241,7 +241,7 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
     app.act("force+")
     app.act("model")
     run_for(app, 0.05)
-    assert "0.62 N" in app.status_words() and "paper model" in app.status_words()
+    assert "0.62 N" in app.status_words() and "squeeze-film model" in app.status_words()
 
 
 def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeypatch, halves):

@@ -317,7 +317,8 @@ def test_unknown_url_keys_and_absurd_rates_are_refused():
 # (low, high, low excluded, whole number, high excluded); OVERRIDES where a flag means another thing.
 FEATURE = (0.01, 10_000, False, False, False)
 RANGES = {
-    "--force": (0, 10, True, False, False), "--preload-n": (0, 10, False, False, False), "--ratio": (0, 1, True, False, False),
+    "--force": (0, 10, True, False, False), "--preload-n": (0, 10, False, False, False),
+    "--ratio": (0, 1, True, False, False),
     "--screen-width-mm": (10, 10_000, False, False, False), "--range": (0, 1, False, False, False),
     "--levels": (0, 1, False, False, False), "--width-mm": (0.1, 10_000, False, False, False),
     "--dpi": (1, 100_000, False, False, False), "--gamma": (0.01, 100, False, False, False),

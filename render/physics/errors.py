@@ -7,9 +7,9 @@ class ModelError(UltraglideError, ValueError):
     """A friction model, calibration or measurement file that cannot be used."""
 
 
-class ForceRangeWarning(UserWarning):
+class ForceRangeWarning(UltraglideError, UserWarning):
     """A model was asked about a force outside the range it was fitted on or holds on (said once per model)."""
 
 
-class QuasiStaticWarning(UserWarning):
+class QuasiStaticWarning(UltraglideError, UserWarning):
     """The lateral analysis ran at a frequency where the ridges' inertia makes it an estimate."""
