@@ -61,7 +61,7 @@ def test_threshold_command_writes_log_metadata_result_and_print_quality_figures(
     assert session["status"] == "complete" and session["seed"] == 4
     assert session["profile"]["resonance_hz"] == 25000
     assert {"ultraglide", "numpy", "scipy", "python"} <= set(session["versions"])
-    assert session["model"]["spec"] == "exponential" and session["device"] == "null"
+    assert session["model"]["spec"] == "stretched" and session["device"] == "null"
     for name in ("track", "psychometric"):
         with Image.open(out / f"{name}.png") as image:
             assert image.info["dpi"][0] >= 299

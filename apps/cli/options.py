@@ -32,6 +32,12 @@ def add_model_option(parser: argparse.ArgumentParser, default: str = "paper") ->
                         help=f"{MODEL_HELP} (default: {default})")
 
 
+def add_figure_width_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--figure-width", choices=["column", "page"], default="column",
+                        help="lay figures out for one IEEE column (3.5 in) or two (7.16 in), text of 8 pt or more "
+                             "at that size (default: column)")
+
+
 def add_range_option(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:
     parser.add_argument("--range", nargs=2, type=UNIT_INTERVAL, default=list(default), metavar=("LOW", "HIGH"),
                         help="friction ratio where the pattern is off (slippery) and on (sticky), each in 0..1 "

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import add_model_option
+from ultraglide.apps.cli.options import add_figure_width_option, add_model_option
 from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
 
 if TYPE_CHECKING:
@@ -47,6 +47,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     model.add_argument("--carrier-hz", type=CARRIER_HZ, metavar="F",
                        help="lateral vibration frequency to check the quasi-static glide threshold against the ridge "
                             "layer's shear resonance (a warning when it fails there)")
+    add_figure_width_option(model)
     model.set_defaults(run=run)
 
 
@@ -178,13 +179,14 @@ def run(args) -> int:
         data = Path(args.data) if args.data else EXAMPLE_DATA
         from ultraglide.render.physics.fingerprint import FingerParams
 
-        written = write_paper_figures(Path(args.plots), data, params or FingerParams(), args.force, model)
+        written = write_paper_figures(Path(args.plots), data, params or FingerParams(), args.force, model,
+                                      args.figure_width)
         result["plots"] = [str(path) for path in written]
     if args.report:
         from ultraglide.apps.figures.model_report import write_report
 
         result["plots"] = result.get("plots", []) + [str(p) for p in write_report(Path(args.report), model, result,
-                                                                                  params)]
+                                                                                  params, args.figure_width)]
     if "quasi_static_warning" in result:
         print(f"warning: {result['quasi_static_warning']}", file=sys.stderr)
     if args.json:

@@ -1,4 +1,10 @@
-"""One look for every figure ultraglide draws, and saving at print quality: vector and 300 dpi PNG."""
+"""One look for every figure ultraglide draws, laid out for print: an IEEE column (3.5 in) or the
+page's two columns (7.16 in), text of 8 pt or more at that size, saved as vector and 300 dpi PNG.
+
+A figure is drawn at its print width (``width_in``, :data:`COLUMN_IN` unless a caller asks for
+:data:`PAGE_IN`), so that its text keeps its size in print. Legends go beside or below the data
+(never over it); fitted laws are lines, measurements markers.
+"""
 
 from __future__ import annotations
 
@@ -10,27 +16,49 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from ultraglide.apps.cli.files import atomic_path  # noqa: E402
 
+COLUMN_IN = 3.5  # one IEEE column
+PAGE_IN = 7.16  # two IEEE columns
+WIDTHS_IN = {"column": COLUMN_IN, "page": PAGE_IN}
+MIN_TEXT_PT = 8.0
 PNG_DPI = 300
 STYLE = {
-    "font.size": 9,
-    "axes.titlesize": 10,
-    "axes.labelsize": 9,
-    "legend.fontsize": 7.5,
+    "font.size": 8.5,
+    "axes.titlesize": 9,
+    "axes.labelsize": 8.5,
+    "legend.fontsize": 8,
+    "legend.title_fontsize": 8,
     "xtick.labelsize": 8,
     "ytick.labelsize": 8,
+    "figure.titlesize": 9,
     "axes.grid": True,
     "grid.alpha": 0.3,
-    "lines.linewidth": 1.4,
-    "lines.markersize": 4.5,
+    "lines.linewidth": 1.2,
+    "lines.markersize": 4,
+    "legend.frameon": False,
+    "legend.handlelength": 1.8,
+    "legend.borderaxespad": 0.3,
+    "axes.titlepad": 4,
     "savefig.bbox": "tight",
+    "savefig.pad_inches": 0.03,
     "pdf.fonttype": 42,  # TrueType in PDFs: text stays text for journals
     "svg.fonttype": "none",
 }
 VECTOR_FORMATS = ("pdf", "svg")
+matplotlib.rcParams.update(STYLE)  # legends and texts added after a figure is made take the house style too
+
+
+def width_of(width: str | float | None) -> float:
+    """A print width in inches from ``"column"``, ``"page"`` or a number (None: a column)."""
+    if width is None:
+        return COLUMN_IN
+    if isinstance(width, str):
+        return WIDTHS_IN[width]
+    return float(width)
 
 
 def figure(*args, **kwargs):
-    """plt.subplots under the house style."""
+    """plt.subplots under the house style, with constrained layout unless another is asked for."""
+    kwargs.setdefault("layout", "constrained")
     with plt.rc_context(STYLE):
         return plt.subplots(*args, **kwargs)
 
@@ -39,6 +67,16 @@ def mosaic(layout, **kwargs):
     """plt.subplot_mosaic under the house style, with constrained layout."""
     with plt.rc_context(STYLE):
         return plt.subplot_mosaic(layout, layout="constrained", **kwargs)
+
+
+def legend_below(axis, ncol: int = 1, **kwargs):
+    """A legend under the axes, clear of the data."""
+    return axis.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncol=ncol, **kwargs)
+
+
+def legend_right(axis, **kwargs):
+    """A legend to the right of the axes, clear of the data."""
+    return axis.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), **kwargs)
 
 
 def save(fig, path: Path, vector: str | None = "pdf") -> list[Path]:

@@ -1,0 +1,62 @@
+"""Every figure at print width: its PDF read back (pdfminer.six, tests/pdf_text.py) has no text below
+8 pt printed one IEEE column (3.5 in) or two (7.16 in) wide, and no two strings that overlap."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pdf_text import problems, read_strings
+
+from ultraglide.apps.figures.style import COLUMN_IN, PAGE_IN
+
+ROOT = Path(__file__).resolve().parent.parent
+WIDTHS = {"column": COLUMN_IN, "page": PAGE_IN}
+
+
+def assert_readable(pdf: Path, width: str) -> None:
+    found = problems(pdf, WIDTHS[width])
+    assert not found, f"{pdf.name} at {WIDTHS[width]} in: " + "; ".join(found[:8])
+
+
+def test_the_checker_sees_small_and_overlapping_text(tmp_path):
+    import matplotlib.pyplot as plt
+
+    with plt.rc_context({"savefig.bbox": "standard"}):  # the whole 3.5 in page, not the text's box
+        fig = plt.figure(figsize=(3.5, 2))
+        fig.text(0.1, 0.5, "small", fontsize=6)
+        fig.text(0.5, 0.5, "one label", fontsize=9)
+        fig.text(0.55, 0.5, "other label", fontsize=9)
+        fig.savefig(tmp_path / "bad.pdf")
+        plt.close(fig)
+    width, strings = read_strings(tmp_path / "bad.pdf")
+    assert width == pytest.approx(252.0)
+    assert {s.text for s in strings} == {"small", "onelabel", "otherlabel"}  # pdfminer drops the spaces
+    found = problems(tmp_path / "bad.pdf")
+    assert any("'small' is 6.00 pt" in line for line in found)
+    assert any("overlaps" in line and "onelabel" in line for line in found)
+    assert not any("small" in line for line in problems(tmp_path / "bad.pdf", min_pt=5.0) if "overlaps" not in line)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width", ["column", "page"])
+def test_the_papers_figures_and_the_model_report_read_at_print_width(tmp_path, width):
+    from ultraglide.apps.commands.model import summary
+    from ultraglide.apps.figures.model_report import write_report
+    from ultraglide.apps.figures.paper import write_paper_figures
+    from ultraglide.render.physics.fingerprint import FingerParams
+    from ultraglide.render.physics.friction_models import PaperModel, StretchedExponentialModel
+
+    data = ROOT / "apps" / "data" / "monnoyer2018-fit.csv"
+    pngs = write_paper_figures(tmp_path, data, FingerParams(), None, StretchedExponentialModel(), width)
+    assert len(pngs) == 8
+    for png in pngs:
+        assert_readable(png.with_suffix(".pdf"), width)
+    for model in (PaperModel(), StretchedExponentialModel()):
+        report = tmp_path / f"report-{model.name}.pdf"
+        params = model.params if isinstance(model, PaperModel) else None
+        write_report(report, model, summary(0.3, model, None), params, width)
+        assert_readable(report, width)
+        text = "".join(s.text for s in read_strings(report)[1])
+        assert ("contactarea" in text) == (params is not None)  # a law without a contact says nothing of one
