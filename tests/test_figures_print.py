@@ -5,10 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 from pdf_text import problems, read_strings
-
 from ultraglide.apps.figures.style import COLUMN_IN, PAGE_IN
 
 ROOT = Path(__file__).resolve().parent.parent

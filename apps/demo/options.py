@@ -26,7 +26,7 @@ class DemoOptions:
     textures: tuple = ()
     device: str = "sim"
     profile: str = "sim-plate"
-    model: str = "exponential"
+    model: str = "stretched"
     screen_width_mm: float | None = None
     windowed: bool = False
     size: tuple[int, int] = (1280, 800)
