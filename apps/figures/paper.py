@@ -141,7 +141,8 @@ def figure_7(path: Path, params: FingerParams, force_n: float | None = None, wid
     forces = np.linspace(0.05, 2.0, 200)
     fig, axis = figure(figsize=_size(width_in, 0.65, 0.7))
     axis.plot(forces, friction_coefficient(forces, params),
-              label=f"µ = µ_1N F^(n−1), n = {params.friction_exponent:.3g}, µ_1N = {params.friction_coefficient_at_1n:g}")
+              label=f"µ = µ_1N F^(n−1), n = {params.friction_exponent:.3g}, "
+                    f"µ_1N = {params.friction_coefficient_at_1n:g}")
     axis.plot(forces, np.full_like(forces, params.dynamic_friction), "--", color="0.5",
               label=f"Coulomb, constant µd = {params.dynamic_friction:g}")
     if force_n is not None:

@@ -231,8 +231,10 @@ class FrictionModel(ABC):
         return {}
 
     def __repr__(self) -> str:
-        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)``."""
-        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.parameters().items())})"
+        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)`` (a floor of 0,
+        the default, left out)."""
+        shown = {k: v for k, v in self.parameters().items() if not (k == "residual_ratio" and v == 0.0)}
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in shown.items())})"
 
     def _floor(self, force_n, limit: float):
         """The floor ratio, remembered for the last scalar force and limit (the live case)."""

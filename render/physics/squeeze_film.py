@@ -229,6 +229,15 @@ class SqueezeFilmModel(FrictionModel):
                 f"(gap {f.gap_um:.3g} µm over {f.film_fraction:.3g} of the contact, {f.ambient_pressure_pa / 1e3:.4g} "
                 f"kPa); after Wiertlewski et al. 2016 and Biet et al. 2007")
 
+    def __repr__(self) -> str:
+        """``SqueezeFilmModel()``, or the constructor call with the parameters that differ from the defaults."""
+        def call(value, default) -> str:
+            changed = {k: v for k, v in vars(value).items() if v != getattr(default, k)}
+            return f"{type(value).__name__}({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
+        film, finger = call(self.film, FilmParams()), call(self.finger, FingerParams())
+        parts = [film, finger] if finger != "FingerParams()" else [film] if film != "FilmParams()" else []
+        return f"SqueezeFilmModel({', '.join(parts)})"
+
     def parameters(self) -> dict[str, float | str]:
         return {"gap_um": self.film.gap_um, "film_fraction": self.film.film_fraction,
                 "ambient_pressure_pa": self.film.ambient_pressure_pa,
