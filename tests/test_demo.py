@@ -301,7 +301,7 @@ def test_the_status_line_fits_and_keeps_help_the_recording_and_watch_errors(halv
         assert "recording drag.csv: 0 touches" in line or "rec 0" in line
         assert "cannot reload halves.png" in line and "cannot reload wood.png" in line
         if width_px >= 1280:  # everything the plate does, in words, at the widths of common screens
-            assert "exponential model" in line and "0.50 N" in line and "within the plate's limit" in line
+            assert "stretched model" in line and "0.50 N" in line and "within the plate's limit" in line
         app.painter.status(force=True)
         pixels = app.pg.surfarray.array3d(app.screen)
         rect = app.layout.status_rect
