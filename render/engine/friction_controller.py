@@ -1,0 +1,180 @@
+"""The friction controller: the model's inverse, adapted to the finger, with a fast correction, or open loop.
+
+:class:`ClosedLoopInverse` stands in for the friction model in the renderer (it has the model's
+``amplitude_um_pp(ratio, force_n, limit_um_pp, out)``), so the loop acts on the amplitude *target*, before
+the envelope, the output stage and its limiter, whose guarantee is untouched. For each block of target
+ratios it computes:
+
+* the **open-loop** amplitude: the host model's inverse at the force the renderer gives (the touch panel's
+  or the default), as without the loop;
+* while the loop **follows**, the **adaptive inverse** ``a = k (1 + g) A(r*, F)``: ``A`` the model's inverse at
+  the *measured* normal force ``F``, ``k`` the scale the estimator adapted online
+  (:mod:`render.engine.friction_estimator`), and ``g`` the **fast correction**, an integral of the measured
+  ratio error (:class:`FastCorrection`). The amplitude stays within the limit (the inverse is asked for
+  ``limit / (k (1 + g))``): what the plate cannot reach is held at the limit and counted, never above it.
+
+A scale on the amplitude, not an offset, is what the correction moves: where the texture asks for no
+reduction (ratio 1) the amplitude stays 0, whatever the finger.
+
+The loop falls back to open loop whenever the estimate says the finger rests, lifts, or a sensor faults,
+or the sensors fall silent (checked here, every block), and its words say so. Falling back switches to
+the open-loop amplitude at once, so the amplitude never jumps above the open-loop amplitude; coming back,
+it blends from the open-loop amplitude to the closed loop's over ``blend_s``.
+
+The block path (:meth:`ClosedLoopInverse.amplitude_um_pp`) reads one snapshot (:class:`LoopCommand`,
+replaced whole by the thread that takes the sensors) and allocates nothing for blocks up to its capacity.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from ultraglide.render.physics.friction_models import DEFAULT_FORCE_N, FrictionModel, Inversion
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    """The fast correction's integral time (s) and range (a fraction of the amplitude), the blend back into
+    closed loop (s), and the sensors' silence that counts as a fault (s)."""
+
+    integral_time_s: float = 0.15
+    correction_low: float = -0.5
+    correction_high: float = 1.0
+    blend_s: float = 0.05
+    sensor_silence_s: float = 0.06
+
+    def __post_init__(self) -> None:
+        if not 0.001 <= self.integral_time_s <= 100.0:
+            raise ValueError(f"the correction's integral time must lie in 0.001..100 s, got {self.integral_time_s}")
+        if not -0.9 <= self.correction_low <= 0.0 <= self.correction_high <= 4.0:
+            raise ValueError("the correction's range must hold 0, from -0.9 to 4")
+        if not 0.0 <= self.blend_s <= 10.0 or not 0.005 <= self.sensor_silence_s <= 10.0:
+            raise ValueError("the blend must be 0-10 s and the sensors' silence 0.005-10 s")
+
+
+@dataclass(frozen=True)
+class LoopCommand:
+    """What the block path acts on, replaced whole: ``following`` (else open loop), the amplitude scale
+    ``k (1 + g)``, the measured normal force (N), since when it follows and when sensors last came
+    (perf_counter s), and the loop's state in words."""
+
+    following: bool = False
+    scale: float = 1.0
+    force_n: float = DEFAULT_FORCE_N
+    since_s: float = 0.0
+    sensors_s: float = -math.inf
+    words: str = "open loop: waiting for the sensors"
+
+
+class FastCorrection:
+    """Integral action on the ratio error through the model's local slope.
+
+    ``g`` scales the amplitude. The error it acts on is the measured ratio minus the ratio the controller
+    meant at the amplitude the plate actually reached (``r(a / (k (1 + g)))``): the tracking error less the
+    part the plate's own dynamics make (the amplitude loop's job). A sample's sensitivity
+    ``s = d(ratio)/d(ln a)`` (the model's local slope times the amplitude, <= 0) turns its error into the change
+    of ``g`` that would cancel it; over a batch the least-squares change ``-sum(s e) / sum(s²)`` is taken a
+    fraction ``duration / integral_time_s`` at a time: an integrator of time constant ``integral_time_s``
+    whatever the local slope, slow beside the sensors' and the link's delay (tens of ms). Measured at the
+    amplitude reached, the error does not grow while the amplitude is held at the limit: nothing winds up;
+    ``g`` also stays within its range.
+    """
+
+    def __init__(self, settings: ControllerSettings):
+        self.settings = settings
+        self.value = 0.0
+
+    def reset(self) -> None:
+        self.value = 0.0
+
+    def update(self, error: np.ndarray, sensitivity: np.ndarray, duration_s: float) -> float:
+        """``error`` measured minus intended ratio (NaN: not used), ``sensitivity`` d(ratio)/d(ln a), over one
+        batch of ``duration_s``; returns the new ``g``."""
+        usable = np.isfinite(error)
+        s = sensitivity[usable]
+        weight = float(np.dot(s, s))
+        if weight < 1e-4 * max(len(s), 1):  # no slope to act through (ratio near 1, amplitude near 0)
+            return self.value
+        step = -float(np.dot(s, error[usable])) / weight
+        fraction = min(1.0, duration_s / self.settings.integral_time_s)
+        value = self.value + fraction * step
+        self.value = min(max(value, self.settings.correction_low), self.settings.correction_high)
+        return self.value
+
+
+class ClosedLoopInverse:
+    """The renderer's friction model while the loop runs; see the module docstring. ``model``: the host's
+    model, ``capacity``: the longest block computed without allocating."""
+
+    def __init__(self, model: FrictionModel, settings: ControllerSettings | None = None, capacity: int = 4096,
+                 clock=time.perf_counter):
+        self.base = model
+        self.clock = clock  # perf_counter s (a simulation may give its own)
+        self.settings = settings or ControllerSettings()
+        self.command = LoopCommand()
+        self.name = model.name
+        self.max_amplitude_um_pp = model.max_amplitude_um_pp
+        self._open = np.zeros(capacity)
+        self.open_samples = 0  # rendered open loop (the loop not following)
+        self.closed_samples = 0
+        self.fallbacks = 0  # times it fell back from following
+        self._was_following = False
+        self.state_words = self.command.words
+
+    def __repr__(self) -> str:
+        return f"ClosedLoopInverse({self.base!r}, {self.state_words!r})"
+
+    # ---- the model's interface, as the renderer uses it ----
+    def describe(self) -> str:
+        return f"{self.base.describe()}; closed loop on the plate's force sensors"
+
+    def parameters(self) -> dict:
+        return self.base.parameters()
+
+    def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        return self.base.relative_friction(amplitude_um_pp, force_n)
+
+    def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+        return self.base.floor_ratio(force_n, limit_um_pp)
+
+    def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:
+        """Whether the block path follows now, the command it acts on, and the state in words."""
+        command = self.command
+        now = self.clock() if now_s is None else now_s
+        if command.following and now - command.sensors_s > self.settings.sensor_silence_s:
+            return False, command, "open loop: the sensors are silent"
+        return command.following, command, command.words
+
+    def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
+                        out: np.ndarray | None = None) -> Inversion:
+        """Amplitudes (µm p-p) for target ratios: closed loop while following, else open loop (see above)."""
+        n = len(ratio) if np.ndim(ratio) else 1
+        now = self.clock()
+        following, command, words = self.following_now(now)
+        self.state_words = words
+        if not following:
+            if self._was_following:
+                self.fallbacks += 1
+            self._was_following = False
+            self.open_samples += n
+            return self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
+        self._was_following = True
+        self.closed_samples += n
+        scale = command.scale
+        opened = None
+        blend = 1.0 if self.settings.blend_s <= 0 else min(1.0, (now - command.since_s) / self.settings.blend_s)
+        if blend < 1.0:
+            buffer = self._open[:n] if n <= len(self._open) and np.ndim(ratio) == 1 else None
+            opened = self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, buffer).amplitude_um_pp
+        closed = self.base.amplitude_um_pp(ratio, command.force_n, limit_um_pp / scale, out)
+        amplitude = closed.amplitude_um_pp
+        amplitude *= scale
+        np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
+        if opened is not None:  # from the open-loop amplitude toward the closed loop's: a - (1 - b)(a - open)
+            opened -= amplitude
+            opened *= 1.0 - blend
+            amplitude += opened
+        return Inversion(amplitude, closed.clamped)

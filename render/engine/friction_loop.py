@@ -1,0 +1,206 @@
+"""The friction loop on the host: the plate's sensors in, the renderer's inverse adapted, the loop's state out.
+
+:class:`FrictionLoop` joins the estimator (:mod:`.friction_estimator`) and the controller
+(:mod:`.friction_controller`) to a device's SENSORS and to the engine's block path:
+
+* the **block path** renders with :attr:`FrictionLoop.inverse` as its friction model, and records what each
+  control sample targeted (:meth:`FrictionLoop.record`: ratio, by the device's stream index) and the
+  finger's speed as the touch panel says (:attr:`panel_speed_mm_s`);
+* the **device's reader thread** hands each SENSORS frame to :meth:`FrictionLoop.take_sensors`: the estimator
+  updates (sliding or not, mu0, the adapted scale), the fast correction integrates, and a new
+  :class:`~.friction_controller.LoopCommand` replaces the one the block path reads;
+* anyone reads :meth:`FrictionLoop.status` (a dict of plain values: the state in words, the measured and
+  target ratio, the ratio error over the run, the adapted parameters).
+
+The **ratio error** reported is the measured ratio minus the texture's target *for the setpoint the plate
+was playing* (SENSORS' ``setpoint_index``), the target passed through the same model of the force sensors
+as the estimator's prediction: it includes the plate's dynamics and the sensors' noise (5 mN at 0.2 N is
+0.025 in ratio, per sample).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from ultraglide.render.engine.friction_controller import (
+    ClosedLoopInverse,
+    ControllerSettings,
+    FastCorrection,
+    LoopCommand,
+)
+from ultraglide.render.engine.friction_estimator import EstimatorSettings, FrictionEstimator, SensorModel
+
+RING = 1 << 15  # control samples of targets kept (2.7 s at 12 kHz): SENSORS come tens of ms after
+NOT_PLAYING = 0xFFFFFFFF
+ERROR_MEMORY_S = 0.5  # the error in the loop's words: rms over about this long
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """The estimator's and the controller's settings."""
+
+    estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
+    controller: ControllerSettings = field(default_factory=ControllerSettings)
+
+
+class TargetRing:
+    """The target ratio of each control sample sent, by stream index (NaN: the finger was up). The block path
+    writes (no allocation); the reader thread reads indices a few tens of ms old."""
+
+    def __init__(self, capacity: int = RING):
+        self.capacity = capacity
+        self.ratio = np.full(capacity, np.nan)
+        self.written = 0  # samples written: the next index
+
+    def write(self, ratio: np.ndarray, down) -> None:
+        n = len(ratio)
+        start = self.written % self.capacity
+        first = min(n, self.capacity - start)
+        self.ratio[start:start + first] = ratio[:first]
+        if first < n:
+            self.ratio[:n - first] = ratio[first:]
+        if not np.all(down):  # the finger up: no target (per sample for a recorded path)
+            up = ~np.broadcast_to(np.asarray(down, dtype=bool), (n,))
+            positions = (start + np.flatnonzero(up)) % self.capacity
+            self.ratio[positions] = np.nan
+        self.written += n
+
+    def read(self, indices: np.ndarray) -> np.ndarray:
+        """Targets at these stream indices (NaN for those not written or already overwritten)."""
+        indices = np.asarray(indices, dtype=np.int64)
+        known = (indices >= max(0, self.written - self.capacity)) & (indices < self.written)
+        out = np.full(len(indices), np.nan)
+        out[known] = self.ratio[indices[known] % self.capacity]
+        return out
+
+
+class FrictionLoop:
+    """See the module docstring. ``model``: the host's friction model; ``stream_rate_hz``: setpoints a second;
+    ``sensor_rate_hz``: the device's sensor samples a second."""
+
+    def __init__(self, model, stream_rate_hz: float = 12000.0, sensor_rate_hz: float = 1000.0,
+                 settings: LoopSettings | None = None, capacity: int = 4096, clock=time.perf_counter):
+        self.settings = settings or LoopSettings()
+        self.stream_rate_hz = float(stream_rate_hz)
+        self.sensor_rate_hz = float(sensor_rate_hz)
+        self.inverse = ClosedLoopInverse(model, self.settings.controller, capacity, clock)
+        self.estimator = FrictionEstimator(model, self.settings.estimator, sensor_rate_hz)
+        self.correction = FastCorrection(self.settings.controller)
+        self.targets = TargetRing()
+        self.panel_speed_mm_s: float | None = None
+        est = self.settings.estimator
+        self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._next_sample: int | None = None
+        self._lock = threading.Lock()  # status against the reader thread: held for a copy of a few numbers
+        self._error_sum = 0.0
+        self._error_count = 0
+        self._recent_square = math.nan  # the error², averaged over about ERROR_MEMORY_S
+        self._memory = math.exp(-1.0 / (ERROR_MEMORY_S * self.sensor_rate_hz))
+        self.measured_ratio = math.nan  # the newest batch's, for a chart
+        self.target_ratio = math.nan
+        self.sensor_frames = 0
+        self._following_since: float | None = None
+
+    def __repr__(self) -> str:
+        return f"FrictionLoop({self.estimator!r}, correction {self.correction.value:+.3f}, {self.words()!r})"
+
+    # ---- the block path ----
+    def record(self, ratio: np.ndarray, down) -> None:
+        """The target ratios of the control samples just handed to the device, in stream order."""
+        self.targets.write(ratio, down)
+
+    # ---- the reader thread ----
+    def take_sensors(self, first_sample: int, setpoint_index: int, amplitude_um_pp, normal_force_n, lateral_force_n,
+                     received_s: float | None = None) -> None:
+        """One SENSORS frame: consecutive samples from the device's sample ``first_sample``; ``setpoint_index``
+        the stream index playing at the first (NOT_PLAYING: none); ``received_s`` perf_counter time."""
+        received_s = self.inverse.clock() if received_s is None else received_s
+        n = len(amplitude_um_pp)
+        if n == 0:
+            return
+        if self._next_sample is not None and first_sample != self._next_sample:
+            self._target_sensors.reset(None)
+        self._next_sample = first_sample + n
+        batch = self.estimator.update(first_sample, amplitude_um_pp, normal_force_n, lateral_force_n,
+                                      self.panel_speed_mm_s, self.correction.value)
+        estimate = batch.estimate
+        if estimate.sliding:
+            self.correction.update(batch.measured_ratio - batch.intended_ratio, batch.sensitivity,
+                                   n / self.sensor_rate_hz)
+        targets = np.full(n, np.nan)
+        if setpoint_index != NOT_PLAYING:
+            per_sample = self.stream_rate_hz / self.sensor_rate_hz
+            indices = setpoint_index + np.round((np.arange(n) + 0.5) * per_sample).astype(np.int64)
+            targets = self.targets.read(indices)
+        seen = self._target_sensors(np.nan_to_num(targets, nan=1.0)[None, :])[0]
+        seen[~np.isfinite(targets)] = np.nan
+        errors = batch.measured_ratio - seen
+        with self._lock:
+            self.sensor_frames += 1
+            valid = errors[np.isfinite(errors)]
+            if len(valid):
+                self._error_sum += float(np.dot(valid, valid))
+                self._error_count += len(valid)
+                for square in (valid * valid).tolist():
+                    self._recent_square = square if math.isnan(self._recent_square) else \
+                        self._memory * self._recent_square + (1.0 - self._memory) * square
+            self.measured_ratio = estimate.measured_ratio
+            self.target_ratio = float(np.nanmean(seen)) if np.isfinite(seen).any() else math.nan
+        self._command(estimate, received_s)
+
+    def _command(self, estimate, received_s: float) -> None:
+        following = estimate.sliding
+        if following and self._following_since is None:
+            self._following_since = received_s
+        elif not following:
+            self._following_since = None
+        scale = estimate.scale * (1.0 + self.correction.value)
+        words = self._words(estimate)
+        self.inverse.command = LoopCommand(following, scale, estimate.force_n if following else 0.5,
+                                           self._following_since or 0.0, received_s, words)
+
+    def _words(self, estimate) -> str:
+        if estimate.sliding:
+            error = math.sqrt(self._recent_square) if not math.isnan(self._recent_square) else math.nan
+            return "closed loop: following" + ("" if math.isnan(error) else f", error {error:.2f}")
+        state = estimate.state
+        if state == "lifted":
+            return "open loop: finger lifted"
+        if state == "resting":
+            return "open loop: finger resting"
+        if state == "fault":
+            return f"open loop: sensor fault ({estimate.reason})"
+        return "open loop: waiting for the finger to slide"
+
+    # ---- anyone ----
+    def words(self) -> str:
+        """The loop's state now, in words ("closed loop: following, error 0.03"; "open loop: finger resting")."""
+        return self.inverse.following_now()[2]
+
+    def status(self) -> dict:
+        """Plain values for JSON and the status line."""
+        estimate = self.estimator.estimate
+        following, command, words = self.inverse.following_now()
+        with self._lock:
+            rms = math.sqrt(self._error_sum / self._error_count) if self._error_count else None
+            recent = None if math.isnan(self._recent_square) else math.sqrt(self._recent_square)
+            measured, target = self.measured_ratio, self.target_ratio
+            frames = self.sensor_frames
+        return {"loop": words, "loop_state": "following" if following else estimate.state,
+                "friction_error_rms": _plain(rms), "friction_error_recent": _plain(recent),
+                "measured_ratio": _plain(measured), "target_ratio_measured": _plain(target),
+                "mu0": round(estimate.mu0, 4), "adapted_scale": round(estimate.scale, 4),
+                "correction": round(self.correction.value, 4), "measured_force_n": _plain(estimate.force_n),
+                "sensor_frames": frames, "loop_fallbacks": self.inverse.fallbacks,
+                "closed_loop_samples": self.inverse.closed_samples, "open_loop_samples": self.inverse.open_samples}
+
+
+def _plain(value: float | None) -> float | None:
+    """A JSON-safe number (None for NaN or missing), rounded."""
+    if value is None or not math.isfinite(value):
+        return None
+    return round(float(value), 5)
