@@ -27,10 +27,15 @@ THUMB_PX = (160, 100)
 def draw_sources() -> None:
     SOURCES.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(7)
-    # wood: growth rings bent by low-frequency noise, as an RGB JPEG
+    # wood: growth rings bent by smooth warps, as an RGB JPEG. Drawn as a tile: 11 rings down its height and
+    # each warp a whole number of periods across its width, so it repeats without a seam and needs no
+    # cross-fade (which blended unrelated rings into a smeared band, and a random-walk warp left kinks)
     y, x = np.mgrid[0:600, 0:900].astype(float)
-    warp = np.cumsum(rng.standard_normal(900)) * 0.6
-    rings = 0.5 + 0.5 * np.sin((y + warp[None, :] + 30 * np.sin(x / 170)) / 9.0)
+    phases = rng.standard_normal(900)[:4]  # 900 drawn, as the random walk did: the sources after it are unchanged
+    warp = sum(amplitude * np.sin(2 * np.pi * periods * x / 900 + phase)
+               for (periods, amplitude), phase in zip(((1, 30.0), (2, 9.0), (5, 3.0), (11, 1.2)), phases, strict=True))
+    spacing = 7.0 * np.sin(2 * np.pi * 3 * y / 600 + 0.7)  # rings closer and wider apart, as years differ
+    rings = 0.5 + 0.5 * np.sin(2 * np.pi * 11 * (y + warp + spacing) / 600)
     grain = rings ** 3 * 0.7 + 0.3 * rng.random((600, 900)) * rings
     wood = np.stack([150 + 80 * grain, 95 + 60 * grain, 50 + 35 * grain], axis=-1)
     Image.fromarray(wood.clip(0, 255).astype(np.uint8)).save(SOURCES / "wood.jpg", quality=90)
@@ -82,9 +87,9 @@ def library_textures() -> dict:
         "keyboard": procedural.keyboard(),
     }
     wood = author_image(SOURCES / "wood.jpg", AuthoringOptions(width_mm=90, blur_mm=0.1, invert=True,
-                                                                  seamless="crossfade", auto_levels=1.0))
-    textures["wood"] = wood.with_(description="wood grain from a photo-like JPEG: dark rings sticky; "
-                                              "cross-faded into a seamless tile")
+                                                                  auto_levels=1.0))
+    textures["wood"] = wood.with_(description="wood grain from a photo-like JPEG drawn as a tile: dark rings "
+                                              "sticky")
     fabric = author_image(SOURCES / "fabric.png", AuthoringOptions(width_mm=40, gamma=0.8, seamless="crossfade",
                                                                      auto_levels=1.0))
     textures["fabric"] = fabric.with_(description="woven twill from a 16-bit PNG, cross-faded into a seamless tile")

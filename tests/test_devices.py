@@ -373,3 +373,18 @@ def test_the_sim_device_waits_for_its_plate_however_late_it_answers():
         assert wait_for(lambda: device.plate.simulator.amplitude_um_pp > 0.5) and not device.driver.counters.errors
     finally:
         device.stop()
+
+
+def test_devices_says_what_is_known_of_a_serial_port():
+    """pyserial describes a port with no USB device behind it as "n/a": the listing says what that means."""
+    from ultraglide.apps.commands.devices import port_words
+
+    words = port_words({"url": "serial:/dev/ttyS0", "description": "n/a", "hwid": "n/a"})
+    assert "n/a" not in words and "nothing identified" in words and "not USB" in words
+    assert port_words({"description": "STM32 Virtual ComPort", "hwid": "USB VID:PID=0483:5740 SER=3"}) == \
+        "STM32 Virtual ComPort (USB VID:PID=0483:5740 SER=3)"
+    listing = [line for line in run_cli("devices", check=True).stdout.splitlines() if not line.startswith("(")]
+    urls = [line.split()[0] for line in listing]
+    descriptions_at = {line.index(line.split()[1], len(line.split()[0])) for line in listing}
+    assert urls[0] == "sim" and len(descriptions_at) == 1  # one column, however long a port's name
+    assert not any(line.rstrip().endswith("n/a") for line in listing)

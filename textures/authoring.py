@@ -183,8 +183,9 @@ def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, nam
         raise TextureError(f"a blur of {options.blur_mm:g} mm is wider than the texture ({width_mm:.4g} × "
                            f"{height_mm:.4g} mm): it would flatten it; use at most {max(width_mm, height_mm):.4g} mm")
     edge_mode = "wrap" if options.seamless else "nearest"  # a tile's neighbours are across its seam
-    if options.blur_mm > 0:
-        values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode=edge_mode)
+    if options.blur_mm > 0:  # on any tile: a blur that replicated its edges would keep the step across the seam
+        blur_mode = "wrap" if options.seamless or options.outside == "tile" else "nearest"  # while it smooths
+        values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode=blur_mode)  # inside
     if options.mode == "edges":
         values = _edges(values, edge_mode)
     black, white = _auto_levels(values, options)
@@ -237,7 +238,8 @@ def warn_if_seam(texture: Texture) -> None:
     if report.visible:
         warnings.warn(f"{texture.name or 'the texture'} tiles with a seam: its step across the tile's edge is "
                       f"{report.ratio:.1f}× the typical step inside (largest {report.seam_max:.2f} against "
-                      f"{report.interior_max:.2f}); use --seamless, or --outside clamp if it should not repeat",
+                      f"{report.interior_max:.2f}); make it seamless (AuthoringOptions(seamless=...), or "
+                      "--seamless), or let it not repeat (outside='clamp', or --outside clamp)",
                       stacklevel=3)
 
 

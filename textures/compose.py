@@ -269,7 +269,8 @@ def _tiled_effects(inner: Texture, region_mm: tuple[float, float, float, float])
     columns, rows = int(np.ceil(width / inner.width_mm)), int(np.ceil(height / inner.height_mm))
     if each and columns * rows * len(each) > effects.MAX_BINDINGS:
         raise TextureError(f"{inner.name}'s {len(each)} effects in {columns * rows} tiles are more than the "
-                           f"{effects.MAX_BINDINGS} a texture keeps; tile it without them (--no-effects)")
+                           f"{effects.MAX_BINDINGS} a texture keeps; tile it without them (inner.with_(effects=()), "
+                           "or --no-effects)")
     for row in range(rows):
         for column in range(columns):
             dx, dy = x0 + column * inner.width_mm, y0 + row * inner.height_mm

@@ -465,5 +465,5 @@ def combined(*groups) -> tuple[Binding, ...]:
             out.append(binding)
     if len(out) > MAX_BINDINGS:
         raise TextureError(f"the inputs have {len(out)} temporal effects together, more than the {MAX_BINDINGS} a "
-                           "texture keeps; leave them out (--no-effects) or attach fewer (texture effects)")
+                           "texture keeps; leave them out (texture.with_(effects=()), or --no-effects) or attach fewer")
     return tuple(out)

@@ -6,6 +6,7 @@ regenerates them (procedural ones from parameters, the rest from the source imag
 
 from __future__ import annotations
 
+import difflib
 import json
 import warnings
 from dataclasses import dataclass
@@ -57,11 +58,15 @@ def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Textu
     if path.is_file():
         if has_metadata(path):
             return load_texture(path)
-        warnings.warn(f"{path} is a plain image: authoring it with default options "
-                      "(see `ultraglide author` for control)", stacklevel=2)
+        warnings.warn(f"{path} is a plain image: authoring it with default options (choose them with "
+                      "AuthoringOptions in Python, or make the texture with `ultraglide author`)", stacklevel=2)
         return author_image(path, options or AuthoringOptions())
     bundled = LIBRARY_DIR / f"{spec}.png"
     if "/" not in spec and bundled.is_file():
         return load_texture(bundled)
-    names = ", ".join(entry.name for entry in library_entries())
-    raise TextureError(f"no texture file or library texture named {spec!r}; library: {names}")
+    names = [entry.name for entry in library_entries()]
+    close = difflib.get_close_matches(spec, names, n=3, cutoff=0.6) if "/" not in spec else []
+    if close:
+        raise TextureError(f"no texture file or library texture named {spec!r}; did you mean "
+                           + " or ".join(repr(name) for name in close) + "?")
+    raise TextureError(f"no texture file or library texture named {spec!r}; library: {', '.join(names)}")

@@ -22,14 +22,16 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(found))
         return 0
-    print(f"sim          {found['simulator']['description']}")
-    for port in found["serial"]:
-        print(f"{port['url']:12} {port['description']}")
-    if not found["serial"]:
-        print("(no serial ports)")
+    rows = [("sim", found["simulator"]["description"])]
+    rows += [(port["url"], port_words(port)) for port in found["serial"]]
     for output in found["audio"]:
         rates = ", ".join(f"{r // 1000:g} kHz" for r in output["rates_hz"]) or "no rate that carries 20-28 kHz"
-        print(f"{output['url']:12} {output['name']} ({output['hostapi']}): {rates}")
+        rows.append((output["url"], f"{output['name']} ({output['hostapi']}): {rates}"))
+    width = max(len(url) for url, _ in rows)
+    for url, words in rows:
+        print(f"{url:{width}}  {words}")
+    if not found["serial"]:
+        print("(no serial ports)")
     if found["audio_error"]:
         print(f"(audio: {found['audio_error']})")
     elif not found["audio"]:
@@ -37,3 +39,13 @@ def run(args) -> int:
     return 0
 
 
+
+
+def port_words(port: dict) -> str:
+    """What is known of a serial port: a USB adapter's or board's own description, or, for a port with no
+    device description (pyserial's "n/a": a UART of the machine itself), that and nothing more."""
+    description = port.get("description")
+    if description and description != "n/a":
+        hwid = port.get("hwid")
+        return f"{description} ({hwid})" if hwid and hwid != "n/a" else description
+    return "a serial port of this machine with nothing identified on it (not USB); a plate driver may be wired to it"

@@ -234,13 +234,38 @@ def list_library(args) -> int:
 
     entries = library_entries()
     if args.json:
-        print(json.dumps([{"name": e.name, "width_mm": e.width_mm, "height_mm": e.height_mm, "kind": e.kind,
+        print(json.dumps([{"name": e.name, "width_mm": _mm(e.width_mm), "height_mm": _mm(e.height_mm), "kind": e.kind,
                            "description": e.description} for e in entries], ensure_ascii=False))
         return 0
-    print(f"{'name':24} {'size (mm)':>13}  {'kind':9} description")
-    for e in entries:
-        print(f"{e.name:24} {e.width_mm:6.1f} × {e.height_mm:<5.1f} {e.kind:9} {e.description}")
+    sizes = [f"{e.width_mm:.1f} × {e.height_mm:.1f}" for e in entries]
+    name_w = max([len("name")] + [len(e.name) for e in entries])
+    size_w = max([len("size (mm)")] + [len(size) for size in sizes])
+    kind_w = max([len("kind")] + [len(e.kind) for e in entries])
+    print(f"{'name':{name_w}}  {'size (mm)':>{size_w}}  {'kind':{kind_w}}  description")
+    for e, size in zip(entries, sizes, strict=True):
+        print(f"{e.name:{name_w}}  {size:>{size_w}}  {e.kind:{kind_w}}  {e.description}")
     return 0
+
+
+def _mm(value: float) -> float:
+    """A length in mm as it means: to the micrometre (78.80000000000001 is 78.8)."""
+    return round(float(value), 3)
+
+
+def _ratio(value: float) -> float:
+    """A friction ratio as it means: a 16-bit texture resolves 1/65535, so to 5 decimals."""
+    return round(float(value), 5)
+
+
+def _readable(value):
+    """Recorded options (authoring) without float noise: 6 significant digits."""
+    if isinstance(value, float):
+        return float(f"{value:.6g}")
+    if isinstance(value, list | tuple):
+        return [_readable(item) for item in value]
+    if isinstance(value, dict):
+        return {key: _readable(item) for key, item in value.items()}
+    return value
 
 
 def _input(spec: str):
@@ -301,17 +326,17 @@ def describe(texture, spec: str) -> dict:
     ratio = texture.ratio_map()
     seams = measure_seams(texture.values)
     pixel_x, pixel_y = texture.pixel_mm
-    return {
+    return {  # each number to what it means: lengths to the µm (pixels to the nm), ratios to 16 bits
         "texture": spec, "name": texture.name, "description": texture.description, "kind": texture.kind,
-        "width_mm": texture.width_mm, "height_mm": texture.height_mm, "cols": texture.cols, "rows": texture.rows,
-        "pixel_mm": [pixel_x, pixel_y], "outside": texture.outside, "outside_ratio": texture.outside_ratio,
-        "ratio_range": list(texture.ratio_range),
-        "full_slope_per_mm": texture.full_slope_per_mm if texture.kind == "gradient" else None,
-        "friction": {"min": float(ratio.min()), "mean": float(ratio.mean()), "max": float(ratio.max()),
-                     "std": float(np.std(ratio))},
-        "seams": {"seam_max": seams.seam_max, "interior_max": seams.interior_max, "ratio": seams.ratio,
-                  "seamless": seams.seamless, "visible": seams.visible},
-        "source": texture.source, "authoring": texture.authoring,
+        "width_mm": _mm(texture.width_mm), "height_mm": _mm(texture.height_mm), "cols": texture.cols,
+        "rows": texture.rows, "pixel_mm": [round(pixel_x, 6), round(pixel_y, 6)], "outside": texture.outside,
+        "outside_ratio": _ratio(texture.outside_ratio), "ratio_range": [_ratio(v) for v in texture.ratio_range],
+        "full_slope_per_mm": _readable(texture.full_slope_per_mm) if texture.kind == "gradient" else None,
+        "friction": {"min": _ratio(ratio.min()), "mean": _ratio(ratio.mean()), "max": _ratio(ratio.max()),
+                     "std": _ratio(np.std(ratio))},
+        "seams": {"seam_max": _ratio(seams.seam_max), "interior_max": _ratio(seams.interior_max),
+                  "ratio": round(float(seams.ratio), 3), "seamless": seams.seamless, "visible": seams.visible},
+        "source": texture.source, "authoring": _readable(texture.authoring),
     }
 
 
@@ -345,7 +370,7 @@ def info(args) -> int:
     if texture.source:
         lines.append(f"  source      {texture.source}")
     if texture.authoring:
-        made = ", ".join(f"{key} {value}" for key, value in texture.authoring.items())
+        made = ", ".join(f"{key} {value}" for key, value in facts["authoring"].items())
         lines.append(f"  made with   {made}")
     print("\n".join(lines))
     return 0
