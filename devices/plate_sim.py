@@ -1,20 +1,24 @@
-"""The simulated plate: the device side of protocol v2, served on a real pseudo-terminal.
+"""The simulated plate: the firmware core (C, software in the loop) driving a resonator simulated here,
+served on a real pseudo-terminal.
 
-It behaves as plate-driver firmware would (docs/protocol.md is normative): answers the handshake,
-plays amplitude setpoints at their rate from a jitter buffer through the plate's resonant envelope
-dynamics, holds the last value when the buffer runs dry, discards setpoints while disabled, trips
-(cuts the drive and disables) if the measured amplitude exceeds the plate's safe maximum, ramps to
-zero when nothing has been heard for 100 ms while enabled (watchdog), latches and counts faults, and
-reports telemetry 50 times a second. No frame, whatever its content, stops it: each is answered
-(ACK, NAK or nothing) and the handler's own failures become NAK "internal".
+The device is the reference firmware itself: :class:`~ultraglide.devices.firmware.sil.FirmwareCore`, the C
+core of ``devices/firmware`` built as a shared library, speaks protocol v3 (and v2) exactly as
+docs/protocol.md states it: the handshake, the jitter buffer, the watchdog, the device's own limiter,
+faults and counters, telemetry and SENSORS, the amplitude loop. What stays in Python is the plate's
+physics (:class:`PlateTruth`) and the transport (:class:`PtyPlate`): the core renders its drive at 48 kHz,
+the plate's envelope follows it through a first-order low-pass (its real resonance f0, drifting D Hz/s,
+and Q give a steady gain 1/sqrt(1 + (2Q(fc - f0)/f0)²) at carrier fc and a time constant Q/(pi f0)),
+computed block by block with scipy (no per-sample Python loop), and the amplitude it reaches goes back
+to the core as the sensing piezo's measurement, with optional noise. A trip cuts the drive at the sample
+where the core saw it (a comparator on the measurement): the rest of the block is recomputed at zero drive.
 
-Its physical truth may differ from the profile the host believes (:class:`PlateTruth`): the real
-resonance f0 (drifting D Hz/s) and Q give a steady gain 1/sqrt(1 + (2Q(fc - f0)/f0)²) at carrier fc
-and an envelope time constant Q/(pi f0); telemetry reports the amplitude that results.
+Its physical truth may differ from the profile the firmware believes: another resonance, Q or full scale.
+Force sensors come from a finger (``finger``, a :class:`ForceSource`), absent by default.
 
-For tests it injects faults: dropped or corrupted incoming bytes, a hang (the frame handler stops:
-no reading, no telemetry; the watchdog, on its own thread, still rests the plate), a disconnect
-(the port disappears, then comes back at the same path), and an overheat.
+For tests it injects faults: dropped or corrupted incoming bytes, a hang (the frame handler stops: no
+reading, no telemetry; the core's watchdog, ticked by the output thread, still rests the plate), a
+disconnect (the port disappears, then comes back at the same path), and an overheat. ``breaks`` makes
+the core break protocol rules on purpose (docs/protocol.md, Conformance), for testing ``plate check``.
 
 The port is a pty; because a pty's name changes when it is re-created, :class:`PtyPlate` serves it
 behind a stable symlink, which is the path to give the driver.
@@ -34,34 +38,37 @@ import threading
 import time
 import tty
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from scipy.signal import lfilter
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.firmware import sil
 from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002  # the output stage's clock while it has work: enabled, or the plate still moving
 LISTEN_S = 0.02  # the frame handler's longest wait for bytes (it wakes on them at once)
 REST_UM_PP = 1e-6  # below this a disabled plate is at rest: the output stage wakes only for telemetry
 TELEMETRY_S = 1.0 / p.TELEMETRY_HZ
-WATCHDOG_S = p.WATCHDOG_MS / 1000.0
-WATCHDOG_RAMP_S = p.WATCHDOG_RAMP_MS / 1000.0
-BUFFER_LIMIT_S = p.BUFFER_MS / 1000.0
-PREFILL_S = p.PREFILL_MS / 1000.0
 STALL_S = 0.02  # the output thread woke this late: the whole simulator was descheduled (a loaded machine)
-STREAM_GAP_S = 0.05  # no setpoints for this long: the stream has stopped (an event, not a fault)
-MIN_RATE_HZ, MAX_RATE_HZ = 1000, 48000
+SAMPLE_RATE_HZ = 48000  # the firmware's drive samples a second (its DAC rate over its oversampling)
+BLOCK = 96  # drive samples computed at once in open loop (2 ms): the physics' block
+LOOP_BLOCK = 12  # ... with the amplitude loop on (0.25 ms): the loop's measurement comes a block late
 MAX_EVENTS = 10000  # events kept for a reader (plate-sim prints them); beyond that they are counted, not kept
 
 
 @dataclass(frozen=True)
 class PlateTruth:
-    """The simulated plate's real resonance (Hz, drifting by ``drift_hz_per_s``) and quality factor."""
+    """The simulated plate's real resonance (Hz, drifting by ``drift_hz_per_s``) and quality factor; its real
+    full-scale amplitude (µm p-p at full drive on resonance; None: the profile's) and the sensing piezo's
+    noise (µm p-p rms, added to what the firmware measures)."""
 
     resonance_hz: float
     q: float
     drift_hz_per_s: float = 0.0
+    full_scale_um_pp: float | None = None
+    noise_um_pp: float = 0.0
 
     @classmethod
     def of(cls, profile: PlateProfile) -> PlateTruth:
@@ -79,8 +86,17 @@ class PlateTruth:
         return self.q / (math.pi * self.resonance_at(elapsed_s))
 
 
+class ForceSource(Protocol):
+    """What presses on the plate (a simulated finger): normal and lateral force (N) for a block of samples
+    at ``sample_rate_hz`` from ``t_s`` (s since the simulator started), given the plate's amplitude there."""
+
+    def forces(self, t_s: float, amplitude_um_pp: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
 @dataclass
 class SimCounters:
+    """The device's counters (from the core) and the faults injected into it (here)."""
+
     frames_ok: int = 0
     crc_errors: int = 0
     framing_errors: int = 0
@@ -90,55 +106,62 @@ class SimCounters:
     lost_setpoints: int = 0  # gaps in the setpoint index: frames that never arrived
     late_setpoints: int = 0  # behind the stream: already played or repeated
     discarded_setpoints: int = 0  # arrived while disabled
+    overrun_setpoints: int = 0  # did not fit the buffer
     watchdog_trips: int = 0
     naks: int = 0
-    handler_errors: int = 0  # exceptions in frame handling, answered NAK internal
+    handler_errors: int = 0  # exceptions in the simulator's own threads (the core has none)
     fault_counts: list = field(default_factory=lambda: [0] * p.FAULT_BITS)
     faults_injected: dict = field(default_factory=dict)
 
 
-class PlateSimulator:
-    """Protocol handling and plate physics, independent of the transport: bytes in, bytes out.
+def _bit(name: str) -> int:
+    return next(bit for bit, known in p.FAULT_NAMES.items() if known == name).bit_length() - 1
 
-    ``receive`` (the frame handler) and ``advance`` (the output stage and watchdog) may run on
-    different threads; a lock held for a frame's handling or one block's physics keeps them apart.
-    Events (``connected``, ``enabled``, ``fault`` …, each a dict with ``t_s`` and ``event``) go to the
-    bounded queue ``events``.
+
+class PlateSimulator:
+    """The firmware core and the plate's physics, independent of the transport: bytes in, bytes out.
+
+    ``receive`` (the frame handler) and ``advance`` (the output stage: the core's drive through the plate,
+    its ticks, its telemetry) may run on different threads; a lock held for each call keeps them apart.
+    Events (``hello``, ``enabled``, ``fault`` …, each a dict with ``t_s`` and ``event``) go to the bounded
+    queue ``events``. Time is the caller's: ``advance(now)`` renders the drive up to ``now``
+    (perf_counter s); frames are handled at the time last advanced to, so frames that waited on the link
+    while this process was descheduled are heard before the time that passed (as a UART's interrupt
+    comes before real firmware's output loop). With ``real_time`` set (a pty), a valid frame feeds the
+    watchdog at the real time it was read, however far the output stage lags.
     """
 
     def __init__(self, profile: PlateProfile, name: str = "ultraglide plate simulator",
-                 truth: PlateTruth | None = None):
+                 truth: PlateTruth | None = None, breaks: tuple[str, ...] = (), max_version: int = 3,
+                 finger: ForceSource | None = None):
         self.profile = profile
         self.truth = truth or PlateTruth.of(profile)
         self.name = name
-        self.decoder = p.FrameDecoder()
-        self.counters = SimCounters()
+        self.finger = finger
+        sensors = p.SENSOR_AMPLITUDE | ((p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE) if finger else 0)
+        self.core = sil.FirmwareCore(sil.CoreSettings.of(profile, name=name, breaks=tuple(breaks),
+                                                         max_version=max_version, sensors=sensors,
+                                                         sample_rate_hz=SAMPLE_RATE_HZ))
+        self.sample_rate_hz = SAMPLE_RATE_HZ
         self.events: queue.Queue = queue.Queue(MAX_EVENTS)  # bounded: nobody need drain it
         self.events_dropped = 0
-        self.enabled = False
-        self.carrier_hz = profile.resonance_hz
-        self.rate_hz = 12000
+        self.fault_requests: list[tuple[int, float]] = []
+        self._injected: dict[str, int] = {}
         self._lock = threading.Lock()
-        self._over_limit = False  # the measured amplitude is above the safe maximum (below the trip)
-        self._stream_rate: int | None = None  # set by the first SETPOINTS after ENABLE 1
-        self._buffer = np.zeros(0)
-        self._next_index: int | None = None
-        self._last_value = 0.0  # the setpoint now playing, fraction of full scale
-        self._starved = True  # waiting for the jitter buffer to fill
-        self._plate_state = 0.0  # the plate's amplitude, µm p-p
-        self._watchdog_gain = 1.0
-        self._faults = 0  # latched until CLEAR_FAULTS
         self._started = time.perf_counter()
-        self._heard = self._started
         self._clock = self._started
-        self._owed = 0.0  # fractional samples not yet played
-        self._telemetry_due = self._clock
-        self._streaming = False
-        self._last_setpoints = 0.0
-        self._seq = 0
+        self._owed = 0.0  # fractional drive samples not yet rendered
+        self._plate_state = 0.0  # the plate's amplitude, µm p-p
+        self._rng = np.random.default_rng(0)
+        self._noise = np.zeros(BLOCK)
         self.amplitude_um_pp = 0.0
         self.peak_um_pp = 0.0
-        self.fault_requests: list[tuple[int, float]] = []
+        self.real_time = False  # PtyPlate: frames arrive in real time, ahead of the clock last advanced to
+        self.trace: list[np.ndarray] | None = None  # a list here collects the plate's amplitude, every sample
+
+    def __repr__(self) -> str:
+        return (f"PlateSimulator({self.profile.name}: truth {self.truth.resonance_hz:g} Hz, Q {self.truth.q:g}; "
+                f"{self.core!r})")
 
     # ---- events and faults -----------------------------------------------------------------------
     def elapsed_s(self) -> float:
@@ -146,271 +169,192 @@ class PlateSimulator:
         return time.perf_counter() - self._started
 
     def _event(self, event: str, now: float | None = None, **fields) -> None:
+        """An event of the simulator's own (the transport's), at perf_counter time ``now``."""
         now = time.perf_counter() if now is None else now
+        self._put({"t_s": round(now - self._started, 4), "event": event, **fields})
+
+    def _put(self, event: dict) -> None:
         try:
-            self.events.put_nowait({"t_s": round(now - self._started, 4), "event": event, **fields})
+            self.events.put_nowait(event)
         except queue.Full:
             self.events_dropped += 1
 
-    def _fault(self, bit: int, now: float | None = None, **fields) -> None:
-        self._faults |= bit
-        self.counters.fault_counts[bit.bit_length() - 1] += 1
-        name = p.FAULT_NAMES[bit]
-        self._event("watchdog" if bit == p.FAULT_WATCHDOG else "fault", now, fault=name, **fields)
+    def _take_events(self) -> None:
+        """The core's events, in words (its sample clock is this simulator's time since it started)."""
+        for e in self.core.events():
+            fields: dict = {"t_s": round(e.sample / self.sample_rate_hz, 4)}
+            if e.kind == sil.EV_HELLO:
+                fields.update(event="hello", host_version=e.a)
+            elif e.kind == sil.EV_CARRIER:
+                fields.update(event="carrier", carrier_hz=round(e.value, 3))
+            elif e.kind == sil.EV_ENABLED:
+                fields.update(event="enabled")
+            elif e.kind == sil.EV_DISABLED:
+                fields.update(event="disabled", reason=sil.DISABLED_WHY.get(e.a, str(e.a)))
+            elif e.kind == sil.EV_STREAM_STARTED:
+                fields.update(event="stream_started", rate_hz=int(e.value))
+            elif e.kind == sil.EV_STREAM_STOPPED:
+                fields.update(event="stream_stopped")
+            elif e.kind == sil.EV_FAULT:
+                name = p.FAULT_NAMES.get(1 << e.a, f"bit {e.a}")
+                fields.update(event="watchdog" if name == "watchdog" else "fault", fault=name)
+                if name in ("over-limit", "trip"):
+                    fields["measured_um_pp"] = round(e.value, 4)
+                elif name == "bad-command":
+                    fields.update(command=e.b >> 8, reason=p.NAK_REASONS.get(e.b & 0xFF, str(e.b & 0xFF)))
+            elif e.kind == sil.EV_LOOP:
+                fields.update(event="loop", mode="amplitude" if e.a else "open")
+            elif e.kind == sil.EV_SIM_FAULT:
+                if e.a == p.SIM_OVERHEAT:
+                    self._count_injected("overheat")
+                continue
+            else:
+                continue
+            self._put(fields)
+        for kind, duration_ms in self.core.fault_requests():  # the transport (PtyPlate) acts on these
+            self.fault_requests.append((kind, duration_ms / 1000.0))
+
+    def _count_injected(self, name: str) -> None:
+        self._injected[name] = self._injected.get(name, 0) + 1
 
     def excuse(self, stalled_s: float) -> None:
         """The simulator itself did not run for ``stalled_s``: that time is not the host's silence."""
         with self._lock:
-            self._heard = min(self._heard + stalled_s, time.perf_counter())
+            self.core.excuse(int(stalled_s * 1000.0))
+
+    def overheat(self) -> None:
+        """Inject an overheat now (as SIM_FAULT kind 5 with no duration: raised, output cut and disabled)."""
+        with self._lock:
+            self.core.set_stage_hot(True)
+            self.core.set_stage_hot(False)
+            self._count_injected("overheat")
+            self._take_events()
+
+    # ---- what the device reports ------------------------------------------------------------------
+    def status(self) -> sil.Status:
+        with self._lock:
+            return self.core.status()
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.status().enabled)
+
+    @property
+    def carrier_hz(self) -> float:
+        return float(self.status().carrier_hz)
+
+    @property
+    def rate_hz(self) -> int:
+        """The stream's setpoint rate (0: no stream)."""
+        return int(self.status().stream_rate_hz)
+
+    @property
+    def drive_um_pp(self) -> float:
+        """The firmware's drive now, after its limiter (µm p-p of steady amplitude at resonance)."""
+        return float(self.status().drive) * self.profile.full_scale_um_pp
+
+    @property
+    def counters(self) -> SimCounters:
+        s = self.status()
+        counts = list(s.fault_counts)
+        return SimCounters(s.frames_ok, s.crc_errors, s.framing_errors, counts[_bit("underrun")],
+                           counts[_bit("overrun")], s.setpoints, s.lost_setpoints, s.late_setpoints,
+                           s.discarded_setpoints, s.overrun_setpoints, counts[_bit("watchdog")], s.naks, 0, counts,
+                           dict(self._injected))
 
     def fault_counts(self) -> dict[str, int]:
-        return {name: self.counters.fault_counts[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
+        counts = self.status().fault_counts
+        return {name: counts[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
 
-    def _disable(self, why: str, now: float | None = None) -> None:
-        was = self.enabled
-        self.enabled = False
-        self._buffer = np.zeros(0)
-        self._last_value = 0.0
-        self._starved = True
-        self._stop_stream(now)
-        if was:
-            self._event("disabled", now, reason=why)
-
-    def _stop_stream(self, now: float | None = None) -> None:
-        if self._streaming:
-            self._streaming = False
-            self._event("stream_stopped", now)
+    def telemetry(self) -> p.Telemetry:
+        s = self.status()
+        return p.Telemetry(s.measured_um_pp, s.carrier_hz, s.faults, bool(s.enabled), s.frames_ok, s.crc_errors,
+                           s.framing_errors, s.setpoints, s.lost_setpoints, s.late_setpoints, s.discarded_setpoints,
+                           tuple(s.fault_counts), s.overrun_setpoints, s.expected_index, s.stream_rate_hz,
+                           s.buffered, min(65535, round(s.drive * p.SETPOINT_SCALE)), s.playback, s.loop,
+                           s.session_version)
 
     # ---- bytes in ------------------------------------------------------------------------------
     def receive(self, data: bytes) -> list[bytes]:
-        """Feed received bytes; returns the frames to send back."""
-        replies = []
-        frames = self.decoder.feed(data)
-        for frame in frames:
-            with self._lock:
-                self._heard = time.perf_counter()
-                try:
-                    reply = self._handle(frame)
-                except Exception as error:  # a bug must not kill the device: answer, count, carry on
-                    self.counters.handler_errors += 1
-                    self._event("handler_error", error=f"{type(error).__name__}: {error}")
-                    reply = self._nak(frame, p.NAK_INTERNAL)
-                if reply is not None:
-                    replies.append(reply)
-        self.counters.frames_ok = self.decoder.frames
-        self.counters.crc_errors = self.decoder.crc_errors
-        self.counters.framing_errors = self.decoder.framing_errors
+        """Feed received bytes (handled at the time last advanced to); returns the frames to send back."""
+        with self._lock:
+            lag_ms = (time.perf_counter() - self._clock) * 1000.0 if self.real_time else 0.0
+            self.core.receive(data, int(lag_ms))
+            replies = _frames(self.core.transmit())
+            self._take_events()
         return replies
-
-    def _reply(self, kind: int, payload: bytes) -> bytes:
-        self._seq = (self._seq + 1) & 0xFFFF
-        return p.encode_frame(kind, self._seq, payload)
-
-    def _ack(self, frame: p.Frame) -> bytes:
-        return self._reply(p.ACK, p.ack_payload(frame.seq))
-
-    def _nak(self, frame: p.Frame, reason: int) -> bytes:
-        self.counters.naks += 1
-        self._fault(p.FAULT_BAD_COMMAND, command=frame.kind, reason=p.NAK_REASONS[reason])
-        return self._reply(p.NAK, p.nak_payload(frame.seq, reason))
-
-    def _handle(self, frame: p.Frame) -> bytes | None:
-        kind, payload = frame.kind, frame.payload
-        if kind not in p.HOST_COMMANDS:
-            return self._nak(frame, p.NAK_UNKNOWN_TYPE)
-        if kind in p.PAYLOAD_LENGTHS and len(payload) != p.PAYLOAD_LENGTHS[kind]:
-            return self._nak(frame, p.NAK_BAD_LENGTH)
-        if kind == p.HELLO:
-            return self._hello(frame)
-        if kind == p.SET_CARRIER:
-            carrier = p.parse_carrier(payload)
-            if not (math.isfinite(carrier) and self.profile.carrier_min_hz <= carrier <= self.profile.carrier_max_hz):
-                return self._nak(frame, p.NAK_BAD_VALUE)
-            self.carrier_hz = float(carrier)
-            self._event("carrier", carrier_hz=round(self.carrier_hz, 3))
-            return self._ack(frame)
-        if kind == p.ENABLE:
-            if payload[0] not in (0, 1):
-                return self._nak(frame, p.NAK_BAD_VALUE)
-            if payload[0] == 1:
-                if not self.enabled:
-                    self.enabled = True
-                    self._buffer = np.zeros(0)  # nothing sent while disabled is ever replayed
-                    self._starved = True
-                    self._next_index = None  # a new stream: its first index is not a gap
-                    self._stream_rate = None
-                    self._watchdog_gain = 1.0
-                    self._event("enabled")
-            else:
-                self._disable("host")
-            return self._ack(frame)
-        if kind == p.SETPOINTS:
-            return self._setpoints(frame)
-        if kind == p.HEARTBEAT:
-            return None
-        if kind == p.CLEAR_FAULTS:
-            self._faults &= ~p.parse_clear_faults(payload)
-            return self._ack(frame)
-        return self._sim_fault(frame)
-
-    def _hello(self, frame: p.Frame) -> bytes:
-        # the host's highest version; this device speaks only v2, and says so whatever was asked
-        reply = p.HelloReply(2, self.profile.resonance_hz, self.profile.full_scale_um_pp,
-                             self.profile.max_amplitude_um_pp, MIN_RATE_HZ, MAX_RATE_HZ, self.profile.carrier_min_hz,
-                             self.profile.carrier_max_hz, p.WATCHDOG_MS, p.BUFFER_MS, self.name)
-        self._event("hello", host_version=frame.payload[0])
-        return self._reply(p.HELLO_REPLY, p.hello_reply_payload(reply))
-
-    def _sim_fault(self, frame: p.Frame) -> bytes:
-        kind, duration_ms = p.parse_sim_fault(frame.payload)
-        if kind not in p.SIM_FAULT_KINDS or duration_ms > p.MAX_SIM_FAULT_MS:
-            return self._nak(frame, p.NAK_BAD_VALUE)
-        if kind == p.SIM_OVERHEAT:
-            self._count_injected("overheat")
-            self._fault(p.FAULT_OVERHEAT)
-            self._disable("overheat")
-        else:  # the transport (PtyPlate) owns the bytes: it acts on these
-            self.fault_requests.append((kind, duration_ms / 1000.0))
-        return self._ack(frame)
-
-    def _count_injected(self, name: str) -> None:
-        injected = self.counters.faults_injected
-        injected[name] = injected.get(name, 0) + 1
-
-    def _setpoints(self, frame: p.Frame) -> bytes | None:
-        try:
-            first, rate, codes = p.parse_setpoint_codes(frame.payload)
-        except p.ProtocolError:
-            return self._nak(frame, p.NAK_BAD_LENGTH)
-        if not 1 <= len(codes) <= p.MAX_SETPOINTS_PER_FRAME or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
-            return self._nak(frame, p.NAK_BAD_VALUE)
-        if not self.enabled:
-            self.counters.discarded_setpoints += len(codes)
-            return None
-        if self._stream_rate is None:
-            self._stream_rate = self.rate_hz = rate
-        elif rate != self._stream_rate:
-            return self._nak(frame, p.NAK_BAD_VALUE)
-        values = codes.astype(float) / p.SETPOINT_SCALE
-        if self._next_index is not None and first != self._next_index:
-            gap = (first - self._next_index) & 0xFFFFFFFF
-            if gap < 1 << 31:
-                self.counters.lost_setpoints += gap
-            else:  # behind the stream: what was already taken is late
-                behind = min((1 << 32) - gap, len(values))
-                self.counters.late_setpoints += behind
-                values = values[behind:]
-                first = (first + behind) & 0xFFFFFFFF
-        if not len(values):
-            return None
-        self._next_index = (first + len(values)) & 0xFFFFFFFF
-        self.counters.setpoints += len(values)
-        room = int(BUFFER_LIMIT_S * self.rate_hz) - len(self._buffer)
-        if room < len(values):
-            self.counters.overruns += 1
-            self._fault(p.FAULT_OVERRUN)
-            values = values[:max(room, 0)]
-        self._buffer = np.concatenate((self._buffer, values))
-        self._last_setpoints = time.perf_counter()
-        if not self._streaming:
-            self._streaming = True
-            self._event("stream_started", rate_hz=rate)
-        return None
 
     # ---- time passes ---------------------------------------------------------------------------
     def advance(self, now: float | None = None, telemetry: bool = True) -> list[bytes]:
-        """Play the setpoints due by ``now`` through the plate and run the watchdog; returns the telemetry
-        frames due (none when ``telemetry`` is false: a hung device says nothing)."""
+        """Render the drive due by ``now`` through the plate (ticking the core: watchdog, telemetry); returns
+        the frames the core sent meanwhile (none when ``telemetry`` is false: a hung device says nothing)."""
         with self._lock:
             now = time.perf_counter() if now is None else now
-            self._owed += (now - self._clock) * self.rate_hz
+            self._owed += (now - self._clock) * self.sample_rate_hz
             self._clock = now
             n = int(self._owed)
             self._owed -= n
-            if n > 0 and not self.enabled and self._plate_state <= REST_UM_PP and len(self._buffer) == 0:
-                self._plate_state = self.amplitude_um_pp = 0.0  # disabled and still: nothing to play or watch
-            elif n > 0:
-                self._play(n, now)
-            if self._streaming and now - self._last_setpoints > STREAM_GAP_S:
-                self._stop_stream(now)
-            if now >= self._telemetry_due:
-                self._telemetry_due = now + TELEMETRY_S
-                if telemetry:
-                    return [self._reply(p.TELEMETRY, p.telemetry_payload(self.telemetry(), 2))]
-            return []
+            if n <= 0:
+                self.core.poll()
+            else:
+                self._run(n, now)
+            frames = _frames(self.core.transmit())
+            self._take_events()
+            return frames if telemetry else []
 
-    def _play(self, n: int, now: float) -> None:
-        if self._starved and len(self._buffer) >= PREFILL_S * self.rate_hz:
-            self._starved = False
-        if self._starved:
-            played = np.zeros(0)
-        else:
-            played = self._buffer[:n]
-            self._buffer = self._buffer[n:]
-        if len(played) < n:
-            if not self._starved:
-                self._starved = True
-                if self.enabled:
-                    self.counters.underruns += 1
-                    self._fault(p.FAULT_UNDERRUN, now)
-            # a held overdrive (pre-compensation above the steady limit) would carry the plate past its
-            # limit: the held value is capped at the limit's share of full scale
-            hold = min(self._last_value, self.profile.max_amplitude_um_pp / self.profile.full_scale_um_pp)
-            played = np.concatenate((played, np.full(n - len(played), hold)))
-        if len(played):
-            self._last_value = float(played[-1])
-        if self.enabled and now - self._heard > WATCHDOG_S:  # armed only while enabled
-            if self._watchdog_gain == 1.0:
-                self.counters.watchdog_trips += 1
-                self._fault(p.FAULT_WATCHDOG, now)
-                self._stop_stream(now)
-            step = n / (WATCHDOG_RAMP_S * self.rate_hz)
-            gains = np.maximum(self._watchdog_gain - step * np.arange(1, n + 1) / n, 0.0)
-            self._watchdog_gain = float(gains[-1])
-            self._buffer = np.zeros(0)
-            self._last_value = 0.0
-            self._starved = True
-        else:
-            gains = 1.0
-            self._watchdog_gain = 1.0
+    def _run(self, n: int, now: float) -> None:
+        status = self.core.status()
         elapsed = now - self._started
-        gain = self.truth.gain(self.carrier_hz, elapsed)
-        drive = np.clip(played, 0.0, 1.0) * gains * self.profile.full_scale_um_pp
-        if not self.enabled:
-            drive = np.zeros(n)
-        alpha = math.exp(-1.0 / (self.rate_hz * self.truth.time_constant_s(elapsed)))
-        amplitude, _ = lfilter([(1.0 - alpha) * gain], [1.0, -alpha], drive, zi=[alpha * self._plate_state])
-        above = amplitude > self.profile.max_amplitude_um_pp
-        if above.any() or self._over_limit:  # each excursion above the safe maximum is one over-limit
-            edges = np.flatnonzero(above[1:] & ~above[:-1]).size + int(above[0] and not self._over_limit)
-            for _ in range(edges):
-                self._fault(p.FAULT_OVER_LIMIT, now, measured_um_pp=round(float(amplitude.max()), 4))
-        limit = self.profile.max_amplitude_um_pp * (1.0 + p.TRIP_MARGIN)
-        over = np.flatnonzero(amplitude > limit)
-        if len(over):  # firmware checks every sample: cut the drive there and rest the plate
-            measured = float(amplitude[over[0]])
-            drive[over[0]:] = 0.0
-            amplitude, _ = lfilter([(1.0 - alpha) * gain], [1.0, -alpha], drive, zi=[alpha * self._plate_state])
-            self._fault(p.FAULT_TRIP, now, measured_um_pp=round(measured, 4))
-            self._disable("trip", now)
-        self._plate_state = float(amplitude[-1])
-        self._over_limit = self._plate_state > self.profile.max_amplitude_um_pp
+        truth = self.truth
+        alpha = math.exp(-1.0 / (self.sample_rate_hz * truth.time_constant_s(elapsed)))
+        full_scale = truth.full_scale_um_pp or self.profile.full_scale_um_pp
+        b = (1.0 - alpha) * truth.gain(status.carrier_hz, elapsed) * full_scale
+        # disabled, the drive is zero whatever is measured: one block; enabled, the core hears the plate a
+        # block late (its limiter and trip do not need it sooner; its amplitude loop does)
+        block = (LOOP_BLOCK if status.loop else BLOCK) if status.enabled else sil.MAX_RENDER
+        t0 = elapsed - n / self.sample_rate_hz
+        done = 0
+        while done < n:
+            k = min(block, n - done)
+            drive = self.core.render(k)
+            if self._plate_state <= REST_UM_PP and not drive.any():
+                amplitude = np.zeros(k)
+            else:
+                amplitude, _ = lfilter([b], [1.0, -alpha], drive, zi=[alpha * self._plate_state])
+            measured = amplitude
+            if truth.noise_um_pp > 0:
+                measured = amplitude + self._rng.normal(0.0, truth.noise_um_pp, k)
+            normal = lateral = None
+            if self.finger is not None:
+                normal, lateral = self.finger.forces(t0 + done / self.sample_rate_hz, amplitude)
+            cut = self.core.sense(measured, normal, lateral)
+            if cut < k:  # tripped at sample `cut`: the drive stopped there
+                before = amplitude[cut - 1] if cut > 0 else self._plate_state
+                amplitude = amplitude.copy()
+                amplitude[cut:] = before * alpha ** np.arange(1, k - cut + 1)
+            self._plate_state = float(amplitude[-1])
+            self.peak_um_pp = max(self.peak_um_pp, float(amplitude.max()))
+            if self.trace is not None:
+                self.trace.append(np.array(amplitude, dtype=float))
+            done += k
         self.amplitude_um_pp = self._plate_state
-        self.peak_um_pp = max(self.peak_um_pp, float(amplitude.max()))
 
     def next_wake_s(self, now: float) -> float:
         """How long the output stage may sleep from ``now`` (s): one tick while enabled or while the plate
-        still moves; otherwise until the next telemetry frame (the plate at rest, disabled, has nothing
+        still moves; otherwise until the core's next telemetry frame (the plate at rest, disabled, has nothing
         else to do; ENABLE wakes it early, see :class:`PtyPlate`)."""
-        if self.enabled or self._plate_state > REST_UM_PP:
+        status = self.status()
+        if status.enabled or self._plate_state > REST_UM_PP:
             return TICK_S
-        return min(max(self._telemetry_due - now, 0.0), TELEMETRY_S)
+        due = self._started + status.next_telemetry_ms / 1000.0
+        return min(max(due - now, 0.0), TELEMETRY_S)
 
-    def telemetry(self) -> p.Telemetry:
-        c = self.counters
-        return p.Telemetry(self.amplitude_um_pp, self.carrier_hz, self._faults, self.enabled, c.frames_ok,
-                           c.crc_errors, c.framing_errors, c.setpoints, c.lost_setpoints, c.late_setpoints,
-                           c.discarded_setpoints, tuple(c.fault_counts))
+
+def _frames(data: bytes) -> list[bytes]:
+    """Bytes the core sent, split into frames (each with its 0x00)."""
+    if not data:
+        return []
+    return [part + b"\x00" for part in data.split(b"\x00")[:-1] if part]
 
 
 class PtyPlate:
@@ -421,8 +365,9 @@ class PtyPlate:
     pty's slave side is not held open here, so the master sees who is connected (EIO when nobody is).
     """
 
-    def __init__(self, profile: PlateProfile, link_path: str | None = None, truth: PlateTruth | None = None):
-        self.simulator = PlateSimulator(profile, truth=truth)
+    def __init__(self, profile: PlateProfile, link_path: str | None = None, truth: PlateTruth | None = None,
+                 breaks: tuple[str, ...] = (), max_version: int = 3):
+        self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version)
         self._own_dir = None
         if link_path is None:
             self._own_dir = tempfile.mkdtemp(prefix="ultraglide-plate-")
@@ -478,6 +423,7 @@ class PtyPlate:
             self.simulator._event("connected" if present else "disconnected", pty=self.pty_name)
 
     def start(self) -> PtyPlate:
+        self.simulator.real_time = True
         self._open_pty()
         for target, name in ((self._serve_frames, "plate-sim-frames"), (self._serve_output, "plate-sim-output")):
             thread = threading.Thread(target=target, name=name, daemon=True)
@@ -493,8 +439,7 @@ class PtyPlate:
     def inject(self, kind: int, duration_s: float) -> None:
         """Inject a fault now: SIM_DROP, SIM_CORRUPT, SIM_HANG, SIM_DISCONNECT (for ``duration_s``) or SIM_OVERHEAT."""
         if kind == p.SIM_OVERHEAT:
-            with self.simulator._lock:
-                self.simulator._sim_fault(p.Frame(p.SIM_FAULT, 0, p.sim_fault_payload(kind)))
+            self.simulator.overheat()
             return
         until = time.monotonic() + duration_s
         self.simulator._count_injected(p.SIM_FAULT_KINDS[kind])

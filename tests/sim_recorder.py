@@ -30,7 +30,7 @@ def main() -> None:
     print(f"ready {sim._started!r}", flush=True)  # perf_counter is the system's monotonic clock: comparable
     while not done.wait(0.005):
         now = sim.elapsed_s()
-        drive = sim._last_value * sim._watchdog_gain * profile.full_scale_um_pp if sim.enabled else 0.0
+        drive = sim.drive_um_pp  # after the firmware's limiter, the watchdog's ramp included
         record.append((now, sim.amplitude_um_pp, sim.truth.resonance_at(now), drive))
         while not sim.events.empty():
             events.append(sim.events.get())

@@ -14,7 +14,7 @@ from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.plate_sim import PlateSimulator, PtyPlate
+from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth, PtyPlate
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.serial_plate import SerialPlate
 from ultraglide.devices.urls import parse_device_url
@@ -105,34 +105,41 @@ def test_watchdog_ramps_to_zero_after_100_ms_of_silence():
     sim = PlateSimulator(PROFILE)
     sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
     t = sim._clock
-    for k in range(50):  # 0.25 s of setpoints at 4 µm, delivered on time
+    for k in range(50):  # 0.25 s of setpoints at 4 µm, delivered on time (each handled at the time reached)
         sim.receive(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(k * 60, 12000, np.full(60, 0.5))))
-        sim._heard = t + k * 0.005
         sim.advance(t + (k + 1) * 0.005)
     assert sim.amplitude_um_pp == pytest.approx(4.0, abs=0.01)
-    last_heard = sim._heard
+    last_heard = t + 49 * 0.005
     sim.advance(last_heard + 0.09)
     assert sim.amplitude_um_pp > 3.9 and sim.counters.watchdog_trips == 0  # silence shorter than 100 ms
     reports = sim.advance(last_heard + 0.15)
     assert sim.counters.watchdog_trips == 1
-    faults = [p.parse_telemetry(p.decode_frame(frame[:-1]).payload).faults for frame in reports]
+    frames = [p.decode_frame(frame[:-1]) for frame in reports]
+    faults = [p.parse_telemetry(frame.payload).faults for frame in frames if frame.kind == p.TELEMETRY]
     assert faults and faults[-1] & p.FAULT_WATCHDOG
     sim.advance(last_heard + 0.15 + 0.02 + 8 * PROFILE.time_constant_s)
     assert sim.amplitude_um_pp < 0.01
 
 
 def test_device_side_limit_rests_an_over_driven_plate():
+    """v3: the device's own limiter keeps a plate driven at full scale at its limit (4 of 8 µm, no overdrive
+    granted), enabled, never tripping; a plate stronger than its firmware believes (10 µm at full scale)
+    overshoots what the limiter lets through and trips, caught on the way up at the sample it crossed."""
     profile = PlateProfile("weak", 25000.0, 200.0, 8.0, 4.0)
-    sim = PlateSimulator(profile)
-    sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
-    t = sim._clock
-    for k in range(100):  # full scale: 8 µm wanted on a plate whose limit is 4
-        sim.receive(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(k * 60, 12000, np.ones(60))))
-        sim._heard = t + k * 0.005
-        sim.advance(t + (k + 1) * 0.005)
-    assert not sim.enabled
-    assert sim.counters.frames_ok == 101
-    assert sim.peak_um_pp < 4.0 * 1.02  # caught on the way up, at the sample it crossed
+    for truth, trips in ((None, False), (PlateTruth(25000.0, 200.0, full_scale_um_pp=10.0), True)):
+        sim = PlateSimulator(profile, truth=truth)
+        sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
+        t = sim._clock
+        for k in range(100):  # full scale: 8 µm wanted on a plate whose limit is 4
+            sim.receive(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(k * 60, 12000, np.ones(60))))
+            sim.advance(t + (k + 1) * 0.005)
+        assert sim.counters.frames_ok == 101
+        if trips:
+            assert not sim.enabled and sim.fault_counts()["trip"] == 1
+            assert sim.peak_um_pp < 4.0 * 1.02
+        else:
+            assert sim.enabled and sim.fault_counts()["trip"] == sim.fault_counts()["over-limit"] == 0
+            assert sim.amplitude_um_pp == pytest.approx(4.0, abs=1e-3) and sim.peak_um_pp <= 4.0 + 1e-4
 
 
 def test_a_failing_source_still_rests_the_plate(plate):
@@ -313,23 +320,25 @@ def test_a_recorder_that_never_started_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_every_fault_over_a_run_is_counted(plate):
+def test_every_fault_over_a_run_is_counted():
     """Faults injected one after another: the host's counts over the run equal what was injected.
 
-    The host's own limiter keeps its drive within its profile's limit, so to reach the device's trip the
-    host is given a profile that believes in a 7.9 µm limit while the simulated firmware keeps 6 µm: the
-    firmware's limit is the second line of defence against a wrong profile."""
+    The host's own limiter keeps its drive within its profile's limit, and (v3) the device's limiter keeps
+    its drive within the device's limit, so to reach the device's trip the host is given a profile that
+    believes in a 7.9 µm limit while the simulated firmware keeps 6 µm, and the plate is 25 % stronger than
+    the firmware believes (10 µm p-p at full scale, not 8): the trip is the last line of defence."""
     import dataclasses
 
+    plate = PtyPlate(PROFILE, truth=PlateTruth(25000.0, 200.0, full_scale_um_pp=10.0)).start()
     believed = dataclasses.replace(PROFILE, max_amplitude_um_pp=7.9, max_drive_um_pp=8.0)
     driver = SerialPlate(plate.path, believed, ack_timeout_s=10)
     source = Constant(3.0)
     driver.start(source)
     sim = plate.simulator
 
-    def playing():
+    def playing():  # 3 µm of drive makes 3.75 µm on this plate
         t = driver.telemetry
-        return t is not None and t.enabled and abs(t.measured_um_pp - 3.0) < 0.05 and driver.status()["connected"]
+        return t is not None and t.enabled and abs(t.measured_um_pp - 3.75) < 0.05 and driver.status()["connected"]
 
     assert wait_for(playing)
     for trips in (1, 2, 3):  # three 300 ms drops of everything the host sends: three watchdog trips
@@ -343,7 +352,7 @@ def test_every_fault_over_a_run_is_counted(plate):
     assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled)
     driver._command(p.ENABLE, p.enable_payload(True))
     assert wait_for(playing)
-    source.amplitude = 7.0  # above the 6 µm limit: one excursion over it, then the trip
+    source.amplitude = 7.0  # the device lets 6 µm of drive through: 7.5 µm, one excursion over it, then the trip
     assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled)
     assert wait_for(lambda: driver.fault_counts() == sim.fault_counts())  # the host has heard it all
     counts = driver.fault_counts()
@@ -355,6 +364,7 @@ def test_every_fault_over_a_run_is_counted(plate):
     assert driver.status()["faults"] == counts and set(driver.status()["device_faults"]) >= {
         "watchdog", "bad-command", "overheat", "over-limit", "trip", "underrun"}
     driver.stop()
+    plate.stop()
     assert driver.fault_counts() == counts  # the run's total, not the last telemetry frame's
 
 

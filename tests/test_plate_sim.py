@@ -1,7 +1,9 @@
-"""The simulated plate firmware: protocol v2 on the device side, its physics, and that nothing stops it.
+"""The simulated plate: the firmware core (protocol v3 on the device side) around the plate's physics,
+and that nothing stops it.
 
-In-process tests drive :class:`PlateSimulator` with a clock of their own (``advance(now)``), so the
-time-dependent behaviour is exact; the threaded ones use a real pty and wait on conditions."""
+In-process tests drive :class:`PlateSimulator` with a clock of their own (``advance(now)``; frames are
+handled at the time last advanced to), so the time-dependent behaviour is exact; the threaded ones use a
+real pty and wait on conditions. The core's rules one by one are in test_firmware_core.py."""
 
 import math
 import os
@@ -40,7 +42,6 @@ class Host:
         for _ in range(int(round(seconds / step))):
             self.send(p.SETPOINTS, p.setpoints_payload(self.index, RATE, np.full(n, fraction)))
             self.index += n
-            self.sim._heard = t
             t += step
             self.sim.advance(t)
         return t
@@ -76,25 +77,42 @@ def test_unknown_and_malformed_frames_get_a_nak_with_its_reason():
         (p.SIM_FAULT, p.sim_fault_payload(9, 10), p.NAK_BAD_VALUE),
         (p.SIM_FAULT, p.sim_fault_payload(p.SIM_HANG, 60000), p.NAK_BAD_VALUE),
         (p.CLEAR_FAULTS, b"\x01", p.NAK_BAD_LENGTH),
+        (p.SET_LOOP, b"", p.NAK_BAD_LENGTH),  # v3
+        (p.SET_LOOP, b"\x02", p.NAK_BAD_VALUE),
+        (p.HELLO_REPLY, b"", p.NAK_UNKNOWN_TYPE),  # a device's own message is no command
+        # the order of the checks (v3): known, supported, length, value
+        (0x42, b"\x07", p.NAK_UNKNOWN_TYPE),
+        (p.ENABLE, b"\x05\x05", p.NAK_BAD_LENGTH),  # wrong length and a bad value: the length is checked first
+        (p.SETPOINTS, p.setpoints_payload(0, 500, np.ones(300))[:-2], p.NAK_BAD_LENGTH),
     ]
     for kind, payload, reason in cases:
         assert nak_reason(host.send(kind, payload)) == reason, (kind, payload)
     assert not sim.enabled and sim.carrier_hz == PROFILE.resonance_hz  # refused frames changed nothing
+    assert sim.counters.frames_ok == len(cases)  # each was a valid frame (and fed the watchdog)
     assert sim.fault_requests == []
     assert sim.fault_counts()["bad-command"] == len(cases) == sim.counters.naks
     assert nak_reason(host.send(p.ENABLE, b"\x01")) is None and sim.enabled
     assert nak_reason(host.send(p.SET_CARRIER, p.carrier_payload(24000.0))) is None and sim.carrier_hz == 24000.0
+    assert nak_reason(host.send(p.SET_LOOP, b"\x01")) == p.NAK_BAD_VALUE  # only while disabled
+    (hello,) = host.send(p.HELLO, p.hello_payload(2))
+    assert p.hello_reply_version(hello.payload) == 2
+    assert nak_reason(host.send(p.SET_LOOP, b"\x07")) == p.NAK_UNSUPPORTED  # a v2 session: before the value
 
 
-def test_hello_negotiates_v2_and_tells_the_limits():
+def test_hello_negotiates_the_version_and_tells_the_limits():
     sim = PlateSimulator(PROFILE)
-    for asked in (1, 2, 3):  # the device answers in the one version it speaks
+    for asked, answered in ((1, 2), (2, 2), (3, 3), (4, 3), (255, 3)):  # the highest not above the host's
         (reply,) = Host(sim).send(p.HELLO, p.hello_payload(asked))
-        assert reply.kind == p.HELLO_REPLY and p.hello_reply_version(reply.payload) == 2
+        assert reply.kind == p.HELLO_REPLY and p.hello_reply_version(reply.payload) == answered, asked
     hello = p.parse_hello_reply(reply.payload)
     assert (hello.carrier_min_hz, hello.carrier_max_hz) == (20000.0, 28000.0)
     assert (hello.min_setpoint_rate_hz, hello.max_setpoint_rate_hz) == (1000, 48000)
     assert (hello.watchdog_ms, hello.buffer_ms) == (100, 250) and hello.max_amplitude_um_pp == 6.0
+    assert hello.max_drive_um_pp == 8.0 and hello.full_scale_um_pp == 8.0  # the profile's overdrive, v3
+    assert (hello.sensors, hello.sensor_rate_hz, hello.has_amplitude_loop) == (p.SENSOR_AMPLITUDE, 1000, True)
+    v2 = PlateSimulator(PROFILE, max_version=2)  # a device that speaks only v2 (for the host's v2 path)
+    (reply,) = Host(v2).send(p.HELLO, p.hello_payload(3))
+    assert p.hello_reply_version(reply.payload) == 2 and len(reply.payload) == 33 + len(v2.name)
 
 
 def test_setpoints_sent_while_disabled_are_discarded_and_never_replayed():
@@ -109,7 +127,6 @@ def test_setpoints_sent_while_disabled_are_discarded_and_never_replayed():
         host.index += 24
     assert sim.counters.discarded_setpoints == 240
     host.send(p.ENABLE, p.enable_payload(True))
-    sim._heard = t + 0.05
     sim.advance(t + 0.05)  # 50 ms enabled with nothing new sent: the plate rests
     assert sim.amplitude_um_pp < 1e-3 and sim.peak_um_pp < 4.01
 
@@ -138,7 +155,6 @@ def test_the_watchdog_is_armed_only_while_enabled():
     host.send(p.ENABLE, p.enable_payload(True))
     t = host.stream(t0 + 1.0, 0.2, 0.5)
     host.send(p.ENABLE, p.enable_payload(False))
-    sim._heard = t
     sim.advance(t + 1.0)  # the host finished and went away
     assert sim.counters.watchdog_trips == 0 and sim.fault_counts()["watchdog"] == 0
     host.send(p.ENABLE, p.enable_payload(True))
@@ -154,7 +170,6 @@ def test_faults_latch_until_cleared_and_every_one_is_counted():
     t = sim._clock
     for _ in range(2):  # two starvations: 30 ms of stream, then 30 ms of nothing
         t = host.stream(t, 0.03, 0.2)
-        sim._heard = t + 0.03
         t += 0.03
         sim.advance(t)
     assert sim.fault_counts()["underrun"] == 2
@@ -167,17 +182,35 @@ def test_faults_latch_until_cleared_and_every_one_is_counted():
     assert telemetry.faults == 0 and telemetry.counts_by_name()["underrun"] == 2  # cleared, still counted
 
 
-def test_over_limit_then_trip_on_the_measured_amplitude():
+def test_the_devices_limiter_holds_its_plate_at_the_limit():
+    """v3: the device's limit binds. Codes above the limit's share of full scale settle at the limit, not above:
+    no over-limit, no trip (v2 let the plate go to 6.03 µm, and trip at full scale)."""
     sim = PlateSimulator(PROFILE)
     host = Host(sim)
     host.send(p.ENABLE, p.enable_payload(True))
-    t = host.stream(sim._clock, 0.05, 6.03 / 8.0)  # settles between the limit and the trip
+    t = host.stream(sim._clock, 0.05, 6.03 / 8.0)
+    t = host.stream(t, 0.05, 1.0)
+    assert sim.enabled and sim.amplitude_um_pp == pytest.approx(6.0, abs=1e-3) and sim.peak_um_pp <= 6.0 + 1e-4
+    assert sim.fault_counts()["over-limit"] == 0 and sim.fault_counts()["trip"] == 0
+    assert sim.telemetry().drive_code == 49151  # round(6 / 8 × 65535): the limit's code
+
+
+def test_over_limit_then_trip_on_the_measured_amplitude():
+    """A plate stronger than its firmware believes (8.04 and 8.8 µm p-p at full scale, not 8): the limiter's
+    6 µm of drive makes 6.03 µm (over the limit, under the trip), or 6.6 µm (tripped at the sample it crossed)."""
+    sim = PlateSimulator(PROFILE, truth=PlateTruth(25000.0, 200.0, full_scale_um_pp=8.04))
+    host = Host(sim)
+    host.send(p.ENABLE, p.enable_payload(True))
+    host.stream(sim._clock, 0.05, 1.0)
     assert 6.0 < sim.amplitude_um_pp < 6.06 and sim.enabled
     assert sim.fault_counts()["over-limit"] == 1 and sim.fault_counts()["trip"] == 0
-    host.stream(t, 0.05, 1.0)
-    assert not sim.enabled and sim.fault_counts() == {
+    strong = PlateSimulator(PROFILE, truth=PlateTruth(25000.0, 200.0, full_scale_um_pp=8.8))
+    host = Host(strong)
+    host.send(p.ENABLE, p.enable_payload(True))
+    host.stream(strong._clock, 0.05, 1.0)
+    assert not strong.enabled and strong.fault_counts() == {
         "watchdog": 0, "trip": 1, "over-limit": 1, "overrun": 0, "underrun": 0, "bad-command": 0, "overheat": 0}
-    assert sim.peak_um_pp <= 6.0 * 1.01 + 0.05  # cut at the sample it crossed
+    assert strong.peak_um_pp <= 6.0 * 1.01 + 0.005  # cut at the sample it crossed (rising 0.7 nm a sample there)
 
 
 def test_an_underrun_never_holds_an_overdrive_above_the_limit():
@@ -226,7 +259,7 @@ def test_the_plates_truth_is_a_detuned_drifting_resonator():
 
 def test_defaults_are_the_profiles_resonance():
     sim = PlateSimulator(PROFILE)
-    assert sim.truth == PlateTruth(25000.0, 200.0, 0.0)
+    assert sim.truth == PlateTruth(25000.0, 200.0, 0.0, None, 0.0)
     host = Host(sim)
     host.send(p.ENABLE, p.enable_payload(True))
     host.stream(sim._clock, 0.1, 0.5)
@@ -271,6 +304,7 @@ def command_frames():
                   either(st.integers(0, 400), st.integers(0, 0xFFFF))),
         st.builds(lambda mask: (p.CLEAR_FAULTS, p.clear_faults_payload(mask)), st.integers(0, 0xFFFF)),
         st.builds(lambda v: (p.HELLO, bytes([v])), st.integers(0, 255)),
+        st.builds(lambda v: (p.SET_LOOP, bytes([v])), either(st.sampled_from([0, 1]), st.integers(0, 255))),
         st.just((p.HEARTBEAT, b"")),
     )
     raw = st.tuples(st.one_of(st.sampled_from(p.HOST_COMMANDS), st.integers(0, 255)), st.binary(max_size=600))
@@ -290,11 +324,16 @@ def assert_answers_and_rests(sim: PlateSimulator) -> None:
     host = Host(sim)
     (reply,) = host.send(p.HELLO, p.hello_payload())
     assert reply.kind == p.HELLO_REPLY
+    t = max(sim._clock, time.perf_counter())
+    while sim.status().stage_hot:  # an injected overheat lasts up to 5 s of the simulator's time
+        t += 0.5
+        sim.advance(t)
     host.send(p.SET_CARRIER, p.carrier_payload(PROFILE.resonance_hz))
     host.send(p.ENABLE, p.enable_payload(False))
+    host.send(p.SET_LOOP, b"\x00")  # fuzzed frames may have turned the loop on
     host.send(p.ENABLE, p.enable_payload(True))
     trips = sim.fault_counts()["watchdog"]
-    t = host.stream(max(sim._clock, time.perf_counter()) + 0.01, 0.1, 0.4)
+    t = host.stream(t + 0.01, 0.1, 0.4)
     assert sim.amplitude_um_pp == pytest.approx(3.2, abs=0.01)
     sim.advance(t + 0.2)
     assert sim.fault_counts()["watchdog"] == trips + 1 and sim.amplitude_um_pp < 0.01
@@ -306,7 +345,7 @@ def test_fuzzed_frames_never_stop_the_simulator(frames):
     sim = PlateSimulator(PROFILE)
     replies = sim.receive(fuzz_wire(frames))
     for reply in replies:  # every answer is a well-formed frame naming a known message
-        assert p.decode_frame(reply[:-1]).kind in (p.HELLO_REPLY, p.ACK, p.NAK)
+        assert p.decode_frame(reply[:-1]).kind in (p.HELLO_REPLY, p.ACK, p.NAK)  # (telemetry comes with time)
     assert sim.counters.handler_errors == 0
     sim.advance()
     assert_answers_and_rests(sim)
@@ -414,8 +453,9 @@ def test_fuzzed_frames_through_the_real_pty_never_stop_its_threads():
         # the watchdog still works, on its own thread: on, a stream, then silence
         sim = plate.simulator
         trips = sim.fault_counts()["watchdog"]
+        assert wait_for(lambda: not sim.status().stage_hot)  # an injected overheat lasts up to 5 s (v3)
         assert host.command(p.ENABLE, p.enable_payload(False), 10) is not None
-        assert host.command(p.ENABLE, p.enable_payload(True), 10) is not None
+        assert host.command(p.ENABLE, p.enable_payload(True), 10).kind == p.ACK
         for k in range(100):
             host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.4))))
             time.sleep(0.002)

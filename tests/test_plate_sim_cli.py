@@ -201,3 +201,22 @@ def test_a_link_in_a_missing_directory_is_one_line(tmp_path):
     line = assert_one_line_error(result)
     assert f"no directory {tmp_path / 'missing'}" in line and "--link" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_plate_sim_speaks_v2_when_told_and_names_a_rule_it_cannot_break(tmp_path):
+    link = tmp_path / "plate"
+    server = Server("--link", link, "--json", "--max-version", "2", "--break", "nak-order")
+    try:
+        banner = json.loads(server.wait_line(lambda line: '"serving"' in line))
+        assert (banner["max_version"], banner["breaks"]) == (2, ["R-NAK-ORDER"])
+        driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)
+        driver.start(Constant(2.0))  # a v3 host drives a v2 device
+        assert driver.device.version == 2 and not driver.device.has_amplitude_loop
+        assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 2.0) < 0.05)
+        assert driver.telemetry.version == 2
+        driver.stop()
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM
+    finally:
+        server.kill()
+    line = assert_one_line_error(run_cli("plate-sim", "--break", "R-NOTHING", timeout=60))
+    assert "no rule 'R-NOTHING' to break" in line and "R-WATCHDOG" in line

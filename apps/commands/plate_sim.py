@@ -25,10 +25,31 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sim.add_argument("--drift-hz-per-s", type=DRIFT_HZ_PER_S, default=0.0, metavar="D",
                      help="its resonance drifts by D Hz every second (default: 0)")
     sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
+    sim.add_argument("--max-version", choices=["2", "3"], default="3", metavar="V",
+                     help="the highest protocol version the simulated firmware speaks: 3, or 2 to test a host's "
+                          "v2 path (default: 3)")
+    sim.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
+                     help="break one rule of docs/protocol.md on purpose (R-NAK-ORDER, R-WATCHDOG, ...; see its "
+                          "Conformance section), to test `plate check`; repeat for several")
     sim.add_argument("--board", choices=["sim", "qemu"], default="sim",
                      help="sim: the firmware's core on this machine; qemu: the netduinoplus2 board image under "
                           "QEMU (built first if needed), its UART on the pty (default: sim)")
     sim.set_defaults(run=run)
+
+
+def _rules(texts: list[str]) -> tuple[str, ...]:
+    """Rule identifiers the simulated firmware can break (R-NAK-ORDER, or nak-order); UsageError otherwise."""
+    from ultraglide.apps.cli.errors import UsageError
+    from ultraglide.devices.firmware.sil import rules
+
+    known = rules()
+    found = []
+    for text in texts:
+        rule = text.upper() if text.upper().startswith("R-") else f"R-{text.upper()}"
+        if rule not in known:
+            raise UsageError(f"no rule {text!r} to break; the simulator can break {', '.join(known)}")
+        found.append(rule)
+    return tuple(found)
 
 
 def describe_event(event: dict) -> str:
@@ -41,14 +62,20 @@ def describe_event(event: dict) -> str:
 
 
 def run(args) -> int:
+    args.max_version = int(args.max_version)
+    args.breaks = list(_rules(args.breaks))
     if args.board == "qemu":
+        if args.breaks or args.max_version != 3:
+            from ultraglide.apps.cli.errors import UsageError
+
+            raise UsageError("--break and --max-version are the simulator's (--board sim), not the board image's")
         return _plate_sim_qemu(args)
     from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
     from ultraglide.devices.profiles import load_profile
 
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
-    plate = PtyPlate(profile, args.link, truth).start()
+    plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version).start()
     sim = plate.simulator
 
     def show(event: dict) -> None:
@@ -58,11 +85,13 @@ def run(args) -> int:
         if args.json:
             show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
                   "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
-                  "drift_hz_per_s": truth.drift_hz_per_s})
+                  "drift_hz_per_s": truth.drift_hz_per_s, "max_version": args.max_version, "breaks": args.breaks})
         else:
+            broken = f"; breaking {', '.join(args.breaks)} on purpose" if args.breaks else ""
+            version = "" if args.max_version == 3 else f"; speaking protocol v{args.max_version} at most"
             print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
-                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; Ctrl-C stops it",
-                  flush=True)
+                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s{version}{broken}; "
+                  "Ctrl-C stops it", flush=True)
         while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
             try:
                 show(sim.events.get(timeout=0.1))
@@ -82,6 +111,7 @@ def _summary(sim, as_json: bool, show) -> None:
     if as_json:
         show({"t_s": round(sim.elapsed_s(), 4), "event": "stopped", "frames": c.frames_ok, "setpoints": c.setpoints,
               "crc_errors": c.crc_errors, "lost_setpoints": c.lost_setpoints, "late_setpoints": c.late_setpoints,
+              "overrun_setpoints": c.overrun_setpoints, "discarded_setpoints": c.discarded_setpoints,
               "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
     else:
         fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"

@@ -85,6 +85,7 @@ typedef struct ug_status {
     uint32_t fault_counts[UG_FAULT_BITS];
     uint32_t naks, rx_overflows, tx_dropped, events_dropped;
     uint32_t now_ms;           /* ticks since power-up */
+    uint32_t next_telemetry_ms; /* the tick at which the next TELEMETRY frame is due */
     uint64_t samples;          /* drive samples produced since power-up */
     uint8_t stage_hot;
 } ug_status;
@@ -175,8 +176,10 @@ typedef struct ug_core {
     uint16_t capacity;      /* values the buffer holds at this rate */
     uint16_t buf[UG_BUFFER_CAPACITY];
     uint16_t buf_head, buf_count;
-    uint32_t popped;        /* values taken from the buffer since the stream began */
+    uint32_t popped;        /* values taken from the buffer, ever */
     uint32_t play_index;    /* the stream index of the value playing */
+    uint32_t next_pop_index; /* ... of the value at the buffer's head */
+    uint32_t tail_index;    /* ... the next value pushed would have, if contiguous */
     struct { uint32_t at, jump; } jumps[UG_JUMPS]; /* at the popped-th value, the index jumps by jump */
     uint8_t jump_head, jump_count;
     float current, next;    /* the value playing and the one after (fractions), for interpolation */
@@ -192,8 +195,8 @@ typedef struct ug_core {
     float loop_model, loop_integral, loop_approach;
     uint8_t loop_saturated;
     float hist_model[UG_HISTORY], hist_target[UG_HISTORY];
+    uint32_t hist_index[UG_HISTORY]; /* the stream index playing at each drive sample (or UG_NOT_PLAYING) */
     uint16_t hist_head;
-    float target;
 
     /* carrier DDS */
     uint32_t carrier_phase, carrier_step;
@@ -205,7 +208,7 @@ typedef struct ug_core {
     uint32_t sensor_decimation, sensor_count_in; /* drive samples per sensor sample, and so far */
     float sensor_sum[3];
     uint32_t sensor_first_index;
-    uint32_t sensor_sample;  /* the number of the next sensor sample */
+    uint32_t sensor_next;    /* the number the next sensor sample will have */
     struct { float value[3]; uint32_t index; } sensor_ring[UG_MAX_SENSOR_SAMPLES];
     uint8_t sensor_pending;
 
@@ -221,7 +224,10 @@ typedef struct ug_core {
     uint16_t event_head, event_count;
     uint32_t events_dropped;
 
-    uint8_t frame[UG_MAX_ENCODED + 8]; /* a frame being built for the host */
+    /* a frame being built for the host (main loop only) */
+    uint8_t scratch_payload[UG_MAX_BODY];
+    uint8_t scratch_body[UG_MAX_BODY];
+    uint8_t frame[UG_MAX_ENCODED + 8];
 } ug_core;
 
 /* ---- the API (contexts: see ug_port.h) ------------------------------------------------------------- */

@@ -1,0 +1,22 @@
+"""The firmware core's shared library for the simulated plate (software in the loop); everything else about
+the package is in pyproject.toml.
+
+The core (devices/firmware/core) and the simulator's port (ports/sim) are built into one shared library,
+``ultraglide.devices.firmware._sil``: importable as an (empty) extension module, so Python finds it, and
+loaded by devices/firmware/sil.py with ctypes, which calls the port's C functions. Warnings are errors, as
+in the board build; the simulator's build alone can break protocol rules on purpose (UG_CONFORMANCE_BREAKS).
+"""
+
+from setuptools import Extension, setup
+
+FIRMWARE = "devices/firmware"
+
+setup(ext_modules=[Extension(
+    "ultraglide.devices.firmware._sil",
+    sources=[f"{FIRMWARE}/core/{name}.c" for name in ("ug_core", "ug_dds", "ug_frame", "ug_loop")]
+    + [f"{FIRMWARE}/ports/sim/ug_sim.c", f"{FIRMWARE}/ports/sim/module.c"],
+    include_dirs=[f"{FIRMWARE}/include", f"{FIRMWARE}/core", f"{FIRMWARE}/ports/sim"],
+    define_macros=[("UG_CONFORMANCE_BREAKS", "1")],
+    extra_compile_args=["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wdouble-promotion"],
+    libraries=["m"],
+)])
