@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 import ultraglide
 
 
@@ -41,3 +43,47 @@ def test_a_reader_that_leaves_stops_the_command_quietly(tmp_path):
     _, stderr = command.communicate(timeout=120)
     assert command.returncode == 128 + signal.SIGPIPE
     assert stderr == b""
+
+
+def _source_copy(destination):
+    """The working tree as a clean clone has it (no virtual environment, builds, caches or artifacts)."""
+    import shutil
+
+    from conftest import ROOT
+
+    skip = shutil.ignore_patterns(".git", ".venv", "build", "dist", "artifacts", "__pycache__", "*.egg-info",
+                                  ".pytest_cache", ".ruff_cache", ".hypothesis", "site")
+    shutil.copytree(ROOT, destination, ignore=skip)
+    return destination
+
+
+@pytest.mark.slow
+def test_a_wheel_builds_without_warnings_and_runs_from_a_clean_venv(tmp_path):
+    """What `pipx install .` does: build a wheel (in an isolated build environment), install it with its
+    dependencies into a fresh virtual environment, and run the command from there, away from the sources."""
+    import os
+
+    import soundfile
+
+    source = _source_copy(tmp_path / "source")
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", tmp_path / "wheels", source],
+                           capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stderr
+    noise = [line for line in (build.stdout + build.stderr).splitlines()
+             if "would be ignored" in line or "SetuptoolsDeprecationWarning" in line]
+    assert not noise, noise  # every data folder is listed in pyproject.toml
+    wheel = next((tmp_path / "wheels").glob("ultraglide-*.whl"))
+    subprocess.run([sys.executable, "-m", "venv", tmp_path / "clean"], check=True, timeout=300)
+    installed = subprocess.run([tmp_path / "clean" / "bin" / "python", "-m", "pip", "install", "-q", wheel],
+                               capture_output=True, text=True, timeout=900)
+    assert installed.returncode == 0, installed.stderr
+    env = {key: value for key, value in os.environ.items() if key not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    command = tmp_path / "clean" / "bin" / "ultraglide"
+    version = subprocess.run([command, "--version"], capture_output=True, text=True, cwd=tmp_path, env=env,
+                             timeout=120)
+    assert version.stdout.strip() == f"ultraglide {ultraglide.__version__}", version.stderr
+    exported = subprocess.run([command, "export", "grating-1mm", "-o", "swipe.wav", "--duration-s", "0.3"],
+                              capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600)
+    assert exported.returncode == 0, exported.stderr
+    samples, rate = soundfile.read(tmp_path / "swipe.wav")
+    assert rate == 96000 and 0.3 <= len(samples) / rate < 0.5 and 0.2 < abs(samples).max() <= 1.0

@@ -1,0 +1,64 @@
+"""``./run``: set-up installs only what is missing. Run on a copy of the script and what it installs from, with a
+virtual environment whose python, ruff and ultraglide are scripts that write down how they were called: the
+real script's logic, none of its installing."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import pytest
+from conftest import ROOT
+
+FAKE = """#!/bin/sh
+echo "$(basename "$0") $*" >> "{log}"
+"""
+
+
+@pytest.fixture
+def checkout(tmp_path):
+    """A copy of ./run and pyproject.toml beside a .venv of recording stand-ins."""
+    for name in ("run", "pyproject.toml", "setup.py"):
+        shutil.copy(ROOT / name, tmp_path / name)
+    for folder in ("include", "core", "ports/sim"):  # the firmware sources the install builds from
+        shutil.copytree(ROOT / "devices" / "firmware" / folder, tmp_path / "devices" / "firmware" / folder)
+    bin_dir = tmp_path / ".venv" / "bin"
+    bin_dir.mkdir(parents=True)
+    for name in ("python", "ruff", "ultraglide"):
+        (bin_dir / name).write_text(FAKE.format(log=tmp_path / "calls.log"))
+        (bin_dir / name).chmod(0o755)
+    return tmp_path
+
+
+def run(checkout, *args) -> list[str]:
+    """``./run ARGS`` in the copy; the stand-ins' calls it made."""
+    log = checkout / "calls.log"
+    log.write_text("")
+    result = subprocess.run(["./run", *args], cwd=checkout, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    return log.read_text().splitlines()
+
+
+def installs(calls: list[str]) -> list[str]:
+    return [call for call in calls if call.startswith("python -m pip install -q -e")]
+
+
+@pytest.mark.skipif(shutil.which("dpkg-query") is None, reason="./run checks system packages with dpkg")
+def test_the_demo_after_the_tests_installs_nothing_again(checkout):
+    calls = run(checkout, "tests", "--co")
+    assert installs(calls) == ["python -m pip install -q -e .[test,demo,docs]"]
+    assert "python -m pytest -n 2 --co" in calls
+    calls = run(checkout, "demo", "--windowed")
+    assert installs(calls) == [] and calls == ["ultraglide demo --windowed"]  # straight to the demo
+    assert run(checkout, "tests", "-k", "x") == ["ruff check .", "python -m pytest -n 2 -k x"]
+    # pyproject.toml changes: installed again, with everything that was there
+    (checkout / "pyproject.toml").write_text((checkout / "pyproject.toml").read_text() + "\n# changed\n")
+    assert installs(run(checkout, "demo")) == ["python -m pip install -q -e .[test,demo,docs]"]
+    assert installs(run(checkout, "demo")) == []
+
+
+@pytest.mark.skipif(shutil.which("dpkg-query") is None, reason="./run checks system packages with dpkg")
+def test_the_tests_after_the_demo_install_what_the_tests_need(checkout):
+    assert installs(run(checkout, "demo")) == ["python -m pip install -q -e .[demo]"]
+    assert installs(run(checkout, "tests", "--co")) == ["python -m pip install -q -e .[demo,test,docs]"]
+    assert installs(run(checkout, "demo")) == []
