@@ -20,6 +20,7 @@ gives it the amplitude measured over the same samples. The calls are not thread-
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import importlib.util
 import os
 import threading
@@ -30,13 +31,12 @@ import numpy as np
 from ultraglide.devices.errors import DeviceError
 
 HERE = Path(__file__).resolve().parent
-SOURCES = ("core", "include", "ports/sim")
 MAX_RENDER = 48000  # drive samples one render() call returns at most (1 s at 48 kHz)
 TX_CHUNK = 65536
 
 
 class FirmwareBuildError(DeviceError):
-    """The firmware core's shared library is missing or older than its sources."""
+    """The firmware core's shared library is missing, or was built from other sources than those beside it."""
 
 
 class Config(ctypes.Structure):
@@ -94,16 +94,24 @@ def library_path() -> Path:
                              "ultraglide with its build (`./run tests --co -q` in a checkout, or `pip install .`)")
 
 
-def _check_fresh(path: Path) -> None:
-    """In a source checkout, a library older than the core's sources runs old code: refuse it."""
-    if not (HERE.parent.parent / ".git").exists():
-        return
-    built = path.stat().st_mtime
-    for folder in SOURCES:
-        for source in (HERE / folder).glob("*"):
-            if source.suffix in (".c", ".h", ".inc") and source.stat().st_mtime > built + 1e-3:
-                raise FirmwareBuildError(f"the firmware core's library is older than {source.relative_to(HERE)}: "
-                                         "rebuild it (`./run tests --co -q`, or `pip install -e .`)")
+SOURCE_PATTERNS = ("core/*.c", "core/*.h", "core/*.inc", "include/*.h", "ports/sim/*.c", "ports/sim/*.h")
+
+
+def sources_digest() -> str:
+    """SHA-256 of the firmware sources beside this module, as setup.py computes it for the library it builds."""
+    digest = hashlib.sha256()
+    for pattern in SOURCE_PATTERNS:
+        for path in sorted(HERE.glob(pattern)):
+            digest.update(path.relative_to(HERE).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _check_fresh(lib: ctypes.CDLL) -> None:
+    """A library built from other sources than those beside it runs other code: refuse it."""
+    built = lib.ug_sim_sources_digest().decode()
+    if built != sources_digest():
+        raise FirmwareBuildError("the firmware core's library was built from other sources than those beside it: "
+                                 "rebuild it (`./run tests --co -q`, or `pip install -e .`)")
 
 
 _LIBRARY: ctypes.CDLL | None = None
@@ -116,9 +124,7 @@ def load() -> ctypes.CDLL:
     with _LOAD_LOCK:
         if _LIBRARY is not None:
             return _LIBRARY
-        path = library_path()
-        _check_fresh(path)
-        lib = ctypes.CDLL(os.fspath(path))
+        lib = ctypes.CDLL(os.fspath(library_path()))
         size = ctypes.c_size_t
         voidp = ctypes.c_void_p
         signatures = {
@@ -137,11 +143,13 @@ def load() -> ctypes.CDLL:
             "ug_sim_take_fault": (ctypes.c_int, [voidp, ctypes.POINTER(ctypes.c_uint8),
                                                  ctypes.POINTER(ctypes.c_uint16)]),
             "ug_crc32": (ctypes.c_uint32, [voidp, size]), "ug_cobs_encode": (size, [voidp, size, voidp]),
+            "ug_sim_sources_digest": (ctypes.c_char_p, []),
         }
         for name, (result, arguments) in signatures.items():
             function = getattr(lib, name)
             function.restype = result
             function.argtypes = arguments
+        _check_fresh(lib)
         for name, structure in (("config", Config), ("status", Status), ("event", Event)):
             if getattr(lib, f"ug_sim_{name}_size")() != ctypes.sizeof(structure):
                 raise FirmwareBuildError(f"struct ug_{name} in the library does not match firmware/sil.py's")

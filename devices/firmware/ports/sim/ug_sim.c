@@ -25,6 +25,12 @@ size_t ug_sim_event_size(void) { return sizeof(ug_event); }
 void ug_sim_config_defaults(ug_config *config) { ug_config_defaults(config); }
 const char *ug_sim_break_rule(unsigned which) { return ug_break_rule(which); }
 
+#ifndef UG_SOURCES_DIGEST
+#define UG_SOURCES_DIGEST ""
+#endif
+/* SHA-256 of the sources this library was built from (setup.py), for the binding to check */
+const char *ug_sim_sources_digest(void) { return UG_SOURCES_DIGEST; }
+
 int ug_sim_init(ug_sim *sim, const ug_config *config) {
     memset(sim, 0, sizeof *sim);
     int result = ug_core_init(&sim->core, config, sim);

@@ -31,6 +31,7 @@ void ug_sim_config_defaults(ug_config *config);
 int ug_sim_init(ug_sim *sim, const ug_config *config);
 bool ug_sim_set_breaks(ug_sim *sim, uint32_t breaks);
 const char *ug_sim_break_rule(unsigned which);
+const char *ug_sim_sources_digest(void);
 
 void ug_sim_poll(ug_sim *sim);
 /* lag_ms: how far the caller's real time is ahead of the core's clock (its output stage sleeps, or was
