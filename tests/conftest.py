@@ -51,6 +51,16 @@ def cli():
     return run_cli
 
 
+def source_copy(destination: Path) -> Path:
+    """The working tree as a fresh clone has it: no virtual environment, builds, caches or artifacts."""
+    import shutil
+
+    skip = shutil.ignore_patterns(".git", ".venv", "build", "dist", "artifacts", "__pycache__", "*.egg-info",
+                                  ".pytest_cache", ".ruff_cache", ".hypothesis", "site", "*.so")
+    shutil.copytree(ROOT, destination, ignore=skip)
+    return destination
+
+
 # ---- slow tests ---------------------------------------------------------------------------------------
 # `-m "not slow"` is the quick loop. A test is slow when it says so (@pytest.mark.slow) or when it, or a
 # module-level helper it calls, starts a process (the command, a server, Xvfb): those take seconds each,

@@ -45,18 +45,6 @@ def test_a_reader_that_leaves_stops_the_command_quietly(tmp_path):
     assert stderr == b""
 
 
-def _source_copy(destination):
-    """The working tree as a clean clone has it (no virtual environment, builds, caches or artifacts)."""
-    import shutil
-
-    from conftest import ROOT
-
-    skip = shutil.ignore_patterns(".git", ".venv", "build", "dist", "artifacts", "__pycache__", "*.egg-info",
-                                  ".pytest_cache", ".ruff_cache", ".hypothesis", "site")
-    shutil.copytree(ROOT, destination, ignore=skip)
-    return destination
-
-
 @pytest.mark.slow
 def test_a_wheel_builds_without_warnings_and_runs_from_a_clean_venv(tmp_path):
     """What `pipx install .` does: build a wheel (in an isolated build environment), install it with its
@@ -64,8 +52,9 @@ def test_a_wheel_builds_without_warnings_and_runs_from_a_clean_venv(tmp_path):
     import os
 
     import soundfile
+    from conftest import source_copy
 
-    source = _source_copy(tmp_path / "source")
+    source = source_copy(tmp_path / "source")
     build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", tmp_path / "wheels", source],
                            capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, build.stderr

@@ -264,8 +264,8 @@ class DemoApp:
             self.redraw.everything()
             if self.link is not None and self.scenes.scene == "texture" and self.scenes.index == index:
                 self.link.set_texture(texture)
-            if self.options.report_frames:
-                print(f"texture reloaded: {texture.name}", flush=True)
+            path = self.texture_files[index][0]
+            print(f"ultraglide demo: reloaded {path} ({texture.name})", flush=True)  # in the editor's terminal too
 
     # ---- the loop --------------------------------------------------------------------------------
     def _area_moving(self) -> bool:
