@@ -354,6 +354,22 @@ def test_playback_starts_at_the_prefill_and_is_zero_before(rate, prefill):  # [R
     assert device.status().playback == p.PLAYBACK_PLAYING and device.played()[-1] == pytest.approx(0.5, abs=1e-4)
 
 
+@pytest.mark.parametrize("rate", [1000, 12000, 44100, 48000])
+def test_values_play_at_the_streams_rate_up_to_the_drive_rate(rate):  # [R-PREFILL]: one every 1/rate s
+    device = enabled()  # 48 kHz is the drive rate itself: each value plays for exactly one drive sample
+    values = 0.1 + 0.5 * (np.arange(2 * rate // 10) % 97) / 97  # 200 ms of distinct values
+    for first in range(0, len(values), 240):
+        device.setpoints(first, values[first:first + 240], rate=rate)
+    for _ in range(5):
+        device.run(20)
+        device.send(p.HEARTBEAT)  # the watchdog fed
+    played = device.status().setpoints - device.status().buffered  # taken from the buffer in 100 ms
+    assert device.counts()["underrun"] == 0 and abs(played - rate // 10) <= 2
+    if rate == FS:
+        start = np.flatnonzero(device.played())[0] + 1  # the first value starts playback, then plays its own sample
+        assert device.played()[start:start + 960] == pytest.approx(values[:960].astype(np.float32), abs=2e-5)
+
+
 def test_underrun_once_per_dry_spell_holding_the_last_value_capped_at_the_limit():  # [R-UNDERRUN]
     device = enabled()
     device.setpoints(0, np.concatenate((np.full(119, 0.3), [0.9])))  # the last one an overdrive (limit 0.75)

@@ -269,7 +269,7 @@ static void enable(ug_core *core) {
 
 static void set_rate(ug_core *core, uint32_t rate) {
     core->rate = rate;
-    core->step = (uint32_t)(((uint64_t)rate << 32) / core->config.sample_rate_hz);
+    core->step = ((uint64_t)rate << 32) / core->config.sample_rate_hz;
     uint32_t prefill = (UG_PREFILL_MS * rate + 999u) / 1000u;
     core->prefill = (uint16_t)(UG_BROKEN(core, UG_BREAK_PREFILL) ? 1u : prefill);
     uint32_t capacity = (uint32_t)core->config.buffer_ms * rate / 1000u;
@@ -812,9 +812,9 @@ static float render_sample(ug_core *core) {
         float next = core->buf_count > 0u ? code_fraction(core->buf[core->buf_head]) : core->current;
         requested = core->current + (next - core->current) * ((float)core->phase * (1.0f / 4294967296.0f));
         playing = value_playing = true;
-        uint32_t phase = core->phase + core->step;
-        bool due = phase < core->phase;
-        core->phase = phase;
+        uint64_t phase = (uint64_t)core->phase + core->step; /* 33 bits: a stream at the drive rate steps 2^32 */
+        bool due = phase > 0xFFFFFFFFu;
+        core->phase = (uint32_t)phase;
         if (due) {
             if (core->buf_count > 0u) {
                 core->current = code_fraction(buffer_pop(core));

@@ -170,7 +170,7 @@ typedef struct ug_core {
     uint32_t rate;          /* 0: no stream */
     uint32_t expected;
     uint8_t have_expected;
-    uint32_t step;          /* playback phase step per drive sample, 2^32 x rate / sample_rate */
+    uint64_t step;          /* playback phase step per drive sample, 2^32 x rate / sample_rate (2^32 at rate = sample_rate) */
     uint32_t phase;         /* playback phase within the current value */
     uint16_t prefill;       /* values that start playback */
     uint16_t capacity;      /* values the buffer holds at this rate */
