@@ -83,6 +83,12 @@ class DriveLimiter:
         self.worst_excess_um_pp = max(self.worst_excess_um_pp, worst)
         return out
 
+    def bind(self, limit_um_pp: float, max_drive_um_pp: float) -> None:
+        """Narrow the limit and the drive ceiling (µm p-p) to a device's own, where they are smaller; never widens
+        (the smallest limit anyone declares holds). Call between blocks, from the thread that processes them."""
+        self.limit_um_pp = min(self.limit_um_pp, float(limit_um_pp))
+        self.max_drive_um_pp = max(self.limit_um_pp, min(self.max_drive_um_pp, float(max_drive_um_pp)))
+
     @property
     def limited_fraction(self) -> float:
         """The fraction of samples (of time) the limiter lowered by more than 0.1 % of the limit."""

@@ -339,6 +339,14 @@ class PlateSimulator:
             done += k
         self.amplitude_um_pp = self._plate_state
 
+    def start_clock(self, now: float | None = None) -> None:
+        """The output was disabled and at rest until ``now`` (it slept; a frame just enabled it): nothing played
+        meanwhile, so that time is not owed to the new stream (played at once, it would empty the prefill)."""
+        with self._lock:
+            now = time.perf_counter() if now is None else now
+            if now > self._clock:
+                self._clock, self._owed = now, 0.0
+
     def next_wake_s(self, now: float) -> float:
         """How long the output stage may sleep from ``now`` (s): one tick while enabled or while the plate
         still moves; otherwise until the core's next telemetry frame (the plate at rest, disabled, has nothing
@@ -568,6 +576,7 @@ class PtyPlate:
         replies = self.simulator.receive(data)
         if self._sleeping_long and self.simulator.enabled:  # the output stage waits for telemetry: its clock starts now
             self._sleeping_long = False
+            self.simulator.start_clock()
             self._wake.set()
         while self.simulator.fault_requests:
             self.inject(*self.simulator.fault_requests.pop(0))

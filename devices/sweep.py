@@ -74,13 +74,19 @@ class TelemetrySweeper:
         self.device = device
         self.driver = getattr(device, "driver", device)  # SimPlate wraps a SerialPlate
         self.profile = profile
-        self.level_um_pp = SWEEP_LEVEL * profile.max_amplitude_um_pp
+        self.limit_um_pp = profile.max_amplitude_um_pp  # the device's own once it has said, if smaller
+        self.level_um_pp = SWEEP_LEVEL * self.limit_um_pp
         self.source = SteadyDrive(self.level_um_pp, device.rate_hz)
         self.unsettled = 0
 
     def start(self, carrier_hz: float) -> None:
+        """Connect and drive at 15 % of the smaller of the profile's and the device's limits."""
         self.driver.carrier_hz = carrier_hz
         self.device.start(self.source)
+        bound = getattr(self.driver, "limit_um_pp", self.limit_um_pp)
+        if bound < self.limit_um_pp:
+            self.limit_um_pp = bound
+            self.level_um_pp = self.source.amplitude_um_pp = SWEEP_LEVEL * bound
 
     def measure(self, carrier_hz: float, time_constant_s: float) -> SweepPoint:
         self.driver.set_carrier(carrier_hz)
@@ -92,7 +98,7 @@ class TelemetrySweeper:
             if abs(telemetry.carrier_hz - carrier_hz) > 0.01:
                 continue  # from before the change
             amplitude = telemetry.measured_um_pp
-            if amplitude > SAFE_FRACTION * self.profile.max_amplitude_um_pp:
+            if amplitude > SAFE_FRACTION * self.limit_um_pp:
                 self._lower_drive()
                 previous = None
                 changed = time.monotonic()
@@ -108,7 +114,8 @@ class TelemetrySweeper:
 
     @property
     def drive_fraction(self) -> float:
-        return self.source.amplitude_um_pp / self.profile.full_scale_um_pp
+        """The drive as a fraction of full scale: the device's full scale, by which its codes are scaled."""
+        return self.source.amplitude_um_pp / getattr(self.driver, "full_scale_um_pp", self.profile.full_scale_um_pp)
 
     def _lower_drive(self) -> None:
         """The plate moves more than its profile says: halve the drive (points are kept per unit drive)."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -95,7 +96,7 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
         "device": status.device, "steps": steps,
         "engine_ms": _percentiles(engine_s), "device_ms": _percentiles(device_s), "total_ms": _percentiles(total_s),
         "device_part": DEVICE_PART.get(kind, ""), "block_ms": block_ms, "priority": status.priority,
-        "engine_aim_ms": ENGINE_AIM_MS,
+        "engine_aim_ms": ENGINE_AIM_MS, "report": status.device_status.get("report"),
     }
 
 
@@ -152,6 +153,14 @@ def describe(figures: dict) -> str:
 def run(args) -> int:
     if args.steps < 2:
         raise UsageError("--steps must be at least 2")
+    from ultraglide.devices.run_report import RunReport
+
     figures = measure(args.device, args.steps, args.profile)
     print(json.dumps(figures) if args.json else describe(figures))
-    return 0
+    report = RunReport.from_dict(figures["report"])
+    if report.exit_status:  # the plate was lost, cut its output or faulted: the figures are not to be trusted
+        if not args.json:
+            for line in report.lines:
+                print(line)
+        print(f"ultraglide latency: {report.verdict}", file=sys.stderr)
+    return report.exit_status

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -148,6 +149,7 @@ def check_profile_path(path: Path, option: str) -> Path:
 
 
 def run_sweep(args) -> int:
+    from ultraglide.devices.errors import DeviceError, describe
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.sweep import MAX_FRAMES_PER_STEP, SWEEP_LEVEL, TelemetrySweeper, measured_profile, sweep
     from ultraglide.devices.urls import open_device, parse_device_url
@@ -181,12 +183,23 @@ def run_sweep(args) -> int:
     sweeper = TelemetrySweeper(device, profile)
     try:  # a stop signal (Ctrl-C, SIGTERM, SIGHUP: apps/cli/signals.py) leaves through the finally
         sweeper.start(low)
+        for note in getattr(sweeper.driver, "notes", []):  # where the device's own limits bind
+            say(note)
         say(f"sweeping {low:g}-{high:g} Hz in {args.steps} steps at {sweeper.level_um_pp:.2f} µm p-p "
-            f"({SWEEP_LEVEL:.0%} of the {profile.max_amplitude_um_pp:g} µm p-p limit)")
+            f"({SWEEP_LEVEL:.0%} of the {sweeper.limit_um_pp:g} µm p-p limit)")
         points, fit = sweep(sweeper, low, high, args.steps, say)
+    except DeviceError as error:  # the plate went away or cut its output mid-sweep: what happened, and when
+        with held():
+            sweeper.stop()
+        report = sweeper.driver.report()
+        for line in report.lines:
+            say(line)
+        print(f"ultraglide plate: error: {describe(error)}", file=sys.stderr)
+        return report.exit_status or 1
     finally:
         with held():  # a stop signal arriving now waits until the plate is at rest
-            sweeper.stop()  # ramp to rest, zero, disable
+            sweeper.stop()  # ramp to rest, zero, disable (once: a second call finds it stopped)
+    report = sweeper.driver.report()
     found = measured_profile(profile, fit, output.stem)
     level_fraction = points[0].drive_fraction
     if args.plot:
@@ -203,11 +216,12 @@ def run_sweep(args) -> int:
         "rms_residual_um_pp": round(fit.rms_residual_um_pp, 5),
         "points": len(points), "unsettled_points": sweeper.unsettled, "from_hz": low, "to_hz": high,
         "drive_um_pp": round(level_fraction * profile.full_scale_um_pp, 4), "profile": str(output),
-        "plot": args.plot, "faults": faults,
+        "plot": args.plot, "faults": faults, "notes": list(getattr(sweeper.driver, "notes", [])),
+        "report": report.as_dict(),
     }
     if args.json:
         print(json.dumps(summary))
-        return 0
+        return report.exit_status
     print(f"resonance {fit.resonance_hz:.1f} ± {fit.resonance_sigma_hz:.1f} Hz, Q {fit.q:.1f} ± {fit.q_sigma:.1f} "
           f"(half-power width {fit.bandwidth_hz:.1f} Hz), {fit.peak_um_pp:.3f} ± {fit.peak_sigma_um_pp:.3f} µm p-p "
           f"at full-scale drive; {len(points)} points")
@@ -222,4 +236,8 @@ def run_sweep(args) -> int:
     if faults:
         print("device faults during the sweep: " + ", ".join(f"{count} {name}" for name, count in faults.items()))
     print(f"profile written to {output}" + (f"; response drawn in {args.plot}" if args.plot else ""))
-    return 0
+    for line in report.lines:
+        print(line)
+    if report.exit_status:  # the plate faulted or was lost during the sweep: the profile may be off
+        print(f"ultraglide plate: {report.verdict}", file=sys.stderr)
+    return report.exit_status

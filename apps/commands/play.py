@@ -102,6 +102,7 @@ def engine_config(args) -> EngineConfig:
 def run(args) -> int:
     from ultraglide.apps.commands.output_report import force_words
     from ultraglide.apps.commands.render_setup import load_inputs
+    from ultraglide.devices.run_report import RunReport
     from ultraglide.render.engine import Engine
 
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
@@ -122,12 +123,16 @@ def run(args) -> int:
         save_to = check_profile_path(Path(args.save_profile), "--save-profile")
     trajectory = inputs.trajectory
     engine = Engine.start(engine_config(args))
+    started = time.perf_counter()
     try:
         if effects is not None:
             engine.set_effects(effects)  # instead of the texture's own
         chunks = report_chunks(trajectory)
         first = list(itertools.islice(chunks, 1))  # made before the clock starts, while the engine gets ready:
         engine.wait_ready()  # the first chunk's work (loading a compiled path) must not make the first reports late
+        if not args.json:
+            for note in (engine.ready_info.get("device_status") or {}).get("notes") or []:
+                print(note, flush=True)  # where the device's own limits bind, said once before playing
         started = time.perf_counter()
         last = replay(engine.touch, itertools.chain(first, chunks), started)
         engine.touch(time.perf_counter(), float(last[0]), float(last[1]), down=False)
@@ -139,6 +144,7 @@ def run(args) -> int:
     figures = final.summary()
     figures["fault_words"] = figures.pop("faults")
     device_status = figures.pop("device_status")
+    report = RunReport.from_dict(device_status.get("report"))
     counts = device_status.pop("fault_counts", None)
     limiter = device_status.pop("limiter", "")
     clipped = final.clipped_samples / final.control_samples if final.control_samples else 0.0
@@ -162,12 +168,16 @@ def run(args) -> int:
               f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit{played}; "
               f"engine priority {final.priority}")
         print(limiter)
+        for line in report.lines:  # what happened to the plate, and when
+            print(line)
         print(describe_faults(counts or {}))
         if tracking is not None:
             print(tracking_words(tracking))
         if save_to is not None and tracking is not None:
             print(f"profile with the tracked resonance written to {save_to}: use --profile {save_to} next time")
-    return 0
+    if report.exit_status:
+        print(f"ultraglide play: {report.verdict}", file=sys.stderr)
+    return report.exit_status
 
 
 def tracking_words(tracking: dict) -> str:

@@ -360,4 +360,16 @@ def run(args) -> int:
             app.close()  # window closed, Escape, Ctrl-C or an exception: the plate comes to rest
     if args.stats:
         write_stats(args.stats, run_stats(app, app.final_status))
-    return 0
+    return say_report(app.final_status)
+
+
+def say_report(final) -> int:
+    """What happened to a plate driver over the run, in words, if anything did; the exit status it earns."""
+    from ultraglide.devices.run_report import RunReport
+
+    report = RunReport.from_dict((getattr(final, "device_status", None) or {}).get("report"))
+    if report.exit_status:
+        for line in report.lines:
+            print(line)
+        print(f"ultraglide demo: {report.verdict}", file=sys.stderr)
+    return report.exit_status

@@ -16,6 +16,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from ultraglide.devices.run_report import RunReport
 
 START_TIMEOUT_S = 120.0  # spawning the engine and compiling its kernels on a loaded machine
 
@@ -54,6 +55,7 @@ class LinkStatus:
     words: str  # the engine's own line
     chart: np.ndarray = field(repr=False)  # rows of (t_s, target ratio, commanded µm p-p, plate µm p-p)
     engine: object = field(repr=False, default=None)  # the engine's EngineStatus
+    verdict: str = ""  # a plate driver's run so far, when not clean: "the plate was lost (exit status 4)"
 
 
 class DemoLink:
@@ -120,14 +122,19 @@ class DemoLink:
         state = s.state
         if s.device_status.get("connected", True) is False:
             state = "disconnected"
+        elif s.device_status.get("output") == "cut by the device":
+            state = "cut off by the plate"
+        report = RunReport.from_dict(s.device_status.get("report"))
         return LinkStatus(
             device=s.device, state=state, model=s.model or self.model_name, texture=s.texture,
             force_n=s.force_n, paused=s.state == "paused", blocks=s.blocks, late_blocks=s.late_blocks,
             underruns=s.underruns, block_p50_us=_or_zero(s.block_p50_us), block_p99_us=_or_zero(s.block_p99_us),
             limited_pct=self._limited_percent(s), limited_samples=s.clipped_samples - self._clipped_at_texture,
-            faults=tuple(_fault_words(s)), limit_um_pp=self.profile.max_amplitude_um_pp,
+            faults=tuple(_fault_words(s)),
+            limit_um_pp=float(s.device_status.get("limit_um_pp") or self.profile.max_amplitude_um_pp),
             full_scale_um_pp=self.profile.full_scale_um_pp,
-            plate_measured="measured_um_pp" in s.device_status, words=s.words(priority=False), chart=chart, engine=s)
+            plate_measured="measured_um_pp" in s.device_status, words=s.words(priority=False), chart=chart, engine=s,
+            verdict=report.verdict if report.exit_status else "")
 
     def _limited_percent(self, s) -> float:
         """Of the control samples of the last second on this texture, the share the plate's limit held, %."""

@@ -19,7 +19,8 @@ def run_stats(app, final=None) -> dict:
             "block_times": "over every block rendered in the run (not the resting ones), ±1 % (a histogram)",
             "limited_samples": s.clipped_samples, "faults": list(s.faults), "priority": s.priority,
             "touches": driver.pushed, "touches_received_by_engine": s.touches,
-            "touches_dropped_by_engine": s.touches_dropped, "touches_not_felt_before_ready": driver.unfelt}
+            "touches_dropped_by_engine": s.touches_dropped, "touches_not_felt_before_ready": driver.unfelt,
+            "report": (s.device_status or {}).get("report")}
 
 
 def _rounded(value: float | None) -> float | None:

@@ -52,9 +52,12 @@ def status_parts(app) -> tuple[list[Part], list[Part]]:
     # the engine is paused between touches (the plate rests); the user's pause is the Space key's
     state = "paused" if app.user_paused else ("running" if s.state == "paused" else s.state)
     faults = "faults: " + ", ".join(s.faults) if s.faults else "no faults"
+    if s.verdict:  # the plate was lost, cut its output or faulted over this run: the run is not clean
+        faults += f" ({s.verdict})"
     source = "touch pressure" if driver.pressure_seen else "Up/Down keys"
     plate = [
-        Part(f"{device} {state}, {faults}", f"{s.device} {state}, {faults}", must=True, rank=9, warn=bool(s.faults)),
+        Part(f"{device} {state}, {faults}", f"{s.device} {state}, {faults}", must=True, rank=9,
+             warn=bool(s.faults) or bool(s.verdict)),
         Part(f"{app.link.model_name} model", app.link.model_name, rank=6),
         Part(f"{app.force_n:.2f} N ({source})", f"{app.force_n:.2f} N", rank=7),
         limit_part(s.limited_pct, s.limited_samples),

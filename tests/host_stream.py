@@ -1,0 +1,59 @@
+"""A host streaming a square wave to a plate on a serial port, in its own process, so that a test can stop it
+(SIGSTOP) and see what the plate gets when it resumes:
+
+    python tests/host_stream.py PORT LOW_UM_PP HIGH_UM_PP HALF_PERIOD_S
+
+The drive is LOW while ``int(t / HALF_PERIOD_S)`` is even and HIGH while it is odd, ``t`` being the
+perf_counter time the writer pulls it (the system's monotonic clock, comparable across processes): an edge
+at every multiple of the half period, as a touch that reaches the host then. Prints ``ready`` once streaming;
+on SIGTERM stops the driver (ramp, zero, disable) and prints its status as one JSON line.
+"""
+
+import json
+import os
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.serial_plate import SerialPlate
+
+
+class Square:
+    def __init__(self, low, high, half_s):
+        self.low, self.high, self.half_s = low, high, half_s
+        self.stopping = False
+
+    def pull(self, n, now_s):
+        if self.stopping:
+            return np.zeros(n)
+        return np.full(n, self.high if int(time.perf_counter() / self.half_s) % 2 else self.low)
+
+    def request_stop(self):
+        self.stopping = True
+
+    @property
+    def finished(self):
+        return self.stopping
+
+
+def main() -> None:
+    port, low, high, half = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
+    try:  # as the engine runs its serial writer: in real time where allowed (its threads inherit the policy)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except (OSError, AttributeError):
+        pass
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    driver = SerialPlate(port, load_profile("sim-plate"), ack_timeout_s=10)
+    driver.start(Square(low, high, half))
+    print("ready", flush=True)
+    done.wait()
+    driver.stop()
+    print(json.dumps(driver.status()), flush=True)
+
+
+if __name__ == "__main__":
+    main()
