@@ -241,10 +241,29 @@ def test_a_device_with_another_full_scale_plays_the_amplitude_asked():
         driver.stop()
         codes = np.concatenate([codes for _, _, codes in tapped.setpoint_frames()])
         assert np.median(codes) == round(4.0 / 10.0 * p.SETPOINT_SCALE)
-        assert driver.notes == ["the plate driver's full scale is 10 µm p-p, not the profile's 8: setpoint codes "
-                                "are scaled to the driver's"]
+        assert driver.notes[0] == ("the plate driver's full scale is 10 µm p-p, not the profile's 8: setpoint codes "
+                                   "are scaled to the driver's")
     finally:
         tapped.close()
+
+
+def test_a_v2_device_is_never_overdriven_whatever_the_profile_grants(tapped):
+    """sim-plate grants drive up to 8 µm p-p for pre-compensation; a v2 device declares no drive ceiling, so the
+    host keeps every code at or below the device's limit (and says so)."""
+    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+    source = Level()
+    driver.start(source)
+    if driver.device.version >= 3:
+        pytest.skip("the simulated plate speaks v3 (its v2 mode is tested through plate-sim --max-version 2)")
+    for amplitude in (1.0, 5.9, 0.5, 6.0, 2.0):  # steps up: pre-compensation would overdrive each
+        source.amplitude = amplitude
+        pulled = source.pulled
+        assert wait_for(lambda n=pulled: source.pulled > n + 600, timeout=DEADLINE_S)
+    driver.stop()
+    assert received_um_pp(tapped, 8.0).max() <= 6.0
+    assert driver.notes == ["the plate driver speaks protocol v2, which declares no overdrive: drive held at the "
+                            "limit, 6 µm p-p (the profile allows 8)"]
+    assert driver.status()["max_drive_um_pp"] == 6.0
 
 
 def test_play_says_where_the_device_binds_it():
