@@ -339,14 +339,6 @@ class PlateSimulator:
             done += k
         self.amplitude_um_pp = self._plate_state
 
-    def start_clock(self, now: float | None = None) -> None:
-        """The output was disabled and at rest until ``now`` (it slept; a frame just enabled it): nothing played
-        meanwhile, so that time is not owed to the new stream (played at once, it would empty the prefill)."""
-        with self._lock:
-            now = time.perf_counter() if now is None else now
-            if now > self._clock:
-                self._clock, self._owed = now, 0.0
-
     def next_wake_s(self, now: float) -> float:
         """How long the output stage may sleep from ``now`` (s): one tick while enabled or while the plate
         still moves; otherwise until the core's next telemetry frame (the plate at rest, disabled, has nothing
@@ -573,10 +565,11 @@ class PtyPlate:
             for index in flips:
                 corrupted[index] ^= 1 << int(self._rng.integers(0, 8))
             data = bytes(corrupted)
-        replies = self.simulator.receive(data)
+        if self._sleeping_long:  # the output stage sleeps until telemetry: bring the core's clock to now first, so a
+            self._write(self.simulator.advance())  # frame enabling it is not handled up to 20 ms in the past (the
+        replies = self.simulator.receive(data)  # rendering that then caught up played the prefill at once, and ran dry)
         if self._sleeping_long and self.simulator.enabled:  # the output stage waits for telemetry: its clock starts now
             self._sleeping_long = False
-            self.simulator.start_clock()
             self._wake.set()
         while self.simulator.fault_requests:
             self.inject(*self.simulator.fault_requests.pop(0))

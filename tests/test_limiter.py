@@ -264,7 +264,8 @@ def test_setpoints_the_simulated_plate_receives_keep_any_plate_within_the_limit(
         driver.stop()
         sim = plate.simulator
         fractions = np.concatenate(sim.received)
-        assert len(fractions) >= 0.6 * CONTROL and sim.counters.lost_setpoints == 0
+        # (a host that falls behind skips ahead rather than send a backlog: the plate counts those lost)
+        assert len(fractions) >= 0.6 * CONTROL and sim.counters.lost_setpoints == driver.counters.setpoints_skipped
         if driver.device.max_drive_um_pp > driver.device.max_amplitude_um_pp:  # the device grants overdrive (v3)
             assert fractions.max() * 8.0 > 2 * 2.0  # overdrive reached the plate
         else:  # a device that declares none (every v2 device): the host grants none either
