@@ -212,6 +212,7 @@ class SerialPlate:
         self._awaiting: set[int] = set()
         self._answers: dict[int, int | None] = {}  # seq → None (ACK) or a NAK reason
         self._sent_kinds = bytearray(65536)  # the command each seq carried, to name what a NAK refused
+        self._sent_at = 0.0  # perf_counter s of the last frame sent
         self._hello: bytes | None = None
         self._hello_seq = -1
         self._session = False  # this connection's HELLO_REPLY has arrived: its telemetry counts
@@ -451,6 +452,7 @@ class SerialPlate:
                 raise serial.SerialException("not connected")
             self._seq = seq = (self._seq + 1) & 0xFFFF
             self._sent_kinds[seq] = kind
+            self._sent_at = time.perf_counter()
             if awaited:
                 with self._reply:
                     self._awaiting.add(seq)
@@ -710,6 +712,7 @@ class SerialPlate:
         wake = np.empty(lead + 4 * batch)
         dry_s = (lead - batch) / rate  # the plate's buffer lasts this long after a frame arrives
         trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
+        heartbeat_s = self._watchdog_s() / 4.0
         trim_range = (-int(self._buffer_ms() * rate / 1000), int(0.1 * rate))
         last_sent = None
         quiet_since = None  # when the run of all-zero setpoints began (perf_counter s)
@@ -729,7 +732,9 @@ class SerialPlate:
                 ahead = lead + trim if streaming else 0
                 due = int((now - started) * rate) + ahead - position
                 if due < batch:
-                    planned = started + (position + batch - ahead) / rate
+                    planned = min(started + (position + batch - ahead) / rate, now + heartbeat_s)
+                    if streaming and now - self._sent_at > heartbeat_s:  # a long wait (the lead moved back): keep
+                        self._heartbeat()  # the plate's watchdog fed
                     time.sleep(max(0.0, planned - now))
                     continue
                 skip = 0
@@ -852,6 +857,15 @@ class SerialPlate:
         with self._account_lock:
             if stalled_s > self._stall_longest[0]:
                 self._stall_longest = (stalled_s, now - self._started)
+
+    def _heartbeat(self) -> None:
+        try:
+            self._send(p.HEARTBEAT)
+        except (serial.SerialException, OSError) as error:
+            self._lost(port_failure(error))
+
+    def _watchdog_s(self) -> float:
+        return (self.device.watchdog_ms if self.device is not None else p.WATCHDOG_MS) / 1000.0
 
     def _buffer_ms(self) -> float:
         return float(self.device.buffer_ms if self.device is not None else p.BUFFER_MS)
