@@ -366,8 +366,8 @@ class PtyPlate:
     """
 
     def __init__(self, profile: PlateProfile, link_path: str | None = None, truth: PlateTruth | None = None,
-                 breaks: tuple[str, ...] = (), max_version: int = 3):
-        self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version)
+                 breaks: tuple[str, ...] = (), max_version: int = 3, finger: ForceSource | None = None):
+        self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version, finger=finger)
         self._own_dir = None
         if link_path is None:
             self._own_dir = tempfile.mkdtemp(prefix="ultraglide-plate-")

@@ -489,3 +489,39 @@ def test_a_hung_frame_handler_still_rests_the_plate():
                           plate._hang_until - time.monotonic())
     finally:
         plate.stop()
+
+
+class SteadyPress:
+    """A finger that presses 0.5 N and drags with 0.2 N per µm p-p of the plate's amplitude (a ForceSource)."""
+
+    def __init__(self):
+        self.calls = []
+
+    def forces(self, t_s, amplitude_um_pp):
+        self.calls.append((t_s, len(amplitude_um_pp)))
+        return np.full(len(amplitude_um_pp), 0.5), 0.2 * np.asarray(amplitude_um_pp)
+
+
+def test_a_finger_on_the_plate_reaches_the_host_in_sensors_frames():
+    """The SIL's force inputs: a ForceSource's blocks go to the core beside the measured amplitude, and come
+    out in SENSORS frames, averaged over each 1 ms sensor sample."""
+    finger = SteadyPress()
+    sim = PlateSimulator(PROFILE, finger=finger)
+    host = Host(sim)
+    (reply,) = host.send(p.HELLO, p.hello_payload())
+    hello = p.parse_hello_reply(reply.payload)
+    assert hello.sensors == p.SENSOR_AMPLITUDE | p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE
+    host.send(p.ENABLE, p.enable_payload(True))
+    t = sim._clock
+    frames = []
+    for k in range(100):
+        host.send(p.SETPOINTS, p.setpoints_payload(12 * k, RATE, np.full(12, 0.25)))
+        t += 0.001
+        frames += [p.decode_frame(f[:-1]) for f in sim.advance(t)]
+    samples = np.concatenate([p.parse_sensors(f.payload).samples for f in frames if f.kind == p.SENSORS])
+    assert len(samples) >= 90
+    assert samples["normal_force_n"] == pytest.approx(np.full(len(samples), 0.5), abs=1e-6)
+    late = samples[-20:]
+    assert late["amplitude_um_pp"] == pytest.approx(np.full(20, 2.0), abs=1e-3)  # 0.25 of 8 µm, settled
+    assert late["lateral_force_n"] == pytest.approx(0.2 * late["amplitude_um_pp"], rel=1e-5)
+    assert finger.calls[0][0] >= 0 and all(b[0] > a[0] for a, b in zip(finger.calls, finger.calls[1:], strict=False))
