@@ -284,7 +284,7 @@ def inverse_film_forces(ratio, force, limit, p, ratio_nodes, out):
             return -1 - i
         if r >= 1.0:
             out[i] = 0.0
-        elif film_forward(limit, f, p, ratio_nodes) > r:
+        elif film_forward(limit, f, p, ratio_nodes) > r + 1e-12:  # rounding at the floor itself: in reach
             out[i] = limit
             clamped += 1
         else:
