@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from pdf_text import problems, read_strings
 from ultraglide.apps.figures.style import COLUMN_IN, PAGE_IN
@@ -58,3 +59,46 @@ def test_the_papers_figures_and_the_model_report_read_at_print_width(tmp_path, w
         assert_readable(report, width)
         text = "".join(s.text for s in read_strings(report)[1])
         assert ("contactarea" in text) == (params is not None)  # a law without a contact says nothing of one
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width", ["column", "page"])
+def test_the_calibration_figure_reads_at_print_width_with_a_band_per_force(tmp_path, width):
+    from ultraglide.apps.figures.calibration import write_calibration_figure
+    from ultraglide.render.physics.calibration import compare_models
+    from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    from ultraglide.render.physics.measurements import Measurements
+
+    rng = np.random.default_rng(4)
+    amplitude = np.tile(np.arange(0.0, 6.01, 0.5), 3)
+    force = np.repeat([0.2, 0.5, 1.0], 13)
+    ratio = StretchedExponentialModel(3.5, 1.8, 0.4).relative_friction(amplitude, force) + rng.normal(0, 0.02, 39)
+    data = Measurements(amplitude, np.clip(ratio, 0, 1.2), force, "synthetic-three-forces.csv")
+    fits = compare_models(data, ("stretched", "exponential", "table"))
+    pdf = write_calibration_figure(fits, tmp_path / "cal.png", width)[1]
+    assert_readable(pdf, width)
+    text = "".join(s.text for s in read_strings(pdf)[1])
+    assert "synthetic-three-forces.csv" in text and "fit±2rms,0.2N" in text and "3forces" in text
+
+
+@pytest.mark.parametrize("width", ["column", "page"])
+def test_the_plate_sweep_figure_reads_at_print_width(tmp_path, width):
+    from ultraglide.apps.figures.sweep import plot_sweep
+    from ultraglide.devices.resonance import ResonanceFit
+    from ultraglide.devices.sweep import SweepPoint
+
+    fit = ResonanceFit(25_000.0, 180.0, 8.0, 1.5, 3.0, 0.05, 0.01)
+    points = [SweepPoint(f, float(fit.amplitude_um_pp(f)) * 0.15, 0.15, True) for f in np.linspace(23e3, 27e3, 41)]
+    plot_sweep(tmp_path / "sweep.pdf", points, fit, 0.15, width)
+    assert_readable(tmp_path / "sweep.pdf", width)
+
+
+@pytest.mark.slow
+def test_the_experiment_figures_read_at_a_column(tmp_path):
+    from conftest import run_cli
+
+    out = tmp_path / "session"
+    run_cli("experiment", "threshold", "grating-1mm", "--method", "staircase", "--trials", "30", "--observer",
+            "sim:threshold=0.08,slope=3", "--out", out, check=True)
+    for name in ("track.pdf", "psychometric.pdf"):
+        assert_readable(out / name, "column")

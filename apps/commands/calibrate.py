@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ultraglide.apps.cli.options import add_figure_width_option
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
 
 if TYPE_CHECKING:
@@ -47,6 +48,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                 "there are three or more), 0 to skip (default: 200)")
     calibrate.add_argument("-o", "--output", metavar="CAL.toml",
                            help="write the calibration here, and its figure as CAL.png and CAL.pdf")
+    add_figure_width_option(calibrate)
     calibrate.set_defaults(run=run)
 
 
@@ -102,13 +104,13 @@ def _residual_table(fit: Fit) -> list[str]:
     return lines
 
 
-def _write(fit: Fit, fits: list[Fit], output: Path) -> list[Path]:
+def _write(fit: Fit, fits: list[Fit], output: Path, width: str = "column") -> list[Path]:
     from ultraglide.apps.figures.calibration import write_calibration_figure
     from ultraglide.render.physics.calibration import calibration_toml
 
     with atomic_path(output) as temporary:
         temporary.write_text(calibration_toml(fit))
-    return [output, *write_calibration_figure(fits, output.with_suffix(".png"))]
+    return [output, *write_calibration_figure(fits, output.with_suffix(".png"), width)]
 
 
 def run(args) -> int:
@@ -127,7 +129,7 @@ def run(args) -> int:
         if chosen is not None and args.bootstrap:
             chosen = fit_model(data, chosen.kind, cross_validate=True, bootstrap=args.bootstrap)
             fits = [chosen if f.kind == chosen.kind else f for f in fits]
-        written = _write(chosen, fits, output) if output is not None and chosen is not None else []
+        written = _write(chosen, fits, output, args.figure_width) if output is not None and chosen is not None else []
         note = selection_note(data)
         result = {"ranking": [fit_summary(f) for f in fits], "selection": note, "written": [str(p) for p in written]}
         if args.json:
@@ -152,7 +154,7 @@ def run(args) -> int:
     fit = fit_model(data, args.model, cross_validate=True, bootstrap=args.bootstrap)
     if fit.kind == "table" and output is not None:
         raise UsageError("a table model is its CSV: use --model table:FILE.csv rather than a calibration file")
-    written = _write(fit, [fit], output) if output is not None else []
+    written = _write(fit, [fit], output, args.figure_width) if output is not None else []
     if args.json:
         print(json.dumps({"fit": fit_summary(fit), "written": [str(p) for p in written]}))
         return 0

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import OneLineParser
+from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
 
 if TYPE_CHECKING:
@@ -53,6 +53,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sweep_parser.add_argument("--steps", type=SWEEP_STEPS, default=41, metavar="N", help="coarse steps (default: 41)")
     sweep_parser.add_argument("-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
     sweep_parser.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
+    add_figure_width_option(sweep_parser)
     sweep_parser.add_argument("--json", action="store_true", help="print one JSON object")
     sweep_parser.set_defaults(run=run_sweep)
 
@@ -205,7 +206,7 @@ def run_sweep(args) -> int:
     if args.plot:
         from ultraglide.apps.figures.sweep import plot_sweep
 
-        plot_sweep(Path(args.plot), points, fit, level_fraction)
+        plot_sweep(Path(args.plot), points, fit, level_fraction, args.figure_width)
     write_profile(output, found, fit)
     faults = {name: count for name, count in sweeper.fault_counts().items() if count}
     summary = {

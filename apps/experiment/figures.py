@@ -20,14 +20,16 @@ def _level_label(design) -> str:
             "amplitude": "vibration amplitude (µm p-p)"}[design.parameter]
 
 
-def draw_figures(directory: Path, config, design, rows: list[dict], result: dict) -> list[Path]:
+def draw_figures(directory: Path, config, design, rows: list[dict], result: dict, width=None) -> list[Path]:
+    """The track and the psychometric figure, laid out for one IEEE column (``width`` "page": two)."""
     levels = np.array([float(r["level"]) for r in rows])
     correct = np.array([int(r["correct"]) for r in rows], dtype=bool)
     from ultraglide.apps.experiment.session import outcome
 
     positive = np.array([outcome(config, r) for r in rows])
-    written = _track(directory / "track.png", config, design, levels, correct, rows, result)
-    written += _psychometric(directory / "psychometric.png", config, design, levels, positive, result)
+    width_in = figure_style.width_of(width)
+    written = _track(directory / "track.png", config, design, levels, correct, rows, result, width_in)
+    written += _psychometric(directory / "psychometric.png", config, design, levels, positive, result, width_in)
     return written
 
 
@@ -44,8 +46,8 @@ def _threshold_band(ax, result: dict, horizontal: bool) -> None:
         ax.axvline(t, color=FIT, lw=1.0, ls="--", label=label)
 
 
-def _track(path: Path, config, design, levels, correct, rows, result) -> list[Path]:
-    fig, ax = figure_style.figure(figsize=(6.0, 3.6))
+def _track(path: Path, config, design, levels, correct, rows, result, width_in: float) -> list[Path]:
+    fig, ax = figure_style.figure(figsize=(width_in, min(0.62 * width_in, 3.2) + 1.3))
     trials = np.arange(1, len(levels) + 1)
     ax.plot(trials, levels, color="0.6", lw=0.8, zorder=1)
     ax.scatter(trials[correct], levels[correct], color=CORRECT, s=14, zorder=3, label="correct")
@@ -60,23 +62,27 @@ def _track(path: Path, config, design, levels, correct, rows, result) -> list[Pa
         ax.axvline(trial - 0.5, color="0.5", lw=0.6, ls=":", label="break" if index == 0 else None)
     _threshold_band(ax, result, horizontal=True)
     if config.method != "constant" and levels.min() > 0:
+        from matplotlib.ticker import FuncFormatter, NullFormatter
+
         ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))  # plain numbers, no mathtext
+        ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("trial")
     ax.set_ylabel(_level_label(design))
-    ax.set_title(f"{config.condition}: participant {config.participant}, session {config.session}")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, frameon=False)
+    ax.set_title(f"{config.condition}: {config.participant}, session {config.session}")
+    figure_style.legend_below(ax, ncol=1 if width_in < figure_style.PAGE_IN else 3)
     return figure_style.save(fig, path)
 
 
-def _psychometric(path: Path, config, design, levels, positive, result) -> list[Path]:
-    fig, ax = figure_style.figure(figsize=(6.4, 3.8))
+def _psychometric(path: Path, config, design, levels, positive, result, width_in: float) -> list[Path]:
+    fig, ax = figure_style.figure(figsize=(width_in, min(0.62 * width_in, 3.2) + 1.0))
     x, n, k = pf.aggregate(levels, positive)
     ax.scatter(x, k / n, s=12 + 60 * n / n.max(), color=CORRECT, alpha=0.8, zorder=3,
                label="observed (area ∝ trials)")
     if len(x) <= 8:  # few levels (constant stimuli): say how many answers each point holds
         for level, count, hits in zip(x, n, k, strict=True):
             ax.annotate(f"{int(hits)}/{int(count)}", (level, hits / count), textcoords="offset points",
-                        xytext=(6, -10), fontsize=7)
+                        xytext=(6, -10), fontsize=8)
     fit = result.get("fit")
     if fit:
         top = max(x.max(), result["ci"][1] if result.get("ci") else 0) * 1.15
@@ -92,5 +98,5 @@ def _psychometric(path: Path, config, design, levels, positive, result) -> list[
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel(_level_label(design))
     ax.set_title(f"{config.condition}, {len(levels)} trials")
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=2, frameon=False)
+    figure_style.legend_below(ax, ncol=1 if width_in < figure_style.PAGE_IN else 3)
     return figure_style.save(fig, path)

@@ -57,16 +57,39 @@ def width_of(width: str | float | None) -> float:
 
 
 def figure(*args, **kwargs):
-    """plt.subplots under the house style, with constrained layout unless another is asked for."""
+    """plt.subplots under the house style, with constrained layout unless another is asked for; the
+    figure's width is its print width (see :func:`save`)."""
     kwargs.setdefault("layout", "constrained")
     with plt.rc_context(STYLE):
-        return plt.subplots(*args, **kwargs)
+        fig, axes = plt.subplots(*args, **kwargs)
+    fig.print_width_in = float(fig.get_size_inches()[0])
+    return fig, axes
 
 
 def mosaic(layout, **kwargs):
     """plt.subplot_mosaic under the house style, with constrained layout."""
     with plt.rc_context(STYLE):
-        return plt.subplot_mosaic(layout, layout="constrained", **kwargs)
+        fig, axes = plt.subplot_mosaic(layout, layout="constrained", **kwargs)
+    fig.print_width_in = float(fig.get_size_inches()[0])
+    return fig, axes
+
+
+def fit_print_width(fig) -> None:
+    """Narrow a figure whose drawing (a long legend, a title) spills past its print width until the
+    saved page is that wide, so that its text prints at the size it was set in."""
+    target = getattr(fig, "print_width_in", None)
+    if target is None:
+        return
+    pad = 2 * float(plt.rcParams["savefig.pad_inches"])
+    for _ in range(4):
+        fig.canvas.draw()
+        spill = fig.get_tightbbox(fig.canvas.get_renderer()).width + pad - target
+        if spill <= 0.002:
+            return
+        width, height = fig.get_size_inches()
+        if width - spill < 0.6 * target:  # a layout that cannot fit: leave it, the checks will say so
+            return
+        fig.set_size_inches(width - spill - 0.002, height)
 
 
 def legend_below(axis, ncol: int = 1, **kwargs):
@@ -90,6 +113,7 @@ def save(fig, path: Path, vector: str | None = "pdf") -> list[Path]:
     with plt.rc_context(STYLE):
         if fig.get_layout_engine() is None:
             fig.tight_layout()
+        fit_print_width(fig)
         for target in targets:
             with atomic_path(target) as temporary:
                 fig.savefig(temporary, dpi=PNG_DPI, format=target.suffix.lstrip(".").lower())
