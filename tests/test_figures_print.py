@@ -102,3 +102,17 @@ def test_the_experiment_figures_read_at_a_column(tmp_path):
             "sim:threshold=0.08,slope=3", "--out", out, check=True)
     for name in ("track.pdf", "psychometric.pdf"):
         assert_readable(out / name, "column")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width", ["column", "page"])
+def test_export_plot_and_texture_show_read_at_print_width(tmp_path, width):
+    from conftest import run_cli
+
+    run_cli("export", "grating-1mm", "-o", tmp_path / "a.wav", "--duration-s", "1", "--plot", tmp_path / "plot.pdf",
+            "--figure-width", width, check=True)
+    assert_readable(tmp_path / "plot.pdf", width)
+    run_cli("texture", "show", "wood", "-o", tmp_path / "wood.pdf", "--figure-width", width, check=True)
+    assert_readable(tmp_path / "wood.pdf", width)
+    page_pt = read_strings(tmp_path / "wood.pdf")[0]
+    assert page_pt == pytest.approx(WIDTHS[width] * 72, abs=0.5)  # the whole page: 1 mm drawn is 1 mm printed

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from ultraglide.render.renderer import ControlBlock
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.cli.options import add_figure_width_option
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
@@ -45,6 +46,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     export.add_argument("--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    add_figure_width_option(export)
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.add_argument("--threads", type=THREADS, metavar="N",
                         help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
@@ -160,7 +162,7 @@ def run(args) -> int:
             except OSError as error:
                 raise OSError(error.errno, error.strerror, str(args.envelope_csv)) from None
         if args.plot:
-            plot.write(renderer, plot_path)
+            plot.write(renderer, plot_path, width=args.figure_width)
     counters = renderer.counters
     warning = clipping_warning(renderer, args.model, trajectory)
     if warning:

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.options import OneLineParser, add_model_option, add_range_option
+from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, add_model_option, add_range_option
 from ultraglide.apps.cli.types import (
     ANGLE_DEG,
     COORDINATE_MM,
@@ -187,6 +187,7 @@ def _add_show_and_info(texture_commands) -> None:
     show_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",
                              help="normal force, N (default: 0.5)")
     show_parser.add_argument("--dpi", type=PRINT_DPI, default=300.0, help="PNG resolution (default: 300)")
+    add_figure_width_option(show_parser)
     show_parser.set_defaults(run=show)
 
     info_parser = texture_commands.add_parser("info", help="a texture's metadata, in words or JSON",

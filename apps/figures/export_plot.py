@@ -198,30 +198,46 @@ class PlotRecorder:
         mean = self.sum[:, seen] / self.count[seen]
         return times[seen], self.low[:, seen], mean, self.high[:, seen]
 
-    def write(self, renderer, path: Path | None = None, dpi: float = 300.0) -> Path:
-        """Draw and save to ``path`` (or the one given at construction): PNG at ``dpi``, PDF or SVG by the
-        extension, atomically."""
+    def write(self, renderer, path: Path | None = None, dpi: float = 300.0, width=None) -> Path:
+        """Draw at the print ``width`` ("column", "page") and save to ``path`` (or the one given at
+        construction): PNG at ``dpi``, PDF or SVG by the extension, atomically."""
+        from ultraglide.apps.figures.style import fit_print_width
+
         path = _checked(path or self.path)
         fmt = FORMATS[path.suffix.lower()]
-        figure = self.draw(renderer)
+        figure = self.draw(renderer, width)
         try:
+            fit_print_width(figure)
             with atomic_path(path) as temporary:
-                figure.savefig(temporary, dpi=dpi, format=fmt)
+                figure.savefig(temporary, dpi=dpi, format=fmt, bbox_inches="tight", pad_inches=0.03)
         finally:
             plt.close(figure)
         return path
 
-    def draw(self, renderer):
+    def draw(self, renderer, width=None):
+        """The figure at a print width: one IEEE column (3.5 in, the zooms stacked) or two (7.16 in, the zooms
+        side by side), text of 8 pt or more at that size."""
+        import textwrap
+
+        from ultraglide.apps.figures.style import PAGE_IN, STYLE, width_of
+
+        width_in = width_of(width)
+        page = width_in >= PAGE_IN
         times, low, mean, high = self.overview()
-        figure = plt.figure(figsize=(11, 12.5))
-        grid = figure.add_gridspec(5, 3, height_ratios=[1, 1.2, 0.8, 1.2, 1.4], hspace=0.6, wspace=0.3, top=0.94,
-                                   bottom=0.05, left=0.08, right=0.92)
         limit = renderer.limit_um_pp
         max_drive = renderer.profile.max_drive_um_pp
         duration_s = self.total / self.rate
+        zooms = self.zooms(limit)
+        zoom_rows = 1 if page else max(len(zooms), 1)
+        heights = [1.0, 1.2, 0.8] + [1.0] * zoom_rows + [1.3]
+        with plt.rc_context(STYLE):
+            figure = plt.figure(figsize=(width_in, (2.0 if page else 1.55) * sum(heights) + 1.2), layout="constrained")
+        figure.print_width_in = width_in
+        grid = figure.add_gridspec(len(heights), 3 if page else 1, height_ratios=heights)
         overdriven = bool(len(high[DRIVE])) and float(high[DRIVE].max()) > limit + 1e-9
         drive_label = ("drive (pre-compensated; above the limit: overdrive, which speeds the plate up)" if overdriven
                        else "drive (pre-compensated)")
+        characters = int(width_in * 11)
 
         def band(axes, channel, label, colour, line=True, alpha=0.3):
             axes.fill_between(times, low[channel], high[channel], color=colour, alpha=alpha, lw=0,
@@ -232,9 +248,9 @@ class PlotRecorder:
         top = figure.add_subplot(grid[0, :])
         band(top, RATIO, "target friction ratio", "C0")
         top.set(ylabel="friction ratio", ylim=(0, 1.05), xlim=(0, duration_s))
-        top.set_title(f"{renderer.texture.name}, {renderer.model.describe()}\noverview of {duration_s:.3g} s: "
-                      f"shaded, the range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean",
-                      fontsize=9, loc="left")
+        words = (f"{renderer.texture.name}, {renderer.model.describe()}. Overview of {duration_s:.3g} s: shaded, the "
+                 f"range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean")
+        top.set_title(textwrap.fill(words, characters), loc="left")
         amplitude = figure.add_subplot(grid[1, :], sharex=top)
         band(amplitude, DRIVE, drive_label, "C2", line=False, alpha=0.35)  # ranges: a mean of a fast swing
         band(amplitude, PLATE, "plate (modelled)", "C3", line=False, alpha=0.5)  # would only scribble over them
@@ -245,19 +261,20 @@ class PlotRecorder:
             amplitude.axhline(max_drive, color="C2", ls=":", lw=0.8, label="max drive (the profile's overdrive)")
         amplitude.set(ylabel="amplitude (µm p-p)", ylim=(0, 1.3 * max(limit, (max_drive or 0.0) if overdriven else 0.0,
                                                                        float(high[TARGET:PLATE + 1].max(initial=0.0)))))
-        amplitude.legend(fontsize=7, loc="upper right", ncol=3)
+        handles, labels = amplitude.get_legend_handles_labels()
+        amplitude.legend(handles, [textwrap.fill(label, characters - 6) for label in labels], loc="upper left",
+                         bbox_to_anchor=(0.0, -0.12 if not page else -0.08), ncol=2 if page else 1)
         position = figure.add_subplot(grid[2, :], sharex=top)
         band(position, X, "x", "C0")
         band(position, Y, "y", "C4")
         position.set(ylabel="position (mm)", xlabel="time (s)")
-        position.legend(fontsize=7, loc="upper right")
-        zooms = self.zooms(limit)
+        position.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
         shown = max([limit] + [float(np.nanmax(w[[TARGET, DRIVE, PLATE]])) for _, _, w in zooms]) * 1.15
         for k, (why, first, window) in enumerate(zooms):
             start_s, stop_s = first / self.rate, (first + window.shape[1]) / self.rate
             for axes in (top, amplitude, position):
                 axes.axvspan(start_s, stop_s, color="k", alpha=0.12, lw=0)
-            zoom = figure.add_subplot(grid[3, k])
+            zoom = figure.add_subplot(grid[3, k] if page else grid[3 + k, 0])
             t = np.arange(window.shape[1]) / self.rate * 1000  # ms from the window's start
             zoom.plot(t, window[DRIVE], color="C2", lw=0.8)
             zoom.plot(t, window[PLATE], color="C3", lw=0.8)
@@ -265,27 +282,24 @@ class PlotRecorder:
             zoom.axhline(limit, color="r", ls="--", lw=0.8)
             zoom.set_ylim(0, shown)  # one scale for the three, the limit on it
             if float(np.nanmax(window[DRIVE])) > limit + 1e-9:
-                zoom.text(0.02, 0.97, "drive above the limit: overdrive,\nthe plate itself stays below it",
-                          transform=zoom.transAxes, fontsize=6.5, va="top", color="C2")
-            zoom.set_title(f"zoom {k + 1}, {start_s:.3f}–{stop_s:.3f} s:\n{why}", fontsize=8)
-            zoom.set_xlabel(f"time from {start_s:.3f} s (ms)", fontsize=8)
-            if k == 0:
-                zoom.set_ylabel("amplitude (µm p-p)", fontsize=8)
+                zoom.text(0.02, 0.97, "drive above the limit: overdrive;\nthe plate itself stays below it",
+                          transform=zoom.transAxes, fontsize=8, va="top", color="C2")
+            zoom.set_title(textwrap.fill(f"zoom {k + 1}, {start_s:.3f}–{stop_s:.3f} s: {why}",
+                                         int(characters / (3 if page else 1))))
+            zoom.set_xlabel(f"ms from {start_s:.3f} s")
+            if k == 0 or not page:
+                zoom.set_ylabel("µm p-p")
             twin = zoom.twinx()
             twin.plot(t, window[RATIO], color="C0", lw=0.6, alpha=0.7)
             twin.set_ylim(0, 1.05)
-            if k == len(zooms) - 1:
-                twin.set_ylabel("friction ratio (blue)", fontsize=8)
-            for axes in (zoom, twin):
-                axes.tick_params(labelsize=7)
-        spectrum = figure.add_subplot(grid[4, :])
-        self._draw_spectrogram(figure, spectrum)
-        for axes in (top, amplitude, position):
-            axes.grid(alpha=0.3)
-            axes.tick_params(labelsize=7)
+            twin.grid(False)
+            if k == len(zooms) - 1 or not page:
+                twin.set_ylabel("ratio (blue)")
+        spectrum = figure.add_subplot(grid[3 + zoom_rows, :])
+        self._draw_spectrogram(figure, spectrum, characters)
         return figure
 
-    def _draw_spectrogram(self, figure, axes) -> None:
+    def _draw_spectrogram(self, figure, axes, characters: int = 80) -> None:
         used = self.power_count > 0
         axes.set(xlabel="time (s)", ylabel="frequency (Hz)")
         if not used.any():
@@ -303,15 +317,15 @@ class PlotRecorder:
         mesh = axes.pcolormesh(np.append(starts, starts[-1] + column_s), np.append(freqs[shown], freqs[shown][-1]
                                + freqs[1]) - freqs[1] / 2, level.T, cmap="magma", vmin=top - 60, vmax=top,
                                shading="flat")
-        axes.set_title(f"spectrogram of the drive: {SEGMENT / self.rate * 1000:.0f} ms Hann segments, "
-                       f"{freqs[1]:.1f} Hz resolution, mean removed", fontsize=9, loc="left")
-        bar = figure.colorbar(mesh, cax=axes.inset_axes((1.01, 0.0, 0.012, 1.0)))  # keeps the time axis aligned
-        bar.set_label("dB re 1 µm²/Hz", fontsize=8)
-        bar.ax.tick_params(labelsize=7)
-        axes.tick_params(labelsize=7)
+        import textwrap
+
+        axes.set_title(textwrap.fill(f"spectrogram of the drive: {SEGMENT / self.rate * 1000:.0f} ms Hann segments, "
+                                     f"{freqs[1]:.1f} Hz resolution, mean removed", characters), loc="left")
+        bar = figure.colorbar(mesh, ax=axes, pad=0.01, fraction=0.04)
+        bar.set_label("dB re 1 µm²/Hz")
 
 
-def plot_envelope(data: np.ndarray, path: Path, renderer) -> Path:
+def plot_envelope(data: np.ndarray, path: Path, renderer, width=None) -> Path:
     """Draw from a table of control samples (columns t, x, y, down, ratio, target, amplitude, drive,
     plate, as ``export --envelope-csv`` writes them; evenly spaced in time, at any rate)."""
     data = np.asarray(data, dtype=float).reshape(-1, 9)
@@ -320,4 +334,4 @@ def plot_envelope(data: np.ndarray, path: Path, renderer) -> Path:
     names = ("time_s", "x_mm", "y_mm", "down", "ratio", "target_um_pp", "amplitude_um_pp", "drive_um_pp",
              "plate_um_pp")
     recorder(SimpleNamespace(**dict(zip(names, data.T, strict=True))))
-    return recorder.write(renderer)
+    return recorder.write(renderer, width=width)

@@ -2,9 +2,10 @@
 
 Three panels: the friction map with millimetre axes and a colour bar, the vibration amplitude the
 texture asks of the plate under a friction model, plate profile and normal force (µm p-p, with the
-pixels the plate cannot reach marked), and the histogram of the friction ratio. The maps are drawn
-at their physical size (print the page at 100 %: 1 mm on the axes is 1 mm on paper) when they
-fit a page width of ``PAGE_MAP_MM``; larger textures are scaled down and the title gives the scale.
+pixels the plate cannot reach marked), and the histogram of the friction ratio. The page is one IEEE
+column (3.5 in) wide, or two (7.16 in), text 8 pt or more at that size; the maps are drawn at their
+physical size (print the page at 100 %: 1 mm on the axes is 1 mm on paper) when they fit its width,
+else scaled down, and the title gives the scale.
 """
 
 from __future__ import annotations
@@ -23,11 +24,12 @@ from ultraglide.apps.cli.files import atomic_path  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
 
 MM = 1 / 25.4  # inches per millimetre
-PAGE_MAP_MM = 170.0  # the widest map drawn at 1:1 (an A4 or Letter page's printable width)
 FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
-LEFT_MM, RIGHT_MM, TOP_MM, GAP_MM, BAR_MM = 22.0, 34.0, 12.0, 22.0, 4.0
-HISTOGRAM_MM = 45.0
-MIN_PANEL_MM = 90.0
+LEFT_MM, RIGHT_MM, GAP_MM, BAR_MM = 14.0, 17.0, 14.0, 3.0
+HISTOGRAM_MM = 32.0
+MAX_MAP_HEIGHT_MM = 110.0
+TEXT = 8  # pt: the smallest text a printed figure may have
+LINE_MM = 3.6  # a line of 8 pt text
 
 
 @dataclass(frozen=True)
@@ -48,21 +50,38 @@ def amplitude_map(texture: Texture, model, limit_um_pp: float, force_n: float, m
                         model_name or model.describe())
 
 
-def _layout(texture: Texture) -> tuple[float, float, float]:
+def _page_mm(width=None) -> float:
+    from ultraglide.apps.figures.style import width_of
+
+    return width_of(width) * 25.4
+
+
+def _layout(texture: Texture, width=None) -> tuple[float, float, float]:
     """Figure width and height (mm) and the map scale (1 = physical size)."""
-    scale = min(1.0, PAGE_MAP_MM / texture.width_mm, PAGE_MAP_MM / texture.height_mm)
-    map_w, map_h = texture.width_mm * scale, texture.height_mm * scale
-    panel_w = max(map_w, MIN_PANEL_MM)
-    width = LEFT_MM + panel_w + RIGHT_MM
-    height = TOP_MM + map_h + GAP_MM + map_h + GAP_MM + HISTOGRAM_MM + 16.0
-    return width, height, scale
+    page = _page_mm(width)
+    room = page - LEFT_MM - RIGHT_MM
+    scale = min(1.0, room / texture.width_mm, MAX_MAP_HEIGHT_MM / texture.height_mm)
+    map_h = texture.height_mm * scale
+    height = 2 * (_title_mm(page) + map_h + GAP_MM) + HISTOGRAM_MM + _title_mm(page) + GAP_MM
+    return page, height, scale
 
 
-def draw(texture: Texture, amplitude: AmplitudeMap, force_n: float, profile_name: str):
-    """The figure (matplotlib); the caller saves or shows it."""
-    width_mm, height_mm, scale = _layout(texture)
+def _title_mm(page_mm: float) -> float:
+    return 4 * LINE_MM if page_mm < 120 else 2 * LINE_MM
+
+
+def _wrap(text: str, page_mm: float) -> str:
+    import textwrap
+
+    return textwrap.fill(text, int((page_mm - LEFT_MM + 6) / 1.75))  # about 1.75 mm a character at 8 pt
+
+
+def draw(texture: Texture, amplitude: AmplitudeMap, force_n: float, profile_name: str, width=None):
+    """The figure (matplotlib) at the print ``width`` ("column", "page"); the caller saves or shows it."""
+    width_mm, height_mm, scale = _layout(texture, width)
     figure = plt.figure(figsize=(width_mm * MM, height_mm * MM))
     map_w, map_h = texture.width_mm * scale, texture.height_mm * scale
+    title_mm = _title_mm(width_mm)
 
     def axes_at(left_mm, top_mm, w_mm, h_mm):
         return figure.add_axes((left_mm / width_mm, 1 - (top_mm + h_mm) / height_mm, w_mm / width_mm, h_mm / height_mm))
@@ -70,18 +89,18 @@ def draw(texture: Texture, amplitude: AmplitudeMap, force_n: float, profile_name
     extent = (0, texture.width_mm, texture.height_mm, 0)
     scale_words = "at physical size (print at 100 %)" if scale == 1 else f"at 1:{1 / scale:.3g} of physical size"
     ratio = texture.ratio_map()
-    top = TOP_MM
+    top = title_mm
     friction_axes = axes_at(LEFT_MM, top, map_w, map_h)
     image = friction_axes.imshow(ratio, cmap="viridis", vmin=0, vmax=1, extent=extent, interpolation="nearest")
     kind = " (gradient texture: a left-to-right swipe)" if texture.kind == "gradient" else ""
-    friction_axes.set_title(f"{texture.name}: friction ratio µ/µ0 (1 = at rest){kind},\n{scale_words}", fontsize=7,
-                            loc="left")
-    friction_axes.set_xlabel("x (mm)", fontsize=8)
-    friction_axes.set_ylabel("y (mm)", fontsize=8)
-    bar = figure.colorbar(image, cax=axes_at(LEFT_MM + map_w + 3, top, BAR_MM, map_h))
-    bar.set_label("µ/µ0", fontsize=7)
+    friction_axes.set_title(_wrap(f"{texture.name}: friction ratio µ/µ0 (1 = at rest){kind}, {scale_words}",
+                                  width_mm), fontsize=TEXT, loc="left")
+    friction_axes.set_xlabel("x (mm)", fontsize=TEXT)
+    friction_axes.set_ylabel("y (mm)", fontsize=TEXT)
+    bar = figure.colorbar(image, cax=axes_at(LEFT_MM + map_w + 2, top, BAR_MM, map_h))
+    bar.set_label("µ/µ0", fontsize=TEXT)
 
-    top += map_h + GAP_MM
+    top += map_h + GAP_MM + title_mm
     amplitude_axes = axes_at(LEFT_MM, top, map_w, map_h)
     limit = amplitude.limit_um_pp
     image = amplitude_axes.imshow(amplitude.amplitude_um_pp, cmap="magma", vmin=0, vmax=limit, extent=extent,
@@ -90,25 +109,25 @@ def draw(texture: Texture, amplitude: AmplitudeMap, force_n: float, profile_name
     if amplitude.clamped:
         share = amplitude.clamped / ratio.size
         unreachable = f"; {share:.1%} of the map beyond reach, held at the limit"
-    amplitude_axes.set_title(f"vibration amplitude needed (µm peak-to-peak){unreachable}:\n{amplitude.description} "
-                             f"model, {force_n:g} N, plate {profile_name} (limit {limit:g} µm p-p)", fontsize=7,
-                             loc="left")
-    amplitude_axes.set_xlabel("x (mm)", fontsize=8)
-    amplitude_axes.set_ylabel("y (mm)", fontsize=8)
-    bar = figure.colorbar(image, cax=axes_at(LEFT_MM + map_w + 3, top, BAR_MM, map_h))
-    bar.set_label("µm p-p", fontsize=7)
+    amplitude_axes.set_title(_wrap(f"amplitude needed (µm p-p){unreachable}: {amplitude.description} model, "
+                                   f"{force_n:g} N, plate {profile_name} (limit {limit:g} µm p-p)", width_mm),
+                             fontsize=TEXT, loc="left")
+    amplitude_axes.set_xlabel("x (mm)", fontsize=TEXT)
+    amplitude_axes.set_ylabel("y (mm)", fontsize=TEXT)
+    bar = figure.colorbar(image, cax=axes_at(LEFT_MM + map_w + 2, top, BAR_MM, map_h))
+    bar.set_label("µm p-p", fontsize=TEXT)
 
-    top += map_h + GAP_MM
-    histogram_axes = axes_at(LEFT_MM, top, max(map_w, MIN_PANEL_MM), HISTOGRAM_MM)
+    top += map_h + GAP_MM + title_mm
+    histogram_axes = axes_at(LEFT_MM, top, width_mm - LEFT_MM - RIGHT_MM, HISTOGRAM_MM)
     histogram_axes.hist(ratio.ravel(), bins=100, range=(0, 1), weights=np.full(ratio.size, 100 / ratio.size),
                         color="#3b528b")
-    histogram_axes.set_xlabel("friction ratio µ/µ0", fontsize=8)
-    histogram_axes.set_ylabel("share of the area (%)", fontsize=8)
-    histogram_axes.set_title(f"friction over the texture: mean {ratio.mean():.3f}, {ratio.min():.3f} to "
-                             f"{ratio.max():.3f}", fontsize=8, loc="left")
+    histogram_axes.set_xlabel("friction ratio µ/µ0", fontsize=TEXT)
+    histogram_axes.set_ylabel("area (%)", fontsize=TEXT)
+    histogram_axes.set_title(_wrap(f"friction over the texture: mean {ratio.mean():.3f}, {ratio.min():.3f} to "
+                                   f"{ratio.max():.3f}", width_mm), fontsize=TEXT, loc="left")
     histogram_axes.grid(alpha=0.3)
     for axes in figure.axes:
-        axes.tick_params(labelsize=7)
+        axes.tick_params(labelsize=TEXT)
     return figure
 
 
@@ -118,7 +137,7 @@ def save_figure(figure, path: Path, dpi: float) -> Path:
     if fmt is None:
         raise UsageError(f"the output must end in .png, .pdf or .svg, got {path}")
     with atomic_path(path) as temporary:
-        figure.savefig(temporary, format=fmt, dpi=dpi)
+        figure.savefig(temporary, format=fmt, dpi=dpi, bbox_inches=figure.bbox_inches)  # the whole page: 1:1 holds
     return path
 
 
@@ -170,7 +189,8 @@ def run(args) -> int:
     model = load_model(args.model)
     profile = load_profile(args.profile)
     amplitude = amplitude_map(texture, model, profile.max_amplitude_um_pp, args.force, Path(args.model).name)
-    figure = draw(texture, amplitude, args.force, profile.name)
+    width = getattr(args, "figure_width", "column")
+    figure = draw(texture, amplitude, args.force, profile.name, width)
     try:
         if args.window:
             show_window(figure, f"ultraglide: {texture.name}")
@@ -178,7 +198,7 @@ def run(args) -> int:
         save_figure(figure, output, args.dpi)
     finally:
         plt.close(figure)
-    width_mm, height_mm, scale = _layout(texture)
+    width_mm, height_mm, scale = _layout(texture, width)
     size = "at physical size" if scale == 1 else f"at 1:{1 / scale:.3g}"
     print(f"wrote {output}: {texture.name}, {texture.width_mm:g} × {texture.height_mm:g} mm drawn {size} on a "
           f"{width_mm:.0f} × {height_mm:.0f} mm page; amplitude {amplitude.amplitude_um_pp.min():.2f} to "
