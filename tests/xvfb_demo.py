@@ -111,6 +111,29 @@ class XvfbDemo:
         command += ["mouseup", "1"]
         self.xdo(*command)
 
+    def drag_recorded(self, points, recording: Path, timeout_s: float = 60.0) -> None:
+        """Press at the first point and move through the rest, each move once the demo has recorded the one
+        before it (a row in ``recording``, the ``--record`` file being written), then release. Paced by what
+        the demo took in, not by a clock: a loaded machine slows the drag down, never bunches its moves."""
+        def rows() -> int:
+            if not recording.exists():
+                return 0
+            return sum(1 for line in recording.read_text().splitlines() if line[:1].isdigit())
+
+        self.xdo("mousemove", *points[0], "mousedown", "1")
+        for k, (x, y) in enumerate(points[1:], 2):
+            self._await(lambda k=k: rows() >= k - 1, timeout_s)  # the previous point is in the recording
+            self.xdo("mousemove", x, y)
+        self._await(lambda: rows() >= len(points), timeout_s)
+        self.xdo("mouseup", "1")
+
+    def _await(self, condition, timeout_s: float) -> None:
+        deadline = time.perf_counter() + timeout_s
+        while not condition():
+            if time.perf_counter() > deadline or self.demo.poll() is not None:
+                raise AssertionError(f"the demo did not take the drag in; it printed {''.join(self.stdout)!r}")
+            time.sleep(0.002)
+
     def shot(self, path: Path) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         subprocess.run(["import", "-window", "root", str(path)], env=self.env, check=True, timeout=30)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.signals import held
-from ultraglide.apps.demo.input import FingerDriver, Input
+from ultraglide.apps.demo.input import FingerDriver, Input, newest_motions
 from ultraglide.apps.demo.layout import Layout
 from ultraglide.apps.demo.link import DemoLink, LinkConfig, LinkStarter
 from ultraglide.apps.demo.options import (
@@ -319,9 +319,12 @@ class DemoApp:
         self._check_link()
         self._watch()
         event = self.waiter.wait(wait_s) if wait_s > 0 else pg.event.poll()
+        pending = []
         while event.type != pg.NOEVENT:
-            self.input.handle(event)
+            pending.append(event)
             event = pg.event.poll()
+        for event in newest_motions(pending, pg):
+            self.input.handle(event)
         self.frame()
 
     def run(self) -> None:

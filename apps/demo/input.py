@@ -100,6 +100,25 @@ class Input:
         return False
 
 
+def newest_motions(events: list, pg) -> list:
+    """``events`` with each burst of motions of one pointer (a finger, or the mouse) cut to its newest: a loop
+    that fell behind reads where the finger is now. Handled one by one, the older ones would be stamped now
+    too: a jump of millimetres in a millisecond, which the renderer rightly blurs over a wide footprint."""
+    motions = (pg.FINGERMOTION, pg.MOUSEMOTION)
+    kept, newer = [], set()  # pointers with a newer motion in the burst (walking back from the newest)
+    for event in reversed(events):
+        pointer = (event.type in (pg.FINGERDOWN, pg.FINGERMOTION, pg.FINGERUP), getattr(event, "finger_id", None),
+                   getattr(event, "touch", False))  # SDL's mouse copies of touches apart from a real mouse
+        if event.type in motions:
+            if pointer in newer:
+                continue
+            newer.add(pointer)
+        elif event.type in (pg.FINGERDOWN, pg.FINGERUP, pg.MOUSEBUTTONDOWN, pg.MOUSEBUTTONUP):
+            newer.discard(pointer)  # the motion before a press or a lift is kept
+        kept.append(event)
+    return kept[::-1]
+
+
 class FingerDriver:
     """The driving finger's positions to the engine (mm on the texture, a force) and to the recording;
     a finger that lifts or leaves the texture area rests the plate. Counts touches sent and touches made
