@@ -70,9 +70,14 @@ def test_a_resting_host_sends_nothing_and_the_plate_is_disabled_without_a_fault(
     driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
     driver.start(source)
     assert wait_for(lambda: driver.counters.idle_rests == 1 and not sim.enabled, timeout=30)
+    # the plate has taken the disable; its output stage, a thread of its own, may not yet have ticked over the
+    # time before it (a loaded machine may underrun the 50 ms of zeros before the rest, and that is counted
+    # then): the baseline once it has reported twice since, its telemetry being sent by that stage
+    reported = driver.telemetry_frames
+    assert wait_for(lambda: driver.telemetry_frames >= reported + 2, timeout=30)
     played = sim.counters.setpoints + sim.counters.discarded_setpoints
     frames, telemetry = sim.counters.frames_ok, driver.telemetry_frames
-    faults = sim.fault_counts()  # (a loaded machine may underrun the 50 ms of zeros before the rest)
+    faults = sim.fault_counts()
     pulled_for(source, 1.0)  # a second of a resting stream: 500 frames before
     assert sim.counters.setpoints + sim.counters.discarded_setpoints == played
     # not one frame (no setpoints, no heartbeat), but a CLEAR_FAULTS for a fault latched before the rest
@@ -111,7 +116,10 @@ def test_the_first_non_zero_drive_enables_the_plate_and_reaches_it_at_once(plate
     source.set(0.0)  # lift: the plate decays under zero drive, then the host rests it again
     assert wait_for(lambda: driver.counters.idle_rests == 2 and not sim.enabled, timeout=30)
     assert wait_for(lambda: sim.amplitude_um_pp < 1e-3)
-    assert sim.fault_counts()["watchdog"] == 0 and sim.fault_counts()["trip"] == 0
+    # no trip; and a watchdog only where the host's writer, starved by a loaded machine, sent nothing for
+    # longer than the plate waits (it counts each such stall itself): never from resting or waking
+    assert sim.fault_counts()["trip"] == 0
+    assert sim.fault_counts()["watchdog"] <= driver.counters.send_stalls, driver.counters
     driver.stop()
     assert not sim.enabled
 
@@ -173,7 +181,11 @@ def test_a_921600_baud_link_streams_a_frame_every_millisecond(plate):
         driver.stop()
     assert driver.batch_s == 0.001
     # a batch is pulled once 12 values are due; the writer's wake-up lands a little after, so 12-13 values;
-    # 2 ms frames would carry 24 or more
-    assert 12 <= np.median(counts[:200]) < 18
+    # 2 ms frames would carry 24 or more, always. A writer woken late (a loaded machine) sends what is due by
+    # then, more, in frames of at most 240: so every batch carries 12 or more, and those sent on time fewer
+    # than 24 (how many are on time is the machine's load, a benchmark's matter, not this test's)
+    sizes = counts[:200]
+    batches = [n for before, n in zip([0, *sizes], sizes, strict=False) if before < p.MAX_SETPOINTS_PER_FRAME]
+    assert 12 <= min(batches) < 24, sizes  # (frames after a full one are the rest of its batch)
     slow = SerialPlate(plate.path, PROFILE, baudrate=460800)  # half the link would not hold 1 ms frames
     assert slow.batch_s == 0.002
