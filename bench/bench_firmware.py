@@ -1,9 +1,11 @@
-"""The firmware's time budgets on the target (netduinoplus2, Cortex-M4F at 168 MHz), measured under QEMU.
+"""The firmware's time budgets on its target (netduinoplus2: STM32F405, Cortex-M4F at 168 MHz), measured under QEMU.
 
 Run: .venv/bin/python bench/bench_firmware.py [--json]
-QEMU's -icount counts the instructions of each piece of real-time work (devices/firmware/budgets.py,
-ports/netduinoplus2/bench.c); cycles are estimated at 2 a instruction (a conservative bound, stated as an
-estimate); the load is each piece's cycles at the rate the fastest stream the protocol allows makes it run.
+QEMU's -icount counts the instructions of each piece of real-time work in the bench image, which plays the
+protocol's fastest stream (48 000 setpoints/s) for a second through the board's own port glue
+(devices/firmware/budgets.py, ports/netduinoplus2/bench.c). Cycles are estimated at 2 an instruction (a
+conservative bound, stated as an estimate), plus the interrupts' entries and returns; the load is a second of
+that stream on the hardware image (its link by DMA), every frame and every block taken at its worst.
 """
 
 from __future__ import annotations
@@ -11,40 +13,39 @@ from __future__ import annotations
 import json
 import sys
 
-from ultraglide.devices.firmware.budgets import CORE_HZ, cycles, measure
+from ultraglide.devices.firmware.budgets import CALIBRATION, CORE_HZ, cycles, measure, stream_load
 
-BLOCKS_PER_S = 1000  # carrier refills a second: 250-sample blocks at 250 kHz
-LINK_BYTES_PER_S = 92_160  # a 921 600 baud UART full in both directions, 10 bits a byte
-# how often each piece runs at the worst the protocol and board allow
-RATES = {
-    "calibration_2000": None,
-    "dac_block_250": BLOCKS_PER_S,
-    "emulated_plate_step": BLOCKS_PER_S,  # QEMU image only
-    "uart_frame_80": LINK_BYTES_PER_S / 80,  # telemetry and replies queued, a frame of 80 bytes at a time
-}
+MODES = {"open_240": "240-value frames, open loop", "loop_240": "240-value frames, amplitude loop",
+         "open_48": "48-value frames (1 ms), open loop", "loop_48": "48-value frames (1 ms), amplitude loop"}
+PARTS = ("part_sense_240", "part_core_adc_block_48", "part_core_dac_block_240", "part_dac_codes_240",
+         "part_core_tick", "part_core_status")
 
 
 def main() -> None:
-    figures = measure()
-    rows = []
-    load = 0.0
-    for name, instructions in figures.items():
-        rate = RATES.get(name)
-        share = cycles(instructions) * rate / CORE_HZ if rate else None
-        load += share or 0.0
-        rows.append({"name": name, "instructions": instructions, "cycles_estimate": cycles(instructions),
-                     "calls_per_s": rate, "cpu_share": share})
-    result = {"core_hz": CORE_HZ, "rows": rows, "cpu_share_total": load,
-              "headroom": (1.0 / load) if load else None}
+    run = measure()
+    figures = run.figures
+    loads = [stream_load(figures, mode) for mode in MODES]
+    worst = min(loads, key=lambda load: load.headroom)
     if "--json" in sys.argv:
-        print(json.dumps(result))
+        print(json.dumps({"core_hz": CORE_HZ, "figures": {name: vars(f) for name, f in figures.items()},
+                          "counters": run.counters,
+                          "loads": [{**vars(load), "cycles_per_s": load.cycles_per_s, "cpu_share": load.cpu_share,
+                                     "headroom": load.headroom} for load in loads]}))
         return
-    print(f"{'work':24} {'instructions':>12} {'cycles (est.)':>14} {'calls/s':>9} {'CPU at 168 MHz':>15}")
-    for row in rows:
-        share = f"{100 * row['cpu_share']:.3f} %" if row["cpu_share"] is not None else "(calibration)"
-        calls = f"{row['calls_per_s']:.0f}" if row["calls_per_s"] else ""
-        print(f"{row['name']:24} {row['instructions']:12.1f} {row['cycles_estimate']:14.0f} {calls:>9} {share:>15}")
-    print(f"total {100 * load:.2f} % of the CPU: headroom {result['headroom']:.0f}x")
+    name, expected = CALIBRATION
+    print(f"calibration: {figures[name].mean:.0f} instructions counted for {expected} in the loop's disassembly")
+    print(f"{'work (instructions)':34} {'calls':>6} {'mean':>9} {'worst':>7} {'cycles, est.':>13}")
+    for key, figure in figures.items():
+        if key != name and (key.endswith("loop_48") or key.startswith("part_")) and not key.startswith("tx_bytes"):
+            print(f"{key:34} {figure.calls:6d} {figure.mean:9.1f} {figure.max:7d} {cycles(figure.max):13.0f}")
+    print(f"\n{'a second at 48 000 setpoints/s':38} {'frame worst':>11} {'block worst':>11} {'CPU':>8} {'headroom':>9}")
+    for load in loads:
+        print(f"{MODES[load.mode]:38} {load.frame_instructions:11d} {load.block_instructions:11d} "
+              f"{100 * load.cpu_share:7.1f}% {load.headroom:8.2f}x")
+    print(f"the streams: {run.counters['setpoints']} values buffered, {run.counters['overrun']} overrun, "
+          f"{run.counters['underruns']} underruns")
+    print(f"worst case: {MODES[worst.mode]}, {100 * worst.cpu_share:.1f} % of the CPU at 168 MHz: "
+          f"{worst.headroom:.2f}x headroom (2 cycles an instruction)")
 
 
 if __name__ == "__main__":

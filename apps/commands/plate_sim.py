@@ -175,5 +175,14 @@ def _qemu_summary(stats: dict, elapsed_s: float, as_json: bool, show) -> None:
     if as_json:
         show({"t_s": round(elapsed_s, 4), "event": "stopped", **fields})
         return
-    words = ", ".join(f"{value} {key.replace('_', ' ')}" for key, value in fields.items()) or "no statistics yet"
-    print(f"stopped: {words}", flush=True)
+    if not fields:
+        print("stopped: no statistics from the board yet", flush=True)
+        return
+    count = lambda key: fields.get(key, 0)  # noqa: E731
+    print(f"stopped: {count('frames')} frames, {count('setpoints')} setpoints, {count('crc_errors')} CRC errors, "
+          f"{count('lost_setpoints')} setpoints lost, {count('late_setpoints')} late, "
+          f"{count('watchdog_trips')} watchdog trips, {count('underruns')} underruns, {count('trips')} trips; "
+          f"peak {count('peak_um_pp'):.2f} µm p-p "
+          f"measured (the plate's own {count('plate_peak_um_pp'):.2f}); highest setpoint received "
+          f"{count('max_setpoint_code')} of 65535 (the limit's code {count('limit_code')}); QEMU stalled "
+          f"{count('skipped_ms')} ms", flush=True)

@@ -1,15 +1,19 @@
 """The firmware's time budgets on the target, measured: the ``bench`` image under QEMU's instruction counting.
 
-``-icount shift=0`` makes every guest instruction take 1 ns of virtual time; the image times each piece of
-real-time work with SysTick (which counts the 168 MHz core clock of virtual time) over many calls and prints
-instructions per call on its debug console (``ports/netduinoplus2/bench.c``); a two-instruction loop of known
-length calibrates the reading. Cycles are *estimated* from instructions: QEMU counts instructions, not cycles,
-and a Cortex-M4 takes one cycle for most instructions, two or more for loads, taken branches and divisions, and
-waits on flash behind the ART accelerator; :data:`CYCLES_PER_INSTRUCTION` = 2 is a conservative bound.
+``-icount shift=0`` makes every guest instruction take 1 ns of virtual time, and the image reads TIM5, which
+counts virtual nanoseconds under QEMU 7.2 (``ports/netduinoplus2/board.h``), before and after each piece of
+real-time work: the difference is the instructions it ran (a two-instruction loop of known length calibrates
+the reading). The image plays the protocol's fastest stream, 48 000 setpoints/s, for a second each way it can
+arrive (240-value frames in open loop and in the amplitude loop, 48-value 1 ms frames) through the same port
+glue the board image runs (``ports/netduinoplus2/bench.c``). Cycles are *estimated* from instructions: QEMU
+counts instructions, not cycles; a Cortex-M4 takes one cycle for most instructions, two or more for loads,
+taken branches, divisions and square roots, and waits on flash behind the ART accelerator;
+:data:`CYCLES_PER_INSTRUCTION` = 2 is a conservative bound for this code.
 
 Example::
 
-    figures = measure()            # {"dac_block_250": 3265.0, ...} instructions per call
+    run = measure()                # run.figures["block_loop_48"]: Figure(calls=1000, mean=..., max=...)
+    stream_load(run.figures, "loop_48").headroom
 """
 
 from __future__ import annotations
@@ -17,19 +21,45 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
+import threading
+from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.firmware.boards import build_images
 
 CORE_HZ = 168_000_000
 CYCLES_PER_INSTRUCTION = 2.0
-CALIBRATION = ("calibration_2000", 2006)  # 1000 turns of subs/bne, the call's own instructions: 2006 by hand
+CALIBRATION = ("calibration_2006", 2003)  # bl, mov.w, 1000 x (subs, bne), bx: counted in its disassembly
 RUN_TIMEOUT_S = 120.0
-_LINE = re.compile(r"^bench (\S+) reps=(\d+) instructions=([\d.]+)")
+ISR_CYCLES = 36  # an interrupt's entry (12 cycles) and return (12, no FPU state stacked) and its handler's own
+# register reads and tests (about 12): the work QEMU's figures leave out, estimated from the Cortex-M4 manual
+_LINE = re.compile(r"^bench (\S+) calls=(\d+) mean=([\d.]+) max=(\d+) total=(\d+)")
 
 
-def measure(out_dir: str | None = None) -> dict[str, float]:
-    """Instructions per call of each benchmark in the bench image, run under QEMU with ``-icount shift=0``."""
+@dataclass(frozen=True)
+class Figure:
+    """One piece of work timed over ``calls`` calls: instructions per call (mean and worst) and in all."""
+
+    calls: int
+    mean: float
+    max: int
+    total: int
+
+    def __repr__(self) -> str:
+        return f"Figure({self.calls} calls: {self.mean:.1f} instructions a call, worst {self.max})"
+
+
+@dataclass(frozen=True)
+class BenchRun:
+    """The bench image's figures by name, and the core's counters at its end (``setpoints``, ``overrun``, ...:
+    every value of the streams it played must have been buffered, none overrun, none late)."""
+
+    figures: dict
+    counters: dict
+
+
+def measure(out_dir: str | None = None) -> BenchRun:
+    """Each benchmark of the bench image, run under QEMU with ``-icount shift=0``."""
     if shutil.which("qemu-system-arm") is None:
         raise DeviceError("qemu-system-arm is not installed: install it (apt-get; ./run tests does)")
     image = build_images("netduinoplus2", ["bench"], out_dir=out_dir)[0]
@@ -37,34 +67,68 @@ def measure(out_dir: str | None = None) -> dict[str, float]:
                "-serial", "stdio", "-icount", "shift=0", "-kernel", image.elf_path]
     process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                text=True)
-    figures: dict[str, float] = {}
+    figures: dict[str, Figure] = {}
+    counters: dict[str, int] = {}
+    timer = threading.Timer(RUN_TIMEOUT_S, process.kill)
+    timer.daemon = True
+    timer.start()
     try:
-        timer = _kill_after(process, RUN_TIMEOUT_S)
         for line in process.stdout:
             if line.startswith("bench done"):
+                counters = {key: int(value) for key, value in re.findall(r"(\w+)=(\d+)", line)}
                 break
             found = _LINE.match(line)
             if found:
-                figures[found.group(1)] = float(found.group(3))
-        timer.cancel()
+                name, calls, mean, worst, total = found.groups()
+                figures[name] = Figure(int(calls), float(mean), int(worst), int(total))
     finally:
+        timer.cancel()
         process.kill()
         process.wait()
         process.stdout.close()
-    if not figures:
-        raise DeviceError("the bench image printed no figures under QEMU")
-    return figures
-
-
-def _kill_after(process: subprocess.Popen, seconds: float):
-    import threading
-
-    timer = threading.Timer(seconds, process.kill)
-    timer.daemon = True
-    timer.start()
-    return timer
+    if not figures or not counters:
+        raise DeviceError("the bench image did not finish under QEMU")
+    return BenchRun(figures, counters)
 
 
 def cycles(instructions: float) -> float:
     """The cycle estimate for an instruction count (see the module's docstring)."""
     return instructions * CYCLES_PER_INSTRUCTION
+
+
+@dataclass(frozen=True)
+class Load:
+    """The CPU a second of the fastest stream takes on the target, for one way it arrives (``mode``)."""
+
+    mode: str
+    frame_instructions: int     # one SETPOINTS frame, worst: handed over from the DMA's buffer, decoded, buffered
+    frame_values: int
+    frames_per_s: float
+    block_instructions: int     # one 1 ms block, worst: sensing, the core's ADC and DAC blocks, its tick
+    instructions_per_s: float   # frames, blocks, the polls after them and the bytes sent back
+    isr_cycles_per_s: float     # the interrupts' entries, returns and register reads (estimated: ISR_CYCLES)
+
+    @property
+    def cycles_per_s(self) -> float:
+        return cycles(self.instructions_per_s) + self.isr_cycles_per_s
+
+    @property
+    def cpu_share(self) -> float:
+        return self.cycles_per_s / CORE_HZ
+
+    @property
+    def headroom(self) -> float:
+        return 1.0 / self.cpu_share
+
+
+def stream_load(figures: dict[str, Figure], mode: str, rate_hz: int = 48_000) -> Load:
+    """The hardware image's load for a second of a ``rate_hz`` stream in ``mode`` (``open_240``, ``loop_240``,
+    ``open_48``, ``loop_48``): every frame and every block at its worst; the polls after the blocks and the bytes
+    queued for the host as measured over that second; an interrupt a block and one a frame (the link's idle line)."""
+    poll, handed = figures[f"frame_poll_{mode}"], figures[f"rx_frame_{mode}"]
+    block, tick, tx = figures[f"block_{mode}"], figures[f"tick_poll_{mode}"], figures[f"tx_chunk_{mode}"]
+    values = int(mode.rsplit("_", 1)[1])
+    frames_per_s = rate_hz / values
+    frame = handed.max + poll.max
+    per_s = frames_per_s * frame + 1000 * block.max + tick.total + tx.total
+    return Load(mode, frame, values, frames_per_s, block.max, per_s, (1000 + frames_per_s) * ISR_CYCLES)

@@ -2,8 +2,16 @@
 
 QEMU's ``netduinoplus2`` machine runs the image; ``-serial pty`` puts USART1 (the protocol link) on a new
 pty, which :class:`QemuPlate` serves behind a stable symlink as the simulated plate does, and ``-serial
-stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/netduinoplus2/main.c``) on
-a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan.
+stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/netduinoplus2/port.c``) on
+a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan,
+and runs at a raised priority where this process may grant one (its USART passes one byte per round trip
+between QEMU's I/O and CPU threads, each a wake-up: on a busy machine every wake-up waits for a CPU).
+
+The emulated link is slower than the board's: QEMU hands the firmware a byte per round trip between two of
+its threads, 25-90 µs of this machine's CPU each (``bench/bench_qemu_link.py``): about 40 kB/s at best and
+10-20 kB/s on a loaded two-core machine, where a real 921 600 baud UART carries 92 kB/s. A 12 kHz stream
+in 2 ms frames needs 33.5 kB/s (docs/protocol.md): streams that fit are played in real time; faster ones
+fall behind (underruns) as they would on a slow UART.
 
 Example::
 
@@ -29,6 +37,7 @@ import time
 from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.protocol import NAK_REASONS
 
 QEMU = "qemu-system-arm"
 MACHINE = "netduinoplus2"
@@ -38,6 +47,7 @@ MAX_EVENTS = 10000
 _PTY_LINE = re.compile(rb"char device redirected to (/dev/pts/\d+) \(label serial0\)")
 _PR_SET_PDEATHSIG = 1
 CONFIG_MAGIC = 0x5547_4550  # "UGEP"
+QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its threads: each waits for a CPU
 
 
 @dataclass(frozen=True)
@@ -50,6 +60,7 @@ class EmulatedPlate:
     q: float
     drift_hz_per_s: float
     profile_resonance_hz: float
+    profile_q: float
     full_scale_um_pp: float
     max_amplitude_um_pp: float
     max_drive_um_pp: float
@@ -60,14 +71,15 @@ class EmulatedPlate:
     def of(cls, profile, resonance_hz: float | None = None, q: float | None = None,
            drift_hz_per_s: float = 0.0) -> EmulatedPlate:
         return cls(resonance_hz or profile.resonance_hz, q or profile.q, drift_hz_per_s, profile.resonance_hz,
-                   profile.full_scale_um_pp, profile.max_amplitude_um_pp,
+                   profile.q, profile.full_scale_um_pp, profile.max_amplitude_um_pp,
                    profile.max_drive_um_pp or profile.max_amplitude_um_pp, profile.carrier_min_hz,
                    profile.carrier_max_hz)
 
     def words(self) -> list[int]:
         """The block as little-endian 32-bit words: the magic, then each field as an IEEE binary32."""
-        floats = [self.resonance_hz, self.q, self.drift_hz_per_s, self.profile_resonance_hz, self.full_scale_um_pp,
-                  self.max_amplitude_um_pp, self.max_drive_um_pp, self.carrier_min_hz, self.carrier_max_hz]
+        floats = [self.resonance_hz, self.q, self.drift_hz_per_s, self.profile_resonance_hz, self.profile_q,
+                  self.full_scale_um_pp, self.max_amplitude_um_pp, self.max_drive_um_pp, self.carrier_min_hz,
+                  self.carrier_max_hz]
         return [CONFIG_MAGIC] + [struct.unpack("<I", struct.pack("<f", value))[0] for value in floats]
 
     def write_into(self, elf_path: str) -> None:
@@ -98,15 +110,19 @@ def _section(elf, wanted: str) -> tuple[int, int]:
     raise DeviceError(f"{elf.name} has no {wanted} section: is it the qemu variant?")
 
 
-def _die_with_parent() -> None:  # runs in the child between fork and exec
+def _prepare_child() -> None:  # runs in the child between fork and exec
     libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)  # QEMU dies with its parent
     os.setpgrp()  # the terminal's Ctrl-C goes to the command, which stops QEMU in order
+    with contextlib.suppress(OSError):  # where allowed: the emulated board is this machine's real-time work
+        os.nice(QEMU_NICE)
 
 
 def parse_event(line: str, t_s: float) -> dict | None:
     """One debug-console line of the board (``ev NAME key=value ...``) as an event dict, or None for other
-    lines. Numbers become ints or floats."""
+    lines. Numbers become ints or floats; ``t_s`` is the board's own clock where the line gives it (the core's
+    events, as plate-sim's), else ``t_s`` here (seconds since QEMU started); a refusal's NAK reason is put in
+    words, as plate-sim puts it."""
     parts = line.strip().split()
     if len(parts) < 2 or parts[0] != "ev":
         return None
@@ -120,6 +136,8 @@ def parse_event(line: str, t_s: float) -> dict | None:
                 event[key] = float(value)
             except ValueError:
                 event[key] = value
+    if event.get("fault") == "bad-command" and isinstance(event.get("reason"), int):
+        event["reason"] = NAK_REASONS.get(event["reason"], str(event["reason"]))
     return event
 
 
@@ -178,7 +196,7 @@ class QemuPlate:
             self.plate.write_into(copy)
             self.elf_path = copy
         self.process = subprocess.Popen(self.command(), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                        stderr=subprocess.PIPE, preexec_fn=_die_with_parent)
+                                        stderr=subprocess.PIPE, preexec_fn=_prepare_child)
         self._started_at = time.perf_counter()
         try:
             self.pty_name = self._wait_for_pty()

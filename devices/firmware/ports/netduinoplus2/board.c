@@ -1,5 +1,6 @@
 #include "board.h"
 
+#include "emulated_plate.h"
 #include "port_logic.h"
 #include "stm32f405.h"
 #include "uart_ring.h"
@@ -7,24 +8,45 @@
 typedef struct {
     uint32_t base;
     uint32_t irq;
-    ug_ring_t rx;
     ug_ring_t tx;
-    volatile uint32_t overruns;
-} board_usart_t;
+} board_console_t;
 
-static board_usart_t link;     /* set up in board_init: an initialiser would put the rings' 8 KiB in .data */
-static board_usart_t console;
+static board_console_t console;  /* set up in board_init: an initialiser would put its ring in .data */
 static volatile uint32_t millis;
-static board_refill_fn carrier_refill;
-static uint16_t carrier_codes[2u * BOARD_BLOCK_SAMPLES];  /* the DMA's circular buffer: two blocks */
-#ifndef UG_BOARD_QEMU
-static uint16_t sense_codes[BOARD_SENSE_SAMPLES];
-#endif
+static volatile uint32_t link_overruns;
+static board_block_fn carrier_block;
+static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES];  /* circular: the DMA plays one half while we fill the other */
+static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
 
 static void irq_enable(uint32_t irq, uint8_t priority)
 {
     NVIC_IPR_BYTE(irq) = priority;
     NVIC_ISER(irq / 32u) = 1u << (irq % 32u);
+}
+
+static uint32_t irq_save(void)
+{
+    uint32_t primask;
+    __asm__ volatile("mrs %0, primask\n\tcpsid i" : "=r"(primask) :: "memory");
+    return primask;
+}
+
+static void irq_restore(uint32_t primask)
+{
+    __asm__ volatile("msr primask, %0" :: "r"(primask) : "memory");
+}
+
+uint32_t board_mask_blocks(void)
+{
+    uint32_t previous;
+    __asm__ volatile("mrs %0, basepri" : "=r"(previous));
+    __asm__ volatile("msr basepri_max, %0" :: "r"(BOARD_BLOCK_PRIORITY) : "memory");  /* only ever raises it */
+    return previous;
+}
+
+void board_unmask_blocks(uint32_t previous)
+{
+    __asm__ volatile("msr basepri, %0" :: "r"(previous) : "memory");
 }
 
 /* Clock tree: HSE 25 MHz (the Netduino Plus 2's crystal) → PLL (M 25, N 336, P 2, Q 7) → 168 MHz,
@@ -50,154 +72,300 @@ static void clock_init(void)
 #endif
 }
 
-/* USART1 on PA9 (TX) / PA10 (RX) and USART2 on PA2 (TX), alternate function 7, 8N1, by interrupt. */
-static void usart_init(board_usart_t *usart, uint32_t base, uint32_t irq, uint32_t pclk_hz, uint32_t baud,
-                       uint32_t receive)
+/* ---- USART1: the host link (PA9 TX, PA10 RX, alternate function 7), 8N1 ------------------------------------
+   Hardware: both directions by DMA2 (RM0090 table 43: stream 2 channel 4 receives into a circular buffer,
+   stream 7 channel 4 sends a chunk at a time), so a 921 600 baud link costs no interrupt a byte; the main
+   loop hands what arrived to the core in bulk, and USART1's idle-line interrupt (the end of a burst) wakes it.
+   QEMU models no DMA: there RXNE's interrupt hands each byte over, and the main loop sends by writing the
+   data register, which QEMU (7.2) transmits at once, TXE staying set. */
+#ifdef UG_BOARD_QEMU
+static void link_init(void)
 {
-    usart->base = base;
-    usart->irq = irq;
-    usart->overruns = 0u;
-    ug_ring_init(&usart->rx);
-    ug_ring_init(&usart->tx);
-    USART_BRR(usart->base) = ug_usart_brr(pclk_hz, baud);
-    USART_CR2(usart->base) = 0u;
-    USART_CR3(usart->base) = 0u;
-    USART_CR1(usart->base) = USART_CR1_UE | USART_CR1_TE | (receive ? USART_CR1_RE | USART_CR1_RXNEIE : 0u);
-    irq_enable(usart->irq, 0x40u);  /* above the carrier (0x60) and tick (0x80): a byte never waits for a block */
-}
-
-static void usart_interrupt(board_usart_t *usart)
-{
-    uint32_t status = USART_SR(usart->base);
-    if (status & (USART_SR_RXNE | USART_SR_ORE)) {
-        uint8_t byte = (uint8_t)USART_DR(usart->base);  /* reading DR clears RXNE and ORE */
-        if (status & USART_SR_ORE) {
-            usart->overruns++;
-        }
-        (void)ug_ring_put(&usart->rx, byte);
-    }
-    if ((USART_CR1(usart->base) & USART_CR1_TXEIE) && (status & USART_SR_TXE)) {
-        uint8_t byte;
-        if (ug_ring_get(&usart->tx, &byte)) {
-            USART_DR(usart->base) = byte;
-        } else {
-            USART_CR1(usart->base) &= ~USART_CR1_TXEIE;
-        }
-    }
-}
-
-/* Queue bytes, then prime the transmitter: write while the data register is empty and leave the rest to
-   the TXE interrupt. On the chip TXE clears at once, so one byte goes here and the interrupt sends the
-   rest. QEMU (7.2) transmits synchronously, keeps TXE set and raises no interrupt when TXEIE is set, so
-   there the whole queue goes here: a TXE-interrupt-only driver sends nothing under QEMU until a byte
-   arrives. */
-static bool usart_write(board_usart_t *usart, const uint8_t *data, size_t length)
-{
-    if (!ug_ring_write(&usart->tx, data, length)) {
-        return false;
-    }
-    uint32_t primask;
-    __asm__ volatile("mrs %0, primask\n\tcpsid i" : "=r"(primask) :: "memory");  /* keep the consumer out */
-    uint8_t byte;
-    while ((USART_SR(usart->base) & USART_SR_TXE) && ug_ring_get(&usart->tx, &byte)) {
-        USART_DR(usart->base) = byte;
-    }
-    if (ug_ring_used(&usart->tx) != 0u) {
-        USART_CR1(usart->base) |= USART_CR1_TXEIE;
-    }
-    __asm__ volatile("msr primask, %0" :: "r"(primask) : "memory");
-    return true;
+    USART_BRR(USART1_BASE) = ug_usart_brr(BOARD_APB2_HZ, BOARD_BAUD);
+    USART_CR2(USART1_BASE) = 0u;
+    USART_CR3(USART1_BASE) = 0u;
+    USART_CR1(USART1_BASE) = USART_CR1_UE | USART_CR1_TE | USART_CR1_RE | USART_CR1_RXNEIE;
+    irq_enable(USART1_IRQn, BOARD_LINK_PRIORITY);
 }
 
 void USART1_IRQHandler(void)
 {
-    usart_interrupt(&link);
+    uint32_t status = USART_SR(USART1_BASE);
+    if (status & (USART_SR_RXNE | USART_SR_ORE)) {
+        uint8_t byte = (uint8_t)USART_DR(USART1_BASE);  /* reading DR clears RXNE and ORE */
+        if (status & USART_SR_ORE) {
+            link_overruns++;
+        }
+        board_link_received(&byte, 1u);
+    }
+}
+
+void board_link_service(void)
+{
+    uint8_t chunk[64];
+    size_t n;
+    while ((n = board_link_take(chunk, sizeof chunk)) != 0u) {
+        for (size_t i = 0; i < n; i++) {
+            while (!(USART_SR(USART1_BASE) & USART_SR_TXE)) {  /* never waits under QEMU */
+            }
+            USART_DR(USART1_BASE) = chunk[i];
+        }
+    }
+}
+#else
+#define LINK_RX_DMA_BYTES 1024u  /* 11 ms of a full 921 600 baud link: the main loop takes them every turn */
+#define LINK_TX_DMA_BYTES 256u
+static uint8_t link_rx_dma[LINK_RX_DMA_BYTES];
+static uint8_t link_tx_dma[LINK_TX_DMA_BYTES];
+static uint32_t link_rx_taken;  /* where the main loop stopped reading the circular buffer */
+
+static void link_init(void)
+{
+    RCC_AHB1ENR |= RCC_AHB1ENR_DMA2EN;
+    USART_BRR(USART1_BASE) = ug_usart_brr(BOARD_APB2_HZ, BOARD_BAUD);
+    USART_CR2(USART1_BASE) = 0u;
+    USART_CR3(USART1_BASE) = USART_CR3_DMAR | USART_CR3_DMAT;
+    DMA_LIFCR(DMA2_BASE) = DMA_LIFCR_ALL2;
+    DMA_SxPAR(DMA2_BASE, 2) = USART1_BASE + 0x04u;
+    DMA_SxM0AR(DMA2_BASE, 2) = (uint32_t)(uintptr_t)link_rx_dma;
+    DMA_SxNDTR(DMA2_BASE, 2) = LINK_RX_DMA_BYTES;
+    DMA_SxCR(DMA2_BASE, 2) = DMA_SxCR_CHSEL(4) | DMA_SxCR_MINC | DMA_SxCR_CIRC | DMA_SxCR_DIR_P2M | DMA_SxCR_EN;
+    DMA_SxPAR(DMA2_BASE, 7) = USART1_BASE + 0x04u;
+    DMA_SxM0AR(DMA2_BASE, 7) = (uint32_t)(uintptr_t)link_tx_dma;
+    USART_CR1(USART1_BASE) = USART_CR1_UE | USART_CR1_TE | USART_CR1_RE | USART_CR1_IDLEIE;
+    irq_enable(USART1_IRQn, BOARD_LINK_PRIORITY);
+}
+
+void USART1_IRQHandler(void)
+{
+    uint32_t status = USART_SR(USART1_BASE);
+    if (status & (USART_SR_IDLE | USART_SR_ORE)) {
+        (void)USART_DR(USART1_BASE);  /* SR then DR clears IDLE and ORE; the DMA has the bytes */
+        if (status & USART_SR_ORE) {
+            link_overruns++;
+        }
+        board_link_received(0, 0u);  /* nothing handed over here: it wakes the main loop */
+    }
+}
+
+void board_link_service(void)
+{
+    uint32_t head = ug_dma_ring_head(DMA_SxNDTR(DMA2_BASE, 2), LINK_RX_DMA_BYTES);
+    if (head < link_rx_taken) {  /* wrapped: the end of the buffer first */
+        board_link_received(&link_rx_dma[link_rx_taken], LINK_RX_DMA_BYTES - link_rx_taken);
+        link_rx_taken = 0u;
+    }
+    if (head > link_rx_taken) {
+        board_link_received(&link_rx_dma[link_rx_taken], head - link_rx_taken);
+        link_rx_taken = head;
+    }
+    if (!(DMA_SxCR(DMA2_BASE, 7) & DMA_SxCR_EN)) {  /* the last chunk has gone: the next one */
+        size_t n = board_link_take(link_tx_dma, LINK_TX_DMA_BYTES);
+        if (n != 0u) {
+            DMA_HIFCR(DMA2_BASE) = DMA_HIFCR_ALL7;
+            DMA_SxNDTR(DMA2_BASE, 7) = (uint32_t)n;
+            DMA_SxCR(DMA2_BASE, 7) = DMA_SxCR_CHSEL(4) | DMA_SxCR_MINC | DMA_SxCR_DIR_M2P | DMA_SxCR_EN;
+        }
+    }
+}
+#endif
+
+uint32_t board_link_overruns(void)
+{
+    return link_overruns;
+}
+
+/* ---- USART2: the debug console (PA2 TX), transmit only, from its own ring ------------------------------ */
+static void console_init(void)
+{
+    console.base = USART2_BASE;
+    console.irq = USART2_IRQn;
+    ug_ring_init(&console.tx);
+    USART_BRR(USART2_BASE) = ug_usart_brr(BOARD_APB1_HZ, BOARD_CONSOLE_BAUD);
+    USART_CR2(USART2_BASE) = 0u;
+    USART_CR3(USART2_BASE) = 0u;
+    USART_CR1(USART2_BASE) = USART_CR1_UE | USART_CR1_TE;
+    irq_enable(USART2_IRQn, 0xA0u);  /* below everything: a console line can wait */
 }
 
 void USART2_IRQHandler(void)
 {
-    usart_interrupt(&console);
+    if ((USART_CR1(USART2_BASE) & USART_CR1_TXEIE) && (USART_SR(USART2_BASE) & USART_SR_TXE)) {
+        uint8_t byte;
+        if (ug_ring_get(&console.tx, &byte)) {
+            USART_DR(USART2_BASE) = byte;
+        } else {
+            USART_CR1(USART2_BASE) &= ~USART_CR1_TXEIE;
+        }
+    }
 }
 
+void board_console_write(const char *text)
+{
+    size_t length = 0;
+    while (text[length] != '\0') {
+        length++;
+    }
+    uint32_t primask = irq_save();  /* the main loop and an interrupt may both write lines */
+    bool queued = ug_ring_write(&console.tx, (const uint8_t *)text, length);
+    if (queued && !(USART_CR1(USART2_BASE) & USART_CR1_TXEIE)) {
+        uint8_t byte;
+        while ((USART_SR(USART2_BASE) & USART_SR_TXE) && ug_ring_get(&console.tx, &byte)) {
+            USART_DR(USART2_BASE) = byte;
+        }
+        if (ug_ring_used(&console.tx) != 0u) {
+            USART_CR1(USART2_BASE) |= USART_CR1_TXEIE;
+        }
+    }
+    irq_restore(primask);
+}
+
+/* ---- the carrier's buffers -------------------------------------------------------------------------- */
+uint16_t *board_dac_half(uint32_t half)
+{
+    return &dac_codes[(half & 1u) * BOARD_BLOCK_SAMPLES];
+}
+
+const uint16_t *board_adc_half(uint32_t half)
+{
+    return &adc_codes[(half & 1u) * BOARD_BLOCK_SAMPLES];
+}
+
+void board_dac_blank(uint32_t half)
+{
+    uint16_t *codes = board_dac_half(half);
+    for (uint32_t i = 0; i < BOARD_BLOCK_SAMPLES; i++) {
+        codes[i] = 0x8000u;  /* DHR12L1's mid-scale: no drive */
+    }
+}
+
+#ifdef UG_BOARD_QEMU
+/* ---- QEMU: SysTick runs the blocks due by TIM5's count of virtual nanoseconds ------------------------ */
+#define TICKS_PER_BLOCK (BOARD_QEMU_TIMER_HZ / 1000u)
+
+static ug_emulated_plate_t plate;
+static uint32_t block_ticks;       /* TIM5's count when the next block is due */
+static uint32_t next_half;
+static volatile uint32_t skipped_ms;
+
+void board_emulate_plate(float resonance_hz, float q, float drift_hz_per_s, float full_scale_um_pp,
+                         float um_pp_per_code)
+{
+    ug_emulated_plate_init(&plate, resonance_hz, q, drift_hz_per_s, full_scale_um_pp, (float)BOARD_DAC_RATE_HZ,
+                           um_pp_per_code);
+}
+
+float board_plate_peak_um_pp(void)
+{
+    return plate.peak_um_pp;
+}
+
+uint32_t board_skipped_ms(void)
+{
+    return skipped_ms;
+}
+
+void board_emulate_block(uint32_t half)
+{
+    ug_emulated_plate_run(&plate, board_dac_half(half), &adc_codes[(half & 1u) * BOARD_BLOCK_SAMPLES],
+                          BOARD_BLOCK_SAMPLES);
+}
+
+static void carrier_clock_start(void)
+{
+    RCC_APB1ENR |= RCC_APB1ENR_TIM5EN;
+    TIM_PSC(TIM5_BASE) = 0u;
+    TIM_ARR(TIM5_BASE) = 0xFFFFFFFFu;
+    TIM_CR1(TIM5_BASE) = TIM_CR1_CEN;
+    board_dac_blank(0u);
+    board_dac_blank(1u);
+    block_ticks = TIM_CNT(TIM5_BASE) + TICKS_PER_BLOCK;
+    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | ((uint32_t)BOARD_BLOCK_PRIORITY << 24);
+}
+
+void SysTick_Handler(void)
+{
+    if (carrier_block == 0) {
+        millis++;
+        return;
+    }
+    uint32_t late = TIM_CNT(TIM5_BASE) - block_ticks;  /* how long ago the next block fell due */
+    if (late >= 0x80000000u) {
+        return;  /* not due yet */
+    }
+    uint32_t due = late / TICKS_PER_BLOCK + 1u;
+    if (due > BOARD_STALL_BLOCKS) {  /* QEMU itself did not run (its host descheduled it): nor did the board */
+        skipped_ms += due - 1u;
+        block_ticks += (due - 1u) * TICKS_PER_BLOCK;
+        due = 1u;
+    }
+    for (uint32_t i = 0; i < due && i < BOARD_CATCH_UP; i++) {
+        uint32_t half = next_half;
+        board_emulate_block(half);
+        carrier_block(half);
+        next_half = half ^ 1u;
+        block_ticks += TICKS_PER_BLOCK;
+        millis++;
+    }
+}
+#else
+/* ---- hardware: TIM2 triggers DAC1 and ADC1 together; DMA2's interrupt runs each block --------------- */
 void SysTick_Handler(void)
 {
     millis++;
 }
 
-#ifdef UG_BOARD_QEMU
-/* QEMU: TIM2 (modelled, 48 MHz) interrupts once a block and the refill runs on a RAM buffer. */
-static void carrier_clock_start(void)
-{
-    RCC_APB1ENR |= RCC_APB1ENR_TIM2EN;
-    TIM_PSC(TIM2_BASE) = 0u;
-    TIM_ARR(TIM2_BASE) = ug_timer_arr(BOARD_QEMU_TIMER_HZ, BOARD_DAC_RATE_HZ / BOARD_BLOCK_SAMPLES);
-    TIM_EGR(TIM2_BASE) = TIM_EGR_UG;
-    TIM_SR(TIM2_BASE) = 0u;
-    TIM_DIER(TIM2_BASE) = TIM_DIER_UIE;
-    irq_enable(TIM2_IRQn, 0x60u);
-    TIM_CR1(TIM2_BASE) = TIM_CR1_CEN;
-}
-
-void TIM2_IRQHandler(void)
-{
-    TIM_SR(TIM2_BASE) = 0u;
-    static uint32_t half;
-    if (carrier_refill) {
-        carrier_refill(&carrier_codes[half * BOARD_BLOCK_SAMPLES], BOARD_BLOCK_SAMPLES, 0u);
-    }
-    half ^= 1u;
-}
-#else
-/* Hardware: DAC1 on PA4, triggered by TIM6's update at BOARD_DAC_RATE_HZ, fed by DMA1 stream 5
-   channel 7 from the two-block circular buffer. ADC1 (PA1, the sensing piezo) converts continuously
-   at ADCCLK 21 MHz, 15 + 12 cycles a sample (778 kS/s), into DMA2 stream 0's circular buffer. */
 static void carrier_clock_start(void)
 {
     RCC_AHB1ENR |= RCC_AHB1ENR_GPIOAEN | RCC_AHB1ENR_DMA1EN | RCC_AHB1ENR_DMA2EN;
-    RCC_APB1ENR |= RCC_APB1ENR_TIM6EN | RCC_APB1ENR_DACEN;
+    RCC_APB1ENR |= RCC_APB1ENR_TIM2EN | RCC_APB1ENR_DACEN;
     RCC_APB2ENR |= RCC_APB2ENR_ADC1EN;
     GPIO_MODER(GPIOA_BASE) |= GPIOA_PIN_ANALOG(4) | GPIOA_PIN_ANALOG(1);
-    for (uint32_t i = 0; i < 2u * BOARD_BLOCK_SAMPLES; i++) {
-        carrier_codes[i] = 2048u;
-    }
-    DAC_DHR12R1 = 2048u;
+    board_dac_blank(0u);
+    board_dac_blank(1u);
+    DAC_DHR12L1 = 0x8000u;
+
+    /* DAC1 (PA4): converts on TIM2's TRGO, fed by DMA1 stream 5 channel 7 over both halves, 16-bit words into
+       its left-aligned holding register */
     DMA_HIFCR(DMA1_BASE) = DMA_HIFCR_ALL5;
-    DMA_SxPAR(DMA1_BASE, 5) = DAC_DHR12R1_ADDRESS;
-    DMA_SxM0AR(DMA1_BASE, 5) = (uint32_t)(uintptr_t)carrier_codes;
+    DMA_SxPAR(DMA1_BASE, 5) = DAC_DHR12L1_ADDRESS;
+    DMA_SxM0AR(DMA1_BASE, 5) = (uint32_t)(uintptr_t)dac_codes;
     DMA_SxNDTR(DMA1_BASE, 5) = 2u * BOARD_BLOCK_SAMPLES;
     DMA_SxCR(DMA1_BASE, 5) = DMA_SxCR_CHSEL(7) | DMA_SxCR_MSIZE_16 | DMA_SxCR_PSIZE_16 | DMA_SxCR_MINC
-                             | DMA_SxCR_CIRC | DMA_SxCR_DIR_M2P | DMA_SxCR_HTIE | DMA_SxCR_TCIE | DMA_SxCR_EN;
-    DAC_CR = DAC_CR_EN1 | DAC_CR_TEN1 | DAC_CR_TSEL1_TIM6 | DAC_CR_DMAEN1;
-    irq_enable(DMA1_Stream5_IRQn, 0x60u);
+                             | DMA_SxCR_CIRC | DMA_SxCR_DIR_M2P | DMA_SxCR_EN;
+    DAC_CR = DAC_CR_EN1 | DAC_CR_TEN1 | DAC_CR_TSEL1_TIM2 | DAC_CR_DMAEN1;
 
+    /* ADC1 (PA1, the sensing piezo): one conversion on each TRGO (ADCCLK 21 MHz, 15 + 12 cycles: 1.3 us of the
+       4.2 us between triggers), drained by DMA2 stream 0 channel 0 over both halves; its half- and
+       full-transfer interrupts are the block clock */
     ADC_CCR = ADC_CCR_ADCPRE_DIV4;
     ADC_SMPR2(ADC1_BASE) = 1u << 3;  /* channel 1: 15 cycles */
     ADC_SQR3(ADC1_BASE) = 1u;        /* one conversion: channel 1 */
     DMA_LIFCR(DMA2_BASE) = DMA_LIFCR_ALL0;
     DMA_SxPAR(DMA2_BASE, 0) = ADC1_BASE + 0x4Cu;
-    DMA_SxM0AR(DMA2_BASE, 0) = (uint32_t)(uintptr_t)sense_codes;
-    DMA_SxNDTR(DMA2_BASE, 0) = BOARD_SENSE_SAMPLES;
+    DMA_SxM0AR(DMA2_BASE, 0) = (uint32_t)(uintptr_t)adc_codes;
+    DMA_SxNDTR(DMA2_BASE, 0) = 2u * BOARD_BLOCK_SAMPLES;
     DMA_SxCR(DMA2_BASE, 0) = DMA_SxCR_CHSEL(0) | DMA_SxCR_MSIZE_16 | DMA_SxCR_PSIZE_16 | DMA_SxCR_MINC
-                             | DMA_SxCR_CIRC | DMA_SxCR_DIR_P2M | DMA_SxCR_EN;
-    ADC_CR2(ADC1_BASE) = ADC_CR2_ADON | ADC_CR2_CONT | ADC_CR2_DMA | ADC_CR2_DDS;
-    ADC_CR2(ADC1_BASE) |= ADC_CR2_SWSTART;
+                             | DMA_SxCR_CIRC | DMA_SxCR_DIR_P2M | DMA_SxCR_HTIE | DMA_SxCR_TCIE | DMA_SxCR_EN;
+    ADC_CR2(ADC1_BASE) = ADC_CR2_ADON | ADC_CR2_DMA | ADC_CR2_DDS | ADC_CR2_EXTSEL_TIM2_TRGO | ADC_CR2_EXTEN_RISING;
+    irq_enable(DMA2_Stream0_IRQn, BOARD_BLOCK_PRIORITY);
 
-    TIM_PSC(TIM6_BASE) = 0u;
-    TIM_ARR(TIM6_BASE) = ug_timer_arr(BOARD_TIMER_APB1_HZ, BOARD_DAC_RATE_HZ);
-    TIM_CR2(TIM6_BASE) = TIM_CR2_MMS_UPDATE;
-    TIM_CR1(TIM6_BASE) = TIM_CR1_CEN;
+    /* TIM2 at 84 MHz: an update (TRGO) every 350 counts, 240 kHz; both converters start on its first */
+    TIM_PSC(TIM2_BASE) = 0u;
+    TIM_ARR(TIM2_BASE) = ug_timer_arr(BOARD_TIMER_APB1_HZ, BOARD_DAC_RATE_HZ);
+    TIM_CR2(TIM2_BASE) = TIM_CR2_MMS_UPDATE;
+    TIM_CR1(TIM2_BASE) = TIM_CR1_CEN;
 }
 
-void DMA1_Stream5_IRQHandler(void)
+void DMA2_Stream0_IRQHandler(void)
 {
-    uint32_t status = DMA_HISR(DMA1_BASE);
-    DMA_HIFCR(DMA1_BASE) = DMA_HIFCR_ALL5;
-    uint32_t sensed = ug_adc_peak_to_peak(sense_codes, BOARD_SENSE_SAMPLES);
-    if (carrier_refill && (status & DMA_HISR_HTIF5)) {  /* the first half has played: refill it */
-        carrier_refill(&carrier_codes[0], BOARD_BLOCK_SAMPLES, sensed);
+    uint32_t status = DMA_LISR(DMA2_BASE);
+    DMA_LIFCR(DMA2_BASE) = DMA_LIFCR_ALL0;
+    if (carrier_block && (status & DMA_LISR_HTIF0)) {  /* the first half has been measured (and played) */
+        carrier_block(0u);
     }
-    if (carrier_refill && (status & DMA_HISR_TCIF5)) {
-        carrier_refill(&carrier_codes[BOARD_BLOCK_SAMPLES], BOARD_BLOCK_SAMPLES, sensed);
+    if (carrier_block && (status & DMA_LISR_TCIF0)) {
+        carrier_block(1u);
     }
 }
 #endif
@@ -213,18 +381,18 @@ void board_init(void)
                              | (GPIO_MODE_AF << 4) | (GPIO_MODE_AF << 18) | (GPIO_MODE_AF << 20);
     GPIO_AFRL(GPIOA_BASE) = (GPIO_AFRL(GPIOA_BASE) & ~(0xFu << 8)) | (7u << 8);
     GPIO_AFRH(GPIOA_BASE) = (GPIO_AFRH(GPIOA_BASE) & ~((0xFu << 4) | (0xFu << 8))) | (7u << 4) | (7u << 8);
-    usart_init(&link, USART1_BASE, USART1_IRQn, BOARD_APB2_HZ, BOARD_BAUD, 1u);
-    usart_init(&console, USART2_BASE, USART2_IRQn, BOARD_APB1_HZ, BOARD_CONSOLE_BAUD, 0u);
-    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);  /* SysTick priority 0x80 */
+    console_init();
+    link_init();
+    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);  /* SysTick below the blocks (QEMU: raised to them) */
     SYST_RVR = BOARD_CORE_HZ / BOARD_TICK_HZ - 1u;
     SYST_CVR = 0u;
     SYST_CSR = SYST_CSR_CLKSOURCE | SYST_CSR_TICKINT | SYST_CSR_ENABLE;
 }
 
-void board_carrier_start(board_refill_fn refill)
+void board_carrier_start(board_block_fn block)
 {
-    carrier_refill = refill;
     carrier_clock_start();
+    carrier_block = block;
 }
 
 uint32_t board_millis(void)
@@ -232,48 +400,17 @@ uint32_t board_millis(void)
     return millis;
 }
 
-size_t board_uart_read(uint8_t *data, size_t capacity)
-{
-    size_t n = 0;
-    while (n < capacity && ug_ring_get(&link.rx, &data[n])) {
-        n++;
-    }
-    return n;
-}
-
-bool board_uart_write(const uint8_t *data, size_t length)
-{
-    return usart_write(&link, data, length);
-}
-
-uint32_t board_uart_rx_dropped(void)
-{
-    return link.rx.dropped + link.overruns;
-}
-
-uint32_t board_uart_tx_dropped(void)
-{
-    return link.tx.dropped;
-}
-
-void board_console_write(const char *text)
-{
-    size_t length = 0;
-    while (text[length] != '\0') {
-        length++;
-    }
-    (void)usart_write(&console, (const uint8_t *)text, length);
-}
-
 void board_fault_stop(void)
 {
     __asm__ volatile("cpsid i" ::: "memory");
 #ifndef UG_BOARD_QEMU
-    TIM_CR1(TIM6_BASE) = 0u;
-    DMA_SxCR(DMA1_BASE, 5) = 0u;
-    DAC_DHR12R1 = 2048u;  /* mid-scale: no drive reaches the amplifier */
-#endif
     TIM_CR1(TIM2_BASE) = 0u;
+    DMA_SxCR(DMA1_BASE, 5) = 0u;
+    DAC_DHR12L1 = 0x8000u;  /* mid-scale: no drive reaches the amplifier */
+#endif
+    SYST_CSR = 0u;
+    board_dac_blank(0u);
+    board_dac_blank(1u);
     for (;;) {
         __asm__ volatile("wfi");
     }

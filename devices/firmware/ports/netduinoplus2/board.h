@@ -1,13 +1,28 @@
 /*
- * The netduinoplus2 board: clocks, USART1 (the host link), USART2 (the debug console), the SysTick
- * millisecond tick, the carrier output and the sensing piezo's ADC.
+ * The netduinoplus2 board: clocks, USART1 (the host link), USART2 (the debug console), the carrier
+ * output and the sensing piezo's input, paced block by block.
  *
- * Carrier output on hardware: DAC1 (PA4) converts on each TIM6 update at BOARD_DAC_RATE_HZ; DMA1
- * stream 5 (channel 7) feeds it from a circular buffer of two blocks, and its half- and full-transfer
- * interrupts call the refill for the half just played. Under QEMU, which models neither DAC nor DMA nor
- * TIM6, TIM2 (modelled) interrupts at the block rate and calls the same refill on a RAM buffer.
- * Sensing on hardware: ADC1 converts the sensing piezo (PA1) continuously into a circular DMA2 buffer;
- * each refill gets the peak-to-peak of the last block in ADC codes.
+ * Hardware image: TIM2's update at BOARD_DAC_RATE_HZ triggers both DAC1 (PA4, the amplifier's input) and
+ * ADC1 (PA1, the sensing piezo), so the i-th ADC sample measures the plate while the i-th DAC sample
+ * plays. DMA1 stream 5 feeds the DAC and DMA2 stream 0 drains the ADC, each over a circular buffer of two
+ * blocks, in step. DMA2's half- and full-transfer interrupts call the block function with the half just
+ * measured (and just played): it reads that half of the ADC buffer and refills that half of the DAC
+ * buffer, which plays after the other half, already filled, now playing.
+ *
+ * QEMU image: QEMU models neither DAC nor ADC signal nor DMA, and its timers' interrupts come late and
+ * irregularly (QEMU 7.2: TIM2..5 re-arm from the time of their last register write; SysTick loses the
+ * time it fires late), but their counters read the virtual clock exactly (TIM5: nanoseconds). So SysTick
+ * interrupts every millisecond or so, and its handler runs as many blocks as TIM5 says are due (up to
+ * BOARD_CATCH_UP at a time): for each, the emulated plate (emulated_plate.h) plays the DAC half that
+ * played in that block and writes the ADC half it measured, then the same block function runs. When more
+ * than BOARD_STALL_BLOCKS are due, QEMU itself was not running (its host descheduled it): the board was
+ * frozen with it, so that time is skipped (counted in board_skipped_ms) rather than played at once while
+ * the link, frozen too, still holds the frames of that time: as a real board, which is never
+ * descheduled, would have heard them, its watchdog must not fire for the emulator's stall.
+ *
+ * The link: USART1, by DMA on hardware (the main loop hands what arrived to board_link_received() in bulk
+ * and sends what board_link_take() gives a chunk at a time), by the receive interrupt under QEMU (a byte at
+ * a time: QEMU models no DMA).
  */
 #ifndef UG_BOARD_H
 #define UG_BOARD_H
@@ -20,34 +35,66 @@
 #define BOARD_APB1_HZ 42000000u    /* HCLK / 4: USART2 */
 #define BOARD_APB2_HZ 84000000u    /* HCLK / 2: USART1 */
 #define BOARD_TIMER_APB1_HZ 84000000u  /* APB1 timers run at twice APB1 when it is divided */
-#define BOARD_QEMU_TIMER_HZ 48000000u  /* QEMU's TIM2..5 count at 48 MHz whatever the RCC says */
+#define BOARD_QEMU_TIMER_HZ 1000000000u  /* QEMU 7.2's TIM2..5 count virtual nanoseconds (their default clock) */
 #define BOARD_BAUD 921600u         /* the host's default (docs/protocol.md) */
 #define BOARD_CONSOLE_BAUD 115200u
 #define BOARD_TICK_HZ 1000u        /* SysTick */
-#define BOARD_DAC_RATE_HZ 250000u  /* carrier samples a second: 10 a period at 25 kHz */
-#define BOARD_BLOCK_SAMPLES 250u   /* one refill: 1 ms of carrier */
-#define BOARD_SENSE_SAMPLES 512u   /* ADC1 samples of the sensing piezo kept (about 0.7 ms at 778 kS/s) */
+#define BOARD_DRIVE_RATE_HZ 48000u /* the core's drive samples a second (its sample_rate_hz) */
+#define BOARD_OVERSAMPLE 5u        /* DAC (and ADC) samples a drive sample (the core's dac_oversample) */
+#define BOARD_DAC_RATE_HZ (BOARD_DRIVE_RATE_HZ * BOARD_OVERSAMPLE)  /* 240 kHz: 9.6 a period at 25 kHz */
+#define BOARD_BLOCK_DRIVE 48u      /* drive samples a block: 1 ms, one tick of the core */
+#define BOARD_BLOCK_SAMPLES (BOARD_BLOCK_DRIVE * BOARD_OVERSAMPLE)  /* 240 DAC and ADC samples a block */
+#define BOARD_CATCH_UP 8u          /* QEMU: blocks run at most in one SysTick interrupt */
+#define BOARD_STALL_BLOCKS 20u     /* QEMU: more blocks due than this, and QEMU was stalled: the time is skipped */
+#define BOARD_BLOCK_PRIORITY 0x60u /* the block interrupt (the core's tick, DAC and ADC), and BASEPRI's mask */
+#define BOARD_LINK_PRIORITY 0x40u  /* USART1: above the blocks, so a byte never waits for one */
 
-/* Fill one block of DAC codes (12-bit, mid-scale 2048 = no drive); ``sensed_pp`` is the sensing piezo's
-   peak-to-peak over the last block in ADC codes (0 under QEMU). Runs in the carrier interrupt. */
-typedef void (*board_refill_fn)(uint16_t *codes, uint32_t count, uint32_t sensed_pp);
+/* Run for each block (in the block interrupt): `half` (0 or 1) names the halves of the ADC buffer just
+   measured and of the DAC buffer to refill. */
+typedef void (*board_block_fn)(uint32_t half);
 
 void board_init(void);
+/* Milliseconds since boot (hardware: SysTick; QEMU: blocks run). */
 uint32_t board_millis(void);
 
-/* Bytes the host sent, taken from the receive ring (filled by the USART1 interrupt). */
-size_t board_uart_read(uint8_t *data, size_t capacity);
-/* Queue bytes for the host, all or none; false when the transmit ring has no room. */
-bool board_uart_write(const uint8_t *data, size_t length);
-/* Bytes lost: receive ring full or the USART's own overrun; transmit ring full. */
-uint32_t board_uart_rx_dropped(void);
-uint32_t board_uart_tx_dropped(void);
+/* The port's side of the link (port.c): bytes arrived (hardware: from the main loop; QEMU: from USART1's
+   interrupt, one at a time; n = 0 only wakes the main loop); up to max bytes to send (main loop). */
+void board_link_received(const uint8_t *bytes, size_t n);
+size_t board_link_take(uint8_t *out, size_t max);
+/* Main loop: hand over the bytes received and start sending what the core queued. */
+void board_link_service(void);
+/* Bytes the USART itself lost (a byte arrived before the previous one was read). */
+uint32_t board_link_overruns(void);
 
 /* A line for the debug console (USART2), dropped whole when its ring is full. */
 void board_console_write(const char *text);
 
-/* Start the carrier's block clock: ``refill`` is called for each block from then on. */
-void board_carrier_start(board_refill_fn refill);
+/* The two halves of the DAC buffer (left-aligned words for DHR12L1: mid-scale 0x8000 = no drive) and of the
+   ADC buffer (12-bit codes). */
+uint16_t *board_dac_half(uint32_t half);
+const uint16_t *board_adc_half(uint32_t half);
+/* No drive at once: the DAC half `half` to mid-scale (the half playing now, on a trip or a disable). */
+void board_dac_blank(uint32_t half);
+
+/* Start the carrier's block clock: `block` runs for each block from then on. */
+void board_carrier_start(board_block_fn block);
+
+/* Mask and unmask the block interrupt (BASEPRI), leaving the link's interrupt on; nests when the caller
+   keeps what mask returns and gives it back to unmask. */
+uint32_t board_mask_blocks(void);
+void board_unmask_blocks(uint32_t previous);
+
+#ifdef UG_BOARD_QEMU
+/* The emulated plate's truth and its sensing scale (um p-p per ADC code); before board_carrier_start. */
+void board_emulate_plate(float resonance_hz, float q, float drift_hz_per_s, float full_scale_um_pp,
+                         float um_pp_per_code);
+/* Its own peak-to-peak so far (um), and the milliseconds skipped while QEMU was stalled. */
+float board_plate_peak_um_pp(void);
+uint32_t board_skipped_ms(void);
+/* The emulated plate plays DAC half `half` and writes the ADC half it measured (what SysTick does before
+   each block; the budget image calls it itself). */
+void board_emulate_block(uint32_t half);
+#endif
 
 /* Safe state: DAC to mid-scale (no drive), its timers and DMA stopped, interrupts off, wait. */
 void board_fault_stop(void);

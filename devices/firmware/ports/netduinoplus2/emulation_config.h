@@ -17,7 +17,8 @@ typedef struct {
     float resonance_hz;          /* the emulated plate's truth */
     float q;
     float drift_hz_per_s;
-    float profile_resonance_hz;  /* what the firmware declares in HELLO_REPLY */
+    float profile_resonance_hz;  /* what the firmware declares in HELLO_REPLY ... */
+    float profile_q;             /* ... and believes (its limiter's and amplitude loop's model) */
     float full_scale_um_pp;
     float max_amplitude_um_pp;
     float max_drive_um_pp;

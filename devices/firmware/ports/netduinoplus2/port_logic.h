@@ -23,22 +23,66 @@ uint32_t ug_timer_arr(uint32_t timer_hz, uint32_t rate_hz);
 /* The rate a timer really runs at for an auto-reload value: timer_hz / (arr + 1). */
 uint32_t ug_timer_rate_hz(uint32_t timer_hz, uint32_t arr);
 
-/* A carrier sample, signed 16-bit full scale, as the 12-bit right-aligned DAC code around
-   mid-scale 2048: 2048 + sample / 16, rounded to nearest (ties away from zero), within 0..4095. */
-uint16_t ug_dac_code(int16_t sample);
+/* A carrier sample, signed 16-bit full scale, as the word the DMA writes to DAC1's 12-bit left-aligned
+   holding register (DHR12L1): offset binary, sample + 32768, of which the DAC converts the top 12 bits,
+   2048 + floor(sample / 16) (0..4095; mid-scale 2048 is no drive). The conversion is one XOR a sample
+   where a right-aligned code would need a rounded division; truncation biases the carrier by half a code
+   (0.4 mV of DC, which the amplifier's coupling removes). */
+static inline uint16_t ug_dac_word(int16_t sample)
+{
+    return (uint16_t)((uint16_t)sample ^ 0x8000u);
+}
 
-/* Convert a block of carrier samples to DAC codes (the DMA's half-buffer). */
-void ug_dac_block(const int16_t *samples, uint16_t *codes, uint32_t count);
+/* The 12-bit code the DAC converts from a DHR12L1 word. */
+static inline uint16_t ug_dac_code(uint16_t word)
+{
+    return (uint16_t)(word >> 4);
+}
+
+/* Convert a block of carrier samples to DAC words (the DMA's half-buffer). */
+void ug_dac_block(const int16_t *samples, uint16_t *words, uint32_t count);
+
+/* Where a circular DMA receiving into a buffer of `size` bytes will write next, from its stream's NDTR
+   (the transfers left in this lap, counting down from size: NDTR = size means the start). */
+uint32_t ug_dma_ring_head(uint32_t ndtr, uint32_t size);
 
 /* The peak-to-peak swing of a block of sensing-piezo samples (12-bit ADC codes): max − min, in ADC
    codes (a peak detector over the block; at least one carrier period must fit in it). */
 uint32_t ug_adc_peak_to_peak(const uint16_t *codes, uint32_t count);
 
+/*
+ * The sensing piezo's amplitude for each drive sample, from ADC codes sampled in step with the DAC.
+ * The core wants one measured amplitude per drive sample (ug_core_adc_block); the ADC samples the
+ * piezo `per_drive` (>= 3) times a drive sample. For a sinusoid x[k] = A sin(wk + p) about the mid-scale
+ * (w: the carrier in radians per ADC sample), x[k]^2 - 2 cos(w) x[k] x[k-1] + x[k-1]^2 = A^2 sin^2(w)
+ * for every k: two consecutive samples give the amplitude exactly, whatever the phase, with no peak to
+ * wait for. Each drive sample's amplitude averages that over the two pairs of its last three samples
+ * (the others are not needed: the same quantisation noise would cost twice the arithmetic), reported in
+ * um peak-to-peak (2 A um_pp_per_code). The mid-scale is tracked (the conditioning's bias: a slow average).
+ * Off the carrier (a transient ringing at the plate's own resonance) the estimate ripples at the beat
+ * frequency around the true envelope.
+ */
+typedef struct {
+    float um_pp_per_code;   /* um peak-to-peak per ADC code of peak-to-peak swing */
+    float mid_code;         /* the tracked mid-scale, codes */
+    float two_cos;          /* 2 cos(w) */
+    float inv_sin2;         /* 1 / sin^2(w) */
+    float adc_rate_hz;
+} ug_sense_t;
 
+void ug_sense_init(ug_sense_t *sense, float adc_rate_hz, float um_pp_per_code, float mid_code);
+/* The carrier the plate is driven at (its frequency decides w); call when it changes. */
+void ug_sense_set_carrier(ug_sense_t *sense, float carrier_hz);
+/* One block of n_drive × per_drive codes → n_drive amplitudes (um p-p); returns their largest. */
+float ug_sense_block(ug_sense_t *sense, const uint16_t *codes, uint32_t n_drive, uint32_t per_drive,
+                     float *amplitude_um_pp);
 
 /* Text for the debug console without printf (newlib's pulls in malloc, and the image links no heap):
    append a string or an unsigned decimal at ``out``, never writing past ``end`` (which stays for the
    terminating NUL); return the new end of the text. */
 char *ug_append_text(char *out, char *end, const char *text);
 char *ug_append_u32(char *out, char *end, uint32_t value);
+/* A number with `decimals` digits after the point (0 to 6), rounded to nearest; NaN and infinities
+   as "nan", "inf", "-inf"; magnitudes beyond 4e9 clamp there. */
+char *ug_append_fixed(char *out, char *end, float value, uint32_t decimals);
 #endif

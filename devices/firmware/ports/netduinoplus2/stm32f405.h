@@ -51,7 +51,7 @@
 #define RCC_AHB1ENR_DMA1EN  (1u << 21)
 #define RCC_AHB1ENR_DMA2EN  (1u << 22)
 #define RCC_APB1ENR_TIM2EN  (1u << 0)
-#define RCC_APB1ENR_TIM6EN  (1u << 4)
+#define RCC_APB1ENR_TIM5EN  (1u << 3)
 #define RCC_APB1ENR_DACEN   (1u << 29)
 #define RCC_APB2ENR_USART1EN (1u << 4)
 #define RCC_APB2ENR_ADC1EN  (1u << 8)
@@ -83,19 +83,22 @@
 #define USART_CR2(base) UG_REG((base) + 0x10u)
 #define USART_CR3(base) UG_REG((base) + 0x14u)
 #define USART_SR_ORE    (1u << 3)
+#define USART_SR_IDLE   (1u << 4)
 #define USART_SR_RXNE   (1u << 5)
 #define USART_SR_TC     (1u << 6)
 #define USART_SR_TXE    (1u << 7)
 #define USART_CR1_RE    (1u << 2)
 #define USART_CR1_TE    (1u << 3)
+#define USART_CR1_IDLEIE (1u << 4)
 #define USART_CR1_RXNEIE (1u << 5)
 #define USART_CR1_TXEIE (1u << 7)
 #define USART_CR1_UE    (1u << 13)
+#define USART_CR3_DMAR  (1u << 6)
+#define USART_CR3_DMAT  (1u << 7)
 
 #define USART2_BASE     0x40004400u
 #define USART2_IRQn     38u
 #define RCC_APB1ENR_USART2EN (1u << 17)
-#define ADC_CR2_CONT    (1u << 1)
 #define ADC_CR2_DMA     (1u << 8)
 #define ADC_CR2_DDS     (1u << 9)
 #define ADC_CCR         UG_REG(0x40012304u)
@@ -105,13 +108,16 @@
 #define DMA_LISR(base)  UG_REG((base) + 0x00u)
 #define DMA_LIFCR(base) UG_REG((base) + 0x08u)
 #define DMA_LIFCR_ALL0  (0x3Du << 0)
+#define DMA_LIFCR_ALL2  (0x3Du << 16)   /* stream 2: bits 16 (FEIF) .. 21 (TCIF) */
 #define DMA_SxCR_DIR_P2M (0u << 6)
+#define DMA_LISR_HTIF0  (1u << 4)
+#define DMA_LISR_TCIF0  (1u << 5)
 #define GPIOA_PIN_ANALOG(pin) (GPIO_MODE_ANALOG << (2u * (pin)))
 
-/* ---- General-purpose timers TIM2..TIM5 and basic timer TIM6 (RM0090 §18.4, §20.4) ---- */
+/* ---- General-purpose timers TIM2..TIM5 (RM0090 §18.4): TIM2 and TIM5 are 32-bit ---- */
 #define TIM2_BASE       0x40000000u
 #define TIM2_IRQn       28u
-#define TIM6_BASE       0x40001000u
+#define TIM5_BASE       0x40000C00u
 #define TIM_CR1(base)   UG_REG((base) + 0x00u)
 #define TIM_CR2(base)   UG_REG((base) + 0x04u)
 #define TIM_DIER(base)  UG_REG((base) + 0x0Cu)
@@ -129,11 +135,11 @@
 /* ---- DAC (RM0090 §14.5) ---- */
 #define DAC_BASE        0x40007400u
 #define DAC_CR          UG_REG(DAC_BASE + 0x00u)
-#define DAC_DHR12R1     UG_REG(DAC_BASE + 0x08u)
-#define DAC_DHR12R1_ADDRESS (DAC_BASE + 0x08u)
+#define DAC_DHR12L1     UG_REG(DAC_BASE + 0x0Cu)  /* 12-bit left-aligned: bits 15:4 */
+#define DAC_DHR12L1_ADDRESS (DAC_BASE + 0x0Cu)
 #define DAC_CR_EN1      (1u << 0)
 #define DAC_CR_TEN1     (1u << 2)
-#define DAC_CR_TSEL1_TIM6 (0u << 3)
+#define DAC_CR_TSEL1_TIM2 (4u << 3)  /* TIM2 TRGO */
 #define DAC_CR_DMAEN1   (1u << 12)
 
 /* ---- DMA1 (RM0090 §10.5): stream 5 channel 7 is DAC1's request ---- */
@@ -157,6 +163,7 @@
 #define DMA_HISR_HTIF5  (1u << 10)    /* stream 5 in the high register: bits 6 (FEIF) .. 11 (TCIF) */
 #define DMA_HISR_TCIF5  (1u << 11)
 #define DMA_HIFCR_ALL5  (0x3Du << 6)
+#define DMA_HIFCR_ALL7  (0x3Du << 22)   /* stream 7: bits 22 (FEIF) .. 27 (TCIF) */
 
 /* ---- ADC1 (RM0090 §13.13) ---- */
 #define ADC1_BASE       0x40012000u
@@ -167,6 +174,7 @@
 #define ADC_DR(base)    UG_REG((base) + 0x4Cu)
 #define ADC_SR_EOC      (1u << 1)
 #define ADC_CR2_ADON    (1u << 0)
-#define ADC_CR2_SWSTART (1u << 30)
+#define ADC_CR2_EXTSEL_TIM2_TRGO (6u << 24)
+#define ADC_CR2_EXTEN_RISING (1u << 28)
 
 #endif

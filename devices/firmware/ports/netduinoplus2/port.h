@@ -1,0 +1,30 @@
+/*
+ * The netduinoplus2 port's glue (port.c): one firmware core, the port interface it calls (ug_port.h),
+ * the link's and the blocks' hand-over to it, and the debug console's lines. main.c runs it; bench.c
+ * times it (docs/firmware.md, budgets).
+ */
+#ifndef UG_PORT_GLUE_H
+#define UG_PORT_GLUE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "ug_core.h"
+
+/* The core's configuration for this board (the QEMU image: the profile in its emulation block) and the
+   sensing chain's gain, um p-p per ADC code. */
+void port_configure(ug_config *config, float *um_pp_per_code);
+/* Start the core (prints the boot line, or the error); UG_OK or UG_BAD_CONFIG. */
+int port_start(const ug_config *config, float um_pp_per_code);
+ug_core *port_core(void);
+
+/* One block (the block interrupt): measure the ADC half, feed the core, fill the DAC half, tick. */
+void port_block(uint32_t half);
+
+/* One turn of the main loop: poll the core, start the transmitter, print events and statistics; true
+   when there is more to do at once. */
+bool port_service(void);
+/* Whether an interrupt left work since the last call (and forget it). */
+bool port_take_work(void);
+
+#endif
