@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import queue
+import time
 
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
@@ -159,6 +160,7 @@ def _plate_sim_qemu(args) -> int:
                 show(event)
     finally:
         with held():
+            last = _final_stats(plate, last, show)
             plate.stop()
             while not plate.events.empty():
                 event = plate.events.get()
@@ -167,6 +169,21 @@ def _plate_sim_qemu(args) -> int:
                 else:
                     show(event)
             _qemu_summary(last, plate.elapsed_s(), args.json, show)
+
+
+def _final_stats(plate, last: dict, show, timeout_s: float = 3.0) -> dict:
+    """The board's next statistics line (one a second on its clock), so that the closing line counts what it
+    received up to the stop; the last one seen if QEMU is gone or stalled past ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while plate.alive and time.monotonic() < deadline:
+        try:
+            event = plate.events.get(timeout=0.1)
+        except queue.Empty:
+            continue
+        if event["event"] == "stats":
+            return event
+        show(event)
+    return last
 
 
 def _qemu_summary(stats: dict, elapsed_s: float, as_json: bool, show) -> None:
