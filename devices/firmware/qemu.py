@@ -175,6 +175,7 @@ class QemuPlate:
         self._started_at = 0.0
         self._reader: threading.Thread | None = None
         self._stderr = b""
+        self._booted = threading.Event()
 
     def __repr__(self) -> str:
         state = f"pid {self.process.pid}" if self.process and self.process.poll() is None else "stopped"
@@ -203,14 +204,29 @@ class QemuPlate:
         except BaseException:
             self.stop()
             raise
+        self._reader = threading.Thread(target=self._read_console, name="qemu-console", daemon=True)
+        self._reader.start()
+        try:
+            self._wait_for_boot()
+        except BaseException:
+            self.stop()
+            raise
         temporary = self.path + ".new"
         with contextlib.suppress(FileNotFoundError):
             os.unlink(temporary)
         os.symlink(self.pty_name, temporary)
         os.replace(temporary, self.path)
-        self._reader = threading.Thread(target=self._read_console, name="qemu-console", daemon=True)
-        self._reader.start()
         return self
+
+    def _wait_for_boot(self) -> None:
+        """The link is published only once the firmware has booted: QEMU's USART drops bytes that arrive
+        before the firmware enables it, so a host's single HELLO sent earlier would go unanswered."""
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while not self._booted.wait(0.1):
+            if not self.alive:
+                raise DeviceError(f"QEMU stopped before the firmware booted (exit status {self.process.returncode})")
+            if time.monotonic() > deadline:
+                raise DeviceError(f"the firmware under QEMU did not boot within {START_TIMEOUT_S:g} s")
 
     def _wait_for_pty(self) -> str:
         """QEMU names the pty on its standard output as it starts, before the console's first byte."""
@@ -247,6 +263,8 @@ class QemuPlate:
             if event is not None:
                 with contextlib.suppress(queue.Full):
                     self.events.put_nowait(event)
+                if event["event"] in ("boot", "error"):
+                    self._booted.set()
 
     def elapsed_s(self) -> float:
         return time.perf_counter() - self._started_at
