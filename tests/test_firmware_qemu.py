@@ -337,15 +337,25 @@ def test_the_board_answers_with_the_profile_written_into_it_and_reports_on_time(
             assert (refused["fault"], refused["command"], refused["reason"]) == \
                 ("bad-command", p.SIM_FAULT, "not supported by this device")
             # TELEMETRY 50 times a second and SENSORS with no sample left out, on the board's own clock: the
-            # SENSORS samples (1 kHz) number the time between two of them
+            # SENSORS samples (1 kHz) number the time between two of them. At rest v3 sends 7.7 kB/s, more than
+            # QEMU's USART passes on a heavily loaded machine (a few kB/s): then the core's transmit ring fills
+            # and it drops whole frames, counting them. A gap is allowed only when the board's own count says
+            # so, and the two seconds measured start again after it.
             first = last = None
             telemetry = 0
+            dropped = 0
+            deadline = time.monotonic() + 120
             while last is None or last.first_sample - first.first_sample < 2000:
+                assert time.monotonic() < deadline, "no two seconds of SENSORS without a dropped frame"
                 frame = link.expect((p.TELEMETRY, p.SENSORS))
                 if frame.kind == p.SENSORS:
                     sensors = p.parse_sensors(frame.payload)
-                    if last is not None:
-                        assert sensors.first_sample == last.first_sample + len(last.samples)  # consecutive
+                    if last is not None and sensors.first_sample != last.first_sample + len(last.samples):
+                        counted = stats(plate, lambda s, before=dropped: s["tx_dropped"] > before)
+                        dropped = counted["tx_dropped"]  # the board says it dropped frames: measure again
+                        first = last = None
+                        telemetry = 0
+                        continue
                     first, last = first or sensors, sensors
                 elif first is not None:
                     telemetry += 1
