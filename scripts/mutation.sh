@@ -16,7 +16,9 @@ cd "$(dirname "$0")/.."
 root=$PWD
 files=("$@")
 [ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/limiter.py textures/sampling.py devices/carrier.py
-                                  render/physics/friction_models.py)
+                                  render/physics/model_base.py
+                                  render/physics/paper_model.py render/physics/empirical_models.py
+                                  render/physics/table_model.py)
 # the second run's tests: the quick signal-path ones, without the real-time device and engine tests, which a
 # process at nice 19 on a loaded machine starves (a missed watchdog deadline fails the baseline)
 tests=${MUTATION_TESTS:-"tests/test_mutants_*.py tests/test_renderer.py tests/test_blind_spots.py \

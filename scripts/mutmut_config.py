@@ -27,9 +27,18 @@ TESTS = {
                              "tests/test_doctests.py::test_docstring_examples[ultraglide.textures.sampling]",
                              "tests/test_textures.py", "tests/test_blind_spots.py"],
     "devices/carrier.py": ["tests/test_mutants_carrier.py", "tests/test_renderer.py", "tests/test_block_path.py"],
-    "render/physics/friction_models.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
-                                  "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
-                                  "tests/test_calibration.py"],
+    "render/physics/model_base.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
+                                     "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
+                                     "tests/test_calibration.py"],
+    "render/physics/paper_model.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
+                                      "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
+                                      "tests/test_calibration.py"],
+    "render/physics/empirical_models.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
+                                           "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
+                                           "tests/test_calibration.py"],
+    "render/physics/table_model.py": ["tests/test_mutants_friction_models.py", "tests/test_friction_models.py",
+                                      "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
+                                      "tests/test_calibration.py"],
 }
 
 

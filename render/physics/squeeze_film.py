@@ -46,19 +46,19 @@ from numpy.typing import ArrayLike
 from ultraglide.render.physics import kernels
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.fingerprint import MM2_TO_M2, FingerParams, contact_area_mm2
-from ultraglide.render.physics.friction_models import (
+from ultraglide.render.physics.model_base import (
     CEILING_UM_PP,
     DEFAULT_FORCE_N,
     MAX_FORCE_N,
     MIN_FORCE_N,
     FrictionModel,
     Inversion,
-    PaperModel,
-    _clip_force,
-    _is_scalar,
-    _kernel_result,
     check_amplitude,
+    clip_force,
+    is_scalar,
+    kernel_result,
 )
+from ultraglide.render.physics.paper_model import PaperModel
 
 AMBIENT_PRESSURE_PA = 101_325.0
 AIR_VISCOSITY_PA_S = 1.81e-5  # at 20 °C
@@ -179,7 +179,7 @@ class SqueezeFilmModel(FrictionModel):
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
-        return self._ratio(amplitude, _clip_force(force_n))
+        return self._ratio(amplitude, clip_force(force_n))
 
     # ---- the inverse ---------------------------------------------------------------------------------
     def _amplitude_in_reach(self, ratio, force_n):
@@ -199,15 +199,15 @@ class SqueezeFilmModel(FrictionModel):
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         if out is None:
             out = np.empty(len(ratio))
-        if _is_scalar(force_n):
+        if is_scalar(force_n):
             self._checked_force(force_n)
             code = kernels.inverse_film_force(ratio, float(force_n), self._floor(force_n, limit), limit, self._packed,
                                               self._nodes, out)
-            return Inversion(out, _kernel_result(code, ratio, force_n))
+            return Inversion(out, kernel_result(code, ratio, force_n))
         ratio = ratio.astype(np.float64, copy=False)
         force = force_n.astype(np.float64, copy=False)
         code = kernels.inverse_film_forces(ratio, force, limit, self._packed, self._nodes, out)
-        result = Inversion(out, _kernel_result(code, ratio, force))
+        result = Inversion(out, kernel_result(code, ratio, force))
         self._note_force_range(force)
         return result
 

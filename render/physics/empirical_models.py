@@ -1,0 +1,180 @@
+"""The empirical friction laws: the stretched exponential with a force exponent and a floor, and its
+exponential special case (Monnoyer et al. 2018)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fingerprint import (
+    area_saturation_force_n,
+)
+from ultraglide.render.physics.model_base import (
+    DEFAULT_FORCE_N,
+    MAX_FORCE_N,
+    MIN_FORCE_N,
+    FrictionModel,
+    Inversion,
+    check_amplitude,
+    clip_force,
+    is_scalar,
+    kernel_result,
+)
+
+REFERENCE_FORCE_N = 0.5  # the force at which a stretched model's scale is stated
+MONNOYER_TAU_UM_ZP = 1.32  # Monnoyer et al. 2018, zero-to-peak
+MONNOYER_SCALE_UM_PP = 2.0 * np.sqrt(2.0) * MONNOYER_TAU_UM_ZP  # exp(-a²/2tau²) = exp(-(a_pp/scale)²)
+# Allowed ranges, the same for the constructor, calibration files and the fit's bounds.
+SCALE_RANGE_UM_PP = (0.05, 100.0)
+SHAPE_RANGE = (0.3, 8.0)
+FORCE_EXPONENT_RANGE = (-2.0, 2.0)
+
+
+def _in_range(name: str, value: float, allowed: tuple[float, float], unit: str = "") -> float:
+    value = float(value)
+    if not allowed[0] <= value <= allowed[1]:
+        raise ModelError(f"{name} must lie in [{allowed[0]:g}, {allowed[1]:g}]{unit}, got {value}")
+    return value
+
+
+RESIDUAL_RANGE = (0.0, 0.9)  # a floor of friction vibration does not remove, as a share of friction at rest
+ASSUMED_FORCE_EXPONENT = 1.0 / 3.0  # W_c ∝ F^(1/3): eq. (6) with eq. (3)'s A ∝ F^(2/3)
+
+
+class StretchedExponentialModel(FrictionModel):
+    """A force-aware empirical law with a floor: mu/mu0 = d + (1 - d) exp(-(a_pp / s(F))^beta),
+    s(F) = s0 (F / 0.5 N)^p.
+
+    ``scale_um_pp`` s0 is the amplitude (µm p-p) at which the reducible part of friction falls to
+    1/e at 0.5 N; ``shape`` beta sets how sudden the fall is (2 is Gaussian, Monnoyer's law; below 1
+    it starts steeply); ``force_exponent`` p makes harder presses need more vibration;
+    ``residual_ratio`` d is the friction vibration does not remove (Huloux et al. 2018's floor,
+    f = f0 exp(-a² tau) + d, over friction at rest; 0 by default). The defaults are Monnoyer et al.'s
+    published curve at 0.5 N (s0 = 2 sqrt 2 x 1.32 µm = 3.73 µm p-p, beta = 2, no floor) with
+    p = 1/3, **assumed**: the force law of the paper's detachment amplitude (W_c = 2 F / k_n with
+    A ∝ F^(2/3), eqs. 1, 3, 6), since the bundled curve has a single force. It holds where eq. (3)
+    does, up to the force at which the contact area is a fingertip's (2.4 N). A calibration at two
+    forces or more fits p and replaces that range by the forces it was fitted on (:attr:`fitted`).
+    Any s0 > 0, beta > 0 gives a strictly decreasing curve; values outside the allowed ranges are
+    refused.
+    """
+
+    name = "stretched"
+
+    def __init__(self, scale_um_pp: float = MONNOYER_SCALE_UM_PP, shape: float = 2.0,
+                 force_exponent: float = ASSUMED_FORCE_EXPONENT, residual_ratio: float = 0.0):
+        self.scale_um_pp = _in_range("scale_um_pp", scale_um_pp, SCALE_RANGE_UM_PP, " µm p-p")
+        self.shape = _in_range("shape", shape, SHAPE_RANGE)
+        self.force_exponent = _in_range("force_exponent", force_exponent, FORCE_EXPONENT_RANGE)
+        self.residual_ratio = _in_range("residual_ratio", residual_ratio, RESIDUAL_RANGE)
+
+    def force_law(self) -> str:
+        law = f"s ∝ F^{self.force_exponent:.3g}"
+        fitted = self.fitted
+        if fitted is not None and len(fitted.forces_n) >= 3:
+            return f"{law}, fitted on {fitted.words()}"
+        if fitted is not None and len(fitted.forces_n) == 2:
+            return f"{law}, fitted on two forces ({fitted.words()}): not tested"
+        if self.force_exponent == ASSUMED_FORCE_EXPONENT:
+            return f"{law}, assumed from the paper's detachment law W_c ∝ F^(1/3) (eq. 6), not measured"
+        return f"{law}, as given"
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        return (MIN_FORCE_N, area_saturation_force_n())
+
+    def _range_reason(self) -> str:
+        return "eq. (3)'s area law, on which the assumed exponent rests, ends where the area is a fingertip's"
+
+    def scale_at_um_pp(self, force_n: ArrayLike) -> np.ndarray | float:
+        """s(F), µm p-p: the amplitude that brings the reducible friction to 1/e at this force."""
+        return self.scale_um_pp * np.power(clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
+
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        self._checked_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        falling = np.exp(-np.power(amplitude / self.scale_at_um_pp(force_n), self.shape))
+        if self.residual_ratio == 0.0:
+            return falling
+        return self.residual_ratio + (1.0 - self.residual_ratio) * falling
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        ratio = np.asarray(ratio, dtype=float)
+        if self.residual_ratio:
+            ratio = (ratio - self.residual_ratio) / (1.0 - self.residual_ratio)
+        depth = -np.log(ratio) + 0.0  # +0.0: log(1) gives -0.0
+        return self.scale_at_um_pp(force_n) * np.power(depth, 1.0 / self.shape)
+
+    def _scale_at(self, force_n) -> float:
+        """s(F) at one force as a float, remembered for the last force (the live case)."""
+        force = float(force_n)
+        cached = getattr(self, "_scale_cache", None)
+        if cached is None or cached[0] != force:
+            cached = self._scale_cache = (force, float(self.scale_at_um_pp(force)))
+        return cached[1]
+
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        if out is None:
+            out = np.empty(len(ratio))
+        if is_scalar(force_n):
+            self._checked_force(force_n)
+            code = kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit, self._scale_at(force_n),
+                                             1.0 / self.shape, self.residual_ratio, out)
+            return Inversion(out, kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_stretched_forces(ratio, force, limit, self.scale_um_pp, 1.0 / self.shape,
+                                                self.force_exponent, REFERENCE_FORCE_N, MIN_FORCE_N, MAX_FORCE_N,
+                                                self.residual_ratio, out)
+        result = Inversion(out, kernel_result(code, ratio, force))
+        self._note_force_range(force)
+        return result
+
+    def _floor_words(self) -> str:
+        return f", floor d = {self.residual_ratio:.3g}" if self.residual_ratio else ""
+
+    def describe(self) -> str:
+        return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
+                f"{self.force_exponent:.3g}, beta = {self.shape:.3g}{self._floor_words()}; force law: "
+                f"{self.force_law()}")
+
+    def parameters(self) -> dict[str, float | str]:
+        return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent,
+                "residual_ratio": self.residual_ratio}
+
+
+TAU_RANGE_UM_ZP = (0.02, 35.0)  # within the scale range once converted: s0 = 2 sqrt 2 tau
+
+
+class ExponentialModel(StretchedExponentialModel):
+    """Empirical law of Monnoyer et al. (IEEE Trans. Haptics 2018): mu/mu0 = exp(-a²/(2 tau²)), with
+    Huloux et al. (2018)'s floor d when ``residual_ratio`` is given: d + (1 - d) exp(-a²/(2 tau²)).
+
+    The published a and tau are zero-to-peak (tau = 1.32 µm); here a = a_pp / 2. The law has no
+    force term (Monnoyer et al. did not state the force), so the force is checked and otherwise
+    ignored: the stretched model with beta = 2, p = 0 and s0 = 2 sqrt 2 tau.
+    """
+
+    name = "exponential"
+
+    def __init__(self, tau_um_zp: float = MONNOYER_TAU_UM_ZP, residual_ratio: float = 0.0):
+        self.tau_um_zp = _in_range("tau_um_zp", tau_um_zp, TAU_RANGE_UM_ZP, " µm zero-to-peak")
+        super().__init__(2.0 * np.sqrt(2.0) * self.tau_um_zp, 2.0, 0.0, residual_ratio)
+
+    def force_law(self) -> str:
+        return "none: the same curve at every force (Monnoyer et al. did not state theirs)"
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        return (MIN_FORCE_N, MAX_FORCE_N)
+
+    def describe(self) -> str:
+        return (f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
+                f"{self._floor_words()}; force law: {self.force_law()}")
+
+    def parameters(self) -> dict[str, float | str]:
+        return {"tau_um_zp": self.tau_um_zp, "residual_ratio": self.residual_ratio}

@@ -1,0 +1,267 @@
+"""The friction models' common ground: the base class, its checks, force range and inverse tables.
+
+See :mod:`ultraglide.render.physics.friction_models` for what every model promises.
+"""
+
+from __future__ import annotations
+
+import warnings
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from ultraglide.render.physics.errors import ForceRangeWarning, ModelError
+
+DEFAULT_FORCE_N = 0.5
+MIN_FORCE_N = 0.01  # lighter touches are treated as 10 mN: the finger is lifting off
+MAX_FORCE_N = 10.0  # a fingertip's touch range ends here (a hard press); commands refuse more
+TOUCH_FORCE_RANGE_N = (0.0, MAX_FORCE_N)  # what a command accepts as a finger's normal force
+CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
+RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
+
+
+@dataclass(frozen=True)
+class FitRange:
+    """Where a calibrated model was fitted: the distinct forces of its data (N) and its point count."""
+
+    forces_n: tuple[float, ...]
+    points: int = 0
+
+    @property
+    def force_range_n(self) -> tuple[float, float]:
+        return (min(self.forces_n), max(self.forces_n))
+
+    def words(self) -> str:
+        """"0.2-1 N (3 forces)" or "0.5 N only"."""
+        low, high = self.force_range_n
+        if len(self.forces_n) == 1:
+            return f"{low:g} N only"
+        return f"{low:g}-{high:g} N ({len(self.forces_n)} forces)"
+
+
+@dataclass(frozen=True)
+class Inversion:
+    """Amplitudes for target ratios, and how many ratios were out of reach."""
+
+    amplitude_um_pp: np.ndarray
+    clamped: int
+
+
+class UniformTable:
+    """Piecewise-linear lookup on a uniform grid: cheap enough for tens of millions of calls a second."""
+
+    def __init__(self, start: float, stop: float, values: np.ndarray):
+        values = np.asarray(values, dtype=float)
+        self.start = float(start)
+        self.intervals = values.shape[-1] - 1
+        self.scale = self.intervals / (float(stop) - self.start)
+        self.values = values
+        self.slopes = np.diff(values, axis=-1)
+
+    def __call__(self, x, row: int = 0) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        position = (x.reshape(-1) - self.start) * self.scale
+        np.clip(position, 0.0, self.intervals, out=position)
+        index = position.astype(np.intp)
+        np.minimum(index, self.intervals - 1, out=index)
+        position -= index
+        values = self.values if self.values.ndim == 1 else self.values[row]
+        slopes = self.slopes if self.slopes.ndim == 1 else self.slopes[row]
+        position *= slopes.take(index)
+        position += values.take(index)
+        return position.reshape(x.shape)
+
+
+def clip_force(force_n):
+    return np.clip(np.asarray(force_n, dtype=float), MIN_FORCE_N, MAX_FORCE_N)
+
+
+def is_scalar(value) -> bool:
+    return not isinstance(value, np.ndarray) or value.ndim == 0
+
+
+def check_force(force_n) -> None:
+    """Raise :class:`ModelError` unless every force is a finite number >= 0 N."""
+    if is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
+        value = float(force_n)
+        if not (0.0 <= value < np.inf):
+            raise ModelError(f"normal force must be a finite number >= 0 N, got {value}")
+        return
+    force = np.asarray(force_n, dtype=float)
+    bad = ~((force >= 0.0) & (force < np.inf))
+    if bad.any():
+        raise ModelError(f"normal force must be a finite number >= 0 N, got {force[bad].flat[0]}")
+
+
+def check_ratio(ratio: np.ndarray) -> None:
+    """Raise :class:`ModelError` unless every friction ratio is a finite number >= 0."""
+    bad = ~((ratio >= 0.0) & (ratio < np.inf))
+    if bad.any():
+        raise ModelError(f"friction ratio must be a finite number >= 0 (1 = plate at rest), got {ratio[bad].flat[0]}")
+
+
+def check_amplitude(amplitude: np.ndarray) -> None:
+    """Raise :class:`ModelError` unless every amplitude is a finite number >= 0 µm."""
+    bad = ~((amplitude >= 0.0) & (amplitude < np.inf))
+    if bad.any():
+        raise ModelError(f"amplitude must be a finite number >= 0 µm p-p, got {amplitude[bad].flat[0]}")
+
+
+def kernel_result(code: int, ratio: np.ndarray, force) -> int:
+    """A kernel's return value: a count of clamped ratios, or -1 - i for a bad sample i."""
+    if code >= 0:
+        return code
+    i = -1 - code
+    force = np.atleast_1d(force)
+    check_force(force[min(i, len(force) - 1)])
+    check_ratio(ratio[i:i + 1])
+    raise AssertionError("a kernel reported a bad sample that passes the checks")  # pragma: no cover
+
+
+class FrictionModel(ABC):
+    """The interface every friction model offers; see the module docstring."""
+
+    name: str = "model"
+    max_amplitude_um_pp: float = CEILING_UM_PP
+    fitted: FitRange | None = None  # set by a calibration: the forces the parameters were fitted on
+    _range_said = False  # the force-range warning is given once per model
+
+    def force_law(self) -> str:
+        """How this model's friction depends on the normal force, and where that comes from, in words."""
+        return "no force term"
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        """The forces (N) over which the model's force law holds, before any calibration."""
+        return (MIN_FORCE_N, MAX_FORCE_N)
+
+    def _range_reason(self) -> str:
+        """Why the model's own range ends where it does (for the warning)."""
+        return ""
+
+    def valid_force_range_n(self) -> tuple[float, float]:
+        """The forces (N) the model may be trusted on: those it was fitted on, or where its law holds."""
+        return self.fitted.force_range_n if self.fitted is not None else self._own_force_range_n()
+
+    def _checked_force(self, force_n) -> None:
+        """Refuse a bad force (:func:`check_force`) and, once per model, say when a force leaves the
+        range the model holds on (forces of 10 mN and less excepted: the finger is lifting)."""
+        check_force(force_n)
+        self._note_force_range(force_n)
+
+    def _note_force_range(self, force_n) -> None:
+        """The once-per-model warning of :meth:`_checked_force`, for forces already checked (no array
+        is made: the live path calls it)."""
+        if self._range_said:
+            return
+        low, high = self.valid_force_range_n()
+        if is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
+            value = float(force_n)
+            outside = value if (MIN_FORCE_N < value < low or value > high) else None
+        else:
+            force = np.asarray(force_n, dtype=float)
+            if not force.size:
+                return
+            smallest, largest = float(force.min()), float(force.max())
+            outside = largest if largest > high else None
+            if outside is None and smallest < low:
+                lifted = force[force > MIN_FORCE_N]
+                outside = float(lifted.min()) if lifted.size and lifted.min() < low else None
+        if outside is not None:
+            self._range_said = True
+            warnings.warn(self._range_message(outside), ForceRangeWarning, stacklevel=3)
+
+    def _range_message(self, force_n: float) -> str:
+        low, high = self.valid_force_range_n()
+        if force_n > MAX_FORCE_N:
+            return (f"{force_n:g} N is above {MAX_FORCE_N:g} N, the end of a fingertip's touch range: the {self.name} "
+                    f"model takes it as {MAX_FORCE_N:g} N")
+        if self.fitted is not None:
+            return (f"{force_n:g} N is outside the forces this {self.name} calibration was fitted on "
+                    f"({self.fitted.words()}): its force law ({self.force_law()}) is extrapolated there")
+        reason = self._range_reason()
+        return (f"{force_n:g} N is outside {low:.3g}-{high:.3g} N, where the {self.name} model's force law holds"
+                + (f" ({reason})" if reason else "") + ": it is extrapolated there")
+
+    @abstractmethod
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        """Forward model: friction ratio at each amplitude (µm p-p) and force (N)."""
+
+    @abstractmethod
+    def _amplitude_in_reach(self, ratio: np.ndarray, force_n) -> np.ndarray:
+        """Inverse for ratios already inside the reachable range."""
+
+    @abstractmethod
+    def describe(self) -> str:
+        """One line naming the model and its parameters."""
+
+    def parameters(self) -> dict[str, float | str]:
+        """The model's parameters as plain values, for calibration files and JSON."""
+        return {}
+
+    def __repr__(self) -> str:
+        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)`` (a floor of 0,
+        the default, left out)."""
+        shown = {k: v for k, v in self.parameters().items() if not (k == "residual_ratio" and v == 0.0)}
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in shown.items())})"
+
+    def _floor(self, force_n, limit: float):
+        """The floor ratio, remembered for the last scalar force and limit (the live case)."""
+        if isinstance(force_n, np.ndarray) and force_n.ndim:
+            return self.relative_friction(limit, force_n)
+        key = (float(force_n), limit)
+        cached = getattr(self, "_floor_cache", None)
+        if cached is None or cached[0] != key:
+            cached = (key, float(self.relative_friction(limit, force_n)))
+            self._floor_cache = cached
+        return cached[1]
+
+    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
+        """Lowest ratio reachable at this force within the amplitude limit."""
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        return self.relative_friction(limit, force_n)
+
+    def _fast_path(self, ratio, force_n, limit_um_pp, out=None) -> bool:
+        """True when the compiled kernel can take the call: a 1-d float ratio array (and ``out`` a float64
+        array of its length)."""
+        return (isinstance(ratio, np.ndarray) and ratio.ndim == 1 and ratio.dtype.kind == "f"
+                and (is_scalar(force_n) or (force_n.ndim == 1 and len(force_n) == len(ratio)))
+                and limit_um_pp >= 0
+                and (out is None or (out.dtype == np.float64 and out.shape == ratio.shape)))
+
+    @staticmethod
+    def _result(amplitude: np.ndarray, clamped: int, out: np.ndarray | None) -> Inversion:
+        if out is not None and amplitude is not out:
+            out[...] = amplitude
+            amplitude = out
+        return Inversion(amplitude, clamped)
+
+    def amplitude_um_pp(
+        self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
+        out: np.ndarray | None = None,
+    ) -> Inversion:
+        """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force.
+        ``out``: a float64 array of the result's shape to write the amplitudes into; with a 1-d float ratio
+        (a live block) the compiled models then allocate no array."""
+        if not limit_um_pp >= 0:
+            raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
+        self._checked_force(force_n)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        shape = np.shape(ratio) if is_scalar(force_n) else np.broadcast_shapes(np.shape(ratio), np.shape(force_n))
+        ratio = np.asarray(ratio, dtype=float)
+        check_ratio(ratio)
+        ratio = np.minimum(ratio, 1.0)
+        if ratio.ndim == 0:
+            ratio = ratio.reshape(1)
+        floor = self._floor(force_n, limit)
+        out_of_reach = ratio < floor
+        clamped = int(np.count_nonzero(out_of_reach))
+        np.maximum(ratio, floor, out=ratio)
+        amplitude = np.asarray(self._amplitude_in_reach(ratio, force_n), dtype=float)
+        if amplitude.ndim == 0:
+            amplitude = amplitude.reshape(1)
+        np.minimum(amplitude, limit, out=amplitude)
+        np.maximum(amplitude, 0.0, out=amplitude)
+        if clamped:
+            amplitude[np.broadcast_to(out_of_reach, amplitude.shape)] = limit
+        return self._result(amplitude.reshape(shape), clamped, out)

@@ -1,0 +1,143 @@
+"""The paper's ridge model as a friction model (eqs. 1-9): amplitude and force to friction ratio, and back."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
+from ultraglide.render.physics.fingerprint import (
+    MM2_TO_M2,
+    FingerParams,
+    area_saturation_force_n,
+    detach_amplitude_um_pp,
+)
+from ultraglide.render.physics.model_base import (
+    CEILING_UM_PP,
+    DEFAULT_FORCE_N,
+    MAX_FORCE_N,
+    MIN_FORCE_N,
+    RATIO_GRID_POINTS,
+    FrictionModel,
+    Inversion,
+    UniformTable,
+    check_amplitude,
+    clip_force,
+    is_scalar,
+    kernel_result,
+)
+from ultraglide.render.physics.normal_contact import relative_friction_of_u
+
+
+class PaperModel(FrictionModel):
+    """The seed paper's non-Coulombic bed-of-springs model (section IV), tabulated.
+
+    The ratio depends on amplitude and force only through u = a_pp / detach_amplitude_um_pp(F)
+    (see :mod:`render.physics.normal_contact`), so one table over u serves every force. The detachment
+    amplitude scales as F^(1 - area_exponent) (F^(1/3) with the paper's A = k F^(2/3)). It predicts
+    a modest reduction (to about 0.72 at 10 µm and 0.5 N) and never full levitation.
+    """
+
+    name = "paper"
+    U_NODES = 384
+
+    def __init__(self, params: FingerParams = FingerParams()):
+        self.params = params
+        self._detach_exponent = 1.0 - params.area_exponent
+        # eq. (6) without the area's cap: 2 F / k_n at 1 N, k_n = E k (1 N)^(2/3) / h
+        self._detach_at_1n = 2.0e6 * params.ridge_height_m / (
+            params.youngs_modulus_pa * params.area_coefficient_mm2 * MM2_TO_M2)
+        self._saturation_n = area_saturation_force_n(params)
+        # the table covers every amplitude up to the ceiling at every force in range
+        smallest_detach = float(np.min(self._detach_um_pp(np.array([MIN_FORCE_N, MAX_FORCE_N]))))
+        u_max = max(CEILING_UM_PP / smallest_detach, 4.0)
+        self.u_nodes = u_max * np.linspace(0.0, 1.0, self.U_NODES) ** 2
+        ratio = relative_friction_of_u(self.u_nodes, params, phase_points=192, ring_nodes=32)
+        self.ratio_nodes = np.minimum.accumulate(ratio)  # guard monotonicity against rounding
+        ratio_grid = np.linspace(self.ratio_nodes[-1], 1.0, RATIO_GRID_POINTS)
+        # the inverse of a flat stretch is its smallest amplitude: interp on reversed nodes
+        u_of_ratio = np.interp(ratio_grid, self.ratio_nodes[::-1], self.u_nodes[::-1])
+        self._u_table = UniformTable(ratio_grid[0], 1.0, u_of_ratio)
+
+    def _detach_um_pp(self, force_n, clip: bool = True):
+        """W_c (µm p-p) at each force: ∝ F^(1 - area exponent) until the area reaches a fingertip's, then ∝ F.
+        Forces are clipped to the models' range unless ``clip`` is False."""
+        force = clip_force(force_n) if clip else np.asarray(force_n, dtype=float)
+        return (self._detach_at_1n * np.power(np.minimum(force, self._saturation_n), self._detach_exponent)
+                * np.maximum(force / self._saturation_n, 1.0))
+
+    def force_law(self) -> str:
+        return (f"W_c ∝ F^{self._detach_exponent:.3g} from eqs. (1), (3), (6), ∝ F above "
+                f"{self._saturation_n:.3g} N where the area is a fingertip's")
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        return (MIN_FORCE_N, min(self._saturation_n, MAX_FORCE_N))
+
+    def _range_reason(self) -> str:
+        return (f"above {self._saturation_n:.3g} N eq. (3)'s contact area would exceed a fingertip's pad, "
+                f"{self.params.max_contact_area_mm2:g} mm², and is held there")
+
+    @staticmethod
+    def detach_um_pp_for(params: FingerParams, force_n):
+        """Detachment amplitude (µm p-p) at each force, forces clipped to the models' range."""
+        return detach_amplitude_um_pp(clip_force(force_n), params)
+
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        self._checked_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        return np.interp(amplitude / self._detach_um_pp(force_n), self.u_nodes, self.ratio_nodes)
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        return self._u_table(ratio) * self._detach_um_pp(force_n)
+
+    def _detach_at(self, force_n) -> float:
+        """The detachment amplitude at one force, remembered for the last force (the live case)."""
+        force = float(force_n)
+        cached = getattr(self, "_detach_cache", None)
+        if cached is None or cached[0] != force:
+            cached = self._detach_cache = (force, float(self._detach_um_pp(force)))
+        return cached[1]
+
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        table = self._u_table
+        if out is None:
+            out = np.empty(len(ratio))
+        if is_scalar(force_n):
+            self._checked_force(force_n)
+            code = kernels.inverse_uniform(ratio, self._floor(force_n, limit), limit, table.start, table.scale,
+                                           table.values, table.slopes, self._detach_at(force_n), out)
+            return Inversion(out, kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_uniform_forces(ratio, force, limit, table.start, table.scale, table.values,
+                                              table.slopes, self._detach_at_1n, self._detach_exponent,
+                                              self._saturation_n, MIN_FORCE_N, MAX_FORCE_N, out)
+        result = Inversion(out, kernel_result(code, ratio, force))
+        self._note_force_range(force)
+        return result
+
+    def describe(self) -> str:
+        p = self.params
+        return (
+            f"paper: ridge springs with non-Coulombic friction (E = {p.youngs_modulus_pa / 1e6:g} MPa, "
+            f"n = {p.friction_exponent:.3g}, A ∝ F^{p.area_exponent:.3g}, {p.contact} contact)"
+        )
+
+    def parameters(self) -> dict[str, float | str]:
+        p = self.params
+        return {
+            "youngs_modulus_pa": p.youngs_modulus_pa,
+            "friction_exponent": p.friction_exponent,
+            "area_exponent": p.area_exponent,
+        }
+
+    def __repr__(self) -> str:
+        """``PaperModel()`` with the paper's parameters, else ``PaperModel(FingerParams(...))`` with those that
+        differ."""
+        changed = {k: v for k, v in vars(self.params).items() if v != getattr(FingerParams(), k)}
+        inner = f"FingerParams({', '.join(f'{k}={v!r}' for k, v in changed.items())})" if changed else ""
+        return f"PaperModel({inner})"

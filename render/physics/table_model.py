@@ -1,0 +1,154 @@
+"""A friction model from a measured table: ratio against amplitude at one or more forces."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.measurements import Measurements, check_describes_reduction
+from ultraglide.render.physics.model_base import (
+    DEFAULT_FORCE_N,
+    MAX_FORCE_N,
+    MIN_FORCE_N,
+    RATIO_GRID_POINTS,
+    FrictionModel,
+    Inversion,
+    UniformTable,
+    check_amplitude,
+    is_scalar,
+    kernel_result,
+)
+
+
+class TableModel(FrictionModel):
+    """Measured points, interpolated monotonically (PCHIP) in amplitude and linearly in force.
+
+    Points that rise with amplitude (measurement noise) are first made non-increasing by isotonic
+    regression, per force. With several forces, amplitudes for a ratio are interpolated linearly
+    between the neighbouring forces and held beyond the ends; the forward model is the exact
+    inverse of that, found by bisection. The reachable range ends at the largest measured amplitude.
+    """
+
+    name = "table"
+
+    def __init__(self, data: Measurements):
+        from scipy.interpolate import PchipInterpolator  # imported here: scipy.interpolate takes 0.3-0.8 s to load
+        from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
+
+        check_describes_reduction(data, data.source)
+        forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
+        self.source = data.source
+        self.forces = np.unique(forces)
+        self.max_amplitude_um_pp = float(min(
+            data.amplitude_um_pp[forces == f].max() for f in self.forces
+        ))
+        rows = []
+        self.floors = []
+        for force in self.forces:
+            pick = forces == force
+            amplitude = data.amplitude_um_pp[pick]
+            if len(np.unique(amplitude)) < 2:
+                raise ModelError(f"{self.source}: at {force:g} N there must be two amplitudes or more")
+            order = np.argsort(amplitude)
+            amplitude, ratio = amplitude[order], data.relative_friction[pick][order]
+            amplitude, first = np.unique(amplitude, return_index=True)
+            ratio = np.minimum(isotonic_regression(ratio[first], increasing=False).x, 1.0)
+            curve = PchipInterpolator(amplitude, ratio, extrapolate=False)
+            fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
+            fine_ratio = curve(np.clip(fine, amplitude[0], amplitude[-1]))
+            fine_ratio = np.minimum.accumulate(np.minimum(fine_ratio, 1.0))
+            self.floors.append(fine_ratio[-1])
+            rows.append(fine_ratio)
+        self.floor = float(max(self.floors))
+        grid = np.linspace(min(self.floors), 1.0, RATIO_GRID_POINTS)
+        fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
+        inverse = np.array([np.interp(grid, r[::-1], fine[::-1]) for r in rows])
+        self._table = UniformTable(grid[0], 1.0, inverse)
+
+    def _row_weights(self, force_n):
+        force = np.clip(np.asarray(force_n, dtype=float), self.forces[0], self.forces[-1])
+        upper = np.clip(np.searchsorted(self.forces, force), 1, max(len(self.forces) - 1, 1))
+        if len(self.forces) == 1:
+            return np.zeros_like(force, dtype=np.intp), np.zeros_like(force)
+        lower = upper - 1
+        weight = (force - self.forces[lower]) / (self.forces[upper] - self.forces[lower])
+        return lower, weight
+
+    def _amplitude_in_reach(self, ratio, force_n):
+        if len(self.forces) == 1:
+            return self._table(ratio)
+        lower, weight = self._row_weights(force_n)
+        shape = np.broadcast(ratio, lower).shape
+        ratio, lower, weight = (np.broadcast_to(x, shape).ravel() for x in (ratio, lower, weight))
+        low = np.empty(len(ratio))
+        high = np.empty(len(ratio))
+        for row in np.unique(lower):  # a handful of force rows, not samples
+            pick = lower == row
+            low[pick] = self._table(ratio[pick], int(row))
+            high[pick] = self._table(ratio[pick], int(row) + 1)
+        return ((1.0 - weight) * low + weight * high).reshape(shape)
+
+    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
+                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
+        if not self._fast_path(ratio, force_n, limit_um_pp, out):
+            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        table = self._table
+        if out is None:
+            out = np.empty(len(ratio))
+        if is_scalar(force_n):
+            self._checked_force(force_n)
+            code = kernels.inverse_table_force(ratio, float(force_n), limit, table.start, table.scale, table.values,
+                                               table.slopes, self.forces, out)
+            return Inversion(out, kernel_result(code, ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        code = kernels.inverse_table_forces(ratio, force, limit, table.start, table.scale, table.values,
+                                            table.slopes, self.forces, out)
+        result = Inversion(out, kernel_result(code, ratio, force))
+        self._note_force_range(force)
+        return result
+
+    def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        self._checked_force(force_n)
+        amplitude = np.asarray(amplitude_um_pp, dtype=float)
+        check_amplitude(amplitude)
+        shape = np.broadcast(amplitude, np.asarray(force_n)).shape
+        low = np.full(shape, float(self._table.start))
+        high = np.ones(shape)
+        target = np.broadcast_to(np.minimum(amplitude, self.max_amplitude_um_pp), shape)
+        # bisection for the largest ratio whose amplitude reaches the target: where a force's curve
+        # ends above the lowest floor, its inverse holds the end amplitude, and the answer is its floor
+        for _ in range(48):
+            middle = 0.5 * (low + high)
+            above = self._amplitude_in_reach(middle, force_n) >= target
+            low = np.where(above, middle, low)
+            high = np.where(above, high, middle)
+        return 0.5 * (low + high)
+
+    def force_law(self) -> str:
+        if len(self.forces) == 1:
+            return f"none: measured at {self.forces[0]:g} N only, the same curve at every force"
+        return f"measured at {len(self.forces)} forces, amplitudes linear in force between them"
+
+    def _own_force_range_n(self) -> tuple[float, float]:
+        if len(self.forces) == 1:
+            return (MIN_FORCE_N, MAX_FORCE_N)
+        return (float(self.forces[0]), float(self.forces[-1]))
+
+    def _range_reason(self) -> str:
+        return "the forces measured; beyond them the nearest force's curve is held"
+
+    def describe(self) -> str:
+        forces = ", ".join(f"{f:g}" for f in self.forces)
+        return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
+
+    def parameters(self) -> dict[str, float | str]:
+        return {"source": self.source}
+
+    def __repr__(self) -> str:
+        """``TableModel('finger.csv', forces 0.2–1 N)``: where its points came from."""
+        forces = (f"force {self.forces[0]:g} N" if len(self.forces) == 1
+                  else f"forces {self.forces[0]:g}–{self.forces[-1]:g} N")
+        return f"TableModel({self.source!r}, {forces})"
