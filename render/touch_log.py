@@ -2,8 +2,9 @@
 
 A log of any length is read in bounded memory: :func:`read_touch_log` checks the whole file in
 one streaming pass (every value in range, time never going back, two instants at least), then
-returns a :class:`~ultraglide.render.trajectory.RecordedTrajectory` that reads it again in
-chunks as the renderer moves along. Times are seconds on the logger's clock (perf_counter or
+returns a :class:`~ultraglide.render.trajectory.RecordedTrajectory`. A log of up to
+``HELD_ROWS`` rows is kept from that pass (a 10-minute log at 120 Hz is 72 000 rows, 2.3 MB); a longer
+one is read again in chunks as the renderer moves along. Times are seconds on the logger's clock (perf_counter or
 Unix time alike); the trajectory starts at zero.
 """
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ Y = Column("y_mm", -10_000.0, 10_000.0, "mm")
 FORCE = Column("force_n", 0.0, 50.0, "N")  # fingers press with 0.1 to a few newtons
 COLUMNS = (TIME.name, X.name, Y.name)
 MAX_SPAN_S = 86_400.0  # a day of touches; longer logs are someone's clock in milliseconds
+HELD_ROWS = 100_000  # logs up to this long stay in memory after the check (3.2 MB at most): read once, not twice
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,7 @@ class TouchLog:
     last_s: float
     rows: int
     force_range_n: tuple[float, float] | None = None  # lowest and highest force, N, when logged
+    held: tuple | None = field(default=None, compare=False, repr=False)  # the checked chunks when short enough
 
     @property
     def has_force(self) -> bool:
@@ -43,7 +46,11 @@ class TouchLog:
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
         """``(t_s from zero, x_mm, y_mm, force_n or None)`` arrays, a block of the file at a time.
-        Each block's values are checked again (ranges, time order), in case the file changed since."""
+        Each block's values are checked again (ranges, time order), in case the file changed since;
+        a log held in memory since its check is not read again."""
+        if self.held is not None:
+            yield from self.held
+            return
         previous = self.first_s
         for block in self.table.blocks():
             values = block.values
@@ -65,6 +72,7 @@ def check_touch_log(path: str | Path) -> TouchLog:
     first = previous = None
     rows = 0
     forces = [math.inf, -math.inf]
+    held: list | None = []
     for block in table.blocks():
         t = block.values["t_s"]
         if not len(t):
@@ -81,6 +89,12 @@ def check_touch_log(path: str | Path) -> TouchLog:
                               "sort the log by time")
         previous = float(t[-1])
         rows += len(t)
+        if held is not None:
+            force = block.values.get("force_n")
+            held.append((t.copy(), block.values["x_mm"].copy(), block.values["y_mm"].copy(),
+                         None if force is None else force.copy()))  # columns of their own, not the block's table
+            if rows > HELD_ROWS:
+                held = None
     if rows < 2:
         raise RenderError(f"{path}: at least two rows are needed, found {rows}")
     if previous == first:
@@ -89,7 +103,9 @@ def check_touch_log(path: str | Path) -> TouchLog:
         raise RenderError(f"{path}: the log spans {previous - first:.3g} s, more than a day ({MAX_SPAN_S:g} s); "
                           "t_s is in seconds (divide milliseconds by 1000)")
     span = (float(forces[0]), float(forces[1])) if "force_n" in table.names else None
-    return TouchLog(table, first, previous, rows, span)
+    if held is not None:
+        held = tuple((t - first, x, y, force) for t, x, y, force in held)
+    return TouchLog(table, first, previous, rows, span, held)
 
 
 def read_touch_log(path: str | Path) -> RecordedTrajectory:

@@ -30,11 +30,13 @@ from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.types import texture_name
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.urls import parse_device_url
+from ultraglide.render import touch_log
 from ultraglide.render.errors import RenderError
 from ultraglide.render.physics import csv_table
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.touch_log import check_touch_log, read_touch_log
+from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
 
@@ -591,6 +593,7 @@ def test_a_long_log_streams_in_bounded_memory(tmp_path):
         stream.write("t_s,x_mm,y_mm,force_n\n")
         np.savetxt(stream, np.column_stack([t, 40 + 30 * np.sin(t), 25 + 0 * t, 0.5 + 0 * t]), fmt="%.3f",
                    delimiter=",")
+    RecordedTrajectory([0.0, 1.0], [0.0, 1.0], [0.0, 1.0]).state(np.array([0.5]))  # compiled first, not counted
     tracemalloc.start()
     try:
         trajectory = read_touch_log(log)
@@ -619,7 +622,17 @@ def test_play_streams_a_touch_log_to_a_wav_device(tmp_path):
     assert spectrum[np.argmin(abs(freqs - 25050))] > 0.1 * spectrum.max()  # 2 mm at 100 mm/s: 50 Hz
 
 
-def test_a_log_changed_between_check_and_render_is_an_error(tmp_path):
+def test_a_short_log_is_read_once_and_a_change_after_its_check_does_not_reach_the_render(tmp_path):
+    log = tmp_path / "log.csv"
+    log.write_text("t_s,x_mm,y_mm\n0,1,1\n1,2,2\n2,3,3\n")
+    trajectory = read_touch_log(log)
+    log.write_text("t_s,x_mm,y_mm\n0,9,9\n2,9,9\n1,9,9\n")  # rewritten by a logger still running
+    state = trajectory.state(np.array([0.0, 0.5, 2.0]))
+    assert state.x_mm.tolist() == pytest.approx([1.0, 1.5, 3.0])  # the checked records, not the new ones
+
+
+def test_a_long_log_changed_between_check_and_render_is_an_error(tmp_path, monkeypatch):
+    monkeypatch.setattr(touch_log, "HELD_ROWS", 1)  # a log longer than is held: streamed, so read again
     log = tmp_path / "log.csv"
     log.write_text("t_s,x_mm,y_mm\n0,1,1\n1,2,2\n2,3,3\n")
     trajectory = read_touch_log(log)
