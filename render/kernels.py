@@ -14,7 +14,6 @@ import math
 
 import numpy as np
 from numba import njit
-from ultraglide.render.physics import kernels as physics_kernels
 
 
 @njit(cache=True, nogil=True)
@@ -149,10 +148,9 @@ def pchip(t, x, y, times, x_out, y_out):
 
 @functools.cache
 def warm_up() -> None:
-    """Compile (or load from numba's cache) every kernel of the signal path and the model inverses with the
-    types the renderer passes, so the first real-time block never waits for the compiler. Called when a
-    renderer is built."""
-    physics_kernels.warm_up()
+    """Compile (or load from numba's cache) every kernel of the signal path with the types the renderer
+    passes, so the first real-time block never waits for the compiler. Called when a renderer is built,
+    beside its model's own :meth:`~ultraglide.render.physics.model_base.FrictionModel.warm_up`."""
     f64 = np.zeros(4)
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))

@@ -164,6 +164,7 @@ class Renderer:
         except (ValueError, RuntimeError) as error:  # DeviceError: the plate or the audio rate refuses the carrier
             raise RenderError(str(error)) from None
         kernels.warm_up()
+        model.warm_up()
         rate = settings.control_rate_hz
         self.limit_um_pp = profile.max_amplitude_um_pp
         self.sampler = Sampler(texture, band_limited=settings.band_limited_lookup)

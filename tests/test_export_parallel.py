@@ -178,15 +178,21 @@ def test_threads_must_be_one_or_more(tmp_path):
     assert not out.exists()
 
 
-def test_the_second_export_loads_every_kernel_from_numbas_cache(tmp_path):
+INVERSES = {"stretched": "inverse_stretched", "paper": "inverse_uniform", "squeeze-film": "inverse_film_force"}
+
+
+@pytest.mark.parametrize("model", ["stretched", "paper"])
+def test_the_second_export_loads_its_kernels_from_numbas_cache_and_no_other_models(tmp_path, model):
     out = tmp_path / "out.wav"
-    argv = ["export", "grating-1mm", "--duration-s", "0.2", "-o", out]
+    argv = ["export", "grating-1mm", "--duration-s", "0.2", "-o", out, "--model", model]
     run_cli(*argv, check=True)  # compiles what is not cached yet (a fresh checkout), and saves it
     second = run_cli(*argv, check=True, env={"NUMBA_DEBUG_CACHE": "1"})
     log = second.stdout + second.stderr
     loaded = {line.split("kernels.")[1].split("-")[0] for line in log.splitlines()
               if "[cache] data loaded" in line and "kernels." in line}
-    assert {"envelope", "bilinear", "limit_drive", "modulate", "inverse_stretched"} <= loaded, log
+    assert {"envelope", "bilinear", "limit_drive", "modulate", INVERSES[model]} <= loaded, log
+    others = {name for key, name in INVERSES.items() if key != model} | {"inverse_table_force"}
+    assert not loaded & others, f"{model} loaded other models' inverses: {loaded & others}"  # each costs ~50 ms
     assert "data saved" not in log and "index saved" not in log  # nothing was compiled again
 
 

@@ -62,6 +62,9 @@ class StretchedExponentialModel(FrictionModel):
 
     name = "stretched"
 
+    def warm_up(self) -> None:
+        kernels.warm_up_stretched()
+
     def __init__(self, scale_um_pp: float = MONNOYER_SCALE_UM_PP, shape: float = 2.0,
                  force_exponent: float = ASSUMED_FORCE_EXPONENT, residual_ratio: float = 0.0):
         self.scale_um_pp = _in_range("scale_um_pp", scale_um_pp, SCALE_RANGE_UM_PP, " µm p-p")

@@ -311,25 +311,51 @@ def inverse_film_force(ratio, force, floor, limit, p, ratio_nodes, out):
     return clamped
 
 
+# Each model loads only its own inverses (from numba's cache, or compiles them once per machine) with the types
+# the renderer passes: loading one costs tens of milliseconds, and a command uses one model.
+F64, F32 = np.zeros(4), np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
+
+
 @functools.cache
-def warm_up() -> None:
-    """Compile (or load from numba's cache) every inverse with the types the renderer passes."""
-    f64 = np.zeros(4)
-    f32 = np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
-    inverse_stretched(f64 + 0.5, 0.1, 6.0, 3.7, 0.5, 0.0, np.empty(4))
-    inverse_stretched(f32 + 0.5, 0.1, 6.0, 3.7, 0.5, 0.0, np.empty(4))
-    inverse_uniform(f32 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
-    inverse_stretched_forces(f64 + 0.5, f64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, 0.0, np.empty(4))
-    inverse_uniform(f64 + 0.5, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
-    inverse_uniform_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 2.4, 0.01, 10.0,
+def warm_up_stretched() -> None:
+    """The stretched (and exponential) model's inverses, for one force and one force a sample."""
+    for ratio in (F64 + 0.5, F32 + 0.5):
+        inverse_stretched(ratio, 0.1, 6.0, 3.7, 0.5, 0.0, np.empty(4))
+    inverse_stretched_forces(F64 + 0.5, F64 + 0.5, 6.0, 3.7, 0.5, 0.3, 0.5, 0.01, 10.0, 0.0, np.empty(4))
+
+
+@functools.cache
+def warm_up_uniform() -> None:
+    """The paper model's table inverses."""
+    for ratio in (F64 + 0.5, F32 + 0.5):
+        inverse_uniform(ratio, 0.1, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, np.empty(4))
+    inverse_uniform_forces(F64 + 0.5, F64 + 0.5, 6.0, 0.0, 4.0, np.zeros(5), np.zeros(4), 1.0, 0.3, 2.4, 0.01, 10.0,
                            np.empty(4))
-    for ratio in (f64 + 0.5, f32 + 0.5):
+
+
+@functools.cache
+def warm_up_table() -> None:
+    """A measured table's inverses."""
+    for ratio in (F64 + 0.5, F32 + 0.5):
         inverse_table_force(ratio, 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)), np.array([0.2, 1.0]),
                             np.empty(4))
-    inverse_table_forces(f64 + 0.5, f64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
+    inverse_table_forces(F64 + 0.5, F64 + 0.5, 6.0, 0.0, 4.0, np.zeros((2, 5)), np.zeros((2, 4)),
                          np.array([0.2, 0.6]), np.empty(4))
+
+
+@functools.cache
+def warm_up_film() -> None:
+    """The squeeze-film model's inverses."""
     film = np.array([4e4, 10.0, 138.1, 2.0 / 3.0, 250.0, 1.6, 1.0 / 3.0, 2.4, 2.0 / 3.0, 40.0, 0.01, 10.0, 0.95])
     nodes = np.linspace(1.0, 0.6, 5)
-    for ratio in (f64 + 0.5, f32 + 0.5):
+    for ratio in (F64 + 0.5, F32 + 0.5):
         inverse_film_force(ratio, 0.5, 0.1, 6.0, film, nodes, np.empty(4))
-    inverse_film_forces(f64 + 0.5, f64 + 0.5, 6.0, film, nodes, np.empty(4))
+    inverse_film_forces(F64 + 0.5, F64 + 0.5, 6.0, film, nodes, np.empty(4))
+
+
+def warm_up() -> None:
+    """Every model's inverses (the models load their own: :meth:`FrictionModel.warm_up`)."""
+    warm_up_stretched()
+    warm_up_uniform()
+    warm_up_table()
+    warm_up_film()

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
 from ultraglide.render.physics.errors import ForceRangeWarning, ModelError
 
 DEFAULT_FORCE_N = 0.5
@@ -126,6 +127,11 @@ class FrictionModel(ABC):
     max_amplitude_um_pp: float = CEILING_UM_PP
     fitted: FitRange | None = None  # set by a calibration: the forces the parameters were fitted on
     _range_said = False  # the force-range warning is given once per model
+
+    def warm_up(self) -> None:
+        """Load this model's compiled inverse (from numba's cache, or compile it once per machine) before a
+        real-time block needs it. Models override it with their own kernels; this loads every one."""
+        kernels.warm_up()
 
     def force_law(self) -> str:
         """How this model's friction depends on the normal force, and where that comes from, in words."""

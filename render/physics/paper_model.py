@@ -40,6 +40,9 @@ class PaperModel(FrictionModel):
     name = "paper"
     U_NODES = 384
 
+    def warm_up(self) -> None:
+        kernels.warm_up_uniform()
+
     def __init__(self, params: FingerParams = FingerParams()):
         self.params = params
         self._detach_exponent = 1.0 - params.area_exponent

@@ -153,6 +153,9 @@ class SqueezeFilmModel(FrictionModel):
 
     name = "squeeze-film"
 
+    def warm_up(self) -> None:
+        kernels.warm_up_film()
+
     def __init__(self, film: FilmParams = FilmParams(), finger: FingerParams = FingerParams()):
         self.film = film
         self.finger = finger

@@ -32,6 +32,9 @@ class TableModel(FrictionModel):
 
     name = "table"
 
+    def warm_up(self) -> None:
+        kernels.warm_up_table()
+
     def __init__(self, data: Measurements):
         from scipy.interpolate import PchipInterpolator  # imported here: scipy.interpolate takes 0.3-0.8 s to load
         from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
