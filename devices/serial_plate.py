@@ -185,7 +185,7 @@ class SerialPlate:
 
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
                  baudrate: int = 921600, batch_s: float | None = None, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
-                 tracker: ResonanceTracker | None = None, check_budget: bool = True):
+                 tracker: ResonanceTracker | None = None, check_budget: bool = True, silence_s: float = SILENCE_S):
         self.port = port
         self.profile = profile
         self.rate_hz = int(control_rate_hz)
@@ -196,6 +196,7 @@ class SerialPlate:
         self.baudrate = baudrate
         self.batch_s = batch_s or p.batch_s_for(baudrate, self.rate_hz)  # s between SETPOINTS frames
         self.ack_timeout_s = ack_timeout_s
+        self.silence_s = silence_s  # no telemetry, or no room for a frame, for this long: the device is gone
         self.counters = SerialCounters()
         self.telemetry: p.Telemetry | None = None
         self.device: p.HelloReply | None = None
@@ -506,7 +507,7 @@ class SerialPlate:
     def _open(self) -> serial.Serial:
         """The port, opened exclusively; DeviceError in one line if it is missing or in use."""
         try:
-            port = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=0.05, write_timeout=0.5,
+            port = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=0.05, write_timeout=self.silence_s,
                                          exclusive=True)
         except (serial.SerialException, OSError, ValueError) as error:
             if getattr(error, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY) \
@@ -758,11 +759,11 @@ class SerialPlate:
                     trim = 0  # a new stream: the plate's playback starts with this frame
                     self._stream_epoch += 1
                 position += due
-                if connected and time.monotonic() - self._last_heard > SILENCE_S:
+                if connected and time.monotonic() - self._last_heard > self.silence_s:
                     self.counters.silences += 1
                     self._disconnect()
                     self.counters.disconnects += 1
-                    self._outage(f"no telemetry for {SILENCE_S:g} s")
+                    self._outage(f"no telemetry for {self.silence_s:g} s")
                     connected = False
                 if not connected:
                     last_sent = None

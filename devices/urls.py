@@ -104,7 +104,8 @@ def parse_device_url(url: str) -> DeviceUrl:
 
 
 # The simulated plate is a thread of this process: on a loaded machine it answers late, but it answers. The
-# driver waits this long for it (a plate driver on a port gets the protocol's 2 s).
+# driver waits this long for its answers and its telemetry (a plate driver on a port gets the protocol's 2 s
+# and 0.5 s): a silence of the simulated plate is this machine being busy, not a plate lost.
 SIM_ANSWER_TIMEOUT_S = 60.0
 
 
@@ -119,7 +120,7 @@ class SimPlate:
 
         self.plate = PtyPlate(profile).start()
         self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz, tracker=tracker,
-                                  ack_timeout_s=SIM_ANSWER_TIMEOUT_S)
+                                  ack_timeout_s=SIM_ANSWER_TIMEOUT_S, silence_s=SIM_ANSWER_TIMEOUT_S)
         self.rate_hz = control_rate_hz
 
     @property

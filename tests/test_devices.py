@@ -405,6 +405,29 @@ def test_the_sim_device_waits_for_its_plate_however_late_it_answers():
         device.stop()
 
 
+def test_the_sim_device_is_not_lost_when_its_plate_falls_silent_for_a_while():
+    """A busy machine holds the simulated plate's threads (its telemetry stops) for longer than a plate on a
+    port may fall silent (0.5 s): the plate is this process's, not lost. Here it hangs for 1.5 s mid-stream
+    (no telemetry, nothing read); the demo on sim exited 4, 'plate lost ... no telemetry for 0.5 s', on a
+    machine at load 13."""
+    from ultraglide.devices.urls import open_device
+
+    device = open_device("sim", PROFILE)
+    device.start(Constant(1.0))
+    try:
+        assert wait_for(lambda: device.plate.simulator.amplitude_um_pp > 0.5)
+        heard = device.driver.telemetry_frames
+        device.plate.inject(p.SIM_HANG, 1.5)
+        hung_s = time.monotonic()
+        assert wait_for(lambda: device.driver.telemetry_frames > heard + 5 and time.monotonic() - hung_s > 1.5,
+                        timeout=60)  # it talks again
+        counters = device.driver.counters
+        assert counters.silences == 0 and counters.disconnects == 0 and device.driver.status()["connected"]
+        assert not counters.errors
+    finally:
+        device.stop()
+
+
 def test_devices_says_what_is_known_of_a_serial_port():
     """pyserial describes a port with no USB device behind it as "n/a": the listing says what that means."""
     from ultraglide.apps.commands.devices import port_words
