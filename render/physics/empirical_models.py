@@ -15,11 +15,8 @@ from ultraglide.render.physics.model_base import (
     MAX_FORCE_N,
     MIN_FORCE_N,
     FrictionModel,
-    Inversion,
     check_amplitude,
     clip_force,
-    is_scalar,
-    kernel_result,
 )
 
 REFERENCE_FORCE_N = 0.5  # the force at which a stretched model's scale is stated
@@ -117,26 +114,16 @@ class StretchedExponentialModel(FrictionModel):
             cached = self._scale_cache = (force, float(self.scale_at_um_pp(force)))
         return cached[1]
 
-    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp, out):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        if out is None:
-            out = np.empty(len(ratio))
-        if is_scalar(force_n):
-            self._checked_force(force_n)
-            code = kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit, self._scale_at(force_n),
-                                             1.0 / self.shape, self.residual_ratio, out)
-            return Inversion(out, kernel_result(code, ratio, force_n))
-        ratio = ratio.astype(np.float64, copy=False)
-        force = force_n.astype(np.float64, copy=False)
-        code = kernels.inverse_stretched_forces(ratio, force, limit, self.scale_um_pp, 1.0 / self.shape,
+    compiled = True
+
+    def _inverse_one_force(self, ratio, force_n, limit, out) -> int:
+        return kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit, self._scale_at(force_n),
+                                         1.0 / self.shape, self.residual_ratio, out)
+
+    def _inverse_forces(self, ratio, force_n, limit, out) -> int:
+        return kernels.inverse_stretched_forces(ratio, force_n, limit, self.scale_um_pp, 1.0 / self.shape,
                                                 self.force_exponent, REFERENCE_FORCE_N, MIN_FORCE_N, MAX_FORCE_N,
                                                 self.residual_ratio, out)
-        result = Inversion(out, kernel_result(code, ratio, force))
-        self._note_force_range(force)
-        return result
 
     def _floor_words(self) -> str:
         return f", floor d = {self.residual_ratio:.3g}" if self.residual_ratio else ""

@@ -242,6 +242,30 @@ class FrictionModel(ABC):
             amplitude = out
         return Inversion(amplitude, clamped)
 
+    compiled = False  # True when the model has compiled inverses (_inverse_one_force, _inverse_forces)
+
+    def _inverse_one_force(self, ratio: np.ndarray, force_n: float, limit: float, out: np.ndarray) -> int:
+        """The compiled inverse at one force into ``out``: the number clamped, or -1 - the first bad index."""
+        raise NotImplementedError
+
+    def _inverse_forces(self, ratio: np.ndarray, force_n: np.ndarray, limit: float, out: np.ndarray) -> int:
+        """The compiled inverse at a force per sample (float64 arrays) into ``out``, coded as above."""
+        raise NotImplementedError
+
+    def _compiled_inverse(self, ratio, force_n, limit_um_pp, out) -> Inversion:
+        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+        if out is None:
+            out = np.empty(len(ratio))
+        if is_scalar(force_n):
+            self._checked_force(force_n)
+            return Inversion(out, kernel_result(self._inverse_one_force(ratio, float(force_n), limit, out),
+                                                ratio, force_n))
+        ratio = ratio.astype(np.float64, copy=False)
+        force = force_n.astype(np.float64, copy=False)
+        result = Inversion(out, kernel_result(self._inverse_forces(ratio, force, limit, out), ratio, force))
+        self._note_force_range(force)
+        return result
+
     def amplitude_um_pp(
         self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
         out: np.ndarray | None = None,
@@ -249,6 +273,8 @@ class FrictionModel(ABC):
         """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force.
         ``out``: a float64 array of the result's shape to write the amplitudes into; with a 1-d float ratio
         (a live block) the compiled models then allocate no array."""
+        if self.compiled and self._fast_path(ratio, force_n, limit_um_pp, out):
+            return self._compiled_inverse(ratio, force_n, limit_um_pp, out)
         if not limit_um_pp >= 0:
             raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
         self._checked_force(force_n)

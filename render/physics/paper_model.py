@@ -18,12 +18,9 @@ from ultraglide.render.physics.model_base import (
     MIN_FORCE_N,
     RATIO_GRID_POINTS,
     FrictionModel,
-    Inversion,
     UniformTable,
     check_amplitude,
     clip_force,
-    is_scalar,
-    kernel_result,
 )
 from ultraglide.render.physics.normal_contact import relative_friction_of_u
 
@@ -101,27 +98,18 @@ class PaperModel(FrictionModel):
             cached = self._detach_cache = (force, float(self._detach_um_pp(force)))
         return cached[1]
 
-    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp, out):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+    compiled = True
+
+    def _inverse_one_force(self, ratio, force_n, limit, out) -> int:
         table = self._u_table
-        if out is None:
-            out = np.empty(len(ratio))
-        if is_scalar(force_n):
-            self._checked_force(force_n)
-            code = kernels.inverse_uniform(ratio, self._floor(force_n, limit), limit, table.start, table.scale,
-                                           table.values, table.slopes, self._detach_at(force_n), out)
-            return Inversion(out, kernel_result(code, ratio, force_n))
-        ratio = ratio.astype(np.float64, copy=False)
-        force = force_n.astype(np.float64, copy=False)
-        code = kernels.inverse_uniform_forces(ratio, force, limit, table.start, table.scale, table.values,
+        return kernels.inverse_uniform(ratio, self._floor(force_n, limit), limit, table.start, table.scale,
+                                       table.values, table.slopes, self._detach_at(force_n), out)
+
+    def _inverse_forces(self, ratio, force_n, limit, out) -> int:
+        table = self._u_table
+        return kernels.inverse_uniform_forces(ratio, force_n, limit, table.start, table.scale, table.values,
                                               table.slopes, self._detach_at_1n, self._detach_exponent,
                                               self._saturation_n, MIN_FORCE_N, MAX_FORCE_N, out)
-        result = Inversion(out, kernel_result(code, ratio, force))
-        self._note_force_range(force)
-        return result
 
     def describe(self) -> str:
         p = self.params

@@ -52,11 +52,8 @@ from ultraglide.render.physics.model_base import (
     MAX_FORCE_N,
     MIN_FORCE_N,
     FrictionModel,
-    Inversion,
     check_amplitude,
     clip_force,
-    is_scalar,
-    kernel_result,
 )
 from ultraglide.render.physics.paper_model import PaperModel
 
@@ -195,24 +192,14 @@ class SqueezeFilmModel(FrictionModel):
         kernels.inverse_film_forces(ratio, force, CEILING_UM_PP, self._packed, self._nodes, out)
         return out.reshape(shape)
 
-    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp, out):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        if out is None:
-            out = np.empty(len(ratio))
-        if is_scalar(force_n):
-            self._checked_force(force_n)
-            code = kernels.inverse_film_force(ratio, float(force_n), self._floor(force_n, limit), limit, self._packed,
-                                              self._nodes, out)
-            return Inversion(out, kernel_result(code, ratio, force_n))
-        ratio = ratio.astype(np.float64, copy=False)
-        force = force_n.astype(np.float64, copy=False)
-        code = kernels.inverse_film_forces(ratio, force, limit, self._packed, self._nodes, out)
-        result = Inversion(out, kernel_result(code, ratio, force))
-        self._note_force_range(force)
-        return result
+    compiled = True
+
+    def _inverse_one_force(self, ratio, force_n, limit, out) -> int:
+        return kernels.inverse_film_force(ratio, force_n, self._floor(force_n, limit), limit, self._packed,
+                                          self._nodes, out)
+
+    def _inverse_forces(self, ratio, force_n, limit, out) -> int:
+        return kernels.inverse_film_forces(ratio, force_n, limit, self._packed, self._nodes, out)
 
     # ---- words ----------------------------------------------------------------------------------------
     def force_law(self) -> str:

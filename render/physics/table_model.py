@@ -13,11 +13,8 @@ from ultraglide.render.physics.model_base import (
     MIN_FORCE_N,
     RATIO_GRID_POINTS,
     FrictionModel,
-    Inversion,
     UniformTable,
     check_amplitude,
-    is_scalar,
-    kernel_result,
 )
 
 
@@ -92,26 +89,17 @@ class TableModel(FrictionModel):
             high[pick] = self._table(ratio[pick], int(row) + 1)
         return ((1.0 - weight) * low + weight * high).reshape(shape)
 
-    def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N,
-                        limit_um_pp: float = np.inf, out: np.ndarray | None = None) -> Inversion:
-        if not self._fast_path(ratio, force_n, limit_um_pp, out):
-            return super().amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
+    compiled = True
+
+    def _inverse_one_force(self, ratio, force_n, limit, out) -> int:
         table = self._table
-        if out is None:
-            out = np.empty(len(ratio))
-        if is_scalar(force_n):
-            self._checked_force(force_n)
-            code = kernels.inverse_table_force(ratio, float(force_n), limit, table.start, table.scale, table.values,
-                                               table.slopes, self.forces, out)
-            return Inversion(out, kernel_result(code, ratio, force_n))
-        ratio = ratio.astype(np.float64, copy=False)
-        force = force_n.astype(np.float64, copy=False)
-        code = kernels.inverse_table_forces(ratio, force, limit, table.start, table.scale, table.values,
+        return kernels.inverse_table_force(ratio, force_n, limit, table.start, table.scale, table.values,
+                                           table.slopes, self.forces, out)
+
+    def _inverse_forces(self, ratio, force_n, limit, out) -> int:
+        table = self._table
+        return kernels.inverse_table_forces(ratio, force_n, limit, table.start, table.scale, table.values,
                                             table.slopes, self.forces, out)
-        result = Inversion(out, kernel_result(code, ratio, force))
-        self._note_force_range(force)
-        return result
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         self._checked_force(force_n)
