@@ -104,6 +104,31 @@ def port_failure(error: BaseException | None) -> str:
     return f"the port failed ({text.splitlines()[0] if text else type(error).__name__})"
 
 
+def open_port(port: str, baudrate: int, write_timeout_s: float = 0.5) -> serial.Serial:
+    """A serial port (any pyserial URL) opened exclusively: a ``flock`` (pyserial's ``exclusive``; it holds on
+    pseudo-terminals too) and ``TIOCEXCL``, which keeps out programs that take no lock (unless root).
+    DeviceError in one line if it is missing or in use."""
+    try:
+        opened = serial.serial_for_url(port, baudrate=baudrate, timeout=0.05, write_timeout=write_timeout_s,
+                                       exclusive=True)
+    except (serial.SerialException, OSError, ValueError) as error:
+        code = getattr(error, "errno", None)
+        if code in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY) or "exclusively lock" in str(error):
+            raise DeviceError(f"serial port {port} is in use by another program; stop it (or the other "
+                              "ultraglide) first") from None
+        reason = os.strerror(code).lower() if isinstance(code, int) else str(error)
+        raise DeviceError(f"cannot open serial port {port}: {reason}; check the path and permissions (the "
+                          "dialout group), or list ports with `ultraglide devices`") from None
+    fd = getattr(opened, "fd", None)
+    if fd is not None:
+        import fcntl
+        import termios
+
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(fd, termios.TIOCEXCL)
+    return opened
+
+
 def stream_bytes_per_s(rate_hz: int) -> float:
     """Bytes a second a stream of ``rate_hz`` setpoints costs in 2 ms frames (docs/protocol.md, byte budget)."""
     return p.FRAME_OVERHEAD_BYTES / p.BATCH_S + 2.0 * rate_hz
@@ -249,6 +274,10 @@ class SerialPlate:
         self._drive_sum_um_pp = 0.0  # commanded amplitude (clipped to full scale) sent since the last telemetry
         self._drive_count = 0
         self._telemetry_arrived = threading.Condition()
+        self.sensors: p.Sensors | None = None  # the last SENSORS frame (v3, a device with sensors)
+        self.sensors_frames = 0
+        self.sensor_errors = 0
+        self._sensor_listeners: tuple = ()
         self.telemetry_frames = 0  # TELEMETRY frames taken over the run
         self._output_on = False  # the host enabled the output and streams setpoints (False: idle, or not yet)
         self._cut = False  # the device disabled itself over this run (trip, overheat): never re-enabled by the host
@@ -287,6 +316,8 @@ class SerialPlate:
         try:
             if frame.kind == p.TELEMETRY and self._session:
                 self._take_telemetry(p.parse_telemetry(frame.payload))
+            elif frame.kind == p.SENSORS and self._session:
+                self._take_sensors(p.parse_sensors(frame.payload))
             elif frame.kind == p.HELLO_REPLY:
                 with self._reply:
                     self._hello = frame.payload
@@ -305,6 +336,21 @@ class SerialPlate:
                 self._answer(seq, reason)
         except p.ProtocolError:
             self.counters.bad_frames += 1
+
+    def add_sensor_listener(self, listener) -> None:
+        """Call ``listener(sensors)`` with each SENSORS frame (a :class:`protocol.Sensors`), on the reader thread:
+        it must return quickly. A listener that raises is counted (``sensor_errors``) and left out from then on."""
+        self._sensor_listeners = (*self._sensor_listeners, listener)
+
+    def _take_sensors(self, sensors: p.Sensors) -> None:
+        self.sensors = sensors
+        self.sensors_frames += 1
+        for listener in self._sensor_listeners:
+            try:
+                listener(sensors)
+            except Exception:  # noqa: BLE001 - the link goes on; the listener goes
+                self.sensor_errors += 1
+                self._sensor_listeners = tuple(other for other in self._sensor_listeners if other is not listener)
 
     def _answer(self, seq: int, reason: int | None) -> None:
         with self._reply:
@@ -505,27 +551,7 @@ class SerialPlate:
 
     # ---- connection ------------------------------------------------------------------------------
     def _open(self) -> serial.Serial:
-        """The port, opened exclusively; DeviceError in one line if it is missing or in use."""
-        try:
-            port = serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=0.05, write_timeout=self.silence_s,
-                                         exclusive=True)
-        except (serial.SerialException, OSError, ValueError) as error:
-            if getattr(error, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY) \
-                    or "exclusively lock" in str(error):
-                raise DeviceError(f"serial port {self.port} is in use by another program; stop it (or the other "
-                                  "ultraglide) first") from None
-            code = getattr(error, "errno", None)
-            reason = os.strerror(code).lower() if isinstance(code, int) else str(error)
-            raise DeviceError(f"cannot open serial port {self.port}: {reason}; check the path and "
-                              "permissions (the dialout group), or list ports with `ultraglide devices`") from None
-        fd = getattr(port, "fd", None)
-        if fd is not None:  # programs that take no flock (a terminal program) are kept out too, unless root
-            import fcntl
-            import termios
-
-            with contextlib.suppress(OSError):
-                fcntl.ioctl(fd, termios.TIOCEXCL)
-        return port
+        return open_port(self.port, self.baudrate, write_timeout_s=self.silence_s)
 
     def _connect(self) -> None:
         port = self._open()

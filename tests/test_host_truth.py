@@ -175,6 +175,31 @@ def test_a_failing_source_rests_the_plate_and_the_run_says_the_stream_stopped(ta
     assert any("the stream to the plate stopped at" in line and "renderer crashed" in line for line in report.lines)
 
 
+def test_sensors_frames_reach_the_driver_and_its_listeners(tapped):
+    """The simulated plate has an amplitude sensor at 1 kHz: its SENSORS frames reach the driver in order, with
+    consecutive samples, and a listener that raises is counted and dropped while the others go on."""
+    heard = []
+
+    def failing(sensors):
+        raise RuntimeError("a listener's bug")
+
+    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+    driver.add_sensor_listener(failing)
+    driver.add_sensor_listener(heard.append)
+    driver.start(Constant(1.0))
+    try:
+        assert wait_for(lambda: len(heard) >= 20, timeout=DEADLINE_S)
+    finally:
+        driver.stop()
+    frames = list(heard)
+    steps = [(b.first_sample - a.first_sample) & 0xFFFFFFFF for a, b in zip(frames, frames[1:], strict=False)]
+    assert steps == [len(a.samples) for a in frames[:-1]]  # no sample left out or repeated
+    assert driver.sensors_frames >= len(frames) and driver.sensors is heard[-1]
+    assert driver.sensor_errors == 1  # the failing listener, once, then left out
+    amplitudes = np.concatenate([frame.samples["amplitude_um_pp"] for frame in frames])
+    assert np.isfinite(amplitudes).all() and abs(amplitudes.max() - 1.0) < 0.05  # the 1 µm p-p it was driven at
+
+
 # ---- the port and the link ----------------------------------------------------------------------------------
 def test_a_second_host_on_the_port_is_refused_in_one_line(tapped):
     first = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
