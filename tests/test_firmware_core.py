@@ -593,7 +593,10 @@ def _follows(rule: str, device: Device) -> bool:
         device.core.receive(cobs.encode(body[:-1] + bytes([body[-1] ^ 1])) + b"\x00")
         return bool(device.status().enabled)
     if rule == "R-DEVICE-SEQ":
-        return device.send(p.HELLO, b"\x03")[0].seq == 0
+        (hello,) = device.send(p.HELLO, b"\x03")
+        (ack,) = device.send(p.CLEAR_FAULTS, b"\x00\x00")
+        (again,) = device.send(p.HELLO, b"\x03")
+        return (hello.seq, ack.seq, again.seq) == (0, 1, 2)
     if rule == "R-SEQ-ECHO":
         return p.parse_ack(device.send(p.CLEAR_FAULTS, b"\x00\x00", seq=1234)[0].payload) == 1234
     if rule == "R-VERSION":

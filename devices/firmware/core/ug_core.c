@@ -125,9 +125,6 @@ bool ug_core_set_breaks(ug_core *core, uint32_t breaks) {
         return false;
     }
     core->breaks = breaks;
-    if (UG_BROKEN(core, UG_BREAK_DEVICE_SEQ) && core->seq == 0u) {
-        core->seq = 1u; /* "its first frame has seq 1" */
-    }
     return true;
 #else
     (void)core;
@@ -316,7 +313,9 @@ static void send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n) 
         head = (uint16_t)((head + 1u) & (UG_TX_RING - 1u));
     }
     core->tx_head = head;
-    core->seq++;
+    if (!(UG_BROKEN(core, UG_BREAK_DEVICE_SEQ) && (type == UG_ACK || type == UG_NAK))) {
+        core->seq++; /* broken: "its ACK and NAK frames take no seq of their own" */
+    }
     ug_port_tx_ready(core->port);
 }
 
@@ -491,7 +490,7 @@ static bool early_value_refusal(const ug_core *core, uint8_t type, const uint8_t
 
 static uint8_t negotiate(const ug_core *core, uint8_t host) {
     uint8_t highest = core->config.max_version;
-    if (UG_BROKEN(core, UG_BREAK_VERSION) || host >= highest) {
+    if (host >= highest || (UG_BROKEN(core, UG_BREAK_VERSION) && host == 2u)) { /* broken: "answers v3 to a v2 host" */
         return highest;
     }
     return host >= UG_LOWEST_VERSION ? host : UG_LOWEST_VERSION;
