@@ -22,12 +22,14 @@ if TYPE_CHECKING:
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
 from ultraglide.apps.cli.signals import held
+from ultraglide.apps.commands.plate_check import add_check_parser
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     """``ultraglide plate``: its actions and their options."""
-    plate = commands.add_parser("plate", help="characterise a plate: resonance sweep",
-                                description="Measure a plate before trusting its profile.")
+    plate = commands.add_parser("plate", help="characterise a plate (resonance sweep), check its driver",
+                                description="Measure a plate before trusting its profile; check that its driver "
+                                            "speaks the protocol.")
     actions = plate.add_subparsers(dest="plate_command", metavar="ACTION", required=True, parser_class=OneLineParser)
     sweep_parser = actions.add_parser(
         "sweep", help="find the resonance, Q and gain; write a profile",
@@ -56,6 +58,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     add_figure_width_option(sweep_parser)
     sweep_parser.add_argument("--json", action="store_true", help="print one JSON object")
     sweep_parser.set_defaults(run=run_sweep)
+    add_check_parser(actions)
 
 
 def _audio_device(target: str):

@@ -1,0 +1,220 @@
+"""``ultraglide plate check`` against the simulated plate: every rule passes on the reference firmware, each
+rule the firmware breaks on purpose (``plate-sim --break RULE``) is reported as that rule failing, the plate
+never moves above 15 % of its limit, and the output is one line per rule (or strict JSON) with a status
+that says whether any rule failed."""
+
+import json
+import re
+import signal
+import time
+
+import pytest
+from conftest import ROOT, assert_one_line_error, run_cli, wait_for
+from test_plate_sim_cli import Server
+from ultraglide.devices import conformance as c
+from ultraglide.devices.firmware import sil
+from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+from ultraglide.devices.profiles import load_profile
+
+PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p
+DOC = (ROOT / "docs" / "protocol.md").read_text(encoding="utf-8")
+NEEDS_THE_PLATE_OVER_ITS_LIMIT = {"R-OVER-LIMIT", "R-TRIP"}
+LINE = re.compile(r"^(R-[A-Z-]+) +(pass|fail|not checked) +(.+?): (.+)$")
+
+
+def strict_json(text):
+    def refuse(constant):
+        raise AssertionError(f"not strict JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def conformance_table() -> dict[str, str]:
+    """rule → section, from docs/protocol.md's Conformance table."""
+    start = DOC.index("| rule | section | what the device must do | the simulator's break |")
+    rows = {}
+    for line in DOC[start:].splitlines()[2:]:
+        if not line.startswith("| R-"):
+            break
+        rule, section = (cell.strip() for cell in line.strip("|").split("|")[:2])
+        rows[rule] = section
+    return rows
+
+
+def serve(tmp_path, *options):
+    """``plate-sim`` in its own process, serving at ``tmp_path/plate`` once it says so."""
+    link = tmp_path / "plate"
+    server = Server("--link", link, "--json", *options)
+    server.wait_line(lambda line: '"serving"' in line)
+    return server, str(link)
+
+
+def test_the_checks_rules_are_the_documents():
+    assert c.RULES == conformance_table()  # every rule of the page, in its section, and no other
+
+
+@pytest.mark.slow
+def test_plate_check_passes_on_the_simulated_plate_one_line_a_rule():
+    result = run_cli("plate", "check", "--device", "sim", timeout=240)
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("checking 'ultraglide plate simulator' on ") and "protocol v3" in lines[0]
+    assert "driving at most 0.90 µm p-p (15 % of the plate driver's 6 µm p-p limit) at 25000 Hz" in lines[0]
+    verdicts = [LINE.match(line) for line in lines[1:-1]]
+    assert all(verdicts), lines
+    seen = {m.group(1): (m.group(2), m.group(3), m.group(4)) for m in verdicts}
+    table = conformance_table()
+    assert len(verdicts) == len(seen) == len(table)  # each rule once
+    for rule, (outcome, section, words) in seen.items():
+        assert section == table[rule] and words
+        assert outcome == ("not checked" if rule in NEEDS_THE_PLATE_OVER_ITS_LIMIT else "pass"), (rule, words)
+    assert re.fullmatch(r"26 rules pass, 0 fail, 2 not checked \(\d+\.\d s\)", lines[-1])
+    assert result.stderr == ""
+
+
+@pytest.mark.slow
+def test_a_full_check_names_the_one_rule_broken_in_strict_json_and_never_moves_the_plate_past_15_percent(tmp_path):
+    """A separate plate-sim breaking R-NAK-ORDER: the check exits 6 naming that rule and no other, its JSON is
+    strict, and the simulated plate's own peak over the whole check stays within 15 % of its 6 µm p-p limit."""
+    server, link = serve(tmp_path, "--break", "R-NAK-ORDER")
+    try:
+        result = run_cli("plate", "check", "--device", f"serial:{link}", "--json", timeout=240)
+    finally:
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM
+    assert result.returncode == 6, result.stdout + result.stderr
+    report = strict_json(result.stdout)
+    assert report["broken_rules"] == ["R-NAK-ORDER"] and report["failed"] == 1 and report["exit_status"] == 6
+    assert sorted(rule["rule"] for rule in report["rules"]) == sorted(conformance_table())  # each rule once
+    broken = next(rule for rule in report["rules"] if rule["rule"] == "R-NAK-ORDER")
+    assert broken["verdict"] == "fail" and broken["section"] == "Host → device"
+    assert "NAK 3, not NAK 2" in broken["seen"]  # what it saw: a value checked before the length
+    assert report["device"]["max_amplitude_um_pp"] == 6.0 and report["aborted"] is None
+    stopped = strict_json(server.seen[-1])
+    assert stopped["event"] == "stopped"
+    assert stopped["peak_um_pp"] <= 0.15 * 6.0 * 1.001  # never above 15 % of the limit, on the plate itself
+    assert stopped["peak_um_pp"] > 0.8  # and it was driven: 0.9 µm p-p at resonance
+    assert result.stderr == ""  # --json: the one object says it all
+
+
+BREAKABLE = [rule for rule in sil.rules() if rule not in NEEDS_THE_PLATE_OVER_ITS_LIMIT]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rule", BREAKABLE)
+def test_each_rule_broken_on_purpose_is_reported_as_that_rule_failing(tmp_path, rule):
+    server, link = serve(tmp_path, "--break", rule)
+    try:
+        report = c.check_device(link, PROFILE, only=(rule,))
+    finally:
+        server.finish(signal.SIGTERM)
+    (verdict,) = report.verdicts
+    assert (verdict.rule, verdict.outcome) == (rule, c.FAIL), verdict.line()
+    assert report.exit_status == 6 and report.failed == (rule,)
+
+
+def stronger_plate(breaks=(), full_scale_um_pp=8.04):
+    """The simulated plate 0.5 % stronger than its driver believes: driven at its limit, it goes 0.5 % over
+    (over-limit, not the trip's 1 %); at 8.2 it goes 2.5 % over."""
+    truth = PlateTruth(PROFILE.resonance_hz, PROFILE.q, full_scale_um_pp=full_scale_um_pp)
+    return PtyPlate(PROFILE, truth=truth, breaks=breaks).start()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("breaks, full_scale, outcomes", [
+    ((), 8.04, {"R-OVER-LIMIT": c.PASS, "R-TRIP": c.NOT_CHECKED}),
+    (("R-OVER-LIMIT",), 8.04, {"R-OVER-LIMIT": c.FAIL, "R-TRIP": c.NOT_CHECKED}),
+    ((), 8.2, {"R-OVER-LIMIT": c.PASS, "R-TRIP": c.PASS}),
+    ((), 8.0, {"R-OVER-LIMIT": c.NOT_CHECKED, "R-TRIP": c.NOT_CHECKED}),  # it never goes over: nothing to see
+])
+def test_over_limit_and_the_trip_are_checked_only_when_asked_on_a_plate_that_goes_over(breaks, full_scale, outcomes):
+    plate = stronger_plate(breaks, full_scale)
+    try:
+        asked = c.check_device(plate.path, PROFILE, over_limit=True, only=tuple(outcomes))
+        unasked = c.check_device(plate.path, PROFILE, only=tuple(outcomes))
+        peak = plate.simulator.peak_um_pp
+    finally:
+        plate.stop()
+    assert {v.rule: v.outcome for v in asked.verdicts} == outcomes, [v.line() for v in asked.verdicts]
+    assert {v.outcome for v in unasked.verdicts} == {c.NOT_CHECKED}
+    assert all("--over-limit" in v.seen for v in unasked.verdicts)
+    assert peak <= 6.0 * 1.03  # at its limit, and the trip cut what went 1 % over
+    assert asked.aborted is None
+
+
+@pytest.mark.slow
+def test_a_v2_device_passes_what_v2_can_show(tmp_path):
+    server, link = serve(tmp_path, "--max-version", "2")
+    try:
+        report = c.check_device(link, PROFILE)
+    finally:
+        server.finish(signal.SIGTERM)
+    outcomes = {v.rule: v.outcome for v in report.verdicts}
+    assert c.FAIL not in outcomes.values(), [v.line() for v in report.verdicts]
+    v3_only = {"R-ENABLE", "R-PREFILL", "R-HELLO-NO-STATE", "R-SCALING", "R-LIMIT", "R-SENSORS"}
+    assert {rule for rule, outcome in outcomes.items() if outcome == c.NOT_CHECKED} == \
+        v3_only | NEEDS_THE_PLATE_OVER_ITS_LIMIT
+    assert report.device.version == 2 and report.exit_status == 0
+
+
+def test_a_port_in_use_is_refused_in_one_line(tmp_path):
+    plate = PtyPlate(PROFILE).start()
+    try:
+        first = c.Probe(plate.path)
+        try:
+            line = assert_one_line_error(run_cli("plate", "check", "--device", f"serial:{plate.path}", timeout=60))
+        finally:
+            first.close()
+    finally:
+        plate.stop()
+    assert f"serial port {plate.path} is in use by another program" in line
+
+
+def test_bad_options_are_one_line():
+    line = assert_one_line_error(run_cli("plate", "check", "--rule", "R-NOTHING", timeout=60))
+    assert "--rule R-NOTHING: no such rule" in line and "R-WATCHDOG" in line
+    line = assert_one_line_error(run_cli("plate", "check", "--device", "null", timeout=60))
+    assert "null speaks no protocol" in line
+    line = assert_one_line_error(run_cli("plate", "check", "--device", "serial:/nonexistent/port", timeout=60))
+    assert "cannot open serial port /nonexistent/port" in line
+
+
+@pytest.mark.slow
+def test_a_device_lost_mid_check_stops_it_rests_nothing_twice_and_exits_4(tmp_path):
+    """plate-sim killed while the check runs: the check stops with what it saw so far, says so, exits 4."""
+    server, link = serve(tmp_path)
+    seen = []
+    killed = False
+
+    def say(verdict):
+        nonlocal killed
+        seen.append(verdict)
+        if len(seen) == 2 and not killed:
+            killed = True
+            server.process.kill()
+
+    try:
+        started = time.monotonic()
+        report = c.check_device(link, PROFILE, say=say)
+        took = time.monotonic() - started
+    finally:
+        server.kill()
+    assert report.aborted and report.lost and report.exit_status == 4, report.summary()
+    assert len(report.verdicts) == 2 and took < 30
+    assert "stopped:" in report.summary() and "could not finish" in report.verdict
+
+
+def test_a_checked_plate_is_left_disabled_at_zero():
+    plate = PtyPlate(PROFILE).start()
+    try:
+        report = c.check_device(plate.path, PROFILE, only=("R-UNDERRUN",))  # leaves the output playing dry
+        assert wait_for(lambda: not plate.simulator.enabled)
+        assert plate.simulator.drive_um_pp == 0.0
+    finally:
+        plate.stop()
+    assert report.exit_status == 0
+
+
+def test_the_readme_and_the_protocol_say_what_plate_check_does():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "ultraglide plate check" in readme and "exit status 6" in readme
+    assert "--break" in DOC and "`ultraglide plate check --device URL`" in DOC
