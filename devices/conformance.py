@@ -44,6 +44,7 @@ SAFE_FRACTION = 0.15  # of the device's limit: the most the check asks at resona
 ABORT_FRACTION = 0.5  # a measured amplitude above this fraction of the limit stops the check at once
 ANSWER_SLACK_S = 0.025  # the host's own share of an answer's time (scheduling, the link): on top of 50 ms
 TIMEOUT_S = 1.0  # an answer that has not come by then is missing
+RETRIES = 1  # a failed rule is checked again this many times: it fails only if it fails every time
 # rule → the section of docs/protocol.md that states it (its Conformance table; a test checks the two agree)
 RULES = {
     "R-FRAMING": "Framing", "R-CRC": "Framing", "R-DEVICE-SEQ": "Framing", "R-SEQ-ECHO": "Framing",
@@ -498,15 +499,23 @@ class Check:
                 f"{bound} {self.safe_limit_um_pp:g} µm p-p limit) at {self.carrier:g} Hz")
 
     def run_rule(self, rule: str, check) -> None:
-        try:
-            self.reset()
-            outcome, seen = PASS, check()
-        except Broken as error:
-            outcome, seen = FAIL, str(error)
-        except Unobservable as error:
-            outcome, seen = NOT_CHECKED, str(error)
-        except Abort:
-            raise
+        """One rule's verdict. A rule that fails is checked once more: this host's own stalls on a loaded machine
+        (late frames, frames dropped by a full link) can make a device look wrong once; a broken rule fails both
+        times. A pass after a failure says what the first try saw."""
+        first = None
+        for _ in range(1 + RETRIES):
+            try:
+                self.reset()
+                outcome, seen = PASS, check()
+            except Broken as error:
+                outcome, seen = FAIL, str(error)
+            except Unobservable as error:
+                outcome, seen = NOT_CHECKED, str(error)
+            if outcome != FAIL or first is not None:
+                break
+            first = seen
+        if first is not None:
+            seen = f"{seen} (the first try failed: {first})" if outcome != FAIL else f"{first} (again on a second try)"
         verdict = Verdict(rule, outcome, seen)
         self.verdicts.append(verdict)
         self.say(verdict)
@@ -1099,28 +1108,30 @@ class Check:
         d = self.device
         if not self.v3 or not getattr(d, "sensors", 0):
             raise Unobservable("the device has no sensor" if self.v3 else "SENSORS are v3's")
-        # a device whose link cannot drain what it sends (a slow UART, an emulator on a loaded machine) drops whole
-        # frames now and then: one gap is looked at again; a device that skips samples skips them every time
-        first_gap = ""
-        for attempt in range(2):
-            if attempt:
-                self.enable(False)
-            since = self.probe.mark()
-            time.sleep(0.3)  # disabled
-            self.enable(True)
-            enabled_from = time.perf_counter()
-            self.stream(0.3, self.safe_code)
-            frames = [(t, p.parse_sensors(f.payload)) for t, f in self.probe.received(since, p.SENSORS)]
-            if len(frames) < 5:
-                raise Broken(f"{len(frames)} SENSORS frames in 0.6 s")
-            gap = next((f"a frame from sample {a.first_sample} of {len(a.samples)} samples, the next from "
-                        f"{b.first_sample}" for (_, a), (_, b) in zip(frames, frames[1:], strict=False)
-                        if (b.first_sample - a.first_sample) & 0xFFFFFFFF != len(a.samples)), "")
-            if not gap:
-                break
-            if first_gap:
-                raise Broken(f"{first_gap}; again: {gap}: samples left out or repeated")
-            first_gap = gap
+        # a device whose link cannot drain what it sends (a slow UART, an emulator or this host on a loaded machine)
+        # loses a whole frame now and then: a gap at a few frame boundaries. A device that leaves samples out, or
+        # repeats them, does it at most of them.
+        since = self.probe.mark()
+        time.sleep(0.3)  # disabled
+        self.enable(True)
+        enabled_from = time.perf_counter()
+        self.stream(0.3, self.safe_code)
+        frames = [(t, p.parse_sensors(f.payload)) for t, f in self.probe.received(since, p.SENSORS)]
+        if len(frames) < 5:
+            raise Broken(f"{len(frames)} SENSORS frames in 0.6 s")
+        steps = [((b.first_sample - a.first_sample) & 0xFFFFFFFF) - len(a.samples)
+                 for (_, a), (_, b) in zip(frames, frames[1:], strict=False)]
+        wrong = [step for step in steps if step]
+        repeated = [step for step in wrong if step > 0x7FFFFFFF]
+        smallest = min(len(s.samples) for _, s in frames)  # a lost frame leaves out at least this many
+        if repeated or len(wrong) > max(1, len(steps) // 10) or any(step < smallest for step in wrong):
+            k = next(k for k, step in enumerate(steps) if step)
+            a, b = frames[k][1], frames[k + 1][1]
+            raise Broken(f"{'samples repeated' if repeated else 'samples left out'} between {len(wrong)} of "
+                         f"{len(steps)} frames (a frame from sample {a.first_sample} of {len(a.samples)} samples, "
+                         f"the next from {b.first_sample})")
+        first_gap = f"{len(wrong)} gap{'s' if len(wrong) > 1 else ''} of {', '.join(map(str, wrong))} samples" \
+            if wrong else ""
         # how often, on the device's own clock: a frame every 10 ms carries 10 ms of samples (+1: the millisecond it
         # is made in) on average, every 50 ms at rest; none carries twice that (a frame left out). A frame begun
         # before ENABLE may carry the rest's.
@@ -1136,8 +1147,9 @@ class Check:
                 raise Broken(f"{words}: sent less often than every {p.SENSORS_PERIOD_MS} ms (enabled) or "
                              f"{p.SENSORS_REST_PERIOD_MS} ms (at rest)")
         samples = sum(len(s.samples) for _, s in frames)
-        again = f" (the first try saw a gap, {first_gap}: a frame dropped once, not again)" if first_gap else ""
-        return f"{len(frames)} frames, {samples} consecutive samples; {words}{again}"
+        lost = f" ({first_gap} between {len(steps)} frames: whole frames lost on the way, the link or this host " \
+            "falling behind)" if first_gap else ""
+        return f"{len(frames)} frames, {samples} samples, consecutive{lost}; {words}"
 
     def check_loop(self) -> str:
         has_loop = self.v3 and self.device.features & p.FEATURE_AMPLITUDE_LOOP
