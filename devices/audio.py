@@ -62,6 +62,25 @@ def choose_rate(device, carrier_hz: float, requested: int | None = None) -> int:
                       "use a 96 or 192 kHz interface")
 
 
+def check_output_device(device) -> None:
+    """DeviceError unless ``device`` (an index, a name or part of one; None: the default) is an audio output
+    PortAudio knows; the message lists the outputs there are."""
+    sd = import_sounddevice()
+    try:
+        info = sd.query_devices(device, kind="output") if device is not None else sd.query_devices(kind="output")
+    except (ValueError, sd.PortAudioError):
+        info = None
+    if info is None or info.get("max_output_channels", 0) < 1:
+        try:
+            outputs = [f"{index} ({found['name']})" for index, found in enumerate(sd.query_devices())
+                       if found["max_output_channels"] > 0]
+        except sd.PortAudioError:
+            outputs = []
+        which = "no default audio output" if device is None else f"no such audio output: {device}"
+        listed = f"outputs: {', '.join(outputs[:8])}" if outputs else "this machine has no audio output"
+        raise DeviceError(f"{which}; {listed} (`ultraglide devices` lists them)")
+
+
 class AudioPlate:
     """A plate on a sound-card output."""
 
@@ -75,6 +94,7 @@ class AudioPlate:
         carrier_hz = carrier_hz or profile.resonance_hz
         profile.check_carrier(carrier_hz)
         self.carrier_hz = carrier_hz
+        check_output_device(device)
         self.rate_hz = choose_rate(device, carrier_hz, rate_hz)
         self.latency = latency
         self.blocksize = blocksize

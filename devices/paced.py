@@ -12,11 +12,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from ultraglide.devices.atomic_file import AtomicFile, write_failure
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.output_stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import BlockSource, ramp_down
+
+from ultraglide.atomic import AtomicFile, write_failure
 
 BLOCK_S = 0.005
 

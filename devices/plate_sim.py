@@ -376,6 +376,9 @@ class PtyPlate:
         if not os.path.isdir(directory):
             raise DeviceError(f"no directory {directory} for the plate's link {link_path}: create it or choose "
                               "another --link")
+        if os.path.lexists(link_path) and not os.path.islink(link_path):  # never put a link over a file or device
+            raise DeviceError(f"{link_path} exists and is not a link: the plate's link goes where there is nothing "
+                              "or a link; choose another --link")
         self.path = link_path
         self.pty_name = ""
         self._master = -1
@@ -400,7 +403,7 @@ class PtyPlate:
         os.close(slave)
         fcntl.fcntl(master, fcntl.F_SETFL, fcntl.fcntl(master, fcntl.F_GETFL) | os.O_NONBLOCK)
         temporary = self.path + ".new"
-        with contextlib.suppress(FileNotFoundError):
+        if os.path.islink(temporary):  # a link of an earlier run; anything else there is not ours
             os.unlink(temporary)
         os.symlink(name, temporary)
         os.replace(temporary, self.path)
@@ -409,7 +412,8 @@ class PtyPlate:
 
     def _close_pty(self) -> None:
         with contextlib.suppress(FileNotFoundError):
-            os.unlink(self.path)
+            if os.path.islink(self.path):
+                os.unlink(self.path)
         with self._port_lock:
             master, self._master = self._master, -1
             if master >= 0:

@@ -16,11 +16,13 @@ Bundled: ``sim-plate`` (25 kHz, Q = 200) and ``audio-generic``; any other name i
 from __future__ import annotations
 
 import math
-import tomllib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 from ultraglide.devices.errors import DeviceError
+
+from ultraglide.inputs import parse_toml, read_input, some_of
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
 DEFAULT_PROFILE = "sim-plate"
@@ -134,26 +136,26 @@ def bundled_profiles() -> list[str]:
 
 
 def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
-    """A profile by bundled name or TOML path; DeviceError (one line) for anything wrong with it."""
+    """A profile by bundled name or TOML path; DeviceError (one line) for anything wrong with it. A path that
+    is not a regular file (a pipe, a device, a directory) is refused without being read."""
+    spec = os.fspath(spec)
     path = Path(spec)
-    if not path.is_file():
-        bundled = PROFILE_DIR / f"{spec}.toml"
+    bundled = PROFILE_DIR / f"{spec}.toml"
+    if not os.path.lexists(path) or ("/" not in spec and bundled.is_file() and not path.is_file()):
         if "/" in spec or not bundled.is_file():
             raise DeviceError(f"no plate profile file or bundled profile {spec!r}; bundled: "
                               f"{', '.join(bundled_profiles())}")
         path = bundled
-    try:
-        with path.open("rb") as stream:
-            data = tomllib.load(stream)
-    except (OSError, ValueError) as error:  # TOMLDecodeError and UnicodeDecodeError are ValueErrors
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise DeviceError(f"{path}: not a readable plate profile ({reason})") from None
+    data = parse_toml(read_input(path, "plate profile", DeviceError), f"{path}", DeviceError, what="plate profile")
     known = set(PlateProfile.__dataclass_fields__)
     unknown = sorted(set(data) - known)
     if unknown:
-        raise DeviceError(f"{path}: unknown profile keys {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+        raise DeviceError(f"{path}: unknown profile keys {some_of(unknown)}; known: {', '.join(sorted(known))}")
     missing = [key for key in REQUIRED if key not in data]
     if missing:
         raise DeviceError(f"{path}: profile lacks {', '.join(missing)}")
     data.setdefault("name", path.stem)
-    return PlateProfile(**data)
+    try:
+        return PlateProfile(**data)
+    except DeviceError as error:  # name the file the value came from
+        raise DeviceError(f"{path}: {error}") from None

@@ -17,6 +17,8 @@ Its size is ``width_mm`` (default 80 mm, a typical plate) or follows from ``dpi`
 
 from __future__ import annotations
 
+import contextlib
+import struct
 import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -25,8 +27,11 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 from scipy import ndimage
 from ultraglide.textures.errors import TextureError
+from ultraglide.textures.fileformat import held_size
 from ultraglide.textures.seams import DEFAULT_BAND, METHODS, make_seamless, measure_seams
 from ultraglide.textures.texture import Texture
+
+from ultraglide.inputs import open_input
 
 MODES = ("brightness", "edges", "gradient")
 DEFAULT_WIDTH_MM = 80.0
@@ -94,17 +99,35 @@ class AuthoringOptions:
             raise TextureError("give --levels or --auto-levels, not both")
 
 
+class ImageTooLarge(TextureError):
+    """An image with more pixels than the limit allows (``AuthoringOptions.max_pixels``)."""
+
+    def __init__(self, path, size: tuple[int, int], limit: int,
+                 advice: str = "shrink the image, or give a larger max_pixels"):
+        self.path, self.size, self.limit = path, size, limit
+        super().__init__(f"{path}: {size[0]}×{size[1]} is {size[0] * size[1]:,} pixels, over the limit of "
+                         f"{limit:,}; {advice}")
+
+    def advising(self, advice: str) -> ImageTooLarge:
+        """The same refusal with other advice (what the caller's own options can do)."""
+        return ImageTooLarge(self.path, self.size, self.limit, advice)
+
+
+_ROWS_PER_CHUNK_PIXELS = 1 << 20  # luminance is computed a million pixels at a time: float arrays stay small
+
+
 def _luminance(image: Image.Image, background) -> np.ndarray:
-    """Luminance in 0..1 of an image of any mode (frame already chosen and rotated)."""
+    """Luminance in 0..1 (float32) of an image of any mode (frame already chosen and rotated)."""
     mode = image.mode
     if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
-        return np.clip(np.asarray(image, dtype=np.float64), 0, 65535) / 65535.0
+        values = np.asarray(image).astype(np.float32)
+        return np.clip(values, 0, 65535, out=values) / np.float32(65535.0)
     if mode == "F":
-        values = np.nan_to_num(np.asarray(image, dtype=np.float64))
+        values = np.nan_to_num(np.asarray(image, dtype=np.float32))
         top = values.max()
         return np.clip(values / top if top > 1 else values, 0, 1)
     if mode in ("1", "L"):
-        return np.asarray(image.convert("L"), dtype=np.float64) / 255.0
+        return np.asarray(image.convert("L")).astype(np.float32) / np.float32(255.0)
     has_alpha = mode in ("LA", "La", "PA", "RGBA", "RGBa") or "transparency" in image.info
     if has_alpha:
         rgba = image.convert("RGBA")
@@ -112,42 +135,134 @@ def _luminance(image: Image.Image, background) -> np.ndarray:
         rgb = Image.alpha_composite(ground, rgba).convert("RGB")
     else:
         rgb = image.convert("RGB")
-    pixels = np.asarray(rgb, dtype=np.float64) / 255.0
-    return pixels @ np.array([0.299, 0.587, 0.114])
+    pixels = np.asarray(rgb)
+    luminance = np.empty(pixels.shape[:2], dtype=np.float32)
+    weights = np.array([0.299, 0.587, 0.114], dtype=np.float32) / np.float32(255.0)
+    step = max(1, _ROWS_PER_CHUNK_PIXELS // max(1, pixels.shape[1]))
+    for row in range(0, pixels.shape[0], step):
+        luminance[row:row + step] = pixels[row:row + step].astype(np.float32) @ weights
+    return np.clip(luminance, 0, 1, out=luminance)
 
 
-def read_image_luminance(path: str | Path, options: AuthoringOptions = AuthoringOptions()) -> tuple[np.ndarray, dict]:
-    """Luminance (0..1, rows × cols) of an image file, and facts about the source."""
-    path = Path(path)
-    if path.is_dir():
-        raise TextureError(f"{path}: is a directory, not an image")
+def physical_width_mm(cols: int, options: AuthoringOptions) -> float:
+    """The width (mm) an image ``cols`` pixels wide (after cropping) is given by ``options``."""
+    if options.dpi is not None:
+        return cols / options.dpi * 25.4
+    return options.width_mm or DEFAULT_WIDTH_MM
+
+
+def _for_resizing(image: Image.Image) -> Image.Image:
+    """The image in a mode Pillow's box filter averages (alpha premultiplied, 16 bits kept)."""
+    if image.mode in ("I;16", "I", "F", "L", "RGB", "RGBA"):
+        return image
+    if image.mode.startswith("I;16"):
+        return image.convert("I")
+    has_alpha = image.mode in ("LA", "La", "PA", "RGBa") or "transparency" in image.info
+    return image.convert("RGBA" if has_alpha else ("L" if image.mode == "1" else "RGB"))
+
+
+def _held(image: Image.Image, width_mm: float, file_size: tuple[int, int], info: dict) -> Image.Image:
+    """The image reduced (exact box filter) to the resolution a texture ``width_mm`` wide is held at
+    (:func:`held_size`: at most 20 pixels per mm and 16 M pixels); ``info`` notes the file's pixels
+    (``held_from_pixels``) when the texture has fewer."""
+    cols, rows = image.size
+    size = held_size(cols, rows, width_mm, width_mm * rows / cols)
+    if size != tuple(file_size):
+        info["held_from_pixels"] = list(file_size)
+    if size == (cols, rows):
+        return image
+    return _for_resizing(image).resize(size, Image.Resampling.BOX)
+
+
+@contextlib.contextmanager
+def _reading_image(path: Path):
+    """Pillow's ways of failing, as one-line TextureErrors naming ``path``; Pillow's own pixel limit and its
+    decompression-bomb warning are off inside (our limits say what to do)."""
     previous_limit = Image.MAX_IMAGE_PIXELS
-    Image.MAX_IMAGE_PIXELS = None  # our own limit below says what to do; Pillow's would only warn
+    Image.MAX_IMAGE_PIXELS = None
     try:
-        with Image.open(path) as image:
-            if image.width * image.height > options.max_pixels:
-                raise TextureError(
-                    f"{path}: {image.width}×{image.height} is {image.width * image.height:,} pixels, over the "
-                    f"limit of {options.max_pixels:,}; raise it with --max-pixels or shrink the image")
-            frames = getattr(image, "n_frames", 1)
-            if frames > 1:
-                warnings.warn(f"{path} is animated ({frames} frames); using the first", stacklevel=2)
-                image.seek(0)
-            image.load()
-            source_mode = image.mode
-            image = ImageOps.exif_transpose(image)
-            luminance = _luminance(image, options.background)
-            info = {"source_mode": source_mode, "source_size": [image.width, image.height], "frames": frames,
-                    "format": image.format or ""}
-    except FileNotFoundError:
-        raise TextureError(f"{path}: no such file") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            yield
+    except TextureError:
+        raise
     except UnidentifiedImageError:
-        raise TextureError(f"{path}: not an image Pillow can read (empty, or not an image at all)") from None
-    except (OSError, SyntaxError, ValueError) as error:
+        raise TextureError(f"{path}: not an image (no image format Pillow knows)") from None
+    except MemoryError:
+        raise TextureError(f"{path}: too large to decode in the memory available") from None
+    except (OSError, SyntaxError, ValueError, EOFError, struct.error) as error:
         raise TextureError(f"{path}: the image is damaged or truncated ({error})") from None
     finally:
         Image.MAX_IMAGE_PIXELS = previous_limit
+
+
+def read_image_luminance(path: str | Path, options: AuthoringOptions = AuthoringOptions()) -> tuple[np.ndarray, dict]:
+    """Luminance (0..1, rows × cols, float32) of an image file, and facts about the source.
+
+    The image is cropped here (``options.crop``, in the source's pixels after EXIF rotation) and reduced to the
+    resolution a texture is held at (:func:`ultraglide.textures.fileformat.held_size`, given the physical
+    size the options make it); ``info`` says so (``cropped``, ``held_from_pixels``). A JPEG is decoded at the
+    reduced size directly (Pillow's ``draft``)."""
+    path = Path(path)
+    with _reading_image(path), open_input(path, "image file", TextureError) as stream:
+        image = Image.open(stream)
+        if image.width * image.height > options.max_pixels:
+            raise ImageTooLarge(path, image.size, options.max_pixels)
+        frames = getattr(image, "n_frames", 1)
+        if frames > 1:
+            warnings.warn(f"{path} is animated ({frames} frames); using the first", stacklevel=2)
+            image.seek(0)
+        turned = _quarter_turned(image)
+        source = image.size[::-1] if turned else image.size
+        info = {"source_mode": image.mode, "source_size": list(source), "frames": frames,
+                "format": image.format or ""}
+        file_size = tuple(options.crop[2:]) if options.crop is not None else source
+        width_mm = physical_width_mm(file_size[0], options)
+        if options.crop is None:
+            _draft(image, width_mm, source, turned)
+        image.load()
+        ImageOps.exif_transpose(image, in_place=True)  # no copy of a large image
+        image = _cropped(image, options, info)
+        image = _held(image, width_mm, file_size, info)
+        luminance = _luminance(image, options.background)
     return luminance, info
+
+
+def check_image(path: str | Path) -> None:
+    """:class:`TextureError` unless ``path`` is a regular file in an image format Pillow reads (only its
+    header is read)."""
+    with _reading_image(Path(path)), open_input(path, "image file", TextureError) as stream:
+        Image.open(stream).close()
+
+
+def _quarter_turned(image: Image.Image) -> bool:
+    """Whether the image's EXIF orientation turns it a quarter (its width and height swap when applied)."""
+    try:
+        return image.getexif().get(0x0112, 1) in (5, 6, 7, 8)
+    except (OSError, ValueError, SyntaxError, struct.error):
+        return False
+
+
+def _draft(image: Image.Image, width_mm: float, source: tuple[int, int], turned: bool) -> None:
+    """Let a JPEG decode at 1/2, 1/4 or 1/8 of its size when the texture is held smaller than that anyway."""
+    if image.format != "JPEG":
+        return
+    wide, high = source
+    held = held_size(wide, high, width_mm, width_mm * high / wide)
+    if held != (wide, high):
+        image.draft(image.mode, held[::-1] if turned else held)
+
+
+def _cropped(image: Image.Image, options: AuthoringOptions, info: dict) -> Image.Image:
+    """``options.crop`` of the image (pixels), or the image; a crop reaching outside is refused."""
+    if options.crop is None:
+        return image
+    x, y, w, h = options.crop
+    cols, rows = image.size
+    if x + w > cols or y + h > rows:
+        raise TextureError(f"crop {x},{y},{w},{h} reaches outside the {cols}×{rows} image")
+    info["cropped"] = [x, y, w, h]
+    return image.crop((x, y, x + w, y + h))
 
 
 def _edges(values: np.ndarray, mode: str = "nearest") -> np.ndarray:
@@ -158,19 +273,18 @@ def _edges(values: np.ndarray, mode: str = "nearest") -> np.ndarray:
 
 def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, name: str = "",
                            source: str = "", info: dict | None = None) -> Texture:
-    """Apply crop, blur, mapping, levels, gamma, invert and range to a luminance map."""
+    """Apply crop (unless :func:`read_image_luminance` did), blur, mapping, levels, gamma, invert and range to a
+    luminance map."""
     values = luminance
-    if options.crop is not None:
+    if options.crop is not None and "cropped" not in (info or {}):  # not yet cropped by read_image_luminance
         x, y, w, h = options.crop
         rows, cols = values.shape
         if x + w > cols or y + h > rows:
             raise TextureError(f"crop {x},{y},{w},{h} reaches outside the {cols}×{rows} image")
         values = values[y:y + h, x:x + w]
     rows, cols = values.shape
-    if options.dpi is not None:
-        width_mm = cols / options.dpi * 25.4
-    else:
-        width_mm = options.width_mm or DEFAULT_WIDTH_MM
+    file_cols = (info or {}).get("held_from_pixels", [cols])[0]  # the dpi counts the file's pixels
+    width_mm = physical_width_mm(file_cols, options)
     values, width_mm = _seamless_step(values, width_mm, options)
     rows, cols = values.shape
     height_mm = width_mm * rows / cols

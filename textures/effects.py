@@ -374,21 +374,11 @@ def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
 
 
 def load_effects(path) -> tuple[Binding, ...]:
-    """Bindings from a JSON file holding :func:`to_json`'s description; one-line TextureError for a bad one."""
-    import json
-    from pathlib import Path
+    """Bindings from a JSON file holding :func:`to_json`'s description; one-line TextureError for a bad one
+    (a path that is not a regular file is refused without being read)."""
+    from ultraglide.inputs import parse_json, read_input
 
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise TextureError(f"{path}: no such effects file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise TextureError(f"{path}: cannot read it ({error})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise TextureError(f"{path}: not valid JSON ({error})") from None
+    data = parse_json(read_input(path, "effects file", TextureError), str(path), TextureError, what="effects file")
     return from_json(data, where=str(path))
 
 

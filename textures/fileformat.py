@@ -18,11 +18,9 @@ millimetre, and it tiles; a warning says so. Saving is atomic; a round trip is e
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import os
-import tempfile
+import struct
 import warnings
 from pathlib import Path
 
@@ -31,6 +29,9 @@ from PIL import Image, PngImagePlugin, UnidentifiedImageError
 from ultraglide.textures import effects as effects_format
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.texture import KINDS, OUTSIDE_RULES, Texture
+
+from ultraglide.atomic import AtomicFile
+from ultraglide.inputs import open_input, parse_json
 
 FORMAT_VERSION = 1
 CHUNK = "ultraglide"
@@ -65,41 +66,62 @@ def metadata_of(texture: Texture) -> dict:
 
 
 def save_texture(texture: Texture, path: str | Path) -> Path:
-    """Write a texture file atomically; returns the path."""
+    """Write a texture file atomically (:class:`ultraglide.atomic.AtomicFile`); returns the path."""
     path = Path(path)
     image = Image.fromarray(quantise(texture.values))  # mode I;16: 16-bit grayscale PNG
     info = PngImagePlugin.PngInfo()
     info.add_itxt(CHUNK, json.dumps(metadata_of(texture), ensure_ascii=False))
     dpi = 25.4 * texture.cols / texture.width_mm
-    directory = path.parent if str(path.parent) else Path(".")
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=directory)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            image.save(stream, format="PNG", pnginfo=info, dpi=(dpi, dpi))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temporary, 0o666 & ~umask)
-        os.replace(temporary, path)
-    except OSError as error:  # a failed write names nothing: name the file asked for
-        if error.filename is not None and error.filename != temporary:
-            raise
-        raise OSError(error.errno, error.strerror, str(path)) from None
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temporary)
+    with AtomicFile(path) as target, open(target.temporary, "wb") as stream:
+        image.save(stream, format="PNG", pnginfo=info, dpi=(dpi, dpi))
     return path
 
 
-def _sixteen_bit(image: Image.Image) -> np.ndarray:
-    if image.mode in ("I;16", "I;16B", "I;16L", "I"):
-        return np.clip(np.asarray(image, dtype=np.float64), 0, FULL_SCALE) / FULL_SCALE
-    if image.mode == "L":
-        return np.asarray(image, dtype=np.float64) / 255.0
+def _grayscale(image: Image.Image) -> Image.Image:
+    """The decoded image in a grayscale mode (16-bit, 8-bit or 32-bit integers); a palette or 1-bit image is
+    read through its gray levels, an alpha channel dropped; colour is refused."""
+    if image.mode in ("I;16", "I;16L", "I;16B", "I;16N", "I", "L"):
+        return image
+    if image.mode in ("P", "PA", "1", "LA", "La"):
+        return image.convert("L")
     raise TextureError(f"a texture file must be grayscale, this one is {image.mode}; "
                        "make one with `ultraglide author`")
 
 
+MAX_PX_PER_MM = 20.0  # a finger resolves about 0.05 mm: a texture is held no finer than this
+MAX_HELD_PIXELS = 16_000_000  # and in at most this many pixels (200 × 200 mm at 20 px/mm; 64 MB of float32)
+
+
+def held_size(cols: int, rows: int, width_mm: float, height_mm: float) -> tuple[int, int]:
+    """The pixels a texture of ``cols`` × ``rows`` pixels over ``width_mm`` × ``height_mm`` is held in: at most
+    :data:`MAX_PX_PER_MM` per millimetre along each side, at most :data:`MAX_HELD_PIXELS` in all, at least one."""
+    held_cols = min(cols, max(1, math.ceil(width_mm * MAX_PX_PER_MM)))
+    held_rows = min(rows, max(1, math.ceil(height_mm * MAX_PX_PER_MM)))
+    if held_cols * held_rows > MAX_HELD_PIXELS:
+        shrink = math.sqrt(MAX_HELD_PIXELS / (held_cols * held_rows))
+        held_cols, held_rows = max(1, int(held_cols * shrink)), max(1, int(held_rows * shrink))
+    return held_cols, held_rows
+
+
+def _held_values(image: Image.Image, width_mm: float, height_mm: float, authoring: dict) -> tuple[np.ndarray, dict]:
+    """The map's values (float32, 0..1) at the resolution it is held at (:func:`held_size`), averaging the
+    file's pixels over each held pixel (an exact box filter); ``authoring`` notes the file's own size."""
+    cols, rows = image.size
+    size = held_size(cols, rows, width_mm, height_mm)
+    if size != (cols, rows):
+        if image.mode not in ("I;16", "L", "I"):
+            image = image.convert("I")
+        image = image.resize(size, Image.Resampling.BOX)
+        authoring = {**authoring, "held_from_pixels": [cols, rows]}
+    top = 255.0 if image.mode == "L" else float(FULL_SCALE)
+    values = np.asarray(image).astype(np.float32)
+    np.clip(values, 0.0, top, out=values)
+    values *= np.float32(1.0 / top)
+    return values, authoring
+
+
 MAX_SIDE_MM = 10_000.0  # no plate is 10 m across
+MIN_SIDE_MM = 0.01  # 10 µm: a fifth of what a finger resolves; smaller would make pixels vanish
 MAX_TEXT = 10_000  # characters of a name, description or source
 MAX_CHUNK_BYTES = 1 << 20  # the metadata is a few hundred bytes; Pillow refuses more than this too
 TEXT_CHUNKS = (b"tEXt", b"zTXt", b"iTXt")
@@ -128,8 +150,8 @@ def _validated(meta: dict, where: str) -> dict:
                            f"(up to {FORMAT_VERSION}); upgrade ultraglide")
     problems: list[str] = []
     fields = {
-        "width_mm": _number(meta, "width_mm", None, 0.0, MAX_SIDE_MM, problems, low_open=True),
-        "height_mm": _number(meta, "height_mm", None, 0.0, MAX_SIDE_MM, problems, low_open=True),
+        "width_mm": _number(meta, "width_mm", None, MIN_SIDE_MM, MAX_SIDE_MM, problems),
+        "height_mm": _number(meta, "height_mm", None, MIN_SIDE_MM, MAX_SIDE_MM, problems),
         "outside_ratio": _number(meta, "outside_ratio", 1.0, 0.0, 1.0, problems),
         "full_slope_per_mm": _number(meta, "full_slope_per_mm", 0.0, 0.0, 1e9, problems),
     }
@@ -160,79 +182,96 @@ def _validated(meta: dict, where: str) -> dict:
 
 
 def has_texture_metadata(path: str | Path) -> bool:
-    """Whether a file is a PNG with an ultraglide metadata chunk, readable or not."""
+    """Whether a file is a PNG with an ultraglide metadata chunk, readable or not (False for anything that is
+    not a regular file: it is never opened)."""
     try:
-        return _metadata_chunk_present(Path(path))
-    except OSError:
+        with open_input(path, "texture file", TextureError) as stream:
+            return _metadata_chunk_present(stream)
+    except (OSError, TextureError):
         return False
 
 
-def _metadata_chunk_present(path: Path) -> bool:
+def _metadata_chunk_present(stream) -> bool:
     """Whether the PNG has a text chunk with our keyword, read from the chunk headers (Pillow skips
     text chunks it cannot decode, which would turn a damaged texture file into a plain image)."""
-    with open(path, "rb") as stream:
-        if stream.read(8) != b"\x89PNG\r\n\x1a\n":
+    stream.seek(0)
+    if stream.read(8) != b"\x89PNG\r\n\x1a\n":
+        return False
+    while True:
+        header = stream.read(8)
+        if len(header) < 8:
             return False
-        while True:
-            header = stream.read(8)
-            if len(header) < 8:
-                return False
-            length, kind = int.from_bytes(header[:4], "big"), header[4:]
-            if kind in TEXT_CHUNKS:
-                if stream.read(min(length, len(CHUNK) + 1)) == CHUNK.encode() + b"\0":
-                    return True
-                stream.seek(-min(length, len(CHUNK) + 1), 1)
-            if kind == b"IEND":
-                return False
-            stream.seek(length + 4, 1)
+        length, kind = int.from_bytes(header[:4], "big"), header[4:]
+        if kind in TEXT_CHUNKS:
+            if stream.read(min(length, len(CHUNK) + 1)) == CHUNK.encode() + b"\0":
+                return True
+            stream.seek(-min(length, len(CHUNK) + 1), 1)
+        if kind == b"IEND":
+            return False
+        stream.seek(length + 4, 1)
 
 
 def load_texture(path: str | Path) -> Texture:
-    """Read a texture file; :class:`TextureError` says what is wrong with a bad one."""
+    """Read a texture file; :class:`TextureError` says what is wrong with a bad one.
+
+    A file finer than :data:`MAX_PX_PER_MM` is held at that resolution (see :func:`_held_size`); the
+    texture's ``authoring`` then says so under ``held_from_pixels``."""
     path = Path(path)
-    if path.is_dir():
-        raise TextureError(f"{path}: is a directory, not a texture file")
-    try:
-        with Image.open(path) as image:
-            if image.width * image.height > MAX_PIXELS:
-                raise TextureError(f"{path}: {image.width}×{image.height} pixels is more than a texture may have "
-                                   f"({MAX_PIXELS:,})")
-            image.load()
-            text = image.info.get(CHUNK)
-            dpi = image.info.get("dpi")
-            values = _sixteen_bit(image)
-    except FileNotFoundError:
-        raise TextureError(f"{path}: no such texture file") from None
-    except UnidentifiedImageError:
-        raise TextureError(f"{path}: not an image file") from None
-    except Image.DecompressionBombError:
-        raise TextureError(f"{path}: more pixels than a texture may have ({MAX_PIXELS:,})") from None
-    except (OSError, SyntaxError, ValueError, EOFError) as error:  # Pillow's ways of saying "damaged"
-        raise TextureError(f"{path}: cannot read it, the file is damaged or truncated ({error})") from None
-    if text is None and _metadata_chunk_present(path):
+    with open_input(path, "texture file", TextureError) as stream:
+        image, text, dpi = _read_png(stream, path)
+        chunk_present = text is not None or _metadata_chunk_present(stream)
+    if text is None and chunk_present:
         raise TextureError(f"{path}: its ultraglide metadata chunk is damaged (not readable text); "
                            "make the texture again with `ultraglide author` or `ultraglide texture new`")
     if text is None:
-        rows, cols = values.shape
+        cols, rows = image.size
         px_per_mm = dpi[0] / 25.4 if dpi and math.isfinite(dpi[0]) and dpi[0] > 1 else DEFAULT_PX_PER_MM
+        width_mm, height_mm = cols / px_per_mm, rows / px_per_mm
+        if max(width_mm, height_mm) > MAX_SIDE_MM:
+            raise TextureError(f"{path}: at {px_per_mm:g} pixels per mm it would be {width_mm:.6g} × "
+                               f"{height_mm:.6g} mm, more than {MAX_SIDE_MM:g} mm; give it a higher DPI")
+        values, authoring = _held_values(image, width_mm, height_mm, {"plain_image": True})
         warnings.warn(f"{path} has no ultraglide metadata: brightness is read as the friction ratio, "
                       f"{px_per_mm:g} pixels per mm, tiled", stacklevel=2)
-        return Texture(values.astype(np.float32), cols / px_per_mm, rows / px_per_mm, name=path.stem,
-                       source=str(path), authoring={"plain_image": True})
+        return Texture(values, width_mm, height_mm, name=path.stem, source=str(path), authoring=authoring)
     if len(text) > MAX_CHUNK_BYTES:
         raise TextureError(f"{path}: its ultraglide metadata is {len(text):,} characters, more than any texture has")
-    try:
-        meta = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as error:
-        reason = "nested too deeply" if isinstance(error, RecursionError) else str(error)
-        raise TextureError(f"{path}: its ultraglide metadata is not valid JSON ({reason})") from None
+    meta = parse_json(text, f"{path}: its ultraglide metadata", TextureError, what="texture's metadata")
     if not isinstance(meta, dict):
         raise TextureError(f"{path}: its ultraglide metadata must be a JSON object")
     fields = _validated(meta, str(path))
-    if fields["kind"] == "gradient" and min(values.shape) < 2:
+    if fields["kind"] == "gradient" and min(image.size) < 2:
         raise TextureError(f"{path}: a gradient texture needs 2×2 pixels or more, this one is "
-                           f"{values.shape[1]}×{values.shape[0]}")
+                           f"{image.size[0]}×{image.size[1]}")
     fields["name"] = fields["name"] if "name" in meta else path.stem
     if meta.get("effects") is not None:
         fields["effects"] = effects_format.from_json(meta["effects"], where=f"{path}: effects")
-    return Texture(values.astype(np.float32), **fields)
+    values, fields["authoring"] = _held_values(image, fields["width_mm"], fields["height_mm"], fields["authoring"])
+    return Texture(values, **fields)
+
+
+def _read_png(stream, path: Path):
+    """The decoded image (grayscale), its ultraglide text chunk (or None) and its DPI, from an open file."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own limit speaks instead
+            image = Image.open(stream)
+        with image:
+            if image.width * image.height > MAX_PIXELS:
+                raise TextureError(f"{path}: {image.width}×{image.height} is {image.width * image.height:,} pixels, "
+                                   f"more than a texture file may have ({MAX_PIXELS:,}); shrink the image")
+            image.load()
+            text = image.info.get(CHUNK)
+            dpi = image.info.get("dpi")
+            return _grayscale(image), text, dpi
+    except TextureError:
+        raise
+    except UnidentifiedImageError:
+        raise TextureError(f"{path}: not an image (no image format Pillow knows)") from None
+    except Image.DecompressionBombError:
+        raise TextureError(f"{path}: more pixels than a texture file may have ({MAX_PIXELS:,}); "
+                           "shrink the image") from None
+    except MemoryError:
+        raise TextureError(f"{path}: too large to decode in the memory available") from None
+    except (OSError, SyntaxError, ValueError, EOFError, struct.error) as error:  # Pillow's ways of saying "damaged"
+        raise TextureError(f"{path}: cannot read it, the file is damaged or truncated ({error})") from None

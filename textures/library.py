@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import difflib
 import json
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 from PIL import Image
-from ultraglide.textures.authoring import AuthoringOptions, author_image
+from ultraglide.textures.authoring import AuthoringOptions, ImageTooLarge, author_image, check_image
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import CHUNK, has_texture_metadata, load_texture
 from ultraglide.textures.texture import Texture
@@ -52,17 +53,25 @@ def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Textu
     """A texture from a file path or a library name.
 
     A texture file loads as it is; any other image is authored on the fly with ``options``
-    (the defaults of ``ultraglide author`` unless given), with a warning saying so.
-    """
+    (the defaults of ``ultraglide author`` unless given), with a warning saying so. A path that exists
+    but is not a regular file (a directory, a named pipe, a device) is refused in one line, unless a
+    library texture has that name."""
+    spec = os.fspath(spec)
     path = Path(spec)
-    if path.is_file():
+    bundled = LIBRARY_DIR / f"{spec}.png"
+    library_name = "/" not in spec and bundled.is_file()
+    if os.path.lexists(path) and (path.is_file() or not library_name):
         if has_metadata(path):
             return load_texture(path)
+        check_image(path)
         warnings.warn(f"{path} is a plain image: authoring it with default options (choose them with "
                       "AuthoringOptions in Python, or make the texture with `ultraglide author`)", stacklevel=2)
-        return author_image(path, options or AuthoringOptions())
-    bundled = LIBRARY_DIR / f"{spec}.png"
-    if "/" not in spec and bundled.is_file():
+        try:
+            return author_image(path, options or AuthoringOptions())
+        except ImageTooLarge as error:
+            raise error.advising("shrink the image, or make a texture of it with `ultraglide author` and a "
+                                 "larger --max-pixels") from None
+    if library_name:
         return load_texture(bundled)
     names = [entry.name for entry in library_entries()]
     close = difflib.get_close_matches(spec, names, n=3, cutoff=0.6) if "/" not in spec else []

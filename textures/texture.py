@@ -19,6 +19,7 @@ from ultraglide.textures.errors import TextureError
 
 KINDS = ("friction", "gradient")
 OUTSIDE_RULES = ("tile", "clamp", "fixed")
+MIN_PIXEL_MM = 1e-6  # 1 nm: nothing real is finer, and every later division by the pitch stays finite
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +54,9 @@ class Texture:
             raise TextureError("texture values must be finite and within 0..1")
         if not (self.width_mm > 0 and self.height_mm > 0 and np.isfinite(self.width_mm * self.height_mm)):
             raise TextureError(f"texture size must be positive, got {self.width_mm} × {self.height_mm} mm")
+        if min(self.width_mm / values.shape[1], self.height_mm / values.shape[0]) < MIN_PIXEL_MM:
+            raise TextureError(f"texture pixels must be {MIN_PIXEL_MM:g} mm or more, got {values.shape[1]}×"
+                               f"{values.shape[0]} over {self.width_mm:g} × {self.height_mm:g} mm")
         if self.kind not in KINDS:
             raise TextureError(f"texture kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
         if self.kind == "gradient" and min(values.shape) < 2:

@@ -59,7 +59,9 @@ class _Writeback:
     """Asks the kernel to start writing a file's dirty pages back to disk (no wait)."""
 
     def __init__(self, path: str):
-        self.fd = os.open(path, os.O_RDONLY) if hasattr(os, "posix_fadvise") else None
+        self.fd = None
+        if hasattr(os, "posix_fadvise") and os.path.isfile(path):  # not a device or a pipe written directly
+            self.fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
 
     def start(self) -> None:
         if self.fd is not None:

@@ -26,7 +26,7 @@ from pathlib import Path
 import soundfile
 
 from ultraglide import _wav_writer
-from ultraglide.devices.atomic_file import AtomicFile, write_failure
+from ultraglide.atomic import AtomicFile, write_failure
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.render.engine.sources import offline_stage

@@ -1,25 +1,30 @@
-"""Write files so that a reader never sees half of one: a temporary file renamed into place.
+"""Write files so that a reader never sees half of one, and a stop signal never leaves a temporary file.
 
-Every file a command writes goes through :func:`atomic_path` (the implementation is
-``ultraglide.devices.atomic_file``, which the WAV recorder shares). The temporary file is removed on
-any way out but success: an exception (a full disk, a file too large), Ctrl-C, SIGTERM or SIGHUP
-(which ``ultraglide``'s ``main`` turns into exceptions); its removal is held against a second signal
-(see :mod:`ultraglide.apps.cli.signals`).
+Every file a command writes goes through :func:`atomic_path`, the commands' door to the one atomic writer
+(:class:`ultraglide.atomic.AtomicFile`: what it does with devices, pipes, directories and links, and how it
+names and clears its temporary files). Here it gains the clean-up against stop signals: the temporary file
+is removed on any way out but success, an exception (a full disk, a file too large), Ctrl-C, SIGTERM or
+SIGHUP (which ``ultraglide``'s ``main`` turns into exceptions), and its rename and removal are held
+against a second signal (see :mod:`ultraglide.apps.cli.signals`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
+from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.signals import held
-from ultraglide.devices.atomic_file import AtomicFile
+
+from ultraglide.atomic import AtomicFile
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it to ``path`` if the block succeeds.
+    """Yield the path to write for ``path``; put it in place if the block succeeds.
 
     Whatever the block writes there must be complete (files closed, errors raised) when it ends."""
     target = AtomicFile(path)
@@ -27,11 +32,92 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         yield target.temporary
         with held():
             target.commit()
-    except OSError as error:
-        if error.errno is None or (error.filename is not None and str(error.filename) != str(target.temporary)):
-            raise
-        # a failed write names the hidden temporary file or nothing: name the file the person asked for
-        raise OSError(error.errno, error.strerror, str(path)) from None
+    except BaseException as error:
+        translated = target.user_error(error)
+        if translated is not error:
+            raise translated from None
+        raise
     finally:
         with held():
             target.discard()
+
+
+def _identities(path: str | Path) -> set[tuple]:
+    """What names ``path``'s file: its resolved path (links and ``..`` followed, whether it exists or not) and,
+    when it exists, its device and inode (which also catches hard links)."""
+    found: set[tuple] = {("path", os.path.realpath(path))}
+    with contextlib.suppress(OSError, ValueError):
+        info = os.stat(path)
+        found.add(("inode", info.st_dev, info.st_ino))
+    return found
+
+
+def _is_character_device(path: str | Path) -> bool:
+    with contextlib.suppress(OSError, ValueError):
+        return stat.S_ISCHR(os.stat(path).st_mode)
+    return False
+
+
+def refuse_overlaps(outputs: dict[str, str | Path | None], inputs: dict[str, str | Path | None] | None = None) -> None:
+    """Refuse, before anything is read or written, an output that is also an input or two outputs that are one
+    file, in one line. Keys are what the person typed (``-o``, ``--envelope-csv``, ``the texture``); values
+    the paths (None: not given). Files are compared as what they are: through symbolic links, ``..``, hard links.
+    A character device may take several outputs (``/dev/null`` twice discards both)."""
+    seen: list[tuple[str, str | Path, set[tuple]]] = []
+    for label, path in (inputs or {}).items():
+        if path is not None:
+            seen.append((label, path, _identities(path)))
+    inputs_count = len(seen)
+    for label, path in outputs.items():
+        if path is None:
+            continue
+        identities = _identities(path)
+        for number, (other_label, other_path, other) in enumerate(seen):
+            if identities & other:
+                if number < inputs_count:
+                    raise UsageError(f"{path} ({label}) is also {other_label} ({other_path}), which is read: "
+                                     "writing it would destroy it; choose another output name")
+                if not _is_character_device(path):
+                    raise UsageError(f"{path} ({label}) and {other_path} ({other_label}) are the same file; "
+                                     "give each output its own name")
+        seen.append((label, path, identities))
+
+
+def texture_file(spec: str | None) -> Path | None:
+    """The file a TEXTURE argument reads: the path given, or the bundled library file of that name."""
+    if spec is None:
+        return None
+    if os.path.lexists(spec):
+        return Path(spec)
+    from ultraglide.textures.library import LIBRARY_DIR
+
+    bundled = LIBRARY_DIR / f"{spec}.png"
+    return bundled if "/" not in spec and bundled.is_file() else None
+
+
+def model_file(spec: str | None) -> Path | None:
+    """The file a ``--model`` reads: ``table:FILE.csv`` or ``CAL.toml``; None for a model by name."""
+    if spec is None:
+        return None
+    if spec.startswith("table:"):
+        return Path(spec.removeprefix("table:"))
+    return Path(spec) if spec.endswith(".toml") else None
+
+
+def profile_file(spec: str | None) -> Path | None:
+    """The file a ``--profile`` reads: the path given, or the bundled profile of that name."""
+    if spec is None:
+        return None
+    if os.path.lexists(spec):
+        return Path(spec)
+    from ultraglide.devices.profiles import PROFILE_DIR
+
+    bundled = PROFILE_DIR / f"{spec}.toml"
+    return bundled if "/" not in spec and bundled.is_file() else None
+
+
+def render_inputs(args) -> dict[str, Path | None]:
+    """The files ``export`` and ``play`` read, keyed by the option that names each."""
+    return {"the texture": texture_file(args.texture), "--trajectory": args.trajectory and Path(args.trajectory),
+            "--model": model_file(args.model), "--profile": profile_file(args.profile),
+            "--effects": getattr(args, "effects", None) and Path(args.effects)}

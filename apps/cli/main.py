@@ -13,12 +13,13 @@ import signal
 import sys
 
 from ultraglide.apps.cli import errors
+from ultraglide.apps.cli.output import PrintableStream, one_line
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.signals import StopSignals
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"ultraglide: warning: {message}", file=file or sys.stderr)
+    print(f"ultraglide: warning: {one_line(str(message))}", file=file or sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _show_warning
     stop = StopSignals()  # SIGTERM and SIGHUP stop a command as Ctrl-C does, through every finally
     stop.install()
+    streams = sys.stdout, sys.stderr  # text from files reaches the terminal escaped (apps.cli.output)
+    sys.stdout, sys.stderr = PrintableStream(sys.stdout), PrintableStream(sys.stderr, keep="\n\t\r")
     try:
         status = int(args.run(args) or 0)
     except KeyboardInterrupt as interrupt:
@@ -41,10 +44,11 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
         return 128 + signal.SIGPIPE
     except errors.USER_ERRORS as error:
-        print(f"ultraglide {args.command}: error: {errors.describe(error)}", file=sys.stderr)
+        print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
         return 1
     finally:
         stop.restore()
+        sys.stdout, sys.stderr = streams
     return _stopped(stop.received) if stop.received is not None else status
 
 

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import refuse_overlaps
 from ultraglide.apps.cli.options import add_range_option
 from ultraglide.apps.cli.types import (
     BLUR_MM,
@@ -73,7 +74,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args) -> int:
-    from ultraglide.textures.authoring import AuthoringOptions, read_image_luminance, texture_from_luminance
+    from ultraglide.textures.authoring import (
+        AuthoringOptions,
+        ImageTooLarge,
+        read_image_luminance,
+        texture_from_luminance,
+    )
     from ultraglide.textures.fileformat import save_texture
 
     low, high = args.range
@@ -89,16 +95,17 @@ def run(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
-    luminance, info = read_image_luminance(args.image, options)
+    refuse_overlaps({"-o": output, "--preview": args.preview}, {"the image": args.image})
+    try:
+        luminance, info = read_image_luminance(args.image, options)
+    except ImageTooLarge as error:
+        raise error.advising("raise the limit with --max-pixels (up to 100e6) or shrink the image") from None
     name = args.name or output.stem
     texture = texture_from_luminance(luminance, options, name, str(args.image), info)
     if args.preview:
         from ultraglide.apps.figures.preview import write_preview
 
-        crop = options.crop
-        source = luminance if crop is None else luminance[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
-        if options.seamless:  # the tile no longer matches the source pixel for pixel
-            source = None
+        source = None if options.seamless else luminance  # a seamless tile no longer matches the source pixels
         write_preview(texture, Path(args.preview), source)
     save_texture(texture, output)
     print(f"wrote {output}: {texture.name}, {texture.width_mm:.1f} × {texture.height_mm:.1f} mm, "

@@ -4,18 +4,18 @@ with its uncertainty and the cross-validated error, and write a calibration file
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.options import add_figure_width_option
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.calibration import Fit
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.cli.files import atomic_path, refuse_overlaps
 
 POOR_FIT_RMS = 0.05
 BOOTSTRAP_RESAMPLES = Bounded(0, 10_000, whole=True)
@@ -117,10 +117,13 @@ def run(args) -> int:
     from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary, selection_note
     from ultraglide.render.physics.measurements import read_measurements
 
-    data = _select_participant(read_measurements(args.data), args.participant)
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix != ".toml":
         raise UsageError(f"{output}: a calibration file must end in .toml")
+    if output is not None:  # the figure goes beside it, as PNG and PDF
+        refuse_overlaps({"-o": output, "its figure": output.with_suffix(".png"),
+                         "its vector figure": output.with_suffix(".pdf")}, {"the data": args.data})
+    data = _select_participant(read_measurements(args.data), args.participant)
     if args.compare:
         fits = compare_models(data)
         if not fits:
@@ -133,7 +136,7 @@ def run(args) -> int:
         note = selection_note(data)
         result = {"ranking": [fit_summary(f) for f in fits], "selection": note, "written": [str(p) for p in written]}
         if args.json:
-            print(json.dumps(result))
+            print_json(result)
             return 0
         print(f"{len(data)} points from {data.source}; {note}:")
         for rank, fit in enumerate(fits, 1):
@@ -156,7 +159,7 @@ def run(args) -> int:
         raise UsageError("a table model is its CSV: use --model table:FILE.csv rather than a calibration file")
     written = _write(fit, [fit], output, args.figure_width) if output is not None else []
     if args.json:
-        print(json.dumps({"fit": fit_summary(fit), "written": [str(p) for p in written]}))
+        print_json({"fit": fit_summary(fit), "written": [str(p) for p in written]})
         return 0
     print(f"{selection_note(data)}")
     for line in _fit_lines(fit) + _residual_table(fit):

@@ -38,8 +38,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args) -> int:
     """Start the demo (pygame and the engine load here, not when the parser is built)."""
+    from ultraglide.apps.cli.files import model_file, profile_file, refuse_overlaps, texture_file
     from ultraglide.apps.demo.app import run as run_demo
 
+    read = {f"texture {number}": texture_file(spec) for number, spec in enumerate(args.textures, 1)}
+    refuse_overlaps({"--record": args.record, "--stats": args.stats},
+                    {**read, "--model": model_file(args.model), "--profile": profile_file(args.profile)})
     return run_demo(args)
 
 

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
+
+from ultraglide.apps.cli.output import print_json
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -20,7 +21,7 @@ def run(args) -> int:
 
     found = list_devices()
     if args.json:
-        print(json.dumps(found))
+        print_json(found)
         return 0
     rows = [("sim", found["simulator"]["description"])]
     rows += [(port["url"], port_words(port)) for port in found["serial"]]

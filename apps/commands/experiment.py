@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -11,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
     BOOTSTRAP_SAMPLES,
     FORCE_N,
@@ -248,7 +248,7 @@ def run(args) -> int:
     if args.resume:
         directory = Path(args.resume)
         saved = read_session(directory)
-        config = resumed_config(saved, getattr(args, "trials", None))
+        config = resumed_config(saved, getattr(args, "trials", None), str(directory / "session.json"))
         if args.observer:
             config = replace(config, observer=args.observer)
         resume = True
@@ -274,7 +274,7 @@ def run(args) -> int:
             close()
     result = outcome.result
     if args.json:
-        print(json.dumps({**result, "directory": str(directory), "figures": [str(p) for p in outcome.figures]}))
+        print_json({**result, "directory": str(directory), "figures": [str(p) for p in outcome.figures]})
     else:
         print(summary(config, result, directory, outcome))
     return 0

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import THREADS
 from ultraglide.apps.commands.render_options import add_render_options
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     import numpy as np
     from ultraglide.render.renderer import ControlBlock
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.cli.files import atomic_path, refuse_overlaps, render_inputs
 from ultraglide.apps.cli.options import add_figure_width_option
 
 PLOT_POINTS = 200_000
@@ -115,11 +115,11 @@ def run(args) -> int:
     import soundfile
     from ultraglide.apps.commands.output_report import clipped_fraction, clipping_warning, limiter_fields
     from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
-    from ultraglide.devices.atomic_file import write_failure
     from ultraglide.render.engine.sources import offline_stage
     from ultraglide.textures.effects import load_effects
 
     from ultraglide.api import WAV_SUBTYPES, available_cpus, export_duration_s, write_wav
+    from ultraglide.atomic import write_failure
 
     if args.format not in WAV_SUBTYPES:
         raise UsageError(f"format must be one of {', '.join(WAV_SUBTYPES)}")
@@ -127,6 +127,7 @@ def run(args) -> int:
     if output.suffix.lower() != ".wav":
         raise UsageError(f"the output must be a .wav file, got {output}")
     threads = available_cpus() if args.threads is None else int(args.threads)
+    refuse_overlaps({"-o": output, "--envelope-csv": args.envelope_csv, "--plot": args.plot}, render_inputs(args))
     effects = load_effects(args.effects) if args.effects else None
     inputs = load_inputs(args)
     renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory
@@ -168,13 +169,13 @@ def run(args) -> int:
     if warning:
         print(warning, file=sys.stderr)
     if args.json:
-        print(json.dumps({"output": str(output), "duration_s": round(duration_s, 6), "rate_hz": rate,
+        print_json({"output": str(output), "duration_s": round(duration_s, 6), "rate_hz": rate,
                           "format": args.format, "carrier_hz": renderer.carrier_hz,
                           "clipped_samples": counters.clipped_samples,
                           "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
                           "effects_started": 0 if renderer.effects is None else renderer.effects.started,
                           **limiter_fields(stage),
-                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]}))
+                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]})
         return 0
     started = 0 if renderer.effects is None else renderer.effects.started
     played = "" if renderer.effects is None else f", {started} effect{'s' if started != 1 else ''} played"

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from ultraglide.apps.cli.options import OneLineParser
+from ultraglide.apps.cli.output import print_json
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -37,7 +37,7 @@ def run_build(args) -> int:
     variants = args.variant or ["hardware", "qemu"]
     images = build_images(args.board, variants, out_dir=args.output, rebuild=args.rebuild)
     if args.json:
-        print(json.dumps({"board": args.board, "images": [image.as_dict() for image in images]}))
+        print_json({"board": args.board, "images": [image.as_dict() for image in images]})
         return 0
     for image in images:
         print(f"{image.variant:9} {image.elf_path}")

@@ -16,13 +16,13 @@ smoothing is the fidelity benchmark's subject, not the pipeline's).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import STEPS
 
 if TYPE_CHECKING:
@@ -156,7 +156,7 @@ def run(args) -> int:
     from ultraglide.devices.run_report import RunReport
 
     figures = measure(args.device, args.steps, args.profile)
-    print(json.dumps(figures) if args.json else describe(figures))
+    print_json(figures) if args.json else print(describe(figures))
     report = RunReport.from_dict(figures["report"])
     if report.exit_status:  # the plate was lost, cut its output or faulted: the figures are not to be trusted
         if not args.json:

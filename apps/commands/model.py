@@ -3,18 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.options import add_figure_width_option, add_model_option
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.fingerprint import FingerParams
     from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import model_file, refuse_overlaps
 
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0
@@ -167,6 +168,7 @@ def run(args) -> int:
     force = DEFAULT_FORCE_N if args.force is None else args.force
     if args.report and Path(args.report).suffix.lower() not in (".pdf", ".svg", ".png"):
         raise UsageError(f"{args.report}: the report is a .pdf (or .svg, or .png at 300 dpi)")
+    refuse_overlaps({"--report": args.report}, {"--model": model_file(args.model), "--data": args.data})
     model = load_model(args.model)
     params = _finger(model)
     if args.preload_n and params is not None and not args.preload_n < params.static_friction * force:
@@ -190,7 +192,7 @@ def run(args) -> int:
     if "quasi_static_warning" in result:
         print(f"warning: {result['quasi_static_warning']}", file=sys.stderr)
     if args.json:
-        print(json.dumps(result))
+        print_json(result)
     else:
         print(format_text(result))
         for path in result.get("plots", []):

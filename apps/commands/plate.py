@@ -8,19 +8,19 @@ figure and the summary.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
 
 if TYPE_CHECKING:
     from ultraglide.devices.profiles import PlateProfile
     from ultraglide.devices.resonance import ResonanceFit
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.cli.files import atomic_path, profile_file, refuse_overlaps
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.commands.plate_check import add_check_parser
 
@@ -102,7 +102,7 @@ def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output
                "points": len(carriers), "from_hz": low,
                "to_hz": high, "drive_fraction": round(level, 5), "profile": str(output)}
     if args.json:
-        print(json.dumps(summary))
+        print_json(summary)
     else:
         print(f"resonance {fit.resonance_hz:.1f} ± {fit.resonance_sigma_hz:.1f} Hz, Q {fit.q:.1f} ± {fit.q_sigma:.1f} "
               f"from the sensor, {len(carriers)} carriers at {level:.1%} of full-scale drive")
@@ -168,6 +168,7 @@ def run_sweep(args) -> int:
     if args.steps < 5:
         raise UsageError("--steps must be at least 5")
     output = check_profile_path(Path(args.output), "-o")
+    refuse_overlaps({"-o": output, "--plot": args.plot}, {"--profile": profile_file(args.profile)})
     if args.plot and Path(args.plot).suffix.lower() not in (".png", ".pdf", ".svg"):
         raise UsageError(f"{args.plot}: the plot is drawn as PNG, PDF or SVG; name it so")
     for path in filter(None, (output, args.plot and Path(args.plot))):
@@ -224,7 +225,7 @@ def run_sweep(args) -> int:
         "report": report.as_dict(),
     }
     if args.json:
-        print(json.dumps(summary))
+        print_json(summary)
         return report.exit_status
     print(f"resonance {fit.resonance_hz:.1f} ± {fit.resonance_sigma_hz:.1f} Hz, Q {fit.q:.1f} ± {fit.q_sigma:.1f} "
           f"(half-power width {fit.bandwidth_hz:.1f} Hz), {fit.peak_um_pp:.3f} ± {fit.peak_sigma_um_pp:.3f} µm p-p "

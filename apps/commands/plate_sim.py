@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import queue
 import time
 
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
 
@@ -80,7 +80,7 @@ def run(args) -> int:
     sim = plate.simulator
 
     def show(event: dict) -> None:
-        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+        print_json(event) if args.json else print(describe_event(event), flush=True)
 
     try:  # whatever ends the loop (a signal turned exception included), the pty and its link go
         if args.json:
@@ -134,7 +134,7 @@ def _plate_sim_qemu(args) -> int:
     plate = QemuPlate(image.elf_path, args.link, plate=truth)
 
     def show(event: dict) -> None:
-        print(json.dumps(event) if args.json else describe_event(event), flush=True)
+        print_json(event) if args.json else print(describe_event(event), flush=True)
 
     last: dict = {}
     plate.start()

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import math
 import sys
 import time
 from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.commands.render_options import add_render_options
 
 if TYPE_CHECKING:
@@ -33,7 +33,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     add_render_options(play)
     play.add_argument("--device", default="sim", metavar="URL",
                       help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
-                           "wav:PATH or null "
+                           "wav:PATH (a recording; stopped by a signal, it keeps what played, whole) or null "
                            "(default: sim)")
     play.add_argument("--track-resonance", action="store_true",
                       help="follow the plate's drifting resonance from its telemetry (a small dither of the "
@@ -100,11 +100,15 @@ def engine_config(args) -> EngineConfig:
 
 
 def run(args) -> int:
+    from ultraglide.apps.cli.files import refuse_overlaps, render_inputs
     from ultraglide.apps.commands.output_report import force_words
     from ultraglide.apps.commands.render_setup import load_inputs
     from ultraglide.devices.run_report import RunReport
+    from ultraglide.devices.urls import parse_device_url
     from ultraglide.render.engine import Engine
 
+    device = parse_device_url(args.device)
+    refuse_overlaps({"--device": device.target if device.kind == "wav" else None}, render_inputs(args))
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
     effects = None
     if args.effects or args.no_effects:
@@ -159,7 +163,7 @@ def run(args) -> int:
     if save_to is not None and tracking is not None:
         save_tracked_profile(save_to, inputs.profile, tracking)
     if args.json:
-        print(json.dumps(status))
+        print_json(status)
     else:
         effects_started = device_status.get("effects_started", 0)
         played = f"; {effects_started} effect{'s' if effects_started != 1 else ''} played" if effects_started else ""

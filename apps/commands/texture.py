@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import refuse_overlaps, texture_file
 from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, add_model_option, add_range_option
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
     ANGLE_DEG,
     COORDINATE_MM,
@@ -213,6 +214,7 @@ def new(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
+    refuse_overlaps({"-o": output, "--preview": args.preview})
     options = {key: getattr(args, key) for key in OPTION_NAMES if hasattr(args, key)}
     if getattr(args, "exact", False):
         options["tile"] = False
@@ -235,8 +237,8 @@ def list_library(args) -> int:
 
     entries = library_entries()
     if args.json:
-        print(json.dumps([{"name": e.name, "width_mm": _mm(e.width_mm), "height_mm": _mm(e.height_mm), "kind": e.kind,
-                           "description": e.description} for e in entries], ensure_ascii=False))
+        print_json([{"name": e.name, "width_mm": _mm(e.width_mm), "height_mm": _mm(e.height_mm), "kind": e.kind,
+                     "description": e.description} for e in entries])
         return 0
     sizes = [f"{e.width_mm:.1f} × {e.height_mm:.1f}" for e in entries]
     name_w = max([len("name")] + [len(e.name) for e in entries])
@@ -295,6 +297,10 @@ def compose(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
+    read = {f"input {number}": texture_file(spec) for number, spec in enumerate(args.inputs, 1)}
+    read.update({"the mask": texture_file(getattr(args, "mask", None)),
+                 "--else": texture_file(getattr(args, "other", None))})
+    refuse_overlaps({"-o": output}, read)
     name = args.name or output.stem
     bare = (lambda texture: texture.with_(effects=())) if args.no_effects else (lambda texture: texture)
     inputs = [bare(_input(spec)) for spec in args.inputs]
@@ -345,10 +351,12 @@ OUTSIDE_WORDS = {"tile": "it repeats (a tile)", "clamp": "its edges extend", "fi
 
 
 def info(args) -> int:
+    from ultraglide.textures.fileformat import MAX_HELD_PIXELS, MAX_PX_PER_MM
+
     texture = _input(args.texture)
     facts = describe(texture, args.texture)
     if args.json:
-        print(json.dumps(facts, ensure_ascii=False))
+        print_json(facts)
         return 0
     friction, seams = facts["friction"], facts["seams"]
     beyond = OUTSIDE_WORDS[texture.outside].format(texture.outside_ratio)
@@ -370,8 +378,13 @@ def info(args) -> int:
                      f"inside {seams['interior_max']:.3f}")
     if texture.source:
         lines.append(f"  source      {texture.source}")
-    if texture.authoring:
-        made = ", ".join(f"{key} {value}" for key, value in facts["authoring"].items())
+    held_from = texture.authoring.get("held_from_pixels")
+    if isinstance(held_from, list) and len(held_from) == 2:
+        lines.append(f"  held as     {texture.cols} × {texture.rows} pixels, reduced from the file's {held_from[0]} × "
+                     f"{held_from[1]}: at most {MAX_PX_PER_MM:g} per mm (a finger resolves about 0.05 mm) and "
+                     f"{MAX_HELD_PIXELS / 1e6:g} million in all")
+    made = ", ".join(f"{key} {value}" for key, value in facts["authoring"].items() if key != "held_from_pixels")
+    if made:
         lines.append(f"  made with   {made}")
     print("\n".join(lines))
     return 0

@@ -9,16 +9,20 @@ for ``--resume`` (a half-written last line is dropped). ``session.json`` is rewr
 from __future__ import annotations
 
 import csv
-import json
 import os
+import stat
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
+from ultraglide.apps.cli.output import json_text
+
+from ultraglide.inputs import decode_text, parse_json, read_input
 
 COLUMNS = ("participant", "session", "trial", "condition", "level", "stimulus", "target", "response", "correct",
            "rt_s", "reversal", "break_before", "rendered_um_pp", "rendered_contrast", "time_utc")
 TRIALS, SESSION, RESULT = "trials.csv", "session.json", "result.json"
+MAX_LOG_BYTES = 64 << 20  # about 150 bytes a trial: 400 000 trials
 
 
 class TrialLog:
@@ -26,8 +30,14 @@ class TrialLog:
 
     def __init__(self, directory: Path):
         self.path = Path(directory) / TRIALS
-        new = not self.path.exists() or self.path.stat().st_size == 0
-        self._file = open(self.path, "a", newline="", encoding="utf-8")  # noqa: SIM115 - open for the session
+        descriptor = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | os.O_CLOEXEC, 0o666)
+        info = os.fstat(descriptor)
+        if not stat.S_ISREG(info.st_mode):  # a pipe or a device is not a log (and a pipe would block)
+            os.close(descriptor)
+            raise UsageError(f"{self.path}: is not a regular file; a session's trials are logged to one")
+        os.set_blocking(descriptor, True)
+        new = info.st_size == 0
+        self._file = open(descriptor, "a", newline="", encoding="utf-8")  # noqa: SIM115 - open for the session
         self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, lineterminator="\n")
         if new:
             self._writer.writeheader()
@@ -49,30 +59,34 @@ def read_trials(directory: Path) -> list[dict]:
     """The logged trials, in order. A last line without its newline (the session stopped while writing
     it) is cut off the file, so appending continues cleanly."""
     path = Path(directory) / TRIALS
-    if not path.exists():
+    if not os.path.lexists(path):
         return []
-    data = path.read_bytes()
+    data = read_input(path, "trial log", UsageError, max_bytes=MAX_LOG_BYTES)
     if data and not data.endswith(b"\n"):
         data = data[:data.rfind(b"\n") + 1]
         with open(path, "r+b") as handle:
             handle.truncate(len(data))
-    rows = list(csv.DictReader(data.decode("utf-8").splitlines()))
+    text = decode_text(data, str(path), "trial log", UsageError)
+    rows = list(csv.DictReader(text.splitlines()))
+    missing = [column for column in ("trial", "level", "response", "correct") if rows and column not in rows[0]]
+    if missing:
+        raise UsageError(f"{path}: no column {', '.join(missing)}; it is not a session's trial log")
     for number, row in enumerate(rows, start=1):
-        if row.get("trial") != str(number):
-            raise UsageError(f"{path}: row {number} is trial {row.get('trial')!r}; the log is not one session's")
+        if row.get("trial") != str(number) or None in row.values():
+            raise UsageError(f"{path}: row {number} is not trial {number} of one session's log (or is short)")
     return rows
 
 
 def write_json(path: Path, document: dict) -> None:
     with atomic_path(path) as temporary:
-        temporary.write_text(json.dumps(document, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+        temporary.write_text(json_text(document, indent=2) + "\n", encoding="utf-8")
 
 
 def read_session(directory: Path) -> dict:
     path = Path(directory) / SESSION
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise UsageError(f"--resume {directory}: no {SESSION} there; is it a session directory?")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise UsageError(f"{path} is not valid JSON ({error.msg} at line {error.lineno})") from None
+    document = parse_json(read_input(path, "session file", UsageError), str(path), UsageError, what="session file")
+    if not isinstance(document, dict) or not isinstance(document.get("config"), dict):
+        raise UsageError(f"{path}: no session configuration in it; is it a session directory's {SESSION}?")
+    return document

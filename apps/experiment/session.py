@@ -32,6 +32,7 @@ from ultraglide.apps.experiment.procedures import (
 from ultraglide.apps.experiment.stimuli import StimulusDesign
 
 from ultraglide import __version__
+from ultraglide.inputs import decode_text, read_input
 
 DEFAULT_RANGES = {"contrast": (0.005, 0.6), "wavelength": (0.01, 2.0), "amplitude": (0.05, 6.0)}
 
@@ -87,12 +88,59 @@ class SessionConfig:
         return asdict(self)
 
     @staticmethod
-    def from_dict(values: dict) -> SessionConfig:
+    def from_dict(values: dict, where: str = "session.json") -> SessionConfig:
+        """The config a session.json holds; each value is checked against its field's type and, for numbers
+        the command line bounds, the same range (:data:`RESUMED_RANGES`): UsageError naming the field."""
         known = {key: values[key] for key in SessionConfig.__dataclass_fields__ if key in values}
-        for key in ("level_range", "levels", "zone_mm"):
-            if known.get(key) is not None:
-                known[key] = tuple(known[key])
-        return SessionConfig(**known)
+        if "texture" not in known:
+            raise UsageError(f"{where}: the session's texture is missing")
+        for key, value in known.items():
+            known[key] = _typed(key, value, SessionConfig.__dataclass_fields__[key].type, where)
+        try:
+            return SessionConfig(**known)
+        except (TypeError, ValueError) as error:
+            raise UsageError(f"{where}: {str(error).splitlines()[0]}") from None
+
+
+CHOICES = {"method": ("staircase", "quest", "constant"), "parameter": tuple(DEFAULT_RANGES),
+           "rule": ("1u2d", "1u3d", "weighted"), "function": ("weibull", "logistic"),
+           "interval": ("posterior", "bootstrap"), "intervals": (1, 2, 3)}
+RESUMED_RANGES = {  # the command line's ranges (apps.cli.types) for what session.json can hold
+    "trials": (1, 100_000), "repeats": (1, 100_000), "seed": (0, 2**32 - 1), "bootstrap": (10, 100_000),
+    "break_every": (0, 100_000), "zone_mm": (1.0, 1_000.0), "gap_mm": (0.0, 1_000.0), "speed_mm_s": (1e-6, 10_000.0),
+    "force_n": (1e-6, 50.0), "start_level": (0.0, 10_000.0), "level_range": (0.0, 10_000.0), "levels": (0.0, 10_000.0)}
+MAX_RESUMED_LEVELS = 1_000
+
+
+def _typed(key: str, value, annotation: str, where: str):
+    """``value`` as field ``key`` of the annotated type takes it (lists become tuples), or UsageError."""
+    def bad(what: str):
+        return UsageError(f"{where}: config {key} must be {what}, got {str(value)[:40]!r}")
+
+    def number(item, integer: bool):
+        if isinstance(item, bool) or not isinstance(item, int if integer else int | float):
+            raise bad("a whole number" if integer else "a number")
+        low, high = RESUMED_RANGES.get(key, (-math.inf, math.inf))
+        if not (math.isfinite(item) and low <= item <= high):
+            raise bad(f"from {low:g} to {high:g}")
+        return item if integer else float(item)
+
+    if value is None and "None" in annotation:
+        return None
+    base = annotation.replace(" | None", "")
+    if base == "str":
+        if not isinstance(value, str) or len(value) > 10_000:
+            raise bad("text")
+    elif base in ("int", "float"):
+        value = number(value, base == "int")
+    elif base.startswith("tuple["):
+        pair = base == "tuple[float, float]"
+        if not isinstance(value, list | tuple) or (pair and len(value) != 2) or len(value) > MAX_RESUMED_LEVELS:
+            raise bad("a pair of numbers" if pair else "a list of numbers")
+        value = tuple(number(item, False) for item in value)
+    if key in CHOICES and value not in CHOICES[key]:
+        raise bad(f"one of {', '.join(map(str, CHOICES[key]))}")
+    return value
 
 
 def make_procedure(config: SessionConfig):
@@ -140,7 +188,9 @@ def metadata(config: SessionConfig, design: StimulusDesign, status: str, started
     model = load_model(config.model)
     calibration = None
     if config.model.endswith(".toml"):
-        calibration = {"file": str(Path(config.model).resolve()), "text": Path(config.model).read_text("utf-8")}
+        text = decode_text(read_input(config.model, "calibration file", UsageError), config.model, "calibration file",
+                           UsageError)
+        calibration = {"file": str(Path(config.model).resolve()), "text": text}
     return {
         "status": status, "started_utc": started_utc, "updated_utc": now_utc(),
         "config": config.as_dict(), "unit": design.unit, "condition": config.condition,
@@ -279,6 +329,6 @@ def analyse(config: SessionConfig, design: StimulusDesign, rows: list[dict], pro
     return result
 
 
-def resumed_config(saved: dict, trials: int | None) -> SessionConfig:
-    config = SessionConfig.from_dict(saved.get("config", {}))
+def resumed_config(saved: dict, trials: int | None, where: str = "session.json") -> SessionConfig:
+    config = SessionConfig.from_dict(saved.get("config", {}), where)
     return replace(config, trials=trials) if trials else config

@@ -20,7 +20,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from ultraglide.apps.cli.errors import UsageError  # noqa: E402
-from ultraglide.apps.cli.files import atomic_path  # noqa: E402
+from ultraglide.apps.cli.files import (  # noqa: E402
+    atomic_path,
+    model_file,
+    profile_file,
+    refuse_overlaps,
+    texture_file,
+)
 from ultraglide.textures.texture import Texture  # noqa: E402
 
 MM = 1 / 25.4  # inches per millimetre
@@ -185,6 +191,8 @@ def run(args) -> int:
     if args.window and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
                             or os.environ.get("SDL_VIDEODRIVER")):
         raise UsageError("no display for --window; write a file with -o FILE.png instead")
+    refuse_overlaps({"-o": output}, {"the texture": texture_file(args.texture), "--model": model_file(args.model),
+                                     "--profile": profile_file(args.profile)})
     texture = resolve_texture(args.texture)
     model = load_model(args.model)
     profile = load_profile(args.profile)

@@ -165,6 +165,9 @@ class QemuPlate:
         if not os.path.isdir(directory):
             raise DeviceError(f"no directory {directory} for the plate's link {link_path}: create it or choose "
                               "another --link")
+        if os.path.lexists(link_path) and not os.path.islink(link_path):  # never put a link over a file or device
+            raise DeviceError(f"{link_path} exists and is not a link: the plate's link goes where there is nothing "
+                              "or a link; choose another --link")
         self.path = link_path
         self.pty_name = ""
         self.icount_shift = icount_shift
@@ -212,7 +215,7 @@ class QemuPlate:
             self.stop()
             raise
         temporary = self.path + ".new"
-        with contextlib.suppress(FileNotFoundError):
+        if os.path.islink(temporary):  # a link of an earlier run; anything else there is not ours
             os.unlink(temporary)
         os.symlink(self.pty_name, temporary)
         os.replace(temporary, self.path)

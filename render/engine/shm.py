@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import secrets
 import time
 from dataclasses import dataclass
-from multiprocessing import shared_memory
+from multiprocessing import resource_tracker, shared_memory
 
 import numpy as np
 
@@ -93,7 +95,21 @@ class SharedBlock:
 
     @classmethod
     def create(cls) -> SharedBlock:
-        memory = shared_memory.SharedMemory(create=True, size=LAYOUT.size * 8)
+        """A new segment; OSError naming it (in /dev/shm) when the system refuses one (no room, a file-size limit).
+
+        Python 3.11's ``SharedMemory`` unregisters a segment it failed to size without having registered it,
+        and its resource tracker then dies with a traceback (a KeyError); registering the name first keeps
+        the two in step."""
+        size = LAYOUT.size * 8
+        name = f"ultraglide_{os.getpid()}_{secrets.token_hex(4)}"
+        resource_tracker.register(f"/{name}", "shared_memory")
+        try:
+            memory = shared_memory.SharedMemory(name=name, create=True, size=size)
+        except OSError as error:
+            if isinstance(error, FileExistsError):  # refused before anything was made: nothing unregistered it
+                resource_tracker.unregister(f"/{name}", "shared_memory")
+            raise OSError(error.errno, f"the engine's shared memory ({size:,} bytes) could not be made: "
+                                       f"{(error.strerror or str(error)).lower()}", f"/dev/shm/{name}") from None
         block = cls(memory, owner=True)
         block.words[:] = 0.0
         return block

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -72,6 +71,8 @@ from ultraglide.render.physics.squeeze_film import (
     SqueezeFilmModel,
     film_ratio,
 )
+
+from ultraglide.inputs import parse_toml, read_input
 
 CALIBRATION_VERSION = 1
 MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched", "squeeze-film")
@@ -570,13 +571,8 @@ def calibration_toml(fit: Fit) -> str:
 def read_calibration(path: str | Path) -> FrictionModel:
     """A model from a calibration file; :class:`ModelError` says what is wrong with it."""
     path = Path(path)
-    try:
-        with path.open("rb") as stream:
-            document = tomllib.load(stream)
-    except FileNotFoundError:
-        raise ModelError(f"{path}: no such calibration file") from None
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ModelError(f"{path}: not a readable calibration file ({error})") from None
+    data = read_input(path, "calibration file", ModelError)
+    document = parse_toml(data, str(path), ModelError, what="calibration file")
     return calibration_from_document(document, str(path))
 
 

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ultraglide.inputs import open_input
+
 BLOCK_BYTES = 1 << 18  # 256 KiB: as fast as larger blocks, a quarter of the memory
 MAX_LINE_BYTES = 1 << 16  # no line of a numeric CSV is this long; a longer one is not such a file
 BLANK_LINE = re.compile(r"^[ \t]+(?=\r?$)", re.MULTILINE)
@@ -111,14 +113,8 @@ class NumericCsv:
         raise self.error(f"{where}: {message}")
 
     def _open(self):
-        try:
-            return open(self.path, "rb")  # noqa: SIM115 - closed by the callers' with-blocks
-        except FileNotFoundError:
-            raise self.error(f"{self.path}: no such file (a {self.what} was expected)") from None
-        except IsADirectoryError:
-            raise self.error(f"{self.path}: is a directory, not a {self.what}") from None
-        except OSError as problem:
-            raise self.error(f"{self.path}: cannot open it ({problem.strerror or problem})") from None
+        """The file, opened only if it is a regular one (a pipe or a device is refused, never read)."""
+        return open_input(self.path, self.what, self.error)
 
     def _header(self, stream, expected: str) -> tuple[str, int]:
         number = 0

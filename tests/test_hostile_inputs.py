@@ -1,0 +1,304 @@
+"""Hostile files (issue 26): whatever a file holds, every loader answers in one line of its own error type, in
+bounded time and memory, and what the command prints is safe for a terminal and strict for a JSON parser.
+
+By class: nesting 100 000 deep in every JSON and TOML file we read; integers of 5 000 digits (beyond Python's
+int-string limit) and of 4 000 (within it, beyond a float); sizes that would make a later stage divide by zero;
+a PNG of 99 million pixels; escape sequences and bidirectional overrides in a texture's text; a 10 MB profile of
+unknown keys; every command's ``--json`` read back by a parser that refuses NaN and Infinity.
+"""
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT, assert_one_line_error, run_cli
+from PIL import Image, PngImagePlugin
+from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.output import json_text, one_line, printable
+from ultraglide.apps.experiment.log import read_session
+from ultraglide.apps.experiment.session import resumed_config
+from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.physics.calibration import read_calibration
+from ultraglide.render.physics.errors import ModelError
+from ultraglide.textures.effects import load_effects
+from ultraglide.textures.errors import TextureError
+from ultraglide.textures.fileformat import MAX_HELD_PIXELS, MAX_PX_PER_MM, load_texture
+from ultraglide.textures.sampling import Sampler
+
+DEEP = 100_000
+HUGE = "9" * 5_000  # more digits than Python turns into an int (4 300)
+LARGE = "9" * 4_000  # an int Python reads, far beyond a float
+
+
+def texture_png(path: Path, metadata: str, size=(20, 10), mode="L") -> Path:
+    info = PngImagePlugin.PngInfo()
+    info.add_itxt("ultraglide", metadata)
+    Image.new(mode, size, 200).save(path, pnginfo=info)
+    return path
+
+
+def deep_json(inner: str = "1") -> str:
+    return "[" * DEEP + inner + "]" * DEEP
+
+
+def deep_toml(key: str) -> str:
+    return f"{key} = " + "[" * DEEP + "1" + "]" * DEEP + "\n"
+
+
+PROFILE = "resonance_hz = 25000\nq = 200\nfull_scale_um_pp = 8\nmax_amplitude_um_pp = 6\n"
+CALIBRATION = 'ultraglide_calibration = 1\nmodel = "exponential"\n[parameters]\ntau_um_zp = 1.3\n'
+EFFECTS = '{"effects_version": 1, "bindings": []}'
+SESSION = '{"config": {"texture": "grating-1mm"}}'
+TEXTURE = '{"format_version": 1, "width_mm": 20, "height_mm": 10}'
+
+# what each loader is given: (load, error type, file name, writes the file's content)
+LOADERS = {
+    "texture": (load_texture, TextureError, "t.png", lambda path, text: texture_png(path, text)),
+    "profile": (load_profile, DeviceError, "p.toml", lambda path, text: path.write_text(text)),
+    "calibration": (read_calibration, ModelError, "c.toml", lambda path, text: path.write_text(text)),
+    "effects": (load_effects, TextureError, "e.json", lambda path, text: path.write_text(text)),
+    "session": (lambda path: resumed_config(read_session(path.parent), None, str(path)), UsageError, "session.json",
+                lambda path, text: path.write_text(text)),
+}
+HOSTILE = {  # loader: its good text with one value made hostile, by class
+    "deep": {"texture": TEXTURE[:-1] + ', "authoring": {"a": ' + deep_json() + "}}",
+             "profile": PROFILE + deep_toml("description"),
+             "calibration": CALIBRATION.replace("[parameters]", deep_toml("x") + "[parameters]"),
+             "effects": EFFECTS[:-1] + ', "x": ' + deep_json() + "}",
+             "session": '{"config": ' + deep_json() + "}"},
+    "deep but parsed": {"texture": TEXTURE[:-1] + ', "authoring": {"a": ' + "[" * 900 + "]" * 900 + "}}",
+                        "profile": PROFILE + "description = " + "[" * 200 + "]" * 200 + "\n",
+                        "calibration": CALIBRATION + "x = " + "[" * 200 + "]" * 200 + "\n",
+                        "effects": EFFECTS[:-1] + ', "x": ' + "[" * 900 + "]" * 900 + "}",
+                        "session": '{"config": {"texture": "x", "levels": ' + "[" * 900 + "]" * 900 + "}}"},
+    "huge int": {"texture": TEXTURE.replace("20", HUGE, 1), "profile": PROFILE.replace("200", HUGE),
+                 "calibration": CALIBRATION.replace("1.3", HUGE), "effects": EFFECTS.replace("1", HUGE, 1),
+                 "session": SESSION.replace("}}", f', "trials": {HUGE}}}}}')},
+    "large int": {"texture": TEXTURE.replace("20", LARGE, 1), "profile": PROFILE.replace("200", LARGE),
+                  "calibration": CALIBRATION.replace("1.3", LARGE), "effects": EFFECTS.replace("1", LARGE, 1),
+                  "session": SESSION.replace("}}", f', "trials": {LARGE}}}}}')},
+}
+
+
+@pytest.mark.parametrize("hostile", sorted(HOSTILE))
+@pytest.mark.parametrize("loader", sorted(LOADERS))
+def test_every_loader_turns_its_parsers_failures_into_one_line(tmp_path, loader, hostile):
+    load, error, name, write = LOADERS[loader]
+    path = tmp_path / name
+    write(path, HOSTILE[hostile][loader])
+    with pytest.raises(error) as raised:
+        load(path)
+    message = str(raised.value)
+    assert "\n" not in message and len(message) < 600 and str(path) in message, message
+    if hostile == "deep":
+        assert "nested too deeply" in message
+
+
+@pytest.mark.parametrize("loader", sorted(LOADERS))
+def test_the_good_files_load(tmp_path, loader):
+    """The hostile cases above are these files with one value changed: they load."""
+    load, _, name, write = LOADERS[loader]
+    path = tmp_path / name
+    write(path, {"texture": TEXTURE, "profile": PROFILE, "calibration": CALIBRATION, "effects": EFFECTS,
+                 "session": SESSION}[loader])
+    assert load(path) is not None
+
+
+@pytest.mark.parametrize("width", ["5e-324", "1e-300", "0.009", "1e-30"])
+def test_no_size_makes_a_later_stage_divide_by_zero(tmp_path, width):
+    path = texture_png(tmp_path / "tiny.png", f'{{"format_version": 1, "width_mm": {width}, "height_mm": 10}}')
+    with pytest.raises(TextureError, match="width_mm must be from 0.01 to 10000"):
+        load_texture(path)
+    smallest = texture_png(tmp_path / "small.png", '{"format_version": 1, "width_mm": 0.01, "height_mm": 0.01}',
+                           size=(2000, 2000))
+    texture = load_texture(smallest)  # 2000 pixels over 10 µm: held as one pixel, sampled anywhere
+    assert texture.values.shape == (1, 1)
+    ratios = Sampler(texture).ratio(np.array([0.0, 5e-3, 1e6]), np.array([0.0, 5e-3, -1e6]), step_mm=0.1)
+    assert np.all(np.isfinite(ratios))
+
+
+# ---- memory: a texture is held at what a finger resolves -----------------------------------------------------
+@pytest.fixture(scope="module")
+def big_png(tmp_path_factory):
+    """99 million pixels (the documented limit is 100 million) in a PNG of a few hundred KB."""
+    path = tmp_path_factory.mktemp("big") / "big.png"
+    side = 9950
+    column = (np.arange(side) % 20 < 10).astype(np.uint8) * 255  # a 1 mm grating at 124 px/mm: 10 px on, 10 off
+    info = PngImagePlugin.PngInfo()
+    info.add_itxt("ultraglide", json.dumps({"format_version": 1, "width_mm": 80.0, "height_mm": 80.0}))
+    Image.fromarray(np.broadcast_to(column, (side, side)).copy()).save(path, pnginfo=info)
+    assert path.stat().st_size < 2_000_000
+    return path
+
+
+def test_a_fine_texture_is_held_at_twenty_pixels_a_millimetre(big_png):
+    texture = load_texture(big_png)
+    assert (texture.cols, texture.rows) == (1600, 1600) and MAX_PX_PER_MM == 20
+    assert texture.authoring["held_from_pixels"] == [9950, 9950]
+    # the exact box filter keeps the 1.61 mm grating (20 file pixels of 80/9950 mm): mean 0.5, swinging 0..1
+    profile = texture.values[0]
+    assert profile.mean() == pytest.approx(0.5, abs=0.01) and profile.min() < 0.05 and profile.max() > 0.95
+
+
+def test_peak_memory_of_a_command_on_a_99_megapixel_png_is_bounded(big_png, tmp_path):
+    """Before: 5.9 GB for `texture info`, 1.5 GB for `export` (issue 26). The bound here is generous (the
+    decoded 8-bit image is 99 MB, the held texture 10 MB); the figures are in the README."""
+    script = ("import resource, sys; from ultraglide.apps.cli.main import main; status = main(sys.argv[1:]); "
+              "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr); sys.exit(status)")
+    for args in (["texture", "info", str(big_png)],
+                 ["export", str(big_png), "-o", str(tmp_path / "a.wav"), "--duration-s", "0.2"]):
+        result = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, cwd=ROOT,
+                                timeout=600)
+        assert result.returncode == 0, result.stderr
+        peak_kb = int(result.stderr.strip().splitlines()[-1])
+        assert peak_kb < 900_000, f"{args[0]}: {peak_kb / 1000:.0f} MB"
+        assert "DecompressionBomb" not in result.stderr and "decompression bomb" not in result.stderr.lower()
+
+
+def test_a_physically_large_texture_is_held_in_bounded_pixels(tmp_path):
+    path = texture_png(tmp_path / "wide.png", '{"format_version": 1, "width_mm": 900, "height_mm": 900}',
+                       size=(6000, 6000))
+    texture = load_texture(path)  # 6.7 px/mm, but 36 M pixels: held in 16 M at most
+    assert texture.cols * texture.rows <= MAX_HELD_PIXELS and texture.cols == texture.rows
+
+
+# ---- what people and parsers read ---------------------------------------------------------------------------------
+def test_printable_escapes_controls_bidi_and_undecodable_bytes():
+    assert printable("a\x1b]0;t\x07b\u202ec\x9bd\udcffe\nf") == "a\\u001b]0;t\\u0007b\\u202ec\\u009bd\\udcffe\\u000af"
+    assert printable("µ × ok\tand\n", keep="\n\t") == "µ × ok\tand\n"
+    assert json.loads(f'"{printable(chr(0x202e) + chr(27))}"') == "\u202e\x1b"  # still the text, as JSON
+    line = one_line("k" * 10_000)
+    assert len(line) < 700 and line.endswith("(9,400 more characters)")
+
+
+def test_strict_json_has_no_nan():
+    text = json_text({"a": float("nan"), "b": [float("inf"), np.float32("nan"), 1.5], "c": {"d": -np.inf}})
+    assert json.loads(text, parse_constant=refuse) == {"a": None, "b": [None, None, 1.5], "c": {"d": None}}
+
+
+def refuse(constant):
+    raise AssertionError(f"not strict JSON: {constant}")
+
+
+ESCAPES = "\x1b]0;pwned\x07\x1b[2J\x1b[31m\u202e\u2066\x9b"
+
+
+def assert_clean(text: str) -> None:
+    for character in "\x1b\x07\x9b\u202e\u2066":  # the controls in ESCAPES
+        assert character not in text, repr(text)
+
+
+def test_text_from_a_file_reaches_the_terminal_escaped(tmp_path):
+    meta = {"format_version": 1, "width_mm": 20, "height_mm": 10, "name": f"evil{ESCAPES}",
+            "description": f"said{ESCAPES}", "source": f"src{ESCAPES}", "authoring": {ESCAPES: ESCAPES}}
+    path = texture_png(tmp_path / "evil.png", json.dumps(meta), mode="L")
+    text = run_cli("texture", "info", path, check=True)
+    assert_clean(text.stdout + text.stderr)
+    assert "evil\\u001b]0;pwned\\u0007" in text.stdout
+    data = run_cli("texture", "info", path, "--json", check=True)
+    assert_clean(data.stdout)
+    assert json.loads(data.stdout, parse_constant=refuse)["name"] == meta["name"]
+    named = tmp_path / f"bad{ESCAPES}name.png"  # a file name in an error line
+    line = assert_one_line_error(run_cli("export", named, "-o", tmp_path / "x.wav"))
+    assert_clean(line)
+
+
+def test_a_huge_profile_of_unknown_keys_gets_a_short_line(tmp_path):
+    keys = "".join(f"key{number} = 1\n" for number in range(200_000))  # 2.6 MB
+    path = tmp_path / "p.toml"
+    path.write_text(PROFILE + keys)
+    with pytest.raises(DeviceError) as raised:
+        load_profile(path)
+    message = str(raised.value)
+    assert len(message) < 500 and "and 199,995 more" in message
+    path.write_text(PROFILE + "".join(f"key{number} = 1\n" for number in range(700_000)))  # 10 MB
+    with pytest.raises(DeviceError, match="more than 4 MiB") as raised:
+        load_profile(path)
+    assert len(str(raised.value)) < 300
+    line = assert_one_line_error(run_cli("export", "grating-1mm", "--profile", path, "-o", tmp_path / "a.wav"))
+    assert len(line) < 400
+
+
+def test_messages_say_what_the_file_is(tmp_path):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a picture\n")
+    for args in (["export", notes, "-o", tmp_path / "a.wav"], ["author", notes, "-o", tmp_path / "t.png"],
+                 ["texture", "info", notes]):
+        result = run_cli(*args)
+        line = assert_one_line_error(result)  # no "plain image" warning before it
+        assert "not an image" in line
+    big = tmp_path / "big.png"
+    Image.new("L", (8000, 6000), 255).save(big)  # 48 M pixels, over author's default 40 M
+    line = assert_one_line_error(run_cli("author", big, "-o", tmp_path / "t.png"))
+    assert "over the limit of 40,000,000" in line and "--max-pixels" in line and "damaged" not in line
+    result = run_cli("export", big, "-o", tmp_path / "a.wav")
+    line = result.stderr.strip().splitlines()[-1]
+    assert result.returncode == 1 and "over the limit" in line and "damaged" not in line
+    assert "`ultraglide author`" in line  # the option belongs to author, and the line says so
+    palette = texture_png(tmp_path / "palette.png", TEXTURE, mode="P")
+    assert load_texture(palette).values.shape == (10, 20)
+
+
+def test_an_audio_device_that_is_not_there_is_named_so(tmp_path):
+    """With one audio output (ALSA's file PCM as the default card) and with none, ``audio:99`` is no device."""
+    from test_devices import ASOUNDRC
+
+    with_card, without = tmp_path / "card", tmp_path / "none"
+    with_card.mkdir()
+    without.mkdir()
+    (with_card / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "capture.raw"))
+    (without / ".asoundrc").write_text("pcm.!default { type hw card 99 }\n")
+    for home, listed in ((with_card, "outputs: 0 ("), (without, "no audio output")):
+        line = assert_one_line_error(run_cli("play", "grating-1mm", "--device", "audio:99", "--duration-s", "0.2",
+                                             env={"HOME": str(home)}))
+        assert "no such audio output: 99" in line and listed in line and "carrier" not in line, line
+
+
+JSON_COMMANDS = {
+    "model": ["model", "--force", "0.3", "--ratio", "0.8", "--json"],
+    "calibrate": ["calibrate", str(ROOT / "apps" / "data" / "monnoyer2018-fit.csv"), "--json"],
+    "textures": ["textures", "--json"],
+    "texture info": ["texture", "info", "wood", "--json"],
+    "devices": ["devices", "--json"],
+    "export": ["export", "grating-1mm", "-o", "{tmp}/a.wav", "--duration-s", "0.2", "--json"],
+    "play": ["play", "grating-1mm", "--device", "null", "--duration-s", "0.3", "--json"],
+    "play --track-resonance": ["play", "grating-1mm", "--device", "sim", "--duration-s", "0.5", "--track-resonance",
+                               "--json"],
+    "latency": ["latency", "--device", "null", "--steps", "3", "--json"],
+    "plate sweep": ["plate", "sweep", "--device", "sim", "-o", "{tmp}/m.toml", "--steps", "5", "--json"],
+    "experiment": ["experiment", "threshold", "grating-1mm", "--trials", "4", "--observer", "sim:threshold=0.1",
+                   "--out", "{tmp}/s", "--json"],
+}
+
+
+if shutil.which("arm-none-eabi-gcc"):
+    JSON_COMMANDS["firmware build"] = ["firmware", "build", "--json"]
+
+
+@pytest.mark.parametrize("command", sorted(JSON_COMMANDS))
+def test_every_json_output_is_strict_json(tmp_path, command):
+    args = [arg.format(tmp=tmp_path) for arg in JSON_COMMANDS[command]]
+    result = run_cli(*args, check=True, timeout=600)
+    lines = [line for line in result.stdout.splitlines() if line.strip()]
+    assert lines, result.stderr
+    for line in lines:
+        json.loads(line, parse_constant=refuse)
+    assert_clean(result.stdout)
+
+
+def test_plate_sim_json_events_are_strict_json(tmp_path):
+    process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(tmp_path / "plate"),
+                                "--json"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = process.stdout.readline()
+    finally:
+        process.send_signal(signal.SIGTERM)
+        process.communicate(timeout=60)
+    assert first.strip(), "plate-sim printed no event"
+    json.loads(first, parse_constant=refuse)

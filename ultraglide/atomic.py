@@ -1,0 +1,274 @@
+"""The one atomic writer: a file appears whole or not at all, and nothing that is not a file is ever replaced.
+
+What happens depends on what the target is, after following symbolic links to their end (a link stays a
+link: the file it points to is what gets written):
+
+============================  ===========================================================================
+target                        what :class:`AtomicFile` does
+============================  ===========================================================================
+nothing, or a regular file    writes a hidden temporary file beside it and renames it over the target only
+                              once complete (an existing file's permission bits are kept)
+a character device            writes to it directly, as a shell's ``>`` would (``/dev/null``; ``/dev/full``
+                              gives "no space left"); never renamed over, never truncated
+a named pipe (FIFO)           writes to it directly when a program is reading it; refused when none is
+                              (opening it would wait for a reader forever)
+a directory                   refused: name a file
+a block device (a disk)       refused: writing a file there would overwrite the disk
+a socket                      refused: it is not written by opening it
+============================  ===========================================================================
+
+A refusal is an :class:`OutputRefused`, one line naming the file the person gave. Any failure while
+writing names that file too, never the hidden temporary one.
+
+Temporary files are named ``.{stem}.ultraglide-{pid}-{host}-{random}{suffix}`` (``host``: six hex digits of
+this machine's name). A process killed outright (SIGKILL, a power cut) leaves its temporary file behind;
+each writer removes such leftovers from the folder it writes to: files of that form, of this user and this
+machine, whose process is gone (or whose process id now belongs to a process started after the file was
+last written).
+
+This module imports nothing of ours but the root's other leaves: every package may use it.
+
+Example::
+
+    with AtomicFile("out.csv") as target:
+        target.temporary.write_text("t_s\\n0\\n")   # out.csv appears only if this succeeds
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import hashlib
+import os
+import re
+import socket
+import stat
+import tempfile
+from pathlib import Path
+
+from ultraglide.errors import UltraglideError
+
+MARK = "ultraglide"
+_HOST = hashlib.sha1(socket.gethostname().encode(errors="replace")).hexdigest()[:6]
+_LEFTOVER = re.compile(rf"^\..*\.{MARK}-(?P<pid>[0-9]+)-(?P<host>[0-9a-f]{{6}})-[a-z0-9_]{{8}}(\.[^.]*)?$")
+_CLOCK_SLACK_S = 2.0  # a process start time from /proc is good to the second
+
+
+class OutputRefused(UltraglideError, ValueError):
+    """An output path that is not a file ultraglide may write (a directory, a disk, a socket, a pipe that
+    nobody reads); the message names the path."""
+
+
+def kind_of(mode: int) -> str:
+    """What a ``stat`` mode is, in words: regular file, directory, named pipe, character device ..."""
+    for test, words in ((stat.S_ISREG, "regular file"), (stat.S_ISDIR, "directory"), (stat.S_ISFIFO, "named pipe"),
+                        (stat.S_ISCHR, "character device"), (stat.S_ISBLK, "block device"), (stat.S_ISSOCK, "socket")):
+        if test(mode):
+            return words
+    return "special file"
+
+
+class AtomicFile:
+    """Where to write ``path`` (:attr:`temporary`) and how to finish: :meth:`commit` renames the temporary file
+    into place, :meth:`discard` removes it. For a device or a pipe written directly, :attr:`temporary` is the
+    target itself (:attr:`direct` is True) and both only release it.
+
+    As a context manager it commits when the block succeeds and discards on any exception
+    (``KeyboardInterrupt`` included), and an OSError from the block that names the temporary file (or no file)
+    is raised again naming ``path``. Once committed or discarded it does nothing more."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.direct = False
+        self._probe: int | None = None
+        self._done = False
+        real = Path(os.path.realpath(self.path))
+        try:
+            info = os.stat(real)
+        except FileNotFoundError:
+            info = None
+        except OSError as error:
+            raise self._named(error) from None
+        if info is not None and not stat.S_ISREG(info.st_mode):
+            self._open_directly(real, info.st_mode)
+            return
+        self.target = real
+        directory = real.parent
+        remove_leftovers(directory)
+        try:
+            handle, temporary = tempfile.mkstemp(prefix=f".{real.stem}.{MARK}-{os.getpid()}-{_HOST}-",
+                                                 suffix=real.suffix, dir=directory)
+        except OSError as error:
+            raise self._named(error) from None
+        self.temporary = Path(temporary)
+        try:
+            os.close(handle)
+            os.chmod(temporary, stat.S_IMODE(info.st_mode) if info is not None else 0o666 & ~_umask())
+        except BaseException:
+            self.discard()
+            raise
+
+    def _open_directly(self, real: Path, mode: int) -> None:
+        kind = kind_of(mode)
+        if stat.S_ISDIR(mode):
+            raise OutputRefused(f"{self.path}: is a directory; name a file to write")
+        if not (stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)):
+            why = "writing a file there would overwrite the disk" if stat.S_ISBLK(mode) else "it is not a file"
+            raise OutputRefused(f"{self.path}: is a {kind}; {why}: name a regular file")
+        try:  # no O_CREAT, no O_TRUNC: a device or pipe is written, never made or emptied
+            self._probe = os.open(real, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOCTTY)
+        except OSError as error:
+            if error.errno == errno.ENXIO and stat.S_ISFIFO(mode):
+                raise OutputRefused(f"{self.path}: is a named pipe that no program is reading; start the reader "
+                                    "first, or name a regular file") from None
+            raise self._named(error) from None
+        # held open until the end, so a reader waiting on the pipe never sees it close between writers
+        self.direct = True
+        self.target = self.temporary = real
+
+    def _named(self, error: OSError) -> OSError:
+        return OSError(error.errno, error.strerror, str(self.path)) if error.errno else error
+
+    def user_error(self, error: BaseException) -> BaseException:
+        """``error`` as the person should see it: an OSError naming the temporary file (or no file) names
+        ``path`` instead; anything else unchanged."""
+        if not isinstance(error, OSError) or isinstance(error, UltraglideError) or error.errno is None:
+            return error
+        if error.filename is not None and str(error.filename) not in (str(self.temporary), str(self.target)):
+            return error
+        return OSError(error.errno, error.strerror, str(self.path))
+
+    def commit(self) -> Path:
+        """Put the written file in place (rename it over the target); on failure the temporary file goes."""
+        if self._done:
+            return self.path
+        try:
+            if not self.direct:
+                with contextlib.suppress(FileNotFoundError):
+                    now = os.lstat(self.target)
+                    if not stat.S_ISREG(now.st_mode):  # it became something else while we wrote
+                        raise OutputRefused(f"{self.path}: became a {kind_of(now.st_mode)} while it was being "
+                                            "written; nothing was replaced")
+                try:
+                    os.replace(self.temporary, self.target)
+                except OSError as error:
+                    raise self._named(error) from None
+        finally:
+            self.discard()
+        return self.path
+
+    def discard(self) -> None:
+        """Remove the temporary file if it is still there (a direct target is only released)."""
+        self._done = True
+        if self._probe is not None:
+            probe, self._probe = self._probe, None
+            os.close(probe)
+        if not self.direct:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.temporary)
+
+    def __enter__(self) -> AtomicFile:
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        if kind is None:
+            self.commit()
+            return
+        self.discard()
+        translated = self.user_error(value)
+        if translated is not value:
+            raise translated from None
+
+    def __repr__(self) -> str:
+        how = "directly" if self.direct else f"through {self.temporary.name}"
+        return f"AtomicFile({str(self.path)!r}, written {how})"
+
+
+def write_failure(path: str | Path, written: str | Path, error: Exception) -> OSError:
+    """An OSError that says why writing ``written`` (the temporary file behind ``path``, or ``path`` itself)
+    failed, naming ``path``.
+
+    libsndfile reports every failed write as "System error"; one more write to the file brings the system's
+    own reason (no space left on device, file too large) to light. A WAV cannot go to a pipe or a terminal
+    (its header is written last); libsndfile says so in its own words, turned into ours."""
+    if "pipe write" in str(error):
+        return OSError(errno.ESPIPE, "a WAV file cannot be written to a pipe or a terminal (its header is "
+                                     "written last); name a regular file", str(path))
+    try:
+        descriptor = os.open(written, os.O_WRONLY | os.O_APPEND | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOCTTY)
+        try:
+            os.write(descriptor, bytes(1 << 16))
+            os.fsync(descriptor)
+        finally:
+            os.close(descriptor)
+    except OSError as reason:
+        if reason.errno is not None and reason.errno not in (errno.EINVAL, errno.EROFS, errno.ESPIPE):
+            return OSError(reason.errno, reason.strerror, str(path))
+    return OSError(errno.EIO, f"writing failed ({error})", str(path))
+
+
+def remove_leftovers(directory: str | Path) -> list[Path]:
+    """Remove the temporary files that killed ultraglide processes left in ``directory`` (see the module's
+    docstring for which); returns those removed. Anything unreadable is left alone."""
+    removed = []
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _LEFTOVER.match(entry.name)
+        if match is None or match["host"] != _HOST:
+            continue
+        try:
+            info = entry.stat(follow_symlinks=False)
+            if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid():
+                continue
+            if _alive_since(int(match["pid"]), info.st_mtime):
+                continue
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+        except OSError:
+            continue
+    return removed
+
+
+def _alive_since(pid: int, written_at: float) -> bool:
+    """Whether the process that wrote a file last at ``written_at`` (epoch seconds) may still be running: a
+    process ``pid`` exists, is not a zombie, and (where /proc tells) started before that time."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass
+    started = _start_time(pid)
+    if started is None:
+        return True
+    state, started_at = started
+    return state != "Z" and started_at <= written_at + _CLOCK_SLACK_S
+
+
+def _start_time(pid: int) -> tuple[str, float] | None:
+    """A process's state letter and its start (epoch seconds) from /proc; None where there is no /proc."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        boot_s = next(float(line.split()[1]) for line in Path("/proc/stat").read_text().splitlines()
+                      if line.startswith("btime "))
+        return fields[0], boot_s + int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
+
+
+def _umask() -> int:
+    """This process's umask, read without changing it where /proc says it (other threads may be making files)."""
+    with contextlib.suppress(OSError, ValueError, StopIteration):
+        status = Path("/proc/self/status").read_text().splitlines()
+        return int(next(line.split()[1] for line in status if line.startswith("Umask:")), 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+__all__ = ["AtomicFile", "OutputRefused", "kind_of", "remove_leftovers", "write_failure"]
