@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 from ultraglide.devices.errors import DeviceError
 
+from ultraglide.atomic import AtomicFile, OutputRefused
+
 HEADER = "t_s,amplitude_um_pp,normal_force_n,relative_friction,sliding"
 FLUSH_S = 0.1
 
@@ -52,13 +54,16 @@ class FingerLog:
         self._closed = False
         self.rows_written = 0
         if self.path is not None:
-            self._part = self.path.with_name(self.path.name + ".part")
             try:
+                self._target = AtomicFile(self.path, partial=True)  # FILE.csv.part; never renamed over a non-file
+                self._part = self._target.temporary
                 self._handle = open(self._part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
                 self._handle.write(HEADER + "\n")
             except OSError as error:
                 raise DeviceError(f"{self.path}: cannot write the finger log: "
                                   f"{(error.strerror or str(error)).lower()}") from None
+            except OutputRefused as error:
+                raise DeviceError(f"the finger log: {error}") from None
 
     def __repr__(self) -> str:
         where = str(self.path) if self.path else "memory"
@@ -121,7 +126,7 @@ class FingerLog:
             try:
                 self._take()
                 self._handle.close()
-                os.replace(self._part, self.path)
+                self._target.commit()
             except OSError as error:
                 with contextlib.suppress(OSError):
                     self._handle.close()

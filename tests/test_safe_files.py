@@ -463,3 +463,53 @@ def test_the_temporary_name_is_recognisable(tmp_path):
     finally:
         target.discard()
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- logs written as they happen (FILE.csv.part, renamed at the end) --------------------------------------------
+def test_a_growing_log_follows_the_same_rule(tmp_path):
+    from ultraglide.apps.demo.record import TouchRecorder
+    from ultraglide.devices.finger_log import FingerLog
+
+    real = tmp_path / "real.csv"
+    real.write_text("old")
+    link = tmp_path / "drag.csv"
+    link.symlink_to(real)
+    recorder = TouchRecorder(link)
+    assert recorder.partial == tmp_path / "real.csv.part"
+    for t in (0.0, 0.01):
+        recorder.touch(t, 1.0, 2.0, None, "grating-1mm", {})
+    assert recorder.close() == link and link.is_symlink() and real.read_text().count("\n") == 5
+    for maker in (TouchRecorder, FingerLog):
+        fifo = special("fifo", tmp_path / f"{maker.__name__}.csv.part")  # a pipe where the .part goes
+        with no_hang(30), pytest.raises((OutputRefused, DeviceError), match="not a regular file"):
+            maker(tmp_path / f"{maker.__name__}.csv")
+        assert kind_of(fifo) == "fifo"
+    for maker in (TouchRecorder, FingerLog):
+        (tmp_path / "folder.csv").mkdir(exist_ok=True)
+        with pytest.raises((OutputRefused, DeviceError), match="is a directory"):
+            maker(tmp_path / "folder.csv")
+
+
+@needs_root
+def test_a_growing_log_goes_straight_into_a_device(tmp_path):
+    from ultraglide.apps.demo.record import TouchRecorder
+
+    null = special("null", tmp_path / "null.csv")
+    recorder = TouchRecorder(null)
+    for t in (0.0, 0.01):
+        recorder.touch(t, 1.0, 2.0, 0.5, "grating-1mm", {})
+    recorder.close()
+    assert kind_of(null) == "char" and os.stat(null).st_rdev == NULL
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["null.csv"]
+
+
+def test_texture_effects_may_replace_its_texture_but_not_its_effects_file(tmp_path):
+    texture = tmp_path / "t.png"
+    run_cli("texture", "new", "grating", "--size-mm", "20x10", "-o", texture, check=True)
+    effects = ROOT / "examples" / "pulse.json"
+    run_cli("texture", "effects", texture, "--set", effects, "-o", texture, check=True)  # in place, as documented
+    copy = tmp_path / "e.png"
+    copy.write_bytes(effects.read_bytes())
+    before = digest(copy)
+    line = assert_one_line_error(run_cli("texture", "effects", texture, "--set", copy, "-o", copy))
+    assert "which is read" in line and digest(copy) == before

@@ -75,10 +75,14 @@ class AtomicFile:
 
     As a context manager it commits when the block succeeds and discards on any exception
     (``KeyboardInterrupt`` included), and an OSError from the block that names the temporary file (or no file)
-    is raised again naming ``path``. Once committed or discarded it does nothing more."""
+    is raised again naming ``path``. Once committed or discarded it does nothing more.
 
-    def __init__(self, path: str | Path):
+    ``partial``: the temporary file is ``NAME.part`` beside the target, visible and of a fixed name, for a log
+    written as it happens (a crash leaves its rows readable there); such a file is never taken for a leftover."""
+
+    def __init__(self, path: str | Path, partial: bool = False):
         self.path = Path(path)
+        self.partial = partial
         self.direct = False
         self._probe: int | None = None
         self._done = False
@@ -96,9 +100,23 @@ class AtomicFile:
         directory = real.parent
         remove_leftovers(directory)
         try:
-            handle, temporary = tempfile.mkstemp(prefix=f".{real.stem}.{MARK}-{os.getpid()}-{_HOST}-",
-                                                 suffix=real.suffix, dir=directory)
+            if partial:
+                temporary = str(real.with_name(real.name + ".part"))
+                with contextlib.suppress(FileNotFoundError):
+                    if not stat.S_ISREG(os.lstat(temporary).st_mode):
+                        raise OutputRefused(f"{temporary}: is not a regular file; it cannot hold {self.path} as it "
+                                            "grows")
+                handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW | os.O_NONBLOCK
+                                 | os.O_CLOEXEC, 0o600)
+                if not stat.S_ISREG(os.fstat(handle).st_mode):
+                    os.close(handle)
+                    raise OutputRefused(f"{temporary}: is not a regular file; it cannot hold {self.path} as it grows")
+            else:
+                handle, temporary = tempfile.mkstemp(prefix=f".{real.stem}.{MARK}-{os.getpid()}-{_HOST}-",
+                                                     suffix=real.suffix, dir=directory)
         except OSError as error:
+            if error.errno == errno.ELOOP:  # O_NOFOLLOW: the .part is a link
+                raise OutputRefused(f"{self.path}.part: is a link; it cannot hold {self.path} as it grows") from None
             raise self._named(error) from None
         self.temporary = Path(temporary)
         try:

@@ -7,10 +7,11 @@ file keeps them in its metadata, and ``export``, ``play`` and the demo play them
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.files import refuse_overlaps
+from ultraglide.apps.cli.output import print_json
 
 
 def add_parser(texture_commands: argparse._SubParsersAction) -> None:
@@ -42,11 +43,13 @@ def run(args) -> int:
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix.lower() != ".png":
         raise UsageError(f"the output must be a .png texture file, got {output}")
+    # -o may be TEXTURE itself (loaded whole before it is replaced, atomically), never the effects file read
+    refuse_overlaps({"-o": output}, {"--set" if args.set else "--add": args.set or args.add})
     given = format_.load_effects(args.set or args.add) if (args.set or args.add) else ()
     texture = resolve_texture(args.texture)
     if not changing:
         if args.json:
-            print(json.dumps(format_.to_json(texture.effects), ensure_ascii=False))
+            print_json(format_.to_json(texture.effects))
         else:
             print(effects_words(texture.name, texture.effects))
         return 0

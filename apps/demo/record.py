@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
+
+from ultraglide.atomic import AtomicFile
 
 HEADER = "t_s,x_mm,y_mm,force_n"
 
@@ -25,7 +26,8 @@ class TouchRecorder:
         self.path = Path(path)
         if self.path.suffix.lower() != ".csv":
             raise ValueError(f"the recording must be a .csv file, got {self.path}")
-        self.partial = self.path.with_name(self.path.name + ".part")
+        self._target = AtomicFile(self.path, partial=True)  # FILE.csv.part; never renamed over a non-file
+        self.partial = self._target.temporary
         self._file = open(self.partial, "w", newline="", encoding="utf-8")  # noqa: SIM115 - closed in close()
         self._t0: float | None = None
         self._texture: str | None = None
@@ -59,7 +61,6 @@ class TouchRecorder:
             return self.path if self.path.exists() else None
         self._file.close()
         if self.rows < 2:
-            os.unlink(self.partial)
+            self._target.discard()
             return None
-        os.replace(self.partial, self.path)
-        return self.path
+        return self._target.commit()
