@@ -132,7 +132,7 @@ def test_bad_images(tmp_path):
     Image.fromarray(RAMP).save(data, format="PNG")
     (tmp_path / "truncated.png").write_bytes(data.getvalue()[: len(data.getvalue()) // 2])
     for name, message in (("empty.png", "not an image"), ("text.png", "not an image"),
-                          ("truncated.png", "damaged or truncated"), ("missing.png", "no such file")):
+                          ("truncated.png", "damaged or truncated"), ("missing.png", "no such image file")):
         with pytest.raises(TextureError, match=message):
             author_image(tmp_path / name)
     with pytest.raises(TextureError, match="directory"):

@@ -54,7 +54,7 @@ def _a(what: str) -> str:
 
 def _cannot(path, problem: OSError, what: str, error: type[Exception]) -> Exception:
     if isinstance(problem, FileNotFoundError | NotADirectoryError):
-        return error(f"{path}: no such file ({_a(what)} was expected)")
+        return error(f"{path}: no such {what}")
     return error(f"{path}: cannot read it ({(problem.strerror or str(problem)).lower()})")
 
 

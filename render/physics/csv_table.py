@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
 import warnings
 from collections.abc import Iterator
@@ -114,6 +115,8 @@ class NumericCsv:
 
     def _open(self):
         """The file, opened only if it is a regular one (a pipe or a device is refused, never read)."""
+        if not os.path.lexists(self.path):
+            raise self.error(f"{self.path}: no such file (a {self.what} was expected)")
         return open_input(self.path, self.what, self.error)
 
     def _header(self, stream, expected: str) -> tuple[str, int]:
