@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 
@@ -29,6 +28,7 @@ def _rounded(value: float | None) -> float | None:
 
 def write_stats(path: str, stats: dict) -> None:
     from ultraglide.apps.cli.files import atomic_path
+    from ultraglide.apps.cli.output import json_text
 
     with atomic_path(Path(path)) as temporary:
-        temporary.write_text(json.dumps(stats, indent=2) + "\n")
+        temporary.write_text(json_text(stats, indent=2) + "\n")  # strict: NaN is null
