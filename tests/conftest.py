@@ -62,10 +62,11 @@ def source_copy(destination: Path) -> Path:
 
 
 # ---- slow tests ---------------------------------------------------------------------------------------
-# `-m "not slow"` is the quick loop. A test is slow when it says so (@pytest.mark.slow) or when it, or a
-# module-level helper it calls, starts a process (the command, a server, Xvfb): those take seconds each,
-# more on a loaded machine. Marked here from the source, so new test files need no bookkeeping.
-SLOW_WORDS = ("run_cli", "subprocess.", "Popen", "XvfbDemo", "cli(")
+# `-m "not slow"` is the quick loop. A test is slow when it says so (@pytest.mark.slow) or when it, a
+# module-level helper (function or class) it calls, or a fixture it uses starts a process (the command, a
+# server, Xvfb, the engine's own process, which the demo starts too): those take seconds each, more on a
+# loaded machine. Marked here from the source, so new test files need no bookkeeping.
+SLOW_WORDS = ("run_cli", "subprocess.", "Popen", "XvfbDemo", "cli(", "Engine.start(", "DemoApp(")
 
 
 def _starts_processes(function, module, seen=None) -> bool:
@@ -82,8 +83,23 @@ def _starts_processes(function, module, seen=None) -> bool:
     if any(word in source for word in SLOW_WORDS):
         return True
     helpers = [getattr(module, name) for name in vars(module) if name in source and name != function.__name__]
-    return any(inspect.isfunction(h) and h.__module__ == module.__name__ and _starts_processes(h, module, seen)
-               for h in helpers)
+    return any((inspect.isfunction(h) or inspect.isclass(h)) and h.__module__ == module.__name__
+               and _starts_processes(h, module, seen) for h in helpers)
+
+
+def _fixtures_start_processes(item) -> bool:
+    """Whether a fixture the test uses (or one those use) starts a process; pytest's own fixtures do not."""
+    import inspect
+
+    info = getattr(item, "_fixtureinfo", None)
+    for definitions in (info.name2fixturedefs.values() if info is not None else ()):
+        for definition in definitions:
+            function = inspect.unwrap(definition.func)
+            module = inspect.getmodule(function)
+            if module is not None and Path(module.__file__ or "").parent == Path(__file__).parent \
+                    and _starts_processes(function, module):
+                return True
+    return False
 
 
 def pytest_collection_modifyitems(config, items):
@@ -91,5 +107,6 @@ def pytest_collection_modifyitems(config, items):
         function = getattr(item, "function", None)
         if function is None or item.get_closest_marker("slow"):
             continue
-        if "cli" in getattr(item, "fixturenames", ()) or _starts_processes(function, item.module):
+        if "cli" in getattr(item, "fixturenames", ()) or _starts_processes(function, item.module) \
+                or _fixtures_start_processes(item):
             item.add_marker(pytest.mark.slow)

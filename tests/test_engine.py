@@ -254,6 +254,7 @@ def _tearing_writer(name, stop):
     shared.close()
 
 
+@pytest.mark.slow
 def test_status_snapshots_are_never_torn_by_a_writer_in_another_process():
     import multiprocessing
 

@@ -226,6 +226,7 @@ def test_play_on_serial_rests_the_plate_at_its_normal_end(tmp_path, tap):
     tap.assert_rested_by_the_host()
 
 
+@pytest.mark.slow
 def test_play_on_serial_rests_the_plate_when_the_command_fails(tap, monkeypatch):
     """An exception in the command's loop (injected: the real renderer never fails on valid input)."""
     from ultraglide.apps.cli.main import main

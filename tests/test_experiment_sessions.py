@@ -94,6 +94,7 @@ def test_rendered_zones_show_the_level_the_procedure_asked_for():
     assert (contrast.min(), contrast.max()) == pytest.approx((0.7, 1.0), abs=1e-6)
 
 
+@pytest.mark.slow
 def test_dry_runs_recover_the_simulated_threshold(tmp_path):
     """A few seeds of each adaptive method: the interval holds the true 0.08 in most, every estimate is near it."""
     covered = []
@@ -215,6 +216,7 @@ def test_an_existing_session_is_not_overwritten(tmp_path):
                                                               tmp_path / "nothing"))
 
 
+@pytest.mark.slow
 def test_the_log_is_on_disk_after_each_trial(tmp_path):
     """fsync per trial: the CSV grows one complete row per trial while the session runs."""
     seen = []

@@ -70,6 +70,7 @@ def read_rows(directory):
         return list(csv.DictReader(handle))
 
 
+@pytest.mark.slow
 def test_a_participant_swipes_taps_clicks_and_keys_through_a_session_with_a_break(pg, tmp_path):
     config = SessionConfig(texture="grating-1mm", method="staircase", intervals=3, trials=6, seed=5,
                            break_every=4, device="null", bootstrap=20, start_level=0.5)
@@ -117,6 +118,7 @@ def test_a_participant_swipes_taps_clicks_and_keys_through_a_session_with_a_brea
     assert min(felt) == pytest.approx(0.5, abs=0.08)  # the first trial's grating at contrast 0.5, under the finger
 
 
+@pytest.mark.slow
 def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
     config = SessionConfig(texture="grating-1mm", method="quest", intervals=2, trials=4, seed=2, device="null",
                            bootstrap=20)
@@ -150,6 +152,7 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
     assert [r["response"] for r in rows] == ["1", "2", "1", "2"]
 
 
+@pytest.mark.slow
 def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
     """The default output is the engine process (device null): a swipe over the target zone reaches it and
     the engine looks up the trial's texture there (1 - contrast at the grating's most slippery)."""

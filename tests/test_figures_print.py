@@ -81,6 +81,7 @@ def test_the_calibration_figure_reads_at_print_width_with_a_band_per_force(tmp_p
     assert "synthetic-three-forces.csv" in text and "fit±2rms,0.2N" in text and "3forces" in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("width", ["column", "page"])
 def test_the_plate_sweep_figure_reads_at_print_width(tmp_path, width):
     from ultraglide.apps.figures.sweep import plot_sweep

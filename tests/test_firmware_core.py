@@ -725,6 +725,7 @@ def _steps():
     return st.tuples(st.sampled_from([0.5, 1.0, 2.0]), st.floats(0.5, 1.0), st.lists(step, max_size=40))
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(session=_steps())
 def test_fuzzed_sessions_keep_every_invariant(session):

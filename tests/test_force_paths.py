@@ -114,6 +114,7 @@ def test_the_contact_area_never_exceeds_a_fingertips():
     assert float(paper._detach_um_pp(8.0)) == pytest.approx(2 * 8.0 * 150e-6 / (1e6 * 250e-6) * 1e6)
 
 
+@pytest.mark.slow
 # ---- the squeeze-film model ----------------------------------------------------------------------
 def test_squeeze_film_reaches_measured_reductions_within_6_um_at_half_a_newton():
     model = SqueezeFilmModel()
@@ -144,6 +145,7 @@ def test_squeeze_film_pressure_by_hand():
     assert float(contact_share(6.0, 0.5)) == pytest.approx(1 - lift / 0.5)
 
 
+@pytest.mark.slow
 def test_squeeze_film_inverse_is_exact_live_and_offline():
     model = SqueezeFilmModel()
     for force in (0.1, 0.5, 2.0):
@@ -202,6 +204,7 @@ def test_two_forces_do_not_rank_force_laws():
     assert "fitted on two forces (0.2-0.6 N (2 forces)): not tested" in fits[0].model.force_law()
 
 
+@pytest.mark.slow
 def test_bootstrap_errors_sit_beside_the_jacobian_ones():
     fit = fit_model(_two_forces(), "stretched", bootstrap=60)
     points = fit.bootstrap["points"]

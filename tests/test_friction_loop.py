@@ -27,6 +27,7 @@ def grating(hz, low=0.4):
     return lambda t: middle + swing * np.cos(2 * math.pi * hz * t)
 
 
+@pytest.mark.slow
 def test_the_estimator_recovers_mu0_and_the_fingers_scale():
     rig = LoopRig(HOST, scaled(0.7), ForceScript.walk(seed=4), FingerParams(mu0=0.8, drift=0.0, moisture=0.0),
                   plate_tau_s=0.0003)
@@ -37,6 +38,7 @@ def test_the_estimator_recovers_mu0_and_the_fingers_scale():
     assert estimator.estimate.state == "sliding"
 
 
+@pytest.mark.slow
 def test_closed_loop_follows_the_target_where_open_loop_misses():
     law = scaled(0.7, floor=0.1)
     runs = {}
@@ -65,6 +67,7 @@ def test_closed_loop_with_a_drifting_finger_at_the_benchs_speeds(hz):
     assert errors[False] > 2 * errors[True]
 
 
+@pytest.mark.slow
 def test_a_step_in_target_settles_within_ten_milliseconds():
     rig = LoopRig(HOST, scaled(0.7), ForceScript.constant(0.5), STILL, plate_tau_s=0.0003, precompensate_s=0.0003)
     step_at = 3.0
@@ -103,6 +106,7 @@ def test_the_panel_saying_still_also_stops_the_estimate():
     assert rig.loop.estimator.estimate.sliding_samples == 0
 
 
+@pytest.mark.slow
 def test_a_lift_falls_back_to_open_loop():
     script = ForceScript.points([0.0, 1.5, 1.5001], [0.5, 0.5, 0.0], [100.0, 100.0, 100.0])
     rig = LoopRig(HOST, scaled(0.7), script, STILL, plate_tau_s=0.0003)
@@ -110,6 +114,7 @@ def test_a_lift_falls_back_to_open_loop():
     assert rig.loop.words() == "open loop: finger lifted"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", ["nan", "range", "silence"])
 def test_a_sensor_fault_falls_back_without_a_jump_above_the_open_loop_amplitude(fault):
     # a finger that needs more amplitude than the model says: closed loop drives above open loop
@@ -134,6 +139,7 @@ def test_a_sensor_fault_falls_back_without_a_jump_above_the_open_loop_amplitude(
     np.testing.assert_allclose(run.commanded_um_pp[after], open_loop_amplitude(run.target[after]), atol=1e-9)
 
 
+@pytest.mark.slow
 def test_the_amplitude_never_exceeds_the_limit_and_the_correction_does_not_wind_up():
     # the finger needs twice the model's amplitude: targets below 0.45 are out of reach within 6 µm
     rig = LoopRig(HOST, scaled(2.0), ForceScript.constant(0.5), STILL, plate_tau_s=0.0003)
@@ -146,6 +152,7 @@ def test_the_amplitude_never_exceeds_the_limit_and_the_correction_does_not_wind_
     assert run.rms_error(3.5) < 0.03  # back in reach, it follows at once: nothing wound up
 
 
+@pytest.mark.slow
 def test_stable_with_sensors_slower_than_the_host_assumes():
     """Force sensors at 120 Hz and 4 ms where the host assumes 300 Hz and 1 ms, a link 20 ms late: the estimator
     identifies their timing from the data, and the loop settles and stays settled."""

@@ -405,6 +405,7 @@ number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(
                         st.sampled_from(["", "nan", "-inf", "1e308", "1e-300", "abc", "0", "-0", "5", "0.5"]))
 
 
+@pytest.mark.slow
 @PROPERTY
 @given(choice=st.sampled_from(OPTIONS), first=number_text, second=number_text)
 def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
@@ -517,6 +518,7 @@ def write_log(path, t, x, y, force=None, comment_every=0):
     path.write_text("\n".join(lines) + "\n")
 
 
+@pytest.mark.slow
 def test_streamed_state_matches_whole_path_pchip_across_many_blocks(tmp_path, monkeypatch):
     monkeypatch.setattr(csv_table, "BLOCK_BYTES", 2048)  # dozens of blocks, so the window moves through them
     rng = np.random.default_rng(3)
@@ -583,6 +585,7 @@ def test_not_text_and_endless_lines_are_refused(tmp_path):
         check_touch_log(tmp_path)
 
 
+@pytest.mark.slow
 def test_a_long_log_streams_in_bounded_memory(tmp_path):
     """400 k rows (12.8 MB as four float arrays, several times that as Python lists) render
     with a peak well under the size of the data."""

@@ -60,6 +60,7 @@ def _brute_force_hertz_reaction(u, phase):
     return [integrate.quad(ring, 0, 1, args=(t,), limit=100, epsabs=1e-7)[0] for t in phase]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("u", [0.6, 1.4, 3.0])
 def test_hertz_reaction_matches_brute_force_integration(u):
     phase = np.array([-1.2, 0.7, 4.0])
@@ -116,6 +117,7 @@ def test_cycle_friction_averages_to_the_relative_friction(amplitude):
     assert np.mean(friction) / friction_force_n(0.5) == pytest.approx(relative_friction(amplitude, 0.5), abs=2e-4)
 
 
+@pytest.mark.slow
 def test_rigid_pad_reading_of_eq_8_differs_by_the_documented_amounts():
     # docs/physics.md quotes these numbers; both readings must satisfy eq. (7)
     from ultraglide.render.physics.normal_contact import rigid_hertz_reaction

@@ -339,6 +339,7 @@ def assert_answers_and_rests(sim: PlateSimulator) -> None:
     assert sim.fault_counts()["watchdog"] == trips + 1 and sim.amplitude_um_pp < 0.01
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(frames=command_frames())
 def test_fuzzed_frames_never_stop_the_simulator(frames):
@@ -437,6 +438,7 @@ def answers_hello(host: PtyHost, timeout: float = 60.0) -> bool:
     return False
 
 
+@pytest.mark.slow
 def test_fuzzed_frames_through_the_real_pty_never_stop_its_threads():
     plate = PtyPlate(PROFILE).start()
     try:
