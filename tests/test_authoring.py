@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_cli
 from PIL import Image
+from ultraglide.apps.figures import texture_show
 from ultraglide.textures.authoring import AuthoringOptions, author_image
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
@@ -300,18 +301,20 @@ def _colourful_run(picture: np.ndarray, row: int) -> tuple[int, int]:
 def test_texture_show_png_is_print_quality_and_at_physical_size(tmp_path):
     out = tmp_path / "show.png"
     result = run_cli("texture", "show", "grating-2mm", "-o", out, "--force", "0.4", check=True)
-    assert "at physical size" in result.stdout
+    assert "at physical size" in result.stdout  # by default a page (7.16 in): the 80 mm texture fits at 1:1
     with Image.open(out) as image:
         assert image.format == "PNG"
         assert image.info["dpi"][0] == pytest.approx(300, abs=0.5)
         picture = np.asarray(image.convert("RGB"))
-    # the page: 22 mm margin + 90 mm panel + 34 mm for the colour bar = 146 mm at 300 dpi
-    assert picture.shape[1] == pytest.approx(146 / 25.4 * 300, abs=2)
-    # the 80 mm wide friction map spans 80 mm of the page: 945 pixels at 300 dpi
+    assert picture.shape[1] == pytest.approx(7.16 * 300, abs=2)  # the whole page is saved
+    # the 80 mm wide friction map spans 80 mm of the page: 945 pixels at 300 dpi, from the 14 mm margin
     rows = np.flatnonzero(((picture.max(axis=2).astype(int) - picture.min(axis=2)) > 40).sum(axis=1) > 500)
     start, stop = _colourful_run(picture, int(rows[10]))
     assert stop - start == pytest.approx(80 / 25.4 * 300, abs=4)
-    assert start == pytest.approx(22 / 25.4 * 300, abs=4)
+    assert start == pytest.approx(texture_show.LEFT_MM / 25.4 * 300, abs=4)
+    column = run_cli("texture", "show", "grating-2mm", "-o", out, "--figure-width", "column", check=True)
+    room = 3.5 * 25.4 - texture_show.LEFT_MM - texture_show.RIGHT_MM  # what a column leaves the map, mm
+    assert f"at 1:{80 / room:.3g}" in column.stdout
 
 
 def test_texture_show_vector_formats_and_a_large_texture_scaled(tmp_path):
@@ -319,14 +322,15 @@ def test_texture_show_vector_formats_and_a_large_texture_scaled(tmp_path):
     run_cli("texture", "new", "checkerboard", "--size-mm", "340x100", "--px-per-mm", "2", "-o", big, check=True)
     pdf, svg = tmp_path / "show.pdf", tmp_path / "show.svg"
     result = run_cli("texture", "show", big, "-o", pdf, "--model", "paper", check=True)
-    assert "at 1:2" in result.stdout  # 340 mm does not fit a 170 mm page width: half size
+    room = 7.16 * 25.4 - texture_show.LEFT_MM - texture_show.RIGHT_MM  # 340 mm does not fit a page's 151 mm
+    assert f"at 1:{340 / room:.3g}" in result.stdout
     assert pdf.read_bytes().startswith(b"%PDF")
     run_cli("texture", "show", "bumps", "-o", svg, check=True)
     import xml.etree.ElementTree as ElementTree
 
     root = ElementTree.parse(svg).getroot()
     assert root.tag.endswith("svg") and root.get("width").endswith("pt")
-    assert float(root.get("width")[:-2]) == pytest.approx(146 / 25.4 * 72, abs=1)  # the page, in points
+    assert float(root.get("width")[:-2]) == pytest.approx(7.16 * 72, abs=1)  # the page, in points
     text = svg.read_text()
     assert "x (mm)" in text and "friction ratio" in text
 

@@ -32,10 +32,10 @@ def add_model_option(parser: argparse.ArgumentParser, default: str = "paper") ->
                         help=f"{MODEL_HELP} (default: {default})")
 
 
-def add_figure_width_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--figure-width", choices=["column", "page"], default="column",
+def add_figure_width_option(parser: argparse.ArgumentParser, default: str = "column") -> None:
+    parser.add_argument("--figure-width", choices=["column", "page"], default=default,
                         help="lay figures out for one IEEE column (3.5 in) or two (7.16 in), text of 8 pt or more "
-                             "at that size (default: column)")
+                             f"at that size (default: {default})")
 
 
 def add_range_option(parser: argparse.ArgumentParser, default=(0.4, 1.0)) -> None:

@@ -18,6 +18,7 @@ import json
 import math
 import re
 import sys
+import threading
 
 # C0 and C1 controls, DEL, line and paragraph separators, bidirectional controls and other invisible format
 # characters, and lone surrogates (undecodable bytes of a file name)
@@ -82,9 +83,21 @@ def json_text(value, **options) -> str:
     return json.dumps(_finite(value), allow_nan=False, **options)
 
 
+_LINES = threading.Lock()  # events come from several threads (a plate's reader, its output stage)
+
+
+def print_line(text: str, file=None) -> None:
+    """Print one whole line, text and newline in one write: lines printed from two threads never run into
+    each other (``print`` writes the newline separately)."""
+    stream = file or sys.stdout
+    with _LINES:
+        stream.write(text + "\n")
+        stream.flush()
+
+
 def print_json(value, file=None) -> None:
     """Print ``value`` as one line of strict JSON, terminal-safe (see the module's docstring)."""
-    print(printable(json_text(value)), file=file or sys.stdout, flush=True)
+    print_line(printable(json_text(value)), file)
 
 
-__all__ = ["MAX_LINE", "PrintableStream", "json_text", "one_line", "print_json", "printable"]
+__all__ = ["MAX_LINE", "PrintableStream", "json_text", "one_line", "print_json", "print_line", "printable"]

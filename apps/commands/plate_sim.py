@@ -6,7 +6,7 @@ import argparse
 import queue
 import time
 
-from ultraglide.apps.cli.output import print_json
+from ultraglide.apps.cli.output import print_json, print_line
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
 
@@ -80,7 +80,7 @@ def run(args) -> int:
     sim = plate.simulator
 
     def show(event: dict) -> None:
-        print_json(event) if args.json else print(describe_event(event), flush=True)
+        print_json(event) if args.json else print_line(describe_event(event))
 
     try:  # whatever ends the loop (a signal turned exception included), the pty and its link go
         if args.json:
@@ -90,9 +90,9 @@ def run(args) -> int:
         else:
             broken = f"; breaking {', '.join(args.breaks)} on purpose" if args.breaks else ""
             version = "" if args.max_version == 3 else f"; speaking protocol v{args.max_version} at most"
-            print(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
+            print_line(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
                   f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s{version}{broken}; "
-                  "Ctrl-C stops it", flush=True)
+                  "Ctrl-C stops it")
         while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
             try:
                 show(sim.events.get(timeout=0.1))
@@ -116,9 +116,9 @@ def _summary(sim, as_json: bool, show) -> None:
               "watchdog_trips": c.watchdog_trips, "faults": sim.fault_counts(), "peak_um_pp": round(sim.peak_um_pp, 4)})
     else:
         fault_words = ", ".join(f"{count} {name}" for name, count in faults.items()) or "none"
-        print(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
+        print_line(f"stopped: {c.frames_ok} frames, {c.setpoints} setpoints, {c.crc_errors} CRC errors, "
               f"{c.lost_setpoints} setpoints lost, {c.late_setpoints} late, {c.watchdog_trips} watchdog trips, "
-              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p", flush=True)
+              f"faults: {fault_words}, peak {sim.peak_um_pp:.2f} µm p-p")
 
 
 def _plate_sim_qemu(args) -> int:
@@ -134,7 +134,7 @@ def _plate_sim_qemu(args) -> int:
     plate = QemuPlate(image.elf_path, args.link, plate=truth)
 
     def show(event: dict) -> None:
-        print_json(event) if args.json else print(describe_event(event), flush=True)
+        print_json(event) if args.json else print_line(describe_event(event))
 
     last: dict = {}
     plate.start()
@@ -144,9 +144,9 @@ def _plate_sim_qemu(args) -> int:
                   "image": image.elf_path, "profile": profile.name, "resonance_hz": truth.resonance_hz,
                   "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s})
         else:
-            print(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
+            print_line(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
                   f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
-                  "Ctrl-C stops it", flush=True)
+                  "Ctrl-C stops it")
         while True:  # until a stop signal raises through here, or QEMU dies
             try:
                 event = plate.events.get(timeout=0.1)
@@ -193,13 +193,13 @@ def _qemu_summary(stats: dict, elapsed_s: float, as_json: bool, show) -> None:
         show({"t_s": round(elapsed_s, 4), "event": "stopped", **fields})
         return
     if not fields:
-        print("stopped: no statistics from the board yet", flush=True)
+        print_line("stopped: no statistics from the board yet")
         return
     count = lambda key: fields.get(key, 0)  # noqa: E731
-    print(f"stopped: {count('frames')} frames, {count('setpoints')} setpoints, {count('crc_errors')} CRC errors, "
+    print_line(f"stopped: {count('frames')} frames, {count('setpoints')} setpoints, {count('crc_errors')} CRC errors, "
           f"{count('lost_setpoints')} setpoints lost, {count('late_setpoints')} late, "
           f"{count('watchdog_trips')} watchdog trips, {count('underruns')} underruns, {count('trips')} trips; "
           f"peak {count('peak_um_pp'):.2f} µm p-p "
           f"measured (the plate's own {count('plate_peak_um_pp'):.2f}); highest setpoint received "
           f"{count('max_setpoint_code')} of 65535 (the limit's code {count('limit_code')}); QEMU stalled "
-          f"{count('skipped_ms')} ms", flush=True)
+          f"{count('skipped_ms')} ms")

@@ -188,7 +188,7 @@ def _add_show_and_info(texture_commands) -> None:
     show_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",
                              help="normal force, N (default: 0.5)")
     show_parser.add_argument("--dpi", type=PRINT_DPI, default=300.0, help="PNG resolution (default: 300)")
-    add_figure_width_option(show_parser)
+    add_figure_width_option(show_parser, default="page")  # a page holds most textures at their physical size
     show_parser.set_defaults(run=show)
 
     info_parser = texture_commands.add_parser("info", help="a texture's metadata, in words or JSON",

@@ -197,7 +197,7 @@ def run(args) -> int:
     model = load_model(args.model)
     profile = load_profile(args.profile)
     amplitude = amplitude_map(texture, model, profile.max_amplitude_um_pp, args.force, Path(args.model).name)
-    width = getattr(args, "figure_width", "column")
+    width = getattr(args, "figure_width", "page")
     figure = draw(texture, amplitude, args.force, profile.name, width)
     try:
         if args.window:
