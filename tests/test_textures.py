@@ -389,6 +389,17 @@ def test_a_misspelt_texture_gets_a_suggestion():
         resolve_texture("zzzzzz")
 
 
+def test_a_share_of_the_time_is_never_said_as_none_when_it_happened():
+    """play warned "0.0 % of the time the texture asked for less friction than ... reaches" for a few samples
+    of a second's swipe: something that happened, said as nothing."""
+    from ultraglide.apps.commands.output_report import share_words
+
+    assert share_words(3 / 12400) == "under 0.1 %"
+    assert share_words(0.0) == "0.0 %" and share_words(1.0) == "100.0 %"
+    assert share_words(0.0005) == "0.1 %" and share_words(0.25) == "25.0 %"
+    assert share_words(12399 / 12400) == "over 99.9 %"
+
+
 def test_library_warnings_say_what_to_do_in_python_too(tmp_path):
     """Raised from the API, a warning that only named command-line flags would leave a script's author lost."""
     from ultraglide.textures import compose

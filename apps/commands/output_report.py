@@ -32,11 +32,21 @@ def force_words(trajectory, renderer: Renderer) -> str:
     return f"{low:g} N" if np.isclose(low, high) else f"{low:g}-{high:g} N"
 
 
+def share_words(fraction: float) -> str:
+    """A share of the time in words, never a "0.0 %" for something that happened (or a "100.0 %" for
+    something that did not always happen)."""
+    if 0.0 < fraction < 0.0005:
+        return "under 0.1 %"
+    if 0.9995 <= fraction < 1.0:
+        return "over 99.9 %"
+    return f"{100 * fraction:.1f} %"
+
+
 def clipping_warning(renderer: Renderer, model_name: str, trajectory) -> str | None:
     """One line when the texture asked for less friction than the model reaches within the plate's limit."""
     fraction = clipped_fraction(renderer)
     if not renderer.counters.clipped_samples:
         return None
-    return (f"warning: {100 * fraction:.1f} % of the time the texture asked for less friction than model "
+    return (f"warning: {share_words(fraction)} of the time the texture asked for less friction than model "
             f"{model_name} reaches at {force_words(trajectory, renderer)} within "
             f"{renderer.profile.max_amplitude_um_pp:g} µm p-p; held at the limit")

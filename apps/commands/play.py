@@ -101,7 +101,7 @@ def engine_config(args) -> EngineConfig:
 
 def run(args) -> int:
     from ultraglide.apps.cli.files import refuse_overlaps, render_inputs
-    from ultraglide.apps.commands.output_report import force_words
+    from ultraglide.apps.commands.output_report import force_words, share_words
     from ultraglide.apps.commands.render_setup import load_inputs
     from ultraglide.devices.run_report import RunReport
     from ultraglide.devices.urls import parse_device_url
@@ -157,7 +157,7 @@ def run(args) -> int:
               "played_s": played_s}
     if final.clipped_samples:
         force = force_words(trajectory, SimpleNamespace(default_force_n=engine.config.default_force_n))
-        print(f"warning: {100 * clipped:.1f} % of the time the texture asked for less friction than model "
+        print(f"warning: {share_words(clipped)} of the time the texture asked for less friction than model "
               f"{args.model} reaches at {force} within "
               f"{inputs.profile.max_amplitude_um_pp:g} µm p-p; held at the limit", file=sys.stderr)
     tracking = device_status.get("tracking")
