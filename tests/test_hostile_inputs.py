@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image, PngImagePlugin
+from test_inputs import no_hang
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.output import json_text, one_line, printable
 from ultraglide.apps.experiment.log import read_session
@@ -98,6 +99,26 @@ def test_every_loader_turns_its_parsers_failures_into_one_line(tmp_path, loader,
     assert "\n" not in message and len(message) < 600 and str(path) in message, message
     if hostile == "deep":
         assert "nested too deeply" in message
+
+
+KEY_PARTS = 60_000  # tomllib's time grows with the square of a key's parts: minutes for this 120 KB
+
+
+@pytest.mark.parametrize("form", ["a{dots} = 1", "[a{dots}]", "x = {{a{dots} = 1}}", "[[a{dots}]]"])
+@pytest.mark.parametrize("loader", ["profile", "calibration"])
+def test_a_toml_key_of_thousands_of_parts_is_refused_at_once(tmp_path, loader, form):
+    load, error, name, write = LOADERS[loader]
+    path = tmp_path / name
+    good = {"profile": PROFILE, "calibration": CALIBRATION}[loader]
+    write(path, good + form.format(dots=" . a" * KEY_PARTS) + "\n")
+    with no_hang(60), pytest.raises(error, match="nested too deeply") as raised:
+        load(path)
+    assert str(path) in str(raised.value) and len(str(raised.value)) < 300
+    write(path, good + 'description_of_dots = "' + "." * 5_000 + " 1.2.3" * 100 + '"\nx = [' + "1.5, " * 1000 + "2]\n")
+    try:  # dots in strings and numbers are no key's
+        load(path)
+    except error as other:
+        assert "nested" not in str(other) and "not a valid TOML" not in str(other), other
 
 
 @pytest.mark.parametrize("loader", sorted(LOADERS))

@@ -23,6 +23,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import re
 import stat
 from pathlib import Path
 from typing import BinaryIO
@@ -30,6 +31,10 @@ from typing import BinaryIO
 MAX_DEPTH = 64  # the deepest file of ours (an effects description) nests about 40 levels
 MAX_SMALL_FILE_BYTES = 4 << 20  # a profile, a calibration, an effects description, a session: a few KB
 _LONGEST_EXACT_INT = 18  # digits: any longer integer is read as a float (no file of ours holds one)
+# a TOML key of many dotted parts (``a.b.c = 1``, ``[a.b.c]``): tomllib takes time quadratic in a key's parts
+# (60 000 parts, 120 KB: minutes), so chains of parts are looked for before parsing (possessive: linear time);
+# a number (1.5) or a version (1.2.3) in a string is a chain of two or three
+_TOML_PART = r"""(?:[\w-]++|"[^"\n]*+"|'[^'\n]*+')"""
 
 
 def _kind(mode: int) -> str:
@@ -136,6 +141,8 @@ def parse_toml(data: bytes | str, where: str, error: type[Exception], what: str 
     import tomllib
 
     text = decode_text(data, where, what, error)
+    if _long_toml_key(text, max_depth):
+        raise error(f"{where}: nested too deeply (a key of more than {max_depth} parts, which no {what} has)")
     try:
         document = tomllib.loads(text)
     except RecursionError:
@@ -147,6 +154,14 @@ def parse_toml(data: bytes | str, where: str, error: type[Exception], what: str 
         raise error(f"{where}: not a valid TOML file ({reason})") from None
     _check_depth(document, where, error, what, max_depth, widen_integers=True)
     return document
+
+
+def _long_toml_key(text: str, parts: int) -> bool:
+    """Whether TOML ``text`` has a dotted key of more than ``parts`` parts (or a string that looks like one)."""
+    if text.count(".") < parts:
+        return False
+    chain = re.compile(rf"""(?<![\w"'.-]){_TOML_PART}(?:[ \t]*+\.[ \t]*+{_TOML_PART}){{{parts},}}""")
+    return chain.search(text) is not None
 
 
 def _check_depth(document, where: str, error: type[Exception], what: str, max_depth: int,
