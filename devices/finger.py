@@ -46,6 +46,8 @@ import numpy as np
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.force_sensors import ForceSensorParams, ForceSensors, low_pass
 
+from ultraglide.inputs import decode_text, read_input
+
 FrictionLaw = Callable[[np.ndarray, np.ndarray], np.ndarray]  # ratio = law(amplitude_um_pp, force_n)
 
 LIFTED_N = 0.01  # a normal force below this: the finger is off the plate
@@ -155,26 +157,24 @@ class ForceScript:
     def read_csv(cls, path: str, speed_mm_s: float = 100.0) -> ForceScript:
         """A script from a CSV with a header ``t_s,force_n[,speed_mm_s]``; a bad row is named by its line."""
         times, forces, speeds = [], [], []
+        text = decode_text(read_input(path, "force script", DeviceError), str(path), "force script (CSV)", DeviceError)
         try:
-            with open(path, newline="", encoding="utf-8") as handle:
-                reader = csv.reader(row for row in handle if not row.startswith("#"))
-                header = [name.strip() for name in next(reader, [])]
-                if header[:2] != ["t_s", "force_n"] or header[2:] not in ([], ["speed_mm_s"]):
-                    raise DeviceError(f"{path}: the header must be t_s,force_n[,speed_mm_s], got {','.join(header)}")
-                for line, row in enumerate(reader, start=2):
-                    if len(row) != len(header):
-                        raise DeviceError(f"{path}, line {line}: {len(header)} columns expected, got {len(row)}")
-                    try:
-                        values = [float(cell) for cell in row]
-                    except ValueError:
-                        raise DeviceError(f"{path}, line {line}: not numbers: {','.join(row)}") from None
-                    times.append(values[0])
-                    forces.append(values[1])
-                    speeds.append(values[2] if len(values) > 2 else speed_mm_s)
-        except OSError as error:
-            raise DeviceError(f"{path}: {error.strerror.lower() if error.strerror else error}") from None
-        except UnicodeDecodeError:
-            raise DeviceError(f"{path}: not a text CSV file") from None
+            reader = csv.reader(row for row in text.splitlines() if not row.startswith("#"))
+            header = [name.strip() for name in next(reader, [])]
+            if header[:2] != ["t_s", "force_n"] or header[2:] not in ([], ["speed_mm_s"]):
+                raise DeviceError(f"{path}: the header must be t_s,force_n[,speed_mm_s], got {','.join(header)[:80]}")
+            for line, row in enumerate(reader, start=2):
+                if len(row) != len(header):
+                    raise DeviceError(f"{path}, line {line}: {len(header)} columns expected, got {len(row)}")
+                try:
+                    values = [float(cell) for cell in row]
+                except ValueError:
+                    raise DeviceError(f"{path}, line {line}: not numbers: {','.join(row)[:80]}") from None
+                times.append(values[0])
+                forces.append(values[1])
+                speeds.append(values[2] if len(values) > 2 else speed_mm_s)
+        except csv.Error as error:  # a cell longer than the csv module takes, a stray quote
+            raise DeviceError(f"{path}: not a CSV file the finger reads ({error})") from None
         if not times:
             raise DeviceError(f"{path}: no rows after the header")
         return cls.points(times, forces, speeds)

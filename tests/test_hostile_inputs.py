@@ -21,16 +21,22 @@ from PIL import Image, PngImagePlugin
 from test_inputs import no_hang
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.output import json_text, one_line, printable
-from ultraglide.apps.experiment.log import read_session
+from ultraglide.apps.experiment.log import read_session, read_trials
 from ultraglide.apps.experiment.session import resumed_config
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.finger import ForceScript
 from ultraglide.devices.profiles import load_profile
-from ultraglide.render.physics.calibration import read_calibration
+from ultraglide.render.errors import RenderError
+from ultraglide.render.physics.calibration import load_model, read_calibration
 from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.measurements import read_measurements
+from ultraglide.render.touch_log import read_touch_log
 from ultraglide.textures.effects import load_effects
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import MAX_HELD_PIXELS, MAX_PX_PER_MM, load_texture
 from ultraglide.textures.sampling import Sampler
+
+from ultraglide.errors import UltraglideError
 
 DEEP = 100_000
 HUGE = "9" * 5_000  # more digits than Python turns into an int (4 300)
@@ -129,6 +135,40 @@ def test_the_good_files_load(tmp_path, loader):
     write(path, {"texture": TEXTURE, "profile": PROFILE, "calibration": CALIBRATION, "effects": EFFECTS,
                  "session": SESSION}[loader])
     assert load(path) is not None
+
+
+CSV_LOADERS = {  # load, its error type, the file's name, a good header and rows
+    "trajectory": (read_touch_log, RenderError, "log.csv", "t_s,x_mm,y_mm", ["0,1,5", "1,2,5"]),
+    "measurements": (read_measurements, ModelError, "m.csv", "amplitude_um_pp,relative_friction", ["0,1", "2,0.5"]),
+    "table model": (lambda path: load_model(f"table:{path}"), ModelError, "m.csv", "amplitude_um_pp,relative_friction",
+                    ["0,1", "1,0.8", "2,0.5"]),
+    "finger's force script": (ForceScript.read_csv, DeviceError, "f.csv", "t_s,force_n", ["0,0.5", "1,0.6"]),
+    "trial log": (lambda path: read_trials(path.parent), UsageError, "trials.csv", "trial,level,response,correct",
+                  ["1,0.5,1,1", "2,0.5,0,0"]),
+}
+
+
+@pytest.mark.parametrize("hostile", ["carriage returns only", "a cell of 200 000 characters"])
+@pytest.mark.parametrize("loader", sorted(CSV_LOADERS))
+def test_every_csv_loader_turns_the_csv_modules_failures_into_one_line(tmp_path, loader, hostile):
+    """What Python's csv module raises (csv.Error: a carriage return inside a line, a field over its limit) is a
+    line of the loader's own error, naming the file."""
+    load, error, name, header, rows = CSV_LOADERS[loader]
+    path = tmp_path / name
+    if hostile == "carriage returns only":
+        path.write_bytes("\r".join([header, *rows]).encode() + b"\r")
+    else:
+        path.write_text("\n".join([header + ",note", *(row + ",x" for row in rows)]) + "\n" + rows[-1] + ","
+                        + "x" * 200_000 + "\n")
+    try:  # read (universal newlines; a note column that is not used) or refused in one line, never csv.Error
+        load(path)
+    except error as raised:
+        message = str(raised)
+        assert isinstance(raised, UltraglideError), repr(raised)
+        assert "\n" not in message and len(message) < 600 and str(path) in message, message
+    assert path.stat().st_size > 0  # refused, never emptied (a trial log is cut at its last newline)
+    path.write_text("\n".join([header, *rows]) + "\n")
+    assert load(path) is not None  # the same rows, line ends of \n: they load
 
 
 @pytest.mark.parametrize("width", ["5e-324", "1e-300", "0.009", "1e-30"])

@@ -62,12 +62,17 @@ def read_trials(directory: Path) -> list[dict]:
     if not os.path.lexists(path):
         return []
     data = read_input(path, "trial log", UsageError, max_bytes=MAX_LOG_BYTES)
+    if b"\r" in data and b"\n" not in data:  # cut at its last newline, it would be emptied
+        raise UsageError(f"{path}: its lines end in carriage returns only; it is not a trial log ultraglide wrote")
     if data and not data.endswith(b"\n"):
         data = data[:data.rfind(b"\n") + 1]
         with open(path, "r+b") as handle:
             handle.truncate(len(data))
     text = decode_text(data, str(path), "trial log", UsageError)
-    rows = list(csv.DictReader(text.splitlines()))
+    try:
+        rows = list(csv.DictReader(text.splitlines()))
+    except csv.Error as problem:  # a cell longer than the csv module takes
+        raise UsageError(f"{path}: not a session's trial log ({problem})") from None
     missing = [column for column in ("trial", "level", "response", "correct") if rows and column not in rows[0]]
     if missing:
         raise UsageError(f"{path}: no column {', '.join(missing)}; it is not a session's trial log")

@@ -94,7 +94,7 @@ class NumericCsv:
         with self._open() as stream:
             header, self.header_line = self._header(stream, expected)
             self._data_offset = stream.tell()
-        names = [name.strip() for name in next(csv.reader([header.split("#", 1)[0]]))]
+        names = [name.strip() for name in self._cells(header, self.header_line)]
         duplicated = sorted({name for name in names if names.count(name) > 1 and name})
         if duplicated:
             self._fail(self.header_line, f"column {', '.join(duplicated)} appears twice in the header")
@@ -112,6 +112,16 @@ class NumericCsv:
     def _fail(self, line: int | None, message: str):
         where = f"{self.path}:{line}" if line else f"{self.path}"
         raise self.error(f"{where}: {message}")
+
+    def _cells(self, line: str, number: int) -> list[str]:
+        """The cells of one line (a comment after ``#`` dropped); what the csv module refuses, in one line."""
+        try:
+            return next(csv.reader([line.split("#", 1)[0]]), [])
+        except csv.Error as problem:  # a carriage return inside the line (old Mac line ends), a NUL ...
+            if "new-line" in str(problem):
+                self._fail(number, "a carriage return inside a line: lines must end in \\n or \\r\\n (old Mac line "
+                                   "ends?)")
+            self._fail(number, f"not a CSV line ({problem})")
 
     def _open(self):
         """The file, opened only if it is a regular one (a pipe or a device is refused, never read)."""
@@ -198,7 +208,7 @@ class NumericCsv:
             if not _is_data(line):
                 continue
             number = first_line + offset
-            cells = next(csv.reader([line.split("#", 1)[0]]))
+            cells = self._cells(line, number)
             if len(cells) <= max(self._index):
                 self._fail(number, f"expected {self.header_width} values, found {len(cells)}")
             for column, index in zip(self.columns, self._index, strict=True):
