@@ -333,6 +333,7 @@ JSON_COMMANDS = {
                                "--json"],
     "latency": ["latency", "--device", "null", "--steps", "3", "--json"],
     "plate sweep": ["plate", "sweep", "--device", "sim", "-o", "{tmp}/m.toml", "--steps", "5", "--json"],
+    "plate check": ["plate", "check", "--device", "sim", "--rule", "R-VERSION", "--json"],
     "experiment": ["experiment", "threshold", "grating-1mm", "--trials", "4", "--observer", "sim:threshold=0.1",
                    "--out", "{tmp}/s", "--json"],
 }

@@ -8,10 +8,10 @@ port, or ``sim``: the simulated plate on a pty of this process), prints each ver
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.signals import held
 
 
@@ -82,8 +82,8 @@ def run_check(args) -> int:
             with held():
                 plate.stop()
     if args.json:
-        print(json.dumps({"device_url": args.device, "profile": profile.name, **report.as_dict(),
-                          "exit_status": report.exit_status}))
+        print_json({"device_url": args.device, "profile": profile.name, **report.as_dict(),
+                    "exit_status": report.exit_status})
     else:
         print(report.summary())
         if report.exit_status:
