@@ -270,6 +270,18 @@ def test_text_from_a_file_reaches_the_terminal_escaped(tmp_path):
     assert_clean(line)
 
 
+def test_a_usage_error_quotes_what_it_was_given_escaped_and_short(tmp_path):
+    """argparse quotes the arguments it refuses: a name a script took from a folder may hold escapes or be long."""
+    for args in (["export", "grating-1mm", "-o", tmp_path / "a.wav", ESCAPES + "z" * 20_000],
+                 ["texture", "compose", ESCAPES * 3_000, "grating-1mm"], ["export", "grating-1mm", "--speed-mm-s",
+                                                                          ESCAPES + "9" * 20_000]):
+        result = run_cli(*args)
+        line = assert_one_line_error(result)
+        assert result.returncode == 2 and len(line) < 1_000, line
+        assert_clean(result.stderr)
+    assert not (tmp_path / "a.wav").exists()
+
+
 def test_a_huge_profile_of_unknown_keys_gets_a_short_line(tmp_path):
     keys = "".join(f"key{number} = 1\n" for number in range(200_000))  # 2.6 MB
     path = tmp_path / "p.toml"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 
+from ultraglide.apps.cli.output import one_line
 from ultraglide.apps.cli.types import UNIT_INTERVAL
 
 _NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
@@ -20,7 +21,8 @@ class OneLineParser(argparse.ArgumentParser):
         self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        # the arguments it quotes may be anything a script passed (escape sequences, 100 KB file names)
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
 MODEL_HELP = ("friction model: stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
