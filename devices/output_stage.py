@@ -6,7 +6,8 @@ pulls the drive envelope (µm p-p at the control rate) from an *envelope source*
 gives the device what it wants:
 
 * control devices (serial and simulated plates, whose firmware makes the carrier): the limited
-  envelope, µm p-p at the control rate;
+  envelope, µm p-p at the control rate, or at a whole fraction of it (a slower stream, e.g. 1 kHz for
+  a slow link): each value the mean of the limited control samples it stands for, so never above them;
 * audio devices (sound card, WAV file) and offline export: the limited envelope, interpolated
   linearly between control samples (one control period behind them) and riding a phase-continuous
   carrier, float32 in [-1, 1] (1 = the plate's full-scale drive).
@@ -80,9 +81,13 @@ class OutputStage:
         self.control_rate_hz = float(getattr(source, "control_rate_hz", CONTROL_RATE_HZ))
         self.rate_hz = float(rate_hz or self.control_rate_hz)
         self.carrier_hz = float(carrier_hz or profile.resonance_hz)
-        if signal == "control" and self.rate_hz != self.control_rate_hz:
+        # control: limited control samples a device value stands for (1, or k for a stream k times slower)
+        self.decimation = max(1, round(self.control_rate_hz / self.rate_hz))
+        if signal == "control" and abs(self.rate_hz * self.decimation - self.control_rate_hz) > 1e-6:
             raise DeviceError(f"the device takes setpoints at {self.rate_hz:g} Hz but the envelope comes at "
-                              f"{self.control_rate_hz:g} Hz")
+                              f"{self.control_rate_hz:g} Hz: the device's rate must be the control rate or a "
+                              "whole fraction of it")
+        self._fine = np.zeros(0)  # control: the limited control samples of a slower stream's block (grown once)
         self.upsampling = round(self.rate_hz / self.control_rate_hz)
         if signal == "audio":
             if self.upsampling < 1 or abs(self.rate_hz - self.upsampling * self.control_rate_hz) > 1e-6:
@@ -119,7 +124,7 @@ class OutputStage:
         ``out``: an array of ``n`` to write them into (float64 µm p-p for control, float32 for audio), so the
         block allocates nothing (the real-time path); without it a new array is returned."""
         if self.signal == "control":
-            out = self._limited(n, now_s, out)
+            out = self._limited(n, now_s, out) if self.decimation == 1 else self._decimated(n, now_s, out)
             if n:
                 self._last_drive = float(out[n - 1])
             self.frames += n
@@ -133,6 +138,18 @@ class OutputStage:
             for observer in self.observers:
                 observer(kept)
         return drive
+
+    def _decimated(self, n: int, now_s: float | None, out: np.ndarray | None) -> np.ndarray:
+        """``n`` values of a stream ``decimation`` times slower than the control rate: each the mean of the
+        limited control samples it stands for (so the limit holds for it as for them)."""
+        k = self.decimation
+        if len(self._fine) < n * k:  # a longer block than any before: grow once
+            self._fine = np.zeros(n * k)
+        fine = self._limited(n * k, now_s, self._fine[:n * k])
+        if out is None:
+            out = np.empty(n)
+        np.mean(fine.reshape(n, k), axis=1, out=out)
+        return out
 
     def _audio(self, frames: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
         knots, first_frame, carrier, offset = self._span(frames, now_s)

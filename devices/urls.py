@@ -1,5 +1,9 @@
-"""Devices by URL: ``sim``, ``serial:PORT[?baud=N]``, ``wav:PATH``, ``null``, and
-``audio[:NAME_OR_INDEX][?rate=N&latency=SECONDS|low|high&blocksize=FRAMES]``."""
+"""Devices by URL: ``sim``, ``serial:PORT[?baud=N&rate=SETPOINTS_PER_S&frame_ms=MS]``, ``wav:PATH``, ``null``,
+and ``audio[:NAME_OR_INDEX][?rate=N&latency=SECONDS|low|high&blocksize=FRAMES]``.
+
+A serial plate driver takes the control rate (12 000 setpoints/s) in frames of 1 or 2 ms by default; ``rate``
+(a whole fraction of the control rate, each setpoint the mean of those it stands for) and ``frame_ms`` make the
+stream fit a slower link, such as the board image under QEMU (``plate-sim --board qemu``)."""
 
 from __future__ import annotations
 
@@ -12,7 +16,8 @@ from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import Device
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
-USAGE = "use sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], wav:PATH[?rate=N] or null"
+USAGE = ("use sim, serial:PORT[?baud=N&rate=N&frame_ms=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
+         "wav:PATH[?rate=N] or null")
 
 
 @dataclass(frozen=True)
@@ -59,7 +64,8 @@ class Seconds:
 SAMPLE_RATE = Whole(12_000, 768_000, " Hz")  # a whole multiple of the 12 kHz control rate carries the carrier
 OPTIONS = {  # the keys each kind of device takes, and their ranges
     "sim": {},
-    "serial": {"baud": Whole(50, 12_000_000, " baud")},
+    "serial": {"baud": Whole(50, 12_000_000, " baud"), "rate": Whole(1000, 12_000, " setpoints/s"),
+               "frame_ms": Whole(1, 20, " ms")},
     "audio": {"rate": Whole(8_000, 768_000, " Hz"), "latency": Seconds(0.0, 10.0, ("low", "high")),
               "blocksize": Whole(0, 65_536, " frames")},
     "wav": {"rate": SAMPLE_RATE},
@@ -171,8 +177,13 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
     if spec.kind == "serial":
         from ultraglide.devices.serial_plate import SerialPlate
 
-        return SerialPlate(spec.target, profile, control_rate_hz, carrier_hz, baudrate=spec.options.get("baud", 921600),
-                           tracker=tracker)
+        rate = spec.options.get("rate", control_rate_hz)
+        if control_rate_hz % rate:
+            raise DeviceError(f"rate must divide the control rate, {control_rate_hz} setpoints/s (e.g. 1000, 2000, "
+                              f"3000, 4000, 6000), in {url!r}, got {rate}")
+        frame_s = spec.options["frame_ms"] / 1000.0 if "frame_ms" in spec.options else None
+        return SerialPlate(spec.target, profile, rate, carrier_hz, baudrate=spec.options.get("baud", 921600),
+                           batch_s=frame_s, tracker=tracker)
     if spec.kind == "audio":
         from ultraglide.devices.audio import AudioPlate
 

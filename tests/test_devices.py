@@ -171,10 +171,21 @@ def test_handshake_failures_are_clear(tmp_path):
 
 
 @pytest.mark.parametrize("url, fragment", [("bluetooth", "unknown device"), ("serial:", "needs a port"),
-                                           ("audio?rate=fast", "whole number"), ("audio?latency=soon", "latency")])
+                                           ("audio?rate=fast", "whole number"), ("audio?latency=soon", "latency"),
+                                           ("serial:/dev/ttyACM0?rate=500", "1000..12000"),
+                                           ("serial:/dev/ttyACM0?frame_ms=30", "1..20")])
 def test_bad_device_urls(url, fragment):
     with pytest.raises(DeviceError, match=fragment):
         parse_device_url(url)
+
+
+def test_a_serial_plate_can_stream_slower_in_longer_frames(tmp_path):
+    from ultraglide.devices.urls import open_device
+
+    device = open_device(f"serial:{tmp_path / 'plate'}?rate=1000&frame_ms=4", PROFILE)  # opened only at start
+    assert (device.rate_hz, device.batch_s) == (1000, 0.004)
+    with pytest.raises(DeviceError, match="divide the control rate"):
+        open_device(f"serial:{tmp_path / 'plate'}?rate=5000", PROFILE)
 
 
 def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):

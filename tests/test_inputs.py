@@ -260,7 +260,7 @@ def test_malformed_png_text_chunks_are_one_line_errors_in_the_cli(tmp_path, chun
 # ---- device URLs -----------------------------------------------------------------------------------
 
 DOCUMENTED_OPTIONS = {  # README and devices/urls.py: each kind's keys and their ranges
-    "sim": {}, "serial": {"baud": (50, 12_000_000)},
+    "sim": {}, "serial": {"baud": (50, 12_000_000), "rate": (1000, 12_000), "frame_ms": (1, 20)},
     "audio": {"rate": (8_000, 768_000), "latency": (0, 10), "blocksize": (0, 65_536)},
     "wav": {"rate": (12_000, 768_000)}, "null": {"rate": (12_000, 768_000)},
 }

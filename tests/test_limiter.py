@@ -406,3 +406,37 @@ def test_the_profile_loader_survives_any_bytes(tmp_path, content):
     path.write_bytes(content)
     with pytest.raises(DeviceError):
         load_profile(str(path))
+
+
+class Recorded:
+    """Drive values (µm p-p at 12 kHz) pulled in order."""
+
+    control_rate_hz = 12000.0
+    finished = False
+
+    def __init__(self, values):
+        self.values, self.at = values, 0
+
+    def pull(self, n, now_s):
+        self.at += n
+        return self.values[self.at - n:self.at].copy()
+
+    def request_stop(self):
+        pass
+
+
+def test_a_slower_control_stream_is_the_mean_of_the_limited_samples_never_above_them():
+    profile = load_profile("sim-plate")  # limit 6, overdrive to 8 µm p-p
+    values = np.random.default_rng(7).uniform(0.0, 10.0, 12000)  # much of it above both
+    full = OutputStage(Recorded(values), profile, "control", 12000)
+    slow = OutputStage(Recorded(values), profile, "control", 1000)
+    limited = np.concatenate([full.pull(120, None) for _ in range(100)])
+    streamed = np.concatenate([slow.pull(10, None) for _ in range(100)])  # the same 120 control samples a pull
+    assert len(streamed) == 1000
+    for k in (0, 1, 500, 999):  # each value stands for 12 control samples
+        assert streamed[k] == pytest.approx(sum(limited[12 * k:12 * k + 12]) / 12, rel=1e-12)
+    assert streamed.max() <= limited.max() <= profile.max_drive_um_pp
+    steady = OutputStage(Recorded(np.full(2400, 3.0)), profile, "control", 2000)
+    assert steady.pull(200, None)[-10:] == pytest.approx(3.0)
+    with pytest.raises(DeviceError, match="whole fraction"):
+        OutputStage(Recorded(values), profile, "control", 5000)

@@ -82,7 +82,8 @@ class EngineSource(OutputStage):
                 self._rest[:] = 0.0  # a device may have written into what it was given
             self._resting = True
             self.frames += n
-            self.limiter.samples += n if self.signal == "control" else n // self.upsampling  # time at rest counts
+            control = n * self.decimation if self.signal == "control" else n // self.upsampling
+            self.limiter.samples += control  # time at rest counts
             self._publish(started, time.perf_counter(), now_s, 0, 0)
             return self._rest[:n]
         renderer = self.renderer
