@@ -519,3 +519,119 @@ def test_plate_sim_on_qemu_logs_the_boards_events_and_its_counts(one_qemu, tmp_p
     stopped = lines[-1]
     assert stopped["event"] == "stopped" and 0 <= stopped["tap_setpoints"] - sent <= 64
     assert stopped["peak_um_pp"] == pytest.approx(2.0, rel=0.01)  # held at 2 µm p-p long enough to settle
+
+
+# ---- the host's commands against `plate-sim --board qemu` ------------------------------------------------------
+
+# QEMU's USART passes a few kB/s on a loaded machine (see the module's docstring): the host streams 1 000
+# setpoints/s (each the mean of 12 of the renderer's, never above them) in 4 ms frames, 7 kB/s.
+SLOW_LINK = "?rate=1000&frame_ms=4"
+
+
+class ServedBoard:
+    """``ultraglide plate-sim --board qemu --json`` serving ``link``: its lines read as they come (a thread), its
+    closing line once stopped."""
+
+    def __init__(self, link, *args):
+        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", "qemu", "--json",
+                                         "--link", str(link), *map(str, args)], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.lines: queue.Queue = queue.Queue()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        self.serving = self.next("serving")
+        self.url = f"serial:{self.serving['path']}{SLOW_LINK}"
+
+    def _read(self) -> None:
+        for line in self.process.stdout:
+            self.lines.put(json.loads(line))
+
+    def next(self, name: str, timeout: float = 60.0) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                event = self.lines.get(timeout=0.2)
+                if event["event"] == name:
+                    return event
+            assert self.process.poll() is None, self.process.stderr.read()
+        raise AssertionError(f"no '{name}' line from plate-sim --board qemu within {timeout} s")
+
+    def stop(self) -> dict:
+        """SIGTERM; the closing line (the board's counts as of its last statistics line after the stop)."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+        self.process.wait(timeout=60)
+        self._reader.join(timeout=10)
+        found = None
+        while not self.lines.empty():
+            event = self.lines.get()
+            found = event if event["event"] == "stopped" else found
+        return found
+
+
+def plain_profile(tmp_path) -> tuple[str, int]:
+    """A profile with no overdrive (the drive ceiling is the limit, 4 of 8 µm p-p), and the limit's code."""
+    path = tmp_path / "plain.toml"
+    path.write_text('name = "plain"\nresonance_hz = 25000.0\nq = 200.0\nfull_scale_um_pp = 8.0\n'
+                    'max_amplitude_um_pp = 4.0\ncarrier_min_hz = 20000.0\ncarrier_max_hz = 28000.0\n')
+    return str(path), round(4.0 / 8.0 * 65535)
+
+
+def test_play_on_the_board_sends_a_texture_it_receives_never_above_the_limit(one_qemu, tmp_path):
+    profile, limit_code = plain_profile(tmp_path)
+    board = ServedBoard(tmp_path / "plate", "--profile", profile)
+    try:
+        assert board.next("boot")["limit_code"] == limit_code  # the board's own reading of the limit
+        result = run_cli("play", "grating-1mm", "--device", board.url, "--profile", profile, "--duration-s", "3",
+                         "--speed-mm-s", "50", "--json")
+        assert result.returncode == 0, result.stdout + result.stderr
+        status = json.loads(result.stdout)
+        assert (status["device_name"], status["protocol_version"]) == (NAME, 3)
+        assert status["report"]["verdict"] == "clean", status["report"]
+        sent = status["setpoints_sent"]
+        assert sent >= 0.9 * 3 * 1000  # three seconds at 1 000 setpoints/s
+    finally:
+        stopped = board.stop()
+    assert board.process.returncode == 128 + signal.SIGTERM
+    # the board's own tap of its link: every value the host sent arrived (and the host's zeros at enable and
+    # rest), none above the limit's code, the highest at it (the texture does reach the limit)
+    assert 0 <= stopped["tap_setpoints"] - sent <= 64, stopped
+    assert stopped["setpoints_above_limit"] == 0 and stopped["max_setpoint_code"] <= limit_code, stopped
+    assert stopped["max_setpoint_code"] >= 0.9 * limit_code, stopped
+    assert stopped["plate_peak_um_pp"] <= 4.0 * 1.005 and stopped["trips"] == stopped["crc_errors"] == 0, stopped
+
+
+def test_latency_on_the_board(one_qemu, tmp_path):
+    board = ServedBoard(tmp_path / "plate")
+    try:
+        board.next("boot")
+        result = run_cli("latency", "--device", board.url, "--steps", "20", "--json")
+        assert result.returncode == 0, result.stdout + result.stderr
+        report = json.loads(result.stdout)
+        stream = board.next("stream_started")
+    finally:
+        stopped = board.stop()
+    assert report["steps"] == 20 and report["block_ms"] == pytest.approx(4.0)  # one pull a frame
+    # the host's part: at most a frame's wait and the render; the device's: the plate's buffer (its 10 ms prefill)
+    # and a frame, as the host keeps it
+    assert 0 < report["engine_ms"]["p50"] <= 4.0 + 2.0
+    assert report["device_ms"]["p50"] == pytest.approx(10.0, abs=2.0)
+    assert stream["rate_hz"] == 1000 and stopped["setpoints"] > 0 and stopped["trips"] == 0
+
+
+def test_plate_sweep_on_the_board_measures_the_emulated_plate(one_qemu, tmp_path):
+    board = ServedBoard(tmp_path / "plate", "--resonance-hz", "24800", "--q", "150")  # unlike its profile
+    try:
+        board.next("boot")
+        result = run_cli("plate", "sweep", "--device", board.url, "--from-hz", "24000", "--to-hz", "26000",
+                         "--steps", "21", "-o", tmp_path / "measured.toml", "--json")
+    finally:
+        board.stop()
+    assert result.returncode == 0, result.stdout + result.stderr
+    fit = json.loads(result.stdout)
+    measured = load_profile(str(tmp_path / "measured.toml"))
+    assert measured.resonance_hz == pytest.approx(24800.0, abs=20.0)
+    assert fit["resonance_hz"] == pytest.approx(measured.resonance_hz, abs=0.01)
+    assert measured.q == pytest.approx(150.0, rel=0.1)
+    assert measured.full_scale_um_pp == pytest.approx(8.0, rel=0.03)  # the emulated plate's gain, read by the ADC
+    assert measured.max_amplitude_um_pp == 6.0  # the limit is kept

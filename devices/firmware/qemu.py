@@ -47,6 +47,8 @@ MAX_EVENTS = 10000
 _PTY_LINE = re.compile(rb"char device redirected to (/dev/pts/\d+) \(label serial0\)")
 _PR_SET_PDEATHSIG = 1
 CONFIG_MAGIC = 0x5547_4550  # "UGEP"
+QEMU_FIFO_PRIORITY = 1  # above every normal process (a loaded machine deschedules QEMU, and the board's time with
+# it, for tens of ms: its plate runs dry, its buffer drifts), below the host engine's block thread (60)
 QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its threads: each waits for a CPU
 
 
@@ -114,8 +116,11 @@ def _prepare_child() -> None:  # runs in the child between fork and exec
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)  # QEMU dies with its parent
     os.setpgrp()  # the terminal's Ctrl-C goes to the command, which stops QEMU in order
-    with contextlib.suppress(OSError):  # where allowed: the emulated board is this machine's real-time work
-        os.nice(QEMU_NICE)
+    try:  # where allowed: the emulated board is real-time work, as the engine is (render/engine/realtime.py)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(QEMU_FIFO_PRIORITY))
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.nice(QEMU_NICE)
 
 
 def parse_event(line: str, t_s: float) -> dict | None:
