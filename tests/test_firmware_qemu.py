@@ -5,9 +5,10 @@ from the firmware's own tap of its link), the watchdog on the board's clock, a p
 plate's resonance. Marked ``qemu`` and ``slow``; skipped where the cross compiler or QEMU is missing
 (``./run tests`` installs both).
 
-QEMU's USART hands the firmware one byte per round trip between two of its threads (about 40 kB/s at best, a
-few kB/s on a loaded machine: ``bench/bench_qemu_link.py``), so streams here run at 1 000 setpoints/s in 10 ms
-frames (3.9 kB/s); one QEMU at a time (a file lock), since two would share this machine's two cores."""
+QEMU's USART hands the firmware one byte per round trip between two of its threads (about 14 kB/s measured at
+load 12 on this two-core machine; see devices/firmware/qemu.py), so streams here run at 1 000 setpoints/s in 10 ms
+frames (3.9 kB/s), or 4 ms frames through the commands (7 kB/s); one QEMU at a time (a file lock), since two would
+share this machine's two cores."""
 
 from __future__ import annotations
 

@@ -4,14 +4,14 @@ QEMU's ``netduinoplus2`` machine runs the image; ``-serial pty`` puts USART1 (th
 pty, which :class:`QemuPlate` serves behind a stable symlink as the simulated plate does, and ``-serial
 stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/netduinoplus2/port.c``) on
 a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan,
-and runs at a raised priority where this process may grant one (its USART passes one byte per round trip
-between QEMU's I/O and CPU threads, each a wake-up: on a busy machine every wake-up waits for a CPU).
+and runs at SCHED_FIFO 1 where this process may grant it (nice -10 otherwise): the emulated board is
+real-time work, and a normally scheduled QEMU on a busy machine lost tens of ms at a time.
 
 The emulated link is slower than the board's: QEMU hands the firmware a byte per round trip between two of
-its threads, 25-90 µs of this machine's CPU each (``bench/bench_qemu_link.py``): about 40 kB/s at best and
-10-20 kB/s on a loaded two-core machine, where a real 921 600 baud UART carries 92 kB/s. A 12 kHz stream
-in 2 ms frames needs 33.5 kB/s (docs/protocol.md): streams that fit are played in real time; faster ones
-fall behind (underruns) as they would on a slow UART.
+its threads, each a wake-up: about 14 kB/s measured on this two-core machine at load 12 (the board's
+rx_bytes counter while the host wrote as fast as the pty took), where a real 921 600 baud UART carries
+92 kB/s. The host's default stream (12 000 setpoints/s in 1-2 ms frames, 25-34 kB/s) does not fit; a
+slower one does: ``serial:PATH?rate=1000&frame_ms=4`` (7 kB/s, docs/firmware.md).
 
 Example::
 
