@@ -637,3 +637,20 @@ def test_plate_sweep_on_the_board_measures_the_emulated_plate(one_qemu, tmp_path
     assert measured.q == pytest.approx(150.0, rel=0.1)
     assert measured.full_scale_um_pp == pytest.approx(8.0, rel=0.03)  # the emulated plate's gain, read by the ADC
     assert measured.max_amplitude_um_pp == 6.0  # the limit is kept
+
+
+def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
+    """The host's conformance run (docs/protocol.md) against the firmware core on the board: every rule it can check
+    without driving the plate over its limit passes, and the plate itself never moved past 15 % of that limit."""
+    board = ServedBoard(tmp_path / "plate")
+    try:
+        board.next("boot")
+        result = run_cli("plate", "check", "--device", f"serial:{board.serving['path']}", "--json", timeout=600)
+    finally:
+        stopped = board.stop()
+    report = json.loads(result.stdout)
+    assert result.returncode == 0, [rule for rule in report["rules"] if rule["verdict"] == "fail"]
+    assert report["device"]["name"] == NAME and report["failed"] == 0 and report["aborted"] is None
+    verdicts = {rule["rule"]: rule["verdict"] for rule in report["rules"]}
+    assert {rule for rule, verdict in verdicts.items() if verdict != "pass"} <= {"R-OVER-LIMIT", "R-TRIP"}
+    assert stopped["plate_peak_um_pp"] <= 0.15 * 6.0 * 1.005 and stopped["trips"] == 0  # sim-plate: limit 6
