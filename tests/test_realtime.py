@@ -3,6 +3,7 @@ huge pages off for the engine and the app beside it, so khugepaged has nothing o
 
 import json
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -141,21 +142,28 @@ def test_engine_keeps_cpus_quick_to_wake_only_while_rendering():
             assert time.monotonic() < deadline, f"not within 60 s: {what}"
             time.sleep(0.01)
 
+    def times(n):
+        return f"{n} {'time' if n == 1 else 'times'},"
+
     with Engine.start(EngineConfig(texture="grating-1mm", device="null", start_paused=True)) as engine:
         engine.wait_ready(120)
         pid = engine.info["pid"]
         until(lambda: engine.status().resting_blocks > 0 and qos_fds(pid) == 0, "paused at rest, no request")
+        # a paused engine renders its first blocks until it is at rest: on a loaded machine the command loop
+        # may see those and hold once before this (the count goes on from there, one more a stretch)
+        until(lambda: "(released; " in engine.status().priority, "said in the status")
+        before = int(re.search(r"\(released; (\d+) time", engine.status().priority).group(1))
         engine.pause(False)
         engine.touch(time.perf_counter(), 40.0, 25.0)
         until(lambda: qos_fds(pid) == 1, "a request while rendering")
         assert cpu_latency_target_us() == 0  # the kernel now keeps every idle CPU polling
-        until(lambda: "CPU wake-up within 0 µs while rendering (held; 1 time," in engine.status().priority,
-              "said in the status")
+        until(lambda: f"CPU wake-up within 0 µs while rendering (held; {times(before + 1)}"
+              in engine.status().priority, "said in the status")
         engine.pause(True)
         until(lambda: qos_fds(pid) == 0, "released at rest again")
-        until(lambda: "(released; 1 time," in engine.status().priority, "said in the status")
+        until(lambda: f"(released; {times(before + 1)}" in engine.status().priority, "said in the status")
         final = engine.stop()
-    assert "CPU wake-up within 0 µs while rendering (released; 1 time," in final.priority  # the run's account
+    assert f"CPU wake-up within 0 µs while rendering (released; {times(before + 1)}" in final.priority  # the account
 
 
 def test_a_refused_request_is_said_and_nothing_is_held():
