@@ -18,6 +18,7 @@ from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import load_texture
 from ultraglide.textures.library import LIBRARY_DIR
 from ultraglide.textures.seams import measure_seams
+from xvfb import start_xvfb
 
 # a left-to-right ramp, dark to light, 64 × 32 pixels
 RAMP = np.tile(np.linspace(0, 255, 64), (32, 1)).astype(np.uint8)
@@ -360,12 +361,7 @@ def test_texture_info_words_and_json(tmp_path):
 @pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool") and shutil.which("import")),
                     reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
 def test_texture_show_window_under_xvfb(tmp_path):
-    read, write = os.pipe()
-    xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                            pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.close(write)
-    with os.fdopen(read) as stream:
-        display = ":" + stream.readline().strip()  # Xvfb picks a free display and says which when ready
+    xvfb, display = start_xvfb(1280, 1024)
     env = {**os.environ, "DISPLAY": display}
     env.pop("SDL_VIDEODRIVER", None)
     show = subprocess.Popen([sys.executable, "-m", "ultraglide", "texture", "show", "dots", "--window"], env=env,

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 from conftest import ROOT, source_copy
+from xvfb import start_xvfb
 from xvfb_demo import tools_missing
 
 DEADLINE_S = 600.0  # for any one command, on a loaded machine
@@ -106,13 +107,7 @@ class Tour:
         """``Xvfb :N -screen 0 1280x800x24 & export DISPLAY=:N``, on a free display."""
         if self.xvfb is not None:
             return
-        read_fd, write_fd = os.pipe()
-        self.xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1280x800x24",
-                                      "-nolisten", "tcp"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL)
-        os.close(write_fd)
-        with os.fdopen(read_fd) as numbers:
-            self.env["DISPLAY"] = f":{numbers.readline().strip()}"
+        self.xvfb, self.env["DISPLAY"] = start_xvfb(1280, 800)
 
     def xdo(self, *args) -> None:
         subprocess.run(["xdotool", *map(str, args)], env=self.env, check=True, timeout=120)
