@@ -77,6 +77,25 @@ def _events(n):
                            drive_um_pp=drive, plate_um_pp=plate)
 
 
+def test_a_zoom_holds_its_event_in_its_middle_not_at_its_edge():
+    """Windows overlap by half, so an event lies in two: the zoom is the one it is nearer the middle of. A
+    step 8 ms before the end of the first window (as an edge texture's crossing at 80 ms was drawn, with
+    nothing of the plate's answer to it) is shown in the next one, near its middle."""
+    n = int(RATE * 2)
+    t = np.arange(n) / RATE
+    step = 1100  # the first window is samples 0-1199, the next 600-1799
+    target = np.where(np.arange(n) >= step, 4.0, 1.0)
+    signals = SimpleNamespace(time_s=t, x_mm=50 * t, y_mm=np.full(n, 25.0), down=np.ones(n, bool),
+                              ratio=np.where(target > 1, 0.3, 0.9), target_um_pp=target, amplitude_um_pp=target,
+                              drive_um_pp=target, plate_um_pp=target)
+    recorder = PlotRecorder(n, RATE)
+    _feed(recorder, signals, [500] * (n // 500))
+    zooms = recorder.zooms(limit_um_pp=6.0)
+    assert recorder.window_length == 1200 and [why for why, _, _ in zooms] == [ZOOMS["change"]]
+    first = zooms[0][1]
+    assert first + 300 <= step < first + 900, first
+
+
 def _renderer():
     from ultraglide.devices.profiles import load_profile
     from ultraglide.render.physics.calibration import load_model

@@ -52,6 +52,18 @@ def _checked(path) -> Path:
     return Path(path)
 
 
+def _off_centre(kind: str, window: np.ndarray) -> float:
+    """How far (samples) the moment that makes ``window`` a zoom of ``kind`` lies from its middle: the
+    target's largest step, the drive's peak, the plate's largest lag behind the target."""
+    if kind == "change":
+        where = int(np.argmax(np.abs(np.diff(window[TARGET])))) + 0.5 if window.shape[1] > 1 else 0.0
+    elif kind == "overdrive":
+        where = int(np.argmax(window[DRIVE]))
+    else:
+        where = int(np.argmax(np.abs(window[PLATE] - window[TARGET])))
+    return abs(where - (window.shape[1] - 1) / 2)
+
+
 class PlotRecorder:
     """A renderer observer that keeps what the plot needs; see the module docstring."""
 
@@ -129,7 +141,10 @@ class PlotRecorder:
             kept = self.candidates[kind]
             rival = next((c for c in kept if abs(c[1] - first) < self.window_length), None)  # overlapping
             if rival is not None:
-                if score <= rival[0]:
+                if math.isclose(score, rival[0], rel_tol=1e-6, abs_tol=1e-12):  # the same event in both: the
+                    if _off_centre(kind, window) >= _off_centre(kind, rival[2]):  # window it is nearer the
+                        continue  # middle of (at a window's edge, half of what happens is cut off)
+                elif score < rival[0]:
                     continue
                 kept.remove(rival)
             if len(kept) < CANDIDATES or score > kept[-1][0]:
