@@ -1,16 +1,4 @@
-"""Fitting friction models to measured points, and calibration files that act as models.
-
-A fit is scipy's bounded least squares on the measured relative friction; each free parameter gets
-a standard error from the covariance s² (JᵀJ)⁻¹ at the optimum, and, since that is optimistic when
-the residuals have structure, bootstrap standard errors beside it: points resampled, and whole
-forces or participants resampled when there are three or more (:func:`bootstrap_errors`). The fit is
-judged by how well it predicts points it did not see: k-fold cross-validation with the folds drawn
-within each force, leave-one-force-out when the data hold three forces or more, and
-leave-one-participant-out with several participants. Two forces fix a force law's exponent but
-cannot test it: with two, models are ranked by k-fold error within each force and the selection
-says that the force law was not tested (:func:`selection_note`). A parameter that ends at a bound of
-its allowed range is named in a warning: the data push the model outside what it describes.
-
+"""Calibration files that act as models, and the one place that turns a ``--model`` value into a model.
 A fitted model remembers the forces it was fitted on (:class:`FitRange`, also in the calibration
 file), and says so once when it is used outside them.
 
@@ -33,27 +21,34 @@ A calibration file is TOML::
 Every command that takes ``--model`` accepts such a file (see :func:`load_model`). Reading one is
 typed: each model's parameters are listed in :data:`PARAMETERS` with their allowed ranges, and a
 missing, unknown, non-numeric or out-of-range parameter is refused with a line naming the key.
+
+The fitting itself is :mod:`ultraglide.render.physics.fitting`; this module re-exports its names.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
 import tomli_w
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.fingerprint import FingerParams
+from ultraglide.render.physics.fitting import (
+    BOOTSTRAP_SAMPLES,
+    COMPARED_MODELS,
+    K_FOLDS,
+    MIN_BOOTSTRAP_GROUPS,
+    bootstrap_errors,
+    compare_models,
+    cross_validation_errors,
+    fit_model,
+    fit_range,
+    fit_summary,
+    k_fold_groups,
+    selection_note,
+)
 from ultraglide.render.physics.friction_models import (
-    DEFAULT_FORCE_N,
-    FORCE_EXPONENT_RANGE,
-    MAX_FORCE_N,
-    RESIDUAL_RANGE,
-    SCALE_RANGE_UM_PP,
-    SHAPE_RANGE,
-    TAU_RANGE_UM_ZP,
     ExponentialModel,
     FitRange,
     FrictionModel,
@@ -61,475 +56,24 @@ from ultraglide.render.physics.friction_models import (
     StretchedExponentialModel,
     TableModel,
 )
-from ultraglide.render.physics.measurements import Measurements, read_measurements
-from ultraglide.render.physics.normal_contact import relative_friction_of_u
+from ultraglide.render.physics.measurements import read_measurements
+from ultraglide.render.physics.model_parameters import (
+    MODEL_NAMES,
+    OPTIONAL_KEYS,
+    PARAMETERS,
+    Fit,
+    Parameter,
+    ParameterSpec,
+    build_model,
+    model_kind,
+)
 from ultraglide.render.physics.squeeze_film import (
-    AMBIENT_RANGE_PA,
-    FILM_FRACTION_RANGE,
-    GAP_RANGE_UM,
-    FilmParams,
     SqueezeFilmModel,
-    film_ratio,
 )
 
 from ultraglide.inputs import parse_toml, read_input
 
 CALIBRATION_VERSION = 1
-MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched", "squeeze-film")
-COMPARED_MODELS = ("stretched", "exponential", "squeeze-film", "paper", "paper-uniform", "table")
-K_FOLDS = 5
-BOOTSTRAP_SAMPLES = 200
-MIN_BOOTSTRAP_GROUPS = 3  # resampling two groups mostly draws the same one twice
-
-
-@dataclass(frozen=True)
-class ParameterSpec:
-    """One model parameter: its key in calibration files, unit, allowed range and default."""
-
-    key: str
-    unit: str
-    low: float
-    high: float
-    default: float
-    needs_forces: bool = False  # only identifiable from data at two forces or more
-    physical: tuple[float, float] | None = None  # where the model still describes its physics
-    reason: str = ""  # what the physical range rests on
-    optional: bool = False  # calibration files may leave it out (older ones do): the default applies
-    fitted: bool = True  # False: held at the default by every fit (the file may still set it)
-    zero_ok: bool = False  # a value at the lower bound 0 is a finding (no floor, no film), not a warning
-
-    def check(self, value, where: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ModelError(f"{where}: parameter {self.key} must be a number in [{self.low:g}, {self.high:g}]"
-                             f"{self.unit}, got {value!r}")
-        if not (math.isfinite(value) and self.low <= value <= self.high):
-            raise ModelError(f"{where}: parameter {self.key} = {value} is outside the allowed range "
-                             f"[{self.low:g}, {self.high:g}]{self.unit}")
-        return float(value)
-
-
-_PAPER = (
-    ParameterSpec("youngs_modulus_pa", " Pa", 1e4, 1e9, FingerParams().youngs_modulus_pa,
-                  physical=(1e5, 1e8), reason="skin ridges are 0.1-100 MPa"),
-    ParameterSpec("friction_exponent", "", 0.05, 1.0, FingerParams().friction_exponent,
-                  physical=(0.5, 1.0), reason="finger-pad friction grows as F^n with n from about 2/3 (Hertzian "
-                  "asperities) to 1 (Coulomb)"),
-    ParameterSpec("area_exponent", "", 0.3, 1.0, FingerParams().area_exponent, needs_forces=True,
-                  physical=(0.5, 1.0), reason="contact area grows as F^(2/3) (Hertz) to F (many asperities)",
-                  optional=True),
-)
-_RESIDUAL = ParameterSpec("residual_ratio", "", *RESIDUAL_RANGE, 0.0, optional=True, zero_ok=True)
-PARAMETERS: dict[str, tuple[ParameterSpec, ...]] = {
-    "exponential": (ParameterSpec("tau_um_zp", " µm zero-to-peak", *TAU_RANGE_UM_ZP, 1.32), _RESIDUAL),
-    "stretched": (
-        ParameterSpec("scale_um_pp", " µm p-p", *SCALE_RANGE_UM_PP, StretchedExponentialModel().scale_um_pp),
-        ParameterSpec("shape", "", *SHAPE_RANGE, 2.0),
-        ParameterSpec("force_exponent", "", *FORCE_EXPONENT_RANGE, 1.0 / 3.0, needs_forces=True, optional=True),
-        _RESIDUAL,
-    ),
-    "paper": _PAPER,
-    "paper-uniform": _PAPER,
-    "squeeze-film": (
-        ParameterSpec("gap_um", " µm", *GAP_RANGE_UM, FilmParams().gap_um, physical=(2.0, 50.0),
-                      reason="skin on glass leaves air pockets of a few to tens of µm"),
-        ParameterSpec("film_fraction", "", *FILM_FRACTION_RANGE, FilmParams().film_fraction, zero_ok=True),
-        ParameterSpec("ambient_pressure_pa", " Pa", *AMBIENT_RANGE_PA, FilmParams().ambient_pressure_pa,
-                      optional=True, fitted=False),
-        ParameterSpec("youngs_modulus_pa", " Pa", 1e5, 1e8, FingerParams().youngs_modulus_pa, optional=True,
-                      fitted=False),  # the ridges' physical ranges (the paper model's warnings) are the limits here
-        ParameterSpec("friction_exponent", "", 0.5, 1.0, FingerParams().friction_exponent, optional=True,
-                      fitted=False),
-    ),
-}
-OPTIONAL_KEYS = {s.key for specs in PARAMETERS.values() for s in specs if s.optional}
-
-
-def build_model(kind: str, values: dict[str, float]) -> FrictionModel:
-    """A model of ``kind`` from parameter values keyed as in :data:`PARAMETERS`."""
-    if kind == "exponential":
-        return ExponentialModel(values["tau_um_zp"], values.get("residual_ratio", 0.0))
-    if kind == "stretched":
-        return StretchedExponentialModel(values["scale_um_pp"], values["shape"], values["force_exponent"],
-                                         values.get("residual_ratio", 0.0))
-    if kind in ("paper", "paper-uniform"):
-        return PaperModel(_finger(kind, values))
-    if kind == "squeeze-film":
-        return SqueezeFilmModel(_film(values), _film_finger(values))
-    raise ModelError(f"cannot build model {kind!r}; choose one of: {', '.join(MODEL_NAMES)}")
-
-
-def _finger(kind: str, values: dict[str, float]) -> FingerParams:
-    return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"],
-                        area_exponent=values["area_exponent"],
-                        contact="uniform" if kind == "paper-uniform" else "hertz")
-
-
-def _film(values: dict[str, float]) -> FilmParams:
-    return FilmParams(values["gap_um"], values["film_fraction"], values["ambient_pressure_pa"])
-
-
-def _film_finger(values: dict[str, float]) -> FingerParams:
-    return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"])
-
-
-def model_kind(model: FrictionModel) -> str:
-    """The name a calibration file gives this model."""
-    if isinstance(model, PaperModel):
-        return "paper-uniform" if model.params.contact == "uniform" else "paper"
-    return model.name
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """A fitted (or held) parameter value with its standard error (NaN when held fixed)."""
-
-    spec: ParameterSpec
-    value: float
-    stderr: float
-    fixed: bool
-
-    @property
-    def at_bound(self) -> bool:
-        """Within 0.1 % of a bound (ranges span decades, so relative to the bound itself)."""
-        span = self.spec.high - self.spec.low
-        bounds = (self.spec.high,) if self.spec.zero_ok and self.spec.low == 0 else (self.spec.low, self.spec.high)
-        return not self.fixed and any(abs(self.value - bound) <= (1e-3 * abs(bound) if bound else 1e-6 * span)
-                                      for bound in bounds)
-
-
-@dataclass(frozen=True)
-class Fit:
-    """A fitted model with its residuals (measured minus modelled ratio) at each point."""
-
-    model: FrictionModel
-    residuals: np.ndarray
-    data: Measurements
-    kind: str = ""
-    parameters: tuple[Parameter, ...] = ()
-    cross_validation: dict[str, float] = field(default_factory=dict)  # name → RMS of held-out residuals
-    bootstrap: dict[str, dict[str, float]] = field(default_factory=dict)  # scheme → parameter → standard error
-
-    @property
-    def rms_residual(self) -> float:
-        return float(np.sqrt(np.mean(self.residuals**2)))
-
-    @property
-    def max_abs_residual(self) -> float:
-        return float(np.max(np.abs(self.residuals)))
-
-    @property
-    def cv_rms(self) -> float:
-        """The fit's headline out-of-sample error: k-fold RMS (NaN if there were too few points)."""
-        return self.cross_validation.get("k_fold", math.nan)
-
-    def warnings(self) -> list[str]:
-        """One line per parameter that sits at a bound of its allowed range or leaves its physics."""
-        lines = []
-        for p in self.parameters:
-            physical = p.spec.physical
-            if not p.fixed and physical and not physical[0] <= p.value <= physical[1]:
-                lines.append(f"{p.spec.key} = {p.value:.4g} is outside [{physical[0]:g}, {physical[1]:g}]"
-                             f"{p.spec.unit}, where the {self.kind} model means what it says ({p.spec.reason}): "
-                             "it fits these data only by leaving its physics")
-            elif p.at_bound:
-                bound = p.spec.low if p.value - p.spec.low < p.spec.high - p.value else p.spec.high
-                lines.append(f"{p.spec.key} = {p.value:.4g} sits at the bound {bound:g} of its allowed range "
-                             f"[{p.spec.low:g}, {p.spec.high:g}]{p.spec.unit}: the data push the {self.kind} model "
-                             "beyond what it describes")
-        return lines
-
-
-def _forces(data: Measurements) -> np.ndarray:
-    return data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
-
-
-def _distinct_forces(data: Measurements) -> int:
-    return len(np.unique(_forces(data)))
-
-
-def _prediction(kind: str, values: dict[str, float], data: Measurements):
-    """Modelled ratio at the data's points; the paper model is evaluated directly at each point
-    (no table), since only the exponent changes its curve and E only rescales the amplitude."""
-    forces = _forces(data)
-    if kind in ("paper", "paper-uniform"):
-        params = _finger(kind, values)
-        detach = PaperModel.detach_um_pp_for(params, forces)
-        return relative_friction_of_u(data.amplitude_um_pp / detach, params, phase_points=96, ring_nodes=24)
-    if kind == "squeeze-film":  # the film's forward model on the ridges' table, no inverse table to build
-        return film_ratio(data.amplitude_um_pp, np.clip(forces, 0.01, MAX_FORCE_N), _film(values),
-                          _ridges(_film_finger(values)))
-    return _forward_model(kind, values).relative_friction(data.amplitude_um_pp, forces)
-
-
-_RIDGES: dict[FingerParams, PaperModel] = {}
-
-
-def _ridges(finger: FingerParams) -> PaperModel:
-    """The paper's model for these ridges, made once (a squeeze-film fit evaluates it many times)."""
-    if finger not in _RIDGES:
-        _RIDGES.clear()
-        _RIDGES[finger] = PaperModel(finger)
-    return _RIDGES[finger]
-
-
-def _forward_model(kind: str, values: dict[str, float]) -> FrictionModel:
-    """A model for evaluating a fit's residuals: its force-range warning silenced (fits sweep freely)."""
-    model = build_model(kind, values)
-    model._range_said = True
-    return model
-
-
-def fit_model(data: Measurements, kind: str, cross_validate: bool = False, bootstrap: int = 0,
-              hold: dict[str, float] | None = None) -> Fit:
-    """Least-squares fit of a model's free parameters to measured points.
-
-    ``exponential`` fits tau; ``stretched`` fits its scale and shape, and its force exponent when
-    the data hold two forces or more; ``paper`` fits the ridge modulus E_e (which sets the
-    detachment amplitude) and the friction exponent n, and the area exponent with several forces.
-    ``exponential`` and ``stretched`` also fit their floor (``residual_ratio``, Huloux et al. 2018; it
-    may come out 0); ``squeeze-film`` fits its air gap and the film's share of the contact, the ridges
-    held at Table I. ``table`` builds the table model (nothing to fit). With ``cross_validate`` the fit
-    also carries its cross-validated errors (:func:`cross_validation_errors`); with ``bootstrap`` (a
-    number of resamples) its bootstrap standard errors (:func:`bootstrap_errors`). ``hold`` fixes
-    parameters at given values (``{"residual_ratio": 0.0}``: the law without a floor).
-    """
-    if kind == "table":
-        model: FrictionModel = TableModel(data)
-        residuals = data.relative_friction - model.relative_friction(
-            np.minimum(data.amplitude_um_pp, model.max_amplitude_um_pp), _forces(data))
-        fit = Fit(model, residuals, data, kind)
-    else:
-        fit = _least_squares_fit(data, kind, hold)
-    if cross_validate:
-        fit = replace(fit, cross_validation=cross_validation_errors(data, kind, hold))
-    if bootstrap:
-        fit = replace(fit, bootstrap=bootstrap_errors(data, kind, bootstrap, hold=hold))
-    return fit
-
-
-def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> Fit:
-    from scipy.optimize import least_squares  # only fitting needs it; keep model loading light
-
-    if kind not in PARAMETERS:
-        raise ModelError(f"cannot fit model {kind!r}; choose one of: {', '.join((*MODEL_NAMES, 'table'))}")
-    specs = PARAMETERS[kind]
-    several_forces = _distinct_forces(data) >= 2
-    hold = dict(hold or {})
-    unknown = sorted(set(hold) - {s.key for s in specs})
-    if unknown:
-        raise ModelError(f"the {kind} model has no parameter {unknown[0]} to hold; its parameters are "
-                         f"{', '.join(s.key for s in specs)}")
-    held_values = {key: next(s for s in specs if s.key == key).check(value, "hold") for key, value in hold.items()}
-    free = [s for s in specs if s.fitted and s.key not in hold and (several_forces or not s.needs_forces)]
-    if len(data) <= len(free):
-        raise ModelError(f"{data.source}: {len(data)} points cannot fit the {len(free)} parameters of the "
-                         f"{kind} model; measure more amplitudes")
-    # parameters are fitted in units where they are of order one (E in MPa)
-    unit = {s.key: (1e6 if s.key == "youngs_modulus_pa" else 1.0) for s in specs}
-
-    def values_of(x) -> dict[str, float]:
-        values = {s.key: s.default for s in specs}
-        values.update(held_values)
-        values.update({s.key: float(v) * unit[s.key] for s, v in zip(free, x, strict=True)})
-        return values
-
-    def residual(x):
-        return data.relative_friction - _prediction(kind, values_of(x), data)
-
-    x0 = np.array([s.default / unit[s.key] for s in free])
-    low = np.array([s.low / unit[s.key] for s in free])
-    high = np.array([s.high / unit[s.key] for s in free])
-    best = None
-    for start in _starts(kind, x0, low, high, free):
-        result = least_squares(residual, x0=start, bounds=(low, high), diff_step=1e-4 if kind.startswith("paper")
-                               else None)
-        if best is None or result.cost < best.cost:
-            best = result
-    x = best.x
-    residuals = residual(x)
-    stderr = _standard_errors(best.jac, residuals) * np.array([unit[s.key] for s in free])
-    values = values_of(x)
-    fitted = {s.key: (float(e), False) for s, e in zip(free, stderr, strict=True)}
-    parameters = tuple(Parameter(s, values[s.key], *fitted.get(s.key, (math.nan, True))) for s in specs)
-    try:
-        model = build_model(kind, values)
-    except ValueError as error:  # FingerParams refuses a combination
-        raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
-    model.fitted = fit_range(data)
-    return Fit(model, residuals, data, kind, parameters)
-
-
-def fit_range(data: Measurements) -> FitRange:
-    """The forces (N) a fit to ``data`` rests on."""
-    return FitRange(tuple(float(f) for f in np.unique(_forces(data))), len(data))
-
-
-def _starts(kind, x0, low, high, free):
-    """Starting points: the defaults, and for the stretched law also a shallow and a sharp shape."""
-    yield x0
-    keys = [s.key for s in free]
-    if kind == "stretched":
-        for shape in (1.0, 3.0):
-            start = x0.copy()
-            start[keys.index("shape")] = shape
-            yield start
-    if "residual_ratio" in keys:  # a floor: start from one that is there
-        start = x0.copy()
-        start[keys.index("residual_ratio")] = 0.15
-        yield start
-    if kind == "squeeze-film":
-        for gap, fraction in ((5.0, 0.2), (20.0, 0.8)):
-            start = x0.copy()
-            start[keys.index("gap_um")], start[keys.index("film_fraction")] = gap, fraction
-            yield start
-
-
-def _standard_errors(jacobian: np.ndarray, residuals: np.ndarray) -> np.ndarray:
-    """sqrt(diag(s² (JᵀJ)⁻¹)), s² = SSR / (points − parameters); NaN where undetermined."""
-    points, count = jacobian.shape
-    if points <= count:
-        return np.full(count, math.nan)
-    variance = float(residuals @ residuals) / (points - count)
-    covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
-    return np.sqrt(np.maximum(np.diag(covariance), 0.0))
-
-
-def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray, hold: dict[str, float] | None = None) -> float:
-    """RMS over all points of the residual each gets from a fit to the other groups."""
-    residuals = np.empty(len(data))
-    for group in np.unique(groups):
-        held = groups == group
-        fit = fit_model(data.subset(~held), kind, hold=hold)
-        fit.model._range_said = True  # held-out forces lie outside the training range by design
-        test = data.subset(held)
-        amplitude = np.minimum(test.amplitude_um_pp, fit.model.max_amplitude_um_pp)
-        residuals[held] = test.relative_friction - fit.model.relative_friction(amplitude, _forces(test))
-    return float(np.sqrt(np.mean(residuals**2)))
-
-
-def k_fold_groups(data: Measurements, folds: int = K_FOLDS) -> np.ndarray:
-    """The fold of each point: drawn within each force (so every fold holds points of every force),
-    5 folds, or leave-one-out below 10 points; the same seed every time."""
-    if len(data) < 10:
-        return np.arange(len(data))
-    groups = np.empty(len(data), dtype=int)
-    rng = np.random.default_rng(0)
-    forces = _forces(data)
-    offset = 0
-    for force in np.unique(forces):
-        where = np.flatnonzero(forces == force)
-        groups[where[rng.permutation(len(where))]] = (offset + np.arange(len(where))) % folds
-        offset += len(where)
-    return groups
-
-
-def cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> dict[str, float]:
-    """Out-of-sample RMS errors in relative friction: ``k_fold`` (5 folds drawn within each force, or
-    leave-one-out for fewer than 10 points), ``leave_one_force_out`` with three forces or more (with
-    two, predicting one force from the other tests the two fingers' difference more than any law), and
-    ``leave_one_participant_out`` with several participants. A scheme whose training sets are too small
-    for the model is left out."""
-    errors = {}
-    schemes = [("k_fold", k_fold_groups(data))]
-    if _distinct_forces(data) >= 3:
-        schemes.append(("leave_one_force_out", _forces(data)))
-    if data.participant is not None and len(np.unique(data.participant)) >= 2:
-        schemes.append(("leave_one_participant_out", data.participant))
-    for name, grouping in schemes:
-        try:
-            errors[name] = _held_out_rms(data, kind, grouping, hold)
-        except ModelError:  # a training set too small for this model
-            continue
-    return errors
-
-
-def selection_note(data: Measurements) -> str:
-    """What the data can and cannot test about force laws, and how models are therefore ranked."""
-    count = _distinct_forces(data)
-    if count >= 3:
-        return (f"{count} forces: force laws ranked by leave-one-force-out error (each force predicted from the "
-                "others)")
-    if count == 2:
-        return ("2 forces: the force law could not be tested (two forces fix an exponent, they do not test it); "
-                "ranked by k-fold error within each force")
-    return ("1 force: the force law could not be tested (force exponents held at their assumed values); ranked by "
-            "k-fold error")
-
-
-def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS) -> list[Fit]:
-    """Every model fitted and cross-validated, best first: by leave-one-force-out RMS when the data hold
-    three forces or more, else by k-fold RMS (within each force); :func:`selection_note` says which and
-    why. Models that cannot be fitted to these data are left out."""
-    fits = []
-    for kind in kinds:
-        try:
-            fits.append(fit_model(data, kind, cross_validate=True))
-        except ModelError:
-            continue
-    ranked_by = "leave_one_force_out" if _distinct_forces(data) >= 3 else "k_fold"
-
-    def score(fit: Fit) -> float:
-        value = fit.cross_validation.get(ranked_by, math.nan)
-        return math.inf if math.isnan(value) else value
-    return sorted(fits, key=score)
-
-
-def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAMPLES, seed: int = 0,
-                     hold: dict[str, float] | None = None) -> dict[str, dict[str, float]]:
-    """Bootstrap standard errors of each fitted parameter: ``points`` (points resampled with
-    replacement) and, with three groups or more, ``force`` and ``participant`` (whole groups resampled,
-    which keeps what the points of one finger or one force share). A resample the model cannot be
-    fitted to is skipped; a parameter free in fewer than half the resamples gets no value."""
-    if kind == "table" or samples < 2:
-        return {}
-    rng = np.random.default_rng(seed)
-    schemes: list[tuple[str, np.ndarray]] = [("points", np.arange(len(data)))]
-    if _distinct_forces(data) >= MIN_BOOTSTRAP_GROUPS:
-        schemes.append(("force", _forces(data)))
-    if data.participant is not None and len(np.unique(data.participant)) >= MIN_BOOTSTRAP_GROUPS:
-        schemes.append(("participant", data.participant))
-    result = {}
-    for scheme, groups in schemes:
-        names = np.unique(groups)
-        members = [np.flatnonzero(groups == name) for name in names]
-        values: dict[str, list[float]] = {}
-        for _ in range(samples):
-            drawn = rng.integers(0, len(names), len(names))
-            pick = np.concatenate([members[k] for k in drawn])
-            try:
-                fit = _least_squares_fit(data.subset(pick), kind, hold)
-            except ModelError:
-                continue
-            for p in fit.parameters:
-                if not p.fixed:
-                    values.setdefault(p.spec.key, []).append(p.value)
-        result[scheme] = {key: float(np.std(found, ddof=1)) for key, found in values.items()
-                          if len(found) >= max(2, samples // 2)}
-    return result
-
-
-def fit_summary(fit: Fit) -> dict:
-    """A fit as plain values (JSON and the calibration file's [fit] table)."""
-    forces = [float(f) for f in np.unique(_forces(fit.data))]
-    return {
-        "model": fit.kind,
-        "description": fit.model.describe(),
-        "source": str(fit.data.source),
-        "points": len(fit.data),
-        "forces_n": forces,
-        "force_range_n": [min(forces), max(forces)],
-        "force_law": fit.model.force_law(),
-        "selection": selection_note(fit.data),
-        "noise": fit.data.noise_words(),
-        "bootstrap_stderr": fit.bootstrap,
-        "parameters": {p.spec.key: {"value": p.value, "stderr": None if math.isnan(p.stderr) else p.stderr,
-                                    "fixed": p.fixed, "allowed": [p.spec.low, p.spec.high]}
-                       for p in fit.parameters},
-        "rms_residual": fit.rms_residual,
-        "max_abs_residual": fit.max_abs_residual,
-        "cross_validation_rms": dict(fit.cross_validation),
-        "warnings": fit.warnings(),
-    }
 
 
 def calibration_toml(fit: Fit) -> str:
@@ -652,3 +196,11 @@ def load_model(spec: str) -> FrictionModel:
         "CAL.toml"
     )
 
+
+__all__ = [  # the calibration's names, the fitting's and the parameters' (one import for the commands)
+    "BOOTSTRAP_SAMPLES", "CALIBRATION_VERSION", "COMPARED_MODELS", "K_FOLDS", "MAX_FITTED_FORCES",
+    "MIN_BOOTSTRAP_GROUPS", "MODEL_NAMES", "OPTIONAL_KEYS", "PARAMETERS", "Fit", "Parameter", "ParameterSpec",
+    "bootstrap_errors", "build_model", "calibration_from_document", "calibration_toml", "compare_models",
+    "cross_validation_errors", "fit_model", "fit_range", "fit_summary", "k_fold_groups", "load_model", "model_kind",
+    "read_calibration", "selection_note",
+]
