@@ -283,7 +283,8 @@ def test_a_signalled_play_to_wav_keeps_a_whole_recording_that_ends_at_rest(tmp_p
     assert hidden_files(out_dir) == [], (sorted(path.name for path in out_dir.iterdir()), command.stderr)
     samples, rate = soundfile.read(out, dtype="float32")
     assert len(samples) > rate
-    assert np.max(np.abs(samples[:rate])) > 0.05  # it was driving the plate
+    # it was driving the plate (anywhere: on a loaded machine the engine may join the real-time recording late)
+    assert np.max(np.abs(samples)) > 0.05
     assert np.max(np.abs(samples[-rate // 200:])) < 1e-3  # and its last 5 ms are at rest: the ramp down ran
 
 
