@@ -14,6 +14,8 @@ import threading
 import time
 from pathlib import Path
 
+from xvfb import start_xvfb
+
 ROOT = Path(__file__).resolve().parent.parent
 TOOLS = ("Xvfb", "xdotool", "import")
 
@@ -59,17 +61,8 @@ class XvfbDemo:
     """Xvfb on a free display and ``ultraglide demo --windowed --report-frames ARGS`` on it."""
 
     def __init__(self, *args: str, size=(1280, 800), cwd: Path = ROOT):
-        read_fd, write_fd = os.pipe()
-        self.xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write_fd), "-screen", "0",
-                                      f"{size[0]}x{size[1]}x24", "-nolisten", "tcp"],
-                                     pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        os.close(write_fd)
-        with os.fdopen(read_fd) as numbers:  # Xvfb writes its display number once it accepts clients
-            number = numbers.readline().strip()
-        if not number:
-            self.xvfb.kill()
-            raise RuntimeError("Xvfb did not start")
-        self.env = {**os.environ, "DISPLAY": f":{number}"}
+        self.xvfb, display = start_xvfb(*size)
+        self.env = {**os.environ, "DISPLAY": display}
         self.env.pop("SDL_VIDEODRIVER", None)
         self.lines: queue.Queue[str] = queue.Queue()
         self.stdout: list[str] = []
