@@ -31,6 +31,7 @@ from ultraglide.render.physics.calibration import load_model, read_calibration
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.measurements import read_measurements
 from ultraglide.render.touch_log import read_touch_log
+from ultraglide.textures.authoring import read_image_luminance
 from ultraglide.textures.effects import load_effects
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import MAX_HELD_PIXELS, MAX_PX_PER_MM, load_texture
@@ -220,6 +221,34 @@ def test_peak_memory_of_a_command_on_a_99_megapixel_png_is_bounded(big_png, tmp_
         peak_kb = int(result.stderr.strip().splitlines()[-1])
         assert peak_kb < 900_000, f"{args[0]}: {peak_kb / 1000:.0f} MB"
         assert "DecompressionBomb" not in result.stderr and "decompression bomb" not in result.stderr.lower()
+
+
+def test_colour_and_text_bombs_are_named_from_the_header(tmp_path):
+    """A colour texture file is refused by its header, before its pixels are decoded (a 99 M-pixel RGB PNG took
+    0.5 GB to be refused); a text chunk that inflates past Pillow's limit is said to be that, not damage."""
+    colour = texture_png(tmp_path / "colour.png", TEXTURE, mode="RGB")
+    with pytest.raises(TextureError, match="must be grayscale, this one is RGB") as raised:
+        load_texture(colour)
+    assert str(colour) in str(raised.value)
+    info = PngImagePlugin.PngInfo()
+    info.add_itxt("ultraglide", TEXTURE)
+    info.add_text("Comment", "A" * 30_000_000, zip=True)  # 30 MB of text in 30 KB
+    bomb = tmp_path / "bomb.png"
+    Image.new("L", (20, 10)).save(bomb, pnginfo=info)
+    for run in (load_texture, lambda path: read_image_luminance(path)):
+        with pytest.raises(TextureError, match="decompresses to more than Pillow reads") as raised:
+            run(bomb)
+        assert "damaged" not in str(raised.value) and str(bomb) in str(raised.value)
+
+
+def test_pillows_decompression_bomb_warning_is_off_in_every_thread():
+    """Our limits speak instead; a filter set inside warnings.catch_warnings would be undone by another thread's.
+    In a fresh interpreter (pytest sets its own filters): a 99 M-pixel check, over Pillow's 89 M, prints nothing."""
+    code = ("import threading, ultraglide.textures.fileformat\nfrom PIL import Image\n"
+            "thread = threading.Thread(target=Image._decompression_bomb_check, args=((10_000, 9_900),))\n"
+            "thread.start(); thread.join(); Image._decompression_bomb_check((9_900, 10_000))\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and result.stderr == "", result.stderr
 
 
 def test_a_physically_large_texture_is_held_in_bounded_pixels(tmp_path):

@@ -27,7 +27,7 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 from scipy import ndimage
 from ultraglide.textures.errors import TextureError
-from ultraglide.textures.fileformat import held_size
+from ultraglide.textures.fileformat import held_size, pillow_failure
 from ultraglide.textures.seams import DEFAULT_BAND, METHODS, make_seamless, measure_seams
 from ultraglide.textures.texture import Texture
 
@@ -191,7 +191,7 @@ def _reading_image(path: Path):
     except MemoryError:
         raise TextureError(f"{path}: too large to decode in the memory available") from None
     except (OSError, SyntaxError, ValueError, EOFError, struct.error) as error:
-        raise TextureError(f"{path}: the image is damaged or truncated ({error})") from None
+        raise TextureError(f"{path}: {pillow_failure(error)}") from None
     finally:
         Image.MAX_IMAGE_PIXELS = previous_limit
 

@@ -38,6 +38,9 @@ CHUNK = "ultraglide"
 FULL_SCALE = 65535
 DEFAULT_PX_PER_MM = 10.0
 MAX_PIXELS = 100_000_000  # textures.authoring.MAX_PIXELS_LIMIT says the same
+# Pillow's decompression-bomb warning never reaches the terminal: our own pixel limits say what to do (a filter
+# set inside catch_warnings is undone by another thread's catch_warnings; this one holds in every thread)
+warnings.filterwarnings("ignore", category=Image.DecompressionBombWarning)
 
 
 def quantise(values: np.ndarray) -> np.ndarray:
@@ -77,15 +80,31 @@ def save_texture(texture: Texture, path: str | Path) -> Path:
     return path
 
 
+GRAY_MODES = ("I;16", "I;16L", "I;16B", "I;16N", "I", "L")
+READ_AS_GRAY_MODES = ("P", "PA", "1", "LA", "La")
+
+
+def pillow_failure(error: BaseException) -> str:
+    """What Pillow's failure to read an image means, in words (after the file's name)."""
+    if isinstance(error, ValueError) and "too large" in str(error).lower():  # a text chunk's limit (MAX_TEXT_CHUNK)
+        return ("a text chunk in it decompresses to more than Pillow reads (a decompression bomb?); it was not "
+                "read")
+    return f"cannot read it, the file is damaged or truncated ({error})"
+
+
+def _check_gray(image: Image.Image, path) -> None:
+    """Colour is refused from the file's header, before its pixels are decoded."""
+    if image.mode not in GRAY_MODES + READ_AS_GRAY_MODES:
+        raise TextureError(f"{path}: a texture file must be grayscale, this one is {image.mode}; "
+                           "make one with `ultraglide author`")
+
+
 def _grayscale(image: Image.Image) -> Image.Image:
     """The decoded image in a grayscale mode (16-bit, 8-bit or 32-bit integers); a palette or 1-bit image is
-    read through its gray levels, an alpha channel dropped; colour is refused."""
-    if image.mode in ("I;16", "I;16L", "I;16B", "I;16N", "I", "L"):
-        return image
-    if image.mode in ("P", "PA", "1", "LA", "La"):
+    read through its gray levels, an alpha channel dropped; colour is refused (:func:`_check_gray`)."""
+    if image.mode in READ_AS_GRAY_MODES:
         return image.convert("L")
-    raise TextureError(f"a texture file must be grayscale, this one is {image.mode}; "
-                       "make one with `ultraglide author`")
+    return image
 
 
 MAX_PX_PER_MM = 20.0  # a finger resolves about 0.05 mm: a texture is held no finer than this
@@ -260,6 +279,7 @@ def _read_png(stream, path: Path):
             if image.width * image.height > MAX_PIXELS:
                 raise TextureError(f"{path}: {image.width}×{image.height} is {image.width * image.height:,} pixels, "
                                    f"more than a texture file may have ({MAX_PIXELS:,}); shrink the image")
+            _check_gray(image, path)
             image.load()
             text = image.info.get(CHUNK)
             dpi = image.info.get("dpi")
@@ -274,4 +294,4 @@ def _read_png(stream, path: Path):
     except MemoryError:
         raise TextureError(f"{path}: too large to decode in the memory available") from None
     except (OSError, SyntaxError, ValueError, EOFError, struct.error) as error:  # Pillow's ways of saying "damaged"
-        raise TextureError(f"{path}: cannot read it, the file is damaged or truncated ({error})") from None
+        raise TextureError(f"{path}: {pillow_failure(error)}") from None
