@@ -6,6 +6,8 @@ that says whether any rule failed."""
 import json
 import re
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -201,6 +203,37 @@ def test_a_device_lost_mid_check_stops_it_rests_nothing_twice_and_exits_4(tmp_pa
     assert report.aborted and report.lost and report.exit_status == 4, report.summary()
     assert len(report.verdicts) == 2 and took < 30
     assert "stopped:" in report.summary() and "could not finish" in report.verdict
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signalled_plate_check_rests_the_plate(tmp_path, signum):
+    """Stopped while a rule streams to the plate: the check sends zero and ENABLE 0 on its way out, and exits
+    128 + the signal's number."""
+    server, link = serve(tmp_path)
+    check = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate", "check", "--device", f"serial:{link}",
+                              "--rule", "R-UNDERRUN", "--rule", "R-WATCHDOG"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        server.wait_line(lambda line: '"stream_started"' in line or '"enabled"' in line, timeout=120)
+        check.send_signal(signum)
+        out, err = check.communicate(timeout=60)
+        server.wait_line(lambda line: '"disabled"' in line and '"host"' in line, timeout=30)
+        status = plate_status(server)
+    finally:
+        if check.poll() is None:
+            check.kill()
+        server.finish(signal.SIGTERM)
+    assert check.returncode == 128 + signum, err
+    assert err.strip() == f"ultraglide: stopped ({signal.Signals(signum).name})"
+    assert status == "disabled"
+
+
+def plate_status(server) -> str:
+    """The plate's output by its own events so far: enabled or disabled (the last such event)."""
+    events = [json.loads(line) for line in server.seen if line.startswith("{")]
+    changes = [event["event"] for event in events if event["event"] in ("enabled", "disabled")]
+    return changes[-1] if changes else "disabled"
 
 
 def test_a_checked_plate_is_left_disabled_at_zero():
