@@ -481,6 +481,8 @@ class Check:
                 if not self.only or rule in self.only:
                     self.run_rule(rule, check)
         except Abort as error:
+            if self.device is None:  # gone before it described itself: nothing to report but that
+                raise DeviceError(str(error)) from None
             aborted, lost = str(error), error.lost
         finally:
             with self.hold():  # a stop signal waits until the plate is at rest
