@@ -44,6 +44,7 @@ SAFE_FRACTION = 0.15  # of the device's limit: the most the check asks at resona
 ABORT_FRACTION = 0.5  # a measured amplitude above this fraction of the limit stops the check at once
 ANSWER_SLACK_S = 0.025  # the host's own share of an answer's time (scheduling, the link): on top of 50 ms
 TIMEOUT_S = 1.0  # an answer that has not come by then is missing
+WRITE_TIMEOUT_S = 5.0  # a device that takes no byte for this long is gone (a busy one, on a loaded machine, is slow)
 RETRIES = 1  # a failed rule is checked again this many times: it fails only if it fails every time
 # rule → the section of docs/protocol.md that states it (its Conformance table; a test checks the two agree)
 RULES = {
@@ -161,7 +162,7 @@ class Probe:
 
     def __init__(self, port: str, baudrate: int = 921600):
         self.port = port
-        self.serial = open_port(port, baudrate)
+        self.serial = open_port(port, baudrate, write_timeout_s=WRITE_TIMEOUT_S)
         self.decoder = p.FrameDecoder()
         self.frames: list[tuple[float, p.Frame]] = []
         self.first_seq: int | None = None
