@@ -44,6 +44,7 @@ SAFE_FRACTION = 0.15  # of the device's limit: the most the check asks at resona
 ABORT_FRACTION = 0.5  # a measured amplitude above this fraction of the limit stops the check at once
 ANSWER_SLACK_S = 0.025  # the host's own share of an answer's time (scheduling, the link): on top of 50 ms
 TIMEOUT_S = 1.0  # an answer that has not come by then is missing
+SILENCE_S = 5.0  # no telemetry for this long: the device is gone (a plate on a loaded machine may pause for a second)
 WRITE_TIMEOUT_S = 5.0  # a device that takes no byte for this long is gone (a busy one, on a loaded machine, is slow)
 RETRIES = 1  # a failed rule is checked again this many times: it fails only if it fails every time
 # rule → the section of docs/protocol.md that states it (its Conformance table; a test checks the two agree)
@@ -291,7 +292,7 @@ class Probe:
         found = self.answer(seq, since, timeout_s)
         return None if found is None else (found[0], found[1], found[2] - sent, found[3])
 
-    def telemetry(self, since: int | None = None, timeout_s: float = TIMEOUT_S) -> p.Telemetry:
+    def telemetry(self, since: int | None = None, timeout_s: float = SILENCE_S) -> p.Telemetry:
         """The next TELEMETRY frame after ``since`` (default: from now)."""
         self.check()
         found = self.wait(lambda f: f.kind == p.TELEMETRY, self.mark() if since is None else since, timeout_s)
@@ -375,7 +376,7 @@ class Check:
             raise Unobservable("needs v3's telemetry (playback, buffer, drive), and this session is v2")
 
     # ---- what the device says ----
-    def telemetry(self, timeout_s: float = TIMEOUT_S, feed: bool = True) -> p.Telemetry:
+    def telemetry(self, timeout_s: float = SILENCE_S, feed: bool = True) -> p.Telemetry:
         """The next TELEMETRY frame; while waiting, HEARTBEAT every 25 ms keeps the watchdog fed (``feed``)."""
         since = self.probe.mark()
         deadline = time.perf_counter() + timeout_s
@@ -534,7 +535,7 @@ class Check:
         self.device, self.version = reply, reply.version
         self.rate = min(max(1000, reply.min_setpoint_rate_hz), reply.max_setpoint_rate_hz)
         self.probe.abort_um_pp = ABORT_FRACTION * self.safe_limit_um_pp
-        self.telemetry(timeout_s=p.HOST_ACK_TIMEOUT_S)
+        self.telemetry()
 
     def rest(self) -> None:
         """Zero and disable on every way out, while the link works (whatever stopped the check)."""
