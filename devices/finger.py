@@ -187,6 +187,24 @@ class ForceScript:
         return f"a script of {len(self.times_s)} points over {self.times_s[-1]:g} s"
 
 
+def adjusted_law(law: FrictionLaw, scale: float = 1.0, floor: float = 0.0) -> FrictionLaw:
+    """``law`` with its amplitude axis stretched by ``scale`` (more than 1: the finger needs more vibration) and a
+    floor ``floor`` that vibration does not remove (Huloux et al. 2018): ``d + (1 - d) law(a / scale, F)``."""
+    if not (math.isfinite(scale) and 0.1 <= scale <= 10.0):
+        raise DeviceError(f"the finger's law scale must lie in 0.1..10, got {scale}")
+    if not (math.isfinite(floor) and 0.0 <= floor < 1.0):
+        raise DeviceError(f"the finger's floor must lie in 0 to below 1, got {floor}")
+    if scale == 1.0 and floor == 0.0:
+        return law
+
+    def adjusted(amplitude_um_pp, force_n):
+        ratio = law(np.asarray(amplitude_um_pp, dtype=float) / scale, force_n)
+        return floor + (1.0 - floor) * np.asarray(ratio, dtype=float) if floor else ratio
+
+    adjusted.__qualname__ = f"{getattr(law, '__qualname__', 'law')} x{scale:g}" + (f" floor {floor:g}" if floor else "")
+    return adjusted
+
+
 def _check_force(value: float, what: str, allow_zero: bool = False) -> None:
     low_ok = value >= 0.0 if allow_zero else value > 0.0
     if not (math.isfinite(value) and low_ok and value <= MAX_SCRIPT_FORCE_N):
@@ -239,6 +257,44 @@ class _Track:
         return (np.interp(t_s, script.times_s, script.forces_n), np.interp(t_s, script.times_s, script.speeds_mm_s))
 
 
+SENSOR_FAULTS = ("nan", "range", "zero")
+
+
+@dataclass(frozen=True)
+class SensorFault:
+    """The force sensors misread from ``start_s`` to ``end_s`` (s since the plate started): ``nan`` (a broken
+    converter), ``range`` (50 N: a shorted bridge) or ``zero`` (a cut cable: both forces 0)."""
+
+    kind: str
+    start_s: float
+    end_s: float
+
+    def __post_init__(self) -> None:
+        if self.kind not in SENSOR_FAULTS:
+            raise DeviceError(f"a sensor fault is {', '.join(SENSOR_FAULTS)}, not {self.kind!r}")
+        if not (math.isfinite(self.start_s) and math.isfinite(self.end_s) and 0 <= self.start_s < self.end_s):
+            raise DeviceError(f"a sensor fault lasts from START to END s, START < END, got {self.start_s}-{self.end_s}")
+
+    @classmethod
+    def parse(cls, spec: str) -> SensorFault:
+        """``KIND:START-END`` (seconds since the plate started), e.g. ``nan:12-12.5``."""
+        kind, _, span = spec.partition(":")
+        start, _, end = span.partition("-")
+        try:
+            return cls(kind, float(start), float(end))
+        except ValueError:
+            raise DeviceError(f"a sensor fault is KIND:START-END in s (KIND {', '.join(SENSOR_FAULTS)}), "
+                              f"got {spec!r}") from None
+
+    def apply(self, t_s: np.ndarray, normal: np.ndarray, lateral: np.ndarray) -> None:
+        inside = (t_s >= self.start_s) & (t_s < self.end_s)
+        if not inside.any():
+            return
+        value = {"nan": math.nan, "range": 50.0, "zero": 0.0}[self.kind]
+        normal[inside] = value
+        lateral[inside] = value
+
+
 @dataclass
 class FingerTruth:
     """The finger's true state over the samples of one chunk (arrays), times on the simulator's clock (s)."""
@@ -258,13 +314,15 @@ class SimulatedFinger:
     the plate's sample rate (the one its ``forces`` blocks come at)."""
 
     def __init__(self, law: FrictionLaw, script: ForceScript | None = None, params: FingerParams | None = None,
-                 sensors: ForceSensorParams | None = None, log=None, sample_rate_hz: int = 48000, name: str = ""):
+                 sensors: ForceSensorParams | None = None, log=None, sample_rate_hz: int = 48000, name: str = "",
+                 faults: tuple[SensorFault, ...] = ()):
         self.law = law
         self.script = script or ForceScript.constant(0.5)
         self.params = params or FingerParams()
         self.sensors = ForceSensors(sensors or ForceSensorParams(), sample_rate_hz)
         self.sample_rate_hz = int(sample_rate_hz)
         self.log = log
+        self.faults = tuple(faults)
         self.name = name or getattr(law, "__qualname__", "law")
         self._track = _Track(self.script)
         self._wet_alpha = math.exp(-1.0 / (self.sample_rate_hz * self.params.moisture_tau_s))
@@ -280,6 +338,11 @@ class SimulatedFinger:
         return (f"SimulatedFinger({self.name}, {self.script.words()}, mu0 {p.mu0:g}, drift ±{100 * p.drift:g} % "
                 f"over {p.drift_period_s:g} s, moisture +{100 * p.moisture:g} % ({p.moisture_tau_s:g} s), "
                 f"{self.sensors.params.words()})")
+
+    def set_clock_origin(self, origin_s: float) -> None:
+        """The perf_counter time of the plate's sample 0 (the simulated plate tells it): the log's times follow."""
+        if self.log is not None:
+            self.log.clock_origin_s = origin_s
 
     def truth(self, t_s: np.ndarray, amplitude_um_pp: np.ndarray) -> FingerTruth:
         """The finger's true state at the samples ``t_s`` (s, increasing, contiguous with the last call: the
@@ -306,6 +369,8 @@ class SimulatedFinger:
         start = int(round(t_s * self.sample_rate_hz))
         if self._next_sample is None:
             self._next_sample = self._done = start
+        elif abs(start - self._next_sample) <= 2:  # a clock's rounding: the blocks join
+            start = self._next_sample
         elif start != self._next_sample:  # a gap or a repeat: the physics restarts there (the sensors keep state)
             self._pending = np.zeros(0)
             self._next_sample = self._done = start
@@ -317,7 +382,12 @@ class SimulatedFinger:
         if needed > self._done:
             end = min(max(needed, self._done + self._chunk), available)
             self._run(end)
-        return self.sensors.output(start, n)
+        normal, lateral = self.sensors.output(start, n)
+        if self.faults:
+            times = (start + np.arange(n)) / self.sample_rate_hz
+            for fault in self.faults:
+                fault.apply(times, normal, lateral)
+        return normal, lateral
 
     def _run(self, end: int) -> None:
         """Through the physics from sample ``_done`` to ``end``: truth, sensors, log."""

@@ -55,6 +55,7 @@ STALL_S = 0.02  # the output thread woke this late: the whole simulator was desc
 SAMPLE_RATE_HZ = 48000  # the firmware's drive samples a second (its DAC rate over its oversampling)
 BLOCK = 96  # drive samples computed at once in open loop (2 ms): the physics' block
 LOOP_BLOCK = 12  # ... with the amplitude loop on (0.25 ms): the loop's measurement comes a block late
+DRAIN_SAMPLES = 480  # the core's bytes are taken every 10 ms of a long render
 MAX_EVENTS = 10000  # events kept for a reader (plate-sim prints them); beyond that they are counted, not kept
 
 
@@ -149,6 +150,8 @@ class PlateSimulator:
         self._injected: dict[str, int] = {}
         self._lock = threading.Lock()
         self._started = time.perf_counter()
+        if finger is not None and hasattr(finger, "set_clock_origin"):
+            finger.set_clock_origin(self._started)  # its log's times on the host's clock: sample 0 is now
         self._clock = self._started
         self._owed = 0.0  # fractional drive samples not yet rendered
         self._plate_state = 0.0  # the plate's amplitude, µm p-p
@@ -158,6 +161,7 @@ class PlateSimulator:
         self.peak_um_pp = 0.0
         self.real_time = False  # PtyPlate: frames arrive in real time, ahead of the clock last advanced to
         self.trace: list[np.ndarray] | None = None  # a list here collects the plate's amplitude, every sample
+        self._sent: list[bytes] = []  # what the core sent during the present advance
 
     def __repr__(self) -> str:
         return (f"PlateSimulator({self.profile.name}: truth {self.truth.resonance_hz:g} Hz, Q {self.truth.q:g}; "
@@ -294,11 +298,13 @@ class PlateSimulator:
             self._clock = now
             n = int(self._owed)
             self._owed -= n
+            self._sent = []
             if n <= 0:
                 self.core.poll()
             else:
                 self._run(n, now)
-            frames = _frames(self.core.transmit())
+            self._sent.append(self.core.transmit())
+            frames = _frames(b"".join(self._sent))
             self._take_events()
             return frames if telemetry else []
 
@@ -312,7 +318,7 @@ class PlateSimulator:
         # disabled, the drive is zero whatever is measured: one block; enabled, the core hears the plate a
         # block late (its limiter and trip do not need it sooner; its amplitude loop does)
         block = (LOOP_BLOCK if status.loop else BLOCK) if status.enabled else sil.MAX_RENDER
-        t0 = elapsed - n / self.sample_rate_hz
+        t0 = status.samples / self.sample_rate_hz  # the core's sample clock: a finger's blocks join exactly
         done = 0
         while done < n:
             k = min(block, n - done)
@@ -337,6 +343,8 @@ class PlateSimulator:
             if self.trace is not None:
                 self.trace.append(np.array(amplitude, dtype=float))
             done += k
+            if done % DRAIN_SAMPLES < k:  # a long catch-up's frames leave as they are made, as a UART's would:
+                self._sent.append(self.core.transmit())  # its 4 KB ring would otherwise overflow
         self.amplitude_um_pp = self._plate_state
 
     def next_wake_s(self, now: float) -> float:

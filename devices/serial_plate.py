@@ -210,7 +210,8 @@ class SerialPlate:
 
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
                  baudrate: int = 921600, batch_s: float | None = None, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
-                 tracker: ResonanceTracker | None = None, check_budget: bool = True, silence_s: float = SILENCE_S):
+                 tracker: ResonanceTracker | None = None, check_budget: bool = True, silence_s: float = SILENCE_S,
+                 amplitude_loop: bool = False):
         self.port = port
         self.profile = profile
         self.rate_hz = int(control_rate_hz)
@@ -231,6 +232,8 @@ class SerialPlate:
         self.max_drive_um_pp = profile.max_drive_um_pp
         self.full_scale_um_pp = profile.full_scale_um_pp  # the device's once it has said (codes scale by it)
         self._top_fraction = 1.0
+        self.amplitude_loop = amplitude_loop  # asked: SET_LOOP 1 before each ENABLE, where the device has the loop
+        self.loop_on = False  # the device's amplitude loop runs (this connection)
         self._serial: serial.Serial | None = None
         self._reader: serial.threaded.ReaderThread | None = None
         self._write_lock = threading.Lock()
@@ -464,6 +467,10 @@ class SerialPlate:
                 raise DeviceError(f"{self.port}: no telemetry from the plate driver for {timeout_s:g} s")
             return self.telemetry
 
+    def hello(self) -> p.HelloReply | None:
+        """What the device said of itself in this connection's handshake (None before one)."""
+        return self.device
+
     def fault_counts(self) -> dict[str, int]:
         """Each fault the device can report, by name, with how often it happened over this run."""
         return {name: self._fault_run[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
@@ -571,6 +578,10 @@ class SerialPlate:
             self._session = True
             if first and not self._first_telemetry.wait(self.ack_timeout_s):  # the run's fault baseline
                 raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
+            self.loop_on = False
+            if self.amplitude_loop and hello.has_amplitude_loop:  # only while disabled: before ENABLE
+                self._command(p.SET_LOOP, p.set_loop_payload(1))
+                self.loop_on = True
             self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
             if not self._cut:  # a device that cut itself out over this run is never re-enabled by the host
                 self._command(p.ENABLE, p.enable_payload(True))

@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
 
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.source import Device
+
+if TYPE_CHECKING:
+    from ultraglide.devices.finger import SimulatedFinger
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
 USAGE = ("use sim, serial:PORT[?baud=N&rate=N&frame_ms=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
@@ -120,14 +124,23 @@ class SimPlate:
 
     signal = "control"
 
-    def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None, tracker=None):
+    def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None, tracker=None,
+                 finger=None, amplitude_loop: bool = False):
         from ultraglide.devices.plate_sim import PtyPlate
         from ultraglide.devices.serial_plate import SerialPlate
 
-        self.plate = PtyPlate(profile).start()
+        self.finger = finger
+        self.plate = PtyPlate(profile, finger=finger).start()
         self.driver = SerialPlate(self.plate.path, profile, control_rate_hz, carrier_hz, tracker=tracker,
-                                  ack_timeout_s=SIM_ANSWER_TIMEOUT_S, silence_s=SIM_ANSWER_TIMEOUT_S)
+                                  ack_timeout_s=SIM_ANSWER_TIMEOUT_S, silence_s=SIM_ANSWER_TIMEOUT_S,
+                                  amplitude_loop=amplitude_loop)
         self.rate_hz = control_rate_hz
+
+    def add_sensor_listener(self, listener) -> None:
+        self.driver.add_sensor_listener(listener)
+
+    def hello(self):
+        return self.driver.hello()
 
     @property
     def telemetry(self):
@@ -148,18 +161,22 @@ class SimPlate:
             self.driver.stop()
         finally:
             self.plate.stop()
+            if self.finger is not None:
+                self.finger.close()  # its log appears whole
 
     def status(self) -> dict:
         return {**self.driver.status(), "device": "sim", "pty": self.plate.pty_name}
 
 
 def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
-                track_resonance: bool = False) -> Device:
+                track_resonance: bool = False, finger: SimulatedFinger | None = None,
+                amplitude_loop: bool = False) -> Device:
     """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks.
 
     ``track_resonance``: a plate driver (sim, serial) follows its plate's drifting resonance from
     telemetry, starting from ``carrier_hz`` or the profile's; other devices report no amplitude, so
-    asking them is a DeviceError."""
+    asking them is a DeviceError. ``finger``: a simulated finger (and force sensors) on the ``sim`` plate;
+    ``amplitude_loop``: a plate driver turns its firmware's amplitude loop on where it has one."""
     spec = parse_device_url(url)
     carrier = carrier_hz or profile.resonance_hz
     tracker = None
@@ -173,7 +190,7 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         tracker = ResonanceTracker(carrier, profile.q, profile.max_amplitude_um_pp, profile.carrier_min_hz,
                                    profile.carrier_max_hz)
     if spec.kind == "sim":
-        return SimPlate(profile, control_rate_hz, carrier_hz, tracker)
+        return SimPlate(profile, control_rate_hz, carrier_hz, tracker, finger, amplitude_loop)
     if spec.kind == "serial":
         from ultraglide.devices.serial_plate import SerialPlate
 
@@ -183,7 +200,7 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
                               f"3000, 4000, 6000), in {url!r}, got {rate}")
         frame_s = spec.options["frame_ms"] / 1000.0 if "frame_ms" in spec.options else None
         return SerialPlate(spec.target, profile, rate, carrier_hz, baudrate=spec.options.get("baud", 921600),
-                           batch_s=frame_s, tracker=tracker)
+                           batch_s=frame_s, tracker=tracker, amplitude_loop=amplitude_loop)
     if spec.kind == "audio":
         from ultraglide.devices.audio import AudioPlate
 

@@ -9,6 +9,7 @@ import time
 from ultraglide.apps.cli.output import print_json, print_line
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
+from ultraglide.apps.commands.finger_options import add_finger_options, finger_asked, finger_config
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -35,6 +36,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sim.add_argument("--board", choices=["sim", "qemu"], default="sim",
                      help="sim: the firmware's core on this machine; qemu: the netduinoplus2 board image under "
                           "QEMU (built first if needed), its UART on the pty (default: sim)")
+    add_finger_options(sim, "the force sensors under the plate; absent unless a --finger option is given")
     sim.set_defaults(run=run)
 
 
@@ -66,17 +68,27 @@ def run(args) -> int:
     args.max_version = int(args.max_version)
     args.breaks = list(_rules(args.breaks))
     if args.board == "qemu":
-        if args.breaks or args.max_version != 3:
+        if args.breaks or args.max_version != 3 or finger_asked(args):
             from ultraglide.apps.cli.errors import UsageError
 
-            raise UsageError("--break and --max-version are the simulator's (--board sim), not the board image's")
+            raise UsageError("--break, --max-version and --finger are the simulator's (--board sim), not the board "
+                             "image's")
         return _plate_sim_qemu(args)
     from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
     from ultraglide.devices.profiles import load_profile
+    from ultraglide.render.engine.finger_setup import build_finger, finger_words
 
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
-    plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version).start()
+    config = finger_config(args)
+    finger = build_finger(config) if config is not None else None
+    try:
+        plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version,
+                         finger=finger).start()
+    except BaseException:
+        if finger is not None:
+            finger.close()
+        raise
     sim = plate.simulator
 
     def show(event: dict) -> None:
@@ -86,13 +98,16 @@ def run(args) -> int:
         if args.json:
             show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
                   "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
-                  "drift_hz_per_s": truth.drift_hz_per_s, "max_version": args.max_version, "breaks": args.breaks})
+                  "drift_hz_per_s": truth.drift_hz_per_s, "max_version": args.max_version, "breaks": args.breaks,
+                  "finger": None if config is None else finger_words(config)})
         else:
             broken = f"; breaking {', '.join(args.breaks)} on purpose" if args.breaks else ""
             version = "" if args.max_version == 3 else f"; speaking protocol v{args.max_version} at most"
             print_line(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
                   f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s{version}{broken}; "
                   "Ctrl-C stops it")
+            if config is not None:
+                print_line(finger_words(config))
         while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
             try:
                 show(sim.events.get(timeout=0.1))
@@ -101,6 +116,8 @@ def run(args) -> int:
     finally:
         with held():  # a second signal does not cut this short
             plate.stop()
+            if finger is not None:
+                finger.close()  # its log appears whole
             while not sim.events.empty():
                 show(sim.events.get())
             _summary(sim, args.json, show)

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.output import print_json
+from ultraglide.apps.commands.finger_options import add_finger_options, finger_config
 from ultraglide.apps.commands.render_options import add_render_options
 
 if TYPE_CHECKING:
@@ -41,7 +42,19 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     play.add_argument("--save-profile", metavar="PROFILE.toml",
                       help="with --track-resonance: write the profile with the resonance it ended on, for the next "
                            "run's --profile")
+    play.add_argument("--closed-loop", action="store_true",
+                      help="make the friction the plate's force sensors measure follow the texture (a plate driver "
+                           "with normal and lateral force sensors; its amplitude loop too); on sim, a simulated "
+                           "finger (the default one unless --finger)")
+    play.add_argument("--envelope-csv", metavar="FILE.csv",
+                      help="record the envelope as it plays: t_s (perf_counter s), x_mm, y_mm, down, target_ratio, "
+                           "target_um_pp, commanded_um_pp (what the device was given)")
+    play.add_argument("--sensors-csv", metavar="FILE.csv",
+                      help="record the plate's sensor samples as they come: sample, setpoint_index (the stream index "
+                           "playing: the envelope CSV's index), received_s, amplitude_um_pp, normal_force_n, "
+                           "lateral_force_n (a plate driver with sensors)")
     play.add_argument("--json", action="store_true", help="print the final status as JSON")
+    add_finger_options(play, "--device sim")
     play.set_defaults(run=run)
 
 
@@ -96,7 +109,11 @@ def engine_config(args) -> EngineConfig:
                         carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
                         precompensate=not args.no_precompensation,
                         track_resonance=getattr(args, "track_resonance", False),
-                        default_force_n=0.5 if args.force is None else args.force)
+                        default_force_n=0.5 if args.force is None else args.force,
+                        closed_loop=getattr(args, "closed_loop", False),
+                        finger=finger_config(args) if hasattr(args, "finger") else None,
+                        envelope_csv=getattr(args, "envelope_csv", None),
+                        sensors_csv=getattr(args, "sensors_csv", None))
 
 
 def run(args) -> int:
@@ -127,6 +144,14 @@ def run(args) -> int:
             raise UsageError("--save-profile saves the resonance that --track-resonance found; give both")
         save_to = check_profile_path(Path(args.save_profile), "--save-profile")
     trajectory = inputs.trajectory
+    for recorded in (args.envelope_csv, args.sensors_csv):
+        if recorded:
+            from pathlib import Path
+
+            from ultraglide.apps.cli.errors import UsageError
+
+            if not Path(recorded).parent.is_dir():
+                raise UsageError(f"{recorded}: no directory {Path(recorded).parent} to write it in")
     engine = Engine.start(engine_config(args))
     started = time.perf_counter()
     try:
@@ -178,11 +203,24 @@ def run(args) -> int:
         print(describe_faults(counts or {}))
         if tracking is not None:
             print(tracking_words(tracking))
+        if "loop" in device_status:
+            print(loop_words(device_status))
         if save_to is not None and tracking is not None:
             print(f"profile with the tracked resonance written to {save_to}: use --profile {save_to} next time")
     if report.exit_status:
         print(f"ultraglide play: {report.verdict}", file=sys.stderr)
     return report.exit_status
+
+
+def loop_words(status: dict) -> str:
+    """The friction loop over the run, in one line: its state at the end, the error the plate's sensors measured,
+    what it adapted."""
+    error = status.get("friction_error_rms")
+    measured = "no friction measured (the finger never slid)" if error is None else \
+        f"ratio error {error:.3f} rms as the plate's sensors measured it"
+    return (f"friction loop: {measured}; at the end {status['loop']}; mu0 {status['mu0']:.3g}, model scale "
+            f"x{status['adapted_scale']:.3g}, correction {status['correction']:+.3f}; "
+            f"{status['loop_fallbacks']} fallbacks to open loop")
 
 
 def tracking_words(tracking: dict) -> str:

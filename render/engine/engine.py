@@ -66,7 +66,10 @@ class EngineConfig:
     plate's amplitude (``sim`` only; for latency measurement). ``realtime_priority`` runs the block thread
     in real time where the OS allows and keeps the kernel's huge-page work away from the engine and from
     the process that starts it, and, while the block path renders, asks idle CPUs to wake within
-    ``cpu_wake_latency_us`` (:mod:`render.engine.realtime`; None makes no such request).
+    ``cpu_wake_latency_us`` (:mod:`render.engine.realtime`; None makes no such request). ``closed_loop`` makes the
+    friction the plate's force sensors measure follow the texture (a plate driver with normal and lateral force
+    sensors; its amplitude loop too, where it has one), and ``finger`` puts a simulated finger on the ``sim``
+    device (:mod:`render.engine.finger_setup`; with ``closed_loop`` on ``sim`` the default one if none is given).
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
@@ -85,6 +88,11 @@ class EngineConfig:
     probe_plate: bool = False
     cpu_wake_latency_us: int | None = 0  # asked of idle CPUs while rendering (with realtime_priority); None: not
     track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (devices/resonance.py)
+    closed_loop: bool = False  # friction measured by the plate follows the texture (render/engine/friction_loop.py)
+    finger: object = None  # finger_setup.FingerConfig: a simulated finger on the in-process sim (None: none, or the
+    # default one when closed_loop asks for sensors)
+    envelope_csv: str | None = None  # record the envelope as it plays (render/engine/envelope_record.py)
+    sensors_csv: str | None = None  # record the plate's sensor samples as they come (render/engine/sensor_record.py)
 
 
 class Engine:

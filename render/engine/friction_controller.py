@@ -44,7 +44,7 @@ class ControllerSettings:
     correction_low: float = -0.5
     correction_high: float = 1.0
     blend_s: float = 0.05
-    sensor_silence_s: float = 0.06
+    sensor_silence_s: float = 0.1
 
     def __post_init__(self) -> None:
         if not 0.001 <= self.integral_time_s <= 100.0:
@@ -133,6 +133,10 @@ class ClosedLoopInverse:
 
     def parameters(self) -> dict:
         return self.base.parameters()
+
+    def warm_up(self) -> None:
+        """The host model's compiled inverse loaded before a real-time block needs it."""
+        self.base.warm_up()
 
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
         return self.base.relative_friction(amplitude_um_pp, force_n)

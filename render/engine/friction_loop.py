@@ -63,8 +63,12 @@ class TargetRing:
         self.ratio[start:start + first] = ratio[:first]
         if first < n:
             self.ratio[:n - first] = ratio[first:]
-        if not np.all(down):  # the finger up: no target (per sample for a recorded path)
-            up = ~np.broadcast_to(np.asarray(down, dtype=bool), (n,))
+        if np.ndim(down) == 0:
+            if not down:  # the finger up (or resting): no target, without allocating
+                self.ratio[start:start + first] = np.nan
+                self.ratio[:n - first] = np.nan
+        elif not np.all(down):  # per sample for a recorded path
+            up = ~np.asarray(down, dtype=bool)
             positions = (start + np.flatnonzero(up)) % self.capacity
             self.ratio[positions] = np.nan
         self.written += n
@@ -108,12 +112,39 @@ class FrictionLoop:
     def __repr__(self) -> str:
         return f"FrictionLoop({self.estimator!r}, correction {self.correction.value:+.3f}, {self.words()!r})"
 
+    def set_sensor_rate(self, sensor_rate_hz: float) -> None:
+        """The device's sensor samples a second (from its handshake); the estimator starts over if it changed."""
+        if sensor_rate_hz > 0 and sensor_rate_hz != self.sensor_rate_hz:
+            self.sensor_rate_hz = float(sensor_rate_hz)
+            self._restart(self.estimator.model)
+
+    def set_model(self, model) -> None:
+        """Another host model: its inverse from the next block, its adaptation from scratch."""
+        self._restart(model)
+        self.inverse.base = model
+        self.inverse.name = model.name
+
+    def _restart(self, model) -> None:
+        est = self.settings.estimator
+        self.estimator = FrictionEstimator(model, est, self.sensor_rate_hz)
+        self.correction.reset()
+        self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._next_sample = None
+        self._memory = math.exp(-1.0 / (ERROR_MEMORY_S * self.sensor_rate_hz))
+        self.inverse.command = LoopCommand()
+
     # ---- the block path ----
     def record(self, ratio: np.ndarray, down) -> None:
         """The target ratios of the control samples just handed to the device, in stream order."""
         self.targets.write(ratio, down)
 
     # ---- the reader thread ----
+    def take_sensors_frame(self, frame, received_s: float | None = None) -> None:
+        """A decoded SENSORS frame (``devices.protocol.Sensors``), as a device's reader thread hands it over."""
+        samples = frame.samples
+        self.take_sensors(frame.first_sample, frame.setpoint_index, samples["amplitude_um_pp"],
+                          samples["normal_force_n"], samples["lateral_force_n"], received_s)
+
     def take_sensors(self, first_sample: int, setpoint_index: int, amplitude_um_pp, normal_force_n, lateral_force_n,
                      received_s: float | None = None) -> None:
         """One SENSORS frame: consecutive samples from the device's sample ``first_sample``; ``setpoint_index``

@@ -42,10 +42,12 @@ class EngineSource(OutputStage):
     """The block path: the device's output stage (limiter, carrier for audio) with the touch ring drained
     before each block and the block's figures published after it. Devices take it as their stage."""
 
-    def __init__(self, renderer, shared: SharedBlock, device, raise_priority_: bool = True):
+    def __init__(self, renderer, shared: SharedBlock, device, raise_priority_: bool = True, profile=None):
+        """``profile``: the plate's, for the limiter (default: the renderer's; a renderer that sees the plate
+        through its amplitude loop has another view of it)."""
         carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
-        super().__init__(EnvelopeSource(renderer, realtime_capacity=4096), renderer.profile, device.signal,
-                         device.rate_hz, carrier_hz)
+        super().__init__(EnvelopeSource(renderer, realtime_capacity=4096), profile or renderer.profile,
+                         device.signal, device.rate_hz, carrier_hz)
         self.renderer = renderer
         self.shared = shared
         self.device = device
@@ -59,6 +61,10 @@ class EngineSource(OutputStage):
         self._rest = np.zeros(RESTING_CAPACITY, dtype=dtype)
         self._out = np.zeros(RESTING_CAPACITY, dtype=dtype)  # what a rendered block is written into
         self._views: dict[int, np.ndarray] = {}  # of _out, one per block length (a device asks for one or two)
+        self.loop = None  # the friction loop (closed loop): told each block's targets, in stream order
+        self.record = None  # an EnvelopeRecord: each rendered block's columns, written off the block path
+        self.sensor_record = None  # a SensorRecord: the device's SENSORS as they come
+        self._no_target = np.full(RESTING_CAPACITY, np.nan)
 
     def _view(self, n: int) -> np.ndarray:
         view = self._views.get(n)
@@ -81,6 +87,8 @@ class EngineSource(OutputStage):
             if not self._resting:
                 self._rest[:] = 0.0  # a device may have written into what it was given
             self._resting = True
+            if self.loop is not None:
+                self.loop.record(self._no_target[:n], False)
             self.frames += n
             control = n * self.decimation if self.signal == "control" else n // self.upsampling
             self.limiter.samples += control  # time at rest counts
@@ -93,9 +101,34 @@ class EngineSource(OutputStage):
         clipped_before = renderer.counters.clipped_samples
         # the device copies or sends the block before it pulls the next: the same buffer serves every block
         out = super().pull(n, now_s, self._view(n) if n <= len(self._out) else None)
+        if self.loop is not None:
+            self._tell_loop(n)
+        if self.record is not None:
+            self._record(n, out)
         done = time.perf_counter()
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
+
+    def _record(self, n: int, out: np.ndarray) -> None:
+        block = self.renderer.last_block
+        if block is None or len(block.time_s) != n:
+            return
+        sent = out if self.signal == "control" else block.drive_um_pp  # an audio stage's output is the carrier
+        self.record.add(block.time_s, self.frames - n, block.x_mm, block.y_mm, block.down, block.ratio,
+                        block.target_um_pp, sent)
+
+    def _tell_loop(self, n: int) -> None:
+        """The block's targets (in the order the device streams them) and the finger's speed on the panel."""
+        block = self.renderer.last_block
+        loop = self.loop
+        if block is None or len(block.ratio) != n:  # a block served otherwise (a stop's tail): no targets
+            loop.record(self._no_target[:n], False)
+            return
+        loop.record(block.ratio, block.down)
+        x, y = block.x_mm, block.y_mm
+        if n > 1:  # from the block's first sample to its last
+            distance = math.hypot(float(x[n - 1] - x[0]), float(y[n - 1] - y[0]))
+            loop.panel_speed_mm_s = distance * self.renderer.settings.control_rate_hz / (n - 1)
 
     def _at_rest(self) -> bool:
         """Paused, and the renderer, the stage and the limiter's model of the plate all at zero."""
@@ -163,6 +196,7 @@ class EngineSource(OutputStage):
             telemetry = getattr(self.device, "telemetry", None)
             row[3] = (0.0 if resting else block.plate_um_pp[-1]) if telemetry is None else telemetry.measured_um_pp
             row[4] = clipped
+            row[5] = math.nan if self.loop is None else self.loop.measured_ratio
             fast[shm.HISTORY_INDEX] += 1
         if touched:
             latency = self.shared.latency
@@ -202,11 +236,12 @@ class _PlateProbe(threading.Thread):
 
 
 def _load(config):
-    """Texture, model, profile and an opened device; one-line errors for bad ones."""
+    """Texture, model, profile and an opened device (with the simulated finger the config asks); one-line errors
+    for bad ones."""
     import warnings
 
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.devices.urls import open_device
+    from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.physics.calibration import load_model
 
     with warnings.catch_warnings():
@@ -214,8 +249,27 @@ def _load(config):
         texture = _texture(config.texture)
     model = load_model(config.model)
     profile = load_profile(config.profile)
+    kind = parse_device_url(config.device).kind
+    finger = None
+    if config.finger is not None or (config.closed_loop and kind == "sim"):
+        if kind != "sim":
+            from ultraglide.devices.errors import DeviceError
+
+            raise DeviceError(f"a simulated finger goes on the in-process simulator (--device sim), not on "
+                              f"{config.device}; a plate-sim on a port takes its own (plate-sim --finger)")
+        from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
+
+        finger = build_finger(config.finger or FingerConfig())
+    if config.closed_loop and kind not in ("sim", "serial"):
+        from ultraglide.devices.errors import DeviceError
+
+        raise DeviceError(f"the closed loop needs a plate driver with force sensors (sim or serial:PORT), not "
+                          f"{config.device}")
+    extra = {"finger": finger} if finger is not None else {}
+    if config.closed_loop:
+        extra["amplitude_loop"] = True
     device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
-                         carrier_hz=config.carrier_hz, track_resonance=config.track_resonance)
+                         carrier_hz=config.carrier_hz, track_resonance=config.track_resonance, **extra)
     return texture, model, profile, device
 
 
@@ -251,21 +305,58 @@ def engine_main(config, shared_name: str, conn) -> None:
     conn.send(("up", {"pid": os.getpid(), "device": config.device}))
     from ultraglide.render.renderer import Renderer, RenderSettings
 
+    source = None
     try:
         rate = device.rate_hz if device.signal == "audio" else config.rate_hz
         settings = RenderSettings(audio_rate_hz=int(rate), control_rate_hz=config.control_rate_hz,
                                   carrier_hz=config.carrier_hz, default_force_n=config.default_force_n,
                                   precompensate=config.precompensate, predictor=config.predictor,
                                   lookahead_s=config.lookahead_s)
-        renderer = Renderer(texture, model, profile, settings)
+        loop = None
+        listeners = []
+        if config.closed_loop:
+            from ultraglide.render.engine.friction_loop import FrictionLoop
+
+            loop = FrictionLoop(model, config.control_rate_hz)
+            listeners.append(loop.take_sensors_frame)
+        seen = profile
+        if config.closed_loop:  # the device follows amplitude targets: pre-compensate its loop, not the plate
+            from ultraglide.render.engine.loop_plate import AmplitudeLoopPlate
+
+            seen = AmplitudeLoopPlate.of(profile)
+        renderer = Renderer(texture, model if loop is None else loop.inverse, seen, settings)
         renderer.pause(config.start_paused)
-        source = EngineSource(renderer, shared, device, config.realtime_priority)
+        source = EngineSource(renderer, shared, device, config.realtime_priority, profile)
+        source.loop = loop
+        if config.envelope_csv:
+            from ultraglide.render.engine.envelope_record import EnvelopeRecord
+
+            source.record = EnvelopeRecord(config.envelope_csv)
+        if config.sensors_csv:
+            from ultraglide.render.engine.sensor_record import SensorRecord
+
+            source.sensor_record = SensorRecord(config.sensors_csv, config.control_rate_hz / 1000.0)
+            listeners.append(source.sensor_record.take)
+        if listeners:
+            if not hasattr(device, "add_sensor_listener"):
+                from ultraglide.devices.errors import DeviceError
+
+                raise DeviceError(f"{config.device} has no sensors to record or to close the loop on")
+            for listener in listeners:  # each SENSORS frame, on the device's reader thread
+                device.add_sensor_listener(listener)
         gc.collect()
         gc.freeze()  # everything built so far is permanent: later collections never walk it
         gc.disable()  # no collection can start inside a block; the command thread collects when idle
         device.start(source)
+        if loop is not None:
+            _check_sensors(device, loop)
+        if source.sensor_record is not None and getattr(device.hello(), "sensor_rate_hz", 0):
+            source.sensor_record.stream_per_sample = config.control_rate_hz / device.hello().sensor_rate_hz
     except errors as error:
         _close_device(device)
+        for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
+            if record is not None:
+                record.discard()
         conn.send(("failed", describe(error)))
         shared.fast[shm.STATE] = shm.STATES.index("failed")
         shared.close()
@@ -286,6 +377,20 @@ def engine_main(config, shared_name: str, conn) -> None:
     shared.close()
 
 
+def _check_sensors(device, loop) -> None:
+    """The closed loop needs normal and lateral force sensors: DeviceError if the connected device has none; the
+    loop takes the device's sensor rate."""
+    from ultraglide.devices import protocol as p
+    from ultraglide.devices.errors import DeviceError
+
+    hello = device.hello() if hasattr(device, "hello") else None
+    wanted = p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE
+    if hello is None or (hello.sensors & wanted) != wanted:
+        raise DeviceError("the closed loop needs normal and lateral force sensors under the plate, and this plate "
+                          "driver declares none; run it open loop (leave out --closed-loop)")
+    loop.set_sensor_rate(hello.sensor_rate_hz)
+
+
 def _device_status(device, stage=None) -> dict:
     """The device's own status, with its fault counts over the run when it keeps them, and the limiter's."""
     try:
@@ -296,6 +401,9 @@ def _device_status(device, stage=None) -> dict:
         counts = getattr(device, "fault_counts", None)
         if counts is not None:
             status["fault_counts"] = counts()
+        loop = getattr(stage, "loop", None)
+        if loop is not None:
+            status.update(loop.status())
         return status
     except Exception as error:  # noqa: BLE001 - a status that fails to build must not stop the engine
         return {"errors": [f"status: {type(error).__name__}: {error}"]}
@@ -365,7 +473,11 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
             elif command == "model":
                 from ultraglide.render.physics.calibration import load_model
 
-                renderer.set_model(load_model(args[0]))
+                model = load_model(args[0])
+                if source.loop is not None:
+                    source.loop.set_model(model)
+                else:
+                    renderer.set_model(model)
             elif command == "force":
                 renderer.set_default_force(float(args[0]))
             elif command == "pause":
@@ -388,6 +500,13 @@ def _finish(shared, source, device, conn, wake) -> None:
     """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
     source._stopping = True
     failure = _close_device(device)
+    for record in (source.record, source.sensor_record):
+        if record is None:
+            continue
+        record_failure = record.close()
+        failure = failure or record_failure
+        if record.dropped and not failure:
+            failure = f"{record.path}: {record.dropped} rows were lost (the writer fell behind); the rest was written"
     wake.close()
     status = {**_device_status(device, source), **_renderer_status(source.renderer),
               "priority": f"{source.priority}; {source.threads}; {wake.words()}", "pid": os.getpid()}

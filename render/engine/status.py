@@ -20,6 +20,7 @@ class History:
     commanded_um_pp: np.ndarray
     plate_um_pp: np.ndarray
     limited_samples: np.ndarray
+    measured_ratio: np.ndarray  # the friction ratio measured by the plate's force sensors (NaN: none, open loop)
 
 
 @dataclass(frozen=True)
@@ -51,15 +52,18 @@ class EngineStatus:
     run_block_p50_us: float | None = None  # over every block of the run (±1 %: a histogram)
     run_block_p99_us: float | None = None
     resting_blocks: int = 0  # of ``blocks``, those served as zeros while paused at rest (not in block times)
+    loop: str = ""  # the friction loop's state in words ("closed loop: following, error 0.03"); "" without it
 
     def words(self, priority: bool = True) -> str:
         """One line for people."""
         p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
         p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
         faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
+        loop = f" | {self.loop}" if self.loop else ""
         return (f"{self.device} {self.state} | {self.blocks} blocks, {self.late_blocks} late, "
                 f"{self.underruns} underruns | block {p50}/{p99} µs p50/p99 | "
-                f"{self.limited_percent:.0f}% at the limit" + (f" | {self.priority}" if priority else "") + faults)
+                f"{self.limited_percent:.0f}% at the limit" + loop + (f" | {self.priority}" if priority else "")
+                + faults)
 
     def summary(self) -> dict:
         """The figures as plain JSON values (no history)."""
@@ -108,5 +112,6 @@ def status_from_shared(header, block_times, history_ring, device_status, dropped
         device_status=device_status, resting_blocks=int(header[shm.RESTING_BLOCKS]),
         texture=str(device_status.get("texture", "")),
         model=str(device_status.get("model", "")), force_n=float(device_status.get("force_n", math.nan)),
+        loop=str(device_status.get("loop", "")),
         last_touch=(float(header[shm.LAST_TOUCH_X]), float(header[shm.LAST_TOUCH_Y]),
                     float(header[shm.LAST_TOUCH_FORCE]), bool(header[shm.LAST_TOUCH_DOWN] > 0.5)) if touched else None)

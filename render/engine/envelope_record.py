@@ -1,0 +1,112 @@
+"""The engine's envelope, recorded to CSV as it plays (``play --envelope-csv``), off the block path.
+
+The block path copies each block's columns into a ring made once (:meth:`EnvelopeRecord.add`: no allocation,
+no I/O); a writer thread drains the ring to ``FILE.part`` and renames it to ``FILE`` when closed. Columns:
+``t_s`` (perf_counter s: when the renderer meant the sample to reach the plate, the clock every ultraglide log
+uses; the renderer re-anchors it only when it drifts 20 ms), ``index`` (the sample's number in the device's
+stream: a plate driver's SENSORS name the index playing, which ``play --sensors-csv`` records), ``x_mm``,
+``y_mm``, ``down``, ``target_ratio`` (the texture's friction there), ``target_um_pp`` (the model's amplitude
+for it: the closed loop's, when it follows) and ``commanded_um_pp`` (what the device was given, after the
+limiter). A writer that falls a whole ring behind loses rows: they are counted
+(:attr:`EnvelopeRecord.dropped`) and the run says so.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from ultraglide.atomic import AtomicFile
+
+COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp")
+RING_ROWS = 1 << 17  # 11 s at 12 kHz
+WRITE_PERIOD_S = 0.2
+
+
+class EnvelopeRecord:
+    """See the module docstring."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self._target = AtomicFile(self.path, partial=True)  # FILE.part as it grows; never renamed over a non-file
+        self.part = self._target.temporary
+        self._handle = open(self.part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
+        self._handle.write(",".join(COLUMNS) + "\n")
+        self._ring = np.zeros((RING_ROWS, len(COLUMNS)))
+        self._steps = np.arange(RING_ROWS, dtype=float)
+        self._written = 0  # rows added (the block path's count)
+        self._taken = 0  # rows written out (the writer's)
+        self.dropped = 0
+        self.error: str | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._write_loop, name="envelope-record", daemon=True)
+        self._thread.start()
+
+    def add(self, time_s, first_index, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp) -> None:
+        """One block's columns (arrays of its length; ``down`` a bool or one per sample; ``first_index`` the stream
+        index of its first sample). Block path: copies only."""
+        n = len(time_s)
+        if n > RING_ROWS:
+            self.dropped += n
+            return
+        start = self._written % RING_ROWS
+        first = min(n, RING_ROWS - start)
+        ring = self._ring
+        for column, values in enumerate((time_s, None, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp)):
+            if values is None:  # the stream index: counted, not copied
+                np.add(self._steps[:first], first_index, out=ring[start:start + first, column])
+                np.add(self._steps[first:n], first_index, out=ring[:n - first, column])
+                continue
+            if np.ndim(values) == 0:
+                ring[start:start + first, column] = values
+                ring[:n - first, column] = values
+            else:
+                ring[start:start + first, column] = values[:first]
+                ring[:n - first, column] = values[first:]
+        self._written += n
+
+    def _write_loop(self) -> None:
+        while not self._stop.wait(WRITE_PERIOD_S):
+            self._drain()
+
+    def _drain(self) -> None:
+        written = self._written
+        if written - self._taken > RING_ROWS:  # overwritten before the writer came: lost
+            self.dropped += written - self._taken - RING_ROWS
+            self._taken = written - RING_ROWS
+        if written == self._taken or self.error is not None:
+            return
+        rows = np.take(self._ring, np.arange(self._taken, written) % RING_ROWS, axis=0)
+        self._taken = written
+        text = io.StringIO()
+        np.savetxt(text, rows, delimiter=",", fmt=("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f"))
+        try:
+            self._handle.write(text.getvalue())
+        except OSError as error:
+            self.error = f"{self.path}: {(error.strerror or str(error)).lower()}"
+
+    def close(self) -> str | None:
+        """Write what is left, rename into place; the error in one line if the file could not be written."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self._drain()
+        try:
+            self._handle.close()
+            if self.error is None:
+                self._target.commit()
+        except OSError as error:
+            self.error = self.error or f"{self.path}: {(error.strerror or str(error)).lower()}"
+        return self.error
+
+    def discard(self) -> None:
+        """Stop and remove the partial file: the run failed before it played."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+        try:
+            self._handle.close()
+        finally:
+            self._target.discard()

@@ -1,0 +1,159 @@
+"""The simulated finger from plain options: what ``plate-sim --finger`` and the in-process ``--device sim`` build.
+
+:class:`FingerConfig` holds picklable values (it crosses to the engine's process); :func:`build_finger`
+makes the :class:`~ultraglide.devices.finger.SimulatedFinger`, its friction law loaded as the host loads a
+model (``render.physics.load_model``: ``exponential``, ``stretched``, ``paper``, ``table:FILE.csv`` for a
+measured finger with columns ``amplitude_um_pp,relative_friction,force_n``, a calibration TOML), since the
+finger itself (in ``devices``) only takes a callable.
+
+The default finger is unlike the host's default model on purpose: the stretched law with its amplitude
+scale times 0.7 (it needs 30 % less vibration) and a floor of 0.1 that vibration does not remove, drifting
+±30 % in scale over a minute, its friction at rest rising 25 % with a long dwell, pressing with a force
+that wanders in 0.2-1 N, sliding at 100 mm/s.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+from ultraglide.devices.finger import FingerParams, ForceScript, SensorFault, SimulatedFinger, adjusted_law
+from ultraglide.devices.finger_log import FingerLog
+from ultraglide.devices.force_sensors import ForceSensorParams
+
+DEFAULT_LAW = "default"
+DEFAULT_BASE = "stretched"  # the host's default model
+DEFAULT_SCALE = 0.7
+DEFAULT_FLOOR = 0.1
+
+
+@dataclass(frozen=True)
+class FingerConfig:
+    """The simulated finger's options (see :mod:`devices.finger` for each); ``law`` a model spec or ``default``;
+    ``scale`` and ``floor`` adjust it (None: 0.7 and 0.1 for the default law, 1 and 0 for any other);
+    ``force`` a force spec (``0.5``, ``walk``, ``walk:LOW-HIGH``, ``FILE.csv``); ``log`` a CSV of its truth."""
+
+    law: str = DEFAULT_LAW
+    scale: float | None = None
+    floor: float | None = None
+    mu0: float = 1.0
+    drift: float = 0.3
+    drift_period_s: float = 60.0
+    moisture: float = 0.25
+    moisture_tau_s: float = 20.0
+    force: str = "walk"
+    speed_mm_s: float = 100.0
+    noise_n: float = 0.005
+    bandwidth_hz: float = 300.0
+    delay_ms: float = 1.0
+    log: str | None = None
+    seed: int = 0
+    force_points: tuple | None = None  # (times s, forces N): a scripted press instead of ``force`` (a calibration's)
+    faults: tuple[str, ...] = ()  # sensor faults, KIND:START-END (devices.finger.SensorFault)
+    log_hz: float = 2000.0  # the log's rows a second
+
+    @property
+    def law_scale(self) -> float:
+        return self.scale if self.scale is not None else (DEFAULT_SCALE if self.law == DEFAULT_LAW else 1.0)
+
+    @property
+    def law_floor(self) -> float:
+        return self.floor if self.floor is not None else (DEFAULT_FLOOR if self.law == DEFAULT_LAW else 0.0)
+
+    def law_words(self) -> str:
+        base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
+        scale, floor = self.law_scale, self.law_floor
+        return base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
+
+    def with_log(self, path: str | None) -> FingerConfig:
+        return replace(self, log=path)
+
+
+def finger_law(config: FingerConfig):
+    """The finger's friction law, ratio = law(amplitude_um_pp, force_n): a host model's forward law (amplitudes
+    beyond its validity held at its edge), scaled and floored as the config says. Raises what ``load_model``
+    raises for a bad spec (one line)."""
+    from ultraglide.render.physics.calibration import load_model
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a table's or a calibration's notes are for the host, not the finger
+        model = load_model(DEFAULT_BASE if config.law == DEFAULT_LAW else config.law)
+    law = _stretched_law(model) or _gridded_law(model)
+    law.__qualname__ = config.law_words()
+    return adjusted_law(law, config.law_scale, config.law_floor)
+
+
+def _stretched_law(model):
+    """The stretched law's formula from the model's own parameters, d + (1 - d) exp(-(a / s(F))^beta) with
+    s(F) = s0 (F / 0.5 N)^p, without the model's checks and notes: the simulated plate calls it a thousand times a
+    second on short arrays, where the checks cost most of the time (tests compare it with the model's own)."""
+    from ultraglide.render.physics import friction_models as fm
+
+    if not isinstance(model, fm.StretchedExponentialModel) or type(model).relative_friction is not \
+            fm.StretchedExponentialModel.relative_friction:
+        return None
+    s0, beta, exponent, floor = model.scale_um_pp, model.shape, model.force_exponent, model.residual_ratio
+    reference, low, high = fm.REFERENCE_FORCE_N, fm.MIN_FORCE_N, fm.MAX_FORCE_N
+
+    def law(amplitude_um_pp, force_n):
+        scale = s0 * np.power(np.clip(force_n, low, high) / reference, exponent)
+        falling = np.exp(-np.power(np.asarray(amplitude_um_pp, dtype=float) / scale, beta))
+        return floor + (1.0 - floor) * falling if floor else falling
+
+    return law
+
+
+GRID_AMPLITUDES = 1025  # the forward law tabulated from 0 to the model's ceiling: 6 nm apart on 6 µm
+GRID_FORCES = 97  # and from 0.01 to 10 N, evenly in log force (7 % apart: a squeeze film within 0.005)
+
+
+def _gridded_law(model):
+    """Any model's forward law, tabulated once and interpolated (bilinear in amplitude and log force): a table's or
+    a squeeze film's forward law is a bisection through its inverse, 0.7 ms for the 48 samples of one of the
+    simulated plate's 1 ms chunks, too slow for a plate that runs in real time beside the host (this: under 0.1 ms).
+    Amplitudes beyond the model's validity are held at its edge, forces at 0.01 and 10 N."""
+    ceiling = float(model.max_amplitude_um_pp)
+    amplitudes = np.linspace(0.0, ceiling, GRID_AMPLITUDES)
+    log_forces = np.linspace(np.log(0.01), np.log(10.0), GRID_FORCES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # force-range notes: the finger goes where it likes
+        grid = np.array([model.relative_friction(amplitudes, float(np.exp(f))) for f in log_forces])
+    a_step, f_step = amplitudes[1] - amplitudes[0], log_forces[1] - log_forces[0]
+
+    def law(amplitude_um_pp, force_n):
+        a = np.clip(np.asarray(amplitude_um_pp, dtype=float), 0.0, ceiling) / a_step
+        f = (np.log(np.clip(np.asarray(force_n, dtype=float), 0.01, 10.0)) - log_forces[0]) / f_step
+        a, f = np.broadcast_arrays(a, f)
+        i = np.minimum(a.astype(np.intp), GRID_AMPLITUDES - 2)
+        j = np.minimum(f.astype(np.intp), GRID_FORCES - 2)
+        u, v = a - i, f - j
+        return ((1 - v) * ((1 - u) * grid[j, i] + u * grid[j, i + 1])
+                + v * ((1 - u) * grid[j + 1, i] + u * grid[j + 1, i + 1]))
+
+    return law
+
+
+def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_hz: int = 1000) -> SimulatedFinger:
+    """The simulated finger the config describes, with its log (a file, written as it goes) if asked."""
+    params = FingerParams(config.mu0, config.drift, config.drift_period_s, config.moisture, config.moisture_tau_s)
+    sensors = ForceSensorParams(config.noise_n, config.bandwidth_hz, config.delay_ms / 1000.0, sensor_rate_hz,
+                                seed=config.seed + 1)
+    if config.force_points is not None:
+        times, forces = config.force_points
+        script = ForceScript.points(times, forces, [config.speed_mm_s] * len(times))
+    else:
+        script = ForceScript.parse(config.force, config.speed_mm_s, config.seed)
+    law = finger_law(config)
+    faults = tuple(SensorFault.parse(spec) for spec in config.faults)
+    log = FingerLog(config.log, rate_hz=config.log_hz, sample_rate_hz=sample_rate_hz) if config.log else None
+    return SimulatedFinger(law, script, params, sensors, log, sample_rate_hz, name=config.law_words(), faults=faults)
+
+
+def finger_words(config: FingerConfig) -> str:
+    """One line for people: the finger's law, force, speed, drift and sensors."""
+    drift = f"drift ±{100 * config.drift:g} % over {config.drift_period_s:g} s" if config.drift else "no drift"
+    moisture = f"+{100 * config.moisture:g} % with dwell" if config.moisture else "no moisture"
+    return (f"finger: {config.law_words()}; mu0 {config.mu0:g}, {drift}, {moisture}; force {config.force} at "
+            f"{config.speed_mm_s:g} mm/s; sensors {1000 * config.noise_n:g} mN, {config.bandwidth_hz:g} Hz, "
+            f"{config.delay_ms:g} ms")

@@ -1,0 +1,57 @@
+"""The plate as the renderer sees it through the firmware's amplitude loop.
+
+With the amplitude loop on (``SET_LOOP 1``) setpoints are amplitude targets, which the firmware follows
+far faster than the plate's own envelope (docs/design.md, "The amplitude loop": 10-90 % of a step in
+0.82 ms on sim-plate, where the plate alone takes 5.6 ms) and caps at the limit. Pre-compensating the plate's
+own slow envelope would then overshoot every target; what is left to pre-compensate is the loop's lag,
+about a first-order lag of ``time_constant_s``, within targets up to the limit (no overdrive: the firmware
+decides the drive). Steps down stay bounded by the plate's free decay, which no target can hasten.
+
+:class:`AmplitudeLoopPlate` is the profile with those two facts changed, for the renderer only: the output
+stage and its limiter keep the real profile.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+LOOP_SHARE = 0.145  # the loop's equivalent first-order lag over the plate's own tau: 0.37 ms / 2.55 ms on sim-plate
+
+
+@dataclass(frozen=True)
+class AmplitudeLoopPlate:
+    """A plate profile (``devices.profiles.PlateProfile``) seen through an amplitude loop of ``time_constant_s``."""
+
+    profile: object
+    time_constant_s: float
+
+    @classmethod
+    def of(cls, profile, time_constant_s: float | None = None) -> AmplitudeLoopPlate:
+        """The loop's lag as given, else the share of the plate's own that the reference firmware's loop has."""
+        return cls(profile, time_constant_s if time_constant_s is not None else LOOP_SHARE * profile.time_constant_s)
+
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    @property
+    def resonance_hz(self) -> float:
+        return self.profile.resonance_hz
+
+    @property
+    def max_amplitude_um_pp(self) -> float:
+        return self.profile.max_amplitude_um_pp
+
+    @property
+    def max_drive_um_pp(self) -> float:
+        return self.profile.max_amplitude_um_pp  # targets: the firmware caps them at the limit
+
+    @property
+    def full_scale_um_pp(self) -> float:
+        return self.profile.full_scale_um_pp
+
+    def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
+        self.profile.check_carrier(carrier_hz, audio_rate_hz)
+
+    def __repr__(self) -> str:
+        return f"AmplitudeLoopPlate({self.profile.name!r}, loop lag {1000 * self.time_constant_s:.2f} ms)"

@@ -1,0 +1,98 @@
+"""The plate's sensor samples, recorded to CSV as they arrive (``play --sensors-csv``).
+
+One row per sensor sample: ``sample`` (the device's sensor sample number: on the simulated plate, sample j
+covers the plate's time from j to j + 1 sensor periods after it started, the clock its finger log keeps),
+``setpoint_index`` (the stream index playing at that sample's start; -1 when none played), ``received_s``
+(perf_counter s the frame was read), ``amplitude_um_pp``, ``normal_force_n``, ``lateral_force_n``. The rows
+line a plate's truth up with what the host sent, underruns and all: the envelope CSV names each value's
+stream index. Frames are queued by the device's reader thread and written by a thread of this record's own.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import queue
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ultraglide.atomic import AtomicFile
+
+COLUMNS = ("sample", "setpoint_index", "received_s", "amplitude_um_pp", "normal_force_n", "lateral_force_n")
+NOT_PLAYING = 0xFFFFFFFF
+MAX_QUEUED = 10_000  # frames (100 s at 100 a second): beyond, they are counted as lost
+
+
+class SensorRecord:
+    """See the module docstring. ``stream_per_sample``: stream values played per sensor sample (12 at 12 kHz
+    setpoints and 1 kHz sensors)."""
+
+    def __init__(self, path: str | os.PathLike, stream_per_sample: float):
+        self.path = Path(path)
+        self._target = AtomicFile(self.path, partial=True)  # FILE.part as it grows; never renamed over a non-file
+        self.part = self._target.temporary
+        self.stream_per_sample = stream_per_sample
+        self._handle = open(self.part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
+        self._handle.write(",".join(COLUMNS) + "\n")
+        self._queue: queue.Queue = queue.Queue(MAX_QUEUED)
+        self.dropped = 0
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._write_loop, name="sensor-record", daemon=True)
+        self._thread.start()
+
+    def take(self, frame, received_s: float | None = None) -> None:
+        """A decoded SENSORS frame (the reader thread: queued, never waits); ``received_s`` perf_counter s (default:
+        now)."""
+        if received_s is None:
+            received_s = time.perf_counter()
+        try:
+            self._queue.put_nowait((frame, received_s))
+        except queue.Full:
+            self.dropped += 1
+
+    def _write_loop(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            self._write(*item)
+
+    def _write(self, frame, received_s: float) -> None:
+        if self.error is not None:
+            return
+        samples = frame.samples
+        n = len(samples)
+        steps = np.arange(n)
+        index = np.full(n, -1.0) if frame.setpoint_index == NOT_PLAYING else \
+            frame.setpoint_index + np.round(steps * self.stream_per_sample)
+        rows = np.column_stack((frame.first_sample + steps, index, np.full(n, received_s),
+                                samples["amplitude_um_pp"], samples["normal_force_n"], samples["lateral_force_n"]))
+        text = io.StringIO()
+        np.savetxt(text, rows, delimiter=",", fmt=("%d", "%d", "%.6f", "%.5f", "%.5f", "%.5f"))
+        try:
+            self._handle.write(text.getvalue())
+        except OSError as error:
+            self.error = f"{self.path}: {(error.strerror or str(error)).lower()}"
+
+    def close(self) -> str | None:
+        """Write what is queued, rename into place; the error in one line if the file could not be written."""
+        self._queue.put(None)
+        self._thread.join(timeout=10)
+        try:
+            self._handle.close()
+            if self.error is None:
+                self._target.commit()
+        except OSError as error:
+            self.error = self.error or f"{self.path}: {(error.strerror or str(error)).lower()}"
+        return self.error
+
+    def discard(self) -> None:
+        self._queue.put(None)
+        self._thread.join(timeout=10)
+        try:
+            self._handle.close()
+        finally:
+            self._target.discard()
