@@ -666,3 +666,53 @@ def test_bad_demo_texture_is_one_line(tmp_path):
     result = run_cli("demo", str(tmp_path / "bad.png"), env={"SDL_VIDEODRIVER": "dummy"})
     assert "not an image" in assert_one_line_error(result)
     assert Path(tmp_path / "bad.png").exists()
+
+
+@pytest.mark.slow
+def test_closed_loop_shows_the_measured_friction_beside_the_target_and_says_the_loops_state(halves, monkeypatch):
+    """--closed-loop on sim: a simulated finger (its law 30 % off the host's, with a floor) under the plate's force
+    sensors; sliding on the slippery half (target 0.2), the loop follows, the status says so and, once it has
+    learnt the finger, the chart draws the friction the sensors measure near the target."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo.app import DemoApp
+    from ultraglide.apps.demo.draw import CHART_COLOURS
+    from ultraglide.apps.demo.painter import CHART_SPAN_S
+    from ultraglide.render.engine.finger_setup import FingerConfig
+
+    finger_config = FingerConfig(drift=0.0, force="0.5")  # 0.2 within the limit's reach all along (0.105 at 6 µm)
+    app = DemoApp([halves], windowed=True, screen_width_mm=338.7, closed_loop=True, finger=finger_config)
+    try:
+        app.wait_ready()
+        pg = app.pg
+        w, h = app.screen.get_size()
+        y = (app.area.top + 150) / h
+        finger(pg, pg.FINGERDOWN, 60 / w, y)
+        began = time.perf_counter()
+        state = {"x": 60.0}
+
+        def slide_and_follow():
+            # back and forth on the slippery half (ratio 0.2), 40-320 px at about 120 mm/s whatever the UI's pace
+            phase = ((time.perf_counter() - began) * 450.0) % 560.0
+            state["x"] = 40.0 + (phase if phase < 280.0 else 560.0 - phase)
+            finger(pg, pg.FINGERMOTION, state["x"] / w, y)
+            return "closed loop: following" in app.status_words()
+
+        assert run_until(app, slide_and_follow, 60.0), app.status_words()
+        learnt = time.perf_counter() + 2.0  # the loop's first seconds: it learns the finger (as the bench allows)
+        while time.perf_counter() < learnt:
+            slide_and_follow()
+            run_for(app, 0.005)
+        chart = app.link.status(CHART_SPAN_S).chart
+        recent = chart[chart[:, 0] > chart[-1, 0] - 1.5]
+        measured_ratio = recent[np.isfinite(recent[:, 4]), 4]
+        # near the target, far from the 1.0 of a plate that does not vibrate (the loop's accuracy is the bench's)
+        assert len(measured_ratio) and abs(np.median(measured_ratio) - 0.2) < 0.15, (measured_ratio, app.status_words())
+        app.painter.everything()
+        pixels = pg.surfarray.array3d(app.screen)
+        area = app.layout.chart_rect
+        drawn = np.all(pixels[area.left:area.right, area.top:area.bottom] == CHART_COLOURS["measured"], axis=2)
+        assert drawn.sum() > 50  # the measured friction's trace (and its legend)
+        finger(pg, pg.FINGERUP, state["x"] / w, y)
+        assert run_until(app, lambda: "open loop" in app.status_words(), 30.0), app.status_words()
+    finally:
+        app.close()

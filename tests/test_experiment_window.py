@@ -183,3 +183,46 @@ def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
     assert status.touches >= 40 and status.touches_dropped == 0
     assert float(status.history.target_ratio.min()) == pytest.approx(0.6, abs=0.05)
     assert read_rows(tmp_path)[0]["correct"] == "1"
+
+
+@pytest.mark.slow
+def test_a_closed_loop_trial_logs_the_target_the_measured_friction_and_the_amplitude(pg, tmp_path):
+    """--closed-loop on sim: the plate's force sensors under a simulated finger measure the friction of the trial's
+    swipes; the trial's row holds the mean target, the mean measured ratio, the mean amplitude sent and the loop's
+    words."""
+    from ultraglide.apps.experiment.window import WindowResponder
+
+    config = SessionConfig(texture="grating-1mm", method="staircase", intervals=2, trials=1, seed=1, device="sim",
+                           start_level=0.4, closed_loop=True)
+    design = design_for(config)
+    window = WindowResponder(config, design, screen_width_mm=338.7, windowed=True)
+    target = interval_positions(config.seed, 1, 2)[0]
+
+    def participant():
+        wait_for(window, "trial", 1)
+        w, h = window.screen.get_size()
+        zone = window.zones[target]
+        y = zone.centery / h
+        xs = np.linspace(zone.left + 5, zone.right - 5, 40)
+        xs = np.concatenate([xs, xs[::-1], xs, xs[::-1]])  # back and forth for about 1.3 s: the loop learns
+        post(pg, pg.FINGERDOWN, x=xs[0] / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+        for x in xs[1:]:
+            post(pg, pg.FINGERMOTION, x=x / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+            time.sleep(0.008)
+        post(pg, pg.FINGERUP, x=xs[-1] / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+        time.sleep(0.2)
+        post(pg, pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="", scancode=0)
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        run_session(config, design, window, tmp_path)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    row = read_rows(tmp_path)[0]
+    target_ratio, measured = float(row["target_ratio"]), float(row["measured_ratio"])
+    assert 0.6 <= target_ratio < 1.0  # the grating of contrast 0.4 under the swipe: ratios 0.6-1
+    assert abs(measured - target_ratio) < 0.15  # what the sensors measured, near it
+    assert 0.0 < float(row["commanded_um_pp"]) <= 6.0
+    assert row["loop"].startswith(("closed loop", "open loop")), row["loop"]

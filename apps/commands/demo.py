@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ultraglide.apps.cli.types import SCREEN_WIDTH_MM
+from ultraglide.apps.commands.finger_options import add_finger_options
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -33,6 +34,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                            "checked every 200 ms: edit it in any image editor and feel the change")
     demo.add_argument("--report-frames", action="store_true",
                       help="print a line each time the whole screen is drawn (for scripts that drive the demo)")
+    demo.add_argument("--closed-loop", action="store_true",
+                      help="make the friction the plate's force sensors measure follow the texture (a plate driver "
+                           "with force sensors; on sim, a simulated finger); the chart shows it beside the target")
+    add_finger_options(demo, "--device sim")
     demo.set_defaults(run=run)
 
 

@@ -80,6 +80,10 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                         help="swipe speed of the simulated observer's finger (default: 100)")
     parser.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
     parser.add_argument("--windowed", action="store_true", help="a window instead of full screen")
+    parser.add_argument("--closed-loop", action="store_true",
+                        help="make the friction the plate's force sensors measure follow each stimulus (a plate "
+                             "driver with force sensors; on sim, a simulated finger); the log records the target and "
+                             "measured friction and the amplitude of each trial")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
@@ -142,7 +146,9 @@ def _config_from_args(args, kind: str) -> SessionConfig:
     common = {"seed": args.seed, "model": args.model, "profile": args.profile, "observer": args.observer,
               "participant": args.participant, "session": args.session, "break_every": args.break_every,
               "speed_mm_s": args.speed_mm_s, "function": args.function, "bootstrap": args.bootstrap,
-              "interval": args.interval}
+              "interval": args.interval, "closed_loop": args.closed_loop}
+    if args.observer and args.closed_loop:
+        raise UsageError("a simulated observer renders offline, with no plate to measure: leave out --closed-loop")
     if args.observer:
         common["device"] = args.device or "null"
         if common["device"] != "null":

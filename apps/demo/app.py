@@ -80,7 +80,10 @@ class DemoApp:
 
     def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="stretched",
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
-                 record: str | None = None, report_frames: bool = False, watch: bool = False):
+                 record: str | None = None, report_frames: bool = False, watch: bool = False,
+                 closed_loop: bool = False, finger=None):
+        """``closed_loop``: the friction loop on the plate's force sensors; ``finger``: a FingerConfig for the
+        simulated finger on ``sim`` (render.engine.finger_setup)."""
         self.options = DemoOptions(tuple(texture_specs), device_url, profile, model, screen_width_mm, windowed,
                                    tuple(size), record, report_frames, watch)
         self.options.check()
@@ -126,7 +129,7 @@ class DemoApp:
             raise UsageError(f"cannot write the recording {record}: {error.strerror}") from None
         self.painter.everything()  # the first frame, before anything heavy is imported
         self.redraw.drawn_all(time.perf_counter())
-        self.starter = LinkStarter(LinkConfig(textures[0], model, profile, device_url))
+        self.starter = LinkStarter(LinkConfig(textures[0], model, profile, device_url, closed_loop, finger))
         if watch:
             from ultraglide.apps.demo.watch import TextureWatcher
 
@@ -354,8 +357,11 @@ class DemoApp:
 def run(args) -> int:
     if args.stats and Path(args.stats).suffix.lower() != ".json":
         raise UsageError(f"--stats needs a .json file, got {args.stats}")
+    from ultraglide.apps.commands.finger_options import finger_config
+
     app = DemoApp(args.textures, args.device, args.profile, args.model, args.screen_width_mm, args.windowed,
-                  record=args.record, report_frames=args.report_frames, watch=args.watch)
+                  record=args.record, report_frames=args.report_frames, watch=args.watch,
+                  closed_loop=args.closed_loop, finger=finger_config(args))
     try:
         app.run()
     finally:

@@ -18,7 +18,8 @@ LIMIT = (235, 80, 80)
 EDGE = ACCENT  # where a texture smaller than the screen ends
 EDGE_PX = 2
 REPEAT_VEIL = 110  # of 255: how far a tiled texture's repeats fade towards the background
-CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130)}
+CHART_COLOURS = {"friction": (110, 200, 255), "commanded": (255, 170, 60), "plate": (120, 230, 130),
+                 "measured": (225, 120, 235)}
 BAND_ALPHA = 0.35  # the opacity of a series' min-to-max band
 ENVELOPE_COLUMNS = 5  # a band where a series swings within this many pixel columns (3 s on 1100 px: 13 ms, 75 Hz)
 BAND_MIN_PX = 4  # and by at least this much
@@ -126,14 +127,18 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
     """A strip chart with scales: target friction (ratio, left axis) and the commanded and plate amplitudes
     (µm p-p, right axis, with the profile's limit) over the last ``span_s``, time in ms up to now.
 
-    ``series`` maps "friction", "commanded", "plate" to rows of (t_s, value); the newest time is 0 ms.
+    ``series`` maps "friction", "commanded", "plate" (and, with the closed loop, "measured": the friction ratio the
+    plate's force sensors measure, on the friction axis) to rows of (t_s, value); the newest time is 0 ms.
     Returns the plotting rectangle (inside the axes)."""
     pygame.draw.rect(screen, PANEL, area)
     line_h = font.get_linesize()
     plot = pygame.Rect(area.left + 64, area.top + line_h + 6, area.width - 64 - 70, area.height - 2 * line_h - 12)
-    labels = {"friction": "target friction (ratio)", "commanded": "commanded µm p-p", "plate": plate_label}
+    labels = {"friction": "target friction (ratio)", "commanded": "commanded µm p-p", "plate": plate_label,
+              "measured": "measured friction (ratio)"}
     x = plot.left
     for name, colour in CHART_COLOURS.items():
+        if name not in series:
+            continue
         rendered = font.render(labels[name], True, colour)
         screen.blit(rendered, (x, area.top + 3))
         x += rendered.get_width() + 28
@@ -162,7 +167,7 @@ def draw_chart(screen: pygame.Surface, font: pygame.font.Font, area: pygame.Rect
     latest = max((values[-1, 0] for values in series.values() if len(values)), default=0.0)
     columns = {}
     for name, values in series.items():
-        scale = 1.0 if name == "friction" else amplitude_max_um_pp
+        scale = 1.0 if name in ("friction", "measured") else amplitude_max_um_pp
         envelope = column_envelope(values, latest, span_s, plot, scale)
         if envelope is not None:
             columns[name] = envelope

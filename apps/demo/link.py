@@ -29,6 +29,8 @@ class LinkConfig:
     model: str = "stretched"
     profile: str = "sim-plate"
     device: str = "sim"
+    closed_loop: bool = False
+    finger: object = None  # a FingerConfig for the simulated plate's finger (render.engine.finger_setup)
 
 
 @dataclass(frozen=True)
@@ -53,9 +55,11 @@ class LinkStatus:
     full_scale_um_pp: float
     plate_measured: bool  # the chart's plate column is the device's measurement (else the renderer's model)
     words: str  # the engine's own line
-    chart: np.ndarray = field(repr=False)  # rows of (t_s, target ratio, commanded µm p-p, plate µm p-p)
+    # rows of (t_s, target ratio, commanded µm p-p, plate µm p-p, measured ratio: NaN without the closed loop)
+    chart: np.ndarray = field(repr=False)
     engine: object = field(repr=False, default=None)  # the engine's EngineStatus
     verdict: str = ""  # a plate driver's run so far, when not clean: "the plate was lost (exit status 4)"
+    loop: str = ""  # the friction loop's state in words ("" without it)
 
 
 class DemoLink:
@@ -77,7 +81,8 @@ class DemoLink:
 
         profile = load_profile(config.profile)
         engine = Engine.start(EngineConfig(texture=config.texture, model=config.model, profile=config.profile,
-                                           device=config.device, start_paused=True), START_TIMEOUT_S)
+                                           device=config.device, start_paused=True, closed_loop=config.closed_loop,
+                                           finger=config.finger), START_TIMEOUT_S)
         try:
             engine.wait_ready(START_TIMEOUT_S)  # until the device has taken its first block
         except BaseException:
@@ -116,7 +121,8 @@ class DemoLink:
         """What the engine and its device are doing now, and the last ``chart_span_s`` of the chart."""
         s = self.engine.status(max(chart_span_s, 1.0) + 0.1)
         history = s.history
-        chart = np.column_stack((history.time_s, history.target_ratio, history.commanded_um_pp, history.plate_um_pp))
+        chart = np.column_stack((history.time_s, history.target_ratio, history.commanded_um_pp, history.plate_um_pp,
+                                 history.measured_ratio))
         if len(chart):
             chart = chart[chart[:, 0] > chart[-1, 0] - chart_span_s]
         state = s.state
@@ -134,7 +140,7 @@ class DemoLink:
             limit_um_pp=float(s.device_status.get("limit_um_pp") or self.profile.max_amplitude_um_pp),
             full_scale_um_pp=self.profile.full_scale_um_pp,
             plate_measured="measured_um_pp" in s.device_status, words=s.words(priority=False), chart=chart, engine=s,
-            verdict=report.verdict if report.exit_status else "")
+            verdict=report.verdict if report.exit_status else "", loop=s.loop)
 
     def _limited_percent(self, s) -> float:
         """Of the control samples of the last second on this texture, the share the plate's limit held, %."""

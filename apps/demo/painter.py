@@ -139,12 +139,16 @@ class Painter:
     def chart(self) -> None:
         app = self.app
         if app.link is None:
-            chart, limit, full_scale, measured = np.zeros((0, 4)), 6.0, 6.0, False
+            chart, limit, full_scale, measured = np.zeros((0, 5)), 6.0, 6.0, False
         else:
             status = app.link.status(CHART_SPAN_S)
             chart, limit, full_scale, measured = (status.chart, status.limit_um_pp, status.full_scale_um_pp,
                                                   status.plate_measured)
         series = {"friction": chart[:, [0, 1]], "commanded": chart[:, [0, 2]], "plate": chart[:, [0, 3]]}
+        friction = chart[:, [0, 4]]
+        friction = friction[np.isfinite(friction[:, 1])]
+        if len(friction):  # the closed loop's: the friction the plate's sensors measure, beside the target
+            series["measured"] = friction
         label = "plate measured µm p-p" if measured else "plate (model) µm p-p"
         draw_chart(self.screen, self.font, app.layout.chart_rect, series, CHART_SPAN_S, full_scale, limit, label)
 

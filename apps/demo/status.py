@@ -62,6 +62,8 @@ def status_parts(app) -> tuple[list[Part], list[Part]]:
         Part(f"{app.force_n:.2f} N ({source})", f"{app.force_n:.2f} N", rank=7),
         limit_part(s.limited_pct, s.limited_samples),
     ]
+    if s.loop:  # the friction loop's state in words: "closed loop: following, error 0.03", "open loop: finger resting"
+        plate.append(Part(s.loop, s.loop.split(",")[0], must=True, rank=8, warn=s.loop.startswith("open loop: sensor")))
     around.append(Part(f"{_count(s.underruns, 'underrun')}, {_count(s.late_blocks, 'late block')}, block "
                        f"{s.block_p50_us:.0f}/{s.block_p99_us:.0f} µs p50/p99",
                        f"{_count(s.underruns, 'underrun')}, {s.late_blocks} late", rank=2))

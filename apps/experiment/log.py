@@ -20,7 +20,11 @@ from ultraglide.apps.cli.output import json_text
 from ultraglide.inputs import decode_text, parse_json, read_input
 
 COLUMNS = ("participant", "session", "trial", "condition", "level", "stimulus", "target", "response", "correct",
-           "rt_s", "reversal", "break_before", "rendered_um_pp", "rendered_contrast", "time_utc")
+           "rt_s", "reversal", "break_before", "rendered_um_pp", "rendered_contrast", "time_utc", "target_ratio",
+           "measured_ratio", "commanded_um_pp", "loop")
+# target_ratio, measured_ratio, commanded_um_pp: means over the trial while the finger touched (the texture's
+# friction, what the plate's sensors measured with --closed-loop, the amplitude sent); loop: the friction loop's
+# state at the answer, in words
 TRIALS, SESSION, RESULT = "trials.csv", "session.json", "result.json"
 MAX_LOG_BYTES = 64 << 20  # about 150 bytes a trial: 400 000 trials
 
@@ -37,8 +41,13 @@ class TrialLog:
             raise UsageError(f"{self.path}: is not a regular file; a session's trials are logged to one")
         os.set_blocking(descriptor, True)
         new = info.st_size == 0
+        columns = COLUMNS
+        if not new:  # a resumed log keeps its own columns (one written before a column was added)
+            with open(self.path, newline="", encoding="utf-8") as existing:
+                columns = tuple(next(csv.reader(existing), COLUMNS)) or COLUMNS
         self._file = open(descriptor, "a", newline="", encoding="utf-8")  # noqa: SIM115 - open for the session
-        self._writer = csv.DictWriter(self._file, fieldnames=COLUMNS, lineterminator="\n")
+        self.columns = columns
+        self._writer = csv.DictWriter(self._file, fieldnames=columns, lineterminator="\n")
         if new:
             self._writer.writeheader()
             self._sync()
@@ -48,7 +57,7 @@ class TrialLog:
         os.fsync(self._file.fileno())
 
     def write(self, row: dict) -> None:
-        self._writer.writerow({key: row.get(key, "") for key in COLUMNS})
+        self._writer.writerow({key: row.get(key, "") for key in self.columns})
         self._sync()
 
     def close(self) -> None:

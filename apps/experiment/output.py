@@ -16,12 +16,12 @@ from ultraglide.textures.texture import Texture
 
 
 class EngineOutput:
-    def __init__(self, device: str, profile: str, model: str, force_n: float):
+    def __init__(self, device: str, profile: str, model: str, force_n: float, closed_loop: bool = False):
         from ultraglide.render.engine import Engine, EngineConfig
 
         self._folder = Path(tempfile.mkdtemp(prefix="ultraglide-trials-"))
         self.engine = Engine.start(EngineConfig(texture="grating-1mm", model=model, profile=profile, device=device,
-                                                default_force_n=force_n))
+                                                default_force_n=force_n, closed_loop=closed_loop))
         self.engine.wait_ready(120)
         self.kind = "engine"
         self.touches = 0
@@ -35,6 +35,22 @@ class EngineOutput:
 
         path = save_texture(texture, self._folder / f"trial-{trial % 2}.png")
         self.engine.set_texture(str(path))
+
+    def trial_friction(self, since_s: float) -> dict:
+        """What the trial played since ``since_s`` (perf_counter s) while the finger touched: the mean target ratio,
+        the mean friction ratio the plate's sensors measured (closed loop), the mean commanded amplitude (µm p-p),
+        and the friction loop's state at the end, in words ("" without it)."""
+        import numpy as np
+
+        status = self.engine.status(30.0)
+        history = status.history
+        touched = (history.time_s >= since_s) & (history.commanded_um_pp > 0)
+        measured = history.measured_ratio[touched]
+        measured = measured[np.isfinite(measured)]
+        return {"target_ratio": float(history.target_ratio[touched].mean()) if touched.any() else None,
+                "measured_ratio": float(measured.mean()) if len(measured) else None,
+                "commanded_um_pp": float(history.commanded_um_pp[touched].mean()) if touched.any() else None,
+                "loop": status.loop}
 
     def stop(self) -> None:
         try:
@@ -77,10 +93,14 @@ class LocalOutput:
         self.device.stop()
 
 
-def open_output(device: str, profile: str, model: str, force_n: float):
-    """The engine when this installation has it, else the renderer in process."""
+def open_output(device: str, profile: str, model: str, force_n: float, closed_loop: bool = False):
+    """The engine when this installation has it, else the renderer in process (open loop only)."""
     try:
         import ultraglide.render.engine  # noqa: F401
     except ImportError:
+        if closed_loop:
+            from ultraglide.apps.cli.errors import UsageError
+
+            raise UsageError("the closed loop runs in the real-time engine, which this installation lacks") from None
         return LocalOutput(device, profile, model, force_n)
-    return EngineOutput(device, profile, model, force_n)
+    return EngineOutput(device, profile, model, force_n, closed_loop)

@@ -69,6 +69,7 @@ class SessionConfig:
     question: str = "Which zone felt different?"
     bootstrap: int = 200
     interval: str = "posterior"  # posterior or bootstrap (staircases and constant stimuli)
+    closed_loop: bool = False  # the friction loop on the plate's force sensors (a device with them)
 
     @property
     def range(self) -> tuple[float, float]:
@@ -161,6 +162,7 @@ class Answer:
     rendered_um_pp: float | None = None
     rendered_contrast: float | None = None
     quit: bool = False
+    friction: dict | None = None  # what the trial played: target_ratio, measured_ratio, commanded_um_pp, loop
 
 
 @dataclass
@@ -271,7 +273,19 @@ def make_row(config: SessionConfig, design: StimulusDesign, trial: int, level: f
             "correct": int(correct), "rt_s": f"{answer.rt_s:.4f}", "reversal": 0, "break_before": int(pause),
             "rendered_um_pp": "" if answer.rendered_um_pp is None else f"{answer.rendered_um_pp:.4f}",
             "rendered_contrast": "" if answer.rendered_contrast is None else f"{answer.rendered_contrast:.4f}",
-            "time_utc": now_utc()}
+            "time_utc": now_utc(), **_friction_columns(answer.friction)}
+
+
+def _friction_columns(friction: dict | None) -> dict:
+    """The trial's played friction as the log's columns (empty where unknown: a dry run, open loop)."""
+    friction = friction or {}
+
+    def number(key: str) -> str:
+        value = friction.get(key)
+        return "" if value is None or not math.isfinite(value) else f"{value:.4f}"
+
+    return {"target_ratio": number("target_ratio"), "measured_ratio": number("measured_ratio"),
+            "commanded_um_pp": number("commanded_um_pp"), "loop": friction.get("loop", "")}
 
 
 def outcome(config: SessionConfig, row: dict) -> int:

@@ -51,7 +51,7 @@ class WindowResponder:
         if output is None:
             from ultraglide.apps.experiment.output import open_output
 
-            output = open_output(config.device, config.profile, config.model, config.force_n)
+            output = open_output(config.device, config.profile, config.model, config.force_n, config.closed_loop)
         self.output = output
         self.ready = threading.Event()  # set while a trial (or a break) waits for input: for tests and logs
         self.showing: tuple[str, int] = ("", 0)
@@ -156,8 +156,18 @@ class WindowResponder:
         return 1 if name in KEYS_YES else 0 if name in KEYS_NO else None
 
     def present(self, trial: int, level: float, target: int, design) -> Answer:
-        pg = self.pg
+        """Show the trial and wait for the answer; the answer carries what the trial played (target and measured
+        friction, commanded amplitude, the friction loop's state) where the output says."""
         self.output.show(design.trial_texture(level, target), trial)
+        shown = time.perf_counter()
+        answer = self._wait_answer(trial)
+        friction = getattr(self.output, "trial_friction", None)
+        if friction is not None and not answer.quit:
+            answer.friction = friction(shown)
+        return answer
+
+    def _wait_answer(self, trial: int) -> Answer:
+        pg = self.pg
         pg.event.clear()
         self._draw_trial(trial)
         shown = time.perf_counter()
