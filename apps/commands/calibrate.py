@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import add_figure_width_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
+from ultraglide.apps.commands.finger_options import add_finger_options
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.calibration import Fit
@@ -18,6 +19,9 @@ from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path, refuse_overlaps
 
 POOR_FIT_RMS = 0.05
+PRESS_N = Bounded(0.05, 10.0, "N")
+PASSES = Bounded(1, 10, whole=True)
+STEP_MS = Bounded(100.0, 5000.0, "ms")
 BOOTSTRAP_RESAMPLES = Bounded(0, 10_000, whole=True)
 BOOTSTRAP_WORDS = {"points": "points resampled", "force": "forces resampled", "participant": "participants resampled"}
 CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
@@ -27,21 +31,26 @@ CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
 def add_parser(commands: argparse._SubParsersAction) -> None:
     """``ultraglide calibrate``: its options."""
     calibrate = commands.add_parser(
-        "calibrate", help="fit a friction model to measured points",
+        "calibrate", help="fit a friction model to measured points, or measure a participant on the plate",
         description="Fit a model's free parameters to a CSV of amplitude_um_pp,relative_friction"
                     "[,force_n][,participant] by least squares; report each parameter with its standard "
                     "error (from JᵀJ and by bootstrap) and the cross-validated error (k-fold within each force; "
                     "leave-one-force-out with three forces or more); write a calibration file usable as --model "
                     "and a figure beside it (CAL.png at 300 dpi and CAL.pdf). Ratios down to -0.05 are taken as "
-                    "noise: clipped to 0 and counted.")
-    calibrate.add_argument("data", metavar="DATA.csv")
+                    "noise: clipped to 0 and counted. With --device instead of DATA.csv, measure the points on "
+                    "the plate: a window guides the participant (slide at a steady press, lighter or heavier as "
+                    "asked, the press shown live) while the plate steps its amplitude, the plate's force sensors "
+                    "measure the friction, and the fit is written with the participant's id (the points beside it as "
+                    "CAL.csv, its figure as CAL.png and CAL.pdf).")
+    calibrate.add_argument("data", metavar="DATA.csv", nargs="?", help="measured points (or --device)")
     calibrate.add_argument("--model", default="stretched",
                            choices=["stretched", "exponential", "squeeze-film", "paper", "paper-uniform", "table"],
                            help="the model to fit (default: stretched)")
     calibrate.add_argument("--compare", action="store_true",
                            help="fit every model and rank them by cross-validated error; -o keeps the best")
     calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
-                           help="use only this participant's points (the participant column)")
+                           help="use only this participant's points (the participant column); with --device, whose "
+                                "finger is measured (a number, written into the calibration)")
     calibrate.add_argument("--json", action="store_true", help="print one JSON object")
     calibrate.add_argument("--bootstrap", type=BOOTSTRAP_RESAMPLES, default=200, metavar="N",
                            help="bootstrap resamples for the uncertainties (points; forces and participants when "
@@ -49,7 +58,53 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     calibrate.add_argument("-o", "--output", metavar="CAL.toml",
                            help="write the calibration here, and its figure as CAL.png and CAL.pdf")
     add_figure_width_option(calibrate)
+    plate = calibrate.add_argument_group("on the plate (--device)")
+    plate.add_argument("--device", metavar="URL",
+                       help="measure on this plate driver, which must have normal and lateral force sensors: sim (the "
+                            "simulator with a simulated finger) or serial:PORT[?baud=N]")
+    plate.add_argument("--profile", default="sim-plate", metavar="PROFILE",
+                       help="the plate's profile: its limit bounds the amplitudes stepped to (default: sim-plate)")
+    plate.add_argument("--forces", type=_forces, default=(0.25, 0.5, 0.9), metavar="N,N,...",
+                       help="the presses asked for, in N (default: 0.25,0.5,0.9)")
+    plate.add_argument("--passes", type=PASSES, default=2, metavar="N",
+                       help="passes through the amplitudes at each press, alternately up and down (default: 2)")
+    plate.add_argument("--step-ms", type=STEP_MS, default=300.0, metavar="MS",
+                       help="each amplitude held this long (default: 300)")
+    plate.add_argument("--no-window", action="store_true",
+                       help="no window: the steps run on their own (scripts, the simulated finger)")
+    plate.add_argument("--windowed", action="store_true", help="a window rather than the full screen")
+    add_finger_options(calibrate, "--device sim: the participant; the press follows the plan unless --finger-force")
     calibrate.set_defaults(run=run)
+
+
+def _forces(text: str) -> tuple[float, ...]:
+    parts = [part for part in text.split(",") if part.strip()]
+    if not 1 <= len(parts) <= 10:
+        raise argparse.ArgumentTypeError(f"give 1 to 10 forces in N, comma-separated, got {text!r}")
+    return tuple(PRESS_N(part) for part in parts)
+
+
+def _run_on_plate(args) -> int:
+    from ultraglide.apps.calibration.session import calibrate_on_plate
+    from ultraglide.render.physics.calibration import fit_summary
+
+    if args.compare:
+        raise UsageError("--compare ranks models on a CSV: calibrate on the plate, then compare on its CAL.csv")
+    result = calibrate_on_plate(args)
+    fit = result["fit"]
+    written = [str(path) for path in result["written"]]
+    if args.json:
+        print_json({"fit": fit_summary(fit), "participant": args.participant, "points": result["points"],
+                    "missing_steps": result["missing_steps"], "written": written})
+        return 0
+    print(f"participant {args.participant:g}: {result['points']} points measured on {args.device}"
+          + (f", {result['missing_steps']} steps left out (the finger not sliding)" if result["missing_steps"] else ""))
+    for line in _fit_lines(fit):
+        print(line)
+    for warning in fit.warnings():
+        print(f"warning: {warning}")
+    print(f"wrote {', '.join(written)}")
+    return 0
 
 
 def _select_participant(data, participant):
@@ -116,6 +171,11 @@ def _write(fit: Fit, fits: list[Fit], output: Path, width: str = "column") -> li
 def run(args) -> int:
     from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary, selection_note
     from ultraglide.render.physics.measurements import read_measurements
+
+    if (args.data is None) == (args.device is None):
+        raise UsageError("give either DATA.csv (measured points) or --device URL (measure them on the plate)")
+    if args.device is not None:
+        return _run_on_plate(args)
 
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix != ".toml":

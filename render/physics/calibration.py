@@ -76,8 +76,9 @@ from ultraglide.inputs import parse_toml, read_input
 CALIBRATION_VERSION = 1
 
 
-def calibration_toml(fit: Fit) -> str:
-    """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically)."""
+def calibration_toml(fit: Fit, participant: float | None = None, procedure: str | None = None) -> str:
+    """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically); ``participant``:
+    whose finger it is (an on-plate calibration's id), ``procedure``: how the points were measured, in words."""
     kind = fit.kind or model_kind(fit.model)
     if kind == "table":
         raise ModelError("a table model is its CSV: use --model table:FILE.csv instead of a calibration file")
@@ -109,6 +110,10 @@ def calibration_toml(fit: Fit) -> str:
         document["fit"]["cross_validation_rms"] = dict(fit.cross_validation)
     if fit.warnings():
         document["fit"]["warnings"] = fit.warnings()
+    if participant is not None:
+        document["fit"]["participant"] = float(participant)
+    if procedure:
+        document["fit"]["procedure"] = procedure
     return tomli_w.dumps(document)
 
 
