@@ -1,0 +1,266 @@
+"""The closed loop's figures (issue 25): open and closed loop side by side in one run, on the simulated plate.
+
+Run: .venv/bin/python bench/bench_closed_loop.py [--seconds 20] [--quick]
+
+Each case runs the commands a user runs: ``ultraglide plate-sim --finger default ...`` (the simulated plate
+with a finger unlike the host's model: the host's stretched law with its amplitude scale x0.7 and a floor of
+0.1, drifting ±30 % in scale over a minute, friction at rest rising 25 % with dwell, force wandering in
+0.2-1 N, force sensors 5 mN, 300 Hz, 1 ms) and ``ultraglide play --device serial:PATH [--closed-loop]
+--envelope-csv ... --sensors-csv ...``. The truth is the finger's own log (``--finger-log``). Each log row
+is lined up with the stream value the plate was playing then (the SENSORS' setpoint index, recorded by
+``--sensors-csv``, on the plate's clock), so underruns and the link's latency do not blur the comparison.
+
+Figures:
+
+* **grating**: a 1 mm sine grating (ratio 0.4-1.0, tiled) swept straight at 50, 100 and 200 mm/s: the RMS error
+  between the finger's ratio and the texture's target while it slides, after the first 2 s (the loop learning),
+  where the limit allows the target (the finger's own law reaches it within the plate's limit at that moment),
+  open loop vs closed loop;
+* **step**: stripes of ratio 1 and 0.5 (20 mm each, 200 ms apart at 100 mm/s), closed loop: the time from each
+  step 1 -> 0.5 until the finger's ratio stays within 0.05 of 0.5 (to 50 ms after the step; median and worst over
+  the steps);
+* **amplitude**: the plate's 10-90 % rise for the same steps (the finger log at 48 kHz), with the plate's Q at
+  0.5x, 1x and 2x the profile's (``plate-sim --q``);
+* **limit**: the largest commanded amplitude and the plate's peak (plate-sim's own) against 6 µm p-p;
+* **faults**: sensor faults (NaN, out of range) mid-run: the loop's state in words, and how far the commanded
+  amplitude rose above the open-loop amplitude after each fault (it must not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from closed_loop_rig import ClosedLoopRig  # noqa: E402
+from ultraglide.render.engine.finger_setup import FingerConfig  # noqa: E402
+from ultraglide.render.physics.calibration import load_model  # noqa: E402
+
+LIMIT_UM_PP = 6.0
+CONTROL_HZ = 12000.0
+SENSOR_HZ = 1000.0
+LEARN_S = 2.0
+SETTLE_WINDOW_S = 0.05  # a step has settled once its ratio stays within 0.05 of 0.5 to 50 ms after it
+
+
+def ultraglide(*args) -> list[str]:
+    return [sys.executable, "-m", "ultraglide", *map(str, args)]
+
+
+@contextlib.contextmanager
+def plate_sim(folder: Path, finger_log: Path, *options):
+    """plate-sim with a finger, served on a link in ``folder``; yields the link's path and a dict that receives
+    plate-sim's closing summary (its JSON ``stopped`` event)."""
+    link = folder / "plate"
+    process = subprocess.Popen(ultraglide("plate-sim", "--link", link, "--json", "--finger-log", finger_log, *options),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    summary: dict = {}
+    try:
+        for line in process.stdout:
+            if json.loads(line).get("event") == "serving":
+                break
+        else:
+            raise RuntimeError(f"plate-sim did not start: {process.stderr.read()}")
+        yield link, summary
+    finally:
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+        for line in out.splitlines():
+            event = json.loads(line)
+            if event.get("event") == "stopped":
+                summary.update(event)
+
+
+def play(texture: Path, link: Path, folder: Path, name: str, speed_mm_s: float, seconds: float, closed: bool,
+         *extra) -> dict:
+    envelope, sensors = folder / f"{name}-envelope.csv", folder / f"{name}-sensors.csv"
+    command = ultraglide("play", texture, "--device", f"serial:{link}", "--speed-mm-s", speed_mm_s, "--duration-s",
+                         seconds, "--start", "2,25", "--envelope-csv", envelope, "--sensors-csv", sensors, "--json",
+                         *(["--closed-loop"] if closed else []), *extra)
+    result = subprocess.run(command, capture_output=True, text=True, timeout=seconds + 120)
+    if result.returncode != 0:
+        raise RuntimeError(f"play failed ({result.returncode}): {result.stderr.strip()}")
+    return {"status": json.loads(result.stdout), "envelope": envelope, "sensors": sensors}
+
+
+def read(path: Path) -> np.ndarray:
+    return np.genfromtxt(path, delimiter=",", names=True)
+
+
+def lined_up(envelope: np.ndarray, sensors: np.ndarray, log: np.ndarray) -> dict:
+    """Each finger-log row with the stream value the plate played then: its target ratio, commanded amplitude,
+    whether the finger was down (NaN or False where no value played)."""
+    t = log["t_s"]
+    origin = t[0]  # the log's first row is the plate's sample 0
+    playing = sensors["setpoint_index"] >= 0
+    starts = origin + sensors["sample"][playing] / SENSOR_HZ
+    first_index = sensors["setpoint_index"][playing]
+    row = np.searchsorted(starts, t, side="right") - 1
+    known = (row >= 0) & (t - starts[np.clip(row, 0, None)] < 1.0 / SENSOR_HZ + 1e-6)
+    row = np.clip(row, 0, len(starts) - 1)
+    index = first_index[row] + np.floor((t - starts[row]) * CONTROL_HZ)
+    at = np.clip(np.searchsorted(envelope["index"], index), 0, len(envelope) - 1)
+    known &= envelope["index"][at] == index
+    return {"t": t - origin, "target": np.where(known, envelope["target_ratio"][at], np.nan),
+            "commanded": np.where(known, envelope["commanded_um_pp"][at], np.nan),
+            "down": known & (envelope["down"][at] > 0), "index": np.where(known, index, -1)}
+
+
+def finger_floor(log: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The lowest ratio the default finger reaches within the limit at each row (its law, drift and force)."""
+    from ultraglide.render.engine.finger_setup import FingerConfig, finger_law
+
+    config = FingerConfig()
+    law = finger_law(config)
+    scale = 1.0 + config.drift * np.sin(2 * math.pi * t / config.drift_period_s)
+    return law(np.full(len(t), LIMIT_UM_PP) / scale, np.maximum(log["normal_force_n"], 0.01))
+
+
+def textures(folder: Path) -> tuple[Path, Path]:
+    from ultraglide.textures.fileformat import save_texture
+    from ultraglide.textures.procedural import grating
+    from ultraglide.textures.texture import Texture
+
+    sine = save_texture(grating(1.0, size_mm=(80.0, 50.0), ratio_range=(0.4, 1.0)), folder / "grating.png")
+    x = np.arange(800) * 0.1  # 40 mm: 1 for the first 20, 0.5 for the next
+    stripes = np.where((x % 40.0) < 20.0, 1.0, 0.5)[None, :].repeat(100, axis=0).astype(np.float32)
+    step = save_texture(Texture(stripes, 80.0, 10.0, name="steps", outside="tile"), folder / "steps.png")
+    return sine, step
+
+
+def rig_step_case(texture, q: float | None, seconds: float) -> dict:
+    """Steps 1 -> 0.5 in simulated time: settling of the finger's ratio, rise of the plate's amplitude."""
+    run = ClosedLoopRig(texture, 100.0, True, q=q, log_hz=12000.0, seconds=seconds).run(seconds)
+    t, target = run.t, run.target
+    start = t[run.pick(0.0)][0] + LEARN_S
+    per_second = len(t) / (t[-1] - t[0])
+    steps = np.flatnonzero((target[1:] < 0.75) & (target[:-1] >= 0.75) & (t[1:] > start)) + 1
+    settling, rises = [], []
+    for k in steps:
+        window = slice(k, k + int(SETTLE_WINDOW_S * per_second))
+        outside = np.flatnonzero(np.abs(run.ratio[window] - 0.5) > 0.05)
+        settling.append((t[window][outside[-1]] - t[k] + 1 / per_second) if len(outside) else 0.0)
+        before = np.median(run.amplitude[max(k - int(0.01 * per_second), 0):k])
+        after = np.median(run.amplitude[window][-int(0.02 * per_second):])
+        segment = run.amplitude[window]
+        low, high = before + 0.1 * (after - before), before + 0.9 * (after - before)
+        rises.append((np.argmax(segment >= high) - np.argmax(segment >= low)) / per_second)
+    return {"steps": len(steps), "settling_ms": 1000 * np.array(settling), "rise_ms": 1000 * np.array(rises),
+            "peak": run.peak_um_pp, "commanded_peak": float(np.nanmax(run.commanded))}
+
+
+def rig_fault_case(texture, seconds: float) -> list[dict]:
+    """Sensor faults in simulated time, on a finger that needs 30 % more vibration than the host's model (the closed
+    loop then drives above open loop): after each fault, the amplitude the loop chose for the target (before the
+    envelope, which shapes open and closed loop alike) against the open-loop one."""
+    faults = ("nan:3-3.5", "range:5-5.3", "zero:7-7.5")
+    finger = FingerConfig(law="stretched", scale=1.3, floor=0.05, faults=faults)
+    rig = ClosedLoopRig(texture, 100.0, True, finger=finger, seconds=seconds, lead_s=0.5)
+    run = rig.run(seconds)
+    open_loop = load_model("stretched").amplitude_um_pp(np.nan_to_num(run.target, nan=1.0), 0.5,
+                                                       LIMIT_UM_PP).amplitude_um_pp
+    results = []
+    for fault in faults:
+        begin, end = (float(v) for v in fault.split(":")[1].split("-"))
+        during = (run.t >= begin) & (run.t < end) & run.down & np.isfinite(run.intended)
+        same = np.abs(run.intended - open_loop) < 1e-9
+        first = np.flatnonzero(during & same)
+        fell_back_s = run.t[first[0]] - begin if len(first) else math.nan
+        after = during & (run.t >= begin + fell_back_s) if len(first) else during & False
+        excess = run.intended[after] - open_loop[after]
+        before = (run.t >= begin - 0.3) & (run.t < begin) & run.down
+        results.append({"fault": fault, "fell_back_ms": 1000 * fell_back_s,
+                        "largest_above_um_pp": float(excess.max()) if len(excess) else math.nan,
+                        "closed_above_before_um_pp": float((run.intended[before] - open_loop[before]).max())})
+    return results, run.status
+
+
+def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, closed: bool) -> dict:
+    """``plate-sim --finger default`` and ``play --device serial:...``, as a user runs them, lined up the same way."""
+    name = f"real-{speed:g}-{'closed' if closed else 'open'}"
+    log_path = folder / f"{name}-finger.csv"
+    with plate_sim(folder, log_path, "--finger", "default", "--finger-speed-mm-s", speed) as (link, summary):
+        run = play(texture, link, folder, name, speed, seconds, closed)
+    log = read(log_path)
+    line = lined_up(read(run["envelope"]), read(run["sensors"]), log)
+    swiped = line["down"] & (log["sliding"] > 0.5) & np.isfinite(line["target"])
+    pick = swiped & (line["t"] >= line["t"][swiped][0] + LEARN_S) & (line["t"] < line["t"][swiped][-1] - 0.05)
+    error = log["relative_friction"] - line["target"]
+    status = run["status"]
+    return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "played_share": float(swiped.mean()),
+            "underruns": status.get("underruns"), "fallbacks": status.get("loop_fallbacks"),
+            "sensors_say": status.get("friction_error_rms"), "plate_peak": summary.get("peak_um_pp")}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=12.0, help="each grating swipe (default: 12)")
+    parser.add_argument("--quick", action="store_true", help="100 mm/s only, shorter swipes")
+    parser.add_argument("--real-time", action="store_true",
+                        help="also run plate-sim and play as a user does (100 mm/s), reporting the machine's underruns")
+    parser.add_argument("--keep", metavar="DIR", help="keep the real-time runs' logs in DIR")
+    args = parser.parse_args()
+    folder = Path(args.keep or tempfile.mkdtemp(prefix="bench-closed-loop-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    sine_path, step_path = textures(folder)
+    from ultraglide.textures.library import resolve_texture
+
+    sine, step = resolve_texture(str(sine_path)), resolve_texture(str(step_path))
+    seconds = 6.0 if args.quick else args.seconds
+    speeds = (100.0,) if args.quick else (50.0, 100.0, 200.0)
+    started = time.perf_counter()
+    print(f"simulated time (the firmware core, the plate's physics, the finger, the host's engine parts, joined by "
+          f"protocol frames 1 ms apart); load average {os.getloadavg()[0]:.1f}")
+    print("finger: the host's stretched law, scale x0.7, floor 0.1, drifting ±30 % over 60 s, +25 % mu0 with dwell, "
+          "force walking in 0.2-1 N; errors after the first 2 s, where the limit allows the target")
+    print(f"{'grating':>10} {'open rms':>9} {'closed rms':>11} {'loop part open':>15} {'loop part closed':>17} "
+          f"{'reachable':>10} {'peak µm p-p':>12} {'closed: loop says':>18}")
+    for speed in speeds:
+        runs = [ClosedLoopRig(sine, speed, closed, seconds=seconds).run(seconds) for closed in (False, True)]
+        opened, closed = runs
+        reachable = closed.pick(LEARN_S, True).sum() / max(closed.pick(LEARN_S).sum(), 1)
+        print(f"{speed:6.0f} mm/s {opened.rms_error(LEARN_S, True):9.3f} {closed.rms_error(LEARN_S, True):11.3f} "
+              f"{opened.loop_error(LEARN_S):15.3f} {closed.loop_error(LEARN_S):17.3f} {100 * reachable:9.0f}% "
+              f"{max(opened.peak_um_pp, closed.peak_um_pp):12.3f} {closed.status['loop']:>18}")
+    print("(loop part: the finger's ratio at the amplitude the model or the loop chose, as if the plate reached it at "
+          "once: what the friction loop controls; the rest is the plate's own dynamics)")
+    print()
+    for q in ((None,) if args.quick else (None, 100.0, 400.0)):
+        result = rig_step_case(step, q, 4.0 if args.quick else 6.0)
+        settle, rise = result["settling_ms"], result["rise_ms"]
+        print(f"steps 1 -> 0.5, plate Q {q or 200:g}{' (the profile)' if q is None else ''}: {result['steps']} steps; "
+              f"friction within 0.05 of 0.5 after {np.median(settle):.1f} ms median, {settle.max():.1f} ms worst; "
+              f"amplitude 10-90 % {np.median(rise):.2f} ms median, {rise.max():.2f} ms worst; plate peak "
+              f"{result['peak']:.3f}, commanded peak {result['commanded_peak']:.3f} µm p-p (limit {LIMIT_UM_PP:g})")
+    print()
+    faults, status = rig_fault_case(sine, 8.0)
+    for fault in faults:
+        print(f"sensor fault {fault['fault']:>14}: the closed loop was up to {fault['closed_above_before_um_pp']:.3f} "
+              f"µm p-p above open loop before it; open loop played from {fault['fell_back_ms']:.1f} ms after it "
+              f"began (a SENSORS frame, the link, the jitter buffer), from then on at most "
+              f"{fault['largest_above_um_pp']:+.4f} µm p-p above the open-loop amplitude")
+    print(f"  the loop fell back {status['loop_fallbacks']} times; at the end: {status['loop']}")
+    if args.real_time:
+        print()
+        cases = [real_time_case(folder, sine_path, 100.0, seconds, closed) for closed in (False, True)]
+        print(f"real time (plate-sim --finger default; play --device serial:PATH), 100 mm/s: open "
+              f"{cases[0]['rms']:.3f}, "
+              f"closed {cases[1]['rms']:.3f} rms; underruns {cases[0]['underruns']}/{cases[1]['underruns']}, "
+              f"fallbacks {cases[1]['fallbacks']}, the loop's own measure {cases[1]['sensors_say']}, plate peaks "
+              f"{cases[0]['plate_peak']}/{cases[1]['plate_peak']} µm p-p; load average {os.getloadavg()[0]:.1f}")
+    print(f"({time.perf_counter() - started:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
