@@ -2,15 +2,17 @@
 
 A log of any length is read in bounded memory: :func:`read_touch_log` checks the whole file in
 one streaming pass (every value in range, time never going back, two instants at least), then
-returns a :class:`~ultraglide.render.trajectory.RecordedTrajectory`. A log of up to
-``HELD_ROWS`` rows is kept from that pass (a 10-minute log at 120 Hz is 72 000 rows, 2.3 MB); a longer
-one is read again in chunks as the renderer moves along. Times are seconds on the logger's clock (perf_counter or
-Unix time alike); the trajectory starts at zero.
+returns a :class:`~ultraglide.render.trajectory.RecordedTrajectory`. A file of up to ``HELD_BYTES``
+(4 MiB) is kept from that pass (a 10-minute log at 120 Hz is 72 000 rows, 2.3 MB); a larger one is
+read again in chunks as the renderer moves along. Times are seconds on the logger's clock
+(perf_counter or Unix time alike); the trajectory starts at zero.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import stat
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +28,7 @@ Y = Column("y_mm", -10_000.0, 10_000.0, "mm")
 FORCE = Column("force_n", 0.0, 50.0, "N")  # fingers press with 0.1 to a few newtons
 COLUMNS = (TIME.name, X.name, Y.name)
 MAX_SPAN_S = 86_400.0  # a day of touches; longer logs are someone's clock in milliseconds
-HELD_ROWS = 100_000  # logs up to this long stay in memory after the check (3.2 MB at most): read once, not twice
+HELD_BYTES = 4 << 20  # logs up to this size stay in memory after the check (about 4 MB of arrays): read once
 
 
 @dataclass(frozen=True)
@@ -66,13 +68,22 @@ class TouchLog:
                                             self.force_range_n)
 
 
+def _size_of(path: str | Path) -> float:
+    """The file's size in bytes (infinite when it has none, a pipe: streamed, never held)."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return math.inf  # the table's own reading says what is wrong
+    return info.st_size if stat.S_ISREG(info.st_mode) else math.inf
+
+
 def check_touch_log(path: str | Path) -> TouchLog:
     """Read a touch log through once, checking it; :class:`RenderError` names the line at fault."""
     table = NumericCsv(path, (TIME, X, Y), (FORCE,), RenderError, "trajectory file")
     first = previous = None
     rows = 0
     forces = [math.inf, -math.inf]
-    held: list | None = []
+    held: list | None = [] if _size_of(path) <= HELD_BYTES else None
     for block in table.blocks():
         t = block.values["t_s"]
         if not len(t):
@@ -93,8 +104,6 @@ def check_touch_log(path: str | Path) -> TouchLog:
             force = block.values.get("force_n")
             held.append((t.copy(), block.values["x_mm"].copy(), block.values["y_mm"].copy(),
                          None if force is None else force.copy()))  # columns of their own, not the block's table
-            if rows > HELD_ROWS:
-                held = None
     if rows < 2:
         raise RenderError(f"{path}: at least two rows are needed, found {rows}")
     if previous == first:

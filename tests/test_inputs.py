@@ -636,7 +636,7 @@ def test_a_short_log_is_read_once_and_a_change_after_its_check_does_not_reach_th
 
 
 def test_a_long_log_changed_between_check_and_render_is_an_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(touch_log, "HELD_ROWS", 1)  # a log longer than is held: streamed, so read again
+    monkeypatch.setattr(touch_log, "HELD_BYTES", 10)  # a log larger than is held: streamed, so read again
     log = tmp_path / "log.csv"
     log.write_text("t_s,x_mm,y_mm\n0,1,1\n1,2,2\n2,3,3\n")
     trajectory = read_touch_log(log)
