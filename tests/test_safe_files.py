@@ -420,6 +420,8 @@ CASES = [
     ["texture", "show", "{d}/t.png", "-o", "{d}/t.png"],
     ["calibrate", "{d}/cal.png", "-o", "{d}/cal.toml"],
     ["play", "grating-1mm", "--trajectory", "{d}/log.wav", "--device", "wav:{d}/log.wav"],
+    ["play", "grating-1mm", "--trajectory", "{d}/log.csv", "--device", "null", "--envelope-csv", "{d}/sub/../log.csv"],
+    ["play", "grating-1mm", "--device", "wav:{d}/x.wav", "--sensors-csv", "{d}/link.wav"],
 ]
 
 

@@ -125,8 +125,9 @@ def run(args) -> int:
     from ultraglide.render.engine import Engine
 
     device = parse_device_url(args.device)
-    refuse_overlaps({"--device": device.target if device.kind == "wav" else None, "--save-profile": args.save_profile},
-                    render_inputs(args))
+    refuse_overlaps({"--device": device.target if device.kind == "wav" else None, "--save-profile": args.save_profile,
+                     "--envelope-csv": getattr(args, "envelope_csv", None),
+                     "--sensors-csv": getattr(args, "sensors_csv", None)}, render_inputs(args))
     inputs = load_inputs(args)  # every mistake in the options surfaces before a device is touched
     effects = None
     if args.effects or args.no_effects:
