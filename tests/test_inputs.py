@@ -343,6 +343,17 @@ RANGES = {
     "--bootstrap": (10, 100_000, False, True, False), "--repeats": (1, 10_000, False, True, False),
     "--afc": (2, 3, False, True, False), "--start-level": (0, 10_000, False, False, False),
     "--threads": (1, 256, False, True, False),
+    # the simulated finger (plate-sim, and the in-process sim of play, demo and calibrate)
+    "--finger-scale": (0.1, 10, False, False, False), "--finger-floor": (0, 1, False, False, True),
+    "--finger-mu0": (0.05, 5, False, False, False), "--finger-drift": (0, 0.9, False, False, False),
+    "--finger-drift-period-s": (0.1, 3600, False, False, False), "--finger-moisture": (0, 2, False, False, False),
+    "--finger-moisture-tau-s": (0.1, 3600, False, False, False),
+    "--finger-speed-mm-s": (0, 2000, False, False, False), "--finger-noise-n": (0, 1, False, False, False),
+    "--finger-bandwidth-hz": (0, 20_000, False, False, False), "--finger-delay-ms": (0, 100, False, False, False),
+    "--finger-log-hz": (1, 48_000, False, False, False), "--finger-seed": (0, 2**32 - 1, False, True, False),
+    # on-plate calibration
+    "--forces": (0.05, 10, False, False, False), "--passes": (1, 10, False, True, False),
+    "--step-ms": (100, 5000, False, False, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
                                   "--widths-mm", "--spacing-mm")},
@@ -357,6 +368,7 @@ OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False),
              (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False)}
+TEXT_FORMS = ("--crop", "--region", "--finger-fault")  # typed text of their own form, tested where they belong
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
@@ -396,7 +408,7 @@ OPTIONS = typed_options()
 
 def test_every_typed_option_has_a_documented_range():
     missing = {(words, action.option_strings[-1]) for words, action in OPTIONS
-               if action.option_strings[-1] not in ("--crop", "--region")
+               if action.option_strings[-1] not in TEXT_FORMS
                and range_of(words, action.option_strings[-1]) is None}
     assert not missing, f"options without a range here: {missing}"
     assert len(OPTIONS) > 60
@@ -412,7 +424,7 @@ number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(
 def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
     words, action = choice
     flag = action.option_strings[-1]
-    if flag == "--crop":  # whole pixels, checked by test_authoring
+    if flag in ("--crop", "--finger-fault"):  # whole pixels (test_authoring); KIND:START-END (test_closed_loop)
         return
     tail = tail_for(words)
     if action.nargs in (2, "+"):
