@@ -126,7 +126,7 @@ class SimPlate:
 
     def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None, tracker=None,
                  finger=None, amplitude_loop: bool = False):
-        from ultraglide.devices.plate_sim import PtyPlate
+        from ultraglide.devices.pty_plate import PtyPlate
         from ultraglide.devices.serial_plate import SerialPlate
 
         self.finger = finger

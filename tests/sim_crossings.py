@@ -15,8 +15,8 @@ import sys
 import threading
 import time
 
-from ultraglide.devices.plate_sim import PtyPlate
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 
 
 def main() -> None:

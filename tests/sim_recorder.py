@@ -15,8 +15,9 @@ import signal
 import sys
 import threading
 
-from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 
 
 def main() -> None:

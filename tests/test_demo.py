@@ -39,8 +39,8 @@ def app(halves, monkeypatch):
 def plate():
     """The simulated plate served in the test's process on a real pty: the demo's engine drives it through
     the real serial driver, and the test reads the plate's own amplitude beside it."""
-    from ultraglide.devices.plate_sim import PtyPlate
     from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.pty_plate import PtyPlate
 
     served = PtyPlate(load_profile("sim-plate")).start()
     yield served

@@ -14,8 +14,9 @@ from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth, PtyPlate
+from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import SerialPlate
 from ultraglide.devices.urls import parse_device_url
 

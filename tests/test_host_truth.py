@@ -18,8 +18,8 @@ from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from scripted_plate import ScriptedPlate
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.plate_sim import PtyPlate
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import SerialPlate
 
 PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p

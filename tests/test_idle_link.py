@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from conftest import wait_for
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import TELEMETRY_S, TICK_S, PlateSimulator, PtyPlate
+from ultraglide.devices.plate_sim import TELEMETRY_S, TICK_S, PlateSimulator
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import IDLE_AFTER_S, SerialPlate
 
 PROFILE = load_profile("sim-plate")

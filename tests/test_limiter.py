@@ -25,8 +25,9 @@ from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.limiter import DriveLimiter
 from ultraglide.devices.output_stage import OutputStage, output_stage
 from ultraglide.devices.paced import WavRecorder
-from ultraglide.devices.plate_sim import PlateSimulator, PtyPlate
+from ultraglide.devices.plate_sim import PlateSimulator
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import SerialPlate
 from ultraglide.render.engine.sources import EnvelopeSource, offline_stage
 from ultraglide.render.paths import SwipePath

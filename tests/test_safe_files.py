@@ -445,7 +445,7 @@ def test_an_output_that_is_also_an_input_is_refused_before_anything_is_written(t
 # ---- plate-sim's link goes only where there is nothing or a link -----------------------------------------------
 @needs_root
 def test_plate_sim_never_puts_its_link_over_a_device_or_file(tmp_path):
-    from ultraglide.devices.plate_sim import PtyPlate
+    from ultraglide.devices.pty_plate import PtyPlate
 
     null = special("null", tmp_path / "null")
     regular = tmp_path / "plate"

@@ -67,7 +67,7 @@ def run_check(args) -> int:
     say = None if args.json else (lambda verdict: print(verdict.line(), flush=True))
     plate = None
     if device.kind == "sim":
-        from ultraglide.devices.plate_sim import PtyPlate
+        from ultraglide.devices.pty_plate import PtyPlate
 
         plate = PtyPlate(profile).start()
         port, baudrate = plate.path, 921600

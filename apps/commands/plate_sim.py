@@ -74,8 +74,9 @@ def run(args) -> int:
             raise UsageError("--break, --max-version and --finger are the simulator's (--board sim), not the board "
                              "image's")
         return _plate_sim_qemu(args)
-    from ultraglide.devices.plate_sim import PlateTruth, PtyPlate
+    from ultraglide.devices.plate_sim import PlateTruth
     from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
 
     profile = load_profile(args.profile)

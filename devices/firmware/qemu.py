@@ -37,6 +37,7 @@ import time
 from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.links import link_path_for, place_link, remove_link
 from ultraglide.devices.protocol import NAK_REASONS
 
 QEMU = "qemu-system-arm"
@@ -162,18 +163,7 @@ class QemuPlate:
         if not os.path.isfile(elf_path):
             raise DeviceError(f"no firmware image at {elf_path}: build it with `ultraglide firmware build`")
         self.elf_path = elf_path
-        self._own_dir = None
-        if link_path is None:
-            self._own_dir = tempfile.mkdtemp(prefix="ultraglide-qemu-")
-            link_path = os.path.join(self._own_dir, "plate")
-        directory = os.path.dirname(os.path.abspath(link_path))
-        if not os.path.isdir(directory):
-            raise DeviceError(f"no directory {directory} for the plate's link {link_path}: create it or choose "
-                              "another --link")
-        if os.path.lexists(link_path) and not os.path.islink(link_path):  # never put a link over a file or device
-            raise DeviceError(f"{link_path} exists and is not a link: the plate's link goes where there is nothing "
-                              "or a link; choose another --link")
-        self.path = link_path
+        self.path, self._own_dir = link_path_for(link_path, "ultraglide-qemu-")
         self.pty_name = ""
         self.icount_shift = icount_shift
         self.plate = plate
@@ -219,11 +209,7 @@ class QemuPlate:
         except BaseException:
             self.stop()
             raise
-        temporary = self.path + ".new"
-        if os.path.islink(temporary):  # a link of an earlier run; anything else there is not ours
-            os.unlink(temporary)
-        os.symlink(self.pty_name, temporary)
-        os.replace(temporary, self.path)
+        place_link(self.pty_name, self.path)
         return self
 
     def _wait_for_boot(self) -> None:
@@ -299,9 +285,7 @@ class QemuPlate:
                 with contextlib.suppress(OSError, ValueError):
                     if stream is not None:
                         stream.close()
-        with contextlib.suppress(FileNotFoundError):
-            if os.path.islink(self.path):
-                os.unlink(self.path)
+        remove_link(self.path)
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
             self._own_dir = None
