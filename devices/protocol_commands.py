@@ -1,0 +1,142 @@
+"""Protocol v3's commands, host → device: their payloads both ways, and SETPOINTS frames built without
+allocating (:class:`SetpointFramer`, the serial writer's path). Re-exported by :mod:`ultraglide.devices.protocol`.
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+
+import numpy as np
+from cobs import cobs
+from ultraglide.devices.protocol_frames import CRC_LAYOUT, HEADER_LAYOUT, ProtocolError
+from ultraglide.devices.protocol_spec import (
+    CLEAR_FAULTS,
+    ENABLE,
+    HEARTBEAT,
+    HELLO,
+    MAX_BODY,
+    MAX_SETPOINTS_PER_FRAME,
+    PROTOCOL_VERSION,
+    SET_CARRIER,
+    SET_LOOP,
+    SETPOINT_SCALE,
+    SETPOINTS,
+    SIM_FAULT,
+)
+
+SETPOINT_HEADER_LAYOUT = struct.Struct("<IIH")  # first_index, rate_hz, count
+_CARRIER = struct.Struct("<f")
+_CLEAR = struct.Struct("<H")
+_SIM_FAULT = struct.Struct("<BH")
+
+# exact payload lengths, where a command has one
+PAYLOAD_LENGTHS = {HELLO: 1, SET_CARRIER: _CARRIER.size, ENABLE: 1, HEARTBEAT: 0, CLEAR_FAULTS: _CLEAR.size,
+                   SET_LOOP: 1, SIM_FAULT: _SIM_FAULT.size}
+
+
+def hello_payload(version: int = PROTOCOL_VERSION) -> bytes:
+    return bytes([version])
+
+
+def carrier_payload(carrier_hz: float) -> bytes:
+    return _CARRIER.pack(carrier_hz)
+
+
+def parse_carrier(payload: bytes) -> float:
+    if len(payload) != _CARRIER.size:
+        raise ProtocolError("SET_CARRIER payload is not 4 bytes")
+    return _CARRIER.unpack(payload)[0]
+
+
+def enable_payload(enabled: bool) -> bytes:
+    return bytes([1 if enabled else 0])
+
+
+def setpoint_codes(fractions: np.ndarray) -> np.ndarray:
+    """Fractions of full scale → u16 codes: clipped to [0, 1], times 65535, rounded to nearest (ties to even)."""
+    return np.round(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0) * SETPOINT_SCALE).astype("<u2")
+
+
+def setpoints_payload(first_index: int, rate_hz: int, fractions: np.ndarray) -> bytes:
+    """Amplitude setpoints as fractions of full scale, quantised by :func:`setpoint_codes`."""
+    values = setpoint_codes(fractions)
+    return SETPOINT_HEADER_LAYOUT.pack(first_index & 0xFFFFFFFF, rate_hz, len(values)) + values.tobytes()
+
+
+class SetpointFramer:
+    """SETPOINTS frames of one stream, built in buffers made once: the serial writer's path makes no array.
+
+    ``frame(seq, first_index, fractions)`` gives the same bytes as
+    ``encode_frame(SETPOINTS, seq, setpoints_payload(first_index, rate_hz, fractions))`` for at most
+    :data:`MAX_SETPOINTS_PER_FRAME` values. What it allocates is bytes of the frame's own size (the body
+    handed to COBS, COBS's output, the terminator added), no array, whatever the number of values."""
+
+    _CODES_AT = HEADER_LAYOUT.size + SETPOINT_HEADER_LAYOUT.size
+
+    def __init__(self, rate_hz: int):
+        self.rate_hz = rate_hz
+        self._body = bytearray(MAX_BODY)
+        self._body_view = memoryview(self._body)
+        self._scaled = np.empty(MAX_SETPOINTS_PER_FRAME)
+        self._codes = np.empty(MAX_SETPOINTS_PER_FRAME, dtype="<u2")
+        self._code_bytes = memoryview(self._codes).cast("B")
+
+    def frame(self, seq: int, first_index: int, fractions: np.ndarray) -> bytes:
+        count = len(fractions)
+        if count > MAX_SETPOINTS_PER_FRAME:
+            raise ValueError(f"{count} setpoints do not fit one frame (at most {MAX_SETPOINTS_PER_FRAME})")
+        scaled = self._scaled[:count]
+        np.clip(fractions, 0.0, 1.0, out=scaled)  # as setpoint_codes: clipped, scaled, rounded (ties to even)
+        np.multiply(scaled, SETPOINT_SCALE, out=scaled)
+        np.rint(scaled, out=scaled)
+        np.copyto(self._codes[:count], scaled, casting="unsafe")
+        body = self._body
+        HEADER_LAYOUT.pack_into(body, 0, SETPOINTS, seq & 0xFFFF)
+        SETPOINT_HEADER_LAYOUT.pack_into(body, HEADER_LAYOUT.size, first_index & 0xFFFFFFFF, self.rate_hz, count)
+        end = self._CODES_AT + 2 * count
+        body[self._CODES_AT:end] = self._code_bytes[:2 * count]
+        CRC_LAYOUT.pack_into(body, end, binascii.crc32(self._body_view[:end]))
+        return cobs.encode(bytes(self._body_view[:end + CRC_LAYOUT.size])) + b"\x00"  # its C code takes no memoryview
+
+
+def parse_setpoint_codes(payload: bytes) -> tuple[int, int, np.ndarray]:
+    """``(first_index, rate_hz, codes u16)``; ProtocolError if the lengths disagree."""
+    if len(payload) < SETPOINT_HEADER_LAYOUT.size:
+        raise ProtocolError("setpoint frame too short")
+    first, rate, count = SETPOINT_HEADER_LAYOUT.unpack_from(payload)
+    data = payload[SETPOINT_HEADER_LAYOUT.size:]
+    if len(data) != 2 * count:
+        raise ProtocolError(f"setpoint frame says {count} values but carries {len(data) / 2:g}")
+    return first, rate, np.frombuffer(data, dtype="<u2")
+
+
+def parse_setpoints(payload: bytes) -> tuple[int, int, np.ndarray]:
+    """``(first_index, rate_hz, fractions of full scale)``."""
+    first, rate, codes = parse_setpoint_codes(payload)
+    return first, rate, codes.astype(float) / SETPOINT_SCALE
+
+def clear_faults_payload(mask: int) -> bytes:
+    return _CLEAR.pack(mask & 0xFFFF)
+
+
+def parse_clear_faults(payload: bytes) -> int:
+    if len(payload) != _CLEAR.size:
+        raise ProtocolError("CLEAR_FAULTS payload is not 2 bytes")
+    return _CLEAR.unpack(payload)[0]
+
+
+def set_loop_payload(mode: int) -> bytes:
+    return bytes([mode])
+
+
+def sim_fault_payload(kind: int, duration_ms: int = 0) -> bytes:
+    return _SIM_FAULT.pack(kind, duration_ms)
+
+
+def parse_sim_fault(payload: bytes) -> tuple[int, int]:
+    if len(payload) != _SIM_FAULT.size:
+        raise ProtocolError("SIM_FAULT payload is not 3 bytes")
+    return _SIM_FAULT.unpack(payload)
+
+
