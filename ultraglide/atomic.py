@@ -20,6 +20,12 @@ a socket                      refused: it is not written by opening it
 A refusal is an :class:`OutputRefused`, one line naming the file the person gave. Any failure while
 writing names that file too, never the hidden temporary one.
 
+:func:`check_output` (and :func:`check_output_folder` for a folder files are written into) refuses the same
+targets before any work, with the option that named them, and a regular file whose folder is missing or takes
+no new file (read-only, permissions); ``ultraglide``'s ``main`` calls it for every output option of every
+command. A named pipe it finds read is held open until :class:`AtomicFile` writes it (or
+:func:`release_checked`), so a reader that stops at its first end of file never sees one in between.
+
 Temporary files are named ``.{stem}.ultraglide-{pid}-{host}-{random}{suffix}`` (``host``: six hex digits of
 this machine's name). A process killed outright (SIGKILL, a power cut) leaves its temporary file behind;
 each writer removes such leftovers from the folder it writes to: files of that form, of this user and this
@@ -52,6 +58,9 @@ MARK = "ultraglide"
 _HOST = hashlib.sha1(socket.gethostname().encode(errors="replace")).hexdigest()[:6]
 _LEFTOVER = re.compile(rf"^\..*\.{MARK}-(?P<pid>[0-9]+)-(?P<host>[0-9a-f]{{6}})-[a-z0-9_]{{8}}(\.[^.]*)?$")
 _CLOCK_SLACK_S = 2.0  # a process start time from /proc is good to the second
+# named pipes that check_output opened for writing (its path → the descriptor), taken by AtomicFile: a reader that
+# stops at its first end of file (``cat``) never sees one between the check and the writing
+_HELD_PIPES: dict[str, int] = {}
 
 
 class OutputRefused(UltraglideError, ValueError):
@@ -134,7 +143,9 @@ class AtomicFile:
             why = "writing a file there would overwrite the disk" if stat.S_ISBLK(mode) else "it is not a file"
             raise OutputRefused(f"{self.path}: is a {kind}; {why}: name a regular file")
         try:  # no O_CREAT, no O_TRUNC: a device or pipe is written, never made or emptied
-            self._probe = os.open(real, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOCTTY)
+            held = _HELD_PIPES.pop(str(real), None) if stat.S_ISFIFO(mode) else None
+            self._probe = held if held is not None else os.open(real, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC
+                                                                 | os.O_NOCTTY)
         except OSError as error:
             if error.errno == errno.ENXIO and stat.S_ISFIFO(mode):
                 raise OutputRefused(f"{self.path}: is a named pipe that no program is reading; start the reader "
@@ -200,6 +211,156 @@ class AtomicFile:
     def __repr__(self) -> str:
         how = "directly" if self.direct else f"through {self.temporary.name}"
         return f"AtomicFile({str(self.path)!r}, written {how})"
+
+
+def check_output(path: str | Path, option: str, *, kind: str = "file", named: str | None = None) -> None:
+    """Refuse now, before any work, an output that writing would refuse later: :class:`OutputRefused`, one line
+    naming ``option`` (what the person typed: ``-o``, ``--plot``), the path, and what to do instead.
+
+    ``kind``: ``file`` (anything :class:`AtomicFile` writes: a regular file, new or replaced, a character device
+    or a named pipe a program reads), ``wav`` (the same but no pipe: a WAV's header is written last), ``log``
+    (a file that grows beside it as ``NAME.part``, which must be nothing or a regular file) or ``link`` (a
+    symbolic link placed there: nothing or a link may be there). A regular file's folder must exist and take a
+    new file (one is made there and removed); a named pipe that a program reads is held open until written, so
+    that a reader stopping at its first end of file never sees one in between. ``named``: how the person gave
+    the path, when not as itself (``wav:PATH``)."""
+    where = f"{option} {named or path}"
+    real = _real(path, where)
+    if kind == "link":
+        try:
+            mode = os.lstat(path).st_mode
+        except (OSError, ValueError):
+            mode = None
+        if mode is not None and not stat.S_ISLNK(mode):
+            raise OutputRefused(f"{where}: is a {kind_of(mode)}, not a link; a link is placed only where there is "
+                                "nothing or a link: name another path")
+        _check_folder(Path(os.path.abspath(path)).parent, where)
+        return
+    info = _look(real, where)
+    if info is not None and not stat.S_ISREG(info.st_mode):
+        _check_special(real, info.st_mode, where, pipe=kind != "wav")
+        return
+    _check_folder(real.parent, where)
+    if kind == "log":
+        part = real.with_name(real.name + ".part")
+        with contextlib.suppress(FileNotFoundError):
+            mode = os.lstat(part).st_mode
+            if not stat.S_ISREG(mode):
+                raise OutputRefused(f"{where}: {part} is a {'link' if stat.S_ISLNK(mode) else kind_of(mode)}, where "
+                                    "the log grows as it is written; remove it or name another file")
+
+
+def check_output_folder(path: str | Path, option: str) -> None:
+    """Refuse now an output folder (files are written into it; it and its parents are made if missing) that is
+    not a folder or that cannot take a new file: :class:`OutputRefused`, one line naming ``option``."""
+    where = f"{option} {path}"
+    real = _real(path, where)
+    info = _look(real, where)
+    if info is not None and not stat.S_ISDIR(info.st_mode):
+        raise OutputRefused(f"{where}: is a {kind_of(info.st_mode)}, not a folder; name a folder to write into")
+    existing = real
+    while info is None:  # made with its parents: the nearest that exists must take them
+        existing = existing.parent
+        info = _look(existing, where)
+    if not stat.S_ISDIR(info.st_mode):
+        raise OutputRefused(f"{where}: {existing} is a {kind_of(info.st_mode)}, not a folder; name a folder")
+    _probe_folder(existing, where)
+
+
+def release_checked() -> None:
+    """Close the named pipes :func:`check_output` held that nothing took (the command wrote them in another
+    process, or stopped first): their readers see the end."""
+    while _HELD_PIPES:
+        os.close(_HELD_PIPES.popitem()[1])
+
+
+def _real(path: str | Path, where: str) -> Path:
+    """``path`` with its links and ``..`` followed; OutputRefused for a name no file can have (a NUL byte)."""
+    try:
+        return Path(os.path.realpath(path))
+    except ValueError:
+        raise OutputRefused(f"{where}: not a usable file name") from None
+
+
+def _look(real: Path, where: str) -> os.stat_result | None:
+    """``stat`` of ``real``, None when nothing is there; OutputRefused when it cannot be looked at."""
+    try:
+        return os.stat(real)
+    except FileNotFoundError:
+        return None
+    except ValueError:  # a NUL byte
+        raise OutputRefused(f"{where}: not a usable file name") from None
+    except OSError as error:
+        if error.errno == errno.ENOTDIR:
+            return None  # a part of the path is a file: the folder check says which
+        if error.errno == errno.ELOOP:
+            raise OutputRefused(f"{where}: is a loop of symbolic links; name a regular file") from None
+        raise OutputRefused(f"{where}: cannot be reached ({(error.strerror or str(error)).lower()}); "
+                            "name a file you may write") from None
+
+
+def _check_special(real: Path, mode: int, where: str, pipe: bool) -> None:
+    """What is not a regular file: a character device opened and closed (written directly later), a named pipe
+    with a reader held open, anything else refused."""
+    kind = kind_of(mode)
+    if stat.S_ISDIR(mode):
+        raise OutputRefused(f"{where}: is a directory; name a file to write (in it, or elsewhere)")
+    if stat.S_ISBLK(mode):
+        raise OutputRefused(f"{where}: is a block device; writing a file there would overwrite the disk: name a "
+                            "regular file")
+    if not (stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)):
+        raise OutputRefused(f"{where}: is a {kind}; it is not written by opening it: name a regular file")
+    if stat.S_ISFIFO(mode) and str(real) in _HELD_PIPES:
+        return
+    try:
+        descriptor = os.open(real, os.O_WRONLY | os.O_NONBLOCK | os.O_CLOEXEC | os.O_NOCTTY)
+    except OSError as error:
+        if error.errno == errno.ENXIO and stat.S_ISFIFO(mode):
+            raise OutputRefused(f"{where}: is a named pipe that no program is reading; start the reader first, or "
+                                "name a regular file") from None
+        raise OutputRefused(f"{where}: is a {kind} that cannot be written ({(error.strerror or '').lower()}); "
+                            "name a regular file") from None
+    if stat.S_ISCHR(mode):
+        os.close(descriptor)
+    elif not pipe:
+        os.close(descriptor)  # its reader sees an end, but nothing will be written to it anyway
+        raise OutputRefused(f"{where}: is a named pipe; a WAV file cannot go through one (its header is written "
+                            "last): name a regular file")
+    else:
+        _HELD_PIPES[str(real)] = descriptor
+
+
+def _check_folder(folder: Path, where: str) -> None:
+    """The folder a new file goes in: it exists, is a folder, and takes a new file."""
+    try:
+        info = os.stat(folder)
+    except OSError as error:
+        if isinstance(error, FileNotFoundError):
+            raise OutputRefused(f"{where}: its folder {folder} does not exist; make it first, or write "
+                                "elsewhere") from None
+        if error.errno == errno.ENOTDIR:
+            raise OutputRefused(f"{where}: a part of {folder} is a file, not a folder; name a file in a "
+                                "folder") from None
+        raise OutputRefused(f"{where}: its folder {folder} cannot be reached "
+                            f"({(error.strerror or str(error)).lower()}); write elsewhere") from None
+    if not stat.S_ISDIR(info.st_mode):
+        raise OutputRefused(f"{where}: {folder} is a {kind_of(info.st_mode)}, not a folder; name a file in a "
+                            "folder")
+    _probe_folder(folder, where)
+
+
+def _probe_folder(folder: Path, where: str) -> None:
+    """Make a file in ``folder`` and remove it: the one sure test that the writing will be allowed there (a
+    read-only file system, permissions, ACLs, root's own exceptions). Named as a leftover would be."""
+    try:
+        handle, probe = tempfile.mkstemp(prefix=f".probe.{MARK}-{os.getpid()}-{_HOST}-", dir=folder)
+    except OSError as error:
+        reason = {errno.EROFS: "it is on a read-only file system", errno.ENOSPC: "its disk is full",
+                  errno.EDQUOT: "your disk quota is used up"}.get(error.errno, f"{(error.strerror or '').lower()}")
+        raise OutputRefused(f"{where}: cannot write in its folder {folder} ({reason}); write elsewhere") from None
+    os.close(handle)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
 
 
 def write_failure(path: str | Path, written: str | Path, error: Exception) -> OSError:
@@ -289,4 +450,5 @@ def _umask() -> int:
     return mask
 
 
-__all__ = ["AtomicFile", "OutputRefused", "kind_of", "remove_leftovers", "write_failure"]
+__all__ = ["AtomicFile", "OutputRefused", "check_output", "check_output_folder", "kind_of", "release_checked",
+           "remove_leftovers", "write_failure"]

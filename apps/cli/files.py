@@ -19,7 +19,7 @@ from pathlib import Path
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.signals import held
 
-from ultraglide.atomic import AtomicFile
+from ultraglide.atomic import AtomicFile, check_output, check_output_folder
 
 
 @contextlib.contextmanager
@@ -40,6 +40,44 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     finally:
         with held():
             target.discard()
+
+
+def check_outputs(args) -> None:
+    """Check every output the command's options name (:func:`ultraglide.apps.cli.options.output_option`) before
+    it runs: :class:`ultraglide.atomic.OutputRefused`, one line naming the option, for what writing would refuse
+    later (a directory, a disk, a socket, a pipe nobody reads, a missing or read-only folder). ``main`` calls it
+    for every command."""
+    from ultraglide.apps.cli.options import OUTPUTS
+
+    for dest, (option, kind, also) in (getattr(args, OUTPUTS, None) or {}).items():
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        if kind == "folder":
+            check_output_folder(value, option)
+            continue
+        named = None
+        if kind == "device":
+            value, named = _wav_target(value), value
+            if value is None:
+                continue
+            kind = "wav"
+        check_output(value, option, kind=kind, named=named)
+        for suffix in also:
+            check_output(Path(value).with_suffix(suffix), f"{option} (its {suffix.lstrip('.').upper()} beside it)")
+
+
+def _wav_target(url: str) -> str | None:
+    """The file a device URL writes (``wav:PATH``), or None (another kind, or a URL the command refuses)."""
+    if not url.startswith("wav:"):
+        return None
+    from ultraglide.devices.errors import DeviceError
+    from ultraglide.devices.urls import parse_device_url
+
+    try:
+        return parse_device_url(url).target or None
+    except DeviceError:
+        return None
 
 
 def _identities(path: str | Path) -> set[tuple]:

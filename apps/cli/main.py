@@ -13,9 +13,12 @@ import signal
 import sys
 
 from ultraglide.apps.cli import errors
+from ultraglide.apps.cli.files import check_outputs
 from ultraglide.apps.cli.output import PrintableStream, one_line
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.signals import StopSignals
+
+from ultraglide.atomic import release_checked
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -36,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     streams = sys.stdout, sys.stderr  # text from files reaches the terminal escaped (apps.cli.output)
     sys.stdout, sys.stderr = PrintableStream(sys.stdout), PrintableStream(sys.stderr, keep="\n\t\r")
     try:
+        check_outputs(args)  # what it would write, before any work: not a directory, not a missing folder ...
         status = int(args.run(args) or 0)
     except KeyboardInterrupt as interrupt:
         stop.restore()  # from here on the stop signals are ignored: the command has stopped
@@ -47,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
         return 1
     finally:
+        release_checked()  # pipes held open since the check, which the command did not take
         stop.restore()
         sys.stdout, sys.stderr = streams
     return _stopped(stop.received) if stop.received is not None else status

@@ -25,6 +25,27 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
+OUTPUTS = "checked_outputs"  # in the parsed arguments: the command's outputs, checked before it runs
+OUTPUT_KINDS = ("file", "wav", "log", "link", "folder", "device")
+
+
+def output_option(container, *flags: str, kind: str = "file", also: tuple[str, ...] = (), **kwargs) -> argparse.Action:
+    """``add_argument`` for an option naming what the command writes. ``ultraglide``'s ``main`` checks every such
+    option given before the command runs (:func:`ultraglide.apps.cli.files.check_outputs`), so a directory, a
+    pipe nobody reads or a missing folder is refused before any work, not after it.
+
+    ``kind``: ``file``, ``wav`` (no pipe), ``log`` (grows as ``NAME.part``), ``link`` (a link placed there),
+    ``folder`` (files written into it) or ``device`` (a device URL: ``wav:PATH`` is a WAV file); ``also``: the
+    suffixes of files written beside it (a calibration's ``.png`` and ``.pdf``)."""
+    if kind not in OUTPUT_KINDS:
+        raise ValueError(f"kind must be one of {OUTPUT_KINDS}, got {kind!r}")
+    action = container.add_argument(*flags, **kwargs)
+    outputs = dict(container.get_default(OUTPUTS) or {})
+    outputs[action.dest] = (flags[0], kind, tuple(also))
+    container.set_defaults(**{OUTPUTS: outputs})
+    return action
+
+
 MODEL_HELP = ("friction model: stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
               "CAL.toml")
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import refuse_overlaps
-from ultraglide.apps.cli.options import add_range_option
+from ultraglide.apps.cli.options import add_range_option, output_option
 from ultraglide.apps.cli.types import (
     BLUR_MM,
     CLIP_PERCENT,
@@ -29,7 +29,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         description="Turn any image Pillow reads into a texture file (16-bit PNG with metadata). "
                     "By default white is sticky (at rest) and black slippery.")
     author.add_argument("image", metavar="IMAGE")
-    author.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+    output_option(author, "-o", "--output", required=True, metavar="TEXTURE.png")
     size = author.add_mutually_exclusive_group()
     size.add_argument("--width-mm", type=TEXTURE_SIDE_MM, help="physical width, 0.1 to 10000 mm (default: 80)")
     size.add_argument("--dpi", type=DPI, help="physical size from the image's pixels per inch")
@@ -68,7 +68,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     author.add_argument("--auto-levels-clip", type=CLIP_PERCENT, default=1.0, metavar="PERCENT",
                         help="with --auto-levels, the percentage of pixels clipped at each end (default: 1)")
     author.add_argument("--name", type=texture_name, help="texture name (default: the image's file name)")
-    author.add_argument("--preview", metavar="PREVIEW.png",
+    output_option(author, "--preview", metavar="PREVIEW.png",
                         help="also write a picture of the source, the friction map and a swipe")
     author.set_defaults(run=run)
 

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import add_figure_width_option
+from ultraglide.apps.cli.options import add_figure_width_option, output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
 from ultraglide.apps.commands.finger_options import add_finger_options
@@ -55,7 +55,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     calibrate.add_argument("--bootstrap", type=BOOTSTRAP_RESAMPLES, default=200, metavar="N",
                            help="bootstrap resamples for the uncertainties (points; forces and participants when "
                                 "there are three or more), 0 to skip (default: 200)")
-    calibrate.add_argument("-o", "--output", metavar="CAL.toml",
+    output_option(calibrate, "-o", "--output", also=(".png", ".pdf"), metavar="CAL.toml",
                            help="write the calibration here, and its figure as CAL.png and CAL.pdf")
     add_figure_width_option(calibrate)
     plate = calibrate.add_argument_group("on the plate (--device)")

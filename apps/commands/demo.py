@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.types import SCREEN_WIDTH_MM
 from ultraglide.apps.commands.finger_options import add_finger_options
 
@@ -17,16 +18,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                     "switch texture and change the force, M model, space pause, H help, Esc quit.")
     demo.add_argument("textures", nargs="*", metavar="TEXTURE",
                       help="texture files or images to add to the library's (images are authored with defaults)")
-    demo.add_argument("--device", default="sim", metavar="URL", help="output device (default: sim)")
+    output_option(demo, "--device", kind="device", default="sim", metavar="URL", help="output device (default: sim)")
     demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
     demo.add_argument("--model", default="stretched", help="friction model (default: stretched, force-aware)")
     demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")
-    demo.add_argument("--record", metavar="FILE.csv",
+    output_option(demo, "--record", kind="log", metavar="FILE.csv",
                       help="write the touches as a touch log (t_s,x_mm,y_mm,force_n) that export and play "
                            "--trajectory replay; flushed as it goes, renamed into place at exit")
-    demo.add_argument("--stats", metavar="FILE.json",
+    output_option(demo, "--stats", metavar="FILE.json",
                       help="at exit, write the engine's figures over the run: blocks, late blocks, underruns "
                            "(also as they were at the first touch), block time p50/p99, touches")
     demo.add_argument("--watch", action="store_true",

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser
+from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser, output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
     BOOTSTRAP_SAMPLES,
@@ -54,13 +54,14 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--observer", metavar="sim:threshold=T,slope=S,lapse=L",
                         help="a simulated observer (dry run, offline through the renderer; default: a person "
                              "at the window)")
-    parser.add_argument("--device", metavar="URL",
+    output_option(parser, "--device", kind="device", metavar="URL",
                         help="output device: sim, serial:PORT, audio[...], wav:PATH or null "
                              "(default: sim; null with a simulated observer)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of every random choice (default: 0)")
-    parser.add_argument("--out", metavar="DIR", help="where trials.csv, session.json, result.json and the "
-                                                     "figures go (a new directory)")
-    parser.add_argument("--resume", metavar="DIR", help="continue the session in DIR (its options are kept)")
+    output_option(parser, "--out", kind="folder", metavar="DIR",
+                  help="where trials.csv, session.json, result.json and the figures go (a new directory)")
+    output_option(parser, "--resume", kind="folder", metavar="DIR",
+                  help="continue the session in DIR (its options are kept)")
     parser.add_argument("--break-every", type=TRIALS_BETWEEN_BREAKS, default=0, metavar="N",
                         help="a pause screen every N trials (default: none)")
     parser.add_argument("--participant", default="P01", help="participant code for the log (default: P01)")

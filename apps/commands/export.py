@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from ultraglide.render.renderer import ControlBlock
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path, refuse_overlaps, render_inputs
-from ultraglide.apps.cli.options import add_figure_width_option
+from ultraglide.apps.cli.options import add_figure_width_option, output_option
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
@@ -41,11 +41,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         description="Render the modulated carrier a plate would get for a swipe across a texture (or a "
                     "recorded touch log) to a WAV file, faster than real time, in bounded memory.")
     add_render_options(export)
-    export.add_argument("-o", "--output", required=True, metavar="OUT.wav")
+    output_option(export, "-o", "--output", kind="wav", required=True, metavar="OUT.wav")
     export.add_argument("--format", choices=["float32", "int24", "int16"], default="float32")
-    export.add_argument("--envelope-csv", metavar="FILE.csv",
+    output_option(export, "--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
-    export.add_argument("--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    output_option(export, "--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
     add_figure_width_option(export)
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.add_argument("--threads", type=THREADS, metavar="N",

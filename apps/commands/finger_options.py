@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.types import SEED, Bounded
 
 FRACTION = Bounded(0.0, 0.9, what="fraction")
@@ -53,7 +54,7 @@ def add_finger_options(parser: argparse.ArgumentParser, where: str) -> None:
                        help="the force sensors' bandwidth, 0 for none (default: 300)")
     group.add_argument("--finger-delay-ms", type=DELAY_MS, metavar="MS",
                        help="the force sensors' delay (default: 1)")
-    group.add_argument("--finger-log", metavar="FILE.csv",
+    output_option(group, "--finger-log", kind="log", metavar="FILE.csv",
                        help="write the finger's true state as it goes: t_s,amplitude_um_pp,normal_force_n,"
                             "relative_friction,sliding (t_s on the host's perf_counter clock)")
     group.add_argument("--finger-log-hz", type=LOG_HZ, metavar="HZ",

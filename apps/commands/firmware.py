@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ultraglide.apps.cli.options import OneLineParser
+from ultraglide.apps.cli.options import OneLineParser, output_option
 from ultraglide.apps.cli.output import print_json
 
 
@@ -25,7 +25,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        help="the board port (default: netduinoplus2)")
     build.add_argument("--variant", action="append", choices=["hardware", "qemu", "bench"],
                        help="build only this variant (repeatable; default: hardware and qemu)")
-    build.add_argument("-o", "--output", metavar="DIR", help="build into DIR (default: the cache)")
+    output_option(build, "-o", "--output", kind="folder", metavar="DIR", help="build into DIR (default: the cache)")
     build.add_argument("--rebuild", action="store_true", help="build even if the cache has the images")
     build.add_argument("--json", action="store_true", help="print one JSON object")
     build.set_defaults(run=run_build)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import add_figure_width_option, add_model_option
+from ultraglide.apps.cli.options import add_figure_width_option, add_model_option, output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
 
@@ -36,9 +36,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     model.add_argument("--ratio", type=ratio, metavar="R",
                        help="also give the amplitude that yields friction ratio R")
     model.add_argument("--json", action="store_true", help="print one JSON object")
-    model.add_argument("--plots", metavar="DIR",
+    output_option(model, "--plots", kind="folder", metavar="DIR",
                        help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF")
-    model.add_argument("--report", metavar="FILE.pdf",
+    output_option(model, "--report", metavar="FILE.pdf",
                        help="write one page on the model at this force: parameters, curve, inverse, contact")
     model.add_argument("--data", metavar="CSV",
                        help="measured points for figure 9 (default: the bundled Monnoyer 2018 fit)")

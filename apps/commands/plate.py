@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option
+from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
 
@@ -53,8 +53,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sweep_parser.add_argument("--to-hz", type=CARRIER_HZ, metavar="B",
                               help="highest carrier, Hz (default: the profile's)")
     sweep_parser.add_argument("--steps", type=SWEEP_STEPS, default=41, metavar="N", help="coarse steps (default: 41)")
-    sweep_parser.add_argument("-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
-    sweep_parser.add_argument("--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
+    output_option(sweep_parser, "-o", "--output", required=True, metavar="PROFILE.toml", help="the measured profile")
+    output_option(sweep_parser, "--plot", metavar="FILE.png|pdf|svg", help="also draw the response and the fit")
     add_figure_width_option(sweep_parser)
     sweep_parser.add_argument("--json", action="store_true", help="print one JSON object")
     sweep_parser.set_defaults(run=run_sweep)

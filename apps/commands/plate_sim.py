@@ -6,6 +6,7 @@ import argparse
 import queue
 import time
 
+from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json, print_line
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
@@ -20,7 +21,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                           "(connected, enabled, carrier, stream started/stopped, fault, "
                                           "watchdog, disabled, disconnected) with its time. Runs until stopped.")
     sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
-    sim.add_argument("--link", metavar="PATH", help="serve at this path (default: a new temporary one)")
+    output_option(sim, "--link", kind="link", metavar="PATH", help="serve at this path (default: a new temporary one)")
     sim.add_argument("--resonance-hz", type=CARRIER_HZ, metavar="F",
                      help="the simulated plate's real resonance, Hz (default: the profile's)")
     sim.add_argument("--q", type=Q_FACTOR, metavar="Q", help="its real quality factor (default: the profile's)")

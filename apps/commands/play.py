@@ -14,6 +14,7 @@ import time
 from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
+from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_config
 from ultraglide.apps.commands.render_options import add_render_options
@@ -32,24 +33,24 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         description="Feed a swipe (as 120 Hz touch reports) or a touch log (at its own times) to the live "
                     "renderer and play it on a device.")
     add_render_options(play)
-    play.add_argument("--device", default="sim", metavar="URL",
+    output_option(play, "--device", kind="device", default="sim", metavar="URL",
                       help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
                            "wav:PATH (a recording; stopped by a signal, it keeps what played, whole) or null "
                            "(default: sim)")
     play.add_argument("--track-resonance", action="store_true",
                       help="follow the plate's drifting resonance from its telemetry (a small dither of the "
                            "carrier, stepping toward more amplitude per unit drive); plate drivers only")
-    play.add_argument("--save-profile", metavar="PROFILE.toml",
+    output_option(play, "--save-profile", metavar="PROFILE.toml",
                       help="with --track-resonance: write the profile with the resonance it ended on, for the next "
                            "run's --profile")
     play.add_argument("--closed-loop", action="store_true",
                       help="make the friction the plate's force sensors measure follow the texture (a plate driver "
                            "with normal and lateral force sensors; its amplitude loop too); on sim, a simulated "
                            "finger (the default one unless --finger)")
-    play.add_argument("--envelope-csv", metavar="FILE.csv",
+    output_option(play, "--envelope-csv", kind="log", metavar="FILE.csv",
                       help="record the envelope as it plays: t_s (perf_counter s), x_mm, y_mm, down, target_ratio, "
                            "target_um_pp, commanded_um_pp (what the device was given)")
-    play.add_argument("--sensors-csv", metavar="FILE.csv",
+    output_option(play, "--sensors-csv", kind="log", metavar="FILE.csv",
                       help="record the plate's sensor samples as they come: sample, setpoint_index (the stream index "
                            "playing: the envelope CSV's index), received_s, amplitude_um_pp, normal_force_n, "
                            "lateral_force_n (a plate driver with sensors)")

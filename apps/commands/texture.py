@@ -7,7 +7,13 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import refuse_overlaps, texture_file
-from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, add_model_option, add_range_option
+from ultraglide.apps.cli.options import (
+    OneLineParser,
+    add_figure_width_option,
+    add_model_option,
+    add_range_option,
+    output_option,
+)
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
     ANGLE_DEG,
@@ -99,8 +105,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         add_range_option(sub)
         sub.add_argument("--px-per-mm", type=PX_PER_MM, help="resolution (default: 8 pixels on the finest feature)")
         sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
-        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
-        sub.add_argument("--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
+        output_option(sub, "-o", "--output", required=True, metavar="TEXTURE.png")
+        output_option(sub, "--preview", metavar="PREVIEW.png", help="also write a picture of the texture")
         sub.set_defaults(run=new)
     _add_compose(texture_commands)
     _add_show_and_info(texture_commands)
@@ -167,7 +173,7 @@ def _add_compose(texture_commands) -> None:
         sub.add_argument("--name", type=texture_name, help="texture name (default: the output's file name)")
         sub.add_argument("--no-effects", action="store_true",
                          help="leave out the inputs' temporal effects (by default the result keeps them all)")
-        sub.add_argument("-o", "--output", required=True, metavar="TEXTURE.png")
+        output_option(sub, "-o", "--output", required=True, metavar="TEXTURE.png")
         sub.set_defaults(run=compose)
 
 
@@ -180,7 +186,7 @@ def _add_show_and_info(texture_commands) -> None:
                     "histogram of its friction. PNG at 300 dpi, or PDF/SVG by the output's extension.")
     show_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
     where = show_parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("-o", "--output", metavar="FILE.png|pdf|svg")
+    output_option(where, "-o", "--output", metavar="FILE.png|pdf|svg")
     where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
     add_model_option(show_parser, default="stretched")
     show_parser.add_argument("--profile", default="sim-plate",

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import refuse_overlaps
+from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 
 
@@ -26,7 +27,7 @@ def add_parser(texture_commands: argparse._SubParsersAction) -> None:
     change.add_argument("--set", metavar="EFFECTS.json", help="these effects instead of the texture's own")
     change.add_argument("--add", metavar="EFFECTS.json", help="these effects after the texture's own")
     change.add_argument("--clear", action="store_true", help="no effects")
-    parser.add_argument("-o", "--output", metavar="TEXTURE.png", help="the texture with its new effects")
+    output_option(parser, "-o", "--output", metavar="TEXTURE.png", help="the texture with its new effects")
     parser.add_argument("--json", action="store_true", help="print the effects' JSON description (to list them)")
     parser.set_defaults(run=run)
 
