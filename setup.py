@@ -28,7 +28,7 @@ def sources_digest() -> str:
 
 setup(ext_modules=[Extension(
     "ultraglide.devices.firmware._sil",
-    sources=[f"{FIRMWARE}/core/{name}.c" for name in ("ug_core", "ug_dds", "ug_frame", "ug_loop")]
+    sources=[path.as_posix() for path in sorted(Path(FIRMWARE).glob("core/*.c"))]  # every file of the core
     + [f"{FIRMWARE}/ports/sim/ug_sim.c", f"{FIRMWARE}/ports/sim/module.c"],
     include_dirs=[f"{FIRMWARE}/include", f"{FIRMWARE}/core", f"{FIRMWARE}/ports/sim"],
     define_macros=[("UG_CONFORMANCE_BREAKS", "1"), ("UG_SOURCES_DIGEST", f'"{sources_digest()}"')],

@@ -26,6 +26,30 @@ void ug_loop_reset(ug_core *core);
 /* ug_dds.c */
 void ug_dds_set(ug_core *core, float carrier_hz);
 
+/* ug_core.c: events and faults */
+void ug_post_event(ug_core *core, uint8_t kind, uint8_t a, uint16_t b, float value);
+void ug_raise_fault(ug_core *core, uint16_t bit, uint16_t detail, float value);
+
+/* ug_playback.c: the jitter buffer */
+void ug_buffer_clear(ug_core *core);
+void ug_buffer_push(ug_core *core, const uint8_t *codes, uint32_t first, uint16_t n);
+void ug_set_rate(ug_core *core, uint32_t rate);
+
+/* ug_state.c: the output's state */
+void ug_stop_stream(ug_core *core);
+void ug_forget_stream(ug_core *core);
+void ug_disable(ug_core *core, uint8_t why);
+void ug_enable(ug_core *core);
+void ug_overheat(ug_core *core);
+
+/* ug_tx.c: frames to the host */
+void ug_send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n);
+void ug_ack(ug_core *core, uint16_t seq);
+void ug_nak(ug_core *core, uint8_t type, uint16_t seq, uint8_t reason);
+size_t ug_hello_reply(const ug_core *core, uint8_t *p);
+void ug_send_telemetry(ug_core *core);
+void ug_send_sensors(ug_core *core);
+
 /* little-endian fields */
 static inline void ug_put_u16(uint8_t *p, uint16_t v) { p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); }
 static inline void ug_put_u32(uint8_t *p, uint32_t v) {

@@ -1,0 +1,317 @@
+/*
+ * ug_commands.c - frames from the host: the receive ring, each frame's checks in docs/protocol.md's order
+ * (type, support, length, values: the first that fails is NAKed), each command's effect, and the main
+ * loop's poll, which handles frames and sends what the tick made due.
+ */
+#include <math.h>
+
+#include "ug_internal.h"
+
+/* ---- frames from the host ------------------------------------------------------------------------- */
+void ug_core_uart_rx(ug_core *core, const uint8_t *data, size_t n) {
+    uint16_t head = core->rx_head;
+    for (size_t i = 0; i < n; i++) {
+        uint16_t next = (uint16_t)((head + 1u) & (UG_RX_RING - 1u));
+        if (next == core->rx_tail) {
+            core->rx_overflows++;
+            continue;
+        }
+        core->rx[head] = data[i];
+        head = next;
+    }
+    core->rx_head = head;
+}
+
+size_t ug_core_rx_room(const ug_core *core) {
+    return (size_t)(UG_RX_RING - 1u - ((core->rx_head - core->rx_tail) & (UG_RX_RING - 1u)));
+}
+
+static bool known(uint8_t type) {
+    return type == UG_HELLO || type == UG_SET_CARRIER || type == UG_ENABLE || type == UG_SETPOINTS ||
+           type == UG_HEARTBEAT || type == UG_CLEAR_FAULTS || type == UG_SET_LOOP || type == UG_SIM_FAULT;
+}
+
+static bool supported(const ug_core *core, uint8_t type) {
+    if (type == UG_SIM_FAULT) {
+        return core->config.sim_faults != 0u;
+    }
+    if (type == UG_SET_LOOP) {
+        return core->session >= 3u && (core->config.features & UG_FEATURE_AMPLITUDE_LOOP);
+    }
+    return true;
+}
+
+static bool length_ok(uint8_t type, const uint8_t *p, size_t n) {
+    switch (type) {
+    case UG_HELLO: case UG_ENABLE: case UG_SET_LOOP: return n == 1u;
+    case UG_SET_CARRIER: return n == 4u;
+    case UG_HEARTBEAT: return n == 0u;
+    case UG_CLEAR_FAULTS: return n == 2u;
+    case UG_SIM_FAULT: return n == 3u;
+    case UG_SETPOINTS: return n >= 10u && n == 10u + 2u * (size_t)ug_get_u16(p + 8);
+    default: return false;
+    }
+}
+
+/* the value checks the R-NAK-ORDER break makes before the length checks */
+static bool early_value_refusal(const ug_core *core, uint8_t type, const uint8_t *p, size_t n) {
+    if (type == UG_ENABLE && n >= 1u) {
+        return p[0] > 1u;
+    }
+    if (type == UG_SETPOINTS && n >= 10u) {
+        uint32_t rate = ug_get_u32(p + 4);
+        uint16_t count = ug_get_u16(p + 8);
+        return count == 0u || count > UG_MAX_SETPOINTS_PER_FRAME || rate < core->config.min_setpoint_rate_hz ||
+               rate > core->config.max_setpoint_rate_hz;
+    }
+    return false;
+}
+
+static uint8_t negotiate(const ug_core *core, uint8_t host) {
+    uint8_t highest = core->config.max_version;
+    if (host >= highest || (UG_BROKEN(core, UG_BREAK_VERSION) && host == 2u)) { /* broken: "answers v3 to a v2 host" */
+        return highest;
+    }
+    return host >= UG_LOWEST_VERSION ? host : UG_LOWEST_VERSION;
+}
+
+static void setpoints(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *p) {
+    uint32_t first = ug_get_u32(p);
+    uint32_t rate = ug_get_u32(p + 4);
+    uint16_t count = ug_get_u16(p + 8);
+    const uint8_t *codes = p + 10;
+    if (count == 0u || count > UG_MAX_SETPOINTS_PER_FRAME || rate < core->config.min_setpoint_rate_hz ||
+        rate > core->config.max_setpoint_rate_hz || (core->state != UG_OFF && core->rate != 0u && rate != core->rate)) {
+        ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+        return;
+    }
+    if (core->state == UG_OFF) {
+        core->discarded += count;
+        if (UG_BROKEN(core, UG_BREAK_DISCARD)) { /* "buffers them and plays them after ENABLE 1" */
+            if (core->rate == 0u || core->buf_count == 0u) {
+                ug_set_rate(core, rate);
+            }
+            uint16_t room = core->capacity > core->buf_count ? (uint16_t)(core->capacity - core->buf_count) : 0u;
+            ug_buffer_push(core, codes, first, count < room ? count : room);
+        }
+        return;
+    }
+    if (core->rate == 0u) {
+        ug_set_rate(core, rate);
+    }
+    uint16_t late = 0;
+    if (!core->have_expected) {
+        core->have_expected = 1;
+    } else {
+        uint32_t d = first - core->expected;
+        if (d != 0u && d < 0x80000000u) {
+            core->lost += d;
+        } else if (d >= 0x80000000u) {
+            uint32_t behind = 0u - d;
+            late = (uint16_t)(behind < count ? behind : count);
+            core->late += late;
+        }
+    }
+    uint16_t kept = (uint16_t)(count - late);
+    if (UG_BROKEN(core, UG_BREAK_EXPECTED)) {
+        core->expected = first + kept; /* v2's formula: moves backwards after a late frame */
+    } else if (kept > 0u) {
+        core->expected = first + count;
+    }
+    uint16_t room = core->capacity > core->buf_count ? (uint16_t)(core->capacity - core->buf_count) : 0u;
+    uint16_t put = kept < room ? kept : room;
+    uint16_t over = (uint16_t)(kept - put);
+    ug_buffer_push(core, codes + 2u * late, first + late, put);
+    core->setpoints += UG_BROKEN(core, UG_BREAK_OVERRUN) ? kept : put;
+    if (over > 0u) {
+        if (!UG_BROKEN(core, UG_BREAK_OVERRUN)) {
+            core->overrun += over;
+        }
+        ug_raise_fault(core, UG_FAULT_OVERRUN, 0, 0.0f);
+    }
+    core->last_setpoints_ms = core->now_ms;
+    if (!core->streaming) {
+        core->streaming = 1;
+        ug_post_event(core, UG_EV_STREAM_STARTED, 0, 0, (float)core->rate);
+    }
+}
+
+static void clear_faults(ug_core *core, uint16_t mask) {
+    if (UG_BROKEN(core, UG_BREAK_CLEAR_FAULTS)) {
+        return;
+    }
+    core->faults = (uint16_t)(core->faults & ~mask);
+    if (core->stage_hot) {
+        core->faults |= UG_FAULT_OVERHEAT; /* the condition persists: set again, not counted */
+    }
+    if (core->measured_um_pp > core->config.max_amplitude_um_pp) {
+        core->faults |= UG_FAULT_OVER_LIMIT;
+    }
+}
+
+/* one valid frame, in a critical section; returns a SIM_FAULT transport request (kind << 16 | ms) or 0 */
+static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *p, size_t n) {
+    if (!known(type)) {
+        ug_nak(core, type, seq, UG_NAK_UNKNOWN_TYPE);
+        return 0;
+    }
+    if (!supported(core, type)) {
+        ug_nak(core, type, seq, UG_NAK_UNSUPPORTED);
+        return 0;
+    }
+    if (UG_BROKEN(core, UG_BREAK_NAK_ORDER) && early_value_refusal(core, type, p, n)) {
+        ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+        return 0;
+    }
+    if (!length_ok(type, p, n)) {
+        ug_nak(core, type, seq, UG_NAK_BAD_LENGTH);
+        return 0;
+    }
+    switch (type) {
+    case UG_HELLO: {
+        core->session = negotiate(core, p[0]);
+        ug_post_event(core, UG_EV_HELLO, p[0], core->session, 0.0f);
+        if (UG_BROKEN(core, UG_BREAK_HELLO_NO_STATE)) {
+            ug_disable(core, UG_WHY_HELLO);
+        }
+        size_t length = ug_hello_reply(core, core->scratch_payload);
+        ug_send(core, UG_HELLO_REPLY, core->scratch_payload, length);
+        return 0;
+    }
+    case UG_SET_CARRIER: {
+        float hz = ug_get_f32(p);
+        bool in_range = isfinite(hz) && hz >= core->config.carrier_min_hz && hz <= core->config.carrier_max_hz;
+        if (!in_range) {
+            if (UG_BROKEN(core, UG_BREAK_NAK_NO_EFFECT) && isfinite(hz) && hz > 0.0f) {
+                ug_dds_set(core, hz);
+            }
+            ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+            return 0;
+        }
+        if (UG_BROKEN(core, UG_BREAK_CARRIER) && core->state != UG_OFF) {
+            ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+            return 0;
+        }
+        ug_dds_set(core, hz);
+        ug_post_event(core, UG_EV_CARRIER, 0, 0, hz);
+        ug_ack(core, seq);
+        return 0;
+    }
+    case UG_ENABLE:
+        if (p[0] > 1u) {
+            ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+            return 0;
+        }
+        if (p[0] == 1u) {
+            if (core->stage_hot) {
+                ug_nak(core, type, seq, UG_NAK_INTERNAL);
+                return 0;
+            }
+            if (core->state == UG_OFF) {
+                ug_enable(core);
+            } else if (UG_BROKEN(core, UG_BREAK_ENABLE)) { /* "ENABLE 1 while enabled starts a new stream" */
+                ug_forget_stream(core);
+                ug_stop_stream(core);
+                core->state = UG_PREFILL;
+            }
+        } else if (core->state != UG_OFF) {
+            ug_disable(core, UG_WHY_HOST);
+        }
+        if (!UG_BROKEN(core, UG_BREAK_ACK)) {
+            ug_ack(core, seq);
+        }
+        return 0;
+    case UG_SETPOINTS:
+        setpoints(core, type, seq, p);
+        return 0;
+    case UG_HEARTBEAT:
+        return 0;
+    case UG_CLEAR_FAULTS:
+        clear_faults(core, ug_get_u16(p));
+        ug_ack(core, seq);
+        return 0;
+    case UG_SET_LOOP:
+        if (p[0] > 1u || (core->state != UG_OFF && !UG_BROKEN(core, UG_BREAK_LOOP))) {
+            ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+            return 0;
+        }
+        if (core->loop_mode != p[0]) {
+            core->loop_mode = p[0];
+            ug_loop_reset(core);
+        }
+        ug_post_event(core, UG_EV_LOOP, p[0], 0, 0.0f);
+        ug_ack(core, seq);
+        return 0;
+    default: { /* UG_SIM_FAULT */
+        uint8_t kind = p[0];
+        uint16_t ms = ug_get_u16(p + 1);
+        if (kind < UG_SIM_DROP || kind > UG_SIM_OVERHEAT || ms > UG_MAX_SIM_FAULT_MS) {
+            ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
+            return 0;
+        }
+        ug_ack(core, seq);
+        ug_post_event(core, UG_EV_SIM_FAULT, kind, ms, 0.0f);
+        if (kind == UG_SIM_OVERHEAT) {
+            core->stage_hot = ms > 0u;
+            core->hot_until_ms = core->now_ms + ms;
+            ug_overheat(core);
+            return 0;
+        }
+        return ((uint32_t)kind << 16) | ms;
+    }
+    }
+}
+
+static void take_frame(ug_core *core) {
+    const uint8_t *body = core->decoder.body;
+    size_t length = core->decoder.length;
+    uint32_t crc = ug_get_u32(body + length - 4u);
+    bool valid = ug_crc32(body, length - 4u) == crc;
+    ug_port_critical_enter(core->port);
+    if (!valid) {
+        core->crc_errors++;
+    }
+    uint32_t request = 0;
+    if (valid || UG_BROKEN(core, UG_BREAK_CRC)) {
+        core->frames_ok++;
+        core->last_frame_ms = core->now_ms;
+        core->watchdog_fired = 0; /* a new silence starts */
+        request = handle(core, body[0], ug_get_u16(body + 1), body + 3, length - 7u);
+    }
+    ug_port_critical_exit(core->port);
+    if (request != 0u) {
+        ug_port_sim_fault(core->port, (uint8_t)(request >> 16), (uint16_t)request);
+    }
+}
+
+void ug_core_poll(ug_core *core) {
+    uint16_t max_encoded = (uint16_t)(UG_BROKEN(core, UG_BREAK_FRAMING) ? UG_MAX_BODY : UG_MAX_ENCODED);
+    while (core->rx_tail != core->rx_head) {
+        uint8_t byte = core->rx[core->rx_tail];
+        core->rx_tail = (uint16_t)((core->rx_tail + 1u) & (UG_RX_RING - 1u));
+        int result = ug_decoder_feed(&core->decoder, byte, max_encoded);
+        if (result == UG_DECODE_FRAME) {
+            take_frame(core);
+        } else if (result == UG_DECODE_ERROR) {
+            ug_port_critical_enter(core->port);
+            core->framing_errors++;
+            ug_port_critical_exit(core->port);
+        }
+    }
+    if (core->telemetry_due) {
+        ug_port_critical_enter(core->port);
+        core->telemetry_due = 0;
+        ug_send_telemetry(core);
+        ug_port_critical_exit(core->port);
+    }
+    if (core->sensors_due) {
+        ug_port_critical_enter(core->port);
+        core->sensors_due = 0;
+        if (core->session >= 3u) {
+            ug_send_sensors(core);
+        } else {
+            core->sensor_pending = 0; /* a v2 host gets none */
+        }
+        ug_port_critical_exit(core->port);
+    }
+}
