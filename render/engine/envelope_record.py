@@ -13,35 +13,27 @@ limiter). A writer that falls a whole ring behind loses rows: they are counted
 
 from __future__ import annotations
 
-import io
 import os
 import threading
-from pathlib import Path
 
 import numpy as np
-
-from ultraglide.atomic import AtomicFile
+from ultraglide.render.engine.csv_record import CsvRecord
 
 COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp")
 RING_ROWS = 1 << 17  # 11 s at 12 kHz
 WRITE_PERIOD_S = 0.2
+FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f")
 
 
-class EnvelopeRecord:
+class EnvelopeRecord(CsvRecord):
     """See the module docstring."""
 
     def __init__(self, path: str | os.PathLike):
-        self.path = Path(path)
-        self._target = AtomicFile(self.path, partial=True)  # FILE.part as it grows; never renamed over a non-file
-        self.part = self._target.temporary
-        self._handle = open(self.part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
-        self._handle.write(",".join(COLUMNS) + "\n")
+        super().__init__(path, COLUMNS)
         self._ring = np.zeros((RING_ROWS, len(COLUMNS)))
         self._steps = np.arange(RING_ROWS, dtype=float)
         self._written = 0  # rows added (the block path's count)
         self._taken = 0  # rows written out (the writer's)
-        self.dropped = 0
-        self.error: str | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="envelope-record", daemon=True)
         self._thread.start()
@@ -82,31 +74,10 @@ class EnvelopeRecord:
             return
         rows = np.take(self._ring, np.arange(self._taken, written) % RING_ROWS, axis=0)
         self._taken = written
-        text = io.StringIO()
-        np.savetxt(text, rows, delimiter=",", fmt=("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f"))
-        try:
-            self._handle.write(text.getvalue())
-        except OSError as error:
-            self.error = f"{self.path}: {(error.strerror or str(error)).lower()}"
+        self._write_rows(rows, FORMAT)
 
-    def close(self) -> str | None:
-        """Write what is left, rename into place; the error in one line if the file could not be written."""
+    def _stop_writer(self, finish: bool) -> None:
         self._stop.set()
         self._thread.join(timeout=5)
-        self._drain()
-        try:
-            self._handle.close()
-            if self.error is None:
-                self._target.commit()
-        except OSError as error:
-            self.error = self.error or f"{self.path}: {(error.strerror or str(error)).lower()}"
-        return self.error
-
-    def discard(self) -> None:
-        """Stop and remove the partial file: the run failed before it played."""
-        self._stop.set()
-        self._thread.join(timeout=5)
-        try:
-            self._handle.close()
-        finally:
-            self._target.discard()
+        if finish:
+            self._drain()

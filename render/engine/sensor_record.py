@@ -10,36 +10,28 @@ stream index. Frames are queued by the device's reader thread and written by a t
 
 from __future__ import annotations
 
-import io
 import os
 import queue
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
-
-from ultraglide.atomic import AtomicFile
+from ultraglide.render.engine.csv_record import CsvRecord
 
 COLUMNS = ("sample", "setpoint_index", "received_s", "amplitude_um_pp", "normal_force_n", "lateral_force_n")
 NOT_PLAYING = 0xFFFFFFFF
 MAX_QUEUED = 10_000  # frames (100 s at 100 a second): beyond, they are counted as lost
+FORMAT = ("%d", "%d", "%.6f", "%.5f", "%.5f", "%.5f")
 
 
-class SensorRecord:
+class SensorRecord(CsvRecord):
     """See the module docstring. ``stream_per_sample``: stream values played per sensor sample (12 at 12 kHz
     setpoints and 1 kHz sensors)."""
 
     def __init__(self, path: str | os.PathLike, stream_per_sample: float):
-        self.path = Path(path)
-        self._target = AtomicFile(self.path, partial=True)  # FILE.part as it grows; never renamed over a non-file
-        self.part = self._target.temporary
+        super().__init__(path, COLUMNS)
         self.stream_per_sample = stream_per_sample
-        self._handle = open(self.part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
-        self._handle.write(",".join(COLUMNS) + "\n")
         self._queue: queue.Queue = queue.Queue(MAX_QUEUED)
-        self.dropped = 0
-        self.error: str | None = None
         self._thread = threading.Thread(target=self._write_loop, name="sensor-record", daemon=True)
         self._thread.start()
 
@@ -70,29 +62,8 @@ class SensorRecord:
             frame.setpoint_index + np.round(steps * self.stream_per_sample)
         rows = np.column_stack((frame.first_sample + steps, index, np.full(n, received_s),
                                 samples["amplitude_um_pp"], samples["normal_force_n"], samples["lateral_force_n"]))
-        text = io.StringIO()
-        np.savetxt(text, rows, delimiter=",", fmt=("%d", "%d", "%.6f", "%.5f", "%.5f", "%.5f"))
-        try:
-            self._handle.write(text.getvalue())
-        except OSError as error:
-            self.error = f"{self.path}: {(error.strerror or str(error)).lower()}"
+        self._write_rows(rows, FORMAT)
 
-    def close(self) -> str | None:
-        """Write what is queued, rename into place; the error in one line if the file could not be written."""
+    def _stop_writer(self, finish: bool) -> None:  # the writer writes what is queued before the None either way
         self._queue.put(None)
         self._thread.join(timeout=10)
-        try:
-            self._handle.close()
-            if self.error is None:
-                self._target.commit()
-        except OSError as error:
-            self.error = self.error or f"{self.path}: {(error.strerror or str(error)).lower()}"
-        return self.error
-
-    def discard(self) -> None:
-        self._queue.put(None)
-        self._thread.join(timeout=10)
-        try:
-            self._handle.close()
-        finally:
-            self._target.discard()

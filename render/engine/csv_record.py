@@ -1,0 +1,65 @@
+"""A CSV file a run records as it goes, written by a thread of its own: the part both engine records share.
+
+The file grows as ``FILE.part`` (:class:`ultraglide.atomic.AtomicFile`, never renamed over a non-file) and is
+renamed to ``FILE`` when the record is closed, or removed when it is discarded; a write that fails keeps its
+error as one line (:attr:`CsvRecord.error`) and nothing more is written. What a subclass brings: its columns,
+its writer thread (how rows reach it, how it is stopped: :meth:`CsvRecord._stop_writer`) and its rows.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ultraglide.atomic import AtomicFile
+
+
+class CsvRecord:
+    """The file of a record: ``FILE.part`` opened with its header line, rows appended, committed or discarded."""
+
+    def __init__(self, path: str | os.PathLike, columns: tuple[str, ...]):
+        self.path = Path(path)
+        self._target = AtomicFile(self.path, partial=True)  # FILE.part as it grows; never renamed over a non-file
+        self.part = self._target.temporary
+        self._handle = open(self.part, "w", encoding="utf-8", newline="")  # noqa: SIM115 - closed by close()
+        self._handle.write(",".join(columns) + "\n")
+        self.dropped = 0
+        self.error: str | None = None
+
+    def _write_rows(self, rows: np.ndarray, fmt: tuple[str, ...]) -> None:
+        """Rows appended (the writer thread); a failure is kept in :attr:`error`."""
+        text = io.StringIO()
+        np.savetxt(text, rows, delimiter=",", fmt=fmt)
+        try:
+            self._handle.write(text.getvalue())
+        except OSError as error:
+            self.error = self._failure(error)
+
+    def _failure(self, error: OSError) -> str:
+        return f"{self.path}: {(error.strerror or str(error)).lower()}"
+
+    def _stop_writer(self, finish: bool) -> None:
+        """Stop the writer thread; with ``finish``, once everything taken so far is written."""
+        raise NotImplementedError
+
+    def close(self) -> str | None:
+        """Write what is left, rename into place; the error in one line if the file could not be written."""
+        self._stop_writer(finish=True)
+        try:
+            self._handle.close()
+            if self.error is None:
+                self._target.commit()
+        except OSError as error:
+            self.error = self.error or self._failure(error)
+        return self.error
+
+    def discard(self) -> None:
+        """Stop and remove the partial file: the run failed before it played."""
+        self._stop_writer(finish=False)
+        try:
+            self._handle.close()
+        finally:
+            self._target.discard()
