@@ -131,6 +131,11 @@ class OutputStage:
             return out
         return self._audio(n, now_s, out)
 
+    def skip(self, n: int) -> None:
+        """``n`` stream values the device's writer skipped without pulling (it ran behind): counted, so
+        :attr:`frames` stays the index of the next value on the wire."""
+        self.frames += n
+
     def _limited(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
         drive = self.limiter.process(self.source.pull(n, now_s), out)
         if self.observers:

@@ -20,6 +20,14 @@ from ultraglide.devices.serial_link import (
 )
 
 
+def skipped(source, n: int) -> None:
+    """Tell a source that counts the stream's values (``OutputStage.skip``) that ``n`` indices went by unpulled,
+    so what it numbers (a record's rows, the friction loop's targets) stays the wire's index."""
+    skip = getattr(source, "skip", None)
+    if skip is not None:
+        skip(n)
+
+
 class StreamWriter:
     """The writer thread that streams setpoints: a part of :class:`~ultraglide.devices.serial_plate.SerialPlate`."""
 
@@ -71,6 +79,7 @@ class StreamWriter:
                 if skip:
                     position += skip
                     self._index += skip
+                    skipped(source, skip)
                     self.counters.late_batches += 1
                 values = source.pull(due, started + position / rate)
                 resting = connected and not self._output_on and not self._cut
@@ -105,6 +114,7 @@ class StreamWriter:
                         if behind > 0:  # the renderer's clock jumps with the next pull
                             position += behind
                             self._index += behind
+                            skipped(source, behind)
                             self.counters.setpoints_discarded += behind
                         if back:
                             self.counters.reconnects += 1

@@ -240,6 +240,28 @@ def test_the_target_ring_by_stream_index():
     np.testing.assert_array_equal(ring.read([9, 10, 11, 12, 15, 17]), [np.nan, 10, 11, np.nan, np.nan, np.nan])
 
 
+def test_the_target_ring_skips_indices_without_a_value():
+    ring = TargetRing(capacity=8)
+    ring.write(np.arange(6.0), True)
+    ring.skip(3)  # the writer skipped indices 6-8: no targets there, and the next value is index 9
+    ring.write(np.array([9.0, 10.0]), True)
+    np.testing.assert_array_equal(ring.read([5, 6, 8, 9, 10]), [5, np.nan, np.nan, 9, 10])
+    ring.skip(20)  # longer than the ring: nothing left
+    assert ring.written == 31 and np.isnan(ring.read(np.arange(23, 31))).all()
+
+
+def test_a_slower_stream_records_one_target_per_device_value():
+    """A device streaming 3 times slower than the control rate: each value's target is the mean of its 3 control
+    samples' targets, and it counts as touched only if all 3 were."""
+    loop = FrictionLoop(HOST, stream_rate_hz=4000.0)
+    ratio = np.array([1.0, 0.8, 0.6, 0.5, 0.5, 0.5, 0.9, 0.9, 0.3])
+    loop.record_control(ratio, True, 3)
+    np.testing.assert_allclose(loop.targets.read([0, 1, 2]), [0.8, 0.5, 0.7])
+    assert loop.targets.written == 3
+    loop.record_control(ratio, np.array([1, 1, 1, 1, 0, 1, 1, 1, 1], dtype=bool), 3)
+    np.testing.assert_allclose(loop.targets.read([3, 4, 5]), [0.8, np.nan, 0.7])
+
+
 def test_estimator_faults_and_words():
     estimator = FrictionEstimator(HOST, EstimatorSettings())
     ok = np.full(10, 0.5)

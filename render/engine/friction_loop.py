@@ -73,6 +73,14 @@ class TargetRing:
             self.ratio[positions] = np.nan
         self.written += n
 
+    def skip(self, n: int) -> None:
+        """``n`` indices that carried no value of ours (a writer that skipped ahead): no target."""
+        start = self.written % self.capacity
+        first = min(n, self.capacity - start)
+        self.ratio[start:start + first] = np.nan
+        self.ratio[:min(n, self.capacity) - first] = np.nan
+        self.written += n
+
     def read(self, indices: np.ndarray) -> np.ndarray:
         """Targets at these stream indices (NaN for those not written or already overwritten)."""
         indices = np.asarray(indices, dtype=np.int64)
@@ -83,7 +91,8 @@ class TargetRing:
 
 
 class FrictionLoop:
-    """See the module docstring. ``model``: the host's friction model; ``stream_rate_hz``: setpoints a second;
+    """See the module docstring. ``model``: the host's friction model; ``stream_rate_hz``: the device's setpoints a
+    second (a ``serial:PATH?rate=N`` stream's N, not the control rate);
     ``sensor_rate_hz``: the device's sensor samples a second."""
 
     def __init__(self, model, stream_rate_hz: float = 12000.0, sensor_rate_hz: float = 1000.0,
@@ -95,6 +104,8 @@ class FrictionLoop:
         self.estimator = FrictionEstimator(model, self.settings.estimator, sensor_rate_hz)
         self.correction = FastCorrection(self.settings.controller)
         self.targets = TargetRing()
+        self._decimated = np.zeros(capacity)  # record_control's per-value targets, made once
+        self._decimated_down = np.zeros(capacity, dtype=bool)
         self.panel_speed_mm_s: float | None = None
         est = self.settings.estimator
         self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
@@ -135,8 +146,33 @@ class FrictionLoop:
 
     # ---- the block path ----
     def record(self, ratio: np.ndarray, down) -> None:
-        """The target ratios of the control samples just handed to the device, in stream order."""
+        """The target ratios of the values just handed to the device, in stream order (one per device value)."""
         self.targets.write(ratio, down)
+
+    def record_control(self, ratio: np.ndarray, down, decimation: int) -> None:
+        """The target ratios of a block of control samples the device streams ``decimation`` times slower (a
+        ``serial:PATH?rate=N`` below the control rate): each device value is the mean of ``decimation`` control
+        samples, so its target is their targets' mean, and the finger counts as down for it only if down for all
+        of them. Block path: no allocation for blocks up to the loop's capacity."""
+        if decimation == 1:
+            self.targets.write(ratio, down)
+            return
+        n = len(ratio) // decimation
+        if n > len(self._decimated):
+            self._decimated = np.zeros(n)
+            self._decimated_down = np.zeros(n, dtype=bool)
+        means = self._decimated[:n]
+        np.mean(ratio[:n * decimation].reshape(n, decimation), axis=1, out=means)
+        if np.ndim(down) == 0:
+            self.targets.write(means, down)
+            return
+        downs = self._decimated_down[:n]
+        np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
+        self.targets.write(means, downs)
+
+    def skip(self, n: int) -> None:
+        """``n`` stream indices the device's writer skipped (no target for them)."""
+        self.targets.skip(n)
 
     # ---- the reader thread ----
     def take_sensors_frame(self, frame, received_s: float | None = None) -> None:

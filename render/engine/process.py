@@ -109,26 +109,41 @@ class EngineSource(OutputStage):
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
 
+    def skip(self, n: int) -> None:
+        """Values the device's writer skipped (see ``OutputStage.skip``): no target for them."""
+        super().skip(n)
+        if self.loop is not None:
+            self.loop.skip(n)
+
     def _record(self, n: int, out: np.ndarray) -> None:
         block = self.renderer.last_block
-        if block is None or len(block.time_s) != n:
+        k = self.decimation if self.signal == "control" else 1
+        if block is None or len(block.time_s) != n * k:
             return
         sent = out if self.signal == "control" else block.drive_um_pp  # an audio stage's output is the carrier
-        self.record.add(block.time_s, self.frames - n, block.x_mm, block.y_mm, block.down, block.ratio,
-                        block.target_um_pp, sent)
+        if k == 1:
+            self.record.add(block.time_s, self.frames - n, block.x_mm, block.y_mm, block.down, block.ratio,
+                            block.target_um_pp, sent)
+            return
+        # a device value per row (each the mean of k control samples): its first sample's time, place and press
+        down = block.down if np.ndim(block.down) == 0 else block.down[::k]
+        self.record.add(block.time_s[::k], self.frames - n, block.x_mm[::k], block.y_mm[::k], down,
+                        block.ratio.reshape(n, k).mean(axis=1), block.target_um_pp.reshape(n, k).mean(axis=1), sent)
 
     def _tell_loop(self, n: int) -> None:
         """The block's targets (in the order the device streams them) and the finger's speed on the panel."""
         block = self.renderer.last_block
         loop = self.loop
-        if block is None or len(block.ratio) != n:  # a block served otherwise (a stop's tail): no targets
+        k = self.decimation if self.signal == "control" else 1  # control samples a device value stands for
+        if block is None or len(block.ratio) != n * k:  # a block served otherwise (a stop's tail): no targets
             loop.record(self._no_target[:n], False)
             return
-        loop.record(block.ratio, block.down)
+        loop.record_control(block.ratio, block.down, k)
         x, y = block.x_mm, block.y_mm
-        if n > 1:  # from the block's first sample to its last
-            distance = math.hypot(float(x[n - 1] - x[0]), float(y[n - 1] - y[0]))
-            loop.panel_speed_mm_s = distance * self.renderer.settings.control_rate_hz / (n - 1)
+        m = n * k
+        if m > 1:  # from the block's first sample to its last
+            distance = math.hypot(float(x[m - 1] - x[0]), float(y[m - 1] - y[0]))
+            loop.panel_speed_mm_s = distance * self.renderer.settings.control_rate_hz / (m - 1)
 
     def _at_rest(self) -> bool:
         """Paused, and the renderer, the stage and the limiter's model of the plate all at zero."""
@@ -317,7 +332,8 @@ def engine_main(config, shared_name: str, conn) -> None:
         if config.closed_loop:
             from ultraglide.render.engine.friction_loop import FrictionLoop
 
-            loop = FrictionLoop(model, config.control_rate_hz)
+            stream_hz = device.rate_hz if device.signal == "control" else config.control_rate_hz
+            loop = FrictionLoop(model, stream_hz)  # indexed by the device's values, at its rate
             listeners.append(loop.take_sensors_frame)
         seen = profile
         if config.closed_loop:  # the device follows amplitude targets: pre-compensate its loop, not the plate
@@ -335,7 +351,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         if config.sensors_csv:
             from ultraglide.render.engine.sensor_record import SensorRecord
 
-            source.sensor_record = SensorRecord(config.sensors_csv, config.control_rate_hz / 1000.0)
+            source.sensor_record = SensorRecord(config.sensors_csv, source.rate_hz / 1000.0)
             listeners.append(source.sensor_record.take)
         if listeners:
             if not hasattr(device, "add_sensor_listener"):
@@ -351,7 +367,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         if loop is not None:
             _check_sensors(device, loop)
         if source.sensor_record is not None and getattr(device.hello(), "sensor_rate_hz", 0):
-            source.sensor_record.stream_per_sample = config.control_rate_hz / device.hello().sensor_rate_hz
+            source.sensor_record.stream_per_sample = source.rate_hz / device.hello().sensor_rate_hz
     except errors as error:
         _close_device(device)
         for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
