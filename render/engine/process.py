@@ -23,18 +23,15 @@ import time
 import numpy as np
 from ultraglide.devices.output_stage import OutputStage
 from ultraglide.render.engine import shm
-from ultraglide.render.engine.realtime import CpuWakeLatency, keep_huge_pages_out, raise_other_threads, raise_priority
+from ultraglide.render.engine.parts import check_sensors, load_parts
+from ultraglide.render.engine.realtime import keep_huge_pages_out, raise_other_threads, raise_priority
+from ultraglide.render.engine.serving import USER_ERRORS, PlateProbe, close_device, device_status, serve
 from ultraglide.render.engine.shm import SharedBlock
 from ultraglide.render.engine.sources import EnvelopeSource
 
-from ultraglide.errors import UltraglideError, describe
+from ultraglide.errors import describe
 
 SWITCH_INTERVAL_S = 0.0002  # the GIL changes hands this often, so the block thread waits at most this on the others
-STATUS_PERIOD_S = 0.1
-PROBE_THRESHOLD_UM_PP = 0.05
-PROBE_PERIOD_S = 0.0002
-# what the engine reports to the app as one line (a plain ValueError too: a bad texture spec from a script)
-USER_ERRORS = (UltraglideError, OSError, ValueError)
 RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (frames)
 
 
@@ -230,77 +227,6 @@ class EngineSource(OutputStage):
         super().request_stop()
 
 
-class _PlateProbe(threading.Thread):
-    """Watches the simulated plate's amplitude and publishes when it last rose above a threshold
-    (for ``ultraglide latency`` on ``sim``: the end-to-end measurement)."""
-
-    def __init__(self, simulator, fast: np.ndarray):
-        super().__init__(name="plate-probe", daemon=True)
-        self.simulator = simulator
-        self.fast = fast
-        self.stop_event = threading.Event()
-
-    def run(self) -> None:
-        above = False
-        while not self.stop_event.wait(PROBE_PERIOD_S):
-            amplitude = self.simulator.amplitude_um_pp
-            self.fast[shm.PLATE_PROBE_UM_PP] = amplitude
-            if amplitude > PROBE_THRESHOLD_UM_PP and not above:
-                self.fast[shm.PROBE_RISE_S] = time.perf_counter()
-            above = amplitude > PROBE_THRESHOLD_UM_PP
-
-
-def _load(config):
-    """Texture, model, profile and an opened device (with the simulated finger the config asks); one-line errors
-    for bad ones."""
-    import warnings
-
-    from ultraglide.devices.profiles import load_profile
-    from ultraglide.devices.urls import open_device, parse_device_url
-    from ultraglide.render.physics.calibration import load_model
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        texture = _texture(config.texture)
-    model = load_model(config.model)
-    profile = load_profile(config.profile)
-    kind = parse_device_url(config.device).kind
-    finger = None
-    if config.finger is not None or (config.closed_loop and kind == "sim"):
-        if kind != "sim":
-            from ultraglide.devices.errors import DeviceError
-
-            raise DeviceError(f"a simulated finger goes on the in-process simulator (--device sim), not on "
-                              f"{config.device}; a plate-sim on a port takes its own (plate-sim --finger)")
-        from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
-
-        finger = build_finger(config.finger or FingerConfig())
-    if config.closed_loop and kind not in ("sim", "serial"):
-        from ultraglide.devices.errors import DeviceError
-
-        raise DeviceError(f"the closed loop needs a plate driver with force sensors (sim or serial:PORT), not "
-                          f"{config.device}")
-    extra = {"finger": finger} if finger is not None else {}
-    if config.closed_loop:
-        extra["amplitude_loop"] = True
-    device = open_device(config.device, profile, control_rate_hz=int(config.control_rate_hz),
-                         carrier_hz=config.carrier_hz, track_resonance=config.track_resonance, **extra)
-    return texture, model, profile, device
-
-
-def _texture(spec):
-    """A library name or file, loaded here; or a Texture the app composed in memory (it came pickled)."""
-    if isinstance(spec, str):
-        from ultraglide.textures.library import resolve_texture
-
-        return resolve_texture(spec)
-    from ultraglide.textures.texture import Texture
-
-    if not isinstance(spec, Texture):
-        raise ValueError(f"a texture must be a name, a file or a Texture, not {type(spec).__name__}")
-    return spec
-
-
 def engine_main(config, shared_name: str, conn) -> None:
     """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -312,7 +238,7 @@ def engine_main(config, shared_name: str, conn) -> None:
     errors = USER_ERRORS
     device = None
     try:
-        texture, model, profile, device = _load(config)
+        texture, model, profile, device = load_parts(config)
     except errors as error:
         conn.send(("error", describe(error)))
         shared.close()
@@ -365,11 +291,11 @@ def engine_main(config, shared_name: str, conn) -> None:
         gc.disable()  # no collection can start inside a block; the command thread collects when idle
         device.start(source)
         if loop is not None:
-            _check_sensors(device, loop)
+            check_sensors(device, loop)
         if source.sensor_record is not None and getattr(device.hello(), "sensor_rate_hz", 0):
             source.sensor_record.stream_per_sample = source.rate_hz / device.hello().sensor_rate_hz
     except errors as error:
-        _close_device(device)
+        close_device(device)
         for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
             if record is not None:
                 record.discard()
@@ -379,162 +305,15 @@ def engine_main(config, shared_name: str, conn) -> None:
         return
     probe = None
     if config.probe_plate and hasattr(device, "plate"):
-        probe = _PlateProbe(device.plate.simulator, shared.fast)
+        probe = PlateProbe(device.plate.simulator, shared.fast)
         probe.start()
     threads = raise_other_threads() if config.realtime_priority else "other threads: normal"
     threads = f"{threads}; {pages}"
     source.threads = threads
     conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
-                         "tail_s": renderer.tail_s, "device_status": _device_status(device)}))
-    _serve(config, conn, shared, renderer, source, device, stop_requested, threads)
+                         "tail_s": renderer.tail_s, "device_status": device_status(device)}))
+    serve(config, conn, shared, renderer, source, device, stop_requested, threads)
     if probe is not None:
         probe.stop_event.set()
         probe.join(timeout=1)
     shared.close()
-
-
-def _check_sensors(device, loop) -> None:
-    """The closed loop needs normal and lateral force sensors: DeviceError if the connected device has none; the
-    loop takes the device's sensor rate."""
-    from ultraglide.devices import protocol as p
-    from ultraglide.devices.errors import DeviceError
-
-    hello = device.hello() if hasattr(device, "hello") else None
-    wanted = p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE
-    if hello is None or (hello.sensors & wanted) != wanted:
-        raise DeviceError("the closed loop needs normal and lateral force sensors under the plate, and this plate "
-                          "driver declares none; run it open loop (leave out --closed-loop)")
-    loop.set_sensor_rate(hello.sensor_rate_hz)
-
-
-def _device_status(device, stage=None) -> dict:
-    """The device's own status, with its fault counts over the run when it keeps them, and the limiter's."""
-    try:
-        status = device.status()
-        if stage is not None:
-            status.update(stage.limiter.status())
-            status["limiter"] = stage.limiter.summary()
-        counts = getattr(device, "fault_counts", None)
-        if counts is not None:
-            status["fault_counts"] = counts()
-        loop = getattr(stage, "loop", None)
-        if loop is not None:
-            status.update(loop.status())
-        return status
-    except Exception as error:  # noqa: BLE001 - a status that fails to build must not stop the engine
-        return {"errors": [f"status: {type(error).__name__}: {error}"]}
-
-
-def _renderer_status(renderer) -> dict:
-    """What the renderer renders with: texture, model, the default force (N); the temporal effects started."""
-    player = renderer.effects
-    return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),
-            "force_n": renderer.default_force_n, "effects_started": 0 if player is None else player.started}
-
-
-def _close_device(device) -> str | None:
-    """Stop the device; what went wrong that a person can act on (e.g. a recording that did not fit on
-    the disk), or None. Resting the hardware is best effort on the way out: nothing here raises."""
-    if device is None:
-        return None
-    try:
-        device.stop()
-    except USER_ERRORS as error:
-        return describe(error)
-    except Exception as error:  # noqa: BLE001 - reported, never raised past the hardware's rest
-        return f"the device failed while stopping: {type(error).__name__}: {error}"
-    return None
-
-
-def _serve(config, conn, shared, renderer, source, device, stop_requested, threads: str) -> None:
-    """The command loop: rare commands, the device's status ten times a second, idle collection, and the
-    CPUs kept quick to wake while the block path renders (released while it serves zeros at rest)."""
-    wake = CpuWakeLatency(config.cpu_wake_latency_us if config.realtime_priority else None)
-    try:
-        _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads, wake)
-    finally:
-        wake.close()
-
-
-def _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads: str, wake) -> None:
-    errors = USER_ERRORS
-    next_status = 0.0
-    next_collect = time.monotonic() + 1.0
-    while True:
-        now = time.monotonic()
-        wake.hold(not source._first and not source._resting)  # rendering (not before the first block, nor at rest)
-        if now >= next_status:
-            shared.write_slow({**_device_status(device, source), **_renderer_status(renderer),
-                               "priority": f"{source.priority}; {threads}; {wake.words()}", "pid": os.getpid()})
-            next_status = now + STATUS_PERIOD_S
-        if now >= next_collect:
-            gc.collect(0)  # young objects only: short; the block thread waits at most the switch interval
-            next_collect = now + 1.0
-        if stop_requested.is_set():
-            _finish(shared, source, device, None, wake)
-            return
-        try:
-            if not conn.poll(STATUS_PERIOD_S / 2):
-                continue
-            command, *args = conn.recv()
-        except (EOFError, OSError):  # the parent is gone: rest the plate and leave
-            _finish(shared, source, device, None, wake)
-            return
-        if command == "stop":
-            _finish(shared, source, device, conn, wake)
-            return
-        try:
-            if command == "texture":
-                renderer.set_texture(_texture(args[0]))
-            elif command == "model":
-                from ultraglide.render.physics.calibration import load_model
-
-                model = load_model(args[0])
-                if source.loop is not None:
-                    source.loop.set_model(model)
-                else:
-                    renderer.set_model(model)
-            elif command == "force":
-                renderer.set_default_force(float(args[0]))
-            elif command == "pause":
-                renderer.pause(bool(args[0]))
-            elif command == "trigger":
-                conn.send(("ok", renderer.trigger(str(args[0]), float(args[1]))))
-                continue
-            elif command == "effects":
-                from ultraglide.textures.effects import from_json
-
-                renderer.set_effects(None if args[0] is None else from_json(args[0]))
-            else:
-                raise ValueError(f"unknown engine command {command!r}")
-            conn.send(("ok", None))
-        except errors as error:
-            conn.send(("error", describe(error)))
-
-
-def _finish(shared, source, device, conn, wake) -> None:
-    """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
-    source._stopping = True
-    failure = _close_device(device)
-    for record in (source.record, source.sensor_record):
-        if record is None:
-            continue
-        record_failure = record.close()
-        failure = failure or record_failure
-        if record.dropped and not failure:
-            failure = f"{record.path}: {record.dropped} rows were lost (the writer fell behind); the rest was written"
-    wake.close()
-    status = {**_device_status(device, source), **_renderer_status(source.renderer),
-              "priority": f"{source.priority}; {source.threads}; {wake.words()}", "pid": os.getpid()}
-    if failure:
-        status["output_error"] = failure
-    shared.write_slow(status)
-    fast = shared.fast
-    fast[shm.SEQ] += 1
-    fast[shm.STATE] = shm.STATES.index("stopped")
-    fast[shm.SEQ] += 1
-    if conn is not None:
-        try:
-            conn.send(("stopped", status))
-        except (OSError, EOFError):
-            pass
