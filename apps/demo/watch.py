@@ -3,8 +3,13 @@
 The demo's loop calls :meth:`TextureWatcher.poll` from its event wait's timeout (every 200 ms), so
 watching costs a few ``stat`` calls a poll and no thread. A file counts as changed when its
 (inode, size, mtime) differs from what was loaded and has stayed the same for one poll, so neither an
-in-place rewrite caught half-written nor an editor's rename is loaded before it is whole; a file
-that fails to load is tried again at the next poll.
+in-place rewrite caught half-written nor an editor's rename is loaded before it is whole.
+
+Whatever the file becomes, the demo keeps the texture last loaded and says what is wrong, one line each in
+:attr:`TextureWatcher.errors` (shown on the status line), until the file loads again: removed (for a whole
+poll: an editor's rename takes less), a loop of links, a named pipe or a device (refused by the loaders
+without being opened), a directory, half written, damaged, deeply nested or with absurd numbers in its
+metadata. A file that failed is tried again only once it changes, so a bad file costs a ``stat`` a poll.
 
 A texture file loads as it is; a plain image is authored with the defaults (as the demo does at
 start-up); when the source image a texture file was authored from changes, the texture is authored
@@ -14,6 +19,7 @@ again from it with the options recorded in the file (the file itself is not rewr
 from __future__ import annotations
 
 import dataclasses
+import errno
 import os
 import warnings
 from dataclasses import dataclass
@@ -22,12 +28,19 @@ from pathlib import Path
 POLL_S = 0.2
 
 
-def _key(path: Path) -> tuple[int, int, int] | None:
+def _look(path: Path) -> tuple[tuple[int, int, int] | None, str | None]:
+    """The file's (inode, size, mtime), or None and why it cannot be looked at."""
     try:
         info = os.stat(path)
-    except OSError:
-        return None
-    return info.st_ino, info.st_size, info.st_mtime_ns
+    except FileNotFoundError:
+        return None, "it was removed"
+    except ValueError:
+        return None, "not a usable file name"
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            return None, "it is a loop of symbolic links"
+        return None, f"cannot look at it ({(error.strerror or str(error)).lower()})"
+    return (info.st_ino, info.st_size, info.st_mtime_ns), None
 
 
 @dataclass
@@ -37,6 +50,8 @@ class _Watched:
     source: Path | None  # the image it was authored from, when that is another file that exists
     keys: dict  # path → the key last loaded
     seen: dict  # path → the key seen at the last poll
+    failed: dict | None = None  # path → key of the files as they were when loading failed
+    error: str = ""  # why, while they stay so
 
 
 class TextureWatcher:
@@ -50,34 +65,41 @@ class TextureWatcher:
             if source is not None and (not source.is_file() or source.resolve() == Path(path).resolve()):
                 source = None
             files = [Path(path)] + ([source] if source else [])
-            keys = {f: _key(f) for f in files}
+            keys = {f: _look(f)[0] for f in files}
             self.watched.append(_Watched(index, Path(path), source, keys, dict(keys)))
         self.errors: list[str] = []
 
     def poll(self) -> list[tuple[int, object]]:
-        """(index, new Texture) for each texture whose file or source changed and loaded; problems go
-        to ``errors`` (one line each) and are retried."""
+        """(index, new Texture) for each texture whose file or source changed and loaded; problems go to
+        ``errors`` (one line each) while they last, the texture last loaded staying."""
         reloaded = []
         self.errors = []
         for watched in self.watched:
-            changed = None
+            changed, missing = None, None
             for path in watched.keys:
-                key = _key(path)
-                stable = key is not None and key == watched.seen[path]
+                key, problem = _look(path)
+                stable = key == watched.seen[path]
                 watched.seen[path] = key
-                if stable and key != watched.keys[path]:
+                if key is None:
+                    if stable and path == watched.path:  # gone for a whole poll: not an editor's rename
+                        missing = f"cannot reload {path.name}: {problem}"  # (a source image may go: it is a copy)
+                elif stable and key != watched.keys[path]:
                     changed = path
-            if changed is None:
-                continue
-            try:
-                texture = self._load(watched, changed)
-            except Exception as error:  # noqa: BLE001 - an editor's half-saved file: say so, try again later
-                reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-                self.errors.append(f"cannot reload {changed.name}: {reason}")
-                continue
-            for path in watched.keys:
-                watched.keys[path] = watched.seen[path]
-            reloaded.append((watched.index, texture))
+            if missing is not None:
+                watched.failed, watched.error = None, missing
+            elif changed is not None and watched.failed != watched.seen:
+                try:
+                    texture = self._load(watched, changed)
+                except Exception as error:  # noqa: BLE001 - whatever the file is, the demo keeps its texture
+                    reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+                    watched.failed, watched.error = dict(watched.seen), f"cannot reload {changed.name}: {reason}"
+                else:
+                    watched.keys, watched.failed, watched.error = dict(watched.seen), None, ""
+                    reloaded.append((watched.index, texture))
+            elif changed is None and missing is None and watched.keys == watched.seen:
+                watched.error = ""  # back as it was loaded
+            if watched.error:
+                self.errors.append(watched.error)
         return reloaded
 
     @staticmethod
