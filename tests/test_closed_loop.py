@@ -290,4 +290,4 @@ def test_a_slower_serial_stream_lines_targets_up_with_the_plates_values(tmp_path
     assert rms[0] < 0.7 * min(rms[-5], rms[5]), rms
     if result.returncode == 0:
         status = json.loads(result.stdout)
-        assert status["friction_error_rms"] is not None and status["friction_error_rms"] < 0.5  # measured: targets known
+        assert status["friction_error_rms"] is not None and status["friction_error_rms"] < 0.5  # targets known
