@@ -122,18 +122,27 @@ def _hermite(t, v, k, last):
 
 
 @njit(cache=True, nogil=True)
-def pchip(t, x, y, times, x_out, y_out):
-    """Monotone piecewise-cubic (PCHIP) interpolation of two series recorded at ``t`` (increasing, at least two
-    records) at each of ``times`` (within ``t[0]..t[-1]``), into ``x_out`` and ``y_out``: what scipy's
-    PchipInterpolator over the same records gives (the same slopes, the same Horner form), without building
-    an interpolator per block. Each interval's slopes come from its neighbours alone (PCHIP is local)."""
+def recorded_path(t, x, y, force, has_force, start_s, end_s, times, x_out, y_out, force_out, down_out):
+    """A recorded path at ``times`` (s) in one pass. Each time is held within [``start_s``, ``end_s``] (the
+    finger touches where it lay within); the position there is the monotone piecewise-cubic (PCHIP)
+    interpolation of records ``t`` (increasing, at least two; the times within ``t[0]..t[-1]``), ``x``,
+    ``y``: what scipy's PchipInterpolator over the same records gives (the same slopes, the same Horner
+    form), without building an interpolator per block, each interval's slopes from its neighbours alone
+    (PCHIP is local). The force (N) is interpolated linearly between records as ``numpy.interp`` does it,
+    to the bit (NaN without one). Returns the record interval of the last time."""
     last = len(t) - 1
     k = 0
     cached = -1
     a3 = a2 = a1 = a0 = b3 = b2 = b1 = b0 = 0.0
     for i in range(len(times)):
-        s = times[i]
-        if k > last - 1 or t[k] > s or (k < last - 1 and t[k + 1] <= s):  # usually the same interval or the next
+        requested = times[i]
+        down_out[i] = start_s <= requested <= end_s
+        s = requested  # held at the ends; NaN stays NaN, as numpy.clip leaves it
+        if s < start_s:
+            s = start_s
+        if s > end_s:
+            s = end_s
+        if k > last - 1 or t[k] > s or (k < last - 1 and t[k + 1] <= s):
             k = np.searchsorted(t, s, side="right") - 1
             k = min(max(k, 0), last - 1)
         if k != cached:
@@ -143,7 +152,42 @@ def pchip(t, x, y, times, x_out, y_out):
         u = s - t[k]
         x_out[i] = ((a3 * u + a2) * u + a1) * u + a0
         y_out[i] = ((b3 * u + b2) * u + b1) * u + b0
+        if not has_force:
+            force_out[i] = np.nan
+        elif s != s:
+            force_out[i] = s
+        elif s <= t[0]:  # numpy.interp: the first value at or before the first record
+            force_out[i] = force[0]
+        elif s >= t[last]:
+            force_out[i] = force[last]
+        elif t[k] == s:
+            force_out[i] = force[k]
+        else:
+            slope = (force[k + 1] - force[k]) / (t[k + 1] - t[k])
+            value = slope * (s - t[k]) + force[k]
+            if value != value:  # numpy.interp's way out of a NaN: from the other end, then the flat value
+                value = slope * (s - t[k + 1]) + force[k + 1]
+                if value != value and force[k] == force[k + 1]:
+                    value = force[k]
+            force_out[i] = value
     return k
+
+
+@njit(cache=True, nogil=True)
+def motion(x, y, x_before, y_before, dx_out, dy_out, step_out):
+    """Each sample's move from the sample before (mm; the first from (``x_before``, ``y_before``), then, when
+    there are two samples or more, replaced by the second's: a jump between blocks is not motion), and its
+    length, as ``numpy.diff`` and ``numpy.hypot`` give them."""
+    n = x.shape[0]
+    previous_x, previous_y = x_before, y_before
+    for i in range(n):
+        dx_out[i] = x[i] - previous_x
+        dy_out[i] = y[i] - previous_y
+        previous_x, previous_y = x[i], y[i]
+    if n > 1:
+        dx_out[0], dy_out[0] = dx_out[1], dy_out[1]
+    for i in range(n):
+        step_out[i] = math.hypot(dx_out[i], dy_out[i])
 
 
 @functools.cache
@@ -155,7 +199,10 @@ def warm_up() -> None:
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))
     three = np.array([0.0, 1.0, 3.0])
-    pchip(three, three, three, f64 + 0.5, np.empty(4), np.empty(4))
+    for has_force in (True, False):
+        recorded_path(three, three, three, three, has_force, 0.0, 3.0, f64 + 0.5, np.empty(4), np.empty(4),
+                      np.empty(4), np.empty(4, dtype=np.bool_))
+    motion(f64, f64, 0.0, 0.0, np.empty(4), np.empty(4), np.empty(4))
     for kind in range(3):
         swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
                    np.empty(4, dtype=np.bool_))

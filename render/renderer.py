@@ -346,11 +346,8 @@ class Renderer:
             step = math.hypot(dx, dy) / self.settings.control_rate_hz
         else:
             previous = self._last_xy if self._last_xy is not None else (x[0], y[0])
-            dx = np.diff(x, prepend=previous[0])
-            dy = np.diff(y, prepend=previous[1])
-            if n > 1:
-                dx[0], dy[0] = dx[1], dy[1]
-            step = np.hypot(dx, dy)
+            dx, dy, step = np.empty(n), np.empty(n), np.empty(n)
+            kernels.motion(x, y, float(previous[0]), float(previous[1]), dx, dy, step)
         if n:
             self._last_xy = (x[n - 1], y[n - 1])
         return step, (dx, dy)

@@ -69,7 +69,7 @@ class RecordedTrajectory:
     for, which moves forward as the renderer pulls blocks. PCHIP is local (the slope at a record
     depends on its neighbours only), so interpolating within the window, with two records of
     margin either side, gives what interpolating the whole path would (a compiled kernel,
-    :func:`ultraglide.render.kernels.pchip`, the slopes and the Horner form of scipy's
+    :func:`ultraglide.render.kernels.recorded_path`, the slopes and the Horner form of scipy's
     PchipInterpolator). Asking for an earlier instant than the window holds re-reads the chunks
     from the start.
     """
@@ -183,15 +183,15 @@ class RecordedTrajectory:
         """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged).
         ``out``: two arrays (x, y) of the times' length to fill instead of new ones."""
         requested = np.asarray(times_s, dtype=float)
-        times = np.clip(requested, self.start_s, self.end_s)
-        down = (requested >= self.start_s) & (requested <= self.end_s)
-        if times.size == 0:
-            return FingerState(times, times, times, down)
-        last = self._cover(float(times.min()), float(times.max()))
-        t = self._t[:last]
-        force = np.interp(times, t, self._f[:last]) if self.has_force else np.full(times.shape, np.nan)
-        x, y = out if out is not None else (np.empty(times.shape), np.empty(times.shape))
-        kernels.pchip(t, self._x[:last], self._y[:last], times.reshape(-1), x.reshape(-1), y.reshape(-1))
+        if requested.size == 0:
+            return FingerState(requested, requested, requested, np.zeros(requested.shape, dtype=bool))
+        low, high = (min(max(float(end), self.start_s), self.end_s) for end in (requested.min(), requested.max()))
+        last = self._cover(low, high)
+        x, y = out if out is not None else (np.empty(requested.shape), np.empty(requested.shape))
+        force, down = np.empty(requested.shape), np.empty(requested.shape, dtype=bool)
+        kernels.recorded_path(self._t[:last], self._x[:last], self._y[:last], self._f[:last], self.has_force,
+                              self.start_s, self.end_s, requested.reshape(-1), x.reshape(-1), y.reshape(-1),
+                              force.reshape(-1), down.reshape(-1))  # one compiled pass
         return FingerState(x, y, force, down)
 
 

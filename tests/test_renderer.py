@@ -143,6 +143,45 @@ def test_recorded_trajectory_interpolates_uneven_records():
     assert not np.any(path.state([0.06]).down)
 
 
+def test_a_recorded_path_gives_numpys_force_and_scipys_pchip_at_any_times():
+    """The compiled pass against numpy and scipy, each asked on its own: positions as scipy's PCHIP, the force as
+    numpy's interp to the bit, times held at the ends (before, after, on records, unsorted, any shape; NaN)."""
+    from scipy.interpolate import PchipInterpolator
+
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(1 / 240, 1 / 60, 300))
+    x, y, force = np.cumsum(rng.normal(0, 1, 300)), rng.uniform(0, 50, 300), rng.uniform(0.1, 2, 300)
+    path = RecordedTrajectory(t, x, y, force)
+    times = np.concatenate([rng.uniform(t[0] - 0.5, t[-1] + 0.5, 4000), t[::6], [t[0], t[-1]]])
+    state = path.state(times.reshape(-1, 2))
+    held = np.clip(times, t[0], t[-1])
+    np.testing.assert_array_equal(state.force_n.reshape(-1), np.interp(held, t, force))
+    np.testing.assert_array_equal(state.down.reshape(-1), (times >= t[0]) & (times <= t[-1]))
+    assert state.x_mm.reshape(-1) == pytest.approx(PchipInterpolator(t, x)(held), abs=1e-9)
+    assert state.y_mm.reshape(-1) == pytest.approx(PchipInterpolator(t, y)(held), abs=1e-9)
+    nowhere = path.state(np.array([np.nan]))
+    assert np.isnan([nowhere.x_mm[0], nowhere.force_n[0]]).all() and not nowhere.down[0]
+    assert np.isnan(RecordedTrajectory(t, x, y).state(times).force_n).all()  # no force logged
+    assert path.state(np.zeros(0)).x_mm.shape == (0,)
+
+
+def test_the_steps_along_a_path_are_numpys_differences_and_lengths():
+    from ultraglide.render import kernels
+
+    rng = np.random.default_rng(6)
+    x, y = np.cumsum(rng.normal(0, 0.01, 5000)), np.cumsum(rng.normal(0, 0.01, 5000))
+    dx, dy, step = np.empty(5000), np.empty(5000), np.empty(5000)
+    kernels.motion(x, y, 0.3, -0.2, dx, dy, step)
+    want_x, want_y = np.diff(x, prepend=0.3), np.diff(y, prepend=-0.2)
+    want_x[0], want_y[0] = want_x[1], want_y[1]  # the jump from the block before is not motion
+    np.testing.assert_array_equal(dx, want_x)
+    np.testing.assert_array_equal(dy, want_y)
+    np.testing.assert_array_equal(step, np.hypot(want_x, want_y))
+    one = np.empty(1)
+    kernels.motion(x[:1], y[:1], 0.0, 0.0, one, np.empty(1), np.empty(1))
+    assert one[0] == x[0]  # one sample: its move from the last
+
+
 @pytest.mark.parametrize("bad, message", [
     (([0, 1, 0.5], [0, 1, 2], [0, 0, 0]), "does not increase"),
     (([0, 1, 2], [0, np.nan, 2], [0, 0, 0]), "not a finite number"),
