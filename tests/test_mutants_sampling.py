@@ -120,6 +120,17 @@ def test_a_step_between_pyramid_levels_blends_them_in_proportion(axis, path):
     assert _gain(unlimited, along) == pytest.approx(BLENDS[0.0], abs=2e-3)  # no step: full resolution
 
 
+@pytest.mark.parametrize("outside", ["tile", "clamp", "fixed"])
+def test_steps_within_a_pixel_read_the_full_resolution_level_to_the_bit(outside):
+    texture, x, y, _ = _sine_strip("x")
+    texture = Texture(texture.values, texture.width_mm, texture.height_mm, outside=outside)
+    sampler = Sampler(texture)
+    x = np.concatenate([x, x - 20.0, x + 40.0])  # on the texture and beyond its edges, both sides
+    y = np.concatenate([y, y + 30.0, y - 50.0])
+    steps = np.random.default_rng(2).uniform(0.0, sampler.base_pixel_mm, len(x))  # a slow finger's
+    np.testing.assert_array_equal(sampler.ratio(x, y, step_mm=steps), sampler.ratio(x, y))
+
+
 @pytest.mark.parametrize("axis", ["x", "y"])
 @pytest.mark.parametrize("levels", [(0.0, 0.75, 1.25, 5.0), (0.0, 1.25, 5.0)])  # the second: level 0 unblended
 def test_one_query_with_steps_at_several_levels_blends_each_sample_by_its_own(axis, levels):

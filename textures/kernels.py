@@ -27,9 +27,11 @@ def _corners(u, v, rows, cols, wrap):
     fv = v - r0
     c0 = int(c0)
     r0 = int(r0)
-    if wrap:
-        c0 %= cols
-        r0 %= rows
+    if wrap:  # the modulo (an integer division) only off the image: most samples lie on it
+        if c0 < 0 or c0 >= cols:
+            c0 %= cols
+        if r0 < 0 or r0 >= rows:
+            r0 %= rows
         c1 = c0 + 1 if c0 + 1 < cols else 0
         r1 = r0 + 1 if r0 + 1 < rows else 0
     else:
@@ -142,7 +144,12 @@ def trilinear_steps(flat, starts, rows, cols, per_mm_x, per_mm_y, base_pixel_mm,
         if fixed and (x < 0.0 or x >= width_mm or y < 0.0 or y >= height_mm):
             out[i] = outside
             continue
-        level = min(max(math.log2(max(step_mm[i], 1e-12) / base_pixel_mm), 0.0), float(top))
+        scaled = max(step_mm[i], 1e-12) / base_pixel_mm
+        if scaled <= 1.0:  # a step within a pixel (log2 <= 0): the full-resolution level alone, without the log
+            out[i] = np.float32(_flat_level(flat, starts[0], rows[0], cols[0], x * per_mm_x[0] - 0.5,
+                                            y * per_mm_y[0] - 0.5, wrap))
+            continue
+        level = min(max(math.log2(scaled), 0.0), float(top))
         near = int(math.floor(level))
         weight = np.float32(level - near)
         value = np.float32(_flat_level(flat, starts[near], rows[near], cols[near], x * per_mm_x[near] - 0.5,
