@@ -188,7 +188,7 @@ def test_a_parameter_pushed_to_its_bound_is_named():
 def test_participants_are_cross_validated_and_selectable(tmp_path):
     rng = np.random.default_rng(11)
     rows = ["amplitude_um_pp,relative_friction,force_n,participant"]
-    for participant, scale in ((1, 3.0), (2, 4.5)):  # two fingers: one slips sooner than the other
+    for participant, scale in (("P01", 3.0), ("7.0", 4.5)):  # two fingers: one slips sooner than the other
         for a in np.linspace(0, 6, 10):
             rows.append(f"{a:.2f},{np.exp(-(a / scale) ** 2) + rng.normal(0, 0.005):.5f},0.5,{participant}")
     path = tmp_path / "two-fingers.csv"
@@ -197,11 +197,12 @@ def test_participants_are_cross_validated_and_selectable(tmp_path):
     errors = cross_validation_errors(data, "stretched")
     # independently: fit each finger with curve_fit and predict the other one
     held_out = []
-    for participant in (1, 2):
+    assert sorted(set(data.participant)) == ["7", "P01"]  # ids kept as text; a number however written
+    for participant in ("P01", "7"):
         train, test = data.participant != participant, data.participant == participant
         (scale, shape), _ = curve_fit(lambda a, s, b: np.exp(-((a / s) ** b)), data.amplitude_um_pp[train],
                                       data.relative_friction[train], p0=[3.7, 2.0])
         held_out += list(data.relative_friction[test] - np.exp(-((data.amplitude_um_pp[test] / scale) ** shape)))
     assert errors["leave_one_participant_out"] == pytest.approx(math.sqrt(np.mean(np.square(held_out))), rel=1e-4)
-    one = fit_model(data.subset(data.participant == 2), "stretched")
+    one = fit_model(data.subset(data.participant == "7"), "stretched")
     assert one.model.scale_um_pp == pytest.approx(4.5, rel=0.02)

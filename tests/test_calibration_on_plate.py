@@ -20,6 +20,7 @@ from ultraglide.devices.plate_sim import PlateSimulator
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
 from ultraglide.render.physics.calibration import fit_model, read_calibration
+from ultraglide.render.physics.measurements import participant_id
 
 HOST_SCALE_UM_PP = 3.7335  # the stretched law's scale at 0.5 N (2 sqrt 2 x 1.32 µm)
 
@@ -98,20 +99,21 @@ def test_the_guide_asks_for_a_steady_press():
 @pytest.mark.slow
 def test_calibrate_on_the_simulator_in_its_window_writes_the_participants_calibration(tmp_path):
     output = tmp_path / "p07.toml"
-    result = run_cli("calibrate", "--device", "sim", "--participant", "7", "-o", output, "--passes", "2",
+    result = run_cli("calibrate", "--device", "sim", "--participant", "P07", "-o", output, "--passes", "2",
                      "--step-ms", "200", "--forces", "0.3,0.8", "--finger-drift", "0", "--bootstrap", "0",
                      "--windowed", env={"SDL_VIDEODRIVER": "dummy"})
     assert result.returncode == 0, result.stderr
-    assert "participant 7:" in result.stdout and "wrote" in result.stdout
+    assert "participant P07:" in result.stdout and "wrote" in result.stdout
     document = tomllib.loads(output.read_text())
-    assert document["fit"]["participant"] == 7.0 and "2 presses (0.3, 0.8 N)" in document["fit"]["procedure"]
+    assert document["fit"]["participant"] == "P07" and "2 presses (0.3, 0.8 N)" in document["fit"]["procedure"]
     model = read_calibration(output)  # what experiments and the demo take (--model CAL.toml)
     assert model.name == "stretched"
     with open(output.with_suffix(".csv"), newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) >= 8 and {row["participant"] for row in rows} == {"7"}  # the passes averaged: 8 a press
-    refit = run_cli("calibrate", output.with_suffix(".csv"), "--bootstrap", "0")  # the points refit as any CSV
-    assert refit.returncode == 0, refit.stderr
+    assert len(rows) >= 8 and {row["participant"] for row in rows} == {"P07"}  # the passes averaged: 8 a press
+    refit = run_cli("calibrate", output.with_suffix(".csv"), "--bootstrap", "0", "--participant", "P07", "--json")
+    assert refit.returncode == 0, refit.stderr  # the points refit as any CSV, the participant chosen by its id
+    assert json.loads(refit.stdout)["fit"]["points"] == len(rows)
 
 
 @pytest.mark.slow
@@ -125,7 +127,7 @@ def test_calibrate_on_the_simulator_without_a_window_recovers_the_simulated_law(
     assert result.returncode == 0, result.stderr
     assert "press 3 of 3: slide at a steady 0.9 N" in result.stderr  # the guide's words, on the terminal
     report = json.loads(result.stdout)
-    assert report["participant"] == 7 and report["points"] >= 12  # of 24 steps (a loaded machine underruns some)
+    assert report["participant"] == "7" and report["points"] >= 12  # of 24 steps (a loaded machine underruns some)
     values = {name: entry["value"] for name, entry in report["fit"]["parameters"].items()}
     assert values["scale_um_pp"] == pytest.approx(0.7 * HOST_SCALE_UM_PP, rel=0.05)
     assert values["shape"] == pytest.approx(2.0, rel=0.1)
@@ -134,7 +136,18 @@ def test_calibrate_on_the_simulator_without_a_window_recovers_the_simulated_law(
     assert read_calibration(output).name == "stretched"
 
 
+def test_participant_ids_are_text_and_numbers_the_same_id_however_written():
+    assert [participant_id(text) for text in ("P01", " s-12_b.3 ", "7", "7.0", "07", "-2")] == \
+        ["P01", "s-12_b.3", "7", "7", "7", "-2"]
+    for bad in ("", "P 01", "a,b", "x" * 65, "p\n1", "é#"):
+        with pytest.raises(ValueError, match="participant id"):
+            participant_id(bad)
+
+
 def test_calibrate_takes_a_csv_or_a_device_and_a_device_needs_a_participant(cli, tmp_path):
+    line = assert_one_line_error(cli("calibrate", "--device", "sim", "--participant", "P 01", "-o",
+                                     str(tmp_path / "c.toml"), "--no-window"))
+    assert "participant id" in line
     line = assert_one_line_error(cli("calibrate", "--participant", "3"))
     assert "DATA.csv" in line and "--device" in line
     line = assert_one_line_error(cli("calibrate", "--device", "sim", "-o", str(tmp_path / "c.toml")))

@@ -173,7 +173,7 @@ class StepRecorder:
         return (np.array(amplitude), np.array(ratio), np.array(force), np.array(level, dtype=int),
                 max(planned - len(amplitude), 0))
 
-    def measurements(self, source: str, participant: float | None = None):
+    def measurements(self, source: str, participant: str | None = None):
         """The points as ``render.physics.measurements.Measurements`` (ratios clipped into what a measurement file
         may hold), and the number of steps left out. The passes' points at one press and one planned amplitude
         are averaged into one (a measurement file holds each amplitude once at each force). Each point's force is
@@ -197,5 +197,5 @@ class StepRecorder:
         below = int(np.count_nonzero(ratio < 0.0))
         above = int(np.count_nonzero(ratio > 1.0))
         ratio = np.clip(ratio, 0.0, 1.2)
-        people = None if participant is None else np.full(len(amplitude), float(participant))
+        people = None if participant is None else np.full(len(amplitude), str(participant))
         return Measurements(amplitude, ratio, force, source, people, below, above), missing

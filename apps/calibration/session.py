@@ -59,8 +59,7 @@ def calibrate_on_plate(args) -> dict:
     elif getattr(args, "finger", None) is not None:
         raise UsageError("--finger is for the in-process simulator (--device sim); a plate-sim on a port takes "
                          "its own (plate-sim --finger)")
-    guide = TextGuide(f"{args.participant:g}") if args.no_window else WindowGuide(f"{args.participant:g}",
-                                                                                   args.windowed)
+    guide = TextGuide(args.participant) if args.no_window else WindowGuide(args.participant, args.windowed)
     device = open_device(args.device, profile, control_rate_hz=CONTROL_RATE_HZ, **extra)
     recorder = StepRecorder(plan, CONTROL_RATE_HZ)
     device.add_sensor_listener(recorder.take)
@@ -107,7 +106,7 @@ def _fit_and_write(args, recorder, plan) -> dict:
     points = output.with_suffix(".csv")
     with atomic_path(points) as temporary:
         rows = ["amplitude_um_pp,relative_friction,force_n,participant"]
-        rows += [f"{a:.5f},{r:.5f},{f:.5f},{args.participant:g}" for a, r, f in
+        rows += [f"{a:.5f},{r:.5f},{f:.5f},{args.participant}" for a, r, f in
                  zip(data.amplitude_um_pp, data.relative_friction, data.force_n, strict=True)]
         temporary.write_text("\n".join(rows) + "\n")
     with atomic_path(output) as temporary:

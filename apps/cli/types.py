@@ -114,7 +114,16 @@ BOOTSTRAP_SAMPLES = Bounded(10, 100_000, whole=True)
 REPEATS = Bounded(1, 10_000, whole=True)
 ZONES = Bounded(2, 3, whole=True)
 LEVEL = Bounded(0.0, 10_000.0, what="level (in the varied parameter's unit)")
-PARTICIPANT = Bounded(-1e9, 1e9)  # a number naming whose finger (the participant column)
+
+
+def PARTICIPANT(text: str) -> str:  # noqa: N802 (an argparse type, named like the others)
+    """Whose finger: an id as experiments take it (P01), a number the same id however written (7, 7.0)."""
+    from ultraglide.render.physics.measurements import participant_id
+
+    try:
+        return participant_id(text)
+    except ValueError as problem:
+        raise argparse.ArgumentTypeError(str(problem)) from None
 
 
 MAX_NAME_CHARS = 200

@@ -50,7 +50,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                            help="fit every model and rank them by cross-validated error; -o keeps the best")
     calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
                            help="use only this participant's points (the participant column); with --device, whose "
-                                "finger is measured (a number, written into the calibration)")
+                                "finger is measured: an id as experiments take it, e.g. P01, written into the "
+                                "calibration and its points as text)")
     calibrate.add_argument("--json", action="store_true", help="print one JSON object")
     calibrate.add_argument("--bootstrap", type=BOOTSTRAP_RESAMPLES, default=200, metavar="N",
                            help="bootstrap resamples for the uncertainties (points; forces and participants when "
@@ -97,7 +98,7 @@ def _run_on_plate(args) -> int:
         print_json({"fit": fit_summary(fit), "participant": args.participant, "points": result["points"],
                     "missing_steps": result["missing_steps"], "written": written})
         return 0
-    print(f"participant {args.participant:g}: {result['points']} points measured on {args.device}"
+    print(f"participant {args.participant}: {result['points']} points measured on {args.device}"
           + (f", {result['missing_steps']} steps left out (the finger not sliding)" if result["missing_steps"] else ""))
     for line in _fit_lines(fit):
         print(line)
@@ -116,8 +117,8 @@ def _select_participant(data, participant):
         raise UsageError(f"{data.source}: --participant needs a participant column")
     pick = data.participant == participant
     if not pick.any():
-        known = ", ".join(f"{p:g}" for p in np.unique(data.participant))
-        raise UsageError(f"{data.source}: no points of participant {participant:g}; the file has {known}")
+        known = ", ".join(str(p) for p in np.unique(data.participant))
+        raise UsageError(f"{data.source}: no points of participant {participant}; the file has {known}")
     return data.subset(pick)
 
 

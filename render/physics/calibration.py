@@ -76,7 +76,7 @@ from ultraglide.inputs import parse_toml, read_input
 CALIBRATION_VERSION = 1
 
 
-def calibration_toml(fit: Fit, participant: float | None = None, procedure: str | None = None) -> str:
+def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None) -> str:
     """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically); ``participant``:
     whose finger it is (an on-plate calibration's id), ``procedure``: how the points were measured, in words."""
     kind = fit.kind or model_kind(fit.model)
@@ -111,7 +111,7 @@ def calibration_toml(fit: Fit, participant: float | None = None, procedure: str 
     if fit.warnings():
         document["fit"]["warnings"] = fit.warnings()
     if participant is not None:
-        document["fit"]["participant"] = float(participant)
+        document["fit"]["participant"] = str(participant)  # an id (P01), text as experiments keep it
     if procedure:
         document["fit"]["procedure"] = procedure
     return tomli_w.dumps(document)

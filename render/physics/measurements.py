@@ -2,7 +2,8 @@
 
 Lines starting with ``#`` are comments. Amplitudes are peak-to-peak; convert zero-to-peak data
 (as many published fits are) by doubling before saving. ``participant`` is a number naming whose
-finger each point is (for cross-validation across people).
+finger each point is (for cross-validation across people): an id as experiments write it (``P01``), kept as text;
+a number (``7``, ``7.0``) is the same id however it is written (:func:`participant_id`).
 
 Measurement noise is accepted within a stated tolerance: a ratio down to -0.05 (a tribometer's
 noise about a finger that glides almost freely) is clipped to 0 and counted, and ratios up to 1.2
@@ -13,6 +14,8 @@ near 1 (it is friction over friction at rest), and at each force it must fall wi
 
 from __future__ import annotations
 
+import csv
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +27,9 @@ AMPLITUDE = Column("amplitude_um_pp", 0.0, 100.0, "µm p-p")  # plates reach a f
 NOISE_BELOW_ZERO = 0.05  # ratios down to -0.05 are noise about a finger that glides almost freely: clipped to 0
 RELATIVE_FRICTION = Column("relative_friction", -NOISE_BELOW_ZERO, 1.2)  # above 1: noise about rest
 FORCE = Column("force_n", 0.0, 50.0, "N", low_open=True)
-PARTICIPANT = Column("participant", -1e9, 1e9)  # a number naming whose finger it is
+PARTICIPANT = "participant"  # whose finger: a text column, read apart from the numbers
+MAX_ID_CHARS = 64
+ID_PUNCTUATION = "-_."
 REQUIRED_COLUMNS = (AMPLITUDE.name, RELATIVE_FRICTION.name)
 MAX_ROWS = 100_000  # measured tables hold tens to thousands of points
 MIN_STEP_UM = 0.001  # distinct amplitudes at one force closer than a nanometre are one measurement, or noise
@@ -97,7 +102,7 @@ def read_measurements(path: str | Path) -> Measurements:
     friction reduction (:func:`check_describes_reduction`): a flat table says nothing about how
     friction falls, so it can neither be inverted nor fitted.
     """
-    columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE, PARTICIPANT), ModelError,
+    columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE,), ModelError,
                                "measurement file", MAX_ROWS)
     amplitude = columns["amplitude_um_pp"]
     ratio = columns["relative_friction"]
@@ -119,6 +124,45 @@ def read_measurements(path: str | Path) -> Measurements:
             at = "" if value is None else f" at {value:g} N"
             raise ModelError(f"{path}: amplitudes {distinct[k]:g} and {distinct[k + 1]:g} µm{at} differ by less than "
                              f"{MIN_STEP_UM:g} µm, below any vibrometer's resolution; merge them")
-    data = Measurements(amplitude, ratio, force, str(path), columns.get("participant"), below, above)
+    data = Measurements(amplitude, ratio, force, str(path), _participants(path, len(amplitude)), below, above)
     check_describes_reduction(data, str(path))
     return data
+
+
+def participant_id(text) -> str:
+    """A participant's id as ``calibrate`` and the measurement files keep it: letters, digits and ``-_.``, at most
+    64 characters (``P01``, ``s-12``); a number is the same id however written (``7``, ``7.0``, ``07`` are ``7``),
+    so files and commands of the numeric ids before keep matching. ValueError (one line) for anything else."""
+    value = str(text).strip()
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if math.isfinite(number):
+        return f"{number:g}" if abs(number) < 1e15 else value
+    if not 0 < len(value) <= MAX_ID_CHARS or not all(c.isalnum() or c in ID_PUNCTUATION for c in value):
+        raise ValueError(f"a participant id is 1 to {MAX_ID_CHARS} letters, digits, '-', '_' or '.' (e.g. P01), "
+                         f"got {value!r}")
+    return value
+
+
+def _participants(path: str | Path, rows: int) -> np.ndarray | None:
+    """The file's participant column as ids (:func:`participant_id`), row for row with the numbers read before it
+    (the same data lines: not blank, not a comment); None without the column."""
+    with open(path, encoding="utf-8-sig", newline="") as handle:
+        lines = [(number, line.split("#", 1)[0]) for number, line in enumerate(handle, 1)
+                 if line.strip() and not line.strip().startswith("#")]
+    names = [name.strip() for name in next(csv.reader([lines[0][1]]))]
+    if PARTICIPANT not in names:
+        return None
+    column = names.index(PARTICIPANT)
+    ids = []
+    for number, line in lines[1:]:
+        cells = next(csv.reader([line]), [])
+        try:
+            ids.append(participant_id(cells[column] if column < len(cells) else ""))
+        except ValueError as problem:
+            raise ModelError(f"{path}:{number}: {problem}") from None
+    if len(ids) != rows:  # the numeric reader and this one disagree on the rows: never silently misalign
+        raise ModelError(f"{path}: the participant column has {len(ids)} values for {rows} rows")
+    return np.array(ids, dtype=str)
