@@ -28,6 +28,8 @@ that a table over u serves every force.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp, friction_force_n
 
@@ -83,6 +85,16 @@ def bed_reaction(relative_amplitude, phase_rad):
     return np.where(v <= 1.0, attached, detached)
 
 
+@lru_cache(maxsize=8)
+def _gauss_legendre(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes and weights on [-1, 1], read-only: an eigenproblem worth solving once
+    (it was two fifths of a calibration fit's time when solved at every evaluation)."""
+    nodes, weights = np.polynomial.legendre.leggauss(order)
+    nodes.flags.writeable = False
+    weights.flags.writeable = False
+    return nodes, weights
+
+
 def hertz_reaction(u, phase_rad, ring_nodes: int = 48):
     """Total reaction over a cycle of a Hertzian contact, in units of the applied load.
 
@@ -96,7 +108,7 @@ def hertz_reaction(u, phase_rad, ring_nodes: int = 48):
     sin_phase = np.sin(phase)
     rim = np.minimum(u / _HERTZ_PEAK, 1.0)  # m below which annuli detach
     attached = (1.0 - rim**3) + u * sin_phase * (1.0 - rim**2)
-    nodes, weights = np.polynomial.legendre.leggauss(ring_nodes)
+    nodes, weights = _gauss_legendre(int(ring_nodes))
     m = 0.5 * rim * (nodes + 1.0)  # shape (..., ring_nodes)
     w = 0.5 * rim * weights
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -160,7 +172,7 @@ def rigid_hertz_reaction(u, phase_rad, ring_nodes: int = 256):
     """
     from scipy.optimize import brentq
 
-    nodes, weights = np.polynomial.legendre.leggauss(ring_nodes)
+    nodes, weights = _gauss_legendre(int(ring_nodes))
     m = 0.5 * (nodes + 1.0)
     w = 0.5 * weights * 2.0 * m  # area weight 2 m dm
     sin_phase = np.sin(np.asarray(phase_rad, dtype=float))[..., None]
