@@ -24,12 +24,12 @@ from ultraglide.textures.sampling import Sampler
 SIM = "sim:threshold=0.08,slope=3,lapse=0.02"
 
 
-def dry_run(tmp_path, **options):
+def dry_run(tmp_path, figures=True, **options):
     config = SessionConfig(**{"texture": "grating-1mm", "observer": SIM, "bootstrap": 200, **options})
     design = design_for(config)
     responder = SimResponder(SimObserver.parse(config.observer, config.seed), design.model,
                              load_profile(config.profile), config.speed_mm_s, config.force_n)
-    return run_session(config, design, responder, tmp_path), responder
+    return run_session(config, design, responder, tmp_path, figures=figures), responder
 
 
 def read_csv(path):
@@ -102,6 +102,7 @@ def test_dry_runs_recover_the_simulated_threshold(tmp_path):
         outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed)
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
+        assert outcome.figures == [] and not list((tmp_path / str(seed)).glob("*.p*"))  # none asked, none drawn
         assert 0.08 / 1.5 < outcome.result["threshold"] < 0.08 * 1.5, outcome.result
         assert responder.rendered_frames > 80 * 96000  # every trial's swipe (> 1 s at 96 kHz) was rendered
     assert sum(covered) >= 3, covered
@@ -111,9 +112,11 @@ def test_dry_runs_recover_the_simulated_threshold(tmp_path):
 def test_dry_runs_recover_the_threshold_within_the_interval_in_most_seeds(tmp_path):
     covered = []
     for seed in range(20):
-        outcome, _ = dry_run(tmp_path / str(seed), method="staircase", trials=80, seed=seed, bootstrap=300)
+        outcome, _ = dry_run(tmp_path / str(seed), method="staircase", trials=80, seed=seed, bootstrap=300,
+                             figures=False)  # the intervals are checked here; the figures elsewhere
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
+        assert outcome.figures == [] and not list((tmp_path / str(seed)).glob("*.p*"))  # none asked, none drawn
     assert sum(covered) >= 16, covered  # a 95 % interval: 19 of 20 on average; 16 or more with P > 0.98
 
 

@@ -213,9 +213,10 @@ def now_utc() -> str:
 
 
 def run_session(config: SessionConfig, design: StimulusDesign, responder, directory: Path,
-                resume: bool = False) -> SessionResult:
+                resume: bool = False, figures: bool = True) -> SessionResult:
     """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
-    and the end, result.json and the figures when it ends."""
+    and the end, result.json and (unless ``figures`` is False, as for a batch of simulated sessions
+    that only their results serve) the figures when it ends."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     rows = read_trials(directory) if resume else []
@@ -256,10 +257,10 @@ def run_session(config: SessionConfig, design: StimulusDesign, responder, direct
     write_json(directory / RESULT, result)
     from ultraglide.apps.experiment.figures import draw_figures
 
-    figures = draw_figures(directory, config, design, rows, result) if rows else []
+    drawn = draw_figures(directory, config, design, rows, result) if rows and figures else []
     write_json(directory / SESSION, metadata(config, design, "complete" if complete else "stopped", started,
                                              {**extra, "trials_logged": len(rows)}))
-    return SessionResult(directory, rows, result, figures, complete)
+    return SessionResult(directory, rows, result, drawn, complete)
 
 
 def make_row(config: SessionConfig, design: StimulusDesign, trial: int, level: float, target: int, answer: Answer,
