@@ -1,5 +1,7 @@
 """Section IV: equilibrium (7), detachment, Hertz (8), relative friction (9), against independent integrals."""
 
+import functools
+
 import numpy as np
 import pytest
 from scipy import integrate, optimize
@@ -46,16 +48,19 @@ def test_hertz_contact_periphery_detaches_first():
 
 def _brute_force_hertz_reaction(u, phase):
     """Independent route: annuli in r with eq. (8), each solved by brentq, integrated by quad."""
+    @functools.cache  # each phase's quad visits the same radii first: solve each once
+    def offset(v):
+        def mean_load(s):
+            return integrate.quad(lambda t: max(s + np.sin(t), 0.0), 0, 2 * np.pi, limit=200)[0] / (2 * np.pi)
+        return optimize.brentq(lambda s: mean_load(s) - 1 / v, -1, 1, xtol=1e-12)
+
     def ring(rho, theta):
         local_pressure = 1.5 * np.sqrt(1 - rho**2)  # P / mean pressure
         v = u / local_pressure  # local amplitude over local static compression
         if v <= 1:
             value = local_pressure * (1 + v * np.sin(theta))
         else:
-            def mean_load(s):
-                return integrate.quad(lambda t: max(s + np.sin(t), 0.0), 0, 2 * np.pi, limit=200)[0] / (2 * np.pi)
-            s = optimize.brentq(lambda s: mean_load(s) - 1 / v, -1, 1, xtol=1e-12)
-            value = local_pressure * v * max(s + np.sin(theta), 0.0)
+            value = local_pressure * v * max(offset(v) + np.sin(theta), 0.0)
         return value * 2 * rho  # annulus 2 pi r dr over pi b²
     return [integrate.quad(ring, 0, 1, args=(t,), limit=100, epsabs=1e-7)[0] for t in phase]
 
