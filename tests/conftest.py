@@ -27,11 +27,37 @@ def wait_for(condition, timeout: float = 30.0) -> bool:
     return False
 
 
+_SERVER = None
+
+
+def _cli_server():
+    """This worker's command server (tests/cli_server.py), started at first use; None when turned off
+    (``ULTRAGLIDE_TEST_FORK=0`` runs every command as a plain subprocess)."""
+    global _SERVER
+    if os.environ.get("ULTRAGLIDE_TEST_FORK", "1") == "0":
+        return None
+    if _SERVER is None:
+        import atexit
+
+        from cli_server import CliServer
+
+        _SERVER = CliServer()
+        atexit.register(_SERVER.close)
+    return _SERVER
+
+
 def run_cli(*args, check=False, env=None, timeout=300, **kwargs):
-    """Run the installed ``ultraglide`` command as a user would, in a subprocess."""
+    """Run the ``ultraglide`` command as a user would, in a new process: ``python -m ultraglide ARGS``
+    forked from a process that has numpy, scipy and numba imported (tests/cli_server.py), or a plain
+    subprocess when the environment asks for one."""
     merged = {**os.environ, **(env or {})}
-    result = subprocess.run([sys.executable, "-m", "ultraglide", *map(str, args)], capture_output=True,
-                            text=True, env=merged, timeout=timeout, cwd=kwargs.get("cwd", ROOT))
+    args = [str(arg) for arg in args]
+    server = _cli_server()
+    if server is not None and server.serves(merged):
+        result = server.run(args, merged, Path(kwargs.get("cwd", ROOT)), timeout)
+    else:
+        result = subprocess.run([sys.executable, "-m", "ultraglide", *args], capture_output=True,
+                                text=True, env=merged, timeout=timeout, cwd=kwargs.get("cwd", ROOT))
     if check and result.returncode != 0:
         raise AssertionError(f"ultraglide {' '.join(map(str, args))} failed:\n{result.stderr}")
     return result

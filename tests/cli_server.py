@@ -1,0 +1,223 @@
+"""Run the ``ultraglide`` command in a fresh process without paying for its libraries' import each time.
+
+Most of a short command's CPU time is importing numpy, scipy and numba (about 1 s of CPU against 0.1 s
+for the work of ``export --duration-s 0.1``); the suite runs the command hundreds of times. A server
+process per test worker imports those libraries (and nothing of ours) once, then forks a child for each
+command: the child takes the caller's environment, working directory, stdout and stderr pipes, runs
+``python -m ultraglide ARGS`` through runpy exactly as the interpreter would, and leaves through the
+interpreter's own shutdown (atexit handlers, joined threads, flushed streams), so its exit status,
+output and files are the command's. Every import of ours happens in the child, as in a new process.
+
+The server is single-threaded (a fork beside running threads can inherit a held lock): SIGCHLD wakes
+its loop, which reaps the children and reports each exit status on the request's own socket.
+A caller whose environment differs from the server's in a variable the preloaded libraries read at
+import (NUMBA_*, OMP_*, OPENBLAS_*, MKL_*, PYTHON*) gets a plain subprocess instead.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import selectors
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+PRELOAD = ("numpy", "scipy.ndimage", "scipy.signal", "scipy.interpolate", "numba", "soundfile")
+IMPORT_TIME_VARIABLES = ("NUMBA_", "OMP_", "OPENBLAS_", "MKL_", "PYTHON", "LD_", "MALLOC_")
+
+SERVER = r'''
+import importlib, json, os, runpy, selectors, signal, socket, sys
+control = socket.socket(fileno=int(sys.argv[1]))
+for name in json.loads(sys.argv[2]):
+    importlib.import_module(name)
+sys.stderr.flush()
+control.sendall(b"ready\n")
+wake_read, wake_write = socket.socketpair()
+wake_read.setblocking(False)
+wake_write.setblocking(False)
+signal.set_wakeup_fd(wake_write.fileno())
+signal.signal(signal.SIGCHLD, lambda *_: None)
+replies = {}
+
+def serve():
+    selector = selectors.DefaultSelector()
+    selector.register(control, selectors.EVENT_READ, "control")
+    selector.register(wake_read, selectors.EVENT_READ, "wake")
+    while True:
+        for key, _ in selector.select():
+            if key.data == "wake":
+                try:
+                    wake_read.recv(4096)
+                except BlockingIOError:
+                    pass
+                reap()
+                continue
+            message, fds, _, _ = socket.recv_fds(control, 64, 3)
+            if not message:
+                return
+            stdout, stderr, reply_fd = fds
+            reply = socket.socket(fileno=reply_fd)
+            size, body = int(message), b""
+            while len(body) < size:
+                chunk = reply.recv(size - len(body))
+                if not chunk:
+                    break
+                body += chunk
+            request = json.loads(body)
+            pid = os.fork()
+            if pid == 0:
+                selector.close()
+                return run_child(request, stdout, stderr, reply)
+            os.close(stdout)
+            os.close(stderr)
+            replies[pid] = reply
+            reply.sendall(json.dumps({"pid": pid}).encode() + b"\n")
+        reap()
+
+def reap():
+    while replies:
+        try:
+            pid, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+        reply = replies.pop(pid, None)
+        if reply is not None:
+            try:
+                reply.sendall(json.dumps({"returncode": os.waitstatus_to_exitcode(status)}).encode() + b"\n")
+            except OSError:
+                pass
+            reply.close()
+
+def run_child(request, stdout, stderr, reply):
+    signal.set_wakeup_fd(-1)
+    signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+    for other in replies.values():
+        other.close()
+    reply.close()
+    control.close()
+    wake_read.close()
+    wake_write.close()
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.dup2(stdout, 1)
+    os.dup2(stderr, 2)
+    for fd in (null, stdout, stderr):
+        os.close(fd)
+    os.environ.clear()
+    os.environ.update(request["env"])
+    os.chdir(request["cwd"])
+    sys.argv = ["ultraglide", *request["args"]]
+    return "run"
+
+if serve() == "run":
+    del serve, reap, run_child, replies, control, wake_read, wake_write
+    runpy.run_module("ultraglide", run_name="__main__", alter_sys=True)
+'''
+
+
+class CliServer:
+    """One per test worker: forks the command from a process that has its libraries imported."""
+
+    def __init__(self) -> None:
+        import tempfile
+
+        self._env = dict(os.environ)
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)  # one request a message
+        with tempfile.TemporaryFile() as said:
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", SERVER, str(theirs.fileno()), json.dumps(PRELOAD)],
+                pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=said, env=self._env)
+            theirs.close()
+            self._control = ours
+            ours.settimeout(300)
+            ready = ours.recv(6) == b"ready\n"
+            ours.settimeout(None)
+            said.seek(0)
+            # a warning printed while importing would be printed by every real run and hidden in a forked one
+            self._usable = ready and not said.read(1)
+
+    def serves(self, env: dict[str, str]) -> bool:
+        """Whether a command with this environment may run forked from the server."""
+        if not self._usable or self._process.poll() is not None:
+            return False
+        names = set(env) | set(self._env)
+        return not any(name.startswith(IMPORT_TIME_VARIABLES) and env.get(name) != self._env.get(name)
+                       for name in names)
+
+    def run(self, args: list[str], env: dict[str, str], cwd: Path, timeout: float) -> subprocess.CompletedProcess:
+        out_read, out_write = os.pipe()
+        err_read, err_write = os.pipe()
+        ours, theirs = socket.socketpair()
+        request = json.dumps({"args": args, "env": env, "cwd": str(cwd)}).encode()
+        try:  # the pipes and the request's own socket with the request's size; the request (of any size) on it
+            socket.send_fds(self._control, [str(len(request)).encode()], [out_write, err_write, theirs.fileno()])
+        finally:
+            for fd in (out_write, err_write):
+                os.close(fd)
+            theirs.close()
+        ours.sendall(request)
+        deadline = time.monotonic() + timeout
+        chunks = {out_read: [], err_read: []}
+        replies = b""
+        pid = None
+        with selectors.DefaultSelector() as selector:
+            selector.register(out_read, selectors.EVENT_READ)
+            selector.register(err_read, selectors.EVENT_READ)
+            selector.register(ours, selectors.EVENT_READ)
+            open_streams = 3
+            while open_streams:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    if pid is not None:
+                        try:
+                            os.kill(pid, 9)
+                        except ProcessLookupError:
+                            pass
+                    for fd in chunks:
+                        os.close(fd)
+                    ours.close()
+                    raise subprocess.TimeoutExpired(["ultraglide", *args], timeout)
+                for key, _ in selector.select(min(left, 1.0)):
+                    if key.fileobj is ours:
+                        data = ours.recv(4096)
+                        replies += data
+                        if pid is None and b"\n" in replies:
+                            pid = json.loads(replies.split(b"\n", 1)[0])["pid"]
+                    else:
+                        data = os.read(key.fileobj, 1 << 16)
+                        if data:
+                            chunks[key.fileobj].append(data)
+                    if not data:
+                        selector.unregister(key.fileobj)
+                        open_streams -= 1
+        for fd in chunks:
+            os.close(fd)
+        ours.close()
+        lines = [json.loads(line) for line in replies.splitlines() if line.strip()]
+        returncode = next((line["returncode"] for line in lines if "returncode" in line), None)
+        if returncode is None:
+            raise RuntimeError(f"the test's command server lost ultraglide {' '.join(args)}")
+        return subprocess.CompletedProcess(["ultraglide", *args], returncode, _text(b"".join(chunks[out_read])),
+                                           _text(b"".join(chunks[err_read])))
+
+    def close(self) -> None:
+        self._control.close()
+        try:
+            self._process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait()
+
+
+def _text(data: bytes) -> str:
+    """As subprocess's text mode reads a pipe: the locale's encoding, universal newlines."""
+    import io
+    import locale
+
+    return io.TextIOWrapper(io.BytesIO(data), encoding=locale.getpreferredencoding(False)).read()
