@@ -44,6 +44,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from closed_loop_rig import ClosedLoopRig  # noqa: E402
+from ultraglide.devices.profiles import load_profile  # noqa: E402
 from ultraglide.render.engine.finger_setup import FingerConfig  # noqa: E402
 from ultraglide.render.physics.calibration import load_model  # noqa: E402
 
@@ -196,6 +197,7 @@ def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, cl
     line = lined_up(read(run["envelope"]), read(run["sensors"]), log)
     swiped = line["down"] & (log["sliding"] > 0.5) & np.isfinite(line["target"])
     pick = swiped & (line["t"] >= line["t"][swiped][0] + LEARN_S) & (line["t"] < line["t"][swiped][-1] - 0.05)
+    pick &= line["target"] >= finger_floor(log, line["t"])  # where the limit allows the target, as in simulated time
     error = log["relative_friction"] - line["target"]
     status = run["status"]
     return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "played_share": float(swiped.mean()),
@@ -235,6 +237,17 @@ def main() -> None:
               f"{max(opened.peak_um_pp, closed.peak_um_pp):12.3f} {closed.status['loop']:>18}")
     print("(loop part: the finger's ratio at the amplitude the model or the loop chose, as if the plate reached it at "
           "once: what the friction loop controls; the rest is the plate's own dynamics)")
+    from plate_bound import plate_bound
+
+    profile = load_profile("sim-plate")
+    bounds = {(speed, brake): plate_bound(speed, brake, profile.time_constant_s, LIMIT_UM_PP, profile.max_drive_um_pp)
+              for speed in speeds for brake in (False, True)}
+    print(f"the best any controller can do on this plate (tau {1000 * profile.time_constant_s:.2f} ms, the finger's "
+          f"law and the whole future known, steady 0.5 N): drive 0-{profile.max_drive_um_pp:g} µm p-p (the firmware) "
+          + ", ".join(f"{speed:g} mm/s {bounds[speed, False]['rms']:.3f}" for speed in speeds)
+          + f"; braking (the carrier in antiphase, down to -{LIMIT_UM_PP:g} µm p-p) "
+          + ", ".join(f"{speed:g} mm/s {bounds[speed, True]['rms']:.3f} (drive down to "
+                      f"{bounds[speed, True]['lowest_drive_um_pp']:.1f})" for speed in speeds))
     print()
     for q in ((None,) if args.quick else (None, 100.0, 400.0)):
         result = rig_step_case(step, q, 4.0 if args.quick else 6.0)
