@@ -312,7 +312,8 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
             if first and not self._first_telemetry.wait(self.ack_timeout_s):  # the run's fault baseline
                 raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
             self.loop_on = False
-            if self.amplitude_loop and hello.has_amplitude_loop:  # only while disabled: before ENABLE
+            if self.amplitude_loop and hello.has_amplitude_loop:  # only while disabled: before ENABLE, and after
+                self._command(p.ENABLE, p.enable_payload(False))  # a hang the device may still be enabled (NAK 3)
                 self._command(p.SET_LOOP, p.set_loop_payload(1))
                 self.loop_on = True
             self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))

@@ -93,6 +93,24 @@ def test_injected_faults_are_detected_counted_and_recovered(plate, fault, check)
     driver.stop()
 
 
+def test_a_reconnect_with_the_amplitude_loop_asks_for_it_on_a_disabled_device(plate):
+    """SET_LOOP is refused while the device is enabled (it may be, after a hang the host took for a lost link): the
+    handshake disables before asking, so the first reconnect succeeds and nothing is refused."""
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10, amplitude_loop=True)
+    driver.start(Constant(3.0))
+    assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
+    plate.inject(p.SIM_HANG, 0.8)
+    time.sleep(0.9)
+    assert wait_for(lambda: driver.counters.reconnects >= 1 and driver.status()["connected"] and driver.loop_on
+                    and plate.simulator.enabled and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
+    driver.stop()
+    assert plate.simulator.counters.naks == 0 and plate.simulator.counters.fault_counts[_bad_command()] == 0
+
+
+def _bad_command() -> int:
+    return next(bit for bit, name in p.FAULT_NAMES.items() if name == "bad-command").bit_length() - 1
+
+
 def test_fault_injection_by_protocol_frame(plate):
     driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)  # the ACK waits on a condition, 10 s at most
     driver.start(Constant(2.0))

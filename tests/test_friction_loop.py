@@ -134,6 +134,7 @@ def test_a_sensor_fault_falls_back_without_a_jump_above_the_open_loop_amplitude(
                 "range": "open loop: sensor fault (a force sensor reads out of range)",
                 "silence": "open loop: the sensors are silent"}[fault]
     assert words == expected
+    assert rig.loop.status()["loop_fallback_reasons"] == {expected.removeprefix("open loop: "): 1}
     # from the fallback on, never above the open-loop amplitude: exactly it
     after = run.t_s > (fault_at + 130) / 1000.0 + rig.delay_ms / 1000.0  # silence: 100 ms
     np.testing.assert_allclose(run.commanded_um_pp[after], open_loop_amplitude(run.target[after]), atol=1e-9)

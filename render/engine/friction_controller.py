@@ -121,6 +121,7 @@ class ClosedLoopInverse:
         self.open_samples = 0  # rendered open loop (the loop not following)
         self.closed_samples = 0
         self.fallbacks = 0  # times it fell back from following
+        self.fallback_reasons: dict[str, int] = {}  # how many times for each reason (the loop's words then)
         self._was_following = False
         self.state_words = self.command.words
 
@@ -162,6 +163,8 @@ class ClosedLoopInverse:
         if not following:
             if self._was_following:
                 self.fallbacks += 1
+                reason = words.removeprefix("open loop: ")
+                self.fallback_reasons[reason] = self.fallback_reasons.get(reason, 0) + 1
             self._was_following = False
             self.open_samples += n
             return self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, out)

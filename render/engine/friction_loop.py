@@ -263,6 +263,7 @@ class FrictionLoop:
                 "mu0": round(estimate.mu0, 4), "adapted_scale": round(estimate.scale, 4),
                 "correction": round(self.correction.value, 4), "measured_force_n": _plain(estimate.force_n),
                 "sensor_frames": frames, "loop_fallbacks": self.inverse.fallbacks,
+                "loop_fallback_reasons": dict(self.inverse.fallback_reasons),
                 "closed_loop_samples": self.inverse.closed_samples, "open_loop_samples": self.inverse.open_samples}
 
 
