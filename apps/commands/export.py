@@ -114,16 +114,27 @@ class _NoProgress:
 
 @contextlib.contextmanager
 def no_collections():
-    """No cyclic garbage collection while the export sets up, and none walks what it set up afterwards. Importing
-    numba and scipy, loading numba's cache and the texture make some 10^5 objects and no garbage worth a
-    collection, yet the collector ran through them over and over (0.05-0.1 s of CPU, out of a 10-minute
-    export's 1.5 s); frozen, the few collections of the rendering walk only what the blocks made."""
+    """No cyclic garbage collection while the export sets up: importing numba and scipy, loading numba's cache and
+    the texture make some 10^5 objects and no garbage worth a collection, yet the collector ran through them over
+    and over (0.05-0.1 s of CPU, out of a 10-minute export's 1.5 s). As it was after (for a caller in process)."""
+    enabled = gc.isenabled()
     gc.disable()
     try:
         yield
     finally:
-        gc.freeze()
-        gc.enable()
+        if enabled:
+            gc.enable()
+
+
+@contextlib.contextmanager
+def frozen_set_up():
+    """What is made so far left out of the collections while the blocks render (they walk only what the blocks
+    make), and given back to the collector after, so that a caller in process keeps its own collections."""
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def run(args) -> int:
@@ -170,7 +181,7 @@ def run(args) -> int:
             plot = PlotRecorder(control_total, renderer.settings.control_rate_hz, Path(args.plot))
             renderer.observers.append(plot)
         try:
-            with progress_bar(total) as progress:
+            with progress_bar(total) as progress, frozen_set_up():
                 write_wav(stage, wav_path, total, args.format, progress=progress.update, threads=threads)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large; nothing is renamed
             raise write_failure(output, wav_path, error) from None
