@@ -146,7 +146,7 @@ def _session_rows(directory):
 def test_resume_after_a_kill_continues_the_same_procedure(tmp_path):
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     options = ["experiment", "threshold", "grating-1mm", "--method", "staircase", "--afc", "2", "--observer", SIM,
-               "--trials", "50", "--seed", "8", "--bootstrap", "50"]
+               "--trials", "50", "--seed", "8"]
     run_cli(*options, "--out", whole, check=True)
     process = subprocess.Popen([sys.executable, "-m", "ultraglide", *options, "--out", str(cut)], cwd=ROOT,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -173,7 +173,7 @@ def test_resume_after_a_kill_continues_the_same_procedure(tmp_path):
 
 def test_resume_can_extend_a_session(tmp_path):
     short, long = tmp_path / "short", tmp_path / "long"
-    common = ["--method", "quest", "--afc", "2", "--observer", SIM, "--seed", "3", "--bootstrap", "20"]
+    common = ["--method", "quest", "--afc", "2", "--observer", SIM, "--seed", "3"]
     run_cli("experiment", "threshold", "grating-1mm", *common, "--trials", "40", "--out", long, check=True)
     run_cli("experiment", "threshold", "grating-1mm", *common, "--trials", "20", "--out", short, check=True)
     run_cli("experiment", "threshold", "--resume", short, "--trials", "40", check=True)
@@ -193,7 +193,8 @@ def test_resume_can_extend_a_session(tmp_path):
     (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--repeats", "0"], "--repeats"),
     (["constant", "--preset", "vezzoli2015", "--observer", SIM, "--levels", "0", "-1"], "in 0..10000, got -1"),
     (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--break-every", "-1"], "--break-every"),
-    (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--bootstrap", "5"], "--bootstrap"),
+    (["threshold", "grating-1mm", "--observer", SIM, "--trials", "5", "--interval", "bootstrap", "--bootstrap",
+      "5"], "--bootstrap"),
     (["threshold", "grating-1mm", "--afc", "4"], "from 2 to 3, got 4"),
 ])
 def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
@@ -209,8 +210,7 @@ def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
 
 def test_an_existing_session_is_not_overwritten(tmp_path):
     out = tmp_path / "s"
-    run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM, "--trials", "6", "--out", out,
-            "--bootstrap", "20", check=True)
+    run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM, "--trials", "6", "--out", out, check=True)
     before = (out / "trials.csv").read_bytes()
     line = assert_one_line_error(run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM,
                                          "--trials", "6", "--out", out))

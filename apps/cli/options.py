@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 
+from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.output import one_line
 from ultraglide.apps.cli.types import UNIT_INTERVAL
 
@@ -44,6 +45,17 @@ def output_option(container, *flags: str, kind: str = "file", also: tuple[str, .
     outputs[action.dest] = (flags[0], kind, tuple(also))
     container.set_defaults(**{OUTPUTS: outputs})
     return action
+
+
+def refuse_ignored(args, options: dict[str, object], why: str) -> None:
+    """Refuse, in one line, an option that this combination of options would accept and then ignore: an option
+    that silently does nothing is a mistake the person should hear of. ``options``: the options concerned (their
+    dests) and their defaults, an option counting as given when it holds anything else; ``why``: when it counts
+    and what to do, with ``{option}`` for the option's name."""
+    for dest, default in options.items():
+        value = getattr(args, dest, default)
+        if value is not None and value is not False and value != default:
+            raise UsageError(why.format(option="--" + dest.replace("_", "-")))
 
 
 MODEL_HELP = ("friction model: stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import refuse_overlaps
-from ultraglide.apps.cli.options import add_range_option, output_option
+from ultraglide.apps.cli.options import add_range_option, output_option, refuse_ignored
 from ultraglide.apps.cli.types import (
     BLUR_MM,
     CLIP_PERCENT,
@@ -82,6 +82,13 @@ def run(args) -> int:
     )
     from ultraglide.textures.fileformat import save_texture
 
+    if not args.seamless:
+        refuse_ignored(args, {"seam_method": "crossfade", "seam_band": 0.125},
+                       "{option} says how --seamless joins the tile: add --seamless or leave it out")
+    elif args.seam_method == "mirror":
+        refuse_ignored(args, {"seam_band": 0.125}, "{option} is the band of --seam-method crossfade; mirror has none")
+    if not args.auto_levels:  # (--levels with --auto-levels: the options refuse them)
+        refuse_ignored(args, {"auto_levels_clip": 1.0}, "{option} tunes --auto-levels: add it, or leave this out")
     low, high = args.range
     black, white = args.levels
     options = AuthoringOptions(

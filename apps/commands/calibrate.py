@@ -8,10 +8,10 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import add_figure_width_option, output_option
+from ultraglide.apps.cli.options import add_figure_width_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
-from ultraglide.apps.commands.finger_options import add_finger_options
+from ultraglide.apps.commands.finger_options import add_finger_options, finger_asked
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.calibration import Fit
@@ -76,6 +76,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     plate.add_argument("--windowed", action="store_true", help="a window rather than the full screen")
     add_finger_options(calibrate, "--device sim: the participant; the press follows the plan unless --finger-force")
     calibrate.set_defaults(run=run)
+
+
+ON_PLATE_DEFAULTS = {"profile": "sim-plate", "forces": (0.25, 0.5, 0.9), "passes": 2, "step_ms": 300.0,
+                     "no_window": False, "windowed": False}  # the options of --device, as add_parser gives them
 
 
 def _forces(text: str) -> tuple[float, ...]:
@@ -178,6 +182,17 @@ def run(args) -> int:
     if args.device is not None:
         return _run_on_plate(args)
 
+    refuse_ignored(args, ON_PLATE_DEFAULTS, "{option} is for a calibration on the plate: add --device URL, or leave "
+                                            "it out")
+    if finger_asked(args):
+        raise UsageError("the --finger options are a simulated finger on the plate: add --device sim, or leave them "
+                         "out")
+    if args.compare:
+        refuse_ignored(args, {"model": "stretched"}, "{option} names the one model to fit, and --compare fits every "
+                                                     "model: give one of them")
+    if not args.output:
+        refuse_ignored(args, {"figure_width": "column"}, "{option} lays out the calibration's figure, written with -o "
+                                                         "CAL.toml: add -o, or leave it out")
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix != ".toml":
         raise UsageError(f"{output}: a calibration file must end in .toml")

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser, output_option
+from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
     BOOTSTRAP_SAMPLES,
@@ -129,6 +129,34 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     constant.add_argument("--afc", type=ZONES, help="forced choice instead of yes/no")
     _add_shared_options(constant)
     constant.set_defaults(run=run)
+
+
+# what a session keeps in its session.json (--resume takes them from there), as the parsers give them
+SESSION_DEFAULTS = {"method": "staircase", "afc": None, "rule": "1u2d", "range": None, "start_level": None,
+                    "reference": None, "preset": None, "levels": None, "repeats": None, "vary": None, "device": None,
+                    "seed": 0, "break_every": 0, "participant": "P01", "session": "1",
+                    "function": "weibull", "interval": "posterior", "bootstrap": 200, "model": "stretched",
+                    "profile": "sim-plate", "force": None, "speed_mm_s": 100.0, "closed_loop": False}
+
+
+def _refuse_ignored_options(args) -> None:
+    """Options this combination would take and ignore, refused in one line."""
+    if args.resume:
+        if args.texture:
+            raise UsageError(f"--resume continues the session in {args.resume} on its own texture: leave out "
+                             f"{args.texture}")
+        if args.out:
+            raise UsageError(f"--resume continues the session in {args.resume}, where its files stay: leave out "
+                             "--out")
+        refuse_ignored(args, SESSION_DEFAULTS, f"{{option}} is kept in the session --resume {args.resume} "
+                                               "continues (its session.json): leave it out")
+        return
+    if args.interval != "bootstrap":
+        refuse_ignored(args, {"bootstrap": 200}, "{option} is the samples of --interval bootstrap: add --interval "
+                                                 "bootstrap, or leave it out")
+    if args.observer:
+        refuse_ignored(args, {"screen_width_mm": None, "windowed": False},
+                       "{option} is for the participant's window, and a simulated observer has none: leave it out")
 
 
 def _check_counts(args) -> None:
@@ -252,6 +280,7 @@ def run(args) -> int:
     from ultraglide.apps.experiment.session import resumed_config, run_session
 
     kind = args.experiment
+    _refuse_ignored_options(args)
     if args.resume:
         directory = Path(args.resume)
         saved = read_session(directory)

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from ultraglide.render.renderer import ControlBlock
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path, refuse_overlaps, render_inputs
-from ultraglide.apps.cli.options import add_figure_width_option, output_option
+from ultraglide.apps.cli.options import add_figure_width_option, output_option, refuse_ignored
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
@@ -156,6 +156,9 @@ def run(args) -> int:
         threads = available_cpus() if args.threads is None else int(args.threads)
         refuse_overlaps({"-o": output, "--envelope-csv": args.envelope_csv, "--plot": args.plot},
                         render_inputs(args))
+        if not args.plot:
+            refuse_ignored(args, {"figure_width": "column"}, "{option} lays out --plot's figure: add --plot, or "
+                                                             "leave it out")
         effects = load_effects(args.effects) if args.effects else None
         inputs = load_inputs(args)
         renderer, trajectory = make_renderer(inputs, args, args.rate), inputs.trajectory

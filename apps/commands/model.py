@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import add_figure_width_option, add_model_option, output_option
+from ultraglide.apps.cli.options import add_figure_width_option, add_model_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
 
@@ -168,6 +168,12 @@ def run(args) -> int:
     force = DEFAULT_FORCE_N if args.force is None else args.force
     if args.report and Path(args.report).suffix.lower() not in (".pdf", ".svg", ".png"):
         raise UsageError(f"{args.report}: the report is a .pdf (or .svg, or .png at 300 dpi)")
+    if args.data and not args.plots:
+        raise UsageError("--data holds the measured points of figure 9, drawn only with --plots DIR: add --plots DIR "
+                         "(to fit a model to measured points: ultraglide calibrate DATA.csv)")
+    if not (args.plots or args.report):
+        refuse_ignored(args, {"figure_width": "column"}, "{option} lays figures out: give --plots DIR or --report "
+                                                         "FILE.pdf, or leave it out")
     refuse_overlaps({"--report": args.report}, {"--model": model_file(args.model), "--data": args.data})
     model = load_model(args.model)
     params = _finger(model)

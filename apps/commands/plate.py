@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, output_option
+from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
 
@@ -175,6 +175,16 @@ def run_sweep(args) -> int:
         if not path.resolve().parent.is_dir():
             raise UsageError(f"{path}: its folder does not exist")
     kind = parse_device_url(args.device).kind
+    if kind != "audio":
+        refuse_ignored(args, {"sensor": None, "sensor_um_per_unit": None},
+                       "{option} is for sweeping an audio output (--device audio:NAME), which reports no amplitude: "
+                       "leave it out")
+    elif not args.sensor:
+        refuse_ignored(args, {"sensor_um_per_unit": None}, "{option} is the sensitivity of --sensor: add --sensor "
+                                                            "audio:NAME")
+    if not args.plot:
+        refuse_ignored(args, {"figure_width": "column"}, "{option} lays out --plot's figure: add --plot, or leave "
+                                                         "it out")
     if kind == "audio":
         if not args.sensor:
             raise UsageError("an audio output reports no amplitude: sweeping it needs a vibration sensor on an audio "

@@ -17,6 +17,10 @@ from ultraglide.apps.cli.types import (
     point_mm,
 )
 
+# a swipe's options (which a --trajectory does not take) and their defaults, as add_render_options gives them
+SWIPE_DEFAULTS = {"path": "straight", "speed_mm_s": 100.0, "direction_deg": 0.0, "start": None, "duration_s": 5.0,
+                  "radius_mm": 15.0, "zigzag_width_mm": 40.0}
+
 
 def add_render_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")

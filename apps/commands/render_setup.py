@@ -6,6 +6,7 @@ import warnings
 from dataclasses import dataclass
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.options import refuse_ignored
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
@@ -15,6 +16,23 @@ from ultraglide.render.touch_log import read_touch_log
 from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.library import resolve_texture
 from ultraglide.textures.texture import Texture
+
+
+def refuse_ignored_path_options(args) -> None:
+    """A swipe's options with ``--trajectory`` (which replays its log), or one shape's option with another path:
+    refused in one line, not silently ignored."""
+    from ultraglide.apps.commands.render_options import SWIPE_DEFAULTS
+
+    if args.trajectory:
+        refuse_ignored(args, SWIPE_DEFAULTS, "{option} shapes a swipe, and --trajectory replays its log instead: "
+                                             "leave one of them out")
+        return
+    if args.path != "circle":
+        refuse_ignored(args, {"radius_mm": SWIPE_DEFAULTS["radius_mm"]},
+                       "{option} is the radius of --path circle: add --path circle or leave it out")
+    if args.path != "zigzag":
+        refuse_ignored(args, {"zigzag_width_mm": SWIPE_DEFAULTS["zigzag_width_mm"]},
+                       "{option} is the pass length of --path zigzag: add --path zigzag or leave it out")
 
 
 def swipe_of(args, texture: Texture) -> SwipePath:
@@ -35,6 +53,7 @@ class Inputs:
 
 def load_inputs(args) -> Inputs:
     """Texture, model, profile and path from parsed options; one-line errors for bad ones."""
+    refuse_ignored_path_options(args)
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         texture = resolve_texture(args.texture)
