@@ -199,7 +199,7 @@ def test_the_host_refuses_a_carrier_the_device_cannot_make(tmp_path):
 def test_a_link_in_a_missing_directory_is_one_line(tmp_path):
     result = run_cli("plate-sim", "--link", tmp_path / "missing" / "plate", timeout=60)
     line = assert_one_line_error(result)
-    assert f"no directory {tmp_path / 'missing'}" in line and "--link" in line
+    assert f"{tmp_path / 'missing'} does not exist" in line and "--link" in line
     assert list(tmp_path.iterdir()) == []
 
 
