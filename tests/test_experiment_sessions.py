@@ -102,7 +102,6 @@ def test_dry_runs_recover_the_simulated_threshold(tmp_path):
         outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed)
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
-        assert outcome.figures == [] and not list((tmp_path / str(seed)).glob("*.p*"))  # none asked, none drawn
         assert 0.08 / 1.5 < outcome.result["threshold"] < 0.08 * 1.5, outcome.result
         assert responder.rendered_frames > 80 * 96000  # every trial's swipe (> 1 s at 96 kHz) was rendered
     assert sum(covered) >= 3, covered
