@@ -64,13 +64,20 @@ class PlateProfile:
         return (f"PlateProfile({self.name!r}, {self.resonance_hz / 1000:g} kHz, Q {self.q:g}, "
                 f"limit {self.max_amplitude_um_pp:g} µm p-p{overdrive})")
 
+    @property
+    def shown_name(self) -> str:
+        """The name as a message shows it: as written, or quoted with its escapes when it holds a line break
+        or another control character, so that a refusal stays one line whatever the file says."""
+        return self.name if self.name.isprintable() else repr(self.name)
+
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise DeviceError(f"profile name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.description, str):
-            raise DeviceError(f"profile {self.name}: description must be a string, got {self.description!r}")
+            raise DeviceError(f"profile {self.shown_name}: description must be a string, got {self.description!r}")
         if not isinstance(self.allow_audible, bool):
-            raise DeviceError(f"profile {self.name}: allow_audible must be true or false, got {self.allow_audible!r}")
+            raise DeviceError(f"profile {self.shown_name}: allow_audible must be true or false, "
+                              f"got {self.allow_audible!r}")
         if self.max_drive_um_pp is None:
             object.__setattr__(self, "max_drive_um_pp", self.max_amplitude_um_pp)
         for key in NUMBERS:
@@ -79,7 +86,7 @@ class PlateProfile:
         for key in ("resonance_hz", "carrier_min_hz", "carrier_max_hz"):
             value = getattr(self, key)
             if value < AUDIBLE_HZ and not self.allow_audible:
-                raise DeviceError(f"profile {self.name}: {key} = {value:g} Hz is audible (below 20000 Hz); "
+                raise DeviceError(f"profile {self.shown_name}: {key} = {value:g} Hz is audible (below 20000 Hz); "
                                   "a plate there sings: set allow_audible = true in the profile if you mean it")
             self._within(key, value, lowest, HIGHEST_HZ, "Hz")
         self._within("q", self.q, *Q_RANGE)
@@ -96,18 +103,19 @@ class PlateProfile:
     def _number(self, key: str) -> float:
         value = getattr(self, key)
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise DeviceError(f"profile {self.name}: {key} must be a number, got {value!r}")
+            raise DeviceError(f"profile {self.shown_name}: {key} must be a number, got {value!r}")
         try:
             number = float(value)
         except OverflowError:
             number = math.inf
         if not math.isfinite(number):
-            raise DeviceError(f"profile {self.name}: {key} must be a finite number, got {value!r}")
+            raise DeviceError(f"profile {self.shown_name}: {key} must be a finite number, got {value!r}")
         return number
 
     def _within(self, key: str, value: float, low: float, high: float, unit: str = "", open_low: bool = False):
         if value < low or value > high or (open_low and value == low):
-            raise DeviceError(f"profile {self.name}: {key} = {value:g} is outside {low:g}..{high:g} {unit}".rstrip())
+            raise DeviceError(f"profile {self.shown_name}: {key} = {value:g} is outside {low:g}..{high:g} "
+                              f"{unit}".rstrip())
 
     @property
     def time_constant_s(self) -> float:
@@ -123,7 +131,7 @@ class PlateProfile:
         """DeviceError unless ``carrier_hz`` lies within the plate's carrier range and, given an audio rate
         (Hz), that rate can carry it."""
         if not self.carrier_min_hz <= carrier_hz <= self.carrier_max_hz:
-            raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.name}'s range "
+            raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.shown_name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")
         if audio_rate_hz is not None:
             from ultraglide.devices.carrier import check_carrier

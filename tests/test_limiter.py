@@ -16,7 +16,7 @@ import pytest
 import soundfile
 import tomli_w
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy import signal
 from test_devices import ASOUNDRC  # the ALSA file-PCM capture, one definition
@@ -382,6 +382,7 @@ KEYS = st.sampled_from([*PlateProfile.__dataclass_fields__, "gain", "Q"])
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@example(base=True, changes={"name": "\n", "description": 0.0}, plausible={})  # the name in a refusal, one line
 @given(base=st.booleans(), changes=st.dictionaries(KEYS, VALUES, max_size=5),
        plausible=st.dictionaries(st.sampled_from(["q", "resonance_hz", "full_scale_um_pp", "max_amplitude_um_pp",
                                                   "max_drive_um_pp", "carrier_min_hz", "carrier_max_hz"]),
