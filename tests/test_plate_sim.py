@@ -524,7 +524,9 @@ def test_a_finger_on_the_plate_reaches_the_host_in_sensors_frames():
         t += 0.001
         frames += [p.decode_frame(f[:-1]) for f in sim.advance(t)]
     samples = np.concatenate([p.parse_sensors(f.payload).samples for f in frames if f.kind == p.SENSORS])
-    assert len(samples) >= 90
+    # 100 ms of 1 ms sensor samples, less the frame still filling (one 10 ms period) and the sample in progress,
+    # however the frames' phase falls against the test's first millisecond
+    assert len(samples) >= 100 - 10 - 1
     assert samples["normal_force_n"] == pytest.approx(np.full(len(samples), 0.5), abs=1e-6)
     late = samples[-20:]
     assert late["amplitude_um_pp"] == pytest.approx(np.full(20, 2.0), abs=1e-3)  # 0.25 of 8 µm, settled
