@@ -145,10 +145,12 @@ def test_a_plate_that_cut_itself_out_is_never_re_enabled_by_a_touch(plate):
 
 def test_the_firmware_output_stage_ticks_only_while_it_has_work():
     sim = PlateSimulator(PROFILE)
-    t = sim._clock + 0.001
-    sim.advance(t)  # the core's first tick: telemetry now, the next one in 20 ms
-    assert sim.next_wake_s(t) == pytest.approx(TELEMETRY_S, abs=1e-4)  # disabled, at rest: only telemetry is due
-    assert sim.next_wake_s(t + 0.015) == pytest.approx(TELEMETRY_S - 0.015, abs=1e-4)
+    # half a millisecond past the core's first tick: "1 ms" in floating seconds can render one sample short of it
+    # (the clock starts at perf_counter's value), which left the tick, and its telemetry, still due
+    t = sim._clock + 0.0015
+    sim.advance(t)  # the core's first tick: telemetry sent, the next one 20 ms after that tick
+    assert sim.next_wake_s(t) == pytest.approx(TELEMETRY_S - 0.0005, abs=1e-4)  # disabled, at rest: only telemetry
+    assert sim.next_wake_s(t + 0.015) == pytest.approx(TELEMETRY_S - 0.0155, abs=1e-4)
     sim.receive(p.encode_frame(p.ENABLE, 1, p.enable_payload(True)))
     assert sim.next_wake_s(t) == TICK_S  # enabled: the sample clock runs
     for k in range(20):
