@@ -52,6 +52,7 @@ class RigRun:
     floor: np.ndarray  # the lowest ratio the finger's law reaches within the limit then
     status: dict
     peak_um_pp: float
+    drive_range_um_pp: tuple[float, float]  # the lowest (braking) and highest drive the plate received
     law_at_intended: np.ndarray  # the finger's ratio had the plate reached the intended amplitude at once
 
     def loop_error(self, after_s: float = 2.0) -> float:
@@ -74,12 +75,13 @@ class RigRun:
 
 class ClosedLoopRig:
     """See the module docstring. ``texture``: a Texture; ``finger``: its FingerConfig (default: the default finger);
-    ``q``: the plate's real Q (None: the profile's); ``closed``: the friction loop on (and the amplitude loop)."""
+    ``q``: the plate's real Q (None: the profile's); ``closed``: the friction loop on (and the amplitude loop);
+    ``braking``: the firmware's amplitude loop may brake (an antiphase drive), else its drive only pushes."""
 
     def __init__(self, texture, speed_mm_s: float = 100.0, closed: bool = True, finger: FingerConfig | None = None,
                  model: str = "stretched", profile: str = "sim-plate", q: float | None = None, link_s: float = 0.001,
                  force_n: float = 0.5, log_hz: float = 4000.0, start_mm=(2.0, 25.0), seconds: float = 10.0,
-                 lead_s: float = 0.5, loop_tau_s: float | None = None):
+                 lead_s: float = 0.5, loop_tau_s: float | None = None, braking: bool = True):
         self.profile = load_profile(profile)
         self.config = (finger or FingerConfig()).with_log(None)
         self.finger = build_finger(self.config)
@@ -88,7 +90,7 @@ class ClosedLoopRig:
         self.log = FingerLog(None, rate_hz=log_hz, clock_origin_s=0.0)
         self.finger.log = self.log
         truth = PlateTruth(self.profile.resonance_hz, q or self.profile.q)
-        self.plate = PlateSimulator(self.profile, truth=truth, finger=self.finger)
+        self.plate = PlateSimulator(self.profile, truth=truth, finger=self.finger, braking=braking)
         self.plate._started = self.plate._clock = 0.0  # the rig's clock: s from the plate's start
         self.finger.set_clock_origin(0.0)
         self.model = load_model(model)
@@ -202,5 +204,5 @@ class ClosedLoopRig:
         chosen = np.where(known, intended[index], 0.0)
         return RigRun(t, ratio, amplitude, force, sliding > 0.5, np.where(known, targets[index], np.nan),
                       np.where(known, commanded[index], np.nan), np.where(known, intended[index], np.nan),
-                      known & downs[index], floor, status, self.plate.peak_um_pp,
+                      known & downs[index], floor, status, self.plate.peak_um_pp, self.plate.drive_range_um_pp,
                       law(chosen / scale, np.maximum(force, 0.01)))

@@ -9,8 +9,13 @@ physics (:class:`PlateTruth`) and the transport (:class:`PtyPlate`): the core re
 the plate's envelope follows it through a first-order low-pass (its real resonance f0, drifting D Hz/s,
 and Q give a steady gain 1/sqrt(1 + (2Q(fc - f0)/f0)²) at carrier fc and a time constant Q/(pi f0)),
 computed block by block with scipy (no per-sample Python loop), and the amplitude it reaches goes back
-to the core as the sensing piezo's measurement, with optional noise. A trip cuts the drive at the sample
-where the core saw it (a comparator on the measurement): the rest of the block is recomputed at zero drive.
+to the core as the sensing piezo's measurement, with optional noise. The drive is signed: a negative one
+is the carrier in antiphase (the firmware's brake). What the low-pass follows is the resonator's phasor
+along the drive's phase, and the plate's amplitude is its magnitude: a phasor pulled through zero builds
+vibration in the opposite phase, a larger amplitude, not a smaller one. (Off resonance a real resonator's
+phasor also turns; the model keeps only its magnitude's steady gain and time constant.) A trip cuts the
+drive at the sample where the core saw it (a comparator on the measurement): the rest of the block is
+recomputed at zero drive.
 
 Its physical truth may differ from the profile the firmware believes: another resonance, Q or full scale.
 Force sensors come from a finger (``finger``, a :class:`ForceSource`), absent by default.
@@ -79,6 +84,15 @@ class PlateTruth:
         return self.q / (math.pi * self.resonance_at(elapsed_s))
 
 
+def resonator_phasor(drive: np.ndarray, start_um_pp: float, decay: float, gain_um_pp: float) -> np.ndarray:
+    """The plate's phasor along the drive's phase (µm p-p, signed) after each drive sample (signed fractions of
+    full scale, each held for one sample), from ``start_um_pp``: a first-order envelope decaying by ``decay`` a
+    sample towards ``gain_um_pp`` times the drive (the slowly varying envelope of a resonator driven at its
+    carrier, exact for a zero-order hold). The amplitude is its magnitude."""
+    phasor, _ = lfilter([(1.0 - decay) * gain_um_pp], [1.0, -decay], drive, zi=[decay * start_um_pp])
+    return phasor
+
+
 class ForceSource(Protocol):
     """What presses on the plate (a simulated finger): normal and lateral force (N) for a block of samples
     at ``sample_rate_hz`` from ``t_s`` (s since the simulator started), given the plate's amplitude there."""
@@ -133,15 +147,16 @@ class PlateSimulator:
 
     def __init__(self, profile: PlateProfile, name: str = "ultraglide plate simulator",
                  truth: PlateTruth | None = None, breaks: tuple[str, ...] = (), max_version: int = 3,
-                 finger: ForceSource | None = None):
+                 finger: ForceSource | None = None, braking: bool = True):
         self.profile = profile
         self.truth = truth or PlateTruth.of(profile)
         self.name = name
         self.finger = finger
         sensors = p.SENSOR_AMPLITUDE | ((p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE) if finger else 0)
+        features = p.FEATURE_AMPLITUDE_LOOP | (p.FEATURE_BRAKING if braking else 0)
         self.core = sil.FirmwareCore(sil.CoreSettings.of(profile, name=name, breaks=tuple(breaks),
                                                          max_version=max_version, sensors=sensors,
-                                                         sample_rate_hz=SAMPLE_RATE_HZ))
+                                                         sample_rate_hz=SAMPLE_RATE_HZ, features=features))
         self.sample_rate_hz = SAMPLE_RATE_HZ
         self.events: queue.Queue = queue.Queue(MAX_EVENTS)  # bounded: nobody need drain it
         self.events_dropped = 0
@@ -153,11 +168,12 @@ class PlateSimulator:
             finger.set_clock_origin(self._started)  # its log's times on the host's clock: sample 0 is now
         self._clock = self._started
         self._owed = 0.0  # fractional drive samples not yet rendered
-        self._plate_state = 0.0  # the plate's amplitude, µm p-p
+        self._plate_state = 0.0  # the plate's phasor along the drive's phase, µm p-p (its amplitude: the magnitude)
         self._rng = np.random.default_rng(0)
         self._noise = np.zeros(BLOCK)
         self.amplitude_um_pp = 0.0
         self.peak_um_pp = 0.0
+        self.drive_range_um_pp = (0.0, 0.0)  # the lowest (braking) and highest drive the plate received
         self.real_time = False  # PtyPlate: frames arrive in real time, ahead of the clock last advanced to
         self.trace: list[np.ndarray] | None = None  # a list here collects the plate's amplitude, every sample
         self._sent: list[bytes] = []  # what the core sent during the present advance
@@ -274,7 +290,7 @@ class PlateSimulator:
         return p.Telemetry(s.measured_um_pp, s.carrier_hz, s.faults, bool(s.enabled), s.frames_ok, s.crc_errors,
                            s.framing_errors, s.setpoints, s.lost_setpoints, s.late_setpoints, s.discarded_setpoints,
                            tuple(s.fault_counts), s.overrun_setpoints, s.expected_index, s.stream_rate_hz,
-                           s.buffered, min(65535, round(s.drive * p.SETPOINT_SCALE)), s.playback, s.loop,
+                           s.buffered, min(65535, max(0, round(s.drive * p.SETPOINT_SCALE))), s.playback, s.loop,
                            s.session_version)
 
     # ---- bytes in ------------------------------------------------------------------------------
@@ -313,7 +329,7 @@ class PlateSimulator:
         truth = self.truth
         alpha = math.exp(-1.0 / (self.sample_rate_hz * truth.time_constant_s(elapsed)))
         full_scale = truth.full_scale_um_pp or self.profile.full_scale_um_pp
-        b = (1.0 - alpha) * truth.gain(status.carrier_hz, elapsed) * full_scale
+        gain = truth.gain(status.carrier_hz, elapsed) * full_scale
         # disabled, the drive is zero whatever is measured: one block; enabled, the core hears the plate a
         # block late (its limiter and trip do not need it sooner; its amplitude loop does)
         block = (LOOP_BLOCK if status.loop else BLOCK) if status.enabled else sil.MAX_RENDER
@@ -322,10 +338,15 @@ class PlateSimulator:
         while done < n:
             k = min(block, n - done)
             drive = self.core.render(k)
-            if self._plate_state <= REST_UM_PP and not drive.any():
-                amplitude = np.zeros(k)
+            if abs(self._plate_state) <= REST_UM_PP and not drive.any():
+                phasor = np.zeros(k)
             else:
-                amplitude, _ = lfilter([b], [1.0, -alpha], drive, zi=[alpha * self._plate_state])
+                phasor = resonator_phasor(drive, self._plate_state, alpha, gain)
+                low, high = self.drive_range_um_pp
+                declared = self.profile.full_scale_um_pp  # the drive in the firmware's units, as its limit
+                self.drive_range_um_pp = (min(low, float(drive.min()) * declared),
+                                          max(high, float(drive.max()) * declared))
+            amplitude = np.abs(phasor)
             measured = amplitude
             if truth.noise_um_pp > 0:
                 measured = amplitude + self._rng.normal(0.0, truth.noise_um_pp, k)
@@ -334,24 +355,25 @@ class PlateSimulator:
                 normal, lateral = self.finger.forces(t0 + done / self.sample_rate_hz, amplitude)
             cut = self.core.sense(measured, normal, lateral)
             if cut < k:  # tripped at sample `cut`: the drive stopped there
-                before = amplitude[cut - 1] if cut > 0 else self._plate_state
-                amplitude = amplitude.copy()
-                amplitude[cut:] = before * alpha ** np.arange(1, k - cut + 1)
-            self._plate_state = float(amplitude[-1])
+                before = phasor[cut - 1] if cut > 0 else self._plate_state
+                phasor = phasor.copy()
+                phasor[cut:] = before * alpha ** np.arange(1, k - cut + 1)
+                amplitude = np.abs(phasor)
+            self._plate_state = float(phasor[-1])
             self.peak_um_pp = max(self.peak_um_pp, float(amplitude.max()))
             if self.trace is not None:
                 self.trace.append(np.array(amplitude, dtype=float))
             done += k
             if done % DRAIN_SAMPLES < k:  # a long catch-up's frames leave as they are made, as a UART's would:
                 self._sent.append(self.core.transmit())  # its 4 KB ring would otherwise overflow
-        self.amplitude_um_pp = self._plate_state
+        self.amplitude_um_pp = abs(self._plate_state)
 
     def next_wake_s(self, now: float) -> float:
         """How long the output stage may sleep from ``now`` (s): one tick while enabled or while the plate
         still moves; otherwise until the core's next telemetry frame (the plate at rest, disabled, has nothing
         else to do; ENABLE wakes it early, see :class:`PtyPlate`)."""
         status = self.status()
-        if status.enabled or self._plate_state > REST_UM_PP:
+        if status.enabled or abs(self._plate_state) > REST_UM_PP:
             return TICK_S
         due = self._started + status.next_telemetry_ms / 1000.0
         return min(max(due - now, 0.0), TELEMETRY_S)

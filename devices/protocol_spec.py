@@ -69,6 +69,7 @@ SENSOR_LATERAL_FORCE = 1 << 2
 SENSOR_NAMES = {SENSOR_AMPLITUDE: "vibration amplitude", SENSOR_NORMAL_FORCE: "normal force",
                 SENSOR_LATERAL_FORCE: "lateral force"}
 FEATURE_AMPLITUDE_LOOP = 1 << 0  # the firmware's amplitude loop (SET_LOOP 1)
+FEATURE_BRAKING = 1 << 1  # ... which brakes with an antiphase drive (down to minus the limit)
 LOOP_OPEN, LOOP_AMPLITUDE = 0, 1
 
 # TELEMETRY v3: what the output is doing

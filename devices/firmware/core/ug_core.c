@@ -84,8 +84,9 @@ static bool config_ok(const ug_config *c) {
     if (c->sensors && (c->sensor_rate_hz < UG_MIN_SENSOR_RATE_HZ || c->sample_rate_hz % c->sensor_rate_hz != 0u)) {
         return false;
     }
-    if ((c->features & ~UG_FEATURE_AMPLITUDE_LOOP) ||
-        ((c->features & UG_FEATURE_AMPLITUDE_LOOP) && !(c->sensors & UG_SENSOR_AMPLITUDE))) {
+    if ((c->features & ~(UG_FEATURE_AMPLITUDE_LOOP | UG_FEATURE_BRAKING)) ||
+        ((c->features & UG_FEATURE_AMPLITUDE_LOOP) && !(c->sensors & UG_SENSOR_AMPLITUDE)) ||
+        ((c->features & UG_FEATURE_BRAKING) && !(c->features & UG_FEATURE_AMPLITUDE_LOOP))) {
         return false;
     }
     if (c->max_version < UG_LOWEST_VERSION || c->max_version > UG_PROTOCOL_VERSION || c->sim_faults > 1u) {
@@ -109,6 +110,7 @@ int ug_core_init(ug_core *core, const ug_config *config, void *port) {
     core->rearm_um_pp = config->max_amplitude_um_pp * UG_OVER_LIMIT_REARM;
     core->fast_gain = 1.0f - expf(-1.0f / (fs * 0.5f * tau));
     core->model_decay = expf(-1.0f / (fs * tau));
+    core->fast_delay_decay = expf(-(float)config->sense_delay_samples / (fs * 0.5f * tau));
     core->telemetry_period_ms = 1000u / UG_TELEMETRY_HZ;
     core->session = config->max_version;
     core->state = UG_OFF;

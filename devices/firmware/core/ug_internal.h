@@ -17,8 +17,9 @@ void ug_decoder_reset(ug_decoder *decoder);
 int ug_decoder_feed(ug_decoder *decoder, uint8_t byte, uint16_t max_encoded);
 
 /* ug_loop.c: the device-side limiter and the amplitude loop */
-float ug_limit(ug_core *core, float drive);
+float ug_limit(ug_core *core, float drive, float floor);
 float ug_loop_drive(ug_core *core, float target);
+float ug_loop_brake_floor(const ug_core *core, float target);
 void ug_loop_record(ug_core *core, float requested, float drive);
 void ug_loop_measured(ug_core *core, size_t n);
 void ug_loop_reset(ug_core *core);

@@ -16,6 +16,18 @@
  * (gain UG_LOOP_KI per second) for a plate whose gain differs from the model's, frozen while the drive
  * saturates in the error's direction (no wind-up). lambda's time constant follows the ADC block: the
  * longer the plate goes unmeasured, the gentler the approach (max(0.2 ms, 1.2 x block)).
+ *
+ * Braking (UG_FEATURE_BRAKING): while the measured amplitude is above the target the loop may drive the
+ * carrier in antiphase (a negative drive), which pulls the resonator's phasor down faster than its free
+ * decay. The plate's amplitude is the phasor's magnitude: pulled through zero it would grow again in the
+ * opposite phase, which a magnitude measurement cannot tell from the right one. So the brake stops before
+ * the envelope could cross zero: a second model, the fastest plausible plate (tau / 2, as the limiter's;
+ * a slower plate, or one off resonance, falls less), runs on the drive played and is reset to every
+ * measurement (delay-compensated); a drive u held for the loop period M (the ADC block and its lag, the
+ * longest the plate goes unmeasured) brings that plate from p to a^M p + (1 - a^M) u, so the drive may go
+ * no lower than -p a^M / (1 - a^M), recomputed every sample as p falls: that plate only approaches zero,
+ * and any slower plate stays above it. The limiter keeps a negative drive within minus the limit L, so a
+ * brake held for ever would leave the plate at most at L, in either phase.
  */
 #include <math.h>
 
@@ -25,14 +37,22 @@
 #define UG_LOOP_MIN_APPROACH_S 0.0002f
 #define UG_LOOP_APPROACH_BLOCKS 1.2f
 
-float ug_limit(ug_core *core, float drive) {
+/* floor: the lowest drive allowed (0, or a brake's, from ug_loop_brake_floor); never below -L */
+float ug_limit(ug_core *core, float drive, float floor) {
     float u = drive;
-    if (!(u > 0.0f)) { /* negative, zero or NaN */
+    if (!(floor <= 0.0f)) {
+        floor = 0.0f;
+    } else if (floor < -core->limit_fraction) {
+        floor = -core->limit_fraction;
+    }
+    if (u != u) { /* NaN: no drive */
         u = 0.0f;
+    } else if (u < floor) {
+        u = floor;
     }
     if (UG_BROKEN(core, UG_BREAK_LIMIT)) {
         u = u > 1.0f ? 1.0f : u;
-    } else {
+    } else if (u > 0.0f) {
         float ceiling = core->measured_um_pp >= core->config.max_amplitude_um_pp ? core->limit_fraction
                                                                                    : core->drive_ceiling;
         if (u > ceiling) {
@@ -59,6 +79,19 @@ float ug_loop_drive(ug_core *core, float target) {
     return (want - a * y) / (1.0f - a) + core->loop_integral;
 }
 
+float ug_loop_brake_floor(const ug_core *core, float target) {
+    if (!(core->config.features & UG_FEATURE_BRAKING) || core->loop_mode != 1u) {
+        return 0.0f;
+    }
+    float r = target < core->limit_fraction ? target : core->limit_fraction;
+    float p = core->brake_plate;
+    if (!(core->measured > r) || !(p > 0.0f)) {
+        return 0.0f;
+    }
+    float floor = -core->brake_reach * p;
+    return floor > -core->limit_fraction ? floor : -core->limit_fraction;
+}
+
 /* after the limiter: the model follows the drive actually played; the history keeps it for alignment */
 void ug_loop_record(ug_core *core, float requested, float drive) {
     float wanted_above = 0.0f;
@@ -75,8 +108,10 @@ void ug_loop_record(ug_core *core, float requested, float drive) {
         }
     }
     core->loop_model = core->model_decay * core->loop_model + (1.0f - core->model_decay) * drive;
+    core->brake_plate += core->fast_gain * (drive - core->brake_plate);
     core->hist_head = (uint16_t)((core->hist_head + 1u) & (UG_HISTORY - 1u));
     core->hist_model[core->hist_head] = core->loop_model;
+    core->hist_brake[core->hist_head] = core->brake_plate;
     core->hist_target[core->hist_head] = requested < core->limit_fraction ? requested : core->limit_fraction;
 }
 
@@ -84,6 +119,7 @@ void ug_loop_measured(ug_core *core, size_t n) {
     unsigned at = (core->hist_head - core->config.sense_delay_samples) & (UG_HISTORY - 1u);
     float measured = core->measured;
     core->loop_model += measured - core->hist_model[at];
+    core->brake_plate += core->fast_delay_decay * (measured - core->hist_brake[at]);
     if (core->loop_mode == 1u && (core->state == UG_PLAYING || core->state == UG_DRY)) {
         float error = core->hist_target[at] - measured;
         bool frozen = ((core->loop_saturated & 1u) && error > 0.0f) || ((core->loop_saturated & 2u) && error < 0.0f);
@@ -99,12 +135,16 @@ void ug_loop_measured(ug_core *core, size_t n) {
         approach_s = UG_LOOP_MIN_APPROACH_S;
     }
     core->loop_approach = 1.0f - expf(-1.0f / ((float)core->config.sample_rate_hz * approach_s));
+    /* the fastest plate's decay over a loop period, and how far below zero a drive may pull it per unit */
+    float period_decay = expf((float)(n + core->config.sense_delay_samples) * logf(1.0f - core->fast_gain));
+    core->brake_reach = period_decay < 1.0f ? period_decay / (1.0f - period_decay) : 0.0f;
 }
 
 void ug_loop_reset(ug_core *core) {
     core->loop_integral = 0.0f;
     core->loop_saturated = 0;
     core->loop_model = core->measured;
+    core->brake_plate = core->measured;
     if (core->loop_approach <= 0.0f) {
         core->loop_approach = 1.0f - expf(-1.0f / ((float)core->config.sample_rate_hz * UG_LOOP_MIN_APPROACH_S));
     }

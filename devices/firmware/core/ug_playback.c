@@ -125,7 +125,7 @@ static float render_sample(ug_core *core) {
                 core->state = UG_PREFILL;
             }
         }
-        core->drive = ug_limit(core, drive);
+        core->drive = ug_limit(core, drive, 0.0f);
         ug_loop_record(core, 0.0f, core->drive);
         core->hist_index[core->hist_head] = UG_NOT_PLAYING;
         return core->drive;
@@ -134,12 +134,14 @@ static float render_sample(ug_core *core) {
         break;
     }
     float wanted = requested;
+    float floor = 0.0f;
     if (playing && core->loop_mode == 1u) {
         wanted = ug_loop_drive(core, requested);
+        floor = ug_loop_brake_floor(core, requested);
     } else if (!playing) {
         wanted = 0.0f;
     }
-    core->drive = ug_limit(core, wanted);
+    core->drive = ug_limit(core, wanted, floor);
     ug_loop_record(core, playing ? requested : 0.0f, core->drive);
     core->hist_index[core->hist_head] = value_playing ? playing_index : UG_NOT_PLAYING;
     return core->drive;

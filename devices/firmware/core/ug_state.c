@@ -69,7 +69,7 @@ void ug_core_set_stage_hot(ug_core *core, bool hot) {
 static void fire_watchdog(ug_core *core) {
     core->watchdog_fired = 1;
     ug_raise_fault(core, UG_FAULT_WATCHDOG, 0, 0.0f);
-    core->ramp_from = core->drive;
+    core->ramp_from = core->drive > 0.0f ? core->drive : 0.0f; /* a brake (antiphase) stops at once */
     core->ramp_samples = core->config.sample_rate_hz / 1000u * UG_WATCHDOG_RAMP_MS;
     core->ramp_left = core->ramp_samples;
     ug_buffer_clear(core); /* the stream (rate, expected) stays */

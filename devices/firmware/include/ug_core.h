@@ -61,7 +61,7 @@ typedef struct ug_config {
     uint16_t dac_oversample;   /* carrier samples per drive sample in ug_core_dac_block (1..16) */
     uint8_t sensors;           /* UG_SENSOR_* bits this board has */
     uint16_t sensor_rate_hz;   /* sensor samples a second (>= 1000 with any sensor; divides sample_rate_hz) */
-    uint8_t features;          /* UG_FEATURE_* bits (the amplitude loop needs UG_SENSOR_AMPLITUDE) */
+    uint8_t features;          /* UG_FEATURE_* bits (the amplitude loop needs UG_SENSOR_AMPLITUDE, braking the loop) */
     uint8_t max_version;       /* the highest protocol version spoken: 3, or 2 */
     uint8_t sim_faults;        /* 1: SIM_FAULT accepted (the simulator); 0: NAK 4 (real firmware) */
     uint16_t sense_delay_samples; /* ADC block lag behind the drive block, samples (< UG_HISTORY) */
@@ -144,6 +144,7 @@ typedef struct ug_core {
     /* derived from the configuration */
     float limit_fraction, drive_ceiling, trip_um_pp, rearm_um_pp;
     float fast_gain;       /* the fastest plausible plate's per-sample envelope gain (tau / 2) */
+    float fast_delay_decay; /* that plate's decay over the measurement's lag, (1 - fast_gain)^sense_delay_samples */
     float model_decay;     /* the nominal plate's per-sample envelope decay exp(-1 / (fs tau)) */
     uint32_t telemetry_period_ms;
 
@@ -197,6 +198,10 @@ typedef struct ug_core {
     float hist_model[UG_HISTORY], hist_target[UG_HISTORY];
     uint32_t hist_index[UG_HISTORY]; /* the stream index playing at each drive sample (or UG_NOT_PLAYING) */
     uint16_t hist_head;
+    /* braking (UG_FEATURE_BRAKING): the fastest plausible plate's envelope (signed: the drive's phase), reset
+       to each measurement, and how far below zero a drive may pull it, per unit of it, within a loop period */
+    float brake_plate, brake_reach;
+    float hist_brake[UG_HISTORY];
 
     /* carrier DDS */
     uint32_t carrier_phase, carrier_step;

@@ -65,6 +65,7 @@
 #define UG_SENSOR_NORMAL_FORCE 0x02u
 #define UG_SENSOR_LATERAL_FORCE 0x04u
 #define UG_FEATURE_AMPLITUDE_LOOP 0x01u
+#define UG_FEATURE_BRAKING 0x02u /* the amplitude loop brakes: an antiphase drive, down to minus the limit */
 
 /* SIM_FAULT kinds */
 #define UG_SIM_DROP 1u
