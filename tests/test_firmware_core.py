@@ -722,15 +722,16 @@ def _steps():
     step = st.one_of(st.tuples(st.just("frame"), _commands()), st.tuples(st.just("frame"), _commands()),
                      st.tuples(st.just("garbage"), st.binary(min_size=1, max_size=60)),
                      st.tuples(st.just("time"), st.integers(1, 150)))
-    return st.tuples(st.sampled_from([0.5, 1.0, 2.0]), st.floats(0.5, 1.0), st.lists(step, max_size=40))
+    return st.tuples(st.sampled_from([0.5, 1.0, 2.0]), st.floats(0.5, 1.0), st.booleans(),
+                     st.lists(step, max_size=40))
 
 
 @pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(session=_steps())
 def test_fuzzed_sessions_keep_every_invariant(session):
-    q_factor, gain, steps = session
-    device = Device(max_drive_um_pp=8.0)
+    q_factor, gain, braking, steps = session
+    device = Device(max_drive_um_pp=8.0, features=p.FEATURE_AMPLITUDE_LOOP | (p.FEATURE_BRAKING if braking else 0))
     limit, full_scale = 6.0, 8.0
     alpha = math.exp(-1.0 / (FS * q_factor * 200.0 / (math.pi * 25000.0)))
     plate = 0.0
@@ -758,13 +759,16 @@ def test_fuzzed_sessions_keep_every_invariant(session):
         else:
             for _ in range(what):
                 drive = device.core.render(PER_MS).copy()
-                assert drive.min() >= 0.0 and drive.max() <= 1.0 + 1e-6  # never beyond the drive ceiling
-                amplitude, _ = lfilter([(1 - alpha) * gain * full_scale], [1, -alpha], drive, zi=[alpha * plate])
-                plate = float(amplitude[-1])
+                # never beyond the drive ceiling; in antiphase (a brake) never beyond minus the limit
+                assert drive.min() >= (-limit / full_scale - 1e-6 if braking else 0.0) and drive.max() <= 1.0 + 1e-6
+                phasor, _ = lfilter([(1 - alpha) * gain * full_scale], [1, -alpha], drive, zi=[alpha * plate])
+                plate = float(phasor[-1])
                 # the device's limit binds: a plate up to twice as fast as configured, driven on or off
-                # resonance, never goes above its limit (whatever the host sent, loop on or off)
-                assert amplitude.max() <= limit * (1 + 1e-4), amplitude.max()
-                device.core.sense(amplitude.astype(np.float32))
+                # resonance, never goes above its limit in either phase (whatever the host sent, loop on or off),
+                # and a brake never pulls it through zero into the opposite phase
+                assert np.abs(phasor).max() <= limit * (1 + 1e-4), np.abs(phasor).max()
+                assert phasor.min() >= -1e-4, phasor.min()
+                device.core.sense(np.abs(phasor).astype(np.float32))
                 device._take()
         status = device.status()
         counts = np.array(status.fault_counts)

@@ -72,14 +72,18 @@ static void send_frame(uint8_t type, const uint8_t *payload, size_t n) {
     ug_sim_receive(&sim, frame_wire, length, 0u);
 }
 
-/* the plate's envelope over n drive samples (the fastest plausible plate at most); the limit is checked on each */
+/* the plate's envelope over n drive samples (the fastest plausible plate at most): its phasor along the drive's
+   phase, signed (a braking drive is the carrier in antiphase), the amplitude its magnitude; the limit is checked on
+   each sample, in either sign, and a brake never pulls the phasor through zero */
 static float through_plate(float plate, const float *samples, unsigned n, float alpha, float gain,
                            const ug_config *config) {
+    float lowest = (config->features & UG_FEATURE_BRAKING) ? -sim.core.limit_fraction - 1e-6f : 0.0f;
     for (unsigned i = 0; i < n; i++) {
-        CHECK(samples[i] >= 0.0f && samples[i] <= sim.core.drive_ceiling + 1e-6f);
+        CHECK(samples[i] >= lowest && samples[i] <= sim.core.drive_ceiling + 1e-6f);
         plate = alpha * plate + (1.0f - alpha) * gain * samples[i] * config->full_scale_um_pp;
-        CHECK(plate <= config->max_amplitude_um_pp * 1.0001f); /* the device's limit binds */
-        amplitude[i % 64u] = plate;
+        CHECK(fabsf(plate) <= config->max_amplitude_um_pp * 1.0001f); /* the device's limit binds */
+        CHECK(plate >= -1e-4f);                                       /* no brake through zero */
+        amplitude[i % 64u] = fabsf(plate);
     }
     return plate;
 }
@@ -92,6 +96,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         return 0;
     }
     config.max_version = (uint8_t)(2u + (data[0] & 1u));
+    if (data[0] & 2u) {
+        config.features |= UG_FEATURE_BRAKING;
+    }
     float q_factor = 0.5f + 1.5f * (float)(data[1] & 0x0Fu) / 15.0f;  /* the plate's Q: 0.5x to 2x */
     float gain = 0.5f + 0.5f * (float)(data[1] >> 4) / 15.0f;          /* on or off resonance */
     CHECK(ug_sim_init(&sim, &config) == UG_OK);
