@@ -15,13 +15,15 @@ Figures:
 * **grating**: a 1 mm sine grating (ratio 0.4-1.0, tiled) swept straight at 50, 100 and 200 mm/s: the RMS error
   between the finger's ratio and the texture's target while it slides, after the first 2 s (the loop learning),
   where the limit allows the target (the finger's own law reaches it within the plate's limit at that moment),
-  open loop vs closed loop;
+  open loop, closed loop with the firmware's drive only pushing, and closed loop with its brake (the carrier in
+  antiphase), beside the least error any controller reaches on this plate either way (``plate_bound.py``);
 * **step**: stripes of ratio 1 and 0.5 (20 mm each, 200 ms apart at 100 mm/s), closed loop: the time from each
   step 1 -> 0.5 until the finger's ratio stays within 0.05 of 0.5 (to 50 ms after the step; median and worst over
   the steps);
 * **amplitude**: the plate's 10-90 % rise for the same steps (the finger log at 48 kHz), with the plate's Q at
   0.5x, 1x and 2x the profile's (``plate-sim --q``);
-* **limit**: the largest commanded amplitude and the plate's peak (plate-sim's own) against 6 µm p-p;
+* **limit**: the largest commanded amplitude, the plate's peak (plate-sim's own) and the drive it received (its
+  lowest, braking, and highest) against 6 µm p-p;
 * **faults**: sensor faults (NaN, out of range) mid-run: the loop's state in words, and how far the commanded
   amplitude rose above the open-loop amplitude after each fault (it must not).
 """
@@ -245,28 +247,32 @@ def main() -> None:
           f"protocol frames 1 ms apart); load average {os.getloadavg()[0]:.1f}")
     print("finger: the host's stretched law, scale x0.7, floor 0.1, drifting ±30 % over 60 s, +25 % mu0 with dwell, "
           "force walking in 0.2-1 N; errors after the first 2 s, where the limit allows the target")
-    print(f"{'grating':>10} {'open rms':>9} {'closed rms':>11} {'loop part open':>15} {'loop part closed':>17} "
-          f"{'reachable':>10} {'peak µm p-p':>12} {'closed: loop says':>18}")
-    for speed in speeds:
-        runs = [ClosedLoopRig(sine, speed, closed, seconds=seconds).run(seconds) for closed in (False, True)]
-        opened, closed = runs
-        reachable = closed.pick(LEARN_S, True).sum() / max(closed.pick(LEARN_S).sum(), 1)
-        print(f"{speed:6.0f} mm/s {opened.rms_error(LEARN_S, True):9.3f} {closed.rms_error(LEARN_S, True):11.3f} "
-              f"{opened.loop_error(LEARN_S):15.3f} {closed.loop_error(LEARN_S):17.3f} {100 * reachable:9.0f}% "
-              f"{max(opened.peak_um_pp, closed.peak_um_pp):12.3f} {closed.status['loop']:>18}")
-    print("(loop part: the finger's ratio at the amplitude the model or the loop chose, as if the plate reached it at "
-          "once: what the friction loop controls; the rest is the plate's own dynamics)")
     from plate_bound import plate_bound
 
     profile = load_profile("sim-plate")
     bounds = {(speed, brake): plate_bound(speed, brake, profile.time_constant_s, LIMIT_UM_PP, profile.max_drive_um_pp)
               for speed in speeds for brake in (False, True)}
-    print(f"the best any controller can do on this plate (tau {1000 * profile.time_constant_s:.2f} ms, the finger's "
-          f"law and the whole future known, steady 0.5 N): drive 0-{profile.max_drive_um_pp:g} µm p-p (the firmware) "
-          + ", ".join(f"{speed:g} mm/s {bounds[speed, False]['rms']:.3f}" for speed in speeds)
-          + f"; braking (the carrier in antiphase, down to -{LIMIT_UM_PP:g} µm p-p) "
-          + ", ".join(f"{speed:g} mm/s {bounds[speed, True]['rms']:.3f} (drive down to "
-                      f"{bounds[speed, True]['lowest_drive_um_pp']:.1f})" for speed in speeds))
+    print(f"{'grating':>10} {'open':>6} {'closed, push only':>18} {'closed, braking':>16} {'bound push':>11} "
+          f"{'bound brake':>12} {'loop part':>10} {'reachable':>10} {'peak µm p-p':>12} {'drive µm p-p':>15} "
+          f"{'closed: loop says':>18}")
+    for speed in speeds:
+        opened, pushing, braking = (ClosedLoopRig(sine, speed, closed, seconds=seconds, braking=brake).run(seconds)
+                                    for closed, brake in ((False, False), (True, False), (True, True)))
+        reachable = braking.pick(LEARN_S, True).sum() / max(braking.pick(LEARN_S).sum(), 1)
+        runs = (opened, pushing, braking)
+        lowest = min(run.drive_range_um_pp[0] for run in runs)
+        highest = max(run.drive_range_um_pp[1] for run in runs)
+        print(f"{speed:6.0f} mm/s {opened.rms_error(LEARN_S, True):6.3f} {pushing.rms_error(LEARN_S, True):18.3f} "
+              f"{braking.rms_error(LEARN_S, True):16.3f} {bounds[speed, False]['rms']:11.3f} "
+              f"{bounds[speed, True]['rms']:12.3f} {braking.loop_error(LEARN_S):10.3f} {100 * reachable:9.0f}% "
+              f"{max(run.peak_um_pp for run in runs):12.3f} {lowest:+7.2f}..{highest:<6.2f} "
+              f"{braking.status['loop']:>18}")
+    print(f"(errors rms against the target; bound: the best any controller can do on this plate (tau "
+          f"{1000 * profile.time_constant_s:.2f} ms, the finger's law and the whole future known, steady 0.5 N), with "
+          f"a drive of 0-{profile.max_drive_um_pp:g} µm p-p (push) or down to -{LIMIT_UM_PP:g} (brake); loop part: the "
+          "finger's ratio at the amplitude the friction loop chose, as if the plate reached it at once (braking run); "
+          f"peak and drive: what the plate received, limit {LIMIT_UM_PP:g} µm p-p, drive ceiling "
+          f"{profile.max_drive_um_pp:g})")
     print()
     for q in ((None,) if args.quick else (None, 100.0, 400.0)):
         result = rig_step_case(step, q, 4.0 if args.quick else 6.0)

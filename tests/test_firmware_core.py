@@ -273,6 +273,31 @@ def test_a_v2_session_gets_v2s_layouts_no_sensors_and_no_loop():  # [R-VERSION]
     assert device.answer(p.SET_LOOP, b"\x01") is None
 
 
+def test_the_brake_pulls_no_further_than_its_rule_and_telemetry_reads_it_as_zero_drive():  # [R-LOOP]
+    """A plate measured steadily at 3 µm p-p with the target at 0: the loop brakes (features bit 1) as hard as its
+    rule allows. At the start of each 1 ms ADC block the fastest plausible plate (tau / 2 = 1.27 ms) is reset to
+    the measurement p = 3 µm, and a drive u held for the loop period M = 48 samples would bring it to
+    a^M p + (1 - a^M) u, zero for u = -p a^M / (1 - a^M) = -2.52 µm by hand (a^M = exp(-48 / 61.1) = 0.456).
+    TELEMETRY's drive_code reads 0 (docs/protocol.md). A device without the brake drives 0."""
+    tau_fast = 0.5 * 200.0 / (math.pi * 25000.0)
+    decay = math.exp(-PER_MS / (FS * tau_fast))
+    expected = -3.0 * decay / (1.0 - decay) / 8.0  # fraction of full scale
+    for features, lowest in ((p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_BRAKING, expected), (p.FEATURE_AMPLITUDE_LOOP, 0.0)):
+        device = Device(features=features, max_drive_um_pp=8.0)
+        device.measured = 3.0
+        assert device.answer(p.SET_LOOP, b"\x01") is None
+        assert device.answer(p.ENABLE, p.enable_payload(True)) is None
+        frames = []
+        for ms in range(60):
+            device.setpoints(ms * 12, np.zeros(12))
+            frames += device.run(1)
+        drive = device.played()[-20 * PER_MS:].reshape(20, PER_MS)
+        assert drive[:, 0] == pytest.approx(lowest, abs=1e-4)  # each block's first sample: the rule, exactly
+        assert drive.min() >= lowest - 1e-6 and drive.max() <= 0.0 and device.status().drive <= 0.0
+        codes = [t.drive_code for t in telemetry(frames)[-2:]]
+        assert len(codes) == 2 and codes == [0, 0]
+
+
 def test_hello_changes_nothing_but_the_session():  # [R-HELLO-NO-STATE]
     device = enabled()
     device.setpoints(100, np.full(240, 0.4))

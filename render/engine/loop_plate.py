@@ -5,7 +5,9 @@ far faster than the plate's own envelope (docs/design.md, "The amplitude loop": 
 0.82 ms on sim-plate, where the plate alone takes 5.6 ms) and caps at the limit. Pre-compensating the plate's
 own slow envelope would then overshoot every target; what is left to pre-compensate is the loop's lag,
 about a first-order lag of ``time_constant_s``, within targets up to the limit (no overdrive: the firmware
-decides the drive). Steps down stay bounded by the plate's free decay, which no target can hasten.
+decides the drive). Steps down are as quick where the firmware brakes (``features`` bit 1: the carrier in
+antiphase, as the reference firmware does); on a device without the brake they stay bounded by the plate's free
+decay, which no target can hasten.
 
 :class:`AmplitudeLoopPlate` is the profile with those two facts changed, for the renderer only: the output
 stage and its limiter keep the real profile.
