@@ -1,4 +1,4 @@
-"""Compiled inner loops of the output stage (numba): the drive limiter and the carrier.
+"""Compiled inner loops of the output stage (numba): the drive limiter, the carrier and a first-order filter.
 
 Like :mod:`ultraglide.render.kernels`, each function takes and fills numpy arrays, returns the state
 to carry to the next block, and allocates nothing; :func:`warm_up` compiles them (or loads them from
@@ -88,6 +88,35 @@ def sine_block(phase, increment, out):
     return phase
 
 
+@njit(cache=True, nogil=True)
+def first_order(b0, b1, a1, x, state, out):
+    """y[n] = b0 x[n] + b1 x[n-1] - a1 y[n-1] in transposed direct form (as ``scipy.signal.lfilter``):
+    y[n] = b0 x[n] + z, then z = b1 x[n] - a1 y[n]. ``state`` is z before the first sample; returns z after."""
+    for n in range(x.shape[0]):
+        y = b0 * x[n] + state
+        state = b1 * x[n] - a1 * y
+        out[n] = y
+    return state
+
+
+def first_order_filter(b, a, x, zi):
+    """A first-order filter (``b``, ``a`` of at most two taps each, ``a[0]`` = 1) along the last axis of ``x``
+    with initial state ``zi`` (one value a row, in lfilter's form): (y, final state), as ``lfilter(b, a, x,
+    axis=-1, zi=zi)`` gives them, without importing scipy.signal (a second of a process's start)."""
+    b0 = float(b[0])
+    b1 = float(b[1]) if len(b) > 1 else 0.0
+    a1 = float(a[1]) if len(a) > 1 else 0.0
+    x = np.ascontiguousarray(x, dtype=float)
+    y = np.empty_like(x)
+    zi = np.asarray(zi, dtype=float)
+    if x.ndim == 1:
+        return y, np.array([first_order(b0, b1, a1, x, float(zi.reshape(-1)[0]), y)])
+    zf = np.empty((x.shape[0], 1))
+    for row in range(x.shape[0]):
+        zf[row, 0] = first_order(b0, b1, a1, x[row], float(zi.reshape(x.shape[0], -1)[row, 0]), y[row])
+    return y, zf
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile every kernel here with the types the output stage passes."""
@@ -95,3 +124,4 @@ def warm_up() -> None:
     limit_drive(np.zeros(4), 6.0, 8.0, 0.1, 0.0, 0.006, np.empty(4))
     modulate(np.zeros(3), 0, 2, 0.125, f32, 0, np.empty(4, dtype=np.float32))
     sine_block(0.0, 0.25, np.empty(4, dtype=np.float32))
+    first_order(0.5, 0.0, -0.5, np.zeros(4), 0.0, np.empty(4))

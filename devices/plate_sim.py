@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from scipy.signal import lfilter
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
+from ultraglide.devices.kernels import first_order_filter
 from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002  # the output stage's clock while it has work: enabled, or the plate still moving
@@ -89,7 +89,7 @@ def resonator_phasor(drive: np.ndarray, start_um_pp: float, decay: float, gain_u
     full scale, each held for one sample), from ``start_um_pp``: a first-order envelope decaying by ``decay`` a
     sample towards ``gain_um_pp`` times the drive (the slowly varying envelope of a resonator driven at its
     carrier, exact for a zero-order hold). The amplitude is its magnitude."""
-    phasor, _ = lfilter([(1.0 - decay) * gain_um_pp], [1.0, -decay], drive, zi=[decay * start_um_pp])
+    phasor, _ = first_order_filter([(1.0 - decay) * gain_um_pp], [1.0, -decay], drive, zi=[decay * start_um_pp])
     return phasor
 
 

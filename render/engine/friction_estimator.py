@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
+from ultraglide.devices.kernels import first_order_filter
 from ultraglide.render.physics.errors import ModelError
 
 MAX_FORCE_N = 20.0  # a reading beyond this is not a fingertip: a sensor fault
@@ -169,7 +169,7 @@ class SensorModel:
     def reset(self, first: np.ndarray | None) -> None:
         """Start over (the first batch, or after a gap): settled on ``first`` (one value a channel)."""
         start = np.zeros(self.channels) if first is None else np.asarray(first, dtype=float)
-        # settled: in lfilter's transposed form y = b0 x + z, z = b1 x - a1 y, so z = (b1 - a1) x at rest
+        # settled, in the transposed form y = b0 x + z, z = b1 x - a1 y: z = (b1 - a1) x at rest
         self._zi = None if self.b is None else ((self.b[1] - self.a[1]) * start)[:, None]
         self._history[:] = start[:, None]
 
@@ -177,7 +177,7 @@ class SensorModel:
         """``x``: channels × samples; the filtered and delayed signal of the same shape."""
         n = x.shape[1]
         if self.b is not None:
-            x, self._zi = lfilter(self.b, self.a, x, axis=1, zi=self._zi)
+            x, self._zi = first_order_filter(self.b, self.a, x, zi=self._zi)
         kept = self._history.shape[1]
         joined = np.concatenate((self._history, x), axis=1)
         out = np.zeros((self.channels, n))
@@ -242,7 +242,7 @@ class SensorTiming:
         start = np.nan_to_num(self.ratio, nan=float(np.nanmean(self.ratio)))
         for multiple in self.BANDS:
             b, a = lowpass_coefficients(self.nominal_hz * multiple, self.rate_hz)
-            filtered = lfilter(b, a, start, zi=[(b[1] - a[1]) * start[0]])[0]
+            filtered = first_order_filter(b, a, start, zi=[(b[1] - a[1]) * start[0]])[0]
             scores = []
             for lag in range(self.MAX_LAG + 1):
                 x = np.roll(filtered, lag)[valid]
@@ -339,7 +339,7 @@ class FrictionEstimator:
             self._sensors.reset(np.array([settled, 0.0, settled]))
             self._force_state = float(force[0])
         self._next_sample = first_sample + n
-        smooth, _ = lfilter([1.0 - self._force_alpha], [1.0, -self._force_alpha], force,
+        smooth, _ = first_order_filter([1.0 - self._force_alpha], [1.0, -self._force_alpha], force,
                             zi=[self._force_alpha * self._force_state])
         self._force_state = float(smooth[-1])
         model_force = np.maximum(smooth, s.min_force_n)
