@@ -104,12 +104,14 @@ BREAKABLE = [rule for rule in sil.rules() if rule not in NEEDS_THE_PLATE_OVER_IT
 
 @pytest.mark.slow
 @pytest.mark.parametrize("rule", BREAKABLE)
-def test_each_rule_broken_on_purpose_is_reported_as_that_rule_failing(tmp_path, rule):
-    server, link = serve(tmp_path, "--break", rule)
+def test_each_rule_broken_on_purpose_is_reported_as_that_rule_failing(rule):
+    # the simulated plate in this process, on its own pty (plate-sim --break is the same simulator: its
+    # command line is checked once, above)
+    plate = PtyPlate(PROFILE, breaks=(rule,)).start()
     try:
-        report = c.check_device(link, PROFILE, only=(rule,))
+        report = c.check_device(plate.path, PROFILE, only=(rule,))
     finally:
-        server.finish(signal.SIGTERM)
+        plate.stop()
     (verdict,) = report.verdicts
     assert (verdict.rule, verdict.outcome) == (rule, c.FAIL), verdict.line()
     assert report.exit_status == 6 and report.failed == (rule,)
@@ -145,12 +147,12 @@ def test_over_limit_and_the_trip_are_checked_only_when_asked_on_a_plate_that_goe
 
 
 @pytest.mark.slow
-def test_a_v2_device_passes_what_v2_can_show(tmp_path):
-    server, link = serve(tmp_path, "--max-version", "2")
+def test_a_v2_device_passes_what_v2_can_show():
+    plate = PtyPlate(PROFILE, max_version=2).start()  # as plate-sim --max-version 2 serves it
     try:
-        report = c.check_device(link, PROFILE)
+        report = c.check_device(plate.path, PROFILE)
     finally:
-        server.finish(signal.SIGTERM)
+        plate.stop()
     outcomes = {v.rule: v.outcome for v in report.verdicts}
     assert c.FAIL not in outcomes.values(), [v.line() for v in report.verdicts]
     v3_only = {"R-ENABLE", "R-PREFILL", "R-HELLO-NO-STATE", "R-SCALING", "R-LIMIT", "R-SENSORS"}
