@@ -155,8 +155,10 @@ class Renderer:
     def __init__(self, texture: Texture, model: FrictionModel, profile: Plate,
                  settings: RenderSettings = RenderSettings(),
                  trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None,
-                 effects: tuple | None = None):
-        """``effects``: temporal effects (``textures.effects.Binding``) to play instead of the texture's own."""
+                 effects: tuple | None = None, sampler: Sampler | None = None):
+        """``effects``: temporal effects (``textures.effects.Binding``) to play instead of the texture's own;
+        ``sampler``: the lookup already built for ``texture`` with ``settings.band_limited_lookup`` (a caller
+        rendering the same texture again, e.g. a dry run's repeated trials), else built here."""
         self.texture, self.model, self.profile, self.settings = texture, model, profile, settings
         self.carrier_hz = settings.carrier_hz or profile.resonance_hz
         try:
@@ -167,7 +169,9 @@ class Renderer:
         model.warm_up()
         rate = settings.control_rate_hz
         self.limit_um_pp = profile.max_amplitude_um_pp
-        self.sampler = Sampler(texture, band_limited=settings.band_limited_lookup)
+        if sampler is not None and sampler.texture is not texture:
+            raise RenderError("the sampler given was built for another texture")
+        self.sampler = sampler if sampler is not None else Sampler(texture, band_limited=settings.band_limited_lookup)
         self.trajectory = trajectory or LiveTrajectory(settings.predictor, settings.lookahead_s)
         self.envelope = EnvelopeChain(rate, settings.attack_s, settings.release_s, settings.band_hz,
                                       settings.slew_um_per_ms, self.limit_um_pp, profile.time_constant_s,

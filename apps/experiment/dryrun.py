@@ -8,13 +8,17 @@ dry run also shows whether the plate can render the levels the procedure asks fo
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections import OrderedDict
 
 from ultraglide.apps.experiment.observer import SimObserver
 from ultraglide.apps.experiment.session import Answer
-from ultraglide.apps.experiment.stimuli import StimulusDesign, render_offline
+from ultraglide.apps.experiment.stimuli import StimulusDesign, offline_sampler, render_offline
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.textures.sampling import Sampler
+from ultraglide.textures.texture import Texture
+
+CACHE_BYTES = 256 * 2**20  # trial textures and their lookups kept for levels the procedure comes back to
 
 
 class SimResponder:
@@ -24,11 +28,29 @@ class SimResponder:
         self.speed_mm_s, self.force_n = speed_mm_s, force_n
         self.breaks: list[int] = []
         self.rendered_frames = 0
-        self._texture = lru_cache(maxsize=32)(self._make_texture)
-        self._design: StimulusDesign | None = None
+        self._trials: OrderedDict[tuple, tuple[Texture, Sampler, int]] = OrderedDict()  # least recent first
+        self._cached_bytes = 0
+        self._design: StimulusDesign | None = None  # the design the cached trials belong to
 
-    def _make_texture(self, level: float, target: int):
-        return self._design.trial_texture(level, target)
+    def _trial(self, design: StimulusDesign, level: float, target: int) -> tuple[Texture, Sampler]:
+        """The trial's texture and its lookup, built once for each level and target (a procedure comes
+        back to the same levels: 80 staircase trials use about 20), at most :data:`CACHE_BYTES` kept."""
+        if design is not self._design:
+            self._trials.clear()
+            self._cached_bytes, self._design = 0, design
+        key = (float(level), target)
+        if key in self._trials:
+            self._trials.move_to_end(key)
+            return self._trials[key][:2]
+        texture = design.trial_texture(level, target)
+        sampler = offline_sampler(texture)
+        size = texture.values.nbytes + 2 * sum(a.nbytes for pyramid in sampler.pyramids for a in pyramid)
+        while self._trials and self._cached_bytes + size > CACHE_BYTES:
+            self._cached_bytes -= self._trials.popitem(last=False)[1][2]
+        if size <= CACHE_BYTES:
+            self._trials[key] = (texture, sampler, size)
+            self._cached_bytes += size
+        return texture, sampler
 
     def take_break(self, trial: int) -> bool:
         """No pause for a simulated observer; the break is logged (break_before) all the same."""
@@ -36,9 +58,9 @@ class SimResponder:
         return True
 
     def present(self, trial: int, level: float, target: int, design: StimulusDesign) -> Answer:
-        self._design = design
-        rendered = render_offline(self._texture(level, target), design.layout, self.model, self.profile,
-                                  self.speed_mm_s, self.force_n)
+        texture, sampler = self._trial(design, level, target)
+        rendered = render_offline(texture, design.layout, self.model, self.profile, self.speed_mm_s, self.force_n,
+                                  sampler=sampler)
         self.rendered_frames += rendered.frames
         response, rt_s = self.observer.respond(trial, level, max(design.layout.zones, 1), target)
         return Answer(response, rt_s, rendered.zone_um_pp[target], rendered.zone_contrast[target])

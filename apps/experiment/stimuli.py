@@ -28,6 +28,7 @@ from ultraglide.render.renderer import Renderer, RenderSettings
 from ultraglide.textures import procedural
 from ultraglide.textures.compose import Placement, compose
 from ultraglide.textures.errors import TextureError
+from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
 
 PARAMETERS = {"contrast": "friction contrast (1 - ratio)", "wavelength": "mm", "amplitude": "µm p-p"}
@@ -167,16 +168,23 @@ class Rendered:
     zone_contrast: tuple[float, ...]
 
 
+def offline_sampler(texture: Texture) -> Sampler:
+    """The lookup :func:`render_offline` reads ``texture`` through (its pyramid is most of a trial's
+    set-up: a caller rendering the same trial texture again passes it back in)."""
+    return Sampler(texture, band_limited=RenderSettings().band_limited_lookup)
+
+
 def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profile: PlateProfile,
                    speed_mm_s: float = 100.0, force_n: float = 0.5, rate_hz: int = 96000,
-                   block_frames: int = 4800) -> Rendered:
+                   block_frames: int = 4800, sampler: Sampler | None = None) -> Rendered:
     """Render one left-to-right swipe along the zones' middle row, as fast as the machine goes, into
-    a buffer (what the null device would receive), and measure each zone from the plate model."""
+    a buffer (what the null device would receive), and measure each zone from the plate model.
+    ``sampler``: :func:`offline_sampler` of ``texture``, if the caller keeps one."""
     width, height = layout.size_mm
     duration = (width - 2.0) / speed_mm_s
     path = SwipePath("straight", speed_mm_s, duration, (1.0, height / 2), force_n=force_n)
     settings = RenderSettings(audio_rate_hz=rate_hz, default_force_n=force_n)
-    renderer = Renderer(texture, model, profile, settings, trajectory=path)
+    renderer = Renderer(texture, model, profile, settings, trajectory=path, sampler=sampler)
     stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
     xs, plate = [], []
     renderer.observers.append(lambda block: (xs.append(block.x_mm), plate.append(block.plate_um_pp)))
