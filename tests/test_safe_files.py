@@ -515,3 +515,52 @@ def test_texture_effects_may_replace_its_texture_but_not_its_effects_file(tmp_pa
     before = digest(copy)
     line = assert_one_line_error(run_cli("texture", "effects", texture, "--set", copy, "-o", copy))
     assert "which is read" in line and digest(copy) == before
+
+
+# ---- a shared folder (sticky, world-writable: /tmp): what another user put there is theirs --------------------
+NOBODY = 65534
+
+
+@pytest.fixture
+def shared(tmp_path):
+    """A folder like /tmp (mode 1777) holding another user's file, link (to a file of ours) and named pipe."""
+    folder = tmp_path / "shared"
+    folder.mkdir()
+    folder.chmod(0o1777)
+    (tmp_path / "ours.csv").write_text("ours\n")
+    (folder / "theirs.csv").write_text("theirs\n")
+    (folder / "link.csv").symlink_to(tmp_path / "ours.csv")
+    os.mkfifo(folder / "pipe.csv")
+    for name in ("theirs.csv", "link.csv", "pipe.csv"):
+        os.chown(folder / name, NOBODY, NOBODY, follow_symlinks=False)
+    return folder
+
+
+@needs_root
+@pytest.mark.parametrize("name, what", [("theirs.csv", "regular file"), ("link.csv", "link"),
+                                        ("pipe.csv", "named pipe")])
+def test_another_users_file_link_or_pipe_in_a_shared_folder_is_left_alone(shared, name, what):
+    """As root a rename replaces anyone's file, and Linux's fs.protected_* guards are off on many machines (and
+    never guard a rename): ``--envelope-csv /tmp/theirs.csv`` would have replaced another user's file, or followed
+    their link to a file of ours. Refused at the edge, and by the writer itself."""
+    path = shared / name
+    line = assert_one_line_error(run_cli("export", "grating-1mm", "--duration-s", "0.1", "-o", shared.parent / "a.wav",
+                                         "--envelope-csv", path, timeout=120))
+    assert f"--envelope-csv {path}: is another user's {what} (uid {NOBODY}) in the shared folder {shared}" in line
+    with pytest.raises(OutputRefused, match=f"another user's {what}"):
+        AtomicFile(path)
+    assert (shared / "theirs.csv").read_text() == "theirs\n" and (shared.parent / "ours.csv").read_text() == "ours\n"
+    assert os.lstat(path).st_uid == NOBODY and not (shared.parent / "a.wav").exists()
+    assert sorted(os.listdir(shared)) == ["link.csv", "pipe.csv", "theirs.csv"]
+
+
+@needs_root
+def test_ones_own_files_in_a_shared_folder_are_written_as_anywhere(shared):
+    (shared / "mine.csv").write_text("old\n")
+    written_by(shared / "mine.csv", b"new\n")
+    written_by(shared / "new.csv", b"new\n")
+    assert (shared / "mine.csv").read_text() == (shared / "new.csv").read_text() == "new\n"
+    os.chown(shared, NOBODY, NOBODY)  # a folder of its own is not shared, whoever owns it, without the sticky bit
+    shared.chmod(0o777)
+    written_by(shared / "theirs.csv", b"replaced\n")
+    assert (shared / "theirs.csv").read_text() == "replaced\n"

@@ -17,6 +17,10 @@ a block device (a disk)       refused: writing a file there would overwrite the 
 a socket                      refused: it is not written by opening it
 ============================  ===========================================================================
 
+In a shared folder (sticky and world-writable: ``/tmp``), a target, a link on the way to it or a ``.part`` that
+is another user's is refused whatever it is (:func:`shared_folder_refusal`): as root a rename would replace their
+file, and their link could lead anywhere.
+
 A refusal is an :class:`OutputRefused`, one line naming the file the person gave. Any failure while
 writing names that file too, never the hidden temporary one.
 
@@ -95,6 +99,9 @@ class AtomicFile:
         self.direct = False
         self._probe: int | None = None
         self._done = False
+        refusal = shared_folder_refusal(self.path, str(self.path))
+        if refusal is not None:
+            raise refusal
         real = Path(os.path.realpath(self.path))
         try:
             info = os.stat(real)
@@ -111,6 +118,9 @@ class AtomicFile:
         try:
             if partial:
                 temporary = str(real.with_name(real.name + ".part"))
+                refusal = shared_folder_refusal(temporary, f"{self.path}: its {temporary}")
+                if refusal is not None:
+                    raise refusal
                 with contextlib.suppress(FileNotFoundError):
                     if not stat.S_ISREG(os.lstat(temporary).st_mode):
                         raise OutputRefused(f"{temporary}: is not a regular file; it cannot hold {self.path} as it "
@@ -226,6 +236,12 @@ def check_output(path: str | Path, option: str, *, kind: str = "file", named: st
     the path, when not as itself (``wav:PATH``)."""
     where = f"{option} {named or path}"
     real = _real(path, where)
+    refusal = shared_folder_refusal(path, where, follow=kind != "link")
+    if kind == "log" and refusal is None:
+        part = real.with_name(real.name + ".part")
+        refusal = shared_folder_refusal(part, f"{where}: its {part}")
+    if refusal is not None:
+        raise refusal
     if kind == "link":
         try:
             mode = os.lstat(path).st_mode
@@ -265,6 +281,40 @@ def check_output_folder(path: str | Path, option: str) -> None:
     if not stat.S_ISDIR(info.st_mode):
         raise OutputRefused(f"{where}: {existing} is a {kind_of(info.st_mode)}, not a folder; name a folder")
     _probe_folder(existing, where)
+
+
+def shared_folder_refusal(path: str | Path, where: str, follow: bool = True) -> OutputRefused | None:
+    """The refusal (one line naming ``where``) of a path that is another user's in a shared folder, else None.
+
+    In a folder anyone may write that keeps each one's files their own (sticky and world-writable: ``/tmp``), what
+    another user put there is theirs, and a path naming it is likely a trap: their file is not replaced (as root, a
+    rename would replace it; as anyone else it fails only after the work), their link is not followed (to a file of
+    ours, or /etc), their pipe or device is not written. Linux guards some opens there (``fs.protected_regular``,
+    ``protected_symlinks``, ``protected_fifos``) only where they are switched on, and never a rename. ``follow``:
+    walk a chain of links (each link and where it ends are checked), or look at ``path`` itself only."""
+    me = os.geteuid()
+    try:
+        current = Path(os.path.abspath(path))
+    except ValueError:  # a NUL byte: the path checks say so
+        return None
+    for _ in range(40):  # Linux follows at most 40 links
+        try:
+            info = os.lstat(current)
+            folder = os.stat(current.parent)
+        except (OSError, ValueError):
+            return None  # nothing there (or unreachable): nothing of anyone's to replace
+        shared = folder.st_mode & stat.S_ISVTX and folder.st_mode & stat.S_IWOTH
+        if shared and info.st_uid != me:
+            what = "link" if stat.S_ISLNK(info.st_mode) else kind_of(info.st_mode)
+            return OutputRefused(f"{where}: is another user's {what} (uid {info.st_uid}) in the shared folder "
+                                 f"{current.parent}; ultraglide leaves what is theirs alone: name a file of yours")
+        if not (follow and stat.S_ISLNK(info.st_mode)):
+            return None
+        try:
+            current = Path(os.path.abspath(current.parent / os.readlink(current)))
+        except OSError:
+            return None
+    return None
 
 
 def release_checked() -> None:
@@ -451,4 +501,4 @@ def _umask() -> int:
 
 
 __all__ = ["AtomicFile", "OutputRefused", "check_output", "check_output_folder", "kind_of", "release_checked",
-           "remove_leftovers", "write_failure"]
+           "remove_leftovers", "shared_folder_refusal", "write_failure"]
