@@ -47,6 +47,18 @@ CASES = [  # a command line that would run, with one option it would have ignore
      "sweeping an audio output"),
     (["plate", "sweep", "-o", "{d}/p.toml", "--device", "audio:1", "--sensor-um-per-unit", "2"], "add --sensor"),
     (["plate", "sweep", "-o", "{d}/p.toml", "--figure-width", "page"], "add --plot"),
+    (["texture", "show", "grating-1mm", "--window", "--dpi", "150"], "--window writes none"),
+    (["experiment", "threshold", "grating-1mm", "--trials", "5", "--out", "{d}/s", "--speed-mm-s", "50"],
+     "add --observer"),
+    (["experiment", "constant", "--preset", "vezzoli2015", "--out", "{d}/s", "--speed-mm-s", "50"], "add --observer"),
+    (["experiment", "threshold", "grating-1mm", "--trials", "5", "--observer", SIM, "--out", "{d}/s", "--method",
+      "quest", "--rule", "1u3d"], "--rule is for a staircase"),
+    (["experiment", "threshold", "grating-1mm", "--trials", "5", "--observer", SIM, "--out", "{d}/s", "--method",
+      "quest", "--start-level", "0.3"], "--start-level is for a staircase"),
+    (["experiment", "threshold", "grating-1mm", "--trials", "5", "--observer", SIM, "--out", "{d}/s", "--method",
+      "quest", "--interval", "bootstrap"], "--interval is for a staircase"),
+    (["play", "grating-1mm", "--duration-s", "0.1", "--finger-log-hz", "100"], "add --finger-log"),
+    (["plate-sim", "--finger-log-hz", "100"], "add --finger-log"),
 ]
 
 

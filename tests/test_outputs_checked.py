@@ -312,3 +312,39 @@ def test_a_wav_through_a_pipe_a_program_reads_is_refused_before_the_work(tmp_pat
         assert os.read(descriptor, 10) == b""  # nothing was written into it, and it was let go
     finally:
         os.close(descriptor)
+
+
+FOLDER_FILES = sorted((words, option, also) for words, parser in leaves(build_parser())
+                      for option, kind, also in outputs_of(parser).values() if kind == "folder" and also)
+
+
+def test_the_folders_with_files_of_known_names_are_the_ones_expected():
+    assert {(" ".join(words), option) for words, option, _ in FOLDER_FILES} == {
+        ("model", "--plots"), ("experiment threshold", "--out"), ("experiment threshold", "--resume"),
+        ("experiment constant", "--out"), ("experiment constant", "--resume")}
+
+
+@pytest.mark.parametrize("words, option, names", FOLDER_FILES, ids=[f"{' '.join(w)} {o}" for w, o, _ in FOLDER_FILES])
+def test_every_file_a_folder_output_writes_is_checked_before_any_work(tmp_path, capsys, monkeypatch, words, option,
+                                                                      names):
+    """A file the command writes into an output folder (``model --plots DIR``'s fig7, a session's result.json) that
+    is a named pipe nobody reads or a directory is refused before the first figure is drawn, naming that file."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    ok, folder = tmp_path / "ok", tmp_path / "folder"
+    ok.mkdir()
+    folder.mkdir()
+    for number, name in enumerate(names):
+        path = folder / name
+        if number % 2:
+            path.mkdir()
+        else:
+            os.mkfifo(path)
+        argv = [arg.format(ok=ok) for arg in base_command(words)]
+        with no_hang(60):
+            status = main([*argv, option, str(folder)])
+        error = capsys.readouterr().err.strip()
+        expected = "is a directory" if number % 2 else "is a named pipe that no program is reading"
+        assert status == 1 and "\n" not in error, (argv, error)
+        assert f"error: {option} {path}: {expected}" in error, error
+        assert list(ok.iterdir()) == [] and sorted(os.listdir(folder)) == [name]  # nothing drawn before it
+        (path.rmdir if number % 2 else path.unlink)()

@@ -55,6 +55,9 @@ def check_outputs(args) -> None:
             continue
         if kind == "folder":
             check_output_folder(value, option)
+            if os.path.isdir(value):  # the files it writes into the folder, where the folder already holds them
+                for name in also:
+                    check_output(Path(value) / name, option, named=str(Path(value) / name))
             continue
         named = None
         if kind == "device":

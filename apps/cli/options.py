@@ -37,7 +37,8 @@ def output_option(container, *flags: str, kind: str = "file", also: tuple[str, .
 
     ``kind``: ``file``, ``wav`` (no pipe), ``log`` (grows as ``NAME.part``), ``link`` (a link placed there),
     ``folder`` (files written into it) or ``device`` (a device URL: ``wav:PATH`` is a WAV file); ``also``: the
-    suffixes of files written beside it (a calibration's ``.png`` and ``.pdf``)."""
+    suffixes of files written beside it (a calibration's ``.png`` and ``.pdf``) or, for a folder, the names of
+    the files written into it (each checked as a file output when the folder exists)."""
     if kind not in OUTPUT_KINDS:
         raise ValueError(f"kind must be one of {OUTPUT_KINDS}, got {kind!r}")
     action = container.add_argument(*flags, **kwargs)

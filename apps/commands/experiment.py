@@ -23,6 +23,8 @@ from ultraglide.apps.cli.types import (
     ZONES,
 )
 from ultraglide.apps.cli.types import TRIALS as TRIALS_OPTION
+from ultraglide.apps.experiment.log import RESULT, SESSION
+from ultraglide.apps.figures import SESSION_FIGURES, both_formats
 
 if TYPE_CHECKING:
     from ultraglide.apps.experiment.session import SessionConfig
@@ -36,6 +38,9 @@ PRESETS = {
                     "zone_mm": (60.0, 40.0)},
 }
 
+
+# what a session writes whole into its folder (trials.csv grows as it goes; it is refused when it is not a file)
+SESSION_FILES = (SESSION, RESULT, *both_formats(SESSION_FIGURES))
 
 THRESHOLD_PRESETS = {
     # the common questions: TEXTURE, --vary, --range and --afc come from the preset unless given
@@ -58,9 +63,9 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                         help="output device: sim, serial:PORT, audio[...], wav:PATH or null "
                              "(default: sim; null with a simulated observer)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of every random choice (default: 0)")
-    output_option(parser, "--out", kind="folder", metavar="DIR",
+    output_option(parser, "--out", kind="folder", also=SESSION_FILES, metavar="DIR",
                   help="where trials.csv, session.json, result.json and the figures go (a new directory)")
-    output_option(parser, "--resume", kind="folder", metavar="DIR",
+    output_option(parser, "--resume", kind="folder", also=SESSION_FILES, metavar="DIR",
                   help="continue the session in DIR (its options are kept)")
     parser.add_argument("--break-every", type=TRIALS_BETWEEN_BREAKS, default=0, metavar="N",
                         help="a pause screen every N trials (default: none)")
@@ -151,6 +156,13 @@ def _refuse_ignored_options(args) -> None:
         refuse_ignored(args, SESSION_DEFAULTS, f"{{option}} is kept in the session --resume {args.resume} "
                                                "continues (its session.json): leave it out")
         return
+    if getattr(args, "method", None) == "quest":
+        refuse_ignored(args, {"rule": "1u2d", "start_level": None, "interval": "posterior", "bootstrap": 200},
+                       "{option} is for a staircase; QUEST+ chooses its own levels and gives its posterior's interval: "
+                       "leave it out, or use --method staircase")
+    if not args.observer:
+        refuse_ignored(args, {"speed_mm_s": 100.0}, "{option} is the simulated observer's swipe speed (a person "
+                                                    "swipes at their own): add --observer, or leave it out")
     if args.interval != "bootstrap":
         refuse_ignored(args, {"bootstrap": 200}, "{option} is the samples of --interval bootstrap: add --interval "
                                                  "bootstrap, or leave it out")

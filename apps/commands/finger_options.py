@@ -97,6 +97,11 @@ def finger_config(args, wanted: bool = False):
     if not (wanted or finger_asked(args)):
         return None
     given = {field: getattr(args, name) for name, field in FIELDS.items() if getattr(args, name, None) is not None}
+    if "log_hz" in given and "log" not in given:
+        from ultraglide.apps.cli.errors import UsageError
+
+        raise UsageError("--finger-log-hz is the rate of --finger-log's rows: add --finger-log FILE.csv, or leave it "
+                         "out")
     if "faults" in given:
         given["faults"] = tuple(given["faults"])
     return FingerConfig(**given)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import add_figure_width_option, add_model_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
+from ultraglide.apps.figures import PAPER_FIGURES, both_formats
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.fingerprint import FingerParams
@@ -36,7 +37,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     model.add_argument("--ratio", type=ratio, metavar="R",
                        help="also give the amplitude that yields friction ratio R")
     model.add_argument("--json", action="store_true", help="print one JSON object")
-    output_option(model, "--plots", kind="folder", metavar="DIR",
+    output_option(model, "--plots", kind="folder", also=both_formats(PAPER_FIGURES), metavar="DIR",
                        help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF")
     output_option(model, "--report", metavar="FILE.pdf",
                        help="write one page on the model at this force: parameters, curve, inverse, contact")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.experiment import psychometric as pf
+from ultraglide.apps.figures import SESSION_FIGURES
 from ultraglide.apps.figures import style as figure_style
 
 CORRECT, WRONG, FIT = "#1b6ca8", "#c8553d", "#333333"
@@ -28,8 +29,9 @@ def draw_figures(directory: Path, config, design, rows: list[dict], result: dict
 
     positive = np.array([outcome(config, r) for r in rows])
     width_in = figure_style.width_of(width)
-    written = _track(directory / "track.png", config, design, levels, correct, rows, result, width_in)
-    written += _psychometric(directory / "psychometric.png", config, design, levels, positive, result, width_in)
+    track, psychometric = (directory / f"{stem}.png" for stem in SESSION_FIGURES)
+    written = _track(track, config, design, levels, correct, rows, result, width_in)
+    written += _psychometric(psychometric, config, design, levels, positive, result, width_in)
     return written
 
 

@@ -13,6 +13,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from ultraglide.apps.figures import PAPER_FIGURES
 from ultraglide.apps.figures.style import PAGE_IN, figure, legend_below, save, width_of
 from ultraglide.render.physics.errors import QuasiStaticWarning
 from ultraglide.render.physics.fingerprint import (
@@ -218,17 +219,18 @@ def write_paper_figures(directory: Path, data_path: Path | None, params: FingerP
     ``force_n``: draw every figure at this force; None draws each at the paper's own force.
     ``width``: ``"column"`` (3.5 in, the default) or ``"page"`` (7.16 in)."""
     directory.mkdir(parents=True, exist_ok=True)
+    fig2, fig3, fig4, fig5, fig6, fig7, fig8, fig9 = (directory / f"{stem}.png" for stem in PAPER_FIGURES)
 
     def at(default: float) -> float:
         return default if force_n is None else force_n
     written = [
-        figure_2(directory / "fig2-lateral-stick-slip.png", params, at(0.5), width),
-        figure_3(directory / "fig3-glide-threshold.png", params, force_n, width),
-        figure_4(directory / "fig4-detach-amplitude.png", params, at(0.15), width),
-        _cycle_figure(directory / "fig5-reaction-force.png", params, friction=False, force_n=at(0.5), width=width),
-        _cycle_figure(directory / "fig6-friction-force.png", params, friction=True, force_n=at(0.5), width=width),
-        figure_7(directory / "fig7-friction-coefficient.png", params, force_n, width),
-        figure_8(directory / "fig8-relative-friction.png", params, force_n, width),
-        figure_9(directory / "fig9-model-comparison.png", params, data_path, at(0.35), model, width),
+        figure_2(fig2, params, at(0.5), width),
+        figure_3(fig3, params, force_n, width),
+        figure_4(fig4, params, at(0.15), width),
+        _cycle_figure(fig5, params, friction=False, force_n=at(0.5), width=width),
+        _cycle_figure(fig6, params, friction=True, force_n=at(0.5), width=width),
+        figure_7(fig7, params, force_n, width),
+        figure_8(fig8, params, force_n, width),
+        figure_9(fig9, params, data_path, at(0.35), model, width),
     ]
     return [paths[0] for paths in written]

@@ -27,6 +27,7 @@ from ultraglide.apps.cli.files import (  # noqa: E402
     refuse_overlaps,
     texture_file,
 )
+from ultraglide.apps.cli.options import refuse_ignored  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
 
 MM = 1 / 25.4  # inches per millimetre
@@ -188,6 +189,9 @@ def run(args) -> int:
     output = Path(args.output) if args.output else None
     if output is not None and output.suffix.lower() not in FORMATS:
         raise UsageError(f"the output must end in .png, .pdf or .svg, got {output}")
+    if args.window:
+        refuse_ignored(args, {"dpi": 300.0}, "{option} is the PNG's resolution, and --window writes none: leave it "
+                                             "out, or write a file with -o FILE.png")
     if args.window and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
                             or os.environ.get("SDL_VIDEODRIVER")):
         raise UsageError("no display for --window; write a file with -o FILE.png instead")
