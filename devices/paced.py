@@ -110,6 +110,9 @@ class WavRecorder(PacedSink):
         try:
             self._file = soundfile.SoundFile(self._target.temporary, "w", samplerate=rate_hz, channels=1,
                                              subtype="FLOAT")
+        except self._failed as error:  # its header written at once: a full disk (a copy of /dev/full) fails here
+            self._target.discard()
+            raise write_failure(self.path, self._target.temporary, error) from None
         except BaseException:
             self._target.discard()
             raise

@@ -564,3 +564,33 @@ def test_ones_own_files_in_a_shared_folder_are_written_as_anywhere(shared):
     shared.chmod(0o777)
     written_by(shared / "theirs.csv", b"replaced\n")
     assert (shared / "theirs.csv").read_text() == "replaced\n"
+
+
+# ---- a device that takes nothing (a copy of /dev/full), written by each kind of writer -----------------------
+FULL_WRITERS = {  # a command line writing {}, a copy of /dev/full; one per writer that reaches a file differently
+    "PDF figure (matplotlib)": ["model", "--report", "{}.pdf"],
+    "PDF of texture show": ["texture", "show", "edge", "-o", "{}.pdf"],
+    "PDF of export --plot": ["export", "grating-1mm", "--duration-s", "0.1", "-o", "{d}/a.wav", "--plot", "{}.pdf"],
+    "WAV device of play": ["play", "grating-1mm", "--duration-s", "0.2", "--device", "wav:{}.wav"],
+    "WAV of export": ["export", "grating-1mm", "--duration-s", "0.1", "-o", "{}.wav"],
+    "growing log of play": ["play", "grating-1mm", "--duration-s", "0.2", "--device", "null", "--envelope-csv",
+                            "{}.csv"],
+    "profile of plate sweep": ["plate", "sweep", "--steps", "20", "-o", "{}.toml"],
+    "texture of texture new": ["texture", "new", "grating", "-o", "{}.png"],
+}
+
+
+@needs_root
+@pytest.mark.parametrize("writer", sorted(FULL_WRITERS))
+def test_every_writer_into_a_full_device_says_so_in_one_line(tmp_path, writer):
+    """A node that refuses every write (``mknod c 1 7``, /dev/full): "no space left", one line, the node a node.
+    matplotlib's PDF writer used to hide the reason under a traceback of its own clean-up (``zlib.error``), and
+    the WAV device died in the engine process (libsndfile's "System error" on its header)."""
+    args = FULL_WRITERS[writer]
+    suffix = next(arg for arg in args if "{}" in arg).split("{}")[1]
+    full = tmp_path / f"full{suffix}"
+    os.mknod(full, 0o666 | stat.S_IFCHR, os.makedev(1, 7))
+    argv = [arg.replace("{}" + suffix, str(full)).format(d=tmp_path) for arg in args]
+    line = assert_one_line_error(run_cli(*argv, timeout=180))
+    assert f"{full}: no space left on device" in line, line
+    assert kind_of(full) == "char" and sorted(os.listdir(tmp_path)) == [full.name]

@@ -170,7 +170,11 @@ class AtomicFile:
 
     def user_error(self, error: BaseException) -> BaseException:
         """``error`` as the person should see it: an OSError naming the temporary file (or no file) names
-        ``path`` instead; anything else unchanged."""
+        ``path`` instead; a library's error raised while it cleaned up after a failed write (matplotlib's PDF
+        writer on a full disk: ``zlib.error`` over the ``No space left on device``) is that write's OSError;
+        anything else unchanged."""
+        if not isinstance(error, OSError):
+            error = _masked_write_failure(error) or error
         if not isinstance(error, OSError) or isinstance(error, UltraglideError) or error.errno is None:
             return error
         if error.filename is not None and str(error.filename) not in (str(self.temporary), str(self.target)):
@@ -221,6 +225,22 @@ class AtomicFile:
     def __repr__(self) -> str:
         how = "directly" if self.direct else f"through {self.temporary.name}"
         return f"AtomicFile({str(self.path)!r}, written {how})"
+
+
+_WRITE_FAILURES = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS}
+
+
+def _masked_write_failure(error: BaseException) -> OSError | None:
+    """The OSError of a failed write (a full disk, a file too large) that ``error`` was raised while handling, if
+    any: a library that cleans up after such a failure may fail again, and its second error hides the reason."""
+    seen = error.__context__
+    for _ in range(8):
+        if seen is None:
+            return None
+        if isinstance(seen, OSError) and seen.errno in _WRITE_FAILURES:
+            return seen
+        seen = seen.__context__
+    return None
 
 
 def check_output(path: str | Path, option: str, *, kind: str = "file", named: str | None = None) -> None:
