@@ -46,7 +46,7 @@ import numpy as np
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.force_sensors import ForceSensorParams, ForceSensors, low_pass
 
-from ultraglide.inputs import decode_text, read_input
+from ultraglide.inputs import decode_text, read_input, shown
 
 FrictionLaw = Callable[[np.ndarray, np.ndarray], np.ndarray]  # ratio = law(amplitude_um_pp, force_n)
 
@@ -162,14 +162,15 @@ class ForceScript:
             reader = csv.reader(row for row in text.splitlines() if not row.startswith("#"))
             header = [name.strip() for name in next(reader, [])]
             if header[:2] != ["t_s", "force_n"] or header[2:] not in ([], ["speed_mm_s"]):
-                raise DeviceError(f"{path}: the header must be t_s,force_n[,speed_mm_s], got {','.join(header)[:80]}")
+                raise DeviceError(f"{path}: the header must be t_s,force_n[,speed_mm_s], "
+                                  f"got {shown(','.join(header)[:80])}")
             for line, row in enumerate(reader, start=2):
                 if len(row) != len(header):
                     raise DeviceError(f"{path}, line {line}: {len(header)} columns expected, got {len(row)}")
                 try:
                     values = [float(cell) for cell in row]
                 except ValueError:
-                    raise DeviceError(f"{path}, line {line}: not numbers: {','.join(row)[:80]}") from None
+                    raise DeviceError(f"{path}, line {line}: not numbers: {shown(','.join(row)[:80])}") from None
                 times.append(values[0])
                 forces.append(values[1])
                 speeds.append(values[2] if len(values) > 2 else speed_mm_s)

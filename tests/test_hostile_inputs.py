@@ -172,6 +172,61 @@ def test_every_csv_loader_turns_the_csv_modules_failures_into_one_line(tmp_path,
     assert load(path) is not None  # the same rows, line ends of \n: they load
 
 
+# ---- a file's text quoted in a refusal: printable, whatever the file holds ------------------------------------
+EVIL = "\x1b]0;owned\x07\x1b[2J\u202eevil\r\nnext"  # retitle, clear, read backwards, a line of its own
+EVIL_JSON = json.dumps(EVIL)[1:-1]  # also a TOML basic string's escapes
+QUOTED = {  # loader: files whose refusal quotes a key, a value or a column the file holds
+    "texture": [TEXTURE[:-1] + f', "kind": "{EVIL_JSON}"}}', TEXTURE[:-1] + f', "outside": "{EVIL_JSON}"}}',
+                TEXTURE[:-1] + f', "name": "{EVIL_JSON}", "width_mm": "{EVIL_JSON}"}}'],
+    "profile": [PROFILE + f'"{EVIL_JSON}" = 1\n', PROFILE.replace("q = 200", f'q = "{EVIL_JSON}"'),
+                PROFILE.replace("q = 200", "q = 2") + f'name = "{EVIL_JSON}"\n'],
+    "calibration": [CALIBRATION + f'"{EVIL_JSON}" = 1\n', CALIBRATION.replace('"exponential"', f'"{EVIL_JSON}"'),
+                    CALIBRATION.replace("tau_um_zp", f'"{EVIL_JSON}"')],
+    "effects": ['{"effects_version": 1, "bindings": [{"trigger": {"on": "start"}, "effect": 0.5, '
+                f'"{EVIL_JSON}": 1}}]}}', '{"effects_version": 1, "bindings": [{"trigger": {"on": "start"}, '
+                f'"effect": {{"type": "{EVIL_JSON}"}}}}]}}',
+                f'{{"effects_version": 1, "bindings": [], "{EVIL_JSON}": 1}}',
+                f'{{"effects_version": 1, "bindings": [{{"trigger": {{"on": "{EVIL_JSON}"}}, "effect": 0.5}}]}}'],
+    "session": [SESSION.replace("}}", f', "method": "{EVIL_JSON}"}}}}'),
+                SESSION.replace("}}", f', "participant": "{EVIL_JSON}"}}}}'),
+                SESSION.replace("}}", f', "trials": "{EVIL_JSON}"}}}}'),
+                SESSION.replace('"grating-1mm"', f'"{EVIL_JSON}"').replace("}}", ', "trials": -4}}')],
+}
+
+
+@pytest.mark.parametrize("loader", sorted(QUOTED))
+def test_a_files_text_in_a_refusal_is_quoted_with_its_escapes(tmp_path, loader):
+    """An API user's log or terminal gets the refusal as the loader raised it (the command line escapes what it
+    prints, a library does not): a key, a value or a name from the file appears there printable, quoted with its
+    escapes, on one line."""
+    load, error, name, write = LOADERS[loader]
+    for number, text in enumerate(QUOTED[loader]):
+        path = tmp_path / str(number) / name
+        path.parent.mkdir()
+        write(path, text)
+        with pytest.raises(error) as raised:
+            load(path)
+        message = str(raised.value)
+        assert message.isprintable() and str(path) in message, message
+
+
+@pytest.mark.parametrize("loader", sorted(CSV_LOADERS))
+def test_a_csv_files_column_names_and_cells_in_a_refusal_are_quoted_with_their_escapes(tmp_path, loader):
+    load, error, name, header, rows = CSV_LOADERS[loader]
+    path = tmp_path / name
+    column = EVIL.replace("\r\n", "\x85")  # one CSV line
+    bad_cell = rows[-1].split(",")
+    bad_cell[1] = column
+    for text in (f"{header},{column},{column}\n" + "".join(row + ",1,1\n" for row in rows),
+                 f"{column},{header}\n" + "".join(row + ",1\n" for row in rows), f"{column}\n{rows[0]}\n",
+                 "\n".join([header, *rows[:-1], ",".join(bad_cell)]) + "\n"):
+        path.write_text(text)
+        try:
+            load(path)
+        except error as raised:
+            assert str(raised).isprintable() and str(path) in str(raised), str(raised)
+
+
 @pytest.mark.parametrize("width", ["5e-324", "1e-300", "0.009", "1e-30"])
 def test_no_size_makes_a_later_stage_divide_by_zero(tmp_path, width):
     path = texture_png(tmp_path / "tiny.png", f'{{"format_version": 1, "width_mm": {width}, "height_mm": 10}}')
@@ -408,3 +463,18 @@ def test_plate_sim_json_events_are_strict_json(tmp_path):
         process.communicate(timeout=60)
     assert first.strip(), "plate-sim printed no event"
     json.loads(first, parse_constant=refuse)
+
+
+@pytest.mark.parametrize("misspelt", [
+    '{"effects_version": 1, "bindings": [{"trigger": {"on": "start"}, "effect": 0.5, "relase_s": 5}]}',
+    '{"effects_version": 1, "bindings": [], "binding": [{"trigger": {"on": "start"}, "effect": 0.5}]}'])
+def test_an_effects_file_refuses_a_field_it_does_not_know(tmp_path, misspelt):
+    """A misspelt binding field was the default, silently (``relase_s``: the 0.02 s release, not 5 s), as a
+    misspelt profile key or calibration parameter never is."""
+    path = tmp_path / "e.json"
+    path.write_text(misspelt)
+    with pytest.raises(TextureError, match="unknown field '(relase_s|binding)'"):
+        load_effects(path)
+    line = assert_one_line_error(run_cli("play", "grating-1mm", "--effects", path, "--device", "null",
+                                         "--duration-s", "0.1"))
+    assert "unknown field" in line

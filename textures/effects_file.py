@@ -115,6 +115,10 @@ def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
         if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= EFFECTS_VERSION:
             raise TextureError(f"effects version {version!r} is not one this ultraglide reads (up to "
                                f"{EFFECTS_VERSION}); upgrade ultraglide")
+        unknown = sorted(set(data) - {"effects_version", "bindings"}, key=str)
+        if unknown:
+            raise TextureError(f"unknown field {unknown[0]!r} (an effects description holds effects_version and "
+                               "bindings)")
         bindings = data.get("bindings")
         if not isinstance(bindings, list) or len(bindings) > MAX_BINDINGS:
             raise TextureError(f"'bindings' must be a list of at most {MAX_BINDINGS}")
@@ -141,6 +145,9 @@ def load_effects(path) -> tuple[Binding, ...]:
 def _binding_from_dict(item) -> Binding:
     if not isinstance(item, dict) or not isinstance(item.get("trigger"), dict) or "effect" not in item:
         raise TextureError("each binding is an object with a 'trigger' object and an 'effect'")
+    unknown = sorted(set(item) - {"trigger", "effect", "release_s", "label"}, key=str)
+    if unknown:  # a misspelt release_s would otherwise be the default, silently
+        raise TextureError(f"unknown field {unknown[0]!r} (a binding takes trigger, effect, release_s and label)")
     trigger = dict(item["trigger"])
     unknown = sorted(set(trigger) - {"on", "region_mm", "min_speed_mm_s", "lines_mm", "axis", "name"})
     if unknown:

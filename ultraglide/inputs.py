@@ -199,8 +199,17 @@ def _first_line(problem: BaseException) -> str:
     return text.splitlines()[0] if text else type(problem).__name__
 
 
-def some_of(names, shown: int = 5) -> str:
-    """A bounded listing for a message: ``a, b, c`` or ``a, b, c, d, e and 9,995 more`` (each shortened)."""
-    names = [str(name) for name in names]
-    listed = ", ".join(name if len(name) <= 40 else name[:39] + "…" for name in names[:shown])
-    return listed if len(names) <= shown else f"{listed} and {len(names) - shown:,} more"
+def shown(text) -> str:
+    """A file's text as a message quotes it: as written when it is printable, else quoted with its escapes
+    (``'\\x1b]0;…'``), so that what a file holds never reaches a terminal or a log raw and an error stays one
+    line."""
+    text = str(text)
+    return text if text.isprintable() else repr(text)
+
+
+def some_of(names, count: int = 5) -> str:
+    """A bounded listing for a message: ``a, b, c`` or ``a, b, c, d, e and 9,995 more`` (each shortened, and
+    quoted with its escapes when it holds a control character, as :func:`shown` does)."""
+    names = [shown(name) for name in names]
+    listed = ", ".join(name if len(name) <= 40 else name[:39] + "…" for name in names[:count])
+    return listed if len(names) <= count else f"{listed} and {len(names) - count:,} more"

@@ -137,6 +137,9 @@ def texture_name(text: str) -> str:
     return text
 
 
+label = texture_name  # a label written into a file and onto figures (a session's): the same rule
+
+
 def positive(text: str) -> float:
     return _number("a positive number", lambda v: v > 0, text)
 

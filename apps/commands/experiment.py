@@ -15,12 +15,14 @@ from ultraglide.apps.cli.types import (
     BOOTSTRAP_SAMPLES,
     FORCE_N,
     LEVEL,
+    PARTICIPANT,
     REPEATS,
     SCREEN_WIDTH_MM,
     SEED,
     SPEED_MM_S,
     TRIALS_BETWEEN_BREAKS,
     ZONES,
+    label,
 )
 from ultraglide.apps.cli.types import TRIALS as TRIALS_OPTION
 from ultraglide.apps.experiment.log import RESULT, SESSION
@@ -69,8 +71,9 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                   help="continue the session in DIR (its options are kept)")
     parser.add_argument("--break-every", type=TRIALS_BETWEEN_BREAKS, default=0, metavar="N",
                         help="a pause screen every N trials (default: none)")
-    parser.add_argument("--participant", default="P01", help="participant code for the log (default: P01)")
-    parser.add_argument("--session", default="1", help="session label for the log (default: 1)")
+    parser.add_argument("--participant", type=PARTICIPANT, default="P01",
+                        help="participant code for the log: letters, digits, '-', '_' or '.' (default: P01)")
+    parser.add_argument("--session", type=label, default="1", help="session label for the log (default: 1)")
     parser.add_argument("--function", choices=["weibull", "logistic"], default="weibull",
                         help="psychometric function fitted (default: weibull)")
     parser.add_argument("--interval", choices=["posterior", "bootstrap"], default="posterior",

@@ -129,9 +129,9 @@ def _typed(key: str, value, annotation: str, where: str):
     if value is None and "None" in annotation:
         return None
     base = annotation.replace(" | None", "")
-    if base == "str":
-        if not isinstance(value, str) or len(value) > 10_000:
-            raise bad("text")
+    if base == "str":  # shown in the window, printed, drawn on the figures: no control characters
+        if not isinstance(value, str) or len(value) > 10_000 or not value.isprintable():
+            raise bad("printable text")
     elif base in ("int", "float"):
         value = number(value, base == "int")
     elif base.startswith("tuple["):

@@ -71,7 +71,7 @@ from ultraglide.render.physics.squeeze_film import (
     SqueezeFilmModel,
 )
 
-from ultraglide.inputs import parse_toml, read_input
+from ultraglide.inputs import parse_toml, read_input, shown
 
 CALIBRATION_VERSION = 1
 
@@ -141,7 +141,7 @@ def calibration_from_document(document: dict, where: str) -> FrictionModel:
     legacy = {"contact"}  # version-1 files of the paper model named the contact, which the model name says
     unknown = sorted(set(parameters) - set(specs) - legacy)
     if unknown:
-        raise ModelError(f"{where}: unknown parameter {unknown[0]} for the {kind} model; "
+        raise ModelError(f"{where}: unknown parameter {shown(unknown[0])} for the {kind} model; "
                          f"expected {', '.join(specs)}")
     values = {}
     for key, spec in specs.items():

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ultraglide.inputs import open_input
+from ultraglide.inputs import open_input, some_of
 
 BLOCK_BYTES = 1 << 18  # 256 KiB: as fast as larger blocks, a quarter of the memory
 MAX_LINE_BYTES = 1 << 16  # no line of a numeric CSV is this long; a longer one is not such a file
@@ -97,7 +97,7 @@ class NumericCsv:
         names = [name.strip() for name in self._cells(header, self.header_line)]
         duplicated = sorted({name for name in names if names.count(name) > 1 and name})
         if duplicated:
-            self._fail(self.header_line, f"column {', '.join(duplicated)} appears twice in the header")
+            self._fail(self.header_line, f"column {some_of(duplicated)} appears twice in the header")
         missing = [c.name for c in required if c.name not in names]
         if missing:
             self._fail(self.header_line, f"missing column {', '.join(missing)}; the header must be {expected}")
