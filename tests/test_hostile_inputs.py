@@ -478,3 +478,36 @@ def test_an_effects_file_refuses_a_field_it_does_not_know(tmp_path, misspelt):
     line = assert_one_line_error(run_cli("play", "grating-1mm", "--effects", path, "--device", "null",
                                          "--duration-s", "0.1"))
     assert "unknown field" in line
+
+
+SIM_OBSERVER = "sim:threshold=0.1,slope=3"
+
+
+@pytest.fixture(scope="module")
+def finished_session(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("session") / "s"
+    run_cli("experiment", "threshold", "grating-1mm", "--trials", "5", "--observer", SIM_OBSERVER, "--out", directory,
+            check=True)
+    return directory
+
+
+@pytest.mark.parametrize("config", [{"start_level": 5e-324}, {"start_level": -0.0}, {"start_level": 0.9},
+                                    {"level_range": [5e-324, 0.5], "start_level": 0.0},
+                                    {"level_range": [0.5, 0.1]}, {"level_range": [0.0, 0.5]}])
+def test_levels_a_procedure_cannot_take_are_refused_before_anything_is_written(tmp_path, finished_session, config):
+    """A staircase's start outside its levels' range (5e-324, -0 against 0.005..0.6), from a session.json resumed
+    or from the command line, was a ValueError from the staircase with its traceback, after the session's folder
+    was made."""
+    directory = tmp_path / "s"
+    shutil.copytree(finished_session, directory)
+    session = json.loads((directory / "session.json").read_text())
+    session["config"].update(config)
+    (directory / "session.json").write_text(json.dumps(session))
+    before = {path.name: path.read_bytes() for path in directory.iterdir()}
+    line = assert_one_line_error(run_cli("experiment", "threshold", "--resume", directory))
+    assert f"{directory / 'session.json'}: " in line and "levels' range" in line, line
+    assert {path.name: path.read_bytes() for path in directory.iterdir()} == before
+    line = assert_one_line_error(run_cli("experiment", "threshold", "grating-1mm", "--trials", "5", "--observer",
+                                         SIM_OBSERVER, "--out", tmp_path / "new", "--start-level", "0.001"))
+    assert "the start level 0.001 lies outside the levels' range 0.005..0.6" in line
+    assert not (tmp_path / "new").exists()

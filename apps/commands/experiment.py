@@ -292,7 +292,7 @@ def _responder(config: SessionConfig, design: StimulusDesign, args):
 
 def run(args) -> int:
     from ultraglide.apps.experiment.log import read_session
-    from ultraglide.apps.experiment.session import resumed_config, run_session
+    from ultraglide.apps.experiment.session import check_levels, resumed_config, run_session
 
     kind = args.experiment
     _refuse_ignored_options(args)
@@ -307,6 +307,7 @@ def run(args) -> int:
         config = _config_from_args(args, kind)
         directory = _prepare_directory(args)
         resume = False
+    check_levels(config, str(directory / "session.json") if resume else "--start-level and --range")
     if config.observer:
         from ultraglide.apps.experiment.observer import SimObserver
 

@@ -144,6 +144,20 @@ def _typed(key: str, value, annotation: str, where: str):
     return value
 
 
+def check_levels(config: SessionConfig, where: str) -> None:
+    """Refuse, before any file is written, levels the procedure cannot take: a range that is not 0 < LOW < HIGH, a
+    staircase's start outside it (UsageError naming ``where``: the options, or the session.json resumed)."""
+    if config.method == "constant":
+        return
+    low, high = config.range
+    if not 0 < low < high:
+        raise UsageError(f"{where}: the levels' range needs 0 < LOW < HIGH, got {low:g} {high:g}")
+    start = config.start_level
+    if config.method == "staircase" and start is not None and not low <= start <= high:
+        raise UsageError(f"{where}: the start level {start:g} lies outside the levels' range {low:g}..{high:g}; "
+                         "start within it (or widen --range)")
+
+
 def make_procedure(config: SessionConfig):
     low, high = config.range
     if config.method == "constant":
