@@ -1,5 +1,6 @@
 """Shared test helpers."""
 
+import functools
 import os
 import subprocess
 import sys
@@ -95,6 +96,18 @@ def source_copy(destination: Path) -> Path:
 SLOW_WORDS = ("run_cli", "subprocess.", "Popen", "XvfbDemo", "cli(", "Engine.start(", "DemoApp(")
 
 
+@functools.cache
+def _source(function) -> str | None:
+    """A function's or class's source, read once: parametrised tests and shared helpers ask many times, and
+    inspect parses a class's whole module each time (it was 40 % of collecting the suite)."""
+    import inspect
+
+    try:
+        return inspect.getsource(function)
+    except (OSError, TypeError):
+        return None
+
+
 def _starts_processes(function, module, seen=None) -> bool:
     import inspect
 
@@ -102,15 +115,19 @@ def _starts_processes(function, module, seen=None) -> bool:
     if function in seen:
         return False
     seen.add(function)
-    try:
-        source = inspect.getsource(function)
-    except (OSError, TypeError):
+    source = _source(function)
+    if source is None:
         return False
     if any(word in source for word in SLOW_WORDS):
         return True
     helpers = [getattr(module, name) for name in vars(module) if name in source and name != function.__name__]
     return any((inspect.isfunction(h) or inspect.isclass(h)) and h.__module__ == module.__name__
                and _starts_processes(h, module, seen) for h in helpers)
+
+
+@functools.cache
+def _test_starts_processes(function, module) -> bool:
+    return _starts_processes(function, module)  # once a test function, however many parameters it has
 
 
 def _fixtures_start_processes(item) -> bool:
@@ -140,7 +157,7 @@ def pytest_collection_modifyitems(config, items):
         function = getattr(item, "function", None)
         if function is None or item.get_closest_marker("slow"):
             continue
-        if "cli" in getattr(item, "fixturenames", ()) or _starts_processes(function, item.module) \
+        if "cli" in getattr(item, "fixturenames", ()) or _test_starts_processes(function, item.module) \
                 or _fixtures_start_processes(item):
             item.add_marker(pytest.mark.slow)
 
