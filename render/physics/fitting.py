@@ -119,6 +119,37 @@ def fit_model(data: Measurements, kind: str, cross_validate: bool = False, boots
 
 
 def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> Fit:
+    specs, free, values, best, residuals, unit = _solve(data, kind, hold)
+    stderr = _standard_errors(best.jac, residuals) * np.array([unit[s.key] for s in free])
+    fitted = {s.key: (float(e), False) for s, e in zip(free, stderr, strict=True)}
+    parameters = tuple(Parameter(s, values[s.key], *fitted.get(s.key, (math.nan, True))) for s in specs)
+    try:
+        model = build_model(kind, values)
+    except ValueError as error:  # FingerParams refuses a combination
+        raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
+    model.fitted = fit_range(data)
+    return Fit(model, residuals, data, kind, parameters)
+
+
+def _fitted_values(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> dict[str, float]:
+    """The free parameters' fitted values alone (a bootstrap refit): no model built, no errors estimated
+    (building the paper model's table was a sixth of each paper refit)."""
+    _, free, values, *_ = _solve(data, kind, hold)
+    try:  # what a built model would refuse: its parameter objects' checks (a full fit builds the model)
+        if kind in ("paper", "paper-uniform"):
+            ridge_finger(kind, values)
+        elif kind == "squeeze-film":
+            film_params(values), film_finger(values)
+        else:
+            build_model(kind, values)
+    except ValueError as error:
+        raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
+    return {s.key: values[s.key] for s in free}
+
+
+def _solve(data: Measurements, kind: str, hold: dict[str, float] | None = None):
+    """The least-squares optimum: (specs, free specs, every parameter's value, scipy's best result, its
+    residuals, each parameter's fitting unit)."""
     from scipy.optimize import least_squares  # only fitting needs it; keep model loading light
 
     if kind not in PARAMETERS:
@@ -156,18 +187,7 @@ def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | N
                                else None)
         if best is None or result.cost < best.cost:
             best = result
-    x = best.x
-    residuals = residual(x)
-    stderr = _standard_errors(best.jac, residuals) * np.array([unit[s.key] for s in free])
-    values = values_of(x)
-    fitted = {s.key: (float(e), False) for s, e in zip(free, stderr, strict=True)}
-    parameters = tuple(Parameter(s, values[s.key], *fitted.get(s.key, (math.nan, True))) for s in specs)
-    try:
-        model = build_model(kind, values)
-    except ValueError as error:  # FingerParams refuses a combination
-        raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
-    model.fitted = fit_range(data)
-    return Fit(model, residuals, data, kind, parameters)
+    return specs, free, values_of(best.x), best, residual(best.x), unit
 
 
 def fit_range(data: Measurements) -> FitRange:
@@ -308,12 +328,11 @@ def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAM
             drawn = rng.integers(0, len(names), len(names))
             pick = np.concatenate([members[k] for k in drawn])
             try:
-                fit = _least_squares_fit(data.subset(pick), kind, hold)
+                fitted = _fitted_values(data.subset(pick), kind, hold)
             except ModelError:
                 continue
-            for p in fit.parameters:
-                if not p.fixed:
-                    values.setdefault(p.spec.key, []).append(p.value)
+            for key, value in fitted.items():
+                values.setdefault(key, []).append(value)
         result[scheme] = {key: float(np.std(found, ddof=1)) for key, found in values.items()
                           if len(found) >= max(2, samples // 2)}
     return result
