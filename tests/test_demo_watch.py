@@ -10,6 +10,7 @@ The watcher is driven directly (it is the demo's only reader of changing files),
 import json
 import os
 import stat
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -192,3 +193,29 @@ def test_the_demo_keeps_running_on_its_last_texture_and_says_so(tmp_path, monkey
             assert wait_for(lambda: app.step() or "cannot reload" not in app.status_words(), timeout=60)
     finally:
         app.close()
+
+
+def test_a_slow_load_does_not_hold_the_poll(tmp_path, monkeypatch):
+    """A large image decodes for seconds: the poll (the demo's loop) returns while it does, and a later poll
+    takes the texture once it is ready."""
+    import ultraglide.apps.demo.watch as watch
+
+    path = halves(tmp_path / "halves.png", 0.2)
+    watcher = TextureWatcher({0: (path, load_texture(path))})
+    release, started = threading.Event(), threading.Event()
+    real_load = watch.TextureWatcher._load
+
+    def held_load(*args):
+        started.set()
+        assert release.wait(120)
+        return real_load(*args)
+
+    monkeypatch.setattr(watch.TextureWatcher, "_load", staticmethod(held_load))
+    restore(path)
+    with no_hang(120):
+        assert wait_for(lambda: watcher.poll() == [] and started.is_set())  # the load began; the poll came back
+        for _ in range(5):
+            assert watcher.poll() == [] and watcher.errors == []  # still loading: the old texture stays
+        release.set()
+        reloaded = poll_until(watcher, bool)
+    assert [index for index, _ in reloaded] == [0] and reloaded[0][1].values[0, 0] == pytest.approx(0.6, abs=1e-3)

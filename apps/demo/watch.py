@@ -1,9 +1,11 @@
 """``demo --watch``: notice when a texture's file or its source image changes, and load it again.
 
 The demo's loop calls :meth:`TextureWatcher.poll` from its event wait's timeout (every 200 ms), so
-watching costs a few ``stat`` calls a poll and no thread. A file counts as changed when its
-(inode, size, mtime) differs from what was loaded and has stayed the same for one poll, so neither an
-in-place rewrite caught half-written nor an editor's rename is loaded before it is whole.
+watching costs a few ``stat`` calls a poll. A changed file is decoded on a thread of its own (a large
+image takes seconds), the window drawing meanwhile; a later poll takes the texture when it is ready.
+A file counts as changed when its (inode, size, mtime) differs from what was loaded and has stayed the
+same for one poll, so neither an in-place rewrite caught half-written nor an editor's rename is loaded
+before it is whole.
 
 Whatever the file becomes, the demo keeps the texture last loaded and says what is wrong, one line each in
 :attr:`TextureWatcher.errors` (shown on the status line), until the file loads again: removed (for a whole
@@ -21,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import errno
 import os
+import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,6 +55,28 @@ class _Watched:
     seen: dict  # path → the key seen at the last poll
     failed: dict | None = None  # path → key of the files as they were when loading failed
     error: str = ""  # why, while they stay so
+    loading: _Load | None = None  # a load under way on its own thread
+
+
+class _Load:
+    """One load of a changed file on a daemon thread: its outcome in ``texture`` or ``error`` once ``done``."""
+
+    def __init__(self, load, watched: _Watched, changed: Path):
+        self.changed = changed
+        self.seen = dict(watched.seen)  # the files' keys when the load began: loaded, they are what was loaded
+        self.texture = None
+        self.error = ""
+        self.done = threading.Event()
+        threading.Thread(target=self._run, args=(load, watched), daemon=True, name="texture-reload").start()
+
+    def _run(self, load, watched: _Watched) -> None:
+        try:
+            self.texture = load(watched, self.changed)
+        except Exception as error:  # noqa: BLE001 - whatever the file is, the demo keeps its texture
+            reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+            self.error = f"cannot reload {self.changed.name}: {reason}"
+        finally:
+            self.done.set()
 
 
 class TextureWatcher:
@@ -75,6 +100,17 @@ class TextureWatcher:
         reloaded = []
         self.errors = []
         for watched in self.watched:
+            if watched.loading is not None:
+                if not watched.loading.done.is_set():
+                    if watched.error:
+                        self.errors.append(watched.error)
+                    continue
+                load, watched.loading = watched.loading, None
+                if load.texture is None:
+                    watched.failed, watched.error = load.seen, load.error
+                else:
+                    watched.keys, watched.failed, watched.error = load.seen, None, ""
+                    reloaded.append((watched.index, load.texture))
             changed, missing = None, None
             for path in watched.keys:
                 key, problem = _look(path)
@@ -88,14 +124,7 @@ class TextureWatcher:
             if missing is not None:
                 watched.failed, watched.error = None, missing
             elif changed is not None and watched.failed != watched.seen:
-                try:
-                    texture = self._load(watched, changed)
-                except Exception as error:  # noqa: BLE001 - whatever the file is, the demo keeps its texture
-                    reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-                    watched.failed, watched.error = dict(watched.seen), f"cannot reload {changed.name}: {reason}"
-                else:
-                    watched.keys, watched.failed, watched.error = dict(watched.seen), None, ""
-                    reloaded.append((watched.index, texture))
+                watched.loading = _Load(self._load, watched, changed)
             elif changed is None and missing is None and watched.keys == watched.seen:
                 watched.error = ""  # back as it was loaded
             if watched.error:
