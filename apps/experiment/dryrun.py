@@ -43,7 +43,7 @@ class SimResponder:
             self._trials.move_to_end(key)
             return self._trials[key][:2]
         texture = design.trial_texture(level, target)
-        sampler = offline_sampler(texture)
+        sampler = offline_sampler(texture, self.speed_mm_s)
         size = texture.values.nbytes + 2 * sum(a.nbytes for pyramid in sampler.pyramids for a in pyramid)
         while self._trials and self._cached_bytes + size > CACHE_BYTES:
             self._cached_bytes -= self._trials.popitem(last=False)[1][2]

@@ -168,10 +168,15 @@ class Rendered:
     zone_contrast: tuple[float, ...]
 
 
-def offline_sampler(texture: Texture) -> Sampler:
-    """The lookup :func:`render_offline` reads ``texture`` through (its pyramid is most of a trial's
-    set-up: a caller rendering the same trial texture again passes it back in)."""
-    return Sampler(texture, band_limited=RenderSettings().band_limited_lookup)
+def offline_sampler(texture: Texture, speed_mm_s: float = 100.0, settings: RenderSettings | None = None) -> Sampler:
+    """The lookup :func:`render_offline` reads ``texture`` through at ``speed_mm_s`` (a caller rendering the
+    same trial texture again passes it back in). A finger that moves at most a pixel per control sample
+    reads the full-resolution level alone (:mod:`ultraglide.textures.sampling`): at twice the swipe's speed
+    or less, the band-limiting pyramid's other levels would never be read, and are not built (they were
+    most of a trial's set-up)."""
+    settings = settings or RenderSettings()
+    step_mm = 2.0 * speed_mm_s / settings.control_rate_hz
+    return Sampler(texture, band_limited=settings.band_limited_lookup and step_mm > max(texture.pixel_mm))
 
 
 def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profile: PlateProfile,
@@ -184,6 +189,8 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
     duration = (width - 2.0) / speed_mm_s
     path = SwipePath("straight", speed_mm_s, duration, (1.0, height / 2), force_n=force_n)
     settings = RenderSettings(audio_rate_hz=rate_hz, default_force_n=force_n)
+    if sampler is None:
+        sampler = offline_sampler(texture, speed_mm_s, settings)
     renderer = Renderer(texture, model, profile, settings, trajectory=path, sampler=sampler)
     stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
     xs, plate = [], []
