@@ -76,12 +76,15 @@ class RigRun:
 class ClosedLoopRig:
     """See the module docstring. ``texture``: a Texture; ``finger``: its FingerConfig (default: the default finger);
     ``q``: the plate's real Q (None: the profile's); ``closed``: the friction loop on (and the amplitude loop);
-    ``braking``: the firmware's amplitude loop may brake (an antiphase drive), else its drive only pushes."""
+    ``braking``: the firmware's amplitude loop may brake (an antiphase drive), else its drive only pushes;
+    ``force_correction``: the loop's values sent with the force they were computed at (SETPOINTS_FORCE), which the
+    firmware corrects to the force it measures as they play."""
 
     def __init__(self, texture, speed_mm_s: float = 100.0, closed: bool = True, finger: FingerConfig | None = None,
                  model: str = "stretched", profile: str = "sim-plate", q: float | None = None, link_s: float = 0.001,
                  force_n: float = 0.5, log_hz: float = 4000.0, start_mm=(2.0, 25.0), seconds: float = 10.0,
-                 lead_s: float = 0.5, loop_tau_s: float | None = None, braking: bool = True):
+                 lead_s: float = 0.5, loop_tau_s: float | None = None, braking: bool = True,
+                 force_correction: bool = True):
         self.profile = load_profile(profile)
         self.config = (finger or FingerConfig()).with_log(None)
         self.finger = build_finger(self.config)
@@ -95,6 +98,8 @@ class ClosedLoopRig:
         self.finger.set_clock_origin(0.0)
         self.model = load_model(model)
         self.closed = closed
+        self.force_correction = force_correction
+        self.limit_fraction = self.profile.max_amplitude_um_pp / self.profile.full_scale_um_pp
         self.loop = FrictionLoop(self.model, CONTROL_HZ, clock=lambda: self.now) if closed else None
         seen = AmplitudeLoopPlate.of(self.profile, loop_tau_s) if closed else self.profile
         path = SwipePath("straight", speed_mm_s, seconds, start_mm, force_n=force_n)
@@ -117,9 +122,10 @@ class ClosedLoopRig:
         self.sensors: list[tuple[int, int]] = []  # (first sample, setpoint index) of each SENSORS frame
         self.hello: p.HelloReply | None = None
 
-    def _send(self, kind: int, payload: bytes = b"", setpoints: np.ndarray | None = None, at_ms: int = 0) -> None:
+    def _send(self, kind: int, payload: bytes = b"", setpoints: np.ndarray | None = None, at_ms: int = 0,
+              force: p.ForceReference | None = None) -> None:
         self._seq = (self._seq + 1) & 0xFFFF
-        frame = self.framer.frame(self._seq, self._index, setpoints) if setpoints is not None else \
+        frame = self.framer.frame(self._seq, self._index, setpoints, force) if setpoints is not None else \
             p.encode_frame(kind, self._seq, payload)
         self._to_plate.append((at_ms + self.link_ms, frame))
 
@@ -163,10 +169,19 @@ class ClosedLoopRig:
                 self.commanded.append(drive)
                 self.intended.append(drive)
                 self.downs.append(np.zeros(FRAME, dtype=bool))
-            self._send(p.SETPOINTS, setpoints=drive / self.profile.full_scale_um_pp, at_ms=ms)
+            self._send(p.SETPOINTS, setpoints=drive / self.profile.full_scale_um_pp, at_ms=ms,
+                       force=self._force_reference() if ms >= lead_ms else None)
             self._index += FRAME
         self.finger.close()
         return self._result()
+
+    def _force_reference(self) -> p.ForceReference | None:
+        """SETPOINTS_FORCE's reference for the frame just rendered (None: plain SETPOINTS), as the serial writer
+        makes it."""
+        if not (self.closed and self.force_correction and self.hello is not None and self.hello.has_force_correction):
+            return None
+        reference = self.loop.inverse.force_reference
+        return None if reference is None else p.ForceReference(reference[0], reference[1], self.limit_fraction)
 
     def _take(self, data: bytes) -> None:
         for frame in self.decoder.feed(data):

@@ -153,7 +153,8 @@ class PlateSimulator:
         self.name = name
         self.finger = finger
         sensors = p.SENSOR_AMPLITUDE | ((p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE) if finger else 0)
-        features = p.FEATURE_AMPLITUDE_LOOP | (p.FEATURE_BRAKING if braking else 0)
+        features = p.FEATURE_AMPLITUDE_LOOP | (p.FEATURE_BRAKING if braking else 0) | \
+            (p.FEATURE_FORCE_CORRECTION if finger else 0)
         self.core = sil.FirmwareCore(sil.CoreSettings.of(profile, name=name, breaks=tuple(breaks),
                                                          max_version=max_version, sensors=sensors,
                                                          sample_rate_hz=SAMPLE_RATE_HZ, features=features))

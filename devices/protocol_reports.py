@@ -8,12 +8,13 @@ import struct
 from dataclasses import dataclass
 
 import numpy as np
-from ultraglide.devices.protocol_commands import SETPOINT_HEADER_LAYOUT
+from ultraglide.devices.protocol_commands import FORCE_REFERENCE_LAYOUT, SETPOINT_HEADER_LAYOUT
 from ultraglide.devices.protocol_frames import ProtocolError
 from ultraglide.devices.protocol_spec import (
     FAULT_BITS,
     FAULT_NAMES,
     FEATURE_AMPLITUDE_LOOP,
+    FEATURE_FORCE_CORRECTION,
     LOOP_OPEN,
     MAX_NAME_BYTES,
     MAX_SENSOR_SAMPLES,
@@ -63,6 +64,11 @@ class HelloReply:
     @property
     def has_amplitude_loop(self) -> bool:
         return bool(self.features & FEATURE_AMPLITUDE_LOOP)
+
+    @property
+    def has_force_correction(self) -> bool:
+        """v3's SETPOINTS_FORCE: the device rescales values by the normal force it measures at play."""
+        return self.version >= 3 and bool(self.features & FEATURE_FORCE_CORRECTION)
 
 
 @dataclass(frozen=True)
@@ -231,5 +237,6 @@ def parse_sensors(payload: bytes) -> Sensors:
 # fixed parts of payloads (v3), by the names docs/protocol.md's tables use
 PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V3.size, "ACK": _ACK.size, "NAK": _NAK.size,
                  "TELEMETRY": _TELEMETRY_V3.size, "SENSORS": _SENSORS_HEADER.size,
-                 "SETPOINTS header": SETPOINT_HEADER_LAYOUT.size, "SENSORS sample": _SENSOR_SAMPLE.itemsize}
+                 "SETPOINTS header": SETPOINT_HEADER_LAYOUT.size, "SENSORS sample": _SENSOR_SAMPLE.itemsize,
+                 "SETPOINTS_FORCE header": SETPOINT_HEADER_LAYOUT.size + FORCE_REFERENCE_LAYOUT.size}
 V2_PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V2.size, "TELEMETRY": _TELEMETRY_V2.size}

@@ -52,9 +52,11 @@ SETPOINTS = 0x04
 HEARTBEAT = 0x05
 CLEAR_FAULTS = 0x06
 SET_LOOP = 0x07  # v3: open loop (0) or the firmware's amplitude loop (1)
+SETPOINTS_FORCE = 0x08  # v3, FEATURE_FORCE_CORRECTION: SETPOINTS whose values carry the force they assumed
 SIM_FAULT = 0x7E  # simulator only: inject a fault for tests
-HOST_COMMANDS = (HELLO, SET_CARRIER, ENABLE, SETPOINTS, HEARTBEAT, CLEAR_FAULTS, SET_LOOP, SIM_FAULT)
-V3_COMMANDS = (SET_LOOP,)  # refused with NAK 4 in a session negotiated as v2
+HOST_COMMANDS = (HELLO, SET_CARRIER, ENABLE, SETPOINTS, HEARTBEAT, CLEAR_FAULTS, SET_LOOP, SETPOINTS_FORCE,
+                 SIM_FAULT)
+V3_COMMANDS = (SET_LOOP, SETPOINTS_FORCE)  # refused with NAK 4 in a session negotiated as v2
 # device → host
 HELLO_REPLY = 0x81
 ACK = 0x82
@@ -70,6 +72,10 @@ SENSOR_NAMES = {SENSOR_AMPLITUDE: "vibration amplitude", SENSOR_NORMAL_FORCE: "n
                 SENSOR_LATERAL_FORCE: "lateral force"}
 FEATURE_AMPLITUDE_LOOP = 1 << 0  # the firmware's amplitude loop (SET_LOOP 1)
 FEATURE_BRAKING = 1 << 1  # ... which brakes with an antiphase drive (down to minus the limit)
+FEATURE_FORCE_CORRECTION = 1 << 2  # SETPOINTS_FORCE: values rescaled by the force measured at play
+MAX_FORCE_EXPONENT = 2.0  # SETPOINTS_FORCE's exponent lies in -2..2
+MAX_REFERENCE_FORCE_N = 20.0  # ... and its force in (0, 20] N
+FORCE_SPAN = 2.0  # the device corrects where its force lies within force_n / 2 .. 2 force_n
 LOOP_OPEN, LOOP_AMPLITUDE = 0, 1
 
 # TELEMETRY v3: what the output is doing

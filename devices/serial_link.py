@@ -47,6 +47,7 @@ COMMAND_NAMES = {p.HELLO: "HELLO", p.SET_CARRIER: "SET_CARRIER", p.ENABLE: "ENAB
                  p.HEARTBEAT: "HEARTBEAT", p.CLEAR_FAULTS: "CLEAR_FAULTS", p.SIM_FAULT: "SIM_FAULT"}
 if hasattr(p, "SET_LOOP"):
     COMMAND_NAMES[p.SET_LOOP] = "SET_LOOP"
+COMMAND_NAMES[p.SETPOINTS_FORCE] = "SETPOINTS_FORCE"
 
 
 def port_failure(error: BaseException | None) -> str:

@@ -230,15 +230,17 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
                 outage.not_sent = self.counters.setpoints_discarded - outage.discarded_before
 
     # ---- sending ---------------------------------------------------------------------------------
-    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False, setpoints: np.ndarray | None = None) -> int:
+    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False, setpoints: np.ndarray | None = None,
+              force: p.ForceReference | None = None) -> int:
         """Write one frame; returns its seq. ``awaited``: its ACK or NAK will be waited for. ``setpoints``
-        (fractions of full scale, at the stream's index): a SETPOINTS frame built by the framer instead."""
+        (fractions of full scale, at the stream's index): a SETPOINTS frame built by the framer instead, or with
+        ``force`` a SETPOINTS_FORCE frame (the force its values were computed at)."""
         with self._write_lock:
             port = self._serial
             if port is None:
                 raise serial.SerialException("not connected")
             self._seq = seq = (self._seq + 1) & 0xFFFF
-            self._sent_kinds[seq] = kind
+            self._sent_kinds[seq] = kind if force is None else p.SETPOINTS_FORCE
             self._sent_at = time.perf_counter()
             if awaited:
                 with self._reply:
@@ -246,7 +248,7 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
             if setpoints is None:
                 port.write(p.encode_frame(kind, seq, payload))
             else:
-                port.write(self._framer.frame(seq, self._index, setpoints))
+                port.write(self._framer.frame(seq, self._index, setpoints, force))
         self.counters.frames_sent += 1
         return seq
 

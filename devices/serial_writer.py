@@ -3,6 +3,7 @@ heartbeats and fault clearing."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -218,10 +219,24 @@ class StreamWriter:
             if self._outages and self._outages[-1].back_s is None:
                 self._outages[-1].last_error = error.split("; ")[0]  # without the advice
 
+    def _force_reference(self) -> p.ForceReference | None:
+        """What SETPOINTS_FORCE carries for the values just pulled: the force the source's friction loop computed
+        them at and its model's exponent there, with the host's limit; None (plain SETPOINTS) while the loop does
+        not follow, or for a device without the force correction."""
+        device = self.device
+        if device is None or not device.has_force_correction:
+            return None
+        reference = getattr(self._source, "force_reference", None)
+        if reference is None:
+            return None
+        limit = math.floor(self.limit_um_pp / self.full_scale_um_pp * p.SETPOINT_SCALE) / p.SETPOINT_SCALE
+        return p.ForceReference(reference[0], reference[1], limit)
+
     def _send_setpoints(self, fractions: np.ndarray) -> None:
         """Send values (fractions of full scale) in frames of at most 240, continuing the stream's index."""
+        force = self._force_reference()
         for start in range(0, len(fractions), p.MAX_SETPOINTS_PER_FRAME):  # at most 480 bytes of values a frame
             chunk = fractions[start:start + p.MAX_SETPOINTS_PER_FRAME]
-            self._send(p.SETPOINTS, setpoints=chunk)
+            self._send(p.SETPOINTS, setpoints=chunk, force=force)
             self._index += len(chunk)
             self.counters.setpoints_sent += len(chunk)

@@ -108,7 +108,8 @@ def test_the_cores_protocol_numbers_are_the_hosts():
             "TELEMETRY", "SENSORS", "NAK_UNKNOWN_TYPE", "NAK_UNSUPPORTED", "NAK_BAD_LENGTH", "NAK_BAD_VALUE",
             "NAK_INTERNAL", "FAULT_WATCHDOG", "FAULT_TRIP", "FAULT_OVER_LIMIT", "FAULT_OVERRUN", "FAULT_UNDERRUN",
             "FAULT_BAD_COMMAND", "FAULT_OVERHEAT", "FAULT_BITS", "SENSOR_AMPLITUDE", "SENSOR_NORMAL_FORCE",
-            "SENSOR_LATERAL_FORCE", "FEATURE_AMPLITUDE_LOOP", "SIM_DROP", "SIM_CORRUPT", "SIM_HANG",
+            "SENSOR_LATERAL_FORCE", "FEATURE_AMPLITUDE_LOOP", "SETPOINTS_FORCE", "FEATURE_FORCE_CORRECTION",
+            "MAX_FORCE_EXPONENT", "MAX_REFERENCE_FORCE_N", "FORCE_SPAN", "SIM_DROP", "SIM_CORRUPT", "SIM_HANG",
             "SIM_DISCONNECT", "SIM_OVERHEAT"}
     for name in same:
         assert number(defines[name]) == pytest.approx(float(getattr(p, name))), name

@@ -172,14 +172,14 @@ def test_the_documents_message_tables_are_the_codes():
     device = _rows("| type | name | payload |")
     v2 = _rows("| type | name | v2 payload |")
     assert {name for _, name, *_ in host} == {"HELLO", "SET_CARRIER", "ENABLE", "SETPOINTS", "HEARTBEAT",
-                                              "CLEAR_FAULTS", "SET_LOOP", "SIM_FAULT"}
+                                              "CLEAR_FAULTS", "SET_LOOP", "SETPOINTS_FORCE", "SIM_FAULT"}
     assert {getattr(p, name) for _, name, *_ in host} == set(p.HOST_COMMANDS)
     assert {name for _, name, *_ in device} == {"HELLO_REPLY", "ACK", "NAK", "TELEMETRY", "SENSORS"}
     assert {name for _, name, *_ in v2} == {"HELLO_REPLY", "TELEMETRY"}
     for kind, name, payload, *_ in host + device:
         assert getattr(p, name) == int(kind, 16), name
         fixed = _fixed_size(payload.split("`")[1] if "`" in payload else payload)
-        expected = p.PAYLOAD_SIZES["SETPOINTS header"] if name == "SETPOINTS" else \
+        expected = p.PAYLOAD_SIZES[f"{name} header"] if name in ("SETPOINTS", "SETPOINTS_FORCE") else \
             p.PAYLOAD_LENGTHS.get(getattr(p, name), p.PAYLOAD_SIZES.get(name))
         assert fixed == expected, (name, fixed, expected)
     for kind, name, payload in v2:

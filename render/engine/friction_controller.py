@@ -21,6 +21,12 @@ or the sensors fall silent (checked here, every block), and its words say so. Fa
 the open-loop amplitude at once, so the amplitude never jumps above the open-loop amplitude; coming back,
 it blends from the open-loop amplitude to the closed loop's over ``blend_s``.
 
+The force the inverse is computed at is 15-25 ms old when its amplitude plays (the sensors, a SENSORS frame, the
+link, the jitter buffer). While it follows, each block also leaves :attr:`ClosedLoopInverse.force_reference`: that
+force and the model's local force exponent d ln a / d ln F there (:func:`force_exponent`), which a device with
+the force correction (protocol v3's SETPOINTS_FORCE) uses to rescale the values by the force it measures as they
+play (docs/design.md, "Steps and the force's age").
+
 The block path (:meth:`ClosedLoopInverse.amplitude_um_pp`) reads one snapshot (:class:`LoopCommand`,
 replaced whole by the thread that takes the sensors) and allocates nothing for blocks up to its capacity.
 """
@@ -33,6 +39,28 @@ from dataclasses import dataclass
 
 import numpy as np
 from ultraglide.render.physics.friction_models import DEFAULT_FORCE_N, FrictionModel, Inversion
+
+FORCE_STEP = 0.05  # the central difference's half step in ln F (±5 %)
+MAX_FORCE_EXPONENT = 2.0  # what SETPOINTS_FORCE carries (docs/protocol.md)
+
+
+def force_exponent(model: FrictionModel, ratio: float, force_n: float, work: np.ndarray | None = None) -> float:
+    """The model's local force sensitivity of its inverse, d ln a / d ln F, at a target ratio and a force.
+
+    A central difference of the model's own inverse over ±5 % in force (no limit): exact for the laws whose
+    amplitude is a power of the force (``stretched``: its ``force_exponent``, 1/3 by default; ``paper``: 1/3 below
+    the force where the contact area saturates; ``exponential``: 0), the local slope for a ``table``. 0 where the
+    ratio asks for no vibration (a = 0). Within ±2. ``work``: three floats to compute in (no allocation)."""
+    if not ratio < 1.0 or not force_n > 0.0:
+        return 0.0
+    work = np.empty(3) if work is None else work
+    work[0] = ratio
+    up = model.amplitude_um_pp(work[0:1], force_n * math.exp(FORCE_STEP), np.inf, work[1:2]).amplitude_um_pp[0]
+    down = model.amplitude_um_pp(work[0:1], force_n * math.exp(-FORCE_STEP), np.inf, work[2:3]).amplitude_um_pp[0]
+    if not (up > 0.0 and down > 0.0):
+        return 0.0
+    exponent = math.log(up / down) / (2.0 * FORCE_STEP)
+    return min(max(exponent, -MAX_FORCE_EXPONENT), MAX_FORCE_EXPONENT)
 
 
 @dataclass(frozen=True)
@@ -124,6 +152,8 @@ class ClosedLoopInverse:
         self.fallback_reasons: dict[str, int] = {}  # how many times for each reason (the loop's words then)
         self._was_following = False
         self.state_words = self.command.words
+        self.force_reference: tuple[float, float] | None = None  # (force N, d ln a / d ln F) of the last block
+        self._work = np.zeros(3)
 
     def __repr__(self) -> str:
         return f"ClosedLoopInverse({self.base!r}, {self.state_words!r})"
@@ -161,6 +191,7 @@ class ClosedLoopInverse:
         following, command, words = self.following_now(now)
         self.state_words = words
         if not following:
+            self.force_reference = None
             if self._was_following:
                 self.fallbacks += 1
                 reason = words.removeprefix("open loop: ")
@@ -178,6 +209,10 @@ class ClosedLoopInverse:
             opened = self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, buffer).amplitude_um_pp
         closed = self.base.amplitude_um_pp(ratio, command.force_n, limit_um_pp / scale, out)
         amplitude = closed.amplitude_um_pp
+        # the force this block was computed at, for a device that corrects it as the values play; none while
+        # blending with the open-loop amplitude (computed at another force)
+        self.force_reference = None if blend < 1.0 else \
+            (command.force_n, force_exponent(self.base, float(np.min(ratio)), command.force_n, self._work))
         amplitude *= scale
         np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
         if opened is not None:  # from the open-loop amplitude toward the closed loop's: a - (1 - b)(a - open)

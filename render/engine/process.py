@@ -106,6 +106,12 @@ class EngineSource(OutputStage):
         self._publish(started, done, now_s, touched, renderer.counters.clipped_samples - clipped_before)
         return out
 
+    @property
+    def force_reference(self) -> tuple[float, float] | None:
+        """The friction loop's (force N, force exponent) for the block just pulled (None: open loop), for a device
+        that corrects the force as values play (SETPOINTS_FORCE)."""
+        return self.loop.inverse.force_reference if self.loop is not None else None
+
     def skip(self, n: int) -> None:
         """Values the device's writer skipped (see ``OutputStage.skip``): no target for them."""
         super().skip(n)

@@ -28,7 +28,8 @@ size_t ug_core_rx_room(const ug_core *core) {
 
 static bool known(uint8_t type) {
     return type == UG_HELLO || type == UG_SET_CARRIER || type == UG_ENABLE || type == UG_SETPOINTS ||
-           type == UG_HEARTBEAT || type == UG_CLEAR_FAULTS || type == UG_SET_LOOP || type == UG_SIM_FAULT;
+           type == UG_HEARTBEAT || type == UG_CLEAR_FAULTS || type == UG_SET_LOOP || type == UG_SETPOINTS_FORCE ||
+           type == UG_SIM_FAULT;
 }
 
 static bool supported(const ug_core *core, uint8_t type) {
@@ -37,6 +38,9 @@ static bool supported(const ug_core *core, uint8_t type) {
     }
     if (type == UG_SET_LOOP) {
         return core->session >= 3u && (core->config.features & UG_FEATURE_AMPLITUDE_LOOP);
+    }
+    if (type == UG_SETPOINTS_FORCE) {
+        return core->session >= 3u && (core->config.features & UG_FEATURE_FORCE_CORRECTION);
     }
     return true;
 }
@@ -49,6 +53,8 @@ static bool length_ok(uint8_t type, const uint8_t *p, size_t n) {
     case UG_CLEAR_FAULTS: return n == 2u;
     case UG_SIM_FAULT: return n == 3u;
     case UG_SETPOINTS: return n >= 10u && n == 10u + 2u * (size_t)ug_get_u16(p + 8);
+    case UG_SETPOINTS_FORCE:
+        return n >= UG_SETPOINTS_FORCE_HEADER_SIZE && n == UG_SETPOINTS_FORCE_HEADER_SIZE + 2u * (size_t)ug_get_u16(p + 8);
     default: return false;
     }
 }
@@ -58,7 +64,7 @@ static bool early_value_refusal(const ug_core *core, uint8_t type, const uint8_t
     if (type == UG_ENABLE && n >= 1u) {
         return p[0] > 1u;
     }
-    if (type == UG_SETPOINTS && n >= 10u) {
+    if ((type == UG_SETPOINTS || type == UG_SETPOINTS_FORCE) && n >= 10u) {
         uint32_t rate = ug_get_u32(p + 4);
         uint16_t count = ug_get_u16(p + 8);
         return count == 0u || count > UG_MAX_SETPOINTS_PER_FRAME || rate < core->config.min_setpoint_rate_hz ||
@@ -75,13 +81,24 @@ static uint8_t negotiate(const ug_core *core, uint8_t host) {
     return host >= UG_LOWEST_VERSION ? host : UG_LOWEST_VERSION;
 }
 
+/* SETPOINTS_FORCE's reference (force_n, exponent, limit code after the count): within range? */
+static bool force_reference_ok(const uint8_t *p) {
+    float force_n = ug_get_f32(p + 10);
+    float exponent = ug_get_f32(p + 14);
+    return isfinite(force_n) && force_n > 0.0f && force_n <= UG_MAX_REFERENCE_FORCE_N && isfinite(exponent) &&
+           exponent >= -UG_MAX_FORCE_EXPONENT && exponent <= UG_MAX_FORCE_EXPONENT;
+}
+
+/* SETPOINTS and SETPOINTS_FORCE (the same stream; the latter's values carry a force reference) */
 static void setpoints(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *p) {
     uint32_t first = ug_get_u32(p);
     uint32_t rate = ug_get_u32(p + 4);
     uint16_t count = ug_get_u16(p + 8);
-    const uint8_t *codes = p + 10;
+    bool force = type == UG_SETPOINTS_FORCE;
+    const uint8_t *codes = p + (force ? UG_SETPOINTS_FORCE_HEADER_SIZE : UG_SETPOINTS_HEADER_SIZE);
     if (count == 0u || count > UG_MAX_SETPOINTS_PER_FRAME || rate < core->config.min_setpoint_rate_hz ||
-        rate > core->config.max_setpoint_rate_hz || (core->state != UG_OFF && core->rate != 0u && rate != core->rate)) {
+        rate > core->config.max_setpoint_rate_hz || (core->state != UG_OFF && core->rate != 0u && rate != core->rate) ||
+        (force && !force_reference_ok(p))) {
         ug_nak(core, type, seq, UG_NAK_BAD_VALUE);
         return;
     }
@@ -121,6 +138,15 @@ static void setpoints(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *
     uint16_t room = core->capacity > core->buf_count ? (uint16_t)(core->capacity - core->buf_count) : 0u;
     uint16_t put = kept < room ? kept : room;
     uint16_t over = (uint16_t)(kept - put);
+    if (put > 0u) {
+        uint32_t at = core->popped + core->buf_count; /* the ordinal of the first value pushed */
+        if (force) {
+            ug_force_mark(core, at, ug_get_f32(p + 10), ug_get_f32(p + 14),
+                          (float)ug_get_u16(p + 18) * (1.0f / (float)UG_SETPOINT_SCALE));
+        } else {
+            ug_force_mark(core, at, 1.0f, 0.0f, 1.0f);
+        }
+    }
     ug_buffer_push(core, codes + 2u * late, first + late, put);
     core->setpoints += UG_BROKEN(core, UG_BREAK_OVERRUN) ? kept : put;
     if (over > 0u) {
@@ -222,6 +248,7 @@ static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t 
         }
         return 0;
     case UG_SETPOINTS:
+    case UG_SETPOINTS_FORCE:
         setpoints(core, type, seq, p);
         return 0;
     case UG_HEARTBEAT:

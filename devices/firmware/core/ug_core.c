@@ -84,9 +84,10 @@ static bool config_ok(const ug_config *c) {
     if (c->sensors && (c->sensor_rate_hz < UG_MIN_SENSOR_RATE_HZ || c->sample_rate_hz % c->sensor_rate_hz != 0u)) {
         return false;
     }
-    if ((c->features & ~(UG_FEATURE_AMPLITUDE_LOOP | UG_FEATURE_BRAKING)) ||
+    if ((c->features & ~(UG_FEATURE_AMPLITUDE_LOOP | UG_FEATURE_BRAKING | UG_FEATURE_FORCE_CORRECTION)) ||
         ((c->features & UG_FEATURE_AMPLITUDE_LOOP) && !(c->sensors & UG_SENSOR_AMPLITUDE)) ||
-        ((c->features & UG_FEATURE_BRAKING) && !(c->features & UG_FEATURE_AMPLITUDE_LOOP))) {
+        ((c->features & UG_FEATURE_BRAKING) && !(c->features & UG_FEATURE_AMPLITUDE_LOOP)) ||
+        ((c->features & UG_FEATURE_FORCE_CORRECTION) && !(c->sensors & UG_SENSOR_NORMAL_FORCE))) {
         return false;
     }
     if (c->max_version < UG_LOWEST_VERSION || c->max_version > UG_PROTOCOL_VERSION || c->sim_faults > 1u) {
@@ -120,6 +121,8 @@ int ug_core_init(ug_core *core, const ug_config *config, void *port) {
     ug_decoder_reset(&core->decoder);
     ug_dds_set(core, config->carrier_hz);
     ug_loop_reset(core);
+    core->force_now_n = NAN;
+    ug_force_clear(core);
     return UG_OK;
 }
 

@@ -24,6 +24,13 @@ void ug_loop_record(ug_core *core, float requested, float drive);
 void ug_loop_measured(ug_core *core, size_t n);
 void ug_loop_reset(ug_core *core);
 
+/* ug_force.c: the force correction */
+void ug_force_clear(ug_core *core);
+void ug_force_mark(ug_core *core, uint32_t at, float force_n, float exponent, float limit);
+void ug_force_popped(ug_core *core, uint32_t ordinal);
+void ug_force_measured(ug_core *core, const float *normal_force_n, size_t n);
+float ug_force_correct(const ug_core *core, float requested);
+
 /* ug_dds.c */
 void ug_dds_set(ug_core *core, float carrier_hz);
 

@@ -10,6 +10,7 @@ void ug_buffer_clear(ug_core *core) {
     core->buf_head = 0;
     core->buf_count = 0;
     core->jump_count = 0;
+    ug_force_clear(core);
 }
 
 static uint16_t buffer_pop(ug_core *core) {
@@ -22,6 +23,7 @@ static uint16_t buffer_pop(ug_core *core) {
         core->jump_count--;
     }
     core->play_index = core->next_pop_index++;
+    ug_force_popped(core, core->popped);
     core->popped++;
     return value;
 }
@@ -132,6 +134,9 @@ static float render_sample(ug_core *core) {
     }
     default:
         break;
+    }
+    if (playing) {
+        requested = ug_force_correct(core, requested);
     }
     float wanted = requested;
     float floor = 0.0f;

@@ -70,6 +70,9 @@ size_t ug_core_adc_block(ug_core *core, const float *amplitude_um_pp, const floa
         }
     }
     core->measured = core->measured_um_pp / core->config.full_scale_um_pp;
+    if (normal_force_n != NULL && (core->config.features & UG_FEATURE_FORCE_CORRECTION)) {
+        ug_force_measured(core, normal_force_n, n);
+    }
     if (n > 0u) {
         ug_loop_measured(core, n);
     }

@@ -44,6 +44,7 @@ extern "C" {
 #define UG_EVENTS 64u        /* events kept for the port to read (a power of two) */
 #define UG_HISTORY 256u      /* drive samples of loop history (sense_delay_samples < this; a power of two) */
 #define UG_JUMPS 32u         /* index jumps (lost, overrun) marked in the buffer (a power of two) */
+#define UG_FORCE_MARKS 32u   /* force references marked in the buffer (SETPOINTS_FORCE; a power of two) */
 
 /* ---- configuration --------------------------------------------------------------------------------- */
 typedef struct ug_config {
@@ -202,6 +203,14 @@ typedef struct ug_core {
        to each measurement, and how far below zero a drive may pull it, per unit of it, within a loop period */
     float brake_plate, brake_reach;
     float hist_brake[UG_HISTORY];
+
+    /* force correction (ug_force.c): the buffer's references, the one playing, the force now */
+    struct { uint32_t at; float force_n, exponent, limit; } force_marks[UG_FORCE_MARKS];
+    uint8_t force_mark_head, force_mark_count;
+    float force_tail_ref_n, force_tail_exponent, force_tail_limit; /* the last marked */
+    float force_ref_n, force_exponent, force_limit; /* the value playing's: F_h (N), e (0: none), limit fraction */
+    float force_now_n;      /* the normal force over the last ADC block, N (NaN: none) */
+    float force_gain;       /* (force_now_n / force_ref_n)^force_exponent, or 1 */
 
     /* carrier DDS */
     uint32_t carrier_phase, carrier_step;

@@ -35,6 +35,7 @@
 #define UG_HEARTBEAT 0x05u
 #define UG_CLEAR_FAULTS 0x06u
 #define UG_SET_LOOP 0x07u
+#define UG_SETPOINTS_FORCE 0x08u
 #define UG_SIM_FAULT 0x7Eu
 /* device -> host */
 #define UG_HELLO_REPLY 0x81u
@@ -66,6 +67,7 @@
 #define UG_SENSOR_LATERAL_FORCE 0x04u
 #define UG_FEATURE_AMPLITUDE_LOOP 0x01u
 #define UG_FEATURE_BRAKING 0x02u /* the amplitude loop brakes: an antiphase drive, down to minus the limit */
+#define UG_FEATURE_FORCE_CORRECTION 0x04u /* SETPOINTS_FORCE: values rescaled by the force measured at play */
 
 /* SIM_FAULT kinds */
 #define UG_SIM_DROP 1u
@@ -88,5 +90,10 @@
 #define UG_TELEMETRY_V3_SIZE 89u
 #define UG_SENSORS_HEADER_SIZE 9u
 #define UG_SENSOR_SAMPLE_SIZE 12u
+#define UG_SETPOINTS_HEADER_SIZE 10u
+#define UG_SETPOINTS_FORCE_HEADER_SIZE 20u
+#define UG_MAX_FORCE_EXPONENT 2.0f
+#define UG_MAX_REFERENCE_FORCE_N 20.0f
+#define UG_FORCE_SPAN 2.0f /* readings within force_n / SPAN .. SPAN x force_n are corrected */
 
 #endif /* UG_PROTOCOL_H */
