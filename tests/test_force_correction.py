@@ -12,6 +12,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.signal import lfilter
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
 from ultraglide.render.physics.calibration import load_model
@@ -159,3 +162,121 @@ def test_the_framer_sends_the_bytes_of_the_plain_encoder_and_they_parse_back():
     assert back.force_n == pytest.approx(0.43) and back.exponent == pytest.approx(1 / 3)
     assert back.limit_fraction == pytest.approx(0.75, abs=1 / 65535)
     assert framer.frame(9, 1234, values) == p.encode_frame(p.SETPOINTS, 9, p.setpoints_payload(1234, RATE, values))
+
+
+
+@settings(max_examples=60, deadline=None)
+@given(q_factor=st.sampled_from([0.5, 1.0, 2.0]), loop=st.booleans(), host_limit=st.floats(0.2, 1.0),
+       frames=st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.05, 20.0), st.floats(-2.0, 2.0), st.booleans()),
+                       min_size=1, max_size=30),
+       forces=st.lists(st.one_of(st.floats(0.0, 60.0), st.just(math.nan)), min_size=1, max_size=30))
+def test_whatever_the_references_and_the_forces_the_plate_stays_within_the_limits(q_factor, loop, host_limit, frames,
+                                                                                  forces):
+    """Corrected values never drive the plate (up to twice as fast as configured) above the device's limit, and
+    in open loop without overdrive the drive never goes above the host's limit either."""
+    device = Device(features=p.FEATURE_FORCE_CORRECTION | p.FEATURE_AMPLITUDE_LOOP)
+    if loop:
+        assert device.answer(p.SET_LOOP, p.set_loop_payload(1)) is None
+    assert device.answer(p.ENABLE, p.enable_payload(True)) is None
+    alpha = math.exp(-1.0 / (FS * q_factor * 200.0 / (math.pi * 25000.0)))
+    plate, index, host_code = 0.0, 0, math.floor(host_limit * 65535) / 65535
+    for k, (value, force_n, exponent, with_force) in enumerate(frames):
+        values = np.full(12, min(value, host_code))  # the host's own values are within its limit
+        if with_force:
+            device.force_frame(index, values, force_n, exponent, host_code)
+        else:
+            device.answer(p.SETPOINTS, p.setpoints_payload(index, RATE, values))
+        index += 12
+        for _ in range(2):
+            drive = device.core.render(PER_MS).copy()
+            amplitude, _ = lfilter([(1 - alpha) * FULL_SCALE], [1, -alpha], drive, zi=[alpha * plate])
+            plate = float(amplitude[-1])
+            assert amplitude.max() <= 6.0 * (1 + 1e-4)
+            if not loop:  # open loop, the limit's share is the ceiling (no overdrive configured)
+                assert drive.max() <= max(host_code, values.max()) + 1e-6
+            device.core.sense(amplitude.astype(np.float32), np.full(PER_MS, forces[k % len(forces)], dtype=np.float32))
+
+
+# ---- the host's side: the exponent its model gives, the reference its inverse leaves ----
+
+def test_the_force_exponent_is_what_each_models_inverse_gives():
+    from ultraglide.render.engine.friction_controller import force_exponent
+    from ultraglide.render.physics.empirical_models import StretchedExponentialModel
+
+    stretched = load_model("stretched")  # s(F) = s0 (F / 0.5 N)^(1/3): a ∝ F^(1/3) at every ratio
+    for ratio in (0.3, 0.5, 0.9):
+        for force in (0.2, 0.5, 1.0):
+            assert force_exponent(stretched, ratio, force) == pytest.approx(1 / 3, abs=1e-9)
+    assert force_exponent(StretchedExponentialModel(force_exponent=0.6), 0.5, 0.4) == pytest.approx(0.6, abs=1e-9)
+    paper = load_model("paper")  # the detachment amplitude 2F/k_n with A ∝ F^(2/3): F^(1/3) below saturation
+    assert force_exponent(paper, 0.85, 0.5) == pytest.approx(1 / 3, abs=1e-3)
+    assert force_exponent(load_model("exponential"), 0.5, 0.5) == 0.0  # Monnoyer's law has no force in it
+    assert force_exponent(stretched, 1.0, 0.5) == 0.0  # no vibration asked: nothing to scale
+    # one step of the exponent is the inverse at the new force: a(F') = a(F) (F'/F)^e
+    a = lambda force: float(stretched.amplitude_um_pp(np.array([0.5]), force).amplitude_um_pp[0])  # noqa: E731
+    assert a(0.62) == pytest.approx(a(0.4) * (0.62 / 0.4) ** force_exponent(stretched, 0.5, 0.4), rel=1e-9)
+
+
+def test_the_inverse_leaves_its_force_and_exponent_only_while_it_follows():
+    from ultraglide.render.engine.friction_controller import ClosedLoopInverse, ControllerSettings, LoopCommand
+
+    now = [10.0]
+    inverse = ClosedLoopInverse(load_model("stretched"), ControllerSettings(blend_s=0.05), clock=lambda: now[0])
+    ratio = np.full(12, 0.5)
+    inverse.amplitude_um_pp(ratio, 0.5, 6.0)
+    assert inverse.force_reference is None  # open loop: the renderer's force, nothing to correct
+    inverse.command = LoopCommand(True, 1.2, 0.42, 10.0, 10.0, "closed loop: following")
+    now[0] = 10.02
+    inverse.amplitude_um_pp(ratio, 0.5, 6.0)
+    assert inverse.force_reference is None  # blending from the open-loop amplitude (computed at another force)
+    now[0] = 10.06
+    inverse.amplitude_um_pp(ratio, 0.5, 6.0)
+    assert inverse.force_reference == (0.42, pytest.approx(1 / 3))
+    now[0] = 10.3  # the sensors silent for 300 ms: open loop, no reference
+    inverse.amplitude_um_pp(ratio, 0.5, 6.0)
+    assert inverse.force_reference is None
+
+
+# ---- in the simulated rig: the firmware core, the plate, the finger, the host's loop ----
+
+def _step_settling(q: float | None, force_correction: bool) -> tuple[np.ndarray, object]:
+    import sys
+
+    from conftest import ROOT
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    from bench_closed_loop import LEARN_S, SETTLE_WINDOW_S
+    from closed_loop_rig import ClosedLoopRig
+    from ultraglide.textures.texture import Texture
+
+    x = np.arange(800) * 0.1  # 40 mm: 1 for the first 20, 0.5 for the next (the bench's stripes)
+    stripes = np.where((x % 40.0) < 20.0, 1.0, 0.5)[None, :].repeat(100, axis=0).astype(np.float32)
+    texture = Texture(stripes, 80.0, 10.0, name="steps", outside="tile")
+    run = ClosedLoopRig(texture, 100.0, True, q=q, log_hz=12000.0, seconds=6.0,
+                        force_correction=force_correction).run(6.0)
+    t, target = run.t, run.target
+    start = t[run.pick(0.0)][0] + LEARN_S
+    per_second = len(t) / (t[-1] - t[0])
+    steps = np.flatnonzero((target[1:] < 0.75) & (target[:-1] >= 0.75) & (t[1:] > start)) + 1
+    settling = []
+    for k in steps:  # from the step until the finger's ratio stays within 0.05 of 0.5 (to 50 ms after it)
+        window = slice(k, k + int(SETTLE_WINDOW_S * per_second))
+        outside = np.flatnonzero(np.abs(run.ratio[window] - 0.5) > 0.05)
+        settling.append((t[window][outside[-1]] - t[k] + 1 / per_second) if len(outside) else 0.0)
+    return np.array(settling), run
+
+
+@pytest.mark.slow
+def test_steps_settle_within_10_ms_with_the_force_corrected_in_the_firmware():
+    settling, run = _step_settling(None, True)
+    assert len(settling) >= 8 and settling.max() <= 0.010, settling
+    assert run.peak_um_pp <= 6.0 and np.nanmax(run.commanded) <= 6.0  # the plate never above its limit
+    uncorrected, _ = _step_settling(None, False)  # the same run with the force 15-25 ms old when it plays
+    assert uncorrected.max() > 0.010, uncorrected
+
+
+@pytest.mark.slow
+def test_on_a_plate_of_twice_the_profiles_q_steps_settle_within_10_ms_too():
+    settling, run = _step_settling(400.0, True)  # its decays twice as long: the fast correction once ran high here
+    assert len(settling) >= 8 and settling.max() <= 0.010, settling
+    assert run.peak_um_pp <= 6.0

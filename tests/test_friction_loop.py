@@ -200,6 +200,16 @@ def test_the_fast_correction_takes_a_fraction_of_the_least_squares_step():
     assert correction.value == correction.settings.correction_high  # more friction than meant: more amplitude, bounded
 
 
+def test_a_batch_of_little_slope_moves_the_correction_as_little_as_it_tells():
+    correction = FastCorrection(ControllerSettings(integral_time_s=0.1))
+    correction.update(np.zeros(10), np.full(10, -0.7), 0.01)  # a typical slope: the mean s² is 0.49, g stays 0
+    tail = np.full(10, -0.012)  # the tail of a decay toward ratio 1: the amplitude nearly zero
+    g = correction.update(np.full(10, 0.017), tail, 0.01)  # an error there is mostly friction at rest's estimate
+    power = 0.49 + 0.1 * (0.012 ** 2 - 0.49)  # the mean s² followed a tenth of the way (0.01 s of 0.1 s)
+    assert g == pytest.approx(0.1 * (10 * 0.012 * 0.017) / (10 * power), rel=1e-9)  # 4.6e-5
+    assert g < 0.01 * 0.1 * 0.017 / 0.012  # divided by its own slope it would have moved g by 0.014
+
+
 def test_the_adaptive_inverse_is_the_scaled_model_inverse_within_the_limit():
     inverse = ClosedLoopInverse(HOST, ControllerSettings(blend_s=0.0), clock=lambda: 10.0)
     from ultraglide.render.engine.friction_controller import LoopCommand

@@ -104,30 +104,44 @@ class FastCorrection:
     meant at the amplitude the plate actually reached (``r(a / (k (1 + g)))``): the tracking error less the
     part the plate's own dynamics make (the amplitude loop's job). A sample's sensitivity
     ``s = d(ratio)/d(ln a)`` (the model's local slope times the amplitude, <= 0) turns its error into the change
-    of ``g`` that would cancel it; over a batch the least-squares change ``-sum(s e) / sum(s²)`` is taken a
-    fraction ``duration / integral_time_s`` at a time: an integrator of time constant ``integral_time_s``
-    whatever the local slope, slow beside the sensors' and the link's delay (tens of ms). Measured at the
-    amplitude reached, the error does not grow while the amplitude is held at the limit: nothing winds up;
-    ``g`` also stays within its range.
+    of ``g`` that would cancel it: over a batch ``-sum(s e) / (n P)``, taken a fraction ``duration / integral_time_s``
+    at a time, where ``P`` is the mean of ``s²`` over the recent batches (the same time constant), or the batch's own
+    where larger. With the typical slope that is the batch's least-squares change: an integrator of time constant
+    ``integral_time_s`` whatever the local slope, slow beside the sensors' and the link's delay (tens of ms). A batch
+    whose slope is small (the tail of a decay toward ratio 1, where the amplitude is nearly zero) moves ``g`` as
+    little as it tells about it: its error there is mostly the estimate of friction at rest, not the amplitude's
+    scale. (Normalising each batch by its own ``sum(s²)`` divided such errors by a slope near zero: on a plate of
+    twice the profile's Q, whose decays are twice as long, each step back to ratio 1 pushed ``g`` up by 0.3-0.5 and
+    steps 1 -> 0.5 then settled 5-8 % too slippery.) Measured at the amplitude reached, the error does not grow
+    while the amplitude is held at the limit: nothing winds up; ``g`` also stays within its range.
     """
 
     def __init__(self, settings: ControllerSettings):
         self.settings = settings
         self.value = 0.0
+        self.power = math.nan  # the mean of s² over recent batches (NaN: none yet)
 
     def reset(self) -> None:
         self.value = 0.0
+        self.power = math.nan
 
     def update(self, error: np.ndarray, sensitivity: np.ndarray, duration_s: float) -> float:
         """``error`` measured minus intended ratio (NaN: not used), ``sensitivity`` d(ratio)/d(ln a), over one
         batch of ``duration_s``; returns the new ``g``."""
         usable = np.isfinite(error)
         s = sensitivity[usable]
-        weight = float(np.dot(s, s))
-        if weight < 1e-4 * max(len(s), 1):  # no slope to act through (ratio near 1, amplitude near 0)
+        n = len(s)
+        if n == 0:
             return self.value
-        step = -float(np.dot(s, error[usable])) / weight
+        batch_power = float(np.dot(s, s)) / n
         fraction = min(1.0, duration_s / self.settings.integral_time_s)
+        if math.isnan(self.power):
+            if batch_power < 1e-4:  # no slope to act through yet (ratio near 1, amplitude near 0)
+                return self.value
+            self.power = batch_power
+        else:
+            self.power += fraction * (batch_power - self.power)
+        step = -float(np.dot(s, error[usable])) / (n * max(self.power, batch_power))
         value = self.value + fraction * step
         self.value = min(max(value, self.settings.correction_low), self.settings.correction_high)
         return self.value
