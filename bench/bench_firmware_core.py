@@ -49,7 +49,9 @@ def main() -> int:
                 counts[label.group(1)] += 1
     order = ["SETPOINTS 12 values", "SETPOINTS 240 values", "SETPOINTS 96 values at 48 kHz",
              "carrier block open loop", "carrier block amplitude loop", "ADC block open loop",
-             "ADC block amplitude loop", "tick and poll", "tick and poll with a frame to send"]
+             "ADC block amplitude loop", "tick and poll", "tick and poll with a frame to send",
+             "SETPOINTS_FORCE 12 values", "SETPOINTS_FORCE 240 values", "carrier block loop, force correction",
+             "ADC block loop, force correction"]
     print(f"{'operation':44} {'instructions (worst of n)':>28}")
     for label in order:
         print(f"{label:44} {worst[label]:>20} (n={counts[label]})")
