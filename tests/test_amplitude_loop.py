@@ -161,3 +161,24 @@ def test_targets_above_the_limit_stop_at_the_limit():
     session.hold(8.0, 0.1)
     assert session.sim.peak_um_pp <= PROFILE.max_amplitude_um_pp
     assert session.amplitude()[-100:] == pytest.approx(6.0, abs=0.02)
+
+
+@pytest.mark.parametrize("q_factor", [0.5, 2.0])
+@pytest.mark.parametrize("noise_um_pp", [0.005, 0.05, 0.1])
+def test_with_a_noisy_measurement_the_brake_never_drives_the_opposite_phase_up(q_factor, noise_um_pp):
+    """The sensing piezo's noise (rms) makes the plate look higher than it is: a brake trusting it can pull the
+    phasor through zero, then see the opposite phase's amplitude and brake harder, driving it up to the limit
+    (without the margin and the phase check: 6 µm in the opposite phase at 0.005 µm of noise; with the margin
+    alone, 5.8 µm at 0.1 µm of noise on the fastest plate). The brake stops at a margin above zero (1 % of full
+    scale, 0.08 µm), and an amplitude that does not fall under a brake turns the brake off. Held at zero after
+    a step from 3 µm, the plate stays within a few noise widths of the margin, and it follows the next target."""
+    truth = PlateTruth(PROFILE.resonance_hz, q_factor * PROFILE.q, noise_um_pp=noise_um_pp)
+    session = Session(truth)
+    session.hold(3.0, 0.06)
+    start = len(session.amplitude())
+    session.hold(0.0, 0.2)
+    held = session.amplitude()[start + SAMPLE_RATE_HZ // 50:]  # from 20 ms after the step (it plays 10 ms late)
+    assert held.max() < 0.08 + 4 * noise_um_pp, held.max()
+    session.hold(2.0, 0.05)
+    assert session.amplitude()[-SAMPLE_RATE_HZ // 100:] == pytest.approx(2.0, abs=0.05 + 4 * noise_um_pp)
+    assert session.sim.peak_um_pp <= PROFILE.max_amplitude_um_pp and session.sim.enabled  # (not tripped)

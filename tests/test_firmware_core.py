@@ -274,29 +274,40 @@ def test_a_v2_session_gets_v2s_layouts_no_sensors_and_no_loop():  # [R-VERSION]
     assert device.answer(p.SET_LOOP, b"\x01") is None
 
 
-def test_the_brake_pulls_no_further_than_its_rule_and_telemetry_reads_it_as_zero_drive():  # [R-LOOP]
-    """A plate measured steadily at 3 µm p-p with the target at 0: the loop brakes (features bit 1) as hard as its
-    rule allows. At the start of each 1 ms ADC block the fastest plausible plate (tau / 2 = 1.27 ms) is reset to
-    the measurement p = 3 µm, and a drive u held for the loop period M = 48 samples would bring it to
-    a^M p + (1 - a^M) u, zero for u = -p a^M / (1 - a^M) = -2.52 µm by hand (a^M = exp(-48 / 61.1) = 0.456).
-    TELEMETRY's drive_code reads 0 (docs/protocol.md). A device without the brake drives 0."""
-    tau_fast = 0.5 * 200.0 / (math.pi * 25000.0)
-    decay = math.exp(-PER_MS / (FS * tau_fast))
-    expected = -3.0 * decay / (1.0 - decay) / 8.0  # fraction of full scale
-    for features, lowest in ((p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_BRAKING, expected), (p.FEATURE_AMPLITUDE_LOOP, 0.0)):
+def test_the_brake_pulls_no_further_than_its_rule_and_stops_when_the_plate_does_not_fall():  # [R-LOOP]
+    """A plate measured at 3 µm p-p above a target of 0: the loop brakes (features bit 1) as hard as its rule
+    allows. At the start of each 1 ms ADC block the fastest plausible plate (tau / 2 = 1.27 ms) is reset to the
+    measurement p = 3 µm, and a drive u held for the loop period M = 48 samples would bring it to
+    a^M p + (1 - a^M) u: to the margin m = 1 % of full scale (0.08 µm) for u = (m - a^M p) / (1 - a^M) = -2.37 µm
+    by hand (a^M = exp(-48 / 61.1) = 0.456). This plate does not fall under the brake, as one vibrating in the
+    opposite phase would not (the brake would drive it up): after that block the brake stays off (drive 0) until
+    the measured amplitude has been below a target; then it brakes again, and stops again. A device without the
+    brake never drives below 0."""
+    decay = math.exp(-PER_MS / (FS * 0.5 * 200.0 / (math.pi * 25000.0)))
+    rule = (0.01 - decay * 3.0 / 8.0) / (1.0 - decay)  # fraction of full scale
+    assert rule * 8.0 == pytest.approx(-2.37, abs=0.01)
+    for features in (p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_BRAKING, p.FEATURE_AMPLITUDE_LOOP):
         device = Device(features=features, max_drive_um_pp=8.0)
-        device.measured = 3.0
         assert device.answer(p.SET_LOOP, b"\x01") is None
         assert device.answer(p.ENABLE, p.enable_payload(True)) is None
-        frames = []
-        for ms in range(60):
-            device.setpoints(ms * 12, np.zeros(12))
-            frames += device.run(1)
-        drive = device.played()[-20 * PER_MS:].reshape(20, PER_MS)
-        assert drive[:, 0] == pytest.approx(lowest, abs=1e-4)  # each block's first sample: the rule, exactly
-        assert drive.min() >= lowest - 1e-6 and drive.max() <= 0.0 and device.status().drive <= 0.0
-        codes = [t.drive_code for t in telemetry(frames)[-2:]]
-        assert len(codes) == 2 and codes == [0, 0]
+        index = 0
+        for target_um_pp, measured_um_pp, ms in ((0.0, 3.0, 30), (2.0, 0.5, 10), (1.0, 3.0, 10)):
+            device.measured = measured_um_pp
+            for _ in range(ms):
+                device.setpoints(index, np.full(12, target_um_pp / 8.0))
+                index += 12
+                device.run(1)
+        blocks = device.played().reshape(-1, PER_MS)
+        braking = np.flatnonzero(blocks.min(axis=1) < 0)
+        if not features & p.FEATURE_BRAKING:
+            assert len(braking) == 0
+            continue
+        first = braking[braking < 30]
+        assert len(first) == 1 and blocks[first[0], 0] == pytest.approx(rule, abs=1e-4)  # the rule, exactly
+        assert np.all(blocks[first[0] + 1:30] >= 0.0)  # then off: the plate did not fall
+        again = braking[braking >= 40]  # re-armed by the plate below its target (the loop pushing), it brakes again
+        assert len(again) >= 1 and np.all(blocks[again[-1] + 1:] >= 0.0)  # ... and stops again
+        assert blocks.min() >= rule - 1e-6  # never beyond the rule (p is at most 3 µm)
 
 
 def test_hello_changes_nothing_but_the_session():  # [R-HELLO-NO-STATE]

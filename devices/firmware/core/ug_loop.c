@@ -25,9 +25,17 @@
  * a slower plate, or one off resonance, falls less), runs on the drive played and is reset to every
  * measurement (delay-compensated); a drive u held for the loop period M (the ADC block and its lag, the
  * longest the plate goes unmeasured) brings that plate from p to a^M p + (1 - a^M) u, so the drive may go
- * no lower than -p a^M / (1 - a^M), recomputed every sample as p falls: that plate only approaches zero,
- * and any slower plate stays above it. The limiter keeps a negative drive within minus the limit L, so a
- * brake held for ever would leave the plate at most at L, in either phase.
+ * no lower than (m - a^M p) / (1 - a^M), recomputed every sample as p falls: that plate only approaches
+ * the margin m (UG_BRAKE_MARGIN, above the measurement's noise), and any slower plate stays above it. The
+ * limiter keeps a negative drive within minus the limit L, so a brake held for ever would leave the plate at
+ * most at L, in either phase.
+ *
+ * Should the plate still cross (noise beyond the margin, a plate outside the plausible range), the brake
+ * would drive the opposite phase up, and the loop, seeing more amplitude, would brake harder. So the
+ * measurement is checked: over a block in which the drive braked and never pushed, a plate in the right
+ * phase falls at least as fast as the slowest plausible one (2 tau) decays freely; an amplitude above that
+ * (plus m) is the opposite phase, and the brake stays off (drive >= 0: the free decay drains either phase)
+ * until the measured amplitude has fallen below the target by m.
  */
 #include <math.h>
 
@@ -36,6 +44,7 @@
 #define UG_LOOP_KI 1000.0f          /* integral gain, per second */
 #define UG_LOOP_MIN_APPROACH_S 0.0002f
 #define UG_LOOP_APPROACH_BLOCKS 1.2f
+#define UG_BRAKE_MARGIN 0.01f       /* the brake stops this far above zero, fraction of full scale */
 
 /* floor: the lowest drive allowed (0, or a brake's, from ug_loop_brake_floor); never below -L */
 float ug_limit(ug_core *core, float drive, float floor) {
@@ -84,11 +93,14 @@ float ug_loop_brake_floor(const ug_core *core, float target) {
         return 0.0f;
     }
     float r = target < core->limit_fraction ? target : core->limit_fraction;
-    float p = core->brake_plate;
-    if (!(core->measured > r) || !(p > 0.0f)) {
+    float d = core->brake_period_decay;
+    if (core->brake_inhibit || !(core->measured > r) || !(d < 1.0f)) {
         return 0.0f;
     }
-    float floor = -core->brake_reach * p;
+    float floor = (UG_BRAKE_MARGIN - d * core->brake_plate) / (1.0f - d);
+    if (!(floor < 0.0f)) {
+        return 0.0f;
+    }
     return floor > -core->limit_fraction ? floor : -core->limit_fraction;
 }
 
@@ -109,6 +121,11 @@ void ug_loop_record(ug_core *core, float requested, float drive) {
     }
     core->loop_model = core->model_decay * core->loop_model + (1.0f - core->model_decay) * drive;
     core->brake_plate += core->fast_gain * (drive - core->brake_plate);
+    if (drive > 0.0f) {
+        core->brake_pushed = 1u;
+    } else if (drive < 0.0f) {
+        core->brake_braked = 1u;
+    }
     core->hist_head = (uint16_t)((core->hist_head + 1u) & (UG_HISTORY - 1u));
     core->hist_model[core->hist_head] = core->loop_model;
     core->hist_brake[core->hist_head] = core->brake_plate;
@@ -120,6 +137,18 @@ void ug_loop_measured(ug_core *core, size_t n) {
     float measured = core->measured;
     core->loop_model += measured - core->hist_model[at];
     core->brake_plate += core->fast_delay_decay * (measured - core->hist_brake[at]);
+    /* the brake's phase check (a lagging measurement: the blocks before count too) */
+    unsigned lag_blocks = core->config.sense_delay_samples > 0u;
+    bool pushed = core->brake_pushed || (lag_blocks && core->brake_prev_pushed);
+    float slowest_free = core->brake_last * expf(0.5f * (float)n * logf(core->model_decay));
+    if (core->brake_braked && !pushed && measured > slowest_free + UG_BRAKE_MARGIN) {
+        core->brake_inhibit = 1u;
+    } else if (core->brake_inhibit && measured < core->hist_target[at] - UG_BRAKE_MARGIN) {
+        core->brake_inhibit = 0u;
+    }
+    core->brake_last = measured;
+    core->brake_prev_pushed = core->brake_pushed;
+    core->brake_pushed = core->brake_braked = 0u;
     if (core->loop_mode == 1u && (core->state == UG_PLAYING || core->state == UG_DRY)) {
         float error = core->hist_target[at] - measured;
         bool frozen = ((core->loop_saturated & 1u) && error > 0.0f) || ((core->loop_saturated & 2u) && error < 0.0f);
@@ -135,9 +164,8 @@ void ug_loop_measured(ug_core *core, size_t n) {
         approach_s = UG_LOOP_MIN_APPROACH_S;
     }
     core->loop_approach = 1.0f - expf(-1.0f / ((float)core->config.sample_rate_hz * approach_s));
-    /* the fastest plate's decay over a loop period, and how far below zero a drive may pull it per unit */
-    float period_decay = expf((float)(n + core->config.sense_delay_samples) * logf(1.0f - core->fast_gain));
-    core->brake_reach = period_decay < 1.0f ? period_decay / (1.0f - period_decay) : 0.0f;
+    /* the fastest plate's decay over a loop period: the brake's reach */
+    core->brake_period_decay = expf((float)(n + core->config.sense_delay_samples) * logf(1.0f - core->fast_gain));
 }
 
 void ug_loop_reset(ug_core *core) {
@@ -145,6 +173,8 @@ void ug_loop_reset(ug_core *core) {
     core->loop_saturated = 0;
     core->loop_model = core->measured;
     core->brake_plate = core->measured;
+    core->brake_last = core->measured;
+    core->brake_pushed = core->brake_braked = core->brake_prev_pushed = 0u;
     if (core->loop_approach <= 0.0f) {
         core->loop_approach = 1.0f - expf(-1.0f / ((float)core->config.sample_rate_hz * UG_LOOP_MIN_APPROACH_S));
     }

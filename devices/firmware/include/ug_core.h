@@ -200,8 +200,10 @@ typedef struct ug_core {
     uint32_t hist_index[UG_HISTORY]; /* the stream index playing at each drive sample (or UG_NOT_PLAYING) */
     uint16_t hist_head;
     /* braking (UG_FEATURE_BRAKING): the fastest plausible plate's envelope (signed: the drive's phase), reset
-       to each measurement, and how far below zero a drive may pull it, per unit of it, within a loop period */
-    float brake_plate, brake_reach;
+       to each measurement, and its decay over a loop period; the phase check: the previous measurement, whether
+       the drive pushed or braked since (and in the block before), the brake held off */
+    float brake_plate, brake_period_decay, brake_last;
+    uint8_t brake_pushed, brake_braked, brake_prev_pushed, brake_inhibit;
     float hist_brake[UG_HISTORY];
 
     /* force correction (ug_force.c): the buffer's references, the one playing, the force now */
