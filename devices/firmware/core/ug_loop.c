@@ -1,7 +1,8 @@
 /*
  * ug_loop.c - the device-side limiter and the amplitude loop (docs/design.md, "The amplitude loop").
  *
- * Limiter (docs/protocol.md [R-LIMIT]): the drive stays within 0..D (the drive ceiling); within L (the
+ * Limiter (docs/protocol.md [R-LIMIT]): the drive stays within 0..D (the drive ceiling), or down to -L
+ * where the loop's brake allows it (its floor, below); within L (the
  * limit's share of full scale) once the measured amplitude reaches the limit; and within what keeps
  * the fastest plausible plate (a first-order envelope with half the configured Q) at or below L:
  * u <= p + (L - p) / g with p that model's envelope and g its per-sample gain. A slower plate, or one
