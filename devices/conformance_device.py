@@ -187,6 +187,27 @@ class DeviceRules:
             "falling behind)" if first_gap else ""
         return f"{len(frames)} frames, {samples} samples, consecutive{lost}; {words}"
 
+    def check_force(self) -> str:
+        def frame(force_n: float, exponent: float) -> bytes:  # zeros, sent while disabled: discarded if taken
+            return p.setpoints_force_payload(self.index, self.rate, np.zeros(self.frame_values),
+                                             p.ForceReference(force_n, exponent, 0.0))
+
+        if not (self.v3 and self.device.features & p.FEATURE_FORCE_CORRECTION):
+            answer = self.command(p.SETPOINTS_FORCE, frame(0.5, 1.0 / 3.0))
+            if answer is None or answer[:2] != ("nak", p.NAK_UNSUPPORTED):
+                raise Broken(f"SETPOINTS_FORCE on a device without the force correction (or a v2 session): "
+                             f"{answer_words(answer)}, not NAK 4")
+            return "no force correction: SETPOINTS_FORCE refused with NAK 4"
+        for force_n, exponent, what in ((0.0, 1.0 / 3.0, "a force of 0 N"), (math.nan, 1.0 / 3.0, "a force NaN"),
+                                        (0.5, 2.5, "an exponent of 2.5")):
+            answer = self.command(p.SETPOINTS_FORCE, frame(force_n, exponent))
+            if answer is None or answer[:2] != ("nak", p.NAK_BAD_VALUE):
+                raise Broken(f"SETPOINTS_FORCE with {what}: {answer_words(answer)}, not NAK 3")
+        answer = self.command(p.SETPOINTS_FORCE, frame(0.5, 1.0 / 3.0))
+        if answer is not None:
+            raise Broken(f"SETPOINTS_FORCE with 0.5 N and an exponent of 1/3: {answer_words(answer)}, not taken")
+        return "references out of range refused (NAK 3), one in range taken"
+
     def check_loop(self) -> str:
         has_loop = self.v3 and self.device.features & p.FEATURE_AMPLITUDE_LOOP
         if not has_loop:
