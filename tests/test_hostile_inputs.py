@@ -348,7 +348,11 @@ def test_text_from_a_file_reaches_the_terminal_escaped(tmp_path):
     path = texture_png(tmp_path / "evil.png", json.dumps(meta), mode="L")
     text = run_cli("texture", "info", path, check=True)
     assert_clean(text.stdout + text.stderr)
-    assert "evil\\u001b]0;pwned\\u0007" in text.stdout
+    assert "evil\\x1b]0;pwned\\x07" in text.stdout  # quoted with its escapes, as a refusal quotes it
+    broken = {"format_version": 1, "width_mm": 20, "height_mm": 10, "name": "n", "description": "d\nFAKE friction 0",
+              "source": "s\r\nFAKE kind gradient", "authoring": {"a\nb": "c\nd"}}
+    lines = run_cli("texture", "info", texture_png(tmp_path / "lines.png", json.dumps(broken)), check=True).stdout
+    assert len(lines.splitlines()) == 8 and "\nFAKE" not in lines, lines  # no line of the file's own
     data = run_cli("texture", "info", path, "--json", check=True)
     assert_clean(data.stdout)
     assert json.loads(data.stdout, parse_constant=refuse)["name"] == meta["name"]

@@ -359,6 +359,8 @@ OUTSIDE_WORDS = {"tile": "it repeats (a tile)", "clamp": "its edges extend", "fi
 def info(args) -> int:
     from ultraglide.textures.fileformat import MAX_HELD_PIXELS, MAX_PX_PER_MM
 
+    from ultraglide.inputs import shown
+
     texture = _input(args.texture)
     facts = describe(texture, args.texture)
     if args.json:
@@ -367,7 +369,7 @@ def info(args) -> int:
     friction, seams = facts["friction"], facts["seams"]
     beyond = OUTSIDE_WORDS[texture.outside].format(texture.outside_ratio)
     lines = [
-        f"{texture.name}: {texture.description}",
+        f"{shown(texture.name)}: {shown(texture.description)}",  # the file's text: a line break would fake a line
         f"  size        {texture.width_mm:g} × {texture.height_mm:g} mm, {texture.cols} × {texture.rows} pixels "
         f"of {facts['pixel_mm'][0]:.3g} × {facts['pixel_mm'][1]:.3g} mm",
         f"  kind        {texture.kind}" + (" (friction follows the slope of a height map; figures below are for a "
@@ -383,13 +385,14 @@ def info(args) -> int:
         lines.append(f"  seams       {verdict}: largest step across the tile's edge {seams['seam_max']:.3f}, "
                      f"inside {seams['interior_max']:.3f}")
     if texture.source:
-        lines.append(f"  source      {texture.source}")
+        lines.append(f"  source      {shown(texture.source)}")
     held_from = texture.authoring.get("held_from_pixels")
     if isinstance(held_from, list) and len(held_from) == 2:
         lines.append(f"  held as     {texture.cols} × {texture.rows} pixels, reduced from the file's {held_from[0]} × "
                      f"{held_from[1]}: at most {MAX_PX_PER_MM:g} per mm (a finger resolves about 0.05 mm) and "
                      f"{MAX_HELD_PIXELS / 1e6:g} million in all")
-    made = ", ".join(f"{key} {value}" for key, value in facts["authoring"].items() if key != "held_from_pixels")
+    made = ", ".join(f"{shown(key)} {shown(value)}" for key, value in facts["authoring"].items()
+                     if key != "held_from_pixels")
     if made:
         lines.append(f"  made with   {made}")
     print("\n".join(lines))
