@@ -31,7 +31,9 @@ import contextlib
 import math
 import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -123,18 +125,23 @@ class Engine:
         parent, child = context.Pipe()
         process = context.Process(target=engine_main, args=(config, shared.name, child), daemon=True,
                                   name="ultraglide-engine")
+        held = None
         try:
+            held = _hold_stop_signals()  # a spawn cut halfway by Ctrl-C would leave the child a traceback of its own
             with _main_module_hidden():
                 process.start()
-        except Exception:
+        except BaseException:
             shared.close()
+            _release_stop_signals(held)
             raise
-        child.close()
         try:
+            _release_stop_signals(held)  # a stop signal that came during the start arrives here
+            child.close()
             kind, payload = _receive(parent, process, timeout_s)
-        except EngineError:
+        except BaseException:  # its error, or a stop signal while it loaded (Ctrl-C, SIGTERM made exceptions)
+            parent.close()  # an engine still loading then finds nobody to answer: it rests its device and ends
             _reap(process)
-            shared.close()
+            shared.close()  # the segment unlinked: none left for the resource tracker to call leaked
             raise
         if kind != "up":
             _reap(process)
@@ -329,6 +336,31 @@ def _receive(conn, process, timeout_s: float):
             raise EngineError(f"the engine process ended unexpectedly (exit code {process.exitcode})")
         if time.monotonic() >= deadline:
             raise EngineError(f"the engine did not answer within {timeout_s:g} s")
+
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def _hold_stop_signals():
+    """Hold the stop signals while the engine is spawned: their handlers (Ctrl-C's KeyboardInterrupt, the app's
+    SIGTERM) only record them until :func:`_release_stop_signals`, which delivers them again. A spawn cut halfway
+    leaves the new process its own traceback (``EOFError`` reading what it was sent). Handlers run in the main
+    thread only (a signal mask would not do: another thread takes the signal); elsewhere, nothing to hold."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    received: list[int] = []
+    previous = {signum: signal.signal(signum, lambda number, _: received.append(number)) for signum in STOP_SIGNALS}
+    return previous, received
+
+
+def _release_stop_signals(held) -> None:
+    if held is None:
+        return
+    previous, received = held
+    for signum, handler in previous.items():
+        signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+    for signum in dict.fromkeys(received):
+        signal.raise_signal(signum)
 
 
 def _reap(process, timeout_s: float = 10.0) -> None:

@@ -12,6 +12,7 @@ rests the hardware and exits.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import os
@@ -240,16 +241,25 @@ def engine_main(config, shared_name: str, conn) -> None:
     stop_requested = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop_requested.set())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the app, which stops the engine in order
-    shared = SharedBlock.attach(shared_name)
+    try:
+        shared = SharedBlock.attach(shared_name)
+    except FileNotFoundError:  # the app was stopped (a signal) before this process started: nobody to serve
+        return
     errors = USER_ERRORS
     device = None
     try:
         texture, model, profile, device = load_parts(config)
     except errors as error:
-        conn.send(("error", describe(error)))
+        with contextlib.suppress(OSError):  # the app may have gone already (stopped while this loaded)
+            conn.send(("error", describe(error)))
         shared.close()
         return
-    conn.send(("up", {"pid": os.getpid(), "device": config.device}))
+    try:
+        conn.send(("up", {"pid": os.getpid(), "device": config.device}))
+    except OSError:  # the app was stopped (a signal) while the device opened: nobody to serve, rest it and end
+        close_device(device)
+        shared.close()
+        return
     from ultraglide.render.renderer import Renderer, RenderSettings
 
     source = None

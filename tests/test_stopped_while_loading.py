@@ -1,0 +1,64 @@
+"""A command stopped (SIGTERM, Ctrl-C) while its engine is still loading (issue 26's hostile trial, by class: a
+stop signal mid-run of every command that writes): one line, the shell's status, no traceback, nothing left behind.
+
+The engine process loads the texture, the model and the device before it answers; the simulated plate takes a
+second or more there (its compiled filter). A signal in that second used to leave the engine's "up" with nobody to
+read it (a BrokenPipeError traceback from the engine process), its shared-memory segment for the resource tracker
+to call leaked, and a growing log's ``.part``. The signal is sent as soon as the engine process exists; whether it
+lands while the engine loads or once it runs, the same must hold.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT, wait_for
+
+
+def engine_of(pid: int) -> int | None:
+    """The engine process a command spawned (multiprocessing's spawn), or None yet."""
+    try:
+        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    except OSError:
+        return None
+    for child in children:
+        try:
+            if b"spawn_main" in Path(f"/proc/{child}/cmdline").read_bytes():
+                return int(child)
+        except OSError:
+            continue
+    return None
+
+
+def segments(pid: int) -> list[str]:
+    """The engine's shared-memory segments that process ``pid`` made (named after it) and left."""
+    return [name for name in os.listdir("/dev/shm") if name.startswith(f"ultraglide_{pid}_")]
+
+
+COMMANDS = {
+    "play on sim with logs": ["play", "wood", "--duration-s", "60", "--device", "sim", "--closed-loop",
+                              "--finger-log", "{d}/f.csv", "--sensors-csv", "{d}/s.csv"],
+    "play to a WAV": ["play", "wood", "--duration-s", "60", "--device", "wav:{d}/p.wav"],
+    "latency on sim": ["latency", "--steps", "2000"],
+}
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_command_stopped_while_its_engine_loads_says_so_in_one_line_and_leaves_nothing(tmp_path, command, signum):
+    argv = [arg.format(d=tmp_path) for arg in COMMANDS[command]]
+    process = subprocess.Popen([sys.executable, "-m", "ultraglide", *argv], cwd=ROOT, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: engine_of(process.pid) is not None or process.poll() is not None, 120)
+        process.send_signal(signum)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + signum, err
+    assert err.strip() == f"ultraglide: stopped ({signal.Signals(signum).name})", err  # no traceback, no warning
+    assert not [path.name for path in tmp_path.iterdir() if path.name.endswith(".part") or ".ultraglide-" in path.name]
+    assert segments(process.pid) == []
