@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import soundfile
 from conftest import assert_one_line_error, run_cli
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from PIL import Image, PngImagePlugin
 from scipy.interpolate import PchipInterpolator
@@ -157,6 +157,9 @@ def test_trajectory_loader_loads_or_says_one_line(tmp_path, drawn):
                                st.one_of(st.floats(0.05, 1.1), st.sampled_from([0.0, 1.0, 1.5, math.nan])),
                                st.sampled_from([0.2, 0.5, 0.5, -1.0, 0.0, 60.0])),
                      max_size=10))
+# found by this test beside the brake's work: a repeated amplitude's second value dropped, the rest flat
+@example(force_column=True, rows=[(0.0, 1.0, 0.2), (1.0, 1.0, 0.2), (1.0, 0.5, 0.2)])
+@example(force_column=False, rows=[(0.0, 1.0, 0.5), (1.0, 0.5, 0.5), (1.0, 1.0, 0.5)])
 def test_table_loader_gives_a_usable_model_or_one_line(tmp_path, force_column, rows):
     path = tmp_path / "table.csv"
     header = "amplitude_um_pp,relative_friction" + (",force_n" if force_column else "")
@@ -656,3 +659,12 @@ def test_a_long_log_changed_between_check_and_render_is_an_error(tmp_path, monke
     log.write_text("t_s,x_mm,y_mm\n0,1,1\n2,2,2\n1,3,3\n")  # rewritten by a logger still running
     with pytest.raises(RenderError, match="changed while it was being read"):
         trajectory.state(np.linspace(0, 2, 10))
+
+
+def test_a_repeated_amplitude_counts_as_the_mean_of_its_readings(tmp_path):
+    """Two readings at 1 µm p-p (1.0 and 0.5) are one point at 0.75: the inverse of 0.875 is halfway to it."""
+    path = tmp_path / "t.csv"
+    path.write_text("amplitude_um_pp,relative_friction\n0,1\n1,1\n1,0.5\n")
+    model = load_model(f"table:{path}")
+    assert model.relative_friction(1.0, 0.5) == pytest.approx(0.75, abs=1e-6)
+    assert model.amplitude_um_pp(np.array([0.875]), 0.5, 6.0).amplitude_um_pp[0] == pytest.approx(0.5, abs=0.02)

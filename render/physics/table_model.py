@@ -52,14 +52,19 @@ class TableModel(FrictionModel):
                 raise ModelError(f"{self.source}: at {force:g} N there must be two amplitudes or more")
             order = np.argsort(amplitude)
             amplitude, ratio = amplitude[order], data.relative_friction[pick][order]
-            amplitude, first = np.unique(amplitude, return_index=True)
-            ratio = np.minimum(isotonic_regression(ratio[first], increasing=False).x, 1.0)
+            amplitude, which = np.unique(amplitude, return_inverse=True)  # repeats at one amplitude: their mean
+            ratio = np.bincount(which, weights=ratio) / np.bincount(which)
+            ratio = np.minimum(isotonic_regression(ratio, increasing=False).x, 1.0)
             curve = PchipInterpolator(amplitude, ratio, extrapolate=False)
             fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
             fine_ratio = curve(np.clip(fine, amplitude[0], amplitude[-1]))
             fine_ratio = np.minimum.accumulate(np.minimum(fine_ratio, 1.0))
             self.floors.append(fine_ratio[-1])
             rows.append(fine_ratio)
+        if not min(self.floors) < 1.0 - 1e-6:  # no force's points, repeats averaged, fall below 1
+            raise ModelError(f"{self.source}: relative_friction never falls below 1 at any force once repeated "
+                             "amplitudes are averaged: a flat table cannot be inverted; measure amplitudes where "
+                             "friction falls")
         self.floor = float(max(self.floors))
         grid = np.linspace(min(self.floors), 1.0, RATIO_GRID_POINTS)
         fine = np.linspace(0.0, self.max_amplitude_um_pp, 2049)
