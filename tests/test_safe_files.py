@@ -422,6 +422,9 @@ CASES = [
     ["play", "grating-1mm", "--trajectory", "{d}/log.wav", "--device", "wav:{d}/log.wav"],
     ["play", "grating-1mm", "--trajectory", "{d}/log.csv", "--device", "null", "--envelope-csv", "{d}/sub/../log.csv"],
     ["play", "grating-1mm", "--device", "wav:{d}/x.wav", "--sensors-csv", "{d}/link.wav"],
+    ["play", "grating-1mm", "--trajectory", "{d}/log.csv", "--device", "sim", "--finger-log", "{d}/log.csv"],
+    ["play", "grating-1mm", "--device", "sim", "--finger-force", "{d}/log.csv", "--finger-log", "{d}/sub/../log.csv"],
+    ["plate-sim", "--profile", "{d}/log.csv", "--finger-log", "{d}/log.csv"],
 ]
 
 
@@ -594,3 +597,23 @@ def test_every_writer_into_a_full_device_says_so_in_one_line(tmp_path, writer):
     line = assert_one_line_error(run_cli(*argv, timeout=180))
     assert f"{full}: no space left on device" in line, line
     assert kind_of(full) == "char" and sorted(os.listdir(tmp_path)) == [full.name]
+
+
+@pytest.mark.parametrize("args", [
+    ["model", "--data", "{d}/o/fig9-model-comparison.pdf", "--plots", "{d}/o"],
+    ["experiment", "threshold", "grating-1mm", "--reference", "{d}/o/track.png", "--observer", "sim:threshold=0.1",
+     "--trials", "5", "--out", "{d}/o"],
+    ["experiment", "threshold", "{d}/o/psychometric.png", "--observer", "sim:threshold=0.1", "--trials", "5", "--out",
+     "{d}/o"]])
+def test_a_file_an_output_folder_would_get_that_is_also_an_input_is_refused(tmp_path, args):
+    """Whatever option names what is read (a reference texture, --data), a figure the command writes into its folder
+    under that name would have replaced it: refused at the edge, as any output that is also an input."""
+    (tmp_path / "o").mkdir()
+    run_cli("texture", "new", "grating", "--size-mm", "20x10", "-o", tmp_path / "t.png", check=True)
+    for name in ("track.png", "psychometric.png"):
+        os.link(tmp_path / "t.png", tmp_path / "o" / name)
+    (tmp_path / "o" / "fig9-model-comparison.pdf").write_text("amplitude_um_pp,relative_friction\n0,1\n2,0.5\n")
+    before = {p.name: digest(p) for p in (tmp_path / "o").iterdir()}
+    line = assert_one_line_error(run_cli(*[arg.format(d=tmp_path) for arg in args], timeout=120))
+    assert "which is read" in line, line
+    assert {p.name: digest(p) for p in (tmp_path / "o").iterdir()} == before

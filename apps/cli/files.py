@@ -49,7 +49,9 @@ def check_outputs(args) -> None:
     for every command."""
     from ultraglide.apps.cli.options import OUTPUTS
 
-    for dest, (option, kind, also) in (getattr(args, OUTPUTS, None) or {}).items():
+    declared = getattr(args, OUTPUTS, None) or {}
+    written: dict[str, Path] = {}  # every file the command would write, by how the person named it
+    for dest, (option, kind, also) in declared.items():
         value = getattr(args, dest, None)
         if value is None:
             continue
@@ -58,6 +60,7 @@ def check_outputs(args) -> None:
             if os.path.isdir(value):  # the files it writes into the folder, where the folder already holds them
                 for name in also:
                     check_output(Path(value) / name, option, named=str(Path(value) / name))
+                    written[f"{option} {value}, its {name}"] = Path(value) / name
             continue
         named = None
         if kind == "device":
@@ -66,8 +69,29 @@ def check_outputs(args) -> None:
                 continue
             kind = "wav"
         check_output(value, option, kind=kind, named=named)
+        written[option] = Path(value)
         for suffix in also:
             check_output(Path(value).with_suffix(suffix), f"{option} (its {suffix.lstrip('.').upper()} beside it)")
+            written[f"{option} (its {suffix.lstrip('.').upper()} beside it)"] = Path(value).with_suffix(suffix)
+    refuse_overlaps(written, _files_named(args, {*declared, getattr(args, "output_may_replace", None)}))
+
+
+def _files_named(args, skip) -> dict[str, Path]:
+    """What the command's other arguments name that is a file (a texture, a touch log, a finger's force script, a
+    model's ``table:`` CSV ...): what it reads, whichever option names it, so that no output replaces it."""
+    found: dict[str, Path] = {}
+    for dest, value in vars(args).items():
+        if dest in skip or dest == "checked_outputs":
+            continue
+        items = value if isinstance(value, list | tuple) else (value,)
+        for number, item in enumerate(items, 1):
+            if not isinstance(item, str):
+                continue
+            path = item.removeprefix("table:")
+            with contextlib.suppress(OSError, ValueError):
+                if os.path.isfile(path):
+                    found[f"the {dest.replace('_', ' ')}" + (f" {number}" if len(items) > 1 else "")] = Path(path)
+    return found
 
 
 def _wav_target(url: str) -> str | None:

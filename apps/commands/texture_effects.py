@@ -29,7 +29,7 @@ def add_parser(texture_commands: argparse._SubParsersAction) -> None:
     change.add_argument("--clear", action="store_true", help="no effects")
     output_option(parser, "-o", "--output", metavar="TEXTURE.png", help="the texture with its new effects")
     parser.add_argument("--json", action="store_true", help="print the effects' JSON description (to list them)")
-    parser.set_defaults(run=run)
+    parser.set_defaults(run=run, output_may_replace="texture")  # -o TEXTURE: in place, as documented
 
 
 def run(args) -> int:
