@@ -71,10 +71,15 @@ class DeviceRules:
         if expect > SAFE_FRACTION * self.safe_limit_um_pp:
             raise Unobservable(f"at {far:g} Hz, the carrier farthest from resonance, code {above} would still move "
                                f"the plate {expect:.2f} µm p-p, over 15 % of its limit: not asked")
-        since, started = self.probe.mark(), time.perf_counter()
+        since, first = self.probe.mark(), self.index
         self.stream(0.2, above)
-        drives = [p.parse_telemetry(f.payload).drive_code for t, f in self.probe.received(since, p.TELEMETRY)
-                  if t > started + 0.06]  # (brief overdrive, where granted, is over by then)
+        # judged on the device's own timeline: the value it plays (the next it expects, less those it holds)
+        # 60 ms or more into these codes (brief overdrive, where granted, is over by then), however late a loaded
+        # machine or an emulator delivers its frames
+        settled = round(0.06 * self.rate)
+        frames = [p.parse_telemetry(f.payload) for _, f in self.probe.received(since, p.TELEMETRY)]
+        drives = [t.drive_code for t in frames
+                  if settled <= (t.expected_index - t.buffered_setpoints - first) & 0xFFFFFFFF < 2 ** 31]
         worst = max(drives, default=0)
         if not drives:
             raise Broken("no telemetry while asking for more than the limit")
