@@ -107,14 +107,13 @@ def first_order_filter(b, a, x, zi):
     b1 = float(b[1]) if len(b) > 1 else 0.0
     a1 = float(a[1]) if len(a) > 1 else 0.0
     x = np.ascontiguousarray(x, dtype=float)
-    y = np.empty_like(x)
-    zi = np.asarray(zi, dtype=float)
-    if x.ndim == 1:
-        return y, np.array([first_order(b0, b1, a1, x, float(zi.reshape(-1)[0]), y)])
-    zf = np.empty((x.shape[0], 1))
-    for row in range(x.shape[0]):
-        zf[row, 0] = first_order(b0, b1, a1, x[row], float(zi.reshape(x.shape[0], -1)[row, 0]), y[row])
-    return y, zf
+    rows = x.reshape(-1, x.shape[-1])  # one row a channel (a 1-D signal is one)
+    states = np.asarray(zi, dtype=float).reshape(rows.shape[0])
+    y = np.empty_like(rows)
+    final = np.empty(rows.shape[0])
+    for row in range(rows.shape[0]):
+        final[row] = first_order(b0, b1, a1, rows[row], states[row], y[row])
+    return y.reshape(x.shape), final.reshape(np.shape(zi))
 
 
 @functools.cache
