@@ -61,6 +61,33 @@ def test_leave_one_out_agrees_with_a_hand_computation():
         expected, rel=1e-4)
 
 
+@pytest.mark.parametrize("kind, values", [
+    ("stretched", {"scale_um_pp": 3.1, "shape": 1.7, "force_exponent": 0.45, "residual_ratio": 0.12}),
+    ("stretched", {"scale_um_pp": 5.0, "shape": 0.6, "force_exponent": -0.3, "residual_ratio": 0.0}),
+    ("exponential", {"tau_um_zp": 1.2, "residual_ratio": 0.05}),
+])
+def test_the_fits_closed_form_law_is_the_models_and_its_jacobian_the_derivative(kind, values):
+    from ultraglide.render.physics.fitting import _EmpiricalLaw
+    from ultraglide.render.physics.model_parameters import build_model
+
+    amplitude = np.array([0.0, 0.3, 1.0, 2.5, 4.0, 7.0, 0.0, 3.0, 12.0])
+    force = np.array([0.5, 0.5, 0.2, 0.2, 1.0, 1.0, 3.0, 0.004, 12.0])  # and forces the model clips
+    data = Measurements(amplitude, np.linspace(1.0, 0.1, 9), force, "points")
+    keys = list(values)
+
+    def values_of(x):
+        return {**{"force_exponent": 1 / 3}, **dict(zip(keys, map(float, x), strict=True))}
+
+    law = _EmpiricalLaw(kind, data, keys, values_of)
+    x = np.array([values[k] for k in keys])
+    model = build_model(kind, values)
+    model._range_said = True
+    assert law.prediction(x) == pytest.approx(model.relative_friction(amplitude, force), rel=1e-13, abs=1e-15)
+    numeric = np.column_stack([(law.residual(x + step) - law.residual(x - step)) / (2 * 1e-6)
+                               for step in np.eye(len(x)) * 1e-6])
+    assert law.jacobian(x) == pytest.approx(numeric, abs=1e-7)
+
+
 def test_multi_force_fit_recovers_the_force_law_within_its_uncertainty():
     truth = StretchedExponentialModel(3.5, 1.6, 0.45)
     fit = fit_model(synthetic(truth), "stretched", cross_validate=True)

@@ -15,9 +15,10 @@ its allowed range is named in a warning: the data push the model outside what it
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
+from ultraglide.render.physics.empirical_models import REFERENCE_FORCE_N
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.fingerprint import FingerParams
 from ultraglide.render.physics.friction_models import (
@@ -29,6 +30,7 @@ from ultraglide.render.physics.friction_models import (
     TableModel,
 )
 from ultraglide.render.physics.measurements import Measurements
+from ultraglide.render.physics.model_base import clip_force
 from ultraglide.render.physics.model_parameters import (
     MODEL_NAMES,
     PARAMETERS,
@@ -104,22 +106,25 @@ def fit_model(data: Measurements, kind: str, cross_validate: bool = False, boots
     number of resamples) its bootstrap standard errors (:func:`bootstrap_errors`). ``hold`` fixes
     parameters at given values (``{"residual_ratio": 0.0}``: the law without a floor).
     """
+    optimum = None
     if kind == "table":
         model: FrictionModel = TableModel(data)
         residuals = data.relative_friction - model.relative_friction(
             np.minimum(data.amplitude_um_pp, model.max_amplitude_um_pp), _forces(data))
         fit = Fit(model, residuals, data, kind)
     else:
-        fit = _least_squares_fit(data, kind, hold)
+        fit, optimum = _least_squares_fit(data, kind, hold)
     if cross_validate:
-        fit = replace(fit, cross_validation=cross_validation_errors(data, kind, hold))
+        fit = replace(fit, cross_validation=_cross_validation_errors(data, kind, hold, optimum))
     if bootstrap:
-        fit = replace(fit, bootstrap=bootstrap_errors(data, kind, bootstrap, hold=hold))
+        fit = replace(fit, bootstrap=_bootstrap_errors(data, kind, bootstrap, 0, hold, optimum))
     return fit
 
 
-def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> Fit:
-    specs, free, values, best, residuals, unit = _solve(data, kind, hold)
+def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | None = None,
+                       near: _Optimum | None = None) -> tuple[Fit, _Optimum]:
+    """The fit and its optimum (where refits of parts of these data start: :func:`_solve`)."""
+    specs, free, values, best, residuals, unit, optimum = _solve(data, kind, hold, near)
     stderr = _standard_errors(best.jac, residuals) * np.array([unit[s.key] for s in free])
     fitted = {s.key: (float(e), False) for s, e in zip(free, stderr, strict=True)}
     parameters = tuple(Parameter(s, values[s.key], *fitted.get(s.key, (math.nan, True))) for s in specs)
@@ -128,13 +133,14 @@ def _least_squares_fit(data: Measurements, kind: str, hold: dict[str, float] | N
     except ValueError as error:  # FingerParams refuses a combination
         raise ModelError(f"the fitted {kind} model is not valid ({error})") from None
     model.fitted = fit_range(data)
-    return Fit(model, residuals, data, kind, parameters)
+    return Fit(model, residuals, data, kind, parameters), optimum
 
 
-def _fitted_values(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> dict[str, float]:
+def _fitted_values(data: Measurements, kind: str, hold: dict[str, float] | None = None,
+                   near: _Optimum | None = None) -> dict[str, float]:
     """The free parameters' fitted values alone (a bootstrap refit): no model built, no errors estimated
     (building the paper model's table was a sixth of each paper refit)."""
-    _, free, values, *_ = _solve(data, kind, hold)
+    _, free, values, *_ = _solve(data, kind, hold, near)
     try:  # what a built model would refuse: its parameter objects' checks (a full fit builds the model)
         if kind in ("paper", "paper-uniform"):
             ridge_finger(kind, values)
@@ -147,9 +153,25 @@ def _fitted_values(data: Measurements, kind: str, hold: dict[str, float] | None 
     return {s.key: values[s.key] for s in free}
 
 
-def _solve(data: Measurements, kind: str, hold: dict[str, float] | None = None):
+@dataclass(frozen=True)
+class _Optimum:
+    """Where a fit ended: each free parameter's value and whether it lies at its lower bound (-1), inside
+    (0) or at its upper bound (1), as scipy's ``active_mask`` says."""
+
+    values: dict[str, float]
+    bounds: dict[str, int]
+
+
+def _solve(data: Measurements, kind: str, hold: dict[str, float] | None = None, near: _Optimum | None = None):
     """The least-squares optimum: (specs, free specs, every parameter's value, scipy's best result, its
-    residuals, each parameter's fitting unit)."""
+    residuals, each parameter's fitting unit, the optimum as an :class:`_Optimum`).
+
+    ``near``: the optimum of a fit to data like these (a bootstrap resample's or a cross-validation
+    fold's refit starts from the full fit's): tried alone first, and kept when it converges with the same
+    parameters at the same bounds; otherwise the usual starts are tried too and the best kept. Only the
+    empirical laws take it: the paper's and the squeeze-film models have several optima on these data
+    (parameters at their bounds), and their refits from every start land on others (a bootstrap from the
+    full fit's optimum alone gave the paper model's E half the spread, its n a tenth)."""
     from scipy.optimize import least_squares  # only fitting needs it; keep model loading light
 
     if kind not in PARAMETERS:
@@ -175,19 +197,86 @@ def _solve(data: Measurements, kind: str, hold: dict[str, float] | None = None):
         values.update({s.key: float(v) * unit[s.key] for s, v in zip(free, x, strict=True)})
         return values
 
-    def residual(x):
-        return data.relative_friction - _prediction(kind, values_of(x), data)
-
     x0 = np.array([s.default / unit[s.key] for s in free])
     low = np.array([s.low / unit[s.key] for s in free])
     high = np.array([s.high / unit[s.key] for s in free])
+    if kind in _EmpiricalLaw.KINDS:  # a closed form: evaluated without the model's per-call checks, and its Jacobian
+        law = _EmpiricalLaw(kind, data, [s.key for s in free], values_of)
+        residual, jacobian = law.residual, law.jacobian
+    else:
+        def residual(x):
+            return data.relative_friction - _prediction(kind, values_of(x), data)
+        jacobian = "2-point"
+    diff_step = 1e-4 if kind.startswith("paper") else None
+    keys = [s.key for s in free]
+    starts = _starts(kind, x0, low, high, free)
     best = None
-    for start in _starts(kind, x0, low, high, free):
-        result = least_squares(residual, x0=start, bounds=(low, high), diff_step=1e-4 if kind.startswith("paper")
-                               else None)
+    if near is not None and kind in _EmpiricalLaw.KINDS and set(near.values) == set(keys):
+        best = least_squares(residual, x0=np.clip([near.values[k] / unit[k] for k in keys], low, high), jac=jacobian,
+                             bounds=(low, high), diff_step=diff_step)
+        if best.status > 0 and all(int(m) == near.bounds[k] for k, m in zip(keys, best.active_mask, strict=True)):
+            starts = iter(())
+    for start in starts:
+        result = least_squares(residual, x0=start, jac=jacobian, bounds=(low, high), diff_step=diff_step)
         if best is None or result.cost < best.cost:
             best = result
-    return specs, free, values_of(best.x), best, residual(best.x), unit
+    optimum = _Optimum({k: float(v) * unit[k] for k, v in zip(keys, best.x, strict=True)},
+                       {k: int(m) for k, m in zip(keys, best.active_mask, strict=True)})
+    return specs, free, values_of(best.x), best, residual(best.x), unit, optimum
+
+
+class _EmpiricalLaw:
+    """The stretched law at the data's points, mu/mu0 = d + (1 - d) exp(-(a / s)^beta) with
+    s = s0 (F / 0.5 N)^p (the exponential law: s0 = 2 sqrt 2 tau, beta = 2, p = 0), and its analytic
+    Jacobian: what :class:`StretchedExponentialModel` computes, without the checks it makes on every call
+    (the data were checked when read; the fit's bounds lie within the model's ranges). A fit evaluated
+    the model about forty times per refit, each call building and checking it anew."""
+
+    KINDS = ("stretched", "exponential")
+
+    def __init__(self, kind: str, data: Measurements, keys: list[str], values_of):
+        self.kind, self.keys, self.values_of = kind, keys, values_of
+        self.measured = data.relative_friction
+        self.amplitude = np.asarray(data.amplitude_um_pp, dtype=float)
+        self.force_ratio = clip_force(_forces(data)) / REFERENCE_FORCE_N
+        self.log_force_ratio = np.log(self.force_ratio)
+        self.log_amplitude = np.log(np.where(self.amplitude > 0.0, self.amplitude, 1.0))  # where a = 0, power is 0
+
+    def _parts(self, x):
+        values = self.values_of(x)
+        if self.kind == "exponential":
+            scale, shape, exponent = 2.0 * np.sqrt(2.0) * values["tau_um_zp"], 2.0, 0.0
+        else:
+            scale, shape, exponent = values["scale_um_pp"], values["shape"], values["force_exponent"]
+        power = np.power(self.amplitude / (scale * np.power(self.force_ratio, exponent)), shape)
+        return values, shape, power, np.exp(-power)
+
+    def prediction(self, x) -> np.ndarray:
+        values, _, _, falling = self._parts(x)
+        floor = values.get("residual_ratio", 0.0)
+        return falling if floor == 0.0 else floor + (1.0 - floor) * falling
+
+    def residual(self, x) -> np.ndarray:
+        return self.measured - self.prediction(x)
+
+    def jacobian(self, x) -> np.ndarray:
+        """d residual / d free parameter, one column per free parameter (residual = measured - law)."""
+        values, shape, power, falling = self._parts(x)
+        floor = values.get("residual_ratio", 0.0)
+        by_power = (1.0 - floor) * falling  # -d law / d power
+        columns = []
+        for key in self.keys:
+            if key == "residual_ratio":
+                columns.append(falling - 1.0)
+            elif key in ("scale_um_pp", "tau_um_zp"):  # power ∝ s0^-beta
+                columns.append(-by_power * shape * power / values[key])
+            elif key == "shape":  # d power / d beta = power ln(a / s)
+                log_ratio = self.log_amplitude - np.log(values["scale_um_pp"]) \
+                    - values["force_exponent"] * self.log_force_ratio
+                columns.append(by_power * power * log_ratio)
+            else:  # force_exponent: d power / d p = -beta power ln(F / 0.5 N)
+                columns.append(-by_power * shape * power * self.log_force_ratio)
+        return np.column_stack(columns)
 
 
 def fit_range(data: Measurements) -> FitRange:
@@ -225,12 +314,15 @@ def _standard_errors(jacobian: np.ndarray, residuals: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(np.diag(covariance), 0.0))
 
 
-def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray, hold: dict[str, float] | None = None) -> float:
-    """RMS over all points of the residual each gets from a fit to the other groups."""
+def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray, hold: dict[str, float] | None = None,
+                  near: _Optimum | None = None) -> float:
+    """RMS over all points of the residual each gets from a fit to the other groups (each fit starting
+    from ``near``, the full fit's optimum, when given)."""
     residuals = np.empty(len(data))
     for group in np.unique(groups):
         held = groups == group
-        fit = fit_model(data.subset(~held), kind, hold=hold)
+        train = data.subset(~held)
+        fit = fit_model(train, kind) if kind == "table" else _least_squares_fit(train, kind, hold, near)[0]
         fit.model._range_said = True  # held-out forces lie outside the training range by design
         test = data.subset(held)
         amplitude = np.minimum(test.amplitude_um_pp, fit.model.max_amplitude_um_pp)
@@ -260,6 +352,21 @@ def cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float
     two, predicting one force from the other tests the two fingers' difference more than any law), and
     ``leave_one_participant_out`` with several participants. A scheme whose training sets are too small
     for the model is left out."""
+    return _cross_validation_errors(data, kind, hold, _full_optimum(data, kind, hold))
+
+
+def _full_optimum(data: Measurements, kind: str, hold: dict[str, float] | None) -> _Optimum | None:
+    """The optimum of the fit to all of ``data``, where the refits of its parts start (None: no fit)."""
+    if kind == "table":
+        return None
+    try:
+        return _solve(data, kind, hold)[-1]
+    except ModelError:
+        return None
+
+
+def _cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float] | None,
+                             near: _Optimum | None) -> dict[str, float]:
     errors = {}
     schemes = [("k_fold", k_fold_groups(data))]
     if _distinct_forces(data) >= 3:
@@ -268,7 +375,7 @@ def cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float
         schemes.append(("leave_one_participant_out", data.participant))
     for name, grouping in schemes:
         try:
-            errors[name] = _held_out_rms(data, kind, grouping, hold)
+            errors[name] = _held_out_rms(data, kind, grouping, hold, near)
         except ModelError:  # a training set too small for this model
             continue
     return errors
@@ -313,6 +420,15 @@ def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAM
     fitted to is skipped; a parameter free in fewer than half the resamples gets no value."""
     if kind == "table" or samples < 2:
         return {}
+    return _bootstrap_errors(data, kind, samples, seed, hold, _full_optimum(data, kind, hold))
+
+
+def _bootstrap_errors(data: Measurements, kind: str, samples: int, seed: int, hold: dict[str, float] | None,
+                      near: _Optimum | None) -> dict[str, dict[str, float]]:
+    """:func:`bootstrap_errors`, each refit starting from ``near`` (the full fit's optimum, about which
+    the resamples' estimates spread)."""
+    if kind == "table" or samples < 2:
+        return {}
     rng = np.random.default_rng(seed)
     schemes: list[tuple[str, np.ndarray]] = [("points", np.arange(len(data)))]
     if _distinct_forces(data) >= MIN_BOOTSTRAP_GROUPS:
@@ -328,7 +444,7 @@ def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAM
             drawn = rng.integers(0, len(names), len(names))
             pick = np.concatenate([members[k] for k in drawn])
             try:
-                fitted = _fitted_values(data.subset(pick), kind, hold)
+                fitted = _fitted_values(data.subset(pick), kind, hold, near)
             except ModelError:
                 continue
             for key, value in fitted.items():
