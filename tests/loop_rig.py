@@ -7,6 +7,10 @@ the real :class:`~ultraglide.devices.finger.SimulatedFinger` presses on it at 48
 mean over each millisecond (as the firmware makes it), ten to a SENSORS frame, which reaches the loop
 ``link_s`` later with the stream index that was playing. The finger's truth is what the errors are
 measured against.
+
+Nothing the plate does reaches the host before its SENSORS frame does, so the plate plays the jitter buffer's
+blocks ``BATCH_MS`` at a time, as soon as they are rendered, each frame stamped with the millisecond it would
+have left at: the same samples, frames and deliveries as one block a millisecond, a tenth of the calls.
 """
 
 from __future__ import annotations
@@ -16,15 +20,16 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 from ultraglide.devices.finger import FingerParams, ForceScript, SimulatedFinger
 from ultraglide.devices.finger_log import FingerLog
 from ultraglide.devices.force_sensors import ForceSensorParams
+from ultraglide.devices.kernels import first_order_filter
 from ultraglide.render.engine.friction_loop import FrictionLoop, LoopSettings
 
 FS = 48000
 CONTROL_HZ = 12000
 UP = FS // CONTROL_HZ
+BATCH_MS = 10  # the plate plays this many blocks of the jitter buffer at once
 
 
 @dataclass
@@ -71,7 +76,7 @@ class LoopRig:
         self.plate = 0.0
         self.beta = math.exp(-1.0 / (CONTROL_HZ * precompensate_s)) if precompensate_s > 0 else 0.0
         self.modelled = 0.0  # the host's model of the plate's lag, for its pre-compensation
-        self.queue: deque = deque()  # setpoints waiting in the jitter buffer (one block a ms)
+        self.queue: deque = deque()  # blocks in the jitter buffer (one a ms) with the ms each plays at
         self.frames: deque = deque()  # SENSORS frames on the link: (deliver at ms, frame)
         self.pending = []  # sensor samples not yet framed
         self.sample = 0  # sensor samples taken
@@ -84,6 +89,10 @@ class LoopRig:
     def run(self, target, duration_s: float) -> RigRun:
         """``target(t_s)``: the target ratio at the plate's times (an array function)."""
         ms_total = int(round(duration_s * 1000))
+        # blocks left in the jitter buffer by a previous run play first: one a ms, the buffer kept full
+        left = len(self.queue)
+        for position, (index, ratio, amplitude, _) in enumerate(list(self.queue)):
+            self.queue[position] = (index, ratio, amplitude, position + self.delay_ms - left)
         for ms in range(ms_total):
             self.now = ms / 1000.0
             self._deliver(ms)
@@ -98,10 +107,16 @@ class LoopRig:
                     amplitude[i] = d
             if self.loop is not None:
                 self.loop.record(ratio, True)
-            self.queue.append((self.index, ratio, amplitude))
+            # the buffer gives one block a ms once full: this one plays delay_ms from now (if this run lasts)
+            self.queue.append((self.index, ratio, amplitude, ms + self.delay_ms))
             self.index += len(ratio)
-            if len(self.queue) > self.delay_ms:
-                self._play(*self.queue.popleft(), ms)
+            if len(self.queue) >= BATCH_MS and self.queue[BATCH_MS - 1][3] < ms_total:
+                self._play([self.queue.popleft() for _ in range(BATCH_MS)])
+        due = [block for block in self.queue if block[3] < ms_total]
+        for _ in due:
+            self.queue.popleft()
+        if due:
+            self._play(due)
         self.finger.close()
         rows = self.log.rows()
         played = np.concatenate(self.targets_played)
@@ -111,25 +126,35 @@ class LoopRig:
         commanded = np.concatenate(self.commanded)
         return RigRun(t, played[at], rows[:, 3], rows[:, 1], commanded[at], rows[:, 4] > 0.5, rows[:, 2])
 
-    def _play(self, index: int, ratio: np.ndarray, amplitude: np.ndarray, ms: int) -> None:
-        self.targets_played.append(ratio)
-        self.commanded.append(amplitude)
-        drive = np.repeat(amplitude, UP)
+    def _play(self, blocks: list) -> None:
+        """Consecutive blocks of the jitter buffer, (stream index, ratio, amplitude, the ms each plays at), through
+        the plate, the finger and the sensors; each SENSORS frame stamped with when it reaches the host."""
+        count = len(blocks)
+        ratios = [ratio for _, ratio, _, _ in blocks]
+        amplitudes = [amplitude for _, _, amplitude, _ in blocks]
+        self.targets_played.extend(ratios)
+        self.commanded.extend(amplitudes)
+        drive = np.repeat(np.concatenate(amplitudes), UP)
         a = self.alpha
-        plate, _ = lfilter([1.0 - a], [1.0, -a], drive, zi=[a * self.plate])
+        plate, _ = first_order_filter([1.0 - a], [1.0, -a], drive, [a * self.plate])
         self.plate = float(plate[-1])
-        t0 = (ms - self.delay_ms) / 1000.0 + self.delay_ms / 1000.0
+        first_ms = blocks[0][3]
+        t0 = (first_ms - self.delay_ms) / 1000.0 + self.delay_ms / 1000.0
         normal, lateral = self.finger.forces(t0, plate)
-        sample = (float(plate.mean()), float(normal.mean()), float(lateral.mean()))
-        if self.fault is not None:
-            sample = self.fault(self.sample, sample)
-        self.pending.append((sample, index))
-        self.sample += 1
-        if len(self.pending) == 10:
-            values = np.array([s for s, _ in self.pending])
-            frame = (self.sample - 10, self.pending[0][1], values)
-            self.frames.append((ms + self.link_ms, frame))
-            self.pending = []
+        means = [row.tolist() for row in (plate.reshape(count, -1).mean(axis=1), normal.reshape(count, -1).mean(axis=1),
+                                          lateral.reshape(count, -1).mean(axis=1))]
+        for k, (index, _, _, ms) in enumerate(blocks):
+            sample = (means[0][k], means[1][k], means[2][k])
+            if self.fault is not None:
+                sample = self.fault(self.sample, sample)
+            self.pending.append((sample, index))
+            self.sample += 1
+            if len(self.pending) == 10:
+                values = np.array([s for s, _ in self.pending])
+                frame = (self.sample - 10, self.pending[0][1], values)
+                # made as the ms's block played, after that ms's deliveries: the host has it from the next ms on
+                self.frames.append((ms + max(self.link_ms, 1), frame))
+                self.pending = []
 
     def _deliver(self, ms: int) -> None:
         while self.frames and self.frames[0][0] <= ms:
