@@ -2,7 +2,8 @@
 
 Most of a short command's CPU time is importing numpy, scipy, numba and matplotlib (about 1 s of CPU against 0.1 s
 for the work of ``export --duration-s 0.1``); the suite runs the command hundreds of times. A server
-process per test worker imports those libraries (and nothing of ours) once, then forks a child for each
+process per test worker imports those libraries (and nothing of ours) once, and builds numba's CPU target
+(which a process otherwise builds at its first compiled function, cached or not), then forks a child for each
 command: the child takes the caller's environment, working directory, stdout and stderr pipes, runs
 ``python -m ultraglide ARGS`` through runpy exactly as the interpreter would, and leaves through the
 interpreter's own shutdown (atexit handlers, joined threads, flushed streams), so its exit status,
@@ -36,6 +37,10 @@ import importlib, json, os, runpy, selectors, signal, socket, sys
 control = socket.socket(fileno=int(sys.argv[1]))
 for name in json.loads(sys.argv[2]):
     importlib.import_module(name)
+if "numba" in sys.modules:  # numba's CPU target, which every process builds at its first compiled function
+    from numba.core.registry import cpu_target  # (cached or not; 0.2 s): the library's start-up, not ours
+    cpu_target.target_context.refresh()
+    cpu_target.target_context.codegen()
 sys.stderr.flush()
 control.sendall(b"ready\n")
 wake_read, wake_write = socket.socketpair()
