@@ -14,6 +14,7 @@ from ultraglide.render.physics.model_base import (
     DEFAULT_FORCE_N,
     MAX_FORCE_N,
     MIN_FORCE_N,
+    SCALAR_CACHE,
     FrictionModel,
     check_amplitude,
     clip_force,
@@ -107,12 +108,18 @@ class StretchedExponentialModel(FrictionModel):
         return self.scale_at_um_pp(force_n) * np.power(depth, 1.0 / self.shape)
 
     def _scale_at(self, force_n) -> float:
-        """s(F) at one force as a float, remembered for the last force (the live case)."""
+        """s(F) at one force as a float, remembered for the last few forces (the live case: a closed loop asks at
+        its measured force and at ±5 % of it)."""
         force = float(force_n)
-        cached = getattr(self, "_scale_cache", None)
-        if cached is None or cached[0] != force:
-            cached = self._scale_cache = (force, float(self.scale_at_um_pp(force)))
-        return cached[1]
+        scales = self.__dict__.get("_scales")
+        if scales is None:
+            scales = self._scales = {}
+        scale = scales.get(force)
+        if scale is None:
+            if len(scales) >= SCALAR_CACHE:
+                scales.clear()
+            scale = scales[force] = float(self.scale_at_um_pp(force))
+        return scale
 
     compiled = True
 

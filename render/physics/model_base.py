@@ -20,6 +20,7 @@ MAX_FORCE_N = 10.0  # a fingertip's touch range ends here (a hard press); comman
 TOUCH_FORCE_RANGE_N = (0.0, MAX_FORCE_N)  # what a command accepts as a finger's normal force
 CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
 RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
+SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,8 @@ class UniformTable:
 
 
 def clip_force(force_n):
-    return np.clip(np.asarray(force_n, dtype=float), MIN_FORCE_N, MAX_FORCE_N)
+    # minimum(maximum()): np.clip's values (NaN kept), without its Python wrapper (a few µs a call)
+    return np.minimum(np.maximum(np.asarray(force_n, dtype=float), MIN_FORCE_N), MAX_FORCE_N)
 
 
 def is_scalar(value) -> bool:
@@ -95,6 +97,15 @@ def check_force(force_n) -> None:
         raise ModelError(f"normal force must be a finite number >= 0 N, got {force[bad].flat[0]}")
 
 
+def _smallest(values: np.ndarray):
+    """The smallest of all the values (NaN if any is: a NaN fails every comparison), without ``min``'s wrapper."""
+    return np.minimum.reduce(values, axis=None)
+
+
+def _largest(values: np.ndarray):
+    return np.maximum.reduce(values, axis=None)
+
+
 def check_ratio(ratio: np.ndarray) -> None:
     """Raise :class:`ModelError` unless every friction ratio is a finite number >= 0."""
     bad = ~((ratio >= 0.0) & (ratio < np.inf))
@@ -104,6 +115,8 @@ def check_ratio(ratio: np.ndarray) -> None:
 
 def check_amplitude(amplitude: np.ndarray) -> None:
     """Raise :class:`ModelError` unless every amplitude is a finite number >= 0 µm."""
+    if not amplitude.size or (_smallest(amplitude) >= 0.0 and _largest(amplitude) < np.inf):  # NaN fails both
+        return
     bad = ~((amplitude >= 0.0) & (amplitude < np.inf))
     if bad.any():
         raise ModelError(f"amplitude must be a finite number >= 0 µm p-p, got {amplitude[bad].flat[0]}")
@@ -152,12 +165,19 @@ class FrictionModel(ABC):
     def _checked_force(self, force_n) -> None:
         """Refuse a bad force (:func:`check_force`) and, once per model, say when a force leaves the
         range the model holds on (forces of 10 mN and less excepted: the finger is lifting)."""
-        check_force(force_n)
-        self._note_force_range(force_n)
+        if is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
+            check_force(force_n)
+            self._note_force_range(force_n)
+            return
+        force = np.asarray(force_n, dtype=float)
+        extremes = (float(_smallest(force)), float(_largest(force))) if force.size else None
+        if extremes is not None and not (extremes[0] >= 0.0 and extremes[1] < np.inf):  # NaN fails both
+            check_force(force)  # names the first bad force
+        self._note_force_range(force, extremes)
 
-    def _note_force_range(self, force_n) -> None:
+    def _note_force_range(self, force_n, extremes: tuple[float, float] | None = None) -> None:
         """The once-per-model warning of :meth:`_checked_force`, for forces already checked (no array
-        is made: the live path calls it)."""
+        is made: the live path calls it); ``extremes``: the forces' smallest and largest, if known."""
         if self._range_said:
             return
         low, high = self.valid_force_range_n()
@@ -168,7 +188,7 @@ class FrictionModel(ABC):
             force = np.asarray(force_n, dtype=float)
             if not force.size:
                 return
-            smallest, largest = float(force.min()), float(force.max())
+            smallest, largest = extremes or (float(_smallest(force)), float(_largest(force)))
             outside = largest if largest > high else None
             if outside is None and smallest < low:
                 lifted = force[force > MIN_FORCE_N]
@@ -212,15 +232,20 @@ class FrictionModel(ABC):
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in shown.items())})"
 
     def _floor(self, force_n, limit: float):
-        """The floor ratio, remembered for the last scalar force and limit (the live case)."""
+        """The floor ratio, remembered for the last few scalar forces and limits (the live case: a closed loop
+        asks at its measured force and at ±5 % of it, its limit moving with its scale)."""
         if isinstance(force_n, np.ndarray) and force_n.ndim:
             return self.relative_friction(limit, force_n)
         key = (float(force_n), limit)
-        cached = getattr(self, "_floor_cache", None)
-        if cached is None or cached[0] != key:
-            cached = (key, float(self.relative_friction(limit, force_n)))
-            self._floor_cache = cached
-        return cached[1]
+        floors = self.__dict__.get("_floors")
+        if floors is None:
+            floors = self._floors = {}
+        floor = floors.get(key)
+        if floor is None:
+            if len(floors) >= SCALAR_CACHE:
+                floors.clear()
+            floor = floors[key] = float(self.relative_friction(limit, force_n))
+        return floor
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """Lowest ratio reachable at this force within the amplitude limit."""
