@@ -217,6 +217,21 @@ def test_the_force_exponent_is_what_each_models_inverse_gives():
     assert a(0.62) == pytest.approx(a(0.4) * (0.62 / 0.4) ** force_exponent(stretched, 0.5, 0.4), rel=1e-9)
 
 
+def test_one_amplitude_is_the_array_inverses_to_the_bit():
+    """The scalar inverse the force exponent uses is the array inverse's value exactly, for the laws with a closed
+    form of their own (the stretched family) and the others (a table of the paper's), at the limit and the floor."""
+    from ultraglide.render.physics.empirical_models import StretchedExponentialModel
+
+    rng = np.random.default_rng(5)
+    ratios = np.concatenate((rng.uniform(0.0, 1.0, 300), [0.0, 0.1, 0.5, 1.0, 1.5]))
+    for model in (load_model("stretched"), load_model("exponential"), load_model("paper"),
+                  StretchedExponentialModel(3.0, 1.7, 0.5, residual_ratio=0.1)):
+        for force in (0.2, 0.5, 1.3):
+            for limit in (np.inf, 6.0, 1.0):
+                expected = model.amplitude_um_pp(ratios, force, limit).amplitude_um_pp
+                assert [model.one_amplitude_um_pp(r, force, limit) for r in ratios.tolist()] == expected.tolist()
+
+
 def test_the_inverse_leaves_its_force_and_exponent_only_while_it_follows():
     from ultraglide.render.engine.friction_controller import ClosedLoopInverse, ControllerSettings, LoopCommand
 

@@ -54,9 +54,8 @@ def force_exponent(model: FrictionModel, ratio: float, force_n: float, work: np.
     if not ratio < 1.0 or not force_n > 0.0:
         return 0.0
     work = np.empty(3) if work is None else work
-    work[0] = ratio
-    up = model.amplitude_um_pp(work[0:1], force_n * math.exp(FORCE_STEP), np.inf, work[1:2]).amplitude_um_pp[0]
-    down = model.amplitude_um_pp(work[0:1], force_n * math.exp(-FORCE_STEP), np.inf, work[2:3]).amplitude_um_pp[0]
+    up = model.one_amplitude_um_pp(ratio, force_n * math.exp(FORCE_STEP), np.inf, work[0:2])
+    down = model.one_amplitude_um_pp(ratio, force_n * math.exp(-FORCE_STEP), np.inf, work[1:3])
     if not (up > 0.0 and down > 0.0):
         return 0.0
     exponent = math.log(up / down) / (2.0 * FORCE_STEP)
@@ -225,8 +224,11 @@ class ClosedLoopInverse:
         amplitude = closed.amplitude_um_pp
         # the force this block was computed at, for a device that corrects it as the values play; none while
         # blending with the open-loop amplitude (computed at another force)
-        self.force_reference = None if blend < 1.0 else \
-            (command.force_n, force_exponent(self.base, float(np.min(ratio)), command.force_n, self._work))
+        if blend < 1.0:
+            self.force_reference = None
+        else:
+            lowest = float(np.minimum.reduce(ratio, axis=None))  # np.min's value without its wrapper
+            self.force_reference = (command.force_n, force_exponent(self.base, lowest, command.force_n, self._work))
         amplitude *= scale
         np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
         if opened is not None:  # from the open-loop amplitude toward the closed loop's: a - (1 - b)(a - open)

@@ -180,7 +180,10 @@ class FrictionModel(ABC):
         is made: the live path calls it); ``extremes``: the forces' smallest and largest, if known."""
         if self._range_said:
             return
-        low, high = self.valid_force_range_n()
+        range_for = self.__dict__.get("_range_for")  # (the fitted range it was computed for, low, high)
+        if range_for is None or range_for[0] is not self.fitted:
+            range_for = self._range_for = (self.fitted, *self.valid_force_range_n())
+        _, low, high = range_for
         if is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
             value = float(force_n)
             outside = value if (MIN_FORCE_N < value < low or value > high) else None
@@ -290,6 +293,14 @@ class FrictionModel(ABC):
         result = Inversion(out, kernel_result(self._inverse_forces(ratio, force, limit, out), ratio, force))
         self._note_force_range(force)
         return result
+
+    def one_amplitude_um_pp(self, ratio: float, force_n: float, limit_um_pp: float = np.inf,
+                            work: np.ndarray | None = None) -> float:
+        """The inverse of one ratio at one force, as a float (µm p-p): what :meth:`amplitude_um_pp` gives for it.
+        ``work``: two floats to compute in (no allocation); models with a closed form need none."""
+        work = np.empty(2) if work is None else work
+        work[0] = ratio
+        return float(self.amplitude_um_pp(work[0:1], force_n, limit_um_pp, work[1:2]).amplitude_um_pp[0])
 
     def amplitude_um_pp(
         self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
