@@ -357,7 +357,9 @@ class SimulatedFinger:
         scale = self.params.scale_at(t_s)
         amplitude = np.maximum(np.asarray(amplitude_um_pp, dtype=float), 0.0)
         ratio = np.asarray(self.law(amplitude / scale, np.maximum(force, LIFTED_N)), dtype=float)
-        ratio = np.clip(np.broadcast_to(ratio, amplitude.shape), 0.0, 1.0)
+        if ratio.shape != amplitude.shape:
+            ratio = np.broadcast_to(ratio, amplitude.shape)
+        ratio = np.minimum(np.maximum(ratio, 0.0), 1.0)  # np.clip's values, without its wrapper
         lateral = np.where(sliding, mu0 * ratio * force, 0.0)
         return FingerTruth(t_s, amplitude, np.where(touching, force, 0.0), ratio, sliding, lateral, mu0)
 

@@ -80,7 +80,9 @@ class ForceSensors:
 
     def measure(self, first_sample: int, normal_n: np.ndarray, lateral_n: np.ndarray) -> None:
         """The true forces over samples ``first_sample`` on (N): they reach the output ``delay_s`` later."""
-        forces = np.vstack((normal_n, lateral_n)).astype(float)
+        forces = np.empty((2, len(normal_n)))
+        forces[0] = normal_n
+        forces[1] = lateral_n
         if self._alpha:
             low_pass(forces, self._alpha, self._filter_state)
         at = first_sample + self.delay_samples  # where these samples come out

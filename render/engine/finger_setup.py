@@ -97,7 +97,7 @@ def _stretched_law(model):
     reference, low, high = fm.REFERENCE_FORCE_N, fm.MIN_FORCE_N, fm.MAX_FORCE_N
 
     def law(amplitude_um_pp, force_n):
-        scale = s0 * np.power(np.clip(force_n, low, high) / reference, exponent)
+        scale = s0 * np.power(np.minimum(np.maximum(force_n, low), high) / reference, exponent)  # np.clip's values
         falling = np.exp(-np.power(np.asarray(amplitude_um_pp, dtype=float) / scale, beta))
         return floor + (1.0 - floor) * falling if floor else falling
 
