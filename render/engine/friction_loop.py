@@ -32,7 +32,7 @@ from ultraglide.render.engine.friction_controller import (
     FastCorrection,
     LoopCommand,
 )
-from ultraglide.render.engine.friction_estimator import EstimatorSettings, FrictionEstimator, SensorModel
+from ultraglide.render.engine.friction_estimator import EstimatorSettings, FrictionEstimator, SensorModel, nan_mean
 
 RING = 1 << 15  # control samples of targets kept (2.7 s at 12 kHz): SENSORS come tens of ms after
 NOT_PLAYING = 0xFFFFFFFF
@@ -216,7 +216,7 @@ class FrictionLoop:
                     self._recent_square = square if math.isnan(self._recent_square) else \
                         self._memory * self._recent_square + (1.0 - self._memory) * square
             self.measured_ratio = estimate.measured_ratio
-            self.target_ratio = float(np.nanmean(seen)) if np.isfinite(seen).any() else math.nan
+            self.target_ratio = nan_mean(seen) if np.isfinite(seen).any() else math.nan
         self._command(estimate, received_s)
 
     def _command(self, estimate, received_s: float) -> None:
