@@ -30,3 +30,7 @@ def test_it_matches_lfilter_in_one_and_two_dimensions_and_across_blocks(b, a):
     first, state = first_order_filter(b, a, x[0, :150], zi=zi[0])
     second, _ = first_order_filter(b, a, x[0, 150:], zi=state)
     assert np.allclose(np.concatenate((first, second)), expected[0], rtol=1e-12, atol=1e-12)
+    # one row with its state as a list of one (the simulated plate's blocks): the same, the state as a list's array
+    row, state = first_order_filter(b, a, x[1], zi=[float(zi[1, 0])])
+    assert np.allclose(row, expected[1], rtol=1e-12, atol=1e-12) and state.shape == (1,)
+    assert state[0] == pytest.approx(expected_zf[1, 0], rel=1e-12, abs=1e-12)
