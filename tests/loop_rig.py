@@ -93,18 +93,22 @@ class LoopRig:
         left = len(self.queue)
         for position, (index, ratio, amplitude, _) in enumerate(list(self.queue)):
             self.queue[position] = (index, ratio, amplitude, position + self.delay_ms - left)
+        within = np.arange(CONTROL_HZ // 1000) / CONTROL_HZ  # a block's times from its first
         for ms in range(ms_total):
             self.now = ms / 1000.0
             self._deliver(ms)
-            t_play = (ms + self.delay_ms) / 1000.0 + np.arange(CONTROL_HZ // 1000) / CONTROL_HZ
+            t_play = (ms + self.delay_ms) / 1000.0 + within
             ratio = np.asarray(target(t_play), dtype=float)
             inverse = self.loop.inverse if self.loop is not None else self.model
             amplitude = inverse.amplitude_um_pp(ratio, self.panel_force_n, self.limit).amplitude_um_pp.copy()
             if self.beta:  # drive the inverse of the lag the host expects, within [0, limit]
-                for i, y in enumerate(amplitude.tolist()):
-                    d = min(max((y - self.beta * self.modelled) / (1.0 - self.beta), 0.0), self.limit)
-                    self.modelled = self.beta * self.modelled + (1.0 - self.beta) * d
-                    amplitude[i] = d
+                beta, modelled, limit, driven = self.beta, self.modelled, self.limit, []
+                for y in amplitude.tolist():
+                    d = min(max((y - beta * modelled) / (1.0 - beta), 0.0), limit)
+                    modelled = beta * modelled + (1.0 - beta) * d
+                    driven.append(d)
+                self.modelled = modelled
+                amplitude = np.array(driven)
             if self.loop is not None:
                 self.loop.record(ratio, True)
             # the buffer gives one block a ms once full: this one plays delay_ms from now (if this run lasts)
