@@ -165,8 +165,22 @@ class ClosedLoopInverse:
         self.fallback_reasons: dict[str, int] = {}  # how many times for each reason (the loop's words then)
         self._was_following = False
         self.state_words = self.command.words
-        self.force_reference: tuple[float, float] | None = None  # (force N, d ln a / d ln F) of the last block
+        self._reference: tuple | None = None  # (model, lowest target ratio, force N) of the last block, following
+        self._reference_value: tuple | None = None  # (that tuple, its force_reference): computed once, when asked
         self._work = np.zeros(3)
+
+    @property
+    def force_reference(self) -> tuple[float, float] | None:
+        """(force N, d ln a / d ln F) the last block was computed at while the loop follows, else None. The exponent
+        is computed when first asked for (once a block): a device without the force correction never pays for it."""
+        reference = self._reference
+        if reference is None:
+            return None
+        known = self._reference_value
+        if known is None or known[0] is not reference:
+            model, lowest, force_n = reference
+            known = self._reference_value = (reference, (force_n, force_exponent(model, lowest, force_n, self._work)))
+        return known[1]
 
     def __repr__(self) -> str:
         return f"ClosedLoopInverse({self.base!r}, {self.state_words!r})"
@@ -204,7 +218,7 @@ class ClosedLoopInverse:
         following, command, words = self.following_now(now)
         self.state_words = words
         if not following:
-            self.force_reference = None
+            self._reference = None
             if self._was_following:
                 self.fallbacks += 1
                 reason = words.removeprefix("open loop: ")
@@ -225,10 +239,10 @@ class ClosedLoopInverse:
         # the force this block was computed at, for a device that corrects it as the values play; none while
         # blending with the open-loop amplitude (computed at another force)
         if blend < 1.0:
-            self.force_reference = None
+            self._reference = None
         else:
             lowest = float(np.minimum.reduce(ratio, axis=None))  # np.min's value without its wrapper
-            self.force_reference = (command.force_n, force_exponent(self.base, lowest, command.force_n, self._work))
+            self._reference = (self.base, lowest, command.force_n)
         amplitude *= scale
         np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
         if opened is not None:  # from the open-loop amplitude toward the closed loop's: a - (1 - b)(a - open)
