@@ -106,8 +106,9 @@ def first_order_filter(b, a, x, zi):
     b0 = float(b[0])
     b1 = float(b[1]) if len(b) > 1 else 0.0
     a1 = float(a[1]) if len(a) > 1 else 0.0
-    if (type(x) is np.ndarray and x.ndim == 1 and x.dtype == np.float64 and x.flags.c_contiguous
-            and type(zi) is list and len(zi) == 1):  # one channel, its state [z]: the simulated plate's every block
+    if type(x) is np.ndarray and x.ndim == 1 and type(zi) is list and len(zi) == 1:
+        # one channel, its state [z]: the simulated plate's every block (its drive in float32)
+        x = np.ascontiguousarray(x, dtype=float)
         y = np.empty(x.shape[0])
         final = np.empty(1)
         final[0] = first_order(b0, b1, a1, x, float(zi[0]), y)
