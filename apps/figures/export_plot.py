@@ -216,15 +216,15 @@ class PlotRecorder:
     def write(self, renderer, path: Path | None = None, dpi: float = 300.0, width=None) -> Path:
         """Draw at the print ``width`` ("column", "page") and save to ``path`` (or the one given at
         construction): PNG at ``dpi``, PDF or SVG by the extension, atomically."""
-        from ultraglide.apps.figures.style import fit_print_width
+        from ultraglide.apps.figures.style import print_layout
 
         path = _checked(path or self.path)
         fmt = FORMATS[path.suffix.lower()]
         figure = self.draw(renderer, width)
         try:
-            fit_print_width(figure)
+            options = print_layout(figure, dpi)
             with atomic_path(path) as temporary:
-                figure.savefig(temporary, dpi=dpi, format=fmt, bbox_inches="tight", pad_inches=0.03)
+                figure.savefig(temporary, dpi=dpi, format=fmt, **options)
         finally:
             plt.close(figure)
         return path
