@@ -10,7 +10,8 @@ measured against.
 
 Nothing the plate does reaches the host before its SENSORS frame does, so the plate plays the jitter buffer's
 blocks ``BATCH_MS`` at a time, as soon as they are rendered, each frame stamped with the millisecond it would
-have left at: the same samples, frames and deliveries as one block a millisecond, a tenth of the calls.
+have left at; and the host renders the milliseconds up to the next frame's arrival at once while its loop acts
+alike through them: the same samples, frames and deliveries as one block a millisecond, a tenth of the calls.
 """
 
 from __future__ import annotations
@@ -94,10 +95,12 @@ class LoopRig:
         for position, (index, ratio, amplitude, _) in enumerate(list(self.queue)):
             self.queue[position] = (index, ratio, amplitude, position + self.delay_ms - left)
         within = np.arange(CONTROL_HZ // 1000) / CONTROL_HZ  # a block's times from its first
-        for ms in range(ms_total):
+        ms = 0
+        while ms < ms_total:
             self.now = ms / 1000.0
             self._deliver(ms)
-            t_play = (ms + self.delay_ms) / 1000.0 + within
+            count = self._steady_ms(ms, ms_total)
+            t_play = np.concatenate([(at + self.delay_ms) / 1000.0 + within for at in range(ms, ms + count)])
             ratio = np.asarray(target(t_play), dtype=float)
             inverse = self.loop.inverse if self.loop is not None else self.model
             amplitude = inverse.amplitude_um_pp(ratio, self.panel_force_n, self.limit).amplitude_um_pp.copy()
@@ -111,11 +114,16 @@ class LoopRig:
                 amplitude = np.array(driven)
             if self.loop is not None:
                 self.loop.record(ratio, True)
-            # the buffer gives one block a ms once full: this one plays delay_ms from now (if this run lasts)
-            self.queue.append((self.index, ratio, amplitude, ms + self.delay_ms))
-            self.index += len(ratio)
-            if len(self.queue) >= BATCH_MS and self.queue[BATCH_MS - 1][3] < ms_total:
-                self._play([self.queue.popleft() for _ in range(BATCH_MS)])
+            per_ms = len(within)
+            for k in range(count):
+                # the buffer gives one block a ms once full: this one plays delay_ms after it was rendered (if this
+                # run lasts that long)
+                self.queue.append((self.index, ratio[k * per_ms:(k + 1) * per_ms],
+                                   amplitude[k * per_ms:(k + 1) * per_ms], ms + k + self.delay_ms))
+                self.index += per_ms
+                if len(self.queue) >= BATCH_MS and self.queue[BATCH_MS - 1][3] < ms_total:
+                    self._play([self.queue.popleft() for _ in range(BATCH_MS)])
+            ms += count
         due = [block for block in self.queue if block[3] < ms_total]
         for _ in due:
             self.queue.popleft()
@@ -129,6 +137,26 @@ class LoopRig:
         at = np.clip(((t - start) * CONTROL_HZ).astype(int), 0, len(played) - 1)
         commanded = np.concatenate(self.commanded)
         return RigRun(t, played[at], rows[:, 3], rows[:, 1], commanded[at], rows[:, 4] > 0.5, rows[:, 2])
+
+    def _steady_ms(self, ms: int, ms_total: int) -> int:
+        """How many ms from ``ms`` on the host may render at once (up to ``BATCH_MS``): none of them sees a SENSORS
+        frame arrive, and the loop's inverse acts alike through them (following or not throughout, not blending), so
+        each block is what rendering it in its own ms makes; 1 otherwise."""
+        count = min(BATCH_MS, ms_total - ms)
+        arrives = self.frames[0][0] if self.frames else math.inf  # frames on the link, and the next one made:
+        to_frame = 10 - len(self.pending)  # by the block that brings the pending samples to ten
+        if len(self.queue) >= to_frame:
+            arrives = min(arrives, self.queue[to_frame - 1][3] + max(self.link_ms, 1))
+        count = min(count, arrives - ms)  # (a block rendered from now plays delay_ms later, its frame after that)
+        if count > 1 and self.loop is not None:
+            inverse = self.loop.inverse
+            following, command, words = inverse.following_now(ms / 1000.0)
+            last = inverse.following_now((ms + count - 1) / 1000.0)
+            blend_s = inverse.settings.blend_s
+            blending = following and blend_s > 0 and (ms / 1000.0 - command.since_s) / blend_s < 1.0
+            if (following, words) != (last[0], last[2]) or blending:
+                return 1
+        return max(int(count), 1)
 
     def _play(self, blocks: list) -> None:
         """Consecutive blocks of the jitter buffer, (stream index, ratio, amplitude, the ms each plays at), through
