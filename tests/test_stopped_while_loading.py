@@ -19,17 +19,20 @@ from conftest import ROOT, wait_for
 
 
 def engine_of(pid: int) -> int | None:
-    """The engine process a command spawned (multiprocessing's spawn), or None yet."""
+    """The engine process a command started, or None yet: forked (its command line is the command's own) or
+    spawned (multiprocessing's spawn_main)."""
     try:
         children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+        own = Path(f"/proc/{pid}/cmdline").read_bytes()
     except OSError:
         return None
     for child in children:
         try:
-            if b"spawn_main" in Path(f"/proc/{child}/cmdline").read_bytes():
-                return int(child)
+            line = Path(f"/proc/{child}/cmdline").read_bytes()
         except OSError:
             continue
+        if line == own or b"spawn_main" in line:
+            return int(child)
     return None
 
 

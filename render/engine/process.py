@@ -1,6 +1,7 @@
 """The engine's own process: the renderer and the device, fed through shared memory.
 
-:func:`engine_main` is what :class:`render.engine.Engine` spawns. Its main thread loads the inputs,
+:func:`engine_main` is what :class:`render.engine.Engine` spawns (:func:`forked_engine_main` when it
+forks). Its main thread loads the inputs,
 opens the device, answers rare commands from the pipe and publishes the device's status; the
 device's own thread (PortAudio's callback, the serial writer, the paced sink) pulls blocks from
 :class:`EngineSource`, whose ``pull`` is the block path: drain the touch ring into the renderer,
@@ -232,6 +233,17 @@ class EngineSource(OutputStage):
     def request_stop(self) -> None:
         self._stopping = True
         super().request_stop()
+
+
+def forked_engine_main(config, shared_name: str, conn, app_end) -> None:
+    """The engine's entry point when forked from the app: first it becomes what a spawned engine is, without the
+    app's end of the pipe (or the app's going would not close it), its signal handlers or signal wake-up file."""
+    app_end.close()
+    signal.set_wakeup_fd(-1)
+    for signum in signal.valid_signals():
+        if callable(signal.getsignal(signum)) and signum != signal.SIGINT:  # the app's handlers (engine_main sets
+            signal.signal(signum, signal.SIG_DFL)  # SIGTERM's and SIGINT's)
+    engine_main(config, shared_name, conn)
 
 
 def engine_main(config, shared_name: str, conn) -> None:
