@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import os
 import selectors
+import signal
 import socket
 import subprocess
 import sys
@@ -116,6 +117,10 @@ def run_child(request, stdout, stderr, reply):
     os.dup2(stderr, 2)
     for fd in (null, stdout, stderr):
         os.close(fd)
+    if request.get("file_size_limit") is not None:  # a full disk, as the kernel refuses a file past RLIMIT_FSIZE
+        import resource
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (request["file_size_limit"],) * 2)
     os.environ.clear()
     os.environ.update(request["env"])
     os.chdir(request["cwd"])
@@ -158,18 +163,32 @@ class CliServer:
         return not any(name.startswith(IMPORT_TIME_VARIABLES) and env.get(name) != self._env.get(name)
                        for name in names)
 
-    def run(self, args: list[str], env: dict[str, str], cwd: Path, timeout: float) -> subprocess.CompletedProcess:
+    def _request(self, args, env, cwd, stdout: int, stderr: int, file_size_limit: int | None) -> socket.socket:
+        """Ask for ``ultraglide ARGS`` writing to the descriptors ``stdout`` and ``stderr``; the request's own socket,
+        on which the server says the child's pid, then its exit status."""
+        ours, theirs = socket.socketpair()
+        request = json.dumps({"args": args, "env": env, "cwd": str(cwd), "file_size_limit": file_size_limit}).encode()
+        try:  # the outputs and the request's own socket with the request's size; the request (of any size) on it
+            socket.send_fds(self._control, [str(len(request)).encode()], [stdout, stderr, theirs.fileno()])
+        finally:
+            theirs.close()
+        ours.sendall(request)
+        return ours
+
+    def start(self, args: list[str], env: dict[str, str], cwd: Path, stdout: int, stderr: int,
+              file_size_limit: int | None = None) -> ServedCommand:
+        """The command running, as ``subprocess.Popen`` would start it with these output descriptors."""
+        return ServedCommand(self._request(args, env, cwd, stdout, stderr, file_size_limit), args)
+
+    def run(self, args: list[str], env: dict[str, str], cwd: Path, timeout: float,
+            file_size_limit: int | None = None) -> subprocess.CompletedProcess:
         out_read, out_write = os.pipe()
         err_read, err_write = os.pipe()
-        ours, theirs = socket.socketpair()
-        request = json.dumps({"args": args, "env": env, "cwd": str(cwd)}).encode()
-        try:  # the pipes and the request's own socket with the request's size; the request (of any size) on it
-            socket.send_fds(self._control, [str(len(request)).encode()], [out_write, err_write, theirs.fileno()])
+        try:
+            ours = self._request(args, env, cwd, out_write, err_write, file_size_limit)
         finally:
             for fd in (out_write, err_write):
                 os.close(fd)
-            theirs.close()
-        ours.sendall(request)
         deadline = time.monotonic() + timeout
         chunks = {out_read: [], err_read: []}
         replies = b""
@@ -221,6 +240,104 @@ class CliServer:
         except subprocess.TimeoutExpired:
             self._process.kill()
             self._process.wait()
+
+
+class ServedCommand:
+    """A command the server forked, while it runs: ``pid``, ``poll``, ``wait``, ``send_signal``, ``kill`` and
+    ``returncode`` as ``subprocess.Popen``'s. The server reaps the child and says its exit status on the request's
+    socket; signals go through a pidfd, so that none reaches another process that got the pid since."""
+
+    def __init__(self, reply: socket.socket, args: list[str]) -> None:
+        self.args = ["ultraglide", *args]
+        self.stdout = self.stderr = None  # (start_cli's pipes, when it makes them)
+        self._reply = reply
+        self._said = b""
+        self.returncode = None
+        reply.settimeout(300)
+        while b"\n" not in self._said:
+            chunk = reply.recv(4096)
+            if not chunk:
+                raise RuntimeError(f"the test's command server lost ultraglide {' '.join(args)}")
+            self._said += chunk
+        self.pid = json.loads(self._said.split(b"\n", 1)[0])["pid"]
+        try:
+            self._pidfd = os.pidfd_open(self.pid)
+        except ProcessLookupError:  # already gone and reaped: its status is on the way
+            self._pidfd = None
+
+    def _read(self, timeout: float | None) -> None:
+        if self.returncode is not None:
+            return
+        self._reply.settimeout(timeout)
+        try:
+            chunk = self._reply.recv(4096)
+        except (TimeoutError, BlockingIOError):
+            return
+        self._said += chunk
+        lines = [json.loads(line) for line in self._said.split(b"\n")[:-1] if line.strip()]  # whole lines
+        code = next((line["returncode"] for line in lines if "returncode" in line), None)
+        if code is not None or not chunk:
+            if code is None:
+                raise RuntimeError(f"the test's command server lost {' '.join(self.args)}")
+            self.returncode = code
+            self._reply.close()
+            if self._pidfd is not None:
+                os.close(self._pidfd)
+
+    def poll(self) -> int | None:
+        self._read(0)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.returncode is None:
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                raise subprocess.TimeoutExpired(self.args, timeout)
+            self._read(left)
+        return self.returncode
+
+    def communicate(self, timeout: float | None = None) -> tuple:
+        """Read the pipes start_cli made to their end, then wait for the exit: (stdout, stderr), as Popen's."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        streams = [stream for stream in (self.stdout, self.stderr) if stream is not None]
+        chunks = {stream.fileno(): [] for stream in streams}
+        with selectors.DefaultSelector() as selector:
+            for stream in streams:
+                selector.register(stream.fileno(), selectors.EVENT_READ)
+            while selector.get_map():
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    raise subprocess.TimeoutExpired(self.args, timeout)
+                for key, _ in selector.select(left):
+                    data = os.read(key.fd, 1 << 16)
+                    if data:
+                        chunks[key.fd].append(data)
+                    else:
+                        selector.unregister(key.fd)
+        self.wait(None if deadline is None else max(deadline - time.monotonic(), 0.01))
+        said = []
+        for stream in (self.stdout, self.stderr):
+            if stream is None:
+                said.append(None)
+                continue
+            data = b"".join(chunks[stream.fileno()])
+            said.append(_text(data) if "b" not in stream.mode else data)
+            stream.close()
+        return tuple(said)
+
+    def send_signal(self, signum: int) -> None:
+        if self.poll() is None and self._pidfd is not None:
+            try:
+                signal.pidfd_send_signal(self._pidfd, signum)
+            except ProcessLookupError:  # it has exited: the server reports it
+                pass
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
 
 
 def _text(data: bytes) -> str:

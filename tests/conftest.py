@@ -47,21 +47,66 @@ def _cli_server():
     return _SERVER
 
 
-def run_cli(*args, check=False, env=None, timeout=300, **kwargs):
+def _file_size_limit(limit_bytes):
+    def apply():
+        import resource
+        import signal
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+    return apply
+
+
+def run_cli(*args, check=False, env=None, timeout=300, file_size_limit=None, **kwargs):
     """Run the ``ultraglide`` command as a user would, in a new process: ``python -m ultraglide ARGS``
     forked from a process that has numpy, scipy and numba imported (tests/cli_server.py), or a plain
-    subprocess when the environment asks for one."""
+    subprocess when the environment asks for one. ``file_size_limit`` (bytes): no file of the command's may
+    grow past it (RLIMIT_FSIZE: the kernel refuses with EFBIG, as a full disk does with ENOSPC)."""
     merged = {**os.environ, **(env or {})}
     args = [str(arg) for arg in args]
     server = _cli_server()
     if server is not None and server.serves(merged):
-        result = server.run(args, merged, Path(kwargs.get("cwd", ROOT)), timeout)
+        result = server.run(args, merged, Path(kwargs.get("cwd", ROOT)), timeout, file_size_limit)
     else:
         result = subprocess.run([sys.executable, "-m", "ultraglide", *args], capture_output=True,
-                                text=True, env=merged, timeout=timeout, cwd=kwargs.get("cwd", ROOT))
+                                text=True, env=merged, timeout=timeout, cwd=kwargs.get("cwd", ROOT),
+                                preexec_fn=None if file_size_limit is None else _file_size_limit(file_size_limit))
     if check and result.returncode != 0:
         raise AssertionError(f"ultraglide {' '.join(map(str, args))} failed:\n{result.stderr}")
     return result
+
+
+def start_cli(*args, stdout=None, stderr=None, env=None, cwd=ROOT, text=True):
+    """Start the ``ultraglide`` command as ``run_cli`` runs it, and return it running (``pid``, ``poll``,
+    ``wait``, ``send_signal``, ``kill``; ``stdout`` and ``stderr`` where asked for with ``subprocess.PIPE``,
+    as ``subprocess.Popen``'s): for a test that signals the command's own process, kills it, or reads its
+    output while it runs. ``stdout`` and ``stderr``: a file, ``subprocess.PIPE``, ``subprocess.DEVNULL`` or
+    None (this process's own)."""
+    merged = {**os.environ, **(env or {})}
+    args = [str(arg) for arg in args]
+    server = _cli_server()
+    if server is None or not server.serves(merged):
+        return subprocess.Popen([sys.executable, "-m", "ultraglide", *args], stdin=subprocess.DEVNULL, stdout=stdout,
+                                stderr=stderr, env=merged, cwd=cwd, text=text)
+    given, made, pipes = [], [], {}
+    for name, target, own in (("stdout", stdout, 1), ("stderr", stderr, 2)):
+        if target == subprocess.PIPE:
+            read, write = os.pipe()
+            pipes[name] = open(read, "r" if text else "rb")  # noqa: SIM115 - the caller's, as Popen's
+            made.append(write)
+            given.append(write)
+        elif target == subprocess.DEVNULL:
+            made.append(os.open(os.devnull, os.O_WRONLY))
+            given.append(made[-1])
+        else:
+            given.append(own if target is None else target.fileno())
+    try:
+        process = server.start(args, merged, Path(cwd), *given)
+    finally:
+        for fd in made:
+            os.close(fd)
+    process.stdout, process.stderr = pipes.get("stdout"), pipes.get("stderr")
+    return process
 
 
 def assert_one_line_error(result):
@@ -93,7 +138,7 @@ def source_copy(destination: Path) -> Path:
 # module-level helper (function or class) it calls, or a fixture it uses starts a process (the command, a
 # server, Xvfb, the engine's own process, which the demo starts too): those take seconds each, more on a
 # loaded machine. Marked here from the source, so new test files need no bookkeeping.
-SLOW_WORDS = ("run_cli", "subprocess.", "Popen", "XvfbDemo", "cli(", "Engine.start(", "DemoApp(")
+SLOW_WORDS = ("run_cli", "start_cli", "subprocess.", "Popen", "XvfbDemo", "cli(", "Engine.start(", "DemoApp(")
 
 
 @functools.cache

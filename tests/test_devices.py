@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 import soundfile
-from conftest import ROOT, assert_one_line_error, run_cli, wait_for
+from conftest import ROOT, assert_one_line_error, run_cli, start_cli, wait_for
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -219,8 +219,7 @@ def test_a_serial_plate_can_stream_slower_in_longer_frames(tmp_path):
 
 def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
     link = tmp_path / "plate"
-    server = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link)],
-                              stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    server = start_cli("plate-sim", "--link", link, stdout=subprocess.PIPE)
     try:
         banner = server.stdout.readline()
         assert str(link) in banner and "/dev/pts/" in banner

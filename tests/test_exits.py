@@ -8,16 +8,14 @@ non-zero and rename nothing into place.
 """
 
 import os
-import resource
 import signal
 import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 import soundfile
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli, start_cli
 from ultraglide.apps.cli.signals import Stopped, StopSignals, held
 from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import load_profile
@@ -37,14 +35,13 @@ def wait_until(condition, what, timeout=DEADLINE_S):
 
 
 class Command:
-    """``ultraglide ARGS`` in a subprocess, its output in files so that the test can poll it."""
+    """``ultraglide ARGS`` in a process of its own (forked from the tests' command server, as ``run_cli`` runs it),
+    its output in files so that the test can poll it."""
 
-    def __init__(self, tmp_path, *args, env=None, preexec_fn=None):
+    def __init__(self, tmp_path, *args, env=None):
         self.out_path, self.err_path = tmp_path / "stdout.txt", tmp_path / "stderr.txt"
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
-            self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", *map(str, args)], stdout=out,
-                                            stderr=err, cwd=ROOT, env={**os.environ, **(env or {})},
-                                            preexec_fn=preexec_fn)
+            self.process = start_cli(*args, stdout=out, stderr=err, env=env)
 
     @property
     def stdout(self) -> str:
@@ -316,16 +313,8 @@ def test_plate_sim_removes_the_directory_it_made(tmp_path):
 
 
 # ---- full disks: the kernel refuses to let a file grow past RLIMIT_FSIZE (EFBIG) ---------------------------
-def file_size_limit(limit_bytes):
-    def apply():
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-    return apply
-
-
 def run_limited(limit_bytes, *args):
-    return subprocess.run([sys.executable, "-m", "ultraglide", *map(str, args)], capture_output=True, text=True,
-                          cwd=ROOT, preexec_fn=file_size_limit(limit_bytes), timeout=300)
+    return run_cli(*args, file_size_limit=limit_bytes)
 
 
 def assert_refused_and_nothing_left(result, out_dir, name):

@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 import soundfile
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli, start_cli
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
 from ultraglide.devices.carrier import Carrier
@@ -226,8 +226,8 @@ def _gone(pid: int) -> bool:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the writer is a forked process on Linux only")
 def test_the_writer_process_does_not_outlive_a_killed_export(tmp_path):
     out = tmp_path / "long.wav"
-    child = subprocess.Popen([sys.executable, "-m", "ultraglide", "export", "grating-1mm", "--duration-s", "600",
-                              "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+    child = start_cli("export", "grating-1mm", "--duration-s", 600, "-o", out, stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
         while not _children(child.pid) and time.monotonic() < deadline and child.poll() is None:

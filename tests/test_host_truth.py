@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli, wait_for
+from conftest import ROOT, assert_one_line_error, run_cli, start_cli, wait_for
 from scripted_plate import ScriptedPlate
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -319,12 +319,11 @@ def test_play_says_where_the_device_binds_it():
 
 # ---- a run that lost, cut or faulted its plate says so, and exits non-zero ------------------------------------
 class Play:
-    """``ultraglide play`` in a subprocess, its output collected."""
+    """``ultraglide play`` in a process of its own, its output collected."""
 
     def __init__(self, path, seconds):
-        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device",
-                                         f"serial:{path}", "--duration-s", str(seconds)],
-                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.process = start_cli("play", "grating-1mm", "--device", f"serial:{path}", "--duration-s", seconds,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
     def finish(self, timeout=120):
         out, err = self.process.communicate(timeout=timeout)
@@ -338,8 +337,7 @@ class Play:
 
 def test_a_play_whose_plate_is_killed_exits_non_zero_and_says_so(tmp_path):
     link = tmp_path / "plate"
-    server = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link), "--json"],
-                              stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    server = start_cli("plate-sim", "--link", link, "--json", stdout=subprocess.PIPE)
     play = None
     try:
         assert '"serving"' in server.stdout.readline()
@@ -528,8 +526,7 @@ def test_an_ordinary_drag_through_the_engine_gives_the_simulated_plate_no_underr
 
 def test_play_on_a_plate_sim_that_speaks_only_v2(tmp_path):
     link = tmp_path / "plate"
-    server = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link), "--json",
-                               "--max-version", "2"], stdout=subprocess.PIPE, text=True, cwd=ROOT)
+    server = start_cli("plate-sim", "--link", link, "--json", "--max-version", 2, stdout=subprocess.PIPE)
     try:
         assert '"serving"' in server.stdout.readline()
         result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0")

@@ -1,4 +1,4 @@
-"""``ultraglide plate-sim`` as a real subprocess: its event log, its options, its clean-up on signals;
+"""``ultraglide plate-sim`` in a process of its own: its event log, its options, its clean-up on signals;
 and the host's one-line refusals and fault summary on the command line."""
 
 import dataclasses
@@ -11,12 +11,11 @@ import select
 import signal
 import struct
 import subprocess
-import sys
 import threading
 import time
 
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli, wait_for
+from conftest import assert_one_line_error, run_cli, start_cli, wait_for
 from test_devices import Constant
 from ultraglide.apps.commands.play import describe_faults
 from ultraglide.devices import protocol as p
@@ -28,11 +27,10 @@ PROFILE = load_profile("sim-plate")
 
 
 class Server:
-    """``ultraglide plate-sim`` in a subprocess; its stdout lines collected by a thread."""
+    """``ultraglide plate-sim`` in a process of its own; its stdout lines collected by a thread."""
 
     def __init__(self, *args):
-        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", *map(str, args)],
-                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        self.process = start_cli("plate-sim", *args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         self.lines: queue.SimpleQueue = queue.SimpleQueue()
         self.seen: list[str] = []
         self.reader = threading.Thread(target=self._read, daemon=True)

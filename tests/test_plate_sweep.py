@@ -1,15 +1,15 @@
-"""``ultraglide plate sweep`` against ``ultraglide plate-sim`` in a subprocess on a real pty; the resonance fit."""
+"""``ultraglide plate sweep`` against ``ultraglide plate-sim``, each in a process of its own, on a real pty; the
+resonance fit."""
 
 import json
 import math
 import signal
 import subprocess
-import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli
+from conftest import assert_one_line_error, run_cli, start_cli
 from PIL import Image
 from test_plate_sim_cli import Server
 from ultraglide.devices.profiles import load_profile
@@ -67,8 +67,7 @@ def test_the_fit_refuses_what_has_no_peak():
 
 
 def _sweep(*args, **kwargs):
-    return subprocess.run([sys.executable, "-m", "ultraglide", "plate", "sweep", *map(str, args)],
-                          capture_output=True, text=True, cwd=ROOT, timeout=300, **kwargs)
+    return run_cli("plate", "sweep", *args, **kwargs)
 
 
 def _stopped(server) -> dict:
@@ -122,9 +121,8 @@ def test_a_sweep_rests_the_plate_and_writes_nothing_when_terminated(tmp_path):
     server = Server("--link", link, "--json")
     try:
         server.wait_line(lambda line: '"serving"' in line)
-        sweep = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate", "sweep", "--device", f"serial:{link}",
-                                  "-o", str(tmp_path / "p.toml"), "--steps", "200"], cwd=ROOT, text=True,
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        sweep = start_cli("plate", "sweep", "--device", f"serial:{link}", "-o", tmp_path / "p.toml", "--steps", 200,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         server.wait_line(lambda line: '"stream_started"' in line)
         server.wait_line(lambda line: '"carrier"' in line)
         sweep.send_signal(signal.SIGTERM)

@@ -11,11 +11,10 @@ lands while the engine loads or once it runs, the same must hold.
 import os
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, wait_for
+from conftest import start_cli, wait_for
 
 
 def engine_of(pid: int) -> int | None:
@@ -53,8 +52,7 @@ COMMANDS = {
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_a_command_stopped_while_its_engine_loads_says_so_in_one_line_and_leaves_nothing(tmp_path, command, signum):
     argv = [arg.format(d=tmp_path) for arg in COMMANDS[command]]
-    process = subprocess.Popen([sys.executable, "-m", "ultraglide", *argv], cwd=ROOT, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = start_cli(*argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         assert wait_for(lambda: engine_of(process.pid) is not None or process.poll() is not None, 120)
         process.send_signal(signum)
