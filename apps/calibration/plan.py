@@ -13,6 +13,7 @@ amplitude at any time (µm p-p), :meth:`CalibrationPlan.step_at` which step a ti
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -63,6 +64,10 @@ class CalibrationPlan:
         return np.linspace(top / 12.0, top, self.levels)
 
     def steps(self) -> list[Step]:
+        return list(self._steps)
+
+    @functools.cached_property
+    def _steps(self) -> tuple[Step, ...]:  # the plan is frozen: its steps are worked out once (a source asks each ms)
         found = []
         t = 0.0
         amplitudes = self.amplitudes_um_pp.tolist()
@@ -77,12 +82,18 @@ class CalibrationPlan:
                         t += self.step_s
             found.append(Step(t, self.step_s, 0.0, level))  # the last reduced step's zero after it
             t += self.step_s
-        return found
+        return tuple(found)
+
+    @functools.cached_property
+    def _timeline(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The steps' starts (s), their amplitudes with a 0 after the last (µm p-p), and the plan's end (s)."""
+        steps = self._steps
+        return (np.array([s.start_s for s in steps]), np.array([s.amplitude_um_pp for s in steps] + [0.0]),
+                steps[-1].end_s)
 
     @property
     def duration_s(self) -> float:
-        last = self.steps()[-1]
-        return last.end_s
+        return self._timeline[2]
 
     def level_starts_s(self) -> list[float]:
         """When each force level begins (s)."""
@@ -94,19 +105,16 @@ class CalibrationPlan:
 
     def amplitude_at(self, t_s) -> np.ndarray:
         """The planned amplitude at times ``t_s`` (µm p-p; 0 before and after the plan)."""
-        steps = self.steps()
-        starts = np.array([s.start_s for s in steps])
-        values = np.array([s.amplitude_um_pp for s in steps] + [0.0])
+        starts, values, end_s = self._timeline
         t = np.asarray(t_s, dtype=float)
         index = np.searchsorted(starts, t, side="right") - 1
-        index = np.where((t < 0) | (t >= steps[-1].end_s), len(steps), index)
+        index = np.where((t < 0) | (t >= end_s), len(starts), index)
         return values[index]
 
     def step_at(self, t_s: float) -> int | None:
         """The index of the step that time ``t_s`` falls in, if it is in a step's measured part."""
-        steps = self.steps()
-        starts = [s.start_s for s in steps]
-        index = int(np.searchsorted(starts, t_s, side="right")) - 1
+        steps = self._steps
+        index = int(np.searchsorted(self._timeline[0], t_s, side="right")) - 1
         if index < 0 or t_s >= steps[index].end_s:
             return None
         step = steps[index]
