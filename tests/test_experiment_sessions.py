@@ -105,7 +105,8 @@ def test_dry_runs_recover_the_simulated_threshold(tmp_path):
     """A few seeds of each adaptive method: the interval holds the true 0.08 in most, every estimate is near it."""
     covered, shared = [], {}
     for method, seed in (("staircase", 1), ("staircase", 2), ("quest", 1), ("quest", 2)):
-        outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed, shared=shared)
+        outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed, shared=shared,
+                                     figures=False)  # the estimates are checked here; the figures elsewhere
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
         assert 0.08 / 1.5 < outcome.result["threshold"] < 0.08 * 1.5, outcome.result
@@ -238,7 +239,7 @@ def test_the_log_is_on_disk_after_each_trial(tmp_path):
     config = SessionConfig(texture="grating-1mm", observer=SIM, trials=8, bootstrap=10)
     design = design_for(config)
     run_session(config, design, Watching(SimObserver.parse(SIM), design.model, load_profile("sim-plate"), 100.0,
-                                         0.5), tmp_path)
+                                         0.5), tmp_path, figures=False)
     assert seen == list(range(8))
 
 
