@@ -329,7 +329,7 @@ class SimulatedFinger:
         self._wet_alpha = math.exp(-1.0 / (self.sample_rate_hz * self.params.moisture_tau_s))
         self._wet = np.zeros(1)  # moisture, 0 (dry) to 1 (a long dwell)
         self._next_sample: int | None = None  # the first sample not yet given (blocks must be contiguous)
-        self._pending = np.zeros(0)  # amplitudes given, not yet through the physics
+        self._pending: list[np.ndarray] = []  # amplitudes given, not yet through the physics (copies, in order)
         self._done = 0  # samples through the physics (the sensors hold their output)
         self._chunk = max(1, int(round(CHUNK_S * self.sample_rate_hz)))
         self.last: FingerTruth | None = None  # the newest chunk of truth
@@ -375,10 +375,10 @@ class SimulatedFinger:
         elif abs(start - self._next_sample) <= 2:  # a clock's rounding: the blocks join
             start = self._next_sample
         elif start != self._next_sample:  # a gap or a repeat: the physics restarts there (the sensors keep state)
-            self._pending = np.zeros(0)
+            self._pending = []
             self._next_sample = self._done = start
         self._next_sample = start + n
-        self._pending = np.concatenate((self._pending, np.asarray(amplitude_um_pp, dtype=float)))
+        self._pending.append(np.array(amplitude_um_pp, dtype=float))  # joined once a chunk, in _run
         delay = self.sensors.delay_samples
         needed = start + n - delay  # the sensors' output up to the block's end needs the physics up to here
         available = start + n
@@ -395,7 +395,9 @@ class SimulatedFinger:
     def _run(self, end: int) -> None:
         """Through the physics from sample ``_done`` to ``end``: truth, sensors, log."""
         count = end - self._done
-        amplitude, self._pending = self._pending[:count], self._pending[count:]
+        pending = self._pending[0] if len(self._pending) == 1 else np.concatenate(self._pending)
+        amplitude, rest = pending[:count], pending[count:]
+        self._pending = [rest] if len(rest) else []
         times = (self._done + np.arange(count)) / self.sample_rate_hz
         truth = self.truth(times, amplitude)
         self.sensors.measure(self._done, truth.normal_force_n, truth.lateral_force_n)

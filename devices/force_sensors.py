@@ -96,12 +96,17 @@ class ForceSensors:
 
     def output(self, start: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """What the sensors read over samples ``start`` to ``start + n`` (N): normal, lateral."""
-        out = np.zeros((2, n))
-        if self._buffer_start is not None:
+        if self._buffer_start is None:
+            out = np.zeros((2, n))
+        else:
             offset = start - self._buffer_start
-            lo, hi = max(offset, 0), min(offset + n, self._buffer.shape[1])
-            if hi > lo:
-                out[:, lo - offset:hi - offset] = self._buffer[:, lo:hi]
+            if 0 <= offset and offset + n <= self._buffer.shape[1]:  # all of it buffered (a plate's every block)
+                out = self._buffer[:, offset:offset + n].copy()
+            else:
+                out = np.zeros((2, n))
+                lo, hi = max(offset, 0), min(offset + n, self._buffer.shape[1])
+                if hi > lo:
+                    out[:, lo - offset:hi - offset] = self._buffer[:, lo:hi]
             if offset > 0:  # what has been read is dropped
                 drop = min(offset, self._buffer.shape[1])
                 self._buffer = self._buffer[:, drop:]
@@ -111,8 +116,8 @@ class ForceSensors:
     def _noise(self, start: int, n: int) -> np.ndarray:
         """White noise for output samples ``start`` on, held over each sensor period (samples numbered from the
         plate's start)."""
-        periods = (start + np.arange(n)) // self._decimation
-        first, last = int(periods[0]), int(periods[-1])
+        period = self._decimation
+        first, last = start // period, (start + n - 1) // period
         values = np.empty((2, last - first + 1))
         held = 1 if first == self._noise_period else 0  # a period begun in the last block keeps its value
         if held:
@@ -120,4 +125,9 @@ class ForceSensors:
         values[:, held:] = self._rng.normal(0.0, self.params.noise_n, (last - first + 1 - held, 2)).T
         self._noise_period = last
         self._noise_value = values[:, -1].copy()
-        return values[:, periods - first]
+        if last == first:
+            return np.repeat(values, n, axis=1)
+        counts = np.full(last - first + 1, period)  # samples of each period within the block: both ends cut
+        counts[0] = (first + 1) * period - start
+        counts[-1] = start + n - last * period
+        return np.repeat(values, counts, axis=1)

@@ -41,7 +41,7 @@ from typing import Protocol
 import numpy as np
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
-from ultraglide.devices.kernels import first_order_filter
+from ultraglide.devices.kernels import first_order, first_order_filter
 from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002  # the output stage's clock while it has work: enabled, or the plate still moving
@@ -336,33 +336,39 @@ class PlateSimulator:
         # block late (its limiter and trip do not need it sooner; its amplitude loop does)
         block = (LOOP_BLOCK if status.loop else BLOCK) if status.enabled else sil.MAX_RENDER
         t0 = status.samples / self.sample_rate_hz  # the core's sample clock: a finger's blocks join exactly
+        # resonator_phasor's filter, its coefficients worked out once a call rather than once a block (the
+        # same kernel and numbers); the reductions by their ufuncs, without ndarray.min/max's wrappers
+        b0 = (1.0 - alpha) * gain
+        render, sense, finger, rate = self.core.render, self.core.sense, self.finger, self.sample_rate_hz
+        declared = self.profile.full_scale_um_pp  # the drive in the firmware's units, as its limit
+        smallest, largest = np.minimum.reduce, np.maximum.reduce
         done = 0
         while done < n:
             k = min(block, n - done)
-            drive = self.core.render(k)
+            drive = render(k)
             if abs(self._plate_state) <= REST_UM_PP and not drive.any():
                 phasor = np.zeros(k)
             else:
-                phasor = resonator_phasor(drive, self._plate_state, alpha, gain)
+                phasor = np.empty(k)
+                first_order(b0, 0.0, -alpha, drive.astype(float), alpha * self._plate_state, phasor)
                 low, high = self.drive_range_um_pp
-                declared = self.profile.full_scale_um_pp  # the drive in the firmware's units, as its limit
-                self.drive_range_um_pp = (min(low, float(drive.min()) * declared),
-                                          max(high, float(drive.max()) * declared))
+                self.drive_range_um_pp = (min(low, float(smallest(drive)) * declared),
+                                          max(high, float(largest(drive)) * declared))
             amplitude = np.abs(phasor)
             measured = amplitude
             if truth.noise_um_pp > 0:
                 measured = amplitude + self._rng.normal(0.0, truth.noise_um_pp, k)
             normal = lateral = None
-            if self.finger is not None:
-                normal, lateral = self.finger.forces(t0 + done / self.sample_rate_hz, amplitude)
-            cut = self.core.sense(measured, normal, lateral)
+            if finger is not None:
+                normal, lateral = finger.forces(t0 + done / rate, amplitude)
+            cut = sense(measured, normal, lateral)
             if cut < k:  # tripped at sample `cut`: the drive stopped there
                 before = phasor[cut - 1] if cut > 0 else self._plate_state
                 phasor = phasor.copy()
                 phasor[cut:] = before * alpha ** np.arange(1, k - cut + 1)
                 amplitude = np.abs(phasor)
             self._plate_state = float(phasor[-1])
-            self.peak_um_pp = max(self.peak_um_pp, float(amplitude.max()))
+            self.peak_um_pp = max(self.peak_um_pp, float(largest(amplitude)))
             if self.trace is not None:
                 self.trace.append(np.array(amplitude, dtype=float))
             done += k

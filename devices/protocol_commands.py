@@ -91,7 +91,9 @@ class SetpointFramer:
         if count > MAX_SETPOINTS_PER_FRAME:
             raise ValueError(f"{count} setpoints do not fit one frame (at most {MAX_SETPOINTS_PER_FRAME})")
         scaled = self._scaled[:count]
-        np.clip(fractions, 0.0, 1.0, out=scaled)  # as setpoint_codes: clipped, scaled, rounded (ties to even)
+        # as setpoint_codes: clipped (np.clip's codes by its two ufuncs, without its wrapper), scaled, rounded
+        # (ties to even)
+        np.minimum(np.maximum(fractions, 0.0, out=scaled), 1.0, out=scaled)
         np.multiply(scaled, SETPOINT_SCALE, out=scaled)
         np.rint(scaled, out=scaled)
         np.copyto(self._codes[:count], scaled, casting="unsafe")
