@@ -134,23 +134,22 @@ def test_play_reports_the_engine_figures(tmp_path):
 
 
 PARENT = """
-import sys, time
+import select, sys, time
 from ultraglide.render.engine import Engine, EngineConfig
 engine = Engine.start(EngineConfig(texture=sys.argv[1], device="serial:" + sys.argv[2]))
 engine.wait_ready(60)
 print(engine.info["pid"], flush=True)
-started = time.perf_counter()
-while time.perf_counter() - started < float(sys.argv[3]):  # then leave without engine.stop()
+while True:  # a finger held, reported at 120 Hz, until a line on stdin: then leave without engine.stop()
     engine.touch(time.perf_counter(), 60.0, 25.0)
-    time.sleep(1 / 120)
+    if select.select([sys.stdin], [], [], 1 / 120)[0]:
+        break
 """
 
 
 @pytest.mark.parametrize("ending", ["killed", "forgets to stop"])
 def test_when_the_parent_goes_the_engine_rests_the_plate_and_exits(steps, ending):
     plate = PtyPlate(load_profile("sim-plate")).start()
-    seconds = 1e9 if ending == "killed" else 8.0
-    parent = subprocess.Popen([sys.executable, "-c", PARENT, steps, plate.path, str(seconds)],
+    parent = subprocess.Popen([sys.executable, "-c", PARENT, steps, plate.path], stdin=subprocess.PIPE,
                               stdout=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         engine_pid = int(parent.stdout.readline())
@@ -158,6 +157,9 @@ def test_when_the_parent_goes_the_engine_rests_the_plate_and_exits(steps, ending
         assert wait_for(lambda: abs(sim.amplitude_um_pp - HALF_FRICTION_UM_PP) < 0.1), sim.amplitude_um_pp
         if ending == "killed":
             parent.send_signal(signal.SIGKILL)  # no clean-up at all on the parent's side
+        else:
+            parent.stdin.write("leave\n")  # once the plate plays: it leaves, forgetting engine.stop()
+            parent.stdin.flush()
         assert parent.wait(timeout=60) == (-signal.SIGKILL if ending == "killed" else 0)
         # disabled: only the driver's "enable off" does that (the plate's watchdog ramps but stays enabled)
         assert wait_for(lambda: not sim.enabled and sim.amplitude_um_pp < 0.01)

@@ -215,7 +215,7 @@ def test_a_signalled_play_on_serial_rests_the_plate(tmp_path, tap, signum):
 
 
 def test_play_on_serial_rests_the_plate_at_its_normal_end(tmp_path, tap):
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s", "1")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s", "0.5")
     try:
         assert command.wait() == 0, command.stderr
     finally:
@@ -358,9 +358,9 @@ def test_export_renames_no_output_when_another_fails(tmp_path):
 
 def test_play_to_wav_on_a_full_disk(tmp_path):
     out = tmp_path / "live.wav"
-    # the limit lets the engine's shared-memory segment (0.44 MB in /dev/shm, which the file-size limit also
-    # counts) be made, and stops the 1.2 MB recording of a 3 s swipe halfway
-    result = run_limited(96000 * 4 * 3 // 2, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "3")
+    # the limit lets the engine's shared-memory segment (0.52 MB in /dev/shm, which the file-size limit also
+    # counts) be made, and stops the 0.77 MB recording of a 2 s swipe at 1.5 s
+    result = run_limited(96000 * 4 * 3 // 2, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "2")
     assert_refused_and_nothing_left(result, tmp_path, "live.wav")
 
 

@@ -12,7 +12,7 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image
 from ultraglide.apps.commands.experiment import design_for
-from ultraglide.apps.experiment.dryrun import SimResponder
+from ultraglide.apps.experiment.dryrun import SimResponder, TrialCache
 from ultraglide.apps.experiment.observer import SimObserver
 from ultraglide.apps.experiment.session import SessionConfig, run_session
 from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign, render_offline, with_contrast
@@ -24,11 +24,17 @@ from ultraglide.textures.sampling import Sampler
 SIM = "sim:threshold=0.08,slope=3,lapse=0.02"
 
 
-def dry_run(tmp_path, figures=True, **options):
+def dry_run(tmp_path, figures=True, shared=None, **options):
+    """A dry session. ``shared``: a dict its sessions keep their design and trial textures in (sessions that
+    differ only by seed, method and trial count share them: the same stimuli at the same levels)."""
     config = SessionConfig(**{"texture": "grating-1mm", "observer": SIM, "bootstrap": 200, **options})
-    design = design_for(config)
+    if shared is None:
+        shared = {}
+    if "design" not in shared:
+        shared["design"], shared["trials"] = design_for(config), TrialCache()
+    design = shared["design"]
     responder = SimResponder(SimObserver.parse(config.observer, config.seed), design.model,
-                             load_profile(config.profile), config.speed_mm_s, config.force_n)
+                             load_profile(config.profile), config.speed_mm_s, config.force_n, shared["trials"])
     return run_session(config, design, responder, tmp_path, figures=figures), responder
 
 
@@ -97,9 +103,10 @@ def test_rendered_zones_show_the_level_the_procedure_asked_for():
 @pytest.mark.slow
 def test_dry_runs_recover_the_simulated_threshold(tmp_path):
     """A few seeds of each adaptive method: the interval holds the true 0.08 in most, every estimate is near it."""
-    covered = []
+    covered, shared = [], {}
     for method, seed in (("staircase", 1), ("staircase", 2), ("quest", 1), ("quest", 2)):
-        outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed)
+        outcome, responder = dry_run(tmp_path / f"{method}{seed}", method=method, trials=80, seed=seed, shared=shared,
+                                     figures=False)  # the estimates are checked here; the figures elsewhere
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
         assert 0.08 / 1.5 < outcome.result["threshold"] < 0.08 * 1.5, outcome.result
@@ -109,10 +116,10 @@ def test_dry_runs_recover_the_simulated_threshold(tmp_path):
 
 @pytest.mark.slow
 def test_dry_runs_recover_the_threshold_within_the_interval_in_most_seeds(tmp_path):
-    covered = []
+    covered, shared = [], {}
     for seed in range(20):
         outcome, _ = dry_run(tmp_path / str(seed), method="staircase", trials=80, seed=seed, bootstrap=300,
-                             figures=False)  # the intervals are checked here; the figures elsewhere
+                             figures=False, shared=shared)  # the intervals are checked here; the figures elsewhere
         low, high = outcome.result["ci"]
         covered.append(low <= 0.08 <= high)
         assert outcome.figures == [] and not list((tmp_path / str(seed)).glob("*.p*"))  # none asked, none drawn
@@ -232,7 +239,7 @@ def test_the_log_is_on_disk_after_each_trial(tmp_path):
     config = SessionConfig(texture="grating-1mm", observer=SIM, trials=8, bootstrap=10)
     design = design_for(config)
     run_session(config, design, Watching(SimObserver.parse(SIM), design.model, load_profile("sim-plate"), 100.0,
-                                         0.5), tmp_path)
+                                         0.5), tmp_path, figures=False)
     assert seen == list(range(8))
 
 

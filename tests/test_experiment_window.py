@@ -104,7 +104,7 @@ def test_a_participant_swipes_taps_clicks_and_keys_through_a_session_with_a_brea
     helper = threading.Thread(target=participant, daemon=True)
     helper.start()
     try:
-        outcome = run_session(config, design, window, tmp_path)
+        outcome = run_session(config, design, window, tmp_path, figures=False)
     finally:
         window.close()
     helper.join(timeout=DEADLINE_S)
@@ -132,7 +132,7 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
     helper = threading.Thread(target=participant, args=([(1, pg.K_1), (2, pg.K_ESCAPE)],), daemon=True)
     helper.start()
     try:
-        outcome = run_session(config, design, window, tmp_path)
+        outcome = run_session(config, design, window, tmp_path, figures=False)
     finally:
         window.close()
     helper.join(timeout=DEADLINE_S)
@@ -143,7 +143,7 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
     helper = threading.Thread(target=participant, args=([(2, pg.K_2), (3, pg.K_1), (4, pg.K_2)],), daemon=True)
     helper.start()
     try:
-        outcome = run_session(config, design, window, tmp_path, resume=True)
+        outcome = run_session(config, design, window, tmp_path, resume=True, figures=False)
     finally:
         window.close()
     helper.join(timeout=DEADLINE_S)
@@ -216,7 +216,7 @@ def test_a_closed_loop_trial_logs_the_target_the_measured_friction_and_the_ampli
     helper = threading.Thread(target=participant, daemon=True)
     helper.start()
     try:
-        run_session(config, design, window, tmp_path)
+        run_session(config, design, window, tmp_path, figures=False)
     finally:
         window.close()
     helper.join(timeout=DEADLINE_S)

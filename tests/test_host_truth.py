@@ -370,7 +370,7 @@ def test_a_play_whose_plate_is_killed_exits_non_zero_and_says_so(tmp_path):
 
 
 def test_a_play_whose_plate_overheats_stops_streaming_and_exits_non_zero(tapped):
-    play = Play(tapped.path, 6)
+    play = Play(tapped.path, 3)
     try:
         assert wait_for(lambda: tapped.sim.peak_um_pp > 0.5, timeout=DEADLINE_S)
         tapped.plate.inject(p.SIM_OVERHEAT, 0)
@@ -389,7 +389,7 @@ def test_a_play_whose_plate_overheats_stops_streaming_and_exits_non_zero(tapped)
 
 
 def test_a_play_whose_plate_fires_its_watchdog_exits_3_and_says_when(tapped):
-    play = Play(tapped.path, 4)
+    play = Play(tapped.path, 3)
     try:
         assert wait_for(lambda: tapped.sim.peak_um_pp > 0.5, timeout=DEADLINE_S)
         tapped.plate.inject(p.SIM_DROP, 0.3)  # 300 ms of nothing reaching the plate

@@ -21,36 +21,47 @@ from ultraglide.textures.texture import Texture
 CACHE_BYTES = 256 * 2**20  # trial textures and their lookups kept for levels the procedure comes back to
 
 
-class SimResponder:
-    def __init__(self, observer: SimObserver, model: FrictionModel, profile: PlateProfile, speed_mm_s: float,
-                 force_n: float):
-        self.observer, self.model, self.profile = observer, model, profile
-        self.speed_mm_s, self.force_n = speed_mm_s, force_n
-        self.breaks: list[int] = []
-        self.rendered_frames = 0
+class TrialCache:
+    """Trial textures and their lookups for one design, built once for each level and target (a procedure
+    comes back to the same levels: 80 staircase trials use about 20; sessions of one design, such as a
+    pilot's seeds, share most of theirs), at most :data:`CACHE_BYTES` kept, least recently used dropped
+    first. Another design empties it."""
+
+    def __init__(self):
         self._trials: OrderedDict[tuple, tuple[Texture, Sampler, int]] = OrderedDict()  # least recent first
-        self._cached_bytes = 0
+        self._bytes = 0
         self._design: StimulusDesign | None = None  # the design the cached trials belong to
 
-    def _trial(self, design: StimulusDesign, level: float, target: int) -> tuple[Texture, Sampler]:
-        """The trial's texture and its lookup, built once for each level and target (a procedure comes
-        back to the same levels: 80 staircase trials use about 20), at most :data:`CACHE_BYTES` kept."""
+    def trial(self, design: StimulusDesign, level: float, target: int, speed_mm_s: float) -> tuple[Texture, Sampler]:
+        """The trial's texture and the lookup a swipe at ``speed_mm_s`` reads it through."""
         if design is not self._design:
             self._trials.clear()
-            self._cached_bytes, self._design = 0, design
-        key = (float(level), target)
+            self._bytes, self._design = 0, design
+        key = (float(level), target, float(speed_mm_s))
         if key in self._trials:
             self._trials.move_to_end(key)
             return self._trials[key][:2]
         texture = design.trial_texture(level, target)
-        sampler = offline_sampler(texture, self.speed_mm_s)
+        sampler = offline_sampler(texture, speed_mm_s)
         size = texture.values.nbytes + 2 * sum(a.nbytes for pyramid in sampler.pyramids for a in pyramid)
-        while self._trials and self._cached_bytes + size > CACHE_BYTES:
-            self._cached_bytes -= self._trials.popitem(last=False)[1][2]
+        while self._trials and self._bytes + size > CACHE_BYTES:
+            self._bytes -= self._trials.popitem(last=False)[1][2]
         if size <= CACHE_BYTES:
             self._trials[key] = (texture, sampler, size)
-            self._cached_bytes += size
+            self._bytes += size
         return texture, sampler
+
+
+class SimResponder:
+    def __init__(self, observer: SimObserver, model: FrictionModel, profile: PlateProfile, speed_mm_s: float,
+                 force_n: float, trials: TrialCache | None = None):
+        """``trials``: a cache of trial textures to share with other sessions of the same design (by default
+        the responder's own)."""
+        self.observer, self.model, self.profile = observer, model, profile
+        self.speed_mm_s, self.force_n = speed_mm_s, force_n
+        self.breaks: list[int] = []
+        self.rendered_frames = 0
+        self.trials = trials if trials is not None else TrialCache()
 
     def take_break(self, trial: int) -> bool:
         """No pause for a simulated observer; the break is logged (break_before) all the same."""
@@ -58,7 +69,7 @@ class SimResponder:
         return True
 
     def present(self, trial: int, level: float, target: int, design: StimulusDesign) -> Answer:
-        texture, sampler = self._trial(design, level, target)
+        texture, sampler = self.trials.trial(design, level, target, self.speed_mm_s)
         rendered = render_offline(texture, design.layout, self.model, self.profile, self.speed_mm_s, self.force_n,
                                   sampler=sampler)
         self.rendered_frames += rendered.frames

@@ -104,11 +104,17 @@ def _grid(function: str, bounds_t, bounds_s, guess: float | None, max_lapse: flo
     return np.array(np.meshgrid(thresholds, log_slopes, guesses, lapses, indexing="ij")).reshape(4, -1)
 
 
-def _grid_log_likelihood(function, grid, x, n, k) -> np.ndarray:
-    """Log-likelihood of each parameter set (columns of ``grid``) for each data set (rows of ``k``)."""
+def _grid_log_probabilities(function, grid, x) -> tuple[np.ndarray, np.ndarray]:
+    """log P and log (1 - P) at each level (rows) for each parameter set (columns of ``grid``)."""
     p = probability(function, x[:, None], grid[0][None, :], np.exp(grid[1])[None, :], grid[2][None, :],
                     grid[3][None, :])
-    log_p, log_q = np.log(np.clip(p, 1e-9, 1)), np.log(np.clip(1 - p, 1e-9, 1))
+    return np.log(np.clip(p, 1e-9, 1)), np.log(np.clip(1 - p, 1e-9, 1))
+
+
+def _grid_log_likelihood(function, grid, x, n, k, log_probabilities=None) -> np.ndarray:
+    """Log-likelihood of each parameter set (columns of ``grid``) for each data set (rows of ``k``);
+    ``log_probabilities``: :func:`_grid_log_probabilities` of the same grid and levels, if computed."""
+    log_p, log_q = log_probabilities or _grid_log_probabilities(function, grid, x)
     k = np.atleast_2d(k)
     return k @ log_p + (n[None, :] - k) @ log_q
 
@@ -153,8 +159,10 @@ def bootstrap(fitted: Fit, levels, samples: int = 200, seed: int = 0, fit_guess:
     grid = _grid(fitted.function, *_bounds(fitted.function, low, high), None if fit_guess else fitted.guess,
                  max_lapse)
     thresholds = np.empty(samples)
+    log_probabilities = _grid_log_probabilities(fitted.function, grid, x)  # the same for every data set
     for chunk in range(0, samples, 50):  # bounded memory: 50 data sets at a time
-        best = np.argmax(_grid_log_likelihood(fitted.function, grid, x, n, k[chunk:chunk + 50]), axis=1)
+        best = np.argmax(_grid_log_likelihood(fitted.function, grid, x, n, k[chunk:chunk + 50], log_probabilities),
+                         axis=1)
         thresholds[chunk:chunk + 50] = grid[0][best]
     low_ci, high_ci = np.percentile(thresholds, [2.5, 97.5])
     return Fit(fitted.function, fitted.threshold, fitted.slope, fitted.guess, fitted.lapse, fitted.log_likelihood,
