@@ -156,7 +156,9 @@ class ClosedLoopRig:
                 self.targets.append(np.array(block.ratio, dtype=float))
                 self.commanded.append(drive)
                 self.intended.append(np.array(block.target_um_pp, dtype=float))
-                self.downs.append(np.broadcast_to(block.down, (FRAME,)).astype(bool))
+                down = block.down  # one for the block (a swipe's) or one a sample
+                self.downs.append(np.full(FRAME, down, dtype=bool) if np.ndim(down) == 0 else
+                                  np.array(down, dtype=bool))
                 if self.loop is not None:
                     self.loop.record(block.ratio, block.down)
                     x, y = block.x_mm, block.y_mm

@@ -289,14 +289,14 @@ class FirmwareCore:
         """The plate's measured amplitude (µm p-p) and forces (N) over the samples just rendered; returns the
         sample at which the core cut its drive (a trip), or the block's length."""
         n = len(amplitude_um_pp)
-        pointers = []
-        for k, values in enumerate((amplitude_um_pp, normal_force_n, lateral_force_n)):
-            if values is None:
-                pointers.append(None)
-            else:
-                self._sensed[k, :n] = values
-                pointers.append(self._sensed_at[k])
-        return self._lib.ug_sim_sense(self._sim, *pointers, n)
+        sensed, at = self._sensed, self._sensed_at  # the three rows, written in place (a plate's every block)
+        sensed[0, :n] = amplitude_um_pp
+        if normal_force_n is not None:
+            sensed[1, :n] = normal_force_n
+        if lateral_force_n is not None:
+            sensed[2, :n] = lateral_force_n
+        return self._lib.ug_sim_sense(self._sim, at[0], None if normal_force_n is None else at[1],
+                                      None if lateral_force_n is None else at[2], n)
 
     def dac(self, n_dac: int) -> np.ndarray:
         """The next ``n_dac`` carrier samples as a DAC plays them (int16, ±32767 at full-scale drive)."""
