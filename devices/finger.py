@@ -326,6 +326,7 @@ class SimulatedFinger:
         self.faults = tuple(faults)
         self.name = name or getattr(law, "__qualname__", "law")
         self._track = _Track(self.script)
+        self._steady = self._always_sliding(self.script)
         self._wet_alpha = math.exp(-1.0 / (self.sample_rate_hz * self.params.moisture_tau_s))
         self._wet = np.zeros(1)  # moisture, 0 (dry) to 1 (a long dwell)
         self._next_sample: int | None = None  # the first sample not yet given (blocks must be contiguous)
@@ -333,6 +334,16 @@ class SimulatedFinger:
         self._done = 0  # samples through the physics (the sensors hold their output)
         self._chunk = max(1, int(round(CHUNK_S * self.sample_rate_hz)))
         self.last: FingerTruth | None = None  # the newest chunk of truth
+
+    @staticmethod
+    def _always_sliding(script: ForceScript) -> bool:
+        """Whether the script's every sample touches and slides (truth's shortcut): its lowest force and speed
+        at least twice the thresholds, a margin no interpolation's rounding crosses."""
+        if script.kind == "points":
+            force, speed = min(script.forces_n), min(script.speeds_mm_s)
+        else:
+            force, speed = (script.low_n if script.kind == "walk" else script.force_n), script.speed_mm_s
+        return force >= 2.0 * LIFTED_N and speed >= 2.0 * SLIDING_MM_S
 
     def __repr__(self) -> str:
         p = self.params
@@ -349,17 +360,26 @@ class SimulatedFinger:
         """The finger's true state at the samples ``t_s`` (s, increasing, contiguous with the last call: the
         moisture carries over) for the plate's amplitude there (µm p-p)."""
         force, speed = self._track.at(t_s)
-        touching = force >= LIFTED_N
-        sliding = touching & (speed >= SLIDING_MM_S)
-        wet = touching.astype(float).reshape(1, -1)
+        steady = self._steady  # touching and sliding throughout: the masks' selections are the values themselves
+        if steady:
+            sliding = np.empty(force.shape, dtype=bool)
+            sliding.fill(True)
+            wet = np.empty((1, force.size))
+            wet.fill(1.0)
+        else:
+            touching = force >= LIFTED_N
+            sliding = touching & (speed >= SLIDING_MM_S)
+            wet = touching.astype(float).reshape(1, -1)
         low_pass(wet, self._wet_alpha, self._wet)  # dw/dt = (touching - w) / tau, sample by sample
         mu0 = self.params.mu0 * (1.0 + self.params.moisture * wet[0])
         scale = self.params.scale_at(t_s)
         amplitude = np.maximum(np.asarray(amplitude_um_pp, dtype=float), 0.0)
-        ratio = np.asarray(self.law(amplitude / scale, np.maximum(force, LIFTED_N)), dtype=float)
+        ratio = np.asarray(self.law(amplitude / scale, force if steady else np.maximum(force, LIFTED_N)), dtype=float)
         if ratio.shape != amplitude.shape:
             ratio = np.broadcast_to(ratio, amplitude.shape)
         ratio = np.minimum(np.maximum(ratio, 0.0), 1.0)  # np.clip's values, without its wrapper
+        if steady:
+            return FingerTruth(t_s, amplitude, force, ratio, sliding, mu0 * ratio * force, mu0)
         lateral = np.where(sliding, mu0 * ratio * force, 0.0)
         return FingerTruth(t_s, amplitude, np.where(touching, force, 0.0), ratio, sliding, lateral, mu0)
 
