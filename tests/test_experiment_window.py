@@ -5,6 +5,7 @@ import json
 import threading
 import time
 
+import conftest
 import numpy as np
 import pytest
 from ultraglide.apps.commands.experiment import design_for
@@ -176,7 +177,13 @@ def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
     helper.start()
     try:
         run_session(config, design, window, tmp_path)
-        status = window.output.engine.status(history_s=30.0)
+        engine = window.output.engine  # it takes the touches from its ring as it renders: wait until it has
+
+        def felt():
+            status = engine.status(history_s=30.0)
+            return status.touches >= 40 and float(status.history.target_ratio.min()) < 0.65
+        conftest.wait_for(felt, DEADLINE_S)
+        status = engine.status(history_s=30.0)
     finally:
         window.close()
     helper.join(timeout=DEADLINE_S)

@@ -16,12 +16,12 @@ from ultraglide.render.physics.model_base import (
     DEFAULT_FORCE_N,
     MAX_FORCE_N,
     MIN_FORCE_N,
-    SCALAR_CACHE,
     FrictionModel,
     check_amplitude,
     check_force,
     check_ratio,
     clip_force,
+    remembered,
 )
 
 REFERENCE_FORCE_N = 0.5  # the force at which a stretched model's scale is stated
@@ -115,15 +115,7 @@ class StretchedExponentialModel(FrictionModel):
         """s(F) at one force as a float, remembered for the last few forces (the live case: a closed loop asks at
         its measured force and at ±5 % of it)."""
         force = float(force_n)
-        scales = self.__dict__.get("_scales")
-        if scales is None:
-            scales = self._scales = {}
-        scale = scales.get(force)
-        if scale is None:
-            if len(scales) >= SCALAR_CACHE:
-                scales.clear()
-            scale = scales[force] = float(self.scale_at_um_pp(force))
-        return scale
+        return remembered(self, "_scales", force, lambda: float(self.scale_at_um_pp(force)))
 
     compiled = True
 

@@ -23,6 +23,19 @@ RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
 SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
 
 
+def remembered(owner, memo: str, key, compute):
+    """``compute()``, remembered in ``owner``'s dict named ``memo`` for the last ``SCALAR_CACHE`` keys."""
+    values = owner.__dict__.get(memo)
+    if values is None:
+        values = owner.__dict__[memo] = {}
+    value = values.get(key)
+    if value is None:
+        if len(values) >= SCALAR_CACHE:
+            values.clear()
+        value = values[key] = compute()
+    return value
+
+
 @dataclass(frozen=True)
 class FitRange:
     """Where a calibrated model was fitted: the distinct forces of its data (N) and its point count."""
@@ -239,16 +252,8 @@ class FrictionModel(ABC):
         asks at its measured force and at ±5 % of it, its limit moving with its scale)."""
         if isinstance(force_n, np.ndarray) and force_n.ndim:
             return self.relative_friction(limit, force_n)
-        key = (float(force_n), limit)
-        floors = self.__dict__.get("_floors")
-        if floors is None:
-            floors = self._floors = {}
-        floor = floors.get(key)
-        if floor is None:
-            if len(floors) >= SCALAR_CACHE:
-                floors.clear()
-            floor = floors[key] = float(self.relative_friction(limit, force_n))
-        return floor
+        return remembered(self, "_floors", (float(force_n), limit),
+                          lambda: float(self.relative_friction(limit, force_n)))
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """Lowest ratio reachable at this force within the amplitude limit."""
