@@ -41,7 +41,7 @@ from typing import Protocol
 import numpy as np
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
-from ultraglide.devices.kernels import first_order, first_order_filter
+from ultraglide.devices.kernels import first_order_filter
 from ultraglide.devices.profiles import PlateProfile
 
 TICK_S = 0.002  # the output stage's clock while it has work: enabled, or the plate still moving
@@ -336,9 +336,7 @@ class PlateSimulator:
         # block late (its limiter and trip do not need it sooner; its amplitude loop does)
         block = (LOOP_BLOCK if status.loop else BLOCK) if status.enabled else sil.MAX_RENDER
         t0 = status.samples / self.sample_rate_hz  # the core's sample clock: a finger's blocks join exactly
-        # resonator_phasor's filter, its coefficients worked out once a call rather than once a block (the
-        # same kernel and numbers); the reductions by their ufuncs, without ndarray.min/max's wrappers
-        b0 = (1.0 - alpha) * gain
+        # the reductions by their ufuncs, without ndarray.min/max's wrappers
         render, sense, finger, rate = self.core.render, self.core.sense, self.finger, self.sample_rate_hz
         declared = self.profile.full_scale_um_pp  # the drive in the firmware's units, as its limit
         smallest, largest = np.minimum.reduce, np.maximum.reduce
@@ -349,8 +347,7 @@ class PlateSimulator:
             if abs(self._plate_state) <= REST_UM_PP and not drive.any():
                 phasor = np.zeros(k)
             else:
-                phasor = np.empty(k)
-                first_order(b0, 0.0, -alpha, drive.astype(float), alpha * self._plate_state, phasor)
+                phasor = resonator_phasor(drive, self._plate_state, alpha, gain)
                 low, high = self.drive_range_um_pp
                 self.drive_range_um_pp = (min(low, float(smallest(drive)) * declared),
                                           max(high, float(largest(drive)) * declared))
