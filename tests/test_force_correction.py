@@ -218,8 +218,8 @@ def test_the_force_exponent_is_what_each_models_inverse_gives():
 
 
 def test_one_amplitude_is_the_array_inverses_to_the_bit():
-    """The scalar inverse the force exponent uses is the array inverse's value exactly, for the laws with a closed
-    form of their own (the stretched family) and the others (a table of the paper's), at the limit and the floor."""
+    """The scalar inverse the force exponent uses is the array inverse's value exactly, for the stretched family and
+    a table (the paper's), at the limit and the floor."""
     from ultraglide.render.physics.empirical_models import StretchedExponentialModel
 
     rng = np.random.default_rng(5)

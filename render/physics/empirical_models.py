@@ -3,8 +3,6 @@ exponential special case (Monnoyer et al. 2018)."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike
 from ultraglide.render.physics import kernels
@@ -18,8 +16,6 @@ from ultraglide.render.physics.model_base import (
     MIN_FORCE_N,
     FrictionModel,
     check_amplitude,
-    check_force,
-    check_ratio,
     clip_force,
     remembered,
 )
@@ -122,33 +118,6 @@ class StretchedExponentialModel(FrictionModel):
     def _inverse_one_force(self, ratio, force_n, limit, out) -> int:
         return kernels.inverse_stretched(ratio, self._floor(force_n, limit), limit, self._scale_at(force_n),
                                          1.0 / self.shape, self.residual_ratio, out)
-
-    def one_amplitude_um_pp(self, ratio: float, force_n: float, limit_um_pp: float = np.inf,
-                            work: np.ndarray | None = None) -> float:
-        """One ratio at one force in Python floats, the compiled inverse's arithmetic step for step (the same
-        value to the bit, checked against it), without an array or a kernel call: a closed loop's force exponent
-        asks for two a block."""
-        if not limit_um_pp >= 0:
-            raise ModelError(f"the amplitude limit must be >= 0 µm, got {limit_um_pp}")
-        force = float(force_n)
-        if not 0.0 <= force < math.inf:
-            check_force(force)  # raises, in the array path's words
-        if not self._range_said:
-            self._note_force_range(force)
-        r = float(ratio)
-        if not 0.0 <= r < math.inf:
-            check_ratio(np.array([r]))  # raises, in the array path's words
-        limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
-        if r >= 1.0:
-            return 0.0
-        if r < self._floor(force, limit):
-            return limit
-        residual = self.residual_ratio
-        reducible = r if residual == 0.0 else (r - residual) / (1.0 - residual)
-        depth = -math.log(reducible) if reducible > 0.0 else math.inf  # at the floor itself: as the kernel's -log(0)
-        inverse_shape = 1.0 / self.shape
-        return min(self._scale_at(force) * (math.sqrt(depth) if inverse_shape == 0.5 else depth ** inverse_shape),
-                   limit)
 
     def _inverse_forces(self, ratio, force_n, limit, out) -> int:
         return kernels.inverse_stretched_forces(ratio, force_n, limit, self.scale_um_pp, 1.0 / self.shape,

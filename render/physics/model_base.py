@@ -302,7 +302,7 @@ class FrictionModel(ABC):
     def one_amplitude_um_pp(self, ratio: float, force_n: float, limit_um_pp: float = np.inf,
                             work: np.ndarray | None = None) -> float:
         """The inverse of one ratio at one force, as a float (µm p-p): what :meth:`amplitude_um_pp` gives for it.
-        ``work``: two floats to compute in (no allocation); models with a closed form need none."""
+        ``work``: two floats to compute in (no allocation)."""
         work = np.empty(2) if work is None else work
         work[0] = ratio
         return float(self.amplitude_um_pp(work[0:1], force_n, limit_um_pp, work[1:2]).amplitude_um_pp[0])
