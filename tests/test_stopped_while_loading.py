@@ -11,10 +11,14 @@ lands while the engine loads or once it runs, the same must hold.
 import os
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import start_cli, wait_for
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.texture import Texture
 
 
 def engine_of(pid: int) -> int | None:
@@ -63,3 +67,35 @@ def test_a_command_stopped_while_its_engine_loads_says_so_in_one_line_and_leaves
     assert err.strip() == f"ultraglide: stopped ({signal.Signals(signum).name})", err  # no traceback, no warning
     assert not [path.name for path in tmp_path.iterdir() if path.name.endswith(".part") or ".ultraglide-" in path.name]
     assert segments(process.pid) == []
+
+
+SIGNAL_WHILE_THE_SEGMENT_IS_MADE = r'''
+import os, signal, sys
+from multiprocessing import shared_memory
+from ultraglide.render.engine import Engine, EngineConfig
+
+def interrupt_inside_the_making(frame, event, arg):
+    # a real Ctrl-C, sent at the one moment it used to cost a leak: the segment named to the resource tracker,
+    # not yet made
+    if event == "call" and frame.f_code is shared_memory.SharedMemory.__init__.__code__:
+        sys.setprofile(None)
+        os.kill(os.getpid(), signal.SIGINT)
+
+sys.setprofile(interrupt_inside_the_making)
+try:
+    Engine.start(EngineConfig(texture=sys.argv[1], device="null"))
+except KeyboardInterrupt:
+    print("stopped", os.getpid())
+'''
+
+
+def test_ctrl_c_while_the_engines_shared_memory_is_made_leaves_no_segment_and_no_warning(tmp_path):
+    """Ctrl-C in the instant the engine's segment is named to the resource tracker but not yet made: the start
+    still ends as a stop, and neither the segment nor the tracker's record of it outlives the process (else the
+    tracker warns of a leak on its way out, on the command's terminal)."""
+    texture = save_texture(Texture(np.ones((2, 2), np.float32), 10.0, 10.0), tmp_path / "t.png")
+    result = subprocess.run([sys.executable, "-c", SIGNAL_WHILE_THE_SEGMENT_IS_MADE, str(texture)],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0 and result.stdout.startswith("stopped "), result.stdout + result.stderr
+    assert result.stderr == ""  # the resource tracker's "leaked shared_memory objects", had it kept a record
+    assert segments(int(result.stdout.split()[1])) == []

@@ -123,18 +123,22 @@ class Engine:
             keep_huge_pages_out()
         forked = _fork_is_safe()
         context = multiprocessing.get_context("fork" if forked else "spawn")
-        shared = SharedBlock.create()
-        parent, child = context.Pipe()
-        target, args = (forked_engine_main, (config, shared.name, child, parent)) if forked else \
-            (engine_main, (config, shared.name, child))
-        process = context.Process(target=target, args=args, daemon=True, name="ultraglide-engine")
-        held = None
+        # stop signals held from the segment's making to the process's start: a segment half made (named to the
+        # resource tracker, not yet made) would be called leaked, and a spawn cut halfway by Ctrl-C would leave
+        # the child a traceback of its own
+        held = _hold_stop_signals()
+        shared = None
         try:
-            held = _hold_stop_signals()  # a spawn cut halfway by Ctrl-C would leave the child a traceback of its own
+            shared = SharedBlock.create()
+            parent, child = context.Pipe()
+            target, args = (forked_engine_main, (config, shared.name, child, parent)) if forked else \
+                (engine_main, (config, shared.name, child))
+            process = context.Process(target=target, args=args, daemon=True, name="ultraglide-engine")
             with _main_module_hidden():
                 process.start()
         except BaseException:
-            shared.close()
+            if shared is not None:
+                shared.close()
             _release_stop_signals(held)
             raise
         try:
@@ -354,9 +358,10 @@ def _fork_is_safe() -> bool:
 
 
 def _hold_stop_signals():
-    """Hold the stop signals while the engine is spawned: their handlers (Ctrl-C's KeyboardInterrupt, the app's
-    SIGTERM) only record them until :func:`_release_stop_signals`, which delivers them again. A spawn cut halfway
-    leaves the new process its own traceback (``EOFError`` reading what it was sent). Handlers run in the main
+    """Hold the stop signals while the engine's segment is made and its process started: their handlers (Ctrl-C's
+    KeyboardInterrupt, the app's SIGTERM) only record them until :func:`_release_stop_signals`, which delivers
+    them again. A spawn cut halfway leaves the new process its own traceback (``EOFError`` reading what it was
+    sent). Handlers run in the main
     thread only (a signal mask would not do: another thread takes the signal); elsewhere, nothing to hold."""
     if threading.current_thread() is not threading.main_thread():
         return None
