@@ -81,6 +81,7 @@ def interrupt_inside_the_making(frame, event, arg):
         sys.setprofile(None)
         os.kill(os.getpid(), signal.SIGINT)
 
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as at a terminal (a test worker's children ignore it)
 sys.setprofile(interrupt_inside_the_making)
 try:
     Engine.start(EngineConfig(texture=sys.argv[1], device="null"))
