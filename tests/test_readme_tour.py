@@ -187,7 +187,7 @@ class Tour:
                 assert time.monotonic() < deadline, session.said()
                 rows = trials.read_text().count("\n") if trials.exists() else 0
                 self.xdo("key", key)
-                step = time.monotonic() + 0.25  # then again: the window may not have shown the trial yet (a key
+                step = time.monotonic() + 0.06  # then again: the window may not have shown the trial yet (a key
                 # too many is dropped when the next trial clears the window's events, or answers it: all the same)
                 while time.monotonic() < step and session.process.poll() is None:
                     if trials.exists() and trials.read_text().count("\n") > rows:
