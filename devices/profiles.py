@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.protocol_spec import SETPOINT_SCALE
 
 from ultraglide.inputs import parse_toml, read_input, some_of
 
@@ -91,8 +92,9 @@ class PlateProfile:
             self._within(key, value, lowest, HIGHEST_HZ, "Hz")
         self._within("q", self.q, *Q_RANGE)
         self._within("full_scale_um_pp", self.full_scale_um_pp, *FULL_SCALE_RANGE_UM_PP, "µm p-p")
-        self._within("max_amplitude_um_pp", self.max_amplitude_um_pp, 0.0, self.full_scale_um_pp,
-                     "µm p-p (above 0, at most full_scale_um_pp)", open_low=True)
+        # a limit finer than one step of the drive's 16-bit setpoints could only be kept by never driving the plate
+        self._within("max_amplitude_um_pp", self.max_amplitude_um_pp, self.full_scale_um_pp / SETPOINT_SCALE,
+                     self.full_scale_um_pp, "µm p-p (from one step of the 16-bit drive to full_scale_um_pp)")
         self._within("max_drive_um_pp", self.max_drive_um_pp, self.max_amplitude_um_pp, self.full_scale_um_pp,
                      "µm p-p (from max_amplitude_um_pp to full_scale_um_pp)")
         self._within("carrier_max_hz", self.carrier_max_hz, self.carrier_min_hz, HIGHEST_HZ,

@@ -340,7 +340,11 @@ def test_the_limit_costs_nothing_the_default_plate_can_follow(speed_mm_s, allowe
 @pytest.mark.parametrize("change, fragment", [
     ({"q": 1.0}, "q = 1 is outside 5..5000"),
     ({"q": 1e9}, "q = 1e+09 is outside 5..5000"),
-    ({"max_amplitude_um_pp": 9.0}, "max_amplitude_um_pp = 9 is outside 0..8"),
+    ({"max_amplitude_um_pp": 9.0}, "max_amplitude_um_pp = 9 is outside 0.000122072..8"),
+    # below one step of the 16-bit drive (8 / 65535 µm p-p): a limit only never driving could keep
+    ({"max_amplitude_um_pp": 0.0}, "max_amplitude_um_pp = 0 is outside 0.000122072..8"),
+    ({"max_amplitude_um_pp": 5e-324}, "max_amplitude_um_pp = 4.94066e-324 is outside 0.000122072..8"),
+    ({"max_amplitude_um_pp": 1e-4}, "max_amplitude_um_pp = 0.0001 is outside 0.000122072..8"),
     ({"max_drive_um_pp": 1.0}, "max_drive_um_pp = 1 is outside 2..8"),
     ({"max_drive_um_pp": 9.0}, "max_drive_um_pp = 9 is outside 2..8"),
     ({"full_scale_um_pp": 1000.0}, "full_scale_um_pp = 1000 is outside 0.01..100"),
@@ -356,6 +360,14 @@ def test_bad_profiles_get_one_line_naming_key_value_and_range(tmp_path, change, 
     with pytest.raises(DeviceError) as caught:
         load_profile(str(write_profile(tmp_path, {**WEAK, **change})))
     assert fragment in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_the_finest_limit_a_profile_takes_is_one_step_of_the_drive_and_the_firmware_core_takes_it_too(tmp_path):
+    from ultraglide.devices.firmware.sil import CoreSettings, FirmwareCore
+
+    profile = load_profile(str(write_profile(tmp_path, {**WEAK, "max_amplitude_um_pp": 8.0 / 65535})))
+    assert profile.max_amplitude_um_pp == 8.0 / 65535
+    FirmwareCore(CoreSettings.of(profile))  # configured (it refuses what it cannot keep, e.g. a limit of 0 in float32)
 
 
 def test_a_bad_profile_stops_export_with_one_line_and_no_file(tmp_path):
