@@ -22,6 +22,7 @@ import re
 import select
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -96,6 +97,31 @@ def test_firmware_build_prints_each_image_with_the_sizes_binutils_reads(tmp_path
         assert 0x0800_0000 <= pc < 0x0810_0000 and pc & 1  # a Thumb address in flash
     words = run_cli("firmware", "build", "-o", tmp_path, check=True).stdout
     assert re.search(r"hardware\s+\S+hardware\.elf\n\s+flash \d+ bytes", words)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device node", "link", "objects folder a file"])
+def test_firmware_build_into_a_folder_refuses_what_is_not_its_own_output(tmp_path, kind):
+    """``firmware build -o DIR`` writes images, maps and objects under names of its own; one of those names taken
+    by a named pipe (the linker would wait on it forever), a device node (it would take the image) or a link (the
+    file it points to would be overwritten) is refused in one line, before anything is built, and left as it was."""
+    elf = tmp_path / "ultraglide-netduinoplus2-hardware.elf"
+    elsewhere = tmp_path / "someone-elses.txt"
+    elsewhere.write_text("theirs\n")
+    if kind == "fifo":
+        os.mkfifo(elf)
+    elif kind == "device node":
+        if os.geteuid() != 0:
+            pytest.skip("mknod needs root")
+        os.mknod(elf, 0o666 | stat.S_IFCHR, os.stat("/dev/null").st_rdev)
+    elif kind == "link":
+        elf.with_suffix(".map").symlink_to(elsewhere)
+    else:
+        (tmp_path / "qemu").write_text("not a folder\n")
+    before = {path.name: path.lstat() for path in tmp_path.iterdir()}
+    line = assert_one_line_error(run_cli("firmware", "build", "-o", tmp_path, timeout=120))
+    assert "where the build writes" in line and str(tmp_path) in line
+    assert {path.name: path.lstat() for path in tmp_path.iterdir()} == before  # nothing made, nothing touched
+    assert elsewhere.read_text() == "theirs\n"
 
 
 def test_map_sizes_reads_sections_where_they_live():

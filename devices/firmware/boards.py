@@ -126,9 +126,34 @@ def build_images(board: str = "netduinoplus2", variants=("hardware", "qemu"), ou
         if target.exists() and not target.is_dir():
             raise DeviceError(f"{out_dir} is not a directory: give -o a directory for the images")
         target.mkdir(parents=True, exist_ok=True)
+        _refuse_what_is_not_a_build_output(target, board, variants)
         _compiler_version()
         _make(port, target, variants)
     return [_image(board, variant, target) for variant in variants]
+
+
+def _refuse_what_is_not_a_build_output(target: Path, board: str, variants) -> None:
+    """The build writes each variant's image, binary and map into ``target`` and its objects into
+    ``target/VARIANT/``; whatever is already there under those names must be a regular file (or that folder), or
+    the compiler would write into it: a named pipe would hang the build, a device node would take the image, a
+    link would overwrite the file it points to. DeviceError (one line) naming the first such path."""
+    def refuse(path: Path, what: str) -> None:
+        raise DeviceError(f"{path} is {what}, where the build writes: move it away or give -o another directory")
+
+    for variant in variants:
+        elf = target / _elf_name(board, variant)
+        for path in (elf, elf.with_suffix(".map"), elf.with_suffix(".bin")):
+            if path.is_symlink():
+                refuse(path, "a link")
+            if path.exists() and not path.is_file():
+                refuse(path, "not a regular file")
+        objects = target / variant
+        if objects.is_symlink() or (objects.exists() and not objects.is_dir()):
+            refuse(objects, "not a directory of the build's objects")
+        if objects.is_dir():
+            for path in objects.iterdir():
+                if path.is_symlink() or not path.is_file():
+                    refuse(path, "not a regular file")
 
 
 def _elf_name(board: str, variant: str) -> str:
