@@ -361,8 +361,8 @@ def _hold_stop_signals():
     """Hold the stop signals while the engine's segment is made and its process started: their handlers (Ctrl-C's
     KeyboardInterrupt, the app's SIGTERM) only record them until :func:`_release_stop_signals`, which delivers
     them again. A spawn cut halfway leaves the new process its own traceback (``EOFError`` reading what it was
-    sent). Handlers run in the main
-    thread only (a signal mask would not do: another thread takes the signal); elsewhere, nothing to hold."""
+    sent). Handlers run in the main thread only (a signal mask would not do: another thread takes the signal);
+    elsewhere, nothing to hold."""
     if threading.current_thread() is not threading.main_thread():
         return None
     received: list[int] = []
