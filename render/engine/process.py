@@ -317,6 +317,8 @@ def engine_main(config, shared_name: str, conn) -> None:
         gc.collect()
         gc.freeze()  # everything built so far is permanent: later collections never walk it
         gc.disable()  # no collection can start inside a block; the command thread collects when idle
+        if config.realtime_priority:  # before the device starts: the threads it starts (a plate driver's writer,
+            raise_other_threads()  # which must send within the plate's 100 ms watchdog from the enable on) inherit it
         device.start(source)
         if loop is not None:
             check_sensors(device, loop)

@@ -67,19 +67,21 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
     All of them take the GIL now and then (the command thread, a serial reader, the simulated plate);
     one preempted by an ordinary process while it holds the GIL would stall the block thread for a
     whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
-    audio server, above everything ordinary, and they sleep almost all the time."""
-    raised = 0
+    audio server, above everything ordinary, and they sleep almost all the time. Threads they start later
+    inherit it. Says how many threads run at that priority (raised now or before)."""
+    running = 0
     try:
         for tid in map(int, os.listdir("/proc/self/task")):
             try:
                 if os.sched_getscheduler(tid) == os.SCHED_OTHER:
                     os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-                    raised += 1
+                if os.sched_getscheduler(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == priority:
+                    running += 1
             except (ProcessLookupError, PermissionError):
                 continue
     except (OSError, AttributeError):
         return "other threads: normal"
-    return f"other threads: SCHED_FIFO {priority} ({raised})" if raised else "other threads: normal"
+    return f"other threads: SCHED_FIFO {priority} ({running})" if running else "other threads: normal"
 
 
 
