@@ -1,8 +1,8 @@
 """The real-time engine in its own process: touches in, status out, the device kept fed whatever the UI does.
 
 The renderer and the device run in a process of their own (:mod:`render.engine.process`; forked from an app
-with one thread, else spawned), so drawing,
-event handling and garbage in the UI never hold the GIL the block path needs. Two doors:
+with one thread, else spawned), so drawing, event handling and garbage in the UI never hold the GIL the
+block path needs. Two doors:
 
 * **in**: :meth:`Engine.touch` writes a touch report into a shared-memory ring (never waits);
   rare commands (texture, model, force, pause, stop) go over a pipe;

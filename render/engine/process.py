@@ -1,11 +1,11 @@
 """The engine's own process: the renderer and the device, fed through shared memory.
 
 :func:`engine_main` is what :class:`render.engine.Engine` spawns (:func:`forked_engine_main` when it
-forks). Its main thread loads the inputs,
-opens the device, answers rare commands from the pipe and publishes the device's status; the
-device's own thread (PortAudio's callback, the serial writer, the paced sink) pulls blocks from
-:class:`EngineSource`, whose ``pull`` is the block path: drain the touch ring into the renderer,
-render, publish the block's figures. The block path never waits on the UI or on the command thread.
+forks). Its main thread loads the inputs, opens the device, answers rare commands from the pipe and
+publishes the device's status; the device's own thread (PortAudio's callback, the serial writer, the
+paced sink) pulls blocks from :class:`EngineSource`, whose ``pull`` is the block path: drain the touch
+ring into the renderer, render, publish the block's figures. The block path never waits on the UI or on
+the command thread.
 
 If the pipe to the parent closes (the parent died) or SIGTERM arrives, the engine ramps to rest,
 rests the hardware and exits.
