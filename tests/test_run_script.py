@@ -62,3 +62,21 @@ def test_the_tests_after_the_demo_install_what_the_tests_need(checkout):
     assert installs(run(checkout, "demo")) == ["python -m pip install -q -e .[demo]"]
     assert installs(run(checkout, "tests", "--co")) == ["python -m pip install -q -e .[demo,test,docs]"]
     assert installs(run(checkout, "demo")) == []
+
+
+@pytest.mark.skipif(shutil.which("dpkg-query") is None, reason="./run checks system packages with dpkg")
+def test_the_tests_keep_python_s_compiled_modules_even_where_the_shell_forbids_writing_them(checkout):
+    """With PYTHONDONTWRITEBYTECODE set, each of the suite's interpreters would compile our modules afresh."""
+    import os
+
+    python = checkout / ".venv" / "bin" / "python"
+    python.write_text(FAKE.format(log=checkout / "calls.log").replace(
+        'echo "$(basename "$0") $*"', 'echo "$(basename "$0") $* [${PYTHONDONTWRITEBYTECODE-unset}]"'))
+    run(checkout, "demo")  # installed once, so the calls below are the tests' own
+    log = checkout / "calls.log"
+    log.write_text("")
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    result = subprocess.run(["./run", "tests", "-k", "x"], cwd=checkout, env=env, capture_output=True, text=True,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr
+    assert log.read_text().splitlines()[-1] == "python -m pytest -n 2 -k x [unset]"
