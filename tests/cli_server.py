@@ -42,6 +42,9 @@ if "numba" in sys.modules:  # numba's CPU target, which every process builds at 
     from numba.core.registry import cpu_target  # (cached or not; 0.2 s): the library's start-up, not ours
     cpu_target.target_context.refresh()
     cpu_target.target_context.codegen()
+import gc  # the children's collector leaves the preloaded objects alone: a collection would write to every
+gc.collect()  # page that holds one, copying the server's memory into each child
+gc.freeze()
 sys.stderr.flush()
 control.sendall(b"ready\n")
 wake_read, wake_write = socket.socketpair()
