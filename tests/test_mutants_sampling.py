@@ -189,6 +189,25 @@ def test_each_pyramid_level_is_half_the_one_before_rounded_until_a_side_is_under
                                                                                                       (6, 14)]
 
 
+@pytest.mark.parametrize("outside", ["tile", "clamp"])
+@pytest.mark.parametrize("shape", [(11, 27), (64, 48), (5, 9), (33, 4)])
+def test_each_pyramid_level_is_scipys_gaussian_blur_then_half_size_linear_zoom(outside, shape):
+    """The levels, built without scipy, against scipy.ndimage's own blur and zoom (its edge modes named
+    for a tile and for a clamped texture)."""
+    from scipy import ndimage
+
+    values = np.random.default_rng(5).random(shape).astype(np.float32)
+    texture = Texture(values, 3.0 * shape[1], 3.0 * shape[0], outside=outside)
+    mode, grid_mode = ("wrap", "grid-wrap") if outside == "tile" else ("nearest", "nearest")
+    expected = values
+    for level in Sampler(texture).pyramids[0][1:]:
+        blurred = ndimage.gaussian_filter(expected, sigma=1.0, mode=mode)
+        zoom = (level.shape[0] / expected.shape[0], level.shape[1] / expected.shape[1])
+        expected = ndimage.zoom(blurred, zoom, order=1, mode=grid_mode, grid_mode=True)
+        assert level.shape == expected.shape and level.dtype == np.float32
+        assert level == pytest.approx(expected, abs=1e-6)
+
+
 @pytest.mark.parametrize("kind", ["friction", "gradient"])
 def test_a_fixed_outside_starts_exactly_at_the_edges(kind):
     # 10 x 5 mm of 0.75 (flat ground for a height map: the middle of 0.5..1), 0.25 beyond its edges:

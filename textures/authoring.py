@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
-from scipy import ndimage
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import held_size, pillow_failure
 from ultraglide.textures.seams import DEFAULT_BAND, METHODS, make_seamless, measure_seams
@@ -266,6 +265,8 @@ def _cropped(image: Image.Image, options: AuthoringOptions, info: dict) -> Image
 
 
 def _edges(values: np.ndarray, mode: str = "nearest") -> np.ndarray:
+    from scipy import ndimage  # here, as below: the library (and so every command) imports this module
+
     strength = np.hypot(ndimage.sobel(values, axis=1, mode=mode), ndimage.sobel(values, axis=0, mode=mode))
     top = strength.max()
     return strength / top if top > 0 else strength
@@ -299,6 +300,8 @@ def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, nam
     edge_mode = "wrap" if options.seamless else "nearest"  # a tile's neighbours are across its seam
     if options.blur_mm > 0:  # on any tile: a blur that replicated its edges would keep the step across the seam
         blur_mode = "wrap" if options.seamless or options.outside == "tile" else "nearest"  # while it smooths
+        from scipy import ndimage
+
         values = ndimage.gaussian_filter(values, sigma=options.blur_mm / (width_mm / cols), mode=blur_mode)  # inside
     if options.mode == "edges":
         values = _edges(values, edge_mode)

@@ -24,7 +24,6 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import ndimage
 from ultraglide.textures import kernels
 from ultraglide.textures.texture import Texture, gradient_ratio
 
@@ -43,15 +42,52 @@ def gradient_maps(texture: Texture) -> tuple[np.ndarray, np.ndarray]:
     return slope_x.astype(np.float32), slope_y.astype(np.float32)
 
 
+# a Gaussian of one pixel's sigma cut at four sigmas (scipy.ndimage's default): the blur before each halving
+_BLUR_TAPS = np.exp(-0.5 * np.arange(-4.0, 5.0) ** 2)
+_BLUR_TAPS /= _BLUR_TAPS.sum()
+
+
+def _blur(image: np.ndarray, wrap: bool) -> np.ndarray:
+    """``image`` blurred by a Gaussian of one pixel, down the columns then along the rows; past the edges it
+    wraps round (a tile) or repeats the edge pixel. What ``scipy.ndimage.gaussian_filter(sigma=1)`` computes
+    (to float32's rounding), without loading scipy (0.15 s of a command's start) for it."""
+    return _blur_columns(_blur_columns(np.asarray(image, dtype=np.float32), wrap).T, wrap).T
+
+
+def _blur_columns(image: np.ndarray, wrap: bool) -> np.ndarray:
+    radius = len(_BLUR_TAPS) // 2
+    padded = np.pad(image, ((radius, radius), (0, 0)), mode="wrap" if wrap else "edge")
+    n = image.shape[0]
+    out = padded[radius:radius + n] * np.float32(_BLUR_TAPS[radius])
+    pair = np.empty_like(out)
+    for k in range(radius):  # the taps are symmetric: one product for the pair either side
+        np.add(padded[k:k + n], padded[2 * radius - k:2 * radius - k + n], out=pair)
+        pair *= np.float32(_BLUR_TAPS[k])
+        out += pair
+    return out
+
+
+def _halve(image: np.ndarray, wrap: bool) -> np.ndarray:
+    """``image`` at half its size on each axis (rounded), each new pixel interpolated linearly at its centre
+    (``scipy.ndimage.zoom(order=1, grid_mode=True)``); past the edges it wraps round or repeats the edge."""
+    for axis in (0, 1):
+        n = image.shape[axis]
+        m = max(1, round(n / 2))
+        centre = (np.arange(m) + 0.5) * (n / m) - 0.5  # in the input's pixels
+        low = np.floor(centre).astype(np.intp)
+        fraction = (centre - low).astype(np.float32)
+        below, above = (low % n, (low + 1) % n) if wrap else (np.clip(low, 0, n - 1), np.clip(low + 1, 0, n - 1))
+        if axis == 1:
+            image = image[:, below] * (1 - fraction) + image[:, above] * fraction
+        else:
+            image = image[below] * (1 - fraction)[:, None] + image[above] * fraction[:, None]
+    return image
+
+
 def _pyramid(image: np.ndarray, wrap: bool, levels: int) -> list[np.ndarray]:
     pyramid = [np.ascontiguousarray(image, dtype=np.float32)]
-    mode, grid_mode = ("wrap", "grid-wrap") if wrap else ("nearest", "nearest")
     while len(pyramid) < levels and min(pyramid[-1].shape) >= 2 * MIN_LEVEL_PIXELS:
-        previous = pyramid[-1]
-        blurred = ndimage.gaussian_filter(previous, sigma=1.0, mode=mode)
-        shape = (max(1, round(previous.shape[0] / 2)), max(1, round(previous.shape[1] / 2)))
-        zoom = (shape[0] / previous.shape[0], shape[1] / previous.shape[1])
-        pyramid.append(ndimage.zoom(blurred, zoom, order=1, mode=grid_mode, grid_mode=True).astype(np.float32))
+        pyramid.append(np.ascontiguousarray(_halve(_blur(pyramid[-1], wrap), wrap), dtype=np.float32))
     for level in pyramid:  # immutable lookup data; also one array type for the compiled lookups
         level.setflags(write=False)
     return pyramid
