@@ -187,6 +187,14 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert not app.running
 
 
+def test_the_demos_engine_is_forked_from_it_not_spawned(app):
+    """Its process is started on the demo's one thread, so it begins with what the demo imported (in a test
+    worker: numba and the kernels, a second of CPU a spawned interpreter would spend again)."""
+    engine = app.link.engine.process.pid
+    own = Path(f"/proc/{os.getpid()}/cmdline").read_bytes()
+    assert Path(f"/proc/{engine}/cmdline").read_bytes() == own  # a spawned one runs multiprocessing's spawn_main
+
+
 def test_a_texture_named_on_the_command_line_is_on_screen_at_once(app):
     """``demo halves.png --record drag.csv``: the finger is on halves at once, not on the gallery."""
     assert app.scene == "texture" and app.scenes.current.name == "halves"

@@ -291,3 +291,15 @@ def test_wait_ready_returns_once_the_device_has_taken_a_block(device):
         status = engine.status()
         assert status.state == "running" and status.blocks >= 1, status.words()
         assert status.words().startswith(f"{device} running | ")
+
+
+def test_an_engine_launched_and_abandoned_leaves_no_process_or_segment(steps):
+    """Engine.launch returns while the engine loads; abandon() ends it before it serves."""
+    import multiprocessing
+
+    segments = set(os.listdir("/dev/shm"))
+    launched = Engine.launch(EngineConfig(texture=steps, device="null"))
+    assert multiprocessing.active_children()  # it runs, loading
+    launched.abandon()
+    assert not multiprocessing.active_children()
+    assert set(os.listdir("/dev/shm")) <= segments

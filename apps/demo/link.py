@@ -2,8 +2,8 @@
 
 :class:`DemoLink` wraps :class:`ultraglide.render.engine.Engine` (the renderer and the device in their
 own process, touches through shared memory) with what the demo's status line and chart need. The
-engine is started on a thread (:class:`LinkStarter`) after the first frame is on screen; its process
-imports numpy and numba and compiles the kernels while the window already responds. Touches made
+engine's process is started after the first frame is on screen (:class:`LinkStarter`) and waited for on a
+thread: it loads numba and the kernels while the window already responds. Touches made
 before it is ready are not queued (a finger's old positions would be felt late): the demo draws them
 and counts them as not felt, and says so on its status line.
 """
@@ -73,16 +73,28 @@ class DemoLink:
         self._texture_since_s = 0.0  # the engine's clock at the last change of texture
         self._stopped = False
 
-    @classmethod
-    def start(cls, config: LinkConfig) -> DemoLink:
-        """Start the engine (bad specs and devices raise here, one line) and wait until it renders."""
-        from ultraglide.devices.profiles import load_profile
+    @staticmethod
+    def launch(config: LinkConfig):
+        """The engine's process started, loading its inputs (:meth:`Engine.launch`): give it to :meth:`start`."""
         from ultraglide.render.engine import Engine, EngineConfig
 
-        profile = load_profile(config.profile)
-        engine = Engine.start(EngineConfig(texture=config.texture, model=config.model, profile=config.profile,
-                                           device=config.device, start_paused=True, closed_loop=config.closed_loop,
-                                           finger=config.finger), START_TIMEOUT_S)
+        return Engine.launch(EngineConfig(texture=config.texture, model=config.model, profile=config.profile,
+                                          device=config.device, start_paused=True, closed_loop=config.closed_loop,
+                                          finger=config.finger))
+
+    @classmethod
+    def start(cls, config: LinkConfig, launched=None) -> DemoLink:
+        """Start the engine, or take the one ``launched`` for ``config`` (bad specs and devices raise here, one
+        line), and wait until it renders."""
+        from ultraglide.devices.profiles import load_profile
+
+        launched = launched if launched is not None else cls.launch(config)
+        try:
+            profile = load_profile(config.profile)
+        except BaseException:
+            launched.abandon()
+            raise
+        engine = launched.wait(START_TIMEOUT_S)
         try:
             engine.wait_ready(START_TIMEOUT_S)  # until the device has taken its first block
         except BaseException:
@@ -176,19 +188,28 @@ def _fault_words(s) -> list[str]:
 
 
 class LinkStarter:
-    """Starts a :class:`DemoLink` on a thread so the window stays responsive while the engine starts."""
+    """Starts a :class:`DemoLink` so the window stays responsive while the engine starts: the engine's process is
+    started here, on the app's one thread (so it is forked, with what the app has imported, not spawned: half a
+    second sooner), and waited for on a thread of its own."""
 
     def __init__(self, config: LinkConfig):
         self.link: DemoLink | None = None
         self.error: BaseException | None = None
         self.ready = threading.Event()
         self.started_s = time.perf_counter()
-        self._thread = threading.Thread(target=self._run, args=(config,), name="demo-link-start", daemon=True)
+        try:
+            launched = DemoLink.launch(config)
+        except Exception as error:  # noqa: BLE001 - raised on the UI thread by wait(), as a failed start is
+            self.error = error
+            self.ready.set()
+            return
+        self._thread = threading.Thread(target=self._run, args=(config, launched), name="demo-link-start",
+                                        daemon=True)
         self._thread.start()
 
-    def _run(self, config: LinkConfig) -> None:
+    def _run(self, config: LinkConfig, launched) -> None:
         try:
-            self.link = DemoLink.start(config)
+            self.link = DemoLink.start(config, launched)
         except BaseException as error:  # noqa: BLE001 - handed to the UI thread, which raises it
             self.error = error
         finally:

@@ -119,6 +119,14 @@ class Engine:
         Raises :class:`EngineError` (one line) if the texture, model, profile or device is bad.
         With ``config.realtime_priority`` the calling process (the UI beside the engine) gets transparent
         huge pages turned off too: khugepaged collapsing its memory holds a CPU the block thread needs."""
+        return cls.launch(config).wait(timeout_s)
+
+    @classmethod
+    def launch(cls, config: EngineConfig) -> EngineLaunch:
+        """Start the engine's process and return at once, while it loads its inputs and opens its device;
+        :meth:`EngineLaunch.wait` then gives the engine (what :meth:`start` does in one call). An app that waits
+        on a thread of its own launches here first, on its one thread, so that the engine is forked (with what the
+        app has imported) rather than spawned."""
         if config.realtime_priority:
             keep_huge_pages_out()
         forked = _fork_is_safe()
@@ -141,22 +149,14 @@ class Engine:
                 shared.close()
             _release_stop_signals(held)
             raise
+        launched = EngineLaunch(process, parent, shared, config)
         try:
             _release_stop_signals(held)  # a stop signal that came during the start arrives here
             child.close()
-            kind, payload = _receive(parent, process, timeout_s)
-        except BaseException:  # its error, or a stop signal while it loaded (Ctrl-C, SIGTERM made exceptions)
-            parent.close()  # an engine still loading then finds nobody to answer: it rests its device and ends
-            _reap(process)
-            shared.close()  # the segment unlinked: none left for the resource tracker to call leaked
+        except BaseException:
+            launched.abandon()
             raise
-        if kind != "up":
-            _reap(process)
-            shared.close()
-            raise EngineError(payload)
-        engine = cls(process, parent, shared, config, payload)
-        atexit.register(engine.stop)  # an app that forgets stop() still rests the plate on its way out
-        return engine
+        return launched
 
     def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> None:
         """Wait until the kernels are compiled and the device runs (it has taken its first block, so the
@@ -343,6 +343,39 @@ def _receive(conn, process, timeout_s: float):
             raise EngineError(f"the engine process ended unexpectedly (exit code {process.exitcode})")
         if time.monotonic() >= deadline:
             raise EngineError(f"the engine did not answer within {timeout_s:g} s")
+
+
+class EngineLaunch:
+    """An engine process started and loading its inputs (:meth:`Engine.launch`); :meth:`wait` gives the
+    :class:`Engine` once its device is open, :meth:`abandon` ends it unused. Either, once, from any one thread."""
+
+    def __init__(self, process, parent, shared: SharedBlock, config: EngineConfig):
+        self._process = process
+        self._parent = parent
+        self._shared = shared
+        self._config = config
+
+    def wait(self, timeout_s: float = START_TIMEOUT_S) -> Engine:
+        """The engine, once its inputs are loaded and its device is open; :class:`EngineError` (one line) if the
+        texture, model, profile or device is bad."""
+        try:
+            kind, payload = _receive(self._parent, self._process, timeout_s)
+        except BaseException:  # its error, or a stop signal while it loaded (Ctrl-C, SIGTERM made exceptions)
+            self.abandon()
+            raise
+        if kind != "up":
+            _reap(self._process)
+            self._shared.close()
+            raise EngineError(payload)
+        engine = Engine(self._process, self._parent, self._shared, self._config, payload)
+        atexit.register(engine.stop)  # an app that forgets stop() still rests the plate on its way out
+        return engine
+
+    def abandon(self) -> None:
+        """End the engine before it serves: one still loading finds nobody to answer, rests its device and ends."""
+        self._parent.close()
+        _reap(self._process)
+        self._shared.close()  # the segment unlinked: none left for the resource tracker to call leaked
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
