@@ -71,10 +71,12 @@ def open_port(port: str, baudrate: int, write_timeout_s: float = 0.5) -> serial.
                                        exclusive=True)
     except (serial.SerialException, OSError, ValueError) as error:
         code = getattr(error, "errno", None)
-        if code in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY) or "exclusively lock" in str(error):
+        if code in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY):  # another holds the lock, or TIOCEXCL
             raise DeviceError(f"serial port {port} is in use by another program; stop it (or the other "
                               "ultraglide) first") from None
         reason = os.strerror(code).lower() if isinstance(code, int) else str(error)
+        if "exclusively lock" in str(error):  # the lock failed for another reason: say which
+            raise DeviceError(f"cannot lock serial port {port}: {reason}") from None
         raise DeviceError(f"cannot open serial port {port}: {reason}; check the path and permissions (the "
                           "dialout group), or list ports with `ultraglide devices`") from None
     fd = getattr(opened, "fd", None)

@@ -201,6 +201,33 @@ def test_sensors_frames_reach_the_driver_and_its_listeners(tapped):
 
 
 # ---- the port and the link ----------------------------------------------------------------------------------
+def test_a_lock_that_fails_for_another_reason_than_a_holder_says_so_not_in_use(monkeypatch):
+    """Only a lock someone holds (EWOULDBLOCK) is "in use"; the kernel refusing the lock for another reason (out of
+    lock records, ENOLCK: not something a test can make the kernel do, so flock itself refuses) says that."""
+    import errno
+    import fcntl
+
+    from ultraglide.devices.serial_link import open_port
+
+    plate = PtyPlate(PROFILE).start()
+    real_flock = fcntl.flock
+
+    def flock(fd, operation):
+        if operation & fcntl.LOCK_EX:
+            raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+        return real_flock(fd, operation)
+
+    try:
+        monkeypatch.setattr(fcntl, "flock", flock)
+        with pytest.raises(DeviceError) as refused:
+            open_port(plate.path, 115200)
+        assert str(refused.value) == f"cannot lock serial port {plate.path}: no locks available"
+        monkeypatch.setattr(fcntl, "flock", real_flock)
+        open_port(plate.path, 115200).close()  # and with the lock free, the same port opens
+    finally:
+        plate.stop()
+
+
 def test_a_second_host_on_the_port_is_refused_in_one_line(tapped):
     first = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
     first.start(Constant(2.0))
