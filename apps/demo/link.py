@@ -189,8 +189,8 @@ def _fault_words(s) -> list[str]:
 
 class LinkStarter:
     """Starts a :class:`DemoLink` so the window stays responsive while the engine starts: the engine's process is
-    started here, on the app's one thread (so it is forked, with what the app has imported, not spawned: half a
-    second sooner), and waited for on a thread of its own."""
+    started here, on the app's one thread (so it is forked, with what the app has imported, not spawned), and
+    waited for on a thread of its own."""
 
     def __init__(self, config: LinkConfig):
         self.link: DemoLink | None = None
