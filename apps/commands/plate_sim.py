@@ -120,8 +120,8 @@ def run(args) -> int:
             plate.stop()
             if finger is not None:
                 finger.close()  # its log appears whole
-            while not sim.events.empty():
-                show(sim.events.get())
+            for _ in range(sim.events.qsize()):  # what is there: a thread that outlived its stop and kept adding
+                show(sim.events.get_nowait())  # events must not keep the command from ending
             _summary(sim, args.json, show)
 
 
