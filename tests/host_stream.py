@@ -13,7 +13,6 @@ import json
 import os
 import signal
 import sys
-import threading
 import time
 
 import numpy as np
@@ -45,12 +44,13 @@ def main() -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
     except (OSError, AttributeError):
         pass
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
+    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
     driver = SerialPlate(port, load_profile("sim-plate"), ack_timeout_s=10)
     driver.start(Square(low, high, half))
     print("ready", flush=True)
-    done.wait()
+    while not stopped:
+        time.sleep(0.01)
     driver.stop()
     print(json.dumps(driver.status()), flush=True)
 

@@ -12,7 +12,6 @@ import json
 import os
 import signal
 import sys
-import threading
 import time
 
 from ultraglide.devices.profiles import load_profile
@@ -25,14 +24,15 @@ def main() -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(40))
     except (OSError, AttributeError):
         pass
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
+    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
     plate = PtyPlate(load_profile("sim-plate"), link).start()
     sim = plate.simulator
     print("ready", flush=True)
     crossings = []
     previous = sim.amplitude_um_pp
-    while not done.wait(0.0005):
+    while not stopped:
+        time.sleep(0.0005)
         now = sim.amplitude_um_pp
         if (previous - level) * (now - level) < 0:
             crossings.append(time.perf_counter())

@@ -13,7 +13,7 @@ where drive_um_pp is the setpoint the plate was playing (its amplitude at resona
 import json
 import signal
 import sys
-import threading
+import time
 
 from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import load_profile
@@ -22,14 +22,15 @@ from ultraglide.devices.pty_plate import PtyPlate
 
 def main() -> None:
     link, resonance_hz, q, drift, output = sys.argv[1:6]
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
+    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
     profile = load_profile("sim-plate")
     plate = PtyPlate(profile, link, PlateTruth(float(resonance_hz), float(q), float(drift))).start()
     sim = plate.simulator
     record, events = [], []
     print(f"ready {sim._started!r}", flush=True)  # perf_counter is the system's monotonic clock: comparable
-    while not done.wait(0.005):
+    while not stopped:
+        time.sleep(0.005)
         now = sim.elapsed_s()
         drive = sim.drive_um_pp  # after the firmware's limiter, the watchdog's ramp included
         record.append((now, sim.amplitude_um_pp, sim.truth.resonance_at(now), drive))
