@@ -57,6 +57,16 @@ class ResonanceFit:
         return resonance_curve(carrier_hz, self.peak_um_pp, self.resonance_hz, self.q)
 
 
+def load_fitter():
+    """scipy's curve_fit, imported on first use (scipy.optimize is 0.3 s of CPU that a serial session without a
+    fit need not spend). A caller that fits while it streams to a plate calls this before the stream starts: an
+    import holds Python's interpreter lock for up to 20 ms at a time (70 ms beside four busy processes), which
+    starves the stream's writer thread towards the plate's 100 ms watchdog."""
+    from scipy.optimize import curve_fit
+
+    return curve_fit
+
+
 def fit_resonance(carrier_hz, amplitude_um_pp) -> ResonanceFit:
     """Fit :func:`resonance_curve` to amplitudes measured at carriers; FitError if there is no peak to fit.
 
@@ -78,7 +88,7 @@ def fit_resonance(carrier_hz, amplitude_um_pp) -> ResonanceFit:
     spacing = float(np.min(np.diff(np.unique(f)))) if np.unique(f).size > 1 else 1.0
     width = max(float(above.max() - above.min()), spacing)
     guess = (float(a[top]), float(f[top]), float(f[top]) / width)
-    from scipy.optimize import curve_fit  # here: scipy.optimize is 0.3 s of the start of every serial session
+    curve_fit = load_fitter()
     try:
         values, covariance = curve_fit(resonance_curve, f, a, p0=guess, maxfev=20000,
                                        bounds=([0.0, f.min() - 10 * width, 0.5], [np.inf, f.max() + 10 * width, 1e6]))

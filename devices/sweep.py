@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.devices.resonance import FitError, ResonanceFit, fit_resonance
+from ultraglide.devices.resonance import FitError, ResonanceFit, fit_resonance, load_fitter
 
 SWEEP_LEVEL = 0.15  # drive during a sweep: this fraction of the plate's limit, µm p-p at resonance
 SAFE_FRACTION = 0.5  # a measured amplitude above this fraction of the limit halves the drive
@@ -81,6 +81,7 @@ class TelemetrySweeper:
 
     def start(self, carrier_hz: float) -> None:
         """Connect and drive at 15 % of the smaller of the profile's and the device's limits."""
+        load_fitter()  # before the stream: not imported between two of its frames
         self.driver.carrier_hz = carrier_hz
         self.device.start(self.source)
         bound = getattr(self.driver, "limit_um_pp", self.limit_um_pp)
