@@ -118,6 +118,38 @@ def assert_one_line_error(result):
     return lines[0]
 
 
+def may_run_in_real_time() -> bool:
+    """Whether this process may put a thread at SCHED_FIFO (root, CAP_SYS_NICE or RLIMIT_RTPRIO), asked on a
+    thread of its own that gives it back."""
+    import threading
+
+    allowed = []
+
+    def ask():
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        except OSError:
+            allowed.append(False)
+            return
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        allowed.append(True)
+
+    thread = threading.Thread(target=ask)
+    thread.start()
+    thread.join()
+    return allowed[0]
+
+
+def thread_scheduling(pid: int) -> dict[int, tuple[int, int]]:
+    """Each thread of process ``pid``: its scheduling policy and real-time priority."""
+    found = {}
+    for tid in map(int, os.listdir(f"/proc/{pid}/task")):
+        try:
+            found[tid] = (os.sched_getscheduler(tid), os.sched_getparam(tid).sched_priority)
+        except ProcessLookupError:  # a thread that ended meanwhile
+            continue
+    return found
+
 @pytest.fixture
 def cli():
     return run_cli

@@ -3,13 +3,15 @@ resonance fit."""
 
 import json
 import math
+import os
 import signal
 import subprocess
+import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import assert_one_line_error, run_cli, start_cli
+from conftest import ROOT, assert_one_line_error, may_run_in_real_time, run_cli, start_cli, thread_scheduling
 from PIL import Image
 from test_plate_sim_cli import Server
 from ultraglide.devices.profiles import load_profile
@@ -87,7 +89,7 @@ def test_a_sweep_finds_the_simulated_plates_resonance_q_and_gain_and_writes_its_
         server.wait_line(lambda line: '"serving"' in line)
         result = _sweep("--device", f"serial:{link}", "--profile", believed, "-o", tmp_path / "measured.toml",
                         "--plot", tmp_path / "response.png", "--json")
-        assert result.returncode == 0, result.stderr
+        assert result.returncode == 0, result.stdout + result.stderr
         found = json.loads(result.stdout)
         stopped = _stopped(server)
     finally:
@@ -101,6 +103,8 @@ def test_a_sweep_finds_the_simulated_plates_resonance_q_and_gain_and_writes_its_
     assert profile.full_scale_um_pp == pytest.approx(8.0, rel=0.02)  # from the measured gain, not the 16 believed
     assert profile.max_amplitude_um_pp == 5.0  # the user's limit, kept
     assert profile.max_drive_um_pp == found["max_drive_um_pp"] == 7.0  # and the overdrive headroom
+    assert found["stream_threads"] == ("SCHED_FIFO 1" if may_run_in_real_time() else
+                                       "normal (no permission to raise it)")
     # safe throughout: the plate never moved more than the sweep's low drive (15 % of 5 µm p-p at the
     # believed gain, so half that on this plate), and the sweep ended by resting it
     assert stopped["peak_um_pp"] <= 0.15 * 5.0 + 1e-6
@@ -125,6 +129,7 @@ def test_a_sweep_rests_the_plate_and_writes_nothing_when_terminated(tmp_path):
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         server.wait_line(lambda line: '"stream_started"' in line)
         server.wait_line(lambda line: '"carrier"' in line)
+        threads = thread_scheduling(sweep.pid)  # the stream's writer and reader at work, from the kernel's account
         sweep.send_signal(signal.SIGTERM)
         out, err = sweep.communicate(timeout=60)
         server.wait_line(lambda line: '"disabled"' in line and '"host"' in line)
@@ -134,6 +139,11 @@ def test_a_sweep_rests_the_plate_and_writes_nothing_when_terminated(tmp_path):
     assert sweep.returncode == 128 + signal.SIGTERM and "Traceback" not in err, err
     assert not list(tmp_path.glob("p*.toml")) and not list(tmp_path.glob(".p.*"))
     assert stopped["faults"]["watchdog"] == 0  # rested by the host, not by the device's watchdog
+    # the stream's threads (writer, reader) in real time where this machine allows it; the main thread ordinary
+    assert threads[sweep.pid] == (os.SCHED_OTHER, 0)
+    others = [scheduling for tid, scheduling in threads.items() if tid != sweep.pid]
+    fifo = others.count((os.SCHED_FIFO, 1))
+    assert fifo >= 2 if may_run_in_real_time() else fifo == 0, threads
 
 
 def test_a_resonance_outside_the_sweep_is_one_line_and_no_profile(tmp_path):
@@ -206,7 +216,7 @@ def test_an_audio_sweep_reads_the_resonance_from_a_sensor_on_an_alsa_input(tmp_p
     result = run_cli("plate", "sweep", "--device", "audio:out", "--sensor", "audio:sensor", "--from-hz", 23200,
                      "--to-hz", 24200, "--steps", 51, "--sensor-um-per-unit", 2.0, "-o", tmp_path / "p.toml", "--json",
                      env={"HOME": str(tmp_path)})
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == 0, result.stdout + result.stderr
     found = json.loads(result.stdout)
     assert abs(found["resonance_hz"] - 23700.0) <= 20.0 and abs(found["q"] - 150.0) <= 15.0, found
     # full scale: the sensor's 0.4 peak × 2 µm p-p per unit at the sweep's drive (15 % of 6 of 8 µm p-p)
@@ -219,3 +229,29 @@ def test_an_audio_sweep_reads_the_resonance_from_a_sensor_on_an_alsa_input(tmp_p
     first = played[start + 2000:start + dwell]
     spectrum = np.abs(np.fft.rfft(first * np.hanning(first.size)))
     assert np.argmax(spectrum) * rate / first.size == pytest.approx(carriers[0], abs=rate / first.size)
+
+
+# A fresh interpreter (not the tests' command server, which has scipy imported already) running the command,
+# with an audit hook noting every module imported while a plate driver's writer thread exists in the process.
+IMPORTS_WHILE_STREAMING = """
+import json, sys, threading
+late = []
+def hook(event, args):
+    if event == "import" and any(thread.name == "serial-plate" for thread in threading.enumerate()):
+        late.append(args[0])
+sys.addaudithook(hook)
+from ultraglide.apps.cli.main import main
+status = main(sys.argv[1:])
+print(json.dumps({"status": status, "imported": late}), file=sys.stderr)
+"""
+
+
+def test_a_sweep_imports_nothing_while_it_streams(tmp_path):
+    # an import holds the interpreter's lock for tens of ms at a time: the writer thread, which must send
+    # within the plate's 100 ms watchdog, would wait on it (the fit's scipy.optimize was imported mid-sweep)
+    result = subprocess.run([sys.executable, "-c", IMPORTS_WHILE_STREAMING, "plate", "sweep", "--device", "sim",
+                             "-o", tmp_path / "p.toml", "--json"], capture_output=True, text=True, cwd=ROOT,
+                            timeout=300)
+    said = json.loads(result.stderr.strip().splitlines()[-1])
+    assert said == {"status": 0, "imported": []}
+    assert json.loads(result.stdout)["points"] >= 41

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, may_run_in_real_time
 
 THP_MODE = Path("/sys/kernel/mm/transparent_hugepage/enabled")
 
@@ -187,3 +187,35 @@ def test_no_request_when_not_asked():
     wake.hold(True)
     assert not wake.held and qos_fds(os.getpid()) == 0
     assert wake.words() == "CPU wake-up: as the system has it (not asked)"
+
+
+def test_threads_started_in_real_time_run_there_and_their_starter_gets_its_own_back():
+    import threading
+
+    from ultraglide.render.engine.realtime import threads_started_in_real_time
+
+    seen, started_at = {}, []
+
+    def starter():  # on a thread of its own: the test worker's threads keep their scheduling
+        def started():
+            started_at.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
+
+        seen["before"] = os.sched_getscheduler(0)
+        with threads_started_in_real_time() as words:
+            thread = threading.Thread(target=started)
+            thread.start()
+        thread.join()
+        seen["words"], seen["after"] = words, os.sched_getscheduler(0)
+        late = threading.Thread(target=started)  # started after the block: ordinary again
+        late.start()
+        late.join()
+
+    worker = threading.Thread(target=starter)
+    worker.start()
+    worker.join()
+    assert seen["before"] == seen["after"] == os.SCHED_OTHER
+    if may_run_in_real_time():
+        assert seen["words"] == "SCHED_FIFO 1" and started_at[0] == (os.SCHED_FIFO, 1)
+    else:
+        assert seen["words"] == "normal (no permission to raise it)" and started_at[0] == (os.SCHED_OTHER, 0)
+    assert started_at[1] == (os.SCHED_OTHER, 0)  # started after the block: ordinary

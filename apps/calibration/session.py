@@ -37,6 +37,7 @@ def calibrate_on_plate(args) -> dict:
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.engine.finger_setup import build_finger
+    from ultraglide.render.engine.realtime import threads_started_in_real_time
 
     if args.participant is None:
         raise UsageError("an on-plate calibration needs --participant ID (written into the calibration)")
@@ -60,13 +61,15 @@ def calibrate_on_plate(args) -> dict:
         raise UsageError("--finger is for the in-process simulator (--device sim); a plate-sim on a port takes "
                          "its own (plate-sim --finger)")
     guide = TextGuide(args.participant) if args.no_window else WindowGuide(args.participant, args.windowed)
-    device = open_device(args.device, profile, control_rate_hz=CONTROL_RATE_HZ, **extra)
+    with threads_started_in_real_time():  # a simulated plate's threads, as the stream's below; this one (the
+        device = open_device(args.device, profile, control_rate_hz=CONTROL_RATE_HZ, **extra)  # guide's) stays ordinary
     recorder = StepRecorder(plan, CONTROL_RATE_HZ)
     device.add_sensor_listener(recorder.take)
     source = PlanSource(plan, CONTROL_RATE_HZ)
     cancelled = False
     try:
-        device.start(source)
+        with threads_started_in_real_time():
+            device.start(source)
         hello = device.hello()
         wanted = p.SENSOR_NORMAL_FORCE | p.SENSOR_LATERAL_FORCE
         if hello is None or (hello.sensors & wanted) != wanted:

@@ -157,6 +157,7 @@ def run_sweep(args) -> int:
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.sweep import MAX_FRAMES_PER_STEP, SWEEP_LEVEL, TelemetrySweeper, measured_profile, sweep
     from ultraglide.devices.urls import open_device, parse_device_url
+    from ultraglide.render.engine.realtime import threads_started_in_real_time
 
     profile = load_profile(args.profile)
     low = args.from_hz if args.from_hz is not None else profile.carrier_min_hz
@@ -194,14 +195,16 @@ def run_sweep(args) -> int:
         raise UsageError(f"{kind} measures nothing: sweep a plate driver (sim or serial:PORT), or audio with --sensor")
     say = (lambda message: None) if args.json else print
 
-    device = open_device(args.device, profile, carrier_hz=low)
+    with threads_started_in_real_time():  # the plate's threads (a simulated plate's), as the stream's below
+        device = open_device(args.device, profile, carrier_hz=low)
     sweeper = TelemetrySweeper(device, profile)
     try:  # a stop signal (Ctrl-C, SIGTERM, SIGHUP: apps/cli/signals.py) leaves through the finally
-        sweeper.start(low)
+        with threads_started_in_real_time() as priority:  # the stream's writer and reader; this thread stays
+            sweeper.start(low)  # ordinary
         for note in getattr(sweeper.driver, "notes", []):  # where the device's own limits bind
             say(note)
         say(f"sweeping {low:g}-{high:g} Hz in {args.steps} steps at {sweeper.level_um_pp:.2f} µm p-p "
-            f"({SWEEP_LEVEL:.0%} of the {sweeper.limit_um_pp:g} µm p-p limit)")
+            f"({SWEEP_LEVEL:.0%} of the {sweeper.limit_um_pp:g} µm p-p limit); the stream's threads at {priority}")
         points, fit = sweep(sweeper, low, high, args.steps, say)
     except DeviceError as error:  # the plate went away or cut its output mid-sweep: what happened, and when
         with held():
@@ -232,6 +235,7 @@ def run_sweep(args) -> int:
         "points": len(points), "unsettled_points": sweeper.unsettled, "from_hz": low, "to_hz": high,
         "drive_um_pp": round(level_fraction * profile.full_scale_um_pp, 4), "profile": str(output),
         "plot": args.plot, "faults": faults, "notes": list(getattr(sweeper.driver, "notes", [])),
+        "stream_threads": priority,
         "report": report.as_dict(),
     }
     if args.json:

@@ -63,6 +63,7 @@ class LocalOutput:
     def __init__(self, device: str, profile: str, model: str, force_n: float):
         from ultraglide.devices.profiles import load_profile
         from ultraglide.devices.urls import open_device
+        from ultraglide.render.engine.realtime import threads_started_in_real_time
         from ultraglide.render.engine.sources import renderer_source
         from ultraglide.render.physics.calibration import load_model
         from ultraglide.render.renderer import Renderer, RenderSettings
@@ -70,12 +71,14 @@ class LocalOutput:
 
         plate = load_profile(profile)
         friction = load_model(model)
-        self.device = open_device(device, plate)
+        with threads_started_in_real_time():  # the device's threads (a simulated plate's, the stream's, on which
+            self.device = open_device(device, plate)  # the renderer runs); this thread (the session's) stays ordinary
         try:
             rate = self.device.rate_hz if self.device.signal == "audio" else 96000
             self.renderer = Renderer(grating(1.0, (10.0, 10.0)), friction, plate,
                                      RenderSettings(audio_rate_hz=rate, default_force_n=force_n))
-            self.device.start(renderer_source(self.device, self.renderer))
+            with threads_started_in_real_time():
+                self.device.start(renderer_source(self.device, self.renderer))
         except BaseException:
             self.device.stop()
             raise

@@ -22,6 +22,7 @@ keeps idle CPUs polling. At rest it is released, so the machine idles as its pow
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import struct
@@ -83,6 +84,28 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
         return "other threads: normal"
     return f"other threads: SCHED_FIFO {priority} ({running})" if running else "other threads: normal"
 
+
+@contextlib.contextmanager
+def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
+    """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` where the OS allows; the calling
+    thread gets its own scheduling back after. Yields what they got, in words.
+
+    For a command that streams to a plate on threads of its own (a driver's writer and reader) beside a main
+    thread that stays ordinary: new threads inherit their creator's scheduling, so the caller is raised
+    only while it starts them. A writer thread at ordinary priority on a busy machine can go unscheduled
+    past the plate's 100 ms watchdog; the engine raises all of its threads (:func:`raise_other_threads`)."""
+    try:
+        before = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError):
+        before = None
+    if before is None:
+        yield "normal (no permission to raise it)"
+        return
+    try:
+        yield f"SCHED_FIFO {priority}"
+    finally:
+        os.sched_setscheduler(0, *before)
 
 
 def keep_huge_pages_out() -> str:
