@@ -118,8 +118,10 @@ def _driven_as_asked(record: np.ndarray, target_um_pp: float, held_s: float = 0.
 
 def test_tracking_keeps_the_amplitude_within_10_percent_while_the_resonance_drifts_200_hz(tmp_path):
     results = {}
-    for track in (True, False):  # one after the other: two at once load a small machine twice as much
-        _play_drifting(track, results, tmp_path)
+    _play_drifting(True, results, tmp_path)  # 20 Hz/s for 10 s
+    # then the control, one after the other (two at once load a small machine twice as much): the same 200 Hz
+    # in half the time; the envelope's time constant (Q/(pi f0), 2.5 ms) sees 0.1 Hz of drift either way
+    _play_drifting(False, results, tmp_path, drift_hz_per_s=40.0, run_s=5.0)
     tracked, status, events = results[True]
     untracked, _, _ = results[False]
     target = 3.0
@@ -132,7 +134,7 @@ def test_tracking_keeps_the_amplitude_within_10_percent_while_the_resonance_drif
     # without tracking the plate falls short: at 200 Hz off a Q 200 resonance at 25 kHz the gain is
     # 1/sqrt(1 + (2·200·200/25000)²) = 0.30
     last = untracked[_driven_as_asked(untracked, target) & (untracked[:, 0] > untracked[-1, 0] - 1.0)]
-    expected = target * resonance_curve(25000.0, 1.0, last[:, 2].mean(), 200.0)
+    expected = target * np.mean(resonance_curve(25000.0, 1.0, last[:, 2], 200.0))  # at each sample's resonance
     assert np.mean(last[:, 1]) == pytest.approx(expected, rel=0.1)
     assert np.mean(last[:, 1]) < 0.5 * target
 
