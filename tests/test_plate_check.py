@@ -83,7 +83,7 @@ def test_a_full_check_names_the_one_rule_broken_in_strict_json_and_never_moves_t
     try:
         result = run_cli("plate", "check", "--device", f"serial:{link}", "--json", timeout=240)
     finally:
-        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM, server.err
     assert result.returncode == 6, result.stdout + result.stderr
     report = strict_json(result.stdout)
     assert report["broken_rules"] == ["R-NAK-ORDER"] and report["failed"] == 1 and report["exit_status"] == 6

@@ -53,11 +53,13 @@ class Server:
         raise AssertionError(f"no such line within {timeout} s; saw {self.seen}")
 
     def finish(self, signum) -> int:
+        """Send ``signum`` and wait for the end; its exit status (what it wrote on stderr in ``err``)."""
         self.process.send_signal(signum)
         self.process.wait(timeout=30)
         self.reader.join(timeout=30)  # every line it printed, to the end
         while not self.lines.empty():
             self.seen.append(self.lines.get())
+        self.err = self.process.stderr.read()
         return self.process.returncode
 
     def kill(self):
@@ -89,7 +91,7 @@ def test_plate_sim_logs_every_event_as_json_and_removes_its_link_on_sigterm(tmp_
         server.wait_line(lambda line: '"overheat"' in line)
         driver.stop()
         server.wait_line(lambda line: '"disconnected"' in line)
-        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM  # stopped by the signal, as a shell reports it
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM, server.err  # as a shell reports it
     finally:
         server.kill()
     assert not os.path.lexists(link)  # the pty's symlink went with it
@@ -116,7 +118,7 @@ def test_plate_sim_speaks_in_words_and_cleans_up_on_sighup(tmp_path):
         assert re.fullmatch(r"\s*\d+\.\d{3} s  enabled", line), line
         driver.stop()
         server.wait_line(lambda line: "disconnected" in line)
-        assert server.finish(signal.SIGHUP) == 128 + signal.SIGHUP
+        assert server.finish(signal.SIGHUP) == 128 + signal.SIGHUP, server.err
     finally:
         server.kill()
     assert not os.path.lexists(link)
@@ -136,7 +138,7 @@ def test_plate_sim_plays_its_own_resonance_not_the_profiles(tmp_path):
         assert wait_for(lambda: driver.telemetry is not None
                         and driver.telemetry.measured_um_pp == pytest.approx(4.0 * gain, rel=0.01)), driver.telemetry
         driver.stop()
-        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT
+        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT, server.err
     finally:
         server.kill()
 
@@ -193,7 +195,7 @@ def test_the_host_refuses_a_carrier_the_device_cannot_make(tmp_path):
         driver = SerialPlate(str(link), wide, carrier_hz=29000.0, ack_timeout_s=10)
         with pytest.raises(DeviceError, match="outside what the plate driver accepts, 20000-28000 Hz"):
             driver.start(Constant(1.0))
-        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT
+        assert server.finish(signal.SIGINT) == 128 + signal.SIGINT, server.err
     finally:
         server.kill()
     assert "enabled" not in [json.loads(line)["event"] for line in server.seen]
@@ -218,7 +220,7 @@ def test_plate_sim_speaks_v2_when_told_and_names_a_rule_it_cannot_break(tmp_path
         assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 2.0) < 0.05)
         assert driver.telemetry.version == 2
         driver.stop()
-        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM
+        assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM, server.err
     finally:
         server.kill()
     line = assert_one_line_error(run_cli("plate-sim", "--break", "R-NOTHING", timeout=60))

@@ -73,7 +73,7 @@ def _sweep(*args, **kwargs):
 
 
 def _stopped(server) -> dict:
-    assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM  # stopped by a signal, as every command
+    assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM, server.err  # stopped by a signal, as every command
     return json.loads(next(line for line in server.seen if '"stopped"' in line))
 
 
