@@ -78,10 +78,10 @@ class TelemetrySweeper:
         self.level_um_pp = SWEEP_LEVEL * self.limit_um_pp
         self.source = SteadyDrive(self.level_um_pp, device.rate_hz)
         self.unsettled = 0
+        load_fitter()  # now, not between two frames of the stream
 
     def start(self, carrier_hz: float) -> None:
         """Connect and drive at 15 % of the smaller of the profile's and the device's limits."""
-        load_fitter()  # before the stream: not imported between two of its frames
         self.driver.carrier_hz = carrier_hz
         self.device.start(self.source)
         bound = getattr(self.driver, "limit_um_pp", self.limit_um_pp)
