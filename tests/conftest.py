@@ -150,6 +150,7 @@ def thread_scheduling(pid: int) -> dict[int, tuple[int, int]]:
             continue
     return found
 
+
 @pytest.fixture
 def cli():
     return run_cli
