@@ -79,16 +79,14 @@ def run(args) -> int:
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
-    from ultraglide.render.engine.realtime import threads_started_in_real_time
 
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
     config = finger_config(args)
     finger = build_finger(config) if config is not None else None
     try:
-        with threads_started_in_real_time():  # the plate's two threads, as a board's firmware (the QEMU board's
-            plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks),  # too): this one, which
-                             max_version=args.max_version, finger=finger).start()  # prints, stays ordinary
+        plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version,
+                         finger=finger).start()
     except BaseException:
         if finger is not None:
             finger.close()
