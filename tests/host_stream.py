@@ -11,11 +11,11 @@ on SIGTERM stops the driver (ramp, zero, disable) and prints its status as one J
 
 import json
 import os
-import signal
 import sys
 import time
 
 import numpy as np
+from stop_flag import stop_on_sigterm
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.serial_plate import SerialPlate
 
@@ -44,8 +44,7 @@ def main() -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
     except (OSError, AttributeError):
         pass
-    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
-    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
+    stopped = stop_on_sigterm()
     driver = SerialPlate(port, load_profile("sim-plate"), ack_timeout_s=10)
     driver.start(Square(low, high, half))
     print("ready", flush=True)

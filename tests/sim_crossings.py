@@ -10,10 +10,10 @@ across processes); on SIGTERM prints ``{"crossings": [...], "faults": {...}}`` a
 
 import json
 import os
-import signal
 import sys
 import time
 
+from stop_flag import stop_on_sigterm
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.pty_plate import PtyPlate
 
@@ -24,8 +24,7 @@ def main() -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(40))
     except (OSError, AttributeError):
         pass
-    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
-    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
+    stopped = stop_on_sigterm()
     plate = PtyPlate(load_profile("sim-plate"), link).start()
     sim = plate.simulator
     print("ready", flush=True)

@@ -11,10 +11,10 @@ where drive_um_pp is the setpoint the plate was playing (its amplitude at resona
 """
 
 import json
-import signal
 import sys
 import time
 
+from stop_flag import stop_on_sigterm
 from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.pty_plate import PtyPlate
@@ -22,8 +22,7 @@ from ultraglide.devices.pty_plate import PtyPlate
 
 def main() -> None:
     link, resonance_hz, q, drift, output = sys.argv[1:6]
-    stopped = []  # not a threading.Event: setting one from a signal handler while this thread is inside its
-    signal.signal(signal.SIGTERM, lambda *_: stopped.append(True))  # wait deadlocks on the event's own lock
+    stopped = stop_on_sigterm()
     profile = load_profile("sim-plate")
     plate = PtyPlate(profile, link, PlateTruth(float(resonance_hz), float(q), float(drift))).start()
     sim = plate.simulator
