@@ -47,10 +47,10 @@ def installs(calls: list[str]) -> list[str]:
 def test_the_demo_after_the_tests_installs_nothing_again(checkout):
     calls = run(checkout, "tests", "--co")
     assert installs(calls) == ["python -m pip install -q -e .[test,demo,docs]"]
-    assert "python -m pytest -n 2 --co" in calls
+    assert "python -m pytest -n 3 --co" in calls
     calls = run(checkout, "demo", "--windowed")
     assert installs(calls) == [] and calls == ["ultraglide demo --windowed"]  # straight to the demo
-    assert run(checkout, "tests", "-k", "x") == ["ruff check .", "python -m pytest -n 2 -k x"]
+    assert run(checkout, "tests", "-k", "x") == ["ruff check .", "python -m pytest -n 3 -k x"]
     # pyproject.toml changes: installed again, with everything that was there
     (checkout / "pyproject.toml").write_text((checkout / "pyproject.toml").read_text() + "\n# changed\n")
     assert installs(run(checkout, "demo")) == ["python -m pip install -q -e .[test,demo,docs]"]
@@ -79,4 +79,4 @@ def test_the_tests_keep_python_s_compiled_modules_even_where_the_shell_forbids_w
     result = subprocess.run(["./run", "tests", "-k", "x"], cwd=checkout, env=env, capture_output=True, text=True,
                             timeout=600)
     assert result.returncode == 0, result.stderr
-    assert log.read_text().splitlines()[-1] == "python -m pytest -n 2 -k x [unset]"
+    assert log.read_text().splitlines()[-1] == "python -m pytest -n 3 -k x [unset]"
