@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import gc
 import math
 import multiprocessing
 import os
@@ -142,7 +143,7 @@ class Engine:
             target, args = (forked_engine_main, (config, shared.name, child, parent)) if forked else \
                 (engine_main, (config, shared.name, child))
             process = context.Process(target=target, args=args, daemon=True, name="ultraglide-engine")
-            with _main_module_hidden():
+            with _main_module_hidden(), _heap_frozen(forked):
                 process.start()
         except BaseException:
             if shared is not None:
@@ -328,6 +329,23 @@ def _main_module_hidden():
         if main is not None:
             main.__dict__.pop("__spec__", None)
             main.__dict__.update(saved)
+
+
+@contextlib.contextmanager
+def _heap_frozen(forked: bool):
+    """Fork with the app's objects in the collector's permanent generation, then give them back to the app: the
+    engine's collections (a full one before it serves) then never walk them, and walking would copy every page
+    that holds one into the engine: forked from a process holding a million small objects, an engine took 0.7 s
+    of CPU to start and stop, 0.25 s with them frozen. An app that froze objects itself keeps its own
+    arrangement (unfreezing would thaw its objects too)."""
+    if not forked or gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _receive(conn, process, timeout_s: float):
