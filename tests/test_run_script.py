@@ -48,7 +48,7 @@ def test_the_demo_after_the_tests_installs_nothing_again(checkout):
     calls = run(checkout, "tests", "--co")
     assert installs(calls) == ["python -m pip install -q -e .[test,demo,docs]"]
     after_install = calls.index("python -m pip install -q -e .[test,demo,docs]") + 1
-    assert calls[after_install] == "python -m ultraglide.kernels"  # compiled once, as installed
+    assert calls[after_install] == "python -m ultraglide.compile_kernels"  # compiled once, as installed
     assert "python -m pytest -n 3 --co" in calls
     calls = run(checkout, "demo", "--windowed")
     assert installs(calls) == [] and calls == ["ultraglide demo --windowed"]  # straight to the demo

@@ -1,4 +1,4 @@
-"""Compile every compiled kernel of ours into numba's cache at once: ``python -m ultraglide.kernels``.
+"""Compile every compiled kernel of ours into numba's cache at once: ``python -m ultraglide.compile_kernels``.
 
 A kernel is compiled the first time a process calls it and finds no cache entry for it (about 10 s of CPU for all
 of them on a 2-core machine), then loaded from the cache by every later process. On a fresh install several
@@ -12,7 +12,7 @@ import importlib
 import sys
 import time
 
-# every module of ours that defines a compiled kernel (tests/test_kernels_cache.py checks the sources for others)
+# every module of ours that defines a compiled kernel (tests/test_compile_kernels.py checks the sources for others)
 KERNEL_MODULES = ("ultraglide.render.kernels", "ultraglide.render.physics.kernels", "ultraglide.render.effects",
                   "ultraglide.devices.kernels", "ultraglide.devices.force_sensors", "ultraglide.textures.kernels")
 

@@ -1,5 +1,5 @@
-"""``python -m ultraglide.kernels`` (what ``./run`` calls after installing) leaves no kernel for a later process
-to compile: checked in a fresh interpreter, which has compiled nothing before, and against the sources."""
+"""``python -m ultraglide.compile_kernels`` (what ``./run`` calls after installing) leaves no kernel for a later
+process to compile: checked in a fresh interpreter, which has compiled nothing before, and against the sources."""
 
 import json
 import re
@@ -8,7 +8,7 @@ import sys
 
 from conftest import ROOT
 
-from ultraglide.kernels import KERNEL_MODULES
+from ultraglide.compile_kernels import KERNEL_MODULES
 
 
 def test_every_module_that_defines_a_kernel_is_compiled_at_install():
@@ -22,7 +22,7 @@ def test_every_module_that_defines_a_kernel_is_compiled_at_install():
 
 
 def test_after_compiling_every_kernel_called_from_python_has_its_compiled_version():
-    script = ("import json; from ultraglide.kernels import compile_all, kernels, uncompiled\n"
+    script = ("import json; from ultraglide.compile_kernels import compile_all, kernels, uncompiled\n"
               "before = sum(bool(kernel.signatures) for kernel in kernels().values())\n"
               "count = compile_all()\n"
               "print(json.dumps({'before': before, 'count': count, 'uncompiled': uncompiled()}))")
@@ -34,6 +34,7 @@ def test_after_compiling_every_kernel_called_from_python_has_its_compiled_versio
 
 
 def test_the_command_says_how_many_kernels_it_compiled():
-    result = subprocess.run([sys.executable, "-m", "ultraglide.kernels"], capture_output=True, text=True, timeout=600)
+    result = subprocess.run([sys.executable, "-m", "ultraglide.compile_kernels"], capture_output=True, text=True,
+                            timeout=600)
     assert result.returncode == 0, result.stderr
     assert re.fullmatch(r"\d+ compiled kernels in numba's cache \(\d+\.\d s\)\n", result.stdout)
