@@ -65,11 +65,27 @@ def plate():
     served.stop()
 
 
-def test_a_resting_host_sends_nothing_and_the_plate_is_disabled_without_a_fault(plate):
+@pytest.fixture
+def connect():
+    """``connect(plate, source)``: a driver started on the plate, stopped when the test ends even if it failed (a
+    driver left streaming would load the tests that run after it)."""
+    started = []
+
+    def start(plate, source, **options):
+        driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10, **options)
+        driver.start(source)
+        started.append(driver)
+        return driver
+
+    yield start
+    for driver in started:
+        driver.stop()
+
+
+def test_a_resting_host_sends_nothing_and_the_plate_is_disabled_without_a_fault(plate, connect):
     sim = plate.simulator
     source = Level(0.0)
-    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
-    driver.start(source)
+    driver = connect(plate, source)
     assert wait_for(lambda: driver.counters.idle_rests == 1 and not sim.enabled, timeout=30)
     # the plate has taken the disable; its output stage, a thread of its own, may not yet have ticked over the
     # time before it (a loaded machine may underrun the 50 ms of zeros before the rest, and that is counted
@@ -86,18 +102,18 @@ def test_a_resting_host_sends_nothing_and_the_plate_is_disabled_without_a_fault(
     assert driver.telemetry_frames >= telemetry + 10  # the plate still reports (the host's silence check)
     assert driver.status()["connected"] and driver.counters.silences == 0
     assert driver.status()["output"] == "idle (disabled)"
-    assert sim.fault_counts() == faults and faults["watchdog"] == 0  # resting raises nothing
+    # resting raises nothing
+    assert sim.fault_counts() == faults and faults["watchdog"] == 0, (faults, sim.fault_counts())
     assert sim.amplitude_um_pp == 0.0
     driver.stop()
     assert not sim.enabled
     assert [e["event"] for e in events(sim)].count("enabled") == 1  # the handshake's: no enable on the way out
 
 
-def test_the_first_non_zero_drive_enables_the_plate_and_reaches_it_at_once(plate):
+def test_the_first_non_zero_drive_enables_the_plate_and_reaches_it_at_once(plate, connect):
     sim = plate.simulator
     source = Level(0.0)
-    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
-    driver.start(source)
+    driver = connect(plate, source)
     assert wait_for(lambda: driver.counters.idle_rests == 1 and not sim.enabled, timeout=30)
     events(sim)
     source.set(3.0)
@@ -125,11 +141,10 @@ def test_the_first_non_zero_drive_enables_the_plate_and_reaches_it_at_once(plate
     assert not sim.enabled
 
 
-def test_a_plate_that_cut_itself_out_is_never_re_enabled_by_a_touch(plate):
+def test_a_plate_that_cut_itself_out_is_never_re_enabled_by_a_touch(plate, connect):
     sim = plate.simulator
     source = Level(3.0)
-    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
-    driver.start(source)
+    driver = connect(plate, source)
     assert wait_for(lambda: abs(sim.amplitude_um_pp - 3.0) < 0.05, timeout=30)
     plate.inject(p.SIM_OVERHEAT, 0)
     assert wait_for(lambda: driver.fault_counts()["overheat"] == 1, timeout=30)
