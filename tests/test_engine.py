@@ -129,7 +129,10 @@ def test_play_reports_the_engine_figures(tmp_path):
     status = json.loads(run_cli("play", "grating-1mm", "--device", "null", "--duration-s", "0.5", "--json",
                                 check=True).stdout)
     assert status["blocks"] > 50 and status["block_p99_us"] >= status["block_p50_us"] > 0
-    assert status["touches"] >= 0.5 * 120 - 2 and status["state"] == "stopped"
+    # 0.5 s of 120 Hz reports, each sent or skipped as late (a busy machine); every one sent reached the engine,
+    # with the finger's lift at the end
+    assert status["touch_reports_sent"] + status["touch_reports_skipped"] == 60
+    assert status["touches"] == status["touch_reports_sent"] + 1 and status["state"] == "stopped"
     assert {"late_blocks", "underruns", "priority"} <= status.keys()
     assert "unknown device" in assert_one_line_error(run_cli("play", "grating-1mm", "--device", "bluetooth"))
 
@@ -145,6 +148,23 @@ while True:  # a finger held, reported at 120 Hz, until a line on stdin: then le
     if select.select([sys.stdin], [], [], 1 / 120)[0]:
         break
 """
+
+
+def test_a_replay_that_starts_late_sends_the_newest_report_due_and_counts_the_rest_as_skipped():
+    """``play`` feeds a swipe's reports at their times; a quarter second late (a stalled process), the 31 reports
+    due by then are one touch, the newest, and 30 skipped; the rest go at their times (or are skipped too, on a
+    machine that stalls again): every report is sent or skipped."""
+    from ultraglide.apps.commands.play import replay
+
+    times = np.arange(60) / 120.0
+    xs = 10.0 + np.arange(60.0)
+    sent = []
+    replayed = replay(lambda t, x, y, force: sent.append((x, force)), [(times, xs, xs, np.full(60, np.nan))],
+                      time.perf_counter() - 0.25)
+    assert replayed.sent == len(sent) and replayed.sent + replayed.skipped == 60 and replayed.skipped >= 30
+    assert sent[0][0] >= xs[30] and sent[0][1] is None  # the newest due when it ran; no force known
+    assert [x for x, _ in sent] == sorted(x for x, _ in sent) and sent[-1][0] == xs[-1]
+    assert replayed.last == (xs[-1], xs[-1])
 
 
 @pytest.mark.parametrize("ending", ["killed", "forgets to stop"])

@@ -11,6 +11,7 @@ import itertools
 import math
 import sys
 import time
+from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
@@ -79,13 +80,24 @@ def report_chunks(trajectory):
         yield times, states.x_mm, states.y_mm, np.broadcast_to(states.force_n, times.shape)
 
 
-def replay(touch, chunks, started: float) -> tuple[float, float]:
+@dataclass
+class Replayed:
+    """What :func:`replay` did: the last position (mm), the reports sent, and those skipped because a newer one
+    was due by the time this process ran (a log denser than this loop, or a machine too busy to keep time)."""
+
+    last: tuple[float, float] | None
+    sent: int
+    skipped: int
+
+
+def replay(touch, chunks, started: float) -> Replayed:
     """Call ``touch(t, x, y, force)`` for each report when its time comes (the first at ``started``,
-    perf_counter seconds); when several are due at once (a log denser than this loop), only the
-    newest, as a touch panel's late reader gets the newest touch. Returns the last position (mm)."""
+    perf_counter seconds); when several are due at once, only the newest, as a touch panel's late reader gets
+    the newest touch."""
     import numpy as np
 
     origin = last = None
+    sent = skipped = 0
     for times, xs, ys, forces in chunks:
         origin = times[0] if origin is None else origin
         due = times - origin
@@ -95,12 +107,14 @@ def replay(touch, chunks, started: float) -> tuple[float, float]:
             if due[k] > now:
                 time.sleep(due[k] - now)
                 continue
-            k = int(np.searchsorted(due, now, side="right")) - 1  # the newest report already due
-            force = float(forces[k])
-            touch(time.perf_counter(), float(xs[k]), float(ys[k]), None if math.isnan(force) else force)
-            k += 1
+            newest = int(np.searchsorted(due, now, side="right")) - 1  # the newest report already due
+            skipped += newest - k
+            force = float(forces[newest])
+            touch(time.perf_counter(), float(xs[newest]), float(ys[newest]), None if math.isnan(force) else force)
+            sent += 1
+            k = newest + 1
         last = (xs[-1], ys[-1])
-    return last
+    return Replayed(last, sent, skipped)
 
 
 def engine_config(args) -> EngineConfig:
@@ -166,8 +180,8 @@ def run(args) -> int:
             for note in (engine.ready_info.get("device_status") or {}).get("notes") or []:
                 print(note, flush=True)  # where the device's own limits bind, said once before playing
         started = time.perf_counter()
-        last = replay(engine.touch, itertools.chain(first, chunks), started)
-        engine.touch(time.perf_counter(), float(last[0]), float(last[1]), down=False)
+        replayed = replay(engine.touch, itertools.chain(first, chunks), started)
+        engine.touch(time.perf_counter(), float(replayed.last[0]), float(replayed.last[1]), down=False)
         time.sleep(engine.ready_info["tail_s"])
     finally:
         with held():  # a stop signal arriving now waits until the plate is at rest
@@ -181,7 +195,7 @@ def run(args) -> int:
     limiter = device_status.pop("limiter", "")
     clipped = final.clipped_samples / final.control_samples if final.control_samples else 0.0
     status = {**device_status, **figures, "clipped_fraction": round(clipped, 6), "faults": counts or {},
-              "played_s": played_s}
+              "played_s": played_s, "touch_reports_sent": replayed.sent, "touch_reports_skipped": replayed.skipped}
     if final.clipped_samples:
         force = force_words(trajectory, SimpleNamespace(default_force_n=engine.config.default_force_n))
         print(f"warning: {share_words(clipped)} of the time the texture asked for less friction than model "
@@ -199,6 +213,9 @@ def run(args) -> int:
               f"{final.underruns} device underruns; block time {final.block_p50_us:.0f} µs median, "
               f"{final.block_p99_us:.0f} µs p99; {final.clipped_samples} samples held at the plate's limit{played}; "
               f"engine priority {final.priority}")
+        if replayed.skipped:
+            print(f"{replayed.skipped} of {replayed.sent + replayed.skipped} touch reports skipped: this process ran "
+                  f"too late for them (a busy machine) and sent the newest one due instead")
         print(limiter)
         for line in report.lines:  # what happened to the plate, and when
             print(line)
