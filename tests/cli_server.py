@@ -42,9 +42,8 @@ PRELOAD_OURS = ("ultraglide.apps.cli.main", "ultraglide.apps.commands.export", "
                 "ultraglide.render.engine", "ultraglide.render.engine.sources", "ultraglide.api")
 NOT_PRELOADED = ("sounddevice", "pygame", "serial")  # started with the server's environment, they would keep it
 # our compiled kernels, loaded from numba's cache (or compiled) once here rather than in every rendering command
-# (31 ms of CPU of a served export's 108 ms): what a renderer, a model and an output stage load when built
-WARM_UPS = ("ultraglide.render.kernels.warm_up", "ultraglide.render.physics.kernels.warm_up",
-            "ultraglide.devices.kernels.warm_up", "ultraglide.render.effects.warm_up")
+# (31 ms of CPU of a served export's 108 ms): every one, as the install compiles them
+WARM_UPS = ("ultraglide.compile_kernels.compile_all",)
 IMPORT_TIME_VARIABLES = ("NUMBA_", "OMP_", "OPENBLAS_", "MKL_", "PYTHON", "LD_", "MALLOC_", "MPL")
 
 SERVER = r'''
