@@ -257,15 +257,17 @@ def test_the_participants_window_takes_no_cpu_while_it_waits_for_an_answer(tmp_p
                                 "--method", "staircase", "--afc", "3", "--trials", "4", "--out", str(tmp_path / "s"),
                                 "--device", "null", "--windowed"], env=env, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE)
+    last_shot = []  # what the screenshot said last time, for a failure's message
     try:
         def trial_on_screen():  # the first trial's zones are drawn (what the screen shows, as a person sees it)
             assert session.poll() is None, session.communicate()
             shot = subprocess.run(["import", "-window", "root", "png:-"], env=env, capture_output=True, timeout=60)
+            last_shot[:] = [shot.returncode, shot.stderr[-300:]]
             if shot.returncode != 0:
                 return False
             pixels = np.asarray(Image.open(io.BytesIO(shot.stdout)).convert("RGB"))
             return bool(np.all(pixels == ZONE, axis=-1).any())
-        assert conftest.wait_for(trial_on_screen, 120)
+        assert conftest.wait_for(trial_on_screen, 120), f"no trial on screen; the last screenshot: {last_shot}"
         cpu_before, wall_before = process_cpu_s(session.pid), time.perf_counter()
         deadline = wall_before + 5.0
         while time.perf_counter() < deadline:  # CPU time, not wall time, is measured: sleeping costs nothing
