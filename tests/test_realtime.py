@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, may_run_in_real_time
+from conftest import ROOT, may_run_in_real_time, wait_for
 
 THP_MODE = Path("/sys/kernel/mm/transparent_hugepage/enabled")
 
@@ -189,33 +189,45 @@ def test_no_request_when_not_asked():
     assert wake.words() == "CPU wake-up: as the system has it (not asked)"
 
 
-def test_threads_started_in_real_time_run_there_and_their_starter_gets_its_own_back():
+def test_threads_started_in_real_time_run_there_from_the_blocks_end_and_their_starter_never_does():
+    """The threads a block starts are raised when it ends; the block's own work (a device's set-up) stays ordinary."""
     import threading
 
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
-    seen, started_at = {}, []
+    seen, at_start, after_block = {}, [], []
+    block_ended = threading.Event()
+
+    def scheduling():
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+    def started():
+        at_start.append(scheduling())
+        assert block_ended.wait(timeout=60)
+        after_block.append(scheduling())
 
     def starter():  # on a thread of its own: the test worker's threads keep their scheduling
-        def started():
-            started_at.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
-
-        seen["before"] = os.sched_getscheduler(0)
+        seen["before"] = scheduling()
         with threads_started_in_real_time() as words:
             thread = threading.Thread(target=started)
             thread.start()
+            assert wait_for(lambda: at_start, timeout=60)
+            seen["inside"] = scheduling()  # the set-up's work, after a thread was started
+        block_ended.set()
         thread.join()
-        seen["words"], seen["after"] = words, os.sched_getscheduler(0)
-        late = threading.Thread(target=started)  # started after the block: ordinary again
+        seen["words"], seen["after"] = words, scheduling()
+        late = threading.Thread(target=started)  # started after the block: ordinary
         late.start()
         late.join()
 
     worker = threading.Thread(target=starter)
     worker.start()
     worker.join()
-    assert seen["before"] == seen["after"] == os.SCHED_OTHER
+    ordinary = (os.SCHED_OTHER, 0)
+    assert seen["before"] == seen["inside"] == seen["after"] == ordinary
+    assert at_start == [ordinary, ordinary]  # inside the block, and the late one
     if may_run_in_real_time():
-        assert seen["words"] == "SCHED_FIFO 1" and started_at[0] == (os.SCHED_FIFO, 1)
+        assert seen["words"] == "SCHED_FIFO 1" and after_block[0] == (os.SCHED_FIFO, 1)
     else:
-        assert seen["words"] == "normal (no permission to raise it)" and started_at[0] == (os.SCHED_OTHER, 0)
-    assert started_at[1] == (os.SCHED_OTHER, 0)  # started after the block: ordinary
+        assert seen["words"] == "normal (no permission to raise it)" and after_block[0] == ordinary
+    assert after_block[1] == ordinary  # started after the block: never raised

@@ -85,27 +85,49 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
     return f"other threads: SCHED_FIFO {priority} ({running})" if running else "other threads: normal"
 
 
-@contextlib.contextmanager
-def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
-    """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` where the OS allows; the calling
-    thread gets its own scheduling back after. Yields what they got, in words.
+def _tasks() -> set[int]:
+    """The thread ids of this process (Linux; empty elsewhere)."""
+    try:
+        return set(map(int, os.listdir("/proc/self/task")))
+    except (OSError, ValueError):
+        return set()
 
-    For a command that streams to a plate on threads of its own (a driver's writer and reader) beside a main
-    thread that stays ordinary: new threads inherit their creator's scheduling, so the caller is raised
-    only while it starts them. A writer thread at ordinary priority on a busy machine can go unscheduled
-    past the plate's 100 ms watchdog; the engine raises all of its threads (:func:`raise_other_threads`)."""
+
+def _may_run_in_real_time(priority: int) -> bool:
+    """Whether this thread may be put at SCHED_FIFO ``priority``: tried, and its own scheduling given back at once."""
     try:
         before = os.sched_getscheduler(0), os.sched_getparam(0)
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (OSError, AttributeError):
-        before = None
-    if before is None:
+        return False
+    os.sched_setscheduler(0, *before)
+    return True
+
+
+@contextlib.contextmanager
+def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
+    """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` from its end on, where the OS allows;
+    the calling thread, and the work it does inside, stay ordinary. Yields what they get, in words.
+
+    For a command that streams to a plate on threads of its own (a driver's writer and reader, a simulated
+    plate's) beside a main thread that stays ordinary: a writer thread at ordinary priority on a busy machine
+    can go unscheduled past the plate's 100 ms watchdog; the engine raises all of its threads
+    (:func:`raise_other_threads`). The set-up inside the block (imports, the first call of a compiled kernel, a
+    handshake: half a second of CPU for a simulated plate) runs at ordinary priority: at SCHED_FIFO nothing of
+    equal priority could preempt it, and it once kept another process's engine threads waiting 130 ms."""
+    if not _may_run_in_real_time(priority):
         yield "normal (no permission to raise it)"
         return
+    before = _tasks()
     try:
         yield f"SCHED_FIFO {priority}"
     finally:
-        os.sched_setscheduler(0, *before)
+        for tid in _tasks() - before:
+            try:
+                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
+                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            except OSError:  # it has ended already
+                continue
 
 
 def keep_huge_pages_out() -> str:
