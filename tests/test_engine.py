@@ -212,6 +212,7 @@ def test_latency_from_touch_to_output(device):
     assert engine["p50"] < figures["block_ms"] + 20
     if device == "null":
         assert device_part == {"p50": 0.0, "p99": 0.0}  # the null sink holds nothing back
+        assert figures["depth_corrections"] == 0  # no plate driver's lead to move
     else:  # the simulated plate responds after the engine: writer batch, link, jitter buffer
         assert device_part["p50"] > 0 and total["p50"] > engine["p50"]
         assert total["p50"] < 100  # tens of ms would be a broken link, not buffering

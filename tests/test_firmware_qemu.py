@@ -650,7 +650,12 @@ def test_latency_on_the_board(one_qemu, tmp_path):
     # the host's part: at most a frame's wait and the render; the device's: the plate's buffer (its 10 ms prefill)
     # and a frame, as the host keeps it
     assert 0 < report["engine_ms"]["p50"] <= 4.0 + 2.0
-    assert report["device_ms"]["p50"] == pytest.approx(10.0, abs=2.0)
+    if report["depth_corrections"] == 0:
+        assert report["device_ms"]["p50"] == pytest.approx(10.0, abs=2.0), (report["device_ms"], report["report"])
+    else:  # the board's buffer drifted from its depth (QEMU starved on a loaded machine) and the host moved its lead
+        # to bring it back, as the report says: the device part is the lead it then kept, shorter
+        assert 0 < report["device_ms"]["p50"] <= 12.0, (report["device_ms"], report["report"])
+        assert any("drifted from its depth" in line for line in report["report"]["lines"]), report["report"]
     assert stream["rate_hz"] == 1000 and stopped["setpoints"] > 0 and stopped["trips"] == 0
 
 

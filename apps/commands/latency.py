@@ -98,6 +98,8 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
         "engine_ms": _percentiles(engine_s), "device_ms": _percentiles(device_s), "total_ms": _percentiles(total_s),
         "device_part": DEVICE_PART.get(kind, ""), "block_ms": block_ms, "priority": status.priority,
         "engine_aim_ms": ENGINE_AIM_MS, "report": status.device_status.get("report"),
+        # a plate driver's buffer that drifted from its depth moved the host's lead, and the device part with it
+        "depth_corrections": status.device_status.get("depth_corrections", 0),
     }
 
 
