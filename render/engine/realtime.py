@@ -107,7 +107,8 @@ def _may_run_in_real_time(priority: int) -> bool:
 @contextlib.contextmanager
 def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
     """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` from its end on, where the OS allows;
-    the calling thread, and the work it does inside, stay ordinary. Yields what they get, in words.
+    the calling thread, and the work it does inside, keep the caller's scheduling (ordinary for a command's main
+    thread). Yields what they get, in words.
 
     For a command that streams to a plate on threads of its own (a driver's writer and reader, a simulated
     plate's) beside a main thread that stays ordinary: a writer thread at ordinary priority on a busy machine
