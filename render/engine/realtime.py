@@ -70,19 +70,26 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
     whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
     audio server, above everything ordinary, and they sleep almost all the time. Threads they start later
     inherit it. Says how many threads run at that priority (raised now or before)."""
-    running = 0
     try:
-        for tid in map(int, os.listdir("/proc/self/task")):
-            try:
-                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
-                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-                if os.sched_getscheduler(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == priority:
-                    running += 1
-            except (ProcessLookupError, PermissionError):
-                continue
+        running = _raise(_tasks(), priority)
     except (OSError, AttributeError):
         return "other threads: normal"
     return f"other threads: SCHED_FIFO {priority} ({running})" if running else "other threads: normal"
+
+
+def _raise(tids: set[int], priority: int) -> int:
+    """Put those of these threads that run at ordinary priority at SCHED_FIFO ``priority``; says how many of them
+    run there now (raised now or before). Threads that have ended are skipped."""
+    running = 0
+    for tid in tids:
+        try:
+            if os.sched_getscheduler(tid) == os.SCHED_OTHER:
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+            if os.sched_getscheduler(tid) == os.SCHED_FIFO and os.sched_getparam(tid).sched_priority == priority:
+                running += 1
+        except (ProcessLookupError, PermissionError):
+            continue
+    return running
 
 
 def _tasks() -> set[int]:
@@ -123,12 +130,8 @@ def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
     try:
         yield f"SCHED_FIFO {priority}"
     finally:
-        for tid in _tasks() - before:
-            try:
-                if os.sched_getscheduler(tid) == os.SCHED_OTHER:
-                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
-            except OSError:  # it has ended already
-                continue
+        with contextlib.suppress(OSError):
+            _raise(_tasks() - before, priority)
 
 
 def keep_huge_pages_out() -> str:
