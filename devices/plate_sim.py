@@ -59,14 +59,16 @@ MAX_EVENTS = 10000  # events kept for a reader (plate-sim prints them); beyond t
 @dataclass(frozen=True)
 class PlateTruth:
     """The simulated plate's real resonance (Hz, drifting by ``drift_hz_per_s``) and quality factor; its real
-    full-scale amplitude (µm p-p at full drive on resonance; None: the profile's) and the sensing piezo's
-    noise (µm p-p rms, added to what the firmware measures)."""
+    full-scale amplitude (µm p-p at full drive on resonance; None: the profile's), the sensing piezo's
+    noise (µm p-p rms, added to what the firmware measures) and how fast its crystal runs against the host's
+    clock (parts per million; positive: it plays its setpoints faster than the host sends them)."""
 
     resonance_hz: float
     q: float
     drift_hz_per_s: float = 0.0
     full_scale_um_pp: float | None = None
     noise_um_pp: float = 0.0
+    clock_ppm: float = 0.0
 
     @classmethod
     def of(cls, profile: PlateProfile) -> PlateTruth:
@@ -169,6 +171,7 @@ class PlateSimulator:
         if finger is not None and hasattr(finger, "set_clock_origin"):
             finger.set_clock_origin(self._started)  # its log's times on the host's clock: sample 0 is now
         self._clock = self._started
+        self._clock_rate = 1.0 + self.truth.clock_ppm * 1e-6  # the core's samples a host's second
         self._owed = 0.0  # fractional drive samples not yet rendered
         self._plate_state = 0.0  # the plate's phasor along the drive's phase, µm p-p (its amplitude: the magnitude)
         self._rng = np.random.default_rng(0)
@@ -311,7 +314,7 @@ class PlateSimulator:
         the frames the core sent meanwhile (none when ``telemetry`` is false: a hung device says nothing)."""
         with self._lock:
             now = time.perf_counter() if now is None else now
-            self._owed += (now - self._clock) * self.sample_rate_hz
+            self._owed += (now - self._clock) * self.sample_rate_hz * self._clock_rate
             self._clock = now
             n = int(self._owed)
             self._owed -= n
@@ -380,5 +383,5 @@ class PlateSimulator:
         status = self.status()
         if status.enabled or abs(self._plate_state) > REST_UM_PP:
             return TICK_S
-        due = self._started + status.next_telemetry_ms / 1000.0
+        due = self._started + status.next_telemetry_ms / 1000.0 / self._clock_rate
         return min(max(due - now, 0.0), TELEMETRY_S)

@@ -19,8 +19,9 @@ stream plays at ``start + k / rate``. A stream that (re)starts sends the whole l
 which the device plays on arrival. After a stall of the host long enough for the plate to run dry, the
 writer skips ahead (the device counts the skipped values as lost) instead of sending its backlog, so the
 latency once streaming resumes is the lead again, not the stall. A v3 device reports its buffer's depth
-in telemetry: averaged over 0.2 s, a depth more than 5 ms off its target (the plate's clock drifting
-from the host's, a stall of the plate's own, a backlog it read late) moves the lead by the difference.
+in telemetry: its median over 0.2 s more than 3 ms off its target (the plate's clock drifting from the
+host's, its playback restarted late) moves the lead by the difference; a few frames deep for a moment (the
+plate catching up a stall of its own, reading a backlog late) do not.
 
 The carrier can change while it runs: :meth:`set_carrier` (acknowledged; the plate sweep uses it),
 or a :class:`~ultraglide.devices.resonance.ResonanceTracker` given as ``tracker``, which is fed every
@@ -130,9 +131,9 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
         self._clear_refused = False  # the device refused CLEAR_FAULTS: not asked again
         self._trim_lock = threading.Lock()  # held only to add to or take the request below
         self._trim_request = 0.0  # values the writer's lead should move by (the reader's depth tracking asks)
-        self._stream_epoch = 0  # a new stream (wake, connection, re-anchoring): the depth average starts again
+        self._stream_epoch = 0  # a new stream (wake, connection, re-anchoring): the depth window starts again
         self._depth_epoch = -1
-        self._depth_sum, self._depth_n = 0.0, 0
+        self._depths, self._depth_n = [0] * DEPTH_WINDOW, 0  # the present window's depths, values
         self._depth_worst = 0.0  # the largest correction asked, values
         self._clear_outstanding = False  # a CLEAR_FAULTS is on its way, not yet answered
         self._clear_mask = 0

@@ -75,8 +75,8 @@ class RunReporting:
         if self.counters.depth_corrections:
             worst_ms = 1000 * self._depth_worst / self.rate_hz
             summary.append(f"the plate's buffer drifted from its depth {times(self.counters.depth_corrections)} (by "
-                           f"up to {worst_ms:.0f} ms: its clock against the host's, or a stall of its own); the host "
-                           "moved its lead to bring it back")
+                           f"up to {worst_ms:.0f} ms: its clock against the host's, or its playback started again "
+                           "late); the host moved its lead to bring it back")
         if self._rest_failure and self._rested:
             summary.append(f"the plate could not be rested at the end ({self._rest_failure}): its watchdog rests "
                            "it if it is still powered and was enabled")

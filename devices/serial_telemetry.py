@@ -131,20 +131,23 @@ class TelemetryIntake:
             self._first_telemetry.set()
 
     def _track_depth(self, telemetry: p.Telemetry) -> None:
-        """v3 telemetry says how many values wait in the plate's buffer. Averaged over DEPTH_WINDOW frames while it
-        plays, a depth off its target by more than the deadband (the plate's clock drifting from the host's, the
-        plate stalled, a backlog it read late) asks the writer to move its lead by the difference: the buffer, and
-        the latency it costs, come back to the prefill and a frame."""
+        """v3 telemetry says how many values wait in the plate's buffer. Over DEPTH_WINDOW frames while it plays,
+        a median depth off its target by more than the deadband (the plate's clock drifting from the host's, its
+        playback restarted later than the host's clock) asks the writer to move its lead by the difference: the
+        buffer, and the latency it costs, come back to the prefill and a frame. The median, not the mean: a
+        few frames made while the plate caught up a stall of its own, or read a backlog late, report a
+        buffer that is deep only for that moment; moving the lead for them would starve the plate after."""
         if (getattr(telemetry, "version", 2) < 3 or telemetry.playback != p.PLAYBACK_PLAYING or not self._output_on
                 or self._cut or self._depth_epoch != self._stream_epoch):
-            self._depth_sum, self._depth_n, self._depth_epoch = 0.0, 0, self._stream_epoch
+            self._depth_n, self._depth_epoch = 0, self._stream_epoch
             return
-        self._depth_sum += telemetry.buffered_setpoints
+        self._depths[self._depth_n] = telemetry.buffered_setpoints
         self._depth_n += 1
         if self._depth_n < DEPTH_WINDOW:
             return
-        error = self._depth_sum / self._depth_n - (self.lead - self._batch / 2.0)
-        self._depth_sum, self._depth_n = 0.0, 0
+        self._depth_n = 0
+        middle = sorted(self._depths)
+        error = (middle[(DEPTH_WINDOW - 1) // 2] + middle[DEPTH_WINDOW // 2]) / 2.0 - (self.lead - self._batch / 2.0)
         if abs(error) > DEPTH_DEADBAND_S * self.rate_hz:
             with self._trim_lock:
                 self._trim_request -= error

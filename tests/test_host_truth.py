@@ -18,6 +18,7 @@ from conftest import ROOT, assert_one_line_error, run_cli, start_cli, wait_for
 from scripted_plate import ScriptedPlate
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import SerialPlate
@@ -482,6 +483,68 @@ def test_wakes_from_rest_leave_the_plate_buffer_full_and_never_underrun(tapped):
     # the host counts those, and only those may starve the plate)
     assert sim.fault_counts()["underrun"] <= driver.counters.late_frames, (sim.fault_counts(), driver.counters)
     assert sim.fault_counts()["watchdog"] <= driver.counters.send_stalls and driver.counters.naks == 0
+
+
+@pytest.mark.parametrize("clock_ppm", [3000.0, -3000.0])
+def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
+    """A plate whose crystal runs 3000 ppm fast (slow) plays 3 ms a second more (fewer) setpoints than the host
+    sends: over 6 s its buffer would lose (gain) 18 ms against its 10.5 ms target, and a fast plate would run dry
+    after 3.5 s. The host reads the depth from v3 telemetry and moves its lead: the last second's depth stays
+    within 5 ms of the target (the 3 ms deadband and a window's drift). (Whether the plate ran dry is asked in
+    test_plate_sim_cli.py, where the plate and the host run in processes of their own: here they share one, at
+    ordinary priority, and a stall of it on a loaded machine starves the plate whatever the lead.)"""
+    truth = PlateTruth(PROFILE.resonance_hz, PROFILE.q, clock_ppm=clock_ppm)
+    plate = PtyPlate(PROFILE, truth=truth).start()
+    driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+    try:
+        driver.start(Constant(2.0))
+        depths = []
+        while len(depths) < 300:  # 6 s of v3 telemetry (50 a second) while the plate plays
+            telemetry = driver.next_telemetry(DEADLINE_S)
+            if telemetry.version >= 3 and telemetry.playback == p.PLAYBACK_PLAYING:
+                depths.append(telemetry.buffered_setpoints)
+        target = driver.lead - 6  # the prefill and a frame, less half a frame (12 values) played on average
+        driver.stop()
+    finally:
+        plate.stop()
+    tolerance = 0.005 * driver.rate_hz
+    assert driver.counters.depth_corrections >= 1, driver.counters
+    assert abs(np.median(depths[-50:]) - target) <= tolerance, (target, depths[-50:], driver.counters)
+
+
+def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):
+    """SIGSTOP the plate's process for 60 ms, six times, while the host streams to it. Running again, the plate
+    reads the frames that came meanwhile and then catches up the time it lost, so the telemetry it makes while
+    catching up reports, for a moment, a buffer deeper than it has. The host does not move its lead for that
+    (its mean over 0.2 s did, by up to 20 ms, and the plate then ran dry)."""
+    link = tmp_path / "plate"
+    plate = start_cli("plate-sim", "--link", link, "--json", stdout=subprocess.PIPE)
+    driver = None
+    try:
+        assert json.loads(plate.stdout.readline())["event"] == "serving"
+        driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)
+        driver.start(Constant(2.0))
+        for stall in range(7):
+            for _ in range(25):  # 0.5 s of the plate's telemetry
+                driver.next_telemetry(DEADLINE_S)
+            if stall < 6:
+                plate.send_signal(signal.SIGSTOP)
+                time.sleep(0.06)  # (the stimulus: 60 ms when the plate does not run)
+                plate.send_signal(signal.SIGCONT)
+    finally:
+        if driver is not None:
+            driver.stop()
+        plate.send_signal(signal.SIGCONT)  # (should the test have failed while it was stopped)
+        plate.send_signal(signal.SIGTERM)
+        said = plate.stdout.read()
+        plate.wait(timeout=DEADLINE_S)
+        plate.stdout.close()
+    c, counts = driver.counters, driver.fault_counts()
+    stopped = json.loads(said.splitlines()[-1])
+    assert stopped["event"] == "stopped", said
+    # a lead moved only for a frame the host sent later than the buffer lasts (a machine loaded past its share)
+    assert c.depth_corrections <= c.late_frames, (c, driver.report().lines)
+    assert counts["underrun"] <= c.late_frames, (counts, c)
 
 
 def latencies(crossings, half_s, after_s, before_s=math.inf):

@@ -101,6 +101,7 @@ SCREEN_WIDTH_MM = Bounded(10.0, 10_000.0, "mm")
 PRINT_DPI = Bounded(10.0, 2_400.0, "dpi")  # a figure's resolution, not a texture's
 Q_FACTOR = Bounded(1.0, 100_000.0)
 DRIFT_HZ_PER_S = Bounded(-10_000.0, 10_000.0, "Hz/s")
+CLOCK_PPM = Bounded(-50_000.0, 50_000.0, "ppm")
 DUTY = Bounded(0.0, 1.0, low_open=True, high_open=True, what="duty cycle")
 HURST = Bounded(0.0, 1.0, low_open=True, high_open=True, what="Hurst exponent")
 SEAM_BAND = Bounded(0.0, 0.5, low_open=True)

@@ -9,7 +9,7 @@ import time
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json, print_line
 from ultraglide.apps.cli.signals import held
-from ultraglide.apps.cli.types import CARRIER_HZ, DRIFT_HZ_PER_S, Q_FACTOR
+from ultraglide.apps.cli.types import CARRIER_HZ, CLOCK_PPM, DRIFT_HZ_PER_S, Q_FACTOR
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_asked, finger_config
 
 
@@ -27,6 +27,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sim.add_argument("--q", type=Q_FACTOR, metavar="Q", help="its real quality factor (default: the profile's)")
     sim.add_argument("--drift-hz-per-s", type=DRIFT_HZ_PER_S, default=0.0, metavar="D",
                      help="its resonance drifts by D Hz every second (default: 0)")
+    sim.add_argument("--clock-ppm", type=CLOCK_PPM, default=0.0, metavar="PPM",
+                     help="its crystal runs PPM parts per million fast (negative: slow) against the host's clock, "
+                          "so it plays setpoints faster (slower) than they come, as a real board's may "
+                          "(default: 0)")
     sim.add_argument("--json", action="store_true", help="print each event as a line of JSON")
     sim.add_argument("--max-version", choices=["2", "3"], default="3", metavar="V",
                      help="the highest protocol version the simulated firmware speaks: 3, or 2 to test a host's "
@@ -69,11 +73,11 @@ def run(args) -> int:
     args.max_version = int(args.max_version)
     args.breaks = list(_rules(args.breaks))
     if args.board == "qemu":
-        if args.breaks or args.max_version != 3 or finger_asked(args):
+        if args.breaks or args.max_version != 3 or finger_asked(args) or args.clock_ppm:
             from ultraglide.apps.cli.errors import UsageError
 
-            raise UsageError("--break, --max-version and --finger are the simulator's (--board sim), not the board "
-                             "image's")
+            raise UsageError("--break, --max-version, --clock-ppm and --finger are the simulator's (--board sim), "
+                             "not the board image's (it keeps QEMU's clock)")
         return _plate_sim_qemu(args)
     from ultraglide.devices.plate_sim import PlateTruth
     from ultraglide.devices.profiles import load_profile
@@ -81,7 +85,8 @@ def run(args) -> int:
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
 
     profile = load_profile(args.profile)
-    truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s)
+    truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s,
+                       clock_ppm=args.clock_ppm)
     config = finger_config(args)
     finger = build_finger(config) if config is not None else None
     try:
@@ -100,14 +105,16 @@ def run(args) -> int:
         if args.json:
             show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
                   "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
-                  "drift_hz_per_s": truth.drift_hz_per_s, "max_version": args.max_version, "breaks": args.breaks,
+                  "drift_hz_per_s": truth.drift_hz_per_s, "clock_ppm": truth.clock_ppm,
+                  "max_version": args.max_version, "breaks": args.breaks,
                   "finger": None if config is None else finger_words(config)})
         else:
             broken = f"; breaking {', '.join(args.breaks)} on purpose" if args.breaks else ""
             version = "" if args.max_version == 3 else f"; speaking protocol v{args.max_version} at most"
+            clock = f"; its clock {truth.clock_ppm:+g} ppm" if truth.clock_ppm else ""
             print_line(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "
-                  f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s{version}{broken}; "
-                  "Ctrl-C stops it")
+                       f"{truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s"
+                       f"{clock}{version}{broken}; Ctrl-C stops it")
             if config is not None:
                 print_line(finger_words(config))
         while True:  # until a stop signal (Ctrl-C, SIGTERM, SIGHUP) raises through here
