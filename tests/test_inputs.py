@@ -338,6 +338,7 @@ RANGES = {
     "--start": (-10_000, 10_000, False, False, False), "--size-mm": (0.1, 10_000, False, False, False),
 "--resonance-hz": (1000, 200_000, False, False, False),
     "--q": (1, 100_000, False, False, False), "--drift-hz-per-s": (-10_000, 10_000, False, False, False),
+    "--clock-ppm": (-50_000, 50_000, False, False, False),
     "--seam-band": (0, 0.5, True, False, False), "--auto-levels-clip": (0, 50, False, False, True),
     "--duty": (0, 1, True, False, True), "--hurst": (0, 1, True, False, True),
     "--weights": (0, 1e6, False, False, False), "--else-ratio": (0, 1, False, False, False),
