@@ -485,6 +485,7 @@ def test_wakes_from_rest_leave_the_plate_buffer_full_and_never_underrun(tapped):
     assert sim.fault_counts()["watchdog"] <= driver.counters.send_stalls and driver.counters.naks == 0
 
 
+@pytest.mark.slow  # 6 s of streaming each
 @pytest.mark.parametrize("clock_ppm", [3000.0, -3000.0])
 def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
     """A plate whose crystal runs 3000 ppm fast (slow) plays 3 ms a second more (fewer) setpoints than the host
