@@ -35,8 +35,8 @@ CUT_WORDS = {"trip": "over-amplitude trip: its measured amplitude went more than
 STALL_S = 0.05  # the writer woke this much later than it meant to: the host did not run (not the plate's silence)
 CLEAR_RETRY_S = 0.5  # a CLEAR_FAULTS unanswered this long was lost on the link: sent again
 DEPTH_WINDOW = 10  # v3 telemetry frames (0.2 s) over which the median of the plate's buffer depth is taken
-DEPTH_DEADBAND_S = 0.003  # the plate's buffer's median this far from its target: the host moves its lead (its
-# median over a window strays 0-1.3 ms on an idle machine; the 10 ms buffer keeps 7 ms as a drifting clock nears this)
+DEPTH_DEADBAND_S = 0.005  # the plate's buffer's median this far from its target: the host moves its lead (the
+# median strays 0-1.3 ms on an idle machine; beside two CPU hogs, a simulated plate's lags made 3 ms strays common)
 REST_ACK_S = 0.25  # after a failed handshake, how long the rest's ENABLE 0 waits for its ACK (best effort)
 MAX_OUTAGES = 20  # disconnections kept with their times; more are counted
 # the baud rates a UART is usually opened at, to name the one a stream needs

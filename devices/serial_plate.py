@@ -19,7 +19,7 @@ stream plays at ``start + k / rate``. A stream that (re)starts sends the whole l
 which the device plays on arrival. After a stall of the host long enough for the plate to run dry, the
 writer skips ahead (the device counts the skipped values as lost) instead of sending its backlog, so the
 latency once streaming resumes is the lead again, not the stall. A v3 device reports its buffer's depth
-in telemetry: its median over 0.2 s more than 3 ms off its target (the plate's clock drifting from the
+in telemetry: its median over 0.2 s more than 5 ms off its target (the plate's clock drifting from the
 host's, its playback restarted late) moves the lead by the difference; a few frames deep for a moment (the
 plate catching up a stall of its own, reading a backlog late) do not.
 

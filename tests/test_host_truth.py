@@ -491,7 +491,7 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
     """A plate whose crystal runs 3000 ppm fast (slow) plays 3 ms a second more (fewer) setpoints than the host
     sends: over 6 s its buffer would lose (gain) 18 ms against its 10.5 ms target, and a fast plate would run dry
     after 3.5 s. The host reads the depth from v3 telemetry and moves its lead: the last second's depth stays
-    within 5 ms of the target (the 3 ms deadband and a window's drift). (Whether the plate ran dry is asked in
+    within 6 ms of the target (the 5 ms deadband and a window's drift). (Whether the plate ran dry is asked in
     test_plate_sim_cli.py, where the plate and the host run in processes of their own: here they share one, at
     ordinary priority, and a stall of it on a loaded machine starves the plate whatever the lead.)"""
     truth = PlateTruth(PROFILE.resonance_hz, PROFILE.q, clock_ppm=clock_ppm)
@@ -508,7 +508,7 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
         driver.stop()
     finally:
         plate.stop()
-    tolerance = 0.005 * driver.rate_hz
+    tolerance = 0.006 * driver.rate_hz
     assert driver.counters.depth_corrections >= 1, driver.counters
     assert abs(np.median(depths[-50:]) - target) <= tolerance, (target, depths[-50:], driver.counters)
 
@@ -545,7 +545,9 @@ def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):
     assert stopped["event"] == "stopped", said
     # a lead moved only for a frame the host sent later than the buffer lasts (a machine loaded past its share)
     assert c.depth_corrections <= c.late_frames, (c, driver.report().lines)
-    assert counts["underrun"] <= c.late_frames, (counts, c)
+    # and the plate ran dry only then (one such stall may empty it more than once: seen 3 times for 1, beside two
+    # hogs and other real-time tests, the host having skipped 27 ms ahead)
+    assert counts["underrun"] == 0 or c.late_frames > 0, (counts, c)
 
 
 def latencies(crossings, half_s, after_s, before_s=math.inf):

@@ -143,7 +143,7 @@ def test_a_play_keeps_a_plate_sim_with_a_fast_clock_fed(tmp_path):
     ``play`` that is 16 ms against its 10.5 ms buffer, which without the host's correction runs dry after 2.3-2.6
     s (the plate raises underrun and holds its last value): the host reads the buffer's depth from telemetry and
     moves its lead, and the run's report says it did and why. (Between corrections the buffer runs up to the
-    3 ms deadband below its depth, so on a loaded machine a gap of the host's shorter than the 10 ms it counts as
+    5 ms deadband below its depth, so on a loaded machine a gap of the host's shorter than the 10 ms it counts as
     late may still starve it: seen once in five runs beside QEMU's tests.)"""
     link = tmp_path / "plate"
     server = Server("--link", link, "--json", "--clock-ppm", "4000")
