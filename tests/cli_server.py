@@ -144,6 +144,8 @@ def run_child(request, stdout, stderr, reply):
     os.dup2(stderr, 2)
     for fd in (null, stdout, stderr):
         os.close(fd)
+    import faulthandler  # SIGUSR1 prints every thread's stack on stderr: what a test that waited too long reports
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     if request.get("file_size_limit") is not None:  # a full disk, as the kernel refuses a file past RLIMIT_FSIZE
         import resource
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
@@ -398,6 +400,11 @@ class ServedCommand:
 
     def terminate(self) -> None:
         self.send_signal(signal.SIGTERM)
+
+    def print_stacks(self) -> None:
+        """Have the command print every thread's Python stack on its stderr (SIGUSR1, the server's faulthandler):
+        for a test whose wait for it ran out, to say where it was."""
+        self.send_signal(signal.SIGUSR1)
 
     def kill(self) -> None:
         self.send_signal(signal.SIGKILL)

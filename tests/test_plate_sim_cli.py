@@ -55,7 +55,15 @@ class Server:
     def finish(self, signum) -> int:
         """Send ``signum`` and wait for the end; its exit status (what it wrote on stderr in ``err``)."""
         self.process.send_signal(signum)
-        self.process.wait(timeout=30)
+        try:
+            self.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:  # (seen once beside two hogs, after SIGINT): where was it?
+            self.process.print_stacks()
+            ready, _, _ = select.select([self.process.stderr], [], [], 10)
+            said = os.read(self.process.stderr.fileno(), 1 << 20).decode(errors="replace") if ready else ""
+            self.kill()
+            raise AssertionError(f"plate-sim did not end within 30 s of signal {signum}; its threads:\n{said}") \
+                from None
         self.reader.join(timeout=30)  # every line it printed, to the end
         while not self.lines.empty():
             self.seen.append(self.lines.get())
