@@ -511,7 +511,10 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
     finally:
         plate.stop()
     tolerance = 0.006 * driver.rate_hz
-    assert driver.counters.depth_corrections >= 1, driver.counters
+    if driver.counters.late_frames == 0:  # a host late by more than the buffer (this process starved beside two
+        # hogs: 11 late frames in 6 s) lets the plate run dry, and it starts again on the host's clock each time,
+        # so no drift builds up to be corrected
+        assert driver.counters.depth_corrections >= 1, driver.counters
     assert abs(np.median(depths[-50:]) - target) <= tolerance, (target, depths[-50:], driver.counters)
 
 
