@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import selectors
 import signal
 import socket
@@ -401,10 +402,18 @@ class ServedCommand:
     def terminate(self) -> None:
         self.send_signal(signal.SIGTERM)
 
-    def print_stacks(self) -> None:
-        """Have the command print every thread's Python stack on its stderr (SIGUSR1, the server's faulthandler):
-        for a test whose wait for it ran out, to say where it was."""
+    def stacks(self, stderr) -> str:
+        """Every thread's Python stack, which the command prints on its stderr (SIGUSR1, the server's faulthandler)
+        and which is read here from ``stderr``, its read end (within 10 s): for a test whose wait for it ran out,
+        to say where it was."""
         self.send_signal(signal.SIGUSR1)
+        said, wait_s = b"", 10.0
+        while select.select([stderr], [], [], wait_s)[0]:  # until it has been quiet for half a second
+            chunk = os.read(stderr.fileno(), 1 << 16)
+            if not chunk:
+                break
+            said, wait_s = said + chunk, 0.5
+        return said.decode(errors="replace")
 
     def kill(self) -> None:
         self.send_signal(signal.SIGKILL)

@@ -6,7 +6,6 @@ handlers run. Each case is a small module run both ways from the same folder."""
 from __future__ import annotations
 
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -78,9 +77,7 @@ def test_ctrl_c_ends_a_served_program_by_sigint_as_a_real_process(tmp_path):
         except subprocess.TimeoutExpired:  # (once in a whole suite, before the program set its own Ctrl-C)
             with open(f"/proc/{forked.pid}/status") as status:
                 masks = [line.strip() for line in status if line.startswith(("SigBlk", "SigIgn", "SigCgt"))]
-            forked.print_stacks()
-            ready, _, _ = select.select([forked_err], [], [], 10)
-            stacks = os.read(forked_err.fileno(), 1 << 20).decode(errors="replace") if ready else ""
+            stacks = forked.stacks(forked_err)
             forked.kill()
             raise AssertionError(f"the served program outlived Ctrl-C by 120 s: {masks}\n{stacks}") from None
         assert forked.returncode == real.wait(timeout=120) == -signal.SIGINT

@@ -58,9 +58,7 @@ class Server:
         try:
             self.process.wait(timeout=30)
         except subprocess.TimeoutExpired:  # (seen once beside two hogs, after SIGINT): where was it?
-            self.process.print_stacks()
-            ready, _, _ = select.select([self.process.stderr], [], [], 10)
-            said = os.read(self.process.stderr.fileno(), 1 << 20).decode(errors="replace") if ready else ""
+            said = self.process.stacks(self.process.stderr)
             self.kill()
             raise AssertionError(f"plate-sim did not end within 30 s of signal {signum}; its threads:\n{said}") \
                 from None
