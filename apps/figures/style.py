@@ -97,22 +97,22 @@ def fit_print_width(fig):
 
 
 def print_layout(fig, dpi: float = PNG_DPI) -> dict:
-    """Fit ``fig`` to its print width (:func:`fit_print_width`), lay it out once more at ``dpi`` (the PNG's)
-    and keep that layout: the savefig options that write it as laid out and measured then. savefig would
-    otherwise lay the figure out and measure its tight box again for every file, at each file's
-    resolution, each pass moving a legend placed beside its axes a little (constrained layout settles
-    over passes): the PNG comes out as before, and the PDF now as the PNG (it was laid out once more, at
-    72 dpi: text up to 1.6 pt apart). A figure that could not be fitted is saved with a tight box as before."""
+    """Fit ``fig`` to its print width (:func:`fit_print_width`) laid out at ``dpi`` (the PNG's), and keep that
+    layout: the savefig options that write it as laid out and measured then. savefig would otherwise lay the
+    figure out and measure its tight box again for every file, at each file's resolution, each pass moving a
+    legend placed beside its axes a little (constrained layout settles over passes): the PDF comes out as the PNG
+    (laid out once more at 72 dpi, its text was up to 1.6 pt apart). The fit's last pass is that layout, so the
+    figure is laid out no more times than the fit takes. A figure that could not be fitted is saved with a tight
+    box as before."""
     pad = float(plt.rcParams["savefig.pad_inches"])
-    if fit_print_width(fig) is None:
-        return {"bbox_inches": "tight", "pad_inches": pad}
     drawn_dpi = fig.dpi
     fig.set_dpi(dpi)
     try:
-        fig.draw_without_rendering()  # the pass savefig made before the PNG
-        box = fig.get_tightbbox(fig.canvas.get_renderer())
+        box = fit_print_width(fig)  # text measured at the resolution the PNG draws it at
     finally:
         fig.set_dpi(drawn_dpi)
+    if box is None:
+        return {"bbox_inches": "tight", "pad_inches": pad}
     with plt.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
         fig.set_layout_engine(None)  # None, not "none" (a placeholder engine, for which savefig lays out again)
     return {"bbox_inches": box.padded(pad)}
