@@ -161,7 +161,10 @@ def _add_compose(texture_commands) -> None:
             other.add_argument("--else-ratio", type=UNIT_INTERVAL, default=1.0, metavar="R",
                                help="the friction ratio where the mask is black (default: 1, at rest)")
         if operation == "tile":
-            sub.add_argument("inputs", nargs=2, metavar=("INNER", "OUTER"))
+            # two positionals into one list: argparse cannot show a positional's tuple metavar (a traceback in
+            # --help and in the usage error for one input)
+            sub.add_argument("inputs", action="append", metavar="INNER", help="the texture repeated inside the region")
+            sub.add_argument("inputs", action="append", metavar="OUTER", help="the texture it is placed on")
             sub.add_argument("--region", type=region_mm, required=True, metavar="X,Y,W,H",
                              help="the rectangle of OUTER to fill, in mm from its top-left corner")
         else:
