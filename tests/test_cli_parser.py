@@ -1,11 +1,13 @@
-"""The command line's parser: every command's help and usage render."""
+"""The command line's parser: built whole for help and unknown commands, and for a named command only that
+command's parser (apps/cli/parser.py), which must parse, help and refuse exactly as within the whole."""
 
 from __future__ import annotations
 
 import argparse
 
+import pytest
 from conftest import run_cli
-from ultraglide.apps.cli.parser import build_parser
+from ultraglide.apps.cli.parser import NAMES, build_parser
 
 
 def commands_of(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
@@ -23,6 +25,38 @@ def helps(parser: argparse.ArgumentParser, words: tuple[str, ...] = ()) -> dict[
 
 
 WHOLE = build_parser()
+
+
+def test_the_names_are_the_commands_the_modules_add():
+    assert sorted(commands_of(WHOLE)) == sorted(NAMES)
+
+
+@pytest.mark.parametrize("name", sorted(NAMES))
+def test_a_command_alone_has_the_same_parsers_as_within_the_whole(name):
+    alone = build_parser([name, "--anything"])
+    assert name in commands_of(alone) and len(commands_of(alone)) <= 2  # texture adds "texture" and "textures"
+    expected = {words: text for words, text in helps(WHOLE).items() if words[:1] == (name,)}
+    got = {words: text for words, text in helps(alone).items() if words[:1] == (name,)}
+    assert got == expected and len(got) >= 1
+
+
+@pytest.mark.parametrize("argv", [[], ["-h", "export"], ["--version"], ["exprot"], ["EXPORT"], ["export!"]])
+def test_a_line_naming_no_command_first_gets_every_command(argv):
+    assert sorted(commands_of(build_parser(argv))) == sorted(NAMES)
+
+
+def test_a_misspelt_command_is_refused_with_every_command_listed():
+    result = run_cli("exprot", "grating-1mm")
+    assert result.returncode == 2 and result.stdout == ""
+    line = result.stderr.strip()
+    assert "\n" not in line and "invalid choice: 'exprot'" in line
+    assert all(f"'{name}'" in line for name in NAMES), line
+
+
+def test_the_top_level_help_lists_every_command_even_before_one():
+    result = run_cli("-h", "export")
+    assert result.returncode == 0
+    assert all(name in result.stdout for name in NAMES)
 
 
 def test_every_commands_help_and_usage_render():
