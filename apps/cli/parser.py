@@ -28,12 +28,12 @@ from ultraglide.apps.commands import (
 
 from ultraglide import __version__
 
-COMMANDS = (model, calibrate, author, texture, export, play, latency, devices, plate_sim, firmware, plate, demo,
-            experiment)
-# the command names each module adds (tests/test_cli_parser.py checks this against the parser the modules build)
+# each command name and the module that adds it, in the order ``--help`` lists them (tests/test_cli_parser.py
+# checks the names against the parser the modules build)
 NAMES = {"model": model, "calibrate": calibrate, "author": author, "textures": texture, "texture": texture,
          "export": export, "play": play, "latency": latency, "devices": devices, "plate-sim": plate_sim,
          "firmware": firmware, "plate": plate, "demo": demo, "experiment": experiment}
+COMMANDS = tuple(dict.fromkeys(NAMES.values()))
 
 
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
@@ -48,7 +48,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"ultraglide {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    named = argv[0] if argv and isinstance(argv[0], str) else None  # after a top-level option (-h): the whole
+    named = argv[0] if argv and isinstance(argv[0], str) else None  # the command, if it comes first
     for command in (NAMES[named],) if named in NAMES else COMMANDS:
         command.add_parser(commands)
     return parser
