@@ -441,7 +441,7 @@ def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
     stderr = io.StringIO()
     with no_hang(), contextlib.redirect_stderr(stderr):
         try:
-            args = build_parser().parse_args(argv)
+            args = build_parser(argv).parse_args(argv)  # as main() parses
         except SystemExit as exit_:
             assert exit_.code == 2
             lines = stderr.getvalue().strip().splitlines()
