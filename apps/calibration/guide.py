@@ -56,7 +56,7 @@ class WindowGuide:
     def __init__(self, participant: str, windowed: bool = False, size=(1280, 800)):
         import pygame
         from ultraglide.apps.cli.errors import UsageError
-        from ultraglide.apps.demo.options import display_available
+        from ultraglide.apps.window.screen import display_available
 
         if not display_available():
             raise UsageError("no display for the calibration's window (set DISPLAY or run under Xvfb); "

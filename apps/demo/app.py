@@ -27,7 +27,6 @@ from ultraglide.apps.demo.input import FingerDriver, Input, newest_motions
 from ultraglide.apps.demo.layout import Layout
 from ultraglide.apps.demo.link import DemoLink, LinkConfig, LinkStarter
 from ultraglide.apps.demo.options import (
-    DEFAULT_MM_PER_PX,
     FORCE_RANGE_N,
     MODELS,
     START_FORCE_N,
@@ -40,7 +39,8 @@ from ultraglide.apps.demo.record import TouchRecorder
 from ultraglide.apps.demo.scenes import Scenes
 from ultraglide.apps.demo.stats import run_stats, write_stats
 from ultraglide.apps.demo.status import status_words
-from ultraglide.apps.demo.wait import EventWaiter
+from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX
+from ultraglide.apps.window.wait import EventWaiter
 
 AREA_FRAME_S = 1 / 60  # the texture area while a finger moves or its trace fades
 CHART_FRAME_S = 1 / 20  # the chart while the plate is active

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.window.screen import display_available
 
-DEFAULT_MM_PER_PX = 25.4 / 96  # when the screen's size is not given: a 96 dpi screen
 MODELS = ("stretched", "squeeze-film", "exponential", "paper")  # the M key cycles through these
 PRESSURE_FULL_SCALE_N = 2.0  # a panel's pressure 1.0 is taken as this force
 FORCE_RANGE_N = (0.05, 5.0)
@@ -41,11 +41,6 @@ class DemoOptions:
                              "without a screen use `ultraglide export`")
         if self.record is not None and Path(self.record).suffix.lower() != ".csv":
             raise UsageError(f"--record needs a .csv file, got {self.record}")
-
-
-def display_available() -> bool:
-    driver = os.environ.get("SDL_VIDEODRIVER", "")
-    return bool(driver or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def seconds_since_launch() -> float:
