@@ -48,7 +48,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"ultraglide {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    named = argv[0] if argv and isinstance(argv[0], str) else None  # the command, if it comes first
+    named = argv[0] if argv else None  # the command, if it comes first
     for command in (NAMES[named],) if named in NAMES else COMMANDS:
         command.add_parser(commands)
     return parser
