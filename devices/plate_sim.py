@@ -241,10 +241,18 @@ class PlateSimulator:
     def _count_injected(self, name: str) -> None:
         self._injected[name] = self._injected.get(name, 0) + 1
 
+    def lag_s(self) -> float:
+        """Seconds from the time last advanced to until now: what the next ``advance()`` renders."""
+        with self._lock:
+            return time.perf_counter() - self._clock
+
     def excuse(self, stalled_s: float) -> None:
-        """The simulator itself did not run for ``stalled_s``: that time is not the host's silence."""
+        """The simulator itself did not run for ``stalled_s`` (this machine was busy): that time is not the
+        host's silence, and the telemetry due meanwhile becomes one frame once the clock has caught up. A
+        ``stalled`` event says so, to read the faults around it by."""
         with self._lock:
             self.core.excuse(int(stalled_s * 1000.0))
+        self._event("stalled", for_s=round(stalled_s, 4))
 
     def overheat(self) -> None:
         """Inject an overheat now (as SIM_FAULT kind 5 with no duration: raised, output cut and disabled)."""

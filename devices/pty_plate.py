@@ -189,18 +189,19 @@ class PtyPlate:
         at rest wakes only for telemetry (50 a second), or at once when a frame enables the output."""
         simulator = self.simulator
         wait = TICK_S
-        planned = time.perf_counter() + wait
         while True:
             self._wake.wait(wait)
             if self._stop.is_set():
                 return
             self._wake.clear()
             try:
-                now = time.perf_counter()
-                if now - planned > STALL_S - TICK_S:  # this process was not running: real firmware's clock stops too
-                    simulator.excuse(now - planned)
                 hung = time.monotonic() < self._hang_until
                 self._take_waiting_frames()
+                # what the advance renders beyond the sleep it meant: this process was not running (a stop
+                # anywhere in the last turn of this loop counts), and real firmware's clock stops too
+                stalled_s = simulator.lag_s() - wait
+                if stalled_s > STALL_S - TICK_S:
+                    simulator.excuse(stalled_s)
                 frames = simulator.advance(telemetry=not hung)
                 if frames and self._client:
                     self._write(frames)
@@ -209,7 +210,6 @@ class PtyPlate:
             except Exception as error:
                 simulator._event("output_error", error=f"{type(error).__name__}: {error}")
                 wait = TICK_S
-            planned = time.perf_counter() + wait
 
     def _incoming(self, data: bytes) -> list[bytes]:
         now = time.monotonic()

@@ -467,6 +467,37 @@ def test_the_watchdog_fires_after_watchdog_ms_ramps_the_present_drive_and_keeps_
     assert off.counts()["watchdog"] == 0  # never armed while disabled
 
 
+def test_a_stall_of_the_simulator_is_neither_silence_nor_a_gap_and_its_telemetry_is_one_frame_after():
+    """The simulated plate's process did not run for 60 ms (a loaded machine): the frames that waited on the
+    link are read (with the 60 ms lag), then the clock catches up. Excused, that time feeds neither the
+    watchdog nor the stream's gap, and the three telemetry frames due in it become one, once the clock is
+    back, reporting the buffer then (made on time, they reported it before the catch-up played it)."""
+    def stalled(excused: bool):
+        device = Device()
+        device.send(p.HELLO, p.hello_payload(3))
+        assert device.answer(p.ENABLE, p.enable_payload(True)) is None
+        device.setpoints(0, np.full(240, 0.5))  # 20 ms at 12 kHz
+        device.run(10)
+        device.core.events()
+        for first in (240, 480, 720):  # 60 ms more, come while the simulator did not run
+            device.seq += 1
+            device.core.receive(p.encode_frame(p.SETPOINTS, device.seq,
+                                               p.setpoints_payload(first, RATE, np.full(240, 0.5))), 60)
+        if excused:
+            device.core.excuse(60)
+        telemetry = [p.parse_telemetry(f.payload) for f in device.run(60) if f.kind == p.TELEMETRY]
+        return device, telemetry, [e.kind for e in device.core.events()]
+
+    device, telemetry, events = stalled(excused=True)
+    assert len(telemetry) == 1 and telemetry[0].buffered_setpoints == device.status().buffered
+    assert 960 - 70 * 12 - 2 <= device.status().buffered <= 960 - 70 * 12  # (less what interpolation holds)
+    assert sil.EV_STREAM_STOPPED not in events and device.counts()["watchdog"] == 0
+    assert device.counts()["underrun"] == 0
+    # not excused: three frames, the first reporting 50 ms of values more than the buffer held after
+    _, telemetry, _ = stalled(excused=False)
+    assert len(telemetry) == 3 and telemetry[0].buffered_setpoints >= device.status().buffered + 40 * 12
+
+
 # ---- limits and faults -----------------------------------------------------------------------------------
 
 def test_the_devices_limiter_clips_to_the_limit_and_overdrives_only_below_it():  # [R-LIMIT]

@@ -524,16 +524,19 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
 
 def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):
     """SIGSTOP the plate's process for 60 ms, six times, while the host streams to it. Running again, the plate
-    reads the frames that came meanwhile and then catches up the time it lost, so the telemetry it makes while
-    catching up reports, for a moment, a buffer deeper than it has. The host does not move its lead for that
-    (its mean over 0.2 s did, by up to 20 ms, and the plate then ran dry)."""
+    reads the frames that came meanwhile, then catches up the time it lost, and says it stalled. Its clock is
+    not the host's silence, nor a gap in the stream, and the telemetry due meanwhile is one frame when its
+    clock is back (made while catching up, it reported a buffer as deep as the stall, and the host's mean
+    over 0.2 s moved the lead by up to 20 ms, and the plate then ran dry). The host does not move its lead,
+    and the plate does not run dry for a stall."""
     link = tmp_path / "plate"
     plate = start_cli("plate-sim", "--link", link, "--json", stdout=subprocess.PIPE)
     driver = None
     try:
         assert json.loads(plate.stdout.readline())["event"] == "serving"
         driver = SerialPlate(str(link), PROFILE, ack_timeout_s=10)
-        driver.start(Constant(2.0))
+        with threads_started_in_real_time():  # the driver's writer and reader: the host is not what stalls here
+            driver.start(Constant(2.0))
         for stall in range(7):
             for _ in range(25):  # 0.5 s of the plate's telemetry
                 driver.next_telemetry(DEADLINE_S)
@@ -550,13 +553,19 @@ def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):
         plate.wait(timeout=DEADLINE_S)
         plate.stdout.close()
     c, counts = driver.counters, driver.fault_counts()
-    stopped = json.loads(said.splitlines()[-1])
-    assert stopped["event"] == "stopped", said
+    events = [json.loads(line) for line in said.splitlines()]
+    assert events[-1]["event"] == "stopped", said
+    stalls = [(e["t_s"] - e["for_s"], e["t_s"]) for e in events if e["event"] == "stalled"]
+    assert sum(end - start >= 0.05 for start, end in stalls) >= 6, stalls  # each SIGSTOP (and any other it had)
     # a lead moved only for a frame the host sent later than the buffer lasts (a machine loaded past its share)
     assert c.depth_corrections <= c.late_frames, (c, driver.report().lines)
-    # and the plate ran dry only then (one such stall may empty it more than once: seen 3 times for 1, beside two
-    # hogs and other real-time tests, the host having skipped 27 ms ahead)
-    assert counts["underrun"] == 0 or c.late_frames > 0, (counts, c)
+    if c.late_frames == 0:
+        # one stream throughout: no gap of the plate's own made the stream stop
+        assert sum(e["event"] == "stream_started" for e in events) == 1, events
+        # and no stall left it dry. (It may run dry elsewhere: a frame the pty's kernel worker delivered late, on a
+        # loaded machine, when the host was on time; seen once in 36 runs beside two hogs, before the stalls.)
+        dry = [e["t_s"] for e in events if e["event"] == "fault" and e["fault"] == "underrun"]
+        assert not [t for t in dry if any(start <= t <= end + 0.02 for start, end in stalls)], (dry, stalls, counts)
 
 
 def latencies(crossings, half_s, after_s, before_s=math.inf):

@@ -308,7 +308,8 @@ class FirmwareCore:
         self._lib.ug_sim_set_stage_hot(self._sim, 1 if hot else 0)
 
     def excuse(self, milliseconds: int) -> None:
-        """The simulator did not run for this long: not the host's silence (the watchdog's clock moves on)."""
+        """The simulator did not run for this long: not the host's silence; the telemetry due before the
+        clock has caught up that long is one frame at the end (ug_sim_excuse)."""
         self._lib.ug_sim_excuse(self._sim, max(0, int(milliseconds)))
 
     # ---- what it says ----

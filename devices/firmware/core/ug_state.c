@@ -95,7 +95,7 @@ void ug_core_tick(ug_core *core) {
     if (UG_BROKEN(core, UG_BREAK_OVER_LIMIT) && core->measured_um_pp > core->config.max_amplitude_um_pp) {
         ug_raise_fault(core, UG_FAULT_OVER_LIMIT, 0, core->measured_um_pp);
     }
-    if (core->streaming && core->now_ms - core->last_setpoints_ms >= STREAM_GAP_MS) {
+    if (core->streaming && (int32_t)(core->now_ms - core->last_setpoints_ms) >= (int32_t)STREAM_GAP_MS) {
         ug_stop_stream(core);
     }
     if ((int32_t)(core->now_ms - core->telemetry_due_ms) >= 0) {

@@ -44,7 +44,7 @@ void ug_sim_poll(ug_sim *sim) { ug_core_poll(&sim->core); }
 
 size_t ug_sim_receive(ug_sim *sim, const uint8_t *data, size_t n, uint32_t lag_ms) {
     size_t fed = 0;
-    uint32_t frames = sim->core.frames_ok;
+    uint32_t frames = sim->core.frames_ok, setpoints = sim->core.setpoints;
     while (fed < n) {
         size_t room = ug_core_rx_room(&sim->core);
         size_t chunk = n - fed < room ? n - fed : room;
@@ -56,10 +56,29 @@ size_t ug_sim_receive(ug_sim *sim, const uint8_t *data, size_t n, uint32_t lag_m
     if (sim->core.frames_ok != frames && lag_ms > 0u && sim->core.state != UG_OFF) {
         sim->core.last_frame_ms = sim->core.now_ms + lag_ms; /* ahead of the core's clock: the tick compares signed */
     }
+    if (sim->core.setpoints != setpoints && lag_ms > 0u) {
+        sim->core.last_setpoints_ms = sim->core.now_ms + lag_ms; /* and the stream's gap: signed too */
+    }
     return fed;
 }
 
 size_t ug_sim_take_tx(ug_sim *sim, uint8_t *out, size_t max) { return ug_core_uart_tx(&sim->core, out, max); }
+
+/* after a tick: telemetry due while an excused stall is caught up waits for the catch-up's end */
+static void hold_telemetry(ug_sim *sim) {
+    ug_core *core = &sim->core;
+    if (!sim->quiet) {
+        return;
+    }
+    if ((int32_t)(core->now_ms - sim->quiet_until_ms) < 0) {
+        sim->telemetry_owed |= core->telemetry_due;
+        core->telemetry_due = 0;
+        return;
+    }
+    core->telemetry_due |= sim->telemetry_owed;
+    sim->telemetry_owed = 0;
+    sim->quiet = 0;
+}
 
 void ug_sim_render(ug_sim *sim, float *drive, size_t n) {
     while (n > 0u) {
@@ -70,6 +89,7 @@ void ug_sim_render(ug_sim *sim, float *drive, size_t n) {
         sim->samples_to_tick -= (uint32_t)chunk;
         if (sim->samples_to_tick == 0u) {
             ug_core_tick(&sim->core);
+            hold_telemetry(sim);
             ug_core_poll(&sim->core);
             sim->samples_to_tick = sim->core.config.sample_rate_hz / 1000u;
         }
@@ -90,6 +110,8 @@ void ug_sim_excuse(ug_sim *sim, uint32_t ms) {
     ug_core *core = &sim->core;
     uint32_t since = core->now_ms - core->last_frame_ms;
     core->last_frame_ms += ms < since ? ms : since;
+    sim->quiet_until_ms = core->now_ms + ms;
+    sim->quiet = 1;
 }
 
 void ug_sim_status(const ug_sim *sim, ug_status *out) { ug_core_status(&sim->core, out); }

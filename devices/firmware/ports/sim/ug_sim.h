@@ -21,6 +21,9 @@ typedef struct ug_sim {
     uint8_t fault_kind[UG_SIM_FAULT_QUEUE];
     uint16_t fault_ms[UG_SIM_FAULT_QUEUE];
     uint8_t faults_queued;
+    uint32_t quiet_until_ms; /* an excused stall: the core's clock catches up to here without telemetry */
+    uint8_t quiet;           /* quiet_until_ms holds */
+    uint8_t telemetry_owed;  /* telemetry fell due while quiet: one frame once the clock is there */
 } ug_sim;
 
 size_t ug_sim_size(void);
@@ -35,7 +38,8 @@ const char *ug_sim_sources_digest(void);
 
 void ug_sim_poll(ug_sim *sim);
 /* lag_ms: how far the caller's real time is ahead of the core's clock (its output stage sleeps, or was
-   descheduled): a valid frame among these bytes feeds the watchdog at the real time, as on a board */
+   descheduled): a valid frame among these bytes feeds the watchdog, and setpoints the stream, at the real
+   time, as on a board */
 size_t ug_sim_receive(ug_sim *sim, const uint8_t *data, size_t n, uint32_t lag_ms);
 size_t ug_sim_take_tx(ug_sim *sim, uint8_t *out, size_t max);
 void ug_sim_render(ug_sim *sim, float *drive, size_t n);
@@ -43,6 +47,10 @@ size_t ug_sim_sense(ug_sim *sim, const float *amplitude_um_pp, const float *norm
                     const float *lateral_force_n, size_t n);
 void ug_sim_dac(ug_sim *sim, int16_t *out, size_t n_dac);
 void ug_sim_set_stage_hot(ug_sim *sim, int hot);
+/* the caller did not run for ms (a loaded machine; its clock catches up next): that time is not the host's
+   silence, and the telemetry it would have sent meanwhile is not made up afterwards
+   (it would report the buffer as it was before the frames that waited on the link): one frame, when the
+   core's clock has caught up, says how things are then */
 void ug_sim_excuse(ug_sim *sim, uint32_t ms);
 
 void ug_sim_status(const ug_sim *sim, ug_status *out);
