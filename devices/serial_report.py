@@ -67,7 +67,7 @@ class RunReporting:
                                       + (f"; {skipped} setpoints skipped so the latency stays at the plate's "
                                          f"{1000 * self.lead / self.rate_hz:.0f} ms buffer" if skipped else "")))
         if late[0]:
-            lasts_ms = 1000 * (self.lead - self._batch) / self.rate_hz
+            lasts_ms = 1000 * self.buffer_lasts_s
             incidents.append(Incident(late[1], "note", f"the host sent {times(self.counters.late_frames, 'frame')} "
                                       f"later than the plate's {lasts_ms:.0f} ms buffer lasts (the longest gap "
                                       f"{1000 * late[0]:.0f} ms, at {seconds(late[1])}): the plate may have run dry"))

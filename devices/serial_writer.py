@@ -42,7 +42,7 @@ class StreamWriter:
         attempt = 0
         retry_at = 0.0
         wake = np.empty(lead + 4 * batch)
-        dry_s = (lead - batch) / rate  # the plate's buffer lasts this long after a frame arrives
+        dry_s = self.buffer_lasts_s
         trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
         heartbeat_s = self._watchdog_s() / 4.0
         trim_range = (-int(self._buffer_ms() * rate / 1000), int(0.1 * rate))
