@@ -14,8 +14,8 @@ preloaded object lives on (reference counts, copy-on-write), 0.15 s of CPU a com
 command's own work (the real processes below keep the whole shutdown tested). The modules of ours preloaded read
 nothing at import that a command's environment, directory or arguments could change (the server refuses to serve if
 one loads a sound or window library, whose start reads the environment); every other module of ours is imported in
-the child. The README's tour, the packaging test and the tests that run ``python -m ultraglide`` start real
-processes.
+the child. The README's tour (its commands that run beside the test), the packaging test and the tests that run
+``python -m ultraglide`` start real processes.
 
 The server is single-threaded (a fork beside running threads can inherit a held lock): SIGCHLD wakes
 its loop, which reaps the children and reports each exit status on the request's own socket.

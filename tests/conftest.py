@@ -57,12 +57,13 @@ def _file_size_limit(limit_bytes):
     return apply
 
 
-def run_cli(*args, check=False, env=None, timeout=300, file_size_limit=None, **kwargs):
+def run_cli(*args, check=False, env=None, inherit_env=True, timeout=300, file_size_limit=None, **kwargs):
     """Run the ``ultraglide`` command as a user would, in a new process: ``python -m ultraglide ARGS``
     forked from a process that has numpy, scipy and numba imported (tests/cli_server.py), or a plain
-    subprocess when the environment asks for one. ``file_size_limit`` (bytes): no file of the command's may
+    subprocess when the environment asks for one. ``env``: added to this process's environment, or with
+    ``inherit_env=False`` the whole of it. ``file_size_limit`` (bytes): no file of the command's may
     grow past it (RLIMIT_FSIZE: the kernel refuses with EFBIG, as a full disk does with ENOSPC)."""
-    merged = {**os.environ, **(env or {})}
+    merged = {**os.environ, **(env or {})} if inherit_env else dict(env or {})
     args = [str(arg) for arg in args]
     server = _cli_server()
     if server is not None and server.serves(merged):

@@ -2,7 +2,14 @@
 the virtual environment's ``bin/`` on the PATH, as the README says. Where a command needs a screen it gets
 Xvfb's, as the README says; where it needs a person, the test is that person: it drags on the demo and
 quits it with Esc, rewrites a watched file, answers an experiment's trials with keys, stops a plate-sim
-with Ctrl-C or ``kill %1``. Every wait is on what the command says or writes, never on the clock."""
+with Ctrl-C or ``kill %1``. Every wait is on what the command says or writes, never on the clock.
+
+A command that runs to its end is ``python -m ultraglide`` forked from the test's command server
+(tests/cli_server.py: the same interpreter and package as the ``ultraglide`` on that PATH, its libraries
+imported once: 30 commands, ~1.2 s of CPU each otherwise); one that runs beside the test (a background job,
+the demo, an experiment with its participant, a plate-sim stopped with Ctrl-C) is a real process in a session
+of its own, its engine and other children with it. The installed ``ultraglide`` script itself is run by
+tests/test_packaging.py, from a wheel in a clean environment."""
 
 from __future__ import annotations
 
@@ -18,7 +25,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, source_copy
+from conftest import ROOT, run_cli, source_copy
 from xvfb import start_xvfb
 from xvfb_demo import tools_missing
 
@@ -150,8 +157,7 @@ class Tour:
         elif words[1] == "experiment" and "--observer" not in words:
             self.participant(words)
         else:
-            result = subprocess.run(words, cwd=self.folder, env=self.env, capture_output=True, text=True,
-                                    timeout=DEADLINE_S)
+            result = run_cli(*words[1:], env=self.env, inherit_env=False, cwd=self.folder, timeout=DEADLINE_S)
             assert result.returncode == 0, f"{line}\n{result.stdout[-2000:]}\n{result.stderr[-2000:]}"
             assert "Traceback" not in result.stderr, result.stderr
 
