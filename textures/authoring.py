@@ -27,6 +27,7 @@ import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import held_size, pillow_failure
+from ultraglide.textures.limits import MAX_PIXELS
 from ultraglide.textures.seams import DEFAULT_BAND, METHODS, make_seamless, measure_seams
 from ultraglide.textures.texture import Texture
 
@@ -35,7 +36,6 @@ from ultraglide.inputs import open_input
 MODES = ("brightness", "edges", "gradient")
 DEFAULT_WIDTH_MM = 80.0
 DEFAULT_MAX_PIXELS = 40_000_000
-MAX_PIXELS_LIMIT = 100_000_000  # what a texture file may hold (textures.fileformat.MAX_PIXELS)
 MAX_SIDE_MM = 10_000.0  # what a texture file may measure
 
 
@@ -82,8 +82,8 @@ class AuthoringOptions:
             raise TextureError(f"blur must be 0 mm or more, got {self.blur_mm}")
         if self.crop is not None and (len(self.crop) != 4 or min(self.crop[2:]) <= 0 or min(self.crop[:2]) < 0):
             raise TextureError("crop is X,Y,WIDTH,HEIGHT in pixels, with a positive width and height")
-        if not 0 < self.max_pixels <= MAX_PIXELS_LIMIT:
-            raise TextureError(f"the pixel limit must be 1 to {MAX_PIXELS_LIMIT:,} (the texture file's own limit), "
+        if not 0 < self.max_pixels <= MAX_PIXELS:
+            raise TextureError(f"the pixel limit must be 1 to {MAX_PIXELS:,} (the texture file's own limit), "
                                f"got {self.max_pixels}")
         self._check_seamless_and_auto_levels()
 

@@ -28,6 +28,7 @@ import numpy as np
 from PIL import Image, PngImagePlugin, UnidentifiedImageError
 from ultraglide.textures import effects as effects_format
 from ultraglide.textures.errors import TextureError
+from ultraglide.textures.limits import MAX_PIXELS
 from ultraglide.textures.texture import KINDS, OUTSIDE_RULES, Texture
 
 from ultraglide.atomic import AtomicFile
@@ -37,7 +38,6 @@ FORMAT_VERSION = 1
 CHUNK = "ultraglide"
 FULL_SCALE = 65535
 DEFAULT_PX_PER_MM = 10.0
-MAX_PIXELS = 100_000_000  # textures.authoring.MAX_PIXELS_LIMIT says the same
 # Pillow's decompression-bomb warning never reaches the terminal: our own pixel limits say what to do (a filter
 # set inside catch_warnings is undone by another thread's catch_warnings; this one holds in every thread)
 warnings.filterwarnings("ignore", category=Image.DecompressionBombWarning)

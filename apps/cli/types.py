@@ -10,6 +10,8 @@ import argparse
 import math
 from dataclasses import dataclass
 
+from ultraglide.textures.limits import MAX_PIXELS as TEXTURE_MAX_PIXELS
+
 
 def _parse(text: str) -> float:
     try:
@@ -91,7 +93,7 @@ LOOKAHEAD_MS = Bounded(0.0, 1_000.0, "ms")
 DPI = Bounded(1.0, 100_000.0, "pixels per inch")
 GAMMA = Bounded(0.01, 100.0)
 BLUR_MM = Bounded(0.0, 1_000.0, "mm")
-MAX_PIXELS = Bounded(1, 100_000_000, "pixels", whole=True)  # the texture file's own limit
+MAX_PIXELS = Bounded(1, TEXTURE_MAX_PIXELS, "pixels", whole=True)  # the texture file's own limit
 PX_PER_MM = Bounded(0.1, 1_000.0, "pixels per mm")
 SEED = Bounded(0, 2**32 - 1, whole=True)
 DETENTS = Bounded(1, 100, whole=True)
