@@ -21,7 +21,8 @@ writer skips ahead (the device counts the skipped values as lost) instead of sen
 latency once streaming resumes is the lead again, not the stall. A v3 device reports its buffer's depth
 in telemetry: its median over 0.2 s more than 5 ms off its target (the plate's clock drifting from the
 host's, its playback restarted late) moves the lead by the difference; a few frames deep for a moment (the
-plate catching up a stall of its own, reading a backlog late) do not.
+plate catching up a stall of its own, reading a backlog late) do not. The source is told when its values play
+on the plate (``pull``'s ``now_s``): the host's clock, moved by what the lead was moved by.
 
 The carrier can change while it runs: :meth:`set_carrier` (acknowledged; the plate sweep uses it),
 or a :class:`~ultraglide.devices.resonance.ResonanceTracker` given as ``tracker``, which is fed every

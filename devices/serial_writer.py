@@ -82,7 +82,9 @@ class StreamWriter:
                     self._index += skip
                     skipped(source, skip)
                     self.counters.late_batches += 1
-                values = source.pull(due, started + position / rate)
+                # when the first of them plays: on the host's clock, less the plate's lag behind it that the
+                # lead was moved for (its buffer back at its depth, value k plays at started + (k - trim) / rate)
+                values = source.pull(due, started + (position - (trim if streaming else 0)) / rate)
                 resting = connected and not self._output_on and not self._cut
                 if resting and float(values.max()) > ZERO_FRACTION * self.full_scale_um_pp:  # the drive leaves zero:
                     wake[:due] = values  # the lead goes at once, so the plate plays on arrival with its buffer full

@@ -648,13 +648,15 @@ def test_latency_on_the_board(one_qemu, tmp_path):
         stopped = board.stop()
     assert report["steps"] == 20 and report["block_ms"] == pytest.approx(4.0)  # one pull a frame
     # the host's part: at most a frame's wait and the render; the device's: the plate's buffer (its 10 ms prefill)
-    # and a frame, as the host keeps it
+    # and a frame, as the host keeps it, however far the board's playback lags the host's clock. (Where QEMU was
+    # starved on a loaded machine, the board's buffer drifted deep and the host moved its lead back to keep it at
+    # its depth, within a 5 ms deadband: the values play that much later than the host's clock says. The report
+    # had the device part at that shorter lead, 0 ms once it was moved back by more than it was.)
     assert 0 < report["engine_ms"]["p50"] <= 4.0 + 2.0
-    if report["depth_corrections"] == 0:
-        assert report["device_ms"]["p50"] == pytest.approx(10.0, abs=2.0), (report["device_ms"], report["report"])
-    else:  # the board's buffer drifted from its depth (QEMU starved on a loaded machine) and the host moved its lead
-        # to bring it back, as the report says: the device part is the lead it then kept, shorter
-        assert 0 < report["device_ms"]["p50"] <= 12.0, (report["device_ms"], report["report"])
+    deadband_ms = 0.0 if report["depth_corrections"] == 0 else 5.0
+    assert report["device_ms"]["p50"] == pytest.approx(10.0, abs=2.0 + deadband_ms), (report["device_ms"],
+                                                                                      report["report"])
+    if report["depth_corrections"]:
         assert any("drifted from its depth" in line for line in report["report"]["lines"]), report["report"]
     assert stream["rate_hz"] == 1000 and stopped["setpoints"] > 0 and stopped["trips"] == 0
 
