@@ -40,7 +40,8 @@ DEVICE_PART = {
     "audio": "PortAudio's output latency",
     "null": "none (the null sink keeps nothing)",
     "wav": "none (the recorder writes what it pulls)",
-    "serial": "not measured: the writer batch and the plate driver's own buffer come on top",
+    "serial": "the plate's jitter buffer as the host keeps it (its lead, moved for the depth the plate reports); "
+              "the link's own latency is not measured",
 }
 
 
