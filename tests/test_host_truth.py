@@ -43,6 +43,10 @@ class Constant:
     def request_stop(self):
         self.stopping = True
 
+    @property
+    def finished(self):
+        return self.stopping and self.amplitude == 0.0
+
 
 class Timed(Constant):
     """A steady drive that keeps, for each pull, the stream index of its first value and when the device said
@@ -61,10 +65,6 @@ class Timed(Constant):
     def said_plays_at(self, index: int, rate_hz: int) -> float:
         first, now_s = next((first, now_s) for first, now_s in reversed(self.pulls) if first <= index)
         return now_s + (index - first) / rate_hz
-
-    @property
-    def finished(self):
-        return self.stopping and self.amplitude == 0.0
 
 
 class Tapped:
