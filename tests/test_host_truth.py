@@ -482,11 +482,15 @@ def test_wakes_from_rest_leave_the_plate_buffer_full_and_never_underrun(tapped):
     driver.start(source)
     sim = tapped.sim
     depths = []  # the plate's buffer while it plays after a wake, as its telemetry says (v3)
+    def state():  # what a wait that ran out says (one did, once, beside two hogs: the wake not seen in 60 s)
+        return (sim.status(), sim.fault_counts(), sim.amplitude_um_pp, driver.counters, driver.report().lines)
+
     for wake in range(1, 6):
-        assert wait_for(lambda n=wake: driver.counters.idle_rests == n and not sim.enabled, timeout=DEADLINE_S)
+        assert wait_for(lambda n=wake: driver.counters.idle_rests == n and not sim.enabled,
+                        timeout=DEADLINE_S), state()
         source.amplitude = 2.0  # a touch: the drive leaves zero
         assert wait_for(lambda n=wake: driver.counters.idle_wakes == n and sim.amplitude_um_pp > 1.9,
-                        timeout=DEADLINE_S)
+                        timeout=DEADLINE_S), state()
         pulled = source.pulled
         for _ in range(4):  # 80 ms of a drag
             telemetry = driver.next_telemetry(DEADLINE_S)
