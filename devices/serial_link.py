@@ -32,6 +32,8 @@ ZERO_FRACTION = 0.5 / p.SETPOINT_SCALE  # at most this fraction of full scale is
 CUT_FAULTS = (p.FAULT_TRIP, p.FAULT_OVERHEAT)  # the device disabled itself: the host never re-enables it
 CUT_WORDS = {"trip": "over-amplitude trip: its measured amplitude went more than 1 % over its limit",
              "overheat": "overheat: its driver stage was too hot"}
+REENABLE_AFTER_S = 0.1  # telemetry says the plate is off this long after an ENABLE 1 (unacknowledged, lost on
+# the link?) while the host streams: ENABLE goes again (the plate discards every setpoint while disabled)
 STALL_S = 0.05  # the writer woke this much later than it meant to: the host did not run (not the plate's silence)
 CLEAR_RETRY_S = 0.5  # a CLEAR_FAULTS unanswered this long was lost on the link: sent again
 DEPTH_WINDOW = 10  # v3 telemetry frames (0.2 s) over which the median of the plate's buffer depth is taken
@@ -129,6 +131,7 @@ class SerialCounters:
     depth_corrections: int = 0  # the plate's buffer (v3 telemetry) drifted from its depth: the lead moved
     idle_rests: int = 0  # the stream stopped and the output disabled while the drive was zero
     idle_wakes: int = 0  # ... and enabled again by a non-zero drive
+    reenables: int = 0  # ENABLE sent again: the plate's telemetry said it was off while the host streamed to it
     errors: list[str] = field(default_factory=list)
 
 

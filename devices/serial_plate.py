@@ -22,7 +22,8 @@ latency once streaming resumes is the lead again, not the stall. A v3 device rep
 in telemetry: its median over 0.2 s more than 5 ms off its target (the plate's clock drifting from the
 host's, its playback restarted late) moves the lead by the difference; a few frames deep for a moment (the
 plate catching up a stall of its own, reading a backlog late) do not. The source is told when its values play
-on the plate (``pull``'s ``now_s``): the host's clock, moved by what the lead was moved by.
+on the plate (``pull``'s ``now_s``): the host's clock, moved by what the lead was moved by. A wake's ENABLE 1
+goes unacknowledged; telemetry that says the plate is still off 0.1 s later has it sent again.
 
 The carrier can change while it runs: :meth:`set_carrier` (acknowledged; the plate sweep uses it),
 or a :class:`~ultraglide.devices.resonance.ResonanceTracker` given as ``tracker``, which is fed every
@@ -161,6 +162,9 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
         self._sensor_listeners: tuple = ()
         self.telemetry_frames = 0  # TELEMETRY frames taken over the run
         self._output_on = False  # the host enabled the output and streams setpoints (False: idle, or not yet)
+        self._enabled_at = 0.0  # when the last ENABLE 1 went (perf_counter s)
+        self._reenable = False  # telemetry says the plate is off while the host streams: the writer enables again
+        self._reenabled_first_s = 0.0  # when it first did (s since the run started)
         self._cut = False  # the device disabled itself over this run (trip, overheat): never re-enabled by the host
         # what happened, for the report (times in s since start); guarded by _account_lock, held for a copy
         self._account_lock = threading.Lock()
@@ -331,7 +335,7 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
             self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
             if not self._cut:  # a device that cut itself out over this run is never re-enabled by the host
                 self._command(p.ENABLE, p.enable_payload(True))
-                self._output_on = True
+                self._output_on, self._enabled_at = True, time.perf_counter()
             self._last_heard = time.monotonic()
             self._connected.set()
         except (serial.SerialException, OSError) as error:

@@ -71,6 +71,11 @@ class RunReporting:
             incidents.append(Incident(late[1], "note", f"the host sent {times(self.counters.late_frames, 'frame')} "
                                       f"later than the plate's {lasts_ms:.0f} ms buffer lasts (the longest gap "
                                       f"{1000 * late[0]:.0f} ms, at {seconds(late[1])}): the plate may have run dry"))
+        if self.counters.reenables:
+            incidents.append(Incident(self._reenabled_first_s, "note",
+                                      f"the plate was off while the host streamed to it "
+                                      f"{times(self.counters.reenables)} (an ENABLE lost on the link?), first at "
+                                      f"{seconds(self._reenabled_first_s)}: enabled again"))
         summary = self._link_summary()
         if self.counters.depth_corrections:
             worst_ms = 1000 * self._depth_worst / self.rate_hz
@@ -112,7 +117,7 @@ class RunReporting:
             "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
             "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,
             "output": "cut by the device" if self._cut else ("streaming" if self._output_on else "idle (disabled)"),
-            "idle_rests": c.idle_rests,
+            "idle_rests": c.idle_rests, "reenables": c.reenables,
             "protocol_version": None if self.device is None else self.device.version,
             "device_name": None if self.device is None else self.device.name,
             "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp,

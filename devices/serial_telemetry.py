@@ -14,6 +14,7 @@ from ultraglide.devices.serial_link import (  # noqa: F401 - IDLE_AFTER_S, open_
     IDLE_AFTER_S,
     LINK_COUNTERS,
     MAX_OUTAGES,
+    REENABLE_AFTER_S,
     REST_ACK_S,
     SILENCE_S,
     TRACKING_DISTURBANCES,
@@ -109,6 +110,9 @@ class TelemetryIntake:
                 self._note_faults(new_bits)
         self._add_link_counters(telemetry, restarted)
         self._track_depth(telemetry)
+        if (self._output_on and not self._cut and not telemetry.enabled
+                and time.perf_counter() - self._enabled_at > REENABLE_AFTER_S):
+            self._reenable = True
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         # latched bits raised since the last look: cleared once each (a bit whose condition persists, set again at

@@ -149,8 +149,15 @@ class StreamWriter:
                     else:
                         if not self._output_on:  # the drive left zero: enable, unacknowledged,
                             self._send(p.ENABLE, p.enable_payload(True))  # and stream at once (frames keep order)
-                            self._output_on = True
+                            self._output_on, self._enabled_at = True, time.perf_counter()
                             self.counters.idle_wakes += 1
+                        elif self._reenable:  # the plate is off while this side streams (an ENABLE lost): again
+                            self._send(p.ENABLE, p.enable_payload(True))
+                            self._enabled_at = time.perf_counter()
+                            self.counters.reenables += 1
+                            if self.counters.reenables == 1:
+                                self._reenabled_first_s = self._now_s()
+                        self._reenable = False
                         self._send_setpoints(fractions)
                         sent_at = time.perf_counter()
                         if last_sent is not None and sent_at - last_sent > dry_s:  # the plate may have run dry

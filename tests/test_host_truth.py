@@ -511,6 +511,26 @@ def test_wakes_from_rest_leave_the_plate_buffer_full_and_never_underrun(tapped):
     assert sim.fault_counts()["watchdog"] <= driver.counters.send_stalls and driver.counters.naks == 0
 
 
+def test_an_enable_lost_on_the_link_is_sent_again(tapped):
+    """A wake's ENABLE goes unacknowledged: lost on the link, the plate stays off and discards every setpoint
+    while the host streams. Telemetry says it is off; the host sends ENABLE again, says so, and the plate plays
+    (it streamed to a disabled plate for the rest of the run before)."""
+    source = Level()
+    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+    driver.start(source)
+    sim = tapped.sim
+    try:
+        assert wait_for(lambda: driver.counters.idle_rests == 1 and not sim.enabled, timeout=DEADLINE_S)
+        tapped.plate.inject(p.SIM_DROP, 0.03)  # the link loses what comes in the next 30 ms: the wake's ENABLE 1
+        source.amplitude = 2.0  # a touch: the drive leaves zero
+        assert wait_for(lambda: sim.amplitude_um_pp > 1.9, timeout=DEADLINE_S), (driver.counters, sim.status())
+    finally:
+        driver.stop()
+    assert driver.counters.idle_wakes == 1 and driver.counters.reenables >= 1, driver.counters
+    assert enable_flags(tapped.frames)[-3:] == [0, 1, 0], enable_flags(tapped.frames)  # the rest, again, the stop
+    assert any("enabled again" in line for line in driver.report().lines), driver.report().lines
+
+
 @pytest.mark.slow  # 6 s of streaming each
 @pytest.mark.parametrize("clock_ppm", [3000.0, -3000.0])
 def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
