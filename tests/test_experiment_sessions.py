@@ -153,7 +153,7 @@ def test_resume_after_a_kill_continues_the_same_procedure(tmp_path):
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     options = ["experiment", "threshold", "grating-1mm", "--method", "staircase", "--afc", "2", "--observer", SIM,
                "--trials", "50", "--seed", "8"]
-    run_cli(*options, "--out", whole, check=True)
+    run_cli(*options, "--out", whole, "--no-figures", check=True)  # the reference log: its figures unused
     process = subprocess.Popen([sys.executable, "-m", "ultraglide", *options, "--out", str(cut)], cwd=ROOT,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
@@ -177,13 +177,21 @@ def test_resume_after_a_kill_continues_the_same_procedure(tmp_path):
     assert json.loads((cut / "session.json").read_text())["resumed_at_trial"] == logged + 1
 
 
-def test_resume_can_extend_a_session(tmp_path):
+def test_resume_can_extend_a_session_and_sessions_can_go_without_figures(tmp_path):
     short, long = tmp_path / "short", tmp_path / "long"
     common = ["--method", "quest", "--afc", "2", "--observer", SIM, "--seed", "3"]
-    run_cli("experiment", "threshold", "grating-1mm", *common, "--trials", "40", "--out", long, check=True)
+    result = run_cli("experiment", "threshold", "grating-1mm", *common, "--trials", "40", "--out", long,
+                     "--no-figures", check=True)
+    assert sorted(p.name for p in long.iterdir()) == ["result.json", "session.json", "trials.csv"]
+    assert result.stdout.rstrip().endswith(f"files in {long}: trials.csv, session.json, result.json")
     run_cli("experiment", "threshold", "grating-1mm", *common, "--trials", "20", "--out", short, check=True)
-    run_cli("experiment", "threshold", "--resume", short, "--trials", "40", check=True)
+    assert {"track.png", "track.pdf", "psychometric.png", "psychometric.pdf"} <= {p.name for p in short.iterdir()}
+    result = run_cli("experiment", "threshold", "--resume", short, "--trials", "40", "--no-figures", "--json",
+                     check=True)
     assert _session_rows(short) == _session_rows(long)
+    assert json.loads(result.stdout)["figures"] == []
+    # the figures of its first 20 trials would disagree with the log's 40: gone
+    assert sorted(p.name for p in short.iterdir()) == ["result.json", "session.json", "trials.csv"]
 
 
 @pytest.mark.parametrize("args, words", [
@@ -216,7 +224,8 @@ def test_bad_options_get_one_line_and_leave_no_files(tmp_path, args, words):
 
 def test_an_existing_session_is_not_overwritten(tmp_path):
     out = tmp_path / "s"
-    run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM, "--trials", "6", "--out", out, check=True)
+    run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM, "--trials", "6", "--out", out, "--no-figures",
+            check=True)
     before = (out / "trials.csv").read_bytes()
     line = assert_one_line_error(run_cli("experiment", "threshold", "grating-1mm", "--observer", SIM,
                                          "--trials", "6", "--out", out))

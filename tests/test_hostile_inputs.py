@@ -491,7 +491,7 @@ SIM_OBSERVER = "sim:threshold=0.1,slope=3"
 def finished_session(tmp_path_factory):
     directory = tmp_path_factory.mktemp("session") / "s"
     run_cli("experiment", "threshold", "grating-1mm", "--trials", "5", "--observer", SIM_OBSERVER, "--out", directory,
-            check=True)
+            "--no-figures", check=True)
     return directory
 
 

@@ -75,7 +75,7 @@ def inputs(tmp_path_factory):
     (tmp_path / "log.csv").write_text("t_s,x_mm,y_mm\n0,1,5\n0.5,10,5\n")
     Image.fromarray(np.tile(np.linspace(0, 255, 64, dtype=np.uint8), (32, 1))).save(tmp_path / "image.png")
     run_cli("experiment", "threshold", "grating-1mm", "--trials", "6", "--observer", SIM, "--out",
-            tmp_path / "session", check=True)
+            tmp_path / "session", "--no-figures", check=True)
     return tmp_path
 
 

@@ -93,6 +93,9 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                         help="make the friction the plate's force sensors measure follow each stimulus (a plate "
                              "driver with force sensors; on sim, a simulated finger); the log records the target and "
                              "measured friction and the amplitude of each trial")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="leave out the track and psychometric figures (a batch of simulated sessions: "
+                             "trials.csv and result.json hold what they show)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
 
@@ -319,7 +322,7 @@ def run(args) -> int:
     responder = _responder(config, design, args)
     directory.mkdir(parents=True, exist_ok=True)
     try:
-        outcome = run_session(config, design, responder, directory, resume)
+        outcome = run_session(config, design, responder, directory, resume, figures=not args.no_figures)
     finally:
         close = getattr(responder, "close", None)
         if close:
@@ -345,6 +348,6 @@ def summary(config: SessionConfig, result: dict, directory: Path, outcome) -> st
         lines.append(f"  level {item['level']:g} {result['unit']}: {item['positive']}/{item['n']} "
                      f"{'yes' if config.intervals == 1 else 'correct'} ({100 * item['p']:.0f} %)")
     lines.append(f"median reaction time {result.get('rt_s_median', float('nan')):.2f} s")
-    lines.append(f"files in {directory}: trials.csv, session.json, result.json, "
-                 + ", ".join(p.name for p in outcome.figures))
+    lines.append(f"files in {directory}: " + ", ".join(["trials.csv", "session.json", "result.json",
+                                                         *(p.name for p in outcome.figures)]))
     return "\n".join(lines)

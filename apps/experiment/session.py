@@ -230,7 +230,8 @@ def run_session(config: SessionConfig, design: StimulusDesign, responder, direct
                 resume: bool = False, figures: bool = True) -> SessionResult:
     """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
     and the end, result.json and (unless ``figures`` is False, as for a batch of simulated sessions
-    that only their results serve) the figures when it ends."""
+    that only their results serve; then a resumed session's earlier figures are removed) the figures when it
+    ends."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     rows = read_trials(directory) if resume else []
@@ -272,9 +273,22 @@ def run_session(config: SessionConfig, design: StimulusDesign, responder, direct
     from ultraglide.apps.experiment.figures import draw_figures
 
     drawn = draw_figures(directory, config, design, rows, result) if rows and figures else []
+    if not figures:
+        _remove_earlier_figures(directory)
     write_json(directory / SESSION, metadata(config, design, "complete" if complete else "stopped", started,
                                              {**extra, "trials_logged": len(rows)}))
     return SessionResult(directory, rows, result, drawn, complete)
+
+
+def _remove_earlier_figures(directory: Path) -> None:
+    """The figures an earlier run of a resumed session drew (regular files only): they show fewer trials than the
+    log now holds, and a session not drawn leaves none that disagree with it."""
+    from ultraglide.apps.figures import SESSION_FIGURES, both_formats
+
+    for name in both_formats(SESSION_FIGURES):
+        path = directory / name
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
 
 
 def make_row(config: SessionConfig, design: StimulusDesign, trial: int, level: float, target: int, answer: Answer,
