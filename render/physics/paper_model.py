@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike
 from ultraglide.render.physics import kernels
@@ -23,6 +25,21 @@ from ultraglide.render.physics.model_base import (
     clip_force,
 )
 from ultraglide.render.physics.normal_contact import relative_friction_of_u
+
+
+@functools.lru_cache(maxsize=32)
+def _tables(params: FingerParams, u_max: float, nodes: int) -> tuple[np.ndarray, np.ndarray, UniformTable]:
+    """The ratio over u (``nodes`` points up to ``u_max``, made monotone) and its inverse for ``params``: 40 ms of
+    CPU, and the same finger's model is made again and again (every command's default, a fit's repeated
+    candidates). Models of the same finger share the arrays: nothing writes to them (left writable: a read-only
+    array is another type to the compiled kernels that read them, compiled again)."""
+    u_nodes = u_max * np.linspace(0.0, 1.0, nodes) ** 2
+    ratio = relative_friction_of_u(u_nodes, params, phase_points=192, ring_nodes=32)
+    ratio_nodes = np.minimum.accumulate(ratio)  # guard monotonicity against rounding
+    ratio_grid = np.linspace(ratio_nodes[-1], 1.0, RATIO_GRID_POINTS)
+    # the inverse of a flat stretch is its smallest amplitude: interp on reversed nodes
+    u_of_ratio = np.interp(ratio_grid, ratio_nodes[::-1], u_nodes[::-1])
+    return u_nodes, ratio_nodes, UniformTable(ratio_grid[0], 1.0, u_of_ratio)
 
 
 class PaperModel(FrictionModel):
@@ -50,13 +67,7 @@ class PaperModel(FrictionModel):
         # the table covers every amplitude up to the ceiling at every force in range
         smallest_detach = float(np.min(self._detach_um_pp(np.array([MIN_FORCE_N, MAX_FORCE_N]))))
         u_max = max(CEILING_UM_PP / smallest_detach, 4.0)
-        self.u_nodes = u_max * np.linspace(0.0, 1.0, self.U_NODES) ** 2
-        ratio = relative_friction_of_u(self.u_nodes, params, phase_points=192, ring_nodes=32)
-        self.ratio_nodes = np.minimum.accumulate(ratio)  # guard monotonicity against rounding
-        ratio_grid = np.linspace(self.ratio_nodes[-1], 1.0, RATIO_GRID_POINTS)
-        # the inverse of a flat stretch is its smallest amplitude: interp on reversed nodes
-        u_of_ratio = np.interp(ratio_grid, self.ratio_nodes[::-1], self.u_nodes[::-1])
-        self._u_table = UniformTable(ratio_grid[0], 1.0, u_of_ratio)
+        self.u_nodes, self.ratio_nodes, self._u_table = _tables(params, u_max, self.U_NODES)
 
     def _detach_um_pp(self, force_n, clip: bool = True):
         """W_c (µm p-p) at each force: ∝ F^(1 - area exponent) until the area reaches a fingertip's, then ∝ F.
