@@ -117,3 +117,46 @@ def test_export_plot_and_texture_show_read_at_print_width(tmp_path, width):
     assert_readable(tmp_path / "wood.pdf", width)
     page_pt = read_strings(tmp_path / "wood.pdf")[0]
     assert page_pt == pytest.approx(WIDTHS[width] * 72, abs=0.5)  # the whole page: 1 mm drawn is 1 mm printed
+
+
+def _embedded_fonts(pdf: Path) -> list[bytes]:
+    """The font programs a PDF embeds (FontFile2: TrueType), read with pdfminer's object parser."""
+    from pdfminer.pdfdocument import PDFDocument
+    from pdfminer.pdfparser import PDFParser
+    from pdfminer.pdftypes import resolve1
+
+    fonts = []
+    with open(pdf, "rb") as handle:
+        document = PDFDocument(PDFParser(handle))
+        for xref in document.xrefs:
+            for number in xref.get_objids():
+                found = resolve1(document.getobj(number))
+                if isinstance(found, dict) and "FontFile2" in found:
+                    fonts.append(resolve1(found["FontFile2"]).get_data())
+    return fonts
+
+
+def test_a_figures_pdf_embeds_its_fonts_without_their_layout_tables_and_its_text_reads_back(tmp_path):
+    """A viewer never shapes a PDF's text: the layout tables (GSUB, GPOS, GDEF) of the fonts it embeds are dead
+    weight, and subsetting them was a third of a PDF's save. The fonts are embedded (Type 42) with their outlines
+    and character map; the text reads back as drawn."""
+    import io
+
+    from fontTools.ttLib import TTFont
+    from ultraglide.apps.figures import style
+
+    fig, ax = style.figure(figsize=(style.COLUMN_IN, 2.4))
+    ax.plot([0, 1, 2], [0.3, 0.5, 0.4], label="friction ratio − fit")
+    ax.set_xlabel("amplitude (µm p-p)")
+    ax.set_ylabel("ratio")
+    style.legend_below(ax)
+    pdf = style.save(fig, tmp_path / "f.png")[1]
+    fonts = [TTFont(io.BytesIO(data)) for data in _embedded_fonts(pdf)]
+    assert fonts, "no TrueType font embedded"
+    for font in fonts:
+        assert not {"GSUB", "GPOS", "GDEF"} & set(font.keys()), sorted(font.keys())
+        assert {"glyf", "cmap", "hmtx"} <= set(font.keys())
+        assert len(font.getGlyphOrder()) < 100  # a subset: the glyphs drawn, not the font's 6000
+    assert max(len(font.getGlyphOrder()) for font in fonts) > 15
+    text = "".join(s.text for s in read_strings(pdf)[1])
+    assert "amplitude(µmp-p)" in text and "frictionratio−fit" in text  # pdfminer drops the spaces

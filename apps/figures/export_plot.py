@@ -216,13 +216,14 @@ class PlotRecorder:
     def write(self, renderer, path: Path | None = None, dpi: float = 300.0, width=None) -> Path:
         """Draw at the print ``width`` ("column", "page") and save to ``path`` (or the one given at
         construction): PNG at ``dpi``, PDF or SVG by the extension, atomically."""
-        from ultraglide.apps.figures.style import print_layout
+        from ultraglide.apps.figures.style import before_saving, print_layout
 
         path = _checked(path or self.path)
         fmt = FORMATS[path.suffix.lower()]
         figure = self.draw(renderer, width)
         try:
             options = print_layout(figure, dpi)
+            before_saving(fmt)
             with atomic_path(path) as temporary:
                 figure.savefig(temporary, dpi=dpi, format=fmt, **options)
         finally:

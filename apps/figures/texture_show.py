@@ -143,6 +143,9 @@ def save_figure(figure, path: Path, dpi: float) -> Path:
     fmt = FORMATS.get(path.suffix.lower())
     if fmt is None:
         raise UsageError(f"the output must end in .png, .pdf or .svg, got {path}")
+    from ultraglide.apps.figures.style import before_saving
+
+    before_saving(fmt)
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format=fmt, dpi=dpi, bbox_inches=figure.bbox_inches)  # the whole page: 1:1 holds
     return path
