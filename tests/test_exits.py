@@ -135,6 +135,58 @@ def test_signals_wait_for_a_held_block_a_burst_is_ignored_and_a_later_one_raises
     assert {signum: signal.getsignal(signum) for signum in STOP_SIGNALS} == before
 
 
+# a main thread waiting on a queue whose lock another thread holds most of the time (20 ms of every 20.5 ms): a stop
+# raised while the wait re-takes that lock released it under its holder ("release unlocked lock" there), and
+# could leave it held by nobody, after which both threads wait on it for ever (plate-sim did, once)
+QUEUE_WAITER = r"""
+import json, queue, threading, time
+from ultraglide.apps.cli.signals import StopSignals, Stopped
+stop = StopSignals()
+stop.install()
+events = queue.Queue()
+broken = []
+def hold_the_lock():
+    try:
+        while True:
+            with events.mutex:
+                time.sleep(0.02)
+            time.sleep(0.0005)
+    except RuntimeError as error:
+        broken.append(repr(error))
+threading.Thread(target=hold_the_lock, daemon=True).start()
+print("waiting", flush=True)
+try:
+    while True:
+        try:
+            events.get(timeout=0.005)
+        except queue.Empty:
+            pass
+except Stopped as stopped:
+    time.sleep(0.1)  # the holder's next turns: a lock released under it fails there
+    taken = events.mutex.acquire(timeout=5)
+    print(json.dumps({"status": stopped.exit_status, "broken": broken, "lock_taken": taken}), flush=True)
+"""
+
+
+def test_a_stop_that_finds_the_main_thread_waiting_on_a_busy_queue_leaves_its_lock_whole():
+    import json
+    import random
+    import sys
+
+    for attempt in range(6):
+        waiter = subprocess.Popen([sys.executable, "-c", QUEUE_WAITER], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        try:
+            assert waiter.stdout.readline().strip() == "waiting", waiter.stderr.read()
+            time.sleep(random.uniform(0.05, 0.2))  # (the stimulus: a signal at some moment of the wait)
+            waiter.send_signal(signal.SIGTERM)
+            out, err = waiter.communicate(timeout=DEADLINE_S)
+        finally:
+            waiter.kill()
+        said = json.loads(out.strip().splitlines()[-1])
+        assert said == {"status": 143, "broken": [], "lock_taken": True}, (attempt, said, err)
+
+
 # ---- export -------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("signum", STOP_SIGNALS)
 def test_a_signalled_export_leaves_neither_output_nor_temporary(tmp_path, signum):

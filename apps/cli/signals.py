@@ -4,6 +4,14 @@
 raises :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, so every ``try``/``finally``
 and ``with`` on the way out runs: devices ramp down and rest the plate, temporary files go.
 
+A stop signal that finds the main thread taking a condition's lock back after a wait (the end of every wait on
+an event or a queue, blocked while another thread holds that lock) is raised a moment later: raised there, the
+wait would end without the lock, and the ``with`` around it release the lock under the thread that held it
+("release unlocked lock" there) or leave it held by nobody (plate-sim once never exited: its main thread and
+its frames thread both blocked on its event queue's lock). It is retried every ``RETRY_S`` (SIGALRM, only while
+a stop waits; the wait itself, blocked on its own, is a safe place) and raised anyway after ``RETRY_FOR_S``
+(a lock held that long is held for good: better a stop than a hang).
+
 A second signal must not cut that clean-up short. Clean-up that must finish (resting a device,
 removing a temporary file) runs inside :func:`held`: a signal arriving there is raised when the
 block ends. Signals that follow the first within ``grace_s`` (a burst: several kills, an impatient
@@ -15,12 +23,36 @@ swallowed (Python drops exceptions raised while it runs a finaliser) can still b
 from __future__ import annotations
 
 import contextlib
+import inspect
 import signal
 import threading
 import time
 from collections.abc import Iterator
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+RETRY_S = 0.01
+RETRY_FOR_S = 1.0
+
+
+def _retaking_lines() -> frozenset[int]:
+    """The lines of ``threading.Condition.wait`` that take its lock back after the wait."""
+    try:
+        lines, first = inspect.getsourcelines(threading.Condition.wait)
+    except (OSError, TypeError):
+        return frozenset()
+    return frozenset(first + index for index, line in enumerate(lines) if "_acquire_restore(" in line)
+
+
+_RETAKING_LINES = _retaking_lines()
+
+
+def retaking_a_lock(frame) -> bool:
+    """Whether ``frame`` (where a signal found the main thread) is a condition taking its lock back after a wait
+    (every wait on an event, a queue or a semaphore ends there): an exception raised in that acquire leaves the
+    wait without the lock, and the ``with`` around it then releases the lock of whichever thread holds it."""
+    code = frame.f_code if frame is not None else None
+    return code is threading.Condition._acquire_restore.__code__ or (
+        code is threading.Condition.wait.__code__ and frame.f_lineno in _RETAKING_LINES)
 
 
 class Stopped(KeyboardInterrupt):
@@ -41,8 +73,10 @@ class StopSignals:
         self.received: int | None = None  # the first stop signal, once one has come
         self._first_s = 0.0
         self._held = 0
-        self._pending = False  # a signal came during a held block
+        self._pending = False  # a signal came during a held block, or inside locking code
         self._previous: dict[int, object] = {}
+        self._retrying_since: float | None = None  # a stop put off out of locking code: SIGALRM retries it
+        self._alarm_previous = None
 
     def __call__(self, signum: int, frame) -> None:
         now = time.monotonic()
@@ -50,10 +84,41 @@ class StopSignals:
             self.received, self._first_s = signum, now
         elif now - self._first_s < self.grace_s:
             return  # part of a burst: the first is still being handled
+        self._raise_when_safe(frame)
+
+    def _raise_when_safe(self, frame) -> None:
         if self._held:
             self._pending = True
             return
+        if retaking_a_lock(frame):
+            if self._retrying_since is None:
+                self._retrying_since = time.monotonic()
+            if time.monotonic() - self._retrying_since < RETRY_FOR_S:
+                self._pending = True
+                self._retry_later()
+                return
+        self._stop_retrying()
+        self._pending = False
         raise Stopped(self.received)
+
+    def _retry_later(self) -> None:
+        if self._alarm_previous is None:
+            self._alarm_previous = signal.signal(signal.SIGALRM, self._retry)
+        signal.setitimer(signal.ITIMER_REAL, RETRY_S)
+
+    def _retry(self, signum: int, frame) -> None:
+        if self._pending and not self._held:
+            self._raise_when_safe(frame)
+        elif not self._pending:
+            self._stop_retrying()
+        # (held: the block raises it as it ends)
+
+    def _stop_retrying(self) -> None:
+        self._retrying_since = None
+        if self._alarm_previous is not None:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, self._alarm_previous)
+            self._alarm_previous = None
 
     @contextlib.contextmanager
     def holding(self) -> Iterator[None]:
@@ -64,6 +129,7 @@ class StopSignals:
             self._held -= 1
         if not self._held and self._pending:
             self._pending = False
+            self._stop_retrying()
             raise Stopped(self.received)
 
     def install(self) -> bool:
@@ -78,6 +144,7 @@ class StopSignals:
         """Put back the handlers that were there before ``install``; once a stop signal has come, ignore
         the stop signals instead: the process is on its way out (and the interpreter, as it shuts down,
         would put back default handlers that kill it with another status)."""
+        self._stop_retrying()
         for signum, previous in self._previous.items():
             signal.signal(signum, previous if self.received is None else signal.SIG_IGN)
         self._previous.clear()
