@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 import soundfile
-from conftest import ROOT, assert_one_line_error, run_cli, start_cli, wait_for
+from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cli, wait_for
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -47,7 +47,7 @@ class Constant:
 
 @pytest.fixture
 def plate():
-    served = PtyPlate(PROFILE).start()
+    served = serve_plate(PROFILE)
     yield served
     served.stop()
 

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import ROOT, assert_one_line_error, run_cli, start_cli, wait_for
+from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cli, wait_for
 from scripted_plate import ScriptedPlate
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -72,7 +72,7 @@ class Tapped:
     decodes, in order."""
 
     def __init__(self, profile=PROFILE, max_version=3):
-        self.plate = PtyPlate(profile, max_version=max_version).start()
+        self.plate = serve_plate(profile, max_version=max_version)
         self.frames = []
         simulator = self.plate.simulator
         receive, decoder = simulator.receive, p.FrameDecoder()
@@ -545,8 +545,7 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
     (Whether the plate ran dry is asked in test_plate_sim_cli.py, where the plate and the host run in processes
     of their own.)"""
     truth = PlateTruth(PROFILE.resonance_hz, PROFILE.q, clock_ppm=clock_ppm)
-    with threads_started_in_real_time():  # the plate's threads, from the block's end on
-        plate = PtyPlate(PROFILE, truth=truth).start()
+    plate = serve_plate(PROFILE, truth=truth)
     driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
     try:
         source = Timed(2.0)
@@ -604,8 +603,12 @@ def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):
             driver.stop()
         plate.send_signal(signal.SIGCONT)  # (should the test have failed while it was stopped)
         plate.send_signal(signal.SIGTERM)
+        try:  # (its events are a few kB, which the pipe holds: it ends without a reader)
+            plate.wait(timeout=DEADLINE_S)  # bounded: once, beside two hogs, it never ended (apps/cli/signals.py)
+        finally:
+            if plate.poll() is None:
+                plate.kill()
         said = plate.stdout.read()
-        plate.wait(timeout=DEADLINE_S)
         plate.stdout.close()
     c, counts = driver.counters, driver.fault_counts()
     events = [json.loads(line) for line in said.splitlines()]

@@ -6,11 +6,10 @@ import time
 
 import numpy as np
 import pytest
-from conftest import wait_for
+from conftest import serve_plate, wait_for
 from ultraglide.devices import protocol as p
 from ultraglide.devices.plate_sim import TELEMETRY_S, TICK_S, PlateSimulator
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
 from ultraglide.devices.serial_plate import IDLE_AFTER_S, SerialPlate
 
 PROFILE = load_profile("sim-plate")
@@ -60,7 +59,7 @@ def events(sim):
 
 @pytest.fixture
 def plate():
-    served = PtyPlate(PROFILE).start()
+    served = serve_plate(PROFILE)
     yield served
     served.stop()
 
