@@ -83,6 +83,7 @@ def run(args) -> int:
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
+    from ultraglide.render.engine.realtime import threads_started_in_real_time
 
     profile = load_profile(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s,
@@ -90,8 +91,12 @@ def run(args) -> int:
     config = finger_config(args)
     finger = build_finger(config) if config is not None else None
     try:
-        plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version,
-                         finger=finger).start()
+        # its threads keep the plate's time as a board's timer does: in real time where the machine allows, so that
+        # a loaded machine does not starve the simulated plate (its clock's drift once went unseen by the host, the
+        # plate's own lag cancelling it); what starts them stays ordinary
+        with threads_started_in_real_time():
+            plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version,
+                             finger=finger).start()
     except BaseException:
         if finger is not None:
             finger.close()
