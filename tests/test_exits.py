@@ -139,7 +139,7 @@ def test_signals_wait_for_a_held_block_a_burst_is_ignored_and_a_later_one_raises
 # raised while the wait re-takes that lock released it under its holder ("release unlocked lock" there), and
 # could leave it held by nobody, after which both threads wait on it for ever (plate-sim did, once)
 QUEUE_WAITER = r"""
-import json, queue, threading, time
+import json, queue, signal, threading, time
 from ultraglide.apps.cli.signals import StopSignals, Stopped
 stop = StopSignals()
 stop.install()
@@ -164,7 +164,9 @@ try:
 except Stopped as stopped:
     time.sleep(0.1)  # the holder's next turns: a lock released under it fails there
     taken = events.mutex.acquire(timeout=5)
-    print(json.dumps({"status": stopped.exit_status, "broken": broken, "lock_taken": taken}), flush=True)
+    alarm_back = signal.getsignal(signal.SIGALRM) is signal.SIG_DFL  # the retries' handler gone with the stop
+    print(json.dumps({"status": stopped.exit_status, "broken": broken, "lock_taken": taken, "alarm_back": alarm_back}),
+          flush=True)
 """
 
 
@@ -184,7 +186,7 @@ def test_a_stop_that_finds_the_main_thread_waiting_on_a_busy_queue_leaves_its_lo
         finally:
             waiter.kill()
         said = json.loads(out.strip().splitlines()[-1])
-        assert said == {"status": 143, "broken": [], "lock_taken": True}, (attempt, said, err)
+        assert said == {"status": 143, "broken": [], "lock_taken": True, "alarm_back": True}, (attempt, said, err)
 
 
 # ---- export -------------------------------------------------------------------------------------------------

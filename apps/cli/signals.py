@@ -73,10 +73,11 @@ class StopSignals:
         self.received: int | None = None  # the first stop signal, once one has come
         self._first_s = 0.0
         self._held = 0
-        self._pending = False  # a signal came during a held block, or inside locking code
+        self._pending = False  # a signal came during a held block, or while a condition took its lock back
         self._previous: dict[int, object] = {}
-        self._retrying_since: float | None = None  # a stop put off out of locking code: SIGALRM retries it
+        self._retrying_since: float | None = None  # a stop put off from a lock's re-acquire: SIGALRM retries it
         self._alarm_previous = None
+        self._alarm_ours = False
 
     def __call__(self, signum: int, frame) -> None:
         now = time.monotonic()
@@ -102,8 +103,8 @@ class StopSignals:
         raise Stopped(self.received)
 
     def _retry_later(self) -> None:
-        if self._alarm_previous is None:
-            self._alarm_previous = signal.signal(signal.SIGALRM, self._retry)
+        if not self._alarm_ours:
+            self._alarm_previous, self._alarm_ours = signal.signal(signal.SIGALRM, self._retry), True
         signal.setitimer(signal.ITIMER_REAL, RETRY_S)
 
     def _retry(self, signum: int, frame) -> None:
@@ -115,10 +116,11 @@ class StopSignals:
 
     def _stop_retrying(self) -> None:
         self._retrying_since = None
-        if self._alarm_previous is not None:
+        if self._alarm_ours:
             signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, self._alarm_previous)
-            self._alarm_previous = None
+            # (None: a handler set outside Python, which signal.signal cannot put back; the default is)
+            signal.signal(signal.SIGALRM, signal.SIG_DFL if self._alarm_previous is None else self._alarm_previous)
+            self._alarm_previous, self._alarm_ours = None, False
 
     @contextlib.contextmanager
     def holding(self) -> Iterator[None]:
