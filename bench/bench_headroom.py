@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 from scipy import signal
-from ultraglide.devices.limiter import DriveLimiter
+from ultraglide.devices.output.limiter import DriveLimiter
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.envelope import EnvelopeChain
 

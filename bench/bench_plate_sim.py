@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import PlateSimulator
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.plate import PlateSimulator
 
 ROOT = Path(__file__).resolve().parent.parent
 TICKS = os.sysconf("SC_CLK_TCK")

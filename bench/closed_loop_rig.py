@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from ultraglide.devices import protocol as p
-from ultraglide.devices.output_stage import output_stage
-from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth
+from ultraglide.devices.output.stage import output_stage
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.plate import PlateSimulator, PlateTruth
 from ultraglide.render.engine.finger_setup import FingerConfig, build_finger, finger_law
 from ultraglide.render.engine.friction_loop import FrictionLoop
 from ultraglide.render.engine.loop_plate import AmplitudeLoopPlate
@@ -88,7 +88,7 @@ class ClosedLoopRig:
         self.profile = load_profile(profile)
         self.config = (finger or FingerConfig()).with_log(None)
         self.finger = build_finger(self.config)
-        from ultraglide.devices.finger_log import FingerLog
+        from ultraglide.devices.sim.finger_log import FingerLog
 
         self.log = FingerLog(None, rate_hz=log_hz, clock_origin_s=0.0)
         self.finger.log = self.log

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.protocol_spec import SETPOINT_SCALE
+from ultraglide.devices.protocol.spec import SETPOINT_SCALE
 
 from ultraglide.inputs import parse_toml, read_input, some_of
 
@@ -44,7 +44,7 @@ class PlateProfile:
 
     ``max_amplitude_um_pp`` is the plate's safe limit: the steady amplitude the drive commands
     never exceeds it. ``max_drive_um_pp`` (between the limit and full scale; None: the limit)
-    is the overdrive granted for pre-compensation, see :mod:`ultraglide.devices.limiter`.
+    is the overdrive granted for pre-compensation, see :mod:`ultraglide.devices.output.limiter`.
     """
 
     name: str
@@ -136,7 +136,7 @@ class PlateProfile:
             raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.shown_name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")
         if audio_rate_hz is not None:
-            from ultraglide.devices.carrier import check_carrier
+            from ultraglide.devices.output.carrier import check_carrier
 
             check_carrier(carrier_hz, audio_rate_hz)
 

@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
 
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.output.source import Device
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.devices.source import Device
 
 if TYPE_CHECKING:
-    from ultraglide.devices.finger import SimulatedFinger
+    from ultraglide.devices.sim.finger import SimulatedFinger
 
 KINDS = ("sim", "serial", "audio", "wav", "null")
 USAGE = ("use sim, serial:PORT[?baud=N&rate=N&frame_ms=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
@@ -126,8 +126,8 @@ class SimPlate:
 
     def __init__(self, profile: PlateProfile, control_rate_hz: int, carrier_hz: float | None, tracker=None,
                  finger=None, amplitude_loop: bool = False):
-        from ultraglide.devices.pty_plate import PtyPlate
-        from ultraglide.devices.serial_plate import SerialPlate
+        from ultraglide.devices.serial.plate import SerialPlate
+        from ultraglide.devices.sim.pty_plate import PtyPlate
 
         self.finger = finger
         self.plate = PtyPlate(profile, finger=finger).start()
@@ -184,7 +184,7 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         if spec.kind not in ("sim", "serial"):
             raise DeviceError(f"{spec.kind} reports no measured amplitude, so it cannot track the resonance; "
                               "use a plate driver (sim or serial:PORT) or leave out resonance tracking")
-        from ultraglide.devices.resonance import ResonanceTracker
+        from ultraglide.devices.characterisation.resonance import ResonanceTracker
 
         profile.check_carrier(carrier)
         tracker = ResonanceTracker(carrier, profile.q, profile.max_amplitude_um_pp, profile.carrier_min_hz,
@@ -192,7 +192,7 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
     if spec.kind == "sim":
         return SimPlate(profile, control_rate_hz, carrier_hz, tracker, finger, amplitude_loop)
     if spec.kind == "serial":
-        from ultraglide.devices.serial_plate import SerialPlate
+        from ultraglide.devices.serial.plate import SerialPlate
 
         rate = spec.options.get("rate", control_rate_hz)
         if control_rate_hz % rate:
@@ -202,12 +202,12 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         return SerialPlate(spec.target, profile, rate, carrier_hz, baudrate=spec.options.get("baud", 921600),
                            batch_s=frame_s, tracker=tracker, amplitude_loop=amplitude_loop)
     if spec.kind == "audio":
-        from ultraglide.devices.audio import AudioPlate
+        from ultraglide.devices.sinks.audio import AudioPlate
 
         target = int(spec.target) if spec.target.isdigit() else (spec.target or None)
         return AudioPlate(target, profile, carrier, spec.options.get("rate"), spec.options.get("latency", "low"),
                           spec.options.get("blocksize", 0))
-    from ultraglide.devices.paced import PacedSink, WavRecorder
+    from ultraglide.devices.sinks.paced import PacedSink, WavRecorder
 
     rate = spec.options.get("rate", 96000)
     if spec.kind == "wav":

@@ -17,7 +17,7 @@ this class holds its settings and state between blocks.
   alpha = exp(-dt / tau), tau = Q / (pi f0). Pre-compensation drives the exact inverse while it lies
   within [0, max drive] (the profile's ``max_drive_um_pp``); beyond, the drive is clipped and the
   modelled plate carries on from what really happened, so it never exceeds the target or its own
-  previous value, hence never the limit. The output stage's limiter (``devices/limiter.py``) then
+  previous value, hence never the limit. The output stage's limiter (``devices/output/limiter.py``) then
   guards the real plate, whose Q may differ from the profile's.
 """
 

@@ -3,7 +3,7 @@
 A :class:`Renderer` owns one texture, one friction model and one plate profile. ``control(n)``
 gives the next n samples of the drive envelope at the control rate (µm p-p), computed just in
 time from the finger state at that moment, so a touch report pushed now shapes the very next
-block. Devices pull it through their output stage (:mod:`ultraglide.devices.output_stage`), which
+block. Devices pull it through their output stage (:mod:`ultraglide.devices.output.stage`), which
 limits the drive and, for audio devices, puts it on the carrier; the renderer makes no carrier.
 
 Example, offline::

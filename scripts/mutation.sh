@@ -15,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 files=("$@")
-[ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/limiter.py textures/sampling.py devices/carrier.py
+[ ${#files[@]} -gt 0 ] || files=(render/envelope.py render/renderer.py devices/output/limiter.py textures/sampling.py devices/output/carrier.py
                                   render/physics/model_base.py
                                   render/physics/paper_model.py render/physics/empirical_models.py
                                   render/physics/table_model.py)

@@ -33,7 +33,7 @@ def serve_plate(profile, **options):
     where the machine allows, as a command's simulated plate's and the engine's are: at ordinary priority beside
     CPU hogs, a plate's output thread preempted for tens of milliseconds ran its buffer dry with the host on time,
     or held the interpreter's lock while the host's threads waited on it."""
-    from ultraglide.devices.pty_plate import PtyPlate
+    from ultraglide.devices.sim.pty_plate import PtyPlate
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
     with threads_started_in_real_time():

@@ -16,7 +16,7 @@ import time
 import numpy as np
 from stop_flag import stop_on_sigterm
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
 from ultraglide.render.engine.realtime import threads_started_in_real_time
 
 

@@ -3,7 +3,7 @@
 Each millisecond the host renders 12 control samples of amplitude for the target ratio (through the loop's
 inverse, or the model's for open loop); the plate plays them ``buffer_s`` later (the jitter buffer), its
 amplitude following through a first-order lag ``plate_tau_s`` (as the firmware's amplitude loop makes it);
-the real :class:`~ultraglide.devices.finger.SimulatedFinger` presses on it at 48 kHz; a sensor sample is the
+the real :class:`~ultraglide.devices.sim.finger.SimulatedFinger` presses on it at 48 kHz; a sensor sample is the
 mean over each millisecond (as the firmware makes it), ten to a SENSORS frame, which reaches the loop
 ``link_s`` later with the stream index that was playing. The finger's truth is what the errors are
 measured against.
@@ -21,10 +21,10 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from ultraglide.devices.finger import FingerParams, ForceScript, SimulatedFinger
-from ultraglide.devices.finger_log import FingerLog
-from ultraglide.devices.force_sensors import ForceSensorParams
-from ultraglide.devices.kernels import first_order_filter
+from ultraglide.devices.output.kernels import first_order_filter
+from ultraglide.devices.sim.finger import FingerParams, ForceScript, SimulatedFinger
+from ultraglide.devices.sim.finger_log import FingerLog
+from ultraglide.devices.sim.force_sensors import ForceSensorParams
 from ultraglide.render.engine.friction_loop import FrictionLoop, LoopSettings
 
 FS = 48000

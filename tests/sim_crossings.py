@@ -16,7 +16,7 @@ import time
 
 from stop_flag import stop_on_sigterm
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.render.engine.realtime import threads_started_in_real_time
 
 

@@ -15,9 +15,9 @@ import sys
 import time
 
 from stop_flag import stop_on_sigterm
-from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.plate import PlateTruth
+from ultraglide.devices.sim.pty_plate import PtyPlate
 
 
 def main() -> None:

@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pytest
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import SAMPLE_RATE_HZ, PlateSimulator, PlateTruth
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.plate import SAMPLE_RATE_HZ, PlateSimulator, PlateTruth
 
 PROFILE = load_profile("sim-plate")  # 8 µm p-p at full scale, limit 6, drive up to 8
 RATE = 12000

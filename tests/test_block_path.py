@@ -12,8 +12,8 @@ import types
 import numpy as np
 import pytest
 from conftest import ROOT
-from ultraglide.devices.carrier import Carrier
-from ultraglide.devices.output_stage import OutputStage
+from ultraglide.devices.output.carrier import Carrier
+from ultraglide.devices.output.stage import OutputStage
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.engine.process import EngineSource
 from ultraglide.render.engine.shm import SharedBlock

@@ -16,8 +16,8 @@ from ultraglide.apps.calibration.guide import advice
 from ultraglide.apps.calibration.plan import CalibrationPlan
 from ultraglide.apps.calibration.recording import PlanSource, StepRecorder
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import PlateSimulator
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.plate import PlateSimulator
 from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
 from ultraglide.render.physics.calibration import fit_model, read_calibration
 from ultraglide.render.physics.measurements import participant_id

@@ -18,8 +18,8 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from scipy.interpolate import PchipInterpolator
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.finger import SensorFault
-from ultraglide.devices.finger_log import HEADER
+from ultraglide.devices.sim.finger import SensorFault
+from ultraglide.devices.sim.finger_log import HEADER
 from ultraglide.render.engine.envelope_record import COLUMNS as ENVELOPE_COLUMNS
 from ultraglide.render.engine.envelope_record import EnvelopeRecord
 from ultraglide.render.engine.finger_setup import FingerConfig, build_finger, finger_law

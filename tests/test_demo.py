@@ -40,7 +40,7 @@ def plate():
     """The simulated plate served in the test's process on a real pty: the demo's engine drives it through
     the real serial driver, and the test reads the plate's own amplitude beside it."""
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.devices.pty_plate import PtyPlate
+    from ultraglide.devices.sim.pty_plate import PtyPlate
 
     served = PtyPlate(load_profile("sim-plate")).start()
     yield served

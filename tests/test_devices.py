@@ -14,10 +14,10 @@ from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cl
 from scipy import signal as sps
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.pty_plate import PtyPlate
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
+from ultraglide.devices.sim.plate import PlateSimulator, PlateTruth
+from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.devices.urls import parse_device_url
 
 PROFILE = load_profile("sim-plate")
@@ -276,8 +276,8 @@ pcm.capture {{
 AUDIO_SCRIPT = """
 import sys, time, numpy as np
 from ultraglide.render.engine.sources import EnvelopeSource, offline_stage
-from ultraglide.devices.output_stage import OutputStage
-from ultraglide.devices.audio import AudioPlate
+from ultraglide.devices.output.stage import OutputStage
+from ultraglide.devices.sinks.audio import AudioPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath
@@ -361,7 +361,7 @@ def test_a_failed_play_leaves_no_recording_and_no_temporary(tmp_path):
 
 
 def test_a_recorder_that_never_started_writes_nothing(tmp_path):
-    from ultraglide.devices.paced import WavRecorder
+    from ultraglide.devices.sinks.paced import WavRecorder
 
     recorder = WavRecorder(tmp_path / "never.wav", PROFILE)
     recorder.stop()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.render.engine import Engine, EngineConfig, EngineError
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.render.engine import Engine, EngineConfig
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture

@@ -35,7 +35,7 @@ def _engine_error(tmp_path):
 
 
 def _fit_error(tmp_path):
-    from ultraglide.devices.resonance import fit_resonance
+    from ultraglide.devices.characterisation.resonance import fit_resonance
 
     fit_resonance(np.array([25000.0, 25001.0]), np.array([0.0, 0.0]))
 

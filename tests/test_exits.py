@@ -19,7 +19,7 @@ from conftest import ROOT, assert_one_line_error, run_cli, start_cli
 from ultraglide.apps.cli.signals import Stopped, StopSignals, held
 from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.pty_plate import PtyPlate
 
 STOP_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
 DEADLINE_S = 60.0  # generous: the suite runs on a loaded 2-core machine

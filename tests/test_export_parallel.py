@@ -15,8 +15,8 @@ import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli, start_cli
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.commands.render_setup import load_inputs, make_renderer
-from ultraglide.devices.carrier import Carrier
-from ultraglide.devices.output_stage import Modulation
+from ultraglide.devices.output.carrier import Carrier
+from ultraglide.devices.output.stage import Modulation
 from ultraglide.render.engine.sources import offline_stage
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture

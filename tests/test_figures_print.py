@@ -85,8 +85,8 @@ def test_the_calibration_figure_reads_at_print_width_with_a_band_per_force(tmp_p
 @pytest.mark.parametrize("width", ["column", "page"])
 def test_the_plate_sweep_figure_reads_at_print_width(tmp_path, width):
     from ultraglide.apps.figures.sweep import plot_sweep
-    from ultraglide.devices.resonance import ResonanceFit
-    from ultraglide.devices.sweep import SweepPoint
+    from ultraglide.devices.characterisation.resonance import ResonanceFit
+    from ultraglide.devices.characterisation.sweep import SweepPoint
 
     fit = ResonanceFit(25_000.0, 180.0, 8.0, 1.5, 3.0, 0.05, 0.01)
     points = [SweepPoint(f, float(fit.amplitude_um_pp(f)) * 0.15, 0.15, True) for f in np.linspace(23e3, 27e3, 41)]

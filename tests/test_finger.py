@@ -7,9 +7,9 @@ import time
 import numpy as np
 import pytest
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.finger import FingerParams, ForceScript, SimulatedFinger
-from ultraglide.devices.finger_log import HEADER, FingerLog
-from ultraglide.devices.force_sensors import ForceSensorParams
+from ultraglide.devices.sim.finger import FingerParams, ForceScript, SimulatedFinger
+from ultraglide.devices.sim.finger_log import HEADER, FingerLog
+from ultraglide.devices.sim.force_sensors import ForceSensorParams
 
 FS = 48000
 STILL = FingerParams(drift=0.0, moisture=0.0)

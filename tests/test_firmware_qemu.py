@@ -37,7 +37,7 @@ from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import build_images, map_sizes
 from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
 
 pytestmark = [
     pytest.mark.slow,
@@ -503,7 +503,7 @@ def test_the_watchdog_ramps_the_plate_down_on_the_boards_clock(one_qemu, image):
 
 
 def test_a_plate_sweep_finds_the_emulated_plates_resonance_not_the_profiles(one_qemu, image):
-    from ultraglide.devices.sweep import TelemetrySweeper, sweep
+    from ultraglide.devices.characterisation.sweep import TelemetrySweeper, sweep
 
     believed = load_profile("sim-plate")  # 25 kHz, Q 200
     truth = EmulatedPlate.of(believed, resonance_hz=24800.0, q=150.0)

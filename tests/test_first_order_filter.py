@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.signal import lfilter
-from ultraglide.devices.kernels import first_order_filter
+from ultraglide.devices.output.kernels import first_order_filter
 
 
 def test_a_step_rises_as_the_closed_form_says():

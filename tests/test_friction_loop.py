@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 from loop_rig import CONTROL_HZ, LoopRig, floored
-from ultraglide.devices.finger import FingerParams, ForceScript
-from ultraglide.devices.force_sensors import ForceSensorParams
+from ultraglide.devices.sim.finger import FingerParams, ForceScript
+from ultraglide.devices.sim.force_sensors import ForceSensorParams
 from ultraglide.render.engine.friction_controller import ClosedLoopInverse, ControllerSettings, FastCorrection
 from ultraglide.render.engine.friction_estimator import EstimatorSettings, FrictionEstimator, SensorModel
 from ultraglide.render.engine.friction_loop import FrictionLoop, LoopSettings, TargetRing

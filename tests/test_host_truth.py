@@ -18,10 +18,10 @@ from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cl
 from scripted_plate import ScriptedPlate
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.pty_plate import PtyPlate
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
+from ultraglide.devices.sim.plate import PlateTruth
+from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.render.engine.realtime import threads_started_in_real_time
 
 PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p
@@ -228,7 +228,7 @@ def test_a_lock_that_fails_for_another_reason_than_a_holder_says_so_not_in_use(m
     import errno
     import fcntl
 
-    from ultraglide.devices.serial_link import open_port
+    from ultraglide.devices.serial.link import open_port
 
     plate = PtyPlate(PROFILE).start()
     real_flock = fcntl.flock

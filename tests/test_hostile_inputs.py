@@ -24,8 +24,8 @@ from ultraglide.apps.cli.output import json_text, one_line, printable
 from ultraglide.apps.experiment.log import read_session, read_trials
 from ultraglide.apps.experiment.session import resumed_config
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.finger import ForceScript
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.finger import ForceScript
 from ultraglide.render.errors import RenderError
 from ultraglide.render.physics.calibration import load_model, read_calibration
 from ultraglide.render.physics.errors import ModelError

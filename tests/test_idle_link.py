@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from conftest import serve_plate, wait_for
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import TELEMETRY_S, TICK_S, PlateSimulator
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.serial_plate import IDLE_AFTER_S, SerialPlate
+from ultraglide.devices.serial.plate import IDLE_AFTER_S, SerialPlate
+from ultraglide.devices.sim.plate import TELEMETRY_S, TICK_S, PlateSimulator
 
 PROFILE = load_profile("sim-plate")
 RATE_HZ = 12000

@@ -22,13 +22,13 @@ from scipy import signal
 from test_devices import ASOUNDRC  # the ALSA file-PCM capture, one definition
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.limiter import DriveLimiter
-from ultraglide.devices.output_stage import OutputStage, output_stage
-from ultraglide.devices.paced import WavRecorder
-from ultraglide.devices.plate_sim import PlateSimulator
+from ultraglide.devices.output.limiter import DriveLimiter
+from ultraglide.devices.output.stage import OutputStage, output_stage
 from ultraglide.devices.profiles import PlateProfile, load_profile
-from ultraglide.devices.pty_plate import PtyPlate
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
+from ultraglide.devices.sim.plate import PlateSimulator
+from ultraglide.devices.sim.pty_plate import PtyPlate
+from ultraglide.devices.sinks.paced import WavRecorder
 from ultraglide.render.engine.sources import EnvelopeSource, offline_stage
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.friction_models import ExponentialModel
@@ -178,7 +178,7 @@ def test_play_to_the_wav_device_is_limited_and_reports_it(tmp_path):
 AUDIO_SCRIPT = """
 import sys, time
 from ultraglide.render.engine.sources import EnvelopeSource
-from ultraglide.devices.audio import AudioPlate
+from ultraglide.devices.sinks.audio import AudioPlate
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.render.paths import SwipePath

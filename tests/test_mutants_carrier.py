@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ultraglide.devices.carrier import Carrier, check_carrier
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.output.carrier import Carrier, check_carrier
 
 
 def expected_sine(carrier_hz: float, rate_hz: float, start: int, frames: int) -> np.ndarray:

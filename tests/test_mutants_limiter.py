@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ultraglide.devices.limiter import DriveLimiter
+from ultraglide.devices.output.limiter import DriveLimiter
 from ultraglide.devices.profiles import PlateProfile
 
 PLATE = PlateProfile("p", 25000.0, 200.0, 8.0, 2.0)  # full scale 8 µm, limit 2 µm, no overdrive

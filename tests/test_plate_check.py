@@ -13,11 +13,11 @@ import time
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from test_plate_sim_cli import Server
-from ultraglide.devices import conformance as c
+from ultraglide.devices.conformance import check as c
 from ultraglide.devices.firmware import sil
-from ultraglide.devices.plate_sim import PlateTruth
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.plate import PlateTruth
+from ultraglide.devices.sim.pty_plate import PtyPlate
 
 PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p
 DOC = (ROOT / "docs" / "protocol.md").read_text(encoding="utf-8")

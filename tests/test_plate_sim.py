@@ -17,9 +17,9 @@ from conftest import wait_for
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from ultraglide.devices import protocol as p
-from ultraglide.devices.plate_sim import PlateSimulator, PlateTruth
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.pty_plate import PtyPlate
+from ultraglide.devices.sim.plate import PlateSimulator, PlateTruth
+from ultraglide.devices.sim.pty_plate import PtyPlate
 
 PROFILE = load_profile("sim-plate")  # 25 kHz, Q 200, 8 µm p-p full scale, 6 µm p-p limit
 RATE = 12000

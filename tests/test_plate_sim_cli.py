@@ -21,7 +21,7 @@ from ultraglide.apps.commands.play import describe_faults
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
 
 PROFILE = load_profile("sim-plate")
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 from scipy.signal import lsim
-from ultraglide.devices.plate_sim import SAMPLE_RATE_HZ, resonator_phasor
+from ultraglide.devices.sim.plate import SAMPLE_RATE_HZ, resonator_phasor
 
 F0_HZ, Q, FULL_SCALE_UM_PP = 25000.0, 200.0, 8.0
 TAU_S = Q / (math.pi * F0_HZ)  # 2.55 ms

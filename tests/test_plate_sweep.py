@@ -14,8 +14,8 @@ import pytest
 from conftest import ROOT, assert_one_line_error, may_run_in_real_time, run_cli, start_cli, thread_scheduling
 from PIL import Image
 from test_plate_sim_cli import Server
+from ultraglide.devices.characterisation.resonance import FitError, fit_resonance, resonance_curve
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.resonance import FitError, fit_resonance, resonance_curve
 
 
 def test_the_resonance_curve_is_down_3_db_at_half_the_bandwidth_from_the_peak():
@@ -52,8 +52,8 @@ def test_the_fit_recovers_a_noisy_resonance_within_its_stated_uncertainty():
 ])
 def test_the_measured_profile_keeps_the_limit_and_the_overdrive_headroom(believed, measured_full_scale, limit,
                                                                          drive):
-    from ultraglide.devices.resonance import ResonanceFit
-    from ultraglide.devices.sweep import measured_profile
+    from ultraglide.devices.characterisation.resonance import ResonanceFit
+    from ultraglide.devices.characterisation.sweep import measured_profile
 
     old = replace(load_profile("sim-plate"), **believed)
     found = measured_profile(old, ResonanceFit(24900.0, 180.0, measured_full_scale, 1.0, 2.0, 0.01, 0.001), "m")

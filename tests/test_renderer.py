@@ -5,7 +5,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
-from ultraglide.devices.carrier import Carrier
+from ultraglide.devices.output.carrier import Carrier
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError

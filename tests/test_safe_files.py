@@ -448,7 +448,7 @@ def test_an_output_that_is_also_an_input_is_refused_before_anything_is_written(t
 # ---- plate-sim's link goes only where there is nothing or a link -----------------------------------------------
 @needs_root
 def test_plate_sim_never_puts_its_link_over_a_device_or_file(tmp_path):
-    from ultraglide.devices.pty_plate import PtyPlate
+    from ultraglide.devices.sim.pty_plate import PtyPlate
 
     null = special("null", tmp_path / "null")
     regular = tmp_path / "plate"
@@ -473,7 +473,7 @@ def test_the_temporary_name_is_recognisable(tmp_path):
 # ---- logs written as they happen (FILE.csv.part, renamed at the end) --------------------------------------------
 def test_a_growing_log_follows_the_same_rule(tmp_path):
     from ultraglide.apps.demo.record import TouchRecorder
-    from ultraglide.devices.finger_log import FingerLog
+    from ultraglide.devices.sim.finger_log import FingerLog
 
     real = tmp_path / "real.csv"
     real.write_text("old")

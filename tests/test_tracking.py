@@ -12,10 +12,10 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from test_devices import Constant
 from test_plate_sim_cli import Server
-from ultraglide.devices.output_stage import output_stage
+from ultraglide.devices.characterisation.resonance import ResonanceTracker, resonance_curve
+from ultraglide.devices.output.stage import output_stage
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.resonance import ResonanceTracker, resonance_curve
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
 
 PROFILE = load_profile("sim-plate")  # 25 kHz, Q 200, 8 µm p-p at full scale, limit 6 µm p-p
 

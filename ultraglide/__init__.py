@@ -70,16 +70,16 @@ _EXPORTS: dict[str, str] = {
     "EngineConfig": "ultraglide.render.engine",
     "EngineStatus": "ultraglide.render.engine",
     "EngineError": "ultraglide.render.engine",
-    "FitError": "ultraglide.devices.resonance",
+    "FitError": "ultraglide.devices.characterisation.resonance",
     "ProtocolError": "ultraglide.devices.protocol",
     # devices
     "PlateProfile": "ultraglide.devices.profiles",
     "load_profile": "ultraglide.devices.profiles",
     "open_device": "ultraglide.devices.urls",
-    "BlockSource": "ultraglide.devices.source",
-    "Device": "ultraglide.devices.source",
-    "OutputStage": "ultraglide.devices.output_stage",
-    "output_stage": "ultraglide.devices.output_stage",
+    "BlockSource": "ultraglide.devices.output.source",
+    "Device": "ultraglide.devices.output.source",
+    "OutputStage": "ultraglide.devices.output.stage",
+    "output_stage": "ultraglide.devices.output.stage",
     "DeviceError": "ultraglide.devices.errors",
     # what spans the packages
     "export_wav": "ultraglide.api",
@@ -107,12 +107,12 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
     from ultraglide.api import ExportResult, export_wav
+    from ultraglide.devices.characterisation.resonance import FitError
     from ultraglide.devices.errors import DeviceError
-    from ultraglide.devices.output_stage import OutputStage, output_stage
+    from ultraglide.devices.output.source import BlockSource, Device
+    from ultraglide.devices.output.stage import OutputStage, output_stage
     from ultraglide.devices.profiles import PlateProfile, load_profile
     from ultraglide.devices.protocol import ProtocolError
-    from ultraglide.devices.resonance import FitError
-    from ultraglide.devices.source import BlockSource, Device
     from ultraglide.devices.urls import open_device
     from ultraglide.errors import UltraglideError
     from ultraglide.render.engine import Engine, EngineConfig, EngineError, EngineStatus

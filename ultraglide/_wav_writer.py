@@ -5,7 +5,7 @@ and numpy code that holds the interpreter lock; it runs in order on the caller's
 each block on the carrier and writing it depends on nothing but the block (each frame's carrier
 phase comes from its index), so a *writer process*, forked once the envelope's set-up is done,
 does it on the other core: the envelope thread then never waits for the lock, and the two run
-side by side. The caller sends each block's :class:`~ultraglide.devices.output_stage.Modulation`
+side by side. The caller sends each block's :class:`~ultraglide.devices.output.stage.Modulation`
 (its limited knots, about 100 kB a second of audio) down a pipe; the writer renders it in
 ``threads`` chunks on a thread pool, writes the blocks in order and acknowledges the frames
 written, which drives the progress bar. A pipe holds about one block, and the writer holds at
@@ -36,7 +36,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import soundfile
 
-from ultraglide.devices.output_stage import Modulation
+from ultraglide.devices.output.stage import Modulation
 
 IN_FLIGHT = 3  # blocks being put on the carrier or written, at most
 WRITEBACK_EVERY = 4  # blocks written between requests to start writing the file back to disk

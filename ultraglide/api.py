@@ -27,7 +27,7 @@ import soundfile
 
 from ultraglide import _wav_writer
 from ultraglide.atomic import AtomicFile, write_failure
-from ultraglide.devices.output_stage import OutputStage
+from ultraglide.devices.output.stage import OutputStage
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError

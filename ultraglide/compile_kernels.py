@@ -14,15 +14,16 @@ import time
 
 # every module of ours that defines a compiled kernel (tests/test_compile_kernels.py checks the sources for others)
 KERNEL_MODULES = ("ultraglide.render.kernels", "ultraglide.render.physics.kernels", "ultraglide.render.effects",
-                  "ultraglide.devices.kernels", "ultraglide.devices.force_sensors", "ultraglide.textures.kernels")
+                  "ultraglide.devices.output.kernels", "ultraglide.devices.sim.force_sensors",
+                  "ultraglide.textures.kernels")
 
 
 def compile_all() -> int:
     """Compile (or load from the cache) each kernel with the types our code calls it with; the number of kernels."""
     import numpy as np
 
-    from ultraglide.devices import force_sensors
-    from ultraglide.devices import kernels as device_kernels
+    from ultraglide.devices.output import kernels as device_kernels
+    from ultraglide.devices.sim import force_sensors
     from ultraglide.render import effects
     from ultraglide.render import kernels as render_kernels
     from ultraglide.render.physics import kernels as physics_kernels

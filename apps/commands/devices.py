@@ -17,7 +17,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args) -> int:
-    from ultraglide.devices.listing import list_devices
+    from ultraglide.devices.sinks.listing import list_devices
 
     found = list_devices()
     if args.json:

@@ -67,7 +67,7 @@ def add_finger_options(parser: argparse.ArgumentParser, where: str) -> None:
 
 def _fault(text: str) -> str:
     from ultraglide.devices.errors import DeviceError
-    from ultraglide.devices.finger import SensorFault
+    from ultraglide.devices.sim.finger import SensorFault
 
     try:
         SensorFault.parse(text)

@@ -157,7 +157,7 @@ def describe(figures: dict) -> str:
 def run(args) -> int:
     if args.steps < 2:
         raise UsageError("--steps must be at least 2")
-    from ultraglide.devices.run_report import RunReport
+    from ultraglide.devices.serial.run_report import RunReport
 
     figures = measure(args.device, args.steps, args.profile)
     print_json(figures) if args.json else print(describe(figures))

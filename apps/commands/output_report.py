@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from ultraglide.devices.output_stage import OutputStage
+from ultraglide.devices.output.stage import OutputStage
 from ultraglide.render.renderer import Renderer
 
 

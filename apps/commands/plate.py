@@ -1,7 +1,7 @@
 """``ultraglide plate sweep``: measure a plate's resonance, Q and gain, and write its profile.
 
-The measurement is :mod:`ultraglide.devices.sweep`'s; this command checks the options, opens the device,
-rests the plate (zero, disable) on every way out, stop signals included, and writes the profile, the
+The measurement is :mod:`ultraglide.devices.characterisation.sweep`'s; this command checks the options, opens the
+device, rests the plate (zero, disable) on every way out, stop signals included, and writes the profile, the
 figure and the summary.
 """
 
@@ -17,8 +17,8 @@ from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
 
 if TYPE_CHECKING:
+    from ultraglide.devices.characterisation.resonance import ResonanceFit
     from ultraglide.devices.profiles import PlateProfile
-    from ultraglide.devices.resonance import ResonanceFit
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path, profile_file, refuse_overlaps
 from ultraglide.apps.cli.signals import held
@@ -69,8 +69,15 @@ def _audio_device(target: str):
 def run_audio_sweep(args, profile: PlateProfile, low: float, high: float, output: Path) -> int:
     """One pass over a fixed grid (no refinement: the audio path has no telemetry to settle on); the sensor
     gives f0 and Q, and the full scale too when ``--sensor-um-per-unit`` calibrates it."""
-    from ultraglide.devices.resonance import ResonanceFit
-    from ultraglide.devices.sweep import SWEEP_LEVEL, SweepPoint, audio_sweep, fit_sweep, measured_profile, sweep_grid
+    from ultraglide.devices.characterisation.resonance import ResonanceFit
+    from ultraglide.devices.characterisation.sweep import (
+        SWEEP_LEVEL,
+        SweepPoint,
+        audio_sweep,
+        fit_sweep,
+        measured_profile,
+        sweep_grid,
+    )
     from ultraglide.devices.urls import parse_device_url
 
     device = parse_device_url(args.device)
@@ -153,9 +160,15 @@ def check_profile_path(path: Path, option: str) -> Path:
 
 
 def run_sweep(args) -> int:
+    from ultraglide.devices.characterisation.sweep import (
+        MAX_FRAMES_PER_STEP,
+        SWEEP_LEVEL,
+        TelemetrySweeper,
+        measured_profile,
+        sweep,
+    )
     from ultraglide.devices.errors import DeviceError, describe
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.devices.sweep import MAX_FRAMES_PER_STEP, SWEEP_LEVEL, TelemetrySweeper, measured_profile, sweep
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 

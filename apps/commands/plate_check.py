@@ -1,6 +1,6 @@
 """``ultraglide plate check``: a plate driver exercised against docs/protocol.md, one line per rule.
 
-The rules and their checks are :mod:`ultraglide.devices.conformance`'s; this command opens the device (a serial
+The rules and their checks are :mod:`ultraglide.devices.conformance.check`'s; this command opens the device (a serial
 port, or ``sim``: the simulated plate on a pty of this process), prints each verdict as it is known, and exits
 0 when no rule failed, 6 when one did (4 when the device was lost before the check could finish).
 """
@@ -43,7 +43,7 @@ def add_check_parser(actions: argparse._SubParsersAction) -> None:
 
 def _rules(names: list[str]) -> tuple[str, ...]:
     """Rule identifiers as docs/protocol.md spells them (R-WATCHDOG from watchdog too); UsageError otherwise."""
-    from ultraglide.devices.conformance import RULES
+    from ultraglide.devices.conformance.check import RULES
 
     rules = []
     for name in names:
@@ -55,7 +55,7 @@ def _rules(names: list[str]) -> tuple[str, ...]:
 
 
 def run_check(args) -> int:
-    from ultraglide.devices.conformance import check_device
+    from ultraglide.devices.conformance.check import check_device
     from ultraglide.devices.profiles import load_profile
     from ultraglide.devices.urls import parse_device_url
 
@@ -67,7 +67,7 @@ def run_check(args) -> int:
     say = None if args.json else (lambda verdict: print(verdict.line(), flush=True))
     plate = None
     if device.kind == "sim":
-        from ultraglide.devices.pty_plate import PtyPlate
+        from ultraglide.devices.sim.pty_plate import PtyPlate
 
         plate = PtyPlate(profile).start()
         port, baudrate = plate.path, 921600

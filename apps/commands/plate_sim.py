@@ -79,9 +79,9 @@ def run(args) -> int:
             raise UsageError("--break, --max-version, --clock-ppm and --finger are the simulator's (--board sim), "
                              "not the board image's (it keeps QEMU's clock)")
         return _plate_sim_qemu(args)
-    from ultraglide.devices.plate_sim import PlateTruth
     from ultraglide.devices.profiles import load_profile
-    from ultraglide.devices.pty_plate import PtyPlate
+    from ultraglide.devices.sim.plate import PlateTruth
+    from ultraglide.devices.sim.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 

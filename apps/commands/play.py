@@ -135,7 +135,7 @@ def run(args) -> int:
     from ultraglide.apps.cli.files import refuse_overlaps, render_inputs
     from ultraglide.apps.commands.output_report import force_words, share_words
     from ultraglide.apps.commands.render_setup import load_inputs
-    from ultraglide.devices.run_report import RunReport
+    from ultraglide.devices.serial.run_report import RunReport
     from ultraglide.devices.urls import parse_device_url
     from ultraglide.render.engine import Engine
 

@@ -374,7 +374,7 @@ def run(args) -> int:
 
 def say_report(final) -> int:
     """What happened to a plate driver over the run, in words, if anything did; the exit status it earns."""
-    from ultraglide.devices.run_report import RunReport
+    from ultraglide.devices.serial.run_report import RunReport
 
     report = RunReport.from_dict((getattr(final, "device_status", None) or {}).get("report"))
     if report.exit_status:

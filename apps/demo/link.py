@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from ultraglide.devices.run_report import RunReport
+from ultraglide.devices.serial.run_report import RunReport
 
 START_TIMEOUT_S = 120.0  # spawning the engine and compiling its kernels on a loaded machine
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from ultraglide.devices.resonance import ResonanceFit
-from ultraglide.devices.sweep import SweepPoint
+from ultraglide.devices.characterisation.resonance import ResonanceFit
+from ultraglide.devices.characterisation.sweep import SweepPoint
 
 PLOT_DPI = 300
 

@@ -37,8 +37,8 @@ import time
 from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.links import link_path_for, place_link, remove_link
 from ultraglide.devices.protocol import NAK_REASONS
+from ultraglide.devices.sim.links import link_path_for, place_link, remove_link
 
 QEMU = "qemu-system-arm"
 MACHINE = "netduinoplus2"

@@ -3,7 +3,7 @@
 The plate-driver firmware's portable C core (``devices/firmware/core``) and the simulator's port
 (``ports/sim``) are built into a shared library when ultraglide is installed (setuptools' ext-modules,
 ``ultraglide.devices.firmware._sil``) and loaded here with ctypes. :class:`FirmwareCore` is one device:
-bytes in and out, drive blocks out, measured blocks in. The simulated plate (``devices/plate_sim.py``)
+bytes in and out, drive blocks out, measured blocks in. The simulated plate (``devices/sim/plate.py``)
 wraps it with the plate's physics; nothing of the protocol is implemented in Python.
 
 Time is what the caller renders: :meth:`FirmwareCore.render` produces drive samples at

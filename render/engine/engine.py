@@ -91,7 +91,7 @@ class EngineConfig:
     realtime_priority: bool = True
     probe_plate: bool = False
     cpu_wake_latency_us: int | None = 0  # asked of idle CPUs while rendering (with realtime_priority); None: not
-    track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (devices/resonance.py)
+    track_resonance: bool = False  # a plate driver follows its plate's drifting resonance (characterisation)
     closed_loop: bool = False  # friction measured by the plate follows the texture (render/engine/friction_loop.py)
     finger: object = None  # finger_setup.FingerConfig: a simulated finger on the in-process sim (None: none, or the
     # default one when closed_loop asks for sensors)

@@ -1,7 +1,7 @@
 """The simulated finger from plain options: what ``plate-sim --finger`` and the in-process ``--device sim`` build.
 
 :class:`FingerConfig` holds picklable values (it crosses to the engine's process); :func:`build_finger`
-makes the :class:`~ultraglide.devices.finger.SimulatedFinger`, its friction law loaded as the host loads a
+makes the :class:`~ultraglide.devices.sim.finger.SimulatedFinger`, its friction law loaded as the host loads a
 model (``render.physics.load_model``: ``exponential``, ``stretched``, ``paper``, ``table:FILE.csv`` for a
 measured finger with columns ``amplitude_um_pp,relative_friction,force_n``, a calibration TOML), since the
 finger itself (in ``devices``) only takes a callable.
@@ -18,9 +18,9 @@ import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
-from ultraglide.devices.finger import FingerParams, ForceScript, SensorFault, SimulatedFinger, adjusted_law
-from ultraglide.devices.finger_log import FingerLog
-from ultraglide.devices.force_sensors import ForceSensorParams
+from ultraglide.devices.sim.finger import FingerParams, ForceScript, SensorFault, SimulatedFinger, adjusted_law
+from ultraglide.devices.sim.finger_log import FingerLog
+from ultraglide.devices.sim.force_sensors import ForceSensorParams
 
 DEFAULT_LAW = "default"
 DEFAULT_BASE = "stretched"  # the host's default model

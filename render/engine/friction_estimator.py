@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from ultraglide.devices.kernels import first_order_filter
+from ultraglide.devices.output.kernels import first_order_filter
 from ultraglide.render.physics.errors import ModelError
 
 MAX_FORCE_N = 20.0  # a reading beyond this is not a fingertip: a sensor fault

@@ -23,7 +23,7 @@ import threading
 import time
 
 import numpy as np
-from ultraglide.devices.output_stage import OutputStage
+from ultraglide.devices.output.stage import OutputStage
 from ultraglide.render.engine import shm
 from ultraglide.render.engine.parts import check_sensors, load_parts
 from ultraglide.render.engine.realtime import keep_huge_pages_out, raise_other_threads, raise_priority

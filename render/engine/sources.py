@@ -9,14 +9,14 @@ it preallocated buffers so that a real-time block allocates nothing.
 from __future__ import annotations
 
 import numpy as np
-from ultraglide.devices.output_stage import OutputStage, output_stage
-from ultraglide.devices.source import Device
+from ultraglide.devices.output.source import Device
+from ultraglide.devices.output.stage import OutputStage, output_stage
 from ultraglide.render.renderer import Renderer
 
 
 class EnvelopeSource:
     """A renderer's drive envelope, µm p-p at its control rate: the source a device is started with
-    (a :class:`~ultraglide.devices.source.BlockSource`). The device puts it behind its output stage.
+    (a :class:`~ultraglide.devices.output.source.BlockSource`). The device puts it behind its output stage.
 
     ``realtime_capacity`` (control samples): render every block into buffers made here once, for a
     real-time path (:meth:`Renderer.control_buffers` with ``always``); the array :meth:`pull` returns

@@ -1,6 +1,6 @@
 /*
  * ug_protocol.h - the wire protocol's numbers (docs/protocol.md, version 3). The host's copy is
- * devices/protocol.py; tests/test_firmware_core.py checks the two against each other.
+ * devices/protocol/__init__.py; tests/test_firmware_core.py checks the two against each other.
  */
 #ifndef UG_PROTOCOL_H
 #define UG_PROTOCOL_H

@@ -6,7 +6,7 @@
  * resonance f0 (drifting D Hz/s) with radius exp(-pi f0 / (Q fs)), so that its envelope answers a step
  * of drive as a first-order low-pass of time constant tau = Q / (pi f0) and its steady amplitude at a
  * carrier fc is, near f0, 1/sqrt(1 + (2Q (fc - f0) / f0)^2) of that at resonance: the simulated
- * plate's physics (devices/plate_sim.py, DESIGN.md), reached here through the carrier rather than its
+ * plate's physics (devices/sim/plate.py, DESIGN.md), reached here through the carrier rather than its
  * envelope. Full drive at resonance settles at full_scale_um_pp peak-to-peak. Pure arithmetic, tested
  * on the host (tests/test_firmware_board.py).
  */

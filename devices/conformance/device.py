@@ -1,0 +1,237 @@
+"""plate check's rules of the device: HELLO, scaling, limits, trip, sensors and the loop."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from ultraglide.devices import protocol as p
+from ultraglide.devices.conformance.probe import (
+    ABORT_FRACTION,
+    OVER_LIMIT,
+    SAFE_FRACTION,
+    TRIP,
+    Broken,
+    Unobservable,
+    answer_words,
+)
+
+
+class DeviceRules:
+    """The device's rules: a part of :class:`~ultraglide.devices.conformance.check.Check`."""
+
+    def check_hello_no_state(self) -> str:
+        self.need_v3()
+        self.enable(True)
+        self.stream(0.1, self.safe_code)
+        before = self.telemetry()
+        answer = self.probe.hello(self.version)
+        if answer is None:
+            raise Broken("no answer to HELLO while playing")
+        self.stream(0.05, self.safe_code)
+        after = self.settled_telemetry(lambda t: t.expected_index == self.index, 3)
+        changed = []
+        if not after.enabled or after.playback not in (p.PLAYBACK_PLAYING, p.PLAYBACK_DRY):
+            changed.append(f"the output went {'off' if not after.enabled else p.PLAYBACK_NAMES.get(after.playback)}")
+        if after.expected_index != self.index:
+            changed.append(f"expected index {after.expected_index}, not the stream's {self.index}")
+        if after.frames_ok < before.frames_ok or after.setpoints < before.setpoints:
+            changed.append("its counters went back")
+        if abs(after.carrier_hz - before.carrier_hz) > 0.01:
+            changed.append(f"the carrier moved to {after.carrier_hz:g} Hz")
+        if changed:
+            raise Broken("HELLO while playing: " + "; ".join(changed))
+        return "HELLO while playing changed nothing: still playing, the stream and the counters went on"
+
+    def check_scaling(self) -> str:
+        self.need_v3()
+        self.enable(True)
+        self.stream(0.1, self.safe_code)
+        telemetry = self.telemetry()
+        if telemetry.playback == p.PLAYBACK_PLAYING and abs(telemetry.drive_code - self.safe_code) > 1:
+            raise Broken(f"code {self.safe_code} played as drive code {telemetry.drive_code}")
+        d = self.device
+        return f"code {self.safe_code} drove {telemetry.drive_code} / 65535 of full scale " \
+               f"({telemetry.drive_code / p.SETPOINT_SCALE * d.full_scale_um_pp:.3f} µm p-p of {d.full_scale_um_pp:g})"
+
+    def check_limit(self) -> str:
+        self.need_v3()
+        d = self.device
+        above = min(p.SETPOINT_SCALE, math.ceil(1.25 * self.limit_code))
+        if above <= self.limit_code:
+            raise Unobservable("the device's limit is its full scale: no code asks for more")
+        far = max((d.carrier_min_hz, d.carrier_max_hz), key=lambda f: abs(f - d.resonance_hz))
+        self.must(p.SET_CARRIER, p.carrier_payload(far), "SET_CARRIER")
+        self.enable(True)
+        self.stream(0.15, self.safe_code)
+        measured = self.telemetry().measured_um_pp
+        gain = self.detuned_gain(far)
+        expect = max(measured * above / self.safe_code, gain * above / p.SETPOINT_SCALE * d.full_scale_um_pp)
+        if expect > SAFE_FRACTION * self.safe_limit_um_pp:
+            raise Unobservable(f"at {far:g} Hz, the carrier farthest from resonance, code {above} would still move "
+                               f"the plate {expect:.2f} µm p-p, over 15 % of its limit: not asked")
+        since, first = self.probe.mark(), self.index
+        self.stream(0.2, above)
+        # judged on the device's own timeline: the value it plays (the next it expects, less those it holds)
+        # 60 ms or more into these codes (brief overdrive, where granted, is over by then), however late a loaded
+        # machine or an emulator delivers its frames
+        settled = round(0.06 * self.rate)
+        frames = [p.parse_telemetry(f.payload) for _, f in self.probe.received(since, p.TELEMETRY)]
+        drives = [t.drive_code for t in frames
+                  if settled <= (t.expected_index - t.buffered_setpoints - first) & 0xFFFFFFFF < 2 ** 31]
+        worst = max(drives, default=0)
+        if not drives:
+            raise Broken("no telemetry while asking for more than the limit")
+        if worst > self.limit_code + 1:
+            raise Broken(f"asked code {above} (1.25 × its limit) at {far:g} Hz: it drove code {worst} "
+                         f"({worst / p.SETPOINT_SCALE * d.full_scale_um_pp:.2f} µm p-p of drive, its limit "
+                         f"{d.max_amplitude_um_pp:g})")
+        return (f"asked code {above} (1.25 × its limit) at {far:g} Hz, off resonance (the plate moved under "
+                f"{expect:.2f} µm p-p): it drove at most code {worst}, its limit's {self.limit_code}")
+
+    def detuned_gain(self, carrier_hz: float) -> float:
+        """The plate's steady gain at ``carrier_hz`` by the profile's resonance and Q (for a device that does not
+        measure its amplitude), at least the device's own resonance's."""
+        q, f0 = self.profile.q, self.device.resonance_hz
+        return 1.0 / math.sqrt(1.0 + (2.0 * q * (carrier_hz - f0) / f0) ** 2)
+
+    def check_over_limit(self) -> str:
+        if not self.over_limit:
+            raise Unobservable("needs the plate above its limit (ask for it with --over-limit, on a plate that "
+                               "can take 1 % over its limit for a moment)")
+        return self.drive_at_limit("R-OVER-LIMIT")
+
+    def check_trip(self) -> str:
+        if not self.over_limit:
+            raise Unobservable("needs the plate more than 1 % above its limit (--over-limit)")
+        return self.drive_at_limit("R-TRIP")
+
+    def drive_at_limit(self, rule: str) -> str:
+        """Drive at the device's limit for 0.4 s: a plate stronger than the device believes goes over it."""
+        self.need_v3()
+        d = self.device
+        if self.profile.max_amplitude_um_pp < d.max_amplitude_um_pp:
+            raise Unobservable(f"the profile {self.profile.name}'s limit, {self.profile.max_amplitude_um_pp:g} µm p-p, "
+                               f"is below the plate driver's {d.max_amplitude_um_pp:g}: not driven past it")
+        self.probe.abort_um_pp = d.max_amplitude_um_pp * 1.05
+        try:
+            self.enable(True)
+            before = self.telemetry()
+            since = self.probe.mark()
+            self.stream(0.4, self.limit_code)
+            frames = [p.parse_telemetry(f.payload) for _, f in self.probe.received(since, p.TELEMETRY)]
+        finally:  # at rest again before the check's own bound comes back: the plate rings down, telemetry lags
+            self.probe.send(p.ENABLE, p.enable_payload(False))
+            self.settled_telemetry(lambda t: t.measured_um_pp <= ABORT_FRACTION * self.safe_limit_um_pp)
+            self.probe.abort_um_pp = ABORT_FRACTION * self.safe_limit_um_pp
+        peak = max((t.measured_um_pp for t in frames), default=0.0)
+        over = (frames[-1].fault_counts[OVER_LIMIT] - before.fault_counts[OVER_LIMIT]) & 0xFFFFFFFF
+        trips = (frames[-1].fault_counts[TRIP] - before.fault_counts[TRIP]) & 0xFFFFFFFF
+        limit = d.max_amplitude_um_pp
+        if peak <= limit and not over and not trips:
+            raise Unobservable(f"driven at its limit the plate measured {peak:.3f} µm p-p, not above "
+                               f"{limit:g}: nothing to see")
+        if rule == "R-OVER-LIMIT":
+            went = f"went to {peak:.3f} µm p-p, over its {limit:g} limit" if peak > limit else \
+                f"went over its {limit:g} limit (and tripped before telemetry showed it)"
+            if over != 1:
+                raise Broken(f"the plate {went} once: over-limit raised {over} times")
+            return f"the plate {went}: over-limit raised once"
+        if peak <= limit * (1 + p.TRIP_MARGIN) and not trips:
+            raise Unobservable(f"the plate went to {peak:.3f} µm p-p, not 1 % over its limit {limit:g}")
+        if trips != 1 or frames[-1].enabled:
+            raise Broken(f"the plate went to {peak:.3f} µm p-p, over its trip at {limit * 1.01:.3f}: trip raised "
+                         f"{trips} times, output {'on' if frames[-1].enabled else 'off'}")
+        return "the plate went over 1.01 × its limit: trip raised, output cut and disabled"
+
+    def check_sensors(self) -> str:
+        d = self.device
+        if not self.v3 or not getattr(d, "sensors", 0):
+            raise Unobservable("the device has no sensor" if self.v3 else "SENSORS are v3's")
+        # a device whose link cannot drain what it sends (a slow UART, an emulator or this host on a loaded machine)
+        # loses a whole frame now and then: a gap at a few frame boundaries. A device that leaves samples out, or
+        # repeats them, does it at most of them.
+        since = self.probe.mark()
+        time.sleep(0.3)  # disabled
+        self.enable(True)
+        enabled_from = time.perf_counter()
+        self.stream(0.3, self.safe_code)
+        frames = [(t, p.parse_sensors(f.payload)) for t, f in self.probe.received(since, p.SENSORS)]
+        if len(frames) < 5:
+            raise Broken(f"{len(frames)} SENSORS frames in 0.6 s")
+        steps = [((b.first_sample - a.first_sample) & 0xFFFFFFFF) - len(a.samples)
+                 for (_, a), (_, b) in zip(frames, frames[1:], strict=False)]
+        wrong = [step for step in steps if step]
+        repeated = [step for step in wrong if step > 0x7FFFFFFF]
+        smallest = min(len(s.samples) for _, s in frames)  # a lost frame leaves out at least this many
+        if repeated or len(wrong) > max(1, len(steps) // 10) or any(step < smallest for step in wrong):
+            k = next(k for k, step in enumerate(steps) if step)
+            a, b = frames[k][1], frames[k + 1][1]
+            raise Broken(f"{'samples repeated' if repeated else 'samples left out'} between {len(wrong)} of "
+                         f"{len(steps)} frames (a frame from sample {a.first_sample} of {len(a.samples)} samples, "
+                         f"the next from {b.first_sample})")
+        first_gap = f"{len(wrong)} gap{'s' if len(wrong) > 1 else ''} of {', '.join(map(str, wrong))} samples" \
+            if wrong else ""
+        # how often, on the device's own clock: a frame every 10 ms carries 10 ms of samples (+1: the millisecond it
+        # is made in) on average, every 50 ms at rest; none carries twice that (a frame left out). A frame begun
+        # before ENABLE may carry the rest's.
+        rate = d.sensor_rate_hz
+        on = [len(s.samples) for (a, _), (_, s) in zip(frames, frames[1:], strict=False) if a > enabled_from + 0.02]
+        off = [len(s.samples) for t, s in frames if t < enabled_from]
+        words = (f"SENSORS frames of {np.mean(on) if on else 0:.1f} samples on average (at most {max(on, default=0)}) "
+                 f"while enabled, {np.mean(off) if off else 0:.1f} (at most {max(off, default=0)}) at rest, at {rate} "
+                 "samples a second")
+        for sizes, period_ms in ((on, p.SENSORS_PERIOD_MS), (off, p.SENSORS_REST_PERIOD_MS)):
+            per_period = rate * period_ms / 1000
+            if sizes and (np.mean(sizes) > per_period + 1 or max(sizes) > 2 * per_period):
+                raise Broken(f"{words}: sent less often than every {p.SENSORS_PERIOD_MS} ms (enabled) or "
+                             f"{p.SENSORS_REST_PERIOD_MS} ms (at rest)")
+        samples = sum(len(s.samples) for _, s in frames)
+        lost = f" ({first_gap} between {len(steps)} frames: whole frames lost on the way, the link or this host " \
+            "falling behind)" if first_gap else ""
+        return f"{len(frames)} frames, {samples} samples, consecutive{lost}; {words}"
+
+    def check_force(self) -> str:
+        def frame(force_n: float, exponent: float) -> bytes:  # zeros, sent while disabled: discarded if taken
+            return p.setpoints_force_payload(self.index, self.rate, np.zeros(self.frame_values),
+                                             p.ForceReference(force_n, exponent, 0.0))
+
+        if not (self.v3 and self.device.features & p.FEATURE_FORCE_CORRECTION):
+            answer = self.command(p.SETPOINTS_FORCE, frame(0.5, 1.0 / 3.0))
+            if answer is None or answer[:2] != ("nak", p.NAK_UNSUPPORTED):
+                raise Broken(f"SETPOINTS_FORCE on a device without the force correction (or a v2 session): "
+                             f"{answer_words(answer)}, not NAK 4")
+            return "no force correction: SETPOINTS_FORCE refused with NAK 4"
+        for force_n, exponent, what in ((0.0, 1.0 / 3.0, "a force of 0 N"), (math.nan, 1.0 / 3.0, "a force NaN"),
+                                        (0.5, 2.5, "an exponent of 2.5")):
+            answer = self.command(p.SETPOINTS_FORCE, frame(force_n, exponent))
+            if answer is None or answer[:2] != ("nak", p.NAK_BAD_VALUE):
+                raise Broken(f"SETPOINTS_FORCE with {what}: {answer_words(answer)}, not NAK 3")
+        answer = self.command(p.SETPOINTS_FORCE, frame(0.5, 1.0 / 3.0))
+        if answer is not None:
+            raise Broken(f"SETPOINTS_FORCE with 0.5 N and an exponent of 1/3: {answer_words(answer)}, not taken")
+        return "references out of range refused (NAK 3), one in range taken"
+
+    def check_loop(self) -> str:
+        has_loop = self.v3 and self.device.features & p.FEATURE_AMPLITUDE_LOOP
+        if not has_loop:
+            answer = self.command(p.SET_LOOP, p.set_loop_payload(1))
+            if answer is None or answer[:2] != ("nak", p.NAK_UNSUPPORTED):
+                raise Broken(f"SET_LOOP 1 on a device without the loop (or a v2 session): {answer_words(answer)}, not "
+                             "NAK 4")
+            return "no amplitude loop: SET_LOOP refused with NAK 4"
+        self.enable(True)
+        while_on = self.command(p.SET_LOOP, p.set_loop_payload(1))
+        self.enable(False)
+        if while_on is None or while_on[:2] != ("nak", p.NAK_BAD_VALUE):
+            raise Broken(f"SET_LOOP 1 while enabled: {answer_words(while_on)}, not NAK 3")
+        other = self.command(p.SET_LOOP, bytes([2]))
+        if other is None or other[:2] != ("nak", p.NAK_BAD_VALUE):
+            raise Broken(f"SET_LOOP 2: {answer_words(other)}, not NAK 3")
+        self.must(p.SET_LOOP, p.set_loop_payload(1), "SET_LOOP 1 while disabled")
+        mode = self.telemetry().loop
+        self.must(p.SET_LOOP, p.set_loop_payload(0), "SET_LOOP 0")
+        if mode != 1:
+            raise Broken(f"SET_LOOP 1 acknowledged; telemetry says loop {mode}")
+        return "SET_LOOP refused while enabled and for mode 2 (NAK 3); taken while disabled, and telemetry said so"

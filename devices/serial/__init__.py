@@ -1,0 +1,28 @@
+"""The serial plate driver (docs/protocol.md) and its parts: the link under it (`link`), the handshake
+(`handshake`), what comes back (`telemetry`), the writer thread (`writer`), and what a run came to
+(`report`, `run_report`); `plate` composes them into :class:`SerialPlate`."""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+# public name -> the module of this room that defines it; imported on first use (PEP 562)
+_EXPORTS = {
+    "SerialPlate": "plate",
+    "open_port": "link",
+    "RunReport": "run_report",
+}
+__all__ = ["SerialPlate", "open_port", "RunReport"]
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+
+
+if TYPE_CHECKING:
+    from ultraglide.devices.serial.link import open_port
+    from ultraglide.devices.serial.plate import SerialPlate
+    from ultraglide.devices.serial.run_report import RunReport

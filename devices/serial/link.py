@@ -1,0 +1,167 @@
+"""The serial link under the plate driver: opening the port, what a stream costs in bytes, counters, and
+the frame reader; the driver's constants."""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import math
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import serial
+import serial.threaded
+from ultraglide.devices import protocol as p
+from ultraglide.devices.errors import DeviceError
+
+if TYPE_CHECKING:
+    from ultraglide.devices.serial.plate import SerialPlate
+
+SILENCE_S = p.HOST_SILENCE_MS / 1000.0  # no telemetry for this long while connected: the device has hung
+BACKOFF_S = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+# faults after which the plate played far from what was commanded (ramped or cut to zero): the tracker
+# discards what it was measuring. An underrun holds the last value and an overrun drops a few: both leave
+# the mean drive nearly as commanded, and on a loaded host they come often, so they do not count.
+TRACKING_DISTURBANCES = (p.FAULT_WATCHDOG, p.FAULT_TRIP, p.FAULT_OVERHEAT)
+# setpoints that all round to code 0 for this long: the host stops the stream and disables the output (the
+# plate rests either way); the first non-zero setpoint enables it again. Well inside nothing: no watchdog
+# runs while disabled, and telemetry (which the host's silence check needs) goes on.
+IDLE_AFTER_S = 0.05
+ZERO_FRACTION = 0.5 / p.SETPOINT_SCALE  # at most this fraction of full scale is sent as code 0
+CUT_FAULTS = (p.FAULT_TRIP, p.FAULT_OVERHEAT)  # the device disabled itself: the host never re-enables it
+CUT_WORDS = {"trip": "over-amplitude trip: its measured amplitude went more than 1 % over its limit",
+             "overheat": "overheat: its driver stage was too hot"}
+REENABLE_AFTER_S = 0.1  # telemetry says the plate is off this long after an ENABLE 1 (unacknowledged, lost on
+# the link?) while the host streams: ENABLE goes again (the plate discards every setpoint while disabled)
+STALL_S = 0.05  # the writer woke this much later than it meant to: the host did not run (not the plate's silence)
+CLEAR_RETRY_S = 0.5  # a CLEAR_FAULTS unanswered this long was lost on the link: sent again
+DEPTH_WINDOW = 10  # v3 telemetry frames (0.2 s) over which the median of the plate's buffer depth is taken
+DEPTH_DEADBAND_S = 0.005  # the plate's buffer's median this far from its target: the host moves its lead (the
+# median strays 0-1.3 ms on an idle machine; beside two CPU hogs, a simulated plate's lags made 3 ms strays common)
+REST_ACK_S = 0.25  # after a failed handshake, how long the rest's ENABLE 0 waits for its ACK (best effort)
+MAX_OUTAGES = 20  # disconnections kept with their times; more are counted
+# the baud rates a UART is usually opened at, to name the one a stream needs
+STANDARD_BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1000000, 1152000,
+                  1500000, 2000000, 2500000, 3000000, 3500000, 4000000)
+# device counters whose run totals the report words (summed across reconnections like the fault counters)
+LINK_COUNTERS = ("crc_errors", "framing_errors", "lost_setpoints", "late_setpoints", "overrun_setpoints")
+COMMAND_NAMES = {p.HELLO: "HELLO", p.SET_CARRIER: "SET_CARRIER", p.ENABLE: "ENABLE", p.SETPOINTS: "SETPOINTS",
+                 p.HEARTBEAT: "HEARTBEAT", p.CLEAR_FAULTS: "CLEAR_FAULTS", p.SIM_FAULT: "SIM_FAULT"}
+if hasattr(p, "SET_LOOP"):
+    COMMAND_NAMES[p.SET_LOOP] = "SET_LOOP"
+COMMAND_NAMES[p.SETPOINTS_FORCE] = "SETPOINTS_FORCE"
+
+
+def port_failure(error: BaseException | None) -> str:
+    """Why the port failed, in a few words (pyserial's messages are long and about its internals)."""
+    if error is None:
+        return "the port closed"
+    text = str(error)
+    if "returned no data" in text or "Input/output error" in text or getattr(error, "errno", None) == errno.EIO:
+        return "the port went away (the device closed it or was unplugged)"
+    if "timeout" in text.lower():
+        return "the port stopped taking data (a write timed out)"
+    return f"the port failed ({text.splitlines()[0] if text else type(error).__name__})"
+
+
+def open_port(port: str, baudrate: int, write_timeout_s: float = 0.5) -> serial.Serial:
+    """A serial port (any pyserial URL) opened exclusively: a ``flock`` (pyserial's ``exclusive``; it holds on
+    pseudo-terminals too) and ``TIOCEXCL``, which keeps out programs that take no lock (unless root).
+    DeviceError in one line if it is missing or in use."""
+    try:
+        opened = serial.serial_for_url(port, baudrate=baudrate, timeout=0.05, write_timeout=write_timeout_s,
+                                       exclusive=True)
+    except (serial.SerialException, OSError, ValueError) as error:
+        code = getattr(error, "errno", None)
+        if code in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY):  # another holds the lock, or TIOCEXCL
+            raise DeviceError(f"serial port {port} is in use by another program; stop it (or the other "
+                              "ultraglide) first") from None
+        reason = os.strerror(code).lower() if isinstance(code, int) else str(error)
+        if "exclusively lock" in str(error):  # the lock failed for another reason: say which
+            raise DeviceError(f"cannot lock serial port {port}: {reason}") from None
+        raise DeviceError(f"cannot open serial port {port}: {reason}; check the path and permissions (the "
+                          "dialout group), or list ports with `ultraglide devices`") from None
+    fd = getattr(opened, "fd", None)
+    if fd is not None:
+        import fcntl
+        import termios
+
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(fd, termios.TIOCEXCL)
+    return opened
+
+
+def stream_bytes_per_s(rate_hz: int) -> float:
+    """Bytes a second a stream of ``rate_hz`` setpoints costs in 2 ms frames (docs/protocol.md, byte budget)."""
+    return p.FRAME_OVERHEAD_BYTES / p.BATCH_S + 2.0 * rate_hz
+
+
+def check_link_budget(port: str, baud: int, rate_hz: int) -> None:
+    """DeviceError (one line, naming the baud rate needed) unless a ``baud`` UART (8N1: ten bits a byte) carries
+    ``rate_hz`` setpoints a second in 2 ms frames."""
+    needed = stream_bytes_per_s(rate_hz)
+    if needed <= baud / 10.0:
+        return
+    fastest = max(0, int((baud / 10.0 - p.FRAME_OVERHEAD_BYTES / p.BATCH_S) / 2.0))
+    minimum = int(math.ceil(needed * 10.0))
+    standard = next((b for b in STANDARD_BAUDS if b >= minimum), None)
+    advice = f"open it at {standard} baud (serial:{port}?baud={standard})" if standard else \
+        "use USB CDC or a faster link, or a lower rate"
+    raise DeviceError(f"serial port {port} at {baud} baud carries at most {fastest} setpoints/s (docs/protocol.md, "
+                      f"byte budget), not {rate_hz}: the stream needs {minimum} baud; {advice}")
+
+
+@dataclass
+class SerialCounters:
+    frames_sent: int = 0
+    setpoints_sent: int = 0
+    setpoints_discarded: int = 0  # pulled while disconnected
+    setpoints_skipped: int = 0  # skipped after a host stall (re-anchoring): the device counts them lost
+    disconnects: int = 0
+    reconnects: int = 0
+    silences: int = 0  # device stopped answering
+    bad_frames: int = 0  # received frames that did not decode
+    late_batches: int = 0
+    naks: int = 0  # frames the device refused
+    carrier_changes: int = 0  # SET_CARRIER sent while streaming (sweep or tracking)
+    send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
+    host_stalls: int = 0  # the writer woke more than STALL_S late (the host process did not run)
+    late_frames: int = 0  # frames sent longer after the one before than the plate's buffer lasts (it may run dry)
+    depth_corrections: int = 0  # the plate's buffer (v3 telemetry) drifted from its depth: the lead moved
+    idle_rests: int = 0  # the stream stopped and the output disabled while the drive was zero
+    idle_wakes: int = 0  # ... and enabled again by a non-zero drive
+    reenables: int = 0  # ENABLE sent again: the plate's telemetry said it was off while the host streamed to it
+    errors: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Outage:
+    """One loss of the plate: when (s into the run), why, when it came back, setpoints not sent meanwhile."""
+
+    lost_s: float
+    cause: str
+    discarded_before: int
+    back_s: float | None = None
+    not_sent: int = 0
+    last_error: str = ""
+
+
+class FrameReader(serial.threaded.Protocol):
+    """Feeds received bytes to a FrameDecoder (which bounds its buffer) and hands frames on."""
+
+    def __init__(self, driver: SerialPlate):
+        self.driver = driver
+        self.decoder = p.FrameDecoder()
+        self._bad = 0
+
+    def data_received(self, data: bytes) -> None:
+        for frame in self.decoder.feed(data):
+            self.driver._frame(frame)
+        bad = self.decoder.crc_errors + self.decoder.framing_errors
+        if bad != self._bad:
+            self.driver._bad_frames_received(bad - self._bad, self.decoder.crc_errors, self.decoder.framing_errors)
+            self._bad = bad
+
+    def connection_lost(self, exc) -> None:
+        self.driver._lost(port_failure(exc))
