@@ -125,7 +125,7 @@ def test_fault_injection_by_protocol_frame(plate):
     driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)  # the ACK waits on a condition, 10 s at most
     driver.start(Constant(2.0))
     assert wait_for(lambda: plate.simulator.counters.setpoints > 0)  # streaming: a gap can be seen
-    driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
+    driver.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
     assert wait_for(lambda: plate.simulator.counters.lost_setpoints > 0)
     assert plate.simulator.counters.faults_injected == {"drop": 1}
     driver.stop()
@@ -388,21 +388,21 @@ def test_every_fault_over_a_run_is_counted():
 
     assert wait_for(playing)
     for trips in (1, 2, 3):  # three 300 ms drops of everything the host sends: three watchdog trips
-        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
+        driver.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))
         assert wait_for(lambda n=trips: sim.counters.watchdog_trips >= n and time.monotonic() > plate._drop_until)
         assert wait_for(playing)
-    driver._send(0x42)  # two frames the device must refuse
-    driver._send(p.HEARTBEAT, b"\x01")
+    driver.send(0x42)  # two frames the device must refuse
+    driver.send(p.HEARTBEAT, b"\x01")
     assert wait_for(lambda: driver.counters.naks == 2)
-    driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))  # cuts and disables the output
+    driver.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))  # cuts and disables the output
     assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled
                     and driver.status()["output"] == "cut by the device")
     frames = sim.counters.frames_ok
     time.sleep(0.2)
     assert sim.counters.frames_ok - frames <= 2  # the host stopped streaming (a CLEAR_FAULTS may still go)
-    driver._command(p.ENABLE, p.enable_payload(True))  # a host that re-enables, and asks 7 µm of a 6 µm plate
+    driver.command(p.ENABLE, p.enable_payload(True))  # a host that re-enables, and asks 7 µm of a 6 µm plate
     for k in range(10):
-        driver._send(p.SETPOINTS, p.setpoints_payload(240 * k, 12000, np.full(240, 7.0 / 8.0)))
+        driver.send(p.SETPOINTS, p.setpoints_payload(240 * k, 12000, np.full(240, 7.0 / 8.0)))
     assert wait_for(lambda: driver.telemetry is not None and not driver.telemetry.enabled
                     and driver.fault_counts()["trip"] == 1)
     assert wait_for(lambda: driver.fault_counts() == sim.fault_counts())  # the host has heard it all

@@ -9,7 +9,8 @@ import pytest
 from conftest import serve_plate, wait_for
 from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import load_profile
-from ultraglide.devices.serial.plate import IDLE_AFTER_S, SerialPlate
+from ultraglide.devices.serial.link import IDLE_AFTER_S
+from ultraglide.devices.serial.plate import SerialPlate
 from ultraglide.devices.sim.plate import TELEMETRY_S, TICK_S, PlateSimulator
 
 PROFILE = load_profile("sim-plate")

@@ -84,11 +84,11 @@ def test_plate_sim_logs_every_event_as_json_and_removes_its_link_on_sigterm(tmp_
         driver.start(Constant(3.0))
         server.wait_line(lambda line: '"stream_started"' in line)
         assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
-        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))  # silence: the watchdog trips
+        driver.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_DROP, 300))  # silence: the watchdog trips
         server.wait_line(lambda line: '"watchdog"' in line)
         server.wait_line(lambda line: '"stream_started"' in line)  # the drop is over: setpoints arrive again
         assert wait_for(lambda: driver.telemetry is not None and abs(driver.telemetry.measured_um_pp - 3.0) < 0.05)
-        driver._command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))
+        driver.command(p.SIM_FAULT, p.sim_fault_payload(p.SIM_OVERHEAT))
         server.wait_line(lambda line: '"overheat"' in line)
         driver.stop()
         server.wait_line(lambda line: '"disconnected"' in line)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.serial.plate import open_port
+from ultraglide.devices.serial.link import open_port
 
 PASS, FAIL, NOT_CHECKED = "pass", "fail", "not checked"
 EXIT_NONCONFORMING = 6  # a rule failed (the exit statuses of a run, 3-5, are in run_report)

@@ -45,45 +45,31 @@ Example::
 
 from __future__ import annotations
 
-import contextlib
-import math
 import threading
 import time
 
-import numpy as np
-import serial
-import serial.threaded
 from ultraglide.devices import protocol as p
 from ultraglide.devices.characterisation.resonance import ResonanceTracker
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.output.source import BlockSource, ramp_down
 from ultraglide.devices.output.stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.devices.serial.handshake import Handshake
-from ultraglide.devices.serial.link import (  # noqa: F401 - IDLE_AFTER_S, open_port: the driver's names
-    COMMAND_NAMES,
-    CUT_FAULTS,
-    DEPTH_DEADBAND_S,
-    DEPTH_WINDOW,
-    IDLE_AFTER_S,
-    LINK_COUNTERS,
-    MAX_OUTAGES,
-    REST_ACK_S,
-    SILENCE_S,
-    TRACKING_DISTURBANCES,
-    FrameReader,
-    Outage,
-    SerialCounters,
-    check_link_budget,
-    open_port,
-)
-from ultraglide.devices.serial.report import RunReporting
-from ultraglide.devices.serial.telemetry import TelemetryIntake
-from ultraglide.devices.serial.writer import StreamWriter
+from ultraglide.devices.serial.handshake import Limits
+from ultraglide.devices.serial.link import SILENCE_S, Pacing, SerialCounters, check_link_budget
+from ultraglide.devices.serial.locks import DriverLocks
+from ultraglide.devices.serial.report import RunAccount, RunFigures
+from ultraglide.devices.serial.run_report import RunReport
+from ultraglide.devices.serial.session import Session
+from ultraglide.devices.serial.streamer import Streamer
+from ultraglide.devices.serial.telemetry import Intake
+from ultraglide.devices.serial.transport import Transport
 
 
-class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
-    """A plate driver on a serial port (any pyserial URL: a device path, ``loop://``, …)."""
+class SerialPlate:
+    """A plate driver on a serial port (any pyserial URL: a device path, ``loop://``, …), composed of its parts:
+    :attr:`transport` (the port, framing, reads and writes), :attr:`session` (the connection and its state),
+    :attr:`intake` (what comes back), :attr:`streamer` (the writer thread) and :attr:`account` (the run's
+    record); their locks and the order they may be taken in are in :mod:`.locks`."""
 
     signal = "control"
 
@@ -91,321 +77,178 @@ class SerialPlate(Handshake, TelemetryIntake, StreamWriter, RunReporting):
                  baudrate: int = 921600, batch_s: float | None = None, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
                  tracker: ResonanceTracker | None = None, check_budget: bool = True, silence_s: float = SILENCE_S,
                  amplitude_loop: bool = False):
-        self.port = port
-        self.profile = profile
+        self.port, self.profile, self.tracker = port, profile, tracker
         self.rate_hz = int(control_rate_hz)
         if check_budget and "://" not in port:  # URL transports (loop://, socket://) have no baud rate
             check_link_budget(port, baudrate, self.rate_hz)
-        self.tracker = tracker
-        self.carrier_hz = tracker.carrier_hz if tracker is not None else (carrier_hz or profile.resonance_hz)
         self.baudrate = baudrate
         self.batch_s = batch_s or p.batch_s_for(baudrate, self.rate_hz)  # s between SETPOINTS frames
         self.ack_timeout_s = ack_timeout_s
         self.silence_s = silence_s  # no telemetry, or no room for a frame, for this long: the device is gone
+        self.pacing = Pacing.of(self.rate_hz, self.batch_s)
         self.counters = SerialCounters()
-        self.telemetry: p.Telemetry | None = None
-        self.device: p.HelloReply | None = None
-        self.notes: list[str] = []  # one line each: where the device's facts bind the host (limits, version)
-        # what binds the output: the profile's, narrowed by every device met over the run
-        self.limit_um_pp = profile.max_amplitude_um_pp
-        self.max_drive_um_pp = profile.max_drive_um_pp
-        self.full_scale_um_pp = profile.full_scale_um_pp  # the device's once it has said (codes scale by it)
-        self._top_fraction = 1.0
-        self.amplitude_loop = amplitude_loop  # asked: SET_LOOP 1 before each ENABLE, where the device has the loop
-        self.loop_on = False  # the device's amplitude loop runs (this connection)
-        self._serial: serial.Serial | None = None
-        self._reader: serial.threaded.ReaderThread | None = None
-        self._write_lock = threading.Lock()
-        self._reply = threading.Condition()
-        self._awaiting: set[int] = set()
-        self._answers: dict[int, int | None] = {}  # seq → None (ACK) or a NAK reason
-        self._sent_kinds = bytearray(65536)  # the command each seq carried, to name what a NAK refused
-        self._sent_at = 0.0  # perf_counter s of the last frame sent
-        self._hello: bytes | None = None
-        self._hello_seq = -1
-        self._session = False  # this connection's HELLO_REPLY has arrived: its telemetry counts
-        self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
-        self._frames_ok_last = 0
-        self._fault_run = [0] * p.FAULT_BITS  # faults over the run
-        self._link_last: dict[str, int] = {}
-        self._link_run = dict.fromkeys(LINK_COUNTERS, 0)
-        self._clear_pending = 0
-        self._clear_refused = False  # the device refused CLEAR_FAULTS: not asked again
-        self._trim_lock = threading.Lock()  # held only to add to or take the request below
-        self._trim_request = 0.0  # values the writer's lead should move by (the reader's depth tracking asks)
-        self._stream_epoch = 0  # a new stream (wake, connection, re-anchoring): the depth window starts again
-        self._depth_epoch = -1
-        self._depths, self._depth_n = [0] * DEPTH_WINDOW, 0  # the present window's depths, values
-        self._depth_worst = 0.0  # the largest correction asked, values
-        self._clear_outstanding = False  # a CLEAR_FAULTS is on its way, not yet answered
-        self._clear_mask = 0
-        self._clear_sent_at = 0.0
-        self._seq = 0
-        self._index = 0
-        self._framer = p.SetpointFramer(self.rate_hz)  # SETPOINTS frames built in buffers made once
-        self._fractions = np.empty(self.rate_hz)  # the writer's batch as fractions of full scale (up to 1 s)
-        self._clipped = np.empty(self.rate_hz)
-        self._zeros = np.zeros(16)
-        self._connected = threading.Event()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._last_heard = 0.0
-        self._first_telemetry: threading.Event | None = None
+        self.locks = DriverLocks()
+        self.account = RunAccount(self.locks.account)
+        self.transport = Transport(port, baudrate, silence_s, self.rate_hz, self.locks, self.counters,
+                                   on_frame=self._frame, on_bad_frames=self._bad_frames, on_lost=self._lost)
+        carrier = tracker.carrier_hz if tracker is not None else (carrier_hz or profile.resonance_hz)
+        self.session = Session(port, profile, self.rate_hz, carrier, self.transport, self.locks, self.account,
+                               self.counters, ack_timeout_s, amplitude_loop,
+                               has_baseline=lambda: self.intake.has_baseline, bound=self._bound, fresh=self._fresh)
+        self.intake = Intake(self.session, self.account, self.counters, self.locks, self.pacing, tracker,
+                             self.transport.kind_of)
+        self.streamer = Streamer(self.session, self.transport, self.intake, self.account, self.counters,
+                                 self.pacing, silence_s, lost=self._lost, tracker=tracker)
         self._source: BlockSource | None = None
-        self._drive_lock = threading.Lock()  # held only to add to or take the two sums below
-        self._drive_sum_um_pp = 0.0  # commanded amplitude (clipped to full scale) sent since the last telemetry
-        self._drive_count = 0
-        self._telemetry_arrived = threading.Condition()
-        self.sensors: p.Sensors | None = None  # the last SENSORS frame (v3, a device with sensors)
-        self.sensors_frames = 0
-        self.sensor_errors = 0
-        self._sensor_listeners: tuple = ()
-        self.telemetry_frames = 0  # TELEMETRY frames taken over the run
-        self._output_on = False  # the host enabled the output and streams setpoints (False: idle, or not yet)
-        self._enabled_at = 0.0  # when the last ENABLE 1 went (perf_counter s)
-        self._reenable = False  # telemetry says the plate is off while the host streams: the writer enables again
-        self._reenabled_first_s = 0.0  # when it first did (s since the run started)
-        self._cut = False  # the device disabled itself over this run (trip, overheat): never re-enabled by the host
-        # what happened, for the report (times in s since start); guarded by _account_lock, held for a copy
-        self._account_lock = threading.Lock()
-        self._started = time.perf_counter()
-        self._outages: list[Outage] = []
-        self._outages_dropped = 0
-        self._refusals: dict[tuple[str, str], list] = {}  # (command, reason) → [count, first s]
-        self._fault_first_s: dict[str, float] = {}
-        self._cut_at: tuple[float, str] | None = None
-        self._stall_longest = (0.0, 0.0)  # (duration s, at s)
-        self._late_longest = (0.0, 0.0)  # the longest gap between frames while streaming, over the buffer (s, at s)
-        self._bad_received = [0, 0, None]  # crc, malformed, first s
-        self._writer_failure: tuple[float, str] | None = None
-        self._rest_failure: str | None = None
-        self._rested = False
+        self._thread: threading.Thread | None = None
 
-    # ---- the run's clock and account ----------------------------------------------------------
-    def _now_s(self) -> float:
-        """Seconds since the run started (:meth:`start`)."""
-        return time.perf_counter() - self._started
+    # ---- what the parts know, by name ---------------------------------------------------------
+    carrier_hz = property(lambda self: self.session.carrier_hz,
+                          lambda self, hz: setattr(self.session, "carrier_hz", float(hz)),
+                          doc="The carrier the plate plays (Hz); set before :meth:`start`, or use :meth:`set_carrier`.")
+    device = property(lambda self: self.session.state.device, doc="The device's HELLO_REPLY (None before one).")
+    notes = property(lambda self: self.session.notes, doc="Where the device's facts bind the host, one line each.")
+    limit_um_pp = property(lambda self: self.session.limits.limit_um_pp, doc="The limit that binds (µm p-p).")
+    max_drive_um_pp = property(lambda self: self.session.limits.max_drive_um_pp, doc="The drive ceiling (µm p-p).")
+    full_scale_um_pp = property(lambda self: self.session.limits.full_scale_um_pp,
+                                doc="Full scale codes are scaled by (µm p-p): the device's once it has spoken.")
+    loop_on = property(lambda self: self.session.state.loop_on, doc="The device's amplitude loop runs.")
+    telemetry = property(lambda self: self.intake.telemetry, doc="The last TELEMETRY frame (this connection).")
+    telemetry_frames = property(lambda self: self.intake.frames, doc="TELEMETRY frames taken over the run.")
+    sensors = property(lambda self: self.intake.sensors, doc="The last SENSORS frame.")
+    sensors_frames = property(lambda self: self.intake.sensors_frames, doc="SENSORS frames taken over the run.")
+    sensor_errors = property(lambda self: self.intake.sensor_errors, doc="Sensor listeners that raised.")
+    lead = property(lambda self: self.pacing.lead,
+                    doc="Values the writer keeps sent ahead of its clock: the device's prefill plus a frame.")
+    buffer_lasts_s = property(lambda self: self.pacing.buffer_lasts_s,
+                              doc="How long the plate's buffer lasts after a frame (s): a frame later is late.")
 
-    @property
-    def lead(self) -> int:
-        """Values the writer keeps sent ahead of its clock while streaming: the device's prefill plus a frame."""
-        return int(math.ceil(p.PREFILL_MS * self.rate_hz / 1000.0)) + self._batch
+    def hello(self) -> p.HelloReply | None:
+        """What the device said of itself in this connection's handshake (None before one)."""
+        return self.session.state.device
 
-    @property
-    def buffer_lasts_s(self) -> float:
-        """How long the plate's buffer lasts after a frame (s): the lead, less a frame's time between frames and
-        one more for the link's latency. A frame sent later than that after the one before is late: the plate
-        may have run dry. (A simulated plate on a pty beside two CPU hogs held 1.3 ms less than the lead when a
-        frame arrived, and ran dry after a gap of 9.7 ms that a margin of one frame called on time.)"""
-        return (self.lead - 2 * self._batch) / self.rate_hz
-
-    @property
-    def _batch(self) -> int:
-        return max(1, int(round(self.batch_s * self.rate_hz)))
-
-    # ---- frames from the device ----------------------------------------------------------------
     def next_telemetry(self, timeout_s: float | None = None) -> p.Telemetry:
         """Wait for the next TELEMETRY frame and return it; DeviceError if none comes within ``timeout_s``
         (default: the ACK timeout)."""
         timeout_s = self.ack_timeout_s if timeout_s is None else timeout_s
-        with self._telemetry_arrived:
-            seen = self.telemetry_frames
-            if not self._telemetry_arrived.wait_for(lambda: self.telemetry_frames > seen, timeout_s):
-                raise DeviceError(f"{self.port}: no telemetry from the plate driver for {timeout_s:g} s")
-            return self.telemetry
-
-    def hello(self) -> p.HelloReply | None:
-        """What the device said of itself in this connection's handshake (None before one)."""
-        return self.device
+        telemetry = self.intake.next(timeout_s)
+        if telemetry is None:
+            raise DeviceError(f"{self.port}: no telemetry from the plate driver for {timeout_s:g} s")
+        return telemetry
 
     def fault_counts(self) -> dict[str, int]:
         """Each fault the device can report, by name, with how often it happened over this run."""
-        return {name: self._fault_run[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
+        return self.intake.fault_counts()
 
-    def _lost(self, cause: str) -> None:
-        """The link failed (reader or writer thread): the plate is lost until a reconnection."""
-        if self._connected.is_set():
-            self._connected.clear()
-            self.counters.disconnects += 1
-            self._outage(cause)
+    def add_sensor_listener(self, listener) -> None:
+        """Call ``listener(sensors)`` with each SENSORS frame (a :class:`protocol.Sensors`), on the reader thread:
+        it must return quickly. A listener that raises is counted (``sensor_errors``) and left out from then on."""
+        self.intake.add_sensor_listener(listener)
 
-    def _outage(self, cause: str) -> None:
-        with self._account_lock:
-            if len(self._outages) < MAX_OUTAGES:
-                self._outages.append(Outage(self._now_s(), cause, self.counters.setpoints_discarded))
-            else:
-                self._outages_dropped += 1
+    def command(self, kind: int, payload: bytes = b"", timeout_s: float | None = None) -> None:
+        """Send a command frame and wait for its ACK; DeviceError on a NAK or silence (a test's or a tool's)."""
+        self.session.command(kind, payload, timeout_s)
 
-    def _back(self) -> None:
-        with self._account_lock:
-            if self._outages and self._outages[-1].back_s is None:
-                outage = self._outages[-1]
-                outage.back_s = self._now_s()
-                outage.not_sent = self.counters.setpoints_discarded - outage.discarded_before
-
-    # ---- sending ---------------------------------------------------------------------------------
-    def _send(self, kind: int, payload: bytes = b"", awaited: bool = False, setpoints: np.ndarray | None = None,
-              force: p.ForceReference | None = None) -> int:
-        """Write one frame; returns its seq. ``awaited``: its ACK or NAK will be waited for. ``setpoints``
-        (fractions of full scale, at the stream's index): a SETPOINTS frame built by the framer instead, or with
-        ``force`` a SETPOINTS_FORCE frame (the force its values were computed at)."""
-        with self._write_lock:
-            port = self._serial
-            if port is None:
-                raise serial.SerialException("not connected")
-            self._seq = seq = (self._seq + 1) & 0xFFFF
-            self._sent_kinds[seq] = kind if force is None else p.SETPOINTS_FORCE
-            self._sent_at = time.perf_counter()
-            if awaited:
-                with self._reply:
-                    self._awaiting.add(seq)
-            if setpoints is None:
-                port.write(p.encode_frame(kind, seq, payload))
-            else:
-                port.write(self._framer.frame(seq, self._index, setpoints, force))
-        self.counters.frames_sent += 1
-        return seq
-
-    def _command(self, kind: int, payload: bytes, timeout_s: float | None = None) -> None:
-        """Send a command and wait for its ACK; DeviceError on a NAK or no answer within ``ack_timeout_s``."""
-        timeout_s = self.ack_timeout_s if timeout_s is None else timeout_s
-        seq = self._send(kind, payload, awaited=True)
-        try:
-            with self._reply:
-                if not self._reply.wait_for(lambda: seq in self._answers, timeout_s):
-                    raise DeviceError(f"{self.port}: no acknowledgement of {COMMAND_NAMES.get(kind, hex(kind))} from "
-                                      f"the plate driver within {timeout_s:g} s")
-                reason = self._answers.pop(seq)
-        finally:
-            with self._reply:
-                self._awaiting.discard(seq)
-                self._answers.pop(seq, None)
-        if reason is not None:
-            raise DeviceError(f"{self.port}: the plate driver refused {COMMAND_NAMES.get(kind, hex(kind))}: "
-                              f"{p.NAK_REASONS.get(reason, f'reason {reason}')}")
+    def send(self, kind: int, payload: bytes = b"") -> int:
+        """Send one frame, its answer not awaited; its seq (a test's or a tool's)."""
+        return self.session.send(kind, payload)
 
     def set_carrier(self, carrier_hz: float) -> None:
         """Change the carrier now (Hz) and wait for the device's ACK; DeviceError if it refuses or is gone."""
-        self.profile.check_carrier(carrier_hz)
-        if self.device is not None and not self.device.carrier_min_hz <= carrier_hz <= self.device.carrier_max_hz:
-            raise DeviceError(f"{self.port}: carrier {carrier_hz:g} Hz is outside what the plate driver accepts, "
-                              f"{self.device.carrier_min_hz:g}-{self.device.carrier_max_hz:g} Hz")
-        self.carrier_hz = float(carrier_hz)
-        try:
-            self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
-        except (serial.SerialException, OSError) as error:
-            raise DeviceError(f"{self.port}: lost while setting the carrier ({error})") from None
+        self.session.set_carrier(carrier_hz)
         self.counters.carrier_changes += 1
 
-    def _follow_tracker(self) -> None:
-        """Send the tracker's carrier if it moved (writer thread; the ACK is not waited for)."""
-        wanted = self.tracker.carrier_hz
-        if wanted != self.carrier_hz:
-            self.carrier_hz = wanted
-            self._send(p.SET_CARRIER, p.carrier_payload(wanted))
-            self.counters.carrier_changes += 1
+    # ---- the parts' callbacks -------------------------------------------------------------------
+    def _frame(self, frame: p.Frame) -> None:
+        self.intake.frame(frame)
 
-    # ---- connection ------------------------------------------------------------------------------
-    def _open(self) -> serial.Serial:
-        return open_port(self.port, self.baudrate, write_timeout_s=self.silence_s)
+    def _bad_frames(self, count: int, crc_errors: int, framing_errors: int) -> None:
+        self.counters.bad_frames += count
+        self.account.bad_frames(crc_errors, framing_errors)
 
-    def _connect(self) -> None:
-        port = self._open()
-        with contextlib.suppress(serial.SerialException, OSError):
-            port.reset_input_buffer()  # what a previous session left unread is not ours
-        self._serial = port
-        self.telemetry = None  # only what this connection reports counts
-        self._session = False
-        self._reader = serial.threaded.ReaderThread(port, lambda: FrameReader(self))
-        self._reader.daemon = True
-        self._reader.start()
-        try:
-            hello = self._handshake()
-            self._bind(hello)
-            first = self._fault_last is None
-            self._first_telemetry = threading.Event() if first else None
-            self._session = True
-            if first and not self._first_telemetry.wait(self.ack_timeout_s):  # the run's fault baseline
-                raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
-            self.loop_on = False
-            if self.amplitude_loop and hello.has_amplitude_loop:  # only while disabled: before ENABLE, and after
-                self._command(p.ENABLE, p.enable_payload(False))  # a hang the device may still be enabled (NAK 3)
-                self._command(p.SET_LOOP, p.set_loop_payload(1))
-                self.loop_on = True
-            self._command(p.SET_CARRIER, p.carrier_payload(self.carrier_hz))
-            if not self._cut:  # a device that cut itself out over this run is never re-enabled by the host
-                self._command(p.ENABLE, p.enable_payload(True))
-                self._output_on, self._enabled_at = True, time.perf_counter()
-            self._last_heard = time.monotonic()
-            self._connected.set()
-        except (serial.SerialException, OSError) as error:
-            self._disconnect()
-            raise DeviceError(f"{self.port}: lost during the handshake ({error})") from None
-        except BaseException:
-            self._rest_now(REST_ACK_S)  # zero and disable while the link works: the device may have enabled
-            self._disconnect()
-            raise
+    def _lost(self, cause: str) -> None:
+        """The link failed (reader or writer thread): the plate is lost until a reconnection."""
+        connected = self.session.state.connected
+        if connected.is_set():
+            connected.clear()
+            self.counters.disconnects += 1
+            self.account.outage(cause, self.counters.setpoints_discarded)
 
-    def _disconnect(self) -> None:
-        self._connected.clear()
-        reader, self._reader = self._reader, None
-        port, self._serial = self._serial, None
-        if reader is not None:
-            with contextlib.suppress(Exception):
-                reader.stop()
-        if port is not None:
-            with contextlib.suppress(Exception):
-                port.close()
+    def _bound(self, limits: Limits) -> None:
+        stage = self._source
+        if stage is not None and hasattr(stage, "limiter"):
+            stage.limiter.bind(limits.limit_um_pp, limits.max_drive_um_pp)
 
-    def _rest_now(self, ack_timeout_s: float | None = None) -> bool:
-        """Zero setpoints (at the stream's next index) and ENABLE 0, acknowledged; False if the link failed."""
-        if self._serial is None:
-            return False
-        try:
-            self._send(p.SETPOINTS, setpoints=self._zeros)
-            self._index += len(self._zeros)
-            self._command(p.ENABLE, p.enable_payload(False), ack_timeout_s)
-            self._output_on = False
-            return True
-        except (serial.SerialException, OSError, DeviceError) as error:
-            self._rest_failure = str(error).splitlines()[0] if str(error) else type(error).__name__
-            return False
+    def _fresh(self) -> None:
+        self.intake.telemetry = None
 
     def _rest(self) -> None:
         """The end of the run: zero amplitude and disable while the link still works, exactly once."""
-        with self._account_lock:
-            if self._rested:
-                return
-            self._rested = True
-        if self.device is None:  # never connected: nothing to rest (a failed handshake rested what answered)
+        if not self.account.rest_once():
             return
-        if self._serial is None:
-            self._rest_failure = "the link was down"
+        session = self.session
+        if session.state.device is None:  # never connected: nothing to rest (a failed handshake rested what answered)
             return
-        if self._rest_now():
-            self._rest_failure = None
+        if not self.transport.is_open:
+            session.rest_failure = "the link was down"
+            return
+        if session.rest_now():
+            session.rest_failure = None
 
-    # ---- the writer thread -----------------------------------------------------------------------
+    # ---- the run --------------------------------------------------------------------------------
     def start(self, source: BlockSource) -> None:
         """Connect (handshake, carrier, enable) and start streaming; raises DeviceError if it cannot."""
         self.profile.check_carrier(self.carrier_hz)
         self._source = output_stage(source, self.profile, self.signal, self.rate_hz)
-        self._started = time.perf_counter()
-        self._connect()
-        self._thread = threading.Thread(target=self._run, name="serial-plate", daemon=True)
+        self.account.started = time.perf_counter()
+        self.session.connect()
+        self._thread = threading.Thread(target=self.streamer.run, args=(self._source, self._rest), name="serial-plate",
+                                        daemon=True)
         self._thread.start()
 
     def stop(self) -> None:
         """Ramp down through the source, then send zero and disable and close the port."""
         if self._source is not None and self._thread is not None and self._thread.is_alive():
             ramp_down(self._source, self._thread.is_alive)
-        self._stop.set()
+        self.streamer.stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2)
             if self._thread.is_alive():  # stuck (a write that never returns): rest from here, once
                 self._rest()
         else:
             self._rest()
-        self._disconnect()
+        self.session.disconnect()
 
-    # ---- what happened ---------------------------------------------------------------------------
+    def report(self) -> RunReport:
+        """The run so far in words, with the exit status it earns (see :mod:`.run_report`)."""
+        return self.account.report(RunFigures(self.counters, self.fault_counts(), self.intake.link_run, self.pacing,
+                                              self.intake.depth.worst, self.session.rest_failure))
+
+    def status(self) -> dict:
+        """The driver's counters, the device's facts and the run's report, as JSON-ready values."""
+        c, t, state = self.counters, self.telemetry, self.session.state
+        faults = self.fault_counts()
+        output = "cut by the device" if state.cut else ("streaming" if state.output_on else "idle (disabled)")
+        return {
+            "device": f"serial:{self.port}", "connected": state.connected.is_set(),
+            "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
+            "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
+            "naks_received": c.naks, "send_stalls": c.send_stalls, "host_stalls": c.host_stalls,
+            "late_frames": c.late_frames, "depth_corrections": c.depth_corrections,
+            "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
+            "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,
+            "output": output, "idle_rests": c.idle_rests, "reenables": c.reenables,
+            "protocol_version": None if state.device is None else state.device.version,
+            "device_name": None if state.device is None else state.device.name,
+            "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp,
+            "device_full_scale_um_pp": self.full_scale_um_pp, "notes": list(self.notes),
+            "measured_um_pp": None if t is None else t.measured_um_pp,
+            "device_frames_ok": None if t is None else t.frames_ok,
+            "device_crc_errors": None if t is None else t.crc_errors,
+            "device_lost_setpoints": None if t is None else t.lost_setpoints,
+            "device_late_setpoints": None if t is None else t.late_setpoints,
+            "faults": faults,
+            "device_faults": [name for name, count in faults.items() if count],
+            "report": self.report().as_dict(),
+            **({"tracking": self.tracker.summary()} if self.tracker is not None else {}),
+        }

@@ -1,19 +1,126 @@
-"""What the plate driver tells of a run: its report in words with the exit status it earns, and its
-status."""
+"""What the plate driver keeps of a run and tells of it: :class:`RunAccount` records what happened and when
+(from every thread, under one lock held for a copy), and words it as a
+:class:`~ultraglide.devices.serial.run_report.RunReport` with the exit status it earns."""
 
 from __future__ import annotations
 
+import threading
+import time
+from dataclasses import dataclass
+
 from ultraglide.devices import protocol as p
-from ultraglide.devices.serial.link import CUT_WORDS
+from ultraglide.devices.serial.link import COMMAND_NAMES, CUT_FAULTS, CUT_WORDS, MAX_OUTAGES, Outage, Pacing
 from ultraglide.devices.serial.run_report import Incident, RunReport, seconds, times
 
+SEVERITY = {"watchdog": "faulted", "over-limit": "faulted", "bad-command": "faulted", "trip": "cut",
+            "overheat": "cut"}
 
-class RunReporting:
-    """What a run's report and status say: a part of :class:`~ultraglide.devices.serial.plate.SerialPlate`."""
 
-    def report(self) -> RunReport:
-        """The run so far in words, with the exit status it earns (see :mod:`ultraglide.devices.serial.run_report`)."""
-        with self._account_lock:
+@dataclass(frozen=True)
+class RunFigures:
+    """What the report words besides the account: counts and state the other parts keep."""
+
+    counters: object  # SerialCounters
+    faults: dict[str, int]
+    link_run: dict[str, int]
+    pacing: Pacing
+    depth_worst: float  # values
+    rest_failure: str | None
+
+
+class RunAccount:
+    """What happened over a run and when (s since :meth:`restart`), written by any thread."""
+
+    def __init__(self, lock: threading.Lock):
+        self._lock = lock
+        self.restart()
+
+    def restart(self) -> None:
+        self.started = time.perf_counter()
+        self._outages: list[Outage] = []
+        self._outages_dropped = 0
+        self._refusals: dict[tuple[str, str], list] = {}  # (command, reason) → [count, first s]
+        self._fault_first_s: dict[str, float] = {}
+        self._cut_at: tuple[float, str] | None = None
+        self._stall_longest = (0.0, 0.0)  # (duration s, at s)
+        self._late_longest = (0.0, 0.0)  # the longest gap between frames while streaming, over the buffer (s, at s)
+        self._bad_received = [0, 0, None]  # crc, malformed, first s
+        self._writer_failure: tuple[float, str] | None = None
+        self.reenabled_first_s = 0.0
+        self.rested = False
+
+    def now_s(self) -> float:
+        """Seconds since the run started."""
+        return time.perf_counter() - self.started
+
+    def rest_once(self) -> bool:
+        """True the first time only: the end of the run rests the plate exactly once."""
+        with self._lock:
+            first, self.rested = not self.rested, True
+        return first
+
+    # ---- what happened --------------------------------------------------------------------------
+    def outage(self, cause: str, discarded: int) -> None:
+        with self._lock:
+            if len(self._outages) < MAX_OUTAGES:
+                self._outages.append(Outage(self.now_s(), cause, discarded))
+            else:
+                self._outages_dropped += 1
+
+    def back(self, discarded: int) -> None:
+        with self._lock:
+            if self._outages and self._outages[-1].back_s is None:
+                outage = self._outages[-1]
+                outage.back_s = self.now_s()
+                outage.not_sent = discarded - outage.discarded_before
+
+    def retry_failed(self, error: str) -> None:
+        with self._lock:
+            if self._outages and self._outages[-1].back_s is None:
+                self._outages[-1].last_error = error.split("; ")[0]  # without the advice
+
+    def refused(self, kind: int, reason: int) -> None:
+        """A NAK, counted by what it refused and why."""
+        command = COMMAND_NAMES.get(kind, f"command {kind:#04x}")
+        words = p.NAK_REASONS.get(reason, f"reason {reason}")
+        with self._lock:
+            entry = self._refusals.setdefault((command, words), [0, self.now_s()])
+            entry[0] += 1
+
+    def bad_frames(self, crc_errors: int, framing_errors: int) -> None:
+        with self._lock:
+            if self._bad_received[2] is None:
+                self._bad_received[2] = self.now_s()
+            self._bad_received[0], self._bad_received[1] = crc_errors, framing_errors
+
+    def faults_seen(self, bits: int) -> None:
+        """Faults newly counted: the first time of each, and the cut (trip, overheat) that ends streaming."""
+        now = self.now_s()
+        with self._lock:
+            for bit, name in p.FAULT_NAMES.items():
+                if bits & bit:
+                    self._fault_first_s.setdefault(name, now)
+            for bit in CUT_FAULTS:
+                if bits & bit and self._cut_at is None:
+                    self._cut_at = (now, p.FAULT_NAMES[bit])
+
+    def host_stalled(self, stalled_s: float, at: float) -> None:
+        with self._lock:
+            if stalled_s > self._stall_longest[0]:
+                self._stall_longest = (stalled_s, at - self.started)
+
+    def late_frame(self, gap_s: float) -> None:
+        with self._lock:
+            self._late_longest = max(self._late_longest, (gap_s, self.now_s()))
+
+    def writer_failed(self, words: str) -> None:
+        with self._lock:
+            self._writer_failure = (self.now_s(), words)
+
+    # ---- in words -------------------------------------------------------------------------------
+    def report(self, figures: RunFigures) -> RunReport:
+        """The run so far in words, with the exit status it earns (see :mod:`.run_report`)."""
+        with self._lock:
             outages = [(o.lost_s, o.cause, o.back_s, o.not_sent, o.last_error, o.discarded_before)
                        for o in self._outages]
             refusals = {key: tuple(value) for key, value in self._refusals.items()}
@@ -21,10 +128,11 @@ class RunReporting:
             cut_at, stall, bad = self._cut_at, self._stall_longest, list(self._bad_received)
             late = self._late_longest
             writer_failure, dropped = self._writer_failure, self._outages_dropped
+        counters = figures.counters
         incidents = []
         for lost_s, cause, back_s, not_sent, last_error, before in outages:
             if back_s is None:
-                not_sent = self.counters.setpoints_discarded - before
+                not_sent = counters.setpoints_discarded - before
                 last = f" (the last try: {last_error})" if last_error else ""
                 words = (f"plate lost at {seconds(lost_s)}: {cause}; not back by the end{last}; "
                          f"{not_sent} setpoints not sent")
@@ -41,16 +149,12 @@ class RunReporting:
             incidents.append(Incident(cut_at[0], "cut", f"the plate cut its output at {seconds(cut_at[0])} "
                                       f"({CUT_WORDS.get(cut_at[1], cut_at[1])}): streaming stopped there; the host "
                                       "does not enable it again, so it stays off until the next run"))
-        faults = self.fault_counts()
-        severity = {"watchdog": "faulted", "over-limit": "faulted", "bad-command": "faulted", "trip": "cut",
-                    "overheat": "cut"}
-        for name, count in faults.items():
+        for name, count in figures.faults.items():
             if not count or cut_at is not None and name == cut_at[1] and count == 1:
                 continue  # (the cut says it)
-            kind = severity.get(name, "note")
             at = first.get(name, 0.0)
-            incidents.append(Incident(at, kind, f"the plate raised {name} {times(count)} (first at {seconds(at)}): "
-                                                f"{p.FAULT_WORDS.get(name, name)}"))
+            incidents.append(Incident(at, SEVERITY.get(name, "note"), f"the plate raised {name} {times(count)} "
+                                      f"(first at {seconds(at)}): {p.FAULT_WORDS.get(name, name)}"))
         for (command, reason), (count, at) in refusals.items():
             incidents.append(Incident(at, "faulted", f"the plate refused {times(count, 'frame')} of {command} "
                                                      f"({reason}), first at {seconds(at)}"
@@ -60,35 +164,32 @@ class RunReporting:
             incidents.append(Incident(bad[2] or 0.0, "note", f"{times(bad[0] + bad[1], 'frame')} from the plate "
                                       f"arrived damaged ({bad[0]} with a bad CRC, {bad[1]} truncated or malformed), "
                                       f"first at {seconds(bad[2] or 0.0)}"))
+        incidents += self._timing_incidents(figures, stall, late)
+        return RunReport.of(incidents, self._summary(figures))
+
+    def _timing_incidents(self, figures: RunFigures, stall: tuple, late: tuple) -> list[Incident]:
+        counters, pacing = figures.counters, figures.pacing
+        incidents = []
         if stall[0]:
-            skipped = self.counters.setpoints_skipped
-            incidents.append(Incident(stall[1], "note", f"the host stalled {times(self.counters.host_stalls)} "
+            skipped = counters.setpoints_skipped
+            incidents.append(Incident(stall[1], "note", f"the host stalled {times(counters.host_stalls)} "
                                       f"(longest {stall[0]:.2f} s at {seconds(stall[1])})"
                                       + (f"; {skipped} setpoints skipped so the latency stays at the plate's "
-                                         f"{1000 * self.lead / self.rate_hz:.0f} ms buffer" if skipped else "")))
+                                         f"{1000 * pacing.lead / pacing.rate_hz:.0f} ms buffer" if skipped else "")))
         if late[0]:
-            lasts_ms = 1000 * self.buffer_lasts_s
-            incidents.append(Incident(late[1], "note", f"the host sent {times(self.counters.late_frames, 'frame')} "
+            lasts_ms = 1000 * pacing.buffer_lasts_s
+            incidents.append(Incident(late[1], "note", f"the host sent {times(counters.late_frames, 'frame')} "
                                       f"later than the plate's {lasts_ms:.0f} ms buffer lasts (the longest gap "
                                       f"{1000 * late[0]:.0f} ms, at {seconds(late[1])}): the plate may have run dry"))
-        if self.counters.reenables:
-            incidents.append(Incident(self._reenabled_first_s, "note",
+        if counters.reenables:
+            incidents.append(Incident(self.reenabled_first_s, "note",
                                       f"the plate was off while the host streamed to it "
-                                      f"{times(self.counters.reenables)} (an ENABLE lost on the link?), first at "
-                                      f"{seconds(self._reenabled_first_s)}: enabled again"))
-        summary = self._link_summary()
-        if self.counters.depth_corrections:
-            worst_ms = 1000 * self._depth_worst / self.rate_hz
-            summary.append(f"the plate's buffer drifted from its depth {times(self.counters.depth_corrections)} (by "
-                           f"up to {worst_ms:.0f} ms: its clock against the host's, or its playback started again "
-                           "late); the host moved its lead to bring it back")
-        if self._rest_failure and self._rested:
-            summary.append(f"the plate could not be rested at the end ({self._rest_failure}): its watchdog rests "
-                           "it if it is still powered and was enabled")
-        return RunReport.of(incidents, summary)
+                                      f"{times(counters.reenables)} (an ENABLE lost on the link?), first at "
+                                      f"{seconds(self.reenabled_first_s)}: enabled again"))
+        return incidents
 
-    def _link_summary(self) -> list[str]:
-        run = self._link_run
+    def _summary(self, figures: RunFigures) -> list[str]:
+        counters, run = figures.counters, figures.link_run
         lines = []
         damaged = run["crc_errors"] + run["framing_errors"]
         if damaged:
@@ -96,39 +197,17 @@ class RunReporting:
                          f"{run['framing_errors']} malformed)")
         lost, late, overrun = run["lost_setpoints"], run["late_setpoints"], run["overrun_setpoints"]
         if lost or late or overrun:
-            parts = [f"{lost} lost" + (f" ({self.counters.setpoints_skipped} of them skipped by the host)"
-                                       if self.counters.setpoints_skipped else "")]
+            parts = [f"{lost} lost" + (f" ({counters.setpoints_skipped} of them skipped by the host)"
+                                       if counters.setpoints_skipped else "")]
             parts += [f"{late} late"] if late else []
             parts += [f"{overrun} dropped by overruns"] if overrun else []
             lines.append("the plate counted setpoints " + ", ".join(parts))
+        if counters.depth_corrections:
+            worst_ms = 1000 * figures.depth_worst / figures.pacing.rate_hz
+            lines.append(f"the plate's buffer drifted from its depth {times(counters.depth_corrections)} (by "
+                         f"up to {worst_ms:.0f} ms: its clock against the host's, or its playback started again "
+                         "late); the host moved its lead to bring it back")
+        if figures.rest_failure and self.rested:
+            lines.append(f"the plate could not be rested at the end ({figures.rest_failure}): its watchdog rests "
+                         "it if it is still powered and was enabled")
         return lines
-
-    def status(self) -> dict:
-        c = self.counters
-        t = self.telemetry
-        faults = self.fault_counts()
-        report = self.report()
-        return {
-            "device": f"serial:{self.port}", "connected": self._connected.is_set(),
-            "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
-            "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
-            "naks_received": c.naks, "send_stalls": c.send_stalls, "host_stalls": c.host_stalls,
-            "late_frames": c.late_frames, "depth_corrections": c.depth_corrections,
-            "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
-            "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,
-            "output": "cut by the device" if self._cut else ("streaming" if self._output_on else "idle (disabled)"),
-            "idle_rests": c.idle_rests, "reenables": c.reenables,
-            "protocol_version": None if self.device is None else self.device.version,
-            "device_name": None if self.device is None else self.device.name,
-            "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp,
-            "device_full_scale_um_pp": self.full_scale_um_pp, "notes": list(self.notes),
-            "measured_um_pp": None if t is None else t.measured_um_pp,
-            "device_frames_ok": None if t is None else t.frames_ok,
-            "device_crc_errors": None if t is None else t.crc_errors,
-            "device_lost_setpoints": None if t is None else t.lost_setpoints,
-            "device_late_setpoints": None if t is None else t.late_setpoints,
-            "faults": faults,
-            "device_faults": [name for name, count in faults.items() if count],
-            "report": report.as_dict(),
-            **({"tracking": self.tracker.summary()} if self.tracker is not None else {}),
-        }

@@ -1,63 +1,175 @@
-"""What the plate driver takes in from the link: telemetry, SENSORS, acknowledgements and refusals, the
-plate's buffer depth, faults and counters."""
+"""What the plate driver takes in from the link, on the reader thread: telemetry, SENSORS, acknowledgements and
+refusals; the plate's buffer depth, its faults and counters over the run."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 from ultraglide.devices import protocol as p
-from ultraglide.devices.serial.link import (  # noqa: F401 - IDLE_AFTER_S, open_port: the driver's names
-    COMMAND_NAMES,
+from ultraglide.devices.serial.link import (
+    CLEAR_RETRY_S,
     CUT_FAULTS,
     DEPTH_DEADBAND_S,
     DEPTH_WINDOW,
-    IDLE_AFTER_S,
     LINK_COUNTERS,
-    MAX_OUTAGES,
     REENABLE_AFTER_S,
-    REST_ACK_S,
-    SILENCE_S,
     TRACKING_DISTURBANCES,
-    FrameReader,
-    Outage,
+    Pacing,
     SerialCounters,
-    check_link_budget,
-    open_port,
 )
+from ultraglide.devices.serial.locks import DriverLocks
+from ultraglide.devices.serial.report import RunAccount
+from ultraglide.devices.serial.session import Session
 
 
-class TelemetryIntake:
-    """What comes back from the plate: a part of :class:`~ultraglide.devices.serial.plate.SerialPlate`."""
+class DepthTracker:
+    """v3 telemetry says how many values wait in the plate's buffer. Over DEPTH_WINDOW frames while it plays,
+    a median depth off its target by more than the deadband (the plate's clock drifting from the host's, its
+    playback restarted later than the host's clock) asks the writer to move its lead by the difference: the
+    buffer, and the latency it costs, come back to the prefill and a frame. The median, not the mean: a
+    few frames made while the plate caught up a stall of its own, or read a backlog late, report a
+    buffer that is deep only for that moment; moving the lead for them would starve the plate after."""
 
-    def _frame(self, frame: p.Frame) -> None:
-        self._last_heard = time.monotonic()
+    def __init__(self, pacing: Pacing, lock: threading.Lock):
+        self.pacing, self._lock = pacing, lock
+        self._request = 0.0  # values the writer's lead should move by
+        self.stream_epoch = 0  # a new stream (wake, connection, re-anchoring): the window starts again (writer)
+        self._epoch = -1
+        self._depths, self._n = [0] * DEPTH_WINDOW, 0  # the present window's depths, values
+        self.worst = 0.0  # the largest correction asked, values
+
+    def new_stream(self) -> None:
+        self.stream_epoch += 1
+
+    def take(self) -> float:
+        """The correction asked since the last take (values), and none pending after (writer thread)."""
+        if not self._request:
+            return 0.0
+        with self._lock:
+            request, self._request = self._request, 0.0
+        return request
+
+    def observe(self, telemetry: p.Telemetry, playing: bool) -> None:
+        if (getattr(telemetry, "version", 2) < 3 or telemetry.playback != p.PLAYBACK_PLAYING or not playing
+                or self._epoch != self.stream_epoch):
+            self._n, self._epoch = 0, self.stream_epoch
+            return
+        self._depths[self._n] = telemetry.buffered_setpoints
+        self._n += 1
+        if self._n < DEPTH_WINDOW:
+            return
+        self._n = 0
+        middle = sorted(self._depths)
+        pacing = self.pacing
+        error = (middle[(DEPTH_WINDOW - 1) // 2] + middle[DEPTH_WINDOW // 2]) / 2.0 - (pacing.lead - pacing.batch / 2.0)
+        if abs(error) > DEPTH_DEADBAND_S * pacing.rate_hz:
+            with self._lock:
+                self._request -= error
+            self.worst = max(self.worst, abs(error))
+
+
+class FaultClearing:
+    """Latched fault bits to clear (seen in telemetry, already counted): one CLEAR_FAULTS at a time, sent again
+    only if it went unanswered, never again once refused. The reader adds and answers; the writer sends."""
+
+    def __init__(self):
+        self.pending = 0
+        self.outstanding = False  # a CLEAR_FAULTS is on its way, not yet answered
+        self.mask = 0
+        self.sent_at = 0.0
+        self.refused = False
+
+    def due(self, now: float) -> int:
+        """The bits to clear now (writer thread), 0 for none: a CLEAR_FAULTS unanswered for CLEAR_RETRY_S was lost
+        on the link and its bits are asked again."""
+        if self.outstanding and now - self.sent_at > CLEAR_RETRY_S:
+            self.outstanding = False
+            self.pending |= self.mask
+        if not self.pending or self.outstanding or self.refused:
+            return 0
+        self.mask, self.pending = self.pending, 0
+        self.outstanding, self.sent_at = True, now
+        return self.mask
+
+
+class DriveTally:
+    """The commanded amplitude sent since the last telemetry (the resonance tracker's reference): the writer
+    adds, the reader takes."""
+
+    def __init__(self, lock: threading.Lock):
+        self._lock = lock
+        self._sum_um_pp = 0.0
+        self._count = 0
+
+    def add(self, total_um_pp: float, count: int) -> None:
+        with self._lock:
+            self._sum_um_pp += total_um_pp
+            self._count += count
+
+    def take(self) -> tuple[float, int]:
+        with self._lock:
+            taken = self._sum_um_pp, self._count
+            self._sum_um_pp, self._count = 0.0, 0
+        return taken
+
+
+class Intake:
+    """Every frame from the device, taken on the reader thread: answers to the session, telemetry counted."""
+
+    def __init__(self, session: Session, account: RunAccount, counters: SerialCounters, locks: DriverLocks,
+                 pacing: Pacing, tracker, kind_of):
+        self.session, self.account, self.counters, self.tracker = session, account, counters, tracker
+        self._kind_of = kind_of
+        self.depth = DepthTracker(pacing, locks.trim)
+        self.clearing = FaultClearing()
+        self.drive = DriveTally(locks.drive)
+        self._arrived = locks.telemetry
+        self.telemetry: p.Telemetry | None = None
+        self.frames = 0  # TELEMETRY frames taken over the run
+        self.sensors: p.Sensors | None = None  # the last SENSORS frame (v3, a device with sensors)
+        self.sensors_frames = 0
+        self.sensor_errors = 0
+        self._sensor_listeners: tuple = ()
+        self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
+        self._frames_ok_last = 0
+        self.fault_run = [0] * p.FAULT_BITS  # faults over the run
+        self._link_last: dict[str, int] = {}
+        self.link_run = dict.fromkeys(LINK_COUNTERS, 0)
+
+    @property
+    def has_baseline(self) -> bool:
+        """The run's first telemetry has come: faults from here on are counted."""
+        return self._fault_last is not None
+
+    def frame(self, frame: p.Frame) -> None:
+        state = self.session.state
+        state.last_heard = time.monotonic()
         try:
-            if frame.kind == p.TELEMETRY and self._session:
-                self._take_telemetry(p.parse_telemetry(frame.payload))
-            elif frame.kind == p.SENSORS and self._session:
+            if frame.kind == p.TELEMETRY and state.active:
+                self.take_telemetry(p.parse_telemetry(frame.payload))
+            elif frame.kind == p.SENSORS and state.active:
                 self._take_sensors(p.parse_sensors(frame.payload))
             elif frame.kind == p.HELLO_REPLY:
-                with self._reply:
-                    self._hello = frame.payload
-                    self._reply.notify_all()
+                self.session.replies.hello_arrived(frame.payload)
             elif frame.kind == p.ACK:
                 seq = p.parse_ack(frame.payload)
-                if self._sent_kinds[seq] == p.CLEAR_FAULTS:
-                    self._clear_outstanding = False
-                self._answer(seq, None)
+                if self._kind_of(seq) == p.CLEAR_FAULTS:
+                    self.clearing.outstanding = False
+                self.session.replies.answer(seq, None)
             elif frame.kind == p.NAK:
                 seq, reason = p.parse_nak(frame.payload)
                 self.counters.naks += 1
-                if self._sent_kinds[seq] == p.CLEAR_FAULTS:
-                    self._clear_outstanding = False
-                self._refused(seq, reason)
-                self._answer(seq, reason)
+                kind = self._kind_of(seq)
+                if kind == p.CLEAR_FAULTS:
+                    self.clearing.outstanding = False
+                    self.clearing.refused = True
+                self.account.refused(kind, reason)
+                self.session.replies.answer(seq, reason)
         except p.ProtocolError:
             self.counters.bad_frames += 1
 
     def add_sensor_listener(self, listener) -> None:
-        """Call ``listener(sensors)`` with each SENSORS frame (a :class:`protocol.Sensors`), on the reader thread:
-        it must return quickly. A listener that raises is counted (``sensor_errors``) and left out from then on."""
         self._sensor_listeners = (*self._sensor_listeners, listener)
 
     def _take_sensors(self, sensors: p.Sensors) -> None:
@@ -70,32 +182,17 @@ class TelemetryIntake:
                 self.sensor_errors += 1
                 self._sensor_listeners = tuple(other for other in self._sensor_listeners if other is not listener)
 
-    def _answer(self, seq: int, reason: int | None) -> None:
-        with self._reply:
-            if seq in self._awaiting:
-                self._answers[seq] = reason
-                self._reply.notify_all()
+    def next(self, timeout_s: float) -> p.Telemetry | None:
+        """The next TELEMETRY frame, or None if none comes within ``timeout_s``."""
+        with self._arrived:
+            seen = self.frames
+            if not self._arrived.wait_for(lambda: self.frames > seen, timeout_s):
+                return None
+            return self.telemetry
 
-    def _refused(self, seq: int, reason: int) -> None:
-        """A NAK: counted by what it refused and why (a refused CLEAR_FAULTS is not asked again)."""
-        kind = self._sent_kinds[seq]
-        command = COMMAND_NAMES.get(kind, f"command {kind:#04x}")
-        if kind == p.CLEAR_FAULTS:
-            self._clear_refused = True
-        words = p.NAK_REASONS.get(reason, f"reason {reason}")
-        with self._account_lock:
-            entry = self._refusals.setdefault((command, words), [0, self._now_s()])
-            entry[0] += 1
-
-    def _bad_frames_received(self, count: int, crc_errors: int, framing_errors: int) -> None:
-        self.counters.bad_frames += count
-        with self._account_lock:
-            if self._bad_received[2] is None:
-                self._bad_received[2] = self._now_s()
-            self._bad_received[0], self._bad_received[1] = crc_errors, framing_errors
-
-    def _take_telemetry(self, telemetry: p.Telemetry) -> None:
+    def take_telemetry(self, telemetry: p.Telemetry) -> None:
         """Add the faults since the previous telemetry to the run's counts (counters wrap at 2**32)."""
+        state = self.session.state
         counts = telemetry.fault_counts
         previous = self._fault_last
         restarted = previous is not None and telemetry.frames_ok < self._frames_ok_last
@@ -104,76 +201,44 @@ class TelemetryIntake:
         else:
             new = counts if restarted else [(now - before) & 0xFFFFFFFF
                                             for now, before in zip(counts, previous, strict=True)]
-            self._fault_run = [run + n for run, n in zip(self._fault_run, new, strict=True)]
+            self.fault_run = [run + n for run, n in zip(self.fault_run, new, strict=True)]
             new_bits = sum(1 << bit for bit, n in enumerate(new) if n)
             if new_bits:
-                self._note_faults(new_bits)
+                self.account.faults_seen(new_bits)
+                if any(new_bits & bit for bit in CUT_FAULTS):
+                    state.cut = True
         self._add_link_counters(telemetry, restarted)
-        self._track_depth(telemetry)
-        if (self._output_on and not self._cut and not telemetry.enabled
-                and time.perf_counter() - self._enabled_at > REENABLE_AFTER_S):
-            self._reenable = True
+        self.depth.observe(telemetry, state.output_on and not state.cut)
+        if (state.output_on and not state.cut and not telemetry.enabled
+                and time.perf_counter() - state.enabled_at > REENABLE_AFTER_S):
+            state.reenable = True
         self._fault_last = counts
         self._frames_ok_last = telemetry.frames_ok
         # latched bits raised since the last look: cleared once each (a bit whose condition persists, set again at
         # once without a new raise, is not asked for again)
-        self._clear_pending |= new_bits & telemetry.faults
-        with self._telemetry_arrived:
+        self.clearing.pending |= new_bits & telemetry.faults
+        with self._arrived:
             self.telemetry = telemetry
-            self.telemetry_frames += 1
-            self._telemetry_arrived.notify_all()
+            self.frames += 1
+            self._arrived.notify_all()
         if self.tracker is not None:
-            with self._drive_lock:
-                total, count = self._drive_sum_um_pp, self._drive_count
-                self._drive_sum_um_pp, self._drive_count = 0.0, 0
+            total, count = self.drive.take()
             if previous is None or any(counts[bit.bit_length() - 1] != previous[bit.bit_length() - 1]
                                        for bit in TRACKING_DISTURBANCES):
                 self.tracker.disturbed(time.perf_counter())
             elif count:
                 self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
-        if self._first_telemetry is not None:
-            self._first_telemetry.set()
-
-    def _track_depth(self, telemetry: p.Telemetry) -> None:
-        """v3 telemetry says how many values wait in the plate's buffer. Over DEPTH_WINDOW frames while it plays,
-        a median depth off its target by more than the deadband (the plate's clock drifting from the host's, its
-        playback restarted later than the host's clock) asks the writer to move its lead by the difference: the
-        buffer, and the latency it costs, come back to the prefill and a frame. The median, not the mean: a
-        few frames made while the plate caught up a stall of its own, or read a backlog late, report a
-        buffer that is deep only for that moment; moving the lead for them would starve the plate after."""
-        if (getattr(telemetry, "version", 2) < 3 or telemetry.playback != p.PLAYBACK_PLAYING or not self._output_on
-                or self._cut or self._depth_epoch != self._stream_epoch):
-            self._depth_n, self._depth_epoch = 0, self._stream_epoch
-            return
-        self._depths[self._depth_n] = telemetry.buffered_setpoints
-        self._depth_n += 1
-        if self._depth_n < DEPTH_WINDOW:
-            return
-        self._depth_n = 0
-        middle = sorted(self._depths)
-        error = (middle[(DEPTH_WINDOW - 1) // 2] + middle[DEPTH_WINDOW // 2]) / 2.0 - (self.lead - self._batch / 2.0)
-        if abs(error) > DEPTH_DEADBAND_S * self.rate_hz:
-            with self._trim_lock:
-                self._trim_request -= error
-            self._depth_worst = max(self._depth_worst, abs(error))
-
-    def _note_faults(self, bits: int) -> None:
-        """Faults newly counted: the first time of each, and the cut (trip, overheat) that ends streaming."""
-        now = self._now_s()
-        with self._account_lock:
-            for bit, name in p.FAULT_NAMES.items():
-                if bits & bit:
-                    self._fault_first_s.setdefault(name, now)
-            for bit in CUT_FAULTS:
-                if bits & bit and self._cut_at is None:
-                    self._cut_at = (now, p.FAULT_NAMES[bit])
-        if any(bits & bit for bit in CUT_FAULTS):
-            self._cut = True
+        if state.first_telemetry is not None:
+            state.first_telemetry.set()
 
     def _add_link_counters(self, telemetry: p.Telemetry, restarted: bool) -> None:
         for name in LINK_COUNTERS:
             now = getattr(telemetry, name, 0)
             before = self._link_last.get(name)
             if before is not None:
-                self._link_run[name] += now if restarted else (now - before) & 0xFFFFFFFF
+                self.link_run[name] += now if restarted else (now - before) & 0xFFFFFFFF
             self._link_last[name] = now
+
+    def fault_counts(self) -> dict[str, int]:
+        """Each fault the device can report, by name, with how often it happened over this run."""
+        return {name: self.fault_run[bit.bit_length() - 1] for bit, name in p.FAULT_NAMES.items()}
