@@ -12,6 +12,7 @@ import pytest
 import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cli, wait_for
 from scipy import signal as sps
+from sources import Constant
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile, load_profile
@@ -21,28 +22,6 @@ from ultraglide.devices.sim.pty_plate import PtyPlate
 from ultraglide.devices.urls import parse_device_url
 
 PROFILE = load_profile("sim-plate")
-
-
-class Constant:
-    """A source of a steady amplitude (µm p-p) that ramps to rest when asked."""
-
-    def __init__(self, amplitude_um_pp=3.0):
-        self.amplitude = amplitude_um_pp
-        self.stopping = False
-        self.pulled = 0
-
-    def pull(self, n, now_s):
-        self.pulled += n
-        if self.stopping:
-            self.amplitude = max(0.0, self.amplitude - 0.01 * n)
-        return np.full(n, self.amplitude)
-
-    def request_stop(self):
-        self.stopping = True
-
-    @property
-    def finished(self):
-        return self.stopping and self.amplitude == 0.0
 
 
 @pytest.fixture

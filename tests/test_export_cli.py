@@ -92,3 +92,53 @@ def test_bad_export_options(tmp_path, args, fragment):
     out = tmp_path / "out.wav"
     assert fragment in assert_one_line_error(run_cli("export", *args, "-o", out))
     assert not out.exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fmt, bits", [("int16", 16), ("int24", 24)])
+def test_integer_export_samples_match_the_float_export(tmp_path, fmt, bits):
+    common = ("checkerboard-5mm", "--duration-s", "0.4", "--speed-mm-s", "150")
+    run_cli("export", *common, "-o", tmp_path / "f.wav", check=True)
+    run_cli("export", *common, "-o", tmp_path / "i.wav", "--format", fmt, check=True)
+    reference, _ = soundfile.read(tmp_path / "f.wav", dtype="float64")
+    integer, _ = soundfile.read(tmp_path / "i.wav", dtype="float64")  # libsndfile scales by 2**(bits-1)
+    assert len(integer) == len(reference)
+    assert np.max(np.abs(reference)) > 0.3  # a real signal, not silence that any scale would match
+    step = 2.0 ** -(bits - 1)
+    assert np.max(np.abs(integer - reference)) <= step  # rounding only: not half (or double) scale
+
+
+def _export_envelope(tmp_path, *options):
+    csv = tmp_path / "env.csv"
+    run_cli("export", "grating-2mm", "-o", tmp_path / "out.wav", "--duration-s", "0.5", "--envelope-csv", csv,
+            *options, check=True)
+    return np.genfromtxt(csv, delimiter=",", names=True)
+
+
+@pytest.mark.slow
+def test_export_no_precompensation_drives_the_amplitude_itself(tmp_path):
+    plain = _export_envelope(tmp_path, "--no-precompensation")
+    np.testing.assert_allclose(plain["drive_um_pp"], plain["amplitude_um_pp"], atol=1e-5)
+    compensated = _export_envelope(tmp_path)
+    # pre-compensated, the drive leads the plate: it differs from the amplitude wherever the texture moves
+    assert np.max(np.abs(compensated["drive_um_pp"] - compensated["amplitude_um_pp"])) > 0.1
+
+
+@pytest.mark.slow
+def test_export_swipe_geometry_options(tmp_path):
+    down = _export_envelope(tmp_path, "--direction-deg", "90", "--start", "20,5", "--speed-mm-s", "60")
+    touching = down["down"] > 0
+    t = down["t_s"][touching] - down["t_s"][touching][0]
+    np.testing.assert_allclose(down["x_mm"][touching], 20.0, atol=1e-6)  # 90°: straight down the screen
+    np.testing.assert_allclose(down["y_mm"][touching], 5.0 + 60.0 * t, atol=0.02)
+
+    circle = _export_envelope(tmp_path, "--path", "circle", "--radius-mm", "7", "--start", "30,25")
+    touching = circle["down"] > 0
+    radius = np.hypot(circle["x_mm"][touching] - 37.0, circle["y_mm"][touching] - 25.0)  # starts on its left
+    np.testing.assert_allclose(radius, 7.0, atol=0.01)
+
+    zigzag = _export_envelope(tmp_path, "--path", "zigzag", "--zigzag-width-mm", "12", "--start", "10,10",
+                              "--speed-mm-s", "100")
+    touching = zigzag["down"] > 0
+    assert zigzag["x_mm"][touching].min() == pytest.approx(10.0, abs=0.01)
+    assert zigzag["x_mm"][touching].max() == pytest.approx(22.0, abs=0.01)  # passes of 12 mm

@@ -8,6 +8,7 @@ with Q from half to twice the profile's and the carrier anywhere in the profile'
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 
@@ -19,6 +20,7 @@ from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy import signal
+from sources import Constant
 from test_devices import ASOUNDRC  # the ALSA file-PCM capture, one definition
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
@@ -214,26 +216,6 @@ def test_audio_device_capture_through_alsa_stays_within_the_limit(tmp_path, carr
     assert worst_plate_um_pp(played, OVERDRIVE, carrier_hz) <= TOLERANCE * 2.0
 
 
-class Constant:
-    """A bare envelope source asking a steady amplitude (µm p-p); ramps to rest when asked."""
-
-    def __init__(self, amplitude_um_pp):
-        self.amplitude = amplitude_um_pp
-        self.stopping = False
-
-    def pull(self, n, now_s):
-        if self.stopping:
-            self.amplitude = max(0.0, self.amplitude - 0.05 * n)
-        return np.full(n, self.amplitude)
-
-    def request_stop(self):
-        self.stopping = True
-
-    @property
-    def finished(self):
-        return self.stopping and self.amplitude == 0.0
-
-
 class RecordingSimulator(PlateSimulator):
     """The simulated plate, keeping a copy of every setpoint it receives (decoded here, from its bytes)."""
 
@@ -286,14 +268,14 @@ def test_every_device_wraps_a_bare_source_in_the_limiter(tmp_path):
     plate = PtyPlate(profile).start()
     try:
         driver = SerialPlate(plate.path, profile)
-        driver.start(Constant(10.0))  # asks more than full scale
+        driver.start(Constant(10.0, ramp_um_pp=0.05))  # asks more than full scale
         assert wait_for(lambda: abs(plate.simulator.amplitude_um_pp - 6.0) < 0.01)
         driver.stop()
         assert plate.simulator.peak_um_pp <= 6.0 + 1e-6
     finally:
         plate.stop()
     recorder = WavRecorder(tmp_path / "bare.wav", profile)
-    source = Constant(10.0)
+    source = Constant(10.0, ramp_um_pp=0.05)
     recorder.start(source)
     assert wait_for(lambda: recorder.blocks > 40)
     recorder.stop()
@@ -303,7 +285,7 @@ def test_every_device_wraps_a_bare_source_in_the_limiter(tmp_path):
 
 def test_a_stage_for_another_device_is_refused():
     profile = load_profile("sim-plate")
-    stage = OutputStage(Constant(1.0), profile, "audio", RATE, 25000.0)
+    stage = OutputStage(Constant(1.0, ramp_um_pp=0.05), profile, "audio", RATE, 25000.0)
     assert output_stage(stage, profile, "audio", RATE, 25000.0) is stage
     with pytest.raises(DeviceError, match="the device needs control at 12000 Hz"):
         output_stage(stage, profile, "control", CONTROL)
@@ -454,3 +436,42 @@ def test_a_slower_control_stream_is_the_mean_of_the_limited_samples_never_above_
     assert steady.pull(200, None)[-10:] == pytest.approx(3.0)
     with pytest.raises(DeviceError, match="whole fraction"):
         OutputStage(Recorded(values), profile, "control", 5000)
+
+
+PLATE = PlateProfile("p", 25000.0, 200.0, 8.0, 2.0)  # full scale 8 µm, limit 2 µm, no overdrive
+
+
+def _limiter() -> DriveLimiter:
+    return DriveLimiter(PLATE, control_rate_hz=12000)
+
+
+def test_a_sample_counts_as_limited_only_when_lowered_by_more_than_a_thousandth_of_the_limit():
+    limiter = _limiter()
+    out = limiter.process(np.array([2.0015, 2.0025, 1.9]))  # lowered by 0.075 %, 0.125 % and not at all
+    np.testing.assert_array_equal(out, [2.0, 2.0, 1.9])
+    assert limiter.limited_samples == 1
+    assert limiter.worst_excess_um_pp == pytest.approx(0.0025, abs=1e-12)
+
+
+def test_counts_and_the_worst_excess_add_up_over_blocks():
+    limiter = _limiter()
+    assert limiter.limited_fraction == 0.0  # nothing seen yet
+    limiter.process(np.array([1.0, 5.0, 1.0, 1.0]))  # one limited, by 3 µm
+    limiter.process(np.array([3.0, 3.0, 1.0, 0.5]))  # two more, by 1 µm: the worst stays 3
+    assert (limiter.samples, limiter.limited_samples) == (8, 3)
+    assert limiter.limited_fraction == pytest.approx(3 / 8)
+    assert limiter.worst_excess_um_pp == pytest.approx(3.0)
+    limiter.process(np.zeros(8))
+    assert limiter.limited_fraction == pytest.approx(3 / 16)
+
+
+def test_status_and_summary_say_what_the_limiter_did():
+    limiter = _limiter()
+    assert "never" in limiter.summary() and re.findall(r"[0-9.]+", limiter.summary()) == ["2"]
+    limiter.process(np.array([1.0, 4.0, 8.0]))
+    assert limiter.status() == {"limited_fraction": pytest.approx(0.666667, abs=1e-9),
+                                "worst_excess_um_pp": pytest.approx(6.0), "limit_um_pp": 2.0,
+                                "max_drive_um_pp": 2.0}
+    # the sentence gives the figures computed by hand: 2 of 3 samples lowered, the worst by 8 - 2 µm, the limits
+    said = [float(number) for number in re.findall(r"[0-9]+(?:\.[0-9]+)?", limiter.summary())]
+    assert said == pytest.approx([100 * 2 / 3, 6.0, 2.0, 2.0], abs=0.05)

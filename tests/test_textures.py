@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import run_cli
+from conftest import ROOT, run_cli
 from PIL import Image
 from ultraglide.textures import procedural
 from ultraglide.textures.errors import TextureError
@@ -433,3 +433,20 @@ def test_the_bundled_wood_tiles_without_a_smear_or_a_kink():
     steps = np.abs(np.diff(values, axis=1)).mean(axis=0)
     assert (steps / median_filter(steps, size=21, mode="wrap")).max() < 1.6  # no column stands out
     assert "cross-fade" not in wood.description and wood.authoring.get("seamless") is None
+
+
+def _documented_library() -> list[str]:
+    table = (ROOT / "docs" / "textures.md").read_text(encoding="utf-8")
+    return re.findall(r"^\|[^|]*\| `([^`]+)` \|", table, flags=re.MULTILINE)
+
+
+def test_every_documented_texture_is_bundled_and_listed_by_the_command():
+    documented = _documented_library()
+    assert len(documented) >= 20  # the page's table was read (29 textures when this was written)
+    bundled = [entry.name for entry in library_entries()]
+    assert len(documented) == len(set(documented)) and set(documented) == set(bundled)
+    listed = run_cli("textures", check=True).stdout
+    missing = [name for name in documented if not re.search(rf"(^|\s){re.escape(name)}(\s|$)", listed, re.M)]
+    assert not missing, f"`ultraglide textures` does not list {missing}"
+    for name in documented:  # each thumbnail the page shows exists
+        assert (ROOT / "docs" / "textures" / f"{name}.png").is_file(), name

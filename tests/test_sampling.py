@@ -1,7 +1,4 @@
-"""Texture sampling, pinned where scripts/mutation.sh found the quick tests silent: a thin strip (a 1-D
-grating a few pixels tall) is band-limited like any other texture, down to a pyramid level 2 pixels tall;
-a step between two whole pyramid levels blends them in proportion, along x and along y, with pixels that
-are not square, by every query path; the pyramid's level shapes are the halves rounded."""
+"""The sampling's tests."""
 
 from __future__ import annotations
 
@@ -331,3 +328,33 @@ def test_a_height_map_with_a_step_or_a_direction_per_sample_reads_its_slopes_als
     out = np.full(x.shape, np.nan, dtype=np.float32)
     assert sampler.ratio(x, y, None, direction, out=out) is out
     np.testing.assert_allclose(out, expected, atol=2e-6)
+
+
+def _lookup_gain(step_px: float, per_sample: bool = False) -> float:
+    """How much of a 16-pixel sine grating's swing the band-limited lookup keeps at this step,
+    against the plain bilinear lookup at the same points (projection on the grating's frequency)."""
+    texture = procedural.grating(2.0, size_mm=(64.0, 40.0), px_per_mm=8.0, ratio_range=(0.0, 1.0))
+    pixel_mm = texture.pixel_mm[0]
+    assert pixel_mm == pytest.approx(0.125)
+    x = 0.37 * pixel_mm + np.arange(4000) * step_px * pixel_mm
+    y = np.full_like(x, 20.0)
+    step_mm = np.full_like(x, step_px * pixel_mm) if per_sample else step_px * pixel_mm
+    limited = Sampler(texture).ratio(x, y, step_mm=step_mm)
+    plain = Sampler(texture, band_limited=False).ratio(x, y)
+    tone = np.exp(-2j * np.pi * x / 2.0)
+    return abs(np.mean((limited - limited.mean()) * tone)) / abs(np.mean((plain - plain.mean()) * tone))
+
+
+@pytest.mark.parametrize("per_sample", [False, True], ids=["one-step", "step-per-sample"])
+@pytest.mark.parametrize("step_px", [0.25, 1.0])
+def test_band_limited_lookup_reads_full_resolution_while_the_step_is_a_pixel_or_less(step_px, per_sample):
+    assert _lookup_gain(step_px, per_sample) == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("per_sample", [False, True], ids=["one-step", "step-per-sample"])
+def test_band_limited_lookup_reads_the_level_the_step_asks_for(per_sample):
+    # a step of two pixels reads pyramid level 1: a Gaussian of sigma 1 pixel keeps exp(-2 pi^2 / 16^2)
+    # of a 16-pixel period, the 2:1 linear decimation cos(pi / 16), and linear interpolation between
+    # level-1 pixels (8 a period) sinc^2(1/8) on average. One level coarser keeps about 0.5.
+    expected = np.exp(-2 * np.pi ** 2 / 16 ** 2) * np.cos(np.pi / 16) * np.sinc(1 / 8) ** 2
+    assert _lookup_gain(2.0, per_sample) == pytest.approx(expected, abs=0.03)

@@ -1,4 +1,4 @@
-"""The host tells the truth about its plate (issue 22), on real ptys and real processes: a lost, cut or
+"""The serial plate driver against the simulated plate's truth, on real ptys and real processes: a lost, cut or
 faulted plate makes a run exit non-zero and say what happened and when; every way out rests the plate;
 the port is the host's alone; the link's byte budget and the device's own limits bind; the plate's jitter
 buffer holds its depth after a wake and after a host stall."""
@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, serve_plate, start_cli, wait_for
 from scripted_plate import ScriptedPlate
+from sources import Constant
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile, load_profile
@@ -26,26 +27,6 @@ from ultraglide.render.engine.realtime import threads_started_in_real_time
 
 PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p
 DEADLINE_S = 60.0
-
-
-class Constant:
-    """A steady drive (µm p-p) that ramps to rest when asked."""
-
-    def __init__(self, amplitude_um_pp):
-        self.amplitude = amplitude_um_pp
-        self.stopping = False
-
-    def pull(self, n, now_s):
-        if self.stopping:
-            self.amplitude = max(0.0, self.amplitude - 0.01 * n)
-        return np.full(n, self.amplitude)
-
-    def request_stop(self):
-        self.stopping = True
-
-    @property
-    def finished(self):
-        return self.stopping and self.amplitude == 0.0
 
 
 class Timed(Constant):

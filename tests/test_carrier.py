@@ -1,7 +1,4 @@
-"""The carrier, pinned where scripts/mutation.sh looks: which rates carry which carriers (up to 0.4 of the
-rate, exactly), how long the exact period is (fs / gcd(f, fs), up to 2^20 samples, else a phase
-accumulator), that both modes start at phase 0 and continue seamlessly over blocks and spans of any size,
-and the one-line refusals."""
+"""The carrier's tests."""
 
 from __future__ import annotations
 
