@@ -327,7 +327,7 @@ def test_export_into_pipes(tmp_path):
 
 # ---- temporary files that killed processes left ----------------------------------------------------------------
 def leftover(directory: Path, pid: int, host: str | None = None, age_s: float = 0.0) -> Path:
-    from ultraglide.atomic import _HOST
+    from ultraglide.atomic.leftovers import _HOST
 
     path = directory / f".out.{MARK}-{pid}-{host or _HOST}-abcd_123.wav"
     path.write_bytes(b"half")
