@@ -52,15 +52,20 @@ def has_metadata(path: Path) -> bool:
 def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Texture:
     """A texture from a file path or a library name.
 
-    A texture file loads as it is; any other image is authored on the fly with ``options``
-    (the defaults of ``ultraglide author`` unless given), with a warning saying so. A path that exists
-    but is not a regular file (a directory, a named pipe, a device) is refused in one line, unless a
-    library texture has that name."""
+    A texture file loads as it is; a glTF scene (``.gltf``, ``.glb``) gives its first haptic material's
+    friction map (:func:`ultraglide.textures.formats.gltf.load_friction_texture`); any other image is
+    authored on the fly with ``options`` (the defaults of ``ultraglide author`` unless given), with a
+    warning saying so. A path that exists but is not a regular file (a directory, a named pipe, a device)
+    is refused in one line, unless a library texture has that name."""
     spec = os.fspath(spec)
     path = Path(spec)
     bundled = LIBRARY_DIR / f"{spec}.png"
     library_name = "/" not in spec and bundled.is_file()
     if os.path.lexists(path) and (path.is_file() or not library_name):
+        if path.suffix.lower() in (".gltf", ".glb"):
+            from ultraglide.textures.formats.gltf import load_friction_texture
+
+            return load_friction_texture(path)  # its first haptic material with a friction texture
         if has_metadata(path):
             return load_texture(path)
         check_image(path)

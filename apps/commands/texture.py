@@ -1,4 +1,5 @@
-"""``ultraglide textures`` and ``ultraglide texture`` (new, compose, show, info; effects in its own module)."""
+"""``ultraglide textures`` and ``ultraglide texture`` (new, compose, show, info; effects, import and export-gltf in
+modules of their own)."""
 
 from __future__ import annotations
 
@@ -110,9 +111,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         sub.set_defaults(run=new)
     _add_compose(texture_commands)
     _add_show_and_info(texture_commands)
-    from ultraglide.apps.commands import texture_effects
+    from ultraglide.apps.commands import texture_effects, texture_formats
 
     texture_effects.add_parser(texture_commands)
+    texture_formats.add_parser(texture_commands)
 
 
 COMPOSE_SIZES = ("Sizes are reconciled on a common grid: the result covers the first input's area (or --size-mm) "
@@ -204,7 +206,8 @@ def _add_show_and_info(texture_commands) -> None:
                                               description="Print what a texture is: size, pixels, kind, what lies "
                                                           "beyond its edges, friction statistics, seams, how it "
                                                           "was made.")
-    info_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
+    info_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, a library name, or a glTF "
+                                                                "scene (.gltf, .glb: its haptic materials)")
     info_parser.add_argument("--json", action="store_true", help="print one JSON object")
     info_parser.set_defaults(run=info)
 
@@ -364,6 +367,10 @@ def info(args) -> int:
 
     from ultraglide.inputs import shown
 
+    if Path(args.texture).suffix.lower() in (".gltf", ".glb"):
+        from ultraglide.apps.commands.texture_formats import scene_info
+
+        return scene_info(args)
     texture = _input(args.texture)
     facts = describe(texture, args.texture)
     if args.json:
