@@ -30,6 +30,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     output_option(demo, "--stats", metavar="FILE.json",
                       help="at exit, write the engine's figures over the run: blocks, late blocks, underruns "
                            "(also as they were at the first touch), block time p50/p99, touches")
+    demo.add_argument("--effects", metavar="EFFECTS",
+                      help="play these temporal effects with the textures given, instead of their own: a .json "
+                           "description (docs/effects.md), or an .ahap, .haptic or .hjif file (docs/formats.md)")
     demo.add_argument("--watch", action="store_true",
                       help="reload a texture given as a file when it (or the image it was authored from) changes, "
                            "checked every 200 ms: edit it in any image editor and feel the change")
@@ -44,12 +47,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args) -> int:
     """Start the demo (pygame and the engine load here, not when the parser is built)."""
+    from ultraglide.apps.cli.errors import UsageError
     from ultraglide.apps.cli.files import model_file, profile_file, refuse_overlaps, texture_file
     from ultraglide.apps.demo.app import run as run_demo
 
+    if args.effects and not args.textures:
+        raise UsageError("--effects plays with the textures given on the command line: name one or more")
     read = {f"texture {number}": texture_file(spec) for number, spec in enumerate(args.textures, 1)}
     refuse_overlaps({"--record": args.record, "--stats": args.stats},
-                    {**read, "--model": model_file(args.model), "--profile": profile_file(args.profile)})
+                    {**read, "--model": model_file(args.model), "--profile": profile_file(args.profile),
+                     "--effects": args.effects})
     return run_demo(args)
 
 

@@ -50,8 +50,9 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
     signal.add_argument("--no-precompensation", action="store_true",
                         help="do not pre-compensate the plate's slow response")
     effects = signal.add_mutually_exclusive_group()
-    effects.add_argument("--effects", metavar="EFFECTS.json",
-                         help="play these temporal effects (a versioned JSON description, see docs/effects.md) "
-                              "instead of those saved with the texture")
+    effects.add_argument("--effects", metavar="EFFECTS",
+                         help="play these temporal effects instead of those saved with the texture: ultraglide's "
+                              "JSON description (docs/effects.md), or a designer's .ahap, .haptic or .hjif "
+                              "(docs/formats.md)")
     effects.add_argument("--no-effects", action="store_true",
                          help="leave out the temporal effects saved with the texture")

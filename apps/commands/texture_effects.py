@@ -24,8 +24,9 @@ def add_parser(texture_commands: argparse._SubParsersAction) -> None:
                     "whole, atomically). Effects are a JSON description (docs/effects.md).")
     parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
     change = parser.add_mutually_exclusive_group()
-    change.add_argument("--set", metavar="EFFECTS.json", help="these effects instead of the texture's own")
-    change.add_argument("--add", metavar="EFFECTS.json", help="these effects after the texture's own")
+    change.add_argument("--set", metavar="EFFECTS", help="these effects instead of the texture's own: a .json "
+                                                         "description, or an .ahap, .haptic or .hjif file")
+    change.add_argument("--add", metavar="EFFECTS", help="these effects after the texture's own (the same files)")
     change.add_argument("--clear", action="store_true", help="no effects")
     output_option(parser, "-o", "--output", metavar="TEXTURE.png", help="the texture with its new effects")
     parser.add_argument("--json", action="store_true", help="print the effects' JSON description (to list them)")

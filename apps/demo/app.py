@@ -81,13 +81,15 @@ class DemoApp:
     def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="stretched",
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
                  record: str | None = None, report_frames: bool = False, watch: bool = False,
-                 closed_loop: bool = False, finger=None):
+                 closed_loop: bool = False, finger=None, effects: str | None = None):
         """``closed_loop``: the friction loop on the plate's force sensors; ``finger``: a FingerConfig for the
-        simulated finger on ``sim`` (render.engine.finger_setup)."""
+        simulated finger on ``sim`` (render.engine.finger_setup); ``effects``: a file of temporal effects the
+        textures given play instead of their own."""
         self.options = DemoOptions(tuple(texture_specs), device_url, profile, model, screen_width_mm, windowed,
                                    tuple(size), record, report_frames, watch)
         self.options.check()
-        textures, self.texture_files = load_textures(texture_specs)  # bad files fail here, before a window opens
+        # bad files fail here, before a window opens
+        textures, self.texture_files = load_textures(texture_specs, effects)
         import pygame
 
         self.pg = pygame
@@ -361,7 +363,7 @@ def run(args) -> int:
 
     app = DemoApp(args.textures, args.device, args.profile, args.model, args.screen_width_mm, args.windowed,
                   record=args.record, report_frames=args.report_frames, watch=args.watch,
-                  closed_loop=args.closed_loop, finger=finger_config(args))
+                  closed_loop=args.closed_loop, finger=finger_config(args), effects=args.effects)
     try:
         app.run()
     finally:

@@ -56,23 +56,28 @@ def seconds_since_launch() -> float:
 _LOADED_S = time.perf_counter()
 
 
-def load_textures(specs) -> tuple[list, dict[int, tuple[Path, object]]]:
+def load_textures(specs, effects: str | None = None) -> tuple[list, dict[int, tuple[Path, object]]]:
     """The textures named on the command line, then the bundled library's; and for those given as files, their
     index → (file, texture), which ``--watch`` follows. Bad files fail here, before a window opens. The
     library's files are read directly (textures.library would import scipy for authoring, which the first
-    frame does not need)."""
+    frame does not need). ``effects``: a file of temporal effects (.json, .ahap, .haptic, .hjif) the textures
+    named play instead of their own."""
     from importlib.resources import files
 
     from ultraglide.textures.fileformat import load_texture
 
     textures, from_files = [], {}
     if specs:
+        from ultraglide.textures.effects import load_effects
         from ultraglide.textures.library import resolve_texture
+
+        bindings = load_effects(effects) if effects else None  # what it cannot render is said, not silenced
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # plain images are authored with defaults, as documented
             for spec in specs:
-                textures.append(resolve_texture(str(spec)))
+                texture = resolve_texture(str(spec))
+                textures.append(texture if bindings is None else texture.with_(effects=bindings))
                 if Path(spec).is_file():
                     from_files[len(textures) - 1] = (Path(spec), textures[-1])
     library = Path(str(files("ultraglide.textures") / "library"))

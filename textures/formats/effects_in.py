@@ -1,0 +1,59 @@
+"""Designers' effect files as ultraglide temporal effects: AHAP (``.ahap``), Meta (``.haptic``), MPEG (``.hjif``).
+
+:func:`load_designer_effects` reads one (a regular file, at most a few MB, JSON of bounded depth), turns it into a
+:class:`~ultraglide.textures.formats.timeline.Timeline` and from that into bindings; what cannot be rendered on a
+friction display is said in a warning per kind of loss, each naming the file.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from ultraglide.textures.errors import TextureError
+
+from ultraglide.inputs import parse_json, read_input
+
+SUFFIXES = {".ahap": "AHAP file", ".haptic": "Meta .haptic file", ".hjif": "MPEG-I haptics file"}
+
+
+def load_designer_effects(path, full_depth: float = 1.0) -> tuple:
+    """Bindings (played from when the finger lands) from an ``.ahap``, ``.haptic`` or ``.hjif`` file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file; its suffix says its format.
+    full_depth : float
+        The friction drop an intensity (amplitude) of 1 gives, 0..1.
+
+    Returns
+    -------
+    tuple of Binding
+        Empty when nothing in the file renders (each loss is warned).
+
+    Raises
+    ------
+    TextureError
+        One line: an unknown suffix, not JSON, a field missing or out of range, more events than effects hold.
+
+    Example
+    -------
+    >>> bindings = load_designer_effects("tap.ahap")          # doctest: +SKIP
+    """
+    from ultraglide.textures.formats import ahap, hjif
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise TextureError(f"{path}: effects are read from .json (ultraglide's), .ahap, .haptic or .hjif files")
+    what = SUFFIXES[suffix]
+    document = parse_json(read_input(path, what, TextureError), str(path), TextureError, what=what)
+    reader = {".ahap": ahap.read_ahap, ".haptic": ahap.read_meta_haptic, ".hjif": hjif.read_hjif}[suffix]
+    timeline = reader(document, str(path), full_depth)
+    for note in timeline.notes:
+        warnings.warn(f"{path}: {note}", stacklevel=2)
+    bindings = timeline.bindings(path.stem)
+    if not bindings:
+        warnings.warn(f"{path}: nothing in it renders on a friction display; no effects", stacklevel=2)
+    return bindings
