@@ -47,11 +47,45 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     output_option(export, "--envelope-csv", metavar="FILE.csv",
                         help="also write target friction, amplitudes and position at the control rate")
     output_option(export, "--plot", metavar="FILE.png", help="also draw friction, amplitude and position")
+    output_option(export, "--hjif", metavar="OUT.hjif",
+                  help="also write the stroke as an MPEG-I haptics file (ISO/IEC 23090-31): a Friction perception "
+                       "whose curve is the friction ratio over time, 1 ms a keyframe (docs/formats.md)")
+    export.add_argument("--hjif-drive", action="store_true",
+                        help="with --hjif: add a Vibrotactile perception, the drive's amplitude envelope")
     add_figure_width_option(export)
     export.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     export.add_argument("--threads", type=THREADS, metavar="N",
                         help="threads that put the envelope on the carrier, 1 to 256 (default: one per CPU available)")
     export.set_defaults(run=run)
+
+
+class HjifRecorder:
+    """Keeps the friction ratio under the finger (1, the plate at rest, while it is lifted) and the drive the
+    output stage sent, at the control rate, for ``--hjif``. Observes the renderer's blocks, then the stage's."""
+
+    def __init__(self):
+        self.ratio: list[np.ndarray] = []
+        self.drive: list[np.ndarray] = []
+        self._block: ControlBlock | None = None
+
+    def __call__(self, block: ControlBlock) -> None:
+        import numpy as np
+
+        self._block = block
+        self.ratio.append(np.where(block.down, block.ratio, 1.0).astype(np.float32))
+
+    def sent(self, drive_um_pp: np.ndarray) -> None:
+        import numpy as np
+
+        self.drive.append(np.asarray(drive_um_pp, dtype=np.float32).copy())
+
+    def document(self, rate_hz: float, description: str, with_drive: bool) -> dict:
+        import numpy as np
+        from ultraglide.textures.formats.hjif import hjif_document
+
+        ratio = np.clip(np.concatenate(self.ratio), 0.0, 1.0) if self.ratio else np.ones(1)
+        drive = np.concatenate(self.drive) if with_drive and self.drive else None
+        return hjif_document(ratio, rate_hz, description, drive)
 
 
 class EnvelopeLog:
@@ -154,8 +188,12 @@ def run(args) -> int:
         if output.suffix.lower() != ".wav":
             raise UsageError(f"the output must be a .wav file, got {output}")
         threads = available_cpus() if args.threads is None else int(args.threads)
-        refuse_overlaps({"-o": output, "--envelope-csv": args.envelope_csv, "--plot": args.plot},
-                        render_inputs(args))
+        refuse_overlaps({"-o": output, "--envelope-csv": args.envelope_csv, "--plot": args.plot,
+                         "--hjif": args.hjif}, render_inputs(args))
+        if args.hjif and Path(args.hjif).suffix.lower() != ".hjif":
+            raise UsageError(f"--hjif writes an .hjif file, got {args.hjif}")
+        if args.hjif_drive and not args.hjif:
+            raise UsageError("--hjif-drive adds to the --hjif file: give --hjif OUT.hjif too")
         if not args.plot:
             refuse_ignored(args, {"figure_width": "column"}, "{option} lays out --plot's figure: add --plot, or "
                                                              "leave it out")
@@ -173,6 +211,11 @@ def run(args) -> int:
         wav_path = stack.enter_context(atomic_path(output))
         csv_path = stack.enter_context(atomic_path(Path(args.envelope_csv))) if args.envelope_csv else None
         plot_path = stack.enter_context(atomic_path(Path(args.plot))) if args.plot else None
+        hjif_path = stack.enter_context(atomic_path(Path(args.hjif))) if args.hjif else None
+        if hjif_path:
+            recorder = HjifRecorder()
+            renderer.observers.append(recorder)
+            stage.observers.append(recorder.sent)
         csv_stream = stack.enter_context(open(csv_path, "w", newline="")) if csv_path else None
         if csv_stream:
             log = EnvelopeLog(csv_stream, control_total, keep_plot=False, path=args.envelope_csv)
@@ -195,6 +238,13 @@ def run(args) -> int:
                 raise OSError(error.errno, error.strerror, str(args.envelope_csv)) from None
         if args.plot:
             plot.write(renderer, plot_path, width=args.figure_width)
+        if hjif_path:
+            import json
+
+            what = f"{renderer.texture.name or 'texture'}, {duration_s:.3f} s stroke rendered by ultraglide export"
+            document = recorder.document(renderer.settings.control_rate_hz, what, args.hjif_drive)
+            with open(hjif_path, "w", encoding="utf-8") as stream:
+                json.dump(document, stream, separators=(",", ":"))
     counters = renderer.counters
     warning = clipping_warning(renderer, args.model, trajectory)
     if warning:
@@ -206,13 +256,14 @@ def run(args) -> int:
                           "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
                           "effects_started": 0 if renderer.effects is None else renderer.effects.started,
                           **limiter_fields(stage),
-                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot) if extra]})
+                          "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot, args.hjif)
+                                          if extra]})
         return 0
     started = 0 if renderer.effects is None else renderer.effects.started
     played = "" if renderer.effects is None else f", {started} effect{'s' if started != 1 else ''} played"
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
           f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps{played}; {stage.limiter.summary()}")
-    for extra in (args.envelope_csv, args.plot):
+    for extra in (args.envelope_csv, args.plot, args.hjif):
         if extra:
             print(f"wrote {extra}")
     return 0

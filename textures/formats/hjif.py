@@ -45,14 +45,14 @@ MAX_KEYFRAMES = 4_000_000  # an hour at one per millisecond
 
 
 def _keyframes(values: np.ndarray, rate_hz: float) -> tuple[list[dict], int]:
-    """Keyframes of ``values`` (sampled at ``rate_hz``) resampled to one per tick, linear between samples."""
-    duration_s = len(values) / rate_hz
-    ticks = max(2, int(round(duration_s * TIMESCALE)) + 1)
+    """Keyframes of ``values`` (sample k at k / ``rate_hz`` s) resampled to one per tick, linear between samples."""
+    duration_s = (len(values) - 1) / rate_hz
+    ticks = max(2, int(duration_s * TIMESCALE) + 1)
     if ticks > MAX_KEYFRAMES:
         raise TextureError(f"a stroke of {duration_s:g} s is more than the {MAX_KEYFRAMES // TIMESCALE} s an .hjif "
                            "file of ours holds")
     times = np.arange(ticks) / TIMESCALE
-    sampled = np.interp(times, (np.arange(len(values)) + 0.5) / rate_hz, values)
+    sampled = np.interp(times, np.arange(len(values)) / rate_hz, values)
     return [{"relative_position": int(k), "amplitude_modulation": round(float(v), 6)}
             for k, v in enumerate(sampled)], ticks
 
@@ -78,7 +78,7 @@ def hjif_document(ratio: np.ndarray, rate_hz: float, description: str, drive: np
     Parameters
     ----------
     ratio : numpy.ndarray
-        The friction ratio (0..1) at each control sample.
+        The friction ratio (0..1) at each control sample (sample k at k / ``rate_hz`` s).
     rate_hz : float
         The samples' rate, Hz.
     description : str
