@@ -117,3 +117,13 @@ def test_sharpness_maps_into_what_a_plate_renders():
 
     assert sharpness_hz(0.0) == 50.0 and sharpness_hz(1.0) == 300.0 <= RENDERABLE_MAX_HZ
     assert pulse_length_s(0.0) == 0.020 and math.isclose(pulse_length_s(1.0), 0.005)
+
+
+def test_demo_takes_effects_for_the_textures_given_and_refuses_a_bad_file_before_its_window(tap, tmp_path):
+    refused = run_cli("demo", "--effects", tap)
+    assert "--effects" in assert_one_line_error(refused)
+    texture, bad = tmp_path / "g.png", tmp_path / "bad.ahap"
+    run_cli("texture", "new", "grating", "--size-mm", "20x20", "-o", texture, check=True)
+    bad.write_text('{"Pattern": [{"Event": {"Time": -1, "EventType": "HapticTransient"}}]}')
+    result = run_cli("demo", texture, "--effects", bad, "--windowed", env={"DISPLAY": "", "SDL_VIDEODRIVER": "dummy"})
+    assert "bad.ahap" in assert_one_line_error(result)
