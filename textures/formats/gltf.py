@@ -20,7 +20,8 @@ a regular file (never a device, a pipe or a folder), or be a ``data:`` URI; noth
 
 Writing (:func:`write_gltf`): a quad at the texture's physical size in the XY plane (metres, facing +Z), its
 haptic material's ``friction`` texture the map as a 16-bit grayscale PNG (with ultraglide's metadata chunk, so
-it reads back exactly) and a colour preview as the base colour of its PBR material, for any viewer.
+it reads back exactly) and a colour preview (at most 1024 pixels a side) as the base colour of its PBR material,
+for any viewer.
 """
 
 from __future__ import annotations
@@ -67,6 +68,7 @@ MAX_FILE_BYTES = 1 << 30  # a GLB or a buffer file: a 16k × 16k 16-bit map is 5
 MAX_JSON_BYTES = 16 << 20  # a scene's JSON: every array of a real scene fits many times over
 MAX_ITEMS = 100_000  # entries of any top-level array (nodes, meshes, accessors ...)
 MAX_VERTICES = 10_000_000  # elements of an accessor read for the size
+PREVIEW_SIDE = 1024  # pixels along the base colour preview's longer side, at most
 FLAT_TOLERANCE = 0.01  # a UV mapping is flat when every vertex lies within 1 % of the scene's extent of the fit
 COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -663,7 +665,12 @@ def gltf_document(texture: Texture, mapping: TexelMapping | None = None) -> tupl
     info = PngImagePlugin.PngInfo()
     info.add_itxt(CHUNK, json.dumps(metadata_of(texture), ensure_ascii=False))
     friction_png = _png(Image.fromarray(quantise(mapping.texel(texture.values))), info)
-    preview_png = _png(Image.fromarray(preview_rgb(texture.ratio_map()), "RGB"))
+    preview = Image.fromarray(preview_rgb(texture.ratio_map()), "RGB")
+    if max(preview.size) > PREVIEW_SIDE:  # a picture for viewers: its detail is the friction texture's
+        scale = PREVIEW_SIDE / max(preview.size)
+        preview = preview.resize((max(1, round(preview.width * scale)), max(1, round(preview.height * scale))),
+                                 Image.Resampling.BOX)
+    preview_png = _png(preview)
     parts = [positions.tobytes(), normals.tobytes(), coords.tobytes(), indices.tobytes(), friction_png,
              preview_png]
     views, blob = [], bytearray()

@@ -1,0 +1,160 @@
+"""Haptic formats (issue 40): a 4096 × 4096 friction texture read from a GLB, beside Pillow decoding the same
+16-bit PNG alone (aim: at most 1.5×), and the glTF round trip's largest difference in 16-bit codes.
+
+Run: .venv/bin/python bench/bench_formats.py [--runs 5] [--size 4096] [--reference BIN_DIR]
+
+The texture is ridges (1.5 mm and 7 mm sines) under seeded Gaussian roughness, 4096 × 4096 over
+204.8 × 204.8 mm (20 px/mm, the finest a texture is held at). Timed, each the best of RUNS in this process after
+one warm-up:
+
+* **Pillow alone**: ``Image.open(png).load()``, the PNG that ``texture export-gltf`` embeds as the friction
+  texture (16-bit grayscale, ultraglide's metadata chunk), read from a file;
+* **GLB import**: :func:`ultraglide.textures.formats.gltf.load_friction_texture` on the GLB: read and check the
+  file, find the material, size it from the quad's UV mapping, decode the PNG, hold it as float32 ratios (a
+  texture is held in at most 16 M pixels, so a 16.8 M-pixel map is box-filtered to 4000 × 4000: included);
+* **load_texture(png)**: ultraglide's own texture file, for comparison.
+
+With ``--reference BIN_DIR`` (the folder holding the MPEG reference software's ``Synthesizer``, ``Encoder`` and
+``Decoder``, built from MPEGGroup/HapticReferenceSoftware outside this repository), the MPEG-I round trip: an AHAP
+pattern (a transient, then two continuous events under an intensity curve) played as effects on a texture of ratio
+1 everywhere, ``export --hjif`` beside ``--envelope-csv``; the reference ``Synthesizer`` turns the .hjif into a WAV;
+its samples are compared with our render's friction ratio at the same times (Pearson correlation of the envelopes,
+aim >= 0.99, and the largest difference). The .hjif also goes through the reference ``Encoder`` (to .hmpg, binary)
+and ``Decoder`` (back to .hjif), and that decoded file is synthesized and compared the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+
+def best(function, runs: int) -> float:
+    function()
+    times = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - started)
+    return min(times)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--size", type=int, default=4096)
+    parser.add_argument("--reference", type=Path, help="folder of the MPEG reference software's executables")
+    parser.add_argument("--skip-speed", action="store_true", help="only the MPEG-I round trip")
+    args = parser.parse_args()
+    if args.reference:
+        reference(args.reference)
+    if args.skip_speed:
+        return 0
+    from ultraglide.textures.fileformat import load_texture, save_texture
+    from ultraglide.textures.formats.gltf import load_friction_texture, write_gltf
+    from ultraglide.textures.texture import Texture
+
+    side_mm = args.size / 20.0
+    rng = np.random.default_rng(1)
+    x = np.arange(args.size) / 20.0
+    ridges = 0.5 + 0.25 * np.sin(2 * np.pi * x / 1.5)[None, :] + 0.15 * np.sin(2 * np.pi * x / 7.0)[:, None]
+    values = np.clip(ridges + 0.05 * rng.standard_normal((args.size, args.size)), 0, 1).astype(np.float32)
+    texture = Texture(values, side_mm, side_mm, name="bench")
+    with tempfile.TemporaryDirectory() as folder:
+        png, glb = Path(folder) / "t.png", Path(folder) / "t.glb"
+        save_texture(texture, png)
+        write_gltf(texture, glb)
+
+        def pillow():
+            with Image.open(png) as image:
+                image.load()
+
+        pillow_s = best(pillow, args.runs)
+        glb_s = best(lambda: load_friction_texture(glb), args.runs)
+        own_s = best(lambda: load_texture(png), args.runs)
+        read = load_friction_texture(glb)
+        held = load_texture(png)
+        codes = int(np.max(np.abs(np.round(read.values * 65535).astype(int) - np.round(held.values * 65535)
+                                  .astype(int))))
+        print(f"{args.size} × {args.size} friction map, PNG {png.stat().st_size / 1e6:.1f} MB, GLB "
+              f"{glb.stat().st_size / 1e6:.1f} MB; best of {args.runs}")
+        print(f"  Pillow decoding the PNG alone   {pillow_s * 1e3:7.0f} ms")
+        print(f"  GLB import (load_friction_texture) {glb_s * 1e3:4.0f} ms  = {glb_s / pillow_s:.2f} × Pillow "
+              f"(aim <= 1.5 ×: {'met' if glb_s <= 1.5 * pillow_s else 'MISSED'})")
+        print(f"  load_texture(PNG), for comparison {own_s * 1e3:4.0f} ms  = {own_s / pillow_s:.2f} × Pillow")
+        print(f"  round trip texture -> GLB -> texture: largest difference {codes} code(s) of 65535, "
+              f"held at {read.cols} × {read.rows}")
+    return 0
+
+
+PATTERN = {"Version": 1.0, "Pattern": [
+    {"Event": {"Time": 0.05, "EventType": "HapticTransient", "EventParameters": [
+        {"ParameterID": "HapticIntensity", "ParameterValue": 0.8},
+        {"ParameterID": "HapticSharpness", "ParameterValue": 0.0}]}},
+    {"Event": {"Time": 0.15, "EventType": "HapticContinuous", "EventDuration": 0.4, "EventParameters": [
+        {"ParameterID": "HapticIntensity", "ParameterValue": 0.6},
+        {"ParameterID": "HapticSharpness", "ParameterValue": 0.0},
+        {"ParameterID": "AttackTime", "ParameterValue": 0.1}, {"ParameterID": "ReleaseTime", "ParameterValue": 0.1}]}},
+    {"Event": {"Time": 0.6, "EventType": "HapticContinuous", "EventDuration": 0.3, "EventParameters": [
+        {"ParameterID": "HapticIntensity", "ParameterValue": 0.4},
+        {"ParameterID": "HapticSharpness", "ParameterValue": 0.4}]}},
+    {"ParameterCurve": {"ParameterID": "HapticIntensityControl", "Time": 0.6, "ParameterCurveControlPoints": [
+        {"Time": 0.0, "ParameterValue": 1.0}, {"Time": 0.3, "ParameterValue": 0.3}]}},
+]}
+
+
+def _run(*command) -> None:
+    result = subprocess.run([str(part) for part in command], capture_output=True, text=True, timeout=600)
+    if result.returncode != 0:
+        raise SystemExit(f"{' '.join(map(str, command))} failed ({result.returncode}): {result.stderr.strip()}")
+
+
+def _compare(name: str, wav: Path, t_s: np.ndarray, ratio: np.ndarray) -> None:
+    import soundfile
+
+    samples, rate = soundfile.read(wav, always_2d=True)
+    synthesized = samples[:, 0]
+    times = np.arange(len(synthesized)) / rate
+    inside = times <= t_s[-1]
+    ours = np.interp(times[inside], t_s, ratio)
+    theirs = synthesized[inside]
+    correlation = float(np.corrcoef(ours, theirs)[0, 1])
+    print(f"  {name}: {len(synthesized)} samples at {rate} Hz; envelope correlation {correlation:.5f} "
+          f"(aim >= 0.99: {'met' if correlation >= 0.99 else 'MISSED'}), largest difference "
+          f"{np.max(np.abs(ours - theirs)):.4f} (friction ratio)")
+
+
+def reference(binaries: Path) -> None:
+    from ultraglide.textures.fileformat import save_texture
+    from ultraglide.textures.texture import Texture
+
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        save_texture(Texture(np.ones((10, 10), np.float32), 100.0, 100.0, name="flat"), folder / "flat.png")
+        (folder / "pattern.ahap").write_text(json.dumps(PATTERN))
+        hjif, csv = folder / "s.hjif", folder / "s.csv"
+        _run(sys.executable, "-m", "ultraglide", "export", folder / "flat.png", "--effects", folder / "pattern.ahap",
+             "-o", folder / "s.wav", "--duration-s", "1.0", "--speed-mm-s", "50", "--hjif", hjif, "--envelope-csv",
+             csv)
+        envelope = np.loadtxt(csv, delimiter=",", skiprows=1)
+        t_s, ratio = envelope[:, 0], np.where(envelope[:, 3] > 0, envelope[:, 4], 1.0)
+        print(f"MPEG-I round trip: AHAP -> effects -> export --hjif ({hjif.stat().st_size / 1e3:.0f} kB) -> the "
+              "reference software")
+        _run(binaries / "Synthesizer", "-f", hjif, "-o", folder / "ref.wav", "-fs", "8000")
+        _compare("Synthesizer on our .hjif", folder / "ref.wav", t_s, ratio)
+        _run(binaries / "Encoder", "-f", hjif, "-o", folder / "s.hmpg", "--binary")
+        _run(binaries / "Decoder", "-f", folder / "s.hmpg", "-o", folder / "decoded.hjif")
+        _run(binaries / "Synthesizer", "-f", folder / "decoded.hjif", "-o", folder / "decoded.wav", "-fs", "8000")
+        _compare("Encoder (.hmpg) -> Decoder -> Synthesizer", folder / "decoded.wav", t_s, ratio)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
