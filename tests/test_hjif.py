@@ -8,7 +8,8 @@ import pytest
 from conftest import assert_one_line_error, run_cli
 
 # what the reference software's .hjif reader (MPEGGroup/HapticReferenceSoftware, IOJson::loadFile and its
-# loaders) refuses a file without, and the type each must have
+# loaders) refuses a file without, and the type each must have; and its semantic checks (avatar 0 reserved, the
+# profiles, the levels, the Main profile's largest timescale)
 REQUIRED = {
     "file": {"version": str, "profile": str, "level": int, "date": str, "description": str, "timescale": int,
              "perceptions": list, "avatars": list, "syncs": list},
@@ -35,9 +36,12 @@ def check_structure(document: dict) -> None:
     for avatar in document["avatars"]:
         check("avatar", avatar)
     avatar_ids = {avatar["id"] for avatar in document["avatars"]}
+    assert 0 not in avatar_ids  # reserved for an unspecified avatar
+    assert len(avatar_ids) == len(document["avatars"]) and document["profile"] in {"Main", "Simple Parametric"}
+    assert document["level"] in {1, 2} and 0 < document["timescale"] <= 48_000
     for perception in document["perceptions"]:
         check("perception", perception)
-        assert perception["perception_modality"] in MODALITIES and perception["avatar_id"] in avatar_ids
+        assert perception["perception_modality"] in MODALITIES and perception["avatar_id"] in avatar_ids | {0}
         for channel in perception["channels"]:
             check("channel", channel)
             for band in channel["bands"]:

@@ -39,6 +39,7 @@ from ultraglide.textures.formats.timeline import (
 )
 
 TIMESCALE = 1000  # ticks per second
+AVATAR_ID = 1  # the standard keeps 0 for an unspecified avatar
 VERSION = "2023"
 RENDERED_MODALITIES = ("Friction", "Vibrotactile", "Vibration", "Vibrotactile Texture", "Texture", "Other")
 MAX_KEYFRAMES = 4_000_000  # an hour at one per millisecond
@@ -60,7 +61,7 @@ def _keyframes(values: np.ndarray, rate_hz: float) -> tuple[list[dict], int]:
 def _perception(number_: int, modality: str, description: str, values: np.ndarray, rate_hz: float) -> dict:
     keyframes, _ = _keyframes(values, rate_hz)
     return {
-        "id": number_, "avatar_id": 0, "description": description, "perception_modality": modality,
+        "id": number_, "avatar_id": AVATAR_ID, "description": description, "perception_modality": modality,
         "reference_devices": [], "effect_library": [],
         "channels": [{
             "id": 0, "description": description, "gain": 1.0, "mixing_coefficient": 1.0, "body_part_mask": 0,
@@ -121,7 +122,7 @@ def hjif_document(ratio: np.ndarray, rate_hz: float, description: str, drive: np
     return {
         "version": VERSION, "profile": "Main", "level": 1, "date": (date or datetime.date.today()).isoformat(),
         "description": description, "timescale": TIMESCALE,
-        "avatars": [{"id": 0, "lod": 0, "type": "Custom"}],
+        "avatars": [{"id": AVATAR_ID, "lod": 0, "type": "Custom"}],
         "perceptions": perceptions, "syncs": [],
     }
 
