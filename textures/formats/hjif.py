@@ -39,7 +39,7 @@ from ultraglide.textures.formats.timeline import (
 )
 
 TIMESCALE = 1000  # ticks per second
-AVATAR_ID = 1  # the standard keeps 0 for an unspecified avatar
+AVATAR_ID = 0  # unspecified: the file names no body model (the reference encoder's own choice for AHAP input)
 VERSION = "2023"
 RENDERED_MODALITIES = ("Friction", "Vibrotactile", "Vibration", "Vibrotactile Texture", "Texture", "Other")
 MAX_KEYFRAMES = 4_000_000  # an hour at one per millisecond
@@ -122,7 +122,7 @@ def hjif_document(ratio: np.ndarray, rate_hz: float, description: str, drive: np
     return {
         "version": VERSION, "profile": "Main", "level": 1, "date": (date or datetime.date.today()).isoformat(),
         "description": description, "timescale": TIMESCALE,
-        "avatars": [{"id": AVATAR_ID, "lod": 0, "type": "Custom"}],
+        "avatars": [],
         "perceptions": perceptions, "syncs": [],
     }
 
