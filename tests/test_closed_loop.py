@@ -220,7 +220,8 @@ def test_plate_sim_takes_a_finger_from_a_csv_and_logs_its_truth(tmp_path):
         assert serving["event"] == "serving" and "table:" in serving["finger"]
         drain = threading.Thread(target=process.communicate, daemon=True)  # plate-sim's events never fill a pipe
         drain.start()
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.5", "--json")
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--duration-s", "1.5", "--json")
         # a machine loaded far past two CPU hogs can starve plate-sim (a normal process) until the host's write
         # times out: play then says the plate was lost (exit 4); what the finger logged until then still counts
         assert result.returncode == 0 or (result.returncode == 4 and "lost" in result.stderr), result.stderr
@@ -264,7 +265,8 @@ def test_a_slower_serial_stream_lines_targets_up_with_the_plates_values(tmp_path
         assert json.loads(process.stdout.readline())["event"] == "serving"
         drain = threading.Thread(target=process.communicate, daemon=True)
         drain.start()
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}?rate=1000", "--closed-loop",
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}?rate=1000", "--profile", "sim-plate",
+                         "--closed-loop",
                          "--speed-mm-s", "50", "--duration-s", "2.5", "--envelope-csv", envelope,
                          "--sensors-csv", sensors, "--json")
         assert result.returncode == 0 or (result.returncode == 4 and "lost" in result.stderr), result.stderr

@@ -202,7 +202,8 @@ def test_play_on_serial_against_plate_sim_end_to_end(tmp_path):
     try:
         banner = server.stdout.readline()
         assert str(link) in banner and "/dev/pts/" in banner
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0", "--json")
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--duration-s", "1.0", "--json")
         status = json.loads(result.stdout)
         assert status["setpoints_sent"] >= 12000 and status["disconnects"] == 0 and status["ramps"] == 2
         faults = status["faults"]
@@ -316,6 +317,7 @@ def test_play_on_the_audio_device_from_the_command_line(tmp_path):
     listing = json.loads(run_cli("devices", "--json", env=env, check=True).stdout)
     assert any(96000 in output["rates_hz"] for output in listing["audio"])
     status = json.loads(run_cli("play", "grating-1mm", "--device", "audio?latency=0.02&blocksize=256",
+                                "--profile", "sim-plate",
                                 "--duration-s", "0.3", "--json", env=env, check=True).stdout)
     assert status["rate_hz"] == 96000 and status["errors"] == []
     played = np.frombuffer(capture.read_bytes(), dtype="<f4")
@@ -325,7 +327,8 @@ def test_play_on_the_audio_device_from_the_command_line(tmp_path):
 
 def test_audio_refuses_a_rate_that_cannot_carry_the_carrier(tmp_path):
     (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "c.raw"))
-    result = run_cli("play", "grating-1mm", "--device", "audio?rate=48000", "--duration-s", "0.2",
+    result = run_cli("play", "grating-1mm", "--device", "audio?rate=48000", "--profile", "sim-plate",
+                     "--duration-s", "0.2",
                      env={"HOME": str(tmp_path)})
     assert "cannot carry" in assert_one_line_error(result)
 

@@ -226,7 +226,8 @@ def test_latency_on_the_audio_device_reports_portaudios_output_latency(tmp_path)
     from test_devices import ASOUNDRC
 
     (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "capture.raw"))
-    figures = json.loads(run_cli("latency", "--device", "audio?latency=0.02&blocksize=256", "--steps", "5", "--json",
+    figures = json.loads(run_cli("latency", "--device", "audio?latency=0.02&blocksize=256", "--profile", "sim-plate",
+                                 "--steps", "5", "--json",
                                  env={"HOME": str(tmp_path)}, check=True).stdout)
     # PortAudio's output latency for a 20 ms request is about 20 ms (ALSA rounds to its periods)
     assert 10 < figures["device_ms"]["p50"] < 60

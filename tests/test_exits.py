@@ -258,7 +258,8 @@ def tap():
 
 @pytest.mark.parametrize("signum", STOP_SIGNALS)
 def test_a_signalled_play_on_serial_rests_the_plate(tmp_path, tap, signum):
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s", "60")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+                      "--duration-s", "60")
     try:
         wait_until(lambda: tap.plate.simulator.peak_um_pp > 0.5, "the plate to be driven")
         sent = command.signal(signum, repeat=3)  # and a second and third signal during the clean-up
@@ -269,7 +270,8 @@ def test_a_signalled_play_on_serial_rests_the_plate(tmp_path, tap, signum):
 
 
 def test_play_on_serial_rests_the_plate_at_its_normal_end(tmp_path, tap):
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s", "0.5")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+                      "--duration-s", "0.5")
     try:
         assert command.wait() == 0, command.stderr
     finally:
@@ -294,12 +296,13 @@ def test_play_on_serial_rests_the_plate_when_the_command_fails(tap, monkeypatch)
 
     monkeypatch.setattr(Engine, "touch", failing_touch)
     with pytest.raises(RuntimeError, match="touch panel"):
-        main(["play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s", "30"])
+        main(["play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+              "--duration-s", "30"])
     tap.assert_rested_by_the_host()
 
 
 def test_a_signalled_demo_rests_the_plate(tmp_path, tap):
-    command = Command(tmp_path, "demo", "--device", f"serial:{tap.plate.path}", "--windowed",
+    command = Command(tmp_path, "demo", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate", "--windowed",
                       env={"SDL_VIDEODRIVER": "dummy", "SDL_AUDIODRIVER": "dummy"})
     try:
         # nothing touched: the demo's link enables the output, sends 50 ms of zeros, then rests it (ENABLE 0)

@@ -640,7 +640,7 @@ def test_latency_on_the_board(one_qemu, tmp_path):
     board = ServedBoard(tmp_path / "plate")
     try:
         board.next("boot")
-        result = run_cli("latency", "--device", board.url, "--steps", "20", "--json")
+        result = run_cli("latency", "--device", board.url, "--profile", "sim-plate", "--steps", "20", "--json")
         assert result.returncode == 0, result.stdout + result.stderr
         report = json.loads(result.stdout)
         stream = board.next("stream_started")
@@ -665,7 +665,8 @@ def test_plate_sweep_on_the_board_measures_the_emulated_plate(one_qemu, tmp_path
     board = ServedBoard(tmp_path / "plate", "--resonance-hz", "24800", "--q", "150")  # unlike its profile
     try:
         board.next("boot")
-        result = run_cli("plate", "sweep", "--device", board.url, "--from-hz", "24000", "--to-hz", "26000",
+        result = run_cli("plate", "sweep", "--device", board.url, "--profile", "sim-plate",
+                         "--from-hz", "24000", "--to-hz", "26000",
                          "--steps", "21", "-o", tmp_path / "measured.toml", "--json")
     finally:
         board.stop()
@@ -685,7 +686,8 @@ def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
     board = ServedBoard(tmp_path / "plate")
     try:
         board.next("boot")
-        result = run_cli("plate", "check", "--device", f"serial:{board.serving['path']}", "--json", timeout=600)
+        result = run_cli("plate", "check", "--device", f"serial:{board.serving['path']}", "--profile", "sim-plate",
+                         "--json", timeout=600)
     finally:
         stopped = board.stop()
     report = json.loads(result.stdout)

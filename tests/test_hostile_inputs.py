@@ -419,7 +419,8 @@ def test_an_audio_device_that_is_not_there_is_named_so(tmp_path):
     (with_card / ".asoundrc").write_text(ASOUNDRC.format(path=tmp_path / "capture.raw"))
     (without / ".asoundrc").write_text("pcm.!default { type hw card 99 }\n")
     for home, listed in ((with_card, "outputs: 0 ("), (without, "no audio output")):
-        line = assert_one_line_error(run_cli("play", "grating-1mm", "--device", "audio:99", "--duration-s", "0.2",
+        line = assert_one_line_error(run_cli("play", "grating-1mm", "--device", "audio:99", "--profile", "sim-plate",
+                                             "--duration-s", "0.2",
                                              env={"HOME": str(home)}))
         assert "no such audio output: 99" in line and listed in line and "carrier" not in line, line
 

@@ -81,7 +81,8 @@ def test_a_full_check_names_the_one_rule_broken_in_strict_json_and_never_moves_t
     strict, and the simulated plate's own peak over the whole check stays within 15 % of its 6 µm p-p limit."""
     server, link = serve(tmp_path, "--break", "R-NAK-ORDER")
     try:
-        result = run_cli("plate", "check", "--device", f"serial:{link}", "--json", timeout=240)
+        result = run_cli("plate", "check", "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--json", timeout=240)
     finally:
         assert server.finish(signal.SIGTERM) == 128 + signal.SIGTERM, server.err
     assert result.returncode == 6, result.stdout + result.stderr
@@ -166,7 +167,8 @@ def test_a_port_in_use_is_refused_in_one_line(tmp_path):
     try:
         first = c.Probe(plate.path)
         try:
-            line = assert_one_line_error(run_cli("plate", "check", "--device", f"serial:{plate.path}", timeout=60))
+            line = assert_one_line_error(run_cli("plate", "check", "--device", f"serial:{plate.path}",
+                                                 "--profile", "sim-plate", timeout=60))
         finally:
             first.close()
     finally:
@@ -179,7 +181,8 @@ def test_bad_options_are_one_line():
     assert "--rule R-NOTHING: no such rule" in line and "R-WATCHDOG" in line
     line = assert_one_line_error(run_cli("plate", "check", "--device", "null", timeout=60))
     assert "null speaks no protocol" in line
-    line = assert_one_line_error(run_cli("plate", "check", "--device", "serial:/nonexistent/port", timeout=60))
+    line = assert_one_line_error(run_cli("plate", "check", "--device", "serial:/nonexistent/port",
+                                         "--profile", "sim-plate", timeout=60))
     assert "cannot open serial port /nonexistent/port" in line
 
 
@@ -215,6 +218,7 @@ def test_a_signalled_plate_check_rests_the_plate(tmp_path, signum):
     128 + the signal's number."""
     server, link = serve(tmp_path)
     check = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate", "check", "--device", f"serial:{link}",
+                              "--profile", "sim-plate",
                               "--rule", "R-UNDERRUN", "--rule", "R-WATCHDOG"], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:

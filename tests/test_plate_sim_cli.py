@@ -155,7 +155,8 @@ def test_a_play_keeps_a_plate_sim_with_a_fast_clock_fed(tmp_path):
     server = Server("--link", link, "--json", "--clock-ppm", "4000")
     try:
         assert json.loads(server.wait_line(lambda line: '"serving"' in line))["clock_ppm"] == 4000
-        played = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "4", "--json")
+        played = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--duration-s", "4", "--json")
         assert played.returncode == 0, played.stderr
         report = json.loads(played.stdout)
         assert report["depth_corrections"] >= 1, report
@@ -189,7 +190,8 @@ def test_the_host_refuses_a_v1_device_in_one_line():
     thread = threading.Thread(target=old_firmware, daemon=True)
     thread.start()
     try:
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{name}", "--duration-s", "0.2")
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{name}", "--profile", "sim-plate",
+                         "--duration-s", "0.2")
         line = assert_one_line_error(result)
         assert "speaks protocol v1" in line and "v2" in line and "update the firmware" in line
     finally:

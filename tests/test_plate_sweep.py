@@ -125,7 +125,8 @@ def test_a_sweep_rests_the_plate_and_writes_nothing_when_terminated(tmp_path):
     server = Server("--link", link, "--json")
     try:
         server.wait_line(lambda line: '"serving"' in line)
-        sweep = start_cli("plate", "sweep", "--device", f"serial:{link}", "-o", tmp_path / "p.toml", "--steps", 200,
+        sweep = start_cli("plate", "sweep", "--device", f"serial:{link}", "--profile", "sim-plate",
+                          "-o", tmp_path / "p.toml", "--steps", 200,
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         server.wait_line(lambda line: '"stream_started"' in line)
         server.wait_line(lambda line: '"carrier"' in line)
@@ -151,7 +152,8 @@ def test_a_resonance_outside_the_sweep_is_one_line_and_no_profile(tmp_path):
     server = Server("--link", link, "--resonance-hz", 23700, "--q", 150, "--json")
     try:
         server.wait_line(lambda line: '"serving"' in line)
-        result = _sweep("--device", f"serial:{link}", "--from-hz", 24500, "--to-hz", 27000, "--steps", 11,
+        result = _sweep("--device", f"serial:{link}", "--profile", "sim-plate",
+                        "--from-hz", 24500, "--to-hz", 27000, "--steps", 11,
                         "-o", tmp_path / "p.toml")
         server.wait_line(lambda line: '"disabled"' in line and '"host"' in line)
     finally:
@@ -162,7 +164,7 @@ def test_a_resonance_outside_the_sweep_is_one_line_and_no_profile(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "words"), [
-    (["--device", "audio"], "needs a vibration sensor"),
+    (["--device", "audio", "--profile", "sim-plate"], "needs a vibration sensor"),
     (["--device", "wav:x.wav"], "measures nothing"),
     (["--from-hz", "26000", "--to-hz", "24000"], "must be below"),
     (["--from-hz", "19000"], "outside plate"),
@@ -213,7 +215,8 @@ def test_an_audio_sweep_reads_the_resonance_from_a_sensor_on_an_alsa_input(tmp_p
     sensor_file, played_file = tmp_path / "sensor.raw", tmp_path / "played.raw"
     np.concatenate((sensor, np.zeros(rate))).astype("<f4").tofile(sensor_file)
     (tmp_path / ".asoundrc").write_text(AUDIO_ASOUNDRC.format(played=played_file, sensor=sensor_file))
-    result = run_cli("plate", "sweep", "--device", "audio:out", "--sensor", "audio:sensor", "--from-hz", 23200,
+    result = run_cli("plate", "sweep", "--device", "audio:out", "--profile", "sim-plate",
+                     "--sensor", "audio:sensor", "--from-hz", 23200,
                      "--to-hz", 24200, "--steps", 51, "--sensor-um-per-unit", 2.0, "-o", tmp_path / "p.toml", "--json",
                      env={"HOME": str(tmp_path)})
     assert result.returncode == 0, result.stdout + result.stderr

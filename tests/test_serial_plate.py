@@ -239,6 +239,7 @@ def test_a_second_host_on_the_port_is_refused_in_one_line(tapped):
         with pytest.raises(DeviceError, match=f"serial port {tapped.path} is in use by another program"):
             SerialPlate(tapped.path, PROFILE, ack_timeout_s=10).start(Constant(1.0))
         line = assert_one_line_error(run_cli("play", "grating-1mm", "--device", f"serial:{tapped.path}",
+                                             "--profile", "sim-plate",
                                              "--duration-s", "0.5"))
         assert f"serial port {tapped.path} is in use by another program" in line
         # nothing reached the plate from either: the first host's stream went on undisturbed
@@ -250,6 +251,7 @@ def test_a_second_host_on_the_port_is_refused_in_one_line(tapped):
 
 def test_a_rate_the_link_cannot_carry_is_refused_naming_the_baud_it_needs():
     line = assert_one_line_error(run_cli("play", "grating-1mm", "--device", "serial:/dev/ttyS9?baud=115200",
+                                         "--profile", "sim-plate",
                                          "--duration-s", "0.5"))
     # 12 kHz in 2 ms frames is 33 500 bytes/s: 335 000 baud at ten bits a byte
     assert "115200 baud carries at most 1010 setpoints/s" in line and "not 12000" in line
@@ -336,7 +338,8 @@ def test_play_says_where_the_device_binds_it():
     low = PlateProfile("low-limit", 25000.0, 200.0, 8.0, 3.0)
     tapped = Tapped(low)
     try:
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{tapped.path}", "--duration-s", "0.5")
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{tapped.path}", "--profile", "sim-plate",
+                         "--duration-s", "0.5")
     finally:
         tapped.close()
     assert result.returncode in (0, 3), result.stderr  # (3: a watchdog, on a machine loaded past the engine)
@@ -351,7 +354,8 @@ class Play:
     """``ultraglide play`` in a process of its own, its output collected."""
 
     def __init__(self, path, seconds):
-        self.process = start_cli("play", "grating-1mm", "--device", f"serial:{path}", "--duration-s", seconds,
+        self.process = start_cli("play", "grating-1mm", "--device", f"serial:{path}", "--profile", "sim-plate",
+                                 "--duration-s", seconds,
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
     def finish(self, timeout=120):
@@ -690,7 +694,8 @@ def test_play_on_a_plate_sim_that_speaks_only_v2(tmp_path):
     server = start_cli("plate-sim", "--link", link, "--json", "--max-version", 2, stdout=subprocess.PIPE)
     try:
         assert '"serving"' in server.stdout.readline()
-        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--duration-s", "1.0")
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--duration-s", "1.0")
         server.send_signal(signal.SIGINT)
         events = [json.loads(line) for line in server.communicate(timeout=DEADLINE_S)[0].splitlines()]
     finally:

@@ -149,7 +149,8 @@ def test_play_tracks_a_drifting_plate_from_the_command_line(tmp_path):
     try:
         banner = json.loads(server.wait_line(lambda line: '"serving"' in line))
         saved = tmp_path / "tracked.toml"
-        result = run_cli("play", flat, "--device", f"serial:{link}", "--track-resonance", "--duration-s", 5, "--json",
+        result = run_cli("play", flat, "--device", f"serial:{link}", "--profile", "sim-plate",
+                         "--track-resonance", "--duration-s", 5, "--json",
                          "--save-profile", saved)
         assert result.returncode == 0, result.stderr
         status = json.loads(result.stdout)

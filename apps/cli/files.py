@@ -152,6 +152,8 @@ def texture_file(spec: str | None) -> Path | None:
     """The file a TEXTURE argument reads: the path given, or the bundled library file of that name."""
     if spec is None:
         return None
+    if spec.startswith("rig:"):  # a rig's plate (apps.commands.plate_choice): the rig file is what is read
+        return Path(spec[4:])
     if os.path.lexists(spec):
         return Path(spec)
     from ultraglide.textures.library import LIBRARY_DIR
@@ -170,9 +172,12 @@ def model_file(spec: str | None) -> Path | None:
 
 
 def profile_file(spec: str | None) -> Path | None:
-    """The file a ``--profile`` reads: the path given, or the bundled profile of that name."""
+    """The file a ``--profile`` reads: the path given, or the bundled profile of that name; for ``rig:PATH``, the
+    rig file."""
     if spec is None:
         return None
+    if spec.startswith("rig:"):  # a rig's plate (apps.commands.plate_choice): the rig file is what is read
+        return Path(spec[4:])
     if os.path.lexists(spec):
         return Path(spec)
     from ultraglide.devices.profiles import PROFILE_DIR

@@ -17,6 +17,7 @@ from ultraglide.apps.cli.files import check_outputs
 from ultraglide.apps.cli.output import PrintableStream, one_line
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.signals import StopSignals
+from ultraglide.apps.commands.plate_choice import choose_plate
 
 from ultraglide.atomic import release_checked
 
@@ -40,6 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     streams = sys.stdout, sys.stderr  # text from files reaches the terminal escaped (apps.cli.output)
     sys.stdout, sys.stderr = PrintableStream(sys.stdout), PrintableStream(sys.stderr, keep="\n\t\r")
     try:
+        try:  # which plate: --rig, --profile, or the simulated plate's own; a real output needs one named
+            choose_plate(args)
+        except errors.USER_ERRORS as error:
+            print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
+            return 2
         check_outputs(args)  # what it would write, before any work: not a directory, not a missing folder ...
         status = int(args.run(args) or 0)
     except KeyboardInterrupt as interrupt:

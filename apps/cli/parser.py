@@ -23,6 +23,7 @@ from ultraglide.apps.commands import (
     plate,
     plate_sim,
     play,
+    rig,
     texture,
 )
 
@@ -32,7 +33,7 @@ from ultraglide import __version__
 # checks the names against the parser the modules build)
 NAMES = {"model": model, "calibrate": calibrate, "author": author, "textures": texture, "texture": texture,
          "export": export, "play": play, "latency": latency, "devices": devices, "plate-sim": plate_sim,
-         "firmware": firmware, "plate": plate, "demo": demo, "experiment": experiment}
+         "firmware": firmware, "plate": plate, "rig": rig, "demo": demo, "experiment": experiment}
 COMMANDS = tuple(dict.fromkeys(NAMES.values()))
 
 

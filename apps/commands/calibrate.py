@@ -12,6 +12,7 @@ from ultraglide.apps.cli.options import add_figure_width_option, output_option, 
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import PARTICIPANT, Bounded
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_asked
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.calibration import Fit
@@ -63,8 +64,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     plate.add_argument("--device", metavar="URL",
                        help="measure on this plate driver, which must have normal and lateral force sensors: sim (the "
                             "simulator with a simulated finger) or serial:PORT[?baud=N]")
-    plate.add_argument("--profile", default="sim-plate", metavar="PROFILE",
-                       help="the plate's profile: its limit bounds the amplitudes stepped to (default: sim-plate)")
+    add_plate_options(plate, calibrate, device_default=None,
+                      profile_help="the plate's profile: its limit bounds the amplitudes stepped to")
     plate.add_argument("--forces", type=_forces, default=(0.25, 0.5, 0.9), metavar="N,N,...",
                        help="the presses asked for, in N (default: 0.25,0.5,0.9)")
     plate.add_argument("--passes", type=PASSES, default=2, metavar="N",
@@ -78,7 +79,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     calibrate.set_defaults(run=run)
 
 
-ON_PLATE_DEFAULTS = {"profile": "sim-plate", "forces": (0.25, 0.5, 0.9), "passes": 2, "step_ms": 300.0,
+ON_PLATE_DEFAULTS = {"rig": None, "profile": "sim-plate", "forces": (0.25, 0.5, 0.9), "passes": 2, "step_ms": 300.0,
                      "no_window": False, "windowed": False}  # the options of --device, as add_parser gives them
 
 

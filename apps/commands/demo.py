@@ -7,6 +7,7 @@ import argparse
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.types import SCREEN_WIDTH_MM
 from ultraglide.apps.commands.finger_options import add_finger_options
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -18,8 +19,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                     "switch texture and change the force, M model, space pause, H help, Esc quit.")
     demo.add_argument("textures", nargs="*", metavar="TEXTURE",
                       help="texture files or images to add to the library's (images are authored with defaults)")
-    output_option(demo, "--device", kind="device", default="sim", metavar="URL", help="output device (default: sim)")
-    demo.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    output_option(demo, "--device", kind="device", metavar="URL",
+                  help="output device (default: the rig's device, else sim); audio and serial need --rig or --profile")
+    add_plate_options(demo, demo, device_default="sim")
     demo.add_argument("--model", default="stretched", help="friction model (default: stretched, force-aware)")
     demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")

@@ -25,6 +25,7 @@ from ultraglide.apps.cli.types import (
     label,
 )
 from ultraglide.apps.cli.types import TRIALS as TRIALS_OPTION
+from ultraglide.apps.commands.plate_choice import add_plate_options
 from ultraglide.apps.experiment.log import RESULT, SESSION
 from ultraglide.apps.figures import SESSION_FIGURES, both_formats
 
@@ -83,7 +84,7 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
                         help="bootstrap samples with --interval bootstrap (default: 200)")
     parser.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
-    parser.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    add_plate_options(parser, parser, device_default=None)
     parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
     parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,
                         help="swipe speed of the simulated observer's finger (default: 100)")
@@ -279,14 +280,14 @@ def _prepare_directory(args) -> Path:
 
 
 def _responder(config: SessionConfig, design: StimulusDesign, args):
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
 
     if config.observer:
         from ultraglide.apps.experiment.dryrun import SimResponder
         from ultraglide.apps.experiment.observer import SimObserver
 
         observer = SimObserver.parse(config.observer, config.seed)
-        return SimResponder(observer, design.model, load_profile(config.profile), config.speed_mm_s, config.force_n)
+        return SimResponder(observer, design.model, load_plate(config.profile), config.speed_mm_s, config.force_n)
     from ultraglide.apps.experiment.window import WindowResponder
 
     return WindowResponder(config, design, screen_width_mm=getattr(args, "screen_width_mm", None),
@@ -316,9 +317,9 @@ def run(args) -> int:
 
         SimObserver.parse(config.observer, config.seed)  # a bad spec fails before any file is written
     design = design_for(config)
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
 
-    load_profile(config.profile)
+    load_plate(config.profile)
     responder = _responder(config, design, args)
     directory.mkdir(parents=True, exist_ok=True)
     try:

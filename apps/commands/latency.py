@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import STEPS
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 if TYPE_CHECKING:
     from ultraglide.render.engine import Engine
@@ -52,10 +53,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         description="Step a finger from a sticky to a slippery region many times and report the time from "
                     "each touch entering the real-time engine to the first output sample that reflects it: "
                     "the engine's part and the device's buffering part (end to end on the simulated plate).")
-    output_option(latency, "--device", kind="device", default="sim", metavar="URL",
+    output_option(latency, "--device", kind="device", metavar="URL",
                          help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
     latency.add_argument("--steps", type=STEPS, default=40, help="how many steps to time, 1 to 10000 (default: 40)")
-    latency.add_argument("--profile", default="sim-plate", metavar="PROFILE", help="plate profile (default: sim-plate)")
+    add_plate_options(latency, latency, device_default="sim")
     latency.add_argument("--json", action="store_true", help="print one JSON object")
     latency.set_defaults(run=run)
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import OneLineParser, add_figure_width_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import CARRIER_HZ, SENSITIVITY, SWEEP_STEPS
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 if TYPE_CHECKING:
     from ultraglide.devices.characterisation.resonance import ResonanceFit
@@ -38,16 +39,17 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                     "A(f) = A0 / sqrt(1 + (2Q(f - f0)/f0)^2), refine around the peak, and write a profile with "
                     "the measured resonance, Q and full scale (the limit is kept, never raised). The plate is "
                     "rested (zero, disable) on every way out.")
-    sweep_parser.add_argument("--device", default="sim", metavar="URL",
-                              help="sim or serial:PORT[?baud=N]; audio[:NAME] needs --sensor (default: sim)")
+    sweep_parser.add_argument("--device", metavar="URL",
+                              help="sim or serial:PORT[?baud=N]; audio[:NAME] needs --sensor; audio and serial need "
+                                   "--rig or --profile (default: the rig's device, else sim)")
     sweep_parser.add_argument("--sensor", metavar="audio:NAME",
                               help="for an audio output: the input wired to a vibration sensor (one pass over the "
                                    "grid, 0.1 s a carrier, amplitude by a single-bin DFT)")
     sweep_parser.add_argument("--sensor-um-per-unit", type=SENSITIVITY, metavar="K",
                               help="the sensor's sensitivity: µm p-p of vibration per unit of input amplitude (peak, "
                                    "full scale 1); without it an audio sweep keeps the profile's full scale")
-    sweep_parser.add_argument("--profile", default="sim-plate",
-                              help="the plate's present profile: its range, limit and gain (default: sim-plate)")
+    add_plate_options(sweep_parser, sweep_parser, device_default="sim",
+                      profile_help="the plate's present profile: its range, limit and gain")
     sweep_parser.add_argument("--from-hz", type=CARRIER_HZ, metavar="A",
                               help="lowest carrier, Hz (default: the profile's)")
     sweep_parser.add_argument("--to-hz", type=CARRIER_HZ, metavar="B",
@@ -168,11 +170,11 @@ def run_sweep(args) -> int:
         sweep,
     )
     from ultraglide.devices.errors import DeviceError, describe
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
-    profile = load_profile(args.profile)
+    profile = load_plate(args.profile)
     low = args.from_hz if args.from_hz is not None else profile.carrier_min_hz
     high = args.to_hz if args.to_hz is not None else profile.carrier_max_hz
     if not low < high:

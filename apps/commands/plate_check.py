@@ -13,6 +13,7 @@ import sys
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.signals import held
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 
 def add_check_parser(actions: argparse._SubParsersAction) -> None:
@@ -28,10 +29,10 @@ def add_check_parser(actions: argparse._SubParsersAction) -> None:
                     "asking for more than the limit (the driver's own limiter) happens only at the carrier "
                     "farthest from resonance, where the plate moves less. Exit status 0 when no rule failed, 6 when "
                     "one did, 4 when the device was lost.")
-    check.add_argument("--device", default="sim", metavar="URL",
-                       help="serial:PORT[?baud=N] (a plate driver), or sim: the simulated plate (default: sim)")
-    check.add_argument("--profile", default="sim-plate",
-                       help="the plate's profile: its Q and limit (default: sim-plate)")
+    check.add_argument("--device", metavar="URL",
+                       help="serial:PORT[?baud=N] (a plate driver; needs --rig or --profile), or sim: the simulated "
+                            "plate (default: the rig's device, else sim)")
+    add_plate_options(check, check, device_default="sim", profile_help="the plate's profile: its Q and limit")
     check.add_argument("--over-limit", action="store_true",
                        help="also check over-limit and the trip, which need the plate driven at its limit (on a "
                             "plate that can take 1 %% over its limit for a moment)")
@@ -56,11 +57,11 @@ def _rules(names: list[str]) -> tuple[str, ...]:
 
 def run_check(args) -> int:
     from ultraglide.devices.conformance.check import check_device
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import parse_device_url
 
     only = _rules(args.rules)
-    profile = load_profile(args.profile)
+    profile = load_plate(args.profile)
     device = parse_device_url(args.device)
     if device.kind not in ("sim", "serial"):
         raise UsageError(f"{device.kind} speaks no protocol: check a plate driver (sim or serial:PORT[?baud=N])")

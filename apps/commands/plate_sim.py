@@ -20,7 +20,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                                           "connect with --device serial:PATH. Prints one line per event "
                                           "(connected, enabled, carrier, stream started/stopped, fault, "
                                           "watchdog, disabled, disconnected) with its time. Runs until stopped.")
-    sim.add_argument("--profile", default="sim-plate", help="plate profile (default: sim-plate)")
+    sim.add_argument("--profile", default="sim-plate",
+                     help="the simulated plate's profile, or rig:RIG.toml for a rig's plate (default: sim-plate)")
     output_option(sim, "--link", kind="link", metavar="PATH", help="serve at this path (default: a new temporary one)")
     sim.add_argument("--resonance-hz", type=CARRIER_HZ, metavar="F",
                      help="the simulated plate's real resonance, Hz (default: the profile's)")
@@ -79,13 +80,13 @@ def run(args) -> int:
             raise UsageError("--break, --max-version, --clock-ppm and --finger are the simulator's (--board sim), "
                              "not the board image's (it keeps QEMU's clock)")
         return _plate_sim_qemu(args)
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.sim.plate import PlateTruth
     from ultraglide.devices.sim.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
-    profile = load_profile(args.profile)
+    profile = load_plate(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s,
                        clock_ppm=args.clock_ppm)
     config = finger_config(args)
@@ -157,9 +158,9 @@ def _plate_sim_qemu(args) -> int:
     from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.firmware.boards import build_images
     from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
 
-    profile = load_profile(args.profile)
+    profile = load_plate(args.profile)
     truth = EmulatedPlate.of(profile, args.resonance_hz, args.q, args.drift_hz_per_s)
     image = build_images("netduinoplus2", ["qemu"])[0]
     plate = QemuPlate(image.elf_path, args.link, plate=truth)

@@ -34,10 +34,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         description="Feed a swipe (as 120 Hz touch reports) or a touch log (at its own times) to the live "
                     "renderer and play it on a device.")
     add_render_options(play)
-    output_option(play, "--device", kind="device", default="sim", metavar="URL",
+    output_option(play, "--device", kind="device", metavar="URL",
                       help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N&latency=S&blocksize=N], "
                            "wav:PATH (a recording; stopped by a signal, it keeps what played, whole) or null "
-                           "(default: sim)")
+                           "(default: the rig's device, else sim); audio and serial need --rig or --profile")
+    play.set_defaults(plate_device_default="sim")
     play.add_argument("--track-resonance", action="store_true",
                       help="follow the plate's drifting resonance from its telemetry (a small dither of the "
                            "carrier, stepping toward more amplitude per unit drive); plate drivers only")
@@ -134,6 +135,7 @@ def engine_config(args) -> EngineConfig:
 def run(args) -> int:
     from ultraglide.apps.cli.files import refuse_overlaps, render_inputs
     from ultraglide.apps.commands.output_report import force_words, share_words
+    from ultraglide.apps.commands.plate_choice import plate_words
     from ultraglide.apps.commands.render_setup import load_inputs
     from ultraglide.devices.serial.run_report import RunReport
     from ultraglide.devices.urls import parse_device_url
@@ -179,6 +181,7 @@ def run(args) -> int:
         if not args.json:
             for note in (engine.ready_info.get("device_status") or {}).get("notes") or []:
                 print(note, flush=True)  # where the device's own limits bind, said once before playing
+            print(plate_words(inputs.profile, args.profile), flush=True)  # which plate, chosen by whom
         started = time.perf_counter()
         replayed = replay(engine.touch, itertools.chain(first, chunks), started)
         engine.touch(time.perf_counter(), float(replayed.last[0]), float(replayed.last[1]), down=False)

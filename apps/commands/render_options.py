@@ -16,6 +16,7 @@ from ultraglide.apps.cli.types import (
     SPEED_MM_S,
     point_mm,
 )
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 # a swipe's options (which a --trajectory does not take) and their defaults, as add_render_options gives them
 SWIPE_DEFAULTS = {"path": "straight", "speed_mm_s": 100.0, "direction_deg": 0.0, "start": None, "duration_s": 5.0,
@@ -41,8 +42,7 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
     signal.add_argument("--model", default="stretched", metavar="MODEL",
                         help=f"{MODEL_HELP} (default: stretched, force-aware: its force law is the paper's "
                              "detachment law W_c ∝ F^(1/3), assumed)")
-    signal.add_argument("--profile", default="sim-plate", metavar="PROFILE",
-                        help="plate profile: a bundled name or a TOML file (default: sim-plate)")
+    add_plate_options(signal, parser, device_default=None)
     signal.add_argument("--carrier-hz", type=CARRIER_HZ, help="carrier frequency (default: the plate's resonance)")
     signal.add_argument("--rate", type=AUDIO_RATE_HZ, default=96000, help="audio sample rate, Hz (default: 96000)")
     signal.add_argument("--lookahead-ms", type=LOOKAHEAD_MS, default=0.0,

@@ -86,11 +86,11 @@ class DemoLink:
     def start(cls, config: LinkConfig, launched=None) -> DemoLink:
         """Start the engine, or take the one ``launched`` for ``config`` (bad specs and devices raise here, one
         line), and wait until it renders."""
-        from ultraglide.devices.profiles import load_profile
+        from ultraglide.devices.rig import load_plate
 
         launched = launched if launched is not None else cls.launch(config)
         try:
-            profile = load_profile(config.profile)
+            profile = load_plate(config.profile)
         except BaseException:
             launched.abandon()
             raise

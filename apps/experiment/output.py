@@ -52,7 +52,7 @@ class EngineOutput:
 
 class LocalOutput:
     def __init__(self, device: str, profile: str, model: str, force_n: float):
-        from ultraglide.devices.profiles import load_profile
+        from ultraglide.devices.rig import load_plate
         from ultraglide.devices.urls import open_device
         from ultraglide.render.engine.realtime import threads_started_in_real_time
         from ultraglide.render.engine.sources import renderer_source
@@ -60,7 +60,7 @@ class LocalOutput:
         from ultraglide.render.renderer import Renderer, RenderSettings
         from ultraglide.textures.procedural import grating
 
-        plate = load_profile(profile)
+        plate = load_plate(profile)
         friction = load_model(model)
         with threads_started_in_real_time():  # the device's threads (a simulated plate's, the stream's, on which
             self.device = open_device(device, plate)  # the renderer runs); this thread (the session's) stays ordinary

@@ -197,10 +197,10 @@ def versions() -> dict:
 
 
 def metadata(config: SessionConfig, design: StimulusDesign, status: str, started_utc: str, extra: dict) -> dict:
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.render.physics.calibration import load_model
 
-    profile = load_profile(config.profile)
+    profile = load_plate(config.profile)
     model = load_model(config.model)
     calibration = None
     if config.model.endswith(".toml"):

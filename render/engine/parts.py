@@ -11,7 +11,7 @@ def load_parts(config):
     for bad ones."""
     import warnings
 
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.physics.calibration import load_model
 
@@ -19,7 +19,7 @@ def load_parts(config):
         warnings.simplefilter("ignore")
         texture = texture_of(config.texture)
     model = load_model(config.model)
-    profile = load_profile(config.profile)
+    profile = load_plate(config.profile)
     kind = parse_device_url(config.device).kind
     finger = None
     if config.finger is not None or (config.closed_loop and kind == "sim"):

@@ -1,0 +1,104 @@
+"""Which plate a command drives: ``--profile``, ``--rig``, or the simulated plate's own, by one rule.
+
+Every command that takes a device (``play``, ``demo``, ``experiment``, ``calibrate``, ``latency``,
+``plate sweep``, ``plate check``; ``export`` renders a file and takes them too) adds its options with
+:func:`add_plate_options`, and ``ultraglide``'s main calls :func:`choose_plate` before the command runs:
+
+- ``--rig RIG.toml`` names the plate (its profile with the drive chain's full scale and the smallest limit,
+  :mod:`ultraglide.devices.rig`), and the device when ``--device`` is not given (``--device`` overrides the
+  rig's device, not its plate: ``--rig RIG.toml --device wav:dry.wav`` records what the rig's plate would play).
+  ``--rig`` and ``--profile`` are mutually exclusive: the rig names its plate itself.
+- ``--profile PROFILE`` names the plate.
+- Neither: a real output (``audio``, ``serial:``) is refused in one line, exit 2, saying what to give; the
+  simulated plate (``sim``), a recording (``wav:``), ``null`` and a command's simulated default keep the
+  built-in ``sim-plate`` profile. A plate driver on a serial port still binds its own limit when it is smaller
+  than the profile's (its handshake reports it).
+
+The plate then travels as a spec string (``args.profile``): a profile's name or file, or ``rig:PATH``, which
+:func:`ultraglide.devices.rig.load_plate` turns into the rig's plate wherever it is loaded (the engine's own
+process too).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from ultraglide.apps.cli.errors import UsageError
+
+REAL_OUTPUTS = ("audio", "serial")  # outputs that move a real plate: refused without a plate named
+PROFILE_DEFAULT_WORDS = "without --rig: sim-plate, for the simulated plate, wav: and null only"
+
+
+def add_plate_options(container, parser: argparse.ArgumentParser, device_default: str | None = "sim",
+                      profile_help: str = "the plate's profile: a bundled name or a TOML file") -> None:
+    """``--profile`` and ``--rig`` (one or the other) on ``container`` (a parser or an argument group of
+    ``parser``); ``device_default``: the command's device when neither ``--device`` nor the rig names one (None:
+    the command chooses, e.g. an experiment's null or sim)."""
+    either = container.add_mutually_exclusive_group()
+    either.add_argument("--profile", metavar="PROFILE", help=f"{profile_help} ({PROFILE_DEFAULT_WORDS}; "
+                                                             "needed for audio and serial outputs)")
+    either.add_argument("--rig", metavar="RIG.toml",
+                        help="a rig file: the plate, its drive chain and limits, the output device (unless --device), "
+                             "the touch panel and display (see examples/rig.toml, `ultraglide rig check`)")
+    parser.set_defaults(plate_device_default=device_default)
+
+
+def choose_plate(args) -> None:
+    """Settle ``args.profile`` (a plate spec) and ``args.device`` by the rule in the module docstring; keeps the
+    loaded rig as ``args.loaded_rig`` (None without one) for the touch panel and display.
+
+    Raises
+    ------
+    UsageError
+        A real output and no plate named (the caller exits 2).
+    RigError
+        The rig file is unusable (one line).
+    """
+    if not hasattr(args, "rig"):
+        return
+    from ultraglide.devices.rig import RIG_PREFIX, load_rig
+
+    rig = load_rig(args.rig) if args.rig else None
+    args.loaded_rig = rig
+    if getattr(args, "device", None) is None:
+        args.device = rig.device if rig is not None and rig.device else args.plate_device_default
+    if rig is not None:
+        args.profile = RIG_PREFIX + args.rig
+        if getattr(args, "screen_width_mm", None) is None and rig.display_width_mm is not None \
+                and hasattr(args, "screen_width_mm"):
+            args.screen_width_mm = rig.display_width_mm
+        return
+    if args.profile is not None:
+        return
+    kind = _kind(args.device)
+    if kind in REAL_OUTPUTS:
+        raise UsageError(f"--device {args.device} drives a real plate and nothing names it: give --rig RIG.toml "
+                         "(see examples/rig.toml) or --profile PROFILE (e.g. from `ultraglide plate sweep`); the "
+                         "built-in sim-plate is for sim, wav: and null only")
+    from ultraglide.devices.profiles import DEFAULT_PROFILE
+
+    args.profile = DEFAULT_PROFILE
+
+
+def plate_words(profile, spec: str) -> str:
+    """The plate a command drives and where it came from, in one line, e.g. ``plate: bench-1's plate (rig
+    examples/rig.toml): resonance 26400 Hz; a sample of 1.0 is 10 µm p-p; limit 5 µm p-p``."""
+    from ultraglide.devices.rig import RIG_PREFIX
+
+    source = f"rig {spec[len(RIG_PREFIX):]}" if spec.startswith(RIG_PREFIX) else f"profile {spec}"
+    return (f"plate: {profile.shown_name} ({source}): resonance {profile.resonance_hz:g} Hz; a sample of 1.0 is "
+            f"{profile.full_scale_um_pp:g} µm p-p; limit {profile.max_amplitude_um_pp:g} µm p-p")
+
+
+def _kind(device: str | None) -> str | None:
+    """The device URL's kind, or None (no device, or one the command's own check will refuse)."""
+    if device is None:
+        return None
+    from ultraglide.devices.errors import DeviceError
+    from ultraglide.devices.urls import parse_device_url
+
+    try:
+        return parse_device_url(device).kind
+    except DeviceError:
+        kind = device.partition("?")[0].partition(":")[0]  # still a real output, if it names one
+        return kind if kind in REAL_OUTPUTS else None
