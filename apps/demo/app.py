@@ -81,10 +81,12 @@ class DemoApp:
     def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="stretched",
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
                  record: str | None = None, report_frames: bool = False, watch: bool = False,
-                 closed_loop: bool = False, finger=None, effects: str | None = None):
+                 closed_loop: bool = False, finger=None, effects: str | None = None, touch_panel=None):
         """``closed_loop``: the friction loop on the plate's force sensors; ``finger``: a FingerConfig for the
         simulated finger on ``sim`` (render.engine.finger_setup); ``effects``: a file of temporal effects the
-        textures given play instead of their own."""
+        textures given play instead of their own; ``touch_panel``: the rig's
+        :class:`~ultraglide.devices.rig.TouchPanel` (None: the panel covers the window, the first finger drives,
+        pressure 1.0 is 2 N)."""
         self.options = DemoOptions(tuple(texture_specs), device_url, profile, model, screen_width_mm, windowed,
                                    tuple(size), record, report_frames, watch)
         self.options.check()
@@ -123,7 +125,7 @@ class DemoApp:
         if texture_specs:  # the user's own textures: the first is on screen at once, ready to feel and record
             self.scenes.show("texture", 0)
         self.driver = FingerDriver(self)
-        self.input = Input(self, self.driver)
+        self.input = Input(self, self.driver, touch_panel)
         self.painter.make_thumbnails()
         try:  # last, so that nothing above can leave a recording behind
             self.recorder = TouchRecorder(record) if record else None
@@ -363,7 +365,8 @@ def run(args) -> int:
 
     app = DemoApp(args.textures, args.device, args.profile, args.model, args.screen_width_mm, args.windowed,
                   record=args.record, report_frames=args.report_frames, watch=args.watch,
-                  closed_loop=args.closed_loop, finger=finger_config(args), effects=args.effects)
+                  closed_loop=args.closed_loop, finger=finger_config(args), effects=args.effects,
+                  touch_panel=args.loaded_rig.touch if getattr(args, "loaded_rig", None) is not None else None)
     try:
         app.run()
     finally:

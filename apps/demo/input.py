@@ -1,9 +1,13 @@
 """The demo's input: keys, toolbar presses and gallery taps become actions; touches and the held mouse button
 become the finger that drives the plate.
 
-The first finger down drives the plate; other fingers are drawn but ignored; a held mouse button counts as a
-finger, and SDL's mouse events synthesised from touches are ignored so nothing counts twice. Touch pressure
-sets the force where the panel reports it, the arrow keys otherwise.
+Touches reach the demo as SDL finger events, each at normalised panel coordinates (0..1 across the panel). The
+rig's touch panel (:class:`ultraglide.devices.rig.TouchPanel`, ``--rig``) maps them onto the display: turned,
+flipped and placed on its active area in mm, then to pixels; without a rig the panel covers the window. Which
+finger drives the plate when two are down is the panel's ``drives``: the first down (the default), the latest
+down, or none (the plate rests until one lifts); the others are drawn. A held mouse button counts as a finger,
+and SDL's mouse events synthesised from touches are ignored so nothing counts twice. Touch pressure × the
+panel's pressure full scale sets the force where the panel reports a pressure, the arrow keys otherwise.
 """
 
 from __future__ import annotations
@@ -12,6 +16,9 @@ import collections
 import time
 
 from ultraglide.apps.demo.options import FORCE_RANGE_N, PRESSURE_FULL_SCALE_N
+from ultraglide.devices.rig import TouchPanel
+
+DEFAULT_PANEL = TouchPanel(pressure_full_scale_n=PRESSURE_FULL_SCALE_N)  # the whole window, first finger drives
 
 MOUSE = -1  # the driving "finger" when it is the mouse
 
@@ -19,10 +26,11 @@ MOUSE = -1  # the driving "finger" when it is the mouse
 class Input:
     """Turns pygame events into the app's actions (``app.act``) and the driving finger's touches (``driver``)."""
 
-    def __init__(self, app, driver: FingerDriver):
+    def __init__(self, app, driver: FingerDriver, panel: TouchPanel | None = None):
         self.app = app
         self.pg = app.pg
         self.driver = driver
+        self.panel = panel or DEFAULT_PANEL
         self.fingers: dict[int, tuple[float, float]] = {}  # every finger down, px
         self.driving: int | None = None  # the finger (or MOUSE) that drives the plate
         self.keys = {self.pg.K_ESCAPE: "quit", self.pg.K_q: "quit", self.pg.K_g: "gallery", self.pg.K_t: "texture",
@@ -43,24 +51,45 @@ class Input:
             elif event.key in self.keys:
                 app.act(self.keys[event.key])
         elif event.type in (pg.FINGERDOWN, pg.FINGERMOTION, pg.FINGERUP):
-            self._finger(event, event.x * w, event.y * h)
+            self._finger(event, *self.panel_px(event.x, event.y))
         elif event.type in (pg.MOUSEBUTTONDOWN, pg.MOUSEMOTION, pg.MOUSEBUTTONUP):
             if not getattr(event, "touch", False):  # SDL's copy of a touch: the finger events already count it
                 self._mouse(event, *event.pos)
+
+    def panel_px(self, u: float, v: float) -> tuple[float, float]:
+        """A touch at normalised panel coordinates as pixels of the screen, through the panel's mapping."""
+        w, h = self.app.screen.get_size()
+        mm_per_px = self.app.mm_per_px
+        x_mm, y_mm = self.panel.to_mm(u, v, full_area_mm=(w * mm_per_px, h * mm_per_px))
+        return x_mm / mm_per_px, y_mm / mm_per_px
 
     def _finger(self, event, x: float, y: float) -> None:
         pg = self.pg
         self.app.redraw.area()
         pressure = getattr(event, "pressure", None)
+        drives = self.panel.drives
         if event.type == pg.FINGERUP:
             self.fingers.pop(event.finger_id, None)
             if event.finger_id == self.driving:
                 self.driving = None
                 self.driver.drive(x, y, False)
+                if drives == "latest" and self.fingers:  # the newest finger still down takes over
+                    self._start(next(reversed(self.fingers)), *self.fingers[next(reversed(self.fingers))], None)
+            if drives == "none" and len(self.fingers) == 1 and self.driving is None:  # one left: it drives
+                finger, (x_left, y_left) = next(iter(self.fingers.items()))
+                self._start(finger, x_left, y_left, None)
             return
         self.fingers[event.finger_id] = (x, y)
         if event.type == pg.FINGERDOWN:
-            if self.driving is None and not self.press(x, y):
+            if drives == "none" and len(self.fingers) > 1:  # two down: none drives, the plate rests
+                if self.driving is not None and self.driving != MOUSE:
+                    self.driver.drive(*self.fingers.get(self.driving, (x, y)), False)
+                    self.driving = None
+                return
+            takes_over = drives == "latest" and self.driving not in (None, MOUSE)
+            if (self.driving is None or takes_over) and not self.press(x, y):
+                if takes_over:
+                    self.driver.drive(*self.fingers.get(self.driving, (x, y)), False)
                 self._start(event.finger_id, x, y, pressure)
         elif event.finger_id == self.driving:
             self.driver.drive(x, y, True, pressure)
@@ -169,7 +198,10 @@ class FingerDriver:
             self.pressure_seen = True
         if not self.pressure_seen:
             return None  # panels without a sensor report 1.0 (or 0): the arrow keys' force applies
-        return max(FORCE_RANGE_N[0], min(pressure * PRESSURE_FULL_SCALE_N, FORCE_RANGE_N[1]))
+        force = self.app.input.panel.force_n(pressure)
+        if force is None:
+            return None  # the rig's panel has no pressure scale: the arrow keys' force applies
+        return max(FORCE_RANGE_N[0], min(force, FORCE_RANGE_N[1]))
 
     def fade(self, now: float, span_s: float) -> list[tuple[float, float]]:
         """The trace's points of the last ``span_s`` (older ones dropped), px."""

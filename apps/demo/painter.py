@@ -34,8 +34,8 @@ TRACE_S = 1.5  # the driving finger's trace fades over this
 STATUS_MARGIN_PX = 8
 HELP = [
     ("touch / mouse", "drag on a texture to feel it; tap a tile in the gallery to open it"),
-    ("second finger", "shown, but only the first finger drives the plate"),
-    ("pressure", "sets the force where the panel reports it"),
+    ("second finger", "shown; the first finger drives (a rig's [touch] drives: first, latest or none)"),
+    ("pressure", "sets the force where the panel reports it (× the rig's pressure full scale; 2 N without)"),
     ("G  T  W", "gallery, texture, widgets"),
     ("Left  Right", "previous, next texture"),
     ("Up  Down", "force up, down (×1.25) when the panel reports no pressure"),
