@@ -162,6 +162,70 @@ def test_a_v2_device_passes_what_v2_can_show():
     assert report.device.version == 2 and report.exit_status == 0
 
 
+def written_from_v2_alone(plate: PtyPlate) -> PtyPlate:
+    """The simulated plate held to v2 as a driver written from the v2 protocol alone would be: v3's types
+    (SET_LOOP 0x07, SETPOINTS_FORCE 0x08) are not in its table, so its parser meets them as any unknown type
+    (0x42 here, its CRC made anew) and answers NAK 1, where a v3 core held to v2 knows them and answers NAK 4."""
+    from ultraglide.devices import protocol as p
+
+    receive, pending = plate.simulator.receive, bytearray()
+
+    def receive_as_v2(data: bytes) -> list[bytes]:
+        pending.extend(data)
+        *whole, rest = bytes(pending).split(b"\x00")
+        pending[:] = rest
+        out = bytearray()
+        for packet in whole:
+            try:
+                frame = p.decode_frame(packet)
+            except p.ProtocolError:  # not a frame of ours: the core counts it as it comes
+                out += packet + b"\x00"
+                continue
+            kind = 0x42 if frame.kind in p.V3_COMMANDS else frame.kind
+            out += p.encode_frame(kind, frame.seq, frame.payload) if kind != frame.kind else packet + b"\x00"
+        return receive(bytes(out)) if out else []
+
+    plate.simulator.receive = receive_as_v2
+    return plate
+
+
+@pytest.mark.slow
+def test_a_device_written_from_v2_alone_passes_by_its_version():
+    """A v2-only driver answers v3's SET_LOOP and SETPOINTS_FORCE with NAK 1 (unknown type), as v2 asks: judged by
+    its version, R-NAK-ORDER, R-LOOP and R-FORCE pass (they failed, expecting v3's NAK 4)."""
+    plate = written_from_v2_alone(PtyPlate(PROFILE, max_version=2)).start()
+    try:
+        probe = c.Probe(plate.path)
+        try:
+            probe.hello(2)
+            answer = probe.command(0x07, b"\x01")  # what the device itself answers, before the check judges it
+        finally:
+            probe.close()
+        report = c.check_device(plate.path, PROFILE, only=("R-NAK-ORDER", "R-LOOP", "R-FORCE", "R-NAK-NO-EFFECT",
+                                                            "R-VERSION"))
+    finally:
+        plate.stop()
+    assert answer[:2] == ("nak", 1)
+    outcomes = {v.rule: v.outcome for v in report.verdicts}
+    assert outcomes == {"R-NAK-ORDER": c.PASS, "R-LOOP": c.PASS, "R-FORCE": c.PASS, "R-NAK-NO-EFFECT": c.PASS,
+                        "R-VERSION": c.PASS}, [v.line() for v in report.verdicts]
+    seen = {v.rule: v.seen for v in report.verdicts}
+    assert "NAK 1 for SET_LOOP of 2 bytes in a v2 session" in seen["R-NAK-ORDER"]
+    assert "refused with NAK 1" in seen["R-LOOP"] and "refused with NAK 1" in seen["R-FORCE"]
+    assert report.device.version == 2 and report.exit_status == 0
+
+
+def test_a_v3_device_still_owes_nak_4_for_what_it_knows():
+    """The same NAK 1 from a device that speaks v3 is wrong: it knows SET_LOOP (R-NAK-ORDER, R-LOOP fail)."""
+    plate = written_from_v2_alone(PtyPlate(PROFILE, max_version=3)).start()
+    try:
+        report = c.check_device(plate.path, PROFILE, only=("R-NAK-ORDER",))
+    finally:
+        plate.stop()
+    (verdict,) = report.verdicts
+    assert verdict.outcome == c.FAIL and "not NAK 4" in verdict.seen, verdict.line()
+
+
 def test_a_port_in_use_is_refused_in_one_line(tmp_path):
     plate = PtyPlate(PROFILE).start()
     try:

@@ -111,6 +111,19 @@ class Check(LinkRules, StreamRules, DeviceRules):
     def v3(self) -> bool:
         return self.version >= 3
 
+    @property
+    def unsupported_naks(self) -> tuple[int, ...]:
+        """The NAK reasons a device may give v3's SET_LOOP and SETPOINTS_FORCE where it does not do them, judged by
+        the highest version it speaks (its answer to HELLO 3): NAK 4 from a v3 device; from a device whose highest
+        version is v2, NAK 1 as well (v2's table has no such types: unknown) or NAK 4 (a v3 core held to v2)."""
+        if self.device is not None and self.device.version >= 3:
+            return (p.NAK_UNSUPPORTED,)
+        return (p.NAK_UNKNOWN_TYPE, p.NAK_UNSUPPORTED)
+
+    def unsupported_words(self) -> str:
+        """``NAK 4``, or ``NAK 1 or 4`` for a device whose highest version is v2."""
+        return " or ".join(str(reason) for reason in self.unsupported_naks).join(("NAK ", ""))
+
     def need_v3(self) -> None:
         if not self.v3:
             raise Unobservable("needs v3's telemetry (playback, buffer, drive), and this session is v2")

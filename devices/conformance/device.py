@@ -199,10 +199,10 @@ class DeviceRules:
 
         if not (self.v3 and self.device.features & p.FEATURE_FORCE_CORRECTION):
             answer = self.command(p.SETPOINTS_FORCE, frame(0.5, 1.0 / 3.0))
-            if answer is None or answer[:2] != ("nak", p.NAK_UNSUPPORTED):
+            if answer is None or answer[0] != "nak" or answer[1] not in self.unsupported_naks:
                 raise Broken(f"SETPOINTS_FORCE on a device without the force correction (or a v2 session): "
-                             f"{answer_words(answer)}, not NAK 4")
-            return "no force correction: SETPOINTS_FORCE refused with NAK 4"
+                             f"{answer_words(answer)}, not {self.unsupported_words()}")
+            return f"no force correction: SETPOINTS_FORCE refused with NAK {answer[1]}{_v2_words(answer[1])}"
         for force_n, exponent, what in ((0.0, 1.0 / 3.0, "a force of 0 N"), (math.nan, 1.0 / 3.0, "a force NaN"),
                                         (0.5, 2.5, "an exponent of 2.5")):
             answer = self.command(p.SETPOINTS_FORCE, frame(force_n, exponent))
@@ -217,10 +217,10 @@ class DeviceRules:
         has_loop = self.v3 and self.device.features & p.FEATURE_AMPLITUDE_LOOP
         if not has_loop:
             answer = self.command(p.SET_LOOP, p.set_loop_payload(1))
-            if answer is None or answer[:2] != ("nak", p.NAK_UNSUPPORTED):
+            if answer is None or answer[0] != "nak" or answer[1] not in self.unsupported_naks:
                 raise Broken(f"SET_LOOP 1 on a device without the loop (or a v2 session): {answer_words(answer)}, not "
-                             "NAK 4")
-            return "no amplitude loop: SET_LOOP refused with NAK 4"
+                             f"{self.unsupported_words()}")
+            return f"no amplitude loop: SET_LOOP refused with NAK {answer[1]}{_v2_words(answer[1])}"
         self.enable(True)
         while_on = self.command(p.SET_LOOP, p.set_loop_payload(1))
         self.enable(False)
@@ -235,3 +235,8 @@ class DeviceRules:
         if mode != 1:
             raise Broken(f"SET_LOOP 1 acknowledged; telemetry says loop {mode}")
         return "SET_LOOP refused while enabled and for mode 2 (NAK 3); taken while disabled, and telemetry said so"
+
+
+def _v2_words(reason: int) -> str:
+    """What a NAK 1 for a v3 command means: the device's highest version is v2, whose table has no such type."""
+    return " (a device whose highest version is v2: not in its table)" if reason == p.NAK_UNKNOWN_TYPE else ""
