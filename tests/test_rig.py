@@ -249,3 +249,16 @@ def test_touch_panel_mapping_turns_flips_and_places():
     assert TouchPanel(pressure_full_scale_n=4.0).force_n(1.5) == 4.0
     assert TouchPanel().force_n(0.5) is None
     assert math.isclose(TouchPanel(pressure_full_scale_n=2.5).force_n(0.5), 1.25)
+
+
+def test_an_experiment_records_the_rigs_plate_and_resumes_with_it(tmp_path):
+    """The rig's plate reaches a session's log (its resonance and limit), and a resumed session loads it again; the
+    rig's display width is for a participant's window, not refused for a simulated observer."""
+    args = ("experiment", "threshold", "grating-1mm", "--observer", "sim:threshold=0.3,slope=3", "--out",
+            tmp_path / "s", "--rig", EXAMPLE, "--device", "null", "--no-figures")
+    run_cli(*args, "--trials", "3", check=True)
+    session = json.loads((tmp_path / "s" / "session.json").read_text())
+    assert session["profile"] == {"name": f"rig:{EXAMPLE}", "resonance_hz": 26400.0, "q": 180.0,
+                                  "max_amplitude_um_pp": 5.0}
+    run_cli("experiment", "threshold", "--resume", tmp_path / "s", "--trials", "5", "--no-figures", check=True)
+    assert len((tmp_path / "s" / "trials.csv").read_text().splitlines()) == 1 + 5

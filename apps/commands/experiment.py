@@ -288,9 +288,10 @@ def _responder(config: SessionConfig, design: StimulusDesign, args):
 
         observer = SimObserver.parse(config.observer, config.seed)
         return SimResponder(observer, design.model, load_plate(config.profile), config.speed_mm_s, config.force_n)
+    from ultraglide.apps.commands.plate_choice import display_width_mm
     from ultraglide.apps.experiment.window import WindowResponder
 
-    return WindowResponder(config, design, screen_width_mm=getattr(args, "screen_width_mm", None),
+    return WindowResponder(config, design, screen_width_mm=display_width_mm(args),
                            windowed=getattr(args, "windowed", False))
 
 

@@ -64,9 +64,6 @@ def choose_plate(args) -> None:
         args.device = rig.device if rig is not None and rig.device else args.plate_device_default
     if rig is not None:
         args.profile = RIG_PREFIX + args.rig
-        if getattr(args, "screen_width_mm", None) is None and rig.display_width_mm is not None \
-                and hasattr(args, "screen_width_mm"):
-            args.screen_width_mm = rig.display_width_mm
         return
     if args.profile is not None:
         return
@@ -78,6 +75,13 @@ def choose_plate(args) -> None:
     from ultraglide.devices.profiles import DEFAULT_PROFILE
 
     args.profile = DEFAULT_PROFILE
+
+
+def display_width_mm(args) -> float | None:
+    """The display's width in mm: ``--screen-width-mm``, else the rig's ``[display] width_mm``, else None."""
+    given = getattr(args, "screen_width_mm", None)
+    rig = getattr(args, "loaded_rig", None)
+    return given if given is not None or rig is None else rig.display_width_mm
 
 
 def plate_words(profile, spec: str) -> str:

@@ -362,8 +362,9 @@ def run(args) -> int:
     if args.stats and Path(args.stats).suffix.lower() != ".json":
         raise UsageError(f"--stats needs a .json file, got {args.stats}")
     from ultraglide.apps.commands.finger_options import finger_config
+    from ultraglide.apps.commands.plate_choice import display_width_mm
 
-    app = DemoApp(args.textures, args.device, args.profile, args.model, args.screen_width_mm, args.windowed,
+    app = DemoApp(args.textures, args.device, args.profile, args.model, display_width_mm(args), args.windowed,
                   record=args.record, report_frames=args.report_frames, watch=args.watch,
                   closed_loop=args.closed_loop, finger=finger_config(args), effects=args.effects,
                   touch_panel=args.loaded_rig.touch if getattr(args, "loaded_rig", None) is not None else None)
