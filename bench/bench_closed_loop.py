@@ -92,7 +92,8 @@ class PlateLost(RuntimeError):
 def play(texture: Path, link: Path, folder: Path, name: str, speed_mm_s: float, seconds: float, closed: bool,
          *extra) -> dict:
     envelope, sensors = folder / f"{name}-envelope.csv", folder / f"{name}-sensors.csv"
-    command = ultraglide("play", texture, "--device", f"serial:{link}", "--speed-mm-s", speed_mm_s, "--duration-s",
+    command = ultraglide("play", texture, "--device", f"serial:{link}", "--profile", "sim-plate", "--speed-mm-s",
+                         speed_mm_s, "--duration-s",
                          seconds, "--start", "2,25", "--envelope-csv", envelope, "--sensors-csv", sensors, "--json",
                          *(["--closed-loop"] if closed else []), *extra)
     result = subprocess.run(command, capture_output=True, text=True, timeout=seconds + 120)

@@ -207,7 +207,7 @@ def run_demo(seconds: float, device: str, jack: Jack) -> dict:
     """The demo on JACK under Xvfb, dragged by xdotool for ``seconds``; its own --stats figures."""
     with tempfile.TemporaryDirectory() as folder:
         stats_path = Path(folder) / "stats.json"
-        with _xvfb_demo()("--device", f"audio:{device}", "--stats", str(stats_path)) as demo:
+        with _xvfb_demo()("--device", f"audio:{device}", "--profile", "sim-plate", "--stats", str(stats_path)) as demo:
             points = _drag_ready(demo, seconds)
             steps = len(points)
             before = jack.xruns()

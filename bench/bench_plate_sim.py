@@ -72,7 +72,8 @@ def plate_sim_process() -> tuple[float, float]:
             idle = (cpu_seconds(server.pid) - before) / (time.monotonic() - wall)
             before, wall = cpu_seconds(server.pid), time.monotonic()
             subprocess.run([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device", f"serial:{link}",
-                            "--duration-s", "10"], check=True, capture_output=True, cwd=ROOT, timeout=120)
+                            "--profile", "sim-plate", "--duration-s", "10"], check=True, capture_output=True, cwd=ROOT,
+                           timeout=120)
             streaming = (cpu_seconds(server.pid) - before) / (time.monotonic() - wall)
         finally:
             server.terminate()
