@@ -76,6 +76,12 @@ def test_a_named_profile_takes_the_chains_full_scale_and_keeps_its_own_limit(tmp
     assert rig.plate_source == str(tmp_path / "plate.toml")  # read beside the rig, wherever the command runs
     assert rig.full_scale_um_pp == pytest.approx(6.0)  # 1 V × 30 × 0.2: larger than the profile's 5, so it binds
     assert rig.max_amplitude_um_pp == 4.0 and rig.plate.max_drive_um_pp == 5.0
+    # a chain that says less than the (measured) profile: the profile's 5 µm p-p binds, and rig check says so
+    smaller = load_rig(write(tmp_path, '[plate]\nprofile = "plate.toml"\n[drive]\ninterface_full_scale_v = 1.0\n'
+                                       'amplifier_um_pp_per_v = 3.0\n', "smaller.toml"))
+    assert smaller.full_scale_um_pp == 5.0 and smaller.drive.full_scale_um_pp == 3.0
+    assert smaller.max_amplitude_um_pp == 4.0 and smaller.limit_from == "the plate"  # a sample of 0.8 at most
+    assert any("set amplifier_um_pp_per_v = 5 so that they agree" in line for line in smaller.unverified())
     bundled = load_rig(write(tmp_path, '[plate]\nprofile = "sim-plate"\n', "bundled.toml"))
     assert bundled.full_scale_um_pp == 8.0 and bundled.max_amplitude_um_pp == 6.0 and bundled.drive is None
     assert load_plate(f"rig:{tmp_path / 'bundled.toml'}") == bundled.plate

@@ -95,14 +95,9 @@ def plate_words(profile, spec: str) -> str:
 
 
 def _kind(device: str | None) -> str | None:
-    """The device URL's kind, or None (no device, or one the command's own check will refuse)."""
+    """The device URL's kind (None without a device); a malformed URL is the first mistake, said as such."""
     if device is None:
         return None
-    from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.urls import parse_device_url
 
-    try:
-        return parse_device_url(device).kind
-    except DeviceError:
-        kind = device.partition("?")[0].partition(":")[0]  # still a real output, if it names one
-        return kind if kind in REAL_OUTPUTS else None
+    return parse_device_url(device).kind
