@@ -91,14 +91,15 @@ class Replayed:
     skipped: int
 
 
-def replay(touch, chunks, started: float) -> Replayed:
+def replay(touch, chunks, started: float, sleep=time.sleep, replayed: Replayed | None = None) -> Replayed:
     """Call ``touch(t, x, y, force)`` for each report when its time comes (the first at ``started``,
     perf_counter seconds); when several are due at once, only the newest, as a touch panel's late reader gets
-    the newest touch."""
+    the newest touch. ``sleep(s)`` waits (the engine's raises when the engine is lost); ``replayed``, if given, is
+    kept up to date as reports go (what was sent when ``sleep`` raised)."""
     import numpy as np
 
-    origin = last = None
-    sent = skipped = 0
+    done = replayed if replayed is not None else Replayed(None, 0, 0)
+    origin = None
     for times, xs, ys, forces in chunks:
         origin = times[0] if origin is None else origin
         due = times - origin
@@ -106,16 +107,17 @@ def replay(touch, chunks, started: float) -> Replayed:
         while k < len(due):
             now = time.perf_counter() - started
             if due[k] > now:
-                time.sleep(due[k] - now)
+                sleep(due[k] - now)
                 continue
             newest = int(np.searchsorted(due, now, side="right")) - 1  # the newest report already due
-            skipped += newest - k
+            done.skipped += newest - k
             force = float(forces[newest])
             touch(time.perf_counter(), float(xs[newest]), float(ys[newest]), None if math.isnan(force) else force)
-            sent += 1
+            done.sent += 1
+            done.last = (float(xs[newest]), float(ys[newest]))
             k = newest + 1
-        last = (xs[-1], ys[-1])
-    return Replayed(last, sent, skipped)
+        done.last = (xs[-1], ys[-1])
+    return done
 
 
 def engine_config(args) -> EngineConfig:
@@ -139,7 +141,7 @@ def run(args) -> int:
     from ultraglide.apps.commands.render_setup import load_inputs
     from ultraglide.devices.serial.run_report import RunReport
     from ultraglide.devices.urls import parse_device_url
-    from ultraglide.render.engine import Engine
+    from ultraglide.render.engine import Engine, EngineLost
 
     device = parse_device_url(args.device)
     refuse_overlaps({"--device": device.target if device.kind == "wav" else None, "--save-profile": args.save_profile,
@@ -172,6 +174,7 @@ def run(args) -> int:
                 raise UsageError(f"{recorded}: no directory {Path(recorded).parent} to write it in")
     engine = Engine.start(engine_config(args))
     started = time.perf_counter()
+    replayed = Replayed(None, 0, 0)
     try:
         if effects is not None:
             engine.set_effects(effects)  # instead of the texture's own
@@ -183,9 +186,17 @@ def run(args) -> int:
                 print(note, flush=True)  # where the device's own limits bind, said once before playing
             print(plate_words(inputs.profile, args.profile), flush=True)  # which plate, chosen by whom
         started = time.perf_counter()
-        replayed = replay(engine.touch, itertools.chain(first, chunks), started)
+        replay(engine.touch, itertools.chain(first, chunks), started, engine.sleep, replayed)
         engine.touch(time.perf_counter(), float(replayed.last[0]), float(replayed.last[1]), down=False)
-        time.sleep(engine.ready_info["tail_s"])
+        engine.sleep(engine.ready_info["tail_s"])
+    except EngineLost:  # its process died or froze: the device is safe already (its supervisor); said below
+        pass
+    except BaseException:  # a stop signal or an error: the engine lost meanwhile (even while it stopped) is said
+        with held():
+            engine.stop()
+        for line in (engine.loss.lines(started) if engine.loss is not None else ()):
+            print(line, file=sys.stderr)
+        raise
     finally:
         with held():  # a stop signal arriving now waits until the plate is at rest
             final = engine.stop()  # ramps down, rests the plate and ends the engine, on every way out
@@ -194,11 +205,15 @@ def run(args) -> int:
     figures["fault_words"] = figures.pop("faults")
     device_status = figures.pop("device_status")
     report = RunReport.from_dict(device_status.get("report"))
+    loss = engine.loss
+    if loss is not None:  # the device's own report stops where its process did
+        report = report.with_lines(loss.lines(started), loss.exit_status)
     counts = device_status.pop("fault_counts", None)
     limiter = device_status.pop("limiter", "")
     clipped = final.clipped_samples / final.control_samples if final.control_samples else 0.0
     status = {**device_status, **figures, "clipped_fraction": round(clipped, 6), "faults": counts or {},
-              "played_s": played_s, "touch_reports_sent": replayed.sent, "touch_reports_skipped": replayed.skipped}
+              "played_s": played_s, "touch_reports_sent": replayed.sent, "touch_reports_skipped": replayed.skipped,
+              "engine_lost": None if loss is None else loss.lines(started)}
     if final.clipped_samples:
         force = force_words(trajectory, SimpleNamespace(default_force_n=engine.config.default_force_n))
         print(f"warning: {share_words(clipped)} of the time the texture asked for less friction than model "
@@ -222,7 +237,7 @@ def run(args) -> int:
         print(limiter)
         for line in report.lines:  # what happened to the plate, and when
             print(line)
-        print(describe_faults(counts or {}))
+        print(describe_faults(counts or {}, lost=loss is not None))
         if tracking is not None:
             print(tracking_words(tracking))
         if "loop" in device_status:
@@ -266,11 +281,13 @@ def save_tracked_profile(path, profile, tracking: dict) -> None:
     save_profile(path, found, "written by `ultraglide play --track-resonance`", tracking_words(tracking))
 
 
-def describe_faults(counts: dict[str, int]) -> str:
-    """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``."""
+def describe_faults(counts: dict[str, int], lost: bool = False) -> str:
+    """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``; ``lost``: the engine was
+    lost, so the counts are those its last status had."""
     from ultraglide.devices.protocol import FAULT_WORDS
 
     happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
+    heading = "device faults until the engine was lost" if lost else "device faults"
     if not counts:
-        return "device faults: this device reports none"
-    return "device faults: " + ("; ".join(happened) if happened else "none")
+        return f"{heading}: this device reports none"
+    return f"{heading}: " + ("; ".join(happened) if happened else "none")

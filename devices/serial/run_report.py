@@ -12,7 +12,11 @@ lines and exits with its status:
  4    the plate was lost: the port failed or vanished, the plate fell silent (no telemetry for
       500 ms), or the stream to it stopped (the writer failed)
  5    the plate cut its output: over-amplitude trip or overheat
+ 7    the engine was lost: the process that drives the device (``render.engine``) died or froze;
+      the app made the device safe itself (ENABLE 0 on a serial plate) and says how
 ==== =====================================================================================
+
+(6 is ``plate check``'s: a rule of the protocol failed.)
 
 When several happened the largest status wins (a cut outranks a loss, a loss a fault). Underruns,
 overruns, damaged frames, telemetry gaps and host stalls are said in words and leave the status alone:
@@ -34,9 +38,11 @@ EXIT_CLEAN = 0
 EXIT_FAULTED = 3
 EXIT_LOST = 4
 EXIT_CUT = 5
-SEVERITY = {"faulted": EXIT_FAULTED, "lost": EXIT_LOST, "cut": EXIT_CUT, "note": EXIT_CLEAN}
+EXIT_ENGINE_LOST = 7
+SEVERITY = {"faulted": EXIT_FAULTED, "lost": EXIT_LOST, "cut": EXIT_CUT, "note": EXIT_CLEAN,
+            "engine lost": EXIT_ENGINE_LOST}
 VERDICTS = {EXIT_CLEAN: "clean", EXIT_FAULTED: "the plate faulted", EXIT_LOST: "the plate was lost",
-            EXIT_CUT: "the plate cut its output"}
+            EXIT_CUT: "the plate cut its output", EXIT_ENGINE_LOST: "the engine was lost"}
 MAX_LINES = 40  # the status crosses processes as JSON of at most 16 KB: longer reports are cut, and say so
 
 
@@ -78,6 +84,11 @@ class RunReport:
         """One line: clean, or what happened and the exit status it earns."""
         words = VERDICTS[self.exit_status]
         return words if self.exit_status == EXIT_CLEAN else f"{words} (exit status {self.exit_status})"
+
+    def with_lines(self, lines, exit_status: int) -> RunReport:
+        """This report after ``lines`` (what happened that this report's device could not see: its driver's
+        process lost), with the larger of the two statuses."""
+        return RunReport(max(self.exit_status, exit_status), (*lines, *self.lines))
 
     def as_dict(self) -> dict:
         return {"exit_status": self.exit_status, "verdict": self.verdict, "lines": list(self.lines)}

@@ -5,7 +5,7 @@
 renderer as a device's source, :mod:`.realtime` what it asks of the OS.
 """
 
-from ultraglide.render.engine.engine import Engine, EngineConfig, EngineError
+from ultraglide.render.engine.engine import Engine, EngineConfig, EngineError, EngineLost
 from ultraglide.render.engine.status import EngineStatus, History
 
-__all__ = ["Engine", "EngineConfig", "EngineError", "EngineStatus", "History"]
+__all__ = ["Engine", "EngineConfig", "EngineError", "EngineLost", "EngineStatus", "History"]

@@ -46,6 +46,7 @@ from ultraglide.render.engine.process import engine_main, forked_engine_main
 from ultraglide.render.engine.realtime import keep_huge_pages_out
 from ultraglide.render.engine.shm import SharedBlock, ring_order
 from ultraglide.render.engine.status import EngineStatus, status_from_shared
+from ultraglide.render.engine.supervisor import FROZEN_AFTER_S, Supervisor
 from ultraglide.render.errors import RenderError
 
 if TYPE_CHECKING:
@@ -57,6 +58,17 @@ COMMAND_TIMEOUT_S = 30.0
 
 class EngineError(RenderError):
     """The engine could not start, or refused a command; the message is one line for a person."""
+
+
+class EngineLost(EngineError):
+    """The engine's process died or froze while it drove the device; the app made the device safe
+    (:mod:`render.engine.supervisor`). The message says what happened in one line; ``loss`` has it all;
+    ``exit_status`` is the run's (7)."""
+
+    def __init__(self, loss):
+        super().__init__(loss.words())
+        self.loss = loss
+        self.exit_status = loss.exit_status
 
 
 @dataclass(frozen=True)
@@ -97,6 +109,8 @@ class EngineConfig:
     # default one when closed_loop asks for sensors)
     envelope_csv: str | None = None  # record the envelope as it plays (render/engine/envelope_record.py)
     sensors_csv: str | None = None  # record the plate's sensor samples as they come (render/engine/sensor_record.py)
+    frozen_after_s: float = FROZEN_AFTER_S  # the app's supervisor takes an engine silent this long for frozen (a device
+    # pulling blocks less often, an audio stream with blocks over 0.1 s, needs more; render/engine/supervisor.py)
 
 
 class Engine:
@@ -110,8 +124,12 @@ class Engine:
         self.info = info
         self.ready_info: dict | None = None
         self.final_status: EngineStatus | None = None
+        self.started_s = time.perf_counter()  # when its process was up (perf_counter s): the run's times count from it
         self._failure: str | None = None
         self._stopped = False
+        # the app's watch over the process and its heartbeats (render/engine/supervisor.py)
+        self.supervisor = Supervisor(process, shared, config.device, (config.envelope_csv, config.sensors_csv),
+                                     config.frozen_after_s, realtime=config.realtime_priority).start()
 
     # ---- life --------------------------------------------------------------------------------------
     @classmethod
@@ -166,14 +184,44 @@ class Engine:
         if self.ready_info is None:
             if self._failure is not None:
                 raise EngineError(self._failure)
-            kind, payload = _receive(self.conn, self.process, timeout_s)
+            with self._lost_if_gone():
+                kind, payload = _receive(self.conn, self.process, timeout_s)
             self._take(kind, payload)
             if self._failure is not None:
                 raise EngineError(self._failure)
         while self.shared.words is not None and shm.STATES[int(self.shared.fast[shm.STATE])] == "starting":
-            if not self.process.is_alive() or time.monotonic() > deadline:
+            if not self.process.is_alive():
+                with self._lost_if_gone():
+                    raise EngineError(f"the engine process ended unexpectedly (exit code {self.process.exitcode})")
+            if time.monotonic() > deadline:
                 raise EngineError(f"the device {self.config.device} took no block within {timeout_s:g} s")
             time.sleep(0.002)
+
+    @property
+    def loss(self):
+        """None while the engine is well; once its process died or froze (and the device was made safe), the
+        :class:`~render.engine.supervisor.EngineLoss`: what happened, in words (``loss.lines(engine.started_s)``)."""
+        return self.supervisor.loss if self.supervisor.lost.is_set() else None
+
+    def sleep(self, seconds: float) -> None:
+        """Wait ``seconds``, or raise :class:`EngineLost` as soon as the engine is lost (within 100 ms of its death,
+        250 ms of its freeze, the device already safe)."""
+        if self.supervisor.wait(max(0.0, seconds)):
+            raise EngineLost(self.supervisor.loss)
+
+    @contextlib.contextmanager
+    def _lost_if_gone(self):
+        """An EngineError because the process ended becomes :class:`EngineLost` once the supervisor has made the
+        device safe; any other stays as it is."""
+        try:
+            yield
+        except EngineError:
+            if self.process.is_alive():
+                raise
+            loss = self.supervisor.close()
+            if loss is None:
+                raise
+            raise EngineLost(loss) from None
 
     @property
     def ready(self) -> bool:
@@ -199,7 +247,10 @@ class Engine:
         self._stopped = True
         atexit.unregister(self.stop)
         output_error = None
+        supervisor = self.supervisor
+        supervisor.stopping()
         try:
+            answered = False
             if self.process.is_alive():
                 with contextlib.suppress(OSError, EOFError, EngineError):
                     if self.ready_info is None and self._failure is None:
@@ -209,9 +260,14 @@ class Engine:
                         kind, payload = _receive(self.conn, self.process, timeout_s)
                         if kind == "stopped":
                             output_error = (payload or {}).get("output_error")
+                            answered = True
                             break
+            if not answered and self.process.is_alive() and self._failure is None:
+                supervisor.kill(f"it did not stop within {timeout_s:g} s of being asked")  # made safe from here
+            supervisor.close()  # a process that ended without stopping: the device made safe, the loss kept
             self.final_status = self.status()
         finally:
+            supervisor.close()
             _reap(self.process, timeout_s)
             self.conn.close()
             self.shared.close()
@@ -240,7 +296,9 @@ class Engine:
     # ---- in ----------------------------------------------------------------------------------------
     def touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> bool:
         """A touch report (perf_counter s, mm, N or None for the default). Never waits; False if the
-        ring was full (the engine has stalled) and the report was dropped."""
+        ring was full (the engine has stalled) and the report was dropped, or the engine was lost (:attr:`loss`)."""
+        if self.supervisor.loss is not None:
+            return False
         return self.shared.push_touch(t_s, x_mm, y_mm, math.nan if force_n is None else force_n, 1.0 if down else 0.0)
 
     def set_texture(self, spec: str | os.PathLike | Texture) -> None:
@@ -273,9 +331,16 @@ class Engine:
     def _command(self, *message):
         if self._stopped:
             raise EngineError("the engine has stopped")
-        self.conn.send(message)
+        if self.loss is not None:
+            raise EngineLost(self.loss)
+        with self._lost_if_gone():
+            try:
+                self.conn.send(message)
+            except OSError as error:  # its end of the pipe closed: the process is ending
+                raise EngineError(f"the engine process ended unexpectedly ({error.strerror})") from None
         while True:
-            kind, payload = _receive(self.conn, self.process, COMMAND_TIMEOUT_S)
+            with self._lost_if_gone():
+                kind, payload = _receive(self.conn, self.process, COMMAND_TIMEOUT_S)
             if kind == "ok":
                 return payload
             if kind == "error":
@@ -379,7 +444,15 @@ class EngineLaunch:
         try:
             kind, payload = _receive(self._parent, self._process, timeout_s)
         except BaseException:  # its error, or a stop signal while it loaded (Ctrl-C, SIGTERM made exceptions)
+            died = not self._process.is_alive()
             self.abandon()
+            if died:  # it died loading: what it opened is closed, what it wrote is not
+                from ultraglide.devices.after_loss import finish_log, rest_after_loss
+
+                rest_after_loss(self._config.device, self._process.pid)
+                for log in (self._config.envelope_csv, self._config.sensors_csv):
+                    if log:
+                        finish_log(log)
             raise
         if kind != "up":
             _reap(self._process)

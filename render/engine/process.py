@@ -190,6 +190,7 @@ class EngineSource(OutputStage):
         renderer = self.renderer
         counters = renderer.counters
         block = renderer.last_block
+        fast[shm.HEARTBEAT] += 1  # the supervisor's sign that the block path runs (outside the seqlock: one word)
         fast[shm.SEQ] += 1  # odd: being written
         blocks = int(fast[shm.BLOCKS])
         fast[shm.BLOCKS] = blocks + 1
@@ -233,6 +234,30 @@ class EngineSource(OutputStage):
     def request_stop(self) -> None:
         self._stopping = True
         super().request_stop()
+
+
+class EngineBeat(threading.Thread):
+    """Advances ``ENGINE_BEAT`` in the shared memory every ``period_s`` while the engine's process runs Python: with
+    the block path's ``HEARTBEAT``, how the app's supervisor tells a frozen engine (neither advances: stopped by
+    SIGSTOP, or stuck holding the interpreter) from a device that pulls no block for a while (a plate's handshake
+    after a reconnection, the tail of a stop)."""
+
+    def __init__(self, fast: np.ndarray, period_s: float = 0.02):
+        super().__init__(name="engine-beat", daemon=True)
+        self.fast = fast
+        self.period_s = period_s
+        self._stop_event = threading.Event()
+
+    def run(self) -> None:
+        fast = self.fast
+        while not self._stop_event.wait(self.period_s):
+            fast[shm.ENGINE_BEAT] += 1
+
+    def stop(self) -> None:
+        """End the thread and drop its view of the segment (a view held would keep the segment from closing)."""
+        self._stop_event.set()
+        self.join(timeout=1.0)
+        self.fast = None
 
 
 def forked_engine_main(config, shared_name: str, conn, app_end) -> None:
@@ -333,6 +358,8 @@ def engine_main(config, shared_name: str, conn) -> None:
         shared.fast[shm.STATE] = shm.STATES.index("failed")
         shared.close()
         return
+    beat = EngineBeat(shared.fast)  # the supervisor's sign that this process runs (raised to SCHED_FIFO 1 below)
+    beat.start()
     probe = None
     if config.probe_plate and hasattr(device, "plate"):
         probe = PlateProbe(device.plate.simulator, shared.fast)
@@ -346,4 +373,5 @@ def engine_main(config, shared_name: str, conn) -> None:
     if probe is not None:
         probe.stop_event.set()
         probe.join(timeout=1)
+    beat.stop()
     shared.close()

@@ -1,0 +1,221 @@
+"""The app's watch over its engine: a dead or frozen engine is noticed, the device made safe, the loss said.
+
+The engine (:mod:`render.engine.process`) drives the device from a process of its own, so the app is the only
+one left to act when that process dies (killed, crashed) or freezes (stopped by SIGSTOP, stuck holding the
+interpreter). :class:`Supervisor` is a thread of the app that watches:
+
+* **the process**: its sentinel (a pipe the kernel closes when it ends) wakes the watch at once, so a death is
+  noticed within a few milliseconds (aim: 100 ms);
+* **its heartbeats** in the shared memory: ``HEARTBEAT``, which the block path advances every block, and
+  ``ENGINE_BEAT``, which a thread of the engine advances every 20 ms. While the engine should play (it has
+  taken its first block and was not asked to stop), neither advancing for ``frozen_after_s`` (0.15 s) is a
+  freeze; while it stops (its block path may end before it answers), the engine's beat alone counts. A device
+  that pulls no block for a while (a plate's handshake after a reconnection) keeps the engine's beat going and
+  is not taken for a freeze. A watch that did not run itself for a while (this process stopped with the
+  engine by Ctrl-Z, or starved) gives the engine the same time again before judging it.
+
+A frozen engine is killed (SIGKILL: a frozen process takes no other signal). Once the process is gone, and so
+its port, its files and its locks, the device is made safe from here (:func:`devices.after_loss.rest_after_loss`:
+ENABLE 0 on a serial plate, the WAV recording finished; the audio stream and the simulated plate ended with the
+process), and the CSV logs it wrote are finished. :attr:`Supervisor.loss` then says what happened and when, in
+words, and the run's exit status is :data:`EXIT_ENGINE_LOST` (7).
+
+An engine whose shared state says it stopped (or failed to start, and said why) ends as it should: no loss.
+
+Example::
+
+    engine = Engine.start(config)          # the engine's supervisor starts with it
+    engine.sleep(2.0)                      # EngineLost (one line, exit status 7) if the engine was lost meanwhile
+    engine.loss                            # None, or the EngineLoss: engine.loss.lines() for the run's report
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from multiprocessing.connection import wait
+
+from ultraglide.devices.run_report import EXIT_ENGINE_LOST
+from ultraglide.render.engine import shm
+
+FROZEN_AFTER_S = 0.15  # no sign of life for this long while the engine should play: it is frozen
+POLL_S = 0.01  # the watch looks at the heartbeats this often (a death wakes it at once)
+OWN_GAP_S = 0.05  # the watch itself woke this late: this process did not run, so the engine gets its time again
+KILL_WAIT_S = 2.0  # the longest wait for a killed engine's process to end
+CLEAN_ENDS = ("stopped", "failed")  # the engine's states in which its process ends as it should
+
+
+@dataclass(frozen=True)
+class EngineLoss:
+    """How the engine was lost: ``kind`` (``died`` or ``froze``), ``cause`` in words, when it was noticed
+    (``noticed_s``, perf_counter s) and how long after its last sign of life (``silent_s``), what was done to make
+    the device safe (``rested``, sentences) and when that was done (``rested_s``)."""
+
+    kind: str
+    cause: str
+    noticed_s: float
+    silent_s: float
+    rested: tuple[str, ...]
+    rested_s: float
+    exit_status: int = EXIT_ENGINE_LOST
+
+    def lines(self, since_s: float | None = None) -> list[str]:
+        """The loss in sentences, its time counted from ``since_s`` (perf_counter s; None: not said)."""
+        at = "" if since_s is None else f" at {max(0.0, self.noticed_s - since_s):.2f} s"
+        if self.kind == "froze":
+            first = (f"the engine froze{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last sign "
+                     "of life, and killed (SIGKILL)")
+        else:
+            first = (f"the engine was lost{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last sign "
+                     "of life")
+        done = "; ".join(self.rested) if self.rested else "nothing to rest"
+        return [first, f"made safe by ultraglide {1000 * (self.rested_s - self.noticed_s):.0f} ms after: {done}"]
+
+    def words(self) -> str:
+        """One line: what happened and what was done."""
+        return "; ".join(self.lines())
+
+
+class Supervisor:
+    """The watch over one engine process (see the module's docstring). Made and started by the
+    :class:`~render.engine.engine.Engine`; ``stopping()`` when the app asks the engine to stop, ``close()`` once
+    it has answered (or failed to)."""
+
+    def __init__(self, process, shared, device_url: str, logs=(), frozen_after_s: float = FROZEN_AFTER_S,
+                 poll_s: float = POLL_S, realtime: bool = False):
+        self.process = process
+        self.pid = process.pid
+        self._sentinel = process.sentinel
+        self._fast = shared.fast
+        self.device_url = device_url
+        self.logs = tuple(str(path) for path in logs if path)
+        self.frozen_after_s = frozen_after_s
+        self.poll_s = poll_s
+        self.realtime = realtime
+        self.loss: EngineLoss | None = None
+        self.lost = threading.Event()  # set once the loss is handled (the device safe)
+        self._stopping = False
+        self._kill_reason: str | None = None
+        self._closing = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="engine-supervisor", daemon=True)
+
+    def start(self) -> Supervisor:
+        self._thread.start()
+        return self
+
+    def stopping(self) -> None:
+        """The app asked the engine to stop: its block path ends as it rests the device; only a silent process
+        (its beat thread) counts as frozen from now on."""
+        self._stopping = True
+
+    def close(self) -> EngineLoss | None:
+        """End the watch; a process already ended without having stopped is handled first (the device made safe).
+        Returns the loss, if there was one."""
+        self._closing.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self._fast = None
+        return self.loss
+
+    def kill(self, reason: str) -> None:
+        """End an engine that will not stop (SIGKILL), ``reason`` said in the loss; the watch then makes the device
+        safe as for any death (before :meth:`close` returns)."""
+        self._kill_reason = reason
+        self._kill()
+
+    def wait(self, timeout_s: float) -> bool:
+        """Sleep up to ``timeout_s``; True (at once) if the engine was lost."""
+        return self.lost.wait(timeout_s)
+
+    # ---- the watch -----------------------------------------------------------------------------------------
+    def _watch(self) -> None:
+        if self.realtime:  # a busy app (the demo's drawing) must not hold the watch back: SCHED_FIFO 1 where allowed
+            with contextlib.suppress(OSError, AttributeError):
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))  # this thread only (Linux)
+        fast = self._fast
+        now = time.perf_counter()
+        block_beat, engine_beat = fast[shm.HEARTBEAT], fast[shm.ENGINE_BEAT]
+        block_seen = engine_seen = last_wake = now
+        while True:
+            ended = bool(wait([self._sentinel], self.poll_s))
+            now = time.perf_counter()
+            state = shm.STATES[int(fast[shm.STATE])] if 0 <= fast[shm.STATE] < len(shm.STATES) else "starting"
+            if ended:
+                if state not in CLEAN_ENDS:
+                    self._lost("died", self._how_it_ended(), now, now - max(block_seen, engine_seen))
+                return
+            if self._closing.is_set():
+                return
+            if now - last_wake > OWN_GAP_S:  # this process did not run: what the engine did meanwhile is unknown
+                block_seen = engine_seen = now
+            last_wake = now
+            if fast[shm.HEARTBEAT] != block_beat:
+                block_beat, block_seen = fast[shm.HEARTBEAT], now
+            if fast[shm.ENGINE_BEAT] != engine_beat:
+                engine_beat, engine_seen = fast[shm.ENGINE_BEAT], now
+            if state in CLEAN_ENDS:
+                continue
+            silent_s = now - max(block_seen, engine_seen)
+            if self._stopping or state == "stopping":
+                frozen = now - engine_seen > self.frozen_after_s
+            elif state in ("running", "paused"):
+                frozen = silent_s > self.frozen_after_s
+            else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
+                frozen = False
+            if frozen:
+                cause = self._frozen_cause(now - block_seen)
+                self._kill()
+                self._lost("froze", cause, now, now - max(block_seen, engine_seen))
+                return
+
+    def _frozen_cause(self, blockless_s: float) -> str:
+        stopped = _process_state(self.pid) in ("T", "t")
+        why = "its process was stopped (SIGSTOP, or a debugger)" if stopped else "its process ran no Python"
+        return f"no block for {1000 * blockless_s:.0f} ms and {why}"
+
+    def _kill(self) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGKILL)
+        wait([self._sentinel], KILL_WAIT_S)
+
+    def _how_it_ended(self) -> str:
+        if self._kill_reason is not None:
+            return f"{self._kill_reason}, so it was killed (SIGKILL)"
+        try:
+            info = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOWAIT | os.WNOHANG)
+        except ChildProcessError:  # reaped already: multiprocessing has its status
+            code = self.process.exitcode
+            info = None
+        if info is not None:
+            code = -info.si_status if info.si_code in (os.CLD_KILLED, os.CLD_DUMPED) else info.si_status
+        if code is None:
+            return "its process ended"
+        if code < 0:
+            with contextlib.suppress(ValueError):
+                return f"its process was killed by {signal.Signals(-code).name}"
+            return f"its process was killed by signal {-code}"
+        return f"its process exited with status {code} before it had stopped"
+
+    def _lost(self, kind: str, cause: str, noticed_s: float, silent_s: float) -> None:
+        from ultraglide.devices.after_loss import finish_log, rest_after_loss
+
+        try:
+            rested = rest_after_loss(self.device_url, self.pid)
+            rested += [finish_log(path) for path in self.logs]
+        except Exception as error:  # noqa: BLE001 - the loss must be said whatever went wrong in the rest
+            rested = [f"the device could not be made safe ({type(error).__name__}: {error})"]
+        self.loss = EngineLoss(kind, cause, noticed_s, max(0.0, silent_s), tuple(rested), time.perf_counter())
+        self.lost.set()
+
+
+def _process_state(pid: int) -> str:
+    """The kernel's one-letter state of process ``pid`` (R, S, D, T, t, Z ...), or "" where /proc does not say."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            return stat.read().rsplit(b")", 1)[1].split()[0].decode()
+    except (OSError, IndexError, UnicodeDecodeError):
+        return ""
