@@ -18,6 +18,7 @@ import soundfile
 from test_exits import Command, PlateTap, hidden_files, size_of_hidden, wait_until
 from ultraglide.devices import protocol as p
 from ultraglide.devices.run_report import EXIT_ENGINE_LOST
+from xvfb_demo import XvfbDemo, tools_missing
 
 LOSSES = [signal.SIGKILL, signal.SIGSTOP]
 
@@ -175,6 +176,33 @@ def test_the_engine_frozen_while_it_stops_is_killed_and_the_plate_disabled(tmp_p
         command.kill()
     assert status == 128 + signal.SIGTERM, command.stderr
     assert took < 20, took  # not the 30 s a stop waits for an answer
-    assert re.search(r"the engine froze at \d+\.\d\d s: no block for \d+ ms and its process was stopped", command.stderr)
+    assert re.search(r"the engine froze at \d+\.\d\d s: no block for \d+ ms and its process was stopped",
+                     command.stderr), command.stderr
     assert [i for i in disables(tap) if i >= before]
     assert not tap.plate.simulator.enabled
+
+
+@pytest.mark.skipif(bool(tools_missing()), reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+def test_the_demo_under_xvfb_says_its_engine_was_lost_disables_the_plate_and_restarts_it(tap):
+    """The demo's engine killed: the plate gets ENABLE 0 from the demo, the demo says so (its status line offers R),
+    R starts a new engine that drives the plate again, and the run ends with exit status 7."""
+    with XvfbDemo("--device", f"serial:{tap.plate.path}") as demo:
+        demo.wait_for("^renderer ready", 120)
+        before = len(tap.frames)
+        engine = engine_of(demo.demo.pid)
+        os.kill(engine, signal.SIGKILL)
+        demo.wait_for(r"^ultraglide demo: the engine was lost at \d+\.\d\d s: its process was killed by SIGKILL", 30)
+        demo.wait_for(r"^ultraglide demo: made safe by ultraglide \d+ ms after: ENABLE 0 sent", 30)
+        assert [i for i in disables(tap) if i >= before]
+        assert not tap.plate.simulator.enabled
+        demo.wait_for("^frame drawn", 30)  # the status line with the loss and R on screen
+        restarted_at = len(tap.frames)
+        demo.xdo("key", "r")
+        demo.wait_for("^renderer ready", 120)
+        # the new engine's serial driver greets the plate and enables its output (then rests it: nothing touched)
+        wait_until(lambda: any(kind == p.ENABLE and payload == p.enable_payload(True)
+                               for kind, payload, _ in list(tap.frames)[restarted_at:]), "the new engine's ENABLE 1")
+        assert engine_of(demo.demo.pid) != engine
+        assert demo.quit() == EXIT_ENGINE_LOST
+    out = "".join(demo.stdout)
+    assert re.search(r"the engine was lost: its process was killed by SIGKILL", out), out

@@ -115,6 +115,8 @@ class DemoApp:
         self.watch_errors: list[str] = []
         self._next_watch = 0.0
         self.link: DemoLink | None = None
+        self.losses: list = []  # each engine lost over the run (render.engine.supervisor.EngineLoss), oldest first
+        self.lost_status = None  # the lost engine's last status, for the run's report
         self.recorder: TouchRecorder | None = None
         self._closed = False
         self.final_status = None  # the engine's last status, once stopped
@@ -133,7 +135,8 @@ class DemoApp:
             raise UsageError(f"cannot write the recording {record}: {error.strerror}") from None
         self.painter.everything()  # the first frame, before anything heavy is imported
         self.redraw.drawn_all(time.perf_counter())
-        self.starter = LinkStarter(LinkConfig(textures[0], model, profile, device_url, closed_loop, finger))
+        self.link_config = LinkConfig(textures[0], model, profile, device_url, closed_loop, finger)
+        self.starter: LinkStarter | None = LinkStarter(self.link_config)
         if watch:
             from ultraglide.apps.demo.watch import TextureWatcher
 
@@ -210,8 +213,27 @@ class DemoApp:
                       f"({self.driver.unfelt} touches before it, not felt)", flush=True)
 
     def _check_link(self) -> None:
-        if self.link is None and self.starter.ready.is_set():
+        if self.link is None and self.starter is not None and self.starter.ready.is_set():
             self._adopt(self.starter.wait())
+        elif self.link is not None and self.link.loss is not None:  # its process died or froze
+            # (the device is safe already: its supervisor saw to it); said, and a restart offered
+            link, self.link, self.starter = self.link, None, None
+            self.losses.append(link.loss)
+            self.lost_status = link.stop()
+            self.redraw.everything()
+            for line in link.loss.lines(link.engine.started_s):
+                print(f"ultraglide demo: {line}", flush=True)
+
+    @property
+    def engine_lost(self):
+        """The engine's loss while no engine runs (the status line offers R to restart), else None."""
+        return self.losses[-1] if self.losses and self.link is None and self.starter is None else None
+
+    def restart_engine(self) -> None:
+        """Start a new engine after a loss (R): the scene, model and force come back to it when it is ready."""
+        if self.engine_lost is not None:
+            self.starter = LinkStarter(self.link_config)
+            self.redraw.everything()
 
     # ---- actions -----------------------------------------------------------------------------------
     def show(self, scene: str, index: int | None = None) -> None:
@@ -253,6 +275,8 @@ class DemoApp:
                 self.link.pause(self.user_paused or self.input.driving is None)
         elif action == "help":
             self.show_help = not self.show_help
+        elif action == "restart":
+            self.restart_engine()
         elif action == "quit":
             self.running = False
 
@@ -373,16 +397,20 @@ def run(args) -> int:
     finally:
         with held():  # a second Ctrl-C or SIGTERM does not cut this short
             app.close()  # window closed, Escape, Ctrl-C or an exception: the plate comes to rest
+    final = app.final_status or app.lost_status
     if args.stats:
-        write_stats(args.stats, run_stats(app, app.final_status))
-    return say_report(app.final_status)
+        write_stats(args.stats, run_stats(app, final))
+    return say_report(final, app.losses)
 
 
-def say_report(final) -> int:
-    """What happened to a plate driver over the run, in words, if anything did; the exit status it earns."""
+def say_report(final, losses=()) -> int:
+    """What happened to a plate driver over the run, in words, if anything did, and each engine lost (its
+    process died or froze); the exit status it earns."""
     from ultraglide.devices.serial.run_report import RunReport
 
     report = RunReport.from_dict((getattr(final, "device_status", None) or {}).get("report"))
+    for loss in reversed(losses):
+        report = report.with_lines(loss.lines(), loss.exit_status)
     if report.exit_status:
         for line in report.lines:
             print(line)

@@ -36,7 +36,8 @@ class Input:
         self.keys = {self.pg.K_ESCAPE: "quit", self.pg.K_q: "quit", self.pg.K_g: "gallery", self.pg.K_t: "texture",
                      self.pg.K_w: "widgets", self.pg.K_LEFT: "prev", self.pg.K_RIGHT: "next",
                      self.pg.K_DOWN: "force-", self.pg.K_UP: "force+", self.pg.K_m: "model",
-                     self.pg.K_SPACE: "pause", self.pg.K_h: "help"}
+                     self.pg.K_SPACE: "pause", self.pg.K_h: "help",
+                     self.pg.K_r: "restart"}
 
     def handle(self, event) -> None:
         pg, app = self.pg, self.app

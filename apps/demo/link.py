@@ -10,6 +10,7 @@ and counts them as not felt, and says so on its status line.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -108,26 +109,43 @@ class DemoLink:
         Never waits; False if the engine's ring was full and the report dropped."""
         return self.engine.touch(t_s, x_mm, y_mm, force_n, down)
 
+    @property
+    def loss(self):
+        """None while the engine is well; else how it was lost (its process died or froze; the device was made safe
+        by the engine's supervisor): ``loss.lines()``. The verbs then do nothing; the app offers a restart."""
+        return self.engine.loss
+
+    @contextlib.contextmanager
+    def _unless_lost(self):
+        from ultraglide.render.engine import EngineLost
+
+        with contextlib.suppress(EngineLost):  # the app sees the loss on its next step (self.loss)
+            yield
+
     def set_texture(self, texture) -> None:
         """Render another texture (a Texture); the limited count starts again from zero."""
-        self.engine.set_texture(texture)
-        after = self.engine.status(0.0)
-        self._clipped_at_texture = after.clipped_samples
-        self._texture_since_s = after.history.time_s[-1] if len(after.history.time_s) else 0.0
+        with self._unless_lost():
+            self.engine.set_texture(texture)
+            after = self.engine.status(0.0)
+            self._clipped_at_texture = after.clipped_samples
+            self._texture_since_s = after.history.time_s[-1] if len(after.history.time_s) else 0.0
 
     def set_model(self, spec: str) -> None:
-        self.engine.set_model(spec)
+        with self._unless_lost():
+            self.engine.set_model(spec)
         self.model_name = spec
 
     def set_force(self, force_n: float) -> None:
         """The force assumed when the touch panel does not measure it, N."""
-        self.engine.set_force(force_n)
+        with self._unless_lost():
+            self.engine.set_force(force_n)
 
     def pause(self, flag: bool) -> None:
         """Ramp to rest (or back); a pipe round trip, so only sent when it changes."""
         if bool(flag) != self.paused:
-            self.engine.pause(bool(flag))
-            self.paused = bool(flag)
+            with self._unless_lost():
+                self.engine.pause(bool(flag))
+                self.paused = bool(flag)
 
     def status(self, chart_span_s: float = 3.0) -> LinkStatus:
         """What the engine and its device are doing now, and the last ``chart_span_s`` of the chart."""

@@ -41,6 +41,7 @@ HELP = [
     ("Up  Down", "force up, down (×1.25) when the panel reports no pressure"),
     ("M", "switch the friction model (stretched, squeeze-film, exponential, paper)"),
     ("Space", "pause: the plate rests"),
+    ("R", "restart the engine after it was lost"),
     ("H", "this help"),
     ("Esc  Q", "quit (the plate ramps to rest)"),
 ]

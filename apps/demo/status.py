@@ -39,6 +39,10 @@ def status_parts(app) -> tuple[list[Part], list[Part]]:
         around.append(Part(f"recording {name}: {app.recorder.rows} touches", f"rec {app.recorder.rows}",
                            must=True, rank=9))
     around += [Part(error, must=True, rank=9, warn=True) for error in app.watch_errors]
+    lost = app.engine_lost
+    if lost is not None:  # its process died or froze; the device was made safe
+        return [Part(f"the engine was lost ({lost.cause}); the device was made safe · R: restart the engine",
+                     "engine lost; device made safe · R: restart", must=True, rank=9, warn=True)], around
     if app.link is None:
         plate = [Part("starting the engine (its own process; compiling its kernels)…", "starting the engine…",
                       must=True, rank=9)]

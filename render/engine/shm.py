@@ -20,6 +20,9 @@ while the sequence was odd or changed. The writer never waits; the reader retrie
 
 from __future__ import annotations
 
+import _posixshmem
+import contextlib
+import errno
 import json
 import math
 import os
@@ -48,6 +51,11 @@ PLATE_PROBE_UM_PP, PROBE_RISE_S = 14, 15
 # the last touch the block path drained (as the renderer got it: mm, N or NaN for the default, 1/0 down)
 LAST_TOUCH_X, LAST_TOUCH_Y, LAST_TOUCH_FORCE, LAST_TOUCH_DOWN = 16, 17, 18, 19
 RESTING_BLOCKS = 20  # blocks served as zeros while paused and at rest (the renderer not run)
+# signs of life for the app's supervisor (render/engine/supervisor.py), each a single word with a single writer:
+# HEARTBEAT advances every block the block path serves; ENGINE_BEAT every 20 ms while the engine's process runs
+# Python (its beat thread), so a device that stops pulling for a while (a reconnecting plate's handshake) is not
+# taken for a frozen engine
+HEARTBEAT, ENGINE_BEAT = 21, 22
 HEADER = 24
 
 STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")
@@ -95,21 +103,35 @@ class SharedBlock:
 
     @classmethod
     def create(cls) -> SharedBlock:
-        """A new segment; OSError naming it (in /dev/shm) when the system refuses one (no room, a file-size limit).
+        """A new segment, its memory committed; OSError in one line naming it (in /dev/shm), the size asked and what
+        to do when the system refuses it (no room, read-only, a file-size limit). Nothing is left behind then.
 
-        Python 3.11's ``SharedMemory`` unregisters a segment it failed to size without having registered it,
-        and its resource tracker then dies with a traceback (a KeyError); registering the name first keeps
-        the two in step."""
+        The segment is made here (``shm_open``, exclusive) and its pages committed with ``posix_fallocate`` before
+        anything maps it: a sparse segment on a full ``/dev/shm`` would kill the process with SIGBUS at its first
+        touch of a page the system cannot give. Only a whole segment is then attached as a ``SharedMemory`` (which
+        registers it with multiprocessing's resource tracker): one refused before that was never registered, so the
+        tracker has nothing to warn about. Python 3.11's ``SharedMemory`` unregisters a segment it fails to map
+        without having registered it, and its resource tracker then dies with a traceback (a KeyError); registering
+        the name first keeps the two in step."""
         size = LAYOUT.size * 8
         name = f"ultraglide_{os.getpid()}_{secrets.token_hex(4)}"
+        fd = -1
+        try:
+            fd = _posixshmem.shm_open(f"/{name}", os.O_CREAT | os.O_EXCL | os.O_RDWR, mode=0o600)
+            os.posix_fallocate(fd, 0, size)
+        except OSError as error:
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    _posixshmem.shm_unlink(f"/{name}")
+            raise _refused(error, size, name) from None
+        finally:
+            if fd >= 0:
+                os.close(fd)
         resource_tracker.register(f"/{name}", "shared_memory")
         try:
-            memory = shared_memory.SharedMemory(name=name, create=True, size=size)
-        except OSError as error:
-            if isinstance(error, FileExistsError):  # refused before anything was made: nothing unregistered it
-                resource_tracker.unregister(f"/{name}", "shared_memory")
-            raise OSError(error.errno, f"the engine's shared memory ({size:,} bytes) could not be made: "
-                                       f"{(error.strerror or str(error)).lower()}", f"/dev/shm/{name}") from None
+            memory = shared_memory.SharedMemory(name=name)
+        except OSError as error:  # (it unlinked the segment and unregistered it)
+            raise _refused(error, size, name) from None
         block = cls(memory, owner=True)
         block.words[:] = 0.0
         return block
@@ -190,6 +212,19 @@ class SharedBlock:
             if self.fast[SEQ] == before:
                 return counts
         raise TimeoutError("the engine's status kept changing while being read")
+
+
+def _refused(error: OSError, size: int, name: str) -> OSError:
+    """The system's refusal of the engine's segment as one line: what, how much, why, what to do."""
+    why = (error.strerror or str(error)).lower()
+    advice = {errno.ENOSPC: "free space in /dev/shm (df -h /dev/shm) or make it larger",
+              errno.ENOMEM: "free memory, or raise the memory limit (ulimit -v)",
+              errno.EROFS: "/dev/shm is read-only: mount it writable (a tmpfs)",
+              errno.EACCES: "/dev/shm takes no new file from this user: check its permissions",
+              errno.EFBIG: "the file-size limit (ulimit -f) is too small for it: raise it",
+              errno.EMFILE: "this process has too many files open"}.get(error.errno, "check /dev/shm (a tmpfs)")
+    return OSError(error.errno, f"the engine's shared memory ({size:,} bytes) could not be made: {why}; {advice}",
+                   f"/dev/shm/{name}")
 
 
 _LOG_RATIO = math.log(HISTOGRAM_RATIO)

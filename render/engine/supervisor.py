@@ -70,8 +70,8 @@ class EngineLoss:
             first = (f"the engine froze{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last sign "
                      "of life, and killed (SIGKILL)")
         else:
-            first = (f"the engine was lost{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last sign "
-                     "of life")
+            first = (f"the engine was lost{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last "
+                     "sign of life")
         done = "; ".join(self.rested) if self.rested else "nothing to rest"
         return [first, f"made safe by ultraglide {1000 * (self.rested_s - self.noticed_s):.0f} ms after: {done}"]
 
