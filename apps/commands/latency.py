@@ -61,9 +61,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     latency.set_defaults(run=run)
 
 
-def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine") -> None:
+def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine", engine=None) -> None:
+    """Poll ``condition`` until it holds; UsageError after ``timeout_s``, EngineLost (exit 7) at once if ``engine`` was
+    lost (its supervisor made the device safe)."""
     deadline = time.monotonic() + timeout_s
     while not condition():
+        if engine is not None and engine.loss is not None:
+            from ultraglide.render.engine import EngineLost
+
+            raise EngineLost(engine.loss)
         if time.monotonic() > deadline:
             raise UsageError(f"{what} did not respond within {timeout_s:g} s; is the device running?")
         time.sleep(0.0005)
@@ -116,7 +122,7 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
         return resting
 
     engine.touch(time.perf_counter(), *STICKY_MM)
-    _wait(at_rest)
+    _wait(at_rest, engine=engine)
     time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # a random phase of the blocks
     touched = time.perf_counter()
     engine.touch(touched, *SLIPPERY_MM)
@@ -125,12 +131,12 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
         times, done, _ = engine.latencies()
         return np.any(times == touched)
 
-    _wait(rendered)
+    _wait(rendered, engine=engine)
     times, done, presented = engine.latencies()
     row = np.flatnonzero(times == touched)[-1]
     engine_part = done[row] - touched
     if kind == "sim":
-        _wait(lambda: engine.plate_probe()[1] > touched, what="the simulated plate")
+        _wait(lambda: engine.plate_probe()[1] > touched, what="the simulated plate", engine=engine)
         total = engine.plate_probe()[1] - touched
         return engine_part, total - engine_part, total
     device_part = presented[row] - done[row]

@@ -22,6 +22,12 @@ class EngineOutput:
         self.touches = 0
 
     def touch(self, t_s: float, x_mm: float, y_mm: float, down: bool = True) -> None:
+        """A finger report; EngineLost (exit status 7) once the engine's process died or froze (the device was made
+        safe by its supervisor): a trial felt on nothing must not be answered and kept."""
+        if self.engine.loss is not None:
+            from ultraglide.render.engine import EngineLost
+
+            raise EngineLost(self.engine.loss)
         self.engine.touch(t_s, x_mm, y_mm, None, down)
         self.touches += 1
 
