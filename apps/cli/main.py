@@ -33,6 +33,7 @@ from ultraglide.apps.cli.signals import StopSignals
 from ultraglide.apps.commands.plate_choice import choose_plate
 
 from ultraglide.atomic import release_checked
+from ultraglide.errors import out_of_memory
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -70,6 +71,12 @@ def main(argv: list[str] | None = None) -> int:
     except errors.USER_ERRORS as error:
         print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
         return int(getattr(error, "exit_status", 1) or 1)
+    except Exception as error:  # memory refused, whatever a library raised for it (numpy's MemoryError, numba's)
+        words = out_of_memory(error)
+        if words is None:
+            raise  # anything else is a bug: its traceback
+        print(f"ultraglide {args.command}: error: {one_line(words)}", file=sys.stderr)
+        return 1
     finally:
         release_checked()  # pipes held open since the check, which the command did not take
         stop.restore()
