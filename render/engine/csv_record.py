@@ -46,7 +46,8 @@ class CsvRecord:
         raise NotImplementedError
 
     def close(self) -> str | None:
-        """Write what is left, rename into place; the error in one line if the file could not be written."""
+        """Write what is left, rename into place; the error in one line if the file could not be written (a full
+        disk), and then nothing is left of it (no ``FILE.part``: a log with rows missing is no log)."""
         self._stop_writer(finish=True)
         try:
             self._handle.close()
@@ -54,6 +55,8 @@ class CsvRecord:
                 self._target.commit()
         except OSError as error:
             self.error = self.error or self._failure(error)
+        if self.error is not None:
+            self._target.discard()
         return self.error
 
     def discard(self) -> None:

@@ -276,7 +276,8 @@ def engine_main(config, shared_name: str, conn) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     pages = keep_huge_pages_out() if config.realtime_priority else "huge pages: as the system has them"
     stop_requested = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop_requested.set())
+    for stop_signal in (signal.SIGTERM, signal.SIGHUP):  # a hangup as SIGTERM: ramp to rest, rest the hardware, end
+        signal.signal(stop_signal, lambda *_: stop_requested.set())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the app, which stops the engine in order
     try:
         shared = SharedBlock.attach(shared_name)
