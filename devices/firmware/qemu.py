@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.protocol import NAK_REASONS
-from ultraglide.devices.sim.links import link_path_for, place_link, remove_link
+from ultraglide.devices.sim.links import LinkClaim, link_path_for, place_link, remove_link
 
 QEMU = "qemu-system-arm"
 MACHINE = "netduinoplus2"
@@ -164,6 +164,7 @@ class QemuPlate:
             raise DeviceError(f"no firmware image at {elf_path}: build it with `ultraglide firmware build`")
         self.elf_path = elf_path
         self.path, self._own_dir = link_path_for(link_path, "ultraglide-qemu-")
+        self._claim = LinkClaim(self.path) if self._own_dir is None else None  # a path given: no other simulator's
         self.pty_name = ""
         self.icount_shift = icount_shift
         self.plate = plate
@@ -285,7 +286,9 @@ class QemuPlate:
                 with contextlib.suppress(OSError, ValueError):
                     if stream is not None:
                         stream.close()
-        remove_link(self.path)
+        remove_link(self.path, self.pty_name or None)  # only the link it made
+        if self._claim is not None:
+            self._claim.release()
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
             self._own_dir = None

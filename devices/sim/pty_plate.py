@@ -15,7 +15,7 @@ import tty
 import numpy as np
 from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.devices.sim.links import link_path_for, place_link, remove_link
+from ultraglide.devices.sim.links import LinkClaim, link_path_for, place_link, remove_link
 from ultraglide.devices.sim.plate import (
     LISTEN_S,
     STALL_S,
@@ -38,6 +38,7 @@ class PtyPlate:
                  breaks: tuple[str, ...] = (), max_version: int = 3, finger: ForceSource | None = None):
         self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version, finger=finger)
         self.path, self._own_dir = link_path_for(link_path, "ultraglide-plate-")
+        self._claim = LinkClaim(self.path) if self._own_dir is None else None  # a path given: no other simulator's
         self.pty_name = ""
         self._master = -1
         self._port_lock = threading.Lock()
@@ -65,7 +66,7 @@ class PtyPlate:
             self._master, self.pty_name = master, name
 
     def _close_pty(self) -> None:
-        remove_link(self.path)
+        remove_link(self.path, self.pty_name or None)  # only the link it made
         with self._port_lock:
             master, self._master = self._master, -1
             if master >= 0:
@@ -237,6 +238,8 @@ class PtyPlate:
         for thread in self._threads:
             thread.join(timeout=2)
         self._close_pty()
+        if self._claim is not None:
+            self._claim.release()
         if self._own_dir:
             with contextlib.suppress(OSError):
                 os.rmdir(self._own_dir)
