@@ -25,7 +25,13 @@ class ScriptedPlate:
     dict from the payload's first byte to one of those. ``faults``: latched fault bits in telemetry, each counted
     once. ``telemetry``: send it (50 a second) or not."""
 
-    def __init__(self, hello="reply", answers=None, faults=0, telemetry=True, limit_um_pp=None):
+    def __init__(self, hello="reply", answers=None, faults=0, telemetry=True, limit_um_pp=None, counts=None,
+                 frames_ok=None):
+        """``counts``: a function of the telemetry frame's number giving its 8 fault counters (a lying plate's);
+        ``frames_ok``: likewise for its frames_ok (default: the frames it decoded)."""
+        self.counts = counts
+        self.frames_ok = frames_ok
+        self.sent_telemetry = 0
         self.hello = hello
         self.answers = answers or {}
         self.faults = faults
@@ -79,6 +85,11 @@ class ScriptedPlate:
 
     def _telemetry(self, frames_ok):
         counts = tuple(1 if self.faults & (1 << bit) else 0 for bit in range(p.FAULT_BITS))
+        if self.counts is not None:
+            counts = tuple(self.counts(self.sent_telemetry))
+        if self.frames_ok is not None:
+            frames_ok = self.frames_ok(self.sent_telemetry)
+        self.sent_telemetry += 1
         values = p.Telemetry(0.0, PROFILE.resonance_hz, self.faults, False, frames_ok, 0, 0, 0, 0, 0, 0, counts)
         try:
             payload = p.telemetry_payload(values, 2)  # a v2 device's layout

@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass
 
 from ultraglide.devices import protocol as p
+from ultraglide.devices.counter_check import CounterCheck
 from ultraglide.devices.serial.link import COMMAND_NAMES, CUT_FAULTS, CUT_WORDS, MAX_OUTAGES, Outage, Pacing
 from ultraglide.devices.serial.run_report import Incident, RunReport, seconds, times
 
@@ -48,6 +49,14 @@ class RunAccount:
         self._writer_failure: tuple[float, str] | None = None
         self.reenabled_first_s = 0.0
         self.rested = False
+
+    @property
+    def counter_check(self) -> CounterCheck:
+        """The plausibility of the device's u32 counters over the run (devices/counter_check.py)."""
+        check = getattr(self, "_counter_check", None)
+        if check is None:
+            check = self._counter_check = CounterCheck()
+        return check
 
     def now_s(self) -> float:
         """Seconds since the run started."""
@@ -160,6 +169,9 @@ class RunAccount:
                                                      f"({reason}), first at {seconds(at)}"
                                       + ("; its latched faults were not cleared again" if command == "CLEAR_FAULTS"
                                          else "")))
+        implausible = self.counter_check.words()
+        if implausible is not None:  # a device fault: its numbers are not to be believed
+            incidents.append(Incident(self.counter_check.first_s(), "faulted", implausible))
         if bad[0] or bad[1]:
             incidents.append(Incident(bad[2] or 0.0, "note", f"{times(bad[0] + bad[1], 'frame')} from the plate "
                                       f"arrived damaged ({bad[0]} with a bad CRC, {bad[1]} truncated or malformed), "

@@ -7,6 +7,7 @@ import threading
 import time
 
 from ultraglide.devices import protocol as p
+from ultraglide.devices.counter_check import plausible_restart
 from ultraglide.devices.serial.link import (
     CLEAR_RETRY_S,
     CUT_FAULTS,
@@ -21,6 +22,8 @@ from ultraglide.devices.serial.link import (
 from ultraglide.devices.serial.locks import DriverLocks
 from ultraglide.devices.serial.report import RunAccount
 from ultraglide.devices.serial.session import Session
+
+FAULT_COUNTER_NAMES = tuple(f"fault count {p.FAULT_NAMES.get(1 << bit, bit)}" for bit in range(p.FAULT_BITS))
 
 
 class DepthTracker:
@@ -195,12 +198,12 @@ class Intake:
         state = self.session.state
         counts = telemetry.fault_counts
         previous = self._fault_last
-        restarted = previous is not None and telemetry.frames_ok < self._frames_ok_last
+        restarted = self._restarted(telemetry, previous)
+        check = self.account.counter_check  # u32 counters believed only as far as they can be true
         if previous is None:
             new_bits = telemetry.faults  # latched before this run: cleared once, not counted
         else:
-            new = counts if restarted else [(now - before) & 0xFFFFFFFF
-                                            for now, before in zip(counts, previous, strict=True)]
+            new = check.steps(FAULT_COUNTER_NAMES, counts, previous, restarted, self.account.now_s())
             self.fault_run = [run + n for run, n in zip(self.fault_run, new, strict=True)]
             new_bits = sum(1 << bit for bit, n in enumerate(new) if n)
             if new_bits:
@@ -236,8 +239,17 @@ class Intake:
             now = getattr(telemetry, name, 0)
             before = self._link_last.get(name)
             if before is not None:
-                self.link_run[name] += now if restarted else (now - before) & 0xFFFFFFFF
+                self.link_run[name] += self.account.counter_check.steps((name,), (now,), (before,), restarted,
+                                                                        self.account.now_s())[0]
             self._link_last[name] = now
+
+    def _restarted(self, telemetry: p.Telemetry, previous) -> bool:
+        """Whether the device restarted since its last telemetry: its ``frames_ok`` fell, to no more than the frames
+        sent since (a fall to more is no restart: its counters are then checked as they are, and found false)."""
+        sent = self.counters.frames_sent
+        since, self._frames_sent_last = sent - getattr(self, "_frames_sent_last", sent), sent
+        return (previous is not None and telemetry.frames_ok < self._frames_ok_last
+                and plausible_restart(telemetry.frames_ok, since))
 
     def fault_counts(self) -> dict[str, int]:
         """Each fault the device can report, by name, with how often it happened over this run."""
