@@ -26,9 +26,12 @@ class ScriptedPlate:
     once. ``telemetry``: send it (50 a second) or not."""
 
     def __init__(self, hello="reply", answers=None, faults=0, telemetry=True, limit_um_pp=None, counts=None,
-                 frames_ok=None):
+                 frames_ok=None, enabled_follows=False):
         """``counts``: a function of the telemetry frame's number giving its 8 fault counters (a lying plate's);
-        ``frames_ok``: likewise for its frames_ok (default: the frames it decoded)."""
+        ``frames_ok``: likewise for its frames_ok (default: the frames it decoded); ``enabled_follows``: telemetry's
+        ``enabled`` is the last ENABLE it acknowledged (else always 0)."""
+        self.enabled_follows = enabled_follows
+        self.enabled = False
         self.counts = counts
         self.frames_ok = frames_ok
         self.sent_telemetry = 0
@@ -79,6 +82,8 @@ class ScriptedPlate:
         if isinstance(answer, dict):
             answer = answer.get(frame.payload[0] if frame.payload else None, "ack")
         if answer == "ack":
+            if frame.kind == p.ENABLE and self.enabled_follows and frame.payload:
+                self.enabled = frame.payload[0] == 1
             self._send(p.ACK, p.ack_payload(frame.seq))
         elif answer == "nak":
             self._send(p.NAK, p.nak_payload(frame.seq, p.NAK_UNKNOWN_TYPE))
@@ -90,7 +95,7 @@ class ScriptedPlate:
         if self.frames_ok is not None:
             frames_ok = self.frames_ok(self.sent_telemetry)
         self.sent_telemetry += 1
-        values = p.Telemetry(0.0, PROFILE.resonance_hz, self.faults, False, frames_ok, 0, 0, 0, 0, 0, 0, counts)
+        values = p.Telemetry(0.0, PROFILE.resonance_hz, self.faults, self.enabled, frames_ok, 0, 0, 0, 0, 0, 0, counts)
         try:
             payload = p.telemetry_payload(values, 2)  # a v2 device's layout
         except TypeError:  # (a protocol module that writes v2's only)

@@ -92,13 +92,18 @@ class TelemetrySweeper:
     def measure(self, carrier_hz: float, time_constant_s: float) -> SweepPoint:
         self.driver.set_carrier(carrier_hz)
         changed = time.monotonic()
-        previous = None
+        previous = amplitude = None
+        reported = None
         for _ in range(MAX_FRAMES_PER_STEP):
             telemetry = self.driver.next_telemetry()
             self._check(telemetry)
             if abs(telemetry.carrier_hz - carrier_hz) > 0.01:
+                reported = telemetry.carrier_hz
                 continue  # from before the change
             amplitude = telemetry.measured_um_pp
+            if not math.isfinite(amplitude) or amplitude < 0.0:
+                raise DeviceError(f"the plate driver reported a measured amplitude of {amplitude} µm p-p at "
+                                  f"{carrier_hz:.1f} Hz, which cannot be: check its sensor and firmware")
             if amplitude > SAFE_FRACTION * self.limit_um_pp:
                 self._lower_drive()
                 previous = None
@@ -110,6 +115,10 @@ class TelemetrySweeper:
                                                                                                         floor):
                 return SweepPoint(carrier_hz, 0.5 * (amplitude + previous), self.drive_fraction, True)
             previous = amplitude
+        if amplitude is None:  # no telemetry at the carrier it was set to: it does not follow SET_CARRIER
+            raise DeviceError(f"the plate driver does not follow the carrier: set to {carrier_hz:.1f} Hz, its "
+                              f"telemetry said {reported:.1f} Hz for {MAX_FRAMES_PER_STEP} frames; check its "
+                              "firmware (SET_CARRIER)")
         self.unsettled += 1
         return SweepPoint(carrier_hz, amplitude, self.drive_fraction, False)
 
