@@ -133,13 +133,15 @@ class Supervisor:
 
     # ---- the watch -----------------------------------------------------------------------------------------
     def _watch(self) -> None:
+        _prepare_rest(self.device_url)  # what making the device safe needs, imported now rather than then
         if self.realtime:  # a busy app (the demo's drawing) must not hold the watch back: SCHED_FIFO 1 where allowed
-            with contextlib.suppress(OSError, AttributeError):
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))  # this thread only (Linux)
+            with contextlib.suppress(OSError, AttributeError):  # (after the imports: their CPU at FIFO 1 would keep
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))  # the engine's threads off it); Linux
         fast = self._fast
         now = time.perf_counter()
         block_beat, engine_beat = fast[shm.HEARTBEAT], fast[shm.ENGINE_BEAT]
         block_seen = engine_seen = last_wake = now
+        stopped_since = None  # when the process was first seen stopped (SIGSTOP): judged on its own clock
         while True:
             ended = bool(wait([self._sentinel], self.poll_s))
             now = time.perf_counter()
@@ -153,6 +155,10 @@ class Supervisor:
             if now - last_wake > OWN_GAP_S:  # this process did not run: what the engine did meanwhile is unknown
                 block_seen = engine_seen = now
             last_wake = now
+            # a process seen stopped twice frozen_after_s apart is frozen, however late this watch ran between (the
+            # two stopped together by Ctrl-Z are continued together: the engine is not seen stopped again)
+            stopped = _process_state(self.pid) in ("T", "t")
+            stopped_since = (stopped_since or now) if stopped else None
             if fast[shm.HEARTBEAT] != block_beat:
                 block_beat, block_seen = fast[shm.HEARTBEAT], now
             if fast[shm.ENGINE_BEAT] != engine_beat:
@@ -160,16 +166,19 @@ class Supervisor:
             if state in CLEAN_ENDS:
                 continue
             silent_s = now - max(block_seen, engine_seen)
-            if self._stopping or state == "stopping":
+            if stopped_since is not None and now - stopped_since > self.frozen_after_s:
+                frozen = True
+            elif self._stopping or state == "stopping":
                 frozen = now - engine_seen > self.frozen_after_s
             elif state in ("running", "paused"):
                 frozen = silent_s > self.frozen_after_s
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
             if frozen:
-                cause = self._frozen_cause(now - block_seen)
+                stopped_s = 0.0 if stopped_since is None else now - stopped_since  # (seen stopped this long)
+                cause = self._frozen_cause(max(now - block_seen, stopped_s))
                 self._kill()
-                self._lost("froze", cause, now, now - max(block_seen, engine_seen))
+                self._lost("froze", cause, now, max(now - max(block_seen, engine_seen), stopped_s))
                 return
 
     def _frozen_cause(self, blockless_s: float) -> str:
@@ -210,6 +219,17 @@ class Supervisor:
             rested = [f"the device could not be made safe ({type(error).__name__}: {error})"]
         self.loss = EngineLoss(kind, cause, noticed_s, max(0.0, silent_s), tuple(rested), time.perf_counter())
         self.lost.set()
+
+
+def _prepare_rest(device_url: str) -> None:
+    """Import what :func:`devices.after_loss.rest_after_loss` will need for this device (pyserial for a serial plate:
+    tens of milliseconds), so that a loss costs none of it."""
+    with contextlib.suppress(Exception):
+        from ultraglide.devices import after_loss  # noqa: F401
+        from ultraglide.devices.urls import parse_device_url
+
+        if parse_device_url(device_url).kind == "serial":
+            from ultraglide.devices import serial_link  # noqa: F401
 
 
 def _process_state(pid: int) -> str:
