@@ -62,7 +62,7 @@ class StampedPlate:
     def __init__(self):
         from ultraglide.devices import protocol as p
         from ultraglide.devices.profiles import load_profile
-        from ultraglide.devices.pty_plate import PtyPlate
+        from ultraglide.devices.sim.pty_plate import PtyPlate
 
         self.plate = PtyPlate(load_profile("sim-plate")).start()
         self.disables: list[float] = []

@@ -55,7 +55,7 @@ def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -
     str
         ``"ENABLE 0 acknowledged by the plate 4 ms after"``, or what went wrong.
     """
-    from ultraglide.devices.serial_link import open_port
+    from ultraglide.devices.serial.link import open_port
 
     sent_s = None
     try:

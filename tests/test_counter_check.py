@@ -9,7 +9,7 @@ from scripted_plate import PROFILE, ScriptedPlate
 from test_host_truth import DEADLINE_S, Constant
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import STEP_MAX, CounterCheck, plausible_restart
-from ultraglide.devices.serial_plate import SerialPlate
+from ultraglide.devices.serial.plate import SerialPlate
 
 OVERRUN_BIT = (p.FAULT_OVERRUN if hasattr(p, "FAULT_OVERRUN") else p.FAULT_UNDERRUN).bit_length() - 1
 NAME = p.FAULT_NAMES[1 << OVERRUN_BIT]

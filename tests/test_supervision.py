@@ -17,7 +17,7 @@ import pytest
 import soundfile
 from test_exits import Command, PlateTap, hidden_files, size_of_hidden, wait_until
 from ultraglide.devices import protocol as p
-from ultraglide.devices.run_report import EXIT_ENGINE_LOST
+from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
 from xvfb_demo import XvfbDemo, tools_missing
 
 LOSSES = [signal.SIGKILL, signal.SIGSTOP]

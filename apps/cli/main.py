@@ -10,7 +10,7 @@ The exit statuses (docs/guide/commands.md, Exit statuses):
  0         done, clean
  1         an error a person can fix (a file, a device, a value), said in one line
  2         usage: options that make no sense (argparse's, and ours)
- 3, 4, 5   a run on a plate: the plate faulted, was lost, cut its output (``devices.run_report``)
+ 3, 4, 5   a run on a plate: the plate faulted, was lost, cut its output (``devices.serial.run_report``)
  6         ``plate check``: the plate broke a rule of the protocol
  7         the engine was lost: its process died or froze mid-run; the device was made safe by the command
            (``render.engine.supervisor``)

@@ -39,7 +39,7 @@ import time
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 
-from ultraglide.devices.run_report import EXIT_ENGINE_LOST
+from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
 from ultraglide.render.engine import shm
 
 FROZEN_AFTER_S = 0.15  # no sign of life for this long while the engine should play: it is frozen
@@ -229,7 +229,7 @@ def _prepare_rest(device_url: str) -> None:
         from ultraglide.devices.urls import parse_device_url
 
         if parse_device_url(device_url).kind == "serial":
-            from ultraglide.devices import serial_link  # noqa: F401
+            from ultraglide.devices.serial import link  # noqa: F401
 
 
 def _process_state(pid: int) -> str:
