@@ -206,3 +206,30 @@ def test_the_demo_under_xvfb_says_its_engine_was_lost_disables_the_plate_and_res
         assert demo.quit() == EXIT_ENGINE_LOST
     out = "".join(demo.stdout)
     assert re.search(r"the engine was lost: its process was killed by SIGKILL", out), out
+
+
+def test_the_demos_status_line_says_the_engine_was_lost_and_r_restarts_it(tmp_path, monkeypatch):
+    """In the demo's own loop (SDL's dummy video): the status line names the loss and offers R; R brings a new engine
+    process that renders; the run's report is the loss's, exit status 7."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo.app import DemoApp, say_report
+
+    app = DemoApp(windowed=True, device_url="null")
+    try:
+        first = app.wait_ready().engine.process.pid
+        os.kill(first, signal.SIGKILL)
+        deadline = time.monotonic() + 60
+        while app.engine_lost is None and time.monotonic() < deadline:
+            app.step(0.01)
+        words = app.status_words()
+        assert "the engine was lost (its process was killed by SIGKILL); the device was made safe · R: restart " \
+               "the engine" in words, words
+        app.act("restart")
+        link = app.wait_ready()
+        assert link.engine.process.pid != first and link.engine.alive and app.engine_lost is None
+        before = link.status(0.0).blocks
+        wait_until(lambda: link.status(0.0).blocks > before, "the new engine to render")
+        assert "engine was lost" not in app.status_words()
+    finally:
+        app.close()
+    assert say_report(app.final_status, app.losses) == EXIT_ENGINE_LOST
