@@ -6,9 +6,11 @@ the command after its engine is gone; a WAV recording and a CSV log are finished
 temporary left; the run's report says what happened in words and the exit status is 7.
 """
 
+import contextlib
 import os
 import re
 import signal
+import threading
 import time
 from pathlib import Path
 
@@ -233,3 +235,45 @@ def test_the_demos_status_line_says_the_engine_was_lost_and_r_restarts_it(tmp_pa
     finally:
         app.close()
     assert say_report(app.final_status, app.losses) == EXIT_ENGINE_LOST
+
+
+def test_an_experiment_whose_engine_is_lost_ends_with_exit_7_and_keeps_no_answer_felt_on_nothing(tmp_path,
+                                                                                                   monkeypatch):
+    """The engine of a live session killed while a trial is shown: the participant's next touch ends the session
+    with EngineLost (exit status 7 through the command), and that trial's answer is not logged."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    import pygame as pg
+    from test_experiment_window import interval_positions, read_rows, swipe, wait_for
+    from ultraglide.apps.commands.experiment import design_for
+    from ultraglide.apps.experiment.session import SessionConfig, run_session
+    from ultraglide.apps.experiment.window import WindowResponder
+    from ultraglide.render.engine import EngineLost
+
+    config = SessionConfig(texture="grating-1mm", method="staircase", intervals=2, trials=2, seed=1, device="null",
+                           start_level=0.4)
+    design = design_for(config)
+    window = WindowResponder(config, design, screen_width_mm=338.7, windowed=True)
+    target = interval_positions(config.seed, 2, 2)[0]
+
+    def participant():
+        wait_for(window, "trial", 1)
+        engine = window.output.engine
+        os.kill(engine.process.pid, signal.SIGKILL)
+        wait_until(lambda: engine.loss is not None, "the supervisor to see the loss")
+        with contextlib.suppress(pg.error):  # the session ends at the first touch: the window closes under the swipe
+            swipe(pg, window, target)
+            pg.event.post(pg.event.Event(pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="",
+                                         scancode=0))
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        with pytest.raises(EngineLost) as lost:
+            run_session(config, design, window, tmp_path)
+    finally:
+        window.close()
+    helper.join(timeout=60)
+    assert lost.value.exit_status == EXIT_ENGINE_LOST
+    assert "its process was killed by SIGKILL" in str(lost.value)
+    rows = read_rows(tmp_path) if (tmp_path / "trials.csv").exists() else []
+    assert rows == []
