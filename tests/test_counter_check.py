@@ -6,7 +6,8 @@ import re
 
 from conftest import wait_for
 from scripted_plate import PROFILE, ScriptedPlate
-from test_host_truth import DEADLINE_S, Constant
+from sources import Constant
+from test_exits import DEADLINE_S
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import STEP_MAX, CounterCheck, plausible_restart
 from ultraglide.devices.serial.plate import SerialPlate
