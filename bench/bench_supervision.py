@@ -88,7 +88,9 @@ def one_run(device: str, how: str, plate: StampedPlate | None) -> dict:
     folder = Path(tempfile.mkdtemp(prefix="ultraglide-bench-supervision-"))
     log = folder / "env.csv"
     url = f"serial:{plate.plate.path}" if plate is not None else "sim"
-    command = subprocess.Popen([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device", url, "--profile", "sim-plate",
+    command = subprocess.Popen([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device", url,
+                                "--profile", "sim-plate",
+
                                 "--duration-s", "60", "--envelope-csv", str(log)], cwd=ROOT,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     ended: list[float] = []

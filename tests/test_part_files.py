@@ -25,8 +25,8 @@ def test_a_hangup_to_play_and_its_engine_rests_the_plate_from_the_engine(tmp_pat
     down, zero setpoints, DISABLE), rather than dying of it."""
     tap = PlateTap()
     try:
-        command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--duration-s",
-                          "60")
+        command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}",
+                          "--profile", "sim-plate", "--duration-s", "60")
         try:
             wait_until(lambda: tap.plate.simulator.peak_um_pp > 0.5, "the plate to be driven")
             engine = engine_of(command.process.pid)

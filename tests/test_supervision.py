@@ -134,7 +134,8 @@ def disables(tap):
 
 @pytest.mark.parametrize("how", LOSSES, ids=["killed", "stopped"])
 def test_play_on_serial_with_its_engine_lost_disables_the_plate(tmp_path, tap, how):
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate", "--duration-s", "60")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+                      "--duration-s", "60")
     try:
         wait_until(lambda: tap.plate.simulator.peak_um_pp > 0.5, "the plate to be driven")
         before = len(tap.frames)
@@ -153,7 +154,8 @@ def test_play_on_serial_with_its_engine_lost_disables_the_plate(tmp_path, tap, h
 
 def test_a_clean_play_is_not_taken_for_a_loss(tmp_path, tap):
     """The engine's end at a run's end (its process exiting once stopped) is no loss."""
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate", "--duration-s", "0.5")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+                      "--duration-s", "0.5")
     try:
         assert command.wait() == 0, command.stderr
     finally:
@@ -164,7 +166,8 @@ def test_a_clean_play_is_not_taken_for_a_loss(tmp_path, tap):
 def test_the_engine_frozen_while_it_stops_is_killed_and_the_plate_disabled(tmp_path, tap):
     """SIGSTOP to the engine and SIGTERM to the command together: the stop waits on a frozen engine no longer
     than the supervisor's bound, then the plate gets ENABLE 0 from the command."""
-    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate", "--duration-s", "60")
+    command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
+                      "--duration-s", "60")
     try:
         wait_until(lambda: tap.plate.simulator.peak_um_pp > 0.5, "the plate to be driven")
         before = len(tap.frames)

@@ -7,7 +7,8 @@ from scripted_plate import PROFILE, ScriptedPlate
 
 def test_a_plate_that_does_not_follow_the_carrier_is_said_in_one_line(tmp_path):
     with ScriptedPlate(enabled_follows=True) as plate:  # its telemetry always says the profile's resonance
-        result = run_cli("plate", "sweep", "--device", f"serial:{plate.path}", "--profile", "sim-plate", "-o", tmp_path / "p.toml",
+        result = run_cli("plate", "sweep", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                         "-o", tmp_path / "p.toml",
                          "--from-hz", PROFILE.resonance_hz + 500, "--to-hz", PROFILE.resonance_hz + 1500,
                          "--steps", 5, timeout=300)
     line = assert_one_line_error(result)
