@@ -36,17 +36,18 @@ MONNOYER_SCALE = 2 * math.sqrt(2) * 1.32  # µm p-p: exp(-a²/2tau²) with a = a
 
 
 def hand_amplitude(ratio, force_n):
-    """The default model's inverse by hand: s0 (F / 0.5 N)^(1/3) sqrt(-ln r)."""
-    return MONNOYER_SCALE * (force_n / 0.5) ** (1 / 3) * np.sqrt(-np.log(ratio))
+    """The default model's inverse by hand: s0 (F / 0.5 N)^(1/3) sqrt(-ln((r - d) / (1 - d))), floor d = 0.1."""
+    return MONNOYER_SCALE * (force_n / 0.5) ** (1 / 3) * np.sqrt(-np.log((ratio - 0.1) / 0.9))
 
 
 # ---- force in every default and every path ---------------------------------------------------------
 def test_the_default_rendering_model_is_force_aware_and_says_its_law():
     model = ultraglide.load_model("stretched")
     assert "assumed from the paper's detachment law" in model.describe()
-    assert model.relative_friction(3.1, 0.2) == pytest.approx(math.exp(-(3.1 / (MONNOYER_SCALE * 0.4 ** (1 / 3))) ** 2))
-    assert model.relative_friction(3.1, 0.2) == pytest.approx(0.281, abs=1e-3)
-    assert model.relative_friction(3.1, 1.0) == pytest.approx(0.648, abs=1e-3)
+    assert model.relative_friction(3.1, 0.2) == pytest.approx(
+        0.1 + 0.9 * math.exp(-(3.1 / (MONNOYER_SCALE * 0.4 ** (1 / 3))) ** 2))
+    assert model.relative_friction(3.1, 0.2) == pytest.approx(0.353, abs=1e-3)
+    assert model.relative_friction(3.1, 1.0) == pytest.approx(0.683, abs=1e-3)
 
 
 @pytest.mark.slow

@@ -165,7 +165,7 @@ def test_bad_model_specs_say_what_is_wrong(tmp_path):
 
 
 def test_stretched_model_by_hand():
-    model = StretchedExponentialModel(scale_um_pp=3.0, shape=1.5, force_exponent=0.5)
+    model = StretchedExponentialModel(scale_um_pp=3.0, shape=1.5, force_exponent=0.5, residual_ratio=0.0)
     for force in (0.2, 0.5, 1.0):
         scale = 3.0 * (force / 0.5) ** 0.5  # the 1/e amplitude at this force
         assert model.relative_friction(scale, force) == pytest.approx(np.exp(-1), rel=1e-12)
@@ -173,15 +173,38 @@ def test_stretched_model_by_hand():
         assert model.amplitude_um_pp(np.array([0.5]), force).amplitude_um_pp[0] == pytest.approx(half, rel=1e-12)
 
 
-def test_stretched_defaults_are_the_published_curve_at_half_a_newton():
+def test_stretched_defaults_are_the_published_curve_at_half_a_newton_above_the_measured_floor():
     data = read_measurements(SHARED_DATA)
+    # d + (1 - d) x the fitted curve, d = 0.10: the mean measured at full amplitude (Wiertlewski et al. 2016)
     assert StretchedExponentialModel().relative_friction(data.amplitude_um_pp, 0.5) == pytest.approx(
-        data.relative_friction, abs=1e-4)
+        0.10 + 0.90 * data.relative_friction, abs=1e-4)
+    assert StretchedExponentialModel(residual_ratio=0.0).relative_friction(data.amplitude_um_pp, 0.5) == \
+        pytest.approx(data.relative_friction, abs=1e-4)
     # harder presses need more vibration for the same reduction: s grows as F^(1/3)
     model = StretchedExponentialModel()
     a1 = model.amplitude_um_pp(np.array([0.5]), 0.2).amplitude_um_pp[0]
     a2 = model.amplitude_um_pp(np.array([0.5]), 1.6).amplitude_um_pp[0]
     assert a2 / a1 == pytest.approx(8 ** (1 / 3), rel=1e-12)
+
+
+def test_the_default_floor_is_never_crossed_and_ratios_below_it_are_counted():
+    model = StretchedExponentialModel()
+    assert model.residual_ratio == 0.10
+    assert float(model.relative_friction(20.0, 0.5)) == pytest.approx(0.10, abs=1e-12)  # far beyond any plate
+    floor_at_6 = 0.10 + 0.90 * np.exp(-(6.0 / (2 * np.sqrt(2) * 1.32)) ** 2)  # 0.168: the plate's limit 6 µm
+    assert float(model.floor_ratio(0.5, 6.0)) == pytest.approx(floor_at_6, rel=1e-12)
+    asked = np.array([1.0, 0.5, 0.2, 0.15, 0.05, 0.0])
+    result = model.amplitude_um_pp(asked, 0.5, limit_um_pp=6.0)
+    assert result.clamped == 3  # 0.15, 0.05 and 0 lie below the floor: held at the limit and counted
+    assert result.amplitude_um_pp[-3:].tolist() == [6.0, 6.0, 6.0]
+    assert float(model.relative_friction(result.amplitude_um_pp[2], 0.5)) == pytest.approx(0.2, abs=1e-9)
+    assert "floor d = 0.1" in model.describe() and "Wiertlewski" in model.describe()
+
+
+@pytest.mark.parametrize("model", [ExponentialModel(), StretchedExponentialModel(residual_ratio=0.0)])
+def test_models_that_reach_zero_say_so(model):
+    assert float(model.relative_friction(20.0, 0.5)) < 1e-6
+    assert "reaches 0" in model.describe()
 
 
 def test_paper_model_area_law_is_a_parameter():

@@ -33,7 +33,7 @@ ID_PUNCTUATION = "-_."
 REQUIRED_COLUMNS = (AMPLITUDE.name, RELATIVE_FRICTION.name)
 MAX_ROWS = 100_000  # measured tables hold tens to thousands of points
 MIN_STEP_UM = 0.001  # distinct amplitudes at one force closer than a nanometre are one measurement, or noise
-REST_UM_PP = 0.5  # amplitudes up to this are "at rest" for the check below (Monnoyer's law: 0.98 there)
+REST_UM_PP = 0.5  # "at rest" below this, for the check below (Monnoyer's fitted law, as we evaluate it: 0.98)
 REST_TOLERANCE = 0.15  # at rest the ratio must be within this of 1
 MIN_FALL = 0.05  # at each force the ratio must fall by at least this over the amplitudes measured
 

@@ -242,9 +242,10 @@ class FrictionModel(ABC):
         return {}
 
     def __repr__(self) -> str:
-        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)`` (a floor of 0,
-        the default, left out)."""
-        shown = {k: v for k, v in self.parameters().items() if not (k == "residual_ratio" and v == 0.0)}
+        """The constructor call with the model's parameters: ``ExponentialModel(tau_um_zp=1.32)`` (a floor at the
+        class's default, left out)."""
+        shown = {k: v for k, v in self.parameters().items()
+                 if not (k == "residual_ratio" and v == self.default_floor)}
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in shown.items())})"
 
     def _floor(self, force_n, limit: float):
@@ -275,6 +276,7 @@ class FrictionModel(ABC):
             amplitude = out
         return Inversion(amplitude, clamped)
 
+    default_floor = 0.0  # the residual_ratio a model of this class has unless told otherwise
     compiled = False  # True when the model has compiled inverses (_inverse_one_force, _inverse_forces)
 
     def _inverse_one_force(self, ratio: np.ndarray, force_n: float, limit: float, out: np.ndarray) -> int:

@@ -5,8 +5,9 @@ mechanism is the non-Coulombic law swinging about the load. Measured fingers fal
 within a few µm. Wiertlewski, Friesen and Colgate (PNAS 113:9210, 2016, "Partial squeeze film
 levitation modulates fingertip friction") imaged the contact and found the load at the interface
 shared between the elastic compression of the skin's asperities and a squeeze film of air that has
-no time to escape: fewer asperities touch, and friction falls with them. Friesen et al. (2018)
-showed that evacuating the air takes most of the reduction away.
+no time to escape: fewer asperities touch, and friction falls with them. Fenton Friesen et al.
+(2018) measured friction reduction in reduced air pressure (at 0.3 ± 0.05 N and amplitudes below
+about 1.8 µm, reporting the motor's current); no ratio of theirs is used here.
 
 This model puts the two together, with parameters that are physical:
 
@@ -62,7 +63,7 @@ AIR_VISCOSITY_PA_S = 1.81e-5  # at 20 °C
 EPS_MAX = 0.95  # the film's law is held beyond this share of the gap (see film_overpressure_ratio)
 GAP_RANGE_UM = (1.0, 100.0)
 FILM_FRACTION_RANGE = (0.0, 1.0)
-AMBIENT_RANGE_PA = (1.0e3, 2.0e5)  # down to a 99 % vacuum (Friesen et al. 2018 used 98 %); no film: film_fraction 0
+AMBIENT_RANGE_PA = (1.0e3, 2.0e5)  # down to a 99 % vacuum; no film: film_fraction 0
 
 
 @dataclass(frozen=True)
@@ -217,7 +218,8 @@ class SqueezeFilmModel(FrictionModel):
         return (f"squeeze-film: the paper's ridges (E = {p.youngs_modulus_pa / 1e6:g} MPa, n = "
                 f"{p.friction_exponent:.3g}, {p.contact} contact) sharing the load with an air film "
                 f"(gap {f.gap_um:.3g} µm over {f.film_fraction:.3g} of the contact, {f.ambient_pressure_pa / 1e3:.4g} "
-                f"kPa); after Wiertlewski et al. 2016 and Biet et al. 2007")
+                f"kPa); after Wiertlewski et al. 2016 and Biet et al. 2007; reaches 0 where the film carries the "
+                f"whole load (levitation), which no measured finger does")
 
     def __repr__(self) -> str:
         """``SqueezeFilmModel()``, or the constructor call with the parameters that differ from the defaults."""

@@ -1,0 +1,120 @@
+"""What the papers ultraglide cites actually state: every published figure a model, a default or a page uses.
+
+Each :class:`Figure` is one number (or range) as its paper states it, with the paper and where in it
+(section, figure, table, abstract). ``checked`` says whether that place was read for this project (the
+bundled ``data/README.md`` notes, or the paper's own text); a figure taken from a summary whose place in
+the paper was not located says so (``checked=False``) instead of inventing a section. Model outputs are
+never listed here: they are ours, and the pages label them so.
+
+``tests/test_attribution.py`` reads this table and the physics pages and docstrings: a number written
+beside a cited author's name must be a figure listed here for that author (or be marked as ours), and
+every figure here must name its place. So a new attributed number cannot be added without a source.
+
+Example::
+
+    >>> from ultraglide.render.physics.sources import FIGURES
+    >>> meyer = [f for f in FIGURES if f.key == "recovery_s"][0]
+    >>> meyer.value, meyer.author
+    ('70 ms', 'Meyer')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+PAPERS = {
+    "Monnoyer2018": "J. Monnoyer, E. Diaz, C. Bourdin, M. Wiertlewski, \"Perception of ultrasonic switches involves "
+                    "large discontinuity of the mechanical impedance\", IEEE Trans. Haptics 11(4):579-589, 2018",
+    "Huloux2018": "N. Huloux, J. Monnoyer, M. Boyron, M. Wiertlewski, EuroHaptics 2018, LNCS 10893:326-337",
+    "Wiertlewski2016": "M. Wiertlewski, R. Fenton Friesen, J. E. Colgate, \"Partial squeeze film levitation "
+                       "modulates fingertip friction\", PNAS 113(33):9210-9215, 2016",
+    "Meyer2014": "D. J. Meyer, M. Wiertlewski, M. A. Peshkin, J. E. Colgate, \"Dynamics of ultrasonic and "
+                 "electrostatic friction modulation for rendering texture on haptic surfaces\", IEEE Haptics "
+                 "Symposium 2014",
+    "Monnoyer2023": "J. Monnoyer, L. Willemet, M. Wiertlewski, \"Rapid change of friction causes the illusion of "
+                    "touching a receding surface\", J. R. Soc. Interface 20(199):20220718, 2023",
+    "Friesen2018": "R. Fenton Friesen et al., 2018 (friction reduction in reduced air pressure; cited as issue 43 "
+                   "summarises it)",
+    "Bernard2018": "C. Bernard, J. Monnoyer, M. Wiertlewski, \"Harmonious textures\", EuroHaptics 2018",
+    "Gueorguiev2017": "D. Gueorguiev et al., J. R. Soc. Interface 2017",
+    "Gueorguiev2019": "D. Gueorguiev et al., IEEE Trans. Haptics 2019",
+}
+
+#: The surname each paper is cited by in running text ("Meyer et al. 2014").
+AUTHORS = {"Monnoyer2018": "Monnoyer", "Huloux2018": "Huloux", "Wiertlewski2016": "Wiertlewski",
+           "Meyer2014": "Meyer", "Monnoyer2023": "Monnoyer", "Friesen2018": "Friesen", "Bernard2018": "Bernard",
+           "Gueorguiev2017": "Gueorguiev", "Gueorguiev2019": "Gueorguiev"}
+
+UNLOCATED = "place in the paper not located here (figure as summarised in issue 43)"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One published figure: ``value`` as written in our pages (units and all), ``what`` it measures, the
+    ``paper`` (a key of :data:`PAPERS`), ``where`` in it, and whether that place was ``checked``."""
+
+    key: str
+    value: str
+    what: str
+    paper: str
+    where: str
+    checked: bool
+
+    @property
+    def author(self) -> str:
+        return AUTHORS[self.paper]
+
+
+FIGURES: tuple[Figure, ...] = (
+    Figure("monnoyer_tau", "1.32 µm", "tau of mu = mu0 exp(-a²/2tau²), zero-to-peak, fitted over 14 participants "
+           "(± 0.45 µm)", "Monnoyer2018", "§3.1.4, §3.2.1, Figs. 4 and 6 (data/README.md)", True),
+    Figure("monnoyer_tau_spread", "0.45 µm", "spread of tau across participants", "Monnoyer2018",
+           "§3.2.1 (data/README.md)", True),
+    Figure("monnoyer_mu0", "1.2", "friction coefficient at rest (± 0.67)", "Monnoyer2018",
+           "§3.2.1 (data/README.md)", True),
+    Figure("monnoyer_carrier", "34 590 Hz", "the plate's frequency", "Monnoyer2018", "§3.1 (data/README.md)", True),
+    Figure("huloux_f0", "0.8 N", "f0 of f = f0 exp(-a² tau) + d", "Huloux2018", "the fitted law (data/README.md)",
+           True),
+    Figure("huloux_tau", "0.38 µm⁻²", "tau of the same law", "Huloux2018", "the fitted law (data/README.md)", True),
+    Figure("huloux_carrier", "30 kHz", "the plate's frequency", "Huloux2018", "data/README.md", True),
+    Figure("huloux_amplitude", "2.5 µm", "the largest amplitude of its modulation", "Huloux2018", "data/README.md",
+           True),
+    Figure("huloux_settling", "32-37 ms", "time for friction to settle after a change of vibration", "Huloux2018",
+           UNLOCATED, False),
+    Figure("floor_mean", "0.10", "friction ratio at 6 µm p-p, 29 kHz, mean over people", "Wiertlewski2016",
+           UNLOCATED, False),
+    Figure("floor_range", "0.02-0.30", "the same ratio's range across people", "Wiertlewski2016", UNLOCATED, False),
+    Figure("floor_amplitude", "6 µm", "the amplitude (p-p) of that ratio", "Wiertlewski2016", UNLOCATED, False),
+    Figure("floor_carrier", "29 kHz", "the plate's frequency for that ratio", "Wiertlewski2016", UNLOCATED, False),
+    Figure("onset_s", "5 ms", "time for friction to fall when the vibration starts", "Meyer2014", UNLOCATED, False),
+    Figure("recovery_s", "70 ms", "time for friction to recover when it stops, at 22 mm/s (slower when sliding "
+           "slower)", "Meyer2014", UNLOCATED, False),
+    Figure("recovery_speed", "22 mm/s", "the sliding speed of that recovery", "Meyer2014", UNLOCATED, False),
+    Figure("release_s", "20 ms", "release of the skin's latent elastic strain after the friction reduction is "
+           "switched on, a finger pressing (not sliding)", "Monnoyer2023", "abstract (read for this project)", True),
+    Figure("friesen_force", "0.3 ± 0.05 N", "the normal force of its measurements", "Friesen2018", UNLOCATED, False),
+    Figure("friesen_amplitude", "1.8 µm", "its amplitudes lay below about this", "Friesen2018", UNLOCATED, False),
+    Figure("bernard_carrier", "39 kHz", "the plate's frequency", "Bernard2018", "data/README.md", True),
+    Figure("bernard_amplitude", "4 µm", "its largest amplitude, p-p", "Bernard2018", "data/README.md", True),
+    Figure("bernard_ratio", "0.25", "ratio near full amplitude (mu about 0.8 to about 0.2)", "Bernard2018",
+           "data/README.md", True),
+    Figure("gueorguiev_weber", "0.11", "Weber fraction for a friction decrease", "Gueorguiev2017", "data/README.md",
+           True),
+    Figure("gueorguiev_transition", "2.3-2.4 ms", "transitions discriminated", "Gueorguiev2019", "data/README.md",
+           True),
+)
+
+
+def figure(key: str) -> Figure:
+    """The published figure named ``key`` (a :class:`Figure`); KeyError if there is none."""
+    for item in FIGURES:
+        if item.key == key:
+            return item
+    raise KeyError(key)
+
+
+def cite(key: str) -> str:
+    """``"70 ms (Meyer2014, place in the paper not located here ...)"``: a figure with its source, for
+    descriptions."""
+    item = figure(key)
+    return f"{item.value} ({item.paper}, {item.where})"
