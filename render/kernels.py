@@ -190,6 +190,105 @@ def motion(x, y, x_before, y_before, dx_out, dy_out, step_out):
         step_out[i] = math.hypot(dx_out[i], dy_out[i])
 
 
+@njit(cache=True, nogil=True)
+def _target_at(index, target, ahead, first_ahead, stride):
+    """The target ratio at sample ``index`` of the block (``target``), or past its end at the grid of ``ahead``
+    (its first point at sample ``first_ahead``, then every ``stride`` samples; held after its last)."""
+    if index < target.shape[0]:
+        return np.float64(target[index])
+    if ahead.shape[0] == 0:
+        return np.float64(target[target.shape[0] - 1])
+    j = (index - first_ahead) // stride
+    if j < 0:
+        j = 0
+    if j >= ahead.shape[0]:
+        j = ahead.shape[0] - 1
+    return np.float64(ahead[j])
+
+
+@njit(cache=True, nogil=True)
+def _greedy(y, r, floor, ceiling, hold_on, hold_rec):
+    """The command (static ratio) held over one step that brings the felt ratio ``y`` to ``r`` at its end, within
+    [floor, ceiling] (where out of reach: the nearest reachable)."""
+    hold = hold_on if r < y else hold_rec
+    x = (r - y * hold) / (1.0 - hold)
+    return min(max(x, floor), ceiling)
+
+
+@njit(cache=True, nogil=True)
+def _held(y, x, hold_on, hold_rec):
+    """The felt ratio after a step of command ``x`` from ``y`` (onset where it falls, recovery where it rises)."""
+    hold = hold_on if x < y else hold_rec
+    return x + (y - x) * hold
+
+
+@njit(cache=True, nogil=True)
+def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, levels, felt,
+                  phase, command, gate, out, goals):
+    """The command (static friction ratio, one a sample into ``out``) that makes the felt ratio follow
+    ``target`` as closely as the dynamics allow, and the felt ratio the dynamics predict.
+
+    The felt ratio y follows the command x through y += k (x - y), k = ``k_onset`` where x < y, ``k_recovery``
+    where x > y (per sample). Every ``stride`` samples (``phase`` counts the samples since the last decision,
+    carried between blocks) the planner compares, over ``steps`` steps of ``stride`` samples, the squared error
+    between the predicted felt ratio and the target at each step's end for: holding one of ``levels`` commands
+    evenly spaced in [floor, ceiling], or the greedy command (the one reaching the next step's target, clipped),
+    for 1, 2, 4, ... steps and then following the greedy command; it keeps the first step of the best, held until
+    the next decision. The targets past the block come from ``ahead`` (sampled every ``stride`` samples from
+    sample ``first_ahead``). ``gate`` 0: the finger is off (the command is the target, the felt ratio 1).
+    ``goals``: room for ``steps`` floats (the horizon's targets, gathered once a decision).
+    Returns (felt, phase, command, targets below the floor)."""
+    hold_on = (1.0 - k_onset) ** stride
+    hold_rec = (1.0 - k_recovery) ** stride
+    below = 0
+    for i in range(target.shape[0]):
+        r_now = np.float64(target[i])
+        if r_now < floor:
+            below += 1
+        if gate == 0:
+            out[i] = r_now
+            felt = 1.0
+            phase = 0
+            continue
+        if phase == 0:
+            best_cost = np.inf
+            best = command
+            end0 = i + stride - 1
+            for j in range(steps):
+                goals[j] = _target_at(end0 + j * stride, target, ahead, first_ahead, stride)
+            r0 = goals[0]
+            for c in range(levels + 1):
+                if c < levels:
+                    level = floor + (ceiling - floor) * c / (levels - 1)
+                else:
+                    level = _greedy(felt, r0, floor, ceiling, hold_on, hold_rec)
+                span = 1
+                while True:
+                    cost = 0.0
+                    y = felt
+                    for j in range(steps):
+                        r = goals[j]
+                        x = level if j < span else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
+                        y = _held(y, x, hold_on, hold_rec)
+                        cost += (y - r) * (y - r)
+                        if cost >= best_cost:
+                            break
+                    if cost < best_cost:
+                        best_cost = cost
+                        best = level
+                    if span >= steps or c == levels:
+                        break
+                    span *= 2
+            command = best
+        x = command
+        felt += (k_onset if x < felt else k_recovery) * (x - felt)
+        out[i] = x
+        phase += 1
+        if phase >= stride:
+            phase = 0
+    return felt, phase, command, below
+
+
 @functools.cache
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of the signal path with the types the renderer
@@ -203,6 +302,9 @@ def warm_up() -> None:
         recorded_path(three, three, three, three, has_force, 0.0, 3.0, f64 + 0.5, np.empty(4), np.empty(4),
                       np.empty(4), np.empty(4, dtype=np.bool_))
     motion(f64, f64, 0.0, 0.0, np.empty(4), np.empty(4), np.empty(4))
+    for ratio in (f64 + 0.5, np.zeros(4, dtype=np.float32) + 0.5):
+        plan_friction(ratio, np.zeros(3, dtype=np.float32) + 0.5, 5, 0.1, 1.0, 0.02, 0.002, 2, 3, 5, 1.0, 0, 1.0, 1,
+                      np.empty(4), np.empty(3))
     for kind in range(3):
         swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
                    np.empty(4, dtype=np.bool_))

@@ -33,6 +33,7 @@ from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.render.planning import Planner
 from ultraglide.render.trajectory import FingerState, LiveTrajectory, RecordedTrajectory
 from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
@@ -70,6 +71,7 @@ class RenderSettings:
     band_limited_lookup: bool = True
     predictor: str = "lsq"
     lookahead_s: float = 0.0
+    plan: bool = True  # with a model that has friction dynamics: plan the friction felt (render/planning.py)
 
     def __post_init__(self) -> None:
         if self.control_rate_hz < 10000:
@@ -190,6 +192,20 @@ class Renderer:
         self._buffers: ControlBuffers | None = None  # used by every block when set (control_buffers(always=True))
         self._effects_override = effects
         self.effects = self._player(texture)
+        self.planner: Planner | None = None  # set for a model with friction dynamics (settings.plan)
+        self._plan_buffers(model)
+
+    def _plan_buffers(self, model: FrictionModel) -> None:
+        """A planner and its buffers for a model with friction dynamics (built outside any real-time block)."""
+        dynamics = getattr(model, "dynamics", None)
+        if dynamics is None or not self.settings.plan:
+            self.planner = None
+            return
+        self.planner = Planner(dynamics, self.settings.control_rate_hz)
+        room = 128
+        self._ahead_t, self._ahead_x, self._ahead_y = np.empty(room), np.empty(room), np.empty(room)
+        self._ahead_ratio = np.empty(room, dtype=np.float32)
+        self._command = np.empty(4096)
 
     def _player(self, texture: Texture) -> EffectPlayer | None:
         bindings = texture.effects if self._effects_override is None else self._effects_override
@@ -241,6 +257,10 @@ class Renderer:
 
     def set_model(self, model: FrictionModel) -> None:
         """Use another friction model from the next block on."""
+        if getattr(model, "dynamics", None) is not None and self.settings.plan:
+            self._plan_buffers(model)
+        else:
+            self.planner = None
         self.model = model
 
     def set_default_force(self, force_n: float) -> None:
@@ -307,10 +327,16 @@ class Renderer:
             if block is None:
                 ratio = ratio.copy()  # the player's buffer is overwritten by the next block
         force = self._force(finger.force_n)
-        inversion = self.model.amplitude_um_pp(ratio, force, self.limit_um_pp,
-                                               out=None if block is None else block.target_um_pp)
         down = finger.down & self._running & (not self.paused)  # a bool for a live finger, else one per sample
-        if np.all(down):
+        planner = self.planner
+        asked = ratio
+        if planner is not None:
+            asked = self._planned(times, finger, ratio, force, down, step, direction, n)
+        inversion = self.model.amplitude_um_pp(asked, force, self.limit_um_pp,
+                                               out=None if block is None else block.target_um_pp)
+        if planner is not None:
+            self.counters.clipped_samples += self._unreachable
+        elif np.all(down):
             self.counters.clipped_samples += inversion.clamped
         elif inversion.clamped and np.any(down):  # count only the clamps while the finger touches
             floor = self.model.floor_ratio(force, self.limit_um_pp)
@@ -338,6 +364,36 @@ class Renderer:
         for observer in self.observers:
             observer(block)
         return block
+
+    def _planned(self, times, finger: FingerState, ratio, force, down, step, direction, n: int) -> np.ndarray:
+        """The planning stage: the static ratio to command so the felt friction follows ``ratio`` (the texture's
+        targets), from the texture along the finger's path over the planner's horizon; sets the count of
+        unreachable targets (below the floor, while the finger touches)."""
+        planner = self.planner
+        rate = self.settings.control_rate_hz
+        if finger.velocity_mm_s is not None:
+            speed = math.hypot(*finger.velocity_mm_s)
+            one_step, heading = step, direction
+        else:
+            one_step = float(np.mean(step)) if n else 0.0
+            speed = one_step * rate
+            heading = (float(direction[0][n - 1]), float(direction[1][n - 1])) if n else (0.0, 0.0)
+        planner.set_speed(speed)
+        steps = planner.steps
+        ahead_t = planner.ahead_times(float(times[0]) if n else 0.0, n, out=self._ahead_t)
+        ahead = self.trajectory.state(ahead_t, out=(self._ahead_x[:steps], self._ahead_y[:steps]))
+        ahead_ratio = self.sampler.ratio(ahead.x_mm, ahead.y_mm,
+                                         step_mm=one_step if self.settings.band_limited_lookup else None,
+                                         direction=heading, out=self._ahead_ratio[:steps])
+        touching = bool(np.any(down))
+        scalar_force = float(force) if not isinstance(force, np.ndarray) else float(np.mean(force))
+        floor = self.model._floor(scalar_force, min(float(self.limit_um_pp), self.model.max_amplitude_um_pp))
+        if len(self._command) < n:
+            self._command = np.empty(n)  # a catch-up block longer than any before: once
+        below = planner.below_floor
+        command = planner.plan(ratio, ahead_ratio, floor, touching, self._command[:n])
+        self._unreachable = (planner.below_floor - below) if touching else 0
+        return command
 
     def _motion(self, finger: FingerState, n: int) -> tuple:
         """The finger's step per control sample (mm) and its direction, for the band-limited lookup: one step and

@@ -84,8 +84,9 @@ def block_path_memory(texture: str, model: str, signal: str, frames: int, blocks
 @pytest.mark.parametrize("texture, model, signal", [("grating-1mm", "exponential", "audio"),
                                                     ("bumps", "paper", "audio"),
                                                     ("bumps", "stretched", "control"),
-                                                    ("grating-1mm", TABLE, "audio")],
-                         ids=["exponential", "paper", "stretched", "table"])
+                                                    ("grating-1mm", TABLE, "audio"),
+                                                    ("grating-1mm", "dynamic", "control")],
+                         ids=["exponential", "paper", "stretched", "table", "dynamic-planned"])
 def test_the_engine_block_path_allocates_nothing_once_running(texture, model, signal):
     """A block of 8 control samples (64 audio frames) and one of 1024 (8192 frames) use the same memory:
     one array of the block's length made anywhere on the path (a lookup, an inverse, the envelope, knots,

@@ -181,7 +181,15 @@ def _fitted_forces(fit, where: str) -> FitRange | None:
 
 def load_model(spec: str) -> FrictionModel:
     """A model by name or file: ``stretched`` (the default for rendering), ``squeeze-film``,
-    ``exponential``, ``paper``, ``paper-uniform``, ``table:FILE.csv`` or a calibration file ``CAL.toml``."""
+    ``exponential``, ``paper``, ``paper-uniform``, ``table:FILE.csv`` or a calibration file ``CAL.toml``; ``dynamic``
+    (the default model with the published friction dynamics) or ``dynamic:NAME`` (any of these with them)."""
+    if spec == "dynamic" or spec.startswith("dynamic:"):
+        from ultraglide.render.physics.dynamics import DynamicFrictionModel
+
+        inner = spec.removeprefix("dynamic").removeprefix(":") or "stretched"
+        if inner == "dynamic" or inner.startswith("dynamic:"):
+            raise ModelError(f"a dynamic model wraps a static one: {spec!r} wraps another dynamic model")
+        return DynamicFrictionModel(load_model(inner))
     if spec == "paper":
         return PaperModel()
     if spec == "paper-uniform":
@@ -197,8 +205,8 @@ def load_model(spec: str) -> FrictionModel:
     if spec.endswith(".toml"):
         return read_calibration(spec)
     raise ModelError(
-        f"unknown model {spec!r}; use stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
-        "CAL.toml"
+        f"unknown model {spec!r}; use stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv, "
+        "CAL.toml, or dynamic[:NAME] (one of these with the finger's friction dynamics)"
     )
 
 

@@ -311,6 +311,35 @@ def inverse_film_force(ratio, force, floor, limit, p, ratio_nodes, out):
     return clamped
 
 
+@njit(cache=True, nogil=True)
+def friction_response(static, speed, one_speed, rate_hz, onset_s, recovery_s, reference_speed, speed_exponent,
+                      slowest_speed, longest_s, felt, out):
+    """The felt friction ratio following the static ratio ``static`` through asymmetric first-order dynamics:
+    time constant ``onset_s`` where friction falls (static below felt), the recovery's where it rises,
+    recovery_s (reference_speed / v)^speed_exponent at the sliding speed v (mm/s; ``one_speed`` >= 0 for all
+    samples, else ``speed`` per sample; speeds below ``slowest_speed`` count as it; at most ``longest_s``).
+    Each sample holds its static value for one period (exact for a held input): out[i] is the felt ratio at the
+    end of sample i. Returns the felt ratio to carry to the next block."""
+    period = 1.0 / rate_hz
+    k_onset = 1.0 - np.exp(-period / onset_s)
+    k_recovery = 0.0
+    if one_speed >= 0.0:
+        tau = recovery_s * (reference_speed / max(one_speed, slowest_speed)) ** speed_exponent
+        k_recovery = 1.0 - np.exp(-period / min(tau, longest_s))
+    for i in range(static.shape[0]):
+        x = np.float64(static[i])
+        if x < felt:
+            felt += k_onset * (x - felt)
+        else:
+            k = k_recovery
+            if one_speed < 0.0:
+                tau = recovery_s * (reference_speed / max(speed[i], slowest_speed)) ** speed_exponent
+                k = 1.0 - np.exp(-period / min(tau, longest_s))
+            felt += k * (x - felt)
+        out[i] = felt
+    return felt
+
+
 # Each model loads only its own inverses (from numba's cache, or compiles them once per machine) with the types
 # the renderer passes: loading one costs tens of milliseconds, and a command uses one model.
 F64, F32 = np.zeros(4), np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
@@ -353,8 +382,17 @@ def warm_up_film() -> None:
     inverse_film_forces(F64 + 0.5, F64 + 0.5, 6.0, film, nodes, np.empty(4))
 
 
+@functools.cache
+def warm_up_dynamics() -> None:
+    """The friction dynamics' response, for one speed and one speed a sample."""
+    for ratio in (F64 + 0.5, F32 + 0.5):
+        friction_response(ratio, F64, 22.0, 12000.0, 0.005, 0.07, 22.0, 0.5, 2.0, 1.0, 1.0, np.empty(4))
+        friction_response(ratio, F64 + 1.0, -1.0, 12000.0, 0.005, 0.07, 22.0, 0.5, 2.0, 1.0, 1.0, np.empty(4))
+
+
 def warm_up() -> None:
     """Every model's inverses (the models load their own: :meth:`FrictionModel.warm_up`)."""
+    warm_up_dynamics()
     warm_up_stretched()
     warm_up_uniform()
     warm_up_table()

@@ -1,0 +1,187 @@
+"""The renderer's planning stage: friction commanded ahead of time, so the friction *felt* follows the texture.
+
+A finger's friction does not follow the plate at once (:mod:`ultraglide.render.physics.dynamics`): it falls
+within milliseconds when the vibration starts and recovers over tens of milliseconds when it stops. A renderer
+that asks each instant for the texture's ratio gets a finger that lags the falls a little and the rises a lot:
+a fine grating, swept fast, is felt mostly low. The :class:`Planner` chooses the static ratio to command (the
+amplitude follows from the model's inverse, as before) by predicting the felt ratio over the next tens of
+milliseconds of the texture along the finger's path: it holds friction up before a rise it could not make in
+time, lets it fall where the fall is quick, and where a target cannot be reached in time it commands the
+reachable friction with the least squared error over the horizon (the compiled
+:func:`ultraglide.render.kernels.plan_friction`; no per-sample Python, no allocation in a block).
+
+:func:`contrast_transfer` says how much of a grating's contrast survives, felt, at a speed: the felt
+ratio's swing over the target's, with the instantaneous or the planned renderer.
+
+Example::
+
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> kept = contrast_transfer(FrictionDynamics(), period_mm=1.0, speed_mm_s=100.0, floor=0.1)
+    >>> 0.0 < kept.planned <= 1.0 and 0.0 < kept.instantaneous <= 1.0
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from ultraglide.render import kernels
+from ultraglide.render.errors import RenderError
+from ultraglide.render.physics.dynamics import FrictionDynamics
+
+DECISION_S = 0.002  # the planner decides every 2 ms (the onset's 5 ms is two and a half decisions)
+HORIZON_RECOVERIES = 2.0  # it looks this many recovery time constants ahead
+MAX_HORIZON_S = 0.1
+MIN_HORIZON_S = 0.01
+LEVELS = 9  # commands held, evenly spread over the reachable ratios
+_STEPS = np.arange(int(MAX_HORIZON_S / DECISION_S) + 2, dtype=float)
+
+
+class Planner:
+    """Plans the commanded static ratio block by block, holding the predicted felt ratio between blocks.
+
+    Parameters
+    ----------
+    dynamics : FrictionDynamics
+        The finger's friction dynamics the plan is made against.
+    rate_hz : float
+        The control rate, Hz.
+
+    Attributes
+    ----------
+    felt : float
+        The felt ratio the dynamics predict at the end of the last block.
+    below_floor : int
+        Target samples below the reachable floor so far (unreachable targets).
+    """
+
+    def __init__(self, dynamics: FrictionDynamics, rate_hz: float):
+        if not rate_hz > 0:
+            raise RenderError(f"the planner's rate must be positive, got {rate_hz}")
+        self.dynamics = dynamics
+        self.rate_hz = float(rate_hz)
+        self.stride = max(1, round(DECISION_S * rate_hz))
+        self.k_onset = 1.0 - math.exp(-1.0 / (rate_hz * dynamics.onset_s))
+        self.felt = 1.0
+        self.phase = 0
+        self.command = 1.0
+        self.below_floor = 0
+        self._speed = None
+        self.k_recovery = 0.0
+        self.steps = 1
+        self._goals = np.empty(len(_STEPS))
+        self.set_speed(dynamics.reference_speed_mm_s)
+
+    def set_speed(self, speed_mm_s: float) -> None:
+        """The finger's sliding speed (mm/s): sets the recovery and the horizon (two recoveries, 10-100 ms)."""
+        speed = round(float(speed_mm_s), 1)
+        if speed == self._speed:
+            return
+        self._speed = speed
+        tau = self.dynamics.recovery_at_s(speed)
+        self.k_recovery = 1.0 - math.exp(-1.0 / (self.rate_hz * tau))
+        horizon = min(max(HORIZON_RECOVERIES * tau, MIN_HORIZON_S), MAX_HORIZON_S)
+        self.steps = max(1, round(horizon * self.rate_hz / self.stride))
+
+    def ahead_times(self, block_start_s: float, n: int, out: np.ndarray | None = None) -> np.ndarray:
+        """The times (s) past a block of ``n`` samples from ``block_start_s`` at which the plan needs the target:
+        the ends of its decision steps over the horizon. ``out``: an array of at least :attr:`steps` to fill."""
+        first = self.first_ahead(n)
+        out = np.empty(self.steps) if out is None else out[:self.steps]
+        np.multiply(_STEPS[:self.steps], self.stride, out=out)
+        out += first
+        out *= 1.0 / self.rate_hz
+        out += block_start_s
+        return out
+
+    def first_ahead(self, n: int) -> int:
+        """The first sample past a block of ``n`` (counted from its start) where a decision step ends."""
+        phase_after = (self.phase + n) % self.stride
+        return n + (self.stride - 1 - phase_after)
+
+    def plan(self, target: np.ndarray, ahead: np.ndarray, floor: float, down: bool, out: np.ndarray) -> np.ndarray:
+        """The commanded static ratio for the block's ``target`` ratios (into ``out``), given the targets at
+        :meth:`ahead_times` (``ahead``), the lowest reachable ratio ``floor``, and whether the finger touches."""
+        n = len(target)
+        self.felt, self.phase, self.command, below = kernels.plan_friction(
+            target, ahead, self.first_ahead(n), float(floor), 1.0, self.k_onset, self.k_recovery, self.stride,
+            self.steps, LEVELS, self.felt, self.phase, self.command, 1 if down else 0, out, self._goals)
+        self.below_floor += below
+        return out
+
+
+
+
+@dataclass(frozen=True)
+class ContrastKept:
+    """How much of a grating's contrast is felt (felt swing over target swing, 0-1), and its RMS error."""
+
+    period_mm: float
+    speed_mm_s: float
+    instantaneous: float
+    planned: float
+    instantaneous_rms: float
+    planned_rms: float
+
+
+def grating_felt(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float, floor: float,
+                 rate_hz: float = 12000.0, duration_s: float = 1.0, low: float | None = None,
+                 square: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Target, instantaneous felt and planned felt ratios for a grating swept at ``speed_mm_s``: a sinusoid (or a
+    square wave) of spatial period ``period_mm`` between 1 and ``low`` (default: the reachable ``floor``)."""
+    low = floor if low is None else low
+    n = int(round(duration_s * rate_hz))
+    phase = 2.0 * math.pi * speed_mm_s / period_mm * np.arange(n + int(MAX_HORIZON_S * rate_hz) + 2) / rate_hz
+    wave = np.sign(np.cos(phase)) if square else np.cos(phase)
+    target = low + (1.0 - low) * 0.5 * (1.0 + wave)
+    instant = dynamics.respond(np.maximum(target[:n], floor), rate_hz, speed_mm_s, 1.0)
+    planner = Planner(dynamics, rate_hz)
+    planner.set_speed(speed_mm_s)
+    command = np.empty(n)
+    block = planner.stride * 8
+    for start in range(0, n, block):
+        stop = min(start + block, n)
+        first = start + planner.first_ahead(stop - start)
+        ahead = target[np.minimum(first + planner.stride * np.arange(planner.steps), len(target) - 1)]
+        planner.plan(target[start:stop], ahead, floor, True, command[start:stop])
+    planned = dynamics.respond(command, rate_hz, speed_mm_s, 1.0)
+    return target[:n], instant, planned
+
+
+def contrast_transfer(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float, floor: float,
+                      rate_hz: float = 12000.0) -> ContrastKept:
+    """How much of a sinusoidal grating's contrast (1 down to ``floor``) the finger feels at ``speed_mm_s``,
+    with the instantaneous and the planned renderer: the felt ratio's peak-to-peak over the target's, over the
+    second half of a sweep of at least 0.5 s and 20 periods (the start's settling left out), with the RMS error.
+
+    Parameters
+    ----------
+    dynamics : FrictionDynamics
+        The finger's dynamics.
+    period_mm : float
+        The grating's spatial period, mm.
+    speed_mm_s : float
+        The sweep's speed, mm/s.
+    floor : float
+        The lowest reachable ratio (the grating's trough).
+    rate_hz : float
+        The control rate, Hz.
+
+    Returns
+    -------
+    ContrastKept
+    """
+    if not (period_mm > 0 and speed_mm_s > 0 and 0.0 <= floor < 1.0):
+        raise RenderError("a grating needs a positive period and speed, and a floor in 0 to below 1")
+    duration = max(0.5, 20.0 * period_mm / speed_mm_s)
+    target, instant, planned = grating_felt(dynamics, period_mm, speed_mm_s, floor, rate_hz, duration)
+    half = len(target) // 2
+    swing = float(np.ptp(target[half:]))
+
+    def kept(felt):
+        return float(np.ptp(felt[half:])) / swing, float(np.sqrt(np.mean((felt[half:] - target[half:]) ** 2)))
+
+    (k_i, e_i), (k_p, e_p) = kept(instant), kept(planned)
+    return ContrastKept(period_mm, speed_mm_s, k_i, k_p, e_i, e_p)
