@@ -17,7 +17,7 @@ from ultraglide.render.physics.sources import AUTHORS, FIGURES, PAPERS
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "docs" / "physics.md", ROOT / "docs" / "guide" / "models.md"]
 CODE = sorted((ROOT / "render" / "physics").glob("*.py")) + [ROOT / "render" / "planning.py",
-                                                                ROOT / "devices" / "finger.py"]
+                                                                ROOT / "devices" / "sim" / "finger.py"]
 QUANTITY = re.compile(r"(?<![\w.:/(])(\d+(?:[ .]\d+)?)\s*(?:±\s*\d+(?:\.\d+)?\s*)?(?:[-–]\s*\d+(?:\.\d+)?\s*)?"
                       r"(µm⁻²|µm|ms|mm/s|kHz|Hz|kPa|N\b|%)")
 BARE_DECIMAL = re.compile(r"(?<![\w.:/(])(0\.\d+)(?![\d\w]|\s*(?:[-–±]|µm|ms|mm/s|kHz|Hz|kPa|N\b|%))")

@@ -5,9 +5,9 @@ import math
 
 import numpy as np
 import pytest
-from ultraglide.devices import kernels as finger_kernels
-from ultraglide.devices.finger import LIFTED_N, SLOWEST_RECOVERY_MM_S, FingerDynamics
 from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim import kernels as finger_kernels
+from ultraglide.devices.sim.finger import LIFTED_N, SLOWEST_RECOVERY_MM_S, FingerDynamics
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.dynamics import FrictionDynamics
 from ultraglide.render.planning import Planner, contrast_transfer

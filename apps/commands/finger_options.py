@@ -63,6 +63,10 @@ def add_finger_options(parser: argparse.ArgumentParser, where: str) -> None:
                        help="the force sensors misread from START to END s after the plate started: nan, range "
                             "(50 N) or zero (a cut cable); repeat for several")
     group.add_argument("--finger-seed", type=SEED, metavar="N", help="its random walk's seed (default: 0)")
+    group.add_argument("--finger-dynamics", action="store_true", default=None,
+                       help="its friction lags the law as measured fingers' do: 5 ms to fall when the vibration "
+                            "starts, 70 ms to recover at 22 mm/s, slower when sliding slower (Meyer et al. 2014; on "
+                            "for a dynamic law)")
 
 
 def _fault(text: str) -> str:
@@ -80,7 +84,8 @@ FIELDS = {"finger": "law", "finger_scale": "scale", "finger_floor": "floor", "fi
           "finger_drift": "drift", "finger_drift_period_s": "drift_period_s", "finger_moisture": "moisture",
           "finger_moisture_tau_s": "moisture_tau_s", "finger_force": "force", "finger_speed_mm_s": "speed_mm_s",
           "finger_noise_n": "noise_n", "finger_bandwidth_hz": "bandwidth_hz", "finger_delay_ms": "delay_ms",
-          "finger_log": "log", "finger_seed": "seed", "finger_log_hz": "log_hz", "finger_fault": "faults"}
+          "finger_log": "log", "finger_seed": "seed", "finger_log_hz": "log_hz", "finger_fault": "faults",
+          "finger_dynamics": "dynamics"}
 
 
 def finger_asked(args) -> bool:

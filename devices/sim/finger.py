@@ -14,9 +14,12 @@ hands it over, e.g. a host model's ``relative_friction``). Over time:
   touching (time constant ``moisture_tau_s``), back to 0 when lifted.
 
 The lateral force of a sliding finger is ``mu0(t) law(a / k(t), F) F`` at the plate's *actual* amplitude
-(the resonator's, not the setpoint). What the plate's firmware receives is what its force sensors make of
-the two forces (:mod:`devices.force_sensors`: bandwidth, delay, noise). The finger's true state can be
-logged (:mod:`devices.finger_log`).
+(the resonator's, not the setpoint). With :class:`FingerDynamics` the ratio does not follow the law at once: it
+lags it, quickly where friction falls (the vibration starts) and slowly where it recovers, the more slowly the
+slower the finger slides (the published figures and the assumed speed law are in ``render/physics/dynamics.py``;
+this is the plate's own implementation of them, independent of the host's). What the plate's firmware
+receives is what its force sensors make of the two forces (:mod:`devices.force_sensors`: bandwidth, delay,
+noise). The finger's true state can be logged (:mod:`devices.finger_log`).
 
 :meth:`SimulatedFinger.forces` is the simulated plate's ``ForceSource``: called block by block with the
 plate's amplitude at ``sample_rate_hz`` from ``t_s`` (s since the simulator started), it returns the normal
@@ -44,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.sim import kernels
 from ultraglide.devices.sim.force_sensors import ForceSensorParams, ForceSensors, low_pass
 
 from ultraglide.inputs import decode_text, read_input, shown
@@ -83,6 +87,33 @@ class FingerParams:
     def scale_at(self, t_s: np.ndarray) -> np.ndarray:
         """k(t): the law's amplitude axis is stretched by this factor at time ``t_s`` (s)."""
         return 1.0 + self.drift * np.sin((2.0 * math.pi / self.drift_period_s) * t_s)
+
+
+@dataclass(frozen=True)
+class FingerDynamics:
+    """How the finger's friction lags the law: time constants (s) ``onset_s`` where friction falls,
+    ``recovery_s`` where it rises at ``reference_speed_mm_s``, scaled by (reference / speed)^``speed_exponent``.
+    The defaults are the published figures (5 ms down, 70 ms back at 22 mm/s) with the exponent 0.5 assumed."""
+
+    onset_s: float = 0.005
+    recovery_s: float = 0.070
+    reference_speed_mm_s: float = 22.0
+    speed_exponent: float = 0.5
+
+    def __post_init__(self) -> None:
+        checks = (("onset_s", self.onset_s, 0.0005, 0.05), ("recovery_s", self.recovery_s, 0.002, 0.5),
+                  ("reference_speed_mm_s", self.reference_speed_mm_s, 1.0, 1000.0),
+                  ("speed_exponent", self.speed_exponent, 0.0, 1.5))
+        for name, value, low, high in checks:
+            if not (math.isfinite(value) and low <= value <= high):
+                raise DeviceError(f"the finger's {name} must lie in {low:g}..{high:g}, got {value}")
+
+    def words(self) -> str:
+        return (f"friction lags: {1000 * self.onset_s:g} ms down, {1000 * self.recovery_s:g} ms back at "
+                f"{self.reference_speed_mm_s:g} mm/s (x (v_ref/v)^{self.speed_exponent:g})")
+
+
+SLOWEST_RECOVERY_MM_S = 2.0  # the recovery of a finger sliding slower is held at this speed's
 
 
 @dataclass(frozen=True)
@@ -316,8 +347,13 @@ class SimulatedFinger:
 
     def __init__(self, law: FrictionLaw, script: ForceScript | None = None, params: FingerParams | None = None,
                  sensors: ForceSensorParams | None = None, log=None, sample_rate_hz: int = 48000, name: str = "",
-                 faults: tuple[SensorFault, ...] = ()):
+                 faults: tuple[SensorFault, ...] = (), dynamics: FingerDynamics | None = None):
         self.law = law
+        self.dynamics = dynamics
+        self._felt = 1.0  # the lagging friction ratio carried between chunks
+        if dynamics is not None:  # compile (or load) the lag before the plate's first chunk needs it
+            kernels.friction_lag(np.ones(2), np.ones(2), np.ones(2), LIFTED_N, 48000.0, 0.005, 0.07, 22.0, 0.5, 2.0,
+                                 1.0, np.empty(2))
         self.script = script or ForceScript.constant(0.5)
         self.params = params or FingerParams()
         self.sensors = ForceSensors(sensors or ForceSensorParams(), sample_rate_hz)
@@ -347,8 +383,9 @@ class SimulatedFinger:
 
     def __repr__(self) -> str:
         p = self.params
+        lag = f", {self.dynamics.words()}" if self.dynamics is not None else ""
         return (f"SimulatedFinger({self.name}, {self.script.words()}, mu0 {p.mu0:g}, drift ±{100 * p.drift:g} % "
-                f"over {p.drift_period_s:g} s, moisture +{100 * p.moisture:g} % ({p.moisture_tau_s:g} s), "
+                f"over {p.drift_period_s:g} s, moisture +{100 * p.moisture:g} % ({p.moisture_tau_s:g} s){lag}, "
                 f"{self.sensors.params.words()})")
 
     def set_clock_origin(self, origin_s: float) -> None:
@@ -378,6 +415,15 @@ class SimulatedFinger:
         if ratio.shape != amplitude.shape:
             ratio = np.broadcast_to(ratio, amplitude.shape)
         ratio = np.minimum(np.maximum(ratio, 0.0), 1.0)  # np.clip's values, without its wrapper
+        lag = self.dynamics
+        if lag is not None:
+            settled = np.ascontiguousarray(ratio, dtype=float)
+            ratio = np.empty(settled.shape)
+            self._felt = kernels.friction_lag(settled, np.ascontiguousarray(speed, dtype=float),
+                                              np.ascontiguousarray(force, dtype=float), LIFTED_N,
+                                              float(self.sample_rate_hz), lag.onset_s, lag.recovery_s,
+                                              lag.reference_speed_mm_s, lag.speed_exponent, SLOWEST_RECOVERY_MM_S,
+                                              self._felt, ratio)
         if steady:
             return FingerTruth(t_s, amplitude, force, ratio, sliding, mu0 * ratio * force, mu0)
         lateral = np.where(sliding, mu0 * ratio * force, 0.0)

@@ -18,7 +18,14 @@ import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
-from ultraglide.devices.sim.finger import FingerParams, ForceScript, SensorFault, SimulatedFinger, adjusted_law
+from ultraglide.devices.sim.finger import (
+    FingerDynamics,
+    FingerParams,
+    ForceScript,
+    SensorFault,
+    SimulatedFinger,
+    adjusted_law,
+)
 from ultraglide.devices.sim.finger_log import FingerLog
 from ultraglide.devices.sim.force_sensors import ForceSensorParams
 
@@ -52,6 +59,11 @@ class FingerConfig:
     force_points: tuple | None = None  # (times s, forces N): a scripted press instead of ``force`` (a calibration's)
     faults: tuple[str, ...] = ()  # sensor faults, KIND:START-END (devices.finger.SensorFault)
     log_hz: float = 2000.0  # the log's rows a second
+    dynamics: bool = False  # the friction lags the law (5 ms down, 70 ms back at 22 mm/s); on for a dynamic[:X] law
+
+    @property
+    def lags(self) -> bool:
+        return self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
 
     @property
     def law_scale(self) -> float:
@@ -64,7 +76,8 @@ class FingerConfig:
     def law_words(self) -> str:
         base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
         scale, floor = self.law_scale, self.law_floor
-        return base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
+        return (base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
+                + (", friction in time" if self.lags else ""))
 
     def with_log(self, path: str | None) -> FingerConfig:
         return replace(self, log=path)
@@ -75,10 +88,15 @@ def finger_law(config: FingerConfig):
     beyond its validity held at its edge), scaled and floored as the config says. Raises what ``load_model``
     raises for a bad spec (one line)."""
     from ultraglide.render.physics.calibration import load_model
+    from ultraglide.render.physics.friction_models import StretchedExponentialModel
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a table's or a calibration's notes are for the host, not the finger
-        model = load_model(DEFAULT_BASE if config.law == DEFAULT_LAW else config.law)
+        # the default finger: the host's default law without its floor, then floored at 0.1 below (as before the
+        # host's default had one); a dynamic law's steady state is its static model's
+        model = (StretchedExponentialModel(residual_ratio=0.0) if config.law == DEFAULT_LAW
+                 else load_model(config.law))
+        model = getattr(model, "static", model)
     law = _stretched_law(model) or _gridded_law(model)
     law.__qualname__ = config.law_words()
     return adjusted_law(law, config.law_scale, config.law_floor)
@@ -147,7 +165,9 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
     law = finger_law(config)
     faults = tuple(SensorFault.parse(spec) for spec in config.faults)
     log = FingerLog(config.log, rate_hz=config.log_hz, sample_rate_hz=sample_rate_hz) if config.log else None
-    return SimulatedFinger(law, script, params, sensors, log, sample_rate_hz, name=config.law_words(), faults=faults)
+    dynamics = FingerDynamics() if config.lags else None
+    return SimulatedFinger(law, script, params, sensors, log, sample_rate_hz, name=config.law_words(), faults=faults,
+                           dynamics=dynamics)
 
 
 def finger_words(config: FingerConfig) -> str:
