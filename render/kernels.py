@@ -234,8 +234,9 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     between the predicted felt ratio and the target at each step's end for: holding one of ``levels`` commands
     evenly spaced in [floor, ceiling], or the greedy command (the one reaching the next step's target, clipped),
     for 1, 2, 4, ... steps and then following the greedy command; it keeps the first step of the best, held until
-    the next decision. The targets past the block come from ``ahead`` (sampled every ``stride`` samples from
-    sample ``first_ahead``). ``gate`` 0: the finger is off (the command is the target, the felt ratio 1).
+    the next decision. A step's target is the mean of the block's targets over it; past the block it comes from
+    ``ahead`` (one a step from sample ``first_ahead``, which the caller band-limits to the step's length).
+    ``gate`` 0: the finger is off (the command is the target, the felt ratio 1).
     ``goals``: room for ``steps`` floats (the horizon's targets, gathered once a decision).
     Returns (felt, phase, command, targets below the floor)."""
     hold_on = (1.0 - k_onset) ** stride
@@ -254,8 +255,15 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
             best_cost = np.inf
             best = command
             end0 = i + stride - 1
-            for j in range(steps):
-                goals[j] = _target_at(end0 + j * stride, target, ahead, first_ahead, stride)
+            for j in range(steps):  # each step's mean target within the block (no aliasing), else the lookahead's
+                end = end0 + j * stride
+                if end < target.shape[0]:
+                    total = 0.0
+                    for m in range(end - stride + 1, end + 1):
+                        total += np.float64(target[m])
+                    goals[j] = total / stride
+                else:
+                    goals[j] = _target_at(end, target, ahead, first_ahead, stride)
             r0 = goals[0]
             for c in range(levels + 1):
                 if c < levels:

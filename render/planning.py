@@ -126,6 +126,27 @@ class ContrastKept:
     planned_rms: float
 
 
+def felt_over(dynamics: FrictionDynamics, target: np.ndarray, n: int, speed_mm_s: float, floor: float,
+              rate_hz: float = 12000.0) -> tuple[np.ndarray, np.ndarray]:
+    """The felt ratio over the first ``n`` samples of ``target`` (known beyond ``n`` by the horizon, as a texture
+    along a path is) at a steady speed: with the instantaneous renderer (the target, floored, asked at once) and
+    with the planned one (block by block, as the renderer runs it). Returns (instantaneous, planned)."""
+    target = np.asarray(target, dtype=float)
+    instant = dynamics.respond(np.maximum(target[:n], floor), rate_hz, speed_mm_s, 1.0)
+    planner = Planner(dynamics, rate_hz)
+    planner.set_speed(speed_mm_s)
+    command = np.empty(n)
+    block = planner.stride * 8
+    # the lookahead as the renderer's band-limited lookup gives it: each step's mean (sample k: the step ending there)
+    stepped = np.convolve(target, np.full(planner.stride, 1.0 / planner.stride))[:len(target)]
+    for start in range(0, n, block):
+        stop = min(start + block, n)
+        first = start + planner.first_ahead(stop - start)
+        ahead = stepped[np.minimum(first + planner.stride * np.arange(planner.steps), len(target) - 1)]
+        planner.plan(target[start:stop], ahead, floor, True, command[start:stop])
+    return instant, dynamics.respond(command, rate_hz, speed_mm_s, 1.0)
+
+
 def grating_felt(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float, floor: float,
                  rate_hz: float = 12000.0, duration_s: float = 1.0, low: float | None = None,
                  square: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,17 +157,17 @@ def grating_felt(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float
     phase = 2.0 * math.pi * speed_mm_s / period_mm * np.arange(n + int(MAX_HORIZON_S * rate_hz) + 2) / rate_hz
     wave = np.sign(np.cos(phase)) if square else np.cos(phase)
     target = low + (1.0 - low) * 0.5 * (1.0 + wave)
-    instant = dynamics.respond(np.maximum(target[:n], floor), rate_hz, speed_mm_s, 1.0)
-    planner = Planner(dynamics, rate_hz)
-    planner.set_speed(speed_mm_s)
-    command = np.empty(n)
-    block = planner.stride * 8
-    for start in range(0, n, block):
-        stop = min(start + block, n)
-        first = start + planner.first_ahead(stop - start)
-        ahead = target[np.minimum(first + planner.stride * np.arange(planner.steps), len(target) - 1)]
-        planner.plan(target[start:stop], ahead, floor, True, command[start:stop])
-    planned = dynamics.respond(command, rate_hz, speed_mm_s, 1.0)
+    instant, planned = felt_over(dynamics, target, n, speed_mm_s, floor, rate_hz)
+    return target[:n], instant, planned
+
+
+def step_felt(dynamics: FrictionDynamics, speed_mm_s: float, floor: float, low: float = 0.3, rate_hz: float = 12000.0,
+              down_s: float = 0.1, up_s: float = 0.3, duration_s: float = 0.6):
+    """Target, instantaneous and planned felt ratios for a step 1 → ``low`` at ``down_s`` → 1 at ``up_s`` (s)."""
+    n = int(round(duration_s * rate_hz))
+    t = np.arange(n + int(MAX_HORIZON_S * rate_hz) + 2) / rate_hz
+    target = np.where((t >= down_s) & (t < up_s), low, 1.0)
+    instant, planned = felt_over(dynamics, target, n, speed_mm_s, floor, rate_hz)
     return target[:n], instant, planned
 
 

@@ -383,7 +383,8 @@ class Renderer:
         ahead_t = planner.ahead_times(float(times[0]) if n else 0.0, n, out=self._ahead_t)
         ahead = self.trajectory.state(ahead_t, out=(self._ahead_x[:steps], self._ahead_y[:steps]))
         ahead_ratio = self.sampler.ratio(ahead.x_mm, ahead.y_mm,
-                                         step_mm=one_step if self.settings.band_limited_lookup else None,
+                                         step_mm=one_step * planner.stride if self.settings.band_limited_lookup
+                                         else None,
                                          direction=heading, out=self._ahead_ratio[:steps])
         touching = bool(np.any(down))
         scalar_force = float(force) if not isinstance(force, np.ndarray) else float(np.mean(force))

@@ -1,5 +1,6 @@
 """The dynamic friction model: asymmetric first-order onset and recovery, against the analytic step response."""
 
+import json
 import math
 
 import numpy as np
@@ -75,3 +76,16 @@ def test_dynamic_models_load_by_name():
     assert "in time: onset 5 ms" in ultraglide.load_model("dynamic").describe()
     with pytest.raises(ModelError, match="wraps a static one"):
         ultraglide.load_model("dynamic:dynamic")
+
+
+def test_the_model_command_says_the_dynamics_and_what_a_grating_keeps():
+    from conftest import run_cli
+
+    result = json.loads(run_cli("model", "--model", "dynamic", "--json", check=True).stdout)
+    dynamics = result["dynamics"]
+    assert dynamics["onset_s"] == 0.005 and dynamics["recovery_s"] == 0.07
+    assert dynamics["recovery_s_at_mm_s"]["100"] == pytest.approx(0.07 * (22 / 100) ** 0.5, rel=1e-12)
+    for grating in dynamics["grating_1mm"]:  # 100 Hz and more of modulation: the finger keeps little of it
+        assert grating["contrast_instantaneous"] < 0.3
+        assert grating["rms_planned"] < grating["rms_instantaneous"]
+    assert "in time: onset 5 ms" in result["model"]

@@ -21,6 +21,9 @@ from ultraglide.apps.cli.files import model_file, refuse_overlaps
 CURVE_STEP_UM = 0.5
 CURVE_END_UM = 10.0
 EXAMPLE_DATA = Path(__file__).parent.parent / "data" / "monnoyer2018-fit.csv"
+DYNAMICS_SPEEDS_MM_S = (50.0, 100.0, 200.0)
+DYNAMICS_LIMIT_UM_PP = 6.0  # the grating's trough: the floor within a typical plate's limit (sim-plate's)
+DYNAMICS_FIGURES = ("friction-in-time", "contrast-transfer")
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -37,8 +40,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     model.add_argument("--ratio", type=ratio, metavar="R",
                        help="also give the amplitude that yields friction ratio R")
     model.add_argument("--json", action="store_true", help="print one JSON object")
-    output_option(model, "--plots", kind="folder", also=both_formats(PAPER_FIGURES), metavar="DIR",
-                       help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF")
+    output_option(model, "--plots", kind="folder", also=both_formats(PAPER_FIGURES + DYNAMICS_FIGURES),
+                  metavar="DIR", help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF (and, for a "
+                                      "dynamic model, friction-in-time and contrast-transfer)")
     output_option(model, "--report", metavar="FILE.pdf",
                        help="write one page on the model at this force: parameters, curve, inverse, contact")
     model.add_argument("--data", metavar="CSV",
@@ -112,6 +116,20 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
             problem = quasi_static_warning(carrier_hz, params)
             if problem:
                 result["quasi_static_warning"] = problem
+    dynamics = getattr(model, "dynamics", None)
+    if dynamics is not None:
+        from ultraglide.render.planning import contrast_transfer
+
+        floor = float(model.floor_ratio(force_n, DYNAMICS_LIMIT_UM_PP))
+        result["dynamics"] = {
+            **dynamics.parameters(),
+            "words": dynamics.describe(),
+            "recovery_s_at_mm_s": {f"{v:g}": float(dynamics.recovery_at_s(v)) for v in DYNAMICS_SPEEDS_MM_S},
+            "grating_1mm": [{"speed_mm_s": v, **_kept(contrast_transfer(dynamics, 1.0, v, floor))}
+                            for v in DYNAMICS_SPEEDS_MM_S],
+            "floor_at_limit": floor,
+            "limit_um_pp": DYNAMICS_LIMIT_UM_PP,
+        }
     result["curve"] = [[float(a), round(float(r), 6)] for a, r in zip(amplitude, curve, strict=True)]
     if ratio is not None:
         inversion = model.amplitude_um_pp(ratio, force_n)
@@ -120,6 +138,11 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
         result["ratio_reachable"] = inversion.clamped == 0
         result["lowest_reachable_ratio"] = float(model.floor_ratio(force_n))
     return result
+
+
+def _kept(kept) -> dict:
+    return {"contrast_instantaneous": round(kept.instantaneous, 4), "contrast_planned": round(kept.planned, 4),
+            "rms_instantaneous": round(kept.instantaneous_rms, 4), "rms_planned": round(kept.planned_rms, 4)}
 
 
 def format_text(result: dict) -> str:
@@ -147,6 +170,14 @@ def format_text(result: dict) -> str:
         if "carrier_hz" in result:
             lines.append(f"  at {result['carrier_hz'] / 1e3:g} kHz the ridges' dynamic stiffness is "
                          f"{result['dynamic_stiffness_ratio']:.2f} of k_t")
+    if "dynamics" in result:
+        d = result["dynamics"]
+        lines += ["", f"  friction in time: {d['words']}",
+                  f"  a 1 mm grating (1 down to {d['floor_at_limit']:.2f}, the floor within {d['limit_um_pp']:g} µm), "
+                  f"felt contrast and RMS error (ours):"]
+        lines += [f"    {g['speed_mm_s']:5g} mm/s: instantaneous {100 * g['contrast_instantaneous']:3.0f} % "
+                  f"(error {g['rms_instantaneous']:.3f}), planned {100 * g['contrast_planned']:3.0f} % "
+                  f"(error {g['rms_planned']:.3f})" for g in d["grating_1mm"]]
     lines += ["", "  amplitude µm p-p   relative friction"]
     lines += [f"  {a:16.1f}   {r:17.3f}" for a, r in result["curve"][::2]]
     if "ratio" in result:
@@ -190,6 +221,14 @@ def run(args) -> int:
 
         written = write_paper_figures(Path(args.plots), data, params or FingerParams(), args.force, model,
                                       args.figure_width)
+        if "dynamics" in result:
+            from ultraglide.apps.figures.dynamics import contrast_figure, friction_in_time
+
+            floor = result["dynamics"]["floor_at_limit"]
+            written.append(friction_in_time(Path(args.plots) / "friction-in-time.png", model.dynamics, floor,
+                                            args.figure_width)[0])
+            written.append(contrast_figure(Path(args.plots) / "contrast-transfer.png", model.dynamics, floor,
+                                           args.figure_width)[0])
         result["plots"] = [str(path) for path in written]
     if args.report:
         from ultraglide.apps.figures.model_report import write_report
