@@ -284,15 +284,19 @@ def test_table_with_several_forces_is_exact_at_the_end_of_each_range():
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
 
+D = 0.1  # the default floor: the mean measured at full amplitude (Wiertlewski et al. 2016)
+
+
 def _stretched_amplitude(ratio: float, force_n: float) -> float:
-    return S0 * (force_n / 0.5) ** (1 / 3) * np.sqrt(np.log(1 / ratio))
+    """The default stretched law's inverse by hand: s (ln((1 - d) / (ratio - d)))^(1/2), d = 0.1."""
+    return S0 * (force_n / 0.5) ** (1 / 3) * np.sqrt(np.log((1 - D) / (ratio - D)))
 
 
 def test_a_model_asked_without_a_force_works_at_half_a_newton():
     model = StretchedExponentialModel()
     assert float(model.amplitude_um_pp(0.5).amplitude_um_pp[()]) == pytest.approx(_stretched_amplitude(0.5, 0.5))
-    assert float(model.relative_friction(S0)) == pytest.approx(np.exp(-1.0))  # 1/e at s0, at 0.5 N
-    assert float(model.floor_ratio(limit_um_pp=S0)) == pytest.approx(np.exp(-1.0))
+    assert float(model.relative_friction(S0)) == pytest.approx(D + (1 - D) * np.exp(-1.0))  # 1/e of it at s0, 0.5 N
+    assert float(model.floor_ratio(limit_um_pp=S0)) == pytest.approx(D + (1 - D) * np.exp(-1.0))
 
 
 @pytest.mark.parametrize("fast", [True, False], ids=["compiled", "numpy"])
@@ -312,7 +316,7 @@ def test_forces_beyond_10_n_count_as_10_n_and_below_10_mn_as_10_mn(fast):
 @pytest.mark.parametrize("fast", [True, False], ids=["compiled", "numpy"])
 def test_no_model_asks_for_more_than_20_um_without_a_limit(fast):
     model = StretchedExponentialModel()
-    floor = np.exp(-(20.0 / S0) ** 2)  # the ratio at 20 µm p-p, 0.5 N: about 3e-13
+    floor = D + (1 - D) * np.exp(-(20.0 / S0) ** 2)  # the ratio at 20 µm p-p, 0.5 N: the floor and 3e-13
     assert float(model.floor_ratio()) == pytest.approx(floor, rel=1e-9)
     ratio = np.array([0.0, 0.0, 0.5, 1.0])
     result = model.amplitude_um_pp(ratio if fast else ratio.reshape(2, 2))
@@ -448,8 +452,9 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
     at_rest_force = model.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp
     np.testing.assert_allclose(model.amplitude_um_pp(np.array([0.5]), 4.0).amplitude_um_pp, at_rest_force)
     np.testing.assert_allclose(at_rest_force, 2 * np.sqrt(2) * np.sqrt(np.log(2)))  # a_pp = 2 sqrt 2 tau sqrt(ln 2)
-    assert model.describe() == ("exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak; force law: none: "
-                                "the same curve at every force (Monnoyer et al. did not state theirs)")
+    assert model.describe() == ("exponential: mu/mu0 = exp(-a²/2tau²), tau = 1 µm zero-to-peak, no floor: reaches 0, "
+                                "which no measured finger does; force law: none: the same curve at every force "
+                                "(Monnoyer et al. did not state theirs)")
     assert model.parameters() == {"tau_um_zp": 1.0, "residual_ratio": 0.0}
     assert ExponentialModel(35.0).tau_um_zp == 35.0
     with pytest.raises(ModelError) as error:
@@ -459,8 +464,9 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
 
 def test_the_stretched_model_describes_itself():
     model = StretchedExponentialModel(3.0, 1.5, 0.25)
-    assert model.describe() == ("stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5; "
-                                "force law: s ∝ F^0.25, as given")
+    assert model.describe() == ("stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5, "
+                                "floor d = 0.1 (the mean measured at 6 µm p-p, 0.02-0.30 across people: Wiertlewski "
+                                "et al. 2016); force law: s ∝ F^0.25, as given")
 
 
 def test_a_table_model_needs_two_amplitudes_a_force_and_names_its_source():

@@ -540,17 +540,20 @@ def test_a_recorded_path_into_buffers_gives_the_finger_its_ratio_and_amplitude()
 
 
 def test_texture_model_and_force_changed_live_apply_from_the_next_block():
-    model = StretchedExponentialModel()  # exp(-(a / s)^2), s = 3.73 µm (F / 0.5 N)^(1/3): a = s sqrt(ln(1 / ratio))
+    model = StretchedExponentialModel()  # d + (1 - d) exp(-(a / s)^2), d = 0.1, s = 3.73 µm (F / 0.5 N)^(1/3)
     renderer = Renderer(_uniform(0.5), model, SIM, trajectory=_swipe(1.0))
     scale = 2 * np.sqrt(2) * 1.32
-    np.testing.assert_allclose(renderer.control(100).target_um_pp, scale * np.sqrt(np.log(2)), rtol=1e-6)
+
+    def depth(ratio):  # a = s sqrt(ln((1 - d) / (ratio - d)))
+        return np.sqrt(np.log(0.9 / (ratio - 0.1)))
+
+    np.testing.assert_allclose(renderer.control(100).target_um_pp, scale * depth(0.5), rtol=1e-6)
     renderer.set_texture(_uniform(0.8))
     block = renderer.control(100)
     np.testing.assert_allclose(block.ratio, 0.8, atol=1e-6)
-    np.testing.assert_allclose(block.target_um_pp, scale * np.sqrt(np.log(1 / 0.8)), rtol=1e-6)
+    np.testing.assert_allclose(block.target_um_pp, scale * depth(0.8), rtol=1e-6)
     renderer.set_default_force(1.5)  # s grows by 3^(1/3)
-    np.testing.assert_allclose(renderer.control(100).target_um_pp, scale * 3 ** (1 / 3) * np.sqrt(np.log(1 / 0.8)),
-                               rtol=1e-6)
+    np.testing.assert_allclose(renderer.control(100).target_um_pp, scale * 3 ** (1 / 3) * depth(0.8), rtol=1e-6)
     renderer.set_model(ExponentialModel(2.0))  # no force term: a = 2 sqrt 2 tau sqrt(ln(1 / ratio))
     np.testing.assert_allclose(renderer.control(100).target_um_pp, 2 * np.sqrt(2) * 2.0 * np.sqrt(np.log(1 / 0.8)),
                                rtol=1e-6)
