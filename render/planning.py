@@ -206,3 +206,57 @@ def contrast_transfer(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: 
 
     (k_i, e_i), (k_p, e_p) = kept(instant), kept(planned)
     return ContrastKept(period_mm, speed_mm_s, k_i, k_p, e_i, e_p)
+
+
+@dataclass(frozen=True)
+class SwipeKept:
+    """What a finger with friction dynamics keeps of a texture along a swipe at one speed: the felt friction's
+    standard deviation over the target's (1: all of the texture's contrast), and the RMS error, for the
+    instantaneous and the planned renderer."""
+
+    speed_mm_s: float
+    instantaneous: float
+    planned: float
+    instantaneous_rms: float
+    planned_rms: float
+
+
+def swipe_contrast(texture, dynamics: FrictionDynamics, speed_mm_s: float, floor: float,
+                   rate_hz: float = 12000.0, longest_s: float = 1.0) -> SwipeKept:
+    """How much of a friction texture's contrast survives, felt, along a left-to-right swipe through its middle at
+    ``speed_mm_s`` (at most ``longest_s`` of it, the first 50 ms left out), targets below ``floor`` held there.
+
+    Parameters
+    ----------
+    texture : textures.texture.Texture
+        A friction texture.
+    dynamics : FrictionDynamics
+        The finger's dynamics.
+    speed_mm_s, floor, rate_hz, longest_s : float
+        The swipe's speed (mm/s), the lowest reachable ratio, the control rate (Hz), the longest swipe (s).
+
+    Returns
+    -------
+    SwipeKept
+    """
+    from ultraglide.textures.sampling import Sampler
+
+    if not speed_mm_s > 0:
+        raise RenderError(f"a swipe needs a positive speed, got {speed_mm_s}")
+    duration = min(texture.width_mm / speed_mm_s, longest_s)
+    n = int(duration * rate_hz)
+    extra = int(MAX_HORIZON_S * rate_hz) + 2
+    x = speed_mm_s * np.arange(n + extra) / rate_hz
+    y = np.full(len(x), texture.height_mm / 2.0)
+    step = speed_mm_s / rate_hz
+    target = np.maximum(Sampler(texture).ratio(x, y, step_mm=step, direction=(1.0, 0.0)).astype(float), floor)
+    instant, planned = felt_over(dynamics, target, n, speed_mm_s, floor, rate_hz)
+    kept = slice(int(0.05 * rate_hz), n)
+    spread = float(np.std(target[kept]))
+
+    def measure(felt):
+        share = float(np.std(felt[kept])) / spread if spread > 1e-9 else 1.0
+        return share, float(np.sqrt(np.mean((felt[kept] - target[kept]) ** 2)))
+
+    (k_i, e_i), (k_p, e_p) = measure(instant), measure(planned)
+    return SwipeKept(speed_mm_s, k_i, k_p, e_i, e_p)

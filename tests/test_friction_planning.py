@@ -91,3 +91,14 @@ def test_contrast_transfer_falls_with_speed_and_the_plan_lowers_the_error():
     assert slow.planned > 0.9 and slow.instantaneous > 0.8
     assert fast.instantaneous < 0.3 and fast.planned < 0.3
     assert fast.planned_rms < fast.instantaneous_rms
+
+
+def test_a_swipe_over_a_coarse_texture_keeps_its_contrast_and_a_fine_one_loses_it():
+    from ultraglide.render.planning import swipe_contrast
+    from ultraglide.textures.procedural import grating
+
+    dynamics = FrictionDynamics()
+    coarse = swipe_contrast(grating(20.0), dynamics, 20.0, 0.168)  # 1 Hz at 20 mm/s
+    fine = swipe_contrast(resolve_texture("grating-1mm"), dynamics, 100.0, 0.168)  # 100 Hz
+    assert coarse.planned > 0.9 and coarse.planned_rms < 0.05
+    assert fine.instantaneous < 0.3 and fine.planned_rms < fine.instantaneous_rms

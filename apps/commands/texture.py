@@ -356,7 +356,31 @@ def describe(texture, spec: str) -> dict:
         "seams": {"seam_max": _ratio(seams.seam_max), "interior_max": _ratio(seams.interior_max),
                   "ratio": round(float(seams.ratio), 3), "seamless": seams.seamless, "visible": seams.visible},
         "source": texture.source, "authoring": _readable(texture.authoring),
+        "felt": _felt(texture),
     }
+
+
+FELT_SPEEDS_MM_S = (50.0, 100.0, 200.0)
+FELT_FLOOR = 0.168  # the default model's floor within 6 µm p-p (sim-plate's limit) at 0.5 N
+FELT_MAX_PIXELS = 4_000_000
+
+
+def _felt(texture) -> list[dict] | None:
+    """What a finger with the published friction dynamics keeps of a friction texture's contrast along a swipe at
+    50, 100 and 200 mm/s (render.planning.swipe_contrast); None for a gradient texture (its friction depends on
+    the direction of the swipe)."""
+    if texture.kind != "friction" or texture.cols * texture.rows > FELT_MAX_PIXELS:
+        return None  # a large map would be resampled for a lookup: not for an info line
+    from ultraglide.render.physics.dynamics import FrictionDynamics
+    from ultraglide.render.planning import swipe_contrast
+
+    felt = []
+    for speed in FELT_SPEEDS_MM_S:
+        kept = swipe_contrast(texture, FrictionDynamics(), speed, FELT_FLOOR, longest_s=0.5)
+        felt.append({"speed_mm_s": speed, "contrast_instantaneous": round(kept.instantaneous, 3),
+                     "contrast_planned": round(kept.planned, 3), "rms_instantaneous": round(kept.instantaneous_rms, 3),
+                     "rms_planned": round(kept.planned_rms, 3)})
+    return felt
 
 
 OUTSIDE_WORDS = {"tile": "it repeats (a tile)", "clamp": "its edges extend", "fixed": "a fixed friction ratio of {:g}"}
@@ -389,6 +413,12 @@ def info(args) -> int:
         f"standard deviation {friction['std']:.3f}",
         f"  beyond      {beyond}",
     ]
+    if facts["felt"]:
+        lines.append("  felt        of its contrast along a swipe, a finger with the published friction dynamics "
+                     "keeps (ours):")
+        lines += [f"              {g['speed_mm_s']:5g} mm/s: {100 * g['contrast_instantaneous']:3.0f} % rendered "
+                  f"instantly (error {g['rms_instantaneous']:.3f}), {100 * g['contrast_planned']:3.0f} % planned "
+                  f"(error {g['rms_planned']:.3f})" for g in facts["felt"]]
     if texture.outside == "tile":
         verdict = "seamless" if seams["seamless"] else ("a seam a finger would feel" if seams["visible"] else
                                                         "a slight seam")
