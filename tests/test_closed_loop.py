@@ -26,6 +26,7 @@ from ultraglide.render.engine.finger_setup import FingerConfig, build_finger, fi
 from ultraglide.render.engine.sensor_record import COLUMNS as SENSOR_COLUMNS
 from ultraglide.render.engine.sensor_record import SensorRecord
 from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import StretchedExponentialModel
 from ultraglide.textures.procedural import grating
 
 sys.path.insert(0, str(ROOT / "bench"))
@@ -43,7 +44,7 @@ def read_rows(path):
 
 def test_the_default_finger_is_the_hosts_law_scaled_and_floored():
     law = finger_law(FingerConfig())
-    host = load_model("stretched")
+    host = StretchedExponentialModel(residual_ratio=0.0)  # the host's default law without its own floor of 0.1
     a, force = np.array([0.0, 1.0, 2.5, 6.0]), np.array([0.5, 0.3, 0.8, 0.5])
     expected = 0.1 + 0.9 * host.relative_friction(a / 0.7, force)  # scale x0.7, floor 0.1
     np.testing.assert_allclose(law(a, force), expected, rtol=1e-12)
