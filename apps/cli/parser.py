@@ -24,6 +24,7 @@ from ultraglide.apps.commands import (
     plate_sim,
     play,
     rig,
+    serve,
     texture,
 )
 
@@ -32,8 +33,8 @@ from ultraglide import __version__
 # each command name and the module that adds it, in the order ``--help`` lists them (tests/test_cli_parser.py
 # checks the names against the parser the modules build)
 NAMES = {"model": model, "calibrate": calibrate, "author": author, "textures": texture, "texture": texture,
-         "export": export, "play": play, "latency": latency, "devices": devices, "plate-sim": plate_sim,
-         "firmware": firmware, "plate": plate, "rig": rig, "demo": demo, "experiment": experiment}
+         "export": export, "play": play, "serve": serve, "latency": latency, "devices": devices,
+         "plate-sim": plate_sim, "firmware": firmware, "plate": plate, "rig": rig, "demo": demo, "experiment": experiment}
 COMMANDS = tuple(dict.fromkeys(NAMES.values()))
 
 

@@ -1,0 +1,198 @@
+"""``ultraglide serve``: the real-time engine on a device, driven by other programs over a local WebSocket.
+
+The engine starts as ``play``'s does (its own process, the plate behind its limiter); the service
+(:mod:`apps.service.server`) then listens, and prints its address as the first line on standard output. Stopped by
+Ctrl-C or SIGTERM, the engine ramps the plate to rest before the command ends. See ``docs/service.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import stat
+import sys
+
+from ultraglide.apps.cli.options import MODEL_HELP, output_option
+from ultraglide.apps.cli.signals import held
+from ultraglide.apps.cli.types import FORCE_N, Bounded
+
+PORT = Bounded(0, 65535, whole=True)
+VIEW_MM = Bounded(1.0, 2000.0, "mm")
+DEFAULT_PORT = 8765
+
+
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """``ultraglide serve``: its options."""
+    serve = commands.add_parser(
+        "serve", help="run the engine on a device for other programs: a local WebSocket service",
+        description="Run the real-time engine on a device and listen on a local WebSocket: clients (Python's "
+                    "ultraglide.client, the page with --page, any program speaking the protocol of "
+                    "docs/service.md) place textures as sprites in views and send touches; the engine renders the "
+                    "sprite under the finger. The first line printed is the service's address.")
+    serve.add_argument("textures", nargs="*", metavar="TEXTURE",
+                       help="textures (files, images or library names) placed as sprites filling the view at start, "
+                            "side by side")
+    output_option(serve, "--device", kind="device", default="sim", metavar="URL",
+                  help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null (default: sim)")
+    serve.add_argument("--profile", default="sim-plate", metavar="PROFILE",
+                       help="plate profile: a bundled name or a TOML file (default: sim-plate)")
+    serve.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
+    serve.add_argument("--force", type=FORCE_N, metavar="N",
+                       help="the finger's force when a touch gives no pressure or force, N (default: 0.5)")
+    serve.add_argument("--closed-loop", action="store_true",
+                       help="make the friction the plate's force sensors measure follow the texture (a plate driver "
+                            "with force sensors; on sim, a simulated finger)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="the address to listen on (default: 127.0.0.1, loopback; any other address asks clients "
+                            "for the token printed at start)")
+    serve.add_argument("--port", type=PORT, default=DEFAULT_PORT,
+                       help=f"the TCP port (default: {DEFAULT_PORT}; 0: a free one, printed)")
+    serve.add_argument("--unix", metavar="PATH", help="listen on a Unix socket at PATH instead of TCP")
+    serve.add_argument("--page", action="store_true",
+                       help="also serve the page (http://HOST:PORT/): pointer events in a browser drive the engine")
+    serve.add_argument("--view-mm", type=VIEW_MM, nargs=2, default=[160.0, 100.0], metavar=("WIDTH", "HEIGHT"),
+                       help="the default view's size until a client sets it, mm (default: 160 100)")
+    output_option(serve, "--envelope-csv", kind="log", metavar="FILE.csv",
+                  help="record the envelope as it plays, as play does: t_s, x_mm, y_mm (on the view), down, "
+                       "target_ratio, target_um_pp, commanded_um_pp")
+    serve.add_argument("--json", action="store_true",
+                       help="the first line as JSON (url, page, token) and the final status as JSON")
+    serve.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ultraglide.apps.cli.errors import UsageError
+    from ultraglide.apps.service.server import Service, needs_token, new_token
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.urls import parse_device_url
+    from ultraglide.render.engine import Engine, EngineConfig
+    from ultraglide.render.physics.calibration import load_model
+
+    parse_device_url(args.device)
+    if args.unix and (args.host != "127.0.0.1" or args.port != DEFAULT_PORT or args.page):
+        raise UsageError("--unix listens on a Unix socket: leave out --host, --port and --page")
+    if args.unix and os.path.lexists(args.unix):
+        raise UsageError(f"--unix {args.unix}: something is there already; remove it or choose another path")
+    if args.unix and not Path(args.unix).parent.is_dir():
+        raise UsageError(f"--unix {args.unix}: no directory {Path(args.unix).parent}")
+    if args.envelope_csv and not Path(args.envelope_csv).parent.is_dir():
+        raise UsageError(f"{args.envelope_csv}: no directory {Path(args.envelope_csv).parent} to write it in")
+    profile = load_profile(args.profile)
+    load_model(args.model)  # a bad model is one line before the engine starts
+    token = new_token() if args.unix is None and needs_token(args.host) else None
+    service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm))
+    service.place_startup_textures(args.textures)
+    config = EngineConfig(texture=service.first_texture(), model=args.model, profile=args.profile,
+                          device=args.device, default_force_n=0.5 if args.force is None else args.force,
+                          closed_loop=args.closed_loop, envelope_csv=args.envelope_csv)
+    engine = Engine.start(config)
+    service.engine = engine
+    failure = None
+    try:
+        engine.wait_ready()
+        failure = _serve(service, args)
+    finally:
+        with held():  # a stop signal arriving now waits until the plate is at rest
+            service.worker.shutdown(wait=True, cancel_futures=True)
+            final = engine.stop()
+            if args.unix:
+                _remove_socket(args.unix)
+    return _report(final, service, args, failure)
+
+
+def _serve(service, args) -> str | None:
+    """Listen until a stop signal (raised as KeyboardInterrupt through the loop) or the engine's end."""
+    import asyncio
+
+    from ultraglide.apps.service.protocol import MAX_MESSAGE_BYTES
+    from ultraglide.apps.service.server import ServiceError
+    from websockets.asyncio.server import serve, unix_serve
+
+    async def main() -> str | None:
+        options = {"max_size": MAX_MESSAGE_BYTES, "max_queue": 64, "write_limit": 256 * 1024,
+                   "ping_interval": 5.0, "ping_timeout": 10.0, "compression": None}
+        try:
+            if args.unix:
+                server = await unix_serve(service.handle, args.unix, **options)
+            else:
+                server = await serve(service.handle, args.host, args.port, process_request=service.process_request,
+                                     origins=service.origins, **options)
+        except OSError as error:
+            where = args.unix or f"{args.host}:{args.port}"
+            raise ServiceError(f"cannot listen on {where}: {error.strerror or error}") from None
+        async with server:
+            if args.unix:
+                urls = {"url": f"ws+unix:{args.unix}", "page": None, "token": None}
+            else:
+                port = server.sockets[0].getsockname()[1]
+                host = f"[{args.host}]" if ":" in args.host else args.host
+                query = f"?token={service.token}" if service.token else ""
+                urls = {"url": f"ws://{host}:{port}/ws{query}",
+                        "page": f"http://{host}:{port}/{query}" if args.page else None, "token": service.token}
+                origins = [None]
+                if args.page:
+                    origins.append(f"http://{host}:{port}")
+                    if args.host == "127.0.0.1":
+                        origins.append(f"http://localhost:{port}")
+                service.origins[:] = origins  # the list serve() checks each handshake against
+            if args.json:
+                print(json.dumps(urls), flush=True)
+            else:
+                print(" ".join(v for v in (urls["url"], urls["page"]) if v), flush=True)
+                if service.token:
+                    print(f"token: {service.token} (clients give it as ?token=...)", flush=True)
+                print(f"serving {service.engine.config.device} ({service.profile.name}, limit "
+                      f"{service.profile.max_amplitude_um_pp:g} µm p-p); Ctrl-C stops, the plate at rest",
+                      flush=True)
+            publisher = asyncio.ensure_future(service.publish())
+            try:
+                while service.engine.alive:
+                    await asyncio.sleep(0.2)
+                return "the engine ended unexpectedly"
+            finally:
+                publisher.cancel()
+                for session in list(service.sessions):
+                    service._leave(session)
+
+    return asyncio.run(main())
+
+
+def _remove_socket(path: str) -> None:
+    """The Unix socket we made, and nothing else."""
+    try:
+        if stat.S_ISSOCK(os.lstat(path).st_mode):
+            os.unlink(path)
+    except OSError:
+        pass
+
+
+def _report(final, service, args, failure: str | None) -> int:
+    from ultraglide.apps.cli.output import print_json
+    from ultraglide.devices.run_report import RunReport
+
+    figures = final.summary() if final is not None else {}
+    device_status = figures.pop("device_status", {}) or {}
+    report = RunReport.from_dict(device_status.get("report"))
+    summary = {"device": figures.get("device"), "blocks": figures.get("blocks"),
+               "late_blocks": figures.get("late_blocks"), "underruns": figures.get("underruns"),
+               "touches": service.touches, "touches_ignored": service.touches_ignored,
+               "faults": device_status.get("fault_counts") or {}, "limiter": device_status.get("limiter", ""),
+               "error": failure}
+    if args.json:
+        print_json(summary)
+    elif final is not None:
+        print(f"served on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
+              f"{final.underruns} device underruns; {service.touches} touches from clients")
+        if summary["limiter"]:
+            print(summary["limiter"])
+        for line in report.lines:
+            print(line)
+    if failure:
+        print(f"ultraglide serve: {failure}", file=sys.stderr)
+        return 1
+    if report.exit_status:
+        print(f"ultraglide serve: {report.verdict}", file=sys.stderr)
+    return report.exit_status

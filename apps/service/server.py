@@ -1,0 +1,757 @@
+"""The service: a local WebSocket server in front of the real-time engine (``ultraglide serve``).
+
+One asyncio loop, on the command's main thread, serves every client; the engine runs in its own process
+(:mod:`render.engine`) and is reached through its two doors: touches go into its shared-memory ring from the
+loop itself (never waits), everything else (a view's composed texture, effects, a trigger) over its pipe from
+one worker thread, so a texture being composed or sent never holds up the touches. The protocol is
+:mod:`apps.service.protocol`'s; ``docs/service.md`` describes it.
+
+Safety and security, where each lives:
+
+* the handshake (:meth:`Service.process_request`): a path other than ``/ws`` (or the page's, with ``--page``)
+  is 404; a wrong or missing token, where one is needed, 401; a browser's ``Origin`` other than the served
+  page's is 403 (``origins`` of :func:`websockets.asyncio.server.serve`): a page elsewhere cannot drive the
+  plate through ``localhost``;
+* each message: its size (the socket closes on more than :data:`protocol.MAX_MESSAGE_BYTES`; messages but a
+  texture's more than 64 KiB are refused), its rate (a token bucket per client), its fields (typed, ranged);
+  every refusal is one ``error`` reply and the engine never sees the message;
+* one controlling client; the others observe (read-only);
+* a client that goes (its socket closed, even by SIGKILL) while its finger is down lifts it at once: the
+  engine ramps the plate to rest;
+* a client that does not read its replies or its subscriptions: its queue is bounded; subscriptions are
+  dropped (counted) and a client that lets :data:`MAX_QUEUED_REPLIES` replies pile up is disconnected;
+* the plate's limit is the engine's (the limiter in its output stage): nothing a client sends reaches past it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import collections
+import contextlib
+import json
+import math
+import os
+import secrets
+import struct
+import tempfile
+import time
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from importlib import resources
+from urllib.parse import parse_qs, urlsplit
+
+from ultraglide.apps.service import protocol as p
+from ultraglide.apps.service.scene import MAX_SIDE_PX, Sprite, View, compose_view, sprite_at
+
+from ultraglide import __version__
+from ultraglide.errors import UltraglideError, describe
+
+RATE_PER_S = 2000.0  # messages a client may send a second, sustained (a pointer at 1000 Hz and more)
+RATE_BURST = 2000.0
+MAX_QUEUED_REPLIES = 256  # replies waiting for a client that does not read: past this it is disconnected
+MAX_QUEUED_PUSHES = 64  # subscription messages waiting: older ones are dropped
+MAX_TEXTURES = 32
+MAX_SPRITES = 256
+MAX_VIEWS = 16
+MAX_TEXTURE_PIXELS = 4_000_000
+PRESSURE_FULL_SCALE_N = 1.0  # a pointer's pressure 1 is this force; a mouse's 0.5 is the default 0.5 N
+DEFAULT_VIEW = "main"
+DEFAULT_VIEW_MM = (160.0, 100.0)
+HTML = "text/html; charset=utf-8"
+PAGE_FILES = {"/": ("index.html", HTML), "/index.html": ("index.html", HTML),
+              "/ultraglide.js": ("ultraglide.js", "text/javascript; charset=utf-8"),
+              "/page.js": ("page.js", "text/javascript; charset=utf-8")}
+LOOPBACK_HOSTS = ("127.0.0.1", "::1", "localhost")
+SCENE_TYPES = frozenset({"texture.unload", "view.set", "view.remove", "sprite.set", "sprite.remove"})
+
+
+class ServiceError(UltraglideError, RuntimeError):
+    """The service could not start (an address in use, a bad option); one line."""
+
+
+def needs_token(host: str | None) -> bool:
+    """Whether a server bound to ``host`` asks for a token: every address but the usual loopback ones (even
+    another loopback address such as 127.0.0.2: caution costs nothing); a Unix socket (None) never."""
+    return host is not None and host not in LOOPBACK_HOSTS
+
+
+@dataclass(eq=False)
+class Finger:
+    """The one finger the engine renders: whose pointer, on which view, where it was last (mm)."""
+
+    session: Session
+    pointer: int
+    view: str
+    x_mm: float
+    y_mm: float
+    force_n: float | None
+
+
+@dataclass(eq=False)
+class Session:
+    """One client's connection: its role, its clock's offset, its rate bucket, what it subscribed to."""
+
+    connection: object
+    number: int
+    role: str | None = None  # None until its hello
+    client: str = ""
+    clock_offset_s: float | None = None  # our perf_counter minus its clock, the least seen (the quickest delivery)
+    tokens: float = RATE_BURST
+    refilled_s: float = field(default_factory=time.monotonic)
+    rate_refusals: int = 0
+    touch_refusals: int = 0
+    status_hz: float = 0.0
+    output_hz: float = 0.0
+    touch_seen: bool = False
+    scene: bool = False  # pushed the views, sprites and textures whenever they change
+    next_status_s: float = 0.0
+    output_from_s: float = 0.0  # the last block looked at
+    output_kept_s: float = -math.inf  # the last block sent
+    queue: collections.deque = field(default_factory=collections.deque)
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    replies_queued: int = 0
+    pushes_dropped: int = 0
+    closing: bool = False
+
+    def engine_time(self, client_t: float | None, received_s: float) -> float:
+        """The client's timestamp on our clock: shifted by the least offset seen so far (a clock's constant
+        offset cancels; a slow delivery does not pull it later); never after the message arrived."""
+        if client_t is None:
+            return received_s
+        offset = received_s - client_t
+        if self.clock_offset_s is None or offset < self.clock_offset_s:
+            self.clock_offset_s = offset
+        return min(client_t + self.clock_offset_s, received_s)
+
+    def allow(self) -> bool:
+        """A token from the bucket, if one is left."""
+        now = time.monotonic()
+        self.tokens = min(RATE_BURST, self.tokens + (now - self.refilled_s) * RATE_PER_S)
+        self.refilled_s = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
+
+    def send(self, message: dict, push: bool = False) -> None:
+        """Queue a message for this client's sender; pushes beyond the bound drop the oldest push."""
+        if self.closing:
+            return
+        if push:
+            pushes = sum(1 for kind, _ in self.queue if kind)
+            if pushes >= MAX_QUEUED_PUSHES:
+                for index, (kind, _) in enumerate(self.queue):
+                    if kind:
+                        del self.queue[index]
+                        self.pushes_dropped += 1
+                        break
+        else:
+            self.replies_queued += 1
+        self.queue.append((push, message))
+        self.wake.set()
+
+
+class Service:
+    """The server's state and its handlers. ``engine``: a started :class:`render.engine.Engine`; ``profile``: the
+    plate's; ``token``: what clients must give (None: no token); ``page``: serve the page and its module."""
+
+    def __init__(self, engine, profile, *, token: str | None = None, page: bool = False,
+                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM):
+        self.engine = engine
+        self.profile = profile
+        self.token = token
+        self.page = page
+        self.textures: dict = {}
+        self.views: dict[str, View] = {DEFAULT_VIEW: View(DEFAULT_VIEW, view_mm[0], view_mm[1], "mm", *view_mm)}
+        self.sprites: dict[str, Sprite] = {}
+        self.samplers: dict = {}
+        self.active_view = DEFAULT_VIEW
+        self.controller: Session | None = None
+        self.sessions: set[Session] = set()
+        self.finger: Finger | None = None
+        self.effects = None  # the session's effects description (None: none)
+        self.worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ultraglide-service")
+        self._numbers = 0
+        self._order = 0
+        self._scene_version = 0
+        self._composed_version = -1
+        self._composing: asyncio.Task | None = None
+        self._scene_push_due = False
+        self.touches = 0
+        self.touches_ignored = 0
+        self.origins: list = [None]
+        self.loop: asyncio.AbstractEventLoop | None = None
+
+    # ---- start-up --------------------------------------------------------------------------------------
+    def place_startup_textures(self, specs: list[str]) -> None:
+        """The textures named on the command line, loaded and placed side by side filling the default view
+        (each a column of equal width); the view's first composition is the engine's first texture."""
+        view = self.views[DEFAULT_VIEW]
+        for index, spec in enumerate(specs):
+            texture_id = f"t{index + 1}"
+            self.textures[texture_id] = _load_named(spec)
+            width = view.width / len(specs)
+            self._order += 1
+            self.sprites[f"s{index + 1}"] = Sprite(f"s{index + 1}", DEFAULT_VIEW, texture_id, index * width, 0.0,
+                                                   width, view.height, order=self._order)
+
+    def first_texture(self):
+        """The default view composed now (before the engine starts: its first texture)."""
+        self._composed_version = self._scene_version
+        return compose_view(self.views[self.active_view], self.sprites.values(), self.textures, self.samplers)
+
+    # ---- the handshake ---------------------------------------------------------------------------------
+    def process_request(self, connection, request):
+        """Before the WebSocket handshake: the page's files with ``--page``; the token; anything else 404."""
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        url = urlsplit(request.path)
+        query = parse_qs(url.query)
+        if self.page and url.path in PAGE_FILES:  # the page's own files are public: the token is in its address
+            name, kind = PAGE_FILES[url.path]
+            body = resources.files("ultraglide.apps.service.page").joinpath(name).read_bytes()
+            return Response(200, "OK", Headers([("Content-Type", kind), ("Content-Length", str(len(body))),
+                                                ("Cache-Control", "no-store"),
+                                                ("Content-Security-Policy", "default-src 'self'; connect-src 'self' "
+                                                 "ws: ; img-src 'self' data:; style-src 'self' 'unsafe-inline'"),
+                                                ("X-Frame-Options", "DENY")]), body)
+        if self.token is not None:
+            given = (query.get("token") or [""])[0]
+            if not secrets.compare_digest(given.encode(), self.token.encode()):
+                return connection.respond(401, "a token is needed: give ?token=... as printed by ultraglide serve\n")
+        if url.path == "/ws":
+            return None
+        if self.page and url.path.startswith("/texture/") and url.path.endswith(".png"):
+            texture_id = url.path[len("/texture/"):-len(".png")]
+            texture = self.textures.get(texture_id)
+            if texture is not None:
+                body = _png_of(texture)
+                return Response(200, "OK", Headers([("Content-Type", "image/png"), ("Content-Length", str(len(body))),
+                                                    ("Cache-Control", "no-store")]), body)
+        return connection.respond(404, "not found: the service's WebSocket is at /ws\n")
+
+    # ---- a client --------------------------------------------------------------------------------------
+    async def handle(self, connection) -> None:
+        """One client, from its handshake to its going."""
+        self._numbers += 1
+        session = Session(connection, self._numbers)
+        self.sessions.add(session)
+        sender = asyncio.create_task(self._sender(session))
+        try:
+            async for text in connection:
+                received_s = time.perf_counter()
+                if session.closing:
+                    break
+                self._receive(session, text, received_s)
+        except Exception as error:  # noqa: BLE001 - a connection's failure ends that connection, never the service
+            if not _is_connection_closed(error):
+                session.closing = True
+        finally:
+            self._leave(session)
+            session.closing = True
+            session.wake.set()
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await sender
+
+    async def _sender(self, session: Session) -> None:
+        connection = session.connection
+        while True:
+            await session.wake.wait()
+            session.wake.clear()
+            while session.queue:
+                push, message = session.queue.popleft()
+                if not push:
+                    session.replies_queued -= 1
+                try:
+                    await connection.send(json.dumps(message, allow_nan=False, separators=(",", ":")))
+                except Exception:  # noqa: BLE001 - the client went: its handler ends
+                    session.closing = True
+                    return
+
+    def _leave(self, session: Session) -> None:
+        """A client went: its finger lifts at once (the plate ramps to rest), its control passes."""
+        self.sessions.discard(session)
+        if self.finger is not None and self.finger.session is session:
+            self._lift(time.perf_counter())
+        if self.controller is session:
+            self.controller = None
+
+    def _receive(self, session: Session, text, received_s: float) -> None:
+        if not session.allow():
+            session.rate_refusals += 1
+            if session.rate_refusals == 1 or session.rate_refusals % 1000 == 0:  # one line, not one per message
+                session.send(p.error_reply(p.RATE, f"more than {RATE_PER_S:g} messages a second: "
+                                           f"{session.rate_refusals} refused so far; send fewer"))
+            return
+        try:
+            message = p.parse(text)
+        except p.ProtocolError as error:
+            session.send(p.error_reply(error.code, str(error), error.request_id))
+            return
+        if session.queue and session.replies_queued >= MAX_QUEUED_REPLIES:
+            session.closing = True  # it does not read what it is sent: it goes
+            asyncio.ensure_future(session.connection.close(1008, "replies not read; reconnect and read them"))
+            return
+        try:
+            self._dispatch(session, message, received_s)
+        except p.ProtocolError as error:
+            if message.type == "touch" and message.id is None:  # unanswered: the first refusal says it, not each
+                session.touch_refusals += 1
+                if session.touch_refusals > 1:
+                    return
+            session.send(p.error_reply(error.code, str(error), message.id))
+        except (UltraglideError, OSError, ValueError) as error:
+            session.send(p.error_reply(p.BAD_MESSAGE, describe(error), message.id))
+
+    # ---- messages --------------------------------------------------------------------------------------
+    def _dispatch(self, session: Session, message: p.Message, received_s: float) -> None:
+        kind = message.type
+        if kind == "hello":
+            session.send(self._hello(session, message))
+            return
+        if session.role is None:
+            raise p.ProtocolError(p.NO_HELLO, "say hello first: {\"type\": \"hello\", \"protocol\": 1}")
+        if kind in p.CONTROL_TYPES and session is not self.controller:
+            raise p.ProtocolError(p.READ_ONLY, "this client observes: another controls the plate (hello with "
+                                  "role control once it has gone)")
+        if kind == "touch":
+            self._touch(session, message, received_s)
+            return
+        handler = getattr(self, "_on_" + kind.replace(".", "_"))
+        result = handler(session, message)
+        if kind in SCENE_TYPES:
+            self._scene_pushed_soon()
+            result = {**(result or {}), "scene_version": self._scene_version}
+        if asyncio.iscoroutine(result):
+            asyncio.ensure_future(self._answer_later(session, message, result))
+        else:
+            session.send(p.reply(message.id, **(result or {})))
+
+    async def _answer_later(self, session: Session, message: p.Message, pending) -> None:
+        try:
+            fields = await pending
+        except p.ProtocolError as error:
+            session.send(p.error_reply(error.code, str(error), message.id))
+        except (UltraglideError, OSError, ValueError) as error:
+            session.send(p.error_reply(p.ENGINE if type(error).__name__ == "EngineError" else p.TEXTURE,
+                                       describe(error), message.id))
+        else:
+            session.send(p.reply(message.id, **(fields or {})))
+
+    def _hello(self, session: Session, message: p.Message) -> dict:
+        if message["protocol"] != p.PROTOCOL_VERSION:
+            raise p.ProtocolError(p.BAD_MESSAGE, f"this server speaks protocol {p.PROTOCOL_VERSION}, not "
+                                  f"{message['protocol']}")
+        role = message.get("role", "control")
+        if role == "control" and self.controller not in (None, session):
+            raise p.ProtocolError(p.BUSY, "another client controls the plate; hello with role observe to watch")
+        if session.role == "control" and role == "observe" and self.controller is session:
+            self.controller = None
+            if self.finger is not None and self.finger.session is session:
+                self._lift(time.perf_counter())
+        session.role = role
+        session.client = message.get("client", "")
+        if role == "control":
+            self.controller = session
+        limit = self.profile.max_amplitude_um_pp
+        return p.reply(message.id, protocol=p.PROTOCOL_VERSION, server=f"ultraglide {__version__}",
+                       role=role, device=self.engine.config.device, profile=self.profile.name,
+                       limit_um_pp=limit, default_force_n=self.engine.config.default_force_n,
+                       limits={"message_bytes": p.MAX_MESSAGE_BYTES, "small_message_bytes": p.MAX_SMALL_MESSAGE_BYTES,
+                               "messages_per_s": RATE_PER_S, "textures": MAX_TEXTURES, "sprites": MAX_SPRITES,
+                               "views": MAX_VIEWS, "texture_pixels": MAX_TEXTURE_PIXELS},
+                       **self._state())
+
+    def _state(self) -> dict:
+        return {"scene_version": self._scene_version, "rendered_version": self._composed_version,
+                "views": [_view_dict(v) for v in self.views.values()],
+                "sprites": [_sprite_dict(s) for s in self.sprites.values()],
+                "textures": [_texture_dict(k, t) for k, t in self.textures.items()]}
+
+    def _on_state(self, session, message) -> dict:
+        return self._state()
+
+    def _on_subscribe(self, session: Session, message: p.Message) -> dict:
+        if "status" in message.fields:
+            session.status_hz = 2.0 if message["status"] < 0 else message["status"]
+        if "output" in message.fields:
+            session.output_hz = 100.0 if message["output"] < 0 else message["output"]
+            session.output_from_s = time.perf_counter()
+        if "touch" in message.fields:
+            session.touch_seen = message["touch"]
+        if "scene" in message.fields:
+            session.scene = message["scene"]
+        return {"status": session.status_hz, "output": session.output_hz, "touch": session.touch_seen,
+                "scene": session.scene}
+
+    async def _on_texture_load(self, session: Session, message: p.Message) -> dict:
+        texture_id = message["texture"]
+        if texture_id not in self.textures and len(self.textures) >= MAX_TEXTURES:
+            raise p.ProtocolError(p.LIMIT, f"at most {MAX_TEXTURES} textures: unload one first")
+        sources = [key for key in ("library", "file", "png") if key in message.fields]
+        if len(sources) != 1:
+            raise p.ProtocolError(p.BAD_MESSAGE, "texture.load: give one of 'library', 'file' or 'png'")
+        texture, notes = await asyncio.get_running_loop().run_in_executor(self.worker, _load_texture, message)
+        self.textures[texture_id] = texture
+        self.samplers.pop(texture_id, None)
+        self._scene_pushed_soon()
+        if any(s.texture == texture_id and s.visible for s in self.sprites.values()):
+            self._changed()
+        return {**_texture_dict(texture_id, texture), "notes": notes, "scene_version": self._scene_version}
+
+    def _on_texture_unload(self, session, message) -> dict:
+        texture_id = message["texture"]
+        self._texture(texture_id)
+        used = [s.name for s in self.sprites.values() if s.texture == texture_id]
+        if used:
+            raise p.ProtocolError(p.BAD_MESSAGE, f"texture {texture_id} is on sprite(s) {', '.join(used[:5])}: "
+                                  "remove them first")
+        del self.textures[texture_id]
+        self.samplers.pop(texture_id, None)
+        return {}
+
+    def _on_view_set(self, session, message) -> dict:
+        name = message["view"]
+        old = self.views.get(name)
+        if old is None and len(self.views) >= MAX_VIEWS:
+            raise p.ProtocolError(p.LIMIT, f"at most {MAX_VIEWS} views")
+        units = message.get("units", old.units if old else "px")
+        width, height = message["width"], message["height"]
+        if units == "mm":
+            width_mm, height_mm = message.get("width_mm", width), message.get("height_mm", height)
+            if (width_mm, height_mm) != (width, height):
+                raise p.ProtocolError(p.BAD_MESSAGE, "view.set: a view in mm is width × height mm; leave out "
+                                      "width_mm and height_mm")
+            if max(width, height) > 2000:
+                raise p.ProtocolError(p.BAD_MESSAGE, "view.set: a view is at most 2000 mm a side")
+        else:
+            if "width_mm" not in message.fields or "height_mm" not in message.fields:
+                raise p.ProtocolError(p.BAD_MESSAGE, "view.set: a view in px needs its physical size, width_mm "
+                                      "and height_mm (the screen's)")
+            if max(width, height) > MAX_SIDE_PX:
+                raise p.ProtocolError(p.BAD_MESSAGE, f"view.set: a view is at most {MAX_SIDE_PX} px a side")
+            width_mm, height_mm = message["width_mm"], message["height_mm"]
+        view = View(name, width, height, units, width_mm, height_mm,
+                    message.get("background_ratio", old.background_ratio if old else 1.0))
+        if old is not None and (old.width, old.height) != (width, height):  # its sprites keep their share of it
+            sx, sy = width / old.width, height / old.height
+            for sprite in list(self.sprites.values()):
+                if sprite.view == name:
+                    self.sprites[sprite.name] = sprite.with_(x=sprite.x * sx, y=sprite.y * sy,
+                                                             width=sprite.width * sx, height=sprite.height * sy)
+        self.views[name] = view
+        if name == self.active_view:
+            self._changed()
+        return {"view": _view_dict(view)}
+
+    def _on_view_remove(self, session, message) -> dict:
+        name = message["view"]
+        self._view(name)
+        if len(self.views) == 1:
+            raise p.ProtocolError(p.BAD_MESSAGE, "the last view stays: set it instead")
+        for sprite in [s for s in self.sprites.values() if s.view == name]:
+            del self.sprites[sprite.name]
+        del self.views[name]
+        if self.active_view == name:
+            self.active_view = next(iter(self.views))
+            self._changed()
+        return {}
+
+    def _on_sprite_set(self, session, message) -> dict:
+        name = message["sprite"]
+        old = self.sprites.get(name)
+        fields = dict(message.fields)
+        del fields["sprite"]
+        if old is None:
+            if len(self.sprites) >= MAX_SPRITES:
+                raise p.ProtocolError(p.LIMIT, f"at most {MAX_SPRITES} sprites")
+            if "texture" not in fields:
+                raise p.ProtocolError(p.UNKNOWN, f"no sprite {name!r}: place it with texture, x, y, width and height")
+            missing = [key for key in ("x", "y", "width", "height") if key not in fields]
+            if missing:
+                raise p.ProtocolError(p.BAD_MESSAGE, f"sprite.set: a new sprite needs {', '.join(missing)}")
+            self._order += 1
+            view = fields.pop("view", DEFAULT_VIEW if DEFAULT_VIEW in self.views else next(iter(self.views)))
+            sprite = Sprite(name, view, **fields, order=self._order)
+        else:
+            if "z" in fields:  # reordered: among equal z, the latest placed on top
+                self._order += 1
+                fields["order"] = self._order
+            sprite = old.with_(**fields)
+        self._view(sprite.view)
+        self._texture(sprite.texture)
+        self.sprites[name] = sprite
+        if sprite.view == self.active_view or (old is not None and old.view == self.active_view):
+            self._changed()
+        return {"sprite": _sprite_dict(sprite)}
+
+    def _on_sprite_remove(self, session, message) -> dict:
+        sprite = self.sprites.pop(message["sprite"], None)
+        if sprite is None:
+            raise p.ProtocolError(p.UNKNOWN, f"no sprite {message['sprite']!r}")
+        if sprite.view == self.active_view:
+            self._changed()
+        return {}
+
+    async def _on_effects_set(self, session, message) -> dict:
+        description = message["effects"]
+        loop = asyncio.get_running_loop()
+        await loop.run_in_executor(self.worker, self.engine.set_effects, description)
+        self.effects = description
+        return {}
+
+    async def _on_effect_trigger(self, session, message) -> dict:
+        played = await asyncio.get_running_loop().run_in_executor(self.worker, self.engine.trigger, message["name"])
+        return {"played": played}
+
+    async def _on_effect_stop(self, session, message) -> dict:
+        """Every effect playing stops: the effects are set again (their voices start afresh, silent)."""
+        await asyncio.get_running_loop().run_in_executor(self.worker, self.engine.set_effects, self.effects)
+        return {}
+
+    # ---- touches ---------------------------------------------------------------------------------------
+    def _touch(self, session: Session, message: p.Message, received_s: float) -> None:
+        view = self._view(message.get("view", self.active_view))
+        pointer = message.get("pointer", 0)
+        phase = message["phase"]
+        finger = self.finger
+        if finger is None and phase != "down":
+            return  # a pointer hovering, or a move after a lift: nothing to feel
+        if finger is not None and (finger.session is not session or finger.pointer != pointer):
+            self.touches_ignored += 1  # a second finger: the plate renders one
+            return
+        t = session.engine_time(message.get("t"), received_s)
+        x_mm, y_mm = view.to_mm(message["x"], message["y"])
+        force = message.get("force_n")
+        if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
+            force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
+        if view.name != self.active_view:
+            self.active_view = view.name
+            self._changed()
+        self.touches += 1
+        if phase in ("up", "cancel"):
+            self.engine.touch(t, x_mm, y_mm, force, down=False)
+            self.finger = None
+            return
+        self.engine.touch(t, x_mm, y_mm, force, down=True)
+        if finger is None:
+            self.finger = Finger(session, pointer, view.name, x_mm, y_mm, force)
+        else:
+            finger.x_mm, finger.y_mm, finger.force_n = x_mm, y_mm, force
+
+    def _lift(self, now_s: float) -> None:
+        finger = self.finger
+        self.finger = None
+        self.engine.touch(now_s, finger.x_mm, finger.y_mm, finger.force_n, down=False)
+
+    # ---- the scene -------------------------------------------------------------------------------------
+    def _changed(self) -> None:
+        """The active view changed: compose it again and hand it to the engine (on the worker, coalesced)."""
+        self._scene_version += 1
+        if self._composing is None or self._composing.done():
+            self._composing = asyncio.ensure_future(self._compose())
+
+    async def _compose(self) -> None:
+        loop = asyncio.get_running_loop()
+        while self._composed_version != self._scene_version:
+            version = self._scene_version
+            view = self.views[self.active_view]
+            sprites = list(self.sprites.values())
+            textures = dict(self.textures)
+            try:
+                await loop.run_in_executor(self.worker, self._set_scene, view, sprites, textures)
+            except (UltraglideError, OSError, ValueError) as error:
+                for session in list(self.sessions):
+                    session.send({"type": "notice", "message": f"the view could not be rendered: {describe(error)}"},
+                                  push=True)
+            self._composed_version = version
+
+    def _set_scene(self, view, sprites, textures) -> None:
+        texture = compose_view(view, sprites, textures, self.samplers)
+        self.engine.set_texture(texture)
+
+    def _scene_pushed_soon(self) -> None:
+        """The scene to its subscribers once this turn of the loop is over (a burst of changes: one push; a texture
+        still loading: pushed again when it has)."""
+        if not self._scene_push_due:
+            self._scene_push_due = True
+            asyncio.get_running_loop().call_later(0.005, self._push_scene)
+
+    def _push_scene(self) -> None:
+        self._scene_push_due = False
+        state = None
+        for session in list(self.sessions):
+            if session.scene and session.role:
+                state = state or {"type": "scene", **self._state()}
+                session.send(state, push=True)
+
+    def _view(self, name: str) -> View:
+        view = self.views.get(name)
+        if view is None:
+            raise p.ProtocolError(p.UNKNOWN, f"no view {name!r}; views: {', '.join(self.views)}")
+        return view
+
+    def _texture(self, name: str):
+        texture = self.textures.get(name)
+        if texture is None:
+            raise p.ProtocolError(p.UNKNOWN, f"no texture {name!r}; load it with texture.load first")
+        return texture
+
+    # ---- subscriptions ---------------------------------------------------------------------------------
+    async def publish(self) -> None:
+        """Status, output and the touch as seen, to the clients that subscribed, each at its own rate."""
+        while True:
+            await asyncio.sleep(0.01)
+            now = time.perf_counter()
+            wanted = [s for s in self.sessions if s.role and (s.status_hz or s.output_hz or s.touch_seen)]
+            if not wanted:
+                continue
+            status = self.engine.status(history_s=1.0)
+            for session in wanted:
+                if session.status_hz and now >= session.next_status_s:
+                    session.next_status_s = now + 1.0 / session.status_hz
+                    session.send(self._status_message(status, session), push=True)
+                if session.output_hz:
+                    message = _output_message(status.history, session)
+                    if message is not None:
+                        session.send(message, push=True)
+                if session.touch_seen and status.last_touch is not None:
+                    x, y, force, down = status.last_touch
+                    seen = (x, y, down)
+                    if getattr(session, "_last_seen", None) != seen:
+                        session._last_seen = seen
+                        view = self.views.get(self.active_view)
+                        sprite = sprite_at(view, self.sprites.values(), x, y) if view and down else None
+                        session.send({"type": "touch.seen", "view": self.active_view, "x_mm": x, "y_mm": y,
+                                      "force_n": None if math.isnan(force) else force, "down": bool(down),
+                                      "sprite": sprite.name if sprite else None}, push=True)
+
+    def _status_message(self, status, session: Session) -> dict:
+        return {"type": "status", "device": status.device, "state": status.state, "faults": list(status.faults),
+                "limit_um_pp": self.profile.max_amplitude_um_pp, "limited_percent": status.limited_percent,
+                "loop": status.loop, "blocks": status.blocks, "late_blocks": status.late_blocks,
+                "underruns": status.underruns, "touches": self.touches, "touches_ignored": self.touches_ignored,
+                "touches_dropped": status.touches_dropped, "texture": status.texture,
+                "controller": self.controller is not None, "role": session.role,
+                "pushes_dropped": session.pushes_dropped}
+
+
+def _output_message(history, session: Session) -> dict | None:
+    """The blocks rendered since the last output message, at most ``output_hz`` rows a second."""
+    import numpy as np
+
+    times = history.time_s
+    index = np.flatnonzero(times > session.output_from_s)
+    if not len(index):
+        return None
+    session.output_from_s = float(times[index[-1]])
+    keep = []
+    for k in index:
+        if times[k] - session.output_kept_s >= 1.0 / session.output_hz * 0.999:
+            keep.append(k)
+            session.output_kept_s = float(times[k])
+    if not keep:
+        return None
+    rows = np.asarray(keep)
+    return {"type": "output", "t": [round(float(v), 6) for v in times[rows]],
+            "ratio": [round(float(v), 5) for v in history.target_ratio[rows]],
+            "amplitude_um_pp": [round(float(v), 5) for v in history.commanded_um_pp[rows]],
+            "plate_um_pp": [round(float(v), 5) for v in history.plate_um_pp[rows]]}
+
+
+def _is_connection_closed(error: BaseException) -> bool:
+    from websockets.exceptions import ConnectionClosed
+
+    return isinstance(error, ConnectionClosed)
+
+
+def _view_dict(view: View) -> dict:
+    return {"view": view.name, "width": view.width, "height": view.height, "units": view.units,
+            "width_mm": view.width_mm, "height_mm": view.height_mm, "background_ratio": view.background_ratio}
+
+
+def _sprite_dict(sprite: Sprite) -> dict:
+    return {"sprite": sprite.name, "view": sprite.view, "texture": sprite.texture, "x": sprite.x, "y": sprite.y,
+            "width": sprite.width, "height": sprite.height, "rotation_deg": sprite.rotation_deg, "z": sprite.z,
+            "visible": sprite.visible}
+
+
+def _texture_dict(texture_id: str, texture) -> dict:
+    return {"texture": texture_id, "name": texture.name, "width_mm": texture.width_mm,
+            "height_mm": texture.height_mm, "cols": texture.cols, "rows": texture.rows, "kind": texture.kind}
+
+
+def _load_named(spec: str):
+    from ultraglide.textures.library import resolve_texture
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        texture = resolve_texture(spec)
+    if texture.rows * texture.cols > MAX_TEXTURE_PIXELS:
+        raise p.ProtocolError(p.LIMIT, f"{spec}: {texture.cols}×{texture.rows} pixels, more than a sprite's "
+                              f"{MAX_TEXTURE_PIXELS:,}; make it smaller")
+    return texture
+
+
+def _load_texture(message: p.Message):
+    """A texture from a library name, a file, or a PNG's bytes (base64); (texture, notes)."""
+    notes: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if "png" in message.fields:
+            texture = _from_png(message)
+        else:
+            texture = _load_named(message.get("library") or message.get("file"))
+    notes = [" ".join(str(w.message).split())[:300] for w in caught]
+    if "name" in message.fields:
+        texture = texture.with_(name=message["name"])
+    return texture, notes
+
+
+def _from_png(message: p.Message):
+    from ultraglide.textures.fileformat import load_texture
+
+    try:
+        data = base64.b64decode(message["png"], validate=True)
+    except ValueError:
+        raise p.ProtocolError(p.BAD_MESSAGE, "texture.load: 'png' must be base64") from None
+    if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 24 or data[12:16] != b"IHDR":
+        raise p.ProtocolError(p.TEXTURE, "texture.load: 'png' is not a PNG")
+    cols, rows = struct.unpack(">II", data[16:24])
+    if cols * rows > MAX_TEXTURE_PIXELS:
+        raise p.ProtocolError(p.LIMIT, f"texture.load: {cols}×{rows} pixels, more than a sprite's "
+                              f"{MAX_TEXTURE_PIXELS:,}; send a smaller image")
+    with tempfile.TemporaryDirectory(prefix="ultraglide-serve-") as folder:
+        path = os.path.join(folder, "texture.png")
+        with open(path, "wb") as stream:
+            stream.write(data)
+        texture = load_texture(path)
+    texture = texture.with_(source="sent by the client", name=texture.name if texture.name != "texture" else "sent")
+    width_mm, height_mm = message.get("width_mm"), message.get("height_mm")
+    if width_mm or height_mm:
+        scale = (width_mm / texture.width_mm) if width_mm else (height_mm / texture.height_mm)
+        texture = texture.with_(width_mm=width_mm or texture.width_mm * scale,
+                                height_mm=height_mm or texture.height_mm * scale)
+    return texture
+
+
+def _png_of(texture) -> bytes:
+    """The texture's friction map as an 8-bit grayscale PNG (for the page to draw)."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    values = np.clip(texture.ratio_map() * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    stream = io.BytesIO()
+    Image.fromarray(values, mode="L").save(stream, format="PNG")
+    return stream.getvalue()
+
+
+def new_token() -> str:
+    """A random token for clients beyond loopback (128 bits, URL-safe)."""
+    return secrets.token_urlsafe(16)

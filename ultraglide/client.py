@@ -1,0 +1,459 @@
+"""A client of ``ultraglide serve``: place textures as sprites, send touches, watch what the plate renders.
+
+One call per message of the protocol (``docs/service.md``), in two flavours: :class:`Client` (plain calls, for
+a script or a PsychoPy experiment) and :class:`AsyncClient` (the same calls awaited, for asyncio programs).
+A refusal is raised as a :class:`Refused` subclass named by its code (:class:`ReadOnly`, :class:`Unknown`, ...);
+a connection that fails or is lost as :class:`ConnectionFailed`. Light: no numpy, no pygame.
+
+Example::
+
+    from ultraglide.client import Client
+
+    with Client("ws://127.0.0.1:8765/ws") as plate:          # the first line `ultraglide serve` printed
+        plate.set_view("main", 1920, 1080, units="px", width_mm=344, height_mm=194)
+        plate.load_texture("wood", library="wood-grain")
+        plate.place_sprite("panel", "wood", x=100, y=100, width=800, height=400)
+        plate.touch(300, 300, "down")                          # in the view's units
+        plate.touch(320, 300, "move")
+        plate.touch(340, 300, "up")
+        plate.move_sprite("panel", x=200, y=100)               # the friction follows the sprite
+"""
+
+from __future__ import annotations
+
+import base64
+import collections
+import itertools
+import json
+import os
+import threading
+import time
+
+from ultraglide.errors import UltraglideError
+
+PROTOCOL_VERSION = 1
+DEFAULT_TIMEOUT_S = 30.0
+MAX_EVENTS = 1024  # pushes kept for events(); older ones are dropped
+
+
+class ServiceError(UltraglideError):
+    """Anything the service client raises."""
+
+
+class ConnectionFailed(ServiceError, ConnectionError):
+    """The service could not be reached, refused the handshake (origin, token), or the connection was lost."""
+
+
+class Refused(ServiceError, ValueError):
+    """The service refused a message: ``code`` (docs/service.md) and its one-line ``message``."""
+
+    code = "refused"
+
+    def __init__(self, message: str, code: str | None = None):
+        super().__init__(message)
+        if code is not None:
+            self.code = code
+
+
+class BadMessage(Refused):
+    code = "bad-message"
+
+
+class TooBig(Refused):
+    code = "too-big"
+
+
+class RateLimited(Refused):
+    code = "rate"
+
+
+class NoHello(Refused):
+    code = "no-hello"
+
+
+class Busy(Refused):
+    """Another client controls the plate."""
+
+    code = "busy"
+
+
+class ReadOnly(Refused):
+    """This client observes: it may not change anything."""
+
+    code = "read-only"
+
+
+class Unknown(Refused):
+    """No texture, view or sprite of that name."""
+
+    code = "unknown"
+
+
+class TextureRefused(Refused):
+    code = "texture"
+
+
+class LimitReached(Refused):
+    code = "limit"
+
+
+class EngineRefused(Refused):
+    code = "engine"
+
+
+ERRORS = {cls.code: cls for cls in (BadMessage, TooBig, RateLimited, NoHello, Busy, ReadOnly, Unknown,
+                                    TextureRefused, LimitReached, EngineRefused)}
+
+
+def refusal(reply: dict) -> Refused:
+    """The exception for an ``error`` reply."""
+    code = str(reply.get("code", "refused"))
+    return ERRORS.get(code, Refused)(str(reply.get("message", "refused")), code)
+
+
+def _png_field(png) -> str:
+    if isinstance(png, bytes | bytearray):
+        return base64.b64encode(bytes(png)).decode("ascii")
+    with open(os.fspath(png), "rb") as stream:
+        return base64.b64encode(stream.read()).decode("ascii")
+
+
+def _clean(**fields) -> dict:
+    return {key: value for key, value in fields.items() if value is not None}
+
+
+class _Messages:
+    """The protocol's messages, one method each; ``_request`` (answered) and ``_post`` (not) send them."""
+
+    def load_texture(self, texture: str, *, library: str | None = None, file: str | os.PathLike | None = None,
+                     png: bytes | str | os.PathLike | None = None, width_mm: float | None = None,
+                     height_mm: float | None = None, name: str | None = None):
+        """Load a texture under the id ``texture``: a ``library`` name, a ``file`` on the server's machine, or
+        ``png`` (bytes, or a local file sent as bytes); ``width_mm``/``height_mm`` size a plain image. Returns
+        its description (id, name, size mm, pixels, notes)."""
+        return self._request("texture.load", texture=texture, library=library,
+                             file=None if file is None else os.fspath(file),
+                             png=None if png is None else _png_field(png), width_mm=width_mm, height_mm=height_mm,
+                             name=name)
+
+    def unload_texture(self, texture: str):
+        return self._request("texture.unload", texture=texture)
+
+    def set_view(self, view: str, width: float, height: float, *, units: str = "px", width_mm: float | None = None,
+                 height_mm: float | None = None, background_ratio: float | None = None):
+        """Make or change a view: ``width`` × ``height`` in ``units`` (``px`` with the screen's size in mm, or
+        ``mm``); ``background_ratio``: the friction ratio where no sprite is (1: bare glass)."""
+        return self._request("view.set", view=view, width=width, height=height, units=units, width_mm=width_mm,
+                             height_mm=height_mm, background_ratio=background_ratio)
+
+    def remove_view(self, view: str):
+        return self._request("view.remove", view=view)
+
+    def place_sprite(self, sprite: str, texture: str, x: float, y: float, width: float, height: float, *,
+                     view: str | None = None, rotation_deg: float | None = None, z: float | None = None,
+                     visible: bool | None = None):
+        """Place (or replace) a sprite: ``texture`` stretched over the rectangle (view's units, top-left corner,
+        before rotation), rotated clockwise about its centre; the larger ``z`` on top."""
+        return self._request("sprite.set", sprite=sprite, texture=texture, x=x, y=y, width=width, height=height,
+                             view=view, rotation_deg=rotation_deg, z=z, visible=visible)
+
+    def update_sprite(self, sprite: str, **fields):
+        """Change some of a sprite's fields (texture, view, x, y, width, height, rotation_deg, z, visible)."""
+        return self._request("sprite.set", sprite=sprite, **fields)
+
+    def move_sprite(self, sprite: str, x: float, y: float):
+        return self._request("sprite.set", sprite=sprite, x=x, y=y)
+
+    def resize_sprite(self, sprite: str, width: float, height: float):
+        return self._request("sprite.set", sprite=sprite, width=width, height=height)
+
+    def rotate_sprite(self, sprite: str, rotation_deg: float):
+        return self._request("sprite.set", sprite=sprite, rotation_deg=rotation_deg)
+
+    def reorder_sprite(self, sprite: str, z: float):
+        return self._request("sprite.set", sprite=sprite, z=z)
+
+    def show_sprite(self, sprite: str, visible: bool = True):
+        return self._request("sprite.set", sprite=sprite, visible=visible)
+
+    def hide_sprite(self, sprite: str):
+        return self._request("sprite.set", sprite=sprite, visible=False)
+
+    def remove_sprite(self, sprite: str):
+        return self._request("sprite.remove", sprite=sprite)
+
+    def touch(self, x: float, y: float, phase: str = "move", *, pointer: int = 0, view: str | None = None,
+              pressure: float | None = None, force_n: float | None = None, t: float | None = None,
+              pointer_type: str | None = None):
+        """A pointer event in the view's units: ``phase`` down, move, up or cancel; ``t`` this program's
+        ``time.perf_counter()`` when it happened (default: now). Not answered (refusals come as errors later)."""
+        return self._post("touch", x=x, y=y, phase=phase, pointer=pointer, view=view, pressure=pressure,
+                          force_n=force_n, t=time.perf_counter() if t is None else t, pointer_type=pointer_type)
+
+    def set_effects(self, effects: dict | None):
+        """The temporal effects to play (``textures.effects.to_json``'s description; None: none)."""
+        return self._request("effects.set", effects=effects)
+
+    def trigger(self, name: str):
+        """Play the effects bound to the event ``name``; the reply's ``played`` says whether any is."""
+        return self._request("effect.trigger", name=name)
+
+    def stop_effects(self):
+        return self._request("effect.stop")
+
+    def subscribe(self, *, status: float | bool | None = None, output: float | bool | None = None,
+                  touch: bool | None = None, scene: bool | None = None):
+        """Pushes to receive (:meth:`events`): ``status`` (True: 2 Hz, or a rate in Hz), ``output`` (the
+        rendered friction and amplitude; True: 100 rows/s, or a rate), ``touch`` (the touch as the engine saw it),
+        ``scene`` (the views, sprites and textures whenever they change)."""
+        return self._request("subscribe", status=status, output=output, touch=touch, scene=scene)
+
+    def state(self):
+        """The views, sprites and textures as the service has them; ``scene_version`` counts the changes to the
+        view the engine renders, ``rendered_version`` the last of them the engine renders now."""
+        return self._request("state")
+
+
+class Client(_Messages):
+    """A connection to ``ultraglide serve`` (see the module docstring). ``url``: ``ws://HOST:PORT/ws[?token=...]``
+    as the server printed, or ``ws+unix:PATH``; ``role``: ``control`` (one client at a time) or ``observe``.
+    Use from one thread; pushes arrive in :meth:`events`."""
+
+    def __init__(self, url: str, *, role: str = "control", name: str = "python", timeout_s: float = DEFAULT_TIMEOUT_S,
+                 origin: str | None = None):
+        from websockets.exceptions import InvalidHandshake, InvalidURI
+        from websockets.sync.client import connect, unix_connect
+
+        self.timeout_s = timeout_s
+        self._ids = itertools.count(1)
+        self.pending_events: collections.deque = collections.deque(maxlen=MAX_EVENTS)
+        self.errors: collections.deque = collections.deque(maxlen=MAX_EVENTS)  # refusals of unanswered messages
+        self._lock = threading.Lock()
+        try:
+            if url.startswith("ws+unix:"):
+                self._ws = unix_connect(url[len("ws+unix:"):], open_timeout=timeout_s, max_size=None,
+                                        compression=None).__enter__()
+            else:  # never through a proxy: the service is on this machine
+                self._ws = connect(url, open_timeout=timeout_s, max_size=None, compression=None, origin=origin,
+                                   proxy=None).__enter__()
+        except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
+            raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
+        try:
+            self.welcome = self._request("hello", protocol=PROTOCOL_VERSION, role=role, client=name)
+        except BaseException:
+            self._ws.close()
+            raise
+
+    def _send(self, message: dict) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            self._ws.send(json.dumps(message, separators=(",", ":")))
+        except (ConnectionClosed, OSError) as error:
+            raise ConnectionFailed(f"the connection to the service was lost: {error}") from None
+
+    def _post(self, kind: str, **fields) -> None:
+        self._send({"type": kind, **_clean(**fields)})
+
+    def _request(self, kind: str, **fields) -> dict:
+        request_id = next(self._ids)
+        self._send({"type": kind, "id": request_id, **_clean(**fields)})
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            message = self._receive(deadline - time.monotonic())
+            if message is None:
+                raise ConnectionFailed(f"no answer to {kind} within {self.timeout_s:g} s")
+            if message.get("id") == request_id and message.get("type") in ("ok", "error"):
+                if message["type"] == "error":
+                    raise refusal(message)
+                return {k: v for k, v in message.items() if k not in ("id",)}
+            self._keep(message)
+
+    def _keep(self, message: dict) -> None:
+        if message.get("type") == "error":
+            self.errors.append(refusal(message))
+        else:
+            self.pending_events.append(message)
+
+    def _receive(self, timeout_s: float) -> dict | None:
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            text = self._ws.recv(timeout=max(0.0, timeout_s))
+        except TimeoutError:
+            return None
+        except (ConnectionClosed, OSError) as error:
+            raise ConnectionFailed(f"the connection to the service was lost: {error}") from None
+        return json.loads(text)
+
+    def wait_rendered(self, timeout_s: float = 10.0) -> dict:
+        """Wait until the engine renders the scene as it is now (every change made so far); the state then."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            state = self.state()
+            if state["rendered_version"] >= state["scene_version"]:
+                return state
+            if time.monotonic() > deadline:
+                raise ConnectionFailed(f"the scene was not rendered within {timeout_s:g} s")
+            time.sleep(0.005)
+
+    def events(self, timeout_s: float = 0.0):
+        """Pushes received (status, output, touch.seen, notice), oldest first: those already here, then those
+        arriving within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            while self.pending_events:
+                yield self.pending_events.popleft()
+            left = deadline - time.monotonic()
+            if left <= 0:
+                message = self._receive(0.0)
+                if message is None:
+                    return
+            else:
+                message = self._receive(left)
+                if message is None:
+                    return
+            self._keep(message)
+
+    def close(self) -> None:
+        """Close the connection (a finger still down is lifted by the service)."""
+        self._ws.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class AsyncClient(_Messages):
+    """:class:`Client` for asyncio: ``client = await AsyncClient.connect(url)``; every call is awaited but
+    :meth:`touch`, which sends at once and returns None. Pushes come through :meth:`next_event`."""
+
+    def __init__(self):
+        self._ws = None
+        self._ids = itertools.count(1)
+        self._waiting: dict = {}
+        self._events = None
+        self.errors: collections.deque = collections.deque(maxlen=MAX_EVENTS)
+        self._reader = None
+        self.welcome: dict = {}
+        self.timeout_s = DEFAULT_TIMEOUT_S
+
+    @classmethod
+    async def connect(cls, url: str, *, role: str = "control", name: str = "python-asyncio",
+                      timeout_s: float = DEFAULT_TIMEOUT_S, origin: str | None = None) -> AsyncClient:
+        import asyncio
+
+        from websockets.asyncio.client import connect, unix_connect
+        from websockets.exceptions import InvalidHandshake, InvalidURI
+
+        self = cls()
+        self.timeout_s = timeout_s
+        self._events = asyncio.Queue(maxsize=MAX_EVENTS)
+        try:
+            if url.startswith("ws+unix:"):
+                self._ws = await unix_connect(url[len("ws+unix:"):], open_timeout=timeout_s, max_size=None,
+                                              compression=None)
+            else:
+                self._ws = await connect(url, open_timeout=timeout_s, max_size=None, compression=None, origin=origin,
+                                         proxy=None)
+        except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
+            raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
+        self._reader = asyncio.ensure_future(self._read())
+        try:
+            self.welcome = await self._request("hello", protocol=PROTOCOL_VERSION, role=role, client=name)
+        except BaseException:
+            await self.close()
+            raise
+        return self
+
+    async def _read(self) -> None:
+        import asyncio
+
+        try:
+            async for text in self._ws:
+                message = json.loads(text)
+                future = self._waiting.pop(message.get("id"), None) if message.get("type") in ("ok", "error") \
+                    else None
+                if future is not None and not future.done():
+                    future.set_result(message)
+                elif message.get("type") == "error":
+                    self.errors.append(refusal(message))
+                else:
+                    if self._events.full():
+                        self._events.get_nowait()
+                    self._events.put_nowait(message)
+        except Exception:  # noqa: BLE001 - the connection ended: every waiting call learns it below
+            pass
+        finally:
+            for future in self._waiting.values():
+                if not future.done():
+                    future.set_exception(ConnectionFailed("the connection to the service was lost"))
+            self._waiting.clear()
+            with __import__("contextlib").suppress(asyncio.QueueFull):
+                self._events.put_nowait(None)
+
+    def _post(self, kind: str, **fields) -> None:
+        import asyncio
+
+        asyncio.ensure_future(self._send({"type": kind, **_clean(**fields)}))
+
+    async def _send(self, message: dict) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            await self._ws.send(json.dumps(message, separators=(",", ":")))
+        except (ConnectionClosed, OSError) as error:
+            raise ConnectionFailed(f"the connection to the service was lost: {error}") from None
+
+    async def _request(self, kind: str, **fields) -> dict:
+        import asyncio
+
+        request_id = next(self._ids)
+        future = asyncio.get_running_loop().create_future()
+        self._waiting[request_id] = future
+        await self._send({"type": kind, "id": request_id, **_clean(**fields)})
+        try:
+            message = await asyncio.wait_for(future, self.timeout_s)
+        except TimeoutError:
+            self._waiting.pop(request_id, None)
+            raise ConnectionFailed(f"no answer to {kind} within {self.timeout_s:g} s") from None
+        if message["type"] == "error":
+            raise refusal(message)
+        return {k: v for k, v in message.items() if k != "id"}
+
+    async def wait_rendered(self, timeout_s: float = 10.0) -> dict:
+        """Wait until the engine renders the scene as it is now (every change made so far); the state then."""
+        import asyncio
+
+        deadline = time.monotonic() + timeout_s
+        while True:
+            state = await self.state()
+            if state["rendered_version"] >= state["scene_version"]:
+                return state
+            if time.monotonic() > deadline:
+                raise ConnectionFailed(f"the scene was not rendered within {timeout_s:g} s")
+            await asyncio.sleep(0.005)
+
+    async def next_event(self, timeout_s: float | None = None) -> dict | None:
+        """The next push (status, output, touch.seen, notice); None once the connection has ended or after
+        ``timeout_s``."""
+        import asyncio
+
+        try:
+            return await asyncio.wait_for(self._events.get(), timeout_s)
+        except TimeoutError:
+            return None
+
+    async def close(self) -> None:
+        if self._ws is not None:
+            await self._ws.close()
+        if self._reader is not None:
+            await self._reader
+
+    async def __aenter__(self) -> AsyncClient:
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        await self.close()
