@@ -33,7 +33,8 @@ from ultraglide.errors import UltraglideError
 
 PROTOCOL_VERSION = 1
 DEFAULT_TIMEOUT_S = 30.0
-MAX_EVENTS = 1024  # pushes kept for events(); older ones are dropped
+MAX_EVENTS = 4096  # pushes kept for events() (older ones are dropped), and messages the socket's reader holds: a
+# program that reads them seldom still answers the service's pings (past 10 s unanswered, the service lets it go)
 
 
 class ServiceError(UltraglideError):
@@ -116,6 +117,16 @@ def _png_field(png) -> str:
         return base64.b64encode(bytes(png)).decode("ascii")
     with open(os.fspath(png), "rb") as stream:
         return base64.b64encode(stream.read()).decode("ascii")
+
+
+def _encoded(message: dict) -> str:
+    """The message as JSON text; a number that is not finite is refused here (JSON has none)."""
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        raise BadMessage(f"{message.get('type')}: every number must be finite", "bad-message") from None
+    except TypeError as error:
+        raise BadMessage(f"{message.get('type')}: {error}", "bad-message") from None
 
 
 def _clean(**fields) -> dict:
@@ -232,10 +243,10 @@ class Client(_Messages):
         try:
             if url.startswith("ws+unix:"):
                 self._ws = unix_connect(url[len("ws+unix:"):], open_timeout=timeout_s, max_size=None,
-                                        compression=None).__enter__()
+                                        compression=None, max_queue=MAX_EVENTS).__enter__()
             else:  # never through a proxy: the service is on this machine
                 self._ws = connect(url, open_timeout=timeout_s, max_size=None, compression=None, origin=origin,
-                                   proxy=None).__enter__()
+                                   proxy=None, max_queue=MAX_EVENTS).__enter__()
         except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
             raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
         try:
@@ -247,8 +258,9 @@ class Client(_Messages):
     def _send(self, message: dict) -> None:
         from websockets.exceptions import ConnectionClosed
 
+        text = _encoded(message)
         try:
-            self._ws.send(json.dumps(message, separators=(",", ":")))
+            self._ws.send(text)
         except (ConnectionClosed, OSError) as error:
             raise ConnectionFailed(f"the connection to the service was lost: {error}") from None
 
@@ -397,13 +409,16 @@ class AsyncClient(_Messages):
     def _post(self, kind: str, **fields) -> None:
         import asyncio
 
-        asyncio.ensure_future(self._send({"type": kind, **_clean(**fields)}))
+        message = {"type": kind, **_clean(**fields)}
+        _encoded(message)  # refused here, not in a task nobody awaits
+        asyncio.ensure_future(self._send(message))
 
     async def _send(self, message: dict) -> None:
         from websockets.exceptions import ConnectionClosed
 
+        text = _encoded(message)
         try:
-            await self._ws.send(json.dumps(message, separators=(",", ":")))
+            await self._ws.send(text)
         except (ConnectionClosed, OSError) as error:
             raise ConnectionFailed(f"the connection to the service was lost: {error}") from None
 

@@ -52,6 +52,7 @@ RATE_PER_S = 2000.0  # messages a client may send a second, sustained (a pointer
 RATE_BURST = 2000.0
 MAX_QUEUED_REPLIES = 256  # replies waiting for a client that does not read: past this it is disconnected
 MAX_QUEUED_PUSHES = 64  # subscription messages waiting: older ones are dropped
+MAX_CLIENTS = 16
 MAX_TEXTURES = 32
 MAX_SPRITES = 256
 MAX_VIEWS = 16
@@ -109,6 +110,7 @@ class Session:
     next_status_s: float = 0.0
     output_from_s: float = 0.0  # the last block looked at
     output_kept_s: float = -math.inf  # the last block sent
+    last_seen: tuple | None = None  # the touch as last pushed
     queue: collections.deque = field(default_factory=collections.deque)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     replies_queued: int = 0
@@ -182,7 +184,7 @@ class Service:
         self.touches = 0
         self.touches_ignored = 0
         self.origins: list = [None]
-        self.loop: asyncio.AbstractEventLoop | None = None
+        self.priority = "normal"  # the loop thread's scheduling, in words
 
     # ---- start-up --------------------------------------------------------------------------------------
     def place_startup_textures(self, specs: list[str]) -> None:
@@ -236,6 +238,9 @@ class Service:
     # ---- a client --------------------------------------------------------------------------------------
     async def handle(self, connection) -> None:
         """One client, from its handshake to its going."""
+        if len(self.sessions) >= MAX_CLIENTS:
+            await connection.close(1013, f"at most {MAX_CLIENTS} clients at once; try again later")
+            return
         self._numbers += 1
         session = Session(connection, self._numbers)
         self.sessions.add(session)
@@ -602,33 +607,37 @@ class Service:
         return texture
 
     # ---- subscriptions ---------------------------------------------------------------------------------
-    async def publish(self) -> None:
-        """Status, output and the touch as seen, to the clients that subscribed, each at its own rate."""
-        while True:
-            await asyncio.sleep(0.01)
+    def publish(self, loop, stop) -> None:
+        """Status, output and the touch as seen, to the clients that subscribed, each at its own rate: on a thread
+        of its own (the engine's status takes 2-7 ms to read on a busy machine, which the loop must not wait),
+        handing each message to the loop. Runs until ``stop`` (a threading.Event) is set."""
+        while not stop.wait(0.01):
             now = time.perf_counter()
-            wanted = [s for s in self.sessions if s.role and (s.status_hz or s.output_hz or s.touch_seen)]
+            wanted = [s for s in list(self.sessions) if s.role and (s.status_hz or s.output_hz or s.touch_seen)]
             if not wanted:
                 continue
-            status = self.engine.status(history_s=1.0)
+            status = self.engine.status(history_s=0.25)
             for session in wanted:
+                messages = []
                 if session.status_hz and now >= session.next_status_s:
                     session.next_status_s = now + 1.0 / session.status_hz
-                    session.send(self._status_message(status, session), push=True)
+                    messages.append(self._status_message(status, session))
                 if session.output_hz:
                     message = _output_message(status.history, session)
                     if message is not None:
-                        session.send(message, push=True)
+                        messages.append(message)
                 if session.touch_seen and status.last_touch is not None:
                     x, y, force, down = status.last_touch
                     seen = (x, y, down)
-                    if getattr(session, "_last_seen", None) != seen:
-                        session._last_seen = seen
+                    if session.last_seen != seen:
+                        session.last_seen = seen
                         view = self.views.get(self.active_view)
-                        sprite = sprite_at(view, self.sprites.values(), x, y) if view and down else None
-                        session.send({"type": "touch.seen", "view": self.active_view, "x_mm": x, "y_mm": y,
-                                      "force_n": None if math.isnan(force) else force, "down": bool(down),
-                                      "sprite": sprite.name if sprite else None}, push=True)
+                        sprite = sprite_at(view, list(self.sprites.values()), x, y) if view and down else None
+                        messages.append({"type": "touch.seen", "view": self.active_view, "x_mm": x, "y_mm": y,
+                                         "force_n": None if math.isnan(force) else force, "down": bool(down),
+                                         "sprite": sprite.name if sprite else None})
+                for message in messages:
+                    loop.call_soon_threadsafe(session.send, message, True)
 
     def _status_message(self, status, session: Session) -> dict:
         return {"type": "status", "device": status.device, "state": status.state, "faults": list(status.faults),
@@ -636,7 +645,7 @@ class Service:
                 "loop": status.loop, "blocks": status.blocks, "late_blocks": status.late_blocks,
                 "underruns": status.underruns, "touches": self.touches, "touches_ignored": self.touches_ignored,
                 "touches_dropped": status.touches_dropped, "texture": status.texture,
-                "controller": self.controller is not None, "role": session.role,
+                "controller": self.controller is not None, "role": session.role, "clients": len(self.sessions),
                 "pushes_dropped": session.pushes_dropped}
 
 
