@@ -1,0 +1,105 @@
+"""The page ``ultraglide serve --page`` serves, in a real headless Chromium (Debian's ``chromium`` and
+``chromium-driver``, driven by Selenium): synthesized touch and pen input drive the engine, whose envelope record
+shows the friction of the sprite under the synthesized finger; the sprites are drawn where they are felt."""
+
+import io
+import shutil
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+from service_run import read_envelope, rows_at, running_service
+from ultraglide.textures.fileformat import load_texture, save_texture
+from ultraglide.textures.texture import Texture
+
+pytestmark = pytest.mark.skipif(not (shutil.which("chromium") and shutil.which("chromedriver")),
+                                reason="needs Debian's chromium and chromium-driver (./run tests installs them)")
+
+MM_PER_PX = 0.25
+
+
+@pytest.fixture
+def browser(tmp_path):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = shutil.which("chromium")
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--window-size=800,600",
+                 f"--user-data-dir={tmp_path / 'profile'}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def flat_texture(path, ratio):
+    save_texture(Texture(np.full((50, 50), ratio, dtype=np.float32), 20.0, 20.0, name=path.stem), path)
+    return float(load_texture(path).values.mean())  # as the file holds it (8 bits)
+
+
+def touch_at(driver, x, y, seconds=0.2):
+    """A finger down at (x, y) CSS px, held (a move every 10 ms), lifted: CDP's touch events."""
+    point = [{"x": x, "y": y, "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}]
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": point})
+        time.sleep(0.01)
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+def pen_at(driver, x, y, seconds=0.2):
+    """A pen pressed at (x, y) CSS px, held, lifted: CDP's mouse events with pointerType pen."""
+    common = {"x": x, "y": y, "pointerType": "pen", "button": "left", "clickCount": 1, "force": 0.8}
+    driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mousePressed", "buttons": 1, **common})
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mouseMoved", "buttons": 1, **common})
+        time.sleep(0.01)
+    driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mouseReleased", "buttons": 0, **common})
+
+
+def test_touch_and_pen_on_the_page_are_felt_as_the_sprite_under_them(tmp_path, browser):
+    low = flat_texture(tmp_path / "low.png", 0.3)
+    high = flat_texture(tmp_path / "high.png", 0.8)
+    envelope_csv = tmp_path / "envelope.csv"
+    with running_service(tmp_path / "low.png", tmp_path / "high.png", "--port", "0", "--page",
+                         "--envelope-csv", envelope_csv) as (process, address):
+        browser.get(address["page"] + f"?mm_per_px={MM_PER_PX}")
+        deadline = time.monotonic() + 60
+        while not browser.execute_script("return window.ultraglide && window.ultraglide.ready"):
+            assert time.monotonic() < deadline, browser.execute_script("return document.body.innerText")
+            time.sleep(0.05)
+        width, height = browser.execute_script(
+            "const c = document.getElementById('view'); return [c.clientWidth, c.clientHeight]")
+        scene = browser.execute_script("return window.ultraglide.scene()")
+        view = next(v for v in scene["views"] if v["view"] == "main")
+        assert (view["width"], view["height"]) == (width, height)
+        assert view["width_mm"] == pytest.approx(width * MM_PER_PX)
+        # the two textures named at start fill the view side by side: low on the left half, high on the right
+        left, right = (round(width * 0.25), round(height / 2)), (round(width * 0.75), round(height / 2))
+        deadline = time.monotonic() + 30  # the sprites' images drawn
+        while True:
+            shot = Image.open(io.BytesIO(browser.get_screenshot_as_png())).convert("L")
+            scale = shot.width / width
+            seen = [shot.getpixel((round(x * scale), round(y * scale))) for x, y in (left, right)]
+            if abs(seen[0] - low * 255) <= 2 and abs(seen[1] - high * 255) <= 2 or time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+        assert seen[0] == pytest.approx(low * 255, abs=2) and seen[1] == pytest.approx(high * 255, abs=2)
+        touch_at(browser, *left)
+        pen_at(browser, *right)
+        send_times = browser.execute_script("return window.ultraglide.sendTimes()")
+        assert browser.execute_script("return window.ultraglide.errors") == []
+    envelope = read_envelope(envelope_csv)
+    for (x, y), ratio in ((left, low), (right, high)):
+        rows = rows_at(envelope, x * MM_PER_PX, y * MM_PER_PX)
+        assert len(rows) > 100, f"nothing rendered under ({x}, {y}) px"
+        assert np.median(rows["target_ratio"]) == pytest.approx(ratio, abs=0.01)
+        assert rows["commanded_um_pp"].max() > 0.5  # felt: the plate played it
+    assert len(send_times) >= 4 and all(t >= 0 for t in send_times)  # down and up of each (a still finger moves not)
