@@ -113,6 +113,13 @@ async def measure(args) -> None:
             await asyncio.sleep(0.05)
             through.append(matched(engine.latencies(), sent))
         own, through = np.concatenate(own), np.concatenate(through)
+        service.arrivals = []
+        await by_client(url, args.touches, 100.0)
+        arrivals = np.asarray([row for row in service.arrivals if row[0] is not None])
+        service.arrivals = None
+        print(f"through the service, from the client's send to the message read by the service's loop "
+              f"{figures(arrivals[:, 1] - arrivals[:, 0])}; from read to the engine's ring "
+              f"{figures(arrivals[:, 2] - arrivals[:, 1])}")
         print(f"latency, touch to its block presented (sim): engine alone {figures(own)}; "
               f"through the service {figures(through)}")
         added = np.percentile(through, 99) - np.percentile(own, 99)

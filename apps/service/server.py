@@ -185,6 +185,7 @@ class Service:
         self.touches_ignored = 0
         self.origins: list = [None]
         self.priority = "normal"  # the loop thread's scheduling, in words
+        self.arrivals: list | None = None  # a list to note each touch's times in (a bench's), or None
 
     # ---- start-up --------------------------------------------------------------------------------------
     def place_startup_textures(self, specs: list[str]) -> None:
@@ -538,6 +539,8 @@ class Service:
             self.active_view = view.name
             self._changed()
         self.touches += 1
+        if self.arrivals is not None:  # (bench/bench_service.py) the client's time, when it came, when it went in
+            self.arrivals.append((message.get("t"), received_s, time.perf_counter()))
         if phase in ("up", "cancel"):
             self.engine.touch(t, x_mm, y_mm, force, down=False)
             self.finger = None
