@@ -202,7 +202,7 @@ def _remove_socket(path: str) -> None:
 
 def _report(final, service, args, failure: str | None) -> int:
     from ultraglide.apps.cli.output import print_json
-    from ultraglide.devices.run_report import RunReport
+    from ultraglide.devices.serial.run_report import RunReport
 
     figures = final.summary() if final is not None else {}
     device_status = figures.pop("device_status", {}) or {}
