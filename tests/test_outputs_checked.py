@@ -41,6 +41,7 @@ READ_OR_WORDS = {
     "observer": "a simulated observer's settings", "participant": "a code", "session": "a label",
     "rules": "a rule's name", "breaks": "a rule's name", "sensor": "an audio input",
     "device": "a plate driver's URL, where wav:PATH is refused (else it is a checked output)",
+    "host": "an address listened on", "unix": "a Unix socket made by serve, which refuses anything already there",
 }
 
 
@@ -92,6 +93,7 @@ BASE = {
     ("experiment", "constant"): ["experiment", "constant", "--preset", "vezzoli2015", "--observer",
                                  "sim:threshold=0.2", "--out", "{ok}/session"],
     ("latency",): ["latency"],
+    ("serve",): ["serve", "--device", "null", "--port", "0"],
 }
 
 
