@@ -255,6 +255,10 @@ class Service:
         except Exception as error:  # noqa: BLE001 - a connection's failure ends that connection, never the service
             if not _is_connection_closed(error):
                 session.closing = True
+                import sys
+
+                print(f"ultraglide serve: client {session.number}'s connection failed: {type(error).__name__}: "
+                      f"{' '.join(str(error).split())[:300]}", file=sys.stderr, flush=True)
         finally:
             self._leave(session)
             session.closing = True
