@@ -19,7 +19,7 @@ Safety and security, where each lives:
 * a client that goes (its socket closed, even by SIGKILL) while its finger is down lifts it at once: the
   engine ramps the plate to rest;
 * a client that does not read its replies or its subscriptions: its queue is bounded; subscriptions are
-  dropped (counted) and a client that lets :data:`MAX_QUEUED_REPLIES` replies pile up is disconnected;
+  dropped (counted) and a client that lets :data:`MAX_QUEUED_REPLIES` replies pile up has its socket dropped;
 * the plate's limit is the engine's (the limiter in its output stage): nothing a client sends reaches past it.
 """
 
@@ -303,8 +303,12 @@ class Service:
             session.send(p.error_reply(error.code, str(error), error.request_id))
             return
         if session.queue and session.replies_queued >= MAX_QUEUED_REPLIES:
-            session.closing = True  # it does not read what it is sent: it goes
-            asyncio.ensure_future(session.connection.close(1008, "replies not read; reconnect and read them"))
+            # it does not read what it is sent: it goes at once, its socket dropped (a closing handshake would
+            # wait on the very buffers it does not empty)
+            session.closing = True
+            self._leave(session)
+            session.queue.clear()
+            session.connection.transport.abort()
             return
         try:
             self._dispatch(session, message, received_s)
