@@ -70,3 +70,15 @@ def test_a_touch_with_every_field_right_comes_as_typed_values():
                               "view": "main", "pointer_type": "pen"}
     with pytest.raises(p.ProtocolError, match="'pressure' must be a number from 0 to 1"):
         p.parse(text.replace('"pressure": 0.5', '"pressure": 1.5'))
+
+
+def test_a_client_may_send_its_burst_then_the_rate():
+    import time
+
+    from ultraglide.apps.service.server import RATE_BURST, RATE_PER_S, Session
+
+    session = Session(connection=None, number=1)
+    started = time.monotonic()
+    allowed = sum(session.allow() for _ in range(int(RATE_BURST) + 3000))
+    elapsed = time.monotonic() - started
+    assert RATE_BURST <= allowed <= RATE_BURST + RATE_PER_S * elapsed + 1
