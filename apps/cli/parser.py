@@ -34,7 +34,8 @@ from ultraglide import __version__
 # checks the names against the parser the modules build)
 NAMES = {"model": model, "calibrate": calibrate, "author": author, "textures": texture, "texture": texture,
          "export": export, "play": play, "serve": serve, "latency": latency, "devices": devices,
-         "plate-sim": plate_sim, "firmware": firmware, "plate": plate, "rig": rig, "demo": demo, "experiment": experiment}
+         "plate-sim": plate_sim, "firmware": firmware, "plate": plate, "rig": rig, "demo": demo,
+         "experiment": experiment}
 COMMANDS = tuple(dict.fromkeys(NAMES.values()))
 
 

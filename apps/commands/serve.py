@@ -16,6 +16,7 @@ import sys
 from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import FORCE_N, Bounded
+from ultraglide.apps.commands.plate_choice import add_plate_options
 
 PORT = Bounded(0, 65535, whole=True)
 VIEW_MM = Bounded(1.0, 2000.0, "mm")
@@ -33,10 +34,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     serve.add_argument("textures", nargs="*", metavar="TEXTURE",
                        help="textures (files, images or library names) placed as sprites filling the view at start, "
                             "side by side")
-    output_option(serve, "--device", kind="device", default="sim", metavar="URL",
-                  help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null (default: sim)")
-    serve.add_argument("--profile", default="sim-plate", metavar="PROFILE",
-                       help="plate profile: a bundled name or a TOML file (default: sim-plate)")
+    output_option(serve, "--device", kind="device", metavar="URL",
+                  help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null (default: the "
+                       "rig's device, else sim); audio and serial need --rig or --profile")
+    add_plate_options(serve, serve, device_default="sim")
     serve.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
     serve.add_argument("--force", type=FORCE_N, metavar="N",
                        help="the finger's force when a touch gives no pressure or force, N (default: 0.5)")
@@ -66,7 +67,7 @@ def run(args) -> int:
 
     from ultraglide.apps.cli.errors import UsageError
     from ultraglide.apps.service.server import Service, needs_token, new_token
-    from ultraglide.devices.profiles import load_profile
+    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import parse_device_url
     from ultraglide.render.engine import Engine, EngineConfig
     from ultraglide.render.physics.calibration import load_model
@@ -80,7 +81,7 @@ def run(args) -> int:
         raise UsageError(f"--unix {args.unix}: no directory {Path(args.unix).parent}")
     if args.envelope_csv and not Path(args.envelope_csv).parent.is_dir():
         raise UsageError(f"{args.envelope_csv}: no directory {Path(args.envelope_csv).parent} to write it in")
-    profile = load_profile(args.profile)
+    profile = load_plate(args.profile)
     load_model(args.model)  # a bad model is one line before the engine starts
     token = new_token() if args.unix is None and needs_token(args.host) else None
     service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm))
