@@ -11,10 +11,11 @@ import time
 from pathlib import Path
 
 from ultraglide.apps.commands.experiment import design_for
-from ultraglide.apps.experiment.dryrun import SimResponder
-from ultraglide.apps.experiment.observer import SimObserver
 from ultraglide.apps.experiment.session import SessionConfig, run_session
 from ultraglide.devices.profiles import load_profile
+
+from ultraglide.experiment.dryrun import SimResponder
+from ultraglide.experiment.observer import SimObserver
 
 
 def main() -> None:

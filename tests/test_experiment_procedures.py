@@ -4,10 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.experiment import psychometric as pf
-from ultraglide.apps.experiment.observer import SimObserver
-from ultraglide.apps.experiment.procedures import (
+
+from ultraglide.experiment import psychometric as pf
+from ultraglide.experiment.errors import ExperimentError
+from ultraglide.experiment.observer import SimObserver
+from ultraglide.experiment.procedures import (
     ConstantParams,
     ConstantStimuli,
     QuestParams,
@@ -163,7 +164,7 @@ def test_simulated_observer_answers_with_its_psychometric_function():
 @pytest.mark.parametrize("spec", ["sim", "sim:slope=3", "sim:threshold=x", "sim:threshold=0.1,colour=red",
                                   "human:threshold=1", "sim:threshold=-1", "sim:threshold=1,lapse=0.7"])
 def test_bad_observer_specs_say_what_is_wrong(spec):
-    with pytest.raises(UsageError):
+    with pytest.raises(ExperimentError):
         SimObserver.parse(spec)
 
 

@@ -12,14 +12,15 @@ import pytest
 from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image
 from ultraglide.apps.commands.experiment import design_for
-from ultraglide.apps.experiment.dryrun import SimResponder, TrialCache
-from ultraglide.apps.experiment.observer import SimObserver
 from ultraglide.apps.experiment.session import SessionConfig, run_session
-from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign, render_offline, with_contrast
 from ultraglide.devices.profiles import load_profile
 from ultraglide.render.physics.friction_models import ExponentialModel
 from ultraglide.textures.library import resolve_texture
 from ultraglide.textures.sampling import Sampler
+
+from ultraglide.experiment.dryrun import SimResponder, TrialCache
+from ultraglide.experiment.observer import SimObserver
+from ultraglide.experiment.stimuli import Layout, StimulusDesign, render_offline, with_contrast
 
 SIM = "sim:threshold=0.08,slope=3,lapse=0.02"
 

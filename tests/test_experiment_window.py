@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 from PIL import Image
 from ultraglide.apps.commands.experiment import design_for
-from ultraglide.apps.experiment.procedures import interval_positions
 from ultraglide.apps.experiment.session import SessionConfig, run_session
 from xvfb import start_xvfb
 from xvfb_demo import process_cpu_s, tools_missing
+
+from ultraglide.experiment.procedures import interval_positions
 
 DEADLINE_S = 30.0
 

@@ -4,6 +4,7 @@ under TYPE_CHECKING) goes in the allowed direction.
     textures, devices, render.physics -> nothing of ours (but the root's leaf modules)
     render (the signal path)          -> physics, textures
     render.engine                     -> render, physics, textures, devices
+    ultraglide.experiment             -> render.engine and below (designs, stimulus checks, sessions, analyses)
     ultraglide (the public API)       -> everything but apps
     apps                              -> anything;  nothing imports apps
 """
@@ -27,13 +28,15 @@ ALLOWED = {
     "physics": {"physics"},
     "render": {"render", "physics", "textures"},
     "engine": {"engine", "render", "physics", "textures", "devices"},
-    "api": {"api", "engine", "render", "physics", "textures", "devices"},
-    "apps": {"apps", "api", "engine", "render", "physics", "textures", "devices"},
+    "experiment": {"experiment", "engine", "render", "physics", "textures", "devices"},
+    "api": {"api", "experiment", "engine", "render", "physics", "textures", "devices"},
+    "apps": {"apps", "api", "experiment", "engine", "render", "physics", "textures", "devices"},
 }
 
 
 def layer_of(module: str) -> str:
     for prefix, layer in (("ultraglide.render.physics", "physics"), ("ultraglide.render.engine", "engine"),
+                          ("ultraglide.experiment", "experiment"),
                           ("ultraglide.render", "render"), ("ultraglide.textures", "textures"),
                           ("ultraglide.devices", "devices"), ("ultraglide.apps", "apps")):
         if module == prefix or module.startswith(prefix + "."):

@@ -31,7 +31,8 @@ from ultraglide.apps.figures import SESSION_FIGURES, both_formats
 
 if TYPE_CHECKING:
     from ultraglide.apps.experiment.session import SessionConfig
-    from ultraglide.apps.experiment.stimuli import StimulusDesign
+
+    from ultraglide.experiment.stimuli import StimulusDesign
 
 PRESETS = {
     # Vezzoli et al. (2015), section II.D: 0, 2 and 4 µm at the actuator's resonance, in random order,
@@ -98,15 +99,17 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                         help="leave out the track and psychometric figures (a batch of simulated sessions: "
                              "trials.csv and result.json hold what they show)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
-
+    parser.add_argument("--print-design", action="store_true",
+                        help="print the equivalent DESIGN.toml (for ultraglide experiment check|run) and stop")
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     """``ultraglide experiment``: its kinds and their options."""
     experiment = commands.add_parser(
-        "experiment", help="threshold experiments: staircases, QUEST+, constant stimuli",
-        description="Psychophysics on the plate: adaptive thresholds and the method of constant stimuli, "
-                    "with a person at the touch panel or a simulated observer (dry run).")
+        "experiment", help="psychophysics: designs from TOML, staircases, QUEST+, constant stimuli, ratings",
+        description="Psychophysics on the plate: experiment designs (check and run a DESIGN.toml), adaptive "
+                    "thresholds and the method of constant stimuli, with a person at the touch panel or a simulated "
+                    "observer (dry run).")
     kinds = experiment.add_subparsers(dest="experiment", metavar="KIND", required=True, parser_class=OneLineParser)
     threshold = kinds.add_parser(
         "threshold", help="an adaptive threshold: staircase or QUEST+, 2 or 3 zones (forced choice)",
@@ -141,6 +144,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     constant.add_argument("--afc", type=ZONES, help="forced choice instead of yes/no")
     _add_shared_options(constant)
     constant.set_defaults(run=run)
+    from ultraglide.apps.commands.experiment_design import add_parsers
+
+    add_parsers(kinds)
 
 
 # what a session keeps in its session.json (--resume takes them from there), as the parsers give them
@@ -248,9 +254,10 @@ def _config_from_args(args, kind: str) -> SessionConfig:
 
 def design_for(config: SessionConfig) -> StimulusDesign:
     """Load what the config names (texture, reference, model, profile): one-line errors for mistakes."""
-    from ultraglide.apps.experiment.stimuli import Layout, StimulusDesign
     from ultraglide.render.physics.calibration import load_model
     from ultraglide.textures.library import resolve_texture
+
+    from ultraglide.experiment.stimuli import Layout, StimulusDesign
 
     with warnings.catch_warnings():
         warnings.simplefilter("default")
@@ -283,8 +290,8 @@ def _responder(config: SessionConfig, design: StimulusDesign, args):
     from ultraglide.devices.rig import load_plate
 
     if config.observer:
-        from ultraglide.apps.experiment.dryrun import SimResponder
-        from ultraglide.apps.experiment.observer import SimObserver
+        from ultraglide.experiment.dryrun import SimResponder
+        from ultraglide.experiment.observer import SimObserver
 
         observer = SimObserver.parse(config.observer, config.seed)
         return SimResponder(observer, design.model, load_plate(config.profile), config.speed_mm_s, config.force_n)
@@ -310,11 +317,15 @@ def run(args) -> int:
         resume = True
     else:
         config = _config_from_args(args, kind)
+        if args.print_design:
+            return _print_design(config)
         directory = _prepare_directory(args)
         resume = False
+    if args.print_design:
+        return _print_design(config)
     check_levels(config, str(directory / "session.json") if resume else "--start-level and --range")
     if config.observer:
-        from ultraglide.apps.experiment.observer import SimObserver
+        from ultraglide.experiment.observer import SimObserver
 
         SimObserver.parse(config.observer, config.seed)  # a bad spec fails before any file is written
     design = design_for(config)
@@ -337,6 +348,20 @@ def run(args) -> int:
     return 0
 
 
+def _print_design(config: SessionConfig) -> int:
+    """The DESIGN.toml ``experiment run`` runs to the same trial plan (given the seed), on standard output."""
+    from ultraglide.apps.commands.experiment_design import design_from_config
+
+    from ultraglide.experiment import ExperimentError, to_toml
+
+    design_for(config)  # what the config names loads (one line if not)
+    try:
+        print(to_toml(design_from_config(config)), end="")
+    except ExperimentError as error:
+        raise UsageError(f"--print-design: {error}") from None
+    return 0
+
+
 def summary(config: SessionConfig, result: dict, directory: Path, outcome) -> str:
     state = "complete" if outcome.complete else f"stopped after {len(outcome.rows)} trials (resume with --resume)"
     lines = [f"{config.condition}: {len(outcome.rows)} trials, {state}"]
@@ -349,7 +374,10 @@ def summary(config: SessionConfig, result: dict, directory: Path, outcome) -> st
     for item in result.get("proportions", []):
         lines.append(f"  level {item['level']:g} {result['unit']}: {item['positive']}/{item['n']} "
                      f"{'yes' if config.intervals == 1 else 'correct'} ({100 * item['p']:.0f} %)")
-    lines.append(f"median reaction time {result.get('rt_s_median', float('nan')):.2f} s")
+    if result.get("rt_s_median") is not None:
+        lines.append(f"median reaction time {result['rt_s_median']:.2f} s (of {result['rt_s_count']} trials)")
+    else:
+        lines.append("no reaction times logged")
     lines.append(f"files in {directory}: " + ", ".join(["trials.csv", "session.json", "result.json",
                                                          *(p.name for p in outcome.figures)]))
     return "\n".join(lines)

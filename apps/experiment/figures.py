@@ -9,9 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from ultraglide.apps.experiment import psychometric as pf
 from ultraglide.apps.figures import SESSION_FIGURES
 from ultraglide.apps.figures import style as figure_style
+
+from ultraglide.experiment import psychometric as pf
 
 CORRECT, WRONG, FIT = "#1b6ca8", "#c8553d", "#333333"
 

@@ -17,14 +17,10 @@ from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path
 from ultraglide.apps.cli.output import json_text
 
+from ultraglide.experiment.columns import THRESHOLD_COLUMNS
 from ultraglide.inputs import decode_text, parse_json, read_input
 
-COLUMNS = ("participant", "session", "trial", "condition", "level", "stimulus", "target", "response", "correct",
-           "rt_s", "reversal", "break_before", "rendered_um_pp", "rendered_contrast", "time_utc", "target_ratio",
-           "measured_ratio", "commanded_um_pp", "loop")
-# target_ratio, measured_ratio, commanded_um_pp: means over the trial while the finger touched (the texture's
-# friction, what the plate's sensors measured with --closed-loop, the amplitude sent); loop: the friction loop's
-# state at the answer, in words
+COLUMNS = tuple(THRESHOLD_COLUMNS)  # what each holds: ultraglide.experiment.columns, whence the docs
 TRIALS, SESSION, RESULT = "trials.csv", "session.json", "result.json"
 MAX_LOG_BYTES = 64 << 20  # about 150 bytes a trial: 400 000 trials
 

@@ -17,9 +17,11 @@ from pathlib import Path
 
 import numpy as np
 from ultraglide.apps.cli.errors import UsageError
-from ultraglide.apps.experiment import psychometric as pf
 from ultraglide.apps.experiment.log import RESULT, SESSION, TrialLog, read_trials, write_json
-from ultraglide.apps.experiment.procedures import (
+
+from ultraglide import __version__
+from ultraglide.experiment import psychometric as pf
+from ultraglide.experiment.procedures import (
     ConstantParams,
     ConstantStimuli,
     QuestParams,
@@ -29,11 +31,11 @@ from ultraglide.apps.experiment.procedures import (
     interval_positions,
     replay,
 )
-from ultraglide.apps.experiment.stimuli import StimulusDesign
-
-from ultraglide import __version__
+from ultraglide.experiment.responders import Answer  # noqa: F401 - the window and tests take it from here too
+from ultraglide.experiment.stimuli import StimulusDesign
 from ultraglide.inputs import decode_text, read_input
 
+MIN_FIT_TRIALS = 5  # fewer trials fit no psychometric function
 DEFAULT_RANGES = {"contrast": (0.005, 0.6), "wavelength": (0.01, 2.0), "amplitude": (0.05, 6.0)}
 
 
@@ -167,16 +169,6 @@ def make_procedure(config: SessionConfig):
         return QuestPlus(QuestParams.log_grid(low, high, function=config.function, guess=guess))
     start = config.start_level if config.start_level is not None else math.sqrt(low * high) * 4
     return Staircase(StaircaseParams(min(start, high), config.rule, min_level=low, max_level=high))
-
-
-@dataclass
-class Answer:
-    response: int
-    rt_s: float
-    rendered_um_pp: float | None = None
-    rendered_contrast: float | None = None
-    quit: bool = False
-    friction: dict | None = None  # what the trial played: target_ratio, measured_ratio, commanded_um_pp, loop
 
 
 @dataclass
@@ -335,8 +327,9 @@ def analyse(config: SessionConfig, design: StimulusDesign, rows: list[dict], pro
                                        "(Weibull alpha)" if config.function == "weibull" else
                                        "the level where the detection function F reaches 50 % (logistic)"),
               "guess": (1.0 / config.intervals) if config.intervals > 1 else "fitted false-alarm rate"}
-    if len(rows) < 5:
-        result["note"] = "fewer than 5 trials: no threshold"
+    result.update(reaction_times(rows))
+    if len(rows) < MIN_FIT_TRIALS:
+        result["note"] = f"{len(rows)} trials logged, and a fit needs at least {MIN_FIT_TRIALS}"
         return result
     guess = 1.0 / config.intervals if config.intervals > 1 else None
     # constant stimuli: the threshold may lie up to half as far again as the largest level
@@ -367,9 +360,14 @@ def analyse(config: SessionConfig, design: StimulusDesign, rows: list[dict], pro
         x, n, k = pf.aggregate(levels, outcomes)
         result["proportions"] = [{"level": float(a), "n": int(b), "positive": int(c), "p": float(c / b)}
                                  for a, b, c in zip(x, n, k, strict=True)]
-    rts = np.array([float(r["rt_s"]) for r in rows])
-    result["rt_s_median"] = float(np.median(rts))
     return result
+
+
+def reaction_times(rows: list[dict]) -> dict:
+    """The median and count of the logged reaction times (s) that are numbers; None without any."""
+    from ultraglide.experiment.analysis import reaction_time_summary
+
+    return reaction_time_summary(rows)
 
 
 def resumed_config(saved: dict, trials: int | None, where: str = "session.json") -> SessionConfig:

@@ -17,9 +17,10 @@ import threading  # noqa: E402
 import time  # noqa: E402
 
 from ultraglide.apps.cli.errors import UsageError  # noqa: E402
-from ultraglide.apps.experiment.session import Answer  # noqa: E402
 from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX, display_available  # noqa: E402
 from ultraglide.apps.window.wait import EventWaiter  # noqa: E402
+
+from ultraglide.experiment.responders import Answer  # noqa: E402
 
 BACKGROUND, ZONE, ZONE_EDGE = (24, 26, 30), (96, 100, 108), (150, 155, 165)
 TEXT, BUTTON = (230, 232, 236), (52, 90, 140)

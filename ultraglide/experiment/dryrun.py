@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-from ultraglide.apps.experiment.observer import SimObserver
-from ultraglide.apps.experiment.session import Answer
-from ultraglide.apps.experiment.stimuli import StimulusDesign, offline_sampler, render_offline
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.experiment.observer import SimObserver
+from ultraglide.experiment.responders import Answer
+from ultraglide.experiment.stimuli import StimulusDesign, offline_sampler, render_offline
 from ultraglide.render.physics.friction_models import FrictionModel
 from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture

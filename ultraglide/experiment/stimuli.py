@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.paths import SwipePath
@@ -166,6 +167,7 @@ class Rendered:
     peak: float  # largest |sample| of the carrier, 1 = full-scale drive
     zone_um_pp: tuple[float, ...]
     zone_contrast: tuple[float, ...]
+    zone_mean_ratio: tuple[float, ...] = ()  # the mean friction ratio the plate made in each zone
 
 
 def offline_sampler(texture: Texture, speed_mm_s: float = 100.0, settings: RenderSettings | None = None) -> Sampler:
@@ -204,15 +206,17 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
         done += n
     x, amplitude = np.concatenate(xs), np.concatenate(plate)
     ratio = model.relative_friction(amplitude, force_n)
-    um_pp, contrast = [], []
+    um_pp, contrast, mean = [], [], []
     for index in range(layout.zones):
         left = layout.zone_left_mm(index)
         inside = (x >= left + EDGE_MM) & (x < left + layout.zone_mm[0] - EDGE_MM)
         if not inside.any():
             um_pp.append(0.0)
             contrast.append(0.0)
+            mean.append(1.0)
             continue
         low, high = np.percentile(ratio[inside], [1, 99])
         um_pp.append(float(np.median(amplitude[inside])))
         contrast.append(float(high - low))
-    return Rendered(done, float(np.max(np.abs(buffer))), tuple(um_pp), tuple(contrast))
+        mean.append(float(np.mean(ratio[inside])))
+    return Rendered(done, float(np.max(np.abs(buffer))), tuple(um_pp), tuple(contrast), tuple(mean))

@@ -20,7 +20,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from ultraglide.apps.experiment import psychometric as pf
+
+from ultraglide.experiment import psychometric as pf
 
 RULES = {"1u2d": (2, 0.7071), "1u3d": (3, 0.7937)}  # correct answers in a row to step down, target P
 

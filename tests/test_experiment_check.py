@@ -1,0 +1,117 @@
+"""The stimulus check: stimuli built as asked, rendered along the swipe, refused when they do not deliver."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error, run_cli
+
+from ultraglide.experiment import (
+    Block,
+    Condition,
+    Design,
+    Stimulus,
+    StimulusCheckError,
+    check_stimuli,
+    run,
+    zone_texture,
+)
+
+
+def rating_design(*stimuli, pair=False):
+    named = {s.name: s for s in stimuli}
+    if pair:
+        conditions = {"pair": Condition("pair", stimuli[0].name, stimuli[1].name)}
+        blocks = (Block("b", "afc", ("pair",), repeats=2),)
+    else:
+        conditions = {s.name: Condition(s.name, s.name) for s in stimuli}
+        blocks = (Block("b", "rating", tuple(conditions), repeats=1),)
+    return Design("check", named, conditions, blocks)
+
+
+def test_transforms_set_contrast_mean_scale_and_rotation_as_asked():
+    zone = (40.0, 40.0)
+    texture = zone_texture(Stimulus("s", "grating-1mm", contrast=0.3, mean=0.6), zone)
+    values = texture.values.astype(float)
+    assert values.max() - values.min() == pytest.approx(0.3, abs=1e-3)
+    assert values.mean() == pytest.approx(0.6, abs=1e-4)
+    # scale 2: a 1 mm grating becomes a 2 mm one; the row's spectrum peaks at 0.5 cycles/mm
+    wide = zone_texture(Stimulus("s", "grating-1mm", scale=2.0), zone)
+    row = wide.values[wide.rows // 2].astype(float)
+    spectrum = np.abs(np.fft.rfft(row - row.mean()))
+    frequencies = np.fft.rfftfreq(len(row), d=wide.width_mm / wide.cols)
+    assert frequencies[np.argmax(spectrum)] == pytest.approx(0.5, abs=0.03)
+    # rotation 90°: the stripes run along x, so a row is (nearly) uniform and a column carries the grating
+    turned = zone_texture(Stimulus("s", "grating-1mm", rotation_deg=90.0), zone).values.astype(float)
+    assert np.ptp(turned[turned.shape[0] // 2]) < 0.02 < 0.5 < np.ptp(turned[:, turned.shape[1] // 2])
+
+
+def test_a_grating_delivers_its_contrast_and_mean_along_the_swipe():
+    report = check_stimuli(rating_design(Stimulus("g", "grating-2mm", contrast=0.3)))
+    figures = report.figures["g"]
+    assert report.passed
+    # by hand: a sine grating rescaled to [0.7, 1]: contrast 0.3, mean 0.85 on the path
+    assert figures.path_contrast == pytest.approx(0.3, abs=0.005)
+    assert figures.asked_mean == pytest.approx(0.85, abs=0.005)
+    assert figures.delivered_contrast == pytest.approx(0.3, rel=0.1)
+    assert figures.delivered_mean == pytest.approx(0.85, abs=0.02)
+
+
+def test_a_texture_whose_features_the_swipe_never_crosses_is_refused():
+    # a grating turned 90°: its stripes run along the swipe; and a 2 mm checkerboard, whose squares meet on the
+    # zone's middle line (20 mm = 10 squares), where the lookup is the mean of both rows: both uniform to the finger
+    for stimulus in (Stimulus("turned", "grating-1mm", contrast=0.3, rotation_deg=90.0),
+                     Stimulus("checks", "checkerboard-2mm", contrast=0.3)):
+        report = check_stimuli(rating_design(stimulus))
+        assert report.figures[stimulus.name].delivered_contrast < 0.01
+        assert report.failures == [f"stimulus {stimulus.name!r} delivers a friction contrast of "
+                                   f"{report.figures[stimulus.name].delivered_contrast:.4f} along the swipe where the "
+                                   "design asks 0.3000 (the swipe along the zone's middle does not cross its features)"]
+        with pytest.raises(StimulusCheckError, match=f"stimulus '{stimulus.name}' delivers a friction contrast"):
+            run(rating_design(stimulus), observer="sim:threshold=0.1")
+
+
+def test_two_stimuli_meant_to_differ_in_texture_only_must_not_differ_in_mean_friction():
+    # a sine grating and a square one of 25 % duty, both at contrast 0.3: the sine's mean is 0.85, the square's is
+    # 0.7·duty + 1·(1 − duty) or the other way round: 0.775 or 0.925; either way 0.075 from the sine's
+    sine = Stimulus("sine", "grating-2mm", contrast=0.3)
+    square = Stimulus("square", "grating-square-2mm-duty25", contrast=0.3)
+    report = check_stimuli(rating_design(sine, square, pair=True))
+    assert abs(report.figures["sine"].delivered_mean - report.figures["square"].delivered_mean) == pytest.approx(
+        0.075, abs=0.02)
+    assert any("meant to differ in texture only, but their delivered mean friction ratios differ" in failure
+               for failure in report.failures)
+    # given the same mean, they pass
+    even = check_stimuli(rating_design(Stimulus("sine", "grating-2mm", contrast=0.3, mean=0.75),
+                                       Stimulus("square", "grating-square-2mm-duty25", contrast=0.3, mean=0.75),
+                                       pair=True))
+    assert even.passed, even.failures
+
+
+def test_a_failing_design_exits_2_naming_the_stimulus_and_accept_check_records_it(tmp_path):
+    design = tmp_path / "turned.toml"
+    design.write_text("""
+[stimuli.turned]
+texture = "grating-1mm"
+contrast = 0.3
+rotation_deg = 90.0
+[[conditions]]
+name = "c"
+stimulus = "turned"
+[[blocks]]
+task = "rating"
+conditions = ["c"]
+repeats = 2
+""", encoding="utf-8")
+    result = run_cli("experiment", "run", design, "--participant", "P01", "--out", tmp_path / "out", "--observer",
+                     "sim:threshold=0.1")
+    line = assert_one_line_error(result)
+    assert result.returncode == 2 and "stimulus 'turned' delivers a friction contrast of 0.0" in line
+    assert not (tmp_path / "out").exists()  # nothing written
+    assert run_cli("experiment", "check", design).returncode == 2
+    accepted = run_cli("experiment", "run", design, "--participant", "P01", "--out", tmp_path / "out", "--observer",
+                       "sim:threshold=0.1", "--accept-check", check=True)
+    assert "warning: stimulus check accepted despite: stimulus 'turned'" in accepted.stderr
+    session = json.loads((tmp_path / "out" / "session.json").read_text())
+    assert session["warnings"][0].startswith("stimulus check accepted despite: stimulus 'turned'")
+    assert session["stimulus_check"]["passed"] is False

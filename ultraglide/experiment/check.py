@@ -1,0 +1,313 @@
+"""Stimuli built from a design, and checked before anyone feels them.
+
+:func:`zone_texture` makes a stimulus's zone: its texture sampled over the zone (scaled, turned), rescaled to its
+friction contrast and shifted to its mean. :func:`check_stimuli` renders every stimulus along the path
+participants use (the zone's swipe: left to right along its middle, at the design's speed and force) through the
+real renderer, its output stage and the plate model, and compares what the plate delivers with what the design
+asked:
+
+* the friction **contrast** delivered (1st to 99th percentile of the realised ratio, edges left out) against the
+  contrast asked (the stimulus's ``contrast``, else its map's own): less than :data:`MIN_CONTRAST_KEPT` of it is
+  refused. The path's own contrast (the map's values under the swipe, before rendering) says whether the swipe
+  crosses the texture's features at all; the ratio of delivered to path contrast is the renderer's and the
+  drive limit's effect;
+* the **mean friction** delivered against the path's mean asked: further than :data:`MAX_MEAN_ERROR` is refused;
+* **pairs** (A and B of a forced choice or same-different condition) meant to differ in some properties only: if
+  their contrasts are declared equal, the delivered contrasts must agree within :data:`MAX_PAIR_CONTRAST_RATIO`;
+  if their means are (both unset counts as equal), the delivered means within :data:`MAX_PAIR_MEAN_DIFFERENCE`.
+
+Varied stimuli (staircases, QUEST+, constant stimuli of contrast) are checked at the highest level they may take.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ultraglide.experiment.design import ADAPTIVE, Design, Stimulus
+from ultraglide.experiment.errors import ExperimentError, StimulusCheckError
+
+MIN_CONTRAST_KEPT = 0.5  # delivered / asked friction contrast below this: refused
+MIN_ASKED_CONTRAST = 0.01  # below this a stimulus asks for no contrast to check
+MAX_MEAN_ERROR = 0.05  # |delivered - asked| mean friction ratio
+MAX_PAIR_CONTRAST_RATIO = 1.25  # larger / smaller delivered contrast of a pair declared equal in contrast
+MAX_PAIR_MEAN_DIFFERENCE = 0.03  # delivered mean ratios of a pair declared equal in mean
+EDGE_MM = 3.0
+MAX_PX_PER_MM = 40.0
+
+
+def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: float | None = None, source=None):
+    """The zone's texture for ``stimulus`` (its ``contrast`` replaced by ``contrast`` when given).
+
+    Parameters
+    ----------
+    stimulus : Stimulus
+    zone_mm : (float, float)
+        The zone's width and height, mm.
+    contrast : float, optional
+        A friction contrast (0..1) instead of the stimulus's own (a varied stimulus at a level).
+    source : Texture, optional
+        The stimulus's texture, already loaded.
+
+    Returns
+    -------
+    Texture
+        ``zone_mm`` in size, named after the stimulus.
+
+    Raises
+    ------
+    ExperimentError
+        A gradient texture, or a mean the contrast cannot fit within 0..1.
+    """
+    from ultraglide.textures.library import resolve_texture
+    from ultraglide.textures.sampling import Sampler
+    from ultraglide.textures.texture import Texture
+
+    if source is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an image authored on the fly: the design asked for it
+            source = resolve_texture(stimulus.texture)
+    if source.kind == "gradient":
+        raise ExperimentError(f"stimulus {stimulus.name!r}: {stimulus.texture} is a gradient texture; a design's "
+                              "stimuli are friction maps")
+    width, height = zone_mm
+    px_per_mm = float(min(MAX_PX_PER_MM, max(10.0, stimulus.scale / min(source.pixel_mm))))
+    cols, rows = max(2, round(width * px_per_mm)), max(2, round(height * px_per_mm))
+    x, y = np.meshgrid((np.arange(cols) + 0.5) * width / cols, (np.arange(rows) + 0.5) * height / rows)
+    angle = math.radians(stimulus.rotation_deg)
+    cx, cy = width / 2, height / 2
+    u = cx + ((x - cx) * math.cos(angle) + (y - cy) * math.sin(angle)) / stimulus.scale
+    v = cy + (-(x - cx) * math.sin(angle) + (y - cy) * math.cos(angle)) / stimulus.scale
+    direction = (np.full_like(u, math.cos(angle)), np.full_like(u, -math.sin(angle)))
+    values = Sampler(source, band_limited=False).ratio(u, v, direction=direction).astype(np.float64)
+    wanted = stimulus.contrast if contrast is None else contrast
+    if wanted is not None:
+        span = float(values.max() - values.min())
+        normalised = (values - values.min()) / span if span > 0 else np.ones_like(values)
+        values = 1.0 - wanted * (1.0 - normalised)
+    if stimulus.mean is not None:
+        values = values - values.mean() + stimulus.mean
+        if values.min() < -1e-9 or values.max() > 1 + 1e-9:
+            raise ExperimentError(f"stimulus {stimulus.name!r}: a mean friction ratio of {stimulus.mean:g} puts its "
+                                  f"ratios at {values.min():.3f}..{values.max():.3f}, outside 0..1; lower its contrast "
+                                  "or move its mean")
+        values = np.clip(values, 0.0, 1.0)
+    return Texture(values.astype(np.float32), float(width), float(height), outside="fixed", outside_ratio=1.0,
+                   name=stimulus.name, source=str(stimulus.texture),
+                   authoring={"stimulus": asdict(stimulus), "contrast": wanted})
+
+
+@dataclass(frozen=True)
+class StimulusFigures:
+    """What one stimulus delivers along the path. Contrasts and means are friction ratios' (1 = at rest)."""
+
+    stimulus: str
+    level: float | None  # the level checked (a varied stimulus), else None
+    asked_contrast: float
+    path_contrast: float  # the map's own contrast along the swipe (before rendering)
+    delivered_contrast: float
+    asked_mean: float  # the map's mean along the swipe
+    delivered_mean: float
+    delivered_um_pp: float
+    peak_drive: float  # largest |carrier sample|, 1 = full scale
+
+    @property
+    def label(self) -> str:
+        return self.stimulus if self.level is None else f"{self.stimulus} at level {self.level:g}"
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "label": self.label}
+
+
+@dataclass
+class CheckReport:
+    """Every stimulus's figures, and what failed (one sentence each)."""
+
+    figures: dict[str, StimulusFigures]
+    failures: list[str]
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+    def as_dict(self) -> dict:
+        return {"passed": self.passed, "failures": list(self.failures),
+                "stimuli": {key: value.as_dict() for key, value in self.figures.items()},
+                "criteria": {"min_contrast_kept": MIN_CONTRAST_KEPT, "max_mean_error": MAX_MEAN_ERROR,
+                             "max_pair_contrast_ratio": MAX_PAIR_CONTRAST_RATIO,
+                             "max_pair_mean_difference": MAX_PAIR_MEAN_DIFFERENCE}}
+
+
+class Rig:
+    """The design's friction model, plate profile, swipe speed and finger force, loaded once."""
+
+    def __init__(self, design: Design):
+        from ultraglide.devices.profiles import load_profile
+        from ultraglide.render.physics.calibration import load_model
+
+        self.model = load_model(design.model)
+        self.profile = load_profile(design.profile)
+        self.speed_mm_s, self.force_n = design.speed_mm_s, design.force_n
+        self.zone_mm, self.gap_mm = tuple(design.zone_mm), design.gap_mm
+
+
+def measure(texture, rig: Rig, stimulus: str, level: float | None, asked_contrast: float) -> StimulusFigures:
+    """Render ``texture`` (a zone) alone along the zone's swipe and measure what it delivers."""
+    from ultraglide.experiment.stimuli import Layout, render_offline
+    from ultraglide.textures.compose import Placement, compose
+
+    layout = Layout(1, rig.zone_mm, rig.gap_mm)
+    px = float(min(MAX_PX_PER_MM, max(10.0, 1.0 / min(texture.pixel_mm))))
+    canvas = compose(layout.size_mm, [Placement(texture, layout.zone_left_mm(0), layout.gap_mm)], 1.0, px_per_mm=px,
+                     name=f"check-{stimulus}")
+    rendered = render_offline(canvas, layout, rig.model, rig.profile, rig.speed_mm_s, rig.force_n)
+    from ultraglide.textures.sampling import Sampler
+
+    # the map under the swipe's very line (the zone's middle, as the renderer looks it up: between two rows of a
+    # checkerboard whose squares meet there, the mean of both)
+    x = np.arange(EDGE_MM, texture.width_mm - EDGE_MM, 0.05) if texture.width_mm > 2 * EDGE_MM + 1 else np.arange(
+        0.0, texture.width_mm, 0.05)
+    y = np.full_like(x, texture.height_mm / 2)
+    row = Sampler(texture, band_limited=False).ratio(x, y, direction=(np.ones_like(x), np.zeros_like(x)))
+    row = row.astype(np.float64)
+    low, high = np.percentile(row, [1, 99])
+    return StimulusFigures(stimulus, level, float(asked_contrast), float(high - low), rendered.zone_contrast[0],
+                           float(row.mean()), rendered.zone_mean_ratio[0], rendered.zone_um_pp[0], rendered.peak)
+
+
+def _asked_contrast(texture, stimulus: Stimulus, level: float | None) -> float:
+    if level is not None:
+        return float(level)
+    if stimulus.contrast is not None:
+        return float(stimulus.contrast)
+    return float(texture.values.max() - texture.values.min())
+
+
+def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
+    """Render every stimulus of ``design`` along the zone's swipe and compare what it delivers with what was asked
+    (see the module docstring for the criteria).
+
+    Parameters
+    ----------
+    design : Design
+    rig : Rig, optional
+        The design's model and profile, if already loaded.
+
+    Returns
+    -------
+    CheckReport
+        Its ``failures`` name the stimulus and the figure, one sentence each; :func:`refuse` raises the first.
+
+    Example
+    -------
+    >>> from ultraglide.experiment import design_from_dict, check_stimuli
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "contrast": 0.3}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}],
+    ...     "blocks": [{"task": "rating", "conditions": ["g"], "repeats": 2}]})
+    >>> report = check_stimuli(design)
+    >>> report.passed, round(report.figures["g"].path_contrast, 2)
+    (True, 0.3)
+    """
+    rig = rig or Rig(design)
+    figures: dict[str, StimulusFigures] = {}
+    failures: list[str] = []
+    sources: dict[str, object] = {}
+
+    def texture_of(name: str, level: float | None):
+        stimulus = design.stimuli[name]
+        if name not in sources:
+            from ultraglide.textures.library import resolve_texture
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                sources[name] = resolve_texture(stimulus.texture)
+        return zone_texture(stimulus, rig.zone_mm, level, sources[name])
+
+    def check(name: str, level: float | None) -> StimulusFigures:
+        key = name if level is None else f"{name}@{level:g}"
+        if key not in figures:
+            texture = texture_of(name, level)
+            stimulus = design.stimuli[name]
+            found = measure(texture, rig, name, level, _asked_contrast(texture, stimulus, level))
+            figures[key] = found
+            if found.asked_contrast >= MIN_ASKED_CONTRAST and (
+                    found.delivered_contrast < MIN_CONTRAST_KEPT * found.asked_contrast):
+                where = ("the swipe along the zone's middle does not cross its features"
+                         if found.path_contrast < MIN_CONTRAST_KEPT * found.asked_contrast else
+                         "the renderer and the drive limit take it away")
+                failures.append(f"stimulus {found.label!r} delivers a friction contrast of "
+                                f"{found.delivered_contrast:.4f} along the swipe where the design asks "
+                                f"{found.asked_contrast:.4f} ({where})")
+            if abs(found.delivered_mean - found.asked_mean) > MAX_MEAN_ERROR:
+                failures.append(f"stimulus {found.label!r} delivers a mean friction ratio of "
+                                f"{found.delivered_mean:.3f} where its map asks {found.asked_mean:.3f} along the swipe "
+                                "(the plate cannot reach it)")
+        return figures[key]
+
+    for block in design.blocks:
+        for name in block.conditions:
+            condition = design.conditions[name]
+            varied = block.task in ADAPTIVE + ("constant",)
+            top = max(condition.levels) if block.task == "constant" else condition.range[1]
+            if varied and condition.vary == "contrast":
+                check(condition.stimulus, top)
+            elif varied and condition.vary == "amplitude":  # a uniform vibration: the drive limit's effect on it
+                key = f"uniform@{top:g}um"
+                if key not in figures:
+                    figures[key] = found = _uniform(rig, top)
+                    if abs(found.delivered_mean - found.asked_mean) > MAX_MEAN_ERROR:
+                        failures.append(f"stimulus {found.label!r} delivers a mean friction ratio of "
+                                        f"{found.delivered_mean:.3f} where {top:g} µm p-p asks {found.asked_mean:.3f} "
+                                        f"({found.delivered_um_pp:.2f} µm p-p delivered: the plate's limit)")
+            else:
+                check(condition.stimulus, None)
+            if condition.reference is not None:
+                check(condition.reference, None)
+            if block.task == "magnitude":
+                check(block.modulus_stimulus, None)
+            if block.task in ("afc", "same_different"):
+                _check_pair(design, name, figures, failures)
+    return CheckReport(figures, failures)
+
+
+def _uniform(rig: Rig, amplitude_um_pp: float) -> StimulusFigures:
+    """A zone vibrating uniformly at ``amplitude_um_pp``, measured along the swipe (``vary = "amplitude"``)."""
+    from ultraglide.textures.texture import Texture
+
+    ratio = float(rig.model.relative_friction(np.array([amplitude_um_pp]), rig.force_n)[0]) if amplitude_um_pp > 0 \
+        else 1.0
+    texture = Texture(np.full((2, 2), ratio, dtype=np.float32), *rig.zone_mm, name="uniform")
+    found = measure(texture, rig, "uniform vibration", amplitude_um_pp, 0.0)
+    return StimulusFigures(f"uniform vibration of {amplitude_um_pp:g} µm p-p", None, 0.0, found.path_contrast,
+                           found.delivered_contrast, ratio, found.delivered_mean, found.delivered_um_pp,
+                           found.peak_drive)
+
+
+def _check_pair(design: Design, condition_name: str, figures: dict, failures: list[str]) -> None:
+    condition = design.conditions[condition_name]
+    a, b = design.stimuli[condition.stimulus], design.stimuli[condition.reference]
+    fa, fb = figures[a.name], figures[b.name]
+    keys = ("texture", "contrast", "mean", "scale", "rotation_deg")
+    differs = [key for key in keys if getattr(a, key) != getattr(b, key)]
+    meant = ", ".join(differs) or "nothing"
+    if a.contrast == b.contrast and min(fa.delivered_contrast, fb.delivered_contrast) > 0:
+        ratio = max(fa.delivered_contrast, fb.delivered_contrast) / min(fa.delivered_contrast, fb.delivered_contrast)
+        if ratio > MAX_PAIR_CONTRAST_RATIO:
+            failures.append(f"condition {condition_name!r}: {a.name!r} and {b.name!r} are meant to differ in {meant} "
+                            f"only, but their delivered contrasts differ too: {fa.delivered_contrast:.4f} and "
+                            f"{fb.delivered_contrast:.4f}")
+    if a.mean == b.mean and abs(fa.delivered_mean - fb.delivered_mean) > MAX_PAIR_MEAN_DIFFERENCE:
+        failures.append(f"condition {condition_name!r}: {a.name!r} and {b.name!r} are meant to differ in {meant} only, "
+                        f"but their delivered mean friction ratios differ too: {fa.delivered_mean:.3f} and "
+                        f"{fb.delivered_mean:.3f} (give both the same mean)")
+
+
+def refuse(report: CheckReport) -> None:
+    """Raise :class:`StimulusCheckError` with the report's first failure (and how many more), if any."""
+    if report.failures:
+        more = f" (and {len(report.failures) - 1} more problems)" if len(report.failures) > 1 else ""
+        raise StimulusCheckError(report.failures[0] + more + "; change the design, or accept it with the warning "
+                                 "recorded (--accept-check)")
