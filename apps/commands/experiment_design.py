@@ -99,8 +99,9 @@ def plan_text(design, report, trials, participant: str) -> str:
     for block in design.blocks:
         own = [t for t in trials if t.block == block.name]
         practice = sum(t.practice for t in own)
+        question = block.question or "(default) " + block.shown_question
         lines.append(f"block {block.name}: {block.task}, {len(own)} trials ({practice} practice), conditions "
-                     f"{', '.join(block.conditions)}; question: {block.question or '(default) ' + block.shown_question}")
+                     f"{', '.join(block.conditions)}; question: {question}")
     lines.append("trial  block  condition  zones  target  level")
     for t in trials:
         target = "" if t.target is None else (str(t.target + 1) if t.task not in ("same_different",) else
