@@ -34,8 +34,9 @@ def main() -> None:
                 break
             f = report.figures["s"]
             verdict = "passes" if report.passed else "refused: " + (
-                "no contrast on the swipe" if f.path_contrast < 0.5 * f.asked_contrast else
-                "contrast lost in rendering" if f.delivered_contrast < 0.5 * f.asked_contrast else "mean off")
+                "mean off" if f.delivered_contrast >= 0.5 * f.asked_contrast else
+                "too little contrast on the swipe" if "does not cross" in report.failures[0] else
+                "contrast lost in rendering")
             asked = "its own" if contrast is None else f"{contrast:g}"
             print(f"| {entry.name} | {asked} ({f.asked_contrast:.3f}) | {f.path_contrast:.3f} | "
                   f"{f.delivered_contrast:.3f} | {f.asked_mean:.3f} / {f.delivered_mean:.3f} | {verdict} |")

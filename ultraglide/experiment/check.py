@@ -235,8 +235,9 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
             figures[key] = found
             if found.asked_contrast >= MIN_ASKED_CONTRAST and (
                     found.delivered_contrast < MIN_CONTRAST_KEPT * found.asked_contrast):
-                where = ("the swipe along the zone's middle does not cross its features"
-                         if found.path_contrast < MIN_CONTRAST_KEPT * found.asked_contrast else
+                on_path = found.path_contrast / found.asked_contrast  # what the swipe's line holds of it
+                rendered = found.delivered_contrast / max(found.path_contrast, 1e-12)  # what the plate keeps of that
+                where = ("the swipe along the zone's middle does not cross its features" if on_path <= rendered else
                          "the renderer and the drive limit take it away")
                 failures.append(f"stimulus {found.label!r} delivers a friction contrast of "
                                 f"{found.delivered_contrast:.4f} along the swipe where the design asks "
