@@ -115,3 +115,20 @@ repeats = 2
     session = json.loads((tmp_path / "out" / "session.json").read_text())
     assert session["warnings"][0].startswith("stimulus check accepted despite: stimulus 'turned'")
     assert session["stimulus_check"]["passed"] is False
+
+
+def test_the_threshold_command_refuses_a_library_texture_the_swipe_never_crosses(tmp_path):
+    # the case: every trial's rendered contrast was 0.0000 on a library texture whose features lie off
+    # the zone's middle line (dots), so target and reference differed in mean friction only
+    out = tmp_path / "s"
+    result = run_cli("experiment", "threshold", "dots", "--trials", "5", "--observer", "sim:threshold=0.1", "--out",
+                     out, "--no-figures")
+    line = assert_one_line_error(result)
+    assert result.returncode == 2
+    assert "stimulus 'stimulus at level 0.6' delivers a friction contrast of 0.0000" in line
+    assert "does not cross its features" in line and not out.exists()
+    accepted = run_cli("experiment", "threshold", "dots", "--trials", "5", "--observer", "sim:threshold=0.1", "--out",
+                       out, "--no-figures", "--accept-check", check=True)
+    assert "warning: stimulus check accepted despite" in accepted.stderr
+    session = json.loads((out / "session.json").read_text())
+    assert session["stimulus_check"]["passed"] is False and len(session["warnings"]) == 1

@@ -2,6 +2,7 @@
 
 import csv
 import itertools
+import json
 from collections import Counter
 
 import pytest
@@ -124,6 +125,21 @@ def test_check_refuses_a_bad_design_file_in_one_line_with_status_2(tmp_path, tex
     line = assert_one_line_error(result)
     assert result.returncode == 2 and words in line and str(path) in line
     assert result.stdout == ""
+
+
+def test_check_json_is_strict_json_holding_the_design_its_check_and_plan(tmp_path):
+    path = tmp_path / "d.toml"
+    path.write_text(to_toml(two_conditions("afc", intervals=2, repeats=4)), encoding="utf-8")
+    result = run_cli("experiment", "check", path, "--json", check=True)
+    document = json.loads(result.stdout, parse_constant=lambda name: pytest.fail(f"not strict JSON: {name}"))
+    assert document["check"]["passed"] is True and set(document["check"]["stimuli"]) == {"a", "b"}
+    assert [t["target"] for t in document["plan"]] == [t.target for t in plan(two_conditions("afc", repeats=4))]
+    assert document["design"]["blocks"][0]["task"] == "afc"
+
+
+def test_a_design_that_is_not_a_file_is_refused_in_one_line(tmp_path):
+    result = run_cli("experiment", "check", tmp_path)
+    assert result.returncode == 2 and str(tmp_path) in assert_one_line_error(result)
 
 
 def read(path):

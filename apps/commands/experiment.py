@@ -29,6 +29,8 @@ from ultraglide.apps.commands.plate_choice import add_plate_options
 from ultraglide.apps.experiment.log import RESULT, SESSION
 from ultraglide.apps.figures import SESSION_FIGURES, both_formats
 
+from ultraglide.errors import UltraglideError
+
 if TYPE_CHECKING:
     from ultraglide.apps.experiment.session import SessionConfig
 
@@ -99,6 +101,8 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                         help="leave out the track and psychometric figures (a batch of simulated sessions: "
                              "trials.csv and result.json hold what they show)")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    parser.add_argument("--accept-check", action="store_true",
+                        help="run even if the stimulus check fails (the failures are recorded in session.json)")
     parser.add_argument("--print-design", action="store_true",
                         help="print the equivalent DESIGN.toml (for ultraglide experiment check|run) and stop")
 
@@ -154,7 +158,8 @@ SESSION_DEFAULTS = {"method": "staircase", "afc": None, "rule": "1u2d", "range":
                     "reference": None, "preset": None, "levels": None, "repeats": None, "vary": None, "device": None,
                     "seed": 0, "break_every": 0, "participant": "P01", "session": "1",
                     "function": "weibull", "interval": "posterior", "bootstrap": 200, "model": "stretched",
-                    "profile": "sim-plate", "force": None, "speed_mm_s": 100.0, "closed_loop": False}
+                    "profile": "sim-plate", "force": None, "speed_mm_s": 100.0, "closed_loop": False,
+                    "accept_check": False}
 
 
 def _refuse_ignored_options(args) -> None:
@@ -332,10 +337,14 @@ def run(args) -> int:
     from ultraglide.devices.rig import load_plate
 
     load_plate(config.profile)
+    recorded = {} if resume else _stimulus_check(config, args.accept_check)
+    if recorded is None:
+        return 2
     responder = _responder(config, design, args)
     directory.mkdir(parents=True, exist_ok=True)
     try:
-        outcome = run_session(config, design, responder, directory, resume, figures=not args.no_figures)
+        outcome = run_session(config, design, responder, directory, resume, figures=not args.no_figures,
+                              recorded=recorded)
     finally:
         close = getattr(responder, "close", None)
         if close:
@@ -346,6 +355,30 @@ def run(args) -> int:
     else:
         print(summary(config, result, directory, outcome))
     return 0
+
+
+def _stimulus_check(config: SessionConfig, accept: bool) -> dict | None:
+    """The stimulus check of the session's design (ultraglide.experiment.check), before a window opens or a file is
+    written: None (after one line on stderr) if it fails and is not accepted, else what session.json records."""
+    import sys
+
+    from ultraglide.apps.cli.output import one_line
+    from ultraglide.apps.commands.experiment_design import design_from_config
+
+    from ultraglide.experiment import check_stimuli
+    from ultraglide.experiment.check import refuse
+
+    report = check_stimuli(design_from_config(config))
+    warnings_ = [f"stimulus check accepted despite: {failure}" for failure in report.failures]
+    if not accept:
+        try:
+            refuse(report)
+        except UltraglideError as error:
+            print(f"ultraglide experiment: error: {one_line(str(error))}", file=sys.stderr)
+            return None
+    for warning in warnings_:
+        print(f"ultraglide experiment: warning: {one_line(warning)}", file=sys.stderr)
+    return {"stimulus_check": report.as_dict(), "warnings": warnings_}
 
 
 def _print_design(config: SessionConfig) -> int:

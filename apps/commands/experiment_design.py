@@ -50,7 +50,8 @@ def add_parsers(kinds) -> None:
                      help="a simulated observer (a dry run; default: the participant's window)")
     run.add_argument("--accept-check", action="store_true",
                      help="run even if a stimulus fails the check; the failures are recorded in session.json")
-    run.add_argument("--device", metavar="URL", help="output device for the window (default: sim)")
+    output_option(run, "--device", kind="device", metavar="URL",
+                  help="output device for the window: sim, serial:PORT, audio[...], wav:PATH or null (default: sim)")
     run.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
     run.add_argument("--windowed", action="store_true", help="a window instead of full screen")
     run.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -115,10 +116,14 @@ def plan_text(design, report, trials, participant: str) -> str:
 
 
 def run_design(args) -> int:
-    from ultraglide.experiment import ExperimentError, load_design, run
+    from ultraglide.experiment import ExperimentError, check_stimuli, load_design, run
+    from ultraglide.experiment.check import refuse
 
-    try:
+    try:  # the design and its stimuli checked before a window opens or a file is written
         design = load_design(args.design)
+        report = check_stimuli(design)
+        if not args.accept_check:
+            refuse(report)
     except ExperimentError as error:
         return _bad(error)
     if args.observer:
@@ -138,7 +143,7 @@ def run_design(args) -> int:
     try:
         try:
             session = run(design, args.participant, args.session, directory, observer=args.observer,
-                          responder=responder, accept_check=args.accept_check)
+                          responder=responder, accept_check=args.accept_check, check=report)
         finally:
             if responder is not None:
                 responder.close()

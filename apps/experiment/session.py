@@ -219,11 +219,11 @@ def now_utc() -> str:
 
 
 def run_session(config: SessionConfig, design: StimulusDesign, responder, directory: Path,
-                resume: bool = False, figures: bool = True) -> SessionResult:
+                resume: bool = False, figures: bool = True, recorded: dict | None = None) -> SessionResult:
     """Run (or continue) a session into ``directory``: trials.csv as it goes, session.json at the start
     and the end, result.json and (unless ``figures`` is False, as for a batch of simulated sessions
     that only their results serve; then a resumed session's earlier figures are removed) the figures when it
-    ends."""
+    ends. ``recorded``: more for session.json (the stimulus check, its accepted warnings)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     rows = read_trials(directory) if resume else []
@@ -236,6 +236,7 @@ def run_session(config: SessionConfig, design: StimulusDesign, responder, direct
     positions = interval_positions(config.seed, total, max(config.intervals, 1))
     started = now_utc()
     extra = {"resumed_at_trial": len(rows) + 1} if resume else {}
+    extra.update(recorded or {})
     write_json(directory / SESSION, metadata(config, design, "running", started, extra))
     log = TrialLog(directory)
     complete = True

@@ -163,8 +163,9 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
         The participant's interface (:mod:`ultraglide.experiment.responders`), instead of ``observer``.
     accept_check : bool
         Run a design whose stimuli fail the check, with the failures recorded as warnings.
-    check : bool
-        False skips the stimulus check (tests of the plan alone; never for a participant).
+    check : bool or CheckReport
+        False skips the stimulus check (tests of the plan alone; never for a participant); a CheckReport of this
+        design, already made, is used as it is.
 
     Returns
     -------
@@ -192,7 +193,7 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
     if responder is None and observer is None:
         raise ExperimentError("give a simulated observer (observer='sim:...') or a responder (a window)")
     warnings_: list[str] = []
-    report = check_stimuli(design, rig) if check else None
+    report = check if isinstance(check, CheckReport) else check_stimuli(design, rig) if check else None
     if report is not None and not report.passed:
         if not accept_check:
             refuse(report)
