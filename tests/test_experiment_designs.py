@@ -117,6 +117,8 @@ def test_bad_designs_are_refused_naming_the_key(tables, words):
     ("[stimuli.a\ntexture = 1", "not TOML"),
     ("[stimuli.a]\ntexture = 'grating-1mm'\n[[conditions]]\nname = 'c'\nstimulus = 'a'\n[[blocks]]\ntask = 'rating'\n"
      "conditions = ['c']\nscale = [1, 500]", "blocks[0].scale"),
+    ("[stimuli.a]\ntexture = 'no-such-texture.png'\n[[conditions]]\nname = 'c'\nstimulus = 'a'\n[[blocks]]\n"
+     "task = 'rating'\nconditions = ['c']", "stimuli.a.texture: "),
 ])
 def test_check_refuses_a_bad_design_file_in_one_line_with_status_2(tmp_path, text, words):
     path = tmp_path / "bad.toml"

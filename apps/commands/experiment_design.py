@@ -73,11 +73,14 @@ def run_check(args) -> int:
 
     try:
         design = load_design(args.design)
-        report = check_stimuli(design)
-        if not report.passed and not args.accept_check:
-            refuse(report)
     except ExperimentError as error:
         return _bad(error)
+    try:
+        report = check_stimuli(design)
+        if not args.accept_check:
+            refuse(report)
+    except ExperimentError as error:
+        return _bad(f"{args.design}: {error}")
     for failure in report.failures:
         _warn(f"accepted: {failure}")
     trials = plan(design, args.participant)
@@ -121,11 +124,14 @@ def run_design(args) -> int:
 
     try:  # the design and its stimuli checked before a window opens or a file is written
         design = load_design(args.design)
+    except ExperimentError as error:
+        return _bad(error)
+    try:
         report = check_stimuli(design)
         if not args.accept_check:
             refuse(report)
     except ExperimentError as error:
-        return _bad(error)
+        return _bad(f"{args.design}: {error}")
     if args.observer:
         for option, value in (("--device", args.device), ("--screen-width-mm", args.screen_width_mm),
                               ("--windowed", args.windowed)):

@@ -39,6 +39,22 @@ EDGE_MM = 3.0
 MAX_PX_PER_MM = 40.0
 
 
+def load_source(stimulus: Stimulus):
+    """The stimulus's texture (a library name or a file; an image is authored with the defaults); ExperimentError
+    naming the stimulus if it cannot be loaded."""
+    from ultraglide.errors import UltraglideError
+    from ultraglide.textures.library import resolve_texture
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an image authored on the fly: the design asked for it
+        try:
+            return resolve_texture(stimulus.texture)
+        except (UltraglideError, OSError) as error:
+            from ultraglide.errors import describe
+
+            raise ExperimentError(f"stimuli.{stimulus.name}.texture: {describe(error)}") from None
+
+
 def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: float | None = None, source=None):
     """The zone's texture for ``stimulus`` (its ``contrast`` replaced by ``contrast`` when given).
 
@@ -62,14 +78,11 @@ def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: flo
     ExperimentError
         A gradient texture, or a mean the contrast cannot fit within 0..1.
     """
-    from ultraglide.textures.library import resolve_texture
     from ultraglide.textures.sampling import Sampler
     from ultraglide.textures.texture import Texture
 
     if source is None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # an image authored on the fly: the design asked for it
-            source = resolve_texture(stimulus.texture)
+        source = load_source(stimulus)
     if source.kind == "gradient":
         raise ExperimentError(f"stimulus {stimulus.name!r}: {stimulus.texture} is a gradient texture; a design's "
                               "stimuli are friction maps")
@@ -219,11 +232,7 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
     def texture_of(name: str, level: float | None):
         stimulus = design.stimuli[name]
         if name not in sources:
-            from ultraglide.textures.library import resolve_texture
-
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                sources[name] = resolve_texture(stimulus.texture)
+            sources[name] = load_source(stimulus)
         return zone_texture(stimulus, rig.zone_mm, level, sources[name])
 
     def check(name: str, level: float | None) -> StimulusFigures:
