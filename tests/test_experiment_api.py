@@ -106,3 +106,17 @@ def test_interleaved_staircases_in_code_estimate_each_conditions_threshold():
         assert item["ci"][0] < 0.08 < item["ci"][1]
         own = [r for r in session.trials if r["condition"] == item["condition"]]
         assert len(own) == 50 and item["reversals"] == sum(r["reversal"] for r in own)
+
+
+def test_an_adjustment_block_matches_the_references_delivered_contrast():
+    stimuli = {"ref": Stimulus("ref", "grating-2mm", contrast=0.2), "adj": Stimulus("adj", "grating-1mm")}
+    design = Design("match", stimuli,
+                    {"m": Condition("m", "adj", "ref", level_range=(0.02, 0.6))},
+                    (Block("a", "adjustment", ("m",), repeats=8),), seed=4)
+    session = run(design, observer="sim:threshold=0.1,noise=0.0001")
+    reference = session.check.figures["ref"].delivered_contrast
+    assert reference == pytest.approx(0.2, rel=0.05)
+    starts = [row["level"] for row in session.trials]
+    assert len(set(starts)) == 8 and all(0.02 <= level <= 0.6 for level in starts)
+    assert all(row["response"] == pytest.approx(reference, rel=1e-3) for row in session.trials)
+    assert session.summary["blocks"][0]["conditions"][0]["mean"] == pytest.approx(reference, rel=1e-3)

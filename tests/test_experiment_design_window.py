@@ -46,7 +46,8 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
                     (Block("rate", "rating", ("ab",), repeats=2, scale=(1, 3), labels=("lisse", "moyen", "rugueux"),
                            question="Quelle rugosité ?"),
                      Block("pair", "same_different", ("ab",), repeats=1),
-                     Block("number", "magnitude", ("ab",), repeats=1, modulus=10.0, modulus_stimulus="b")), seed=2)
+                     Block("number", "magnitude", ("ab",), repeats=1, modulus=10.0, modulus_stimulus="b"),
+                     Block("match", "adjustment", ("ab",), repeats=1)), seed=2)
     trials = plan(design)
     output = LocalOutput("null", design.profile, design.model, design.force_n)
     window = DesignWindow(design, "null", 338.7, True, output=output)
@@ -68,6 +69,11 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
                     key(pg, "1")
             elif trial.task == "same_different":
                 key(pg, "d" if trial.zones[0] != trial.zones[1] else "s")
+            elif trial.task == "adjustment":  # three steps up by key, one down by the − button, then OK by a click
+                for name in ("right", "right", "right"):
+                    key(pg, name)
+                post(pg, pg.MOUSEBUTTONDOWN, pos=window.buttons[0][1].center, button=1, touch=False)
+                post(pg, pg.MOUSEBUTTONDOWN, pos=window.buttons[2][1].center, button=1, touch=False)
             else:
                 for name in ("1", "2", "x", "backspace", "2", ".", "5"):
                     key(pg, name)
@@ -85,7 +91,7 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
     helper.join(timeout=DEADLINE_S)
     with open(tmp_path / "s" / "trials.csv", newline="", encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
-    assert session.complete and len(rows) == len(trials) == 2 + 4 + 1
+    assert session.complete and len(rows) == len(trials) == 2 + 4 + 1 + 1
     assert [r["response"] for r in rows[:2]] == ["3", "1"]
     assert [r["response_label"] for r in rows[:2]] == ["rugueux", "lisse"]
     assert seen[1] == (["lisse", "moyen", "rugueux"], "Quelle rugosité ?")
@@ -94,5 +100,8 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
     assert {r["response"] for r in pairs} == {"same", "different"}
     assert seen[3][0] == ["Same", "Different"]
     assert float(rows[6]["response"]) == 12.5 and "zone 1 = 10" in seen[7][1]
-    assert [r["break_before"] for r in rows] == ["0", "0", "1", "0", "0", "0", "1"]
+    assert [r["break_before"] for r in rows] == ["0", "0", "1", "0", "0", "0", "1", "1"]
+    start = trials[7].level
+    assert float(rows[7]["level"]) == start and seen[8][0] == ["−", "+", "OK"]
+    assert float(rows[7]["response"]) == pytest.approx(min(start * 10 ** (2 / 20), 0.6), rel=1e-9)
     assert all(float(r["rt_s"]) > 0 for r in rows)

@@ -185,7 +185,8 @@ def summary_text(session) -> str:
                              f"95 % CI {100 * low:.0f} to {100 * high:.0f} %)")
             elif "mean" in item:
                 low, high = item["ci"]
-                what = "geometric mean estimate" if block["task"] == "magnitude" else "mean rating"
+                what = {"magnitude": "geometric mean estimate", "adjustment": "geometric mean match (contrast)"}.get(
+                    block["task"], "mean rating")
                 lines.append(f"  {name}: {what} {item['mean']:.3g} (95 % CI {low:.3g} to {high:.3g}) over "
                              f"{item['trials']} trials")
             else:

@@ -7,7 +7,9 @@ labelled in the participant's language. How each task answers:
 * forced choice: a button under each zone (or its number's key, ←/→); yes/no: the two buttons (Y/N keys);
 * same-different: the two buttons (S/D keys), the second meaning "different";
 * rating: a button for each point of the scale (or the digit of its position, from 1);
-* magnitude estimation: a number typed (digits, a decimal point, Backspace) and Enter.
+* magnitude estimation: a number typed (digits, a decimal point, Backspace) and Enter;
+* adjustment: − and + (or ←/→) step the second zone's contrast by 1 dB, the plate showing each step at once; OK
+  (or Enter) gives the level set.
 
 It is the participant-interface seam's window implementation (:mod:`ultraglide.experiment.responders`).
 """
@@ -58,8 +60,9 @@ class DesignWindow(WindowResponder):
             self.buttons = [(label, rect) for label, (_, rect) in zip(labels, self.buttons, strict=True)]
         elif self.mode in ("yes_no", "pair"):
             self.buttons = [(labels[0], self.buttons[0][1]), (labels[1], self.buttons[1][1])]
-        elif self.mode == "rating":
-            self.low = shown.scale[0]
+        elif self.mode in ("rating", "adjustment"):
+            self.low = shown.scale[0] if shown.scale else 0
+            self.adjusting = shown
             width = min(120, (self.screen.get_width() - 40) // len(labels) - 10)
             left = self.canvas.centerx - (len(labels) * (width + 10) - 10) // 2
             self.buttons = [(label, pg.Rect(left + i * (width + 10), top, width, 70)) for i, label in enumerate(labels)]
@@ -76,9 +79,21 @@ class DesignWindow(WindowResponder):
             self._text(self.typed or "…", box.center, self.big_font)
             self.pg.display.flip()
 
+    def _step(self, direction: int) -> None:
+        """The adjusted zone's contrast one dB up or down, within its range, shown on the plate at once."""
+        shown = self.adjusting
+        low, high = shown.level_range
+        self.level = float(min(max(self.level * 10 ** (direction / 20), low), high))
+        self.output.show(shown.texture_at(self.level), shown.trial.number)
+
     def _answer_for(self, x: float, y: float):
         for index, (_, rect) in enumerate(self.buttons):
             if rect.collidepoint(x, y):
+                if self.mode == "adjustment":
+                    if index == 2:
+                        return self.level
+                    self._step(-1 if index == 0 else +1)
+                    return None
                 if self.mode == "yes_no":
                     return int(index == 0)
                 if self.mode == "magnitude":
@@ -97,6 +112,12 @@ class DesignWindow(WindowResponder):
         name = self.pg.key.name(key)
         if self.mode == "pair":
             return {"s": 0, "d": 1}.get(name)
+        if self.mode == "adjustment":
+            if name in ("return", "enter"):
+                return self.level
+            if name in ("left", "right", "-", "+", "=", "minus", "plus", "equals"):
+                self._step(-1 if name in ("left", "-", "minus") else +1)
+            return None
         if self.mode == "rating":
             if name.isdigit() and 1 <= int(name) <= len(self.buttons):
                 return int(name) - 1
@@ -116,6 +137,7 @@ class DesignWindow(WindowResponder):
     def present(self, shown) -> Answer:
         """Show the trial (its texture on the plate, its question and buttons) and wait for the answer."""
         self._prepare(shown)
+        self.level = shown.level
         self.output.show(shown.texture(), shown.trial.number)
         started = time.perf_counter()
         answer = self._wait_answer(shown.trial.number)

@@ -247,7 +247,7 @@ def summarise(design, rows: list[dict], procedures: dict) -> dict:
                 found = proportions(mine, None)
                 item.update(found[0] if found else {"trials": 0})
             else:
-                found = mean_response(mine, None, log=block.task == "magnitude")
+                found = mean_response(mine, None, log=block.task in ("magnitude", "adjustment"))
                 item.update(found[0] if found else {"trials": 0})
             conditions.append(item)
         entry["conditions"] = conditions

@@ -260,7 +260,7 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
     for block in design.blocks:
         for name in block.conditions:
             condition = design.conditions[name]
-            varied = block.task in ADAPTIVE + ("constant",)
+            varied = block.task in ADAPTIVE + ("constant", "adjustment")
             top = max(condition.levels) if block.task == "constant" else condition.range[1]
             if varied and condition.vary == "contrast":
                 check(condition.stimulus, top)

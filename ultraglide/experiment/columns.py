@@ -48,10 +48,12 @@ DESIGN_COLUMNS: dict[str, str] = {
     "practice": "1 for a practice trial (left out of the summary's fits), else 0",
     "condition": "the condition's name; the design's factors follow, a column each, named after the factor",
     "stimuli": "the stimuli of the trial's intervals in order, names joined by ` | `",
-    "level": "the level of the varied stimulus (staircases, QUEST+, constant stimuli), exactly; else empty",
+    "level": "the level of the varied stimulus (staircases, QUEST+, constant stimuli) or the adjustment's start, "
+             "exactly; else empty",
     "target": "the interval holding the odd stimulus, from 1 (forced choice); `same`/`different` "
               "(same-different); else empty",
-    "response": "the interval chosen (from 1), `yes`/`no`, `same`/`different`, the rating, or the number given",
+    "response": "the interval chosen (from 1), `yes`/`no`, `same`/`different`, the rating, the number given, or "
+                "the contrast set (adjustment)",
     "response_label": "the response in the participant's words (the design's labels)",
     "correct": "1 or 0 where an answer can be right (forced choice, same-different, yes/no); else empty",
     "rt_s": "reaction time, s (empty when unknown)",

@@ -33,7 +33,7 @@ import numpy as np
 from ultraglide.experiment.errors import ExperimentError
 from ultraglide.experiment.procedures import RULES, ConstantParams, ConstantStimuli, interval_positions
 
-TASKS = ("constant", "staircase", "quest", "afc", "same_different", "rating", "magnitude")
+TASKS = ("constant", "staircase", "quest", "afc", "same_different", "rating", "magnitude", "adjustment")
 ADAPTIVE = ("staircase", "quest")
 ORDERS = ("random", "blocked", "counterbalanced")
 VARY = ("contrast", "wavelength", "amplitude")
@@ -42,7 +42,8 @@ DEFAULT_QUESTIONS = {
     "constant": "Which zone felt different?", "staircase": "Which zone felt different?",
     "quest": "Which zone felt different?", "afc": "Which zone felt different?",
     "same_different": "Did the two zones feel the same or different?",
-    "rating": "How rough did it feel?", "magnitude": "How intense was it, against the first zone's number?"}
+    "rating": "How rough did it feel?", "magnitude": "How intense was it, against the first zone's number?",
+    "adjustment": "Make the second zone feel like the first, then press OK."}
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 MAX_TRIALS = 100_000
 
@@ -91,7 +92,9 @@ class Block:
     ``intervals``: zones in forced choice (1: yes/no for constant stimuli). ``question``/``labels``: in the
     participant's language (labels: one per answer button; a rating's from its low end). ``scale``: a rating's
     (low, high) whole numbers; ``modulus``: magnitude estimation's number for ``modulus_stimulus`` (shown first in
-    every trial). ``practice``: trials before the block's own, not analysed; ``break_every``: a pause every N."""
+    every trial). ``adjustment``: the participant sets the condition's stimulus's contrast (from a random start in
+    its range, 1 dB a step) until it feels like the reference (shown first). ``practice``: trials before the
+    block's own, not analysed; ``break_every``: a pause every N."""
 
     name: str
     task: str
@@ -115,7 +118,7 @@ class Block:
 
     @property
     def zones(self) -> int:
-        if self.task in ("same_different", "magnitude"):
+        if self.task in ("same_different", "magnitude", "adjustment"):
             return 2
         if self.task == "rating":
             return 1
@@ -226,9 +229,12 @@ def validate(design: Design) -> None:
             if name not in design.conditions:
                 raise _refuse(where + ".conditions", f"no condition named {name!r}")
             condition = design.conditions[name]
-            if block.task in ("afc", "same_different") and condition.reference is None:
+            if block.task in ("afc", "same_different", "adjustment") and condition.reference is None:
                 raise _refuse(f"conditions.{name}", f"block {block.name!r} ({block.task}) compares two stimuli: "
                               "give the condition both a and b")
+            if block.task == "adjustment" and condition.vary != "contrast":
+                raise _refuse(f"conditions.{name}.vary", f"block {block.name!r} (adjustment) adjusts a friction "
+                              "contrast")
             if block.task == "constant" and not condition.levels:
                 raise _refuse(f"conditions.{name}.levels", f"block {block.name!r} (constant stimuli) needs the "
                               "condition's levels")
@@ -274,6 +280,8 @@ def _label_count(block: Block) -> int | None:
         return 2
     if block.task == "magnitude":
         return None
+    if block.task == "adjustment":
+        return 3
     return block.intervals
 
 
@@ -289,6 +297,8 @@ def response_labels(block: Block) -> tuple[str, ...]:
         return ("Yes", "No")
     if block.task == "magnitude":
         return ()
+    if block.task == "adjustment":
+        return ("−", "+", "OK")
     return tuple(str(i + 1) for i in range(block.intervals))
 
 
@@ -410,6 +420,10 @@ def _block_slots(design: Design, block: Block, block_index: int) -> list[tuple]:
             slots = [(name, pairs[i][2], None, [pairs[i][0], pairs[i][1]], False) for i in order]
         elif block.task == "rating":
             slots = [(name, None, None, [a], False)] * block.repeats
+        elif block.task == "adjustment":  # the reference first, the adjusted stimulus from a random start level
+            low, high = condition.range
+            starts = np.exp(np.random.default_rng([seed, 23]).uniform(np.log(low), np.log(high), block.repeats))
+            slots = [(name, None, float(start), [b, a], False) for start in starts]
         else:  # magnitude: the modulus's stimulus first, then the condition's
             slots = [(name, None, None, [block.modulus_stimulus, a], False)] * block.repeats
         per_condition.append(slots)

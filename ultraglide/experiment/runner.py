@@ -47,6 +47,8 @@ class Presentation:
     figures: tuple  # StimulusFigures of each zone's stimulus (None for plain glass or a varied zone)
     modulus: float | None = None
     scale: tuple[int, int] | None = None  # a rating's (low, high)
+    texture_at: object = None  # adjustment: a callable returning the trial's Texture with the adjusted zone at a level
+    level_range: tuple[float, float] | None = None  # adjustment: the levels it may be set to
 
 
 @dataclass
@@ -289,6 +291,20 @@ def _presentation(design: Design, block: Block, trial: Trial, level, stimuli: _S
 
     figures = tuple(figures_of.get(name) for name in trial.zones)
     intervals = block.intervals if block.task == "afc" else 1
+    if block.task == "adjustment":
+        condition = design.conditions[trial.condition]
+        reference = stimuli.zone(condition.reference)
+
+        def texture_at(value: float):
+            adjusted = zone_texture(design.stimuli[condition.stimulus], stimuli.rig.zone_mm, float(value))
+            placements = [Placement(reference, layout.zone_left_mm(0), layout.gap_mm),
+                          Placement(adjusted, layout.zone_left_mm(1), layout.gap_mm)]
+            px = max(10.0, max(1.0 / min(p.texture.pixel_mm) for p in placements))
+            return compose(layout.size_mm, placements, 1.0, px_per_mm=min(px, 40.0), name=f"trial-{trial.number}")
+
+        return Presentation(trial, level, block.shown_question, response_labels(block), 1, layout,
+                            lambda: texture_at(level), None, figures, texture_at=texture_at,
+                            level_range=condition.range)
     return Presentation(trial, level, block.shown_question, response_labels(block), intervals, layout, texture, None,
                         figures, block.modulus if block.task == "magnitude" else None,
                         block.scale if block.task == "rating" else None)
@@ -319,6 +335,9 @@ def _row(design: Design, block: Block, trial: Trial, level, answer: Answer, part
     elif block.task == "rating":
         response = int(answer.response)
         label, target = labels[response - block.scale[0]], None
+    elif block.task == "adjustment":
+        response = float(answer.response)
+        label, target = f"{response:.4g}", None
     else:
         response = float(answer.response)
         label, target = f"{response:g}", None

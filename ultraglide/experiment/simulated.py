@@ -8,6 +8,7 @@
 * Rating on LOW..HIGH: LOW + (HIGH − LOW)·F(c) + noise·(HIGH − LOW)·N(0, 1), rounded and kept on the scale, c the
   stimulus's delivered contrast.
 * Magnitude estimation: modulus·(c / c_modulus)^exponent·exp(noise·N(0, 1)).
+* Adjustment: the reference's delivered contrast·exp(noise·N(0, 1)), kept within the condition's range.
 
 Each trial draws from its own generator (seed, trial).
 """
@@ -68,6 +69,11 @@ class SimulatedParticipant:
             felt = float(pf.core(observer.function, contrast, observer.threshold, observer.slope))
             value = low + (high - low) * felt + observer.noise * (high - low) * rng.normal()
             return Answer(int(np.clip(round(value), low, high)), rt_s)
+        if trial.task == "adjustment":  # a match to the reference's delivered contrast, off by log-normal noise
+            reference = shown.figures[0].delivered_contrast if shown.figures[0] else 0.0
+            low, high = shown.level_range
+            match = reference * np.exp(observer.noise * rng.normal())
+            return Answer(float(np.clip(match, low, high)), rt_s)
         modulus, stimulus = shown.figures
         reference = max(modulus.delivered_contrast, 1e-6) if modulus else 1.0
         contrast = stimulus.delivered_contrast if stimulus else 0.0
