@@ -170,3 +170,30 @@ def test_print_design_runs_to_the_same_trial_plan_and_answers(tmp_path, command)
             after["target"], after["response"], after["correct"])
         assert before["rendered_contrast"] == (f"{float(after['delivered_contrast']):.4f}"
                                                if after["delivered_contrast"] else "")
+
+
+def test_a_stopped_design_session_resumes_as_if_never_stopped(tmp_path):
+    path = tmp_path / "stairs.toml"
+    path.write_text(to_toml(Design(
+        "resume", {"a": Stimulus("a", "grating-1mm"), "b": Stimulus("b", "grating-4mm")},
+        {"a": Condition("a", "a"), "b": Condition("b", "b")},
+        (Block("s", "staircase", ("a", "b"), trials=8, practice=2), Block("r", "rating", ("a",), repeats=3)),
+        seed=9)), encoding="utf-8")
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    common = ["experiment", "run", path, "--participant", "P04", "--observer", SIM]
+    run_cli(*common, "--out", whole, check=True)
+    run_cli(*common, "--out", cut, check=True)
+    lines = (cut / "trials.csv").read_text(encoding="utf-8").splitlines(keepends=True)
+    # stopped during trial 9: eight rows logged and half of the ninth
+    (cut / "trials.csv").write_text("".join(lines[:9]) + lines[9][:20], encoding="utf-8")
+    refused = run_cli(*common, "--out", cut)
+    assert "--resume" in assert_one_line_error(refused)
+    other = run_cli("experiment", "run", path, "--participant", "P05", "--observer", SIM, "--out", cut, "--resume")
+    assert "another design, participant or session" in assert_one_line_error(other)
+    run_cli(*common, "--out", cut, "--resume", check=True)
+    before, after = read(whole / "trials.csv"), read(cut / "trials.csv")
+    assert len(before) == len(after) == 2 + 16 + 3
+    for a, b in zip(before, after, strict=True):
+        assert {k: v for k, v in a.items() if k != "time_utc"} == {k: v for k, v in b.items() if k != "time_utc"}
+    assert json.loads((cut / "summary.json").read_text())["blocks"] == json.loads(
+        (whole / "summary.json").read_text())["blocks"]

@@ -50,6 +50,8 @@ def add_parsers(kinds) -> None:
                      help="a simulated observer (a dry run; default: the participant's window)")
     run.add_argument("--accept-check", action="store_true",
                      help="run even if a stimulus fails the check; the failures are recorded in session.json")
+    run.add_argument("--resume", action="store_true",
+                     help="continue the stopped session in --out DIR (the same design, participant and session)")
     output_option(run, "--device", kind="device", metavar="URL",
                   help="output device for the window: sim, serial:PORT, audio[...], wav:PATH or null (default: sim)")
     run.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
@@ -144,12 +146,12 @@ def run_design(args) -> int:
 
         responder = DesignWindow(design, args.device or "sim", args.screen_width_mm, args.windowed)
     directory = Path(args.out)
-    if (directory / "trials.csv").exists():
-        raise UsageError(f"{directory} already holds a session; choose another --out")
+    if (directory / "trials.csv").exists() and not args.resume:
+        raise UsageError(f"{directory} already holds a session; continue it with --resume or choose another --out")
     try:
         try:
             session = run(design, args.participant, args.session, directory, observer=args.observer,
-                          responder=responder, accept_check=args.accept_check, check=report)
+                          responder=responder, accept_check=args.accept_check, check=report, resume=args.resume)
         finally:
             if responder is not None:
                 responder.close()

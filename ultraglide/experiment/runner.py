@@ -148,7 +148,7 @@ def versions() -> dict:
 
 
 def run(design: Design, participant: str = "P01", session: str = "1", out=None, observer=None, responder=None,
-        accept_check: bool = False, check: bool = True) -> Session:
+        accept_check: bool = False, check: bool = True, resume: bool = False) -> Session:
     """Run ``design`` for one participant, with a simulated observer or a responder (a window, a remote interface).
 
     Parameters
@@ -168,6 +168,10 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
     check : bool or CheckReport
         False skips the stimulus check (tests of the plan alone; never for a participant); a CheckReport of this
         design, already made, is used as it is.
+    resume : bool
+        Continue the stopped session in ``out`` (same design, participant and session): its logged trials are
+        replayed into the procedures (each logged level must be the one asked for) and the plan goes on from the
+        next trial; a half-written last row is dropped. A simulated observer answers as an uninterrupted session.
 
     Returns
     -------
@@ -204,22 +208,25 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
         from ultraglide.experiment.simulated import SimulatedParticipant
 
         responder = SimulatedParticipant(observer, rig, design.seed)
-    directory = _prepare(out)
+    directory = _prepare(out) if not resume else Path(out)
     stimuli = _Stimuli(design, rig)
     procedures = _procedures(design)
     factors = sorted({key for c in design.conditions.values() for key in c.factors})
     columns = [*DESIGN_COLUMNS]
     at = columns.index("condition") + 1
     columns[at:at] = factors
-    log = _Log(directory / TRIALS, columns) if directory else None
+    trials = plan(design, participant)
+    rows: list[dict] = _resumed_rows(design, directory, participant, session, trials, procedures, columns) if resume \
+        else []
+    log = _Log(directory / TRIALS, columns, append=resume) if directory else None
     started = now_utc()
     if directory:
-        _write_json(directory / SESSION, _metadata(design, participant, session, report, warnings_, started, "running"))
-    rows: list[dict] = []
+        _write_json(directory / SESSION, _metadata(design, participant, session, report, warnings_, started, "running",
+                                                   len(rows)))
     complete = True
     blocks = {block.name: block for block in design.blocks}
     try:
-        for trial in plan(design, participant):
+        for trial in trials[len(rows):]:
             block = blocks[trial.block]
             if trial.break_before and not responder.take_break(trial.number, design.break_message):
                 complete = False
@@ -252,6 +259,48 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
         _write_json(directory / SESSION, _metadata(design, participant, session, report, warnings_, started,
                                                    "complete" if complete else "stopped", len(rows)))
     return Session(design, rows, summary, report, directory, complete, warnings_)
+
+
+def _resumed_rows(design: Design, directory: Path, participant: str, session: str, trials: list[Trial],
+                  procedures: dict, columns: list[str]) -> list[dict]:
+    """The logged rows of the session in ``directory``, replayed into ``procedures``; ExperimentError if they are not
+    this design's, participant's and session's."""
+    from ultraglide.experiment.analysis import read_trials
+
+    if directory is None:
+        raise ExperimentError("resuming needs the session's directory (out)")
+    saved_path = directory / SESSION
+    try:
+        saved = json.loads(saved_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise ExperimentError(f"{saved_path}: no session to resume there ({error})") from None
+    if not isinstance(saved, dict) or saved.get("design_toml") != to_toml(design) or (
+            saved.get("participant"), saved.get("session")) != (participant, session):
+        raise ExperimentError(f"{directory}: its session ran another design, participant or session; resume it with "
+                              "the same ones")
+    path = directory / TRIALS
+    if os.path.lexists(path) and (path.is_symlink() or not path.is_file()):
+        raise ExperimentError(f"{path}: is not a regular file; a session's trials are logged to one")
+    data = path.read_bytes() if path.is_file() else b""
+    if data and not data.endswith(b"\n"):  # a row cut short when the session stopped
+        with open(path, "r+b") as handle:
+            handle.truncate(data.rfind(b"\n") + 1)
+    rows = read_trials(path) if data else []
+    if rows and list(rows[0]) != columns:
+        raise ExperimentError(f"{path}: its columns are not this design's")
+    if len(rows) > len(trials):
+        raise ExperimentError(f"{path}: more trials than the design plans")
+    for row, trial in zip(rows, trials, strict=False):
+        if (row["trial"], row["block"], row["condition"]) != (trial.number, trial.block, trial.condition):
+            raise ExperimentError(f"{path}: trial {trial.number} of the log is not the plan's; it is another session")
+        procedure = procedures.get((trial.block, trial.condition))
+        if procedure is not None and not trial.practice:
+            wanted = procedure.next_level()
+            if not math.isclose(wanted, row["level"], rel_tol=1e-9):
+                raise ExperimentError(f"{path}: trial {trial.number} was at level {row['level']:g} but the procedure "
+                                      f"asks for {wanted:g}: the log was written by another design or seed")
+            procedure.update(row["level"], int(row["correct"]))
+    return rows
 
 
 def _prepare(out) -> Path | None:
@@ -363,11 +412,14 @@ def _row(design: Design, block: Block, trial: Trial, level, answer: Answer, part
 class _Log:
     """trials.csv: a header, then a row per trial, flushed and fsync'd before the next trial."""
 
-    def __init__(self, path: Path, columns: list[str]):
-        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
-        self._file = open(descriptor, "w", newline="", encoding="utf-8")  # noqa: SIM115 - open for the session
+    def __init__(self, path: Path, columns: list[str], append: bool = False):
+        flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | (os.O_APPEND if append else os.O_EXCL)
+        descriptor = os.open(path, flags, 0o666)
+        new = os.fstat(descriptor).st_size == 0
+        self._file = open(descriptor, "a" if append else "w", newline="", encoding="utf-8")  # noqa: SIM115
         self._writer = csv.DictWriter(self._file, fieldnames=columns, lineterminator="\n")
-        self._writer.writeheader()
+        if new:
+            self._writer.writeheader()
         self._sync()
 
     def _sync(self) -> None:
