@@ -380,7 +380,8 @@ TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav
          ("texture", "compose", "mask"): ["a", "m", "-o", "o.png"],
          ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
          ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"],
-         ("experiment",): ["--out", "o"]}
+         ("experiment",): ["--out", "o"], ("experiment", "run"): ["d.toml", "--participant", "P1", "--out", "o"],
+         ("experiment", "check"): ["d.toml"]}
 
 
 def range_of(words, flag):

@@ -42,6 +42,7 @@ READ_OR_WORDS = {
     "rules": "a rule's name", "breaks": "a rule's name", "sensor": "an audio input",
     "device": "a plate driver's URL, where wav:PATH is refused (else it is a checked output)",
     "host": "an address listened on", "unix": "a Unix socket made by serve, which refuses anything already there",
+    "design": "an experiment's DESIGN.toml read",
 }
 
 
@@ -92,6 +93,7 @@ BASE = {
                                   "sim:threshold=0.2", "--out", "{ok}/session"],
     ("experiment", "constant"): ["experiment", "constant", "--preset", "vezzoli2015", "--observer",
                                  "sim:threshold=0.2", "--out", "{ok}/session"],
+    ("experiment", "run"): ["experiment", "run", "{ok}/design.toml", "--participant", "P01", "--out", "{ok}/session"],
     ("latency",): ["latency"],
     ("serve",): ["serve", "--device", "null", "--port", "0"],
 }
@@ -323,7 +325,7 @@ FOLDER_FILES = sorted((words, option, also) for words, parser in leaves(build_pa
 def test_the_folders_with_files_of_known_names_are_the_ones_expected():
     assert {(" ".join(words), option) for words, option, _ in FOLDER_FILES} == {
         ("model", "--plots"), ("experiment threshold", "--out"), ("experiment threshold", "--resume"),
-        ("experiment constant", "--out"), ("experiment constant", "--resume")}
+        ("experiment constant", "--out"), ("experiment constant", "--resume"), ("experiment run", "--out")}
 
 
 @pytest.mark.parametrize("words, option, names", FOLDER_FILES, ids=[f"{' '.join(w)} {o}" for w, o, _ in FOLDER_FILES])
