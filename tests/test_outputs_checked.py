@@ -42,7 +42,8 @@ READ_OR_WORDS = {
     "rules": "a rule's name", "breaks": "a rule's name", "sensor": "an audio input",
     "device": "a plate driver's URL, where wav:PATH is refused (else it is a checked output)",
     "host": "an address listened on", "unix": "a Unix socket made by serve, which refuses anything already there",
-    "design": "an experiment's DESIGN.toml read",
+    "design": "an experiment's DESIGN.toml read", "rig": "a rig file read", "rig_file": "a rig file read",
+    "scene": "a glTF scene read", "material": "a material's name or index", "name": "a texture's name",
 }
 
 
@@ -95,6 +96,8 @@ BASE = {
                                  "sim:threshold=0.2", "--out", "{ok}/session"],
     ("experiment", "run"): ["experiment", "run", "{ok}/design.toml", "--participant", "P01", "--out", "{ok}/session"],
     ("latency",): ["latency"],
+    ("texture", "import"): ["texture", "import", "{ok}/scene.glb", "-o", "{ok}/t.png"],
+    ("texture", "export-gltf"): ["texture", "export-gltf", "grating-1mm", "-o", "{ok}/t.glb"],
     ("serve",): ["serve", "--device", "null", "--port", "0"],
 }
 
