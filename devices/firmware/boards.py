@@ -86,7 +86,7 @@ def port_dir(board: str) -> Path:
 
 def _sources_digest(board: str) -> str:
     digest = hashlib.sha256()
-    for folder in (FIRMWARE_DIR / "include", FIRMWARE_DIR / "core", port_dir(board)):
+    for folder in (FIRMWARE_DIR / "include", FIRMWARE_DIR / "core", FIRMWARE_DIR / "ports" / "common", port_dir(board)):
         for path in sorted(folder.glob("*")) if folder.is_dir() else []:
             if path.is_file() and path.suffix in (".c", ".h", ".ld", "") and path.name != "build":
                 digest.update(path.name.encode() + b"\0" + path.read_bytes())

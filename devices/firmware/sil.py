@@ -66,7 +66,8 @@ class Status(ctypes.Structure):
                 ("overrun_setpoints", ctypes.c_uint32), ("fault_counts", ctypes.c_uint32 * 8),
                 ("naks", ctypes.c_uint32), ("rx_overflows", ctypes.c_uint32), ("tx_dropped", ctypes.c_uint32),
                 ("events_dropped", ctypes.c_uint32), ("now_ms", ctypes.c_uint32),
-                ("next_telemetry_ms", ctypes.c_uint32), ("samples", ctypes.c_uint64), ("stage_hot", ctypes.c_uint8)]
+                ("next_telemetry_ms", ctypes.c_uint32), ("samples", ctypes.c_uint64), ("stage_hot", ctypes.c_uint8),
+                ("lost_ms", ctypes.c_uint32)]
 
     def __repr__(self) -> str:
         return (f"Status(enabled={self.enabled}, playback={self.playback}, faults={self.faults:#06x}, "
@@ -144,6 +145,7 @@ def load() -> ctypes.CDLL:
                                                  ctypes.POINTER(ctypes.c_uint16)]),
             "ug_crc32": (ctypes.c_uint32, [voidp, size]), "ug_cobs_encode": (size, [voidp, size, voidp]),
             "ug_sim_sources_digest": (ctypes.c_char_p, []),
+            "ug_sim_output_safe_calls": (ctypes.c_uint32, [voidp, ctypes.POINTER(ctypes.c_uint8)]),
         }
         for name, (result, arguments) in signatures.items():
             function = getattr(lib, name)
@@ -324,6 +326,13 @@ class FirmwareCore:
         while self._lib.ug_sim_next_event(self._sim, ctypes.byref(self._event)):
             found.append(Event.from_buffer_copy(self._event))
         return found
+
+    def output_safe_calls(self) -> tuple[int, int]:
+        """How many times the core asked the port for a silent output (``ug_port_output_safe``) and the last
+        call's reason (``UG_SAFE_*``: 1 the output went off, 2 the protocol watchdog's ramp ended)."""
+        why = ctypes.c_uint8()
+        calls = self._lib.ug_sim_output_safe_calls(self._sim, ctypes.byref(why))
+        return calls, why.value
 
     def fault_requests(self) -> list[tuple[int, int]]:
         """Injected transport faults the host asked for (SIM_FAULT kinds 1-4), as (kind, duration_ms)."""

@@ -217,4 +217,5 @@ void ug_core_status(const ug_core *core, ug_status *out) {
     out->next_telemetry_ms = core->telemetry_due ? core->now_ms : core->telemetry_due_ms;
     out->samples = core->samples;
     out->stage_hot = core->stage_hot;
+    out->lost_ms = core->lost_ms;
 }

@@ -121,6 +121,7 @@ static float render_sample(ug_core *core) {
             core->ramp_left--;
         }
         if (core->ramp_left == 0u) {
+            ug_port_output_safe(core->port, UG_SAFE_RAMP_END);
             if (core->rate != 0u && core->buf_count >= core->prefill) {
                 start_playing(core);
             } else {

@@ -30,6 +30,7 @@ void ug_disable(ug_core *core, uint8_t why) {
     core->ramp_left = 0;
     ug_stop_stream(core);
     ug_loop_reset(core);
+    ug_port_output_safe(core->port, UG_SAFE_DISABLE);
     if (was) {
         ug_post_event(core, UG_EV_DISABLED, why, 0, 0.0f);
     }
@@ -63,6 +64,21 @@ void ug_core_set_stage_hot(ug_core *core, bool hot) {
         core->stage_hot = 0;
     }
     ug_port_critical_exit(core->port);
+}
+
+size_t ug_core_block(ug_core *core, const float *amplitude_um_pp, const float *normal_force_n,
+                     const float *lateral_force_n, size_t n, int16_t *dac, size_t n_dac) {
+    size_t cut = ug_core_adc_block(core, amplitude_um_pp, normal_force_n, lateral_force_n, n);
+    ug_core_dac_block(core, dac, n_dac);
+    ug_core_tick(core);
+    return cut;
+}
+
+void ug_core_lost_time(ug_core *core, uint32_t ms) {
+    for (uint32_t i = 0; i < ms; i++) {
+        ug_core_tick(core);
+    }
+    core->lost_ms += ms;
 }
 
 /* ---- time ------------------------------------------------------------------------------------------- */

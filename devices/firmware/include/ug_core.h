@@ -89,6 +89,7 @@ typedef struct ug_status {
     uint32_t next_telemetry_ms; /* the tick at which the next TELEMETRY frame is due */
     uint64_t samples;          /* drive samples produced since power-up */
     uint8_t stage_hot;
+    uint32_t lost_ms;          /* block time the port reported lost (ug_core_lost_time), ms */
 } ug_status;
 
 /* ---- events: what happened, for a port to log (the simulator prints them) --------------------------- */
@@ -234,6 +235,7 @@ typedef struct ug_core {
     uint32_t fault_counts[UG_FAULT_BITS];
     uint16_t faults;
     uint32_t naks, rx_overflows, tx_dropped;
+    uint32_t lost_ms;
 
     /* events */
     ug_event events[UG_EVENTS];
@@ -259,6 +261,16 @@ void ug_core_dac_block(ug_core *core, int16_t *out, size_t n_dac);
 size_t ug_core_adc_block(ug_core *core, const float *amplitude_um_pp, const float *normal_force_n,
                          const float *lateral_force_n, size_t n);
 void ug_core_set_stage_hot(ug_core *core, bool hot);
+/* One block, the port's one call per block interrupt: ug_core_adc_block (what the ADC measured, n drive samples),
+   ug_core_dac_block (the next n_dac carrier samples into dac), ug_core_tick, in that order; returns what
+   ug_core_adc_block returns (n: nothing cut; less: the output went off at that sample, and the port silences the
+   half playing now, as ug_port_output_safe asks). */
+size_t ug_core_block(ug_core *core, const float *amplitude_um_pp, const float *normal_force_n,
+                     const float *lateral_force_n, size_t n, int16_t *dac, size_t n_dac);
+/* Blocks the port could not run (its block interrupt came late: both halves had played): ms of the core's clock
+   pass without output (the watchdog, the fault timers and the telemetry schedule keep their time), counted in
+   ug_status.lost_ms. The port has silenced the DAC itself: nothing stale plays. */
+void ug_core_lost_time(ug_core *core, uint32_t ms);
 
 void ug_core_status(const ug_core *core, ug_status *out);
 bool ug_core_next_event(ug_core *core, ug_event *out);

@@ -71,6 +71,27 @@ void ug_port_tx_ready(void *port);
  */
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms);
 
+/*
+ * The output must be silent now: no drive reaches the plate from the next output sample on. `why` is one of
+ * UG_SAFE_*. The core calls it whenever the output goes off (a host's DISABLE, a trip, an overheat, a HELLO
+ * that disabled, the end of the protocol watchdog's ramp), from the block interrupt or from ug_core_poll()
+ * inside a critical section; it MUST NOT block and MUST take effect without waiting for the next block: on a
+ * DAC fed by DMA from two halves, both halves to mid-scale (what the DMA plays next is silence) and, where the
+ * board has one, the amplifier's enable pin low. The output comes back only through the blocks the core fills
+ * after a new ENABLE. A port calls the same routine itself at power-up (before the carrier's clock starts),
+ * and its fault handlers and hardware watchdog call the stronger form, which does not rely on the DMA: stop
+ * the DMA and the converter's trigger and load mid-scale by software (a DAC that converts only on a timer's
+ * trigger holds its last sample when that timer stops) - in assembly, before any C that uses the stack.
+ */
+enum {
+    UG_SAFE_POWER_UP = 0, /* the port, before its output starts */
+    UG_SAFE_DISABLE = 1,  /* the core: the output went off (DISABLE, trip, overheat, HELLO) */
+    UG_SAFE_RAMP_END = 2, /* the core: the protocol watchdog's ramp reached zero */
+    UG_SAFE_WATCHDOG = 3, /* the port: its hardware watchdog (or its stand-in) expired */
+    UG_SAFE_FAULT = 4     /* the port: a fault handler */
+};
+void ug_port_output_safe(void *port, uint8_t why);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,6 +1,7 @@
 #include "board.h"
 
 #include "emulated_plate.h"
+#include "iwdg.h"
 #include "port_logic.h"
 #include "stm32f405.h"
 #include "uart_ring.h"
@@ -15,25 +16,21 @@ static board_console_t console;  /* set up in board_init: an initialiser would p
 static volatile uint32_t millis;
 static volatile uint32_t link_overruns;
 static board_block_fn carrier_block;
+static board_lost_fn carrier_lost;
 static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES];  /* circular: the DMA plays one half while we fill the other */
 static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
+static volatile uint32_t late_blocks, dma_errors, dac_underruns;
+static uint32_t reset_reason;
+static ug_reset_record_t reset_record;
+/* The fault path's marks, written by the fault handlers' assembly (startup.c) before any C: the emulated DAC
+   stopped (QEMU: the emulated plate hears mid-scale from then on) and the clock when it was. */
+volatile uint32_t board_dac_stopped;
+volatile uint32_t board_silent_at;
 
 static void irq_enable(uint32_t irq, uint8_t priority)
 {
     NVIC_IPR_BYTE(irq) = priority;
     NVIC_ISER(irq / 32u) = 1u << (irq % 32u);
-}
-
-static uint32_t irq_save(void)
-{
-    uint32_t primask;
-    __asm__ volatile("mrs %0, primask\n\tcpsid i" : "=r"(primask) :: "memory");
-    return primask;
-}
-
-static void irq_restore(uint32_t primask)
-{
-    __asm__ volatile("msr primask, %0" :: "r"(primask) : "memory");
 }
 
 uint32_t board_mask_blocks(void)
@@ -105,6 +102,7 @@ void board_link_service(void)
     uint8_t chunk[64];
     size_t n;
     while ((n = board_link_take(chunk, sizeof chunk)) != 0u) {
+        ug_marks_main();  /* sending is the main loop's progress (QEMU's USART takes each byte synchronously) */
         for (size_t i = 0; i < n; i++) {
             while (!(USART_SR(USART1_BASE) & USART_SR_TXE)) {  /* never waits under QEMU */
             }
@@ -185,11 +183,46 @@ static void console_init(void)
     USART_CR2(USART2_BASE) = 0u;
     USART_CR3(USART2_BASE) = 0u;
     USART_CR1(USART2_BASE) = USART_CR1_UE | USART_CR1_TE;
-    irq_enable(USART2_IRQn, 0xA0u);  /* below everything: a console line can wait */
+#ifdef UG_BOARD_QEMU
+    USART_CR1(USART2_BASE) = USART_CR1_UE | USART_CR1_TE | USART_CR1_RE | USART_CR1_RXNEIE;  /* fault commands */
+#endif
+    irq_enable(USART2_IRQn, BOARD_CONSOLE_PRIORITY);  /* below everything: a console line can wait */
 }
+
+#ifdef UG_BOARD_QEMU
+/* The QEMU image's console takes one command, `fault KIND` (ug_safety.h): the fault injection of
+   `plate-sim --board-fault`. The hardware image's console has no receiver. */
+static char command[32];
+static uint32_t command_length;
+static volatile uint32_t injected;
+
+uint32_t board_injected_fault(void)
+{
+    return injected;
+}
+
+static void console_received(uint8_t byte)
+{
+    if (byte == '\n' || byte == '\r') {
+        command[command_length] = '\0';
+        uint32_t kind = ug_inject_parse(command);
+        if (kind != UG_INJECT_NONE) {
+            injected = kind;
+        }
+        command_length = 0u;
+    } else if (command_length + 1u < sizeof command) {
+        command[command_length++] = (char)byte;
+    }
+}
+#endif
 
 void USART2_IRQHandler(void)
 {
+#ifdef UG_BOARD_QEMU
+    if (USART_SR(USART2_BASE) & (USART_SR_RXNE | USART_SR_ORE)) {
+        console_received((uint8_t)USART_DR(USART2_BASE));
+    }
+#endif
     if ((USART_CR1(USART2_BASE) & USART_CR1_TXEIE) && (USART_SR(USART2_BASE) & USART_SR_TXE)) {
         uint8_t byte;
         if (ug_ring_get(&console.tx, &byte)) {
@@ -206,18 +239,27 @@ void board_console_write(const char *text)
     while (text[length] != '\0') {
         length++;
     }
-    uint32_t primask = irq_save();  /* the main loop and an interrupt may both write lines */
+    /* the main loop writes, USART2's interrupt drains: mask that interrupt only (BASEPRI at its priority), never
+       the link's or the blocks' */
+    uint32_t previous;
+    __asm__ volatile("mrs %0, basepri" : "=r"(previous));
+    __asm__ volatile("msr basepri_max, %0" :: "r"(BOARD_CONSOLE_PRIORITY) : "memory");
     bool queued = ug_ring_write(&console.tx, (const uint8_t *)text, length);
     if (queued && !(USART_CR1(USART2_BASE) & USART_CR1_TXEIE)) {
         uint8_t byte;
+        uint32_t sent = 0u;
         while ((USART_SR(USART2_BASE) & USART_SR_TXE) && ug_ring_get(&console.tx, &byte)) {
             USART_DR(USART2_BASE) = byte;
+            if ((++sent & 63u) == 0u) {
+                ug_marks_main();  /* progress of the main loop (QEMU takes each byte synchronously: a line can
+                                     take milliseconds of the host's time) */
+            }
         }
         if (ug_ring_used(&console.tx) != 0u) {
             USART_CR1(USART2_BASE) |= USART_CR1_TXEIE;
         }
     }
-    irq_restore(primask);
+    __asm__ volatile("msr basepri, %0" :: "r"(previous) : "memory");
 }
 
 /* ---- the carrier's buffers -------------------------------------------------------------------------- */
@@ -237,6 +279,113 @@ void board_dac_blank(uint32_t half)
     for (uint32_t i = 0; i < BOARD_BLOCK_SAMPLES; i++) {
         codes[i] = 0x8000u;  /* DHR12L1's mid-scale: no drive */
     }
+}
+
+void board_output_safe(void)
+{
+    board_dac_blank(0u);
+    board_dac_blank(1u);
+}
+
+uint32_t board_time_us(void)
+{
+#ifdef UG_BOARD_QEMU
+    return TIM_CNT(TIM5_BASE) / 1000u;  /* virtual ns; wraps every 4.29 s: differences of less than that */
+#else
+    return millis * 1000u;
+#endif
+}
+
+static uint32_t board_clock(void)
+{
+#ifdef UG_BOARD_QEMU
+    return TIM_CNT(TIM5_BASE);  /* ns */
+#else
+    return millis * 1000000u;
+#endif
+}
+
+void board_output_off(void)
+{
+#ifndef UG_BOARD_QEMU
+    DMA_SxCR(DMA1_BASE, 5) = 0u;   /* the DAC's DMA stops */
+    TIM_CR1(TIM2_BASE) = 0u;       /* and its trigger */
+    DAC_CR = DAC_CR_EN1;           /* no trigger: a write to DHR reaches the output one APB1 clock later */
+    DAC_DHR12L1 = 0x8000u;         /* mid-scale: no drive */
+#endif
+    board_dac_stopped = 1u;
+    board_silent_at = board_clock();
+    board_output_safe();
+}
+
+static uint32_t silent_after_us(void)
+{
+    if (ug_reset_record.injected == 0u) {
+        return UG_NOT_INJECTED;
+    }
+    return (board_silent_at - ug_reset_record.fault_at) / 1000u;  /* both in ns (QEMU) */
+}
+
+void board_reset(uint32_t reason, uint32_t detail)
+{
+    __asm__ volatile("cpsid i" ::: "memory");
+    if (!board_dac_stopped) {
+        board_output_off();
+    }
+    ug_reset_note(reason, detail, silent_after_us());
+    __asm__ volatile("dsb" ::: "memory");
+    SCB_AIRCR = SCB_AIRCR_VECTKEY | SCB_AIRCR_SYSRESETREQ;
+    __asm__ volatile("dsb" ::: "memory");
+    for (;;) {
+        __asm__ volatile("nop");  /* the reset comes within a few cycles */
+    }
+}
+
+void board_fault_reset(void)
+{
+    board_reset(UG_RESET_FAULT, SCB_CFSR);
+}
+
+uint32_t board_reset_reason(void)
+{
+    return reset_reason;
+}
+
+const ug_reset_record_t *board_reset_record(void)
+{
+    return &reset_record;
+}
+
+static void reset_reason_read(void)
+{
+    reset_reason = ug_reset_take(&reset_record);
+#ifndef UG_BOARD_QEMU
+    /* the hardware's own flags decide where no record was left (the IWDG resets without warning) */
+    uint32_t flags = RCC_CSR;
+    RCC_CSR = flags | RCC_CSR_RMVF;
+    if (reset_reason == UG_RESET_POWER_ON) {
+        if (flags & (RCC_CSR_IWDGRSTF | RCC_CSR_WWDGRSTF)) {
+            reset_reason = UG_RESET_WATCHDOG;
+        } else if ((flags & RCC_CSR_PINRSTF) && !(flags & RCC_CSR_PORRSTF)) {
+            reset_reason = UG_RESET_PIN;
+        }
+    }
+#endif
+}
+
+uint32_t board_late_blocks(void)
+{
+    return late_blocks;
+}
+
+uint32_t board_dma_errors(void)
+{
+    return dma_errors;
+}
+
+uint32_t board_dac_underruns(void)
+{
+    return dac_underruns;
 }
 
 #ifdef UG_BOARD_QEMU
@@ -267,6 +416,9 @@ uint32_t board_skipped_ms(void)
 
 void board_emulate_block(uint32_t half)
 {
+    if (board_dac_stopped) {
+        board_dac_blank(half);  /* the DAC's DMA is stopped: it holds mid-scale */
+    }
     ug_emulated_plate_run(&plate, board_dac_half(half), &adc_codes[(half & 1u) * BOARD_BLOCK_SAMPLES],
                           BOARD_BLOCK_SAMPLES);
 }
@@ -280,24 +432,131 @@ static void carrier_clock_start(void)
     board_dac_blank(0u);
     board_dac_blank(1u);
     block_ticks = TIM_CNT(TIM5_BASE) + TICKS_PER_BLOCK;
-    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | ((uint32_t)BOARD_BLOCK_PRIORITY << 24);
+    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | ((uint32_t)BOARD_WATCHDOG_PRIORITY << 24);
+    irq_enable(DMA2_Stream0_IRQn, BOARD_BLOCK_PRIORITY);  /* the block interrupt, pended by SysTick */
 }
 
-void SysTick_Handler(void)
+/* ---- QEMU: the watchdog's stand-in ---------------------------------------------------------------------
+   QEMU's netduinoplus2 models no IWDG (and its TIM2..5 cannot interrupt periodically: QEMU 7.2 re-arms them
+   further away each time). SysTick, at the highest priority, looks at the two marks every millisecond of virtual
+   time: both set since its last look, and the board is alive; BOARD_WATCHDOG_MISSES looks in a row without,
+   spanning BOARD_WATCHDOG_US of virtual time (one look after QEMU itself stalled is not the board's fault), and it
+   does what the IWDG's expiry does on hardware (a reset), after silencing the output first. */
+static uint32_t watchdog_ok_at, watchdog_misses, watchdog_on, watchdog_excused, watchdog_last_look;
+static volatile uint32_t watchdog_stalls;
+static volatile uint32_t block_busy;  /* the block interrupt is running */
+static volatile uint32_t interrupted_pc;  /* where SysTick found the processor (the last look) */
+static volatile uint32_t watchdog_looks;
+
+uint32_t board_watchdog_looks(void)
 {
+    return watchdog_looks;
+}
+
+static void watchdog_look(void)
+{
+    if (!watchdog_on) {
+        return;
+    }
+    watchdog_looks++;
+    uint32_t now = TIM_CNT(TIM5_BASE);
+    uint32_t since_look = now - watchdog_last_look;
+    watchdog_last_look = now;
+    if (since_look > BOARD_WATCHDOG_STALL_US * 1000u) {
+        /* this look came late: QEMU itself did not run (its host descheduled it), nor did the board, whose
+           marks had no chance: the window starts again (as the blocks skip such a stall) */
+        watchdog_ok_at = now;
+        watchdog_misses = 0u;
+        watchdog_stalls++;
+        return;
+    }
+    if (ug_marks_take()) {
+        watchdog_ok_at = now;
+        watchdog_misses = 0u;
+        return;
+    }
+    if (ug_marks_peek() == 1u && block_busy && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * 1000u) {
+        /* the block interrupt is running, catching up blocks that fell due while QEMU ran slower than real time
+           (a loaded host): the main loop had no turn, through no fault of its own; excused up to a bound */
+        watchdog_misses = 0u;
+        watchdog_excused++;
+        return;
+    }
+    watchdog_misses++;
+    if (watchdog_misses >= BOARD_WATCHDOG_MISSES && now - watchdog_ok_at >= BOARD_WATCHDOG_US * 1000u) {
+        ug_reset_record.where = interrupted_pc;
+        board_reset(UG_RESET_WATCHDOG, ug_marks_peek() | (watchdog_misses & 0xFFu) << 8 | watchdog_stalls << 16);
+    }
+}
+
+uint32_t board_watchdog_stalls(void)
+{
+    return watchdog_stalls;
+}
+
+void board_watchdog_start(void)
+{
+    watchdog_ok_at = TIM_CNT(TIM5_BASE);
+    watchdog_last_look = watchdog_ok_at;
+    watchdog_on = 1u;
+}
+
+void board_watchdog_service(void)
+{
+}
+
+/* SysTick, at the highest priority, is the QEMU image's clock: each millisecond it looks at the watchdog's marks
+   (the stand-in above) and pends the block interrupt (DMA2 stream 0's, as on hardware, at the blocks' priority),
+   which runs the blocks due. A hung block interrupt does not stop it. */
+__attribute__((used)) static void systick(uint32_t *frame)
+{
+    interrupted_pc = frame[6];
+    watchdog_look();
     if (carrier_block == 0) {
         millis++;
         return;
     }
+    NVIC_ISPR(DMA2_Stream0_IRQn / 32u) = 1u << (DMA2_Stream0_IRQn % 32u);
+}
+
+__attribute__((naked)) void SysTick_Handler(void)
+{
+    __asm__ volatile("mov r0, sp\n\t"  /* the exception frame: r0-r3, r12, lr, pc, xpsr (no FP context stacked lazily) */
+                     "push {r4, lr}\n\t"
+                     "bl systick\n\t"
+                     "pop {r4, pc}\n\t");
+}
+
+static void run_blocks(void);
+
+void DMA2_Stream0_IRQHandler(void)
+{
+    if (carrier_block == 0) {
+        return;
+    }
+    block_busy = 1u;
+    run_blocks();
+    block_busy = 0u;
+    ug_marks_block();  /* the block interrupt ran to its end (blocks due or not) */
+}
+
+static void run_blocks(void)
+{
     uint32_t late = TIM_CNT(TIM5_BASE) - block_ticks;  /* how long ago the next block fell due */
     if (late >= 0x80000000u) {
         return;  /* not due yet */
     }
     uint32_t due = late / TICKS_PER_BLOCK + 1u;
+    if (injected == UG_INJECT_ISR_HANG) {
+        board_inject_now(UG_INJECT_ISR_HANG);  /* the block interrupt stops here */
+    }
     if (due > BOARD_STALL_BLOCKS) {  /* QEMU itself did not run (its host descheduled it): nor did the board */
         skipped_ms += due - 1u;
         block_ticks += (due - 1u) * TICKS_PER_BLOCK;
         due = 1u;
+    }
+    if (due > 1u) {
+        late_blocks += due - 1u;  /* blocks that ran late (each still plays its own fresh half) */
     }
     for (uint32_t i = 0; i < due && i < BOARD_CATCH_UP; i++) {
         uint32_t half = next_half;
@@ -307,6 +566,39 @@ void SysTick_Handler(void)
         block_ticks += TICKS_PER_BLOCK;
         millis++;
     }
+}
+
+void board_inject_now(uint32_t kind)
+{
+    board_console_write(kind == UG_INJECT_ISR_HANG ? "ev injected kind=isr-hang\n"
+                        : kind == UG_INJECT_MAIN_HANG ? "ev injected kind=main-hang\n"
+                        : kind == UG_INJECT_STACK_OVERFLOW ? "ev injected kind=stack-overflow\n"
+                        : "ev injected kind=hard-fault\n");
+    ug_reset_note_injection(kind, TIM_CNT(TIM5_BASE));  /* the clock from which the silence is timed */
+    if (kind == UG_INJECT_STACK_OVERFLOW) {
+        extern void board_overflow_stack(uint32_t depth);
+        board_overflow_stack(0u);
+    }
+    if (kind == UG_INJECT_HARD_FAULT) {
+        (void)*(volatile uint32_t *)0xF0000000u;  /* nothing answers there: a bus fault, escalated to HardFault */
+    }
+    for (;;) {
+        __asm__ volatile("nop");  /* the hangs: interrupts stay on (main-hang) or this one never returns (isr-hang) */
+    }
+}
+
+/* Recurse with a frame the compiler cannot drop until the stack runs off the bottom of RAM (the stack sits
+   below .data and .bss: it faults instead of writing over the core's state). */
+static volatile uint32_t overflow_depth = 0xFFFFFFFFu;  /* volatile: the compiler may not prove it endless */
+
+__attribute__((noinline)) void board_overflow_stack(uint32_t depth)
+{
+    volatile uint32_t frame[16];
+    frame[depth % 16u] = depth;
+    if (depth < overflow_depth) {
+        board_overflow_stack(frame[depth % 16u] + 1u);
+    }
+    __asm__ volatile("" ::: "memory");
 }
 #else
 /* ---- hardware: TIM2 triggers DAC1 and ADC1 together; DMA2's interrupt runs each block --------------- */
@@ -357,21 +649,58 @@ static void carrier_clock_start(void)
     TIM_CR1(TIM2_BASE) = TIM_CR1_CEN;
 }
 
+/* The hardware watchdog: the IWDG (iwdg.h), refreshed by the block interrupt when both marks were set. */
+void board_watchdog_start(void)
+{
+    (void)ug_iwdg_start(BOARD_WATCHDOG_US, IWDG_LSI_HZ);
+}
+
+void board_watchdog_service(void)
+{
+    if (ug_marks_take()) {
+        ug_iwdg_refresh();
+    }
+}
+
 void DMA2_Stream0_IRQHandler(void)
 {
     uint32_t status = DMA_LISR(DMA2_BASE);
     DMA_LIFCR(DMA2_BASE) = DMA_LIFCR_ALL0;
-    if (carrier_block && (status & DMA_LISR_HTIF0)) {  /* the first half has been measured (and played) */
-        carrier_block(0u);
+    uint32_t dac_dma = DMA_HISR(DMA1_BASE);
+    if (dac_dma & DMA_HISR_TEIF5) {
+        DMA_HIFCR(DMA1_BASE) = DMA_HIFCR_ALL5;
+        dma_errors++;
+        board_output_off();  /* the DAC's DMA stopped itself on the error: the DAC holds mid-scale, not its last word */
     }
-    if (carrier_block && (status & DMA_LISR_TCIF0)) {
+    if (status & DMA_LISR_TEIF0) {
+        dma_errors++;
+    }
+    if (DAC_SR & DAC_SR_DMAUDR1) {
+        DAC_SR = DAC_SR_DMAUDR1;
+        dac_underruns++;
+    }
+    if ((status & DMA_LISR_HTIF0) && (status & DMA_LISR_TCIF0)) {
+        /* late: both halves finished since the last interrupt, so the DMA is already replaying a half that was
+           not refilled. Neither is refilled now (we cannot know which plays): both silent, and the core told
+           that these two blocks' time is lost. */
+        late_blocks += 2u;
+        board_output_safe();
+        if (carrier_lost) {
+            carrier_lost(2u);
+        }
+    } else if (carrier_block && (status & DMA_LISR_HTIF0)) {  /* the first half has been measured (and played) */
+        carrier_block(0u);
+    } else if (carrier_block && (status & DMA_LISR_TCIF0)) {
         carrier_block(1u);
     }
+    board_watchdog_service();
 }
 #endif
 
 void board_init(void)
 {
+    board_output_safe();  /* power-up: both DAC halves silent before anything can start the output */
+    reset_reason_read();
     clock_init();
     RCC_AHB1ENR |= RCC_AHB1ENR_GPIOAEN;
     RCC_APB2ENR |= RCC_APB2ENR_USART1EN;
@@ -383,14 +712,15 @@ void board_init(void)
     GPIO_AFRH(GPIOA_BASE) = (GPIO_AFRH(GPIOA_BASE) & ~((0xFu << 4) | (0xFu << 8))) | (7u << 4) | (7u << 8);
     console_init();
     link_init();
-    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);  /* SysTick below the blocks (QEMU: raised to them) */
+    SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);  /* SysTick below the blocks (QEMU: raised above all) */
     SYST_RVR = BOARD_CORE_HZ / BOARD_TICK_HZ - 1u;
     SYST_CVR = 0u;
     SYST_CSR = SYST_CSR_CLKSOURCE | SYST_CSR_TICKINT | SYST_CSR_ENABLE;
 }
 
-void board_carrier_start(board_block_fn block)
+void board_carrier_start(board_block_fn block, board_lost_fn lost)
 {
+    carrier_lost = lost;
     carrier_clock_start();
     carrier_block = block;
 }
@@ -403,14 +733,8 @@ uint32_t board_millis(void)
 void board_fault_stop(void)
 {
     __asm__ volatile("cpsid i" ::: "memory");
-#ifndef UG_BOARD_QEMU
-    TIM_CR1(TIM2_BASE) = 0u;
-    DMA_SxCR(DMA1_BASE, 5) = 0u;
-    DAC_DHR12L1 = 0x8000u;  /* mid-scale: no drive reaches the amplifier */
-#endif
+    board_output_off();
     SYST_CSR = 0u;
-    board_dac_blank(0u);
-    board_dac_blank(1u);
     for (;;) {
         __asm__ volatile("wfi");
     }

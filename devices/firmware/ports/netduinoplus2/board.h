@@ -31,6 +31,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "ug_safety.h"
+
 #define BOARD_CORE_HZ 168000000u   /* the STM32F405 at full speed; QEMU's netduinoplus2 fixes this clock */
 #define BOARD_APB1_HZ 42000000u    /* HCLK / 4: USART2 */
 #define BOARD_APB2_HZ 84000000u    /* HCLK / 2: USART1 */
@@ -46,12 +48,24 @@
 #define BOARD_BLOCK_SAMPLES (BOARD_BLOCK_DRIVE * BOARD_OVERSAMPLE)  /* 240 DAC and ADC samples a block */
 #define BOARD_CATCH_UP 8u          /* QEMU: blocks run at most in one SysTick interrupt */
 #define BOARD_STALL_BLOCKS 20u     /* QEMU: more blocks due than this, and QEMU was stalled: the time is skipped */
+#define BOARD_CONSOLE_PRIORITY 0xA0u /* USART2, the debug console: below everything */
 #define BOARD_BLOCK_PRIORITY 0x60u /* the block interrupt (the core's tick, DAC and ADC), and BASEPRI's mask */
 #define BOARD_LINK_PRIORITY 0x40u  /* USART1: above the blocks, so a byte never waits for one */
+#define BOARD_WATCHDOG_PRIORITY 0x00u /* QEMU: SysTick, the clock and the watchdog's stand-in, above everything */
+/* The hardware watchdog's timeout: both marks (block interrupt, main loop) must be seen within it. Hardware: the
+   IWDG at the LSI's nominal 32 kHz (17-47 kHz: 2.7-7.5 ms); QEMU: the stand-in's, on the virtual clock. */
+#define BOARD_WATCHDOG_US 4000u
+#define BOARD_WATCHDOG_STALL_US 2500u /* QEMU: a look this late after the last: QEMU stalled, the window restarts */
+#define BOARD_WATCHDOG_BUSY_US 50000u /* QEMU: the main loop's mark excused while the block interrupt catches up */
+#define BOARD_WATCHDOG_MISSES 3u      /* ... and expires after this many looks in a row without both marks, and
+                                         BOARD_WATCHDOG_US of virtual time (one look after QEMU itself stalled
+                                         is not the board's fault) */
 
 /* Run for each block (in the block interrupt): `half` (0 or 1) names the halves of the ADC buffer just
    measured and of the DAC buffer to refill. */
 typedef void (*board_block_fn)(uint32_t half);
+/* Run instead when `blocks` blocks' time was lost (a late block interrupt: both halves silenced, none refilled). */
+typedef void (*board_lost_fn)(uint32_t blocks);
 
 void board_init(void);
 /* Milliseconds since boot (hardware: SysTick; QEMU: blocks run). */
@@ -77,7 +91,7 @@ const uint16_t *board_adc_half(uint32_t half);
 void board_dac_blank(uint32_t half);
 
 /* Start the carrier's block clock: `block` runs for each block from then on. */
-void board_carrier_start(board_block_fn block);
+void board_carrier_start(board_block_fn block, board_lost_fn lost);
 
 /* Mask and unmask the block interrupt (BASEPRI), leaving the link's interrupt on; nests when the caller
    keeps what mask returns and gives it back to unmask. */
@@ -98,6 +112,44 @@ void board_emulate_block(uint32_t half);
 
 /* Safe state: DAC to mid-scale (no drive), its timers and DMA stopped, interrupts off, wait. */
 void board_fault_stop(void);
+
+/* The output silent at once, the DMA left running (ug_port_output_safe): both DAC halves to mid-scale, so
+   what the DMA plays next is silence. */
+void board_output_safe(void);
+/* The output silent without the DMA (fault handlers, the watchdog): the DAC's DMA and trigger stopped and
+   mid-scale loaded by software. Uses no stack beyond its own frame; the fault handlers do the same in
+   assembly (startup.c) before any C. */
+void board_output_off(void);
+/* Note why and reset the board now (SYSRESETREQ); the output is made silent first. Never returns. */
+void board_reset(uint32_t reason, uint32_t detail) __attribute__((noreturn));
+/* The fault handlers' C part (after their assembly made the output silent and reset the stack). */
+void board_fault_reset(void) __attribute__((noreturn));
+
+/* The block interrupt's and the main loop's marks, and the hardware watchdog they feed (hardware: the IWDG
+   refreshed in the block interrupt when both were set; QEMU: TIM3's stand-in checks them). */
+void board_watchdog_start(void);
+void board_watchdog_service(void);
+/* QEMU: how many times the stand-in has looked at the marks. */
+uint32_t board_watchdog_looks(void);
+/* QEMU: looks that came late (QEMU itself stalled) and restarted the window. */
+uint32_t board_watchdog_stalls(void);
+/* Why the board last restarted (UG_RESET_*) and the record of it (ug_safety.h); read once at boot. */
+uint32_t board_reset_reason(void);
+const struct ug_reset_record *board_reset_record(void);
+/* Blocks that came late (both DMA halves flagged, or QEMU's catch-up), DMA transfer errors, DAC underruns. */
+uint32_t board_late_blocks(void);
+uint32_t board_dma_errors(void);
+uint32_t board_dac_underruns(void);
+/* The board's clock for fault timing: microseconds (QEMU: TIM5's virtual nanoseconds / 1000). */
+uint32_t board_time_us(void);
+
+#ifdef UG_BOARD_QEMU
+/* The fault the console asked for (ug_safety.h UG_INJECT_*), 0 for none; the main loop and the block
+   interrupt act on it. */
+uint32_t board_injected_fault(void);
+/* Note the injection's time and make it happen in this context (hangs, overflows or faults: never returns). */
+void board_inject_now(uint32_t kind) __attribute__((noreturn));
+#endif
 
 /* Sleep until the next interrupt. */
 void board_wait_for_interrupt(void);

@@ -14,7 +14,8 @@ int main(void)
     if (port_start(&config, um_pp_per_code) != UG_OK) {
         board_fault_stop();  /* a profile the core refuses: no output, ever */
     }
-    board_carrier_start(port_block);
+    board_carrier_start(port_block, port_lost);
+    board_watchdog_start();  /* from here on, both marks or a reset */
     for (;;) {
         if (port_service()) {
             continue;  /* more to read before sleeping */

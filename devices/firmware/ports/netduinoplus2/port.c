@@ -43,12 +43,12 @@ static float amplitude[BOARD_BLOCK_DRIVE];     /* block interrupt only */
 static int16_t carrier[BOARD_BLOCK_SAMPLES];
 static ug_status block_status;
 static float sensed_carrier_hz;
-static uint8_t was_enabled;
 static volatile float peak_measured_um_pp;    /* the largest amplitude the core was given */
 static volatile uint32_t blocks;
 static volatile uint32_t work;                 /* an interrupt left the main loop something to do */
 static volatile uint32_t link_rx_bytes, link_tx_bytes;
 static uint32_t last_stats;
+static uint32_t main_last_us, main_max_gap_us;  /* the longest the main loop went between two turns */
 
 #if defined(UG_BOARD_QEMU) && !defined(UG_BOARD_BENCH)
 #define UG_LINK_TAP 1  /* the QEMU image's independent reading of the setpoints received (link_tap.h) */
@@ -79,6 +79,13 @@ void ug_port_critical_exit(void *port)
 void ug_port_tx_ready(void *port)
 {
     (void)port;  /* the main loop starts the transmitter after every poll */
+}
+
+void ug_port_output_safe(void *port, uint8_t why)
+{
+    (void)port;
+    (void)why;
+    board_output_safe();  /* both DAC halves to mid-scale: the DMA plays silence from its next word */
 }
 
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms)
@@ -115,15 +122,12 @@ size_t board_link_take(uint8_t *out, size_t max)
 void port_block(uint32_t half)
 {
     float peak = ug_sense_block(&sense, board_adc_half(half), BOARD_BLOCK_DRIVE, BOARD_OVERSAMPLE, amplitude);
-    size_t cut = ug_core_adc_block(&core, amplitude, NULL, NULL, BOARD_BLOCK_DRIVE);
-    ug_core_dac_block(&core, carrier, BOARD_BLOCK_SAMPLES);
+    size_t cut = ug_core_block(&core, amplitude, NULL, NULL, BOARD_BLOCK_DRIVE, carrier, BOARD_BLOCK_SAMPLES);
     ug_dac_block(carrier, board_dac_half(half), BOARD_BLOCK_SAMPLES);
-    ug_core_tick(&core);
     ug_core_status(&core, &block_status);
-    if (cut < BOARD_BLOCK_DRIVE || (was_enabled && !block_status.enabled)) {
-        board_dac_blank(half ^ 1u);  /* a trip or a disable: the half playing now stops too */
+    if (cut < BOARD_BLOCK_DRIVE) {
+        board_dac_blank(half ^ 1u);  /* a trip (ug_port_output_safe blanked both; the refill above is silent too) */
     }
-    was_enabled = block_status.enabled;
     if (block_status.carrier_hz != sensed_carrier_hz) {
         sensed_carrier_hz = block_status.carrier_hz;
         ug_sense_set_carrier(&sense, sensed_carrier_hz);
@@ -133,6 +137,15 @@ void port_block(uint32_t half)
     }
     blocks++;
     work = 1u;
+    ug_marks_block();
+}
+
+void port_lost(uint32_t lost_blocks)
+{
+    ug_core_lost_time(&core, lost_blocks);  /* one block is one millisecond */
+    blocks += lost_blocks;
+    work = 1u;
+    ug_marks_block();
 }
 
 /* ---- the console ---------------------------------------------------------------------------------------- */
@@ -217,7 +230,7 @@ static void console_stats(void)
     ug_port_critical_enter(NULL);
     ug_core_status(&core, &s);
     ug_port_critical_exit(NULL);
-    char line[512];
+    char line[768];
     char *end = line + sizeof line;
     char *at = ug_append_text(line, end, "ev stats");
     at = append_pair(at, end, "frames", s.frames_ok);
@@ -239,9 +252,16 @@ static void console_stats(void)
     at = append_pair(at, end, "tx_dropped", s.tx_dropped);
     at = append_fixed_pair(at, end, "peak_um_pp", peak_measured_um_pp, 4u);
     at = append_pair(at, end, "blocks", blocks);
+    at = append_pair(at, end, "late_blocks", board_late_blocks());
+    at = append_pair(at, end, "lost_ms", s.lost_ms);
+    at = append_pair(at, end, "dma_errors", board_dma_errors());
+    at = append_pair(at, end, "dac_underruns", board_dac_underruns());
 #ifdef UG_BOARD_QEMU
     at = append_fixed_pair(at, end, "plate_peak_um_pp", board_plate_peak_um_pp(), 4u);
     at = append_pair(at, end, "skipped_ms", board_skipped_ms());
+    at = append_pair(at, end, "watchdog_looks", board_watchdog_looks());
+    at = append_pair(at, end, "watchdog_stalls", board_watchdog_stalls());
+    at = append_pair(at, end, "main_max_gap_us", main_max_gap_us);
 #endif
 #ifdef UG_LINK_TAP
     at = append_pair(at, end, "tap_setpoints", tap.setpoints);
@@ -294,7 +314,7 @@ void port_configure(ug_config *config, float *um_pp_per_code)
 
 static void boot_line(const ug_config *config, int result)
 {
-    char line[320];
+    char line[480];
     char *end = line + sizeof line;
     char *at = ug_append_text(line, end, result == UG_OK ? "ev boot board=netduinoplus2" : "ev error what=config");
 #ifdef UG_BOARD_QEMU
@@ -310,6 +330,30 @@ static void boot_line(const ug_config *config, int result)
 #else
     at = ug_append_text(at, end, " variant=hardware");
 #endif
+#ifdef UG_BOARD_QEMU
+    at = ug_append_text(at, end, " watchdog=stand-in-timer");  /* QEMU models no IWDG: TIM3 checks the marks */
+#else
+    at = ug_append_text(at, end, " watchdog=iwdg");
+#endif
+    at = append_pair(at, end, "watchdog_us", BOARD_WATCHDOG_US);
+    const ug_reset_record_t *record = board_reset_record();
+    at = ug_append_text(at, end, " reset_reason=");
+    at = ug_append_text(at, end, ug_reset_name(board_reset_reason()));
+    if (board_reset_reason() == UG_RESET_FAULT) {
+        at = append_pair(at, end, "fault_status", record->detail);  /* CFSR */
+    } else if (board_reset_reason() == UG_RESET_WATCHDOG && record->magic == UG_RESET_MAGIC) {
+        at = append_pair(at, end, "marks_seen", record->detail & 3u);  /* 1 block, 2 main loop */
+        at = append_pair(at, end, "looks_missed", (record->detail >> 8) & 0xFFu);
+        at = append_pair(at, end, "stalls", record->detail >> 16);
+        at = append_pair(at, end, "pc", record->where);
+    }
+    if (record->injected != 0u) {
+        at = ug_append_text(at, end, " injected=");
+        at = ug_append_text(at, end, ug_inject_name(record->injected));
+        if (record->silent_after_us != UG_NOT_INJECTED) {
+            at = append_pair(at, end, "silent_after_us", record->silent_after_us);
+        }
+    }
     at = append_fixed_pair(at, end, "resonance_hz", config->resonance_hz, 1u);
     at = append_fixed_pair(at, end, "q", config->q, 1u);
     at = append_fixed_pair(at, end, "full_scale_um_pp", config->full_scale_um_pp, 3u);
@@ -337,6 +381,18 @@ int port_start(const ug_config *config, float um_pp_per_code)
 
 bool port_service(void)
 {
+    ug_marks_main();
+    uint32_t now_us = board_time_us();
+    if (main_last_us != 0u && now_us - main_last_us > main_max_gap_us && now_us - main_last_us < 1000000u) {
+        main_max_gap_us = now_us - main_last_us;
+    }
+    main_last_us = now_us;
+#ifdef UG_BOARD_QEMU
+    uint32_t injected = board_injected_fault();
+    if (injected == UG_INJECT_MAIN_HANG || injected == UG_INJECT_STACK_OVERFLOW || injected == UG_INJECT_HARD_FAULT) {
+        board_inject_now(injected);  /* the main loop's faults happen here */
+    }
+#endif
     board_link_service();
     ug_core_poll(&core);
     board_link_service();

@@ -20,6 +20,8 @@ ug_core *port_core(void);
 
 /* One block (the block interrupt): measure the ADC half, feed the core, fill the DAC half, tick. */
 void port_block(uint32_t half);
+/* Blocks whose time was lost (a late block interrupt): the core's clock moves on without output. */
+void port_lost(uint32_t blocks);
 
 /* One turn of the main loop: poll the core, start the transmitter, print events and statistics; true
    when there is more to do at once. */

@@ -21,11 +21,13 @@
 
 #define NVIC_ISER(n)    UG_REG(0xE000E100u + 4u * (n))
 #define NVIC_ICER(n)    UG_REG(0xE000E180u + 4u * (n))
+#define NVIC_ISPR(n)    UG_REG(0xE000E200u + 4u * (n))
 #define NVIC_IPR_BYTE(irq) (*(volatile uint8_t *)(0xE000E400u + (irq)))
 #define SCB_VTOR        UG_REG(0xE000ED08u)
 #define SCB_AIRCR       UG_REG(0xE000ED0Cu)
 #define SCB_SHPR3       UG_REG(0xE000ED20u)  /* priorities of PendSV (bits 23:16) and SysTick (31:24) */
 #define SCB_CPACR       UG_REG(0xE000ED88u)  /* coprocessor access: CP10 and CP11 are the FPU */
+#define SCB_CFSR        UG_REG(0xE000ED28u)  /* configurable fault status: MMFSR, BFSR, UFSR */
 #define SCB_AIRCR_VECTKEY  (0x05FAu << 16)
 #define SCB_AIRCR_SYSRESETREQ (1u << 2)
 
@@ -37,6 +39,13 @@
 #define RCC_AHB1ENR     UG_REG(RCC_BASE + 0x30u)
 #define RCC_APB1ENR     UG_REG(RCC_BASE + 0x40u)
 #define RCC_APB2ENR     UG_REG(RCC_BASE + 0x44u)
+#define RCC_CSR         UG_REG(RCC_BASE + 0x74u)  /* reset flags (RM0090 §7.3.21) */
+#define RCC_CSR_RMVF       (1u << 24)
+#define RCC_CSR_PINRSTF    (1u << 26)
+#define RCC_CSR_PORRSTF    (1u << 27)
+#define RCC_CSR_SFTRSTF    (1u << 28)
+#define RCC_CSR_IWDGRSTF   (1u << 29)
+#define RCC_CSR_WWDGRSTF   (1u << 30)
 #define RCC_CR_HSEON       (1u << 16)
 #define RCC_CR_HSERDY      (1u << 17)
 #define RCC_CR_PLLON       (1u << 24)
@@ -112,11 +121,17 @@
 #define DMA_SxCR_DIR_P2M (0u << 6)
 #define DMA_LISR_HTIF0  (1u << 4)
 #define DMA_LISR_TCIF0  (1u << 5)
+#define DMA_LISR_TEIF0  (1u << 3)
+#define DMA_HISR_TEIF5  (1u << 9)   /* DMA1 stream 5 (the DAC's): transfer error */
+#define DMA_HISR_FEIF5  (1u << 6)
 #define GPIOA_PIN_ANALOG(pin) (GPIO_MODE_ANALOG << (2u * (pin)))
 
 /* ---- General-purpose timers TIM2..TIM5 (RM0090 §18.4): TIM2 and TIM5 are 32-bit ---- */
 #define TIM2_BASE       0x40000000u
 #define TIM2_IRQn       28u
+#define TIM3_BASE       0x40000400u
+#define TIM3_IRQn       29u
+#define RCC_APB1ENR_TIM3EN  (1u << 1)
 #define TIM5_BASE       0x40000C00u
 #define TIM_CR1(base)   UG_REG((base) + 0x00u)
 #define TIM_CR2(base)   UG_REG((base) + 0x04u)
@@ -141,6 +156,9 @@
 #define DAC_CR_TEN1     (1u << 2)
 #define DAC_CR_TSEL1_TIM2 (4u << 3)  /* TIM2 TRGO */
 #define DAC_CR_DMAEN1   (1u << 12)
+#define DAC_CR_DMAUDRIE1 (1u << 13)
+#define DAC_SR          UG_REG(DAC_BASE + 0x34u)
+#define DAC_SR_DMAUDR1  (1u << 13)  /* a trigger came before the DMA delivered: written 1 to clear */
 
 /* ---- DMA1 (RM0090 §10.5): stream 5 channel 7 is DAC1's request ---- */
 #define DMA1_BASE       0x40026000u

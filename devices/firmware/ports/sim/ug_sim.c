@@ -7,6 +7,15 @@
 void ug_port_critical_enter(void *port) { (void)port; }
 void ug_port_critical_exit(void *port) { (void)port; }
 void ug_port_tx_ready(void *port) { (void)port; }
+/* the simulated plate's drive is the core's own drive block: it is silent from the next sample the core
+   makes after the output went off, so there is nothing of the port's to blank */
+void ug_port_output_safe(void *port, uint8_t why) {
+    ug_sim *sim = port;
+    if (sim != NULL) {
+        sim->output_safe_calls++;
+        sim->output_safe_why = why;
+    }
+}
 
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms) {
     ug_sim *sim = port;
@@ -15,6 +24,11 @@ void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms) {
         sim->fault_ms[sim->faults_queued] = duration_ms;
         sim->faults_queued++;
     }
+}
+
+uint32_t ug_sim_output_safe_calls(const ug_sim *sim, uint8_t *why) {
+    *why = sim->output_safe_why;
+    return sim->output_safe_calls;
 }
 
 /* ---- sizes, for the binding to check its structures against ---- */

@@ -24,6 +24,8 @@ typedef struct ug_sim {
     uint32_t quiet_until_ms; /* an excused stall: the core's clock catches up to here without telemetry */
     uint8_t quiet;           /* quiet_until_ms holds */
     uint8_t telemetry_owed;  /* telemetry fell due while quiet: one frame once the clock is there */
+    uint32_t output_safe_calls; /* ug_port_output_safe() calls so far, and the last one's UG_SAFE_* */
+    uint8_t output_safe_why;
 } ug_sim;
 
 size_t ug_sim_size(void);
@@ -55,6 +57,8 @@ void ug_sim_excuse(ug_sim *sim, uint32_t ms);
 
 void ug_sim_status(const ug_sim *sim, ug_status *out);
 int ug_sim_next_event(ug_sim *sim, ug_event *out);
+/* how many times the core asked for a silent output (ug_port_output_safe), and why the last time */
+uint32_t ug_sim_output_safe_calls(const ug_sim *sim, uint8_t *why);
 int ug_sim_take_fault(ug_sim *sim, uint8_t *kind, uint16_t *duration_ms);
 
 #endif /* UG_SIM_H */
