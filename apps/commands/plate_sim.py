@@ -39,11 +39,32 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sim.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                      help="break one rule of docs/protocol.md on purpose (R-NAK-ORDER, R-WATCHDOG, ...; see its "
                           "Conformance section), to test `plate check`; repeat for several")
-    sim.add_argument("--board", choices=["sim", "qemu"], default="sim",
-                     help="sim: the firmware's core on this machine; qemu: the netduinoplus2 board image under "
-                          "QEMU (built first if needed), its UART on the pty (default: sim)")
+    sim.add_argument("--board", choices=["sim", "qemu", "netduinoplus2"], default="sim",
+                     help="sim: the firmware's core on this machine; qemu (or netduinoplus2): the netduinoplus2 "
+                          "board image under QEMU (built first if needed), its UART on the pty (default: sim)")
+    sim.add_argument("--board-fault", type=board_fault, metavar="KIND@SECONDS",
+                     help="a board only: make the board fail SECONDS after it serves, KIND one of "
+                          "isr-hang (its block interrupt stops), main-hang (its main loop stops), stack-overflow, "
+                          "hard-fault; its watchdog or fault handler silences the output and resets it, and the "
+                          "events say so (watchdog_reset or board_fault, output_blanked with after_fault_ms)")
     add_finger_options(sim, "the force sensors under the plate; absent unless a --finger option is given")
     sim.set_defaults(run=run)
+
+
+def board_fault(text: str) -> tuple[str, float]:
+    """``KIND@SECONDS`` (``isr-hang@2``) as (kind, seconds); argparse's error otherwise."""
+    from ultraglide.devices.firmware.qemu import FAULT_KINDS
+
+    kind, at, seconds = text.partition("@")
+    if kind not in FAULT_KINDS or not at:
+        raise argparse.ArgumentTypeError(f"must be KIND@SECONDS with KIND one of {', '.join(FAULT_KINDS)}, got {text}")
+    try:
+        value = float(seconds)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{seconds!r} is not a number of seconds") from None
+    if not 0.0 <= value <= 86_400.0:
+        raise argparse.ArgumentTypeError(f"the fault's time must lie within 0-86400 s, got {seconds}")
+    return kind, value
 
 
 def _rules(texts: list[str]) -> tuple[str, ...]:
@@ -73,7 +94,12 @@ def describe_event(event: dict) -> str:
 def run(args) -> int:
     args.max_version = int(args.max_version)
     args.breaks = list(_rules(args.breaks))
-    if args.board == "qemu":
+    if args.board == "sim" and args.board_fault:
+        from ultraglide.apps.cli.errors import UsageError
+
+        raise UsageError("--board-fault is a board's (--board qemu): the simulator's faults come from the host "
+                         "(SIM_FAULT)")
+    if args.board in ("qemu", "netduinoplus2"):
         if args.breaks or args.max_version != 3 or finger_asked(args) or args.clock_ppm:
             from ultraglide.apps.cli.errors import UsageError
 
@@ -179,9 +205,13 @@ def _plate_sim_qemu(args) -> int:
             print_line(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
                   f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
                   "Ctrl-C stops it")
+        fault_at = time.monotonic() + args.board_fault[1] if args.board_fault else None
         while True:  # until a stop signal raises through here, or QEMU dies
+            if fault_at is not None and time.monotonic() >= fault_at:
+                plate.inject_fault(args.board_fault[0])
+                fault_at = None
             try:
-                event = plate.events.get(timeout=0.1)
+                event = plate.events.get(timeout=0.01 if fault_at is not None else 0.1)
             except queue.Empty:
                 if not plate.alive:
                     raise DeviceError(f"QEMU stopped unexpectedly (exit status {plate.process.returncode})")  # noqa: B904

@@ -50,6 +50,7 @@ _PR_SET_PDEATHSIG = 1
 CONFIG_MAGIC = 0x5547_4550  # "UGEP"
 QEMU_FIFO_PRIORITY = 1  # above every normal process (a loaded machine deschedules QEMU, and the board's time with
 # it, for tens of ms: its plate runs dry, its buffer drifts), below the host engine's block thread (60)
+FAULT_KINDS = ("isr-hang", "main-hang", "stack-overflow", "hard-fault")  # ports/common/ug_safety.h
 QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its threads: each waits for a CPU
 
 
@@ -124,6 +125,37 @@ def _prepare_child() -> None:  # runs in the child between fork and exec
             os.nice(QEMU_NICE)
 
 
+def restart_events(boot: dict) -> list[dict]:
+    """What a boot line after a reset says happened before it, as plate-sim's events: ``watchdog_reset`` (the
+    hardware watchdog or its stand-in expired: a mark was missing) or ``board_fault`` (a fault handler ran, with the
+    fault status register), then ``output_blanked`` with ``after_fault_ms``, the time the board measured on its
+    own clock from an injected fault to the moment its output was silenced (the emulated DAC stopped and held at
+    mid-scale); none for a power-on."""
+    reason = boot.get("reset_reason")
+    if reason in (None, "power-on"):
+        return []
+    t_s = boot["t_s"]
+    found: list[dict] = []
+    if reason == "watchdog":
+        event = {"t_s": t_s, "event": "watchdog_reset"}
+        for key in ("marks_seen", "looks_missed", "pc"):
+            if key in boot:
+                event[key] = boot[key]
+        event["missing"] = [name for bit, name in ((1, "block interrupt"), (2, "main loop"))
+                            if not boot.get("marks_seen", 0) & bit]
+    elif reason == "fault":
+        event = {"t_s": t_s, "event": "board_fault", "fault_status": boot.get("fault_status", 0)}
+    else:
+        event = {"t_s": t_s, "event": "reset", "reason": reason}
+    if "injected" in boot:
+        event["injected"] = boot["injected"]
+    found.append(event)
+    if isinstance(boot.get("silent_after_us"), int):
+        found.append({"t_s": t_s, "event": "output_blanked", "after_fault_ms": boot["silent_after_us"] / 1000.0,
+                      "injected": boot.get("injected"), "by": event["event"]})
+    return found
+
+
 def parse_event(line: str, t_s: float) -> dict | None:
     """One debug-console line of the board (``ev NAME key=value ...``) as an event dict, or None for other
     lines. Numbers become ints or floats; ``t_s`` is the board's own clock where the line gives it (the core's
@@ -195,7 +227,7 @@ class QemuPlate:
             shutil.copyfile(self.elf_path, copy)
             self.plate.write_into(copy)
             self.elf_path = copy
-        self.process = subprocess.Popen(self.command(), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+        self.process = subprocess.Popen(self.command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                         stderr=subprocess.PIPE, preexec_fn=_prepare_child)
         self._started_at = time.perf_counter()
         try:
@@ -256,10 +288,26 @@ class QemuPlate:
                 self.lines.put_nowait(text)
             event = parse_event(text, t_s)
             if event is not None:
-                with contextlib.suppress(queue.Full):
-                    self.events.put_nowait(event)
+                for each in [event, *(restart_events(event) if event["event"] == "boot" else [])]:
+                    with contextlib.suppress(queue.Full):
+                        self.events.put_nowait(each)
                 if event["event"] in ("boot", "error"):
                     self._booted.set()
+
+    def inject_fault(self, kind: str) -> None:
+        """Make the board fail in one of FAULT_KINDS (its debug console's ``fault KIND`` command, QEMU image only):
+        ``isr-hang`` the block interrupt stops, ``main-hang`` the main loop stops, ``stack-overflow`` the main
+        loop recurses off the bottom of its stack, ``hard-fault`` it reads where nothing answers. The board then
+        resets (by its watchdog or its fault handler) and its next boot line says why (``restart_events``)."""
+        if kind not in FAULT_KINDS:
+            raise DeviceError(f"no board fault {kind!r}: the kinds are {', '.join(FAULT_KINDS)}")
+        if self.process is None or self.process.stdin is None or not self.alive:
+            raise DeviceError("the board is not running: start it before injecting a fault")
+        try:
+            self.process.stdin.write(f"fault {kind}\n".encode())
+            self.process.stdin.flush()
+        except OSError as error:
+            raise DeviceError(f"could not reach the board's console: {error.strerror or error}") from error
 
     def elapsed_s(self) -> float:
         return time.perf_counter() - self._started_at
@@ -282,7 +330,7 @@ class QemuPlate:
             status = self.process.returncode
             if self._reader is not None:
                 self._reader.join(STOP_TIMEOUT_S)
-            for stream in (self.process.stdout, self.process.stderr):
+            for stream in (self.process.stdin, self.process.stdout, self.process.stderr):
                 with contextlib.suppress(OSError, ValueError):
                     if stream is not None:
                         stream.close()

@@ -570,10 +570,10 @@ static void run_blocks(void)
 
 void board_inject_now(uint32_t kind)
 {
-    board_console_write(kind == UG_INJECT_ISR_HANG ? "ev injected kind=isr-hang\n"
-                        : kind == UG_INJECT_MAIN_HANG ? "ev injected kind=main-hang\n"
-                        : kind == UG_INJECT_STACK_OVERFLOW ? "ev injected kind=stack-overflow\n"
-                        : "ev injected kind=hard-fault\n");
+    board_console_write(kind == UG_INJECT_ISR_HANG ? "ev fault_injected kind=isr-hang\n"
+                        : kind == UG_INJECT_MAIN_HANG ? "ev fault_injected kind=main-hang\n"
+                        : kind == UG_INJECT_STACK_OVERFLOW ? "ev fault_injected kind=stack-overflow\n"
+                        : "ev fault_injected kind=hard-fault\n");
     ug_reset_note_injection(kind, TIM_CNT(TIM5_BASE));  /* the clock from which the silence is timed */
     if (kind == UG_INJECT_STACK_OVERFLOW) {
         extern void board_overflow_stack(uint32_t depth);

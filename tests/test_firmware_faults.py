@@ -1,0 +1,148 @@
+"""Faults injected into the netduinoplus2 board under QEMU (``plate-sim --board qemu --board-fault KIND@SECONDS``,
+the image's console command ``fault KIND``): each kind ends in a silent output and a reset, and the next boot
+says why. A hung block interrupt or main loop is caught by the watchdog (QEMU models no IWDG: the QEMU image's
+stand-in, SysTick at the highest priority checking the same two marks), which cannot fire before its 4 ms window;
+a stack overflow or a hard fault by the fault handler at once. The image's layout (the stack below RAM's data)
+is read from its ELF symbols. Marked ``qemu`` and ``slow``; one QEMU at a time (the lock of
+test_firmware_qemu.py)."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+from conftest import ROOT
+from ultraglide.devices.firmware.boards import build_images
+from ultraglide.devices.firmware.qemu import QemuPlate
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.qemu,
+    pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None or shutil.which("qemu-system-arm") is None,
+                       reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm"),
+]
+
+LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
+WATCHDOG_MS = 4.0  # board.h BOARD_WATCHDOG_US
+MISSES = 3  # BOARD_WATCHDOG_MISSES: looks in a row without both marks
+CFSR_STKERR, CFSR_PRECISERR, CFSR_BFARVALID = 1 << 12, 1 << 9, 1 << 15  # ARMv7-M BusFault status bits
+
+
+@pytest.fixture
+def one_qemu():
+    with open(LOCK, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+@pytest.fixture(scope="module")
+def image():
+    return build_images("netduinoplus2", ["qemu"])[0]
+
+
+def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) -> dict:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with contextlib.suppress(queue.Empty):
+            event = plate.events.get(timeout=0.2)
+            if event["event"] in names:
+                return event
+    raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
+
+
+def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
+    """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
+    assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
+    next_event(plate, ("stats",))  # a second of the board running normally: its watchdog stays quiet meanwhile
+    plate.inject_fault(kind)
+    assert next_event(plate, ("fault_injected",))["kind"] == kind
+    boot = next_event(plate, ("boot",))
+    happened = next_event(plate, ("watchdog_reset", "board_fault"))
+    blanked = next_event(plate, ("output_blanked",))
+    return boot, happened, blanked
+
+
+@pytest.mark.parametrize("kind", ["isr-hang", "main-hang"])
+def test_a_hang_is_caught_by_the_watchdog_which_silences_the_output_and_resets(one_qemu, image, kind):
+    with QemuPlate(image.elf_path) as plate:
+        boot, happened, blanked = injected(plate, kind)
+        assert boot["reset_reason"] == "watchdog" and boot["injected"] == kind and boot["watchdog"] == "stand-in-timer"
+        assert happened["event"] == "watchdog_reset"
+        # the mark that stopped: a hung block interrupt leaves neither (the main loop cannot run under it either);
+        # a hung main loop leaves the block interrupt's alone
+        assert happened["missing"] == (["block interrupt", "main loop"] if kind == "isr-hang" else ["main loop"])
+        assert MISSES <= happened["looks_missed"] <= MISSES + 3  # on time, on the board's own clock (1 ms a look)
+        # the window runs from the last refresh, at most one look (1 ms) before the fault: never sooner than that
+        assert blanked["injected"] == kind and blanked["after_fault_ms"] >= WATCHDOG_MS - 1.0
+        stats = next_event(plate, ("stats",))  # and it runs again after the reset
+        assert stats["blocks"] >= 900
+
+
+@pytest.mark.parametrize(("kind", "status_bits"), [("stack-overflow", CFSR_STKERR),
+                                                   ("hard-fault", CFSR_PRECISERR | CFSR_BFARVALID)])
+def test_a_fault_is_caught_by_its_handler_which_silences_the_output_first(one_qemu, image, kind, status_bits):
+    with QemuPlate(image.elf_path) as plate:
+        boot, happened, blanked = injected(plate, kind)
+        assert boot["reset_reason"] == "fault" and boot["injected"] == kind
+        assert happened["event"] == "board_fault" and happened["fault_status"] & status_bits == status_bits
+        assert 0.0 <= blanked["after_fault_ms"] < WATCHDOG_MS  # the handler, not the watchdog
+        assert next_event(plate, ("stats",))["blocks"] >= 900
+
+
+def test_plate_sim_board_fault_prints_what_the_board_did_as_json(one_qemu, image):
+    process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", "netduinoplus2",
+                                "--board-fault", "isr-hang@1.5", "--json"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    events = []
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not any(e["event"] == "output_blanked" for e in events):
+            line = process.stdout.readline()
+            if not line:
+                break
+            events.append(json.loads(line))
+    finally:
+        process.send_signal(signal.SIGINT)
+        status = process.wait(timeout=60)
+    names = [e["event"] for e in events if e["event"] != "stats"]
+    assert names[:2] == ["serving", "boot"]
+    assert names[2:] == ["fault_injected", "boot", "watchdog_reset", "output_blanked"], names
+    assert events[-1]["after_fault_ms"] >= WATCHDOG_MS - 1.0 and events[-1]["by"] == "watchdog_reset"
+    assert status == 128 + signal.SIGINT
+
+
+@pytest.mark.parametrize("argument", ["isr-hang", "isr-hang@", "nothing@1", "isr-hang@-1", "isr-hang@soon"])
+def test_a_bad_board_fault_is_refused_in_one_line(argument):
+    result = subprocess.run([sys.executable, "-m", "ultraglide", "plate-sim", "--board", "qemu", "--board-fault",
+                             argument], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert result.returncode == 2 and result.stdout == ""
+    assert len(result.stderr.strip().splitlines()) <= 2 and "--board-fault" in result.stderr
+
+
+def test_board_fault_is_refused_on_the_simulator():
+    result = subprocess.run([sys.executable, "-m", "ultraglide", "plate-sim", "--board-fault", "isr-hang@1"],
+                            capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert result.returncode == 1 and result.stdout == ""  # the house's UsageError after parsing
+    assert len(result.stderr.strip().splitlines()) == 1 and "--board qemu" in result.stderr
+
+
+def test_the_stack_sits_below_ram_s_data_so_an_overflow_faults(image):
+    symbols = {}
+    for line in subprocess.run(["arm-none-eabi-nm", image.elf_path], capture_output=True, text=True,
+                               check=True).stdout.splitlines():
+        address, _kind, name = line.split()
+        symbols[name] = int(address, 16)
+    assert symbols["_stack_bottom"] == 0x2000_0000  # the start of SRAM: below it nothing answers
+    assert symbols["_stack_top"] - symbols["_stack_bottom"] == image.stack_bytes == 8192
+    assert symbols["_stack_top"] <= symbols["_data_start"] < symbols["_bss_start"]
+    assert symbols["_stack_top"] <= symbols["ug_reset_record"] < symbols["_data_start"]  # .noinit: not zeroed
