@@ -9,21 +9,27 @@
 
 /* ---- frames from the host ------------------------------------------------------------------------- */
 void ug_core_uart_rx(ug_core *core, const uint8_t *data, size_t n) {
-    uint16_t head = core->rx_head;
+    uint16_t head = atomic_load_explicit(&core->rx_head, memory_order_relaxed); /* ours: the producer's */
+    uint16_t tail = atomic_load_explicit(&core->rx_tail, memory_order_acquire); /* the room the consumer freed */
     for (size_t i = 0; i < n; i++) {
         uint16_t next = (uint16_t)((head + 1u) & (UG_RX_RING - 1u));
-        if (next == core->rx_tail) {
-            core->rx_overflows++;
-            continue;
+        if (next == tail) {
+            tail = atomic_load_explicit(&core->rx_tail, memory_order_acquire);
+            if (next == tail) {
+                core->rx_overflows++;
+                continue;
+            }
         }
         core->rx[head] = data[i];
         head = next;
     }
-    core->rx_head = head;
+    atomic_store_explicit(&core->rx_head, head, memory_order_release); /* the bytes before the index */
 }
 
 size_t ug_core_rx_room(const ug_core *core) {
-    return (size_t)(UG_RX_RING - 1u - ((core->rx_head - core->rx_tail) & (UG_RX_RING - 1u)));
+    uint16_t head = atomic_load_explicit(&core->rx_head, memory_order_acquire);
+    uint16_t tail = atomic_load_explicit(&core->rx_tail, memory_order_acquire);
+    return (size_t)(UG_RX_RING - 1u - ((head - tail) & (UG_RX_RING - 1u)));
 }
 
 static bool known(uint8_t type) {
@@ -295,6 +301,7 @@ static void take_frame(ug_core *core) {
     uint32_t crc = ug_get_u32(body + length - 4u);
     bool valid = ug_crc32(body, length - 4u) == crc;
     ug_port_critical_enter(core->port);
+    core->outbox_deferring = 1;
     if (!valid) {
         core->crc_errors++;
     }
@@ -305,7 +312,9 @@ static void take_frame(ug_core *core) {
         core->watchdog_fired = 0; /* a new silence starts */
         request = handle(core, body[0], ug_get_u16(body + 1), body + 3, length - 7u);
     }
+    core->outbox_deferring = 0;
     ug_port_critical_exit(core->port);
+    ug_outbox_flush(core); /* the reply's CRC and COBS, with the block interrupt free to run */
     if (request != 0u) {
         ug_port_sim_fault(core->port, (uint8_t)(request >> 16), (uint16_t)request);
     }
@@ -313,9 +322,11 @@ static void take_frame(ug_core *core) {
 
 void ug_core_poll(ug_core *core) {
     uint16_t max_encoded = (uint16_t)(UG_BROKEN(core, UG_BREAK_FRAMING) ? UG_MAX_BODY : UG_MAX_ENCODED);
-    while (core->rx_tail != core->rx_head) {
-        uint8_t byte = core->rx[core->rx_tail];
-        core->rx_tail = (uint16_t)((core->rx_tail + 1u) & (UG_RX_RING - 1u));
+    uint16_t tail = atomic_load_explicit(&core->rx_tail, memory_order_relaxed); /* ours: the consumer's */
+    while (tail != atomic_load_explicit(&core->rx_head, memory_order_acquire)) {
+        uint8_t byte = core->rx[tail];
+        tail = (uint16_t)((tail + 1u) & (UG_RX_RING - 1u));
+        atomic_store_explicit(&core->rx_tail, tail, memory_order_release); /* the byte read before its room is freed */
         int result = ug_decoder_feed(&core->decoder, byte, max_encoded);
         if (result == UG_DECODE_FRAME) {
             take_frame(core);
@@ -326,19 +337,25 @@ void ug_core_poll(ug_core *core) {
         }
     }
     if (core->telemetry_due) {
-        ug_port_critical_enter(core->port);
+        ug_port_critical_enter(core->port); /* a copy of the state into the payload: ~90 bytes */
         core->telemetry_due = 0;
-        ug_send_telemetry(core);
+        size_t n = ug_telemetry_payload(core, core->scratch_payload);
         ug_port_critical_exit(core->port);
+        ug_send(core, UG_TELEMETRY, core->scratch_payload, n); /* CRC, COBS, ring: outside the lock */
     }
     if (core->sensors_due) {
-        ug_port_critical_enter(core->port);
+        uint32_t first = 0;
+        uint8_t count = 0;
+        ug_port_critical_enter(core->port); /* the rings swapped: a few instructions */
         core->sensors_due = 0;
         if (core->session >= 3u) {
-            ug_send_sensors(core);
+            count = ug_sensors_swap(core, &first);
         } else {
             core->sensor_pending = 0; /* a v2 host gets none */
         }
         ug_port_critical_exit(core->port);
+        if (count > 0u) {
+            ug_send_sensors(core, count, first); /* up to a 969-byte frame, encoded with the blocks running */
+        }
     }
 }

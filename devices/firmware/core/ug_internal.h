@@ -55,8 +55,13 @@ void ug_send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n);
 void ug_ack(ug_core *core, uint16_t seq);
 void ug_nak(ug_core *core, uint8_t type, uint16_t seq, uint8_t reason);
 size_t ug_hello_reply(const ug_core *core, uint8_t *p);
-void ug_send_telemetry(ug_core *core);
-void ug_send_sensors(ug_core *core);
+/* TELEMETRY's payload into p (inside the lock: a copy of the state); its length */
+size_t ug_telemetry_payload(ug_core *core, uint8_t *p);
+/* SENSORS: swap the rings inside the lock (the samples waiting, and the number of the first), send outside it */
+uint8_t ug_sensors_swap(ug_core *core, uint32_t *first_number);
+void ug_send_sensors(ug_core *core, uint8_t count, uint32_t first_number);
+/* replies kept while a frame's critical section held (ug_send in it), encoded and queued now */
+void ug_outbox_flush(ug_core *core);
 
 /* little-endian fields */
 static inline void ug_put_u16(uint8_t *p, uint16_t v) { p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); }

@@ -30,10 +30,10 @@ static void sense_sample(ug_core *core, float amplitude, float normal, float lat
     float scale = 1.0f / (float)core->sensor_decimation;
     const uint8_t bits[3] = {UG_SENSOR_AMPLITUDE, UG_SENSOR_NORMAL_FORCE, UG_SENSOR_LATERAL_FORCE};
     for (unsigned k = 0; k < 3u; k++) {
-        core->sensor_ring[core->sensor_pending].value[k] =
+        core->sensor_ring[core->sensor_active][core->sensor_pending].value[k] =
             (core->config.sensors & bits[k]) ? core->sensor_sum[k] * scale : NAN;
     }
-    core->sensor_ring[core->sensor_pending].index = core->sensor_first_index;
+    core->sensor_ring[core->sensor_active][core->sensor_pending].index = core->sensor_first_index;
     core->sensor_pending++;
     core->sensor_next++;
 }

@@ -4,9 +4,36 @@
 #include "ug_internal.h"
 
 /* ---- frames to the host ---------------------------------------------------------------------------- */
-static uint16_t tx_used(const ug_core *core) { return (uint16_t)((core->tx_head - core->tx_tail) & (UG_TX_RING - 1u)); }
+static uint16_t tx_used(const ug_core *core) {
+    uint16_t head = atomic_load_explicit(&core->tx_head, memory_order_relaxed);
+    uint16_t tail = atomic_load_explicit(&core->tx_tail, memory_order_acquire);
+    return (uint16_t)((head - tail) & (UG_TX_RING - 1u));
+}
+
+static void encode_and_queue(ug_core *core, uint8_t type, const uint8_t *payload, size_t n);
 
 void ug_send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n) {
+    if (core->outbox_deferring && core->outbox_count < UG_OUTBOX && n <= UG_OUTBOX_PAYLOAD) {
+        /* inside a frame's critical section: keep the reply, encode it (CRC, COBS, ring) after the lock */
+        unsigned slot = core->outbox_count++;
+        core->outbox[slot].type = type;
+        core->outbox[slot].length = (uint8_t)n;
+        for (size_t i = 0; i < n; i++) {
+            core->outbox[slot].payload[i] = payload[i];
+        }
+        return;
+    }
+    encode_and_queue(core, type, payload, n);
+}
+
+void ug_outbox_flush(ug_core *core) {
+    for (unsigned i = 0; i < core->outbox_count; i++) {
+        encode_and_queue(core, core->outbox[i].type, core->outbox[i].payload, core->outbox[i].length);
+    }
+    core->outbox_count = 0;
+}
+
+static void encode_and_queue(ug_core *core, uint8_t type, const uint8_t *payload, size_t n) {
     uint8_t *body = core->scratch_body;
     body[0] = type;
     ug_put_u16(body + 1, core->seq);
@@ -20,12 +47,12 @@ void ug_send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n) {
         core->tx_dropped++;
         return;
     }
-    uint16_t head = core->tx_head;
+    uint16_t head = atomic_load_explicit(&core->tx_head, memory_order_relaxed);
     for (size_t i = 0; i < length; i++) {
         core->tx[head] = core->frame[i];
         head = (uint16_t)((head + 1u) & (UG_TX_RING - 1u));
     }
-    core->tx_head = head;
+    atomic_store_explicit(&core->tx_head, head, memory_order_release); /* the frame's bytes before the index */
     if (!(UG_BROKEN(core, UG_BREAK_DEVICE_SEQ) && (type == UG_ACK || type == UG_NAK))) {
         core->seq++; /* broken: "its ACK and NAK frames take no seq of their own" */
     }
@@ -34,12 +61,13 @@ void ug_send(ug_core *core, uint8_t type, const uint8_t *payload, size_t n) {
 
 size_t ug_core_uart_tx(ug_core *core, uint8_t *out, size_t max) {
     size_t n = 0;
-    uint16_t tail = core->tx_tail;
-    while (n < max && tail != core->tx_head) {
+    uint16_t tail = atomic_load_explicit(&core->tx_tail, memory_order_relaxed);
+    uint16_t head = atomic_load_explicit(&core->tx_head, memory_order_acquire);
+    while (n < max && tail != head) {
         out[n++] = core->tx[tail];
         tail = (uint16_t)((tail + 1u) & (UG_TX_RING - 1u));
     }
-    core->tx_tail = tail;
+    atomic_store_explicit(&core->tx_tail, tail, memory_order_release);
     return n;
 }
 
@@ -88,8 +116,7 @@ static uint16_t drive_code(float drive) {
     return (uint16_t)(code <= 0.0f ? 0.0f : (code >= 65535.0f ? 65535.0f : code));
 }
 
-void ug_send_telemetry(ug_core *core) {
-    uint8_t *p = core->scratch_payload;
+size_t ug_telemetry_payload(ug_core *core, uint8_t *p) {
     ug_put_f32(p, core->measured_um_pp);
     ug_put_f32(p + 4, core->carrier_hz);
     ug_put_u16(p + 8, core->faults);
@@ -117,26 +144,34 @@ void ug_send_telemetry(ug_core *core) {
     if (UG_BROKEN(core, UG_BREAK_FAULT_LATCH)) {
         core->faults = 0; /* "bits clear themselves once telemetry has reported them" */
     }
-    ug_send(core, UG_TELEMETRY, p, n);
+    return n;
 }
 
-void ug_send_sensors(ug_core *core) {
-    uint8_t *p = core->scratch_payload;
+uint8_t ug_sensors_swap(ug_core *core, uint32_t *first_number) {
     uint8_t count = core->sensor_pending;
     if (count == 0u) {
-        return;
+        return 0u;
     }
-    ug_put_u32(p, core->sensor_next - count);
-    ug_put_u32(p + 4, core->sensor_ring[0].index);
+    *first_number = core->sensor_next - count;
+    core->sensor_pending = 0;
+    core->sensor_active ^= 1u; /* the block interrupt fills the other ring from now on */
+    if (UG_BROKEN(core, UG_BREAK_SENSORS)) {
+        core->sensor_next++; /* "skips a sample between frames" */
+    }
+    return count;
+}
+
+void ug_send_sensors(ug_core *core, uint8_t count, uint32_t first_number) {
+    uint8_t *p = core->scratch_payload;
+    const unsigned ring = core->sensor_active ^ 1u; /* the one swapped out: the block interrupt no longer writes it */
+    ug_put_u32(p, first_number);
+    ug_put_u32(p + 4, core->sensor_ring[ring][0].index);
     p[8] = count;
     for (unsigned i = 0; i < count; i++) {
         for (unsigned k = 0; k < 3u; k++) {
-            ug_put_f32(p + UG_SENSORS_HEADER_SIZE + UG_SENSOR_SAMPLE_SIZE * i + 4u * k, core->sensor_ring[i].value[k]);
+            ug_put_f32(p + UG_SENSORS_HEADER_SIZE + UG_SENSOR_SAMPLE_SIZE * i + 4u * k,
+                       core->sensor_ring[ring][i].value[k]);
         }
-    }
-    core->sensor_pending = 0;
-    if (UG_BROKEN(core, UG_BREAK_SENSORS)) {
-        core->sensor_next++; /* "skips a sample between frames" */
     }
     ug_send(core, UG_SENSORS, p, UG_SENSORS_HEADER_SIZE + UG_SENSOR_SAMPLE_SIZE * (size_t)count);
 }

@@ -20,6 +20,7 @@
 #define UG_CORE_H
 
 #include <stdbool.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -44,6 +45,8 @@ extern "C" {
 #define UG_EVENTS 64u        /* events kept for the port to read (a power of two) */
 #define UG_HISTORY 256u      /* drive samples of loop history (sense_delay_samples < this; a power of two) */
 #define UG_JUMPS 32u         /* index jumps (lost, overrun) marked in the buffer (a power of two) */
+#define UG_OUTBOX 2u          /* replies one frame may queue (it gives one; a broken build may give two) */
+#define UG_OUTBOX_PAYLOAD 112u /* HELLO_REPLY v3 (41 bytes) and a 64-byte name, the longest reply */
 #define UG_FORCE_MARKS 32u   /* force references marked in the buffer (SETPOINTS_FORCE; a power of two) */
 
 /* ---- configuration --------------------------------------------------------------------------------- */
@@ -151,9 +154,11 @@ typedef struct ug_core {
     uint32_t telemetry_period_ms;
 
     /* link */
-    volatile uint16_t rx_head, rx_tail;
+    /* single-producer single-consumer rings: the producer stores its bytes, then publishes its index with release;
+       the consumer reads that index with acquire before the bytes (C11 atomics) */
+    _Atomic uint16_t rx_head, rx_tail;
     uint8_t rx[UG_RX_RING];
-    volatile uint16_t tx_head, tx_tail;
+    _Atomic uint16_t tx_head, tx_tail;
     uint8_t tx[UG_TX_RING];
     ug_decoder decoder;
     uint16_t seq;          /* the device's next seq */
@@ -226,8 +231,10 @@ typedef struct ug_core {
     float sensor_sum[3];
     uint32_t sensor_first_index;
     uint32_t sensor_next;    /* the number the next sensor sample will have */
-    struct { float value[3]; uint32_t index; } sensor_ring[UG_MAX_SENSOR_SAMPLES];
-    uint8_t sensor_pending;
+    /* two rings: the block interrupt fills sensor_ring[sensor_active]; the main loop swaps them under its lock (a few
+       instructions) and encodes the other one outside it */
+    struct { float value[3]; uint32_t index; } sensor_ring[2][UG_MAX_SENSOR_SAMPLES];
+    uint8_t sensor_pending, sensor_active;
 
     /* counters */
     uint32_t frames_ok, crc_errors, framing_errors;
@@ -241,6 +248,10 @@ typedef struct ug_core {
     ug_event events[UG_EVENTS];
     uint16_t event_head, event_count;
     uint32_t events_dropped;
+
+    /* replies (ACK, NAK, HELLO_REPLY) decided inside a frame's critical section, encoded after it (main loop only) */
+    uint8_t outbox_deferring, outbox_count;
+    struct { uint8_t type; uint8_t length; uint8_t payload[UG_OUTBOX_PAYLOAD]; } outbox[UG_OUTBOX];
 
     /* a frame being built for the host (main loop only) */
     uint8_t scratch_payload[UG_MAX_BODY];

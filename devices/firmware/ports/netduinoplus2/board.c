@@ -287,6 +287,13 @@ void board_output_safe(void)
     board_dac_blank(1u);
 }
 
+#ifdef UG_BOARD_BENCH
+uint32_t board_bench_clock(void)
+{
+    return TIM_CNT(TIM5_BASE);
+}
+#endif
+
 uint32_t board_time_us(void)
 {
 #ifdef UG_BOARD_QEMU

@@ -142,6 +142,10 @@ uint32_t board_dma_errors(void);
 uint32_t board_dac_underruns(void);
 /* The board's clock for fault timing: microseconds (QEMU: TIM5's virtual nanoseconds / 1000). */
 uint32_t board_time_us(void);
+#ifdef UG_BOARD_BENCH
+/* TIM5's count: instructions under the budget run's -icount shift=0. */
+uint32_t board_bench_clock(void);
+#endif
 
 #ifdef UG_BOARD_QEMU
 /* The fault the console asked for (ug_safety.h UG_INJECT_*), 0 for none; the main loop and the block

@@ -59,12 +59,29 @@ static ug_tap_t tap;
 /* ---- the port interface (ug_port.h) ----------------------------------------------------------------- */
 static uint32_t critical_depth, critical_saved;
 
+#ifdef UG_BOARD_BENCH
+/* the budget image times every masked section (instructions under -icount shift=0: TIM5's virtual ns) */
+static uint32_t critical_started;
+static uint32_t critical_max, critical_count;
+
+void port_critical_figures(uint32_t *count, uint32_t *longest)
+{
+    *count = critical_count;
+    *longest = critical_max;
+    critical_count = 0u;
+    critical_max = 0u;
+}
+#endif
+
 void ug_port_critical_enter(void *port)
 {
     (void)port;
     uint32_t previous = board_mask_blocks();
     if (critical_depth++ == 0u) {
         critical_saved = previous;
+#ifdef UG_BOARD_BENCH
+        critical_started = board_bench_clock();
+#endif
     }
 }
 
@@ -72,6 +89,11 @@ void ug_port_critical_exit(void *port)
 {
     (void)port;
     if (critical_depth > 0u && --critical_depth == 0u) {
+#ifdef UG_BOARD_BENCH
+        uint32_t took = board_bench_clock() - critical_started;
+        critical_max = took > critical_max ? took : critical_max;
+        critical_count++;
+#endif
         board_unmask_blocks(critical_saved);
     }
 }

@@ -26,6 +26,10 @@ void port_lost(uint32_t blocks);
 /* One turn of the main loop: poll the core, start the transmitter, print events and statistics; true
    when there is more to do at once. */
 bool port_service(void);
+#ifdef UG_BOARD_BENCH
+/* The budget image: masked sections since the last call and the longest, instructions (then forgotten). */
+void port_critical_figures(uint32_t *count, uint32_t *longest);
+#endif
 /* Whether an interrupt left work since the last call (and forget it). */
 bool port_take_work(void);
 
