@@ -36,12 +36,17 @@ def main() -> None:
     print(f"calibration: {figures[name].mean:.0f} instructions counted for {expected} in the loop's disassembly")
     print(f"{'work (instructions)':34} {'calls':>6} {'mean':>9} {'worst':>7} {'cycles, est.':>13}")
     for key, figure in figures.items():
-        if key != name and (key.endswith("loop_48") or key.startswith("part_")) and not key.startswith("tx_bytes"):
+        if key != name and (key.endswith("loop_48") or key.startswith("part_")) and not key.startswith(("tx_bytes",
+                                                                                                       "masked")):
             print(f"{key:34} {figure.calls:6d} {figure.mean:9.1f} {figure.max:7d} {cycles(figure.max):13.0f}")
     print(f"\n{'a second at 48 000 setpoints/s':38} {'frame worst':>11} {'block worst':>11} {'CPU':>8} {'headroom':>9}")
     for load in loads:
         print(f"{MODES[load.mode]:38} {load.frame_instructions:11d} {load.block_instructions:11d} "
               f"{100 * load.cpu_share:7.1f}% {load.headroom:8.2f}x")
+    masked = {mode: figures[f"masked_{mode}"] for mode in MODES if f"masked_{mode}" in figures}
+    for mode, figure in masked.items():
+        print(f"longest masked section (block interrupt held off), {MODES[mode]}: {figure.max} instructions "
+              f"({figure.calls} sections)")
     print(f"the streams: {run.counters['setpoints']} values buffered, {run.counters['overrun']} overrun, "
           f"{run.counters['underruns']} underruns")
     print(f"worst case: {MODES[worst.mode]}, {100 * worst.cpu_share:.1f} % of the CPU at 168 MHz: "
