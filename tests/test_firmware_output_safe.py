@@ -66,3 +66,17 @@ def test_the_watchdogs_ramp_ends_in_a_call_for_a_silent_output():
     drive = core.run(15)
     assert core.core.output_safe_calls() == (before + 1, SAFE_RAMP_END)
     assert drive[-PER_MS:].max() == 0.0
+
+
+def test_lost_block_time_keeps_the_clock_and_the_watchdog_and_is_counted():
+    core = Core()
+    core.send(p.ENABLE, p.enable_payload(True))
+    core.send(p.SETPOINTS, p.setpoints_payload(0, 12000, np.full(240, 0.6)))
+    core.run(10)
+    now = core.core.status().now_ms
+    core.core.lose_time(2)  # a late block interrupt: two blocks whose time passed unplayed
+    status = core.core.status()
+    assert status.lost_ms == 2 and status.now_ms == now + 2
+    assert status.samples == now * PER_MS  # no drive sample was made for them
+    core.core.lose_time(88)  # 100 ms since the last frame, counting the lost time: the protocol watchdog fires
+    assert core.core.status().fault_counts[0] == 1 and core.core.status().lost_ms == 90

@@ -146,6 +146,7 @@ def load() -> ctypes.CDLL:
             "ug_crc32": (ctypes.c_uint32, [voidp, size]), "ug_cobs_encode": (size, [voidp, size, voidp]),
             "ug_sim_sources_digest": (ctypes.c_char_p, []),
             "ug_sim_output_safe_calls": (ctypes.c_uint32, [voidp, ctypes.POINTER(ctypes.c_uint8)]),
+            "ug_sim_lost_time": (None, [voidp, ctypes.c_uint32]),
         }
         for name, (result, arguments) in signatures.items():
             function = getattr(lib, name)
@@ -326,6 +327,11 @@ class FirmwareCore:
         while self._lib.ug_sim_next_event(self._sim, ctypes.byref(self._event)):
             found.append(Event.from_buffer_copy(self._event))
         return found
+
+    def lose_time(self, milliseconds: int) -> None:
+        """A board's late block interrupt: ``milliseconds`` of the core's clock pass with no block run
+        (``ug_core_lost_time``); counted in the status's ``lost_ms``."""
+        self._lib.ug_sim_lost_time(self._sim, max(0, int(milliseconds)))
 
     def output_safe_calls(self) -> tuple[int, int]:
         """How many times the core asked the port for a silent output (``ug_port_output_safe``) and the last

@@ -26,6 +26,8 @@ void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms) {
     }
 }
 
+void ug_sim_lost_time(ug_sim *sim, uint32_t ms) { ug_core_lost_time(&sim->core, ms); }
+
 uint32_t ug_sim_output_safe_calls(const ug_sim *sim, uint8_t *why) {
     *why = sim->output_safe_why;
     return sim->output_safe_calls;

@@ -57,6 +57,8 @@ void ug_sim_excuse(ug_sim *sim, uint32_t ms);
 
 void ug_sim_status(const ug_sim *sim, ug_status *out);
 int ug_sim_next_event(ug_sim *sim, ug_event *out);
+/* blocks' time lost by a port (ug_core_lost_time), ms */
+void ug_sim_lost_time(ug_sim *sim, uint32_t ms);
 /* how many times the core asked for a silent output (ug_port_output_safe), and why the last time */
 uint32_t ug_sim_output_safe_calls(const ug_sim *sim, uint8_t *why);
 int ug_sim_take_fault(ug_sim *sim, uint8_t *kind, uint16_t *duration_ms);
