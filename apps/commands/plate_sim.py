@@ -87,7 +87,10 @@ def describe_event(event: dict) -> str:
     fields = {key: value for key, value in event.items() if key not in ("t_s", "event")}
     if event["event"] == "watchdog":
         fields.pop("fault", None)  # the event's name says it
-    details = ", ".join(str(value) if key == "fault" else f"{key} {value}" for key, value in fields.items())
+    def words(value) -> str:
+        return " and ".join(map(str, value)) if isinstance(value, list) else str(value)
+
+    details = ", ".join(words(value) if key == "fault" else f"{key} {words(value)}" for key, value in fields.items())
     return f"{event['t_s']:10.3f} s  {event['event']}{'  ' + details if details else ''}"
 
 
