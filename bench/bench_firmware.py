@@ -47,6 +47,9 @@ def main() -> None:
     for mode, figure in masked.items():
         print(f"longest masked section (block interrupt held off), {MODES[mode]}: {figure.max} instructions "
               f"({figure.calls} sections)")
+    if "masked_commands" in figures:
+        print(f"longest masked section of a command (ENABLE 0 silencing the output, SET_LOOP, ENABLE 1): "
+              f"{figures['masked_commands'].max} instructions")
     print(f"the streams: {run.counters['setpoints']} values buffered, {run.counters['overrun']} overrun, "
           f"{run.counters['underruns']} underruns")
     print(f"worst case: {MODES[worst.mode]}, {100 * worst.cpu_share:.1f} % of the CPU at 168 MHz: "

@@ -295,11 +295,46 @@ static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t 
     }
 }
 
+/* A SETPOINTS frame's codes copied into the buffer's free room before the frame's critical section, so that the
+   section only commits them (ug_buffer_push). The room is read under a short lock; the block interrupt only ever
+   shrinks the used part (pops) or empties it (a clear, which bumps buf_epoch): the room stays free meanwhile. */
+static void stage_setpoints(ug_core *core, uint8_t type, const uint8_t *p, size_t n) {
+    size_t header = type == UG_SETPOINTS_FORCE ? UG_SETPOINTS_FORCE_HEADER_SIZE : UG_SETPOINTS_HEADER_SIZE;
+    core->staged_n = 0;
+    if ((type != UG_SETPOINTS && type != UG_SETPOINTS_FORCE) || !length_ok(type, p, n)) {
+        return;
+    }
+    uint16_t count = ug_get_u16(p + 8);
+    if (count == 0u || count > UG_MAX_SETPOINTS_PER_FRAME) {
+        return;
+    }
+    ug_port_critical_enter(core->port);
+    uint16_t at = (uint16_t)((core->buf_head + core->buf_count) % UG_BUFFER_CAPACITY);
+    uint16_t room = (uint16_t)(UG_BUFFER_CAPACITY - core->buf_count);
+    uint32_t epoch = core->buf_epoch;
+    ug_port_critical_exit(core->port);
+    uint16_t put = count < room ? count : room;
+    const uint8_t *codes = p + header;
+    uint16_t to = at;
+    for (uint16_t i = 0; i < put; i++) {
+        core->buf[to] = ug_get_u16(codes + 2u * i);
+        to = (uint16_t)(to + 1u == UG_BUFFER_CAPACITY ? 0u : to + 1u);
+    }
+    core->staged_codes = codes;
+    core->staged_at = at;
+    core->staged_n = put;
+    core->staged_epoch = epoch;
+}
+
 static void take_frame(ug_core *core) {
     const uint8_t *body = core->decoder.body;
     size_t length = core->decoder.length;
     uint32_t crc = ug_get_u32(body + length - 4u);
     bool valid = ug_crc32(body, length - 4u) == crc;
+    core->staged_n = 0; /* whatever was staged for an earlier frame (the decoder reuses its body) is forgotten */
+    if (valid) {
+        stage_setpoints(core, body[0], body + 3, length - 7u);
+    }
     ug_port_critical_enter(core->port);
     core->outbox_deferring = 1;
     if (!valid) {

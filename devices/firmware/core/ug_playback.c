@@ -7,6 +7,7 @@
 
 /* ---- the buffer ------------------------------------------------------------------------------------ */
 void ug_buffer_clear(ug_core *core) {
+    core->buf_epoch++; /* values staged before this clear are not where a push would put them now */
     core->buf_head = 0;
     core->buf_count = 0;
     core->jump_count = 0;
@@ -43,9 +44,14 @@ void ug_buffer_push(ug_core *core, const uint8_t *codes, uint32_t first, uint16_
         core->jump_count++;
     }
     uint16_t at = (uint16_t)((core->buf_head + core->buf_count) % UG_BUFFER_CAPACITY);
-    for (uint16_t i = 0; i < n; i++) {
-        core->buf[at] = ug_get_u16(codes + 2u * i);
-        at = (uint16_t)(at + 1u == UG_BUFFER_CAPACITY ? 0u : at + 1u);
+    bool staged = core->staged_codes == codes && core->staged_at == at && core->staged_n >= n &&
+                  core->staged_epoch == core->buf_epoch;
+    core->staged_n = 0;
+    if (!staged) { /* not copied before the lock (a late frame's tail, a clear since): copy here */
+        for (uint16_t i = 0; i < n; i++) {
+            core->buf[at] = ug_get_u16(codes + 2u * i);
+            at = (uint16_t)(at + 1u == UG_BUFFER_CAPACITY ? 0u : at + 1u);
+        }
     }
     core->buf_count = (uint16_t)(core->buf_count + n);
     core->tail_index = first + n;

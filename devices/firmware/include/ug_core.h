@@ -184,6 +184,12 @@ typedef struct ug_core {
     uint16_t capacity;      /* values the buffer holds at this rate */
     uint16_t buf[UG_BUFFER_CAPACITY];
     uint16_t buf_head, buf_count;
+    uint32_t buf_epoch;     /* counts the buffer's clears (block interrupt or main loop) */
+    /* a SETPOINTS frame's codes copied into the buffer's free room before its critical section (main loop only):
+       where, how many, from which bytes, in which epoch; the push in the section only commits them */
+    const uint8_t *staged_codes;
+    uint16_t staged_at, staged_n;
+    uint32_t staged_epoch;
     uint32_t popped;        /* values taken from the buffer, ever */
     uint32_t play_index;    /* the stream index of the value playing */
     uint32_t next_pop_index; /* ... of the value at the buffer's head */

@@ -51,16 +51,17 @@ extern "C" {
  * Enter and leave a critical section: mask the interrupts that call into the core (tick, DAC, ADC)
  * on this CPU, and no other (the link's receive interrupt stays on: it only writes the receive ring).
  * Called from ug_core_poll(), ug_core_next_event(), ug_core_set_stage_hot() and a port's own status
- * reads. Inside, the core copies state and decides; it encodes nothing there: replies are encoded after
- * the frame's section, TELEMETRY's payload is a copy, SENSORS' two rings are swapped (the 969-byte frame
- * is encoded with the blocks running). MUST nest (save and restore the previous mask, e.g. BASEPRI on
- * Cortex-M).
+ * reads. Inside, the core copies state and decides; it encodes and copies nothing long there: a
+ * SETPOINTS frame's values are copied into the buffer's free room before its section (which commits
+ * them), replies are encoded after it, TELEMETRY's payload is a copy, SENSORS' two rings are swapped
+ * (the 969-byte frame is encoded with the blocks running). MUST nest (save and restore the previous
+ * mask, e.g. BASEPRI on Cortex-M).
  *
  * Measured bound (the longest section, instructions, QEMU -icount shift=0 on the netduinoplus2 budget
- * image at 48 000 setpoints/s, `python bench/bench_firmware.py`): 2 959 with 240-value SETPOINTS frames
- * (the values copied into the jitter buffer), 847 with 48-value (1 ms) frames; it was 4 388 before the
- * encoding moved out (and ~15-20 k for a full SENSORS frame, which the budget's stream does not reach).
- * About 18 us at 168 MHz and 2 cycles an instruction: the block interrupt waits at most that.
+ * image, `python bench/bench_firmware.py`): 344 while streaming 48 000 setpoints/s in 240- or 48-value
+ * frames with telemetry and SENSORS; 689 for ENABLE 0, whose section includes ug_port_output_safe (the
+ * netduinoplus2 port writes both DAC halves, 240 words). Before: 4 388 while streaming (a full SENSORS
+ * frame encoded inside: ~15-20 k). At 168 MHz and 2 cycles an instruction, 689 instructions are 8.2 us.
  */
 void ug_port_critical_enter(void *port);
 void ug_port_critical_exit(void *port);

@@ -314,14 +314,23 @@ int main(void)
     }
     static const char *const modes[] = {"open_240", "loop_240", "open_48", "loop_48"};
     static const uint32_t values[] = {VALUES, VALUES, RATE_HZ / 1000u, RATE_HZ / 1000u};
+    uint32_t commands_count = 0u, commands_longest = 0u;
     for (uint32_t m = 0; m < 4u; m++) {
-        command(0x03u, 0u);                     /* ENABLE 0: rests, forgets the stream */
+        uint32_t count, longest;
+        port_critical_figures(&count, &longest);  /* forget what came before */
+        command(0x03u, 0u);                     /* ENABLE 0: rests, forgets the stream (the output silenced) */
         command(0x07u, m % 2u);                 /* SET_LOOP: open loop, or the amplitude loop */
         command(0x03u, 1u);                     /* ENABLE 1 */
+        port_critical_figures(&count, &longest);
+        commands_count += count;
+        commands_longest = longest > commands_longest ? longest : commands_longest;
         reset_figures(modes[m]);
         stream_second(values[m]);
         report_all(modes[m]);
     }
+    figure_t commands = {"masked_commands", commands_count, commands_longest > overhead ? commands_longest - overhead
+                                                                                        : 0u, 0u};
+    report(&commands);  /* ENABLE 0 (a disable: both DAC halves silenced inside the section), SET_LOOP, ENABLE 1 */
     block_parts();
     ug_status status;
     ug_core_status(port_core(), &status);
