@@ -103,11 +103,13 @@ void board_link_service(void)
     uint8_t chunk[64];
     size_t n;
     while ((n = board_link_take(chunk, sizeof chunk)) != 0u) {
-        ug_marks_main();  /* sending is the main loop's progress (QEMU's USART takes each byte synchronously) */
         for (size_t i = 0; i < n; i++) {
             while (!(USART_SR(USART1_BASE) & USART_SR_TXE)) {  /* never waits under QEMU */
             }
             USART_DR(USART1_BASE) = chunk[i];
+            /* each byte sent is the main loop's progress: QEMU's USART writes it to the pty there and then, which
+               on a loaded host can take a large part of a millisecond */
+            ug_marks_main();
         }
     }
 }
@@ -251,7 +253,7 @@ void board_console_write(const char *text)
         uint32_t sent = 0u;
         while ((USART_SR(USART2_BASE) & USART_SR_TXE) && ug_ring_get(&console.tx, &byte)) {
             USART_DR(USART2_BASE) = byte;
-            if ((++sent & 63u) == 0u) {
+            if ((++sent & 7u) == 0u) {
                 ug_marks_main();  /* progress of the main loop (QEMU takes each byte synchronously: a line can
                                      take milliseconds of the host's time) */
             }
