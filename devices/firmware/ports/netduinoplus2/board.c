@@ -17,8 +17,7 @@ static volatile uint32_t millis;
 static volatile uint32_t link_overruns;
 static board_block_fn carrier_block;
 static board_lost_fn carrier_lost;
-_Static_assert(BOARD_BLOCK_SAMPLES % 8u == 0u, "board_dac_blank writes four words at a time");
-static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES] __attribute__((aligned(4)));  /* circular: the DMA plays one half while we fill the other */
+static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES];  /* circular: the DMA plays one half while we fill the other */
 static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
 static volatile uint32_t late_blocks, dma_errors, dac_underruns;
 static uint32_t reset_reason;
@@ -278,14 +277,9 @@ const uint16_t *board_adc_half(uint32_t half)
 
 void board_dac_blank(uint32_t half)
 {
-    /* DHR12L1's mid-scale (no drive) in every word of the half, two samples a store: it runs inside the core's
-       critical sections (a DISABLE), so it is kept short */
-    uint32_t *words = (uint32_t *)(void *)board_dac_half(half);
-    for (uint32_t i = 0; i < BOARD_BLOCK_SAMPLES / 2u; i += 4u) {
-        words[i] = 0x80008000u;
-        words[i + 1u] = 0x80008000u;
-        words[i + 2u] = 0x80008000u;
-        words[i + 3u] = 0x80008000u;
+    uint16_t *codes = board_dac_half(half);
+    for (uint32_t i = 0; i < BOARD_BLOCK_SAMPLES; i++) {
+        codes[i] = 0x8000u;  /* DHR12L1's mid-scale: no drive */
     }
 }
 
