@@ -7,7 +7,7 @@ recorded trajectory. Positions in mm, speed in mm/s, the finger touching from 0 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -20,12 +20,47 @@ PATH_KINDS = ("straight", "circle", "zigzag")
 
 @dataclass(frozen=True)
 class SwipePath:
-    """A path at constant speed. ``direction_deg`` (straight, zigzag) is 0 for left-to-right."""
+    """A finger's path at constant speed: a straight swipe, a circle or a zig-zag.
 
-    kind: str
-    speed_mm_s: float
-    duration_s: float
-    start_mm: tuple[float, float]
+    Parameters
+    ----------
+    kind : {"straight", "circle", "zigzag"}
+        The path's shape.
+    speed_mm_s : float
+        The finger's speed along the path (mm/s).
+    duration_s : float
+        How long the finger touches (s), from 0.
+    start_mm : (float, float), optional
+        Where the finger lands (mm from the texture's top-left corner, x right, y down). None (the
+        default): where :meth:`across` starts it on the texture being rendered (a straight swipe at
+        10 % of the width across the middle; a circle centred; a zig-zag's passes centred), placed by
+        the renderer (:meth:`placed_on`).
+    direction_deg : float
+        The heading of a straight swipe or a zig-zag's passes (degrees, 0 = left to right, 90 = down).
+    radius_mm : float
+        A circle's radius (mm).
+    width_mm, pitch_mm : float
+        A zig-zag's pass length and the distance between passes (mm).
+    force_n : float, optional
+        The finger's force (N); None: the renderer's default force.
+
+    Raises
+    ------
+    RenderError
+        A kind not listed, or a speed, duration or size that is not a positive number.
+
+    Example
+    -------
+    >>> path = SwipePath(speed_mm_s=50.0, duration_s=0.2, start_mm=(5.0, 10.0))
+    >>> state = path.state([0.0, 0.1, 0.3])
+    >>> state.x_mm.tolist(), state.down.tolist()        # 5 mm/s·0.1 s further; lifted after 0.2 s
+    ([5.0, 10.0, 15.0], [True, True, False])
+    """
+
+    kind: str = "straight"
+    speed_mm_s: float = 100.0
+    duration_s: float = 1.0
+    start_mm: tuple[float, float] | None = None
     direction_deg: float = 0.0
     radius_mm: float = 15.0  # circle
     width_mm: float = 40.0  # zigzag: length of each pass
@@ -61,8 +96,19 @@ class SwipePath:
         return cls(kind, speed_mm_s, duration_s, start_mm, direction_deg, radius_mm=radius_mm,
                    width_mm=width_of_pass_mm, force_n=force_n)
 
+    def placed_on(self, width_mm: float, height_mm: float) -> SwipePath:
+        """This path with its start chosen for a texture of ``width_mm`` × ``height_mm`` (mm) when it has none
+        (as :meth:`across` chooses it); a path with a start is returned as it is."""
+        if self.start_mm is not None:
+            return self
+        placed = SwipePath.across(width_mm, height_mm, self.kind, radius_mm=self.radius_mm,
+                                  width_of_pass_mm=self.width_mm, speed_mm_s=self.speed_mm_s,
+                                  duration_s=self.duration_s)
+        return replace(self, start_mm=placed.start_mm)
+
     @property
     def end_s(self) -> float:
+        """When the finger lifts (s): the path's duration."""
         return self.duration_s
 
     def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:
@@ -72,6 +118,9 @@ class SwipePath:
         flat = times.reshape(-1)
         x, y = out if out is not None else (np.empty(flat.shape), np.empty(flat.shape))
         down = np.empty(flat.shape, dtype=bool)
+        if self.start_mm is None:
+            raise RenderError("this path has no start: give start_mm=(x, y) in mm, or render it (the renderer "
+                              "places it on its texture)")
         heading = math.radians(self.direction_deg)
         x0, y0 = self.start_mm
         kernels.swipe_path(PATH_KINDS.index(self.kind), flat, self.duration_s, self.speed_mm_s, float(x0), float(y0),

@@ -174,6 +174,8 @@ class Renderer:
         if sampler is not None and sampler.texture is not texture:
             raise RenderError("the sampler given was built for another texture")
         self.sampler = sampler if sampler is not None else Sampler(texture, band_limited=settings.band_limited_lookup)
+        if isinstance(trajectory, SwipePath):  # a path without a start crosses this texture as across() would
+            trajectory = trajectory.placed_on(texture.width_mm, texture.height_mm)
         self.trajectory = trajectory or LiveTrajectory(settings.predictor, settings.lookahead_s)
         self.envelope = EnvelopeChain(rate, settings.attack_s, settings.release_s, settings.band_hz,
                                       settings.slew_um_per_ms, self.limit_um_pp, profile.time_constant_s,
@@ -301,15 +303,55 @@ class Renderer:
         self._next_time += n * period
         return times
 
-    def control(self, n: int, now_s: float | None = None, out: ControlBuffers | None = None) -> ControlBlock:
-        """The next ``n`` control-rate samples. ``now_s``: the perf_counter time the first of them
-        will reach the plate (live rendering); the renderer re-anchors its clock to it if needed.
-        ``out``: preallocated buffers (:meth:`control_buffers`); the block returned is then reused, and a
-        live finger's block allocates no array (every stage writes into the block's own).
+    @property
+    def control_rate_hz(self) -> float:
+        """The control rate (Hz): how many envelope samples a second of :meth:`control` gives (12 kHz unless
+        the settings say otherwise)."""
+        return self.settings.control_rate_hz
+
+    def control(self, n: int | None = None, now_s: float | None = None, out: ControlBuffers | None = None, *,
+                duration_s: float | None = None) -> ControlBlock:
+        """The next stretch of the drive envelope, at the control rate (:attr:`control_rate_hz`).
 
         One pipeline for every source of finger positions (a live finger, a recorded log, a swipe): times,
         the finger, the lookup (with the finger's step and direction), the effects, the model's inverse at
-        the finger's force, the envelope."""
+        the finger's force, the envelope.
+
+        Parameters
+        ----------
+        n : int, optional
+            How many control samples (at :attr:`control_rate_hz`); or give ``duration_s``.
+        now_s : float, optional
+            The ``time.perf_counter`` time (s) the first of them reaches the plate (live rendering); the
+            renderer re-anchors its clock to it if needed. Ignored for a recorded path or a swipe.
+        out : ControlBuffers, optional
+            Preallocated buffers (:meth:`control_buffers`); the block returned is then reused, and a live
+            finger's block allocates no array.
+        duration_s : float, optional
+            How long a stretch (s), instead of ``n``: ``round(duration_s * control_rate_hz)`` samples.
+
+        Returns
+        -------
+        ControlBlock
+            The samples' times (s), the finger (mm), the target friction ratio, and the amplitudes at each
+            stage (µm p-p): target, envelope, drive and the plate model's.
+
+        Raises
+        ------
+        RenderError
+            Neither or both of ``n`` and ``duration_s``, or a negative one.
+
+        Example
+        -------
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel
+        >>> from ultraglide.textures.procedural import grating
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> r = Renderer(grating(1.0), ExponentialModel(), load_profile("sim-plate"), trajectory=SwipePath())
+        >>> len(r.control(duration_s=0.25).drive_um_pp), r.control_rate_hz     # a quarter second at 12 kHz
+        (3000, 12000.0)
+        """
+        if duration_s is not None or n is None:
+            n = self._samples_for(n, duration_s)
         started = time.perf_counter()
         out = out or self._buffers
         block = out.block(n) if out is not None and n <= out.capacity else None  # a longer catch-up block allocates
@@ -395,6 +437,13 @@ class Renderer:
         command = planner.plan(ratio, ahead_ratio, floor, touching, self._command[:n])
         self._unreachable = (planner.below_floor - below) if touching else 0
         return command
+
+    def _samples_for(self, n: int | None, duration_s: float | None) -> int:
+        if (n is None) == (duration_s is None):
+            raise RenderError("give control() either n (control samples) or duration_s (s), one of them")
+        if not (math.isfinite(duration_s) and duration_s >= 0):
+            raise RenderError(f"duration_s must be a duration in seconds (0 or more), got {duration_s}")
+        return round(duration_s * self.settings.control_rate_hz)
 
     def _motion(self, finger: FingerState, n: int) -> tuple:
         """The finger's step per control sample (mm) and its direction, for the band-limited lookup: one step and

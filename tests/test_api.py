@@ -89,3 +89,144 @@ def test_export_wav_refuses_bad_input_and_leaves_nothing(tmp_path):
     with pytest.raises(ultraglide.TextureError, match="no texture"):
         ultraglide.export_wav("no-such-texture", tmp_path / "x.wav", duration_s=0.1)
     assert list(tmp_path.iterdir()) == []
+
+
+# ---- names and arrays everywhere; one call renders a swipe ---------------------------------------------------
+
+def _profile_file(name: str = "sim-plate") -> dict:
+    """The bundled profile as the TOML file says it, read here by tomllib (not by the package's loader)."""
+    import tomllib
+
+    from conftest import ROOT
+
+    return tomllib.loads((ROOT / "devices" / "profiles" / f"{name}.toml").read_text(encoding="utf-8"))
+
+
+def _peak_hz(signal: np.ndarray, rate_hz: float) -> float:
+    """The strongest frequency in ``signal`` (Hz), from its spectrum (Hann window, the mean removed), refined by
+    a parabola through the peak bin and its neighbours."""
+    windowed = (signal - np.mean(signal)) * np.hanning(len(signal))
+    spectrum = np.abs(np.fft.rfft(windowed))
+    k = int(np.argmax(spectrum[1:-1])) + 1
+    a, b, c = np.log(spectrum[k - 1:k + 2] + 1e-30)
+    return (k + 0.5 * (a - c) / (a - 2 * b + c)) * rate_hz / len(signal)
+
+
+def test_the_renderer_takes_names():
+    plate = _profile_file()
+    renderer = ultraglide.Renderer("grating-1mm", "stretched", "sim-plate", trajectory=ultraglide.SwipePath())
+    assert renderer.carrier_hz == plate["resonance_hz"]
+    assert renderer.limit_um_pp == plate["max_amplitude_um_pp"]
+    assert type(renderer.model).__name__ == "StretchedExponentialModel"
+    assert isinstance(renderer, ultraglide.render.renderer.Renderer)  # the render layer's, named
+    renderer.set_model("exponential")
+    assert type(renderer.model).__name__ == "ExponentialModel"
+    with pytest.raises(ultraglide.DeviceError, match="no plate profile"):
+        ultraglide.Renderer("grating-1mm", "stretched", "no-such-plate")
+    with pytest.raises(ultraglide.ModelError, match="unknown model"):
+        ultraglide.Renderer("grating-1mm", "no-such-model")
+    with pytest.raises(ultraglide.UltraglideError, match="a model is a FrictionModel or a model's name"):
+        ultraglide.Renderer("grating-1mm", 3)
+    with pytest.raises(ultraglide.UltraglideError, match="a plate profile is a PlateProfile"):
+        ultraglide.Renderer("grating-1mm", "stretched", 25000.0)
+
+
+def test_control_takes_a_duration_at_the_documented_rate():
+    renderer = ultraglide.Renderer("grating-1mm", trajectory=ultraglide.SwipePath(duration_s=1.0))
+    assert renderer.control_rate_hz == 12000.0
+    block = renderer.control(duration_s=0.25)
+    assert len(block.drive_um_pp) == 3000
+    assert block.time_s[1] - block.time_s[0] == pytest.approx(1 / 12000)
+    for bad in ({}, {"n": 10, "duration_s": 0.1}, {"duration_s": -1.0}, {"duration_s": float("nan")}):
+        with pytest.raises(ultraglide.RenderError, match="duration_s|n \\(control samples\\)"):
+            renderer.control(**bad)
+
+
+def test_a_swipe_path_starts_where_across_would_on_the_texture_rendered():
+    swipe = ultraglide.render_swipe("grating-1mm", ultraglide.SwipePath(speed_mm_s=50.0, duration_s=0.2))
+    texture = ultraglide.resolve_texture("grating-1mm")
+    touching = swipe.touching
+    # a straight swipe lands at a tenth of the width, half-way down, and moves at its speed
+    assert swipe.x_mm[0] == pytest.approx(0.1 * texture.width_mm)
+    assert np.all(swipe.y_mm[touching] == pytest.approx(texture.height_mm / 2))
+    t = swipe.time_s[touching]
+    np.testing.assert_allclose(swipe.x_mm[touching], 0.1 * texture.width_mm + 50.0 * t, atol=1e-9)
+    assert t[-1] == pytest.approx(0.2, abs=2 / 12000)
+    with pytest.raises(ultraglide.RenderError, match="no start"):
+        ultraglide.SwipePath().state([0.0])
+
+
+def test_render_swipe_puts_the_envelope_on_the_plates_resonance():
+    plate = _profile_file()
+    swipe = ultraglide.render_swipe("grating-1mm", duration_s=0.5, speed_mm_s=100.0)
+    assert swipe.rate_hz == 96000 and swipe.audio.dtype == np.float32
+    # the carrier, from the audio's own spectrum, is the resonance the profile file declares
+    steady = swipe.audio[9600:9600 + 32768]
+    assert _peak_hz(steady, swipe.rate_hz) == pytest.approx(plate["resonance_hz"], abs=2.0)
+    # a 1 mm grating swiped at 100 mm/s is felt at 100 Hz: the envelope's strongest modulation
+    touching = swipe.envelope_um_pp[(swipe.time_s > 0.05) & swipe.touching]
+    assert _peak_hz(touching, swipe.control_rate_hz) == pytest.approx(100.0, rel=0.03)
+    # the limits of the file hold for the arrays
+    assert swipe.limit_um_pp == plate["max_amplitude_um_pp"]
+    assert swipe.target_um_pp.max() <= plate["max_amplitude_um_pp"] + 1e-9
+    assert swipe.envelope_um_pp.max() <= plate["max_amplitude_um_pp"] + 1e-9
+    assert swipe.drive_um_pp.max() <= plate["max_drive_um_pp"] + 1e-9 and swipe.drive_um_pp.min() >= 0
+    # the audio's amplitude, demodulated at the carrier millisecond by millisecond (25 carrier periods), is the
+    # limited drive over the profile's full scale (the audio one control period behind the drive)
+    t = np.arange(len(swipe.audio)) / swipe.rate_hz
+    baseband = swipe.audio * np.exp(-2j * np.pi * plate["resonance_hz"] * t)
+    ms = len(swipe.audio) // 96
+    amplitude_um_pp = 2 * np.abs(baseband[: ms * 96].reshape(ms, 96).mean(axis=1)) * plate["full_scale_um_pp"]
+    drive = np.concatenate([[0.0], swipe.drive_um_pp])[: ms * 12].reshape(ms, 12).mean(axis=1)
+    np.testing.assert_allclose(amplitude_um_pp[20:450], drive[20:450], atol=0.03 * plate["full_scale_um_pp"])
+    assert drive[20:450].max() > 2.0  # something to measure
+
+
+def test_render_swipe_lasts_the_path_then_the_rest_and_gives_what_export_writes(tmp_path):
+    swipe = ultraglide.render_swipe("dots", duration_s=0.3)
+    result = ultraglide.export_wav("dots", tmp_path / "dots.wav", duration_s=0.3)
+    samples, rate = soundfile.read(tmp_path / "dots.wav", dtype="float32")
+    assert rate == swipe.rate_hz
+    np.testing.assert_array_equal(swipe.audio, samples)  # one path from the renderer to the samples
+    assert swipe.duration_s == pytest.approx(result.duration_s)
+    assert 0.3 < swipe.duration_s < 0.4  # the path, then the output coming to rest
+    assert len(swipe.time_s) == len(swipe.drive_um_pp) == len(swipe.ratio) >= len(swipe.audio) // 8
+    assert abs(swipe.audio[-96:]).max() < 1e-4  # at rest at the end
+    with pytest.raises(ultraglide.RenderError, match="brings its own duration"):
+        ultraglide.render_swipe("dots", ultraglide.SwipePath(), duration_s=1.0)
+
+
+def test_an_array_with_a_size_is_a_texture_everywhere(tmp_path):
+    # bars 2 mm wide (a 4 mm period) over 80 mm: swiped at 100 mm/s, felt at 25 Hz
+    bars = np.tile(np.repeat([0.2, 1.0], 2), (10, 20))  # 80 columns, 1 mm each
+    swipe = ultraglide.render_swipe(bars, width_mm=80.0, duration_s=0.6)
+    touching = swipe.envelope_um_pp[(swipe.time_s > 0.05) & swipe.touching]
+    assert _peak_hz(touching, swipe.control_rate_hz) == pytest.approx(25.0, rel=0.04)
+    # the ratio under the finger is the array's, each value at its pixel's centre and linear between them
+    expected = np.interp(swipe.x_mm[swipe.touching], [0.5, 1.5, 2.5, 3.5], [0.2, 0.2, 1.0, 1.0], period=4.0)
+    np.testing.assert_allclose(swipe.ratio[swipe.touching], expected, atol=0.02)
+    renderer = ultraglide.Renderer(bars, width_mm=80.0, height_mm=5.0)
+    assert (renderer.texture.width_mm, renderer.texture.height_mm) == (80.0, 5.0)
+    assert ultraglide.Renderer(bars, width_mm=80.0).texture.height_mm == 10.0  # square pixels
+    result = ultraglide.export_wav(bars, tmp_path / "bars.wav", width_mm=80.0, duration_s=0.2)
+    assert soundfile.info(result.path).frames > 0
+
+
+@pytest.mark.parametrize(("texture", "options", "message"), [
+    (np.ones((4, 4)), {}, "needs its physical size: give width_mm="),
+    (np.ones(4), {"width_mm": 10.0}, "is 2-D"),
+    (np.full((4, 4), 2.0), {"width_mm": 10.0}, "within 0..1"),
+    (np.array([["a", "b"]]), {"width_mm": 10.0}, "holds friction ratios"),
+    (np.ones((4, 4)), {"width_mm": "wide"}, "sizes in mm"),
+    (42, {}, "a texture is a Texture, a library name"),
+    ([[0.5, 0.5]], {}, "a texture is a Texture"),
+    ("grating-1mm", {"width_mm": 10.0}, "this texture has its own size"),
+])
+def test_a_texture_that_is_not_one_says_what_to_give(tmp_path, texture, options, message):
+    for call in (lambda: ultraglide.render_swipe(texture, duration_s=0.1, **options),
+                 lambda: ultraglide.export_wav(texture, tmp_path / "x.wav", duration_s=0.1, **options),
+                 lambda: ultraglide.Renderer(texture, **options)):
+        with pytest.raises(ultraglide.UltraglideError, match=message) as caught:
+            call()
+        assert "\n" not in str(caught.value)
+    assert list(tmp_path.iterdir()) == []

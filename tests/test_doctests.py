@@ -14,7 +14,11 @@ MODULES = sorted(
     for package in PACKAGES
     for info in pkgutil.walk_packages(importlib.import_module(f"ultraglide.{package}").__path__,
                                       f"ultraglide.{package}.")
-)  # packages too: a room's __init__ may hold code (ultraglide.devices.protocol)
+) + ["ultraglide"] + sorted(  # packages too: a room's __init__ may hold code (ultraglide.devices.protocol); the
+    # root: the package's own docstring and the modules beside it (api, errors ...)
+    f"ultraglide.{info.name}" for info in pkgutil.iter_modules(importlib.import_module("ultraglide").__path__)
+    if not info.ispkg and info.name not in ("__main__",)
+)
 
 
 @pytest.mark.parametrize("name", MODULES)
@@ -27,4 +31,4 @@ def test_docstring_examples(name: str) -> None:
 def test_every_signal_module_is_checked() -> None:
     assert {"ultraglide.render.renderer", "ultraglide.textures.sampling", "ultraglide.devices.protocol",
             "ultraglide.render.physics.friction_models", "ultraglide.render.engine.engine",
-            "ultraglide.apps.demo.app"} <= set(MODULES)
+            "ultraglide.apps.demo.app", "ultraglide", "ultraglide.api"} <= set(MODULES)

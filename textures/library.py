@@ -13,6 +13,7 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from PIL import Image
 from ultraglide.textures.authoring import AuthoringOptions, ImageTooLarge, author_image, check_image
 from ultraglide.textures.errors import TextureError
@@ -84,3 +85,65 @@ def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Textu
         raise TextureError(f"no texture file or library texture named {spec!r}; did you mean "
                            + " or ".join(repr(name) for name in close) + "?")
     raise TextureError(f"no texture file or library texture named {spec!r}; library: {', '.join(names)}")
+
+
+def as_texture(texture: Texture | str | os.PathLike | np.ndarray, *, width_mm: float | None = None,
+               height_mm: float | None = None, options: AuthoringOptions | None = None) -> Texture:
+    """Any of the ways the API accepts a texture, as a :class:`Texture`.
+
+    Parameters
+    ----------
+    texture : Texture, str, os.PathLike or numpy.ndarray
+        A texture; a library name or a file (a texture file, or an image authored with ``options``, see
+        :func:`resolve_texture`); or a 2-D array of friction ratios (0..1, 1 = the plate at rest), rows
+        top to bottom, which needs its physical size.
+    width_mm : float, optional
+        An array's width (mm across its columns). Only for an array.
+    height_mm : float, optional
+        An array's height (mm down its rows); by default its pixels are square.
+    options : AuthoringOptions, optional
+        How a plain image is authored (the defaults of ``ultraglide author`` unless given).
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        In one line, what to give instead: an array without ``width_mm``, a size given with a texture that
+        has its own, a value of another type, or a texture that does not resolve.
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> bars = np.tile([0.2, 1.0], (4, 10))          # 4 rows, 20 columns of alternate ratios
+    >>> as_texture(bars, width_mm=20.0)
+    Texture('array', 20 × 4 mm, 20 × 4 px)
+    """
+    sized = width_mm is not None or height_mm is not None
+    if isinstance(texture, Texture | str | os.PathLike):
+        if sized:
+            raise TextureError("width_mm and height_mm size a texture given as an array; this texture has its own "
+                               "size (resize a Texture with texture.with_(width_mm=..., height_mm=...))")
+        return texture if isinstance(texture, Texture) else resolve_texture(os.fspath(texture), options)
+    if isinstance(texture, np.ndarray) or hasattr(texture, "__array__"):
+        try:
+            values = np.asarray(texture, dtype=np.float32)
+        except (TypeError, ValueError):
+            raise TextureError(f"a texture array holds friction ratios (numbers 0..1); this one holds "
+                               f"{np.asarray(texture).dtype}") from None
+        if values.ndim != 2 or min(values.shape) < 1:
+            raise TextureError(f"a texture array is 2-D (rows × columns of friction ratios), got shape {values.shape}")
+        if width_mm is None:
+            raise TextureError("a texture given as an array needs its physical size: give width_mm= (mm across its "
+                               "columns), and height_mm= unless its pixels are square")
+        try:
+            width = float(width_mm)
+            height = float(height_mm) if height_mm is not None else width * values.shape[0] / values.shape[1]
+        except (TypeError, ValueError):
+            raise TextureError(f"width_mm and height_mm are sizes in mm (numbers), got {width_mm!r} and "
+                               f"{height_mm!r}") from None
+        return Texture(values, width, height, name="array")
+    raise TextureError(f"a texture is a Texture, a library name, a texture or image file, or a 2-D array of friction "
+                       f"ratios (0..1) with width_mm=; got {type(texture).__name__}")

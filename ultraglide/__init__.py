@@ -59,7 +59,7 @@ _EXPORTS: dict[str, str] = {
     "read_calibration": "ultraglide.render.physics.calibration",
     "ModelError": "ultraglide.render.physics.errors",
     # the renderer and the finger's path
-    "Renderer": "ultraglide.render.renderer",
+    "Renderer": "ultraglide.api",  # render.renderer's, taking names and arrays
     "RenderSettings": "ultraglide.render.renderer",
     "RecordedTrajectory": "ultraglide.render.trajectory",
     "SwipePath": "ultraglide.render.paths",
@@ -82,6 +82,8 @@ _EXPORTS: dict[str, str] = {
     "output_stage": "ultraglide.devices.output.stage",
     "DeviceError": "ultraglide.devices.errors",
     # what spans the packages
+    "render_swipe": "ultraglide.api",
+    "Rendered": "ultraglide.api",
     "export_wav": "ultraglide.api",
     "ExportResult": "ultraglide.api",
     "EnvelopeSource": "ultraglide.render.engine.sources",
@@ -106,7 +108,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
-    from ultraglide.api import ExportResult, export_wav
+    from ultraglide.api import ExportResult, Rendered, Renderer, export_wav, render_swipe
     from ultraglide.devices.characterisation.resonance import FitError
     from ultraglide.devices.errors import DeviceError
     from ultraglide.devices.output.source import BlockSource, Device
@@ -136,7 +138,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     )
     from ultraglide.render.physics.measurements import read_measurements
     from ultraglide.render.physics.squeeze_film import FilmParams, SqueezeFilmModel
-    from ultraglide.render.renderer import Renderer, RenderSettings
+    from ultraglide.render.renderer import RenderSettings
     from ultraglide.render.touch_log import read_touch_log
     from ultraglide.render.trajectory import RecordedTrajectory
     from ultraglide.textures.authoring import AuthoringOptions, author_image

@@ -12,31 +12,37 @@ Example, a 1 mm grating swiped at 100 mm/s for half a second::
     >>> out = pathlib.Path(tempfile.mkdtemp()) / "swipe.wav"
     >>> result = ultraglide.export_wav("grating-1mm", out, duration_s=0.5)
     >>> soundfile.info(out).samplerate, round(result.duration_s, 2)
-    (96000, 0.52)
+    (96000, 0.53)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import soundfile
 
 from ultraglide import _wav_writer
 from ultraglide.atomic import AtomicFile, write_failure
+from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.output.stage import OutputStage
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.friction_models import MAX_FORCE_N, FrictionModel
-from ultraglide.render.renderer import ControlBlock, Renderer, RenderSettings
-from ultraglide.render.trajectory import RecordedTrajectory
-from ultraglide.textures.library import resolve_texture
+from ultraglide.render.renderer import ControlBlock, RenderSettings
+from ultraglide.render.renderer import Renderer as _Renderer
+from ultraglide.render.trajectory import LiveTrajectory, RecordedTrajectory
+from ultraglide.textures.library import as_texture
+from ultraglide.textures.sampling import Sampler
 from ultraglide.textures.texture import Texture
 
 WAV_SUBTYPES = {"float32": "FLOAT", "int24": "PCM_24", "int16": "PCM_16"}
@@ -60,16 +66,90 @@ class ExportResult:
     worst_excess_um_pp: float  # most drive asked above what the limiter let through
 
 
-def _as_texture(texture: Texture | str | os.PathLike) -> Texture:
-    return texture if isinstance(texture, Texture) else resolve_texture(os.fspath(texture))
+TextureLike = Texture | str | os.PathLike | np.ndarray  # a texture, its name or file, or an array with width_mm
 
 
-def _as_model(model: FrictionModel | str) -> FrictionModel:
-    return model if isinstance(model, FrictionModel) else load_model(str(model))
+def as_model(model: FrictionModel | str | os.PathLike) -> FrictionModel:
+    """A friction model, or one by name or file (:func:`load_model`)."""
+    if isinstance(model, FrictionModel):
+        return model
+    if not isinstance(model, str | os.PathLike):
+        raise ModelError(f"a model is a FrictionModel or a model's name (stretched, squeeze-film, exponential, paper, "
+                         f"table:FILE.csv or CAL.toml); got {type(model).__name__}")
+    return load_model(os.fspath(model))
 
 
-def _as_profile(profile: PlateProfile | str) -> PlateProfile:
-    return profile if isinstance(profile, PlateProfile) else load_profile(str(profile))
+def as_profile(profile: PlateProfile | str | os.PathLike) -> PlateProfile:
+    """A plate profile, or one by bundled name or TOML file (:func:`load_profile`)."""
+    if isinstance(profile, PlateProfile):
+        return profile
+    if not isinstance(profile, str | os.PathLike):
+        raise DeviceError(f"a plate profile is a PlateProfile or a profile's name or TOML file (e.g. sim-plate); got "
+                          f"{type(profile).__name__}")
+    return load_profile(os.fspath(profile))
+
+
+class Renderer(_Renderer):
+    """The renderer: finger → friction ratio → amplitude → drive envelope (µm p-p), block by block.
+
+    :class:`ultraglide.render.renderer.Renderer`, taking names, files and arrays wherever it takes objects.
+    It makes the *control* signal: the drive envelope at the control rate (:attr:`control_rate_hz`,
+    12 kHz by default), µm p-p of plate amplitude; a device's output stage limits it and, for a sound card
+    or a WAV file, puts it on the carrier to make the *audio* signal (:func:`render_swipe` gives both).
+
+    Parameters
+    ----------
+    texture : Texture, str, os.PathLike or numpy.ndarray
+        A texture, a library name, a texture or image file, or a 2-D array of friction ratios (0..1) with
+        ``width_mm`` (see :func:`ultraglide.textures.library.as_texture`).
+    model : FrictionModel or str
+        A friction model or its name: ``stretched`` (the default, force-aware), ``squeeze-film``,
+        ``exponential``, ``paper``, ``table:FILE.csv``, ``CAL.toml``.
+    profile : PlateProfile or str
+        The plate's profile or its bundled name or file (default ``sim-plate``).
+    settings : RenderSettings
+        Rates (Hz), times (s) and limits of the rendering.
+    trajectory : SwipePath, RecordedTrajectory or None
+        The finger's path for offline rendering; None: a live finger, fed with :meth:`push`.
+    effects : tuple, optional
+        Temporal effects (``textures.effects.Binding``) to play instead of the texture's own.
+    sampler : Sampler, optional
+        The lookup already built for ``texture`` (reused across renderers of the same texture).
+    width_mm, height_mm : float, optional
+        The physical size (mm) of a texture given as an array; height by default from square pixels.
+
+    Raises
+    ------
+    UltraglideError
+        A name that does not resolve (``TextureError``, ``ModelError``, ``DeviceError``), or a carrier the
+        plate or the audio rate refuses (``RenderError``); each in one line saying what to give.
+
+    Example
+    -------
+    >>> import ultraglide
+    >>> r = ultraglide.Renderer("grating-1mm", "stretched", "sim-plate", trajectory=ultraglide.SwipePath())
+    >>> block = r.control(duration_s=0.5)             # half a second of envelope at 12 kHz
+    >>> len(block.drive_um_pp), bool(block.drive_um_pp.max() <= r.profile.max_drive_um_pp)
+    (6000, True)
+    """
+
+    def __init__(self, texture: TextureLike, model: FrictionModel | str = "stretched",
+                 profile: PlateProfile | str = "sim-plate", settings: RenderSettings = RenderSettings(),  # noqa: B008 - frozen
+                 trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None,
+                 effects: tuple | None = None, sampler: Sampler | None = None, *,
+                 width_mm: float | None = None, height_mm: float | None = None) -> None:
+        super().__init__(as_texture(texture, width_mm=width_mm, height_mm=height_mm), as_model(model),
+                         as_profile(profile), settings, trajectory, effects, sampler)
+
+    def set_texture(self, texture: TextureLike, *, width_mm: float | None = None,
+                    height_mm: float | None = None) -> None:
+        """Render another texture (an object, a name, a file, or an array with ``width_mm``) from the next block
+        on; its lookup tables are built here."""
+        super().set_texture(as_texture(texture, width_mm=width_mm, height_mm=height_mm))
+
+    def set_model(self, model: FrictionModel | str) -> None:
+        """Use another friction model (an object or a name) from the next block on."""
+        super().set_model(as_model(model))
 
 
 def export_duration_s(renderer: Renderer) -> float:
@@ -113,31 +193,21 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
     return frames / rate
 
 
-def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
-               trajectory: RecordedTrajectory | SwipePath | None = None, *,
-               model: FrictionModel | str = "stretched", profile: PlateProfile | str = "sim-plate",
-               settings: RenderSettings | None = None, rate_hz: int = 96000, format: str = "float32",
-               speed_mm_s: float = 100.0, duration_s: float = 5.0, force_n: float | None = None,
-               observers: Iterable[Callable[[ControlBlock], None]] = ()) -> ExportResult:
-    """Render a texture along a finger's path to a WAV file: what a plate driven by a DAC would get.
-
-    ``texture``: a :class:`Texture`, a texture file, an image (authored with default options) or a
-    library name. ``trajectory``: a recorded path (:func:`read_touch_log`) or a :class:`SwipePath`;
-    by default a straight swipe across the middle at ``speed_mm_s`` (mm/s) for ``duration_s`` (s)
-    at ``force_n`` (N); with a recorded path that logs no force, ``force_n`` is its force (a path that
-    logs its own force and a ``force_n`` are refused together). ``model``: a model or its name
-    (``stretched``, the force-aware default; ``squeeze-film``, ``exponential``, ``paper``, ``table:F.csv``,
-    ``CAL.toml`` ...); ``profile``: the plate's profile or its name. ``settings`` overrides the
-    renderer's (its ``audio_rate_hz`` wins over ``rate_hz``). ``format``: ``float32``, ``int24`` or
-    ``int16``, full scale = the plate's full-scale drive. ``observers`` are given each control block.
-    The file appears whole or not at all (a temporary file renamed into place).
-    """
-    texture = _as_texture(texture)
+def _renderer(texture: TextureLike, trajectory: RecordedTrajectory | SwipePath | None, model: FrictionModel | str,
+              profile: PlateProfile | str, settings: RenderSettings | None, rate_hz: int, speed_mm_s: float,
+              duration_s: float, force_n: float | None, width_mm: float | None,
+              height_mm: float | None) -> Renderer:
+    """The offline renderer an export or a render makes: the texture, the path (a straight swipe across the middle
+    by default) and the force checked as the commands check them."""
+    texture = as_texture(texture, width_mm=width_mm, height_mm=height_mm)
     if settings is None:
         settings = RenderSettings(audio_rate_hz=rate_hz)
     if trajectory is None:
         trajectory = SwipePath.across(texture.width_mm, texture.height_mm, speed_mm_s=speed_mm_s, duration_s=duration_s,
-                                       force_n=force_n)
+                                      force_n=force_n)
+    elif not isinstance(trajectory, RecordedTrajectory | SwipePath):
+        raise RenderError(f"a path is a SwipePath or a RecordedTrajectory (read_touch_log), got "
+                          f"{type(trajectory).__name__}")
     elif force_n is not None:
         if (trajectory.has_force if isinstance(trajectory, RecordedTrajectory) else trajectory.force_n is not None):
             raise RenderError("the trajectory brings its own force; give force_n only for one that logs none")
@@ -145,20 +215,243 @@ def export_wav(texture: Texture | str | os.PathLike, path: str | os.PathLike,
             raise RenderError(f"force_n must be a positive force up to {MAX_FORCE_N:g} N, a fingertip's touch range, "
                               f"got {force_n}")
         settings = dataclasses.replace(settings, default_force_n=float(force_n))
+    return Renderer(texture, model, profile, settings, trajectory=trajectory)
+
+
+def export_wav(texture: TextureLike, path: str | os.PathLike,
+               trajectory: RecordedTrajectory | SwipePath | None = None, *,
+               model: FrictionModel | str = "stretched", profile: PlateProfile | str = "sim-plate",
+               settings: RenderSettings | None = None, rate_hz: int = 96000, format: str = "float32",
+               speed_mm_s: float = 100.0, duration_s: float = 5.0, force_n: float | None = None,
+               observers: Iterable[Callable[[ControlBlock], None]] = (), width_mm: float | None = None,
+               height_mm: float | None = None) -> ExportResult:
+    """Render a texture along a finger's path to a WAV file: the audio signal a plate driven by a DAC would get.
+
+    The file holds the path, then the output coming to rest; it appears whole or not at all (a temporary
+    file renamed into place). Rendered a second at a time: memory stays flat whatever the length.
+
+    Parameters
+    ----------
+    texture : Texture, str, os.PathLike or numpy.ndarray
+        A texture, a library name, a texture or image file (an image is authored with default options),
+        or a 2-D array of friction ratios (0..1) with ``width_mm``.
+    path : str or os.PathLike
+        The ``.wav`` file to write.
+    trajectory : SwipePath or RecordedTrajectory, optional
+        The finger's path (:class:`SwipePath`, or a touch log read by :func:`read_touch_log`); by default a
+        straight swipe across the middle at ``speed_mm_s`` for ``duration_s``.
+    model : FrictionModel or str
+        The friction model or its name (``stretched``, the force-aware default; ``squeeze-film``,
+        ``exponential``, ``paper``, ``table:F.csv``, ``CAL.toml``).
+    profile : PlateProfile or str
+        The plate's profile or its name (default ``sim-plate``).
+    settings : RenderSettings, optional
+        The renderer's settings; their ``audio_rate_hz`` wins over ``rate_hz``.
+    rate_hz : int
+        The file's sample rate (Hz), a whole multiple of the control rate (12 kHz).
+    format : {"float32", "int24", "int16"}
+        The sample format; full scale (1.0) is the plate's full-scale drive.
+    speed_mm_s, duration_s : float
+        The default swipe's speed (mm/s) and length (s).
+    force_n : float, optional
+        The finger's force (N); with a recorded path, only for one that logs no force.
+    observers : iterable of callables
+        Each is given every control block (:class:`ultraglide.render.renderer.ControlBlock`) as it is rendered.
+    width_mm, height_mm : float, optional
+        The physical size (mm) of a texture given as an array.
+
+    Returns
+    -------
+    ExportResult
+        The file, its length (s), rate (Hz), format, carrier (Hz) and what the limits did.
+
+    Raises
+    ------
+    UltraglideError
+        Bad input, in one line (``TextureError``, ``ModelError``, ``DeviceError``, ``RenderError``); nothing is
+        written. An ``OSError`` (a full disk) says what could not be written, and leaves nothing behind.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> import numpy as np, soundfile, ultraglide
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "bars.wav"
+    >>> bars = np.tile([0.3, 1.0], (8, 20))                    # 40 columns: 2 mm bars over 80 mm
+    >>> result = ultraglide.export_wav(bars, out, width_mm=80.0, duration_s=0.25)
+    >>> soundfile.info(out).samplerate, result.carrier_hz
+    (96000, 25000.0)
+    """
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     path = Path(path)
     if path.suffix.lower() != ".wav":
         raise RenderError(f"the output must be a .wav file, got {path}")
-    renderer = Renderer(texture, _as_model(model), _as_profile(profile), settings, trajectory=trajectory)
+    renderer = _renderer(texture, trajectory, model, profile, settings, rate_hz, speed_mm_s, duration_s, force_n,
+                         width_mm, height_mm)
     renderer.observers.extend(observers)
     stage = offline_stage(renderer)
-    frames = int(round(export_duration_s(renderer) * settings.audio_rate_hz))
+    rate = renderer.settings.audio_rate_hz
+    frames = int(round(export_duration_s(renderer) * rate))
     with AtomicFile(path) as target:  # the one atomic writer: the file appears whole or not at all
         try:
             written_s = write_wav(stage, target.temporary, frames, format)
         except soundfile.LibsndfileError as error:  # a full disk or a file too large: one line naming the file
             raise write_failure(path, target.temporary, error) from None
     counters, limiter = renderer.counters, stage.limiter
-    return ExportResult(path, written_s, settings.audio_rate_hz, format, renderer.carrier_hz,
+    return ExportResult(path, written_s, rate, format, renderer.carrier_hz,
                         counters.clipped_samples, counters.ramps, limiter.limited_fraction, limiter.worst_excess_um_pp)
+
+
+@dataclass(frozen=True, eq=False)
+class Rendered:
+    """A swipe rendered to arrays (:func:`render_swipe`): the audio signal and the control signal behind it.
+
+    Two signals, two rates. The *control* signal is the drive envelope, one value per control period
+    (``control_rate_hz``, 12 kHz by default), in µm p-p of plate amplitude: what a plate whose firmware
+    makes the carrier is streamed. The *audio* signal is that envelope, limited, on the carrier
+    (``carrier_hz``) at ``rate_hz``: what a DAC or a sound card drives a plate with, float32 in
+    [-1, 1] where 1 is the plate's full-scale drive (``full_scale_um_pp``).
+
+    Attributes
+    ----------
+    audio : numpy.ndarray
+        The audio signal (float32, ``rate_hz``), the path and then the output coming to rest.
+    rate_hz : int
+        The audio signal's sample rate (Hz).
+    carrier_hz : float
+        The carrier (Hz): the plate's resonance unless the settings say otherwise.
+    full_scale_um_pp : float
+        The drive (µm p-p) that an audio sample of 1.0 stands for.
+    control_rate_hz : float
+        The control signal's rate (Hz).
+    time_s : numpy.ndarray
+        Each control sample's time (s, on the path's clock: a swipe starts at 0).
+    x_mm, y_mm : numpy.ndarray
+        The finger's position at each control sample (mm from the texture's top-left corner).
+    touching : numpy.ndarray
+        Whether the finger touches (bool).
+    ratio : numpy.ndarray
+        The target friction ratio under the finger (1 = the plate at rest).
+    target_um_pp : numpy.ndarray
+        The model's amplitude for that ratio at the finger's force, within the limit (µm p-p).
+    envelope_um_pp : numpy.ndarray
+        The amplitude the plate should make after ramps and band and slew limits (µm p-p).
+    drive_um_pp : numpy.ndarray
+        The drive envelope after the drive limiter (µm p-p): what the audio carries.
+    limit_um_pp : float
+        The plate's amplitude limit (µm p-p, its profile's ``max_amplitude_um_pp``), which ``target_um_pp``
+        and ``envelope_um_pp`` stay within.
+    limited_fraction : float
+        The fraction of control samples the drive limiter lowered.
+    """
+
+    audio: np.ndarray
+    rate_hz: int
+    carrier_hz: float
+    full_scale_um_pp: float
+    control_rate_hz: float
+    time_s: np.ndarray
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    touching: np.ndarray
+    ratio: np.ndarray
+    target_um_pp: np.ndarray
+    envelope_um_pp: np.ndarray
+    drive_um_pp: np.ndarray
+    limit_um_pp: float
+    limited_fraction: float
+
+    @property
+    def duration_s(self) -> float:
+        """The audio's length (s)."""
+        return len(self.audio) / self.rate_hz
+
+    def __repr__(self) -> str:
+        return (f"Rendered({self.duration_s:.3g} s of audio at {self.rate_hz} Hz on a {self.carrier_hz:g} Hz carrier, "
+                f"{len(self.time_s)} control samples at {self.control_rate_hz:g} Hz)")
+
+
+def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | None = None, *,
+                 duration_s: float | None = None, rate_hz: int = 96000, speed_mm_s: float = 100.0,
+                 force_n: float | None = None, model: FrictionModel | str = "stretched",
+                 profile: PlateProfile | str = "sim-plate", settings: RenderSettings | None = None,
+                 width_mm: float | None = None, height_mm: float | None = None) -> Rendered:
+    """Render a finger's path over a texture to arrays: the audio signal, its rate, and the control signal.
+
+    The same path from renderer to samples as :func:`export_wav` (its file holds the same samples), kept in
+    memory: for a few seconds, or a swipe to analyse; write long ones with :func:`export_wav`.
+
+    Parameters
+    ----------
+    texture : Texture, str, os.PathLike or numpy.ndarray
+        A texture, a library name, a texture or image file, or a 2-D array of friction ratios (0..1) with
+        ``width_mm``.
+    path : SwipePath or RecordedTrajectory, optional
+        The finger's path; by default a straight swipe across the texture's middle at ``speed_mm_s``.
+    duration_s : float, optional
+        The default swipe's length (s), 1 s unless given; a path given brings its own.
+    rate_hz : int
+        The audio signal's sample rate (Hz), a whole multiple of the control rate (12 kHz).
+    speed_mm_s : float
+        The default swipe's speed (mm/s).
+    force_n : float, optional
+        The finger's force (N); with a recorded path, only for one that logs no force.
+    model : FrictionModel or str
+        The friction model or its name (default ``stretched``).
+    profile : PlateProfile or str
+        The plate's profile or its name (default ``sim-plate``).
+    settings : RenderSettings, optional
+        The renderer's settings; their ``audio_rate_hz`` wins over ``rate_hz``.
+    width_mm, height_mm : float, optional
+        The physical size (mm) of a texture given as an array.
+
+    Returns
+    -------
+    Rendered
+        The audio (float32 at ``rate_hz``, the path then the output coming to rest) and, at the control
+        rate, the finger, the target ratio, the target amplitude, the envelope and the limited drive.
+
+    Raises
+    ------
+    UltraglideError
+        Bad input, in one line: a texture, model or profile that does not resolve, an array without
+        ``width_mm``, a ``duration_s`` beside a path, a rate that is not a multiple of the control rate.
+
+    Example
+    -------
+    >>> import numpy as np, ultraglide
+    >>> swipe = ultraglide.render_swipe("grating-1mm", duration_s=0.5)
+    >>> swipe.rate_hz, swipe.control_rate_hz, swipe.carrier_hz
+    (96000, 12000.0, 25000.0)
+    >>> bool(swipe.envelope_um_pp.max() <= swipe.limit_um_pp), bool(np.abs(swipe.audio).max() <= 1.0)
+    (True, True)
+    """
+    if path is not None and duration_s is not None:
+        raise RenderError("a path brings its own duration: give duration_s only for the default swipe")
+    duration_s = 1.0 if duration_s is None else duration_s
+    if not (isinstance(duration_s, int | float) and math.isfinite(duration_s) and duration_s > 0):
+        raise RenderError(f"duration_s must be a positive number of seconds, got {duration_s!r}")
+    renderer = _renderer(texture, path, model, profile, settings, rate_hz, speed_mm_s, duration_s, force_n,
+                         width_mm, height_mm)
+    blocks: list[ControlBlock] = []
+    renderer.observers.append(blocks.append)  # offline blocks are new arrays each: kept as they are
+    stage = offline_stage(renderer)
+    drives: list[np.ndarray] = []
+    stage.observers.append(drives.append)  # the limited drive, each block the stage's to keep
+    rate = renderer.settings.audio_rate_hz
+    frames = int(round(export_duration_s(renderer) * rate))
+    block = int(BLOCK_S * rate)
+    audio = np.empty(frames, dtype=np.float32)
+    for start in range(0, frames, block):
+        stop = min(frames, start + block)
+        stage.pull(stop - start, None, audio[start:stop])
+
+    def joined(name: str, dtype: type = float) -> np.ndarray:
+        parts = [np.broadcast_to(getattr(b, name), b.time_s.shape) for b in blocks]
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
+
+    return Rendered(audio, rate, renderer.carrier_hz, renderer.profile.full_scale_um_pp, renderer.control_rate_hz,
+                    joined("time_s"), joined("x_mm"), joined("y_mm"), joined("down", bool),
+                    joined("ratio"), joined("target_um_pp"), joined("amplitude_um_pp"),
+                    np.concatenate(drives) if drives else np.zeros(0), renderer.limit_um_pp,
+                    stage.limiter.limited_fraction)
