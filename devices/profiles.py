@@ -146,8 +146,30 @@ def bundled_profiles() -> list[str]:
 
 
 def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
-    """A profile by bundled name or TOML path; DeviceError (one line) for anything wrong with it. A path that
-    is not a regular file (a pipe, a device, a directory) is refused without being read."""
+    """A plate profile by bundled name or TOML file: the plate's resonance, Q, full scale and limits.
+
+    A path that is not a regular file (a pipe, a device, a directory) is refused without being read.
+
+    Parameters
+    ----------
+    spec : str
+        A bundled profile's name (``sim-plate``, the default) or a ``.toml`` file.
+
+    Returns
+    -------
+    PlateProfile
+
+    Raises
+    ------
+    DeviceError
+        No such profile, or what is wrong with the file, in one line.
+
+    Example
+    -------
+    >>> plate = load_profile("sim-plate")
+    >>> plate.resonance_hz, plate.max_amplitude_um_pp, plate.full_scale_um_pp
+    (25000.0, 6.0, 8.0)
+    """
     spec = os.fspath(spec)
     path = Path(spec)
     bundled = PROFILE_DIR / f"{spec}.toml"

@@ -171,12 +171,48 @@ class SimPlate:
 def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
                 track_resonance: bool = False, finger: SimulatedFinger | None = None,
                 amplitude_loop: bool = False) -> Device:
-    """A device ready to ``start(source)``; its ``signal`` says whether it wants control or audio blocks.
+    """A device ready to ``start(source)``, by URL; its ``signal`` says whether it wants control or audio.
 
     ``track_resonance``: a plate driver (sim, serial) follows its plate's drifting resonance from
     telemetry, starting from ``carrier_hz`` or the profile's; other devices report no amplitude, so
-    asking them is a DeviceError. ``finger``: a simulated finger (and force sensors) on the ``sim`` plate;
-    ``amplitude_loop``: a plate driver turns its firmware's amplitude loop on where it has one."""
+    asking them is a DeviceError.
+
+    Parameters
+    ----------
+    url : str
+        ``sim`` (the simulated plate: the real serial driver and the simulated firmware on a pty),
+        ``serial:PORT[?baud=N&rate=N]``, ``audio[:NAME_OR_INDEX][?rate=N]``, ``wav:PATH`` or ``null``.
+    profile : PlateProfile
+        The plate driven (:func:`load_profile`): its limits hold on whatever leaves.
+    control_rate_hz : int
+        The envelope's rate (Hz).
+    carrier_hz : float, optional
+        The carrier (Hz); the profile's resonance by default.
+    track_resonance : bool
+        Follow the plate's resonance from telemetry (plate drivers only).
+    finger : SimulatedFinger, optional
+        A simulated finger (and force sensors) on the ``sim`` plate.
+    amplitude_loop : bool
+        Turn the firmware's amplitude loop on, where the plate driver has one.
+
+    Returns
+    -------
+    Device
+        Not started: ``device.start(ultraglide.renderer_source(device, renderer))`` plays a renderer;
+        ``device.stop()`` ramps to rest and rests the hardware.
+
+    Raises
+    ------
+    DeviceError
+        A URL or option the device refuses, in one line.
+
+    Example
+    -------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> device = open_device("null", load_profile("sim-plate"))   # takes audio and discards it
+    >>> device.signal, device.rate_hz
+    ('audio', 96000)
+    """
     spec = parse_device_url(url)
     carrier = carrier_hz or profile.resonance_hz
     tracker = None

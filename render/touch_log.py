@@ -118,6 +118,33 @@ def check_touch_log(path: str | Path) -> TouchLog:
 
 
 def read_touch_log(path: str | Path) -> RecordedTrajectory:
-    """A recorded trajectory streamed from a CSV, checked whole first; errors name the line at fault.
-    ``#`` lines are comments."""
+    """A recorded finger path from a touch log CSV (``ultraglide demo --record``), checked whole first.
+
+    Rows ``t_s,x_mm,y_mm[,force_n]`` (s; mm from the texture's top-left corner; N); ``#`` lines are
+    comments; a row with empty x and y is a lift. Streamed, so a long log does not fill memory.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    RecordedTrajectory
+        The path, to give a renderer or :func:`ultraglide.export_wav` as its trajectory.
+
+    Raises
+    ------
+    RenderError
+        The line at fault and what is wrong with it.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
+    >>> _ = path.write_text("t_s,x_mm,y_mm\\n0.0,10,20\\n0.5,60,20\\n")
+    >>> log = read_touch_log(path)
+    >>> log.start_s, log.end_s, log.state([0.25]).x_mm.tolist()
+    (0.0, 0.5, [35.0])
+    """
     return check_touch_log(path).trajectory()

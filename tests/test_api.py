@@ -230,3 +230,36 @@ def test_a_texture_that_is_not_one_says_what_to_give(tmp_path, texture, options,
             call()
         assert "\n" not in str(caught.value)
     assert list(tmp_path.iterdir()) == []
+
+
+# classes whose docstrings are numpy-style whole (Parameters or Attributes, and an Example); the rest say what they
+# are in words, and their methods are documented one by one
+NUMPY_CLASSES = ("Renderer", "SwipePath", "Rendered")
+
+
+def _sections(doc: str) -> set[str]:
+    """The numpy-style section headings of a docstring (a title underlined with dashes)."""
+    lines = doc.splitlines()
+    return {lines[i].strip() for i in range(len(lines) - 1)
+            if lines[i].strip() and set(lines[i + 1].strip()) == {"-"} and len(lines[i + 1].strip()) >= 3}
+
+
+def test_the_public_functions_and_classes_have_numpy_docstrings():
+    import doctest
+
+    lacking = []
+    for name in ultraglide.__all__:
+        value = getattr(ultraglide, name)
+        if inspect.isfunction(value):
+            wanted = {"Returns", "Example"} | ({"Parameters"} if inspect.signature(value).parameters else set())
+        elif name in NUMPY_CLASSES:
+            wanted = {"Example"} | ({"Parameters"} if name != "Rendered" else {"Attributes"})
+        else:
+            continue
+        doc = inspect.getdoc(value)
+        missing = wanted - _sections(doc)
+        if missing:
+            lacking.append(f"{name}: {sorted(missing)}")
+        elif "Example" in wanted and not doctest.DocTestParser().get_examples(doc):
+            lacking.append(f"{name}: an Example without a >>> line")
+    assert not lacking, lacking

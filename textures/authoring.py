@@ -361,6 +361,37 @@ def warn_if_seam(texture: Texture) -> None:
 
 
 def author_image(path: str | Path, options: AuthoringOptions = AuthoringOptions(), name: str | None = None) -> Texture:
-    """Make a texture from an image file; :class:`TextureError` says what is wrong with bad input."""
+    """Make a texture from an image file (a photo, a drawing): its brightness (or another channel) mapped to
+    friction ratios at a physical size.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The image (PNG, JPEG, ... anything Pillow reads).
+    options : AuthoringOptions
+        Its physical size (``width_mm`` or ``dpi``), the channel, levels, blur (mm) and ratio range.
+    name : str, optional
+        The texture's name (the file's stem by default).
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        In one line, what is wrong with the image or the options.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from PIL import Image
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "ramp.png"
+    >>> Image.fromarray(np.tile(np.arange(0, 256, 4, dtype=np.uint8), (32, 1))).save(path)
+    >>> texture = author_image(path, AuthoringOptions(width_mm=64.0, ratio_range=(0.5, 1.0), outside="clamp"))
+    >>> texture.width_mm, texture.height_mm, round(float(texture.values.min()), 2)
+    (64.0, 32.0, 0.5)
+    """
     luminance, info = read_image_luminance(path, options)
     return texture_from_luminance(luminance, options, name or Path(path).stem, str(path), info)

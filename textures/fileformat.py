@@ -69,7 +69,36 @@ def metadata_of(texture: Texture) -> dict:
 
 
 def save_texture(texture: Texture, path: str | Path) -> Path:
-    """Write a texture file atomically (:class:`ultraglide.atomic.AtomicFile`); returns the path."""
+    """Write a texture file: a PNG of its values with its size and metadata, whole or not at all.
+
+    Written atomically (:class:`ultraglide.atomic.AtomicFile`): a temporary file renamed into place.
+
+    Parameters
+    ----------
+    texture : Texture
+        The texture to write.
+    path : str or pathlib.Path
+        The ``.png`` file to write.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
+    Raises
+    ------
+    TextureError
+        A path that is not a PNG, or a texture the format cannot hold; ``OSError`` for a file that cannot be
+        written (nothing is left behind).
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> from ultraglide.textures.procedural import dots
+    >>> path = save_texture(dots(size_mm=(16.0, 8.0)), pathlib.Path(tempfile.mkdtemp()) / "dots.png")
+    >>> path.name, load_texture(path).height_mm
+    ('dots.png', 8.0)
+    """
     path = Path(path)
     image = Image.fromarray(quantise(texture.values))  # mode I;16: 16-bit grayscale PNG
     info = PngImagePlugin.PngInfo()
@@ -231,10 +260,33 @@ def _metadata_chunk_present(stream) -> bool:
 
 
 def load_texture(path: str | Path) -> Texture:
-    """Read a texture file; :class:`TextureError` says what is wrong with a bad one.
+    """Read a texture file (a PNG with the texture's metadata, as :func:`save_texture` writes it).
 
     A file finer than :data:`MAX_PX_PER_MM` is held at that resolution (see :func:`_held_size`); the
-    texture's ``authoring`` then says so under ``held_from_pixels``."""
+    texture's ``authoring`` then says so under ``held_from_pixels``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The texture file.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        In one line, what is wrong with the file: missing, not a texture, damaged metadata, too large.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> from ultraglide.textures.procedural import grating
+    >>> path = save_texture(grating(2.0, size_mm=(20.0, 10.0)), pathlib.Path(tempfile.mkdtemp()) / "g.png")
+    >>> load_texture(path).width_mm, load_texture(path).height_mm
+    (20.0, 10.0)
+    """
     path = Path(path)
     with open_input(path, "texture file", TextureError) as stream:
         image, text, dpi = _read_png(stream, path)

@@ -36,7 +36,24 @@ class LibraryEntry:
 
 
 def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
-    """Every texture in the library, sorted by name."""
+    """Every texture in the library, sorted by name, described without loading its pixels.
+
+    Parameters
+    ----------
+    directory : pathlib.Path
+        The library's folder (the bundled one by default).
+
+    Returns
+    -------
+    list of LibraryEntry
+        Each texture's name, file, size (mm), kind and description.
+
+    Example
+    -------
+    >>> entry = next(entry for entry in library_entries() if entry.name == "grating-1mm")
+    >>> entry.width_mm, entry.height_mm, entry.kind
+    (80.0, 50.0, 'friction')
+    """
     entries = []
     for path in sorted(directory.glob("*.png")):
         with Image.open(path) as image:
@@ -57,7 +74,29 @@ def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Textu
     friction map (:func:`ultraglide.textures.formats.gltf.load_friction_texture`); any other image is
     authored on the fly with ``options`` (the defaults of ``ultraglide author`` unless given), with a
     warning saying so. A path that exists but is not a regular file (a directory, a named pipe, a device)
-    is refused in one line, unless a library texture has that name."""
+    is refused in one line, unless a library texture has that name.
+
+    Parameters
+    ----------
+    spec : str
+        A library name (``ultraglide textures`` lists them), a texture or image file, or a glTF scene.
+    options : AuthoringOptions, optional
+        How a plain image is authored.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No such texture (with the closest library names), or a file that cannot be read.
+
+    Example
+    -------
+    >>> resolve_texture("grating-1mm")
+    Texture('grating-1mm', 80 × 50 mm, 800 × 500 px)
+    """
     spec = os.fspath(spec)
     path = Path(spec)
     bundled = LIBRARY_DIR / f"{spec}.png"

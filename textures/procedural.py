@@ -76,6 +76,40 @@ def grating(wavelength_mm: float = 1.0, size_mm: Size = DEFAULT_SIZE_MM, angle_d
     height, so the texture repeats without a seam: the wavelength and angle change by at most
     half a cycle over the tile (both realised values are in the description and metadata);
     ``tile=False`` keeps them exact and extends the edges instead of repeating.
+
+    Parameters
+    ----------
+    wavelength_mm : float
+        The ridges' period (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    angle_deg : float
+        The direction across the ridges (degrees; 0: ridges run top to bottom).
+    shape : str
+        ``sine``, ``square``, ``triangle`` or ``sawtooth``.
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the wavelength.
+    duty : float
+        A square grating's sticky fraction of each period.
+    tile : bool
+        Snap to whole cycles so the texture tiles.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, wavelength, range or shape out of bounds, in one line.
+
+    Example
+    -------
+    >>> texture = grating(wavelength_mm=2.0, size_mm=(20.0, 10.0), ratio_range=(0.5, 1.0))
+    >>> texture.width_mm, round(float(texture.values.min()), 2), round(float(texture.values.max()), 2)
+    (20.0, 0.5, 1.0)
     """
     _check_positive(wavelength_mm=wavelength_mm)
     if shape not in ("sine", "square"):
@@ -107,7 +141,34 @@ def grating(wavelength_mm: float = 1.0, size_mm: Size = DEFAULT_SIZE_MM, angle_d
 def checkerboard(square_mm: float = 5.0, size_mm: Size = DEFAULT_SIZE_MM, ratio_range: Range = DEFAULT_RANGE,
                  px_per_mm: float | None = None) -> Texture:
     """Alternating sticky and slippery squares; the square snaps (per axis) to an even number across
-    each side so the texture tiles."""
+    each side so the texture tiles.
+
+    Parameters
+    ----------
+    square_mm : float
+        A square's side (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slippery and the sticky squares (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the squares.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size or range out of bounds, in one line.
+
+    Example
+    -------
+    >>> board = checkerboard(square_mm=5.0, size_mm=(20.0, 10.0))
+    >>> sorted({round(float(v), 2) for v in board.values.ravel()})
+    [0.4, 1.0]
+    """
     _check_positive(square_mm=square_mm)
     x, y = _grid(size_mm, square_mm, px_per_mm)
     across, square_x = _whole(2 * square_mm, size_mm[0])
@@ -128,7 +189,37 @@ def _lattice(size_mm, pitch_mm: float, x, y):
 
 def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm: Size = DEFAULT_SIZE_MM,
          ratio_range: Range = DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
-    """Sticky round dots on a slippery ground, on a lattice whose pitch snaps to whole cells per side."""
+    """Sticky round dots on a slippery ground, on a lattice whose pitch snaps to whole cells per side.
+
+    Parameters
+    ----------
+    pitch_mm : float
+        The distance between dot centres (mm).
+    diameter_mm : float
+        A dot's diameter (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the ground and of the dots (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the dots.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, pitch or range out of bounds, in one line.
+
+    Example
+    -------
+    >>> texture = dots(pitch_mm=4.0, diameter_mm=2.0, size_mm=(20.0, 20.0))
+    >>> sticky = float((texture.values > 0.7).mean())      # a 2 mm disc in each 4 mm cell: π/16 of the area
+    >>> abs(sticky - 3.14159 / 16) < 0.02
+    True
+    """
     _check_positive(pitch_mm=pitch_mm, diameter_mm=diameter_mm)
     x, y = _grid(size_mm, min(pitch_mm, diameter_mm), px_per_mm)
     dx, dy, pitches = _lattice(size_mm, pitch_mm, x, y)
@@ -159,7 +250,36 @@ def _normalised(field: np.ndarray) -> np.ndarray:
 
 def noise(cutoff_mm: float = 2.0, size_mm: Size = DEFAULT_SIZE_MM, seed: int = 0, ratio_range: Range = DEFAULT_RANGE,
           px_per_mm: float | None = None) -> Texture:
-    """Band-limited random roughness: no wavelength shorter than ``cutoff_mm``; tiles seamlessly."""
+    """Band-limited random roughness: no wavelength shorter than ``cutoff_mm``; tiles seamlessly.
+
+    Parameters
+    ----------
+    cutoff_mm : float
+        The shortest wavelength (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    seed : int
+        The random generator's seed: the same seed, the same texture.
+    ratio_range : (float, float)
+        The friction ratios the roughness spans (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the cutoff.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, cutoff or range out of bounds, in one line.
+
+    Example
+    -------
+    >>> a, b = noise(seed=3, size_mm=(20.0, 10.0)), noise(seed=3, size_mm=(20.0, 10.0))
+    >>> bool((a.values == b.values).all()), bool(0.4 <= a.values.min() and a.values.max() <= 1.0)
+    (True, True)
+    """
     _check_positive(cutoff_mm=cutoff_mm)
     x, _ = _grid(size_mm, cutoff_mm, px_per_mm)
     rows, cols = x.shape
@@ -180,6 +300,36 @@ def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm: Size = (40.0, 4
     fractional Brownian surface, P(f) ∝ |f|^-(2H+2), from the tile's size down to ``cutoff_mm``,
     with no mean (f = 0) term; low H is rough and jagged, high H smooth and rolling. Periodic by
     construction, so it tiles seamlessly.
+
+    Parameters
+    ----------
+    hurst : float
+        The Hurst exponent, in (0, 1).
+    cutoff_mm : float
+        The shortest wavelength (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    seed : int
+        The random generator's seed.
+    ratio_range : (float, float)
+        The friction ratios the roughness spans (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the cutoff.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A Hurst exponent outside (0, 1), or a size, cutoff or range out of bounds, in one line.
+
+    Example
+    -------
+    >>> rough = fractal(hurst=0.3, size_mm=(10.0, 10.0))
+    >>> rough.width_mm, bool(0.4 <= rough.values.min() and rough.values.max() <= 1.0)
+    (10.0, True)
     """
     _check_positive(cutoff_mm=cutoff_mm)
     if not (np.isfinite(hurst) and 0 < hurst < 1):

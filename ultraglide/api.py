@@ -343,6 +343,15 @@ class Rendered:
         and ``envelope_um_pp`` stay within.
     limited_fraction : float
         The fraction of control samples the drive limiter lowered.
+
+    Example
+    -------
+    >>> import ultraglide
+    >>> swipe = ultraglide.render_swipe("dots", duration_s=0.2)
+    >>> swipe
+    Rendered(0.233 s of audio at 96000 Hz on a 25000 Hz carrier, 2794 control samples at 12000 Hz)
+    >>> len(swipe.audio) == round(swipe.duration_s * swipe.rate_hz)
+    True
     """
 
     audio: np.ndarray

@@ -238,9 +238,46 @@ class OutputStage:
 
 def output_stage(source: BlockSource, profile: PlateProfile, signal: str, rate_hz: float,
                  carrier_hz: float | None = None) -> OutputStage:
-    """What every device's ``start(source)`` calls first: ``source`` behind the limiter, as this device's
-    signal. A stage built for the same profile, signal and rates (by an app that wants its counters)
-    is used as it is; any other source is wrapped."""
+    """What every device's ``start(source)`` calls first: ``source`` behind the drive limiter, as this
+    device's signal.
+
+    A stage built for the same profile, signal and rates (by an app that wants its counters) is used as
+    it is; any other source is wrapped.
+
+    Parameters
+    ----------
+    source : BlockSource or OutputStage
+        An envelope source: drive amplitudes (µm p-p) at the control rate.
+    profile : PlateProfile
+        The plate: its limits hold on whatever leaves.
+    signal : {"control", "audio"}
+        What the device takes: the limited envelope, or the envelope on the carrier (float32, [-1, 1]).
+    rate_hz : float
+        The device's rate (Hz): the control rate or a whole fraction of it, or an audio rate.
+    carrier_hz : float, optional
+        The audio signal's carrier (Hz); the plate's resonance by default.
+
+    Returns
+    -------
+    OutputStage
+
+    Raises
+    ------
+    DeviceError
+        An output stage given for another plate, signal or rate, or a rate that does not fit.
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> class Steady:                                       # 9 µm p-p asked, above the plate's 6 µm limit
+    ...     finished = False
+    ...     def pull(self, n, now_s): return np.full(n, 9.0)
+    ...     def request_stop(self): pass
+    >>> stage = output_stage(Steady(), load_profile("sim-plate"), "control", 12000)
+    >>> float(stage.pull(1200, None)[-1])                   # held at the limit
+    6.0
+    """
     if isinstance(source, OutputStage):
         if not source.matches(profile, signal, rate_hz, carrier_hz):
             raise DeviceError(f"this output stage gives {source.signal} at {source.rate_hz:g} Hz for plate "

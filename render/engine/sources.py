@@ -47,8 +47,38 @@ class EnvelopeSource:
 
 def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
     """What to ``device.start()`` with so that it plays ``renderer``: the renderer behind the drive limiter,
-    as the signal the device wants (``device.signal``, ``device.rate_hz``). Starting the device with an
-    :class:`EnvelopeSource` does the same; built here, the caller can read the limiter's counters."""
+    as the signal the device wants (``device.signal``, ``device.rate_hz``).
+
+    Starting the device with an :class:`EnvelopeSource` does the same; built here, the caller can read
+    the limiter's counters.
+
+    Parameters
+    ----------
+    device : Device
+        An opened device (:func:`ultraglide.open_device`).
+    renderer : Renderer
+        What it plays.
+
+    Returns
+    -------
+    OutputStage
+        The source to start the device with; ``stage.limiter`` counts what the limiter did.
+
+    Raises
+    ------
+    DeviceError
+        A renderer whose rates the device cannot take.
+
+    Example
+    -------
+    >>> import ultraglide
+    >>> renderer = ultraglide.Renderer("grating-1mm", trajectory=ultraglide.SwipePath(duration_s=0.1))
+    >>> device = ultraglide.open_device("null", renderer.profile)
+    >>> stage = renderer_source(device, renderer)
+    >>> samples = stage.pull(9600, None)                      # 0.1 s of the audio signal
+    >>> stage.signal, bool(abs(samples).max() <= 1.0)
+    ('audio', True)
+    """
     carrier_hz = getattr(device, "carrier_hz", None) or renderer.carrier_hz
     return output_stage(EnvelopeSource(renderer), renderer.profile, device.signal, device.rate_hz, carrier_hz)
 

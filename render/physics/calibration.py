@@ -77,8 +77,32 @@ CALIBRATION_VERSION = 1
 
 
 def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None) -> str:
-    """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically); ``participant``:
-    whose finger it is (an on-plate calibration's id), ``procedure``: how the points were measured, in words."""
+    """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically).
+
+    Parameters
+    ----------
+    fit : Fit
+        A fit (:func:`fit_model`).
+    participant : str, optional
+        Whose finger it is (an on-plate calibration's id).
+    procedure : str, optional
+        How the points were measured, in words.
+
+    Returns
+    -------
+    str
+        TOML that :func:`read_calibration` reads back into the fitted model.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> from importlib.resources import files
+    >>> fit = fit_model(read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv"), "exponential")
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "finger.toml"
+    >>> _ = path.write_text(calibration_toml(fit, participant="P01"))
+    >>> type(read_calibration(path)).__name__
+    'ExponentialModel'
+    """
     kind = fit.kind or model_kind(fit.model)
     if kind == "table":
         raise ModelError("a table model is its CSV: use --model table:FILE.csv instead of a calibration file")
@@ -118,7 +142,33 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
 
 
 def read_calibration(path: str | Path) -> FrictionModel:
-    """A model from a calibration file; :class:`ModelError` says what is wrong with it."""
+    """A model from a calibration file (``ultraglide calibrate``, :func:`calibration_toml`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.toml`` calibration file.
+
+    Returns
+    -------
+    FrictionModel
+        The model with the fitted parameters.
+
+    Raises
+    ------
+    ModelError
+        What is wrong with the file, in one line.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> from importlib.resources import files
+    >>> fit = fit_model(read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv"), "stretched")
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "finger.toml"
+    >>> _ = path.write_text(calibration_toml(fit))
+    >>> type(read_calibration(path)).__name__
+    'StretchedExponentialModel'
+    """
     path = Path(path)
     data = read_input(path, "calibration file", ModelError)
     document = parse_toml(data, str(path), ModelError, what="calibration file")
@@ -180,9 +230,31 @@ def _fitted_forces(fit, where: str) -> FitRange | None:
 
 
 def load_model(spec: str) -> FrictionModel:
-    """A model by name or file: ``stretched`` (the default for rendering), ``squeeze-film``,
-    ``exponential``, ``paper``, ``paper-uniform``, ``table:FILE.csv`` or a calibration file ``CAL.toml``; ``dynamic``
-    (the default model with the published friction dynamics) or ``dynamic:NAME`` (any of these with them)."""
+    """A friction model by name or file.
+
+    Parameters
+    ----------
+    spec : str
+        ``stretched`` (the default for rendering: force-aware), ``squeeze-film``, ``exponential``,
+        ``paper``, ``paper-uniform``, ``table:FILE.csv`` (measured points) or a calibration file
+        ``CAL.toml`` (``ultraglide calibrate``); ``dynamic`` (the default model with the published friction
+        dynamics) or ``dynamic:NAME`` (any of these with them).
+
+    Returns
+    -------
+    FrictionModel
+
+    Raises
+    ------
+    ModelError
+        An unknown name, or a file that cannot be used, in one line.
+
+    Example
+    -------
+    >>> model = load_model("exponential")
+    >>> round(float(model.amplitude_um_pp(0.5, 0.5).amplitude_um_pp), 2)   # µm p-p to halve the friction
+    3.11
+    """
     if spec == "dynamic" or spec.startswith("dynamic:"):
         from ultraglide.render.physics.dynamics import DynamicFrictionModel
 

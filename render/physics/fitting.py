@@ -101,10 +101,43 @@ def fit_model(data: Measurements, kind: str, cross_validate: bool = False, boots
     detachment amplitude) and the friction exponent n, and the area exponent with several forces.
     ``exponential`` and ``stretched`` also fit their floor (``residual_ratio``, Huloux et al. 2018; it
     may come out 0); ``squeeze-film`` fits its air gap and the film's share of the contact, the ridges
-    held at Table I. ``table`` builds the table model (nothing to fit). With ``cross_validate`` the fit
-    also carries its cross-validated errors (:func:`cross_validation_errors`); with ``bootstrap`` (a
-    number of resamples) its bootstrap standard errors (:func:`bootstrap_errors`). ``hold`` fixes
-    parameters at given values (``{"residual_ratio": 0.0}``: the law without a floor).
+    held at Table I. ``table`` builds the table model (nothing to fit).
+
+    Parameters
+    ----------
+    data : Measurements
+        The points (:func:`read_measurements`).
+    kind : str
+        ``exponential``, ``stretched``, ``squeeze-film``, ``paper``, ``paper-uniform`` or ``table``.
+    cross_validate : bool
+        Also compute the fit's cross-validated errors (:func:`cross_validation_errors`).
+    bootstrap : int
+        A number of resamples for bootstrap standard errors (:func:`bootstrap_errors`); 0: none.
+    hold : dict, optional
+        Parameters fixed at given values (``{"residual_ratio": 0.0}``: the law without a floor).
+
+    Returns
+    -------
+    Fit
+        The model, its parameters and their uncertainties, the RMS error.
+
+    Raises
+    ------
+    ModelError
+        A kind not known, or data this model cannot be fitted to, in one line.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import read_measurements
+    >>> import numpy as np
+    >>> amplitude = np.linspace(0.0, 5.0, 30)
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "m.csv"
+    >>> rows = "\\n".join(f"{a},{np.exp(-(a / 2) ** 2 / (2 * 1.3**2))}" for a in amplitude)
+    >>> _ = path.write_text("amplitude_um_pp,relative_friction\\n" + rows + "\\n")
+    >>> fit = fit_model(read_measurements(path), "exponential", hold={"residual_ratio": 0.0})
+    >>> fit.rms_residual < 1e-6
+    True
     """
     optimum = None
     if kind == "table":
@@ -395,9 +428,37 @@ def selection_note(data: Measurements) -> str:
 
 
 def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS) -> list[Fit]:
-    """Every model fitted and cross-validated, best first: by leave-one-force-out RMS when the data hold
-    three forces or more, else by k-fold RMS (within each force); :func:`selection_note` says which and
-    why. Models that cannot be fitted to these data are left out."""
+    """Every model fitted and cross-validated, best first.
+
+    By leave-one-force-out RMS when the data hold three forces or more, else by k-fold RMS (within each
+    force); :func:`selection_note` says which and why. Models that cannot be fitted to these data are
+    left out.
+
+    Parameters
+    ----------
+    data : Measurements
+        The points (:func:`read_measurements`).
+    kinds : tuple of str
+        The models to compare (by default all).
+
+    Returns
+    -------
+    list of Fit
+        Best first.
+
+    Raises
+    ------
+    ModelError
+        When no model can be fitted to the data.
+
+    Example
+    -------
+    >>> from importlib.resources import files
+    >>> from ultraglide import read_measurements
+    >>> data = read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv")
+    >>> [fit.kind for fit in compare_models(data, ("exponential", "table"))][0]
+    'exponential'
+    """
     fits = []
     for kind in kinds:
         try:

@@ -94,13 +94,38 @@ def check_describes_reduction(data: Measurements, where: str) -> None:
 
 
 def read_measurements(path: str | Path) -> Measurements:
-    """Read and validate a measurement CSV; raise :class:`ModelError` with the line at fault.
+    """Read and validate a measurement CSV: relative friction against amplitude, maybe per force.
 
-    Ranges: amplitude_um_pp 0..100, relative_friction in [-0.05, 1.2] (below 0: noise, clipped to
-    0 and counted), force_n in (0, 50], at most 100 000 rows. There must be two different
-    amplitudes or more, at one force never closer than 0.001 µm, and the points must describe
-    friction reduction (:func:`check_describes_reduction`): a flat table says nothing about how
-    friction falls, so it can neither be inverted nor fitted.
+    Columns ``amplitude_um_pp,relative_friction[,force_n][,participant]``. Ranges: amplitude_um_pp
+    0..100, relative_friction in [-0.05, 1.2] (below 0: noise, clipped to 0 and counted), force_n in
+    (0, 50], at most 100 000 rows. There must be two different amplitudes or more, at one force never
+    closer than 0.001 µm, and the points must describe friction reduction
+    (:func:`check_describes_reduction`): a flat table says nothing about how friction falls, so it can
+    neither be inverted nor fitted.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    Measurements
+        The points (amplitudes µm p-p, ratios, forces N) and what was clipped.
+
+    Raises
+    ------
+    ModelError
+        The line at fault and what is wrong with it.
+
+    Example
+    -------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "m.csv"
+    >>> _ = path.write_text("amplitude_um_pp,relative_friction\\n0,1.0\\n1,0.8\\n2,0.5\\n3,0.3\\n")
+    >>> data = read_measurements(path)
+    >>> data.amplitude_um_pp.tolist(), data.relative_friction.tolist()
+    ([0.0, 1.0, 2.0, 3.0], [1.0, 0.8, 0.5, 0.3])
     """
     columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE,), ModelError,
                                "measurement file", MAX_ROWS)
