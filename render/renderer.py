@@ -46,11 +46,16 @@ class Plate(Protocol):
     one): its resonance (Hz), the steady limit and the drive's ceiling (µm p-p), its envelope's time
     constant (s), and which carriers it takes."""
 
-    name: str
-    resonance_hz: float
-    max_amplitude_um_pp: float
-    max_drive_um_pp: float | None  # None: the limit
-    time_constant_s: float
+    @property
+    def name(self) -> str: ...
+    @property
+    def resonance_hz(self) -> float: ...
+    @property
+    def max_amplitude_um_pp(self) -> float: ...
+    @property
+    def max_drive_um_pp(self) -> float | None: ...  # None: the limit
+    @property
+    def time_constant_s(self) -> float: ...
 
     def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None: ...
 

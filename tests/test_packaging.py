@@ -95,3 +95,83 @@ def test_a_wheel_builds_without_warnings_and_runs_from_a_clean_venv(tmp_path):
     assert exported.returncode == 0, exported.stderr
     samples, rate = soundfile.read(tmp_path / "swipe.wav")
     assert rate == 96000 and 0.3 <= len(samples) / rate < 0.5 and 0.2 < abs(samples).max() <= 1.0
+    # the core installs without the demo's and the figures' dependencies, and renders to an array there
+    python = tmp_path / "clean" / "bin" / "python"
+    core = subprocess.run([python, "-c", "import importlib.util, ultraglide; "
+                           "print([m for m in ('pygame', 'matplotlib') if importlib.util.find_spec(m)]); "
+                           "swipe = ultraglide.render_swipe('grating-1mm', duration_s=0.2); "
+                           "print(swipe.rate_hz, len(swipe.audio), round(float(abs(swipe.audio).max()), 1))"],
+                          capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600)
+    assert core.returncode == 0, core.stderr
+    absent, rendered = core.stdout.splitlines()
+    assert absent == "[]"
+    rate, frames, peak = rendered.split()
+    assert rate == "96000" and abs(int(frames) - (len(samples) - 9600)) <= 1 and 0.2 < float(peak) <= 1.0
+    # a command whose extra is missing names it, in one line, exit 2, and writes nothing
+    for words, extra in ((["texture", "show", "grating-1mm", "-o", "show.pdf"], "figures"),
+                         (["export", "grating-1mm", "-o", "plotted.wav", "--duration-s", "0.1", "--plot", "p.png"],
+                          "figures"),
+                         (["demo", "--windowed"], "demo")):
+        refused = subprocess.run([command, *words], capture_output=True, text=True, cwd=tmp_path, env=env,
+                                 timeout=600)
+        assert refused.returncode == 2, (words, refused.stderr)
+        assert refused.stderr.count("\n") == 1, refused.stderr
+        assert f"pip install 'ultraglide[{extra}]'" in refused.stderr, refused.stderr
+    assert sorted(path.name for path in tmp_path.iterdir() if path.suffix in (".pdf", ".png", ".wav")) == ["swipe.wav"]
+
+
+def test_the_wheel_declares_the_extras(tmp_path):
+    """The wheel's metadata, read back with the standard library's email parser: the core requires neither
+    pygame nor matplotlib; the demo, figures and all extras add them; test holds all."""
+    import email
+    import zipfile
+
+    from conftest import source_copy
+
+    source = source_copy(tmp_path / "source")
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w",
+                            tmp_path / "wheels", source], capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stderr
+    wheel = next((tmp_path / "wheels").glob("ultraglide-*.whl"))
+    with zipfile.ZipFile(wheel) as archive:
+        name = next(name for name in archive.namelist() if name.endswith(".dist-info/METADATA"))
+        metadata = email.message_from_bytes(archive.read(name))
+    assert set(metadata.get_all("Provides-Extra")) >= {"demo", "figures", "all", "test", "docs"}
+    requires = metadata.get_all("Requires-Dist")
+    core = {requirement.split(";")[0].split(">")[0].split("=")[0].strip() for requirement in requires
+            if "extra ==" not in requirement}
+    assert {"numpy", "scipy", "numba", "soundfile"} <= core
+    assert not core & {"pygame-ce", "matplotlib"}, core
+
+    def extra(name: str) -> set[str]:
+        return {requirement.split(";")[0].split(">")[0].strip() for requirement in requires
+                if f'extra == "{name}"' in requirement}
+
+    assert "pygame-ce" in extra("demo") and "matplotlib" in extra("figures")
+    assert {"ultraglide[demo,figures]"} == extra("all") and "ultraglide[all]" in extra("test")
+
+
+def test_every_import_of_ours_resolves_in_the_folder_tree():
+    """What an editor or an analyser does, without running code: each ``ultraglide...`` module that any of our
+    modules imports is a file (or a package folder) under ultraglide/, whose links bring the mapped folders in; the
+    import hook of the editable install plays no part."""
+    import ast
+
+    from conftest import ROOT
+
+    def resolves(module: str) -> bool:
+        path = ROOT.joinpath(*module.split("."))
+        return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+    unresolved = []
+    files = [path for folder in ("ultraglide", "render", "textures", "devices", "apps")
+             for path in (ROOT / folder).rglob("*.py")]
+    assert len(files) > 150
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([alias.name for alias in node.names] if isinstance(node, ast.Import)
+                     else [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
+            for name in names:
+                if name.startswith("ultraglide.") and not resolves(name):
+                    unresolved.append(f"{path.relative_to(ROOT)}:{node.lineno}: {name}")
+    assert not unresolved, unresolved

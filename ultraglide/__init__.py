@@ -1,3 +1,4 @@
+# pyright: basic, reportUnsupportedDunderAll=false
 """ultraglide: tactile texture rendering for ultrasonic friction displays.
 
 The public API is the names in ``__all__``, importable from ``ultraglide`` itself::

@@ -1,3 +1,4 @@
+# pyright: basic
 """The functions of the public API that span packages: render a texture to a WAV file, and hand a
 renderer to a device.
 
@@ -155,6 +156,8 @@ class Renderer(_Renderer):
 def export_duration_s(renderer: Renderer) -> float:
     """How long an export of ``renderer``'s path lasts: the path, then the output coming to rest (s)."""
     trajectory = renderer.trajectory
+    if isinstance(trajectory, LiveTrajectory):
+        raise RenderError("a renderer that follows a live finger has no end: give it a trajectory to export")
     return trajectory.end_s - trajectory.start_s + renderer.tail_s
 
 
@@ -459,7 +462,7 @@ def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | No
         parts = [np.broadcast_to(getattr(b, name), b.time_s.shape) for b in blocks]
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
-    return Rendered(audio, rate, renderer.carrier_hz, renderer.profile.full_scale_um_pp, renderer.control_rate_hz,
+    return Rendered(audio, rate, renderer.carrier_hz, stage.profile.full_scale_um_pp, renderer.control_rate_hz,
                     joined("time_s"), joined("x_mm"), joined("y_mm"), joined("down", bool),
                     joined("ratio"), joined("target_um_pp"), joined("amplitude_um_pp"),
                     np.concatenate(drives) if drives else np.zeros(0), renderer.limit_um_pp,

@@ -77,6 +77,12 @@ def main(argv: list[str] | None = None) -> int:
             raise  # anything else is a bug: its traceback
         print(f"ultraglide {args.command}: error: {one_line(words)}", file=sys.stderr)
         return 1
+    except ModuleNotFoundError as error:  # an optional dependency (the demo's, the figures') not installed
+        message = errors.missing_extra(error)
+        if message is None:
+            raise
+        print(f"ultraglide {args.command}: error: {message}", file=sys.stderr)
+        return 2
     finally:
         release_checked()  # pipes held open since the check, which the command did not take
         stop.restore()

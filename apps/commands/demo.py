@@ -49,8 +49,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 def run(args) -> int:
     """Start the demo (pygame and the engine load here, not when the parser is built)."""
-    from ultraglide.apps.cli.errors import UsageError
+    from ultraglide.apps.cli.errors import UsageError, require
     from ultraglide.apps.cli.files import model_file, profile_file, refuse_overlaps, texture_file
+
+    require("pygame")  # the demo extra's: said in one line before anything starts
     from ultraglide.apps.demo.app import run as run_demo
 
     if args.effects and not args.textures:

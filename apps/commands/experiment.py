@@ -8,7 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.cli.errors import UsageError, require
 from ultraglide.apps.cli.options import MODEL_HELP, OneLineParser, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import (
@@ -308,6 +308,8 @@ def _responder(config: SessionConfig, design: StimulusDesign, args):
 
 
 def run(args) -> int:
+    if not args.no_figures:
+        require("matplotlib")  # the figures are drawn at the end: said now, not after the trials
     from ultraglide.apps.experiment.log import read_session
     from ultraglide.apps.experiment.session import check_levels, resumed_config, run_session
 
