@@ -95,14 +95,15 @@ def test_every_internal_link_and_anchor_resolves():
 # what a guide's instance names stand for: `renderer.control(` is Renderer's control
 INSTANCES = {"renderer": "Renderer", "engine": "Engine", "status": "EngineStatus", "model": "FrictionModel",
              "device": "Device", "texture": "Texture", "stage": "OutputStage", "sampler": "Sampler"}
-FOREIGN = {"prctl"}  # the system's, named in a guide
+FOREIGN = {"prctl", "reshape", "limit_denominator", "time.perf_counter"}  # the system's, numpy's, the library's
 
 
 def _defined_names() -> set[str]:
-    """Every function, method and class name our sources define."""
+    """Every function, method and class name our sources define, the firmware's C functions too."""
     import ast
 
-    names = set()
+    names = {name for path in (ROOT / "devices" / "firmware").rglob("*.[ch]")
+             for name in re.findall(r"\b(ug_\w+)\s*\(", path.read_text(encoding="utf-8", errors="replace"))}
     for folder in ("ultraglide", "render", "textures", "devices", "apps"):
         for path in (ROOT / folder).rglob("*.py"):
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
@@ -136,14 +137,14 @@ def test_every_documented_call_exists():
 
 def _examples(language: str) -> list:
     found = []
-    for page in GUIDES:
+    for page in [*GUIDES, ROOT / "README.md"]:
         lines = page.read_text(encoding="utf-8").splitlines()
         for number, line in enumerate(lines):
             if line.strip() == f"```{language}":
                 end = lines.index("```", number + 1)
                 if not (number and NOT_RUN.search(lines[number - 1])):
                     found.append(pytest.param("\n".join(lines[number + 1:end]),
-                                              id=f"{page.relative_to(ROOT / 'docs')}:{number + 1}"))
+                                              id=f"{page.relative_to(ROOT)}:{number + 1}"))
     return found
 
 
@@ -163,6 +164,7 @@ def test_every_command_in_the_guides_parses(code):
 
     for line in code.splitlines():
         words = shlex.split(re.sub(r"\[[^]]*\]", "", line), comments=True)  # [optional] parts left out
+        words = words[:-1] if words and words[-1] == "&" else words  # a job started in the background
         if not words or words[0] != "ultraglide":
             continue
         words = words[1:]
