@@ -164,8 +164,8 @@ def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
     DeviceError
         No such profile, or what is wrong with the file, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> plate = load_profile("sim-plate")
     >>> plate.resonance_hz, plate.max_amplitude_um_pp, plate.full_scale_um_pp
     (25000.0, 6.0, 8.0)

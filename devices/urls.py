@@ -206,8 +206,8 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
     DeviceError
         A URL or option the device refuses, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.devices.profiles import load_profile
     >>> device = open_device("null", load_profile("sim-plate"))   # takes audio and discards it
     >>> device.signal, device.rate_hz

@@ -49,8 +49,8 @@ class SwipePath:
     RenderError
         A kind not listed, or a speed, duration or size that is not a positive number.
 
-    Example
-    -------
+    Examples
+    --------
     >>> path = SwipePath(speed_mm_s=50.0, duration_s=0.2, start_mm=(5.0, 10.0))
     >>> state = path.state([0.0, 0.1, 0.3])
     >>> state.x_mm.tolist(), state.down.tolist()        # 5 mm/s·0.1 s further; lifted after 0.2 s

@@ -47,15 +47,29 @@ class Plate(Protocol):
     constant (s), and which carriers it takes."""
 
     @property
-    def name(self) -> str: ...
+    def name(self) -> str:
+        """The plate's name, for messages."""
+        ...
+
     @property
-    def resonance_hz(self) -> float: ...
+    def resonance_hz(self) -> float:
+        """The plate's resonance (Hz): the carrier unless the settings say otherwise."""
+        ...
+
     @property
-    def max_amplitude_um_pp(self) -> float: ...
+    def max_amplitude_um_pp(self) -> float:
+        """The plate's amplitude limit (µm p-p), never exceeded."""
+        ...
+
     @property
-    def max_drive_um_pp(self) -> float | None: ...  # None: the limit
+    def max_drive_um_pp(self) -> float | None:
+        """The drive's ceiling (µm p-p) for pre-compensation; None: the limit."""
+        ...
+
     @property
-    def time_constant_s(self) -> float: ...
+    def time_constant_s(self) -> float:
+        """The plate's envelope time constant (s): Q / (π f0)."""
+        ...
 
     def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None: ...
 
@@ -90,6 +104,7 @@ class RenderSettings:
 
     @property
     def upsampling(self) -> int:
+        """Audio samples per control sample: ``audio_rate_hz / control_rate_hz``, a whole number."""
         return round(self.audio_rate_hz / self.control_rate_hz)
 
 
@@ -346,8 +361,8 @@ class Renderer:
         RenderError
             Neither or both of ``n`` and ``duration_s``, or a negative one.
 
-        Example
-        -------
+        Examples
+        --------
         >>> from ultraglide.render.physics.friction_models import ExponentialModel
         >>> from ultraglide.textures.procedural import grating
         >>> from ultraglide.devices.profiles import load_profile

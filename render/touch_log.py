@@ -138,8 +138,8 @@ def read_touch_log(path: str | Path) -> RecordedTrajectory:
     RenderError
         The line at fault and what is wrong with it.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
     >>> _ = path.write_text("t_s,x_mm,y_mm\\n0.0,10,20\\n0.5,60,20\\n")

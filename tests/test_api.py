@@ -251,15 +251,15 @@ def test_the_public_functions_and_classes_have_numpy_docstrings():
     for name in ultraglide.__all__:
         value = getattr(ultraglide, name)
         if inspect.isfunction(value):
-            wanted = {"Returns", "Example"} | ({"Parameters"} if inspect.signature(value).parameters else set())
+            wanted = {"Returns", "Examples"} | ({"Parameters"} if inspect.signature(value).parameters else set())
         elif name in NUMPY_CLASSES:
-            wanted = {"Example"} | ({"Parameters"} if name != "Rendered" else {"Attributes"})
+            wanted = {"Examples"} | ({"Parameters"} if name != "Rendered" else {"Attributes"})
         else:
             continue
         doc = inspect.getdoc(value)
         missing = wanted - _sections(doc)
         if missing:
             lacking.append(f"{name}: {sorted(missing)}")
-        elif "Example" in wanted and not doctest.DocTestParser().get_examples(doc):
-            lacking.append(f"{name}: an Example without a >>> line")
+        elif "Examples" in wanted and not doctest.DocTestParser().get_examples(doc):
+            lacking.append(f"{name}: an Examples section without a >>> line")
     assert not lacking, lacking

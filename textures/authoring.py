@@ -382,8 +382,8 @@ def author_image(path: str | Path, options: AuthoringOptions = AuthoringOptions(
     TextureError
         In one line, what is wrong with the image or the options.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> import numpy as np
     >>> from PIL import Image

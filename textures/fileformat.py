@@ -91,8 +91,8 @@ def save_texture(texture: Texture, path: str | Path) -> Path:
         A path that is not a PNG, or a texture the format cannot hold; ``OSError`` for a file that cannot be
         written (nothing is left behind).
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> from ultraglide.textures.procedural import dots
     >>> path = save_texture(dots(size_mm=(16.0, 8.0)), pathlib.Path(tempfile.mkdtemp()) / "dots.png")
@@ -279,8 +279,8 @@ def load_texture(path: str | Path) -> Texture:
     TextureError
         In one line, what is wrong with the file: missing, not a texture, damaged metadata, too large.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> from ultraglide.textures.procedural import grating
     >>> path = save_texture(grating(2.0, size_mm=(20.0, 10.0)), pathlib.Path(tempfile.mkdtemp()) / "g.png")

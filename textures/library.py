@@ -48,8 +48,8 @@ def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
     list of LibraryEntry
         Each texture's name, file, size (mm), kind and description.
 
-    Example
-    -------
+    Examples
+    --------
     >>> entry = next(entry for entry in library_entries() if entry.name == "grating-1mm")
     >>> entry.width_mm, entry.height_mm, entry.kind
     (80.0, 50.0, 'friction')
@@ -92,8 +92,8 @@ def resolve_texture(spec: str, options: AuthoringOptions | None = None) -> Textu
     TextureError
         No such texture (with the closest library names), or a file that cannot be read.
 
-    Example
-    -------
+    Examples
+    --------
     >>> resolve_texture("grating-1mm")
     Texture('grating-1mm', 80 × 50 mm, 800 × 500 px)
     """
@@ -153,8 +153,8 @@ def as_texture(texture: Texture | str | os.PathLike | np.ndarray, *, width_mm: f
         In one line, what to give instead: an array without ``width_mm``, a size given with a texture that
         has its own, a value of another type, or a texture that does not resolve.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import numpy as np
     >>> bars = np.tile([0.2, 1.0], (4, 10))          # 4 rows, 20 columns of alternate ratios
     >>> as_texture(bars, width_mm=20.0)

@@ -105,8 +105,8 @@ def grating(wavelength_mm: float = 1.0, size_mm: Size = DEFAULT_SIZE_MM, angle_d
     TextureError
         A size, wavelength, range or shape out of bounds, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> texture = grating(wavelength_mm=2.0, size_mm=(20.0, 10.0), ratio_range=(0.5, 1.0))
     >>> texture.width_mm, round(float(texture.values.min()), 2), round(float(texture.values.max()), 2)
     (20.0, 0.5, 1.0)
@@ -163,8 +163,8 @@ def checkerboard(square_mm: float = 5.0, size_mm: Size = DEFAULT_SIZE_MM, ratio_
     TextureError
         A size or range out of bounds, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> board = checkerboard(square_mm=5.0, size_mm=(20.0, 10.0))
     >>> sorted({round(float(v), 2) for v in board.values.ravel()})
     [0.4, 1.0]
@@ -213,8 +213,8 @@ def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm: Size = DEFAUL
     TextureError
         A size, pitch or range out of bounds, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> texture = dots(pitch_mm=4.0, diameter_mm=2.0, size_mm=(20.0, 20.0))
     >>> sticky = float((texture.values > 0.7).mean())      # a 2 mm disc in each 4 mm cell: π/16 of the area
     >>> abs(sticky - 3.14159 / 16) < 0.02
@@ -274,8 +274,8 @@ def noise(cutoff_mm: float = 2.0, size_mm: Size = DEFAULT_SIZE_MM, seed: int = 0
     TextureError
         A size, cutoff or range out of bounds, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> a, b = noise(seed=3, size_mm=(20.0, 10.0)), noise(seed=3, size_mm=(20.0, 10.0))
     >>> bool((a.values == b.values).all()), bool(0.4 <= a.values.min() and a.values.max() <= 1.0)
     (True, True)
@@ -325,8 +325,8 @@ def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm: Size = (40.0, 4
     TextureError
         A Hurst exponent outside (0, 1), or a size, cutoff or range out of bounds, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> rough = fractal(hurst=0.3, size_mm=(10.0, 10.0))
     >>> rough.width_mm, bool(0.4 <= rough.values.min() and rough.values.max() <= 1.0)
     (10.0, True)

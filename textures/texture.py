@@ -85,10 +85,12 @@ class Texture:
 
     @property
     def rows(self) -> int:
+        """The map's rows of pixels (down its height)."""
         return self.values.shape[0]
 
     @property
     def cols(self) -> int:
+        """The map's columns of pixels (across its width)."""
         return self.values.shape[1]
 
     @property

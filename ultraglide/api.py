@@ -125,8 +125,8 @@ class Renderer(_Renderer):
         A name that does not resolve (``TextureError``, ``ModelError``, ``DeviceError``), or a carrier the
         plate or the audio rate refuses (``RenderError``); each in one line saying what to give.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import ultraglide
     >>> r = ultraglide.Renderer("grating-1mm", "stretched", "sim-plate", trajectory=ultraglide.SwipePath())
     >>> block = r.control(duration_s=0.5)             # half a second of envelope at 12 kHz
@@ -274,8 +274,8 @@ def export_wav(texture: TextureLike, path: str | os.PathLike,
         Bad input, in one line (``TextureError``, ``ModelError``, ``DeviceError``, ``RenderError``); nothing is
         written. An ``OSError`` (a full disk) says what could not be written, and leaves nothing behind.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> import numpy as np, soundfile, ultraglide
     >>> out = pathlib.Path(tempfile.mkdtemp()) / "bars.wav"
@@ -347,8 +347,8 @@ class Rendered:
     limited_fraction : float
         The fraction of control samples the drive limiter lowered.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import ultraglide
     >>> swipe = ultraglide.render_swipe("dots", duration_s=0.2)
     >>> swipe
@@ -429,8 +429,8 @@ def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | No
         Bad input, in one line: a texture, model or profile that does not resolve, an array without
         ``width_mm``, a ``duration_s`` beside a path, a rate that is not a multiple of the control rate.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import numpy as np, ultraglide
     >>> swipe = ultraglide.render_swipe("grating-1mm", duration_s=0.5)
     >>> swipe.rate_hz, swipe.control_rate_hz, swipe.carrier_hz

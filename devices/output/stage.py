@@ -266,8 +266,8 @@ def output_stage(source: BlockSource, profile: PlateProfile, signal: str, rate_h
     DeviceError
         An output stage given for another plate, signal or rate, or a rate that does not fit.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import numpy as np
     >>> from ultraglide.devices.profiles import load_profile
     >>> class Steady:                                       # 9 µm p-p asked, above the plate's 6 µm limit

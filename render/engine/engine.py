@@ -225,6 +225,7 @@ class Engine:
 
     @property
     def ready(self) -> bool:
+        """True once the engine's process has its renderer and device up (it said so); never blocks."""
         if self.ready_info is None and self._failure is None and self.conn.poll(0):
             with contextlib.suppress(EngineError):
                 self._take(*_receive(self.conn, self.process, 0.0))
@@ -291,6 +292,7 @@ class Engine:
 
     @property
     def alive(self) -> bool:
+        """Whether the engine's process is running."""
         return self.process.is_alive()
 
     # ---- in ----------------------------------------------------------------------------------------

@@ -69,8 +69,8 @@ def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
     DeviceError
         A renderer whose rates the device cannot take.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import ultraglide
     >>> renderer = ultraglide.Renderer("grating-1mm", trajectory=ultraglide.SwipePath(duration_s=0.1))
     >>> device = ultraglide.open_device("null", renderer.profile)

@@ -93,8 +93,8 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
     str
         TOML that :func:`read_calibration` reads back into the fitted model.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> from importlib.resources import files
     >>> fit = fit_model(read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv"), "exponential")
@@ -159,8 +159,8 @@ def read_calibration(path: str | Path) -> FrictionModel:
     ModelError
         What is wrong with the file, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> from importlib.resources import files
     >>> fit = fit_model(read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv"), "stretched")
@@ -249,8 +249,8 @@ def load_model(spec: str) -> FrictionModel:
     ModelError
         An unknown name, or a file that cannot be used, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> model = load_model("exponential")
     >>> round(float(model.amplitude_um_pp(0.5, 0.5).amplitude_um_pp), 2)   # µm p-p to halve the friction
     3.11

@@ -126,8 +126,8 @@ def fit_model(data: Measurements, kind: str, cross_validate: bool = False, boots
     ModelError
         A kind not known, or data this model cannot be fitted to, in one line.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> from ultraglide import read_measurements
     >>> import numpy as np
@@ -451,8 +451,8 @@ def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS)
     ModelError
         When no model can be fitted to the data.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from importlib.resources import files
     >>> from ultraglide import read_measurements
     >>> data = read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv")

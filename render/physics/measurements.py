@@ -118,8 +118,8 @@ def read_measurements(path: str | Path) -> Measurements:
     ModelError
         The line at fault and what is wrong with it.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import pathlib, tempfile
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "m.csv"
     >>> _ = path.write_text("amplitude_um_pp,relative_friction\\n0,1.0\\n1,0.8\\n2,0.5\\n3,0.3\\n")
