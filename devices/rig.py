@@ -327,8 +327,8 @@ def load_rig(path: str | os.PathLike) -> Rig:
 
     Example
     -------
-    >>> rig = load_rig("examples/rig.toml")       # doctest: +SKIP
-    >>> rig.full_scale_um_pp, rig.max_amplitude_um_pp
+    >>> rig = load_rig("examples/rig.toml")       # doctest: +SKIP  (a file of the repository's)
+    >>> rig.full_scale_um_pp, rig.max_amplitude_um_pp  # doctest: +SKIP
     (10.0, 5.0)
     """
     path = Path(os.fspath(path))

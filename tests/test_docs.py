@@ -95,7 +95,8 @@ def test_every_internal_link_and_anchor_resolves():
 # what a guide's instance names stand for: `renderer.control(` is Renderer's control
 INSTANCES = {"renderer": "Renderer", "engine": "Engine", "status": "EngineStatus", "model": "FrictionModel",
              "device": "Device", "texture": "Texture", "stage": "OutputStage", "sampler": "Sampler"}
-FOREIGN = {"prctl", "reshape", "limit_denominator", "time.perf_counter"}  # the system's, numpy's, the library's
+# the system's, numpy's, the library's
+FOREIGN = {"prctl", "reshape", "limit_denominator", "time.perf_counter", "numpy.fromfile"}
 
 
 def _defined_names() -> set[str]:

@@ -3,8 +3,9 @@ reaches them, the mix before the model's inverse seen in exported WAVs (read bac
 envelopes by scipy), the limiter holding with effects, the saved description, the engine's door and
 the widgets scene.
 
-Hand-computed amplitudes use the exponential law of Monnoyer et al. (2018) directly:
-ratio = exp(−a²/2τ²), τ = 1.32 µm zero-to-peak, so a = 2 τ sqrt(−2 ln ratio) µm p-p; the WAV's sample
+Hand-computed amplitudes use the default model, the law of Monnoyer et al. (2018) above a floor d = 0.1:
+ratio = d + (1 − d) exp(−a²/2τ²), τ = 1.32 µm zero-to-peak, so a = 2 τ sqrt(−2 ln((ratio − d)/(1 − d))) µm p-p;
+the WAV's sample
 1.0 is the sim-plate's full scale, 8 µm p-p."""
 
 import json
@@ -42,9 +43,12 @@ FULL_SCALE_UM_PP = 8.0
 TAU_UM = 1.32
 
 
+FLOOR = 0.10  # the default model's floor: a fingertip's ratio at full amplitude (Wiertlewski et al. 2016)
+
+
 def amplitude_pp(ratio: float) -> float:
-    """Monnoyer's law inverted by hand, µm p-p."""
-    return 2.0 * TAU_UM * math.sqrt(-2.0 * math.log(ratio))
+    """The default model (Monnoyer's law above its floor, d + (1 - d) exp(-a²/2τ²)) inverted by hand, µm p-p."""
+    return 2.0 * TAU_UM * math.sqrt(-2.0 * math.log((ratio - FLOOR) / (1.0 - FLOOR)))
 
 
 def wav_envelope(path):

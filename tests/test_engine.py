@@ -18,8 +18,9 @@ from ultraglide.render.engine import Engine, EngineConfig, EngineError
 from ultraglide.textures.fileformat import save_texture
 from ultraglide.textures.texture import Texture
 
-# the exponential law mu/mu0 = exp(-(a_pp/2)^2 / (2 tau^2)), tau = 1.32 µm zero-to-peak, solved by hand for 0.5
-HALF_FRICTION_UM_PP = 2 * 1.32 * math.sqrt(2 * math.log(2))  # 3.108 µm p-p
+# the default model, Monnoyer's law above a floor d = 0.1: d + (1 - d) exp(-(a_pp/2)^2 / (2 tau^2)), tau = 1.32 µm
+# zero-to-peak, solved by hand for 0.5
+HALF_FRICTION_UM_PP = 2 * 1.32 * math.sqrt(-2 * math.log((0.5 - 0.1) / (1 - 0.1)))  # 3.362 µm p-p
 STICKY = (20.0, 25.0)  # ratio 1: the plate at rest
 SLIPPERY = (60.0, 25.0)  # ratio 0.5
 

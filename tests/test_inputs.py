@@ -358,6 +358,9 @@ RANGES = {
     # on-plate calibration
     "--forces": (0.05, 10, False, False, False), "--passes": (1, 10, False, True, False),
     "--step-ms": (100, 5000, False, False, False),
+    # the service and the formats
+    "--port": (0, 65535, False, True, False), "--view-mm": (1, 2000, False, False, False),
+    "--texel-range": (0, 1, False, False, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
                                   "--widths-mm", "--spacing-mm")},
@@ -372,7 +375,8 @@ OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False),
              (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False)}
-TEXT_FORMS = ("--crop", "--region", "--finger-fault", "--participant")  # typed text of their own form, tested where
+TEXT_FORMS = ("--crop", "--region", "--finger-fault", "--participant",
+              "--board-fault")  # typed text of their own form, tested where
 # they belong (--participant: test_calibration_on_plate)
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
@@ -430,7 +434,7 @@ number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(
 def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
     words, action = choice
     flag = action.option_strings[-1]
-    if flag in ("--crop", "--finger-fault", "--participant"):  # whole pixels (test_authoring); KIND:START-END
+    if flag in ("--crop", "--finger-fault", "--participant", "--board-fault"):  # whole pixels; KIND:START-END
         return  # (test_closed_loop); an id (test_calibration_on_plate)
     tail = tail_for(words)
     if action.nargs in (2, "+"):

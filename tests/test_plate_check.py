@@ -318,7 +318,7 @@ def test_a_checked_plate_is_left_disabled_at_zero():
     assert report.exit_status == 0
 
 
-def test_the_readme_and_the_protocol_say_what_plate_check_does():
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert "ultraglide plate check" in readme and "exit status 6" in readme
+def test_the_commands_guide_and_the_protocol_say_what_plate_check_does():
+    guide = (ROOT / "docs" / "guide" / "commands.md").read_text(encoding="utf-8")
+    assert "ultraglide plate check" in guide and "exit status 6" in guide
     assert "--break" in DOC and "`ultraglide plate check --device URL`" in DOC

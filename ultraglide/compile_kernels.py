@@ -15,7 +15,7 @@ import time
 # every module of ours that defines a compiled kernel (tests/test_compile_kernels.py checks the sources for others)
 KERNEL_MODULES = ("ultraglide.render.kernels", "ultraglide.render.physics.kernels", "ultraglide.render.effects",
                   "ultraglide.devices.output.kernels", "ultraglide.devices.sim.force_sensors",
-                  "ultraglide.textures.kernels")
+                  "ultraglide.devices.sim.kernels", "ultraglide.textures.kernels")
 
 
 def compile_all() -> int:

@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
+from ultraglide.apps.commands.plate_choice import plate_of
 
 FRAME_S = 0.1  # the guide's pace: ten frames a second are enough to follow a press
 CONTROL_RATE_HZ = 12000
@@ -34,7 +35,6 @@ def calibrate_on_plate(args) -> dict:
     from ultraglide.apps.commands.finger_options import finger_config
     from ultraglide.devices import protocol as p
     from ultraglide.devices.errors import DeviceError
-    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.engine.finger_setup import build_finger
     from ultraglide.render.engine.realtime import threads_started_in_real_time
@@ -43,7 +43,7 @@ def calibrate_on_plate(args) -> dict:
         raise UsageError("an on-plate calibration needs --participant ID (written into the calibration)")
     if args.output is None or Path(args.output).suffix != ".toml":
         raise UsageError("an on-plate calibration needs -o CAL.toml")
-    profile = load_plate(args.profile)
+    profile = plate_of(args)
     plan = CalibrationPlan(tuple(args.forces), profile.max_amplitude_um_pp, passes=args.passes,
                            step_s=args.step_ms / 1000.0, settle_s=min(0.12, 0.4 * args.step_ms / 1000.0))
     kind = parse_device_url(args.device).kind

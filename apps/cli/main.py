@@ -71,18 +71,18 @@ def main(argv: list[str] | None = None) -> int:
     except errors.USER_ERRORS as error:
         print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
         return int(getattr(error, "exit_status", 1) or 1)
-    except Exception as error:  # memory refused, whatever a library raised for it (numpy's MemoryError, numba's)
-        words = out_of_memory(error)
-        if words is None:
-            raise  # anything else is a bug: its traceback
-        print(f"ultraglide {args.command}: error: {one_line(words)}", file=sys.stderr)
-        return 1
     except ModuleNotFoundError as error:  # an optional dependency (the demo's, the figures') not installed
         message = errors.missing_extra(error)
         if message is None:
             raise
         print(f"ultraglide {args.command}: error: {message}", file=sys.stderr)
         return 2
+    except Exception as error:  # memory refused, whatever a library raised for it (numpy's MemoryError, numba's)
+        words = out_of_memory(error)
+        if words is None:
+            raise  # anything else is a bug: its traceback
+        print(f"ultraglide {args.command}: error: {one_line(words)}", file=sys.stderr)
+        return 1
     finally:
         release_checked()  # pipes held open since the check, which the command did not take
         stop.restore()

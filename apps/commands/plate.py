@@ -24,6 +24,7 @@ from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.files import atomic_path, profile_file, refuse_overlaps
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.commands.plate_check import add_check_parser
+from ultraglide.apps.commands.plate_choice import plate_of
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -170,11 +171,10 @@ def run_sweep(args) -> int:
         sweep,
     )
     from ultraglide.devices.errors import DeviceError, describe
-    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import open_device, parse_device_url
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
-    profile = load_plate(args.profile)
+    profile = plate_of(args)
     low = args.from_hz if args.from_hz is not None else profile.carrier_min_hz
     high = args.to_hz if args.to_hz is not None else profile.carrier_max_hz
     if not low < high:

@@ -13,7 +13,7 @@ import sys
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.signals import held
-from ultraglide.apps.commands.plate_choice import add_plate_options
+from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
 
 
 def add_check_parser(actions: argparse._SubParsersAction) -> None:
@@ -57,11 +57,10 @@ def _rules(names: list[str]) -> tuple[str, ...]:
 
 def run_check(args) -> int:
     from ultraglide.devices.conformance.check import check_device
-    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import parse_device_url
 
     only = _rules(args.rules)
-    profile = load_plate(args.profile)
+    profile = plate_of(args)
     device = parse_device_url(args.device)
     if device.kind not in ("sim", "serial"):
         raise UsageError(f"{device.kind} speaks no protocol: check a plate driver (sim or serial:PORT[?baud=N])")

@@ -77,6 +77,16 @@ def choose_plate(args) -> None:
     args.profile = DEFAULT_PROFILE
 
 
+def plate_of(args):
+    """The plate a command drives: its profile, from ``--rig`` or ``--profile`` settled by :func:`choose_plate`
+    (run here too when the command was not started through ``main``, as tests and scripts do)."""
+    from ultraglide.devices.rig import load_plate
+
+    if getattr(args, "profile", None) is None:
+        choose_plate(args)
+    return load_plate(args.profile)
+
+
 def display_width_mm(args) -> float | None:
     """The display's width in mm: ``--screen-width-mm``, else the rig's ``[display] width_mm``, else None."""
     given = getattr(args, "screen_width_mm", None)

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.options import refuse_ignored
+from ultraglide.apps.commands.plate_choice import plate_of
 from ultraglide.devices.profiles import PlateProfile
-from ultraglide.devices.rig import load_plate
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.friction_models import FrictionModel
@@ -59,7 +59,7 @@ def load_inputs(args) -> Inputs:
         warnings.simplefilter("default")
         texture = resolve_texture(args.texture)
     model = load_model(args.model)
-    profile = load_plate(args.profile)
+    profile = plate_of(args)
     if args.trajectory:
         trajectory = read_touch_log(args.trajectory)
         if args.force is not None and trajectory.has_force:

@@ -16,7 +16,7 @@ import sys
 from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held
 from ultraglide.apps.cli.types import FORCE_N, Bounded
-from ultraglide.apps.commands.plate_choice import add_plate_options
+from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
 
 PORT = Bounded(0, 65535, whole=True)
 VIEW_MM = Bounded(1.0, 2000.0, "mm")
@@ -67,7 +67,6 @@ def run(args) -> int:
 
     from ultraglide.apps.cli.errors import UsageError
     from ultraglide.apps.service.server import Service, needs_token, new_token
-    from ultraglide.devices.rig import load_plate
     from ultraglide.devices.urls import parse_device_url
     from ultraglide.render.engine import Engine, EngineConfig
     from ultraglide.render.physics.calibration import load_model
@@ -81,7 +80,7 @@ def run(args) -> int:
         raise UsageError(f"--unix {args.unix}: no directory {Path(args.unix).parent}")
     if args.envelope_csv and not Path(args.envelope_csv).parent.is_dir():
         raise UsageError(f"{args.envelope_csv}: no directory {Path(args.envelope_csv).parent} to write it in")
-    profile = load_plate(args.profile)
+    profile = plate_of(args)
     load_model(args.model)  # a bad model is one line before the engine starts
     token = new_token() if args.unix is None and needs_token(args.host) else None
     service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm))

@@ -278,7 +278,8 @@ class PlotRecorder:
         amplitude.set(ylabel="amplitude (µm p-p)", ylim=(0, 1.3 * max(limit, (max_drive or 0.0) if overdriven else 0.0,
                                                                        float(high[TARGET:PLATE + 1].max(initial=0.0)))))
         handles, labels = amplitude.get_legend_handles_labels()
-        amplitude.legend(handles, [textwrap.fill(label, characters - 6) for label in labels], loc="upper left",
+        column = (characters // 2 if page else characters) - 6  # two columns of labels on a page's width
+        amplitude.legend(handles, [textwrap.fill(label, column) for label in labels], loc="upper left",
                          bbox_to_anchor=(0.0, -0.12 if not page else -0.08), ncol=2 if page else 1)
         position = figure.add_subplot(grid[2, :], sharex=top)
         band(position, X, "x", "C0")
@@ -298,7 +299,8 @@ class PlotRecorder:
             zoom.axhline(limit, color="r", ls="--", lw=0.8)
             zoom.set_ylim(0, shown)  # one scale for the three, the limit on it
             if float(np.nanmax(window[DRIVE])) > limit + 1e-9:
-                zoom.text(0.02, 0.97, "drive above the limit: overdrive;\nthe plate itself stays below it",
+                note = "drive above the limit: overdrive; the plate itself stays below it"  # wrapped to the panel
+                zoom.text(0.02, 0.97, textwrap.fill(note, int(characters / (3 if page else 1)) - 4),
                           transform=zoom.transAxes, fontsize=8, va="top", color="C2")
             zoom.set_title(textwrap.fill(f"zoom {k + 1}, {start_s:.3f}–{stop_s:.3f} s: {why}",
                                          int(characters / (3 if page else 1))))

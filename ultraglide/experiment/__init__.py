@@ -21,33 +21,82 @@ Example
 
 from __future__ import annotations
 
-from ultraglide.experiment.analysis import (
-    as_frame,
-    fit_psychometric,
-    mean_response,
-    proportions,
-    reaction_time_summary,
-    read_trials,
-    threshold_posterior,
-)
-from ultraglide.experiment.check import CheckReport, StimulusFigures, check_stimuli, zone_texture
-from ultraglide.experiment.columns import DESIGN_COLUMNS, THRESHOLD_COLUMNS
-from ultraglide.experiment.design import (
-    Block,
-    Condition,
-    Design,
-    Stimulus,
-    Trial,
-    design_from_dict,
-    design_from_toml,
-    load_design,
-    plan,
-    to_toml,
-)
-from ultraglide.experiment.errors import ExperimentError, StimulusCheckError
-from ultraglide.experiment.observer import SimObserver
-from ultraglide.experiment.responders import Answer, Responder
-from ultraglide.experiment.runner import Presentation, Session, run
+import importlib
+from typing import TYPE_CHECKING
+
+# public name -> the module that defines it, imported on first use (PEP 562): the commands' parsers import a
+# module of this package without loading scipy
+_EXPORTS = {
+    "as_frame": "ultraglide.experiment.analysis",
+    "fit_psychometric": "ultraglide.experiment.analysis",
+    "mean_response": "ultraglide.experiment.analysis",
+    "proportions": "ultraglide.experiment.analysis",
+    "reaction_time_summary": "ultraglide.experiment.analysis",
+    "read_trials": "ultraglide.experiment.analysis",
+    "threshold_posterior": "ultraglide.experiment.analysis",
+    "CheckReport": "ultraglide.experiment.check",
+    "StimulusFigures": "ultraglide.experiment.check",
+    "check_stimuli": "ultraglide.experiment.check",
+    "zone_texture": "ultraglide.experiment.check",
+    "DESIGN_COLUMNS": "ultraglide.experiment.columns",
+    "THRESHOLD_COLUMNS": "ultraglide.experiment.columns",
+    "Block": "ultraglide.experiment.design",
+    "Condition": "ultraglide.experiment.design",
+    "Design": "ultraglide.experiment.design",
+    "Stimulus": "ultraglide.experiment.design",
+    "Trial": "ultraglide.experiment.design",
+    "design_from_dict": "ultraglide.experiment.design",
+    "design_from_toml": "ultraglide.experiment.design",
+    "load_design": "ultraglide.experiment.design",
+    "plan": "ultraglide.experiment.design",
+    "to_toml": "ultraglide.experiment.design",
+    "ExperimentError": "ultraglide.experiment.errors",
+    "StimulusCheckError": "ultraglide.experiment.errors",
+    "SimObserver": "ultraglide.experiment.observer",
+    "Answer": "ultraglide.experiment.responders",
+    "Responder": "ultraglide.experiment.responders",
+    "Presentation": "ultraglide.experiment.runner",
+    "Session": "ultraglide.experiment.runner",
+    "run": "ultraglide.experiment.runner",
+}
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+if TYPE_CHECKING:
+    from ultraglide.experiment.analysis import (
+        as_frame,
+        fit_psychometric,
+        mean_response,
+        proportions,
+        reaction_time_summary,
+        read_trials,
+        threshold_posterior,
+    )
+    from ultraglide.experiment.check import CheckReport, StimulusFigures, check_stimuli, zone_texture
+    from ultraglide.experiment.columns import DESIGN_COLUMNS, THRESHOLD_COLUMNS
+    from ultraglide.experiment.design import (
+        Block,
+        Condition,
+        Design,
+        Stimulus,
+        Trial,
+        design_from_dict,
+        design_from_toml,
+        load_design,
+        plan,
+        to_toml,
+    )
+    from ultraglide.experiment.errors import ExperimentError, StimulusCheckError
+    from ultraglide.experiment.observer import SimObserver
+    from ultraglide.experiment.responders import Answer, Responder
+    from ultraglide.experiment.runner import Presentation, Session, run
 
 __all__ = ["Answer", "Block", "CheckReport", "Condition", "DESIGN_COLUMNS", "Design", "ExperimentError",
            "Presentation", "Responder", "Session", "SimObserver", "Stimulus", "StimulusCheckError",

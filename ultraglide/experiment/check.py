@@ -158,11 +158,11 @@ class Rig:
     """The design's friction model, plate profile, swipe speed and finger force, loaded once."""
 
     def __init__(self, design: Design):
-        from ultraglide.devices.profiles import load_profile
+        from ultraglide.devices.rig import load_plate
         from ultraglide.render.physics.calibration import load_model
 
         self.model = load_model(design.model)
-        self.profile = load_profile(design.profile)
+        self.profile = load_plate(design.profile)
         self.speed_mm_s, self.force_n = design.speed_mm_s, design.force_n
         self.zone_mm, self.gap_mm = tuple(design.zone_mm), design.gap_mm
 
