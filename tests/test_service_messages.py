@@ -52,6 +52,9 @@ def test_the_touch_fast_path_accepts_exactly_what_the_general_checks_accept(x, p
         general = p.parse(json.dumps(data, allow_nan=False))
     except p.ProtocolError:
         general = None
+    except ValueError:  # not strict JSON (an infinite pointer): no client can send it, and the fast path refuses it
+        assert fast is None
+        return
     if fast is not None:
         assert general is not None and fast.fields == general.fields
     spec = p.SPECS["touch"]

@@ -24,6 +24,7 @@ def compile_all() -> int:
 
     from ultraglide.devices.output import kernels as device_kernels
     from ultraglide.devices.sim import force_sensors
+    from ultraglide.devices.sim import kernels as sim_kernels
     from ultraglide.render import effects
     from ultraglide.render import kernels as render_kernels
     from ultraglide.render.physics import kernels as physics_kernels
@@ -33,6 +34,8 @@ def compile_all() -> int:
                     texture_kernels.warm_up):
         warm_up()
     force_sensors.low_pass(np.zeros((2, 4)), 0.5, np.zeros(2))
+    sim_kernels.friction_lag(np.ones(2), np.ones(2), np.ones(2), 0.05, 48000.0, 0.005, 0.07, 22.0, 0.5, 2.0, 1.0,
+                             np.empty(2))  # the simulated finger's lag, typed as devices/sim/finger.py calls it
     return len(kernels())
 
 
