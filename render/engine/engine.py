@@ -354,8 +354,13 @@ class Engine:
         """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds)."""
         if self.shared.words is None:  # stopped: the last status read before the segment was released
             return self.final_status
-        header, block_times, history_ring, _ = self.shared.read_fast()
-        device_status = self.shared.read_slow()
+        try:
+            header, block_times, history_ring, _ = self.shared.read_fast()
+            device_status = self.shared.read_slow()
+        except TimeoutError:  # an engine stopped mid-write leaves its status half written: wait for the watch's word
+            if self.supervisor.wait(1.0):
+                raise EngineLost(self.supervisor.loss) from None
+            raise
         status = status_from_shared(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
                          self.config.device, history_s)
         run_p50, run_p99 = (None if v is None else v * 1e6
