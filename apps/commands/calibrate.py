@@ -139,7 +139,8 @@ def _fit_lines(fit: Fit) -> list[str]:
     for p in fit.parameters:
         allowed = f"allowed [{p.spec.low:g}, {p.spec.high:g}]{p.spec.unit}"
         if p.fixed:
-            why = "one force cannot fix it" if p.spec.needs_forces and p.spec.fitted else "not fitted"
+            why = ("the data did not support a force law" if p.spec.needs_forces and len(forces) >= 2
+                   else "one force cannot fix it" if p.spec.needs_forces and p.spec.fitted else "not fitted")
             lines.append(f"  {p.spec.key} = {p.value:.6g}  held: {why} ({allowed})")
             continue
         boot = "; ".join(f"{values[p.spec.key]:.2g} with {BOOTSTRAP_WORDS[scheme]}"
@@ -175,7 +176,14 @@ def _write(fit: Fit, fits: list[Fit], output: Path, width: str = "column") -> li
 
 
 def run(args) -> int:
-    from ultraglide.render.physics.calibration import compare_models, fit_model, fit_summary, selection_note
+    from ultraglide.render.physics.calibration import (
+        FORCE_LAW_PARAMETER,
+        choose_force_law,
+        compare_models,
+        fit_model,
+        fit_summary,
+        selection_note,
+    )
     from ultraglide.render.physics.measurements import read_measurements
 
     if (args.data is None) == (args.device is None):
@@ -206,18 +214,27 @@ def run(args) -> int:
         if not fits:
             raise UsageError(f"{data.source}: no model can be fitted to these points")
         chosen = next((f for f in fits if f.kind != "table"), None)
-        if chosen is not None and args.bootstrap:
-            chosen = fit_model(data, chosen.kind, cross_validate=True, bootstrap=args.bootstrap)
+        force_law = choose_force_law(data, chosen.kind) if chosen is not None and chosen.kind in FORCE_LAW_PARAMETER \
+            else None
+        if chosen is not None and (args.bootstrap or (force_law is not None and force_law.hold)):
+            chosen = fit_model(data, chosen.kind, cross_validate=True, bootstrap=args.bootstrap,
+                               hold=force_law.hold if force_law is not None else None)
             fits = [chosen if f.kind == chosen.kind else f for f in fits]
         written = _write(chosen, fits, output, args.figure_width) if output is not None and chosen is not None else []
         note = selection_note(data)
         result = {"ranking": [fit_summary(f) for f in fits], "selection": note, "written": [str(p) for p in written]}
+        if force_law is not None:
+            result["force_law"] = {"model": force_law.kind, "forces": force_law.forces, "kept": force_law.keeps_law,
+                                   "held_out_rms_with_law": force_law.held_out_with_law,
+                                   "held_out_rms_force_free": force_law.held_out_force_free, "note": force_law.note}
         if args.json:
             print_json(result)
             return 0
         print(f"{len(data)} points from {data.source}; {note}:")
         for rank, fit in enumerate(fits, 1):
             print(f"  {rank}. {fit.kind:14} {_cv_text(fit)}; in-sample {fit.rms_residual:.4f}")
+        if force_law is not None:
+            print(f"force law of {force_law.kind}: {force_law.note}")
         print()
         for line in _fit_lines(chosen if chosen is not None else fits[0]):
             print(line)

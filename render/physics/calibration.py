@@ -37,9 +37,12 @@ from ultraglide.render.physics.fingerprint import FingerParams
 from ultraglide.render.physics.fitting import (
     BOOTSTRAP_SAMPLES,
     COMPARED_MODELS,
+    FORCE_LAW_PARAMETER,
     K_FOLDS,
     MIN_BOOTSTRAP_GROUPS,
+    ForceLawChoice,
     bootstrap_errors,
+    choose_force_law,
     compare_models,
     cross_validation_errors,
     fit_model,
@@ -285,7 +288,8 @@ def load_model(spec: str) -> FrictionModel:
 __all__ = [  # the calibration's names, the fitting's and the parameters' (one import for the commands)
     "BOOTSTRAP_SAMPLES", "CALIBRATION_VERSION", "COMPARED_MODELS", "K_FOLDS", "MAX_FITTED_FORCES",
     "MIN_BOOTSTRAP_GROUPS", "MODEL_NAMES", "OPTIONAL_KEYS", "PARAMETERS", "Fit", "Parameter", "ParameterSpec",
-    "bootstrap_errors", "build_model", "calibration_from_document", "calibration_toml", "compare_models",
+    "FORCE_LAW_PARAMETER", "ForceLawChoice", "bootstrap_errors", "build_model", "choose_force_law",
+    "calibration_from_document", "calibration_toml", "compare_models",
     "cross_validation_errors", "fit_model", "fit_range", "fit_summary", "k_fold_groups", "load_model", "model_kind",
     "read_calibration", "selection_note",
 ]

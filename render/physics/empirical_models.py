@@ -81,6 +81,8 @@ class StretchedExponentialModel(FrictionModel):
     def force_law(self) -> str:
         law = f"s ∝ F^{self.force_exponent:.3g}"
         fitted = self.fitted
+        if self.force_exponent == 0.0:
+            return "none: the same curve at every force" + (f" ({fitted.words()})" if fitted is not None else "")
         if fitted is not None and len(fitted.forces_n) >= 3:
             return f"{law}, fitted on {fitted.words()}"
         if fitted is not None and len(fitted.forces_n) == 2:

@@ -427,6 +427,104 @@ def selection_note(data: Measurements) -> str:
             "k-fold error")
 
 
+FORCE_LAW_PARAMETER = {"stretched": "force_exponent"}  # models whose force law can be set to none (p = 0)
+
+
+@dataclass(frozen=True)
+class ForceLawChoice:
+    """Whether the data support a force law, judged by predicting each force from the others.
+
+    Attributes
+    ----------
+    kind : str
+        The model the choice is for (``stretched``).
+    forces : int
+        The distinct normal forces in the data.
+    held_out_with_law : float
+        RMS error in relative friction predicting each force from the others with the force law (its
+        exponent fitted from the other forces where there are two or more of them, else at its assumed
+        value); NaN with one force.
+    held_out_force_free : float
+        The same with the exponent held at 0 (the law that ignores force); NaN with one force.
+    keeps_law : bool
+        True only when the law predicts the held-out forces better than ignoring force does.
+    hold : dict
+        What to hold in the fit that is kept (``{"force_exponent": 0.0}`` for the force-free law).
+    note : str
+        The choice in words.
+    """
+
+    kind: str
+    forces: int
+    held_out_with_law: float
+    held_out_force_free: float
+    keeps_law: bool
+    hold: dict
+    note: str
+
+
+def choose_force_law(data: Measurements, kind: str = "stretched") -> ForceLawChoice:
+    """Keep a force law only where data at several forces support it out of sample.
+
+    Each force is predicted by a fit to the other forces, once with the model's force law and once with
+    its exponent held at 0; the law is kept only if its held-out error is the smaller. With one force
+    the question cannot be asked, and the force-free law is kept: a person's data at one force cannot
+    tell how their friction depends on force.
+
+    Parameters
+    ----------
+    data : Measurements
+        The points (:func:`read_measurements`), with ``force_n`` where several forces were used.
+    kind : str
+        A model with a force exponent (``stretched``).
+
+    Returns
+    -------
+    ForceLawChoice
+        The two held-out errors, the choice and the words for it.
+
+    Raises
+    ------
+    ModelError
+        A model without a force law to choose, or data it cannot be fitted to.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> force = np.repeat([0.3, 0.9], 13)
+    >>> ratio = 0.1 + 0.9 * np.exp(-0.5 * (amplitude / 2.5) ** 2)  # no force dependence
+    >>> choice = choose_force_law(Measurements(amplitude, ratio, force, source="example"))
+    >>> choice.keeps_law, choice.held_out_force_free < choice.held_out_with_law
+    (False, True)
+    """
+    if kind not in FORCE_LAW_PARAMETER:
+        raise ModelError(f"the {kind} model has no force exponent to choose: choose a force law for "
+                         f"{', '.join(FORCE_LAW_PARAMETER)}")
+    parameter = FORCE_LAW_PARAMETER[kind]
+    free = {parameter: 0.0}
+    count = _distinct_forces(data)
+    if count < 2:
+        return ForceLawChoice(kind, count, math.nan, math.nan, False, free,
+                              "1 force: how friction depends on force cannot be told from these data; the force-free "
+                              f"law is kept ({parameter} 0)")
+    groups = _forces(data)
+    with_law = _held_out_rms(data, kind, groups)
+    force_free = _held_out_rms(data, kind, groups, free)
+    how = "fitted from the others" if count >= 3 else "at its assumed value"
+    errors = (f"each force predicted from the other{'s' if count >= 3 else ''}: {with_law:.3f} rms with the law "
+              f"(exponent {how}), {force_free:.3f} without")
+    if with_law < force_free:
+        return ForceLawChoice(kind, count, with_law, force_free, True, {},
+                              f"{count} forces: the force law is kept, as it predicts forces it did not see better "
+                              f"({errors})")
+    return ForceLawChoice(kind, count, with_law, force_free, False, free,
+                          f"{count} forces: the force law predicts forces it did not see no better than ignoring "
+                          f"force, so the force cannot be told from these data and the force-free law is kept "
+                          f"({errors})")
+
+
 def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS) -> list[Fit]:
     """Every model fitted and cross-validated, best first.
 
