@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_config
-from ultraglide.apps.commands.render_options import add_render_options
+from ultraglide.apps.commands.render_options import add_render_options, planning_asked
 
 if TYPE_CHECKING:
     from ultraglide.render.engine import EngineConfig
@@ -122,10 +122,12 @@ def replay(touch, chunks, started: float, sleep=time.sleep, replayed: Replayed |
 
 def engine_config(args) -> EngineConfig:
     from ultraglide.render.engine import EngineConfig
+    from ultraglide.render.physics.calibration import load_model
 
     return EngineConfig(texture=args.texture, model=args.model, profile=args.profile, device=args.device,
                         carrier_hz=args.carrier_hz, rate_hz=args.rate, lookahead_s=args.lookahead_ms / 1000.0,
                         precompensate=not args.no_precompensation,
+                        plan=planning_asked(args, load_model(args.model)),
                         track_resonance=getattr(args, "track_resonance", False),
                         default_force_n=0.5 if args.force is None else args.force,
                         closed_loop=getattr(args, "closed_loop", False),

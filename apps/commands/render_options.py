@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.options import MODEL_HELP
 from ultraglide.apps.cli.types import (
     ANGLE_DEG,
@@ -49,6 +50,9 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
                         help="predict the finger this far ahead, cancelling the panel's latency (default: 0)")
     signal.add_argument("--no-precompensation", action="store_true",
                         help="do not pre-compensate the plate's slow response")
+    signal.add_argument("--no-planning", action="store_true",
+                        help="with a model that has the finger's friction dynamics (--model dynamic[:NAME]), command "
+                             "the texture's ratio each instant instead of planning the friction felt")
     effects = signal.add_mutually_exclusive_group()
     effects.add_argument("--effects", metavar="EFFECTS",
                          help="play these temporal effects instead of those saved with the texture: ultraglide's "
@@ -56,3 +60,14 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
                               "(docs/formats.md)")
     effects.add_argument("--no-effects", action="store_true",
                          help="leave out the temporal effects saved with the texture")
+
+
+def planning_asked(args, model) -> bool:
+    """Whether the renderer plans the friction felt: yes unless ``--no-planning``, which a model without friction
+    dynamics refuses (there is nothing to plan against)."""
+    if not getattr(args, "no_planning", False):
+        return True
+    if getattr(model, "dynamics", None) is None:
+        raise UsageError(f"--no-planning turns off planning against the finger's friction dynamics, and the model "
+                         f"{args.model!r} has none: leave it out, or use --model dynamic[:NAME]")
+    return False

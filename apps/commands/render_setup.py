@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.options import refuse_ignored
 from ultraglide.apps.commands.plate_choice import plate_of
+from ultraglide.apps.commands.render_options import planning_asked
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
@@ -74,6 +75,7 @@ def make_renderer(inputs: Inputs, args, rate_hz: int, live: bool = False) -> Ren
     settings = RenderSettings(
         audio_rate_hz=rate_hz, control_rate_hz=12000.0, carrier_hz=args.carrier_hz,
         precompensate=not args.no_precompensation, lookahead_s=args.lookahead_ms / 1000.0,
+        plan=planning_asked(args, inputs.model),
         default_force_n=0.5 if args.force is None else args.force,  # touches without a force: a log without one
     )
     return Renderer(inputs.texture, inputs.model, inputs.profile, settings,

@@ -98,6 +98,7 @@ class EngineConfig:
     control_rate_hz: float = 12000.0
     lookahead_s: float = 0.0
     precompensate: bool = True
+    plan: bool = True  # with a model that has friction dynamics: plan the friction felt (render/planning.py)
     predictor: str = "lsq"
     start_paused: bool = False
     realtime_priority: bool = True

@@ -305,7 +305,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         rate = device.rate_hz if device.signal == "audio" else config.rate_hz
         settings = RenderSettings(audio_rate_hz=int(rate), control_rate_hz=config.control_rate_hz,
                                   carrier_hz=config.carrier_hz, default_force_n=config.default_force_n,
-                                  precompensate=config.precompensate, predictor=config.predictor,
+                                  precompensate=config.precompensate, predictor=config.predictor, plan=config.plan,
                                   lookahead_s=config.lookahead_s)
         loop = None
         listeners = []
