@@ -120,6 +120,25 @@ def test_play_to_wav_with_its_engine_lost_keeps_a_whole_recording(tmp_path, how)
     assert np.max(np.abs(samples)) > 0.05  # it was driving
 
 
+@pytest.mark.parametrize("how", LOSSES, ids=["killed", "stopped"])
+def test_play_on_an_audio_device_with_its_engine_lost_ends_the_stream_and_exits_7(tmp_path, how):
+    from test_devices import ASOUNDRC
+
+    capture = tmp_path / "capture.raw"  # real PortAudio through ALSA: a `file` PCM writes what the card would play
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=capture))
+    command = Command(tmp_path, "play", "grating-1mm", "--device", "audio", "--profile", "sim-plate",
+                      "--duration-s", "60", env={**os.environ, "HOME": str(tmp_path)})
+    try:
+        wait_until(lambda: capture.exists() and capture.stat().st_size > 96000 * 4, "a second of sound")
+        engine = lose_engine(command, how)
+        out = assert_lost(command, how, engine)  # the engine reaped: nothing writes to the card any more
+    finally:
+        command.kill()
+    assert "the audio stream ended with the engine's process (the sound card plays nothing more)" in out
+    played = np.fromfile(capture, dtype="<f4")
+    assert len(played) > 96000 and np.max(np.abs(played)) > 0.05  # it was driving the card
+
+
 @pytest.fixture
 def tap():
     served = PlateTap()
