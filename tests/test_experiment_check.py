@@ -132,3 +132,55 @@ def test_the_threshold_command_refuses_a_library_texture_the_swipe_never_crosses
     assert "warning: stimulus check accepted despite" in accepted.stderr
     session = json.loads((out / "session.json").read_text())
     assert session["stimulus_check"]["passed"] is False and len(session["warnings"]) == 1
+
+
+def touch_log(path, x0, y0, x1, y1, seconds=1.0, rate_hz=120):
+    t = np.arange(int(seconds * rate_hz) + 1) / rate_hz
+    x, y = x0 + (x1 - x0) * t / seconds, y0 + (y1 - y0) * t / seconds
+    path.write_text("t_s,x_mm,y_mm\n" + "".join(f"{a:.5f},{b:.4f},{c:.4f}\n" for a, b, c in zip(t, x, y, strict=True)))
+    return str(path)
+
+
+def test_a_recorded_path_that_never_crosses_the_features_is_refused_naming_it(tmp_path):
+    # a 4 mm grating whose stripes run along y: the swipe (along x) crosses them, a path along y never does
+    stripes = Stimulus("stripes", "grating-1mm", contrast=0.3, scale=4.0)
+    across = touch_log(tmp_path / "across.csv", 5.0, 5.0, 35.0, 35.0)
+    along = touch_log(tmp_path / "along.csv", 20.0, 5.0, 20.0, 35.0)
+    design = rating_design(stripes)
+    report = check_stimuli(Design(**{**design.__dict__, "check_paths": (across,)}))
+    assert report.passed, report.failures
+    crossing = report.figures[f"stripes along {across}"]
+    assert crossing.path_contrast == pytest.approx(0.3, abs=0.02)  # the whole sinusoid crossed
+    assert crossing.delivered_contrast >= 0.5 * 0.3
+    report = check_stimuli(Design(**{**design.__dict__, "check_paths": (across, along)}))
+    assert report.figures[f"stripes along {along}"].path_contrast < 0.01  # x fixed: one stripe's value
+    assert len(report.failures) == 1
+    assert f"along the recorded path {along}" in report.failures[0]
+    assert "the path does not cross its features" in report.failures[0]
+
+
+def test_check_paths_go_through_the_toml_and_a_path_off_the_zone_is_refused_in_one_line(tmp_path):
+    from ultraglide.experiment import design_from_toml, to_toml
+
+    off = touch_log(tmp_path / "off.csv", 60.0, 5.0, 90.0, 5.0)  # right of a 40 mm zone
+    design = rating_design(Stimulus("g", "grating-1mm", contrast=0.3, scale=4.0))
+    text = to_toml(Design(**{**design.__dict__, "check_paths": (off,)}))
+    assert design_from_toml(text).check_paths == (off,)
+    toml = tmp_path / "design.toml"
+    toml.write_text(text)
+    result = run_cli("experiment", "check", str(toml))
+    line = assert_one_line_error(result)
+    assert "rig.check_paths[0]" in line and "never enters the zone" in line and result.returncode == 2
+
+
+def test_a_gltf_scenes_friction_map_is_a_stimulus_that_delivers_as_its_source_does(tmp_path):
+    scene = tmp_path / "grating.glb"
+    written = run_cli("texture", "export-gltf", "grating-2mm", "-o", str(scene))
+    assert written.returncode == 0, written.stderr
+    from_scene = check_stimuli(rating_design(Stimulus("scene", str(scene), contrast=0.3)))
+    from_library = check_stimuli(rating_design(Stimulus("library", "grating-2mm", contrast=0.3)))
+    assert from_scene.passed, from_scene.failures
+    scene_figures, library_figures = from_scene.figures["scene"], from_library.figures["library"]
+    assert scene_figures.path_contrast == pytest.approx(library_figures.path_contrast, abs=0.01)
+    assert scene_figures.delivered_contrast == pytest.approx(library_figures.delivered_contrast, abs=0.02)
+    assert scene_figures.delivered_mean == pytest.approx(library_figures.delivered_mean, abs=0.01)

@@ -96,10 +96,11 @@ def run_check(args) -> int:
 def plan_text(design, report, trials, participant: str) -> str:
     """The design, its stimuli's figures and its trial plan, in words."""
     lines = [f"{design.name}: {len(trials)} trials for {participant} (seed {design.seed}, order {design.order})",
-             "stimuli along the zone's swipe (friction contrast asked / on the path / delivered; mean ratio asked / "
-             "delivered):"]
-    for figure in report.figures.values():
-        lines.append(f"  {figure.label}: contrast {figure.asked_contrast:.3f} / {figure.path_contrast:.3f} / "
+             "stimuli along the zone's swipe and the recorded paths (friction contrast asked / on the path / "
+             "delivered; mean ratio asked / delivered):"]
+    for key, figure in report.figures.items():
+        label = key if " along " in key else figure.label
+        lines.append(f"  {label}: contrast {figure.asked_contrast:.3f} / {figure.path_contrast:.3f} / "
                      f"{figure.delivered_contrast:.3f}; mean {figure.asked_mean:.3f} / {figure.delivered_mean:.3f}; "
                      f"{figure.delivered_um_pp:.2f} µm p-p")
     for block in design.blocks:

@@ -165,6 +165,32 @@ class Rig:
         self.profile = load_plate(design.profile)
         self.speed_mm_s, self.force_n = design.speed_mm_s, design.force_n
         self.zone_mm, self.gap_mm = tuple(design.zone_mm), design.gap_mm
+        self.paths = {path: _recorded_path(path, index, self.zone_mm) for index, path in enumerate(design.check_paths)}
+
+
+MAX_PATH_S = 600.0  # a recorded path the check renders: at most 10 minutes
+
+
+def _recorded_path(path: str, index: int, zone_mm: tuple[float, float]):
+    """A touch log the check renders along, whole in memory: ``(t_s, x_mm, y_mm, force_n or None)``; ExperimentError
+    naming ``rig.check_paths[index]`` when it cannot be read or leaves the zone entirely."""
+    from ultraglide.errors import UltraglideError, describe
+    from ultraglide.render.touch_log import read_touch_log
+
+    where = f"rig.check_paths[{index}]"
+    try:
+        trajectory = read_touch_log(path)
+    except (UltraglideError, OSError) as error:
+        raise ExperimentError(f"{where}: {describe(error)}") from None
+    if trajectory.end_s - trajectory.start_s > MAX_PATH_S:
+        raise ExperimentError(f"{where}: {path} lasts {trajectory.end_s - trajectory.start_s:.0f} s; a path to check "
+                              f"stimuli along lasts at most {MAX_PATH_S:.0f} s: cut it")
+    t, x, y, force = trajectory.records()
+    inside = (x >= EDGE_MM) & (x <= zone_mm[0] - EDGE_MM) & (y >= 0) & (y <= zone_mm[1])
+    if not inside.any():
+        raise ExperimentError(f"{where}: {path} never enters the zone ({zone_mm[0]:g} × {zone_mm[1]:g} mm, positions "
+                              "in mm from its top-left corner): record it on the zone, or shift it there")
+    return t, x, y, force
 
 
 def measure(texture, rig: Rig, stimulus: str, level: float | None, asked_contrast: float) -> StimulusFigures:
@@ -189,6 +215,45 @@ def measure(texture, rig: Rig, stimulus: str, level: float | None, asked_contras
     low, high = np.percentile(row, [1, 99])
     return StimulusFigures(stimulus, level, float(asked_contrast), float(high - low), rendered.zone_contrast[0],
                            float(row.mean()), rendered.zone_mean_ratio[0], rendered.zone_um_pp[0], rendered.peak)
+
+
+def measure_path(texture, rig: Rig, stimulus: str, level: float | None, asked_contrast: float,
+                 path: str) -> StimulusFigures:
+    """Render ``texture`` (a zone) alone along the recorded path ``path`` of the rig and measure what it delivers
+    where the finger was on the zone (its edges left out)."""
+    from ultraglide.experiment.stimuli import Layout, offline_sampler, render_along
+    from ultraglide.render.renderer import RenderSettings
+    from ultraglide.render.trajectory import RecordedTrajectory
+    from ultraglide.textures.compose import Placement, compose
+    from ultraglide.textures.sampling import Sampler
+
+    layout = Layout(1, rig.zone_mm, rig.gap_mm)
+    px = float(min(MAX_PX_PER_MM, max(10.0, 1.0 / min(texture.pixel_mm))))
+    canvas = compose(layout.size_mm, [Placement(texture, layout.zone_left_mm(0), layout.gap_mm)], 1.0, px_per_mm=px,
+                     name=f"check-{stimulus}")
+    t, x, y, force = rig.paths[path]
+    offset = layout.zone_left_mm(0), layout.gap_mm  # the zone's corner on the canvas
+    trajectory = RecordedTrajectory(t, x + offset[0], y + offset[1], force)
+    settings = RenderSettings(default_force_n=rig.force_n)
+    speed = float(np.percentile(np.hypot(np.diff(x), np.diff(y)) / np.maximum(np.diff(t), 1e-6), 95)) if len(t) > 2 \
+        else rig.speed_mm_s
+    along = render_along(canvas, trajectory, rig.model, rig.profile, settings,
+                         offline_sampler(canvas, max(speed, 1.0), settings))
+    zx, zy = along.x_mm - offset[0], along.y_mm - offset[1]
+    on_zone = (zx >= EDGE_MM) & (zx < rig.zone_mm[0] - EDGE_MM) & (zy >= 0) & (zy < rig.zone_mm[1])
+    forces = np.full(len(zx), rig.force_n)
+    ratio = rig.model.relative_friction(along.plate_um_pp, forces)
+    moving = np.hypot(np.gradient(zx), np.gradient(zy))
+    direction = (np.gradient(zx) / np.maximum(moving, 1e-12), np.gradient(zy) / np.maximum(moving, 1e-12))
+    asked = Sampler(texture, band_limited=False).ratio(np.clip(zx, 0, rig.zone_mm[0]), np.clip(zy, 0, rig.zone_mm[1]),
+                                                       direction=direction).astype(np.float64)
+    if not on_zone.any():
+        return StimulusFigures(stimulus, level, float(asked_contrast), 0.0, 0.0, 1.0, 1.0, 0.0, along.peak)
+    path_low, path_high = np.percentile(asked[on_zone], [1, 99])
+    low, high = np.percentile(ratio[on_zone], [1, 99])
+    return StimulusFigures(stimulus, level, float(asked_contrast), float(path_high - path_low), float(high - low),
+                           float(asked[on_zone].mean()), float(ratio[on_zone].mean()),
+                           float(np.median(along.plate_um_pp[on_zone])), along.peak)
 
 
 def _asked_contrast(texture, stimulus: Stimulus, level: float | None) -> float:
@@ -240,21 +305,14 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
         if key not in figures:
             texture = texture_of(name, level)
             stimulus = design.stimuli[name]
-            found = measure(texture, rig, name, level, _asked_contrast(texture, stimulus, level))
+            asked = _asked_contrast(texture, stimulus, level)
+            for path in rig.paths:
+                along = measure_path(texture, rig, name, level, asked, path)
+                figures[f"{key} along {path}"] = along
+                _judge(along, f"along the recorded path {path}", "the path does not cross its features", failures)
+            found = measure(texture, rig, name, level, asked)
             figures[key] = found
-            if found.asked_contrast >= MIN_ASKED_CONTRAST and (
-                    found.delivered_contrast < MIN_CONTRAST_KEPT * found.asked_contrast):
-                on_path = found.path_contrast / found.asked_contrast  # what the swipe's line holds of it
-                rendered = found.delivered_contrast / max(found.path_contrast, 1e-12)  # what the plate keeps of that
-                where = ("the swipe along the zone's middle does not cross its features" if on_path <= rendered else
-                         "the renderer and the drive limit take it away")
-                failures.append(f"stimulus {found.label!r} delivers a friction contrast of "
-                                f"{found.delivered_contrast:.4f} along the swipe where the design asks "
-                                f"{found.asked_contrast:.4f} ({where})")
-            if abs(found.delivered_mean - found.asked_mean) > MAX_MEAN_ERROR:
-                failures.append(f"stimulus {found.label!r} delivers a mean friction ratio of "
-                                f"{found.delivered_mean:.3f} where its map asks {found.asked_mean:.3f} along the swipe "
-                                "(the plate cannot reach it)")
+            _judge(found, "along the swipe", "the swipe along the zone's middle does not cross its features", failures)
         return figures[key]
 
     for block in design.blocks:
@@ -281,6 +339,20 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
             if block.task in ("afc", "same_different"):
                 _check_pair(design, name, figures, failures)
     return CheckReport(figures, failures)
+
+
+def _judge(found: StimulusFigures, along: str, uncrossed: str, failures: list[str]) -> None:
+    """The contrast and mean criteria on one stimulus's figures along one path (a sentence each in ``failures``)."""
+    if found.asked_contrast >= MIN_ASKED_CONTRAST and (
+            found.delivered_contrast < MIN_CONTRAST_KEPT * found.asked_contrast):
+        on_path = found.path_contrast / found.asked_contrast  # what the path's line holds of it
+        rendered = found.delivered_contrast / max(found.path_contrast, 1e-12)  # what the plate keeps of that
+        where = uncrossed if on_path <= rendered else "the renderer and the drive limit take it away"
+        failures.append(f"stimulus {found.label!r} delivers a friction contrast of {found.delivered_contrast:.4f} "
+                        f"{along} where the design asks {found.asked_contrast:.4f} ({where})")
+    if abs(found.delivered_mean - found.asked_mean) > MAX_MEAN_ERROR:
+        failures.append(f"stimulus {found.label!r} delivers a mean friction ratio of {found.delivered_mean:.3f} where "
+                        f"its map asks {found.asked_mean:.3f} {along} (the plate cannot reach it)")
 
 
 def _uniform(rig: Rig, amplitude_um_pp: float) -> StimulusFigures:

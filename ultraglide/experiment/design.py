@@ -146,6 +146,7 @@ class Design:
     force_n: float = 0.5
     model: str = "stretched"
     profile: str = "sim-plate"
+    check_paths: tuple[str, ...] = ()  # touch logs (mm from a zone's top-left corner) the check also renders along
 
     def __post_init__(self) -> None:
         validate(self)
@@ -627,7 +628,8 @@ def design_from_dict(tables: dict) -> Design:
         break_message=experiment.get("break_message", str, "Take a break. Tap or press space to go on."),
         zone_mm=_pair(zone, "rig.zone_mm"), gap_mm=rig.get("gap_mm", float, 10.0),
         speed_mm_s=rig.get("speed_mm_s", float, 100.0), force_n=rig.get("force_n", float, 0.5),
-        model=rig.get("model", str, "stretched"), profile=rig.get("profile", str, "sim-plate"))
+        model=rig.get("model", str, "stretched"), profile=rig.get("profile", str, "sim-plate"),
+        check_paths=rig.get("check_paths", "strs", ()))
     for table in (top, experiment, rig):
         table.done()
     if not 0 <= design["seed"] < 2**32:
@@ -686,7 +688,8 @@ def design_to_dict(design: Design) -> dict:
     return {"experiment": {"name": design.name, "seed": design.seed, "order": design.order,
                            "language": design.language, "break_message": design.break_message},
             "rig": {"model": design.model, "profile": design.profile, "zone_mm": list(design.zone_mm),
-                    "gap_mm": design.gap_mm, "speed_mm_s": design.speed_mm_s, "force_n": design.force_n},
+                    "gap_mm": design.gap_mm, "speed_mm_s": design.speed_mm_s, "force_n": design.force_n,
+                    **({"check_paths": list(design.check_paths)} if design.check_paths else {})},
             "stimuli": {name: stimulus(s) for name, s in design.stimuli.items()},
             "conditions": [condition(c) for c in design.conditions.values()],
             "blocks": [block(b) for b in design.blocks]}

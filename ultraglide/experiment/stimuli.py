@@ -193,18 +193,8 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
     settings = RenderSettings(audio_rate_hz=rate_hz, default_force_n=force_n)
     if sampler is None:
         sampler = offline_sampler(texture, speed_mm_s, settings)
-    renderer = Renderer(texture, model, profile, settings, trajectory=path, sampler=sampler)
-    stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
-    xs, plate = [], []
-    renderer.observers.append(lambda block: (xs.append(block.x_mm), plate.append(block.plate_um_pp)))
-    total = int(np.ceil((duration + renderer.tail_s) * rate_hz))
-    buffer = np.empty(total, dtype=np.float32)
-    done = 0
-    while done < total:
-        n = min(block_frames, total - done)
-        buffer[done:done + n] = stage.pull(n, None)
-        done += n
-    x, amplitude = np.concatenate(xs), np.concatenate(plate)
+    along = render_along(texture, path, model, profile, settings, sampler, block_frames)
+    x, amplitude, done = along.x_mm, along.plate_um_pp, along.frames
     ratio = model.relative_friction(amplitude, force_n)
     um_pp, contrast, mean = [], [], []
     for index in range(layout.zones):
@@ -219,4 +209,38 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
         um_pp.append(float(np.median(amplitude[inside])))
         contrast.append(float(high - low))
         mean.append(float(np.mean(ratio[inside])))
-    return Rendered(done, float(np.max(np.abs(buffer))), tuple(um_pp), tuple(contrast), tuple(mean))
+    return Rendered(done, along.peak, tuple(um_pp), tuple(contrast), tuple(mean))
+
+
+@dataclass(frozen=True)
+class Along:
+    """What the renderer and the plate model made along a finger's path, per control sample: where the finger
+    was (mm on the texture) and the plate's amplitude (µm p-p); ``frames`` carrier samples with ``peak`` the
+    largest |sample| (1 = full-scale drive)."""
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    plate_um_pp: np.ndarray
+    frames: int
+    peak: float
+
+
+def render_along(texture: Texture, trajectory, model: FrictionModel, profile: PlateProfile,
+                 settings: RenderSettings, sampler: Sampler | None = None, block_frames: int = 4800) -> Along:
+    """Render ``texture`` along ``trajectory`` (a swipe or a recorded path, positions in mm on the texture) through
+    the real renderer and its output stage (drive limiter, carrier) into a buffer, as fast as the machine goes."""
+    renderer = Renderer(texture, model, profile, settings, trajectory=trajectory, sampler=sampler)
+    stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
+    xs, ys, plate = [], [], []
+    renderer.observers.append(lambda block: (xs.append(block.x_mm), ys.append(block.y_mm),
+                                             plate.append(block.plate_um_pp)))
+    total = int(np.ceil((trajectory.end_s - trajectory.start_s + renderer.tail_s) * settings.audio_rate_hz))
+    peak = 0.0
+    buffer = np.empty(block_frames, dtype=np.float32)
+    done = 0
+    while done < total:
+        n = min(block_frames, total - done)
+        buffer[:n] = stage.pull(n, None)
+        peak = max(peak, float(np.max(np.abs(buffer[:n]))))
+        done += n
+    return Along(np.concatenate(xs), np.concatenate(ys), np.concatenate(plate), done, peak)
