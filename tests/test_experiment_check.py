@@ -166,6 +166,8 @@ def test_check_paths_go_through_the_toml_and_a_path_off_the_zone_is_refused_in_o
     design = rating_design(Stimulus("g", "grating-1mm", contrast=0.3, scale=4.0))
     text = to_toml(Design(**{**design.__dict__, "check_paths": (off,)}))
     assert design_from_toml(text).check_paths == (off,)
+    with_effects = rating_design(Stimulus("g", "grating-1mm", effects="buzz.ahap"))
+    assert design_from_toml(to_toml(with_effects)).stimuli["g"].effects == "buzz.ahap"
     toml = tmp_path / "design.toml"
     toml.write_text(text)
     result = run_cli("experiment", "check", str(toml))
@@ -184,3 +186,37 @@ def test_a_gltf_scenes_friction_map_is_a_stimulus_that_delivers_as_its_source_do
     assert scene_figures.path_contrast == pytest.approx(library_figures.path_contrast, abs=0.01)
     assert scene_figures.delivered_contrast == pytest.approx(library_figures.delivered_contrast, abs=0.02)
     assert scene_figures.delivered_mean == pytest.approx(library_figures.delivered_mean, abs=0.01)
+
+
+def test_a_stimulus_plays_its_temporal_effects_on_its_own_zone_only(tmp_path):
+    from ultraglide.textures.compose import Placement, compose
+
+    from ultraglide.experiment.check import Rig
+    from ultraglide.experiment.stimuli import Layout, render_offline
+
+    buzz = tmp_path / "buzz.json"  # a 40 Hz friction drop of 0.4 while the finger is anywhere on the zone
+    buzz.write_text('{"effects_version": 1, "bindings": [{"trigger": {"on": "while"}, '
+                    '"effect": {"type": "sine", "frequency_hz": 40, "depth": 0.4}}]}')
+    flat = Stimulus("flat", "grating-1mm", contrast=0.0)  # uniform friction at rest: no contrast of its own
+    buzzing = Stimulus("buzzing", "grating-1mm", contrast=0.0, effects=str(buzz))
+    design = rating_design(flat, buzzing)
+    rig = Rig(design)
+    zones = [zone_texture(s, rig.zone_mm) for s in (buzzing, flat)]
+    layout = Layout(2, rig.zone_mm, rig.gap_mm)
+    trial = compose(layout.size_mm, [Placement(z, layout.zone_left_mm(i), layout.gap_mm) for i, z in enumerate(zones)],
+                    1.0, px_per_mm=10.0)
+    rendered = render_offline(trial, layout, rig.model, rig.profile, rig.speed_mm_s, rig.force_n)
+    # the sine swings the ratio from 1 down to 0.6 and back while on the first zone; the second stays at rest
+    assert rendered.zone_contrast[0] > 0.5 * 0.4
+    assert rendered.zone_contrast[1] < 0.01
+    assert rendered.zone_mean_ratio[0] == pytest.approx(1.0 - 0.2, abs=0.05)  # the sine's mean drop is depth / 2
+    assert check_stimuli(design).figures["buzzing"].delivered_contrast > 0.5 * 0.4
+
+
+def test_a_stimulus_whose_effects_cannot_be_read_is_refused_naming_it(tmp_path):
+    from ultraglide.experiment import ExperimentError
+
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"effects_version": 1, "bindings": [{"trigger": {"on": "never"}, "effect": 1}]}')
+    with pytest.raises(ExperimentError, match=r"stimuli\.s\.effects: "):
+        check_stimuli(rating_design(Stimulus("s", "grating-1mm", contrast=0.3, effects=str(bad))))

@@ -110,7 +110,20 @@ def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: flo
         values = np.clip(values, 0.0, 1.0)
     return Texture(values.astype(np.float32), float(width), float(height), outside="fixed", outside_ratio=1.0,
                    name=stimulus.name, source=str(stimulus.texture),
-                   authoring={"stimulus": asdict(stimulus), "contrast": wanted})
+                   authoring={"stimulus": asdict(stimulus), "contrast": wanted}, effects=_effects(stimulus))
+
+
+def _effects(stimulus: Stimulus) -> tuple:
+    """The stimulus's temporal effects (none without a file); ExperimentError naming it when they cannot be read."""
+    if stimulus.effects is None:
+        return ()
+    from ultraglide.errors import UltraglideError, describe
+    from ultraglide.textures.effects_file import load_effects
+
+    try:
+        return load_effects(stimulus.effects)
+    except (UltraglideError, OSError) as error:
+        raise ExperimentError(f"stimuli.{stimulus.name}.effects: {describe(error)}") from None
 
 
 @dataclass(frozen=True)

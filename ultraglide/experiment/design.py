@@ -53,7 +53,10 @@ class Stimulus:
     """A texture and its transforms. ``texture``: a library name or a texture/image file. ``contrast``: the
     friction contrast (1 - ratio at its most slippery point, the stickiest at 1) it is rescaled to (None: as it
     is); ``mean``: the mean friction ratio it is shifted to (None: as it is); ``scale``: its size × this;
-    ``rotation_deg``: turned anticlockwise by this. Example: ``Stimulus("fine", "grating-1mm", contrast=0.3)``."""
+    ``rotation_deg``: turned anticlockwise by this; ``effects``: a file of temporal effects played on the zone
+    (ours, JSON, or a designer's ``.ahap``, ``.haptic``, ``.hjif``; positions in mm from the zone's top-left corner,
+    an effect without a region plays over the whole zone). Example: ``Stimulus("fine", "grating-1mm",
+    contrast=0.3)``."""
 
     name: str
     texture: str
@@ -61,6 +64,7 @@ class Stimulus:
     mean: float | None = None
     scale: float = 1.0
     rotation_deg: float = 0.0
+    effects: str | None = None
 
 
 @dataclass(frozen=True)
@@ -581,7 +585,7 @@ def design_from_dict(tables: dict) -> Design:
         table = _Table(values, f"stimuli.{name}")
         stimuli[name] = Stimulus(name, table.get("texture", str, required=True), table.get("contrast", float),
                                  table.get("mean", float), table.get("scale", float, 1.0),
-                                 table.get("rotation_deg", float, 0.0))
+                                 table.get("rotation_deg", float, 0.0), table.get("effects", str))
         table.done()
     conditions = {}
     condition_list = top.get("conditions", list, [])
@@ -652,6 +656,8 @@ def design_to_dict(design: Design) -> dict:
             out["scale"] = s.scale
         if s.rotation_deg:
             out["rotation_deg"] = s.rotation_deg
+        if s.effects is not None:
+            out["effects"] = s.effects
         return out
 
     def condition(c: Condition) -> dict:

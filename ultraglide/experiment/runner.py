@@ -109,7 +109,8 @@ class _Stimuli:
 
 def stimulus_is_plain_library(stimulus) -> bool:
     """A stimulus with no transform: the texture exactly as ``experiment threshold TEXTURE`` would use it."""
-    return stimulus.contrast is None and stimulus.mean is None and stimulus.scale == 1.0 and not stimulus.rotation_deg
+    return (stimulus.contrast is None and stimulus.mean is None and stimulus.scale == 1.0 and not stimulus.rotation_deg
+            and stimulus.effects is None)
 
 
 def _procedures(design: Design) -> dict:
