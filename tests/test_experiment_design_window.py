@@ -105,3 +105,54 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
     assert float(rows[7]["level"]) == start and seen[8][0] == ["−", "+", "OK"]
     assert float(rows[7]["response"]) == pytest.approx(min(start * 10 ** (2 / 20), 0.6), rel=1e-9)
     assert all(float(r["rt_s"]) > 0 for r in rows)
+
+
+def stroke(pg, window, zone_index, seconds=0.6, steps=60):
+    """A finger drawn across a zone left to right along its middle, paced as a finger moves (60 reports)."""
+    w, h = window.screen.get_size()
+    zone = window.zones[zone_index]
+    y = zone.centery / h
+    post(pg, pg.FINGERDOWN, x=(zone.left + 2) / w, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+    started = time.monotonic()
+    for k in range(1, steps + 1):
+        due = started + seconds * k / steps
+        time.sleep(max(0.0, due - time.monotonic()))  # a finger's own pace, not a wait for anything
+        x = (zone.left + 2 + (zone.width - 4) * k / steps) / w
+        post(pg, pg.FINGERMOTION, x=x, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+    post(pg, pg.FINGERUP, x=x, y=y, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
+
+
+@pytest.mark.slow
+def test_a_design_runs_live_through_the_real_time_engine_and_logs_what_it_played(pg, tmp_path):
+    from ultraglide.apps.experiment.design_window import DesignWindow
+
+    stimuli = {"coarse": Stimulus("coarse", "grating-2mm", contrast=0.4, mean=0.7),
+               "plain": Stimulus("plain", "grating-2mm", contrast=0.0)}
+    design = Design("live", stimuli, {"coarse": Condition("coarse", "coarse"), "plain": Condition("plain", "plain")},
+                    (Block("rate", "rating", ("coarse", "plain"), repeats=1, scale=(1, 5)),), seed=4)
+    trials = plan(design)
+    window = DesignWindow(design, "sim", 338.7, True)  # the engine in its own process, on the simulated plate
+    assert window.output.kind == "engine"
+
+    def participant():
+        for trial in trials:
+            wait_for(window, "trial", trial.number)
+            stroke(pg, window, 0)
+            key(pg, "3")
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        session = run(design, "P02", out=tmp_path / "s", responder=window)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    with open(tmp_path / "s" / "trials.csv", newline="", encoding="utf-8") as handle:
+        rows = {row["condition"]: row for row in csv.DictReader(handle)}
+    assert session.complete and set(rows) == {"coarse", "plain"}
+    # what the engine played while the finger touched: the stimulus's mean friction (0.7, shifted there), and
+    # vibration for it; the plain zone at rest asks 1.0 and no vibration
+    assert float(rows["coarse"]["target_ratio"]) == pytest.approx(0.7, abs=0.05)
+    assert float(rows["coarse"]["commanded_um_pp"]) > 1.0
+    assert float(rows["plain"]["target_ratio"]) == pytest.approx(1.0, abs=0.01)
+    assert float(rows["plain"]["commanded_um_pp"]) == 0.0
