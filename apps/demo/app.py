@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.signals import held
+from ultraglide.apps.demo.felt import FeltContrast
 from ultraglide.apps.demo.input import FingerDriver, Input, newest_motions
 from ultraglide.apps.demo.layout import Layout
 from ultraglide.apps.demo.link import DemoLink, LinkConfig, LinkStarter
@@ -127,6 +128,7 @@ class DemoApp:
         if texture_specs:  # the user's own textures: the first is on screen at once, ready to feel and record
             self.scenes.show("texture", 0)
         self.driver = FingerDriver(self)
+        self.felt = FeltContrast()  # the contrast a finger keeps at its speed, with a dynamic model
         self.input = Input(self, self.driver, touch_panel)
         self.painter.make_thumbnails()
         try:  # last, so that nothing above can leave a recording behind

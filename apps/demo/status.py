@@ -10,9 +10,11 @@ help) are shortened with an ellipsis, never dropped.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 from ultraglide.apps.demo.draw import fit_text
+from ultraglide.apps.demo.felt import felt_part_words
 
 SEPARATOR = "   ·   "
 HELP = "H: help"
@@ -66,6 +68,9 @@ def status_parts(app) -> tuple[list[Part], list[Part]]:
         Part(f"{app.force_n:.2f} N ({source})", f"{app.force_n:.2f} N", rank=7),
         limit_part(s.limited_pct, s.limited_samples),
     ]
+    felt = felt_part_words(app, time.perf_counter())
+    if felt is not None:  # a model with the finger's dynamics: what a swipe at the finger's speed keeps
+        plate.append(Part(felt[0], felt[1], rank=5))
     if s.loop:  # the friction loop's state in words: "closed loop: following, error 0.03", "open loop: finger resting"
         plate.append(Part(s.loop, s.loop.split(",")[0], must=True, rank=8, warn=s.loop.startswith("open loop: sensor")))
     around.append(Part(f"{_count(s.underruns, 'underrun')}, {_count(s.late_blocks, 'late block')}, block "

@@ -1,0 +1,117 @@
+"""What the finger keeps of the shown texture's contrast at its own speed, for the demo's status line.
+
+With a model that has the finger's friction dynamics (``--model dynamic``), a fine texture swept fast is felt
+with less contrast than it asks (``render.planning``). :class:`FeltContrast` works out, once per texture and
+model and in a thread of its own (a swipe rendered at five speeds takes about a tenth of a second), what a swipe
+keeps at 25-400 mm/s, planned and asked instantly; the status line reads it at the finger's speed, taken from the
+driving finger's last 150 ms (:func:`finger_speed_mm_s`).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+SPEEDS_MM_S = (25.0, 50.0, 100.0, 200.0, 400.0)
+SPEED_WINDOW_S = 0.15  # the finger's speed: its path over this long
+MIN_SPEED_MM_S = 5.0  # slower than this the finger is taken as resting: no figure
+
+
+def finger_speed_mm_s(trace, mm_per_px: float, now_s: float) -> float | None:
+    """The driving finger's speed over its last :data:`SPEED_WINDOW_S` (path length / time), mm/s; None when it
+    rests or has too few reports. ``trace``: ``(perf_counter s, x px, y px)`` tuples, oldest first."""
+    recent = [(t, x, y) for t, x, y in trace if now_s - t <= SPEED_WINDOW_S]
+    if len(recent) < 3:
+        return None
+    t, x, y = (np.array(column, dtype=float) for column in zip(*recent, strict=True))
+    span = t[-1] - t[0]
+    if span <= 0:
+        return None
+    speed = float(np.sum(np.hypot(np.diff(x), np.diff(y)))) * mm_per_px / span
+    return speed if speed >= MIN_SPEED_MM_S else None
+
+
+class FeltContrast:
+    """The contrast a swipe keeps, per (texture, model), worked out in the background on request."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._table: dict[tuple[int, str], list[tuple[float, float, float]] | None] = {}
+
+    def request(self, texture, model_name: str, model, floor: float) -> None:
+        """Work out the figures for ``texture`` under ``model`` (one with ``dynamics``) unless done or under way.
+        ``floor``: the lowest friction ratio the plate reaches (the model at the plate's limit)."""
+        key = (id(texture), model_name)
+        with self._lock:
+            if key in self._table:
+                return
+            self._table[key] = None  # under way
+        threading.Thread(target=self.work_out, args=(texture, model_name, model.dynamics, floor),
+                         name="felt-contrast", daemon=True).start()
+
+    def work_out(self, texture, model_name: str, dynamics, floor: float) -> None:
+        """The figures for ``texture`` under ``model_name`` with these ``dynamics``, worked out in this thread."""
+        from ultraglide.render.planning import swipe_contrast
+
+        key = (id(texture), model_name)
+        rows = []
+        for speed in SPEEDS_MM_S:
+            kept = swipe_contrast(texture, dynamics, speed, floor, longest_s=0.5)
+            rows.append((speed, kept.planned, kept.instantaneous))
+        with self._lock:
+            self._table[key] = rows
+
+    def at(self, texture, model_name: str, speed_mm_s: float) -> tuple[float, float] | None:
+        """(planned, instantaneous) contrast kept at ``speed_mm_s``, interpolated in log speed between the worked
+        speeds (held at the ends); None until worked out."""
+        with self._lock:
+            rows = self._table.get((id(texture), model_name))
+        if not rows:
+            return None
+        logs = [math.log(speed) for speed, _, _ in rows]
+        where = min(max(math.log(speed_mm_s), logs[0]), logs[-1])
+        planned = float(np.interp(where, logs, [row[1] for row in rows]))
+        instantaneous = float(np.interp(where, logs, [row[2] for row in rows]))
+        return planned, instantaneous
+
+
+MAX_PIXELS = 4_000_000  # a larger map would be resampled for the lookup: not worked out for a status line
+
+
+def felt_part_words(app, now_s: float) -> tuple[str, str] | None:
+    """The status line's words for the contrast felt at the finger's speed (long, short), or None: a model
+    without dynamics, a gradient or very large texture, a resting finger, or figures not worked out yet."""
+    model = _dynamic_model(app.link.model_name)
+    texture = getattr(app.scenes, "current", None)
+    if model is None or texture is None or getattr(texture, "kind", "") != "friction" \
+            or texture.cols * texture.rows > MAX_PIXELS:
+        return None
+    floor = float(model.relative_friction(np.array([app.link.profile.max_amplitude_um_pp]), app.force_n)[0])
+    app.felt.request(texture, app.link.model_name, model, floor)
+    speed = finger_speed_mm_s(app.driver.trace, app.mm_per_px, now_s)
+    kept = app.felt.at(texture, app.link.model_name, speed) if speed is not None else None
+    if kept is None:
+        return None
+    planned, instantaneous = kept
+    return (f"felt at {speed:.0f} mm/s: {100 * planned:.0f} % of its contrast (asked instantly, "
+            f"{100 * instantaneous:.0f} %)", f"felt {100 * planned:.0f} %")
+
+
+_models: dict[str, object] = {}
+
+
+def _dynamic_model(name: str):
+    """The model named ``name`` if it has the finger's friction dynamics, else None (loaded once per name)."""
+    if name not in _models:
+        from ultraglide.render.physics.calibration import load_model
+
+        from ultraglide.errors import UltraglideError
+
+        try:
+            model = load_model(name)
+        except (UltraglideError, OSError):  # the engine reports a bad model; the status line just has no figure
+            model = None
+        _models[name] = model if getattr(model, "dynamics", None) is not None else None
+    return _models[name]
