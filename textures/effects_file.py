@@ -136,10 +136,11 @@ def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
 def load_effects(path) -> tuple[Binding, ...]:
     """Bindings from a JSON file holding :func:`to_json`'s description; one-line TextureError for a bad one
     (a path that is not a regular file is refused without being read). A designer's file (``.ahap``,
-    ``.haptic``, ``.hjif``) is read by :func:`ultraglide.textures.formats.effects_in.load_designer_effects`."""
+    ``.haptic``, ``.hjif``, ``.haps``) is read by
+    :func:`ultraglide.textures.formats.effects_in.load_designer_effects`."""
     from ultraglide.inputs import parse_json, read_input
 
-    if str(path).lower().endswith((".ahap", ".haptic", ".hjif")):
+    if str(path).lower().endswith((".ahap", ".haptic", ".hjif", ".haps")):
         from ultraglide.textures.formats.effects_in import load_designer_effects
 
         return load_designer_effects(path)

@@ -34,7 +34,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                            "(also as they were at the first touch), block time p50/p99, touches")
     demo.add_argument("--effects", metavar="EFFECTS",
                       help="play these temporal effects with the textures given, instead of their own: a .json "
-                           "description (docs/effects.md), or an .ahap, .haptic or .hjif file (docs/formats.md)")
+                           "description (docs/effects.md), or an .ahap, .haptic, .hjif or .haps file (docs/formats.md)")
     demo.add_argument("--watch", action="store_true",
                       help="reload a texture given as a file when it (or the image it was authored from) changes, "
                            "checked every 200 ms: edit it in any image editor and feel the change")

@@ -56,7 +56,7 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
     effects = signal.add_mutually_exclusive_group()
     effects.add_argument("--effects", metavar="EFFECTS",
                          help="play these temporal effects instead of those saved with the texture: ultraglide's "
-                              "JSON description (docs/effects.md), or a designer's .ahap, .haptic or .hjif "
+                              "JSON description (docs/effects.md), or a designer's .ahap, .haptic, .hjif or .haps "
                               "(docs/formats.md)")
     effects.add_argument("--no-effects", action="store_true",
                          help="leave out the temporal effects saved with the texture")

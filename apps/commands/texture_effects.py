@@ -25,7 +25,7 @@ def add_parser(texture_commands: argparse._SubParsersAction) -> None:
     parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, or a library name")
     change = parser.add_mutually_exclusive_group()
     change.add_argument("--set", metavar="EFFECTS", help="these effects instead of the texture's own: a .json "
-                                                         "description, or an .ahap, .haptic or .hjif file")
+                                                         "description, or an .ahap, .haptic, .hjif or .haps file")
     change.add_argument("--add", metavar="EFFECTS", help="these effects after the texture's own (the same files)")
     change.add_argument("--clear", action="store_true", help="no effects")
     output_option(parser, "-o", "--output", metavar="TEXTURE.png", help="the texture with its new effects")

@@ -19,18 +19,20 @@ from ultraglide.apps.cli.types import TEXTURE_SIDE_MM, UNIT_INTERVAL
 def add_parser(texture_commands: argparse._SubParsersAction) -> None:
     """``ultraglide texture import`` and ``export-gltf``: their options."""
     importing = texture_commands.add_parser(
-        "import", help="a texture from a glTF scene's haptic material",
+        "import", help="a texture from a glTF scene's haptic material or an Interhaptics .haps texture",
         description="Read the friction texture of a glTF 2.0 scene's MPEG_haptic_material (.gltf or .glb; its "
                     "images embedded or in files beside it) into a texture file. The texel's first channel "
                     "(0..1) is the friction ratio unless --texel-range or --invert say otherwise; the physical size "
-                    "is the UV-mapped extent of the meshes wearing the material, else --width-mm.")
-    importing.add_argument("scene", metavar="SCENE", help="a .gltf or .glb file")
+                    "is the UV-mapped extent of the meshes wearing the material, else --width-mm. An Interhaptics "
+                    ".haps file's texture block (an amplitude over distance) becomes a grating along x, its "
+                    "amplitude (0..1) mapped as a texel is; its length from the file (unit 7: metres) or --width-mm.")
+    importing.add_argument("scene", metavar="SCENE", help="a .gltf, .glb or .haps file")
     importing.add_argument("--material", metavar="NAME|INDEX",
                            help="the haptic material, by name or index (default: the first with a friction "
                                 "texture; `ultraglide texture info SCENE` lists them)")
     importing.add_argument("--width-mm", type=TEXTURE_SIDE_MM, metavar="W",
                            help="the texture's width, mm (needed when the scene does not say; the height follows "
-                                "the UV mapping's aspect, else the image's)")
+                                "the UV mapping's aspect, else the image's; a .haps texture's whole length spans W)")
     importing.add_argument("--texel-range", nargs=2, type=UNIT_INTERVAL, default=[0.0, 1.0], metavar=("LOW", "HIGH"),
                            help="friction ratios of a black and a white texel (default: 0 1, the texel is the ratio)")
     importing.add_argument("--invert", action="store_true",
@@ -62,15 +64,40 @@ def run_import(args) -> int:
     if low > high:
         raise UsageError(f"--texel-range LOW HIGH needs LOW <= HIGH, got {low:g} {high:g}")
     refuse_overlaps({"-o": output}, {"SCENE": Path(args.scene)})
-    if not is_gltf(args.scene):
-        raise UsageError(f"{args.scene}: texture import reads .gltf and .glb scenes")
     mapping = TexelMapping(low, high, args.invert)
+    if Path(args.scene).suffix.lower() == ".haps":
+        return _import_haps(args, output, mapping)
+    if not is_gltf(args.scene):
+        raise UsageError(f"{args.scene}: texture import reads .gltf and .glb scenes and .haps files")
     texture = load_friction_texture(args.scene, args.material, args.width_mm, mapping)
     if args.name:
         texture = texture.with_(name=args.name)
     save_texture(texture, output)
     print(f"wrote {output}: {texture.name}, {texture.width_mm:g} × {texture.height_mm:g} mm, "
           f"{texture.cols}×{texture.rows} px; {mapping.describe()}")
+    return 0
+
+
+def _import_haps(args, output: Path, mapping) -> int:
+    """``texture import FILE.haps``: the texture block as a grating along x (textures/formats/haps.py)."""
+    import warnings
+
+    from ultraglide.textures.fileformat import save_texture
+    from ultraglide.textures.formats.haps import load_haps_texture
+
+    if args.material is not None:
+        raise UsageError("--material chooses a glTF scene's haptic material; a .haps file has one texture")
+    texture, unrendered = load_haps_texture(args.scene, args.width_mm, mapping)
+    if args.name:
+        texture = texture.with_(name=args.name)
+    save_texture(texture, output)
+    rule = ("friction ratio = amplitude (1: the plate at rest; 0: the slipperiest)" if mapping.identity
+            else mapping.describe().replace("texel", "amplitude"))
+    print(f"wrote {output}: {texture.name}, a grating along x {texture.width_mm:g} mm long "
+          f"({'repeating' if texture.outside == 'tile' else 'its end held beyond it'}), {texture.cols} columns; "
+          f"{rule}")
+    for text in unrendered:
+        warnings.warn(f"{args.scene}: {text}", stacklevel=2)
     return 0
 
 

@@ -1,4 +1,5 @@
-"""Designers' effect files as ultraglide temporal effects: AHAP (``.ahap``), Meta (``.haptic``), MPEG (``.hjif``).
+"""Designers' effect files as ultraglide temporal effects: AHAP (``.ahap``), Meta (``.haptic``), MPEG (``.hjif``),
+Interhaptics (``.haps``, its vibration block).
 
 :func:`load_designer_effects` reads one (a regular file, at most a few MB, JSON of bounded depth), turns it into a
 :class:`~ultraglide.textures.formats.timeline.Timeline` and from that into bindings; what cannot be rendered on a
@@ -14,11 +15,12 @@ from ultraglide.textures.errors import TextureError
 
 from ultraglide.inputs import parse_json, read_input
 
-SUFFIXES = {".ahap": "AHAP file", ".haptic": "Meta .haptic file", ".hjif": "MPEG-I haptics file"}
+SUFFIXES = {".ahap": "AHAP file", ".haptic": "Meta .haptic file", ".hjif": "MPEG-I haptics file",
+            ".haps": "Interhaptics .haps file"}
 
 
 def load_designer_effects(path, full_depth: float = 1.0) -> tuple:
-    """Bindings (played from when the finger lands) from an ``.ahap``, ``.haptic`` or ``.hjif`` file.
+    """Bindings (played from when the finger lands) from an ``.ahap``, ``.haptic``, ``.hjif`` or ``.haps`` file.
 
     Parameters
     ----------
@@ -41,15 +43,17 @@ def load_designer_effects(path, full_depth: float = 1.0) -> tuple:
     -------
     >>> bindings = load_designer_effects("tap.ahap")          # doctest: +SKIP
     """
-    from ultraglide.textures.formats import ahap, hjif
+    from ultraglide.textures.formats import ahap, haps, hjif
 
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
-        raise TextureError(f"{path}: effects are read from .json (ultraglide's), .ahap, .haptic or .hjif files")
+        raise TextureError(f"{path}: effects are read from .json (ultraglide's), .ahap, .haptic, .hjif or .haps "
+                           "files")
     what = SUFFIXES[suffix]
     document = parse_json(read_input(path, what, TextureError), str(path), TextureError, what=what)
-    reader = {".ahap": ahap.read_ahap, ".haptic": ahap.read_meta_haptic, ".hjif": hjif.read_hjif}[suffix]
+    reader = {".ahap": ahap.read_ahap, ".haptic": ahap.read_meta_haptic, ".hjif": hjif.read_hjif,
+              ".haps": haps.read_haps_effects}[suffix]
     timeline = reader(document, str(path), full_depth)
     for note in timeline.notes:
         warnings.warn(f"{path}: {note}", stacklevel=2)
