@@ -69,8 +69,10 @@ def stroke(tmp_path):
 def test_export_writes_a_friction_perception_of_the_ratio_over_time(stroke):
     document, envelope = stroke
     check_structure(document)
-    friction, drive = document["perceptions"]
+    friction, drive, spatial = document["perceptions"]  # the grating is spatial: its signal over distance too
     assert friction["perception_modality"] == "Friction" and drive["perception_modality"] == "Vibrotactile"
+    assert spatial["perception_modality"] == "Friction" and spatial["unit_exponent"] == -5
+    assert "unit_exponent" not in friction  # the time signal states no length unit
     band = friction["channels"][0]["bands"][0]
     assert band["band_type"] == "Curve" and band["curve_type"] == "Linear"
     keyframes = band["effects"][0]["keyframes"]
@@ -85,6 +87,44 @@ def test_export_writes_a_friction_perception_of_the_ratio_over_time(stroke):
     drive_values = np.array([k["amplitude_modulation"] for k in drive["channels"][0]["bands"][0]["effects"][0]
                              ["keyframes"]])
     assert np.max(np.abs(drive_values - np.interp(t_ms / 1000.0, t_s, sent / sent.max()))) < 2e-3
+
+
+def test_a_spatial_texture_writes_its_signal_over_distance_with_its_length_unit(tmp_path):
+    from ultraglide.textures.formats.hjif import read_hjif, read_spatial_signal
+
+    # a ramp of friction along x: ratio = x / 40 over 40 mm (an Interhaptics texture block, 0 -> 1 over 0.04 m)
+    ramp = {"m_version": "5", "m_time_unit": 0, "m_length_unit": 7, "m_texture": {"m_loop": 0, "m_melodies": [
+        {"m_mute": 0, "m_gain": 1.0, "m_notes": [{"m_startingPoint": 0.0, "m_length": 0.04, "m_gain": 1.0,
+         "m_hapticEffect": {"m_amplitudeModulation": {"m_extrapolationStrategy": 0, "m_keyframes": [
+             {"m_time": 0.0, "m_value": 0.0}, {"m_time": 0.04, "m_value": 1.0}]}}}]}]}}
+    (tmp_path / "ramp.haps").write_text(json.dumps(ramp))
+    texture, hjif = tmp_path / "ramp.png", tmp_path / "ramp.hjif"
+    run_cli("texture", "import", tmp_path / "ramp.haps", "-o", texture, check=True)
+    # a straight swipe from x = 2 mm at 100 mm/s for 0.3 s: 30 mm, to x = 32 mm
+    run_cli("export", texture, "-o", tmp_path / "ramp.wav", "--start", "2,20", "--speed-mm-s", "100",
+            "--duration-s", "0.3", "--hjif", hjif, check=True)
+    document = json.loads(hjif.read_text())
+    check_structure(document)
+    friction, spatial = document["perceptions"]
+    assert spatial["perception_modality"] == "Friction" and spatial["unit_exponent"] == -5  # 10 µm units
+    positions = [k["relative_position"] for k in spatial["channels"][0]["bands"][0]["effects"][0]["keyframes"]]
+    assert positions[:3] == [0, 2, 4] and positions[-1] == 3000  # 30 mm in units of 10 µm, one each 20 µm
+    distance_mm, ratio = read_spatial_signal(document, str(hjif))  # read back by our reader
+    np.testing.assert_allclose(distance_mm[-1], 30.0)
+    np.testing.assert_allclose(ratio, (2.0 + distance_mm) / 40.0, atol=1e-4)  # by hand: ratio = x / 40
+    timeline = read_hjif(document, str(hjif))  # as effects: the time signal plays; the spatial one is said not to
+    assert any("over distance" in note for note in timeline.notes)
+    # read as time, its 3000 positions would be 3 s of ticks: the segments end with the stroke's time signal
+    end_s = friction["channels"][0]["bands"][0]["effects"][0]["keyframes"][-1]["relative_position"] / 1000
+    assert max(segment.start_s + segment.length_s for segment in timeline.segments) <= end_s < 1.0
+
+    # a uniform texture has no spatial signal: the time signal alone
+    flat = tmp_path / "flat.png"
+    ramp["m_texture"]["m_melodies"][0]["m_notes"][0]["m_hapticEffect"] = {}
+    (tmp_path / "ramp.haps").write_text(json.dumps(ramp))
+    run_cli("texture", "import", tmp_path / "ramp.haps", "-o", flat, check=True)
+    run_cli("export", flat, "-o", tmp_path / "flat.wav", "--duration-s", "0.2", "--hjif", hjif, check=True)
+    assert [p["perception_modality"] for p in json.loads(hjif.read_text())["perceptions"]] == ["Friction"]
 
 
 def test_an_hjif_curve_reads_back_as_the_same_friction_drop(tmp_path):

@@ -61,11 +61,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 class HjifRecorder:
     """Keeps the friction ratio under the finger (1, the plate at rest, while it is lifted) and the drive the
-    output stage sent, at the control rate, for ``--hjif``. Observes the renderer's blocks, then the stage's."""
+    output stage sent, at the control rate, for ``--hjif``; and where the finger was, for the texture's spatial
+    signal. Observes the renderer's blocks, then the stage's."""
 
     def __init__(self):
         self.ratio: list[np.ndarray] = []
         self.drive: list[np.ndarray] = []
+        self.path: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._block: ControlBlock | None = None
 
     def __call__(self, block: ControlBlock) -> None:
@@ -73,19 +75,23 @@ class HjifRecorder:
 
         self._block = block
         self.ratio.append(np.where(block.down, block.ratio, 1.0).astype(np.float32))
+        self.path.append((block.x_mm.copy(), block.y_mm.copy(), np.asarray(block.down, dtype=bool).copy()))
 
     def sent(self, drive_um_pp: np.ndarray) -> None:
         import numpy as np
 
         self.drive.append(np.asarray(drive_um_pp, dtype=np.float32).copy())
 
-    def document(self, rate_hz: float, description: str, with_drive: bool) -> dict:
+    def document(self, rate_hz: float, description: str, with_drive: bool, texture=None) -> dict:
         import numpy as np
-        from ultraglide.textures.formats.hjif import hjif_document
+        from ultraglide.textures.formats.hjif import hjif_document, spatial_signal
 
         ratio = np.clip(np.concatenate(self.ratio), 0.0, 1.0) if self.ratio else np.ones(1)
         drive = np.concatenate(self.drive) if with_drive and self.drive else None
-        return hjif_document(ratio, rate_hz, description, drive)
+        spatial = None
+        if texture is not None and self.path:
+            spatial = spatial_signal(texture, *(np.concatenate(parts) for parts in zip(*self.path, strict=True)))
+        return hjif_document(ratio, rate_hz, description, drive, spatial=spatial)
 
 
 class EnvelopeLog:
@@ -242,7 +248,7 @@ def run(args) -> int:
             import json
 
             what = f"{renderer.texture.name or 'texture'}, {duration_s:.3f} s stroke rendered by ultraglide export"
-            document = recorder.document(renderer.settings.control_rate_hz, what, args.hjif_drive)
+            document = recorder.document(renderer.settings.control_rate_hz, what, args.hjif_drive, renderer.texture)
             with open(hjif_path, "w", encoding="utf-8") as stream:
                 json.dump(document, stream, separators=(",", ":"))
     counters = renderer.counters
