@@ -50,7 +50,8 @@ class Texture:
         values = np.asarray(self.values, dtype=np.float32)
         if values.ndim != 2 or min(values.shape) < 1:
             raise TextureError(f"a texture needs a 2-D map, got shape {values.shape}")
-        if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
+        low, high = values.min(), values.max()  # a NaN anywhere is the minimum's and the maximum's: one check
+        if not (np.isfinite(low) and np.isfinite(high)) or low < 0 or high > 1:
             raise TextureError("texture values must be finite and within 0..1")
         if not (self.width_mm > 0 and self.height_mm > 0 and np.isfinite(self.width_mm * self.height_mm)):
             raise TextureError(f"texture size must be positive, got {self.width_mm} × {self.height_mm} mm")

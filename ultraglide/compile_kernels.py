@@ -15,7 +15,8 @@ import time
 # every module of ours that defines a compiled kernel (tests/test_compile_kernels.py checks the sources for others)
 KERNEL_MODULES = ("ultraglide.render.kernels", "ultraglide.render.physics.kernels", "ultraglide.render.effects",
                   "ultraglide.devices.output.kernels", "ultraglide.devices.sim.force_sensors",
-                  "ultraglide.devices.sim.kernels", "ultraglide.textures.kernels")
+                  "ultraglide.devices.sim.kernels", "ultraglide.textures.kernels",
+                  "ultraglide.textures.formats.kernels")
 
 
 def compile_all() -> int:
@@ -29,9 +30,10 @@ def compile_all() -> int:
     from ultraglide.render import kernels as render_kernels
     from ultraglide.render.physics import kernels as physics_kernels
     from ultraglide.textures import kernels as texture_kernels
+    from ultraglide.textures.formats import kernels as format_kernels
 
     for warm_up in (render_kernels.warm_up, physics_kernels.warm_up, effects.warm_up, device_kernels.warm_up,
-                    texture_kernels.warm_up):
+                    texture_kernels.warm_up, format_kernels.warm_up):
         warm_up()
     force_sensors.low_pass(np.zeros((2, 4)), 0.5, np.zeros(2))
     sim_kernels.friction_lag(np.ones(2), np.ones(2), np.ones(2), 0.05, 48000.0, 0.005, 0.07, 22.0, 0.5, 2.0, 1.0,

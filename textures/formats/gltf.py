@@ -32,6 +32,7 @@ import json
 import math
 import os
 import struct
+import sys
 import urllib.parse
 import warnings
 from dataclasses import dataclass, field
@@ -43,10 +44,11 @@ from ultraglide.textures import effects as effects_format
 from ultraglide.textures.errors import TextureError
 from ultraglide.textures.fileformat import (
     CHUNK,
+    FULL_SCALE,
     MAX_SIDE_MM,
     MIN_SIDE_MM,
-    _held_values,
     _validated,
+    held_size,
     metadata_of,
     pillow_failure,
     quantise,
@@ -555,7 +557,7 @@ def load_friction_texture(path: str | os.PathLike, material: str | int | None = 
     texture_index, kind, tex_coord = chosen.friction[0]
     warn_unused(scene, chosen)
     data, where = _image_bytes(scene, texture_index)
-    image, meta = _decode(scene, data, where)
+    image, meta, codes = _decode(scene, data, where)
     cols, rows = image.size
     spans = uv_size_mm(scene, chosen, tex_coord)
     if width_mm is not None:
@@ -580,19 +582,89 @@ def load_friction_texture(path: str | os.PathLike, material: str | int | None = 
         authoring = {**fields.pop("authoring"), **authoring}
         if meta.get("effects") is not None:
             fields["effects"] = effects_format.from_json(meta["effects"], where=f"{path}: {where}'s effects")
-    values, authoring = _held_values(image, size[0], size[1], authoring)
+    values, authoring = _held(image, codes, size[0], size[1], authoring)
     values = mapping.ratio(values)
     return Texture(values, size[0], size[1], authoring=authoring, **fields)
 
 
-def _decode(scene: Scene, data, where: str) -> tuple[Image.Image, dict | None]:
-    """The image's first channel (gray or red), decoded; and ultraglide's metadata when it has some."""
+def _held(image: Image.Image, codes: np.ndarray | None, width_mm: float, height_mm: float,
+          authoring: dict) -> tuple[np.ndarray, dict]:
+    """The decoded map's values (float32, 0..1) at the resolution a texture is held at, box-filtered as a texture
+    file is (:mod:`ultraglide.textures.formats.held`: Pillow's weights, in one compiled pass). ``codes``: the
+    texels when the decoder wrote them into an array of ours already (:func:`_load_into_array`)."""
+    from ultraglide.textures.formats.held import held_map
+
+    cols, rows = image.size
+    size = held_size(cols, rows, width_mm, height_mm)
+    if codes is None:
+        if image.mode not in ("I;16", "I;16L", "I;16B", "I;16N", "L", "I"):
+            image = image.convert("I")
+        codes = np.asarray(image)
+    if size != (cols, rows):
+        authoring = {**authoring, "held_from_pixels": [cols, rows]}
+    return held_map(codes, size, 255.0 if image.mode == "L" else float(FULL_SCALE)), authoring
+
+
+def _load_into_array(image: Image.Image) -> np.ndarray | None:
+    """Decode a gray PNG (8 or 16 bits a texel) straight into an array of ours, sparing the copy ``np.asarray``
+    of a decoded image makes (a tenth of the decoding's time for a 16 M-pixel map): the image is given, before
+    it loads, memory of ours that Pillow maps (``Image.frombuffer``), and its decoder writes there. None (and
+    nothing loaded) for any other image, or should this Pillow not keep the memory it was given; the image then
+    loads as usual."""
+    if image.format != "PNG" or image.mode not in ("L", "I;16") or sys.byteorder != "little":
+        return None  # Pillow keeps I;16 little-endian: the array's own order must be that
+    codes = np.empty((image.height, image.width), dtype=np.uint8 if image.mode == "L" else np.uint16)
     try:
-        image = Image.open(io.BytesIO(data))
+        core = Image.frombuffer(image.mode, image.size, codes, "raw", image.mode, 0, 1).im
+        image.im = core
+    except (AttributeError, TypeError, ValueError):
+        return None
+    image.load()
+    return codes if image.im is core else None
+
+
+class _Reader(io.RawIOBase):
+    """A read-only file over bytes or a memoryview, without the copy of it ``io.BytesIO`` makes (32 MB for a
+    16 M-pixel 16-bit map): Pillow reads the image through it."""
+
+    def __init__(self, data) -> None:
+        super().__init__()
+        self._view = memoryview(data).cast("B")
+        self._at = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        count = max(0, min(len(buffer), len(self._view) - self._at))
+        buffer[:count] = self._view[self._at:self._at + count]
+        self._at += count
+        return count
+
+    def seek(self, offset: int, whence: int = io.SEEK_SET) -> int:
+        base = {io.SEEK_SET: 0, io.SEEK_CUR: self._at, io.SEEK_END: len(self._view)}[whence]
+        self._at = max(0, base + offset)
+        return self._at
+
+    def tell(self) -> int:
+        return self._at
+
+
+def _decode(scene: Scene, data, where: str) -> tuple[Image.Image, dict | None, np.ndarray | None]:
+    """The image's first channel (gray or red), decoded; ultraglide's metadata when it has some; and its texels
+    as an array when the decoder wrote them into one (:func:`_load_into_array`), else None."""
+    codes = None
+    try:
+        image = Image.open(_Reader(data))
         if image.width * image.height > MAX_PIXELS:
             raise scene.fail(f"{where}: {image.width}×{image.height} pixels, more than the {MAX_PIXELS:,} a texture "
                              "may have")
-        image.load()
+        codes = _load_into_array(image)
+        if codes is None:
+            image.load()
     except TextureError:
         raise
     except UnidentifiedImageError:
@@ -610,11 +682,11 @@ def _decode(scene: Scene, data, where: str) -> tuple[Image.Image, dict | None]:
         if not isinstance(meta, dict):
             raise scene.fail(f"{where}: its ultraglide metadata must be a JSON object")
     if image.mode in ("I;16", "I;16L", "I;16B", "I;16N", "I", "L"):
-        return image, meta
+        return image, meta, codes
     if image.mode in ("RGB", "RGBA", "CMYK", "YCbCr"):
-        return image.getchannel(0), meta
+        return image.getchannel(0), meta, None
     if image.mode in ("LA", "La", "P", "PA", "1"):
-        return image.convert("LA").getchannel(0), meta
+        return image.convert("LA").getchannel(0), meta, None
     raise scene.fail(f"{where}: image mode {image.mode} is not one ultraglide reads a friction map from")
 
 
