@@ -518,7 +518,8 @@ def load_plate(spec: str) -> PlateProfile:
     Parameters
     ----------
     spec : str
-        ``rig:PATH``, a bundled profile's name or a profile file.
+        ``rig:PATH``, ``hello:{...}`` (the plate a device's handshake described), a bundled profile's name or a
+        profile file.
 
     Returns
     -------
@@ -538,4 +539,8 @@ def load_plate(spec: str) -> PlateProfile:
     spec = os.fspath(spec)
     if spec.startswith(RIG_PREFIX):
         return load_rig(spec[len(RIG_PREFIX):]).plate
+    from ultraglide.devices.serial.handshake import HELLO_PREFIX, plate_of_spec
+
+    if spec.startswith(HELLO_PREFIX):  # the plate a device's handshake described (apps/commands/plate_choice.py)
+        return plate_of_spec(spec)
     return load_profile(spec)

@@ -228,15 +228,25 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
     if spec.kind == "sim":
         return SimPlate(profile, control_rate_hz, carrier_hz, tracker, finger, amplitude_loop)
     if spec.kind == "serial":
+        from ultraglide.devices.serial.handshake import check_device
+        from ultraglide.devices.serial.link import choose_stream, probe_hello
         from ultraglide.devices.serial.plate import SerialPlate
 
-        rate = spec.options.get("rate", control_rate_hz)
-        if control_rate_hz % rate:
+        rate = spec.options.get("rate")
+        if rate is not None and control_rate_hz % rate:
             raise DeviceError(f"rate must divide the control rate, {control_rate_hz} setpoints/s (e.g. 1000, 2000, "
                               f"3000, 4000, 6000), in {url!r}, got {rate}")
         frame_s = spec.options["frame_ms"] / 1000.0 if "frame_ms" in spec.options else None
-        return SerialPlate(spec.target, profile, rate, carrier_hz, baudrate=spec.options.get("baud", 921600),
-                           batch_s=frame_s, tracker=tracker, amplitude_loop=amplitude_loop)
+        baud = spec.options.get("baud", 921600)
+        # the link decides the stream: the device's handshake says what its link carries (a first HELLO, which
+        # changes nothing on the device), and the stream is fitted to it; the URL's rate and frame_ms win where
+        # they fit. A device that says nothing gets the default stream, and the run says so.
+        raw = probe_hello(spec.target, baud)
+        hello = check_device(spec.target, raw, carrier, None)
+        stream = choose_stream(spec.target, hello, control_rate_hz, baud, rate, frame_s)
+        check_device(spec.target, raw, carrier, stream.rate_hz)  # the device plays that rate
+        return SerialPlate(spec.target, profile, stream.rate_hz, carrier_hz, baudrate=baud, batch_s=stream.batch_s,
+                           tracker=tracker, amplitude_loop=amplitude_loop, stream=stream)
     if spec.kind == "audio":
         from ultraglide.devices.sinks.audio import AudioPlate
 

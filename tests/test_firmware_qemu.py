@@ -7,8 +7,9 @@ plate's resonance. Marked ``qemu`` and ``slow``; skipped where the cross compile
 
 QEMU's USART hands the firmware one byte per round trip between two of its threads (about 14 kB/s measured at
 load 12 on this two-core machine; see devices/firmware/qemu.py), so streams here run at 1 000 setpoints/s in 10 ms
-frames (3.9 kB/s), or 4 ms frames through the commands (7 kB/s); one QEMU at a time (a file lock), since two would
-share this machine's two cores."""
+frames (3.9 kB/s); the commands run with their defaults, the board stating in its handshake what its link carries
+and the host fitting its stream to it (1 000 setpoints/s in 4 ms frames, 6.75 kB/s); one QEMU at a time (a file
+lock), since two would share this machine's two cores."""
 
 from __future__ import annotations
 
@@ -50,6 +51,7 @@ LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
 RATE = 1000  # setpoints a second the tests stream (the board takes 1 000-48 000)
 BATCH_S = 0.01  # ... in 10 ms frames: 39 bytes each, 3.9 kB/s, well within QEMU's emulated USART
 NAME = "ultraglide netduinoplus2 (QEMU)"
+LINK_BYTES_PER_S = 14000  # what the QEMU image states its emulated USART carries (ports/netduinoplus2/board.h)
 
 
 @pytest.fixture
@@ -353,7 +355,8 @@ def test_the_board_answers_with_the_profile_written_into_it_and_reports_on_time(
             assert (reply.carrier_min_hz, reply.carrier_max_hz, reply.min_setpoint_rate_hz,
                     reply.max_setpoint_rate_hz) == (21000.0, 27000.0, 1000, 48000)
             assert (reply.watchdog_ms, reply.buffer_ms, reply.sensors, reply.sensor_rate_hz, reply.features) == \
-                (100, 250, p.SENSOR_AMPLITUDE, 1000, 1)
+                (100, 250, p.SENSOR_AMPLITUDE, 1000, p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED)
+            assert (reply.link_bytes_per_s, reply.q) == (LINK_BYTES_PER_S, 150.0)  # its link, and the plate's Q
             assert reply.name == NAME
             assert link.hello(version=2).version == 2  # a v2 host gets v2
             assert link.hello(version=3).version == 3
@@ -557,9 +560,13 @@ def test_plate_sim_on_qemu_logs_the_boards_events_and_its_counts(one_qemu, tmp_p
 
 # ---- the host's commands against `plate-sim --board qemu` ------------------------------------------------------
 
-# QEMU's USART passes a few kB/s on a loaded machine (see the module's docstring): the host streams 1 000
-# setpoints/s (each the mean of 12 of the renderer's, never above them) in 4 ms frames, 7 kB/s.
-SLOW_LINK = "?rate=1000&frame_ms=4"
+# QEMU's USART passes a few kB/s on a loaded machine (see the module's docstring): the board says so in its
+# handshake, and the host streams 1 000 setpoints/s (each the mean of 12 of the renderer's, never above them) in 4 ms
+# frames, 6.75 kB/s, with no option given.
+FITTED = {"rate_hz": 1000, "frame_ms": 4.0, "bytes_per_s": 6750.0, "link_bytes_per_s": LINK_BYTES_PER_S,
+          "chosen_by": "device"}
+LOST_BOUND = 0.02  # setpoints the board may count lost or late, as a fraction of those sent: a host or a QEMU
+# descheduled on a loaded machine skips ahead rather than send a backlog (the board counts what it skipped)
 
 
 class ServedBoard:
@@ -574,7 +581,7 @@ class ServedBoard:
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
         self.serving = self.next("serving")
-        self.url = f"serial:{self.serving['path']}{SLOW_LINK}"
+        self.url = f"serial:{self.serving['path']}"  # no options: the link decides the stream
 
     def _read(self) -> None:
         for line in self.process.stdout:
@@ -611,17 +618,23 @@ def plain_profile(tmp_path) -> tuple[str, int]:
     return str(path), round(4.0 / 8.0 * 65535)
 
 
-def test_play_on_the_board_sends_a_texture_it_receives_never_above_the_limit(one_qemu, tmp_path):
+def test_play_on_the_board_with_its_defaults_plays_a_texture_it_receives_never_above_the_limit(one_qemu, tmp_path):
     profile, limit_code = plain_profile(tmp_path)
-    board = ServedBoard(tmp_path / "plate", "--profile", profile)
+    board = ServedBoard(tmp_path / "plate", "--profile", profile)  # the board's firmware believes this plate
     try:
         assert board.next("boot")["limit_code"] == limit_code  # the board's own reading of the limit
-        result = run_cli("play", "grating-1mm", "--device", board.url, "--profile", profile, "--duration-s", "3",
-                         "--speed-mm-s", "50", "--json")
+        # `play TEXTURE --device serial:PATH --duration-s 3`, as the issue has it, and --json to read the run
+        result = run_cli("play", "grating-1mm", "--device", board.url, "--duration-s", "3", "--json")
         assert result.returncode == 0, result.stdout + result.stderr
         status = json.loads(result.stdout)
         assert (status["device_name"], status["protocol_version"]) == (NAME, 3)
         assert status["report"]["verdict"] == "clean", status["report"]
+        assert status["stream"] == FITTED and "stream: 1000 setpoints/s in 4 ms frames" in status["notes"][-1]
+        assert "no --profile or --rig: plate: ultraglide netduinoplus2 (QEMU) (as the plate driver describes it" \
+            in result.stderr and "limit 4 µm p-p" in result.stderr  # the plate the board believes, said
+        assert status["limit_um_pp"] == 4.0
+        lost = status["device_lost_setpoints"] + status["device_late_setpoints"]
+        assert lost <= LOST_BOUND * status["setpoints_sent"], status
         sent = status["setpoints_sent"]
         assert sent + status["setpoints_skipped"] >= 0.9 * 3 * 1000  # three seconds at 1 000 setpoints/s (what a
         # host stalled by a loaded machine skipped to keep its latency included)
@@ -640,7 +653,7 @@ def test_latency_on_the_board(one_qemu, tmp_path):
     board = ServedBoard(tmp_path / "plate")
     try:
         board.next("boot")
-        result = run_cli("latency", "--device", board.url, "--profile", "sim-plate", "--steps", "20", "--json")
+        result = run_cli("latency", "--device", board.url, "--steps", "20", "--json")  # no profile: the board's
         assert result.returncode == 0, result.stdout + result.stderr
         report = json.loads(result.stdout)
         stream = board.next("stream_started")
@@ -665,7 +678,7 @@ def test_plate_sweep_on_the_board_measures_the_emulated_plate(one_qemu, tmp_path
     board = ServedBoard(tmp_path / "plate", "--resonance-hz", "24800", "--q", "150")  # unlike its profile
     try:
         board.next("boot")
-        result = run_cli("plate", "sweep", "--device", board.url, "--profile", "sim-plate",
+        result = run_cli("plate", "sweep", "--device", board.url,  # no profile: the one the board states
                          "--from-hz", "24000", "--to-hz", "26000",
                          "--steps", "21", "-o", tmp_path / "measured.toml", "--json")
     finally:
@@ -686,8 +699,7 @@ def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
     board = ServedBoard(tmp_path / "plate")
     try:
         board.next("boot")
-        result = run_cli("plate", "check", "--device", f"serial:{board.serving['path']}", "--profile", "sim-plate",
-                         "--json", timeout=600)
+        result = run_cli("plate", "check", "--device", board.url, "--json", timeout=600)  # with its defaults
     finally:
         stopped = board.stop()
     report = json.loads(result.stdout)

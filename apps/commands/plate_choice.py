@@ -9,19 +9,23 @@ Every command that takes a device (``play``, ``demo``, ``experiment``, ``calibra
   rig's device, not its plate: ``--rig RIG.toml --device wav:dry.wav`` records what the rig's plate would play).
   ``--rig`` and ``--profile`` are mutually exclusive: the rig names its plate itself.
 - ``--profile PROFILE`` names the plate.
-- Neither: a real output (``audio``, ``serial:``) is refused in one line, exit 2, saying what to give; the
-  simulated plate (``sim``), a recording (``wav:``), ``null`` and a command's simulated default keep the
-  built-in ``sim-plate`` profile. A plate driver on a serial port still binds its own limit when it is smaller
-  than the profile's (its handshake reports it).
+- Neither: a plate driver on a serial port that describes its plate in its handshake (its resonance, Q, full
+  scale, limit, drive ceiling and carrier range: protocol v3's ``FEATURE_LINK_STATED``; the simulated and
+  emulated boards do) supplies the profile, and the command says so in one line (on stderr, so that ``--json``
+  stays JSON). Any other real output (``audio``, a ``serial:`` device that does not describe its plate) is
+  refused in one line, exit 2, saying what to give; the simulated plate (``sim``), a recording (``wav:``),
+  ``null`` and a command's simulated default keep the built-in ``sim-plate`` profile. A plate driver on a serial
+  port binds its own limit at every handshake when it is smaller than the profile's, whoever named the profile.
 
-The plate then travels as a spec string (``args.profile``): a profile's name or file, or ``rig:PATH``, which
-:func:`ultraglide.devices.rig.load_plate` turns into the rig's plate wherever it is loaded (the engine's own
-process too).
+The plate then travels as a spec string (``args.profile``): a profile's name or file, ``rig:PATH``, or
+``hello:{...}`` (the plate a device described), which :func:`ultraglide.devices.rig.load_plate` turns into the
+plate wherever it is loaded (the engine's own process too).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ultraglide.apps.cli.errors import UsageError
 
@@ -68,8 +72,19 @@ def choose_plate(args) -> None:
     if args.profile is not None:
         return
     kind = _kind(args.device)
+    if kind == "serial":
+        described = _described_plate(args.device)
+        if described is not None:
+            from ultraglide.devices.serial.handshake import hello_spec
+
+            args.profile = hello_spec(described)
+            command = " ".join(filter(None, ("ultraglide", getattr(args, "command", None))))
+            print(f"{command}: no --profile or --rig: {plate_words(described, args.profile)}", file=sys.stderr,
+                  flush=True)
+            return
     if kind in REAL_OUTPUTS:
-        raise UsageError(f"--device {args.device} drives a real plate and nothing names it: give --rig RIG.toml "
+        why = " (its plate driver does not describe its plate in its handshake)" if kind == "serial" else ""
+        raise UsageError(f"--device {args.device} drives a real plate and nothing names it{why}: give --rig RIG.toml "
                          "(see examples/rig.toml) or --profile PROFILE (e.g. from `ultraglide plate sweep`); the "
                          "built-in sim-plate is for sim, wav: and null only")
     from ultraglide.devices.profiles import DEFAULT_PROFILE
@@ -98,10 +113,30 @@ def plate_words(profile, spec: str) -> str:
     """The plate a command drives and where it came from, in one line, e.g. ``plate: bench-1's plate (rig
     examples/rig.toml): resonance 26400 Hz; a sample of 1.0 is 10 µm p-p; limit 5 µm p-p``."""
     from ultraglide.devices.rig import RIG_PREFIX
+    from ultraglide.devices.serial.handshake import HELLO_PREFIX
 
-    source = f"rig {spec[len(RIG_PREFIX):]}" if spec.startswith(RIG_PREFIX) else f"profile {spec}"
+    source = f"rig {spec[len(RIG_PREFIX):]}" if spec.startswith(RIG_PREFIX) else \
+        "as the plate driver describes it in its handshake" if spec.startswith(HELLO_PREFIX) else f"profile {spec}"
     return (f"plate: {profile.shown_name} ({source}): resonance {profile.resonance_hz:g} Hz; a sample of 1.0 is "
             f"{profile.full_scale_um_pp:g} µm p-p; limit {profile.max_amplitude_um_pp:g} µm p-p")
+
+
+def _described_plate(device: str):
+    """The plate a serial device describes in its handshake (a PlateProfile), or None if it does not; DeviceError
+    in one line if the port cannot be opened or nobody answers."""
+    from ultraglide.devices.serial.handshake import plate_of_hello
+    from ultraglide.devices.serial.link import probe_hello
+    from ultraglide.devices.urls import parse_device_url
+
+    url = parse_device_url(device)
+    raw = probe_hello(url.target, url.options.get("baud", 921600))
+    from ultraglide.devices import protocol as p
+
+    try:
+        hello = p.parse_hello_reply(raw)
+    except p.ProtocolError:
+        return None  # the driver's own handshake says what is wrong with it, once a profile is given
+    return plate_of_hello(hello)
 
 
 def _kind(device: str | None) -> str | None:

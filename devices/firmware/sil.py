@@ -50,7 +50,8 @@ class Config(ctypes.Structure):
                 ("buffer_ms", ctypes.c_uint16), ("sample_rate_hz", ctypes.c_uint32),
                 ("dac_oversample", ctypes.c_uint16), ("sensors", ctypes.c_uint8), ("sensor_rate_hz", ctypes.c_uint16),
                 ("features", ctypes.c_uint8), ("max_version", ctypes.c_uint8), ("sim_faults", ctypes.c_uint8),
-                ("sense_delay_samples", ctypes.c_uint16), ("name", ctypes.c_char * 65)]
+                ("sense_delay_samples", ctypes.c_uint16), ("link_bytes_per_s", ctypes.c_uint32),
+                ("name", ctypes.c_char * 65)]
 
 
 class Status(ctypes.Structure):
@@ -197,6 +198,7 @@ class CoreSettings:
     max_version: int = 3
     sim_faults: bool = True
     sense_delay_samples: int = 0
+    link_bytes_per_s: int = 0  # what its link carries, stated in HELLO_REPLY v3 (0: not stated)
     name: str = "ultraglide plate simulator"
     breaks: tuple[str, ...] = ()
 

@@ -15,6 +15,7 @@ from ultraglide.devices.protocol.spec import (
     FAULT_NAMES,
     FEATURE_AMPLITUDE_LOOP,
     FEATURE_FORCE_CORRECTION,
+    FEATURE_LINK_STATED,
     LOOP_OPEN,
     MAX_NAME_BYTES,
     MAX_SENSOR_SAMPLES,
@@ -25,6 +26,8 @@ from ultraglide.devices.protocol.spec import (
 _HELLO_REPLY_V2 = struct.Struct("<BfffIIffHH")
 # v2's fields, then max_drive_um_pp, sensors, sensor_rate_hz, features
 _HELLO_REPLY_V3 = struct.Struct("<BfffIIffHHfBHB")
+# v3's, then (with FEATURE_LINK_STATED) link_bytes_per_s and q, before the name
+_HELLO_REPLY_LINK = struct.Struct("<BfffIIffHHfBHBIf")
 _ACK = struct.Struct("<H")
 _NAK = struct.Struct("<HB")
 _TELEMETRY_V2 = struct.Struct(f"<ffHB7I{FAULT_BITS}I")
@@ -38,8 +41,9 @@ _SENSOR_SAMPLE = np.dtype([("amplitude_um_pp", "<f4"), ("normal_force_n", "<f4")
 class HelloReply:
     """What the device says about itself; amplitudes in µm peak-to-peak.
 
-    The last four fields are v3's; a v2 reply reads as no overdrive (``max_drive_um_pp`` = the limit), no
-    sensors and no features."""
+    The last six fields are v3's; a v2 reply reads as no overdrive (``max_drive_um_pp`` = the limit), no
+    sensors and no features. ``link_bytes_per_s`` and ``q`` come with ``FEATURE_LINK_STATED`` only (0: not
+    stated): what the device's link carries from the host, sustained (bytes/s), and its plate's quality factor."""
 
     version: int
     resonance_hz: float  # the resonance the firmware was configured with (nominal)
@@ -56,6 +60,8 @@ class HelloReply:
     sensors: int = 0  # v3: SENSOR_* bits
     sensor_rate_hz: int = 0  # v3: sensor samples a second (0 without sensors)
     features: int = 0  # v3: FEATURE_* bits
+    link_bytes_per_s: int = 0  # v3 with FEATURE_LINK_STATED: host-to-device bytes a second it takes (0: unstated)
+    q: float = 0.0  # v3 with FEATURE_LINK_STATED: the plate's nominal quality factor (0: unstated)
 
     def __post_init__(self) -> None:
         if self.max_drive_um_pp is None:
@@ -64,6 +70,11 @@ class HelloReply:
     @property
     def has_amplitude_loop(self) -> bool:
         return bool(self.features & FEATURE_AMPLITUDE_LOOP)
+
+    @property
+    def states_link(self) -> bool:
+        """The device states what its link carries (and its plate's Q) in this reply."""
+        return self.version >= 3 and bool(self.features & FEATURE_LINK_STATED) and self.link_bytes_per_s > 0
 
     @property
     def has_force_correction(self) -> bool:
@@ -131,6 +142,9 @@ def hello_reply_payload(reply: HelloReply) -> bytes:
               reply.watchdog_ms, reply.buffer_ms)
     if reply.version <= 2:
         head = _HELLO_REPLY_V2.pack(*fields)
+    elif reply.features & FEATURE_LINK_STATED:
+        head = _HELLO_REPLY_LINK.pack(*fields, reply.max_drive_um_pp, reply.sensors, reply.sensor_rate_hz,
+                                      reply.features, reply.link_bytes_per_s, reply.q)
     else:
         head = _HELLO_REPLY_V3.pack(*fields, reply.max_drive_um_pp, reply.sensors, reply.sensor_rate_hz,
                                     reply.features)
@@ -146,8 +160,11 @@ def hello_reply_version(payload: bytes) -> int:
 
 def parse_hello_reply(payload: bytes) -> HelloReply:
     """A v2 or v3 reply, by its version byte (v3's layout for any version above 3: fields are only ever added
-    at the end). The name: at most 64 bytes taken, invalid UTF-8 replaced."""
+    at the end; v3's link fields before the name where its features say so). The name: at most 64 bytes taken,
+    invalid UTF-8 replaced."""
     layout = _HELLO_REPLY_V2 if hello_reply_version(payload) <= 2 else _HELLO_REPLY_V3
+    if layout is _HELLO_REPLY_V3 and len(payload) >= layout.size and payload[40] & FEATURE_LINK_STATED:
+        layout = _HELLO_REPLY_LINK
     if len(payload) < layout.size:
         raise ProtocolError(f"hello reply of {len(payload)} bytes is shorter than "
                             f"v{min(payload[0], 3)}'s {layout.size}")

@@ -16,6 +16,7 @@ MAX_SETPOINTS_PER_FRAME = 240
 FAST_BATCH_S = 0.001  # the host sends one SETPOINTS frame every 1 ms where the link has room (batch_s_for)
 BATCH_S = 0.002  # and every 2 ms where it has not: fewer frames, less framing overhead
 FRAME_OVERHEAD_BYTES = 19  # a SETPOINTS frame of n <= 118 values is 19 + 2n bytes on the wire
+LINK_MARGIN = 0.5  # the stream the host chooses takes at most this fraction of what the device's link carries
 TELEMETRY_HZ = 50
 TELEMETRY_TOLERANCE = 0.1  # the telemetry rate a device keeps, within ±10 % of TELEMETRY_HZ over a second
 WATCHDOG_MS = 100  # no valid frame for this long while enabled: the device ramps to zero
@@ -73,6 +74,7 @@ SENSOR_NAMES = {SENSOR_AMPLITUDE: "vibration amplitude", SENSOR_NORMAL_FORCE: "n
 FEATURE_AMPLITUDE_LOOP = 1 << 0  # the firmware's amplitude loop (SET_LOOP 1)
 FEATURE_BRAKING = 1 << 1  # ... which brakes with an antiphase drive (down to minus the limit)
 FEATURE_FORCE_CORRECTION = 1 << 2  # SETPOINTS_FORCE: values rescaled by the force measured at play
+FEATURE_LINK_STATED = 1 << 3  # HELLO_REPLY goes on, before the name, with link_bytes_per_s:u32 and q:f32
 MAX_FORCE_EXPONENT = 2.0  # SETPOINTS_FORCE's exponent lies in -2..2
 MAX_REFERENCE_FORCE_N = 20.0  # ... and its force in (0, 20] N
 FORCE_SPAN = 2.0  # the device corrects where its force lies within force_n / 2 .. 2 force_n

@@ -1,8 +1,10 @@
 """The plate driver's handshake, as pure functions: the device's HELLO_REPLY checked against what the host will
-send, and the limits that bind once both sides have spoken."""
+send, the limits that bind once both sides have spoken, and the plate a device describes itself (its profile
+where nobody named one: :func:`plate_of_hello`, carried between processes as a ``hello:`` spec)."""
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 
@@ -27,9 +29,9 @@ class Limits:
         return cls(profile.max_amplitude_um_pp, profile.max_drive_um_pp, profile.full_scale_um_pp)
 
 
-def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int) -> p.HelloReply:
-    """The device's HELLO_REPLY, if it speaks our version and can play what we will send; DeviceError in one
-    line otherwise."""
+def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int | None) -> p.HelloReply:
+    """The device's HELLO_REPLY, if it speaks our version and can play what we will send (``rate_hz`` setpoints/s;
+    None: the rate is not chosen yet); DeviceError in one line otherwise."""
     try:
         version = p.hello_reply_version(raw)
         if version not in p.SUPPORTED_VERSIONS:
@@ -42,7 +44,7 @@ def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int) -> p.He
     if not hello.carrier_min_hz <= carrier_hz <= hello.carrier_max_hz:
         raise DeviceError(f"{port}: carrier {carrier_hz:g} Hz is outside what the plate driver "
                           f"accepts, {hello.carrier_min_hz:g}-{hello.carrier_max_hz:g} Hz")
-    if not hello.min_setpoint_rate_hz <= rate_hz <= hello.max_setpoint_rate_hz:
+    if rate_hz is not None and not hello.min_setpoint_rate_hz <= rate_hz <= hello.max_setpoint_rate_hz:
         raise DeviceError(f"{port}: the plate driver plays {hello.min_setpoint_rate_hz}-"
                           f"{hello.max_setpoint_rate_hz} setpoints/s, not {rate_hz}")
     for name in ("full_scale_um_pp", "max_amplitude_um_pp"):
@@ -93,3 +95,56 @@ def limit_notes(profile: PlateProfile, limits: Limits, hello: p.HelloReply, devi
             notes.append(f"the plate driver allows drive up to {device_drive:g} µm p-p, below the profile's "
                          f"{profile.max_drive_um_pp:g}: using {limits.max_drive_um_pp:g}")
     return notes
+
+
+HELLO_PREFIX = "hello:"  # a plate spec (apps/commands/plate_choice.py): the plate a device's handshake describes
+_PLATE_FIELDS = ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp", "max_drive_um_pp", "carrier_min_hz",
+                 "carrier_max_hz")
+
+
+def plate_of_hello(hello: p.HelloReply) -> PlateProfile | None:
+    """The plate a device describes in its handshake, as a profile: its resonance, Q, full scale, limit, drive
+    ceiling and carrier range (µm p-p, Hz); None for a device that does not state its plate's Q (it says nothing of
+    its link either: ``FEATURE_LINK_STATED``). The device's values come as float32 and are kept to 6 significant
+    digits; the device's own limit binds at every handshake whatever the profile says (:func:`bind_limits`).
+
+    Raises
+    ------
+    DeviceError
+        What the device states is not a plate a profile may describe (one line).
+
+    Example
+    -------
+    >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board", 8.0,
+    ...                      features=p.FEATURE_LINK_STATED, link_bytes_per_s=14000, q=200.0)
+    >>> plate_of_hello(hello)
+    PlateProfile('board', 25 kHz, Q 200, limit 6 µm p-p, drive up to 8)
+    """
+    if not hello.states_link or not (math.isfinite(hello.q) and hello.q > 0):
+        return None
+    values = {name: float(f"{getattr(hello, name):.6g}") for name in _PLATE_FIELDS}
+    values["max_drive_um_pp"] = min(max(values["max_drive_um_pp"], values["max_amplitude_um_pp"]),
+                                    values["full_scale_um_pp"])
+    try:
+        return PlateProfile(name=hello.name or "plate driver", description="as the plate driver's handshake states",
+                            **values)
+    except DeviceError as error:
+        raise DeviceError(f"the plate the driver describes in its handshake is not one a profile may hold: {error}; "
+                          "give --profile or --rig") from None
+
+
+def hello_spec(profile: PlateProfile) -> str:
+    """``profile`` (from :func:`plate_of_hello`) as a plate spec, ``hello:{...}``, which :func:`plate_of_spec` (and
+    so ``devices.rig.load_plate``, in any process) reads back."""
+    return HELLO_PREFIX + json.dumps({"name": profile.name, **{name: getattr(profile, name) for name in _PLATE_FIELDS}})
+
+
+def plate_of_spec(spec: str) -> PlateProfile:
+    """The profile a ``hello:`` spec carries (:func:`hello_spec`); DeviceError in one line if it is not one."""
+    try:
+        values = json.loads(spec[len(HELLO_PREFIX):])
+        if not isinstance(values, dict) or set(values) != {"name", *_PLATE_FIELDS}:
+            raise ValueError("not the fields of a plate")
+    except ValueError as error:
+        raise DeviceError(f"{spec[:60]!r} is not a plate a handshake described ({error})") from None
+    return PlateProfile(description="as the plate driver's handshake states", **values)

@@ -1,5 +1,6 @@
 """The serial link under the plate driver: opening the port, what a stream costs in bytes and how it is paced,
-its counters; the driver's constants."""
+which stream fits what the device's link carries (:func:`choose_stream`, after a :func:`probe_hello`), its
+counters; the driver's constants."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import contextlib
 import errno
 import math
 import os
+import time
 from dataclasses import dataclass, field
 
 import serial
@@ -87,9 +89,10 @@ def open_port(port: str, baudrate: int, write_timeout_s: float = 0.5) -> serial.
     return opened
 
 
-def stream_bytes_per_s(rate_hz: int) -> float:
-    """Bytes a second a stream of ``rate_hz`` setpoints costs in 2 ms frames (docs/protocol.md, byte budget)."""
-    return p.FRAME_OVERHEAD_BYTES / p.BATCH_S + 2.0 * rate_hz
+def stream_bytes_per_s(rate_hz: int, batch_s: float = p.BATCH_S) -> float:
+    """Bytes a second a stream of ``rate_hz`` setpoints costs in frames of ``batch_s`` seconds (docs/protocol.md,
+    byte budget): each frame 19 bytes of framing and 2 a value."""
+    return p.FRAME_OVERHEAD_BYTES / batch_s + 2.0 * rate_hz
 
 
 def check_link_budget(port: str, baud: int, rate_hz: int) -> None:
@@ -163,3 +166,145 @@ class Pacing:
         may have run dry. (A simulated plate on a pty beside two CPU hogs held 1.3 ms less than the lead when a
         frame arrived, and ran dry after a gap of 9.7 ms that a margin of one frame called on time.)"""
         return (self.lead - 2 * self.batch) / self.rate_hz
+
+
+# ---- which stream fits the link -------------------------------------------------------------------------------
+FRAME_CHOICES_S = (0.001, 0.002, 0.004)  # the frames the host chooses among, shortest first: a longer one leaves
+# less of the plate's 10 ms prefill between two frames (Pacing.buffer_lasts_s: 6 ms at 4 ms frames, 2 ms at 8)
+LOWEST_RATE_HZ = 1000  # the slowest stream a serial URL may ask for (devices/urls.py), and the host chooses
+
+
+@dataclass(frozen=True)
+class StreamPlan:
+    """The stream the host sends a plate driver: ``rate_hz`` setpoints a second in frames of ``batch_s`` seconds;
+    what the device's link carries (bytes/s, 0: not stated) and who chose the stream: ``device`` (fitted to what
+    the device stated in its handshake), ``url`` (the URL's ``rate`` and ``frame_ms``, or one of them and the rest
+    fitted) or ``default`` (the device states nothing: the host's default)."""
+
+    rate_hz: int
+    batch_s: float
+    link_bytes_per_s: int
+    chosen_by: str
+    protocol_version: int = p.PROTOCOL_VERSION
+
+    @property
+    def bytes_per_s(self) -> float:
+        """What the stream costs on the wire (bytes/s)."""
+        return stream_bytes_per_s(self.rate_hz, self.batch_s)
+
+    def line(self, port: str) -> str:
+        """The stream in one line, and why it is this one."""
+        head = f"stream: {self.rate_hz} setpoints/s in {self.batch_s * 1000:g} ms frames"
+        cost = f"{self.bytes_per_s / 1000:.1f} kB/s"
+        if self.chosen_by == "default":
+            missing = "speaks protocol v2, which has no place to" if self.protocol_version < 3 else "does not"
+            return (f"{head} ({cost}), the default: the plate driver {missing} say what its link carries; if the "
+                    f"plate is lost, ask for a slower stream, e.g. serial:{port}?rate=1000&frame_ms=4")
+        carries = f"the {self.link_bytes_per_s / 1000:.1f} kB/s the plate driver's link carries, as its handshake says"
+        if self.chosen_by == "url":
+            return f"{head} as the device URL asks, {cost} of {carries}"
+        return f"{head}, {cost}: fitted to at most {p.LINK_MARGIN:.0%} of {carries}"
+
+    def as_dict(self) -> dict:
+        return {"rate_hz": self.rate_hz, "frame_ms": round(self.batch_s * 1000, 3),
+                "bytes_per_s": round(self.bytes_per_s, 1), "link_bytes_per_s": self.link_bytes_per_s or None,
+                "chosen_by": self.chosen_by}
+
+
+def choose_stream(port: str, hello: p.HelloReply, control_rate_hz: int, baud: int, rate_hz: int | None = None,
+                  batch_s: float | None = None) -> StreamPlan:
+    """The stream for a plate driver that answered ``hello``: what the URL asks (``rate_hz``, ``batch_s``; None:
+    not asked) where it fits, else the fastest rate (a whole fraction of ``control_rate_hz``, within what the device
+    plays) in the shortest frame (1, 2 or 4 ms) that takes at most half (:data:`LINK_MARGIN`) of what the device
+    says its link carries (and, on a UART, of ``baud``). A device that says nothing gets the host's default.
+
+    Parameters
+    ----------
+    port : str
+        The port, for the messages.
+    hello : HelloReply
+        The device's answer to HELLO.
+    control_rate_hz : int
+        The renderer's rate (setpoints/s): a stream's rate divides it.
+    baud : int
+        The UART's baud rate (8N1: ten bits a byte); ignored for a URL transport (``loop://``).
+    rate_hz, batch_s : int, float, optional
+        What the device URL asks: setpoints/s, and seconds between frames.
+
+    Returns
+    -------
+    StreamPlan
+
+    Raises
+    ------
+    DeviceError
+        No stream fits what the link carries (one line, saying what would), or the URL's does not.
+
+    Example
+    -------
+    >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board",
+    ...                      features=p.FEATURE_LINK_STATED, link_bytes_per_s=14000, q=200.0)
+    >>> plan = choose_stream("/dev/pts/3", hello, 12000, 921600)
+    >>> plan.rate_hz, plan.batch_s, plan.bytes_per_s      # 6 750 bytes/s: within half of 14 000
+    (1000, 0.004, 6750.0)
+    """
+    asked = rate_hz is not None or batch_s is not None
+    if not hello.states_link:
+        rate = rate_hz or control_rate_hz
+        return StreamPlan(rate, batch_s or p.batch_s_for(baud, rate), 0, "url" if rate_hz and batch_s else "default",
+                          hello.version)
+    capacity = hello.link_bytes_per_s
+    if "://" not in port:
+        capacity = min(capacity, baud // 10)
+    rates = [rate_hz] if rate_hz else [control_rate_hz // k for k in range(1, control_rate_hz // LOWEST_RATE_HZ + 1)
+                                       if control_rate_hz % k == 0 and control_rate_hz // k >= LOWEST_RATE_HZ]
+    rates = [rate for rate in rates if hello.min_setpoint_rate_hz <= rate <= hello.max_setpoint_rate_hz] or rates
+    frames = [batch_s] if batch_s else list(FRAME_CHOICES_S)
+    # the host's own choice keeps half the link free; what the URL asks may take all of it
+    for budget in (p.LINK_MARGIN * capacity, capacity) if asked else (p.LINK_MARGIN * capacity,):
+        for rate in rates:
+            for frame in frames:
+                if stream_bytes_per_s(rate, frame) <= budget:
+                    return StreamPlan(rate, frame, hello.link_bytes_per_s, "url" if asked else "device")
+    slowest = min(stream_bytes_per_s(rate, frame) for rate in rates for frame in frames)
+    if asked:
+        raise DeviceError(f"serial:{port}: the plate driver's link carries {capacity} bytes/s (its handshake says); "
+                          f"the stream the URL asks needs at least {slowest:.0f}: ask for less (rate=, frame_ms=), or "
+                          "leave both out and the host fits the stream to the link")
+    raise DeviceError(f"serial:{port}: the plate driver's link carries {capacity} bytes/s (its handshake says); the "
+                      f"slowest stream the host sends needs {slowest:.0f} with half the link kept free: use a faster "
+                      "link")
+
+
+def probe_hello(port: str, baudrate: int, timeout_s: float = p.HOST_ACK_TIMEOUT_S) -> bytes:
+    """Open ``port`` (exclusively), send HELLO, and return the device's HELLO_REPLY payload, unchecked; the port is
+    closed again. HELLO changes nothing on the device but the session's version (R-HELLO-NO-STATE).
+
+    Raises
+    ------
+    DeviceError
+        The port cannot be opened, the device refuses HELLO or says nothing within ``timeout_s`` (one line).
+    """
+    import serial
+
+    opened = open_port(port, baudrate)
+    try:
+        opened.reset_input_buffer()
+        opened.write(p.encode_frame(p.HELLO, 0, p.hello_payload()))
+        decoder = p.FrameDecoder()
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            for frame in decoder.feed(opened.read(max(1, opened.in_waiting))):
+                if frame.kind == p.HELLO_REPLY:
+                    return frame.payload
+                if frame.kind == p.NAK and len(frame.payload) >= 3 and int.from_bytes(frame.payload[:2], "little") == 0:
+                    reason = p.NAK_REASONS.get(frame.payload[2], f"reason {frame.payload[2]}")
+                    raise DeviceError(f"{port}: the plate driver refused the handshake (HELLO: {reason}); it does "
+                                      f"not speak ultraglide protocol v{p.PROTOCOL_VERSION} as docs/protocol.md "
+                                      "describes")
+    except (serial.SerialException, OSError) as error:
+        raise DeviceError(f"{port}: {port_failure(error)} during the handshake") from None
+    finally:
+        opened.close()
+    raise DeviceError(f"{port}: no answer to the handshake; is a plate driver there, speaking ultraglide protocol "
+                      f"v{p.PROTOCOL_VERSION}?")

@@ -34,6 +34,10 @@ The port is opened exclusively (a ``flock``, which pyserial's ``exclusive`` take
 pseudo-terminals too, plus ``TIOCEXCL`` for programs that do not lock): a second driver on the same
 port is refused in one line. A setpoint rate the link cannot carry at its baud rate is refused too.
 
+**The link decides the stream.** Given a ``stream`` (a :class:`~.link.StreamPlan`, which
+:func:`~ultraglide.devices.urls.open_device` fits to what the device says its link carries), the driver streams
+at its rate in its frames and says which and why in :attr:`notes` (and ``status()["stream"]``).
+
 Example::
 
     plate = SerialPlate("/dev/ttyACM0", profile)
@@ -55,7 +59,7 @@ from ultraglide.devices.output.source import BlockSource, ramp_down
 from ultraglide.devices.output.stage import output_stage
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.serial.handshake import Limits
-from ultraglide.devices.serial.link import SILENCE_S, Pacing, SerialCounters, check_link_budget
+from ultraglide.devices.serial.link import SILENCE_S, Pacing, SerialCounters, StreamPlan, check_link_budget
 from ultraglide.devices.serial.locks import DriverLocks
 from ultraglide.devices.serial.report import RunAccount, RunFigures
 from ultraglide.devices.serial.run_report import RunReport
@@ -76,8 +80,11 @@ class SerialPlate:
     def __init__(self, port: str, profile: PlateProfile, control_rate_hz: int = 12000, carrier_hz: float | None = None,
                  baudrate: int = 921600, batch_s: float | None = None, ack_timeout_s: float = p.HOST_ACK_TIMEOUT_S,
                  tracker: ResonanceTracker | None = None, check_budget: bool = True, silence_s: float = SILENCE_S,
-                 amplitude_loop: bool = False):
+                 amplitude_loop: bool = False, stream: StreamPlan | None = None):
         self.port, self.profile, self.tracker = port, profile, tracker
+        if stream is not None:  # the stream fitted to the device's link (it overrides the rate and frame given)
+            control_rate_hz, batch_s = stream.rate_hz, stream.batch_s
+        self.stream = stream
         self.rate_hz = int(control_rate_hz)
         if check_budget and "://" not in port:  # URL transports (loop://, socket://) have no baud rate
             check_link_budget(port, baudrate, self.rate_hz)
@@ -101,6 +108,8 @@ class SerialPlate:
                                  self.pacing, silence_s, lost=self._lost, tracker=tracker)
         self._source: BlockSource | None = None
         self._thread: threading.Thread | None = None
+        if stream is not None:
+            self.session.notes.append(stream.line(port))
 
     # ---- what the parts know, by name ---------------------------------------------------------
     carrier_hz = property(lambda self: self.session.carrier_hz,
@@ -242,6 +251,8 @@ class SerialPlate:
             "device_name": None if state.device is None else state.device.name,
             "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp,
             "device_full_scale_um_pp": self.full_scale_um_pp, "notes": list(self.notes),
+            "stream": (self.stream.as_dict() if self.stream is not None else
+                       {"rate_hz": self.rate_hz, "frame_ms": round(self.batch_s * 1000, 3), "chosen_by": "caller"}),
             "measured_um_pp": None if t is None else t.measured_um_pp,
             "device_frames_ok": None if t is None else t.frames_ok,
             "device_crc_errors": None if t is None else t.crc_errors,

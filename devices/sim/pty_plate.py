@@ -17,6 +17,7 @@ from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import PlateProfile
 from ultraglide.devices.sim.links import LinkClaim, link_path_for, place_link, remove_link
 from ultraglide.devices.sim.plate import (
+    LINK_BYTES_PER_S,
     LISTEN_S,
     STALL_S,
     TICK_S,
@@ -35,8 +36,10 @@ class PtyPlate:
     """
 
     def __init__(self, profile: PlateProfile, link_path: str | None = None, truth: PlateTruth | None = None,
-                 breaks: tuple[str, ...] = (), max_version: int = 3, finger: ForceSource | None = None):
-        self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version, finger=finger)
+                 breaks: tuple[str, ...] = (), max_version: int = 3, finger: ForceSource | None = None,
+                 link_bytes_per_s: int = LINK_BYTES_PER_S):
+        self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version, finger=finger,
+                                        link_bytes_per_s=link_bytes_per_s)
         self.path, self._own_dir = link_path_for(link_path, "ultraglide-plate-")
         self._claim = LinkClaim(self.path) if self._own_dir is None else None  # a path given: no other simulator's
         self.pty_name = ""

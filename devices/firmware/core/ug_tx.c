@@ -105,6 +105,12 @@ size_t ug_hello_reply(const ug_core *core, uint8_t *p) {
         ug_put_u16(p + 38, c->sensor_rate_hz);
         p[40] = c->features;
         n = UG_HELLO_REPLY_V3_SIZE;
+        if (c->link_bytes_per_s != 0u) { /* what the link carries, and the plate's Q: the host fits its stream */
+            p[40] = (uint8_t)(c->features | UG_FEATURE_LINK_STATED);
+            ug_put_u32(p + 41, c->link_bytes_per_s);
+            ug_put_f32(p + 45, c->q);
+            n = UG_HELLO_REPLY_LINK_SIZE;
+        }
     }
     size_t name = strlen(c->name); /* NUL-terminated within 65 bytes (config_ok) */
     memcpy(p + n, c->name, name);

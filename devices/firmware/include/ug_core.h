@@ -46,7 +46,7 @@ extern "C" {
 #define UG_HISTORY 256u      /* drive samples of loop history (sense_delay_samples < this; a power of two) */
 #define UG_JUMPS 32u         /* index jumps (lost, overrun) marked in the buffer (a power of two) */
 #define UG_OUTBOX 2u          /* replies one frame may queue (it gives one; a broken build may give two) */
-#define UG_OUTBOX_PAYLOAD 112u /* HELLO_REPLY v3 (41 bytes) and a 64-byte name, the longest reply */
+#define UG_OUTBOX_PAYLOAD 116u /* HELLO_REPLY v3 with its link fields (49 bytes) and a 64-byte name, the longest */
 #define UG_FORCE_MARKS 32u   /* force references marked in the buffer (SETPOINTS_FORCE; a power of two) */
 
 /* ---- configuration --------------------------------------------------------------------------------- */
@@ -69,6 +69,8 @@ typedef struct ug_config {
     uint8_t max_version;       /* the highest protocol version spoken: 3, or 2 */
     uint8_t sim_faults;        /* 1: SIM_FAULT accepted (the simulator); 0: NAK 4 (real firmware) */
     uint16_t sense_delay_samples; /* ADC block lag behind the drive block, samples (< UG_HISTORY) */
+    uint32_t link_bytes_per_s; /* what the host link carries to the board, sustained, bytes/s (HELLO_REPLY v3, with
+                                  UG_FEATURE_LINK_STATED; the host fits its stream to it); 0: not stated */
     char name[UG_MAX_NAME_BYTES + 1]; /* UTF-8, NUL-terminated here (not on the wire) */
 } ug_config;
 

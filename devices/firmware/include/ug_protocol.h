@@ -68,6 +68,8 @@
 #define UG_FEATURE_AMPLITUDE_LOOP 0x01u
 #define UG_FEATURE_BRAKING 0x02u /* the amplitude loop brakes: an antiphase drive, down to minus the limit */
 #define UG_FEATURE_FORCE_CORRECTION 0x04u /* SETPOINTS_FORCE: values rescaled by the force measured at play */
+#define UG_FEATURE_LINK_STATED 0x08u /* HELLO_REPLY goes on with link_bytes_per_s:u32 and q:f32 before the name
+                                        (set by the core when ug_config.link_bytes_per_s is not 0) */
 
 /* SIM_FAULT kinds */
 #define UG_SIM_DROP 1u
@@ -86,6 +88,7 @@
 /* payload sizes (v3; v2's HELLO_REPLY 33 and TELEMETRY 71) */
 #define UG_HELLO_REPLY_V2_SIZE 33u
 #define UG_HELLO_REPLY_V3_SIZE 41u
+#define UG_HELLO_REPLY_LINK_SIZE 49u /* v3's, with UG_FEATURE_LINK_STATED's two fields */
 #define UG_TELEMETRY_V2_SIZE 71u
 #define UG_TELEMETRY_V3_SIZE 89u
 #define UG_SENSORS_HEADER_SIZE 9u

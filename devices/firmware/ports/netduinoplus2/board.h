@@ -40,6 +40,13 @@
 #define BOARD_QEMU_TIMER_HZ 1000000000u  /* QEMU 7.2's TIM2..5 count virtual nanoseconds (their default clock) */
 #define BOARD_BAUD 921600u         /* the host's default (docs/protocol.md) */
 #define BOARD_CONSOLE_BAUD 115200u
+#define BOARD_LINK_BYTES_PER_S (BOARD_BAUD / 10u)  /* what USART1 carries (8N1: ten bits a byte), HELLO_REPLY */
+/* What QEMU's emulated USART1 carries, stated in HELLO_REPLY so that the host fits its stream to it: QEMU hands
+   the firmware one byte per round trip between two of its threads. Measured with bench/bench_qemu_link.py (the
+   host writes HEARTBEAT frames as fast as the pty takes them for 5 s; the board's own rx_bytes counter, read from
+   its statistics line, over the time): see docs/performance.md, "The emulated board's link". The figure stated
+   is the lowest of the runs there, rounded down; the host's stream takes at most half of it (LINK_MARGIN). */
+#define BOARD_QEMU_LINK_BYTES_PER_S 14000u
 #define BOARD_TICK_HZ 1000u        /* SysTick */
 #define BOARD_DRIVE_RATE_HZ 48000u /* the core's drive samples a second (its sample_rate_hz) */
 #define BOARD_OVERSAMPLE 5u        /* DAC (and ADC) samples a drive sample (the core's dac_oversample) */

@@ -306,7 +306,9 @@ void port_configure(ug_config *config, float *um_pp_per_code)
     config->sensor_rate_hz = 1000u;
     config->features = UG_FEATURE_AMPLITUDE_LOOP;
     config->sim_faults = 0u;
+    config->link_bytes_per_s = BOARD_LINK_BYTES_PER_S;
 #ifdef UG_BOARD_QEMU
+    config->link_bytes_per_s = BOARD_QEMU_LINK_BYTES_PER_S;
     static const char name[] = "ultraglide netduinoplus2 (QEMU)";
     const volatile ug_emulation_config_t *e = &ug_emulation;
     config->resonance_hz = e->profile_resonance_hz;
