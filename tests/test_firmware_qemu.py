@@ -633,8 +633,12 @@ def test_play_on_the_board_with_its_defaults_plays_a_texture_it_receives_never_a
         assert "no --profile or --rig: plate: ultraglide netduinoplus2 (QEMU) (as the plate driver describes it" \
             in result.stderr and "limit 4 µm p-p" in result.stderr  # the plate the board believes, said
         assert status["limit_um_pp"] == 4.0
-        lost = status["device_lost_setpoints"] + status["device_late_setpoints"]
-        assert lost <= LOST_BOUND * status["setpoints_sent"], status
+        # what the board counted lost or late, beyond what the host skipped itself after a stall of its own (a
+        # loaded machine: it skips ahead rather than send a backlog, and the board counts the skipped as lost)
+        lost = status["device_lost_setpoints"] - status["setpoints_skipped"] + status["device_late_setpoints"]
+        figures = {key: status[key] for key in ("device_lost_setpoints", "device_late_setpoints", "setpoints_skipped",
+                                                "setpoints_sent", "host_stalls", "late_frames")}
+        assert lost <= LOST_BOUND * status["setpoints_sent"], (figures, status["report"]["lines"])
         sent = status["setpoints_sent"]
         assert sent + status["setpoints_skipped"] >= 0.9 * 3 * 1000  # three seconds at 1 000 setpoints/s (what a
         # host stalled by a loaded machine skipped to keep its latency included)

@@ -43,9 +43,11 @@
 #define BOARD_LINK_BYTES_PER_S (BOARD_BAUD / 10u)  /* what USART1 carries (8N1: ten bits a byte), HELLO_REPLY */
 /* What QEMU's emulated USART1 carries, stated in HELLO_REPLY so that the host fits its stream to it: QEMU hands
    the firmware one byte per round trip between two of its threads. Measured with bench/bench_qemu_link.py (the
-   host writes HEARTBEAT frames as fast as the pty takes them for 5 s; the board's own rx_bytes counter, read from
-   its statistics line, over the time): see docs/performance.md, "The emulated board's link". The figure stated
-   is the lowest of the runs there, rounded down; the host's stream takes at most half of it (LINK_MARGIN). */
+   host offers HEARTBEAT frames at a paced rate for 5 s; the board's own rx_bytes counter, from its statistics
+   lines, over the time), at load average 10-12 on the two-core machine: 14 000 B/s offered were taken whole
+   (13.8-13.9 kB/s), 28 000-40 000 offered gave at most 14.8-15.1 kB/s taken, and a link overfed (or written as
+   fast as the pty takes) fell to 1-10 kB/s, the board's main loop starved by a byte interrupt each. The image
+   states the rate it was seen to carry whole; the host's stream takes at most half of it (LINK_MARGIN). */
 #define BOARD_QEMU_LINK_BYTES_PER_S 14000u
 #define BOARD_TICK_HZ 1000u        /* SysTick */
 #define BOARD_DRIVE_RATE_HZ 48000u /* the core's drive samples a second (its sample_rate_hz) */
