@@ -229,7 +229,7 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         return SimPlate(profile, control_rate_hz, carrier_hz, tracker, finger, amplitude_loop)
     if spec.kind == "serial":
         from ultraglide.devices.serial.handshake import check_device
-        from ultraglide.devices.serial.link import choose_stream, probe_hello
+        from ultraglide.devices.serial.link import StreamPlan, choose_stream, probe_hello
         from ultraglide.devices.serial.plate import SerialPlate
 
         rate = spec.options.get("rate")
@@ -239,8 +239,12 @@ def open_device(url: str, profile: PlateProfile, control_rate_hz: int = 12000, c
         frame_s = spec.options["frame_ms"] / 1000.0 if "frame_ms" in spec.options else None
         baud = spec.options.get("baud", 921600)
         # the link decides the stream: the device's handshake says what its link carries (a first HELLO, which
-        # changes nothing on the device), and the stream is fitted to it; the URL's rate and frame_ms win where
+        # changes nothing on the device), and the stream is fitted to it; the URL's rate or frame_ms win where
         # they fit. A device that says nothing gets the default stream, and the run says so.
+        if rate is not None and frame_s is not None:  # the URL says it all: checked at the handshake, where the
+            asked = StreamPlan(rate, frame_s, 0, "url")  # device says what its link carries
+            return SerialPlate(spec.target, profile, rate, carrier_hz, baudrate=baud, batch_s=frame_s,
+                               tracker=tracker, amplitude_loop=amplitude_loop, stream=asked)
         raw = probe_hello(spec.target, baud)
         hello = check_device(spec.target, raw, carrier, None)
         stream = choose_stream(spec.target, hello, control_rate_hz, baud, rate, frame_s)

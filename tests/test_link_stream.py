@@ -204,4 +204,4 @@ def test_a_url_stream_the_stated_link_cannot_carry_is_refused_before_streaming()
     finally:
         plate.stop()
     line = assert_one_line_error(result)
-    assert "carries 14000 bytes/s" in line and "needs at least 43000" in line
+    assert "carries 14000 bytes/s" in line and "12000 setpoints/s in 1 ms frames needs 43000" in line

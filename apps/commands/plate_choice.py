@@ -72,8 +72,16 @@ def choose_plate(args) -> None:
     if args.profile is not None:
         return
     kind = _kind(args.device)
+    why = ""
     if kind == "serial":
-        described = _described_plate(args.device)
+        from ultraglide.devices.errors import DeviceError
+
+        try:
+            described = _described_plate(args.device)
+        except DeviceError as error:  # nobody there to describe a plate: the rule's refusal, with what happened
+            described, why = None, f" (and no plate driver there described one: {error})"
+        else:
+            why = "" if described is not None else " (its plate driver does not describe its plate in its handshake)"
         if described is not None:
             from ultraglide.devices.serial.handshake import hello_spec
 
@@ -83,7 +91,6 @@ def choose_plate(args) -> None:
                   flush=True)
             return
     if kind in REAL_OUTPUTS:
-        why = " (its plate driver does not describe its plate in its handshake)" if kind == "serial" else ""
         raise UsageError(f"--device {args.device} drives a real plate and nothing names it{why}: give --rig RIG.toml "
                          "(see examples/rig.toml) or --profile PROFILE (e.g. from `ultraglide plate sweep`); the "
                          "built-in sim-plate is for sim, wav: and null only")

@@ -29,9 +29,11 @@ class Limits:
         return cls(profile.max_amplitude_um_pp, profile.max_drive_um_pp, profile.full_scale_um_pp)
 
 
-def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int | None) -> p.HelloReply:
-    """The device's HELLO_REPLY, if it speaks our version and can play what we will send (``rate_hz`` setpoints/s;
-    None: the rate is not chosen yet); DeviceError in one line otherwise."""
+def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int | None,
+                 batch_s: float | None = None) -> p.HelloReply:
+    """The device's HELLO_REPLY, if it speaks our version and can play what we will send (``rate_hz`` setpoints/s
+    in frames of ``batch_s``; None: not chosen yet) over the link it says it has; DeviceError in one line
+    otherwise."""
     try:
         version = p.hello_reply_version(raw)
         if version not in p.SUPPORTED_VERSIONS:
@@ -47,6 +49,13 @@ def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int | None) 
     if rate_hz is not None and not hello.min_setpoint_rate_hz <= rate_hz <= hello.max_setpoint_rate_hz:
         raise DeviceError(f"{port}: the plate driver plays {hello.min_setpoint_rate_hz}-"
                           f"{hello.max_setpoint_rate_hz} setpoints/s, not {rate_hz}")
+    if rate_hz is not None and batch_s is not None and hello.states_link:
+        needed = p.FRAME_OVERHEAD_BYTES / batch_s + 2.0 * rate_hz  # the byte budget (devices/serial/link.py)
+        if needed > hello.link_bytes_per_s:
+            raise DeviceError(f"serial:{port}: the plate driver's link carries {hello.link_bytes_per_s} bytes/s (its "
+                              f"handshake says); a stream of {rate_hz} setpoints/s in {batch_s * 1000:g} ms frames "
+                              f"needs {needed:.0f}: ask for less (rate=, frame_ms=), or leave both out and the host "
+                              "fits the stream to the link")
     for name in ("full_scale_um_pp", "max_amplitude_um_pp"):
         value = getattr(hello, name)
         if not (math.isfinite(value) and value > 0):

@@ -202,7 +202,8 @@ class StreamPlan:
                     f"plate is lost, ask for a slower stream, e.g. serial:{port}?rate=1000&frame_ms=4")
         carries = f"the {self.link_bytes_per_s / 1000:.1f} kB/s the plate driver's link carries, as its handshake says"
         if self.chosen_by == "url":
-            return f"{head} as the device URL asks, {cost} of {carries}"
+            of = f"of {carries}" if self.link_bytes_per_s else "(the plate driver does not say what its link carries)"
+            return f"{head} as the device URL asks, {cost} {of}"
         return f"{head}, {cost}: fitted to at most {p.LINK_MARGIN:.0%} of {carries}"
 
     def as_dict(self) -> dict:

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.characterisation.resonance import ResonanceTracker
@@ -101,15 +102,14 @@ class SerialPlate:
         carrier = tracker.carrier_hz if tracker is not None else (carrier_hz or profile.resonance_hz)
         self.session = Session(port, profile, self.rate_hz, carrier, self.transport, self.locks, self.account,
                                self.counters, ack_timeout_s, amplitude_loop,
-                               has_baseline=lambda: self.intake.has_baseline, bound=self._bound, fresh=self._fresh)
+                               has_baseline=lambda: self.intake.has_baseline, bound=self._bound, fresh=self._fresh,
+                               batch_s=self.batch_s)
         self.intake = Intake(self.session, self.account, self.counters, self.locks, self.pacing, tracker,
                              self.transport.kind_of)
         self.streamer = Streamer(self.session, self.transport, self.intake, self.account, self.counters,
                                  self.pacing, silence_s, lost=self._lost, tracker=tracker)
         self._source: BlockSource | None = None
         self._thread: threading.Thread | None = None
-        if stream is not None:
-            self.session.notes.append(stream.line(port))
 
     # ---- what the parts know, by name ---------------------------------------------------------
     carrier_hz = property(lambda self: self.session.carrier_hz,
@@ -211,6 +211,11 @@ class SerialPlate:
         self._source = output_stage(source, self.profile, self.signal, self.rate_hz)
         self.account.started = time.perf_counter()
         self.session.connect()
+        if self.stream is not None:  # said after where the device's limits bind
+            device = self.session.state.device
+            if self.stream.link_bytes_per_s == 0 and device is not None and device.states_link:
+                self.stream = replace(self.stream, link_bytes_per_s=device.link_bytes_per_s)  # the URL's stream
+            self.session.notes.append(self.stream.line(self.port))
         self._thread = threading.Thread(target=self.streamer.run, args=(self._source, self._rest), name="serial-plate",
                                         daemon=True)
         self._thread.start()

@@ -87,8 +87,9 @@ class Session:
     def __init__(self, port: str, profile: PlateProfile, rate_hz: int, carrier_hz: float, transport: Transport,
                  locks: DriverLocks, account: RunAccount, counters: SerialCounters, ack_timeout_s: float,
                  amplitude_loop: bool, has_baseline: Callable[[], bool], bound: Callable[[Limits], None],
-                 fresh: Callable[[], None]):
+                 fresh: Callable[[], None], batch_s: float | None = None):
         self.port, self.profile, self.rate_hz, self.carrier_hz = port, profile, rate_hz, carrier_hz
+        self.batch_s = batch_s  # s between SETPOINTS frames: checked against what the device says its link carries
         self.transport, self.ack_timeout_s, self.amplitude_loop = transport, ack_timeout_s, amplitude_loop
         self.state = SessionState()
         self.replies = Replies(locks.replies)
@@ -130,7 +131,7 @@ class Session:
             raise DeviceError(f"{self.port}: the plate driver refused the handshake (HELLO: "
                               f"{p.NAK_REASONS.get(reason, f'reason {reason}')}); it does not speak ultraglide "
                               f"protocol v{p.PROTOCOL_VERSION} as docs/protocol.md describes")
-        return check_device(self.port, raw, self.carrier_hz, self.rate_hz)
+        return check_device(self.port, raw, self.carrier_hz, self.rate_hz, self.batch_s)
 
     def bind(self, hello: p.HelloReply) -> None:
         """The device's limits bind from now on (the output stage's limiter is told)."""
