@@ -78,8 +78,8 @@ def choose_plate(args) -> None:
 
         try:
             described = _described_plate(args.device)
-        except DeviceError as error:  # nobody there to describe a plate: the rule's refusal, with what happened
-            described, why = None, f" (and no plate driver there described one: {error})"
+        except DeviceError as error:  # no plate from the device: the rule's refusal, with what happened
+            described, why = None, f" (and the plate driver there described none: {error})"
         else:
             why = "" if described is not None else " (its plate driver does not describe its plate in its handshake)"
         if described is not None:
@@ -131,14 +131,13 @@ def plate_words(profile, spec: str) -> str:
 def _described_plate(device: str):
     """The plate a serial device describes in its handshake (a PlateProfile), or None if it does not; DeviceError
     in one line if the port cannot be opened or nobody answers."""
+    from ultraglide.devices import protocol as p
     from ultraglide.devices.serial.handshake import plate_of_hello
     from ultraglide.devices.serial.link import probe_hello
     from ultraglide.devices.urls import parse_device_url
 
     url = parse_device_url(device)
     raw = probe_hello(url.target, url.options.get("baud", 921600))
-    from ultraglide.devices import protocol as p
-
     try:
         hello = p.parse_hello_reply(raw)
     except p.ProtocolError:

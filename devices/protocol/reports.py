@@ -252,7 +252,8 @@ def parse_sensors(payload: bytes) -> Sensors:
 
 
 # fixed parts of payloads (v3), by the names docs/protocol.md's tables use
-PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V3.size, "ACK": _ACK.size, "NAK": _NAK.size,
+PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V3.size, "HELLO_REPLY with link": _HELLO_REPLY_LINK.size,
+                 "ACK": _ACK.size, "NAK": _NAK.size,
                  "TELEMETRY": _TELEMETRY_V3.size, "SENSORS": _SENSORS_HEADER.size,
                  "SETPOINTS header": SETPOINT_HEADER_LAYOUT.size, "SENSORS sample": _SENSOR_SAMPLE.itemsize,
                  "SETPOINTS_FORCE header": SETPOINT_HEADER_LAYOUT.size + FORCE_REFERENCE_LAYOUT.size}
