@@ -21,7 +21,8 @@ FOLDERS = {"textures": "ultraglide.textures", "devices": "ultraglide.devices", "
            "apps": "ultraglide.apps", "ultraglide": "ultraglide"}
 # the root's leaves: they import nothing of ours but each other
 ROOT_LEAVES = {"ultraglide.errors", "ultraglide.atomic", "ultraglide.atomic.writer", "ultraglide.atomic.targets",
-               "ultraglide.atomic.failures", "ultraglide.atomic.leftovers", "ultraglide.inputs"}
+               "ultraglide.atomic.failures", "ultraglide.atomic.leftovers", "ultraglide.inputs",
+               "ultraglide.lazy"}
 ALLOWED = {
     "textures": {"textures"},
     "devices": {"devices"},

@@ -19,8 +19,9 @@ few functions that span them (export to a WAV, a renderer as a device's source).
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from ultraglide.lazy import lazy_exports
 
 __version__ = "0.2.0"
 
@@ -92,20 +93,8 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = ["__version__", *_EXPORTS]
-
-
-def __getattr__(name: str):
-    """Import a public name on first use and keep it (PEP 562)."""
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'ultraglide' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+# each name imported on first use and kept (PEP 562)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily

@@ -4,21 +4,17 @@ protocol frame by frame (`probe`), the rules of the link, the device and the str
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
-# public name -> the module of this room that defines it; imported on first use (PEP 562)
+from ultraglide.lazy import lazy_exports
+
+# public name -> the module of this room that defines it; imported on first use (PEP 562, ultraglide.lazy)
 _EXPORTS = {
     "check_device": "check",
     "CheckReport": "probe",
 }
 __all__ = ["check_device", "CheckReport"]
-
-
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 if TYPE_CHECKING:

@@ -3,10 +3,11 @@
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
-# public name -> the module of this room that defines it; imported on first use (PEP 562)
+from ultraglide.lazy import lazy_exports
+
+# public name -> the module of this room that defines it; imported on first use (PEP 562, ultraglide.lazy)
 _EXPORTS = {
     "AudioPlate": "audio",
     "WavRecorder": "paced",
@@ -14,12 +15,7 @@ _EXPORTS = {
     "list_devices": "listing",
 }
 __all__ = ["AudioPlate", "WavRecorder", "PacedSink", "list_devices"]
-
-
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 if TYPE_CHECKING:

@@ -21,11 +21,12 @@ Example
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
-# public name -> the module that defines it, imported on first use (PEP 562): the commands' parsers import a
-# module of this package without loading scipy
+from ultraglide.lazy import lazy_exports
+
+# public name -> the module that defines it, imported on first use (PEP 562, ultraglide.lazy): the commands'
+# parsers import a module of this package without loading scipy
 _EXPORTS = {
     "as_frame": "ultraglide.experiment.analysis",
     "fit_psychometric": "ultraglide.experiment.analysis",
@@ -59,14 +60,7 @@ _EXPORTS = {
     "Session": "ultraglide.experiment.runner",
     "run": "ultraglide.experiment.runner",
 }
-
-
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 if TYPE_CHECKING:
