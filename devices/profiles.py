@@ -45,6 +45,42 @@ class PlateProfile:
     ``max_amplitude_um_pp`` is the plate's safe limit: the steady amplitude the drive commands
     never exceeds it. ``max_drive_um_pp`` (between the limit and full scale; None: the limit)
     is the overdrive granted for pre-compensation, see :mod:`ultraglide.devices.output.limiter`.
+
+    Parameters
+    ----------
+    name : str
+        The plate's name, not empty.
+    resonance_hz : float
+        The plate's resonance (Hz), within the carrier range.
+    q : float
+        Its quality factor: the vibration's envelope follows the drive with tau = Q / (pi f0).
+    full_scale_um_pp : float
+        The steady amplitude (µm p-p) at full-scale drive.
+    max_amplitude_um_pp : float
+        The safe limit (µm p-p), from one step of the 16-bit drive up to full scale.
+    carrier_min_hz, carrier_max_hz : float
+        The carriers (Hz) the plate may be driven at; 20-28 kHz by default.
+    description : str
+        A sentence for people.
+    max_drive_um_pp : float or None
+        The overdrive (µm p-p) granted for pre-compensation, from the limit to full scale; None: the limit.
+    allow_audible : bool
+        Allow a resonance or carrier below 20 kHz (the plate then sings).
+
+    Raises
+    ------
+    DeviceError
+        A value that is not a finite number or lies outside its range, in one line naming the key.
+
+    Examples
+    --------
+    >>> plate = PlateProfile("bench", resonance_hz=24000.0, q=150.0, full_scale_um_pp=10.0, max_amplitude_um_pp=5.0)
+    >>> plate
+    PlateProfile('bench', 24 kHz, Q 150, limit 5 µm p-p)
+    >>> plate.max_drive_um_pp                                # no overdrive given: the limit (µm p-p)
+    5.0
+    >>> round(plate.time_constant_s * 1000, 2), plate.corner_hz   # ms, Hz: f0 / 2Q
+    (1.99, 80.0)
     """
 
     name: str
@@ -121,17 +157,48 @@ class PlateProfile:
 
     @property
     def time_constant_s(self) -> float:
-        """tau = Q / (pi f0): how slowly the vibration envelope follows the drive."""
+        """tau = Q / (pi f0) (s): how slowly the vibration envelope follows the drive.
+
+        Examples
+        --------
+        >>> round(load_profile("sim-plate").time_constant_s * 1000, 3)    # ms: Q 200 at 25 kHz
+        2.546
+        """
         return self.q / (math.pi * self.resonance_hz)
 
     @property
     def corner_hz(self) -> float:
-        """The envelope's -3 dB frequency, 1 / (2 pi tau) = f0 / (2 Q)."""
+        """The envelope's -3 dB frequency (Hz), 1 / (2 pi tau) = f0 / (2 Q).
+
+        Examples
+        --------
+        >>> round(load_profile("sim-plate").corner_hz, 6)                 # 25 kHz / (2 × 200)
+        62.5
+        """
         return 1.0 / (2.0 * math.pi * self.time_constant_s)
 
     def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
-        """DeviceError unless ``carrier_hz`` lies within the plate's carrier range and, given an audio rate
-        (Hz), that rate can carry it."""
+        """Refuse a carrier outside the plate's range, or one an audio rate cannot carry.
+
+        Parameters
+        ----------
+        carrier_hz : float
+            The carrier (Hz).
+        audio_rate_hz : float, optional
+            The audio rate (Hz) that is to carry it.
+
+        Raises
+        ------
+        DeviceError
+            The carrier is outside ``carrier_min_hz``..``carrier_max_hz``, or the rate cannot carry it.
+
+        Examples
+        --------
+        >>> load_profile("sim-plate").check_carrier(30000.0)
+        Traceback (most recent call last):
+        ...
+        ultraglide.devices.errors.DeviceError: carrier 30000 Hz is outside plate sim-plate's range 20000-28000 Hz
+        """
         if not self.carrier_min_hz <= carrier_hz <= self.carrier_max_hz:
             raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.shown_name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")
@@ -142,6 +209,18 @@ class PlateProfile:
 
 
 def bundled_profiles() -> list[str]:
+    """The names of the plate profiles that come with ultraglide.
+
+    Returns
+    -------
+    list of str
+        Sorted; each loads with :func:`load_profile`.
+
+    Examples
+    --------
+    >>> "sim-plate" in bundled_profiles()
+    True
+    """
     return sorted(path.stem for path in PROFILE_DIR.glob("*.toml"))
 
 

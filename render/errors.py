@@ -6,4 +6,13 @@ from ultraglide.errors import UltraglideError
 
 
 class RenderError(UltraglideError, ValueError):
-    """Settings or input that the renderer cannot honour."""
+    """Settings or input that the renderer cannot honour; a ``ValueError`` too.
+
+    Examples
+    --------
+    >>> from ultraglide.render.renderer import RenderSettings
+    >>> RenderSettings(control_rate_hz=-1)
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.errors.RenderError: the control rate must be at least 10 kHz, got -1 Hz
+    """

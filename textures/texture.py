@@ -24,7 +24,54 @@ MIN_PIXEL_MM = 1e-6  # 1 nm: nothing real is finer, and every later division by 
 
 @dataclass(frozen=True, eq=False)
 class Texture:
-    """A friction map (or height map) with its physical size and metadata."""
+    """A friction map (or height map) with its physical size and metadata; immutable.
+
+    Parameters
+    ----------
+    values : array_like, shape (rows, cols)
+        The map, in [0, 1] (stored as a read-only float32 array): friction ratios (1 = the plate at rest) for a
+        ``friction`` texture, heights for a ``gradient`` one. Row 0 is the top edge, column 0 the left.
+    width_mm, height_mm : float
+        The map's physical size (mm), > 0; its pixels are 1 nm or more.
+    kind : {"friction", "gradient"}
+        What ``values`` holds; a gradient texture's friction follows the slope along the motion.
+    outside : {"tile", "clamp", "fixed"}
+        What lies beyond the edges: the map repeated, its edge extended, or ``outside_ratio``.
+    outside_ratio : float
+        The friction ratio beyond the edges with ``outside="fixed"``, in [0, 1].
+    ratio_range : (float, float)
+        Gradient kind: the ratios at the steepest downhill and uphill slopes, 0 <= low <= high <= 1.
+    full_slope_per_mm : float
+        Gradient kind: the slope (height per mm) that reaches the ends of ``ratio_range``; 0: the map's
+        steepest.
+    name, description, source : str
+        What a person reads: the texture's name, a sentence, where it came from.
+    authoring : dict
+        How it was made from an image (:mod:`textures.authoring`), for the file.
+    effects : tuple of textures.effects.Binding
+        Temporal effects played with this texture.
+
+    Raises
+    ------
+    TextureError
+        A map that is not 2-D or has values outside [0, 1], a size that is not positive and finite, pixels
+        under 1 nm, or an unknown kind, outside rule or ratio range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tiles = Texture(np.array([[1.0, 0.5], [0.25, 1.0]]), width_mm=4.0, height_mm=2.0, name="tiles")
+    >>> tiles
+    Texture('tiles', 4 × 2 mm, 2 × 2 px)
+    >>> tiles.pixel_mm                                       # (x, y), mm
+    (2.0, 1.0)
+    >>> tiles.with_(outside="clamp").outside
+    'clamp'
+    >>> Texture(np.array([[1.5]]), width_mm=1.0, height_mm=1.0)
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: texture values must be finite and within 0..1
+    """
 
     values: np.ndarray  # (rows, cols) float32 in [0, 1]
     width_mm: float
@@ -100,11 +147,44 @@ class Texture:
         return self.width_mm / self.cols, self.height_mm / self.rows
 
     def with_(self, **changes: object) -> Texture:
-        """A copy with some fields changed."""
+        """A copy with some fields changed (checked as a new texture is).
+
+        Parameters
+        ----------
+        **changes : object
+            Field names (``width_mm``, ``outside`` ...) and their new values.
+
+        Returns
+        -------
+        Texture
+
+        Raises
+        ------
+        TextureError
+            A changed value a texture refuses.
+
+        Examples
+        --------
+        >>> from ultraglide.textures.procedural import grating
+        >>> grating(wavelength_mm=2.0, size_mm=(20.0, 10.0)).with_(width_mm=40.0)
+        Texture('grating-sine', 40 × 10 mm, 200 × 100 px)
+        """
         return replace(self, **changes)
 
     def ratio_map(self) -> np.ndarray:
-        """The friction ratio at every pixel; for a gradient texture, under a left-to-right swipe."""
+        """The friction ratio at every pixel; for a gradient texture, under a left-to-right swipe.
+
+        Returns
+        -------
+        numpy.ndarray, shape (rows, cols), float32
+            Friction ratios in [0, 1].
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Texture(np.array([[0.2, 0.8]]), width_mm=2.0, height_mm=1.0).ratio_map()
+        array([[0.2, 0.8]], dtype=float32)
+        """
         if self.kind == "friction":
             return self.values
         from ultraglide.textures.sampling import gradient_maps

@@ -14,7 +14,25 @@ import errno
 
 
 class UltraglideError(Exception):
-    """Anything ultraglide refused; the message is one line that says what is wrong and what to do."""
+    """Anything ultraglide refused; the message is one line that says what is wrong and what to do.
+
+    Each package's errors derive from it and keep their older bases (``ValueError`` for bad values,
+    ``RuntimeError`` for devices): catch this one to catch them all.
+
+    Parameters
+    ----------
+    message : str
+        One line: what is wrong and what to do.
+
+    Examples
+    --------
+    >>> import ultraglide
+    >>> try:
+    ...     ultraglide.load_profile("no-such-plate")
+    ... except UltraglideError as error:
+    ...     print(type(error).__name__, "|", error)
+    DeviceError | no plate profile file or bundled profile 'no-such-plate'; bundled: audio-generic, sim-plate
+    """
 
 
 _NO_ROOM = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)

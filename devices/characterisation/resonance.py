@@ -33,7 +33,16 @@ def resonance_curve(carrier_hz, peak_um_pp: float, resonance_hz: float, q: float
 
 
 class FitError(UltraglideError, ValueError):
-    """The measurements do not show a resonance that can be fitted."""
+    """The measurements do not show a resonance that can be fitted; a ``ValueError`` too.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fit_resonance(np.array([24000.0, 25000.0, 26000.0]), np.array([1.0, 1.0, 1.0]))   # Hz, µm p-p
+    Traceback (most recent call last):
+    ...
+    ultraglide.devices.characterisation.resonance.FitError: a resonance fit needs at least 4 measured points
+    """
 
 
 @dataclass(frozen=True)

@@ -69,7 +69,53 @@ class Modulation:
 
 
 class OutputStage:
-    """Limits an envelope source's drive and turns it into a device's signal (see the module docstring)."""
+    """Limits an envelope source's drive and turns it into a device's signal (see the module docstring).
+
+    Every output passes through one: the drive limiter holds the plate's limit on what leaves, whatever the source
+    asks. Devices build it through :func:`output_stage`.
+
+    Parameters
+    ----------
+    source : BlockSource
+        An envelope source: drive amplitudes (µm p-p) at the control rate (its ``control_rate_hz``, 12 kHz by
+        default).
+    profile : PlateProfile
+        The plate: its limit (µm p-p), full scale and carrier range.
+    signal : {"control", "audio"}
+        ``"control"``: the limited envelope (µm p-p) at the control rate or a whole fraction of it; ``"audio"``:
+        the envelope on the carrier, float32 in [-1, 1] (1 = full scale), at a whole multiple of the control rate.
+    rate_hz : float, optional
+        The device's rate (Hz); the control rate by default.
+    carrier_hz : float, optional
+        The audio signal's carrier (Hz); the plate's resonance by default.
+
+    Attributes
+    ----------
+    frames : int
+        The index of the next value the device takes.
+    limiter : DriveLimiter
+        The limiter, with its counters (:meth:`status`).
+
+    Raises
+    ------
+    DeviceError
+        An unknown signal, a rate that does not fit the control rate, or a carrier outside the plate's range.
+
+    Examples
+    --------
+    >>> import numpy as np, types
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+    ...                                pull=lambda n, now_s: np.full(n, 9.0))   # 9 µm p-p: above the 6 µm limit
+    >>> stage = OutputStage(steady, load_profile("sim-plate"), "audio", 96000)
+    >>> stage
+    OutputStage(audio at 96000 Hz, carrier 25000 Hz, plate 'sim-plate', limit 6 µm p-p)
+    >>> block = stage.pull(9600, None)                      # 0.1 s of audio
+    >>> block.dtype, float(abs(block[-960:]).max())          # 6 of the plate's 8 µm full scale
+    (dtype('float32'), 0.75)
+    >>> stage.status()["worst_excess_um_pp"]
+    3.0
+    """
 
     def __init__(self, source: BlockSource, profile: PlateProfile, signal: str, rate_hz: float | None = None,
                  carrier_hz: float | None = None):

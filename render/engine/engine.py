@@ -57,7 +57,18 @@ COMMAND_TIMEOUT_S = 30.0
 
 
 class EngineError(RenderError):
-    """The engine could not start, or refused a command; the message is one line for a person."""
+    """The engine could not start, or refused a command; the message is one line for a person.
+
+    A :class:`RenderError`; :class:`EngineLost`, its subclass, says the engine died or froze while it drove the
+    device.
+
+    Examples
+    --------
+    >>> from ultraglide.errors import UltraglideError
+    >>> issubclass(EngineError, RenderError), issubclass(EngineLost, EngineError), issubclass(EngineError,
+    ...                                                                                     UltraglideError)
+    (True, True, True)
+    """
 
 
 class EngineLost(EngineError):
@@ -115,7 +126,43 @@ class EngineConfig:
 
 
 class Engine:
-    """A running engine process; see the module docstring. Use from one thread of the app."""
+    """A running engine process; see the module docstring. Use from one thread of the app.
+
+    Made by :meth:`start` (or :meth:`launch`), not by calling the class. Touches go in through :meth:`touch`, rare
+    commands through :meth:`set_texture`, :meth:`set_force`, :meth:`pause`; :meth:`status` reads what it does.
+    Leaving a ``with`` block (or :meth:`stop`) ramps to rest, rests the hardware and ends the process; an app
+    supervisor watches the process meanwhile and makes the device safe if it dies or freezes (:attr:`loss`).
+
+    Attributes
+    ----------
+    config : EngineConfig
+        What it renders and where.
+    started_s : float
+        When its process was up (``time.perf_counter`` s).
+    final_status : EngineStatus or None
+        The last status, once stopped.
+
+    Raises
+    ------
+    EngineError
+        From :meth:`start` and the commands: a bad texture, model, profile or device, or an engine that does not
+        answer; in one line.
+    EngineLost
+        The engine's process died or froze while it drove the device (the device was made safe).
+
+    Examples
+    --------
+    >>> import time
+    >>> config = EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)
+    >>> with Engine.start(config) as engine:
+    ...     engine.wait_ready(60.0)
+    ...     engine.touch(time.perf_counter(), 10.0, 25.0)      # perf_counter s, x and y in mm
+    ...     engine.status().state
+    True
+    'running'
+    >>> engine.final_status.state
+    'stopped'
+    """
 
     def __init__(self, process, conn, shared: SharedBlock, config: EngineConfig, info: dict):
         self.process = process

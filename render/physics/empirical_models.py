@@ -63,6 +63,30 @@ class StretchedExponentialModel(FrictionModel):
     forces or more fits p and replaces that range by the forces it was fitted on (:attr:`fitted`).
     Any s0 > 0, beta > 0 gives a strictly decreasing curve; values outside the allowed ranges are
     refused.
+
+    Parameters
+    ----------
+    scale_um_pp : float
+        s0 (µm p-p), in [0.05, 100]: where the reducible friction falls to 1/e at 0.5 N; 3.73 by default.
+    shape : float
+        beta, in [0.3, 8]: 2 is Gaussian.
+    force_exponent : float
+        p, in [-2, 2]: s(F) = s0 (F / 0.5 N)^p; 1/3 (assumed) by default.
+    residual_ratio : float
+        d, in [0, 0.9]: the lowest ratio vibration reaches; 0.10 (measured mean) by default.
+
+    Raises
+    ------
+    ModelError
+        A parameter outside its range.
+
+    Examples
+    --------
+    >>> model = StretchedExponentialModel(scale_um_pp=4.0, shape=2.0, force_exponent=0.0, residual_ratio=0.1)
+    >>> model.relative_friction([0.0, 4.0], force_n=0.5).round(4)            # at s0: 0.1 + 0.9 / e
+    array([1.    , 0.4311])
+    >>> round(float(model.scale_at_um_pp(2.0)), 3)                           # p = 0: the same at every force
+    4.0
     """
 
     name = "stretched"
@@ -162,6 +186,26 @@ class ExponentialModel(StretchedExponentialModel):
     The published a and tau are zero-to-peak (tau = 1.32 µm); here a = a_pp / 2. The law has no
     force term (Monnoyer et al. did not state the force), so the force is checked and otherwise
     ignored: the stretched model with beta = 2, p = 0 and s0 = 2 sqrt 2 tau.
+
+    Parameters
+    ----------
+    tau_um_zp : float
+        tau (µm zero-to-peak), in [0.02, 35]; Monnoyer et al.'s 1.32 by default.
+    residual_ratio : float
+        d, in [0, 0.9]: the lowest ratio vibration reaches; 0 by default (the published law).
+
+    Raises
+    ------
+    ModelError
+        A parameter outside its range.
+
+    Examples
+    --------
+    >>> model = ExponentialModel(tau_um_zp=1.0)
+    >>> model
+    ExponentialModel(tau_um_zp=1.0)
+    >>> round(float(model.relative_friction(2.0)), 4)                      # 2 µm p-p = tau zero-to-peak
+    0.6065
     """
 
     name = "exponential"

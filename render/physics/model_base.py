@@ -147,7 +147,39 @@ def kernel_result(code: int, ratio: np.ndarray, force) -> int:
 
 
 class FrictionModel(ABC):
-    """The interface every friction model offers; see the module docstring."""
+    """The interface every friction model offers (see :mod:`render.physics.friction_models`).
+
+    A model maps a vibration amplitude (µm peak-to-peak) and a normal force (N) to the friction ratio mu/mu0
+    (1 = the plate at rest) with :meth:`relative_friction`, and back with :meth:`amplitude_um_pp`, vectorised over
+    numpy arrays. Build one by name with :func:`~render.physics.calibration.load_model`, or from a subclass.
+
+    Attributes
+    ----------
+    name : str
+        The model's name as the command takes it (``"paper"``, ``"exponential"``, ``"stretched"``, ``"table"``,
+        ``"squeeze-film"``).
+    max_amplitude_um_pp : float
+        The largest amplitude (µm p-p) the model answers for; the inverse never exceeds it.
+    fitted : FitRange or None
+        Set by a calibration: the forces (N) its parameters were fitted on; None for the published defaults.
+
+    Raises
+    ------
+    ModelError
+        From every method: a NaN, infinite or negative amplitude, ratio or force, in one line.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.calibration import load_model
+    >>> model = load_model("exponential")
+    >>> isinstance(model, FrictionModel), model.name
+    (True, 'exponential')
+    >>> round(float(model.relative_friction(2.64, force_n=0.5)), 4)   # 1.32 µm zero-to-peak = tau: exp(-1/2)
+    0.6065
+    >>> result = model.amplitude_um_pp([1.0, 0.6065306597126334, 0.01], force_n=0.5, limit_um_pp=5.0)
+    >>> result.amplitude_um_pp.round(2).tolist(), result.clamped   # 0.01 is out of reach: held at 5 µm
+    ([0.0, 2.64, 5.0], 1)
+    """
 
     name: str = "model"
     max_amplitude_um_pp: float = CEILING_UM_PP
@@ -227,7 +259,31 @@ class FrictionModel(ABC):
 
     @abstractmethod
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
-        """Forward model: friction ratio at each amplitude (µm p-p) and force (N)."""
+        """Forward model: the friction ratio at each amplitude and force.
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            Vibration amplitudes (µm peak-to-peak), >= 0.
+        force_n : array_like
+            Normal forces (N), one or one per amplitude; 0.5 N by default.
+
+        Returns
+        -------
+        numpy.ndarray
+            mu/mu0 at each amplitude, in [0, 1]; 1 at rest.
+
+        Raises
+        ------
+        ModelError
+            A NaN, infinite or negative amplitude or force.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> load_model("stretched").relative_friction([0.0, 3.7335238], 0.5).round(3)  # at its scale: d + (1-d)/e
+        array([1.   , 0.431])
+        """
 
     @abstractmethod
     def _amplitude_in_reach(self, ratio: np.ndarray, force_n) -> np.ndarray:
@@ -257,7 +313,26 @@ class FrictionModel(ABC):
                           lambda: float(self.relative_friction(limit, force_n)))
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
-        """Lowest ratio reachable at this force within the amplitude limit."""
+        """The lowest ratio reachable at this force within the amplitude limit.
+
+        Parameters
+        ----------
+        force_n : array_like
+            Normal force (N), one or an array; 0.5 N by default.
+        limit_um_pp : float
+            The amplitude limit (µm p-p); the model's own :attr:`max_amplitude_um_pp` by default.
+
+        Returns
+        -------
+        numpy.ndarray or float
+            The ratio at the limit, for each force.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> round(float(load_model("paper").floor_ratio(0.5, limit_um_pp=6.0)), 3)
+        0.773
+        """
         limit = min(float(limit_um_pp), self.max_amplitude_um_pp)
         return self.relative_friction(limit, force_n)
 
@@ -314,8 +389,37 @@ class FrictionModel(ABC):
         out: np.ndarray | None = None,
     ) -> Inversion:
         """Inverse model: the smallest amplitude (µm p-p) that gives each ratio at each force.
-        ``out``: a float64 array of the result's shape to write the amplitudes into; with a 1-d float ratio
-        (a live block) the compiled models then allocate no array."""
+
+        Parameters
+        ----------
+        ratio : array_like
+            Target friction ratios mu/mu0; above 1 means rest (0 µm).
+        force_n : array_like
+            Normal forces (N), one or one per ratio; 0.5 N by default.
+        limit_um_pp : float
+            The amplitude limit (µm p-p), >= 0; ratios below the one at the limit are clamped to it.
+        out : numpy.ndarray, optional
+            A float64 array of the result's shape to write the amplitudes into; with a 1-d float ratio (a live
+            block) the compiled models then allocate no array.
+
+        Returns
+        -------
+        Inversion
+            ``amplitude_um_pp`` (µm p-p, never above the limit nor :attr:`max_amplitude_um_pp`) and ``clamped``,
+            how many ratios were out of reach.
+
+        Raises
+        ------
+        ModelError
+            A NaN, infinite or negative ratio or force, or a negative limit.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> result = load_model("exponential").amplitude_um_pp([1.2, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
+        >>> result.amplitude_um_pp.round(2).tolist(), result.clamped
+        ([0.0, 3.11, 5.0], 1)
+        """
         if self.compiled and self._fast_path(ratio, force_n, limit_um_pp, out):
             return self._compiled_inverse(ratio, force_n, limit_um_pp, out)
         if not limit_um_pp >= 0:

@@ -49,6 +49,19 @@ class PaperModel(FrictionModel):
     (see :mod:`render.physics.normal_contact`), so one table over u serves every force. The detachment
     amplitude scales as F^(1 - area_exponent) (F^(1/3) with the paper's A = k F^(2/3)). It predicts
     a modest reduction (to about 0.72 at 10 µm and 0.5 N) and never full levitation.
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger (:class:`render.physics.fingerprint.FingerParams`): the paper's Table I by default.
+
+    Examples
+    --------
+    >>> model = PaperModel()
+    >>> model.relative_friction([0.0, 10.0], force_n=0.5).round(2)          # µm p-p in, mu/mu0 out
+    array([1.  , 0.72])
+    >>> round(float(model.amplitude_um_pp(0.8, force_n=0.5).amplitude_um_pp), 2)   # µm p-p for 0.8
+    4.67
     """
 
     name = "paper"

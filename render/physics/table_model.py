@@ -25,6 +25,30 @@ class TableModel(FrictionModel):
     regression, per force. With several forces, amplitudes for a ratio are interpolated linearly
     between the neighbouring forces and held beyond the ends; the forward model is the exact
     inverse of that, found by bisection. The reachable range ends at the largest measured amplitude.
+
+    Parameters
+    ----------
+    data : Measurements
+        The measured points (:func:`render.physics.measurements.read_measurements`): amplitudes (µm p-p), ratios,
+        and the forces (N) when measured at several; two amplitudes or more at each force.
+
+    Raises
+    ------
+    ModelError
+        Points that never fall below a ratio of 1, or a force with fewer than two amplitudes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+    >>> model = TableModel(points)
+    >>> model
+    TableModel('bench', force 0.5 N)
+    >>> model.relative_friction([0.0, 2.0, 4.0]).round(3)                 # through the points
+    array([1. , 0.8, 0.5])
+    >>> model.max_amplitude_um_pp                                         # µm p-p, the largest measured
+    6.0
     """
 
     name = "table"
