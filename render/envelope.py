@@ -33,6 +33,18 @@ from ultraglide.render.errors import RenderError
 
 @dataclass(frozen=True)
 class EnvelopeBlock:
+    """One block of the envelope chain's output, at the control rate (µm p-p each).
+
+    Attributes
+    ----------
+    amplitude_um_pp : numpy.ndarray
+        What the plate should do: the target after the ramps and limits.
+    drive_um_pp : numpy.ndarray
+        What is sent: the amplitude pre-compensated for the plate's slow response.
+    plate_um_pp : numpy.ndarray
+        What the plate model says the plate does under that drive.
+    """
+
     amplitude_um_pp: np.ndarray  # after ramps and limits: what the plate should do
     drive_um_pp: np.ndarray  # what is sent
     plate_um_pp: np.ndarray  # what the plate model says it does
@@ -82,6 +94,7 @@ class EnvelopeChain:
 
     @property
     def at_rest(self) -> bool:
+        """True once the goal and gain are 0 and the smoothed envelope and the plate model have come to rest."""
         return self.goal == 0.0 and self.gain == 0.0 and self.smoothed < 1e-9 and self.plate < 1e-6
 
 

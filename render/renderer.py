@@ -71,7 +71,10 @@ class Plate(Protocol):
         """The plate's envelope time constant (s): Q / (π f0)."""
         ...
 
-    def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None: ...
+    def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
+        """Raise an error of ours unless ``carrier_hz`` (Hz) lies in the plate's carrier range and, given an audio
+        rate (Hz), that rate can carry it."""
+        ...
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,7 @@ class TouchLog:
 
     @property
     def has_force(self) -> bool:
+        """Whether the log has a ``force_n`` column (a pressure-sensing panel's)."""
         return "force_n" in self.table.names
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
@@ -64,6 +65,7 @@ class TouchLog:
             yield (t - self.first_s, values["x_mm"], values["y_mm"], values.get("force_n"))
 
     def trajectory(self) -> RecordedTrajectory:
+        """The log as a recorded trajectory, streamed from the file block by block (times from 0 s)."""
         return RecordedTrajectory.streaming(self.chunks, 0.0, self.last_s - self.first_s, self.has_force,
                                             self.force_range_n)
 

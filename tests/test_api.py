@@ -4,6 +4,7 @@ the package it claims; nothing private is exported; ``import ultraglide`` loads 
 
 from __future__ import annotations
 
+import ast
 import inspect
 import subprocess
 import sys
@@ -11,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 import soundfile
-from conftest import run_cli
+from conftest import ROOT, run_cli
 
 import ultraglide
 
@@ -51,6 +52,36 @@ def test_public_functions_have_type_hints_and_docstrings():
         if not inspect.getdoc(function):
             missing.append(f"{name}: docstring")
     assert not missing, missing
+
+
+# the modules whose every public function, class and method has a docstring (the public API and what it is built
+# of); the rest of the package is documented module by module as it is touched
+DOCUMENTED = ("ultraglide/__init__.py", "ultraglide/api.py", "ultraglide/client.py", "ultraglide/errors.py",
+              "ultraglide/lazy.py", "textures", "render", "devices/output", "devices/profiles.py", "devices/errors.py")
+NOT_YET = ("textures/formats", "render/engine/supervisor.py")  # others work there this session
+
+
+def _public_definitions(tree):
+    """(name, node) of every public module-level function and class of a parsed module, and of their public
+    methods and properties."""
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) and not node.name.startswith("_"):
+            yield node.name, node
+            if isinstance(node, ast.ClassDef):
+                yield from ((f"{node.name}.{member.name}", member) for member in node.body
+                            if isinstance(member, ast.FunctionDef | ast.AsyncFunctionDef)
+                            and not member.name.startswith("_"))
+
+
+def test_the_documented_modules_stay_documented():
+    paths = sorted(path for place in DOCUMENTED
+                   for path in ([ROOT / place] if place.endswith(".py") else (ROOT / place).rglob("*.py"))
+                   if not any(path.relative_to(ROOT).as_posix().startswith(skip) for skip in NOT_YET))
+    assert len(paths) > 60
+    lacking = [f"{path.relative_to(ROOT)}:{node.lineno} {name}" for path in paths
+               for name, node in _public_definitions(ast.parse(path.read_text(encoding="utf-8")))
+               if ast.get_docstring(node) is None]
+    assert not lacking, f"{len(lacking)} public definitions without a docstring: {lacking}"
 
 
 def test_unknown_names_raise_attribute_error():
@@ -233,9 +264,8 @@ def test_a_texture_that_is_not_one_says_what_to_give(tmp_path, texture, options,
 
 
 # classes whose docstrings are numpy-style whole: the sections each must have besides an Example (Parameters for
-# what the constructor takes, Attributes for what is read off an object made elsewhere; an error's message is
-# described once, at UltraglideError); the rest say what they are in words, and their methods are documented one
-# by one
+# what the constructor takes, Attributes for what is read off an object made elsewhere; an error says what it is
+# and shows where it comes from); the rest say what they are in words, and their methods are documented one by one
 NUMPY_CLASSES = {
     "Renderer": {"Parameters"}, "SwipePath": {"Parameters"}, "Rendered": {"Attributes"},
     "Texture": {"Parameters", "Raises"}, "PlateProfile": {"Parameters", "Raises"},
@@ -243,7 +273,7 @@ NUMPY_CLASSES = {
     "StretchedExponentialModel": {"Parameters", "Raises"}, "TableModel": {"Parameters", "Raises"},
     "SqueezeFilmModel": {"Parameters"}, "FilmParams": {"Parameters", "Raises"},
     "Engine": {"Attributes", "Raises"}, "OutputStage": {"Parameters", "Raises"},
-    "UltraglideError": {"Parameters"}, "DeviceError": set(), "TextureError": set(), "ModelError": set(),
+    "UltraglideError": set(), "DeviceError": set(), "TextureError": set(), "ModelError": set(),
     "RenderError": set(), "EngineError": set(), "FitError": set(), "ForceRangeWarning": set(),
 }
 

@@ -47,6 +47,7 @@ class Placement:
     y_mm: float
 
     def contains(self, x_mm: float, y_mm: float) -> bool:
+        """Whether the point (mm, on the canvas) lies on this texture: left and top edges in, right and bottom out."""
         return (self.x_mm <= x_mm < self.x_mm + self.texture.width_mm
                 and self.y_mm <= y_mm < self.y_mm + self.texture.height_mm)
 
@@ -87,6 +88,7 @@ class Grid:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """The grid's (rows, cols): its size (mm) times ``px_per_mm``, one pixel or more each way."""
         return max(1, round(self.height_mm * self.px_per_mm)), max(1, round(self.width_mm * self.px_per_mm))
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:

@@ -26,6 +26,7 @@ class Effect:
 
     @property
     def duration_s(self) -> float:
+        """How long the effect lasts (s); infinite for one that goes on until its binding releases it."""
         raise NotImplementedError
 
     def __add__(self, other: Effect) -> Effect:
@@ -73,6 +74,7 @@ class Oscillator(Effect):
 
     @property
     def duration_s(self) -> float:
+        """Infinite: an oscillator runs until its binding releases it."""
         return math.inf
 
 
@@ -110,6 +112,7 @@ class Constant(Effect):
 
     @property
     def duration_s(self) -> float:
+        """``length_s`` (s): infinite unless given."""
         return self.length_s
 
 
@@ -134,15 +137,29 @@ class ADSR(Effect):
 
     @property
     def duration_s(self) -> float:
+        """attack + decay + sustain + release (s)."""
         return self.attack_s + self.decay_s + self.sustain_s + self.release_s
 
 
 @dataclass(frozen=True, slots=True)
 class Sum(Effect):
+    """Effects added (``a + b``): their values summed, sample by sample, for as long as the longest lasts.
+
+    Parameters
+    ----------
+    terms : tuple of Effect
+
+    Examples
+    --------
+    >>> (Sine(10.0, 0.2) + Constant(0.1, 2.0)).duration_s          # s: the sine goes on
+    inf
+    """
+
     terms: tuple[Effect, ...]
 
     @property
     def duration_s(self) -> float:
+        """The longest term's duration (s)."""
         return max(term.duration_s for term in self.terms)
 
     def __add__(self, other: Effect) -> Effect:  # flat: a + b + c is one sum
@@ -151,10 +168,24 @@ class Sum(Effect):
 
 @dataclass(frozen=True, slots=True)
 class Product(Effect):
+    """Effects multiplied (``a * b``, or an effect times a number): their values' product, for as long as the
+    shortest lasts.
+
+    Parameters
+    ----------
+    factors : tuple of Effect
+
+    Examples
+    --------
+    >>> (Sine(10.0, 0.2) * Constant(0.5, 2.0)).duration_s          # s: the constant ends it
+    2.0
+    """
+
     factors: tuple[Effect, ...]
 
     @property
     def duration_s(self) -> float:
+        """The shortest factor's duration (s)."""
         return min(factor.duration_s for factor in self.factors)
 
     def __mul__(self, other) -> Effect:
@@ -176,6 +207,7 @@ class Sequence(Effect):
 
     @property
     def duration_s(self) -> float:
+        """The parts' durations (s) added."""
         return sum(part.duration_s for part in self.parts)
 
     def __rshift__(self, other: Effect) -> Effect:

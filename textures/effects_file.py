@@ -32,6 +32,25 @@ _NAMES = {cls: name for name, cls in _OSCILLATORS.items()}
 
 
 def effect_to_dict(effect: Effect) -> dict:
+    """An effect as the JSON of an effects file holds it (:func:`effect_from_dict` reads it back).
+
+    Parameters
+    ----------
+    effect : Effect
+
+    Returns
+    -------
+    dict
+        ``type`` and the effect's fields (Hz, s, ratios); compositions nest their parts.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.effect_types import Constant, Sine
+    >>> effect_to_dict(Sine(10.0, 0.2) + Constant(0.1, 2.0))
+    ... # doctest: +NORMALIZE_WHITESPACE
+    {'type': 'sum', 'terms': [{'type': 'sine', 'frequency_hz': 10.0, 'depth': 0.2},
+                              {'type': 'constant', 'level': 0.1, 'length_s': 2.0}]}
+    """
     if isinstance(effect, Oscillator):
         return {"type": _NAMES[type(effect)], "frequency_hz": effect.frequency_hz, "depth": effect.depth}
     if isinstance(effect, Constant):
@@ -85,6 +104,23 @@ def _only(fields: dict, kind: str, allowed: tuple[str, ...]) -> dict:
 
 
 def binding_to_dict(binding: Binding) -> dict:
+    """A binding (its trigger, effect and release) as the JSON of an effects file holds it; the trigger's
+    defaults left out.
+
+    Parameters
+    ----------
+    binding : Binding
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> from ultraglide.textures.effect_types import ADSR, Binding, Trigger
+    >>> binding_to_dict(Binding(Trigger("start"), ADSR(0.01, 0.02, 0.1, 0.05)))["trigger"]
+    {'on': 'start'}
+    """
     t = binding.trigger
     trigger = {"on": t.on}
     if t.region_mm is not None:

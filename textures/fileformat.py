@@ -49,6 +49,24 @@ def quantise(values: np.ndarray) -> np.ndarray:
 
 
 def metadata_of(texture: Texture) -> dict:
+    """The texture's metadata as the file's JSON chunk holds it: the format version, kind, size (mm), outside
+    rule, ratio range, slope, words and authoring (not the pixels, not the effects).
+
+    Parameters
+    ----------
+    texture : Texture
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> from ultraglide.textures.procedural import grating
+    >>> meta = metadata_of(grating(wavelength_mm=2.0, size_mm=(20.0, 10.0)))
+    >>> meta["format_version"], meta["kind"], meta["width_mm"], meta["height_mm"]
+    (1, 'friction', 20.0, 10.0)
+    """
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": texture.kind,

@@ -64,6 +64,9 @@ def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
 
 
 def has_metadata(path: Path) -> bool:
+    """Whether ``path`` is a PNG with an ultraglide metadata chunk (a damaged chunk counts: loading it then
+    says what is wrong); False for anything that is not a regular file.
+    """
     return has_texture_metadata(path)  # a damaged chunk counts: loading it then says what is wrong
 
 

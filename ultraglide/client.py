@@ -57,18 +57,28 @@ class Refused(ServiceError, ValueError):
 
 
 class BadMessage(Refused):
+    """A message that is not JSON, not an object, of an unknown type or field, or with a field missing,
+    of the wrong type or out of range (``bad-message``).
+    """
+
     code = "bad-message"
 
 
 class TooBig(Refused):
+    """A message over 64 KiB (all but ``texture.load``) (``too-big``)."""
+
     code = "too-big"
 
 
 class RateLimited(Refused):
+    """More than 2000 messages a second (``rate``)."""
+
     code = "rate"
 
 
 class NoHello(Refused):
+    """A message before ``hello`` (``no-hello``)."""
+
     code = "no-hello"
 
 
@@ -91,14 +101,20 @@ class Unknown(Refused):
 
 
 class TextureRefused(Refused):
+    """The texture could not be loaded: the file, the image (``texture``)."""
+
     code = "texture"
 
 
 class LimitReached(Refused):
+    """Too many textures, sprites or views, or a texture of too many pixels (``limit``)."""
+
     code = "limit"
 
 
 class EngineRefused(Refused):
+    """The engine refused it, e.g. an effects description (``engine``)."""
+
     code = "engine"
 
 
@@ -355,6 +371,32 @@ class AsyncClient(_Messages):
     @classmethod
     async def connect(cls, url: str, *, role: str = "control", name: str = "python-asyncio",
                       timeout_s: float = DEFAULT_TIMEOUT_S, origin: str | None = None) -> AsyncClient:
+        """Connect to ``ultraglide serve`` and say hello; the connected client.
+
+        Parameters
+        ----------
+        url : str
+            ``ws://HOST:PORT/ws[?token=...]`` as the server printed, or ``ws+unix:PATH``.
+        role : {"control", "observe"}
+            ``control`` (one client at a time) or ``observe`` (read only).
+        name : str
+            How the service names this client.
+        timeout_s : float
+            How long (s) to wait for the connection and each answer.
+        origin : str, optional
+            The ``Origin`` header to send, for a server that checks it.
+
+        Returns
+        -------
+        AsyncClient
+
+        Raises
+        ------
+        ConnectionFailed
+            The service could not be reached or refused the handshake (origin, token).
+        Refused
+            The service refused the hello (``busy`` when another client controls).
+        """
         import asyncio
 
         from websockets.asyncio.client import connect, unix_connect
@@ -462,6 +504,7 @@ class AsyncClient(_Messages):
             return None
 
     async def close(self) -> None:
+        """Close the connection and wait for the reader to end (a finger still down is lifted by the service)."""
         if self._ws is not None:
             await self._ws.close()
         if self._reader is not None:

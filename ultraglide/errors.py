@@ -17,12 +17,8 @@ class UltraglideError(Exception):
     """Anything ultraglide refused; the message is one line that says what is wrong and what to do.
 
     Each package's errors derive from it and keep their older bases (``ValueError`` for bad values,
-    ``RuntimeError`` for devices): catch this one to catch them all.
-
-    Parameters
-    ----------
-    message : str
-        One line: what is wrong and what to do.
+    ``RuntimeError`` for devices): catch this one to catch them all. Raised with one argument, the message: one
+    line, what is wrong and what to do.
 
     Examples
     --------

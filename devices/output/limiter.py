@@ -95,6 +95,10 @@ class DriveLimiter:
         return self.limited_samples / self.samples if self.samples else 0.0
 
     def status(self) -> dict:
+        """The limiter's counters for a status: ``limited_fraction`` (the share of samples lowered),
+        ``worst_excess_um_pp`` (how far above the limit the worst was asked, µm p-p), ``limit_um_pp`` and
+        ``max_drive_um_pp`` (µm p-p).
+        """
         return {"limited_fraction": round(self.limited_fraction, 6),
                 "worst_excess_um_pp": round(self.worst_excess_um_pp, 6),
                 "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp}

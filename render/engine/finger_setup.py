@@ -63,23 +63,28 @@ class FingerConfig:
 
     @property
     def lags(self) -> bool:
+        """Whether the simulated finger's friction lags in time (the dynamics asked for, or a ``dynamic`` law)."""
         return self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
 
     @property
     def law_scale(self) -> float:
+        """The amplitude scale of the finger's law: as given, else the default law's own, else 1."""
         return self.scale if self.scale is not None else (DEFAULT_SCALE if self.law == DEFAULT_LAW else 1.0)
 
     @property
     def law_floor(self) -> float:
+        """The ratio floor of the finger's law: as given, else the default law's own, else 0."""
         return self.floor if self.floor is not None else (DEFAULT_FLOOR if self.law == DEFAULT_LAW else 0.0)
 
     def law_words(self) -> str:
+        """The finger's law in words: its base model, scale, floor and whether it lags."""
         base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
         scale, floor = self.law_scale, self.law_floor
         return (base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
                 + (", friction in time" if self.lags else ""))
 
     def with_log(self, path: str | None) -> FingerConfig:
+        """A copy that logs the finger to ``path`` (None: no log)."""
         return replace(self, log=path)
 
 

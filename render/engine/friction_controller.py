@@ -121,6 +121,7 @@ class FastCorrection:
         self.power = math.nan  # the mean of s² over recent batches (NaN: none yet)
 
     def reset(self) -> None:
+        """Forget the correction: ``g`` back to 0, the slope's mean power unknown."""
         self.value = 0.0
         self.power = math.nan
 
@@ -187,9 +188,11 @@ class ClosedLoopInverse:
 
     # ---- the model's interface, as the renderer uses it ----
     def describe(self) -> str:
+        """The host model's line, and that the loop closes on the plate's force sensors."""
         return f"{self.base.describe()}; closed loop on the plate's force sensors"
 
     def parameters(self) -> dict:
+        """The host model's parameters."""
         return self.base.parameters()
 
     def warm_up(self) -> None:
@@ -197,9 +200,11 @@ class ClosedLoopInverse:
         self.base.warm_up()
 
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
+        """The host model's forward law (µm p-p and N to the ratio)."""
         return self.base.relative_friction(amplitude_um_pp, force_n)
 
     def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+        """The host model's lowest ratio at this force (N) within the limit (µm p-p)."""
         return self.base.floor_ratio(force_n, limit_um_pp)
 
     def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:

@@ -98,6 +98,7 @@ class FrictionEstimate:
 
     @property
     def sliding(self) -> bool:
+        """Whether the finger slid over the batch (the state is ``sliding``)."""
         return self.state == "sliding"
 
 
@@ -175,6 +176,8 @@ class SensorModel:
         return f"SensorModel({self.bandwidth_hz:g} Hz, {1000 * self.delay_s:.2f} ms)"
 
     def set(self, bandwidth_hz: float, delay_s: float) -> None:
+        """Retune the sensors' model: a first-order low-pass at ``bandwidth_hz`` (Hz) then ``delay_s`` (s, held within
+        the delay line); a filter made where there was none starts settled on the newest filtered value."""
         self.bandwidth_hz = float(bandwidth_hz)
         self.delay_s = min(max(float(delay_s), 0.0), (self.MAX_DELAY - 2) / self.rate_hz)
         coefficients = lowpass_coefficients(bandwidth_hz, self.rate_hz)
@@ -252,6 +255,9 @@ class SensorTiming:
         return self.search()
 
     def search(self) -> tuple[float, float] | None:
+        """Search the bandwidths and delays now: ``(bandwidth_hz, delay_s)`` of the best fit, or None while too few
+        samples slid, the ratio barely moved, or no pair explains mu well enough.
+        """
         valid = np.isfinite(self.mu) & np.isfinite(self.ratio)
         valid[:self.MAX_LAG + 2] = False  # each lag needs its history
         if valid.sum() < self.FIRST or np.nanstd(self.ratio[valid]) < 0.02:
@@ -316,10 +322,12 @@ class FrictionEstimator:
 
     @property
     def mu0(self) -> float:
+        """The friction coefficient without vibration, as estimated."""
         return math.exp(self.theta[0])
 
     @property
     def scale(self) -> float:
+        """k, the estimated stretch of the model's amplitude axis (1: the model as it is)."""
         return math.exp(self.theta[1])
 
     def predicted_ratio(self, amplitude_um_pp, force_n) -> np.ndarray:

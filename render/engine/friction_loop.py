@@ -57,6 +57,9 @@ class TargetRing:
         self.written = 0  # samples written: the next index
 
     def write(self, ratio: np.ndarray, down) -> None:
+        """Write the target ratios of the next control samples sent, NaN where the finger is up; ``down``: one flag
+        for the block or one per sample. No allocation for one flag (the block path).
+        """
         n = len(ratio)
         start = self.written % self.capacity
         first = min(n, self.capacity - start)

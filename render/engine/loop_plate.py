@@ -34,25 +34,31 @@ class AmplitudeLoopPlate:
 
     @property
     def name(self) -> str:
+        """The plate's name."""
         return self.profile.name
 
     @property
     def resonance_hz(self) -> float:
+        """The plate's resonance (Hz)."""
         return self.profile.resonance_hz
 
     @property
     def max_amplitude_um_pp(self) -> float:
+        """The plate's safe limit (µm p-p)."""
         return self.profile.max_amplitude_um_pp
 
     @property
     def max_drive_um_pp(self) -> float:
+        """The limit (µm p-p): the targets sent are amplitudes, and the firmware caps them there (no overdrive)."""
         return self.profile.max_amplitude_um_pp  # targets: the firmware caps them at the limit
 
     @property
     def full_scale_um_pp(self) -> float:
+        """The plate's amplitude at full-scale drive (µm p-p)."""
         return self.profile.full_scale_um_pp
 
     def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
+        """The plate profile's carrier check (Hz): DeviceError outside its range."""
         self.profile.check_carrier(carrier_hz, audio_rate_hz)
 
     def __repr__(self) -> str:

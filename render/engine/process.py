@@ -74,6 +74,9 @@ class EngineSource(OutputStage):
         return view
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
+        """The next ``n`` values of the device's signal, with the touches that came drained first and the block's
+        figures published to the shared memory after; paused with everything at rest, zeros without running the
+        renderer (a device's heartbeat goes on)."""
         started = time.perf_counter()
         if self._first:
             self._first = False
@@ -232,6 +235,7 @@ class EngineSource(OutputStage):
         fast[shm.SEQ] += 1  # even: whole
 
     def request_stop(self) -> None:
+        """Ask the envelope source to ramp down to rest; the state published says stopping from now."""
         self._stopping = True
         super().request_stop()
 
@@ -249,6 +253,7 @@ class EngineBeat(threading.Thread):
         self._stop_event = threading.Event()
 
     def run(self) -> None:
+        """Advance the beat every ``period_s`` until stopped."""
         fast = self.fast
         while not self._stop_event.wait(self.period_s):
             fast[shm.ENGINE_BEAT] += 1

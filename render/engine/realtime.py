@@ -168,9 +168,11 @@ class CpuWakeLatency:
 
     @property
     def held(self) -> bool:
+        """Whether the request is held now."""
         return self._fd is not None
 
     def hold(self, wanted: bool) -> None:
+        """Make the request (``wanted``) or withdraw it; once refused (no permission), not tried again."""
         if wanted and self._fd is None and self._refused is None:
             try:
                 fd = os.open(CPU_LATENCY_QOS, os.O_WRONLY | os.O_CLOEXEC)
@@ -190,12 +192,14 @@ class CpuWakeLatency:
             self.close()
 
     def close(self) -> None:
+        """Withdraw the request if held, counting the time it was."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
             self.held_s += time.monotonic() - self._since
 
     def words(self) -> str:
+        """The request in words: its bound (µs), held or released, how often, how long (s); or why it was not made."""
         if self._refused is not None:
             return f"CPU wake-up: as the system has it ({self._refused})"
         held_s = self.held_s + (time.monotonic() - self._since if self.held else 0.0)

@@ -35,6 +35,9 @@ class PlateProbe(threading.Thread):
         self.stop_event = threading.Event()
 
     def run(self) -> None:
+        """Publish the simulated plate's amplitude (µm p-p) every probe period, and when it last rose above the
+        threshold (perf_counter s), until stopped.
+        """
         above = False
         while not self.stop_event.wait(PROBE_PERIOD_S):
             amplitude = self.simulator.amplitude_um_pp

@@ -140,9 +140,11 @@ class SharedBlock:
     def attach(cls, name: str) -> SharedBlock:
         # a spawned engine shares its parent's resource tracker, so attaching registers nothing new;
         # only the owner unlinks
+        """The engine's view of a segment its parent made (``name``); only the owner unlinks it."""
         return cls(shared_memory.SharedMemory(name=name), owner=False)
 
     def close(self) -> None:
+        """Drop every view of the segment and close it; the owner unlinks it too."""
         for name in ("words", "touch_index", "touches", "fast", "block_times", "histogram", "history", "latency",
                      "slow_header", "slow_bytes"):
             setattr(self, name, None)
@@ -180,6 +182,9 @@ class SharedBlock:
         header[0] += 1
 
     def read_slow(self) -> dict:
+        """The device's status as the engine last wrote it (a dict, from JSON), read consistently through its
+        seqlock; TimeoutError if it kept changing while read.
+        """
         for _ in _attempts():
             before = self.slow_header[0]
             length = int(self.slow_header[1])
@@ -269,4 +274,5 @@ def ring_order(ring: np.ndarray, written: int) -> np.ndarray:
 
 
 def finite_or_none(value: float) -> float | None:
+    """``value`` as a float, or None when it is NaN or infinite (for strict JSON)."""
     return None if not math.isfinite(value) else float(value)

@@ -83,6 +83,10 @@ def _underruns(device_status: dict) -> int:
 
 def status_from_shared(header, block_times, history_ring, device_status, dropped, device_name,
                        history_s) -> EngineStatus:
+    """An :class:`EngineStatus` from the shared memory's arrays: the counters of ``header``, block times (p50 and
+    p99 in µs), the last ``history_s`` seconds of history, the device's status, the dropped touches and the
+    device's name.
+    """
     blocks = int(header[shm.BLOCKS])
     times = ring_order(block_times, int(header[shm.BLOCK_TIME_INDEX]))
     p50 = p99 = None

@@ -40,6 +40,7 @@ class Column:
     low_open: bool = False
 
     def describe(self) -> str:
+        """The column's range in words with its unit: ``from 0 to 50 µm p-p`` or ``more than 0 to 10 N``."""
         unit = f" {self.unit}" if self.unit else ""
         low = f"more than {self.low:g}" if self.low_open else f"from {self.low:g}"
         return f"{low} to {self.high:g}{unit}"
@@ -107,6 +108,7 @@ class NumericCsv:
 
     @property
     def names(self) -> list[str]:
+        """The columns' names, in order."""
         return [c.name for c in self.columns]
 
     def _fail(self, line: int | None, message: str):

@@ -157,6 +157,7 @@ class FrictionDynamics:
                 f"{1000 * self.recovery_at_s(100.0):.3g} ms at 100 mm/s")
 
     def parameters(self) -> dict[str, float]:
+        """``onset_s``, ``recovery_s`` (s), ``reference_speed_mm_s`` (mm/s), ``speed_exponent``: for files, JSON."""
         return {"onset_s": self.onset_s, "recovery_s": self.recovery_s,
                 "reference_speed_mm_s": self.reference_speed_mm_s, "speed_exponent": self.speed_exponent}
 
@@ -191,13 +192,16 @@ class DynamicFrictionModel(FrictionModel):
         self.default_floor = static.default_floor
 
     def warm_up(self) -> None:
+        """Load the static model's compiled inverse and the dynamics' kernel before a real-time block needs them."""
         self.static.warm_up()
         kernels.warm_up_dynamics()
 
     def force_law(self) -> str:
+        """The static model's force law (the dynamics add none)."""
         return self.static.force_law()
 
     def valid_force_range_n(self) -> tuple[float, float]:
+        """The static model's force range (N)."""
         return self.static.valid_force_range_n()
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
@@ -213,6 +217,7 @@ class DynamicFrictionModel(FrictionModel):
         return self.static.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+        """The static model's floor: the lowest steady ratio at this force within the limit (µm p-p)."""
         return self.static.floor_ratio(force_n, limit_um_pp)
 
     def felt(self, amplitude_um_pp: ArrayLike, rate_hz: float, force_n: ArrayLike = DEFAULT_FORCE_N,
@@ -224,9 +229,11 @@ class DynamicFrictionModel(FrictionModel):
         return self.dynamics.respond(static, rate_hz, speed_mm_s, felt)
 
     def describe(self) -> str:
+        """One line: the static model, then the dynamics in time."""
         return f"dynamic: {self.static.describe()}; in time: {self.dynamics.describe()}"
 
     def parameters(self) -> dict[str, float | str]:
+        """The static model's parameters and the dynamics' (times in s, speeds in mm/s)."""
         return {**self.static.parameters(), **self.dynamics.parameters()}
 
     def __repr__(self) -> str:

@@ -93,6 +93,7 @@ class StretchedExponentialModel(FrictionModel):
     default_floor = MEASURED_FLOOR
 
     def warm_up(self) -> None:
+        """Load the stretched law's compiled inverse (numba's cache) before a real-time block needs it."""
         kernels.warm_up_stretched()
 
     def __init__(self, scale_um_pp: float = MONNOYER_SCALE_UM_PP, shape: float = 2.0,
@@ -103,6 +104,7 @@ class StretchedExponentialModel(FrictionModel):
         self.residual_ratio = _in_range("residual_ratio", residual_ratio, RESIDUAL_RANGE)
 
     def force_law(self) -> str:
+        """s ∝ F^p, and where p comes from: fitted on the forces of a calibration, or assumed from eq. (6)."""
         law = f"s ∝ F^{self.force_exponent:.3g}"
         fitted = self.fitted
         if self.force_exponent == 0.0:
@@ -126,6 +128,7 @@ class StretchedExponentialModel(FrictionModel):
         return self.scale_um_pp * np.power(clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        """d + (1 - d) exp(-(a_pp / s(F))^beta); see :meth:`FrictionModel.relative_friction`."""
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -167,11 +170,13 @@ class StretchedExponentialModel(FrictionModel):
         return f", floor d = {self.residual_ratio:.3g}"
 
     def describe(self) -> str:
+        """One line: the law with s0 (µm p-p), p, beta, the floor and the force law."""
         return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
                 f"{self.force_exponent:.3g}, beta = {self.shape:.3g}{self._floor_words()}; force law: "
                 f"{self.force_law()}")
 
     def parameters(self) -> dict[str, float | str]:
+        """``scale_um_pp`` (µm p-p), ``shape``, ``force_exponent``, ``residual_ratio``: what the constructor takes."""
         return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent,
                 "residual_ratio": self.residual_ratio}
 
@@ -216,14 +221,17 @@ class ExponentialModel(StretchedExponentialModel):
         super().__init__(2.0 * np.sqrt(2.0) * self.tau_um_zp, 2.0, 0.0, residual_ratio)
 
     def force_law(self) -> str:
+        """None: Monnoyer et al.'s curve is the same at every force."""
         return "none: the same curve at every force (Monnoyer et al. did not state theirs)"
 
     def _own_force_range_n(self) -> tuple[float, float]:
         return (MIN_FORCE_N, MAX_FORCE_N)
 
     def describe(self) -> str:
+        """One line: the law with tau (µm zero-to-peak) and the floor."""
         return (f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
                 f"{self._floor_words()}; force law: {self.force_law()}")
 
     def parameters(self) -> dict[str, float | str]:
+        """``tau_um_zp`` (µm zero-to-peak) and ``residual_ratio``, as the constructor takes them."""
         return {"tau_um_zp": self.tau_um_zp, "residual_ratio": self.residual_ratio}

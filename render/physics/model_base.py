@@ -45,6 +45,7 @@ class FitRange:
 
     @property
     def force_range_n(self) -> tuple[float, float]:
+        """The smallest and largest force fitted on (N)."""
         return (min(self.forces_n), max(self.forces_n))
 
     def words(self) -> str:
@@ -90,10 +91,34 @@ class UniformTable:
 
 def clip_force(force_n):
     # minimum(maximum()): np.clip's values (NaN kept), without its Python wrapper (a few µs a call)
+    """Forces (N) held within the models' range, 10 mN to 10 N (a NaN stays NaN for the checks to name).
+
+    Parameters
+    ----------
+    force_n : array_like
+        Forces (N).
+
+    Returns
+    -------
+    numpy.ndarray
+        The forces, clipped.
+
+    Examples
+    --------
+    >>> clip_force([0.0, 0.5, 20.0]).tolist()
+    [0.01, 0.5, 10.0]
+    """
     return np.minimum(np.maximum(np.asarray(force_n, dtype=float), MIN_FORCE_N), MAX_FORCE_N)
 
 
 def is_scalar(value) -> bool:
+    """True for one value (a number or a 0-d array), False for an array of values.
+
+    Examples
+    --------
+    >>> is_scalar(0.5), is_scalar(np.float64(0.5)), is_scalar(np.array([0.5]))
+    (True, True, False)
+    """
     return not isinstance(value, np.ndarray) or value.ndim == 0
 
 

@@ -49,6 +49,7 @@ class ParameterSpec:
     zero_ok: bool = False  # a value at the lower bound 0 is a finding (no floor, no film), not a warning
 
     def check(self, value, where: str) -> float:
+        """``value`` as a float if it is a number within this parameter's range; else ModelError naming ``where``."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ModelError(f"{where}: parameter {self.key} must be a number in [{self.low:g}, {self.high:g}]"
                              f"{self.unit}, got {value!r}")
@@ -109,16 +110,21 @@ def build_model(kind: str, values: dict[str, float]) -> FrictionModel:
 
 
 def ridge_finger(kind: str, values: dict[str, float]) -> FingerParams:
+    """The ridge model's finger from fitted values (``youngs_modulus_pa``, ``friction_exponent``,
+    ``area_exponent``); a uniform contact for ``paper-uniform``, Hertzian otherwise.
+    """
     return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"],
                         area_exponent=values["area_exponent"],
                         contact="uniform" if kind == "paper-uniform" else "hertz")
 
 
 def film_params(values: dict[str, float]) -> FilmParams:
+    """The air film from fitted values: ``gap_um`` (µm), ``film_fraction``, ``ambient_pressure_pa`` (Pa)."""
     return FilmParams(values["gap_um"], values["film_fraction"], values["ambient_pressure_pa"])
 
 
 def film_finger(values: dict[str, float]) -> FingerParams:
+    """The squeeze-film model's finger from fitted values (``youngs_modulus_pa``, ``friction_exponent``)."""
     return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"])
 
 
@@ -161,10 +167,12 @@ class Fit:
 
     @property
     def rms_residual(self) -> float:
+        """The root mean square of the fit's residuals (friction ratio)."""
         return float(np.sqrt(np.mean(self.residuals**2)))
 
     @property
     def max_abs_residual(self) -> float:
+        """The largest residual of the fit, in absolute value (friction ratio)."""
         return float(np.max(np.abs(self.residuals)))
 
     @property

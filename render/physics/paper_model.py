@@ -68,6 +68,7 @@ class PaperModel(FrictionModel):
     U_NODES = 384
 
     def warm_up(self) -> None:
+        """Load the compiled inverse over u (numba's cache) before a real-time block needs it."""
         kernels.warm_up_uniform()
 
     def __init__(self, params: FingerParams = FingerParams()):
@@ -90,6 +91,7 @@ class PaperModel(FrictionModel):
                 * np.maximum(force / self._saturation_n, 1.0))
 
     def force_law(self) -> str:
+        """W_c ∝ F^(1 - area exponent) (eqs. 1, 3, 6), ∝ F above the force where the contact is a fingertip's."""
         return (f"W_c ∝ F^{self._detach_exponent:.3g} from eqs. (1), (3), (6), ∝ F above "
                 f"{self._saturation_n:.3g} N where the area is a fingertip's")
 
@@ -106,6 +108,7 @@ class PaperModel(FrictionModel):
         return detach_amplitude_um_pp(clip_force(force_n), params)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        """The ratio from the table over u = a_pp / W_c(F); see :meth:`FrictionModel.relative_friction`."""
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -136,6 +139,7 @@ class PaperModel(FrictionModel):
                                               self._saturation_n, MIN_FORCE_N, MAX_FORCE_N, out)
 
     def describe(self) -> str:
+        """One line: the model and its finger's parameters (E in MPa, n, the area exponent, the contact)."""
         p = self.params
         return (
             f"paper: ridge springs with non-Coulombic friction (E = {p.youngs_modulus_pa / 1e6:g} MPa, "
@@ -143,6 +147,7 @@ class PaperModel(FrictionModel):
         )
 
     def parameters(self) -> dict[str, float | str]:
+        """The finger's fitted parameters: ``youngs_modulus_pa`` (Pa), ``friction_exponent``, ``area_exponent``."""
         p = self.params
         return {
             "youngs_modulus_pa": p.youngs_modulus_pa,

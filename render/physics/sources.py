@@ -62,6 +62,7 @@ class Figure:
 
     @property
     def author(self) -> str:
+        """The paper's authors and year, as cited."""
         return AUTHORS[self.paper]
 
 

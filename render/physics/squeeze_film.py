@@ -185,6 +185,7 @@ class SqueezeFilmModel(FrictionModel):
     name = "squeeze-film"
 
     def warm_up(self) -> None:
+        """Load the film model's compiled inverse (numba's cache) before a real-time block needs it."""
         kernels.warm_up_film()
 
     def __init__(self, film: FilmParams = FilmParams(), finger: FingerParams = FingerParams()):
@@ -210,6 +211,7 @@ class SqueezeFilmModel(FrictionModel):
         return film_ratio(amplitude, force, self.film, self._contact)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        """The ridges' ratio at the load the film leaves them; see :meth:`FrictionModel.relative_friction`."""
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -237,6 +239,7 @@ class SqueezeFilmModel(FrictionModel):
 
     # ---- words ----------------------------------------------------------------------------------------
     def force_law(self) -> str:
+        """The film's share of the load falls as F^(-1/3); the ridges detach as W_c ∝ F_c^(1/3) at theirs."""
         return ("the film's share of the load falls as F^(-1/3) (its area A ∝ F^(2/3), eq. 3); the ridges' "
                 "detachment W_c ∝ F_c^(1/3) at their own load (eq. 6)")
 
@@ -247,6 +250,7 @@ class SqueezeFilmModel(FrictionModel):
         return self._contact._range_reason()
 
     def describe(self) -> str:
+        """One line: the ridges' finger, the film (gap in µm, share, pressure in kPa) and the sources."""
         f, p = self.film, self.finger
         return (f"squeeze-film: the paper's ridges (E = {p.youngs_modulus_pa / 1e6:g} MPa, n = "
                 f"{p.friction_exponent:.3g}, {p.contact} contact) sharing the load with an air film "
@@ -264,6 +268,9 @@ class SqueezeFilmModel(FrictionModel):
         return f"SqueezeFilmModel({', '.join(parts)})"
 
     def parameters(self) -> dict[str, float | str]:
+        """The film's ``gap_um`` (µm), ``film_fraction``, ``ambient_pressure_pa`` (Pa) and the finger's
+        ``youngs_modulus_pa`` (Pa) and ``friction_exponent``.
+        """
         return {"gap_um": self.film.gap_um, "film_fraction": self.film.film_fraction,
                 "ambient_pressure_pa": self.film.ambient_pressure_pa,
                 "youngs_modulus_pa": self.finger.youngs_modulus_pa,

@@ -54,6 +54,7 @@ class TableModel(FrictionModel):
     name = "table"
 
     def warm_up(self) -> None:
+        """Load the table's compiled inverse (numba's cache) before a real-time block needs it."""
         kernels.warm_up_table()
 
     def __init__(self, data: Measurements):
@@ -131,6 +132,9 @@ class TableModel(FrictionModel):
                                             table.slopes, self.forces, out)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
+        """The exact inverse of the tabulated amplitudes, by bisection; see :meth:`FrictionModel.relative_friction`.
+        Amplitudes beyond the largest measured one are held there.
+        """
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -148,6 +152,7 @@ class TableModel(FrictionModel):
         return 0.5 * (low + high)
 
     def force_law(self) -> str:
+        """None when measured at one force; else amplitudes linear in force between the measured forces."""
         if len(self.forces) == 1:
             return f"none: measured at {self.forces[0]:g} N only, the same curve at every force"
         return f"measured at {len(self.forces)} forces, amplitudes linear in force between them"
@@ -161,10 +166,12 @@ class TableModel(FrictionModel):
         return "the forces measured; beyond them the nearest force's curve is held"
 
     def describe(self) -> str:
+        """One line: the file, its forces (N) and its largest amplitude (µm p-p)."""
         forces = ", ".join(f"{f:g}" for f in self.forces)
         return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
 
     def parameters(self) -> dict[str, float | str]:
+        """``source``: the file the points came from."""
         return {"source": self.source}
 
     def __repr__(self) -> str:
