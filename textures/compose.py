@@ -56,7 +56,33 @@ def compose(size_mm: tuple[float, float], placements: list[Placement], backgroun
             px_per_mm: float = 10.0, name: str = "composition") -> Texture:
     """A friction texture of ``size_mm`` with each placed texture's friction pasted where it sits;
     elsewhere ``background_ratio`` (1: bare glass, at rest). Each placed texture's effects come with it,
-    moved to where it sits (those that played anywhere on it play on it)."""
+    moved to where it sits (those that played anywhere on it play on it).
+
+    Parameters
+    ----------
+    size_mm : (float, float)
+        The canvas's width and height (mm).
+    placements : list of Placement
+        The textures and their top-left corners (mm); a later one covers an earlier.
+    background_ratio : float
+        The friction ratio where nothing is placed.
+    px_per_mm : float
+        The canvas's resolution.
+    name : str
+        The result's name.
+
+    Returns
+    -------
+    Texture
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> canvas = compose((20.0, 10.0), [Placement(a, 0.0, 0.0)], background_ratio=1.0)
+    >>> canvas, float(canvas.values[0, 0]), float(canvas.values[0, -1])     # on a, then bare glass
+    (Texture('composition', 20 × 10 mm, 200 × 100 px), 0.5, 1.0)
+    """
     cols, rows = round(size_mm[0] * px_per_mm), round(size_mm[1] * px_per_mm)
     x = (np.arange(cols) + 0.5) / px_per_mm
     y = (np.arange(rows) + 0.5) / px_per_mm
@@ -101,7 +127,33 @@ class Grid:
 
 def common_grid(textures: Sequence[Texture], size_mm: tuple[float, float] | None = None,
                 px_per_mm: float | None = None) -> Grid:
-    """The grid a composition of ``textures`` is made on (see the module docstring)."""
+    """The grid a composition of ``textures`` is made on (see the module docstring).
+
+    Parameters
+    ----------
+    textures : sequence of Texture
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> common_grid([a, b], size_mm=(20.0, 10.0), px_per_mm=5.0).shape    # rows, cols
+    (50, 100)
+    """
     if not textures:
         raise TextureError("a composition needs at least one texture")
     width_mm, height_mm = size_mm or (textures[0].width_mm, textures[0].height_mm)
@@ -126,7 +178,29 @@ def _kind_of(textures: Sequence[Texture]) -> str:
 def resample(texture: Texture, grid: Grid, x_mm: float = 0.0, y_mm: float = 0.0,
              outside: str | None = None) -> np.ndarray:
     """The texture's friction ratio (a gradient texture's height) at the grid's pixel centres, with its
-    top-left corner at (``x_mm``, ``y_mm``) and its own rule beyond its edges (or ``outside``)."""
+    top-left corner at (``x_mm``, ``y_mm``) and its own rule beyond its edges (or ``outside``).
+
+    Parameters
+    ----------
+    texture : Texture
+    grid : Grid
+        Where to sample: its size (mm) and pixels.
+    x_mm, y_mm : float
+        Where the texture's top-left corner lies on the grid (mm).
+    outside : {"tile", "clamp", "fixed"}, optional
+        The rule beyond the texture's edges; its own by default.
+
+    Returns
+    -------
+    numpy.ndarray, shape (rows, cols)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.array([[0.2, 0.8]]), width_mm=10.0, height_mm=5.0)
+    >>> resample(a, Grid(20.0, 5.0, 0.2))[0].astype(float).round(2).tolist()     # tiled: 0.2 0.8 0.2 0.8
+    [0.2, 0.8, 0.2, 0.8]
+    """
     rule = outside or texture.outside
     if texture.kind == "gradient":  # heights: flat ground beyond a fixed height map is its edge extended
         texture = texture.with_(kind="friction", outside="clamp" if rule == "fixed" else rule)
@@ -167,7 +241,39 @@ def _combine(operation: str, textures: Sequence[Texture], size_mm, px_per_mm):
 
 def mix(textures: Sequence[Texture], weights: Sequence[float] | None = None, size_mm=None,
         px_per_mm: float | None = None, name: str = "mix", outside: str | None = None) -> Texture:
-    """The weighted mean Σ wᵢ vᵢ / Σ wᵢ of the inputs (equal weights unless given)."""
+    """The weighted mean Σ wᵢ vᵢ / Σ wᵢ of the inputs (equal weights unless given).
+
+    Parameters
+    ----------
+    textures : sequence of Texture
+    weights : sequence of float, optional
+        One weight per texture, >= 0 and not all 0.
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> round(float(mix([a, b]).values[0, 0]), 3), round(float(mix([a, b], weights=[3, 1]).values[0, 0]), 3)
+    (0.65, 0.575)
+    """
     weights = np.ones(len(textures)) if weights is None else np.asarray(weights, dtype=float)
     if weights.shape != (len(textures),):
         raise TextureError(f"give one weight per texture: {len(textures)} textures, {weights.size} weights")
@@ -184,7 +290,37 @@ def mix(textures: Sequence[Texture], weights: Sequence[float] | None = None, siz
 
 def minimum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "min",
             outside: str | None = None) -> Texture:
-    """The lowest value of the inputs at each point (for friction: the slipperiest)."""
+    """The lowest value of the inputs at each point (for friction: the slipperiest).
+
+    Parameters
+    ----------
+    textures : sequence of Texture
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> round(float(minimum([a, b]).values[0, 0]), 3)
+    0.5
+    """
     grid, kind, stack = _combine("min", textures, size_mm, px_per_mm)
     return _result(stack.min(axis=0), grid, textures[0], kind, name, f"minimum of {', '.join(_names(textures))}",
                    outside, operation="min", inputs=_names(textures),
@@ -193,7 +329,37 @@ def minimum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None =
 
 def maximum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "max",
             outside: str | None = None) -> Texture:
-    """The highest value of the inputs at each point (for friction: the stickiest)."""
+    """The highest value of the inputs at each point (for friction: the stickiest).
+
+    Parameters
+    ----------
+    textures : sequence of Texture
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> round(float(maximum([a, b]).values[0, 0]), 3)
+    0.8
+    """
     grid, kind, stack = _combine("max", textures, size_mm, px_per_mm)
     return _result(stack.max(axis=0), grid, textures[0], kind, name, f"maximum of {', '.join(_names(textures))}",
                    outside, operation="max", inputs=_names(textures),
@@ -202,7 +368,37 @@ def maximum(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None =
 
 def multiply(textures: Sequence[Texture], size_mm=None, px_per_mm: float | None = None, name: str = "multiply",
              outside: str | None = None) -> Texture:
-    """The product of the inputs: friction reductions compound (0.5 × 0.8 = 0.4)."""
+    """The product of the inputs: friction reductions compound (0.5 × 0.8 = 0.4).
+
+    Parameters
+    ----------
+    textures : sequence of Texture
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> round(float(multiply([a, b]).values[0, 0]), 3)
+    0.4
+    """
     grid, kind, stack = _combine("multiply", textures, size_mm, px_per_mm)
     return _result(stack.prod(axis=0), grid, textures[0], kind, name, f"product of {', '.join(_names(textures))}",
                    outside, operation="multiply", inputs=_names(textures),
@@ -216,6 +412,42 @@ def mask(texture: Texture, weights: Texture | np.ndarray, other: Texture | None 
 
     ``weights`` is a texture (its values, 0..1, at its physical size with its rule beyond its edges)
     or an image's luminance (rows × cols in 0..1), stretched over the whole result.
+
+    Parameters
+    ----------
+    texture : Texture
+        A: where the mask is 1.
+    weights : Texture or numpy.ndarray
+        The mask m, 0..1.
+    other : Texture, optional
+        B: where the mask is 0.
+    other_ratio : float
+        B as a constant friction ratio (0..1) when ``other`` is not given.
+    size_mm : (float, float), optional
+        The result's width and height (mm); the first input's by default.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> mask(a, np.array([[1.0, 0.0], [1.0, 0.0]]), other_ratio=1.0).values[0].round(3).tolist()
+    [0.5, 1.0]
     """
     inputs = [texture] + ([other] if other is not None else [])
     kind = _kind_of(inputs)
@@ -242,7 +474,42 @@ def mask(texture: Texture, weights: Texture | np.ndarray, other: Texture | None 
 def tile_inside(inner: Texture, outer: Texture, region_mm: tuple[float, float, float, float],
                 px_per_mm: float | None = None, name: str = "tiled", outside: str | None = None) -> Texture:
     """``outer`` with the rectangle ``region_mm`` (x, y, width, height) filled by ``inner`` repeated
-    from the region's top-left corner; the result has the outer texture's size."""
+    from the region's top-left corner; the result has the outer texture's size.
+
+    Parameters
+    ----------
+    inner : Texture
+        What fills the region, repeated.
+    outer : Texture
+        The ground, and the result's size.
+    region_mm : (float, float, float, float)
+        x, y, width, height (mm) on ``outer``.
+    px_per_mm : float, optional
+        The result's resolution; the finest input's by default.
+    name : str
+        The result's name.
+    outside : {"tile", "clamp", "fixed"}, optional
+        The result's rule beyond its edges; the first input's by default.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        No input, friction and gradient textures together, or a result of too many pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=10.0, name="a")
+    >>> b = Texture(np.full((2, 2), 0.8), width_mm=10.0, height_mm=10.0, name="b")
+    >>> outer = Texture(np.full((4, 4), 1.0), width_mm=40.0, height_mm=40.0, name="glass")
+    >>> tiled = tile_inside(a, outer, (10.0, 10.0, 20.0, 20.0))
+    >>> tiled, float(tiled.values[0, 0]), float(tiled.values[4, 4])        # the ground, inside the region
+    (Texture('tiled', 40 × 40 mm, 8 × 8 px), 1.0, 0.5)
+    """
     x0, y0, width, height = (float(v) for v in region_mm)
     if not (width > 0 and height > 0 and np.isfinite([x0, y0, width, height]).all()):
         raise TextureError(f"the region is X,Y,WIDTH,HEIGHT in mm with a positive size, got {region_mm}")

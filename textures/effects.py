@@ -63,22 +63,86 @@ from ultraglide.textures.errors import TextureError
 
 # ---- a few effects for interfaces (what the demo's widgets play) ------------------------------------------
 def click(depth: float = 0.5) -> Effect:
-    """A button's click: a 250 Hz square burst under a 15 ms envelope (friction drops by up to ``depth``)."""
+    """A button's click: a 250 Hz square burst under a 15 ms envelope (friction drops by up to ``depth``).
+
+    Parameters
+    ----------
+    depth : float
+        The largest drop in friction ratio.
+
+    Returns
+    -------
+    Effect
+
+    Examples
+    --------
+    >>> round(click().duration_s, 6)                                   # s: 1 + 4 + 0 + 10 ms
+    0.015
+    """
     return Square(250.0, depth) * ADSR(0.001, 0.004, 0.0, 0.010, sustain_level=0.5)
 
 
 def pulse(depth: float = 0.4, length_s: float = 0.012) -> Effect:
-    """A detent's pulse: friction ``depth`` lower for ``length_s``."""
+    """A detent's pulse: friction ``depth`` lower for ``length_s``.
+
+    Parameters
+    ----------
+    depth : float
+        The drop in friction ratio.
+    length_s : float
+        How long (s).
+
+    Returns
+    -------
+    Effect
+
+    Examples
+    --------
+    >>> pulse(0.4, 0.012)
+    Constant(level=0.4, length_s=0.012)
+    """
     return Constant(depth, length_s)
 
 
 def buzz(frequency_hz: float = 150.0, depth: float = 0.25) -> Effect:
-    """A buzz for as long as it is held (bind it to a ``while`` trigger)."""
+    """A buzz for as long as it is held (bind it to a ``while`` trigger).
+
+    Parameters
+    ----------
+    frequency_hz : float
+        The buzz's frequency (Hz).
+    depth : float
+        The largest drop in friction ratio.
+
+    Returns
+    -------
+    Effect
+
+    Examples
+    --------
+    >>> buzz(150.0, 0.25).duration_s                                    # until released
+    inf
+    """
     return Sine(frequency_hz, depth)
 
 
 def snap(depth: float = 0.6) -> Effect:
-    """A toggle's snap: two sharp drops 20 ms apart."""
+    """A toggle's snap: two sharp drops 20 ms apart.
+
+    Parameters
+    ----------
+    depth : float
+        The largest drop in friction ratio.
+
+    Returns
+    -------
+    Effect
+
+    Examples
+    --------
+    >>> round(snap().duration_s, 6)                                    # s: 12 + 8 + 12 ms
+    0.032
+    """
     hit = Sawtooth(100.0, depth) * ADSR(0.0, 0.0, 0.008, 0.004, sustain_level=1.0)
     return hit >> Constant(0.0, 0.008) >> hit
 
@@ -88,7 +152,26 @@ def moved(bindings, dx_mm: float, dy_mm: float, region_mm: tuple[float, float, f
           ) -> tuple[Binding, ...]:
     """``bindings`` for a texture whose top-left corner moves to (``dx_mm``, ``dy_mm``): regions and crossing
     lines shifted with it. A binding that played anywhere plays in ``region_mm`` (where the texture now lies),
-    or still anywhere if that is None."""
+    or still anywhere if that is None.
+
+    Parameters
+    ----------
+    bindings : iterable of Binding
+    dx_mm, dy_mm : float
+        The move (mm).
+    region_mm : (float, float, float, float), optional
+        x, y, width, height (mm) where the texture now lies.
+
+    Returns
+    -------
+    tuple of Binding
+
+    Examples
+    --------
+    >>> held = Binding(Trigger("while", region_mm=(0.0, 0.0, 5.0, 5.0)), buzz())
+    >>> moved([held], 10.0, 20.0)[0].trigger.region_mm
+    (10.0, 20.0, 5.0, 5.0)
+    """
     out = []
     for binding in bindings:
         t = binding.trigger
@@ -104,8 +187,27 @@ def moved(bindings, dx_mm: float, dy_mm: float, region_mm: tuple[float, float, f
 
 
 def combined(*groups) -> tuple[Binding, ...]:
-    """Every binding of ``groups`` in order, each once (an input given twice brings its effects once);
-    TextureError beyond the :data:`MAX_BINDINGS` a texture keeps."""
+    """Every binding of ``groups`` in order, each once (an input given twice brings its effects once).
+
+    Parameters
+    ----------
+    *groups : iterable of Binding
+
+    Returns
+    -------
+    tuple of Binding
+
+    Raises
+    ------
+    TextureError
+        More than the :data:`MAX_BINDINGS` a texture keeps.
+
+    Examples
+    --------
+    >>> clicks = (Binding(Trigger("start"), click()),)
+    >>> len(combined(clicks, clicks))
+    1
+    """
     out, seen = [], set()
     for binding in (binding for group in groups for binding in group):
         key = repr(binding_to_dict(binding))

@@ -232,7 +232,36 @@ def dots(pitch_mm: float = 4.0, diameter_mm: float = 2.0, size_mm: Size = DEFAUL
 
 def bumps(pitch_mm: float = 10.0, diameter_mm: float = 8.0, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
           px_per_mm: float | None = None) -> Texture:
-    """Smooth round bumps as a height map: a gradient texture, felt as bumps in every direction."""
+    """Smooth round bumps (cos² profile) as a height map: a gradient texture, felt as bumps in every direction.
+
+    Parameters
+    ----------
+    pitch_mm : float
+        The bumps' spacing (mm), snapped so the texture tiles.
+    diameter_mm : float
+        Each bump's diameter (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = bumps(pitch_mm=10.0, diameter_mm=8.0)
+    >>> texture
+    Texture('bumps', 80 × 50 mm, 800 × 500 px, gradient)
+    """
     _check_positive(pitch_mm=pitch_mm, diameter_mm=diameter_mm)
     x, y = _grid(size_mm, diameter_mm / 4, px_per_mm)
     dx, dy, pitches = _lattice(size_mm, pitch_mm, x, y)
@@ -351,7 +380,40 @@ def fractal(hurst: float = 0.5, cutoff_mm: float = 0.5, size_mm: Size = (40.0, 4
 def gabor(wavelength_mm: float = 2.0, sigma_mm: float = 4.0, size_mm=(30.0, 30.0), angle_deg: float = 0.0,
           ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
     """A Gabor patch: a sine grating under a round Gaussian window of ``sigma_mm``, centred; beyond
-    the window the friction is the middle of the range, also outside the texture."""
+    the window the friction is the middle of the range, also outside the texture.
+
+    Parameters
+    ----------
+    wavelength_mm : float
+        The grating's period (mm).
+    sigma_mm : float
+        The window's standard deviation (mm).
+    angle_deg : float
+        The direction across the ridges (degrees).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = gabor(wavelength_mm=2.0, sigma_mm=4.0, ratio_range=(0.4, 1.0))
+    >>> texture.outside, round(texture.outside_ratio, 6)             # the middle of the range
+    ('fixed', 0.7)
+    >>> round(float(texture.values[0, 0]), 3)                         # a corner, far out of the window
+    0.7
+    """
     _check_positive(wavelength_mm=wavelength_mm, sigma_mm=sigma_mm)
     x, y = _grid(size_mm, min(wavelength_mm, sigma_mm), px_per_mm)
     cx, cy = x - size_mm[0] / 2, y - size_mm[1] / 2
@@ -368,7 +430,34 @@ def gabor(wavelength_mm: float = 2.0, sigma_mm: float = 4.0, size_mm=(30.0, 30.0
 
 def bump(diameter_mm: float = 10.0, size_mm=(30.0, 30.0), ratio_range=DEFAULT_RANGE,
          px_per_mm: float | None = None) -> Texture:
-    """One smooth round bump (cos² profile) in the middle of flat ground: a gradient texture."""
+    """One smooth round bump (cos² profile) in the middle of flat ground: a gradient texture.
+
+    Parameters
+    ----------
+    diameter_mm : float
+        The bump's diameter (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = bump(diameter_mm=10.0)
+    >>> texture.kind, texture.outside, round(texture.outside_ratio, 6)   # flat ground: the middle
+    ('gradient', 'fixed', 0.7)
+    """
     _check_positive(diameter_mm=diameter_mm)
     x, y = _grid(size_mm, diameter_mm / 4, px_per_mm)
     radius = np.hypot(x - size_mm[0] / 2, y - size_mm[1] / 2)
@@ -381,7 +470,34 @@ def bump(diameter_mm: float = 10.0, size_mm=(30.0, 30.0), ratio_range=DEFAULT_RA
 def edge(width_mm: float = 0.5, size_mm=(40.0, 30.0), ratio_range=DEFAULT_RANGE,
          px_per_mm: float | None = None) -> Texture:
     """One straight edge down the middle: slippery on the left, sticky on the right, the step
-    spread over ``width_mm`` (a raised-cosine ramp); the two sides extend beyond the texture."""
+    spread over ``width_mm`` (a raised-cosine ramp); the two sides extend beyond the texture.
+
+    Parameters
+    ----------
+    width_mm : float
+        How wide the step is (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = edge(width_mm=0.5, size_mm=(40.0, 30.0), ratio_range=(0.4, 1.0))
+    >>> round(float(texture.values[0, 0]), 3), round(float(texture.values[0, -1]), 3), texture.outside
+    (0.4, 1.0, 'clamp')
+    """
     _check_positive(width_mm=width_mm)
     x, _ = _grid(size_mm, width_mm, px_per_mm)
     t = np.clip((x - size_mm[0] / 2) / width_mm + 0.5, 0.0, 1.0)
@@ -393,7 +509,38 @@ def edge(width_mm: float = 0.5, size_mm=(40.0, 30.0), ratio_range=DEFAULT_RANGE,
 def lines(widths_mm=(0.25, 0.5, 1.0, 2.0, 4.0), spacing_mm: float = 10.0, size_mm=(80.0, 40.0),
           ratio_range=DEFAULT_RANGE, px_per_mm: float | None = None) -> Texture:
     """Single sticky vertical lines of the given widths, ``spacing_mm`` apart (centre to centre),
-    centred on a slippery ground: a chart for the finest line a finger finds."""
+    centred on a slippery ground: a chart for the finest line a finger finds.
+
+    Parameters
+    ----------
+    widths_mm : sequence of float
+        The lines' widths (mm), left to right; one or more.
+    spacing_mm : float
+        From one line's centre to the next (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = lines(widths_mm=(0.5, 2.0), spacing_mm=10.0, size_mm=(40.0, 20.0), ratio_range=(0.4, 1.0))
+    >>> texture.description
+    'single lines 0.5, 2 mm wide, 10 mm apart'
+    >>> [round(float(texture.values[0, texture.cols * x // 40]), 3) for x in (5, 15, 25)]  # ground, line, line
+    [0.4, 1.0, 1.0]
+    """
     widths = [float(w) for w in widths_mm]
     if not widths:
         raise TextureError("lines needs at least one width")
@@ -412,7 +559,33 @@ def lines(widths_mm=(0.25, 0.5, 1.0, 2.0, 4.0), spacing_mm: float = 10.0, size_m
 
 def chirp(start_mm: float = 4.0, end_mm: float = 0.5, size_mm=DEFAULT_SIZE_MM, ratio_range=DEFAULT_RANGE,
           px_per_mm: float | None = None) -> Texture:
-    """A sine grating whose wavelength sweeps from ``start_mm`` at the left to ``end_mm`` at the right."""
+    """A sine grating whose wavelength sweeps from ``start_mm`` at the left to ``end_mm`` at the right.
+
+    Parameters
+    ----------
+    start_mm, end_mm : float
+        The wavelengths (mm) at the left and right edges.
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> chirp(start_mm=4.0, end_mm=0.5).description
+    'wavelength sweeping 4 → 0.5 mm'
+    """
     _check_positive(start_mm=start_mm, end_mm=end_mm)
     x, _ = _grid(size_mm, min(start_mm, end_mm), px_per_mm)
     width = size_mm[0]
@@ -432,7 +605,36 @@ def _box(x, y, left, top, width, height):
 
 def button(size_mm=(60.0, 40.0), button_mm=(36.0, 20.0), edge_mm: float = 1.5, ratio_range=DEFAULT_RANGE,
            px_per_mm: float | None = None) -> Texture:
-    """A button: sticky raised edges around a half-sticky face, on a slippery ground."""
+    """A button: sticky raised edges around a half-sticky face, on a slippery ground.
+
+    Parameters
+    ----------
+    button_mm : (float, float)
+        The button's width and height (mm), centred.
+    edge_mm : float
+        How wide its raised edge is (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> texture = button(ratio_range=(0.4, 1.0))
+    >>> round(float(texture.values[0, 0]), 3), round(float(texture.values[texture.rows // 2, texture.cols // 2]), 3)
+    (0.4, 0.7)
+    """
     _check_positive(edge_mm=edge_mm)
     x, y = _grid(size_mm, edge_mm, px_per_mm)
     left, top = (size_mm[0] - button_mm[0]) / 2, (size_mm[1] - button_mm[1]) / 2
@@ -445,7 +647,39 @@ def button(size_mm=(60.0, 40.0), button_mm=(36.0, 20.0), edge_mm: float = 1.5, r
 
 def slider(size_mm=(80.0, 20.0), detents: int = 5, detent_mm: float = 1.0, ratio_range=DEFAULT_RANGE,
            px_per_mm: float | None = None) -> Texture:
-    """A horizontal slider track with sticky detents at evenly spaced stops and sticky rails."""
+    """A horizontal slider track with sticky detents at evenly spaced stops and sticky rails.
+
+    Parameters
+    ----------
+    detents : int
+        How many stops, 2 or more.
+    detent_mm : float
+        Each detent's width (mm), and the rails'.
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> slider(detents=5)
+    Texture('slider', 80 × 20 mm, 800 × 200 px)
+    >>> slider(detents=1)
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: a slider needs at least 2 detents, got 1
+    """
     if detents < 2:
         raise TextureError(f"a slider needs at least 2 detents, got {detents}")
     _check_positive(detent_mm=detent_mm)
@@ -465,7 +699,33 @@ def slider(size_mm=(80.0, 20.0), detents: int = 5, detent_mm: float = 1.0, ratio
 
 def toggle(size_mm=(40.0, 24.0), on: bool = False, ratio_range=DEFAULT_RANGE,
            px_per_mm: float | None = None) -> Texture:
-    """A toggle switch: a rounded track with a sticky knob at one end."""
+    """A toggle switch: a rounded track with a sticky knob at one end.
+
+    Parameters
+    ----------
+    on : bool
+        The knob at the right (on) or the left (off).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> toggle(on=True).description
+    'a toggle switch, on'
+    """
     x, y = _grid(size_mm, 1.0, px_per_mm)
     centre_y, radius = size_mm[1] / 2, size_mm[1] * 0.35
     left, right = size_mm[0] * 0.25, size_mm[0] * 0.75
@@ -480,7 +740,35 @@ def toggle(size_mm=(40.0, 24.0), on: bool = False, ratio_range=DEFAULT_RANGE,
 
 def keyboard(size_mm=(90.0, 30.0), keys=(10, 3), edge_mm: float = 0.8, ratio_range=DEFAULT_RANGE,
              px_per_mm: float | None = None) -> Texture:
-    """A small keyboard: a grid of keys whose edges are sticky ridges and faces slippery."""
+    """A small keyboard: a grid of keys whose edges are sticky ridges and faces slippery.
+
+    Parameters
+    ----------
+    keys : (int, int)
+        Keys across and down.
+    edge_mm : float
+        How wide each key's edge is (mm).
+    size_mm : (float, float)
+        The texture's width and height (mm).
+    ratio_range : (float, float)
+        The friction ratios of the slipperiest and stickiest parts (0..1).
+    px_per_mm : float, optional
+        The resolution; by default fine enough for the finest feature.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A size, feature or range out of bounds, in one line.
+
+    Examples
+    --------
+    >>> keyboard(keys=(10, 3)).description
+    'a 10×3 keyboard with key edges'
+    """
     _check_positive(edge_mm=edge_mm)
     x, y = _grid(size_mm, edge_mm, px_per_mm)
     key_w, key_h = size_mm[0] / keys[0], size_mm[1] / keys[1]
