@@ -68,7 +68,31 @@ def effect_to_dict(effect: Effect) -> dict:
 
 
 def effect_from_dict(data, depth: int = 0) -> Effect:
-    """An effect from its description; TextureError (one line) for a bad one."""
+    """An effect from its description (what :func:`effect_to_dict` writes).
+
+    Parameters
+    ----------
+    data : dict
+        ``type`` and the effect's fields (Hz, s, ratios); compositions nest their parts.
+
+    Returns
+    -------
+    Effect
+
+    Raises
+    ------
+    TextureError
+        An unknown type, a field missing or out of range, in one line.
+
+    Examples
+    --------
+    >>> effect_from_dict({"type": "sine", "frequency_hz": 10.0, "depth": 0.2})
+    Sine(frequency_hz=10.0, depth=0.2)
+    >>> effect_from_dict({"type": "wobble"})                           # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: unknown effect type 'wobble' (sine, square, sawtooth, triangle, ...)
+    """
     if depth > 16:
         raise TextureError("effect descriptions may nest at most 16 deep")
     if not isinstance(data, dict) or not isinstance(data.get("type"), str):
@@ -138,12 +162,52 @@ def binding_to_dict(binding: Binding) -> dict:
 
 
 def to_json(bindings) -> dict:
-    """The versioned description kept in a texture file's metadata (plain JSON values)."""
+    """The versioned description kept in a texture file's metadata (plain JSON values).
+
+    Parameters
+    ----------
+    bindings : iterable of Binding
+
+    Returns
+    -------
+    dict
+        ``effects_version`` and the ``bindings``' descriptions.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+    >>> to_json([Binding(Trigger("start"), Constant(0.3, 0.05))])["effects_version"]
+    1
+    """
     return {"effects_version": EFFECTS_VERSION, "bindings": [binding_to_dict(b) for b in bindings]}
 
 
 def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
-    """Bindings from :func:`to_json`'s description; TextureError naming ``where`` and what is wrong."""
+    """Bindings from :func:`to_json`'s description.
+
+    Parameters
+    ----------
+    data : dict
+        The description.
+    where : str
+        What to name in a refusal (a file, a chunk).
+
+    Returns
+    -------
+    tuple of Binding
+
+    Raises
+    ------
+    TextureError
+        A bad description, naming ``where`` and what is wrong, in one line.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+    >>> bindings = (Binding(Trigger("start"), Constant(0.3, 0.05)),)
+    >>> from_json(to_json(bindings)) == bindings                        # read back as written
+    True
+    """
     try:
         if not isinstance(data, dict):
             raise TextureError("the effects description must be a JSON object")
@@ -170,10 +234,34 @@ def from_json(data, where: str = "effects") -> tuple[Binding, ...]:
 
 
 def load_effects(path) -> tuple[Binding, ...]:
-    """Bindings from a JSON file holding :func:`to_json`'s description; one-line TextureError for a bad one
-    (a path that is not a regular file is refused without being read). A designer's file (``.ahap``,
+    """Bindings from a JSON file holding :func:`to_json`'s description. A designer's file (``.ahap``,
     ``.haptic``, ``.hjif``, ``.haps``) is read by
-    :func:`ultraglide.textures.formats.effects_in.load_designer_effects`."""
+    :func:`ultraglide.textures.formats.effects_in.load_designer_effects`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The JSON file; a path that is not a regular file is refused without being read.
+
+    Returns
+    -------
+    tuple of Binding
+
+    Raises
+    ------
+    TextureError
+        A file that cannot be read or a bad description, in one line.
+
+    Examples
+    --------
+    >>> import json, os, tempfile
+    >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+    >>> path = os.path.join(tempfile.mkdtemp(), "effects.json")
+    >>> with open(path, "w") as file:
+    ...     json.dump(to_json([Binding(Trigger("start"), Constant(0.3, 0.05))]), file)
+    >>> load_effects(path)[0].effect
+    Constant(level=0.3, length_s=0.05)
+    """
     from ultraglide.inputs import parse_json, read_input
 
     if str(path).lower().endswith((".ahap", ".haptic", ".hjif", ".haps")):

@@ -71,7 +71,27 @@ TextureLike = Texture | str | os.PathLike | np.ndarray  # a texture, its name or
 
 
 def as_model(model: FrictionModel | str | os.PathLike) -> FrictionModel:
-    """A friction model, or one by name or file (:func:`load_model`)."""
+    """A friction model, or one by name or file (:func:`load_model`).
+
+    Parameters
+    ----------
+    model : FrictionModel, str or os.PathLike
+        A model, a model's name (``stretched``, ``exponential`` ...), ``table:FILE.csv`` or a ``CAL.toml``.
+
+    Returns
+    -------
+    FrictionModel
+
+    Raises
+    ------
+    ModelError
+        Not a model nor a name, or what :func:`load_model` refuses.
+
+    Examples
+    --------
+    >>> as_model("exponential")
+    ExponentialModel(tau_um_zp=1.32)
+    """
     if isinstance(model, FrictionModel):
         return model
     if not isinstance(model, str | os.PathLike):
@@ -81,7 +101,27 @@ def as_model(model: FrictionModel | str | os.PathLike) -> FrictionModel:
 
 
 def as_profile(profile: PlateProfile | str | os.PathLike) -> PlateProfile:
-    """A plate profile, or one by bundled name or TOML file (:func:`load_profile`)."""
+    """A plate profile, or one by bundled name or TOML file (:func:`load_profile`).
+
+    Parameters
+    ----------
+    profile : PlateProfile, str or os.PathLike
+        A profile, a bundled profile's name (``sim-plate``) or a TOML file.
+
+    Returns
+    -------
+    PlateProfile
+
+    Raises
+    ------
+    DeviceError
+        Not a profile nor a name, or what :func:`load_profile` refuses.
+
+    Examples
+    --------
+    >>> as_profile("sim-plate").max_amplitude_um_pp                   # µm p-p
+    6.0
+    """
     if isinstance(profile, PlateProfile):
         return profile
     if not isinstance(profile, str | os.PathLike):
@@ -154,7 +194,29 @@ class Renderer(_Renderer):
 
 
 def export_duration_s(renderer: Renderer) -> float:
-    """How long an export of ``renderer``'s path lasts: the path, then the output coming to rest (s)."""
+    """How long an export of ``renderer``'s path lasts: the path, then the output coming to rest (s).
+
+    Parameters
+    ----------
+    renderer : Renderer
+        A renderer with a recorded or synthetic path.
+
+    Returns
+    -------
+    float
+        The path's duration plus the renderer's ``tail_s`` (s).
+
+    Raises
+    ------
+    RenderError
+        A renderer that follows a live finger (it has no end).
+
+    Examples
+    --------
+    >>> renderer = Renderer("grating-1mm", trajectory=SwipePath(duration_s=0.1))
+    >>> export_duration_s(renderer) == 0.1 + renderer.tail_s
+    True
+    """
     trajectory = renderer.trajectory
     if isinstance(trajectory, LiveTrajectory):
         raise RenderError("a renderer that follows a live finger has no end: give it a trajectory to export")
@@ -162,7 +224,18 @@ def export_duration_s(renderer: Renderer) -> float:
 
 
 def available_cpus() -> int:
-    """The CPUs this process may run on."""
+    """The CPUs this process may run on (its affinity where the system has one).
+
+    Returns
+    -------
+    int
+        1 or more.
+
+    Examples
+    --------
+    >>> available_cpus() >= 1
+    True
+    """
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
@@ -170,7 +243,7 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
               progress: Callable[[int], None] | None = None, threads: int | None = None,
               process: bool | None = None) -> float:
     """Pull ``frames`` of audio from ``stage`` into a mono WAV at ``path``, as it is given (no temporary
-    file), a second at a time. Returns the duration written (s). RF64 is used beyond 4 GB.
+    file), a second at a time. RF64 is used beyond 4 GB.
 
     Work is split by what it depends on: the control-rate envelope (a recursion) and the limiter run in
     order on this thread; putting each block on the carrier depends on each frame's index alone, so it
@@ -178,7 +251,46 @@ def write_wav(stage: OutputStage, path: str | os.PathLike, frames: int, format: 
     the blocks are written in order. With ``process`` (the default where ``fork`` exists: Linux) the
     carrier and the writing are done by a forked writer process, otherwise by threads of this one
     (:mod:`ultraglide._wav_writer`). A few blocks are held at most, so memory does not grow with the
-    length. ``progress`` is told of the frames of each block written."""
+    length.
+
+    Parameters
+    ----------
+    stage : OutputStage
+        An output stage whose signal is audio (:func:`offline_stage`).
+    path : str or os.PathLike
+        The WAV file.
+    frames : int
+        How many frames to write.
+    format : {"float32", "int24", "int16"}
+        The samples' format.
+    progress : callable, optional
+        Told of the frames of each block written.
+    threads : int, optional
+        How many chunks to put on the carrier at once, 1 or more; one per CPU by default.
+    process : bool, optional
+        Write from a forked process (the default where ``fork`` exists) or from threads of this one.
+
+    Returns
+    -------
+    float
+        The duration written (s).
+
+    Raises
+    ------
+    RenderError
+        An unknown format, a stage whose signal is not audio, or fewer than one thread.
+
+    Examples
+    --------
+    >>> import os, tempfile, soundfile
+    >>> stage = offline_stage(Renderer("grating-1mm", trajectory=SwipePath(duration_s=0.1)))
+    >>> path = os.path.join(tempfile.mkdtemp(), "swipe.wav")
+    >>> write_wav(stage, path, 9600)                                    # s: 9600 frames at 96 kHz
+    0.1
+    >>> info = soundfile.info(path)
+    >>> info.samplerate, info.frames, info.channels, info.subtype
+    (96000, 9600, 1, 'FLOAT')
+    """
     if format not in WAV_SUBTYPES:
         raise RenderError(f"format must be one of {', '.join(WAV_SUBTYPES)}, got {format!r}")
     if stage.signal != "audio":

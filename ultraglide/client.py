@@ -123,7 +123,24 @@ ERRORS = {cls.code: cls for cls in (BadMessage, TooBig, RateLimited, NoHello, Bu
 
 
 def refusal(reply: dict) -> Refused:
-    """The exception for an ``error`` reply."""
+    """The exception for an ``error`` reply: the class of its code (docs/service.md), :class:`Refused` for an
+    unknown one.
+
+    Parameters
+    ----------
+    reply : dict
+        The reply: its ``code`` and one-line ``message``.
+
+    Returns
+    -------
+    Refused
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "busy", "message": "another client controls"})
+    >>> type(error).__name__, str(error), error.code
+    ('Busy', 'another client controls', 'busy')
+    """
     code = str(reply.get("code", "refused"))
     return ERRORS.get(code, Refused)(str(reply.get("message", "refused")), code)
 

@@ -89,7 +89,24 @@ def describe(error: BaseException) -> str:
     """One line for an error a person can act on: OSErrors name the file and the reason (a full disk says that
     nothing was saved); memory refused says so (:func:`out_of_memory`, whatever a library raised); other errors
     give their message's first line. Shared by the command and the engine process, which reports its errors to
-    the app as text."""
+    the app as text.
+
+    Parameters
+    ----------
+    error : BaseException
+
+    Returns
+    -------
+    str
+        One line.
+
+    Examples
+    --------
+    >>> describe(FileNotFoundError(2, "No such file or directory", "wood.png"))
+    'wood.png: no such file or directory'
+    >>> describe(ValueError("a first line\\nand a second"))
+    'a first line'
+    """
     memory = out_of_memory(error)
     if memory is not None:
         return memory

@@ -21,7 +21,28 @@ MAX_TABLE = 1 << 20
 
 
 def check_carrier(carrier_hz: float, rate_hz: float) -> None:
-    """Refuse a carrier that this sample rate cannot carry, saying what rate would."""
+    """Refuse a carrier that this sample rate cannot carry, saying what rate would.
+
+    Parameters
+    ----------
+    carrier_hz : float
+        The carrier (Hz), > 0.
+    rate_hz : float
+        The audio rate (Hz) that is to carry it.
+
+    Raises
+    ------
+    DeviceError
+        A carrier that is not positive, or above the share of the rate a carrier may take.
+
+    Examples
+    --------
+    >>> check_carrier(25000.0, 96000)                                  # Hz: fine, says nothing
+    >>> check_carrier(25000.0, 44100)                                  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.devices.errors.DeviceError: a 25000 Hz carrier needs a sample rate of at least 62,500 Hz ...
+    """
     if not carrier_hz > 0:
         raise DeviceError(f"the carrier must be a positive frequency, got {carrier_hz} Hz")
     if carrier_hz > MAX_CARRIER_FRACTION * rate_hz:

@@ -72,7 +72,26 @@ STOP_TIMEOUT_S = 1.0  # a ramp down that has not reached rest by then is cut off
 
 def ramp_down(source: BlockSource, consuming, timeout_s: float = STOP_TIMEOUT_S) -> None:
     """Ask ``source`` to ramp to rest and wait while ``consuming()`` (the device still pulls) until it is
-    finished or ``timeout_s`` has passed. Every device stops through this before resting its hardware."""
+    finished or ``timeout_s`` has passed. Every device stops through this before resting its hardware.
+
+    Parameters
+    ----------
+    source : BlockSource
+        What the device pulls from.
+    consuming : callable
+        True while the device still pulls blocks (so the ramp can play out).
+    timeout_s : float
+        The longest wait (s); a ramp not at rest by then is cut off.
+
+    Examples
+    --------
+    >>> import types
+    >>> source = types.SimpleNamespace(finished=False)
+    >>> source.request_stop = lambda: setattr(source, "finished", True)
+    >>> ramp_down(source, consuming=lambda: True, timeout_s=1.0)
+    >>> source.finished
+    True
+    """
     source.request_stop()
     deadline = time.monotonic() + timeout_s
     while consuming() and not source.finished and time.monotonic() < deadline:
