@@ -144,7 +144,26 @@ def _luminance(image: Image.Image, background) -> np.ndarray:
 
 
 def physical_width_mm(cols: int, options: AuthoringOptions) -> float:
-    """The width (mm) an image ``cols`` pixels wide (after cropping) is given by ``options``."""
+    """The width (mm) an image ``cols`` pixels wide (after cropping) is given by ``options``.
+
+    Parameters
+    ----------
+    cols : int
+        The image's width (pixels).
+    options : AuthoringOptions
+        Its ``dpi`` (width = cols / dpi × 25.4 mm) or else its ``width_mm`` (80 mm when neither is given).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> physical_width_mm(600, AuthoringOptions(dpi=300.0))               # 2 inches, mm
+    50.8
+    >>> physical_width_mm(600, AuthoringOptions(width_mm=40.0))
+    40.0
+    """
     if options.dpi is not None:
         return cols / options.dpi * 25.4
     return options.width_mm or DEFAULT_WIDTH_MM
@@ -229,7 +248,28 @@ def read_image_luminance(path: str | Path, options: AuthoringOptions = Authoring
 
 def check_image(path: str | Path) -> None:
     """:class:`TextureError` unless ``path`` is a regular file in an image format Pillow reads (only its
-    header is read)."""
+    header is read).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Raises
+    ------
+    TextureError
+        No such file, not a regular file, or not an image Pillow knows, in one line.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = os.path.join(tempfile.mkdtemp(), "notes.txt")
+    >>> with open(path, "w") as file:
+    ...     _ = file.write("hello")
+    >>> check_image(path)                                              # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: .../notes.txt: not an image (no image format Pillow knows)
+    """
     with _reading_image(Path(path)), open_input(path, "image file", TextureError) as stream:
         Image.open(stream).close()
 
@@ -275,7 +315,36 @@ def _edges(values: np.ndarray, mode: str = "nearest") -> np.ndarray:
 def texture_from_luminance(luminance: np.ndarray, options: AuthoringOptions, name: str = "",
                            source: str = "", info: dict | None = None) -> Texture:
     """Apply crop (unless :func:`read_image_luminance` did), blur, mapping, levels, gamma, invert and range to a
-    luminance map."""
+    luminance map.
+
+    Parameters
+    ----------
+    luminance : numpy.ndarray, shape (rows, cols)
+        Luminance in 0..1.
+    options : AuthoringOptions
+        The size (mm), the mapping and the friction range.
+    name, source : str
+        The texture's name and where it came from.
+    info : dict, optional
+        Facts from :func:`read_image_luminance`, kept in the texture's ``authoring``.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        An option out of range, in one line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> luminance = np.array([[0.0, 1.0]], dtype=np.float32)
+    >>> texture = texture_from_luminance(luminance, AuthoringOptions(width_mm=40.0, ratio_range=(0.4, 1.0)))
+    >>> texture.width_mm, texture.values.astype(float).round(3).tolist()     # dark slippery, light sticky
+    (40.0, [[0.4, 1.0]])
+    """
     values = luminance
     if options.crop is not None and "cropped" not in (info or {}):  # not yet cropped by read_image_luminance
         x, y, w, h = options.crop
@@ -348,7 +417,23 @@ def _auto_levels(values: np.ndarray, options: AuthoringOptions) -> tuple[float, 
 
 
 def warn_if_seam(texture: Texture) -> None:
-    """Warn when a texture that tiles has a seam a finger would feel (see :mod:`textures.seams`)."""
+    """Warn when a texture that tiles has a seam a finger would feel (see :mod:`textures.seams`).
+
+    Parameters
+    ----------
+    texture : Texture
+        Checked only when its ``outside`` rule is ``tile``.
+
+    Examples
+    --------
+    >>> import numpy as np, warnings
+    >>> ramp = Texture(np.tile(np.linspace(0.0, 1.0, 8), (4, 1)), width_mm=8.0, height_mm=4.0, name="ramp")
+    >>> with warnings.catch_warnings(record=True) as said:
+    ...     warnings.simplefilter("always")
+    ...     warn_if_seam(ramp)                                          # 1 → 0 across the edge
+    >>> str(said[0].message).split(":")[0]
+    'ramp tiles with a seam'
+    """
     if texture.outside != "tile":
         return
     report = measure_seams(texture.values)

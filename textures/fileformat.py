@@ -44,7 +44,21 @@ warnings.filterwarnings("ignore", category=Image.DecompressionBombWarning)
 
 
 def quantise(values: np.ndarray) -> np.ndarray:
-    """Values in 0..1 as the 16-bit integers the file stores."""
+    """Values in 0..1 as the 16-bit integers the file stores (clipped, rounded to the nearest of 65535 steps).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+
+    Returns
+    -------
+    numpy.ndarray of uint16
+
+    Examples
+    --------
+    >>> quantise(np.array([0.0, 0.5, 1.0, 1.2]))
+    array([    0, 32768, 65535, 65535], dtype=uint16)
+    """
     return np.round(np.clip(values, 0.0, 1.0) * FULL_SCALE).astype(np.uint16)
 
 
@@ -160,7 +174,27 @@ MAX_HELD_PIXELS = 16_000_000  # and in at most this many pixels (200 × 200 mm a
 
 def held_size(cols: int, rows: int, width_mm: float, height_mm: float) -> tuple[int, int]:
     """The pixels a texture of ``cols`` × ``rows`` pixels over ``width_mm`` × ``height_mm`` is held in: at most
-    :data:`MAX_PX_PER_MM` per millimetre along each side, at most :data:`MAX_HELD_PIXELS` in all, at least one."""
+    :data:`MAX_PX_PER_MM` per millimetre along each side, at most :data:`MAX_HELD_PIXELS` in all, at least one.
+
+    Parameters
+    ----------
+    cols, rows : int
+        The source's pixels.
+    width_mm, height_mm : float
+        The texture's size (mm).
+
+    Returns
+    -------
+    (int, int)
+        cols, rows.
+
+    Examples
+    --------
+    >>> held_size(4000, 3000, 80.0, 60.0)                              # 20 px/mm at most
+    (1600, 1200)
+    >>> held_size(100, 50, 80.0, 40.0)                                 # coarser: kept as it is
+    (100, 50)
+    """
     held_cols = min(cols, max(1, math.ceil(width_mm * MAX_PX_PER_MM)))
     held_rows = min(rows, max(1, math.ceil(height_mm * MAX_PX_PER_MM)))
     if held_cols * held_rows > MAX_HELD_PIXELS:
@@ -249,7 +283,25 @@ def _validated(meta: dict, where: str) -> dict:
 
 def has_texture_metadata(path: str | Path) -> bool:
     """Whether a file is a PNG with an ultraglide metadata chunk, readable or not (False for anything that is
-    not a regular file: it is never opened)."""
+    not a regular file: it is never opened).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from ultraglide.textures.procedural import grating
+    >>> path = os.path.join(tempfile.mkdtemp(), "grating.png")
+    >>> _ = save_texture(grating(wavelength_mm=2.0, size_mm=(20.0, 10.0)), path)
+    >>> has_texture_metadata(path), has_texture_metadata(os.path.dirname(path))
+    (True, False)
+    """
     try:
         with open_input(path, "texture file", TextureError) as stream:
             return _metadata_chunk_present(stream)

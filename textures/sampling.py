@@ -31,7 +31,27 @@ MIN_LEVEL_PIXELS = 2
 
 
 def gradient_maps(texture: Texture) -> tuple[np.ndarray, np.ndarray]:
-    """Slopes (d/dx, d/dy) of a height map, in height units per millimetre."""
+    """Slopes (d/dx, d/dy) of a height map, in height units per millimetre: central differences over the
+    pixels' pitch, wrapping around the edges.
+
+    Parameters
+    ----------
+    texture : Texture
+        A gradient texture (its values are heights).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        d/dx and d/dy, rows × cols each.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> hill = Texture(np.array([[0.0, 0.5, 1.0]] * 2), width_mm=3.0, height_mm=2.0, kind="gradient")
+    >>> slope_x, slope_y = gradient_maps(hill)
+    >>> slope_x[0].tolist(), slope_y[0].tolist()     # (1 - 0) / 2 mm in the middle; the edges wrap
+    ([-0.25, 0.5, -0.25], [0.0, 0.0, 0.0])
+    """
     pixel_x, pixel_y = texture.pixel_mm
     values = texture.values.astype(float)
     if texture.outside == "tile":  # periodic differences, so the slope is right across the seam

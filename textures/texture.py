@@ -197,6 +197,24 @@ def gradient_ratio(texture: Texture, slope):
     """Friction ratio for a slope along the motion (height units per mm) on a gradient texture.
 
     The steepest slope in the map reaches the ends of ``ratio_range``; flat ground is its middle.
+
+    Parameters
+    ----------
+    texture : Texture
+        A gradient texture.
+    slope : array_like
+        Slopes along the motion (height units per mm): uphill > 0.
+
+    Returns
+    -------
+    numpy.ndarray of float32
+
+    Examples
+    --------
+    >>> hill = Texture(np.array([[0.0, 0.5, 1.0]] * 2), width_mm=3.0, height_mm=2.0, kind="gradient",
+    ...                full_slope_per_mm=0.5)
+    >>> gradient_ratio(hill, [0.0, 0.5, -1.0]).tolist()               # flat, steepest up, beyond steepest down
+    [0.5, 1.0, 0.0]
     """
     low, high = texture.ratio_range
     middle, half = 0.5 * (low + high), 0.5 * (high - low)
