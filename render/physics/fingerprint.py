@@ -80,29 +80,115 @@ class FingerParams:
 
 def contact_area_mm2(force_n, params: FingerParams = FingerParams()):
     """Eq. (3): apparent contact area A = k F^(2/3) of the ridges, mm², at most a fingertip's
-    (``max_contact_area_mm2``)."""
+    (``max_contact_area_mm2``).
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        mm².
+
+    Examples
+    --------
+    >>> float(contact_area_mm2(1.0)), float(contact_area_mm2(10.0))       # k at 1 N; a whole pad at 10 N
+    (138.1, 250.0)
+    """
     area = params.area_coefficient_mm2 * np.power(force_n, params.area_exponent)
     return np.minimum(area, params.max_contact_area_mm2)
 
 
 def area_saturation_force_n(params: FingerParams = FingerParams()) -> float:
-    """The force (N) at which eq. (3) reaches a fingertip's whole pad; above it the area is held."""
+    """The force (N) at which eq. (3) reaches a fingertip's whole pad; above it the area is held.
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    float
+        N: (A_max / k)^(1 / area exponent).
+
+    Examples
+    --------
+    >>> round(area_saturation_force_n(), 3)                             # (250 / 138.1)^1.5
+    2.436
+    """
     return float((params.max_contact_area_mm2 / params.area_coefficient_mm2) ** (1.0 / params.area_exponent))
 
 
 def shear_modulus_pa(params: FingerParams = FingerParams()) -> float:
-    """Eq. (2): G_e = E_e / (2 (1 + nu)), Pa."""
+    """Eq. (2): G_e = E_e / (2 (1 + nu)), Pa.
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    float
+        Pa.
+
+    Examples
+    --------
+    >>> round(shear_modulus_pa())                                       # 1 MPa / 2.8
+    357143
+    """
     return params.youngs_modulus_pa / (2.0 * (1.0 + params.poisson_ratio))
 
 
 def normal_stiffness_n_per_m(force_n, params: FingerParams = FingerParams()):
-    """Eq. (1): k_n = E_e A / h_e, N/m, with A from eq. (3)."""
+    """Eq. (1): k_n = E_e A / h_e, N/m, with A from eq. (3).
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        N/m.
+
+    Examples
+    --------
+    >>> round(float(normal_stiffness_n_per_m(1.0)))                     # 1 MPa × 138.1 mm² / 150 µm
+    920667
+    """
     area_m2 = contact_area_mm2(force_n, params) * MM2_TO_M2
     return params.youngs_modulus_pa * area_m2 / params.ridge_height_m
 
 
 def tangential_stiffness_n_per_m(force_n, params: FingerParams = FingerParams()):
-    """Eq. (2): k_t = G_e A / h_e, N/m."""
+    """Eq. (2): k_t = G_e A / h_e, N/m.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        N/m.
+
+    Examples
+    --------
+    >>> round(float(tangential_stiffness_n_per_m(1.0)))                 # k_n / 2.8
+    328810
+    """
     area_m2 = contact_area_mm2(force_n, params) * MM2_TO_M2
     return shear_modulus_pa(params) * area_m2 / params.ridge_height_m
 
@@ -113,6 +199,23 @@ def detach_amplitude_um_pp(force_n, params: FingerParams = FingerParams()):
     The paper's W_c = F_n / k_n is the static compression of the ridges, i.e. the zero-to-peak
     excursion that just unloads them; peak-to-peak is twice that. This reading reproduces the
     paper's worked example (0.15 N needs about 1.2 µm).
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        µm peak-to-peak.
+
+    Examples
+    --------
+    >>> round(float(detach_amplitude_um_pp(0.15)), 2)                   # the paper's worked example: about 1.2
+    1.15
     """
     force = np.asarray(force_n, dtype=float)
     return 2.0 * force / normal_stiffness_n_per_m(force, params) * M_TO_UM
@@ -131,6 +234,25 @@ def glide_threshold_um_pp(force_n, params: FingerParams = FingerParams(), preloa
     2 (mu_s F_n - T) / k_t. With T = 0.1 N at 0.4 N it is 3.36 µm, between the paper's 2 µm
     (not felt) and 4 µm (felt); any T from 0.043 to 0.22 N puts it there. A preload at or above
     mu_s F_n is gross slip already (threshold 0).
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+    preload_n : float
+        A lateral preload (N) the springs already hold.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        µm peak-to-peak.
+
+    Examples
+    --------
+    >>> round(float(glide_threshold_um_pp(0.4)), 2)
+    4.48
     """
     force = np.asarray(force_n, dtype=float)
     margin = np.maximum(params.static_friction * force - np.abs(np.asarray(preload_n, dtype=float)), 0.0)
@@ -138,7 +260,23 @@ def glide_threshold_um_pp(force_n, params: FingerParams = FingerParams(), preloa
 
 
 def shear_wave_speed_m_per_s(params: FingerParams = FingerParams()) -> float:
-    """sqrt(G_e / rho): the speed of shear waves in the ridge layer, m/s (about 20 m/s for Table I)."""
+    """sqrt(G_e / rho): the speed of shear waves in the ridge layer, m/s (about 20 m/s for Table I).
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    float
+        m/s.
+
+    Examples
+    --------
+    >>> round(shear_wave_speed_m_per_s(), 2)                            # sqrt(357143 Pa / 900 kg/m³)
+    19.92
+    """
     return float(np.sqrt(shear_modulus_pa(params) / params.density_kg_m3))
 
 
@@ -150,6 +288,23 @@ def ridge_shear_resonance_hz(params: FingerParams = FingerParams(), lumped: bool
     k_t (kh) cot(kh) with k = 2 pi f / c_s, falls to zero at kh = pi/2: f = c_s / (4 h_e),
     33.2 kHz for Table I. ``lumped`` gives the single spring-mass estimate with the layer's whole
     mass at the plate, c_s / (2 pi h_e) = 21.1 kHz, a lower bound.
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger; the paper's Table I by default.
+    lumped : bool
+        The single spring-mass estimate instead of the layer's.
+
+    Returns
+    -------
+    float
+        Hz.
+
+    Examples
+    --------
+    >>> round(ridge_shear_resonance_hz())                               # c_s / (4 h_e) = 19.92 / 0.6 mm
+    33201
     """
     speed = shear_wave_speed_m_per_s(params)
     if lumped:
@@ -159,7 +314,24 @@ def ridge_shear_resonance_hz(params: FingerParams = FingerParams(), lumped: bool
 
 def dynamic_stiffness_ratio(frequency_hz, params: FingerParams = FingerParams()):
     """k_t(f) / k_t(0) of the ridge layer: (kh) cot(kh), 1 at low frequency, 0 at the resonance,
-    negative above it (the layer's inertia wins). The quasi-static analysis of section III assumes 1."""
+    negative above it (the layer's inertia wins). The quasi-static analysis of section III assumes 1.
+
+    Parameters
+    ----------
+    frequency_hz : array_like
+        Lateral frequency (Hz).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> dynamic_stiffness_ratio([0.0, ridge_shear_resonance_hz()]).round(6)   # 1 at rest, 0 at the resonance
+    array([1., 0.])
+    """
     kh = 0.5 * np.pi * np.asarray(frequency_hz, dtype=float) / ridge_shear_resonance_hz(params)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(kh == 0, 1.0, kh / np.tan(kh))
@@ -170,7 +342,25 @@ QUASI_STATIC_TOLERANCE = 0.1  # the quasi-static stiffness may be off by this sh
 
 def quasi_static_limit_hz(params: FingerParams = FingerParams(), tolerance: float = QUASI_STATIC_TOLERANCE) -> float:
     """The highest lateral frequency (Hz) at which the ridges' quasi-static stiffness is within
-    ``tolerance`` of their dynamic one (11.2 kHz for Table I at 10 %)."""
+    ``tolerance`` of their dynamic one (11.5 kHz for Table I at 10 %).
+
+    Parameters
+    ----------
+    params : FingerParams
+        The finger; the paper's Table I by default.
+    tolerance : float
+        How far (a fraction) the stiffness may be off.
+
+    Returns
+    -------
+    float
+        Hz.
+
+    Examples
+    --------
+    >>> round(quasi_static_limit_hz() / 1000, 1)                        # kHz
+    11.5
+    """
     from scipy.optimize import brentq
 
     resonance = ridge_shear_resonance_hz(params)
@@ -180,7 +370,26 @@ def quasi_static_limit_hz(params: FingerParams = FingerParams(), tolerance: floa
 
 def quasi_static_warning(frequency_hz: float, params: FingerParams = FingerParams()) -> str | None:
     """One line when the lateral quasi-static reading fails at this frequency (its stiffness off by
-    more than 10 %), else None."""
+    more than 10 %), else None.
+
+    Parameters
+    ----------
+    frequency_hz : float
+        Lateral frequency (Hz).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> quasi_static_warning(5000.0) is None                            # Hz
+    True
+    >>> quasi_static_warning(25000.0)                                   # doctest: +ELLIPSIS
+    "25 kHz is 0.75 of the ridge layer's shear resonance (33.2 kHz ...): the ridges' dynamic stiffness there is 0.48..."
+    """
     ratio = float(dynamic_stiffness_ratio(frequency_hz, params))
     if abs(1.0 - ratio) <= QUASI_STATIC_TOLERANCE:
         return None
@@ -193,11 +402,46 @@ def quasi_static_warning(frequency_hz: float, params: FingerParams = FingerParam
 
 
 def friction_coefficient(force_n, params: FingerParams = FingerParams()):
-    """Fig. 7: non-Coulombic coefficient of friction mu(F) = mu_1N F^(n-1) of a finger pad on glass."""
+    """Fig. 7: non-Coulombic coefficient of friction mu(F) = mu_1N F^(n-1) of a finger pad on glass.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+
+    Examples
+    --------
+    >>> float(friction_coefficient(1.0)), round(float(friction_coefficient(0.125)), 6)   # 0.8 × 0.125^(-1/3)
+    (0.8, 1.6)
+    """
     return params.friction_coefficient_at_1n * np.power(force_n, params.friction_exponent - 1.0)
 
 
 def friction_force_n(force_n, params: FingerParams = FingerParams()):
-    """Friction force mu(F) F = mu_1N F^n, N; zero where the load is zero."""
+    """Friction force mu(F) F = mu_1N F^n, N; zero where the load is zero.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray
+        N.
+
+    Examples
+    --------
+    >>> friction_force_n([0.0, 1.0]).tolist()
+    [0.0, 0.8]
+    """
     force = np.maximum(np.asarray(force_n, dtype=float), 0.0)
     return params.friction_coefficient_at_1n * np.power(force, params.friction_exponent)
