@@ -51,6 +51,24 @@ def contact_offset(relative_amplitude):
     ``relative_amplitude`` v is the zero-to-peak amplitude over the static compression. For v <= 1
     the springs never detach and s = 1/v; beyond, g(s) = 1/v is solved by Newton's method, which
     converges monotonically from s = 1 because g is convex and increasing.
+
+    Parameters
+    ----------
+    relative_amplitude : array_like
+        v, >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        s.
+
+    Examples
+    --------
+    >>> contact_offset([0.5, 1.0]).tolist()                              # never detached: 1 / v
+    [2.0, 1.0]
+    >>> s = contact_offset(2.0)                                            # detached: g(s) = 1 / v
+    >>> round(float(_mean_compression(s)), 9)
+    0.5
     """
     v = np.asarray(relative_amplitude, dtype=float)
     target = 1.0 / np.maximum(v, 1e-300)
@@ -76,6 +94,26 @@ def bed_reaction(relative_amplitude, phase_rad):
     """Reaction of a uniform bed over a cycle, in units of its mean (the applied load).
 
     ``relative_amplitude`` and ``phase_rad`` broadcast; the result averages to 1 over a cycle.
+
+    Parameters
+    ----------
+    relative_amplitude : array_like
+        v: the zero-to-peak amplitude over the static compression.
+    phase_rad : array_like
+        Phases of the vibration (rad).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> bed_reaction(0.5, np.array([np.pi / 2, 3 * np.pi / 2])).tolist()    # attached: 1 ± v
+    [1.5, 0.5]
+    >>> import numpy as np
+    >>> phase = np.linspace(0.0, 2.0 * np.pi, 4096, endpoint=False)
+    >>> round(float(bed_reaction(3.0, phase).mean()), 6)                 # the load, on average
+    1.0
     """
     v = np.asarray(relative_amplitude, dtype=float)
     sin_phase = np.sin(phase_rad)
@@ -102,6 +140,26 @@ def hertz_reaction(u, phase_rad, ring_nodes: int = 48):
     2 pi r dr / (pi b²) becomes 2 m dm, and the local relative amplitude is u / (1.5 m). Annuli with
     m > u / 1.5 stay attached and integrate in closed form; the detached rim is integrated by
     Gauss–Legendre quadrature. ``u`` must be a scalar or broadcast against ``phase_rad``.
+
+    Parameters
+    ----------
+    u : array_like
+        Amplitude over the detachment amplitude, a_pp / W_c (eq. 6).
+    phase_rad : array_like
+        Phases of the vibration (rad).
+    ring_nodes : int
+        Quadrature nodes over the detached rim.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> phase = np.linspace(0.0, 2.0 * np.pi, 4096, endpoint=False)
+    >>> round(float(hertz_reaction(2.0, phase).mean()), 6)               # the load, on average (eq. 7)
+    1.0
     """
     u = np.asarray(u, dtype=float)[..., None]
     phase = np.asarray(phase_rad, dtype=float)[..., None]
@@ -119,14 +177,61 @@ def hertz_reaction(u, phase_rad, ring_nodes: int = 48):
 
 
 def normalised_reaction(u, phase_rad, contact: str = "hertz"):
-    """Total reaction over a cycle relative to the load, for either pressure profile."""
+    """Total reaction over a cycle relative to the load, for either pressure profile.
+
+    Parameters
+    ----------
+    u : array_like
+        Amplitude over the detachment amplitude, a_pp / W_c (eq. 6).
+    phase_rad : array_like
+        Phases of the vibration (rad).
+    contact : {"hertz", "uniform"}
+        The pressure profile.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> phase = np.linspace(0.0, 2.0 * np.pi, 4096, endpoint=False)
+    >>> round(float(normalised_reaction(2.0, phase, "uniform").mean()), 6)
+    1.0
+    """
     if contact == "uniform":
         return bed_reaction(u, phase_rad)
     return hertz_reaction(u, phase_rad)
 
 
 def cycle_reaction_n(amplitude_um_pp, force_n, phase_rad, params: FingerParams = FingerParams()):
-    """Figs. 5 (uniform) and its Hertzian counterpart: plate reaction force over a cycle, N."""
+    """Figs. 5 (uniform) and its Hertzian counterpart: plate reaction force over a cycle, N.
+
+    Parameters
+    ----------
+    amplitude_um_pp : array_like
+        Vibration amplitude (µm p-p).
+    force_n : float
+        The applied load (N).
+    phase_rad : array_like
+        Phases of the vibration (rad).
+    params : FingerParams
+        The finger (its contact: ``hertz`` or ``uniform``); the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray
+        N.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> phase = np.linspace(0.0, 2.0 * np.pi, 4096, endpoint=False)
+    >>> cycle_reaction_n(0.0, 0.5, phase[:2]).tolist()                  # at rest: the load
+    [0.5, 0.5]
+    >>> round(float(cycle_reaction_n(2.0, 0.5, phase).mean()), 6)
+    0.5
+    """
     u = np.asarray(amplitude_um_pp, dtype=float) / detach_amplitude_um_pp(force_n, params)
     return force_n * normalised_reaction(u, phase_rad, params.contact)
 
@@ -138,6 +243,27 @@ def relative_friction_of_u(
 
     The reaction depends on the phase only through sin(theta), so the cycle mean is taken over
     the midpoints of half a cycle (-pi/2, pi/2), which is Gauss–Chebyshev quadrature in sin(theta).
+
+    Parameters
+    ----------
+    u : array_like
+        Amplitude over the detachment amplitude, a_pp / W_c (eq. 6).
+    params : FingerParams
+        The finger (its contact: ``hertz`` or ``uniform``); the paper's Table I by default.
+    phase_points : int
+        Phases the cycle mean is taken over.
+    ring_nodes : int
+        Quadrature nodes over a Hertzian contact's detached rim.
+
+    Returns
+    -------
+    numpy.ndarray
+        The friction ratio at each u.
+
+    Examples
+    --------
+    >>> relative_friction_of_u(np.array([0.0, 1.0, 4.0])).round(3)
+    array([1.   , 0.944, 0.759])
     """
     u = np.atleast_1d(np.asarray(u, dtype=float))
     phase = (np.arange(phase_points) + 0.5) / phase_points * np.pi - np.pi / 2.0
@@ -150,14 +276,56 @@ def relative_friction_of_u(
 
 
 def relative_friction(amplitude_um_pp, force_n, params: FingerParams = FingerParams()):
-    """Fig. 8: relative coefficient of friction F_l(a) / F_l(0), by direct integration (slow)."""
+    """Fig. 8: relative coefficient of friction F_l(a) / F_l(0), by direct integration (slow).
+
+    Parameters
+    ----------
+    amplitude_um_pp : array_like
+        Vibration amplitude (µm p-p).
+    force_n : float
+        Normal force (N).
+    params : FingerParams
+        The finger (its contact: ``hertz`` or ``uniform``); the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray
+        The friction ratio, shaped as ``amplitude_um_pp``.
+
+    Examples
+    --------
+    >>> relative_friction([0.0, 10.0], 0.5).round(3)                    # the paper's modest reduction
+    array([1.   , 0.724])
+    """
     amplitude = np.asarray(amplitude_um_pp, dtype=float)
     u = amplitude / detach_amplitude_um_pp(force_n, params)
     return relative_friction_of_u(u.ravel(), params).reshape(amplitude.shape)
 
 
 def cycle_friction_n(amplitude_um_pp, force_n, phase_rad, params: FingerParams = FingerParams()):
-    """Instantaneous friction force over a cycle under the non-Coulombic law, N."""
+    """Instantaneous friction force over a cycle under the non-Coulombic law, N.
+
+    Parameters
+    ----------
+    amplitude_um_pp : array_like
+        Vibration amplitude (µm p-p).
+    force_n : float
+        Normal force (N).
+    phase_rad : array_like
+        Phases of the vibration (rad).
+    params : FingerParams
+        The finger (its contact: ``hertz`` or ``uniform``); the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray
+        N.
+
+    Examples
+    --------
+    >>> cycle_friction_n(0.0, 1.0, np.array([0.0])).tolist()             # at rest, 1 N: mu_1N × 1 N
+    [0.8]
+    """
     return friction_force_n(cycle_reaction_n(amplitude_um_pp, force_n, phase_rad, params), params)
 
 
@@ -169,6 +337,26 @@ def rigid_hertz_reaction(u, phase_rad, ring_nodes: int = 256):
     reaction equals the load (eq. 7). Used to quantify the choice in ``docs/physics.md``; the model
     itself uses :func:`hertz_reaction` (each annulus settles to its own mean pressure).
     ``u`` is a scalar; returns the total reaction at each phase in units of the load.
+
+    Parameters
+    ----------
+    u : array_like
+        Amplitude over the detachment amplitude, a_pp / W_c (eq. 6).
+    phase_rad : array_like
+        Phases of the vibration (rad).
+    ring_nodes : int
+        Annuli the pad is integrated over.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> phase = np.linspace(0.0, 2.0 * np.pi, 4096, endpoint=False)
+    >>> round(float(rigid_hertz_reaction(2.0, phase).mean()), 6)         # the load, on average
+    1.0
     """
     from scipy.optimize import brentq
 
