@@ -24,7 +24,30 @@ SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loo
 
 
 def remembered(owner, memo: str, key, compute):
-    """``compute()``, remembered in ``owner``'s dict named ``memo`` for the last ``SCALAR_CACHE`` keys."""
+    """``compute()``, remembered in ``owner``'s dict named ``memo`` for the last ``SCALAR_CACHE`` keys.
+
+    Parameters
+    ----------
+    owner : object
+        Whose ``__dict__`` keeps the values.
+    memo : str
+        The name they are kept under.
+    key : hashable
+        What the value is for.
+    compute : callable
+        Makes the value when it is not kept.
+
+    Returns
+    -------
+    object
+
+    Examples
+    --------
+    >>> class Model: pass
+    >>> model, calls = Model(), []
+    >>> [remembered(model, "_memo", 0.5, lambda: calls.append(1) or 2.0) for _ in range(3)], len(calls)
+    ([2.0, 2.0, 2.0], 1)
+    """
     values = owner.__dict__.get(memo)
     if values is None:
         values = owner.__dict__[memo] = {}
@@ -123,7 +146,26 @@ def is_scalar(value) -> bool:
 
 
 def check_force(force_n) -> None:
-    """Raise :class:`ModelError` unless every force is a finite number >= 0 N."""
+    """Raise :class:`ModelError` unless every force is a finite number >= 0 N.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Forces (N).
+
+    Raises
+    ------
+    ModelError
+        A force that is negative, infinite or NaN (the first is named).
+
+    Examples
+    --------
+    >>> check_force([0.0, 0.5])
+    >>> check_force(-1.0)
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: normal force must be a finite number >= 0 N, got -1.0
+    """
     if is_scalar(force_n) and not isinstance(force_n, (list, tuple)):
         value = float(force_n)
         if not (0.0 <= value < np.inf):
@@ -145,14 +187,50 @@ def _largest(values: np.ndarray):
 
 
 def check_ratio(ratio: np.ndarray) -> None:
-    """Raise :class:`ModelError` unless every friction ratio is a finite number >= 0."""
+    """Raise :class:`ModelError` unless every friction ratio is a finite number >= 0.
+
+    Parameters
+    ----------
+    ratio : numpy.ndarray
+        Friction ratios.
+
+    Raises
+    ------
+    ModelError
+        A ratio that is negative, infinite or NaN.
+
+    Examples
+    --------
+    >>> check_ratio(np.array([np.nan]))                               # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: friction ratio must be a finite number >= 0 ..., got nan
+    """
     bad = ~((ratio >= 0.0) & (ratio < np.inf))
     if bad.any():
         raise ModelError(f"friction ratio must be a finite number >= 0 (1 = plate at rest), got {ratio[bad].flat[0]}")
 
 
 def check_amplitude(amplitude: np.ndarray) -> None:
-    """Raise :class:`ModelError` unless every amplitude is a finite number >= 0 µm."""
+    """Raise :class:`ModelError` unless every amplitude is a finite number >= 0 µm.
+
+    Parameters
+    ----------
+    amplitude : numpy.ndarray
+        Amplitudes (µm p-p).
+
+    Raises
+    ------
+    ModelError
+        An amplitude that is negative, infinite or NaN.
+
+    Examples
+    --------
+    >>> check_amplitude(np.array([-1.0]))
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: amplitude must be a finite number >= 0 µm p-p, got -1.0
+    """
     if not amplitude.size or (_smallest(amplitude) >= 0.0 and _largest(amplitude) < np.inf):  # NaN fails both
         return
     bad = ~((amplitude >= 0.0) & (amplitude < np.inf))
@@ -161,7 +239,36 @@ def check_amplitude(amplitude: np.ndarray) -> None:
 
 
 def kernel_result(code: int, ratio: np.ndarray, force) -> int:
-    """A kernel's return value: a count of clamped ratios, or -1 - i for a bad sample i."""
+    """A kernel's return value: a count of clamped ratios, or -1 - i for a bad sample i.
+
+    Parameters
+    ----------
+    code : int
+        What the kernel returned.
+    ratio : numpy.ndarray
+        The ratios it was given.
+    force : float or numpy.ndarray
+        The forces (N) it was given.
+
+    Returns
+    -------
+    int
+        The count of clamped ratios.
+
+    Raises
+    ------
+    ModelError
+        The bad sample, named as the checks name it.
+
+    Examples
+    --------
+    >>> kernel_result(3, np.zeros(3), 0.5)
+    3
+    >>> kernel_result(-2, np.array([0.5, np.nan]), 0.5)                  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: friction ratio must be a finite number >= 0 ..., got nan
+    """
     if code >= 0:
         return code
     i = -1 - code

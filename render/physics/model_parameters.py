@@ -96,7 +96,29 @@ OPTIONAL_KEYS = {s.key for specs in PARAMETERS.values() for s in specs if s.opti
 
 
 def build_model(kind: str, values: dict[str, float]) -> FrictionModel:
-    """A model of ``kind`` from parameter values keyed as in :data:`PARAMETERS`."""
+    """A model of ``kind`` from parameter values keyed as in :data:`PARAMETERS`.
+
+    Parameters
+    ----------
+    kind : str
+        ``exponential``, ``stretched``, ``paper``, ``paper-uniform`` or ``squeeze-film``.
+    values : dict
+        Parameter values (units in their keys).
+
+    Returns
+    -------
+    FrictionModel
+
+    Raises
+    ------
+    ModelError
+        An unknown kind.
+
+    Examples
+    --------
+    >>> build_model("exponential", {"tau_um_zp": 1.0})
+    ExponentialModel(tau_um_zp=1.0)
+    """
     if kind == "exponential":
         return ExponentialModel(values["tau_um_zp"], values.get("residual_ratio", 0.0))
     if kind == "stretched":
@@ -112,6 +134,23 @@ def build_model(kind: str, values: dict[str, float]) -> FrictionModel:
 def ridge_finger(kind: str, values: dict[str, float]) -> FingerParams:
     """The ridge model's finger from fitted values (``youngs_modulus_pa``, ``friction_exponent``,
     ``area_exponent``); a uniform contact for ``paper-uniform``, Hertzian otherwise.
+
+    Parameters
+    ----------
+    kind : str
+        ``paper`` or ``paper-uniform``.
+    values : dict
+        The fitted values (E in Pa).
+
+    Returns
+    -------
+    FingerParams
+
+    Examples
+    --------
+    >>> values = {"youngs_modulus_pa": 2e6, "friction_exponent": 0.7, "area_exponent": 0.6}
+    >>> ridge_finger("paper-uniform", values).contact, ridge_finger("paper", values).contact
+    ('uniform', 'hertz')
     """
     return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"],
                         area_exponent=values["area_exponent"],
@@ -119,17 +158,60 @@ def ridge_finger(kind: str, values: dict[str, float]) -> FingerParams:
 
 
 def film_params(values: dict[str, float]) -> FilmParams:
-    """The air film from fitted values: ``gap_um`` (µm), ``film_fraction``, ``ambient_pressure_pa`` (Pa)."""
+    """The air film from fitted values: ``gap_um`` (µm), ``film_fraction``, ``ambient_pressure_pa`` (Pa).
+
+    Parameters
+    ----------
+    values : dict
+
+    Returns
+    -------
+    FilmParams
+
+    Examples
+    --------
+    >>> film_params({"gap_um": 5.0, "film_fraction": 0.3, "ambient_pressure_pa": 1e5})
+    FilmParams(gap_um=5.0, film_fraction=0.3, ambient_pressure_pa=100000.0)
+    """
     return FilmParams(values["gap_um"], values["film_fraction"], values["ambient_pressure_pa"])
 
 
 def film_finger(values: dict[str, float]) -> FingerParams:
-    """The squeeze-film model's finger from fitted values (``youngs_modulus_pa``, ``friction_exponent``)."""
+    """The squeeze-film model's finger from fitted values (``youngs_modulus_pa``, ``friction_exponent``).
+
+    Parameters
+    ----------
+    values : dict
+
+    Returns
+    -------
+    FingerParams
+
+    Examples
+    --------
+    >>> film_finger({"youngs_modulus_pa": 2e6, "friction_exponent": 0.7}).youngs_modulus_pa     # Pa
+    2000000.0
+    """
     return FingerParams(youngs_modulus_pa=values["youngs_modulus_pa"], friction_exponent=values["friction_exponent"])
 
 
 def model_kind(model: FrictionModel) -> str:
-    """The name a calibration file gives this model."""
+    """The name a calibration file gives this model.
+
+    Parameters
+    ----------
+    model : FrictionModel
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> finger = {"youngs_modulus_pa": 1e6, "friction_exponent": 2 / 3, "area_exponent": 2 / 3}
+    >>> model_kind(build_model("paper-uniform", finger)), model_kind(build_model("paper", finger))
+    ('paper-uniform', 'paper')
+    """
     if isinstance(model, PaperModel):
         return "paper-uniform" if model.params.contact == "uniform" else "paper"
     return model.name

@@ -107,7 +107,27 @@ FIGURES: tuple[Figure, ...] = (
 
 
 def figure(key: str) -> Figure:
-    """The published figure named ``key`` (a :class:`Figure`); KeyError if there is none."""
+    """The published figure named ``key`` (a :class:`Figure`); KeyError if there is none.
+
+    Parameters
+    ----------
+    key : str
+        The figure's key in :data:`FIGURES`.
+
+    Returns
+    -------
+    Figure
+
+    Raises
+    ------
+    KeyError
+        No figure of that key.
+
+    Examples
+    --------
+    >>> figure("monnoyer_tau").value
+    '1.32 µm'
+    """
     for item in FIGURES:
         if item.key == key:
             return item
@@ -116,6 +136,26 @@ def figure(key: str) -> Figure:
 
 def cite(key: str) -> str:
     """``"70 ms (Meyer2014, place in the paper not located here ...)"``: a figure with its source, for
-    descriptions."""
+    descriptions.
+
+    Parameters
+    ----------
+    key : str
+        The figure's key in :data:`FIGURES`.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    KeyError
+        No figure of that key.
+
+    Examples
+    --------
+    >>> cite("monnoyer_tau")
+    '1.32 µm (Monnoyer2018, §3.1.4, §3.2.1, Figs. 4 and 6 (data/README.md))'
+    """
     item = figure(key)
     return f"{item.value} ({item.paper}, {item.where})"

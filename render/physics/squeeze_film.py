@@ -117,14 +117,53 @@ def film_overpressure_ratio(eps: ArrayLike) -> np.ndarray:
     """(p̄ - p_a) / p_a of an isothermal squeeze film at large squeeze number, for a plate moving by
     ``eps`` times the mean gap (zero-to-peak over gap): sqrt((1 + 1.5 eps²) / (1 - eps²)) - 1.
     Beyond eps = 0.95 the plate all but touches the skin, the film's law no longer holds, and its
-    pressure is held at that value (3.9 p_a): the model stays continuous."""
+    pressure is held at that value (3.9 p_a): the model stays continuous.
+
+    Parameters
+    ----------
+    eps : array_like
+        The plate's zero-to-peak excursion over the mean gap.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> film_overpressure_ratio([0.0, 0.5]).round(4).tolist()           # sqrt(1.375 / 0.75) - 1 at 0.5
+    [0.0, 0.354]
+    >>> round(float(film_overpressure_ratio(0.99)), 2)                   # held beyond 0.95
+    3.91
+    """
     square = np.square(np.minimum(np.asarray(eps, dtype=float), EPS_MAX))
     return np.sqrt((1.0 + 1.5 * square) / (1.0 - square)) - 1.0
 
 
 def levitation_force_n(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
                        finger: FingerParams = FingerParams()) -> np.ndarray:
-    """The mean load (N) the air film carries at this amplitude (µm p-p) and normal force (N)."""
+    """The mean load (N) the air film carries at this amplitude (µm p-p) and normal force (N).
+
+    Parameters
+    ----------
+    amplitude_um_pp : array_like
+        Vibration amplitude (µm p-p).
+    force_n : array_like
+        Normal force (N).
+    film : FilmParams
+        The air film.
+    finger : FingerParams
+        The finger (its contact area, eq. 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        N.
+
+    Examples
+    --------
+    >>> float(levitation_force_n(0.0, 0.5)), round(float(levitation_force_n(6.0, 0.5)), 3)   # at rest none
+    (0.0, 0.412)
+    """
     eps = np.asarray(amplitude_um_pp, dtype=float) / 2.0 / film.gap_um
     area_m2 = contact_area_mm2(np.asarray(force_n, dtype=float), finger) * MM2_TO_M2
     return film.film_fraction * area_m2 * film.ambient_pressure_pa * film_overpressure_ratio(eps)
@@ -132,7 +171,29 @@ def levitation_force_n(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: Fil
 
 def contact_share(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmParams = FilmParams(),
                   finger: FingerParams = FingerParams()) -> np.ndarray:
-    """F_c / F: the share of the load the ridges still carry, 1 at rest, 0 once the film carries it all."""
+    """F_c / F: the share of the load the ridges still carry, 1 at rest, 0 once the film carries it all.
+
+    Parameters
+    ----------
+    amplitude_um_pp : array_like
+        Vibration amplitude (µm p-p).
+    force_n : array_like
+        Normal force (N).
+    film : FilmParams
+        The air film.
+    finger : FingerParams
+        The finger (its contact area, eq. 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        In [0, 1].
+
+    Examples
+    --------
+    >>> contact_share([0.0, 6.0], 0.5).round(3)                        # 1 - 0.412 N / 0.5 N at 6 µm
+    array([1.   , 0.176])
+    """
     force = np.asarray(force_n, dtype=float)
     return np.clip(1.0 - levitation_force_n(amplitude_um_pp, force, film, finger) / force, 0.0, 1.0)
 
@@ -140,7 +201,28 @@ def contact_share(amplitude_um_pp: ArrayLike, force_n: ArrayLike, film: FilmPara
 def squeeze_number(carrier_hz: float, force_n: float, film: FilmParams = FilmParams(),
                    finger: FingerParams = FingerParams()) -> float:
     """sigma = 12 eta omega L² / (p_a h²), L the radius of the apparent contact: the film's pressure
-    follows the large-sigma law this model uses when sigma >> 1 (about 90 at 27 kHz, 0.5 N, 10 µm)."""
+    follows the large-sigma law this model uses when sigma >> 1 (about 100 at 27 kHz, 0.5 N, 10 µm).
+
+    Parameters
+    ----------
+    carrier_hz : float
+        The vibration's frequency (Hz).
+    force_n : float
+        Normal force (N): the contact's radius.
+    film : FilmParams
+        The air film.
+    finger : FingerParams
+        The finger (its contact area, eq. 3).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> round(squeeze_number(27000.0, 0.5))                             # well above 1
+    101
+    """
     radius_m = np.sqrt(float(contact_area_mm2(force_n, finger)) * MM2_TO_M2 / np.pi)
     gap_m = film.gap_um * 1e-6
     if film.ambient_pressure_pa == 0:
@@ -151,7 +233,29 @@ def squeeze_number(carrier_hz: float, force_n: float, film: FilmParams = FilmPar
 
 def film_ratio(amplitude_um_pp: np.ndarray, force_n: np.ndarray, film: FilmParams, contact: PaperModel) -> np.ndarray:
     """Friction over friction at rest, (F_c / F)^n R(a / W_c(F_c)), with the paper's model ``contact``
-    (its R table and detachment law) for the ridges; forces as given (not clipped)."""
+    (its R table and detachment law) for the ridges; forces as given (not clipped).
+
+    Parameters
+    ----------
+    amplitude_um_pp : numpy.ndarray
+        Vibration amplitude (µm p-p).
+    force_n : numpy.ndarray
+        Normal force (N).
+    film : FilmParams
+        The air film.
+    contact : PaperModel
+        The ridges' model.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.paper_model import PaperModel
+    >>> film_ratio(np.array([0.0, 6.0]), np.array([0.5, 0.5]), FilmParams(), PaperModel()).round(2)
+    array([1.  , 0.23])
+    """
     finger = contact.params
     amplitude = np.asarray(amplitude_um_pp, dtype=float)
     force = np.asarray(force_n, dtype=float)
