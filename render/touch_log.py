@@ -80,7 +80,37 @@ def _size_of(path: str | Path) -> float:
 
 
 def check_touch_log(path: str | Path) -> TouchLog:
-    """Read a touch log through once, checking it; :class:`RenderError` names the line at fault."""
+    """Read a touch log through once, checking it; :class:`RenderError` names the line at fault.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A CSV of ``t_s,x_mm,y_mm[,force_n]``.
+
+    Returns
+    -------
+    TouchLog
+        Where it is, its first and last time (s) and its rows.
+
+    Raises
+    ------
+    RenderError
+        A value out of range, time going back, fewer than two instants: the line at fault, in one line.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
+    >>> _ = path.write_text("t_s,x_mm,y_mm\\n0.0,10,20\\n0.5,60,20\\n")
+    >>> log = check_touch_log(path)
+    >>> log.rows, log.first_s, log.last_s, log.has_force
+    (2, 0.0, 0.5, False)
+    >>> _ = path.write_text("t_s,x_mm,y_mm\\n0.5,10,20\\n0.0,60,20\\n")
+    >>> check_touch_log(path)                                           # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.errors.RenderError: ...drag.csv:3: time goes backwards (0 s after 0.5 s); sort the log by time
+    """
     table = NumericCsv(path, (TIME, X, Y), (FORCE,), RenderError, "trajectory file")
     first = previous = None
     rows = 0

@@ -220,7 +220,35 @@ def read_image_luminance(path: str | Path, options: AuthoringOptions = Authoring
     The image is cropped here (``options.crop``, in the source's pixels after EXIF rotation) and reduced to the
     resolution a texture is held at (:func:`ultraglide.textures.fileformat.held_size`, given the physical
     size the options make it); ``info`` says so (``cropped``, ``held_from_pixels``). A JPEG is decoded at the
-    reduced size directly (Pillow's ``draft``)."""
+    reduced size directly (Pillow's ``draft``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        An image file Pillow reads.
+    options : AuthoringOptions
+        The crop and the physical size (which set the resolution it is held at).
+
+    Returns
+    -------
+    (numpy.ndarray, dict)
+        The luminance, and ``info``: the source's mode, size, frames and format, and what was done.
+
+    Raises
+    ------
+    TextureError
+        Not an image, damaged, or too many pixels, in one line.
+
+    Examples
+    --------
+    >>> import numpy as np, pathlib, tempfile
+    >>> from PIL import Image
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "checks.png"
+    >>> Image.fromarray(np.array([[0, 255], [255, 0]], dtype=np.uint8)).save(path)
+    >>> luminance, info = read_image_luminance(path, AuthoringOptions(width_mm=20.0))
+    >>> luminance.tolist(), info["format"], info["source_size"]
+    ([[0.0, 1.0], [1.0, 0.0]], 'PNG', [2, 2])
+    """
     path = Path(path)
     with _reading_image(path), open_input(path, "image file", TextureError) as stream:
         image = Image.open(stream)

@@ -146,7 +146,22 @@ READ_AS_GRAY_MODES = ("P", "PA", "1", "LA", "La")
 
 
 def pillow_failure(error: BaseException) -> str:
-    """What Pillow's failure to read an image means, in words (after the file's name)."""
+    """What Pillow's failure to read an image means, in words (after the file's name).
+
+    Parameters
+    ----------
+    error : BaseException
+        What Pillow raised.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> pillow_failure(OSError("image file is truncated"))
+    'cannot read it, the file is damaged or truncated (image file is truncated)'
+    """
     if isinstance(error, ValueError) and "too large" in str(error).lower():  # a text chunk's limit (MAX_TEXT_CHUNK)
         return ("a text chunk in it decompresses to more than Pillow reads (a decompression bomb?); it was not "
                 "read")

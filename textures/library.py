@@ -66,6 +66,24 @@ def library_entries(directory: Path = LIBRARY_DIR) -> list[LibraryEntry]:
 def has_metadata(path: Path) -> bool:
     """Whether ``path`` is a PNG with an ultraglide metadata chunk (a damaged chunk counts: loading it then
     says what is wrong); False for anything that is not a regular file.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide.textures.fileformat import save_texture
+    >>> from ultraglide.textures.procedural import grating
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "grating.png"
+    >>> _ = save_texture(grating(wavelength_mm=2.0, size_mm=(20.0, 10.0)), path)
+    >>> has_metadata(path), has_metadata(path.parent)
+    (True, False)
     """
     return has_texture_metadata(path)  # a damaged chunk counts: loading it then says what is wrong
 

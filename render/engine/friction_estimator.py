@@ -115,19 +115,61 @@ class BatchResult:
 
 def nan_mean(values: np.ndarray) -> float:
     """``np.nanmean``'s value (the same sum of the same numbers, over the same count) without its wrappers, a few
-    µs a call on the short batches here; NaN when every value is."""
+    µs a call on the short batches here; NaN when every value is.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> nan_mean(np.array([1.0, np.nan, 3.0])), nan_mean(np.array([np.nan]))
+    (2.0, nan)
+    """
     missing = np.isnan(values)
     count = values.size - int(np.count_nonzero(missing))
     return float(np.add.reduce(np.where(missing, 0.0, values), axis=None)) / count if count else math.nan
 
 
 def mean(values: np.ndarray) -> float:
-    """``np.mean``'s value for a float array (its sum over its count) without its wrapper."""
+    """``np.mean``'s value for a float array (its sum over its count) without its wrapper.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> mean(np.array([1.0, 2.0]))
+    1.5
+    """
     return float(np.add.reduce(values, axis=None)) / values.size
 
 
 def median(values) -> float:
-    """``np.median``'s value for a short batch of finite numbers (the middle one, or the mean of the middle two)."""
+    """``np.median``'s value for a short batch of finite numbers (the middle one, or the mean of the middle two).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> median(np.array([3.0, 1.0, 2.0])), median(np.array([4.0, 1.0, 2.0, 3.0]))
+    (2.0, 2.5)
+    """
     ordered = sorted(values.tolist())
     half = len(ordered) // 2
     return ordered[half] if len(ordered) % 2 else (ordered[half - 1] + ordered[half]) / 2.0
@@ -135,7 +177,28 @@ def median(values) -> float:
 
 def lowpass_coefficients(bandwidth_hz: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray] | None:
     """A first-order low-pass at ``bandwidth_hz`` discretised by the bilinear transform (whose delay at low
-    frequencies is the continuous filter's, 1 / (2 pi f) s); None for no filter."""
+    frequencies is the continuous filter's, 1 / (2 pi f) s); None for no filter.
+
+    Parameters
+    ----------
+    bandwidth_hz : float
+        The corner (Hz); 0 or less: no filter.
+    rate_hz : float
+        The sample rate (Hz).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray) or None
+        b and a, as ``scipy.signal.lfilter`` takes them.
+
+    Examples
+    --------
+    >>> b, a = lowpass_coefficients(100.0, 1000.0)
+    >>> round(float(b.sum() / a.sum()), 12)                              # unity gain at 0 Hz
+    1.0
+    >>> lowpass_coefficients(0.0, 1000.0) is None
+    True
+    """
     if not bandwidth_hz > 0:
         return None
     corner = 2.0 * math.pi * bandwidth_hz
@@ -146,7 +209,26 @@ def lowpass_coefficients(bandwidth_hz: float, rate_hz: float) -> tuple[np.ndarra
 
 def fractional_delay(delay_samples: float) -> tuple[int, np.ndarray]:
     """A delay of ``delay_samples`` (>= 0) as an FIR: its first tap's offset and its taps (a whole number of
-    samples: one tap; else the four-tap Lagrange interpolator around it, flat to 2 % up to a fifth of the rate)."""
+    samples: one tap; else the four-tap Lagrange interpolator around it, flat to 2 % up to a fifth of the rate).
+
+    Parameters
+    ----------
+    delay_samples : float
+        The delay (samples), >= 0.
+
+    Returns
+    -------
+    (int, numpy.ndarray)
+        The first tap's offset (samples) and the taps (they sum to 1).
+
+    Examples
+    --------
+    >>> fractional_delay(2.0)
+    (2, array([1.]))
+    >>> first, taps = fractional_delay(2.5)                                # Lagrange around 2.5
+    >>> first, taps.tolist(), float(taps.sum())
+    (1, [-0.0625, 0.5625, 0.5625, -0.0625], 1.0)
+    """
     whole = math.floor(delay_samples)
     fraction = delay_samples - whole
     if fraction < 1e-6:

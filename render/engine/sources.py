@@ -84,6 +84,22 @@ def renderer_source(device: Device, renderer: Renderer) -> OutputStage:
 
 
 def offline_stage(renderer: Renderer) -> OutputStage:
-    """The audio a plate would get from ``renderer`` (limiter, then carrier) at its own audio rate, for export."""
+    """The audio a plate would get from ``renderer`` (limiter, then carrier) at its own audio rate, for export.
+
+    Parameters
+    ----------
+    renderer : Renderer
+
+    Returns
+    -------
+    OutputStage
+        Audio at the renderer's rate, on its carrier.
+
+    Examples
+    --------
+    >>> import ultraglide
+    >>> offline_stage(ultraglide.Renderer("grating-1mm", trajectory=ultraglide.SwipePath(duration_s=0.1)))
+    OutputStage(audio at 96000 Hz, carrier 25000 Hz, plate 'sim-plate', limit 6 µm p-p)
+    """
     return OutputStage(EnvelopeSource(renderer), renderer.profile, "audio", renderer.settings.audio_rate_hz,
                        renderer.carrier_hz)

@@ -73,7 +73,29 @@ class Measurements:
 
 def check_describes_reduction(data: Measurements, where: str) -> None:
     """Refuse points that do not describe friction reduction, with the reason: far from 1 at rest
-    (not friction over friction at rest), or not falling with amplitude at some force."""
+    (not friction over friction at rest), or not falling with amplitude at some force.
+
+    Parameters
+    ----------
+    data : Measurements
+        The points.
+    where : str
+        What to name in the refusal (the file).
+
+    Raises
+    ------
+    ModelError
+        Far from 1 at rest, or not falling with amplitude at some force, in one line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> halved = Measurements(np.array([0.0, 2.0]), np.array([0.5, 0.4]), None, "bench.csv")
+    >>> check_describes_reduction(halved, "bench.csv")                 # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: bench.csv: at rest (...) relative_friction is 0.5, not about 1: ...
+    """
     forces = data.force_n if data.force_n is not None else np.zeros(len(data))
     for value in np.unique(forces):
         pick = forces == value
@@ -157,7 +179,30 @@ def read_measurements(path: str | Path) -> Measurements:
 def participant_id(text) -> str:
     """A participant's id as ``calibrate`` and the measurement files keep it: letters, digits and ``-_.``, at most
     64 characters (``P01``, ``s-12``); a number is the same id however written (``7``, ``7.0``, ``07`` are ``7``),
-    so files and commands of the numeric ids before keep matching. ValueError (one line) for anything else."""
+    so files and commands of the numeric ids before keep matching. ValueError (one line) for anything else.
+
+    Parameters
+    ----------
+    text : str or number
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        Anything else, in one line.
+
+    Examples
+    --------
+    >>> participant_id("P01"), participant_id(7.0), participant_id("07")
+    ('P01', '7', '7')
+    >>> participant_id("a b")                                          # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: a participant id is 1 to 64 letters, digits, '-', '_' or '.' (e.g. P01), got 'a b'
+    """
     value = str(text).strip()
     try:
         number = float(value)
