@@ -79,7 +79,49 @@ class Plate(Protocol):
 
 @dataclass(frozen=True)
 class RenderSettings:
-    """How the renderer turns friction into drive. Rates in Hz, times in s, amplitudes µm p-p."""
+    """How the renderer turns friction into drive. Rates in Hz, times in s, amplitudes µm p-p.
+
+    Parameters
+    ----------
+    control_rate_hz : float
+        The envelope's rate (Hz), 10 kHz or more.
+    audio_rate_hz : int
+        The audio the output stage makes from it (Hz), a whole multiple of the control rate.
+    carrier_hz : float, optional
+        The carrier (Hz); the plate's resonance by default.
+    default_force_n : float
+        The force (N) assumed when touches carry none, > 0.
+    attack_s, release_s : float
+        The gate's ramps (s) when the finger lands and lifts.
+    band_hz : float
+        The envelope's band limit (Hz).
+    slew_um_per_ms : float
+        The fastest the amplitude may change (µm p-p per ms).
+    precompensate : bool
+        Pre-compensate the plate's slow resonant response.
+    band_limited_lookup : bool
+        Average the texture over each sample's step.
+    predictor : str
+        How a live finger's path is predicted ahead (``lsq`` ...).
+    lookahead_s : float
+        How far ahead (s) to predict, cancelling the touch panel's latency.
+    plan : bool
+        With a model that has friction dynamics: plan the friction felt.
+
+    Raises
+    ------
+    RenderError
+        A control rate under 10 kHz, an audio rate that is not a whole multiple of it, or a force <= 0.
+
+    Examples
+    --------
+    >>> RenderSettings().upsampling, RenderSettings(audio_rate_hz=48000).upsampling   # audio per control sample
+    (8, 4)
+    >>> RenderSettings(audio_rate_hz=44100)
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.errors.RenderError: the audio rate (44100) must be a whole multiple of the control rate (12000)
+    """
 
     control_rate_hz: float = 12000.0
     audio_rate_hz: int = 96000  # of the audio the output stage makes from the envelope (checked here, early)

@@ -72,6 +72,26 @@ class RecordedTrajectory:
     :func:`ultraglide.render.kernels.recorded_path`, the slopes and the Horner form of scipy's
     PchipInterpolator). Asking for an earlier instant than the window holds re-reads the chunks
     from the start.
+
+    Parameters
+    ----------
+    t_s : array_like
+        The records' times (s), not decreasing.
+    x_mm, y_mm : array_like
+        The finger's position (mm).
+    force_n : array_like, optional
+        Its normal force (N), from a pressure-sensing panel.
+
+    Raises
+    ------
+    RenderError
+        Fewer than two instants, time going back, values not finite.
+
+    Examples
+    --------
+    >>> path = RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0])       # s, mm, mm
+    >>> path.start_s, path.end_s, path.state([0.5]).x_mm.tolist()
+    (0.0, 1.0, [5.0])
     """
 
     MARGIN = 2  # records kept either side of the instants asked for

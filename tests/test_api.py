@@ -275,6 +275,10 @@ NUMPY_CLASSES = {
     "Engine": {"Attributes", "Raises"}, "OutputStage": {"Parameters", "Raises"},
     "UltraglideError": set(), "DeviceError": set(), "TextureError": set(), "ModelError": set(),
     "RenderError": set(), "EngineError": set(), "FitError": set(), "ForceRangeWarning": set(),
+    "AuthoringOptions": {"Parameters", "Raises"}, "Sampler": {"Parameters"}, "RenderSettings": {"Parameters", "Raises"},
+    "RecordedTrajectory": {"Parameters", "Raises"}, "EngineConfig": {"Parameters"}, "EngineStatus": {"Attributes"},
+    "BlockSource": {"Attributes"}, "Device": {"Attributes"}, "ExportResult": {"Attributes"},
+    "EnvelopeSource": {"Parameters"},
 }
 
 

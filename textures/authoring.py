@@ -41,7 +41,55 @@ MAX_SIDE_MM = 10_000.0  # what a texture file may measure
 
 @dataclass(frozen=True)
 class AuthoringOptions:
-    """How an image becomes a texture; see the module docstring for the order of the steps."""
+    """How an image becomes a texture; see the module docstring for the order of the steps.
+
+    Parameters
+    ----------
+    width_mm : float, optional
+        The texture's width (mm); 80 mm when neither it nor ``dpi`` is given.
+    dpi : float, optional
+        The image's dots per inch, which set its width instead (not with ``width_mm``).
+    mode : {"brightness", "edges", "gradient"}
+        What of the image becomes friction: its luminance, its edges, or its luminance as heights.
+    invert : bool
+        Swap sticky and slippery.
+    black, white : float
+        Levels: the luminances (0..1) taken as 0 and 1, 0 <= black < white <= 1.
+    gamma : float
+        v ** (1 / gamma), > 0.
+    blur_mm : float
+        A Gaussian blur's sigma (mm), >= 0.
+    ratio_range : (float, float)
+        The friction ratios v = 0 and v = 1 become, low to high, in 0..1.
+    crop : (int, int, int, int), optional
+        x, y, width, height in the source's pixels.
+    background : (int, int, int)
+        The RGB a transparent part is composited on.
+    max_pixels : int
+        The most pixels an image may have.
+    outside : {"tile", "clamp", "fixed"}
+        The texture's rule beyond its edges.
+    seamless : {"crossfade", "mirror"}, optional
+        Make the image tile without a seam.
+    seam_band : float
+        The cross-fade band, a fraction of each side.
+    auto_levels : float, optional
+        Percent of pixels clipped at each end by a percentile stretch (instead of ``black`` and ``white``).
+
+    Raises
+    ------
+    TextureError
+        An option out of range, or both ``width_mm`` and ``dpi``, in one line.
+
+    Examples
+    --------
+    >>> AuthoringOptions(width_mm=40.0).ratio_range                       # black slippery, white at rest
+    (0.4, 1.0)
+    >>> AuthoringOptions(width_mm=40.0, dpi=300.0)
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: give --width-mm or --dpi, not both
+    """
 
     width_mm: float | None = None
     dpi: float | None = None

@@ -114,7 +114,23 @@ def _pyramid(image: np.ndarray, wrap: bool, levels: int) -> list[np.ndarray]:
 
 
 class Sampler:
-    """Vectorised lookups of the friction ratio of one texture; see the module docstring."""
+    """Vectorised lookups of the friction ratio of one texture; see the module docstring.
+
+    Parameters
+    ----------
+    texture : Texture
+    band_limited : bool
+        Average over the distance a sample's step covers (a pyramid of levels), so fine detail does not alias.
+    max_levels : int
+        The pyramid's levels at most.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> halves = Texture(np.array([[0.2, 0.8]]), width_mm=2.0, height_mm=1.0)
+    >>> Sampler(halves, band_limited=False).ratio([0.5, 1.5, 2.5], [0.5, 0.5, 0.5]).tolist()   # mm; tiled beyond
+    [0.20000000298023224, 0.800000011920929, 0.20000000298023224]
+    """
 
     def __init__(self, texture: Texture, band_limited: bool = True, max_levels: int = 16):
         kernels.warm_up()

@@ -54,7 +54,36 @@ BLOCK_S = 1.0  # rendered and written a second at a time: memory stays flat what
 class ExportResult:
     """What :func:`export_wav` wrote: the file, its length (s), rate (Hz), sample format, the carrier
     (Hz), how often the plate's limit held the amplitude back (control samples), how often the envelope
-    ramped, and what the drive limiter did."""
+    ramped, and what the drive limiter did.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The WAV file.
+    duration_s : float
+        Its length (s): the path, then the output coming to rest.
+    rate_hz : int
+        Its sample rate (Hz).
+    format : str
+        Its sample format.
+    carrier_hz : float
+        The carrier (Hz).
+    clipped_samples : int
+        Control samples the plate's limit held back.
+    ramps : int
+        The envelope's ramps.
+    limited_fraction : float
+        The share of the time the drive limiter lowered the drive.
+    worst_excess_um_pp : float
+        The most drive (µm p-p) asked above what the limiter let through.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> result = export_wav("grating-1mm", os.path.join(tempfile.mkdtemp(), "swipe.wav"), duration_s=0.2)
+    >>> result.rate_hz, result.format, result.carrier_hz, result.duration_s > 0.2     # the tail after the path
+    (96000, 'float32', 25000.0, True)
+    """
 
     path: Path
     duration_s: float

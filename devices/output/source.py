@@ -13,7 +13,27 @@ class BlockSource(Protocol):
     peak-to-peak at the control rate (``control_rate_hz`` if it says, else 12 kHz). The device wraps
     it in its output stage (:mod:`ultraglide.devices.output.stage`), itself a BlockSource, which
     limits it and gives audio devices float32 samples in [-1, 1] (1 = full-scale drive) and control
-    devices limited setpoints in µm peak-to-peak."""
+    devices limited setpoints in µm peak-to-peak.
+
+    Attributes
+    ----------
+    finished : bool
+        True once the source is at rest after :meth:`request_stop` (or the end of its path).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> class Steady:                                                      # 3 µm p-p, until asked to stop
+    ...     finished = False
+    ...     def pull(self, n, now_s): return np.zeros(n) if self.finished else np.full(n, 3.0)
+    ...     def request_stop(self): self.finished = True
+    >>> source = Steady()                                                  # a protocol: anything shaped so
+    >>> float(source.pull(12, None)[0])
+    3.0
+    >>> source.request_stop()
+    >>> float(source.pull(12, None)[0]), source.finished
+    (0.0, True)
+    """
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         """The next ``n`` values; ``now_s`` is when (perf_counter s) the first reaches the plate.
@@ -52,7 +72,23 @@ class Device(Protocol):
     one's own needs only this). ``signal`` is ``"control"`` (drive envelope in µm p-p, for plate drivers
     that make their own carrier) or ``"audio"`` (float32 samples in [-1, 1]); ``rate_hz`` the rate it
     pulls at. ``start(source)`` begins pulling from an envelope source on the device's own thread, behind
-    its output stage; ``stop()`` ramps the source to rest, then rests the hardware."""
+    its output stage; ``stop()`` ramps the source to rest, then rests the hardware.
+
+    Attributes
+    ----------
+    signal : {"control", "audio"}
+        What it takes.
+    rate_hz : float
+        The rate (Hz) it pulls at.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> device = open_device("null", load_profile("sim-plate"))
+    >>> device.signal, device.rate_hz                                      # Hz
+    ('audio', 96000)
+    """
 
     signal: str
     rate_hz: float

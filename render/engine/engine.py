@@ -97,6 +97,55 @@ class EngineConfig:
     friction the plate's force sensors measure follow the texture (a plate driver with normal and lateral force
     sensors; its amplitude loop too, where it has one), and ``finger`` puts a simulated finger on the ``sim``
     device (:mod:`render.engine.finger_setup`; with ``closed_loop`` on ``sim`` the default one if none is given).
+
+    Parameters
+    ----------
+    texture : str or Texture
+        A library name or a file, or a texture in memory.
+    model : str
+        A friction model's name or file.
+    profile : str
+        A plate profile's name or file.
+    device : str
+        A device URL.
+    default_force_n : float
+        The force (N) assumed when touches carry none.
+    carrier_hz : float, optional
+        The carrier (Hz); the plate's resonance by default.
+    rate_hz : int
+        The wav and null sinks' audio rate (Hz).
+    control_rate_hz : float
+        The envelope's rate (Hz).
+    lookahead_s : float
+        How far ahead (s) a live finger is predicted.
+    precompensate : bool
+        Pre-compensate the plate's slow response.
+    predictor : str
+        How a live finger's path is predicted.
+    start_paused : bool
+        Start at rest until resumed.
+    realtime_priority : bool
+        Real-time scheduling for the block thread where the OS allows.
+    probe_plate : bool
+        Watch the simulated plate's amplitude (``sim``; for latency).
+    cpu_wake_latency_us : int, optional
+        The bound (µs) asked of idle CPUs while rendering; None: no request.
+    track_resonance : bool
+        A plate driver follows its plate's drifting resonance.
+    closed_loop : bool
+        The friction measured by the plate follows the texture.
+    finger : FingerConfig, optional
+        A simulated finger on ``sim``.
+    envelope_csv, sensors_csv : str, optional
+        Record the envelope, or the plate's sensor samples, as they come.
+    frozen_after_s : float
+        How long (s) the engine may be silent before it is taken for frozen.
+
+    Examples
+    --------
+    >>> config = EngineConfig(texture="wood", device="null")
+    >>> config.model, config.profile, config.rate_hz                      # the defaults: stretched, sim-plate, Hz
+    ('stretched', 'sim-plate', 96000)
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture

@@ -21,6 +21,23 @@ class EnvelopeSource:
     ``realtime_capacity`` (control samples): render every block into buffers made here once, for a
     real-time path (:meth:`Renderer.control_buffers` with ``always``); the array :meth:`pull` returns
     is then overwritten by the next pull. None (the default): each pull returns a new array.
+
+    Parameters
+    ----------
+    renderer : Renderer
+    realtime_capacity : int, optional
+        Control samples per block at most, for a real-time path; None: a new array each pull.
+
+    Examples
+    --------
+    >>> import ultraglide
+    >>> source = EnvelopeSource(ultraglide.Renderer("grating-1mm", trajectory=ultraglide.SwipePath(duration_s=0.1)))
+    >>> source.control_rate_hz, source.pull(1200, None).shape              # Hz; 0.1 s of drive (µm p-p)
+    (12000.0, (1200,))
+    >>> source.request_stop()
+    >>> _ = source.pull(1200, None)
+    >>> source.finished
+    True
     """
 
     def __init__(self, renderer: Renderer, realtime_capacity: int | None = None):

@@ -25,7 +25,37 @@ class History:
 
 @dataclass(frozen=True)
 class EngineStatus:
-    """A snapshot of the engine. Times in µs or s as named; amplitudes µm p-p."""
+    """A snapshot of the engine. Times in µs or s as named; amplitudes µm p-p.
+
+    Attributes
+    ----------
+    device : str
+        The device's name.
+    state : str
+        ``starting``, ``running``, ``paused``, ``stopping``, ``stopped`` or ``failed``.
+    blocks, late_blocks, underruns : int
+        Blocks rendered, those late, and the device's underruns.
+    block_p50_us, block_p99_us : float or None
+        Block times (µs) over the recent blocks.
+    limited_percent : float
+        Samples held at the plate's limit in the last second (%).
+    touches, touches_dropped : int
+        Touch reports taken and dropped.
+    faults : list of str
+        The device's faults, in words.
+    history : History
+        The recent rows for a live chart (times in s, amplitudes in µm p-p).
+
+    Examples
+    --------
+    >>> import time
+    >>> from ultraglide.render.engine import Engine, EngineConfig
+    >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+    ...     engine.wait_ready(60.0)
+    ...     status = engine.status()
+    >>> status.device, status.state, status.late_blocks >= 0
+    ('null', 'running', True)
+    """
 
     device: str
     state: str  # starting, running, paused, stopping, stopped, failed
