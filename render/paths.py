@@ -85,7 +85,38 @@ class SwipePath:
                radius_mm: float = 15.0, width_of_pass_mm: float = 40.0, force_n: float | None = None) -> SwipePath:
         """The default swipe over a texture of ``width_mm`` × ``height_mm``: a straight one starts at 10 % of the
         width and crosses the middle; a circle is centred; a zig-zag starts at a fifth of the height with its
-        passes centred. ``start_mm`` overrides where it starts (mm from the texture's top-left corner)."""
+        passes centred. ``start_mm`` overrides where it starts (mm from the texture's top-left corner).
+
+        Parameters
+        ----------
+        width_mm, height_mm : float
+            The texture's size (mm).
+        kind : {"straight", "circle", "zigzag"}
+            The path's shape.
+        speed_mm_s : float
+            The finger's speed (mm/s).
+        duration_s : float
+            How long the finger touches (s).
+        start_mm : (float, float), optional
+            Where it starts (mm).
+        direction_deg : float
+            A straight path's heading (degrees; 0: to the right).
+        radius_mm : float
+            A circle's radius (mm).
+        width_of_pass_mm : float
+            A zig-zag's pass width (mm).
+        force_n : float, optional
+            The finger's force (N); the renderer's default when None.
+
+        Returns
+        -------
+        SwipePath
+
+        Examples
+        --------
+        >>> SwipePath.across(80.0, 50.0).start_mm, SwipePath.across(80.0, 50.0, kind="circle").start_mm   # mm
+        ((8.0, 25.0), (25.0, 25.0))
+        """
         if start_mm is None:
             if kind == "circle":
                 start_mm = (width_mm / 2 - radius_mm, height_mm / 2)
@@ -98,7 +129,22 @@ class SwipePath:
 
     def placed_on(self, width_mm: float, height_mm: float) -> SwipePath:
         """This path with its start chosen for a texture of ``width_mm`` × ``height_mm`` (mm) when it has none
-        (as :meth:`across` chooses it); a path with a start is returned as it is."""
+        (as :meth:`across` chooses it); a path with a start is returned as it is.
+
+        Parameters
+        ----------
+        width_mm, height_mm : float
+            The texture's size (mm).
+
+        Returns
+        -------
+        SwipePath
+
+        Examples
+        --------
+        >>> SwipePath(duration_s=0.5).placed_on(80.0, 50.0).start_mm
+        (8.0, 25.0)
+        """
         if self.start_mm is not None:
             return self
         placed = SwipePath.across(width_mm, height_mm, self.kind, radius_mm=self.radius_mm,
@@ -113,7 +159,31 @@ class SwipePath:
 
     def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:
         """Where the finger is at each time (s from the swipe's start), and whether it touches. ``out``: two
-        one-dimensional arrays (x, y) of the times' length to fill instead of new ones."""
+        one-dimensional arrays (x, y) of the times' length to fill instead of new ones.
+
+        Parameters
+        ----------
+        times_s : array_like
+            Times (s) from the swipe's start.
+        out : (numpy.ndarray, numpy.ndarray), optional
+            Arrays (x, y) to fill.
+
+        Returns
+        -------
+        FingerState
+            ``x_mm``, ``y_mm`` (mm), ``down`` and ``force_n`` at each time.
+
+        Raises
+        ------
+        RenderError
+            A path with no start (the renderer places one on its texture).
+
+        Examples
+        --------
+        >>> state = SwipePath.across(80.0, 50.0, speed_mm_s=100.0, duration_s=0.5).state([0.0, 0.25, 0.6])
+        >>> state.x_mm.tolist(), state.down.tolist()                    # 100 mm/s from 8 mm; lifted after 0.5 s
+        ([8.0, 33.0, 58.0], [True, True, False])
+        """
         times = np.asarray(times_s, dtype=float)
         flat = times.reshape(-1)
         x, y = out if out is not None else (np.empty(flat.shape), np.empty(flat.shape))

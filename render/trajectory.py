@@ -201,7 +201,26 @@ class RecordedTrajectory:
 
     def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:
         """Where the finger is at each time (s), whether it touches, and its force (NaN: not logged).
-        ``out``: two arrays (x, y) of the times' length to fill instead of new ones."""
+        ``out``: two arrays (x, y) of the times' length to fill instead of new ones.
+
+        Parameters
+        ----------
+        times_s : array_like
+            Times (s).
+        out : (numpy.ndarray, numpy.ndarray), optional
+            Arrays (x, y) to fill.
+
+        Returns
+        -------
+        FingerState
+
+        Examples
+        --------
+        >>> path = RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0])
+        >>> state = path.state([0.0, 0.5, 1.5])
+        >>> state.x_mm.tolist(), state.down.tolist()                    # mm; lifted after the last record
+        ([0.0, 5.0, 10.0], [True, True, False])
+        """
         requested = np.asarray(times_s, dtype=float)
         if requested.size == 0:
             return FingerState(requested, requested, requested, np.zeros(requested.shape, dtype=bool))

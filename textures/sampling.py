@@ -264,6 +264,32 @@ class Sampler:
         ``out``: a float32 array of the positions' length to write into. A live block's query (1-d
         float64 positions, one step and one direction for the block) then runs in one compiled pass
         and allocates nothing; any other query is computed as without ``out`` and copied there.
+
+        Parameters
+        ----------
+        x_mm, y_mm : array_like
+            Positions (mm from the top-left corner).
+        step_mm : array_like, optional
+            The distance (mm) moved between samples, one or one a sample.
+        direction : (array_like, array_like), optional
+            The motion (dx, dy), for a gradient texture.
+        out : numpy.ndarray, optional
+            A float32 array of the positions' length to write into.
+
+        Returns
+        -------
+        numpy.ndarray of float32
+            Friction ratios.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> stripes = Texture(np.tile([0.2, 0.8], (8, 8)), width_mm=16.0, height_mm=8.0)   # 1 mm stripes
+        >>> sampler = Sampler(stripes)
+        >>> sampler.ratio([0.5, 1.5], [0.5, 0.5]).astype(float).round(3).tolist()     # on each stripe
+        [0.2, 0.8]
+        >>> round(float(sampler.ratio([0.5], [0.5], step_mm=4.0)[0]), 3)     # 4 mm a sample: their mean
+        0.5
         """
         if out is not None:
             if (isinstance(x_mm, np.ndarray) and x_mm.ndim == 1 and x_mm.dtype == np.float64

@@ -160,7 +160,32 @@ class OutputStage:
                 f"limit {self.limiter.limit_um_pp:g} µm p-p)")
 
     def matches(self, profile: PlateProfile, signal: str, rate_hz: float, carrier_hz: float | None) -> bool:
-        """Whether this stage already gives what a device with these facts needs."""
+        """Whether this stage already gives what a device with these facts needs.
+
+        Parameters
+        ----------
+        profile : PlateProfile
+        signal : {"control", "audio"}
+        rate_hz : float
+            The device's rate (Hz).
+        carrier_hz : float or None
+            The device's carrier (Hz); the plate's resonance when None.
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 9.0))          # 9 µm p-p asked
+        >>> plate = load_profile("sim-plate")
+        >>> stage = OutputStage(steady, plate, "audio", 96000)
+        >>> stage.matches(plate, "audio", 96000, None), stage.matches(plate, "audio", 48000, None)
+        (True, False)
+        """
         return (self.profile == profile and self.signal == signal and self.rate_hz == float(rate_hz)
                 and (signal == "control" or self.carrier_hz == float(carrier_hz or profile.resonance_hz)))
 
@@ -168,7 +193,33 @@ class OutputStage:
     def pull(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
         """The next ``n`` values of the device's signal; ``now_s``: when (perf_counter s) the first plays.
         ``out``: an array of ``n`` to write them into (float64 µm p-p for control, float32 for audio), so the
-        block allocates nothing (the real-time path); without it a new array is returned."""
+        block allocates nothing (the real-time path); without it a new array is returned.
+
+        Parameters
+        ----------
+        n : int
+            How many values.
+        now_s : float or None
+            When (perf_counter s) the first plays; None offline.
+        out : numpy.ndarray, optional
+            An array of ``n`` to write into.
+
+        Returns
+        -------
+        numpy.ndarray
+            µm p-p (control) or float32 in [-1, 1] (audio).
+
+        Examples
+        --------
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 9.0))          # 9 µm p-p asked
+        >>> stage = OutputStage(steady, load_profile("sim-plate"), "control")
+        >>> drive = stage.pull(1200, None)                              # 0.1 s at 12 kHz
+        >>> float(drive[0]), float(drive[-1]), stage.frames      # overdrive (8 µm) at first, then the 6 µm limit
+        (8.0, 6.0, 1200)
+        """
         if self.signal == "control":
             out = self._limited(n, now_s, out) if self.decimation == 1 else self._decimated(n, now_s, out)
             if n:
@@ -278,7 +329,24 @@ class OutputStage:
                 and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
 
     def status(self) -> dict:
-        """The limiter's counters: how often and how far it lowered the drive."""
+        """The limiter's counters: how often and how far it lowered the drive.
+
+        Returns
+        -------
+        dict
+            ``limited_fraction``, ``worst_excess_um_pp``, ``limit_um_pp``, ``max_drive_um_pp``.
+
+        Examples
+        --------
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 9.0))          # 9 µm p-p asked
+        >>> stage = OutputStage(steady, load_profile("sim-plate"), "control")
+        >>> _ = stage.pull(1200, None)
+        >>> stage.status()
+        {'limited_fraction': 1.0, 'worst_excess_um_pp': 3.0, 'limit_um_pp': 6.0, 'max_drive_um_pp': 8.0}
+        """
         return self.limiter.status()
 
 

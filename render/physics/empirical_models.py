@@ -124,7 +124,24 @@ class StretchedExponentialModel(FrictionModel):
         return "eq. (3)'s area law, on which the assumed exponent rests, ends where the area is a fingertip's"
 
     def scale_at_um_pp(self, force_n: ArrayLike) -> np.ndarray | float:
-        """s(F), µm p-p: the amplitude that brings the reducible friction to 1/e at this force."""
+        """s(F), µm p-p: the amplitude that brings the reducible friction to 1/e at this force.
+
+        Parameters
+        ----------
+        force_n : array_like
+            Normal force (N), clipped to the models' range.
+
+        Returns
+        -------
+        numpy.ndarray or float
+            µm p-p.
+
+        Examples
+        --------
+        >>> model = StretchedExponentialModel(scale_um_pp=4.0, force_exponent=1 / 3)
+        >>> round(float(model.scale_at_um_pp(0.5)), 6), round(float(model.scale_at_um_pp(4.0)), 6)   # × 8^(1/3)
+        (4.0, 8.0)
+        """
         return self.scale_um_pp * np.power(clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:

@@ -324,7 +324,18 @@ class FrictionModel(ABC):
         kernels.warm_up()
 
     def force_law(self) -> str:
-        """How this model's friction depends on the normal force, and where that comes from, in words."""
+        """How this model's friction depends on the normal force, and where that comes from, in words.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> load_model("exponential").force_law()
+        'none: the same curve at every force (Monnoyer et al. did not state theirs)'
+        """
         return "no force term"
 
     def _own_force_range_n(self) -> tuple[float, float]:
@@ -336,7 +347,20 @@ class FrictionModel(ABC):
         return ""
 
     def valid_force_range_n(self) -> tuple[float, float]:
-        """The forces (N) the model may be trusted on: those it was fitted on, or where its law holds."""
+        """The forces (N) the model may be trusted on: those it was fitted on, or where its law holds.
+
+        Returns
+        -------
+        (float, float)
+            Low and high (N).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> low, high = load_model("stretched").valid_force_range_n()   # eq. (3) holds up to a whole pad
+        >>> low, round(high, 3)
+        (0.01, 2.436)
+        """
         return self.fitted.force_range_n if self.fitted is not None else self._own_force_range_n()
 
     def _checked_force(self, force_n) -> None:
@@ -423,10 +447,33 @@ class FrictionModel(ABC):
 
     @abstractmethod
     def describe(self) -> str:
-        """One line naming the model and its parameters."""
+        """One line naming the model and its parameters.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> load_model("exponential").describe().split(",")[:2]
+        ['exponential: mu/mu0 = exp(-a²/2tau²)', ' tau = 1.32 µm zero-to-peak']
+        """
 
     def parameters(self) -> dict[str, float | str]:
-        """The model's parameters as plain values, for calibration files and JSON."""
+        """The model's parameters as plain values, for calibration files and JSON.
+
+        Returns
+        -------
+        dict
+            Names with units in them (``tau_um_zp``) to numbers or strings.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> load_model("exponential").parameters()
+        {'tau_um_zp': 1.32, 'residual_ratio': 0.0}
+        """
         return {}
 
     def __repr__(self) -> str:
@@ -511,7 +558,30 @@ class FrictionModel(ABC):
     def one_amplitude_um_pp(self, ratio: float, force_n: float, limit_um_pp: float = np.inf,
                             work: np.ndarray | None = None) -> float:
         """The inverse of one ratio at one force, as a float (µm p-p): what :meth:`amplitude_um_pp` gives for it.
-        ``work``: two floats to compute in (no allocation)."""
+        ``work``: two floats to compute in (no allocation).
+
+        Parameters
+        ----------
+        ratio : float
+            The target ratio.
+        force_n : float
+            Normal force (N).
+        limit_um_pp : float
+            The amplitude limit (µm p-p).
+        work : numpy.ndarray, optional
+            Two floats to compute in.
+
+        Returns
+        -------
+        float
+            µm p-p.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.calibration import load_model
+        >>> round(load_model("exponential").one_amplitude_um_pp(0.5, 0.5), 4)   # 2 sqrt(2 ln 2) × 1.32 µm
+        3.1084
+        """
         work = np.empty(2) if work is None else work
         work[0] = ratio
         return float(self.amplitude_um_pp(work[0:1], force_n, limit_um_pp, work[1:2]).amplitude_um_pp[0])

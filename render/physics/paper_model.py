@@ -104,7 +104,25 @@ class PaperModel(FrictionModel):
 
     @staticmethod
     def detach_um_pp_for(params: FingerParams, force_n):
-        """Detachment amplitude (µm p-p) at each force, forces clipped to the models' range."""
+        """Detachment amplitude (µm p-p) at each force, forces clipped to the models' range.
+
+        Parameters
+        ----------
+        params : FingerParams
+            The finger.
+        force_n : array_like
+            Normal force (N).
+
+        Returns
+        -------
+        numpy.ndarray or float
+            µm p-p.
+
+        Examples
+        --------
+        >>> round(float(PaperModel.detach_um_pp_for(FingerParams(), 0.15)), 2)      # the paper's worked example
+        1.15
+        """
         return detach_amplitude_um_pp(clip_force(force_n), params)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
