@@ -234,7 +234,35 @@ class Engine:
         """Spawn the engine; returns once its inputs are loaded and its device is open.
         Raises :class:`EngineError` (one line) if the texture, model, profile or device is bad.
         With ``config.realtime_priority`` the calling process (the UI beside the engine) gets transparent
-        huge pages turned off too: khugepaged collapsing its memory holds a CPU the block thread needs."""
+        huge pages turned off too: khugepaged collapsing its memory holds a CPU the block thread needs.
+
+        Parameters
+        ----------
+        config : EngineConfig
+            What to render and where.
+        timeout_s : float
+            How long (s) to wait for it to load its inputs and open its device.
+
+        Returns
+        -------
+        Engine
+
+        Raises
+        ------
+        EngineError
+            A bad texture, model, profile or device, or no answer within ``timeout_s``, in one line.
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.wait_ready(60.0)
+        ...     engine.set_force(0.4)                                           # N
+        ...     engine.set_texture("checkerboard-5mm")
+        ...     engine.pause(True)
+        >>> final = engine.final_status                                   # what stop() returned
+        >>> final.state, final.force_n, final.texture
+        ('stopped', 0.4, 'checkerboard-5mm')
+        """
         return cls.launch(config).wait(timeout_s)
 
     @classmethod
@@ -276,7 +304,18 @@ class Engine:
 
     def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> None:
         """Wait until the kernels are compiled and the device runs (it has taken its first block, so the
-        status says running or paused); EngineError if it failed or did not within ``timeout_s``."""
+        status says running or paused); EngineError if it failed or did not within ``timeout_s``.
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long to wait (s).
+
+        Raises
+        ------
+        EngineError
+            It failed, or was not running within ``timeout_s``.
+        """
         deadline = time.monotonic() + timeout_s
         if self.ready_info is None:
             if self._failure is not None:
@@ -302,7 +341,18 @@ class Engine:
 
     def sleep(self, seconds: float) -> None:
         """Wait ``seconds``, or raise :class:`EngineLost` as soon as the engine is lost (within 100 ms of its death,
-        250 ms of its freeze, the device already safe)."""
+        250 ms of its freeze, the device already safe).
+
+        Parameters
+        ----------
+        seconds : float
+            How long to wait (s).
+
+        Raises
+        ------
+        EngineLost
+            The engine died or froze meanwhile.
+        """
         if self.supervisor.wait(max(0.0, seconds)):
             raise EngineLost(self.supervisor.loss)
 
@@ -339,7 +389,23 @@ class Engine:
     def stop(self, timeout_s: float = COMMAND_TIMEOUT_S) -> EngineStatus | None:
         """Ramp to rest, rest the hardware, end the process; returns the last status. Idempotent.
         Raises :class:`EngineError` afterwards if the device's output failed (e.g. a WAV recording that
-        did not fit on the disk: nothing was saved)."""
+        did not fit on the disk: nothing was saved).
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long (s) to wait for each step.
+
+        Returns
+        -------
+        EngineStatus or None
+            The last status.
+
+        Raises
+        ------
+        EngineError
+            The device's output failed (nothing was saved).
+        """
         if self._stopped:
             return self.final_status
         self._stopped = True
@@ -395,36 +461,136 @@ class Engine:
     # ---- in ----------------------------------------------------------------------------------------
     def touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> bool:
         """A touch report (perf_counter s, mm, N or None for the default). Never waits; False if the
-        ring was full (the engine has stalled) and the report was dropped, or the engine was lost (:attr:`loss`)."""
+        ring was full (the engine has stalled) and the report was dropped, or the engine was lost (:attr:`loss`).
+
+        Parameters
+        ----------
+        t_s : float
+            When (``time.perf_counter`` s).
+        x_mm, y_mm : float
+            Where (mm on the texture).
+        force_n : float, optional
+            The normal force (N); the default force when None.
+        down : bool
+            Whether the finger touches.
+
+        Returns
+        -------
+        bool
+            False if the report was dropped.
+        """
         if self.supervisor.loss is not None:
             return False
         return self.shared.push_touch(t_s, x_mm, y_mm, math.nan if force_n is None else force_n, 1.0 if down else 0.0)
 
     def set_texture(self, spec: str | os.PathLike | Texture) -> None:
         """Render another texture: a library name or a file (EngineError if it cannot be loaded), or a
-        ``Texture`` built in memory (sent pickled: a 2000 × 1500 texture is 12 MB, some 10 ms)."""
+        ``Texture`` built in memory (sent pickled: a 2000 × 1500 texture is 12 MB, some 10 ms).
+
+        Parameters
+        ----------
+        spec : str, os.PathLike or Texture
+            A library name, a file, or a texture.
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         self._command("texture", spec if _is_texture(spec) else str(spec))
 
     def set_model(self, spec: str) -> None:
-        """Use another friction model (a name or a file, as ``--model``); EngineError if it cannot be loaded."""
+        """Use another friction model (a name or a file, as ``--model``); EngineError if it cannot be loaded.
+
+        Parameters
+        ----------
+        spec : str
+            A model's name or file.
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         self._command("model", str(spec))
 
     def set_force(self, force_n: float) -> None:
-        """The force assumed when touches carry none, N."""
+        """The force assumed when touches carry none, N.
+
+        Parameters
+        ----------
+        force_n : float
+            N.
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         self._command("force", float(force_n))
 
     def pause(self, flag: bool = True) -> None:
-        """Ramp the output to rest while paused, and back when resumed."""
+        """Ramp the output to rest while paused, and back when resumed.
+
+        Parameters
+        ----------
+        flag : bool
+            Pause (True) or resume (False).
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         self._command("pause", bool(flag))
 
     def trigger(self, name: str) -> bool:
         """The app's named event now (a widget's value changing): plays the effects bound to ``name``
-        (``textures.effects.Trigger(on="event")``). False if no effect is bound to it."""
+        (``textures.effects.Trigger(on="event")``). False if no effect is bound to it.
+
+        Parameters
+        ----------
+        name : str
+            The event's name.
+
+        Returns
+        -------
+        bool
+            False if no effect is bound to it.
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         return bool(self._command("trigger", str(name), time.perf_counter()))
 
     def set_effects(self, description: dict | None) -> None:
         """Play these effects (``textures.effects.to_json``'s description) instead of the texture's own;
-        None: the texture's own again. EngineError (one line) for a bad description."""
+        None: the texture's own again. EngineError (one line) for a bad description.
+
+        Parameters
+        ----------
+        description : dict or None
+            ``textures.effects.to_json``'s description; None: the texture's own.
+
+        Raises
+        ------
+        EngineError
+            The engine refused it or did not answer, in one line.
+        EngineLost
+            The engine died or froze (the device was made safe).
+        """
         self._command("effects", description)
 
     def _command(self, *message):
@@ -448,7 +614,17 @@ class Engine:
 
     # ---- out ---------------------------------------------------------------------------------------
     def status(self, history_s: float = 5.0) -> EngineStatus:
-        """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds)."""
+        """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds).
+
+        Parameters
+        ----------
+        history_s : float
+            How much history (s) to include.
+
+        Returns
+        -------
+        EngineStatus
+        """
         if self.shared.words is None:  # stopped: the last status read before the segment was released
             return self.final_status
         try:
@@ -466,14 +642,26 @@ class Engine:
 
     def latencies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each recent touch: (touch time, time its block was rendered, time that block's first sample
-        is presented by the device), perf_counter s, oldest first."""
+        is presented by the device), perf_counter s, oldest first.
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+            Touch, render and presentation times (perf_counter s).
+        """
         header, _, _, latency = self.shared.read_fast()
         rows = ring_order(latency, int(header[shm.LATENCY_INDEX]))
         rows = rows[np.isfinite(rows[:, 1])]
         return rows[:, 0], rows[:, 1], rows[:, 2]
 
     def plate_probe(self) -> tuple[float, float]:
-        """(simulated plate amplitude µm p-p, perf_counter time it last rose above 0.05 µm); probe_plate only."""
+        """(simulated plate amplitude µm p-p, perf_counter time it last rose above 0.05 µm); probe_plate only.
+
+        Returns
+        -------
+        (float, float)
+            The amplitude (µm p-p) and when (perf_counter s) it last rose above 0.05 µm.
+        """
         fast = self.shared.fast
         return float(fast[shm.PLATE_PROBE_UM_PP]), float(fast[shm.PROBE_RISE_S])
 
