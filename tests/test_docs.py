@@ -31,6 +31,8 @@ def test_site_builds_strictly(tmp_path):
     # the reference is rendered from the docstrings: signatures and their units appear
     assert "export_wav" in api and "µm p-p" in api
     assert 'id="ultraglide.api.Renderer"' in api and 'id="ultraglide.api.render_swipe"' in api
+    blocks = (site / "reference" / "building-blocks" / "index.html").read_text(encoding="utf-8")
+    assert 'id="ultraglide.textures.compose.mix"' in blocks and 'id="ultraglide.api.write_wav"' in blocks
     for page in ("guide/textures", "guide/models", "guide/renderer", "guide/devices", "guide/safety",
                  "guide/engine", "guide/calibration", "guide/commands", "physics", "protocol"):
         assert (site / page / "index.html").is_file(), page
