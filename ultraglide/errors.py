@@ -54,6 +54,14 @@ def out_of_memory(error: BaseException) -> str | None:
     str or None
         E.g. ``"out of memory: unable to allocate 1.2 GiB for an array ...; this process may use at most 293 MiB
         of address space (ulimit -v 300000): raise the limit or free memory"``.
+
+    Examples
+    --------
+    >>> out_of_memory(MemoryError("Unable to allocate 1.00 GiB for an array with shape (134217728,)"))
+    ... # doctest: +ELLIPSIS
+    'out of memory: Unable to allocate 1.00 GiB for an array with shape (134217728,)...'
+    >>> out_of_memory(ValueError("a bad value")) is None
+    True
     """
     seen, chain, found = set(), error, None
     while chain is not None and id(chain) not in seen and found is None:

@@ -179,7 +179,35 @@ def read_calibration(path: str | Path) -> FrictionModel:
 
 
 def calibration_from_document(document: dict, where: str) -> FrictionModel:
-    """The typed reading of a calibration file's parsed TOML (see :func:`read_calibration`)."""
+    """The typed reading of a calibration file's parsed TOML (see :func:`read_calibration`).
+
+    Parameters
+    ----------
+    document : dict
+        The parsed TOML.
+    where : str
+        What to name in a refusal (the file).
+
+    Returns
+    -------
+    FrictionModel
+        With its fitted force range (:attr:`FrictionModel.fitted`) where the file gives one.
+
+    Raises
+    ------
+    ModelError
+        Not a calibration file of this version, an unknown model, or a parameter missing or out of range.
+
+    Examples
+    --------
+    >>> calibration_from_document({"ultraglide_calibration": 1, "model": "exponential",
+    ...                             "parameters": {"tau_um_zp": 1.0}}, "cal.toml")
+    ExponentialModel(tau_um_zp=1.0)
+    >>> calibration_from_document({}, "cal.toml")                     # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: cal.toml: not an ultraglide calibration file of version 1 ...
+    """
     version = document.get("ultraglide_calibration")
     if version != CALIBRATION_VERSION or isinstance(version, bool):
         raise ModelError(f"{where}: not an ultraglide calibration file of version {CALIBRATION_VERSION}"

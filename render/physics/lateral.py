@@ -63,7 +63,39 @@ def simulate_lateral(
     preload_n: float = 0.0,
 ) -> LateralCycle:
     """Simulate stick–slip from rest (springs holding the tangential preload ``preload_n``, N,
-    plate at its centre) for ``cycles``."""
+    plate at its centre) for ``cycles``.
+
+    Parameters
+    ----------
+    amplitude_um_pp : float
+        The plate's lateral amplitude (µm p-p), >= 0.
+    force_n : float
+        Normal force (N), > 0.
+    frequency_hz : float
+        The vibration's frequency (Hz); above the quasi-static limit a QuasiStaticWarning says so.
+    cycles : int
+        How many cycles, 1 or more.
+    steps_per_cycle : int
+        Time steps per cycle.
+    params : FingerParams
+        The finger; the paper's Table I by default.
+    preload_n : float
+        The tangential preload (N), below mu_s F_n.
+
+    Returns
+    -------
+    LateralCycle
+
+    Raises
+    ------
+    ValueError
+        An amplitude, force, frequency, cycle count or preload out of range.
+
+    Examples
+    --------
+    >>> simulate_lateral(3.0, 0.4, frequency_hz=5000.0).slid, simulate_lateral(6.0, 0.4, frequency_hz=5000.0).slid
+    (False, True)
+    """
     if amplitude_um_pp < 0 or force_n <= 0 or frequency_hz <= 0 or cycles < 1:
         raise ValueError("amplitude must be >= 0, force and frequency > 0, cycles >= 1")
     if not 0.0 <= abs(preload_n) < params.static_friction * force_n:
@@ -112,6 +144,30 @@ def simulated_glide_threshold_um_pp(
 
     This is the numerical route of Fig. 3a; it agrees with the closed form of eq. (5),
     :func:`render.physics.fingerprint.glide_threshold_um_pp` (with the same preload).
+
+    Parameters
+    ----------
+    force_n : float
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+    tolerance_um : float
+        The bisection's tolerance (µm).
+    preload_n : float
+        The tangential preload (N).
+    frequency_hz : float
+        The vibration's frequency (Hz).
+
+    Returns
+    -------
+    float
+        µm p-p.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.fingerprint import glide_threshold_um_pp
+    >>> round(simulated_glide_threshold_um_pp(0.4, frequency_hz=5000.0), 2), round(float(glide_threshold_um_pp(0.4)), 2)
+    (4.48, 4.48)
     """
     def slips(amplitude: float) -> bool:
         return simulate_lateral(amplitude, force_n, frequency_hz, cycles=1, steps_per_cycle=2000, params=params,
@@ -136,6 +192,25 @@ def steady_glide_threshold_um_pp(force_n, params: FingerParams = FingerParams())
 
     After a slide the springs hold mu_d F_n; the plate's return stroke of a_pp must then reach
     -mu_s F_n, so a_pp > (mu_s + mu_d) F_n / k_t.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Normal force (N).
+    params : FingerParams
+        The finger; the paper's Table I by default.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        µm p-p.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.fingerprint import glide_threshold_um_pp
+    >>> ratio = float(steady_glide_threshold_um_pp(0.4) / glide_threshold_um_pp(0.4))   # (mu_s + mu_d) / (2 mu_s)
+    >>> round(ratio, 6)
+    0.85
     """
     force = np.asarray(force_n, dtype=float)
     k_t = tangential_stiffness_n_per_m(force, params)
