@@ -264,7 +264,28 @@ class _Sequence(_Plan):
 
 
 def plan(effect: Effect, capacity: int) -> _Plan:
-    """An evaluator for ``effect`` over up to ``capacity`` times at once, with its buffers allocated now."""
+    """An evaluator for ``effect`` over up to ``capacity`` times at once, with its buffers allocated now.
+
+    Parameters
+    ----------
+    effect : Effect
+    capacity : int
+        The most times evaluated at once.
+
+    Returns
+    -------
+    _Plan
+        ``evaluate(t, out)`` writes the effect's values at times ``t`` (s, >= 0) into ``out``, allocating nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.textures.effect_types import Constant
+    >>> values = np.empty(3)
+    >>> plan(Constant(0.3, 0.05), 3).evaluate(np.array([0.0, 0.02, 0.06]), values)   # s since the trigger
+    >>> values.tolist()
+    [0.3, 0.3, 0.0]
+    """
     if isinstance(effect, Sine | Square | Sawtooth | Triangle):
         return _Oscillator(effect, capacity)
     if isinstance(effect, Constant):
@@ -282,7 +303,27 @@ def plan(effect: Effect, capacity: int) -> _Plan:
 
 def sample(effect: Effect, t_s) -> np.ndarray:
     """The effect's value (drop in friction ratio) at times ``t_s`` (s since its trigger); 0 before 0 and
-    after its duration."""
+    after its duration.
+
+    Parameters
+    ----------
+    effect : Effect
+    t_s : array_like
+        Times (s) since the trigger.
+
+    Returns
+    -------
+    numpy.ndarray
+        Drops in friction ratio.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.effect_types import ADSR, Constant
+    >>> sample(Constant(0.3, 0.05), [-0.01, 0.0, 0.02, 0.06]).tolist()          # s: before, during, after
+    [0.0, 0.3, 0.3, 0.0]
+    >>> sample(ADSR(0.01, 0.0, 0.0, 0.01, sustain_level=1.0), [0.005, 0.01, 0.015]).round(9).tolist()  # 10 ms up, down
+    [0.5, 1.0, 0.5]
+    """
     t = np.ascontiguousarray(t_s, dtype=np.float64)
     out = np.empty(len(t))
     plan(effect, max(1, len(t))).evaluate(t, out)
