@@ -316,11 +316,13 @@ def haps_texture(haps: HapsFile, width_mm: float | None = None,
 
     Example
     -------
-    >>> haps = read_haps({"m_texture": {"m_loop": 1, "m_melodies": [{"m_notes": [{"m_startingPoint": 0.0,
-    ...     "m_length": 0.001, "m_gain": 1.0}]}]}, "m_length_unit": 7}, "bump.haps")
-    >>> texture, _ = haps_texture(haps, width_mm=2.0)
-    >>> texture.width_mm, float(texture.values[0, 0]), float(texture.values[0, -1])
-    (2.0, 1.0, 0.0)
+    >>> notes = [{"m_startingPoint": 0.0, "m_length": 0.0005, "m_gain": 1.0},
+    ...          {"m_startingPoint": 0.0005, "m_length": 0.0005, "m_gain": 0.2}]
+    >>> haps = read_haps({"m_texture": {"m_loop": 1, "m_melodies": [{"m_notes": notes}]}, "m_length_unit": 7},
+    ...                  "step.haps")
+    >>> texture, _ = haps_texture(haps, width_mm=2.0)  # the block's 1 mm spans the 2 mm given
+    >>> texture.width_mm, float(texture.values[0, 0]), round(float(texture.values[0, -1]), 3)
+    (2.0, 1.0, 0.2)
     """
     where, block = haps.where, haps.texture
     if not block.notes:
