@@ -6,8 +6,9 @@ interpreter). :class:`Supervisor` is a thread of the app that watches:
 
 * **the process**: its sentinel (a pipe the kernel closes when it ends) wakes the watch at once, so a death is
   noticed within a few milliseconds (aim: 100 ms);
-* **its heartbeats** in the shared memory: ``HEARTBEAT``, which the block path advances every block, and
-  ``ENGINE_BEAT``, which a thread of the engine advances every 20 ms. While the engine should play (it has
+* **its heartbeats** in the shared memory (looked at every 50 ms, and every 10 ms once a look found none new):
+  ``HEARTBEAT``, which the block path advances every block, and ``ENGINE_BEAT``, which a thread of the engine
+  advances every 20 ms. While the engine should play (it has
   taken its first block and was not asked to stop), neither advancing for ``frozen_after_s`` (0.15 s) is a
   freeze; while it stops (its block path may end before it answers), the engine's beat alone counts. A device
   that pulls no block for a while (a plate's handshake after a reconnection) keeps the engine's beat going and
@@ -44,6 +45,7 @@ from ultraglide.render.engine import shm
 
 FROZEN_AFTER_S = 0.15  # no sign of life for this long while the engine should play: it is frozen
 POLL_S = 0.05  # the watch looks at the heartbeats this often (a death wakes it at once); 0.01 took 4 % of a core
+SILENT_POLL_S = 0.01  # ... and this often once a look found no beat: a freeze is judged within 10 ms of its time
 OWN_GAP_S = 0.1  # the watch itself woke this late: this process did not run, so the engine gets its time again
 KILL_WAIT_S = 2.0  # the longest wait for a killed engine's process to end
 CLEAN_ENDS = ("stopped", "failed")  # the engine's states in which its process ends as it should
@@ -142,8 +144,9 @@ class Supervisor:
         block_beat, engine_beat = fast[shm.HEARTBEAT], fast[shm.ENGINE_BEAT]
         block_seen = engine_seen = last_wake = now
         stopped_since = None  # when the process was first seen stopped (SIGSTOP): judged on its own clock
+        timeout_s = self.poll_s
         while True:
-            ended = bool(wait([self._sentinel], self.poll_s))
+            ended = bool(wait([self._sentinel], timeout_s))
             now = time.perf_counter()
             state = shm.STATES[int(fast[shm.STATE])] if 0 <= fast[shm.STATE] < len(shm.STATES) else "starting"
             if ended:
@@ -165,6 +168,7 @@ class Supervisor:
             # /proc is read only when no beat came since the last look: a process that beats is not stopped
             stopped = not beating and _process_state(self.pid) in ("T", "t")
             stopped_since = (stopped_since or now) if stopped else None
+            timeout_s = self.poll_s if beating else min(self.poll_s, SILENT_POLL_S)  # silent: look closer
             if state in CLEAN_ENDS:
                 continue
             silent_s = now - max(block_seen, engine_seen)
