@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.protocol.ranges import hello_out_of_range
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,9 @@ def check_device(port: str, raw: bytes, carrier_hz: float, rate_hz: int | None,
         hello = p.parse_hello_reply(raw)
     except p.ProtocolError as error:
         raise DeviceError(f"{port}: the plate driver's handshake reply is malformed ({error})") from None
+    impossible = hello_out_of_range(hello)  # every field within what it can be (devices/protocol/ranges.py)
+    if impossible:
+        raise DeviceError(f"{port}: the plate driver's handshake reply cannot be believed: {'; '.join(impossible)}")
     if not hello.carrier_min_hz <= carrier_hz <= hello.carrier_max_hz:
         raise DeviceError(f"{port}: carrier {carrier_hz:g} Hz is outside what the plate driver "
                           f"accepts, {hello.carrier_min_hz:g}-{hello.carrier_max_hz:g} Hz")

@@ -266,5 +266,6 @@ class SerialPlate:
             "faults": faults,
             "device_faults": [name for name, count in faults.items() if count],
             "report": self.report().as_dict(),
+            "values_not_believed": self.account.field_check.counts(),  # frames by "FRAME field" (protocol/ranges.py)
             **({"tracking": self.tracker.summary()} if self.tracker is not None else {}),
         }

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import CounterCheck
+from ultraglide.devices.protocol.ranges import FieldCheck
 from ultraglide.devices.serial.link import COMMAND_NAMES, CUT_FAULTS, CUT_WORDS, MAX_OUTAGES, Outage, Pacing
 from ultraglide.devices.serial.run_report import Incident, RunReport, seconds, times
 
@@ -56,6 +57,14 @@ class RunAccount:
         check = getattr(self, "_counter_check", None)
         if check is None:
             check = self._counter_check = CounterCheck()
+        return check
+
+    @property
+    def field_check(self) -> FieldCheck:
+        """The device's values that could not be believed over the run (devices/protocol/ranges.py)."""
+        check = getattr(self, "_field_check", None)
+        if check is None:
+            check = self._field_check = FieldCheck()
         return check
 
     def now_s(self) -> float:
@@ -172,6 +181,9 @@ class RunAccount:
         implausible = self.counter_check.words()
         if implausible is not None:  # a device fault: its numbers are not to be believed
             incidents.append(Incident(self.counter_check.first_s(), "faulted", implausible))
+        impossible = self.field_check.words()
+        if impossible is not None:  # a device fault: those frames were not taken
+            incidents.append(Incident(self.field_check.first_s(), "faulted", impossible))
         if bad[0] or bad[1]:
             incidents.append(Incident(bad[2] or 0.0, "note", f"{times(bad[0] + bad[1], 'frame')} from the plate "
                                       f"arrived damaged ({bad[0]} with a bad CRC, {bad[1]} truncated or malformed), "

@@ -153,7 +153,9 @@ class Session:
             state.first_telemetry = threading.Event() if first else None
             state.active = True
             if first and not state.first_telemetry.wait(self.ack_timeout_s):  # the run's fault baseline
-                raise DeviceError(f"{self.port}: the plate driver sends no telemetry")
+                impossible = self.account.field_check.words()
+                raise DeviceError(f"{self.port}: the plate driver sends no telemetry" +
+                                  ("" if impossible is None else f" that can be believed ({impossible})"))
             state.loop_on = False
             if self.amplitude_loop and hello.has_amplitude_loop:  # only while disabled: before ENABLE, and after
                 self.command(p.ENABLE, p.enable_payload(False))  # a hang the device may still be enabled (NAK 3)

@@ -7,7 +7,8 @@ import threading
 import time
 
 from ultraglide.devices import protocol as p
-from ultraglide.devices.counter_check import plausible_restart
+from ultraglide.devices.counter_check import WRAP, plausible_restart
+from ultraglide.devices.protocol.ranges import sensors_out_of_range, telemetry_out_of_range
 from ultraglide.devices.serial.link import (
     CLEAR_RETRY_S,
     CUT_FAULTS,
@@ -134,6 +135,7 @@ class Intake:
         self.sensors_frames = 0
         self.sensor_errors = 0
         self._sensor_listeners: tuple = ()
+        self._next_sample: int | None = None  # the sample number the last SENSORS frame leads to
         self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
         self._frames_ok_last = 0
         self.fault_run = [0] * p.FAULT_BITS  # faults over the run
@@ -150,10 +152,17 @@ class Intake:
         state.last_heard = time.monotonic()
         try:
             if frame.kind == p.TELEMETRY and state.active:
-                self.take_telemetry(p.parse_telemetry(frame.payload))
+                telemetry = p.parse_telemetry(frame.payload)
+                if state.device is None or self._believed("TELEMETRY", telemetry_out_of_range(telemetry, state.device)):
+                    self.take_telemetry(telemetry)
             elif frame.kind == p.SENSORS and state.active:
-                self._take_sensors(p.parse_sensors(frame.payload))
+                sensors = p.parse_sensors(frame.payload)
+                expected, self._next_sample = self._next_sample, (sensors.first_sample + len(sensors.samples)) % WRAP
+                device = state.device
+                if device is None or self._believed("SENSORS", sensors_out_of_range(sensors, device, expected)):
+                    self._take_sensors(sensors)
             elif frame.kind == p.HELLO_REPLY:
+                self._next_sample = None  # a new connection: its samples are numbered afresh
                 self.session.replies.hello_arrived(frame.payload)
             elif frame.kind == p.ACK:
                 seq = p.parse_ack(frame.payload)
@@ -171,6 +180,12 @@ class Intake:
                 self.session.replies.answer(seq, reason)
         except p.ProtocolError:
             self.counters.bad_frames += 1
+
+    def _believed(self, kind: str, impossible: list[tuple[str, str]]) -> bool:
+        """Whether a frame can be believed; if not, it is a device fault, counted and said in the run's report."""
+        if impossible:
+            self.account.field_check.add(kind, impossible, self.account.now_s())
+        return not impossible
 
     def add_sensor_listener(self, listener) -> None:
         self._sensor_listeners = (*self._sensor_listeners, listener)

@@ -15,6 +15,7 @@ import tty
 import numpy as np
 from ultraglide.devices import protocol as p
 from ultraglide.devices.profiles import PlateProfile
+from ultraglide.devices.sim.lies import Lies
 from ultraglide.devices.sim.links import LinkClaim, link_path_for, place_link, remove_link
 from ultraglide.devices.sim.plate import (
     LINK_BYTES_PER_S,
@@ -37,7 +38,8 @@ class PtyPlate:
 
     def __init__(self, profile: PlateProfile, link_path: str | None = None, truth: PlateTruth | None = None,
                  breaks: tuple[str, ...] = (), max_version: int = 3, finger: ForceSource | None = None,
-                 link_bytes_per_s: int = LINK_BYTES_PER_S):
+                 link_bytes_per_s: int = LINK_BYTES_PER_S, lies: Lies | None = None):
+        self.lies = lies  # fields replaced in what it sends (devices/sim/lies.py): a plate that lies
         self.simulator = PlateSimulator(profile, truth=truth, breaks=breaks, max_version=max_version, finger=finger,
                                         link_bytes_per_s=link_bytes_per_s)
         self.path, self._own_dir = link_path_for(link_path, "ultraglide-plate-")
@@ -117,6 +119,8 @@ class PtyPlate:
         self._drop_until = self._corrupt_until = self._hang_until = self._disconnect_until = 0.0
 
     def _write(self, frames: list[bytes]) -> None:
+        if self.lies:
+            frames = self.lies.rewrite(frames)
         with self._port_lock:
             for frame in frames:
                 if self._master < 0:
