@@ -39,6 +39,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     sim.add_argument("--break", dest="breaks", action="append", default=[], metavar="RULE",
                      help="break one rule of docs/protocol.md on purpose (R-NAK-ORDER, R-WATCHDOG, ...; see its "
                           "Conformance section), to test `plate check`; repeat for several")
+    sim.add_argument("--lie", dest="lies", action="append", default=[], metavar="FRAME.FIELD=VALUE",
+                     help="report VALUE for a field of HELLO_REPLY, TELEMETRY or SENSORS (hello.watchdog_ms=5, "
+                          "telemetry.measured_um_pp=0.2: a plate that ignores the amplitude; sensors.normal_force_n="
+                          "nan ...), to test what a host believes; repeat for several")
     sim.add_argument("--board", choices=["sim", "qemu", "netduinoplus2"], default="sim",
                      help="sim: the firmware's core on this machine; qemu (or netduinoplus2): the netduinoplus2 "
                           "board image under QEMU (built first if needed), its UART on the pty (default: sim)")
@@ -103,18 +107,20 @@ def run(args) -> int:
         raise UsageError("--board-fault is a board's (--board qemu): the simulator's faults come from the host "
                          "(SIM_FAULT)")
     if args.board in ("qemu", "netduinoplus2"):
-        if args.breaks or args.max_version != 3 or finger_asked(args) or args.clock_ppm:
+        if args.breaks or args.max_version != 3 or finger_asked(args) or args.clock_ppm or args.lies:
             from ultraglide.apps.cli.errors import UsageError
 
-            raise UsageError("--break, --max-version, --clock-ppm and --finger are the simulator's (--board sim), "
-                             "not the board image's (it keeps QEMU's clock)")
+            raise UsageError("--break, --lie, --max-version, --clock-ppm and --finger are the simulator's "
+                             "(--board sim), not the board image's (it keeps QEMU's clock)")
         return _plate_sim_qemu(args)
     from ultraglide.devices.rig import load_plate
+    from ultraglide.devices.sim.lies import Lies
     from ultraglide.devices.sim.plate import PlateTruth
     from ultraglide.devices.sim.pty_plate import PtyPlate
     from ultraglide.render.engine.finger_setup import build_finger, finger_words
     from ultraglide.render.engine.realtime import threads_started_in_real_time
 
+    lies = Lies.parse(args.lies)  # (a DeviceError in one line for a field that is not there)
     profile = load_plate(args.profile)
     truth = PlateTruth(args.resonance_hz or profile.resonance_hz, args.q or profile.q, args.drift_hz_per_s,
                        clock_ppm=args.clock_ppm)
@@ -126,7 +132,7 @@ def run(args) -> int:
         # plate's own lag cancelling it); what starts them stays ordinary
         with threads_started_in_real_time():
             plate = PtyPlate(profile, args.link, truth, breaks=tuple(args.breaks), max_version=args.max_version,
-                             finger=finger).start()
+                             finger=finger, lies=lies).start()
     except BaseException:
         if finger is not None:
             finger.close()
@@ -141,10 +147,11 @@ def run(args) -> int:
             show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name,
                   "profile": profile.name, "resonance_hz": truth.resonance_hz, "q": truth.q,
                   "drift_hz_per_s": truth.drift_hz_per_s, "clock_ppm": truth.clock_ppm,
-                  "max_version": args.max_version, "breaks": args.breaks,
+                  "max_version": args.max_version, "breaks": args.breaks, "lies": args.lies,
                   "finger": None if config is None else finger_words(config)})
         else:
             broken = f"; breaking {', '.join(args.breaks)} on purpose" if args.breaks else ""
+            broken += f"; lying: {', '.join(args.lies)}" if args.lies else ""
             version = "" if args.max_version == 3 else f"; speaking protocol v{args.max_version} at most"
             clock = f"; its clock {truth.clock_ppm:+g} ppm" if truth.clock_ppm else ""
             print_line(f"simulated plate {profile.name} on {plate.path} (pty {plate.pty_name}); resonance "

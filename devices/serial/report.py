@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import CounterCheck
 from ultraglide.devices.protocol.ranges import FieldCheck
+from ultraglide.devices.serial.follow import AmplitudeFollow
 from ultraglide.devices.serial.link import COMMAND_NAMES, CUT_FAULTS, CUT_WORDS, MAX_OUTAGES, Outage, Pacing
 from ultraglide.devices.serial.run_report import Incident, RunReport, seconds, times
 
@@ -66,6 +67,14 @@ class RunAccount:
         if check is None:
             check = self._field_check = FieldCheck()
         return check
+
+    @property
+    def follow(self) -> AmplitudeFollow:
+        """Whether the plate's measured amplitude follows what it is sent, over the run (devices/serial/follow.py)."""
+        follow = getattr(self, "_follow", None)
+        if follow is None:
+            follow = self._follow = AmplitudeFollow()
+        return follow
 
     def now_s(self) -> float:
         """Seconds since the run started."""
@@ -184,6 +193,9 @@ class RunAccount:
         impossible = self.field_check.words()
         if impossible is not None:  # a device fault: those frames were not taken
             incidents.append(Incident(self.field_check.first_s(), "faulted", impossible))
+        unfollowed = self.follow.words()
+        if unfollowed is not None:  # a device fault: it does not play what it is sent
+            incidents.append(Incident(self.follow.first_s(), "faulted", unfollowed))
         if bad[0] or bad[1]:
             incidents.append(Incident(bad[2] or 0.0, "note", f"{times(bad[0] + bad[1], 'frame')} from the plate "
                                       f"arrived damaged ({bad[0]} with a bad CRC, {bad[1]} truncated or malformed), "

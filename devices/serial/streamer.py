@@ -180,7 +180,7 @@ class Streamer:
             self._quiet_since = now
         idle = self._quiet_since is not None and now - self._quiet_since >= IDLE_AFTER_S
         stream = not state.cut and (state.output_on or not idle)
-        if self.tracker is not None and stream:
+        if stream:  # what was sent, for the resonance tracker and the check that the plate follows (serial/follow.py)
             played = float(np.clip(fractions, 0.0, 1.0, out=self._clipped[:due]).sum()) * limits.full_scale_um_pp
             self.intake.drive.add(played, len(fractions))
         try:

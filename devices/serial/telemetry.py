@@ -239,8 +239,10 @@ class Intake:
             self.telemetry = telemetry
             self.frames += 1
             self._arrived.notify_all()
+        total, count = self.drive.take()
+        self.account.follow.observe(total, count, telemetry.measured_um_pp, self._judged(telemetry),
+                                    self.account.now_s())
         if self.tracker is not None:
-            total, count = self.drive.take()
             if previous is None or any(counts[bit.bit_length() - 1] != previous[bit.bit_length() - 1]
                                        for bit in TRACKING_DISTURBANCES):
                 self.tracker.disturbed(time.perf_counter())
@@ -248,6 +250,16 @@ class Intake:
                 self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
         if state.first_telemetry is not None:
             state.first_telemetry.set()
+
+    def _judged(self, telemetry: p.Telemetry) -> bool:
+        """Whether this frame's amplitude is judged against what was sent (serial/follow.py): the output on and
+        playing, on a device that measures its amplitude (v3: it says so; v2: it once reported one above 0)."""
+        state, device = self.session.state, self.session.state.device
+        self._amplitude_seen = getattr(self, "_amplitude_seen", False) or telemetry.measured_um_pp > 0.0
+        sensed = bool(device.sensors & p.SENSOR_AMPLITUDE) if device is not None and device.version >= 3 else \
+            self._amplitude_seen
+        playing = telemetry.version < 3 or telemetry.playback == p.PLAYBACK_PLAYING
+        return sensed and playing and state.output_on and not state.cut and telemetry.enabled
 
     def _add_link_counters(self, telemetry: p.Telemetry, restarted: bool) -> None:
         for name in LINK_COUNTERS:

@@ -1,0 +1,107 @@
+"""Whether the plate's measured amplitude follows the amplitude it is sent: a plate that does not is a device fault.
+
+The host sends amplitudes (setpoints, µm p-p at resonance); the plate's telemetry says the amplitude it measures
+(its sensing piezo). A plate that ignores what it is sent (a firmware that does not play the stream, a sensor
+stuck, a drive stage dead, a resonance far off the carrier) looks from the host like one that plays: so the two
+are compared, over windows of a second (:data:`WINDOW_FRAMES` telemetry frames), while the output plays:
+
+* the bound: the window's mean measured amplitude within 1/:data:`FOLLOW_FACTOR` to :data:`FOLLOW_FACTOR` (3)
+  times the mean amplitude sent, where that mean is at least :data:`MIN_SENT_UM_PP` (0.5 µm p-p: below it a
+  sensor's noise and offset are a large part of what it reads); and, sent less than :data:`STOPPED_UM_PP`, a
+  measured mean under :data:`STILL_UM_PP` (1 µm p-p). Why a second and 3x: the values sent play a buffer later
+  (up to 250 ms; a second's means barely notice), a plate's resonant response lags by its time constant
+  (Q / (pi f), 2 ms at Q 180 and 25 kHz), and an honest plate whose full scale or resonance is off by the
+  profile's tolerance reads within 2x (the resonance 60 Hz off at Q 180: 0.76x); a plate outside 3x for two
+  seconds running does not follow;
+* two windows running outside the bound are a fault: said once (the first window's figures), each such window
+  counted. A window is judged only while the output is on and (v3) playing; a device without an amplitude sensor
+  (v3: no SENSOR_AMPLITUDE; v2: it never reported a measured amplitude above 0) is not judged.
+
+Example
+-------
+>>> follow = AmplitudeFollow()
+>>> for second in range(3):
+...     for frame in range(WINDOW_FRAMES):
+...         follow.observe(sent_um_pp=3.0 * 40, sent_values=40, measured_um_pp=0.1, judged=True, at_s=second)
+>>> follow.windows, follow.words() is not None
+(3, True)
+"""
+
+from __future__ import annotations
+
+import threading
+
+WINDOW_FRAMES = 50  # telemetry frames a window (50 a second: 1 s)
+FOLLOW_FACTOR = 3.0  # the measured mean within 1/3..3x the sent mean
+MIN_SENT_UM_PP = 0.5  # a window whose mean sent amplitude is below this is judged only as "stopped" (below)
+STOPPED_UM_PP = 0.05  # sent less than this on average: the plate should be still ...
+STILL_UM_PP = 1.0  # ... measuring less than this
+WINDOWS_RUNNING = 2  # windows outside the bound in a row: a fault
+
+
+class AmplitudeFollow:
+    """The comparison over a run (see the module's docstring); fed from the telemetry reader, read by others."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._sent = 0.0
+        self._values = 0
+        self._measured = 0.0
+        self._frames = 0
+        self._start_s = 0.0
+        self._running = 0  # windows outside the bound in a row
+        self._pending: tuple | None = None  # the first window of the present run outside the bound
+        self.first: tuple[float, float, float] | None = None  # (at s, sent mean, measured mean) of the fault
+        self.windows = 0  # windows outside the bound, counted once the fault stood
+
+    def observe(self, sent_um_pp: float, sent_values: int, measured_um_pp: float, judged: bool, at_s: float) -> None:
+        """One telemetry frame: the amplitudes sent since the last (their sum, µm p-p, and count), what the plate
+        measured, whether this frame is judged (output on and playing), when (s into the run)."""
+        if not judged:
+            self._sent, self._values, self._measured, self._frames = 0.0, 0, 0.0, 0  # a window is judged whole
+            return
+        if not self._frames:
+            self._start_s = at_s
+        self._sent += sent_um_pp
+        self._values += sent_values
+        self._measured += measured_um_pp
+        self._frames += 1
+        if self._frames < WINDOW_FRAMES:
+            return
+        sent = self._sent / self._values if self._values else 0.0
+        measured = self._measured / self._frames
+        self._sent, self._values, self._measured, self._frames = 0.0, 0, 0.0, 0
+        if sent >= MIN_SENT_UM_PP:
+            outside = not sent / FOLLOW_FACTOR <= measured <= sent * FOLLOW_FACTOR
+        elif sent < STOPPED_UM_PP:
+            outside = measured >= STILL_UM_PP
+        else:
+            return  # between: too little sent to judge a plate by
+        with self._lock:
+            if not outside:
+                self._running, self._pending = 0, None
+                return
+            self._running += 1
+            if self._running == 1:
+                self._pending = (self._start_s, sent, measured)
+            if self._running == WINDOWS_RUNNING:
+                self.first = self.first or self._pending
+                self.windows += WINDOWS_RUNNING
+            elif self._running > WINDOWS_RUNNING:
+                self.windows += 1
+
+    def words(self) -> str | None:
+        """One sentence for the run's report, or None if the plate followed (or was never judged)."""
+        with self._lock:
+            if self.first is None:
+                return None
+            at_s, sent, measured = self.first
+            windows = self.windows
+        return (f"the plate does not follow the amplitude it is sent: from {at_s:.2f} s it was sent {sent:.2f} µm p-p "
+                f"on average over a second and measured {measured:.2f} (the bound: within 1/{FOLLOW_FACTOR:g} to "
+                f"{FOLLOW_FACTOR:g} times what is sent, over seconds sent at least {MIN_SENT_UM_PP:g} µm p-p; under "
+                f"{STILL_UM_PP:g} when sent nothing); {windows} such second{'s' if windows != 1 else ''}")
+
+    def first_s(self) -> float:
+        with self._lock:
+            return 0.0 if self.first is None else self.first[0]
