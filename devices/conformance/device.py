@@ -16,6 +16,7 @@ from ultraglide.devices.conformance.probe import (
     Unobservable,
     answer_words,
 )
+from ultraglide.devices.serial.follow import FOLLOW_FACTOR
 
 
 class DeviceRules:
@@ -52,8 +53,21 @@ class DeviceRules:
         if telemetry.playback == p.PLAYBACK_PLAYING and abs(telemetry.drive_code - self.safe_code) > 1:
             raise Broken(f"code {self.safe_code} played as drive code {telemetry.drive_code}")
         d = self.device
+        sent_um_pp = self.safe_code / p.SETPOINT_SCALE * d.full_scale_um_pp
+        measured = ""
+        if d.sensors & p.SENSOR_AMPLITUDE and telemetry.playback == p.PLAYBACK_PLAYING:
+            # its measured amplitude follows the code: within devices/serial/follow.py's bound (1/3 to 3 times),
+            # at resonance, 0.1 s into a steady code (the plate settles within its time constant, ms)
+            low, high = sent_um_pp / FOLLOW_FACTOR, sent_um_pp * FOLLOW_FACTOR
+            if not low <= telemetry.measured_um_pp <= high:
+                raise Broken(f"the plate does not follow the amplitude: code {self.safe_code} ({sent_um_pp:.3f} "
+                             f"µm p-p of full scale {d.full_scale_um_pp:g}) measured {telemetry.measured_um_pp:.3f} "
+                             f"µm p-p, outside {low:.3f}..{high:.3f} (1/{FOLLOW_FACTOR:g} to {FOLLOW_FACTOR:g} times)")
+            measured = f"; measured {telemetry.measured_um_pp:.3f} µm p-p (within 1/{FOLLOW_FACTOR:g} to " \
+                       f"{FOLLOW_FACTOR:g} times)"
         return f"code {self.safe_code} drove {telemetry.drive_code} / 65535 of full scale " \
-               f"({telemetry.drive_code / p.SETPOINT_SCALE * d.full_scale_um_pp:.3f} µm p-p of {d.full_scale_um_pp:g})"
+               f"({telemetry.drive_code / p.SETPOINT_SCALE * d.full_scale_um_pp:.3f} µm p-p of " \
+               f"{d.full_scale_um_pp:g}){measured}"
 
     def check_limit(self) -> str:
         self.need_v3()

@@ -18,6 +18,7 @@ from ultraglide.devices.conformance.probe import (
     cobs_decode,
     cobs_encode,
 )
+from ultraglide.devices.protocol.ranges import telemetry_out_of_range
 
 
 class LinkRules:
@@ -33,6 +34,11 @@ class LinkRules:
             raise Broken(f"TELEMETRY of {sorted(sizes)} bytes in a v{self.version} session (its layout: {layout})")
         if len(times) < 2:
             raise Broken(f"{len(times)} TELEMETRY frames in 2 s")
+        if self.device is not None:  # every field within what it can be (devices/protocol/ranges.py)
+            for _, frame in self.probe.received(since, p.TELEMETRY):
+                impossible = telemetry_out_of_range(p.parse_telemetry(frame.payload), self.device)
+                if impossible:
+                    raise Broken("TELEMETRY with values that cannot be: " + "; ".join(words for _, words in impossible))
         # the rate from first to last arrival: a frame's delivery delay (this host's scheduling, the link) moves
         # only the two ends, so over 2 s it moves the rate by a few percent, where counting frames in each second
         # would judge the host's jitter

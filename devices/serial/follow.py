@@ -14,8 +14,9 @@ are compared, over windows of a second (:data:`WINDOW_FRAMES` telemetry frames),
   profile's tolerance reads within 2x (the resonance 60 Hz off at Q 180: 0.76x); a plate outside 3x for two
   seconds running does not follow;
 * two windows running outside the bound are a fault: said once (the first window's figures), each such window
-  counted. A window is judged only while the output is on and (v3) playing; a device without an amplitude sensor
-  (v3: no SENSOR_AMPLITUDE; v2: it never reported a measured amplitude above 0) is not judged.
+  counted. A window holds only frames judged: while the output is on and (v3) playing (a frame while the plate's
+  buffer ran dry, or the output was off, is left out with the values sent before it); a device without an
+  amplitude sensor (v3: no SENSOR_AMPLITUDE; v2: it never reported a measured amplitude above 0) is not judged.
 
 Example
 -------
@@ -57,8 +58,7 @@ class AmplitudeFollow:
     def observe(self, sent_um_pp: float, sent_values: int, measured_um_pp: float, judged: bool, at_s: float) -> None:
         """One telemetry frame: the amplitudes sent since the last (their sum, µm p-p, and count), what the plate
         measured, whether this frame is judged (output on and playing), when (s into the run)."""
-        if not judged:
-            self._sent, self._values, self._measured, self._frames = 0.0, 0, 0.0, 0  # a window is judged whole
+        if not judged:  # (its values sent are left out with it: the window holds judged frames only)
             return
         if not self._frames:
             self._start_s = at_s

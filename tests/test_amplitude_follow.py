@@ -1,0 +1,106 @@
+"""A plate whose measured amplitude does not follow what it is sent is a device fault: ``play`` on a serial plate
+says so in words and in --json and ends with exit status 3; ``plate check`` fails R-SCALING. The plate is the real
+simulator on a pty, made to report a measured amplitude of its own (devices/sim/lies.py); the bound (1/3 to 3
+times what is sent, over seconds, devices/serial/follow.py) is checked at its edges by hand-made windows."""
+
+import json
+import re
+
+import pytest
+from conftest import run_cli, serve_plate, wait_for
+from sources import Constant
+from ultraglide.devices.conformance import check as c
+from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.serial.follow import WINDOW_FRAMES, AmplitudeFollow
+from ultraglide.devices.serial.plate import SerialPlate
+from ultraglide.devices.sim.lies import Lies
+
+PROFILE = load_profile("sim-plate")  # full scale 8, limit 6 µm p-p
+DEADLINE_S = 60.0
+SAID = re.compile(r"the plate does not follow the amplitude it is sent: from \d+\.\d\d s it was sent (\d+\.\d\d) "
+                  r"µm p-p on average over a second and measured (\d+\.\d\d) \(the bound: within 1/3 to 3 times")
+
+
+def windows(follow: AmplitudeFollow, sent_um_pp: float, measured_um_pp: float, count: int = 1) -> None:
+    """``count`` whole windows of telemetry: each frame after 10 values of ``sent_um_pp``, measuring ``measured``."""
+    for _ in range(count * WINDOW_FRAMES):
+        follow.observe(10 * sent_um_pp, 10, measured_um_pp, judged=True, at_s=1.0)
+
+
+@pytest.mark.parametrize("sent, measured, fault", [
+    (3.0, 1.0, False), (3.0, 0.99, True),  # a third of what is sent: the bound's low edge
+    (1.0, 3.0, False), (1.0, 3.01, True),  # three times: its high edge
+    (0.02, 0.99, False), (0.02, 1.0, True),  # sent (almost) nothing: the plate must be still, under 1 µm p-p
+    (0.3, 0.0, False),  # too little sent to judge by (0.05 to 0.5 µm p-p)
+])
+def test_the_bound_at_its_edges_two_seconds_running(sent, measured, fault):
+    follow = AmplitudeFollow()
+    windows(follow, sent, measured)
+    assert follow.words() is None  # one second outside is not yet a fault
+    windows(follow, sent, measured)
+    assert (follow.words() is not None) == fault
+    assert follow.windows == (2 if fault else 0)
+
+
+def test_a_second_inside_between_ends_the_run():
+    follow = AmplitudeFollow()
+    windows(follow, 3.0, 0.1)
+    windows(follow, 3.0, 3.0)  # it followed: the next second outside starts a new run
+    windows(follow, 3.0, 0.1)
+    assert follow.words() is None
+    follow.observe(300.0, 100, 9.0, judged=False, at_s=5.0)  # the output off: left out of the window
+    windows(follow, 3.0, 0.1)
+    assert follow.words() is not None and follow.windows == 2
+    assert "sent 3.00 µm p-p on average over a second and measured 0.10" in follow.words()
+
+
+@pytest.mark.parametrize("measured", [0.2, 12.0])  # a plate far below, and far above, the 1 µm p-p it is sent
+def test_the_driver_says_once_that_the_plate_does_not_follow(measured):
+    plate = serve_plate(PROFILE, lies=Lies({"telemetry.measured_um_pp": measured}))
+    try:
+        driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+        driver.start(Constant(1.0))
+        try:
+            assert wait_for(lambda: driver.report().exit_status == 3, timeout=DEADLINE_S)
+            frames = driver.telemetry_frames
+            assert wait_for(lambda: driver.telemetry_frames >= frames + WINDOW_FRAMES, timeout=DEADLINE_S)
+        finally:
+            driver.stop()
+    finally:
+        plate.stop()
+    said = [line for line in driver.report().lines if SAID.match(line)]
+    assert len(said) == 1, driver.report().lines
+    sent_um_pp, measured_um_pp = (float(v) for v in SAID.match(said[0]).groups())
+    assert sent_um_pp == pytest.approx(1.0, abs=0.01) and measured_um_pp == pytest.approx(measured, abs=0.01)
+
+
+def test_play_on_a_plate_that_ignores_the_amplitude_says_so_and_exits_3():
+    plate = serve_plate(PROFILE, lies=Lies({"telemetry.measured_um_pp": 0.2}))
+    try:
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                         "--duration-s", 4, "--json", timeout=300)
+    finally:
+        plate.stop()
+    assert result.returncode == 3, (result.stdout, result.stderr)
+    status = json.loads(result.stdout)
+    said = [line for line in status["report"]["lines"] if SAID.match(line)]
+    assert len(said) == 1, status["report"]
+    assert status["report"]["exit_status"] == 3
+    assert float(SAID.match(said[0]).group(2)) == pytest.approx(0.2, abs=0.01)
+    assert float(SAID.match(said[0]).group(1)) >= 0.5  # the texture was played at more than the bound needs
+    assert result.stderr.strip().splitlines()[-1] == "ultraglide play: the plate faulted (exit status 3)"
+
+
+@pytest.mark.parametrize("lie, rule, words", [
+    ("telemetry.measured_um_pp=0.2", "R-SCALING", "the plate does not follow the amplitude: code"),
+    ("telemetry.playback=9", "R-TELEMETRY", "TELEMETRY with values that cannot be: playback = 9"),
+])
+def test_plate_check_fails_a_plate_that_does_not_follow_or_reports_what_cannot_be(lie, rule, words):
+    plate = serve_plate(PROFILE, lies=Lies.parse([lie]))
+    try:
+        report = c.check_device(plate.path, PROFILE, only=(rule,))
+    finally:
+        plate.stop()
+    (verdict,) = report.verdicts
+    assert (verdict.rule, verdict.outcome) == (rule, c.FAIL), verdict.line()
+    assert words in verdict.line() and report.exit_status == 6
