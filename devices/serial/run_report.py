@@ -7,8 +7,9 @@ lines and exits with its status:
 
 ==== =====================================================================================
  0    clean: nothing below happened
- 3    the plate faulted: its watchdog fired, it refused frames (NAK), or its measured amplitude
-      went over its limit
+ 3    the plate faulted: its watchdog fired, it refused frames (NAK), its measured amplitude
+      went over its limit, it reported values that cannot be (devices/protocol/ranges.py, counters),
+      or its measured amplitude did not follow what it was sent (devices/serial/follow.py)
  4    the plate was lost: the port failed or vanished, the plate fell silent (no telemetry for
       500 ms), or the stream to it stopped (the writer failed)
  5    the plate cut its output: over-amplitude trip or overheat
