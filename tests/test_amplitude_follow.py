@@ -104,3 +104,19 @@ def test_plate_check_fails_a_plate_that_does_not_follow_or_reports_what_cannot_b
     (verdict,) = report.verdicts
     assert (verdict.rule, verdict.outcome) == (rule, c.FAIL), verdict.line()
     assert words in verdict.line() and report.exit_status == 6
+
+
+def test_play_in_words_does_not_sum_up_a_plate_found_at_fault_as_no_device_faults():
+    plate = serve_plate(PROFILE, lies=Lies({"telemetry.measured_um_pp": 0.2}))
+    try:
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                         "--duration-s", 4, timeout=300)
+    finally:
+        plate.stop()
+    assert result.returncode == 3, (result.stdout, result.stderr)
+    lines = result.stdout.splitlines()
+    said = [k for k, line in enumerate(lines) if SAID.match(line)]
+    (summary,) = [k for k, line in enumerate(lines) if line.startswith("device faults")]
+    assert said and said[0] < summary  # the fault is said first ...
+    # ... and the summary does not undo it: the plate raised none of its own fault bits, ultraglide found one
+    assert lines[summary] == "device faults: none raised by the device; what went wrong is said above"

@@ -141,7 +141,7 @@ def run(args) -> int:
     from ultraglide.apps.commands.output_report import force_words, share_words
     from ultraglide.apps.commands.plate_choice import plate_words
     from ultraglide.apps.commands.render_setup import load_inputs
-    from ultraglide.devices.serial.run_report import RunReport
+    from ultraglide.devices.serial.run_report import EXIT_CLEAN, RunReport
     from ultraglide.devices.urls import parse_device_url
     from ultraglide.render.engine import Engine, EngineLost
 
@@ -239,7 +239,8 @@ def run(args) -> int:
         print(limiter)
         for line in report.lines:  # what happened to the plate, and when
             print(line)
-        print(describe_faults(counts or {}, lost=loss is not None))
+        print(describe_faults(counts or {}, lost=loss is not None,
+                              found=loss is None and report.exit_status != EXIT_CLEAN))
         if tracking is not None:
             print(tracking_words(tracking))
         if "loop" in device_status:
@@ -283,13 +284,19 @@ def save_tracked_profile(path, profile, tracking: dict) -> None:
     save_profile(path, found, "written by `ultraglide play --track-resonance`", tracking_words(tracking))
 
 
-def describe_faults(counts: dict[str, int], lost: bool = False) -> str:
+def describe_faults(counts: dict[str, int], lost: bool = False, found: bool = False) -> str:
     """The run's device faults in words, e.g. ``device faults: 2 × watchdog trip (...)``; ``lost``: the engine was
-    lost, so the counts are those its last status had."""
+    lost, so the counts are those its last status had; ``found``: the host found the device at fault (values it
+    could not believe, an amplitude it did not follow, refusals, a lost link), said in the report's lines above:
+    then a device that raised no fault of its own is not summed up as "none"."""
     from ultraglide.devices.protocol import FAULT_WORDS
 
     happened = [f"{count} × {FAULT_WORDS.get(name, name)}" for name, count in counts.items() if count]
     heading = "device faults until the engine was lost" if lost else "device faults"
-    if not counts:
-        return f"{heading}: this device reports none"
-    return f"{heading}: " + ("; ".join(happened) if happened else "none")
+    if happened:
+        return f"{heading}: " + "; ".join(happened)
+    own = "this device reports none" if not counts else "none"
+    if found:
+        return (f"{heading}: {'the device reports none' if not counts else 'none raised by the device'}; "
+                "what went wrong is said above")
+    return f"{heading}: {own}"
