@@ -429,7 +429,7 @@ class Engine:
             if not answered and self.process.is_alive() and self._failure is None:
                 supervisor.kill(f"it did not stop within {timeout_s:g} s of being asked")  # made safe from here
             supervisor.close()  # a process that ended without stopping: the device made safe, the loss kept
-            self.final_status = self.status()
+            self.final_status = self._last_status()
         finally:
             supervisor.close()
             _reap(self.process, timeout_s)
@@ -613,13 +613,26 @@ class Engine:
             self._take(kind, payload)  # "ready" may still be on its way
 
     # ---- out ---------------------------------------------------------------------------------------
-    def status(self, history_s: float = 5.0) -> EngineStatus:
+    def _last_status(self) -> EngineStatus:
+        """The status once the process has ended: read through the seqlock, or, where it died mid-write (an engine
+        killed or frozen while writing), as the segment holds it (:meth:`status`'s ``post_mortem``)."""
+        try:
+            return self.status()
+        except (EngineLost, TimeoutError):
+            self.process.join(2.0)  # a frozen engine was killed: its end is a moment away
+            if self.process.is_alive():
+                raise
+            return self.status(post_mortem=True)
+
+    def status(self, history_s: float = 5.0, post_mortem: bool = False) -> EngineStatus:
         """A consistent snapshot; ``history_s`` of history rows (at most what the ring holds).
 
         Parameters
         ----------
         history_s : float
             How much history (s) to include.
+        post_mortem : bool
+            The process has ended: read the segment as it is, without waiting for a consistent copy.
 
         Returns
         -------
@@ -628,8 +641,8 @@ class Engine:
         if self.shared.words is None:  # stopped: the last status read before the segment was released
             return self.final_status
         try:
-            header, block_times, history_ring, _ = self.shared.read_fast()
-            device_status = self.shared.read_slow()
+            header, block_times, history_ring, _ = self.shared.read_fast(post_mortem)
+            device_status = self.shared.read_slow(post_mortem)
         except TimeoutError:  # an engine stopped mid-write leaves its status half written: wait for the watch's word
             if self.supervisor.wait(1.0):
                 raise EngineLost(self.supervisor.loss) from None
@@ -637,7 +650,7 @@ class Engine:
         status = status_from_shared(header, block_times, history_ring, device_status, int(self.shared.touch_index[2]),
                          self.config.device, history_s)
         run_p50, run_p99 = (None if v is None else v * 1e6
-                            for v in shm.histogram_percentiles(self.shared.read_histogram(), (50, 99)))
+                            for v in shm.histogram_percentiles(self.shared.read_histogram(post_mortem), (50, 99)))
         return replace(status, run_block_p50_us=run_p50, run_block_p99_us=run_p99)
 
     def latencies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -181,10 +181,17 @@ class SharedBlock:
         header[1] = len(data)
         header[0] += 1
 
-    def read_slow(self) -> dict:
+    def read_slow(self, post_mortem: bool = False) -> dict:
         """The device's status as the engine last wrote it (a dict, from JSON), read consistently through its
-        seqlock; TimeoutError if it kept changing while read.
+        seqlock; TimeoutError if it kept changing while read. ``post_mortem``: the writer is dead (its process
+        ended, perhaps mid-write): the bytes as they are, {} if they are not whole JSON.
         """
+        if post_mortem:
+            data = bytes(self.slow_bytes[:min(int(self.slow_header[1]), len(self.slow_bytes))])
+            try:
+                return json.loads(data) if data else {}
+            except ValueError:  # the write it died in
+                return {}
         for _ in _attempts():
             before = self.slow_header[0]
             length = int(self.slow_header[1])
@@ -193,8 +200,11 @@ class SharedBlock:
                 return json.loads(data) if data else {}
         raise TimeoutError("the engine's device status kept changing while being read")
 
-    def read_fast(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """A consistent copy of (header, block times, history, latency rows)."""
+    def read_fast(self, post_mortem: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A consistent copy of (header, block times, history, latency rows); ``post_mortem``: the writer is dead
+        (perhaps mid-write): a copy as it is, at most its last block's figures torn."""
+        if post_mortem:
+            return self.fast.copy(), self.block_times.copy(), self.history.copy(), self.latency.copy()
         for _ in _attempts():
             before = self.fast[SEQ]
             if before % 2:
@@ -207,8 +217,10 @@ class SharedBlock:
                 return header, times, history, latency
         raise TimeoutError("the engine's status kept changing while being read")
 
-    def read_histogram(self) -> np.ndarray:
-        """A consistent copy of the run's block-time histogram (counts per bin)."""
+    def read_histogram(self, post_mortem: bool = False) -> np.ndarray:
+        """A consistent copy of the run's block-time histogram (counts per bin); ``post_mortem``: as it is."""
+        if post_mortem:
+            return self.histogram.copy()
         for _ in _attempts():
             before = self.fast[SEQ]
             if before % 2:
