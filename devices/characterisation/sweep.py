@@ -83,6 +83,8 @@ class TelemetrySweeper:
     def start(self, carrier_hz: float) -> None:
         """Connect and drive at 15 % of the smaller of the profile's and the device's limits."""
         self.driver.carrier_hz = carrier_hz
+        if hasattr(self.driver, "sweeping"):  # a serial plate judges whether it follows what it is sent
+            self.driver.sweeping()
         self.device.start(self.source)
         bound = getattr(self.driver, "limit_um_pp", self.limit_um_pp)
         if bound < self.limit_um_pp:

@@ -54,11 +54,12 @@ class AmplitudeFollow:
         self._pending: tuple | None = None  # the first window of the present run outside the bound
         self.first: tuple[float, float, float] | None = None  # (at s, sent mean, measured mean) of the fault
         self.windows = 0  # windows outside the bound, counted once the fault stood
+        self.judging = True  # off while the carrier is swept: off resonance a plate rightly plays less than sent
 
     def observe(self, sent_um_pp: float, sent_values: int, measured_um_pp: float, judged: bool, at_s: float) -> None:
         """One telemetry frame: the amplitudes sent since the last (their sum, µm p-p, and count), what the plate
         measured, whether this frame is judged (output on and playing), when (s into the run)."""
-        if not judged:  # (its values sent are left out with it: the window holds judged frames only)
+        if not (judged and self.judging):  # (its values sent are left out with it: the window holds judged frames only)
             return
         if not self._frames:
             self._start_s = at_s

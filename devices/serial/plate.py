@@ -162,6 +162,11 @@ class SerialPlate:
         """Send one frame, its answer not awaited; its seq (a test's or a tool's)."""
         return self.session.send(kind, payload)
 
+    def sweeping(self) -> None:
+        """The carrier is to be swept (``plate sweep``): the plate's amplitude off resonance is the measurement, not
+        a plate that fails to follow what it is sent (devices/serial/follow.py), so it is not judged."""
+        self.account.follow.judging = False
+
     def set_carrier(self, carrier_hz: float) -> None:
         """Change the carrier now (Hz) and wait for the device's ACK; DeviceError if it refuses or is gone."""
         self.session.set_carrier(carrier_hz)
