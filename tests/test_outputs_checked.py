@@ -33,6 +33,7 @@ ROOT_USER = os.geteuid() == 0
 # Options that take text but write nothing: what they read, or words. A new option taking a path must be added
 # here (if it is read) or declared with output_option (if it is written), which main checks before the command.
 READ_OR_WORDS = {
+    "lies": "words: a frame's field and the value a simulated plate reports for it",
     "add": "an effects file read", "set": "an effects file read", "data": "measured points read",
     "effects": "an effects file read", "image": "an image read", "inputs": "textures read", "mask": "an image read",
     "other": "a texture read", "texture": "a texture read", "textures": "textures read",
