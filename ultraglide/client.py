@@ -330,6 +330,12 @@ class _Messages:
         """The effects attached to ``sprite`` no longer play (:class:`Unknown` if none are)."""
         return self._request("effects.detach", sprite=sprite)
 
+    def set_drives(self, drives: str):
+        """Which pointer the plate renders when two or more are down: ``first`` (the first down, until it lifts),
+        ``latest`` (the newest down takes over; when it lifts, the newest still down) or ``none`` (with two down,
+        none: the plate rests until one is left), as a rig's ``[touch] drives``."""
+        return self._request("touches.set", drives=drives)
+
     def subscribe(self, *, status: float | bool | None = None, output: float | bool | None = None,
                   touch: bool | None = None, scene: bool | None = None):
         """Pushes to receive (:meth:`events`): ``status`` (True: 2 Hz, or a rate in Hz), ``output`` (the

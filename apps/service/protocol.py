@@ -21,6 +21,7 @@ MAX_NAME = 64  # ids of textures, views, sprites, effects' events
 MAX_DEPTH = 16  # JSON nesting (an effects description nests some 10 levels)
 PHASES = ("down", "move", "up", "cancel")
 ROLES = ("control", "observe")
+DRIVES = ("first", "latest", "none")  # which pointer drives when two are down, as a rig's [touch] drives
 
 # error codes (docs/service.md lists them)
 BAD_MESSAGE = "bad-message"
@@ -169,6 +170,7 @@ SPECS: dict[str, dict] = {
     "effects.attach": {"sprite": (_name, True), "effect": (_object, False), "effects": (_object, False),
                        "file": (_text(4096), False), "release_s": (_number(0.0, 60.0, " s"), False)},
     "effects.detach": {"sprite": (_name, True)},
+    "touches.set": {"drives": (_choice(DRIVES), True)},
     "subscribe": {"status": (_rate_or_flag(20.0), False), "output": (_rate_or_flag(1000.0), False),
                   "touch": (_flag, False), "scene": (_flag, False)},
     "state": {},

@@ -56,6 +56,7 @@ MAX_CLIENTS = 16
 MAX_TEXTURES = 32
 MAX_SPRITES = 256
 MAX_VIEWS = 16
+MAX_POINTERS = 10  # pointers down at once that are followed (a hand's)
 MAX_TEXTURE_PIXELS = 4_000_000
 PRESSURE_FULL_SCALE_N = 1.0  # a pointer's pressure 1 is this force; a mouse's 0.5 is the default 0.5 N
 DEFAULT_VIEW = "main"
@@ -80,7 +81,8 @@ def needs_token(host: str | None) -> bool:
 
 @dataclass(eq=False)
 class Finger:
-    """The one finger the engine renders: whose pointer, on which view, where it was last (mm)."""
+    """A pointer down: whose, its id, on which view, where it was last (mm), its force (N, or None: the default).
+    The one that drives is the finger the engine renders."""
 
     session: Session
     pointer: int
@@ -160,7 +162,7 @@ class Service:
     plate's; ``token``: what clients must give (None: no token); ``page``: serve the page and its module."""
 
     def __init__(self, engine, profile, *, token: str | None = None, page: bool = False,
-                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM):
+                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM, drives: str = "first"):
         self.engine = engine
         self.profile = profile
         self.token = token
@@ -172,7 +174,9 @@ class Service:
         self.active_view = DEFAULT_VIEW
         self.controller: Session | None = None
         self.sessions: set[Session] = set()
-        self.finger: Finger | None = None
+        self.finger: Finger | None = None  # the pointer the engine renders
+        self.pointers: dict[int, Finger] = {}  # every pointer down, by id, in the order they came down
+        self.drives = drives  # which pointer drives when two are down: first, latest or none
         self.effects = None  # the session's effects description (None: none)
         self.attached: dict[str, tuple] = {}  # sprite -> the bindings whose effects play while the finger is on it
         self._effects_sent: object = None  # the description the engine plays (the worker's)
@@ -288,8 +292,9 @@ class Service:
     def _leave(self, session: Session) -> None:
         """A client went: its finger lifts at once (the plate ramps to rest), its control passes."""
         self.sessions.discard(session)
-        if self.finger is not None and self.finger.session is session:
-            self._lift(time.perf_counter())
+        if self.finger is not None and self.finger.session is session or \
+                any(f.session is session for f in self.pointers.values()):
+            self._lift(time.perf_counter(), session)
         if self.controller is session:
             self.controller = None
 
@@ -368,8 +373,7 @@ class Service:
             raise p.ProtocolError(p.BUSY, "another client controls the plate; hello with role observe to watch")
         if session.role == "control" and role == "observe" and self.controller is session:
             self.controller = None
-            if self.finger is not None and self.finger.session is session:
-                self._lift(time.perf_counter())
+            self._lift(time.perf_counter(), session)
         session.role = role
         session.client = message.get("client", "")
         if role == "control":
@@ -377,7 +381,7 @@ class Service:
         limit = self.profile.max_amplitude_um_pp
         return p.reply(message.id, protocol=p.PROTOCOL_VERSION, server=f"ultraglide {__version__}",
                        role=role, device=self.engine.config.device, profile=self.profile.name,
-                       limit_um_pp=limit, default_force_n=self.engine.config.default_force_n,
+                       limit_um_pp=limit, default_force_n=self.engine.config.default_force_n, drives=self.drives,
                        limits={"message_bytes": p.MAX_MESSAGE_BYTES, "small_message_bytes": p.MAX_SMALL_MESSAGE_BYTES,
                                "messages_per_s": RATE_PER_S, "textures": MAX_TEXTURES, "sprites": MAX_SPRITES,
                                "views": MAX_VIEWS, "texture_pixels": MAX_TEXTURE_PIXELS},
@@ -388,6 +392,12 @@ class Service:
                 "views": [_view_dict(v) for v in self.views.values()],
                 "sprites": [_sprite_dict(s) for s in self.sprites.values()],
                 "textures": [_texture_dict(k, t) for k, t in self.textures.items()]}
+
+    def _on_touches_set(self, session, message) -> dict:
+        """Which pointer drives when two or more are down, from now on (those down keep their roles until one
+        lifts or comes down)."""
+        self.drives = message["drives"]
+        return {"drives": self.drives}
 
     def _on_state(self, session, message) -> dict:
         return self._state()
@@ -601,40 +611,83 @@ class Service:
 
     # ---- touches ---------------------------------------------------------------------------------------
     def _touch(self, session: Session, message: p.Message, received_s: float) -> None:
+        """A pointer event. Every pointer down is followed; which one the engine renders is :attr:`drives`'s rule
+        (``first``: the first down until it lifts; ``latest``: the newest down takes over, and when it lifts the
+        newest still down; ``none``: with two or more down, none, the plate at rest, until one is left)."""
         view = self._view(message.get("view", self.active_view))
         pointer = message.get("pointer", 0)
         phase = message["phase"]
-        finger = self.finger
-        if finger is None and phase != "down":
-            return  # a pointer hovering, or a move after a lift: nothing to feel
-        if finger is not None and (finger.session is not session or finger.pointer != pointer):
-            self.touches_ignored += 1  # a second finger: the plate renders one
-            return
+        pointers = self.pointers
+        known = pointers.get(pointer)
+        new = known is None
+        if new:
+            if phase != "down":
+                return  # a pointer hovering, or a move after a lift: nothing to feel
+            if len(pointers) >= MAX_POINTERS:
+                self.touches_ignored += 1
+                return
         t = session.engine_time(message.get("t"), received_s)
         x_mm, y_mm = view.to_mm(message["x"], message["y"])
         force = message.get("force_n")
         if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
             force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
-        if view.name != self.active_view:
-            self.active_view = view.name
-            self._changed()
+        if known is None:
+            known = pointers[pointer] = Finger(session, pointer, view.name, x_mm, y_mm, force)
+        else:
+            known.view, known.x_mm, known.y_mm, known.force_n = view.name, x_mm, y_mm, force
+        driving = self.finger
+        if phase in ("up", "cancel"):
+            del pointers[pointer]
+            if driving is known:
+                self._count(message, received_s)
+                self.engine.touch(t, x_mm, y_mm, force, down=False)
+                self.finger = None
+                if self.drives == "latest" and pointers:  # the newest still down takes over
+                    self._drive(next(reversed(pointers.values())), t)
+            else:
+                self.touches_ignored += 1
+            if self.drives == "none" and self.finger is None and len(pointers) == 1:  # one left: it drives
+                self._drive(next(iter(pointers.values())), t)
+            return
+        if driving is known:
+            self._count(message, received_s)
+            self._drive(known, t)
+            return
+        if new:  # a pointer down beside the one that drives, or none
+            if self.drives == "none" and len(pointers) > 1:
+                if driving is not None:  # two down: none drives, the plate rests
+                    self.finger = None
+                    self.engine.touch(t, driving.x_mm, driving.y_mm, driving.force_n, down=False)
+            elif driving is None or self.drives == "latest":
+                if driving is not None:
+                    self.engine.touch(t, driving.x_mm, driving.y_mm, driving.force_n, down=False)
+                self._count(message, received_s)
+                self._drive(known, t)
+                return
+        self.touches_ignored += 1  # a pointer that does not drive: followed, not rendered
+
+    def _count(self, message: p.Message, received_s: float) -> None:
         self.touches += 1
         if self.arrivals is not None:  # (bench/bench_service.py) the client's time, when it came, when it went in
             self.arrivals.append((message.get("t"), received_s, time.perf_counter()))
-        if phase in ("up", "cancel"):
-            self.engine.touch(t, x_mm, y_mm, force, down=False)
-            self.finger = None
-            return
-        self.engine.touch(t, x_mm, y_mm, force, down=True)
-        if finger is None:
-            self.finger = Finger(session, pointer, view.name, x_mm, y_mm, force)
-        else:
-            finger.x_mm, finger.y_mm, finger.force_n = x_mm, y_mm, force
 
-    def _lift(self, now_s: float) -> None:
+    def _drive(self, finger: Finger, t: float) -> None:
+        """``finger`` drives the plate: the engine renders it, down where it is now."""
+        if finger.view != self.active_view:
+            self.active_view = finger.view
+            self._changed()
+        self.finger = finger
+        self.engine.touch(t, finger.x_mm, finger.y_mm, finger.force_n, down=True)
+
+    def _lift(self, now_s: float, session: Session | None = None) -> None:
+        """The driving finger lifts (the plate ramps to rest); the pointers of ``session`` (all, if None) are
+        forgotten."""
         finger = self.finger
-        self.finger = None
-        self.engine.touch(now_s, finger.x_mm, finger.y_mm, finger.force_n, down=False)
+        for key in [k for k, f in self.pointers.items() if session is None or f.session is session]:
+            del self.pointers[key]
+        if finger is not None and (session is None or finger.session is session):
+            self.finger = None
+            self.engine.touch(now_s, finger.x_mm, finger.y_mm, finger.force_n, down=False)
 
     # ---- the scene -------------------------------------------------------------------------------------
     def _changed(self) -> None:
