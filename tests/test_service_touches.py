@@ -99,16 +99,19 @@ def test_with_drives_none_two_pointers_rest_the_plate_until_one_is_left(tmp_path
             alone = held(plate, {7: (30, 30)})
             plate.touch(70, 30, "down", pointer=8)
             both = held(plate, {7: (31, 31), 8: (70, 30)})
-            plate.touch(31, 31, "up", pointer=7)
-            left = held(plate, {8: (71, 31)})  # one left: it drives
-            plate.touch(71, 31, "up", pointer=8)
+            plate.touch(70, 30, "up", pointer=8)
+            left = held(plate, {7: (32, 32)})  # one left: it drives, from where it was last
+            plate.touch(32, 32, "up", pointer=7)
     envelope = read_envelope(envelope_csv)
     rows = rendered_between(envelope, alone)
     assert len(rows) > 100 and np.median(rows["target_ratio"]) == pytest.approx(png_ratio(0.3), abs=0.01)
-    assert len(rendered_between(envelope, both)) == 0  # two down: the plate at rest
+    # two down: the plate at rest (the span's ends left out: the first's lift, and its return once the second lifted,
+    # which a loaded machine may render some ms before this process read the clock)
+    assert len(rendered_between(envelope, both, within_s=0.1, before_s=0.05)) == 0
+    assert len(rows_at(envelope, 70, 30)) == 0  # the second never drove
     rows = rendered_between(envelope, left)
-    assert len(rows) > 100 and np.median(rows["x_mm"]) == pytest.approx(71, abs=0.05)
-    assert np.median(rows["target_ratio"]) == pytest.approx(png_ratio(0.8), abs=0.01)
+    assert len(rows) > 100 and np.median(rows["x_mm"]) == pytest.approx(32, abs=0.05)
+    assert np.median(rows["target_ratio"]) == pytest.approx(png_ratio(0.3), abs=0.01)
 
 
 def test_a_rig_s_touch_panel_rule_is_the_service_s_at_start(tmp_path):

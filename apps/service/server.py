@@ -572,7 +572,8 @@ class Service:
                 del self.attached[name]
             else:
                 self.attached[name] = previous
-            await self._apply_effects()
+            with contextlib.suppress(UltraglideError, OSError, ValueError):  # the refusal is what is said
+                await self._apply_effects()
             raise
         return {"sprite": name, "effects": len(bindings), "regions": self._regions_sent.get(name, 0),
                 "notes": notes}
