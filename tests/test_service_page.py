@@ -1,7 +1,8 @@
 """The page ``ultraglide serve --page`` serves, in a real headless Chromium (Debian's ``chromium`` and
 ``chromium-driver``, driven by Selenium): synthesized touch and pen input drive the engine, whose envelope record
 shows the friction of the sprite under the synthesized finger; the sprites are drawn where they are felt; a PNG
-dropped on the page (CDP's drag events with the file) is placed where it fell and felt there."""
+dropped on the page (CDP's drag events with the file) is placed where it fell and felt there; two fingers follow the
+rig's rule for which drives."""
 
 import io
 import shutil
@@ -9,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from PIL import Image
 from service_run import flat_png, png_ratio, read_envelope, rows_at, running_service
 from ultraglide.textures.fileformat import load_texture, save_texture
@@ -153,3 +155,50 @@ def test_a_png_dropped_on_the_page_is_placed_where_it_fell_and_felt_there(tmp_pa
         rows = rows_at(envelope, x * MM_PER_PX, y * MM_PER_PX)
         assert len(rows) > 100, f"nothing rendered under ({x}, {y}) px"
         assert np.median(rows["target_ratio"]) == pytest.approx(ratio, abs=0.01)
+
+
+def test_two_fingers_on_the_page_follow_the_rig_s_rule(tmp_path, browser):
+    low = flat_texture(tmp_path / "low.png", 0.3)
+    high = flat_texture(tmp_path / "high.png", 0.8)
+    rig = tmp_path / "rig.toml"  # the panel's rule: the newest finger down takes over
+    rig.write_text((ROOT / "examples" / "rig.toml").read_text().replace('drives = "first"', 'drives = "latest"'))
+    envelope_csv = tmp_path / "envelope.csv"
+    with running_service(tmp_path / "low.png", tmp_path / "high.png", "--port", "0", "--page", "--rig", rig,
+                         "--device", "sim", "--envelope-csv", envelope_csv) as (process, address):
+        browser.get(address["page"] + f"?mm_per_px={MM_PER_PX}")
+        deadline = time.monotonic() + 60
+        while not browser.execute_script("return window.ultraglide && window.ultraglide.ready"):
+            assert time.monotonic() < deadline, browser.execute_script("return document.body.innerText")
+            time.sleep(0.05)
+        width, height = browser.execute_script(
+            "const c = document.getElementById('view'); return [c.clientWidth, c.clientHeight]")
+        left = {"x": round(width * 0.25), "y": round(height / 2), "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}
+        right = {"x": round(width * 0.75), "y": round(height / 2), "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 2}
+
+        def touches(kind, points, seconds=0.0):
+            browser.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
+            deadline = time.monotonic() + seconds
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+                browser.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": points})
+
+        touches("touchStart", [left], 0.3)  # one finger on the left half
+        touches("touchStart", [left, right], 0.3)  # a second on the right: it takes over
+        touches("touchEnd", [right])  # the second lifts (CDP's touchEnd names the points lifted)
+        left_again = {**left, "y": left["y"] + 8}  # the first, still down, drives again as it moves on
+        touches("touchMove", [left_again], 0.3)
+        touches("touchEnd", [left_again])
+        assert browser.execute_script("return window.ultraglide.errors") == []
+    envelope = read_envelope(envelope_csv)
+    mm = {name: (p["x"] * MM_PER_PX, p["y"] * MM_PER_PX) for name, p in (("left", left), ("right", right))}
+    first, second = rows_at(envelope, *mm["left"]), rows_at(envelope, *mm["right"])
+    for rows, ratio in ((first, low), (second, high)):
+        assert len(rows) > 100 and np.median(rows["target_ratio"]) == pytest.approx(ratio, abs=0.01)
+    assert first["t_s"].min() < second["t_s"].min()  # the left finger, then the right one took over
+    # once the right one lifted, the left one (still down) drives again: felt on the left half as it moves on (its
+    # x stays; its y the engine predicts from the one move the browser sent)
+    down = envelope[envelope["down"] > 0.5]
+    after = down[down["t_s"] > second["t_s"].max()]
+    assert len(after) > 100 and np.all(np.abs(after["x_mm"] - mm["left"][0]) < 0.05)
+    assert np.median(after["target_ratio"]) == pytest.approx(low, abs=0.01)
+    assert after["y_mm"].max() > mm["left"][1] + 1.0  # it moved on: the left finger's move, not the right's lift
