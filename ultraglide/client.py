@@ -295,8 +295,8 @@ class _Messages:
             An effects description (``textures.effects.to_json``): every binding's effect plays on the sprite,
             its own trigger set aside.
         file : str or path-like, optional
-            An effects file on the service's machine: ours (``.json``), or a designer's ``.ahap``, ``.haptic``
-            or ``.hjif``.
+            An effects file on the service's machine: ours (``.json``), or a designer's ``.ahap``, ``.haptic``,
+            ``.hjif`` or ``.haps``.
         release_s : float, optional
             The fade when the finger leaves the sprite, s (default: each binding's own, 0.02 s for ``effect``).
 

@@ -558,7 +558,7 @@ class Service:
         sources = [key for key in ("effect", "effects", "file") if message.get(key) is not None]
         if len(sources) != 1:
             raise p.ProtocolError(p.BAD_MESSAGE, "effects.attach: give one of 'effect' (an effect object), 'effects' "
-                                  "(an effects description) or 'file' (.json, .ahap, .haptic or .hjif)")
+                                  "(an effects description) or 'file' (.json, .ahap, .haptic, .hjif or .haps)")
         loop = asyncio.get_running_loop()
         bindings, notes = await loop.run_in_executor(self.worker, _attached_bindings, message)
         if name not in self.sprites:  # removed while its effects were read
@@ -876,7 +876,7 @@ def _session_bindings(description) -> tuple:
 
 def _attached_bindings(message: p.Message) -> tuple[tuple, list[str]]:
     """(On the worker.) The bindings ``effects.attach`` names: one ``effect`` object, an ``effects`` description, or
-    a ``file`` (ours, .json; a designer's .ahap, .haptic or .hjif, through ``textures.formats.effects_in``), with
+    a ``file`` (ours, .json; a designer's .ahap, .haptic, .hjif or .haps, through ``textures.formats.effects_in``), with
     ``release_s`` for all when given; and the notes loading said (what a designer's file loses)."""
     from dataclasses import replace as replaced
 
