@@ -171,14 +171,49 @@ class _Messages:
 
     def load_texture(self, texture: str, *, library: str | None = None, file: str | os.PathLike | None = None,
                      png: bytes | str | os.PathLike | None = None, width_mm: float | None = None,
-                     height_mm: float | None = None, name: str | None = None):
+                     height_mm: float | None = None, name: str | None = None, material: str | int | None = None):
         """Load a texture under the id ``texture``: a ``library`` name, a ``file`` on the server's machine, or
         ``png`` (bytes, or a local file sent as bytes); ``width_mm``/``height_mm`` size a plain image. Returns
         its description (id, name, size mm, pixels, notes)."""
         return self._request("texture.load", texture=texture, library=library,
                              file=None if file is None else os.fspath(file),
                              png=None if png is None else _png_field(png), width_mm=width_mm, height_mm=height_mm,
-                             name=name)
+                             name=name, material=material)
+
+    def load_material(self, texture: str, scene: str | os.PathLike, material: str | int | None = None, *,
+                      width_mm: float | None = None, name: str | None = None):
+        """Load a glTF scene's haptic material as the texture ``texture``.
+
+        Parameters
+        ----------
+        texture : str
+            The texture's id in the session.
+        scene : str or path-like
+            A ``.glb`` or ``.gltf`` file on the service's machine.
+        material : str or int, optional
+            The haptic material: its name, or its index in ``MPEG_haptic_material``; by default the first with a
+            friction texture (as ``ultraglide texture import``).
+        width_mm : float, optional
+            The friction map's width, mm, where the scene does not say it (its height follows the UV mapping).
+        name : str, optional
+            The texture's name (default: the material's).
+
+        Returns
+        -------
+        dict
+            The reply: ``texture``, ``name``, ``width_mm``, ``height_mm``, ``cols``, ``rows``, ``notes``.
+
+        Raises
+        ------
+        TextureRefused
+            No such material, no friction texture, a size that cannot be known, a bad file (one line).
+
+        Example
+        -------
+        >>> plate.load_material("wood", "scene.glb", "oak")          # doctest: +SKIP
+        """
+        return self._request("texture.load", texture=texture, file=os.fspath(scene), material=material,
+                             width_mm=width_mm, name=name)
 
     def unload_texture(self, texture: str):
         return self._request("texture.unload", texture=texture)
@@ -244,6 +279,62 @@ class _Messages:
 
     def stop_effects(self):
         return self._request("effect.stop")
+
+    def attach_effects(self, sprite: str, *, effect=None, effects: dict | None = None,
+                       file: str | os.PathLike | None = None, release_s: float | None = None):
+        """Effects that play while the finger is on ``sprite`` (where it is shown and uncovered) and stop when it
+        leaves; replaces what was attached to it before.
+
+        Parameters
+        ----------
+        sprite : str
+            A sprite of the session.
+        effect : dict or Effect, optional
+            One effect (``textures.effects``: an ``Effect``, or its description as ``effect_to_dict`` gives).
+        effects : dict, optional
+            An effects description (``textures.effects.to_json``): every binding's effect plays on the sprite,
+            its own trigger set aside.
+        file : str or path-like, optional
+            An effects file on the service's machine: ours (``.json``), or a designer's ``.ahap``, ``.haptic``,
+            ``.hjif`` or ``.haps``.
+        release_s : float, optional
+            The fade when the finger leaves the sprite, s (default: each binding's own, 0.02 s for ``effect``).
+
+        Returns
+        -------
+        dict
+            The reply: ``sprite``, ``effects`` (how many), ``regions`` (the rectangles they play over in the view
+            rendered), ``notes`` (what a designer's file loses, effects that could not be placed).
+
+        Raises
+        ------
+        Unknown
+            No such sprite.
+        EngineRefused
+            A bad effect or file (one line).
+        LimitReached
+            The sprite's shape needs more bindings than the engine has left.
+
+        Example
+        -------
+        >>> plate.attach_effects("button", effect={"type": "sine", "frequency_hz": 80, "depth": 0.3})  # doctest: +SKIP
+        """
+        if effect is not None and not isinstance(effect, dict):
+            from ultraglide.textures.effects import effect_to_dict
+
+            effect = effect_to_dict(effect)
+        return self._request("effects.attach", sprite=sprite, effect=effect, effects=effects,
+                             file=None if file is None else os.fspath(file), release_s=release_s)
+
+    def detach_effects(self, sprite: str):
+        """The effects attached to ``sprite`` no longer play (:class:`Unknown` if none are)."""
+        return self._request("effects.detach", sprite=sprite)
+
+    def set_drives(self, drives: str):
+        """Which pointer the plate renders when two or more are down: ``first`` (the first down, until it lifts),
+        ``latest`` (the newest down takes over; when it lifts, the newest still down) or ``none`` (with two down,
+        none: the plate rests until one is left), as a rig's ``[touch] drives``."""
+        return self._request("touches.set", drives=drives)
 
     def subscribe(self, *, status: float | bool | None = None, output: float | bool | None = None,
                   touch: bool | None = None, scene: bool | None = None):

@@ -83,7 +83,9 @@ def run(args) -> int:
     profile = plate_of(args)
     load_model(args.model)  # a bad model is one line before the engine starts
     token = new_token() if args.unix is None and needs_token(args.host) else None
-    service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm))
+    rig = getattr(args, "loaded_rig", None)
+    drives = rig.touch.drives if rig is not None and rig.touch is not None else "first"
+    service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm), drives=drives)
     service.place_startup_textures(args.textures)
     config = EngineConfig(texture=service.first_texture(), model=args.model, profile=args.profile,
                           device=args.device, default_force_n=0.5 if args.force is None else args.force,

@@ -21,6 +21,7 @@ MAX_NAME = 64  # ids of textures, views, sprites, effects' events
 MAX_DEPTH = 16  # JSON nesting (an effects description nests some 10 levels)
 PHASES = ("down", "move", "up", "cancel")
 ROLES = ("control", "observe")
+DRIVES = ("first", "latest", "none")  # which pointer drives when two are down, as a rig's [touch] drives
 
 # error codes (docs/service.md lists them)
 BAD_MESSAGE = "bad-message"
@@ -123,6 +124,14 @@ def _rate_or_flag(high):
     return check
 
 
+def _material(value, key):
+    if isinstance(value, bool) or not (isinstance(value, int) and 0 <= value < 1_000_000
+                                       or isinstance(value, str) and 1 <= len(value) <= 200 and value.isprintable()):
+        raise ValueError(f"'{key}' must be a haptic material's name (1 to 200 printable characters) or its index "
+                         "(a whole number from 0)")
+    return value
+
+
 def _object(value, key):
     if value is not None and not isinstance(value, dict | list):
         raise ValueError(f"'{key}' must be an object, a list or null")
@@ -139,7 +148,8 @@ SPECS: dict[str, dict] = {
               "client": (_text(200), False), "token": (_text(200), False)},
     "texture.load": {"texture": (_name, True), "library": (_text(200), False), "file": (_text(4096), False),
                      "png": (_text(MAX_MESSAGE_BYTES), False), "width_mm": (_positive(10000.0, " mm"), False),
-                     "height_mm": (_positive(10000.0, " mm"), False), "name": (_text(200), False)},
+                     "height_mm": (_positive(10000.0, " mm"), False), "name": (_text(200), False),
+                     "material": (_material, False)},
     "texture.unload": {"texture": (_name, True)},
     "view.set": {"view": (_name, True), "width": (SIZE, True), "height": (SIZE, True),
                  "units": (_choice(("px", "mm")), False), "width_mm": (_positive(2000.0, " mm"), False),
@@ -157,6 +167,10 @@ SPECS: dict[str, dict] = {
     "effects.set": {"effects": (_object, True)},
     "effect.trigger": {"name": (_name, True)},
     "effect.stop": {},
+    "effects.attach": {"sprite": (_name, True), "effect": (_object, False), "effects": (_object, False),
+                       "file": (_text(4096), False), "release_s": (_number(0.0, 60.0, " s"), False)},
+    "effects.detach": {"sprite": (_name, True)},
+    "touches.set": {"drives": (_choice(DRIVES), True)},
     "subscribe": {"status": (_rate_or_flag(20.0), False), "output": (_rate_or_flag(1000.0), False),
                   "touch": (_flag, False), "scene": (_flag, False)},
     "state": {},

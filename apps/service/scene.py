@@ -172,3 +172,85 @@ def compose_view(view: View, sprites, textures: dict, samplers: dict | None = No
     return Texture(canvas, float(view.width_mm), float(view.height_mm), outside="fixed",
                    outside_ratio=view.background_ratio, name=f"view {view.name}", description=names,
                    source="ultraglide serve", authoring={"px_per_mm": density})
+
+
+def _right_angled(sprite: Sprite) -> bool:
+    return math.isclose(math.remainder(sprite.rotation_deg, 90.0), 0.0, abs_tol=1e-9)
+
+
+def _rectangles(mask, xs, ys) -> list[tuple[float, float, float, float]]:
+    """The cells of ``mask`` (rows × columns; cell (i, j) spans xs[j]..xs[j+1] × ys[i]..ys[i+1] mm) as rectangles
+    (x, y, width, height) mm: each row's runs, a run carried down while the next row has the same one."""
+    import numpy as np
+
+    out = []
+    open_runs: dict[tuple[int, int], int] = {}  # (first column, past the last) -> the row it began at
+    for i in range(mask.shape[0] + 1):
+        runs = set()
+        if i < mask.shape[0]:
+            edges = np.flatnonzero(np.diff(np.concatenate(([0], mask[i].astype(np.int8), [0]))))
+            runs = {(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)}
+        for run in [r for r in open_runs if r not in runs]:
+            start = open_runs.pop(run)
+            out.append((float(xs[run[0]]), float(ys[start]), float(xs[run[1]] - xs[run[0]]), float(ys[i] - ys[start])))
+        for run in runs:
+            open_runs.setdefault(run, i)
+    return out
+
+
+def sprite_regions(view: View, sprites, name: str, max_rectangles: int, finest_mm: float = 0.25):
+    """Where a sprite is felt, as at most ``max_rectangles`` axis-aligned rectangles (x, y, width, height) in mm
+    on the view (the composed texture's coordinates): the part of its rectangle where it is the topmost shown
+    sprite, within the view. [] when it is hidden or wholly covered; None when no set of that many rectangles
+    follows it (see below).
+
+    Where the sprite and every sprite over it are turned by a multiple of 90 degrees, the rectangles are exact:
+    the cells between their edges, each judged at its centre. A sprite turned otherwise (itself, or one over it)
+    has no exact set of axis-aligned rectangles: the cells are also cut every ``finest_mm`` (and coarser, by
+    steps of 1.5×, until the rectangles are few enough), a staircase whose steps are that pitch.
+    """
+    import numpy as np
+
+    shown = stacked(s for s in sprites if s.view == view.name and s.visible)
+    index = next((k for k, s in enumerate(shown) if s.name == name), None)
+    if index is None:
+        return []
+    target = shown[index]
+    left, top, right, bottom = target.bounds_mm(view)
+    left, top = max(left, 0.0), max(top, 0.0)
+    right, bottom = min(right, view.width_mm), min(bottom, view.height_mm)
+    if right <= left or bottom <= top:
+        return []
+
+    def overlaps(sprite):
+        a, b, c, d = sprite.bounds_mm(view)
+        return a < right and c > left and b < bottom and d > top
+
+    over = [s for s in shown[index + 1:] if overlaps(s)]
+    edges_x, edges_y = {left, right}, {top, bottom}
+    for sprite in [target, *over]:
+        a, b, c, d = sprite.bounds_mm(view)
+        edges_x.update(v for v in (a, c) if left < v < right)
+        edges_y.update(v for v in (b, d) if top < v < bottom)
+    exact = all(_right_angled(s) for s in [target, *over])
+    pitch = finest_mm
+    while True:
+        xs, ys = set(edges_x), set(edges_y)
+        if not exact:
+            xs.update(np.arange(math.ceil(left / pitch), math.floor(right / pitch) + 1) * pitch)
+            ys.update(np.arange(math.ceil(top / pitch), math.floor(bottom / pitch) + 1) * pitch)
+        xs = np.array(sorted(v for v in xs if left <= v <= right))
+        ys = np.array(sorted(v for v in ys if top <= v <= bottom))
+        xs, ys = xs[np.concatenate(([True], np.diff(xs) > 1e-9))], ys[np.concatenate(([True], np.diff(ys) > 1e-9))]
+        gx, gy = np.meshgrid((xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2)
+        on_top = np.full(gx.shape, -1)
+        for k, sprite in enumerate([target, *over]):
+            u, v = sprite.local_mm(view, gx, gy)
+            w, h = sprite.size_mm(view)
+            on_top[(u >= 0) & (u < w) & (v >= 0) & (v < h)] = k
+        rectangles = _rectangles(on_top == 0, xs, ys)
+        if len(rectangles) <= max_rectangles:
+            return rectangles
+        if exact or pitch > max(right - left, bottom - top):
+            return None
+        pitch *= 1.5

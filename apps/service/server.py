@@ -43,7 +43,7 @@ from importlib import resources
 from urllib.parse import parse_qs, urlsplit
 
 from ultraglide.apps.service import protocol as p
-from ultraglide.apps.service.scene import MAX_SIDE_PX, Sprite, View, compose_view, sprite_at
+from ultraglide.apps.service.scene import MAX_SIDE_PX, Sprite, View, compose_view, sprite_at, sprite_regions
 
 from ultraglide import __version__
 from ultraglide.errors import UltraglideError, describe
@@ -56,6 +56,7 @@ MAX_CLIENTS = 16
 MAX_TEXTURES = 32
 MAX_SPRITES = 256
 MAX_VIEWS = 16
+MAX_POINTERS = 10  # pointers down at once that are followed (a hand's)
 MAX_TEXTURE_PIXELS = 4_000_000
 PRESSURE_FULL_SCALE_N = 1.0  # a pointer's pressure 1 is this force; a mouse's 0.5 is the default 0.5 N
 DEFAULT_VIEW = "main"
@@ -80,7 +81,8 @@ def needs_token(host: str | None) -> bool:
 
 @dataclass(eq=False)
 class Finger:
-    """The one finger the engine renders: whose pointer, on which view, where it was last (mm)."""
+    """A pointer down: whose, its id, on which view, where it was last (mm), its force (N, or None: the default).
+    The one that drives is the finger the engine renders."""
 
     session: Session
     pointer: int
@@ -160,7 +162,7 @@ class Service:
     plate's; ``token``: what clients must give (None: no token); ``page``: serve the page and its module."""
 
     def __init__(self, engine, profile, *, token: str | None = None, page: bool = False,
-                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM):
+                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM, drives: str = "first"):
         self.engine = engine
         self.profile = profile
         self.token = token
@@ -172,8 +174,13 @@ class Service:
         self.active_view = DEFAULT_VIEW
         self.controller: Session | None = None
         self.sessions: set[Session] = set()
-        self.finger: Finger | None = None
+        self.finger: Finger | None = None  # the pointer the engine renders
+        self.pointers: dict[int, Finger] = {}  # every pointer down, by id, in the order they came down
+        self.drives = drives  # which pointer drives when two are down: first, latest or none
         self.effects = None  # the session's effects description (None: none)
+        self.attached: dict[str, tuple] = {}  # sprite -> the bindings whose effects play while the finger is on it
+        self._effects_sent: object = None  # the description the engine plays (the worker's)
+        self._regions_sent: dict[str, int] = {}  # sprite -> how many rectangles its effects play over
         self.worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ultraglide-service")
         self._numbers = 0
         self._order = 0
@@ -285,8 +292,9 @@ class Service:
     def _leave(self, session: Session) -> None:
         """A client went: its finger lifts at once (the plate ramps to rest), its control passes."""
         self.sessions.discard(session)
-        if self.finger is not None and self.finger.session is session:
-            self._lift(time.perf_counter())
+        if self.finger is not None and self.finger.session is session or \
+                any(f.session is session for f in self.pointers.values()):
+            self._lift(time.perf_counter(), session)
         if self.controller is session:
             self.controller = None
 
@@ -365,8 +373,7 @@ class Service:
             raise p.ProtocolError(p.BUSY, "another client controls the plate; hello with role observe to watch")
         if session.role == "control" and role == "observe" and self.controller is session:
             self.controller = None
-            if self.finger is not None and self.finger.session is session:
-                self._lift(time.perf_counter())
+            self._lift(time.perf_counter(), session)
         session.role = role
         session.client = message.get("client", "")
         if role == "control":
@@ -374,7 +381,7 @@ class Service:
         limit = self.profile.max_amplitude_um_pp
         return p.reply(message.id, protocol=p.PROTOCOL_VERSION, server=f"ultraglide {__version__}",
                        role=role, device=self.engine.config.device, profile=self.profile.name,
-                       limit_um_pp=limit, default_force_n=self.engine.config.default_force_n,
+                       limit_um_pp=limit, default_force_n=self.engine.config.default_force_n, drives=self.drives,
                        limits={"message_bytes": p.MAX_MESSAGE_BYTES, "small_message_bytes": p.MAX_SMALL_MESSAGE_BYTES,
                                "messages_per_s": RATE_PER_S, "textures": MAX_TEXTURES, "sprites": MAX_SPRITES,
                                "views": MAX_VIEWS, "texture_pixels": MAX_TEXTURE_PIXELS},
@@ -385,6 +392,12 @@ class Service:
                 "views": [_view_dict(v) for v in self.views.values()],
                 "sprites": [_sprite_dict(s) for s in self.sprites.values()],
                 "textures": [_texture_dict(k, t) for k, t in self.textures.items()]}
+
+    def _on_touches_set(self, session, message) -> dict:
+        """Which pointer drives when two or more are down, from now on (those down keep their roles until one
+        lifts or comes down)."""
+        self.drives = message["drives"]
+        return {"drives": self.drives}
 
     def _on_state(self, session, message) -> dict:
         return self._state()
@@ -469,6 +482,7 @@ class Service:
             raise p.ProtocolError(p.BAD_MESSAGE, "the last view stays: set it instead")
         for sprite in [s for s in self.sprites.values() if s.view == name]:
             del self.sprites[sprite.name]
+            self.attached.pop(sprite.name, None)
         del self.views[name]
         if self.active_view == name:
             self.active_view = next(iter(self.views))
@@ -507,16 +521,24 @@ class Service:
         sprite = self.sprites.pop(message["sprite"], None)
         if sprite is None:
             raise p.ProtocolError(p.UNKNOWN, f"no sprite {message['sprite']!r}")
+        detached = self.attached.pop(sprite.name, None) is not None
         if sprite.view == self.active_view:
             self._changed()
+        elif detached:
+            self._effects_changed()
         return {}
 
     async def _on_effects_set(self, session, message) -> dict:
         description = message["effects"]
-        loop = asyncio.get_running_loop()
-        await loop.run_in_executor(self.worker, self.engine.set_effects, description)
-        self.effects = description
-        return {}
+        if description is not None:
+            _session_bindings(description)  # refused here, in one line, before anything changes
+        previous, self.effects = self.effects, description
+        try:
+            notes = await self._apply_effects(force=True)
+        except (UltraglideError, ValueError):
+            self.effects = previous
+            raise
+        return {"notes": notes}
 
     async def _on_effect_trigger(self, session, message) -> dict:
         played = await asyncio.get_running_loop().run_in_executor(self.worker, self.engine.trigger, message["name"])
@@ -524,45 +546,149 @@ class Service:
 
     async def _on_effect_stop(self, session, message) -> dict:
         """Every effect playing stops: the effects are set again (their voices start afresh, silent)."""
-        await asyncio.get_running_loop().run_in_executor(self.worker, self.engine.set_effects, self.effects)
+        await self._apply_effects(force=True)
         return {}
+
+    async def _on_effects_attach(self, session, message) -> dict:
+        """Effects that play while the finger is on a sprite (its shown, uncovered part) and stop when it leaves:
+        each becomes a ``while`` binding over the rectangles :func:`scene.sprite_regions` gives."""
+        name = message["sprite"]
+        if name not in self.sprites:
+            raise p.ProtocolError(p.UNKNOWN, f"no sprite {name!r}; place it with sprite.set first")
+        sources = [key for key in ("effect", "effects", "file") if message.get(key) is not None]
+        if len(sources) != 1:
+            raise p.ProtocolError(p.BAD_MESSAGE, "effects.attach: give one of 'effect' (an effect object), 'effects' "
+                                  "(an effects description) or 'file' (.json, .ahap, .haptic, .hjif or .haps)")
+        loop = asyncio.get_running_loop()
+        bindings, notes = await loop.run_in_executor(self.worker, _attached_bindings, message)
+        if name not in self.sprites:  # removed while its effects were read
+            raise p.ProtocolError(p.UNKNOWN, f"no sprite {name!r}: it was removed")
+        previous = self.attached.get(name)
+        self.attached[name] = bindings
+        try:
+            notes += await self._apply_effects(strict=name)
+        except (UltraglideError, ValueError):
+            if previous is None:
+                del self.attached[name]
+            else:
+                self.attached[name] = previous
+            with contextlib.suppress(UltraglideError, OSError, ValueError):  # the refusal is what is said
+                await self._apply_effects()
+            raise
+        return {"sprite": name, "effects": len(bindings), "regions": self._regions_sent.get(name, 0),
+                "notes": notes}
+
+    async def _on_effects_detach(self, session, message) -> dict:
+        name = message["sprite"]
+        if self.attached.pop(name, None) is None:
+            raise p.ProtocolError(p.UNKNOWN, f"no effects attached to sprite {name!r}")
+        await self._apply_effects()
+        return {"sprite": name}
+
+    async def _apply_effects(self, force: bool = False, strict: str | None = None) -> list[str]:
+        """The session's effects and the sprites' (as the scene is now) to the engine, on the worker."""
+        state = (self.views[self.active_view], list(self.sprites.values()), self.effects, dict(self.attached))
+        return await asyncio.get_running_loop().run_in_executor(self.worker, self._set_effects, state, force, strict)
+
+    def _effects_changed(self) -> None:
+        """The sprites' effects changed without the view's friction (a sprite of another view removed)."""
+        async def apply():
+            with contextlib.suppress(UltraglideError, OSError, ValueError):
+                await self._apply_effects()
+        asyncio.ensure_future(apply())
+
+    def _set_effects(self, state, force: bool = False, strict: str | None = None) -> list[str]:
+        """(On the worker.) The engine's effects for ``state`` (view, sprites, session's description, attached),
+        sent when they changed (``force``: always, their voices start afresh). ``strict``: a sprite whose
+        effects must all be placed (else ProtocolError, nothing sent)."""
+        description, notes, regions = _effects_description(*state)
+        if strict is not None and any(note.startswith(f"sprite {strict!r}") for note in notes):
+            raise p.ProtocolError(p.LIMIT, next(n for n in notes if n.startswith(f"sprite {strict!r}")))
+        if force or description != self._effects_sent:
+            self.engine.set_effects(description)
+            self._effects_sent = description
+        self._regions_sent = regions
+        return notes
 
     # ---- touches ---------------------------------------------------------------------------------------
     def _touch(self, session: Session, message: p.Message, received_s: float) -> None:
+        """A pointer event. Every pointer down is followed; which one the engine renders is :attr:`drives`'s rule
+        (``first``: the first down until it lifts; ``latest``: the newest down takes over, and when it lifts the
+        newest still down; ``none``: with two or more down, none, the plate at rest, until one is left)."""
         view = self._view(message.get("view", self.active_view))
         pointer = message.get("pointer", 0)
         phase = message["phase"]
-        finger = self.finger
-        if finger is None and phase != "down":
-            return  # a pointer hovering, or a move after a lift: nothing to feel
-        if finger is not None and (finger.session is not session or finger.pointer != pointer):
-            self.touches_ignored += 1  # a second finger: the plate renders one
-            return
+        pointers = self.pointers
+        known = pointers.get(pointer)
+        new = known is None
+        if new:
+            if phase != "down":
+                return  # a pointer hovering, or a move after a lift: nothing to feel
+            if len(pointers) >= MAX_POINTERS:
+                self.touches_ignored += 1
+                return
         t = session.engine_time(message.get("t"), received_s)
         x_mm, y_mm = view.to_mm(message["x"], message["y"])
         force = message.get("force_n")
         if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
             force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
-        if view.name != self.active_view:
-            self.active_view = view.name
-            self._changed()
+        if known is None:
+            known = pointers[pointer] = Finger(session, pointer, view.name, x_mm, y_mm, force)
+        else:
+            known.view, known.x_mm, known.y_mm, known.force_n = view.name, x_mm, y_mm, force
+        driving = self.finger
+        if phase in ("up", "cancel"):
+            del pointers[pointer]
+            if driving is known:
+                self._count(message, received_s)
+                self.engine.touch(t, x_mm, y_mm, force, down=False)
+                self.finger = None
+                if self.drives == "latest" and pointers:  # the newest still down takes over
+                    self._drive(next(reversed(pointers.values())), t)
+            else:
+                self.touches_ignored += 1
+            if self.drives == "none" and self.finger is None and len(pointers) == 1:  # one left: it drives
+                self._drive(next(iter(pointers.values())), t)
+            return
+        if driving is known:
+            self._count(message, received_s)
+            self._drive(known, t)
+            return
+        if new:  # a pointer down beside the one that drives, or none
+            if self.drives == "none" and len(pointers) > 1:
+                if driving is not None:  # two down: none drives, the plate rests
+                    self.finger = None
+                    self.engine.touch(t, driving.x_mm, driving.y_mm, driving.force_n, down=False)
+            elif driving is None or self.drives == "latest":
+                if driving is not None:
+                    self.engine.touch(t, driving.x_mm, driving.y_mm, driving.force_n, down=False)
+                self._count(message, received_s)
+                self._drive(known, t)
+                return
+        self.touches_ignored += 1  # a pointer that does not drive: followed, not rendered
+
+    def _count(self, message: p.Message, received_s: float) -> None:
         self.touches += 1
         if self.arrivals is not None:  # (bench/bench_service.py) the client's time, when it came, when it went in
             self.arrivals.append((message.get("t"), received_s, time.perf_counter()))
-        if phase in ("up", "cancel"):
-            self.engine.touch(t, x_mm, y_mm, force, down=False)
-            self.finger = None
-            return
-        self.engine.touch(t, x_mm, y_mm, force, down=True)
-        if finger is None:
-            self.finger = Finger(session, pointer, view.name, x_mm, y_mm, force)
-        else:
-            finger.x_mm, finger.y_mm, finger.force_n = x_mm, y_mm, force
 
-    def _lift(self, now_s: float) -> None:
+    def _drive(self, finger: Finger, t: float) -> None:
+        """``finger`` drives the plate: the engine renders it, down where it is now."""
+        if finger.view != self.active_view:
+            self.active_view = finger.view
+            self._changed()
+        self.finger = finger
+        self.engine.touch(t, finger.x_mm, finger.y_mm, finger.force_n, down=True)
+
+    def _lift(self, now_s: float, session: Session | None = None) -> None:
+        """The driving finger lifts (the plate ramps to rest); the pointers of ``session`` (all, if None) are
+        forgotten."""
         finger = self.finger
-        self.finger = None
-        self.engine.touch(now_s, finger.x_mm, finger.y_mm, finger.force_n, down=False)
+        for key in [k for k, f in self.pointers.items() if session is None or f.session is session]:
+            del self.pointers[key]
+        if finger is not None and (session is None or finger.session is session):
+            self.finger = None
+            self.engine.touch(now_s, finger.x_mm, finger.y_mm, finger.force_n, down=False)
 
     # ---- the scene -------------------------------------------------------------------------------------
     def _changed(self) -> None:
@@ -578,17 +704,20 @@ class Service:
             view = self.views[self.active_view]
             sprites = list(self.sprites.values())
             textures = dict(self.textures)
+            effects_state = (view, sprites, self.effects, dict(self.attached))
             try:
-                await loop.run_in_executor(self.worker, self._set_scene, view, sprites, textures)
+                notes = await loop.run_in_executor(self.worker, self._set_scene, view, sprites, textures, effects_state)
             except (UltraglideError, OSError, ValueError) as error:
+                notes = [f"the view could not be rendered: {describe(error)}"]
+            for note in notes:
                 for session in list(self.sessions):
-                    session.send({"type": "notice", "message": f"the view could not be rendered: {describe(error)}"},
-                                  push=True)
+                    session.send({"type": "notice", "message": note}, push=True)
             self._composed_version = version
 
-    def _set_scene(self, view, sprites, textures) -> None:
+    def _set_scene(self, view, sprites, textures, effects_state) -> list[str]:
         texture = compose_view(view, sprites, textures, self.samplers)
         self.engine.set_texture(texture)
+        return self._set_effects(effects_state)
 
     def _scene_pushed_soon(self) -> None:
         """The scene to its subscribers once this turn of the loop is over (a burst of changes: one push; a texture
@@ -724,12 +853,109 @@ def _load_texture(message: p.Message):
         warnings.simplefilter("always")
         if "png" in message.fields:
             texture = _from_png(message)
+        elif "file" in message.fields and _is_scene(message["file"]) or "material" in message.fields:
+            texture = _from_gltf(message)
         else:
             texture = _load_named(message.get("library") or message.get("file"))
     notes = [" ".join(str(w.message).split())[:300] for w in caught]
     if "name" in message.fields:
         texture = texture.with_(name=message["name"])
     return texture, notes
+
+
+def _session_bindings(description) -> tuple:
+    """The session's effects description (``effects.set``) as bindings; ProtocolError (``engine``) for a bad one."""
+    from ultraglide.textures.effects import from_json
+    from ultraglide.textures.errors import TextureError
+
+    try:
+        return from_json(description)
+    except TextureError as error:
+        raise p.ProtocolError(p.ENGINE, f"effects.set: {describe(error)}") from None
+
+
+def _attached_bindings(message: p.Message) -> tuple[tuple, list[str]]:
+    """(On the worker.) The bindings ``effects.attach`` names: one ``effect`` object, an ``effects`` description, or
+    a ``file`` (ours, .json; a designer's .ahap, .haptic, .hjif or .haps, through ``textures.formats.effects_in``), with
+    ``release_s`` for all when given; and the notes loading said (what a designer's file loses)."""
+    from dataclasses import replace as replaced
+
+    from ultraglide.textures.effects import Binding, Trigger, effect_from_dict, from_json, load_effects
+    from ultraglide.textures.errors import TextureError
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            if message.get("effect") is not None:
+                bindings = (Binding(Trigger("while"), effect_from_dict(message["effect"])),)
+            elif message.get("effects") is not None:
+                bindings = from_json(message["effects"])
+            else:
+                bindings = load_effects(message["file"])
+        except TextureError as error:
+            raise p.ProtocolError(p.ENGINE, f"effects.attach: {describe(error)}") from None
+    notes = [" ".join(str(w.message).split())[:300] for w in caught]
+    if not bindings:
+        raise p.ProtocolError(p.ENGINE, "effects.attach: no effect to attach" + (f" ({notes[0]})" if notes else ""))
+    if message.get("release_s") is not None:
+        bindings = tuple(replaced(b, release_s=message["release_s"]) for b in bindings)
+    return tuple(bindings), notes
+
+
+def _effects_description(view: View, sprites: list, session_description, attached: dict):
+    """The engine's effects: the session's bindings, then each attached sprite's effects as ``while`` bindings over
+    the rectangles where it is felt (:func:`scene.sprite_regions`, within what :data:`MAX_BINDINGS` leaves).
+    (description or None, notes, {sprite: rectangles})."""
+    from ultraglide.textures.effects import MAX_BINDINGS, Binding, Trigger, to_json
+
+    bindings = list(_session_bindings(session_description)) if session_description is not None else []
+    notes, regions = [], {}
+    for name, sources in attached.items():
+        sprite = next((s for s in sprites if s.name == name), None)
+        if sprite is None or sprite.view != view.name:
+            continue
+        budget = (MAX_BINDINGS - len(bindings)) // len(sources)
+        rectangles = sprite_regions(view, sprites, name, budget) if budget > 0 else None
+        if rectangles is None:
+            notes.append(f"sprite {name!r}'s effects are not played: {len(sources)} effect(s) over its shape need "
+                         f"more than the {MAX_BINDINGS - len(bindings)} of {MAX_BINDINGS} bindings the engine has "
+                         "left; attach fewer, or uncover or unturn it")
+            continue
+        regions[name] = len(rectangles)
+        for source in sources:
+            for rectangle in rectangles:
+                bindings.append(Binding(Trigger("while", rectangle), source.effect, source.release_s,
+                                        f"sprite {name}"))
+    if session_description is None and not attached:
+        return None, notes, regions
+    return to_json(bindings), notes, regions
+
+
+def _is_scene(path: str) -> bool:
+    from ultraglide.textures.formats.gltf import is_gltf
+
+    return is_gltf(path)
+
+
+def _from_gltf(message: p.Message):
+    """A glTF scene's haptic material (``material``: its name or index; by default the first with a friction
+    texture) as a texture, as ``texture import`` reads it; ``width_mm`` its width where the scene does not say
+    it (or to override it: its height follows the UV mapping's aspect)."""
+    from ultraglide.textures.formats.gltf import load_friction_texture
+
+    path = message.get("file")
+    if path is None or not _is_scene(path):
+        raise p.ProtocolError(p.BAD_MESSAGE, "texture.load: 'material' names a haptic material of a glTF scene: "
+                              "give 'file' as a .gltf or .glb file")
+    if "height_mm" in message.fields:
+        raise p.ProtocolError(p.BAD_MESSAGE, "texture.load: a glTF material's size is its width_mm (its height "
+                              "follows the scene's UV mapping); leave out height_mm")
+    material = message.get("material")
+    texture = load_friction_texture(path, material, message.get("width_mm"))
+    if texture.rows * texture.cols > MAX_TEXTURE_PIXELS:
+        raise p.ProtocolError(p.LIMIT, f"{path}: {texture.cols}×{texture.rows} pixels, more than a sprite's "
+                              f"{MAX_TEXTURE_PIXELS:,}; make it smaller")
+    return texture
 
 
 def _from_png(message: p.Message):
