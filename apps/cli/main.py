@@ -128,10 +128,10 @@ def quick_exit(status: int) -> None:
     -------
     >>> quick_exit(0)  # doctest: +SKIP
     """
-    main_thread = threading.main_thread()
-    for thread in threading.enumerate():
-        if thread is not main_thread and not thread.daemon:
-            thread.join()
+    # the interpreter's own first step at exit: threading's exit callbacks (which tell concurrent.futures' idle
+    # workers to end: joined before them, an executor left open would hold the process for good), then every
+    # thread that is not a daemon joined
+    threading._shutdown()
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):  # a reader gone (a closed pipe): nothing more to say to it
