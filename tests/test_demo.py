@@ -708,14 +708,20 @@ def test_closed_loop_shows_the_measured_friction_beside_the_target_and_says_the_
 
         assert run_until(app, slide_and_follow, 60.0), app.status_words()
         learnt = time.perf_counter() + 2.0  # the loop's first seconds: it learns the finger (as the bench allows)
-        while time.perf_counter() < learnt:
+        seen = {"measured": np.array([])}
+
+        def learnt_and_near_the_target():
             slide_and_follow()
-            run_for(app, 0.005)
-        chart = app.link.status(CHART_SPAN_S).chart
-        recent = chart[chart[:, 0] > chart[-1, 0] - 1.5]
-        measured_ratio = recent[np.isfinite(recent[:, 4]), 4]
-        # near the target, far from the 1.0 of a plate that does not vibrate (the loop's accuracy is the bench's)
-        assert len(measured_ratio) and abs(np.median(measured_ratio) - 0.2) < 0.15, (measured_ratio, app.status_words())
+            if time.perf_counter() < learnt:
+                return False
+            chart = app.link.status(CHART_SPAN_S).chart
+            recent = chart[chart[:, 0] > chart[-1, 0] - 1.5]
+            seen["measured"] = measured = recent[np.isfinite(recent[:, 4]), 4]
+            # near the target, far from the 1.0 of a plate that does not vibrate (the loop's accuracy is the bench's)
+            return len(measured) > 0 and abs(np.median(measured) - 0.2) < 0.15
+
+        # waited for while sliding: a loaded machine may leave the finger a moment still (the loop then rests)
+        assert run_until(app, learnt_and_near_the_target, 60.0), (seen["measured"], app.status_words())
         app.painter.everything()
         pixels = pg.surfarray.array3d(app.screen)
         area = app.layout.chart_rect
