@@ -161,8 +161,7 @@ def test_help_loads_no_numerical_library():
 
 
 def test_a_swipe_export_does_not_load_scipy_interpolate():
-    # the command ends the process itself once its atexit hooks ran (apps/cli/main.py's quick exit): the modules
-    # it loaded are looked at from such a hook
+    # the modules the command loaded, looked at from an atexit hook (as the process ends, whatever way it ends)
     code = ("import atexit, sys, runpy; sys.argv = ['ultraglide', 'export', 'grating-1mm', '--duration-s', '0.2', "
             f"'-o', {str(ROOT / '.no-interpolate.wav')!r}]\n"
             "atexit.register(lambda: print('scipy.interpolate' in sys.modules, 'tqdm' in sys.modules))\n"

@@ -20,13 +20,10 @@ The exit statuses (docs/guide/commands.md, Exit statuses):
 
 from __future__ import annotations
 
-import atexit
-import contextlib
 import gc
 import os
 import signal
 import sys
-import threading
 
 from ultraglide.apps.cli import errors
 from ultraglide.apps.cli.files import check_outputs
@@ -94,49 +91,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def console() -> int:
-    """The ``ultraglide`` command (and ``python -m ultraglide``): :func:`main`, then a quick exit
-    (:func:`quick_exit`); an error no handler took (a bug) ends as Python ends, with its traceback."""
+    """The ``ultraglide`` command (and ``python -m ultraglide``): :func:`main`; an error no handler took (a bug) ends
+    as Python ends, with its traceback."""
     status = main()
     # the finished command's objects need no cycle collection at exit, which otherwise walks every object numba,
     # scipy and the texture made: about 0.15 s of a short command's time
     gc.freeze()
-    quick_exit(status)
-    return status  # (not reached)
-
-
-def quick_exit(status: int) -> None:
-    """End the process with ``status`` once the command is done, without the interpreter's teardown.
-
-    What a normal exit does that matters is done first, in its order: the threads that are not daemons are waited
-    for, the ``atexit`` functions run (multiprocessing's finalizers, the resource tracker's, coverage's ...), and
-    standard output and error are flushed. What is skipped is freeing every module's objects and the native
-    libraries' destructors (LLVM's, OpenBLAS's): memory the kernel takes back at once anyway. Measured with numpy,
-    scipy and numba loaded, that teardown took 0.16-0.30 s after the last ``atexit`` function on a loaded machine
-    (bench/bench_supervision.py: a command whose engine was lost exited 0.3-0.6 s after the loss, the plate safe
-    after 20-200 ms of it); it is every command's last wait, and the largest part of a lost engine's exit time.
-
-    Parameters
-    ----------
-    status : int
-        The exit status (0-255).
-
-    Raises
-    ------
-    Nothing: the process ends here.
-
-    Example
-    -------
-    >>> quick_exit(0)  # doctest: +SKIP
-    """
-    # the interpreter's own first step at exit: threading's exit callbacks (which tell concurrent.futures' idle
-    # workers to end: joined before them, an executor left open would hold the process for good), then every
-    # thread that is not a daemon joined
-    threading._shutdown()
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):  # a reader gone (a closed pipe): nothing more to say to it
-            stream.flush()
-    os._exit(status & 0xFF)
+    return status
 
 
 def _stopped(signum: int) -> int:
