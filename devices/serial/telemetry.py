@@ -253,13 +253,16 @@ class Intake:
 
     def _judged(self, telemetry: p.Telemetry) -> bool:
         """Whether this frame's amplitude is judged against what was sent (serial/follow.py): the output on and
-        playing, on a device that measures its amplitude (v3: it says so; v2: it once reported one above 0)."""
+        playing, on a device that measures its amplitude (v3: it says so; v2: it once reported one above 0), and
+        no resonance being tracked (the tracker moves the carrier about a drifting resonance: off it, a plate rightly
+        plays less than it is sent)."""
         state, device = self.session.state, self.session.state.device
         self._amplitude_seen = getattr(self, "_amplitude_seen", False) or telemetry.measured_um_pp > 0.0
         sensed = bool(device.sensors & p.SENSOR_AMPLITUDE) if device is not None and device.version >= 3 else \
             self._amplitude_seen
         playing = telemetry.version < 3 or telemetry.playback == p.PLAYBACK_PLAYING
-        return sensed and playing and state.output_on and not state.cut and telemetry.enabled
+        return (sensed and playing and state.output_on and not state.cut and telemetry.enabled
+                and self.tracker is None)
 
     def _add_link_counters(self, telemetry: p.Telemetry, restarted: bool) -> None:
         for name in LINK_COUNTERS:
