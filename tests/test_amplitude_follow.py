@@ -118,5 +118,8 @@ def test_play_in_words_does_not_sum_up_a_plate_found_at_fault_as_no_device_fault
     said = [k for k, line in enumerate(lines) if SAID.match(line)]
     (summary,) = [k for k, line in enumerate(lines) if line.startswith("device faults")]
     assert said and said[0] < summary  # the fault is said first ...
-    # ... and the summary does not undo it: the plate raised none of its own fault bits, ultraglide found one
-    assert lines[summary] == "device faults: none raised by the device; what went wrong is said above"
+    # ... and the summary does not undo it: where the plate raised none of its own fault bits (under load it may
+    # raise underruns), the summary says ultraglide found one
+    assert lines[summary] != "device faults: none"
+    assert lines[summary] == "device faults: none raised by the device; what went wrong is said above" \
+        or "×" in lines[summary], lines[summary]

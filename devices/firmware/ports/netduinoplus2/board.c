@@ -451,7 +451,8 @@ static void carrier_clock_start(void)
    time: both set since its last look, and the board is alive; BOARD_WATCHDOG_MISSES looks in a row without,
    spanning BOARD_WATCHDOG_US of virtual time (one look after QEMU itself stalled is not the board's fault), and it
    does what the IWDG's expiry does on hardware (a reset), after silencing the output first.
-   Until both marks have been seen once, the window is BOARD_WATCHDOG_BOOT_US: QEMU translates each code path the
+   Until both marks have been seen BOARD_WATCHDOG_WARM_TAKES times (about as many ms), the window is
+   BOARD_WATCHDOG_BOOT_US: QEMU translates each code path the
    first time it runs, and the first blocks after boot took 4-10 ms of the host's time on a loaded machine (the
    false reset CI saw), while the looks, already translated, came on time. */
 static uint32_t watchdog_ok_at, watchdog_misses, watchdog_on, watchdog_excused, watchdog_last_look, watchdog_warm;
@@ -485,10 +486,12 @@ static void watchdog_look(void)
     if (ug_marks_take()) {
         watchdog_ok_at = now;
         watchdog_misses = 0u;
-        watchdog_warm = 1u;
+        if (watchdog_warm < BOARD_WATCHDOG_WARM_TAKES) {
+            watchdog_warm++;
+        }
         return;
     }
-    if (!watchdog_warm && now - watchdog_ok_at < BOARD_WATCHDOG_BOOT_US * 1000u) {
+    if (watchdog_warm < BOARD_WATCHDOG_WARM_TAKES && now - watchdog_ok_at < BOARD_WATCHDOG_BOOT_US * 1000u) {
         return;
     }
     if (ug_marks_peek() == 1u && block_busy && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * 1000u) {
