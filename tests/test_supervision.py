@@ -303,3 +303,34 @@ def test_an_experiment_whose_engine_is_lost_ends_with_exit_7_and_keeps_no_answer
     assert "its process was killed by SIGKILL" in str(lost.value)
     rows = read_rows(tmp_path) if (tmp_path / "trials.csv").exists() else []
     assert rows == []
+
+
+def test_the_installed_command_ends_after_a_loss_with_its_whole_report_and_no_leftovers(tmp_path):
+    """The console script itself (not the tests' command server): a lost engine ends the process without the
+    interpreter's teardown (``apps.cli.main.end_after_loss``), so what it printed to a file (block-buffered) must
+    have been flushed, the ``atexit`` functions run (no resource tracker's warnings), nothing left in /dev/shm."""
+    import subprocess
+    import sys
+
+    before = set(os.listdir("/dev/shm"))
+    out_path, err_path = tmp_path / "stdout.txt", tmp_path / "stderr.txt"
+    log = tmp_path / "env.csv"
+    with open(out_path, "w") as out, open(err_path, "w") as err:
+        process = subprocess.Popen([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device", "sim",
+                                    "--duration-s", "60", "--envelope-csv", str(log)], stdout=out, stderr=err)
+    try:
+        part = tmp_path / "env.csv.part"
+        wait_until(lambda: part.exists() and part.stat().st_size > 20000, "the engine to play")
+        engine = engine_of(process.pid)
+        os.kill(engine, signal.SIGKILL)
+        status = process.wait(timeout=120)
+    finally:
+        process.kill()
+        process.wait()
+    out, err = out_path.read_text(), err_path.read_text()
+    assert status == EXIT_ENGINE_LOST, (status, out, err)
+    assert out.startswith("plate: sim-plate") and re.search(r"^device faults until the engine was lost: ", out, re.M)
+    assert f"{log} keeps the rows written before the engine was lost" in out  # the report's last lines, flushed
+    assert err.strip().splitlines()[-1] == "ultraglide play: the engine was lost (exit status 7)", err
+    assert "resource_tracker" not in err and "Traceback" not in err
+    assert {name for name in set(os.listdir("/dev/shm")) - before if "ultraglide" in name or "psm_" in name} == set()

@@ -20,6 +20,8 @@ The exit statuses (docs/guide/commands.md, Exit statuses):
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import gc
 import os
 import signal
@@ -31,6 +33,7 @@ from ultraglide.apps.cli.output import PrintableStream, one_line
 from ultraglide.apps.cli.parser import build_parser
 from ultraglide.apps.cli.signals import StopSignals
 from ultraglide.apps.commands.plate_choice import choose_plate
+from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
 
 from ultraglide.atomic import release_checked
 from ultraglide.errors import out_of_memory
@@ -97,7 +100,36 @@ def console() -> int:
     # the finished command's objects need no cycle collection at exit, which otherwise walks every object numba,
     # scipy and the texture made: about 0.15 s of a short command's time
     gc.freeze()
+    if status == EXIT_ENGINE_LOST:
+        end_after_loss(status)
     return status
+
+
+def end_after_loss(status: int) -> None:
+    """End a command whose engine was lost now that its device is safe and its report said: the ``atexit``
+    functions, the standard streams flushed, then ``os._exit``, without the interpreter's teardown.
+
+    A lost engine's exit is timed (aims of 100 ms after a death, 250 ms after a freeze, issue 45), and the teardown
+    of an interpreter with numpy, scipy and numba loaded (every module's objects freed, LLVM's and OpenBLAS's
+    destructors) took 0.16-0.30 s of it on a loaded machine. Threads are not waited for: by the time a loss is
+    reported the device was made safe and the command's files finished or removed (``render.engine.supervisor``),
+    so what is left is idle (an executor's workers wait for work they will never get). Commands that end
+    otherwise end as Python ends.
+
+    Parameters
+    ----------
+    status : int
+        The exit status (0-255), :data:`~ultraglide.devices.serial.run_report.EXIT_ENGINE_LOST`.
+
+    Example
+    -------
+    >>> end_after_loss(7)  # doctest: +SKIP
+    """
+    atexit._run_exitfuncs()  # multiprocessing's finalizers, the resource tracker's, coverage's
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):  # a reader gone (a closed pipe): nothing more to say to it
+            stream.flush()
+    os._exit(status & 0xFF)
 
 
 def _stopped(signum: int) -> int:
