@@ -106,3 +106,74 @@ class AmplitudeFollow:
     def first_s(self) -> float:
         with self._lock:
             return 0.0 if self.first is None else self.first[0]
+
+
+CARRIER_TOLERANCE_HZ = 0.01  # a carrier reported within this of one sent is that carrier (plate sweep's, R-CARRIER's)
+CARRIER_LAG_S = 0.25  # a carrier sent this recently may still be what telemetry says (a frame or two in flight)
+CARRIER_RUNNING_S = 1.0  # telemetry saying another carrier than any sent for this long: the plate does not follow
+
+
+class CarrierFollow:
+    """Whether the carrier the plate reports is the one it was sent: a plate that says another for a second running
+    while its output plays is a device fault, said once (its first such second's figures) and counted in frames.
+
+    The carrier is sent at the handshake (SET_CARRIER, acknowledged), by ``set_carrier`` (``plate sweep``) and by
+    the resonance tracker (``--track-resonance``, unacknowledged); telemetry, 50 frames a second, says the carrier
+    in force. A frame is believed to follow when its carrier is, within :data:`CARRIER_TOLERANCE_HZ`, the carrier
+    sent now or one sent in the last :data:`CARRIER_LAG_S` (frames in flight when it changed); a plate whose frames
+    do not, for :data:`CARRIER_RUNNING_S` running, plays a carrier nobody asked for (a firmware that ignores
+    SET_CARRIER, a synthesiser stuck) at a resonance-sharp plate's cost of most of its amplitude.
+
+    Example
+    -------
+    >>> follow = CarrierFollow()
+    >>> for frame in range(60):  # 1.2 s of telemetry saying 24 kHz while 25 kHz was sent
+    ...     follow.observe(sent_hz=25000.0, reported_hz=24000.0, judged=True, at_s=0.02 * frame)
+    >>> follow.words()[:74]
+    'the plate does not follow the carrier it is sent: from 0.00 s it was sent '
+    >>> follow.words()[74:]
+    '25000.00 Hz and said it played 24000.00 Hz for 1.00 s running; 9 frames after that'
+    """
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._sent: list[tuple[float, float]] = []  # (since s, Hz) of the carriers sent in the last CARRIER_LAG_S
+        self._since_s: float | None = None  # when the present run of frames off every carrier sent began
+        self.first: tuple[float, float, float] | None = None  # (at s, sent Hz, reported Hz) of the fault
+        self.frames = 0  # frames off the carrier after the fault stood
+
+    def observe(self, sent_hz: float, reported_hz: float, judged: bool, at_s: float) -> None:
+        """One telemetry frame: the carrier sent now (Hz), the carrier it reports (Hz), whether it is judged (the
+        output on and playing: not while the handshake sets the carrier), when (s into the run)."""
+        if not self._sent or self._sent[-1][1] != sent_hz:
+            self._sent.append((at_s, sent_hz))
+        while len(self._sent) > 1 and at_s - self._sent[1][0] > CARRIER_LAG_S:
+            del self._sent[0]  # the carrier before the next was replaced more than the lag ago
+        if not judged:
+            self._since_s = None
+            return
+        if any(abs(reported_hz - hz) <= CARRIER_TOLERANCE_HZ for _, hz in self._sent):
+            self._since_s = None
+            return
+        with self._lock:
+            if self._since_s is None:
+                self._since_s = at_s
+            if self.first is not None:
+                self.frames += 1
+            elif at_s - self._since_s >= CARRIER_RUNNING_S:
+                self.first = (self._since_s, sent_hz, reported_hz)
+
+    def words(self) -> str | None:
+        """One sentence for the run's report, or None if the plate played the carrier it was sent."""
+        with self._lock:
+            if self.first is None:
+                return None
+            at_s, sent_hz, reported_hz = self.first
+            frames = self.frames
+        return (f"the plate does not follow the carrier it is sent: from {at_s:.2f} s it was sent {sent_hz:.2f} Hz "
+                f"and said it played {reported_hz:.2f} Hz for {CARRIER_RUNNING_S:.2f} s running; {frames} "
+                f"frame{'s' if frames != 1 else ''} after that")
+
+    def first_s(self) -> float:
+        with self._lock:
+            return 0.0 if self.first is None else self.first[0]

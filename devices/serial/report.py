@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import CounterCheck
 from ultraglide.devices.protocol.ranges import FieldCheck
-from ultraglide.devices.serial.follow import AmplitudeFollow
+from ultraglide.devices.serial.follow import AmplitudeFollow, CarrierFollow
 from ultraglide.devices.serial.link import COMMAND_NAMES, CUT_FAULTS, CUT_WORDS, MAX_OUTAGES, Outage, Pacing
 from ultraglide.devices.serial.run_report import Incident, RunReport, seconds, times
 
@@ -74,6 +74,14 @@ class RunAccount:
         follow = getattr(self, "_follow", None)
         if follow is None:
             follow = self._follow = AmplitudeFollow()
+        return follow
+
+    @property
+    def carrier_follow(self) -> CarrierFollow:
+        """Whether the carrier the plate reports is the one it was sent, over the run (devices/serial/follow.py)."""
+        follow = getattr(self, "_carrier_follow", None)
+        if follow is None:
+            follow = self._carrier_follow = CarrierFollow()
         return follow
 
     def now_s(self) -> float:
@@ -196,6 +204,9 @@ class RunAccount:
         unfollowed = self.follow.words()
         if unfollowed is not None:  # a device fault: it does not play what it is sent
             incidents.append(Incident(self.follow.first_s(), "faulted", unfollowed))
+        off_carrier = self.carrier_follow.words()
+        if off_carrier is not None:  # a device fault: it plays a carrier it was not sent
+            incidents.append(Incident(self.carrier_follow.first_s(), "faulted", off_carrier))
         if bad[0] or bad[1]:
             incidents.append(Incident(bad[2] or 0.0, "note", f"{times(bad[0] + bad[1], 'frame')} from the plate "
                                       f"arrived damaged ({bad[0]} with a bad CRC, {bad[1]} truncated or malformed), "

@@ -242,6 +242,9 @@ class Intake:
         total, count = self.drive.take()
         self.account.follow.observe(total, count, telemetry.measured_um_pp, self._judged(telemetry),
                                     self.account.now_s())
+        self.account.carrier_follow.observe(self.session.carrier_hz, telemetry.carrier_hz,
+                                            state.output_on and not state.cut and bool(telemetry.enabled),
+                                            self.account.now_s())
         if self.tracker is not None:
             if previous is None or any(counts[bit.bit_length() - 1] != previous[bit.bit_length() - 1]
                                        for bit in TRACKING_DISTURBANCES):
