@@ -278,7 +278,7 @@ NUMPY_CLASSES = {
     "AuthoringOptions": {"Parameters", "Raises"}, "Sampler": {"Parameters"}, "RenderSettings": {"Parameters", "Raises"},
     "RecordedTrajectory": {"Parameters", "Raises"}, "EngineConfig": {"Parameters"}, "EngineStatus": {"Attributes"},
     "BlockSource": {"Attributes"}, "Device": {"Attributes"}, "ExportResult": {"Attributes"},
-    "EnvelopeSource": {"Parameters"},
+    "EnvelopeSource": {"Parameters"}, "ProtocolError": set(),
 }
 
 

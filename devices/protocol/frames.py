@@ -19,7 +19,23 @@ CRC_LAYOUT = struct.Struct("<I")  # CRC-32 of type, seq and payload
 
 
 class ProtocolError(UltraglideError, ValueError):
-    """A frame that cannot be decoded."""
+    """A frame from a plate driver that cannot be decoded or parsed: bad COBS, a CRC that does not match, a payload
+    of the wrong length for its type. A :class:`ValueError` too, so code that catches bad values catches it.
+
+    The serial driver counts such frames (a link's noise) and goes on; code that parses frames itself, as a
+    plate driver's test bench does, catches it.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.protocol import ProtocolError, decode_frame, encode_frame
+    >>> damaged = bytearray(encode_frame(0x90, 7, b"payload")[:-1])  # without its 0x00 terminator
+    >>> damaged[5] ^= 0x01  # one bit of the payload flipped on the way
+    >>> try:
+    ...     decode_frame(damaged)
+    ... except ProtocolError as error:
+    ...     print(error)
+    CRC mismatch
+    """
 
 
 @dataclass(frozen=True)
