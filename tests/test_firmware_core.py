@@ -109,7 +109,8 @@ def test_the_cores_protocol_numbers_are_the_hosts():
             "NAK_INTERNAL", "FAULT_WATCHDOG", "FAULT_TRIP", "FAULT_OVER_LIMIT", "FAULT_OVERRUN", "FAULT_UNDERRUN",
             "FAULT_BAD_COMMAND", "FAULT_OVERHEAT", "FAULT_BITS", "SENSOR_AMPLITUDE", "SENSOR_NORMAL_FORCE",
             "SENSOR_LATERAL_FORCE", "FEATURE_AMPLITUDE_LOOP", "SETPOINTS_FORCE", "FEATURE_FORCE_CORRECTION",
-            "FEATURE_LINK_STATED",
+            "FEATURE_LINK_STATED", "FEATURE_RESET_STATED", "RESTART_POWER_ON", "RESTART_WATCHDOG", "RESTART_FAULT",
+            "RESTART_SOFTWARE", "RESTART_PIN",
             "MAX_FORCE_EXPONENT", "MAX_REFERENCE_FORCE_N", "FORCE_SPAN", "SIM_DROP", "SIM_CORRUPT", "SIM_HANG",
             "SIM_DISCONNECT", "SIM_OVERHEAT"}
     for name in same:
@@ -120,6 +121,7 @@ def test_the_cores_protocol_numbers_are_the_hosts():
     assert number(defines["TELEMETRY_V3_SIZE"]) == p.PAYLOAD_SIZES["TELEMETRY"]
     assert number(defines["HELLO_REPLY_V2_SIZE"]) == p.V2_PAYLOAD_SIZES["HELLO_REPLY"]
     assert number(defines["HELLO_REPLY_LINK_SIZE"]) == p.PAYLOAD_SIZES["HELLO_REPLY with link"] == 49
+    assert number(defines["HELLO_RESET_SIZE"]) == p.PAYLOAD_SIZES["HELLO_REPLY restart fields"] == 5
 
 
 def test_the_rules_the_simulator_breaks_are_the_documents():

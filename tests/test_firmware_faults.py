@@ -22,6 +22,7 @@ import time
 
 import pytest
 from conftest import ROOT
+from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import build_images
 from ultraglide.devices.firmware.qemu import QemuPlate
 
@@ -60,6 +61,17 @@ def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) 
     raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
 
 
+def said_in_hello(plate: QemuPlate) -> p.HelloReply:
+    """The board's HELLO_REPLY, asked over its link now."""
+    from test_firmware_qemu import Link
+
+    link = Link(plate.path)
+    try:
+        return link.hello()
+    finally:
+        link.close()
+
+
 def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
     """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
     assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
@@ -89,6 +101,12 @@ def test_a_hang_is_caught_by_the_watchdog_which_silences_the_output_and_resets(o
         assert blanked["injected"] == kind and blanked["after_fault_ms"] >= WATCHDOG_MS - 1.0
         stats = next_event(plate, ("stats",))  # and it runs again after the reset
         assert stats["blocks"] >= 900
+        reply = said_in_hello(plate)  # and a host connecting now hears why it restarted
+        assert reply.restart_reason == p.RESTART_WATCHDOG
+        # the marks it saw (bit 0 the block interrupt's, bit 1 the main loop's): those its console did not call missing
+        marks = {"block interrupt": 1, "main loop": 2}
+        assert reply.restart_detail & 3 == 3 - sum(marks[name] for name in happened["missing"])
+        assert ("the block interrupt's" in reply.restart_words()) == (kind == "isr-hang")
 
 
 @pytest.mark.parametrize(("kind", "status_bits"), [("stack-overflow", CFSR_STKERR),
@@ -100,6 +118,9 @@ def test_a_fault_is_caught_by_its_handler_which_silences_the_output_first(one_qe
         assert happened["event"] == "board_fault" and happened["fault_status"] & status_bits == status_bits
         assert 0.0 <= blanked["after_fault_ms"] < WATCHDOG_MS  # the handler, not the watchdog
         assert next_event(plate, ("stats",))["blocks"] >= 900
+        reply = said_in_hello(plate)
+        assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_FAULT, happened["fault_status"])
+        assert reply.restart_words() == f"a fault handler reset it (fault status {happened['fault_status']:#010x})"
 
 
 def test_plate_sim_board_fault_prints_what_the_board_did_as_json(one_qemu, image):
@@ -149,3 +170,29 @@ def test_the_stack_sits_below_ram_s_data_so_an_overflow_faults(image):
     assert symbols["_stack_top"] - symbols["_stack_bottom"] == image.stack_bytes == 8192
     assert symbols["_stack_top"] <= symbols["_data_start"] < symbols["_bss_start"]
     assert symbols["_stack_top"] <= symbols["ug_reset_record"] < symbols["_data_start"]  # .noinit: not zeroed
+
+
+def test_play_on_a_board_that_resets_itself_says_why_from_its_next_handshake(one_qemu, image, tmp_path):
+    """A hung block interrupt mid-run: the board resets, the host finds the link silent and connects again, and the
+    new handshake says the watchdog restarted it (HELLO_REPLY's restart_reason): a device fault in the report,
+    beside the loss (exit status 4, the larger)."""
+    from test_exits import Command
+
+    with QemuPlate(image.elf_path) as plate:
+        assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
+        command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{plate.path}", "--profile",
+                          "sim-plate", "--duration-s", "15", "--json")
+        try:
+            deadline = time.monotonic() + 120
+            while next_event(plate, ("stats",), timeout=120)["setpoints"] < 2000:  # two seconds of the stream
+                assert time.monotonic() < deadline and command.process.poll() is None, command.stderr
+            plate.inject_fault("isr-hang")
+            assert next_event(plate, ("boot",))["reset_reason"] == "watchdog"
+            status = command.wait()
+        finally:
+            command.kill()
+    report = json.loads(command.stdout)["report"]
+    said = [line for line in report["lines"] if line.startswith("the plate driver restarted itself, its handshake at ")]
+    assert len(said) == 1, report["lines"]
+    assert "said: its watchdog expired (the block interrupt's" in said[0], said  # its mark missing, first of all
+    assert status == report["exit_status"] == 4, (status, report["lines"])  # the loss outranks the fault

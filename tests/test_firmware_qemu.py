@@ -355,8 +355,10 @@ def test_the_board_answers_with_the_profile_written_into_it_and_reports_on_time(
             assert (reply.carrier_min_hz, reply.carrier_max_hz, reply.min_setpoint_rate_hz,
                     reply.max_setpoint_rate_hz) == (21000.0, 27000.0, 1000, 48000)
             assert (reply.watchdog_ms, reply.buffer_ms, reply.sensors, reply.sensor_rate_hz, reply.features) == \
-                (100, 250, p.SENSOR_AMPLITUDE, 1000, p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED)
+                (100, 250, p.SENSOR_AMPLITUDE, 1000,
+                 p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED)
             assert (reply.link_bytes_per_s, reply.q) == (LINK_BYTES_PER_S, 150.0)  # its link, and the plate's Q
+            assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_POWER_ON, 0)  # QEMU started it
             assert reply.name == NAME
             assert link.hello(version=2).version == 2  # a v2 host gets v2
             assert link.hello(version=3).version == 3

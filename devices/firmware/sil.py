@@ -51,6 +51,7 @@ class Config(ctypes.Structure):
                 ("dac_oversample", ctypes.c_uint16), ("sensors", ctypes.c_uint8), ("sensor_rate_hz", ctypes.c_uint16),
                 ("features", ctypes.c_uint8), ("max_version", ctypes.c_uint8), ("sim_faults", ctypes.c_uint8),
                 ("sense_delay_samples", ctypes.c_uint16), ("link_bytes_per_s", ctypes.c_uint32),
+                ("reset_stated", ctypes.c_uint8), ("reset_reason", ctypes.c_uint8), ("reset_detail", ctypes.c_uint32),
                 ("name", ctypes.c_char * 65)]
 
 
@@ -199,6 +200,9 @@ class CoreSettings:
     sim_faults: bool = True
     sense_delay_samples: int = 0
     link_bytes_per_s: int = 0  # what its link carries, stated in HELLO_REPLY v3 (0: not stated)
+    reset_stated: bool = False  # HELLO_REPLY v3 says why it last started (FEATURE_RESET_STATED) ...
+    reset_reason: int = 0  # ... RESTART_* ...
+    reset_detail: int = 0  # ... and the watchdog's marks seen or the fault's status
     name: str = "ultraglide plate simulator"
     breaks: tuple[str, ...] = ()
 

@@ -16,11 +16,15 @@ from ultraglide.devices.protocol.spec import (
     FEATURE_AMPLITUDE_LOOP,
     FEATURE_FORCE_CORRECTION,
     FEATURE_LINK_STATED,
+    FEATURE_RESET_STATED,
     LOOP_OPEN,
     MAX_NAME_BYTES,
     MAX_SENSOR_SAMPLES,
     PLAYBACK_OFF,
     PROTOCOL_VERSION,
+    RESTART_FAULT,
+    RESTART_WATCHDOG,
+    RESTART_WORDS,
 )
 
 _HELLO_REPLY_V2 = struct.Struct("<BfffIIffHH")
@@ -28,6 +32,8 @@ _HELLO_REPLY_V2 = struct.Struct("<BfffIIffHH")
 _HELLO_REPLY_V3 = struct.Struct("<BfffIIffHHfBHB")
 # v3's, then (with FEATURE_LINK_STATED) link_bytes_per_s and q, before the name
 _HELLO_REPLY_LINK = struct.Struct("<BfffIIffHHfBHBIf")
+_LINK_FIELDS = struct.Struct("<If")  # FEATURE_LINK_STATED's, after v3's
+_RESET_FIELDS = struct.Struct("<BI")  # FEATURE_RESET_STATED's restart_reason and restart_detail, after those
 _ACK = struct.Struct("<H")
 _NAK = struct.Struct("<HB")
 _TELEMETRY_V2 = struct.Struct(f"<ffHB7I{FAULT_BITS}I")
@@ -62,6 +68,8 @@ class HelloReply:
     features: int = 0  # v3: FEATURE_* bits
     link_bytes_per_s: int = 0  # v3 with FEATURE_LINK_STATED: host-to-device bytes a second it takes (0: unstated)
     q: float = 0.0  # v3 with FEATURE_LINK_STATED: the plate's nominal quality factor (0: unstated)
+    restart_reason: int | None = None  # v3 with FEATURE_RESET_STATED: why the board last started (RESTART_*)
+    restart_detail: int = 0  # ... the watchdog's marks seen (bits 0-1) or the fault's status (CFSR); else 0
 
     def __post_init__(self) -> None:
         if self.max_drive_um_pp is None:
@@ -75,6 +83,21 @@ class HelloReply:
     def states_link(self) -> bool:
         """The device states what its link carries (and its plate's Q) in this reply."""
         return self.version >= 3 and bool(self.features & FEATURE_LINK_STATED) and self.link_bytes_per_s > 0
+
+    def restart_words(self) -> str | None:
+        """Why the board last started, in words (None: not stated), e.g. ``its watchdog expired (the block
+        interrupt's mark missing)``."""
+        if self.restart_reason is None:
+            return None
+        words = RESTART_WORDS.get(self.restart_reason, f"reason {self.restart_reason}")
+        if self.restart_reason == RESTART_WATCHDOG:
+            missing = [name for bit, name in ((1, "the block interrupt's"), (2, "the main loop's"))
+                       if not self.restart_detail & bit]
+            if missing:
+                words += f" ({' and '.join(missing)} mark{'s' if len(missing) > 1 else ''} missing)"
+        elif self.restart_reason == RESTART_FAULT and self.restart_detail:
+            words += f" (fault status {self.restart_detail:#010x})"
+        return words
 
     @property
     def has_force_correction(self) -> bool:
@@ -142,12 +165,13 @@ def hello_reply_payload(reply: HelloReply) -> bytes:
               reply.watchdog_ms, reply.buffer_ms)
     if reply.version <= 2:
         head = _HELLO_REPLY_V2.pack(*fields)
-    elif reply.features & FEATURE_LINK_STATED:
-        head = _HELLO_REPLY_LINK.pack(*fields, reply.max_drive_um_pp, reply.sensors, reply.sensor_rate_hz,
-                                      reply.features, reply.link_bytes_per_s, reply.q)
     else:
         head = _HELLO_REPLY_V3.pack(*fields, reply.max_drive_um_pp, reply.sensors, reply.sensor_rate_hz,
                                     reply.features)
+        if reply.features & FEATURE_LINK_STATED:
+            head += _LINK_FIELDS.pack(reply.link_bytes_per_s, reply.q)
+        if reply.features & FEATURE_RESET_STATED:
+            head += _RESET_FIELDS.pack(reply.restart_reason or 0, reply.restart_detail)
     return head + reply.name.encode()[:MAX_NAME_BYTES].decode("utf-8", "ignore").encode()  # whole characters
 
 
@@ -163,16 +187,23 @@ def parse_hello_reply(payload: bytes) -> HelloReply:
     at the end; v3's link fields before the name where its features say so). The name: at most 64 bytes taken,
     invalid UTF-8 replaced."""
     layout = _HELLO_REPLY_V2 if hello_reply_version(payload) <= 2 else _HELLO_REPLY_V3
-    if layout is _HELLO_REPLY_V3 and len(payload) >= layout.size and payload[40] & FEATURE_LINK_STATED:
-        layout = _HELLO_REPLY_LINK
     if len(payload) < layout.size:
         raise ProtocolError(f"hello reply of {len(payload)} bytes is shorter than "
                             f"v{min(payload[0], 3)}'s {layout.size}")
     fields = layout.unpack_from(payload)
-    name = payload[layout.size:layout.size + MAX_NAME_BYTES].decode("utf-8", "replace")
     if layout is _HELLO_REPLY_V2:
-        return HelloReply(*fields, name)
-    return HelloReply(*fields[:10], name, *fields[10:])
+        return HelloReply(*fields, payload[layout.size:layout.size + MAX_NAME_BYTES].decode("utf-8", "replace"))
+    features, at, extra = fields[-1], layout.size, {}
+    for bit, part, names in ((FEATURE_LINK_STATED, _LINK_FIELDS, ("link_bytes_per_s", "q")),
+                             (FEATURE_RESET_STATED, _RESET_FIELDS, ("restart_reason", "restart_detail"))):
+        if features & bit:
+            if len(payload) < at + part.size:
+                raise ProtocolError(f"hello reply of {len(payload)} bytes is shorter than the {at + part.size} "
+                                    "its features say")
+            extra.update(zip(names, part.unpack_from(payload, at), strict=True))
+            at += part.size
+    name = payload[at:at + MAX_NAME_BYTES].decode("utf-8", "replace")
+    return HelloReply(*fields[:10], name, *fields[10:], **extra)
 
 
 def ack_payload(seq: int) -> bytes:
@@ -253,6 +284,7 @@ def parse_sensors(payload: bytes) -> Sensors:
 
 # fixed parts of payloads (v3), by the names docs/protocol.md's tables use
 PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V3.size, "HELLO_REPLY with link": _HELLO_REPLY_LINK.size,
+                 "HELLO_REPLY restart fields": _RESET_FIELDS.size,
                  "ACK": _ACK.size, "NAK": _NAK.size,
                  "TELEMETRY": _TELEMETRY_V3.size, "SENSORS": _SENSORS_HEADER.size,
                  "SETPOINTS header": SETPOINT_HEADER_LAYOUT.size, "SENSORS sample": _SENSOR_SAMPLE.itemsize,

@@ -75,6 +75,12 @@ FEATURE_AMPLITUDE_LOOP = 1 << 0  # the firmware's amplitude loop (SET_LOOP 1)
 FEATURE_BRAKING = 1 << 1  # ... which brakes with an antiphase drive (down to minus the limit)
 FEATURE_FORCE_CORRECTION = 1 << 2  # SETPOINTS_FORCE: values rescaled by the force measured at play
 FEATURE_LINK_STATED = 1 << 3  # HELLO_REPLY goes on, before the name, with link_bytes_per_s:u32 and q:f32
+FEATURE_RESET_STATED = 1 << 4  # ... and (after the link's fields, if any) restart_reason:u8, restart_detail:u32
+# HELLO_REPLY's restart_reason (FEATURE_RESET_STATED): why the board last started
+RESTART_POWER_ON, RESTART_WATCHDOG, RESTART_FAULT, RESTART_SOFTWARE, RESTART_PIN = range(5)
+RESTART_WORDS = {RESTART_POWER_ON: "power-on", RESTART_WATCHDOG: "its watchdog expired",
+                 RESTART_FAULT: "a fault handler reset it", RESTART_SOFTWARE: "its firmware asked for a reset",
+                 RESTART_PIN: "its reset pin"}
 MAX_FORCE_EXPONENT = 2.0  # SETPOINTS_FORCE's exponent lies in -2..2
 MAX_REFERENCE_FORCE_N = 20.0  # ... and its force in (0, 20] N
 FORCE_SPAN = 2.0  # the device corrects where its force lies within force_n / 2 .. 2 force_n

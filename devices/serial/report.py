@@ -49,6 +49,8 @@ class RunAccount:
         self._late_longest = (0.0, 0.0)  # the longest gap between frames while streaming, over the buffer (s, at s)
         self._bad_received = [0, 0, None]  # crc, malformed, first s
         self._writer_failure: tuple[float, str] | None = None
+        self._restarts: list[tuple[float, str]] = []  # (s, why) of the board's own restarts mid-run (a few kept)
+        self._restarts_count = 0
         self.reenabled_first_s = 0.0
         self.rested = False
 
@@ -122,6 +124,14 @@ class RunAccount:
             entry = self._refusals.setdefault((command, words), [0, self.now_s()])
             entry[0] += 1
 
+    def board_restarted(self, why: str) -> None:
+        """The plate driver came back from a loss of the link having restarted itself (its watchdog, a fault), as
+        its new handshake says (``why``, in words)."""
+        with self._lock:
+            self._restarts_count += 1
+            if len(self._restarts) < MAX_OUTAGES:
+                self._restarts.append((self.now_s(), why))
+
     def bad_frames(self, crc_errors: int, framing_errors: int) -> None:
         with self._lock:
             if self._bad_received[2] is None:
@@ -163,8 +173,15 @@ class RunAccount:
             cut_at, stall, bad = self._cut_at, self._stall_longest, list(self._bad_received)
             late = self._late_longest
             writer_failure, dropped = self._writer_failure, self._outages_dropped
+            restarts, restarts_count = list(self._restarts), self._restarts_count
         counters = figures.counters
         incidents = []
+        for at_s, why in restarts:  # a device fault: the board reset itself under the run
+            incidents.append(Incident(at_s, "faulted", f"the plate driver restarted itself, its handshake at "
+                                                       f"{seconds(at_s)} said: {why}"))
+        if restarts_count > len(restarts):
+            incidents.append(Incident(restarts[-1][0], "faulted",
+                                      f"and {restarts_count - len(restarts)} more restarts of the plate driver"))
         for lost_s, cause, back_s, not_sent, last_error, before in outages:
             if back_s is None:
                 not_sent = counters.setpoints_discarded - before

@@ -41,6 +41,9 @@ class SessionState:
     loop_on: bool = False  # the device's amplitude loop runs, this connection (session)
     last_heard: float = 0.0  # time.monotonic() of the last frame received (reader, writer)
     first_telemetry: threading.Event | None = None  # set by the first telemetry of the run (reader)
+    restarted: bool = False  # telemetry's counters began again: the device restarted, connect anew (reader, writer)
+    why_restarted: bool = False  # ... and the next handshake is to say why (writer, session)
+    handshakes: int = 0  # HELLO_REPLYs bound over the run (session)
 
 
 class Replies:
@@ -136,9 +139,22 @@ class Session:
     def bind(self, hello: p.HelloReply) -> None:
         """The device's limits bind from now on (the output stage's limiter is told)."""
         self.limits, notes = bind_limits(self.profile, self.limits, hello)
+        if self.state.device is None and hello.restart_reason not in (None, p.RESTART_POWER_ON):
+            # the run's first handshake: how the board came to be running
+            notes.append(f"the plate driver last started after a restart: {hello.restart_words()}")
         self.state.device = hello
+        self.state.handshakes += 1
+        if self.state.why_restarted:  # the device restarted mid-run (its counters began again)
+            self.state.why_restarted = False
+            self.restarted_mid_run(hello)
         self._bound(self.limits)
         self.notes.extend(note for note in notes if note not in self.notes)
+
+    def restarted_mid_run(self, hello: p.HelloReply) -> None:
+        """The device restarted under the run, and ``hello`` is its handshake since: a device fault where it reset
+        itself (a watchdog, a fault handler), said as the handshake says it."""
+        if hello.restart_reason in (p.RESTART_WATCHDOG, p.RESTART_FAULT):
+            self.account.board_restarted(hello.restart_words())
 
     def connect(self) -> None:
         """Open, handshake, bind, take the run's first telemetry, set the carrier, enable; DeviceError if not."""

@@ -107,6 +107,13 @@ class Streamer:
             self.counters.disconnects += 1
             self.account.outage(f"no telemetry for {self.silence_s:g} s", self.counters.setpoints_discarded)
             connected = False
+        elif connected and state.restarted:  # its counters began again: connect anew, to hear why in its handshake
+            self.session.disconnect()
+            self.counters.disconnects += 1
+            self.account.outage("the plate driver restarted (its counters began again)",
+                                self.counters.setpoints_discarded)
+            state.why_restarted, connected = True, False
+        state.restarted = False
         if not connected:
             self._offline(due)
             return False

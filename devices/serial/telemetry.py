@@ -8,7 +8,7 @@ import time
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import WRAP, plausible_restart
-from ultraglide.devices.protocol.ranges import sensors_out_of_range, telemetry_out_of_range
+from ultraglide.devices.protocol.ranges import SAMPLE_GAP_S, sensors_out_of_range, telemetry_out_of_range
 from ultraglide.devices.serial.link import (
     CLEAR_RETRY_S,
     CUT_FAULTS,
@@ -136,8 +136,10 @@ class Intake:
         self.sensor_errors = 0
         self._sensor_listeners: tuple = ()
         self._next_sample: int | None = None  # the sample number the last SENSORS frame leads to
+        self._may_begin_again = True  # a restarted device's sample count is believed once a connection
         self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
         self._frames_ok_last = 0
+        self._handshakes_seen = 0  # the session's handshakes at the last telemetry taken
         self.fault_run = [0] * p.FAULT_BITS  # faults over the run
         self._link_last: dict[str, int] = {}
         self.link_run = dict.fromkeys(LINK_COUNTERS, 0)
@@ -159,10 +161,13 @@ class Intake:
                 sensors = p.parse_sensors(frame.payload)
                 expected, self._next_sample = self._next_sample, (sensors.first_sample + len(sensors.samples)) % WRAP
                 device = state.device
+                if self._began_again(sensors.first_sample, expected, device):
+                    expected = None  # the device restarted: its samples are numbered from 0 again
                 if device is None or self._believed("SENSORS", sensors_out_of_range(sensors, device, expected)):
                     self._take_sensors(sensors)
             elif frame.kind == p.HELLO_REPLY:
                 self._next_sample = None  # a new connection: its samples are numbered afresh
+                self._may_begin_again = True
                 self.session.replies.hello_arrived(frame.payload)
             elif frame.kind == p.ACK:
                 seq = p.parse_ack(frame.payload)
@@ -180,6 +185,18 @@ class Intake:
                 self.session.replies.answer(seq, reason)
         except p.ProtocolError:
             self.counters.bad_frames += 1
+
+    def _began_again(self, first_sample: int, expected: int | None, device: p.HelloReply | None) -> bool:
+        """Whether a SENSORS frame's sample count began again, once in a connection: a device that restarted
+        numbers its samples from 0 (and its telemetry, 20 ms apart, may say so only after). A count back to within
+        a second of samples from 0 is taken so once; again in the same connection, it is a value that cannot be."""
+        if expected is None or device is None or not device.sensor_rate_hz or not self._may_begin_again:
+            return False
+        second = device.sensor_rate_hz * SAMPLE_GAP_S
+        if first_sample <= second < (first_sample - expected) % WRAP:
+            self._may_begin_again = False
+            return True
+        return False
 
     def _believed(self, kind: str, impossible: list[tuple[str, str]]) -> bool:
         """Whether a frame can be believed; if not, it is a device fault, counted and said in the run's report."""
@@ -214,6 +231,12 @@ class Intake:
         counts = telemetry.fault_counts
         previous = self._fault_last
         restarted = self._restarted(telemetry, previous)
+        if restarted and state.handshakes != self._handshakes_seen:  # connected anew since its last telemetry:
+            self.session.restarted_mid_run(state.device)  # the handshake came after the restart and says why
+        elif restarted:
+            state.restarted = True  # the writer connects anew: a restarted device's session began again, and its
+            # handshake says why (devices/serial/session.py)
+        self._handshakes_seen = state.handshakes
         check = self.account.counter_check  # u32 counters believed only as far as they can be true
         if previous is None:
             new_bits = telemetry.faults  # latched before this run: cleared once, not counted

@@ -93,6 +93,9 @@ static bool config_ok(const ug_config *c) {
     if (c->max_version < UG_LOWEST_VERSION || c->max_version > UG_PROTOCOL_VERSION || c->sim_faults > 1u) {
         return false;
     }
+    if (c->reset_stated > 1u || c->reset_reason >= UG_RESTART_REASONS || (c->features & UG_FEATURE_RESET_STATED)) {
+        return false; /* the feature bit is the core's to set, from reset_stated */
+    }
     return memchr(c->name, 0, sizeof c->name) != NULL;
 }
 

@@ -111,6 +111,12 @@ size_t ug_hello_reply(const ug_core *core, uint8_t *p) {
             ug_put_f32(p + 45, c->q);
             n = UG_HELLO_REPLY_LINK_SIZE;
         }
+        if (c->reset_stated != 0u) { /* why the board last started: a host reconnecting after a reset learns why */
+            p[40] = (uint8_t)(p[40] | UG_FEATURE_RESET_STATED);
+            p[n] = c->reset_reason;
+            ug_put_u32(p + n + 1, c->reset_detail);
+            n += UG_HELLO_RESET_SIZE;
+        }
     }
     size_t name = strlen(c->name); /* NUL-terminated within 65 bytes (config_ok) */
     memcpy(p + n, c->name, name);

@@ -71,6 +71,9 @@ typedef struct ug_config {
     uint16_t sense_delay_samples; /* ADC block lag behind the drive block, samples (< UG_HISTORY) */
     uint32_t link_bytes_per_s; /* what the host link carries to the board, sustained, bytes/s (HELLO_REPLY v3, with
                                   UG_FEATURE_LINK_STATED; the host fits its stream to it); 0: not stated */
+    uint8_t reset_stated;      /* 1: HELLO_REPLY v3 says why the board last started (UG_FEATURE_RESET_STATED) */
+    uint8_t reset_reason;      /* UG_RESTART_* (the port reads its reset record at boot, before ug_core_init) */
+    uint32_t reset_detail;     /* the watchdog's marks seen, or the fault's status; 0 otherwise */
     char name[UG_MAX_NAME_BYTES + 1]; /* UTF-8, NUL-terminated here (not on the wire) */
 } ug_config;
 

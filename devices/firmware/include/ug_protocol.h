@@ -70,6 +70,18 @@
 #define UG_FEATURE_FORCE_CORRECTION 0x04u /* SETPOINTS_FORCE: values rescaled by the force measured at play */
 #define UG_FEATURE_LINK_STATED 0x08u /* HELLO_REPLY goes on with link_bytes_per_s:u32 and q:f32 before the name
                                         (set by the core when ug_config.link_bytes_per_s is not 0) */
+#define UG_FEATURE_RESET_STATED 0x10u /* HELLO_REPLY goes on (after the link's fields, if any) with
+                                         restart_reason:u8 and restart_detail:u32 before the name: why the board
+                                         last started (set by the core when ug_config.reset_stated is 1) */
+
+/* HELLO_REPLY's restart_reason (UG_FEATURE_RESET_STATED): why the board last started */
+#define UG_RESTART_POWER_ON 0u /* power applied, or no record of anything else */
+#define UG_RESTART_WATCHDOG 1u /* its hardware watchdog (or the emulator's stand-in) expired: detail says which mark
+                                  was missing (bits 0-1: the marks seen, 1 the block interrupt's, 2 the main loop's) */
+#define UG_RESTART_FAULT 2u    /* a fault handler reset it: detail is the fault's status (Cortex-M: CFSR) */
+#define UG_RESTART_SOFTWARE 3u /* the firmware asked for a reset */
+#define UG_RESTART_PIN 4u      /* the reset pin */
+#define UG_RESTART_REASONS 5u
 
 /* SIM_FAULT kinds */
 #define UG_SIM_DROP 1u
@@ -89,6 +101,7 @@
 #define UG_HELLO_REPLY_V2_SIZE 33u
 #define UG_HELLO_REPLY_V3_SIZE 41u
 #define UG_HELLO_REPLY_LINK_SIZE 49u /* v3's, with UG_FEATURE_LINK_STATED's two fields */
+#define UG_HELLO_RESET_SIZE 5u /* UG_FEATURE_RESET_STATED's two fields */
 #define UG_TELEMETRY_V2_SIZE 71u
 #define UG_TELEMETRY_V3_SIZE 89u
 #define UG_SENSORS_HEADER_SIZE 9u

@@ -18,6 +18,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "ug_protocol.h"
+
 /* why the board restarted (the boot line's reset_reason) */
 enum {
     UG_RESET_POWER_ON = 0, /* no record: power applied (or a record that did not survive) */
@@ -27,6 +29,11 @@ enum {
     UG_RESET_PIN = 4,      /* the reset pin (hardware: RCC_CSR says so) */
     UG_RESET_REASONS = 5
 };
+/* the same codes go on the wire as HELLO_REPLY's restart_reason */
+_Static_assert(UG_RESET_POWER_ON == UG_RESTART_POWER_ON && UG_RESET_WATCHDOG == UG_RESTART_WATCHDOG &&
+               UG_RESET_FAULT == UG_RESTART_FAULT && UG_RESET_SOFTWARE == UG_RESTART_SOFTWARE &&
+               UG_RESET_PIN == UG_RESTART_PIN && UG_RESET_REASONS == UG_RESTART_REASONS,
+               "reset reasons and HELLO_REPLY's restart codes differ");
 
 /* an injected fault (the QEMU image's console command `fault KIND`) */
 enum {

@@ -307,6 +307,9 @@ void port_configure(ug_config *config, float *um_pp_per_code)
     config->features = UG_FEATURE_AMPLITUDE_LOOP;
     config->sim_faults = 0u;
     config->link_bytes_per_s = BOARD_LINK_BYTES_PER_S;
+    config->reset_stated = 1u; /* board_init read the reset record: the next HELLO says why this start */
+    config->reset_reason = (uint8_t)board_reset_reason();
+    config->reset_detail = board_reset_reason() == UG_RESET_POWER_ON ? 0u : board_reset_record()->detail;
 #ifdef UG_BOARD_QEMU
     config->link_bytes_per_s = BOARD_QEMU_LINK_BYTES_PER_S;
     static const char name[] = "ultraglide netduinoplus2 (QEMU)";

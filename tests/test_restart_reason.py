@@ -1,0 +1,96 @@
+"""Why the board last started, in its handshake (HELLO_REPLY v3's FEATURE_RESET_STATED: restart_reason:u8 and
+restart_detail:u32 after the link's fields, docs/protocol.md): the wire layout packed by hand, the firmware core
+stating what its port read at boot (through its host binding), and the host saying a restart in words. A board
+restarting mid-run is tested on the emulated board (tests/test_firmware_faults.py)."""
+
+import struct
+
+import pytest
+from conftest import run_cli, serve_plate
+from ultraglide.devices import protocol as p
+from ultraglide.devices.firmware import sil
+from ultraglide.devices.profiles import load_profile
+from ultraglide.devices.sim.lies import Lies
+
+V3_HEAD = struct.pack("<BfffIIffHHfBHB", 3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, 8.0, 1,
+                      1000, 0)
+
+
+def reply(features, **fields):
+    return p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board", 8.0, 1, 1000,
+                        features, **fields)
+
+
+def with_features(head: bytes, features: int) -> bytes:
+    return head[:40] + bytes([features])
+
+
+def test_the_two_fields_come_after_the_links_and_before_the_name():
+    both = p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED
+    payload = p.hello_reply_payload(reply(both, link_bytes_per_s=9000, q=150.0, restart_reason=1, restart_detail=2))
+    assert payload == with_features(V3_HEAD, both) + struct.pack("<If", 9000, 150.0) + struct.pack("<BI", 1, 2) + \
+        b"board"
+    alone = p.hello_reply_payload(reply(p.FEATURE_RESET_STATED, restart_reason=2, restart_detail=0x8200))
+    assert alone == with_features(V3_HEAD, p.FEATURE_RESET_STATED) + struct.pack("<BI", 2, 0x8200) + b"board"
+    parsed = p.parse_hello_reply(alone)
+    assert (parsed.restart_reason, parsed.restart_detail, parsed.name, parsed.link_bytes_per_s) == \
+        (2, 0x8200, "board", 0)
+
+
+def test_a_reply_without_the_bit_states_nothing_and_one_cut_short_is_refused():
+    parsed = p.parse_hello_reply(with_features(V3_HEAD, 0) + b"board")
+    assert (parsed.restart_reason, parsed.restart_words(), parsed.name) == (None, None, "board")
+    with pytest.raises(p.ProtocolError, match="shorter than the 46 its features say"):
+        p.parse_hello_reply(with_features(V3_HEAD, p.FEATURE_RESET_STATED) + b"\x01")
+
+
+@pytest.mark.parametrize("reason, detail, words", [
+    (p.RESTART_POWER_ON, 0, "power-on"),
+    (p.RESTART_WATCHDOG, 2, "its watchdog expired (the block interrupt's mark missing)"),
+    (p.RESTART_WATCHDOG, 1, "its watchdog expired (the main loop's mark missing)"),
+    (p.RESTART_WATCHDOG, 0, "its watchdog expired (the block interrupt's and the main loop's marks missing)"),
+    (p.RESTART_FAULT, 0x400, "a fault handler reset it (fault status 0x00000400)"),
+    (p.RESTART_PIN, 0, "its reset pin"),
+    (9, 0, "reason 9"),
+])
+def test_the_reason_in_words(reason, detail, words):
+    assert reply(p.FEATURE_RESET_STATED, restart_reason=reason, restart_detail=detail).restart_words() == words
+
+
+def hello_of(core: sil.FirmwareCore, version: int = 3) -> p.HelloReply:
+    core.receive(p.encode_frame(p.HELLO, 1, p.hello_payload(version)))
+    core.poll()  # replies are encoded in the main loop
+    (frame,) = [f for f in p.FrameDecoder().feed(core.transmit()) if f.kind == p.HELLO_REPLY]
+    return p.parse_hello_reply(frame.payload)
+
+
+@pytest.mark.parametrize("link", [0, 14000])
+def test_the_firmware_core_states_what_its_port_read_at_boot(link):
+    core = sil.FirmwareCore(q=180.0, link_bytes_per_s=link, sim_faults=False, reset_stated=True,
+                            reset_reason=p.RESTART_WATCHDOG, reset_detail=2)
+    stated = hello_of(core)
+    assert stated.features & p.FEATURE_RESET_STATED and (stated.restart_reason, stated.restart_detail) == (1, 2)
+    assert (stated.link_bytes_per_s, stated.name) == (link, "ultraglide plate simulator")
+    assert hello_of(core, version=2).restart_reason is None  # v2's layout has no room for it
+
+
+def test_the_firmware_core_refuses_a_reason_it_cannot_state():
+    with pytest.raises(Exception, match="refused its configuration"):
+        sil.FirmwareCore(reset_stated=True, reset_reason=p.RESTART_PIN + 1)
+    with pytest.raises(Exception, match="refused its configuration"):
+        sil.FirmwareCore(features=1 | p.FEATURE_RESET_STATED)  # the bit is the core's to set
+
+
+def test_play_says_how_the_board_came_to_be_running_and_does_not_count_it_a_fault():
+    features = p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_BRAKING | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED
+    plate = serve_plate(load_profile("sim-plate"), lies=Lies({"hello.features": features, "hello.restart_reason": 2,
+                                                              "hello.restart_detail": 0x200}))
+    try:
+        result = run_cli("play", "grating-1mm", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                         "--duration-s", 2, timeout=300)
+    finally:
+        plate.stop()
+    assert "the plate driver last started after a restart: a fault handler reset it (fault status 0x00000200)" \
+        in result.stdout + result.stderr
+    assert "restarted itself" not in result.stdout  # a restart before the run is no fault of the run
+    assert result.returncode == 0, (result.stdout, result.stderr)
