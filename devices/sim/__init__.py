@@ -4,10 +4,11 @@ force sensors under the plate (`force_sensors`)."""
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
-# public name -> the module of this room that defines it; imported on first use (PEP 562)
+from ultraglide.lazy import lazy_exports
+
+# public name -> the module of this room that defines it; imported on first use (PEP 562, ultraglide.lazy)
 _EXPORTS = {
     "PlateSimulator": "plate",
     "PtyPlate": "pty_plate",
@@ -16,11 +17,7 @@ _EXPORTS = {
 }
 __all__ = ["PlateSimulator", "PtyPlate", "SimulatedFinger", "FingerParams"]
 
-
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_EXPORTS[name]}"), name)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
 
 
 if TYPE_CHECKING:
