@@ -10,6 +10,7 @@ import argparse
 import itertools
 import math
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -120,6 +121,33 @@ def replay(touch, chunks, started: float, sleep=time.sleep, replayed: Replayed |
     return done
 
 
+class made_meanwhile:  # noqa: N801 - read as a verb: first = made_meanwhile(...); first.result()
+    """``make()`` on a thread of its own while the caller does other work; :meth:`result` waits for it in the
+    engine's sleeps, so an engine lost meanwhile raises :class:`~ultraglide.render.engine.EngineLost` at once
+    rather than when ``make`` is done (under load, compiling a path can take seconds). The thread is a daemon: a
+    run that ends on a lost engine does not wait for it."""
+
+    def __init__(self, make, engine):
+        self._engine, self._done = engine, threading.Event()
+        self._value, self._error = None, None
+        threading.Thread(target=self._run, args=(make,), name="ultraglide-first-chunk", daemon=True).start()
+
+    def _run(self, make) -> None:
+        try:
+            self._value = make()
+        except BaseException as error:  # noqa: BLE001 - raised again in the caller's thread
+            self._error = error
+        finally:
+            self._done.set()
+
+    def result(self):
+        while not self._done.is_set():
+            self._engine.sleep(0.01)
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
 def engine_config(args) -> EngineConfig:
     from ultraglide.render.engine import EngineConfig
     from ultraglide.render.physics.calibration import load_model
@@ -181,8 +209,11 @@ def run(args) -> int:
         if effects is not None:
             engine.set_effects(effects)  # instead of the texture's own
         chunks = report_chunks(trajectory)
-        first = list(itertools.islice(chunks, 1))  # made before the clock starts, while the engine gets ready:
-        engine.wait_ready()  # the first chunk's work (loading a compiled path) must not make the first reports late
+        # the first chunk is made before the clock starts, while the engine gets ready (its work, loading a compiled
+        # path, must not make the first reports late), and on a thread: an engine lost meanwhile ends the run now
+        first = made_meanwhile(lambda: list(itertools.islice(chunks, 1)), engine)
+        engine.wait_ready()
+        first = first.result()
         if not args.json:
             for note in (engine.ready_info.get("device_status") or {}).get("notes") or []:
                 print(note, flush=True)  # where the device's own limits bind, said once before playing
