@@ -13,9 +13,8 @@ is sent. Two devices:
   the death itself); the time to the command's exit, and its own words for when it noticed.
 
 The signal goes once the command has said which plate it plays on (its replay has begun) and its envelope log has
-2 MB in it. A loss before that, while the command's main thread still makes its first touch reports (numba
-compiling the trajectory's path: seconds under load), is noticed and made safe as fast but exits only once that
-work ends.
+2 MB in it. (A loss before that, while the first touch reports are still being made, numba loading the
+trajectory's path, ends the run as fast: they are made on a thread of their own, apps/commands/play.py.)
 
 Aims (issue 45): dead 100 ms, frozen 250 ms, both to the plate disabled and to the command's exit (its status 7
 read by this process). Prints a table with both, and the machine's load average before and after (figures from
