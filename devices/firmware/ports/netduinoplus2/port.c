@@ -296,6 +296,11 @@ static void console_stats(void)
 }
 
 /* ---- start-up and the main loop --------------------------------------------------------------------- */
+_Static_assert(UG_RESET_POWER_ON == UG_RESTART_POWER_ON && UG_RESET_WATCHDOG == UG_RESTART_WATCHDOG &&
+               UG_RESET_FAULT == UG_RESTART_FAULT && UG_RESET_SOFTWARE == UG_RESTART_SOFTWARE &&
+               UG_RESET_PIN == UG_RESTART_PIN && UG_RESET_REASONS == UG_RESTART_REASONS,
+               "the reset record's reasons go on the wire as HELLO_REPLY's restart codes");
+
 void port_configure(ug_config *config, float *um_pp_per_code)
 {
     ug_config_defaults(config);
