@@ -459,6 +459,7 @@ static uint32_t watchdog_ok_at, watchdog_misses, watchdog_on, watchdog_excused, 
 static volatile uint32_t watchdog_stalls;
 static volatile uint32_t block_busy;  /* the block interrupt is running */
 static volatile uint32_t interrupted_pc;  /* where SysTick found the processor (the last look) */
+static uint32_t busy_pc;  /* where the last look found the block interrupt running (0: not running) */
 static volatile uint32_t watchdog_looks;
 
 uint32_t board_watchdog_looks(void)
@@ -494,9 +495,13 @@ static void watchdog_look(void)
     if (watchdog_warm < BOARD_WATCHDOG_WARM_TAKES && now - watchdog_ok_at < BOARD_WATCHDOG_BOOT_US * 1000u) {
         return;
     }
-    if (ug_marks_peek() == 1u && block_busy && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * 1000u) {
+    uint32_t pc = interrupted_pc, moved = pc - busy_pc + BOARD_HANG_SPAN_BYTES > 2u * BOARD_HANG_SPAN_BYTES;
+    busy_pc = block_busy ? pc : 0u;
+    if (block_busy && (ug_marks_peek() == 1u || moved) && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * 1000u) {
         /* the block interrupt is running, catching up blocks that fell due while QEMU ran slower than real time
-           (a loaded host): the main loop had no turn, through no fault of its own; excused up to a bound */
+           (a loaded host): the main loop had no turn, through no fault of its own; or, its mark not set yet, it
+           is still in its first block but has moved on since the last look (QEMU starved by its host runs the
+           guest slower than its clock; a hung interrupt spins in one place). Excused up to a bound */
         watchdog_misses = 0u;
         watchdog_excused++;
         return;

@@ -67,6 +67,8 @@
 #define BOARD_WATCHDOG_STALL_US 2500u /* QEMU: a look this late after the last: QEMU stalled, the window restarts */
 #define BOARD_WATCHDOG_BOOT_US 200000u /* QEMU: the window while the board warms up (QEMU translating its code) */
 #define BOARD_WATCHDOG_WARM_TAKES 300u /* QEMU: ... until both marks were seen this many times */
+#define BOARD_HANG_SPAN_BYTES 16u   /* QEMU: a block interrupt found within this of where it was at the last look
+                                       has not moved on (a spin loop of a few instructions) */
 #define BOARD_WATCHDOG_BUSY_US 50000u /* QEMU: the main loop's mark excused while the block interrupt catches up */
 #define BOARD_WATCHDOG_MISSES 3u      /* ... and expires after this many looks in a row without both marks, and
                                          BOARD_WATCHDOG_US of virtual time (one look after QEMU itself stalled
