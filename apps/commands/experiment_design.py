@@ -163,7 +163,9 @@ def run_design(args) -> int:
             refuse(report)
     except ExperimentError as error:
         return _bad(f"{args.design}: {error}")
-    _refuse_misplaced(args)
+    misplaced = _misplaced(args)
+    if misplaced:
+        return _bad(misplaced)
     directory = Path(args.out)
     if (directory / "trials.csv").exists() and not args.resume:
         raise UsageError(f"{directory} already holds a session; continue it with --resume or choose another --out")
@@ -207,24 +209,24 @@ def run_design(args) -> int:
     return 0 if session.complete else 1
 
 
-def _refuse_misplaced(args) -> None:
-    """Options that belong to another way of running: one line naming the option."""
+def _misplaced(args) -> str | None:
+    """An option that belongs to another way of running, in one line naming it; None if there is none."""
     if args.observer:
         for option, value in (("--device", args.device), ("--screen-width-mm", args.screen_width_mm),
                               ("--windowed", args.windowed), ("--serve", args.serve)):
             if value:
-                raise UsageError(f"{option} is for the participant's window or page, and a simulated observer has "
-                                 "none: leave it out")
+                return (f"{option} is for the participant's window or page, and a simulated observer has none: "
+                        "leave it out")
     if args.serve:
         for option, value in (("--screen-width-mm", args.screen_width_mm), ("--windowed", args.windowed)):
             if value:
-                raise UsageError(f"{option} is for the window; the page takes the screen's pitch as ?mm_per_px=N in "
-                                 "its address: leave it out")
-    else:
-        for key in SERVE_ONLY:
-            if getattr(args, key) is not None:
-                raise UsageError(f"--{key.replace('_', '-')} is for the participant's page: add --serve, or leave "
-                                 "it out")
+                return (f"{option} is for the window; the page takes the screen's pitch as ?mm_per_px=N in its "
+                        "address: leave it out")
+        return None
+    for key in SERVE_ONLY:
+        if getattr(args, key) is not None:
+            return f"--{key.replace('_', '-')} is for the participant's page: add --serve, or leave it out"
+    return None
 
 
 def _browser(design, args):
