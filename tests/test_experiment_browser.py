@@ -433,3 +433,41 @@ repeats = 1
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "does not present the method of adjustment (block matching (adjustment))" in result.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, design):
+    from ultraglide.apps.experiment.browser import BrowserResponder
+
+    from ultraglide.experiment import run
+
+    loaded = load_design(design)
+    said: list[str] = []
+    answers = {1: 1, 2: 0, 3: 1, 4: 0, 5: 2, 6: 3}
+
+    def participant(address):
+        page = Page(address)
+        for number, button in answers.items():
+            if number == 5:
+                page.screen("participant.break", 5)
+                page.ask("participant.continue", trial=5)
+            page.screen("participant.trial", number)
+            assert page.ask("participant.answer", trial=number, button=button, rt_s=0.25 * number)["type"] == "ok"
+        page.close()
+
+    import os
+
+    here = os.getcwd()
+    os.chdir(design.parent)  # the design's textures are named relative to it
+    try:
+        with BrowserResponder(loaded, device="null", port=0, say=said.append) as page:
+            assert page.page_url.startswith("http://127.0.0.1:") and page.token is None
+            answering = threading.Thread(target=participant, args=({"url": page.url, "page": page.page_url},))
+            answering.start()
+            session = run(loaded, "P01", out=tmp_path / "api", responder=page)
+            answering.join(60)
+    finally:
+        os.chdir(here)
+    assert session.complete and page.stopped is None
+    assert [row["response"] for row in session.trials] == [2, 1, 2, 1, 3, 4]  # 2-AFC intervals from 1; ratings from 1
+    assert [row["rt_s"] for row in session.trials] == [0.25, 0.5, 0.75, 1.0, 1.25, 1.5]
+    assert said and said[0].startswith("waiting for the participant's page: open http://127.0.0.1:")

@@ -284,8 +284,8 @@ class BrowserResponder:
                 elif kind == "back":
                     self.connected = True
                     gone_since = None
-                    if self.ever_connected:
-                        self.say(f"the participant's page is back: {what} shown again")
+                    self.say(f"the participant's page is back: {what} shown again" if self.ever_connected else
+                             "the participant's page connected")
                     self.ever_connected = True
                 elif event[:2] == awaited:
                     return event

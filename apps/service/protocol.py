@@ -244,7 +244,9 @@ def parse(text: str | bytes, extra: dict | None = None) -> Message:
                                        and abs(request_id) < 2**53):
         raise ProtocolError(BAD_MESSAGE, f"'id' must be a string of at most {MAX_NAME} characters or an integer")
     kind = data.get("type")
-    spec = (SPECS.get(kind) or (extra or {}).get(kind)) if isinstance(kind, str) else None
+    spec = None
+    if isinstance(kind, str):
+        spec = SPECS[kind] if kind in SPECS else (extra or {}).get(kind)
     if spec is None:
         shown = repr(kind)[:60]
         raise ProtocolError(BAD_MESSAGE, f"unknown message type {shown}; known: {', '.join([*SPECS, *(extra or {})])}",
