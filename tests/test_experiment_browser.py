@@ -471,3 +471,70 @@ def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, desi
     assert [row["response"] for row in session.trials] == [2, 1, 2, 1, 3, 4]  # 2-AFC intervals from 1; ratings from 1
     assert [row["rt_s"] for row in session.trials] == [0.25, 0.5, 0.75, 1.0, 1.25, 1.5]
     assert said and said[0].startswith("waiting for the participant's page: open http://127.0.0.1:")
+
+
+SECOND_DESIGN = DESIGN.split("[[blocks]]")[0] + """
+[[blocks]]
+name = "pairs"
+task = "same_different"
+conditions = ["low-vs-high"]
+repeats = 1
+question = "Pareilles ou différentes ?"
+labels = ["pareilles", "différentes"]
+
+[[blocks]]
+name = "estimate"
+task = "magnitude"
+conditions = ["rate-low"]
+repeats = 2
+modulus = 10.0
+modulus_stimulus = "high"
+question = "Combien ?"
+"""
+
+
+@browser_needed
+def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(tmp_path, design, browser):
+    design.write_text(SECOND_DESIGN, encoding="utf-8")
+    out = tmp_path / "p01"
+    trials = plan(load_design(design), "P01")
+    assert [t.task for t in trials] == ["same_different"] * 4 + ["magnitude"] * 2
+    session = Session(design, out)
+    typed = {5: "12.5", 6: "3"}
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        for trial in trials:
+            if trial.break_before:
+                screen_shown(browser, "participant.break", trial.number, session)
+                tap(browser, browser.execute_script(BOXES, "#breakButton")[0])
+            screen = screen_shown(browser, "participant.trial", trial.number, session)
+            if trial.task == "same_different":
+                assert screen["mode"] == "pair" and screen["labels"] == ["pareilles", "différentes"]
+                buttons = browser.execute_script(BOXES, "#answers button")
+                tap(browser, buttons[trial.number % 2])  # trials 1 and 3 "différentes", 2 and 4 "pareilles"
+            else:
+                assert screen["mode"] == "magnitude" and screen["question"] == "Combien ? (zone 1 = 10)"
+                assert browser.execute_script("return [...document.querySelectorAll('.zone')]"
+                                              ".map((z) => z.textContent)") == ["1", "2"]
+                field = browser.execute_script(BOXES, "#estimate")[0]
+                tap(browser, field)
+                browser.execute_cdp_cmd("Input.insertText", {"text": typed[trial.number]})
+                browser.execute_cdp_cmd("Input.dispatchKeyEvent", {"type": "keyDown", "key": "Enter", "code": "Enter",
+                                                                   "windowsVirtualKeyCode": 13})
+                browser.execute_cdp_cmd("Input.dispatchKeyEvent", {"type": "keyUp", "key": "Enter", "code": "Enter",
+                                                                   "windowsVirtualKeyCode": 13})
+            deadline = time.monotonic() + 60
+            while len(browser.execute_script("return window.participant.answered")) < trial.number:
+                assert time.monotonic() < deadline, browser.execute_script("return window.participant.errors")
+                time.sleep(0.05)
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    rows = trials_csv(out)
+    assert [r["response"] for r in rows[:4]] == ["different", "same", "different", "same"]
+    assert [r["response_label"] for r in rows[:4]] == ["différentes", "pareilles", "différentes", "pareilles"]
+    for row, trial in zip(rows[:4], trials[:4], strict=True):
+        assert int(row["correct"]) == int((trial.number % 2 == 1) == bool(trial.target))
+    assert [float(r["response"]) for r in rows[4:]] == [12.5, 3.0]
+    assert all(math.isfinite(float(r["rt_s"])) and float(r["rt_s"]) > 0 for r in rows)
