@@ -538,3 +538,34 @@ def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(
         assert int(row["correct"]) == int((trial.number % 2 == 1) == bool(trial.target))
     assert [float(r["response"]) for r in rows[4:]] == [12.5, 3.0]
     assert all(math.isfinite(float(r["rt_s"])) and float(r["rt_s"]) > 0 for r in rows)
+
+
+def test_an_engine_lost_mid_trial_ends_the_session_with_engine_lost_and_keeps_the_trials_logged(tmp_path, design):
+    import os
+
+    from ultraglide.apps.experiment.browser import BrowserResponder
+    from ultraglide.render.engine import EngineLost
+
+    from ultraglide.experiment import run
+
+    loaded = load_design(design)
+    here = os.getcwd()
+    os.chdir(design.parent)
+    try:
+        with BrowserResponder(loaded, device="null", port=0, say=lambda line: None) as page:
+            def participant():
+                client = Page({"url": page.url, "page": page.page_url})
+                client.screen("participant.trial", 1)
+                client.ask("participant.answer", trial=1, button=0, rt_s=0.4)
+                client.screen("participant.trial", 2)
+                os.kill(page.engine.process.pid, signal.SIGKILL)  # the engine dies while trial 2 waits
+
+            answering = threading.Thread(target=participant, daemon=True)
+            answering.start()
+            with pytest.raises(EngineLost) as lost:
+                run(loaded, "P01", out=tmp_path / "lost", responder=page)
+            answering.join(60)
+    finally:
+        os.chdir(here)
+    assert "its process was killed by SIGKILL" in str(lost.value)
+    assert [r["trial"] for r in trials_csv(tmp_path / "lost")] == ["1"]  # the trial answered before, on disk
