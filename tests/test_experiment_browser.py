@@ -225,6 +225,7 @@ def test_a_participant_in_chromium_feels_each_trials_stimuli_and_answers_with_it
         sent = {a["trial"]: a for a in browser.execute_script("return window.participant.answered")}
         assert browser.execute_script("return window.participant.errors") == []
         status, stdout = session.end()
+        assert browser.execute_script("return window.participant.ended")  # told the session is over
     finally:
         stop(session.process)
     assert status == 0, session.stderr()

@@ -188,6 +188,10 @@ class BrowserResponder:
             started.set_result({"url": f"ws://{host}:{port}/ws{query}", "page": f"http://{host}:{port}/{query}"})
             try:
                 await self._stopping.wait()
+                service.show({"type": "participant.end"})  # the page says the session is over, and stays
+                deadline = time.monotonic() + 2.0
+                while any(s.queue for s in service.sessions) and time.monotonic() < deadline:
+                    await asyncio.sleep(0.01)  # its sender hands it over before the connections close
             finally:
                 stop.set()
                 for session in list(service.sessions):

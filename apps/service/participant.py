@@ -11,7 +11,8 @@ Server to page (pushed to the controlling page, and again to a page that reconne
   ``magnitude``), ``question``, ``labels``, ``size_mm`` (the plate's area, [w, h]), ``zones`` (each
   ``{x_mm, y_mm, width_mm, height_mm}`` from the area's top-left corner), ``numbered`` (zones show their number);
 * ``participant.break``: ``trial`` (the next one), ``message``, ``label`` (the button's);
-* ``participant.wait``: ``message`` (between trials, before the first).
+* ``participant.wait``: ``message`` (between trials, before the first);
+* ``participant.end``: the session is over (the page stops reconnecting).
 
 Page to server:
 

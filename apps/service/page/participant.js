@@ -12,7 +12,7 @@ const suffix = token ? `?token=${encodeURIComponent(token)}` : "";
 const $ = (id) => document.getElementById(id);
 const plate = $("plate"), answers = $("answers"), note = $("note");
 
-const state = { ready: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [] };
+const state = { ready: false, ended: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [] };
 window.participant = state;
 let connection = null;
 let pointer = null; // the pointer that drives: {id, inside}
@@ -194,6 +194,11 @@ function onPush(message) {
   } else if (message.type === "participant.wait") {
     state.screen = null;
     showWait();
+  } else if (message.type === "participant.end") { // the session is over: no trial, no reconnecting
+    state.screen = null;
+    state.ended = true;
+    showWait();
+    $("question").textContent = "✓";
   }
 }
 
@@ -213,6 +218,10 @@ async function open() {
   connection.socket.addEventListener("close", () => {
     state.ready = false;
     pointer = null;
+    if (state.ended) {
+      note.textContent = "";
+      return;
+    }
     note.textContent = "connection lost; trying again";
     setTimeout(open, 1000);
   });
