@@ -370,7 +370,7 @@ def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete
         stop(session.process)
     assert status == 128 + signal.SIGTERM, session.stderr()
     assert "Traceback" not in session.stderr()
-    assert "stopped after 1 trials" in session.stderr()
+    assert "stopped after 1 trial; the log is in" in session.stderr()
     assert [r["trial"] for r in trials_csv(out)] == ["1"]
     assert json.loads((out / "session.json").read_text())["status"] == "stopped"
     envelope = read_envelope(envelope_csv)

@@ -19,8 +19,9 @@ from ultraglide.apps.cli.types import PARTICIPANT, SCREEN_WIDTH_MM, Bounded, lab
 from ultraglide.apps.commands.serve import DEFAULT_PORT, PORT
 
 BAD_DESIGN = 2
+DESIGN_FILES = ("trials.csv", "session.json", "summary.json")
 RECONNECT_S = Bounded(0.1, 86400.0, "s")
-DEFAULT_RECONNECT_TIMEOUT_S = 300.0
+DEFAULT_RECONNECT_TIMEOUT_S = 300.0  # apps.experiment.browser's (not imported here: asyncio at every start)
 SERVE_ONLY = ("host", "port", "token", "reconnect_timeout_s", "envelope_csv")
 
 
@@ -29,7 +30,6 @@ def TOKEN(text: str) -> str:  # noqa: N802 - an argparse type, named as the othe
     if not re.fullmatch(r"[A-Za-z0-9_-]{8,200}", text):
         raise argparse.ArgumentTypeError("a token is 8 to 200 letters, digits, '-' or '_'")
     return text
-DESIGN_FILES = ("trials.csv", "session.json", "summary.json")
 
 
 def add_parsers(kinds) -> None:
@@ -197,8 +197,9 @@ def run_design(args) -> int:
         return _bad(error)
     stopped = getattr(responder, "stopped", None)
     if stopped is not None:  # a stop signal while the page waited: the files are complete, the plate at rest
-        print(f"ultraglide experiment: stopped after {len(session.trials)} trials; the log is in {directory} "
-              "(--resume continues it)", file=sys.stderr)
+        count = len(session.trials)
+        print(f"ultraglide experiment: stopped after {count} trial{'' if count == 1 else 's'}; the log is in "
+              f"{directory} (--resume continues it)", file=sys.stderr)
         raise stopped
     for warning in session.warnings:
         _warn(warning)
