@@ -351,7 +351,8 @@ def test_a_page_gone_past_the_timeout_stops_the_session_with_its_files_complete(
     assert json.loads((out / "summary.json").read_text())["complete"] is False
 
 
-def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete(tmp_path, design):
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete(tmp_path, design, signum):
     out = tmp_path / "p01"
     envelope_csv = tmp_path / "envelope.csv"
     session = Session(design, out, "--envelope-csv", envelope_csv)
@@ -364,11 +365,11 @@ def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete
         for _ in range(30):
             time.sleep(0.01)
             page.touch(20.0, 25.0, "move")
-        session.process.send_signal(signal.SIGTERM)
+        session.process.send_signal(signum)
         status, stdout = session.end()
     finally:
         stop(session.process)
-    assert status == 128 + signal.SIGTERM, session.stderr()
+    assert status == 128 + signum, session.stderr()
     assert "Traceback" not in session.stderr()
     assert "stopped after 1 trial; the log is in" in session.stderr()
     assert [r["trial"] for r in trials_csv(out)] == ["1"]
@@ -397,6 +398,21 @@ def test_a_bad_token_and_another_origin_are_refused(tmp_path, design):
         status = stop(session.process)
     assert status == 128 + signal.SIGTERM
     assert json.loads((tmp_path / "p01" / "session.json").read_text())["status"] == "stopped"
+
+
+def test_beyond_the_usual_loopback_a_token_is_made_printed_and_required(tmp_path, design):
+    session = Session(design, tmp_path / "p01", "--host", "127.0.0.2")
+    try:
+        address = session.address
+        token = address["token"]
+        assert token and len(token) >= 20 and f"?token={token}" in address["page"] and "127.0.0.2" in address["page"]
+        with pytest.raises(ConnectionFailed, match="401"):
+            Client(address["url"].split("?")[0])
+        page = Page(address)
+        assert page.screen("participant.trial", 1)["trial"] == 1
+        page.close()
+    finally:
+        stop(session.process)
 
 
 @pytest.mark.parametrize(("options", "words"), [
