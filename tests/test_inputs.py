@@ -360,6 +360,7 @@ RANGES = {
     "--step-ms": (100, 5000, False, False, False),
     # the service and the formats
     "--port": (0, 65535, False, True, False), "--view-mm": (1, 2000, False, False, False),
+    "--reconnect-timeout-s": (0.1, 86_400, False, False, False),
     "--texel-range": (0, 1, False, False, False),
     **{flag: FEATURE for flag in ("--wavelength-mm", "--square-mm", "--pitch-mm", "--diameter-mm", "--cutoff-mm",
                                   "--start-mm", "--end-mm", "--edge-mm", "--detent-mm", "--sigma-mm",
@@ -376,8 +377,8 @@ OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False),
              (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False)}
 TEXT_FORMS = ("--crop", "--region", "--finger-fault", "--participant",
-              "--board-fault")  # typed text of their own form, tested where
-# they belong (--participant: test_calibration_on_plate)
+              "--board-fault", "--token")  # typed text of their own form, tested where
+# they belong (--participant: test_calibration_on_plate; --token: test_experiment_browser)
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
@@ -434,8 +435,9 @@ number_text = st.one_of(st.floats().map(repr), st.integers(-10**12, 10**12).map(
 def test_numeric_options_parse_in_range_or_say_one_line(choice, first, second):
     words, action = choice
     flag = action.option_strings[-1]
-    if flag in ("--crop", "--finger-fault", "--participant", "--board-fault"):  # whole pixels; KIND:START-END
-        return  # (test_closed_loop); an id (test_calibration_on_plate)
+    if flag in ("--crop", "--finger-fault", "--participant", "--board-fault",
+                "--token"):  # whole pixels; KIND:START-END (test_closed_loop); an id (test_calibration_on_plate)
+        return
     tail = tail_for(words)
     if action.nargs in (2, "+"):
         argv = [*words, *tail, flag, first, second]

@@ -7,6 +7,7 @@ design they run (:func:`design_from_config`).
 
 from __future__ import annotations
 
+import argparse
 import re
 import sys
 from pathlib import Path
@@ -14,10 +15,21 @@ from pathlib import Path
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import one_line, print_json
-from ultraglide.apps.cli.types import PARTICIPANT, SCREEN_WIDTH_MM, label
+from ultraglide.apps.cli.types import PARTICIPANT, SCREEN_WIDTH_MM, Bounded, label
+from ultraglide.apps.commands.serve import DEFAULT_PORT, PORT
 
 BAD_DESIGN = 2
 DESIGN_FILES = ("trials.csv", "session.json", "summary.json")
+RECONNECT_S = Bounded(0.1, 86400.0, "s")
+DEFAULT_RECONNECT_TIMEOUT_S = 300.0  # apps.experiment.browser's (not imported here: asyncio at every start)
+SERVE_ONLY = ("host", "port", "token", "reconnect_timeout_s", "envelope_csv")
+
+
+def TOKEN(text: str) -> str:  # noqa: N802 - an argparse type, named as the others
+    """A token for --token: 8 to 200 URL-safe characters (letters, digits, '-', '_')."""
+    if not re.fullmatch(r"[A-Za-z0-9_-]{8,200}", text):
+        raise argparse.ArgumentTypeError("a token is 8 to 200 letters, digits, '-' or '_'")
+    return text
 
 
 def add_parsers(kinds) -> None:
@@ -56,7 +68,23 @@ def add_parsers(kinds) -> None:
                   help="output device for the window: sim, serial:PORT, audio[...], wav:PATH or null (default: sim)")
     run.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm (window)")
     run.add_argument("--windowed", action="store_true", help="a window instead of full screen")
-    run.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    run.add_argument("--json", action="store_true", help="print the summary as one JSON object (with --serve, the "
+                                                         "page's address first, as a line of JSON)")
+    served = run.add_argument_group("a participant in a browser (docs/experiments.md)")
+    served.add_argument("--serve", action="store_true",
+                        help="present the trials on a page the service serves (the engine on --device): the first "
+                             "line printed is the page's address")
+    served.add_argument("--host", help="with --serve: the address to listen on (default: 127.0.0.1, loopback; any "
+                                       "other asks the page for the token printed)")
+    served.add_argument("--port", type=PORT,
+                        help=f"with --serve: the TCP port (default: {DEFAULT_PORT}; 0: a free one)")
+    served.add_argument("--token", type=TOKEN, help="with --serve: the token the page must give (default: a random "
+                                                    "one beyond loopback, none on it)")
+    served.add_argument("--reconnect-timeout-s", type=RECONNECT_S, metavar="S",
+                        help="with --serve: how long a session waits for a page that closed before it stops, its "
+                             f"files complete (default: {DEFAULT_RECONNECT_TIMEOUT_S:g})")
+    output_option(served, "--envelope-csv", kind="log", metavar="FILE.csv",
+                  help="with --serve: record the envelope as it plays, as play does")
     run.set_defaults(run=run_design)
 
 
@@ -135,20 +163,29 @@ def run_design(args) -> int:
             refuse(report)
     except ExperimentError as error:
         return _bad(f"{args.design}: {error}")
+    misplaced = _misplaced(args)
+    if misplaced:
+        return _bad(misplaced)
+    directory = Path(args.out)
+    if (directory / "trials.csv").exists() and not args.resume:
+        raise UsageError(f"{directory} already holds a session; continue it with --resume or choose another --out")
+    if args.serve:
+        from ultraglide.apps.experiment.browser import unserved_blocks
+
+        unserved = unserved_blocks(design)
+        if unserved:
+            return _bad(f"{args.design}: the participant's page does not present the method of adjustment (block "
+                        f"{', '.join(unserved)}): run it at the window, or leave the block out")
+        if args.envelope_csv and not Path(args.envelope_csv).parent.is_dir():
+            raise UsageError(f"{args.envelope_csv}: no directory {Path(args.envelope_csv).parent} to write it in")
     if args.observer:
-        for option, value in (("--device", args.device), ("--screen-width-mm", args.screen_width_mm),
-                              ("--windowed", args.windowed)):
-            if value:
-                raise UsageError(f"{option} is for the participant's window, and a simulated observer has none: "
-                                 "leave it out")
         responder = None
+    elif args.serve:
+        responder = _browser(design, args)
     else:
         from ultraglide.apps.experiment.design_window import DesignWindow
 
         responder = DesignWindow(design, args.device or "sim", args.screen_width_mm, args.windowed)
-    directory = Path(args.out)
-    if (directory / "trials.csv").exists() and not args.resume:
-        raise UsageError(f"{directory} already holds a session; continue it with --resume or choose another --out")
     try:
         try:
             session = run(design, args.participant, args.session, directory, observer=args.observer,
@@ -158,6 +195,12 @@ def run_design(args) -> int:
                 responder.close()
     except ExperimentError as error:
         return _bad(error)
+    stopped = getattr(responder, "stopped", None)
+    if stopped is not None:  # a stop signal while the page waited: the files are complete, the plate at rest
+        count = len(session.trials)
+        print(f"ultraglide experiment: stopped after {count} trial{'' if count == 1 else 's'}; the log is in "
+              f"{directory} (--resume continues it)", file=sys.stderr)
+        raise stopped
     for warning in session.warnings:
         _warn(warning)
     if args.json:
@@ -165,6 +208,48 @@ def run_design(args) -> int:
     else:
         print(summary_text(session))
     return 0 if session.complete else 1
+
+
+def _misplaced(args) -> str | None:
+    """An option that belongs to another way of running, in one line naming it; None if there is none."""
+    if args.observer:
+        for option, value in (("--device", args.device), ("--screen-width-mm", args.screen_width_mm),
+                              ("--windowed", args.windowed), ("--serve", args.serve)):
+            if value:
+                return (f"{option} is for the participant's window or page, and a simulated observer has none: "
+                        "leave it out")
+    if args.serve:
+        for option, value in (("--screen-width-mm", args.screen_width_mm), ("--windowed", args.windowed)):
+            if value:
+                return (f"{option} is for the window; the page takes the screen's pitch as ?mm_per_px=N in its "
+                        "address: leave it out")
+        return None
+    for key in SERVE_ONLY:
+        if getattr(args, key) is not None:
+            return f"--{key.replace('_', '-')} is for the participant's page: add --serve, or leave it out"
+    return None
+
+
+def _browser(design, args):
+    """The participant's page: the engine on the device, the service listening; its address printed first."""
+    import json
+
+    from ultraglide.apps.experiment.browser import BrowserResponder
+
+    responder = BrowserResponder(
+        design, device=args.device or "sim", host=args.host or "127.0.0.1",
+        port=DEFAULT_PORT if args.port is None else args.port, token=args.token, envelope_csv=args.envelope_csv,
+        reconnect_timeout_s=DEFAULT_RECONNECT_TIMEOUT_S if args.reconnect_timeout_s is None
+        else args.reconnect_timeout_s)
+    if args.json:
+        print(json.dumps({"page": responder.page_url, "url": responder.url, "token": responder.token}), flush=True)
+    else:
+        print(f"{responder.page_url} {responder.url}", flush=True)
+        if responder.token:
+            print(f"token: {responder.token} (the page's address carries it)", flush=True)
+        print(f"the participant's page: open {responder.page_url} on their screen (add &mm_per_px=N or ?mm_per_px=N "
+              f"for the screen's pitch); Ctrl-C stops, the plate at rest", flush=True)
+    return responder
 
 
 def summary_text(session) -> str:

@@ -37,23 +37,28 @@ class EngineOutput:
         self.engine.set_texture(texture)
 
     def trial_friction(self, since_s: float) -> dict:
-        """What the trial played since ``since_s`` (perf_counter s) while the finger touched: the mean target ratio,
-        the mean friction ratio the plate's sensors measured (closed loop), the mean commanded amplitude (µm p-p),
-        and the friction loop's state at the end, in words ("" without it)."""
-        import numpy as np
-
-        status = self.engine.status(30.0)
-        history = status.history
-        touched = (history.time_s >= since_s) & (history.commanded_um_pp > 0)
-        measured = history.measured_ratio[touched]
-        measured = measured[np.isfinite(measured)]
-        return {"target_ratio": float(history.target_ratio[touched].mean()) if touched.any() else None,
-                "measured_ratio": float(measured.mean()) if len(measured) else None,
-                "commanded_um_pp": float(history.commanded_um_pp[touched].mean()) if touched.any() else None,
-                "loop": status.loop}
+        """What the trial played since ``since_s`` (:func:`trial_friction`)."""
+        return trial_friction(self.engine, since_s)
 
     def stop(self) -> None:
         self.engine.stop()
+
+
+def trial_friction(engine, since_s: float) -> dict:
+    """What a trial played on ``engine`` since ``since_s`` (perf_counter s) while the finger touched: the mean target
+    ratio, the mean friction ratio the plate's sensors measured (closed loop), the mean commanded amplitude (µm p-p),
+    and the friction loop's state at the end, in words ("" without it)."""
+    import numpy as np
+
+    status = engine.status(30.0)
+    history = status.history
+    touched = (history.time_s >= since_s) & (history.commanded_um_pp > 0)
+    measured = history.measured_ratio[touched]
+    measured = measured[np.isfinite(measured)]
+    return {"target_ratio": float(history.target_ratio[touched].mean()) if touched.any() else None,
+            "measured_ratio": float(measured.mean()) if len(measured) else None,
+            "commanded_um_pp": float(history.commanded_um_pp[touched].mean()) if touched.any() else None,
+            "loop": status.loop}
 
 
 class LocalOutput:

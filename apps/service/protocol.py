@@ -227,8 +227,9 @@ def _touch_fast(data: dict, request_id) -> Message | None:
     return Message("touch", request_id, fields)
 
 
-def parse(text: str | bytes) -> Message:
-    """One message's text to a checked :class:`Message`; :class:`ProtocolError` with one line otherwise."""
+def parse(text: str | bytes, extra: dict | None = None) -> Message:
+    """One message's text to a checked :class:`Message`; :class:`ProtocolError` with one line otherwise.
+    ``extra``: more message types, as :data:`SPECS` gives them (a service's own, such as a participant's answers)."""
     if isinstance(text, bytes):
         raise ProtocolError(BAD_MESSAGE, "messages are JSON text frames, not binary ones")
     try:
@@ -243,10 +244,13 @@ def parse(text: str | bytes) -> Message:
                                        and abs(request_id) < 2**53):
         raise ProtocolError(BAD_MESSAGE, f"'id' must be a string of at most {MAX_NAME} characters or an integer")
     kind = data.get("type")
-    spec = SPECS.get(kind) if isinstance(kind, str) else None
+    spec = None
+    if isinstance(kind, str):
+        spec = SPECS[kind] if kind in SPECS else (extra or {}).get(kind)
     if spec is None:
         shown = repr(kind)[:60]
-        raise ProtocolError(BAD_MESSAGE, f"unknown message type {shown}; known: {', '.join(SPECS)}", request_id)
+        raise ProtocolError(BAD_MESSAGE, f"unknown message type {shown}; known: {', '.join([*SPECS, *(extra or {})])}",
+                            request_id)
     if kind == "touch":
         fast = _touch_fast(data, request_id)
         if fast is not None:

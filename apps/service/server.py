@@ -193,6 +193,9 @@ class Service:
         self.origins: list = [None]
         self.priority = "normal"  # the loop thread's scheduling, in words
         self.arrivals: list | None = None  # a list to note each touch's times in (a bench's), or None
+        self.page_files = PAGE_FILES  # the page's files (path -> (file, content type)) in ``page_package``
+        self.page_package = "ultraglide.apps.service.page"
+        self.extra_specs: dict | None = None  # message types of a service built on this one (protocol.parse's extra)
 
     # ---- start-up --------------------------------------------------------------------------------------
     def place_startup_textures(self, specs: list[str]) -> None:
@@ -220,9 +223,9 @@ class Service:
 
         url = urlsplit(request.path)
         query = parse_qs(url.query)
-        if self.page and url.path in PAGE_FILES:  # the page's own files are public: the token is in its address
-            name, kind = PAGE_FILES[url.path]
-            body = resources.files("ultraglide.apps.service.page").joinpath(name).read_bytes()
+        if self.page and url.path in self.page_files:  # the page's own files are public: the token is in its address
+            name, kind = self.page_files[url.path]
+            body = resources.files(self.page_package).joinpath(name).read_bytes()
             return Response(200, "OK", Headers([("Content-Type", kind), ("Content-Length", str(len(body))),
                                                 ("Cache-Control", "no-store"),
                                                 ("Content-Security-Policy", "default-src 'self'; connect-src 'self' "
@@ -306,7 +309,7 @@ class Service:
                                            f"{session.rate_refusals} refused so far; send fewer"))
             return
         try:
-            message = p.parse(text)
+            message = p.parse(text, self.extra_specs)
         except p.ProtocolError as error:
             session.send(p.error_reply(error.code, str(error), error.request_id))
             return

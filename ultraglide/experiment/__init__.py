@@ -6,7 +6,8 @@ The public API of experiments (``ultraglide.experiment``), free of windows: a de
 simulated observer or any responder (:func:`run`, returning a :class:`Session` whose ``trials`` are a
 pandas-friendly list of dicts), and analyses as functions of that table (:func:`fit_psychometric`,
 :func:`threshold_posterior`, :func:`proportions`, :func:`mean_response`). The participant's window lives in
-``ultraglide.apps.experiment.window``; ``ultraglide experiment run DESIGN.toml`` opens it.
+``ultraglide.apps.experiment.window``; ``ultraglide experiment run DESIGN.toml`` opens it. The participant's page in
+a browser (the service's) is ``ultraglide.apps.experiment.browser.BrowserResponder``; ``--serve`` serves it.
 
 Example
 -------

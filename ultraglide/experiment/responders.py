@@ -1,8 +1,8 @@
 """The participant-interface seam: what presents a trial and brings back the answer.
 
 A session (:func:`ultraglide.experiment.run`) talks to its participant through one object with two methods,
-so a simulated observer, the pygame window (``ultraglide.apps.experiment.window``) and, later, a remote
-interface (a browser through a service) are interchangeable:
+so a simulated observer, the pygame window (``ultraglide.apps.experiment.window``) and the participant's page in a
+browser through the service (``ultraglide.apps.experiment.browser``) are interchangeable:
 
 * ``present(trial: Trial) -> Answer``: make the trial's stimuli felt (or render them offline), ask the trial's
   question with its response labels, and return the answer;

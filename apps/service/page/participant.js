@@ -1,0 +1,231 @@
+// The participant's page (`ultraglide experiment run DESIGN.toml --serve`): each trial's zones drawn at their size
+// in mm, touches on them sent as the service's touch messages (mm from the trial's area's top-left corner), the
+// question with the design's labels as buttons (a number field for magnitude estimation), breaks with a button.
+// The reaction time runs from the frame that presents the trial (performance.now()) to the button's press.
+// ?mm_per_px=N gives the screen's pitch (default: CSS's 96 px per inch, 0.2646 mm); ?token=... as printed.
+import { connect } from "./ultraglide.js";
+
+const query = new URLSearchParams(location.search);
+const token = query.get("token");
+const mmPerPx = Number(query.get("mm_per_px")) || 25.4 / 96;
+const suffix = token ? `?token=${encodeURIComponent(token)}` : "";
+const $ = (id) => document.getElementById(id);
+const plate = $("plate"), answers = $("answers"), note = $("note");
+
+const state = { ready: false, ended: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [] };
+window.participant = state;
+let connection = null;
+let pointer = null; // the pointer that drives: {id, inside}
+
+function clear() {
+  plate.replaceChildren();
+  answers.replaceChildren();
+  plate.style.width = plate.style.height = "0px";
+  $("question").textContent = "";
+  $("progress").textContent = "";
+}
+
+function button(label, onPress) {
+  const element = document.createElement("button");
+  element.textContent = label;
+  element.addEventListener("click", onPress);
+  return element;
+}
+
+function showTrial(screen) {
+  $("pause").style.display = "none";
+  $("screen").style.display = "flex";
+  clear();
+  $("progress").textContent = `${screen.trial} / ${screen.total}`;
+  $("question").textContent = screen.question;
+  const px = (mm) => `${mm / mmPerPx}px`;
+  plate.style.width = px(screen.size_mm[0]);
+  plate.style.height = px(screen.size_mm[1]);
+  screen.zones.forEach((zone, index) => {
+    const element = document.createElement("div");
+    element.className = "zone";
+    Object.assign(element.style, { left: px(zone.x_mm), top: px(zone.y_mm), width: px(zone.width_mm),
+                                   height: px(zone.height_mm) });
+    if (screen.numbered) element.textContent = String(index + 1);
+    plate.append(element);
+  });
+  const send = (fields) => answer(screen, fields);
+  if (screen.mode === "magnitude") {
+    const field = document.createElement("input");
+    field.type = "text";
+    field.inputMode = "decimal";
+    field.autocomplete = "off";
+    field.id = "estimate";
+    const go = () => {
+      const value = Number(field.value.replace(",", "."));
+      if (field.value.trim() === "" || !Number.isFinite(value) || value < 0) {
+        field.select();
+        return;
+      }
+      send({ value });
+    };
+    field.addEventListener("keydown", (event) => { if (event.key === "Enter") go(); });
+    answers.style.position = "static";
+    answers.append(field, button("OK", go));
+  } else if (screen.mode === "choice") { // a button under each zone
+    answers.style.position = "relative";
+    answers.style.width = plate.style.width;
+    answers.style.height = "64px";
+    screen.labels.forEach((label, index) => {
+      const zone = screen.zones[index];
+      const element = button(label, () => send({ button: index }));
+      element.style.position = "absolute";
+      element.style.left = `calc(${px(zone.x_mm + zone.width_mm / 2)} - 55px)`;
+      answers.append(element);
+    });
+  } else {
+    answers.style.position = "static";
+    answers.style.width = answers.style.height = "";
+    screen.labels.forEach((label, index) => answers.append(button(label, () => send({ button: index }))));
+  }
+  state.shownAt = null;
+  requestAnimationFrame(() => { state.shownAt = performance.now(); state.presented += 1; });
+}
+
+async function answer(screen, fields) {
+  if (state.screen !== screen || state.shownAt === null) return; // answered already, or not yet drawn
+  const rt_s = (performance.now() - state.shownAt) / 1000;
+  state.screen = null;
+  for (const element of answers.querySelectorAll("button, input")) element.disabled = true;
+  lift(performance.now());
+  try {
+    await connection.request("participant.answer", { trial: screen.trial, rt_s, ...fields });
+    state.answered.push({ trial: screen.trial, rt_s, ...fields });
+  } catch (error) {
+    state.errors.push(error.message);
+    note.textContent = error.message;
+  }
+}
+
+function showBreak(screen) {
+  $("screen").style.display = "none";
+  $("pause").style.display = "flex";
+  $("breakMessage").textContent = screen.message;
+  const go = $("breakButton");
+  go.textContent = screen.label;
+  go.disabled = false;
+  go.onclick = async () => {
+    go.disabled = true;
+    try {
+      await connection.request("participant.continue", { trial: screen.trial });
+    } catch (error) {
+      state.errors.push(error.message);
+    }
+  };
+}
+
+addEventListener("keydown", (event) => { // a break's button by the keyboard too (space or Enter)
+  if ((event.key === " " || event.key === "Enter") && state.screen?.type === "participant.break") {
+    event.preventDefault();
+    $("breakButton").click();
+  }
+});
+
+function showWait() {
+  $("pause").style.display = "none";
+  $("screen").style.display = "flex";
+  clear();
+}
+
+// ---- touches: pointer events on the trial's area, in mm ----------------------------------------------------
+const origin = performance.timeOrigin / 1000;
+function post(event, phase) {
+  const box = plate.getBoundingClientRect();
+  const fields = { view: "main", pointer: event.pointerId, phase, x: (event.clientX - box.left) * mmPerPx,
+                   y: (event.clientY - box.top) * mmPerPx, t: origin + event.timeStamp / 1000,
+                   pointer_type: event.pointerType };
+  if (event.pressure > 0) fields.pressure = Math.min(1, event.pressure);
+  connection?.post("touch", fields);
+}
+
+function inside(event) {
+  const box = plate.getBoundingClientRect();
+  return event.clientX >= box.left && event.clientX < box.right && event.clientY >= box.top &&
+         event.clientY < box.bottom;
+}
+
+function lift(now) {
+  if (pointer && pointer.inside) {
+    connection?.post("touch", { view: "main", pointer: pointer.id, phase: "up", x: 0, y: 0,
+                                t: origin + now / 1000 });
+  }
+  pointer = null;
+}
+
+plate.addEventListener("pointerdown", (event) => {
+  event.preventDefault();
+  if (!state.screen || state.screen.type !== "participant.trial" || pointer) return;
+  plate.setPointerCapture?.(event.pointerId);
+  pointer = { id: event.pointerId, inside: true };
+  post(event, "down");
+});
+plate.addEventListener("pointermove", (event) => {
+  if (!pointer || event.pointerId !== pointer.id) return;
+  event.preventDefault();
+  const coalesced = event.getCoalescedEvents ? event.getCoalescedEvents() : [];
+  for (const each of coalesced.length ? coalesced : [event]) {
+    const now = inside(each);
+    if (now) post(each, pointer.inside ? "move" : "down"); // off the area the finger is lifted; back, down again
+    else if (pointer.inside) post(each, "up");
+    pointer.inside = now;
+  }
+});
+for (const kind of ["pointerup", "pointercancel"]) {
+  plate.addEventListener(kind, (event) => {
+    if (!pointer || event.pointerId !== pointer.id) return;
+    if (pointer.inside) post(event, kind === "pointerup" ? "up" : "cancel");
+    pointer = null;
+  });
+}
+
+// ---- the connection: kept, and made again when it is lost ---------------------------------------------------
+function onPush(message) {
+  if (message.type === "participant.trial") {
+    state.screen = message;
+    showTrial(message);
+  } else if (message.type === "participant.break") {
+    state.screen = message;
+    showBreak(message);
+  } else if (message.type === "participant.wait") {
+    state.screen = null;
+    showWait();
+  } else if (message.type === "participant.end") { // the session is over: no trial, no reconnecting
+    state.screen = null;
+    state.ended = true;
+    showWait();
+    $("question").textContent = "✓";
+  }
+}
+
+async function open() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  for (;;) {
+    try {
+      connection = await connect(`${scheme}://${location.host}/ws${suffix}`, "control", "participant");
+      break;
+    } catch (error) {
+      note.textContent = `not connected (${error.message}); trying again`;
+      await new Promise((resolve) => setTimeout(resolve, 1000));
+    }
+  }
+  note.textContent = "";
+  connection.onPush(onPush);
+  connection.socket.addEventListener("close", () => {
+    state.ready = false;
+    pointer = null;
+    if (state.ended) {
+      note.textContent = "";
+      return;
+    }
+    note.textContent = "connection lost; trying again";
+    setTimeout(open, 1000);
+  });
+  state.ready = true;
+}
+
+open();

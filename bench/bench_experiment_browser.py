@@ -1,0 +1,94 @@
+"""How long a participant in a browser waits between an answer and the next trial (``experiment run --serve``).
+
+Run: .venv/bin/python bench/bench_experiment_browser.py [--trials 40] [--device sim]
+
+A real ``ultraglide experiment run DESIGN.toml --serve`` process (the engine on the device, the service listening)
+and a page's messages from a real WebSocket client in this process, which answers each trial as soon as it is shown.
+For each trial after the first: the time from the answer sent to the next ``participant.trial`` received (the
+runner logs the row, builds the next trial's texture, hands it to the engine, and the page is told), in ms. The
+design: the tutorial's two gratings (1 mm and 2 mm, contrast 0.3) in 2-AFC, 40 mm zones.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+DESIGN = """
+[experiment]
+name = "bench"
+seed = 1
+
+[stimuli.fine]
+texture = "grating-1mm"
+contrast = 0.3
+
+[stimuli.coarse]
+texture = "grating-2mm"
+contrast = 0.3
+
+[[conditions]]
+name = "pair"
+a = "fine"
+b = "coarse"
+
+[[blocks]]
+name = "main"
+task = "afc"
+conditions = ["pair"]
+intervals = 2
+repeats = {repeats}
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=40)
+    parser.add_argument("--device", default="sim")
+    args = parser.parse_args()
+    from websockets.sync.client import connect
+
+    with tempfile.TemporaryDirectory() as folder:
+        design = pathlib.Path(folder) / "design.toml"
+        design.write_text(DESIGN.format(repeats=args.trials), encoding="utf-8")
+        process = subprocess.Popen([sys.executable, "-m", "ultraglide", "experiment", "run", str(design),
+                                    "--participant", "P01", "--out", str(pathlib.Path(folder) / "out"), "--serve",
+                                    "--port", "0", "--device", args.device, "--json"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        try:
+            address = json.loads(process.stdout.readline())
+            origin = address["page"].split("?")[0].rstrip("/")
+            gaps = []
+            with connect(address["url"], proxy=None, origin=origin, open_timeout=60) as ws:
+                ws.send(json.dumps({"type": "hello", "id": 0, "protocol": 1}))
+                answered_s = None
+                done = 0
+                while done < args.trials:
+                    message = json.loads(ws.recv(timeout=120))
+                    if message.get("type") != "participant.trial":
+                        continue
+                    if answered_s is not None:
+                        gaps.append((time.perf_counter() - answered_s) * 1e3)
+                    answered_s = time.perf_counter()
+                    ws.send(json.dumps({"type": "participant.answer", "id": message["trial"],
+                                        "trial": message["trial"], "button": 0, "rt_s": 0.5}))
+                    done += 1
+            status = process.wait(120)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    gaps_ms = np.asarray(gaps)
+    print(f"{args.trials} trials on {args.device}, exit {status}: answer to the next trial shown "
+          f"p50 {np.percentile(gaps_ms, 50):.1f} ms, p99 {np.percentile(gaps_ms, 99):.1f} ms, "
+          f"max {gaps_ms.max():.1f} ms (n = {len(gaps_ms)})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,588 @@
+"""A participant in a browser: ``ultraglide experiment run DESIGN.toml --serve`` as a real process, its page in a
+real headless Chromium (Debian's ``chromium`` and ``chromium-driver``, CDP's touch events through Selenium), or a
+real WebSocket client where only the lifecycle is at stake: the trial's stimulus is felt under the synthesized
+finger (the engine's envelope record), trials.csv holds the buttons pressed with the page's reaction times, a page
+that closes is waited for and the session resumes or stops with its files complete, a stop signal leaves the plate
+at rest and the files complete, and a bad token or origin is refused."""
+
+import csv
+import json
+import math
+import shutil
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+from conftest import run_cli, start_cli
+from service_run import read_envelope, read_line, rows_at, stop
+from ultraglide.textures.fileformat import save_texture
+from ultraglide.textures.texture import Texture
+from websockets.sync.client import connect
+
+from ultraglide.client import Client, ConnectionFailed
+from ultraglide.experiment import load_design, plan
+
+MM_PER_PX = 0.25
+MEANS = {"low": 0.4, "high": 0.8}  # the stimuli's mean friction ratios, as the design asks
+RATING_LABELS = ["lisse", "2", "3", "4", "rugueux"]
+
+DESIGN = """
+[experiment]
+name = "browser"
+seed = 3
+language = "fr"
+break_message = "Faites une pause."
+
+[rig]
+zone_mm = [30.0, 30.0]
+gap_mm = 10.0
+
+[stimuli.low]
+texture = "low.png"
+mean = 0.4
+
+[stimuli.high]
+texture = "high.png"
+mean = 0.8
+
+[[conditions]]
+name = "low-vs-high"
+a = "low"
+b = "high"
+
+[[conditions]]
+name = "rate-low"
+stimulus = "low"
+
+[[blocks]]
+name = "choice"
+task = "afc"
+conditions = ["low-vs-high"]
+intervals = 2
+repeats = 4
+question = "Quelle zone était différente ?"
+labels = ["gauche", "droite"]
+
+[[blocks]]
+name = "rating"
+task = "rating"
+conditions = ["rate-low"]
+repeats = 2
+scale = [1, 5]
+question = "Quelle rugosité ?"
+labels = ["lisse", "2", "3", "4", "rugueux"]
+"""
+
+
+@pytest.fixture
+def design(tmp_path):
+    """The design (4 trials of 2-AFC, low against high, then a rating block of 2) with its two flat textures."""
+    for name in MEANS:  # flat maps: the design's mean sets each one's friction
+        save_texture(Texture(np.full((20, 20), 0.6, dtype=np.float32), 20.0, 20.0, name=name), tmp_path / f"{name}.png")
+    path = tmp_path / "design.toml"
+    path.write_text(DESIGN, encoding="utf-8")
+    return path
+
+
+class Session:
+    """``experiment run DESIGN --serve --json`` running: its page's address, its standard error as lines."""
+
+    def __init__(self, design, out, *options):
+        self.out = out
+        self.process = start_cli("experiment", "run", design, "--participant", "P01", "--out", out, "--serve",
+                                 "--port", "0", "--device", "sim", "--json", *options, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, cwd=design.parent)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+        line = read_line(self.process.stdout, 180)
+        assert line, f"no address printed: {self.stderr()}"
+        self.address = json.loads(line)
+
+    def _read(self):
+        for line in self.process.stderr:
+            self.lines.append(line)
+
+    def stderr(self) -> str:
+        return "".join(self.lines)
+
+    def wait_said(self, words: str, timeout_s: float = 60.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while words not in self.stderr():
+            assert time.monotonic() < deadline and self.process.poll() is None, (words, self.stderr())
+            time.sleep(0.05)
+
+    def end(self, timeout_s: float = 120.0) -> tuple[int, str]:
+        status = self.process.wait(timeout_s)
+        self.reader.join(30)
+        return status, self.process.stdout.read()
+
+
+def trials_csv(out) -> list[dict]:
+    with open(out / "trials.csv", newline="", encoding="utf-8") as stream:
+        return list(csv.DictReader(stream))
+
+
+# ---- the page in Chromium ---------------------------------------------------------------------------------------
+
+browser_needed = pytest.mark.skipif(not (shutil.which("chromium") and shutil.which("chromedriver")),
+                                    reason="needs Debian's chromium and chromium-driver (./run tests installs them)")
+
+
+@pytest.fixture
+def browser(tmp_path):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = shutil.which("chromium")
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--window-size=800,600",
+                 f"--user-data-dir={tmp_path / 'profile'}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def touch_at(driver, x, y, seconds=0.25):
+    """A finger down at (x, y) CSS px, held (a move every 10 ms), lifted: CDP's touch events."""
+    point = [{"x": x, "y": y, "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}]
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": point})
+        time.sleep(0.01)
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+def tap(driver, box):
+    """A tap at the middle of ``box`` ({left, top, width, height} CSS px)."""
+    x, y = box["left"] + box["width"] / 2, box["top"] + box["height"] / 2
+    point = [{"x": x, "y": y, "radiusX": 3, "radiusY": 3, "force": 0.5, "id": 2}]
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+def screen_shown(driver, kind, trial, session, timeout_s=60.0) -> dict:
+    """The page's screen once it shows ``kind`` for ``trial`` (a trial presented: its first frame drawn)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        screen = driver.execute_script("const p = window.participant; return p && p.screen && p.shownAt !== null "
+                                       "|| (p && p.screen && p.screen.type === 'participant.break') ? p.screen : null")
+        if screen and screen["type"] == kind and screen["trial"] == trial:
+            return screen
+        assert time.monotonic() < deadline and session.process.poll() is None, (kind, trial, screen, session.stderr())
+        time.sleep(0.05)
+
+
+BOXES = """return [...document.querySelectorAll(arguments[0])].map((e) => {
+  const b = e.getBoundingClientRect(); return {left: b.left, top: b.top, width: b.width, height: b.height}; })"""
+
+
+@browser_needed
+def test_a_participant_in_chromium_feels_each_trials_stimuli_and_answers_with_its_buttons(tmp_path, design, browser):
+    envelope_csv = tmp_path / "envelope.csv"
+    out = tmp_path / "p01"
+    trials = plan(load_design(design), "P01")  # which stimulus each zone of each trial holds
+    session = Session(design, out, "--envelope-csv", envelope_csv)
+    touched, pressed = [], {}
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        for trial in trials:
+            if trial.break_before:
+                screen = screen_shown(browser, "participant.break", trial.number, session)
+                assert screen["message"] == "Faites une pause."
+                tap(browser, browser.execute_script(BOXES, "#breakButton")[0])
+            screen = screen_shown(browser, "participant.trial", trial.number, session)
+            plate = browser.execute_script(BOXES, "#plate")[0]
+            zones = browser.execute_script(BOXES, ".zone")
+            assert len(zones) == len(trial.zones)
+            for index, (zone, stimulus) in enumerate(zip(zones, trial.zones, strict=True)):
+                # a point of its own in each zone of each trial (its envelope rows are this touch's alone)
+                x = round(zone["left"] + zone["width"] / 2)
+                y = round(zone["top"] + 10 + 4 * trial.number + 2 * index)
+                touch_at(browser, x, y)
+                touched.append(((x - plate["left"]) * MM_PER_PX, (y - plate["top"]) * MM_PER_PX, MEANS[stimulus]))
+            buttons = browser.execute_script(BOXES, "#answers button")
+            labels = browser.execute_script("return [...document.querySelectorAll('#answers button')]"
+                                            ".map((b) => b.textContent)")
+            assert labels == (["gauche", "droite"] if trial.task == "afc" else RATING_LABELS)
+            assert screen["question"] == ("Quelle zone était différente ?" if trial.task == "afc" else
+                                          "Quelle rugosité ?")
+            choice = (trial.number % 2) if trial.task == "afc" else (trial.number + 1) % 5
+            pressed[trial.number] = choice
+            tap(browser, buttons[choice])
+            deadline = time.monotonic() + 60
+            while len(browser.execute_script("return window.participant.answered")) < len(pressed):
+                assert time.monotonic() < deadline, browser.execute_script("return window.participant.errors")
+                time.sleep(0.05)
+        sent = {a["trial"]: a for a in browser.execute_script("return window.participant.answered")}
+        assert browser.execute_script("return window.participant.errors") == []
+        status, stdout = session.end()
+        assert browser.execute_script("return window.participant.ended")  # told the session is over
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    assert summary["complete"] is True and "Traceback" not in session.stderr()
+    rows = trials_csv(out)
+    assert [int(r["trial"]) for r in rows] == [t.number for t in trials]
+    for row, trial in zip(rows, trials, strict=True):
+        choice = pressed[trial.number]
+        assert sent[trial.number]["button"] == choice
+        if trial.task == "afc":
+            assert int(row["response"]) == choice + 1 and row["response_label"] == ["gauche", "droite"][choice]
+            assert int(row["correct"]) == int(choice == trial.target)
+        else:
+            assert int(row["response"]) == 1 + choice and row["response_label"] == RATING_LABELS[choice]
+        rt = float(row["rt_s"])
+        assert math.isfinite(rt) and 0.2 < rt < 120  # it includes the touches held before the press (0.25 s each)
+        assert rt == pytest.approx(sent[trial.number]["rt_s"], abs=1e-4)  # the page's own measure, kept
+    envelope = read_envelope(envelope_csv)
+    for x_mm, y_mm, ratio in touched:
+        under = rows_at(envelope, x_mm, y_mm)
+        assert len(under) > 20, f"nothing rendered under ({x_mm}, {y_mm}) mm"
+        assert np.median(under["target_ratio"]) == pytest.approx(ratio, abs=0.01)
+        assert under["commanded_um_pp"].max() > 0.5  # felt: the plate played it
+    assert envelope["commanded_um_pp"][-1] == 0.0  # and ended at rest
+
+
+# ---- the lifecycle, through a real WebSocket client ----------------------------------------------------------------
+
+class Page:
+    """A bare WebSocket speaking as the participant's page (the page's own messages, its origin)."""
+
+    def __init__(self, address):
+        page = address["page"].split("?")[0].rstrip("/")
+        self.ws = connect(address["url"], proxy=None, open_timeout=30, origin=page).__enter__()
+        self.next_id = 0
+        self.pushed: list[dict] = []
+        assert self.ask("hello", protocol=1, client="test page")["role"] == "control"
+
+    def ask(self, kind, **fields) -> dict:
+        self.next_id += 1
+        self.ws.send(json.dumps({"type": kind, "id": self.next_id, **fields}))
+        while True:
+            message = json.loads(self.ws.recv(timeout=60))
+            if message.get("id") == self.next_id:
+                return message
+            self.pushed.append(message)
+
+    def screen(self, kind, trial) -> dict:
+        while True:
+            while self.pushed:
+                message = self.pushed.pop(0)
+                if message["type"] == kind and message["trial"] == trial:
+                    return message
+            self.pushed.append(json.loads(self.ws.recv(timeout=60)))
+
+    def touch(self, x, y, phase):
+        self.ws.send(json.dumps({"type": "touch", "x": x, "y": y, "phase": phase}))
+
+    def close(self):
+        self.ws.close()
+
+
+def test_a_page_that_closes_is_waited_for_and_the_session_resumes_when_it_is_back(tmp_path, design):
+    out = tmp_path / "p01"
+    session = Session(design, out, "--reconnect-timeout-s", "120")
+    try:
+        page = Page(session.address)
+        page.screen("participant.trial", 1)
+        assert page.ask("participant.answer", trial=1, button=1, rt_s=0.8)["type"] == "ok"
+        shown = page.screen("participant.trial", 2)
+        page.close()
+        session.wait_said("the participant's page closed during trial 2: waiting up to 120 s")
+        page = Page(session.address)
+        again = page.screen("participant.trial", 2)  # shown again, as it was
+        assert again == shown
+        session.wait_said("the participant's page is back: trial 2 shown again")
+        refused = page.ask("participant.answer", trial=1, button=0, rt_s=0.5)  # a stale answer
+        assert refused["type"] == "error" and "trial 1 is not the one awaiting an answer" in refused["message"]
+        refused = page.ask("participant.answer", trial=2, button=2, rt_s=0.5)  # no third button
+        assert refused["type"] == "error" and "from 0 to 1" in refused["message"]
+        refused = page.ask("sprite.set", sprite="s", texture="t", x=0, y=0, width=1, height=1)
+        assert refused["type"] == "error" and refused["code"] == "read-only"
+        assert page.ask("participant.answer", trial=2, button=0, rt_s=2.5)["type"] == "ok"
+        for number in (3, 4):
+            page.screen("participant.trial", number)
+            assert page.ask("participant.answer", trial=number, button=0, rt_s=0.5 + number)["type"] == "ok"
+        page.screen("participant.break", 5)
+        assert page.ask("participant.continue", trial=5)["type"] == "ok"
+        for number in (5, 6):
+            screen = page.screen("participant.trial", number)
+            assert screen["mode"] == "rating" and screen["labels"] == RATING_LABELS
+            assert page.ask("participant.answer", trial=number, button=4, rt_s=1.25)["type"] == "ok"
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    rows = trials_csv(out)
+    assert [r["response"] for r in rows] == ["2", "1", "1", "1", "5", "5"]
+    assert [float(r["rt_s"]) for r in rows] == [0.8, 2.5, 3.5, 4.5, 1.25, 1.25]
+    assert json.loads((out / "session.json").read_text())["status"] == "complete"
+
+
+def test_a_page_gone_past_the_timeout_stops_the_session_with_its_files_complete(tmp_path, design):
+    out = tmp_path / "p01"
+    session = Session(design, out, "--reconnect-timeout-s", "1")
+    try:
+        page = Page(session.address)
+        page.screen("participant.trial", 1)
+        assert page.ask("participant.answer", trial=1, button=0, rt_s=0.6)["type"] == "ok"
+        page.screen("participant.trial", 2)
+        page.close()
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 1, session.stderr()
+    assert "stayed away more than 1 s: the session stops at trial 2, its files complete" in session.stderr()
+    assert "Traceback" not in session.stderr()
+    assert json.loads(stdout.strip().splitlines()[-1])["complete"] is False
+    assert [r["trial"] for r in trials_csv(out)] == ["1"]
+    saved = json.loads((out / "session.json").read_text())
+    assert saved["status"] == "stopped" and saved["trials_logged"] == 1
+    assert json.loads((out / "summary.json").read_text())["complete"] is False
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete(tmp_path, design, signum):
+    out = tmp_path / "p01"
+    envelope_csv = tmp_path / "envelope.csv"
+    session = Session(design, out, "--envelope-csv", envelope_csv)
+    try:
+        page = Page(session.address)
+        page.screen("participant.trial", 1)
+        assert page.ask("participant.answer", trial=1, button=1, rt_s=0.7)["type"] == "ok"
+        page.screen("participant.trial", 2)
+        page.touch(20.0, 25.0, "down")  # a finger down in the first zone when the stop comes
+        for _ in range(30):
+            time.sleep(0.01)
+            page.touch(20.0, 25.0, "move")
+        session.process.send_signal(signum)
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 128 + signum, session.stderr()
+    assert "Traceback" not in session.stderr()
+    assert "stopped after 1 trial; the log is in" in session.stderr()
+    assert [r["trial"] for r in trials_csv(out)] == ["1"]
+    assert json.loads((out / "session.json").read_text())["status"] == "stopped"
+    envelope = read_envelope(envelope_csv)
+    assert rows_at(envelope, 20.0, 25.0)["commanded_um_pp"].max() > 0.5  # the finger felt trial 2's zone
+    assert envelope["commanded_um_pp"][-1] == 0.0  # and the plate ended at rest
+
+
+def test_a_bad_token_and_another_origin_are_refused(tmp_path, design):
+    session = Session(design, tmp_path / "p01", "--token", "a-secret-token-1")
+    try:
+        address = session.address
+        assert address["token"] == "a-secret-token-1" and "token=a-secret-token-1" in address["page"]
+        bare = address["url"].split("?")[0]
+        with pytest.raises(ConnectionFailed, match="401"):
+            Client(bare)
+        with pytest.raises(ConnectionFailed, match="401"):
+            Client(bare + "?token=a-secret-token-2")
+        with pytest.raises(ConnectionFailed, match="403"):
+            Client(address["url"], origin="http://evil.example")
+        page = Page(address)  # the token and the served page's origin: the participant
+        assert page.screen("participant.trial", 1)["labels"] == ["gauche", "droite"]
+        page.close()
+    finally:
+        status = stop(session.process)
+    assert status == 128 + signal.SIGTERM
+    assert json.loads((tmp_path / "p01" / "session.json").read_text())["status"] == "stopped"
+
+
+def test_beyond_the_usual_loopback_a_token_is_made_printed_and_required(tmp_path, design):
+    session = Session(design, tmp_path / "p01", "--host", "127.0.0.2")
+    try:
+        address = session.address
+        token = address["token"]
+        assert token and len(token) >= 20 and f"?token={token}" in address["page"] and "127.0.0.2" in address["page"]
+        with pytest.raises(ConnectionFailed, match="401"):
+            Client(address["url"].split("?")[0])
+        page = Page(address)
+        assert page.screen("participant.trial", 1)["trial"] == 1
+        page.close()
+    finally:
+        stop(session.process)
+
+
+@pytest.mark.parametrize(("options", "words"), [
+    (["--serve", "--observer", "sim:threshold=0.1"], "--serve is for the participant's window or page"),
+    (["--host", "0.0.0.0"], "--host is for the participant's page: add --serve"),
+    (["--envelope-csv", "e.csv"], "--envelope-csv is for the participant's page: add --serve"),
+    (["--serve", "--windowed"], "--windowed is for the window"),
+    (["--serve", "--token", "short"], "a token is 8 to 200 letters"),
+])
+def test_options_of_another_way_of_running_are_refused_in_one_line(tmp_path, design, options, words):
+    result = run_cli("experiment", "run", design, "--participant", "P01", "--out", tmp_path / "o", *options,
+                     cwd=design.parent)
+    assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) <= 2  # argparse's usage line may come first
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_design_with_an_adjustment_block_is_refused_before_the_engine_starts(tmp_path, design):
+    text = design.read_text() + """
+[[conditions]]
+name = "match"
+stimulus = "low"
+reference = "high"
+range = [0.02, 0.6]
+
+[[blocks]]
+name = "matching"
+task = "adjustment"
+conditions = ["match"]
+repeats = 1
+"""
+    design.write_text(text.replace('texture = "low.png"', 'texture = "grating-2mm"\ncontrast = 0.2'))
+    result = run_cli("experiment", "run", design, "--participant", "P01", "--out", tmp_path / "o", "--serve",
+                     "--accept-check", cwd=design.parent)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "does not present the method of adjustment (block matching (adjustment))" in result.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, design):
+    from ultraglide.apps.experiment.browser import BrowserResponder
+
+    from ultraglide.experiment import run
+
+    loaded = load_design(design)
+    said: list[str] = []
+    answers = {1: 1, 2: 0, 3: 1, 4: 0, 5: 2, 6: 3}
+
+    def participant(address):
+        page = Page(address)
+        for number, button in answers.items():
+            if number == 5:
+                page.screen("participant.break", 5)
+                page.ask("participant.continue", trial=5)
+            page.screen("participant.trial", number)
+            assert page.ask("participant.answer", trial=number, button=button, rt_s=0.25 * number)["type"] == "ok"
+        page.close()
+
+    import os
+
+    here = os.getcwd()
+    os.chdir(design.parent)  # the design's textures are named relative to it
+    try:
+        with BrowserResponder(loaded, device="null", port=0, say=said.append) as page:
+            assert page.page_url.startswith("http://127.0.0.1:") and page.token is None
+            answering = threading.Thread(target=participant, args=({"url": page.url, "page": page.page_url},))
+            answering.start()
+            session = run(loaded, "P01", out=tmp_path / "api", responder=page)
+            answering.join(60)
+    finally:
+        os.chdir(here)
+    assert session.complete and page.stopped is None
+    assert [row["response"] for row in session.trials] == [2, 1, 2, 1, 3, 4]  # 2-AFC intervals from 1; ratings from 1
+    assert [row["rt_s"] for row in session.trials] == [0.25, 0.5, 0.75, 1.0, 1.25, 1.5]
+    assert said and said[0].startswith("waiting for the participant's page: open http://127.0.0.1:")
+
+
+SECOND_DESIGN = DESIGN.split("[[blocks]]")[0] + """
+[[blocks]]
+name = "pairs"
+task = "same_different"
+conditions = ["low-vs-high"]
+repeats = 1
+question = "Pareilles ou différentes ?"
+labels = ["pareilles", "différentes"]
+
+[[blocks]]
+name = "estimate"
+task = "magnitude"
+conditions = ["rate-low"]
+repeats = 2
+modulus = 10.0
+modulus_stimulus = "high"
+question = "Combien ?"
+"""
+
+
+@browser_needed
+def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(tmp_path, design, browser):
+    design.write_text(SECOND_DESIGN, encoding="utf-8")
+    out = tmp_path / "p01"
+    trials = plan(load_design(design), "P01")
+    assert [t.task for t in trials] == ["same_different"] * 4 + ["magnitude"] * 2
+    session = Session(design, out)
+    typed = {5: "12.5", 6: "3"}
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        for trial in trials:
+            if trial.break_before:
+                screen_shown(browser, "participant.break", trial.number, session)
+                tap(browser, browser.execute_script(BOXES, "#breakButton")[0])
+            screen = screen_shown(browser, "participant.trial", trial.number, session)
+            if trial.task == "same_different":
+                assert screen["mode"] == "pair" and screen["labels"] == ["pareilles", "différentes"]
+                buttons = browser.execute_script(BOXES, "#answers button")
+                tap(browser, buttons[trial.number % 2])  # trials 1 and 3 "différentes", 2 and 4 "pareilles"
+            else:
+                assert screen["mode"] == "magnitude" and screen["question"] == "Combien ? (zone 1 = 10)"
+                assert browser.execute_script("return [...document.querySelectorAll('.zone')]"
+                                              ".map((z) => z.textContent)") == ["1", "2"]
+                field = browser.execute_script(BOXES, "#estimate")[0]
+                tap(browser, field)
+                browser.execute_cdp_cmd("Input.insertText", {"text": typed[trial.number]})
+                browser.execute_cdp_cmd("Input.dispatchKeyEvent", {"type": "keyDown", "key": "Enter", "code": "Enter",
+                                                                   "windowsVirtualKeyCode": 13})
+                browser.execute_cdp_cmd("Input.dispatchKeyEvent", {"type": "keyUp", "key": "Enter", "code": "Enter",
+                                                                   "windowsVirtualKeyCode": 13})
+            deadline = time.monotonic() + 60
+            while len(browser.execute_script("return window.participant.answered")) < trial.number:
+                assert time.monotonic() < deadline, browser.execute_script("return window.participant.errors")
+                time.sleep(0.05)
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    rows = trials_csv(out)
+    assert [r["response"] for r in rows[:4]] == ["different", "same", "different", "same"]
+    assert [r["response_label"] for r in rows[:4]] == ["différentes", "pareilles", "différentes", "pareilles"]
+    for row, trial in zip(rows[:4], trials[:4], strict=True):
+        assert int(row["correct"]) == int((trial.number % 2 == 1) == bool(trial.target))
+    assert [float(r["response"]) for r in rows[4:]] == [12.5, 3.0]
+    assert all(math.isfinite(float(r["rt_s"])) and float(r["rt_s"]) > 0 for r in rows)
+
+
+def test_an_engine_lost_mid_trial_ends_the_session_with_engine_lost_and_keeps_the_trials_logged(tmp_path, design):
+    import os
+
+    from ultraglide.apps.experiment.browser import BrowserResponder
+    from ultraglide.render.engine import EngineLost
+
+    from ultraglide.experiment import run
+
+    loaded = load_design(design)
+    here = os.getcwd()
+    os.chdir(design.parent)
+    try:
+        with BrowserResponder(loaded, device="null", port=0, say=lambda line: None) as page:
+            def participant():
+                client = Page({"url": page.url, "page": page.page_url})
+                client.screen("participant.trial", 1)
+                client.ask("participant.answer", trial=1, button=0, rt_s=0.4)
+                client.screen("participant.trial", 2)
+                os.kill(page.engine.process.pid, signal.SIGKILL)  # the engine dies while trial 2 waits
+
+            answering = threading.Thread(target=participant, daemon=True)
+            answering.start()
+            with pytest.raises(EngineLost) as lost:
+                run(loaded, "P01", out=tmp_path / "lost", responder=page)
+            answering.join(60)
+    finally:
+        os.chdir(here)
+    assert "its process was killed by SIGKILL" in str(lost.value)
+    assert [r["trial"] for r in trials_csv(tmp_path / "lost")] == ["1"]  # the trial answered before, on disk
