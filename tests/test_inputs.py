@@ -386,7 +386,7 @@ TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav
          ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
          ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"],
          ("experiment",): ["--out", "o"], ("experiment", "run"): ["d.toml", "--participant", "P1", "--out", "o"],
-         ("experiment", "check"): ["d.toml"]}
+         ("experiment", "check"): ["d.toml"], ("texture", "import"): ["scene.glb", "-o", "o.png"]}
 
 
 def range_of(words, flag):
