@@ -17,6 +17,8 @@ display under it::
     rotation_deg = 0
     pressure_full_scale_n = 4.0
     drives = "first"
+    x_range = [0, 4095]                 # the panel's axis ranges, its own units (only where ultraglide reads
+    y_range = [0, 4095]                 # the panel itself from a node that cannot say them: a FIFO)
     [display]
     width_mm = 220.0
 
@@ -56,6 +58,7 @@ VOLTS_RANGE = (0.001, 1000.0)  # an interface's full scale, an amplifier's rated
 GAIN_RANGE = (0.001, 10000.0)  # V/V
 UM_PER_V_RANGE = (1e-6, 100.0)  # µm p-p per volt peak
 AREA_RANGE_MM = (0.0, 10000.0)  # a panel's corner and size, mm
+AXIS_VALUE_RANGE = (-(2**31), 2**31 - 1)  # a panel's axis values (evdev's s32)
 PRESSURE_RANGE_N = (0.01, 100.0)
 DISPLAY_RANGE_MM = (10.0, 10000.0)
 PROFILE_KEYS = {f.name for f in fields(PlateProfile)}
@@ -64,7 +67,8 @@ SECTIONS = {
     "drive": {"interface_full_scale_v", "amplifier_gain_v_per_v", "plate_um_pp_per_v", "amplifier_um_pp_per_v",
               "amplifier_max_v", "max_amplitude_um_pp"},
     "output": {"device"},
-    "touch": {"area_mm", "rotation_deg", "flip_x", "flip_y", "pressure_full_scale_n", "drives"},
+    "touch": {"area_mm", "rotation_deg", "flip_x", "flip_y", "pressure_full_scale_n", "drives", "x_range", "y_range",
+              "pressure_range"},
     "display": {"width_mm"},
 }
 TOP_KEYS = {"name", "description"}
@@ -140,6 +144,9 @@ class TouchPanel:
     panel measures no pressure; the demo's own force applies). ``drives``: ``first`` (the first touch down
     drives until it lifts), ``latest`` (the newest touch down takes over) or ``none`` (with two down, none
     drives: the plate rests until one lifts).
+    ``x_range``, ``y_range``, ``pressure_range``: the panel's axis ranges (min, max) in its own units, for
+    ``serve --touch-panel`` reading a node that cannot say them itself (a FIFO of evdev records; a real evdev
+    device says them and these override it); None when not given.
     """
 
     area_mm: tuple[float, float, float, float] | None = None
@@ -148,6 +155,15 @@ class TouchPanel:
     flip_y: bool = False
     pressure_full_scale_n: float | None = None
     drives: str = "first"
+    x_range: tuple[int, int] | None = None
+    y_range: tuple[int, int] | None = None
+    pressure_range: tuple[int, int] | None = None
+
+    @property
+    def axis_ranges(self) -> dict:
+        """The axis ranges given, ``{"x": (min, max), ...}`` (panel units): those the rig gives."""
+        return {axis: span for axis, span in (("x", self.x_range), ("y", self.y_range),
+                                              ("pressure", self.pressure_range)) if span is not None}
 
     def to_mm(self, u: float, v: float, full_area_mm: tuple[float, float] | None = None) -> tuple[float, float]:
         """A touch at normalised panel coordinates ``(u, v)`` (0..1, x right, y down as the panel reports
@@ -255,7 +271,8 @@ class Rig:
             "touch": None if self.touch is None else {
                 "area_mm": None if self.touch.area_mm is None else list(self.touch.area_mm),
                 "rotation_deg": self.touch.rotation_deg, "flip_x": self.touch.flip_x, "flip_y": self.touch.flip_y,
-                "pressure_full_scale_n": self.touch.pressure_full_scale_n, "drives": self.touch.drives},
+                "pressure_full_scale_n": self.touch.pressure_full_scale_n, "drives": self.touch.drives,
+                **{f"{axis}_range": list(span) for axis, span in self.touch.axis_ranges.items()}},
             "display": None if self.display_width_mm is None else {"width_mm": self.display_width_mm},
             "unverified": self.unverified(),
         }
@@ -507,8 +524,26 @@ def _touch(read: _Reader) -> TouchPanel:
     drives = read.table.get("drives", "first")
     if drives not in DRIVES:
         raise read.fail("drives", f"must be \"first\", \"latest\" or \"none\", got {_shown(drives)}")
+    ranges = {key: _axis_range(read, key) for key in ("x_range", "y_range", "pressure_range")}
+    if (ranges["x_range"] is None) != (ranges["y_range"] is None):
+        given = "x_range" if ranges["x_range"] is not None else "y_range"
+        raise read.fail(given, "is given without the other: give both x_range and y_range")
     return TouchPanel(area, int(rotation), read.flag("flip_x"), read.flag("flip_y"),
-                      read.number("pressure_full_scale_n", *PRESSURE_RANGE_N, "N"), drives)
+                      read.number("pressure_full_scale_n", *PRESSURE_RANGE_N, "N"), drives, **ranges)
+
+
+def _axis_range(read: _Reader, key: str) -> tuple[int, int] | None:
+    """``[min, max]``: whole numbers of the panel's units (evtest's Min and Max), min < max."""
+    if key not in read.table:
+        return None
+    value = read.table[key]
+    low, high = AXIS_VALUE_RANGE
+    if not isinstance(value, list) or len(value) != 2 or not all(
+            isinstance(v, int) and not isinstance(v, bool) and low <= v <= high for v in value) \
+            or value[0] >= value[1]:
+        raise read.fail(key, f"must be [min, max], whole numbers of the panel's units with min < max (evtest prints "
+                        f"them), got {_shown(value)}")
+    return value[0], value[1]
 
 
 def load_plate(spec: str) -> PlateProfile:

@@ -54,6 +54,15 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        help="also serve the page (http://HOST:PORT/): pointer events in a browser drive the engine")
     serve.add_argument("--view-mm", type=VIEW_MM, nargs=2, default=[160.0, 100.0], metavar=("WIDTH", "HEIGHT"),
                        help="the default view's size until a client sets it, mm (default: 160 100)")
+    serve.add_argument("--touch-panel", metavar="PATH",
+                       help="the engine reads this touch panel itself: its Linux evdev node (/dev/input/eventN, "
+                            "readable by the input group; evtest lists them) or a FIFO carrying evdev records; mapped "
+                            "onto the view by the rig's [touch]; clients then only place sprites (their touches are "
+                            "refused)")
+    serve.add_argument("--touch-range", action="append", default=[], metavar="AXIS=MIN:MAX",
+                       help="an axis range of the touch panel in its own units, AXIS x, y or pressure (evtest prints "
+                            "them): needed for a FIFO, which cannot say them; overrides the rig's and the kernel's; "
+                            "repeat for each axis")
     output_option(serve, "--envelope-csv", kind="log", metavar="FILE.csv",
                   help="record the envelope as it plays, as play does: t_s, x_mm, y_mm (on the view), down, "
                        "target_ratio, target_um_pp, commanded_um_pp")
@@ -87,31 +96,57 @@ def run(args) -> int:
     drives = rig.touch.drives if rig is not None and rig.touch is not None else "first"
     service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm), drives=drives)
     service.place_startup_textures(args.textures)
+    panel = _open_panel(args, rig)
     config = EngineConfig(texture=service.first_texture(), model=args.model, profile=args.profile,
                           device=args.device, default_force_n=0.5 if args.force is None else args.force,
                           closed_loop=args.closed_loop, envelope_csv=args.envelope_csv)
-    engine = Engine.start(config)
+    try:
+        engine = Engine.start(config)
+    except BaseException:
+        if panel is not None:
+            panel.close()
+        raise
     service.engine = engine
-    failure = stopped = None
+    failure = stopped = feed = None
     try:
         engine.wait_ready()
+        if panel is not None:
+            from ultraglide.apps.service.panel import PanelFeed
+
+            feed = PanelFeed(service, panel, rig.touch if rig is not None else None)
         try:
-            failure = _serve(service, args)
+            failure = _serve(service, args, feed)
         except KeyboardInterrupt as interrupt:  # Ctrl-C, SIGTERM: the way a service is stopped; reported below
             stopped = interrupt
     finally:
         with held():  # a stop signal arriving now waits until the plate is at rest
+            if panel is not None:
+                panel.close()
             service.worker.shutdown(wait=True, cancel_futures=True)
             final = engine.stop()
             if args.unix:
                 _remove_socket(args.unix)
-    status = _report(final, service, args, failure)
+    status = _report(final, service, args, failure, feed)
     if stopped is not None:
         raise stopped  # the command's status says it was stopped (130, 143)
     return status
 
 
-def _serve(service, args) -> str | None:
+def _open_panel(args, rig):
+    """The touch panel's reader (``--touch-panel``), opened and its axis ranges known, or None; a mistake is one line
+    (exit 2) before the engine starts."""
+    from ultraglide.devices.touch.evdev import PanelReader, TouchPanelUsageError, given_ranges
+
+    if args.touch_panel is None:
+        if args.touch_range:
+            raise TouchPanelUsageError("--touch-range gives a touch panel's axis ranges: add --touch-panel PATH")
+        return None
+    touch = rig.touch if rig is not None else None
+    ranges = given_ranges(args.touch_range, touch.axis_ranges if touch is not None else None)
+    return PanelReader(args.touch_panel, ranges)
+
+
+def _serve(service, args, feed=None) -> str | None:
     """Listen until a stop signal (raised as KeyboardInterrupt through the loop) or the engine's end."""
     import asyncio
     import threading
@@ -147,6 +182,9 @@ def _serve(service, args) -> str | None:
                     if args.host == "127.0.0.1":
                         origins.append(f"http://localhost:{port}")
                 service.origins[:] = origins  # the list serve() checks each handshake against
+            if feed is not None:
+                urls["touch_panel"] = {"path": feed.reader.path, "kind": feed.reader.kind,
+                                       "ranges": feed.reader.ranges.words()}
             if args.json:
                 print(json.dumps(urls), flush=True)
             else:
@@ -156,16 +194,24 @@ def _serve(service, args) -> str | None:
                 print(f"serving {service.engine.config.device} ({service.profile.name}, limit "
                       f"{service.profile.max_amplitude_um_pp:g} µm p-p); Ctrl-C stops, the plate at rest",
                       flush=True)
+                if feed is not None:
+                    print(f"{feed.reader.words()}; clients' touches are refused", flush=True)
             service.priority = _loop_in_real_time(service)
+            if feed is not None:
+                feed.start(asyncio.get_running_loop())
             stop = threading.Event()
             publisher = threading.Thread(target=service.publish, args=(asyncio.get_running_loop(), stop),
                                          name="ultraglide-publisher", daemon=True)
             publisher.start()
             try:
                 while service.engine.alive:
-                    await asyncio.sleep(0.2)
+                    if feed is not None and feed.gone:
+                        return feed.gone
+                    await asyncio.sleep(0.05 if feed is not None else 0.2)
                 return "the engine ended unexpectedly"
             finally:
+                if feed is not None:
+                    feed.stop()
                 stop.set()
                 for session in list(service.sessions):
                     service._leave(session)
@@ -202,7 +248,7 @@ def _remove_socket(path: str) -> None:
         pass
 
 
-def _report(final, service, args, failure: str | None) -> int:
+def _report(final, service, args, failure: str | None, feed=None) -> int:
     from ultraglide.apps.cli.output import print_json
     from ultraglide.devices.serial.run_report import RunReport
 
@@ -214,11 +260,14 @@ def _report(final, service, args, failure: str | None) -> int:
                "touches": service.touches, "touches_ignored": service.touches_ignored,
                "faults": device_status.get("fault_counts") or {}, "limiter": device_status.get("limiter", ""),
                "error": failure}
+    if feed is not None:
+        summary["touch_panel"] = feed.summary()
     if args.json:
         print_json(summary)
     elif final is not None:
         print(f"served on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
-              f"{final.underruns} device underruns; {service.touches} touches from clients")
+              f"{final.underruns} device underruns; {service.touches} touches from "
+              f"{'the touch panel' if feed is not None else 'clients'}")
         if summary["limiter"]:
             print(summary["limiter"])
         for line in report.lines:

@@ -34,6 +34,7 @@ UNKNOWN = "unknown"
 TEXTURE = "texture"
 LIMIT = "limit"
 ENGINE = "engine"
+TOUCH_PANEL = "touch-panel"  # a touch refused: the engine reads the touch panel itself (serve --touch-panel)
 
 
 class ProtocolError(UltraglideError, ValueError):

@@ -196,6 +196,8 @@ class Service:
         self.page_files = PAGE_FILES  # the page's files (path -> (file, content type)) in ``page_package``
         self.page_package = "ultraglide.apps.service.page"
         self.extra_specs: dict | None = None  # message types of a service built on this one (protocol.parse's extra)
+        self.touch_panel: str | None = None  # the panel the engine reads itself (serve --touch-panel): clients' touches
+        # are refused
 
     # ---- start-up --------------------------------------------------------------------------------------
     def place_startup_textures(self, specs: list[str]) -> None:
@@ -385,6 +387,7 @@ class Service:
         return p.reply(message.id, protocol=p.PROTOCOL_VERSION, server=f"ultraglide {__version__}",
                        role=role, device=self.engine.config.device, profile=self.profile.name,
                        limit_um_pp=limit, default_force_n=self.engine.config.default_force_n, drives=self.drives,
+                       touch_panel=self.touch_panel,
                        limits={"message_bytes": p.MAX_MESSAGE_BYTES, "small_message_bytes": p.MAX_SMALL_MESSAGE_BYTES,
                                "messages_per_s": RATE_PER_S, "textures": MAX_TEXTURES, "sprites": MAX_SPRITES,
                                "views": MAX_VIEWS, "texture_pixels": MAX_TEXTURE_PIXELS},
@@ -618,9 +621,23 @@ class Service:
         """A pointer event. Every pointer down is followed; which one the engine renders is :attr:`drives`'s rule
         (``first``: the first down until it lifts; ``latest``: the newest down takes over, and when it lifts the
         newest still down; ``none``: with two or more down, none, the plate at rest, until one is left)."""
+        if self.touch_panel is not None:
+            raise p.ProtocolError(p.TOUCH_PANEL, f"the engine reads the touch panel itself (serve --touch-panel "
+                                  f"{self.touch_panel}): clients place sprites; their touches are not taken")
         view = self._view(message.get("view", self.active_view))
-        pointer = message.get("pointer", 0)
-        phase = message["phase"]
+        x_mm, y_mm = view.to_mm(message["x"], message["y"])
+        force = message.get("force_n")
+        if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
+            force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
+        self.pointer(session, view.name, message.get("pointer", 0), message["phase"], x_mm, y_mm, force,
+                     message.get("t"), received_s)
+
+    def pointer(self, session: Session, view_name: str, pointer: int, phase: str, x_mm: float, y_mm: float,
+                force: float | None, source_t: float | None, received_s: float) -> None:
+        """A pointer event, from a client's ``touch`` or the touch panel (:mod:`apps.service.panel`): ``phase`` down,
+        move, up or cancel at (``x_mm``, ``y_mm``) on view ``view_name``; ``force`` N or None (the default);
+        ``source_t``: when it happened on its source's clock (s; None: when it arrived), shifted onto ours by
+        ``session``'s least offset; ``received_s``: when it arrived (perf_counter s)."""
         pointers = self.pointers
         known = pointers.get(pointer)
         new = known is None
@@ -630,20 +647,16 @@ class Service:
             if len(pointers) >= MAX_POINTERS:
                 self.touches_ignored += 1
                 return
-        t = session.engine_time(message.get("t"), received_s)
-        x_mm, y_mm = view.to_mm(message["x"], message["y"])
-        force = message.get("force_n")
-        if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
-            force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
+        t = session.engine_time(source_t, received_s)
         if known is None:
-            known = pointers[pointer] = Finger(session, pointer, view.name, x_mm, y_mm, force)
+            known = pointers[pointer] = Finger(session, pointer, view_name, x_mm, y_mm, force)
         else:
-            known.view, known.x_mm, known.y_mm, known.force_n = view.name, x_mm, y_mm, force
+            known.view, known.x_mm, known.y_mm, known.force_n = view_name, x_mm, y_mm, force
         driving = self.finger
         if phase in ("up", "cancel"):
             del pointers[pointer]
             if driving is known:
-                self._count(message, received_s)
+                self._count(source_t, received_s)
                 self.engine.touch(t, x_mm, y_mm, force, down=False)
                 self.finger = None
                 if self.drives == "latest" and pointers:  # the newest still down takes over
@@ -654,7 +667,7 @@ class Service:
                 self._drive(next(iter(pointers.values())), t)
             return
         if driving is known:
-            self._count(message, received_s)
+            self._count(source_t, received_s)
             self._drive(known, t)
             return
         if new:  # a pointer down beside the one that drives, or none
@@ -665,15 +678,15 @@ class Service:
             elif driving is None or self.drives == "latest":
                 if driving is not None:
                     self.engine.touch(t, driving.x_mm, driving.y_mm, driving.force_n, down=False)
-                self._count(message, received_s)
+                self._count(source_t, received_s)
                 self._drive(known, t)
                 return
         self.touches_ignored += 1  # a pointer that does not drive: followed, not rendered
 
-    def _count(self, message: p.Message, received_s: float) -> None:
+    def _count(self, source_t: float | None, received_s: float) -> None:
         self.touches += 1
         if self.arrivals is not None:  # (bench/bench_service.py) the client's time, when it came, when it went in
-            self.arrivals.append((message.get("t"), received_s, time.perf_counter()))
+            self.arrivals.append((source_t, received_s, time.perf_counter()))
 
     def _drive(self, finger: Finger, t: float) -> None:
         """``finger`` drives the plate: the engine renders it, down where it is now."""
