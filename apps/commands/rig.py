@@ -78,8 +78,10 @@ def describe(rig) -> list[str]:
         flips = " ".join(word for word, on in (("flipped in x", touch.flip_x), ("flipped in y", touch.flip_y)) if on)
         pressure = (f"pressure 1.0 = {touch.pressure_full_scale_n:g} N" if touch.pressure_full_scale_n is not None
                     else "no pressure (the demo's force applies)")
+        ranges = ", ".join(f"{axis} {low}..{high}" for axis, (low, high) in touch.axis_ranges.items())
         lines.append(f"touch panel: active area {area}, turned {touch.rotation_deg}°{' ' + flips if flips else ''}; "
-                     f"{pressure}; with two down, {DRIVES_WORDS[touch.drives]}")
+                     f"{pressure}; with two down, {DRIVES_WORDS[touch.drives]}"
+                     f"{'; axis ranges ' + ranges + ' (panel units)' if ranges else ''}")
     lines.append(f"display: {rig.display_width_mm:g} mm wide" if rig.display_width_mm is not None else
                  "display: width not given (the demo assumes 96 dpi unless --screen-width-mm)")
     lines.append(f"full_scale_um_pp = {plate.full_scale_um_pp:g}, max_amplitude_um_pp = {plate.max_amplitude_um_pp:g}")
