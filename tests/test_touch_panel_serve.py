@@ -168,7 +168,8 @@ def test_the_panel_is_said_in_words_at_start(tmp_path):
         assert read_line(process.stdout, 120).startswith("ws://")  # listening: the panel is open
     finally:
         os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))  # a writer came and went: the panel's events end
-        out, err = process.communicate(timeout=60)
-    assert process.returncode == 1 and "went away" in err
+        status = process.wait(60)
+    out, err = process.stdout.read(), process.stderr.read()
+    assert status == 1 and "went away" in err
     assert (f"touch panel {fifo}: a FIFO of evdev records; x 0..99, y -5..5, no pressure (--touch-range); clients' "
             "touches are refused") in out.splitlines()
