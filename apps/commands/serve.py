@@ -97,6 +97,8 @@ def run(args) -> int:
     service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm), drives=drives)
     service.place_startup_textures(args.textures)
     panel = _open_panel(args, rig)
+    if panel is not None:
+        service.touch_panel = panel.path  # clients' touches refused from the first connection on
     config = EngineConfig(texture=service.first_texture(), model=args.model, profile=args.profile,
                           device=args.device, default_force_n=0.5 if args.force is None else args.force,
                           closed_loop=args.closed_loop, envelope_csv=args.envelope_csv)
