@@ -17,7 +17,7 @@ from service_run import flat_png, png_ratio, read_envelope, read_line, rows_at, 
 
 from ultraglide.client import Client
 
-EV_SYN, EV_ABS, SYN_REPORT = 0, 3, 0  # linux/input-event-codes.h
+EV_SYN, EV_ABS, SYN_REPORT, SYN_DROPPED = 0, 3, 0, 3  # linux/input-event-codes.h
 ABS_MT_SLOT, ABS_MT_POSITION_X, ABS_MT_POSITION_Y, ABS_MT_TRACKING_ID, ABS_MT_PRESSURE = 47, 53, 54, 57, 58
 
 
@@ -129,9 +129,22 @@ def test_a_rig_s_panel_is_turned_placed_and_pressed_and_its_drive_rule_holds(tmp
                 os.write(writer, frame((ABS_MT_SLOT, 1), (ABS_MT_TRACKING_ID, -1), (ABS_MT_SLOT, 0),
                                        (ABS_MT_TRACKING_ID, -1)))
                 second = [m for m in seen(plate) if m["down"]]
+                # a finger at the panel's (0.5, 0.5) = the area's (0.5, 0.5) = (50, 25) mm, then the kernel's buffer
+                # overflows: the events to the next report are discarded, the finger lifted; its later moves in
+                # its slot (to x 0.55 and 0.6: (50, 27) and (50, 29) mm) are not felt: its contact is not known
+                os.write(writer, frame((ABS_MT_SLOT, 0), (ABS_MT_TRACKING_ID, 7), (ABS_MT_POSITION_X, 2000),
+                                       (ABS_MT_POSITION_Y, 1000)))
+                hold(lambda data: os.write(writer, data))
+                dropped = struct.pack("=qqHHi", int(time.time()), 0, EV_SYN, SYN_DROPPED, 0)
+                os.write(writer, dropped + frame((ABS_MT_POSITION_X, 2200)))
+                for _ in range(30):
+                    os.write(writer, frame((ABS_MT_POSITION_X, 2400)))
+                    time.sleep(0.01)
+                after_drop = seen(plate)
         finally:
             os.close(writer)
         process.wait(60)
+    assert [m["down"] for m in after_drop][-1] is False and (50, 25) in [(m["x_mm"], m["y_mm"]) for m in after_drop]
     # turned 90° clockwise, the panel's (u, v) is the area's (1 - v, u): (0.25, 0.75) -> (0.25, 0.25) of the
     # 80 × 40 mm area at (10, 5) mm -> (10 + 20, 5 + 10) = (30, 15) mm, on the left sprite; 100 of 200 × 4 N = 2 N
     assert any((m["x_mm"], m["y_mm"]) == pytest.approx((30, 15)) and m["sprite"] == "left"
@@ -142,6 +155,8 @@ def test_a_rig_s_panel_is_turned_placed_and_pressed_and_its_drive_rule_holds(tmp
     envelope = read_envelope(envelope_csv)
     assert np.median(rows_at(envelope, 30, 15)["target_ratio"]) == pytest.approx(png_ratio(0.3), abs=0.01)
     assert np.median(rows_at(envelope, 82, 35)["target_ratio"]) == pytest.approx(png_ratio(0.8), abs=0.01)
+    assert len(rows_at(envelope, 50, 25)) > 100
+    assert len(rows_at(envelope, 50, 27, within_mm=0.5)) == 0 and len(rows_at(envelope, 50, 29, within_mm=0.5)) == 0
 
 
 def test_bad_panel_options_are_one_line_exit_2_before_the_engine_starts(tmp_path):
