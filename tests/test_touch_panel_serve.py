@@ -85,8 +85,9 @@ def test_the_sprite_under_the_panel_s_finger_is_rendered_and_a_panel_that_goes_a
             os.close(writer)  # the panel goes away, a finger down
         status = process.wait(60)
         out, err = process.stdout.read(), process.stderr.read()
-    assert status == 1
-    assert err.strip() == f"ultraglide serve: the touch panel {fifo} went away (its events ended)"
+    assert status == 1 and "Traceback" not in err
+    # said in one line, the last (a loaded machine's sim may have said its underruns before it)
+    assert err.strip().splitlines()[-1] == f"ultraglide serve: the touch panel {fifo} went away (its events ended)"
     final = json.loads(out.strip().splitlines()[-1])
     assert final["touch_panel"]["gone"] and final["touches"] >= 2
     assert any(m["down"] and m["sprite"] == "left" and (m["x_mm"], m["y_mm"]) == pytest.approx((25, 25)) for m in left)
