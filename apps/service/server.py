@@ -634,10 +634,29 @@ class Service:
 
     def pointer(self, session: Session, view_name: str, pointer: int, phase: str, x_mm: float, y_mm: float,
                 force: float | None, source_t: float | None, received_s: float) -> None:
-        """A pointer event, from a client's ``touch`` or the touch panel (:mod:`apps.service.panel`): ``phase`` down,
-        move, up or cancel at (``x_mm``, ``y_mm``) on view ``view_name``; ``force`` N or None (the default);
-        ``source_t``: when it happened on its source's clock (s; None: when it arrived), shifted onto ours by
-        ``session``'s least offset; ``received_s``: when it arrived (perf_counter s)."""
+        """A pointer event, from a client's ``touch`` or the touch panel (:mod:`apps.service.panel`), followed and
+        rendered by the :attr:`drives` rule.
+
+        Parameters
+        ----------
+        session : Session
+            Whose pointer it is (the panel's feed has a session of its own).
+        view_name : str
+            The view it is on (an existing one).
+        pointer : int
+            The pointer's id (a client's ``pointer``, a panel's slot).
+        phase : str
+            ``down``, ``move``, ``up`` or ``cancel``.
+        x_mm, y_mm : float
+            Where, mm from the view's top-left corner.
+        force : float or None
+            The finger's force, N (None: the engine's default).
+        source_t : float or None
+            When it happened on its source's clock, s (None: when it arrived), shifted onto ours by ``session``'s
+            least offset.
+        received_s : float
+            When it arrived, ``perf_counter`` s.
+        """
         pointers = self.pointers
         known = pointers.get(pointer)
         new = known is None

@@ -140,6 +140,16 @@ class PanelRanges:
 def parse_range(text: str) -> tuple[str, AxisRange]:
     """One ``--touch-range`` value: ``AXIS=MIN:MAX`` with AXIS ``x``, ``y`` or ``pressure``, in panel units.
 
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    (str, AxisRange)
+        The axis and its range.
+
     Raises
     ------
     TouchPanelUsageError
@@ -162,13 +172,29 @@ def parse_range(text: str) -> tuple[str, AxisRange]:
 
 
 def given_ranges(options: list[str], rig_ranges: dict | None = None) -> PanelRanges | None:
-    """The ranges given by a rig (``{"x": (min, max), ...}``, its ``[touch]``) and ``--touch-range`` options (which win,
-    axis by axis); None when none is given.
+    """The ranges given by a rig and by ``--touch-range`` options (which win, axis by axis).
+
+    Parameters
+    ----------
+    options : list of str
+        ``--touch-range`` values, ``AXIS=MIN:MAX`` in panel units.
+    rig_ranges : dict or None
+        The rig's ``[touch]`` ranges, ``{"x": (min, max), ...}`` (:attr:`devices.rig.TouchPanel.axis_ranges`).
+
+    Returns
+    -------
+    PanelRanges or None
+        None when no range is given at all.
 
     Raises
     ------
     TouchPanelUsageError
         A bad option, or x without y (or y without x).
+
+    Example
+    -------
+    >>> given_ranges(["y=0:2047"], {"x": (0, 4095)}).words()
+    'x 0..4095, y 0..2047, no pressure (the rig and --touch-range)'
     """
     ranges, source = {}, []
     for axis, span in (rig_ranges or {}).items():
@@ -491,6 +517,7 @@ class PanelReader:
         return self.parser.feed(data)
 
     def close(self) -> None:
+        """Close the node (once; again does nothing)."""
         if not self.closed:
             self.closed = True
             os.close(self.fd)
