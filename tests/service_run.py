@@ -8,6 +8,7 @@ import select
 import signal
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 from conftest import start_cli
@@ -43,8 +44,22 @@ def stop(process, timeout_s: float = 60.0) -> int:
     try:
         return process.wait(timeout_s)
     except subprocess.TimeoutExpired:
+        stacks = where_it_waits(process.pid)
         process.kill()
-        raise
+        raise AssertionError(f"the service did not stop within {timeout_s:g} s of SIGTERM; its threads:\n"
+                             f"{stacks}") from None
+
+
+def where_it_waits(pid: int) -> str:
+    """Every thread's stack of process ``pid`` (py-spy, which the dev dependencies install), for a stop that hangs."""
+    import shutil
+    import sys
+
+    spy = shutil.which("py-spy") or str(Path(sys.executable).with_name("py-spy"))
+    try:
+        return subprocess.run([spy, "dump", "--pid", str(pid)], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError) as error:
+        return f"(py-spy could not look: {error})"
 
 
 def flat_png(ratio: float, width_px: int = 40, height_px: int = 40) -> bytes:
