@@ -34,6 +34,7 @@ ROOT_USER = os.geteuid() == 0
 # here (if it is read) or declared with output_option (if it is written), which main checks before the command.
 READ_OR_WORDS = {
     "lies": "words: a frame's field and the value a simulated plate reports for it",
+    "touch_panel": "an evdev node or a FIFO of its records, read", "touch_range": "words: an axis's range",
     "add": "an effects file read", "set": "an effects file read", "data": "measured points read",
     "effects": "an effects file read", "image": "an image read", "inputs": "textures read", "mask": "an image read",
     "other": "a texture read", "texture": "a texture read", "textures": "textures read",

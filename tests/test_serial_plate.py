@@ -561,8 +561,9 @@ def test_a_plate_whose_clock_drifts_keeps_its_buffer_at_its_depth(clock_ppm):
     assert abs(np.median(depths[-50:]) - target) <= tolerance, (target, depths[-50:], driver.counters)
     if driver.counters.setpoints_skipped == 0:  # (the source counts what it was asked for, not what was skipped)
         # the renderer is told when its values play on the plate, its clock's drift included: within the 5 ms
-        # deadband and a frame (told on the host's clock, it was 15-18 ms off after the six seconds)
-        assert abs(at - said) <= 0.005 + 0.002, (at - said, driver.counters)
+        # deadband and a frame (told on the host's clock, it was 15-18 ms off after the six seconds), and a
+        # millisecond for this reading itself (the plate's status and the clock are read a moment apart)
+        assert abs(at - said) <= 0.005 + 0.002 + 0.001, (at - said, driver.counters)
 
 
 def test_a_plate_stalled_for_a_moment_leaves_the_hosts_lead_alone(tmp_path):

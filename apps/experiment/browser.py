@@ -19,12 +19,15 @@ kept in :attr:`BrowserResponder.stopped` for the caller to raise once the plate 
 
 Example
 -------
->>> from ultraglide.apps.experiment.browser import BrowserResponder      # doctest: +SKIP
->>> from ultraglide.experiment import load_design, run
->>> design = load_design("two-textures.toml")
->>> with BrowserResponder(design, device="sim", port=8766) as page:
-...     print("open", page.page_url)
-...     session = run(design, "P01", out="p01/", responder=page)
+A participant at a browser answering a design of one's own (not run here: it waits for the participant)::
+
+    from ultraglide.apps.experiment.browser import BrowserResponder
+    from ultraglide.experiment import load_design, run
+
+    design = load_design("two-textures.toml")
+    with BrowserResponder(design, device="sim", port=8766) as page:
+        print("open", page.page_url)
+        session = run(design, "P01", out="p01/", responder=page)
 """
 
 from __future__ import annotations
