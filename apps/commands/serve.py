@@ -218,7 +218,39 @@ def _serve(service, args, feed=None) -> str | None:
                 for session in list(service.sessions):
                     service._leave(session)
 
-    return asyncio.run(main())
+    return run_loop_bounded(main())
+
+
+SHUTDOWN_S = 10.0  # what the loop's tasks get to end once stopped; then the loop is closed whatever is left
+
+
+def run_loop_bounded(coroutine):
+    """``asyncio.run(coroutine)``, but a stop (Ctrl-C or SIGTERM raised as KeyboardInterrupt through the loop) gives
+    the loop's tasks :data:`SHUTDOWN_S` to end after they are cancelled, where ``asyncio.run`` waits for them for
+    ever: a service stopped with a client connected once did not end within 60 s, its main thread in
+    ``asyncio.run``'s cancellation of the tasks left (a connection's task that never finished). The plate is brought
+    to rest after this returns or raises, by the command."""
+    import asyncio
+    import contextlib
+
+    loop = asyncio.new_event_loop()
+    try:
+        asyncio.set_event_loop(loop)
+        task = loop.create_task(coroutine)
+        try:
+            return loop.run_until_complete(task)
+        finally:
+            pending = [t for t in asyncio.all_tasks(loop) if not t.done()]
+            for left in pending:
+                left.cancel()
+            if pending:
+                with contextlib.suppress(BaseException):
+                    loop.run_until_complete(asyncio.wait(pending, timeout=SHUTDOWN_S))
+            with contextlib.suppress(BaseException):
+                loop.run_until_complete(asyncio.wait_for(loop.shutdown_asyncgens(), SHUTDOWN_S))
+    finally:
+        asyncio.set_event_loop(None)
+        loop.close()
 
 
 def _loop_in_real_time(service) -> str:
