@@ -108,7 +108,7 @@ def _typed(report, lies: dict[str, float]) -> dict:
         current = getattr(report, name)
         if isinstance(current, bool):
             typed[name] = bool(value)
-        elif (isinstance(current, int) or (current is None and name == "restart_reason")) and math.isfinite(value):
+        elif (isinstance(current, int) or current is None) and math.isfinite(value):  # (None: an unstated code)
             typed[name] = int(value)
         else:
             typed[name] = float(value)
