@@ -92,26 +92,36 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
                               probe_plate=kind == "sim")
         with Engine.start(config) as engine:
             engine.wait_ready()
-            engine_s, device_s, total_s = [], [], []
+            engine_s, device_s, total_s, woke = [], [], [], []
             for _ in range(steps):
-                engine_s_, device_s_, total_s_ = _one_step(engine, kind, rest_s)
+                engine_s_, device_s_, total_s_, woke_ = _one_step(engine, kind, rest_s)
                 engine_s.append(engine_s_)
                 device_s.append(device_s_)
                 total_s.append(total_s_)
+                woke.append(woke_)
             status = engine.status()
     periods = np.diff(status.history.time_s)
     block_ms = float(np.median(periods) * 1e3) if len(periods) else None
     return {
         "device": status.device, "steps": steps,
         "engine_ms": _percentiles(engine_s), "device_ms": _percentiles(device_s), "total_ms": _percentiles(total_s),
+        # a plate driver that had rested its output (50 ms of zeros) is woken with its lead at once and plays on
+        # arrival; one still streaming plays the step a buffer's depth later: the two apart
+        "steps_from_rest": sum(woke),
+        "device_streaming_ms": _percentiles([d for d, w in zip(device_s, woke) if not w]),
+        "device_from_rest_ms": _percentiles([d for d, w in zip(device_s, woke) if w]),
         "device_part": DEVICE_PART.get(kind, ""), "block_ms": block_ms, "priority": status.priority,
         "engine_aim_ms": ENGINE_AIM_MS, "report": status.device_status.get("report"),
         # a plate driver's buffer that drifted from its depth moved the host's lead, and the device part with it
         "depth_corrections": status.device_status.get("depth_corrections", 0),
+        # frames a starved host sent after the plate's buffer had run dry play on arrival, sooner than the lead says
+        "late_frames": status.device_status.get("late_frames", 0),
     }
 
 
-def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, float, float]:
+def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, float, float, bool]:
+    """One step, sticky to slippery: (engine part, device part, total) in s, and whether it woke a plate driver
+    that had rested its output."""
     import numpy as np
 
     def at_rest() -> bool:
@@ -124,6 +134,7 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
     engine.touch(time.perf_counter(), *STICKY_MM)
     _wait(at_rest, engine=engine)
     time.sleep(0.005 + rest_s + np.random.default_rng().uniform(0, 0.003))  # a random phase of the blocks
+    wakes = engine.status().device_status.get("idle_wakes") if kind == "serial" else None
     touched = time.perf_counter()
     engine.touch(touched, *SLIPPERY_MM)
 
@@ -140,12 +151,19 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
         total = engine.plate_probe()[1] - touched
         return engine_part, total - engine_part, total
     device_part = presented[row] - done[row]
-    return engine_part, device_part, engine_part + device_part
+    woke = False
+    if wakes is not None:  # the step's frame has gone once the driver streams; it woke the plate if it counted a wake
+        _wait(lambda: engine.status().device_status.get("output") != "idle (disabled)", what="the plate driver",
+              engine=engine)
+        woke = engine.status().device_status.get("idle_wakes", wakes) > wakes
+    return engine_part, device_part, engine_part + device_part, woke
 
 
-def _percentiles(values_s: list[float]) -> dict:
+def _percentiles(values_s: list[float]) -> dict | None:
     import numpy as np
 
+    if not values_s:
+        return None
     values = np.asarray(values_s) * 1e3
     return {"p50": round(float(np.percentile(values, 50)), 3), "p99": round(float(np.percentile(values, 99)), 3)}
 
@@ -158,7 +176,23 @@ def describe(figures: dict) -> str:
             f"  engine  {e['p50']:.2f} ms median, {e['p99']:.2f} ms p99: waiting for the next pull and "
             f"rendering{block}; {verdict} the {figures['engine_aim_ms']:g} ms aim\n"
             f"  device  {d['p50']:.2f} ms median, {d['p99']:.2f} ms p99: {figures['device_part']}\n"
+            f"{_split(figures)}"
             f"  total   {t['p50']:.2f} ms median, {t['p99']:.2f} ms p99 (engine priority: {figures['priority']})")
+
+
+def _split(figures: dict) -> str:
+    """The device part of the steps that found a plate driver streaming and of those that woke it, where both."""
+    woke = figures.get("steps_from_rest", 0)
+    if not woke:
+        return ""
+    lines = []
+    for key, which in (("device_streaming_ms", "steps while it streamed"), ("device_from_rest_ms", "steps that "
+                                                                           "woke it from rest (plays on arrival)")):
+        part = figures[key]
+        count = woke if key == "device_from_rest_ms" else figures["steps"] - woke
+        if part is not None:
+            lines.append(f"          {part['p50']:.2f} ms median, {part['p99']:.2f} ms p99: the {count} {which}\n")
+    return "".join(lines)
 
 
 def run(args) -> int:

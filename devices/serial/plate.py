@@ -256,7 +256,7 @@ class SerialPlate:
             "late_frames": c.late_frames, "depth_corrections": c.depth_corrections,
             "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
             "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,
-            "output": output, "idle_rests": c.idle_rests, "reenables": c.reenables,
+            "output": output, "idle_rests": c.idle_rests, "idle_wakes": c.idle_wakes, "reenables": c.reenables,
             "protocol_version": None if state.device is None else state.device.version,
             "device_name": None if state.device is None else state.device.name,
             "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp,

@@ -64,7 +64,7 @@
 /* The hardware watchdog's timeout: both marks (block interrupt, main loop) must be seen within it. Hardware: the
    IWDG at the LSI's nominal 32 kHz (17-47 kHz: 2.7-7.5 ms); QEMU: the stand-in's, on the virtual clock. */
 #define BOARD_WATCHDOG_US 4000u
-#define BOARD_WATCHDOG_STALL_US 2500u /* QEMU: a look this late after the last: QEMU stalled, the window restarts */
+#define BOARD_WATCHDOG_STALL_US 1500u /* QEMU: a look this late after the last: QEMU stalled, the window restarts */
 #define BOARD_WATCHDOG_BOOT_US 200000u /* QEMU: the window while the board warms up (QEMU translating its code) */
 #define BOARD_WATCHDOG_WARM_TAKES 300u /* QEMU: ... until both marks were seen this many times */
 #define BOARD_HANG_SPAN_BYTES 16u   /* QEMU: a block interrupt found within this of where it was at the last look
