@@ -108,8 +108,8 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
         # a plate driver that had rested its output (50 ms of zeros) is woken with its lead at once and plays on
         # arrival; one still streaming plays the step a buffer's depth later: the two apart
         "steps_from_rest": sum(woke),
-        "device_streaming_ms": _percentiles([d for d, w in zip(device_s, woke) if not w]),
-        "device_from_rest_ms": _percentiles([d for d, w in zip(device_s, woke) if w]),
+        "device_streaming_ms": _percentiles([d for d, w in zip(device_s, woke, strict=True) if not w]),
+        "device_from_rest_ms": _percentiles([d for d, w in zip(device_s, woke, strict=True) if w]),
         "device_part": DEVICE_PART.get(kind, ""), "block_ms": block_ms, "priority": status.priority,
         "engine_aim_ms": ENGINE_AIM_MS, "report": status.device_status.get("report"),
         # a plate driver's buffer that drifted from its depth moved the host's lead, and the device part with it
@@ -149,7 +149,7 @@ def _one_step(engine: Engine, kind: str, rest_s: float = 0.0) -> tuple[float, fl
     if kind == "sim":
         _wait(lambda: engine.plate_probe()[1] > touched, what="the simulated plate", engine=engine)
         total = engine.plate_probe()[1] - touched
-        return engine_part, total - engine_part, total
+        return engine_part, total - engine_part, total, False
     device_part = presented[row] - done[row]
     woke = False
     if wakes is not None:  # the step's frame has gone once the driver streams; it woke the plate if it counted a wake

@@ -93,8 +93,12 @@ def run(args) -> int:
     load_model(args.model)  # a bad model is one line before the engine starts
     token = new_token() if args.unix is None and needs_token(args.host) else None
     rig = getattr(args, "loaded_rig", None)
-    drives = rig.touch.drives if rig is not None and rig.touch is not None else "first"
-    service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm), drives=drives)
+    touch = rig.touch if rig is not None else None
+    drives = touch.drives if touch is not None else "first"
+    scale = {} if touch is None or touch.pressure_full_scale_n is None else \
+        {"pressure_full_scale_n": touch.pressure_full_scale_n}  # the panel's pressure scale for clients' touches too
+    service = Service(None, profile, token=token, page=args.page, view_mm=tuple(args.view_mm), drives=drives,
+                      **scale)
     service.place_startup_textures(args.textures)
     panel = _open_panel(args, rig)
     if panel is not None:

@@ -22,14 +22,13 @@ from __future__ import annotations
 
 import time
 
-from ultraglide.apps.service.server import Service, Session
+from ultraglide.apps.service.server import MIN_PRESSED_FORCE_N, Service, Session
 from ultraglide.devices.rig import TouchPanel
 from ultraglide.devices.touch.evdev import PanelReader, TouchPanelError
 
 from ultraglide.errors import describe
 
 STEP_S = 1.0  # a kernel timestamp this far behind its arrival: the clock stepped, the offset starts afresh
-MIN_FORCE_N = 0.05  # the least force a pressed panel gives (a client's pressure has the same floor)
 
 
 class PanelFeed:
@@ -99,7 +98,7 @@ class PanelFeed:
         if contact.pressure is not None and ranges.pressure is not None:
             force = self.panel.force_n(ranges.pressure.unit(contact.pressure))
             if force is not None:
-                force = max(MIN_FORCE_N, force)
+                force = max(MIN_PRESSED_FORCE_N, force)
         self.contacts += 1
         service.pointer(self.session, view.name, contact.slot, contact.phase, x_mm, y_mm, force, None, t_s)
 

@@ -58,7 +58,8 @@ MAX_SPRITES = 256
 MAX_VIEWS = 16
 MAX_POINTERS = 10  # pointers down at once that are followed (a hand's)
 MAX_TEXTURE_PIXELS = 4_000_000
-PRESSURE_FULL_SCALE_N = 1.0  # a pointer's pressure 1 is this force; a mouse's 0.5 is the default 0.5 N
+PRESSURE_FULL_SCALE_N = 1.0  # a pointer's pressure 1 is this force, unless the rig says (a mouse's: none, the default)
+MIN_PRESSED_FORCE_N = 0.05  # the least force a pressed pointer gives
 DEFAULT_VIEW = "main"
 DEFAULT_VIEW_MM = (160.0, 100.0)
 HTML = "text/html; charset=utf-8"
@@ -159,11 +160,14 @@ class Session:
 
 class Service:
     """The server's state and its handlers. ``engine``: a started :class:`render.engine.Engine`; ``profile``: the
-    plate's; ``token``: what clients must give (None: no token); ``page``: serve the page and its module."""
+    plate's; ``token``: what clients must give (None: no token); ``page``: serve the page and its module;
+    ``pressure_full_scale_n``: the force a client's pressure 1.0 stands for (a rig's ``[touch]``)."""
 
     def __init__(self, engine, profile, *, token: str | None = None, page: bool = False,
-                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM, drives: str = "first"):
+                 view_mm: tuple[float, float] = DEFAULT_VIEW_MM, drives: str = "first",
+                 pressure_full_scale_n: float = PRESSURE_FULL_SCALE_N):
         self.engine = engine
+        self.pressure_full_scale_n = pressure_full_scale_n  # a client's pressure 1 (a rig's [touch] scale, N)
         self.profile = profile
         self.token = token
         self.page = page
@@ -628,7 +632,7 @@ class Service:
         x_mm, y_mm = view.to_mm(message["x"], message["y"])
         force = message.get("force_n")
         if force is None and message.get("pressure", 0.0) > 0 and message.get("pointer_type", "touch") != "mouse":
-            force = max(0.05, message["pressure"] * PRESSURE_FULL_SCALE_N)
+            force = max(MIN_PRESSED_FORCE_N, message["pressure"] * self.pressure_full_scale_n)
         self.pointer(session, view.name, message.get("pointer", 0), message["phase"], x_mm, y_mm, force,
                      message.get("t"), received_s)
 
