@@ -242,6 +242,13 @@ def test_budgets_count_a_loop_of_known_length_and_the_fastest_stream_plays_whole
     assert 240 * 20 < block.max < 240 * 400  # tens of instructions a DAC sample, not thousands
     load = stream_load(run.figures, "loop_48")
     assert load.frames_per_s == 1000 and load.cycles_per_s > 1000 * block.max  # every block and frame counted
+    # the longest section with the block interrupt masked, streaming and for a command (ENABLE 0 blanks both DAC
+    # halves inside its own), within the bound ug_port.h states and issue 39's aim of 500
+    stated = re.search(r"(\d+) for ENABLE 0", (ROOT / "devices/firmware/include/ug_port.h").read_text())
+    commands = run.figures["masked_commands"]
+    assert commands.calls >= 3 and 0 < commands.max <= int(stated.group(1)) <= 500, commands
+    streaming = [figure for key, figure in run.figures.items() if key.startswith("masked_") and figure is not commands]
+    assert streaming and all(0 < figure.max <= 500 for figure in streaming), streaming
 
 
 # ---- the firmware on the board, through the pty -----------------------------------------------------------
