@@ -25,6 +25,25 @@
  *   ug_core_set_stage_hot() wherever the board measures its driver stage's temperature.
  *   ug_core_poll()          the main loop, as often as it can: decodes and handles host frames,
  *                           sends telemetry and SENSORS frames. Takes critical sections (below).
+ *   ug_core_block()         the block interrupt, once a block, instead of the three block calls above:
+ *                           ADC, DAC and tick advanced together, in that order (ug_core.h).
+ *   ug_core_lost_time()     the block interrupt, when it came late (both halves had played): the blocks
+ *                           it could not run, in ms; the port has silenced the DAC, nothing stale plays.
+ *
+ * A port's duties, beyond implementing the calls out below:
+ *   - at boot, before ug_core_init: the output silent (ug_port_output_safe(UG_SAFE_POWER_UP)); in
+ *     ug_config, what its link carries (link_bytes_per_s, 0 if it cannot say) and why it last started
+ *     (reset_stated = 1, reset_reason UG_RESTART_*, reset_detail), so the next HELLO tells the host;
+ *   - when ug_core_adc_block / ug_core_block returns less than n, the output went off at that sample:
+ *     the half playing now is silenced too (ug_port_output_safe has been called; the port's own DAC
+ *     blank of that half follows the return);
+ *   - a late block (both DMA halves flagged), a DMA error or a DAC underrun is counted and never
+ *     replayed: the DAC is silenced and ug_core_lost_time told;
+ *   - a hardware watchdog refreshed only when both the block interrupt and the main loop have run since
+ *     the last refresh (ports/common/ug_safety.h's marks); its expiry, and every fault handler, silences
+ *     the output by the stronger form below before anything else, then resets;
+ *   - the stack guarded (below .bss, or an MPU region) so an overflow faults instead of corrupting the
+ *     core's state.
  *
  * The tick, DAC and ADC interrupts (and ug_core_set_stage_hot if called from an interrupt) MUST
  * share one priority, so that none of them preempts another inside the core; the UART receive
