@@ -40,6 +40,7 @@ from ultraglide.devices.firmware.boards import build_images, map_sizes
 from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
 from ultraglide.devices.profiles import PlateProfile, load_profile
 from ultraglide.devices.serial.plate import SerialPlate
+from xvfb_demo import XvfbDemo, tools_missing
 
 pytestmark = [
     pytest.mark.slow,
@@ -665,6 +666,31 @@ def test_play_on_the_board_with_its_defaults_plays_a_texture_it_receives_never_a
     assert stopped["setpoints_above_limit"] == 0 and stopped["max_setpoint_code"] <= limit_code, stopped
     assert stopped["max_setpoint_code"] >= 0.9 * limit_code, stopped
     assert stopped["plate_peak_um_pp"] <= 4.0 * 1.005 and stopped["trips"] == stopped["crc_errors"] == 0, stopped
+
+
+@pytest.mark.skipif(bool(tools_missing()), reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+def test_the_demo_on_the_board_with_its_defaults_plays_a_swipe_never_above_the_limit(one_qemu, tmp_path):
+    """``demo --device serial:PATH`` with no profile, under Xvfb, a texture swiped with the mouse: the board's own
+    tap saw the swipe's setpoints, none above the limit of the plate it describes."""
+    profile, limit_code = plain_profile(tmp_path)
+    board = ServedBoard(tmp_path / "plate", "--profile", profile)
+    try:
+        assert board.next("boot")["limit_code"] == limit_code
+        with XvfbDemo("--device", board.url) as demo:
+            demo.wait_for("^renderer ready", 120)
+            demo.xdo("mousemove", 110, 100, "click", 1)  # the gallery's first tile
+            demo.wait_for("^frame drawn: texture", 30)
+            board.next("enabled", 60)  # the serial driver greeted the board and enabled it
+            demo.drag([(x, 300) for x in range(200, 1000, 8)], rate_hz=60.0)
+            status = demo.quit(60)
+            said = "".join(demo.stdout) + demo.demo.stderr.read()
+    finally:
+        stopped = board.stop()
+    assert status == 0, said
+    assert "as the plate driver describes it" in said and "limit 4 µm p-p" in said, said  # its plate, said
+    assert stopped["setpoints"] > 0 and stopped["trips"] == 0, stopped
+    assert 0.2 * limit_code <= stopped["max_setpoint_code"] <= limit_code, stopped  # the swipe played, bounded
+    assert stopped["setpoints_above_limit"] == 0 and stopped["plate_peak_um_pp"] <= 4.0 * 1.005, stopped
 
 
 def test_latency_on_the_board(one_qemu, tmp_path):
