@@ -34,7 +34,7 @@ else
     trap 'rm -rf "$work"' EXIT
 fi
 # the tree as git sees it (committed or added), over any earlier copy; mutmut's cache stays
-git ls-files -z | xargs -0 cp --parents -t "$work"
+git ls-files -z | xargs -0 cp -P --parents -t "$work"  # -P: the tracked links (ultraglide/apps ...) as links
 cp scripts/mutmut_config.py "$work/mutmut_config.py"
 for folder in render textures devices apps; do ln -sfn "$work/$folder" "$work/ultraglide/$folder"; done
 cd "$work"
