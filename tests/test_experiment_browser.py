@@ -8,7 +8,6 @@ at rest and the files complete, and a bad token or origin is refused."""
 import csv
 import json
 import math
-import shutil
 import signal
 import subprocess
 import threading
@@ -16,6 +15,7 @@ import time
 
 import numpy as np
 import pytest
+from chromium_cdp import chromium, click, finger_down, finger_up, needed, press_key, tap, touch_at
 from conftest import run_cli, start_cli
 from service_run import read_envelope, read_line, rows_at, stop
 from ultraglide.textures.fileformat import save_texture
@@ -128,45 +128,13 @@ def trials_csv(out) -> list[dict]:
 
 # ---- the page in Chromium ---------------------------------------------------------------------------------------
 
-browser_needed = pytest.mark.skipif(not (shutil.which("chromium") and shutil.which("chromedriver")),
-                                    reason="needs Debian's chromium and chromium-driver (./run tests installs them)")
+browser_needed = needed
 
 
 @pytest.fixture
 def browser(tmp_path):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = shutil.which("chromium")
-    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--window-size=800,600",
-                 f"--user-data-dir={tmp_path / 'profile'}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
-    try:
+    with chromium(tmp_path / "profile") as driver:
         yield driver
-    finally:
-        driver.quit()
-
-
-def touch_at(driver, x, y, seconds=0.25):
-    """A finger down at (x, y) CSS px, held (a move every 10 ms), lifted: CDP's touch events."""
-    point = [{"x": x, "y": y, "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}]
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": point})
-        time.sleep(0.01)
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
-
-
-def tap(driver, box):
-    """A tap at the middle of ``box`` ({left, top, width, height} CSS px)."""
-    x, y = box["left"] + box["width"] / 2, box["top"] + box["height"] / 2
-    point = [{"x": x, "y": y, "radiusX": 3, "radiusY": 3, "force": 0.5, "id": 2}]
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
 
 
 def screen_shown(driver, kind, trial, session, timeout_s=60.0) -> dict:
@@ -207,7 +175,7 @@ def test_a_participant_in_chromium_feels_each_trials_stimuli_and_answers_with_it
                 # a point of its own in each zone of each trial (its envelope rows are this touch's alone)
                 x = round(zone["left"] + zone["width"] / 2)
                 y = round(zone["top"] + 10 + 4 * trial.number + 2 * index)
-                touch_at(browser, x, y)
+                touch_at(browser, x, y, 0.25)
                 touched.append(((x - plate["left"]) * MM_PER_PX, (y - plate["top"]) * MM_PER_PX, MEANS[stimulus]))
             buttons = browser.execute_script(BOXES, "#answers button")
             labels = browser.execute_script("return [...document.querySelectorAll('#answers button')]"
@@ -430,26 +398,175 @@ def test_options_of_another_way_of_running_are_refused_in_one_line(tmp_path, des
     assert not (tmp_path / "o").exists()
 
 
-def test_a_design_with_an_adjustment_block_is_refused_before_the_engine_starts(tmp_path, design):
-    text = design.read_text() + """
+ADJUST_DESIGN = DESIGN.split("[[conditions]]")[0] + """
+[stimuli.patch]
+texture = "patch.png"
+
+[[conditions]]
+name = "low-vs-high"
+a = "low"
+b = "high"
+
+[[conditions]]
+name = "rate-low"
+stimulus = "low"
+
 [[conditions]]
 name = "match"
-stimulus = "low"
+stimulus = "patch"
 reference = "high"
-range = [0.02, 0.6]
+range = [0.05, 0.6]
+
+[[blocks]]
+name = "choice"
+task = "afc"
+conditions = ["low-vs-high"]
+intervals = 2
+repeats = 2
+
+[[blocks]]
+name = "rating"
+task = "rating"
+conditions = ["rate-low"]
+repeats = 1
+scale = [1, 5]
 
 [[blocks]]
 name = "matching"
 task = "adjustment"
 conditions = ["match"]
 repeats = 1
+question = "Rendez la zone 2 pareille à la zone 1."
+labels = ["moins", "plus", "OK"]
 """
-    design.write_text(text.replace('texture = "low.png"', 'texture = "grating-2mm"\ncontrast = 0.2'))
-    result = run_cli("experiment", "run", design, "--participant", "P01", "--out", tmp_path / "o", "--serve",
-                     "--accept-check", cwd=design.parent)
-    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
-    assert "does not present the method of adjustment (block matching (adjustment))" in result.stderr
-    assert not (tmp_path / "o").exists()
+STEP = 10 ** (1 / 20)  # the window's step of an adjustment: 1 dB of contrast
+
+
+def adjusted_level(driver, wanted, session, timeout_s=60.0) -> float:
+    """The page's level once the plate plays it (the service answered its last adjust request), approx ``wanted``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        level, applied = driver.execute_script("return [window.participant.level, window.participant.applied]")
+        if level == applied and level == pytest.approx(wanted, rel=1e-9):
+            return level
+        assert time.monotonic() < deadline and session.process.poll() is None, (
+            level, applied, wanted, driver.execute_script("return window.participant.errors"), session.stderr())
+        time.sleep(0.02)
+
+
+def answered(driver, count, timeout_s=60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while len(driver.execute_script("return window.participant.answered")) < count:
+        assert time.monotonic() < deadline, driver.execute_script("return window.participant.errors")
+        time.sleep(0.05)
+
+
+@browser_needed
+def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_and_keys_answer(tmp_path, design,
+                                                                                               browser):
+    """The method of adjustment on the page: a finger held on the adjusted zone while keys, the + button (a mouse
+    click) and the slider set its contrast; each level is felt under the finger (the envelope record: the patch
+    texture's ratio, 1 - contrast, as zone_texture maps it), and trials.csv holds the level given with Enter, as the
+    window records it. The 2-AFC and rating trials before it are answered by keys alone."""
+    values = np.full((20, 20), 0.3, dtype=np.float32)
+    values[:2, :2] = 0.9  # a bright corner: the rest of the zone is the texture's minimum, ratio 1 - contrast
+    save_texture(Texture(values, 20.0, 20.0, name="patch"), tmp_path / "patch.png")
+    design.write_text(ADJUST_DESIGN, encoding="utf-8")
+    trials = plan(load_design(design), "P01")
+    assert [t.task for t in trials] == ["afc", "afc", "rating", "adjustment"]
+    low, high = 0.05, 0.6
+    start = trials[3].level
+    assert low <= start <= high
+    envelope_csv = tmp_path / "envelope.csv"
+    out = tmp_path / "p01"
+    session = Session(design, out, "--envelope-csv", envelope_csv, "--accept-check")
+    keys = {1: "2", 2: "ArrowLeft", 3: "4"}
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        for trial in trials[:3]:
+            if trial.break_before:
+                screen_shown(browser, "participant.break", trial.number, session)
+                press_key(browser, " ")
+            screen = screen_shown(browser, "participant.trial", trial.number, session)
+            hint = browser.execute_script("return document.getElementById('keys').textContent")
+            assert hint == ("Keys: 1–2 (or ← / →) answer." if trial.task == "afc" else
+                            "Keys: 1–5 for the scale's points, from its low end.")
+            press_key(browser, "7")  # no such answer: nothing happens
+            press_key(browser, keys[trial.number])
+            answered(browser, trial.number)
+        if trials[3].break_before:
+            screen_shown(browser, "participant.break", 4, session)
+            press_key(browser, "Enter")
+        screen = screen_shown(browser, "participant.trial", 4, session)
+        assert screen["mode"] == "adjustment" and screen["labels"] == ["moins", "plus", "OK"]
+        assert screen["level"] == start and screen["range"] == [low, high] and screen["step_db"] == 1.0
+        assert browser.execute_script("return document.getElementById('keys').textContent") == (
+            "Keys: ← or − down, → or + up (1 dB a step), Enter gives it.")
+        plate = browser.execute_script(BOXES, "#plate")[0]
+        zone = browser.execute_script(BOXES, ".zone")[1]  # the adjusted zone, the second
+        x, y = round(zone["left"] + zone["width"] / 2), round(zone["top"] + zone["height"] / 2)
+        at_mm = ((x - plate["left"]) * MM_PER_PX, (y - plate["top"]) * MM_PER_PX)
+        labels = browser.execute_script("return [...document.querySelectorAll('#answers button')]"
+                                        ".map((b) => b.textContent)")
+        buttons = dict(zip(labels, browser.execute_script(BOXES, "#answers button"), strict=True))
+        slider = browser.execute_script(BOXES, "#level")[0]
+        clamp = lambda level: min(max(level, low), high)  # noqa: E731
+        levels = [start]
+        finger_down(browser, x, y)  # held on the adjusted zone throughout
+        held_since = time.monotonic()
+
+        def hold(seconds=0.4):  # each level felt for a while (the finger still down)
+            deadline = time.monotonic() + seconds
+            while time.monotonic() < deadline:
+                time.sleep(0.02)
+
+        hold()
+        press_key(browser, "ArrowRight")  # a key: 1 dB up
+        levels.append(adjusted_level(browser, clamp(levels[-1] * STEP), session))
+        hold()
+        plus = buttons["plus"]
+        click(browser, plus["left"] + plus["width"] / 2, plus["top"] + plus["height"] / 2)  # the + button: 1 dB up
+        levels.append(adjusted_level(browser, clamp(levels[-1] * STEP), session))
+        hold()
+        press_key(browser, "-")  # 1 dB down
+        levels.append(adjusted_level(browser, clamp(levels[-1] / STEP), session))
+        hold()
+        click(browser, slider["left"] + slider["width"] - 1, slider["top"] + slider["height"] / 2)  # the slider's end
+        levels.append(adjusted_level(browser, high, session))
+        hold()
+        press_key(browser, "ArrowLeft")
+        levels.append(adjusted_level(browser, clamp(levels[-1] / STEP), session))
+        hold()
+        finger_up(browser)
+        held_s = time.monotonic() - held_since
+        press_key(browser, "Enter")  # gives the level set
+        answered(browser, 4)
+        assert browser.execute_script("return window.participant.errors") == []
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    rows = trials_csv(out)
+    assert [int(r["response"]) for r in rows[:2]] == [2, 1]  # "2", then ← (the first interval)
+    assert rows[2]["response"] == "4" and rows[2]["response_label"] == "4"
+    adjustment = rows[3]
+    assert float(adjustment["level"]) == start  # the adjustment's start, as the window logs it
+    assert float(adjustment["response"]) == levels[-1]  # the level given
+    assert levels[-1] == pytest.approx(high / STEP, rel=1e-9)
+    assert adjustment["response_label"] == f"{levels[-1]:.4g}"
+    assert 0 < float(adjustment["rt_s"]) and float(adjustment["rt_s"]) > held_s - 0.5
+    # the friction under the held finger followed every level, in order: 1 - contrast on the patch's minimum
+    under = rows_at(read_envelope(envelope_csv), *at_mm, within_mm=0.2)
+    assert len(under) > 100, f"nothing rendered under {at_mm} mm"
+    ratios = under["target_ratio"][np.argsort(under["t_s"], kind="stable")]
+    starts = np.flatnonzero(np.r_[True, np.abs(np.diff(ratios)) > 1e-4])  # runs of one ratio, in time order
+    runs = [(ratios[a], b - a) for a, b in zip(starts, [*starts[1:], len(ratios)], strict=True)]
+    felt = []
+    for ratio, count in runs:
+        if count >= 20 and (not felt or abs(felt[-1] - ratio) > 1e-4):  # a level held, not a passing row
+            felt.append(float(ratio))
+    assert felt == pytest.approx([1.0 - level for level in levels], abs=0.005), (levels, runs)
+    assert under["commanded_um_pp"].max() > 0.5  # felt: the plate played it
 
 
 def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, design):

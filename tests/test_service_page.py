@@ -5,11 +5,11 @@ dropped on the page (CDP's drag events with the file) is placed where it fell an
 rig's rule for which drives."""
 
 import io
-import shutil
 import time
 
 import numpy as np
 import pytest
+from chromium_cdp import chromium, needed, pen_at, touch_at
 from conftest import ROOT
 from PIL import Image
 from service_run import flat_png, png_ratio, read_envelope, rows_at, running_service
@@ -18,55 +18,20 @@ from ultraglide.textures.texture import Texture
 
 from ultraglide.client import Client
 
-pytestmark = pytest.mark.skipif(not (shutil.which("chromium") and shutil.which("chromedriver")),
-                                reason="needs Debian's chromium and chromium-driver (./run tests installs them)")
+pytestmark = needed
 
 MM_PER_PX = 0.25
 
 
 @pytest.fixture
 def browser(tmp_path):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = shutil.which("chromium")
-    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--window-size=800,600",
-                 f"--user-data-dir={tmp_path / 'profile'}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=options)
-    try:
+    with chromium(tmp_path / "profile") as driver:
         yield driver
-    finally:
-        driver.quit()
 
 
 def flat_texture(path, ratio):
     save_texture(Texture(np.full((50, 50), ratio, dtype=np.float32), 20.0, 20.0, name=path.stem), path)
     return float(load_texture(path).values.mean())  # as the file holds it (8 bits)
-
-
-def touch_at(driver, x, y, seconds=0.2):
-    """A finger down at (x, y) CSS px, held (a move every 10 ms), lifted: CDP's touch events."""
-    point = [{"x": x, "y": y, "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}]
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point})
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": point})
-        time.sleep(0.01)
-    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
-
-
-def pen_at(driver, x, y, seconds=0.2):
-    """A pen pressed at (x, y) CSS px, held, lifted: CDP's mouse events with pointerType pen."""
-    common = {"x": x, "y": y, "pointerType": "pen", "button": "left", "clickCount": 1, "force": 0.8}
-    driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mousePressed", "buttons": 1, **common})
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mouseMoved", "buttons": 1, **common})
-        time.sleep(0.01)
-    driver.execute_cdp_cmd("Input.dispatchMouseEvent", {"type": "mouseReleased", "buttons": 0, **common})
 
 
 def test_touch_and_pen_on_the_page_are_felt_as_the_sprite_under_them(tmp_path, browser):

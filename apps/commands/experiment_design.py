@@ -170,12 +170,6 @@ def run_design(args) -> int:
     if (directory / "trials.csv").exists() and not args.resume:
         raise UsageError(f"{directory} already holds a session; continue it with --resume or choose another --out")
     if args.serve:
-        from ultraglide.apps.experiment.browser import unserved_blocks
-
-        unserved = unserved_blocks(design)
-        if unserved:
-            return _bad(f"{args.design}: the participant's page does not present the method of adjustment (block "
-                        f"{', '.join(unserved)}): run it at the window, or leave the block out")
         if args.envelope_csv and not Path(args.envelope_csv).parent.is_dir():
             raise UsageError(f"{args.envelope_csv}: no directory {Path(args.envelope_csv).parent} to write it in")
     if args.observer:

@@ -40,27 +40,22 @@ import sys
 import threading
 import time
 
-from ultraglide.experiment.errors import ExperimentError
 from ultraglide.experiment.responders import Answer
 
-SERVED_TASKS = ("afc", "staircase", "quest", "constant", "same_different", "rating", "magnitude")
 DEFAULT_RECONNECT_TIMEOUT_S = 300.0
+ADJUST_STEP_DB = 1.0  # a button's or a key's step of the adjusted contrast, as the window's (design_window.py)
 WAIT_S = 0.25  # the longest wait between looks at the engine while a trial waits for its answer
 BREAK_BUTTON = "OK"
 
 
-def unserved_blocks(design) -> list[str]:
-    """The blocks whose task the page does not present (the method of adjustment), each as "NAME (TASK)"."""
-    return [f"{block.name} ({block.task})" for block in design.blocks if block.task not in SERVED_TASKS]
-
-
 def mode_of(shown) -> str:
     """How the page asks a trial: ``choice`` (a button per zone), ``yes_no``, ``pair`` (same / different),
-    ``rating`` (a button per point of the scale) or ``magnitude`` (a number)."""
+    ``rating`` (a button per point of the scale), ``magnitude`` (a number) or ``adjustment`` (−, + and a slider
+    setting the second zone's contrast, OK giving it)."""
     task = shown.trial.task
     if task == "same_different":
         return "pair"
-    if task in ("rating", "magnitude"):
+    if task in ("rating", "magnitude", "adjustment"):
         return task
     return "choice" if shown.intervals > 1 else "yes_no"
 
@@ -89,8 +84,6 @@ class BrowserResponder:
 
     Raises
     ------
-    ExperimentError
-        A block the page cannot present (the method of adjustment).
     ServiceError
         The address cannot be listened on.
     """
@@ -108,10 +101,6 @@ class BrowserResponder:
         from ultraglide.experiment.design import plan
         from ultraglide.experiment.stimuli import Layout
 
-        unserved = unserved_blocks(design)
-        if unserved:
-            raise ExperimentError(f"the participant's page does not present the method of adjustment (block "
-                                  f"{', '.join(unserved)}): run it at the window, or leave the block out")
         self.design = design
         self.total = len(plan(design))
         self.reconnect_timeout_s = float(reconnect_timeout_s)
@@ -230,16 +219,21 @@ class BrowserResponder:
             number = shown.trial.number
             screen = {"type": "participant.trial", "trial": number, "total": self.total, "mode": mode,
                       "question": question, "labels": labels, "size_mm": list(layout.size_mm), "zones": zones,
-                      "numbered": mode in ("choice", "magnitude")}
+                      "numbered": mode in ("choice", "magnitude", "adjustment")}
+            adjust = None
+            if mode == "adjustment":
+                screen.update(level=float(shown.level), range=[float(v) for v in shown.level_range],
+                              step_db=ADJUST_STEP_DB)
+                adjust = _Adjustment(self, shown)
             texture = shown.texture()
             self.service.worker.submit(self.engine.set_texture, texture).result()
             started = time.perf_counter()
             self._call(self.service.show, screen, tuple(layout.size_mm), ("answer", number))
-            event = self._wait(("answer", number), f"trial {number}")
+            event = self._wait(("answer", number), f"trial {number}", adjust)
             if event is None:
                 return Answer(-1, math.nan, quit=True)
             _, _, button, value, rt_s, _ = event
-            if mode == "magnitude":
+            if mode in ("magnitude", "adjustment"):
                 response = float(value)
             elif mode == "yes_no":
                 response = int(button == 0)  # Yes is the first button, and 1
@@ -266,9 +260,9 @@ class BrowserResponder:
             self.stopped = stop
             return False
 
-    def _wait(self, awaited: tuple, what: str):
+    def _wait(self, awaited: tuple, what: str, adjust: _Adjustment | None = None):
         """The awaited event from the page, or None when the page stayed away longer than the reconnect timeout;
-        EngineLost if the engine died meanwhile."""
+        EngineLost if the engine died meanwhile. ``adjust``: an adjustment trial's, told each level the page sets."""
         from ultraglide.render.engine import EngineLost
 
         gone_since = None if self.connected or not self.ever_connected else time.monotonic()
@@ -296,6 +290,8 @@ class BrowserResponder:
                     self.ever_connected = True
                 elif event[:2] == awaited:
                     return event
+                elif kind == "adjust" and adjust is not None and event[1] == awaited[1]:
+                    adjust.follow()
             if gone_since is not None and time.monotonic() - gone_since > self.reconnect_timeout_s:
                 self.say(f"the participant's page stayed away more than {self.reconnect_timeout_s:g} s: the "
                          f"session stops at {what}, its files complete")
@@ -323,4 +319,23 @@ class BrowserResponder:
         self.close()
 
 
-__all__ = ["BrowserResponder", "mode_of", "unserved_blocks"]
+class _Adjustment:
+    """An adjustment trial on the page: each level the page sets goes to the engine as the trial's texture with the
+    adjusted zone at that level (the window's ``texture_at``), the latest only when several came meanwhile; the page's
+    request is answered once the engine has it."""
+
+    def __init__(self, responder: BrowserResponder, shown):
+        self.responder, self.shown = responder, shown
+        self.level = float(shown.level)  # what the engine plays
+
+    def follow(self) -> None:
+        responder = self.responder
+        wanted = responder.service.adjusted
+        if wanted is not None and wanted != self.level:
+            texture = self.shown.texture_at(wanted)
+            responder.service.worker.submit(responder.engine.set_texture, texture).result()
+            self.level = wanted
+        responder._call(responder.service.applied, self.level)
+
+
+__all__ = ["BrowserResponder", "mode_of"]

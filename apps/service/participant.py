@@ -7,9 +7,11 @@ its own, and nothing else a participant's page could change: the scene is the tr
 
 Server to page (pushed to the controlling page, and again to a page that reconnects):
 
-* ``participant.trial``: ``trial``, ``total``, ``mode`` (``choice``, ``yes_no``, ``pair``, ``rating`` or
-  ``magnitude``), ``question``, ``labels``, ``size_mm`` (the plate's area, [w, h]), ``zones`` (each
+* ``participant.trial``: ``trial``, ``total``, ``mode`` (``choice``, ``yes_no``, ``pair``, ``rating``,
+  ``magnitude`` or ``adjustment``), ``question``, ``labels``, ``size_mm`` (the plate's area, [w, h]), ``zones`` (each
   ``{x_mm, y_mm, width_mm, height_mm}`` from the area's top-left corner), ``numbered`` (zones show their number);
+  an adjustment's also ``level`` (its start), ``range`` ([low, high], the levels it may be set to) and ``step_db``
+  (a button's or a key's step, dB);
 * ``participant.break``: ``trial`` (the next one), ``message``, ``label`` (the button's);
 * ``participant.wait``: ``message`` (between trials, before the first);
 * ``participant.end``: the session is over (the page stops reconnecting).
@@ -17,8 +19,11 @@ Server to page (pushed to the controlling page, and again to a page that reconne
 Page to server:
 
 * ``participant.answer``: ``trial``, ``button`` (the index of the button pressed, from 0) or ``value`` (the number
-  typed, magnitude estimation), ``rt_s`` (the page's reaction time, s); answered ``ok``, or an error naming what
-  is wrong (a stale trial, a button that is not there);
+  typed, magnitude estimation; the level set, adjustment), ``rt_s`` (the page's reaction time, s); answered ``ok``,
+  or an error naming what is wrong (a stale trial, a button that is not there, a level that is not the one set);
+* ``participant.adjust``: ``trial``, ``level`` (within the trial's ``range``): the adjusted zone at that level,
+  answered (``ok`` with ``trial`` and ``level``) once the engine plays it, or with the level a later adjustment
+  set in its place.
 * ``participant.continue``: ``trial``: the break's button.
 """
 
@@ -39,6 +44,7 @@ PARTICIPANT_SPECS = {
     "participant.answer": {"trial": (p._integer(1, 10**9), True), "button": (p._integer(0, 1000), False),
                            "value": (p._number(0.0, 1e12), False), "rt_s": (p._number(0.0, MAX_RT_S, " s"), True)},
     "participant.continue": {"trial": (p._integer(1, 10**9), True)},
+    "participant.adjust": {"trial": (p._integer(1, 10**9), True), "level": (p._number(0.0, 1e12), True)},
 }
 ALLOWED = frozenset({"hello", "touch", "subscribe", "state", *PARTICIPANT_SPECS})
 LEFT, BACK = "left", "back"
@@ -47,6 +53,7 @@ LEFT, BACK = "left", "back"
 class ParticipantService(Service):
     """The service of a session's participant page. ``events``: a thread-safe queue the session reads:
     ``("answer", trial, button or None, value or None, rt_s, received perf_counter s)``, ``("continue", trial)``,
+    ``("adjust", trial)`` when the page set an adjustment's level (:attr:`adjusted`: the latest),
     ``("left",)`` when the controlling page goes and ``("back",)`` when one takes control again."""
 
     def __init__(self, engine, profile, *, token: str | None = None, view_mm=(160.0, 100.0)):
@@ -56,6 +63,8 @@ class ParticipantService(Service):
         self.events: queue.Queue = queue.Queue()
         self.screen: dict = {"type": "participant.wait", "message": ""}
         self.waiting_for: tuple[str, int] | None = None  # ("answer" | "continue", trial) while one is awaited
+        self.adjusted: float | None = None  # an adjustment trial's level, the latest the page set
+        self._adjust_waiters: list[asyncio.Future] = []  # adjust requests answered once their level plays
 
     # ---- what the session shows (called on the loop, through call_soon_threadsafe) -------------------------
     def show(self, screen: dict, view_mm: tuple[float, float] | None = None, awaited: tuple | None = None) -> None:
@@ -68,6 +77,8 @@ class ParticipantService(Service):
             self.views[DEFAULT_VIEW] = View(DEFAULT_VIEW, view_mm[0], view_mm[1], "mm", view_mm[0], view_mm[1])
         self.screen = screen
         self.waiting_for = awaited
+        self.adjusted = screen.get("level") if screen.get("mode") == "adjustment" else None
+        self.applied(None)
         if self.controller is not None:
             self.controller.send(screen, push=True)
 
@@ -84,7 +95,10 @@ class ParticipantService(Service):
         had = self.controller
         welcome = super()._hello(session, message)
         if self.controller is session and had is not session:
-            asyncio.get_running_loop().call_soon(session.send, self.screen, True)  # after the welcome
+            screen = self.screen  # an adjustment's at the level set last, which the plate plays
+            if screen.get("mode") == "adjustment" and self.adjusted is not None:
+                screen = {**screen, "level": self.adjusted}
+            asyncio.get_running_loop().call_soon(session.send, screen, True)  # after the welcome
             self.events.put((BACK,))
         return welcome
 
@@ -101,7 +115,11 @@ class ParticipantService(Service):
                                   "answer")
         mode = self.screen.get("mode")
         button, value = message.get("button"), message.get("value")
-        if mode == "magnitude":
+        if mode == "adjustment":
+            if value is None or button is not None or value != self.adjusted:
+                raise p.ProtocolError(p.BAD_MESSAGE, f"participant.answer: an adjustment's answer is its 'value', "
+                                      f"the level set last ({self.adjusted!r})")
+        elif mode == "magnitude":
             if value is None or button is not None:
                 raise p.ProtocolError(p.BAD_MESSAGE, "participant.answer: a magnitude estimate is a 'value' (a "
                                       "number from 0)")
@@ -114,6 +132,34 @@ class ParticipantService(Service):
         self._lift(time.perf_counter())
         self.events.put(("answer", trial, button, value, message["rt_s"], time.perf_counter()))
         return {"trial": trial}
+
+    def _on_participant_adjust(self, session, message: p.Message):
+        trial, level = message["trial"], message["level"]
+        if self.waiting_for != ("answer", trial) or self.screen.get("mode") != "adjustment":
+            raise p.ProtocolError(p.BAD_MESSAGE, f"participant.adjust: trial {trial} is not an adjustment awaiting "
+                                  "its answer")
+        low, high = self.screen["range"]
+        if not low <= level <= high:
+            raise p.ProtocolError(p.BAD_MESSAGE, f"participant.adjust: 'level' must be from {low:g} to {high:g}")
+        self.adjusted = level
+        waiter = asyncio.get_running_loop().create_future()
+        self._adjust_waiters.append(waiter)
+        self.events.put(("adjust", trial))
+        return self._adjust_reply(trial, waiter)
+
+    async def _adjust_reply(self, trial: int, waiter: asyncio.Future) -> dict:
+        level = await waiter
+        if level is None:
+            raise p.ProtocolError(p.BAD_MESSAGE, f"participant.adjust: trial {trial} ended before its level played")
+        return {"trial": trial, "level": level}
+
+    def applied(self, level: float | None) -> None:
+        """The engine plays the adjustment at ``level``: every adjust request waiting is answered with it (None: the
+        trial is over, they are refused). Called on the loop."""
+        waiters, self._adjust_waiters = self._adjust_waiters, []
+        for waiter in waiters:
+            if not waiter.done():
+                waiter.set_result(level)
 
     def _on_participant_continue(self, session, message: p.Message) -> dict:
         trial = message["trial"]

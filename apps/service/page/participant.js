@@ -1,7 +1,9 @@
 // The participant's page (`ultraglide experiment run DESIGN.toml --serve`): each trial's zones drawn at their size
 // in mm, touches on them sent as the service's touch messages (mm from the trial's area's top-left corner), the
-// question with the design's labels as buttons (a number field for magnitude estimation), breaks with a button.
-// The reaction time runs from the frame that presents the trial (performance.now()) to the button's press.
+// question with the design's labels as buttons (a number field for magnitude estimation; −, + and a slider for the
+// method of adjustment, whose every level the plate plays before the page is told), breaks with a button.
+// Keys answer as at the window (apps/experiment/window.py, design_window.py); the hint line under the buttons says
+// which. The reaction time runs from the frame that presents the trial (performance.now()) to the answer.
 // ?mm_per_px=N gives the screen's pitch (default: CSS's 96 px per inch, 0.2646 mm); ?token=... as printed.
 import { connect } from "./ultraglide.js";
 
@@ -12,7 +14,9 @@ const suffix = token ? `?token=${encodeURIComponent(token)}` : "";
 const $ = (id) => document.getElementById(id);
 const plate = $("plate"), answers = $("answers"), note = $("note");
 
-const state = { ready: false, ended: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [] };
+const state = { ready: false, ended: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [],
+                level: null, applied: null };
+const adjusting = { sending: null, idle: [] }; // the adjust request in flight; who waits for the last to play
 window.participant = state;
 let connection = null;
 let pointer = null; // the pointer that drives: {id, inside}
@@ -23,13 +27,94 @@ function clear() {
   plate.style.width = plate.style.height = "0px";
   $("question").textContent = "";
   $("progress").textContent = "";
+  $("keys").textContent = "";
 }
 
 function button(label, onPress) {
   const element = document.createElement("button");
   element.textContent = label;
+  element.tabIndex = -1; // never focused: Enter and space are the page's keys, not a focused button's click
   element.addEventListener("click", onPress);
   return element;
+}
+
+// the hint line: the keys that answer, as at the window
+function keysHint(screen) {
+  const n = screen.labels.length;
+  switch (screen.mode) {
+    case "choice": return `Keys: 1–${n} (or ← / →) answer.`;
+    case "yes_no": return "Keys: Y for yes, N for no.";
+    case "pair": return "Keys: S for same, D for different.";
+    case "rating": return `Keys: 1–${Math.min(n, 9)} for the scale's points, from its low end.`;
+    case "magnitude": return "Keys: type the number, Enter gives it.";
+    case "adjustment": return "Keys: ← or − down, → or + up (1 dB a step), Enter gives it.";
+    default: return "";
+  }
+}
+
+// ---- the method of adjustment: the level the page sets, sent one request at a time (the latest wins) --------------
+const clampLevel = (screen, level) => Math.min(Math.max(level, screen.range[0]), screen.range[1]);
+const sliderDb = (screen, level) => 20 * Math.log10(level / screen.range[0]);
+
+function setLevel(screen, level) {
+  if (state.screen !== screen || state.shownAt === null) return;
+  state.level = clampLevel(screen, level);
+  const slider = $("level");
+  if (slider) slider.value = String(sliderDb(screen, state.level));
+  if (!adjusting.sending) sendLevel(screen);
+}
+
+function step(screen, direction) { // the window's: one step_db up or down, within the range
+  if (state.level !== null) setLevel(screen, state.level * 10 ** (direction * screen.step_db / 20));
+}
+
+async function sendLevel(screen) {
+  while (state.screen === screen && state.level !== state.applied) {
+    const level = state.level;
+    adjusting.sending = connection.request("participant.adjust", { trial: screen.trial, level });
+    try {
+      const reply = await adjusting.sending;
+      if (state.screen === screen) state.applied = reply.level;
+    } catch (error) {
+      state.errors.push(error.message);
+      note.textContent = error.message;
+      break;
+    } finally {
+      adjusting.sending = null;
+    }
+  }
+  for (const resolve of adjusting.idle.splice(0)) resolve();
+}
+
+async function settled() { // the last level set, played
+  if (adjusting.sending) await new Promise((resolve) => adjusting.idle.push(resolve));
+}
+
+function showAdjustment(screen) {
+  state.level = state.applied = screen.level; // the plate plays it already (a reconnected page: the level set last)
+  const [down, up, ok] = screen.labels;
+  const slider = document.createElement("input");
+  slider.type = "range";
+  slider.id = "level";
+  slider.min = "0";
+  slider.max = String(sliderDb(screen, screen.range[1]));
+  slider.step = "any";
+  slider.value = String(sliderDb(screen, screen.level));
+  slider.addEventListener("input", () => setLevel(screen, screen.range[0] * 10 ** (Number(slider.value) / 20)));
+  const go = async () => {
+    if (state.screen !== screen || state.shownAt === null) return;
+    await settled();
+    answer(screen, { value: state.level });
+  };
+  answers.style.position = "static";
+  answers.style.width = answers.style.height = "";
+  const row = document.createElement("div");
+  row.className = "adjust";
+  row.append(button(down, () => step(screen, -1)), slider, button(up, () => step(screen, +1)));
+  const confirm = button(ok, go);
+  confirm.id = "confirm";
+  answers.append(row, confirm);
+  screen.confirm = go;
 }
 
 function showTrial(screen) {
@@ -50,7 +135,10 @@ function showTrial(screen) {
     plate.append(element);
   });
   const send = (fields) => answer(screen, fields);
-  if (screen.mode === "magnitude") {
+  $("keys").textContent = keysHint(screen);
+  if (screen.mode === "adjustment") {
+    showAdjustment(screen);
+  } else if (screen.mode === "magnitude") {
     const field = document.createElement("input");
     field.type = "text";
     field.inputMode = "decimal";
@@ -64,9 +152,14 @@ function showTrial(screen) {
       }
       send({ value });
     };
-    field.addEventListener("keydown", (event) => { if (event.key === "Enter") go(); });
+    field.addEventListener("keydown", (event) => {
+      if (event.key === "Enter") go();
+      event.stopPropagation(); // typed into the field itself, not the page's keys
+    });
     answers.style.position = "static";
+    answers.style.width = answers.style.height = "";
     answers.append(field, button("OK", go));
+    screen.confirm = go;
   } else if (screen.mode === "choice") { // a button under each zone
     answers.style.position = "relative";
     answers.style.width = plate.style.width;
@@ -92,6 +185,7 @@ async function answer(screen, fields) {
   const rt_s = (performance.now() - state.shownAt) / 1000;
   state.screen = null;
   for (const element of answers.querySelectorAll("button, input")) element.disabled = true;
+  document.activeElement?.blur?.();
   lift(performance.now());
   try {
     await connection.request("participant.answer", { trial: screen.trial, rt_s, ...fields });
@@ -119,10 +213,54 @@ function showBreak(screen) {
   };
 }
 
-addEventListener("keydown", (event) => { // a break's button by the keyboard too (space or Enter)
-  if ((event.key === " " || event.key === "Enter") && state.screen?.type === "participant.break") {
+// ---- keys: as the window's (window.py, design_window.py) --------------------------------------------------------
+function keyAnswer(screen, key) { // what the key does on this trial's screen: true if it did something
+  const n = screen.labels.length;
+  const digit = /^[1-9]$/.test(key) ? Number(key) : null;
+  const press = (index) => { answer(screen, { button: index }); return true; };
+  switch (screen.mode) {
+    case "choice":
+      if (digit !== null && digit <= n) return press(digit - 1);
+      if (key === "ArrowLeft") return press(0);
+      if (key === "ArrowRight") return press(n - 1);
+      return false;
+    case "yes_no": // Yes is the first button
+      if (key === "y" || key === "Y") return press(0);
+      if (key === "n" || key === "N") return press(1);
+      return false;
+    case "pair":
+      if (key === "s" || key === "S") return press(0);
+      if (key === "d" || key === "D") return press(1);
+      return false;
+    case "rating":
+      return digit !== null && digit <= n ? press(digit - 1) : false;
+    case "adjustment":
+      if (key === "ArrowLeft" || key === "-") { step(screen, -1); return true; }
+      if (key === "ArrowRight" || key === "+" || key === "=") { step(screen, +1); return true; }
+      if (key === "Enter") { screen.confirm(); return true; }
+      return false;
+    case "magnitude": { // typed into the number field wherever the focus is
+      const field = $("estimate");
+      if (key === "Enter") { screen.confirm(); return true; }
+      if (key === "Backspace") { field.value = field.value.slice(0, -1); return true; }
+      if (/^[0-9.,]$/.test(key) && field.value.length < 12) { field.value += key; return true; }
+      return false;
+    }
+    default:
+      return false;
+  }
+}
+
+addEventListener("keydown", (event) => {
+  const screen = state.screen;
+  if (!screen || event.repeat || event.ctrlKey || event.metaKey || event.altKey) return;
+  if (screen.type === "participant.break") { // a break's button by the keyboard too (space or Enter)
+    if (event.key === " " || event.key === "Enter") {
+      event.preventDefault();
+      $("breakButton").click();
+    }
+  } else if (screen.type === "participant.trial" && state.shownAt !== null && keyAnswer(screen, event.key)) {
     event.preventDefault();
-    $("breakButton").click();
   }
 });
 
