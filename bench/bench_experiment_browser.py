@@ -1,12 +1,19 @@
-"""How long a participant in a browser waits between an answer and the next trial (``experiment run --serve``).
+"""How long a participant in a browser waits between an answer and the next trial (``experiment run --serve``),
+and how soon a level set in the method of adjustment is played (``--adjust N``).
 
 Run: .venv/bin/python bench/bench_experiment_browser.py [--trials 40] [--device sim]
+     .venv/bin/python bench/bench_experiment_browser.py --adjust 100 [--device sim]
 
 A real ``ultraglide experiment run DESIGN.toml --serve`` process (the engine on the device, the service listening)
 and a page's messages from a real WebSocket client in this process, which answers each trial as soon as it is shown.
 For each trial after the first: the time from the answer sent to the next ``participant.trial`` received (the
 runner logs the row, builds the next trial's texture, hands it to the engine, and the page is told), in ms. The
 design: the tutorial's two gratings (1 mm and 2 mm, contrast 0.3) in 2-AFC, 40 mm zones.
+
+With ``--adjust N``: one adjustment trial (the 2 mm grating matched to the 1 mm one, contrast 0.02-0.6, 40 mm
+zones); the client sets N levels one after another, each 1 dB from the last (up, then down at the range's top), and
+times each ``participant.adjust`` from sent to answered: the session has composed the trial's texture with the
+adjusted zone at that level and handed it to the engine, which plays it (what a finger on the zone waits for).
 """
 
 from __future__ import annotations
@@ -48,11 +55,78 @@ repeats = {repeats}
 """
 
 
+ADJUST_DESIGN = DESIGN.split("[[conditions]]")[0] + """
+[[conditions]]
+name = "match"
+stimulus = "coarse"
+reference = "fine"
+range = [0.02, 0.6]
+
+[[blocks]]
+name = "main"
+task = "adjustment"
+conditions = ["match"]
+repeats = 1
+"""
+
+
+def adjust(args) -> None:
+    from websockets.sync.client import connect
+
+    with tempfile.TemporaryDirectory() as folder:
+        design = pathlib.Path(folder) / "design.toml"
+        design.write_text(ADJUST_DESIGN, encoding="utf-8")
+        process = subprocess.Popen([sys.executable, "-m", "ultraglide", "experiment", "run", str(design),
+                                    "--participant", "P01", "--out", str(pathlib.Path(folder) / "out"), "--serve",
+                                    "--port", "0", "--device", args.device, "--json", "--accept-check"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        try:
+            address = json.loads(process.stdout.readline())
+            origin = address["page"].split("?")[0].rstrip("/")
+            times = []
+            with connect(address["url"], proxy=None, origin=origin, open_timeout=60) as ws:
+                ws.send(json.dumps({"type": "hello", "id": 0, "protocol": 1}))
+                while True:
+                    screen = json.loads(ws.recv(timeout=120))
+                    if screen.get("type") == "participant.trial":
+                        break
+                level, (low, high), direction = screen["level"], screen["range"], 1
+                for number in range(1, args.adjust + 1):
+                    stepped = level * 10 ** (direction / 20)
+                    if not low <= stepped <= high:
+                        direction = -direction
+                        stepped = level * 10 ** (direction / 20)
+                    level = stepped
+                    sent = time.perf_counter()
+                    ws.send(json.dumps({"type": "participant.adjust", "id": number, "trial": screen["trial"],
+                                        "level": level}))
+                    while True:
+                        reply = json.loads(ws.recv(timeout=120))
+                        if reply.get("id") == number:
+                            break
+                    assert reply["type"] == "ok" and reply["level"] == level, reply
+                    times.append((time.perf_counter() - sent) * 1e3)
+                ws.send(json.dumps({"type": "participant.answer", "id": 0, "trial": screen["trial"], "value": level,
+                                    "rt_s": 1.0}))
+                status = process.wait(120)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    ms = np.asarray(times)
+    print(f"{args.adjust} levels set on {args.device}, exit {status}: from participant.adjust sent to the level "
+          f"played p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=40)
+    parser.add_argument("--adjust", type=int, default=0, metavar="N",
+                        help="time N levels set in one adjustment trial instead")
     parser.add_argument("--device", default="sim")
     args = parser.parse_args()
+    if args.adjust:
+        adjust(args)
+        return
     from websockets.sync.client import connect
 
     with tempfile.TemporaryDirectory() as folder:

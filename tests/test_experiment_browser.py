@@ -1,7 +1,9 @@
 """A participant in a browser: ``ultraglide experiment run DESIGN.toml --serve`` as a real process, its page in a
-real headless Chromium (Debian's ``chromium`` and ``chromium-driver``, CDP's touch events through Selenium), or a
-real WebSocket client where only the lifecycle is at stake: the trial's stimulus is felt under the synthesized
-finger (the engine's envelope record), trials.csv holds the buttons pressed with the page's reaction times, a page
+real headless Chromium (Debian's ``chromium`` and ``chromium-driver``, CDP's touch, mouse and key events through
+Selenium: tests/chromium_cdp.py), or a real WebSocket client where only the lifecycle is at stake: the trial's
+stimulus is felt under the synthesized finger (the engine's envelope record), and in the method of adjustment each
+level set under the finger held, trials.csv holds the buttons and keys pressed with the page's reaction times and
+the level an adjustment gave, a page
 that closes is waited for and the session resumes or stops with its files complete, a stop signal leaves the plate
 at rest and the files complete, and a bad token or origin is refused."""
 
@@ -567,6 +569,49 @@ def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_an
             felt.append(float(ratio))
     assert felt == pytest.approx([1.0 - level for level in levels], abs=0.005), (levels, runs)
     assert under["commanded_um_pp"].max() > 0.5  # felt: the plate played it
+
+
+def test_an_adjustment_s_levels_are_checked_and_a_page_that_comes_back_shows_the_level_set(tmp_path, design):
+    values = np.full((20, 20), 0.3, dtype=np.float32)
+    values[:2, :2] = 0.9
+    save_texture(Texture(values, 20.0, 20.0, name="patch"), tmp_path / "patch.png")
+    design.write_text(ADJUST_DESIGN.replace("repeats = 2\n", "repeats = 1\n"), encoding="utf-8")
+    out = tmp_path / "p01"
+    session = Session(design, out, "--accept-check", "--reconnect-timeout-s", "120")
+    try:
+        page = Page(session.address)
+        page.screen("participant.trial", 1)  # 2-AFC: no level to set
+        refused = page.ask("participant.adjust", trial=1, level=0.2)
+        assert refused["type"] == "error" and "trial 1 is not an adjustment awaiting its answer" in refused["message"]
+        assert page.ask("participant.answer", trial=1, button=0, rt_s=0.5)["type"] == "ok"
+        for number in (2, 3):  # a break before each new block
+            page.screen("participant.break", number)
+            assert page.ask("participant.continue", trial=number)["type"] == "ok"
+            if number == 2:
+                page.screen("participant.trial", 2)
+                assert page.ask("participant.answer", trial=2, button=2, rt_s=0.5)["type"] == "ok"
+        shown = page.screen("participant.trial", 3)
+        assert shown["mode"] == "adjustment" and shown["range"] == [0.05, 0.6]
+        for level in (0.01, 0.61):
+            refused = page.ask("participant.adjust", trial=3, level=level)
+            assert refused["type"] == "error" and "'level' must be from 0.05 to 0.6" in refused["message"]
+        played = page.ask("participant.adjust", trial=3, level=0.25)
+        assert played["type"] == "ok" and played["level"] == 0.25  # answered once the engine plays it
+        refused = page.ask("participant.answer", trial=3, value=0.3, rt_s=1.0)  # not the level set
+        assert refused["type"] == "error" and "the level set last (0.25)" in refused["message"]
+        page.close()
+        session.wait_said("the participant's page closed during trial 3")
+        page = Page(session.address)
+        again = page.screen("participant.trial", 3)
+        assert again == {**shown, "level": 0.25}  # shown again at the level the plate plays
+        assert page.ask("participant.answer", trial=3, value=0.25, rt_s=2.0)["type"] == "ok"
+        status, _ = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    rows = trials_csv(out)
+    assert rows[2]["task"] == "adjustment" and float(rows[2]["response"]) == 0.25
+    assert rows[2]["response_label"] == "0.25" and float(rows[2]["level"]) == shown["level"]
 
 
 def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, design):

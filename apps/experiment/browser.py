@@ -8,6 +8,12 @@ buttons (a number field for magnitude estimation) and sends the participant's to
 messages (the same path as any client's: the friction under the finger is the trial's stimulus). The answer and
 the reaction time come back as an :class:`~ultraglide.experiment.responders.Answer`.
 
+The method of adjustment, as the window's (:mod:`ultraglide.apps.experiment.design_window`): the page's −/+ buttons
+and keys step the second zone's contrast by :data:`ADJUST_STEP_DB` within the condition's range, its slider sets
+it anywhere in the range; each level the page sets (``participant.adjust``) goes to the engine as the trial's
+texture with that zone at that level (the presentation's ``texture_at``) before the page is answered, so the
+finger on it feels each step; OK or Enter gives the level set, the answer's ``response``.
+
 Reaction time: measured on the page with ``performance.now()`` from the trial's presentation (the first frame the
 page draws with the trial's zones, as the window measures from its trial's first frame) to the button's press;
 a page that reconnects mid-trial shows the trial again and its time starts again.
