@@ -83,7 +83,7 @@ def pen_at(driver, x, y, seconds=0.2):
 # the DOM's key, code and Windows virtual key code of the keys the tests press
 KEYS = {"Enter": ("Enter", 13, "\r"), "ArrowLeft": ("ArrowLeft", 37, None), "ArrowRight": ("ArrowRight", 39, None),
         "Backspace": ("Backspace", 8, None), " ": ("Space", 32, " "), "-": ("Minus", 189, "-"),
-        "=": ("Equal", 187, "=")}
+        "=": ("Equal", 187, "="), ".": ("Period", 190, ".")}
 
 
 def press_key(driver, key):

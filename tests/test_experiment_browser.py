@@ -652,7 +652,15 @@ def test_a_python_script_runs_a_design_with_the_browser_responder(tmp_path, desi
     assert said and said[0].startswith("waiting for the participant's page: open http://127.0.0.1:")
 
 
-SECOND_DESIGN = DESIGN.split("[[blocks]]")[0] + """
+SECOND_DESIGN = DESIGN.split("[[blocks]]")[0].replace("[[conditions]]", """[stimuli.grating]
+texture = "grating-2mm"
+
+[[conditions]]
+name = "detect"
+stimulus = "grating"
+levels = [0.1, 0.5]
+
+[[conditions]]""", 1) + """
 [[blocks]]
 name = "pairs"
 task = "same_different"
@@ -669,17 +677,25 @@ repeats = 2
 modulus = 10.0
 modulus_stimulus = "high"
 question = "Combien ?"
+
+[[blocks]]
+name = "detection"
+task = "constant"
+conditions = ["detect"]
+intervals = 1
+repeats = 1
+labels = ["oui", "non"]
 """
 
 
 @browser_needed
-def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(tmp_path, design, browser):
+def test_same_different_buttons_and_keys_and_a_typed_magnitude_estimate_reach_trials_csv(tmp_path, design, browser):
     design.write_text(SECOND_DESIGN, encoding="utf-8")
     out = tmp_path / "p01"
     trials = plan(load_design(design), "P01")
-    assert [t.task for t in trials] == ["same_different"] * 4 + ["magnitude"] * 2
-    session = Session(design, out)
-    typed = {5: "12.5", 6: "3"}
+    assert [t.task for t in trials] == ["same_different"] * 4 + ["magnitude"] * 2 + ["constant"] * 2
+    session = Session(design, out, "--accept-check")
+    typed = {5: "12.5"}
     try:
         browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
         for trial in trials:
@@ -689,8 +705,20 @@ def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(
             screen = screen_shown(browser, "participant.trial", trial.number, session)
             if trial.task == "same_different":
                 assert screen["mode"] == "pair" and screen["labels"] == ["pareilles", "différentes"]
-                buttons = browser.execute_script(BOXES, "#answers button")
-                tap(browser, buttons[trial.number % 2])  # trials 1 and 3 "différentes", 2 and 4 "pareilles"
+                assert browser.execute_script("return document.getElementById('keys').textContent") == (
+                    "Keys: S for same, D for different.")
+                if trial.number <= 2:  # trials 1 and 3 "différentes", 2 and 4 "pareilles": buttons, then keys
+                    tap(browser, browser.execute_script(BOXES, "#answers button")[trial.number % 2])
+                else:
+                    press_key(browser, "d" if trial.number == 3 else "s")
+            elif trial.task == "constant":  # yes/no: Y, then N
+                assert screen["mode"] == "yes_no" and screen["labels"] == ["oui", "non"]
+                assert browser.execute_script("return document.getElementById('keys').textContent") == (
+                    "Keys: Y for yes, N for no.")
+                press_key(browser, "y" if trial.number == 7 else "n")
+            elif trial.number == 6:  # typed with the keys, the field never touched
+                for key in ("3", "Backspace", "4", ".", "5", "Enter"):
+                    press_key(browser, key)
             else:
                 assert screen["mode"] == "magnitude" and screen["question"] == "Combien ? (zone 1 = 10)"
                 assert browser.execute_script("return [...document.querySelectorAll('.zone')]"
@@ -715,7 +743,9 @@ def test_same_different_buttons_and_a_typed_magnitude_estimate_reach_trials_csv(
     assert [r["response_label"] for r in rows[:4]] == ["différentes", "pareilles", "différentes", "pareilles"]
     for row, trial in zip(rows[:4], trials[:4], strict=True):
         assert int(row["correct"]) == int((trial.number % 2 == 1) == bool(trial.target))
-    assert [float(r["response"]) for r in rows[4:]] == [12.5, 3.0]
+    assert [float(r["response"]) for r in rows[4:6]] == [12.5, 4.5]
+    assert [r["response"] for r in rows[6:]] == ["yes", "no"] and [r["response_label"] for r in rows[6:]] == [
+        "oui", "non"]
     assert all(math.isfinite(float(r["rt_s"])) and float(r["rt_s"]) > 0 for r in rows)
 
 
