@@ -53,6 +53,21 @@ def finger_up(driver):
     driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
 
 
+def second_finger(driver, held, path):
+    """A second finger along ``path`` ([(x, y), ...] CSS px: down at the first point, a move to each next one every
+    10 ms, lifted at the last) while the first stays down at ``held`` (put there by :func:`finger_down`)."""
+    first = {"x": held[0], "y": held[1], "radiusX": 5, "radiusY": 5, "force": 0.6, "id": 1}
+
+    def second(x, y):
+        return {"x": x, "y": y, "radiusX": 3, "radiusY": 3, "force": 0.5, "id": 2}
+
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": [first, second(*path[0])]})
+    for x, y in path[1:]:
+        time.sleep(0.01)
+        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": [first, second(x, y)]})
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": [second(*path[-1])]})
+
+
 def tap(driver, box):
     """A tap at the middle of ``box`` ({left, top, width, height} CSS px)."""
     x, y = box["left"] + box["width"] / 2, box["top"] + box["height"] / 2

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 import pytest
-from chromium_cdp import chromium, click, finger_down, finger_up, needed, press_key, tap, touch_at
+from chromium_cdp import chromium, click, finger_down, finger_up, needed, press_key, second_finger, tap, touch_at
 from conftest import run_cli, start_cli
 from service_run import read_envelope, read_line, rows_at, stop
 from ultraglide.textures.fileformat import save_texture
@@ -467,9 +467,10 @@ def answered(driver, count, timeout_s=60.0) -> None:
 def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_and_keys_answer(tmp_path, design,
                                                                                                browser):
     """The method of adjustment on the page: a finger held on the adjusted zone while keys, the + button (a mouse
-    click) and the slider set its contrast; each level is felt under the finger (the envelope record: the patch
-    texture's ratio, 1 - contrast, as zone_texture maps it), and trials.csv holds the level given with Enter, as the
-    window records it. The 2-AFC and rating trials before it are answered by keys alone."""
+    click), the − button and the slider (a second finger's tap and drag) set its contrast; each level is felt under
+    the finger (the envelope record: the patch texture's ratio, 1 - contrast, as zone_texture maps it), and
+    trials.csv holds the level given with Enter, as the window records it. The 2-AFC and rating trials before it
+    are answered by keys alone."""
     values = np.full((20, 20), 0.3, dtype=np.float32)
     values[:2, :2] = 0.9  # a bright corner: the rest of the zone is the texture's minimum, ratio 1 - contrast
     save_texture(Texture(values, 20.0, 20.0, name="patch"), tmp_path / "patch.png")
@@ -530,13 +531,17 @@ def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_an
         click(browser, plus["left"] + plus["width"] / 2, plus["top"] + plus["height"] / 2)  # the + button: 1 dB up
         levels.append(adjusted_level(browser, clamp(levels[-1] * STEP), session))
         hold()
-        press_key(browser, "-")  # 1 dB down
-        levels.append(adjusted_level(browser, clamp(levels[-1] / STEP), session))
+        minus = buttons["moins"]
+        second_finger(browser, (x, y), [(minus["left"] + minus["width"] / 2, minus["top"] + minus["height"] / 2)])
+        levels.append(adjusted_level(browser, clamp(levels[-1] / STEP), session))  # a tap on −: 1 dB down
         hold()
-        click(browser, slider["left"] + slider["width"] - 1, slider["top"] + slider["height"] / 2)  # the slider's end
+        thumb = browser.execute_script(BOXES, "#level .thumb")[0]
+        thumb_x, middle = thumb["left"] + thumb["width"] / 2, thumb["top"] + thumb["height"] / 2
+        path = [(thumb_x + (slider["left"] + slider["width"] + 30 - thumb_x) * i / 10, middle) for i in range(11)]
+        second_finger(browser, (x, y), path)  # the slider's thumb dragged past its end: the range's top
         levels.append(adjusted_level(browser, high, session))
         hold()
-        press_key(browser, "ArrowLeft")
+        press_key(browser, "-")  # 1 dB down
         levels.append(adjusted_level(browser, clamp(levels[-1] / STEP), session))
         hold()
         finger_up(browser)
@@ -567,7 +572,11 @@ def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_an
     for ratio, count in runs:
         if count >= 20 and (not felt or abs(felt[-1] - ratio) > 1e-4):  # a level held, not a passing row
             felt.append(float(ratio))
-    assert felt == pytest.approx([1.0 - level for level in levels], abs=0.005), (levels, runs)
+    wanted = [1.0 - level for level in levels]
+    assert felt[:4] == pytest.approx(wanted[:4], abs=0.005), (levels, runs)
+    assert felt[-2:] == pytest.approx(wanted[-2:], abs=0.005), (levels, runs)
+    passed = felt[4:-2]  # the levels the slider passed through on its way to the top, each lower in friction
+    assert passed == sorted(passed, reverse=True) and all(wanted[4] < r < wanted[3] for r in passed), (levels, runs)
     assert under["commanded_um_pp"].max() > 0.5  # felt: the plate played it
 
 

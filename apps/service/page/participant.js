@@ -24,17 +24,22 @@ let pointer = null; // the pointer that drives: {id, inside}
 function clear() {
   plate.replaceChildren();
   answers.replaceChildren();
+  answers.style.pointerEvents = "";
   plate.style.width = plate.style.height = "0px";
   $("question").textContent = "";
   $("progress").textContent = "";
   $("keys").textContent = "";
 }
 
-function button(label, onPress) {
+function button(label, onPress) { // pressed as the window's are: at the finger's (or the mouse button's) down
   const element = document.createElement("button");
   element.textContent = label;
-  element.tabIndex = -1; // never focused: Enter and space are the page's keys, not a focused button's click
-  element.addEventListener("click", onPress);
+  element.tabIndex = -1; // never focused: Enter and space are the page's keys, not a focused button's
+  element.addEventListener("pointerdown", (event) => { // a second finger too (a finger held on a zone makes
+    if (event.button !== 0 || element.disabled) return; // the browser's click a two-finger gesture: none)
+    event.preventDefault();
+    onPress();
+  });
   return element;
 }
 
@@ -55,12 +60,19 @@ function keysHint(screen) {
 // ---- the method of adjustment: the level the page sets, sent one request at a time (the latest wins) --------------
 const clampLevel = (screen, level) => Math.min(Math.max(level, screen.range[0]), screen.range[1]);
 const sliderDb = (screen, level) => 20 * Math.log10(level / screen.range[0]);
+const THUMB_PX = 48; // the slider's thumb, as wide as a fingertip
+
+function placeThumb(screen) {
+  const slider = $("level");
+  if (!slider) return;
+  const fraction = sliderDb(screen, state.level) / sliderDb(screen, screen.range[1]);
+  slider.querySelector(".thumb").style.left = `calc(${fraction} * (100% - ${THUMB_PX}px))`;
+}
 
 function setLevel(screen, level) {
   if (state.screen !== screen || state.shownAt === null) return;
   state.level = clampLevel(screen, level);
-  const slider = $("level");
-  if (slider) slider.value = String(sliderDb(screen, state.level));
+  placeThumb(screen);
   if (!adjusting.sending) sendLevel(screen);
 }
 
@@ -93,14 +105,33 @@ async function settled() { // the last level set, played
 function showAdjustment(screen) {
   state.level = state.applied = screen.level; // the plate plays it already (a reconnected page: the level set last)
   const [down, up, ok] = screen.labels;
-  const slider = document.createElement("input");
-  slider.type = "range";
+  // the slider: the level in dB above the range's low end, left to right; dragged by pointer events (a second
+  // finger while one rests on a zone, which a native range input would take for a two-finger gesture)
+  const slider = document.createElement("div");
   slider.id = "level";
-  slider.min = "0";
-  slider.max = String(sliderDb(screen, screen.range[1]));
-  slider.step = "any";
-  slider.value = String(sliderDb(screen, screen.level));
-  slider.addEventListener("input", () => setLevel(screen, screen.range[0] * 10 ** (Number(slider.value) / 20)));
+  slider.className = "slider";
+  const track = document.createElement("div");
+  track.className = "track";
+  const thumb = document.createElement("div");
+  thumb.className = "thumb";
+  slider.append(track, thumb);
+  let dragging = null;
+  const follow = (event) => {
+    const box = slider.getBoundingClientRect();
+    const fraction = Math.min(Math.max((event.clientX - box.left - THUMB_PX / 2) / (box.width - THUMB_PX), 0), 1);
+    setLevel(screen, screen.range[0] * 10 ** (fraction * sliderDb(screen, screen.range[1]) / 20));
+  };
+  slider.addEventListener("pointerdown", (event) => {
+    if (dragging !== null || event.button !== 0) return;
+    event.preventDefault();
+    dragging = event.pointerId;
+    slider.setPointerCapture?.(event.pointerId);
+    follow(event);
+  });
+  slider.addEventListener("pointermove", (event) => { if (event.pointerId === dragging) follow(event); });
+  for (const kind of ["pointerup", "pointercancel"]) {
+    slider.addEventListener(kind, (event) => { if (event.pointerId === dragging) dragging = null; });
+  }
   const go = async () => {
     if (state.screen !== screen || state.shownAt === null) return;
     await settled();
@@ -115,6 +146,7 @@ function showAdjustment(screen) {
   confirm.id = "confirm";
   answers.append(row, confirm);
   screen.confirm = go;
+  placeThumb(screen);
 }
 
 function showTrial(screen) {
@@ -185,6 +217,7 @@ async function answer(screen, fields) {
   const rt_s = (performance.now() - state.shownAt) / 1000;
   state.screen = null;
   for (const element of answers.querySelectorAll("button, input")) element.disabled = true;
+  answers.style.pointerEvents = "none"; // the slider too, till the next screen
   document.activeElement?.blur?.();
   lift(performance.now());
   try {
