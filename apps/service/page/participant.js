@@ -47,7 +47,7 @@ function button(label, onPress) { // pressed as the window's are: at the finger'
 function keysHint(screen) {
   const n = screen.labels.length;
   switch (screen.mode) {
-    case "choice": return `Keys: 1–${n} (or ← / →) answer.`;
+    case "choice": return `Keys: 1–${Math.min(n, 9)} (or ← / →) answer.`;
     case "yes_no": return "Keys: Y for yes, N for no.";
     case "pair": return "Keys: S for same, D for different.";
     case "rating": return `Keys: 1–${Math.min(n, 9)} for the scale's points, from its low end.`;
