@@ -36,6 +36,7 @@ fi
 # the tree as git sees it (committed or added), over any earlier copy; mutmut's cache stays
 git ls-files -z | xargs -0 cp -P --parents -t "$work"  # -P: the tracked links (ultraglide/apps ...) as links
 cp scripts/mutmut_config.py "$work/mutmut_config.py"
+cp devices/firmware/_sil*.so "$work/devices/firmware/"  # the firmware core's binding, built, not tracked
 for folder in render textures devices apps; do ln -sfn "$work/$folder" "$work/ultraglide/$folder"; done
 cd "$work"
 export PYTHONPATH="$work"   # the copy's ultraglide/, now holding the whole namespace, comes before the editable install
