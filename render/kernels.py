@@ -21,11 +21,57 @@ def envelope(target, gate_open, open_all, gain, goal, up_step, down_step, k, smo
              precompensate, alpha, drive_max, plate, amplitude_out, drive_out, plate_out):
     """Gate → one-pole smoother → limit → pre-compensation (or plain drive), sample by sample.
 
-    ``gate_open`` holds 0/1 per sample unless ``open_all`` is 0 or 1 (the same for all samples).
-    Returns (gain, goal, smoothed, plate, ramps started, drive samples clipped).
     The plate model is a[n] = alpha a[n-1] + (1 - alpha) d[n]; pre-compensation drives
     d[n] = (y[n] - alpha a[n-1]) / (1 - alpha) clipped to [0, drive_max], so the modelled plate
     never exceeds the smoothed target (on a rise) or its previous value (on a fall): never the limit.
+
+    Parameters
+    ----------
+    target : numpy.ndarray of float64
+        The amplitude wanted, µm peak-to-peak, one a control sample.
+    gate_open : numpy.ndarray of uint8
+        1 where the finger touches, per sample; read only when ``open_all`` is -1.
+    open_all : int
+        1 or 0: the gate is the same for every sample; -1: read ``gate_open``.
+    gain, goal : float
+        The gate's gain (0 to 1) and where it is heading, before the first sample.
+    up_step, down_step : float
+        The gate's rise and fall per sample.
+    k : float
+        The smoother's coefficient per sample (1: no smoothing).
+    smoothed : float
+        The smoother's state before the first sample, µm peak-to-peak.
+    limit : float
+        The amplitude the plate may not exceed, µm peak-to-peak.
+    precompensate : bool
+        Drive the plate model onto the smoothed target (True) or drive the target itself.
+    alpha : float
+        The plate model's pole per sample, 0 <= alpha < 1.
+    drive_max : float
+        The largest drive, µm peak-to-peak.
+    plate : float
+        The plate model before the first sample, µm peak-to-peak.
+    amplitude_out, drive_out, plate_out : numpy.ndarray of float64
+        Filled with the limited target, the drive and the modelled plate, µm peak-to-peak.
+
+    Returns
+    -------
+    tuple
+        (gain, goal, smoothed, plate, ramps started, drive samples clipped), the state to carry to the next
+        block and two counts.
+
+    Examples
+    --------
+    A step from 4 µm to 10 µm under a 6 µm limit, the plate model halfway to its drive each sample
+    (alpha 0.5): pre-compensation drives 8 µm to reach 4 µm at once, and the plate never passes 6 µm:
+
+    >>> import numpy as np
+    >>> amplitude, drive, plate = np.empty(4), np.empty(4), np.empty(4)
+    >>> envelope(np.array([4.0, 4.0, 10.0, 10.0]), np.zeros(0, dtype=np.uint8), 1, 1.0, 1.0, 0.1, 0.1, 1.0,
+    ...          0.0, 6.0, True, 0.5, 8.0, 0.0, amplitude, drive, plate)
+    (1.0, 1.0, 10.0, 6.0, 0, 0)
+    >>> amplitude.tolist(), drive.tolist(), plate.tolist()
+    ([4.0, 4.0, 6.0, 6.0], [8.0, 4.0, 8.0, 6.0], [4.0, 4.0, 6.0, 6.0])
     """
     ramps = 0
     clipped = 0
@@ -61,9 +107,49 @@ def envelope(target, gate_open, open_all, gain, goal, up_step, down_step, k, smo
 @njit(cache=True, nogil=True)
 def swipe_path(kind, times, duration_s, speed_mm_s, x0, y0, cos_h, sin_h, radius_mm, width_mm, pitch_mm,
                x_out, y_out, down_out):
-    """Positions (mm) along a constant-speed path at ``times`` (s; held at the ends), and whether the
-    finger touches: kind 0 straight, 1 circle (from its left, counter-clockwise on screen), 2 zig-zag
-    (back and forth over ``width_mm``, stepping ``pitch_mm`` sideways at each end). One pass."""
+    """Positions along a constant-speed path at ``times`` (held at the ends), and whether the finger touches.
+
+    Kind 0 straight, 1 circle (from its left, counter-clockwise on screen), 2 zig-zag (back and forth over
+    ``width_mm``, stepping ``pitch_mm`` sideways at each end). One pass.
+
+    Parameters
+    ----------
+    kind : int
+        0 straight, 1 circle, 2 zig-zag.
+    times : numpy.ndarray of float64
+        The times, s from the swipe's start.
+    duration_s : float
+        The swipe's length in time, s.
+    speed_mm_s : float
+        The finger's speed, mm/s.
+    x0, y0 : float
+        Where the swipe starts, mm.
+    cos_h, sin_h : float
+        The cosine and sine of the heading (straight and zig-zag).
+    radius_mm, width_mm, pitch_mm : float
+        The circle's radius; the zig-zag's width and its step sideways, mm.
+    x_out, y_out : numpy.ndarray of float64
+        Filled with the positions, mm.
+    down_out : numpy.ndarray of bool
+        Filled with whether the finger touches (0 <= time <= ``duration_s``).
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    At 10 mm/s for 1 s to the right, then a zig-zag 4 mm wide stepping 1 mm at each end:
+
+    >>> import numpy as np
+    >>> x, y, down = np.empty(4), np.empty(4), np.empty(4, dtype=np.bool_)
+    >>> swipe_path(0, np.array([0.0, 0.5, 1.0, 2.0]), 1.0, 10.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, x, y, down)
+    >>> x.tolist(), y.tolist(), down.tolist()
+    ([0.0, 5.0, 10.0, 10.0], [0.0, 0.0, 0.0, 0.0], [True, True, True, False])
+    >>> swipe_path(2, np.array([0.0, 0.2, 0.6, 1.0]), 1.0, 10.0, 0.0, 0.0, 1.0, 0.0, 1.0, 4.0, 1.0, x, y, down)
+    >>> x.tolist(), y.tolist()
+    ([0.0, 2.0, 2.0, 2.0], [0.0, 0.0, 1.0, 2.0])
+    """
     for i in range(times.shape[0]):
         t = times[i]
         down_out[i] = 0.0 <= t <= duration_s
@@ -123,13 +209,55 @@ def _hermite(t, v, k, last):
 
 @njit(cache=True, nogil=True)
 def recorded_path(t, x, y, force, has_force, start_s, end_s, times, x_out, y_out, force_out, down_out):
-    """A recorded path at ``times`` (s) in one pass. Each time is held within [``start_s``, ``end_s``] (the
-    finger touches where it lay within); the position there is the monotone piecewise-cubic (PCHIP)
-    interpolation of records ``t`` (increasing, at least two; the times within ``t[0]..t[-1]``), ``x``,
-    ``y``: what scipy's PchipInterpolator over the same records gives (the same slopes, the same Horner
-    form), without building an interpolator per block, each interval's slopes from its neighbours alone
-    (PCHIP is local). The force (N) is interpolated linearly between records as ``numpy.interp`` does it,
-    to the bit (NaN without one). Returns the record interval of the last time."""
+    """A recorded path at ``times`` in one pass: PCHIP positions, the force linear between records.
+
+    Each time is held within [``start_s``, ``end_s``] (the finger touches where it lay within); the position
+    there is the monotone piecewise-cubic (PCHIP) interpolation of records ``t`` (increasing, at least two;
+    the times within ``t[0]..t[-1]``), ``x``, ``y``: what scipy's PchipInterpolator over the same records
+    gives (the same slopes, the same Horner form), without building an interpolator per block, each
+    interval's slopes from its neighbours alone (PCHIP is local). The force is interpolated linearly
+    between records as ``numpy.interp`` does it, to the bit (NaN without one).
+
+    Parameters
+    ----------
+    t : numpy.ndarray of float64
+        The records' times, s, increasing.
+    x, y : numpy.ndarray of float64
+        The records' positions, mm.
+    force : numpy.ndarray of float64
+        The records' normal force, N (read only with ``has_force``).
+    has_force : bool
+        Whether the recording has a force.
+    start_s, end_s : float
+        When the finger touches, s.
+    times : numpy.ndarray of float64
+        The times wanted, s.
+    x_out, y_out : numpy.ndarray of float64
+        Filled with the positions, mm.
+    force_out : numpy.ndarray of float64
+        Filled with the force, N (NaN without one).
+    down_out : numpy.ndarray of bool
+        Filled with whether the finger touches.
+
+    Returns
+    -------
+    int
+        The record interval of the last time.
+
+    Examples
+    --------
+    Records on a straight line (x = t, y = 2t, mm) interpolate to the line; the force is linear between its
+    records and held after the last:
+
+    >>> import numpy as np
+    >>> t = np.array([0.0, 1.0, 3.0])
+    >>> x, y, force, down = np.empty(3), np.empty(3), np.empty(3), np.empty(3, dtype=np.bool_)
+    >>> recorded_path(t, t, 2 * t, np.array([1.0, 2.0, 2.0]), True, 0.0, 3.0, np.array([0.5, 2.0, 4.0]),
+    ...               x, y, force, down)
+    1
+    >>> x.tolist(), y.tolist(), force.tolist(), down.tolist()
+    ([0.5, 2.0, 3.0], [1.0, 4.0, 6.0], [1.5, 2.0, 2.0], [True, True, False])
+    """
     last = len(t) - 1
     k = 0
     cached = -1
@@ -175,9 +303,34 @@ def recorded_path(t, x, y, force, has_force, start_s, end_s, times, x_out, y_out
 
 @njit(cache=True, nogil=True)
 def motion(x, y, x_before, y_before, dx_out, dy_out, step_out):
-    """Each sample's move from the sample before (mm; the first from (``x_before``, ``y_before``), then, when
-    there are two samples or more, replaced by the second's: a jump between blocks is not motion), and its
-    length, as ``numpy.diff`` and ``numpy.hypot`` give them."""
+    """Each sample's move from the sample before, and its length, as ``numpy.diff`` and ``numpy.hypot`` give them.
+
+    The first move is from (``x_before``, ``y_before``), then, when there are two samples or more, replaced
+    by the second's: a jump between blocks is not motion.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray of float64
+        The block's positions, mm.
+    x_before, y_before : float
+        The position before the block, mm.
+    dx_out, dy_out, step_out : numpy.ndarray of float64
+        Filled with each sample's move along x and y and its length, mm.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    A jump of 5 mm between blocks does not count; the moves inside do:
+
+    >>> import numpy as np
+    >>> dx, dy, step = np.empty(3), np.empty(3), np.empty(3)
+    >>> motion(np.array([1.0, 4.0, 8.0]), np.array([0.0, 4.0, 7.0]), 1.0, -5.0, dx, dy, step)
+    >>> dx.tolist(), dy.tolist(), step.tolist()
+    ([3.0, 3.0, 4.0], [4.0, 4.0, 3.0], [5.0, 5.0, 5.0])
+    """
     n = x.shape[0]
     previous_x, previous_y = x_before, y_before
     for i in range(n):
@@ -225,20 +378,63 @@ def _held(y, x, hold_on, hold_rec):
 @njit(cache=True, nogil=True)
 def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, levels, felt,
                   phase, command, gate, out, goals):
-    """The command (static friction ratio, one a sample into ``out``) that makes the felt ratio follow
-    ``target`` as closely as the dynamics allow, and the felt ratio the dynamics predict.
+    """The command that makes the felt friction follow ``target`` as closely as the dynamics allow.
 
-    The felt ratio y follows the command x through y += k (x - y), k = ``k_onset`` where x < y, ``k_recovery``
-    where x > y (per sample). Every ``stride`` samples (``phase`` counts the samples since the last decision,
-    carried between blocks) the planner compares, over ``steps`` steps of ``stride`` samples, the squared error
-    between the predicted felt ratio and the target at each step's end for: holding one of ``levels`` commands
-    evenly spaced in [floor, ceiling], or the greedy command (the one reaching the next step's target, clipped),
-    for 1, 2, 4, ... steps and then following the greedy command; it keeps the first step of the best, held until
-    the next decision. A step's target is the mean of the block's targets over it; past the block it comes from
-    ``ahead`` (one a step from sample ``first_ahead``, which the caller band-limits to the step's length).
-    ``gate`` 0: the finger is off (the command is the target, the felt ratio 1).
-    ``goals``: room for ``steps`` floats (the horizon's targets, gathered once a decision).
-    Returns (felt, phase, command, targets below the floor)."""
+    The felt ratio y follows the command x (a static friction ratio) through y += k (x - y), k = ``k_onset``
+    where x < y, ``k_recovery`` where x > y (per sample). Every ``stride`` samples (``phase`` counts the
+    samples since the last decision, carried between blocks) the planner compares, over ``steps`` steps of
+    ``stride`` samples, the squared error between the predicted felt ratio and the target at each step's end
+    for: holding one of ``levels`` commands evenly spaced in [floor, ceiling], or the greedy command (the one
+    reaching the next step's target, clipped), for 1, 2, 4, ... steps and then following the greedy command;
+    it keeps the first step of the best, held until the next decision. A step's target is the mean of the
+    block's targets over it; past the block it comes from ``ahead`` (one a step from sample ``first_ahead``,
+    which the caller band-limits to the step's length).
+
+    Parameters
+    ----------
+    target : numpy.ndarray of float64 or float32
+        The friction ratio wanted, one a sample.
+    ahead : numpy.ndarray of float32
+        The friction ratios past the block, one a step.
+    first_ahead : int
+        The sample of ``ahead``'s first point, counted from the block's first.
+    floor, ceiling : float
+        The friction ratios the plate can reach.
+    k_onset, k_recovery : float
+        The felt ratio's step per sample towards a lower and a higher command, 0 < k <= 1.
+    stride, steps, levels : int
+        Samples between decisions, steps looked ahead, and levels tried.
+    felt : float
+        The felt ratio before the block.
+    phase : int
+        Samples since the last decision.
+    command : float
+        The command held since then, friction ratio.
+    gate : int
+        0: the finger is off (the command is the target, the felt ratio 1); 1: on.
+    out : numpy.ndarray of float64
+        Filled with the command, friction ratio.
+    goals : numpy.ndarray of float64
+        Room for ``steps`` floats (the horizon's targets, gathered once a decision).
+
+    Returns
+    -------
+    tuple
+        (felt, phase, command, targets below the floor): the state to carry and a count.
+
+    Examples
+    --------
+    With dynamics that follow at once (k = 1) the command is the target, held at the 0.1 floor where the
+    target lies below it:
+
+    >>> import numpy as np
+    >>> out = np.empty(4)
+    >>> plan_friction(np.array([0.5, 0.5, 0.05, 0.05]), np.full(3, 0.5, dtype=np.float32), 5, 0.1, 1.0, 1.0, 1.0,
+    ...               1, 3, 5, 1.0, 0, 1.0, 1, out, np.empty(3))
+    (0.1, 0, 0.1, 2)
+    >>> out.tolist()
+    [0.5, 0.5, 0.1, 0.1]
+    """
     hold_on = (1.0 - k_onset) ** stride
     hold_rec = (1.0 - k_recovery) ** stride
     below = 0
@@ -299,9 +495,21 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
 
 @functools.cache
 def warm_up() -> None:
-    """Compile (or load from numba's cache) every kernel of the signal path with the types the renderer
-    passes, so the first real-time block never waits for the compiler. Called when a renderer is built,
-    beside its model's own :meth:`~ultraglide.render.physics.model_base.FrictionModel.warm_up`."""
+    """Compile (or load from numba's cache) every kernel of the signal path with the types the renderer passes.
+
+    So the first real-time block never waits for the compiler. Called when a renderer is built, beside its
+    model's own :meth:`~ultraglide.render.physics.model_base.FrictionModel.warm_up` (once a process: cached).
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> warm_up()
+    >>> len(envelope.signatures) >= 1
+    True
+    """
     f64 = np.zeros(4)
     envelope(f64, np.zeros(0, dtype=np.uint8), 1, 0.0, 0.0, 0.1, 0.1, 0.5, 0.0, 6.0, True, 0.9, 8.0, 0.0,
              np.empty(4), np.empty(4), np.empty(4))
