@@ -172,7 +172,18 @@ def _subtract_clipped(ratio, total, out):  # pragma: no cover - compiled
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's cache) the loops, outside any real-time block."""
+    """Compile (or load from numba's cache) the effects' loops, outside any real-time block.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> warm_up()
+    >>> len(_adsr.signatures) >= 1
+    True
+    """
     t = np.zeros(2)
     _adsr(t, 0.1, 0.1, 0.1, 0.1, 1.0, 0.5, np.empty(2))
     flags = np.ones(2, dtype=np.bool_)

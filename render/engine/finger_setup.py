@@ -89,9 +89,41 @@ class FingerConfig:
 
 
 def finger_law(config: FingerConfig):
-    """The finger's friction law, ratio = law(amplitude_um_pp, force_n): a host model's forward law (amplitudes
-    beyond its validity held at its edge), scaled and floored as the config says. Raises what ``load_model``
-    raises for a bad spec (one line)."""
+    """The finger's friction law, ratio = law(amplitude_um_pp, force_n), as the config says.
+
+    A host model's forward law (amplitudes beyond its validity held at its edge), its amplitude axis
+    stretched by the config's scale and floored: d + (1 - d) law(a / scale, F).
+
+    Parameters
+    ----------
+    config : FingerConfig
+        The finger's options; ``law`` a model spec or ``default``.
+
+    Returns
+    -------
+    callable
+        law(amplitude_um_pp, force_n) -> friction ratio (arrays in, arrays out; µm peak-to-peak, N).
+
+    Raises
+    ------
+    UltraglideError
+        What ``load_model`` raises for a bad spec (one line).
+
+    Examples
+    --------
+    The ``stretched`` finger is the host's model; the default one is it without its floor, stretched 0.7× and
+    floored at 0.1:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> amplitudes = np.array([0.0, 2.0])
+    >>> law = finger_law(FingerConfig(law="stretched"))
+    >>> bool(np.allclose(law(amplitudes, 0.5), StretchedExponentialModel().relative_friction(amplitudes, 0.5)))
+    True
+    >>> bare = StretchedExponentialModel(residual_ratio=0.0).relative_friction(amplitudes / 0.7, 0.5)
+    >>> bool(np.allclose(finger_law(FingerConfig())(amplitudes, 0.5), 0.1 + 0.9 * bare))
+    True
+    """
     from ultraglide.render.physics.calibration import load_model
     from ultraglide.render.physics.friction_models import StretchedExponentialModel
 
@@ -158,7 +190,32 @@ def _gridded_law(model):
 
 
 def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_hz: int = 1000) -> SimulatedFinger:
-    """The simulated finger the config describes, with its log (a file, written as it goes) if asked."""
+    """The simulated finger the config describes, with its log (a file, written as it goes) if asked.
+
+    Parameters
+    ----------
+    config : FingerConfig
+        The finger's options.
+    sample_rate_hz : int
+        The finger's simulation rate, Hz.
+    sensor_rate_hz : int
+        Its force sensors' rate, Hz.
+
+    Returns
+    -------
+    SimulatedFinger
+
+    Raises
+    ------
+    UltraglideError
+        A bad law, force script or fault spec, in one line.
+
+    Examples
+    --------
+    >>> finger = build_finger(FingerConfig(force="0.5"))
+    >>> finger.name
+    "stretched (the host's default), scale x0.7, floor 0.1"
+    """
     params = FingerParams(config.mu0, config.drift, config.drift_period_s, config.moisture, config.moisture_tau_s)
     sensors = ForceSensorParams(config.noise_n, config.bandwidth_hz, config.delay_ms / 1000.0, sensor_rate_hz,
                                 seed=config.seed + 1)
@@ -176,7 +233,23 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
 
 
 def finger_words(config: FingerConfig) -> str:
-    """One line for people: the finger's law, force, speed, drift and sensors."""
+    """One line for people: the finger's law, force, speed, drift and sensors.
+
+    Parameters
+    ----------
+    config : FingerConfig
+        The finger's options.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> finger_words(FingerConfig(force="0.5", drift=0.0))  # doctest: +NORMALIZE_WHITESPACE
+    "finger: stretched (the host's default), scale x0.7, floor 0.1; mu0 1, no drift, +25 % with dwell;
+    force 0.5 at 100 mm/s; sensors 5 mN, 300 Hz, 1 ms"
+    """
     drift = f"drift ±{100 * config.drift:g} % over {config.drift_period_s:g} s" if config.drift else "no drift"
     moisture = f"+{100 * config.moisture:g} % with dwell" if config.moisture else "no moisture"
     return (f"finger: {config.law_words()}; mu0 {config.mu0:g}, {drift}, {moisture}; force {config.force} at "

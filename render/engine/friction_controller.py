@@ -48,9 +48,34 @@ def force_exponent(model: FrictionModel, ratio: float, force_n: float, work: np.
     """The model's local force sensitivity of its inverse, d ln a / d ln F, at a target ratio and a force.
 
     A central difference of the model's own inverse over ±5 % in force (no limit): exact for the laws whose
-    amplitude is a power of the force (``stretched``: its ``force_exponent``, 1/3 by default; ``paper``: 1/3 below
-    the force where the contact area saturates; ``exponential``: 0), the local slope for a ``table``. 0 where the
-    ratio asks for no vibration (a = 0). Within ±2. ``work``: three floats to compute in (no allocation)."""
+    amplitude is a power of the force (``stretched``: its ``force_exponent``, 1/3 by default; ``paper``: 1/3
+    below the force where the contact area saturates; ``exponential``: 0), the local slope for a ``table``.
+    0 where the ratio asks for no vibration (a = 0). Within ±2.
+
+    Parameters
+    ----------
+    model : FrictionModel
+        The host's friction model.
+    ratio : float
+        The target friction ratio.
+    force_n : float
+        The normal force, N.
+    work : numpy.ndarray, optional
+        Three floats to compute in (no allocation).
+
+    Returns
+    -------
+    float
+        d ln(amplitude) / d ln(force), within ±2.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.friction_models import ExponentialModel, StretchedExponentialModel
+    >>> round(force_exponent(StretchedExponentialModel(), 0.5, 1.0), 9), force_exponent(ExponentialModel(), 0.5, 1.0)
+    (0.333333333, 0.0)
+    >>> force_exponent(StretchedExponentialModel(), 1.0, 1.0)   # no vibration asked
+    0.0
+    """
     if not ratio < 1.0 or not force_n > 0.0:
         return 0.0
     work = np.empty(3) if work is None else work

@@ -7,8 +7,35 @@ from __future__ import annotations
 
 
 def load_parts(config):
-    """Texture, model, profile and an opened device (with the simulated finger the config asks); one-line errors
-    for bad ones."""
+    """Texture, model, profile and an opened device (with the simulated finger the config asks); one-line errors.
+
+    Parameters
+    ----------
+    config : EngineConfig
+        The engine's configuration: texture, model, profile and device by name, the finger and the loop.
+
+    Returns
+    -------
+    tuple
+        (Texture, FrictionModel, PlateProfile, Device): the device opened, not started.
+
+    Raises
+    ------
+    UltraglideError
+        A texture, model, profile or device that cannot be loaded or opened, or a finger or closed loop the
+        device cannot take, in one line.
+
+    Examples
+    --------
+    >>> from ultraglide.render.engine import EngineConfig
+    >>> texture, model, profile, device = load_parts(EngineConfig(texture="grating-1mm", device="null"))
+    >>> texture.name, model.name, profile.name, device.signal
+    ('grating-1mm', 'stretched', 'sim-plate', 'audio')
+    >>> load_parts(EngineConfig(texture="grating-1mm", device="null", closed_loop=True))
+    Traceback (most recent call last):
+    ...
+    ultraglide.devices.errors.DeviceError: the closed loop needs a plate driver with force sensors ... not null
+    """
     import warnings
 
     from ultraglide.devices.rig import load_plate
@@ -45,7 +72,33 @@ def load_parts(config):
 
 
 def texture_of(spec):
-    """A library name or file, loaded here; or a Texture the app composed in memory (it came pickled)."""
+    """A library name or file, loaded here; or a Texture the app composed in memory (it came pickled).
+
+    Parameters
+    ----------
+    spec : str or Texture
+        A library name, a texture file's path, or a Texture.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    ValueError
+        ``spec`` is neither.
+    TextureError
+        No texture by that name or file.
+
+    Examples
+    --------
+    >>> texture_of("grating-1mm").name
+    'grating-1mm'
+    >>> texture_of(42)
+    Traceback (most recent call last):
+    ...
+    ValueError: a texture must be a name, a file or a Texture, not int
+    """
     if isinstance(spec, str):
         from ultraglide.textures.library import resolve_texture
 
@@ -58,8 +111,35 @@ def texture_of(spec):
 
 
 def check_sensors(device, loop) -> None:
-    """The closed loop needs normal and lateral force sensors: DeviceError if the connected device has none; the
-    loop takes the device's sensor rate."""
+    """Check the device has normal and lateral force sensors for the closed loop; the loop takes their rate.
+
+    Parameters
+    ----------
+    device : Device
+        The opened device; a plate driver states its sensors in its handshake (``hello()``).
+    loop : FrictionLoop
+        The closed loop, told the device's sensor rate (Hz).
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    DeviceError
+        The device declares no normal and lateral force sensors.
+
+    Examples
+    --------
+    The null device states no sensors:
+
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> check_sensors(open_device("null", load_profile("sim-plate")), None)
+    Traceback (most recent call last):
+    ...
+    ultraglide.devices.errors.DeviceError: the closed loop needs normal and lateral force sensors ... open loop ...
+    """
     from ultraglide.devices import protocol as p
     from ultraglide.devices.errors import DeviceError
 

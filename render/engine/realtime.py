@@ -38,8 +38,29 @@ CPU_LATENCY_QOS = "/dev/cpu_dma_latency"
 
 def raise_priority() -> str:
     """Raise the calling thread's scheduling priority as far as the OS allows; says what it got.
+
     A thread the audio system already runs in real time (JACK's clients) keeps the priority it was given,
-    which JACK orders below its own server thread."""
+    which JACK orders below its own server thread. Tried in order: SCHED_FIFO 60, then nice -15, -10, -5.
+
+    Returns
+    -------
+    str
+        The scheduling the thread got, in words: ``SCHED_FIFO 60``, ``nice -15`` ... or
+        ``normal (no permission to raise it)``.
+
+    Examples
+    --------
+    On a thread of its own (the priority stays with that thread), checked against what the OS reports:
+
+    >>> import os, threading
+    >>> got = []
+    >>> def block_thread():
+    ...     got.append((raise_priority(), os.sched_getscheduler(0) == os.SCHED_FIFO))
+    >>> thread = threading.Thread(target=block_thread); thread.start(); thread.join()
+    >>> words, fifo = got[0]
+    >>> words.startswith("SCHED_FIFO") == fifo
+    True
+    """
     try:
         policy = os.sched_getscheduler(0)
         # (priority OTHER_THREADS_PRIORITY is ours, from raise_other_threads racing the first block)
@@ -69,7 +90,32 @@ def raise_other_threads(priority: int = OTHER_THREADS_PRIORITY) -> str:
     one preempted by an ordinary process while it holds the GIL would stall the block thread for a
     whole time slice (priority inversion). At SCHED_FIFO 1 they run below the block thread and the
     audio server, above everything ordinary, and they sleep almost all the time. Threads they start later
-    inherit it. Says how many threads run at that priority (raised now or before)."""
+    inherit it.
+
+    Parameters
+    ----------
+    priority : int
+        The SCHED_FIFO priority, 1 (the lowest) by default.
+
+    Returns
+    -------
+    str
+        How many threads run at that priority (raised now or before), in words, or
+        ``other threads: normal``.
+
+    Examples
+    --------
+    In a forked process of its own (it changes every thread of the process it runs in):
+
+    >>> import multiprocessing, os
+    >>> context = multiprocessing.get_context("fork")
+    >>> reader, writer = context.Pipe(duplex=False)
+    >>> child = context.Process(target=lambda: writer.send(
+    ...     (raise_other_threads(), os.sched_getscheduler(0) == os.SCHED_FIFO)))
+    >>> child.start(); words, fifo = reader.recv(); child.join()
+    >>> words.startswith("other threads: SCHED_FIFO 1 (") == fifo
+    True
+    """
     try:
         running = _raise(_tasks(), priority)
     except (OSError, AttributeError):
@@ -113,16 +159,39 @@ def _may_run_in_real_time(priority: int) -> bool:
 
 @contextlib.contextmanager
 def threads_started_in_real_time(priority: int = OTHER_THREADS_PRIORITY):
-    """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` from its end on, where the OS allows;
-    the calling thread, and the work it does inside, keep the caller's scheduling (ordinary for a command's main
-    thread). Yields what they get, in words.
+    """Threads started inside the ``with`` run at SCHED_FIFO ``priority`` from its end on, where the OS allows.
+
+    The calling thread, and the work it does inside, keep the caller's scheduling (ordinary for a command's
+    main thread).
 
     For a command that streams to a plate on threads of its own (a driver's writer and reader, a simulated
     plate's) beside a main thread that stays ordinary: a writer thread at ordinary priority on a busy machine
     can go unscheduled past the plate's 100 ms watchdog; the engine raises all of its threads
     (:func:`raise_other_threads`). The set-up inside the block (imports, the first call of a compiled kernel, a
     handshake: half a second of CPU for a simulated plate) runs at ordinary priority: at SCHED_FIFO nothing of
-    equal priority could preempt it, and it once kept another process's engine threads waiting 130 ms."""
+    equal priority could preempt it, and it once kept another process's engine threads waiting 130 ms.
+
+    Parameters
+    ----------
+    priority : int
+        The SCHED_FIFO priority, 1 by default.
+
+    Yields
+    ------
+    str
+        What the threads get, in words: ``SCHED_FIFO 1`` or ``normal (no permission to raise it)``.
+
+    Examples
+    --------
+    >>> import os, threading
+    >>> done = threading.Event()
+    >>> with threads_started_in_real_time() as words:
+    ...     writer = threading.Thread(target=done.wait); writer.start()
+    >>> raised = os.sched_getscheduler(writer.native_id) == os.SCHED_FIFO
+    >>> done.set(); writer.join()
+    >>> raised == (words == "SCHED_FIFO 1"), os.sched_getscheduler(0) == os.SCHED_OTHER
+    (True, True)
+    """
     if not _may_run_in_real_time(priority):
         yield "normal (no permission to raise it)"
         return
@@ -138,7 +207,22 @@ def keep_huge_pages_out() -> str:
     """Turn transparent huge pages off for this process and the processes it starts (Linux); says what it got.
 
     Memory already in huge pages stays as it is; khugepaged skips the process from now on, and new
-    allocations take ordinary pages (numpy's large arrays are as fast for the engine's block sizes)."""
+    allocations take ordinary pages (numpy's large arrays are as fast for the engine's block sizes).
+
+    Returns
+    -------
+    str
+        ``huge pages off``, or ``huge pages: as the system has them (why)``.
+
+    Examples
+    --------
+    In a forked process of its own (the setting is the whole process's):
+
+    >>> import multiprocessing
+    >>> with multiprocessing.get_context("fork").Pool(1) as pool:
+    ...     pool.apply(keep_huge_pages_out)
+    'huge pages off'
+    """
     try:
         prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):

@@ -48,7 +48,30 @@ class PlateProbe(threading.Thread):
 
 
 def device_status(device, stage=None) -> dict:
-    """The device's own status, with its fault counts over the run when it keeps them, and the limiter's."""
+    """The device's own status, with its fault counts over the run when it keeps them, and the limiter's.
+
+    Parameters
+    ----------
+    device : Device
+        The opened device.
+    stage : EngineSource, optional
+        The source the device plays: its limiter's status and summary, and the closed loop's.
+
+    Returns
+    -------
+    dict
+        The status; a status that fails to build is ``{"errors": [what went wrong]}`` (never raised: it must
+        not stop the engine).
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> device_status(open_device("null", load_profile("sim-plate")))
+    {'device': 'null', 'rate_hz': 96000, 'blocks': 0, 'late_blocks': 0, 'errors': []}
+    >>> device_status(None)["errors"]
+    ["status: AttributeError: 'NoneType' object has no attribute 'status'"]
+    """
     try:
         status = device.status()
         if stage is not None:
@@ -66,15 +89,53 @@ def device_status(device, stage=None) -> dict:
 
 
 def renderer_status(renderer) -> dict:
-    """What the renderer renders with: texture, model, the default force (N); the temporal effects started."""
+    """What the renderer renders with: texture, model, the default force (N); the temporal effects started.
+
+    Parameters
+    ----------
+    renderer : Renderer
+
+    Returns
+    -------
+    dict
+        ``texture``, ``model`` (names), ``force_n`` (N), ``effects_started`` (a count).
+
+    Examples
+    --------
+    >>> from ultraglide import Renderer
+    >>> renderer_status(Renderer("grating-1mm"))
+    {'texture': 'grating-1mm', 'model': 'stretched', 'force_n': 0.5, 'effects_started': 0}
+    """
     player = renderer.effects
     return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),
             "force_n": renderer.default_force_n, "effects_started": 0 if player is None else player.started}
 
 
 def close_device(device) -> str | None:
-    """Stop the device; what went wrong that a person can act on (e.g. a recording that did not fit on
-    the disk), or None. Resting the hardware is best effort on the way out: nothing here raises."""
+    """Stop the device; what went wrong that a person can act on, or None.
+
+    E.g. a recording that did not fit on the disk. Resting the hardware is best effort on the way out:
+    nothing here raises.
+
+    Parameters
+    ----------
+    device : Device or None
+        The device to stop (None: nothing opened).
+
+    Returns
+    -------
+    str or None
+        One line saying what failed, or None.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> close_device(open_device("null", load_profile("sim-plate"))) is None, close_device(None) is None
+    (True, True)
+    >>> close_device(object())
+    "the device failed while stopping: AttributeError: 'object' object has no attribute 'stop'"
+    """
     if device is None:
         return None
     try:

@@ -113,9 +113,40 @@ def _underruns(device_status: dict) -> int:
 
 def status_from_shared(header, block_times, history_ring, device_status, dropped, device_name,
                        history_s) -> EngineStatus:
-    """An :class:`EngineStatus` from the shared memory's arrays: the counters of ``header``, block times (p50 and
-    p99 in µs), the last ``history_s`` seconds of history, the device's status, the dropped touches and the
-    device's name.
+    """An :class:`EngineStatus` from the shared memory's arrays.
+
+    Parameters
+    ----------
+    header : numpy.ndarray
+        The counters (the segment's fast header, :meth:`SharedBlock.read_fast`'s first array).
+    block_times : numpy.ndarray
+        The ring of block times, s; their p50 and p99 are given in µs.
+    history_ring : numpy.ndarray
+        The ring of history rows; the last ``history_s`` seconds are kept.
+    device_status : dict
+        The device's status as the engine wrote it.
+    dropped : int
+        Touches dropped by a full touch ring.
+    device_name : str
+        The device's name where its status has none.
+    history_s : float
+        How much history to keep, s.
+
+    Returns
+    -------
+    EngineStatus
+
+    Examples
+    --------
+    A segment the engine has not written yet:
+
+    >>> from ultraglide.render.engine.shm import SharedBlock
+    >>> block = SharedBlock.create()
+    >>> header, times, history, _ = block.read_fast()
+    >>> status = status_from_shared(header, times, history, {"device": "null"}, 0, "null", 10.0)
+    >>> status.device, status.state, status.blocks, status.block_p99_us
+    ('null', 'starting', 0, None)
+    >>> block.close()
     """
     blocks = int(header[shm.BLOCKS])
     times = ring_order(block_times, int(header[shm.BLOCK_TIME_INDEX]))
