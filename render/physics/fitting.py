@@ -313,7 +313,26 @@ class _EmpiricalLaw:
 
 
 def fit_range(data: Measurements) -> FitRange:
-    """The forces (N) a fit to ``data`` rests on."""
+    """The forces a fit to ``data`` rests on, and its number of points.
+
+    Parameters
+    ----------
+    data : Measurements
+
+    Returns
+    -------
+    FitRange
+        The distinct forces (N) and the point count.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> data = Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2), np.repeat([0.3, 0.9], 13), source="example")
+    >>> fit_range(data)
+    FitRange(forces_n=(0.3, 0.9), points=26)
+    """
     return FitRange(tuple(float(f) for f in np.unique(_forces(data))), len(data))
 
 
@@ -364,8 +383,33 @@ def _held_out_rms(data: Measurements, kind: str, groups: np.ndarray, hold: dict[
 
 
 def k_fold_groups(data: Measurements, folds: int = K_FOLDS) -> np.ndarray:
-    """The fold of each point: drawn within each force (so every fold holds points of every force),
-    5 folds, or leave-one-out below 10 points; the same seed every time."""
+    """The fold of each point, drawn within each force, so every fold holds points of every force.
+
+    5 folds, or leave-one-out below 10 points; the same seed every time.
+
+    Parameters
+    ----------
+    data : Measurements
+    folds : int
+        The number of folds.
+
+    Returns
+    -------
+    numpy.ndarray of int
+        The fold of each point.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> force = np.repeat([0.3, 0.9], 13)
+    >>> groups = k_fold_groups(Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2), force, source="example"))
+    >>> [sorted(set(groups[force == f].tolist())) for f in (0.3, 0.9)]
+    [[0, 1, 2, 3, 4], [0, 1, 2, 3, 4]]
+    >>> k_fold_groups(Measurements(amplitude[:4], np.ones(4), None, source="four points")).tolist()
+    [0, 1, 2, 3]
+    """
     if len(data) < 10:
         return np.arange(len(data))
     groups = np.empty(len(data), dtype=int)
@@ -380,11 +424,38 @@ def k_fold_groups(data: Measurements, folds: int = K_FOLDS) -> np.ndarray:
 
 
 def cross_validation_errors(data: Measurements, kind: str, hold: dict[str, float] | None = None) -> dict[str, float]:
-    """Out-of-sample RMS errors in relative friction: ``k_fold`` (5 folds drawn within each force, or
-    leave-one-out for fewer than 10 points), ``leave_one_force_out`` with three forces or more (with
-    two, predicting one force from the other tests the two fingers' difference more than any law), and
-    ``leave_one_participant_out`` with several participants. A scheme whose training sets are too small
-    for the model is left out."""
+    """Out-of-sample RMS errors in relative friction, by the schemes the data allow.
+
+    ``k_fold`` (5 folds drawn within each force, or leave-one-out for fewer than 10 points),
+    ``leave_one_force_out`` with three forces or more (with two, predicting one force from the other tests
+    the two fingers' difference more than any law), and ``leave_one_participant_out`` with several
+    participants. A scheme whose training sets are too small for the model is left out.
+
+    Parameters
+    ----------
+    data : Measurements
+    kind : str
+        The model: ``stretched``, ``exponential``, ``paper``, ``table`` ...
+    hold : dict of str to float, optional
+        Parameters held at these values instead of fitted.
+
+    Returns
+    -------
+    dict of str to float
+        The RMS error of each scheme, in relative friction.
+
+    Examples
+    --------
+    Points on a Gaussian law at two forces are predicted out of sample by the stretched law:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> data = Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2), np.repeat([0.3, 0.9], 13), source="example")
+    >>> errors = cross_validation_errors(data, "stretched", hold={"force_exponent": 0.0})
+    >>> list(errors), errors["k_fold"] < 1e-6
+    (['k_fold'], True)
+    """
     return _cross_validation_errors(data, kind, hold, _full_optimum(data, kind, hold))
 
 
@@ -415,7 +486,26 @@ def _cross_validation_errors(data: Measurements, kind: str, hold: dict[str, floa
 
 
 def selection_note(data: Measurements) -> str:
-    """What the data can and cannot test about force laws, and how models are therefore ranked."""
+    """What the data can and cannot test about force laws, and how models are therefore ranked.
+
+    Parameters
+    ----------
+    data : Measurements
+
+    Returns
+    -------
+    str
+        One sentence.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> selection_note(Measurements(amplitude, np.ones(26), np.repeat([0.3, 0.9], 13), source="example"))
+    '2 forces: the force law could not be tested (two forces fix an exponent, they do not test it);
+    ranked by k-fold error within each force'
+    """
     count = _distinct_forces(data)
     if count >= 3:
         return (f"{count} forces: force laws ranked by leave-one-force-out error (each force predicted from the "
@@ -573,10 +663,43 @@ def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS)
 
 def bootstrap_errors(data: Measurements, kind: str, samples: int = BOOTSTRAP_SAMPLES, seed: int = 0,
                      hold: dict[str, float] | None = None) -> dict[str, dict[str, float]]:
-    """Bootstrap standard errors of each fitted parameter: ``points`` (points resampled with
-    replacement) and, with three groups or more, ``force`` and ``participant`` (whole groups resampled,
-    which keeps what the points of one finger or one force share). A resample the model cannot be
-    fitted to is skipped; a parameter free in fewer than half the resamples gets no value."""
+    """Bootstrap standard errors of each fitted parameter.
+
+    ``points`` (points resampled with replacement) and, with three groups or more, ``force`` and
+    ``participant`` (whole groups resampled, which keeps what the points of one finger or one force share).
+    A resample the model cannot be fitted to is skipped; a parameter free in fewer than half the resamples
+    gets no value.
+
+    Parameters
+    ----------
+    data : Measurements
+    kind : str
+        The model (``table`` has no parameters: {}).
+    samples : int
+        Resamples per scheme.
+    seed : int
+        The random generator's seed.
+    hold : dict of str to float, optional
+        Parameters held at these values instead of fitted.
+
+    Returns
+    -------
+    dict of str to dict of str to float
+        Per scheme, each parameter's standard error in its own unit (µm peak-to-peak for a scale).
+
+    Examples
+    --------
+    A Gaussian law with a 2.5 µm scale, 0.01 of noise: the scale's error is a fraction of a µm:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> noise = np.random.default_rng(1).normal(0.0, 0.01, 26)
+    >>> data = Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2) + noise, np.repeat([0.3, 0.9], 13), "example")
+    >>> errors = bootstrap_errors(data, "stretched", samples=10, hold={"force_exponent": 0.0})
+    >>> list(errors), 0.0 < errors["points"]["scale_um_pp"] < 0.2
+    (['points'], True)
+    """
     if kind == "table" or samples < 2:
         return {}
     return _bootstrap_errors(data, kind, samples, seed, hold, _full_optimum(data, kind, hold))
@@ -614,7 +737,33 @@ def _bootstrap_errors(data: Measurements, kind: str, samples: int, seed: int, ho
 
 
 def fit_summary(fit: Fit) -> dict:
-    """A fit as plain values (JSON and the calibration file's [fit] table)."""
+    """A fit as plain values (JSON and the calibration file's [fit] table).
+
+    Parameters
+    ----------
+    fit : Fit
+
+    Returns
+    -------
+    dict
+        The model, its description, source, points, forces (N), force law, the selection note, the noise, the
+        parameters with their standard errors and allowed ranges, residuals and cross-validation errors.
+
+    Examples
+    --------
+    >>> import json
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.fitting import fit_model
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> data = Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2), np.repeat([0.3, 0.9], 13), source="example")
+    >>> summary = fit_summary(fit_model(data, "stretched"))
+    >>> scale = summary["parameters"]["scale_um_pp"]["value"]
+    >>> summary["model"], summary["points"], summary["forces_n"], round(scale, 6)
+    ('stretched', 26, [0.3, 0.9], 2.5)
+    >>> json.loads(json.dumps(summary)) == summary
+    True
+    """
     forces = [float(f) for f in np.unique(_forces(fit.data))]
     return {
         "model": fit.kind,
