@@ -128,9 +128,46 @@ class ContrastKept:
 
 def felt_over(dynamics: FrictionDynamics, target: np.ndarray, n: int, speed_mm_s: float, floor: float,
               rate_hz: float = 12000.0) -> tuple[np.ndarray, np.ndarray]:
-    """The felt ratio over the first ``n`` samples of ``target`` (known beyond ``n`` by the horizon, as a texture
-    along a path is) at a steady speed: with the instantaneous renderer (the target, floored, asked at once) and
-    with the planned one (block by block, as the renderer runs it). Returns (instantaneous, planned)."""
+    """The felt ratio over the first ``n`` samples of ``target``, with the instantaneous and the planned renderer.
+
+    ``target`` is known beyond ``n`` by the horizon, as a texture along a path is; the speed is steady. The
+    instantaneous renderer asks the target (floored) at once; the planned one runs block by block, as the
+    renderer runs it.
+
+    Parameters
+    ----------
+    dynamics : FrictionDynamics
+        The finger's dynamics.
+    target : numpy.ndarray
+        The friction ratio wanted, one a control sample, at least ``n`` plus the planner's horizon.
+    n : int
+        How many samples to render.
+    speed_mm_s : float
+        The finger's speed, mm/s.
+    floor : float
+        The lowest reachable ratio.
+    rate_hz : float
+        The control rate, Hz.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, numpy.ndarray)
+        The felt ratio with the instantaneous and with the planned renderer, ``n`` each.
+
+    Examples
+    --------
+    A step from 1 to 0.5 asked at once is felt as a first-order fall with the 5 ms onset time constant:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> dynamics = FrictionDynamics()
+    >>> instant, planned = felt_over(dynamics, np.full(2400, 0.5), 120, 100.0, 0.1)
+    >>> seconds = np.arange(1, 121) / 12000.0
+    >>> bool(np.allclose(instant, 0.5 + 0.5 * np.exp(-seconds / dynamics.onset_s)))
+    True
+    >>> planned.shape, bool(np.all((planned >= 0.1) & (planned <= 1.0)))
+    ((120,), True)
+    """
     target = np.asarray(target, dtype=float)
     instant = dynamics.respond(np.maximum(target[:n], floor), rate_hz, speed_mm_s, 1.0)
     planner = Planner(dynamics, rate_hz)
@@ -150,8 +187,47 @@ def felt_over(dynamics: FrictionDynamics, target: np.ndarray, n: int, speed_mm_s
 def grating_felt(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float, floor: float,
                  rate_hz: float = 12000.0, duration_s: float = 1.0, low: float | None = None,
                  square: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Target, instantaneous felt and planned felt ratios for a grating swept at ``speed_mm_s``: a sinusoid (or a
-    square wave) of spatial period ``period_mm`` between 1 and ``low`` (default: the reachable ``floor``)."""
+    """Target, instantaneous felt and planned felt ratios for a grating swept at ``speed_mm_s``.
+
+    A sinusoid (or a square wave) of spatial period ``period_mm`` between 1 and ``low`` (default: the
+    reachable ``floor``).
+
+    Parameters
+    ----------
+    dynamics : FrictionDynamics
+        The finger's dynamics.
+    period_mm : float
+        The grating's spatial period, mm.
+    speed_mm_s : float
+        The sweep's speed, mm/s.
+    floor : float
+        The lowest reachable ratio.
+    rate_hz : float
+        The control rate, Hz.
+    duration_s : float
+        The sweep's length, s.
+    low : float, optional
+        The grating's trough (default ``floor``).
+    square : bool
+        A square wave instead of a sinusoid.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (target, instantaneous felt, planned felt), ``duration_s × rate_hz`` samples each.
+
+    Examples
+    --------
+    A 2 mm grating at 100 mm/s (50 Hz): the finger's dynamics keep well under half its contrast:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> target, instant, planned = grating_felt(FrictionDynamics(), 2.0, 100.0, 0.2, duration_s=0.1)
+    >>> len(target), float(target.max()), round(float(target.min()), 6)
+    (1200, 1.0, 0.2)
+    >>> bool(np.ptp(instant[600:]) < 0.5 * np.ptp(target[600:]))
+    True
+    """
     low = floor if low is None else low
     n = int(round(duration_s * rate_hz))
     phase = 2.0 * math.pi * speed_mm_s / period_mm * np.arange(n + int(MAX_HORIZON_S * rate_hz) + 2) / rate_hz
@@ -163,7 +239,37 @@ def grating_felt(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: float
 
 def step_felt(dynamics: FrictionDynamics, speed_mm_s: float, floor: float, low: float = 0.3, rate_hz: float = 12000.0,
               down_s: float = 0.1, up_s: float = 0.3, duration_s: float = 0.6):
-    """Target, instantaneous and planned felt ratios for a step 1 → ``low`` at ``down_s`` → 1 at ``up_s`` (s)."""
+    """Target, instantaneous and planned felt ratios for a step 1 → ``low`` at ``down_s`` → 1 at ``up_s``.
+
+    Parameters
+    ----------
+    dynamics : FrictionDynamics
+        The finger's dynamics.
+    speed_mm_s : float
+        The finger's speed, mm/s.
+    floor : float
+        The lowest reachable ratio.
+    low : float
+        The step's low ratio.
+    rate_hz : float
+        The control rate, Hz.
+    down_s, up_s, duration_s : float
+        When the step falls and rises, and the run's length, s.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (target, instantaneous felt, planned felt), ``duration_s × rate_hz`` samples each.
+
+    Examples
+    --------
+    Asked at once, the fall has settled (10 onset time constants) when friction rises again at 0.1 s:
+
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> target, instant, planned = step_felt(FrictionDynamics(), 100.0, 0.2, down_s=0.05, up_s=0.1, duration_s=0.2)
+    >>> len(target), float(target.min()), round(float(instant[1199]), 3)
+    (2400, 0.3, 0.3)
+    """
     n = int(round(duration_s * rate_hz))
     t = np.arange(n + int(MAX_HORIZON_S * rate_hz) + 2) / rate_hz
     target = np.where((t >= down_s) & (t < up_s), low, 1.0)
@@ -193,6 +299,21 @@ def contrast_transfer(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: 
     Returns
     -------
     ContrastKept
+
+    Raises
+    ------
+    RenderError
+        A period or speed not positive, or a floor outside 0 to below 1.
+
+    Examples
+    --------
+    A 1 mm grating at 100 mm/s (100 Hz): the finger feels a tenth of its contrast asked at once; the planner,
+    which minimises the felt ratio's error, errs less:
+
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> kept = contrast_transfer(FrictionDynamics(), 1.0, 100.0, 0.1)
+    >>> kept.period_mm, 0.0 < kept.instantaneous < 0.2, kept.planned_rms < kept.instantaneous_rms
+    (1.0, True, True)
     """
     if not (period_mm > 0 and speed_mm_s > 0 and 0.0 <= floor < 1.0):
         raise RenderError("a grating needs a positive period and speed, and a floor in 0 to below 1")
@@ -238,6 +359,14 @@ def swipe_contrast(texture, dynamics: FrictionDynamics, speed_mm_s: float, floor
     Returns
     -------
     SwipeKept
+
+    Examples
+    --------
+    >>> from ultraglide import grating
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> kept = swipe_contrast(grating(2.0), FrictionDynamics(), 100.0, 0.2, longest_s=0.2)
+    >>> kept.speed_mm_s, 0.0 < kept.instantaneous < 1.0, kept.planned_rms > 0.0
+    (100.0, True, True)
     """
     from ultraglide.textures.sampling import Sampler
 
