@@ -228,8 +228,49 @@ class NumericCsv:
 
 def read_numeric_csv(path: str | Path, required: tuple[Column, ...], optional: tuple[Column, ...],
                      error: type[Exception], what: str, max_rows: int) -> dict[str, np.ndarray]:
-    """A whole (small) numeric CSV as arrays; more than ``max_rows`` data rows is an error.
-    Long files are streamed with :meth:`NumericCsv.blocks` instead."""
+    r"""A whole (small) numeric CSV as arrays; more than ``max_rows`` data rows is an error.
+
+    Long files are streamed with :meth:`NumericCsv.blocks` instead.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file: a header line, then rows of numbers; ``#`` starts a comment.
+    required, optional : tuple of Column
+        The columns the file must have and those it may have, each with its range and unit.
+    error : type
+        The exception raised for a bad file (an :class:`~ultraglide.UltraglideError`).
+    what : str
+        What the file is, in words, for the messages.
+    max_rows : int
+        The most data rows accepted.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        One float64 array a column present.
+
+    Raises
+    ------
+    error
+        A value out of range, a cell that is not a number, a short row, a missing column, or too many rows, in
+        one line naming the file and line.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide.render.physics.errors import ModelError
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "points.csv"
+    >>> _ = path.write_text("amplitude_um_pp,relative_friction\n# a comment\n0,1\n2.5,0.4\n")
+    >>> columns = (Column("amplitude_um_pp", 0.0, 50.0, "µm p-p"), Column("relative_friction", 0.0, 1.5))
+    >>> read_numeric_csv(path, columns, (), ModelError, "measurement file", 100)
+    {'amplitude_um_pp': array([0. , 2.5]), 'relative_friction': array([1. , 0.4])}
+    >>> _ = path.write_text("amplitude_um_pp,relative_friction\n0,1\n60,0.4\n")
+    >>> read_numeric_csv(path, columns, (), ModelError, "measurement file", 100)
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: .../points.csv:3: amplitude_um_pp is out of range (60); it must be ...
+    """
     table = NumericCsv(path, required, optional, error, what)
     parts: dict[str, list[np.ndarray]] = {name: [] for name in table.names}
     count = 0
