@@ -266,8 +266,44 @@ class EngineBeat(threading.Thread):
 
 
 def forked_engine_main(config, shared_name: str, conn, app_end) -> None:
-    """The engine's entry point when forked from the app: first it becomes what a spawned engine is, without the
-    app's end of the pipe (or the app's going would not close it), its signal handlers or signal wake-up file."""
+    """The engine's entry point when forked from the app.
+
+    First it becomes what a spawned engine is: without the app's end of the pipe (or the app's going would not
+    close it), its signal handlers or signal wake-up file; then :func:`engine_main`.
+
+    Parameters
+    ----------
+    config : EngineConfig
+        What to render and where.
+    shared_name : str
+        The name of the shared memory segment the app made.
+    conn : multiprocessing.connection.Connection
+        The engine's end of the pipe.
+    app_end : multiprocessing.connection.Connection
+        The app's end, closed in the engine.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import multiprocessing
+    >>> from ultraglide.render.engine import EngineConfig
+    >>> context = multiprocessing.get_context("fork")
+    >>> shared = SharedBlock.create()
+    >>> app, engine = context.Pipe()
+    >>> config = EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)
+    >>> child = context.Process(target=forked_engine_main, args=(config, shared.name, engine, app))
+    >>> child.start(); engine.close()
+    >>> [app.recv()[0] for _ in range(2)]
+    ['up', 'ready']
+    >>> app.send(("stop",)); app.recv()[0]
+    'stopped'
+    >>> child.join(); child.exitcode
+    0
+    >>> shared.close()
+    """
     app_end.close()
     signal.set_wakeup_fd(-1)
     for signum in signal.valid_signals():
@@ -277,7 +313,47 @@ def forked_engine_main(config, shared_name: str, conn, app_end) -> None:
 
 
 def engine_main(config, shared_name: str, conn) -> None:
-    """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`)."""
+    """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`).
+
+    It loads the parts (:func:`load_parts`), says ``("up", ...)`` on the pipe, starts the device on an
+    :class:`EngineSource`, says ``("ready", ...)``, serves commands (:func:`serve`) until a stop (the command,
+    SIGTERM or SIGHUP, or the pipe closed), then ``("stopped", status)``. Failures go up the pipe as one
+    line: ``("error", ...)`` while loading, ``("failed", ...)`` while starting. SIGINT is ignored: Ctrl-C is
+    the app's.
+
+    Parameters
+    ----------
+    config : EngineConfig
+        What to render and where.
+    shared_name : str
+        The name of the shared memory segment the app made.
+    conn : multiprocessing.connection.Connection
+        The engine's end of the pipe.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    In a process of its own (it sets the process's signal handlers), on the null device:
+
+    >>> import multiprocessing
+    >>> from ultraglide.render.engine import EngineConfig
+    >>> context = multiprocessing.get_context("fork")
+    >>> shared = SharedBlock.create()
+    >>> app, engine = context.Pipe()
+    >>> config = EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)
+    >>> child = context.Process(target=engine_main, args=(config, shared.name, engine))
+    >>> child.start()
+    >>> app.recv()[0], app.recv()[0]
+    ('up', 'ready')
+    >>> app.send(("stop",)); app.recv()[0]
+    'stopped'
+    >>> child.join(); child.exitcode
+    0
+    >>> shared.close()
+    """
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     pages = keep_huge_pages_out() if config.realtime_priority else "huge pages: as the system has them"
     stop_requested = threading.Event()

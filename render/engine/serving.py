@@ -148,8 +148,59 @@ def close_device(device) -> str | None:
 
 
 def serve(config, conn, shared, renderer, source, device, stop_requested, threads: str) -> None:
-    """The command loop: rare commands, the device's status ten times a second, idle collection, and the
-    CPUs kept quick to wake while the block path renders (released while it serves zeros at rest)."""
+    """The engine's command loop, until a stop: rare commands, the device's status ten times a second, idle collection.
+
+    The CPUs are kept quick to wake while the block path renders (released while it serves zeros at rest).
+    Commands come from the app's pipe as tuples: ``("texture", spec)``, ``("model", spec)``, ``("force", N)``,
+    ``("pause", bool)``, ``("trigger", name, value)``, ``("effects", json or None)``, ``("stop",)``; each is
+    answered ``("ok", value)`` or ``("error", one line)``. A stop (the command, ``stop_requested``, or the
+    pipe closed) ends in :func:`finish`.
+
+    Parameters
+    ----------
+    config : EngineConfig
+        The engine's configuration (its CPU wake-up latency, µs, and whether it runs in real time).
+    conn : multiprocessing.connection.Connection
+        The engine's end of the app's pipe.
+    shared : SharedBlock
+        The shared memory the status is published in.
+    renderer : Renderer
+        The renderer the commands change.
+    source : EngineSource
+        The block path the device pulls.
+    device : Device
+        The device playing.
+    stop_requested : threading.Event
+        Set by the stop signals' handlers.
+    threads : str
+        The other threads' scheduling, in words, for the status.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    A force command answered, then a stop, on the null device (not started: the loop serves the pipe alone):
+
+    >>> import multiprocessing, threading
+    >>> from ultraglide import Renderer
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> from ultraglide.render.engine import EngineConfig
+    >>> from ultraglide.render.engine.process import EngineSource
+    >>> from ultraglide.render.engine.shm import SharedBlock
+    >>> shared, renderer = SharedBlock.create(), Renderer("grating-1mm")
+    >>> device = open_device("null", load_profile("sim-plate"))
+    >>> source = EngineSource(renderer, shared, device, False)
+    >>> app, engine = multiprocessing.Pipe()
+    >>> app.send(("force", 0.8)); app.send(("stop",))
+    >>> serve(EngineConfig(realtime_priority=False), engine, shared, renderer, source, device, threading.Event(),
+    ...       "other threads: normal")
+    >>> app.recv(), app.recv()[0], renderer.default_force_n
+    (('ok', None), 'stopped', 0.8)
+    >>> shared.close()
+    """
     wake = CpuWakeLatency(config.cpu_wake_latency_us if config.realtime_priority else None)
     try:
         _serve_commands(config, conn, shared, renderer, source, device, stop_requested, threads, wake)
@@ -214,7 +265,42 @@ def _serve_commands(config, conn, shared, renderer, source, device, stop_request
 
 
 def finish(shared, source, device, conn, wake) -> None:
-    """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there."""
+    """Ramp to rest, rest the hardware, publish the last status; tell the parent if it is there.
+
+    Parameters
+    ----------
+    shared : SharedBlock
+        The shared memory: the last status, and the state ``stopped``.
+    source : EngineSource
+        The block path (told it is stopping; its records closed).
+    device : Device or None
+        The device, stopped (:func:`close_device`).
+    conn : multiprocessing.connection.Connection or None
+        The engine's end of the app's pipe: ``("stopped", status)`` is sent on it (None: the parent is gone).
+    wake : CpuWakeLatency
+        The CPU wake-up request, withdrawn.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import multiprocessing
+    >>> from ultraglide import Renderer
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> from ultraglide.render.engine import shm
+    >>> from ultraglide.render.engine.process import EngineSource
+    >>> shared = shm.SharedBlock.create()
+    >>> device = open_device("null", load_profile("sim-plate"))
+    >>> source = EngineSource(Renderer("grating-1mm"), shared, device, False)
+    >>> app, engine = multiprocessing.Pipe()
+    >>> finish(shared, source, device, engine, CpuWakeLatency(None))
+    >>> shm.STATES[int(shared.fast[shm.STATE])], app.recv()[0], shared.read_slow()["texture"]
+    ('stopped', 'stopped', 'grating-1mm')
+    >>> shared.close()
+    """
     source._stopping = True
     failure = close_device(device)
     for record in (source.record, source.sensor_record):
