@@ -84,6 +84,42 @@ def test_the_documented_modules_stay_documented():
     assert not lacking, f"{len(lacking)} public definitions without a docstring: {lacking}"
 
 
+def _module_of(path):
+    """The module name a source file of the repository is imported as (top-level folders live in ultraglide.*)."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts if parts[0] == "ultraglide" else ["ultraglide", *parts])
+
+
+def test_the_documented_modules_public_functions_have_running_examples():
+    """Every public module-level function of the documented modules has an Examples section whose ``>>>`` lines
+    doctest finds in the imported module, so tests/test_doctests.py runs them (a decorated function doctest
+    cannot see would pass a look at its source alone)."""
+    import doctest
+    import importlib
+
+    finder = doctest.DocTestFinder()
+    paths = sorted(path for place in DOCUMENTED
+                   for path in ([ROOT / place] if place.endswith(".py") else (ROOT / place).rglob("*.py"))
+                   if not any(path.relative_to(ROOT).as_posix().startswith(skip) for skip in NOT_YET))
+    lacking, checked = [], 0
+    for path in paths:
+        functions = [name for name, node in _public_definitions(ast.parse(path.read_text(encoding="utf-8")))
+                     if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and "." not in name]
+        if not functions:
+            continue
+        module = importlib.import_module(_module_of(path))
+        found = {test.name for test in finder.find(module) if test.examples}
+        for name in functions:
+            checked += 1
+            doc = inspect.getdoc(getattr(module, name)) or ""
+            if f"{module.__name__}.{name}" not in found or "Examples" not in _sections(doc):
+                lacking.append(f"{path.relative_to(ROOT)}: {name}")
+    assert checked > 150
+    assert not lacking, f"{len(lacking)} public functions without a running example: {lacking}"
+
+
 def test_unknown_names_raise_attribute_error():
     with pytest.raises(AttributeError, match="no attribute 'kernels'"):
         ultraglide.kernels  # noqa: B018 - internal modules are not re-exported
