@@ -107,7 +107,21 @@ class Scene:
 
 
 def is_gltf(path: str | os.PathLike) -> bool:
-    """Whether ``path`` names a glTF scene by its extension (``.gltf`` or ``.glb``)."""
+    """Whether ``path`` names a glTF scene by its extension (``.gltf`` or ``.glb``).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> is_gltf("plate.GLB"), is_gltf("scene.gltf"), is_gltf("map.png")
+    (True, True, False)
+    """
     return Path(path).suffix.lower() in (".gltf", ".glb")
 
 
@@ -131,11 +145,13 @@ def read_scene(path: str | os.PathLike) -> Scene:
         One line saying what is wrong: not glTF 2.0, a GLB whose lengths lie, JSON too large or too deep,
         an index out of range, a bad haptic material.
 
-    Example
-    -------
-    >>> scene = read_scene("plate.glb")                     # doctest: +SKIP
-    >>> [material.name for material in scene.materials]     # doctest: +SKIP
-    ['wood']
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> path = write_gltf(grating(2.0, size_mm=(40, 20)), pathlib.Path(tempfile.mkdtemp()) / "grating.glb")
+    >>> [material.name for material in read_scene(path).materials]
+    ['grating-sine']
     """
     path = Path(path)
     with open_input(path, "glTF file", TextureError) as stream:
@@ -290,8 +306,36 @@ def _haptic_materials(scene: Scene) -> tuple[HapticMaterial, ...]:
 
 
 def choose_material(scene: Scene, material: str | int | None) -> HapticMaterial:
-    """The haptic material ``material`` names (its name, or its index as a number), or the first with a
-    friction texture; one line listing them when there is none such."""
+    """The haptic material ``material`` names (its name, or its index), or the first with a friction texture.
+
+    Parameters
+    ----------
+    scene : Scene
+        A scene from :func:`read_scene`.
+    material : str or int or None
+        A material's name or index; None: the first with a friction texture.
+
+    Returns
+    -------
+    HapticMaterial
+
+    Raises
+    ------
+    TextureError
+        No haptic material, or none by that name or index: one line listing those there are.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> scene = read_scene(write_gltf(grating(2.0), pathlib.Path(tempfile.mkdtemp()) / "grating.glb"))
+    >>> choose_material(scene, None).name, choose_material(scene, 0).friction
+    ('grating-sine', ((0, 'High_Resolution', 0),))
+    >>> choose_material(scene, "wood")
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: .../grating.glb: no haptic material 'wood'; it has 0 'grating-sine'
+    """
     if not scene.materials:
         raise scene.fail(f"no haptic materials (no {EXTENSION} extension): it holds no friction map")
     listing = ", ".join(f"{m.index} {m.name!r}" if m.name else str(m.index) for m in scene.materials)
@@ -464,9 +508,33 @@ def _local_matrix(scene: Scene, node: dict, number: int) -> np.ndarray:
 
 
 def uv_size_mm(scene: Scene, material: HapticMaterial, tex_coord: int = 0) -> tuple[float, float] | None:
-    """The millimetres one whole texture spans along u and v on the meshes that wear ``material``, or None
-    when no mesh maps it flatly (an affine fit of positions on texture coordinates within
-    :data:`FLAT_TOLERANCE` of the extent)."""
+    """The millimetres one whole texture spans along u and v on the meshes that wear ``material``.
+
+    None when no mesh maps it flatly (an affine fit of positions on texture coordinates within
+    :data:`FLAT_TOLERANCE` of the extent).
+
+    Parameters
+    ----------
+    scene : Scene
+    material : HapticMaterial
+    tex_coord : int
+        The texture coordinate set (``TEXCOORD_n``).
+
+    Returns
+    -------
+    tuple of (float, float) or None
+        The span along u and v, mm.
+
+    Examples
+    --------
+    A texture written as a 40 mm × 20 mm quad:
+
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> scene = read_scene(write_gltf(grating(2.0, size_mm=(40, 20)), pathlib.Path(tempfile.mkdtemp()) / "g.glb"))
+    >>> [round(side, 3) for side in uv_size_mm(scene, scene.materials[0])]
+    [40.0, 20.0]
+    """
     matrices = _node_matrices(scene)
     positions, coords = [], []
     for mesh_index in material.meshes:
@@ -691,8 +759,32 @@ def _decode(scene: Scene, data, where: str) -> tuple[Image.Image, dict | None, n
 
 
 def describe_scene(path: str | os.PathLike) -> list[dict]:
-    """Each haptic material of a scene, JSON-ready: index, name, properties, friction textures, meshes and the
-    size its UV mapping gives (mm, or None)."""
+    """Each haptic material of a scene, JSON-ready.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.glb`` or ``.gltf`` file.
+
+    Returns
+    -------
+    list of dict
+        Per material: index, name, properties, friction textures, meshes and the size its UV mapping gives
+        (mm, or None).
+
+    Raises
+    ------
+    TextureError
+        What :func:`read_scene` raises.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> describe_scene(write_gltf(grating(2.0, size_mm=(40, 20)), pathlib.Path(tempfile.mkdtemp()) / "g.glb"))
+    [{'index': 0, 'name': 'grating-sine', 'properties': ['friction'],
+      'friction_textures': [{'texture': 0, 'type': 'High_Resolution'}], 'meshes': [0], 'size_mm': [40.0, 20.0]}]
+    """
     scene = read_scene(path)
     out = []
     for material in scene.materials:
@@ -709,7 +801,24 @@ _PREVIEW_STOPS = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201,
 
 
 def preview_rgb(ratio: np.ndarray) -> np.ndarray:
-    """An 8-bit RGB picture of friction ratios: a perceptually ordered ramp from dark violet (0) to yellow (1)."""
+    """An 8-bit RGB picture of friction ratios: a perceptually ordered ramp from dark violet (0) to yellow (1).
+
+    Parameters
+    ----------
+    ratio : numpy.ndarray
+        Friction ratios, any shape (clipped to 0..1).
+
+    Returns
+    -------
+    numpy.ndarray of uint8
+        ``ratio``'s shape plus a last axis of 3 (red, green, blue).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> preview_rgb(np.array([0.0, 0.5, 1.0, 2.0])).tolist()
+    [[68, 1, 84], [33, 145, 140], [253, 231, 37], [253, 231, 37]]
+    """
     position = np.clip(ratio, 0, 1) * (len(_PREVIEW_STOPS) - 1)
     low = np.minimum(position.astype(int), len(_PREVIEW_STOPS) - 2)
     part = (position - low)[..., None]
@@ -727,7 +836,26 @@ def gltf_document(texture: Texture, mapping: TexelMapping | None = None) -> tupl
     """The glTF document and its binary buffer for ``texture`` as a quad at its physical size.
 
     The friction texture is the map as 16-bit PNG (through ``mapping``'s inverse; with ultraglide's metadata
-    chunk); the base colour a preview. Returns the JSON object and the buffer (4-byte aligned parts)."""
+    chunk); the base colour a preview.
+
+    Parameters
+    ----------
+    texture : Texture
+    mapping : TexelMapping, optional
+        How a reader maps texels back to ratios (default: the texel is the ratio).
+
+    Returns
+    -------
+    tuple of (dict, bytes)
+        The JSON object and the buffer (4-byte aligned parts).
+
+    Examples
+    --------
+    >>> from ultraglide import grating
+    >>> document, buffer = gltf_document(grating(2.0, size_mm=(40, 20)))
+    >>> document["asset"]["version"], document["extensionsUsed"], len(buffer) % 4
+    ('2.0', ['MPEG_haptic_material'], 0)
+    """
     mapping = mapping or TexelMapping()
     width_m, height_m = texture.width_mm / 1000.0, texture.height_mm / 1000.0
     positions = np.array([[0, height_m, 0], [width_m, height_m, 0], [0, 0, 0], [width_m, 0, 0]], np.float32)
@@ -788,8 +916,9 @@ def gltf_document(texture: Texture, mapping: TexelMapping | None = None) -> tupl
 
 
 def write_gltf(texture: Texture, path: str | os.PathLike, mapping: TexelMapping | None = None) -> Path:
-    """Write ``texture`` as a glTF scene: a ``.glb`` (one binary file) or a ``.gltf`` (JSON, its buffer a data
-    URI), atomically.
+    """Write ``texture`` as a glTF scene, atomically.
+
+    A ``.glb`` (one binary file) or a ``.gltf`` (JSON, its buffer a data URI).
 
     Parameters
     ----------
@@ -811,10 +940,15 @@ def write_gltf(texture: Texture, path: str | os.PathLike, mapping: TexelMapping 
     TextureError
         The path does not end in ``.glb`` or ``.gltf``.
 
-    Example
-    -------
-    >>> write_gltf(grating(2.0, size_mm=(40, 20)), "grating.glb")           # doctest: +SKIP
-    PosixPath('grating.glb')
+    Examples
+    --------
+    Written and read back at its size:
+
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> path = write_gltf(grating(2.0, size_mm=(40, 20)), pathlib.Path(tempfile.mkdtemp()) / "grating.glb")
+    >>> path.name, round(load_friction_texture(path).width_mm, 3)
+    ('grating.glb', 40.0)
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -836,7 +970,30 @@ def write_gltf(texture: Texture, path: str | os.PathLike, mapping: TexelMapping 
 
 
 def warn_unused(scene: Scene, chosen: HapticMaterial) -> None:
-    """Say what of a haptic material a friction display does not render (its other properties)."""
+    """Say what of a haptic material a friction display does not render (its other properties), as a warning.
+
+    Parameters
+    ----------
+    scene : Scene
+    chosen : HapticMaterial
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import dataclasses, pathlib, tempfile, warnings
+    >>> from ultraglide import grating
+    >>> scene = read_scene(write_gltf(grating(2.0), pathlib.Path(tempfile.mkdtemp()) / "grating.glb"))
+    >>> stiff = dataclasses.replace(scene.materials[0], properties=("friction", "stiffness"))
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warn_unused(scene, stiff)
+    >>> str(caught[0].message)
+    ".../grating.glb: haptic material 0's stiffness textures are not rendered (a friction display renders
+    friction only)"
+    """
     others = [prop for prop in chosen.properties if prop != "friction"]
     if others:
         warnings.warn(f"{scene.path}: haptic material {chosen.index}'s {', '.join(others)} textures are not "
