@@ -208,8 +208,8 @@ class _Messages:
         TextureRefused
             No such material, no friction texture, a size that cannot be known, a bad file (one line).
 
-        Example
-        -------
+        Examples
+        --------
         >>> plate.load_material("wood", "scene.glb", "oak")          # doctest: +SKIP
         """
         return self._request("texture.load", texture=texture, file=os.fspath(scene), material=material,
@@ -315,8 +315,8 @@ class _Messages:
         LimitReached
             The sprite's shape needs more bindings than the engine has left.
 
-        Example
-        -------
+        Examples
+        --------
         >>> plate.attach_effects("button", effect={"type": "sine", "frequency_hz": 80, "depth": 0.3})  # doctest: +SKIP
         """
         if effect is not None and not isinstance(effect, dict):

@@ -70,8 +70,8 @@ def read_ahap(document, where: str, full_depth: float = 1.0) -> Timeline:
     TextureError
         One line: not an AHAP pattern, a field of the wrong type, a number out of its range.
 
-    Example
-    -------
+    Examples
+    --------
     >>> timeline = read_ahap({"Version": 1.0, "Pattern": [{"Event": {"Time": 0.0, "EventType": "HapticTransient",
     ...     "EventParameters": [{"ParameterID": "HapticIntensity", "ParameterValue": 0.8}]}}]}, "tap.ahap")
     >>> timeline.pulses[0].depth
@@ -195,8 +195,8 @@ def read_meta_haptic(document, where: str, full_depth: float = 1.0) -> Timeline:
     TextureError
         One line: no amplitude envelope, breakpoints out of order, numbers out of range.
 
-    Example
-    -------
+    Examples
+    --------
     >>> doc = {"version": {"major": 1}, "signals": {"continuous": {"envelopes": {"amplitude": [
     ...     {"time": 0.0, "amplitude": 0.0}, {"time": 0.5, "amplitude": 1.0}]}}}}
     >>> read_meta_haptic(doc, "ramp.haptic").segments[0].depth1

@@ -39,9 +39,16 @@ def load_designer_effects(path, full_depth: float = 1.0) -> tuple:
     TextureError
         One line: an unknown suffix, not JSON, a field missing or out of range, more events than effects hold.
 
-    Example
-    -------
-    >>> bindings = load_designer_effects("tap.ahap")          # doctest: +SKIP
+    Examples
+    --------
+    >>> import json, pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "tap.ahap"
+    >>> _ = path.write_text(json.dumps({"Version": 1.0, "Pattern": [{"Event": {"Time": 0.0,
+    ...     "EventType": "HapticTransient", "EventParameters": [{"ParameterID": "HapticIntensity",
+    ...                                                           "ParameterValue": 0.8}]}}]}))
+    >>> bindings = load_designer_effects(path)
+    >>> len(bindings)
+    1
     """
     from ultraglide.textures.formats import ahap, haps, hjif
 

@@ -615,9 +615,14 @@ def load_friction_texture(path: str | os.PathLike, material: str | int | None = 
     TextureError
         One line: no such material, no friction texture, a size that cannot be known, a bad image.
 
-    Example
-    -------
-    >>> texture = load_friction_texture("scene.glb", material="wood", width_mm=80)   # doctest: +SKIP
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> path = write_gltf(grating(2.0, size_mm=(40, 20)), pathlib.Path(tempfile.mkdtemp()) / "grating.glb")
+    >>> texture = load_friction_texture(path, material="grating-sine", width_mm=80)
+    >>> texture.width_mm, round(texture.height_mm, 6)     # the UV mapping's 2:1 kept
+    (80.0, 40.0)
     """
     mapping = mapping or TexelMapping()
     scene = read_scene(path)

@@ -223,8 +223,8 @@ def read_haps(document, where: str) -> HapsFile:
         One line: not a ``.haps`` object, a field of the wrong type, a number not finite or out of range,
         keyframes out of order, a time unit other than seconds, more notes or keyframes than any effect needs.
 
-    Example
-    -------
+    Examples
+    --------
     >>> haps = read_haps({"m_version": "5", "m_texture": {"m_melodies": [{"m_notes": [
     ...     {"m_startingPoint": 0.0, "m_length": 0.01, "m_gain": 1.0}]}]}}, "t.haps")
     >>> haps.texture.notes[0].length, haps.length_unit
@@ -269,9 +269,14 @@ def load_haps(path) -> HapsFile:
     TextureError
         One line naming the file: not a regular file, too large, not JSON, or what :func:`read_haps` refuses.
 
-    Example
-    -------
-    >>> haps = load_haps("Texture.haps")          # doctest: +SKIP
+    Examples
+    --------
+    >>> import json, pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "Texture.haps"
+    >>> _ = path.write_text(json.dumps({"m_version": "5", "m_texture": {"m_melodies": [{"m_notes": [
+    ...     {"m_startingPoint": 0.0, "m_length": 0.01, "m_gain": 1.0}]}]}}))
+    >>> load_haps(path).texture.notes[0].length
+    0.01
     """
     from ultraglide.inputs import parse_json, read_input
 
@@ -314,8 +319,8 @@ def haps_texture(haps: HapsFile, width_mm: float | None = None,
     TextureError
         One line: the texture block has no notes or no length, or the length unit is unknown and no width given.
 
-    Example
-    -------
+    Examples
+    --------
     >>> notes = [{"m_startingPoint": 0.0, "m_length": 0.0005, "m_gain": 1.0},
     ...          {"m_startingPoint": 0.0005, "m_length": 0.0005, "m_gain": 0.2}]
     >>> haps = read_haps({"m_texture": {"m_loop": 1, "m_melodies": [{"m_notes": notes}]}, "m_length_unit": 7},
@@ -400,9 +405,17 @@ def load_haps_texture(path, width_mm: float | None = None,
     TextureError
         One line naming the file.
 
-    Example
-    -------
-    >>> texture, unrendered = load_haps_texture("Texture.haps", width_mm=40)          # doctest: +SKIP
+    Examples
+    --------
+    >>> import json, pathlib, tempfile
+    >>> notes = [{"m_startingPoint": 0.0, "m_length": 0.0005, "m_gain": 1.0},
+    ...          {"m_startingPoint": 0.0005, "m_length": 0.0005, "m_gain": 0.2}]
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "step.haps"
+    >>> _ = path.write_text(json.dumps({"m_texture": {"m_loop": 1, "m_melodies": [{"m_notes": notes}]},
+    ...                                 "m_length_unit": 7}))
+    >>> texture, unrendered = load_haps_texture(path, width_mm=40)
+    >>> texture.width_mm, float(texture.values[0, 0])
+    (40.0, 1.0)
     """
     return haps_texture(load_haps(path), width_mm, mapping)
 
@@ -429,8 +442,8 @@ def read_haps_effects(document, where: str, full_depth: float = 1.0) -> Timeline
     TextureError
         One line, as :func:`read_haps`.
 
-    Example
-    -------
+    Examples
+    --------
     >>> timeline = read_haps_effects({"m_vibration": {"m_melodies": [{"m_notes": [
     ...     {"m_startingPoint": 0.5, "m_length": 0.022, "m_gain": 0.8}]}]}}, "tap.haps")
     >>> timeline.pulses[0].start_s, timeline.pulses[0].depth, timeline.pulses[0].length_s

@@ -32,8 +32,8 @@ def box_weights(n_in: int, n_out: int):
     -------
     scipy.sparse.csr_matrix
 
-    Example
-    -------
+    Examples
+    --------
     >>> box_weights(4, 2).toarray().tolist()
     [[0.5, 0.5, 0.0, 0.0], [0.0, 0.0, 0.5, 0.5]]
     """
@@ -95,8 +95,8 @@ def held_map(codes: np.ndarray, size: tuple[int, int], full_scale: float) -> np.
     numpy.ndarray
         float32, ``size[1]`` × ``size[0]``, within 0..1.
 
-    Example
-    -------
+    Examples
+    --------
     >>> held_map(np.array([[0, 65535], [65535, 65535]], np.uint16), (1, 1), 65535.0).tolist()
     [[0.75]]
     """

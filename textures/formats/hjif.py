@@ -110,8 +110,8 @@ def spatial_signal(texture, x_mm, y_mm, down) -> tuple[np.ndarray, np.ndarray] |
     TextureError
         A stroke longer than an ``.hjif`` file of ours holds.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.textures.texture import Texture
     >>> ramp = Texture(np.tile(np.linspace(0.05, 0.95, 10, dtype=np.float32), (2, 1)), 10.0, 2.0, outside="clamp")
     >>> d, r = spatial_signal(ramp, np.array([1.0, 9.0]), np.array([1.0, 1.0]), np.array([True, True]))
@@ -173,8 +173,8 @@ def hjif_document(ratio: np.ndarray, rate_hz: float, description: str, drive: np
     TextureError
         Values that are not finite or not within 0..1, or a stroke too long.
 
-    Example
-    -------
+    Examples
+    --------
     >>> doc = hjif_document(np.array([1.0, 0.5]), 1000.0, "a step")
     >>> doc["perceptions"][0]["perception_modality"]
     'Friction'
@@ -238,8 +238,8 @@ def read_spatial_signal(document, where: str) -> tuple[np.ndarray, np.ndarray] |
     TextureError
         One line: a mistyped field, a number out of range, keyframes out of order.
 
-    Example
-    -------
+    Examples
+    --------
     >>> doc = hjif_document(np.ones(2), 1000.0, "flat", spatial=(np.array([0.0, 0.02]), np.array([1.0, 0.5])))
     >>> read_spatial_signal(doc, "s.hjif")[0].tolist()
     [0.0, 0.02]
@@ -308,8 +308,8 @@ def read_hjif(document, where: str, full_depth: float = 1.0) -> Timeline:
     TextureError
         One line: a missing or mistyped field, numbers out of range, too many keyframes.
 
-    Example
-    -------
+    Examples
+    --------
     >>> doc = hjif_document(np.array([1.0, 0.5, 1.0]), 1000.0, "a dip")
     >>> round(max(s.depth1 for s in read_hjif(doc, "dip.hjif").segments), 3)
     0.5

@@ -32,8 +32,8 @@ class TexelMapping:
     invert : bool
         Black is at rest (the ratio ``high``) and white the slipperiest.
 
-    Example
-    -------
+    Examples
+    --------
     >>> TexelMapping(0.2, 1.0).ratio(np.array([0.0, 0.5, 1.0])).tolist()
     [0.20000000298023224, 0.6000000238418579, 1.0]
     """
