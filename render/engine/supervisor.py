@@ -106,6 +106,7 @@ class Supervisor:
         self._thread = threading.Thread(target=self._watch, name="engine-supervisor", daemon=True)
 
     def start(self) -> Supervisor:
+        """Start the watch (a daemon thread of this process); returns the supervisor, for chaining."""
         self._thread.start()
         return self
 

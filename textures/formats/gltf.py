@@ -103,6 +103,25 @@ class Scene:
     _buffers: dict = field(default_factory=dict)
 
     def fail(self, message: str) -> TextureError:
+        """A TextureError naming the scene's file and what is wrong with it (for the caller to raise).
+
+        Parameters
+        ----------
+        message : str
+            What is wrong, one line.
+
+        Returns
+        -------
+        TextureError
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> from ultraglide import grating
+        >>> scene = read_scene(write_gltf(grating(2.0), pathlib.Path(tempfile.mkdtemp()) / "grating.glb"))
+        >>> str(scene.fail("mesh 0 has no positions"))
+        '.../grating.glb: mesh 0 has no positions'
+        """
         return TextureError(f"{self.path}: {message}")
 
 

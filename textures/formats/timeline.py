@@ -107,6 +107,23 @@ class Segment:
 
 @dataclass(frozen=True)
 class Pulse:
+    """A transient: from ``start_s``, the friction drops by ``depth`` (0..1) for ``length_s`` (s).
+
+    Parameters
+    ----------
+    start_s : float
+        When it starts, s from the effect's start.
+    depth : float
+        The friction drop, 0..1.
+    length_s : float
+        How long it lasts, s.
+
+    Examples
+    --------
+    >>> pulse = Pulse(0.1, 0.8, pulse_length_s(1.0))
+    >>> round(pulse.start_s + pulse.length_s, 6)     # ends 5 ms after it starts
+    0.105
+    """
     start_s: float
     depth: float
     length_s: float
@@ -122,6 +139,24 @@ class Timeline:
     notes: list[str] = field(default_factory=list)
 
     def note(self, text: str) -> None:
+        """Say once what of the file is not rendered (a repeated note is kept once).
+
+        Parameters
+        ----------
+        text : str
+            The note, in words.
+
+        Returns
+        -------
+        None
+
+        Examples
+        --------
+        >>> timeline = Timeline("tap.ahap")
+        >>> timeline.note("audio events are not rendered"); timeline.note("audio events are not rendered")
+        >>> timeline.notes
+        ['audio events are not rendered']
+        """
         if text not in self.notes:
             self.notes.append(text)
 
