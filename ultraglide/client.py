@@ -38,15 +38,56 @@ MAX_EVENTS = 4096  # pushes kept for events() (older ones are dropped), and mess
 
 
 class ServiceError(UltraglideError):
-    """Anything the service client raises."""
+    """Anything the service client raises.
+
+    Examples
+    --------
+    Every error of the client is one, and an :class:`~ultraglide.UltraglideError`:
+
+    >>> from ultraglide import UltraglideError
+    >>> issubclass(Busy, ServiceError), issubclass(ConnectionFailed, ServiceError)
+    (True, True)
+    >>> issubclass(ServiceError, UltraglideError)
+    True
+    """
 
 
 class ConnectionFailed(ServiceError, ConnectionError):
-    """The service could not be reached, refused the handshake (origin, token), or the connection was lost."""
+    """The service could not be reached, refused the handshake (origin, token), or the connection was lost.
+
+    Examples
+    --------
+    Nothing listens on the port (one refused connection on this machine's loopback):
+
+    >>> import socket
+    >>> with socket.socket() as probe:
+    ...     probe.bind(("127.0.0.1", 0)); port = probe.getsockname()[1]
+    >>> try:
+    ...     Client(f"ws://127.0.0.1:{port}", timeout_s=5.0)
+    ... except ConnectionFailed as error:
+    ...     print(type(error).__name__, isinstance(error, ConnectionError))
+    ConnectionFailed True
+    """
 
 
 class Refused(ServiceError, ValueError):
-    """The service refused a message: ``code`` (docs/service.md) and its one-line ``message``."""
+    """The service refused a message: ``code`` (docs/service.md) and its one-line ``message``.
+
+    Parameters
+    ----------
+    message : str
+        What was refused and why, one line.
+    code : str, optional
+        The service's error code (docs/service.md); the class's own by default.
+
+    Examples
+    --------
+    A code this client does not know is a plain Refused, its code kept:
+
+    >>> error = refusal({"type": "error", "code": "new-code", "message": "refused for a new reason"})
+    >>> type(error).__name__, error.code, str(error)
+    ('Refused', 'new-code', 'refused for a new reason')
+    """
 
     code = "refused"
 
@@ -59,61 +100,130 @@ class Refused(ServiceError, ValueError):
 class BadMessage(Refused):
     """A message that is not JSON, not an object, of an unknown type or field, or with a field missing,
     of the wrong type or out of range (``bad-message``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "bad-message", "message": "hello: unknown field 'colour'"})
+    >>> isinstance(error, BadMessage), isinstance(error, Refused), error.code
+    (True, True, 'bad-message')
     """
 
     code = "bad-message"
 
 
 class TooBig(Refused):
-    """A message over 64 KiB (all but ``texture.load``) (``too-big``)."""
+    """A message over 64 KiB (all but ``texture.load``) (``too-big``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "too-big", "message": "message over 64 KiB"})
+    >>> isinstance(error, TooBig), isinstance(error, Refused), error.code
+    (True, True, 'too-big')
+    """
 
     code = "too-big"
 
 
 class RateLimited(Refused):
-    """More than 2000 messages a second (``rate``)."""
+    """More than 2000 messages a second (``rate``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "rate", "message": "more than 2000 messages a second"})
+    >>> isinstance(error, RateLimited), isinstance(error, Refused), error.code
+    (True, True, 'rate')
+    """
 
     code = "rate"
 
 
 class NoHello(Refused):
-    """A message before ``hello`` (``no-hello``)."""
+    """A message before ``hello`` (``no-hello``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "no-hello", "message": "say hello first"})
+    >>> isinstance(error, NoHello), isinstance(error, Refused), error.code
+    (True, True, 'no-hello')
+    """
 
     code = "no-hello"
 
 
 class Busy(Refused):
-    """Another client controls the plate."""
+    """Another client controls the plate.
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "busy", "message": "another client controls the plate"})
+    >>> isinstance(error, Busy), isinstance(error, Refused), error.code
+    (True, True, 'busy')
+    """
 
     code = "busy"
 
 
 class ReadOnly(Refused):
-    """This client observes: it may not change anything."""
+    """This client observes: it may not change anything.
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "read-only", "message": "an observer may not change anything"})
+    >>> isinstance(error, ReadOnly), isinstance(error, Refused), error.code
+    (True, True, 'read-only')
+    """
 
     code = "read-only"
 
 
 class Unknown(Refused):
-    """No texture, view or sprite of that name."""
+    """No texture, view or sprite of that name.
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "unknown", "message": "no texture 'wood'"})
+    >>> isinstance(error, Unknown), isinstance(error, Refused), error.code
+    (True, True, 'unknown')
+    """
 
     code = "unknown"
 
 
 class TextureRefused(Refused):
-    """The texture could not be loaded: the file, the image (``texture``)."""
+    """The texture could not be loaded: the file, the image (``texture``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "texture", "message": "wood.png: not an image"})
+    >>> isinstance(error, TextureRefused), isinstance(error, Refused), error.code
+    (True, True, 'texture')
+    """
 
     code = "texture"
 
 
 class LimitReached(Refused):
-    """Too many textures, sprites or views, or a texture of too many pixels (``limit``)."""
+    """Too many textures, sprites or views, or a texture of too many pixels (``limit``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "limit", "message": "at most 64 textures"})
+    >>> isinstance(error, LimitReached), isinstance(error, Refused), error.code
+    (True, True, 'limit')
+    """
 
     code = "limit"
 
 
 class EngineRefused(Refused):
-    """The engine refused it, e.g. an effects description (``engine``)."""
+    """The engine refused it, e.g. an effects description (``engine``).
+
+    Examples
+    --------
+    >>> error = refusal({"type": "error", "code": "engine", "message": "effects: unknown type 'saw'"})
+    >>> isinstance(error, EngineRefused), isinstance(error, Refused), error.code
+    (True, True, 'engine')
+    """
 
     code = "engine"
 
