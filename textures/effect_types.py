@@ -20,7 +20,16 @@ ON = ("start", "end", "while", "cross", "event")
 
 
 class Effect:
-    """The composable part every effect shares: ``+``, ``*`` (or a number), ``>>``."""
+    """The composable part every effect shares: ``+``, ``*`` (or a number), ``>>``.
+
+    Examples
+    --------
+    Effects combine into effects: a sum, a product, a sequence:
+
+    >>> buzz = Sine(150.0, 0.3) * Constant(1.0, 0.1)        # 100 ms of a 150 Hz buzz
+    >>> isinstance(buzz, Effect), buzz.duration_s, (buzz >> buzz).duration_s
+    (True, 0.1, 0.2)
+    """
 
     __slots__ = ()
 
@@ -63,7 +72,31 @@ def _check(name: str, value, low: float, high: float, unit: str = "", low_open: 
 
 @dataclass(frozen=True, slots=True)
 class Oscillator(Effect):
-    """Shared by the periodic effects: ``frequency_hz`` (Hz) and ``depth`` (friction ratio, −1..1)."""
+    """Shared by the periodic effects: ``frequency_hz`` (Hz) and ``depth`` (friction ratio, −1..1).
+
+    Parameters
+    ----------
+    frequency_hz : float
+        The frequency, Hz (above 0).
+    depth : float
+        The friction drop at the peak, friction ratio, -1..1.
+
+    Raises
+    ------
+    TextureError
+        A frequency or depth out of range.
+
+    Examples
+    --------
+    Each periodic effect is one, going on for ever:
+
+    >>> isinstance(Square(50.0, 0.5), Oscillator), Square(50.0, 0.5).duration_s
+    (True, inf)
+    >>> Sine(0.0, 0.5)
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: effect frequency_hz must lie in (0, 2000] Hz, got 0.0
+    """
 
     frequency_hz: float
     depth: float
@@ -80,27 +113,66 @@ class Oscillator(Effect):
 
 @dataclass(frozen=True, slots=True)
 class Sine(Oscillator):
-    """depth·(1 − cos 2πft)/2: from 0 to depth and back, once a period."""
+    """depth·(1 − cos 2πft)/2: from 0 to depth and back, once a period.
+
+    Examples
+    --------
+    At 10 Hz: 0 at the start of each period, the whole depth at its middle (50 ms), half of it a quarter in:
+
+    >>> from ultraglide.render.effects import sample
+    >>> sample(Sine(10.0, 0.2), [0.0, 0.025, 0.05, 0.1]).round(9).tolist()
+    [0.0, 0.1, 0.2, 0.0]
+    """
 
 
 @dataclass(frozen=True, slots=True)
 class Square(Oscillator):
-    """0 for the first half of each period, depth for the second."""
+    """0 for the first half of each period, depth for the second.
+
+    Examples
+    --------
+    >>> from ultraglide.render.effects import sample
+    >>> sample(Square(10.0, 0.5), [0.02, 0.07, 0.12]).tolist()        # s: first half, second half, next period
+    [0.0, 0.5, 0.0]
+    """
 
 
 @dataclass(frozen=True, slots=True)
 class Sawtooth(Oscillator):
-    """Rises from 0 to depth over each period, then drops back."""
+    """Rises from 0 to depth over each period, then drops back.
+
+    Examples
+    --------
+    >>> from ultraglide.render.effects import sample
+    >>> sample(Sawtooth(10.0, 1.0), [0.0, 0.025, 0.075]).round(9).tolist()
+    [0.0, 0.25, 0.75]
+    """
 
 
 @dataclass(frozen=True, slots=True)
 class Triangle(Oscillator):
-    """Rises from 0 to depth over half a period and back over the other half."""
+    """Rises from 0 to depth over half a period and back over the other half.
+
+    Examples
+    --------
+    >>> from ultraglide.render.effects import sample
+    >>> sample(Triangle(10.0, 1.0), [0.0, 0.025, 0.05, 0.075]).round(9).tolist()
+    [0.0, 0.5, 1.0, 0.5]
+    """
 
 
 @dataclass(frozen=True, slots=True)
 class Constant(Effect):
-    """``level`` (friction ratio, −1..1) for ``length_s`` (s; for ever by default): a step, or a pulse."""
+    """``level`` (friction ratio, −1..1) for ``length_s`` (s; for ever by default): a step, or a pulse.
+
+    Examples
+    --------
+    >>> from ultraglide.render.effects import sample
+    >>> sample(Constant(0.3, 0.05), [0.0, 0.04, 0.06]).tolist()        # s: during, during, after
+    [0.3, 0.3, 0.0]
+    >>> Constant(0.3).duration_s
+    inf
+    """
 
     level: float
     length_s: float = math.inf
@@ -118,7 +190,17 @@ class Constant(Effect):
 
 @dataclass(frozen=True, slots=True)
 class ADSR(Effect):
-    """Linear attack to ``peak``, decay to ``sustain_level``·peak, held for ``sustain_s``, release to 0 (s)."""
+    """Linear attack to ``peak``, decay to ``sustain_level``·peak, held for ``sustain_s``, release to 0 (s).
+
+    Examples
+    --------
+    10 ms up to the peak, 10 ms down to half of it, held 10 ms, 10 ms down to 0:
+
+    >>> from ultraglide.render.effects import sample
+    >>> envelope = ADSR(0.01, 0.01, 0.01, 0.01)
+    >>> round(envelope.duration_s, 9), sample(envelope, [0.005, 0.01, 0.02, 0.025, 0.035]).round(9).tolist()
+    (0.04, [0.5, 1.0, 0.5, 0.5, 0.25])
+    """
 
     attack_s: float
     decay_s: float
@@ -196,7 +278,15 @@ class Product(Effect):
 
 @dataclass(frozen=True, slots=True)
 class Sequence(Effect):
-    """Each part after the one before has ended."""
+    """Each part after the one before has ended.
+
+    Examples
+    --------
+    >>> from ultraglide.render.effects import sample
+    >>> steps = Constant(0.2, 0.01) >> Constant(0.4, 0.01)
+    >>> isinstance(steps, Sequence), steps.duration_s, sample(steps, [0.005, 0.015, 0.025]).tolist()
+    (True, 0.02, [0.2, 0.4, 0.0])
+    """
 
     parts: tuple[Effect, ...]
 
@@ -224,6 +314,21 @@ class Trigger:
     ``cross`` each time it crosses one of ``lines_mm`` (x positions if ``axis`` is ``x``, else y) inside
     the region, ``event`` when the app reports the event ``name`` (a widget's value changing).
     ``region_mm`` is (x, y, width, height); None: anywhere.
+
+    Raises
+    ------
+    TextureError
+        An unknown ``on``, a region that is not (x, y, width, height) with a positive size, lines out of order,
+        an event trigger without a name.
+
+    Examples
+    --------
+    >>> Trigger("start", region_mm=(0, 0, 10, 5)).region_mm
+    (0.0, 0.0, 10.0, 5.0)
+    >>> Trigger("cross", lines_mm=(2.0, 1.0))
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: a trigger's lines_mm must be finite and in increasing order
     """
 
     on: str
@@ -259,7 +364,23 @@ class Trigger:
 
 @dataclass(frozen=True, slots=True)
 class Binding:
-    """An effect and its trigger; ``release_s``: the fade when a ``while`` trigger's condition ends, s."""
+    """An effect and its trigger; ``release_s``: the fade when a ``while`` trigger's condition ends, s.
+
+    Raises
+    ------
+    TextureError
+        A release out of range, an effect without an end on a trigger that plays it once, too many parts.
+
+    Examples
+    --------
+    >>> click = Binding(Trigger("start"), Square(200.0, 0.5) * Constant(1.0, 0.01), label="click")
+    >>> click.trigger.on, click.release_s
+    ('start', 0.02)
+    >>> Binding(Trigger("start"), Sine(150.0, 0.3))
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.errors.TextureError: a trigger on 'start' plays its effect once, so the effect needs a ...
+    """
 
     trigger: Trigger
     effect: Effect
