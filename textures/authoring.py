@@ -147,7 +147,30 @@ class AuthoringOptions:
 
 
 class ImageTooLarge(TextureError):
-    """An image with more pixels than the limit allows (``AuthoringOptions.max_pixels``)."""
+    """An image with more pixels than the limit allows (``AuthoringOptions.max_pixels``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The image.
+    size : (int, int)
+        Its width and height, pixels.
+    limit : int
+        The most pixels allowed.
+    advice : str
+        What to do, in words.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from PIL import Image
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "wide.png"
+    >>> Image.new("L", (20, 10)).save(path)
+    >>> read_image_luminance(path, AuthoringOptions(max_pixels=100))
+    Traceback (most recent call last):
+    ...
+    ultraglide.textures.authoring.ImageTooLarge: .../wide.png: 20×10 is 200 pixels, over the limit of 100; shrink ...
+    """
 
     def __init__(self, path, size: tuple[int, int], limit: int,
                  advice: str = "shrink the image, or give a larger max_pixels"):

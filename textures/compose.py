@@ -40,7 +40,22 @@ MAX_PIXELS = 16_000_000
 
 @dataclass(frozen=True)
 class Placement:
-    """A texture's top-left corner on the canvas, mm."""
+    """A texture's top-left corner on the canvas, mm.
+
+    Parameters
+    ----------
+    texture : Texture
+        The texture placed.
+    x_mm, y_mm : float
+        Its top-left corner on the canvas, mm.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> patch = Placement(Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=5.0), 20.0, 0.0)
+    >>> patch.contains(20.0, 0.0), patch.contains(29.9, 4.9), patch.contains(30.0, 2.0)     # right edge out
+    (True, True, False)
+    """
 
     texture: Texture
     x_mm: float
@@ -106,7 +121,22 @@ def compose(size_mm: tuple[float, float], placements: list[Placement], backgroun
 
 @dataclass(frozen=True)
 class Grid:
-    """The common grid of a composition: its size in mm and its pixels (square, ``px_per_mm`` a side)."""
+    """The common grid of a composition: its size in mm and its pixels (square, ``px_per_mm`` a side).
+
+    Parameters
+    ----------
+    width_mm, height_mm : float
+        The grid's size, mm.
+    px_per_mm : float
+        Pixels a mm, each way.
+
+    Examples
+    --------
+    >>> grid = Grid(20.0, 5.0, 0.2)                 # 4 × 1 pixels of 5 mm
+    >>> x, y = grid.centres()
+    >>> grid.shape, x.tolist(), y.tolist()
+    ((1, 4), [[2.5, 7.5, 12.5, 17.5]], [[2.5, 2.5, 2.5, 2.5]])
+    """
 
     width_mm: float
     height_mm: float

@@ -25,7 +25,27 @@ LIBRARY_DIR = Path(__file__).parent / "library"
 
 @dataclass(frozen=True)
 class LibraryEntry:
-    """A bundled texture, described without loading its pixels."""
+    """A bundled texture, described without loading its pixels.
+
+    Attributes
+    ----------
+    name : str
+        The texture's name (its file's stem).
+    path : pathlib.Path
+        Its file.
+    width_mm, height_mm : float
+        Its size, mm.
+    kind : str
+        ``friction`` or ``gradient``.
+    description : str
+        One line.
+
+    Examples
+    --------
+    >>> entry = next(e for e in library_entries() if e.name == "grating-1mm")
+    >>> entry.path.name, entry.width_mm, entry.height_mm
+    ('grating-1mm.png', 80.0, 50.0)
+    """
 
     name: str
     path: Path

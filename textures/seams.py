@@ -30,7 +30,21 @@ VISIBLE_RATIO = 2.0  # a seam whose rms step is twice the interior's stands out 
 
 @dataclass(frozen=True)
 class SeamReport:
-    """Steps across the tile's seams and between neighbours inside, in the texture's value units."""
+    """Steps across the tile's seams and between neighbours inside, in the texture's value units.
+
+    Attributes
+    ----------
+    seam_max, interior_max : float
+        The largest step across the seams and between neighbours inside.
+    seam_rms, interior_rms : float
+        Their RMS.
+
+    Examples
+    --------
+    >>> report = SeamReport(seam_max=1.0, interior_max=0.1, seam_rms=1.0, interior_rms=0.1)
+    >>> round(report.ratio, 6), report.seamless, report.visible
+    (10.0, False, True)
+    """
 
     seam_max: float  # largest step across either seam
     interior_max: float  # largest step between neighbours inside
