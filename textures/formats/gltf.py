@@ -82,7 +82,16 @@ class HapticMaterial:
 
     ``index`` is its place in the document's ``MPEG_haptic_material.materials``; ``friction`` the
     (texture index, type, texCoord) of each friction texture; ``properties`` the properties it has
-    textures for; ``meshes`` the meshes that wear it."""
+    textures for; ``meshes`` the meshes that wear it.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> material = read_scene(write_gltf(grating(2.0), pathlib.Path(tempfile.mkdtemp()) / "g.glb")).materials[0]
+    >>> material.index, material.name, material.friction, material.meshes
+    (0, 'grating-sine', ((0, 'High_Resolution', 0),), (0,))
+    """
 
     index: int
     name: str
@@ -93,7 +102,16 @@ class HapticMaterial:
 
 @dataclass
 class Scene:
-    """A glTF document read and checked: its JSON, its BIN chunk (GLB) and the folder its URIs resolve in."""
+    """A glTF document read and checked: its JSON, its BIN chunk (GLB) and the folder its URIs resolve in.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from ultraglide import grating
+    >>> scene = read_scene(write_gltf(grating(2.0), pathlib.Path(tempfile.mkdtemp()) / "grating.glb"))
+    >>> scene.path.name, scene.document["asset"]["version"], scene.binary is not None, len(scene.materials)
+    ('grating.glb', '2.0', True, 1)
+    """
 
     path: Path
     document: dict

@@ -72,7 +72,16 @@ AMPLITUDE_IS_RATIO = TexelMapping()  # the default rule: amplitude 1 is the plat
 class Note:
     """One note: where it starts and how long it lasts (s or length units), its gain (all gains above it
     multiplied in), its amplitude keyframes (positions from its start; None for a transient), its frequency
-    keyframes (Hz; may be empty) and its underlying signal's frequency (Hz, or None)."""
+    keyframes (Hz; may be empty) and its underlying signal's frequency (Hz, or None).
+
+    Examples
+    --------
+    >>> haps = read_haps({"m_texture": {"m_melodies": [{"m_notes": [
+    ...     {"m_startingPoint": 0.0, "m_length": 0.01, "m_gain": 0.5}]}]}}, "t.haps")
+    >>> note = haps.texture.notes[0]
+    >>> note.start, note.length, note.gain
+    (0.0, 0.01, 0.5)
+    """
 
     start: float
     length: float
@@ -86,7 +95,15 @@ class Note:
 
 @dataclass(frozen=True)
 class Block:
-    """A perception block (``m_vibration``, ``m_texture``, ``m_stiffness``): its playing notes and its loop."""
+    """A perception block (``m_vibration``, ``m_texture``, ``m_stiffness``): its playing notes and its loop.
+
+    Examples
+    --------
+    >>> haps = read_haps({"m_texture": {"m_loop": 1, "m_melodies": [{"m_notes": [
+    ...     {"m_startingPoint": 0.0, "m_length": 0.01, "m_gain": 1.0}]}]}}, "t.haps")
+    >>> haps.texture.name, len(haps.texture.notes), haps.texture.loop, len(haps.vibration.notes)
+    ('m_texture', 1, True, 0)
+    """
 
     name: str
     notes: tuple[Note, ...]
@@ -97,7 +114,15 @@ class Block:
 
 @dataclass(frozen=True)
 class HapsFile:
-    """A read ``.haps`` file: its three blocks, its units and description."""
+    """A read ``.haps`` file: its three blocks, its units and description.
+
+    Examples
+    --------
+    >>> haps = read_haps({"m_version": "5", "m_description": "a step", "m_texture": {"m_melodies": [{"m_notes": [
+    ...     {"m_startingPoint": 0.0, "m_length": 0.01, "m_gain": 1.0}]}]}}, "step.haps")
+    >>> haps.where, haps.description, haps.length_unit
+    ('step.haps', 'a step', 7)
+    """
 
     where: str
     description: str

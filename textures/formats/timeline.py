@@ -96,7 +96,16 @@ def pulse_length_s(sharpness: float) -> float:
 @dataclass(frozen=True)
 class Segment:
     """From ``start_s`` for ``length_s``, the friction drop goes from ``depth0`` to ``depth1`` (linearly); as the
-    depth of a modulation at ``frequency_hz``, or directly when that is None."""
+    depth of a modulation at ``frequency_hz``, or directly when that is None.
+
+    Examples
+    --------
+    A ramp of the friction drop from 0 to 0.5 over 100 ms, then the ramp as a 50 Hz modulation's depth:
+
+    >>> ramp = Segment(0.0, 0.1, 0.0, 0.5)
+    >>> ramp.start_s + ramp.length_s, ramp.frequency_hz, Segment(0.1, 0.1, 0.5, 0.5, 50.0).frequency_hz
+    (0.1, None, 50.0)
+    """
 
     start_s: float
     length_s: float
@@ -131,7 +140,14 @@ class Pulse:
 
 @dataclass
 class Timeline:
-    """Segments, pulses and notes (what is not rendered) read from a designer's file."""
+    """Segments, pulses and notes (what is not rendered) read from a designer's file.
+
+    Examples
+    --------
+    >>> timeline = Timeline("tap.ahap", pulses=[Pulse(0.0, 0.8, pulse_length_s(1.0))])
+    >>> timeline.where, len(timeline.pulses), timeline.segments, timeline.notes
+    ('tap.ahap', 1, [], [])
+    """
 
     where: str
     segments: list[Segment] = field(default_factory=list)
