@@ -31,7 +31,15 @@ BLANK_LINE = re.compile(r"^[ \t]+(?=\r?$)", re.MULTILINE)
 
 @dataclass(frozen=True)
 class Column:
-    """A column's name and the range its values must lie in (``low`` excluded when ``low_open``)."""
+    """A column's name and the range its values must lie in (``low`` excluded when ``low_open``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> force = Column("force_n", 0.0, 10.0, "N", low_open=True)
+    >>> force.describe(), force.outside(np.array([0.0, 0.5, 11.0, np.nan])).tolist()
+    ('more than 0 to 10 N', [True, False, True, True])
+    """
 
     name: str
     low: float
@@ -53,7 +61,20 @@ class Column:
 
 @dataclass(frozen=True)
 class Block:
-    """Rows of one block: ``values[name]`` arrays; ``line_of(k)`` is the file line of row k."""
+    r"""Rows of one block: ``values[name]`` arrays; ``line_of(k)`` is the file line of row k.
+
+    Examples
+    --------
+    The rows of a block and the file lines they came from (a comment line is skipped):
+
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "forces.csv"
+    >>> _ = path.write_text("t_s,force_n\n0,0.5\n# pressed harder\n0.1,0.8\n")
+    >>> table = NumericCsv(path, (Column("t_s", 0.0, 1e6), Column("force_n", 0.0, 10.0)), (), ValueError, "force file")
+    >>> block = next(table.blocks())
+    >>> len(block), block.values["force_n"].tolist(), [block.line_of(k) for k in range(len(block))]
+    (2, [0.5, 0.8], [2, 4])
+    """
 
     values: dict[str, np.ndarray]
     text: str
@@ -79,11 +100,25 @@ def _is_data(line: str) -> bool:
 
 
 class NumericCsv:
-    """A numeric CSV file whose header has been read and checked; :meth:`blocks` streams its rows.
+    r"""A numeric CSV file whose header has been read and checked; :meth:`blocks` streams its rows.
 
     ``required`` columns must be in the header, ``optional`` ones may be; the header may hold other
     columns too, in any order. ``error`` is the exception type raised, ``what`` names the file's
     kind in messages ("trajectory file").
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "forces.csv"
+    >>> _ = path.write_text("force_n,t_s,note\n0.5,0,1\n0.8,0.1,2\n")
+    >>> table = NumericCsv(path, (Column("t_s", 0.0, 1e6),), (Column("force_n", 0.0, 10.0),), ValueError, "force file")
+    >>> table.names, [block.values["t_s"].tolist() for block in table.blocks()]
+    (['t_s', 'force_n'], [[0.0, 0.1]])
+    >>> _ = path.write_text("t_s\n0\n")
+    >>> NumericCsv(path, (Column("force_n", 0.0, 10.0),), (), ValueError, "force file")
+    Traceback (most recent call last):
+    ...
+    ValueError: .../forces.csv:1: missing column force_n; the header must be force_n
     """
 
     def __init__(self, path: str | Path, required: tuple[Column, ...], optional: tuple[Column, ...],

@@ -35,4 +35,17 @@ class ForceRangeWarning(UltraglideError, UserWarning):
 
 
 class QuasiStaticWarning(UltraglideError, UserWarning):
-    """The lateral analysis ran at a frequency where the ridges' inertia makes it an estimate."""
+    """The lateral analysis ran at a frequency where the ridges' inertia makes it an estimate.
+
+    Examples
+    --------
+    At 100 kHz, above the ridge layer's shear resonance (about 33 kHz):
+
+    >>> import warnings
+    >>> from ultraglide.render.physics.lateral import simulate_lateral
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = simulate_lateral(3.0, 0.4, frequency_hz=100000.0, cycles=1, steps_per_cycle=100)
+    >>> caught[0].category is QuasiStaticWarning, "only a quasi-static estimate" in str(caught[0].message)
+    (True, True)
+    """

@@ -31,6 +31,12 @@ class FingerParams:
     says at which carriers that quasi-static reading fails. ``max_contact_area_mm2`` caps eq. (3):
     k F^(2/3) passes an adult index fingertip's pad (about 20 × 16 mm, 250 mm²) at 2.4 N, and a
     pad cannot touch more than itself.
+
+    Examples
+    --------
+    >>> params = FingerParams()
+    >>> params.youngs_modulus_pa, params.static_friction, params.dynamic_friction
+    (1000000.0, 1.0, 0.7)
     """
 
     youngs_modulus_pa: float = 1.0e6  # E_e, stratum corneum (Table I, i)

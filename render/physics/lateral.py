@@ -39,7 +39,17 @@ PSYCHOPHYSICS_PRELOAD_N = 0.1  # the tangential preload we state: a quarter of m
 
 @dataclass(frozen=True)
 class LateralCycle:
-    """Time series of a lateral stick–slip simulation; SI units."""
+    """Time series of a lateral stick–slip simulation; SI units.
+
+    Examples
+    --------
+    One cycle at 5 kHz, 6 µm p-p under 0.4 N: the finger slides, and the lateral force never passes the static
+    limit mu_s F_n (0.4 N):
+
+    >>> cycle = simulate_lateral(6.0, 0.4, frequency_hz=5000.0, cycles=1, steps_per_cycle=400)
+    >>> cycle.time_s.shape, cycle.slid, bool(abs(cycle.lateral_force_n).max() <= 0.4)
+    ((401,), True, True)
+    """
 
     time_s: np.ndarray
     plate_position_m: np.ndarray

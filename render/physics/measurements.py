@@ -40,7 +40,15 @@ MIN_FALL = 0.05  # at each force the ratio must fall by at least this over the a
 
 @dataclass(frozen=True)
 class Measurements:
-    """Measured relative friction against amplitude (µm p-p), with the normal force (N) if known."""
+    """Measured relative friction against amplitude (µm p-p), with the normal force (N) if known.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> data = Measurements(np.array([0.0, 2.0, 4.0]), np.array([1.0, 0.6, 0.2]), np.full(3, 0.5), source="by hand")
+    >>> len(data), data.subset(np.array([True, False, True])).relative_friction.tolist(), data.noise_words()
+    (3, [1.0, 0.2], '')
+    """
 
     amplitude_um_pp: np.ndarray
     relative_friction: np.ndarray

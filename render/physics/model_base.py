@@ -61,7 +61,13 @@ def remembered(owner, memo: str, key, compute):
 
 @dataclass(frozen=True)
 class FitRange:
-    """Where a calibrated model was fitted: the distinct forces of its data (N) and its point count."""
+    """Where a calibrated model was fitted: the distinct forces of its data (N) and its point count.
+
+    Examples
+    --------
+    >>> FitRange((0.2, 0.5, 1.0), points=30).words(), FitRange((0.5,)).words()
+    ('0.2-1 N (3 forces)', '0.5 N only')
+    """
 
     forces_n: tuple[float, ...]
     points: int = 0
@@ -81,14 +87,43 @@ class FitRange:
 
 @dataclass(frozen=True)
 class Inversion:
-    """Amplitudes for target ratios, and how many ratios were out of reach."""
+    """Amplitudes for target ratios, and how many ratios were out of reach.
+
+    Examples
+    --------
+    The stretched law's inverse at its reference force, without a floor: a ratio of 1/2 needs scale × sqrt(ln 2):
+
+    >>> import math
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> model = StretchedExponentialModel(residual_ratio=0.0)
+    >>> inversion = model.amplitude_um_pp(np.array([1.0, 0.5]), 0.5)
+    >>> expected = [0.0, model.scale_um_pp * math.sqrt(math.log(2.0))]
+    >>> bool(np.allclose(inversion.amplitude_um_pp, expected)), inversion.clamped
+    (True, 0)
+    """
 
     amplitude_um_pp: np.ndarray
     clamped: int
 
 
 class UniformTable:
-    """Piecewise-linear lookup on a uniform grid: cheap enough for tens of millions of calls a second."""
+    """Piecewise-linear lookup on a uniform grid: cheap enough for tens of millions of calls a second.
+
+    Parameters
+    ----------
+    start, stop : float
+        The grid's first and last x.
+    values : numpy.ndarray
+        The values at the grid's points (a row per table when 2-D).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> table = UniformTable(0.0, 1.0, np.array([0.0, 10.0, 30.0]))       # points at 0, 0.5 and 1
+    >>> table(np.array([0.25, 0.75, 2.0])).tolist()                         # linear between, held beyond
+    [5.0, 20.0, 30.0]
+    """
 
     def __init__(self, start: float, stop: float, values: np.ndarray):
         values = np.asarray(values, dtype=float)

@@ -34,7 +34,19 @@ MODEL_NAMES = ("paper", "paper-uniform", "exponential", "stretched", "squeeze-fi
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """One model parameter: its key in calibration files, unit, allowed range and default."""
+    """One model parameter: its key in calibration files, unit, allowed range and default.
+
+    Examples
+    --------
+    >>> scale = PARAMETERS["stretched"][0]
+    >>> scale.key, scale.unit, scale.check(2.5, "model.toml")
+    ('scale_um_pp', ' µm p-p', 2.5)
+    >>> scale.check(500, "model.toml")
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: model.toml: parameter scale_um_pp = 500 is outside the allowed range
+    [0.05, 100] µm p-p
+    """
 
     key: str
     unit: str
@@ -219,7 +231,14 @@ def model_kind(model: FrictionModel) -> str:
 
 @dataclass(frozen=True)
 class Parameter:
-    """A fitted (or held) parameter value with its standard error (NaN when held fixed)."""
+    """A fitted (or held) parameter value with its standard error (NaN when held fixed).
+
+    Examples
+    --------
+    >>> scale = PARAMETERS["stretched"][0]
+    >>> Parameter(scale, 100.0, 0.5, fixed=False).at_bound, Parameter(scale, 2.5, 0.1, fixed=False).at_bound
+    (True, False)
+    """
 
     spec: ParameterSpec
     value: float
@@ -237,7 +256,19 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Fit:
-    """A fitted model with its residuals (measured minus modelled ratio) at each point."""
+    """A fitted model with its residuals (measured minus modelled ratio) at each point.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.fitting import fit_model
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.linspace(0.0, 6.0, 13)
+    >>> fit = fit_model(Measurements(amplitude, np.exp(-(amplitude / 2.5) ** 2), None, "example"), "stretched",
+    ...                 hold={"residual_ratio": 0.0})
+    >>> fit.kind, [p.spec.key for p in fit.parameters if not p.fixed], fit.rms_residual < 1e-6
+    ('stretched', ['scale_um_pp', 'shape'], True)
+    """
 
     model: FrictionModel
     residuals: np.ndarray

@@ -51,7 +51,14 @@ UNLOCATED = "place in the paper not located here (figure as summarised in issue 
 @dataclass(frozen=True)
 class Figure:
     """One published figure: ``value`` as written in our pages (units and all), ``what`` it measures, the
-    ``paper`` (a key of :data:`PAPERS`), ``where`` in it, and whether that place was ``checked``."""
+    ``paper`` (a key of :data:`PAPERS`), ``where`` in it, and whether that place was ``checked``.
+
+    Examples
+    --------
+    >>> figure = next(f for f in FIGURES if f.key == "monnoyer_carrier")
+    >>> figure.value, figure.paper, figure.checked
+    ('34 590 Hz', 'Monnoyer2018', True)
+    """
 
     key: str
     value: str
