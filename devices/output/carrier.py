@@ -52,7 +52,28 @@ def check_carrier(carrier_hz: float, rate_hz: float) -> None:
 
 
 class Carrier:
-    """sin(2 pi f t) in consecutive blocks of any length, float32."""
+    """sin(2 pi f t) in consecutive blocks of any length, float32.
+
+    Parameters
+    ----------
+    carrier_hz : float
+        The carrier's frequency, Hz.
+    rate_hz : float
+        The sample rate, Hz.
+
+    Raises
+    ------
+    DeviceError
+        A carrier the rate cannot carry (at or above half the rate).
+
+    Examples
+    --------
+    24 kHz at 96 kHz has an exact period of 4 samples:
+
+    >>> carrier = Carrier(24000.0, 96000.0)
+    >>> carrier.period, carrier.block(4).round(6).tolist(), carrier.block(2).round(6).tolist()
+    (4, [0.0, 1.0, 0.0, -1.0], [0.0, 1.0])
+    """
 
     def __init__(self, carrier_hz: float, rate_hz: float):
         check_carrier(carrier_hz, rate_hz)

@@ -72,7 +72,29 @@ def fastest_time_constant_s(profile: PlateProfile) -> float:
 
 
 class DriveLimiter:
-    """Limits a drive envelope block by block (see the module docstring); amplitudes µm p-p."""
+    """Limits a drive envelope block by block (see the module docstring); amplitudes µm p-p.
+
+    Parameters
+    ----------
+    profile : PlateProfile
+        The plate: its limit and its largest drive, µm p-p, and its time constant.
+    control_rate_hz : float
+        The envelope's rate, Hz.
+
+    Examples
+    --------
+    A drive within the 6 µm limit passes; 20 µm is lowered to the 8 µm the amplifier takes while the plate
+    rises, then held at the limit:
+
+    >>> import numpy as np
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> limiter = DriveLimiter(load_profile("sim-plate"), 12000.0)
+    >>> limiter.process(np.full(4, 3.0)).tolist()
+    [3.0, 3.0, 3.0, 3.0]
+    >>> drive = limiter.process(np.full(1000, 20.0))
+    >>> float(drive.max()), float(drive[-1]), limiter.status()["worst_excess_um_pp"]
+    (8.0, 6.0, 14.0)
+    """
 
     def __init__(self, profile: PlateProfile, control_rate_hz: float):
         kernels.warm_up()

@@ -51,7 +51,20 @@ class Modulation:
     """A span of audio frames, its envelope already limited: ready to be put on the carrier whole or in
     chunks, on any threads (:meth:`render` runs a compiled kernel that releases the GIL). Each frame
     depends on its own index alone (its control samples and the carrier's exact phase there), so
-    chunks join seamlessly and give what one call gives, sample for sample."""
+    chunks join seamlessly and give what one call gives, sample for sample.
+
+    Examples
+    --------
+    A two-sample carrier (+1, -1) under an envelope rising from 0 to 8 µm over two frames (1/8 of full scale
+    per µm), rendered whole and in two chunks:
+
+    >>> import numpy as np
+    >>> span = Modulation(np.array([0.0, 8.0, 8.0]), 0, 2, 0.125, np.array([1.0, -1.0], dtype=np.float32), 0, 4)
+    >>> whole, chunks = np.empty(4, dtype=np.float32), np.empty(4, dtype=np.float32)
+    >>> span.render(whole); span.render(chunks, 0, 3); span.render(chunks, 3, 4)
+    >>> whole.tolist(), bool(np.array_equal(whole, chunks))
+    ([0.0, -0.5, 1.0, -1.0], True)
+    """
 
     knots: np.ndarray  # limited drive, µm p-p: the control sample before the span, then those it reaches
     first_frame: int  # the span's first frame, counted in audio frames from knot 0
