@@ -18,7 +18,29 @@ from ultraglide.atomic import AtomicFile
 
 
 class CsvRecord:
-    """The file of a record: ``FILE.part`` opened with its header line, rows appended, committed or discarded."""
+    """The file of a record: ``FILE.part`` opened with its header line, rows appended, committed or discarded.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file the record becomes once closed; it grows as ``FILE.part`` meanwhile.
+    columns : tuple of str
+        The header's column names.
+
+    Examples
+    --------
+    The envelope's record (:class:`~ultraglide.render.engine.envelope_record.EnvelopeRecord`) is one; discarded,
+    nothing is left of it:
+
+    >>> import pathlib, tempfile
+    >>> from ultraglide.render.engine.envelope_record import EnvelopeRecord
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> record = EnvelopeRecord(folder / "envelope.csv")
+    >>> isinstance(record, CsvRecord), record.part.name
+    (True, 'envelope.csv.part')
+    >>> record.discard(); sorted(p.name for p in folder.iterdir())
+    []
+    """
 
     def __init__(self, path: str | os.PathLike, columns: tuple[str, ...]):
         self.path = Path(path)

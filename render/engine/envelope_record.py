@@ -26,7 +26,29 @@ FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f")
 
 
 class EnvelopeRecord(CsvRecord):
-    """See the module docstring."""
+    """See the module docstring.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file written (``FILE.part`` until closed).
+
+    Examples
+    --------
+    Two samples of a block, read back by the csv module once closed:
+
+    >>> import csv, pathlib, tempfile
+    >>> import numpy as np
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "envelope.csv"
+    >>> record = EnvelopeRecord(path)
+    >>> record.add(np.array([1.0, 1.5]), 100, np.array([2.0, 3.0]), np.zeros(2), True, np.array([0.5, 0.6]),
+    ...            np.array([3.1, 2.8]), np.array([3.0, 2.8]))
+    >>> record.close() is None
+    True
+    >>> rows = list(csv.DictReader(path.open()))
+    >>> [(row["index"], row["x_mm"], row["commanded_um_pp"]) for row in rows]
+    [('100', '2.0000', '3.00000'), ('101', '3.0000', '2.80000')]
+    """
 
     def __init__(self, path: str | os.PathLike):
         super().__init__(path, COLUMNS)

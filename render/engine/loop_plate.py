@@ -22,7 +22,23 @@ LOOP_SHARE = 0.145  # the loop's equivalent first-order lag over the plate's own
 
 @dataclass(frozen=True)
 class AmplitudeLoopPlate:
-    """A plate profile (``devices.profiles.PlateProfile``) seen through an amplitude loop of ``time_constant_s``."""
+    """A plate profile (``devices.profiles.PlateProfile``) seen through an amplitude loop of ``time_constant_s``.
+
+    Parameters
+    ----------
+    profile : PlateProfile
+        The plate.
+    time_constant_s : float
+        The amplitude loop's equivalent first-order lag, s.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> profile = load_profile("sim-plate")
+    >>> seen = AmplitudeLoopPlate.of(profile)
+    >>> seen.name, seen.max_amplitude_um_pp, round(seen.time_constant_s / profile.time_constant_s, 6)
+    ('sim-plate', 6.0, 0.145)
+    """
 
     profile: object
     time_constant_s: float

@@ -26,7 +26,30 @@ FORMAT = ("%d", "%d", "%.6f", "%.5f", "%.5f", "%.5f")
 
 class SensorRecord(CsvRecord):
     """See the module docstring. ``stream_per_sample``: stream values played per sensor sample (12 at 12 kHz
-    setpoints and 1 kHz sensors)."""
+    setpoints and 1 kHz sensors).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file written (``FILE.part`` until closed).
+    stream_per_sample : float
+        Stream values played per sensor sample.
+
+    Examples
+    --------
+    A SENSORS frame of two samples, packed and parsed as the wire carries it, recorded and read back:
+
+    >>> import csv, pathlib, tempfile
+    >>> from ultraglide.devices.protocol.reports import parse_sensors, sensor_samples, sensors_payload
+    >>> frame = parse_sensors(sensors_payload(40, 480, sensor_samples([3.0, 3.2], [0.5, 0.6], [0.2, 0.25])))
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "sensors.csv"
+    >>> record = SensorRecord(path, stream_per_sample=12.0)
+    >>> record.take(frame, received_s=1.0)
+    >>> record.close() is None
+    True
+    >>> [(row["sample"], row["setpoint_index"], row["normal_force_n"]) for row in csv.DictReader(path.open())]
+    [('40', '480', '0.50000'), ('41', '492', '0.60000')]
+    """
 
     def __init__(self, path: str | os.PathLike, stream_per_sample: float):
         super().__init__(path, COLUMNS)
