@@ -240,7 +240,26 @@ class CpuWakeLatency:
     ``hold(True)`` opens ``/dev/cpu_dma_latency`` and writes the bound; ``hold(False)`` closes it, which
     withdraws the request (so does the process's end). Writing needs root or a udev rule granting the
     file; without it the request is not made and :meth:`words` says why. Not for the block path: it
-    opens a file (the engine's command thread calls it)."""
+    opens a file (the engine's command thread calls it).
+
+    Parameters
+    ----------
+    latency_us : int or None
+        The bound, µs (0: idle CPUs poll); None: never asked.
+
+    Examples
+    --------
+    Held and released; where the file cannot be written, :meth:`words` says why and nothing is held:
+
+    >>> wake = CpuWakeLatency(0)
+    >>> wake.hold(True)
+    >>> wake.held == (wake.holds == 1)
+    True
+    >>> wake.close(); wake.held
+    False
+    >>> CpuWakeLatency(None).words()
+    'CPU wake-up: as the system has it (not asked)'
+    """
 
     def __init__(self, latency_us: int | None = 0):
         self.latency_us = latency_us

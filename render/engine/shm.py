@@ -63,7 +63,16 @@ STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")
 
 @dataclass(frozen=True)
 class Layout:
-    """Offsets (in float64 slots) of each part in the segment."""
+    """Offsets (in float64 slots) of each part in the segment.
+
+    Examples
+    --------
+    The parts lie one after another, the touch ring first:
+
+    >>> layout = Layout()
+    >>> layout.touches, layout.fast - layout.touches == TOUCH_SLOTS * TOUCH_FIELDS, layout.size * 8 > SLOW_BYTES
+    (4, True, True)
+    """
 
     touch_head: int = 0
     touch_tail: int = 1
@@ -82,7 +91,22 @@ LAYOUT = Layout()
 
 
 class SharedBlock:
-    """The segment, mapped as numpy views. ``create`` in the UI process, ``attach`` in the engine."""
+    """The segment, mapped as numpy views. ``create`` in the UI process, ``attach`` in the engine.
+
+    Examples
+    --------
+    The UI's block and the engine's view of it share their memory:
+
+    >>> ui = SharedBlock.create()
+    >>> engine = SharedBlock.attach(ui.name)
+    >>> ui.push_touch(0.5, 10.0, 20.0, float("nan"), 1.0)
+    True
+    >>> engine.touches[0, :3].tolist()
+    [0.5, 10.0, 20.0]
+    >>> engine.write_slow({"device": "null"}); ui.read_slow()
+    {'device': 'null'}
+    >>> engine.close(); ui.close()
+    """
 
     def __init__(self, memory: shared_memory.SharedMemory, owner: bool):
         self.memory = memory
