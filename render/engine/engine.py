@@ -74,7 +74,24 @@ class EngineError(RenderError):
 class EngineLost(EngineError):
     """The engine's process died or froze while it drove the device; the app made the device safe
     (:mod:`render.engine.supervisor`). The message says what happened in one line; ``loss`` has it all;
-    ``exit_status`` is the run's (7)."""
+    ``exit_status`` is the run's (7).
+
+    Parameters
+    ----------
+    loss : EngineLoss
+        What happened and what was done (:class:`~ultraglide.render.engine.supervisor.EngineLoss`).
+
+    Examples
+    --------
+    >>> from ultraglide.render.engine.supervisor import EngineLoss
+    >>> loss = EngineLoss("died", "its process was killed by SIGKILL", 10.0, 0.05, ("the plate disabled",), 10.03)
+    >>> error = EngineLost(loss)
+    >>> error.exit_status, error.loss.kind
+    (7, 'died')
+    >>> str(error)
+    'the engine was lost: its process was killed by SIGKILL; noticed 50 ms after its last sign of life; made safe by
+    ultraglide 30 ms after: the plate disabled'
+    """
 
     def __init__(self, loss):
         super().__init__(loss.words())
@@ -735,7 +752,16 @@ def _receive(conn, process, timeout_s: float):
 
 class EngineLaunch:
     """An engine process started and loading its inputs (:meth:`Engine.launch`); :meth:`wait` gives the
-    :class:`Engine` once its device is open, :meth:`abandon` ends it unused. Either, once, from any one thread."""
+    :class:`Engine` once its device is open, :meth:`abandon` ends it unused. Either, once, from any one thread.
+
+    Examples
+    --------
+    >>> launch = Engine.launch(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False))
+    >>> with launch.wait(60.0) as engine:
+    ...     engine.status().device
+    'null'
+    >>> Engine.launch(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)).abandon()
+    """
 
     def __init__(self, process, parent, shared: SharedBlock, config: EngineConfig):
         self._process = process

@@ -39,7 +39,41 @@ RESTING_CAPACITY = 65536  # the longest block served as zeros while at rest (fra
 
 class EngineSource(OutputStage):
     """The block path: the device's output stage (limiter, carrier for audio) with the touch ring drained
-    before each block and the block's figures published after it. Devices take it as their stage."""
+    before each block and the block's figures published after it. Devices take it as their stage.
+
+    Parameters
+    ----------
+    renderer : Renderer
+        What renders the blocks.
+    shared : SharedBlock
+        The shared memory: touches read from it, each block's figures published to it.
+    device : Device
+        The device that pulls the blocks (its signal and rate).
+    raise_priority_ : bool
+        Raise the block thread's priority at its first block.
+    profile : PlateProfile, optional
+        The plate's, for the limiter (default: the renderer's).
+
+    Examples
+    --------
+    A touch through the shared memory, then blocks pulled as the null device pulls them (96 kHz audio,
+    fractions of full scale):
+
+    >>> import time
+    >>> from ultraglide import Renderer
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> shared = SharedBlock.create()
+    >>> source = EngineSource(Renderer("grating-1mm"), shared, open_device("null", load_profile("sim-plate")), False)
+    >>> shared.push_touch(time.perf_counter(), 10.0, 10.0, float("nan"), 1.0)
+    True
+    >>> blocks = [source.pull(960, None) for _ in range(20)]
+    >>> blocks[-1].dtype, int(shared.fast[shm.BLOCKS]), shm.STATES[int(shared.fast[shm.STATE])]
+    (dtype('float32'), 20, 'running')
+    >>> 0.0 < float(abs(blocks[-1]).max()) <= 1.0
+    True
+    >>> shared.close()
+    """
 
     def __init__(self, renderer, shared: SharedBlock, device, raise_priority_: bool = True, profile=None):
         """``profile``: the plate's, for the limiter (default: the renderer's; a renderer that sees the plate
@@ -244,7 +278,27 @@ class EngineBeat(threading.Thread):
     """Advances ``ENGINE_BEAT`` in the shared memory every ``period_s`` while the engine's process runs Python: with
     the block path's ``HEARTBEAT``, how the app's supervisor tells a frozen engine (neither advances: stopped by
     SIGSTOP, or stuck holding the interpreter) from a device that pulls no block for a while (a plate's handshake
-    after a reconnection, the tail of a stop)."""
+    after a reconnection, the tail of a stop).
+
+    Parameters
+    ----------
+    fast : numpy.ndarray
+        The shared memory's fast header.
+    period_s : float
+        How often the beat advances, s.
+
+    Examples
+    --------
+    >>> import time
+    >>> import numpy as np
+    >>> fast = np.zeros(shm.HEADER)
+    >>> beat = EngineBeat(fast, period_s=0.001); beat.start()
+    >>> deadline = time.monotonic() + 30.0
+    >>> while fast[shm.ENGINE_BEAT] < 3 and time.monotonic() < deadline:
+    ...     time.sleep(0.001)
+    >>> beat.stop(); bool(fast[shm.ENGINE_BEAT] >= 3), beat.fast is None
+    (True, True)
+    """
 
     def __init__(self, fast: np.ndarray, period_s: float = 0.02):
         super().__init__(name="engine-beat", daemon=True)

@@ -55,7 +55,17 @@ CLEAN_ENDS = ("stopped", "failed")  # the engine's states in which its process e
 class EngineLoss:
     """How the engine was lost: ``kind`` (``died`` or ``froze``), ``cause`` in words, when it was noticed
     (``noticed_s``, perf_counter s) and how long after its last sign of life (``silent_s``), what was done to make
-    the device safe (``rested``, sentences) and when that was done (``rested_s``)."""
+    the device safe (``rested``, sentences) and when that was done (``rested_s``).
+
+    Examples
+    --------
+    >>> loss = EngineLoss("froze", "no sign of life for 0.25 s", 12.0, 0.25, ("the plate disabled",), 12.02)
+    >>> loss.lines(since_s=10.0)[0]
+    'the engine froze at 2.00 s: no sign of life for 0.25 s; noticed 250 ms after its last sign of life, and killed
+    (SIGKILL)'
+    >>> loss.exit_status
+    7
+    """
 
     kind: str
     cause: str
@@ -85,7 +95,19 @@ class EngineLoss:
 class Supervisor:
     """The watch over one engine process (see the module's docstring). Made and started by the
     :class:`~render.engine.engine.Engine`; ``stopping()`` when the app asks the engine to stop, ``close()`` once
-    it has answered (or failed to)."""
+    it has answered (or failed to).
+
+    Examples
+    --------
+    Every engine has one; an engine stopped as asked was not lost:
+
+    >>> from ultraglide.render.engine import Engine, EngineConfig
+    >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+    ...     engine.wait_ready(60.0)
+    ...     supervisor = engine.supervisor
+    >>> isinstance(supervisor, Supervisor), supervisor.loss, supervisor.lost.is_set()
+    (True, None, False)
+    """
 
     def __init__(self, process, shared, device_url: str, logs=(), frozen_after_s: float = FROZEN_AFTER_S,
                  poll_s: float = POLL_S, realtime: bool = False):
