@@ -44,7 +44,19 @@ RESYNC_S = 0.02  # re-anchor the live clock when the device's clock has drifted 
 class Plate(Protocol):
     """What the renderer needs to know of the plate it renders for (a ``devices.profiles.PlateProfile`` is
     one): its resonance (Hz), the steady limit and the drive's ceiling (µm p-p), its envelope's time
-    constant (s), and which carriers it takes."""
+    constant (s), and which carriers it takes.
+
+    Examples
+    --------
+    A plate profile is one, and so is the same plate seen through an amplitude loop:
+
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.engine.loop_plate import AmplitudeLoopPlate
+    >>> members = ("name", "resonance_hz", "max_amplitude_um_pp", "max_drive_um_pp", "time_constant_s", "check_carrier")
+    >>> profile = load_profile("sim-plate")
+    >>> all(hasattr(plate, m) for plate in (profile, AmplitudeLoopPlate.of(profile)) for m in members)
+    True
+    """
 
     @property
     def name(self) -> str:
@@ -155,7 +167,20 @@ class RenderSettings:
 
 @dataclass
 class Counters:
-    """What a person watching the renderer wants to know."""
+    """What a person watching the renderer wants to know.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.paths import SwipePath
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+    ...                     trajectory=SwipePath(duration_s=0.1, speed_mm_s=100.0))
+    >>> _ = renderer.control(120)
+    >>> renderer.counters.control_samples, renderer.counters.clipped_samples, len(renderer.counters.render_times_s)
+    (120, 0, 1)
+    """
 
     control_samples: int = 0
     clipped_samples: int = 0  # target ratio below what the plate reaches: amplitude held at the limit
@@ -167,7 +192,24 @@ class Counters:
 
 @dataclass(slots=True)
 class ControlBlock:
-    """One block of the envelope and how it came about; amplitudes µm p-p."""
+    """One block of the envelope and how it came about; amplitudes µm p-p.
+
+    Examples
+    --------
+    120 control samples (10 ms at 12 kHz) of a swipe at 100 mm/s: the finger moves 119 / 12000 s × 100 mm/s:
+
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.paths import SwipePath
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+    ...                     trajectory=SwipePath(duration_s=0.1, speed_mm_s=100.0))
+    >>> block = renderer.control(120)
+    >>> block.time_s.shape, round(float(block.x_mm[-1] - block.x_mm[0]), 6), round(119 / 12000 * 100.0, 6)
+    ((120,), 0.991667, 0.991667)
+    >>> bool(block.amplitude_um_pp.max() <= 6.0)          # the plate's limit
+    True
+    """
 
     time_s: np.ndarray
     x_mm: np.ndarray
@@ -186,6 +228,24 @@ class ControlBuffers:
     The block it returns is reused: its arrays are overwritten by the next block of the same length.
     Every stage writes into them (the texture lookup, the model inverse, the envelope), so a live block
     allocates no array.
+
+    Parameters
+    ----------
+    capacity : int
+        The longest block, control samples.
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.paths import SwipePath
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+    ...                     trajectory=SwipePath(duration_s=0.1))
+    >>> buffers = ControlBuffers(256)
+    >>> first = renderer.control(64, out=buffers)
+    >>> renderer.control(64, out=buffers) is first is buffers.block(64)      # the same arrays, overwritten
+    True
     """
 
     def __init__(self, capacity: int):
@@ -217,7 +277,37 @@ class ControlBuffers:
 
 
 class Renderer:
-    """See the module docstring. Thread use: ``push`` from any thread; one thread pulls."""
+    """See the module docstring. Thread use: ``push`` from any thread; one thread pulls.
+
+    Parameters
+    ----------
+    texture : Texture
+        The friction texture.
+    model : FrictionModel
+        The friction model: ratio to amplitude (µm p-p).
+    profile : Plate
+        The plate (its limit, drive ceiling, time constant, carriers).
+    settings : RenderSettings
+        Rates (Hz), carrier, default force (N), pre-compensation, prediction, planning.
+    trajectory : RecordedTrajectory or SwipePath or LiveTrajectory, optional
+        Where the finger is (default: live touches pushed with :meth:`push`).
+    effects : tuple of Binding, optional
+        Temporal effects (default: the texture's own).
+    sampler : Sampler, optional
+        The texture's lookup (default: one made here).
+
+    Examples
+    --------
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.paths import SwipePath
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+    ...                     trajectory=SwipePath(duration_s=0.01))
+    >>> block = renderer.control(duration_s=0.01)        # the whole swipe: 10 ms at 12 kHz
+    >>> len(block.time_s), bool(block.amplitude_um_pp.max() <= renderer.profile.max_amplitude_um_pp)
+    (120, True)
+    """
 
     def __init__(self, texture: Texture, model: FrictionModel, profile: Plate,
                  settings: RenderSettings = RenderSettings(),
