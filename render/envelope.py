@@ -43,6 +43,14 @@ class EnvelopeBlock:
         What is sent: the amplitude pre-compensated for the plate's slow response.
     plate_um_pp : numpy.ndarray
         What the plate model says the plate does under that drive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> chain = EnvelopeChain(12000.0, 0.001, 0.001, 1000.0, 1000.0, 6.0, 0.001, 8.0)
+    >>> block = chain.process(np.full(24, 10.0), True)
+    >>> isinstance(block, EnvelopeBlock), block.amplitude_um_pp.shape
+    (True, (24,))
     """
 
     amplitude_um_pp: np.ndarray  # after ramps and limits: what the plate should do
@@ -51,7 +59,43 @@ class EnvelopeBlock:
 
 
 class EnvelopeChain:
-    """Stateful envelope processing, block after block; see the module docstring."""
+    """Stateful envelope processing, block after block; see the module docstring.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The control rate, Hz.
+    attack_s, release_s : float
+        The gate's rise and fall, s.
+    band_hz : float
+        The smoother's band, Hz.
+    slew_um_per_ms : float
+        The fastest change, µm p-p per ms.
+    limit_um_pp : float
+        The plate's limit, µm p-p.
+    time_constant_s : float
+        The plate's envelope time constant, s.
+    drive_max_um_pp : float
+        The largest drive, µm p-p.
+    precompensate : bool
+        Drive the plate model onto the target (True) or drive the target itself.
+
+    Raises
+    ------
+    RenderError
+        An attack, release, band or slew not positive.
+
+    Examples
+    --------
+    A 10 µm target under a 6 µm limit: the drive goes up to the 8 µm ceiling to bring the plate up, the modelled
+    plate never passes 6 µm:
+
+    >>> import numpy as np
+    >>> chain = EnvelopeChain(12000.0, 0.001, 0.001, 1000.0, 1000.0, 6.0, 0.001, 8.0)
+    >>> block = chain.process(np.full(24, 10.0), True)
+    >>> float(block.amplitude_um_pp.max()), float(block.drive_um_pp.max()), bool(block.plate_um_pp.max() <= 6.0)
+    (6.0, 8.0, True)
+    """
 
     def __init__(self, rate_hz: float, attack_s: float, release_s: float, band_hz: float, slew_um_per_ms: float,
                  limit_um_pp: float, time_constant_s: float, drive_max_um_pp: float, precompensate: bool = True):

@@ -33,7 +33,17 @@ HELD_BYTES = 4 << 20  # logs up to this size stay in memory after the check (abo
 
 @dataclass(frozen=True)
 class TouchLog:
-    """A checked touch-log file: where it is, its first and last time (s) and its row count."""
+    r"""A checked touch-log file: where it is, its first and last time (s) and its row count.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
+    >>> _ = path.write_text("t_s,x_mm,y_mm,force_n\n0.0,10,20,0.4\n0.5,60,20,0.6\n")
+    >>> log = check_touch_log(path)
+    >>> log.rows, log.has_force, log.force_range_n, log.trajectory().state([0.25]).x_mm.tolist()
+    (2, True, (0.4, 0.6), [35.0])
+    """
 
     table: NumericCsv
     first_s: float

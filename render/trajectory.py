@@ -34,7 +34,20 @@ Chunk = tuple[np.ndarray, np.ndarray, np.ndarray, "np.ndarray | None"]  # t_s, x
 @dataclass(frozen=True)
 class FingerState:
     """The finger at a set of instants. ``force_n`` and ``down`` may be scalars (the same for all);
-    ``velocity_mm_s`` is set when the motion is a straight line over these instants (live prediction)."""
+    ``velocity_mm_s`` is set when the motion is a straight line over these instants (live prediction).
+
+    Examples
+    --------
+    A finger moving along x at 100 mm/s, reported every 10 ms, asked where it is at 50 and 100 ms:
+
+    >>> import numpy as np
+    >>> live = LiveTrajectory()
+    >>> for k in range(10):
+    ...     live.push(0.01 * k, 10.0 + k, 5.0)
+    >>> state = live.state(np.array([0.05, 0.1]))
+    >>> isinstance(state, FingerState), state.x_mm.round(6).tolist(), state.down, round(state.velocity_mm_s[0], 6)
+    (True, [15.0, 20.0], True, 100.0)
+    """
 
     x_mm: np.ndarray
     y_mm: np.ndarray
@@ -235,7 +248,33 @@ class RecordedTrajectory:
 
 
 class LiveTrajectory:
-    """Touch reports pushed from any thread; predicted at the instants the renderer asks for."""
+    """Touch reports pushed from any thread; predicted at the instants the renderer asks for.
+
+    Parameters
+    ----------
+    predictor : str
+        How the finger is predicted between and past reports (``lsq``: a line through the latest reports).
+    lookahead_s : float
+        How far ahead the renderer asks, s.
+    fit_reports : int
+        Reports the line is fitted through.
+    fit_window_s : float
+        The oldest report fitted, s back.
+    max_extrapolation_s : float
+        The furthest past the last report it predicts, s.
+
+    Examples
+    --------
+    Reports on a line (x = 10 + 100 t mm): the prediction 50 ms past the last is on it, within the furthest
+    extrapolation allowed:
+
+    >>> import numpy as np
+    >>> live = LiveTrajectory()
+    >>> for k in range(10):
+    ...     live.push(0.01 * k, 10.0 + k, 5.0)
+    >>> live.state(np.array([0.09, 0.14])).x_mm.round(6).tolist()
+    [19.0, 24.0]
+    """
 
     def __init__(self, predictor: str = "lsq", lookahead_s: float = 0.0, fit_reports: int = 8,
                  fit_window_s: float = 0.1, max_extrapolation_s: float = 0.05):
