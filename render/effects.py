@@ -352,7 +352,31 @@ class EffectPlayer:
     One thread calls :meth:`mix` (the block path); :meth:`trigger` may be called from any thread.
     ``starts`` gives (binding index, start time s) of the most recent voices, for tests and status;
     ``clipped_samples`` counts mixed ratios above 1 (more friction than the plate at rest), clipped to 1
-    (ratios below the model's floor are clamped and counted by the inverse, as for textures)."""
+    (ratios below the model's floor are clamped and counted by the inverse, as for textures).
+
+    Parameters
+    ----------
+    bindings : tuple of Binding
+        The effects and their triggers.
+    control_rate_hz : float
+        The rate of the blocks mixed, Hz.
+    capacity : int
+        The longest block, samples.
+
+    Examples
+    --------
+    An event's 10 ms drop of 0.3 mixed into a block at rest (ratio 1):
+
+    >>> import numpy as np
+    >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+    >>> player = EffectPlayer((Binding(Trigger("event", name="tick"), Constant(0.3, 0.01)),), 12000.0)
+    >>> player.trigger("tick", 0.0), player.trigger("no-such-event", 0.0)
+    (True, False)
+    >>> t = np.arange(24) / 12000.0
+    >>> ratio = player.mix(t, np.zeros(24), np.zeros(24), np.ones(24, dtype=bool), np.ones(24, dtype=np.float32))
+    >>> ratio[:3].round(6).tolist(), player.starts
+    ([0.7, 0.7, 0.7], [(0, 0.0)])
+    """
 
     def __init__(self, bindings: tuple[Binding, ...], control_rate_hz: float, capacity: int = 4096):
         warm_up()

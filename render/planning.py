@@ -55,6 +55,24 @@ class Planner:
         The felt ratio the dynamics predict at the end of the last block.
     below_floor : int
         Target samples below the reachable floor so far (unreachable targets).
+
+    Raises
+    ------
+    RenderError
+        A rate not positive.
+
+    Examples
+    --------
+    Asked for 0.5 from rest (1) at 12 kHz, the planner commands the floor first to hasten the fall, and the
+    felt ratio is 0.5 by the block's end:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> planner = Planner(FrictionDynamics(), 12000.0)
+    >>> planner.set_speed(100.0)
+    >>> command = planner.plan(np.full(96, 0.5), np.full(planner.steps, 0.5), 0.1, True, np.empty(96))
+    >>> float(command[0]), round(planner.felt, 6), planner.below_floor
+    (0.1, 0.5, 0)
     """
 
     def __init__(self, dynamics: FrictionDynamics, rate_hz: float):
@@ -116,7 +134,15 @@ class Planner:
 
 @dataclass(frozen=True)
 class ContrastKept:
-    """How much of a grating's contrast is felt (felt swing over target swing, 0-1), and its RMS error."""
+    """How much of a grating's contrast is felt (felt swing over target swing, 0-1), and its RMS error.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> kept = contrast_transfer(FrictionDynamics(), 1.0, 100.0, 0.1)
+    >>> isinstance(kept, ContrastKept), 0.0 <= kept.planned <= 1.0, kept.instantaneous_rms > 0.0
+    (True, True, True)
+    """
 
     period_mm: float
     speed_mm_s: float
@@ -333,7 +359,16 @@ def contrast_transfer(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: 
 class SwipeKept:
     """What a finger with friction dynamics keeps of a texture along a swipe at one speed: the felt friction's
     standard deviation over the target's (1: all of the texture's contrast), and the RMS error, for the
-    instantaneous and the planned renderer."""
+    instantaneous and the planned renderer.
+
+    Examples
+    --------
+    >>> from ultraglide import grating
+    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+    >>> kept = swipe_contrast(grating(2.0), FrictionDynamics(), 100.0, 0.2, longest_s=0.2)
+    >>> isinstance(kept, SwipeKept), kept.speed_mm_s
+    (True, 100.0)
+    """
 
     speed_mm_s: float
     instantaneous: float

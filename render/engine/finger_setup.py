@@ -39,7 +39,16 @@ DEFAULT_FLOOR = 0.1
 class FingerConfig:
     """The simulated finger's options (see :mod:`devices.finger` for each); ``law`` a model spec or ``default``;
     ``scale`` and ``floor`` adjust it (None: 0.7 and 0.1 for the default law, 1 and 0 for any other);
-    ``force`` a force spec (``0.5``, ``walk``, ``walk:LOW-HIGH``, ``FILE.csv``); ``log`` a CSV of its truth."""
+    ``force`` a force spec (``0.5``, ``walk``, ``walk:LOW-HIGH``, ``FILE.csv``); ``log`` a CSV of its truth.
+
+    Examples
+    --------
+    >>> config = FingerConfig()
+    >>> config.law_scale, config.law_floor, config.lags, config.law_words()
+    (0.7, 0.1, False, "stretched (the host's default), scale x0.7, floor 0.1")
+    >>> FingerConfig(law="dynamic").lags, config.with_log("finger.csv").log
+    (True, 'finger.csv')
+    """
 
     law: str = DEFAULT_LAW
     scale: float | None = None

@@ -13,7 +13,20 @@ from ultraglide.render.engine.shm import ring_order
 
 @dataclass(frozen=True)
 class History:
-    """The recent blocks, oldest first: one row per block (its first sample's time, its last values)."""
+    """The recent blocks, oldest first: one row per block (its first sample's time, its last values).
+
+    Examples
+    --------
+    The history of an engine that has not rendered yet is empty:
+
+    >>> from ultraglide.render.engine.shm import SharedBlock
+    >>> block = SharedBlock.create()
+    >>> header, times, history, _ = block.read_fast()
+    >>> status = status_from_shared(header, times, history, {}, 0, "null", 10.0)
+    >>> isinstance(status.history, History), status.history.time_s.shape
+    (True, (0,))
+    >>> block.close()
+    """
 
     time_s: np.ndarray
     target_ratio: np.ndarray

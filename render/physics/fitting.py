@@ -542,6 +542,18 @@ class ForceLawChoice:
         What to hold in the fit that is kept (``{"force_exponent": 0.0}`` for the force-free law).
     note : str
         The choice in words.
+
+    Examples
+    --------
+    Points with no force dependence at two forces: the force-free law predicts each force from the other better:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.measurements import Measurements
+    >>> amplitude = np.tile(np.linspace(0.0, 6.0, 13), 2)
+    >>> ratio = 0.1 + 0.9 * np.exp(-0.5 * (amplitude / 2.5) ** 2)
+    >>> choice = choose_force_law(Measurements(amplitude, ratio, np.repeat([0.3, 0.9], 13), source="example"))
+    >>> isinstance(choice, ForceLawChoice), choice.kind, choice.forces, choice.keeps_law
+    (True, 'stretched', 2, False)
     """
 
     kind: str
