@@ -90,7 +90,22 @@ def force_exponent(model: FrictionModel, ratio: float, force_n: float, work: np.
 @dataclass(frozen=True)
 class ControllerSettings:
     """The fast correction's integral time (s) and range (a fraction of the amplitude), the blend back into
-    closed loop (s), and the sensors' silence that counts as a fault (s)."""
+    closed loop (s), and the sensors' silence that counts as a fault (s).
+
+    Raises
+    ------
+    ValueError
+        An integral time, correction range, blend or silence out of range.
+
+    Examples
+    --------
+    >>> ControllerSettings().integral_time_s, ControllerSettings(blend_s=0.0).blend_s
+    (0.15, 0.0)
+    >>> ControllerSettings(integral_time_s=0.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: the correction's integral time must lie in 0.001..100 s, got 0.0
+    """
 
     integral_time_s: float = 0.15
     correction_low: float = -0.5
@@ -111,7 +126,17 @@ class ControllerSettings:
 class LoopCommand:
     """What the block path acts on, replaced whole: ``following`` (else open loop), the amplitude scale
     ``k (1 + g)``, the measured normal force (N), since when it follows and when sensors last came
-    (perf_counter s), and the loop's state in words."""
+    (perf_counter s), and the loop's state in words.
+
+    Examples
+    --------
+    A new loop renders open loop until its sensors speak:
+
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> command = ClosedLoopInverse(StretchedExponentialModel()).command
+    >>> command.following, command.scale, command.words
+    (False, 1.0, 'open loop: waiting for the sensors')
+    """
 
     following: bool = False
     scale: float = 1.0
@@ -138,6 +163,18 @@ class FastCorrection:
     twice the profile's Q, whose decays are twice as long, each step back to ratio 1 pushed ``g`` up by 0.3-0.5 and
     steps 1 -> 0.5 then settled 5-8 % too slippery.) Measured at the amplitude reached, the error does not grow
     while the amplitude is held at the limit: nothing winds up; ``g`` also stays within its range.
+
+    Examples
+    --------
+    Measured friction 0.1 below what was meant, through a slope of -0.5 per unit of ln a, for 15 ms (a tenth of
+    the 150 ms integral time): g moves by -(s e) / s² × 0.1 = -0.02 (less amplitude, more friction):
+
+    >>> import numpy as np
+    >>> correction = FastCorrection(ControllerSettings())
+    >>> round(correction.update(np.full(10, -0.1), np.full(10, -0.5), 0.015), 9)
+    -0.02
+    >>> correction.reset(); correction.value
+    0.0
     """
 
     def __init__(self, settings: ControllerSettings):
@@ -174,7 +211,22 @@ class FastCorrection:
 
 class ClosedLoopInverse:
     """The renderer's friction model while the loop runs; see the module docstring. ``model``: the host's
-    model, ``capacity``: the longest block computed without allocating."""
+    model, ``capacity``: the longest block computed without allocating.
+
+    Examples
+    --------
+    Open loop (no sensors yet) it gives the host model's amplitudes:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> model = StretchedExponentialModel()
+    >>> inverse = ClosedLoopInverse(model)
+    >>> inverse.name, inverse.following_now(0.0)[0]
+    ('stretched', False)
+    >>> bool(np.array_equal(inverse.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp,
+    ...                     model.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp))
+    True
+    """
 
     def __init__(self, model: FrictionModel, settings: ControllerSettings | None = None, capacity: int = 4096,
                  clock=time.perf_counter):

@@ -41,7 +41,14 @@ ERROR_MEMORY_S = 0.5  # the error in the loop's words: rms over about this long
 
 @dataclass(frozen=True)
 class LoopSettings:
-    """The estimator's and the controller's settings."""
+    """The estimator's and the controller's settings.
+
+    Examples
+    --------
+    >>> settings = LoopSettings()
+    >>> settings.controller.integral_time_s, settings.estimator.sensor_bandwidth_hz
+    (0.15, 300.0)
+    """
 
     estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
     controller: ControllerSettings = field(default_factory=ControllerSettings)
@@ -49,7 +56,18 @@ class LoopSettings:
 
 class TargetRing:
     """The target ratio of each control sample sent, by stream index (NaN: the finger was up). The block path
-    writes (no allocation); the reader thread reads indices a few tens of ms old."""
+    writes (no allocation); the reader thread reads indices a few tens of ms old.
+
+    Examples
+    --------
+    Three targets sent with the finger down, one with it up; an index not yet sent reads NaN:
+
+    >>> import numpy as np
+    >>> ring = TargetRing(8)
+    >>> ring.write(np.array([0.5, 0.6, 0.7]), True); ring.write(np.array([0.8]), False)
+    >>> ring.read(np.array([0, 2, 3, 4])).tolist()
+    [0.5, 0.7, nan, nan]
+    """
 
     def __init__(self, capacity: int = RING):
         self.capacity = capacity
@@ -96,7 +114,15 @@ class TargetRing:
 class FrictionLoop:
     """See the module docstring. ``model``: the host's friction model; ``stream_rate_hz``: the device's setpoints a
     second (a ``serial:PATH?rate=N`` stream's N, not the control rate);
-    ``sensor_rate_hz``: the device's sensor samples a second."""
+    ``sensor_rate_hz``: the device's sensor samples a second.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> loop = FrictionLoop(StretchedExponentialModel(), stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
+    >>> loop.words(), loop.inverse.name
+    ('open loop: waiting for the sensors', 'stretched')
+    """
 
     def __init__(self, model, stream_rate_hz: float = 12000.0, sensor_rate_hz: float = 1000.0,
                  settings: LoopSettings | None = None, capacity: int = 4096, clock=time.perf_counter):
