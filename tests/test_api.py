@@ -95,31 +95,38 @@ def _module_of(path):
     return ".".join(parts if parts[0] == "ultraglide" else ["ultraglide", *parts])
 
 
-def test_the_documented_modules_public_functions_have_running_examples():
-    """Every public module-level function of the documented modules has an Examples section whose ``>>>`` lines
-    doctest finds in the imported module, not all skipped, so tests/test_doctests.py runs them (a decorated
-    function doctest cannot see would pass a look at its source alone)."""
+# classes whose example needs more than a doctest should start: a simulated plate driven by an engine (PlateProbe),
+# a running service (the clients); each stays named here until it has one
+CLASSES_WITHOUT_EXAMPLE = {"render/engine/serving.py: PlateProbe", "ultraglide/client.py: Client",
+                           "ultraglide/client.py: AsyncClient"}
+
+
+def test_the_documented_modules_functions_and_classes_have_running_examples():
+    """Every public module-level function and class of the documented modules has an Examples section whose
+    ``>>>`` lines doctest finds in the imported module, not all skipped, so tests/test_doctests.py runs them (a
+    decorated function doctest cannot see would pass a look at its source alone)."""
     import doctest
     import importlib
 
     finder = doctest.DocTestFinder()
-    paths = _documented_paths()
     lacking, checked = [], 0
-    for path in paths:
-        functions = [name for name, node in _public_definitions(ast.parse(path.read_text(encoding="utf-8")))
-                     if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and "." not in name]
-        if not functions:
+    for path in _documented_paths():
+        names = [name for name, node in _public_definitions(ast.parse(path.read_text(encoding="utf-8")))
+                 if "." not in name]
+        if not names:
             continue
         module = importlib.import_module(_module_of(path))
         found = {test.name for test in finder.find(module)  # one example at least that runs (not skipped)
                  if any(not example.options.get(doctest.SKIP) for example in test.examples)}
-        for name in functions:
+        for name in names:
             checked += 1
             doc = inspect.getdoc(getattr(module, name)) or ""
             if f"{module.__name__}.{name}" not in found or "Examples" not in _sections(doc):
                 lacking.append(f"{path.relative_to(ROOT)}: {name}")
-    assert checked > 150
-    assert not lacking, f"{len(lacking)} public functions without a running example: {lacking}"
+    assert checked > 300
+    assert set(lacking) == CLASSES_WITHOUT_EXAMPLE, (
+        f"without a running example: {sorted(set(lacking) - CLASSES_WITHOUT_EXAMPLE)}; "
+        f"with one now (strike from CLASSES_WITHOUT_EXAMPLE): {sorted(CLASSES_WITHOUT_EXAMPLE - set(lacking))}")
 
 
 def test_unknown_names_raise_attribute_error():

@@ -184,13 +184,25 @@ class DynamicFrictionModel(FrictionModel):
     Every amplitude ↔ ratio map is the static model's; :meth:`felt` gives the friction felt over time for an
     amplitude over time. The renderer plans against :attr:`dynamics` (:mod:`ultraglide.render.planning`).
 
-    Example::
+    Parameters
+    ----------
+    static : FrictionModel
+        The steady state (not itself dynamic).
+    dynamics : FrictionDynamics, optional
+        How the finger gets there (the default: :class:`FrictionDynamics`'s).
 
-        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
-        >>> model = DynamicFrictionModel(StretchedExponentialModel())
-        >>> felt = model.felt(np.r_[np.zeros(12), np.full(1200, 6.0)], 12000.0)
-        >>> round(float(felt[-1]), 3) == round(float(model.relative_friction(6.0)), 3)   # settled after 100 ms
-        True
+    Raises
+    ------
+    ModelError
+        ``static`` is a dynamic model.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+    >>> model = DynamicFrictionModel(StretchedExponentialModel())
+    >>> felt = model.felt(np.r_[np.zeros(12), np.full(1200, 6.0)], 12000.0)
+    >>> round(float(felt[-1]), 3) == round(float(model.relative_friction(6.0)), 3)   # settled after 100 ms
+    True
     """
 
     name = "dynamic"
