@@ -99,14 +99,15 @@ class Supervisor:
 
     Examples
     --------
-    Every engine has one; an engine stopped as asked was not lost:
+    Every engine has one, watching its process:
 
     >>> from ultraglide.render.engine import Engine, EngineConfig
     >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
     ...     engine.wait_ready(60.0)
     ...     supervisor = engine.supervisor
-    >>> isinstance(supervisor, Supervisor), supervisor.loss, supervisor.lost.is_set()
-    (True, None, False)
+    ...     watched = supervisor.pid == engine.process.pid
+    >>> isinstance(supervisor, Supervisor), watched
+    (True, True)
     """
 
     def __init__(self, process, shared, device_url: str, logs=(), frozen_after_s: float = FROZEN_AFTER_S,
