@@ -70,7 +70,8 @@ class Planner:
     >>> from ultraglide.render.physics.dynamics import FrictionDynamics
     >>> planner = Planner(FrictionDynamics(), 12000.0)
     >>> planner.set_speed(100.0)
-    >>> command = planner.plan(np.full(96, 0.5), np.full(planner.steps, 0.5), 0.1, True, np.empty(96))
+    >>> ahead = np.full(planner.steps, 0.5, dtype=np.float32)     # as the texture's lookup gives it
+    >>> command = planner.plan(np.full(96, 0.5), ahead, 0.1, True, np.empty(96))
     >>> float(command[0]), round(planner.felt, 6), planner.below_floor
     (0.1, 0.5, 0)
     """

@@ -460,13 +460,15 @@ def film_forward(a, f, p, ratio_nodes):
     Examples
     --------
     Without lift (``FILM_LIFT`` 0) the ratio is the table's: at rest 1, at u = 10 (a = 10 × W_c, W_c 1.6 µm at
-    1 N) the third node, past u_max the last:
+    1 N) the third node, past u_max the last. The inverses call it compiled; from Python its source runs as
+    ``film_forward.py_func`` (calling the kernel itself from Python would compile an entry of its own):
 
     >>> import numpy as np
     >>> p = np.array([0.0, 10.0, 138.1, 2 / 3, 250.0, 1.6, 1 / 3, 2.4, 2 / 3, 40.0, 0.01, 10.0, 0.95])
     >>> nodes = np.linspace(1.0, 0.6, 5)
-    >>> film_forward(0.0, 1.0, p, nodes), round(film_forward(16.0, 1.0, p, nodes), 9), film_forward(80.0, 1.0, p, nodes)
-    (1.0, 0.8, 0.6)
+    >>> forward = film_forward.py_func
+    >>> [round(float(forward(a, 1.0, p, nodes)), 9) for a in (0.0, 16.0, 80.0)]
+    [1.0, 0.8, 0.6]
     """
     f = min(max(f, p[MIN_F]), p[MAX_F])
     share = 1.0
