@@ -26,7 +26,33 @@ USER_ERRORS = (UltraglideError, OSError, ValueError)
 
 class PlateProbe(threading.Thread):
     """Watches the simulated plate's amplitude and publishes when it last rose above a threshold
-    (for ``ultraglide latency`` on ``sim``: the end-to-end measurement)."""
+    (for ``ultraglide latency`` on ``sim``: the end-to-end measurement).
+
+    Parameters
+    ----------
+    simulator : PlateSimulator
+        The simulated plate whose amplitude (µm p-p) is watched.
+    fast : numpy.ndarray
+        The shared memory's fast header, where the amplitude and the time of its last rise (perf_counter s) go.
+
+    Examples
+    --------
+    The simulated plate at rest: the probe publishes its amplitude, 0 µm, and no rise:
+
+    >>> import time
+    >>> import numpy as np
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.devices.urls import open_device
+    >>> device = open_device("sim", load_profile("sim-plate"))
+    >>> fast = np.zeros(shm.HEADER); fast[shm.PLATE_PROBE_UM_PP] = -1.0
+    >>> probe = PlateProbe(device.plate.simulator, fast); probe.start()
+    >>> deadline = time.monotonic() + 30.0
+    >>> while fast[shm.PLATE_PROBE_UM_PP] < 0.0 and time.monotonic() < deadline:
+    ...     time.sleep(0.001)
+    >>> probe.stop_event.set(); probe.join(); device.stop()
+    >>> float(fast[shm.PLATE_PROBE_UM_PP]), float(fast[shm.PROBE_RISE_S])
+    (0.0, 0.0)
+    """
 
     def __init__(self, simulator, fast: np.ndarray):
         super().__init__(name="plate-probe", daemon=True)
