@@ -429,7 +429,6 @@ class Engine:
         atexit.unregister(self.stop)
         output_error = None
         supervisor = self.supervisor
-        supervisor.stopping()
         try:
             answered = False
             if self.process.is_alive():

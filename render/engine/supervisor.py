@@ -8,11 +8,11 @@ interpreter). :class:`Supervisor` is a thread of the app that watches:
   noticed within a few milliseconds (aim: 100 ms);
 * **its heartbeats** in the shared memory (looked at every 50 ms, and every 10 ms once a look found none new):
   ``HEARTBEAT``, which the block path advances every block, and ``ENGINE_BEAT``, which a thread of the engine
-  advances every 20 ms. While the engine should play (it has
-  taken its first block and was not asked to stop), neither advancing for ``frozen_after_s`` (0.15 s) is a
-  freeze; while it stops (its block path may end before it answers), the engine's beat alone counts. A device
-  that pulls no block for a while (a plate's handshake after a reconnection) keeps the engine's beat going and
-  is not taken for a freeze. A watch that did not run itself for a while (this process stopped with the
+  advances every 20 ms. From its first block on (running, paused or stopping), neither advancing for
+  ``frozen_after_s`` (0.15 s) is a freeze: either is a sign that its process runs Python. A device that pulls no
+  block for a while (a plate's handshake after a reconnection, the end of a stop) keeps the engine's beat going,
+  and a block that loads a compiled kernel (holding the interpreter, so the beat thread waits) ends with a block's
+  beat: neither is taken for a freeze. A watch that did not run itself for a while (this process stopped with the
   engine by Ctrl-Z, or starved) gives the engine the same time again before judging it.
 
 A frozen engine is killed (SIGKILL: a frozen process takes no other signal). Once the process is gone, and so
@@ -94,8 +94,7 @@ class EngineLoss:
 
 class Supervisor:
     """The watch over one engine process (see the module's docstring). Made and started by the
-    :class:`~render.engine.engine.Engine`; ``stopping()`` when the app asks the engine to stop, ``close()`` once
-    it has answered (or failed to).
+    :class:`~render.engine.engine.Engine`; ``close()`` once the engine has answered a stop (or failed to).
 
     Examples
     --------
@@ -123,7 +122,6 @@ class Supervisor:
         self.realtime = realtime
         self.loss: EngineLoss | None = None
         self.lost = threading.Event()  # set once the loss is handled (the device safe)
-        self._stopping = False
         self._kill_reason: str | None = None
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._watch, name="engine-supervisor", daemon=True)
@@ -132,11 +130,6 @@ class Supervisor:
         """Start the watch (a daemon thread of this process); returns the supervisor, for chaining."""
         self._thread.start()
         return self
-
-    def stopping(self) -> None:
-        """The app asked the engine to stop: its block path ends as it rests the device; only a silent process
-        (its beat thread) counts as frozen from now on."""
-        self._stopping = True
 
     def close(self) -> EngineLoss | None:
         """End the watch; a process already ended without having stopped is handled first (the device made safe).
@@ -198,9 +191,9 @@ class Supervisor:
             silent_s = now - max(block_seen, engine_seen)
             if stopped_since is not None and now - stopped_since > self.frozen_after_s:
                 frozen = True
-            elif self._stopping or state == "stopping":
-                frozen = now - engine_seen > self.frozen_after_s
-            elif state in ("running", "paused"):
+            elif state in ("running", "paused", "stopping"):
+                # neither beat: the block path may end as a stop rests the device (the beat thread goes on), and
+                # the beat thread may wait for the interpreter while a block loads a compiled kernel (blocks come)
                 frozen = silent_s > self.frozen_after_s
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
@@ -224,11 +217,13 @@ class Supervisor:
     def _how_it_ended(self) -> str:
         if self._kill_reason is not None:
             return f"{self._kill_reason}, so it was killed (SIGKILL)"
-        try:
-            info = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOWAIT | os.WNOHANG)
-        except ChildProcessError:  # reaped already: multiprocessing has its status
-            code = self.process.exitcode
-            info = None
+        code = None
+        try:  # waited for (not WNOHANG): its sentinel closes as it dies, a moment before it can be waited on
+            info = os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOWAIT)
+        except ChildProcessError:  # reaped already (multiprocessing polls its children as it starts another, from
+            info, deadline = None, time.monotonic() + 1.0  # any thread): its status, once that thread has stored it
+            while (code := self.process.exitcode) is None and time.monotonic() < deadline:
+                time.sleep(0.001)
         if info is not None:
             code = -info.si_status if info.si_code in (os.CLD_KILLED, os.CLD_DUMPED) else info.si_status
         if code is None:

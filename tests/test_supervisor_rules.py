@@ -1,0 +1,127 @@
+"""The supervisor's judgement (render/engine/supervisor.py) against a real child process that beats as it is told
+in a shared header: a process whose block path or whose beat thread advances is alive, whatever its state; one
+whose neither advances while it plays is frozen and killed; one that exits before it stopped is a death said with
+its status."""
+
+import mmap
+import multiprocessing
+import os
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from ultraglide.render.engine import shm
+from ultraglide.render.engine.supervisor import Supervisor
+
+FROZEN_AFTER_S = 0.1
+MODE = 0  # the header's first word (SEQ, unused here) tells the child what to beat
+BLOCKS, BEAT_THREAD, NOTHING, EXIT = 1.0, 2.0, 3.0, 4.0
+
+
+def child(buffer, state: str) -> None:
+    """Beat as the header's MODE says, every 2 ms, with ``state`` published: blocks only, the beat thread only,
+    nothing (busy, running Python), or exit with status 3."""
+    fast = np.frombuffer(buffer, dtype=np.float64, count=shm.HEADER)
+    fast[shm.STATE] = shm.STATES.index(state)
+    while True:
+        mode = fast[MODE]
+        if mode == EXIT:
+            os._exit(3)
+        deadline = time.perf_counter() + 0.002
+        while time.perf_counter() < deadline:
+            pass
+        if mode == BLOCKS:
+            fast[shm.HEARTBEAT] += 1
+        elif mode == BEAT_THREAD:
+            fast[shm.ENGINE_BEAT] += 1
+
+
+class Watched:
+    """A child beating as told, and a supervisor watching it (null device: nothing to rest)."""
+
+    def __init__(self, state: str, mode: float):
+        self.buffer = mmap.mmap(-1, shm.HEADER * 8)  # shared with the forked child
+        self.fast = np.frombuffer(self.buffer, dtype=np.float64, count=shm.HEADER)
+        self.fast[MODE] = mode
+        self.process = multiprocessing.get_context("fork").Process(target=child, args=(self.buffer, state),
+                                                                    daemon=True)
+        self.process.start()
+        self.supervisor = Supervisor(self.process, SimpleNamespace(fast=self.fast), "null",
+                                     frozen_after_s=FROZEN_AFTER_S).start()
+
+    def beats_for(self, index: int, count: int, timeout_s: float = 60.0) -> None:
+        """Wait until the beat at ``index`` advanced ``count`` times (2 ms each at the least) or the watch judged."""
+        start, deadline = self.fast[index], time.monotonic() + timeout_s
+        while self.fast[index] < start + count and not self.supervisor.lost.is_set():
+            assert time.monotonic() < deadline, "the child did not beat"
+            time.sleep(0.001)
+
+    def close(self) -> None:
+        if self.process.is_alive():
+            self.fast[MODE] = EXIT
+        self.process.join(30)
+        self.supervisor.close()
+
+
+@pytest.mark.parametrize("state", ["running", "stopping"])
+def test_blocks_alone_are_a_sign_of_life_while_the_beat_thread_waits(state):
+    """A block that loads a compiled kernel holds the interpreter: the beat thread waits, the blocks come."""
+    watched = Watched(state, BLOCKS)
+    try:
+        watched.beats_for(shm.HEARTBEAT, int(6 * FROZEN_AFTER_S / 0.002))  # six times the freeze's time at least
+        assert watched.supervisor.loss is None and watched.process.is_alive()
+    finally:
+        watched.close()
+
+
+@pytest.mark.parametrize("state", ["running", "stopping"])
+def test_the_beat_thread_alone_is_a_sign_of_life_while_no_block_is_pulled(state):
+    """A plate's handshake after a reconnection, or the end of a stop: no block, the beat thread goes on."""
+    watched = Watched(state, BEAT_THREAD)
+    try:
+        watched.beats_for(shm.ENGINE_BEAT, int(6 * FROZEN_AFTER_S / 0.002))
+        assert watched.supervisor.loss is None and watched.process.is_alive()
+    finally:
+        watched.close()
+
+
+@pytest.mark.parametrize("state", ["running", "paused", "stopping"])
+def test_neither_beat_is_a_freeze_the_process_killed(state):
+    watched = Watched(state, NOTHING)
+    try:
+        assert watched.supervisor.wait(60.0), "no freeze judged within 60 s"
+        loss = watched.supervisor.loss
+        assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
+        assert loss.silent_s >= FROZEN_AFTER_S
+        watched.process.join(30)
+        assert watched.process.exitcode == -9  # SIGKILL: a frozen process takes no other signal
+    finally:
+        watched.close()
+
+
+def test_a_starting_engine_is_not_judged_by_its_beats():
+    """Loading, compiling, opening the device: no beat yet, only its death is watched."""
+    watched = Watched("starting", NOTHING)
+    try:
+        deadline = time.perf_counter() + 6 * FROZEN_AFTER_S
+        while time.perf_counter() < deadline:  # the watch looks every 10-50 ms meanwhile
+            assert not watched.supervisor.lost.wait(0.05)
+        assert watched.supervisor.loss is None and watched.process.is_alive()
+    finally:
+        watched.close()
+
+
+def test_an_exit_before_the_stop_is_a_death_with_its_status():
+    """Ten times: the sentinel closes a moment before the process can be waited on; the status is still said."""
+    for _ in range(10):
+        watched = Watched("running", BLOCKS)
+        try:
+            watched.beats_for(shm.HEARTBEAT, 5)
+            watched.fast[MODE] = EXIT
+            assert watched.supervisor.wait(60.0), "the death was not noticed within 60 s"
+            loss = watched.supervisor.loss
+            assert (loss.kind, loss.cause) == ("died", "its process exited with status 3 before it had stopped")
+        finally:
+            watched.close()
