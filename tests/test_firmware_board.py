@@ -1,4 +1,4 @@
-"""The netduinoplus2 port's pure logic, compiled for the host (QEMU models no DAC, DMA or piezo, so the
+"""The board ports' pure logic (ports/common/, shared by netduinoplus2 and mps2-an386), compiled for the host (QEMU models no DAC, DMA or piezo, so the
 arithmetic behind them is checked here): register values, the DAC's words, the sensing piezo's amplitude from
 ADC samples, the plate the QEMU image drives, the QEMU image's link tap, the console's numbers and the UART
 ring. Expectations come from the physics (a resonator's gain, its time constant), from numpy's reading of
@@ -17,7 +17,7 @@ import pytest
 from ultraglide.devices import protocol as p
 
 ROOT = Path(__file__).resolve().parent.parent
-PORT = ROOT / "devices" / "firmware" / "ports" / "netduinoplus2"
+PORT = ROOT / "devices" / "firmware" / "ports" / "common"
 SHIM = Path(__file__).resolve().parent / "firmware" / "board_shim.c"
 DAC_RATE = 240_000  # board.h: BOARD_DAC_RATE_HZ, the ADC's rate too
 PER_DRIVE = 5  # ADC samples a drive sample

@@ -2,7 +2,7 @@
 
 QEMU's ``netduinoplus2`` machine runs the image; ``-serial pty`` puts USART1 (the protocol link) on a new
 pty, which :class:`QemuPlate` serves behind a stable symlink as the simulated plate does, and ``-serial
-stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/netduinoplus2/port.c``) on
+stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/common/port.c``) on
 a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan,
 and runs at SCHED_FIFO 1 where this process may grant it (nice -10 otherwise): the emulated board is
 real-time work, and a normally scheduled QEMU on a busy machine lost tens of ms at a time.
@@ -58,7 +58,7 @@ QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its 
 class EmulatedPlate:
     """What the QEMU image's emulated plate is (its truth: resonance in Hz drifting by ``drift_hz_per_s``,
     quality factor) and the profile the firmware declares in HELLO_REPLY (µm peak-to-peak, Hz); written into
-    the image's ``.emulation`` section (``ports/netduinoplus2/emulation_config.h``) in a copy of the ELF file."""
+    the image's ``.emulation`` section (``ports/common/emulation_config.h``) in a copy of the ELF file."""
 
     resonance_hz: float
     q: float

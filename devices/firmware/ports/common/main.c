@@ -1,5 +1,5 @@
 /*
- * The netduinoplus2 image: the board (board.h), the port's glue to the firmware core (port.h), and the
+ * A board image (netduinoplus2, mps2-an386): the board (board.h), the port's glue to the firmware core (port.h), and the
  * main loop, which serves the link and the console between the interrupts that do the real-time work.
  */
 #include "board.h"

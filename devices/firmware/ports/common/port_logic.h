@@ -1,5 +1,5 @@
 /*
- * The netduinoplus2 port's pure arithmetic: register values from clocks and rates, and sample
+ * The board ports' pure arithmetic (the netduinoplus2's registers among it): register values from clocks and rates, and sample
  * format conversions. No register access, so the host compiles and tests it
  * (tests/test_firmware_board.py) and QEMU's missing peripherals (DAC, DMA, TIM6) still have their
  * numbers checked.

@@ -1,5 +1,5 @@
 /*
- * The netduinoplus2 port's glue (port.c): one firmware core, the port interface it calls (ug_port.h),
+ * The boards' glue (port.c, shared by every board port): one firmware core, the port interface it calls (ug_port.h),
  * the link's and the blocks' hand-over to it, and the debug console's lines. main.c runs it; bench.c
  * times it (docs/firmware.md, budgets).
  */

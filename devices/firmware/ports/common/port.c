@@ -1,5 +1,7 @@
 /*
- * The netduinoplus2 port's glue: ultraglide's firmware core (devices/firmware/core) joined to the board.
+ * The boards' glue: ultraglide's firmware core (devices/firmware/core) joined to a board (its board.h: the
+ * netduinoplus2's in ports/netduinoplus2, the mps2-an386's in ports/mps2-an386; names below are the
+ * netduinoplus2's, the mps2-an386's are in its board.h).
  *
  * Contexts (ug_port.h): the main loop hands the link's bytes to the core (under QEMU USART1's receive
  * interrupt, priority 0x40, hands each byte over: only it writes the core's receive ring); one block
@@ -317,7 +319,7 @@ void port_configure(ug_config *config, float *um_pp_per_code)
     config->reset_detail = board_reset_reason() == UG_RESET_POWER_ON ? 0u : board_reset_record()->detail;
 #ifdef UG_BOARD_QEMU
     config->link_bytes_per_s = BOARD_QEMU_LINK_BYTES_PER_S;
-    static const char name[] = "ultraglide netduinoplus2 (QEMU)";
+    static const char name[] = "ultraglide " BOARD_NAME " (QEMU)";
     const volatile ug_emulation_config_t *e = &ug_emulation;
     config->resonance_hz = e->profile_resonance_hz;
     config->q = e->profile_q;
@@ -336,7 +338,7 @@ void port_configure(ug_config *config, float *um_pp_per_code)
     ug_tap_init(&tap, (uint16_t)(e->max_amplitude_um_pp / e->full_scale_um_pp * 65535.0f + 0.5f));
 #endif
 #else
-    static const char name[] = "ultraglide netduinoplus2";
+    static const char name[] = "ultraglide " BOARD_NAME;
     *um_pp_per_code = BOARD_SENSE_UM_PP_PER_CODE;
 #endif
     for (size_t i = 0; i < sizeof name; i++) {
@@ -348,7 +350,7 @@ static void boot_line(const ug_config *config, int result)
 {
     char line[480];
     char *end = line + sizeof line;
-    char *at = ug_append_text(line, end, result == UG_OK ? "ev boot board=netduinoplus2" : "ev error what=config");
+    char *at = ug_append_text(line, end, result == UG_OK ? "ev boot board=" BOARD_NAME : "ev error what=config");
 #ifdef UG_BOARD_QEMU
     at = ug_append_text(at, end, " variant=qemu");
     if (ug_emulation.magic != UG_EMULATION_MAGIC) {
@@ -362,11 +364,7 @@ static void boot_line(const ug_config *config, int result)
 #else
     at = ug_append_text(at, end, " variant=hardware");
 #endif
-#ifdef UG_BOARD_QEMU
-    at = ug_append_text(at, end, " watchdog=stand-in-timer");  /* QEMU models no IWDG: TIM3 checks the marks */
-#else
-    at = ug_append_text(at, end, " watchdog=iwdg");
-#endif
+    at = ug_append_text(at, end, " watchdog=" BOARD_WATCHDOG_NAME);  /* board.h: what refreshes on both marks */
     at = append_pair(at, end, "watchdog_us", BOARD_WATCHDOG_US);
     const ug_reset_record_t *record = board_reset_record();
     at = ug_append_text(at, end, " reset_reason=");
