@@ -1,0 +1,498 @@
+/*
+ * The mps2-an386 board (board.h): the CMSDK UARTs, timers and watchdog joined to the shared glue
+ * (ports/common/ug_board.h). QEMU's model only: the output is the emulated plate.
+ */
+#include "board.h"
+
+#include "cmsdk.h"
+#include "emulated_plate.h"
+#include "uart_ring.h"
+
+#ifndef UG_BOARD_QEMU
+#error "the mps2-an386 port is built for QEMU's model (make qemu): the board has no DAC or ADC to drive a plate"
+#endif
+
+#define TICKS_PER_BLOCK (BOARD_CORE_HZ / 1000u)
+
+static volatile uint32_t millis;
+static volatile uint32_t link_overruns;
+static board_block_fn carrier_block;
+static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES];
+static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
+static volatile uint32_t late_blocks;
+static uint32_t reset_reason;
+static ug_reset_record_t reset_record;
+static ug_emulated_plate_t plate;
+static uint32_t block_ticks;  /* the board's clock when the next block is due */
+static uint32_t next_half;
+static volatile uint32_t skipped_ms;
+static volatile uint32_t injected;
+static char command[32];
+static uint32_t command_length;
+/* The fault path's marks, written by the fault handlers' assembly (startup.c) before any C: the emulated DAC
+   stopped (the emulated plate hears mid-scale from then on) and the clock when it was. */
+volatile uint32_t board_dac_stopped;
+volatile uint32_t board_silent_at;
+
+static void irq_enable(uint32_t irq, uint8_t priority)
+{
+    NVIC_IPR_BYTE(irq) = priority;
+    NVIC_ISER(irq / 32u) = 1u << (irq % 32u);
+}
+
+/* The board's clock: TIMER1 counts PCLK cycles down from 0xFFFFFFFF, so its complement counts them up (40 ns
+   each; wraps every 171.8 s: differences of less than that). */
+static uint32_t board_ticks(void)
+{
+    return ~TIMER_VALUE(TIMER1_BASE);
+}
+
+uint32_t board_time_us(void)
+{
+    return board_ticks() / BOARD_TICKS_PER_US;  /* wraps with the ticks: differences of less than 171 s */
+}
+
+uint32_t board_mask_blocks(void)
+{
+    uint32_t previous;
+    __asm__ volatile("mrs %0, basepri" : "=r"(previous));
+    __asm__ volatile("msr basepri_max, %0" :: "r"(BOARD_BLOCK_PRIORITY) : "memory");  /* only ever raises it */
+    return previous;
+}
+
+void board_unmask_blocks(uint32_t previous)
+{
+    __asm__ volatile("msr basepri, %0" :: "r"(previous) : "memory");
+}
+
+/* ---- UART0: the host link, a byte an interrupt (QEMU's CMSDK UART holds one received byte) --------------- */
+static void link_init(void)
+{
+    UART_BAUDDIV(UART0_BASE) = BOARD_CORE_HZ / BOARD_BAUD;  /* 27: 925 926 baud, +0.5 % */
+    UART_CTRL(UART0_BASE) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_RXIE;
+    irq_enable(UART0_RX_IRQn, BOARD_LINK_PRIORITY);
+}
+
+void UART0RX_Handler(void)
+{
+    UART_INTSTATUS(UART0_BASE) = UART_INT_RX;
+    uint32_t state = UART_STATE(UART0_BASE);
+    if (state & UART_STATE_RXOVR) {
+        UART_STATE(UART0_BASE) = UART_STATE_RXOVR;  /* write 1 clears */
+        link_overruns++;
+    }
+    if (state & UART_STATE_RXFULL) {
+        uint8_t byte = (uint8_t)UART_DATA(UART0_BASE);
+        board_link_received(&byte, 1u);
+    }
+}
+
+void board_link_service(void)
+{
+    uint8_t chunk[64];
+    size_t n;
+    while ((n = board_link_take(chunk, sizeof chunk)) != 0u) {
+        for (size_t i = 0; i < n; i++) {
+            while (UART_STATE(UART0_BASE) & UART_STATE_TXFULL) {  /* QEMU: only while its pty is full */
+            }
+            UART_DATA(UART0_BASE) = chunk[i];
+            ug_marks_main();  /* each byte sent is the main loop's progress (QEMU writes it to the pty there and then) */
+        }
+    }
+}
+
+uint32_t board_link_overruns(void)
+{
+    return link_overruns;
+}
+
+/* ---- UART1: the debug console; it takes one command, `fault KIND` (ug_safety.h) ---------------------------- */
+static void console_init(void)
+{
+    UART_BAUDDIV(UART1_BASE) = BOARD_CORE_HZ / BOARD_CONSOLE_BAUD;
+    UART_CTRL(UART1_BASE) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_RXIE;
+    irq_enable(UART1_RX_IRQn, BOARD_CONSOLE_PRIORITY);
+}
+
+uint32_t board_injected_fault(void)
+{
+    return injected;
+}
+
+void UART1RX_Handler(void)
+{
+    UART_INTSTATUS(UART1_BASE) = UART_INT_RX;
+    if (!(UART_STATE(UART1_BASE) & UART_STATE_RXFULL)) {
+        return;
+    }
+    uint8_t byte = (uint8_t)UART_DATA(UART1_BASE);
+    if (byte == '\n' || byte == '\r') {
+        command[command_length] = '\0';
+        uint32_t kind = ug_inject_parse(command);
+        if (kind != UG_INJECT_NONE) {
+            injected = kind;
+        }
+        command_length = 0u;
+    } else if (command_length + 1u < sizeof command) {
+        command[command_length++] = (char)byte;
+    }
+}
+
+/* A line, sent at once: QEMU's UART takes each byte synchronously (TXFULL only while its output is full). */
+void board_console_write(const char *text)
+{
+    uint32_t sent = 0u;
+    for (const char *at = text; *at != '\0'; at++) {
+        while (UART_STATE(UART1_BASE) & UART_STATE_TXFULL) {
+        }
+        UART_DATA(UART1_BASE) = (uint8_t)*at;
+        if ((++sent & 7u) == 0u) {
+            ug_marks_main();  /* progress of the main loop: a line can take a millisecond of the host's time */
+        }
+    }
+}
+
+/* ---- the carrier's buffers and the output ---------------------------------------------------------------- */
+uint16_t *board_dac_half(uint32_t half)
+{
+    return &dac_codes[(half & 1u) * BOARD_BLOCK_SAMPLES];
+}
+
+const uint16_t *board_adc_half(uint32_t half)
+{
+    return &adc_codes[(half & 1u) * BOARD_BLOCK_SAMPLES];
+}
+
+void board_dac_blank(uint32_t half)
+{
+    uint16_t *codes = board_dac_half(half);
+    for (uint32_t i = 0; i < BOARD_BLOCK_SAMPLES; i++) {
+        codes[i] = 0x8000u;  /* left-aligned mid-scale: no drive */
+    }
+}
+
+void board_output_safe(void)
+{
+    board_dac_blank(0u);
+    board_dac_blank(1u);
+}
+
+void board_output_off(void)
+{
+    board_dac_stopped = 1u;  /* the emulated plate hears mid-scale from its next block on */
+    board_silent_at = board_ticks();
+    board_output_safe();
+}
+
+void board_emulate_plate(float resonance_hz, float q, float drift_hz_per_s, float full_scale_um_pp,
+                         float um_pp_per_code)
+{
+    ug_emulated_plate_init(&plate, resonance_hz, q, drift_hz_per_s, full_scale_um_pp, (float)BOARD_DAC_RATE_HZ,
+                           um_pp_per_code);
+}
+
+float board_plate_peak_um_pp(void)
+{
+    return plate.peak_um_pp;
+}
+
+uint32_t board_skipped_ms(void)
+{
+    return skipped_ms;
+}
+
+void board_emulate_block(uint32_t half)
+{
+    if (board_dac_stopped) {
+        board_dac_blank(half);
+    }
+    ug_emulated_plate_run(&plate, board_dac_half(half), &adc_codes[(half & 1u) * BOARD_BLOCK_SAMPLES],
+                          BOARD_BLOCK_SAMPLES);
+}
+
+uint32_t board_late_blocks(void)
+{
+    return late_blocks;
+}
+
+uint32_t board_dma_errors(void)
+{
+    return 0u;  /* no DMA on this board */
+}
+
+uint32_t board_dac_underruns(void)
+{
+    return 0u;  /* no DAC on this board: the emulated plate is fed each block by the block interrupt itself */
+}
+
+/* ---- resets ---------------------------------------------------------------------------------------------- */
+static uint32_t silent_after_us(void)
+{
+    if (ug_reset_record.injected == 0u) {
+        return UG_NOT_INJECTED;
+    }
+    return (board_silent_at - ug_reset_record.fault_at) / BOARD_TICKS_PER_US;  /* both in ticks */
+}
+
+void board_reset(uint32_t reason, uint32_t detail)
+{
+    __asm__ volatile("cpsid i" ::: "memory");
+    if (!board_dac_stopped) {
+        board_output_off();
+    }
+    ug_reset_note(reason, detail, silent_after_us());
+    __asm__ volatile("dsb" ::: "memory");
+    SCB_AIRCR = SCB_AIRCR_VECTKEY | SCB_AIRCR_SYSRESETREQ;
+    __asm__ volatile("dsb" ::: "memory");
+    for (;;) {
+        __asm__ volatile("nop");  /* the reset comes within a few cycles */
+    }
+}
+
+void board_fault_reset(void)
+{
+    board_reset(UG_RESET_FAULT, SCB_CFSR);
+}
+
+uint32_t board_reset_reason(void)
+{
+    return reset_reason;
+}
+
+const ug_reset_record_t *board_reset_record(void)
+{
+    return &reset_record;
+}
+
+/* ---- the CMSDK watchdog ----------------------------------------------------------------------------------- */
+static uint32_t watchdog_refreshed_at, watchdog_warm;
+static volatile uint32_t watchdog_refreshes, watchdog_stalls;
+
+static void watchdog_write(volatile uint32_t *reg, uint32_t value)
+{
+    WDOG_LOCK = WDOG_UNLOCK_KEY;
+    *reg = value;
+    WDOG_LOCK = 0u;  /* any other value locks it again */
+}
+
+void board_watchdog_start(void)
+{
+    watchdog_refreshed_at = board_ticks();
+    watchdog_write(&WDOG_LOAD, BOARD_WATCHDOG_BOOT_US * BOARD_TICKS_PER_US);
+    watchdog_write(&WDOG_CONTROL, WDOG_CONTROL_INTEN | (BOARD_WATCHDOG_RESEN ? WDOG_CONTROL_RESEN : 0u));
+}
+
+/* The block interrupt, after its mark: refresh only when the main loop's was set too. The boot window stays until
+   BOARD_WATCHDOG_WARM_REFRESHES refreshes, then shortens to the timeout (writing LOAD reloads the counter).
+   QEMU is not a board: on a loaded host its virtual clock runs on while its host deschedules it, so the block
+   interrupt came this much later than the last (`stalled`), or had to catch up blocks that fell due meanwhile
+   while the main loop had no turn through no fault of its own (`catching_up`, excused up to
+   BOARD_WATCHDOG_BUSY_US since both marks were last seen): then the window restarts, counted in
+   board_watchdog_stalls (the statistics' watchdog_stalls), as the netduinoplus2 image's stand-in does. A hung block
+   interrupt never gets here; a hung main loop is excused only while QEMU itself stalls. */
+static uint32_t watchdog_ok_at;
+static uint32_t watchdog_excuses;  /* NMIs excused in a row (board_watchdog_expired) */
+
+static uint32_t watchdog_warm_refreshes;
+
+static void watchdog_refresh(uint32_t now)
+{
+    if (!watchdog_warm && ++watchdog_warm_refreshes >= BOARD_WATCHDOG_WARM_REFRESHES) {
+        watchdog_warm = 1u;
+        watchdog_write(&WDOG_LOAD, BOARD_WATCHDOG_US * BOARD_TICKS_PER_US);
+    } else {
+        watchdog_write(&WDOG_INTCLR, 1u);
+    }
+    watchdog_refreshed_at = now;
+}
+
+static void watchdog_service(bool stalled, bool catching_up)
+{
+    uint32_t now = board_ticks();
+    if (ug_marks_take()) {
+        watchdog_refresh(now);
+        watchdog_ok_at = now;
+        watchdog_refreshes++;
+        watchdog_excuses = 0u;
+    } else if (stalled || (catching_up && (ug_marks_peek() & 1u)
+                                             && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * BOARD_TICKS_PER_US)) {
+        watchdog_refresh(now);
+        watchdog_stalls++;
+    }
+}
+
+void board_watchdog_service(void)
+{
+    watchdog_service(false, false);
+}
+
+uint32_t board_watchdog_looks(void)
+{
+    return watchdog_refreshes;
+}
+
+uint32_t board_watchdog_stalls(void)
+{
+    return watchdog_stalls;
+}
+
+/* The NMI: the watchdog's first expiry (startup.c passes the exception frame). A mark was missing: the output
+   silent, the record written (where the processor was), the board reset. Unless QEMU itself did not run (its host
+   descheduled it while its virtual clock moved on): then the NMI comes much later than the timeout, or together
+   with a block interrupt that is pending and not running (QEMU raised both at once when it ran again); the window
+   restarts, counted, at most BOARD_WATCHDOG_EXCUSES times in a row without both marks (a hung block interrupt is
+   active, not only pending; a hung main loop is caught by the next window). */
+void board_watchdog_expired(const uint32_t *frame)
+{
+    uint32_t now = board_ticks();
+    uint32_t window_us = watchdog_warm ? BOARD_WATCHDOG_US : BOARD_WATCHDOG_BOOT_US;
+    uint32_t block_bit = 1u << (TIMER0_IRQn % 32u);
+    bool late = now - watchdog_refreshed_at > (window_us + BOARD_WATCHDOG_STALL_US) * BOARD_TICKS_PER_US;
+    bool block_waiting = (NVIC_ISPR(TIMER0_IRQn / 32u) & block_bit) && !(NVIC_IABR(TIMER0_IRQn / 32u) & block_bit);
+    if ((late || block_waiting) && watchdog_excuses < BOARD_WATCHDOG_EXCUSES) {
+        watchdog_excuses++;
+        watchdog_write(&WDOG_INTCLR, 1u);
+        watchdog_refreshed_at = now;
+        watchdog_stalls++;
+        return;
+    }
+    board_output_off();  /* first: the plate silent before anything else */
+    ug_reset_record.where = frame[6];
+    board_reset(UG_RESET_WATCHDOG, ug_marks_peek() | (watchdog_excuses & 0xFFu) << 8 | (watchdog_stalls & 0xFFFFu) << 16);
+}
+
+/* ---- the block clock: TIMER0 every millisecond runs the blocks due by TIMER1 ----------------------------- */
+void board_inject_now(uint32_t kind);
+
+static uint32_t block_irq_at;  /* the board's clock when the block interrupt last started */
+
+void TIMER0_Handler(void)
+{
+    TIMER_INTCLEAR(TIMER0_BASE) = 1u;
+    if (carrier_block == 0) {
+        return;
+    }
+    uint32_t started = board_ticks();
+    bool stalled = started - block_irq_at > BOARD_WATCHDOG_STALL_US * BOARD_TICKS_PER_US;
+    block_irq_at = started;
+    bool catching_up = false;
+    uint32_t late = board_ticks() - block_ticks;  /* how long ago the next block fell due */
+    if (late < 0x80000000u) {
+        uint32_t due = late / TICKS_PER_BLOCK + 1u;
+        if (injected == UG_INJECT_ISR_HANG) {
+            board_inject_now(UG_INJECT_ISR_HANG);  /* the block interrupt stops here */
+        }
+        if (due > BOARD_STALL_BLOCKS) {  /* QEMU itself did not run: nor did the board */
+            skipped_ms += due - 1u;
+            block_ticks += (due - 1u) * TICKS_PER_BLOCK;
+            due = 1u;
+        }
+        if (due > 1u) {
+            late_blocks += due - 1u;
+            catching_up = true;
+        }
+        for (uint32_t i = 0; i < due && i < BOARD_CATCH_UP; i++) {
+            uint32_t half = next_half;
+            board_emulate_block(half);
+            carrier_block(half);
+            next_half = half ^ 1u;
+            block_ticks += TICKS_PER_BLOCK;
+            millis++;
+        }
+    }
+    ug_marks_block();  /* the block interrupt ran to its end */
+    watchdog_service(stalled, catching_up);
+}
+
+void board_carrier_start(board_block_fn block, board_lost_fn lost)
+{
+    (void)lost;  /* no DMA here: a late block interrupt runs the blocks due late (counted), never loses them */
+    board_output_safe();
+    block_ticks = board_ticks() + TICKS_PER_BLOCK;
+    block_irq_at = board_ticks();
+    carrier_block = block;
+}
+
+uint32_t board_millis(void)
+{
+    return millis;
+}
+
+/* ---- injected faults --------------------------------------------------------------------------------------- */
+void board_inject_now(uint32_t kind)
+{
+    board_console_write(kind == UG_INJECT_ISR_HANG ? "ev fault_injected kind=isr-hang\n"
+                        : kind == UG_INJECT_MAIN_HANG ? "ev fault_injected kind=main-hang\n"
+                        : kind == UG_INJECT_STACK_OVERFLOW ? "ev fault_injected kind=stack-overflow\n"
+                        : "ev fault_injected kind=hard-fault\n");
+    ug_reset_note_injection(kind, board_ticks());  /* the clock from which the silence is timed */
+    if (kind == UG_INJECT_STACK_OVERFLOW) {
+        extern void board_overflow_stack(uint32_t depth);
+        board_overflow_stack(0u);
+    }
+    if (kind == UG_INJECT_HARD_FAULT) {
+        (void)*(volatile uint32_t *)0xF0000000u;  /* nothing answers there: a bus fault, escalated to HardFault */
+    }
+    for (;;) {
+        __asm__ volatile("nop");
+    }
+}
+
+static volatile uint32_t overflow_depth = 0xFFFFFFFFu;
+
+__attribute__((noinline)) void board_overflow_stack(uint32_t depth)
+{
+    volatile uint32_t frame[16];
+    frame[depth % 16u] = depth;
+    if (depth < overflow_depth) {
+        board_overflow_stack(frame[depth % 16u] + 1u);
+    }
+    __asm__ volatile("" ::: "memory");
+}
+
+/* ---- start-up ---------------------------------------------------------------------------------------------- */
+extern uint32_t _stack_guard;
+
+/* The MPU forbids the stack's lowest 32 bytes (the linker script's guard): an overflow faults there. The
+   default map covers the rest; the fault handlers and the NMI run with the MPU off (HFNMIENA clear). */
+static void stack_guard_init(void)
+{
+    MPU_RNR = 0u;
+    MPU_RBAR = (uint32_t)(uintptr_t)&_stack_guard;
+    MPU_RASR = MPU_RASR_XN | MPU_RASR_SIZE(5u) | MPU_RASR_ENABLE;
+    MPU_CTRL = MPU_CTRL_ENABLE | MPU_CTRL_PRIVDEFENA;
+    __asm__ volatile("dsb\n\tisb" ::: "memory");
+}
+
+void board_init(void)
+{
+    board_output_safe();
+    reset_reason = ug_reset_take(&reset_record);
+    stack_guard_init();
+    console_init();
+    link_init();
+    TIMER_CTRL(TIMER1_BASE) = 0u;  /* the board's clock: free-running from 0xFFFFFFFF down */
+    TIMER_RELOAD(TIMER1_BASE) = 0xFFFFFFFFu;
+    TIMER_VALUE(TIMER1_BASE) = 0xFFFFFFFFu;
+    TIMER_CTRL(TIMER1_BASE) = TIMER_CTRL_EN;
+    TIMER_CTRL(TIMER0_BASE) = 0u;  /* the block clock: every millisecond */
+    TIMER_RELOAD(TIMER0_BASE) = TICKS_PER_BLOCK - 1u;
+    TIMER_VALUE(TIMER0_BASE) = TICKS_PER_BLOCK - 1u;
+    TIMER_CTRL(TIMER0_BASE) = TIMER_CTRL_EN | TIMER_CTRL_IRQEN;
+    irq_enable(TIMER0_IRQn, BOARD_BLOCK_PRIORITY);
+}
+
+void board_fault_stop(void)
+{
+    __asm__ volatile("cpsid i" ::: "memory");
+    board_output_off();
+    TIMER_CTRL(TIMER0_BASE) = 0u;
+    for (;;) {
+        __asm__ volatile("wfi");
+    }
+}
+
+void board_wait_for_interrupt(void)
+{
+    __asm__ volatile("wfi");
+}

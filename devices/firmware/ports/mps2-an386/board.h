@@ -1,0 +1,60 @@
+/*
+ * The mps2-an386 board (ARM's MPS2 with the AN386 FPGA image: a Cortex-M4F at 25 MHz and the Cortex-M System
+ * Design Kit's APB peripherals), as QEMU models it: UART0 the host link, UART1 the debug console, TIMER0 the
+ * block clock, TIMER1 a free-running count of PCLK cycles (the board's clock), and the CMSDK watchdog, whose
+ * interrupt is the NMI.
+ *
+ * The board has no DAC or ADC that QEMU models: as the netduinoplus2's QEMU image, each block the emulated plate
+ * (ports/common/emulated_plate.h) plays the DAC half that played and writes the ADC half it measured, then the
+ * shared block function runs (ports/common/port.c). TIMER0 interrupts every millisecond (QEMU's CMSDK timers
+ * re-arm periodically) and its handler runs as many blocks as TIMER1 says are due, skipping a stall of QEMU
+ * itself as the netduinoplus2's image does.
+ *
+ * The watchdog: the block interrupt refreshes the CMSDK watchdog only when both marks (block interrupt, main
+ * loop) were set since the last refresh (ports/common/ug_safety.h). Its first expiry raises the NMI, whose
+ * handler silences the output, writes the reset record and resets the board (SYSRESETREQ); a second expiry
+ * would reset it in hardware (RESEN, BOARD_WATCHDOG_RESEN below: off under QEMU) should the handler not run.
+ */
+#ifndef UG_BOARD_H
+#define UG_BOARD_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#define BOARD_NAME "mps2-an386"    /* the boot line's board= and the core's name (ports/common/port.c) */
+#define BOARD_WATCHDOG_NAME "cmsdk" /* the CMSDK APB watchdog, its first expiry an NMI */
+#define BOARD_CORE_HZ 25000000u    /* the AN386's system clock, PCLK too (QEMU's SYSCLK_FRQ) */
+#define BOARD_TICKS_PER_US (BOARD_CORE_HZ / 1000000u)
+#define BOARD_BAUD 921600u         /* the host's default (docs/protocol.md) */
+#define BOARD_CONSOLE_BAUD 115200u
+#define BOARD_DRIVE_RATE_HZ 48000u /* the core's drive samples a second (its sample_rate_hz) */
+#define BOARD_OVERSAMPLE 5u        /* DAC (and ADC) samples a drive sample (the core's dac_oversample) */
+#define BOARD_DAC_RATE_HZ (BOARD_DRIVE_RATE_HZ * BOARD_OVERSAMPLE)  /* 240 kHz, as the netduinoplus2's */
+#define BOARD_BLOCK_DRIVE 48u      /* drive samples a block: 1 ms, one tick of the core */
+#define BOARD_BLOCK_SAMPLES (BOARD_BLOCK_DRIVE * BOARD_OVERSAMPLE)
+#define BOARD_CATCH_UP 8u          /* blocks run at most in one block interrupt */
+#define BOARD_STALL_BLOCKS 20u     /* more blocks due than this: QEMU was stalled, the time is skipped */
+#define BOARD_CONSOLE_PRIORITY 0xA0u /* UART1, the debug console: below everything */
+#define BOARD_BLOCK_PRIORITY 0x60u /* TIMER0, the block interrupt, and BASEPRI's mask */
+#define BOARD_LINK_PRIORITY 0x40u  /* UART0: above the blocks, so a byte never waits for one */
+/* The CMSDK watchdog's timeout: both marks must be seen within it (its first expiry, the NMI, stops the board). */
+#define BOARD_WATCHDOG_US 3000u  /* 75 000 PCLK cycles: a fault silent within 3 ms of the last refresh, <= 4 ms of it */
+#define BOARD_WATCHDOG_BOOT_US 200000u /* the first window, until both marks were seen this many times: */
+#define BOARD_WATCHDOG_WARM_REFRESHES 100u /* QEMU translates each code path the first time it runs: the first blocks,
+                                              statistics and frames are slow */
+#define BOARD_WATCHDOG_STALL_US 2500u /* an NMI this much later than the timeout: QEMU itself was stalled (its host
+                                         descheduled it), not the board; the window restarts, counted */
+/* The watchdog's second expiry (RESEN) resets the board in hardware should the NMI's handler never run. Left off
+   under QEMU: its watchdog counts in QEMU's I/O thread while the processor runs in another, so a processor thread
+   the host deschedules for a window lets both expiries pass before the NMI is taken (on this two-core machine at
+   load 12, three of six 3 s boots reset so, with no record: "power-on"). A hardware image sets it to 1. */
+#ifndef BOARD_WATCHDOG_RESEN
+#define BOARD_WATCHDOG_RESEN 0
+#endif
+#define BOARD_WATCHDOG_EXCUSES 3u   /* NMIs excused as QEMU's stalls in a row without both marks, at most */
+#define BOARD_WATCHDOG_BUSY_US 50000u /* the main loop's mark excused while the block interrupt catches up */
+
+#include "ug_board.h"
+
+#endif
