@@ -1,8 +1,8 @@
-"""The board ports' pure logic (ports/common/, shared by netduinoplus2 and mps2-an386), compiled for the host (QEMU models no DAC, DMA or piezo, so the
-arithmetic behind them is checked here): register values, the DAC's words, the sensing piezo's amplitude from
-ADC samples, the plate the QEMU image drives, the QEMU image's link tap, the console's numbers and the UART
-ring. Expectations come from the physics (a resonator's gain, its time constant), from numpy's reading of
-the same signals and from the host's own protocol encoder."""
+"""The board ports' pure logic (ports/common/, shared by netduinoplus2 and mps2-an386), compiled for the host
+(QEMU models no DAC, DMA or piezo, so the arithmetic behind them is checked here): register values, the DAC's
+words, the sensing piezo's amplitude from ADC samples, the plate the QEMU image drives, the QEMU image's link
+tap, the console's numbers and the UART ring. Expectations come from the physics (a resonator's gain, its time
+constant), from numpy's reading of the same signals and from the host's own protocol encoder."""
 
 from __future__ import annotations
 

@@ -43,9 +43,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                      help="report VALUE for a field of HELLO_REPLY, TELEMETRY or SENSORS (hello.watchdog_ms=5, "
                           "telemetry.measured_um_pp=0.2: a plate that ignores the amplitude; sensors.normal_force_n="
                           "nan ...), to test what a host believes; repeat for several")
-    sim.add_argument("--board", choices=["sim", "qemu", "netduinoplus2"], default="sim",
+    sim.add_argument("--board", choices=["sim", "qemu", "netduinoplus2", "mps2-an386"], default="sim",
                      help="sim: the firmware's core on this machine; qemu (or netduinoplus2): the netduinoplus2 "
-                          "board image under QEMU (built first if needed), its UART on the pty (default: sim)")
+                          "board image under QEMU; mps2-an386: the mps2-an386 board image under QEMU (built first "
+                          "if needed), its link UART on the pty (default: sim)")
     sim.add_argument("--board-fault", type=board_fault, metavar="KIND@SECONDS",
                      help="a board only: make the board fail SECONDS after it serves, KIND one of "
                           "isr-hang (its block interrupt stops), main-hang (its main loop stops), stack-overflow, "
@@ -104,9 +105,9 @@ def run(args) -> int:
     if args.board == "sim" and args.board_fault:
         from ultraglide.apps.cli.errors import UsageError
 
-        raise UsageError("--board-fault is a board's (--board qemu): the simulator's faults come from the host "
-                         "(SIM_FAULT)")
-    if args.board in ("qemu", "netduinoplus2"):
+        raise UsageError("--board-fault is a board's (--board qemu or mps2-an386): the simulator's faults come "
+                         "from the host (SIM_FAULT)")
+    if args.board in ("qemu", "netduinoplus2", "mps2-an386"):
         if args.breaks or args.max_version != 3 or finger_asked(args) or args.clock_ppm or args.lies:
             from ultraglide.apps.cli.errors import UsageError
 
@@ -190,16 +191,18 @@ def _summary(sim, as_json: bool, show) -> None:
 
 
 def _plate_sim_qemu(args) -> int:
-    """The netduinoplus2 image under QEMU, its UART on a pty; the board's debug console gives the events."""
+    """A board's image under QEMU (``--board qemu`` is the netduinoplus2's), its link UART on a pty; the board's
+    debug console gives the events."""
     from ultraglide.devices.errors import DeviceError
-    from ultraglide.devices.firmware.boards import build_images
+    from ultraglide.devices.firmware.boards import BOARD_INFO, build_images
     from ultraglide.devices.firmware.qemu import EmulatedPlate, QemuPlate
     from ultraglide.devices.rig import load_plate
 
+    board = BOARD_INFO["netduinoplus2" if args.board == "qemu" else args.board]
     profile = load_plate(args.profile)
     truth = EmulatedPlate.of(profile, args.resonance_hz, args.q, args.drift_hz_per_s)
-    image = build_images("netduinoplus2", ["qemu"])[0]
-    plate = QemuPlate(image.elf_path, args.link, plate=truth)
+    image = build_images(board.name, ["qemu"])[0]
+    plate = QemuPlate(image.elf_path, args.link, plate=truth, machine=board.machine)
 
     def show(event: dict) -> None:
         print_json(event) if args.json else print_line(describe_event(event))
@@ -208,11 +211,11 @@ def _plate_sim_qemu(args) -> int:
     plate.start()
     try:
         if args.json:
-            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name, "board": "netduinoplus2",
+            show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name, "board": board.name,
                   "image": image.elf_path, "profile": profile.name, "resonance_hz": truth.resonance_hz,
                   "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s})
         else:
-            print_line(f"netduinoplus2 image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
+            print_line(f"{board.name} image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
                   f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
                   "Ctrl-C stops it")
         fault_at = time.monotonic() + args.board_fault[1] if args.board_fault else None

@@ -1,8 +1,10 @@
-"""Cross-building the firmware's board images: ``ultraglide firmware build`` and ``plate-sim --board qemu``.
+"""Cross-building the firmware's board images: ``ultraglide firmware build`` and ``plate-sim --board NAME``.
 
-A board port lives in ``devices/firmware/ports/BOARD/`` with a Makefile that builds each variant (``hardware``:
-the real peripherals; ``qemu``: what QEMU runs, with the emulated plate standing in for the ADC; ``bench``: the
-budget image). Images are built with Debian's ``gcc-arm-none-eabi`` into a cache keyed by the sources and the
+The boards: ``netduinoplus2`` (STM32F405; images ``hardware``, ``qemu``, ``bench``) and ``mps2-an386`` (ARM's
+MPS2 with the AN386 image, CMSDK peripherals; its ``qemu`` image only). A board port lives in
+``devices/firmware/ports/BOARD/`` with a Makefile that builds each variant (``hardware``: the real
+peripherals; ``qemu``: what QEMU runs, with the emulated plate standing in for the ADC; ``bench``: the budget
+image). Images are built with Debian's ``gcc-arm-none-eabi`` into a cache keyed by the sources and the
 compiler, so a second build is a lookup; sizes come from the linker map.
 
 Example::
@@ -26,12 +28,35 @@ from pathlib import Path
 from ultraglide.devices.errors import DeviceError
 
 FIRMWARE_DIR = Path(__file__).resolve().parent
-BOARDS = ("netduinoplus2",)
 VARIANTS = ("hardware", "qemu", "bench")
 TOOLCHAIN_HINT = "install gcc-arm-none-eabi and libnewlib-arm-none-eabi (apt-get; ./run tests does)"
 BUILD_TIMEOUT_S = 300.0
-FLASH_ORIGIN, FLASH_END = 0x0800_0000, 0x0810_0000
-RAM_ORIGIN, RAM_END = 0x2000_0000, 0x2002_0000
+
+
+@dataclass(frozen=True)
+class Board:
+    """A board port: its folder under ``ports/``, QEMU's machine that runs its ``qemu`` image, the variants its
+    Makefile builds (the first ones by default) and its memory map (flash and RAM as [start, end) addresses)."""
+
+    name: str
+    machine: str
+    variants: tuple[str, ...]
+    default_variants: tuple[str, ...]
+    flash: tuple[int, int]
+    ram: tuple[int, int]
+
+
+BOARD_INFO = {
+    "netduinoplus2": Board("netduinoplus2", "netduinoplus2", ("hardware", "qemu", "bench"), ("hardware", "qemu"),
+                           (0x0800_0000, 0x0810_0000), (0x2000_0000, 0x2002_0000)),
+    # the AN386's SSRAM: 4 MiB at 0 holds the code, 4 MiB at 0x20000000 the data; QEMU's model only (no DAC, ADC)
+    "mps2-an386": Board("mps2-an386", "mps2-an386", ("qemu",), ("qemu",),
+                        (0x0000_0000, 0x0040_0000), (0x2000_0000, 0x2040_0000)),
+}
+BOARDS = tuple(BOARD_INFO)
+FLASH_ORIGIN, FLASH_END = BOARD_INFO["netduinoplus2"].flash
+RAM_ORIGIN, RAM_END = BOARD_INFO["netduinoplus2"].ram
+_NOT_LOADED = (".debug", ".comment", ".ARM.attributes", ".stab")  # sections that take no memory on the board
 _ZEROED = (".bss", ".stack", ".noinit", ".heap")  # RAM sections with no initial image in flash
 _SECTION = re.compile(r"^(\.[\w.]+)\s+0x([0-9a-fA-F]+)\s+0x([0-9a-fA-F]+)(?:\s+load address 0x([0-9a-fA-F]+))?",
                       re.MULTILINE)
@@ -61,17 +86,20 @@ class FirmwareImage:
                 "stack_bytes": self.stack_bytes}
 
 
-def map_sizes(map_text: str) -> tuple[int, int, int]:
-    """Flash, RAM and stack bytes from a GNU ld map: each output section counted where it lives (an
-    initialised section in RAM also takes its load image's bytes in flash)."""
+def map_sizes(map_text: str, board: str = "netduinoplus2") -> tuple[int, int, int]:
+    """Flash, RAM and stack bytes from a GNU ld map of ``board``'s image: each output section counted where it
+    lives in the board's memory map (an initialised section in RAM also takes its load image's bytes in flash)."""
+    (flash_origin, flash_end), (ram_origin, ram_end) = BOARD_INFO[board].flash, BOARD_INFO[board].ram
     flash = ram = stack = 0
     for name, address, size, load in _SECTION.findall(map_text):
+        if name.startswith(_NOT_LOADED):
+            continue  # debugging information and notes sit at address 0, which is memory on some boards
         start, length = int(address, 16), int(size, 16)
-        if FLASH_ORIGIN <= start < FLASH_END:
+        if flash_origin <= start < flash_end:
             flash += length
-        elif RAM_ORIGIN <= start < RAM_END:
+        elif ram_origin <= start < ram_end:
             ram += length
-            if load and FLASH_ORIGIN <= int(load, 16) < FLASH_END and name not in _ZEROED:
+            if load and flash_origin <= int(load, 16) < flash_end and name not in _ZEROED:
                 flash += length
             if name == ".stack":
                 stack = length
@@ -106,16 +134,18 @@ def cache_dir() -> Path:
     return Path(base) / "ultraglide" / "firmware"
 
 
-def build_images(board: str = "netduinoplus2", variants=("hardware", "qemu"), out_dir: str | None = None,
+def build_images(board: str = "netduinoplus2", variants=None, out_dir: str | None = None,
                  rebuild: bool = False) -> list[FirmwareImage]:
     """Build ``variants`` of ``board`` and return the images. Without ``out_dir`` the images go to the cache
     (``~/.cache/ultraglide/firmware/BOARD-DIGEST``) and are reused while the sources and compiler stay the
     same; with it they are built there. Raises :class:`DeviceError` (one line) when the toolchain is missing
     or the build fails."""
-    for variant in variants:
-        if variant not in VARIANTS:
-            raise DeviceError(f"no variant {variant!r}: the variants are {', '.join(VARIANTS)}")
     port = port_dir(board)
+    info = BOARD_INFO[board]
+    variants = tuple(variants or info.default_variants)
+    for variant in variants:
+        if variant not in info.variants:
+            raise DeviceError(f"no variant {variant!r} of {board}: its variants are {', '.join(info.variants)}")
     if out_dir is None:
         target = cache_dir() / f"{board}-{_sources_digest(board)}"
         missing = [v for v in variants if rebuild or not (target / _elf_name(board, v)).is_file()]
@@ -203,6 +233,6 @@ def _image(board: str, variant: str, target: Path) -> FirmwareImage:
     elf = target / _elf_name(board, variant)
     map_path = elf.with_suffix(".map")
     binary = elf.with_suffix(".bin")
-    flash, ram, stack = map_sizes(map_path.read_text())
+    flash, ram, stack = map_sizes(map_path.read_text(), board)
     return FirmwareImage(board, variant, str(elf), str(binary) if binary.is_file() else None, str(map_path),
                          flash, ram, stack)

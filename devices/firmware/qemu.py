@@ -1,6 +1,7 @@
-"""A board image run under QEMU, its host link (USART1) on a pseudo-terminal: ``plate-sim --board qemu``.
+"""A board image run under QEMU, its host link on a pseudo-terminal: ``plate-sim --board NAME``.
 
-QEMU's ``netduinoplus2`` machine runs the image; ``-serial pty`` puts USART1 (the protocol link) on a new
+QEMU's ``netduinoplus2`` machine (or ``mps2-an386``, whose UART0 and UART1 stand where USART1 and USART2 do
+here) runs the image; ``-serial pty`` puts USART1 (the protocol link) on a new
 pty, which :class:`QemuPlate` serves behind a stable symlink as the simulated plate does, and ``-serial
 stdio`` puts USART2 (the board's debug console: one line per event, see ``ports/common/port.c``) on
 a pipe read here. QEMU dies with its parent (``PR_SET_PDEATHSIG``), so a killed command leaves no orphan,
@@ -185,11 +186,13 @@ class QemuPlate:
     ``plate``: the emulated plate and declared profile (default: the image's own, the sim-plate profile).
     ``events`` receives the board's events (dicts with ``t_s`` and ``event``) and ``lines`` every line of
     its debug console. ``icount_shift``: run with QEMU's instruction counting (each instruction 2^shift ns of
-    virtual time), for budgets; None runs at the host's speed on the host's clock.
+    virtual time), for budgets; None runs at the host's speed on the host's clock. ``machine``: QEMU's machine for
+    the image (``boards.BOARD_INFO[board].machine``: ``netduinoplus2`` or ``mps2-an386``); the first ``-serial``
+    is the board's link UART (USART1, UART0), the second its debug console (USART2, UART1).
     """
 
     def __init__(self, elf_path: str, link_path: str | None = None, icount_shift: int | None = None,
-                 plate: EmulatedPlate | None = None):
+                 plate: EmulatedPlate | None = None, machine: str = MACHINE):
         if shutil.which(QEMU) is None:
             raise DeviceError(f"{QEMU} is not installed: install qemu-system-arm (apt-get; ./run tests does)")
         if not os.path.isfile(elf_path):
@@ -200,6 +203,7 @@ class QemuPlate:
         self.pty_name = ""
         self.icount_shift = icount_shift
         self.plate = plate
+        self.machine = machine
         self.events: queue.Queue = queue.Queue(MAX_EVENTS)
         self.lines: queue.Queue = queue.Queue(MAX_EVENTS)
         self.process: subprocess.Popen | None = None
@@ -213,7 +217,7 @@ class QemuPlate:
         return f"QemuPlate({self.elf_path!r} on {self.path}, {state})"
 
     def command(self) -> list[str]:
-        command = [QEMU, "-M", MACHINE, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
+        command = [QEMU, "-M", self.machine, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
                    "-kernel", self.elf_path]
         if self.icount_shift is not None:
             command += ["-icount", f"shift={self.icount_shift}"]
