@@ -292,6 +292,8 @@ void board_watchdog_start(void)
    interrupt never gets here; a hung main loop is excused only while QEMU itself stalls. */
 static uint32_t watchdog_ok_at;
 static uint32_t watchdog_excuses;  /* NMIs excused in a row (board_watchdog_expired) */
+static uint32_t watchdog_millis;   /* the blocks run when the window last started */
+static volatile uint32_t block_irq_at;  /* the board's clock when the block interrupt last started */
 
 static uint32_t watchdog_warm_refreshes;
 
@@ -304,6 +306,7 @@ static void watchdog_refresh(uint32_t now)
         watchdog_write(&WDOG_INTCLR, 1u);
     }
     watchdog_refreshed_at = now;
+    watchdog_millis = millis;
 }
 
 static void watchdog_service(bool stalled, bool catching_up)
@@ -338,21 +341,29 @@ uint32_t board_watchdog_stalls(void)
 
 /* The NMI: the watchdog's first expiry (startup.c passes the exception frame). A mark was missing: the output
    silent, the record written (where the processor was), the board reset. Unless QEMU itself did not run (its host
-   descheduled it while its virtual clock moved on): then the NMI comes much later than the timeout, or together
-   with a block interrupt that is pending and not running (QEMU raised both at once when it ran again); the window
-   restarts, counted, at most BOARD_WATCHDOG_EXCUSES times in a row without both marks (a hung block interrupt is
-   active, not only pending; a hung main loop is caught by the next window). */
+   descheduled it while its virtual clock moved on): then the NMI comes much later than the timeout, or the main
+   loop ran in the window while the block interrupt is not running (QEMU delivered its timer late: a hung block
+   interrupt is running, interrupted by this NMI, and shuts the main loop out), or the block interrupt is running
+   and started or played blocks in the window (QEMU ran it slowly; a hung one does neither after its first
+   window); the window restarts, counted, at
+   most BOARD_WATCHDOG_EXCUSES times in a row without a refresh on both marks. A hung main loop leaves its mark
+   clear: never excused but for a late NMI. */
 void board_watchdog_expired(const uint32_t *frame)
 {
     uint32_t now = board_ticks();
     uint32_t window_us = watchdog_warm ? BOARD_WATCHDOG_US : BOARD_WATCHDOG_BOOT_US;
     uint32_t block_bit = 1u << (TIMER0_IRQn % 32u);
     bool late = now - watchdog_refreshed_at > (window_us + BOARD_WATCHDOG_STALL_US) * BOARD_TICKS_PER_US;
-    bool block_waiting = (NVIC_ISPR(TIMER0_IRQn / 32u) & block_bit) && !(NVIC_IABR(TIMER0_IRQn / 32u) & block_bit);
-    if ((late || block_waiting) && watchdog_excuses < BOARD_WATCHDOG_EXCUSES) {
+    bool block_running = (NVIC_IABR(TIMER0_IRQn / 32u) & block_bit) != 0u;
+    bool main_alive = (ug_marks_peek() & 2u) != 0u;
+    /* blocks played in this window, or the block interrupt started in it */
+    bool block_progress = millis != watchdog_millis || block_irq_at - watchdog_refreshed_at < 0x80000000u;
+    if ((late || (!block_running && main_alive) || (block_running && block_progress))
+        && watchdog_excuses < BOARD_WATCHDOG_EXCUSES) {
         watchdog_excuses++;
         watchdog_write(&WDOG_INTCLR, 1u);
         watchdog_refreshed_at = now;
+        watchdog_millis = millis;
         watchdog_stalls++;
         return;
     }
@@ -363,8 +374,6 @@ void board_watchdog_expired(const uint32_t *frame)
 
 /* ---- the block clock: TIMER0 every millisecond runs the blocks due by TIMER1 ----------------------------- */
 void board_inject_now(uint32_t kind);
-
-static uint32_t block_irq_at;  /* the board's clock when the block interrupt last started */
 
 void TIMER0_Handler(void)
 {

@@ -1,0 +1,180 @@
+"""The mps2-an386 board (ports/mps2-an386: ARM's MPS2 with the AN386 image, CMSDK UARTs, timers and watchdog)
+under QEMU's ``mps2-an386`` machine: it builds with -Werror beside the netduinoplus2, boots and says so, passes
+the host's conformance run, and its CMSDK watchdog (whose first expiry is the NMI) catches a hung block
+interrupt or main loop, silencing the output and resetting the board; a stack overflow (the MPU's guard) or a
+hard fault is caught by the fault handler at once. Marked ``qemu`` and ``slow``; one QEMU at a time (the lock of
+test_firmware_qemu.py). Run alone (-n 0): the watchdog's timing is load-sensitive."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+from conftest import ROOT
+from ultraglide.devices.firmware.boards import BOARD_INFO, FIRMWARE_DIR, build_images
+from ultraglide.devices.firmware.qemu import QemuPlate
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.qemu,
+    pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None or shutil.which("qemu-system-arm") is None,
+                       reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm"),
+]
+
+LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
+BOARD = "mps2-an386"
+WATCHDOG_MS = 3.0  # board.h BOARD_WATCHDOG_US
+EXCUSES = 3  # BOARD_WATCHDOG_EXCUSES: windows restarted in a row for QEMU's own stalls, at most
+CFSR_DACCVIOL, CFSR_MMARVALID = 1 << 1, 1 << 7  # ARMv7-M fault status: the MPU refused a data access
+CFSR_PRECISERR, CFSR_BFARVALID = 1 << 9, 1 << 15  # a bus fault at a known address
+
+
+@pytest.fixture
+def one_qemu():
+    with open(LOCK, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+@pytest.fixture(scope="module")
+def image():
+    return build_images(BOARD, ["qemu"])[0]
+
+
+def started(image) -> QemuPlate:
+    return QemuPlate(image.elf_path, machine=BOARD_INFO[BOARD].machine)
+
+
+def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) -> dict:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with contextlib.suppress(queue.Empty):
+            event = plate.events.get(timeout=0.2)
+            if event["event"] in names:
+                return event
+    raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
+
+
+@pytest.mark.parametrize(("board", "variants"), [("netduinoplus2", ["hardware", "qemu"]), (BOARD, ["qemu"])])
+def test_both_boards_build_with_every_warning_an_error(tmp_path, board, variants):
+    """Each board's Makefile compiles every source with -Wall -Wextra -Werror (make echoes the commands) and
+    no warning is printed; the image's flash is what binutils' size reads (text + data)."""
+    result = subprocess.run(["make", "--no-print-directory", "-f", str(FIRMWARE_DIR / "ports" / board / "Makefile"),
+                             f"O={tmp_path}", *variants], capture_output=True, text=True, timeout=600, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    compiles = [line for line in result.stdout.splitlines() if line.startswith("arm-none-eabi-gcc") and " -c " in line]
+    assert compiles and all("-Werror" in line and "-Wall" in line and "-Wextra" in line for line in compiles)
+    assert "warning" not in (result.stdout + result.stderr).lower()
+    for variant in variants:
+        built = build_images(board, [variant], out_dir=str(tmp_path))[0]
+        size = subprocess.run(["arm-none-eabi-size", built.elf_path], capture_output=True, text=True,
+                              check=True).stdout.splitlines()[1].split()
+        assert built.flash_bytes == int(size[0]) + int(size[1])
+
+
+def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
+    with started(image) as plate:
+        boot = next_event(plate, ("boot",))
+        assert (boot["board"], boot["watchdog"], boot["reset_reason"]) == (BOARD, "cmsdk", "power-on")
+        assert boot["watchdog_us"] == WATCHDOG_MS * 1000 and boot["sample_rate_hz"] == 48000
+        assert boot["max_amplitude_um_pp"] == 6.0  # sim-plate, the image's own emulation block
+        stats = next_event(plate, ("stats",))  # a second on the board's clock: the blocks ran, the watchdog was fed
+        assert stats["blocks"] >= 900 and stats["watchdog_looks"] >= 100
+        assert next_event(plate, ("stats",))["blocks"] >= 1900  # and no reset in between (a boot would say so)
+        assert all(e["event"] != "boot" for e in list(plate.events.queue))
+
+
+def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
+    link = str(tmp_path / "plate")
+    sim = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", BOARD, "--link", link,
+                            "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        serving = json.loads(sim.stdout.readline())
+        assert serving["event"] == "serving" and serving["board"] == BOARD
+        result = subprocess.run([sys.executable, "-m", "ultraglide", "plate", "check", "--device", f"serial:{link}",
+                                 "--profile", "sim-plate", "--json"], capture_output=True, text=True, cwd=ROOT,
+                                timeout=600)
+    finally:
+        sim.send_signal(signal.SIGINT)
+        rest, _ = sim.communicate(timeout=60)
+    board = [json.loads(line) for line in rest.splitlines() if line.startswith("{")]
+    report = json.loads(result.stdout)
+    boots = [event for event in board if event["event"] == "boot"]
+    assert result.returncode == 0, ([rule for rule in report["rules"] if rule["verdict"] == "fail"], boots)
+    assert len(boots) == 1  # the board never reset during the run
+    assert report["failed"] == 0 and report["aborted"] is None
+    assert report["device"]["name"] == f"ultraglide {BOARD} (QEMU)"
+    not_passed = {rule["rule"] for rule in report["rules"] if rule["verdict"] != "pass"}
+    assert not_passed <= {"R-OVER-LIMIT", "R-TRIP"}  # these need --over-limit
+
+
+def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
+    """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
+    assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
+    next_event(plate, ("stats",))  # a second of the board running normally: its watchdog stays quiet meanwhile
+    plate.inject_fault(kind)
+    assert next_event(plate, ("fault_injected",))["kind"] == kind
+    boot = next_event(plate, ("boot",))
+    happened = next_event(plate, ("watchdog_reset", "board_fault"))
+    blanked = next_event(plate, ("output_blanked",))
+    return boot, happened, blanked
+
+
+@pytest.mark.parametrize("kind", ["isr-hang", "main-hang"])
+def test_a_hang_is_caught_by_the_cmsdk_watchdogs_nmi_which_silences_and_resets(one_qemu, image, kind):
+    with started(image) as plate:
+        boot, happened, blanked = injected(plate, kind)
+        assert boot["reset_reason"] == "watchdog" and boot["injected"] == kind and boot["watchdog"] == "cmsdk"
+        assert happened["event"] == "watchdog_reset"
+        # the mark that stopped: a hung block interrupt's (the injection's console line marks the main loop's once
+        # from inside it); a hung main loop's alone, the block interrupt's still coming
+        assert happened["missing"] == (["block interrupt"] if kind == "isr-hang" else ["main loop"])
+        # the window runs from the last refresh, at most a block (1 ms) before the fault: never sooner than that;
+        # and no later than the windows QEMU's own stalls may restart, each counted
+        assert blanked["injected"] == kind
+        assert WATCHDOG_MS - 1.0 <= blanked["after_fault_ms"] <= (EXCUSES + 1) * WATCHDOG_MS + 1.0
+        assert happened["looks_missed"] <= EXCUSES  # the NMIs excused in a row before this one
+        assert next_event(plate, ("stats",))["blocks"] >= 900  # and it runs again after the reset
+
+
+@pytest.mark.parametrize(("kind", "status_bits"), [("stack-overflow", CFSR_DACCVIOL | CFSR_MMARVALID),
+                                                   ("hard-fault", CFSR_PRECISERR | CFSR_BFARVALID)])
+def test_a_fault_is_caught_by_its_handler_which_silences_the_output_first(one_qemu, image, kind, status_bits):
+    with started(image) as plate:
+        boot, happened, blanked = injected(plate, kind)
+        assert boot["reset_reason"] == "fault" and boot["injected"] == kind
+        assert happened["event"] == "board_fault" and happened["fault_status"] & status_bits == status_bits
+        assert 0.0 <= blanked["after_fault_ms"] < WATCHDOG_MS - 1.0  # the handler, not the watchdog
+        assert next_event(plate, ("stats",))["blocks"] >= 900
+
+
+def test_plate_sim_board_fault_on_the_board_prints_what_it_did_as_json(one_qemu):
+    process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", BOARD,
+                                "--board-fault", "isr-hang@1.5", "--json"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    events = []
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not any(e["event"] == "output_blanked" for e in events):
+            line = process.stdout.readline()
+            if not line:
+                break
+            events.append(json.loads(line))
+    finally:
+        process.send_signal(signal.SIGINT)
+        status = process.wait(timeout=60)
+    names = [e["event"] for e in events if e["event"] != "stats"]
+    assert names == ["serving", "boot", "fault_injected", "boot", "watchdog_reset", "output_blanked"], names
+    assert events[0]["board"] == BOARD and events[-1]["by"] == "watchdog_reset"
+    assert events[-1]["after_fault_ms"] >= WATCHDOG_MS - 1.0
+    assert status == 128 + signal.SIGINT
