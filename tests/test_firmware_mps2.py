@@ -106,7 +106,8 @@ def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
                                 timeout=600)
     finally:
         sim.send_signal(signal.SIGINT)
-        rest, _ = sim.communicate(timeout=60)
+        rest = sim.stdout.read()  # through the reader that holds what followed the serving line
+        sim.wait(timeout=60)
     board = [json.loads(line) for line in rest.splitlines() if line.startswith("{")]
     report = json.loads(result.stdout)
     boots = [event for event in board if event["event"] == "boot"]
