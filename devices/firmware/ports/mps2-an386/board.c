@@ -344,8 +344,8 @@ uint32_t board_watchdog_stalls(void)
    descheduled it while its virtual clock moved on): then the NMI comes much later than the timeout, or the main
    loop ran in the window while the block interrupt is not running (QEMU delivered its timer late: a hung block
    interrupt is running, interrupted by this NMI, and shuts the main loop out), or the block interrupt is running
-   and started or played blocks in the window (QEMU ran it slowly; a hung one does neither after its first
-   window); the window restarts, counted, at
+   and played blocks in the window or has just started (QEMU ran it slowly or late; a hung one does neither);
+   the window restarts, counted, at
    most BOARD_WATCHDOG_EXCUSES times in a row without a refresh on both marks. A hung main loop leaves its mark
    clear: never excused but for a late NMI. */
 void board_watchdog_expired(const uint32_t *frame)
@@ -356,8 +356,11 @@ void board_watchdog_expired(const uint32_t *frame)
     bool late = now - watchdog_refreshed_at > (window_us + BOARD_WATCHDOG_STALL_US) * BOARD_TICKS_PER_US;
     bool block_running = (NVIC_IABR(TIMER0_IRQn / 32u) & block_bit) != 0u;
     bool main_alive = (ug_marks_peek() & 2u) != 0u;
-    /* blocks played in this window, or the block interrupt started in it */
-    bool block_progress = millis != watchdog_millis || block_irq_at - watchdog_refreshed_at < 0x80000000u;
+    /* blocks played in this window, or the block interrupt started in it less than a block and a half ago (a hung
+       one stopped before its first block: by the NMI it has played nothing for longer) */
+    bool block_progress = millis != watchdog_millis
+                          || (block_irq_at - watchdog_refreshed_at < 0x80000000u
+                              && now - block_irq_at < BOARD_BLOCK_SLOW_US * BOARD_TICKS_PER_US);
     if ((late || (!block_running && main_alive) || (block_running && block_progress))
         && watchdog_excuses < BOARD_WATCHDOG_EXCUSES) {
         watchdog_excuses++;

@@ -53,6 +53,7 @@
 #define BOARD_WATCHDOG_RESEN 0
 #endif
 #define BOARD_WATCHDOG_EXCUSES 3u   /* NMIs excused as QEMU's stalls in a row without both marks, at most */
+#define BOARD_BLOCK_SLOW_US 1500u   /* a block interrupt started this recently at the NMI is QEMU's slowness */
 #define BOARD_WATCHDOG_BUSY_US 50000u /* the main loop's mark excused while the block interrupt catches up */
 
 #include "ug_board.h"
