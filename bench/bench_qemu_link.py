@@ -38,9 +38,9 @@ def stats_lines(plate: QemuPlate, count: int, timeout_s: float) -> list[dict]:
     return found
 
 
-def one_run(elf: str, seconds: int, offer: int = 0) -> dict:
+def one_run(elf: str, seconds: int, offer: int = 0, machine: str = "netduinoplus2") -> dict:
     frame = p.encode_frame(p.HEARTBEAT, 1)
-    with QemuPlate(elf) as plate:
+    with QemuPlate(elf, machine=machine) as plate:
         port = open_port(plate.path, 921600, write_timeout_s=2.0)
         stop = threading.Event()
         written = [0]
@@ -88,10 +88,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--offer", type=int, default=0, help="bytes a second the host offers (0: as fast as the pty "
                                                                  "takes them)")
+    parser.add_argument("--board", choices=["netduinoplus2", "mps2-an386"], default="netduinoplus2")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    elf = build_images("netduinoplus2", ["qemu"])[0].elf_path
-    runs = [one_run(elf, args.seconds, args.offer) for _ in range(args.runs)]
+    elf = build_images(args.board, ["qemu"])[0].elf_path
+    runs = [one_run(elf, args.seconds, args.offer, args.board) for _ in range(args.runs)]
     if args.json:
         print(json.dumps({"runs": runs, "lowest_bytes_per_s": min(r["bytes_per_s"] for r in runs)}))
         return

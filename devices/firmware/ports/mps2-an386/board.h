@@ -28,6 +28,12 @@
 #define BOARD_TICKS_PER_US (BOARD_CORE_HZ / 1000000u)
 #define BOARD_BAUD 921600u         /* the host's default (docs/protocol.md) */
 #define BOARD_CONSOLE_BAUD 115200u
+#define BOARD_LINK_BYTES_PER_S (BOARD_BAUD / 10u)  /* what UART0 carries (8N1: ten bits a byte), HELLO_REPLY */
+/* What QEMU's emulated UART0 carries, stated in HELLO_REPLY (measured as the netduinoplus2's board.h tells:
+   `bench/bench_qemu_link.py --board mps2-an386 --offer N --runs 1 --seconds 4` at load average 3.4: 14 000 B/s
+   offered were taken whole (13 999), 28 000 offered starved the main loop to 4 261 taken). QEMU hands the CMSDK
+   UART a byte per round trip as it does USART1. */
+#define BOARD_QEMU_LINK_BYTES_PER_S 14000u
 #define BOARD_DRIVE_RATE_HZ 48000u /* the core's drive samples a second (its sample_rate_hz) */
 #define BOARD_OVERSAMPLE 5u        /* DAC (and ADC) samples a drive sample (the core's dac_oversample) */
 #define BOARD_DAC_RATE_HZ (BOARD_DRIVE_RATE_HZ * BOARD_OVERSAMPLE)  /* 240 kHz, as the netduinoplus2's */
