@@ -3,7 +3,9 @@ under QEMU's ``mps2-an386`` machine: it builds with -Werror beside the netduinop
 the host's conformance run, and its CMSDK watchdog (whose first expiry is the NMI) catches a hung block
 interrupt or main loop, silencing the output and resetting the board; a stack overflow (the MPU's guard) or a
 hard fault is caught by the fault handler at once. Marked ``qemu`` and ``slow``; one QEMU at a time (the lock of
-test_firmware_qemu.py). Run alone (-n 0): the watchdog's timing is load-sensitive."""
+test_firmware_qemu.py). QEMU runs the image with its instruction counter (qemu.MACHINE_ICOUNT): the board's clock
+moves with the instructions it runs, so a loaded machine that deschedules QEMU does not expire its watchdog, and a
+hang (which keeps the processor busy) is caught exactly one window after the last refresh on both marks."""
 
 from __future__ import annotations
 
@@ -35,6 +37,12 @@ pytestmark = [
 LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
 BOARD = "mps2-an386"
 WATCHDOG_MS = 3.0  # board.h BOARD_WATCHDOG_US
+BLOCK_MS = 1.0  # the block interrupt's period (TIMER0)
+NMI_MS = 0.1  # from the watchdog's expiry to the NMI handler's stopping the output: a few hundred instructions
+# From an injected hang to a silent output, at most: a hung block interrupt stops before its first block, after the
+# last refresh; a hung main loop may have set its mark just before it stopped, so the next block interrupt (within a
+# block, and a block's run) still refreshes once after the fault. The aim is 5 ms (docs/performance.md).
+SILENT_WITHIN_MS = {"isr-hang": WATCHDOG_MS + NMI_MS, "main-hang": WATCHDOG_MS + 2 * BLOCK_MS}
 EXCUSES = 3  # BOARD_WATCHDOG_EXCUSES: windows restarted in a row for QEMU's own stalls, at most
 CFSR_DACCVIOL, CFSR_MMARVALID = 1 << 1, 1 << 7  # ARMv7-M fault status: the MPU refused a data access
 CFSR_PRECISERR, CFSR_BFARVALID = 1 << 9, 1 << 15  # a bus fault at a known address
@@ -142,10 +150,10 @@ def test_a_hang_is_caught_by_the_cmsdk_watchdogs_nmi_which_silences_and_resets(o
         # from inside it); a hung main loop's alone, the block interrupt's still coming
         assert happened["missing"] == (["block interrupt"] if kind == "isr-hang" else ["main loop"])
         # the window runs from the last refresh on both marks, which may be a few blocks before the fault (a block
-        # whose main-loop mark was not yet set does not refresh); it ends no later than the windows QEMU's own
-        # stalls may restart, each counted, and a block after the fault
+        # whose main-loop mark was not yet set does not refresh): never excused, since a hang keeps the processor
+        # busy and QEMU's clock then moves only with its instructions
         assert blanked["injected"] == kind
-        assert 0.0 < blanked["after_fault_ms"] <= (EXCUSES + 1) * WATCHDOG_MS + 1.0
+        assert 0.0 < blanked["after_fault_ms"] <= SILENT_WITHIN_MS[kind]
         assert happened["looks_missed"] <= EXCUSES  # the NMIs excused in a row before this one
         assert next_event(plate, ("stats",))["blocks"] >= 900  # and it runs again after the reset
 
@@ -179,5 +187,5 @@ def test_plate_sim_board_fault_on_the_board_prints_what_it_did_as_json(one_qemu)
     names = [e["event"] for e in events if e["event"] != "stats"]
     assert names == ["serving", "boot", "fault_injected", "boot", "watchdog_reset", "output_blanked"], names
     assert events[0]["board"] == BOARD and events[-1]["by"] == "watchdog_reset"
-    assert 0.0 < events[-1]["after_fault_ms"] <= (EXCUSES + 1) * WATCHDOG_MS + 1.0
+    assert 0.0 < events[-1]["after_fault_ms"] <= SILENT_WITHIN_MS["isr-hang"]
     assert status == 128 + signal.SIGINT

@@ -53,6 +53,17 @@ QEMU_FIFO_PRIORITY = 1  # above every normal process (a loaded machine deschedul
 # it, for tens of ms: its plate runs dry, its buffer drifts), below the host engine's block thread (60)
 FAULT_KINDS = ("isr-hang", "main-hang", "stack-overflow", "hard-fault")  # ports/common/ug_safety.h
 QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its threads: each waits for a CPU
+# QEMU's clock for each machine's image. Without -icount, QEMU's virtual clock is the host's: a processor thread the
+# host deschedules (for tens of ms at a time on a loaded machine, SCHED_FIFO or not: RT throttling, other real-time
+# threads, the hypervisor) lets the board's timers and watchdog count on while its processor runs nothing, and the
+# board cannot tell that from a hang. With -icount the virtual clock advances 2^shift ns per instruction executed,
+# and with real time only while the processor sleeps (sleep=on, WFI); align=on holds the processor back when it gets
+# ahead of real time. A descheduled processor then stops the board's clock too: its watchdog expires only on a
+# board that ran. shift=4 (16 ns an instruction, a 62.5 MIPS processor) is about what QEMU runs the mps2-an386
+# image at on this two-core machine (docs/performance.md): faster would let the board's clock fall behind real time
+# (shift=3 ran it at 0.79-0.84 of real time under load), slower starves its main loop (shift=5: resets at once).
+# The netduinoplus2's image keeps the host's clock and its stand-in watchdog (ports/netduinoplus2/board.h).
+MACHINE_ICOUNT = {"mps2-an386": "shift=4,sleep=on,align=on"}
 
 
 @dataclass(frozen=True)
@@ -186,7 +197,8 @@ class QemuPlate:
     ``plate``: the emulated plate and declared profile (default: the image's own, the sim-plate profile).
     ``events`` receives the board's events (dicts with ``t_s`` and ``event``) and ``lines`` every line of
     its debug console. ``icount_shift``: run with QEMU's instruction counting (each instruction 2^shift ns of
-    virtual time), for budgets; None runs at the host's speed on the host's clock. ``machine``: QEMU's machine for
+    virtual time), for budgets; None runs the machine's own clock (``MACHINE_ICOUNT``: instruction counting held to
+    real time for the mps2-an386, the host's clock for the netduinoplus2). ``machine``: QEMU's machine for
     the image (``boards.BOARD_INFO[board].machine``: ``netduinoplus2`` or ``mps2-an386``); the first ``-serial``
     is the board's link UART (USART1, UART0), the second its debug console (USART2, UART1).
     """
@@ -221,6 +233,8 @@ class QemuPlate:
                    "-kernel", self.elf_path]
         if self.icount_shift is not None:
             command += ["-icount", f"shift={self.icount_shift}"]
+        elif self.machine in MACHINE_ICOUNT:
+            command += ["-icount", MACHINE_ICOUNT[self.machine]]
         return command
 
     def start(self) -> QemuPlate:

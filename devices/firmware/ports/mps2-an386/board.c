@@ -284,12 +284,13 @@ void board_watchdog_start(void)
 
 /* The block interrupt, after its mark: refresh only when the main loop's was set too. The boot window stays until
    BOARD_WATCHDOG_WARM_REFRESHES refreshes, then shortens to the timeout (writing LOAD reloads the counter).
-   QEMU is not a board: on a loaded host its virtual clock runs on while its host deschedules it, so the block
-   interrupt came this much later than the last (`stalled`), or had to catch up blocks that fell due meanwhile
-   while the main loop had no turn through no fault of its own (`catching_up`, excused up to
-   BOARD_WATCHDOG_BUSY_US since both marks were last seen): then the window restarts, counted in
-   board_watchdog_stalls (the statistics' watchdog_stalls), as the netduinoplus2 image's stand-in does. A hung block
-   interrupt never gets here; a hung main loop is excused only while QEMU itself stalls. */
+   QEMU is not a board: it runs this image with its instruction counter (devices/firmware/qemu.py), so its clock
+   stops while its host deschedules the processor, except while the board sleeps (WFI): then the clock keeps real
+   time, and a stall of the host shows as a jump of the clock when QEMU runs again. The block interrupt then comes
+   this much later than the last (`stalled`), or has blocks to catch up that fell due meanwhile while the main loop
+   had no turn through no fault of its own (`catching_up`, excused up to BOARD_WATCHDOG_BUSY_US since both marks
+   were last seen): the window restarts, counted in board_watchdog_stalls (the statistics' watchdog_stalls). A
+   hung block interrupt never gets here; a hung main loop never sleeps, so the clock never jumps under it. */
 static uint32_t watchdog_ok_at;
 static uint32_t watchdog_excuses;  /* NMIs excused in a row (board_watchdog_expired) */
 static uint32_t watchdog_millis;   /* the blocks run when the window last started */
@@ -340,14 +341,14 @@ uint32_t board_watchdog_stalls(void)
 }
 
 /* The NMI: the watchdog's first expiry (startup.c passes the exception frame). A mark was missing: the output
-   silent, the record written (where the processor was), the board reset. Unless QEMU itself did not run (its host
-   descheduled it while its virtual clock moved on): then the NMI comes much later than the timeout, or the main
-   loop ran in the window while the block interrupt is not running (QEMU delivered its timer late: a hung block
-   interrupt is running, interrupted by this NMI, and shuts the main loop out), or the block interrupt is running
-   and played blocks in the window or has just started (QEMU ran it slowly or late; a hung one does neither);
-   the window restarts, counted, at
-   most BOARD_WATCHDOG_EXCUSES times in a row without a refresh on both marks. A hung main loop leaves its mark
-   clear: never excused but for a late NMI. */
+   silent, the record written (where the processor was), the board reset. Unless QEMU's clock jumped (its host
+   descheduled it while the board slept, and the clock kept real time): then the NMI comes much later than the
+   timeout, or the main loop ran in the window while the block interrupt is not running (the jump raised the NMI and
+   the block interrupt together: the NMI is taken first), or the block interrupt is running and played blocks in the
+   window or has just started (catching up the blocks that fell due in the jump; a hung one does neither); the
+   window restarts, counted, at most BOARD_WATCHDOG_EXCUSES times in a row without a refresh on both marks. A hung
+   block interrupt or main loop keeps the processor busy, so the clock moves only with the instructions it runs and
+   the NMI comes exactly at the window's end: never late. A hung main loop leaves its mark clear. */
 void board_watchdog_expired(const uint32_t *frame)
 {
     uint32_t now = board_ticks();

@@ -49,12 +49,15 @@
 #define BOARD_WATCHDOG_BOOT_US 200000u /* the first window, until both marks were seen this many times: */
 #define BOARD_WATCHDOG_WARM_REFRESHES 100u /* QEMU translates each code path the first time it runs: the first blocks,
                                               statistics and frames are slow */
-#define BOARD_WATCHDOG_STALL_US 2500u /* an NMI this much later than the timeout: QEMU itself was stalled (its host
-                                         descheduled it), not the board; the window restarts, counted */
+#define BOARD_WATCHDOG_STALL_US 2500u /* an NMI this much later than the timeout: QEMU's clock jumped (its host
+                                         descheduled it while the board slept), not the board; the window restarts,
+                                         counted */
 /* The watchdog's second expiry (RESEN) resets the board in hardware should the NMI's handler never run. Left off
-   under QEMU: its watchdog counts in QEMU's I/O thread while the processor runs in another, so a processor thread
-   the host deschedules for a window lets both expiries pass before the NMI is taken (on this two-core machine at
-   load 12, three of six 3 s boots reset so, with no record: "power-on"). A hardware image sets it to 1. */
+   under QEMU: QEMU runs this image with its instruction counter (devices/firmware/qemu.py, MACHINE_ICOUNT), whose
+   clock moves with real time while the processor sleeps (WFI); when the host descheduled QEMU meanwhile, the clock
+   jumps by the whole stall as QEMU runs again, past both expiries at once, and the board would reset with no record
+   ("power-on"; without the instruction counter, three of six 3 s boots at load 12 reset so). A hardware image sets
+   it to 1. */
 #ifndef BOARD_WATCHDOG_RESEN
 #define BOARD_WATCHDOG_RESEN 0
 #endif
