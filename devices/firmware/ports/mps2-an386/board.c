@@ -505,7 +505,14 @@ void board_fault_stop(void)
     }
 }
 
+/* The QEMU image never sleeps: under QEMU's instruction counter (devices/firmware/qemu.py) a sleeping board's clock
+   keeps real time, so a stall of QEMU's host while it sleeps becomes a jump of the clock as QEMU runs again, and a
+   jump of more than two windows passes both of the watchdog's expiries at once: QEMU 7.2's model then stops the
+   counter for good (RESEN off), leaving the board without a watchdog (injected isr-hangs were then never caught).
+   A board that keeps executing has a clock that moves only with its instructions: a stall of the host pauses it,
+   and the instruction counter's alignment (align=on) catches real time up while the board runs, refreshing as it
+   goes. The main loop spins instead, looking for work again; a hardware image would sleep here (WFI). */
 void board_wait_for_interrupt(void)
 {
-    __asm__ volatile("wfi");
+    __asm__ volatile("nop");
 }
