@@ -284,9 +284,10 @@ void board_watchdog_start(void)
 
 /* The block interrupt, after its mark: refresh only when the main loop's was set too. The boot window stays until
    BOARD_WATCHDOG_WARM_REFRESHES refreshes, then shortens to the timeout (writing LOAD reloads the counter).
-   QEMU is not a board: it runs this image with its instruction counter (devices/firmware/qemu.py), so its clock
-   stops while its host deschedules the processor, except while the board sleeps (WFI): then the clock keeps real
-   time, and a stall of the host shows as a jump of the clock when QEMU runs again. The block interrupt then comes
+   QEMU is not a board: it runs this image with its instruction counter (devices/firmware/qemu.py), and the image
+   never sleeps (board_wait_for_interrupt), so its clock moves only with the instructions it runs and a stall of
+   its host pauses it. What follows is for a clock that jumps nonetheless (QEMU on the host's clock, or a board that
+   slept, whose clock keeps real time, through a stall of its host). The block interrupt then comes
    this much later than the last (`stalled`), or has blocks to catch up that fell due meanwhile while the main loop
    had no turn through no fault of its own (`catching_up`, excused up to BOARD_WATCHDOG_BUSY_US since both marks
    were last seen): the window restarts, counted in board_watchdog_stalls (the statistics' watchdog_stalls). A
@@ -341,8 +342,8 @@ uint32_t board_watchdog_stalls(void)
 }
 
 /* The NMI: the watchdog's first expiry (startup.c passes the exception frame). A mark was missing: the output
-   silent, the record written (where the processor was), the board reset. Unless QEMU's clock jumped (its host
-   descheduled it while the board slept, and the clock kept real time): then the NMI comes much later than the
+   silent, the record written (where the processor was), the board reset. Unless QEMU's clock jumped (on the host's
+   clock, or through a stall of its host while the board slept; see watchdog_service): then the NMI comes much later than the
    timeout, or the main loop ran in the window while the block interrupt is not running (the jump raised the NMI and
    the block interrupt together: the NMI is taken first), or the block interrupt is running and played blocks in the
    window or has just started (catching up the blocks that fell due in the jump; a hung one does neither); the

@@ -53,11 +53,11 @@
                                          descheduled it while the board slept), not the board; the window restarts,
                                          counted */
 /* The watchdog's second expiry (RESEN) resets the board in hardware should the NMI's handler never run. Left off
-   under QEMU: QEMU runs this image with its instruction counter (devices/firmware/qemu.py, MACHINE_ICOUNT), whose
-   clock moves with real time while the processor sleeps (WFI); when the host descheduled QEMU meanwhile, the clock
-   jumps by the whole stall as QEMU runs again, past both expiries at once, and the board would reset with no record
-   ("power-on"; without the instruction counter, three of six 3 s boots at load 12 reset so). A hardware image sets
-   it to 1. */
+   under QEMU: should its clock jump by more than two windows (QEMU on the host's clock, descheduled; or a board that
+   slept under the instruction counter, whose clock keeps real time, through a stall of its host) both expiries pass
+   at once and the board would reset with no record ("power-on"; on the host's clock, three of six 3 s boots at
+   load 12 reset so). The QEMU image never sleeps (board.c, board_wait_for_interrupt), so its clock does not jump. A
+   hardware image sets it to 1. */
 #ifndef BOARD_WATCHDOG_RESEN
 #define BOARD_WATCHDOG_RESEN 0
 #endif
