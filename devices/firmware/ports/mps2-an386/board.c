@@ -480,13 +480,13 @@ __attribute__((noinline)) void board_overflow_stack(uint32_t depth)
 /* ---- start-up ---------------------------------------------------------------------------------------------- */
 extern uint32_t _stack_guard;
 
-/* The MPU forbids the stack's lowest 32 bytes (the linker script's guard): an overflow faults there. The
+/* The MPU forbids the stack's lowest 256 bytes (the linker script's guard): an overflow faults there. The
    default map covers the rest; the fault handlers and the NMI run with the MPU off (HFNMIENA clear). */
 static void stack_guard_init(void)
 {
     MPU_RNR = 0u;
     MPU_RBAR = (uint32_t)(uintptr_t)&_stack_guard;
-    MPU_RASR = MPU_RASR_XN | MPU_RASR_SIZE(5u) | MPU_RASR_ENABLE;
+    MPU_RASR = MPU_RASR_XN | MPU_RASR_SIZE(8u) | MPU_RASR_ENABLE;  /* 256 bytes (mps2_an386.ld) */
     MPU_CTRL = MPU_CTRL_ENABLE | MPU_CTRL_PRIVDEFENA;
     __asm__ volatile("dsb\n\tisb" ::: "memory");
 }
