@@ -2,7 +2,9 @@
 under QEMU's ``mps2-an386`` machine: it builds with -Werror beside the netduinoplus2, boots and says so, passes
 the host's conformance run, and its CMSDK watchdog (whose first expiry is the NMI) catches a hung block
 interrupt or main loop, silencing the output and resetting the board; a stack overflow (the MPU's guard) or a
-hard fault is caught by the fault handler at once. Marked ``qemu`` and ``slow``; one QEMU at a time (the lock of
+hard fault is caught by the fault handler at once; and a host connecting after any of them hears why the board
+restarted in its handshake (HELLO_REPLY's restart_reason and restart_detail, as tests/test_firmware_faults.py
+hears the netduinoplus2). Marked ``qemu`` and ``slow``; one QEMU at a time (the lock of
 test_firmware_qemu.py). QEMU runs the image with its instruction counter (qemu.MACHINE_ICOUNT): the board's clock
 moves with the instructions it runs, so a loaded machine that deschedules QEMU does not expire its watchdog, and a
 hang (which keeps the processor busy) is caught exactly one window after the last refresh on both marks."""
@@ -24,6 +26,7 @@ import time
 
 import pytest
 from conftest import ROOT
+from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import BOARD_INFO, FIRMWARE_DIR, build_images
 from ultraglide.devices.firmware.qemu import QemuPlate
 
@@ -74,6 +77,17 @@ def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) 
     raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
 
 
+def said_in_hello(plate: QemuPlate) -> p.HelloReply:
+    """The board's HELLO_REPLY, asked over its link now."""
+    from test_firmware_qemu import Link
+
+    link = Link(plate.path)
+    try:
+        return link.hello()
+    finally:
+        link.close()
+
+
 @pytest.mark.parametrize(("board", "variants"), [("netduinoplus2", ["hardware", "qemu"]), (BOARD, ["qemu"])])
 def test_both_boards_build_with_every_warning_an_error(tmp_path, board, variants):
     """Each board's Makefile compiles every source with -Wall -Wextra -Werror (make echoes the commands) and
@@ -101,6 +115,10 @@ def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
         assert stats["blocks"] >= 900 and stats["watchdog_looks"] >= 100
         assert next_event(plate, ("stats",))["blocks"] >= 1900  # and no reset in between (a boot would say so)
         assert all(e["event"] != "boot" for e in list(plate.events.queue))
+        reply = said_in_hello(plate)  # a host hears that nothing but power brought it up
+        assert reply.features & p.FEATURE_RESET_STATED
+        assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == (p.RESTART_POWER_ON, 0,
+                                                                                       "power-on")
 
 
 def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
@@ -156,6 +174,15 @@ def test_a_hang_is_caught_by_the_cmsdk_watchdogs_nmi_which_silences_and_resets(o
         assert 0.0 < blanked["after_fault_ms"] <= SILENT_WITHIN_MS[kind]
         assert happened["looks_missed"] <= EXCUSES  # the NMIs excused in a row before this one
         assert next_event(plate, ("stats",))["blocks"] >= 900  # and it runs again after the reset
+        reply = said_in_hello(plate)  # and a host connecting now hears why it restarted
+        assert reply.restart_reason == p.RESTART_WATCHDOG
+        # the marks it saw (bit 0 the block interrupt's, bit 1 the main loop's): those its console did not call
+        # missing; bits 8-15 the NMIs excused in a row before it (its console's looks_missed)
+        marks = {"block interrupt": 1, "main loop": 2}
+        assert reply.restart_detail & 3 == 3 - sum(marks[name] for name in happened["missing"])
+        assert (reply.restart_detail >> 8) & 0xFF == happened["looks_missed"]
+        assert ("the block interrupt's mark missing" in reply.restart_words()) == (kind == "isr-hang")
+        assert ("the main loop's mark missing" in reply.restart_words()) == (kind == "main-hang")
 
 
 def test_qemu_stopped_by_its_host_pauses_the_board_and_a_hang_after_it_is_still_caught(one_qemu, image):
@@ -192,6 +219,9 @@ def test_a_fault_is_caught_by_its_handler_which_silences_the_output_first(one_qe
         assert happened["event"] == "board_fault" and happened["fault_status"] & status_bits == status_bits
         assert 0.0 <= blanked["after_fault_ms"] < WATCHDOG_MS - 1.0  # the handler, not the watchdog
         assert next_event(plate, ("stats",))["blocks"] >= 900
+        reply = said_in_hello(plate)  # the fault's status (CFSR) as the handler read it, in the handshake
+        assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_FAULT, happened["fault_status"])
+        assert reply.restart_words() == f"a fault handler reset it (fault status {happened['fault_status']:#010x})"
 
 
 def test_plate_sim_board_fault_on_the_board_prints_what_it_did_as_json(one_qemu):
@@ -217,3 +247,31 @@ def test_plate_sim_board_fault_on_the_board_prints_what_it_did_as_json(one_qemu)
     assert events[0]["board"] == BOARD and events[-1]["by"] == "watchdog_reset"
     assert 0.0 < events[-1]["after_fault_ms"] <= SILENT_WITHIN_MS["isr-hang"]
     assert status == 128 + signal.SIGINT
+
+
+def test_play_on_the_board_that_resets_itself_says_why_from_its_next_handshake(one_qemu, image, tmp_path):
+    """A hung block interrupt mid-run on the mps2-an386: the CMSDK watchdog's NMI resets the board, the host finds
+    the link silent and connects again, and the new handshake says the watchdog restarted it (HELLO_REPLY's
+    restart_reason): a device fault in the report, beside the loss (exit status 4, the larger). ``play``'s own
+    defaults otherwise: the stream's rate is what the board's handshake says its link carries."""
+    from test_exits import Command
+
+    with started(image) as plate:
+        assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
+        command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{plate.path}", "--profile",
+                          "sim-plate", "--duration-s", "15", "--json")
+        try:
+            deadline = time.monotonic() + 120
+            while next_event(plate, ("stats",), timeout=120)["setpoints"] < 2000:  # two seconds of the stream
+                assert time.monotonic() < deadline and command.process.poll() is None, command.stderr
+            plate.inject_fault("isr-hang")
+            boot = next_event(plate, ("boot",))
+            assert (boot["reset_reason"], boot["injected"]) == ("watchdog", "isr-hang")
+            status = command.wait()
+        finally:
+            command.kill()
+    report = json.loads(command.stdout)["report"]
+    said = [line for line in report["lines"] if line.startswith("the plate driver restarted itself, its handshake at ")]
+    assert len(said) == 1, report["lines"]
+    assert "said: its watchdog expired (the block interrupt's mark missing)" in said[0], said
+    assert status == report["exit_status"] == 4, (status, report["lines"])  # the loss outranks the fault
