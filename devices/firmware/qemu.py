@@ -223,6 +223,7 @@ class QemuPlate:
         self.process: subprocess.Popen | None = None
         self._started_at = 0.0
         self._reader: threading.Thread | None = None
+        self._stderr_reader: threading.Thread | None = None
         self._stderr = b""
         self._booted = threading.Event()
 
@@ -278,7 +279,8 @@ class QemuPlate:
     def _wait_for_pty(self) -> str:
         """QEMU names the pty on its standard output as it starts, before the console's first byte."""
         assert self.process is not None and self.process.stdout is not None
-        threading.Thread(target=self._drain_stderr, name="qemu-stderr", daemon=True).start()
+        self._stderr_reader = threading.Thread(target=self._drain_stderr, name="qemu-stderr", daemon=True)
+        self._stderr_reader.start()
         found: list[str] = []
         reader = threading.Thread(target=lambda: found.append(self.process.stdout.readline().decode(errors="replace")),
                                   daemon=True)
@@ -296,8 +298,11 @@ class QemuPlate:
 
     def _drain_stderr(self) -> None:
         assert self.process is not None and self.process.stderr is not None
-        for line in self.process.stderr:
-            self._stderr = (self._stderr + line)[-4096:]
+        # stop() closes the pipe once QEMU has exited; should the read still be under way then (QEMU's stderr held
+        # open by a child), the closed file ends it here rather than as the thread's exception
+        with contextlib.suppress(ValueError, OSError):
+            for line in self.process.stderr:
+                self._stderr = (self._stderr + line)[-4096:]
 
     def _read_console(self) -> None:
         assert self.process is not None and self.process.stdout is not None
@@ -348,8 +353,9 @@ class QemuPlate:
                     self.process.kill()
                     self.process.wait()
             status = self.process.returncode
-            if self._reader is not None:
-                self._reader.join(STOP_TIMEOUT_S)
+            for reader in (self._reader, self._stderr_reader):  # both pipes at their end before they are closed
+                if reader is not None:
+                    reader.join(STOP_TIMEOUT_S)
             for stream in (self.process.stdin, self.process.stdout, self.process.stderr):
                 with contextlib.suppress(OSError, ValueError):
                     if stream is not None:
