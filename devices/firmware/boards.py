@@ -15,7 +15,6 @@ Example::
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import re
@@ -191,28 +190,23 @@ def _elf_name(board: str, variant: str) -> str:
 
 
 def _build_atomically(port: Path, target: Path, board: str, variants) -> None:
-    """Build in a fresh folder beside the cache entry and move it into place, so two builds at once (two
-    test workers) never see each other's half-written files."""
+    """Build in a fresh folder beside the cache entry, then move each file into the entry (``os.replace``, one file
+    at a time), so two builds at once (two test workers, two commands) never see each other's half-written files,
+    and an image another process was handed never goes missing: the entry itself is never moved away (it was, and
+    of three builds at once two saw their image gone after ``build_images`` returned)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=target.name + ".", dir=target.parent))
     try:
-        if target.is_dir():  # keep the variants already built there
-            for path in target.iterdir():
-                if path.is_file():
-                    shutil.copy2(path, scratch / path.name)
         _make(port, scratch, variants)
-        for path in scratch.iterdir():  # objects are not kept: only images and maps
-            if path.is_dir():
-                shutil.rmtree(path)
-        if target.is_dir():
-            old = Path(tempfile.mkdtemp(prefix=target.name + ".old.", dir=target.parent))
-            with contextlib.suppress(OSError):
-                os.replace(target, old / "entry")
-            shutil.rmtree(old, ignore_errors=True)
         try:
-            os.replace(scratch, target)
-        except OSError:  # another build put its entry in place first: theirs stands
-            pass
+            target.mkdir(exist_ok=True)
+        except OSError as error:
+            raise DeviceError(f"{target} is not a directory, where the firmware cache keeps its images: move it "
+                              "away") from error
+        _refuse_what_is_not_a_build_output(target, board, variants)
+        for path in scratch.iterdir():  # objects are not kept: only images, binaries and maps
+            if path.is_file():
+                os.replace(path, target / path.name)  # built from the same sources by the same compiler as any before
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
