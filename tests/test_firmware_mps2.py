@@ -121,31 +121,6 @@ def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
                                                                                        "power-on")
 
 
-def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
-    link = str(tmp_path / "plate")
-    sim = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", BOARD, "--link", link,
-                            "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
-    try:
-        serving = json.loads(sim.stdout.readline())
-        assert serving["event"] == "serving" and serving["board"] == BOARD
-        result = subprocess.run([sys.executable, "-m", "ultraglide", "plate", "check", "--device", f"serial:{link}",
-                                 "--profile", "sim-plate", "--json"], capture_output=True, text=True, cwd=ROOT,
-                                timeout=600)
-    finally:
-        sim.send_signal(signal.SIGINT)
-        rest = sim.stdout.read()  # through the reader that holds what followed the serving line
-        sim.wait(timeout=60)
-    board = [json.loads(line) for line in rest.splitlines() if line.startswith("{")]
-    report = json.loads(result.stdout)
-    boots = [event for event in board if event["event"] == "boot"]
-    assert result.returncode == 0, ([rule for rule in report["rules"] if rule["verdict"] == "fail"], boots)
-    assert len(boots) == 1  # the board never reset during the run
-    assert report["failed"] == 0 and report["aborted"] is None
-    assert report["device"]["name"] == f"ultraglide {BOARD} (QEMU)"
-    not_passed = {rule["rule"] for rule in report["rules"] if rule["verdict"] != "pass"}
-    assert not_passed <= {"R-OVER-LIMIT", "R-TRIP"}  # these need --over-limit
-
-
 def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
     """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
     assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
