@@ -11,7 +11,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from ultraglide.render.engine import shm
 from ultraglide.render.engine.supervisor import Supervisor
 
