@@ -719,7 +719,7 @@ def test_latency_on_the_board(one_qemu, tmp_path):
     for part in (streaming, from_rest, report["device_ms"]):
         assert part is None or 0.0 <= part["p50"] <= 10.0 + 2.0 + deadband_ms, report
     if report["late_frames"]:
-        assert any("frames later than the plate's" in line for line in report["report"]["lines"]), report["report"]
+        assert any("later than the plate's" in line for line in report["report"]["lines"]), report["report"]
     if report["depth_corrections"]:
         assert any("drifted from its depth" in line for line in report["report"]["lines"]), report["report"]
     assert stream["rate_hz"] == 1000 and stopped["setpoints"] > 0 and stopped["trips"] == 0
