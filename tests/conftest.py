@@ -1,9 +1,11 @@
 """Shared test helpers."""
 
+import fcntl
 import functools
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -258,3 +260,14 @@ def pytest_collection_modifyitems(config, items):
         name = item.path.name
         return (0, LONGEST_FIRST.index(name)) if name in LONGEST_FIRST else (1, 0)
     items.sort(key=start)  # stable: each file's tests keep their order
+
+
+QEMU_LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
+
+
+@pytest.fixture
+def one_qemu():
+    """One QEMU at a time across the test workers: each streams in real time on a two-core machine."""
+    with open(QEMU_LOCK, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield

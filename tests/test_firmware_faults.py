@@ -8,20 +8,16 @@ test_firmware_qemu.py)."""
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import json
-import os
-import queue
 import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 import pytest
 from conftest import ROOT
+from qemu_board import injected, next_event, said_in_hello
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import build_images
 from ultraglide.devices.firmware.qemu import QemuPlate
@@ -33,55 +29,14 @@ pytestmark = [
                        reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm"),
 ]
 
-LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
 WATCHDOG_MS = 4.0  # board.h BOARD_WATCHDOG_US
 MISSES = 3  # BOARD_WATCHDOG_MISSES: looks in a row without both marks
 CFSR_STKERR, CFSR_PRECISERR, CFSR_BFARVALID = 1 << 12, 1 << 9, 1 << 15  # ARMv7-M BusFault status bits
 
 
-@pytest.fixture
-def one_qemu():
-    with open(LOCK, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield
-
-
 @pytest.fixture(scope="module")
 def image():
     return build_images("netduinoplus2", ["qemu"])[0]
-
-
-def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) -> dict:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        with contextlib.suppress(queue.Empty):
-            event = plate.events.get(timeout=0.2)
-            if event["event"] in names:
-                return event
-    raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
-
-
-def said_in_hello(plate: QemuPlate) -> p.HelloReply:
-    """The board's HELLO_REPLY, asked over its link now."""
-    from test_firmware_qemu import Link
-
-    link = Link(plate.path)
-    try:
-        return link.hello()
-    finally:
-        link.close()
-
-
-def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
-    """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
-    assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
-    next_event(plate, ("stats",))  # a second of the board running normally: its watchdog stays quiet meanwhile
-    plate.inject_fault(kind)
-    assert next_event(plate, ("fault_injected",))["kind"] == kind
-    boot = next_event(plate, ("boot",))
-    happened = next_event(plate, ("watchdog_reset", "board_fault"))
-    blanked = next_event(plate, ("output_blanked",))
-    return boot, happened, blanked
 
 
 @pytest.mark.parametrize("kind", ["isr-hang", "main-hang"])

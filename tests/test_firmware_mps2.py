@@ -12,20 +12,18 @@ hang (which keeps the processor busy) is caught exactly one window after the las
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
-import os
 import queue
 import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 
 import pytest
 from conftest import ROOT
+from qemu_board import injected, next_event, said_in_hello
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import BOARD_INFO, FIRMWARE_DIR, build_images
 from ultraglide.devices.firmware.qemu import QemuPlate
@@ -37,7 +35,6 @@ pytestmark = [
                        reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm"),
 ]
 
-LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
 BOARD = "mps2-an386"
 WATCHDOG_MS = 3.0  # board.h BOARD_WATCHDOG_US
 BLOCK_MS = 1.0  # the block interrupt's period (TIMER0)
@@ -51,13 +48,6 @@ CFSR_DACCVIOL, CFSR_MMARVALID = 1 << 1, 1 << 7  # ARMv7-M fault status: the MPU 
 CFSR_PRECISERR, CFSR_BFARVALID = 1 << 9, 1 << 15  # a bus fault at a known address
 
 
-@pytest.fixture
-def one_qemu():
-    with open(LOCK, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield
-
-
 @pytest.fixture(scope="module")
 def image():
     return build_images(BOARD, ["qemu"])[0]
@@ -65,27 +55,6 @@ def image():
 
 def started(image) -> QemuPlate:
     return QemuPlate(image.elf_path, machine=BOARD_INFO[BOARD].machine)
-
-
-def next_event(plate: QemuPlate, names: tuple[str, ...], timeout: float = 30.0) -> dict:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        with contextlib.suppress(queue.Empty):
-            event = plate.events.get(timeout=0.2)
-            if event["event"] in names:
-                return event
-    raise AssertionError(f"no {' or '.join(names)} event within {timeout} s")
-
-
-def said_in_hello(plate: QemuPlate) -> p.HelloReply:
-    """The board's HELLO_REPLY, asked over its link now."""
-    from test_firmware_qemu import Link
-
-    link = Link(plate.path)
-    try:
-        return link.hello()
-    finally:
-        link.close()
 
 
 @pytest.mark.parametrize(("board", "variants"), [("netduinoplus2", ["hardware", "qemu"]), (BOARD, ["qemu"])])
@@ -119,18 +88,6 @@ def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
         assert reply.features & p.FEATURE_RESET_STATED
         assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == (p.RESTART_POWER_ON, 0,
                                                                                        "power-on")
-
-
-def injected(plate: QemuPlate, kind: str) -> tuple[dict, dict, dict]:
-    """Inject ``kind`` into a running board: its boot line after the reset, what it says happened, the silence."""
-    assert next_event(plate, ("boot",))["reset_reason"] == "power-on"
-    next_event(plate, ("stats",))  # a second of the board running normally: its watchdog stays quiet meanwhile
-    plate.inject_fault(kind)
-    assert next_event(plate, ("fault_injected",))["kind"] == kind
-    boot = next_event(plate, ("boot",))
-    happened = next_event(plate, ("watchdog_reset", "board_fault"))
-    blanked = next_event(plate, ("output_blanked",))
-    return boot, happened, blanked
 
 
 @pytest.mark.parametrize("kind", ["isr-hang", "main-hang"])

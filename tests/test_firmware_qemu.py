@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import fcntl
 import json
 import math
 import os
@@ -27,7 +26,6 @@ import signal
 import stat
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 import tty
@@ -49,19 +47,10 @@ pytestmark = [
                        reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm"),
 ]
 
-LOCK = os.path.join(tempfile.gettempdir(), "ultraglide-qemu-tests.lock")
 RATE = 1000  # setpoints a second the tests stream (the board takes 1 000-48 000)
 BATCH_S = 0.01  # ... in 10 ms frames: 39 bytes each, 3.9 kB/s, well within QEMU's emulated USART
 NAME = "ultraglide netduinoplus2 (QEMU)"
 LINK_BYTES_PER_S = 14000  # what the QEMU image states its emulated USART carries (ports/netduinoplus2/board.h)
-
-
-@pytest.fixture
-def one_qemu():
-    """One QEMU at a time across the test workers: each streams in real time on a two-core machine."""
-    with open(LOCK, "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield
 
 
 @pytest.fixture(scope="module")
