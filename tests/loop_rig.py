@@ -60,7 +60,7 @@ class LoopRig:
                  sensors: ForceSensorParams | None = None, closed: bool = True, settings: LoopSettings | None = None,
                  limit_um_pp: float = 6.0, panel_force_n: float = 0.5, buffer_s: float = 0.010,
                  plate_tau_s: float = 0.0011, link_s: float = 0.002, panel_speed_mm_s: float | None = 100.0,
-                 precompensate_s: float = 0.0):
+                 precompensate_s: float = 0.0, dynamics=None):
         self.now = 0.0
         self.model = host_model
         self.loop = FrictionLoop(host_model, CONTROL_HZ, 1000.0, settings, clock=lambda: self.now) if closed else None
@@ -68,7 +68,7 @@ class LoopRig:
             self.loop.panel_speed_mm_s = panel_speed_mm_s
         self.log = FingerLog(None, rate_hz=2000.0, clock_origin_s=0.0)
         self.finger = SimulatedFinger(finger_law, script or ForceScript.constant(0.5), params or FingerParams(),
-                                      sensors or ForceSensorParams(), log=self.log)
+                                      sensors or ForceSensorParams(), log=self.log, dynamics=dynamics)
         self.limit = limit_um_pp
         self.panel_force_n = panel_force_n
         self.delay_ms = int(round(buffer_s * 1000))

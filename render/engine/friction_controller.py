@@ -284,6 +284,17 @@ class ClosedLoopInverse:
         """The host model's lowest ratio at this force (N) within the limit (µm p-p)."""
         return self.base.floor_ratio(force_n, limit_um_pp)
 
+    @property
+    def dynamics(self):
+        """The host model's friction dynamics (None for a static model): the renderer plans against them while
+        the loop runs as it does open loop, and the estimator predicts the friction through them."""
+        return getattr(self.base, "dynamics", None)
+
+    def _floor(self, force_n, limit: float):
+        """The floor ratio for the planner: the host model's at the limit the loop's scale leaves it (µm p-p)."""
+        following, command, _ = self.following_now()
+        return self.base._floor(force_n, limit / command.scale if following else limit)
+
     def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:
         """Whether the block path follows now, the command it acts on, and the state in words."""
         command = self.command

@@ -462,6 +462,8 @@ class FrictionEstimator:
         self._confirmed = 0  # consecutive sliding samples
         self._confirm = max(1, int(round(settings.confirm_s * self.sensor_rate_hz)))
         self.estimate = FrictionEstimate(mu0=settings.prior_mu0)
+        self._dynamics = getattr(model, "dynamics", None)  # a model with friction dynamics: the finger lags
+        self._felt = np.ones(3)  # the ratio, slope and intended ratio through those dynamics: their states
 
     def __repr__(self) -> str:
         e = self.estimate
@@ -510,7 +512,8 @@ class FrictionEstimator:
             return self._fault("the amplitude sensor reads out of range", first_sample, n)
         s = self.settings
         a = np.maximum(a, 0.0)
-        if self._next_sample is None or first_sample != self._next_sample:  # the start, or samples were lost
+        fresh = self._next_sample is None or first_sample != self._next_sample
+        if fresh:  # the start, or samples were lost
             settled = float(self.predicted_ratio(a[0], max(force[0], s.min_force_n)))
             self._sensors.reset(np.array([settled, 0.0, settled]))
             self._force_state = float(force[0])
@@ -529,6 +532,10 @@ class FrictionEstimator:
             intended = self.model.relative_friction(u / (1.0 + correction), model_force)
         except ModelError as error:
             return self._fault(f"the model refused the sensors' values ({error})", first_sample, n)
+        if self._dynamics is not None:
+            if fresh:
+                self._felt[:] = (ratio[0], slope[0], intended[0])
+            ratio, slope, intended = self._felt_through_dynamics(ratio, slope, intended, panel_speed_mm_s)
         ratio_seen, slope_seen, intended_seen = self._sensors(np.vstack((ratio, slope, intended)))
         mu = lateral / np.maximum(force, s.min_force_n)
         mu0 = self.mu0
@@ -569,6 +576,30 @@ class FrictionEstimator:
                                          nan_mean(measured) if used.any() else math.nan, count,
                                          first_sample + n - 1)
         return BatchResult(measured, np.where(used, intended_seen, np.nan), sensitivity, used, self.estimate)
+
+    def _felt_through_dynamics(self, ratio: np.ndarray, slope: np.ndarray, intended: np.ndarray,
+                               speed_mm_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The model's static ratio, its slope and the intended ratio as the finger feels them: each sample's
+        value followed with the onset's time constant where the ratio falls below the felt one, the recovery's
+        (at the finger's speed; the dynamics' reference speed when unknown) where it rises. The slope and the
+        intended ratio follow with the ratio's time constants: the felt ratio's sensitivity, and the ratio
+        meant, through the same lag."""
+        dynamics, rate = self._dynamics, self.sensor_rate_hz
+        speed = speed_mm_s if speed_mm_s is not None and speed_mm_s > 0 else dynamics.reference_speed_mm_s
+        felt = dynamics.respond(ratio, rate, speed, felt=float(self._felt[0]))
+        before = np.concatenate(([self._felt[0]], felt[:-1]))
+        falling = math.exp(-1.0 / (rate * dynamics.onset_s))
+        rising = math.exp(-1.0 / (rate * float(dynamics.recovery_at_s(speed))))
+        alpha = np.where(ratio < before, falling, rising)
+        lagged = []
+        for row, state in ((slope, float(self._felt[1])), (intended, float(self._felt[2]))):
+            out = np.empty(len(row))
+            for k, (x, keep) in enumerate(zip(row.tolist(), alpha.tolist(), strict=True)):
+                state = keep * state + (1.0 - keep) * x
+                out[k] = state
+            lagged.append(out)
+        self._felt[:] = (felt[-1], lagged[0][-1], lagged[1][-1])
+        return felt, lagged[0], lagged[1]
 
     def _classify(self, force_n: float, speed_mm_s: float | None, mu_mean: float, predicted_mean: float):
         s = self.settings
