@@ -1,6 +1,6 @@
 """The closed loop's figures (issue 25): open and closed loop side by side in one run, on the simulated plate.
 
-Run: .venv/bin/python bench/bench_closed_loop.py [--seconds 20] [--quick]
+Run: .venv/bin/python bench/bench_closed_loop.py [--seconds 20] [--quick] [--real-time | --only-real-time]
 
 Each case runs the commands a user runs: ``ultraglide plate-sim --finger default ...`` (the simulated plate
 with a finger unlike the host's model: the host's stretched law with its amplitude scale x0.7 and a floor of
@@ -9,6 +9,12 @@ with a finger unlike the host's model: the host's stretched law with its amplitu
 --envelope-csv ... --sensors-csv ...``. The truth is the finger's own log (``--finger-log``). Each log row
 is lined up with the stream value the plate was playing then (the SENSORS' setpoint index, recorded by
 ``--sensors-csv``, on the plate's clock), so underruns and the link's latency do not blur the comparison.
+
+With ``--real-time`` (or ``--only-real-time``), plate-sim and play run in real time at 100 mm/s, open and closed
+loop, on the default finger, on fingers given as tables (``--finger table:FILE.csv``: the published fit of
+Monnoyer et al. 2018, and a finger at two forces made from its spread across people) and on that two-force finger
+with the published friction dynamics (``--finger-dynamics``, rendered with ``--model dynamic``), judged against the
+target where the limit allows it and, for the lagging finger, against the friction the plan means felt.
 
 Figures:
 
@@ -127,14 +133,30 @@ def lined_up(envelope: np.ndarray, sensors: np.ndarray, log: np.ndarray) -> dict
             "down": known & (envelope["down"][at] > 0), "index": np.where(known, index, -1)}
 
 
-def finger_floor(log: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The lowest ratio the default finger reaches within the limit at each row (its law, drift and force)."""
+def finger_floor(log: np.ndarray, t: np.ndarray, finger: str = "default") -> np.ndarray:
+    """The lowest ratio the finger reaches within the limit at each row (its law, drift and force)."""
     from ultraglide.render.engine.finger_setup import FingerConfig, finger_law
 
-    config = FingerConfig()
+    config = FingerConfig(law=finger)
     law = finger_law(config)
-    scale = 1.0 + config.drift * np.sin(2 * math.pi * t / config.drift_period_s)
+    scale = 1.0 + config.drift * np.sin(2 * math.pi * t / config.drift_period_s)  # plate-sim's drift, any law
     return law(np.full(len(t), LIMIT_UM_PP) / scale, np.maximum(log["normal_force_n"], 0.01))
+
+
+def table_fingers(folder: Path) -> dict[str, str]:
+    """Fingers given as tables, laws the host's models never used: the published fit of Monnoyer et al. 2018
+    (apps/data, force not stated), and a finger at two forces made from that fit's spread across people (tau
+    1.32 -/+ 0.45 µm zero-to-peak at 0.3 and 0.8 N) with a floor of 0.1 (Wiertlewski et al. 2016's mean at full
+    amplitude)."""
+    rows = ["amplitude_um_pp,relative_friction,force_n"]
+    for force_n, tau_um in ((0.3, 1.32 - 0.45), (0.8, 1.32 + 0.45)):
+        for a in np.linspace(0.0, 6.0, 25):
+            ratio = 0.1 + 0.9 * math.exp(-((a / 2.0) ** 2) / (2.0 * tau_um ** 2))
+            rows.append(f"{a:.3f},{ratio:.5f},{force_n}")
+    two_force = folder / "two-force-finger.csv"
+    two_force.write_text("\n".join(rows) + "\n")
+    published = Path(__file__).resolve().parent.parent / "apps" / "data" / "monnoyer2018-fit.csv"
+    return {"published fit": f"table:{published}", "two forces": f"table:{two_force}"}
 
 
 def textures(folder: Path) -> tuple[Path, Path]:
@@ -196,34 +218,67 @@ def rig_fault_case(texture, seconds: float) -> list[dict]:
     return results, run.status
 
 
-def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, closed: bool, tries: int = 3) -> dict:
-    """``plate-sim --finger default`` and ``play --device serial:...``, as a user runs them, lined up the same way; a
-    run whose plate was lost (play's exit 4, a loaded machine) is counted and run again, up to ``tries`` times."""
+def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, closed: bool, finger: str = "default",
+                   dynamics: bool = False, tries: int = 3) -> dict:
+    """``plate-sim --finger FINGER [--finger-dynamics]`` and ``play --device serial:... [--model dynamic]``, as a user
+    runs them, lined up the same way; a run whose plate was lost (play's exit 4, a loaded machine) is counted and
+    run again, up to ``tries`` times."""
     lost = []
     for _ in range(tries):
         try:
-            return {**_real_time_run(folder, texture, speed, seconds, closed), "lost": lost}
+            return {**_real_time_run(folder, texture, speed, seconds, closed, finger, dynamics), "lost": lost}
         except PlateLost as error:
             lost.append(str(error))
-    return {"rms": math.nan, "underruns": None, "fallbacks": None, "fallback_reasons": None, "sensors_say": None,
-            "plate_peak": None, "lost": lost}
+    return {"rms": math.nan, "planned_rms": math.nan, "underruns": None, "fallbacks": None, "fallback_reasons": None,
+            "sensors_say": None, "plate_peak": None, "lost": lost}
 
 
-def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, closed: bool) -> dict:
-    name = f"real-{speed:g}-{'closed' if closed else 'open'}"
+def planned_felt(envelope: np.ndarray, speed: float, floor: float) -> np.ndarray:
+    """The friction the planned renderer means the finger to feel, by stream index (NaN where none): the swipe's
+    targets through the published dynamics and the planner, as render/planning.py plans them (a swipe is the same
+    path every time, so the plan is the one the live renderer made)."""
+    from ultraglide.render.physics.dynamics import FrictionDynamics
+    from ultraglide.render.planning import felt_over
+
+    down = np.flatnonzero(envelope["down"] > 0)
+    felt = np.full(int(envelope["index"][-1]) + 1, np.nan)
+    if len(down) < 4800:
+        return felt
+    first, last = down[0], down[-1]
+    horizon = 2400  # beyond the planner's horizon
+    n = last - first + 1 - horizon
+    _, planned = felt_over(FrictionDynamics(), envelope["target_ratio"][first:last + 1], n, speed, floor)
+    start = int(envelope["index"][first])
+    felt[start:start + n] = planned
+    return felt
+
+
+def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, closed: bool, finger: str,
+                   dynamics: bool) -> dict:
+    slug = Path(finger.removeprefix("table:")).stem + ("-lagging" if dynamics else "")
+    name = f"real-{speed:g}-{slug}-{'closed' if closed else 'open'}"
     log_path = folder / f"{name}-finger.csv"
-    with plate_sim(folder, log_path, "--finger", "default", "--finger-speed-mm-s", speed) as (link, summary):
-        run = play(texture, link, folder, name, speed, seconds, closed)
+    options = ("--finger", finger, "--finger-speed-mm-s", speed, *(("--finger-dynamics",) if dynamics else ()))
+    with plate_sim(folder, log_path, *options) as (link, summary):
+        run = play(texture, link, folder, name, speed, seconds, closed, *(("--model", "dynamic") if dynamics else ()))
     log = read(log_path)
-    line = lined_up(read(run["envelope"]), read(run["sensors"]), log)
+    envelope = read(run["envelope"])
+    line = lined_up(envelope, read(run["sensors"]), log)
     swiped = line["down"] & (log["sliding"] > 0.5) & np.isfinite(line["target"])
     pick = swiped & (line["t"] >= line["t"][swiped][0] + LEARN_S) & (line["t"] < line["t"][swiped][-1] - 0.05)
-    pick &= line["target"] >= finger_floor(log, line["t"])  # where the limit allows the target, as in simulated time
+    floor = finger_floor(log, line["t"], finger)
+    pick &= line["target"] >= floor  # where the limit allows the target, as in simulated time
     error = log["relative_friction"] - line["target"]
+    planned_rms = math.nan
+    if dynamics:  # what the finger's dynamics allow: the friction the plan means felt
+        felt = planned_felt(envelope, speed, float(np.median(floor[pick])))
+        meant = np.where(line["index"] >= 0, felt[np.clip(line["index"], 0, len(felt) - 1).astype(int)], np.nan)
+        judged = pick & np.isfinite(meant)
+        planned_rms = float(np.sqrt(np.mean((log["relative_friction"] - meant)[judged] ** 2)))
     status = run["status"]
-    return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "played_share": float(swiped.mean()),
-            "underruns": status.get("underruns"), "fallbacks": status.get("loop_fallbacks"),
-            "fallback_reasons": status.get("loop_fallback_reasons"),
+    return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "planned_rms": planned_rms,
+            "played_share": float(swiped.mean()), "underruns": status.get("underruns"),
+            "fallbacks": status.get("loop_fallbacks"), "fallback_reasons": status.get("loop_fallback_reasons"),
             "sensors_say": status.get("friction_error_rms"), "plate_peak": summary.get("peak_um_pp")}
 
 
@@ -233,6 +288,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="100 mm/s only, shorter swipes")
     parser.add_argument("--real-time", action="store_true",
                         help="also run plate-sim and play as a user does (100 mm/s), reporting the machine's underruns")
+    parser.add_argument("--only-real-time", action="store_true", help="the real-time runs alone")
     parser.add_argument("--keep", metavar="DIR", help="keep the real-time runs' logs in DIR")
     args = parser.parse_args()
     folder = Path(args.keep or tempfile.mkdtemp(prefix="bench-closed-loop-"))
@@ -242,6 +298,9 @@ def main() -> None:
 
     sine, step = resolve_texture(str(sine_path)), resolve_texture(str(step_path))
     seconds = 6.0 if args.quick else args.seconds
+    if args.only_real_time:
+        real_time_table(folder, sine_path, seconds)
+        return
     speeds = (100.0,) if args.quick else (50.0, 100.0, 200.0)
     started = time.perf_counter()
     print(f"simulated time (the firmware core, the plate's physics, the finger, the host's engine parts, joined by "
@@ -292,18 +351,28 @@ def main() -> None:
     print(f"  the loop fell back {status['loop_fallbacks']} times; at the end: {status['loop']}")
     if args.real_time:
         print()
-        cases = [real_time_case(folder, sine_path, 100.0, seconds, closed) for closed in (False, True)]
-        print(f"real time (plate-sim --finger default; play --device serial:PATH), 100 mm/s: open "
-              f"{cases[0]['rms']:.3f}, "
-              f"closed {cases[1]['rms']:.3f} rms; underruns {cases[0]['underruns']}/{cases[1]['underruns']}, "
-              f"fallbacks {cases[1]['fallbacks']} ({cases[1]['fallback_reasons']}), the loop's own measure "
-              f"{cases[1]['sensors_say']}, plate peaks "
-              f"{cases[0]['plate_peak']}/{cases[1]['plate_peak']} µm p-p; load average {os.getloadavg()[0]:.1f}")
-        for case, kind in zip(cases, ("open", "closed"), strict=True):
-            if case["lost"]:
-                print(f"  {kind} loop: {len(case['lost'])} run(s) lost the plate and were run again "
-                      f"({case['lost'][0]})")
+        real_time_table(folder, sine_path, seconds)
     print(f"({time.perf_counter() - started:.0f} s)")
+
+
+def real_time_table(folder: Path, sine_path: Path, seconds: float) -> None:
+    """The real-time runs at 100 mm/s: the default finger, fingers given as tables, and a table finger whose
+    friction lags (--finger-dynamics) rendered with --model dynamic, open and closed loop each."""
+    tables = table_fingers(folder)
+    fingers = [("default", "default", False), *((name, spec, False) for name, spec in tables.items()),
+               ("two forces, lagging", tables["two forces"], True)]
+    print(f"real time (plate-sim --finger F; play grating --device serial:PATH [--closed-loop]), 100 mm/s, "
+          f"{seconds:g} s, load average {os.getloadavg()[0]:.1f}: the finger's truth against the target where the "
+          "limit allows it (a lagging finger also against the friction the plan means felt)")
+    print(f"{'finger':>22} {'open':>7} {'closed':>7} {'loop says':>10} {'planned: open':>14} {'closed':>7} "
+          f"{'underruns':>10} {'fallbacks':>10} {'lost':>5}")
+    for name, spec, dynamics in fingers:
+        opened, closed = (real_time_case(folder, sine_path, 100.0, seconds, c, spec, dynamics) for c in (False, True))
+        planned = (f"{opened['planned_rms']:14.3f} {closed['planned_rms']:7.3f}" if dynamics else f"{'':14} {'':7}")
+        say = closed["sensors_say"]
+        print(f"{name:>22} {opened['rms']:7.3f} {closed['rms']:7.3f} {say if say is not None else math.nan:10.3f} "
+              f"{planned} {opened['underruns']}/{closed['underruns']:<8} {closed['fallbacks']!s:>10} "
+              f"{len(opened['lost']) + len(closed['lost']):5d}")
 
 
 if __name__ == "__main__":
