@@ -492,8 +492,8 @@ def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_an
                 press_key(browser, " ")
             screen = screen_shown(browser, "participant.trial", trial.number, session)
             hint = browser.execute_script("return document.getElementById('keys').textContent")
-            assert hint == ("Keys: 1–2 (or ← / →) answer." if trial.task == "afc" else
-                            "Keys: 1–5 for the scale's points, from its low end.")
+            assert hint == ("Keys: 1–2 (or ← / →) answer. Esc stops the session." if trial.task == "afc" else
+                            "Keys: 1–5 for the scale's points, from its low end. Esc stops the session.")
             press_key(browser, "7")  # no such answer: nothing happens
             press_key(browser, keys[trial.number])
             answered(browser, trial.number)
@@ -504,7 +504,7 @@ def test_an_adjustment_set_by_keys_buttons_and_slider_is_felt_live_and_logged_an
         assert screen["mode"] == "adjustment" and screen["labels"] == ["moins", "plus", "OK"]
         assert screen["level"] == start and screen["range"] == [low, high] and screen["step_db"] == 1.0
         assert browser.execute_script("return document.getElementById('keys').textContent") == (
-            "Keys: ← or − down, → or + up (1 dB a step), Enter gives it.")
+            "Keys: ← or − down, → or + up (1 dB a step), Enter gives it. Esc stops the session.")
         plate = browser.execute_script(BOXES, "#plate")[0]
         zone = browser.execute_script(BOXES, ".zone")[1]  # the adjusted zone, the second
         x, y = round(zone["left"] + zone["width"] / 2), round(zone["top"] + zone["height"] / 2)
@@ -715,7 +715,7 @@ def test_same_different_buttons_and_keys_and_a_typed_magnitude_estimate_reach_tr
             if trial.task == "same_different":
                 assert screen["mode"] == "pair" and screen["labels"] == ["pareilles", "différentes"]
                 assert browser.execute_script("return document.getElementById('keys').textContent") == (
-                    "Keys: S for same, D for different.")
+                    "Keys: S for same, D for different. Esc stops the session.")
                 if trial.number <= 2:  # trials 1 and 3 "différentes", 2 and 4 "pareilles": buttons, then keys
                     tap(browser, browser.execute_script(BOXES, "#answers button")[trial.number % 2])
                 else:
@@ -723,7 +723,7 @@ def test_same_different_buttons_and_keys_and_a_typed_magnitude_estimate_reach_tr
             elif trial.task == "constant":  # yes/no: Y, then N
                 assert screen["mode"] == "yes_no" and screen["labels"] == ["oui", "non"]
                 assert browser.execute_script("return document.getElementById('keys').textContent") == (
-                    "Keys: Y for yes, N for no.")
+                    "Keys: Y for yes, N for no. Esc stops the session.")
                 press_key(browser, "y" if trial.number == 7 else "n")
             elif trial.number == 6:  # typed with the keys, the field never touched
                 for key in ("3", "Backspace", "4", ".", "5", "Enter"):
@@ -787,3 +787,149 @@ def test_an_engine_lost_mid_trial_ends_the_session_with_engine_lost_and_keeps_th
         os.chdir(here)
     assert "its process was killed by SIGKILL" in str(lost.value)
     assert [r["trial"] for r in trials_csv(tmp_path / "lost")] == ["1"]  # the trial answered before, on disk
+
+
+# ---- Esc, and the page's words in the design's language ------------------------------------------------------------
+
+FRENCH_DESIGN = DESIGN.split("[[blocks]]")[0] + """
+[[blocks]]
+name = "choice"
+task = "afc"
+conditions = ["low-vs-high"]
+intervals = 2
+repeats = 2
+question = "Quelle zone était différente ?"
+labels = ["gauche", "droite"]
+
+[[blocks]]
+name = "estimate"
+task = "magnitude"
+conditions = ["rate-low"]
+repeats = 2
+modulus = 10.0
+modulus_stimulus = "high"
+question = "Combien ?"
+
+[words]
+progress = "Essai {trial} sur {total}"
+keys_choice = "Touches : 1–{last} (ou ← / →) pour répondre."
+keys_magnitude = "Touches : tapez le nombre, Entrée le donne."
+keys_break = "Espace ou Entrée pour continuer."
+keys_stop = "Échap arrête la séance."
+ok = "Valider"
+modulus = "(la zone 1 vaut {modulus})"
+end = "La séance est terminée. Merci !"
+"""
+
+
+def press_escape(driver):
+    for kind in ("rawKeyDown", "keyUp"):
+        driver.execute_cdp_cmd("Input.dispatchKeyEvent", {"type": kind, "key": "Escape", "code": "Escape",
+                                                          "windowsVirtualKeyCode": 27})
+
+
+def page_text(driver, selector) -> str:
+    return driver.execute_script("return document.querySelector(arguments[0]).textContent", selector)
+
+
+@browser_needed
+def test_a_french_design_s_words_are_the_page_s_and_esc_in_the_estimate_field_stops_the_session(tmp_path, design,
+                                                                                                browser):
+    """Every word the participant reads on the page is the design's (its blocks' questions and labels, its [words]);
+    Esc, pressed while the number field has the focus, stops the session as at the window: the trial gets no answer,
+    the trials answered stay logged, session.json says stopped, the command exits 1 and says so, the page says the
+    design's end and the plate is at rest."""
+    design.write_text(FRENCH_DESIGN, encoding="utf-8")
+    trials = plan(load_design(design), "P01")
+    assert [t.task for t in trials] == ["afc", "afc", "magnitude", "magnitude"] and trials[2].break_before
+    out = tmp_path / "p01"
+    envelope_csv = tmp_path / "envelope.csv"
+    session = Session(design, out, "--accept-check", "--envelope-csv", envelope_csv)
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        for number, key in ((1, "1"), (2, "ArrowRight")):
+            screen_shown(browser, "participant.trial", number, session)
+            assert page_text(browser, "#progress") == f"Essai {number} sur 4"
+            assert page_text(browser, "#question") == "Quelle zone était différente ?"
+            assert page_text(browser, "#keys") == ("Touches : 1–2 (ou ← / →) pour répondre. Échap arrête la "
+                                                   "séance.")
+            press_key(browser, key)
+            answered(browser, number)
+        screen_shown(browser, "participant.break", 3, session)
+        assert page_text(browser, "#breakMessage") == "Faites une pause."
+        assert page_text(browser, "#breakButton") == "Valider"
+        assert page_text(browser, "#breakKeys") == "Espace ou Entrée pour continuer. Échap arrête la séance."
+        press_key(browser, " ")
+        screen_shown(browser, "participant.trial", 3, session)
+        assert page_text(browser, "#progress") == "Essai 3 sur 4"
+        assert page_text(browser, "#question") == "Combien ? (la zone 1 vaut 10)"
+        assert page_text(browser, "#answers button") == "Valider"
+        assert page_text(browser, "#keys") == "Touches : tapez le nombre, Entrée le donne. Échap arrête la séance."
+        tap(browser, browser.execute_script(BOXES, "#estimate")[0])  # the focus in the field, a number typed
+        browser.execute_cdp_cmd("Input.insertText", {"text": "7"})
+        assert browser.execute_script("return document.activeElement.id") == "estimate"
+        press_escape(browser)
+        status, stdout = session.end()
+        deadline = time.monotonic() + 30
+        while not browser.execute_script("return window.participant.ended"):
+            assert time.monotonic() < deadline, browser.execute_script("return window.participant.errors")
+            time.sleep(0.05)
+        assert page_text(browser, "#question") == "La séance est terminée. Merci !"
+        assert browser.execute_script("return window.participant.stopped") == 3
+        assert browser.execute_script("return window.participant.errors") == []
+    finally:
+        stop(session.process)
+    assert status == 1, session.stderr()
+    assert "the participant pressed Esc during trial 3: the session stops, its files complete" in session.stderr()
+    assert "Traceback" not in session.stderr()
+    assert json.loads(stdout.strip().splitlines()[-1])["complete"] is False
+    assert [(r["trial"], r["response"]) for r in trials_csv(out)] == [("1", "1"), ("2", "2")]
+    saved = json.loads((out / "session.json").read_text())
+    assert saved["status"] == "stopped" and saved["trials_logged"] == 2
+    assert read_envelope(envelope_csv)["commanded_um_pp"][-1] == 0.0  # the plate at rest
+
+
+def test_esc_at_a_break_stops_the_session_and_resume_continues_it_with_english_words_by_default(tmp_path, design):
+    out = tmp_path / "p01"
+    session = Session(design, out)
+    try:
+        page = Page(session.address)
+        screen = page.screen("participant.trial", 1)
+        assert screen["progress"] == "Trial 1 of 6"  # no [words]: English
+        assert screen["keys"] == "Keys: 1–2 (or ← / →) answer. Esc stops the session."
+        refused = page.ask("participant.stop", trial=2)  # not the trial shown
+        assert refused["type"] == "error" and "trial 2 (or the break before it) is not shown now" in refused["message"]
+        for number in range(1, 5):
+            if number > 1:
+                page.screen("participant.trial", number)
+            assert page.ask("participant.answer", trial=number, button=number % 2, rt_s=0.5)["type"] == "ok"
+        pause = page.screen("participant.break", 5)
+        assert pause["label"] == "OK" and pause["keys"] == "Space or Enter goes on. Esc stops the session."
+        assert page.ask("participant.stop", trial=5)["type"] == "ok"
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 1, session.stderr()
+    assert "the participant pressed Esc during the break before trial 5" in session.stderr()
+    assert json.loads(stdout.strip().splitlines()[-1])["complete"] is False
+    assert json.loads((out / "session.json").read_text())["status"] == "stopped"
+    assert len(trials_csv(out)) == 4
+    session = Session(design, out, "--resume")  # goes on from the break before trial 5
+    try:
+        page = Page(session.address)
+        page.screen("participant.break", 5)
+        assert page.ask("participant.continue", trial=5)["type"] == "ok"
+        for number in (5, 6):
+            page.screen("participant.trial", number)
+            assert page.ask("participant.answer", trial=number, button=2, rt_s=0.5)["type"] == "ok"
+        end = None
+        while end is None:
+            message = json.loads(page.ws.recv(timeout=60))
+            end = message if message["type"] == "participant.end" else None
+        status, _ = session.end()
+    finally:
+        stop(session.process)
+    assert status == 0, session.stderr()
+    assert end["message"] == "The session is over. Thank you."
+    assert [r["trial"] for r in trials_csv(out)] == ["1", "2", "3", "4", "5", "6"]
+    assert json.loads((out / "session.json").read_text())["status"] == "complete"

@@ -91,6 +91,13 @@ def test_toml_round_trip_gives_the_same_design():
     design = two_conditions("rating", repeats=2, labels=("un", "deux", "trois", "quatre", "cinq", "six", "sept"),
                             question="Quelle rugosité ?")
     assert design_from_toml(to_toml(design)) == design
+    worded = Design(**{**design.__dict__, "words": {"keys_rating": "Touches : 1–{last}.", "ok": "Valider",
+                                                     "end": "C'est fini. Merci « {{vraiment}} »."}})
+    again = design_from_toml(to_toml(worded))
+    assert again == worded and again.words == worded.words
+    assert again.word("keys_rating", last=7) == "Touches : 1–7." and again.word("keys_pair") == (
+        "Keys: S for same, D for different.")  # the English default where the design says nothing
+    assert again.word("end") == "C'est fini. Merci « {vraiment} »."
 
 
 @pytest.mark.parametrize(("tables", "words"), [
@@ -104,6 +111,14 @@ def test_toml_round_trip_gives_the_same_design():
     ({"blocks": [{"task": "magnitude", "conditions": ["c"]}]}, "modulus_stimulus"),
     ({"experiment": {"order": "sideways"}}, "experiment.order: must be one of random, blocked, counterbalanced"),
     ({"blocks": [{"task": "staircase", "conditions": ["c"], "trials": 0}]}, "blocks[0].trials: must be a whole"),
+    ({"words": {"keys_choice": "Touches : 1–{n}"}}, "words.keys_choice: {n} is not a placeholder it takes; it takes "
+                                                   "{last}"),
+    ({"words": {"keys_pair": "S : {last}"}}, "words.keys_pair: {last} is not a placeholder it takes; it takes none"),
+    ({"words": {"progress": "Essai {trial:03d}"}}, "words.progress: {trial:03d} is not a placeholder it takes"),
+    ({"words": {"end": "Merci {"}}, "words.end: a brace without its pair"),
+    ({"words": {"colour": "rouge"}}, "words.colour: no such words; a design's [words] are progress, keys_choice"),
+    ({"words": {"ok": 3}}, "words.ok: must be printable text"),
+    ({"words": "ok"}, "words: must be a table"),
 ])
 def test_bad_designs_are_refused_naming_the_key(tables, words):
     base = {"stimuli": {"a": {"texture": "grating-1mm"}}, "conditions": [{"name": "c", "stimulus": "a"}],
@@ -119,6 +134,8 @@ def test_bad_designs_are_refused_naming_the_key(tables, words):
      "conditions = ['c']\nscale = [1, 500]", "blocks[0].scale"),
     ("[stimuli.a]\ntexture = 'no-such-texture.png'\n[[conditions]]\nname = 'c'\nstimulus = 'a'\n[[blocks]]\n"
      "task = 'rating'\nconditions = ['c']", "stimuli.a.texture: "),
+    ("[stimuli.a]\ntexture = 'grating-1mm'\n[[conditions]]\nname = 'c'\nstimulus = 'a'\n[[blocks]]\ntask = 'rating'\n"
+     "conditions = ['c']\n[words]\nkeys_rating = 'Touches 1–{n}'", "words.keys_rating: {n} is not a placeholder"),
 ])
 def test_check_refuses_a_bad_design_file_in_one_line_with_status_2(tmp_path, text, words):
     path = tmp_path / "bad.toml"

@@ -18,6 +18,11 @@ Reaction time: measured on the page with ``performance.now()`` from the trial's 
 page draws with the trial's zones, as the window measures from its trial's first frame) to the button's press;
 a page that reconnects mid-trial shows the trial again and its time starts again.
 
+Esc on the page (``participant.stop``) stops the session as the window's Esc does: the trial shown (or the break)
+gets no answer, the trials answered stay in ``trials.csv``, ``session.json`` says ``stopped``, and the command exits
+1 with its summary (``--resume`` continues it). The page's words (its progress line, the keys' hint line, the OK
+buttons, the end) are the design's ``[words]`` (English by default), its questions and labels the blocks'.
+
 Lifecycle: a page that closes leaves the session waiting (said on standard error) until a page connects again
 (the trial is shown again) or ``reconnect_timeout_s`` passes (the session stops: its files are complete, status
 ``stopped``). A stop signal (Ctrl-C, SIGTERM) while a trial or a break waits stops the session the same way and is
@@ -51,7 +56,12 @@ from ultraglide.experiment.responders import Answer
 DEFAULT_RECONNECT_TIMEOUT_S = 300.0
 ADJUST_STEP_DB = 1.0  # a button's or a key's step of the adjusted contrast, as the window's (design_window.py)
 WAIT_S = 0.25  # the longest wait between looks at the engine while a trial waits for its answer
-BREAK_BUTTON = "OK"
+STOPPED = object()  # _wait's answer when the participant pressed Esc
+
+
+def keys_hint(design, mode: str, answers: int) -> str:
+    """The hint line's keys for a trial asked in ``mode`` with ``answers`` buttons, in the design's words."""
+    return design.word(f"keys_{mode}", last=min(answers, 9))
 
 
 def mode_of(shown) -> str:
@@ -186,7 +196,7 @@ class BrowserResponder:
             started.set_result({"url": f"ws://{host}:{port}/ws{query}", "page": f"http://{host}:{port}/{query}"})
             try:
                 await self._stopping.wait()
-                service.show({"type": "participant.end"})  # the page says the session is over, and stays
+                service.show({"type": "participant.end", "message": self.design.word("end")})  # said; the page stays
                 deadline = time.monotonic() + 2.0
                 while any(s.queue for s in service.sessions) and time.monotonic() < deadline:
                     await asyncio.sleep(0.01)  # its sender hands it over before the connections close
@@ -218,14 +228,19 @@ class BrowserResponder:
             layout = shown.layout
             labels = list(shown.labels)
             question = shown.question
+            words = self.design.word
             if mode == "magnitude":
-                question = f"{question} (zone 1 = {shown.modulus:g})"
+                question = f"{question} {words('modulus', modulus=f'{shown.modulus:g}')}"
             zones = [{"x_mm": layout.zone_left_mm(i), "y_mm": layout.gap_mm, "width_mm": layout.zone_mm[0],
                       "height_mm": layout.zone_mm[1]} for i in range(layout.zones)]
             number = shown.trial.number
             screen = {"type": "participant.trial", "trial": number, "total": self.total, "mode": mode,
                       "question": question, "labels": labels, "size_mm": list(layout.size_mm), "zones": zones,
-                      "numbered": mode in ("choice", "magnitude", "adjustment")}
+                      "numbered": mode in ("choice", "magnitude", "adjustment"),
+                      "progress": words("progress", trial=number, total=self.total),
+                      "keys": f"{keys_hint(self.design, mode, len(labels))} {words('keys_stop')}"}
+            if mode == "magnitude":
+                screen["ok"] = words("ok")
             adjust = None
             if mode == "adjustment":
                 screen.update(level=float(shown.level), range=[float(v) for v in shown.level_range],
@@ -236,7 +251,7 @@ class BrowserResponder:
             started = time.perf_counter()
             self._call(self.service.show, screen, tuple(layout.size_mm), ("answer", number))
             event = self._wait(("answer", number), f"trial {number}", adjust)
-            if event is None:
+            if event is None or event is STOPPED:
                 return Answer(-1, math.nan, quit=True)
             _, _, button, value, rt_s, _ = event
             if mode in ("magnitude", "adjustment"):
@@ -258,17 +273,20 @@ class BrowserResponder:
     def take_break(self, trial: int, message: str = "") -> bool:
         """A break page with a button; False if the session stops instead (a stop signal, a page gone too long)."""
         try:
-            screen = {"type": "participant.break", "trial": trial, "message": message or "Take a break.",
-                      "label": BREAK_BUTTON, "done": trial - 1, "total": self.total}
+            words = self.design.word
+            screen = {"type": "participant.break", "trial": trial, "message": message or self.design.break_message,
+                      "label": words("ok"), "done": trial - 1, "total": self.total,
+                      "keys": f"{words('keys_break')} {words('keys_stop')}"}
             self._call(self.service.show, screen, None, ("continue", trial))
-            return self._wait(("continue", trial), f"the break before trial {trial}") is not None
+            return self._wait(("continue", trial), f"the break before trial {trial}") not in (None, STOPPED)
         except KeyboardInterrupt as stop:
             self.stopped = stop
             return False
 
     def _wait(self, awaited: tuple, what: str, adjust: _Adjustment | None = None):
-        """The awaited event from the page, or None when the page stayed away longer than the reconnect timeout;
-        EngineLost if the engine died meanwhile. ``adjust``: an adjustment trial's, told each level the page sets."""
+        """The awaited event from the page, :data:`STOPPED` when the participant pressed Esc, or None when the page
+        stayed away longer than the reconnect timeout; EngineLost if the engine died meanwhile. ``adjust``: an
+        adjustment trial's, told each level the page sets."""
         from ultraglide.render.engine import EngineLost
 
         gone_since = None if self.connected or not self.ever_connected else time.monotonic()
@@ -296,6 +314,9 @@ class BrowserResponder:
                     self.ever_connected = True
                 elif event[:2] == awaited:
                     return event
+                elif kind == "stop" and event[1] == awaited[1]:
+                    self.say(f"the participant pressed Esc during {what}: the session stops, its files complete")
+                    return STOPPED
                 elif kind == "adjust" and adjust is not None and event[1] == awaited[1]:
                     adjust.follow()
             if gone_since is not None and time.monotonic() - gone_since > self.reconnect_timeout_s:
@@ -344,4 +365,4 @@ class _Adjustment:
         responder._call(responder.service.applied, self.level)
 
 
-__all__ = ["BrowserResponder", "mode_of"]
+__all__ = ["BrowserResponder", "keys_hint", "mode_of"]

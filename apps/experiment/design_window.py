@@ -35,6 +35,7 @@ class DesignWindow(WindowResponder):
         from ultraglide.experiment.stimuli import Layout
 
         self.total = len(plan(design))
+        self.words = design.word  # the participant's words: the design's [words], English by default
         config = SimpleNamespace(device=device, profile=design.profile, model=design.model, force_n=design.force_n,
                                  closed_loop=False, intervals=2, total_trials=self.total, question="")
         layout = SimpleNamespace(layout=Layout(2, tuple(design.zone_mm), design.gap_mm))
@@ -68,8 +69,11 @@ class DesignWindow(WindowResponder):
             self.buttons = [(label, pg.Rect(left + i * (width + 10), top, width, 70)) for i, label in enumerate(labels)]
         else:  # magnitude: a typed number; the modulus is said in the question's line
             self.typed = ""
-            self.buttons = [("OK", pg.Rect(self.canvas.centerx - 60, top + 80, 120, 70))]
-            self.config.question = f"{shown.question} (zone 1 = {shown.modulus:g})"
+            self.buttons = [(self.words("ok"), pg.Rect(self.canvas.centerx - 60, top + 80, 120, 70))]
+            self.config.question = f"{shown.question} {self.words('modulus', modulus=f'{shown.modulus:g}')}"
+
+    def _progress(self, trial: int, total: int) -> str:
+        return self.words("progress", trial=trial, total=total)
 
     def _draw_trial(self, trial: int) -> None:
         super()._draw_trial(trial)

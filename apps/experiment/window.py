@@ -95,11 +95,14 @@ class WindowResponder:
         surface = (font or self.font).render(text, True, TEXT)
         self.screen.blit(surface, surface.get_rect(center=centre))
 
+    def _progress(self, trial: int, total: int) -> str:
+        return f"Trial {trial} of {total}"
+
     def _draw_trial(self, trial: int) -> None:
         pg, screen = self.pg, self.screen
         screen.fill(BACKGROUND)
         total = self.config.total_trials
-        self._text(f"Trial {trial} of {total}", (screen.get_width() // 2, 24))
+        self._text(self._progress(trial, total), (screen.get_width() // 2, 24))
         self._text(self.config.question, (screen.get_width() // 2, 56))
         for index, zone in enumerate(self.zones):
             pg.draw.rect(screen, ZONE, zone)

@@ -14,7 +14,7 @@ Server to page (pushed to the controlling page, and again to a page that reconne
   (a button's or a key's step, dB);
 * ``participant.break``: ``trial`` (the next one), ``message``, ``label`` (the button's);
 * ``participant.wait``: ``message`` (between trials, before the first);
-* ``participant.end``: the session is over (the page stops reconnecting).
+* ``participant.end``: ``message``: the session is over (the page says it, and stops reconnecting).
 
 Page to server:
 
@@ -25,6 +25,12 @@ Page to server:
   answered (``ok`` with ``trial`` and ``level``) once the engine plays it, or with the level a later adjustment
   set in its place.
 * ``participant.continue``: ``trial``: the break's button.
+* ``participant.stop``: ``trial`` (the one shown, or the next after a break): Esc, the session stops as at the
+  window's Esc (its files complete, status ``stopped``).
+
+The screens carry the participant's words from the design (``[words]``, English by default): a trial's
+``progress`` and ``keys`` (the hint line), a magnitude estimate's ``ok`` (its button), a break's ``keys``, the end's
+``message``.
 """
 
 from __future__ import annotations
@@ -45,15 +51,17 @@ PARTICIPANT_SPECS = {
                            "value": (p._number(0.0, 1e12), False), "rt_s": (p._number(0.0, MAX_RT_S, " s"), True)},
     "participant.continue": {"trial": (p._integer(1, 10**9), True)},
     "participant.adjust": {"trial": (p._integer(1, 10**9), True), "level": (p._number(0.0, 1e12), True)},
+    "participant.stop": {"trial": (p._integer(1, 10**9), True)},
 }
 ALLOWED = frozenset({"hello", "touch", "subscribe", "state", *PARTICIPANT_SPECS})
-LEFT, BACK = "left", "back"
+LEFT, BACK, STOP = "left", "back", "stop"
 
 
 class ParticipantService(Service):
     """The service of a session's participant page. ``events``: a thread-safe queue the session reads:
     ``("answer", trial, button or None, value or None, rt_s, received perf_counter s)``, ``("continue", trial)``,
-    ``("adjust", trial)`` when the page set an adjustment's level (:attr:`adjusted`: the latest),
+    ``("adjust", trial)`` when the page set an adjustment's level (:attr:`adjusted`: the latest), ``("stop", trial)``
+    when the participant pressed Esc,
     ``("left",)`` when the controlling page goes and ``("back",)`` when one takes control again."""
 
     def __init__(self, engine, profile, *, token: str | None = None, view_mm=(160.0, 100.0)):
@@ -160,6 +168,16 @@ class ParticipantService(Service):
         for waiter in waiters:
             if not waiter.done():
                 waiter.set_result(level)
+
+    def _on_participant_stop(self, session, message: p.Message) -> dict:
+        trial = message["trial"]
+        if self.waiting_for is None or self.waiting_for[1] != trial:
+            raise p.ProtocolError(p.BAD_MESSAGE, f"participant.stop: trial {trial} (or the break before it) is not "
+                                  "shown now")
+        self.waiting_for = None
+        self._lift(time.perf_counter())
+        self.events.put((STOP, trial))
+        return {"trial": trial}
 
     def _on_participant_continue(self, session, message: p.Message) -> dict:
         trial = message["trial"]

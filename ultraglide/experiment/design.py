@@ -46,6 +46,24 @@ DEFAULT_QUESTIONS = {
     "adjustment": "Make the second zone feel like the first, then press OK."}
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 MAX_TRIALS = 100_000
+# the words a participant reads that are not a block's question or labels: ``[words]`` in the design, English by
+# default; each with the placeholders it may use ({trial} of {total}, the last key {last}, the {modulus})
+WORDS = {
+    "progress": "Trial {trial} of {total}",
+    "keys_choice": "Keys: 1–{last} (or ← / →) answer.",
+    "keys_yes_no": "Keys: Y for yes, N for no.",
+    "keys_pair": "Keys: S for same, D for different.",
+    "keys_rating": "Keys: 1–{last} for the scale's points, from its low end.",
+    "keys_magnitude": "Keys: type the number, Enter gives it.",
+    "keys_adjustment": "Keys: ← or − down, → or + up (1 dB a step), Enter gives it.",
+    "keys_break": "Space or Enter goes on.",
+    "keys_stop": "Esc stops the session.",
+    "ok": "OK",
+    "modulus": "(zone 1 = {modulus})",
+    "end": "The session is over. Thank you.",
+}
+WORD_FIELDS = {"progress": ("trial", "total"), "keys_choice": ("last",), "keys_rating": ("last",),
+               "modulus": ("modulus",)}
 
 
 @dataclass(frozen=True)
@@ -151,6 +169,7 @@ class Design:
     model: str = "stretched"
     profile: str = "sim-plate"
     check_paths: tuple[str, ...] = ()  # touch logs (mm from a zone's top-left corner) the check also renders along
+    words: dict = field(default_factory=dict)  # the participant's words the design sets (WORDS' keys), else English
 
     def __post_init__(self) -> None:
         validate(self)
@@ -158,6 +177,11 @@ class Design:
     def as_dict(self) -> dict:
         """The design as the TOML's tables (what :func:`design_from_dict` takes back)."""
         return design_to_dict(self)
+
+    def word(self, key: str, **fields) -> str:
+        """The participant's words for ``key`` (one of :data:`WORDS`): the design's, else English, its
+        placeholders filled from ``fields``."""
+        return self.words.get(key, WORDS[key]).format(**fields)
 
 
 @dataclass(frozen=True)
@@ -196,6 +220,8 @@ def validate(design: Design) -> None:
         raise _refuse("blocks", "a design needs at least one block")
     if design.order not in ORDERS:
         raise _refuse("experiment.order", f"must be one of {', '.join(ORDERS)}, got {design.order!r}")
+    for key, text in design.words.items():
+        _check_word(key, text)
     for name, stimulus in design.stimuli.items():
         where = f"stimuli.{name}"
         if stimulus.contrast is not None and not 0 <= stimulus.contrast <= 1:
@@ -276,6 +302,29 @@ def validate(design: Design) -> None:
     total = sum(block_trial_count(design, block) for block in design.blocks)
     if total > MAX_TRIALS:
         raise _refuse("blocks", f"the design has {total} trials; at most {MAX_TRIALS}")
+
+
+def _check_word(key, text) -> None:
+    """A ``[words]`` entry: a known key, printable text, only the placeholders its key takes."""
+    import string
+
+    where = f"words.{str(key)[:40]}"
+    if key not in WORDS:
+        raise _refuse(where, f"no such words; a design's [words] are {', '.join(WORDS)}")
+    if not isinstance(text, str) or not text.isprintable() or len(text) > 1000:
+        raise _refuse(where, f"must be printable text (at most 1000 characters), got {str(text)[:40]!r}")
+    takes = WORD_FIELDS.get(key, ())
+    said = f"it takes {', '.join('{' + f + '}' for f in takes)}" if takes else "it takes none"
+    try:
+        fields = [(name, spec, conversion) for _, name, spec, conversion in string.Formatter().parse(text)
+                  if name is not None]
+    except ValueError:
+        raise _refuse(where, f"a brace without its pair in {text[:40]!r}; write a brace itself as {{{{ or }}}}") \
+            from None
+    for name, spec, conversion in fields:
+        if name not in takes or spec or conversion:
+            raise _refuse(where, f"{{{name}{'!' + conversion if conversion else ''}{':' + spec if spec else ''}}} "
+                          f"is not a placeholder it takes; {said} (a brace itself is {{{{ or }}}})")
 
 
 def _label_count(block: Block) -> int | None:
@@ -574,6 +623,7 @@ def design_from_dict(tables: dict) -> Design:
     ``rig``): every key and type checked (ExperimentError, one line naming the key)."""
     top = _Table(tables, "")
     experiment = _Table(top.get("experiment", dict, {}), "experiment")
+    words = top.get("words", dict, {})
     rig = _Table(top.get("rig", dict, {}), "rig")
     stimuli_tables = top.get("stimuli", dict, {}, required=True)
     if not isinstance(stimuli_tables, dict) or not stimuli_tables:
@@ -633,7 +683,7 @@ def design_from_dict(tables: dict) -> Design:
         zone_mm=_pair(zone, "rig.zone_mm"), gap_mm=rig.get("gap_mm", float, 10.0),
         speed_mm_s=rig.get("speed_mm_s", float, 100.0), force_n=rig.get("force_n", float, 0.5),
         model=rig.get("model", str, "stretched"), profile=rig.get("profile", str, "sim-plate"),
-        check_paths=rig.get("check_paths", "strs", ()))
+        check_paths=rig.get("check_paths", "strs", ()), words=dict(words))
     for table in (top, experiment, rig):
         table.done()
     if not 0 <= design["seed"] < 2**32:
@@ -698,7 +748,8 @@ def design_to_dict(design: Design) -> dict:
                     **({"check_paths": list(design.check_paths)} if design.check_paths else {})},
             "stimuli": {name: stimulus(s) for name, s in design.stimuli.items()},
             "conditions": [condition(c) for c in design.conditions.values()],
-            "blocks": [block(b) for b in design.blocks]}
+            "blocks": [block(b) for b in design.blocks],
+            **({"words": dict(design.words)} if design.words else {})}
 
 
 def to_toml(design: Design) -> str:
@@ -714,9 +765,10 @@ def to_toml(design: Design) -> str:
             if isinstance(value, dict):
                 lines.append(f"{prefix}{key} = {_toml_value(value)}")
 
-    for name in ("experiment", "rig"):
-        lines += ["", f"[{name}]"]
-        emit("", tables[name])
+    for name in ("experiment", "rig", "words"):
+        if name in tables:
+            lines += ["", f"[{name}]"]
+            emit("", tables[name])
     for name, values in tables["stimuli"].items():
         lines += ["", f"[stimuli.{name}]"]
         emit("", values)

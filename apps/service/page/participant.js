@@ -2,8 +2,9 @@
 // in mm, touches on them sent as the service's touch messages (mm from the trial's area's top-left corner), the
 // question with the design's labels as buttons (a number field for magnitude estimation; −, + and a slider for the
 // method of adjustment, whose every level the plate plays before the page is told), breaks with a button.
-// Keys answer as at the window (apps/experiment/window.py, design_window.py); the hint line under the buttons says
-// which. The reaction time runs from the frame that presents the trial (performance.now()) to the answer.
+// Keys answer as at the window (apps/experiment/window.py, design_window.py); Esc stops the session as the window's
+// does (participant.stop); the hint line under the buttons says which. Every word on the page that is not a block's
+// question or labels comes with the screen, in the design's words (its [words], English by default). The reaction time runs from the frame that presents the trial (performance.now()) to the answer.
 // ?mm_per_px=N gives the screen's pitch (default: CSS's 96 px per inch, 0.2646 mm); ?token=... as printed.
 import { connect } from "./ultraglide.js";
 
@@ -15,7 +16,7 @@ const $ = (id) => document.getElementById(id);
 const plate = $("plate"), answers = $("answers"), note = $("note");
 
 const state = { ready: false, ended: false, screen: null, shownAt: null, errors: [], presented: 0, answered: [],
-                level: null, applied: null };
+                level: null, applied: null, stopped: null };
 const adjusting = { sending: null, idle: [] }; // the adjust request in flight; who waits for the last to play
 window.participant = state;
 let connection = null;
@@ -41,20 +42,6 @@ function button(label, onPress) { // pressed as the window's are: at the finger'
     onPress();
   });
   return element;
-}
-
-// the hint line: the keys that answer, as at the window
-function keysHint(screen) {
-  const n = screen.labels.length;
-  switch (screen.mode) {
-    case "choice": return `Keys: 1–${Math.min(n, 9)} (or ← / →) answer.`;
-    case "yes_no": return "Keys: Y for yes, N for no.";
-    case "pair": return "Keys: S for same, D for different.";
-    case "rating": return `Keys: 1–${Math.min(n, 9)} for the scale's points, from its low end.`;
-    case "magnitude": return "Keys: type the number, Enter gives it.";
-    case "adjustment": return "Keys: ← or − down, → or + up (1 dB a step), Enter gives it.";
-    default: return "";
-  }
 }
 
 // ---- the method of adjustment: the level the page sets, sent one request at a time (the latest wins) --------------
@@ -153,7 +140,7 @@ function showTrial(screen) {
   $("pause").style.display = "none";
   $("screen").style.display = "flex";
   clear();
-  $("progress").textContent = `${screen.trial} / ${screen.total}`;
+  $("progress").textContent = screen.progress;
   $("question").textContent = screen.question;
   const px = (mm) => `${mm / mmPerPx}px`;
   plate.style.width = px(screen.size_mm[0]);
@@ -167,7 +154,7 @@ function showTrial(screen) {
     plate.append(element);
   });
   const send = (fields) => answer(screen, fields);
-  $("keys").textContent = keysHint(screen);
+  $("keys").textContent = screen.keys; // the hint line, in the design's words
   if (screen.mode === "adjustment") {
     showAdjustment(screen);
   } else if (screen.mode === "magnitude") {
@@ -186,11 +173,11 @@ function showTrial(screen) {
     };
     field.addEventListener("keydown", (event) => {
       if (event.key === "Enter") go();
-      event.stopPropagation(); // typed into the field itself, not the page's keys
+      if (event.key !== "Escape") event.stopPropagation(); // typed into the field itself, not the page's keys
     });
     answers.style.position = "static";
     answers.style.width = answers.style.height = "";
-    answers.append(field, button("OK", go));
+    answers.append(field, button(screen.ok, go));
     screen.confirm = go;
   } else if (screen.mode === "choice") { // a button under each zone
     answers.style.position = "relative";
@@ -233,6 +220,7 @@ function showBreak(screen) {
   $("screen").style.display = "none";
   $("pause").style.display = "flex";
   $("breakMessage").textContent = screen.message;
+  $("breakKeys").textContent = screen.keys;
   const go = $("breakButton");
   go.textContent = screen.label;
   go.disabled = false;
@@ -284,10 +272,31 @@ function keyAnswer(screen, key) { // what the key does on this trial's screen: t
   }
 }
 
+// Esc: the session stops, as at the window (its files complete, status "stopped"; --resume continues it)
+async function stopSession(screen) {
+  if (state.screen !== screen) return;
+  state.screen = null;
+  for (const element of document.querySelectorAll("#answers button, #answers input, #breakButton")) {
+    element.disabled = true;
+  }
+  answers.style.pointerEvents = "none";
+  lift(performance.now());
+  try {
+    await connection.request("participant.stop", { trial: screen.trial });
+    state.stopped = screen.trial;
+  } catch (error) {
+    state.errors.push(error.message);
+    note.textContent = error.message;
+  }
+}
+
 addEventListener("keydown", (event) => {
   const screen = state.screen;
   if (!screen || event.repeat || event.ctrlKey || event.metaKey || event.altKey) return;
-  if (screen.type === "participant.break") { // a break's button by the keyboard too (space or Enter)
+  if (event.key === "Escape" && (screen.type === "participant.break" || state.shownAt !== null)) {
+    event.preventDefault();
+    stopSession(screen);
+  } else if (screen.type === "participant.break") { // a break's button by the keyboard too (space or Enter)
     if (event.key === " " || event.key === "Enter") {
       event.preventDefault();
       $("breakButton").click();
@@ -369,7 +378,7 @@ function onPush(message) {
     state.screen = null;
     state.ended = true;
     showWait();
-    $("question").textContent = "✓";
+    $("question").textContent = message.message;
   }
 }
 
