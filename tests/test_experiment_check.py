@@ -220,3 +220,76 @@ def test_a_stimulus_whose_effects_cannot_be_read_is_refused_naming_it(tmp_path):
     bad.write_text('{"effects_version": 1, "bindings": [{"trigger": {"on": "never"}, "effect": 1}]}')
     with pytest.raises(ExperimentError, match=r"stimuli\.s\.effects: "):
         check_stimuli(rating_design(Stimulus("s", "grating-1mm", contrast=0.3, effects=str(bad))))
+
+
+# ---- a mean that pushes a stimulus's ratios outside 0..1 at a level it may take -----------------------------------
+# The design's contrast and mean are what the plate is asked for, exactly (docs/experiments.md): a level that cannot
+# be built around the mean is refused before anything is rendered, naming the stimulus, the level and what to change.
+# By hand, for a sine grating (its rescaled map's mean halfway up its span): at contrast c around mean m its ratios
+# lie in m ± c/2, so at m = 0.8 contrast 0.6 gives 0.5..1.1, fits up to c = 2 (1 - m) = 0.4, and at c = 0.6 the
+# mean must lie within 0.3..0.7.
+
+RANGE_TOP = ("stimulus 'g' at level 0.6 (the top of conditions.c.range)", "lower the top of conditions.c.range to")
+UNFIT = {
+    "staircase": ("[[conditions]]\nname = 'c'\nstimulus = 'g'\nrange = [0.05, 0.6]\n[[blocks]]\n"
+                  "task = 'staircase'\nconditions = ['c']\ntrials = 6\n", *RANGE_TOP),
+    "constant": ("[[conditions]]\nname = 'c'\nstimulus = 'g'\nlevels = [0.1, 0.6, 0.3]\n[[blocks]]\n"
+                 "task = 'constant'\nconditions = ['c']\nrepeats = 2\n",
+                 "stimulus 'g' at level 0.6 (the largest of conditions.c.levels)",
+                 "lower conditions.c.levels to at most"),
+    "adjustment": ("[stimuli.ref]\ntexture = 'grating-1mm'\ncontrast = 0.2\n[[conditions]]\nname = 'c'\n"
+                   "stimulus = 'g'\nreference = 'ref'\nrange = [0.05, 0.6]\n[[blocks]]\ntask = 'adjustment'\n"
+                   "conditions = ['c']\nrepeats = 2\n", *RANGE_TOP),
+    "rating": ("[[conditions]]\nname = 'c'\nstimulus = 'g'\n[[blocks]]\ntask = 'rating'\nconditions = ['c']\n"
+               "repeats = 2\n", "stimulus 'g': a friction contrast of 0.6", "lower stimuli.g.contrast to"),
+}
+
+
+def unfit_design(tmp_path, task, mean=0.8, top=None):
+    body, _, _ = UNFIT[task]
+    contrast = "contrast = 0.6\n" if task == "rating" else ""
+    if top is not None:  # the figure the refusal said, in place of 0.6
+        body = body.replace("0.6", top)
+        contrast = contrast.replace("0.6", top)
+    path = tmp_path / f"{task}.toml"
+    path.write_text(f"[experiment]\nseed = 2\n[stimuli.g]\ntexture = 'grating-1mm'\nmean = {mean}\n{contrast}{body}",
+                    encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("task", list(UNFIT))
+def test_a_mean_the_contrast_cannot_fit_at_a_level_is_refused_naming_the_level_and_the_change(tmp_path, task):
+    import re
+
+    _, names, change = UNFIT[task]
+    path = unfit_design(tmp_path, task)
+    result = run_cli("experiment", "check", path)
+    line = assert_one_line_error(result)
+    assert result.returncode == 2 and result.stdout == ""
+    assert names in line and "around a mean friction ratio of 0.8 puts its ratios at 0.500..1.100, outside 0..1" in line
+    found = re.search(r"its contrast fits up to ([0-9.]+): (.*) ([0-9.]+), or set stimuli\.g\.mean within "
+                      r"([0-9.]+)\.\.([0-9.]+)$", line)
+    assert found and found.group(2) == change, line
+    fits, said, low_mean, high_mean = (float(found.group(i)) for i in (1, 3, 4, 5))
+    assert fits == said == pytest.approx(0.4, abs=0.002)
+    assert (low_mean, high_mean) == pytest.approx((0.3, 0.7), abs=0.002)
+    # each change it names makes a design that can be built (the plate's reach is the check's other criteria: put aside)
+    for changed in (unfit_design(tmp_path, task, top=found.group(1)), unfit_design(tmp_path, task, mean=low_mean),
+                    unfit_design(tmp_path, task, mean=high_mean)):
+        assert run_cli("experiment", "check", changed, "--accept-check").returncode == 0
+
+
+def test_run_refuses_an_unfit_mean_before_anything_is_written_or_served(tmp_path):
+    path = unfit_design(tmp_path, "adjustment")
+    for how in (["--observer", "sim:threshold=0.1"], ["--serve", "--port", "0", "--device", "sim", "--json"]):
+        result = run_cli("experiment", "run", path, "--participant", "P01", "--out", tmp_path / "out", *how)
+        line = assert_one_line_error(result)
+        assert result.returncode == 2 and "stimulus 'g' at level 0.6 (the top of conditions.c.range)" in line
+        assert result.stdout == ""  # no page address: no participant reached
+        assert not (tmp_path / "out").exists()
+    # the Python API refuses it too, the check left out (never for a participant): before any trial or file
+    from ultraglide.experiment import ExperimentError, load_design
+
+    with pytest.raises(ExperimentError, match=r"stimulus 'g' at level 0\.6 .* outside 0\.\.1"):
+        run(load_design(path), observer="sim:threshold=0.1", out=tmp_path / "api", check=False)
+    assert not (tmp_path / "api").exists()

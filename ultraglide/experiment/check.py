@@ -78,39 +78,84 @@ def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: flo
     ExperimentError
         A gradient texture, or a mean the contrast cannot fit within 0..1.
     """
-    from ultraglide.textures.sampling import Sampler
-    from ultraglide.textures.texture import Texture
+    return ZoneSource(stimulus, zone_mm, source).texture(contrast)
 
-    if source is None:
-        source = load_source(stimulus)
-    if source.kind == "gradient":
-        raise ExperimentError(f"stimulus {stimulus.name!r}: {stimulus.texture} is a gradient texture; a design's "
-                              "stimuli are friction maps")
-    width, height = zone_mm
-    px_per_mm = float(min(MAX_PX_PER_MM, max(10.0, stimulus.scale / min(source.pixel_mm))))
-    cols, rows = max(2, round(width * px_per_mm)), max(2, round(height * px_per_mm))
-    x, y = np.meshgrid((np.arange(cols) + 0.5) * width / cols, (np.arange(rows) + 0.5) * height / rows)
-    angle = math.radians(stimulus.rotation_deg)
-    cx, cy = width / 2, height / 2
-    u = cx + ((x - cx) * math.cos(angle) + (y - cy) * math.sin(angle)) / stimulus.scale
-    v = cy + (-(x - cx) * math.sin(angle) + (y - cy) * math.cos(angle)) / stimulus.scale
-    direction = (np.full_like(u, math.cos(angle)), np.full_like(u, -math.sin(angle)))
-    values = Sampler(source, band_limited=False).ratio(u, v, direction=direction).astype(np.float64)
-    wanted = stimulus.contrast if contrast is None else contrast
-    if wanted is not None:
-        span = float(values.max() - values.min())
-        normalised = (values - values.min()) / span if span > 0 else np.ones_like(values)
-        values = 1.0 - wanted * (1.0 - normalised)
-    if stimulus.mean is not None:
-        values = values - values.mean() + stimulus.mean
-        if values.min() < -1e-9 or values.max() > 1 + 1e-9:
-            raise ExperimentError(f"stimulus {stimulus.name!r}: a mean friction ratio of {stimulus.mean:g} puts its "
-                                  f"ratios at {values.min():.3f}..{values.max():.3f}, outside 0..1; lower its contrast "
-                                  "or move its mean")
-        values = np.clip(values, 0.0, 1.0)
-    return Texture(values.astype(np.float32), float(width), float(height), outside="fixed", outside_ratio=1.0,
-                   name=stimulus.name, source=str(stimulus.texture),
-                   authoring={"stimulus": asdict(stimulus), "contrast": wanted}, effects=_effects(stimulus))
+
+class ZoneSource:
+    """A stimulus's texture loaded and sampled over its zone (scaled, turned), and its effects read, once: its zone at
+    any contrast (:meth:`texture`, what :func:`zone_texture` gives, bit for bit) costs the arithmetic alone. Raises
+    ExperimentError as :func:`zone_texture` does."""
+
+    def __init__(self, stimulus: Stimulus, zone_mm: tuple[float, float], source=None):
+        from ultraglide.textures.sampling import Sampler
+
+        if source is None:
+            source = load_source(stimulus)
+        if source.kind == "gradient":
+            raise ExperimentError(f"stimulus {stimulus.name!r}: {stimulus.texture} is a gradient texture; a design's "
+                                  "stimuli are friction maps")
+        width, height = zone_mm
+        px_per_mm = float(min(MAX_PX_PER_MM, max(10.0, stimulus.scale / min(source.pixel_mm))))
+        cols, rows = max(2, round(width * px_per_mm)), max(2, round(height * px_per_mm))
+        x, y = np.meshgrid((np.arange(cols) + 0.5) * width / cols, (np.arange(rows) + 0.5) * height / rows)
+        angle = math.radians(stimulus.rotation_deg)
+        cx, cy = width / 2, height / 2
+        u = cx + ((x - cx) * math.cos(angle) + (y - cy) * math.sin(angle)) / stimulus.scale
+        v = cy + (-(x - cx) * math.sin(angle) + (y - cy) * math.cos(angle)) / stimulus.scale
+        direction = (np.full_like(u, math.cos(angle)), np.full_like(u, -math.sin(angle)))
+        self.sampled = Sampler(source, band_limited=False).ratio(u, v, direction=direction).astype(np.float64)
+        self.sampled.flags.writeable = False
+        self.stimulus, self.zone_mm = stimulus, (float(width), float(height))
+        self.effects = _effects(stimulus)
+
+    def ratios(self, contrast: float | None = None) -> np.ndarray:
+        """The zone's friction ratios at ``contrast`` (None: the stimulus's own) shifted to its mean, before the
+        check that they lie in 0..1 and the clip of its rounding."""
+        values = self.sampled
+        wanted = self.stimulus.contrast if contrast is None else contrast
+        if wanted is not None:
+            span = float(values.max() - values.min())
+            normalised = (values - values.min()) / span if span > 0 else np.ones_like(values)
+            values = 1.0 - wanted * (1.0 - normalised)
+        if self.stimulus.mean is not None:
+            values = values - values.mean() + self.stimulus.mean
+        return values
+
+    def fit(self, contrast: float | None = None) -> tuple[float, float, float, float, float]:
+        """Where the zone's ratios lie at ``contrast`` (None: the stimulus's own) and what would bring them within
+        0..1: (lowest ratio, highest ratio, the largest contrast that fits at the stimulus's mean, the lowest and the
+        highest mean that fit at this contrast)."""
+        values = self.ratios(contrast)
+        wanted = self.stimulus.contrast if contrast is None else contrast
+        spread = float(values.max() - values.min())  # the zone's friction contrast at this level
+        below = float(values.mean() - values.min())  # its lowest ratio's distance below its mean
+        above = spread - below
+        largest = 1.0
+        if self.stimulus.mean is not None and spread > 0:
+            now = wanted if wanted is not None else spread
+            mean = self.stimulus.mean
+            largest = min(1.0, now * min(mean / below if below > 0 else math.inf,
+                                         (1.0 - mean) / above if above > 0 else math.inf))
+        return float(values.min()), float(values.max()), largest, below, 1.0 - above
+
+    def texture(self, contrast: float | None = None):
+        """The zone at ``contrast`` (None: the stimulus's own); ExperimentError when the stimulus's mean puts its
+        ratios outside 0..1."""
+        from ultraglide.textures.texture import Texture
+
+        stimulus = self.stimulus
+        values = self.ratios(contrast)
+        if stimulus.mean is not None:
+            if values.min() < -1e-9 or values.max() > 1 + 1e-9:
+                raise ExperimentError(f"stimulus {stimulus.name!r}: a mean friction ratio of {stimulus.mean:g} puts "
+                                      f"its ratios at {values.min():.3f}..{values.max():.3f}, outside 0..1; lower its "
+                                      "contrast or move its mean")
+            values = np.clip(values, 0.0, 1.0)
+        wanted = stimulus.contrast if contrast is None else contrast
+        width, height = self.zone_mm
+        return Texture(values.astype(np.float32), width, height, outside="fixed", outside_ratio=1.0,
+                       name=stimulus.name, source=str(stimulus.texture),
+                       authoring={"stimulus": asdict(stimulus), "contrast": wanted}, effects=self.effects)
 
 
 def _effects(stimulus: Stimulus) -> tuple:
@@ -305,13 +350,17 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
     rig = rig or Rig(design)
     figures: dict[str, StimulusFigures] = {}
     failures: list[str] = []
-    sources: dict[str, object] = {}
+    sources: dict[str, ZoneSource] = {}
+
+    def zone_source(name: str) -> ZoneSource:
+        if name not in sources:
+            sources[name] = ZoneSource(design.stimuli[name], rig.zone_mm)
+        return sources[name]
+
+    refuse_unfit(design, zone_source)
 
     def texture_of(name: str, level: float | None):
-        stimulus = design.stimuli[name]
-        if name not in sources:
-            sources[name] = load_source(stimulus)
-        return zone_texture(stimulus, rig.zone_mm, level, sources[name])
+        return zone_source(name).texture(level)
 
     def check(name: str, level: float | None) -> StimulusFigures:
         key = name if level is None else f"{name}@{level:g}"
@@ -352,6 +401,50 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
             if block.task in ("afc", "same_different"):
                 _check_pair(design, name, figures, failures)
     return CheckReport(figures, failures)
+
+
+def refuse_unfit(design: Design, zone_source) -> None:
+    """ExperimentError, in one line naming the stimulus, the level and what to change, for the first stimulus whose
+    ``mean`` puts its friction ratios outside 0..1 at a level it may take (a design's contrast and mean are what the
+    plate is asked for, exactly: neither is clipped). A varied stimulus is judged at the top of its range or its
+    largest level, its spread largest there; every other at its own contrast. ``zone_source(name)``: the stimulus's
+    :class:`ZoneSource`. Nothing is rendered: it comes before the check's renders and any trial."""
+    for block in design.blocks:
+        for name in block.conditions:
+            condition = design.conditions[name]
+            if block.task in ADAPTIVE + ("constant", "adjustment") and condition.vary == "contrast":
+                if block.task == "constant":
+                    level, what = max(condition.levels), f"the largest of conditions.{name}.levels"
+                    change = f"lower conditions.{name}.levels to at most {{}}"
+                else:
+                    level, what = condition.range[1], f"the top of conditions.{name}.range"
+                    change = f"lower the top of conditions.{name}.range to {{}}"
+                _refuse_unfit(zone_source(condition.stimulus), level, what, change)
+            else:
+                _refuse_unfit(zone_source(condition.stimulus))
+            for other in (condition.reference, block.modulus_stimulus if block.task == "magnitude" else None):
+                if other is not None:
+                    _refuse_unfit(zone_source(other))
+
+
+def _refuse_unfit(source: ZoneSource, level: float | None = None, what: str = "", change: str = "") -> None:
+    low, high, largest, low_mean, high_mean = source.fit(level)
+    if low >= -1e-9 and high <= 1 + 1e-9:
+        return
+    stimulus = source.stimulus
+    key = f"stimuli.{stimulus.name}"
+    contrast = level if level is not None else stimulus.contrast
+    asked = f"a friction contrast of {contrast:g}" if contrast is not None else (
+        f"its map's own contrast ({high - low:.3f})")
+    fits = f"{math.floor(largest * 1000) / 1000:.3f}"
+    if level is None:
+        change = (f"lower {key}.contrast to {{}}" if stimulus.contrast is not None else
+                  f"give {key} a contrast of at most {{}}")
+    at = f" at level {level:g} ({what})" if level is not None else ""
+    raise ExperimentError(f"stimulus {stimulus.name!r}{at}: {asked} around a mean friction ratio of "
+                          f"{stimulus.mean:g} puts its ratios at {low:.3f}..{high:.3f}, outside 0..1; at that mean its "
+                          f"contrast fits up to {fits}: {change.format(fits)}, or set {key}.mean within "
+                          f"{math.ceil(low_mean * 1000) / 1000:.3f}..{math.floor(high_mean * 1000) / 1000:.3f}")
 
 
 def _judge(found: StimulusFigures, along: str, uncrossed: str, failures: list[str]) -> None:

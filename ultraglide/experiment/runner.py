@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ultraglide.experiment.check import CheckReport, Rig, check_stimuli, refuse, zone_texture
+from ultraglide.experiment.check import CheckReport, Rig, ZoneSource, check_stimuli, refuse, refuse_unfit
 from ultraglide.experiment.columns import DESIGN_COLUMNS
 from ultraglide.experiment.design import ADAPTIVE, Block, Design, Trial, plan, response_labels, to_toml
 from ultraglide.experiment.errors import ExperimentError
@@ -73,18 +73,26 @@ class Session:
 
 
 class _Stimuli:
-    """Zone textures of the design's stimuli, built once; varied ones per level, kept for levels that come back."""
+    """Zone textures of the design's stimuli: each stimulus's texture loaded and sampled over its zone once (its
+    :class:`~ultraglide.experiment.check.ZoneSource`), at its own contrast built once, at a level (a varied
+    stimulus) from the sampled zone with the arithmetic alone."""
 
     def __init__(self, design: Design, rig: Rig):
         self.design, self.rig = design, rig
+        self._sources: dict = {}
         self._zones: dict = {}
         self._designs: dict = {}
+
+    def zone_source(self, name: str) -> ZoneSource:
+        if name not in self._sources:
+            self._sources[name] = ZoneSource(self.design.stimuli[name], self.rig.zone_mm)
+        return self._sources[name]
 
     def zone(self, name: str):
         if not name:
             return None
         if name not in self._zones:
-            self._zones[name] = zone_texture(self.design.stimuli[name], self.rig.zone_mm)
+            self._zones[name] = self.zone_source(name).texture()
         return self._zones[name]
 
     def stimulus_design(self, condition_name: str, intervals: int):
@@ -95,15 +103,20 @@ class _Stimuli:
 
             condition = self.design.conditions[condition_name]
             stimulus = self.design.stimuli[condition.stimulus]
-            base = zone_texture(stimulus, self.rig.zone_mm)
+            zone_at = None
             if condition.vary == "wavelength" or stimulus_is_plain_library(stimulus):
                 from ultraglide.textures.library import resolve_texture
 
                 base = resolve_texture(stimulus.texture)  # as the threshold command loads it (a grating's authoring)
+            elif condition.vary == "contrast":  # its zone at each level as the check renders it (its mean kept)
+                zone_at = self.zone_source(condition.stimulus).texture
+                base = zone_at(condition.range[1])
+            else:
+                base = self.zone(condition.stimulus)
             reference = self.zone(condition.reference) if condition.reference else None
             layout = Layout(intervals, self.rig.zone_mm, self.rig.gap_mm)
             self._designs[key] = StimulusDesign(base, condition.vary, layout, reference, self.rig.model,
-                                                self.rig.force_n)
+                                                self.rig.force_n, zone_at)
         return self._designs[key]
 
 
@@ -209,8 +222,9 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
         from ultraglide.experiment.simulated import SimulatedParticipant
 
         responder = SimulatedParticipant(observer, rig, design.seed)
-    directory = _prepare(out) if not resume else Path(out)
     stimuli = _Stimuli(design, rig)
+    refuse_unfit(design, stimuli.zone_source)  # a level no trial could build: refused before any is presented
+    directory = _prepare(out) if not resume else Path(out)
     procedures = _procedures(design)
     factors = sorted({key for c in design.conditions.values() for key in c.factors})
     columns = [*DESIGN_COLUMNS]
@@ -344,9 +358,10 @@ def _presentation(design: Design, block: Block, trial: Trial, level, stimuli: _S
     if block.task == "adjustment":
         condition = design.conditions[trial.condition]
         reference = stimuli.zone(condition.reference)
+        adjusted_at = stimuli.zone_source(condition.stimulus).texture  # loaded and sampled once, for every level
 
         def texture_at(value: float):
-            adjusted = zone_texture(design.stimuli[condition.stimulus], stimuli.rig.zone_mm, float(value))
+            adjusted = adjusted_at(float(value))
             placements = [Placement(reference, layout.zone_left_mm(0), layout.gap_mm),
                           Placement(adjusted, layout.zone_left_mm(1), layout.gap_mm)]
             px = max(10.0, max(1.0 / min(p.texture.pixel_mm) for p in placements))

@@ -89,6 +89,7 @@ class StimulusDesign:
     reference: Texture | None = None
     model: FrictionModel | None = None  # for ``amplitude``: the ratio a vibration amplitude gives
     force_n: float = 0.5
+    zone_at: object = None  # for ``contrast``: a callable giving the target zone at a level, instead of rescaling
 
     def __post_init__(self) -> None:
         if self.parameter not in PARAMETERS:
@@ -109,7 +110,7 @@ class StimulusDesign:
     def zone_texture(self, level: float) -> Texture:
         """The target zone's texture at ``level``."""
         if self.parameter == "contrast":
-            return with_contrast(self.texture, level)
+            return with_contrast(self.texture, level) if self.zone_at is None else self.zone_at(level)
         if self.parameter == "wavelength":
             return self._grating(self.base_wavelength_mm + level)
         ratio = float(self.model.relative_friction(np.array([level]), self.force_n)[0]) if level > 0 else 1.0
