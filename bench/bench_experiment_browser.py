@@ -3,6 +3,7 @@ and how soon a level set in the method of adjustment is played (``--adjust N``).
 
 Run: .venv/bin/python bench/bench_experiment_browser.py [--trials 40] [--device sim]
      .venv/bin/python bench/bench_experiment_browser.py --adjust 100 [--device sim]
+     .venv/bin/python bench/bench_experiment_browser.py --texture-at 100
 
 A real ``ultraglide experiment run DESIGN.toml --serve`` process (the engine on the device, the service listening)
 and a page's messages from a real WebSocket client in this process, which answers each trial as soon as it is shown.
@@ -14,6 +15,10 @@ With ``--adjust N``: one adjustment trial (the 2 mm grating matched to the 1 mm 
 zones); the client sets N levels one after another, each 1 dB from the last (up, then down at the range's top), and
 times each ``participant.adjust`` from sent to answered: the session has composed the trial's texture with the
 adjusted zone at that level and handed it to the engine, which plays it (what a finger on the zone waits for).
+
+With ``--texture-at N``: the same adjustment trial's textures built in this process, N levels 1 dB apart, by the
+presentation's ``texture_at`` (the stimulus loaded and sampled once) and afresh (loaded, sampled and composed for
+every level, as each step was built before), in ms a level; the two give the same arrays.
 """
 
 from __future__ import annotations
@@ -117,13 +122,65 @@ def adjust(args) -> None:
           f"played p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms")
 
 
+def texture_at(args) -> None:
+    from ultraglide.textures.compose import Placement, compose
+
+    from ultraglide.experiment import design_from_toml, run, zone_texture
+    from ultraglide.experiment.responders import Answer
+
+    design = design_from_toml(ADJUST_DESIGN)
+    shown = []
+
+    class Keep:  # the participant's interface: keeps the trial presented
+        def present(self, presentation):
+            shown.append(presentation)
+            return Answer(presentation.level, 1.0)
+
+        def take_break(self, trial, message=""):
+            return True
+
+    run(design, responder=Keep(), check=False)
+    presentation, layout = shown[0], shown[0].layout
+    condition = design.conditions["match"]
+    low, high = condition.range
+    levels = [min(max(presentation.level * 10 ** (i / 20), low), high) for i in range(args.texture_at)]
+
+    def afresh(level):
+        reference = zone_texture(design.stimuli[condition.reference], design.zone_mm)
+        adjusted = zone_texture(design.stimuli[condition.stimulus], design.zone_mm, level)
+        placements = [Placement(reference, layout.zone_left_mm(0), layout.gap_mm),
+                      Placement(adjusted, layout.zone_left_mm(1), layout.gap_mm)]
+        px = max(10.0, max(1.0 / min(p.texture.pixel_mm) for p in placements))
+        return compose(layout.size_mm, placements, 1.0, px_per_mm=min(px, 40.0), name="afresh")
+
+    times = {"texture_at": [], "afresh": []}
+    for level in levels:
+        for name, build in (("texture_at", presentation.texture_at), ("afresh", afresh)):
+            started = time.perf_counter()
+            texture = build(level)
+            times[name].append((time.perf_counter() - started) * 1e3)
+            if name == "texture_at":
+                kept = texture.values
+            else:
+                assert np.array_equal(kept, texture.values)
+    for name, ms in times.items():
+        ms = np.asarray(ms)
+        print(f"{name}: {len(ms)} levels, p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, "
+              f"max {ms.max():.1f} ms a level")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=40)
     parser.add_argument("--adjust", type=int, default=0, metavar="N",
                         help="time N levels set in one adjustment trial instead")
+    parser.add_argument("--texture-at", type=int, default=0, metavar="N",
+                        help="time N adjustment textures built in this process, by texture_at and afresh, instead")
     parser.add_argument("--device", default="sim")
     args = parser.parse_args()
+    if args.texture_at:
+        texture_at(args)
+        return
     if args.adjust:
         adjust(args)
         return
