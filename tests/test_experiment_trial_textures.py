@@ -52,6 +52,20 @@ def test_a_varied_stimulus_keeps_its_mean_at_every_level_as_the_check_rendered_i
     assert checked.asked_mean == pytest.approx(0.5, abs=0.003)  # what the check rendered is what trials play
 
 
+def test_constant_stimuli_below_the_default_range_s_top_run_at_a_mean_that_range_would_not_fit():
+    # levels 0.1 and 0.3 around 0.8 fit (0.8 ± 0.15); the default range's top, 0.6, would not, and is not used
+    stimuli = {"g": Stimulus("g", "grating-1mm", mean=0.8)}
+    condition = Condition("c", "g", levels=(0.1, 0.3))
+    recorder = Recorder()
+    session = run(Design("m", stimuli, {"c": condition}, (Block("b", "constant", ("c",), repeats=2),), seed=2),
+                  responder=recorder)
+    assert session.complete and len(recorder.shown) == 4
+    for shown in recorder.shown:
+        target = zone_values(shown.texture(), shown.layout, shown.trial.target)
+        assert target.mean() == pytest.approx(0.8, abs=0.003)
+        assert target.max() - target.min() == pytest.approx(shown.level, abs=0.01)
+
+
 def test_an_adjustments_textures_from_the_stimulus_sampled_once_are_those_built_afresh_bit_for_bit():
     stimuli = {"ref": Stimulus("ref", "grating-2mm", contrast=0.2),
                "g": Stimulus("g", "grating-1mm", mean=0.6, scale=1.5, rotation_deg=30.0)}

@@ -110,7 +110,7 @@ class _Stimuli:
                 base = resolve_texture(stimulus.texture)  # as the threshold command loads it (a grating's authoring)
             elif condition.vary == "contrast":  # its zone at each level as the check renders it (its mean kept)
                 zone_at = self.zone_source(condition.stimulus).texture
-                base = zone_at(condition.range[1])
+                base = zone_at(0.0)  # its name and size (no contrast fits any mean; the levels are checked)
             else:
                 base = self.zone(condition.stimulus)
             reference = self.zone(condition.reference) if condition.reference else None
