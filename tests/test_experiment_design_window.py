@@ -156,3 +156,39 @@ def test_a_design_runs_live_through_the_real_time_engine_and_logs_what_it_played
     assert float(rows["coarse"]["commanded_um_pp"]) > 1.0
     assert float(rows["plain"]["target_ratio"]) == pytest.approx(1.0, abs=0.01)
     assert float(rows["plain"]["commanded_um_pp"]) == 0.0
+
+
+@pytest.mark.slow
+def test_the_window_draws_the_design_s_words(pg, tmp_path):
+    """The design's [words] at the window as on the page: its progress line, the magnitude estimate's OK button and
+    the modulus's words (drawn through the window's own text function, read as it draws)."""
+    from ultraglide.apps.experiment.design_window import DesignWindow
+    from ultraglide.apps.experiment.output import LocalOutput
+
+    stimuli = {"a": Stimulus("a", "grating-1mm", contrast=0.3), "b": Stimulus("b", "grating-2mm", contrast=0.3)}
+    design = Design("mots", stimuli, {"ab": Condition("ab", "a", "b")},
+                    (Block("number", "magnitude", ("ab",), repeats=1, modulus=10.0, modulus_stimulus="b",
+                           question="Combien ?"),), seed=2,
+                    words={"progress": "Essai {trial} sur {total}", "ok": "Valider",
+                           "modulus": "(la zone 1 vaut {modulus})"})
+    output = LocalOutput("null", design.profile, design.model, design.force_n)
+    window = DesignWindow(design, "null", 338.7, True, output=output)
+    drawn = []
+    draw = window._text
+    window._text = lambda text, *rest: (drawn.append(text), draw(text, *rest))[1]
+
+    def participant():
+        wait_for(window, "trial", 1)
+        for name in ("4", "return"):
+            key(pg, name)
+
+    helper = threading.Thread(target=participant, daemon=True)
+    helper.start()
+    try:
+        session = run(design, "P01", responder=window)
+    finally:
+        window.close()
+    helper.join(timeout=DEADLINE_S)
+    assert session.complete and session.trials[0]["response"] == 4.0
+    assert "Essai 1 sur 1" in drawn and "Combien ? (la zone 1 vaut 10)" in drawn and "Valider" in drawn
+    assert not any("Trial" in text or text == "OK" for text in drawn)
