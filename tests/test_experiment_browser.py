@@ -850,6 +850,7 @@ def test_a_french_design_s_words_are_the_page_s_and_esc_in_the_estimate_field_st
         for number, key in ((1, "1"), (2, "ArrowRight")):
             screen_shown(browser, "participant.trial", number, session)
             assert page_text(browser, "#progress") == f"Essai {number} sur 4"
+            assert browser.execute_script("return document.documentElement.lang") == "fr"  # the design's language
             assert page_text(browser, "#question") == "Quelle zone était différente ?"
             assert page_text(browser, "#keys") == ("Touches : 1–2 (ou ← / →) pour répondre. Échap arrête la "
                                                    "séance.")

@@ -119,6 +119,7 @@ def test_toml_round_trip_gives_the_same_design():
     ({"words": {"colour": "rouge"}}, "words.colour: no such words; a design's [words] are progress, keys_choice"),
     ({"words": {"ok": 3}}, "words.ok: must be printable text"),
     ({"words": "ok"}, "words: must be a table"),
+    ({"experiment": {"language": "French"}}, "experiment.language: must be a language tag such as en, fr or pt-BR"),
 ])
 def test_bad_designs_are_refused_naming_the_key(tables, words):
     base = {"stimuli": {"a": {"texture": "grating-1mm"}}, "conditions": [{"name": "c", "stimulus": "a"}],

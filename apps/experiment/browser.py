@@ -237,7 +237,7 @@ class BrowserResponder:
             screen = {"type": "participant.trial", "trial": number, "total": self.total, "mode": mode,
                       "question": question, "labels": labels, "size_mm": list(layout.size_mm), "zones": zones,
                       "numbered": mode in ("choice", "magnitude", "adjustment"),
-                      "progress": words("progress", trial=number, total=self.total),
+                      "progress": words("progress", trial=number, total=self.total), "language": self.design.language,
                       "keys": f"{keys_hint(self.design, mode, len(labels))} {words('keys_stop')}"}
             if mode == "magnitude":
                 screen["ok"] = words("ok")
@@ -275,7 +275,7 @@ class BrowserResponder:
         try:
             words = self.design.word
             screen = {"type": "participant.break", "trial": trial, "message": message or self.design.break_message,
-                      "label": words("ok"), "done": trial - 1, "total": self.total,
+                      "label": words("ok"), "done": trial - 1, "total": self.total, "language": self.design.language,
                       "keys": f"{words('keys_break')} {words('keys_stop')}"}
             self._call(self.service.show, screen, None, ("continue", trial))
             return self._wait(("continue", trial), f"the break before trial {trial}") not in (None, STOPPED)

@@ -30,7 +30,7 @@ Page to server:
 
 The screens carry the participant's words from the design (``[words]``, English by default): a trial's
 ``progress`` and ``keys`` (the hint line), a magnitude estimate's ``ok`` (its button), a break's ``keys``, the end's
-``message``.
+``message``; trials and breaks the design's ``language`` (the page's ``lang``).
 """
 
 from __future__ import annotations

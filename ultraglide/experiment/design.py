@@ -46,6 +46,7 @@ DEFAULT_QUESTIONS = {
     "adjustment": "Make the second zone feel like the first, then press OK."}
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 MAX_TRIALS = 100_000
+LANGUAGE = re.compile(r"^[A-Za-z]{2,3}(-[A-Za-z0-9]{2,8}){0,4}$")  # a BCP 47 tag's shape: the page's lang
 # the words a participant reads that are not a block's question or labels: ``[words]`` in the design, English by
 # default; each with the placeholders it may use ({trial} of {total}, the last key {last}, the {modulus})
 WORDS = {
@@ -220,6 +221,9 @@ def validate(design: Design) -> None:
         raise _refuse("blocks", "a design needs at least one block")
     if design.order not in ORDERS:
         raise _refuse("experiment.order", f"must be one of {', '.join(ORDERS)}, got {design.order!r}")
+    if not LANGUAGE.match(design.language):
+        raise _refuse("experiment.language", f"must be a language tag such as en, fr or pt-BR, got "
+                      f"{design.language[:40]!r}")
     for key, text in design.words.items():
         _check_word(key, text)
     for name, stimulus in design.stimuli.items():

@@ -365,6 +365,7 @@ for (const kind of ["pointerup", "pointercancel"]) {
 
 // ---- the connection: kept, and made again when it is lost ---------------------------------------------------
 function onPush(message) {
+  if (message.language) document.documentElement.lang = message.language; // the design's: the page's language
   if (message.type === "participant.trial") {
     state.screen = message;
     showTrial(message);
