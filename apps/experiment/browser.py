@@ -60,7 +60,29 @@ STOPPED = object()  # _wait's answer when the participant pressed Esc
 
 
 def keys_hint(design, mode: str, answers: int) -> str:
-    """The hint line's keys for a trial asked in ``mode`` with ``answers`` buttons, in the design's words."""
+    """The hint line's keys for a trial asked in ``mode`` with ``answers`` buttons, in the design's words.
+
+    Parameters
+    ----------
+    design : Design
+    mode : str
+        How the page asks the trial (:func:`mode_of`).
+    answers : int
+        Its answer buttons (the last key named is at most 9).
+
+    Returns
+    -------
+    str
+
+    Example
+    -------
+    >>> from ultraglide.experiment import design_from_dict
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+    ...     "conditions": [{"name": "c", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["c"]}],
+    ...     "words": {"keys_rating": "Touches : 1–{last}."}})
+    >>> keys_hint(design, "rating", 12), keys_hint(design, "choice", 3)
+    ('Touches : 1–9.', 'Keys: 1–3 (or ← / →) answer.')
+    """
     return design.word(f"keys_{mode}", last=min(answers, 9))
 
 

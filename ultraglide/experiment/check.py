@@ -83,8 +83,33 @@ def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: flo
 
 class ZoneSource:
     """A stimulus's texture loaded and sampled over its zone (scaled, turned), and its effects read, once: its zone at
-    any contrast (:meth:`texture`, what :func:`zone_texture` gives, bit for bit) costs the arithmetic alone. Raises
-    ExperimentError as :func:`zone_texture` does."""
+    any contrast (:meth:`texture`, what :func:`zone_texture` gives, bit for bit) costs the arithmetic alone.
+
+    Parameters
+    ----------
+    stimulus : Stimulus
+    zone_mm : (float, float)
+        The zone's width and height, mm.
+    source : Texture, optional
+        The stimulus's texture, already loaded.
+
+    Raises
+    ------
+    ExperimentError
+        The texture cannot be loaded, is a gradient texture, or its effects cannot be read.
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> from ultraglide.experiment import Stimulus, zone_texture
+    >>> grating = Stimulus("g", "grating-1mm", mean=0.6)
+    >>> zone = ZoneSource(grating, (20.0, 20.0))
+    >>> values = zone.texture(0.4).values              # a sine grating: 0.6 ± 0.2
+    >>> round(float(values.mean()), 3), round(float(values.max() - values.min()), 3)
+    (0.6, 0.4)
+    >>> bool(np.array_equal(values, zone_texture(grating, (20.0, 20.0), 0.4).values))
+    True
+    """
 
     def __init__(self, stimulus: Stimulus, zone_mm: tuple[float, float], source=None):
         from ultraglide.textures.sampling import Sampler
@@ -109,8 +134,8 @@ class ZoneSource:
         self.effects = _effects(stimulus)
 
     def ratios(self, contrast: float | None = None) -> np.ndarray:
-        """The zone's friction ratios at ``contrast`` (None: the stimulus's own) shifted to its mean, before the
-        check that they lie in 0..1 and the clip of its rounding."""
+        """The zone's friction ratios at ``contrast`` (0..1; None: the stimulus's own) shifted to its mean, before
+        the check that they lie in 0..1 and the clip of its rounding: rows × columns, float64."""
         values = self.sampled
         wanted = self.stimulus.contrast if contrast is None else contrast
         if wanted is not None:
@@ -123,8 +148,21 @@ class ZoneSource:
 
     def fit(self, contrast: float | None = None) -> tuple[float, float, float, float, float]:
         """Where the zone's ratios lie at ``contrast`` (None: the stimulus's own) and what would bring them within
-        0..1: (lowest ratio, highest ratio, the largest contrast that fits at the stimulus's mean, the lowest and the
-        highest mean that fit at this contrast)."""
+        0..1.
+
+        Returns
+        -------
+        (float, float, float, float, float)
+            The lowest and highest friction ratio, the largest contrast that fits at the stimulus's mean (1 without
+            one), the lowest and the highest mean that fit at this contrast.
+
+        Example
+        -------
+        >>> from ultraglide.experiment import Stimulus
+        >>> low, high, largest, least, most = ZoneSource(Stimulus("g", "grating-1mm", mean=0.8), (20.0, 20.0)).fit(0.6)
+        >>> [round(v, 2) for v in (low, high, largest, least, most)]     # 0.8 ± 0.3; 2 (1 - 0.8); 0.3..0.7
+        [0.5, 1.1, 0.4, 0.3, 0.7]
+        """
         values = self.ratios(contrast)
         wanted = self.stimulus.contrast if contrast is None else contrast
         spread = float(values.max() - values.min())  # the zone's friction contrast at this level
@@ -139,8 +177,18 @@ class ZoneSource:
         return float(values.min()), float(values.max()), largest, below, 1.0 - above
 
     def texture(self, contrast: float | None = None):
-        """The zone at ``contrast`` (None: the stimulus's own); ExperimentError when the stimulus's mean puts its
-        ratios outside 0..1."""
+        """The zone at ``contrast`` (a friction contrast, 0..1; None: the stimulus's own).
+
+        Returns
+        -------
+        Texture
+            The zone's size, named after the stimulus, with its effects.
+
+        Raises
+        ------
+        ExperimentError
+            The stimulus's mean puts its ratios outside 0..1 at this contrast.
+        """
         from ultraglide.textures.texture import Texture
 
         stimulus = self.stimulus
@@ -404,11 +452,35 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
 
 
 def refuse_unfit(design: Design, zone_source) -> None:
-    """ExperimentError, in one line naming the stimulus, the level and what to change, for the first stimulus whose
-    ``mean`` puts its friction ratios outside 0..1 at a level it may take (a design's contrast and mean are what the
-    plate is asked for, exactly: neither is clipped). A varied stimulus is judged at the top of its range or its
-    largest level, its spread largest there; every other at its own contrast. ``zone_source(name)``: the stimulus's
-    :class:`ZoneSource`. Nothing is rendered: it comes before the check's renders and any trial."""
+    """Refuse a design one of whose stimuli cannot be built at a level it may take: its ``mean`` puts its friction
+    ratios outside 0..1 there (a design's contrast and mean are what the plate is asked for, exactly: neither is
+    clipped). A varied stimulus is judged at the top of its range or its largest level, its spread largest there;
+    every other at its own contrast. Nothing is rendered: it comes before the check's renders and any trial.
+
+    Parameters
+    ----------
+    design : Design
+    zone_source : callable
+        ``zone_source(name)``: the stimulus's :class:`ZoneSource`.
+
+    Raises
+    ------
+    ExperimentError
+        One line naming the first such stimulus, the level, the largest contrast that fits at its mean and the
+        means that fit at that level.
+
+    Example
+    -------
+    >>> from ultraglide.experiment import design_from_dict
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "mean": 0.8}},
+    ...     "conditions": [{"name": "c", "stimulus": "g", "range": [0.05, 0.6]}],
+    ...     "blocks": [{"task": "staircase", "conditions": ["c"], "trials": 4}]})
+    >>> try:
+    ...     refuse_unfit(design, lambda name: ZoneSource(design.stimuli[name], design.zone_mm))
+    ... except ExperimentError as error:
+    ...     print(str(error)[:60])
+    stimulus 'g' at level 0.6 (the top of conditions.c.range): a
+    """
     for block in design.blocks:
         for name in block.conditions:
             condition = design.conditions[name]

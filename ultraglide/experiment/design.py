@@ -180,8 +180,29 @@ class Design:
         return design_to_dict(self)
 
     def word(self, key: str, **fields) -> str:
-        """The participant's words for ``key`` (one of :data:`WORDS`): the design's, else English, its
-        placeholders filled from ``fields``."""
+        """The participant's words for ``key``: the design's ``[words]``, else English, placeholders filled.
+
+        Parameters
+        ----------
+        key : str
+            One of :data:`WORDS`.
+        **fields
+            The placeholders' values (``trial``, ``total``, ``last``, ``modulus``); those the words do not use are
+            left aside.
+
+        Returns
+        -------
+        str
+
+        Example
+        -------
+        >>> from ultraglide.experiment import design_from_dict
+        >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+        ...     "conditions": [{"name": "c", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["c"]}],
+        ...     "words": {"progress": "Essai {trial} sur {total}"}})
+        >>> design.word("progress", trial=2, total=9), design.word("keys_pair")
+        ('Essai 2 sur 9', 'Keys: S for same, D for different.')
+        """
         return self.words.get(key, WORDS[key]).format(**fields)
 
 
