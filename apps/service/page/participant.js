@@ -75,8 +75,10 @@ async function sendLevel(screen) {
       const reply = await adjusting.sending;
       if (state.screen === screen) state.applied = reply.level;
     } catch (error) {
-      state.errors.push(error.message);
-      note.textContent = error.message;
+      if (state.screen === screen) { // refused while the trial goes on (not a trial ended meanwhile: Esc)
+        state.errors.push(error.message);
+        note.textContent = error.message;
+      }
       break;
     } finally {
       adjusting.sending = null;
