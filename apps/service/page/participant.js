@@ -4,7 +4,8 @@
 // method of adjustment, whose every level the plate plays before the page is told), breaks with a button.
 // Keys answer as at the window (apps/experiment/window.py, design_window.py); Esc stops the session as the window's
 // does (participant.stop); the hint line under the buttons says which. Every word on the page that is not a block's
-// question or labels comes with the screen, in the design's words (its [words], English by default). The reaction time runs from the frame that presents the trial (performance.now()) to the answer.
+// question or labels comes with the screen, in the design's words (its [words], English by default). The reaction
+// time runs from the frame that presents the trial (performance.now()) to the answer.
 // ?mm_per_px=N gives the screen's pitch (default: CSS's 96 px per inch, 0.2646 mm); ?token=... as printed.
 import { connect } from "./ultraglide.js";
 
