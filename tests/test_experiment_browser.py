@@ -934,3 +934,40 @@ def test_esc_at_a_break_stops_the_session_and_resume_continues_it_with_english_w
     assert end["message"] == "The session is over. Thank you."
     assert [r["trial"] for r in trials_csv(out)] == ["1", "2", "3", "4", "5", "6"]
     assert json.loads((out / "session.json").read_text())["status"] == "complete"
+
+
+def test_esc_while_an_adjusted_level_is_on_its_way_stops_the_session_after_that_level_plays(tmp_path, design):
+    values = np.full((20, 20), 0.3, dtype=np.float32)
+    values[:2, :2] = 0.9
+    save_texture(Texture(values, 20.0, 20.0, name="patch"), tmp_path / "patch.png")
+    design.write_text(ADJUST_DESIGN.replace("repeats = 2\n", "repeats = 1\n"), encoding="utf-8")
+    out = tmp_path / "p01"
+    session = Session(design, out, "--accept-check")
+    try:
+        page = Page(session.address)
+        page.screen("participant.trial", 1)
+        assert page.ask("participant.answer", trial=1, button=0, rt_s=0.5)["type"] == "ok"
+        for number in (2, 3):
+            page.screen("participant.break", number)
+            assert page.ask("participant.continue", trial=number)["type"] == "ok"
+            if number == 2:
+                page.screen("participant.trial", 2)
+                assert page.ask("participant.answer", trial=2, button=2, rt_s=0.5)["type"] == "ok"
+        page.screen("participant.trial", 3)
+        page.next_id += 1
+        page.ws.send(json.dumps({"type": "participant.adjust", "id": page.next_id, "trial": 3, "level": 0.3}))
+        adjusted = page.next_id  # not waited for: Esc comes before its answer
+        stopped = page.ask("participant.stop", trial=3)
+        assert stopped["type"] == "ok" and stopped["trial"] == 3
+        replies = {m["id"]: m for m in page.pushed if "id" in m}
+        while adjusted not in replies:
+            message = json.loads(page.ws.recv(timeout=60))
+            replies[message.get("id")] = message
+        assert replies[adjusted]["type"] == "ok" and replies[adjusted]["level"] == 0.3  # played, then the stop
+        status, stdout = session.end()
+    finally:
+        stop(session.process)
+    assert status == 1, session.stderr()
+    assert "the participant pressed Esc during trial 3" in session.stderr() and "Traceback" not in session.stderr()
+    assert [r["trial"] for r in trials_csv(out)] == ["1", "2"]
+    assert json.loads((out / "session.json").read_text())["status"] == "stopped"
