@@ -819,6 +819,7 @@ keys_stop = "Échap arrête la séance."
 ok = "Valider"
 modulus = "(la zone 1 vaut {modulus})"
 end = "La séance est terminée. Merci !"
+connection_lost = "Connexion perdue ; nouvelle tentative."
 """
 
 
@@ -888,6 +889,25 @@ def test_a_french_design_s_words_are_the_page_s_and_esc_in_the_estimate_field_st
     saved = json.loads((out / "session.json").read_text())
     assert saved["status"] == "stopped" and saved["trials_logged"] == 2
     assert read_envelope(envelope_csv)["commanded_um_pp"][-1] == 0.0  # the plate at rest
+
+
+@browser_needed
+def test_a_lost_connection_is_said_in_the_designs_words(tmp_path, design, browser):
+    """The service gone (killed) while a trial is shown: the page, reconnecting, says so in the design's words."""
+    design.write_text(FRENCH_DESIGN, encoding="utf-8")
+    session = Session(design, tmp_path / "p01", "--accept-check")
+    try:
+        browser.get(session.address["page"] + f"?mm_per_px={MM_PER_PX}")
+        screen_shown(browser, "participant.trial", 1, session)
+        assert page_text(browser, "#note") == ""
+        session.process.kill()
+        session.process.wait(60)
+        deadline = time.monotonic() + 30
+        while page_text(browser, "#note") != "Connexion perdue ; nouvelle tentative.":
+            assert time.monotonic() < deadline, page_text(browser, "#note")
+            time.sleep(0.05)
+    finally:
+        stop(session.process)
 
 
 def test_esc_at_a_break_stops_the_session_and_resume_continues_it_with_english_words_by_default(tmp_path, design):

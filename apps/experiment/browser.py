@@ -260,7 +260,8 @@ class BrowserResponder:
                       "question": question, "labels": labels, "size_mm": list(layout.size_mm), "zones": zones,
                       "numbered": mode in ("choice", "magnitude", "adjustment"),
                       "progress": words("progress", trial=number, total=self.total), "language": self.design.language,
-                      "keys": f"{keys_hint(self.design, mode, len(labels))} {words('keys_stop')}"}
+                      "keys": f"{keys_hint(self.design, mode, len(labels))} {words('keys_stop')}",
+                      "connection_lost": words("connection_lost")}
             if mode == "magnitude":
                 screen["ok"] = words("ok")
             adjust = None
@@ -298,7 +299,8 @@ class BrowserResponder:
             words = self.design.word
             screen = {"type": "participant.break", "trial": trial, "message": message or self.design.break_message,
                       "label": words("ok"), "done": trial - 1, "total": self.total, "language": self.design.language,
-                      "keys": f"{words('keys_break')} {words('keys_stop')}"}
+                      "keys": f"{words('keys_break')} {words('keys_stop')}",
+                      "connection_lost": words("connection_lost")}
             self._call(self.service.show, screen, None, ("continue", trial))
             return self._wait(("continue", trial), f"the break before trial {trial}") not in (None, STOPPED)
         except KeyboardInterrupt as stop:

@@ -62,6 +62,7 @@ WORDS = {
     "ok": "OK",
     "modulus": "(zone 1 = {modulus})",
     "end": "The session is over. Thank you.",
+    "connection_lost": "Connection lost; trying again.",
 }
 WORD_FIELDS = {"progress": ("trial", "total"), "keys_choice": ("last",), "keys_rating": ("last",),
                "modulus": ("modulus",)}

@@ -367,8 +367,10 @@ for (const kind of ["pointerup", "pointercancel"]) {
 }
 
 // ---- the connection: kept, and made again when it is lost ---------------------------------------------------
+let lostWords = "connection lost; trying again"; // the design's words for it once a screen has brought them
 function onPush(message) {
   if (message.language) document.documentElement.lang = message.language; // the design's: the page's language
+  if (message.connection_lost) lostWords = message.connection_lost;
   if (message.type === "participant.trial") {
     state.screen = message;
     showTrial(message);
@@ -406,7 +408,7 @@ async function open() {
       note.textContent = "";
       return;
     }
-    note.textContent = "connection lost; trying again";
+    note.textContent = lostWords;
     setTimeout(open, 1000);
   });
   state.ready = true;
