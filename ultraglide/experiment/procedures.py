@@ -28,8 +28,30 @@ RULES = {"1u2d": (2, 0.7071), "1u3d": (3, 0.7937)}  # correct answers in a row t
 
 @dataclass(frozen=True)
 class StaircaseParams:
-    """Levels in the parameter's units; steps in dB of the level (20·log10), whole multiples of
-    ``min_step_db`` (a weighted staircase's up step is rounded to one)."""
+    """A staircase's settings. Levels in the parameter's units; steps in dB of the level (20·log10), whole multiples
+    of ``min_step_db`` (a weighted staircase's up step is rounded to one).
+
+    Parameters
+    ----------
+    start : float
+        The first level, in the varied parameter's unit (within ``min_level..max_level``).
+    rule : {"1u2d", "1u3d", "weighted"}
+        Transformed up/down (2 or 3 correct in a row to step down) or weighted up/down.
+    step_db : float
+        The first step, dB of the level (6 dB: a factor of 2), halved at the 2nd and 4th reversal.
+    min_step_db : float
+        The smallest step, dB; levels lie on a grid of it from ``start``.
+    weighted_target : float
+        The P(correct) a weighted staircase converges on (0..1).
+    min_level, max_level : float
+        The levels the staircase stays within, in the parameter's unit.
+
+    Examples
+    --------
+    >>> params = StaircaseParams(0.4, rule="1u3d")
+    >>> Staircase(params).target_p        # Levitt (1971): 0.5 ** (1/3) correct in a row
+    0.7937
+    """
 
     start: float
     rule: str = "1u2d"  # 1u2d, 1u3d or weighted
@@ -41,7 +63,28 @@ class StaircaseParams:
 
 
 class Staircase:
-    """See the module docstring. ``reversals`` lists (trial index, level) of each reversal."""
+    """A transformed or weighted up/down staircase (see the module docstring). ``reversals`` lists (trial index,
+    level) of each reversal.
+
+    Parameters
+    ----------
+    params : StaircaseParams
+
+    Raises
+    ------
+    ValueError
+        An unknown rule, or a start level outside ``min_level..max_level``.
+
+    Examples
+    --------
+    Two correct answers in a row (1-up-2-down) step down 6 dB, a factor of 10 ** (6 / 20) = 1.995:
+
+    >>> staircase = Staircase(StaircaseParams(0.4))
+    >>> for outcome in (1, 1):
+    ...     staircase.update(staircase.next_level(), outcome)
+    >>> round(staircase.next_level(), 5), round(0.4 / 10 ** (6 / 20), 5)
+    (0.20047, 0.20047)
+    """
 
     def __init__(self, params: StaircaseParams):
         if params.rule not in (*RULES, "weighted"):
@@ -62,6 +105,13 @@ class Staircase:
 
     @property
     def target_p(self) -> float:
+        """The P(correct) this staircase converges on: 0.7071 (1u2d), 0.7937 (1u3d) or the weighted target.
+
+        Examples
+        --------
+        >>> Staircase(StaircaseParams(0.4)).target_p, Staircase(StaircaseParams(0.4, rule="weighted")).target_p
+        (0.7071, 0.75)
+        """
         return self.params.weighted_target if self.params.rule == "weighted" else RULES[self.params.rule][1]
 
     def _step_db(self) -> float:
@@ -69,10 +119,42 @@ class Staircase:
         return max(self.params.step_db / 2 ** halvings, self.params.min_step_db)
 
     def next_level(self) -> float:
+        """The level to present next, in the parameter's unit (the staircase's current level).
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> Staircase(StaircaseParams(0.4)).next_level()        # the start
+        0.4
+        """
         return self.level
 
     def update(self, level: float, outcome: int) -> None:
-        """Record the outcome at ``level`` (which must be the level this procedure asked for)."""
+        """Record the outcome at ``level`` (which must be the level this procedure asked for).
+
+        Parameters
+        ----------
+        level : float
+            The level presented, in the parameter's unit.
+        outcome : int
+            1 correct (or yes), 0 not.
+
+        Examples
+        --------
+        One wrong answer steps up 6 dB (a factor of 10 ** 0.3); levels stay on the grid of ``min_step_db`` from the
+        start, at most ``max_level``:
+
+        >>> staircase = Staircase(StaircaseParams(0.4, max_level=1.0))
+        >>> staircase.update(0.4, 0)
+        >>> round(staircase.next_level(), 6), round(0.4 * 10 ** 0.3, 6)
+        (0.798105, 0.798105)
+        >>> staircase.update(staircase.next_level(), 0)       # 1.59 lies above 1: the grid's highest, 5 × 1.5 dB up
+        >>> round(staircase.next_level(), 6), round(0.4 * 10 ** (5 * 1.5 / 20), 6)
+        (0.948549, 0.948549)
+        """
         steps = max(1, round(self._step_db() / self.params.min_step_db))  # whole grid units
         move = 0
         if self.params.rule == "weighted":
@@ -95,14 +177,56 @@ class Staircase:
         self.trials += 1
 
     def reversal_mean(self, last: int = 6) -> float | None:
-        """Geometric mean of the levels at the last ``last`` reversals (the first two left out)."""
+        """Geometric mean of the levels at the last ``last`` reversals (the first two left out).
+
+        Parameters
+        ----------
+        last : int
+            How many of the last reversals to average.
+
+        Returns
+        -------
+        float or None
+            In the parameter's unit; None before a third reversal.
+
+        Examples
+        --------
+        Down (two correct), up (a miss: reversal 1), down (reversal 2), up (reversal 3, at the lower level):
+
+        >>> staircase = Staircase(StaircaseParams(0.4))
+        >>> for outcome in (1, 1, 1, 1, 0, 1, 1, 0):
+        ...     staircase.update(staircase.next_level(), outcome)
+        >>> len(staircase.reversals), round(staircase.reversal_mean(), 5), round(0.4 / 10 ** 0.6, 5)
+        (3, 0.10048, 0.10048)
+        """
         levels = [level for _, level in self.reversals[2:]][-last:]
         return float(np.exp(np.mean(np.log(levels)))) if levels else None
 
 
 @dataclass(frozen=True)
 class QuestParams:
-    """The grids: levels that may be presented, and the parameters' candidate values."""
+    """QUEST+'s grids: the levels that may be presented, and the parameters' candidate values.
+
+    Parameters
+    ----------
+    levels : tuple of float
+        The levels that may be presented, in the parameter's unit.
+    thresholds : tuple of float
+        The candidate thresholds, same unit.
+    slopes : tuple of float
+        The candidate slopes (the Weibull's exponent, or the logistic's rate per unit of the level).
+    lapses : tuple of float
+        The candidate lapse rates, 0..1.
+    function : {"weibull", "logistic"}
+    guess : float
+        The guess rate, 1/n in n-interval forced choice.
+
+    Examples
+    --------
+    >>> params = QuestParams(levels=(0.05, 0.1, 0.2), thresholds=(0.05, 0.1, 0.2))
+    >>> QuestPlus(params).posterior.size          # 3 thresholds × 6 slopes × 3 lapse rates, uniform
+    54
+    """
 
     levels: tuple[float, ...]
     thresholds: tuple[float, ...]
@@ -113,12 +237,48 @@ class QuestParams:
 
     @staticmethod
     def log_grid(low: float, high: float, n_levels: int = 40, n_thresholds: int = 60, **others) -> QuestParams:
+        """Parameters on log-spaced grids: ``n_levels`` levels and ``n_thresholds`` thresholds from ``low`` to ``high``.
+
+        Parameters
+        ----------
+        low, high : float
+            The grids' ends, in the parameter's unit.
+        n_levels, n_thresholds : int
+            The grids' sizes.
+        **others
+            The other fields of :class:`QuestParams` (slopes, lapses, function, guess).
+
+        Returns
+        -------
+        QuestParams
+
+        Examples
+        --------
+        >>> params = QuestParams.log_grid(0.01, 1.0, n_levels=3, n_thresholds=5, guess=1 / 3)
+        >>> [round(float(v), 6) for v in params.levels], round(float(params.thresholds[1]), 6), params.guess  # 10**-1.5
+        ([0.01, 0.1, 1.0], 0.031623, 0.3333333333333333)
+        """
         return QuestParams(tuple(np.geomspace(low, high, n_levels)), tuple(np.geomspace(low, high, n_thresholds)),
                            **others)
 
 
 class QuestPlus:
-    """QUEST+ on a grid (uniform prior over log threshold, slope and lapse)."""
+    """QUEST+ on a grid (uniform prior over log threshold, slope and lapse).
+
+    Parameters
+    ----------
+    params : QuestParams
+
+    Examples
+    --------
+    Before any trial the posterior is the prior: on a log grid from 0.01 to 1 its threshold is their geometric mean,
+    its slope the candidates' mean (19 / 6) and its lapse rate theirs (0.02):
+
+    >>> quest = QuestPlus(QuestParams.log_grid(0.01, 1.0))
+    >>> estimate = quest.estimate()
+    >>> round(estimate["threshold"], 6), round(estimate["slope"], 6), round(estimate["lapse"], 6)
+    (0.1, 3.166667, 0.02)
+    """
 
     def __init__(self, params: QuestParams):
         self.params = params
@@ -133,7 +293,19 @@ class QuestPlus:
         self.last_was_reversal = False
 
     def next_level(self) -> float:
-        """The level whose outcome is expected to leave the least entropy in the posterior."""
+        """The level whose outcome is expected to leave the least entropy in the posterior.
+
+        Returns
+        -------
+        float
+            One of ``params.levels``, in the parameter's unit.
+
+        Examples
+        --------
+        >>> quest = QuestPlus(QuestParams.log_grid(0.01, 1.0))
+        >>> quest.next_level() in quest.params.levels
+        True
+        """
         joint_one = self.p_one * self.posterior  # (levels, params)
         expected = np.zeros(len(self.levels))
         for joint in (joint_one, (1.0 - self.p_one) * self.posterior):
@@ -145,6 +317,24 @@ class QuestPlus:
         return float(self.levels[int(np.argmin(expected))])
 
     def update(self, level: float, outcome: int) -> None:
+        """Bayes' rule: the posterior times the likelihood of ``outcome`` at the grid level nearest ``level``.
+
+        Parameters
+        ----------
+        level : float
+            The level presented, in the parameter's unit.
+        outcome : int
+            1 correct, 0 not.
+
+        Examples
+        --------
+        A miss at a level makes thresholds above it more likely:
+
+        >>> quest = QuestPlus(QuestParams.log_grid(0.01, 1.0))
+        >>> quest.update(0.1, 0)
+        >>> quest.trials, quest.estimate()["threshold"] > 0.1
+        (1, True)
+        """
         row = int(np.argmin(np.abs(self.levels - level)))
         likelihood = self.p_one[row] if outcome else 1.0 - self.p_one[row]
         self.posterior = self.posterior * likelihood
@@ -152,13 +342,42 @@ class QuestPlus:
         self.trials += 1
 
     def marginal(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Values of one parameter and their posterior probabilities."""
+        """Values of one parameter and their posterior probabilities.
+
+        Parameters
+        ----------
+        name : {"threshold", "slope", "lapse"}
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray)
+            The parameter's candidate values and their probabilities (summing to 1).
+
+        Examples
+        --------
+        >>> values, probabilities = QuestPlus(QuestParams.log_grid(0.01, 1.0)).marginal("lapse")
+        >>> values.tolist(), [round(float(p), 6) for p in probabilities]          # the uniform prior
+        ([0.0, 0.02, 0.04], [0.333333, 0.333333, 0.333333])
+        """
         values = np.asarray(getattr(self.params, name + "s"), dtype=float)
         probabilities = np.array([self.posterior[self.grid[name] == v].sum() for v in values])
         return values, probabilities
 
     def estimate(self) -> dict:
-        """Posterior means, and the threshold's 95 % credible interval (on the grid, interpolated)."""
+        """Posterior means, and the threshold's 95 % credible interval (on the grid, interpolated).
+
+        Returns
+        -------
+        dict
+            ``threshold`` (the posterior mean on the log scale, in the parameter's unit), ``ci`` ([low, high], same
+            unit), ``slope`` and ``lapse`` (posterior means).
+
+        Examples
+        --------
+        >>> estimate = QuestPlus(QuestParams.log_grid(0.01, 1.0)).estimate()
+        >>> round(estimate["threshold"], 6)                    # the prior's: sqrt(0.01 × 1)
+        0.1
+        """
         values, probabilities = self.marginal("threshold")
         cumulative = np.cumsum(probabilities)
         logs = np.log(values)
@@ -171,13 +390,45 @@ class QuestPlus:
 
 @dataclass(frozen=True)
 class ConstantParams:
+    """The method of constant stimuli's settings.
+
+    Parameters
+    ----------
+    levels : tuple of float
+        The levels, in the parameter's unit.
+    repeats : int
+        Presentations of each level.
+    seed : int
+        Picks the order within each block of ``len(levels)`` trials.
+
+    Examples
+    --------
+    >>> len(ConstantStimuli(ConstantParams((0.1, 0.2, 0.3), repeats=2)).schedule)
+    6
+    """
     levels: tuple[float, ...]
     repeats: int
     seed: int = 0
 
 
 class ConstantStimuli:
-    """Each level ``repeats`` times; each block of len(levels) trials a fresh random order."""
+    """Each level ``repeats`` times; each block of len(levels) trials a fresh random order.
+
+    Parameters
+    ----------
+    params : ConstantParams
+
+    Raises
+    ------
+    ValueError
+        No levels, or fewer than one repeat.
+
+    Examples
+    --------
+    >>> schedule = ConstantStimuli(ConstantParams((0.1, 0.2, 0.3), repeats=2, seed=4)).schedule
+    >>> sorted(schedule[:3]), sorted(schedule[3:])          # every level once in each block of three
+    ([0.1, 0.2, 0.3], [0.1, 0.2, 0.3])
+    """
 
     def __init__(self, params: ConstantParams):
         if params.repeats < 1 or not params.levels:
@@ -190,18 +441,78 @@ class ConstantStimuli:
 
     @property
     def finished(self) -> bool:
+        """Whether every scheduled trial has been recorded.
+
+        Examples
+        --------
+        >>> procedure = ConstantStimuli(ConstantParams((0.1,), repeats=1))
+        >>> procedure.finished, procedure.update(procedure.next_level(), 1), procedure.finished
+        (False, None, True)
+        """
         return self.trials >= len(self.schedule)
 
     def next_level(self) -> float:
+        """The next scheduled level, in the parameter's unit.
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> procedure = ConstantStimuli(ConstantParams((0.1, 0.2), repeats=1, seed=1))
+        >>> procedure.next_level() == procedure.schedule[0]
+        True
+        """
         return self.schedule[self.trials]
 
     def update(self, level: float, outcome: int) -> None:
+        """Count the trial (the schedule does not depend on outcomes).
+
+        Parameters
+        ----------
+        level : float
+            The level presented.
+        outcome : int
+            1 or 0; not used.
+
+        Examples
+        --------
+        >>> procedure = ConstantStimuli(ConstantParams((0.1, 0.2), repeats=1, seed=1))
+        >>> procedure.update(procedure.next_level(), 0)
+        >>> procedure.next_level() == procedure.schedule[1], procedure.trials
+        (True, 1)
+        """
         self.trials += 1
 
 
 def replay(procedure, levels, outcomes) -> None:
     """Feed a logged session's outcomes into a fresh ``procedure``; each logged level must be the one it
-    asks for (else the log belongs to another procedure or seed: ValueError)."""
+    asks for (else the log belongs to another procedure or seed: ValueError).
+
+    Parameters
+    ----------
+    procedure : Staircase, QuestPlus or ConstantStimuli
+        A new procedure with the session's settings.
+    levels, outcomes : sequence
+        The log's levels (in the parameter's unit) and outcomes (1 or 0), in order; the same length.
+
+    Raises
+    ------
+    ValueError
+        A logged level that is not the one the procedure asks for.
+
+    Examples
+    --------
+    >>> staircase = Staircase(StaircaseParams(0.4))
+    >>> replay(staircase, [0.4, 0.4], [1, 1])          # two correct: 6 dB down
+    >>> round(staircase.next_level(), 5)
+    0.20047
+    >>> replay(Staircase(StaircaseParams(0.4)), [0.3], [1])
+    Traceback (most recent call last):
+    ...
+    ValueError: trial 1 of the log was at level 0.3 but the procedure asks for 0.4: ...
+    """
     for trial, (level, outcome) in enumerate(zip(levels, outcomes, strict=True), start=1):
         wanted = procedure.next_level()
         if not np.isclose(wanted, level, rtol=1e-6, atol=1e-9):
@@ -212,7 +523,27 @@ def replay(procedure, levels, outcomes) -> None:
 
 def interval_positions(seed: int, trials: int, intervals: int) -> list[int]:
     """Where the target goes (0-based) in each trial: every position once per block of ``intervals``
-    trials, in a random order per block (counterbalanced)."""
+    trials, in a random order per block (counterbalanced).
+
+    Parameters
+    ----------
+    seed : int
+    trials : int
+        How many positions.
+    intervals : int
+        The intervals (zones) per trial.
+
+    Returns
+    -------
+    list of int
+        One position, 0..intervals - 1, per trial.
+
+    Examples
+    --------
+    >>> positions = interval_positions(seed=5, trials=6, intervals=3)
+    >>> sorted(positions[:3]), sorted(positions[3:])
+    ([0, 1, 2], [0, 1, 2])
+    """
     rng = np.random.default_rng([seed, 11])
     blocks = -(-trials // intervals)
     return [int(p) for _ in range(blocks) for p in rng.permutation(intervals)][:trials]
