@@ -29,14 +29,44 @@ MIN_FIT_TRIALS = 5
 
 
 def records(table) -> list[dict]:
-    """The table's rows as dicts: a list of dicts as it is, a DataFrame's records."""
+    """The table's rows as dicts: a list of dicts as it is, a DataFrame's records.
+
+    Parameters
+    ----------
+    table : list of dict, pandas.DataFrame or any iterable of dicts
+
+    Returns
+    -------
+    list of dict
+
+    Examples
+    --------
+    >>> records(iter([{"level": 0.1}, {"level": 0.2}]))
+    [{'level': 0.1}, {'level': 0.2}]
+    """
     if hasattr(table, "to_dict"):
         return table.to_dict("records")
     return list(table)
 
 
 def as_frame(rows: list[dict]):
-    """A pandas DataFrame of ``rows`` if pandas is installed, else ``rows`` (pandas is not a dependency)."""
+    """A pandas DataFrame of ``rows`` if pandas is installed, else ``rows`` (pandas is not a dependency).
+
+    Parameters
+    ----------
+    rows : list of dict
+        A trials table (one dict per trial).
+
+    Returns
+    -------
+    pandas.DataFrame or list of dict
+
+    Examples
+    --------
+    >>> table = as_frame([{"level": 0.1, "correct": 1}, {"level": 0.2, "correct": 0}])
+    >>> records(table)                       # back to dicts, whichever it is
+    [{'level': 0.1, 'correct': 1}, {'level': 0.2, 'correct': 0}]
+    """
     try:
         import pandas
     except ImportError:
@@ -57,9 +87,33 @@ def _float(value) -> float | None:
 def read_trials(path) -> list[dict]:
     """trials.csv (or a session directory holding one) as a list of dicts, numbers as numbers, empty cells as None.
 
-    Example
+    ``pandas.DataFrame(read_trials("s01/"))`` gives a DataFrame, or ``pandas.read_csv("s01/trials.csv")`` directly.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A trials.csv, or the session's directory.
+
+    Returns
     -------
-    ``pandas.DataFrame(read_trials("s01/"))``, or ``pandas.read_csv("s01/trials.csv")`` directly.
+    list of dict
+        One dict per row, keyed by the header's columns; whole numbers as int, other numbers as float.
+
+    Raises
+    ------
+    ExperimentError
+        The file cannot be read (one line naming it).
+
+    Examples
+    --------
+    A file written by the ``csv`` module, read back:
+
+    >>> import csv, tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> with open(folder / "trials.csv", "w", newline="") as handle:
+    ...     csv.writer(handle).writerows([["trial", "level", "rt_s", "response_label"], [1, 0.05, "", "Yes"]])
+    >>> read_trials(folder)
+    [{'trial': 1, 'level': 0.05, 'rt_s': None, 'response_label': 'Yes'}]
     """
     path = Path(path)
     if path.is_dir():
@@ -99,7 +153,23 @@ def _main(rows, practice: bool) -> list[dict]:
 
 def reaction_time_summary(table) -> dict:
     """``rt_s_median`` and ``rt_s_count``: the median (s) of the reaction times that are numbers, and how many;
-    the median is None when none is."""
+    the median is None when none is.
+
+    Parameters
+    ----------
+    table : list of dict or pandas.DataFrame
+        Rows with an ``rt_s`` column (s).
+
+    Returns
+    -------
+    dict
+        ``rt_s_median`` (s, or None) and ``rt_s_count``.
+
+    Examples
+    --------
+    >>> reaction_time_summary([{"rt_s": 0.5}, {"rt_s": 0.7}, {"rt_s": None}, {"rt_s": ""}])
+    {'rt_s_median': 0.6, 'rt_s_count': 2}
+    """
     times = [t for t in (_float(r.get("rt_s")) for r in records(table)) if t is not None]
     return {"rt_s_median": float(np.median(times)) if times else None, "rt_s_count": len(times)}
 
@@ -115,6 +185,8 @@ def fit_psychometric(table, by="condition", level: str = "level", outcome: str =
         One row per trial with ``level`` and ``outcome`` columns (1 = correct / yes).
     by : str or list of str
         The grouping columns (one fit each); None: one fit of all rows.
+    level, outcome : str
+        The columns holding the level (in the varied parameter's unit) and the outcome.
     guess : float or None
         The guess rate: 1/n in n-interval forced choice; None fits it (yes/no: the false-alarm rate).
     function : "weibull" or "logistic"
@@ -130,6 +202,18 @@ def fit_psychometric(table, by="condition", level: str = "level", outcome: str =
         Per group: the grouping columns, ``trials``, ``threshold`` (the level where the detection function reaches
         63.2 % for the Weibull, 50 % for the logistic; in the level's unit), ``slope``, ``lapse``, ``guess``,
         ``ci`` ([low, high], or None), or ``threshold`` None and a ``note`` for a group of fewer than 5 trials.
+
+    Examples
+    --------
+    Trials made exactly as a 2AFC observer of threshold 0.1 and slope 3 answers on average (40 at each level; 20,
+    22, 33 and 40 correct: :func:`ultraglide.experiment.psychometric.probability` rounded), and a group too small:
+
+    >>> rows = [{"condition": "c", "level": level, "correct": int(k < hits)}
+    ...         for level, hits in ((0.02, 20), (0.05, 22), (0.1, 33), (0.2, 40)) for k in range(40)]
+    >>> rows += [{"condition": "d", "level": 0.1, "correct": 1}]
+    >>> fits = fit_psychometric(rows, bootstrap=100)
+    >>> [(fit["condition"], fit["trials"], fit["threshold"] and round(fit["threshold"], 2)) for fit in fits]
+    [('c', 160, 0.1), ('d', 1, None)]
     """
     keys = [by] if isinstance(by, str) else list(by or [])
     out = []
@@ -156,7 +240,41 @@ def threshold_posterior(table, by="condition", level: str = "level", outcome: st
                         guess: float | None = 0.5, function: str = "weibull",
                         level_range: tuple[float, float] = (1e-3, 1.0), practice: bool = False) -> list[dict]:
     """The threshold's posterior mean and 95 % credible interval per group (grid posterior, slope and lapse
-    marginalised; valid for staircase data): ``threshold``, ``ci``, ``slope``, ``lapse``, ``trials``."""
+    marginalised; valid for staircase data): ``threshold``, ``ci``, ``slope``, ``lapse``, ``trials``.
+
+    Parameters
+    ----------
+    table : list of dict or pandas.DataFrame
+        One row per trial with ``level`` and ``outcome`` columns.
+    by : str or list of str
+        The grouping columns (one posterior each); None: one of all rows.
+    level, outcome : str
+        The columns holding the level (in the varied parameter's unit) and the outcome (1 = correct / yes).
+    guess : float or None
+        The guess rate (1/n in forced choice); None marginalises the false-alarm rate (yes/no).
+    function : {"weibull", "logistic"}
+    level_range : (float, float)
+        The thresholds considered, in the level's unit.
+    practice : bool
+        Include practice trials.
+
+    Returns
+    -------
+    list of dict
+        Per group: the grouping columns, ``trials``, ``threshold`` (level's unit), ``ci`` ([low, high]), ``slope``,
+        ``lapse``; or ``threshold`` None and a ``note`` for a group of fewer than 5 trials.
+
+    Examples
+    --------
+    Trials made exactly as a 2AFC observer of threshold 0.1 and slope 3 answers on average (40 at each level; 20,
+    22, 33 and 40 correct: :func:`ultraglide.experiment.psychometric.probability` rounded):
+
+    >>> rows = [{"condition": "c", "level": level, "correct": int(k < hits)}
+    ...         for level, hits in ((0.02, 20), (0.05, 22), (0.1, 33), (0.2, 40)) for k in range(40)]
+    >>> found = threshold_posterior(rows)[0]
+    >>> found["trials"], round(found["threshold"], 2), found["ci"][0] < 0.1 < found["ci"][1]
+    (160, 0.1, True)
+    """
     keys = [by] if isinstance(by, str) else list(by or [])
     out = []
     for group, rows in _groups(_main(table, practice), keys).items():
@@ -175,7 +293,35 @@ def threshold_posterior(table, by="condition", level: str = "level", outcome: st
 
 
 def proportions(table, by="condition", outcome: str = "correct", practice: bool = False) -> list[dict]:
-    """Per group: ``trials``, ``positive`` (outcome = 1) and ``p`` with its 95 % Wilson interval ``ci``."""
+    """Per group: ``trials``, ``positive`` (outcome = 1) and ``p`` with its 95 % Wilson interval ``ci``.
+
+    Parameters
+    ----------
+    table : list of dict or pandas.DataFrame
+    by : str or list of str
+        The grouping columns; None: all rows together.
+    outcome : str
+        The column holding 1 (positive) or 0.
+    practice : bool
+        Include practice trials.
+
+    Returns
+    -------
+    list of dict
+        Per group with an outcome: the grouping columns, ``trials``, ``positive``, ``p`` and ``ci`` ([low, high]).
+
+    Examples
+    --------
+    8 of 10 correct; the Wilson interval by hand (z = 1.959964):
+
+    >>> import math
+    >>> found = proportions([{"condition": "c", "correct": int(k < 8)} for k in range(10)])[0]
+    >>> z, n, p = 1.959964, 10, 0.8
+    >>> centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    >>> half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    >>> found["p"], [round(v, 4) for v in found["ci"]], [round(centre - half, 4), round(centre + half, 4)]
+    (0.8, [0.4902, 0.9433], [0.4902, 0.9433])
+    """
     keys = [by] if isinstance(by, str) else list(by or [])
     out = []
     for group, rows in _groups(_main(table, practice), keys).items():
@@ -194,7 +340,37 @@ def proportions(table, by="condition", outcome: str = "correct", practice: bool 
 def mean_response(table, by="condition", response: str = "response", log: bool = False, bootstrap: int = 2000,
                   seed: int = 0, practice: bool = False) -> list[dict]:
     """Per group: the mean response (ratings), or with ``log`` the geometric mean (magnitude estimates), with a 95 %
-    bootstrap interval (``bootstrap`` resamples of the trials), ``median`` and ``trials``."""
+    bootstrap interval (``bootstrap`` resamples of the trials), ``median`` and ``trials``.
+
+    Parameters
+    ----------
+    table : list of dict or pandas.DataFrame
+    by : str or list of str
+        The grouping columns; None: all rows together.
+    response : str
+        The column holding the number given.
+    log : bool
+        The geometric mean (positive responses only).
+    bootstrap : int
+        Resamples for the interval (0: the interval is the mean itself).
+    seed : int
+    practice : bool
+        Include practice trials.
+
+    Returns
+    -------
+    list of dict
+        Per group with a response: the grouping columns, ``trials``, ``mean``, ``ci`` ([low, high]) and ``median``,
+        in the response's unit.
+
+    Examples
+    --------
+    Magnitude estimates 2, 4 and 8: their geometric mean is (2 × 4 × 8) ** (1/3) = 4:
+
+    >>> found = mean_response([{"condition": "c", "response": v} for v in (2, 4, 8)], log=True, bootstrap=0)[0]
+    >>> round(found["mean"], 9), found["median"], found["trials"]
+    (4.0, 4.0, 3)
+    """
     keys = [by] if isinstance(by, str) else list(by or [])
     rng = np.random.default_rng(seed)
     out = []
@@ -213,7 +389,37 @@ def mean_response(table, by="condition", response: str = "response", log: bool =
 
 def summarise(design, rows: list[dict], procedures: dict) -> dict:
     """A session's summary: per block and condition the fit (thresholds with their 95 % intervals), proportions,
-    mean ratings or estimates; reaction times when there are any."""
+    mean ratings or estimates; reaction times when there are any.
+
+    Parameters
+    ----------
+    design : Design
+        The session's design.
+    rows : list of dict
+        The session's trials (trials.csv's rows, as :attr:`Session.trials` holds them).
+    procedures : dict
+        The adaptive procedures by (block, condition), for their own estimates (empty: none).
+
+    Returns
+    -------
+    dict
+        ``design`` (its name), ``trials``, ``rt_s_median``, ``rt_s_count`` and ``blocks``: per block its
+        ``conditions``, each with its figures.
+
+    Examples
+    --------
+    An A-vs-B block of four trials, three correct (the practice trial left out of the proportion):
+
+    >>> from ultraglide.experiment import design_from_dict
+    >>> design = design_from_dict({"stimuli": {"a": {"texture": "grating-1mm"}, "b": {"texture": "grating-2mm"}},
+    ...     "conditions": [{"name": "ab", "a": "a", "b": "b"}],
+    ...     "blocks": [{"name": "main", "task": "afc", "conditions": ["ab"], "repeats": 4}]})
+    >>> rows = [{"block": "main", "task": "afc", "condition": "ab", "practice": int(k == 4), "correct": int(k != 1),
+    ...          "rt_s": 0.5 + 0.1 * k} for k in range(5)]
+    >>> condition = summarise(design, rows, {})["blocks"][0]["conditions"][0]
+    >>> condition["trials"], condition["positive"], condition["p"]
+    (4, 3, 0.75)
+    """
     from ultraglide.experiment.design import ADAPTIVE
 
     blocks = []
