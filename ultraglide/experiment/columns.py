@@ -86,18 +86,66 @@ BLOCK = re.compile(r"(<!-- columns: (\w+) -->\n)(.*?)(<!-- end columns -->)", re
 
 
 def documented_tables(text: str) -> dict[str, str]:
-    """The column tables a Markdown page holds between ``<!-- columns: NAME -->`` and ``<!-- end columns -->``."""
+    r"""The column tables a Markdown page holds between ``<!-- columns: NAME -->`` and ``<!-- end columns -->``.
+
+    Parameters
+    ----------
+    text : str
+        The page's Markdown.
+
+    Returns
+    -------
+    dict
+        The table's text (stripped) by NAME.
+
+    Examples
+    --------
+    >>> documented_tables("intro\n<!-- columns: T -->\n| a | b |\n<!-- end columns -->\n")
+    {'T': '| a | b |'}
+    """
     return {match.group(2): match.group(3).strip() for match in BLOCK.finditer(text)}
 
 
 def update_docs(text: str) -> str:
-    """``text`` with every column table regenerated from this module (:func:`rewrite_docs` rewrites a page)."""
+    r"""``text`` with every column table regenerated from this module (:func:`rewrite_docs` rewrites a page).
+
+    Parameters
+    ----------
+    text : str
+        A Markdown page whose tables are marked ``<!-- columns: NAME -->`` ... ``<!-- end columns -->``, NAME one of
+        this module's tables (``THRESHOLD_COLUMNS``, ``DESIGN_COLUMNS``).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> page = update_docs("<!-- columns: THRESHOLD_COLUMNS -->\nstale\n<!-- end columns -->\n")
+    >>> len(page.splitlines()) == 2 + len(THRESHOLD_COLUMNS) + 2     # the markers, a header and a rule, a row each
+    True
+    """
     return BLOCK.sub(lambda m: m.group(1) + columns_markdown(globals()[m.group(2)]) + "\n" + m.group(4), text)
 
 
 
 def rewrite_docs(path) -> None:
-    """Rewrite the Markdown page at ``path`` with its column tables regenerated (:func:`update_docs`)."""
+    r"""Rewrite the Markdown page at ``path`` with its column tables regenerated (:func:`update_docs`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The page, rewritten in place (UTF-8).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> page = pathlib.Path(tempfile.mkdtemp()) / "columns.md"
+    >>> _ = page.write_text("<!-- columns: DESIGN_COLUMNS -->\n<!-- end columns -->\n", encoding="utf-8")
+    >>> rewrite_docs(page)
+    >>> page.read_text(encoding="utf-8").splitlines()[3]
+    "| `participant` | the participant's code (`--participant`) |"
+    """
     from pathlib import Path
 
     page = Path(path)

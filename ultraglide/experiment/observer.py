@@ -24,6 +24,31 @@ KEYS = {"threshold": float, "slope": float, "lapse": float, "false_alarm": float
 
 @dataclass(frozen=True)
 class SimObserver:
+    """A simulated observer answering from a known psychometric function (see the module docstring).
+
+    Parameters
+    ----------
+    threshold : float
+        In the varied level's unit (friction contrast, mm, µm p-p).
+    slope : float
+        The psychometric function's slope (:mod:`ultraglide.experiment.psychometric`).
+    lapse, false_alarm : float
+        The lapse rate and the yes/no false-alarm rate, 0..0.5.
+    function : {"weibull", "logistic"}
+    exponent : float
+        Stevens's exponent on the delivered contrast (magnitude estimation).
+    noise : float
+        The sd of ratings (in their scale's span) and of magnitude estimates (log units).
+    seed : int
+        With the trial's number, seeds each trial's generator.
+
+    Examples
+    --------
+    >>> import math
+    >>> observer = SimObserver(threshold=0.1, slope=3.0, lapse=0.02)
+    >>> round(observer.probability(0.1, intervals=2), 6), round(0.5 + 0.48 * (1 - math.exp(-1)), 6)
+    (0.803418, 0.803418)
+    """
     threshold: float
     slope: float = 3.0
     lapse: float = 0.02
@@ -35,7 +60,34 @@ class SimObserver:
 
     @staticmethod
     def parse(spec: str, seed: int = 0) -> SimObserver:
-        """From ``sim:key=value,...``; ExperimentError (one line) for anything else."""
+        """From ``sim:key=value,...``; ExperimentError (one line) for anything else.
+
+        Parameters
+        ----------
+        spec : str
+            ``sim:threshold=T[,slope=S,lapse=L,false_alarm=F,function=weibull|logistic,exponent=E,noise=N]``.
+        seed : int
+
+        Returns
+        -------
+        SimObserver
+
+        Raises
+        ------
+        ExperimentError
+            Not a ``sim:`` spec, an unknown or empty setting, a value that is not a number, no threshold, or a value out
+            of range.
+
+        Examples
+        --------
+        >>> SimObserver.parse("sim:threshold=0.1,lapse=0.01", seed=3)   # NORMALIZE_WHITESPACE
+        SimObserver(threshold=0.1, slope=3.0, lapse=0.01, false_alarm=0.0, function='weibull', exponent=1.0,
+                    noise=0.2, seed=3)
+        >>> SimObserver.parse("sim:threshold=0.1,lapse=0.6")
+        Traceback (most recent call last):
+        ...
+        ultraglide.experiment.errors.ExperimentError: --observer: lapse and false_alarm must lie in 0..0.5
+        """
         kind, _, body = spec.partition(":")
         if kind != "sim" or not body:
             raise ExperimentError(f"--observer must be sim:threshold=T[,slope=S,lapse=L,false_alarm=F], got {spec!r}")
@@ -61,11 +113,58 @@ class SimObserver:
         return observer
 
     def probability(self, level: float, intervals: int) -> float:
+        """P(correct) in ``intervals``-interval forced choice, P(yes) in yes/no (``intervals`` 1), at ``level``.
+
+        Parameters
+        ----------
+        level : float
+            In the threshold's unit.
+        intervals : int
+            The trial's intervals; the guess rate is 1/intervals, or the false-alarm rate for 1.
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> import math
+        >>> observer = SimObserver(threshold=0.1, slope=3.0, lapse=0.02, false_alarm=0.05)
+        >>> round(observer.probability(0.1, 1), 6), round(0.05 + 0.93 * (1 - math.exp(-1)), 6)     # yes/no
+        (0.637872, 0.637872)
+        """
         guess = 1.0 / intervals if intervals > 1 else self.false_alarm
         return float(pf.probability(self.function, level, self.threshold, self.slope, guess, self.lapse))
 
     def respond(self, trial: int, level: float, intervals: int, target: int) -> tuple[int, float]:
-        """(response, reaction time s): the chosen interval (0-based) in forced choice, 1/0 for yes/no."""
+        """(response, reaction time s): the chosen interval (0-based) in forced choice, 1/0 for yes/no.
+
+        Parameters
+        ----------
+        trial : int
+            The trial's number (with the seed, it seeds the trial's generator).
+        level : float
+            The level presented, in the threshold's unit.
+        intervals : int
+            The trial's intervals (1: yes/no).
+        target : int
+            The interval holding the stimulus, 0-based.
+
+        Returns
+        -------
+        (int, float)
+            The response and the reaction time, s.
+
+        Examples
+        --------
+        Without lapses, a level far above threshold is always found (P = 1 - exp(-1000 ** 3) = 1):
+
+        >>> observer = SimObserver(threshold=0.1, slope=3.0, lapse=0.0)
+        >>> [observer.respond(trial, 100.0, intervals=3, target=2)[0] for trial in range(1, 6)]
+        [2, 2, 2, 2, 2]
+        >>> observer.respond(7, 0.2, 2, 0) == observer.respond(7, 0.2, 2, 0)       # each trial its own generator
+        True
+        """
         rng = np.random.default_rng([self.seed, trial, 3])
         p = self.probability(level, intervals)
         hit = rng.random() < p
