@@ -75,8 +75,33 @@ class Stimulus:
     is); ``mean``: the mean friction ratio it is shifted to (None: as it is); ``scale``: its size × this;
     ``rotation_deg``: turned anticlockwise by this; ``effects``: a file of temporal effects played on the zone
     (ours, JSON, or a designer's ``.ahap``, ``.haptic``, ``.hjif``; positions in mm from the zone's top-left corner,
-    an effect without a region plays over the whole zone). Example: ``Stimulus("fine", "grating-1mm",
-    contrast=0.3)``."""
+    an effect without a region plays over the whole zone).
+
+    Parameters
+    ----------
+    name : str
+        The stimulus's name in the design.
+    texture : str
+        A library name or a file.
+    contrast : float, optional
+        Friction contrast, 0..1.
+    mean : float, optional
+        Mean friction ratio, 0..1.
+    scale : float
+        Size factor (0.05..20).
+    rotation_deg : float
+        Degrees, anticlockwise.
+    effects : str, optional
+        A file of temporal effects.
+
+    Examples
+    --------
+    >>> from ultraglide.experiment.check import zone_texture
+    >>> fine = Stimulus("fine", "grating-1mm", contrast=0.3)
+    >>> zone = zone_texture(fine, (20.0, 10.0))                  # a 20 × 10 mm zone of it
+    >>> round(float(zone.values.max()), 6), round(float(zone.values.min()), 6)     # spans 1 - 0.3 .. 1
+    (1.0, 0.7)
+    """
 
     name: str
     texture: str
@@ -93,7 +118,26 @@ class Condition:
     stimulus varied (staircases, QUEST+, constant stimuli), rated or estimated, or A of an A-vs-B task;
     ``reference``: what the other zones show (None: plain glass), or B. ``vary``: what the level is (contrast,
     wavelength in mm, amplitude in µm p-p); ``levels``: constant stimuli's; ``level_range``: an adaptive
-    procedure's (default by ``vary``); ``start_level``: a staircase's first."""
+    procedure's (default by ``vary``); ``start_level``: a staircase's first.
+
+    Parameters
+    ----------
+    name, stimulus : str
+    reference : str, optional
+    factors : dict
+    vary : {"contrast", "wavelength", "amplitude"}
+    levels : tuple of float
+        In the unit of ``vary``.
+    level_range : (float, float), optional
+        In the unit of ``vary``.
+    start_level : float, optional
+        In the unit of ``vary``.
+
+    Examples
+    --------
+    >>> Condition("fine", "fine", factors={"spacing_mm": 1.0}, levels=(0.05, 0.1)).levels
+    (0.05, 0.1)
+    """
 
     name: str
     stimulus: str
@@ -106,6 +150,16 @@ class Condition:
 
     @property
     def range(self) -> tuple[float, float]:
+        """The levels an adaptive procedure may present, (low, high) in the unit of ``vary``: ``level_range``, else the
+        default for what varies.
+
+        Examples
+        --------
+        >>> Condition("c", "s").range, Condition("c", "s", vary="amplitude").range
+        ((0.005, 0.6), (0.05, 6.0))
+        >>> Condition("c", "s", level_range=(0.01, 0.2)).range
+        (0.01, 0.2)
+        """
         return tuple(self.level_range) if self.level_range else DEFAULT_RANGES[self.vary]
 
 
@@ -118,7 +172,30 @@ class Block:
     (low, high) whole numbers; ``modulus``: magnitude estimation's number for ``modulus_stimulus`` (shown first in
     every trial). ``adjustment``: the participant sets the condition's stimulus's contrast (from a random start in
     its range, 1 dB a step) until it feels like the reference (shown first). ``practice``: trials before the
-    block's own, not analysed; ``break_every``: a pause every N."""
+    block's own, not analysed; ``break_every``: a pause every N.
+
+    Parameters
+    ----------
+    name, task : str
+        The block's name; its task, one of ``constant``, ``staircase``, ``quest``, ``afc``, ``same_different``,
+        ``rating``, ``magnitude``, ``adjustment``.
+    conditions : tuple of str
+    trials, repeats, intervals : int
+    rule : {"1u2d", "1u3d", "weighted"}
+    function : {"weibull", "logistic"}
+    question : str
+    labels : tuple of str
+    scale : (int, int)
+    modulus : float
+    modulus_stimulus : str, optional
+    practice, break_every : int
+
+    Examples
+    --------
+    >>> block = Block("rate", "rating", ("fine",), repeats=3, scale=(1, 5))
+    >>> block.shown_question, response_labels(block)
+    ('How rough did it feel?', ('1', '2', '3', '4', '5'))
+    """
 
     name: str
     task: str
@@ -138,10 +215,25 @@ class Block:
 
     @property
     def shown_question(self) -> str:
+        """The question the participant reads: the block's own, else the task's default (in English).
+
+        Examples
+        --------
+        >>> Block("m", "afc", ("c",)).shown_question, Block("m", "afc", ("c",), question="Welche?").shown_question
+        ('Which zone felt different?', 'Welche?')
+        """
         return self.question or DEFAULT_QUESTIONS[self.task]
 
     @property
     def zones(self) -> int:
+        """The zones a trial of this block shows: 2 for same-different, magnitude and adjustment (a reference first), 1
+        for a rating, else ``intervals``.
+
+        Examples
+        --------
+        >>> [Block("b", task, ("c",), intervals=3).zones for task in ("afc", "same_different", "rating")]
+        [3, 2, 1]
+        """
         if self.task in ("same_different", "magnitude", "adjustment"):
             return 2
         if self.task == "rating":
@@ -154,7 +246,47 @@ class Design:
     """A whole experiment (see the module docstring). ``order``: within each block, ``random`` interleaves its
     conditions' trials, ``blocked`` runs them one condition after another; ``counterbalanced`` also interleaves
     them and orders the blocks by a balanced Latin square row chosen by the participant's number (the digits in
-    the ID). Sizes in mm, speed in mm/s, force in N: the swipe participants (and the stimulus check) use."""
+    the ID). Sizes in mm, speed in mm/s, force in N: the swipe participants (and the stimulus check) use.
+
+    Parameters
+    ----------
+    name : str
+    stimuli : dict of str to Stimulus
+    conditions : dict of str to Condition
+    blocks : tuple of Block
+    seed : int
+        Every random order of the plan comes from it.
+    order : {"random", "blocked", "counterbalanced"}
+    language, break_message : str
+    zone_mm : (float, float)
+        A zone's width and height, mm.
+    gap_mm : float
+        Plain glass around each zone, mm.
+    speed_mm_s : float
+        The swipe's speed, mm/s.
+    force_n : float
+        The finger's force, N.
+    model, profile : str
+        The friction model and the plate profile, by name or file.
+    check_paths : tuple of str
+        Touch logs the stimulus check also renders along.
+
+    Raises
+    ------
+    ExperimentError
+        Whatever :func:`validate` refuses.
+
+    Examples
+    --------
+    >>> design = Design("one", {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g", levels=(0.1, 0.2))},
+    ...                 (Block("main", "constant", ("g",), repeats=3),))
+    >>> len(plan(design))                                  # 2 levels × 3 repeats
+    6
+    >>> Design("none", {}, {}, ())
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: blocks: a design needs at least one block
+    """
 
     name: str
     stimuli: dict[str, Stimulus]
@@ -177,7 +309,20 @@ class Design:
         validate(self)
 
     def as_dict(self) -> dict:
-        """The design as the TOML's tables (what :func:`design_from_dict` takes back)."""
+        """The design as the TOML's tables (what :func:`design_from_dict` takes back).
+
+        Returns
+        -------
+        dict
+            ``experiment``, ``rig``, ``stimuli``, ``conditions`` and ``blocks``.
+
+        Examples
+        --------
+        >>> design = Design("one", {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g")},
+        ...                 (Block("main", "rating", ("g",)),), seed=5)
+        >>> design_from_dict(design.as_dict()) == design
+        True
+        """
         return design_to_dict(self)
 
     def word(self, key: str, **fields) -> str:
@@ -212,7 +357,28 @@ class Trial:
     """One planned trial. ``number`` from 1; ``target``: the odd interval (0-based) in forced choice, 1/0 for a
     different/same pair; ``level``: the level (constant stimuli), or None where a procedure chooses it as the
     session goes (staircase, QUEST+) or none is varied; ``zones``: the stimulus name in each zone ("" for
-    plain glass, the varied stimulus's name for the varied zone)."""
+    plain glass, the varied stimulus's name for the varied zone).
+
+    Parameters
+    ----------
+    number : int
+    block, task, condition : str
+    practice : bool
+    target : int or None
+    level : float or None
+        In the condition's unit.
+    zones : tuple of str
+    break_before : bool
+        A pause comes before it.
+
+    Examples
+    --------
+    >>> design = Design("one", {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g", levels=(0.1,))},
+    ...                 (Block("main", "constant", ("g",), repeats=1, intervals=2),))
+    >>> trial = plan(design)[0]
+    >>> trial.level, trial.zones[trial.target], trial.zones[1 - trial.target]       # plain glass elsewhere
+    (0.1, 'g', '')
+    """
 
     number: int
     block: str
@@ -225,6 +391,19 @@ class Trial:
     break_before: bool = False
 
     def as_dict(self) -> dict:
+        """The trial as plain data (JSON-ready).
+
+        Returns
+        -------
+        dict
+            ``trial`` (its number), ``block``, ``task``, ``condition``, ``practice``, ``target``, ``level``, ``zones``
+            (a list), ``break_before``.
+
+        Examples
+        --------
+        >>> Trial(1, "main", "rating", "g", False, None, None, ("g",)).as_dict()["zones"]
+        ['g']
+        """
         return {"trial": self.number, "block": self.block, "task": self.task, "condition": self.condition,
                 "practice": self.practice, "target": self.target, "level": self.level, "zones": list(self.zones),
                 "break_before": self.break_before}
@@ -238,7 +417,26 @@ def _refuse(where: str, what: str) -> ExperimentError:
 
 
 def validate(design: Design) -> None:
-    """Refuse what cannot run: unknown names, tasks without what they need, counts out of range."""
+    """Refuse what cannot run: unknown names, tasks without what they need, counts out of range.
+
+    Parameters
+    ----------
+    design : Design
+
+    Raises
+    ------
+    ExperimentError
+        One line naming the key (``blocks[0].task``, ``conditions.NAME.range`` ...) and what it must be.
+
+    Examples
+    --------
+    A design is validated as it is made:
+
+    >>> Design("x", {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g")}, (Block("b", "afc", ("g",)),))
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: conditions.g: block 'b' (afc) compares two stimuli: give the ...
+    """
     if not design.blocks:
         raise _refuse("blocks", "a design needs at least one block")
     if design.order not in ORDERS:
@@ -366,7 +564,21 @@ def _label_count(block: Block) -> int | None:
 
 
 def response_labels(block: Block) -> tuple[str, ...]:
-    """The answer buttons' labels: the block's own, else numbers, Yes/No or Same/Different."""
+    """The answer buttons' labels: the block's own, else numbers, Yes/No or Same/Different.
+
+    Parameters
+    ----------
+    block : Block
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> response_labels(Block("b", "afc", ("c",), intervals=3)), response_labels(Block("b", "same_different", ("c",)))
+    (('1', '2', '3'), ('Same', 'Different'))
+    """
     if block.labels:
         return tuple(block.labels)
     if block.task == "rating":
@@ -383,7 +595,27 @@ def response_labels(block: Block) -> tuple[str, ...]:
 
 
 def block_trial_count(design: Design, block: Block) -> int:
-    """Trials of ``block`` (its practice included)."""
+    """Trials of ``block`` (its practice included).
+
+    Parameters
+    ----------
+    design : Design
+    block : Block
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    Same-different shows each of the four pair orders (AA, BB, AB, BA) ``repeats`` times:
+
+    >>> design = Design("sd", {"a": Stimulus("a", "grating-1mm"), "b": Stimulus("b", "grating-2mm")},
+    ...                 {"ab": Condition("ab", "a", "b")},
+    ...                 (Block("m", "same_different", ("ab",), repeats=5, practice=2),))
+    >>> block_trial_count(design, design.blocks[0]), 4 * 5 + 2
+    (22, 22)
+    """
     n = len(block.conditions)
     if block.task in ADAPTIVE:
         own = block.trials * n
@@ -400,14 +632,51 @@ def block_trial_count(design: Design, block: Block) -> int:
 
 
 def participant_number(participant: str) -> int:
-    """The number in a participant's code (``P07`` -> 7; 0 if it has none): it picks the counterbalanced order."""
+    """The number in a participant's code (``P07`` -> 7; 0 if it has none): it picks the counterbalanced order.
+
+    Parameters
+    ----------
+    participant : str
+
+    Returns
+    -------
+    int
+        The last run of digits in the code.
+
+    Examples
+    --------
+    >>> participant_number("P07"), participant_number("lab2-s14"), participant_number("anonymous")
+    (7, 14, 0)
+    """
     digits = re.findall(r"\d+", participant)
     return int(digits[-1]) if digits else 0
 
 
 def latin_square_row(n: int, row: int) -> list[int]:
     """Row ``row`` (mod n) of a balanced Latin square of n items (Williams 1949; for odd n, rows n..2n-1 are the
-    mirror images): every item comes first, and follows every other, equally often over the rows."""
+    mirror images): every item comes first, and follows every other, equally often over the rows.
+
+    Parameters
+    ----------
+    n : int
+        The items (blocks).
+    row : int
+        Any whole number (taken mod n, or mod 2n for odd n).
+
+    Returns
+    -------
+    list of int
+        A permutation of 0..n-1.
+
+    Examples
+    --------
+    Over the four rows of n = 4 each item comes first once and each ordered pair of neighbours appears once
+    (4 × 3 = 12 pairs):
+
+    >>> rows = [latin_square_row(4, r) for r in range(4)]
+    >>> rows[0], sorted(row[0] for row in rows), len({(row[i], row[i + 1]) for row in rows for i in range(3)})
+    ([0, 3, 1, 2], [0, 1, 2, 3], 12)
+    """
     base, low, high = [], 0, n - 1
     for index in range(n):  # 0, 1, n-1, 2, n-2, ...
         if index % 2 == 0:
@@ -423,7 +692,25 @@ def latin_square_row(n: int, row: int) -> list[int]:
 
 
 def block_order(design: Design, participant: str = "P01") -> list[int]:
-    """The blocks' indices in the order a participant meets them."""
+    """The blocks' indices in the order a participant meets them.
+
+    Parameters
+    ----------
+    design : Design
+    participant : str
+        Its number picks the Latin square's row when the order is counterbalanced.
+
+    Returns
+    -------
+    list of int
+
+    Examples
+    --------
+    >>> g = {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g")}
+    >>> blocks = tuple(Block(f"b{k}", "rating", ("g",)) for k in range(3))
+    >>> block_order(Design("d", *g, blocks)), block_order(Design("d", *g, blocks, order="counterbalanced"), "P01")
+    ([0, 1, 2], [1, 0, 2])
+    """
     if design.order == "counterbalanced":
         return latin_square_row(len(design.blocks), participant_number(participant))
     return list(range(len(design.blocks)))
@@ -448,6 +735,14 @@ def plan(design: Design, participant: str = "P01") -> list[Trial]:
     -------
     list of Trial
         Adaptive blocks' trials carry ``level=None``: the procedure chooses it as the session goes.
+
+    Examples
+    --------
+    >>> design = Design("d", {"g": Stimulus("g", "grating-1mm")}, {"g": Condition("g", "g")},
+    ...                 (Block("main", "staircase", ("g",), trials=4, practice=1, break_every=2),))
+    >>> [(t.number, t.practice, t.level is None, t.break_before) for t in plan(design)]
+    [(1, True, False, False), (2, False, True, False), (3, False, True, True), (4, False, True, False),
+     (5, False, True, True)]
     """
     trials: list[Trial] = []
     for block_index in block_order(design, participant):
@@ -532,7 +827,7 @@ MAX_DESIGN_BYTES = 1 << 20
 
 
 def load_design(path) -> Design:
-    """A design from a TOML file (see docs/experiments.md for its tables).
+    r"""A design from a TOML file (see docs/experiments.md for its tables).
 
     Parameters
     ----------
@@ -547,6 +842,16 @@ def load_design(path) -> Design:
     ------
     ExperimentError
         One line naming the file and the key: unreadable, not TOML, or a value the design cannot take.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "design.toml"
+    >>> _ = path.write_text('[stimuli.g]\ntexture = "grating-1mm"\n[[conditions]]\nname = "g"\nstimulus = "g"\n'
+    ...                     '[[blocks]]\ntask = "rating"\nconditions = ["g"]\nrepeats = 3\n', encoding="utf-8")
+    >>> design = load_design(path)
+    >>> design.blocks[0].name, design.blocks[0].repeats, design.stimuli["g"].texture
+    ('block1', 3, 'grating-1mm')
     """
     from ultraglide.inputs import decode_text, read_input
 
@@ -556,7 +861,31 @@ def load_design(path) -> Design:
 
 
 def design_from_toml(text: str, where: str = "design") -> Design:
-    """:func:`design_from_dict` of TOML text; ExperimentError naming ``where`` for anything wrong."""
+    r""":func:`design_from_dict` of TOML text; ExperimentError naming ``where`` for anything wrong.
+
+    Parameters
+    ----------
+    text : str
+        The TOML.
+    where : str
+        What the errors name (the file).
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    ExperimentError
+        Not TOML, or a table or value :func:`design_from_dict` refuses.
+
+    Examples
+    --------
+    >>> design_from_toml('[stimuli.g]\ntexture = "grating-1mm"\nsize = 2\n', "my.toml")
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: my.toml: stimuli.g: unknown key 'size'
+    """
     try:
         tables = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
@@ -646,7 +975,34 @@ def _pair(values, where: str) -> tuple[float, float] | None:
 
 def design_from_dict(tables: dict) -> Design:
     """A design from the TOML's tables as a dict (``experiment``, ``stimuli``, ``conditions``, ``blocks``,
-    ``rig``): every key and type checked (ExperimentError, one line naming the key)."""
+    ``rig``): every key and type checked (ExperimentError, one line naming the key).
+
+    Parameters
+    ----------
+    tables : dict
+        As ``tomllib`` reads a DESIGN.toml.
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    ExperimentError
+        An unknown key, a value of the wrong type or out of range, or a design :func:`validate` refuses.
+
+    Examples
+    --------
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}],
+    ...     "blocks": [{"task": "rating", "conditions": ["g"]}], "rig": {"speed_mm_s": 80}})
+    >>> design.speed_mm_s, design.zone_mm, design.blocks[0].scale           # mm/s; mm; the defaults
+    (80.0, (40.0, 40.0), (1, 7))
+    >>> design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "contrast": "high"}}})
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: stimuli.g.contrast: must be a number, got 'high'
+    """
     top = _Table(tables, "")
     experiment = _Table(top.get("experiment", dict, {}), "experiment")
     words = top.get("words", dict, {})
@@ -722,7 +1078,25 @@ def design_from_dict(tables: dict) -> Design:
 
 
 def design_to_dict(design: Design) -> dict:
-    """The TOML tables of ``design`` (defaults left out where they are the loader's)."""
+    """The TOML tables of ``design`` (defaults left out where they are the loader's).
+
+    Parameters
+    ----------
+    design : Design
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> design = Design("d", {"g": Stimulus("g", "grating-1mm", contrast=0.2)}, {"g": Condition("g", "g")},
+    ...                 (Block("main", "rating", ("g",), repeats=4),))
+    >>> tables = design_to_dict(design)
+    >>> tables["stimuli"], tables["blocks"]
+    ({'g': {'texture': 'grating-1mm', 'contrast': 0.2}},
+     [{'name': 'main', 'task': 'rating', 'conditions': ['g'], 'repeats': 4}])
+    """
     def stimulus(s: Stimulus) -> dict:
         out = {"texture": s.texture}
         for key in ("contrast", "mean"):
@@ -779,7 +1153,27 @@ def design_to_dict(design: Design) -> dict:
 
 
 def to_toml(design: Design) -> str:
-    """``design`` as DESIGN.toml text (:func:`design_from_toml` reads it back to an equal design)."""
+    """``design`` as DESIGN.toml text (:func:`design_from_toml` reads it back to an equal design).
+
+    Parameters
+    ----------
+    design : Design
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    Read back by ``tomllib``:
+
+    >>> import tomllib
+    >>> design = Design("d", {"g": Stimulus("g", "grating-1mm", contrast=0.2)}, {"g": Condition("g", "g")},
+    ...                 (Block("main", "rating", ("g",), repeats=4),))
+    >>> text = to_toml(design)
+    >>> tomllib.loads(text)["stimuli"]["g"], design_from_toml(text) == design
+    ({'texture': 'grating-1mm', 'contrast': 0.2}, True)
+    """
     tables = design_to_dict(design)
     lines = [f"# {design.name}: an ultraglide experiment design (ultraglide experiment check|run)"]
 
