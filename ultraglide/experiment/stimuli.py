@@ -39,7 +39,23 @@ EDGE_MM = 3.0  # zone edges left out of the rendered measures (ramps, band limit
 
 @dataclass(frozen=True)
 class Layout:
-    """Zones side by side, ``gap_mm`` of plain glass around each. Sizes in mm."""
+    """Zones side by side, ``gap_mm`` of plain glass around each. Sizes in mm.
+
+    Parameters
+    ----------
+    zones : int
+        The zones side by side.
+    zone_mm : (float, float)
+        A zone's width and height, mm.
+    gap_mm : float
+        Plain glass around each zone, mm.
+
+    Examples
+    --------
+    >>> layout = Layout(2, (20.0, 10.0), 5.0)
+    >>> layout.size_mm                  # 2 × 20 + 3 × 5 wide, 10 + 2 × 5 high
+    (55.0, 20.0)
+    """
 
     zones: int = 2
     zone_mm: tuple[float, float] = (40.0, 40.0)
@@ -47,14 +63,53 @@ class Layout:
 
     @property
     def size_mm(self) -> tuple[float, float]:
+        """The whole trial's width and height, mm: the zones and the gaps around them.
+
+        Examples
+        --------
+        >>> Layout(3, (40.0, 40.0), 10.0).size_mm          # 3 × 40 + 4 × 10, 40 + 2 × 10
+        (160.0, 60.0)
+        """
         width, height = self.zone_mm
         return self.zones * width + (self.zones + 1) * self.gap_mm, height + 2 * self.gap_mm
 
     def zone_left_mm(self, index: int) -> float:
+        """The left edge of zone ``index`` (0-based), mm from the trial's left edge.
+
+        Parameters
+        ----------
+        index : int
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> Layout(2, (20.0, 10.0), 5.0).zone_left_mm(1)    # a gap, a zone, a gap
+        30.0
+        """
         return self.gap_mm + index * (self.zone_mm[0] + self.gap_mm)
 
     def zone_at(self, x_mm: float, y_mm: float) -> int | None:
-        """The zone under a point, or None."""
+        """The zone under a point, or None.
+
+        Parameters
+        ----------
+        x_mm, y_mm : float
+            The point, mm from the trial's top-left corner.
+
+        Returns
+        -------
+        int or None
+            The zone's index (0-based); None on the glass between.
+
+        Examples
+        --------
+        >>> layout = Layout(2, (20.0, 10.0), 5.0)
+        >>> layout.zone_at(30.0, 10.0), layout.zone_at(27.0, 10.0), layout.zone_at(10.0, 2.0)
+        (1, None, None)
+        """
         for index in range(self.zones):
             left = self.zone_left_mm(index)
             if left <= x_mm < left + self.zone_mm[0] and self.gap_mm <= y_mm < self.gap_mm + self.zone_mm[1]:
@@ -63,7 +118,30 @@ class Layout:
 
 
 def with_contrast(texture: Texture, contrast: float) -> Texture:
-    """``texture`` rescaled so its friction spans [1 − contrast, 1] (its own pattern kept)."""
+    """``texture`` rescaled so its friction spans [1 − contrast, 1] (its own pattern kept).
+
+    Parameters
+    ----------
+    texture : Texture
+    contrast : float
+        The friction contrast wanted, 0..1.
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    TextureError
+        A contrast outside 0..1.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> rescaled = with_contrast(resolve_texture("grating-1mm"), 0.3)
+    >>> round(float(rescaled.values.min()), 6), round(float(rescaled.values.max()), 6)
+    (0.7, 1.0)
+    """
     if not 0 <= contrast <= 1:
         raise TextureError(f"a friction contrast lies in 0..1, got {contrast:g}")
     if texture.kind == "gradient":
@@ -75,13 +153,58 @@ def with_contrast(texture: Texture, contrast: float) -> Texture:
 
 
 def plain(layout: Layout, ratio: float = 1.0) -> Texture:
+    """Plain glass the size of a zone, at friction ratio ``ratio`` (1: the plate at rest).
+
+    Parameters
+    ----------
+    layout : Layout
+    ratio : float
+        The friction ratio everywhere, 0..1.
+
+    Returns
+    -------
+    Texture
+        A uniform 2 × 2 map of ``layout.zone_mm``.
+
+    Examples
+    --------
+    >>> glass = plain(Layout(2, (20.0, 10.0), 5.0), 0.8)
+    >>> glass.width_mm, glass.height_mm, glass.values.tolist()
+    (20.0, 10.0, [[0.800000011920929, 0.800000011920929], [0.800000011920929, 0.800000011920929]])
+    """
     return Texture(np.full((2, 2), ratio, dtype=np.float32), *layout.zone_mm, name="plain glass")
 
 
 @dataclass(frozen=True)
 class StimulusDesign:
     """What varies and what the zones show. ``reference``: what the non-target zones show (None: plain
-    glass, or for ``wavelength`` the grating at its own wavelength)."""
+    glass, or for ``wavelength`` the grating at its own wavelength).
+
+    Parameters
+    ----------
+    texture : Texture
+        The stimulus's texture (a grating for ``wavelength``).
+    parameter : {"contrast", "wavelength", "amplitude"}
+        What the level is: friction contrast, the added wavelength in mm, or a vibration in µm p-p.
+    layout : Layout
+    reference : Texture, optional
+    model : FrictionModel, optional
+        For ``amplitude``: the ratio a vibration amplitude gives.
+    force_n : float
+        The finger's force, N (for ``amplitude``).
+
+    Raises
+    ------
+    TextureError
+        An unknown parameter, ``wavelength`` of a texture that is not a grating, ``amplitude`` without a model.
+
+    Examples
+    --------
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> design = StimulusDesign(resolve_texture("grating-1mm"), "wavelength", Layout(2, (20.0, 10.0), 5.0))
+    >>> design.describe(0.25, target=0)                   # 1 mm + 0.25 mm in zone 1
+    'zone 1: grating of 1.25 mm; others: grating of 1 mm'
+    """
 
     texture: Texture
     parameter: str = "contrast"
@@ -101,14 +224,47 @@ class StimulusDesign:
 
     @property
     def unit(self) -> str:
+        """The level's unit, in words.
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> StimulusDesign(resolve_texture("grating-1mm"), "wavelength").unit
+        'mm'
+        """
         return PARAMETERS[self.parameter]
 
     @property
     def base_wavelength_mm(self) -> float:
+        """The grating's own wavelength, mm (0 for a texture that is not a grating).
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> StimulusDesign(resolve_texture("grating-2mm")).base_wavelength_mm
+        2.0
+        """
         return float(self.texture.authoring.get("wavelength_mm", 0.0))
 
     def zone_texture(self, level: float) -> Texture:
-        """The target zone's texture at ``level``."""
+        """The target zone's texture at ``level``.
+
+        Parameters
+        ----------
+        level : float
+            In the parameter's unit.
+
+        Returns
+        -------
+        Texture
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> zone = StimulusDesign(resolve_texture("grating-1mm")).zone_texture(0.2)      # contrast 0.2
+        >>> round(float(zone.values.min()), 6), round(float(zone.values.max()), 6)
+        (0.8, 1.0)
+        """
         if self.parameter == "contrast":
             return with_contrast(self.texture, level) if self.zone_at is None else self.zone_at(level)
         if self.parameter == "wavelength":
@@ -123,6 +279,19 @@ class StimulusDesign:
                                   (low, high), px_per_mm=max(PX_PER_MM, 8 / wavelength_mm))
 
     def reference_texture(self) -> Texture:
+        """What the other zones show: the reference given, else the grating at its own wavelength (``wavelength``) or
+        plain glass.
+
+        Returns
+        -------
+        Texture
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> StimulusDesign(resolve_texture("grating-1mm")).reference_texture().values.tolist()     # at rest
+        [[1.0, 1.0], [1.0, 1.0]]
+        """
         if self.reference is not None:
             return self.reference
         if self.parameter == "wavelength":
@@ -130,7 +299,25 @@ class StimulusDesign:
         return plain(self.layout)
 
     def describe(self, level: float, target: int) -> str:
-        """The stimulus in words for the log."""
+        """The stimulus in words for the log.
+
+        Parameters
+        ----------
+        level : float
+            In the parameter's unit.
+        target : int
+            The zone holding the stimulus, 0-based.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> StimulusDesign(resolve_texture("grating-1mm")).describe(0.05, target=1)
+        'zone 2: grating-1mm at contrast 0.05; others: plain glass'
+        """
         what = {"contrast": f"{self.texture.name or 'texture'} at contrast {level:.4g}",
                 "wavelength": f"grating of {self.base_wavelength_mm + level:.4g} mm",
                 "amplitude": f"uniform {level:.4g} µm p-p"}[self.parameter]
@@ -142,7 +329,32 @@ class StimulusDesign:
 
     def trial_texture(self, level: float, target: int) -> Texture:
         """One texture for the trial: every zone in place, plain glass between (the renderer's one
-        ``set_texture`` per trial)."""
+        ``set_texture`` per trial).
+
+        Parameters
+        ----------
+        level : float
+            In the parameter's unit.
+        target : int
+            The zone holding the stimulus, 0-based.
+
+        Returns
+        -------
+        Texture
+            ``layout.size_mm`` in size.
+
+        Examples
+        --------
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> from ultraglide.textures.sampling import Sampler
+        >>> layout = Layout(2, (20.0, 10.0), 5.0)
+        >>> trial = StimulusDesign(resolve_texture("grating-1mm"), layout=layout).trial_texture(0.3, target=1)
+        >>> trial.width_mm, trial.height_mm
+        (55.0, 20.0)
+        >>> lookup = Sampler(trial, band_limited=False)
+        >>> float(lookup.ratio(15.0, 10.0)), float(lookup.ratio(2.0, 10.0))    # the plain zone 1 and the gap: at rest
+        (1.0, 1.0)
+        """
         layout = self.layout
         reference = self.reference_texture()
         stimulus = self.zone_texture(level)
@@ -162,7 +374,28 @@ def _density(*textures: Texture) -> float:
 class Rendered:
     """What a swipe across a trial's texture produced. Per zone: median plate amplitude (µm p-p)
     and the friction contrast the plate really made (the 1st to 99th percentile of the realised
-    ratio, edges left out)."""
+    ratio, edges left out).
+
+    Parameters
+    ----------
+    frames : int
+        Carrier samples rendered.
+    peak : float
+        The largest |sample| of the carrier, 1 = full-scale drive.
+    zone_um_pp : tuple of float
+        Per zone, µm p-p.
+    zone_contrast : tuple of float
+        Per zone, friction contrast.
+    zone_mean_ratio : tuple of float
+        Per zone, the mean friction ratio.
+
+    Examples
+    --------
+    See :func:`render_offline`.
+
+    >>> Rendered(96000, 0.5, (0.0, 1.2), (0.0, 0.2)).zone_mean_ratio
+    ()
+    """
 
     frames: int
     peak: float  # largest |sample| of the carrier, 1 = full-scale drive
@@ -176,7 +409,30 @@ def offline_sampler(texture: Texture, speed_mm_s: float = 100.0, settings: Rende
     same trial texture again passes it back in). A finger that moves at most a pixel per control sample
     reads the full-resolution level alone (:mod:`ultraglide.textures.sampling`): at twice the swipe's speed
     or less, the band-limiting pyramid's other levels would never be read, and are not built (they were
-    most of a trial's set-up)."""
+    most of a trial's set-up).
+
+    Parameters
+    ----------
+    texture : Texture
+    speed_mm_s : float
+        The swipe's speed, mm/s.
+    settings : RenderSettings, optional
+        For the control rate (default: the renderer's defaults).
+
+    Returns
+    -------
+    Sampler
+
+    Examples
+    --------
+    A 0.1 mm pixel at 12 kHz control: 2 × 100 mm/s / 12000 Hz = 0.017 mm a sample (one level); 2 × 1000 / 12000 =
+    0.17 mm (the pyramid):
+
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> grating = resolve_texture("grating-1mm")
+    >>> offline_sampler(grating, 100.0).levels, offline_sampler(grating, 1000.0).levels > 1
+    (1, True)
+    """
     settings = settings or RenderSettings()
     step_mm = 2.0 * speed_mm_s / settings.control_rate_hz
     return Sampler(texture, band_limited=settings.band_limited_lookup and step_mm > max(texture.pixel_mm))
@@ -187,7 +443,43 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
                    block_frames: int = 4800, sampler: Sampler | None = None) -> Rendered:
     """Render one left-to-right swipe along the zones' middle row, as fast as the machine goes, into
     a buffer (what the null device would receive), and measure each zone from the plate model.
-    ``sampler``: :func:`offline_sampler` of ``texture``, if the caller keeps one."""
+
+    Parameters
+    ----------
+    texture : Texture
+        The trial's texture (:meth:`StimulusDesign.trial_texture`).
+    layout : Layout
+    model : FrictionModel
+    profile : PlateProfile
+    speed_mm_s : float
+        The swipe's speed, mm/s.
+    force_n : float
+        The finger's force, N.
+    rate_hz : int
+        The carrier's sample rate, Hz.
+    block_frames : int
+        Samples rendered per block.
+    sampler : Sampler, optional
+        :func:`offline_sampler` of ``texture``, if the caller keeps one.
+
+    Returns
+    -------
+    Rendered
+
+    Examples
+    --------
+    Plain glass asks for no vibration; a grating of contrast 0.2 is delivered within the stimulus check's bound
+    (at least half of it):
+
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.physics.calibration import load_model
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> layout = Layout(2, (20.0, 10.0), 5.0)
+    >>> trial = StimulusDesign(resolve_texture("grating-1mm"), layout=layout).trial_texture(0.2, target=1)
+    >>> rendered = render_offline(trial, layout, load_model("stretched"), load_profile("sim-plate"))
+    >>> rendered.zone_um_pp[0], rendered.zone_contrast[0], 0.1 < rendered.zone_contrast[1] <= 0.2
+    (0.0, 0.0, True)
+    """
     width, height = layout.size_mm
     duration = (width - 2.0) / speed_mm_s
     path = SwipePath("straight", speed_mm_s, duration, (1.0, height / 2), force_n=force_n)
@@ -217,7 +509,25 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
 class Along:
     """What the renderer and the plate model made along a finger's path, per control sample: where the finger
     was (mm on the texture) and the plate's amplitude (µm p-p); ``frames`` carrier samples with ``peak`` the
-    largest |sample| (1 = full-scale drive)."""
+    largest |sample| (1 = full-scale drive).
+
+    Parameters
+    ----------
+    x_mm, y_mm : numpy.ndarray
+        The finger's position per control sample, mm.
+    plate_um_pp : numpy.ndarray
+        The plate's amplitude per control sample, µm p-p.
+    frames : int
+    peak : float
+
+    Examples
+    --------
+    See :func:`render_along`.
+
+    >>> import numpy as np
+    >>> Along(np.zeros(3), np.zeros(3), np.zeros(3), 24, 0.0).frames
+    24
+    """
 
     x_mm: np.ndarray
     y_mm: np.ndarray
@@ -229,7 +539,39 @@ class Along:
 def render_along(texture: Texture, trajectory, model: FrictionModel, profile: PlateProfile,
                  settings: RenderSettings, sampler: Sampler | None = None, block_frames: int = 4800) -> Along:
     """Render ``texture`` along ``trajectory`` (a swipe or a recorded path, positions in mm on the texture) through
-    the real renderer and its output stage (drive limiter, carrier) into a buffer, as fast as the machine goes."""
+    the real renderer and its output stage (drive limiter, carrier) into a buffer, as fast as the machine goes.
+
+    Parameters
+    ----------
+    texture : Texture
+    trajectory : SwipePath or RecordedTrajectory
+    model : FrictionModel
+    profile : PlateProfile
+    settings : RenderSettings
+    sampler : Sampler, optional
+    block_frames : int
+        Samples rendered per block.
+
+    Returns
+    -------
+    Along
+
+    Examples
+    --------
+    A 0.1 s swipe at 100 mm/s from x = 1 mm: 100 / 12000 mm per control sample, ending 10 mm on:
+
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.paths import SwipePath
+    >>> from ultraglide.render.physics.calibration import load_model
+    >>> from ultraglide.render.renderer import RenderSettings
+    >>> from ultraglide.textures.library import resolve_texture
+    >>> along = render_along(resolve_texture("grating-1mm"), SwipePath("straight", 100.0, 0.1, (1.0, 5.0)),
+    ...                      load_model("stretched"), load_profile("sim-plate"), RenderSettings())
+    >>> round(float(along.x_mm[1] - along.x_mm[0]), 6), round(100 / 12000, 6), float(along.x_mm[-1])
+    (0.008333, 0.008333, 11.0)
+    >>> 0 < along.peak <= 1.0
+    True
+    """
     renderer = Renderer(texture, model, profile, settings, trajectory=trajectory, sampler=sampler)
     stage = offline_stage(renderer)  # the drive limiter and the carrier, as every device has them
     xs, ys, plate = [], [], []
