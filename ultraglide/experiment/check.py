@@ -41,7 +41,30 @@ MAX_PX_PER_MM = 40.0
 
 def load_source(stimulus: Stimulus):
     """The stimulus's texture (a library name or a file; an image is authored with the defaults); ExperimentError
-    naming the stimulus if it cannot be loaded."""
+    naming the stimulus if it cannot be loaded.
+
+    Parameters
+    ----------
+    stimulus : Stimulus
+
+    Returns
+    -------
+    Texture
+
+    Raises
+    ------
+    ExperimentError
+        One line naming ``stimuli.NAME.texture`` and what is wrong.
+
+    Examples
+    --------
+    >>> load_source(Stimulus("g", "grating-2mm")).authoring["wavelength_mm"]
+    2.0
+    >>> load_source(Stimulus("x", "no-such-texture"))
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: stimuli.x.texture: ...
+    """
     from ultraglide.errors import UltraglideError
     from ultraglide.textures.library import resolve_texture
 
@@ -77,6 +100,16 @@ def zone_texture(stimulus: Stimulus, zone_mm: tuple[float, float], contrast: flo
     ------
     ExperimentError
         A gradient texture, or a mean the contrast cannot fit within 0..1.
+
+    Examples
+    --------
+    A contrast of 0.4 shifted to a mean of 0.7: a sine spans 0.5..0.9 about its mean:
+
+    >>> zone = zone_texture(Stimulus("g", "grating-1mm", contrast=0.4, mean=0.7), (20.0, 10.0))
+    >>> zone.width_mm, zone.height_mm, round(float(zone.values.mean()), 3)
+    (20.0, 10.0, 0.7)
+    >>> round(float(zone.values.min()), 2), round(float(zone.values.max()), 2)
+    (0.5, 0.9)
     """
     return ZoneSource(stimulus, zone_mm, source).texture(contrast)
 
@@ -221,7 +254,29 @@ def _effects(stimulus: Stimulus) -> tuple:
 
 @dataclass(frozen=True)
 class StimulusFigures:
-    """What one stimulus delivers along the path. Contrasts and means are friction ratios' (1 = at rest)."""
+    """What one stimulus delivers along the path. Contrasts and means are friction ratios' (1 = at rest).
+
+    Parameters
+    ----------
+    stimulus : str
+    level : float or None
+        The level checked (a varied stimulus), else None.
+    asked_contrast, path_contrast, delivered_contrast : float
+        The friction contrast asked, the map's own along the path (before rendering), and the plate's.
+    asked_mean, delivered_mean : float
+        The map's mean friction ratio along the path, and the plate's.
+    delivered_um_pp : float
+        The plate's median amplitude on the zone, µm p-p.
+    peak_drive : float
+        The largest |carrier sample|, 1 = full scale.
+
+    Examples
+    --------
+    See :func:`measure`.
+
+    >>> StimulusFigures("g", 0.2, 0.2, 0.2, 0.19, 0.9, 0.9, 1.1, 0.4).label
+    'g at level 0.2'
+    """
 
     stimulus: str
     level: float | None  # the level checked (a varied stimulus), else None
@@ -235,24 +290,72 @@ class StimulusFigures:
 
     @property
     def label(self) -> str:
+        """The stimulus's name, with its level where one was checked.
+
+        Examples
+        --------
+        >>> StimulusFigures("g", None, 0.3, 0.3, 0.28, 0.85, 0.85, 1.5, 0.4).label
+        'g'
+        """
         return self.stimulus if self.level is None else f"{self.stimulus} at level {self.level:g}"
 
     def as_dict(self) -> dict:
+        """The figures as plain data, with the label.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> StimulusFigures("g", None, 0.3, 0.3, 0.28, 0.85, 0.85, 1.5, 0.4).as_dict()["delivered_um_pp"]
+        1.5
+        """
         return {**asdict(self), "label": self.label}
 
 
 @dataclass
 class CheckReport:
-    """Every stimulus's figures, and what failed (one sentence each)."""
+    """Every stimulus's figures, and what failed (one sentence each).
+
+    Parameters
+    ----------
+    figures : dict of str to StimulusFigures
+    failures : list of str
+
+    Examples
+    --------
+    >>> report = CheckReport({}, ["stimulus 'g' delivers too little"])
+    >>> report.passed, report.as_dict()["failures"]
+    (False, ["stimulus 'g' delivers too little"])
+    """
 
     figures: dict[str, StimulusFigures]
     failures: list[str]
 
     @property
     def passed(self) -> bool:
+        """True when nothing failed.
+
+        Examples
+        --------
+        >>> CheckReport({}, []).passed
+        True
+        """
         return not self.failures
 
     def as_dict(self) -> dict:
+        """The report as plain data: ``passed``, ``failures``, each stimulus's figures, and the criteria.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> CheckReport({}, []).as_dict()["criteria"]["min_contrast_kept"] == MIN_CONTRAST_KEPT
+        True
+        """
         return {"passed": self.passed, "failures": list(self.failures),
                 "stimuli": {key: value.as_dict() for key, value in self.figures.items()},
                 "criteria": {"min_contrast_kept": MIN_CONTRAST_KEPT, "max_mean_error": MAX_MEAN_ERROR,
@@ -261,7 +364,26 @@ class CheckReport:
 
 
 class Rig:
-    """The design's friction model, plate profile, swipe speed and finger force, loaded once."""
+    """The design's friction model, plate profile, swipe speed and finger force, loaded once.
+
+    Parameters
+    ----------
+    design : Design
+
+    Raises
+    ------
+    UltraglideError
+        A model or a plate profile that cannot be loaded.
+
+    Examples
+    --------
+    >>> from ultraglide.experiment import design_from_dict
+    >>> rig = Rig(design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["g"]}],
+    ...     "rig": {"zone_mm": [20, 10], "speed_mm_s": 80}}))
+    >>> rig.profile.name, rig.zone_mm, rig.speed_mm_s, rig.paths
+    ('sim-plate', (20.0, 10.0), 80.0, {})
+    """
 
     def __init__(self, design: Design):
         from ultraglide.devices.rig import load_plate
@@ -300,7 +422,38 @@ def _recorded_path(path: str, index: int, zone_mm: tuple[float, float]):
 
 
 def measure(texture, rig: Rig, stimulus: str, level: float | None, asked_contrast: float) -> StimulusFigures:
-    """Render ``texture`` (a zone) alone along the zone's swipe and measure what it delivers."""
+    """Render ``texture`` (a zone) alone along the zone's swipe and measure what it delivers.
+
+    Parameters
+    ----------
+    texture : Texture
+        The zone (:func:`zone_texture`).
+    rig : Rig
+    stimulus : str
+        Its name, for the figures.
+    level : float or None
+        The level it stands for (a varied stimulus), else None.
+    asked_contrast : float
+        The friction contrast the design asks.
+
+    Returns
+    -------
+    StimulusFigures
+
+    Examples
+    --------
+    A sine grating rescaled to 0.7..1: the path's mean (0.7 + 1) / 2 = 0.85 and contrast 0.3; the plate keeps more
+    than the check's half of it:
+
+    >>> from ultraglide.experiment import design_from_dict
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "contrast": 0.3}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["g"]}],
+    ...     "rig": {"zone_mm": [20, 10]}})
+    >>> rig = Rig(design)
+    >>> found = measure(zone_texture(design.stimuli["g"], rig.zone_mm), rig, "g", None, 0.3)
+    >>> round(found.asked_mean, 2), round(found.path_contrast, 2), 0.15 < found.delivered_contrast <= 0.3
+    (0.85, 0.3, True)
+    """
     from ultraglide.experiment.stimuli import Layout, render_offline
     from ultraglide.textures.compose import Placement, compose
 
@@ -326,7 +479,41 @@ def measure(texture, rig: Rig, stimulus: str, level: float | None, asked_contras
 def measure_path(texture, rig: Rig, stimulus: str, level: float | None, asked_contrast: float,
                  path: str) -> StimulusFigures:
     """Render ``texture`` (a zone) alone along the recorded path ``path`` of the rig and measure what it delivers
-    where the finger was on the zone (its edges left out)."""
+    where the finger was on the zone (its edges left out).
+
+    Parameters
+    ----------
+    texture : Texture
+        The zone (:func:`zone_texture`).
+    rig : Rig
+        Holding ``path`` among its ``paths`` (the design's ``check_paths``).
+    stimulus : str
+    level : float or None
+    asked_contrast : float
+    path : str
+        The touch log (``t_s,x_mm,y_mm[,force_n]``, mm from the zone's top-left corner).
+
+    Returns
+    -------
+    StimulusFigures
+
+    Examples
+    --------
+    A touch log written with ``csv``: 100 mm/s across a 20 × 10 mm zone along its middle, as the swipe goes:
+
+    >>> import csv, pathlib, tempfile
+    >>> from ultraglide.experiment import design_from_dict
+    >>> log = pathlib.Path(tempfile.mkdtemp()) / "touch.csv"
+    >>> with open(log, "w", newline="") as handle:
+    ...     csv.writer(handle).writerows([["t_s", "x_mm", "y_mm"]] + [[k / 100, k, 5.0] for k in range(21)])
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "contrast": 0.3}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["g"]}],
+    ...     "rig": {"zone_mm": [20, 10], "check_paths": [str(log)]}})
+    >>> rig = Rig(design)
+    >>> found = measure_path(zone_texture(design.stimuli["g"], rig.zone_mm), rig, "g", None, 0.3, str(log))
+    >>> round(found.asked_mean, 2), round(found.path_contrast, 2), 0.15 < found.delivered_contrast <= 0.3
+    (0.85, 0.3, True)
+    """
     from ultraglide.experiment.stimuli import Layout, offline_sampler, render_along
     from ultraglide.render.renderer import RenderSettings
     from ultraglide.render.trajectory import RecordedTrajectory
@@ -385,8 +572,8 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
     CheckReport
         Its ``failures`` name the stimulus and the figure, one sentence each; :func:`refuse` raises the first.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.experiment import design_from_dict, check_stimuli
     >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "contrast": 0.3}},
     ...     "conditions": [{"name": "g", "stimulus": "g"}],
@@ -566,7 +753,25 @@ def _check_pair(design: Design, condition_name: str, figures: dict, failures: li
 
 
 def refuse(report: CheckReport) -> None:
-    """Raise :class:`StimulusCheckError` with the report's first failure (and how many more), if any."""
+    """Raise :class:`StimulusCheckError` with the report's first failure (and how many more), if any.
+
+    Parameters
+    ----------
+    report : CheckReport
+
+    Raises
+    ------
+    StimulusCheckError
+        The report failed.
+
+    Examples
+    --------
+    >>> refuse(CheckReport({}, []))                      # passed: nothing raised
+    >>> refuse(CheckReport({}, ["stimulus 'a' is weak", "stimulus 'b' is weak"]))
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.StimulusCheckError: stimulus 'a' is weak (and 1 more problems); change the design, ...
+    """
     if report.failures:
         more = f" (and {len(report.failures) - 1} more problems)" if len(report.failures) > 1 else ""
         raise StimulusCheckError(report.failures[0] + more + "; change the design, or accept it with the warning "

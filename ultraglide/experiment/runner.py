@@ -198,8 +198,8 @@ def run(design: Design, participant: str = "P01", session: str = "1", out=None, 
     ExperimentError
         An unusable design, observer or output directory.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.experiment import design_from_dict, run
     >>> design = design_from_dict({"experiment": {"seed": 1},
     ...     "stimuli": {"g": {"texture": "grating-1mm"}},
