@@ -34,7 +34,52 @@ TRIALS, SESSION, SUMMARY = "trials.csv", "session.json", "summary.json"
 class Presentation:
     """What a responder presents: the planned trial, its level (chosen now for adaptive blocks), the question and
     answer labels in the participant's language, the zones' layout and a function building the trial's texture
-    (every zone in place, plain glass between), and the trial's stimulus figures for a simulated observer."""
+    (every zone in place, plain glass between), and the trial's stimulus figures for a simulated observer.
+
+    Parameters
+    ----------
+    trial : Trial
+    level : float or None
+        In the condition's unit.
+    question : str
+    labels : tuple of str
+    intervals : int
+    layout : Layout
+    texture : callable
+        Returns the trial's Texture.
+    stimulus_design : StimulusDesign or None
+        Adaptive and constant blocks: the condition's.
+    figures : tuple
+        StimulusFigures of each zone's stimulus (None for plain glass or a varied zone).
+    modulus : float, optional
+    scale : (int, int), optional
+        A rating's (low, high).
+    texture_at : callable, optional
+        Adjustment: the trial's Texture with the adjusted zone at a level.
+    level_range : (float, float), optional
+        Adjustment: the levels it may be set to.
+
+    Examples
+    --------
+    A responder sees one per trial; this one keeps them:
+
+    >>> from ultraglide.experiment import Answer, design_from_dict, run
+    >>> class Keeper:
+    ...     shown = []
+    ...     def present(self, presentation):
+    ...         self.shown.append(presentation)
+    ...         return Answer(3, 0.5)
+    ...     def take_break(self, trial, message):
+    ...         return True
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+    ...     "conditions": [{"name": "g", "stimulus": "g"}],
+    ...     "blocks": [{"task": "rating", "conditions": ["g"], "repeats": 2, "scale": [1, 5]}]})
+    >>> session = run(design, responder=Keeper(), check=False)
+    >>> [(p.trial.number, p.question, p.scale, p.layout.zones) for p in Keeper.shown]
+    [(1, 'How rough did it feel?', (1, 5), 1), (2, 'How rough did it feel?', (1, 5), 1)]
+    >>> Keeper.shown[0].texture().width_mm               # one 40 mm zone and 10 mm of glass either side
+    60.0
+    """
 
     trial: Trial
     level: float | None
@@ -55,7 +100,36 @@ class Presentation:
 class Session:
     """A session's outcome. ``trials``: one dict per trial (the columns of trials.csv, numbers as numbers);
     ``summary``: the fits per block and condition; ``check``: the stimulus check; ``directory``: where its files
-    went (None without ``out``); ``complete``: False if the participant stopped it."""
+    went (None without ``out``); ``complete``: False if the participant stopped it.
+
+    Parameters
+    ----------
+    design : Design
+    trials : list of dict
+    summary : dict
+    check : CheckReport or None
+    directory : pathlib.Path or None
+    complete : bool
+    warnings : list of str
+        What was accepted despite the check, one sentence each.
+
+    Examples
+    --------
+    Written with ``out``, its trials.csv read back by ``csv`` holds the same rows:
+
+    >>> import csv, pathlib, tempfile
+    >>> from ultraglide.experiment import design_from_dict, run
+    >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+    ...     "conditions": [{"name": "g", "stimulus": "g", "levels": [0.1, 0.3]}],
+    ...     "blocks": [{"task": "constant", "conditions": ["g"], "repeats": 2}]})
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "s01"
+    >>> session = run(design, observer="sim:threshold=0.1", out=out, check=False)
+    >>> with open(out / "trials.csv", newline="") as handle:
+    ...     logged = list(csv.DictReader(handle))
+    >>> session.complete, session.directory == out, [float(row["level"]) for row in logged] == [
+    ...     row["level"] for row in session.trials]
+    (True, True, True)
+    """
 
     design: Design
     trials: list[dict]
@@ -66,7 +140,23 @@ class Session:
     warnings: list[str] = field(default_factory=list)
 
     def table(self):
-        """The trials as a pandas DataFrame (pandas installed), else the list of dicts (a DataFrame's records)."""
+        """The trials as a pandas DataFrame (pandas installed), else the list of dicts (a DataFrame's records).
+
+        Returns
+        -------
+        pandas.DataFrame or list of dict
+
+        Examples
+        --------
+        >>> from ultraglide.experiment import design_from_dict, run
+        >>> from ultraglide.experiment.analysis import records
+        >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
+        ...     "conditions": [{"name": "g", "stimulus": "g", "levels": [0.1, 0.3]}],
+        ...     "blocks": [{"task": "constant", "conditions": ["g"], "repeats": 2}]})
+        >>> session = run(design, observer="sim:threshold=0.1", check=False)
+        >>> len(records(session.table())), sorted(records(session.table())[0])[:3]
+        (4, ['block', 'break_before', 'commanded_um_pp'])
+        """
         from ultraglide.experiment.analysis import as_frame
 
         return as_frame(self.trials)
@@ -121,7 +211,23 @@ class _Stimuli:
 
 
 def stimulus_is_plain_library(stimulus) -> bool:
-    """A stimulus with no transform: the texture exactly as ``experiment threshold TEXTURE`` would use it."""
+    """A stimulus with no transform: the texture exactly as ``experiment threshold TEXTURE`` would use it.
+
+    Parameters
+    ----------
+    stimulus : Stimulus
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from ultraglide.experiment import Stimulus
+    >>> stimulus_is_plain_library(Stimulus("g", "grating-1mm")), stimulus_is_plain_library(
+    ...     Stimulus("g", "grating-1mm", scale=2.0))
+    (True, False)
+    """
     return (stimulus.contrast is None and stimulus.mean is None and stimulus.scale == 1.0 and not stimulus.rotation_deg
             and stimulus.effects is None)
 
@@ -147,10 +253,39 @@ def _procedures(design: Design) -> dict:
 
 
 def now_utc() -> str:
+    """The time now, ISO 8601 in UTC to the millisecond (trials.csv's ``time_utc``).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import datetime
+    >>> stamp = now_utc()
+    >>> parsed = datetime.datetime.fromisoformat(stamp)
+    >>> parsed.utcoffset(), len(stamp.split(".")[1])           # "+00:00" after three digits of milliseconds
+    (datetime.timedelta(0), 9)
+    """
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="milliseconds")
 
 
 def versions() -> dict:
+    """The versions a session ran with (written in session.json): ultraglide's, Python's, numpy's and scipy's.
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> import platform, numpy, scipy
+    >>> found = versions()
+    >>> found["python"] == platform.python_version(), found["numpy"] == numpy.__version__
+    (True, True)
+    >>> found["scipy"] == scipy.__version__
+    True
+    """
     import sys
 
     import scipy

@@ -24,14 +24,57 @@ from ultraglide.experiment.responders import Answer
 
 
 def difference(first, second) -> float:
-    """|Δ delivered contrast| + |Δ delivered mean ratio| of two stimuli's check figures (0 if either is unknown)."""
+    """|Δ delivered contrast| + |Δ delivered mean ratio| of two stimuli's check figures (0 if either is unknown).
+
+    Parameters
+    ----------
+    first, second : StimulusFigures or None
+
+    Returns
+    -------
+    float
+        In friction ratio.
+
+    Examples
+    --------
+    >>> from ultraglide.experiment.check import StimulusFigures
+    >>> a = StimulusFigures("a", None, 0.3, 0.3, 0.28, 0.85, 0.86, 1.5, 0.4)
+    >>> b = StimulusFigures("b", None, 0.3, 0.3, 0.20, 0.85, 0.90, 1.1, 0.3)
+    >>> round(difference(a, b), 6), difference(a, None)            # |0.28 - 0.20| + |0.86 - 0.90|
+    (0.12, 0.0)
+    """
     if first is None or second is None:
         return 0.0
     return abs(first.delivered_contrast - second.delivered_contrast) + abs(first.delivered_mean - second.delivered_mean)
 
 
 class SimulatedParticipant:
-    """The responder (:mod:`ultraglide.experiment.responders`) a dry run of a design uses."""
+    """The responder (:mod:`ultraglide.experiment.responders`) a dry run of a design uses.
+
+    Parameters
+    ----------
+    observer : str or SimObserver
+        ``"sim:threshold=..."`` or an observer.
+    rig : Rig
+        The design's model, profile, speed and force.
+    seed : int
+
+    Raises
+    ------
+    ExperimentError
+        An observer that is neither.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> rig = SimpleNamespace(model=None, profile=None, speed_mm_s=100.0, force_n=0.5)
+    >>> SimulatedParticipant("sim:threshold=0.2,slope=2", rig, seed=9).observer.slope
+    2.0
+    >>> SimulatedParticipant(0.2, rig)
+    Traceback (most recent call last):
+    ...
+    ultraglide.experiment.errors.ExperimentError: observer must be a sim:... spec or a SimObserver
+    """
 
     def __init__(self, observer, rig, seed: int = 0):
         from ultraglide.experiment.dryrun import SimResponder
@@ -45,10 +88,56 @@ class SimulatedParticipant:
         self.breaks: list[int] = []
 
     def take_break(self, trial: int, message: str) -> bool:
+        """No pause for a simulated participant; the break is noted in ``breaks``.
+
+        Parameters
+        ----------
+        trial : int
+        message : str
+
+        Returns
+        -------
+        bool
+            Always True.
+
+        Examples
+        --------
+        >>> from types import SimpleNamespace
+        >>> participant = SimulatedParticipant("sim:threshold=0.2", SimpleNamespace(model=None, profile=None,
+        ...                                    speed_mm_s=100.0, force_n=0.5))
+        >>> participant.take_break(5, "Take a break."), participant.breaks
+        (True, [5])
+        """
         self.breaks.append(trial)
         return True
 
     def present(self, shown) -> Answer:
+        """Answer a trial as the module docstring says for its task.
+
+        Parameters
+        ----------
+        shown : Presentation
+
+        Returns
+        -------
+        Answer
+
+        Examples
+        --------
+        A rating of a stimulus far above threshold without noise: the scale's top (LOW + (HIGH - LOW) · F, F = 1):
+
+        >>> from types import SimpleNamespace
+        >>> from ultraglide.experiment.check import StimulusFigures
+        >>> from ultraglide.experiment.design import Trial
+        >>> from ultraglide.experiment.runner import Presentation
+        >>> participant = SimulatedParticipant("sim:threshold=0.001,noise=0", SimpleNamespace(model=None, profile=None,
+        ...                                    speed_mm_s=100.0, force_n=0.5))
+        >>> strong = StimulusFigures("g", None, 0.3, 0.3, 0.3, 0.85, 0.85, 1.5, 0.4)
+        >>> shown = Presentation(Trial(1, "rate", "rating", "g", False, None, None, ("g",)), None, "How rough?",
+        ...                      ("1", "2", "3", "4", "5"), 1, None, None, None, (strong,), scale=(1, 5))
+        >>> participant.present(shown).response
+        5
+        """
         trial, observer = shown.trial, self.observer
         if shown.stimulus_design is not None:
             return self.renderer.present(trial.number, shown.level, trial.target or 0, shown.stimulus_design)
