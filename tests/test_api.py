@@ -57,7 +57,8 @@ def test_public_functions_have_type_hints_and_docstrings():
 # the modules whose every public function, class and method has a docstring (the public API and what it is built
 # of); the rest of the package is documented module by module as it is touched
 DOCUMENTED = ("ultraglide/__init__.py", "ultraglide/api.py", "ultraglide/client.py", "ultraglide/errors.py",
-              "ultraglide/lazy.py", "textures", "render", "devices/output", "devices/profiles.py", "devices/errors.py")
+              "ultraglide/lazy.py", "textures", "render", "devices/output", "devices/profiles.py", "devices/errors.py",
+              "ultraglide/experiment")
 
 
 def _documented_paths():

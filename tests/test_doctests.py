@@ -8,14 +8,15 @@ import pkgutil
 
 import pytest
 
-PACKAGES = ("textures", "devices", "render", "apps")
+PACKAGES = ("textures", "devices", "render", "apps", "experiment")
 MODULES = sorted(
     info.name
     for package in PACKAGES
     for info in pkgutil.walk_packages(importlib.import_module(f"ultraglide.{package}").__path__,
                                       f"ultraglide.{package}.")
-) + ["ultraglide"] + sorted(  # packages too: a room's __init__ may hold code (ultraglide.devices.protocol); the
-    # root: the package's own docstring and the modules beside it (api, errors ...)
+) + ["ultraglide", "ultraglide.experiment"] + sorted(  # packages too: a room's __init__ may hold code
+    # (ultraglide.devices.protocol); the root and the experiment package: their own docstrings; the modules beside
+    # the root (api, errors ...)
     f"ultraglide.{info.name}" for info in pkgutil.iter_modules(importlib.import_module("ultraglide").__path__)
     if not info.ispkg and info.name not in ("__main__",)
 )

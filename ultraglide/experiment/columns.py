@@ -71,8 +71,17 @@ DESIGN_COLUMNS: dict[str, str] = {
 def columns_markdown(columns: dict[str, str]) -> str:
     """A Markdown table of ``columns``: name and meaning, one row each (what docs/experiments.md holds).
 
-    Example
+    Parameters
+    ----------
+    columns : dict of str to str
+        Column name to what it holds.
+
+    Returns
     -------
+    str
+
+    Examples
+    --------
     >>> from ultraglide.experiment.columns import THRESHOLD_COLUMNS, columns_markdown
     >>> columns_markdown(THRESHOLD_COLUMNS).splitlines()[2]
     "| `participant` | the participant's code (`--participant`) |"
