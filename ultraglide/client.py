@@ -462,7 +462,72 @@ class _Messages:
 class Client(_Messages):
     """A connection to ``ultraglide serve`` (see the module docstring). ``url``: ``ws://HOST:PORT/ws[?token=...]``
     as the server printed, or ``ws+unix:PATH``; ``role``: ``control`` (one client at a time) or ``observe``.
-    Use from one thread; pushes arrive in :meth:`events`."""
+    Use from one thread; pushes arrive in :meth:`events`.
+
+    Parameters
+    ----------
+    url : str
+        ``ws://HOST:PORT/ws[?token=...]`` as the server printed, or ``ws+unix:PATH``.
+    role : {"control", "observe"}
+        ``control`` (one client at a time) or ``observe`` (read only).
+    name : str
+        How the service names this client.
+    timeout_s : float
+        How long (s) to wait for the connection and each answer.
+    origin : str, optional
+        The ``Origin`` header to send, for a server that checks it.
+
+    Raises
+    ------
+    ConnectionFailed
+        The service could not be reached or refused the handshake (origin, token).
+    Refused
+        The service refused the hello (:class:`Busy` when another client controls).
+
+    Examples
+    --------
+    A script connects to the address ``ultraglide serve --device null --unix PATH`` prints. Here the same service
+    runs in this process (its engine on the null device: no plate, no sound), on a Unix socket in a temporary
+    folder:
+
+    >>> import asyncio, pathlib, tempfile, threading
+    >>> from websockets.asyncio.server import unix_serve
+    >>> from ultraglide.apps.service.server import Service
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.engine import Engine, EngineConfig
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+    >>> service = Service(None, load_profile("sim-plate"))
+    >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+    ...                                            realtime_priority=False))
+    >>> service.engine.wait_ready(60)
+    >>> listening, stop = threading.Event(), threading.Event()
+    >>> async def serve():
+    ...     async with unix_serve(service.handle, socket_path):
+    ...         listening.set()
+    ...         await asyncio.to_thread(stop.wait)
+    >>> server = threading.Thread(target=asyncio.run, args=(serve(),))
+    >>> server.start(); listening.wait(10)
+    True
+
+    The client: a 2 mm grating over the whole default view (160 × 100 mm), rendered, then a swipe across it:
+
+    >>> with Client("ws+unix:" + socket_path) as plate:
+    ...     _ = plate.load_texture("g", library="grating-2mm")
+    ...     _ = plate.place_sprite("panel", "g", x=0, y=0, width=160, height=100)    # the view's units: mm
+    ...     state = plate.wait_rendered()
+    ...     plate.touch(40, 50, "down"); plate.touch(60, 50, "move"); plate.touch(60, 50, "up")
+    >>> plate.welcome["role"], plate.welcome["device"]
+    ('control', 'null')
+    >>> state["rendered_version"] == state["scene_version"] == 1, [sprite["sprite"] for sprite in state["sprites"]]
+    (True, ['panel'])
+
+    Stopped as ``serve`` stops, the engine last:
+
+    >>> stop.set(); server.join(10); service.worker.shutdown(); final = service.engine.stop(); folder.cleanup()
+    >>> final.state, final.faults
+    ('stopped', [])
+    """
 
     def __init__(self, url: str, *, role: str = "control", name: str = "python", timeout_s: float = DEFAULT_TIMEOUT_S,
                  origin: str | None = None):
@@ -574,7 +639,38 @@ class Client(_Messages):
 
 class AsyncClient(_Messages):
     """:class:`Client` for asyncio: ``client = await AsyncClient.connect(url)``; every call is awaited but
-    :meth:`touch`, which sends at once and returns None. Pushes come through :meth:`next_event`."""
+    :meth:`touch`, which sends at once and returns None. Pushes come through :meth:`next_event`.
+
+    Examples
+    --------
+    A program connects to the address ``ultraglide serve --device null --unix PATH`` prints. Here the same service
+    runs in this process, in the program's own event loop (its engine on the null device: no plate, no sound):
+
+    >>> import asyncio, pathlib, tempfile
+    >>> from websockets.asyncio.server import unix_serve
+    >>> from ultraglide.apps.service.server import Service
+    >>> from ultraglide.devices.profiles import load_profile
+    >>> from ultraglide.render.engine import Engine, EngineConfig
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+    >>> service = Service(None, load_profile("sim-plate"))
+    >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+    ...                                            realtime_priority=False))
+    >>> service.engine.wait_ready(60)
+    >>> async def session():
+    ...     async with unix_serve(service.handle, socket_path):
+    ...         async with await AsyncClient.connect("ws+unix:" + socket_path) as plate:
+    ...             await plate.load_texture("g", library="grating-2mm")
+    ...             await plate.place_sprite("panel", "g", x=0, y=0, width=160, height=100)    # mm
+    ...             plate.touch(40, 50, "down")                                             # sent, not awaited
+    ...             return plate.welcome, await plate.wait_rendered()
+    >>> welcome, state = asyncio.run(session())
+    >>> welcome["role"], welcome["scene_version"], state["scene_version"], state["rendered_version"]
+    ('control', 0, 1, 1)
+    >>> service.worker.shutdown(); final = service.engine.stop(); folder.cleanup()
+    >>> final.state, final.faults
+    ('stopped', [])
+    """
 
     def __init__(self):
         self._ws = None
