@@ -60,32 +60,91 @@ class Plate(Protocol):
 
     @property
     def name(self) -> str:
-        """The plate's name, for messages."""
+        """The plate's name, for messages.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> load_profile("sim-plate").name
+        'sim-plate'
+        """
         ...
 
     @property
     def resonance_hz(self) -> float:
-        """The plate's resonance (Hz): the carrier unless the settings say otherwise."""
+        """The plate's resonance (Hz): the carrier unless the settings say otherwise.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> load_profile("sim-plate").resonance_hz          # the bundled profile's resonance_hz = 25000
+        25000.0
+        """
         ...
 
     @property
     def max_amplitude_um_pp(self) -> float:
-        """The plate's amplitude limit (µm p-p), never exceeded."""
+        """The plate's amplitude limit (µm p-p), never exceeded.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> load_profile("sim-plate").max_amplitude_um_pp    # the bundled profile's max_amplitude_um_pp
+        6.0
+        """
         ...
 
     @property
     def max_drive_um_pp(self) -> float | None:
-        """The drive's ceiling (µm p-p) for pre-compensation; None: the limit."""
+        """The drive's ceiling (µm p-p) for pre-compensation; None: the limit.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> load_profile("sim-plate").max_drive_um_pp        # the bundled profile's overdrive ceiling
+        8.0
+        """
         ...
 
     @property
     def time_constant_s(self) -> float:
-        """The plate's envelope time constant (s): Q / (π f0)."""
+        """The plate's envelope time constant (s): Q / (π f0).
+
+        Examples
+        --------
+        >>> import math
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> plate = load_profile("sim-plate")
+        >>> round(plate.time_constant_s, 9), round(200 / (math.pi * 25000), 9)      # Q 200 at 25 kHz
+        (0.002546479, 0.002546479)
+        """
         ...
 
     def check_carrier(self, carrier_hz: float, audio_rate_hz: float | None = None) -> None:
         """Raise an error of ours unless ``carrier_hz`` (Hz) lies in the plate's carrier range and, given an audio
-        rate (Hz), that rate can carry it."""
+        rate (Hz), that rate can carry it.
+
+        Parameters
+        ----------
+        carrier_hz : float
+            The carrier, Hz.
+        audio_rate_hz : float, optional
+            The output's sample rate, Hz.
+
+        Raises
+        ------
+        UltraglideError
+            A carrier outside the plate's range, or one the audio rate cannot carry.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> load_profile("sim-plate").check_carrier(25000.0, 96000)     # in 20-28 kHz, under 48 kHz: nothing raised
+        >>> load_profile("sim-plate").check_carrier(19000.0)
+        Traceback (most recent call last):
+        ...
+        ultraglide.devices.errors.DeviceError: carrier 19000 Hz is outside plate sim-plate's range 20000-28000 Hz
+        """
         ...
 
 
@@ -161,7 +220,13 @@ class RenderSettings:
 
     @property
     def upsampling(self) -> int:
-        """Audio samples per control sample: ``audio_rate_hz / control_rate_hz``, a whole number."""
+        """Audio samples per control sample: ``audio_rate_hz / control_rate_hz``, a whole number.
+
+        Examples
+        --------
+        >>> RenderSettings(control_rate_hz=12000.0, audio_rate_hz=96000).upsampling     # 96000 / 12000
+        8
+        """
         return round(self.audio_rate_hz / self.control_rate_hz)
 
 
@@ -259,7 +324,24 @@ class ControlBuffers:
         self._ratio_views: dict[int, np.ndarray] = {}
 
     def block(self, n: int) -> ControlBlock:
-        """The reusable block of length ``n`` (views of the buffers; built once per length)."""
+        """The reusable block of length ``n`` (views of the buffers; built once per length).
+
+        Parameters
+        ----------
+        n : int
+            Control samples, at most the capacity.
+
+        Returns
+        -------
+        ControlBlock
+
+        Examples
+        --------
+        >>> buffers = ControlBuffers(256)
+        >>> block = buffers.block(64)
+        >>> len(block.time_s), block is buffers.block(64), block.time_s.base is buffers.time_s
+        (64, True, True)
+        """
         block = self._blocks.get(n)
         if block is None:
             block = ControlBlock(self.time_s[:n], self.x_mm[:n], self.y_mm[:n], False, self.ratio[:n],
@@ -271,7 +353,24 @@ class ControlBuffers:
         return block
 
     def ratio_view(self, n: int) -> np.ndarray:
-        """The lookup's buffer for a block of length ``n`` (the block's own ratio may be an effect player's)."""
+        """The lookup's buffer for a block of length ``n`` (the block's own ratio may be an effect player's).
+
+        Parameters
+        ----------
+        n : int
+
+        Returns
+        -------
+        numpy.ndarray
+            float32, ``n`` long.
+
+        Examples
+        --------
+        >>> buffers = ControlBuffers(256)
+        >>> view = buffers.ratio_view(32)
+        >>> len(view), view.dtype, view.base is buffers.ratio
+        (32, dtype('float32'), True)
+        """
         view = self._ratio_views.get(n)
         return self.ratio[:n] if view is None else view
 
@@ -369,20 +468,83 @@ class Renderer:
         return EffectPlayer(bindings, self.settings.control_rate_hz) if bindings else None
 
     def set_effects(self, effects: tuple | None) -> None:
-        """Play these effects (``textures.effects.Binding``) from the next block on; None: the texture's own."""
+        """Play these effects (``textures.effects.Binding``) from the next block on; None: the texture's own.
+
+        Parameters
+        ----------
+        effects : tuple of Binding or None
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.set_effects(())                   # none, whatever the texture holds
+        >>> renderer.effects is None
+        True
+        """
         self._effects_override = None if effects is None else tuple(effects)
         self.effects = self._player(self.texture)
 
     def trigger(self, name: str, t_s: float | None = None) -> bool:
         """The app's named event (a widget's value changing) at ``t_s`` (perf_counter s, default now):
-        starts the effects bound to it. False if none is."""
+        starts the effects bound to it. False if none is.
+
+        Parameters
+        ----------
+        name : str
+            The event's name, as the effects' bindings say it.
+        t_s : float, optional
+            When, perf_counter s.
+
+        Returns
+        -------
+        bool
+            Whether an effect is bound to ``name``.
+
+        Examples
+        --------
+        A grating holds no effects, so no event starts one:
+
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.trigger("click")
+        False
+        """
         player = self.effects
         return player is not None and player.trigger(name, time.perf_counter() if t_s is None else t_s)
 
     def control_buffers(self, capacity: int = 4096, always: bool = False) -> ControlBuffers:
         """Preallocated outputs to pass as ``control(..., out=)`` on a real-time path. ``always``: every
         block is written into them, also those ``audio()`` asks for (which copies what it keeps); only
-        for a renderer whose observers, if any, do not keep blocks (the engine's)."""
+        for a renderer whose observers, if any, do not keep blocks (the engine's).
+
+        Parameters
+        ----------
+        capacity : int
+            The longest block, control samples.
+        always : bool
+
+        Returns
+        -------
+        ControlBuffers
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.paths import SwipePath
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+        ...                     trajectory=SwipePath(duration_s=0.1))
+        >>> buffers = renderer.control_buffers(128)
+        >>> block = renderer.control(100, out=buffers)
+        >>> buffers.capacity, block.amplitude_um_pp.base is buffers.amplitude_um_pp
+        (128, True)
+        """
         self._offsets = np.arange(capacity) * (1.0 / self.settings.control_rate_hz)
         buffers = ControlBuffers(capacity)
         if always:
@@ -391,29 +553,119 @@ class Renderer:
 
     # ---- input -------------------------------------------------------------------------------
     def push(self, t_s: float, x_mm: float, y_mm: float, force_n: float | None = None, down: bool = True) -> None:
-        """A touch report (perf_counter seconds, mm, N). Only for live rendering."""
+        """A touch report (perf_counter seconds, mm, N). Only for live rendering.
+
+        Parameters
+        ----------
+        t_s : float
+            When the panel saw it, perf_counter s.
+        x_mm, y_mm : float
+            Where, mm on the texture.
+        force_n : float, optional
+            The finger's force, N (default: the renderer's default force).
+        down : bool
+            Whether the finger touches.
+
+        Raises
+        ------
+        RenderError
+            A renderer playing a recorded trajectory or a swipe.
+
+        Examples
+        --------
+        A finger resting on a grating: the plate, at rest before, vibrates (the attack ramp, 5 ms):
+
+        >>> import time
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> now = time.perf_counter()
+        >>> float(renderer.control(120, now_s=now).amplitude_um_pp.max())          # 10 ms, no finger
+        0.0
+        >>> renderer.push(now + 0.01, 10.0, 10.0)
+        >>> float(renderer.control(120, now_s=now + 0.01).amplitude_um_pp.max()) > 0
+        True
+        """
         if self.offline:
             raise RenderError("this renderer plays a recorded trajectory; it takes no live reports")
         self.trajectory.push(t_s, x_mm, y_mm, force_n, down)
 
     @property
     def tail_s(self) -> float:
-        """How long the output takes to come to rest after the finger lifts."""
+        """How long the output takes to come to rest after the finger lifts, s: the release, seven of the plate's time
+        constants, and five periods of the envelope's band limit.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> round(renderer.tail_s, 6), round(0.010 + 7 * 200 / (3.141592653589793 * 25000) + 5 / 1000, 6)
+        (0.032825, 0.032825)
+        """
         return self.settings.release_s + 7.0 * self.profile.time_constant_s + 5.0 / self.settings.band_hz
 
     def stop(self) -> None:
-        """Ramp the output down (release); :attr:`finished` turns true when it is at rest."""
+        """Ramp the output down (release); :attr:`finished` turns true when it is at rest.
+
+        Examples
+        --------
+        >>> import time
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> now = time.perf_counter()
+        >>> renderer.push(now, 10.0, 10.0)
+        >>> _ = renderer.control(120, now_s=now)
+        >>> renderer.stop()
+        >>> _ = renderer.control(duration_s=2 * renderer.tail_s, now_s=now + 0.01)    # the release, then rest
+        >>> renderer.finished
+        True
+        """
         self._running = False
 
     # ---- live changes (from the UI thread; each is one reference swap) ------------------------------
     def set_texture(self, texture: Texture) -> None:
-        """Render another texture from the next block on (its lookup tables are built here)."""
+        """Render another texture from the next block on (its lookup tables are built here).
+
+        Parameters
+        ----------
+        texture : Texture
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.set_texture(resolve_texture("grating-2mm"))
+        >>> renderer.texture.name, renderer.sampler.texture is renderer.texture
+        ('grating-2mm', True)
+        """
         sampler = Sampler(texture, band_limited=self.settings.band_limited_lookup)
         player = self._player(texture)
         self.texture, self.sampler, self.effects = texture, sampler, player
 
     def set_model(self, model: FrictionModel) -> None:
-        """Use another friction model from the next block on."""
+        """Use another friction model from the next block on.
+
+        Parameters
+        ----------
+        model : FrictionModel
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel, StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.set_model(ExponentialModel())
+        >>> type(renderer.model).__name__, renderer.planner        # a model without friction dynamics plans nothing
+        ('ExponentialModel', None)
+        """
         if getattr(model, "dynamics", None) is not None and self.settings.plan:
             self._plan_buffers(model)
         else:
@@ -421,13 +673,58 @@ class Renderer:
         self.model = model
 
     def set_default_force(self, force_n: float) -> None:
-        """The force assumed when the panel does not measure it, N."""
+        """The force assumed when the panel does not measure it, N.
+
+        Parameters
+        ----------
+        force_n : float
+            N, > 0.
+
+        Raises
+        ------
+        RenderError
+            A force that is not positive.
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.set_default_force(1)
+        >>> renderer.default_force_n
+        1.0
+        >>> renderer.set_default_force(0.0)
+        Traceback (most recent call last):
+        ...
+        ultraglide.render.errors.RenderError: the default force must be positive, got 0.0
+        """
         if not force_n > 0:
             raise RenderError(f"the default force must be positive, got {force_n}")
         self.default_force_n = float(force_n)
 
     def pause(self, paused: bool = True) -> None:
-        """Ramp the output to rest while paused, and back when resumed."""
+        """Ramp the output to rest while paused, and back when resumed.
+
+        Parameters
+        ----------
+        paused : bool
+
+        Examples
+        --------
+        A finger on a grating, paused from the start: the plate stays at rest:
+
+        >>> import time
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"))
+        >>> renderer.pause()
+        >>> now = time.perf_counter()
+        >>> renderer.push(now, 10.0, 10.0)
+        >>> float(renderer.control(120, now_s=now).amplitude_um_pp.max())
+        0.0
+        """
         self.paused = paused
 
     def __repr__(self) -> str:
@@ -439,7 +736,25 @@ class Renderer:
 
     @property
     def finished(self) -> bool:
-        """At rest after a stop, or (offline) after the path's end."""
+        """At rest after a stop, or (offline) after the path's end.
+
+        Examples
+        --------
+        A 10 ms swipe: not finished at its end, finished once the output has come to rest (:attr:`tail_s`):
+
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.paths import SwipePath
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+        ...                     trajectory=SwipePath(duration_s=0.01))
+        >>> _ = renderer.control(duration_s=0.01)
+        >>> renderer.finished
+        False
+        >>> _ = renderer.control(duration_s=2 * renderer.tail_s)
+        >>> renderer.finished
+        True
+        """
         ended = not self._running or (self.offline and self._next_time > self.trajectory.end_s)
         return ended and self.envelope.at_rest and abs(self._last_drive) < 1e-6
 
@@ -461,7 +776,18 @@ class Renderer:
     @property
     def control_rate_hz(self) -> float:
         """The control rate (Hz): how many envelope samples a second of :meth:`control` gives (12 kHz unless
-        the settings say otherwise)."""
+        the settings say otherwise).
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.textures.library import resolve_texture
+        >>> renderer = Renderer(resolve_texture("grating-1mm"), StretchedExponentialModel(), load_profile("sim-plate"),
+        ...                     RenderSettings(control_rate_hz=16000.0))
+        >>> renderer.control_rate_hz, len(renderer.control(duration_s=0.01).time_s)      # 16 kHz × 10 ms
+        (16000.0, 160)
+        """
         return self.settings.control_rate_hz
 
     def control(self, n: int | None = None, now_s: float | None = None, out: ControlBuffers | None = None, *,
