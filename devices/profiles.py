@@ -103,8 +103,16 @@ class PlateProfile:
 
     @property
     def shown_name(self) -> str:
-        """The name as a message shows it: as written, or quoted with its escapes when it holds a line break
-        or another control character, so that a refusal stays one line whatever the file says."""
+        r"""The name as a message shows it: as written, or quoted with its escapes when it holds a line break
+        or another control character, so that a refusal stays one line whatever the file says.
+
+        Examples
+        --------
+        >>> PlateProfile("bench", 24000.0, 150.0, full_scale_um_pp=10.0, max_amplitude_um_pp=5.0).shown_name
+        'bench'
+        >>> PlateProfile("bench\nrm -rf", 24000.0, 150.0, full_scale_um_pp=10.0, max_amplitude_um_pp=5.0).shown_name
+        "'bench\\nrm -rf'"
+        """
         return self.name if self.name.isprintable() else repr(self.name)
 
     def __post_init__(self) -> None:

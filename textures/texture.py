@@ -133,17 +133,38 @@ class Texture:
 
     @property
     def rows(self) -> int:
-        """The map's rows of pixels (down its height)."""
+        """The map's rows of pixels (down its height).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Texture(np.ones((20, 40)), width_mm=80.0, height_mm=40.0).rows
+        20
+        """
         return self.values.shape[0]
 
     @property
     def cols(self) -> int:
-        """The map's columns of pixels (across its width)."""
+        """The map's columns of pixels (across its width).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Texture(np.ones((20, 40)), width_mm=80.0, height_mm=40.0).cols
+        40
+        """
         return self.values.shape[1]
 
     @property
     def pixel_mm(self) -> tuple[float, float]:
-        """Pixel size (x, y) in millimetres."""
+        """Pixel size (x, y) in millimetres: the width over the columns, the height over the rows.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Texture(np.ones((20, 40)), width_mm=80.0, height_mm=30.0).pixel_mm          # 80 / 40, 30 / 20
+        (2.0, 1.5)
+        """
         return self.width_mm / self.cols, self.height_mm / self.rows
 
     def with_(self, **changes: object) -> Texture:

@@ -214,11 +214,54 @@ class Renderer(_Renderer):
     def set_texture(self, texture: TextureLike, *, width_mm: float | None = None,
                     height_mm: float | None = None) -> None:
         """Render another texture (an object, a name, a file, or an array with ``width_mm``) from the next block
-        on; its lookup tables are built here."""
+        on; its lookup tables are built here.
+
+        Parameters
+        ----------
+        texture : Texture, str, os.PathLike or array_like
+            A texture, a library name or file, or an array of friction ratios.
+        width_mm, height_mm : float, optional
+            An array's physical size, mm (the height: square pixels by default).
+
+        Raises
+        ------
+        TextureError
+            A name or file that is no texture, or an array without its size.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> renderer = Renderer("grating-1mm")
+        >>> renderer.set_texture("grating-2mm")
+        >>> renderer.texture.name
+        'grating-2mm'
+        >>> renderer.set_texture(np.full((20, 40), 0.5), width_mm=80.0)        # 2 mm pixels: 40 mm high
+        >>> renderer.texture.width_mm, renderer.texture.height_mm
+        (80.0, 40.0)
+        """
         super().set_texture(as_texture(texture, width_mm=width_mm, height_mm=height_mm))
 
     def set_model(self, model: FrictionModel | str) -> None:
-        """Use another friction model (an object or a name) from the next block on."""
+        """Use another friction model (an object or a name) from the next block on.
+
+        Parameters
+        ----------
+        model : FrictionModel or str
+            A model, or its name (``stretched``, ``exponential``, ``squeeze-film``, ``paper``, ``table:FILE.csv``,
+            ``CAL.toml``).
+
+        Raises
+        ------
+        ModelError
+            An unknown name.
+
+        Examples
+        --------
+        >>> renderer = Renderer("grating-1mm")
+        >>> renderer.set_model("exponential")
+        >>> type(renderer.model).__name__
+        'ExponentialModel'
+        """
         super().set_model(as_model(model))
 
 
@@ -516,7 +559,14 @@ class Rendered:
 
     @property
     def duration_s(self) -> float:
-        """The audio's length (s)."""
+        """The audio's length (s): its samples over its rate.
+
+        Examples
+        --------
+        >>> rendered = render_swipe("grating-1mm", duration_s=0.05)
+        >>> rendered.duration_s == len(rendered.audio) / 96000, rendered.duration_s > 0.05    # the swipe, then its tail
+        (True, True)
+        """
         return len(self.audio) / self.rate_hz
 
     def __repr__(self) -> str:

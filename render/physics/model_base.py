@@ -74,11 +74,27 @@ class FitRange:
 
     @property
     def force_range_n(self) -> tuple[float, float]:
-        """The smallest and largest force fitted on (N)."""
+        """The smallest and largest force fitted on (N).
+
+        Examples
+        --------
+        >>> FitRange((0.5, 0.2, 1.0)).force_range_n
+        (0.2, 1.0)
+        """
         return (min(self.forces_n), max(self.forces_n))
 
     def words(self) -> str:
-        """"0.2-1 N (3 forces)" or "0.5 N only"."""
+        """The forces fitted on in words: "0.2-1 N (3 forces)" or "0.5 N only".
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> FitRange((1.0, 0.2, 0.5)).words()
+        '0.2-1 N (3 forces)'
+        """
         low, high = self.force_range_n
         if len(self.forces_n) == 1:
             return f"{low:g} N only"
@@ -355,7 +371,19 @@ class FrictionModel(ABC):
 
     def warm_up(self) -> None:
         """Load this model's compiled inverse (from numba's cache, or compile it once per machine) before a
-        real-time block needs it. Models override it with their own kernels; this loads every one."""
+        real-time block needs it. Models override it with their own kernels; this loads every one.
+
+        Examples
+        --------
+        Afterwards the inverse runs without compiling (its first call as fast as the next):
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel
+        >>> model = ExponentialModel()
+        >>> model.warm_up()
+        >>> model.amplitude_um_pp(np.array([1.0]), 0.5).amplitude_um_pp.tolist()     # at rest: no vibration
+        [0.0]
+        """
         kernels.warm_up()
 
     def force_law(self) -> str:
