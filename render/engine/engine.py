@@ -287,7 +287,20 @@ class Engine:
         """Start the engine's process and return at once, while it loads its inputs and opens its device;
         :meth:`EngineLaunch.wait` then gives the engine (what :meth:`start` does in one call). An app that waits
         on a thread of its own launches here first, on its one thread, so that the engine is forked (with what the
-        app has imported) rather than spawned."""
+        app has imported) rather than spawned.
+
+        Returns
+        -------
+        EngineLaunch
+
+        Examples
+        --------
+        >>> config = EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)
+        >>> launch = Engine.launch(config)                    # returns at once; the engine loads meanwhile
+        >>> with launch.wait(60.0) as engine:
+        ...     engine.config is config
+        True
+        """
         if config.realtime_priority:
             keep_huge_pages_out()
         forked = _fork_is_safe()
@@ -332,6 +345,13 @@ class Engine:
         ------
         EngineError
             It failed, or was not running within ``timeout_s``.
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.wait_ready(60.0)
+        ...     engine.status().state in ("running", "paused")
+        True
         """
         deadline = time.monotonic() + timeout_s
         if self.ready_info is None:
@@ -353,7 +373,15 @@ class Engine:
     @property
     def loss(self):
         """None while the engine is well; once its process died or froze (and the device was made safe), the
-        :class:`~render.engine.supervisor.EngineLoss`: what happened, in words (``loss.lines(engine.started_s)``)."""
+        :class:`~render.engine.supervisor.EngineLoss`: what happened, in words (``loss.lines(engine.started_s)``).
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.wait_ready(60.0)
+        ...     engine.loss is None
+        True
+        """
         return self.supervisor.loss if self.supervisor.lost.is_set() else None
 
     def sleep(self, seconds: float) -> None:
@@ -369,6 +397,15 @@ class Engine:
         ------
         EngineLost
             The engine died or froze meanwhile.
+
+        Examples
+        --------
+        >>> import time
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     before = time.monotonic()
+        ...     engine.sleep(0.05)
+        ...     time.monotonic() - before >= 0.05
+        True
         """
         if self.supervisor.wait(max(0.0, seconds)):
             raise EngineLost(self.supervisor.loss)
@@ -389,7 +426,15 @@ class Engine:
 
     @property
     def ready(self) -> bool:
-        """True once the engine's process has its renderer and device up (it said so); never blocks."""
+        """True once the engine's process has its renderer and device up (it said so); never blocks.
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.wait_ready(60.0)
+        ...     engine.ready
+        True
+        """
         if self.ready_info is None and self._failure is None and self.conn.poll(0):
             with contextlib.suppress(EngineError):
                 self._take(*_receive(self.conn, self.process, 0.0))
@@ -422,6 +467,13 @@ class Engine:
         ------
         EngineError
             The device's output failed (nothing was saved).
+
+        Examples
+        --------
+        >>> engine = Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False))
+        >>> final = engine.stop()
+        >>> final.state, engine.stop() is final, engine.alive          # a second stop gives the same status
+        ('stopped', True, False)
         """
         if self._stopped:
             return self.final_status
@@ -471,7 +523,16 @@ class Engine:
 
     @property
     def alive(self) -> bool:
-        """Whether the engine's process is running."""
+        """Whether the engine's process is running.
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.alive
+        True
+        >>> engine.alive                                     # the process has ended with the block
+        False
+        """
         return self.process.is_alive()
 
     # ---- in ----------------------------------------------------------------------------------------
@@ -494,6 +555,20 @@ class Engine:
         -------
         bool
             False if the report was dropped.
+
+        Examples
+        --------
+        One report, seen by the engine's block path (its count in the status):
+
+        >>> import time
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.touch(time.perf_counter(), 10.0, 25.0)
+        ...     deadline = time.monotonic() + 30.0
+        ...     while engine.status().touches < 1 and time.monotonic() < deadline:
+        ...         engine.sleep(0.01)
+        True
+        >>> engine.final_status.touches, engine.final_status.last_touch[:2]
+        (1, (10.0, 25.0))
         """
         if self.supervisor.loss is not None:
             return False
@@ -514,6 +589,17 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        A texture made in memory (a flat map at ratio 0.8, 20 × 20 mm):
+
+        >>> import numpy as np
+        >>> from ultraglide.textures.texture import Texture
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.set_texture(Texture(np.full((2, 2), 0.8), 20.0, 20.0, name="flat"))
+        >>> engine.final_status.texture
+        'flat'
         """
         self._command("texture", spec if _is_texture(spec) else str(spec))
 
@@ -531,6 +617,13 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.set_model("exponential")
+        >>> engine.final_status.model
+        'exponential'
         """
         self._command("model", str(spec))
 
@@ -548,6 +641,13 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.set_force(0.8)
+        >>> engine.final_status.force_n
+        0.8
         """
         self._command("force", float(force_n))
 
@@ -565,6 +665,17 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        >>> import time
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.pause(True)
+        ...     deadline = time.monotonic() + 30.0
+        ...     while engine.status().state != "paused" and time.monotonic() < deadline:
+        ...         engine.sleep(0.01)
+        ...     engine.status().state
+        'paused'
         """
         self._command("pause", bool(flag))
 
@@ -588,6 +699,14 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        A grating holds no effects:
+
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.trigger("click")
+        False
         """
         return bool(self._command("trigger", str(name), time.perf_counter()))
 
@@ -606,6 +725,15 @@ class Engine:
             The engine refused it or did not answer, in one line.
         EngineLost
             The engine died or froze (the device was made safe).
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.set_effects(None)                          # the texture's own (none)
+        ...     engine.set_effects({"effects": []})
+        Traceback (most recent call last):
+        ...
+        ultraglide.render.engine.engine.EngineError: effects: effects version None is not one this ultraglide reads ...
         """
         self._command("effects", description)
 
@@ -653,6 +781,14 @@ class Engine:
         Returns
         -------
         EngineStatus
+
+        Examples
+        --------
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.wait_ready(60.0)
+        ...     status = engine.status()
+        >>> status.device, status.texture, status.model, status.force_n        # the config's, and its defaults
+        ('null', 'grating-1mm', 'stretched', 0.5)
         """
         if self.shared.words is None:  # stopped: the last status read before the segment was released
             return self.final_status
@@ -677,6 +813,22 @@ class Engine:
         -------
         (numpy.ndarray, numpy.ndarray, numpy.ndarray)
             Touch, render and presentation times (perf_counter s).
+
+        Examples
+        --------
+        A touch, the block that rendered it (not before it) and when that block's first sample left:
+
+        >>> import time
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     touched = time.perf_counter()
+        ...     engine.touch(touched, 10.0, 25.0)
+        ...     deadline = time.monotonic() + 30.0
+        ...     while len(engine.latencies()[0]) < 1 and time.monotonic() < deadline:
+        ...         engine.sleep(0.01)
+        ...     touch_s, rendered_s, presented_s = engine.latencies()
+        True
+        >>> touch_s.tolist() == [touched], bool(rendered_s[0] >= touched), bool(presented_s[0] >= rendered_s[0])
+        (True, True, True)
         """
         header, _, _, latency = self.shared.read_fast()
         rows = ring_order(latency, int(header[shm.LATENCY_INDEX]))
@@ -690,6 +842,14 @@ class Engine:
         -------
         (float, float)
             The amplitude (µm p-p) and when (perf_counter s) it last rose above 0.05 µm.
+
+        Examples
+        --------
+        Without ``probe_plate`` nothing is watched:
+
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.plate_probe()
+        (0.0, 0.0)
         """
         fast = self.shared.fast
         return float(fast[shm.PLATE_PROBE_UM_PP]), float(fast[shm.PROBE_RISE_S])
@@ -770,7 +930,30 @@ class EngineLaunch:
 
     def wait(self, timeout_s: float = START_TIMEOUT_S) -> Engine:
         """The engine, once its inputs are loaded and its device is open; :class:`EngineError` (one line) if the
-        texture, model, profile or device is bad."""
+        texture, model, profile or device is bad.
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long (s) to wait for the engine to load its inputs and open its device.
+
+        Returns
+        -------
+        Engine
+
+        Raises
+        ------
+        EngineError
+            A bad texture, model, profile or device, or no answer within ``timeout_s``, in one line.
+
+        Examples
+        --------
+        >>> launch = Engine.launch(EngineConfig(texture="no-such-texture", device="null", realtime_priority=False))
+        >>> launch.wait(60.0)
+        Traceback (most recent call last):
+        ...
+        ultraglide.render.engine.engine.EngineError: ...no-such-texture...
+        """
         try:
             kind, payload = _receive(self._parent, self._process, timeout_s)
         except BaseException:  # its error, or a stop signal while it loaded (Ctrl-C, SIGTERM made exceptions)
@@ -793,7 +976,19 @@ class EngineLaunch:
         return engine
 
     def abandon(self) -> None:
-        """End the engine before it serves: one still loading finds nobody to answer, rests its device and ends."""
+        """End the engine before it serves: one still loading finds nobody to answer, rests its device and ends.
+
+        Examples
+        --------
+        The engine's process ended, none of this process's children left:
+
+        >>> import multiprocessing
+        >>> before = len(multiprocessing.active_children())
+        >>> launch = Engine.launch(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False))
+        >>> launch.abandon()
+        >>> len(multiprocessing.active_children()) == before
+        True
+        """
         self._parent.close()
         _reap(self._process)
         self._shared.close()  # the segment unlinked: none left for the resource tracker to call leaked
