@@ -100,7 +100,29 @@ class Carrier:
         """The next ``frames`` samples as ``(table, offset)``: sample k of them is
         ``table[(offset + k) % len(table)]``. In table mode the table is the one exact period (read-only)
         and the offset the span's exact place in it, so any part of the span can be made on its own;
-        otherwise the table is the span's samples (written into ``out``, float32, if given) and the offset 0."""
+        otherwise the table is the span's samples (written into ``out``, float32, if given) and the offset 0.
+
+        Parameters
+        ----------
+        frames : int
+            Samples.
+        out : numpy.ndarray, optional
+            float32, ``frames`` long (without an exact period).
+
+        Returns
+        -------
+        (numpy.ndarray, int)
+            The table and the span's offset in it.
+
+        Examples
+        --------
+        24 kHz at 96 kHz: one period of 4 samples; 6 samples on, the next span starts at 6 mod 4 = 2:
+
+        >>> carrier = Carrier(24000.0, 96000.0)
+        >>> table, offset = carrier.span(6)
+        >>> table.round(6).tolist(), offset, carrier.span(3)[1]
+        ([0.0, 1.0, 0.0, -1.0], 0, 2)
+        """
         if self.period:
             start = self.offset
             self.offset = (start + frames) % self.period
@@ -109,7 +131,30 @@ class Carrier:
 
     def block(self, frames: int, out: np.ndarray | None = None) -> np.ndarray:
         """The next ``frames`` samples (a read-only view in table mode: copy before writing); without an
-        exact period they are written into ``out`` (float32, ``frames`` long) if given."""
+        exact period they are written into ``out`` (float32, ``frames`` long) if given.
+
+        Parameters
+        ----------
+        frames : int
+            Samples.
+        out : numpy.ndarray, optional
+            float32, ``frames`` long.
+
+        Returns
+        -------
+        numpy.ndarray
+            float32, in [-1, 1].
+
+        Examples
+        --------
+        The samples are sin(2 pi f k / rate), block after block:
+
+        >>> import numpy as np
+        >>> carrier = Carrier(24100.0, 96000.0)
+        >>> samples = np.concatenate([carrier.block(3), carrier.block(5)])
+        >>> bool(np.allclose(samples, np.sin(2 * np.pi * 24100.0 / 96000.0 * np.arange(8)), atol=1e-6))
+        True
+        """
         if self.period:
             table = self._tiled(frames)
             start = self.offset

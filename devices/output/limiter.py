@@ -109,7 +109,30 @@ class DriveLimiter:
         self.worst_excess_um_pp = 0.0
 
     def process(self, drive_um_pp: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """The limited drive for one block, written to ``out`` (float64, same length) if given."""
+        """The limited drive for one block, written to ``out`` (float64, same length) if given.
+
+        Parameters
+        ----------
+        drive_um_pp : numpy.ndarray
+            The drive asked, µm p-p.
+        out : numpy.ndarray, optional
+            float64, same length.
+
+        Returns
+        -------
+        numpy.ndarray
+            The drive sent, µm p-p.
+
+        Examples
+        --------
+        A negative drive is no vibration; within the limit it passes as it is:
+
+        >>> import numpy as np
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> limiter = DriveLimiter(load_profile("sim-plate"), 12000.0)
+        >>> limiter.process(np.array([-1.0, 0.0, 2.5, 6.0])).tolist()
+        [0.0, 0.0, 2.5, 6.0]
+        """
         drive = np.asarray(drive_um_pp, dtype=np.float64)
         if out is None:
             out = np.empty(len(drive))
@@ -123,26 +146,84 @@ class DriveLimiter:
 
     def bind(self, limit_um_pp: float, max_drive_um_pp: float) -> None:
         """Narrow the limit and the drive ceiling (µm p-p) to a device's own, where they are smaller; never widens
-        (the smallest limit anyone declares holds). Call between blocks, from the thread that processes them."""
+        (the smallest limit anyone declares holds). Call between blocks, from the thread that processes them.
+
+        Parameters
+        ----------
+        limit_um_pp, max_drive_um_pp : float
+            The device's own limit and drive ceiling, µm p-p.
+
+        Examples
+        --------
+        A device declaring 4 µm narrows the plate's 6; one declaring 10 widens nothing:
+
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> limiter = DriveLimiter(load_profile("sim-plate"), 12000.0)
+        >>> limiter.bind(10.0, 12.0)
+        >>> limiter.limit_um_pp, limiter.max_drive_um_pp
+        (6.0, 8.0)
+        >>> limiter.bind(4.0, 5.0)
+        >>> limiter.limit_um_pp, limiter.max_drive_um_pp
+        (4.0, 5.0)
+        """
         self.limit_um_pp = min(self.limit_um_pp, float(limit_um_pp))
         self.max_drive_um_pp = max(self.limit_um_pp, min(self.max_drive_um_pp, float(max_drive_um_pp)))
 
     @property
     def limited_fraction(self) -> float:
-        """The fraction of samples (of time) the limiter lowered by more than 0.1 % of the limit."""
+        """The fraction of samples (of time) the limiter lowered by more than 0.1 % of the limit.
+
+        Examples
+        --------
+        1000 samples at the limit (the plate settles there), then 100 asking 7 µm, each held at 6:
+
+        >>> import numpy as np
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> limiter = DriveLimiter(load_profile("sim-plate"), 12000.0)
+        >>> _ = limiter.process(np.full(1000, 6.0))
+        >>> _ = limiter.process(np.full(100, 7.0))
+        >>> limiter.limited_fraction == 100 / 1100
+        True
+        """
         return self.limited_samples / self.samples if self.samples else 0.0
 
     def status(self) -> dict:
         """The limiter's counters for a status: ``limited_fraction`` (the share of samples lowered),
         ``worst_excess_um_pp`` (how far above the limit the worst was asked, µm p-p), ``limit_um_pp`` and
         ``max_drive_um_pp`` (µm p-p).
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> DriveLimiter(load_profile("sim-plate"), 12000.0).status()
+        {'limited_fraction': 0.0, 'worst_excess_um_pp': 0.0, 'limit_um_pp': 6.0, 'max_drive_um_pp': 8.0}
         """
         return {"limited_fraction": round(self.limited_fraction, 6),
                 "worst_excess_um_pp": round(self.worst_excess_um_pp, 6),
                 "limit_um_pp": self.limit_um_pp, "max_drive_um_pp": self.max_drive_um_pp}
 
     def summary(self) -> str:
-        """One sentence for people."""
+        """One sentence for people.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> limiter = DriveLimiter(load_profile("sim-plate"), 12000.0)
+        >>> limiter.summary()
+        'the limiter never acted (limit 6 µm p-p)'
+        >>> _ = limiter.process(np.full(1000, 6.0)); _ = limiter.process(np.full(100, 7.0))
+        >>> limiter.summary()                                  # 100 of 1100 samples; 7 asked, 6 allowed
+        'the limiter lowered the drive 9.1 % of the time, by at most 1.00 µm p-p (limit 6 µm p-p, drive at most 8 ...'
+        """
         if not self.limited_samples:
             return f"the limiter never acted (limit {self.limit_um_pp:g} µm p-p)"
         return (f"the limiter lowered the drive {100 * self.limited_fraction:.1f} % of the time, by at most "

@@ -57,14 +57,67 @@ class BlockSource(Protocol):
           reports the error in its ``status()["errors"]``; the command or the engine then says so and
           exits non-zero. A source never raises on purpose to stop: it ramps down when asked
           (:meth:`request_stop`) and says :attr:`finished`.
+
+        Parameters
+        ----------
+        n : int
+            Values, at the device's rate.
+        now_s : float or None
+            When the first reaches the plate, perf_counter s; None offline.
+
+        Returns
+        -------
+        numpy.ndarray
+            The drive envelope, µm p-p.
+
+        Examples
+        --------
+        The renderer's envelope source, offline along a 10 ms swipe (120 values at 12 kHz, the drive before
+        the limiter):
+
+        >>> import ultraglide
+        >>> swipe = ultraglide.SwipePath(duration_s=0.01)
+        >>> source = ultraglide.EnvelopeSource(ultraglide.Renderer("grating-1mm", trajectory=swipe))
+        >>> block = source.pull(120, None)
+        >>> len(block), bool(block.min() >= 0.0)
+        (120, True)
         """
 
     def request_stop(self) -> None:
-        """Start ramping down to rest."""
+        """Start ramping down to rest.
+
+        Examples
+        --------
+        >>> import time
+        >>> import ultraglide
+        >>> renderer = ultraglide.Renderer("grating-1mm")
+        >>> now = time.perf_counter()
+        >>> renderer.push(now, 10.0, 10.0)
+        >>> source = ultraglide.EnvelopeSource(renderer)
+        >>> _ = source.pull(120, now)
+        >>> source.request_stop()
+        >>> _ = source.pull(1200, now + 0.01)                     # 100 ms: the release and the plate's tail
+        >>> source.finished
+        True
+        """
 
     @property
     def finished(self) -> bool:
-        """True once the ramp down has reached rest."""
+        """True once the ramp down has reached rest.
+
+        Examples
+        --------
+        An offline swipe is finished once its path has ended and the output is at rest:
+
+        >>> import ultraglide
+        >>> swipe = ultraglide.SwipePath(duration_s=0.01)
+        >>> source = ultraglide.EnvelopeSource(ultraglide.Renderer("grating-1mm", trajectory=swipe))
+        >>> source.finished
+        False
+        >>> _ = source.pull(1200, None)                            # 100 ms
+        >>> source.finished
+        True
+        """
 
 
 class Device(Protocol):
@@ -94,13 +147,57 @@ class Device(Protocol):
     rate_hz: float
 
     def start(self, source: BlockSource) -> None:
-        """Begin pulling from ``source``."""
+        """Begin pulling from ``source``.
+
+        Parameters
+        ----------
+        source : BlockSource
+
+        Examples
+        --------
+        The null device paces its pulls in real time, as a sound card would:
+
+        >>> import ultraglide
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> device.start(ultraglide.EnvelopeSource(ultraglide.Renderer("grating-1mm")))
+        >>> device.stop()
+        >>> device.status()["errors"]
+        []
+        """
 
     def stop(self) -> None:
-        """Ramp down through the source, then rest the hardware."""
+        """Ramp down through the source, then rest the hardware.
+
+        Examples
+        --------
+        >>> import ultraglide
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> source = ultraglide.EnvelopeSource(ultraglide.Renderer("grating-1mm"))
+        >>> device.start(source)
+        >>> device.stop()                                      # the source ramped to rest first
+        >>> source.finished
+        True
+        """
 
     def status(self) -> dict:
-        """Counters and state, as plain values."""
+        """Counters and state, as plain values.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> status = open_device("null", load_profile("sim-plate")).status()
+        >>> isinstance(status, dict), "errors" in status
+        (True, True)
+        """
 
 
 STOP_TIMEOUT_S = 1.0  # a ramp down that has not reached rest by then is cut off

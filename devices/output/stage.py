@@ -75,7 +75,31 @@ class Modulation:
     frames: int
 
     def render(self, out: np.ndarray, start: int = 0, stop: int | None = None) -> None:
-        """Frames ``start`` to ``stop`` of the span into ``out[start:stop]`` (float32, in [-1, 1])."""
+        """Frames ``start`` to ``stop`` of the span into ``out[start:stop]`` (float32, in [-1, 1]).
+
+        Parameters
+        ----------
+        out : numpy.ndarray
+            float32, at least ``stop`` long.
+        start, stop : int
+            The frames, from the span's first (``stop`` None: its last).
+
+        Examples
+        --------
+        A steady 4 µm p-p on a 24 kHz carrier at 96 kHz (a 4-sample period), 4 of the plate's 8 µm full scale:
+
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 4.0))
+        >>> stage = OutputStage(steady, load_profile("sim-plate"), "audio", 96000, carrier_hz=24000.0)
+        >>> _ = stage.pull(960, None)                            # past the first control sample's rise
+        >>> span = stage.modulation(8)
+        >>> out = np.empty(8, dtype=np.float32)
+        >>> span.render(out)
+        >>> out.round(6).tolist()
+        [0.0, 0.5, 0.0, -0.5, 0.0, 0.5, 0.0, -0.5]
+        """
         stop = self.frames if stop is None else stop
         kernels.modulate(self.knots, self.first_frame + start, self.upsampling, self.scale, self.carrier,
                          (self.carrier_offset + start) % len(self.carrier), out[start:stop])
@@ -243,7 +267,25 @@ class OutputStage:
 
     def skip(self, n: int) -> None:
         """``n`` stream values the device's writer skipped without pulling (it ran behind): counted, so
-        :attr:`frames` stays the index of the next value on the wire."""
+        :attr:`frames` stays the index of the next value on the wire.
+
+        Parameters
+        ----------
+        n : int
+            Values skipped.
+
+        Examples
+        --------
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 3.0))
+        >>> stage = OutputStage(steady, load_profile("sim-plate"), "control")
+        >>> _ = stage.pull(100, None)
+        >>> stage.skip(20)
+        >>> stage.frames
+        120
+        """
         self.frames += n
 
     def _limited(self, n: int, now_s: float | None, out: np.ndarray | None = None) -> np.ndarray:
@@ -276,7 +318,40 @@ class OutputStage:
 
     def modulation(self, frames: int, now_s: float | None = None) -> Modulation:
         """The next ``frames`` of an audio stage, to render later (whole, or in chunks on other threads).
-        The envelope is pulled and limited here, in order: only the carrier's modulation is left."""
+        The envelope is pulled and limited here, in order: only the carrier's modulation is left.
+
+        Parameters
+        ----------
+        frames : int
+            Audio frames.
+        now_s : float, optional
+            When the first reaches the plate, perf_counter s.
+
+        Returns
+        -------
+        Modulation
+
+        Raises
+        ------
+        DeviceError
+            A stage whose signal is not audio.
+
+        Examples
+        --------
+        Rendered later, the span gives what :meth:`pull` would have:
+
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> steady = types.SimpleNamespace(finished=False, request_stop=lambda: None,
+        ...                                pull=lambda n, now_s: np.full(n, 3.0))
+        >>> plate = load_profile("sim-plate")
+        >>> pulled = OutputStage(steady, plate, "audio", 96000).pull(960, None)
+        >>> span = OutputStage(steady, plate, "audio", 96000).modulation(960)
+        >>> later = np.empty(960, dtype=np.float32)
+        >>> span.render(later)
+        >>> bool(np.array_equal(pulled, later))
+        True
+        """
         if self.signal != "audio":
             raise DeviceError("only an audio output stage modulates a carrier")
         knots, first_frame, carrier, offset = self._span(frames, now_s)
@@ -332,12 +407,36 @@ class OutputStage:
         self.frames += frames
 
     def request_stop(self) -> None:
-        """Ask the envelope source to ramp down to rest."""
+        """Ask the envelope source to ramp down to rest.
+
+        Examples
+        --------
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> source = types.SimpleNamespace(finished=False, pull=lambda n, now_s: np.zeros(n))
+        >>> source.request_stop = lambda: setattr(source, "finished", True)
+        >>> stage = OutputStage(source, load_profile("sim-plate"), "control")
+        >>> stage.request_stop()
+        >>> source.finished
+        True
+        """
         self.source.request_stop()
 
     @property
     def finished(self) -> bool:
-        """The source is at rest and so is everything it gave that is still to play."""
+        """The source is at rest and so is everything it gave that is still to play.
+
+        Examples
+        --------
+        A source at rest, but a drive still to play out, is not finished until that drive has played:
+
+        >>> import numpy as np, types
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> source = types.SimpleNamespace(finished=True, request_stop=lambda: None, pull=lambda n, now_s: np.zeros(n))
+        >>> stage = OutputStage(source, load_profile("sim-plate"), "control")
+        >>> stage.finished                                    # nothing played, nothing pending
+        True
+        """
         return (self.source.finished and self._last_drive < 1e-6
                 and (len(self._pending) == 0 or float(self._pending.max()) < 1e-6))
 
