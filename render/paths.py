@@ -154,7 +154,18 @@ class SwipePath:
 
     @property
     def end_s(self) -> float:
-        """When the finger lifts (s): the path's duration."""
+        """When the finger lifts (s): the path's duration.
+
+        Examples
+        --------
+        >>> SwipePath(duration_s=0.5).end_s
+        0.5
+
+        Examples
+        --------
+        >>> SwipePath(duration_s=0.5).end_s
+        0.5
+        """
         return self.duration_s
 
     def state(self, times_s: ArrayLike, out: tuple[np.ndarray, np.ndarray] | None = None) -> FingerState:

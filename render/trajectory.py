@@ -142,7 +142,70 @@ class RecordedTrajectory:
                   force_range_n: tuple[float, float] | None = None) -> RecordedTrajectory:
         """A trajectory read in chunks: ``open_chunks()`` returns a fresh iterator of
         ``(t_s, x_mm, y_mm, force_n or None)`` arrays, checked already (finite, time never going
-        back, from ``start_s`` to ``end_s``); ``force_range_n`` is the lowest and highest force."""
+        back, from ``start_s`` to ``end_s``); ``force_range_n`` is the lowest and highest force.
+
+        Parameters
+        ----------
+        open_chunks : callable
+            Returns a fresh iterator of ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
+        start_s, end_s : float
+            The first and last record's time, s.
+        has_force : bool
+            Whether the chunks carry a force.
+        force_range_n : (float, float), optional
+            The lowest and highest force, N.
+
+        Returns
+        -------
+        RecordedTrajectory
+
+        Raises
+        ------
+        RenderError
+            ``end_s`` not after ``start_s``.
+
+        Examples
+        --------
+        Two chunks, x = 10 mm a second throughout: between them the finger is interpolated across the gap:
+
+        >>> import numpy as np
+        >>> first = (np.array([0.0, 1.0]), np.array([0.0, 10.0]), np.array([5.0, 5.0]), None)
+        >>> second = (np.array([2.0, 3.0]), np.array([20.0, 30.0]), np.array([5.0, 5.0]), None)
+        >>> path = RecordedTrajectory.streaming(lambda: iter([first, second]), 0.0, 3.0, False)
+        >>> path.state([1.5, 2.5]).x_mm.tolist()
+        [15.0, 25.0]
+
+        Parameters
+        ----------
+        open_chunks : callable
+            Returns a fresh iterator of ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
+        start_s, end_s : float
+            The first and last record's time, s.
+        has_force : bool
+            Whether the chunks carry a force.
+        force_range_n : (float, float), optional
+            The lowest and highest force, N.
+
+        Returns
+        -------
+        RecordedTrajectory
+
+        Raises
+        ------
+        RenderError
+            ``end_s`` not after ``start_s``.
+
+        Examples
+        --------
+        Two chunks, x = 10 mm a second throughout: between them the finger is interpolated across the gap:
+
+        >>> import numpy as np
+        >>> first = (np.array([0.0, 1.0]), np.array([0.0, 10.0]), np.array([5.0, 5.0]), None)
+        >>> second = (np.array([2.0, 3.0]), np.array([20.0, 30.0]), np.array([5.0, 5.0]), None)
+        >>> path = RecordedTrajectory.streaming(lambda: iter([first, second]), 0.0, 3.0, False)
+        >>> path.state([1.5, 2.5]).x_mm.tolist()
+        [15.0, 25.0]
+        """
         if not end_s > start_s:
             raise RenderError("a trajectory needs records at two different times at least")
         trajectory = cls.__new__(cls)
@@ -162,12 +225,64 @@ class RecordedTrajectory:
         self._t = self._x = self._y = self._f = np.zeros(0)
 
     def chunks(self) -> Iterator[Chunk]:
-        """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays."""
+        """The records, chunk by chunk, as ``(t_s, x_mm, y_mm, force_n or None)`` arrays.
+
+        Returns
+        -------
+        iterator of tuple
+            ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
+
+        Examples
+        --------
+        A trajectory made of arrays is one chunk:
+
+        >>> chunks = list(RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0]).chunks())
+        >>> len(chunks), chunks[0][1].tolist(), chunks[0][3]
+        (1, [0.0, 10.0], None)
+
+        Returns
+        -------
+        iterator of tuple
+            ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
+
+        Examples
+        --------
+        A trajectory made of arrays is one chunk:
+
+        >>> chunks = list(RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0]).chunks())
+        >>> len(chunks), chunks[0][1].tolist(), chunks[0][3]
+        (1, [0.0, 10.0], None)
+        """
         return self._open_chunks()
 
     def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Every record at once, ``(t_s, x_mm, y_mm, force_n or None)``: the whole log in memory, for
-        small logs and tests (rendering and ``play`` stream it instead)."""
+        small logs and tests (rendering and ``play`` stream it instead).
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray or None)
+            Times (s), x and y (mm), forces (N) or None.
+
+        Examples
+        --------
+        >>> path = RecordedTrajectory([0.0, 0.5, 1.0], [0.0, 5.0, 10.0], [5.0, 5.0, 5.0], [0.2, 0.4, 0.6])
+        >>> t, x, y, force = path.records()
+        >>> t.tolist(), force.tolist()
+        ([0.0, 0.5, 1.0], [0.2, 0.4, 0.6])
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray or None)
+            Times (s), x and y (mm), forces (N) or None.
+
+        Examples
+        --------
+        >>> path = RecordedTrajectory([0.0, 0.5, 1.0], [0.0, 5.0, 10.0], [5.0, 5.0, 5.0], [0.2, 0.4, 0.6])
+        >>> t, x, y, force = path.records()
+        >>> t.tolist(), force.tolist()
+        ([0.0, 0.5, 1.0], [0.2, 0.4, 0.6])
+        """
         parts = list(self.chunks())
         t, x, y = (np.concatenate([part[k] for part in parts]) for k in range(3))
         return t, x, y, np.concatenate([part[3] for part in parts]) if self.has_force else None
@@ -302,6 +417,50 @@ class LiveTrajectory:
         the touch ring before each block (at 60–240 reports a second: one report every few blocks), which
         keeps the engine to one real-time thread and leaves the lock uncontended; an app that renders in
         its own process pushes from its UI thread. See ``BlockSource.pull`` for the real-time contract.
+
+        Parameters
+        ----------
+        t_s : float
+            When, perf_counter s.
+        x_mm, y_mm : float
+            Where, mm.
+        force_n : float, optional
+            N; None: not measured.
+        down : bool
+            False lifts the finger.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> live = LiveTrajectory()
+        >>> live.push(0.0, 10.0, 5.0)
+        >>> live.state(np.array([0.0])).down
+        True
+        >>> live.push(0.01, 10.0, 5.0, down=False)
+        >>> live.state(np.array([0.02])).down, live.reports
+        (False, 2)
+
+        Parameters
+        ----------
+        t_s : float
+            When, perf_counter s.
+        x_mm, y_mm : float
+            Where, mm.
+        force_n : float, optional
+            N; None: not measured.
+        down : bool
+            False lifts the finger.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> live = LiveTrajectory()
+        >>> live.push(0.0, 10.0, 5.0)
+        >>> live.state(np.array([0.0])).down
+        True
+        >>> live.push(0.01, 10.0, 5.0, down=False)
+        >>> live.state(np.array([0.02])).down, live.reports
+        (False, 2)
         """
         with self._lock:
             self.reports += 1
@@ -355,7 +514,56 @@ class LiveTrajectory:
         return _Fit(mean_t, mean_x, mean_y, vx, vy, last[0], force, True)
 
     def state(self, times_s, out=None) -> FingerState:
-        """The finger at ``times_s``; ``out``: two preallocated arrays (x, y) to fill (no allocation)."""
+        """The finger at ``times_s``; ``out``: two preallocated arrays (x, y) to fill (no allocation).
+
+        Parameters
+        ----------
+        times_s : array_like
+            Times, perf_counter s.
+        out : (numpy.ndarray, numpy.ndarray), optional
+            Arrays (x, y) of the times' length to fill.
+
+        Returns
+        -------
+        FingerState
+
+        Examples
+        --------
+        Before any report the finger is not on the plate; one report holds it there:
+
+        >>> import numpy as np
+        >>> live = LiveTrajectory()
+        >>> live.state(np.array([0.0])).down
+        False
+        >>> live.push(1.0, 12.0, 7.0)
+        >>> state = live.state(np.array([1.0]))
+        >>> state.down, state.x_mm.tolist(), state.y_mm.tolist()
+        (True, [12.0], [7.0])
+
+        Parameters
+        ----------
+        times_s : array_like
+            Times, perf_counter s.
+        out : (numpy.ndarray, numpy.ndarray), optional
+            Arrays (x, y) of the times' length to fill.
+
+        Returns
+        -------
+        FingerState
+
+        Examples
+        --------
+        Before any report the finger is not on the plate; one report holds it there:
+
+        >>> import numpy as np
+        >>> live = LiveTrajectory()
+        >>> live.state(np.array([0.0])).down
+        False
+        >>> live.push(1.0, 12.0, 7.0)
+        >>> state = live.state(np.array([1.0]))
+        >>> state.down, state.x_mm.tolist(), state.y_mm.tolist()
+        (True, [12.0], [7.0])
+        """
         fit = self._fit  # one reference, swapped whole by push: no lock needed to read it
         times = np.asarray(times_s, dtype=float)
         if fit is None:

@@ -98,7 +98,28 @@ class EngineStatus:
     loop: str = ""  # the friction loop's state in words ("closed loop: following, error 0.03"); "" without it
 
     def words(self, priority: bool = True) -> str:
-        """One line for people."""
+        """One line for people.
+
+        Parameters
+        ----------
+        priority : bool
+            Include the block thread's scheduling.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        An engine that has not rendered yet:
+
+        >>> from ultraglide.render.engine.shm import SharedBlock
+        >>> block = SharedBlock.create()
+        >>> header, times, history, _ = block.read_fast()
+        >>> status_from_shared(header, times, history, {}, 0, "null", 10.0).words(priority=False)
+        'null starting | 0 blocks, 0 late, 0 underruns | block -/- µs p50/p99 | 0% at the limit'
+        >>> block.close()
+        """
         p50 = "-" if self.block_p50_us is None else f"{self.block_p50_us:.0f}"
         p99 = "-" if self.block_p99_us is None else f"{self.block_p99_us:.0f}"
         faults = f" | faults: {', '.join(self.faults)}" if self.faults else ""
@@ -109,7 +130,24 @@ class EngineStatus:
                 + faults)
 
     def summary(self) -> dict:
-        """The figures as plain JSON values (no history)."""
+        """The figures as plain JSON values (no history).
+
+        Returns
+        -------
+        dict
+            The figures; an unknown float (the default force before the engine has said) is NaN.
+
+        Examples
+        --------
+        >>> import json, math
+        >>> from ultraglide.render.engine.shm import SharedBlock
+        >>> block = SharedBlock.create()
+        >>> header, times, history, _ = block.read_fast()
+        >>> summary = status_from_shared(header, times, history, {}, 0, "null", 10.0).summary()
+        >>> block.close()
+        >>> json.loads(json.dumps(summary))["state"], "history" in summary, math.isnan(summary["force_n"])
+        ('starting', False, True)
+        """
         values = asdict(self)
         del values["history"]
         return values
