@@ -93,7 +93,19 @@ class StretchedExponentialModel(FrictionModel):
     default_floor = MEASURED_FLOOR
 
     def warm_up(self) -> None:
-        """Load the stretched law's compiled inverse (numba's cache) before a real-time block needs it."""
+        """Load the stretched law's compiled inverse (numba's cache) before a real-time block needs it.
+
+        Examples
+        --------
+        The inverse, compiled and loaded: a ratio of d + (1 - d)/e needs the scale s0 at 0.5 N:
+
+        >>> import math
+        >>> import numpy as np
+        >>> model = StretchedExponentialModel(scale_um_pp=4.0)
+        >>> model.warm_up()
+        >>> model.amplitude_um_pp(np.array([0.1 + 0.9 / math.e]), 0.5).amplitude_um_pp.round(6).tolist()
+        [4.0]
+        """
         kernels.warm_up_stretched()
 
     def __init__(self, scale_um_pp: float = MONNOYER_SCALE_UM_PP, shape: float = 2.0,
@@ -104,7 +116,19 @@ class StretchedExponentialModel(FrictionModel):
         self.residual_ratio = _in_range("residual_ratio", residual_ratio, RESIDUAL_RANGE)
 
     def force_law(self) -> str:
-        """s ∝ F^p, and where p comes from: fitted on the forces of a calibration, or assumed from eq. (6)."""
+        """s ∝ F^p, and where p comes from: fitted on the forces of a calibration, or assumed from eq. (6).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> StretchedExponentialModel().force_law()
+        "s ∝ F^0.333, assumed from the paper's detachment law W_c ∝ F^(1/3) (eq. 6), not measured"
+        >>> StretchedExponentialModel(force_exponent=0.0).force_law()
+        'none: the same curve at every force'
+        """
         law = f"s ∝ F^{self.force_exponent:.3g}"
         fitted = self.fitted
         if self.force_exponent == 0.0:
@@ -145,7 +169,30 @@ class StretchedExponentialModel(FrictionModel):
         return self.scale_um_pp * np.power(clip_force(force_n) / REFERENCE_FORCE_N, self.force_exponent)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
-        """d + (1 - d) exp(-(a_pp / s(F))^beta); see :meth:`FrictionModel.relative_friction`."""
+        """d + (1 - d) exp(-(a_pp / s(F))^beta); see :meth:`FrictionModel.relative_friction`.
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            Vibration amplitude, µm p-p.
+        force_n : array_like
+            Normal force, N.
+
+        Returns
+        -------
+        numpy.ndarray
+            mu / mu0, d..1.
+
+        Examples
+        --------
+        At rest the ratio is 1; at a_pp = s(F) it is d + (1 - d)/e, with s(1 N) = s0 × 2^(1/3):
+
+        >>> import math
+        >>> model = StretchedExponentialModel(scale_um_pp=4.0, residual_ratio=0.1)
+        >>> ratios = model.relative_friction([0.0, 4.0 * 2 ** (1 / 3)], 1.0)
+        >>> ratios.round(6).tolist(), round(0.1 + 0.9 / math.e, 6)
+        ([1.0, 0.431091], 0.431091)
+        """
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -187,13 +234,38 @@ class StretchedExponentialModel(FrictionModel):
         return f", floor d = {self.residual_ratio:.3g}"
 
     def describe(self) -> str:
-        """One line: the law with s0 (µm p-p), p, beta, the floor and the force law."""
+        """One line: the law with s0 (µm p-p), p, beta, the floor and the force law.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> StretchedExponentialModel(scale_um_pp=4.0).describe().split(", floor")[0]
+        'stretched: mu/mu0 = exp(-(a/s)^beta), s = 4 µm p-p x (F/0.5 N)^0.333, beta = 2'
+        """
         return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
                 f"{self.force_exponent:.3g}, beta = {self.shape:.3g}{self._floor_words()}; force law: "
                 f"{self.force_law()}")
 
     def parameters(self) -> dict[str, float | str]:
-        """``scale_um_pp`` (µm p-p), ``shape``, ``force_exponent``, ``residual_ratio``: what the constructor takes."""
+        """``scale_um_pp`` (µm p-p), ``shape``, ``force_exponent``, ``residual_ratio``: what the constructor takes.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        What the constructor takes back:
+
+        >>> model = StretchedExponentialModel(scale_um_pp=4.0, shape=1.5)
+        >>> StretchedExponentialModel(**model.parameters()).parameters() == model.parameters()
+        True
+        >>> model.parameters()["scale_um_pp"], model.parameters()["shape"]
+        (4.0, 1.5)
+        """
         return {"scale_um_pp": self.scale_um_pp, "shape": self.shape, "force_exponent": self.force_exponent,
                 "residual_ratio": self.residual_ratio}
 
@@ -238,17 +310,47 @@ class ExponentialModel(StretchedExponentialModel):
         super().__init__(2.0 * np.sqrt(2.0) * self.tau_um_zp, 2.0, 0.0, residual_ratio)
 
     def force_law(self) -> str:
-        """None: Monnoyer et al.'s curve is the same at every force."""
+        """None: Monnoyer et al.'s curve is the same at every force.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> ExponentialModel().force_law()
+        'none: the same curve at every force (Monnoyer et al. did not state theirs)'
+        """
         return "none: the same curve at every force (Monnoyer et al. did not state theirs)"
 
     def _own_force_range_n(self) -> tuple[float, float]:
         return (MIN_FORCE_N, MAX_FORCE_N)
 
     def describe(self) -> str:
-        """One line: the law with tau (µm zero-to-peak) and the floor."""
+        """One line: the law with tau (µm zero-to-peak) and the floor.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> ExponentialModel().describe().split(",")[0]
+        'exponential: mu/mu0 = exp(-a²/2tau²)'
+        """
         return (f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
                 f"{self._floor_words()}; force law: {self.force_law()}")
 
     def parameters(self) -> dict[str, float | str]:
-        """``tau_um_zp`` (µm zero-to-peak) and ``residual_ratio``, as the constructor takes them."""
+        """``tau_um_zp`` (µm zero-to-peak) and ``residual_ratio``, as the constructor takes them.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> ExponentialModel().parameters()                     # Monnoyer et al.'s tau, no floor by default
+        {'tau_um_zp': 1.32, 'residual_ratio': 0.0}
+        """
         return {"tau_um_zp": self.tau_um_zp, "residual_ratio": self.residual_ratio}

@@ -68,7 +68,16 @@ class PaperModel(FrictionModel):
     U_NODES = 384
 
     def warm_up(self) -> None:
-        """Load the compiled inverse over u (numba's cache) before a real-time block needs it."""
+        """Load the compiled inverse over u (numba's cache) before a real-time block needs it.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> model = PaperModel()
+        >>> model.warm_up()
+        >>> model.amplitude_um_pp(np.array([1.0]), 0.5).amplitude_um_pp.tolist()      # at rest: no vibration
+        [0.0]
+        """
         kernels.warm_up_uniform()
 
     def __init__(self, params: FingerParams = FingerParams()):
@@ -91,7 +100,17 @@ class PaperModel(FrictionModel):
                 * np.maximum(force / self._saturation_n, 1.0))
 
     def force_law(self) -> str:
-        """W_c ∝ F^(1 - area exponent) (eqs. 1, 3, 6), ∝ F above the force where the contact is a fingertip's."""
+        """W_c ∝ F^(1 - area exponent) (eqs. 1, 3, 6), ∝ F above the force where the contact is a fingertip's.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> PaperModel().force_law()
+        "W_c ∝ F^0.333 from eqs. (1), (3), (6), ∝ F above 2.44 N where the area is a fingertip's"
+        """
         return (f"W_c ∝ F^{self._detach_exponent:.3g} from eqs. (1), (3), (6), ∝ F above "
                 f"{self._saturation_n:.3g} N where the area is a fingertip's")
 
@@ -126,7 +145,32 @@ class PaperModel(FrictionModel):
         return detach_amplitude_um_pp(clip_force(force_n), params)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
-        """The ratio from the table over u = a_pp / W_c(F); see :meth:`FrictionModel.relative_friction`."""
+        """The ratio from the table over u = a_pp / W_c(F); see :meth:`FrictionModel.relative_friction`.
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            Vibration amplitude, µm p-p.
+        force_n : array_like
+            Normal force, N.
+
+        Returns
+        -------
+        numpy.ndarray
+            mu / mu0.
+
+        Examples
+        --------
+        The ratio depends on a_pp / W_c(F) alone, and W_c ∝ F^(1/3) below 2.44 N: twice the force needs 2^(1/3) times
+        the amplitude for the same ratio:
+
+        >>> import numpy as np
+        >>> model = PaperModel()
+        >>> bool(np.allclose(model.relative_friction([2.0], 0.5), model.relative_friction([2.0 * 2 ** (1 / 3)], 1.0)))
+        True
+        >>> model.relative_friction([0.0], 0.5).tolist()
+        [1.0]
+        """
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -157,7 +201,17 @@ class PaperModel(FrictionModel):
                                               self._saturation_n, MIN_FORCE_N, MAX_FORCE_N, out)
 
     def describe(self) -> str:
-        """One line: the model and its finger's parameters (E in MPa, n, the area exponent, the contact)."""
+        """One line: the model and its finger's parameters (E in MPa, n, the area exponent, the contact).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> PaperModel().describe()
+        'paper: ridge springs with non-Coulombic friction (E = 1 MPa, n = 0.667, A ∝ F^0.667, hertz contact)'
+        """
         p = self.params
         return (
             f"paper: ridge springs with non-Coulombic friction (E = {p.youngs_modulus_pa / 1e6:g} MPa, "
@@ -165,7 +219,17 @@ class PaperModel(FrictionModel):
         )
 
     def parameters(self) -> dict[str, float | str]:
-        """The finger's fitted parameters: ``youngs_modulus_pa`` (Pa), ``friction_exponent``, ``area_exponent``."""
+        """The finger's fitted parameters: ``youngs_modulus_pa`` (Pa), ``friction_exponent``, ``area_exponent``.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> PaperModel().parameters()["youngs_modulus_pa"]                   # Pa: the paper's 1 MPa
+        1000000.0
+        """
         p = self.params
         return {
             "youngs_modulus_pa": p.youngs_modulus_pa,

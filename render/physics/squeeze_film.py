@@ -109,7 +109,22 @@ class FilmParams:
                 raise ModelError(f"{name} must lie in [{allowed[0]:g}, {allowed[1]:g}], got {value}")
 
     def with_(self, **changes: float) -> FilmParams:
-        """A copy with some parameters changed."""
+        """A copy with some parameters changed.
+
+        Parameters
+        ----------
+        **changes : float
+            Fields and their new values (``gap_um`` in µm, ``film_fraction``, ``ambient_pressure_pa`` in Pa).
+
+        Returns
+        -------
+        FilmParams
+
+        Examples
+        --------
+        >>> FilmParams().with_(gap_um=3.0)
+        FilmParams(gap_um=3.0, film_fraction=0.4, ambient_pressure_pa=101325.0)
+        """
         return replace(self, **changes)
 
 
@@ -289,7 +304,16 @@ class SqueezeFilmModel(FrictionModel):
     name = "squeeze-film"
 
     def warm_up(self) -> None:
-        """Load the film model's compiled inverse (numba's cache) before a real-time block needs it."""
+        """Load the film model's compiled inverse (numba's cache) before a real-time block needs it.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> model = SqueezeFilmModel()
+        >>> model.warm_up()
+        >>> model.amplitude_um_pp(np.array([1.0]), 0.5).amplitude_um_pp.tolist()      # at rest: no vibration
+        [0.0]
+        """
         kernels.warm_up_film()
 
     def __init__(self, film: FilmParams = FilmParams(), finger: FingerParams = FingerParams()):
@@ -315,7 +339,29 @@ class SqueezeFilmModel(FrictionModel):
         return film_ratio(amplitude, force, self.film, self._contact)
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
-        """The ridges' ratio at the load the film leaves them; see :meth:`FrictionModel.relative_friction`."""
+        """The ridges' ratio at the load the film leaves them; see :meth:`FrictionModel.relative_friction`.
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            Vibration amplitude, µm p-p.
+        force_n : array_like
+            Normal force, N.
+
+        Returns
+        -------
+        numpy.ndarray
+            mu / mu0.
+
+        Examples
+        --------
+        1 at rest, and falling as the film lifts more of the load:
+
+        >>> import numpy as np
+        >>> ratios = SqueezeFilmModel().relative_friction(np.arange(0.0, 7.0), 0.5)
+        >>> float(ratios[0]), bool(np.all(np.diff(ratios) < 0))
+        (1.0, True)
+        """
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
         check_amplitude(amplitude)
@@ -343,7 +389,17 @@ class SqueezeFilmModel(FrictionModel):
 
     # ---- words ----------------------------------------------------------------------------------------
     def force_law(self) -> str:
-        """The film's share of the load falls as F^(-1/3); the ridges detach as W_c ∝ F_c^(1/3) at theirs."""
+        """The film's share of the load falls as F^(-1/3); the ridges detach as W_c ∝ F_c^(1/3) at theirs.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> SqueezeFilmModel().force_law().split(";")[0]
+        "the film's share of the load falls as F^(-1/3) (its area A ∝ F^(2/3), eq. 3)"
+        """
         return ("the film's share of the load falls as F^(-1/3) (its area A ∝ F^(2/3), eq. 3); the ridges' "
                 "detachment W_c ∝ F_c^(1/3) at their own load (eq. 6)")
 
@@ -354,7 +410,17 @@ class SqueezeFilmModel(FrictionModel):
         return self._contact._range_reason()
 
     def describe(self) -> str:
-        """One line: the ridges' finger, the film (gap in µm, share, pressure in kPa) and the sources."""
+        """One line: the ridges' finger, the film (gap in µm, share, pressure in kPa) and the sources.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> SqueezeFilmModel().describe().split(" sharing")[0]
+        "squeeze-film: the paper's ridges (E = 1 MPa, n = 0.667, hertz contact)"
+        """
         f, p = self.film, self.finger
         return (f"squeeze-film: the paper's ridges (E = {p.youngs_modulus_pa / 1e6:g} MPa, n = "
                 f"{p.friction_exponent:.3g}, {p.contact} contact) sharing the load with an air film "
@@ -374,6 +440,16 @@ class SqueezeFilmModel(FrictionModel):
     def parameters(self) -> dict[str, float | str]:
         """The film's ``gap_um`` (µm), ``film_fraction``, ``ambient_pressure_pa`` (Pa) and the finger's
         ``youngs_modulus_pa`` (Pa) and ``friction_exponent``.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> params = SqueezeFilmModel().parameters()
+        >>> params["gap_um"], params["film_fraction"], params["ambient_pressure_pa"]        # µm, share, Pa
+        (10.0, 0.4, 101325.0)
         """
         return {"gap_um": self.film.gap_um, "film_fraction": self.film.film_fraction,
                 "ambient_pressure_pa": self.film.ambient_pressure_pa,

@@ -54,7 +54,20 @@ class TableModel(FrictionModel):
     name = "table"
 
     def warm_up(self) -> None:
-        """Load the table's compiled inverse (numba's cache) before a real-time block needs it."""
+        """Load the table's compiled inverse (numba's cache) before a real-time block needs it.
+
+        Examples
+        --------
+        Amplitude is linear in ratio between the points: 0.65, half way from 0.8 (2 µm) to 0.5 (4 µm), needs 3 µm:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+        >>> model = TableModel(points)
+        >>> model.warm_up()
+        >>> model.amplitude_um_pp(np.array([0.65]), 0.5).amplitude_um_pp.round(6).tolist()
+        [3.0]
+        """
         kernels.warm_up_table()
 
     def __init__(self, data: Measurements):
@@ -134,6 +147,29 @@ class TableModel(FrictionModel):
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
         """The exact inverse of the tabulated amplitudes, by bisection; see :meth:`FrictionModel.relative_friction`.
         Amplitudes beyond the largest measured one are held there.
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            Vibration amplitude, µm p-p.
+        force_n : array_like
+            Normal force, N.
+
+        Returns
+        -------
+        numpy.ndarray
+            mu / mu0.
+
+        Examples
+        --------
+        Half way between the points at 2 µm (0.8) and 4 µm (0.5):
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+        >>> model = TableModel(points)
+        >>> model.relative_friction([3.0]).round(6).tolist()
+        [0.65]
         """
         self._checked_force(force_n)
         amplitude = np.asarray(amplitude_um_pp, dtype=float)
@@ -152,7 +188,21 @@ class TableModel(FrictionModel):
         return 0.5 * (low + high)
 
     def force_law(self) -> str:
-        """None when measured at one force; else amplitudes linear in force between the measured forces."""
+        """None when measured at one force; else amplitudes linear in force between the measured forces.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+        >>> model = TableModel(points)
+        >>> model.force_law()
+        'none: measured at 0.5 N only, the same curve at every force'
+        """
         if len(self.forces) == 1:
             return f"none: measured at {self.forces[0]:g} N only, the same curve at every force"
         return f"measured at {len(self.forces)} forces, amplitudes linear in force between them"
@@ -166,12 +216,40 @@ class TableModel(FrictionModel):
         return "the forces measured; beyond them the nearest force's curve is held"
 
     def describe(self) -> str:
-        """One line: the file, its forces (N) and its largest amplitude (µm p-p)."""
+        """One line: the file, its forces (N) and its largest amplitude (µm p-p).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+        >>> model = TableModel(points)
+        >>> model.describe()
+        'table: bench (0.5 N, up to 6 µm p-p)'
+        """
         forces = ", ".join(f"{f:g}" for f in self.forces)
         return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
 
     def parameters(self) -> dict[str, float | str]:
-        """``source``: the file the points came from."""
+        """``source``: the file the points came from.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> points = Measurements(np.array([0.0, 2.0, 4.0, 6.0]), np.array([1.0, 0.8, 0.5, 0.3]), None, "bench")
+        >>> model = TableModel(points)
+        >>> model.parameters()
+        {'source': 'bench'}
+        """
         return {"source": self.source}
 
     def __repr__(self) -> str:
