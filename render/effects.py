@@ -424,7 +424,26 @@ class EffectPlayer:
         self.clipped_samples = 0
 
     def trigger(self, name: str, t_s: float) -> bool:
-        """An app's named event at ``t_s`` (perf_counter s; or the offline clock). False: no binding has it."""
+        """An app's named event at ``t_s`` (perf_counter s; or the offline clock). False: no binding has it.
+
+        Parameters
+        ----------
+        name : str
+            The event's name.
+        t_s : float
+            When, perf_counter s (or the offline clock).
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+        >>> player = EffectPlayer((Binding(Trigger("event", name="tick"), Constant(0.3, 0.01)),), 12000.0)
+        >>> player.trigger("tick", 0.0), player.trigger("tock", 0.0)
+        (True, False)
+        """
         if name not in self._names:
             return False
         self._events.append((name, float(t_s)))
@@ -472,7 +491,37 @@ class EffectPlayer:
     # ---- the block path ----------------------------------------------------------------------------------
     def mix(self, times, x, y, down, ratio) -> np.ndarray:
         """The texture's ``ratio`` with the effects playing at ``times`` (s) subtracted, clipped to [0, 1]. The
-        array returned is a buffer of the player's, overwritten by the next block (a copy if n > capacity)."""
+        array returned is a buffer of the player's, overwritten by the next block (a copy if n > capacity).
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            The block's times, s.
+        x, y : numpy.ndarray
+            The finger's position, mm.
+        down : numpy.ndarray
+            Whether it touches.
+        ratio : numpy.ndarray
+            The texture's friction ratio (float32).
+
+        Returns
+        -------
+        numpy.ndarray
+
+        Examples
+        --------
+        A 10 ms drop of 0.3 started at 0 s, over a block of 24 samples (2 ms) of a texture at 0.9:
+
+        >>> import numpy as np
+        >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+        >>> player = EffectPlayer((Binding(Trigger("event", name="tick"), Constant(0.3, 0.01)),), 12000.0)
+        >>> _ = player.trigger("tick", 0.0)
+        >>> t = np.arange(24) / 12000.0
+        >>> texture = np.full(24, 0.9, dtype=np.float32)
+        >>> mixed = player.mix(t, np.zeros(24), np.zeros(24), np.ones(24, dtype=bool), texture)
+        >>> sorted(set(mixed.round(6).tolist()))                                   # 0.9 - 0.3
+        [0.6]
+        """
         n = len(times)
         if n > self.capacity:  # a long catch-up block: in pieces
             out = np.empty(n)
@@ -513,11 +562,41 @@ class EffectPlayer:
 
     @property
     def starts(self) -> list[tuple[int, float]]:
-        """(binding index, start time s) of the latest voices (up to 1024), oldest first."""
+        """(binding index, start time s) of the latest voices (up to 1024), oldest first.
+
+        Returns
+        -------
+        list of (int, float)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+        >>> player = EffectPlayer((Binding(Trigger("event", name="tick"), Constant(0.3, 0.01)),), 12000.0)
+        >>> _ = player.trigger("tick", 0.001)
+        >>> t = np.arange(24) / 12000.0
+        >>> _ = player.mix(t, np.zeros(24), np.zeros(24), np.ones(24, dtype=bool), np.ones(24, dtype=np.float32))
+        >>> player.starts                                              # binding 0, at 1 ms
+        [(0, 0.001)]
+        """
         first = max(0, self.started - LOG)
         return [(int(self._log[k % LOG, 0]), float(self._log[k % LOG, 1])) for k in range(first, self.started)]
 
     @property
     def playing(self) -> int:
-        """Voices playing now."""
+        """Voices playing now.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.textures.effect_types import Binding, Constant, Trigger
+        >>> player = EffectPlayer((Binding(Trigger("event", name="tick"), Constant(0.3, 0.01)),), 12000.0)
+        >>> player.playing
+        0
+        >>> _ = player.trigger("tick", 0.0)
+        >>> t = np.arange(24) / 12000.0
+        >>> _ = player.mix(t, np.zeros(24), np.zeros(24), np.ones(24, dtype=bool), np.ones(24, dtype=np.float32))
+        >>> player.playing                                             # 2 ms into its 10 ms
+        1
+        """
         return self._active

@@ -121,7 +121,31 @@ class EnvelopeChain:
 
     def process(self, target: np.ndarray, gate_open: np.ndarray | bool, out=None) -> EnvelopeBlock:
         """One block: ``target`` amplitudes and whether the gate is open (per sample, or for all).
-        ``out``: three preallocated float64 arrays of the block's length (amplitude, drive, plate)."""
+        ``out``: three preallocated float64 arrays of the block's length (amplitude, drive, plate).
+
+        Parameters
+        ----------
+        target : numpy.ndarray
+            The amplitudes asked, µm p-p.
+        gate_open : numpy.ndarray or bool
+            Whether the finger touches, per sample or for the whole block.
+        out : (numpy.ndarray, numpy.ndarray, numpy.ndarray), optional
+            float64 arrays of the block's length for the amplitude, the drive and the plate (µm p-p).
+
+        Returns
+        -------
+        EnvelopeBlock
+
+        Examples
+        --------
+        With the gate shut nothing is asked of the plate:
+
+        >>> import numpy as np
+        >>> chain = EnvelopeChain(12000.0, 0.001, 0.001, 1000.0, 1000.0, 6.0, 0.001, 8.0)
+        >>> block = chain.process(np.full(24, 10.0), False)
+        >>> float(block.amplitude_um_pp.max()), float(block.drive_um_pp.max()), chain.at_rest
+        (0.0, 0.0, True)
+        """
         n = len(target)
         amplitude, drive, plate = out if out is not None else (np.empty(n), np.empty(n), np.empty(n))
         if isinstance(gate_open, np.ndarray) and gate_open.ndim:
@@ -138,7 +162,18 @@ class EnvelopeChain:
 
     @property
     def at_rest(self) -> bool:
-        """True once the goal and gain are 0 and the smoothed envelope and the plate model have come to rest."""
+        """True once the goal and gain are 0 and the smoothed envelope and the plate model have come to rest.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> chain = EnvelopeChain(12000.0, 0.001, 0.001, 1000.0, 1000.0, 6.0, 0.001, 8.0)
+        >>> chain.at_rest
+        True
+        >>> _ = chain.process(np.full(24, 3.0), True)
+        >>> chain.at_rest
+        False
+        """
         return self.goal == 0.0 and self.gain == 0.0 and self.smoothed < 1e-9 and self.plate < 1e-6
 
 

@@ -54,13 +54,36 @@ class TouchLog:
 
     @property
     def has_force(self) -> bool:
-        """Whether the log has a ``force_n`` column (a pressure-sensing panel's)."""
+        r"""Whether the log has a ``force_n`` column (a pressure-sensing panel's).
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
+        >>> _ = path.write_text("t_s,x_mm,y_mm\n0.0,10,20\n0.5,60,20\n")
+        >>> check_touch_log(path).has_force
+        False
+        """
         return "force_n" in self.table.names
 
     def chunks(self) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]:
-        """``(t_s from zero, x_mm, y_mm, force_n or None)`` arrays, a block of the file at a time.
+        r"""``(t_s from zero, x_mm, y_mm, force_n or None)`` arrays, a block of the file at a time.
         Each block's values are checked again (ranges, time order), in case the file changed since;
-        a log held in memory since its check is not read again."""
+        a log held in memory since its check is not read again.
+
+        Returns
+        -------
+        iterator of tuple
+            ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s from the first record, mm, mm, N).
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
+        >>> _ = path.write_text("t_s,x_mm,y_mm,force_n\n100.0,10,20,0.4\n100.5,60,20,0.6\n")
+        >>> [(t.tolist(), x.tolist(), force.tolist()) for t, x, y, force in check_touch_log(path).chunks()]
+        [([0.0, 0.5], [10.0, 60.0], [0.4, 0.6])]
+        """
         if self.held is not None:
             yield from self.held
             return

@@ -179,7 +179,23 @@ class ImageTooLarge(TextureError):
                          f"{limit:,}; {advice}")
 
     def advising(self, advice: str) -> ImageTooLarge:
-        """The same refusal with other advice (what the caller's own options can do)."""
+        """The same refusal with other advice (what the caller's own options can do).
+
+        Parameters
+        ----------
+        advice : str
+            What to do, in words.
+
+        Returns
+        -------
+        ImageTooLarge
+
+        Examples
+        --------
+        >>> error = ImageTooLarge("wide.png", (20, 10), 100).advising("give --max-pixels 200")
+        >>> str(error)
+        'wide.png: 20×10 is 200 pixels, over the limit of 100; give --max-pixels 200'
+        """
         return ImageTooLarge(self.path, self.size, self.limit, advice)
 
 

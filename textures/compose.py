@@ -62,7 +62,24 @@ class Placement:
     y_mm: float
 
     def contains(self, x_mm: float, y_mm: float) -> bool:
-        """Whether the point (mm, on the canvas) lies on this texture: left and top edges in, right and bottom out."""
+        """Whether the point (mm, on the canvas) lies on this texture: left and top edges in, right and bottom out.
+
+        Parameters
+        ----------
+        x_mm, y_mm : float
+            The point, mm on the canvas.
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> patch = Placement(Texture(np.full((2, 2), 0.5), width_mm=10.0, height_mm=5.0), 20.0, 0.0)
+        >>> patch.contains(25.0, 2.5), patch.contains(25.0, 5.0)                 # bottom edge out
+        (True, False)
+        """
         return (self.x_mm <= x_mm < self.x_mm + self.texture.width_mm
                 and self.y_mm <= y_mm < self.y_mm + self.texture.height_mm)
 
@@ -144,11 +161,29 @@ class Grid:
 
     @property
     def shape(self) -> tuple[int, int]:
-        """The grid's (rows, cols): its size (mm) times ``px_per_mm``, one pixel or more each way."""
+        """The grid's (rows, cols): its size (mm) times ``px_per_mm``, one pixel or more each way.
+
+        Examples
+        --------
+        >>> Grid(20.0, 5.0, 0.2).shape                        # 20 mm × 0.2 px/mm across, 5 mm × 0.2 down: (rows, cols)
+        (1, 4)
+        """
         return max(1, round(self.height_mm * self.px_per_mm)), max(1, round(self.width_mm * self.px_per_mm))
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
-        """x and y (mm) of every pixel centre, rows × cols each."""
+        """x and y (mm) of every pixel centre, rows × cols each.
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray)
+            x and y of every pixel's centre, mm, each of the grid's shape.
+
+        Examples
+        --------
+        >>> x, y = Grid(10.0, 10.0, 0.2).centres()                  # 2 × 2 pixels of 5 mm
+        >>> x.tolist(), y.tolist()
+        ([[2.5, 7.5], [2.5, 7.5]], [[2.5, 2.5], [7.5, 7.5]])
+        """
         rows, cols = self.shape
         x = (np.arange(cols) + 0.5) * (self.width_mm / cols)
         y = (np.arange(rows) + 0.5) * (self.height_mm / rows)

@@ -35,7 +35,13 @@ class Effect:
 
     @property
     def duration_s(self) -> float:
-        """How long the effect lasts (s); infinite for one that goes on until its binding releases it."""
+        """How long the effect lasts (s); infinite for one that goes on until its binding releases it.
+
+        Examples
+        --------
+        >>> (Constant(0.3, 0.1) >> Constant(0.2, 0.05)).duration_s          # a sequence: 0.1 s + 0.05 s
+        0.15000000000000002
+        """
         raise NotImplementedError
 
     def __add__(self, other: Effect) -> Effect:
@@ -107,7 +113,13 @@ class Oscillator(Effect):
 
     @property
     def duration_s(self) -> float:
-        """Infinite: an oscillator runs until its binding releases it."""
+        """Infinite: an oscillator runs until its binding releases it.
+
+        Examples
+        --------
+        >>> Triangle(80.0, 0.4).duration_s
+        inf
+        """
         return math.inf
 
 
@@ -184,7 +196,13 @@ class Constant(Effect):
 
     @property
     def duration_s(self) -> float:
-        """``length_s`` (s): infinite unless given."""
+        """``length_s`` (s): infinite unless given.
+
+        Examples
+        --------
+        >>> Constant(0.3, 0.05).duration_s, Constant(0.3).duration_s
+        (0.05, inf)
+        """
         return self.length_s
 
 
@@ -219,7 +237,13 @@ class ADSR(Effect):
 
     @property
     def duration_s(self) -> float:
-        """attack + decay + sustain + release (s)."""
+        """attack + decay + sustain + release (s).
+
+        Examples
+        --------
+        >>> ADSR(0.01, 0.02, 0.03, 0.04).duration_s                  # 10 + 20 + 30 + 40 ms
+        0.1
+        """
         return self.attack_s + self.decay_s + self.sustain_s + self.release_s
 
 
@@ -241,7 +265,13 @@ class Sum(Effect):
 
     @property
     def duration_s(self) -> float:
-        """The longest term's duration (s)."""
+        """The longest term's duration (s).
+
+        Examples
+        --------
+        >>> (Constant(0.1, 0.2) + Constant(0.1, 0.5)).duration_s
+        0.5
+        """
         return max(term.duration_s for term in self.terms)
 
     def __add__(self, other: Effect) -> Effect:  # flat: a + b + c is one sum
@@ -267,7 +297,13 @@ class Product(Effect):
 
     @property
     def duration_s(self) -> float:
-        """The shortest factor's duration (s)."""
+        """The shortest factor's duration (s).
+
+        Examples
+        --------
+        >>> (Sine(150.0, 0.3) * Constant(1.0, 0.1)).duration_s          # the sine goes on for ever: the constant's
+        0.1
+        """
         return min(factor.duration_s for factor in self.factors)
 
     def __mul__(self, other) -> Effect:
@@ -297,7 +333,13 @@ class Sequence(Effect):
 
     @property
     def duration_s(self) -> float:
-        """The parts' durations (s) added."""
+        """The parts' durations (s) added.
+
+        Examples
+        --------
+        >>> (ADSR(0.01, 0.0, 0.0, 0.01) >> Constant(0.2, 0.03)).duration_s        # 20 ms, then 30 ms
+        0.05
+        """
         return sum(part.duration_s for part in self.parts)
 
     def __rshift__(self, other: Effect) -> Effect:

@@ -53,19 +53,37 @@ class SeamReport:
 
     @property
     def ratio(self) -> float:
-        """Typical seam step over typical interior step (about 1 for a seamless tile)."""
+        """Typical seam step over typical interior step (about 1 for a seamless tile).
+
+        Examples
+        --------
+        >>> SeamReport(seam_max=0.4, interior_max=0.2, seam_rms=0.3, interior_rms=0.15).ratio      # 0.3 / 0.15
+        2.0
+        """
         if self.interior_rms > 0:
             return self.seam_rms / self.interior_rms
         return 1.0 if self.seam_rms == 0 else float("inf")
 
     @property
     def seamless(self) -> bool:
-        """No step across a seam is larger than the largest step inside (a little float slack)."""
+        """No step across a seam is larger than the largest step inside (a little float slack).
+
+        Examples
+        --------
+        >>> SeamReport(seam_max=0.2, interior_max=0.2, seam_rms=0.1, interior_rms=0.1).seamless
+        True
+        """
         return self.seam_max <= self.interior_max + 1e-6
 
     @property
     def visible(self) -> bool:
-        """The seam stands out: its typical step is over twice the typical interior step."""
+        """The seam stands out: its typical step is over twice the typical interior step.
+
+        Examples
+        --------
+        >>> SeamReport(seam_max=0.2, interior_max=0.2, seam_rms=0.1, interior_rms=0.1).visible    # ratio 1: not over 2
+        False
+        """
         return self.ratio > VISIBLE_RATIO and self.seam_max > self.interior_max + 1e-6
 
 

@@ -46,16 +46,65 @@ class EnvelopeSource:
         self.buffers = None if realtime_capacity is None else renderer.control_buffers(realtime_capacity, always=True)
 
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
-        """The next ``n`` drive samples (µm p-p); ``now_s``: when the first reaches the plate (perf_counter s)."""
+        """The next ``n`` drive samples (µm p-p); ``now_s``: when the first reaches the plate (perf_counter s).
+
+        Parameters
+        ----------
+        n : int
+            Control samples.
+        now_s : float or None
+            When the first reaches the plate, perf_counter s; None offline.
+
+        Returns
+        -------
+        numpy.ndarray
+            The drive, µm p-p (the source's buffer, overwritten by the next pull).
+
+        Examples
+        --------
+        >>> import ultraglide
+        >>> swipe = ultraglide.SwipePath(duration_s=0.01)
+        >>> source = EnvelopeSource(ultraglide.Renderer("grating-1mm", trajectory=swipe))
+        >>> drive = source.pull(120, None)                         # 10 ms at 12 kHz
+        >>> drive.shape, bool(drive.max() <= source.renderer.profile.max_drive_um_pp)
+        ((120,), True)
+        """
         return self.renderer.control(n, now_s, out=self.buffers).drive_um_pp
 
     def request_stop(self) -> None:
-        """Ramp the renderer down to rest."""
+        """Ramp the renderer down to rest.
+
+        Examples
+        --------
+        >>> import time
+        >>> import ultraglide
+        >>> renderer = ultraglide.Renderer("grating-1mm")
+        >>> now = time.perf_counter()
+        >>> renderer.push(now, 10.0, 10.0)
+        >>> source = EnvelopeSource(renderer)
+        >>> _ = source.pull(120, now)
+        >>> source.request_stop()
+        >>> _ = source.pull(1200, now + 0.01)                      # the release and the plate's tail
+        >>> source.finished, float(source.pull(12, now + 0.11).max())
+        (True, 0.0)
+        """
         self.renderer.stop()
 
     @property
     def finished(self) -> bool:
-        """True once the renderer is at rest after a stop or the end of its path."""
+        """True once the renderer is at rest after a stop or the end of its path.
+
+        Examples
+        --------
+        >>> import ultraglide
+        >>> swipe = ultraglide.SwipePath(duration_s=0.01)
+        >>> source = EnvelopeSource(ultraglide.Renderer("grating-1mm", trajectory=swipe))
+        >>> source.finished
+        False
+        >>> _ = source.pull(1200, None)                             # the swipe's 10 ms, then 90 ms at rest
+        >>> source.finished
+        True
+        """
         return self.renderer.finished
 
     def __repr__(self) -> str:

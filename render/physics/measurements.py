@@ -62,14 +62,44 @@ class Measurements:
         return len(self.amplitude_um_pp)
 
     def subset(self, pick: np.ndarray) -> Measurements:
-        """The points where ``pick`` (a boolean mask or indices) selects."""
+        """The points where ``pick`` (a boolean mask or indices) selects.
+
+        Parameters
+        ----------
+        pick : numpy.ndarray
+            A boolean mask, or indices.
+
+        Returns
+        -------
+        Measurements
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> data = Measurements(np.array([0.0, 2.0, 4.0]), np.array([1.0, 0.6, 0.2]), np.full(3, 0.5), source="by hand")
+        >>> picked = data.subset(np.array([0, 2]))
+        >>> picked.amplitude_um_pp.tolist(), picked.force_n.tolist(), picked.source
+        ([0.0, 4.0], [0.5, 0.5], 'by hand')
+        """
         def take(column):
             return None if column is None else column[pick]
         return Measurements(self.amplitude_um_pp[pick], self.relative_friction[pick], take(self.force_n),
                             self.source, take(self.participant))
 
     def noise_words(self) -> str:
-        """What the reading did with noisy ratios, in words ("" when nothing)."""
+        """What the reading did with noisy ratios, in words ("" when nothing).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> data = Measurements(np.array([0.0, 2.0]), np.array([1.0, 0.5]), None, "bench", above_one=1)
+        >>> data.noise_words()
+        '1 ratio(s) above 1 (noise about rest) kept as measured'
+        """
         parts = []
         if self.clipped_below_zero:
             parts.append(f"{self.clipped_below_zero} ratio(s) below 0 (down to -{NOISE_BELOW_ZERO:g}, measurement "
