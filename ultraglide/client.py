@@ -598,7 +598,51 @@ class Client(_Messages):
         return json.loads(text)
 
     def wait_rendered(self, timeout_s: float = 10.0) -> dict:
-        """Wait until the engine renders the scene as it is now (every change made so far); the state then."""
+        """Wait until the engine renders the scene as it is now (every change made so far); the state then.
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long to wait, s.
+
+        Returns
+        -------
+        dict
+            The state (:meth:`state`), once ``rendered_version`` has reached ``scene_version``.
+
+        Raises
+        ------
+        ConnectionFailed
+            Not rendered within ``timeout_s``, or the connection lost.
+
+        Examples
+        --------
+        A service in this process, as ``ultraglide serve --device null --unix PATH`` runs one (see :class:`Client`):
+
+        >>> import asyncio, pathlib, tempfile, threading
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+        >>> listening, stop = threading.Event(), threading.Event()
+        >>> async def serve():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         listening.set(); await asyncio.to_thread(stop.wait)
+        >>> server = threading.Thread(target=asyncio.run, args=(serve(),)); server.start(); listening.wait(10)
+        True
+
+        >>> with Client("ws+unix:" + socket_path) as plate:
+        ...     _ = plate.load_texture("g", library="grating-2mm")
+        ...     _ = plate.place_sprite("panel", "g", x=0, y=0, width=160, height=100)
+        ...     state = plate.wait_rendered()
+        >>> state["scene_version"], state["rendered_version"]              # one change, rendered
+        (1, 1)
+        >>> stop.set(); server.join(10); service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         deadline = time.monotonic() + timeout_s
         while True:
             state = self.state()
@@ -610,7 +654,48 @@ class Client(_Messages):
 
     def events(self, timeout_s: float = 0.0):
         """Pushes received (status, output, touch.seen, notice), oldest first: those already here, then those
-        arriving within ``timeout_s``."""
+        arriving within ``timeout_s``.
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long to wait for more, s (0: only those already here).
+
+        Yields
+        ------
+        dict
+            Each push, as the service sent it.
+
+        Examples
+        --------
+        A service in this process, as ``ultraglide serve --device null --unix PATH`` runs one (see :class:`Client`):
+
+        >>> import asyncio, pathlib, tempfile, threading
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+        >>> listening, stop = threading.Event(), threading.Event()
+        >>> async def serve():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         listening.set(); await asyncio.to_thread(stop.wait)
+        >>> server = threading.Thread(target=asyncio.run, args=(serve(),)); server.start(); listening.wait(10)
+        True
+
+        >>> with Client("ws+unix:" + socket_path) as plate:
+        ...     _ = plate.subscribe(scene=True)
+        ...     _ = plate.load_texture("g", library="grating-2mm")
+        ...     _ = plate.place_sprite("panel", "g", x=0, y=0, width=160, height=100)
+        ...     scenes = (event for event in plate.events(timeout_s=10.0) if event["type"] == "scene")
+        ...     placed = next(scene for scene in scenes if scene["sprites"])      # pushed as the scene changed
+        >>> [sprite["sprite"] for sprite in placed["sprites"]], [texture["texture"] for texture in placed["textures"]]
+        (['panel'], ['g'])
+        >>> stop.set(); server.join(10); service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         deadline = time.monotonic() + timeout_s
         while True:
             while self.pending_events:
@@ -627,7 +712,36 @@ class Client(_Messages):
             self._keep(message)
 
     def close(self) -> None:
-        """Close the connection (a finger still down is lifted by the service)."""
+        """Close the connection (a finger still down is lifted by the service).
+
+        Examples
+        --------
+        A service in this process, as ``ultraglide serve --device null --unix PATH`` runs one (see :class:`Client`):
+
+        >>> import asyncio, pathlib, tempfile, threading
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+        >>> listening, stop = threading.Event(), threading.Event()
+        >>> async def serve():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         listening.set(); await asyncio.to_thread(stop.wait)
+        >>> server = threading.Thread(target=asyncio.run, args=(serve(),)); server.start(); listening.wait(10)
+        True
+
+        >>> plate = Client("ws+unix:" + socket_path)
+        >>> plate.close()
+        >>> plate.state()
+        Traceback (most recent call last):
+        ...
+        ultraglide.client.ConnectionFailed: the connection to the service was lost: ...
+        >>> stop.set(); server.join(10); service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         self._ws.close()
 
     def __enter__(self) -> Client:
@@ -710,6 +824,30 @@ class AsyncClient(_Messages):
             The service could not be reached or refused the handshake (origin, token).
         Refused
             The service refused the hello (``busy`` when another client controls).
+
+        Examples
+        --------
+        A service in this process, in the program's own event loop, as ``ultraglide serve --device null --unix PATH``
+        runs one (see :class:`AsyncClient`):
+
+        >>> import asyncio, pathlib, tempfile
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+
+        >>> async def hello():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         async with await AsyncClient.connect("ws+unix:" + socket_path, role="observe") as plate:
+        ...             return plate.welcome
+        >>> welcome = asyncio.run(hello())
+        >>> welcome["role"], welcome["device"], welcome["profile"]
+        ('observe', 'null', 'sim-plate')
+        >>> service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
         """
         import asyncio
 
@@ -795,7 +933,49 @@ class AsyncClient(_Messages):
         return {k: v for k, v in message.items() if k != "id"}
 
     async def wait_rendered(self, timeout_s: float = 10.0) -> dict:
-        """Wait until the engine renders the scene as it is now (every change made so far); the state then."""
+        """Wait until the engine renders the scene as it is now (every change made so far); the state then.
+
+        Parameters
+        ----------
+        timeout_s : float
+            How long to wait, s.
+
+        Returns
+        -------
+        dict
+            The state, once ``rendered_version`` has reached ``scene_version``.
+
+        Raises
+        ------
+        ConnectionFailed
+            Not rendered within ``timeout_s``, or the connection lost.
+
+        Examples
+        --------
+        A service in this process, in the program's own event loop, as ``ultraglide serve --device null --unix PATH``
+        runs one (see :class:`AsyncClient`):
+
+        >>> import asyncio, pathlib, tempfile
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+
+        >>> async def session():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         async with await AsyncClient.connect("ws+unix:" + socket_path) as plate:
+        ...             await plate.load_texture("g", library="grating-2mm")
+        ...             await plate.place_sprite("panel", "g", x=0, y=0, width=160, height=100)
+        ...             return await plate.wait_rendered()
+        >>> state = asyncio.run(session())
+        >>> state["scene_version"], state["rendered_version"]
+        (1, 1)
+        >>> service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         import asyncio
 
         deadline = time.monotonic() + timeout_s
@@ -809,7 +989,43 @@ class AsyncClient(_Messages):
 
     async def next_event(self, timeout_s: float | None = None) -> dict | None:
         """The next push (status, output, touch.seen, notice); None once the connection has ended or after
-        ``timeout_s``."""
+        ``timeout_s``.
+
+        Parameters
+        ----------
+        timeout_s : float, optional
+            How long to wait, s (None: until one comes or the connection ends).
+
+        Returns
+        -------
+        dict or None
+
+        Examples
+        --------
+        A service in this process, in the program's own event loop, as ``ultraglide serve --device null --unix PATH``
+        runs one (see :class:`AsyncClient`):
+
+        >>> import asyncio, pathlib, tempfile
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+
+        >>> async def session():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         async with await AsyncClient.connect("ws+unix:" + socket_path) as plate:
+        ...             await plate.subscribe(scene=True)
+        ...             await plate.load_texture("g", library="grating-2mm")
+        ...             return await plate.next_event(timeout_s=10.0)
+        >>> event = asyncio.run(session())
+        >>> event["type"], [texture["texture"] for texture in event["textures"]]
+        ('scene', ['g'])
+        >>> service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         import asyncio
 
         try:
@@ -818,7 +1034,32 @@ class AsyncClient(_Messages):
             return None
 
     async def close(self) -> None:
-        """Close the connection and wait for the reader to end (a finger still down is lifted by the service)."""
+        """Close the connection and wait for the reader to end (a finger still down is lifted by the service).
+
+        Examples
+        --------
+        A service in this process, in the program's own event loop, as ``ultraglide serve --device null --unix PATH``
+        runs one (see :class:`AsyncClient`):
+
+        >>> import asyncio, pathlib, tempfile
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+
+        >>> async def session():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         plate = await AsyncClient.connect("ws+unix:" + socket_path)
+        ...         await plate.close()
+        ...         return await plate.next_event(timeout_s=10.0)          # None: the connection has ended
+        >>> print(asyncio.run(session()))
+        None
+        >>> service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
         if self._ws is not None:
             await self._ws.close()
         if self._reader is not None:
