@@ -48,13 +48,39 @@ class Column:
     low_open: bool = False
 
     def describe(self) -> str:
-        """The column's range in words with its unit: ``from 0 to 50 µm p-p`` or ``more than 0 to 10 N``."""
+        """The column's range in words with its unit: ``from 0 to 50 µm p-p`` or ``more than 0 to 10 N``.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> Column("amplitude_um_pp", 0.0, 50.0, "µm p-p").describe()
+        'from 0 to 50 µm p-p'
+        """
         unit = f" {self.unit}" if self.unit else ""
         low = f"more than {self.low:g}" if self.low_open else f"from {self.low:g}"
         return f"{low} to {self.high:g}{unit}"
 
     def outside(self, values: np.ndarray) -> np.ndarray:
-        """True where a value is outside the range or not a number."""
+        """True where a value is outside the range or not a number.
+
+        Parameters
+        ----------
+        values : numpy.ndarray
+
+        Returns
+        -------
+        numpy.ndarray
+            bool, one per value.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Column("ratio", 0.0, 1.0).outside(np.array([0.0, 1.0, 1.5, np.inf])).tolist()
+        [False, False, True, True]
+        """
         above_low = values > self.low if self.low_open else values >= self.low
         return ~(above_low & (values <= self.high))
 
@@ -84,7 +110,30 @@ class Block:
         return len(next(iter(self.values.values())))
 
     def line_of(self, row: int) -> int:
-        """The file line number of data row ``row`` (counts lines; used only to report errors)."""
+        r"""The file line number of data row ``row`` (counts lines; used only to report errors).
+
+        Parameters
+        ----------
+        row : int
+            The data row, from 0.
+
+        Returns
+        -------
+        int
+            The file line, from 1.
+
+        Examples
+        --------
+        Comments and the header count as lines:
+
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "forces.csv"
+        >>> _ = path.write_text("# bench\nt_s,force_n\n0,0.5\n\n0.1,0.8\n")
+        >>> block = next(NumericCsv(path, (Column("t_s", 0.0, 1e6), Column("force_n", 0.0, 10.0)), (), ValueError,
+        ...                         "force file").blocks())
+        >>> block.line_of(0), block.line_of(1)
+        (3, 5)
+        """
         seen = -1
         for offset, line in enumerate(self.text.split("\n")):
             if _is_data(line):
@@ -143,7 +192,19 @@ class NumericCsv:
 
     @property
     def names(self) -> list[str]:
-        """The columns' names, in order."""
+        r"""The columns' names, in order.
+
+        Examples
+        --------
+        The required columns, then the optional ones the file has:
+
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "forces.csv"
+        >>> _ = path.write_text("force_n,t_s\n0.5,0\n")
+        >>> NumericCsv(path, (Column("t_s", 0.0, 1e6),), (Column("force_n", 0.0, 10.0), Column("x_mm", 0.0, 1e3)),
+        ...            ValueError, "force file").names
+        ['t_s', 'force_n']
+        """
         return [c.name for c in self.columns]
 
     def _fail(self, line: int | None, message: str):
@@ -212,7 +273,29 @@ class NumericCsv:
                 line += data.count(b"\n", 0, cut)
 
     def blocks(self) -> Iterator[Block]:
-        """The data rows, block by block, every value checked against its column's range."""
+        r"""The data rows, block by block, every value checked against its column's range.
+
+        Returns
+        -------
+        iterator of Block
+
+        Raises
+        ------
+        Exception
+            The table's error class: a value out of range or not a number, a short row, naming the file and line.
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "forces.csv"
+        >>> _ = path.write_text("t_s,force_n\n0,0.5\n0.1,20\n")
+        >>> table = NumericCsv(path, (Column("t_s", 0.0, 1e6), Column("force_n", 0.0, 10.0, "N")), (), ValueError,
+        ...                    "force file")
+        >>> list(table.blocks())
+        Traceback (most recent call last):
+        ...
+        ValueError: ...forces.csv:3: ...
+        """
         for raw, first_line in self._raw_blocks():
             text = self._decode(raw, first_line)
             if "\n " in text or "\n\t" in text or text.startswith((" ", "\t")):  # a fast test for the rare case

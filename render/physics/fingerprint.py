@@ -80,7 +80,23 @@ class FingerParams:
             raise ValueError(f"contact must be 'hertz' or 'uniform', got {self.contact!r}")
 
     def with_(self, **changes: float | str) -> FingerParams:
-        """A copy with some parameters changed."""
+        """A copy with some parameters changed.
+
+        Parameters
+        ----------
+        **changes : float or str
+            Fields and their new values (SI units, as the fields are named).
+
+        Returns
+        -------
+        FingerParams
+
+        Examples
+        --------
+        >>> stiffer = FingerParams().with_(youngs_modulus_pa=2e6)
+        >>> stiffer.youngs_modulus_pa, stiffer.poisson_ratio == FingerParams().poisson_ratio
+        (2000000.0, True)
+        """
         return replace(self, **changes)
 
 

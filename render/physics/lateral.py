@@ -59,7 +59,15 @@ class LateralCycle:
 
     @property
     def slid(self) -> bool:
-        """True when the ridges slipped at least once."""
+        """True when the ridges slipped at least once.
+
+        Examples
+        --------
+        0.01 µm p-p under 2 N: the ridges stick throughout:
+
+        >>> simulate_lateral(0.01, 2.0, frequency_hz=5000.0, cycles=1, steps_per_cycle=400).slid
+        False
+        """
         return bool(self.sliding.any())
 
 

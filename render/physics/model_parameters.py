@@ -61,7 +61,30 @@ class ParameterSpec:
     zero_ok: bool = False  # a value at the lower bound 0 is a finding (no floor, no film), not a warning
 
     def check(self, value, where: str) -> float:
-        """``value`` as a float if it is a number within this parameter's range; else ModelError naming ``where``."""
+        """``value`` as a float if it is a number within this parameter's range; else ModelError naming ``where``.
+
+        Parameters
+        ----------
+        value : object
+            The value read.
+        where : str
+            What the error names (the file and key).
+
+        Returns
+        -------
+        float
+
+        Raises
+        ------
+        ModelError
+            Not a number, or out of the range.
+
+        Examples
+        --------
+        >>> scale = PARAMETERS["stretched"][0]
+        >>> scale.check(3, "model.toml"), (scale.low, scale.high)                  # µm p-p
+        (3.0, (0.05, 100.0))
+        """
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ModelError(f"{where}: parameter {self.key} must be a number in [{self.low:g}, {self.high:g}]"
                              f"{self.unit}, got {value!r}")
@@ -247,7 +270,14 @@ class Parameter:
 
     @property
     def at_bound(self) -> bool:
-        """Within 0.1 % of a bound (ranges span decades, so relative to the bound itself)."""
+        """Within 0.1 % of a bound (ranges span decades, so relative to the bound itself).
+
+        Examples
+        --------
+        >>> scale = PARAMETERS["stretched"][0]                     # 0.05..100 µm p-p
+        >>> Parameter(scale, 99.95, 0.5, fixed=False).at_bound, Parameter(scale, 99.0, 0.5, fixed=False).at_bound
+        (True, False)
+        """
         span = self.spec.high - self.spec.low
         bounds = (self.spec.high,) if self.spec.zero_ok and self.spec.low == 0 else (self.spec.low, self.spec.high)
         return not self.fixed and any(abs(self.value - bound) <= (1e-3 * abs(bound) if bound else 1e-6 * span)
@@ -280,21 +310,70 @@ class Fit:
 
     @property
     def rms_residual(self) -> float:
-        """The root mean square of the fit's residuals (friction ratio)."""
+        """The root mean square of the fit's residuals (friction ratio).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> data = Measurements(np.array([0.0, 2.0]), np.array([1.0, 0.5]), None, "bench")
+        >>> fit = Fit(StretchedExponentialModel(), np.array([0.03, -0.04]), data)
+        >>> round(fit.rms_residual, 6), round(float(np.sqrt((0.03 ** 2 + 0.04 ** 2) / 2)), 6)
+        (0.035355, 0.035355)
+        """
         return float(np.sqrt(np.mean(self.residuals**2)))
 
     @property
     def max_abs_residual(self) -> float:
-        """The largest residual of the fit, in absolute value (friction ratio)."""
+        """The largest residual of the fit, in absolute value (friction ratio).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> data = Measurements(np.array([0.0, 2.0]), np.array([1.0, 0.5]), None, "bench")
+        >>> Fit(StretchedExponentialModel(), np.array([0.03, -0.04]), data).max_abs_residual
+        0.04
+        """
         return float(np.max(np.abs(self.residuals)))
 
     @property
     def cv_rms(self) -> float:
-        """The fit's headline out-of-sample error: k-fold RMS (NaN if there were too few points)."""
+        """The fit's headline out-of-sample error: k-fold RMS (NaN if there were too few points).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> data = Measurements(np.array([0.0, 2.0]), np.array([1.0, 0.5]), None, "bench")
+        >>> Fit(StretchedExponentialModel(), np.zeros(2), data, cross_validation={"k_fold": 0.05}).cv_rms
+        0.05
+        >>> Fit(StretchedExponentialModel(), np.zeros(2), data).cv_rms                  # too few points: none
+        nan
+        """
         return self.cross_validation.get("k_fold", math.nan)
 
     def warnings(self) -> list[str]:
-        """One line per parameter that sits at a bound of its allowed range or leaves its physics."""
+        """One line per parameter that sits at a bound of its allowed range or leaves its physics.
+
+        Returns
+        -------
+        list of str
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> from ultraglide.render.physics.measurements import Measurements
+        >>> data = Measurements(np.array([0.0, 2.0]), np.array([1.0, 0.5]), None, "bench")
+        >>> scale = PARAMETERS["stretched"][0]
+        >>> at_top = (Parameter(scale, 100.0, 0.5, fixed=False),)
+        >>> Fit(StretchedExponentialModel(), np.zeros(2), data, "stretched", at_top).warnings()     # doctest: +ELLIPSIS
+        ['scale_um_pp = 100 sits at the bound 100 of its allowed range [0.05, 100] µm p-p: the data push ...']
+        """
         lines = []
         for p in self.parameters:
             physical = p.spec.physical

@@ -69,7 +69,13 @@ class Figure:
 
     @property
     def author(self) -> str:
-        """The paper's authors and year, as cited."""
+        """The paper's authors and year, as cited.
+
+        Examples
+        --------
+        >>> next(f for f in FIGURES if f.key == "monnoyer_carrier").author
+        'Monnoyer'
+        """
         return AUTHORS[self.paper]
 
 

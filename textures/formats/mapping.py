@@ -50,11 +50,36 @@ class TexelMapping:
 
     @property
     def identity(self) -> bool:
-        """Whether a texel is the ratio itself (ultraglide's own rule)."""
+        """Whether a texel is the ratio itself (ultraglide's own rule).
+
+        Examples
+        --------
+        >>> TexelMapping().identity, TexelMapping(0.2, 1.0).identity, TexelMapping(invert=True).identity
+        (True, False, False)
+        """
         return self.low == 0.0 and self.high == 1.0 and not self.invert
 
     def ratio(self, texels: np.ndarray) -> np.ndarray:
-        """Friction ratios (float32) of ``texels`` (0..1); in place when they are float32 already."""
+        """Friction ratios (float32) of ``texels`` (0..1); in place when they are float32 already.
+
+        Parameters
+        ----------
+        texels : numpy.ndarray
+            Texels, 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+            Friction ratios, float32.
+
+        Examples
+        --------
+        Inverted over 0.2..1: black (0) at rest, white (1) at 0.2:
+
+        >>> import numpy as np
+        >>> [round(float(v), 6) for v in TexelMapping(0.2, 1.0, invert=True).ratio(np.array([0.0, 1.0]))]
+        [1.0, 0.2]
+        """
         values = np.asarray(texels, dtype=np.float32)
         if self.identity:
             return values
@@ -65,7 +90,29 @@ class TexelMapping:
         return values
 
     def texel(self, ratios: np.ndarray) -> np.ndarray:
-        """The texels (0..1, float32) that map to ``ratios``: the inverse of :meth:`ratio`, clipped."""
+        """The texels (0..1, float32) that map to ``ratios``: the inverse of :meth:`ratio`, clipped.
+
+        Parameters
+        ----------
+        ratios : numpy.ndarray
+            Friction ratios.
+
+        Returns
+        -------
+        numpy.ndarray
+            Texels, 0..1 (float32).
+
+        Examples
+        --------
+        The inverse of :meth:`ratio`; a ratio below ``low`` clips to black:
+
+        >>> import numpy as np
+        >>> mapping = TexelMapping(0.2, 1.0)
+        >>> [round(float(v), 6) for v in mapping.texel(mapping.ratio(np.array([0.0, 0.25, 1.0])))]
+        [0.0, 0.25, 1.0]
+        >>> mapping.texel(np.array([0.1])).tolist()
+        [0.0]
+        """
         values = np.asarray(ratios, dtype=np.float32)
         span = self.high - self.low
         texels = np.zeros_like(values) if span == 0 else (values - np.float32(self.low)) / np.float32(span)
@@ -73,7 +120,17 @@ class TexelMapping:
         return 1.0 - texels if self.invert else texels
 
     def describe(self) -> str:
-        """The rule in words, as ``texture import`` prints it."""
+        """The rule in words, as ``texture import`` prints it.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> TexelMapping(0.2, 1.0, invert=True).describe()
+        'friction ratio = 0.2 + 0.8 × (1 - texel)'
+        """
         rule = "1 - texel" if self.invert else "texel"
         if self.identity:
             return "friction ratio = texel (white = 1, the plate at rest; black = 0)"

@@ -177,7 +177,24 @@ class Timeline:
             self.notes.append(text)
 
     def frequency(self, hz: float) -> float:
-        """A frequency a file gives (Hz), within what the plate renders; a note when it is not."""
+        """A frequency a file gives (Hz), within what the plate renders; a note when it is not.
+
+        Parameters
+        ----------
+        hz : float
+            The file's frequency, Hz.
+
+        Returns
+        -------
+        float
+            Hz, at most :data:`RENDERABLE_MAX_HZ`.
+
+        Examples
+        --------
+        >>> timeline = Timeline("buzz.ahap")
+        >>> timeline.frequency(150.0), timeline.frequency(5000.0), len(timeline.notes)
+        (150.0, 400.0, 1)
+        """
         if hz > RENDERABLE_MAX_HZ:
             self.note(f"modulation above {RENDERABLE_MAX_HZ:g} Hz (up to {hz:g} Hz) is played at "
                       f"{RENDERABLE_MAX_HZ:g} Hz, the most a plate's envelope follows")
@@ -186,7 +203,28 @@ class Timeline:
 
     def add_envelope(self, start_s: float, times_s, depths, frequencies=None) -> None:
         """Breakpoints (times from ``start_s``, s; depths 0..1; a frequency per stretch between them, Hz or None).
-        A breakpoint on the straight line between its neighbours (within 1e-4, and of one frequency) is left out."""
+        A breakpoint on the straight line between its neighbours (within 1e-4, and of one frequency) is left out.
+
+        Parameters
+        ----------
+        start_s : float
+            When the envelope starts, s.
+        times_s : sequence of float
+            Breakpoints' times from ``start_s``, s.
+        depths : sequence of float
+            Depths at the breakpoints, 0..1.
+        frequencies : sequence of float or None, optional
+            A frequency per stretch between breakpoints, Hz.
+
+        Examples
+        --------
+        A ramp whose middle breakpoint lies on the line between the others is one segment:
+
+        >>> timeline = Timeline("ramp.ahap")
+        >>> timeline.add_envelope(0.0, [0.0, 0.05, 0.1], [0.0, 0.5, 1.0])
+        >>> timeline.segments
+        [Segment(start_s=0.0, length_s=0.1, depth0=0.0, depth1=1.0, frequency_hz=None)]
+        """
         keep = [0]
         for k in range(1, len(times_s) - 1):
             a, b = keep[-1], k + 1
@@ -210,7 +248,30 @@ class Timeline:
 
     def bindings(self, label: str) -> tuple[Binding, ...]:
         """ultraglide's temporal effects for this timeline (:data:`MAX_BINDINGS` at most, each of
-        :data:`MAX_NODES` parts at most); TextureError in one line when the file holds more than that."""
+        :data:`MAX_NODES` parts at most); TextureError in one line when the file holds more than that.
+
+        Parameters
+        ----------
+        label : str
+            The bindings' label.
+
+        Returns
+        -------
+        tuple of Binding
+
+        Raises
+        ------
+        TextureError
+            More effects or parts than ultraglide plays, in one line naming the file.
+
+        Examples
+        --------
+        One pulse of depth 0.8 plays from the start:
+
+        >>> binding, = Timeline("tap.ahap", pulses=[Pulse(0.0, 0.8, pulse_length_s(1.0))]).bindings("tap")
+        >>> binding.trigger.on, binding.effect.level, binding.label
+        ('start', 0.8, 'tap')
+        """
         try:
             return self._bindings(label)
         except TextureError as error:
