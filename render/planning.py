@@ -94,7 +94,25 @@ class Planner:
         self.set_speed(dynamics.reference_speed_mm_s)
 
     def set_speed(self, speed_mm_s: float) -> None:
-        """The finger's sliding speed (mm/s): sets the recovery and the horizon (two recoveries, 10-100 ms)."""
+        """The finger's sliding speed (mm/s): sets the recovery and the horizon (two recoveries, 10-100 ms).
+
+        Parameters
+        ----------
+        speed_mm_s : float
+            The finger's speed, mm/s.
+
+        Examples
+        --------
+        The recovery's per-sample step is 1 - exp(-1 / (rate × tau)), tau the dynamics' recovery at that speed:
+
+        >>> import math
+        >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+        >>> planner = Planner(FrictionDynamics(), 12000.0)
+        >>> planner.set_speed(100.0)
+        >>> tau = planner.dynamics.recovery_at_s(100.0)
+        >>> math.isclose(planner.k_recovery, 1.0 - math.exp(-1.0 / (12000.0 * tau)))
+        True
+        """
         speed = round(float(speed_mm_s), 1)
         if speed == self._speed:
             return
@@ -106,7 +124,36 @@ class Planner:
 
     def ahead_times(self, block_start_s: float, n: int, out: np.ndarray | None = None) -> np.ndarray:
         """The times (s) past a block of ``n`` samples from ``block_start_s`` at which the plan needs the target:
-        the ends of its decision steps over the horizon. ``out``: an array of at least :attr:`steps` to fill."""
+        the ends of its decision steps over the horizon. ``out``: an array of at least :attr:`steps` to fill.
+
+        Parameters
+        ----------
+        block_start_s : float
+            The block's first sample's time, s.
+        n : int
+            The block's samples.
+        out : numpy.ndarray, optional
+            At least :attr:`steps` long.
+
+        Returns
+        -------
+        numpy.ndarray
+            :attr:`steps` times, s.
+
+        Examples
+        --------
+        One decision step (``stride`` samples at 12 kHz) apart, from the first past the block:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+        >>> planner = Planner(FrictionDynamics(), 12000.0)
+        >>> planner.set_speed(100.0)
+        >>> times = planner.ahead_times(1.0, 96)
+        >>> len(times) == planner.steps, bool(np.allclose(np.diff(times), planner.stride / 12000.0))
+        (True, True)
+        >>> bool(np.isclose(times[0], 1.0 + planner.first_ahead(96) / 12000.0))
+        True
+        """
         first = self.first_ahead(n)
         out = np.empty(self.steps) if out is None else out[:self.steps]
         np.multiply(_STEPS[:self.steps], self.stride, out=out)
@@ -116,13 +163,64 @@ class Planner:
         return out
 
     def first_ahead(self, n: int) -> int:
-        """The first sample past a block of ``n`` (counted from its start) where a decision step ends."""
+        """The first sample past a block of ``n`` (counted from its start) where a decision step ends.
+
+        Parameters
+        ----------
+        n : int
+            The block's samples.
+
+        Returns
+        -------
+        int
+
+        Examples
+        --------
+        From phase 0 with decision steps of ``stride`` samples, the step that ends past 96 samples:
+
+        >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+        >>> planner = Planner(FrictionDynamics(), 12000.0)
+        >>> planner.first_ahead(96) == 96 + planner.stride - 1 - 96 % planner.stride
+        True
+        """
         phase_after = (self.phase + n) % self.stride
         return n + (self.stride - 1 - phase_after)
 
     def plan(self, target: np.ndarray, ahead: np.ndarray, floor: float, down: bool, out: np.ndarray) -> np.ndarray:
         """The commanded static ratio for the block's ``target`` ratios (into ``out``), given the targets at
-        :meth:`ahead_times` (``ahead``), the lowest reachable ratio ``floor``, and whether the finger touches."""
+        :meth:`ahead_times` (``ahead``), the lowest reachable ratio ``floor``, and whether the finger touches.
+
+        Parameters
+        ----------
+        target : numpy.ndarray
+            The block's target ratios.
+        ahead : numpy.ndarray
+            float32 targets at :meth:`ahead_times`.
+        floor : float
+            The lowest ratio the plate reaches.
+        down : bool
+            Whether the finger touches.
+        out : numpy.ndarray
+            float64, the block's length.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``out``: the commanded static ratio.
+
+        Examples
+        --------
+        A target at rest (1) everywhere asks for nothing:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+        >>> planner = Planner(FrictionDynamics(), 12000.0)
+        >>> planner.set_speed(100.0)
+        >>> ahead = np.full(planner.steps, 1.0, dtype=np.float32)
+        >>> command = planner.plan(np.full(96, 1.0), ahead, 0.1, True, np.empty(96))
+        >>> sorted(set(command.tolist())), planner.felt
+        ([1.0], 1.0)
+        """
         n = len(target)
         self.felt, self.phase, self.command, below = kernels.plan_friction(
             target, ahead, self.first_ahead(n), float(floor), 1.0, self.k_onset, self.k_recovery, self.stride,
