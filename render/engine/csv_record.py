@@ -69,7 +69,28 @@ class CsvRecord:
 
     def close(self) -> str | None:
         """Write what is left, rename into place; the error in one line if the file could not be written (a full
-        disk), and then nothing is left of it (no ``FILE.part``: a log with rows missing is no log)."""
+        disk), and then nothing is left of it (no ``FILE.part``: a log with rows missing is no log).
+
+        Returns
+        -------
+        str or None
+            None once the file is in place; else what went wrong, in one line.
+
+        Examples
+        --------
+        Closed with no rows, the file holds its header alone, read back by the csv module:
+
+        >>> import csv, pathlib, tempfile
+        >>> from ultraglide.render.engine.envelope_record import COLUMNS, EnvelopeRecord
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> print(EnvelopeRecord(folder / "envelope.csv").close())
+        None
+        >>> with open(folder / "envelope.csv", newline="") as handle:
+        ...     tuple(next(csv.reader(handle))) == COLUMNS
+        True
+        >>> sorted(path.name for path in folder.iterdir())                  # no .part left
+        ['envelope.csv']
+        """
         self._stop_writer(finish=True)
         try:
             self._handle.close()
@@ -82,7 +103,17 @@ class CsvRecord:
         return self.error
 
     def discard(self) -> None:
-        """Stop and remove the partial file: the run failed before it played."""
+        """Stop and remove the partial file: the run failed before it played.
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> from ultraglide.render.engine.envelope_record import EnvelopeRecord
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> EnvelopeRecord(folder / "envelope.csv").discard()
+        >>> list(folder.iterdir())
+        []
+        """
         self._stop_writer(finish=False)
         try:
             self._handle.close()

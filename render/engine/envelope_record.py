@@ -62,7 +62,38 @@ class EnvelopeRecord(CsvRecord):
 
     def add(self, time_s, first_index, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp) -> None:
         """One block's columns (arrays of its length; ``down`` a bool or one per sample; ``first_index`` the stream
-        index of its first sample). Block path: copies only."""
+        index of its first sample). Block path: copies only.
+
+        Parameters
+        ----------
+        time_s : numpy.ndarray
+            The samples' times, s.
+        first_index : int
+            The first sample's index in the stream.
+        x_mm, y_mm : numpy.ndarray
+            The finger, mm.
+        down : numpy.ndarray or bool
+            Whether it touches.
+        ratio : numpy.ndarray
+            The target friction ratio.
+        target_um_pp, commanded_um_pp : numpy.ndarray
+            The amplitude asked and sent, µm p-p.
+
+        Examples
+        --------
+        A lifted finger is logged as 0, one row per sample, read back by the csv module:
+
+        >>> import csv, pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "envelope.csv"
+        >>> record = EnvelopeRecord(path)
+        >>> nothing = np.zeros(3)
+        >>> record.add(np.array([0.0, 0.5, 1.0]), 7, nothing, nothing, False, np.ones(3), nothing, nothing)
+        >>> record.close() is None
+        True
+        >>> [(row["index"], row["down"]) for row in csv.DictReader(path.open())]
+        [('7', '0'), ('8', '0'), ('9', '0')]
+        """
         n = len(time_s)
         if n > RING_ROWS:
             self.dropped += n

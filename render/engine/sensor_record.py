@@ -60,7 +60,30 @@ class SensorRecord(CsvRecord):
 
     def take(self, frame, received_s: float | None = None) -> None:
         """A decoded SENSORS frame (the reader thread: queued, never waits); ``received_s`` perf_counter s (default:
-        now)."""
+        now).
+
+        Parameters
+        ----------
+        frame : SensorsFrame
+            A decoded SENSORS frame.
+        received_s : float, optional
+            When it arrived, perf_counter s.
+
+        Examples
+        --------
+        Two frames of one sample each, logged in order:
+
+        >>> import csv, pathlib, tempfile
+        >>> from ultraglide.devices.protocol.reports import parse_sensors, sensor_samples, sensors_payload
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "sensors.csv"
+        >>> record = SensorRecord(path, stream_per_sample=12.0)
+        >>> for sample, force in ((10, 0.4), (11, 0.45)):
+        ...     record.take(parse_sensors(sensors_payload(sample, 12 * sample, sensor_samples([3.0], [force], [0.2]))))
+        >>> record.close() is None
+        True
+        >>> [(row["sample"], row["normal_force_n"]) for row in csv.DictReader(path.open())]
+        [('10', '0.40000'), ('11', '0.45000')]
+        """
         if received_s is None:
             received_s = time.perf_counter()
         try:
