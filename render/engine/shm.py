@@ -136,7 +136,28 @@ class SharedBlock:
         registers it with multiprocessing's resource tracker): one refused before that was never registered, so the
         tracker has nothing to warn about. Python 3.11's ``SharedMemory`` unregisters a segment it fails to map
         without having registered it, and its resource tracker then dies with a traceback (a KeyError); registering
-        the name first keeps the two in step."""
+        the name first keeps the two in step.
+
+        Returns
+        -------
+        SharedBlock
+            The owner's block.
+
+        Raises
+        ------
+        OSError
+            The system refused the segment, in one line.
+
+        Examples
+        --------
+        >>> import os
+        >>> block = SharedBlock.create()
+        >>> block.owner, os.path.exists(f"/dev/shm/{block.name}")
+        (True, True)
+        >>> block.close()
+        >>> os.path.exists(f"/dev/shm/{block.name}")                  # the owner unlinks it
+        False
+        """
         size = LAYOUT.size * 8
         name = f"ultraglide_{os.getpid()}_{secrets.token_hex(4)}"
         fd = -1
@@ -164,11 +185,42 @@ class SharedBlock:
     def attach(cls, name: str) -> SharedBlock:
         # a spawned engine shares its parent's resource tracker, so attaching registers nothing new;
         # only the owner unlinks
-        """The engine's view of a segment its parent made (``name``); only the owner unlinks it."""
+        """The engine's view of a segment its parent made (``name``); only the owner unlinks it.
+
+        Parameters
+        ----------
+        name : str
+            The segment's name (:attr:`name` of the owner's block).
+
+        Returns
+        -------
+        SharedBlock
+
+        Examples
+        --------
+        >>> owner = SharedBlock.create()
+        >>> view = SharedBlock.attach(owner.name)
+        >>> owner.fast[0] = 7.0
+        >>> view.owner, float(view.fast[0])                          # the same memory
+        (False, 7.0)
+        >>> view.close(); owner.close()
+        """
         return cls(shared_memory.SharedMemory(name=name), owner=False)
 
     def close(self) -> None:
-        """Drop every view of the segment and close it; the owner unlinks it too."""
+        """Drop every view of the segment and close it; the owner unlinks it too.
+
+        Examples
+        --------
+        A view closed leaves the segment to its owner:
+
+        >>> import os
+        >>> owner = SharedBlock.create()
+        >>> SharedBlock.attach(owner.name).close()
+        >>> os.path.exists(f"/dev/shm/{owner.name}")
+        True
+        >>> owner.close()
+        """
         for name in ("words", "touch_index", "touches", "fast", "block_times", "histogram", "history", "latency",
                      "slow_header", "slow_bytes"):
             setattr(self, name, None)
@@ -178,7 +230,34 @@ class SharedBlock:
 
     # ---- the touch ring ------------------------------------------------------------------------
     def push_touch(self, t_s: float, x_mm: float, y_mm: float, force_n: float, down: float) -> bool:
-        """Producer side (one thread of the UI process). False when the ring is full (dropped)."""
+        """Producer side (one thread of the UI process). False when the ring is full (dropped).
+
+        Parameters
+        ----------
+        t_s : float
+            perf_counter s.
+        x_mm, y_mm : float
+            mm.
+        force_n : float
+            N, or NaN for the default.
+        down : float
+            1.0 touching, 0.0 lifted.
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        The ring holds 1024 reports nobody has taken; the next is dropped and counted:
+
+        >>> block = SharedBlock.create()
+        >>> all(block.push_touch(0.001 * k, 10.0, 20.0, float("nan"), 1.0) for k in range(TOUCH_SLOTS))
+        True
+        >>> block.push_touch(2.0, 10.0, 20.0, float("nan"), 1.0), int(block.touch_index[2])
+        (False, 1)
+        >>> block.close()
+        """
         index = self.touch_index
         head = int(index[0])
         if head - int(index[1]) >= TOUCH_SLOTS:
@@ -195,7 +274,23 @@ class SharedBlock:
 
     # ---- the slow status -----------------------------------------------------------------------
     def write_slow(self, status: dict) -> None:
-        """Writer side (the engine's command thread); truncated statuses are replaced by a note."""
+        """Writer side (the engine's command thread); truncated statuses are replaced by a note.
+
+        Parameters
+        ----------
+        status : dict
+            The device's status (JSON-able; other values as their str).
+
+        Examples
+        --------
+        A status too long for the segment (16 KiB) is replaced by a note:
+
+        >>> block = SharedBlock.create()
+        >>> block.write_slow({"log": "x" * SLOW_BYTES})
+        >>> block.read_slow()
+        {'note': 'device status too long to share'}
+        >>> block.close()
+        """
         data = json.dumps(status, default=str).encode()
         if len(data) > SLOW_BYTES:
             data = json.dumps({"note": "device status too long to share"}).encode()
@@ -209,6 +304,30 @@ class SharedBlock:
         """The device's status as the engine last wrote it (a dict, from JSON), read consistently through its
         seqlock; TimeoutError if it kept changing while read. ``post_mortem``: the writer is dead (its process
         ended, perhaps mid-write): the bytes as they are, {} if they are not whole JSON.
+
+        Parameters
+        ----------
+        post_mortem : bool
+            The writer is dead: read the bytes as they are.
+
+        Returns
+        -------
+        dict
+
+        Raises
+        ------
+        TimeoutError
+            It kept changing while read.
+
+        Examples
+        --------
+        >>> block = SharedBlock.create()
+        >>> block.read_slow(post_mortem=True)                       # nothing written yet
+        {}
+        >>> block.write_slow({"underruns": 0, "port": "null"})
+        >>> block.read_slow()
+        {'underruns': 0, 'port': 'null'}
+        >>> block.close()
         """
         if post_mortem:
             data = bytes(self.slow_bytes[:min(int(self.slow_header[1]), len(self.slow_bytes))])
@@ -226,7 +345,28 @@ class SharedBlock:
 
     def read_fast(self, post_mortem: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A consistent copy of (header, block times, history, latency rows); ``post_mortem``: the writer is dead
-        (perhaps mid-write): a copy as it is, at most its last block's figures torn."""
+        (perhaps mid-write): a copy as it is, at most its last block's figures torn.
+
+        Parameters
+        ----------
+        post_mortem : bool
+            The writer is dead: a copy as it is.
+
+        Returns
+        -------
+        (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray)
+            The header, the block times, the history rows and the latency rows (copies).
+
+        Examples
+        --------
+        >>> block = SharedBlock.create()
+        >>> header, times, history, latency = block.read_fast()
+        >>> header.shape, times.shape, history.shape, latency.shape
+        ((24,), (4096,), (8192, 6), (1024, 3))
+        >>> header[0] = 5.0; float(block.fast[0])                  # a copy: the segment is untouched
+        0.0
+        >>> block.close()
+        """
         if post_mortem:
             return self.fast.copy(), self.block_times.copy(), self.history.copy(), self.latency.copy()
         for _ in _attempts():
@@ -242,7 +382,27 @@ class SharedBlock:
         raise TimeoutError("the engine's status kept changing while being read")
 
     def read_histogram(self, post_mortem: bool = False) -> np.ndarray:
-        """A consistent copy of the run's block-time histogram (counts per bin); ``post_mortem``: as it is."""
+        """A consistent copy of the run's block-time histogram (counts per bin); ``post_mortem``: as it is.
+
+        Parameters
+        ----------
+        post_mortem : bool
+            The writer is dead: a copy as it is.
+
+        Returns
+        -------
+        numpy.ndarray
+            Counts per bin (:func:`histogram_bin`).
+
+        Examples
+        --------
+        >>> block = SharedBlock.create()
+        >>> block.histogram[histogram_bin(0.0005)] += 1                    # one block of 500 µs
+        >>> counts = block.read_histogram()
+        >>> len(counts), int(counts.sum()), int(counts.argmax()) == histogram_bin(0.0005)
+        (1024, 1, True)
+        >>> block.close()
+        """
         if post_mortem:
             return self.histogram.copy()
         for _ in _attempts():
