@@ -76,7 +76,25 @@ class EngineLoss:
     exit_status: int = EXIT_ENGINE_LOST
 
     def lines(self, since_s: float | None = None) -> list[str]:
-        """The loss in sentences, its time counted from ``since_s`` (perf_counter s; None: not said)."""
+        """The loss in sentences, its time counted from ``since_s`` (perf_counter s; None: not said).
+
+        Parameters
+        ----------
+        since_s : float, optional
+            Where the time is counted from, perf_counter s (None: no time said).
+
+        Returns
+        -------
+        list of str
+            Two sentences: what happened, and what made the device safe.
+
+        Examples
+        --------
+        >>> loss = EngineLoss("died", "killed by SIGKILL", 12.0, 0.05, ("the plate disabled",), 12.03)
+        >>> loss.lines()                                                         # doctest: +NORMALIZE_WHITESPACE
+        ['the engine was lost: killed by SIGKILL; noticed 50 ms after its last sign of life',
+         'made safe by ultraglide 30 ms after: the plate disabled']
+        """
         at = "" if since_s is None else f" at {max(0.0, self.noticed_s - since_s):.2f} s"
         if self.kind == "froze":
             first = (f"the engine froze{at}: {self.cause}; noticed {1000 * self.silent_s:.0f} ms after its last sign "
@@ -88,7 +106,19 @@ class EngineLoss:
         return [first, f"made safe by ultraglide {1000 * (self.rested_s - self.noticed_s):.0f} ms after: {done}"]
 
     def words(self) -> str:
-        """One line: what happened and what was done."""
+        """One line: what happened and what was done.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> loss = EngineLoss("died", "killed by SIGKILL", 12.0, 0.05, (), 12.0)
+        >>> loss.words().split("; ")                                      # doctest: +NORMALIZE_WHITESPACE
+        ['the engine was lost: killed by SIGKILL', 'noticed 50 ms after its last sign of life',
+         'made safe by ultraglide 0 ms after: nothing to rest']
+        """
         return "; ".join(self.lines())
 
 
@@ -127,13 +157,45 @@ class Supervisor:
         self._thread = threading.Thread(target=self._watch, name="engine-supervisor", daemon=True)
 
     def start(self) -> Supervisor:
-        """Start the watch (a daemon thread of this process); returns the supervisor, for chaining."""
+        """Start the watch (a daemon thread of this process); returns the supervisor, for chaining.
+
+        Returns
+        -------
+        Supervisor
+            Itself.
+
+        Examples
+        --------
+        An engine's supervisor is started with it, watching on a thread of its own:
+
+        >>> import threading
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     watching = [thread.name for thread in threading.enumerate() if thread.name == "engine-supervisor"]
+        >>> watching
+        ['engine-supervisor']
+        """
         self._thread.start()
         return self
 
     def close(self) -> EngineLoss | None:
         """End the watch; a process already ended without having stopped is handled first (the device made safe).
-        Returns the loss, if there was one."""
+        Returns the loss, if there was one.
+
+        Returns
+        -------
+        EngineLoss or None
+
+        Examples
+        --------
+        An engine stopped as asked was not lost:
+
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> engine = Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False))
+        >>> _ = engine.stop()
+        >>> print(engine.supervisor.close())
+        None
+        """
         self._closing.set()
         if self._thread.is_alive():
             self._thread.join()
@@ -142,12 +204,50 @@ class Supervisor:
 
     def kill(self, reason: str) -> None:
         """End an engine that will not stop (SIGKILL), ``reason`` said in the loss; the watch then makes the device
-        safe as for any death (before :meth:`close` returns)."""
+        safe as for any death (before :meth:`close` returns).
+
+        Parameters
+        ----------
+        reason : str
+            Why, in words, for the loss.
+
+        Examples
+        --------
+        The engine killed is a loss (exit status 7), its cause the reason given:
+
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> engine = Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False))
+        >>> engine.supervisor.kill("it would not stop")
+        >>> engine.supervisor.wait(30.0)
+        True
+        >>> loss = engine.supervisor.close()
+        >>> loss.kind, loss.cause, loss.exit_status
+        ('died', 'it would not stop, so it was killed (SIGKILL)', 7)
+        >>> _ = engine.stop()
+        """
         self._kill_reason = reason
         self._kill()
 
     def wait(self, timeout_s: float) -> bool:
-        """Sleep up to ``timeout_s``; True (at once) if the engine was lost."""
+        """Sleep up to ``timeout_s``; True (at once) if the engine was lost.
+
+        Parameters
+        ----------
+        timeout_s : float
+            s.
+
+        Returns
+        -------
+        bool
+            True if the engine was lost.
+
+        Examples
+        --------
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> with Engine.start(EngineConfig(texture="grating-1mm", device="null", realtime_priority=False)) as engine:
+        ...     engine.supervisor.wait(0.05)                          # well all along: False after 50 ms
+        False
+        """
         return self.lost.wait(timeout_s)
 
     # ---- the watch -----------------------------------------------------------------------------------------
