@@ -160,11 +160,6 @@ class SwipePath:
         --------
         >>> SwipePath(duration_s=0.5).end_s
         0.5
-
-        Examples
-        --------
-        >>> SwipePath(duration_s=0.5).end_s
-        0.5
         """
         return self.duration_s
 

@@ -114,21 +114,6 @@ class TouchLog:
         >>> path = check_touch_log(path).trajectory()
         >>> path.start_s, path.end_s, path.state([0.25]).x_mm.tolist()
         (0.0, 0.5, [35.0])
-
-        Returns
-        -------
-        RecordedTrajectory
-
-        Examples
-        --------
-        A log whose clock starts at 100 s: its trajectory starts at 0:
-
-        >>> import pathlib, tempfile
-        >>> path = pathlib.Path(tempfile.mkdtemp()) / "drag.csv"
-        >>> _ = path.write_text("t_s,x_mm,y_mm\n100.0,10,20\n100.5,60,20\n")
-        >>> path = check_touch_log(path).trajectory()
-        >>> path.start_s, path.end_s, path.state([0.25]).x_mm.tolist()
-        (0.0, 0.5, [35.0])
         """
         return RecordedTrajectory.streaming(self.chunks, 0.0, self.last_s - self.first_s, self.has_force,
                                             self.force_range_n)

@@ -174,37 +174,6 @@ class RecordedTrajectory:
         >>> path = RecordedTrajectory.streaming(lambda: iter([first, second]), 0.0, 3.0, False)
         >>> path.state([1.5, 2.5]).x_mm.tolist()
         [15.0, 25.0]
-
-        Parameters
-        ----------
-        open_chunks : callable
-            Returns a fresh iterator of ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
-        start_s, end_s : float
-            The first and last record's time, s.
-        has_force : bool
-            Whether the chunks carry a force.
-        force_range_n : (float, float), optional
-            The lowest and highest force, N.
-
-        Returns
-        -------
-        RecordedTrajectory
-
-        Raises
-        ------
-        RenderError
-            ``end_s`` not after ``start_s``.
-
-        Examples
-        --------
-        Two chunks, x = 10 mm a second throughout: between them the finger is interpolated across the gap:
-
-        >>> import numpy as np
-        >>> first = (np.array([0.0, 1.0]), np.array([0.0, 10.0]), np.array([5.0, 5.0]), None)
-        >>> second = (np.array([2.0, 3.0]), np.array([20.0, 30.0]), np.array([5.0, 5.0]), None)
-        >>> path = RecordedTrajectory.streaming(lambda: iter([first, second]), 0.0, 3.0, False)
-        >>> path.state([1.5, 2.5]).x_mm.tolist()
-        [15.0, 25.0]
         """
         if not end_s > start_s:
             raise RenderError("a trajectory needs records at two different times at least")
@@ -239,37 +208,12 @@ class RecordedTrajectory:
         >>> chunks = list(RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0]).chunks())
         >>> len(chunks), chunks[0][1].tolist(), chunks[0][3]
         (1, [0.0, 10.0], None)
-
-        Returns
-        -------
-        iterator of tuple
-            ``(t_s, x_mm, y_mm, force_n or None)`` arrays (s, mm, mm, N).
-
-        Examples
-        --------
-        A trajectory made of arrays is one chunk:
-
-        >>> chunks = list(RecordedTrajectory([0.0, 1.0], [0.0, 10.0], [5.0, 5.0]).chunks())
-        >>> len(chunks), chunks[0][1].tolist(), chunks[0][3]
-        (1, [0.0, 10.0], None)
         """
         return self._open_chunks()
 
     def records(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Every record at once, ``(t_s, x_mm, y_mm, force_n or None)``: the whole log in memory, for
         small logs and tests (rendering and ``play`` stream it instead).
-
-        Returns
-        -------
-        (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray or None)
-            Times (s), x and y (mm), forces (N) or None.
-
-        Examples
-        --------
-        >>> path = RecordedTrajectory([0.0, 0.5, 1.0], [0.0, 5.0, 10.0], [5.0, 5.0, 5.0], [0.2, 0.4, 0.6])
-        >>> t, x, y, force = path.records()
-        >>> t.tolist(), force.tolist()
-        ([0.0, 0.5, 1.0], [0.2, 0.4, 0.6])
 
         Returns
         -------
@@ -439,28 +383,6 @@ class LiveTrajectory:
         >>> live.push(0.01, 10.0, 5.0, down=False)
         >>> live.state(np.array([0.02])).down, live.reports
         (False, 2)
-
-        Parameters
-        ----------
-        t_s : float
-            When, perf_counter s.
-        x_mm, y_mm : float
-            Where, mm.
-        force_n : float, optional
-            N; None: not measured.
-        down : bool
-            False lifts the finger.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> live = LiveTrajectory()
-        >>> live.push(0.0, 10.0, 5.0)
-        >>> live.state(np.array([0.0])).down
-        True
-        >>> live.push(0.01, 10.0, 5.0, down=False)
-        >>> live.state(np.array([0.02])).down, live.reports
-        (False, 2)
         """
         with self._lock:
             self.reports += 1
@@ -515,30 +437,6 @@ class LiveTrajectory:
 
     def state(self, times_s, out=None) -> FingerState:
         """The finger at ``times_s``; ``out``: two preallocated arrays (x, y) to fill (no allocation).
-
-        Parameters
-        ----------
-        times_s : array_like
-            Times, perf_counter s.
-        out : (numpy.ndarray, numpy.ndarray), optional
-            Arrays (x, y) of the times' length to fill.
-
-        Returns
-        -------
-        FingerState
-
-        Examples
-        --------
-        Before any report the finger is not on the plate; one report holds it there:
-
-        >>> import numpy as np
-        >>> live = LiveTrajectory()
-        >>> live.state(np.array([0.0])).down
-        False
-        >>> live.push(1.0, 12.0, 7.0)
-        >>> state = live.state(np.array([1.0]))
-        >>> state.down, state.x_mm.tolist(), state.y_mm.tolist()
-        (True, [12.0], [7.0])
 
         Parameters
         ----------
