@@ -72,28 +72,72 @@ class FingerConfig:
 
     @property
     def lags(self) -> bool:
-        """Whether the simulated finger's friction lags in time (the dynamics asked for, or a ``dynamic`` law)."""
+        """Whether the simulated finger's friction lags in time (the dynamics asked for, or a ``dynamic`` law).
+
+        Examples
+        --------
+        >>> FingerConfig().lags, FingerConfig(law="dynamic:stretched").lags, FingerConfig(dynamics=True).lags
+        (False, True, True)
+        """
         return self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
 
     @property
     def law_scale(self) -> float:
-        """The amplitude scale of the finger's law: as given, else the default law's own, else 1."""
+        """The amplitude scale of the finger's law: as given, else the default law's own, else 1.
+
+        Examples
+        --------
+        >>> FingerConfig().law_scale, FingerConfig(law="exponential").law_scale, FingerConfig(scale=0.5).law_scale
+        (0.7, 1.0, 0.5)
+        """
         return self.scale if self.scale is not None else (DEFAULT_SCALE if self.law == DEFAULT_LAW else 1.0)
 
     @property
     def law_floor(self) -> float:
-        """The ratio floor of the finger's law: as given, else the default law's own, else 0."""
+        """The ratio floor of the finger's law: as given, else the default law's own, else 0.
+
+        Examples
+        --------
+        >>> FingerConfig().law_floor, FingerConfig(law="exponential").law_floor, FingerConfig(floor=0.2).law_floor
+        (0.1, 0.0, 0.2)
+        """
         return self.floor if self.floor is not None else (DEFAULT_FLOOR if self.law == DEFAULT_LAW else 0.0)
 
     def law_words(self) -> str:
-        """The finger's law in words: its base model, scale, floor and whether it lags."""
+        """The finger's law in words: its base model, scale, floor and whether it lags.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> FingerConfig(law="exponential", floor=0.2).law_words()
+        'exponential, floor 0.2'
+        """
         base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
         scale, floor = self.law_scale, self.law_floor
         return (base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
                 + (", friction in time" if self.lags else ""))
 
     def with_log(self, path: str | None) -> FingerConfig:
-        """A copy that logs the finger to ``path`` (None: no log)."""
+        """A copy that logs the finger to ``path`` (None: no log).
+
+        Parameters
+        ----------
+        path : str or None
+            The CSV file, or None.
+
+        Returns
+        -------
+        FingerConfig
+
+        Examples
+        --------
+        >>> logged = FingerConfig(speed_mm_s=80.0).with_log("finger.csv")
+        >>> logged.log, logged.speed_mm_s, logged.with_log(None).log
+        ('finger.csv', 80.0, None)
+        """
         return replace(self, log=path)
 
 

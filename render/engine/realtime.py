@@ -271,11 +271,33 @@ class CpuWakeLatency:
 
     @property
     def held(self) -> bool:
-        """Whether the request is held now."""
+        """Whether the request is held now.
+
+        Examples
+        --------
+        >>> CpuWakeLatency(None).held                       # never asked: never held
+        False
+        """
         return self._fd is not None
 
     def hold(self, wanted: bool) -> None:
-        """Make the request (``wanted``) or withdraw it; once refused (no permission), not tried again."""
+        """Make the request (``wanted``) or withdraw it; once refused (no permission), not tried again.
+
+        Parameters
+        ----------
+        wanted : bool
+            Make the request (True) or withdraw it (False).
+
+        Examples
+        --------
+        Asked for, then withdrawn; where the file cannot be written nothing is held either way:
+
+        >>> wake = CpuWakeLatency(0)
+        >>> wake.hold(True)
+        >>> wake.hold(False)
+        >>> wake.held
+        False
+        """
         if wanted and self._fd is None and self._refused is None:
             try:
                 fd = os.open(CPU_LATENCY_QOS, os.O_WRONLY | os.O_CLOEXEC)
@@ -295,14 +317,32 @@ class CpuWakeLatency:
             self.close()
 
     def close(self) -> None:
-        """Withdraw the request if held, counting the time it was."""
+        """Withdraw the request if held, counting the time it was.
+
+        Examples
+        --------
+        >>> wake = CpuWakeLatency(0)
+        >>> wake.close()                                  # nothing held: nothing to do
+        >>> wake.held, wake.held_s
+        (False, 0.0)
+        """
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
             self.held_s += time.monotonic() - self._since
 
     def words(self) -> str:
-        """The request in words: its bound (µs), held or released, how often, how long (s); or why it was not made."""
+        """The request in words: its bound (µs), held or released, how often, how long (s); or why it was not made.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> CpuWakeLatency(None).words()
+        'CPU wake-up: as the system has it (not asked)'
+        """
         if self._refused is not None:
             return f"CPU wake-up: as the system has it ({self._refused})"
         held_s = self.held_s + (time.monotonic() - self._since if self.held else 0.0)
