@@ -110,7 +110,36 @@ class EngineSource(OutputStage):
     def pull(self, n: int, now_s: float | None) -> np.ndarray:
         """The next ``n`` values of the device's signal, with the touches that came drained first and the block's
         figures published to the shared memory after; paused with everything at rest, zeros without running the
-        renderer (a device's heartbeat goes on)."""
+        renderer (a device's heartbeat goes on).
+
+        Parameters
+        ----------
+        n : int
+            Values, at the device's rate.
+        now_s : float or None
+            When the first reaches the plate, perf_counter s.
+
+        Returns
+        -------
+        numpy.ndarray
+            The device's signal (float32 audio in [-1, 1] for the null device).
+
+        Examples
+        --------
+        No touch: the plate at rest, every block published (its count in the shared memory):
+
+        >>> import time
+        >>> from ultraglide import Renderer
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> shared = SharedBlock.create()
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> source = EngineSource(Renderer("grating-1mm"), shared, device, False)
+        >>> blocks = [source.pull(960, None) for _ in range(3)]
+        >>> float(abs(blocks[-1]).max()), int(shared.fast[shm.BLOCKS])
+        (0.0, 3)
+        >>> shared.close()
+        """
         started = time.perf_counter()
         if self._first:
             self._first = False
@@ -148,11 +177,51 @@ class EngineSource(OutputStage):
     @property
     def force_reference(self) -> tuple[float, float] | None:
         """The friction loop's (force N, force exponent) for the block just pulled (None: open loop), for a device
-        that corrects the force as values play (SETPOINTS_FORCE)."""
+        that corrects the force as values play (SETPOINTS_FORCE).
+
+        Returns
+        -------
+        (float, float) or None
+            The force (N) and the force exponent; None in open loop.
+
+        Examples
+        --------
+        >>> import time
+        >>> from ultraglide import Renderer
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> shared = SharedBlock.create()
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> source = EngineSource(Renderer("grating-1mm"), shared, device, False)
+        >>> print(source.force_reference)                               # no friction loop
+        None
+        >>> shared.close()
+        """
         return self.loop.inverse.force_reference if self.loop is not None else None
 
     def skip(self, n: int) -> None:
-        """Values the device's writer skipped (see ``OutputStage.skip``): no target for them."""
+        """Values the device's writer skipped (see ``OutputStage.skip``): no target for them.
+
+        Parameters
+        ----------
+        n : int
+            Values skipped.
+
+        Examples
+        --------
+        >>> import time
+        >>> from ultraglide import Renderer
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> shared = SharedBlock.create()
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> source = EngineSource(Renderer("grating-1mm"), shared, device, False)
+        >>> _ = source.pull(960, None)
+        >>> source.skip(96)
+        >>> source.frames
+        1056
+        >>> shared.close()
+        """
         super().skip(n)
         if self.loop is not None:
             self.loop.skip(n)
@@ -269,7 +338,25 @@ class EngineSource(OutputStage):
         fast[shm.SEQ] += 1  # even: whole
 
     def request_stop(self) -> None:
-        """Ask the envelope source to ramp down to rest; the state published says stopping from now."""
+        """Ask the envelope source to ramp down to rest; the state published says stopping from now.
+
+        Examples
+        --------
+        The state published says stopping from the next block:
+
+        >>> import time
+        >>> from ultraglide import Renderer
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.devices.urls import open_device
+        >>> shared = SharedBlock.create()
+        >>> device = open_device("null", load_profile("sim-plate"))
+        >>> source = EngineSource(Renderer("grating-1mm"), shared, device, False)
+        >>> source.request_stop()
+        >>> _ = source.pull(960, None)
+        >>> shm.STATES[int(shared.fast[shm.STATE])]
+        'stopping'
+        >>> shared.close()
+        """
         self._stopping = True
         super().request_stop()
 
@@ -307,13 +394,38 @@ class EngineBeat(threading.Thread):
         self._stop_event = threading.Event()
 
     def run(self) -> None:
-        """Advance the beat every ``period_s`` until stopped."""
+        """Advance the beat every ``period_s`` until stopped.
+
+        Examples
+        --------
+        Started as a thread, it advances the beat until stopped:
+
+        >>> import time
+        >>> import numpy as np
+        >>> fast = np.zeros(shm.HEADER)
+        >>> beat = EngineBeat(fast, period_s=0.001)
+        >>> beat.start()
+        >>> deadline = time.monotonic() + 30.0
+        >>> while fast[shm.ENGINE_BEAT] < 1 and time.monotonic() < deadline:
+        ...     time.sleep(0.001)
+        >>> beat.stop(); bool(fast[shm.ENGINE_BEAT] >= 1)
+        True
+        """
         fast = self.fast
         while not self._stop_event.wait(self.period_s):
             fast[shm.ENGINE_BEAT] += 1
 
     def stop(self) -> None:
-        """End the thread and drop its view of the segment (a view held would keep the segment from closing)."""
+        """End the thread and drop its view of the segment (a view held would keep the segment from closing).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> beat = EngineBeat(np.zeros(shm.HEADER), period_s=0.01)
+        >>> beat.start(); beat.stop()
+        >>> beat.is_alive(), beat.fast
+        (False, None)
+        """
         self._stop_event.set()
         self.join(timeout=1.0)
         self.fast = None
