@@ -131,8 +131,8 @@ class ZoneSource:
     ExperimentError
         The texture cannot be loaded, is a gradient texture, or its effects cannot be read.
 
-    Example
-    -------
+    Examples
+    --------
     >>> import numpy as np
     >>> from ultraglide.experiment import Stimulus, zone_texture
     >>> grating = Stimulus("g", "grating-1mm", mean=0.6)
@@ -168,7 +168,26 @@ class ZoneSource:
 
     def ratios(self, contrast: float | None = None) -> np.ndarray:
         """The zone's friction ratios at ``contrast`` (0..1; None: the stimulus's own) shifted to its mean, before
-        the check that they lie in 0..1 and the clip of its rounding: rows × columns, float64."""
+        the check that they lie in 0..1 and the clip of its rounding: rows × columns, float64.
+
+        Parameters
+        ----------
+        contrast : float, optional
+            A friction contrast, 0..1.
+
+        Returns
+        -------
+        numpy.ndarray
+
+        Examples
+        --------
+        A sine grating at contrast 0.4 about a mean of 0.6: 0.4..0.8, not yet checked against 0..1:
+
+        >>> from ultraglide.experiment import Stimulus
+        >>> ratios = ZoneSource(Stimulus("g", "grating-1mm", mean=0.6), (20.0, 20.0)).ratios(0.4)
+        >>> round(float(ratios.min()), 3), round(float(ratios.mean()), 3), round(float(ratios.max()), 3)
+        (0.4, 0.6, 0.8)
+        """
         values = self.sampled
         wanted = self.stimulus.contrast if contrast is None else contrast
         if wanted is not None:
@@ -189,8 +208,8 @@ class ZoneSource:
             The lowest and highest friction ratio, the largest contrast that fits at the stimulus's mean (1 without
             one), the lowest and the highest mean that fit at this contrast.
 
-        Example
-        -------
+        Examples
+        --------
         >>> from ultraglide.experiment import Stimulus
         >>> low, high, largest, least, most = ZoneSource(Stimulus("g", "grating-1mm", mean=0.8), (20.0, 20.0)).fit(0.6)
         >>> [round(v, 2) for v in (low, high, largest, least, most)]     # 0.8 ± 0.3; 2 (1 - 0.8); 0.3..0.7
@@ -221,6 +240,18 @@ class ZoneSource:
         ------
         ExperimentError
             The stimulus's mean puts its ratios outside 0..1 at this contrast.
+
+        Examples
+        --------
+        >>> from ultraglide.experiment import Stimulus
+        >>> zone = ZoneSource(Stimulus("g", "grating-1mm", mean=0.8), (20.0, 10.0))
+        >>> texture = zone.texture(0.2)
+        >>> texture.width_mm, texture.height_mm, round(float(texture.values.max()), 3)      # 0.8 ± 0.1
+        (20.0, 10.0, 0.9)
+        >>> zone.texture(0.6)                                        # 0.8 ± 0.3 reaches 1.1
+        Traceback (most recent call last):
+        ...
+        ultraglide.experiment.errors.ExperimentError: stimulus 'g': a mean friction ratio of 0.8 puts its ratios at ...
         """
         from ultraglide.textures.texture import Texture
 
@@ -656,8 +687,8 @@ def refuse_unfit(design: Design, zone_source) -> None:
         One line naming the first such stimulus, the level, the largest contrast that fits at its mean and the
         means that fit at that level.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.experiment import design_from_dict
     >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm", "mean": 0.8}},
     ...     "conditions": [{"name": "c", "stimulus": "g", "range": [0.05, 0.6]}],

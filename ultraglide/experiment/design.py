@@ -340,8 +340,8 @@ class Design:
         -------
         str
 
-        Example
-        -------
+        Examples
+        --------
         >>> from ultraglide.experiment import design_from_dict
         >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
         ...     "conditions": [{"name": "c", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["c"]}],
