@@ -63,6 +63,25 @@ class PlateProbe(threading.Thread):
     def run(self) -> None:
         """Publish the simulated plate's amplitude (µm p-p) every probe period, and when it last rose above the
         threshold (perf_counter s), until stopped.
+
+        Examples
+        --------
+        Run in this thread on a plate at 2 µm p-p that asks the probe to stop once read: one publication, and a rise
+        (2 µm is above the threshold):
+
+        >>> import time
+        >>> import numpy as np
+        >>> class Plate:
+        ...     @property
+        ...     def amplitude_um_pp(self):
+        ...         probe.stop_event.set()
+        ...         return 2.0
+        >>> fast = np.zeros(shm.HEADER)
+        >>> probe = PlateProbe(Plate(), fast)
+        >>> before = time.perf_counter()
+        >>> probe.run()
+        >>> float(fast[shm.PLATE_PROBE_UM_PP]), bool(before <= fast[shm.PROBE_RISE_S] <= time.perf_counter())
+        (2.0, True)
         """
         above = False
         while not self.stop_event.wait(PROBE_PERIOD_S):
