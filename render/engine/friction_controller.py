@@ -183,13 +183,50 @@ class FastCorrection:
         self.power = math.nan  # the mean of s² over recent batches (NaN: none yet)
 
     def reset(self) -> None:
-        """Forget the correction: ``g`` back to 0, the slope's mean power unknown."""
+        """Forget the correction: ``g`` back to 0, the slope's mean power unknown.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> correction = FastCorrection(ControllerSettings())
+        >>> _ = correction.update(np.full(10, -0.1), np.full(10, -0.5), 0.015)
+        >>> correction.reset()
+        >>> correction.value, bool(np.isnan(correction.power))
+        (0.0, True)
+        """
         self.value = 0.0
         self.power = math.nan
 
     def update(self, error: np.ndarray, sensitivity: np.ndarray, duration_s: float) -> float:
         """``error`` measured minus intended ratio (NaN: not used), ``sensitivity`` d(ratio)/d(ln a), over one
-        batch of ``duration_s``; returns the new ``g``."""
+        batch of ``duration_s``; returns the new ``g``.
+
+        Parameters
+        ----------
+        error : numpy.ndarray
+            Measured minus intended friction ratio per sample (NaN: not used).
+        sensitivity : numpy.ndarray
+            d(ratio)/d(ln a) per sample.
+        duration_s : float
+            The batch's duration, s.
+
+        Returns
+        -------
+        float
+            The new ``g``.
+
+        Examples
+        --------
+        Friction 0.1 above what was meant, slope -0.5, 15 ms of the 150 ms integral time: g rises by 0.02 (more
+        amplitude, less friction); samples without a measurement change nothing:
+
+        >>> import numpy as np
+        >>> correction = FastCorrection(ControllerSettings())
+        >>> correction.update(np.full(3, np.nan), np.full(3, -0.5), 0.015)
+        0.0
+        >>> round(correction.update(np.full(10, 0.1), np.full(10, -0.5), 0.015), 9)
+        0.02
+        """
         usable = np.isfinite(error)
         s = sensitivity[usable]
         n = len(s)
@@ -250,7 +287,25 @@ class ClosedLoopInverse:
     @property
     def force_reference(self) -> tuple[float, float] | None:
         """(force N, d ln a / d ln F) the last block was computed at while the loop follows, else None. The exponent
-        is computed when first asked for (once a block): a device without the force correction never pays for it."""
+        is computed when first asked for (once a block): a device without the force correction never pays for it.
+
+        Examples
+        --------
+        Following, the stretched law's amplitude grows as F^(1/3) (its force exponent): d ln a / d ln F = 1/3:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> inverse = ClosedLoopInverse(model, clock=lambda: 10.0)                 # its clock: 10 s
+        >>> inverse.command = LoopCommand(following=True, scale=1.5, force_n=0.5, since_s=0.0, sensors_s=9.99,
+        ...                               words="closed loop: following")
+        >>> print(inverse.force_reference)                                       # no block yet
+        None
+        >>> _ = inverse.amplitude_um_pp(np.array([0.5]), 0.5)
+        >>> force_n, exponent = inverse.force_reference
+        >>> force_n, round(exponent, 9)
+        (0.5, 0.333333333)
+        """
         reference = self._reference
         if reference is None:
             return None
@@ -265,29 +320,108 @@ class ClosedLoopInverse:
 
     # ---- the model's interface, as the renderer uses it ----
     def describe(self) -> str:
-        """The host model's line, and that the loop closes on the plate's force sensors."""
+        """The host model's line, and that the loop closes on the plate's force sensors.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel
+        >>> ClosedLoopInverse(ExponentialModel()).describe().endswith("; closed loop on the plate's force sensors")
+        True
+        """
         return f"{self.base.describe()}; closed loop on the plate's force sensors"
 
     def parameters(self) -> dict:
-        """The host model's parameters."""
+        """The host model's parameters.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel
+        >>> ClosedLoopInverse(ExponentialModel()).parameters() == ExponentialModel().parameters()
+        True
+        """
         return self.base.parameters()
 
     def warm_up(self) -> None:
-        """The host model's compiled inverse loaded before a real-time block needs it."""
+        """The host model's compiled inverse loaded before a real-time block needs it.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> inverse = ClosedLoopInverse(StretchedExponentialModel())
+        >>> inverse.warm_up()
+        >>> inverse.amplitude_um_pp(np.array([1.0]), 0.5).amplitude_um_pp.tolist()        # at rest: no vibration
+        [0.0]
+        """
         self.base.warm_up()
 
     def relative_friction(self, amplitude_um_pp, force_n=DEFAULT_FORCE_N):
-        """The host model's forward law (µm p-p and N to the ratio)."""
+        """The host model's forward law (µm p-p and N to the ratio).
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            µm p-p.
+        force_n : array_like
+            N.
+
+        Returns
+        -------
+        numpy.ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> bool(np.array_equal(ClosedLoopInverse(model).relative_friction([0.0, 3.0], 0.5),
+        ...                     model.relative_friction([0.0, 3.0], 0.5)))
+        True
+        """
         return self.base.relative_friction(amplitude_um_pp, force_n)
 
     def floor_ratio(self, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
-        """The host model's lowest ratio at this force (N) within the limit (µm p-p)."""
+        """The host model's lowest ratio at this force (N) within the limit (µm p-p).
+
+        Parameters
+        ----------
+        force_n : array_like
+            N.
+        limit_um_pp : float
+            µm p-p.
+
+        Returns
+        -------
+        numpy.ndarray or float
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> bool(ClosedLoopInverse(model).floor_ratio(0.5, 6.0) == model.floor_ratio(0.5, 6.0))
+        True
+        """
         return self.base.floor_ratio(force_n, limit_um_pp)
 
     @property
     def dynamics(self):
         """The host model's friction dynamics (None for a static model): the renderer plans against them while
-        the loop runs as it does open loop, and the estimator predicts the friction through them."""
+        the loop runs as it does open loop, and the estimator predicts the friction through them.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> print(ClosedLoopInverse(StretchedExponentialModel()).dynamics)            # a static model has none
+        None
+        """
         return getattr(self.base, "dynamics", None)
 
     def _floor(self, force_n, limit: float):
@@ -296,7 +430,30 @@ class ClosedLoopInverse:
         return self.base._floor(force_n, limit / command.scale if following else limit)
 
     def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:
-        """Whether the block path follows now, the command it acts on, and the state in words."""
+        """Whether the block path follows now, the command it acts on, and the state in words.
+
+        Parameters
+        ----------
+        now_s : float, optional
+            perf_counter s (default: the clock's now).
+
+        Returns
+        -------
+        (bool, LoopCommand, str)
+
+        Examples
+        --------
+        Following while the sensors speak; 0.1 s of silence and it is open loop again:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> inverse = ClosedLoopInverse(model, clock=lambda: 10.0)                 # its clock: 10 s
+        >>> inverse.command = LoopCommand(following=True, scale=1.5, force_n=0.5, since_s=0.0, sensors_s=9.99,
+        ...                               words="closed loop: following")
+        >>> inverse.following_now()[0], inverse.following_now(10.2)[2]
+        (True, 'open loop: the sensors are silent')
+        """
         command = self.command
         now = self.clock() if now_s is None else now_s
         if command.following and now - command.sensors_s > self.settings.sensor_silence_s:
@@ -305,7 +462,39 @@ class ClosedLoopInverse:
 
     def amplitude_um_pp(self, ratio, force_n=DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
                         out: np.ndarray | None = None) -> Inversion:
-        """Amplitudes (µm p-p) for target ratios: closed loop while following, else open loop (see above)."""
+        """Amplitudes (µm p-p) for target ratios: closed loop while following, else open loop (see above).
+
+        Parameters
+        ----------
+        ratio : array_like
+            Target friction ratios.
+        force_n : array_like
+            N.
+        limit_um_pp : float
+            µm p-p.
+        out : numpy.ndarray, optional
+            float64, the ratios' length.
+
+        Returns
+        -------
+        Inversion
+
+        Examples
+        --------
+        Following with a scale of 1.5 (past the blend): the host model's amplitude × 1.5:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> inverse = ClosedLoopInverse(model, clock=lambda: 10.0)                 # its clock: 10 s
+        >>> inverse.command = LoopCommand(following=True, scale=1.5, force_n=0.5, since_s=0.0, sensors_s=9.99,
+        ...                               words="closed loop: following")
+        >>> closed = inverse.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp
+        >>> bool(np.allclose(closed, 1.5 * model.amplitude_um_pp(np.array([0.5]), 0.5).amplitude_um_pp))
+        True
+        >>> inverse.closed_samples, inverse.open_samples
+        (1, 0)
+        """
         n = len(ratio) if np.ndim(ratio) else 1
         now = self.clock()
         following, command, words = self.following_now(now)
