@@ -112,7 +112,13 @@ class FrictionEstimate:
 
     @property
     def sliding(self) -> bool:
-        """Whether the finger slid over the batch (the state is ``sliding``)."""
+        """Whether the finger slid over the batch (the state is ``sliding``).
+
+        Examples
+        --------
+        >>> FrictionEstimate("sliding", "the finger slides").sliding, FrictionEstimate("resting", "no motion").sliding
+        (True, False)
+        """
         return self.state == "sliding"
 
 
@@ -299,7 +305,26 @@ class SensorModel:
 
     def set(self, bandwidth_hz: float, delay_s: float) -> None:
         """Retune the sensors' model: a first-order low-pass at ``bandwidth_hz`` (Hz) then ``delay_s`` (s, held within
-        the delay line); a filter made where there was none starts settled on the newest filtered value."""
+        the delay line); a filter made where there was none starts settled on the newest filtered value.
+
+        Parameters
+        ----------
+        bandwidth_hz : float
+            Hz (0: no filter).
+        delay_s : float
+            s.
+
+        Examples
+        --------
+        Without a filter, a delay of 3 samples at 1 kHz (the history settled on 1):
+
+        >>> import numpy as np
+        >>> sensors = SensorModel(1, 1000.0, 0.0, 0.0)
+        >>> sensors.set(0.0, 0.003)
+        >>> sensors.reset(np.array([1.0]))
+        >>> sensors(np.array([[5.0, 6.0, 7.0, 8.0]])).tolist()
+        [[1.0, 1.0, 1.0, 5.0]]
+        """
         self.bandwidth_hz = float(bandwidth_hz)
         self.delay_s = min(max(float(delay_s), 0.0), (self.MAX_DELAY - 2) / self.rate_hz)
         coefficients = lowpass_coefficients(bandwidth_hz, self.rate_hz)
@@ -312,7 +337,23 @@ class SensorModel:
         self._first, self._taps = fractional_delay(self.delay_s * self.rate_hz)
 
     def reset(self, first: np.ndarray | None) -> None:
-        """Start over (the first batch, or after a gap): settled on ``first`` (one value a channel)."""
+        """Start over (the first batch, or after a gap): settled on ``first`` (one value a channel).
+
+        Parameters
+        ----------
+        first : numpy.ndarray or None
+            One value a channel (None: zeros).
+
+        Examples
+        --------
+        Settled on 2, a constant 2 passes through the filter unchanged:
+
+        >>> import numpy as np
+        >>> sensors = SensorModel(1, 1000.0, 100.0, 0.0)
+        >>> sensors.reset(np.array([2.0]))
+        >>> sensors(np.full((1, 3), 2.0)).round(9).tolist()
+        [[2.0, 2.0, 2.0]]
+        """
         start = np.zeros(self.channels) if first is None else np.asarray(first, dtype=float)
         # settled, in the transposed form y = b0 x + z, z = b1 x - a1 y: z = (b1 - a1) x at rest
         self._zi = None if self.b is None else ((self.b[1] - self.a[1]) * start)[:, None]
@@ -371,7 +412,29 @@ class SensorTiming:
         self.fit = math.nan  # the correlation of the last identification
 
     def add(self, ratio: np.ndarray, mu: np.ndarray) -> tuple[float, float] | None:
-        """One batch (mu NaN where not sliding); returns a new (bandwidth Hz, delay s) when one was identified."""
+        """One batch (mu NaN where not sliding); returns a new (bandwidth Hz, delay s) when one was identified.
+
+        Parameters
+        ----------
+        ratio : numpy.ndarray
+            The model's ratio at the measured amplitude, per sample.
+        mu : numpy.ndarray
+            The measured friction coefficient (NaN where not sliding).
+
+        Returns
+        -------
+        (float, float) or None
+            (bandwidth Hz, delay s) when one was identified.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> timing = SensorTiming(1000.0, 300.0, 0.001)
+        >>> print(timing.add(np.ones(200), np.full(200, np.nan)))               # nothing slid
+        None
+        >>> timing.count
+        200
+        """
         n = len(ratio)
         if n >= self.BUFFER:
             ratio, mu, n = ratio[-self.BUFFER:], mu[-self.BUFFER:], self.BUFFER
@@ -389,6 +452,15 @@ class SensorTiming:
     def search(self) -> tuple[float, float] | None:
         """Search the bandwidths and delays now: ``(bandwidth_hz, delay_s)`` of the best fit, or None while too few
         samples slid, the ratio barely moved, or no pair explains mu well enough.
+
+        Returns
+        -------
+        (float, float) or None
+
+        Examples
+        --------
+        >>> print(SensorTiming(1000.0, 300.0, 0.001).search())                    # no samples yet
+        None
         """
         valid = np.isfinite(self.mu) & np.isfinite(self.ratio)
         valid[:self.MAX_LAG + 2] = False  # each lag needs its history
@@ -472,16 +544,53 @@ class FrictionEstimator:
 
     @property
     def mu0(self) -> float:
-        """The friction coefficient without vibration, as estimated."""
+        """The friction coefficient without vibration, as estimated.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> FrictionEstimator(StretchedExponentialModel()).mu0 == EstimatorSettings().prior_mu0        # the prior
+        True
+        """
         return math.exp(self.theta[0])
 
     @property
     def scale(self) -> float:
-        """k, the estimated stretch of the model's amplitude axis (1: the model as it is)."""
+        """k, the estimated stretch of the model's amplitude axis (1: the model as it is).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> FrictionEstimator(StretchedExponentialModel()).scale                   # the model as it is
+        1.0
+        """
         return math.exp(self.theta[1])
 
     def predicted_ratio(self, amplitude_um_pp, force_n) -> np.ndarray:
-        """The adapted model's ratio: r(a / k, F)."""
+        """The adapted model's ratio: r(a / k, F).
+
+        Parameters
+        ----------
+        amplitude_um_pp : array_like
+            µm p-p.
+        force_n : array_like
+            N.
+
+        Returns
+        -------
+        numpy.ndarray
+
+        Examples
+        --------
+        At scale 1 the stretched law at a = s0 and 0.5 N: d + (1 - d)/e:
+
+        >>> import math
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> ratio = FrictionEstimator(model).predicted_ratio([model.scale_um_pp], 0.5)
+        >>> round(float(ratio[0]), 6), round(0.1 + 0.9 / math.e, 6)
+        (0.431091, 0.431091)
+        """
         return self.model.relative_friction(np.asarray(amplitude_um_pp, dtype=float) / self.scale, force_n)
 
     def _fault(self, reason: str, first_sample: int, n: int) -> BatchResult:
@@ -497,7 +606,34 @@ class FrictionEstimator:
         """One batch of consecutive sensor samples from sample number ``first_sample``; ``panel_speed_mm_s``:
         the finger's speed as the touch panel says (None: unknown); ``correction``: the controller's fast
         correction g (its amplitudes are k (1 + g) times the model's). Returns the per-sample figures and
-        updates :attr:`estimate`."""
+        updates :attr:`estimate`.
+
+        Parameters
+        ----------
+        first_sample : int
+            The first sample's number.
+        amplitude_um_pp, normal_force_n, lateral_force_n : array_like
+            Per sample: µm p-p, N, N.
+        panel_speed_mm_s : float, optional
+            The finger's speed, mm/s.
+        correction : float
+            The controller's fast correction g.
+
+        Returns
+        -------
+        BatchResult
+
+        Examples
+        --------
+        A force sensor reading NaN is a fault, said in words:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> estimator = FrictionEstimator(StretchedExponentialModel())
+        >>> result = estimator.update(0, np.zeros(3), np.full(3, np.nan), np.zeros(3))
+        >>> result.estimate.state, result.estimate.reason, int(result.used.sum())
+        ('fault', 'a sensor reads NaN', 0)
+        """
         a = np.asarray(amplitude_um_pp, dtype=float)
         force = np.asarray(normal_force_n, dtype=float)
         lateral = np.abs(np.asarray(lateral_force_n, dtype=float))  # friction opposes the motion, either way
