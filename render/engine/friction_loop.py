@@ -77,6 +77,24 @@ class TargetRing:
     def write(self, ratio: np.ndarray, down) -> None:
         """Write the target ratios of the next control samples sent, NaN where the finger is up; ``down``: one flag
         for the block or one per sample. No allocation for one flag (the block path).
+
+        Parameters
+        ----------
+        ratio : numpy.ndarray
+            Target ratios, one per value sent.
+        down : bool or numpy.ndarray
+            Whether the finger touches: one flag, or one per value.
+
+        Examples
+        --------
+        Per-sample flags, and a write that wraps around the ring's end:
+
+        >>> import numpy as np
+        >>> ring = TargetRing(4)
+        >>> ring.write(np.array([0.1, 0.2, 0.3]), np.array([True, False, True]))
+        >>> ring.write(np.array([0.4, 0.5]), True)                     # indices 3 and 4: slots 3 and 0
+        >>> ring.read(np.arange(5)).tolist()                            # index 0 overwritten: unknown
+        [nan, nan, 0.3, 0.4, 0.5]
         """
         n = len(ratio)
         start = self.written % self.capacity
@@ -95,7 +113,21 @@ class TargetRing:
         self.written += n
 
     def skip(self, n: int) -> None:
-        """``n`` indices that carried no value of ours (a writer that skipped ahead): no target."""
+        """``n`` indices that carried no value of ours (a writer that skipped ahead): no target.
+
+        Parameters
+        ----------
+        n : int
+            Indices skipped.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ring = TargetRing(8)
+        >>> ring.write(np.array([0.5]), True); ring.skip(2); ring.write(np.array([0.7]), True)
+        >>> ring.read(np.arange(4)).tolist()
+        [0.5, nan, nan, 0.7]
+        """
         start = self.written % self.capacity
         first = min(n, self.capacity - start)
         self.ratio[start:start + first] = np.nan
@@ -103,7 +135,26 @@ class TargetRing:
         self.written += n
 
     def read(self, indices: np.ndarray) -> np.ndarray:
-        """Targets at these stream indices (NaN for those not written or already overwritten)."""
+        """Targets at these stream indices (NaN for those not written or already overwritten).
+
+        Parameters
+        ----------
+        indices : numpy.ndarray
+            Stream indices.
+
+        Returns
+        -------
+        numpy.ndarray
+            Target ratios (NaN: unknown, or the finger up).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> ring = TargetRing(8)
+        >>> ring.write(np.array([0.5, 0.6]), True)
+        >>> ring.read(np.array([1, 0, 2])).tolist()
+        [0.6, 0.5, nan]
+        """
         indices = np.asarray(indices, dtype=np.int64)
         known = (indices >= max(0, self.written - self.capacity)) & (indices < self.written)
         out = np.full(len(indices), np.nan)
@@ -153,13 +204,47 @@ class FrictionLoop:
         return f"FrictionLoop({self.estimator!r}, correction {self.correction.value:+.3f}, {self.words()!r})"
 
     def set_sensor_rate(self, sensor_rate_hz: float) -> None:
-        """The device's sensor samples a second (from its handshake); the estimator starts over if it changed."""
+        """The device's sensor samples a second (from its handshake); the estimator starts over if it changed.
+
+        Parameters
+        ----------
+        sensor_rate_hz : float
+            Samples a second.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> loop = FrictionLoop(StretchedExponentialModel(), sensor_rate_hz=1000.0)
+        >>> loop.set_sensor_rate(2000.0)
+        >>> loop.sensor_rate_hz, loop.estimator.sensor_rate_hz          # the estimator made anew at that rate
+        (2000.0, 2000.0)
+        """
         if sensor_rate_hz > 0 and sensor_rate_hz != self.sensor_rate_hz:
             self.sensor_rate_hz = float(sensor_rate_hz)
             self._restart(self.estimator.model)
 
     def set_model(self, model) -> None:
-        """Another host model: its inverse from the next block, its adaptation from scratch."""
+        """Another host model: its inverse from the next block, its adaptation from scratch.
+
+        Parameters
+        ----------
+        model : FrictionModel
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> loop = FrictionLoop(model, stream_rate_hz=12000.0, sensor_rate_hz=1000.0, clock=lambda: 1.0)
+        >>> loop.panel_speed_mm_s = 100.0
+        >>> amplitude, force = np.tile(np.linspace(0.0, 5.0, 100), 4), np.full(400, 0.5)   # 0.4 s of sensor samples
+        >>> lateral = model.relative_friction(amplitude, 0.5) * force                     # the host model's friction
+        >>> loop.take_sensors(0, NOT_PLAYING, amplitude, force, lateral, received_s=1.0)
+        >>> from ultraglide.render.physics.friction_models import ExponentialModel
+        >>> loop.set_model(ExponentialModel())                            # its adaptation from scratch: open loop
+        >>> loop.inverse.name, loop.words()
+        ('exponential', 'open loop: waiting for the sensors')
+        """
         self._restart(model)
         self.inverse.base = model
         self.inverse.name = model.name
@@ -175,14 +260,50 @@ class FrictionLoop:
 
     # ---- the block path ----
     def record(self, ratio: np.ndarray, down) -> None:
-        """The target ratios of the values just handed to the device, in stream order (one per device value)."""
+        """The target ratios of the values just handed to the device, in stream order (one per device value).
+
+        Parameters
+        ----------
+        ratio : numpy.ndarray
+            Target ratios, one per device value.
+        down : bool or numpy.ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> loop = FrictionLoop(StretchedExponentialModel())
+        >>> loop.record(np.array([0.5, 0.6]), True)
+        >>> loop.targets.read(np.array([0, 1])).tolist()
+        [0.5, 0.6]
+        """
         self.targets.write(ratio, down)
 
     def record_control(self, ratio: np.ndarray, down, decimation: int) -> None:
         """The target ratios of a block of control samples the device streams ``decimation`` times slower (a
         ``serial:PATH?rate=N`` below the control rate): each device value is the mean of ``decimation`` control
         samples, so its target is their targets' mean, and the finger counts as down for it only if down for all
-        of them. Block path: no allocation for blocks up to the loop's capacity."""
+        of them. Block path: no allocation for blocks up to the loop's capacity.
+
+        Parameters
+        ----------
+        ratio : numpy.ndarray
+            Target ratios, one per control sample.
+        down : bool or numpy.ndarray
+        decimation : int
+            Control samples per device value.
+
+        Examples
+        --------
+        Two control samples per device value: each value's target is their mean:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> loop = FrictionLoop(StretchedExponentialModel())
+        >>> loop.record_control(np.array([0.4, 0.6, 0.8, 1.0]), True, 2)
+        >>> loop.targets.read(np.array([0, 1])).round(9).tolist()
+        [0.5, 0.9]
+        """
         if decimation == 1:
             self.targets.write(ratio, down)
             return
@@ -200,12 +321,46 @@ class FrictionLoop:
         self.targets.write(means, downs)
 
     def skip(self, n: int) -> None:
-        """``n`` stream indices the device's writer skipped (no target for them)."""
+        """``n`` stream indices the device's writer skipped (no target for them).
+
+        Parameters
+        ----------
+        n : int
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> loop = FrictionLoop(StretchedExponentialModel())
+        >>> loop.skip(3); loop.record(np.array([0.5]), True)
+        >>> loop.targets.read(np.array([2, 3])).tolist()
+        [nan, 0.5]
+        """
         self.targets.skip(n)
 
     # ---- the reader thread ----
     def take_sensors_frame(self, frame, received_s: float | None = None) -> None:
-        """A decoded SENSORS frame (``devices.protocol.Sensors``), as a device's reader thread hands it over."""
+        """A decoded SENSORS frame (``devices.protocol.Sensors``), as a device's reader thread hands it over.
+
+        Parameters
+        ----------
+        frame : Sensors
+            A decoded SENSORS frame.
+        received_s : float, optional
+            perf_counter s.
+
+        Examples
+        --------
+        A frame packed and parsed as the wire carries it (two samples: too few to say the finger slides):
+
+        >>> from ultraglide.devices.protocol.reports import parse_sensors, sensor_samples, sensors_payload
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> loop = FrictionLoop(StretchedExponentialModel(), clock=lambda: 1.0)
+        >>> loop.take_sensors_frame(parse_sensors(sensors_payload(40, 480, sensor_samples([3.0, 3.2], [0.5, 0.6],
+        ...                                                                               [0.2, 0.25]))), 1.0)
+        >>> loop.sensor_frames, loop.words()
+        (1, 'open loop: waiting for the finger to slide')
+        """
         samples = frame.samples
         self.take_sensors(frame.first_sample, frame.setpoint_index, samples["amplitude_um_pp"],
                           samples["normal_force_n"], samples["lateral_force_n"], received_s)
@@ -213,7 +368,33 @@ class FrictionLoop:
     def take_sensors(self, first_sample: int, setpoint_index: int, amplitude_um_pp, normal_force_n, lateral_force_n,
                      received_s: float | None = None) -> None:
         """One SENSORS frame: consecutive samples from the device's sample ``first_sample``; ``setpoint_index``
-        the stream index playing at the first (NOT_PLAYING: none); ``received_s`` perf_counter time."""
+        the stream index playing at the first (NOT_PLAYING: none); ``received_s`` perf_counter time.
+
+        Parameters
+        ----------
+        first_sample : int
+        setpoint_index : int
+            The stream index playing at the first sample (``NOT_PLAYING``: none).
+        amplitude_um_pp, normal_force_n, lateral_force_n : array_like
+            Per sample: µm p-p, N, N.
+        received_s : float, optional
+            perf_counter s.
+
+        Examples
+        --------
+        Sensors reading the host model's own friction while the finger slides at 100 mm/s: the loop follows:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> loop = FrictionLoop(model, stream_rate_hz=12000.0, sensor_rate_hz=1000.0, clock=lambda: 1.0)
+        >>> loop.panel_speed_mm_s = 100.0
+        >>> amplitude, force = np.tile(np.linspace(0.0, 5.0, 100), 4), np.full(400, 0.5)   # 0.4 s of sensor samples
+        >>> lateral = model.relative_friction(amplitude, 0.5) * force                     # the host model's friction
+        >>> loop.take_sensors(0, NOT_PLAYING, amplitude, force, lateral, received_s=1.0)
+        >>> loop.words(), loop.inverse.command.following
+        ('closed loop: following', True)
+        """
         received_s = self.inverse.clock() if received_s is None else received_s
         n = len(amplitude_um_pp)
         if n == 0:
@@ -274,11 +455,42 @@ class FrictionLoop:
 
     # ---- anyone ----
     def words(self) -> str:
-        """The loop's state now, in words ("closed loop: following, error 0.03"; "open loop: finger resting")."""
+        """The loop's state now, in words ("closed loop: following, error 0.03"; "open loop: finger resting").
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> FrictionLoop(StretchedExponentialModel()).words()
+        'open loop: waiting for the sensors'
+        """
         return self.inverse.following_now()[2]
 
     def status(self) -> dict:
-        """Plain values for JSON and the status line."""
+        """Plain values for JSON and the status line.
+
+        Returns
+        -------
+        dict
+            Strict JSON values (None where unknown).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = StretchedExponentialModel()
+        >>> loop = FrictionLoop(model, stream_rate_hz=12000.0, sensor_rate_hz=1000.0, clock=lambda: 1.0)
+        >>> loop.panel_speed_mm_s = 100.0
+        >>> amplitude, force = np.tile(np.linspace(0.0, 5.0, 100), 4), np.full(400, 0.5)   # 0.4 s of sensor samples
+        >>> lateral = model.relative_friction(amplitude, 0.5) * force                     # the host model's friction
+        >>> loop.take_sensors(0, NOT_PLAYING, amplitude, force, lateral, received_s=1.0)
+        >>> status = loop.status()
+        >>> status["loop_state"], status["sensor_frames"], status["measured_force_n"], status["friction_error_rms"]
+        ('following', 1, 0.5, None)
+        """
         estimate = self.estimator.estimate
         following, command, words = self.inverse.following_now()
         with self._lock:
