@@ -173,6 +173,21 @@ class StepRecorder:
         return (np.array(amplitude), np.array(ratio), np.array(force), np.array(level, dtype=int),
                 max(planned - len(amplitude), 0))
 
+    def recording(self, lag, speed_mm_s: float, participant: str | None, source: str):
+        """The samples kept, in order, as a ``render.physics.dynamics_fit.Recording`` (times from the first sample,
+        s; gaps where samples were lost), with the force sensors' ``lag`` and the sliding speed (mm/s, NaN: unknown):
+        what the friction's dynamics are fitted from and what ``calibrate --compare`` ranks models on in time."""
+        from ultraglide.render.physics.dynamics_fit import Recording
+
+        with self._lock:
+            rows = np.concatenate(self._chunks) if self._chunks else np.zeros((0, 4))
+        rows = rows[np.argsort(rows[:, 0], kind="stable")]
+        if len(rows):
+            rows = rows[np.concatenate(([True], np.diff(rows[:, 0]) > 0))]  # a sample sent twice is kept once
+        number, a, force, lateral = rows.T
+        t = (number - (number[0] if len(number) else 0.0)) / lag.rate_hz
+        return Recording(t, a, force, lateral, lag, speed_mm_s, participant, source)
+
     def measurements(self, source: str, participant: str | None = None):
         """The points as ``render.physics.measurements.Measurements`` (ratios clipped into what a measurement file
         may hold), and the number of steps left out. The passes' points at one press and one planned amplitude

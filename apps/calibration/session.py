@@ -5,14 +5,18 @@ step by step (:mod:`.recording`) while the guide (:mod:`.guide`) asks for each p
 The points (each reduced step's friction over the friction at rest beside it, at its measured amplitude and
 force) are fitted as ``calibrate`` fits a CSV (``render.physics.calibration.fit_model``, cross-validated), and
 written as a calibration file with the participant's id, with the points beside it (``CAL.csv``: refit them
-with ``ultraglide calibrate CAL.csv``). On the in-process simulator the finger is simulated and its press
-follows the plan (unless ``--finger-force`` says otherwise).
+with ``ultraglide calibrate CAL.csv``). The samples themselves are kept too (``CAL-recording.csv``,
+:mod:`ultraglide.render.physics.dynamics_fit`): the friction's onset and recovery time constants are fitted
+from each step's edges, written into the calibration where the data resolve them, and ``calibrate --compare
+CAL-recording.csv`` ranks static and dynamic models on them in time. On the in-process simulator the finger
+is simulated and its press follows the plan (unless ``--finger-force`` says otherwise).
 
 The plate is rested (zero, disabled) on every way out, stop signals included.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -51,8 +55,13 @@ def calibrate_on_plate(args) -> dict:
         raise UsageError(f"an on-plate calibration needs a plate driver with force sensors (sim or serial:PORT), "
                          f"not {args.device}")
     extra = {"amplitude_loop": True}
+    sensors = _sensor_lag(args, kind)
     if kind == "sim":
         config = finger_config(args, wanted=True)
+        sensors["bandwidth_hz"], sensors["delay_s"] = config.bandwidth_hz, config.delay_ms / 1000.0
+        scripted = args.finger_force is not None and Path(args.finger_force).is_file()  # its own speeds, unrecorded
+        sensors["stated"] = "the simulated finger's force sensors"
+        sensors["speed_mm_s"] = math.nan if scripted else config.speed_mm_s
         if args.finger_force is None:  # the simulated participant presses as asked
             times, forces = plan.force_points()
             config = replace(config, force_points=(tuple(times), tuple(forces)))
@@ -93,12 +102,38 @@ def calibrate_on_plate(args) -> dict:
                 finger.close()
     if cancelled:
         raise UsageError("calibration cancelled: nothing written")
-    return _fit_and_write(args, recorder, plan)
+    return _fit_and_write(args, recorder, plan, sensors)
 
 
-def _fit_and_write(args, recorder, plan) -> dict:
+def _sensor_lag(args, kind: str) -> dict:
+    """The force sensors' lag and the sliding speed as the options state them (the simulator's are its finger's:
+    ``--finger-bandwidth-hz``, ``--finger-delay-ms``, ``--finger-speed-mm-s``)."""
+    given = {"--sensor-bandwidth-hz": args.sensor_bandwidth_hz, "--sensor-delay-ms": args.sensor_delay_ms,
+             "--slide-speed-mm-s": args.slide_speed_mm_s}
+    if kind == "sim":
+        for option, value in given.items():
+            if value is not None:
+                raise UsageError(f"{option} states a real plate's sensors or the participant's speed; the simulator's "
+                                 "are its finger's (--finger-bandwidth-hz, --finger-delay-ms, --finger-speed-mm-s)")
+        return {}
+    stated = ("as given" if args.sensor_bandwidth_hz is not None and args.sensor_delay_ms is not None else
+              "assumed where not given: 300 Hz and 1 ms, as the friction loop's nominal sensors")
+    return {"bandwidth_hz": 300.0 if args.sensor_bandwidth_hz is None else args.sensor_bandwidth_hz,
+            "delay_s": 0.001 if args.sensor_delay_ms is None else args.sensor_delay_ms / 1000.0, "stated": stated,
+            "speed_mm_s": math.nan if args.slide_speed_mm_s is None else args.slide_speed_mm_s}
+
+
+def recording_path(output: Path) -> Path:
+    """Where a calibration's recording goes: ``CAL-recording.csv`` beside ``CAL.toml``."""
+    return output.with_name(output.stem + "-recording.csv")
+
+
+def _fit_and_write(args, recorder, plan, sensors: dict) -> dict:
+    import warnings
+
     from ultraglide.apps.cli.files import atomic_path
     from ultraglide.render.physics.calibration import calibration_toml, fit_model
+    from ultraglide.render.physics.dynamics_fit import SensorLag, find_steps, fit_dynamics
 
     data, missing = recorder.measurements(f"on-plate calibration on {args.device}", args.participant)
     if len(data) < MIN_POINTS:
@@ -106,6 +141,15 @@ def _fit_and_write(args, recorder, plan) -> dict:
                          f"steady press); calibrate again, sliding through every step")
     fit = fit_model(data, args.model, cross_validate=True, bootstrap=args.bootstrap)
     output = Path(args.output)
+    lag = SensorLag(recorder.sensor_rate_hz, sensors["bandwidth_hz"], sensors["delay_s"], sensors["stated"])
+    recording = recorder.recording(lag, sensors["speed_mm_s"], args.participant,
+                                   f"on-plate calibration on {args.device}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the fitted model at the steps' own presses: within its range or at its edge
+        dynamics = fit_dynamics(recording, find_steps(recording), fit.model)
+    saved = recording_path(output)
+    with atomic_path(saved) as temporary:
+        temporary.write_text(recording.text())
     points = output.with_suffix(".csv")
     with atomic_path(points) as temporary:
         rows = ["amplitude_um_pp,relative_friction,force_n,participant"]
@@ -113,8 +157,10 @@ def _fit_and_write(args, recorder, plan) -> dict:
                  zip(data.amplitude_um_pp, data.relative_friction, data.force_n, strict=True)]
         temporary.write_text("\n".join(rows) + "\n")
     with atomic_path(output) as temporary:
-        temporary.write_text(calibration_toml(fit, participant=args.participant, procedure=plan.words()))
+        temporary.write_text(calibration_toml(fit, participant=args.participant, procedure=plan.words(),
+                                              dynamics=dynamics, recording=saved.name))
     from ultraglide.apps.figures.calibration import write_calibration_figure
 
     figures = write_calibration_figure([fit], output.with_suffix(".png"), getattr(args, "figure_width", "column"))
-    return {"fit": fit, "points": len(data), "missing_steps": missing, "written": [output, points, *figures]}
+    return {"fit": fit, "points": len(data), "missing_steps": missing, "dynamics": dynamics,
+            "written": [output, points, saved, *figures]}

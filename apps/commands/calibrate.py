@@ -23,6 +23,9 @@ POOR_FIT_RMS = 0.05
 PRESS_N = Bounded(0.05, 10.0, "N")
 PASSES = Bounded(1, 10, whole=True)
 STEP_MS = Bounded(100.0, 5000.0, "ms")
+SENSOR_BANDWIDTH_HZ = Bounded(0.0, 20000.0, "Hz")
+SENSOR_DELAY_MS = Bounded(0.0, 100.0, "ms")
+SLIDE_SPEED = Bounded(1.0, 2000.0, "mm/s")
 BOOTSTRAP_RESAMPLES = Bounded(0, 10_000, whole=True)
 BOOTSTRAP_WORDS = {"points": "points resampled", "force": "forces resampled", "participant": "participants resampled"}
 CV_NAMES = {"k_fold": "k-fold", "leave_one_force_out": "leave-one-force-out",
@@ -72,6 +75,14 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        help="passes through the amplitudes at each press, alternately up and down (default: 2)")
     plate.add_argument("--step-ms", type=STEP_MS, default=300.0, metavar="MS",
                        help="each amplitude held this long (default: 300)")
+    plate.add_argument("--sensor-bandwidth-hz", type=SENSOR_BANDWIDTH_HZ, metavar="HZ",
+                       help="the plate's force sensors' bandwidth, for fitting the finger's friction dynamics "
+                            "(serial; default: 300, assumed; the simulator's are its finger's)")
+    plate.add_argument("--sensor-delay-ms", type=SENSOR_DELAY_MS, metavar="MS",
+                       help="the force sensors' delay (serial; default: 1, assumed)")
+    plate.add_argument("--slide-speed-mm-s", type=SLIDE_SPEED, metavar="V",
+                       help="the participant's sliding speed, which sets the friction's recovery (serial; default: "
+                            "unknown: the recovery is reported but not used; the simulator's is its finger's)")
     plate.add_argument("--no-window", action="store_true",
                        help="no window: the steps run on their own (scripts, the simulated finger)")
     plate.add_argument("--windowed", action="store_true", help="a window rather than the full screen")
@@ -80,7 +91,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 ON_PLATE_DEFAULTS = {"rig": None, "profile": "sim-plate", "forces": (0.25, 0.5, 0.9), "passes": 2, "step_ms": 300.0,
-                     "no_window": False, "windowed": False}  # the options of --device, as add_parser gives them
+                     "no_window": False, "windowed": False, "sensor_bandwidth_hz": None, "sensor_delay_ms": None,
+                     "slide_speed_mm_s": None}  # the options of --device, as add_parser gives them
 
 
 def _forces(text: str) -> tuple[float, ...]:
@@ -95,13 +107,15 @@ def _run_on_plate(args) -> int:
     from ultraglide.render.physics.calibration import fit_summary
 
     if args.compare:
-        raise UsageError("--compare ranks models on a CSV: calibrate on the plate, then compare on its CAL.csv")
+        raise UsageError("--compare ranks models on a CSV: calibrate on the plate, then compare on its CAL.csv (in "
+                         "amplitude) or its CAL-recording.csv (in time)")
     result = calibrate_on_plate(args)
     fit = result["fit"]
+    dynamics = result["dynamics"]
     written = [str(path) for path in result["written"]]
     if args.json:
         print_json({"fit": fit_summary(fit), "participant": args.participant, "points": result["points"],
-                    "missing_steps": result["missing_steps"], "written": written})
+                    "missing_steps": result["missing_steps"], "dynamics": dynamics.summary(), "written": written})
         return 0
     print(f"participant {args.participant}: {result['points']} points measured on {args.device}"
           + (f", {result['missing_steps']} steps left out (the finger not sliding)" if result["missing_steps"] else ""))
@@ -109,7 +123,49 @@ def _run_on_plate(args) -> int:
         print(line)
     for warning in fit.warnings():
         print(f"warning: {warning}")
+    print("friction in time:" + (f" {dynamics.dynamics.describe()}" if dynamics.dynamics is not None else ""))
+    for line in dynamics.words():
+        print(f"  {line}")
     print(f"wrote {', '.join(written)}")
+    return 0
+
+
+def _run_in_time(args) -> int:
+    """``calibrate --compare CAL-recording.csv``: static models against the same with the finger's dynamics, ranked
+    by held-out error of the ratio in time."""
+    import warnings
+
+    from ultraglide.render.physics.dynamics_fit import compare_in_time, read_recording
+
+    if not args.compare:
+        raise UsageError(f"{args.data} is a calibration's recording: rank models on it in time with --compare (its "
+                         "points, to fit one model, are the CAL.csv beside it)")
+    if args.output:
+        raise UsageError("-o keeps a calibration; --compare on a recording ranks models in time and writes nothing: "
+                         "the calibration written with it holds the fitted dynamics")
+    refuse_ignored(args, {"model": "stretched", "participant": None, "bootstrap": 200, "figure_width": "column"},
+                   "{option} does not apply to a recording (one participant, every model compared): leave it out")
+    recording = read_recording(args.data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # models fitted on part of the steps, used at their presses
+        ranking, dynamics, steps = compare_in_time(recording)
+    if args.json:
+        print_json({"recording": str(args.data), "steps": len(steps), "participant": recording.participant,
+                    "ranking": [{"model": r.name, "held_out_rms": r.held_out_rms, "in_sample_rms": r.in_sample_rms,
+                                 "samples": r.samples} for r in ranking],
+                    "best": ranking[0].name, "dynamics": dynamics.summary()})
+        return 0
+    print(f"{len(steps)} reduced steps of {args.data}, each with its onset and recovery; models ranked by held-out "
+          f"error in time (the ratio's course over steps held out, {len(steps)} steps in folds):")
+    for rank, r in enumerate(ranking, 1):
+        print(f"  {rank}. {r.name:22} held-out rms {r.held_out_rms:.4f}; in-sample {r.in_sample_rms:.4f} "
+              f"(relative friction, {r.samples} samples at {recording.lag.rate_hz:g} samples/s)")
+    best = ranking[0].name
+    print("the finger's friction lags: the dynamic model predicts its course best" if best.startswith("dynamic:")
+           else "an instantaneous finger predicts the course best: no dynamics are told apart on these data")
+    print("friction in time, fitted on every step:")
+    for line in dynamics.words():
+        print(f"  {line}")
     return 0
 
 
@@ -208,6 +264,10 @@ def run(args) -> int:
     if output is not None:  # the figure goes beside it, as PNG and PDF
         refuse_overlaps({"-o": output, "its figure": output.with_suffix(".png"),
                          "its vector figure": output.with_suffix(".pdf")}, {"the data": args.data})
+    from ultraglide.render.physics.dynamics_fit import is_recording
+
+    if is_recording(args.data):
+        return _run_in_time(args)
     data = _select_participant(read_measurements(args.data), args.participant)
     if args.compare:
         fits = compare_models(data)

@@ -79,7 +79,8 @@ from ultraglide.inputs import parse_toml, read_input, shown
 CALIBRATION_VERSION = 1
 
 
-def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None) -> str:
+def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None,
+                     dynamics=None, recording: str | None = None) -> str:
     """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically).
 
     Parameters
@@ -90,6 +91,12 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
         Whose finger it is (an on-plate calibration's id).
     procedure : str, optional
         How the points were measured, in words.
+    dynamics : DynamicsFit, optional
+        The friction's dynamics fitted from the same session's recording
+        (:func:`~ultraglide.render.physics.dynamics_fit.fit_dynamics`): written as ``[dynamics]``; where they
+        resolve a time constant, the file reads back as a :class:`DynamicFrictionModel` with them.
+    recording : str, optional
+        The recording's file name (beside the calibration), for ``calibrate --compare`` in time.
 
     Returns
     -------
@@ -141,7 +148,39 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
         document["fit"]["participant"] = str(participant)  # an id (P01), text as experiments keep it
     if procedure:
         document["fit"]["procedure"] = procedure
+    if dynamics is not None:
+        document["dynamics"] = dynamics_table(dynamics, recording)
     return tomli_w.dumps(document)
+
+
+def dynamics_table(fit, recording: str | None = None) -> dict:
+    """The ``[dynamics]`` table of a calibration file for a :class:`~.dynamics_fit.DynamicsFit`: ``fitted`` (whether
+    the file's model has dynamics), the four parameters where it has (times s, speed mm/s), each time constant's
+    fitted value, 95 % interval and edges, where each value comes from, the sensors assumed and the recording."""
+    table = {"fitted": fit.dynamics is not None}
+    if fit.dynamics is not None:
+        table.update(fit.dynamics.parameters())
+        edges = fit.onset.edges + fit.recovery.edges
+        table["source"] = (f"fitted on the plate, {edges} edges ({fit.onset.edges} onsets, {fit.recovery.edges} "
+                           "recoveries)")
+    else:
+        table["source"] = "not fitted: the finger's friction cannot be told apart from instantaneous at this sampling"
+    for tc in (fit.onset, fit.recovery):
+        entry = {"edges": tc.edges, "resolved": tc.resolved, "note": tc.note}
+        for key, value in (("fitted_s", tc.fitted_s), ("stderr_s", tc.stderr_s)):
+            if math.isfinite(value):
+                entry[key] = value
+        if math.isfinite(tc.low_s) and math.isfinite(tc.high_s):
+            entry["range_s"] = [tc.low_s, tc.high_s]
+        if math.isfinite(tc.speed_mm_s):
+            entry["speed_mm_s"] = tc.speed_mm_s
+        table[tc.kind] = entry
+    table["speed_law"] = fit.speed_exponent_note
+    table["sensors"] = fit.lag.words()
+    table["resolution_s"] = fit.lag.resolution_s
+    if recording:
+        table["recording"] = recording
+    return table
 
 
 def read_calibration(path: str | Path) -> FrictionModel:
@@ -234,12 +273,43 @@ def calibration_from_document(document: dict, where: str) -> FrictionModel:
                              f"{spec.unit})")
         values[key] = spec.check(parameters[key], where)
     fitted = _fitted_forces(document.get("fit"), where)
+    dynamics = _fitted_dynamics(document.get("dynamics"), where)
     try:
         model = build_model(kind, values)
     except ValueError as error:  # FingerParams: a combination it refuses
         raise ModelError(f"{where}: {str(error).splitlines()[0]}") from None
     model.fitted = fitted
+    if dynamics is not None:
+        from ultraglide.render.physics.dynamics import DynamicFrictionModel
+
+        model = DynamicFrictionModel(model, dynamics)
     return model
+
+
+DYNAMICS_KEYS = ("onset_s", "recovery_s", "reference_speed_mm_s", "speed_exponent")
+
+
+def _fitted_dynamics(table, where: str):
+    """The :class:`FrictionDynamics` a calibration file's ``[dynamics]`` holds where ``fitted = true``, checked;
+    None when it has none (files written before dynamics were fitted, or dynamics not resolved)."""
+    if table is None:
+        return None
+    if not isinstance(table, dict) or not isinstance(table.get("fitted"), bool):
+        raise ModelError(f"{where}: [dynamics] must be a table with fitted = true or false")
+    if not table["fitted"]:
+        return None
+    from ultraglide.render.physics.dynamics import FrictionDynamics
+
+    values = {}
+    for key in DYNAMICS_KEYS:
+        value = table.get(key)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise ModelError(f"{where}: [dynamics] {key} must be a number (fitted = true)")
+        values[key] = float(value)
+    try:
+        return FrictionDynamics(**values)
+    except ModelError as error:
+        raise ModelError(f"{where}: [dynamics] {error}") from None
 
 
 MAX_FITTED_FORCES = 10_000  # a calibration's data hold at most 100 000 points
@@ -268,7 +338,8 @@ def load_model(spec: str) -> FrictionModel:
     spec : str
         ``stretched`` (the default for rendering: force-aware), ``squeeze-film``, ``exponential``,
         ``paper``, ``paper-uniform``, ``table:FILE.csv`` (measured points) or a calibration file
-        ``CAL.toml`` (``ultraglide calibrate``); ``dynamic`` (the default model with the published friction
+        ``CAL.toml`` (``ultraglide calibrate``: a :class:`DynamicFrictionModel` where its ``[dynamics]`` were fitted
+        on the plate); ``dynamic`` (the default model with the published friction
         dynamics) or ``dynamic:NAME`` (any of these with them).
 
     Returns
@@ -292,7 +363,11 @@ def load_model(spec: str) -> FrictionModel:
         inner = spec.removeprefix("dynamic").removeprefix(":") or "stretched"
         if inner == "dynamic" or inner.startswith("dynamic:"):
             raise ModelError(f"a dynamic model wraps a static one: {spec!r} wraps another dynamic model")
-        return DynamicFrictionModel(load_model(inner))
+        static = load_model(inner)
+        if isinstance(static, DynamicFrictionModel):
+            raise ModelError(f"{inner} holds the finger's own fitted dynamics: give --model {inner} (dynamic: "
+                             "adds the published ones to a static model)")
+        return DynamicFrictionModel(static)
     if spec == "paper":
         return PaperModel()
     if spec == "paper-uniform":
@@ -317,7 +392,7 @@ __all__ = [  # the calibration's names, the fitting's and the parameters' (one i
     "BOOTSTRAP_SAMPLES", "CALIBRATION_VERSION", "COMPARED_MODELS", "K_FOLDS", "MAX_FITTED_FORCES",
     "MIN_BOOTSTRAP_GROUPS", "MODEL_NAMES", "OPTIONAL_KEYS", "PARAMETERS", "Fit", "Parameter", "ParameterSpec",
     "FORCE_LAW_PARAMETER", "ForceLawChoice", "bootstrap_errors", "build_model", "choose_force_law",
-    "calibration_from_document", "calibration_toml", "compare_models",
+    "calibration_from_document", "calibration_toml", "compare_models", "dynamics_table",
     "cross_validation_errors", "fit_model", "fit_range", "fit_summary", "k_fold_groups", "load_model", "model_kind",
     "read_calibration", "selection_note",
 ]
