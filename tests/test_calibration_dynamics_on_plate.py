@@ -1,0 +1,86 @@
+"""``calibrate --device sim`` fits the simulated finger's friction dynamics, and ``--compare`` ranks models in time.
+
+The simulated finger with ``--finger-dynamics`` lags its law as the published figures say (devices/sim/finger.py,
+its own implementation): 5 ms where friction falls, 70 ms (22 / v)^0.5 where it recovers, 32.8 ms at the 100 mm/s
+it slides at here. Its force sensors are 300 Hz, 1 ms late, sampled at 1 kHz. The tolerance is the sampling's:
+one sensor period (1 ms) on each time constant, since the amplitude is known only as each period's mean (the
+synthetic tests in test_calibration_dynamics.py measure that bias at under half a period)."""
+
+import json
+import math
+import tomllib
+
+import pytest
+from conftest import run_cli
+from ultraglide.render.physics.calibration import read_calibration
+from ultraglide.render.physics.dynamics import DynamicFrictionModel
+
+ONSET_S = 0.005
+RECOVERY_S = 0.070 * math.sqrt(22.0 / 100.0)  # 32.8 ms at 100 mm/s
+PERIOD_S = 0.001  # one sensor sample at 1 kHz
+
+
+def calibrated(folder, *finger):
+    output = folder / "p1.toml"
+    result = run_cli("calibrate", "--device", "sim", "--participant", "P1", "-o", output, "--no-window", "--json",
+                     "--forces", "0.5", "--passes", "2", "--step-ms", "200", "--finger-drift", "0", "--bootstrap",
+                     "0", *finger)
+    assert result.returncode == 0, result.stderr
+    return output, json.loads(result.stdout)
+
+
+@pytest.fixture(scope="module")
+def lagging(tmp_path_factory):
+    return calibrated(tmp_path_factory.mktemp("lagging"), "--finger-dynamics")
+
+
+@pytest.fixture(scope="module")
+def instantaneous(tmp_path_factory):
+    return calibrated(tmp_path_factory.mktemp("instantaneous"))
+
+
+@pytest.mark.slow
+def test_the_lagging_fingers_time_constants_are_recovered_and_written(lagging):
+    output, report = lagging
+    dynamics = report["dynamics"]
+    assert dynamics["onset"]["resolved"] and dynamics["recovery"]["resolved"]
+    assert dynamics["onset"]["used_s"] == pytest.approx(ONSET_S, abs=PERIOD_S)
+    assert dynamics["recovery"]["used_s"] == pytest.approx(RECOVERY_S, abs=PERIOD_S)
+    assert dynamics["onset"]["edges"] >= 8 and dynamics["recovery"]["edges"] >= 8
+    assert dynamics["reference_speed_mm_s"] == 100.0 and dynamics["speed_exponent"] == 0.5
+    assert "kept as assumed" in dynamics["speed_exponent_note"]
+    table = tomllib.loads(output.read_text())["dynamics"]
+    assert table["fitted"] is True and table["source"].startswith("fitted on the plate, ")
+    assert table["recording"] == "p1-recording.csv" and (output.parent / "p1-recording.csv").is_file()
+    model = read_calibration(output)
+    assert isinstance(model, DynamicFrictionModel)
+    assert model.dynamics.onset_s == pytest.approx(ONSET_S, abs=PERIOD_S)
+    assert model.dynamics.recovery_at_s(100.0) == pytest.approx(RECOVERY_S, abs=PERIOD_S)
+
+
+@pytest.mark.slow
+def test_an_instantaneous_finger_is_said_to_be_one(instantaneous):
+    output, report = instantaneous
+    dynamics = report["dynamics"]
+    assert not dynamics["onset"]["resolved"] and not dynamics["recovery"]["resolved"] and not dynamics["written"]
+    assert dynamics["onset"]["high_s"] < dynamics["resolution_s"] == PERIOD_S
+    assert "cannot be told from instantaneous" in dynamics["onset"]["note"]
+    assert tomllib.loads(output.read_text())["dynamics"]["fitted"] is False
+    assert read_calibration(output).name == "stretched"  # static, as before dynamics were fitted
+
+
+@pytest.mark.slow
+def test_compare_in_time_ranks_dynamic_first_only_on_the_lagging_finger(lagging, instantaneous):
+    ranked = {}
+    for name, (output, _) in (("lagging", lagging), ("instantaneous", instantaneous)):
+        result = run_cli("calibrate", "--compare", output.parent / "p1-recording.csv", "--json")
+        assert result.returncode == 0, result.stderr
+        ranked[name] = json.loads(result.stdout)
+    lag_errors = {r["model"]: r["held_out_rms"] for r in ranked["lagging"]["ranking"]}
+    still_errors = {r["model"]: r["held_out_rms"] for r in ranked["instantaneous"]["ranking"]}
+    assert ranked["lagging"]["best"].startswith("dynamic:")
+    assert lag_errors["dynamic:stretched"] < 0.5 * lag_errors["stretched"]
+    assert not ranked["instantaneous"]["best"].startswith("dynamic:")
+    assert still_errors["stretched"] < still_errors["dynamic:stretched"]
+    text = run_cli("calibrate", "--compare", lagging[0].parent / "p1-recording.csv")
+    assert text.returncode == 0 and "held-out rms" in text.stdout and "the dynamic model predicts" in text.stdout
