@@ -56,6 +56,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.signal import lfilter
 from ultraglide.render.physics.dynamics import (
     ASSUMED_SPEED_EXPONENT,
@@ -408,6 +409,19 @@ def _lag(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
     return y
 
 
+@njit(cache=True, nogil=True)
+def _lag_courses(x, keeps, up, out):
+    """out[k, i]: ``x`` through a first-order lag keeping ``keeps[k]`` a sample (settled on x[0]), read at the
+    middle of each period of ``up`` samples."""
+    for k in range(keeps.shape[0]):
+        keep = keeps[k]
+        y = x[0]
+        for j in range(x.shape[0]):
+            y = keep * y + (1.0 - keep) * x[j]
+            if j % up == up // 2 - 1:
+                out[k, j // up] = y
+
+
 def _middles(up_signal: np.ndarray, up: int) -> np.ndarray:
     """Each sensor period's middle of a signal at ``up`` times the sensor rate (the value after its half)."""
     return up_signal[up // 2 - 1::up]
@@ -457,14 +471,15 @@ def _edge_curve(mu: np.ndarray, static: np.ndarray, lag: SensorLag, grid: np.nda
     contrast = float(last - first)
     unit = (static - first) / contrast if contrast else np.zeros_like(static)
     sensed = _sensors(_held(unit, UPSAMPLE), lag, rate)
+    keeps = np.array([math.exp(-1.0 / (tau * rate)) if tau > 0 else 0.0 for tau in grid])
+    courses = np.empty((len(grid), len(mu)))
+    _lag_courses(sensed, keeps, UPSAMPLE, courses)  # y_tau read at each period's middle, every tau at once
     centred = mu - mu.mean()
-    total = float(centred @ centred)
-    curve = np.empty(len(grid))
-    for k, tau in enumerate(grid):
-        y = _middles(_lag(sensed, tau, rate), UPSAMPLE)
-        y = y - y.mean()
-        vy = float(y @ y)
-        curve[k] = total - (float(y @ centred) ** 2 / vy if vy > 0 else 0.0)
+    courses -= courses.mean(axis=1, keepdims=True)
+    variance = np.einsum("ij,ij->i", courses, courses)
+    projection = courses @ centred
+    explained = np.divide(projection ** 2, variance, out=np.zeros(len(grid)), where=variance > 0)
+    curve = float(centred @ centred) - explained
     return curve, contrast
 
 
