@@ -15,8 +15,14 @@ What is measured is not the finger alone. Between the finger's friction and the 
   device or the user (:class:`SensorLag`); the model of each edge passes through them, so their lag is not
   attributed to the finger;
 * the device's averaging over each sensor period (a SENSORS sample is a period's mean): the model runs at
-  ``UPSAMPLE`` times the sensor rate, the static ratio held over each period (which keeps each period's
-  integral, so it adds no delay) and the result read at each period's middle.
+  ``UPSAMPLE`` times the sensor rate, the amplitude interpolated linearly between the periods' middles before
+  the static model (a rising plate's ratio is not the ratio of its mean amplitude), and the result is read at
+  each period's middle.
+
+An onset's window ends, and its recovery's edge begins, where the amplitude leaves its steady level (below
+97 % of the step's median), not where it crosses zero: the plate's decay would otherwise put the start of a
+recovery into the onset's window, modelled with the onset's time constant (that alone biased the onset by
+half a millisecond on the simulated plate).
 
 Every element of that chain is linear and time-invariant once the static ratio is computed, so the sensors'
 filter and delay are applied once per edge and only the finger's lag is searched. For each edge and each
@@ -89,6 +95,7 @@ BEFORE_S = 0.015  # an edge's window starts this long before it
 LONGEST_S = 0.3  # and lasts at most this long after it
 MIN_AFTER_S = 0.04  # an edge with less after it is left out
 MIN_CONTRAST = 0.03  # an edge whose static ratio changes less than this tells little: left out
+STEADY_SHARE = 0.97  # a step's amplitude is steady down to this share of its median
 REST_S = 0.04  # mu0 of a step: the last 40 ms of the rests beside it
 EDGE_KINDS = ("onset", "recovery")
 
@@ -369,14 +376,20 @@ def find_steps(recording: Recording, settle_s: float = 0.03) -> list[ReducedStep
         rest_before, rest_after = mu[r1 - rest_n:r1].mean(), mu[max(q0, q1 - rest_n):q1].mean()
         if min(rest_before, rest_after) < MIN_MU:
             continue
+        # the plate starts to fall before it crosses ZERO_UM_PP: the onset's window ends, and the recovery's edge
+        # is, where it leaves its steady level (an onset modelled into the recovery's start would be slowed by it)
+        steady = np.flatnonzero(a[s0:s1] >= STEADY_SHARE * np.median(a[s0:s1]))
+        fall = s0 + int(steady[-1]) + 1
+        if fall - s0 < max(min_after, settle + 10) or fall - before < s0:
+            continue
         force = float(normal[r1 - before:min(q1, q0 + longest)].mean())
         mu0 = 0.5 * (rest_before + rest_after)
         number = len(steps)
         speed = recording.speed_mm_s
-        onset = Edge("onset", s0 - before, s0, min(s1, s0 + longest), force, speed, number, mu0)
-        recovery = Edge("recovery", q0 - before, q0, min(q1, q0 + longest), force, speed, number, mu0)
-        steps.append(ReducedStep(number, onset, recovery, float(a[s0 + settle:s1].mean()), force,
-                                 float(mu[s0 + settle:s1].mean()), float(mu0)))
+        onset = Edge("onset", s0 - before, s0, min(fall, s0 + longest), force, speed, number, mu0)
+        recovery = Edge("recovery", fall - before, fall, min(q1, fall + longest), force, speed, number, mu0)
+        steps.append(ReducedStep(number, onset, recovery, float(a[s0 + settle:fall].mean()), force,
+                                 float(mu[s0 + settle:fall].mean()), float(mu0)))
     return steps
 
 
@@ -464,13 +477,23 @@ def edge_course(static_ratio: np.ndarray, tau_s: float, lag: SensorLag, up: int 
     return _middles(_lag(_sensors(held, lag, rate), tau_s, rate), up)
 
 
+def _static_up(amplitude: np.ndarray, force_n: float, model, up: int = UPSAMPLE) -> np.ndarray:
+    """The static ratio at ``up`` times the sensor rate: the amplitude's period means interpolated linearly between
+    the periods' middles, through the static model at ``force_n``."""
+    amplitude = np.asarray(amplitude, dtype=float)
+    centres = np.arange(len(amplitude)) + 0.5
+    a = np.interp((np.arange(len(amplitude) * up) + 0.5) / up, centres, amplitude)
+    return np.asarray(model.relative_friction(a, force_n), dtype=float)
+
+
 def _edge_curve(mu: np.ndarray, static: np.ndarray, lag: SensorLag, grid: np.ndarray) -> tuple[np.ndarray, float]:
-    """The residual sum of squares of mu ≈ m0 + m1 y_tau over the grid, and the static ratio's change."""
+    """The residual sum of squares of mu ≈ m0 + m1 y_tau over the grid, and the static ratio's change (the static
+    ratio given at ``UPSAMPLE`` times the sensor rate)."""
     rate = lag.rate_hz * UPSAMPLE
     first, last = static[: max(len(static) // 20, 3)].mean(), static[-max(len(static) // 10, 5):].mean()
     contrast = float(last - first)
     unit = (static - first) / contrast if contrast else np.zeros_like(static)
-    sensed = _sensors(_held(unit, UPSAMPLE), lag, rate)
+    sensed = _sensors(unit, lag, rate)
     keeps = np.array([math.exp(-1.0 / (tau * rate)) if tau > 0 else 0.0 for tau in grid])
     courses = np.empty((len(grid), len(mu)))
     _lag_courses(sensed, keeps, UPSAMPLE, courses)  # y_tau read at each period's middle, every tau at once
@@ -566,8 +589,7 @@ def _finite(value: float):
 def _edge_data(recording: Recording, edge: Edge, model) -> tuple[np.ndarray, np.ndarray]:
     window = slice(edge.first, edge.stop)
     mu = recording.lateral_force_n[window] / recording.normal_force_n[window]
-    static = np.asarray(model.relative_friction(recording.amplitude_um_pp[window], edge.force_n), dtype=float)
-    return mu, static
+    return mu, _static_up(recording.amplitude_um_pp[window], edge.force_n, model)
 
 
 def edge_curves(recording: Recording, edges: list[Edge], model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -637,8 +659,7 @@ def fit_time_constant(curves: np.ndarray, grid: np.ndarray, kind: str, lag: Sens
     stderr = float(np.std(boot))
     floor = lag.resolution_s
     ceiling = min(window_s / 3.0, float(grid[-2]))
-    interval = (f"95 % {1000 * low:.3g}-{1000 * high:.3g} ms over {n} edges; the sampling adds up to "
-                f"{500 / lag.rate_hz:.2g} ms")
+    interval = f"95 % {1000 * low:.3g}-{1000 * high:.3g} ms over {n} edges"
     if low <= floor:
         note = (f"{name}{at}: {1000 * fitted:.3g} ms ({interval}): cannot be told from instantaneous, shorter than "
                 f"the {1000 * floor:.3g} ms the samples and the sensors can tell; the published {1000 * published:g} "
@@ -754,9 +775,8 @@ def predicted_course(recording: Recording, step: ReducedStep, model, dynamics: F
     recovery's window) as the sensors read it: the measured amplitude through the static model, the finger's
     dynamics (None: instantaneous) and the sensors. Returns the recording's samples it covers and the course."""
     window = slice(step.onset.first, step.recovery.stop)
-    static = np.asarray(model.relative_friction(recording.amplitude_um_pp[window], step.force_n), dtype=float)
+    held = _static_up(recording.amplitude_um_pp[window], step.force_n, model, up)
     rate = recording.lag.rate_hz * up
-    held = _held(static, up)
     if dynamics is not None:
         speed = step.recovery.speed_mm_s if math.isfinite(step.recovery.speed_mm_s) else REFERENCE_SPEED_MM_S
         held = dynamics.respond(held, rate, speed, felt=float(held[0]))
