@@ -154,9 +154,32 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
 
 
 def dynamics_table(fit, recording: str | None = None) -> dict:
-    """The ``[dynamics]`` table of a calibration file for a :class:`~.dynamics_fit.DynamicsFit`: ``fitted`` (whether
-    the file's model has dynamics), the four parameters where it has (times s, speed mm/s), each time constant's
-    fitted value, 95 % interval and edges, where each value comes from, the sensors assumed and the recording."""
+    """The ``[dynamics]`` table of a calibration file.
+
+    Parameters
+    ----------
+    fit : DynamicsFit
+        The dynamics fitted from a recording (:func:`~ultraglide.render.physics.dynamics_fit.fit_dynamics`).
+    recording : str, optional
+        The recording's file name.
+
+    Returns
+    -------
+    dict
+        ``fitted`` (whether the file's model has dynamics), the four parameters where it has (times s, speed
+        mm/s), ``source``, and for ``onset`` and ``recovery`` the fitted value, its standard error and 95 %
+        ``range_s``, the edges and a note; the speed law's note, the sensors assumed, the resolution (s) and the
+        recording.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.dynamics_fit import example_recording, find_steps, fit_dynamics
+    >>> from ultraglide.render.physics.empirical_models import ExponentialModel
+    >>> recording = example_recording()
+    >>> table = dynamics_table(fit_dynamics(recording, find_steps(recording), ExponentialModel(), samples=20))
+    >>> table["fitted"], table["source"], table["onset"]["edges"], table["speed_exponent"]
+    (True, 'fitted on the plate, 12 edges (6 onsets, 6 recoveries)', 6, 0.5)
+    """
     table = {"fitted": fit.dynamics is not None}
     if fit.dynamics is not None:
         table.update(fit.dynamics.parameters())
