@@ -172,6 +172,7 @@ def test_without_a_known_speed_the_recovery_is_reported_not_used():
     assert fit.recovery.fitted_s == pytest.approx(0.033, rel=0.01) and not fit.recovery.resolved
     assert fit.dynamics.recovery_s == 0.070 and fit.dynamics.reference_speed_mm_s == 22.0  # the published
     assert "not known" in fit.recovery.note
+    assert fit.dynamics.source == "onset fitted on the plate, 8 edges, recovery published"
 
 
 def test_the_calibration_file_keeps_the_dynamics_and_reads_back_dynamic(tmp_path):
@@ -186,6 +187,7 @@ def test_the_calibration_file_keeps_the_dynamics_and_reads_back_dynamic(tmp_path
     model = read_calibration(path)
     assert isinstance(model, DynamicFrictionModel) and model.dynamics == dynamics.dynamics
     assert model.static.parameters() == fit.model.parameters()
+    assert "(fitted on the plate, 16 edges (8 onsets, 8 recoveries))" in model.describe()
     static = fit_model(step_points(steps, "synthetic"), "exponential")
     _, none = fitted(synthetic(0.0, 0.0))
     path.write_text(calibration_toml(static, dynamics=none))

@@ -183,9 +183,7 @@ def dynamics_table(fit, recording: str | None = None) -> dict:
     table = {"fitted": fit.dynamics is not None}
     if fit.dynamics is not None:
         table.update(fit.dynamics.parameters())
-        edges = fit.onset.edges + fit.recovery.edges
-        table["source"] = (f"fitted on the plate, {edges} edges ({fit.onset.edges} onsets, {fit.recovery.edges} "
-                           "recoveries)")
+        table["source"] = f"{fit.dynamics.source} ({fit.onset.edges} onsets, {fit.recovery.edges} recoveries)"
     else:
         table["source"] = "not fitted: the finger's friction cannot be told apart from instantaneous at this sampling"
     for tc in (fit.onset, fit.recovery):
@@ -329,8 +327,9 @@ def _fitted_dynamics(table, where: str):
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise ModelError(f"{where}: [dynamics] {key} must be a number (fitted = true)")
         values[key] = float(value)
+    source = table.get("source")
     try:
-        return FrictionDynamics(**values)
+        return FrictionDynamics(**values, source=source[:200] if isinstance(source, str) else "")
     except ModelError as error:
         raise ModelError(f"{where}: [dynamics] {error}") from None
 

@@ -37,7 +37,7 @@ Example::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -80,6 +80,9 @@ class FrictionDynamics:
         The sliding speed of ``recovery_s``, 1-1000 mm/s.
     speed_exponent : float
         The recovery scales as (reference / v)^exponent: 0.5, assumed (no source gives the law), 0-1.5.
+    source : str
+        Where these values come from, in words, for :meth:`describe` (e.g. "fitted on the plate, 28 edges"); ""
+        (the default): the published figures where they are the published ones. Not compared, not in the repr.
 
     Raises
     ------
@@ -104,6 +107,7 @@ class FrictionDynamics:
     recovery_s: float = RECOVERY_S
     reference_speed_mm_s: float = REFERENCE_SPEED_MM_S
     speed_exponent: float = ASSUMED_SPEED_EXPONENT
+    source: str = field(default="", compare=False, repr=False)
 
     def __post_init__(self) -> None:
         _checked("the onset time constant", self.onset_s, ONSET_RANGE_S, " s")
@@ -164,7 +168,7 @@ class FrictionDynamics:
         law = ("assumed" if self.speed_exponent == ASSUMED_SPEED_EXPONENT else "as given")
         published = (self.onset_s, self.recovery_s, self.reference_speed_mm_s) == (ONSET_S, RECOVERY_S,
                                                                                      REFERENCE_SPEED_MM_S)
-        source = " (Meyer et al. 2014)" if published else ""
+        source = f" ({self.source})" if self.source else " (Meyer et al. 2014)" if published else ""
         return (f"onset {1000 * self.onset_s:.3g} ms, recovery {1000 * self.recovery_s:.3g} ms at "
                 f"{self.reference_speed_mm_s:g} mm/s{source}, x (v_ref/v)^{self.speed_exponent:g} ({law}): "
                 f"{1000 * self.recovery_at_s(100.0):.3g} ms at 100 mm/s")

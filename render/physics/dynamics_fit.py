@@ -914,8 +914,18 @@ def fit_dynamics(recording: Recording, steps: list[ReducedStep], model, samples:
         if not recovery.resolved:
             reference, exponent = REFERENCE_SPEED_MM_S, ASSUMED_SPEED_EXPONENT
         reference = min(max(reference, REFERENCE_SPEED_RANGE_MM_S[0]), REFERENCE_SPEED_RANGE_MM_S[1])
-        dynamics = FrictionDynamics(onset.used_s, recovery.used_s, reference, exponent)
+        dynamics = FrictionDynamics(onset.used_s, recovery.used_s, reference, exponent,
+                                    source=_source_words(onset, recovery))
     return DynamicsFit(onset, recovery, exponent, speed_note, reference, lag, dynamics, notes)
+
+
+def _source_words(onset: TimeConstant, recovery: TimeConstant) -> str:
+    """Where each time constant used comes from, in a few words."""
+    def one(tc: TimeConstant) -> str:
+        return f"fitted on the plate, {tc.edges} edges" if tc.resolved else "published"
+    if onset.resolved and recovery.resolved:
+        return f"fitted on the plate, {onset.edges + recovery.edges} edges"
+    return f"onset {one(onset)}, recovery {one(recovery)}"
 
 
 def _at_reference(tc: TimeConstant, tau_ref: float, reference: float) -> TimeConstant:
