@@ -245,3 +245,17 @@ def test_calibrate_on_a_recording_without_compare_says_what_to_do(cli, tmp_path)
     broken = tmp_path / "broken.csv"
     broken.write_text("# ultraglide_recording = 1\n# sensor_rate_hz = 1000\nnot,a,header\n")
     assert "the header must be" in assert_one_line_error(cli("calibrate", broken, "--compare"))
+
+
+def test_a_calibration_whose_recording_cannot_be_written_is_refused_before_the_session(cli, tmp_path):
+    (tmp_path / "p1-recording.csv").mkdir()
+    line = assert_one_line_error(cli("calibrate", "--device", "sim", "--participant", "P1", "-o", tmp_path / "p1.toml",
+                                     "--no-window", "--forces", "0.5", "--passes", "1"))
+    assert "its recording beside it" in line and "is a directory" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p1-recording.csv"]  # nothing written
+
+
+def test_a_real_plates_sensor_options_are_refused_on_the_simulator(cli, tmp_path):
+    line = assert_one_line_error(cli("calibrate", "--device", "sim", "--participant", "P1", "-o", tmp_path / "p1.toml",
+                                     "--no-window", "--sensor-delay-ms", "2"))
+    assert "--finger-delay-ms" in line

@@ -47,6 +47,9 @@ def calibrate_on_plate(args) -> dict:
         raise UsageError("an on-plate calibration needs --participant ID (written into the calibration)")
     if args.output is None or Path(args.output).suffix != ".toml":
         raise UsageError("an on-plate calibration needs -o CAL.toml")
+    from ultraglide.atomic.targets import check_output
+
+    check_output(recording_path(Path(args.output)), "-o (its recording beside it)")  # before the session, not after
     profile = plate_of(args)
     plan = CalibrationPlan(tuple(args.forces), profile.max_amplitude_um_pp, passes=args.passes,
                            step_s=args.step_ms / 1000.0, settle_s=min(0.12, 0.4 * args.step_ms / 1000.0))
