@@ -30,6 +30,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import tomli_w
 from ultraglide.render.physics.errors import ModelError
@@ -76,11 +77,14 @@ from ultraglide.render.physics.squeeze_film import (
 
 from ultraglide.inputs import parse_toml, read_input, shown
 
+if TYPE_CHECKING:
+    from ultraglide.render.physics.dynamics_fit import DynamicsFit
+
 CALIBRATION_VERSION = 1
 
 
 def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None,
-                     dynamics=None, recording: str | None = None) -> str:
+                     dynamics: DynamicsFit | None = None, recording: str | None = None) -> str:
     """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically).
 
     Parameters
@@ -153,7 +157,7 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
     return tomli_w.dumps(document)
 
 
-def dynamics_table(fit, recording: str | None = None) -> dict:
+def dynamics_table(fit: DynamicsFit, recording: str | None = None) -> dict:
     """The ``[dynamics]`` table of a calibration file.
 
     Parameters

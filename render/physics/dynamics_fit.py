@@ -61,6 +61,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -79,6 +81,10 @@ from ultraglide.render.physics.dynamics import (
 from ultraglide.render.physics.errors import ModelError
 
 from ultraglide.inputs import decode_text, read_input, shown
+
+if TYPE_CHECKING:
+    from ultraglide.render.physics.measurements import Measurements
+    from ultraglide.render.physics.model_base import FrictionModel
 
 RECORDING_VERSION = 1
 COLUMNS = ("t_s", "amplitude_um_pp", "normal_force_n", "lateral_force_n")
@@ -204,7 +210,7 @@ class Recording:
         return "\n".join(lines) + "\n"
 
 
-def read_recording(path) -> Recording:
+def read_recording(path: str | Path) -> Recording:
     """A calibration's recording from its CSV (``CAL-recording.csv``, written beside ``CAL.csv``).
 
     Parameters
@@ -235,7 +241,7 @@ def read_recording(path) -> Recording:
     return recording_from_text(decode_text(data, str(path), "recording (CSV)", ModelError), str(path))
 
 
-def is_recording(path) -> bool:
+def is_recording(path: str | Path) -> bool:
     """Whether a file starts as a calibration's recording does (its first line ``# ultraglide_recording``).
 
     Parameters
@@ -578,7 +584,7 @@ def edge_course(static_ratio: np.ndarray, tau_s: float, lag: SensorLag, up: int 
     return _middles(_lag(_sensors(held, lag, rate), tau_s, rate), up)
 
 
-def _static_up(amplitude: np.ndarray, force_n: float, model, up: int = UPSAMPLE) -> np.ndarray:
+def _static_up(amplitude: np.ndarray, force_n: float, model: FrictionModel, up: int = UPSAMPLE) -> np.ndarray:
     """The static ratio at ``up`` times the sensor rate: each period's mean amplitude held over the period (which
     keeps each period's integral, so it adds no delay), through the static model at ``force_n``."""
     a = _held(np.asarray(amplitude, dtype=float), up)
@@ -705,13 +711,14 @@ def _finite(value: float):
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def _edge_data(recording: Recording, edge: Edge, model) -> tuple[np.ndarray, np.ndarray]:
+def _edge_data(recording: Recording, edge: Edge, model: FrictionModel) -> tuple[np.ndarray, np.ndarray]:
     window = slice(edge.first, edge.stop)
     mu = recording.lateral_force_n[window] / recording.normal_force_n[window]
     return mu, _static_up(recording.amplitude_um_pp[window], edge.force_n, model)
 
 
-def edge_curves(recording: Recording, edges: list[Edge], model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def edge_curves(recording: Recording, edges: list[Edge],
+                model: FrictionModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each edge's residual sum of squares over the grid of time constants.
 
     Parameters
@@ -843,7 +850,7 @@ def _speed_law(curves: np.ndarray, grid: np.ndarray, speeds: np.ndarray) -> tupl
     return best[1], best[2], reference
 
 
-def fit_dynamics(recording: Recording, steps: list[ReducedStep], model, samples: int = BOOTSTRAP,
+def fit_dynamics(recording: Recording, steps: list[ReducedStep], model: FrictionModel, samples: int = BOOTSTRAP,
                  seed: int = 0) -> DynamicsFit:
     """The onset's and the recovery's time constants from the recording's reduced steps (see the module).
 
@@ -933,7 +940,7 @@ def _at_reference(tc: TimeConstant, tau_ref: float, reference: float) -> TimeCon
                         tc.note + f"; {1000 * tau_ref:.3g} ms at {reference:.3g} mm/s by the speed law", reference)
 
 
-def predicted_course(recording: Recording, step: ReducedStep, model, dynamics: FrictionDynamics | None,
+def predicted_course(recording: Recording, step: ReducedStep, model: FrictionModel, dynamics: FrictionDynamics | None,
                      up: int = UPSAMPLE) -> tuple[slice, np.ndarray]:
     """The ratio's time course a model predicts over a reduced step, as the sensors read it.
 
@@ -1005,7 +1012,7 @@ def measured_course(recording: Recording, step: ReducedStep) -> tuple[slice, np.
     return window, recording.lateral_force_n[window] / recording.normal_force_n[window] / step.mu0
 
 
-def step_points(steps: list[ReducedStep], source: str):
+def step_points(steps: list[ReducedStep], source: str) -> Measurements:
     """The steps' steady levels as measured points.
 
     Parameters
