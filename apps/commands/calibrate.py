@@ -45,13 +45,19 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                     "the plate: a window guides the participant (slide at a steady press, lighter or heavier as "
                     "asked, the press shown live) while the plate steps its amplitude, the plate's force sensors "
                     "measure the friction, and the fit is written with the participant's id (the points beside it as "
-                    "CAL.csv, its figure as CAL.png and CAL.pdf).")
-    calibrate.add_argument("data", metavar="DATA.csv", nargs="?", help="measured points (or --device)")
+                    "CAL.csv, its figure as CAL.png and CAL.pdf, the sensor samples as CAL-recording.csv); the "
+                    "friction's onset and recovery time constants are fitted from the steps' edges and kept in the "
+                    "calibration where the data resolve them. --compare CAL-recording.csv ranks static against "
+                    "dynamic models by held-out error in time.")
+    calibrate.add_argument("data", metavar="DATA.csv", nargs="?",
+                           help="measured points, or a calibration's recording with --compare (or --device)")
     calibrate.add_argument("--model", default="stretched",
                            choices=["stretched", "exponential", "squeeze-film", "paper", "paper-uniform", "table"],
                            help="the model to fit (default: stretched)")
     calibrate.add_argument("--compare", action="store_true",
-                           help="fit every model and rank them by cross-validated error; -o keeps the best")
+                           help="fit every model and rank them by cross-validated error; -o keeps the best. On a "
+                                "calibration's recording (CAL-recording.csv): static models against the same with "
+                                "the fitted dynamics, by held-out error of the ratio in time")
     calibrate.add_argument("--participant", type=PARTICIPANT, metavar="ID",
                            help="use only this participant's points (the participant column); with --device, whose "
                                 "finger is measured: an id as experiments take it, e.g. P01, written into the "
