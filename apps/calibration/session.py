@@ -152,7 +152,7 @@ def _fit_and_write(args, recorder, plan, sensors: dict) -> dict:
         dynamics = fit_dynamics(recording, find_steps(recording), fit.model)
     saved = recording_path(output)
     with atomic_path(saved) as temporary:
-        temporary.write_text(recording.text())
+        recording.write(temporary)
     points = output.with_suffix(".csv")
     with atomic_path(points) as temporary:
         rows = ["amplitude_um_pp,relative_friction,force_n,participant"]

@@ -198,6 +198,24 @@ class Recording:
 
     def text(self) -> str:
         """The recording as its CSV file's text (see :func:`read_recording`)."""
+        return "\n".join(self._header()) + "\n" + "".join(f"{row}\n" for row in self._rows())
+
+    def write(self, path: str | Path) -> None:
+        """Write the recording's CSV to ``path`` (a file of ours: give an atomic write's temporary), row by row.
+
+        Example: ``recording.write(temporary)`` inside ``ultraglide.apps.cli.files.atomic_path(CAL-recording.csv)``;
+        :func:`read_recording` reads it back."""
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write("\n".join(self._header()) + "\n")
+            for row in self._rows():
+                handle.write(row + "\n")
+
+    def _rows(self):
+        table = np.column_stack((self.t_s, self.amplitude_um_pp, self.normal_force_n, self.lateral_force_n))
+        for start in range(0, len(table), 10_000):  # in chunks: an hour's samples never held as text at once
+            yield from (f"{t:.6f},{a:.5f},{n:.6f},{lat:.6f}" for t, a, n, lat in table[start:start + 10_000])
+
+    def _header(self) -> list[str]:
         speed = "unknown" if math.isnan(self.speed_mm_s) else f"{self.speed_mm_s:g}"
         lines = [f"# ultraglide_recording = {RECORDING_VERSION}", f"# sensor_rate_hz = {self.lag.rate_hz:g}",
                  f"# sensor_bandwidth_hz = {self.lag.bandwidth_hz:g}", f"# sensor_delay_s = {self.lag.delay_s:g}",
@@ -205,9 +223,7 @@ class Recording:
         if self.participant is not None:
             lines.append(f"# participant = {self.participant}")
         lines.append(",".join(COLUMNS))
-        table = np.column_stack((self.t_s, self.amplitude_um_pp, self.normal_force_n, self.lateral_force_n))
-        lines += [f"{t:.6f},{a:.5f},{n:.6f},{lat:.6f}" for t, a, n, lat in table]
-        return "\n".join(lines) + "\n"
+        return lines
 
 
 def read_recording(path: str | Path) -> Recording:
@@ -333,16 +349,21 @@ def recording_from_text(text: str, where: str) -> Recording:
     lag = SensorLag(number("sensor_rate_hz", 1.0, 48000.0), number("sensor_bandwidth_hz", 0.0, 20000.0),
                     number("sensor_delay_s", 0.0, 0.1), meta.get("sensors", "as the recording states")[:200])
     speed = number("sliding_speed_mm_s", 0.0, 2000.0)
-    table = np.empty((len(rows), 4))
-    for k, row in enumerate(rows):
-        parts = row.split(",")
-        try:
-            if len(parts) != 4:
-                raise ValueError
-            table[k] = [float(part) for part in parts]
-        except ValueError:
-            raise ModelError(f"{where}, line {body_start + k + 2}: four numbers expected, got "
-                             f"{shown(row[:60])}") from None
+    try:  # the whole table at once; row by row only to name a bad row
+        table = np.loadtxt(rows, delimiter=",", ndmin=2) if rows else np.zeros((0, 4))
+        if table.shape[1] != 4:
+            raise ValueError
+    except ValueError:
+        for k, row in enumerate(rows):
+            parts = row.split(",")
+            try:
+                if len(parts) != 4:
+                    raise ValueError
+                [float(part) for part in parts]
+            except ValueError:
+                raise ModelError(f"{where}, line {body_start + k + 2}: four numbers expected, got "
+                                 f"{shown(row[:60])}") from None
+        raise ModelError(f"{where}: four numbers a row expected") from None
     t, a, normal, lateral = table.T
     if len(t) and (not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0):
         raise ModelError(f"{where}: t_s must be finite, from 0 s, and strictly increasing")
