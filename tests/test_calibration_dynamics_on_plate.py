@@ -8,10 +8,12 @@ test_calibration_dynamics.py measure the sampling's bias at under a tenth of a p
 
 import json
 import math
+import signal
+import subprocess
 import tomllib
 
 import pytest
-from conftest import run_cli
+from conftest import run_cli, start_cli
 from ultraglide.render.physics.calibration import read_calibration
 from ultraglide.render.physics.dynamics import DynamicFrictionModel
 
@@ -84,3 +86,29 @@ def test_compare_in_time_ranks_dynamic_first_only_on_the_lagging_finger(lagging,
     assert still_errors["stretched"] < still_errors["dynamic:stretched"]
     text = run_cli("calibrate", "--compare", lagging[0].parent / "p1-recording.csv")
     assert text.returncode == 0 and "held-out rms" in text.stdout and "the dynamic model predicts" in text.stdout
+
+
+@pytest.mark.slow
+def test_on_a_serial_plate_the_sensors_and_the_speed_come_from_the_options(tmp_path):
+    """``plate-sim`` on a pty with a lagging finger pressing 0.5 N at 100 mm/s, calibrated through ``serial:``: the
+    sensors (300 Hz, 1 ms) and the speed are the options' and said to be, and the time constants come back as on
+    the in-process simulator."""
+    link = tmp_path / "plate"
+    server = start_cli("plate-sim", "--link", link, "--finger", "default", "--finger-dynamics", "--finger-force",
+                       "0.5", "--finger-drift", "0", stdout=subprocess.PIPE)
+    try:
+        assert str(link) in server.stdout.readline()
+        output = tmp_path / "p1.toml"
+        result = run_cli("calibrate", "--device", f"serial:{link}", "--participant", "P1", "-o", output,
+                         "--no-window", "--json", "--forces", "0.5", "--passes", "1", "--step-ms", "200",
+                         "--bootstrap", "0", "--slide-speed-mm-s", "100", "--sensor-bandwidth-hz", "300",
+                         "--sensor-delay-ms", "1")
+    finally:
+        server.send_signal(signal.SIGINT)
+        server.communicate(timeout=10)
+    assert result.returncode == 0, result.stderr
+    dynamics = json.loads(result.stdout)["dynamics"]
+    assert dynamics["sensors"] == "300 Hz, 1 ms late, 1000 samples/s (as given)"
+    assert dynamics["onset"]["used_s"] == pytest.approx(ONSET_S, abs=PERIOD_S / 2)
+    assert dynamics["recovery"]["used_s"] == pytest.approx(RECOVERY_S, abs=PERIOD_S)
+    assert dynamics["recovery"]["speed_mm_s"] == 100.0
