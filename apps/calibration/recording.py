@@ -115,9 +115,10 @@ class StepRecorder:
         index = max(int(np.searchsorted(self._starts, played_s, side="right")) - 1, 0)
         return self.steps[min(index, len(self.steps) - 1)].level, min(1.0, played_s / self.plan.duration_s)
 
-    def segments(self) -> list[dict]:
+    def segments(self, rest_settle_s: float = SETTLE_S) -> list[dict]:
         """The steady runs: each one's first and last sample number, mean amplitude (µm p-p), normal force (N) and
-        mu, over its samples after the first ``SETTLE_S``."""
+        mu, over its samples after the first ``SETTLE_S`` (a run at rest: after the first ``rest_settle_s``, where
+        that is longer: a finger whose friction recovers slowly is still recovering at a rest's start)."""
         with self._lock:
             rows = np.concatenate(self._chunks) if self._chunks else np.zeros((0, 4))
         if not len(rows):
@@ -128,24 +129,26 @@ class StepRecorder:
         valid = (np.isfinite(a) & np.isfinite(force) & np.isfinite(lateral) & (force >= self.min_force_n)
                  & (mu >= MIN_MU))
         settle = int(round(SETTLE_S * self.sensor_rate_hz))
+        rest_settle = max(settle, int(round(rest_settle_s * self.sensor_rate_hz)))
         found, start = [], 0
         for k in range(1, len(rows) + 1):
             end_here = k == len(rows) or not valid[k] or number[k] != number[k - 1] + 1 or \
                 abs(a[k] - np.median(a[max(start, k - 20):k])) > max(STEADY_UM_PP, STEADY_SHARE * a[k - 1])
             if not end_here:
                 continue
-            steady = slice(start + settle, k)
-            if valid[start] and k - start - settle >= MIN_SAMPLES and valid[steady].all():
+            skip = rest_settle if np.median(a[start:k]) < ZERO_UM_PP else settle
+            steady = slice(start + skip, k)
+            if valid[start] and k - start - skip >= MIN_SAMPLES and valid[steady].all():
                 found.append({"first": number[start], "last": number[k - 1], "amplitude_um_pp": float(a[steady].mean()),
                               "force_n": float(force[steady].mean()), "mu": float(mu[steady].mean()),
-                              "samples": k - start - settle})
+                              "samples": k - start - skip})
             start = k
         return found
 
-    def points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    def points(self, rest_settle_s: float = SETTLE_S) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """(amplitude µm p-p, relative friction, force N, press level) of each reduced step measured, and how many of
         the plan's reduced steps went unmeasured (the finger lifted or stood still, or no zero step beside it)."""
-        segments = self.segments()
+        segments = self.segments(rest_settle_s)
         zeros = [s for s in segments if s["amplitude_um_pp"] < ZERO_UM_PP]
         centre = np.array([(s["first"] + s["last"]) / 2 for s in zeros])
         rest = np.array([s["mu"] for s in zeros])
@@ -188,7 +191,7 @@ class StepRecorder:
         t = (number - (number[0] if len(number) else 0.0)) / lag.rate_hz
         return Recording(t, a, force, lateral, lag, speed_mm_s, participant, source)
 
-    def measurements(self, source: str, participant: str | None = None):
+    def measurements(self, source: str, participant: str | None = None, rest_settle_s: float = SETTLE_S):
         """The points as ``render.physics.measurements.Measurements`` (ratios clipped into what a measurement file
         may hold), and the number of steps left out. The passes' points at one press and one planned amplitude
         are averaged into one (a measurement file holds each amplitude once at each force). Each point's force is
@@ -196,7 +199,7 @@ class StepRecorder:
         force, and a press is one force."""
         from ultraglide.render.physics.measurements import Measurements
 
-        amplitude, ratio, force, level, missing = self.points()
+        amplitude, ratio, force, level, missing = self.points(rest_settle_s)
         planned = self.plan.amplitudes_um_pp
         nearest = np.argmin(np.abs(amplitude[:, None] - planned[None, :]), axis=1) if len(amplitude) else level
         merged = {}

@@ -7,7 +7,9 @@ force) are fitted as ``calibrate`` fits a CSV (``render.physics.calibration.fit_
 written as a calibration file with the participant's id, with the points beside it (``CAL.csv``: refit them
 with ``ultraglide calibrate CAL.csv``). The samples themselves are kept too (``CAL-recording.csv``,
 :mod:`ultraglide.render.physics.dynamics_fit`): the friction's onset and recovery time constants are fitted
-from each step's edges, written into the calibration where the data resolve them, and ``calibrate --compare
+from each step's edges, written into the calibration where the data resolve them (a finger whose recovery
+is resolved has its rests measured after four recovery time constants, and its points refitted), and
+``calibrate --compare
 CAL-recording.csv`` ranks static and dynamic models on them in time. On the in-process simulator the finger
 is simulated and its press follows the plan (unless ``--finger-force`` says otherwise).
 
@@ -27,6 +29,9 @@ from ultraglide.apps.commands.plate_choice import plate_of
 FRAME_S = 0.1  # the guide's pace: ten frames a second are enough to follow a press
 CONTROL_RATE_HZ = 12000
 MIN_POINTS = 6
+REST_SETTLE_TAUS = 4.0  # a lagging finger's rests are measured after this many recovery time constants ...
+REST_SETTLE_S = 0.03  # ... rather than this (recording.SETTLE_S), where that is longer
+MIN_REST_S = 0.06  # ... leaving at least this much of each rest to measure
 
 
 def calibrate_on_plate(args) -> dict:
@@ -150,6 +155,21 @@ def _fit_and_write(args, recorder, plan, sensors: dict) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the fitted model at the steps' own presses: within its range or at its edge
         dynamics = fit_dynamics(recording, find_steps(recording), fit.model)
+    recovery = dynamics.recovery
+    if math.isfinite(recovery.fitted_s) and recovery.low_s > lag.resolution_s:
+        # a finger still recovering at a rest's start lowers friction at rest, and so raises every ratio: the rests
+        # are measured after four of its recovery time constants (as much as the rests allow), and refitted
+        rest_settle_s = min(REST_SETTLE_TAUS * recovery.fitted_s, plan.step_s - MIN_REST_S)
+        if rest_settle_s > REST_SETTLE_S:
+            data, missing = recorder.measurements(f"on-plate calibration on {args.device}", args.participant,
+                                                  rest_settle_s=rest_settle_s)
+            if len(data) < MIN_POINTS:
+                raise UsageError(f"only {len(data)} steps were measured once each rest's recovery was left out; "
+                                 "calibrate again with longer steps (--step-ms)")
+            fit = fit_model(data, args.model, cross_validate=True, bootstrap=args.bootstrap)
+            dynamics.notes.append(f"friction at rest measured after the first {1000 * rest_settle_s:.0f} ms of each "
+                                  f"rest ({REST_SETTLE_TAUS:g} recovery time constants, as the rests allow; "
+                                  f"{1000 * REST_SETTLE_S:.0f} ms for a finger without dynamics), the points refitted")
     saved = recording_path(output)
     with atomic_path(saved) as temporary:
         recording.write(temporary)

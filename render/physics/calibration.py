@@ -203,6 +203,8 @@ def dynamics_table(fit: DynamicsFit, recording: str | None = None) -> dict:
     table["speed_law"] = fit.speed_exponent_note
     table["sensors"] = fit.lag.words()
     table["resolution_s"] = fit.lag.resolution_s
+    if fit.notes:
+        table["notes"] = list(fit.notes)
     if recording:
         table["recording"] = recording
     return table

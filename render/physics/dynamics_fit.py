@@ -725,7 +725,7 @@ class DynamicsFit:
         return {"onset": one(self.onset), "recovery": one(self.recovery), "speed_exponent": self.speed_exponent,
                 "speed_exponent_note": self.speed_exponent_note,
                 "reference_speed_mm_s": self.reference_speed_mm_s, "sensors": self.lag.words(),
-                "written": self.dynamics is not None, "resolution_s": self.lag.resolution_s}
+                "written": self.dynamics is not None, "resolution_s": self.lag.resolution_s, "notes": list(self.notes)}
 
 
 def _finite(value: float):
