@@ -147,15 +147,24 @@ class SensorLag:
 
     @property
     def resolution_s(self) -> float:
-        """The shortest time constant the fit claims (s): one sample period or the sensors' time constant."""
+        """The shortest time constant the fit claims (s): one sample period or the sensors' time constant.
+
+        Examples
+        --------
+        >>> SensorLag(500.0, 0.0, 0.0).resolution_s                  # a sample at 500 Hz, no filter
+        0.002
+        """
         own = 1.0 / (2.0 * math.pi * self.bandwidth_hz) if self.bandwidth_hz > 0 else 0.0
         return max(1.0 / self.rate_hz, own)
 
     def words(self) -> str:
         """The sensors in words: bandwidth, delay, rate and where they come from.
 
-        Example: ``SensorLag(1000.0, 300.0, 0.001, "as given").words()`` is
-        ``'300 Hz, 1 ms late, 1000 samples/s (as given)'``."""
+        Examples
+        --------
+        >>> SensorLag(1000.0, 300.0, 0.001, "as given").words()
+        '300 Hz, 1 ms late, 1000 samples/s (as given)'
+        """
         band = f"{self.bandwidth_hz:g} Hz" if self.bandwidth_hz else "unfiltered"
         return f"{band}, {1000 * self.delay_s:g} ms late, {self.rate_hz:g} samples/s ({self.stated})"
 
@@ -193,18 +202,40 @@ class Recording:
 
     @property
     def sample_numbers(self) -> np.ndarray:
-        """Each sample's number from the first (gaps where samples were lost)."""
+        """Each sample's number from the first (gaps where samples were lost).
+
+        Examples
+        --------
+        >>> recording = Recording(np.array([0.0, 0.001, 0.003]), np.zeros(3), np.full(3, 0.5), np.full(3, 0.4),
+        ...                       SensorLag())
+        >>> recording.sample_numbers.tolist()                          # the third sample's predecessor was lost
+        [0, 1, 3]
+        """
         return np.rint(self.t_s * self.lag.rate_hz).astype(np.int64)
 
     def text(self) -> str:
-        """The recording as its CSV file's text (see :func:`read_recording`)."""
+        """The recording as its CSV file's text (see :func:`read_recording`).
+
+        Examples
+        --------
+        >>> text = example_recording(steps=1).text()
+        >>> text.splitlines()[7], text.splitlines()[8]
+        ('t_s,amplitude_um_pp,normal_force_n,lateral_force_n', '0.000000,0.00000,0.500000,0.400000')
+        """
         return "\n".join(self._header()) + "\n" + "".join(f"{row}\n" for row in self._rows())
 
     def write(self, path: str | Path) -> None:
         """Write the recording's CSV to ``path`` (a file of ours: give an atomic write's temporary), row by row.
 
-        Example: ``recording.write(temporary)`` inside ``ultraglide.apps.cli.files.atomic_path(CAL-recording.csv)``;
-        :func:`read_recording` reads it back."""
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> recording = example_recording(steps=1)
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "rec.csv"
+        >>> recording.write(path)
+        >>> path.read_text() == recording.text(), len(read_recording(path))
+        (True, 600)
+        """
         with open(path, "w", encoding="utf-8") as handle:
             handle.write("\n".join(self._header()) + "\n")
             for row in self._rows():
@@ -674,7 +705,16 @@ class TimeConstant:
     speed_mm_s: float = math.nan
 
     def words(self) -> str:
-        """The fit in words (the note): the value, its interval, and whether it is used."""
+        """The fit in words (the note): the value, its interval, and whether it is used.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.empirical_models import ExponentialModel
+        >>> recording = example_recording()
+        >>> fit = fit_dynamics(recording, find_steps(recording), ExponentialModel(), samples=20)
+        >>> fit.onset.words().endswith("fitted on the plate")
+        True
+        """
         return self.note
 
 
@@ -704,11 +744,28 @@ class DynamicsFit:
 
     @property
     def fitted(self) -> bool:
-        """Whether any time constant was resolved (the calibration then has dynamics)."""
+        """Whether any time constant was resolved (the calibration then has dynamics).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.empirical_models import ExponentialModel
+        >>> recording = example_recording()
+        >>> fit_dynamics(recording, find_steps(recording), ExponentialModel(), samples=20).fitted
+        True
+        """
         return self.dynamics is not None
 
     def words(self) -> list[str]:
-        """Lines for people: each time constant, the speed law, the sensors, and what is used."""
+        """Lines for people: each time constant, the speed law, the sensors, and what is used.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.empirical_models import ExponentialModel
+        >>> recording = example_recording(onset_s=0.0, recovery_s=0.0)
+        >>> lines = fit_dynamics(recording, find_steps(recording), ExponentialModel(), samples=20).words()
+        >>> lines[-1].startswith("the finger's friction cannot be told apart from instantaneous")
+        True
+        """
         lines = [self.onset.note, self.recovery.note, self.speed_exponent_note,
                  f"force sensors modelled: {self.lag.words()}"]
         if self.dynamics is None:
@@ -717,7 +774,17 @@ class DynamicsFit:
         return lines + self.notes
 
     def summary(self) -> dict:
-        """Strict-JSON-ready: the time constants (s), intervals, edges, resolved, the exponent and notes."""
+        """Strict-JSON-ready: the time constants (s), intervals, edges, resolved, the exponent and notes.
+
+        Examples
+        --------
+        >>> import json
+        >>> from ultraglide.render.physics.empirical_models import ExponentialModel
+        >>> recording = example_recording()
+        >>> summary = fit_dynamics(recording, find_steps(recording), ExponentialModel(), samples=20).summary()
+        >>> summary["written"], summary["onset"]["edges"], json.loads(json.dumps(summary, allow_nan=False)) == summary
+        (True, 6, True)
+        """
         def one(tc: TimeConstant) -> dict:
             return {"fitted_s": _finite(tc.fitted_s), "low_s": _finite(tc.low_s), "high_s": _finite(tc.high_s),
                     "stderr_s": _finite(tc.stderr_s), "edges": tc.edges, "resolved": tc.resolved,
