@@ -69,3 +69,31 @@ def test_plate_sim_finger_dynamics_option_builds_a_lagging_finger():
     assert build_finger(config).dynamics == FingerDynamics()
     assert build_finger(FingerConfig(law="dynamic")).dynamics == FingerDynamics()  # a dynamic law lags
     assert build_finger(FingerConfig()).dynamics is None
+
+
+def test_a_finger_whose_law_is_a_calibration_lags_as_its_fitted_dynamics_say(tmp_path):
+    """A calibration fitted on the plate (its [dynamics] fitted = true) describes that finger in time too: the
+    simulated finger given it lags with those time constants, without --finger-dynamics; one without fitted
+    dynamics follows its law at once."""
+    fitted = tmp_path / "p01.toml"
+    fitted.write_text('ultraglide_calibration = 1\nmodel = "exponential"\n[parameters]\ntau_um_zp = 1.3\n'
+                      '[dynamics]\nfitted = true\nonset_s = 0.01\nrecovery_s = 0.05\nreference_speed_mm_s = 100.0\n'
+                      'speed_exponent = 0.5\n')
+    finger = build_finger(FingerConfig(law=str(fitted), speed_mm_s=25.0, force="0.5", drift=0.0, moisture=0.0,
+                                       noise_n=0.0))
+    assert finger.dynamics == FingerDynamics(0.01, 0.05, 100.0, 0.5)
+    assert FingerConfig(law=str(fitted)).lags and "friction in time" in finger.name
+    static = tmp_path / "static.toml"
+    static.write_text('ultraglide_calibration = 1\nmodel = "exponential"\n[parameters]\ntau_um_zp = 1.3\n'
+                      '[dynamics]\nfitted = false\n')
+    assert build_finger(FingerConfig(law=str(static))).dynamics is None
+    # its truth: a step of the vibration on and off at 25 mm/s, the recovery (100/25)^0.5 = 2 times 50 ms
+    on = int(0.1 * FS)
+    amplitude = np.r_[np.full(on, 6.0), np.zeros(int(0.3 * FS))]
+    ratio = felt(finger, amplitude)
+    low = float(np.exp(-(3.0 / 1.3) ** 2 / 2.0))  # the exponential law at 6 µm p-p: exp(-a²/2tau²), a zero-to-peak
+    tau_on = int(round(0.01 * FS))
+    assert ratio[tau_on - 1] == pytest.approx(1.0 - (1.0 - low) * (1 - math.exp(-1.0)), rel=1e-6)
+    tau_back = int(round(0.1 * FS))
+    start = ratio[on - 1]
+    assert ratio[on + tau_back - 1] == pytest.approx(start + (1.0 - start) * (1 - math.exp(-1.0)), rel=1e-6)

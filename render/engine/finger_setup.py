@@ -14,6 +14,7 @@ that wanders in 0.2-1 N, sliding at 100 mm/s.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, replace
 
@@ -72,14 +73,16 @@ class FingerConfig:
 
     @property
     def lags(self) -> bool:
-        """Whether the simulated finger's friction lags in time (the dynamics asked for, or a ``dynamic`` law).
+        """Whether the simulated finger's friction lags in time (the dynamics asked for, a ``dynamic`` law, or a
+        calibration whose dynamics were fitted on the plate).
 
         Examples
         --------
         >>> FingerConfig().lags, FingerConfig(law="dynamic:stretched").lags, FingerConfig(dynamics=True).lags
         (False, True, True)
         """
-        return self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
+        return (self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
+                or _fitted_dynamics(self.law) is not None)
 
     @property
     def law_scale(self) -> float:
@@ -139,6 +142,48 @@ class FingerConfig:
         ('finger.csv', 80.0, None)
         """
         return replace(self, log=path)
+
+
+@functools.lru_cache(maxsize=16)
+def _fitted_dynamics(law: str):
+    """The friction dynamics a law's own file holds (a calibration whose ``[dynamics]`` were fitted on the plate),
+    else None; a law that cannot be loaded has none here (``finger_law`` says what is wrong with it)."""
+    if law == DEFAULT_LAW or law == "dynamic" or law.startswith("dynamic:") or not law.endswith(".toml"):
+        return None
+    from ultraglide.render.physics.calibration import load_model
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return getattr(load_model(law), "dynamics", None)
+    except Exception:  # noqa: BLE001 - refused with its words where the law itself is built
+        return None
+
+
+def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
+    """How the simulated finger's friction lags its law: the dynamics fitted for this finger where its law is a
+    calibration that has them (``calibrate`` on the plate), else the published ones where the config asks for a
+    lag (``--finger-dynamics``, a ``dynamic`` law), else none.
+
+    Parameters
+    ----------
+    config : FingerConfig
+        The finger's options.
+
+    Returns
+    -------
+    FingerDynamics or None
+        Time constants in s, the reference speed in mm/s; None for a finger whose friction follows its law at once.
+
+    Examples
+    --------
+    >>> finger_dynamics(FingerConfig()) is None, finger_dynamics(FingerConfig(dynamics=True)).recovery_s
+    (True, 0.07)
+    """
+    fitted = _fitted_dynamics(config.law)
+    if fitted is not None:
+        return FingerDynamics(fitted.onset_s, fitted.recovery_s, fitted.reference_speed_mm_s, fitted.speed_exponent)
+    return FingerDynamics() if config.lags else None
 
 
 def finger_law(config: FingerConfig):
@@ -280,7 +325,7 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
     law = finger_law(config)
     faults = tuple(SensorFault.parse(spec) for spec in config.faults)
     log = FingerLog(config.log, rate_hz=config.log_hz, sample_rate_hz=sample_rate_hz) if config.log else None
-    dynamics = FingerDynamics() if config.lags else None
+    dynamics = finger_dynamics(config)
     return SimulatedFinger(law, script, params, sensors, log, sample_rate_hz, name=config.law_words(), faults=faults,
                            dynamics=dynamics)
 
