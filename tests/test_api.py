@@ -131,8 +131,7 @@ def test_the_documented_modules_functions_and_classes_have_running_examples():
 
 # modules of the documented set whose public methods are documented in words, not yet by running examples (every
 # other documented module's public methods and properties have theirs); strike one once its methods all have
-# (render/physics/dynamics.py was another helper's to change this session)
-METHODS_WITHOUT_EXAMPLES = {"render/physics/dynamics.py"}
+METHODS_WITHOUT_EXAMPLES: set[str] = set()
 
 
 def test_the_documented_modules_methods_have_running_examples():

@@ -118,7 +118,16 @@ class FrictionDynamics:
     def recovery_at_s(self, speed_mm_s: ArrayLike) -> np.ndarray | float:
         """The recovery's time constant (s) at a sliding speed (mm/s; below 2 mm/s as at 2 mm/s), at most 1 s.
 
-        Example: ``FrictionDynamics().recovery_at_s(22.0)`` is 0.07; at 100 mm/s, 0.0328."""
+        Examples
+        --------
+        70 ms at the reference 22 mm/s; at 88 mm/s, 70 ms × (22 / 88)^0.5 = 35 ms; 1 mm/s is taken as 2 mm/s:
+
+        >>> dynamics = FrictionDynamics()
+        >>> [round(float(t), 6) for t in dynamics.recovery_at_s([22.0, 88.0, 1.0])]
+        [0.07, 0.035, 0.232164]
+        >>> round(0.07 * (22 / 2) ** 0.5, 6)
+        0.232164
+        """
         speed = np.maximum(np.asarray(speed_mm_s, dtype=float), SLOWEST_SPEED_MM_S)
         tau = np.minimum(self.recovery_s * (self.reference_speed_mm_s / speed) ** self.speed_exponent, LONGEST_S)
         return float(tau) if tau.ndim == 0 else tau
@@ -144,6 +153,15 @@ class FrictionDynamics:
         -------
         numpy.ndarray
             The felt ratio, one a sample.
+
+        Examples
+        --------
+        Back from 0.2 to 1 at 22 mm/s, sampled at 1 kHz: after one 70 ms recovery time constant, 1 - 0.8 e^-1:
+
+        >>> import math
+        >>> felt = FrictionDynamics().respond(np.ones(70), 1000.0, 22.0, felt=0.2)
+        >>> round(float(felt[-1]), 9) == round(1 - 0.8 * math.exp(-1.0), 9)
+        True
         """
         static = np.ascontiguousarray(static_ratio, dtype=float).reshape(-1)
         if not rate_hz > 0:
@@ -164,7 +182,13 @@ class FrictionDynamics:
         return out
 
     def describe(self) -> str:
-        """One line: the time constants and where they come from."""
+        """One line: the time constants and where they come from.
+
+        Examples
+        --------
+        >>> FrictionDynamics().describe()
+        'onset 5 ms, recovery 70 ms at 22 mm/s (Meyer et al. 2014), x (v_ref/v)^0.5 (assumed): 32.8 ms at 100 mm/s'
+        """
         law = ("assumed" if self.speed_exponent == ASSUMED_SPEED_EXPONENT else "as given")
         published = (self.onset_s, self.recovery_s, self.reference_speed_mm_s) == (ONSET_S, RECOVERY_S,
                                                                                      REFERENCE_SPEED_MM_S)
@@ -174,7 +198,13 @@ class FrictionDynamics:
                 f"{1000 * self.recovery_at_s(100.0):.3g} ms at 100 mm/s")
 
     def parameters(self) -> dict[str, float]:
-        """``onset_s``, ``recovery_s`` (s), ``reference_speed_mm_s`` (mm/s), ``speed_exponent``: for files, JSON."""
+        """``onset_s``, ``recovery_s`` (s), ``reference_speed_mm_s`` (mm/s), ``speed_exponent``: for files, JSON.
+
+        Examples
+        --------
+        >>> FrictionDynamics(onset_s=0.004).parameters()
+        {'onset_s': 0.004, 'recovery_s': 0.07, 'reference_speed_mm_s': 22.0, 'speed_exponent': 0.5}
+        """
         return {"onset_s": self.onset_s, "recovery_s": self.recovery_s,
                 "reference_speed_mm_s": self.reference_speed_mm_s, "speed_exponent": self.speed_exponent}
 
@@ -221,20 +251,51 @@ class DynamicFrictionModel(FrictionModel):
         self.default_floor = static.default_floor
 
     def warm_up(self) -> None:
-        """Load the static model's compiled inverse and the dynamics' kernel before a real-time block needs them."""
+        """Load the static model's compiled inverse and the dynamics' kernel before a real-time block needs them.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> model.warm_up()                      # loads, returns nothing
+        """
         self.static.warm_up()
         kernels.warm_up_dynamics()
 
     def force_law(self) -> str:
-        """The static model's force law (the dynamics add none)."""
+        """The static model's force law (the dynamics add none).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> model.force_law() == model.static.force_law()
+        True
+        """
         return self.static.force_law()
 
     def valid_force_range_n(self) -> tuple[float, float]:
-        """The static model's force range (N)."""
+        """The static model's force range (N).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> model.valid_force_range_n() == model.static.valid_force_range_n()
+        True
+        """
         return self.static.valid_force_range_n()
 
     def relative_friction(self, amplitude_um_pp: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N) -> np.ndarray:
-        """The steady state: the static model's ratio."""
+        """The steady state: the static model's ratio.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> float(model.relative_friction(0.0)), bool(model.relative_friction(3.0) < 1.0)
+        (1.0, True)
+        """
         return self.static.relative_friction(amplitude_um_pp, force_n)
 
     def _amplitude_in_reach(self, ratio, force_n):
@@ -242,27 +303,71 @@ class DynamicFrictionModel(FrictionModel):
 
     def amplitude_um_pp(self, ratio: ArrayLike, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf,
                         out: np.ndarray | None = None) -> Inversion:
-        """The static model's inverse (the amplitude whose settled ratio is the one asked)."""
+        """The static model's inverse (the amplitude whose settled ratio is the one asked).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> amplitude = model.amplitude_um_pp(np.array([0.6]), 0.5).amplitude_um_pp
+        >>> round(float(model.relative_friction(amplitude, 0.5)[0]), 6)    # settled there: the ratio asked
+        0.6
+        """
         return self.static.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
-        """The static model's floor: the lowest steady ratio at this force within the limit (µm p-p)."""
+        """The static model's floor: the lowest steady ratio at this force within the limit (µm p-p).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> float(model.floor_ratio(0.5, 6.0)) == float(model.relative_friction(6.0, 0.5))
+        True
+        """
         return self.static.floor_ratio(force_n, limit_um_pp)
 
     def felt(self, amplitude_um_pp: ArrayLike, rate_hz: float, force_n: ArrayLike = DEFAULT_FORCE_N,
              speed_mm_s: ArrayLike = REFERENCE_SPEED_MM_S, felt: float = 1.0) -> np.ndarray:
         """The friction ratio the finger feels for the plate's amplitude over time (µm p-p, one a sample at
         ``rate_hz``), at a force (N) and a sliding speed (mm/s), one or one a sample; ``felt``: the ratio
-        felt before the first sample."""
+        felt before the first sample.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> import math
+        >>> steady = float(model.relative_friction(4.0, 0.5))
+        >>> felt = model.felt(np.full(5, 4.0), 1000.0)       # 5 ms at 1 kHz: one onset time constant
+        >>> round(float(felt[-1]), 9) == round(steady + (1 - steady) * math.exp(-1.0), 9)
+        True
+        """
         static = self.static.relative_friction(amplitude_um_pp, force_n)
         return self.dynamics.respond(static, rate_hz, speed_mm_s, felt)
 
     def describe(self) -> str:
-        """One line: the static model, then the dynamics in time."""
+        """One line: the static model, then the dynamics in time.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> model.describe() == f"dynamic: {model.static.describe()}; in time: {model.dynamics.describe()}"
+        True
+        """
         return f"dynamic: {self.static.describe()}; in time: {self.dynamics.describe()}"
 
     def parameters(self) -> dict[str, float | str]:
-        """The static model's parameters and the dynamics' (times in s, speeds in mm/s)."""
+        """The static model's parameters and the dynamics' (times in s, speeds in mm/s).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> model = DynamicFrictionModel(StretchedExponentialModel())
+        >>> model.parameters()["onset_s"], model.parameters()["shape"] == model.static.parameters()["shape"]
+        (0.005, True)
+        """
         return {**self.static.parameters(), **self.dynamics.parameters()}
 
     def __repr__(self) -> str:
