@@ -84,9 +84,9 @@ def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
         assert stats["blocks"] >= 900 and stats["watchdog_looks"] >= 100
         assert next_event(plate, ("stats",))["blocks"] >= 1900  # and no reset in between (a boot would say so)
         assert all(e["event"] != "boot" for e in list(plate.events.queue))
-        reply = said_in_hello(plate)  # a host hears that nothing but power brought it up
-        assert reply.features & p.FEATURE_RESET_STATED
-        assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == (p.RESTART_POWER_ON, 0,
+        reply = said_in_hello(plate)  # a host hears that nothing but power brought it up, told from the RAM (bit 0:
+        assert reply.features & p.FEATURE_RESET_STATED  # the board has no reset-cause register; test_restart_reason)
+        assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == (p.RESTART_POWER_ON, 1,
                                                                                        "power-on")
 
 

@@ -356,7 +356,7 @@ def test_the_board_answers_with_the_profile_written_into_it_and_reports_on_time(
                 (100, 250, p.SENSOR_AMPLITUDE, 1000,
                  p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED)
             assert (reply.link_bytes_per_s, reply.q) == (LINK_BYTES_PER_S, 150.0)  # its link, and the plate's Q
-            assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_POWER_ON, 0)  # QEMU started it
+            assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_POWER_ON, 1)  # QEMU started it, RAM said
             assert reply.name == NAME
             assert link.hello(version=2).version == 2  # a v2 host gets v2
             assert link.hello(version=3).version == 3

@@ -3,12 +3,16 @@ restart_detail:u32 after the link's fields, docs/protocol.md): the wire layout p
 stating what its port read at boot (through its host binding), and the host saying a restart in words. A board
 restarting mid-run is tested on the emulated board (tests/test_firmware_faults.py)."""
 
+import shutil
 import struct
 
 import pytest
 from conftest import run_cli, serve_plate
+from qemu_board import next_event, said_in_hello
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
+from ultraglide.devices.firmware.boards import BOARD_INFO, build_images
+from ultraglide.devices.firmware.qemu import QemuPlate
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.sim.lies import Lies
 
@@ -94,3 +98,40 @@ def test_play_says_how_the_board_came_to_be_running_and_does_not_count_it_a_faul
         in result.stdout + result.stderr
     assert "restarted itself" not in result.stdout  # a restart before the run is no fault of the run
     assert result.returncode == 0, (result.stdout, result.stderr)
+
+
+UG_RESET_DETAIL_FROM_RAM = 1  # ports/common/ug_safety.h: told from the RAM kept, no reset-cause register read
+
+
+@pytest.mark.slow
+@pytest.mark.qemu
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None or shutil.which("qemu-system-arm") is None,
+                    reason="needs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm")
+@pytest.mark.parametrize("board", ["netduinoplus2", "mps2-an386"])
+def test_a_board_without_a_reset_cause_register_tells_its_reset_button_from_power_on_by_its_ram(one_qemu, board):
+    """Neither QEMU's model of the AN386 (its SCC and FPGAIO hold no reset cause) nor its STM32F405 (no RCC: RCC_CSR
+    reads 0) has a register that says why the board started, so both QEMU images tell it from their RAM: a mark
+    set at every boot survives a reset that keeps power and not a power-on. A QEMU just started (RAM zero) says
+    power-on; QEMU's ``system_reset`` (the reset button: processor and devices reset, RAM kept, no record of the
+    firmware's) says its reset pin; a fault's own record still wins after it, and the button once more says pin.
+    Each says in its detail (bit 0) that the RAM told it, and a host hears both in the handshake."""
+    image = build_images(board, ["qemu"])[0]
+    with QemuPlate(image.elf_path, machine=BOARD_INFO[board].machine) as plate:
+        boot = next_event(plate, ("boot",))
+        assert (boot["reset_reason"], boot["reset_from"]) == ("power-on", "ram")
+        reply = said_in_hello(plate)
+        assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == \
+            (p.RESTART_POWER_ON, UG_RESET_DETAIL_FROM_RAM, "power-on")
+        for _ in range(2):
+            next_event(plate, ("stats",))  # running: a second of the board's clock
+            plate.press_reset()
+            boot = next_event(plate, ("boot",))
+            assert (boot["reset_reason"], boot["reset_from"]) == ("pin", "ram") and "injected" not in boot
+            reply = said_in_hello(plate)
+            assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == \
+                (p.RESTART_PIN, UG_RESET_DETAIL_FROM_RAM, "its reset pin")
+            next_event(plate, ("stats",))
+            plate.inject_fault("hard-fault")  # the firmware's own record, not the RAM's mark, says a fault
+            boot = next_event(plate, ("boot",))
+            assert (boot["reset_reason"], boot["injected"]) == ("fault", "hard-fault") and "reset_from" not in boot
+            assert said_in_hello(plate).restart_reason == p.RESTART_FAULT

@@ -25,11 +25,13 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import json
 import os
 import queue
 import re
 import shutil
 import signal
+import socket
 import struct
 import subprocess
 import tempfile
@@ -193,6 +195,19 @@ def parse_event(line: str, t_s: float) -> dict | None:
     return event
 
 
+def _qmp_answer(replies, greeting: bool = False) -> dict:
+    """QEMU's next answer on its machine protocol (its greeting, or a command's return), events passed over."""
+    for line in replies:
+        message = json.loads(line)
+        if greeting and "QMP" in message:
+            return message
+        if "error" in message:
+            raise ValueError(message["error"].get("desc", "an error"))
+        if "return" in message:
+            return message
+    raise ValueError("QEMU closed its machine protocol")
+
+
 class QemuPlate:
     """The board image running in QEMU; ``path`` is the link to give ``--device serial:PATH``.
 
@@ -226,6 +241,7 @@ class QemuPlate:
         self._stderr_reader: threading.Thread | None = None
         self._stderr = b""
         self._booted = threading.Event()
+        self._qmp_dir: str | None = None  # QEMU's machine protocol socket: the reset button (press_reset)
 
     def __repr__(self) -> str:
         state = f"pid {self.process.pid}" if self.process and self.process.poll() is None else "stopped"
@@ -234,6 +250,8 @@ class QemuPlate:
     def command(self) -> list[str]:
         command = [QEMU, "-M", self.machine, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
                    "-kernel", self.elf_path]
+        if self._qmp_dir is not None:
+            command += ["-qmp", f"unix:{os.path.join(self._qmp_dir, 'qmp.sock')},server=on,wait=off"]
         if self.icount_shift is not None:
             command += ["-icount", f"shift={self.icount_shift}"]
         elif self.machine in MACHINE_ICOUNT:
@@ -248,6 +266,7 @@ class QemuPlate:
             shutil.copyfile(self.elf_path, copy)
             self.plate.write_into(copy)
             self.elf_path = copy
+        self._qmp_dir = tempfile.mkdtemp(prefix="ultraglide-qmp-")
         self.process = subprocess.Popen(self.command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                         stderr=subprocess.PIPE, preexec_fn=_prepare_child)
         self._started_at = time.perf_counter()
@@ -334,6 +353,25 @@ class QemuPlate:
         except OSError as error:
             raise DeviceError(f"could not reach the board's console: {error.strerror or error}") from error
 
+    def press_reset(self) -> None:
+        """Reset the board as its reset button does: QEMU's ``system_reset`` (over its machine protocol), which
+        resets the processor and every device but keeps the RAM, as a board whose power stays on. The firmware has
+        no say in it, so it leaves no reset record; the next boot line says what the board could tell
+        (``reset_reason`` ``pin``, ``reset_from=ram`` on a board that reads no reset-cause register)."""
+        if self.process is None or self._qmp_dir is None or not self.alive:
+            raise DeviceError("the board is not running: start it before pressing its reset")
+        try:
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as qmp:
+                qmp.settimeout(STOP_TIMEOUT_S)
+                qmp.connect(os.path.join(self._qmp_dir, "qmp.sock"))
+                replies = qmp.makefile("r", encoding="utf-8")
+                _qmp_answer(replies, greeting=True)
+                for command in ("qmp_capabilities", "system_reset"):
+                    qmp.sendall(json.dumps({"execute": command}).encode() + b"\n")
+                    _qmp_answer(replies)
+        except (OSError, ValueError) as error:
+            raise DeviceError(f"could not reset the board through QEMU: {error}") from error
+
     def elapsed_s(self) -> float:
         return time.perf_counter() - self._started_at
 
@@ -361,6 +399,9 @@ class QemuPlate:
                     if stream is not None:
                         stream.close()
         remove_link(self.path, self.pty_name or None)  # only the link it made
+        if self._qmp_dir is not None:
+            shutil.rmtree(self._qmp_dir, ignore_errors=True)
+            self._qmp_dir = None
         if self._claim is not None:
             self._claim.release()
         if self._own_dir is not None:

@@ -316,7 +316,7 @@ void port_configure(ug_config *config, float *um_pp_per_code)
     config->link_bytes_per_s = BOARD_LINK_BYTES_PER_S;
     config->reset_stated = 1u; /* board_init read the reset record: the next HELLO says why this start */
     config->reset_reason = (uint8_t)board_reset_reason();
-    config->reset_detail = board_reset_reason() == UG_RESET_POWER_ON ? 0u : board_reset_record()->detail;
+    config->reset_detail = board_reset_record()->detail; /* 0 after a power-on, unless told from RAM (ug_safety.h) */
 #ifdef UG_BOARD_QEMU
     config->link_bytes_per_s = BOARD_QEMU_LINK_BYTES_PER_S;
     static const char name[] = "ultraglide " BOARD_NAME " (QEMU)";
@@ -376,6 +376,8 @@ static void boot_line(const ug_config *config, int result)
         at = append_pair(at, end, "looks_missed", (record->detail >> 8) & 0xFFu);
         at = append_pair(at, end, "stalls", record->detail >> 16);
         at = append_pair(at, end, "pc", record->where);
+    } else if (record->detail & UG_RESET_DETAIL_FROM_RAM) {
+        at = ug_append_text(at, end, " reset_from=ram");  /* no reset-cause register: the RAM kept or not */
     }
     if (record->injected != 0u) {
         at = ug_append_text(at, end, " injected=");

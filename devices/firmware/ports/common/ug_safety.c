@@ -6,9 +6,13 @@
 
 #ifdef UG_HOST_BUILD
 ug_reset_record_t ug_reset_record; /* the host's tests have no linker section to keep */
+static uint32_t power_mark[2];
 #else
 __attribute__((section(".noinit"))) ug_reset_record_t ug_reset_record;
+__attribute__((section(".noinit"))) static uint32_t power_mark[2];
 #endif
+
+#define UG_POWER_MARK 0x55475057u /* "UGPW" */
 
 static atomic_uint mark_block, mark_main;
 
@@ -61,6 +65,26 @@ uint32_t ug_reset_take(ug_reset_record_t *out)
     r->magic = 0u;
     r->check = 0u;
     r->injected = 0u;
+    return out->reason;
+}
+
+bool ug_reset_power_kept(void)
+{
+    volatile uint32_t *mark = power_mark;
+    bool kept = mark[0] == UG_POWER_MARK && mark[1] == ~UG_POWER_MARK;
+    mark[0] = UG_POWER_MARK;
+    mark[1] = ~UG_POWER_MARK;
+    return kept;
+}
+
+uint32_t ug_reset_take_from_ram(ug_reset_record_t *out)
+{
+    uint32_t reason = ug_reset_take(out);
+    bool kept = ug_reset_power_kept();
+    if (reason == UG_RESET_POWER_ON) {
+        out->reason = kept ? UG_RESET_PIN : UG_RESET_POWER_ON;
+        out->detail = UG_RESET_DETAIL_FROM_RAM;
+    }
     return out->reason;
 }
 

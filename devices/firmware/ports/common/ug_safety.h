@@ -57,6 +57,19 @@ typedef struct ug_reset_record {
 /* The record itself (in .noinit; the port's linker script places the section where start-up leaves it). */
 extern ug_reset_record_t ug_reset_record;
 
+/* Power kept through the reset: a mark in .noinit, set at every boot, that the next boot finds intact only when
+   the RAM kept its contents, i.e. power was never removed. For a board with no reset-cause register (or an
+   emulator that models none): a start with no reset record whose mark is intact was a reset from outside the
+   firmware with power kept (a reset button, a debugger's SYSRESETREQ, a watchdog's own reset); one whose mark is
+   not intact a power-on (a power-on leaves RAM zero under QEMU, random on hardware: the mark and its complement
+   matching by chance is 1 in 2^64). Called once a boot, after ug_reset_take; it re-arms the mark. */
+bool ug_reset_power_kept(void);
+/* restart_detail's bit for a power-on or a pin reset told by ug_reset_power_kept: no register said so, the RAM did */
+#define UG_RESET_DETAIL_FROM_RAM 1u
+/* At boot, for a board that reads no reset-cause register: ug_reset_take's reason when a record was left, else
+   UG_RESET_PIN (power kept) or UG_RESET_POWER_ON, with out->detail UG_RESET_DETAIL_FROM_RAM: what the RAM told. */
+uint32_t ug_reset_take_from_ram(ug_reset_record_t *out);
+
 /* Note why the board is about to reset (the fault path: no stack beyond a few words, no wait). */
 void ug_reset_note(uint32_t reason, uint32_t detail, uint32_t silent_after_us);
 /* Note an injected fault about to happen, at the board's clock `at`. */

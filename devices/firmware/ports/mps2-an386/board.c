@@ -500,7 +500,8 @@ static void stack_guard_init(void)
 void board_init(void)
 {
     board_output_safe();
-    reset_reason = ug_reset_take(&reset_record);
+    /* neither the AN386's SCC and FPGAIO nor QEMU's model of them hold a reset cause: the record, else the RAM */
+    reset_reason = ug_reset_take_from_ram(&reset_record);
     stack_guard_init();
     console_init();
     link_init();

@@ -373,8 +373,11 @@ const ug_reset_record_t *board_reset_record(void)
 
 static void reset_reason_read(void)
 {
+#ifdef UG_BOARD_QEMU
+    /* QEMU's STM32F405 models no RCC (RCC_CSR reads 0): the record, else the RAM (ug_safety.h) */
+    reset_reason = ug_reset_take_from_ram(&reset_record);
+#else
     reset_reason = ug_reset_take(&reset_record);
-#ifndef UG_BOARD_QEMU
     /* the hardware's own flags decide where no record was left (the IWDG resets without warning) */
     uint32_t flags = RCC_CSR;
     RCC_CSR = flags | RCC_CSR_RMVF;
