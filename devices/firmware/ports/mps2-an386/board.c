@@ -5,6 +5,7 @@
 #include "board.h"
 
 #include "cmsdk.h"
+#include "cortex_m.h"
 #include "emulated_plate.h"
 #include "uart_ring.h"
 
@@ -20,8 +21,6 @@ static board_block_fn carrier_block;
 static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES] __attribute__((aligned(8)));  /* board_dac_blank: double words */
 static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
 static volatile uint32_t late_blocks;
-static uint32_t reset_reason;
-static ug_reset_record_t reset_record;
 static ug_emulated_plate_t plate;
 static uint32_t block_ticks;  /* the board's clock when the next block is due */
 static uint32_t next_half;
@@ -29,10 +28,6 @@ static volatile uint32_t skipped_ms;
 static volatile uint32_t injected;
 static char command[32];
 static uint32_t command_length;
-/* The fault path's marks, written by the fault handlers' assembly (startup.c) before any C: the emulated DAC
-   stopped (the emulated plate hears mid-scale from then on) and the clock when it was. */
-volatile uint32_t board_dac_stopped;
-volatile uint32_t board_silent_at;
 
 static void irq_enable(uint32_t irq, uint8_t priority)
 {
@@ -244,44 +239,6 @@ uint32_t board_dac_underruns(void)
     return 0u;  /* no DAC on this board: the emulated plate is fed each block by the block interrupt itself */
 }
 
-/* ---- resets ---------------------------------------------------------------------------------------------- */
-static uint32_t silent_after_us(void)
-{
-    if (ug_reset_record.injected == 0u) {
-        return UG_NOT_INJECTED;
-    }
-    return (board_silent_at - ug_reset_record.fault_at) / BOARD_TICKS_PER_US;  /* both in ticks */
-}
-
-void board_reset(uint32_t reason, uint32_t detail)
-{
-    __asm__ volatile("cpsid i" ::: "memory");
-    if (!board_dac_stopped) {
-        board_output_off();
-    }
-    ug_reset_note(reason, detail, silent_after_us());
-    __asm__ volatile("dsb" ::: "memory");
-    SCB_AIRCR = SCB_AIRCR_VECTKEY | SCB_AIRCR_SYSRESETREQ;
-    __asm__ volatile("dsb" ::: "memory");
-    for (;;) {
-        __asm__ volatile("nop");  /* the reset comes within a few cycles */
-    }
-}
-
-void board_fault_reset(void)
-{
-    board_reset(UG_RESET_FAULT, SCB_CFSR);
-}
-
-uint32_t board_reset_reason(void)
-{
-    return reset_reason;
-}
-
-const ug_reset_record_t *board_reset_record(void)
-{
-    return &reset_record;
-}
 
 /* ---- the CMSDK watchdog ----------------------------------------------------------------------------------- */
 static uint32_t watchdog_refreshed_at, watchdog_warm;
@@ -501,7 +458,7 @@ void board_init(void)
 {
     board_output_safe();
     /* neither the AN386's SCC and FPGAIO nor QEMU's model of them hold a reset cause: the record, else the RAM */
-    reset_reason = ug_reset_take_from_ram(&reset_record);
+    (void)cortex_m_reset_read(1);
     stack_guard_init();
     console_init();
     link_init();

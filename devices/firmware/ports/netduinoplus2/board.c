@@ -1,4 +1,5 @@
 #include "board.h"
+#include "cortex_m.h"
 
 #include "emulated_plate.h"
 #include "iwdg.h"
@@ -20,12 +21,6 @@ static board_lost_fn carrier_lost;
 static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES] __attribute__((aligned(8)));  /* circular: the DMA plays one half while we fill the other */
 static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
 static volatile uint32_t late_blocks, dma_errors, dac_underruns;
-static uint32_t reset_reason;
-static ug_reset_record_t reset_record;
-/* The fault path's marks, written by the fault handlers' assembly (startup.c) before any C: the emulated DAC
-   stopped (QEMU: the emulated plate hears mid-scale from then on) and the clock when it was. */
-volatile uint32_t board_dac_stopped;
-volatile uint32_t board_silent_at;
 
 static void irq_enable(uint32_t irq, uint8_t priority)
 {
@@ -333,59 +328,22 @@ void board_output_off(void)
     board_output_safe();
 }
 
-static uint32_t silent_after_us(void)
-{
-    if (ug_reset_record.injected == 0u) {
-        return UG_NOT_INJECTED;
-    }
-    return (board_silent_at - ug_reset_record.fault_at) / 1000u;  /* both in ns (QEMU) */
-}
-
-void board_reset(uint32_t reason, uint32_t detail)
-{
-    __asm__ volatile("cpsid i" ::: "memory");
-    if (!board_dac_stopped) {
-        board_output_off();
-    }
-    ug_reset_note(reason, detail, silent_after_us());
-    __asm__ volatile("dsb" ::: "memory");
-    SCB_AIRCR = SCB_AIRCR_VECTKEY | SCB_AIRCR_SYSRESETREQ;
-    __asm__ volatile("dsb" ::: "memory");
-    for (;;) {
-        __asm__ volatile("nop");  /* the reset comes within a few cycles */
-    }
-}
-
-void board_fault_reset(void)
-{
-    board_reset(UG_RESET_FAULT, SCB_CFSR);
-}
-
-uint32_t board_reset_reason(void)
-{
-    return reset_reason;
-}
-
-const ug_reset_record_t *board_reset_record(void)
-{
-    return &reset_record;
-}
 
 static void reset_reason_read(void)
 {
 #ifdef UG_BOARD_QEMU
     /* QEMU's STM32F405 models no RCC (RCC_CSR reads 0): the record, else the RAM (ug_safety.h) */
-    reset_reason = ug_reset_take_from_ram(&reset_record);
+    (void)cortex_m_reset_read(1);
 #else
-    reset_reason = ug_reset_take(&reset_record);
+    uint32_t reset_reason = cortex_m_reset_read(0);
     /* the hardware's own flags decide where no record was left (the IWDG resets without warning) */
     uint32_t flags = RCC_CSR;
     RCC_CSR = flags | RCC_CSR_RMVF;
     if (reset_reason == UG_RESET_POWER_ON) {
         if (flags & (RCC_CSR_IWDGRSTF | RCC_CSR_WWDGRSTF)) {
-            reset_reason = UG_RESET_WATCHDOG;
+            cortex_m_reset_reason_set(UG_RESET_WATCHDOG);
         } else if ((flags & RCC_CSR_PINRSTF) && !(flags & RCC_CSR_PORRSTF)) {
-            reset_reason = UG_RESET_PIN;
+            cortex_m_reset_reason_set(UG_RESET_PIN);
         }
     }
 #endif

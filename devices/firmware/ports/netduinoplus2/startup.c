@@ -4,10 +4,11 @@
  */
 #include <stdint.h>
 
+#include "cortex_m.h"
+
 #include "stm32f405.h"
 
-extern uint32_t _data_load, _data_start, _data_end, _bss_start, _bss_end, _stack_top;
-extern int main(void);
+extern uint32_t _stack_top;
 
 void Reset_Handler(void);
 void Default_Handler(void);
@@ -51,20 +52,7 @@ static const vector_t vector_table[VECTORS] = {
 void Reset_Handler(void)
 {
     __asm__ volatile("ldr sp, =_stack_top");  /* as the vector table says; a debugger's reset may not load it */
-    uint32_t *from = &_data_load;
-    for (uint32_t *to = &_data_start; to < &_data_end;) {
-        *to++ = *from++;
-    }
-    for (uint32_t *to = &_bss_start; to < &_bss_end;) {
-        *to++ = 0u;
-    }
-    SCB_CPACR |= (0xFu << 20);  /* CP10 and CP11 full access: the FPU, before any float instruction */
-    __asm__ volatile("dsb\n\tisb" ::: "memory");
-    SCB_VTOR = (uint32_t)(uintptr_t)vector_table;
-    (void)main();
-    for (;;) {
-        __asm__ volatile("wfi");
-    }
+    cortex_m_start(vector_table);  /* ports/common/cortex_m.c: .data, .bss, the FPU, the vector table, main */
 }
 
 /* An unexpected interrupt or a fault: the plate must not be left driven. Before any C (whose stack may be what
