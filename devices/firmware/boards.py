@@ -49,7 +49,7 @@ BOARD_INFO = {
     "netduinoplus2": Board("netduinoplus2", "netduinoplus2", ("hardware", "qemu", "bench"), ("hardware", "qemu"),
                            (0x0800_0000, 0x0810_0000), (0x2000_0000, 0x2002_0000)),
     # the AN386's SSRAM: 4 MiB at 0 holds the code, 4 MiB at 0x20000000 the data; QEMU's model only (no DAC, ADC)
-    "mps2-an386": Board("mps2-an386", "mps2-an386", ("qemu",), ("qemu",),
+    "mps2-an386": Board("mps2-an386", "mps2-an386", ("qemu", "bench"), ("qemu",),
                         (0x0000_0000, 0x0040_0000), (0x2000_0000, 0x2040_0000)),
 }
 BOARDS = tuple(BOARD_INFO)

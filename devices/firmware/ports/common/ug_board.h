@@ -96,8 +96,10 @@ uint32_t board_dac_underruns(void);
 /* The board's clock for fault timing: microseconds (QEMU: TIM5's virtual nanoseconds / 1000). */
 uint32_t board_time_us(void);
 #ifdef UG_BOARD_BENCH
-/* TIM5's count: instructions under the budget run's -icount shift=0. */
+/* The budget image's clock (bench.c): under -icount shift=0, BOARD_BENCH_PER_COUNT instructions a count (board.h). */
 uint32_t board_bench_clock(void);
+/* Before the budget image measures: every interrupt that would be counted into its figures off, its clock running. */
+void board_bench_start(void);
 #endif
 
 #ifdef UG_BOARD_QEMU

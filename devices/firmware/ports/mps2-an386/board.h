@@ -26,6 +26,8 @@
 #define BOARD_WATCHDOG_NAME "cmsdk" /* the CMSDK APB watchdog, its first expiry an NMI */
 #define BOARD_CORE_HZ 25000000u    /* the AN386's system clock, PCLK too (QEMU's SYSCLK_FRQ) */
 #define BOARD_TICKS_PER_US (BOARD_CORE_HZ / 1000000u)
+#define BOARD_BENCH_PER_COUNT (1000000000u / BOARD_CORE_HZ) /* the budget image's clock, TIMER1's PCLK under -icount
+                                                        shift=0 (1 ns an instruction): 40 instructions a count */
 #define BOARD_CLOCK_PER_US BOARD_TICKS_PER_US /* the fault path's clock (board_silent_at): TIMER1's ticks */
 #define BOARD_BAUD 921600u         /* the host's default (docs/protocol.md) */
 #define BOARD_CONSOLE_BAUD 115200u

@@ -295,6 +295,15 @@ uint32_t board_bench_clock(void)
 {
     return TIM_CNT(TIM5_BASE);
 }
+
+void board_bench_start(void)
+{
+    SYST_CSR = 0u;  /* no interrupt counted into the figures */
+    RCC_APB1ENR |= RCC_APB1ENR_TIM5EN;
+    TIM_PSC(TIM5_BASE) = 0u;
+    TIM_ARR(TIM5_BASE) = 0xFFFFFFFFu;
+    TIM_CR1(TIM5_BASE) = TIM_CR1_CEN;
+}
 #endif
 
 uint32_t board_time_us(void)

@@ -40,6 +40,7 @@
 #else
 #define BOARD_WATCHDOG_NAME "iwdg"
 #endif
+#define BOARD_BENCH_PER_COUNT 1u   /* the budget image's clock, TIM5 under -icount shift=0: one instruction a count */
 #define BOARD_CLOCK_PER_US 1000u   /* the fault path's clock (board_silent_at): ns (TIM5 under QEMU) */
 #define BOARD_CORE_HZ 168000000u   /* the STM32F405 at full speed; QEMU's netduinoplus2 fixes this clock */
 #define BOARD_APB1_HZ 42000000u    /* HCLK / 4: USART2 */
