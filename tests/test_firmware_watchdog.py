@@ -135,6 +135,28 @@ def test_a_record_that_did_not_survive_reads_as_a_power_on(lib):
     assert lib.ug_reset_take(ctypes.byref(out)) == 0
 
 
+def test_a_board_without_a_reset_cause_register_tells_a_reset_with_power_kept_by_its_ram(lib, tmp_path):
+    """ug_reset_take_from_ram on a fresh copy of the library (its RAM zero, as QEMU's at power-on): a power-on, then
+    a reset that kept the RAM (reason 4, the pin), each with detail bit 0 (told from RAM); a record of the firmware's
+    own wins over the mark; the mark's words disturbed (RAM after a power cut) read as a power-on again."""
+    copy = tmp_path / "fresh.so"
+    shutil.copyfile(lib._name, copy)
+    fresh = ctypes.CDLL(str(copy))  # another path: a second instance with its own zeroed statics
+    fresh.ug_reset_take_from_ram.restype, fresh.ug_reset_take_from_ram.argtypes = ctypes.c_uint32, [
+        ctypes.POINTER(Record)]
+    fresh.ug_reset_note.argtypes = [ctypes.c_uint32] * 3
+    out = Record()
+    assert fresh.ug_reset_take_from_ram(ctypes.byref(out)) == 0 and (out.reason, out.detail) == (0, 1)  # power-on
+    assert fresh.ug_reset_take_from_ram(ctypes.byref(out)) == 4 and (out.reason, out.detail) == (4, 1)  # power kept
+    fresh.ug_reset_note(2, 0x8200, 0)  # a fault handler's reset: its record, not the RAM's mark
+    assert fresh.ug_reset_take_from_ram(ctypes.byref(out)) == 2 and out.detail == 0x8200
+    assert fresh.ug_reset_take_from_ram(ctypes.byref(out)) == 4  # and the next reset by the button is the pin again
+    mark = (ctypes.c_uint32 * 2).in_dll(fresh, "ug_power_mark")
+    assert (mark[0], mark[1]) == (0x55475057, 0xAAB8AFA8)  # "UGPW" and its complement, armed for the next boot
+    mark[1] ^= 1 << 7  # one bit of RAM changed while the power was off
+    assert fresh.ug_reset_take_from_ram(ctypes.byref(out)) == 0 and out.detail == 1
+
+
 @pytest.mark.parametrize(("line", "kind"), [
     (b"fault isr-hang", 1), (b"fault main-hang\n", 2), (b"fault stack-overflow\r\n", 3), (b"fault hard-fault", 4),
     (b"fault isr-hangs", 0), (b"fault", 0), (b"faults isr-hang", 0), (b"", 0), (b"fault nothing", 0),

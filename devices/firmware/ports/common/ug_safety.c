@@ -6,10 +6,10 @@
 
 #ifdef UG_HOST_BUILD
 ug_reset_record_t ug_reset_record; /* the host's tests have no linker section to keep */
-static uint32_t power_mark[2];
+uint32_t ug_power_mark[2];
 #else
 __attribute__((section(".noinit"))) ug_reset_record_t ug_reset_record;
-__attribute__((section(".noinit"))) static uint32_t power_mark[2];
+__attribute__((section(".noinit"))) uint32_t ug_power_mark[2];
 #endif
 
 #define UG_POWER_MARK 0x55475057u /* "UGPW" */
@@ -70,7 +70,7 @@ uint32_t ug_reset_take(ug_reset_record_t *out)
 
 bool ug_reset_power_kept(void)
 {
-    volatile uint32_t *mark = power_mark;
+    volatile uint32_t *mark = ug_power_mark;
     bool kept = mark[0] == UG_POWER_MARK && mark[1] == ~UG_POWER_MARK;
     mark[0] = UG_POWER_MARK;
     mark[1] = ~UG_POWER_MARK;

@@ -64,6 +64,7 @@ extern ug_reset_record_t ug_reset_record;
    not intact a power-on (a power-on leaves RAM zero under QEMU, random on hardware: the mark and its complement
    matching by chance is 1 in 2^64). Called once a boot, after ug_reset_take; it re-arms the mark. */
 bool ug_reset_power_kept(void);
+extern uint32_t ug_power_mark[2]; /* the mark and its complement (.noinit) */
 /* restart_detail's bit for a power-on or a pin reset told by ug_reset_power_kept: no register said so, the RAM did */
 #define UG_RESET_DETAIL_FROM_RAM 1u
 /* At boot, for a board that reads no reset-cause register: ug_reset_take's reason when a record was left, else
