@@ -591,7 +591,12 @@ class ServedBoard:
         self.seen: collections.Counter = collections.Counter()  # the events read so far, by name
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
-        self.serving = self.next("serving")
+        try:
+            self.serving = self.next("serving")
+        except BaseException:  # not served in time: the command and its QEMU go, not left running past the test
+            self.process.kill()
+            self.process.wait(timeout=60)
+            raise
         self.url = f"serial:{self.serving['path']}"  # no options: the link decides the stream
 
     def _read(self) -> None:
