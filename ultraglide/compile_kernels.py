@@ -14,6 +14,7 @@ import time
 
 # every module of ours that defines a compiled kernel (tests/test_compile_kernels.py checks the sources for others)
 KERNEL_MODULES = ("ultraglide.render.kernels", "ultraglide.render.physics.kernels", "ultraglide.render.effects",
+                  "ultraglide.render.physics.dynamics_fit",
                   "ultraglide.devices.output.kernels", "ultraglide.devices.sim.force_sensors",
                   "ultraglide.devices.sim.kernels", "ultraglide.textures.kernels",
                   "ultraglide.textures.formats.kernels")
@@ -28,6 +29,7 @@ def compile_all() -> int:
     from ultraglide.devices.sim import kernels as sim_kernels
     from ultraglide.render import effects
     from ultraglide.render import kernels as render_kernels
+    from ultraglide.render.physics import dynamics_fit
     from ultraglide.render.physics import kernels as physics_kernels
     from ultraglide.textures import kernels as texture_kernels
     from ultraglide.textures.formats import kernels as format_kernels
@@ -38,6 +40,7 @@ def compile_all() -> int:
     force_sensors.low_pass(np.zeros((2, 4)), 0.5, np.zeros(2))
     sim_kernels.friction_lag(np.ones(2), np.ones(2), np.ones(2), 0.05, 48000.0, 0.005, 0.07, 22.0, 0.5, 2.0, 1.0,
                              np.empty(2))  # the simulated finger's lag, typed as devices/sim/finger.py calls it
+    dynamics_fit._lag_courses(np.ones(8), np.full(2, 0.5), 8, np.empty((2, 1)))  # calibrate's edge fit
     return len(kernels())
 
 
