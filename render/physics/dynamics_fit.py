@@ -60,6 +60,8 @@ sensors' bandwidth and delay, the sliding speed and the participant.
 from __future__ import annotations
 
 import math
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -308,7 +310,9 @@ def is_recording(path: str | Path) -> bool:
     >>> is_recording(path), is_recording(path.with_name("missing.csv"))
     (True, False)
     """
-    try:
+    try:  # only a regular file is looked into: a named pipe would wait for a writer (the reader refuses it)
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return False
         with open(path, "rb") as handle:
             return handle.read(40).startswith(b"# ultraglide_recording")
     except OSError:
