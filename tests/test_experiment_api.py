@@ -26,7 +26,8 @@ from ultraglide.experiment import psychometric as pf
                                   "ultraglide.experiment.analysis", "ultraglide.experiment.columns",
                                   "ultraglide.experiment.check", "ultraglide.experiment.runner"])
 def test_the_docstring_examples_run(name):
-    failures, attempted = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
+    failures, attempted = doctest.testmod(importlib.import_module(name),
+                                          optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     assert attempted > 0 and failures == 0
 
 

@@ -358,6 +358,8 @@ RANGES = {
     # on-plate calibration
     "--forces": (0.05, 10, False, False, False), "--passes": (1, 10, False, True, False),
     "--step-ms": (100, 5000, False, False, False),
+    "--sensor-bandwidth-hz": (0, 20_000, False, False, False), "--sensor-delay-ms": (0, 100, False, False, False),
+    "--slide-speed-mm-s": (1, 2000, False, False, False),
     # the service and the formats
     "--port": (0, 65535, False, True, False), "--view-mm": (1, 2000, False, False, False),
     "--reconnect-timeout-s": (0.1, 86_400, False, False, False),

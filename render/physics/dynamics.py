@@ -186,8 +186,13 @@ class FrictionDynamics:
 
         Examples
         --------
-        >>> FrictionDynamics().describe()
-        'onset 5 ms, recovery 70 ms at 22 mm/s (Meyer et al. 2014), x (v_ref/v)^0.5 (assumed): 32.8 ms at 100 mm/s'
+        Given time constants (not the published ones, so no source is named), the recovery at 100 mm/s is
+        50 ms × (22 / 100)^0.5:
+
+        >>> FrictionDynamics(onset_s=0.004, recovery_s=0.05).describe()
+        'onset 4 ms, recovery 50 ms at 22 mm/s, x (v_ref/v)^0.5 (assumed): 23.5 ms at 100 mm/s'
+        >>> round(50 * (22 / 100) ** 0.5, 1)
+        23.5
         """
         law = ("assumed" if self.speed_exponent == ASSUMED_SPEED_EXPONENT else "as given")
         published = (self.onset_s, self.recovery_s, self.reference_speed_mm_s) == (ONSET_S, RECOVERY_S,
