@@ -12,7 +12,7 @@ from conftest import assert_one_line_error, run_cli, start_cli
 from service_run import flat_png, read_envelope, read_line, running_service, stop
 from ultraglide.textures import effects
 
-from ultraglide.client import Client
+from ultraglide.client import Client, ServiceError
 
 
 def test_mistakes_are_one_line_before_anything_starts(tmp_path):
@@ -54,7 +54,11 @@ def test_a_unix_socket_serves_and_is_removed_at_the_end(tmp_path):
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
-def test_a_stop_signal_with_a_finger_down_leaves_the_plate_at_rest(tmp_path, signum):
+@pytest.mark.parametrize("round_", range(3))
+def test_a_stop_signal_with_a_finger_down_leaves_the_plate_at_rest(tmp_path, signum, round_):
+    """The signal comes while the client sends touches as fast as it can (the loop is then mostly inside the
+    WebSocket library's reading): raised there, it once broke the library's reader and the loop's shutdown printed a
+    traceback, in one stop out of five."""
     envelope_csv = tmp_path / "envelope.csv"
     with running_service("--port", "0", "--envelope-csv", envelope_csv) as (process, address):
         with Client(address["url"]) as plate:
@@ -63,13 +67,20 @@ def test_a_stop_signal_with_a_finger_down_leaves_the_plate_at_rest(tmp_path, sig
             plate.place_sprite("a", "slip", 0, 0, 100, 50)
             plate.wait_rendered()
             plate.touch(50, 25, "down")
-            for _ in range(30):
-                time.sleep(0.01)
-                plate.touch(50, 25, "move")
-            process.send_signal(signum)
+            sent = 0
+            deadline = time.monotonic() + 120
+            while process.poll() is None:
+                assert time.monotonic() < deadline, "the service did not stop"
+                try:
+                    plate.touch(50, 25, "move")
+                except ServiceError:
+                    break  # the service has closed the connection: it is stopping
+                sent += 1
+                if sent == 40 + 25 * round_:
+                    process.send_signal(signum)
             assert process.wait(60) == 128 + signum
         out, err = process.stdout.read(), process.stderr.read()
-    assert f"stopped ({signal.Signals(signum).name})" in err and "Traceback" not in err
+    assert f"stopped ({signal.Signals(signum).name})" in err and "Traceback" not in err, err
     final = __import__("json").loads(out.strip().splitlines()[-1])
     # no fault of the plate's; an underrun or overrun (a loaded machine's, said in words) is not one
     faults = {name: count for name, count in final["faults"].items() if name not in ("underrun", "overrun")}

@@ -152,6 +152,16 @@ class StopSignals:
         self._previous.clear()
 
 
+def stop_requested() -> bool:
+    """Whether a stop signal has come to this command (held back, for instance, by a :func:`held` block around an
+    event loop, which polls this and ends its service on its own: a ``KeyboardInterrupt`` raised wherever the signal
+    found the loop's thread can land inside a library's coroutine and leave it broken). False outside ``main``."""
+    with contextlib.suppress(ValueError):
+        handler = signal.getsignal(signal.SIGTERM)
+        return isinstance(handler, StopSignals) and handler.received is not None
+    return False
+
+
 def held() -> contextlib.AbstractContextManager:
     """A block that a stop signal does not interrupt: one arriving inside is raised as the block ends.
 

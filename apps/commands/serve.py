@@ -14,7 +14,7 @@ import stat
 import sys
 
 from ultraglide.apps.cli.options import MODEL_HELP, output_option
-from ultraglide.apps.cli.signals import held
+from ultraglide.apps.cli.signals import held, stop_requested
 from ultraglide.apps.cli.types import FORCE_N, Bounded
 from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
 
@@ -153,7 +153,12 @@ def _open_panel(args, rig):
 
 
 def _serve(service, args, feed=None) -> str | None:
-    """Listen until a stop signal (raised as KeyboardInterrupt through the loop) or the engine's end."""
+    """Listen until a stop signal or the engine's end.
+
+    The loop runs inside :func:`held`: a stop signal is noted, and the loop, which looks for it every
+    ``POLL_S``, closes its connections and ends; the signal is then raised here, as the block ends. Raised
+    wherever it found the loop's thread, it once landed in websockets' reading of a message and the loop's
+    shutdown printed a traceback ("aclose(): asynchronous generator is already running")."""
     import asyncio
     import threading
 
@@ -213,7 +218,9 @@ def _serve(service, args, feed=None) -> str | None:
                 while service.engine.alive:
                     if feed is not None and feed.gone:
                         return feed.gone
-                    await asyncio.sleep(0.05 if feed is not None else 0.2)
+                    if stop_requested():
+                        return None
+                    await asyncio.sleep(POLL_S)
                 return "the engine ended unexpectedly"
             finally:
                 if feed is not None:
@@ -222,18 +229,20 @@ def _serve(service, args, feed=None) -> str | None:
                 for session in list(service.sessions):
                     service._leave(session)
 
-    return run_loop_bounded(main())
+    with held():
+        return run_loop_bounded(main())
 
 
+POLL_S = 0.05  # how often the service looks at its engine, its touch panel and for a stop signal
 SHUTDOWN_S = 10.0  # what the loop's tasks get to end once stopped; then the loop is closed whatever is left
 
 
 def run_loop_bounded(coroutine):
-    """``asyncio.run(coroutine)``, but a stop (Ctrl-C or SIGTERM raised as KeyboardInterrupt through the loop) gives
-    the loop's tasks :data:`SHUTDOWN_S` to end after they are cancelled, where ``asyncio.run`` waits for them for
-    ever: a service stopped with a client connected once did not end within 60 s, its main thread in
-    ``asyncio.run``'s cancellation of the tasks left (a connection's task that never finished). The plate is brought
-    to rest after this returns or raises, by the command."""
+    """``asyncio.run(coroutine)``, but a stop (the coroutine's end, or a KeyboardInterrupt raised through the loop
+    where no :func:`held` block holds it back) gives the loop's tasks :data:`SHUTDOWN_S` to end after they are
+    cancelled, where ``asyncio.run`` waits for them for ever: a service stopped with a client connected once did
+    not end within 60 s, its main thread in ``asyncio.run``'s cancellation of the tasks left (a connection's task
+    that never finished). The plate is brought to rest after this returns or raises, by the command."""
     import asyncio
     import contextlib
 
