@@ -128,6 +128,16 @@ class Tour:
             raise AssertionError(f"xdotool key {key}: {pressed.stderr.strip()}")
         return pressed.returncode == 0
 
+    def stuck(self, session: Command, rows: int, missed: int) -> str:
+        """What a session that never ended was doing: its output, its trial log's length, the keys lost, the X focus
+        and every thread's stack (once in CI a yes/no session ran 600 s with no word: none of these was known)."""
+        from service_run import where_it_waits
+
+        focus = subprocess.run(["xdotool", "getwindowfocus", "getwindowname"], env=self.env, capture_output=True,
+                               text=True, timeout=60)
+        return (f"{session.said()}\n{rows} lines in trials.csv; {missed} key presses could not reach the screen; "
+                f"focus: {(focus.stdout + focus.stderr).strip()}\n{where_it_waits(session.process.pid)}")
+
     def run(self, line: str) -> None:
         words = shlex.split(line, comments=True)
         if words == ["kill", "%1"]:
@@ -200,8 +210,8 @@ class Tour:
         try:
             deadline = time.monotonic() + DEADLINE_S
             while session.process.poll() is None:
-                assert time.monotonic() < deadline, session.said()
                 rows = trials.read_text().count("\n") if trials.exists() else 0
+                assert time.monotonic() < deadline, self.stuck(session, rows, missed)
                 missed += not self.key_press(key)
                 step = time.monotonic() + 0.06  # then again: the window may not have shown the trial yet (a key
                 # too many is dropped when the next trial clears the window's events, or answers it: all the same)
