@@ -5,13 +5,20 @@ or freezes, nothing in it can rest the hardware any more; the app that started i
 :mod:`ultraglide.render.engine.supervisor`) makes the device safe from outside, once the process is gone:
 
 * a plate on a serial link gets ENABLE 0 (:func:`disable_serial_plate`): the port, which the dead process held
-  exclusively, is opened again and the disable frame of docs/protocol.md sent, its ACK awaited briefly;
+  exclusively, is opened again and the disable frame of docs/protocol.md sent, its ACK awaited briefly. A
+  frozen process still holds its port: its open file is borrowed before it is killed (:func:`borrow_port`,
+  Linux's ``pidfd_getfd``), and ENABLE 0 goes out on it at once (:class:`BorrowedPort`) instead of after the
+  killed process's memory is torn down and its files closed (15-60 ms);
 * a WAV recording left as its hidden temporary file is finished (:func:`finish_recording`): its header made to
   say how many samples it holds, and renamed into place, as a recording stopped by a signal is kept;
 * a CSV log left as ``FILE.part`` is finished the same way (:func:`finish_log`): cut after its last whole row.
 
 Each returns a sentence for the run's report. None raises: the hardware's rest is best effort on the way out,
 and what failed is said.
+
+The disable is sent after a 0x00: the lost process may have been cut off in the middle of a frame, and the
+plate's decoder would otherwise take that frame's first half and the disable as one frame, fail its CRC and
+drop both (docs/protocol.md: a run of 0x00 is idle line).
 
 Example::
 
@@ -21,19 +28,48 @@ Example::
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import re
+import select
 import stat
 import struct
+import termios
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 
 ACK_WAIT_S = 0.25  # how long the disable's ACK is waited for (the device answers within ACK_DEADLINE_MS = 50 ms)
+DISABLE_SEQ = 0xFFF0  # the disable's sequence number (any: the ACK names it back)
+WRITE_WAIT_S = 0.2  # the longest wait for the port to take the disable frame
+SYS_PIDFD_GETFD = 438  # pidfd_getfd(2)'s number, the same on every Linux architecture (since 5.6)
 _RIFF = struct.Struct("<4sI4s")
 _CHUNK = struct.Struct("<4sI")
+
+
+def disable_frame() -> bytes:
+    """The bytes that disable a plate whatever its decoder holds: a 0x00 (ending any frame the lost process left
+    half-written, which the plate then drops as one framing error) and ENABLE 0 (docs/protocol.md, Enable).
+
+    Returns
+    -------
+    bytes
+        0x00, then the encoded ENABLE 0 frame with its own 0x00 terminator.
+
+    Examples
+    --------
+    >>> from ultraglide.devices import protocol as p
+    >>> frame = disable_frame()
+    >>> frame[:1], frame[-1:]
+    (b'\\x00', b'\\x00')
+    >>> decoded = p.FrameDecoder().feed(b"\\x05half" + frame)   # half a frame before it: the disable still decodes
+    >>> [(f.kind == p.ENABLE, f.payload == p.enable_payload(False)) for f in decoded]
+    [(True, True)]
+    """
+    return b"\x00" + p.encode_frame(p.ENABLE, DISABLE_SEQ, p.enable_payload(False))
 
 
 def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -> str:
@@ -54,31 +90,28 @@ def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -
     -------
     str
         ``"ENABLE 0 acknowledged by the plate 4 ms after"``, or what went wrong.
+
+    Examples
+    --------
+    Nothing at the path: said, not raised.
+
+    >>> disable_serial_plate("/nonexistent/ttyACM9", 921600).startswith("the plate could not be disabled")
+    True
     """
     from ultraglide.devices.serial.link import open_port
 
     sent_s = None
     try:
-        link = open_port(port, baud, write_timeout_s=0.2)
+        link = open_port(port, baud, write_timeout_s=WRITE_WAIT_S)
     except DeviceError as error:
         return f"the plate could not be disabled ({error}); its own watchdog rests it"
     try:
-        seq = 0xFFF0  # any sequence number: the ACK names it back
         link.reset_input_buffer()
-        link.write(p.encode_frame(p.ENABLE, seq, p.enable_payload(False)))
+        link.write(disable_frame())
         link.flush()
         sent_s = time.perf_counter()
-        decoder = p.FrameDecoder()
-        deadline = sent_s + wait_ack_s
         link.timeout = 0.01
-        while time.perf_counter() < deadline:
-            for frame in decoder.feed(link.read(256)):
-                if frame.kind == p.ACK and _acked(frame.payload) == seq:
-                    after_ms = 1000 * (time.perf_counter() - sent_s)
-                    return f"ENABLE 0 sent and acknowledged by the plate {after_ms:.0f} ms after"
-                if frame.kind == p.NAK:
-                    return "ENABLE 0 sent; the plate refused it (NAK): its own watchdog rests it"
-        return f"ENABLE 0 sent; no acknowledgement within {1000 * wait_ack_s:.0f} ms"
+        return "ENABLE 0 sent" + _awaited_ack(lambda: link.read(256), sent_s, wait_ack_s)
     except Exception as error:  # noqa: BLE001 - pyserial's errors are many; the words matter, not the type
         if sent_s is not None:
             return f"ENABLE 0 sent; then the port failed ({error})"
@@ -86,6 +119,152 @@ def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -
     finally:
         with contextlib.suppress(Exception):
             link.close()
+
+
+def _awaited_ack(read: Callable[[], bytes], sent_s: float, wait_ack_s: float) -> str:
+    """The end of the disable's sentence: the plate's ACK of it (or NAK) read with ``read`` (a few ms a call) until
+    ``wait_ack_s`` after ``sent_s``."""
+    decoder = p.FrameDecoder()
+    deadline = sent_s + wait_ack_s
+    while time.perf_counter() < deadline:
+        for frame in decoder.feed(read()):
+            if frame.kind == p.ACK and _acked(frame.payload) == DISABLE_SEQ:
+                return f" and acknowledged by the plate {1000 * (time.perf_counter() - sent_s):.0f} ms after"
+            if frame.kind == p.NAK:
+                return "; the plate refused it (NAK): its own watchdog rests it"
+    return f"; no acknowledgement within {1000 * wait_ack_s:.0f} ms"
+
+
+def borrow_port(url: str, pid: int) -> BorrowedPort | None:
+    """The serial port of the device at ``url`` as process ``pid`` holds it open, taken into this process
+    (``pidfd_getfd``: the same open file, its settings and its lock), or None: not a serial device, not a port
+    this process can find among ``pid``'s files, or a kernel or sandbox that refuses (then the port is opened again
+    once ``pid`` has ended, :func:`disable_serial_plate`).
+
+    Parameters
+    ----------
+    url : str
+        The device URL ``pid`` opened (``serial:PATH``).
+    pid : int
+        The process holding the port: a child of this one, still there (stopped or running).
+
+    Returns
+    -------
+    BorrowedPort or None
+
+    Examples
+    --------
+    Only a serial plate's port is borrowed:
+
+    >>> import os
+    >>> print(borrow_port("sim", os.getpid()))
+    None
+    """
+    from ultraglide.devices.urls import parse_device_url
+
+    try:
+        spec = parse_device_url(url)
+        wanted = os.stat(spec.target) if spec.kind == "serial" else None
+    except (DeviceError, OSError, ValueError):
+        return None
+    if wanted is None or not stat.S_ISCHR(wanted.st_mode):
+        return None
+    try:
+        entries = os.listdir(f"/proc/{pid}/fd")
+    except OSError:
+        return None
+    for entry in entries:
+        try:
+            held = os.stat(f"/proc/{pid}/fd/{entry}")
+        except OSError:
+            continue
+        if stat.S_ISCHR(held.st_mode) and held.st_rdev == wanted.st_rdev:
+            fd = _fd_of(pid, int(entry))
+            return None if fd is None else BorrowedPort(fd)
+    return None
+
+
+def _fd_of(pid: int, target_fd: int) -> int | None:
+    """A duplicate in this process of file descriptor ``target_fd`` of process ``pid`` (close-on-exec), or None."""
+    try:
+        pidfd = os.pidfd_open(pid)
+    except (OSError, AttributeError):
+        return None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fd = libc.syscall(SYS_PIDFD_GETFD, pidfd, target_fd, 0)
+        return fd if fd >= 0 else None
+    except (OSError, AttributeError):
+        return None
+    finally:
+        os.close(pidfd)
+
+
+class BorrowedPort:
+    """A lost process's serial port, taken from it (:func:`borrow_port`): the disable goes out on it while that
+    process is still being killed, and the ACK is read once it has ended (its reader could take the ACK before).
+
+    Parameters
+    ----------
+    fd : int
+        This process's file descriptor for the port (closed by :meth:`finish`).
+
+    Examples
+    --------
+    On a pseudo-terminal standing in for a plate's port (the plate is silent: no ACK):
+
+    >>> import os, pty, tty
+    >>> plate_end, port_end = pty.openpty()
+    >>> tty.setraw(port_end)                  # as a serial port's driver sets it: bytes pass as they are
+    >>> borrowed = BorrowedPort(port_end)
+    >>> borrowed.send()
+    >>> os.read(plate_end, 64) == disable_frame()
+    True
+    >>> borrowed.finish(wait_ack_s=0.02)
+    "ENABLE 0 sent on the frozen engine's own port before its end; no acknowledgement within 20 ms"
+    >>> os.close(plate_end)
+    """
+
+    def __init__(self, fd: int):
+        self.fd = fd
+        self.sent_s: float | None = None
+        self.failure: str | None = None
+
+    def send(self) -> None:
+        """Write the disable (:func:`disable_frame`) on the port, within ``WRITE_WAIT_S``; never raises."""
+        try:
+            with contextlib.suppress(termios.error):
+                termios.tcflush(self.fd, termios.TCIFLUSH)  # what the lost process had not read: not the ACK
+            data = memoryview(disable_frame())
+            deadline = time.perf_counter() + WRITE_WAIT_S
+            while data:
+                if not select.select([], [self.fd], [], max(0.0, deadline - time.perf_counter()))[1]:
+                    raise OSError(f"the port took no byte for {1000 * WRITE_WAIT_S:.0f} ms")
+                data = data[os.write(self.fd, data):]
+            self.sent_s = time.perf_counter()
+        except OSError as error:
+            self.failure = str(error.strerror or error)
+
+    def finish(self, wait_ack_s: float = ACK_WAIT_S) -> str:
+        """The disable's ACK awaited (until ``wait_ack_s`` after it was sent), the port closed; what happened in
+        words. Never raises."""
+        try:
+            if self.sent_s is None:
+                return (f"the plate could not be disabled (its port failed: {self.failure}); its own watchdog "
+                        "rests it")
+
+            def read() -> bytes:
+                if select.select([self.fd], [], [], 0.01)[0]:
+                    return os.read(self.fd, 256)
+                return b""
+
+            return ("ENABLE 0 sent on the frozen engine's own port before its end" +
+                    _awaited_ack(read, self.sent_s, wait_ack_s))
+        except OSError as error:
+            return f"ENABLE 0 sent; then the port failed ({error.strerror or error})"
+        finally:
+            with contextlib.suppress(OSError):
+                os.close(self.fd)
 
 
 def _acked(payload: bytes) -> int | None:
@@ -213,7 +392,7 @@ def finish_log(path: str | Path) -> str:
     return f"{path} keeps the rows written before the engine was lost"
 
 
-def rest_after_loss(url: str, pid: int) -> list[str]:
+def rest_after_loss(url: str, pid: int, borrowed: BorrowedPort | None = None) -> list[str]:
     """Make the device at ``url`` (a device URL) safe after process ``pid``, which drove it, was lost; what was done,
     in sentences. Never raises.
 
@@ -223,6 +402,8 @@ def rest_after_loss(url: str, pid: int) -> list[str]:
         The device URL the lost process opened (sim, serial:PORT, audio, wav:PATH, null).
     pid : int
         The lost process (gone by now: its files are closed and its locks released).
+    borrowed : BorrowedPort, optional
+        Its serial port, taken from it before it was killed, the disable sent on it already (:func:`borrow_port`).
 
     Returns
     -------
@@ -236,6 +417,8 @@ def rest_after_loss(url: str, pid: int) -> list[str]:
     except DeviceError as error:
         return [f"the device could not be named ({error})"]
     if spec.kind == "serial":
+        if borrowed is not None:
+            return [borrowed.finish()]
         return [disable_serial_plate(spec.target, spec.options.get("baud", 921600))]  # urls.open_device's default
     if spec.kind == "wav":
         return [finish_recording(spec.target, pid)]

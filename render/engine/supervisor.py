@@ -15,10 +15,12 @@ interpreter). :class:`Supervisor` is a thread of the app that watches:
   beat: neither is taken for a freeze. A watch that did not run itself for a while (this process stopped with the
   engine by Ctrl-Z, or starved) gives the engine the same time again before judging it.
 
-A frozen engine is killed (SIGKILL: a frozen process takes no other signal). Once the process is gone, and so
-its port, its files and its locks, the device is made safe from here (:func:`devices.after_loss.rest_after_loss`:
-ENABLE 0 on a serial plate, the WAV recording finished; the audio stream and the simulated plate ended with the
-process), and the CSV logs it wrote are finished. :attr:`Supervisor.loss` then says what happened and when, in
+A frozen engine is killed (SIGKILL: a frozen process takes no other signal). A serial plate's port is taken from
+it first (:func:`devices.after_loss.borrow_port`) and ENABLE 0 sent on it as soon as the kill is sent. Once the
+process is gone, and so its port, its files and its locks, the device is made safe from here
+(:func:`devices.after_loss.rest_after_loss`: ENABLE 0 on a serial plate, its ACK awaited; the WAV recording
+finished; the audio stream and the simulated plate ended with the process), and the CSV logs it wrote are
+finished. :attr:`Supervisor.loss` then says what happened and when, in
 words, and the run's exit status is :data:`EXIT_ENGINE_LOST` (7).
 
 An engine whose shared state says it stopped (or failed to start, and said why) ends as it should: no loss.
@@ -40,6 +42,7 @@ import time
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 
+from ultraglide.devices.after_loss import borrow_port
 from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
 from ultraglide.render.engine import shm
 
@@ -300,8 +303,9 @@ class Supervisor:
             if frozen:
                 stopped_s = 0.0 if stopped_since is None else now - stopped_since  # (seen stopped this long)
                 cause = self._frozen_cause(max(now - block_seen, stopped_s))
-                self._kill()
-                self._lost("froze", cause, now, max(now - max(block_seen, engine_seen), stopped_s))
+                borrowed = borrow_port(self.device_url, self.pid)  # while the frozen process still holds it
+                self._kill(borrowed)
+                self._lost("froze", cause, now, max(now - max(block_seen, engine_seen), stopped_s), borrowed)
                 return
 
     def _frozen_cause(self, blockless_s: float) -> str:
@@ -309,9 +313,13 @@ class Supervisor:
         why = "its process was stopped (SIGSTOP, or a debugger)" if stopped else "its process ran no Python"
         return f"no block for {1000 * blockless_s:.0f} ms and {why}"
 
-    def _kill(self) -> None:
+    def _kill(self, borrowed=None) -> None:
+        """SIGKILL, the disable sent on the engine's own port if it was borrowed (a killed process writes no more,
+        and the kernel tears its memory down before it closes its files), then its end awaited."""
         with contextlib.suppress(ProcessLookupError):
             os.kill(self.pid, signal.SIGKILL)
+        if borrowed is not None:
+            borrowed.send()
         wait([self._sentinel], KILL_WAIT_S)
 
     def _how_it_ended(self) -> str:
@@ -334,11 +342,11 @@ class Supervisor:
             return f"its process was killed by signal {-code}"
         return f"its process exited with status {code} before it had stopped"
 
-    def _lost(self, kind: str, cause: str, noticed_s: float, silent_s: float) -> None:
+    def _lost(self, kind: str, cause: str, noticed_s: float, silent_s: float, borrowed=None) -> None:
         from ultraglide.devices.after_loss import finish_log, rest_after_loss
 
         try:
-            rested = rest_after_loss(self.device_url, self.pid)
+            rested = rest_after_loss(self.device_url, self.pid, borrowed)
             rested += [finish_log(path) for path in self.logs]
         except Exception as error:  # noqa: BLE001 - the loss must be said whatever went wrong in the rest
             rested = [f"the device could not be made safe ({type(error).__name__}: {error})"]
