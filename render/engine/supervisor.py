@@ -6,7 +6,8 @@ interpreter). :class:`Supervisor` is a thread of the app that watches:
 
 * **the process**: its sentinel (a pipe the kernel closes when it ends) wakes the watch at once, so a death is
   noticed within a few milliseconds (aim: 100 ms);
-* **its heartbeats** in the shared memory (looked at every 50 ms, and every 10 ms once a look found none new):
+* **its heartbeats** in the shared memory (looked at every 50 ms, every 10 ms once a look found none new, and
+  again just as a silence would become a freeze):
   ``HEARTBEAT``, which the block path advances every block, and ``ENGINE_BEAT``, which a thread of the engine
   advances every 20 ms. From its first block on (running, paused or stopping), neither advancing for
   ``frozen_after_s`` (0.15 s) is a freeze: either is a sign that its process runs Python. A device that pulls no
@@ -48,7 +49,8 @@ from ultraglide.render.engine import shm
 
 FROZEN_AFTER_S = 0.15  # no sign of life for this long while the engine should play: it is frozen
 POLL_S = 0.05  # the watch looks at the heartbeats this often (a death wakes it at once); 0.01 took 4 % of a core
-SILENT_POLL_S = 0.01  # ... and this often once a look found no beat: a freeze is judged within 10 ms of its time
+SILENT_POLL_S = 0.01  # ... and this often once a look found no beat,
+JUDGE_LATE_S = 0.0005  # and this long after a silence would become a freeze: judged within a millisecond of it
 OWN_GAP_S = 0.1  # the watch itself woke this late: this process did not run, so the engine gets its time again
 KILL_WAIT_S = 2.0  # the longest wait for a killed engine's process to end
 CLEAN_ENDS = ("stopped", "failed")  # the engine's states in which its process ends as it should
@@ -288,7 +290,12 @@ class Supervisor:
             # /proc is read only when no beat came since the last look: a process that beats is not stopped
             stopped = not beating and _process_state(self.pid) in ("T", "t")
             stopped_since = (stopped_since or now) if stopped else None
-            timeout_s = self.poll_s if beating else min(self.poll_s, SILENT_POLL_S)  # silent: look closer
+            timeout_s = self.poll_s
+            if not beating:  # silent: look closer, and again just as the silence would become a freeze
+                judged_at = max(block_seen, engine_seen) + self.frozen_after_s
+                if stopped_since is not None:
+                    judged_at = min(judged_at, stopped_since + self.frozen_after_s)
+                timeout_s = min(self.poll_s, SILENT_POLL_S, max(JUDGE_LATE_S, judged_at - now + JUDGE_LATE_S))
             if state in CLEAN_ENDS:
                 continue
             silent_s = now - max(block_seen, engine_seen)
