@@ -13,6 +13,7 @@ import signal
 import threading
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -328,6 +329,56 @@ def test_an_experiment_whose_engine_is_lost_ends_with_exit_7_and_keeps_no_answer
     assert "its process was killed by SIGKILL" in str(lost.value)
     rows = read_rows(tmp_path) if (tmp_path / "trials.csv").exists() else []
     assert rows == []
+
+
+@pytest.mark.parametrize("how", LOSSES, ids=["killed", "stopped"])
+def test_serve_with_its_engine_lost_under_a_finger_disables_the_plate_and_exits_7(tap, how):
+    """``serve`` on a serial plate, a client's finger down: the engine killed or stopped, the service's supervisor
+    disables the plate, the run's report (JSON) says the loss in words and the exit status is 7 (it once said
+    "the engine ended unexpectedly" and exited 1, the loss unsaid)."""
+    import json
+
+    from service_run import flat_png, running_service
+
+    from ultraglide.client import Client, ServiceError
+
+    with running_service("--device", f"serial:{tap.plate.path}", "--profile", "sim-plate", "--port", "0") as \
+            (process, address):
+        with Client(address["url"]) as plate:
+            plate.set_view("main", 100, 50, units="mm")
+            plate.load_texture("slip", png=flat_png(0.2))
+            plate.place_sprite("a", "slip", 0, 0, 100, 50)
+            plate.touch(50, 25, "down")
+            deadline = time.monotonic() + 120
+            while tap.plate.simulator.peak_um_pp < 0.5:
+                assert time.monotonic() < deadline, "the plate was never driven"
+                plate.touch(50, 25, "move")
+                time.sleep(0.01)
+            before = len(tap.frames)
+            engine = lose_engine(SimpleNamespace(process=process), how)
+            with contextlib.suppress(ServiceError):  # the service ends: its connection closes under the moves
+                while process.poll() is None and time.monotonic() < deadline:
+                    plate.touch(50, 25, "move")
+                    time.sleep(0.01)
+            status = process.wait(60)
+        out, err = process.stdout.read(), process.stderr.read()
+    with pytest.raises(ProcessLookupError):  # killed (or found dead) and reaped by the service
+        os.kill(engine, signal.SIGKILL)
+    assert status == EXIT_ENGINE_LOST, (status, out, err)
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "ultraglide serve: the engine was lost (exit " \
+        "status 7)", err
+    final = json.loads(out.strip().splitlines()[-1])
+    said = " / ".join(final["engine_lost"])
+    if how == signal.SIGKILL:
+        assert re.search(r"the engine was lost at \d+\.\d\d s: its process was killed by SIGKILL", said), said
+    else:
+        assert re.search(r"the engine froze at \d+\.\d\d s: no block for \d+ ms and its process was stopped",
+                         said), said
+    assert re.search(r"made safe by ultraglide \d+ ms after: ENABLE 0 sent", said), said
+    assert final["error"] is None and final["touches"] > 0
+    assert [i for i in disables(tap) if i >= before] and not tap.plate.simulator.enabled
+    after = disables(tap)[-1]
+    assert not any(kind == p.SETPOINTS for kind, _, _ in list(tap.frames)[after:])
 
 
 def test_the_installed_command_ends_after_a_loss_with_its_whole_report_and_no_leftovers(tmp_path):

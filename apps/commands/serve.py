@@ -12,6 +12,7 @@ import json
 import os
 import stat
 import sys
+import time
 
 from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held, stop_requested
@@ -114,8 +115,10 @@ def run(args) -> int:
         raise
     service.engine = engine
     failure = stopped = feed = None
+    started = time.perf_counter()
     try:
         engine.wait_ready()
+        started = time.perf_counter()  # the loss's time is said from here
         if panel is not None:
             from ultraglide.apps.service.panel import PanelFeed
 
@@ -132,7 +135,7 @@ def run(args) -> int:
             final = engine.stop()
             if args.unix:
                 _remove_socket(args.unix)
-    status = _report(final, service, args, failure, feed)
+    status = _report(final, service, args, failure, feed, engine.loss, started)
     if stopped is not None:
         raise stopped  # the command's status says it was stopped (130, 143)
     return status
@@ -215,12 +218,15 @@ def _serve(service, args, feed=None) -> str | None:
                                          name="ultraglide-publisher", daemon=True)
             publisher.start()
             try:
-                while service.engine.alive:
+                while service.engine.alive and service.engine.loss is None:
                     if feed is not None and feed.gone:
                         return feed.gone
                     if stop_requested():
                         return None
                     await asyncio.sleep(POLL_S)
+                # its process ended: the supervisor makes the device safe and says how (the run's report)
+                if service.engine.supervisor.wait(LOSS_SAID_S):
+                    return None
                 return "the engine ended unexpectedly"
             finally:
                 if feed is not None:
@@ -234,6 +240,7 @@ def _serve(service, args, feed=None) -> str | None:
 
 
 POLL_S = 0.05  # how often the service looks at its engine, its touch panel and for a stop signal
+LOSS_SAID_S = 5.0  # the longest wait, once the engine's process has ended, for its supervisor to have made it safe
 SHUTDOWN_S = 10.0  # what the loop's tasks get to end once stopped; then the loop is closed whatever is left
 
 
@@ -295,18 +302,22 @@ def _remove_socket(path: str) -> None:
         pass
 
 
-def _report(final, service, args, failure: str | None, feed=None) -> int:
+def _report(final, service, args, failure: str | None, feed=None, loss=None, started: float | None = None) -> int:
+    """The run's summary (words, or JSON with ``--json``) and its exit status: a failure's 1, a lost engine's 7 (its
+    words from the supervisor: what happened, when, what made the device safe), else the device's report's."""
     from ultraglide.apps.cli.output import print_json
     from ultraglide.devices.serial.run_report import RunReport
 
     figures = final.summary() if final is not None else {}
     device_status = figures.pop("device_status", {}) or {}
     report = RunReport.from_dict(device_status.get("report"))
+    if loss is not None:  # the device's own report stops where its process did
+        report = report.with_lines(loss.lines(started), loss.exit_status)
     summary = {"device": figures.get("device"), "blocks": figures.get("blocks"),
                "late_blocks": figures.get("late_blocks"), "underruns": figures.get("underruns"),
                "touches": service.touches, "touches_ignored": service.touches_ignored,
                "faults": device_status.get("fault_counts") or {}, "limiter": device_status.get("limiter", ""),
-               "error": failure}
+               "error": failure, "engine_lost": None if loss is None else loss.lines(started)}
     if feed is not None:
         summary["touch_panel"] = feed.summary()
     if args.json:
