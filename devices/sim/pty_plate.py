@@ -8,6 +8,8 @@ import errno
 import fcntl
 import os
 import select
+import struct
+import termios
 import threading
 import time
 import tty
@@ -113,6 +115,33 @@ class PtyPlate:
             self._hang_until = until
         elif kind == p.SIM_DISCONNECT:
             self._disconnect_until = until
+
+    def unread_bytes(self) -> int:
+        """Bytes the host has written that this plate has not read yet (what waits in the pty): a frame counted
+        by the plate after a moment may have been sent before it, by this many bytes.
+
+        Returns
+        -------
+        int
+            Bytes waiting, 0 when the pty is closed.
+
+        Examples
+        --------
+        A plate serving an idle port: nothing waits.
+
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> plate = PtyPlate(load_profile("sim-plate")).start()
+        >>> plate.unread_bytes()
+        0
+        >>> plate.stop()
+        """
+        with self._port_lock:
+            if self._master < 0:
+                return 0
+            try:
+                return struct.unpack("i", fcntl.ioctl(self._master, termios.FIONREAD, b"\0\0\0\0"))[0]
+            except OSError:
+                return 0
 
     def end_injected(self) -> None:
         """End every injected transport fault now."""
