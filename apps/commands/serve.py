@@ -181,7 +181,7 @@ def _serve(service, args, feed=None) -> str | None:
         except OSError as error:
             where = args.unix or f"{args.host}:{args.port}"
             raise ServiceError(f"cannot listen on {where}: {error.strerror or error}") from None
-        async with server:
+        async with _closing(server):
             if args.unix:
                 urls = {"url": f"ws+unix:{args.unix}", "page": None, "token": None}
             else:
@@ -240,8 +240,28 @@ def _serve(service, args, feed=None) -> str | None:
 
 
 POLL_S = 0.05  # how often the service looks at its engine, its touch panel and for a stop signal
+CLOSE_S = 2.0  # what the service's connections get to close once it stops; then they are cancelled
 LOSS_SAID_S = 5.0  # the longest wait, once the engine's process has ended, for its supervisor to have made it safe
 SHUTDOWN_S = 10.0  # what the loop's tasks get to end once stopped; then the loop is closed whatever is left
+
+
+def _closing(server):
+    """``async with server``, but its connections get :data:`CLOSE_S` to close: websockets waits for every
+    connection's handler without a bound, and a client that read nothing once held a stopped service for good (its
+    loop then cancels what is left, :func:`run_loop_bounded`)."""
+    import asyncio
+    import contextlib
+
+    @contextlib.asynccontextmanager
+    async def closing():
+        try:
+            yield server
+        finally:
+            server.close()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(server.wait_closed(), CLOSE_S)
+
+    return closing()
 
 
 def run_loop_bounded(coroutine):
