@@ -1,7 +1,7 @@
-"""The Python API of experiments: its docstring examples, sessions in code, analyses of the trials table."""
+"""The Python API of experiments: sessions in code, analyses of the trials table.
 
-import doctest
-import importlib
+Its docstring examples run in tests/test_doctests.py, with every documented module's.
+"""
 
 import numpy as np
 import pandas as pd
@@ -20,15 +20,6 @@ from ultraglide.experiment import (
     threshold_posterior,
 )
 from ultraglide.experiment import psychometric as pf
-
-
-@pytest.mark.parametrize("name", ["ultraglide.experiment", "ultraglide.experiment.design",
-                                  "ultraglide.experiment.analysis", "ultraglide.experiment.columns",
-                                  "ultraglide.experiment.check", "ultraglide.experiment.runner"])
-def test_the_docstring_examples_run(name):
-    failures, attempted = doctest.testmod(importlib.import_module(name),
-                                          optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
-    assert attempted > 0 and failures == 0
 
 
 def simulated_constant_rows(threshold=0.08, slope=3.0, guess=0.5, trials=60, seed=0):
