@@ -38,6 +38,19 @@ NUMBERS = ("resonance_hz", "q", "full_scale_um_pp", "max_amplitude_um_pp", "carr
            "max_drive_um_pp")
 
 
+class ProfileError(DeviceError):
+    """A plate profile that cannot be used (no such profile, a file that is not one, a value out of range); the
+    message is one line naming the file and what to change. A ``DeviceError`` too.
+
+    Examples
+    --------
+    >>> load_profile("no-such-plate")
+    Traceback (most recent call last):
+    ...
+    ultraglide.devices.profiles.ProfileError: no plate profile file or bundled profile 'no-such-plate'; bundled: ...
+    """
+
+
 @dataclass(frozen=True)
 class PlateProfile:
     """One plate's facts; amplitudes in µm peak-to-peak, frequencies in Hz.
@@ -248,8 +261,8 @@ def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
 
     Raises
     ------
-    DeviceError
-        No such profile, or what is wrong with the file, in one line.
+    ProfileError
+        No such profile, or what is wrong with the file, in one line (a :class:`DeviceError`).
 
     Examples
     --------
@@ -262,19 +275,19 @@ def load_profile(spec: str = DEFAULT_PROFILE) -> PlateProfile:
     bundled = PROFILE_DIR / f"{spec}.toml"
     if not os.path.lexists(path) or ("/" not in spec and bundled.is_file() and not path.is_file()):
         if "/" in spec or not bundled.is_file():
-            raise DeviceError(f"no plate profile file or bundled profile {spec!r}; bundled: "
-                              f"{', '.join(bundled_profiles())}")
+            raise ProfileError(f"no plate profile file or bundled profile {spec!r}; bundled: "
+                                f"{', '.join(bundled_profiles())}")
         path = bundled
-    data = parse_toml(read_input(path, "plate profile", DeviceError), f"{path}", DeviceError, what="plate profile")
+    data = parse_toml(read_input(path, "plate profile", ProfileError), f"{path}", ProfileError, what="plate profile")
     known = set(PlateProfile.__dataclass_fields__)
     unknown = sorted(set(data) - known)
     if unknown:
-        raise DeviceError(f"{path}: unknown profile keys {some_of(unknown)}; known: {', '.join(sorted(known))}")
+        raise ProfileError(f"{path}: unknown profile keys {some_of(unknown)}; known: {', '.join(sorted(known))}")
     missing = [key for key in REQUIRED if key not in data]
     if missing:
-        raise DeviceError(f"{path}: profile lacks {', '.join(missing)}")
+        raise ProfileError(f"{path}: profile lacks {', '.join(missing)}")
     data.setdefault("name", path.stem)
     try:
         return PlateProfile(**data)
     except DeviceError as error:  # name the file the value came from
-        raise DeviceError(f"{path}: {error}") from None
+        raise ProfileError(f"{path}: {error}") from None

@@ -24,6 +24,10 @@ def _render_error(tmp_path):
 
 
 def _device_error(tmp_path):
+    ultraglide.load_profile("sim-plate").check_carrier(30000.0)  # Hz, outside the plate's 20-28 kHz
+
+
+def _profile_error(tmp_path):
     ultraglide.load_profile("no-such-plate")
 
 
@@ -59,6 +63,7 @@ REFUSALS = {
     "ModelError": (_model_error, ValueError),
     "RenderError": (_render_error, ValueError),
     "DeviceError": (_device_error, RuntimeError),
+    "ProfileError": (_profile_error, RuntimeError),
     "FitError": (_fit_error, ValueError),
     "ProtocolError": (_protocol_error, ValueError),
     "UsageError": (_usage_error, ValueError),

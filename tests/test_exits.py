@@ -446,3 +446,57 @@ def test_an_output_that_is_a_directory_is_refused_and_nothing_is_left(tmp_path):
     line = assert_one_line_error(result)
     assert "swipe.wav" in line
     assert sorted(path.name for path in tmp_path.iterdir()) == ["swipe.wav"]
+
+
+# ---- bad input: usage, exit 2 ------------------------------------------------------------------------------------
+
+def bad_inputs(folder):
+    """Files a person may hand a command that it cannot use, written here: not an image, broken TOML, CSVs without
+    the columns their header must name."""
+    (folder / "notes.png").write_text("not a picture\n")
+    (folder / "broken.toml").write_text("x = [\n")
+    (folder / "points.csv").write_text("a,b\n1,2\n")
+    (folder / "log.csv").write_text("t_s,x_mm\n0,1\n")
+    (folder / "recording.csv").write_text("time_s,force_n\n0,0.5\n")
+    return folder
+
+
+# (the command line, the file its line must name); {d}: the folder of bad inputs, {o}: a folder for outputs
+BAD_INPUT_FILES = [
+    (["export", "{d}/notes.png", "-o", "{o}/a.wav"], "notes.png"),
+    (["export", "{d}/missing.png", "-o", "{o}/a.wav"], "missing.png"),
+    (["play", "{d}/notes.png", "--device", "null", "--duration-s", "0.1"], "notes.png"),
+    (["texture", "info", "{d}/notes.png"], "notes.png"),
+    (["author", "{d}/notes.png", "-o", "{o}/t.png"], "notes.png"),
+    (["model", "--model", "{d}/broken.toml"], "broken.toml"),
+    (["model", "--model", "table:{d}/points.csv"], "points.csv"),
+    (["calibrate", "{d}/points.csv", "-o", "{o}/c.toml"], "points.csv"),
+    (["calibrate", "{d}/broken.toml", "-o", "{o}/c.toml"], "broken.toml"),
+    (["calibrate", "{d}/recording.csv", "--compare"], "recording.csv"),
+    (["export", "grating-1mm", "--model", "{d}/broken.toml", "-o", "{o}/a.wav"], "broken.toml"),
+    (["export", "grating-1mm", "--trajectory", "{d}/log.csv", "-o", "{o}/a.wav"], "log.csv"),
+    (["export", "grating-1mm", "--profile", "{d}/broken.toml", "-o", "{o}/a.wav"], "broken.toml"),
+    (["plate-sim", "--finger", "{d}/broken.toml"], "broken.toml"),
+    (["rig", "check", "{d}/broken.toml"], "broken.toml"),
+    (["experiment", "check", "{d}/broken.toml"], "broken.toml"),
+]
+
+
+@pytest.mark.parametrize("args, named", BAD_INPUT_FILES, ids=[" ".join(a[:2]) + " " + n for a, n in BAD_INPUT_FILES])
+def test_a_bad_input_file_is_usage_one_line_and_exit_2(tmp_path, args, named):
+    inputs, outputs = tmp_path / "in", tmp_path / "out"
+    inputs.mkdir()
+    outputs.mkdir()
+    bad_inputs(inputs)
+    result = run_cli(*[arg.format(d=inputs, o=outputs) for arg in args], timeout=120)
+    line = assert_one_line_error(result)
+    assert result.returncode == 2 and named in line and result.stdout == "", (result.returncode, line)
+    assert list(outputs.iterdir()) == []  # nothing written
+
+
+def test_an_output_that_cannot_be_written_is_not_usage_and_exits_1(tmp_path):
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    result = run_cli("export", "grating-1mm", "-o", folder, "--duration-s", "0.1")
+    assert result.returncode == 1 and "is a directory" in assert_one_line_error(result)
+    assert list(folder.iterdir()) == []

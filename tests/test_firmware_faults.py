@@ -111,7 +111,7 @@ def test_a_bad_board_fault_is_refused_in_one_line(argument):
 def test_board_fault_is_refused_on_the_simulator():
     result = subprocess.run([sys.executable, "-m", "ultraglide", "plate-sim", "--board-fault", "isr-hang@1"],
                             capture_output=True, text=True, cwd=ROOT, timeout=60)
-    assert result.returncode == 1 and result.stdout == ""  # the house's UsageError after parsing
+    assert result.returncode == 2 and result.stdout == ""  # usage: the house's UsageError after parsing
     assert len(result.stderr.strip().splitlines()) == 1 and "--board qemu" in result.stderr
 
 

@@ -406,7 +406,7 @@ def test_messages_say_what_the_file_is(tmp_path):
     assert "over the limit of 40,000,000" in line and "--max-pixels" in line and "damaged" not in line
     result = run_cli("export", big, "-o", tmp_path / "a.wav")
     line = result.stderr.strip().splitlines()[-1]
-    assert result.returncode == 1 and "over the limit" in line and "damaged" not in line
+    assert result.returncode == 2 and "over the limit" in line and "damaged" not in line  # an input it cannot use
     assert "`ultraglide author`" in line  # the option belongs to author, and the line says so
     palette = texture_png(tmp_path / "palette.png", TEXTURE, mode="P")
     assert load_texture(palette).values.shape == (10, 20)

@@ -87,5 +87,5 @@ def test_an_option_the_combination_ignores_is_refused(inputs, capsys, args, word
     with no_hang(300):
         status = main(argv)
     error = capsys.readouterr().err.strip()
-    assert status == 1 and "\n" not in error and words in error, (argv, error)
+    assert status == 2 and "\n" not in error and words in error, (argv, error)
     assert sorted(p.name for p in inputs.rglob("*")) == before  # nothing written

@@ -27,7 +27,7 @@ class UltraglideError(Exception):
     ...     ultraglide.load_profile("no-such-plate")
     ... except UltraglideError as error:
     ...     print(type(error).__name__, "|", error)
-    DeviceError | no plate profile file or bundled profile 'no-such-plate'; bundled: audio-generic, sim-plate
+    ProfileError | no plate profile file or bundled profile 'no-such-plate'; bundled: audio-generic, sim-plate
     """
 
 

@@ -1,15 +1,18 @@
 """The ``ultraglide`` command: parse, run the command, and turn what went wrong into one line and an exit status.
 
-Errors of ours (:class:`ultraglide.UltraglideError`) and OSErrors are a person's to fix: one line, exit 1 (or the
-error's own ``exit_status``: a lost engine's 7). A stop signal (Ctrl-C, SIGTERM, SIGHUP) stops a command through
+Errors of ours (:class:`ultraglide.UltraglideError`) and OSErrors are a person's to fix: one line, exit 2 for
+input the command cannot use, 1 for the rest, or the error's own ``exit_status``: a lost engine's 7
+(:func:`ultraglide.apps.cli.errors.exit_status`). A stop signal (Ctrl-C, SIGTERM, SIGHUP) stops a command through
 every ``finally``: exit 128 + its number. Anything else is a bug and keeps its traceback.
 
 The exit statuses (docs/guide/commands.md, Exit statuses):
 
 =========  ======================================================================================================
  0         done, clean
- 1         an error a person can fix (a file, a device, a value), said in one line
- 2         usage: options that make no sense (argparse's, and ours)
+ 1         an error a person can fix (a device, an output that cannot be written, a resource that ran out),
+           said in one line
+ 2         usage: options that make no sense (argparse's, and ours), or an input (a value, a file the command
+           reads) it cannot use, said in one line
  3, 4, 5   a run on a plate: the plate faulted, was lost, cut its output (``devices.serial.run_report``)
  6         ``plate check``: the plate broke a rule of the protocol
  7         the engine was lost: its process died or froze mid-run; the device was made safe by the command
@@ -73,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + signal.SIGPIPE
     except errors.USER_ERRORS as error:
         print(f"ultraglide {args.command}: error: {one_line(errors.describe(error))}", file=sys.stderr)
-        return int(getattr(error, "exit_status", 1) or 1)
+        return errors.exit_status(error)
     except ModuleNotFoundError as error:  # an optional dependency (the demo's, the figures') not installed
         message = errors.missing_extra(error)
         if message is None:
