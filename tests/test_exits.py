@@ -458,6 +458,8 @@ def bad_inputs(folder):
     (folder / "points.csv").write_text("a,b\n1,2\n")
     (folder / "log.csv").write_text("t_s,x_mm\n0,1\n")
     (folder / "recording.csv").write_text("time_s,force_n\n0,0.5\n")
+    (folder / "early.ahap").write_text('{"Pattern": [{"Event": {"Time": -1, "EventType": "HapticTransient"}}]}')
+    (folder / "scene.gltf").write_text('{"asset": 3}')
     return folder
 
 
@@ -479,6 +481,8 @@ BAD_INPUT_FILES = [
     (["plate-sim", "--finger", "{d}/broken.toml"], "broken.toml"),
     (["rig", "check", "{d}/broken.toml"], "broken.toml"),
     (["experiment", "check", "{d}/broken.toml"], "broken.toml"),
+    (["texture", "effects", "grating-1mm", "--set", "{d}/early.ahap", "-o", "{o}/e.png"], "early.ahap"),
+    (["texture", "import", "{d}/scene.gltf", "-o", "{o}/i.png"], "scene.gltf"),
 ]
 
 
