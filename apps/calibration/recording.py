@@ -30,6 +30,16 @@ STEADY_SHARE = 0.03
 ZERO_UM_PP = 0.05  # a run below this is at rest: its mu is friction at rest
 REST_REACH_S = 2.0  # a reduced step takes friction at rest from zero runs at most this far away
 MAX_SAMPLES = 3_600_000  # an hour of samples at 1 kHz
+# a press's force is its mean to this (N): what a fingertip force sensor resolves (a lab's 6-axis cells resolve
+# 1-3 mN). Finer digits are the press's wander and the sensors' noise, not the force asked: kept, they made a
+# press of 0.5 N a calibration "fitted on 0.4999 N only", outside which 0.5 N itself was said to be extrapolated.
+# The points, the CSV, the calibration's [fit] forces_n and the fit all hold this same value.
+FORCE_RESOLUTION_N = 0.001
+
+
+def _to_resolution(force_n: float) -> float:
+    """A press's mean force (N) to :data:`FORCE_RESOLUTION_N`, as the float its decimal text reads back as."""
+    return float(f"{round(force_n / FORCE_RESOLUTION_N) * FORCE_RESOLUTION_N:.3f}")
 
 
 class PlanSource:
@@ -211,7 +221,7 @@ class StepRecorder:
         force = np.array([np.mean([v[2] for v in merged[k]]) for k in keys])
         level = np.array([k[0] for k in keys], dtype=int)
         for value in np.unique(level):
-            force[level == value] = round(float(force[level == value].mean()), 4)
+            force[level == value] = _to_resolution(float(force[level == value].mean()))
         below = int(np.count_nonzero(ratio < 0.0))
         above = int(np.count_nonzero(ratio > 1.0))
         ratio = np.clip(ratio, 0.0, 1.2)
