@@ -130,27 +130,48 @@ class EngineStatus:
                 + faults)
 
     def summary(self) -> dict:
-        """The figures as plain JSON values (no history).
+        """The figures as plain JSON values (no history): strict JSON, as ``json.dumps(..., allow_nan=False)``
+        takes it.
 
         Returns
         -------
         dict
-            The figures; an unknown float (the default force before the engine has said) is NaN.
+            The figures. A float not known or not finite (the default force, N, before the engine has said; a
+            touch's force when the panel gives none) is None; tuples are lists, numpy numbers Python's, keys
+            text.
 
         Examples
         --------
-        >>> import json, math
+        >>> import json
         >>> from ultraglide.render.engine.shm import SharedBlock
         >>> block = SharedBlock.create()
         >>> header, times, history, _ = block.read_fast()
         >>> summary = status_from_shared(header, times, history, {}, 0, "null", 10.0).summary()
         >>> block.close()
-        >>> json.loads(json.dumps(summary))["state"], "history" in summary, math.isnan(summary["force_n"])
-        ('starting', False, True)
+        >>> json.loads(json.dumps(summary, allow_nan=False))["state"], "history" in summary, summary["force_n"]
+        ('starting', False, None)
         """
         values = asdict(self)
         del values["history"]
-        return values
+        return _plain(values)
+
+
+def _plain(value):
+    """``value`` as strict JSON values: a float that is NaN or infinite is None, numpy numbers and arrays are
+    Python's, tuples are lists, keys are text; anything else that JSON cannot hold is its text."""
+    if value is None or isinstance(value, bool | str):
+        return value
+    if isinstance(value, int | np.integer) and not isinstance(value, np.bool_):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, dict):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_plain(item) for item in value]
+    return str(value)
 
 
 def _underruns(device_status: dict) -> int:
