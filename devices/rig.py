@@ -106,8 +106,8 @@ class DriveChain:
     def full_scale_um_pp(self) -> float:
         """The plate's amplitude at a sample of 1.0, µm p-p: full-scale volts × the chain's µm p-p per volt.
 
-        Example
-        -------
+        Examples
+        --------
         >>> DriveChain(2.0, 20.0, 0.25).full_scale_um_pp
         10.0
         """
@@ -173,8 +173,8 @@ class TouchPanel:
         x along the display's y), then flipped, then placed on ``area_mm``; without an area, on
         ``full_area_mm`` (width, height: the whole display).
 
-        Example
-        -------
+        Examples
+        --------
         >>> TouchPanel((10.0, 20.0, 200.0, 100.0), rotation_deg=90).to_mm(0.25, 0.0)
         (210.0, 45.0)
         """
@@ -342,8 +342,8 @@ def load_rig(path: str | os.PathLike) -> Rig:
     RigError
         One line naming the file, the key and what is allowed, for anything wrong in it.
 
-    Example
-    -------
+    Examples
+    --------
     >>> rig = load_rig("examples/rig.toml")       # doctest: +SKIP  (a file of the repository's)
     >>> rig.full_scale_um_pp, rig.max_amplitude_um_pp  # doctest: +SKIP
     (10.0, 5.0)
@@ -566,8 +566,8 @@ def load_plate(spec: str) -> PlateProfile:
     DeviceError
         One line, for a bad rig or profile.
 
-    Example
-    -------
+    Examples
+    --------
     >>> load_plate("sim-plate").max_amplitude_um_pp
     6.0
     """

@@ -390,3 +390,27 @@ def test_the_public_functions_and_classes_have_numpy_docstrings():
         elif "Examples" in wanted and not doctest.DocTestParser().get_examples(doc):
             lacking.append(f"{name}: an Examples section without a >>> line")
     assert not lacking, lacking
+
+
+# numpydoc's section names: a docstring's headings are these, spelled so (``Examples``, never ``Example``), in modules,
+# classes, functions and methods alike, so documentation tools and readers find them
+NUMPY_SECTIONS = {"Parameters", "Other Parameters", "Returns", "Yields", "Receives", "Raises", "Warns", "Warnings",
+                  "See Also", "Notes", "References", "Examples", "Attributes", "Methods"}
+SOURCE_FOLDERS = ("ultraglide", "textures", "render", "devices", "apps")
+
+
+def test_every_docstring_heads_its_sections_with_numpys_names():
+    """Module docstrings included: a heading (a title underlined with dashes) that numpydoc does not know, such as
+    a singular ``Example``, fails."""
+    wrong, modules = [], 0
+    for folder in SOURCE_FOLDERS:
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            modules += 1
+            for node in [tree, *(node for node in ast.walk(tree)
+                                 if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef))]:
+                doc = ast.get_docstring(node)
+                for heading in sorted(_sections(doc or "") - NUMPY_SECTIONS):
+                    wrong.append(f"{path.relative_to(ROOT)}:{getattr(node, 'lineno', 1)} {heading!r}")
+    assert modules > 200
+    assert not wrong, f"{len(wrong)} docstring headings numpydoc does not know: {wrong}"

@@ -124,8 +124,8 @@ def end_after_loss(status: int) -> None:
     status : int
         The exit status (0-255), :data:`~ultraglide.devices.serial.run_report.EXIT_ENGINE_LOST`.
 
-    Example
-    -------
+    Examples
+    --------
     >>> end_after_loss(7)  # doctest: +SKIP
     """
     atexit._run_exitfuncs()  # multiprocessing's finalizers, the resource tracker's, coverage's

@@ -28,8 +28,8 @@ Lifecycle: a page that closes leaves the session waiting (said on standard error
 ``stopped``). A stop signal (Ctrl-C, SIGTERM) while a trial or a break waits stops the session the same way and is
 kept in :attr:`BrowserResponder.stopped` for the caller to raise once the plate is at rest (:meth:`close`).
 
-Example
--------
+Examples
+--------
 A participant at a browser answering a design of one's own (not run here: it waits for the participant)::
 
     from ultraglide.apps.experiment.browser import BrowserResponder
@@ -74,8 +74,8 @@ def keys_hint(design, mode: str, answers: int) -> str:
     -------
     str
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.experiment import design_from_dict
     >>> design = design_from_dict({"stimuli": {"g": {"texture": "grating-1mm"}},
     ...     "conditions": [{"name": "c", "stimulus": "g"}], "blocks": [{"task": "rating", "conditions": ["c"]}],

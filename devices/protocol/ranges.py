@@ -13,8 +13,8 @@ ranges this module enforces, each with its reason.
   HELLO_REPLY; a frame with any value that cannot be is not taken (:class:`FieldCheck` counts and words them).
   The u32 counters are checked by :mod:`ultraglide.devices.counter_check` (modular, with a plausibility bound).
 
-Example
--------
+Examples
+--------
 >>> from ultraglide.devices import protocol as p
 >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate", 7.5, 1, 1000, 1)
 >>> hello_out_of_range(hello)
@@ -86,8 +86,8 @@ def hello_out_of_range(hello: HelloReply) -> list[str]:
     list of str
         ``"watchdog_ms = 5, outside 20..1000 ms"`` and the like.
 
-    Example
-    -------
+    Examples
+    --------
     >>> from ultraglide.devices import protocol as p
     >>> hello_out_of_range(p.HelloReply(2, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 5, 250, "x"))
     ['watchdog_ms = 5, outside 20..1000 ms']
@@ -222,8 +222,8 @@ class FieldCheck:
 
     Thread-safe (frames are checked on the reader thread, the report read on others).
 
-    Example
-    -------
+    Examples
+    --------
     >>> check = FieldCheck()
     >>> check.add("TELEMETRY", [("carrier_hz", "carrier_hz = 3e+04, not ...")], at_s=1.5)
     >>> check.count, check.words().startswith("the plate reported values that cannot be: TELEMETRY carrier_hz")

@@ -18,8 +18,8 @@ are compared, over windows of a second (:data:`WINDOW_FRAMES` telemetry frames),
   buffer ran dry, or the output was off, is left out with the values sent before it); a device without an
   amplitude sensor (v3: no SENSOR_AMPLITUDE; v2: it never reported a measured amplitude above 0) is not judged.
 
-Example
--------
+Examples
+--------
 >>> follow = AmplitudeFollow()
 >>> for second in range(3):
 ...     for frame in range(WINDOW_FRAMES):
@@ -124,8 +124,8 @@ class CarrierFollow:
     do not, for :data:`CARRIER_RUNNING_S` running, plays a carrier nobody asked for (a firmware that ignores
     SET_CARRIER, a synthesiser stuck) at a resonance-sharp plate's cost of most of its amplitude.
 
-    Example
-    -------
+    Examples
+    --------
     >>> follow = CarrierFollow()
     >>> for frame in range(60):  # 1.2 s of telemetry saying 24 kHz while 25 kHz was sent
     ...     follow.observe(sent_hz=25000.0, reported_hz=24000.0, judged=True, at_s=0.02 * frame)

@@ -126,8 +126,8 @@ def plate_of_hello(hello: p.HelloReply) -> PlateProfile | None:
     DeviceError
         What the device states is not a plate a profile may describe (one line).
 
-    Example
-    -------
+    Examples
+    --------
     >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board", 8.0,
     ...                      features=p.FEATURE_LINK_STATED, link_bytes_per_s=14000, q=200.0)
     >>> plate_of_hello(hello)

@@ -241,8 +241,8 @@ def choose_stream(port: str, hello: p.HelloReply, control_rate_hz: int, baud: in
     DeviceError
         No stream fits what the link carries (one line, saying what would), or the URL's does not.
 
-    Example
-    -------
+    Examples
+    --------
     >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board",
     ...                      features=p.FEATURE_LINK_STATED, link_bytes_per_s=14000, q=200.0)
     >>> plan = choose_stream("/dev/pts/3", hello, 12000, 921600)

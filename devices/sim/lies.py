@@ -7,8 +7,8 @@ fixed value (each frame re-encoded whole, its seq kept, its CRC right), so the h
 that says what cannot be, or what does not follow what it was told. ``plate-sim --lie FRAME.FIELD=VALUE`` serves
 one.
 
-Example
--------
+Examples
+--------
 >>> lies = Lies.parse(["telemetry.measured_um_pp=0.2", "hello.watchdog_ms=5"])
 >>> lies
 Lies(telemetry.measured_um_pp=0.2, hello.watchdog_ms=5)

@@ -65,8 +65,8 @@ def eviocgabs(axis: int) -> int:
     """``EVIOCGABS(axis)``: read an axis's ``struct input_absinfo`` (six s32: value, minimum, maximum, fuzz, flat,
     resolution).
 
-    Example
-    -------
+    Examples
+    --------
     >>> hex(eviocgabs(ABS_MT_POSITION_X))
     '0x80184575'
     """
@@ -112,8 +112,8 @@ class AxisRange:
     def unit(self, value: float) -> float:
         """``value`` as a share of the range, 0..1 (clamped).
 
-        Example
-        -------
+        Examples
+        --------
         >>> AxisRange(0, 4095).unit(1023.75)
         0.25
         """
@@ -155,8 +155,8 @@ def parse_range(text: str) -> tuple[str, AxisRange]:
     TouchPanelUsageError
         One line, for anything else.
 
-    Example
-    -------
+    Examples
+    --------
     >>> parse_range("x=0:4095")
     ('x', AxisRange(minimum=0, maximum=4095))
     """
@@ -191,8 +191,8 @@ def given_ranges(options: list[str], rig_ranges: dict | None = None) -> PanelRan
     TouchPanelUsageError
         A bad option, or x without y (or y without x).
 
-    Example
-    -------
+    Examples
+    --------
     >>> given_ranges(["y=0:2047"], {"x": (0, 4095)}).words()
     'x 0..4095, y 0..2047, no pressure (the rig and --touch-range)'
     """
@@ -266,8 +266,8 @@ class EventParser:
     next call) and returns the frames they completed. ``current_slot``: asked after a drop for the slot the kernel
     is at (a real device's ``EVIOCGABS(ABS_MT_SLOT)``); None keeps the last one seen.
 
-    Example
-    -------
+    Examples
+    --------
     >>> parser = EventParser()
     >>> records = [(3, 0x39, 7), (3, 0x35, 100), (3, 0x36, 200), (0, 0, 0)]
     >>> frames = parser.feed(b"".join(EVENT.pack(5, 250000, *r) for r in records))

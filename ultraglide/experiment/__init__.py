@@ -9,8 +9,8 @@ pandas-friendly list of dicts), and analyses as functions of that table (:func:`
 ``ultraglide.apps.experiment.window``; ``ultraglide experiment run DESIGN.toml`` opens it. The participant's page in
 a browser (the service's) is ``ultraglide.apps.experiment.browser.BrowserResponder``; ``--serve`` serves it.
 
-Example
--------
+Examples
+--------
 >>> from ultraglide.experiment import Block, Condition, Design, Stimulus, run, fit_psychometric
 >>> design = Design("grating contrast", {"g": Stimulus("g", "grating-1mm")},
 ...                 {"g": Condition("g", "g", levels=(0.02, 0.05, 0.1, 0.2))},

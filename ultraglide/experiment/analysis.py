@@ -4,8 +4,8 @@ Each function takes the table as a session returns it (:attr:`ultraglide.experim
 :func:`read_trials` reads it back from ``trials.csv``, or as a DataFrame of either, and leaves practice trials out
 (``practice`` = 1) unless asked. Groups are given by column names (``by="condition"``).
 
-Example
--------
+Examples
+--------
 >>> from ultraglide.experiment.analysis import fit_psychometric
 >>> rows = [{"condition": "c", "level": level, "correct": int(k < hits)}
 ...         for level, hits in ((0.02, 5), (0.05, 6), (0.1, 9), (0.2, 10)) for k in range(10)]

@@ -8,8 +8,8 @@ labels in the participant's language, practice trials and breaks. :func:`load_de
 (every value checked: :class:`~ultraglide.experiment.errors.ExperimentError`, one line naming the key);
 :func:`plan` lays out its trials for a participant, as a function of the design's seed only.
 
-Example
--------
+Examples
+--------
 >>> from ultraglide.experiment import design_from_dict, plan
 >>> design = design_from_dict({
 ...     "experiment": {"name": "two gratings", "seed": 3},
