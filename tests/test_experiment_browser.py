@@ -349,6 +349,50 @@ def test_a_stop_signal_mid_trial_leaves_the_plate_at_rest_and_the_files_complete
     assert envelope["commanded_um_pp"][-1] == 0.0  # and the plate ended at rest
 
 
+def test_the_words_at_the_start_say_what_stops_the_session_and_esc_on_the_page_does(tmp_path, design):
+    """Without --json the command says how the session stops: Esc on the page, or Ctrl-C at the command (the test
+    above), each with the files complete and the plate at rest, and --resume going on. Esc is pressed here."""
+    out, envelope_csv = tmp_path / "p01", tmp_path / "envelope.csv"
+    process = start_cli("experiment", "run", design, "--participant", "P01", "--out", out, "--serve", "--port", "0",
+                        "--device", "sim", "--envelope-csv", envelope_csv, stdout=subprocess.PIPE,
+                        stderr=subprocess.PIPE, cwd=design.parent)
+    lines: list[str] = []  # the standard output, read as it comes (both lines may arrive in one read)
+
+    def read():
+        for line in process.stdout:
+            lines.append(line)
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        deadline = time.monotonic() + 180
+        while len(lines) < 2:
+            assert time.monotonic() < deadline and process.poll() is None, lines
+            time.sleep(0.05)
+        page_url, url = lines[0].split()
+        said = lines[1].rstrip("\n")
+        assert said.startswith(f"the participant's page: open {page_url} on their screen"), said
+        assert said.endswith("; Esc on the page or Ctrl-C here stops the session, its files complete and the plate "
+                             "at rest (--resume goes on)"), said
+        page = Page({"page": page_url, "url": url})
+        page.screen("participant.trial", 1)
+        assert page.ask("participant.answer", trial=1, button=1, rt_s=0.6)["type"] == "ok"
+        page.screen("participant.trial", 2)
+        assert page.ask("participant.stop", trial=2)["type"] == "ok"  # Esc on the page
+        status = process.wait(120)
+        err = process.stderr.read()
+    finally:
+        stop(process)
+    assert status == 1 and "the participant pressed Esc during trial 2" in err and "Traceback" not in err, err
+    assert json.loads((out / "session.json").read_text())["status"] == "stopped"
+    assert [r["trial"] for r in trials_csv(out)] == ["1"]
+    assert read_envelope(envelope_csv)["commanded_um_pp"][-1] == 0.0  # the plate at rest
+    resumed = Session(design, out, "--resume")  # and --resume goes on from trial 2
+    try:
+        Page(resumed.address).screen("participant.trial", 2)
+    finally:
+        stop(resumed.process)
+
+
 def test_a_bad_token_and_another_origin_are_refused(tmp_path, design):
     session = Session(design, tmp_path / "p01", "--token", "a-secret-token-1")
     try:

@@ -224,6 +224,12 @@ def _misplaced(args) -> str | None:
     return None
 
 
+# what stops a session served to the participant's page, said when it starts (tests/test_experiment_browser.py
+# checks each part: Esc on the page, a stop signal, the files, the plate, --resume)
+STOP_WORDS = ("Esc on the page or Ctrl-C here stops the session, its files complete and the plate at rest "
+              "(--resume goes on)")
+
+
 def _browser(design, args):
     """The participant's page: the engine on the device, the service listening; its address printed first."""
     import json
@@ -242,7 +248,7 @@ def _browser(design, args):
         if responder.token:
             print(f"token: {responder.token} (the page's address carries it)", flush=True)
         print(f"the participant's page: open {responder.page_url} on their screen (add &mm_per_px=N or ?mm_per_px=N "
-              f"for the screen's pitch); Ctrl-C stops, the plate at rest", flush=True)
+              f"for the screen's pitch); {STOP_WORDS}", flush=True)
     return responder
 
 
