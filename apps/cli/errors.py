@@ -49,18 +49,17 @@ EXIT_ERROR = 1  # a person can fix it: a device, an output that cannot be writte
 EXIT_USAGE = 2  # the input cannot be used: an option, a value, a file the command reads
 
 
-def _input_errors() -> tuple[type[BaseException], ...]:
-    """The error classes each loader and checker raises for input it refuses (imported when an error is being
-    reported, not at every command's start)."""
-    from ultraglide.devices.profiles import ProfileError
-    from ultraglide.devices.rig import RigError
-    from ultraglide.render.errors import RenderError
-    from ultraglide.render.physics.errors import ModelError
-    from ultraglide.textures.errors import TextureError
+# the error classes each loader and checker raises for input it refuses: (module, class)
+INPUT_ERRORS = (("ultraglide.textures.errors", "TextureError"), ("ultraglide.render.physics.errors", "ModelError"),
+                ("ultraglide.render.errors", "RenderError"), ("ultraglide.experiment.errors", "ExperimentError"),
+                ("ultraglide.devices.rig", "RigError"), ("ultraglide.devices.profiles", "ProfileError"))
 
-    from ultraglide.experiment.errors import ExperimentError
 
-    return UsageError, TextureError, ModelError, RenderError, ExperimentError, RigError, ProfileError
+def _loaded(module: str, name: str) -> type | None:
+    """A class of a module already imported, else None: an error of that class implies its module is loaded, so
+    reporting an error imports nothing (under a memory limit, or a process on its way out)."""
+    loaded = sys.modules.get(module)
+    return getattr(loaded, name, None) if loaded is not None else None
 
 
 def exit_status(error: BaseException) -> int:
@@ -87,15 +86,19 @@ def exit_status(error: BaseException) -> int:
     >>> from ultraglide.devices.errors import DeviceError
     >>> exit_status(DeviceError("the port went away")), exit_status(PermissionError(13, "Permission denied"))
     (1, 1)
+    >>> from ultraglide.render.engine.engine import EngineError   # a RenderError, but the engine's, not the input's
+    >>> exit_status(EngineError("the engine has stopped"))
+    1
     """
     own = getattr(error, "exit_status", None)
     if own:
         return int(own)
-    engine = sys.modules.get("ultraglide.render.engine.engine")  # an engine's failure is not the input's
-    if engine is not None and isinstance(error, engine.EngineError):
+    engine = _loaded("ultraglide.render.engine.engine", "EngineError")  # the engine failing is not the input
+    if engine is not None and isinstance(error, engine):
         return EXIT_ERROR
-    return EXIT_USAGE if isinstance(error, _input_errors()) else EXIT_ERROR
+    inputs = (UsageError, *(found for found in (_loaded(*where) for where in INPUT_ERRORS) if found is not None))
+    return EXIT_USAGE if isinstance(error, inputs) else EXIT_ERROR
 
 
-__all__ = ["EXIT_ERROR", "EXIT_USAGE", "EXTRAS", "USER_ERRORS", "UsageError", "describe", "exit_status",
+__all__ = ["EXIT_ERROR", "EXIT_USAGE", "EXTRAS", "INPUT_ERRORS", "USER_ERRORS", "UsageError", "describe", "exit_status",
            "missing_extra", "require"]
