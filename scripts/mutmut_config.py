@@ -39,6 +39,8 @@ TESTS = {
     "render/physics/table_model.py": ["tests/test_friction_models.py",
                                       "tests/test_doctests.py::test_docstring_examples[ultraglide.render.physics.friction_models]",
                                       "tests/test_calibration.py"],
+    "devices/counter_check.py": ["tests/test_counter_check.py",
+                                 "tests/test_doctests.py::test_docstring_examples[ultraglide.devices.counter_check]"],
 }
 
 
