@@ -2,9 +2,11 @@
 
 Run: .venv/bin/python bench/bench_service.py [--touches 300] [--rounds 2] [--soak-s 60] [--browser]
 
-One engine (on the simulated plate, as ``serve`` starts it) and the service in this process; a client in another
-process (``ultraglide.client``) on a real socket. Both clocks are ``perf_counter`` (CLOCK_MONOTONIC, one clock
-for every process on Linux).
+One engine (on the simulated plate, as ``serve`` starts it) and the service in this process, its loop set up as
+``serve``'s (:func:`apps.commands.serve._loop_in_real_time`: the loop thread's priority and the interpreter's switch
+interval) and its publisher thread running; a client in another process (``ultraglide.client``) on a real socket,
+subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not). Both clocks are ``perf_counter``
+(CLOCK_MONOTONIC, one clock for every process on Linux).
 
 * **latency**: rounds of touches at 100 Hz, alternately put into the engine directly (as ``play`` and the demo do:
   the engine's own touch-to-output latency) and sent by the client (its event time: its clock when it sent it). For
@@ -32,9 +34,11 @@ import numpy as np
 CLIENT = r"""
 import json, sys, time
 from ultraglide.client import Client
-url, count, rate = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+url, count, rate, status_hz = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
 sent = []
 with Client(url) as plate:
+    if status_hz:
+        plate.subscribe(status=status_hz)  # as the page does
     start = time.perf_counter()
     for k in range(count):
         due = start + k / rate
@@ -84,9 +88,9 @@ async def direct(engine, count: int, rate: float) -> list[float]:
     return sent
 
 
-async def by_client(url: str, count: int, rate: float) -> list[float]:
+async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0) -> list[float]:
     process = await asyncio.create_subprocess_exec(sys.executable, "-c", CLIENT, url, str(count), str(rate),
-                                                   stdout=subprocess.PIPE)
+                                                   str(status_hz), stdout=subprocess.PIPE)
     out, _ = await process.communicate()
     return json.loads(out)
 
@@ -97,9 +101,17 @@ def figures(values_s) -> str:
 
 
 async def measure(args) -> None:
+    from ultraglide.apps.commands.serve import _loop_in_real_time
     from websockets.asyncio.server import serve
 
     engine, service = args.engine, args.service
+    service.priority = _loop_in_real_time(service)  # as serve's loop: its thread's priority, the switch interval
+    print(f"the service's loop: {service.priority}, switch interval {sys.getswitchinterval() * 1e3:g} ms; status "
+          f"subscribed at {args.status_hz:g} Hz")
+    stop = threading.Event()
+    publisher = threading.Thread(target=service.publish, args=(asyncio.get_running_loop(), stop),
+                                 name="ultraglide-publisher", daemon=True)
+    publisher.start()  # as serve's
     server = await serve(service.handle, "127.0.0.1", 0, origins=[None], compression=None)
     async with server:
         url = f"ws://127.0.0.1:{server.sockets[0].getsockname()[1]}/ws"
@@ -109,12 +121,12 @@ async def measure(args) -> None:
             sent = await direct(engine, args.touches, 100.0)
             await asyncio.sleep(0.05)
             own.append(matched(engine.latencies(), sent))
-            sent = await by_client(url, args.touches, 100.0)
+            sent = await by_client(url, args.touches, 100.0, args.status_hz)
             await asyncio.sleep(0.05)
             through.append(matched(engine.latencies(), sent))
         own, through = np.concatenate(own), np.concatenate(through)
         service.arrivals = []
-        await by_client(url, args.touches, 100.0)
+        await by_client(url, args.touches, 100.0, args.status_hz)
         arrivals = np.asarray([row for row in service.arrivals if row[0] is not None])
         service.arrivals = None
         print(f"through the service, from the client's send to the message read by the service's loop "
@@ -131,7 +143,7 @@ async def measure(args) -> None:
             await direct(engine, count, 1000.0)
             middle = engine.status(0.0)
             rss_before, _ = rss_mb()
-            sent = await by_client(url, count, 1000.0)
+            sent = await by_client(url, count, 1000.0, args.status_hz)
             after = engine.status(0.0)
             rss_after, peak = rss_mb()
             print(f"soak, 1000 events/s for {args.soak_s:g} s: late blocks {middle.late_blocks - before.late_blocks} "
@@ -139,6 +151,8 @@ async def measure(args) -> None:
                   f"sent, {after.touches - middle.touches} reached the engine, {after.touches_dropped} dropped "
                   f"by its ring); device underruns {after.underruns - before.underruns}; this process's memory "
                   f"{rss_before:.0f} MB before the service's soak, {rss_after:.0f} MB after (peak {peak:.0f} MB)")
+    stop.set()
+    publisher.join(10)
 
 
 def browser_send_times(count: int = 200) -> None:
@@ -190,6 +204,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--soak-s", type=float, default=60.0, help="the soak's length (0: none; default: 60)")
     parser.add_argument("--browser", action="store_true", help="also time the page in headless Chromium")
+    parser.add_argument("--no-subscribe", dest="status_hz", action="store_const", const=0.0, default=2.0,
+                        help="the client subscribes to nothing (default: the status at 2 Hz, as the page)")
     args = parser.parse_args()
     from ultraglide.apps.service.server import Service
     from ultraglide.devices.profiles import load_profile
@@ -202,7 +218,6 @@ def main() -> None:
     try:
         args.engine.wait_ready()
         args.service = service
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), -10)  # as serve's loop
         asyncio.run(measure(args))
     finally:
         service.worker.shutdown()
