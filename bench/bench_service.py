@@ -47,7 +47,7 @@ with Client(url) as plate:
                 time.sleep(0.0002)
         t = time.perf_counter()
         plate.touch(20.0 + (k % 100) * 0.5, 50.0, "down" if k == 0 else "move", t=t)
-        sent.append(t)
+        sent.append((t, time.perf_counter()))  # its time, and when the client's call returned (its frame written)
     plate.touch(20.0, 50.0, "up")
     plate.state()  # everything sent has arrived
 print(json.dumps(sent))
@@ -88,11 +88,12 @@ async def direct(engine, count: int, rate: float) -> list[float]:
     return sent
 
 
-async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0) -> list[float]:
+async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0) -> np.ndarray:
+    """The client's touches: each one's time and when its call to the client returned, perf_counter s."""
     process = await asyncio.create_subprocess_exec(sys.executable, "-c", CLIENT, url, str(count), str(rate),
                                                    str(status_hz), stdout=subprocess.PIPE)
     out, _ = await process.communicate()
-    return json.loads(out)
+    return np.asarray(json.loads(out)).reshape(-1, 2)
 
 
 def figures(values_s) -> str:
@@ -123,14 +124,16 @@ async def measure(args) -> None:
             own.append(matched(engine.latencies(), sent))
             sent = await by_client(url, args.touches, 100.0, args.status_hz)
             await asyncio.sleep(0.05)
-            through.append(matched(engine.latencies(), sent))
+            through.append(matched(engine.latencies(), sent[:, 0]))
         own, through = np.concatenate(own), np.concatenate(through)
         service.arrivals = []
-        await by_client(url, args.touches, 100.0, args.status_hz)
+        sent = await by_client(url, args.touches, 100.0, args.status_hz)
         arrivals = np.asarray([row for row in service.arrivals if row[0] is not None])
         service.arrivals = None
+        returned = sent[np.clip(np.searchsorted(sent[:, 0], arrivals[:, 0] - 1e-9), 0, len(sent) - 1), 1]
         print(f"through the service, from the client's send to the message read by the service's loop "
-              f"{figures(arrivals[:, 1] - arrivals[:, 0])}; from read to the engine's ring "
+              f"{figures(arrivals[:, 1] - arrivals[:, 0])} (of it, the client's call, its encoding and its socket "
+              f"write: {figures(returned - arrivals[:, 0])}); from read to the engine's ring "
               f"{figures(arrivals[:, 2] - arrivals[:, 1])}")
         print(f"latency, touch to its block presented (sim): engine alone {figures(own)}; "
               f"through the service {figures(through)}")
