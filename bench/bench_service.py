@@ -3,10 +3,10 @@
 Run: .venv/bin/python bench/bench_service.py [--touches 300] [--rounds 2] [--soak-s 60] [--browser]
 
 One engine (on the simulated plate, as ``serve`` starts it) and the service in this process, its loop set up as
-``serve``'s (:func:`apps.commands.serve._loop_in_real_time`: the loop thread's priority and the interpreter's switch
-interval) and its publisher thread running; a client in another process (``ultraglide.client``) on a real socket,
-subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not). Both clocks are ``perf_counter``
-(CLOCK_MONOTONIC, one clock for every process on Linux).
+``serve``'s (:func:`apps.commands.serve._loop_in_real_time`: the loop thread's priority; the interpreter's switch
+interval printed) and its publisher thread running; a client in another process (``ultraglide.client``) on a real
+socket, subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not). Both clocks are
+``perf_counter`` (CLOCK_MONOTONIC, one clock for every process on Linux).
 
 * **latency**: rounds of touches at 100 Hz, alternately put into the engine directly (as ``play`` and the demo do:
   the engine's own touch-to-output latency) and sent by the client (its event time: its clock when it sent it). For
@@ -106,7 +106,7 @@ async def measure(args) -> None:
     from websockets.asyncio.server import serve
 
     engine, service = args.engine, args.service
-    service.priority = _loop_in_real_time(service)  # as serve's loop: its thread's priority, the switch interval
+    service.priority = _loop_in_real_time(service)  # as serve's loop: its thread's priority
     print(f"the service's loop: {service.priority}, switch interval {sys.getswitchinterval() * 1e3:g} ms; status "
           f"subscribed at {args.status_hz:g} Hz")
     stop = threading.Event()
