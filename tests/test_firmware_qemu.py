@@ -189,7 +189,7 @@ def test_plate_sim_on_qemu_prints_the_link_first_and_stops_qemu_on_sigterm(one_q
         assert wait_for(lambda: board.qemu_pids())
         qemu = board.qemu_pids()[0]
         boot = json.loads(board.process.stdout.readline())
-        assert boot["event"] == "boot"
+        assert (boot["event"], boot["board"], boot["variant"]) == ("boot", "netduinoplus2", "qemu")
     finally:
         board.process.send_signal(signal.SIGTERM)
         status = board.process.wait(timeout=60)
@@ -227,6 +227,7 @@ def test_budgets_count_a_loop_of_known_length_and_the_fastest_stream_plays_whole
     from ultraglide.devices.firmware.budgets import BOARD_CORE_HZ, CALIBRATION, RESOLUTION, measure, stream_load
 
     run = measure(board=board)
+    assert (run.boot["board"], run.boot["variant"]) == (board, "bench")  # its boot line says what it is, once
     name, instructions = CALIBRATION
     step = RESOLUTION[board]
     calibration = run.figures[name]

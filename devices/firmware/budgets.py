@@ -24,10 +24,11 @@ import re
 import shutil
 import subprocess
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.firmware.boards import BOARD_INFO, build_images
+from ultraglide.devices.firmware.qemu import parse_event
 
 CORE_HZ = 168_000_000  # the netduinoplus2's; each board's in BOARD_CORE_HZ
 BOARD_CORE_HZ = {"netduinoplus2": 168_000_000, "mps2-an386": 25_000_000}  # the boards' board.h BOARD_CORE_HZ
@@ -56,10 +57,12 @@ class Figure:
 @dataclass(frozen=True)
 class BenchRun:
     """The bench image's figures by name, and the core's counters at its end (``setpoints``, ``overrun``, ...:
-    every value of the streams it played must have been buffered, none overrun, none late)."""
+    every value of the streams it played must have been buffered, none overrun, none late), and its boot line as
+    an event (``{"event": "boot", "board": ..., "variant": "bench", ...}``; empty if it printed none)."""
 
     figures: dict
     counters: dict
+    boot: dict = field(default_factory=dict)
 
 
 def measure(out_dir: str | None = None, board: str = "netduinoplus2") -> BenchRun:
@@ -73,6 +76,7 @@ def measure(out_dir: str | None = None, board: str = "netduinoplus2") -> BenchRu
                                text=True)
     figures: dict[str, Figure] = {}
     counters: dict[str, int] = {}
+    boot: dict = {}
     timer = threading.Timer(RUN_TIMEOUT_S, process.kill)
     timer.daemon = True
     timer.start()
@@ -81,6 +85,8 @@ def measure(out_dir: str | None = None, board: str = "netduinoplus2") -> BenchRu
             if line.startswith("bench done"):
                 counters = {key: int(value) for key, value in re.findall(r"(\w+)=(\d+)", line)}
                 break
+            if line.startswith("ev boot ") and not boot:
+                boot = parse_event(line, 0.0) or {}
             found = _LINE.match(line)
             if found:
                 name, calls, mean, worst, total = found.groups()
@@ -92,7 +98,7 @@ def measure(out_dir: str | None = None, board: str = "netduinoplus2") -> BenchRu
         process.stdout.close()
     if not figures or not counters:
         raise DeviceError("the bench image did not finish under QEMU")
-    return BenchRun(figures, counters)
+    return BenchRun(figures, counters, boot)
 
 
 def cycles(instructions: float) -> float:

@@ -52,6 +52,15 @@ static volatile uint32_t link_rx_bytes, link_tx_bytes;
 static uint32_t last_stats;
 static uint32_t main_last_us, main_max_gap_us;  /* the longest the main loop went between two turns */
 
+/* what the image is, as its boot line says it (each board's Makefile builds the variants) */
+#if defined(UG_BOARD_BENCH)
+#define UG_VARIANT_NAME "bench"     /* the budget image (bench.c), run under QEMU's instruction counter */
+#elif defined(UG_BOARD_QEMU)
+#define UG_VARIANT_NAME "qemu"      /* the emulated board: its plate emulated, the link tapped */
+#else
+#define UG_VARIANT_NAME "hardware"  /* the real board */
+#endif
+
 #if defined(UG_BOARD_QEMU) && !defined(UG_BOARD_BENCH)
 #define UG_LINK_TAP 1  /* the QEMU image's independent reading of the setpoints received (link_tap.h) */
 static ug_ring_t tap_ring;
@@ -351,8 +360,8 @@ static void boot_line(const ug_config *config, int result)
     char line[480];
     char *end = line + sizeof line;
     char *at = ug_append_text(line, end, result == UG_OK ? "ev boot board=" BOARD_NAME : "ev error what=config");
+    at = ug_append_text(at, end, " variant=" UG_VARIANT_NAME);
 #ifdef UG_BOARD_QEMU
-    at = ug_append_text(at, end, " variant=qemu");
     if (ug_emulation.magic != UG_EMULATION_MAGIC) {
         at = ug_append_text(at, end, " emulation=missing");
     }
@@ -361,8 +370,6 @@ static void boot_line(const ug_config *config, int result)
 #endif
 #ifdef UG_LINK_TAP
     at = append_pair(at, end, "limit_code", tap.limit_code);
-#else
-    at = ug_append_text(at, end, " variant=hardware");
 #endif
     at = ug_append_text(at, end, " watchdog=" BOARD_WATCHDOG_NAME);  /* board.h: what refreshes on both marks */
     at = append_pair(at, end, "watchdog_us", BOARD_WATCHDOG_US);
