@@ -3,11 +3,13 @@ restart_detail:u32 after the link's fields, docs/protocol.md): the wire layout p
 stating what its port read at boot (through its host binding), and the host saying a restart in words. A board
 restarting mid-run is tested on the emulated board (tests/test_firmware_faults.py)."""
 
+import json
+import re
 import shutil
 import struct
 
 import pytest
-from conftest import run_cli, serve_plate
+from conftest import ROOT, run_cli, serve_plate
 from qemu_board import next_event, said_in_hello
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware import sil
@@ -18,6 +20,11 @@ from ultraglide.devices.sim.lies import Lies
 
 V3_HEAD = struct.pack("<BfffIIffHHfBHB", 3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, 8.0, 1,
                       1000, 0)
+
+
+RAM_PIN_WORDS = ("its reset pin or another reset with power kept (told from its RAM: the board has no reset-cause "
+                 "register, so a debugger's reset or its watchdog's own reset looks the same)")
+RAM_POWER_ON_WORDS = "power-on (told from its RAM: the board has no reset-cause register)"
 
 
 def reply(features, **fields):
@@ -55,6 +62,8 @@ def test_a_reply_without_the_bit_states_nothing_and_one_cut_short_is_refused():
     (p.RESTART_WATCHDOG, 0, "its watchdog expired (the block interrupt's and the main loop's marks missing)"),
     (p.RESTART_FAULT, 0x400, "a fault handler reset it (fault status 0x00000400)"),
     (p.RESTART_PIN, 0, "its reset pin"),
+    (p.RESTART_PIN, 1, RAM_PIN_WORDS),  # bit 0: told from its RAM (no reset-cause register)
+    (p.RESTART_POWER_ON, 1, RAM_POWER_ON_WORDS),
     (9, 0, "reason 9"),
 ])
 def test_the_reason_in_words(reason, detail, words):
@@ -100,7 +109,29 @@ def test_play_says_how_the_board_came_to_be_running_and_does_not_count_it_a_faul
     assert result.returncode == 0, (result.stdout, result.stderr)
 
 
+def test_plate_check_says_why_the_board_last_started():
+    features = p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_BRAKING | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED
+    plate = serve_plate(load_profile("sim-plate"), lies=Lies({"hello.features": features, "hello.restart_reason": 4,
+                                                              "hello.restart_detail": 1}))
+    try:
+        text = run_cli("plate", "check", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                       "--rule", "R-VERSION", timeout=300)
+        as_json = run_cli("plate", "check", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                          "--rule", "R-VERSION", "--json", timeout=300)
+    finally:
+        plate.stop()
+    assert text.returncode == 0 and as_json.returncode == 0, (text.stderr, as_json.stderr)
+    assert f"; why it last started: {RAM_PIN_WORDS}" in text.stdout.splitlines()[0]
+    assert json.loads(as_json.stdout)["device"]["last_started"] == RAM_PIN_WORDS
+
+
 UG_RESET_DETAIL_FROM_RAM = 1  # ports/common/ug_safety.h: told from the RAM kept, no reset-cause register read
+
+
+def test_the_hosts_bit_for_told_from_ram_is_the_firmwares():
+    header = (ROOT / "devices/firmware/ports/common/ug_safety.h").read_text()
+    stated = re.search(r"#define UG_RESET_DETAIL_FROM_RAM (\d+)u", header)
+    assert int(stated.group(1)) == p.RESTART_DETAIL_FROM_RAM == UG_RESET_DETAIL_FROM_RAM
 
 
 @pytest.mark.slow
@@ -121,7 +152,7 @@ def test_a_board_without_a_reset_cause_register_tells_its_reset_button_from_powe
         assert (boot["reset_reason"], boot["reset_from"]) == ("power-on", "ram")
         reply = said_in_hello(plate)
         assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == \
-            (p.RESTART_POWER_ON, UG_RESET_DETAIL_FROM_RAM, "power-on")
+            (p.RESTART_POWER_ON, UG_RESET_DETAIL_FROM_RAM, RAM_POWER_ON_WORDS)
         for _ in range(2):
             next_event(plate, ("stats",))  # running: a second of the board's clock
             plate.press_reset()
@@ -129,9 +160,15 @@ def test_a_board_without_a_reset_cause_register_tells_its_reset_button_from_powe
             assert (boot["reset_reason"], boot["reset_from"]) == ("pin", "ram") and "injected" not in boot
             reply = said_in_hello(plate)
             assert (reply.restart_reason, reply.restart_detail, reply.restart_words()) == \
-                (p.RESTART_PIN, UG_RESET_DETAIL_FROM_RAM, "its reset pin")
+                (p.RESTART_PIN, UG_RESET_DETAIL_FROM_RAM, RAM_PIN_WORDS)
             next_event(plate, ("stats",))
             plate.inject_fault("hard-fault")  # the firmware's own record, not the RAM's mark, says a fault
             boot = next_event(plate, ("boot",))
             assert (boot["reset_reason"], boot["injected"]) == ("fault", "hard-fault") and "reset_from" not in boot
             assert said_in_hello(plate).restart_reason == p.RESTART_FAULT
+        next_event(plate, ("stats",))
+        plate.press_reset()  # and a command's words say it: plate check's first line
+        assert next_event(plate, ("boot",))["reset_reason"] == "pin"
+        check = run_cli("plate", "check", "--device", f"serial:{plate.path}", "--profile", "sim-plate",
+                        "--rule", "R-VERSION", timeout=300)
+        assert f"; why it last started: {RAM_PIN_WORDS}" in check.stdout.splitlines()[0], check.stdout + check.stderr

@@ -253,7 +253,8 @@ class Check(LinkRules, StreamRules, DeviceRules):
         return (f"checking {d.name!r} on {self.probe.port}: protocol v{self.version}, limit "
                 f"{d.max_amplitude_um_pp:g} µm p-p of full scale {d.full_scale_um_pp:g}, resonance "
                 f"{d.resonance_hz:g} Hz; driving at most {safe_um_pp:.2f} µm p-p ({100 * SAFE_FRACTION:.0f} % of "
-                f"{bound} {self.safe_limit_um_pp:g} µm p-p limit) at {self.carrier:g} Hz")
+                f"{bound} {self.safe_limit_um_pp:g} µm p-p limit) at {self.carrier:g} Hz"
+                + (f"; why it last started: {d.restart_words()}" if d.restart_words() else ""))
 
     def run_rule(self, rule: str, check) -> None:
         """One rule's verdict. A rule that fails is checked once more: this host's own stalls on a loaded machine

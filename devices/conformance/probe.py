@@ -126,7 +126,8 @@ class CheckReport:
                            "max_amplitude_um_pp": d.max_amplitude_um_pp,
                            "max_drive_um_pp": getattr(d, "max_drive_um_pp", d.max_amplitude_um_pp),
                            "resonance_hz": d.resonance_hz, "carrier_min_hz": d.carrier_min_hz,
-                           "carrier_max_hz": d.carrier_max_hz, "watchdog_ms": d.watchdog_ms, "buffer_ms": d.buffer_ms},
+                           "carrier_max_hz": d.carrier_max_hz, "watchdog_ms": d.watchdog_ms, "buffer_ms": d.buffer_ms,
+                           "last_started": d.restart_words()},  # why it last started, in words (None: not stated)
                 "rules": [verdict.as_dict() for verdict in self.verdicts], "passed": self.count(PASS),
                 "failed": self.count(FAIL), "not_checked": self.count(NOT_CHECKED), "broken_rules": list(self.failed),
                 "aborted": self.aborted, "lost": self.lost,

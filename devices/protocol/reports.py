@@ -22,7 +22,10 @@ from ultraglide.devices.protocol.spec import (
     MAX_SENSOR_SAMPLES,
     PLAYBACK_OFF,
     PROTOCOL_VERSION,
+    RESTART_DETAIL_FROM_RAM,
     RESTART_FAULT,
+    RESTART_PIN,
+    RESTART_POWER_ON,
     RESTART_WATCHDOG,
     RESTART_WORDS,
 )
@@ -85,12 +88,41 @@ class HelloReply:
         return self.version >= 3 and bool(self.features & FEATURE_LINK_STATED) and self.link_bytes_per_s > 0
 
     def restart_words(self) -> str | None:
-        """Why the board last started, in words (None: not stated), e.g. ``its watchdog expired (the block
-        interrupt's mark missing)``."""
+        """Why the board last started, in words (None: not stated).
+
+        After a watchdog, the marks that were missing; after a fault, its status; after a power-on or a reset
+        with power kept that the board told from its RAM (``restart_detail`` bit 0, ``RESTART_DETAIL_FROM_RAM``:
+        it has no reset-cause register, only a mark in RAM that a power-on clears), that it was so told, and
+        for the reset pin that a debugger's reset or a watchdog's own hardware reset look the same there.
+
+        Returns
+        -------
+        str or None
+            E.g. ``its watchdog expired (the block interrupt's mark missing)``; None when the reply states no
+            reason (no ``FEATURE_RESET_STATED``).
+
+        Examples
+        --------
+        >>> from ultraglide.devices import protocol as p
+        >>> def said(reason, detail):
+        ...     return p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "board",
+        ...                         features=p.FEATURE_RESET_STATED, restart_reason=reason,
+        ...                         restart_detail=detail).restart_words()
+        >>> said(p.RESTART_WATCHDOG, 2)
+        "its watchdog expired (the block interrupt's mark missing)"
+        >>> said(p.RESTART_POWER_ON, p.RESTART_DETAIL_FROM_RAM)
+        'power-on (told from its RAM: the board has no reset-cause register)'
+        """
         if self.restart_reason is None:
             return None
         words = RESTART_WORDS.get(self.restart_reason, f"reason {self.restart_reason}")
-        if self.restart_reason == RESTART_WATCHDOG:
+        from_ram = bool(self.restart_detail & RESTART_DETAIL_FROM_RAM)
+        if self.restart_reason == RESTART_PIN and from_ram:
+            words = ("its reset pin or another reset with power kept (told from its RAM: the board has no "
+                     "reset-cause register, so a debugger's reset or its watchdog's own reset looks the same)")
+        elif self.restart_reason == RESTART_POWER_ON and from_ram:
+            words += " (told from its RAM: the board has no reset-cause register)"
+        elif self.restart_reason == RESTART_WATCHDOG:
             missing = [name for bit, name in ((1, "the block interrupt's"), (2, "the main loop's"))
                        if not self.restart_detail & bit]
             if missing:

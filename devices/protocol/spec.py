@@ -81,6 +81,7 @@ RESTART_POWER_ON, RESTART_WATCHDOG, RESTART_FAULT, RESTART_SOFTWARE, RESTART_PIN
 RESTART_WORDS = {RESTART_POWER_ON: "power-on", RESTART_WATCHDOG: "its watchdog expired",
                  RESTART_FAULT: "a fault handler reset it", RESTART_SOFTWARE: "its firmware asked for a reset",
                  RESTART_PIN: "its reset pin"}
+RESTART_DETAIL_FROM_RAM = 1 << 0  # after RESTART_POWER_ON or RESTART_PIN: no reset-cause register, told from its RAM
 MAX_FORCE_EXPONENT = 2.0  # SETPOINTS_FORCE's exponent lies in -2..2
 MAX_REFERENCE_FORCE_N = 20.0  # ... and its force in (0, 20] N
 FORCE_SPAN = 2.0  # the device corrects where its force lies within force_n / 2 .. 2 force_n
