@@ -12,14 +12,10 @@ hang (which keeps the processor busy) is caught exactly one window after the las
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
-import os
-import platform
 import queue
 import shutil
 import signal
-import struct
 import subprocess
 import sys
 import threading
@@ -30,7 +26,7 @@ from conftest import ROOT
 from qemu_board import injected, next_event, said_in_hello
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import BOARD_INFO, FIRMWARE_DIR, build_images
-from ultraglide.devices.firmware.qemu import MACHINE_DEADLINE, SCHED_DEADLINE, QemuPlate
+from ultraglide.devices.firmware.qemu import QemuPlate
 
 pytestmark = [
     pytest.mark.slow,
@@ -93,39 +89,6 @@ def test_the_board_boots_and_says_which_board_and_watchdog(one_qemu, image):
         assert reply.features & p.FEATURE_RESET_STATED  # the board has no reset-cause register; test_restart_reason)
         assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_POWER_ON, p.RESTART_DETAIL_FROM_RAM)
         assert reply.restart_words() == "power-on (told from its RAM: the board has no reset-cause register)"
-
-
-def reservation_of(tid: int) -> tuple[int, int, int, int]:
-    """The thread's policy, runtime, deadline and period (ns) as the kernel reports them (sched_getattr)."""
-    number = {"x86_64": 315, "aarch64": 275}.get(platform.machine())
-    if number is None:
-        pytest.skip(f"no sched_getattr number known for {platform.machine()}")
-    attr = ctypes.create_string_buffer(48)
-    libc = ctypes.CDLL(None, use_errno=True)
-    assert libc.syscall(ctypes.c_long(number), ctypes.c_int(tid), attr, ctypes.c_uint(48), ctypes.c_uint(0)) == 0
-    _size, policy, _flags, _nice, _priority, runtime, deadline, period = struct.unpack("=IIQiIQQQ", attr.raw)
-    return policy, runtime, deadline, period
-
-
-def test_the_boards_processor_runs_under_a_deadline_reservation_and_says_so(one_qemu, image):
-    """The image never sleeps, so QEMU's processor thread would hold a core at SCHED_FIFO and starve the kernel's
-    tty work the link needs (qemu.MACHINE_DEADLINE): it gets a SCHED_DEADLINE reservation instead, read back from
-    the kernel; QEMU's other threads keep their real-time priority. Where the system refuses, the plate says why."""
-    with started(image) as plate:
-        tasks = [int(tid) for tid in os.listdir(f"/proc/{plate.process.pid}/task")]
-        names = {tid: open(f"/proc/{plate.process.pid}/task/{tid}/comm").read().strip() for tid in tasks}
-        processors = [tid for tid, name in names.items() if name.endswith("/TCG")]
-        assert len(processors) == 1, names
-        policy, runtime, deadline, period = reservation_of(processors[0])
-        if "without a deadline reservation" in plate.scheduling:
-            assert policy != SCHED_DEADLINE
-            pytest.skip(plate.scheduling)
-        runtime_ns, period_ns = MACHINE_DEADLINE[BOARD]
-        assert (policy, runtime, deadline, period) == (SCHED_DEADLINE, runtime_ns, period_ns, period_ns)
-        assert plate.scheduling.startswith("QEMU's processor at SCHED_DEADLINE, 0.8 ms of each 1 ms"), plate.scheduling
-        others = [os.sched_getscheduler(tid) for tid in tasks if tid != processors[0]]
-        assert others and all(policy == os.sched_getscheduler(plate.process.pid) for policy in others)
-        assert next_event(plate, ("stats",))["blocks"] >= 900  # and the board runs under it
 
 
 @pytest.mark.parametrize("kind", ["isr-hang", "main-hang"])

@@ -213,11 +213,11 @@ def _plate_sim_qemu(args) -> int:
         if args.json:
             show({"t_s": 0.0, "event": "serving", "path": plate.path, "pty": plate.pty_name, "board": board.name,
                   "image": image.elf_path, "profile": profile.name, "resonance_hz": truth.resonance_hz,
-                  "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s, "scheduling": plate.scheduling})
+                  "q": truth.q, "drift_hz_per_s": truth.drift_hz_per_s})
         else:
             print_line(f"{board.name} image under QEMU, plate {profile.name} on {plate.path} (pty {plate.pty_name}); "
                   f"resonance {truth.resonance_hz:g} Hz, Q {truth.q:g}, drift {truth.drift_hz_per_s:g} Hz/s; "
-                  f"{plate.scheduling}; Ctrl-C stops it")
+                  "Ctrl-C stops it")
         fault_at = time.monotonic() + args.board_fault[1] if args.board_fault else None
         while True:  # until a stop signal raises through here, or QEMU dies
             if fault_at is not None and time.monotonic() >= fault_at:

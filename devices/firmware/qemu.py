@@ -27,7 +27,6 @@ import contextlib
 import ctypes
 import json
 import os
-import platform
 import queue
 import re
 import shutil
@@ -69,19 +68,6 @@ QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its 
 # (shift=3 ran it at 0.79-0.84 of real time under load), slower starves its main loop (shift=5: resets at once).
 # The netduinoplus2's image keeps the host's clock and its stand-in watchdog (ports/netduinoplus2/board.h).
 MACHINE_ICOUNT = {"mps2-an386": "shift=4,sleep=on,align=on"}
-# The processor thread of a machine whose image never sleeps gets a deadline reservation rather than SCHED_FIFO: at
-# SCHED_FIFO it held a core for up to hundreds of ms, and the kernel's own work that the link needs waited there: a
-# pseudo-terminal's bytes reach the other end only through the tty layer's flip-buffer work, run by a kworker at
-# ordinary priority, and the host's select() on the link (pyserial's read and write) waits for that work too. Woken
-# on the core the spinning processor held, a kworker stayed there 78 ms (ftrace, sched_switch/sched_wakeup) before
-# the load balancer moved it, while the host's writer sat in D state in n_tty_poll's flush_work and the plate ran
-# dry. SCHED_DEADLINE runtime/period (ns): the processor is guaranteed that share of a core whatever else runs in
-# real time (it needs about 0.65 of one), and never holds the core for longer than the runtime at a time, so the
-# kworker, QEMU's own I/O thread and the host's threads get it within a period.
-MACHINE_DEADLINE = {"mps2-an386": (800_000, 1_000_000)}
-SCHED_DEADLINE = 6  # <linux/sched.h>
-_SCHED_ATTR = struct.Struct("=IIQiIQQQ")  # struct sched_attr (SCHED_ATTR_SIZE_VER0, 48 bytes)
-_SYS_SCHED_SETATTR = {"x86_64": 314, "aarch64": 274, "armv7l": 380, "i686": 351}
 
 
 @dataclass(frozen=True)
@@ -144,18 +130,6 @@ def _section(elf, wanted: str) -> tuple[int, int]:
     raise DeviceError(f"{elf.name} has no {wanted} section: is it the qemu variant?")
 
 
-def _processor_threads(pid: int) -> list[int]:
-    """The processor threads of a QEMU started with ``-name ...,debug-threads=on`` (``ALL CPUs/TCG`` under the
-    instruction counter, ``CPU N/TCG`` otherwise)."""
-    found = []
-    with contextlib.suppress(OSError):
-        for tid in os.listdir(f"/proc/{pid}/task"):
-            with contextlib.suppress(OSError), open(f"/proc/{pid}/task/{tid}/comm") as comm:
-                if comm.read().strip().endswith("/TCG"):
-                    found.append(int(tid))
-    return found
-
-
 def _prepare_child() -> None:  # runs in the child between fork and exec
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)  # QEMU dies with its parent
@@ -165,48 +139,6 @@ def _prepare_child() -> None:  # runs in the child between fork and exec
     except OSError:
         with contextlib.suppress(OSError):
             os.nice(QEMU_NICE)
-
-
-def reserve_deadline(tid: int, runtime_ns: int, period_ns: int) -> str | None:
-    """Put the thread ``tid`` under SCHED_DEADLINE: ``runtime_ns`` of CPU time in every ``period_ns`` (its deadline
-    the period's end), guaranteed and never more. Returns None when done, else why not (no permission, the
-    kernel's admission control found no room for it, no such system call here).
-
-    Parameters
-    ----------
-    tid : int
-        A thread of this machine (Linux thread id).
-    runtime_ns, period_ns : int
-        The reservation: CPU time (ns) in each period (ns).
-
-    Returns
-    -------
-    str or None
-        None, or the reason in words.
-
-    Examples
-    --------
-    A thread of its own, reserved 0.5 ms of each 10 ms, or told why not:
-
-    >>> import os, threading
-    >>> got = []
-    >>> def worker():
-    ...     why = reserve_deadline(threading.get_native_id(), 500_000, 10_000_000)
-    ...     got.append((why, os.sched_getscheduler(0)))
-    >>> thread = threading.Thread(target=worker); thread.start(); thread.join()
-    >>> why, policy = got[0]
-    >>> (policy == SCHED_DEADLINE) == (why is None)
-    True
-    """
-    number = _SYS_SCHED_SETATTR.get(platform.machine())
-    if number is None:
-        return f"no sched_setattr on {platform.machine() or 'this machine'}"
-    attr = ctypes.create_string_buffer(_SCHED_ATTR.pack(_SCHED_ATTR.size, SCHED_DEADLINE, 0, 0, 0, runtime_ns,
-                                                        period_ns, period_ns))
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.syscall(ctypes.c_long(number), ctypes.c_int(tid), attr, ctypes.c_uint(0)) != 0:
-        return os.strerror(ctypes.get_errno())
-    return None
 
 
 def restart_events(boot: dict) -> list[dict]:
@@ -310,7 +242,6 @@ class QemuPlate:
         self._stderr = b""
         self._booted = threading.Event()
         self._qmp_dir: str | None = None  # QEMU's machine protocol socket: the reset button (press_reset)
-        self.scheduling = ""  # what QEMU's threads run at, in words (once started)
 
     def __repr__(self) -> str:
         state = f"pid {self.process.pid}" if self.process and self.process.poll() is None else "stopped"
@@ -318,7 +249,7 @@ class QemuPlate:
 
     def command(self) -> list[str]:
         command = [QEMU, "-M", self.machine, "-nographic", "-monitor", "none", "-serial", "pty", "-serial", "stdio",
-                   "-name", "ultraglide,debug-threads=on", "-kernel", self.elf_path]  # threads named: "ALL CPUs/TCG"
+                   "-kernel", self.elf_path]
         if self._qmp_dir is not None:
             command += ["-qmp", f"unix:{os.path.join(self._qmp_dir, 'qmp.sock')},server=on,wait=off"]
         if self.icount_shift is not None:
@@ -351,33 +282,8 @@ class QemuPlate:
         except BaseException:
             self.stop()
             raise
-        self.scheduling = self._reserve_processor()
         place_link(self.pty_name, self.path)
         return self
-
-    def _reserve_processor(self) -> str:
-        """The processor thread of a machine in ``MACHINE_DEADLINE`` under its deadline reservation (once booted:
-        the thread exists); what QEMU's threads run at, in words."""
-        assert self.process is not None
-        try:
-            policy = os.sched_getscheduler(self.process.pid)
-            fifo = policy == os.SCHED_FIFO
-            words = f"SCHED_FIFO {os.sched_getparam(self.process.pid).sched_priority}" if fifo else \
-                f"nice {os.getpriority(os.PRIO_PROCESS, self.process.pid)}"
-        except OSError:
-            return "QEMU's scheduling unknown (it stopped)"
-        reservation = MACHINE_DEADLINE.get(self.machine) if self.icount_shift is None else None
-        if reservation is None:
-            return f"QEMU at {words}"
-        threads = _processor_threads(self.process.pid)
-        why = None if threads else "its processor thread not found"
-        for tid in threads:
-            why = why or reserve_deadline(tid, *reservation)
-        if why is not None:
-            return f"QEMU at {words} (its processor thread without a deadline reservation: {why})"
-        runtime_ns, period_ns = reservation
-        return (f"QEMU's processor at SCHED_DEADLINE, {runtime_ns / 1e6:g} ms of each {period_ns / 1e6:g} ms; its "
-                f"other threads at {words}")
 
     def _wait_for_boot(self) -> None:
         """The link is published only once the firmware has booted: QEMU's USART drops bytes that arrive
