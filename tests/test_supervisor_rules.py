@@ -31,9 +31,11 @@ def child(buffer, state: str) -> None:
         deadline = time.perf_counter() + 0.002
         while time.perf_counter() < deadline:
             pass
-        if mode == BLOCKS:
+        if mode == BLOCKS:  # each beat's time first, then its count, as the engine writes them
+            fast[shm.HEARTBEAT_S] = time.perf_counter()
             fast[shm.HEARTBEAT] += 1
         elif mode == BEAT_THREAD:
+            fast[shm.ENGINE_BEAT_S] = time.perf_counter()
             fast[shm.ENGINE_BEAT] += 1
 
 
@@ -96,6 +98,26 @@ def test_neither_beat_is_a_freeze_the_process_killed(state):
         assert loss.silent_s >= FROZEN_AFTER_S
         watched.process.join(30)
         assert watched.process.exitcode == -9  # SIGKILL: a frozen process takes no other signal
+    finally:
+        watched.close()
+
+
+def test_a_silence_counts_from_the_engines_own_last_beat_not_from_the_watchs_look(monkeypatch):
+    """The watch looks every 50 ms while beats come: counted from its look, a freeze was judged up to 50 ms late
+    (noticed 172-198 ms after a SIGSTOP, quiet, for a 150 ms freeze). The silence runs from the time the engine
+    wrote with its last beat. (The watch's own lateness rule is set aside: it would restart the count.)"""
+    from ultraglide.render.engine import supervisor
+
+    monkeypatch.setattr(supervisor, "OWN_GAP_S", 3600.0)
+    watched = Watched("running", BLOCKS)
+    try:
+        watched.beats_for(shm.HEARTBEAT, 50)
+        watched.fast[MODE] = NOTHING  # still running Python, no beat
+        assert watched.supervisor.wait(60.0), "no freeze judged within 60 s"
+        loss = watched.supervisor.loss
+        last_beat_s = float(watched.fast[shm.HEARTBEAT_S])
+        assert loss.kind == "froze" and loss.silent_s >= FROZEN_AFTER_S
+        assert loss.noticed_s - loss.silent_s == pytest.approx(last_beat_s, abs=1e-6)
     finally:
         watched.close()
 

@@ -296,6 +296,7 @@ class EngineSource(OutputStage):
         renderer = self.renderer
         counters = renderer.counters
         block = renderer.last_block
+        fast[shm.HEARTBEAT_S] = done  # (its time first: a count seen advanced has its time written)
         fast[shm.HEARTBEAT] += 1  # the supervisor's sign that the block path runs (outside the seqlock: one word)
         fast[shm.SEQ] += 1  # odd: being written
         blocks = int(fast[shm.BLOCKS])
@@ -413,6 +414,7 @@ class EngineBeat(threading.Thread):
         """
         fast = self.fast
         while not self._stop_event.wait(self.period_s):
+            fast[shm.ENGINE_BEAT_S] = time.perf_counter()  # (its time first: a count seen advanced has its time)
             fast[shm.ENGINE_BEAT] += 1
 
     def stop(self) -> None:

@@ -56,6 +56,10 @@ RESTING_BLOCKS = 20  # blocks served as zeros while paused and at rest (the rend
 # Python (its beat thread), so a device that stops pulling for a while (a reconnecting plate's handshake) is not
 # taken for a frozen engine
 HEARTBEAT, ENGINE_BEAT = 21, 22
+# when each last advanced (perf_counter s, the clock every process shares), written before its count: a count seen
+# advanced has its time written, so the supervisor counts a silence from the engine's own last sign of life, not
+# from when it looked
+HEARTBEAT_S, ENGINE_BEAT_S = 13, 23
 HEADER = 24
 
 STATES = ("starting", "running", "paused", "stopping", "stopped", "failed")

@@ -284,9 +284,11 @@ class Supervisor:
             # two stopped together by Ctrl-Z are continued together: the engine is not seen stopped again)
             beating = False
             if fast[shm.HEARTBEAT] != block_beat:
-                block_beat, block_seen, beating = fast[shm.HEARTBEAT], now, True
+                block_beat, beating = fast[shm.HEARTBEAT], True
+                block_seen = _beat_time(fast[shm.HEARTBEAT_S], block_seen, now)
             if fast[shm.ENGINE_BEAT] != engine_beat:
-                engine_beat, engine_seen, beating = fast[shm.ENGINE_BEAT], now, True
+                engine_beat, beating = fast[shm.ENGINE_BEAT], True
+                engine_seen = _beat_time(fast[shm.ENGINE_BEAT_S], engine_seen, now)
             # /proc is read only when no beat came since the last look: a process that beats is not stopped
             stopped = not beating and _process_state(self.pid) in ("T", "t")
             stopped_since = (stopped_since or now) if stopped else None
@@ -370,6 +372,13 @@ def _prepare_rest(device_url: str) -> None:
 
         if parse_device_url(device_url).kind == "serial":
             from ultraglide.devices.serial import link  # noqa: F401
+
+
+def _beat_time(stamped_s: float, seen_s: float, now_s: float) -> float:
+    """When a beat seen advanced was made: the engine's own time for it (perf_counter s), within what is possible
+    (not before the beat seen last, not after now); a watch that looked 50 ms after the last beat would otherwise
+    count the silence from its look and judge a freeze 50 ms late."""
+    return min(now_s, max(seen_s, stamped_s))
 
 
 def _process_state(pid: int) -> str:
