@@ -71,8 +71,16 @@ def test_a_wheel_builds_without_warnings_and_runs_from_a_clean_venv(tmp_path):
     ours = {f"{package.replace('.', '/')}/{path.relative_to(source / folder).as_posix()}"
             for package, folder in folders.items() for path in (source / folder).rglob("*.py")}
     with zipfile.ZipFile(wheel) as archive:
-        shipped = {name for name in archive.namelist() if name.endswith(".py")}
+        names = set(archive.namelist())
+    shipped = {name for name in names if name.endswith(".py")}
     assert sorted(ours - shipped) == []
+    # and every file a board's firmware build reads (`ultraglide firmware build` runs make on the installed
+    # sources: a Makefile's include, a linker script or a header left out breaks it only there)
+    firmware = source / "devices" / "firmware"
+    sources = {f"ultraglide/devices/firmware/{path.relative_to(firmware).as_posix()}"
+               for folder in ("core", "include", "ports") for path in (firmware / folder).rglob("*")
+               if path.is_file() and path.suffix != ".py"}
+    assert sources and sorted(sources - names) == []
     # a venv without pip of its own, filled by this pip (`pip --python`), as pipx does with its shared pip:
     # seeding pip into the venv and running it there from uncompiled sources was ~7 s CPU of ~27; the venv
     # still holds nothing but the wheel and what it depends on
