@@ -167,6 +167,16 @@ def thread_scheduling(pid: int) -> dict[int, tuple[int, int]]:
 
 
 @pytest.fixture
+def tap():
+    """The simulated plate on a real pty, every frame it decodes kept (tests/plate_tap.py); stopped after."""
+    from plate_tap import PlateTap
+
+    served = PlateTap()
+    yield served
+    served.close()
+
+
+@pytest.fixture
 def cli():
     return run_cli
 

@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 import pytest
-from test_exits import PlateTap, wait_until
+from test_exits import wait_until
 from ultraglide.devices import protocol as p
 from ultraglide.devices.after_loss import borrow_port, disable_serial_plate
 from ultraglide.devices.errors import DeviceError
@@ -16,17 +16,6 @@ from ultraglide.devices.serial.link import open_port
 
 BAUD = 921600
 HALF_A_FRAME = p.encode_frame(p.SETPOINTS, 7, bytes(200))[:90]  # a writer cut off mid-frame: no 0x00 in it
-
-
-@pytest.fixture
-def tap():
-    served = PlateTap()
-    yield served
-    served.close()
-
-
-def disables(tap):
-    return [frame for frame in list(tap.frames) if frame[0] == p.ENABLE and frame[1] == p.enable_payload(False)]
 
 
 def enable(tap):
@@ -49,7 +38,7 @@ def test_a_half_written_frame_does_not_swallow_the_disable(tap):
     link.close()
     words = disable_serial_plate(tap.plate.path, BAUD)
     assert words.startswith("ENABLE 0 sent and acknowledged by the plate"), words
-    assert len(disables(tap)) == 1 and not tap.plate.simulator.enabled
+    assert len(tap.disables()) == 1 and not tap.plate.simulator.enabled
 
 
 HOLDER = """
@@ -78,7 +67,7 @@ def test_a_frozen_process_port_is_borrowed_and_the_disable_sent_while_it_holds_i
         borrowed = borrow_port(f"serial:{tap.plate.path}", holder.pid)
         assert borrowed is not None
         borrowed.send()
-        wait_until(lambda: disables(tap), "the disable at the plate")  # the holder still there, stopped
+        wait_until(lambda: tap.disables(), "the disable at the plate")  # the holder still there, stopped
         assert holder.poll() is None and not tap.plate.simulator.enabled
         holder.send_signal(signal.SIGKILL)
         holder.wait(30)
@@ -89,5 +78,5 @@ def test_a_frozen_process_port_is_borrowed_and_the_disable_sent_while_it_holds_i
             holder.wait(30)
     assert words.startswith("ENABLE 0 sent on the frozen engine's own port before its end and acknowledged "
                             "by the plate"), words
-    assert len(disables(tap)) == 1
+    assert len(tap.disables()) == 1
     open_port(tap.plate.path, BAUD).close()  # and the port is free again, the borrowed file closed

@@ -18,7 +18,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import soundfile
-from test_exits import Command, PlateTap, hidden_files, size_of_hidden, wait_until
+from test_exits import Command, hidden_files, size_of_hidden, wait_until
 from ultraglide.devices import protocol as p
 from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
 from xvfb_demo import XvfbDemo, tools_missing
@@ -166,18 +166,6 @@ def test_play_on_an_audio_device_with_its_engine_lost_ends_the_stream_and_exits_
     assert "the audio stream ended with the engine's process (the sound card plays nothing more)" in out
 
 
-@pytest.fixture
-def tap():
-    served = PlateTap()
-    yield served
-    served.close()
-
-
-def disables(tap):
-    return [i for i, (kind, payload, _) in enumerate(list(tap.frames))
-            if kind == p.ENABLE and payload == p.enable_payload(False)]
-
-
 @pytest.mark.parametrize("how", LOSSES, ids=["killed", "stopped"])
 def test_play_on_serial_with_its_engine_lost_disables_the_plate(tmp_path, tap, how):
     command = Command(tmp_path, "play", "grating-1mm", "--device", f"serial:{tap.plate.path}", "--profile", "sim-plate",
@@ -189,7 +177,7 @@ def test_play_on_serial_with_its_engine_lost_disables_the_plate(tmp_path, tap, h
         out = assert_lost(command, how, engine)
     finally:
         command.kill()
-    after = [i for i in disables(tap) if i >= before]
+    after = [i for i in tap.disables() if i >= before]
     assert after, "the plate never received ENABLE 0 after the engine was lost"
     assert not tap.plate.simulator.enabled
     # (acknowledged within 250 ms on a quiet machine; the plate here shares this process and its CPU with the tests)
@@ -232,7 +220,7 @@ def test_the_engine_frozen_while_it_stops_is_killed_and_the_plate_disabled(tmp_p
     assert took < 20, took  # not the 30 s a stop waits for an answer
     assert re.search(r"the engine froze at \d+\.\d\d s: no block for \d+ ms and its process was stopped",
                      command.stderr), command.stderr
-    assert [i for i in disables(tap) if i >= before]
+    assert [i for i in tap.disables() if i >= before]
     assert not tap.plate.simulator.enabled
 
 
@@ -247,7 +235,7 @@ def test_the_demo_under_xvfb_says_its_engine_was_lost_disables_the_plate_and_res
         os.kill(engine, signal.SIGKILL)
         demo.wait_for(r"^ultraglide demo: the engine was lost at \d+\.\d\d s: its process was killed by SIGKILL", 30)
         demo.wait_for(r"^ultraglide demo: made safe by ultraglide \d+ ms after: ENABLE 0 sent", 30)
-        assert [i for i in disables(tap) if i >= before]
+        assert [i for i in tap.disables() if i >= before]
         assert not tap.plate.simulator.enabled
         demo.wait_for("^frame drawn", 30)  # the status line with the loss and R on screen
         restarted_at = len(tap.frames)
@@ -376,8 +364,8 @@ def test_serve_with_its_engine_lost_under_a_finger_disables_the_plate_and_exits_
                          said), said
     assert re.search(r"made safe by ultraglide \d+ ms after: ENABLE 0 sent", said), said
     assert final["error"] is None and final["touches"] > 0
-    assert [i for i in disables(tap) if i >= before] and not tap.plate.simulator.enabled
-    after = disables(tap)[-1]
+    assert [i for i in tap.disables() if i >= before] and not tap.plate.simulator.enabled
+    after = tap.disables()[-1]
     assert not any(kind == p.SETPOINTS for kind, _, _ in list(tap.frames)[after:])
 
 
