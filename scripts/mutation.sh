@@ -7,6 +7,7 @@
 # runs only the quick tests of its file (scripts/mutmut_config.py, `-x`, numba's cache warm); a mutant
 # that survives them runs again against every quick signal-path test ($MUTATION_TESTS). Prints the
 # survivors, the score per file and overall (killed / total) and the seconds per mutant.
+# MUTATION_SAMPLE=N tests N mutants drawn at random from each file instead (scripts/mutation_sample.py).
 # MUTATION_QUICK=1 skips that second run (about half an hour less; survivors may then be killed elsewhere).
 # MUTATION_WORKDIR=DIR keeps the copy (and mutmut's cache) in DIR: run again after adding tests and
 # only the survivors are tested again. Runs under `nice -n 19`; run one at a time, and run no other mutmut
@@ -35,7 +36,7 @@ else
 fi
 # the tree as git sees it (committed or added), over any earlier copy; mutmut's cache stays
 git ls-files -z | xargs -0 cp -P --parents -t "$work"  # -P: the tracked links (ultraglide/apps ...) as links
-cp scripts/mutmut_config.py "$work/mutmut_config.py"
+cp scripts/mutmut_config.py scripts/mutation_sample.py "$work/"
 cp devices/firmware/_sil*.so "$work/devices/firmware/"  # the firmware core's binding, built, not tracked
 for folder in render textures devices apps; do ln -sfn "$work/$folder" "$work/ultraglide/$folder"; done
 cd "$work"
@@ -49,6 +50,9 @@ runner="$root/.venv/bin/python -m pytest -x -q -p no:cacheprovider -m 'not slow'
 paths=$(IFS=,; echo "${files[*]}")
 rerun_all=--rerun-all
 [ "${MUTATION_QUICK:-0}" = 1 ] && rerun_all=  # survivors of the file's own tests are not run against the rest
+if [ -n "${MUTATION_SAMPLE:-}" ]; then  # a random sample of each file's mutants (scripts/mutation_sample.py)
+    MUTATION_RUNNER="$runner" exec nice -n 19 "$root/.venv/bin/python" mutation_sample.py "${files[@]}"
+fi
 started=$(date +%s)
 nice -n 19 "$root/.venv/bin/mutmut" run --paths-to-mutate "$paths" --runner "$runner" --tests-dir tests \
     ${rerun_all} --simple-output --no-progress || true
