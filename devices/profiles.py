@@ -20,7 +20,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.errors import CarrierError, DeviceError
 from ultraglide.devices.protocol.spec import SETPOINT_SCALE
 
 from ultraglide.inputs import parse_toml, read_input, some_of
@@ -210,7 +210,7 @@ class PlateProfile:
 
         Raises
         ------
-        DeviceError
+        CarrierError
             The carrier is outside ``carrier_min_hz``..``carrier_max_hz``, or the rate cannot carry it.
 
         Examples
@@ -218,10 +218,10 @@ class PlateProfile:
         >>> load_profile("sim-plate").check_carrier(30000.0)
         Traceback (most recent call last):
         ...
-        ultraglide.devices.errors.DeviceError: carrier 30000 Hz is outside plate sim-plate's range 20000-28000 Hz
+        ultraglide.devices.errors.CarrierError: carrier 30000 Hz is outside plate sim-plate's range 20000-28000 Hz
         """
         if not self.carrier_min_hz <= carrier_hz <= self.carrier_max_hz:
-            raise DeviceError(f"carrier {carrier_hz:g} Hz is outside plate {self.shown_name}'s range "
+            raise CarrierError(f"carrier {carrier_hz:g} Hz is outside plate {self.shown_name}'s range "
                               f"{self.carrier_min_hz:g}-{self.carrier_max_hz:g} Hz")
         if audio_rate_hz is not None:
             from ultraglide.devices.output.carrier import check_carrier

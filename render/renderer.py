@@ -143,7 +143,7 @@ class Plate(Protocol):
         >>> load_profile("sim-plate").check_carrier(19000.0)
         Traceback (most recent call last):
         ...
-        ultraglide.devices.errors.DeviceError: carrier 19000 Hz is outside plate sim-plate's range 20000-28000 Hz
+        ultraglide.devices.errors.CarrierError: carrier 19000 Hz is outside plate sim-plate's range 20000-28000 Hz
         """
         ...
 

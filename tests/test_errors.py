@@ -24,6 +24,12 @@ def _render_error(tmp_path):
 
 
 def _device_error(tmp_path):
+    from ultraglide.devices.serial.link import open_port
+
+    open_port(str(tmp_path / "no-such-port"), 921600)
+
+
+def _carrier_error(tmp_path):
     ultraglide.load_profile("sim-plate").check_carrier(30000.0)  # Hz, outside the plate's 20-28 kHz
 
 
@@ -63,6 +69,7 @@ REFUSALS = {
     "ModelError": (_model_error, ValueError),
     "RenderError": (_render_error, ValueError),
     "DeviceError": (_device_error, RuntimeError),
+    "CarrierError": (_carrier_error, RuntimeError),
     "ProfileError": (_profile_error, RuntimeError),
     "FitError": (_fit_error, ValueError),
     "ProtocolError": (_protocol_error, ValueError),

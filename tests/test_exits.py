@@ -434,6 +434,25 @@ BAD_INPUT_FILES = [
 ]
 
 
+# (the command line, words its line must hold): values the plate's profile refuses, said before a device is touched
+BAD_VALUES = [
+    (["play", "grating-1mm", "--device", "null", "--duration-s", "0.1", "--carrier-hz", "30000"], "20000-28000 Hz"),
+    (["play", "grating-1mm", "--device", "wav:{o}/p.wav", "--duration-s", "0.1", "--carrier-hz", "19000"],
+     "20000-28000 Hz"),
+    (["export", "grating-1mm", "--carrier-hz", "30000", "-o", "{o}/a.wav"], "20000-28000 Hz"),
+]
+
+
+@pytest.mark.parametrize("args, words", BAD_VALUES, ids=[" ".join(a[:2]) + " " + a[-1] for a, _ in BAD_VALUES])
+def test_a_carrier_outside_the_plates_range_is_usage_one_line_and_exit_2(tmp_path, args, words):
+    outputs = tmp_path / "out"
+    outputs.mkdir()
+    result = run_cli(*[arg.format(o=outputs) for arg in args], timeout=120)
+    line = assert_one_line_error(result)
+    assert result.returncode == 2 and words in line and result.stdout == "", (result.returncode, line)
+    assert list(outputs.iterdir()) == []  # nothing written
+
+
 @pytest.mark.parametrize("args, named", BAD_INPUT_FILES, ids=[" ".join(a[:2]) + " " + n for a, n in BAD_INPUT_FILES])
 def test_a_bad_input_file_is_usage_one_line_and_exit_2(tmp_path, args, named):
     inputs, outputs = tmp_path / "in", tmp_path / "out"

@@ -52,7 +52,8 @@ EXIT_USAGE = 2  # the input cannot be used: an option, a value, a file the comma
 # the error classes each loader and checker raises for input it refuses: (module, class)
 INPUT_ERRORS = (("ultraglide.textures.errors", "TextureError"), ("ultraglide.render.physics.errors", "ModelError"),
                 ("ultraglide.render.errors", "RenderError"), ("ultraglide.experiment.errors", "ExperimentError"),
-                ("ultraglide.devices.rig", "RigError"), ("ultraglide.devices.profiles", "ProfileError"))
+                ("ultraglide.devices.rig", "RigError"), ("ultraglide.devices.profiles", "ProfileError"),
+                ("ultraglide.devices.errors", "CarrierError"))
 
 
 def _loaded(module: str, name: str) -> type | None:
@@ -75,8 +76,8 @@ def exit_status(error: BaseException) -> int:
     int
         The error's own ``exit_status`` when it has one (a lost engine's 7); 2 (usage) for input the command
         cannot use: :class:`UsageError` and the loaders' errors (textures, friction models and calibrations,
-        trajectories and render settings, experiment designs, rig files, plate profiles); 1 for anything else
-        (a device, an output refused, an ``OSError``, the engine failing).
+        trajectories and render settings, experiment designs, rig files, plate profiles, a carrier the plate or
+        the rate refuses); 1 for anything else (a device, an output refused, an ``OSError``, the engine failing).
 
     Examples
     --------

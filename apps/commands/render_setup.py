@@ -61,6 +61,8 @@ def load_inputs(args) -> Inputs:
         texture = resolve_texture(args.texture)
     model = load_model(args.model)
     profile = plate_of(args)
+    if getattr(args, "carrier_hz", None) is not None:
+        profile.check_carrier(args.carrier_hz)  # the plate's range, before any device or engine: CarrierError, exit 2
     if args.trajectory:
         trajectory = read_touch_log(args.trajectory)
         if args.force is not None and trajectory.has_force:

@@ -13,7 +13,7 @@ import math
 from fractions import Fraction
 
 import numpy as np
-from ultraglide.devices.errors import DeviceError
+from ultraglide.devices.errors import CarrierError
 from ultraglide.devices.output.kernels import sine_block
 
 MAX_CARRIER_FRACTION = 0.4  # a DAC's anti-imaging filter starts near 0.45 fs: stay below 0.4 fs
@@ -32,7 +32,7 @@ def check_carrier(carrier_hz: float, rate_hz: float) -> None:
 
     Raises
     ------
-    DeviceError
+    CarrierError
         A carrier that is not positive, or above the share of the rate a carrier may take.
 
     Examples
@@ -41,13 +41,13 @@ def check_carrier(carrier_hz: float, rate_hz: float) -> None:
     >>> check_carrier(25000.0, 44100)                                  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ultraglide.devices.errors.DeviceError: a 25000 Hz carrier needs a sample rate of at least 62,500 Hz ...
+    ultraglide.devices.errors.CarrierError: a 25000 Hz carrier needs a sample rate of at least 62,500 Hz ...
     """
     if not carrier_hz > 0:
-        raise DeviceError(f"the carrier must be a positive frequency, got {carrier_hz} Hz")
+        raise CarrierError(f"the carrier must be a positive frequency, got {carrier_hz} Hz")
     if carrier_hz > MAX_CARRIER_FRACTION * rate_hz:
         needed = carrier_hz / MAX_CARRIER_FRACTION
-        raise DeviceError(f"a {carrier_hz:g} Hz carrier needs a sample rate of at least {needed:,.0f} Hz "
+        raise CarrierError(f"a {carrier_hz:g} Hz carrier needs a sample rate of at least {needed:,.0f} Hz "
                           f"(got {rate_hz:,.0f} Hz); use 96000 or 192000")
 
 
@@ -63,7 +63,7 @@ class Carrier:
 
     Raises
     ------
-    DeviceError
+    CarrierError
         A carrier the rate cannot carry (at or above half the rate).
 
     Examples

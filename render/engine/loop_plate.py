@@ -152,7 +152,7 @@ class AmplitudeLoopPlate:
         >>> AmplitudeLoopPlate.of(load_profile("sim-plate")).check_carrier(30000.0)
         Traceback (most recent call last):
         ...
-        ultraglide.devices.errors.DeviceError: carrier 30000 Hz is outside plate sim-plate's range 20000-28000 Hz
+        ultraglide.devices.errors.CarrierError: carrier 30000 Hz is outside plate sim-plate's range 20000-28000 Hz
         """
         self.profile.check_carrier(carrier_hz, audio_rate_hz)
 
