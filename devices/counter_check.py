@@ -14,14 +14,14 @@ modulo 2**32; but a counter that went *backwards* (a decrease that is no restart
 * anything else is not believed (counted as nothing) and is itself a device fault, said and counted once per
   counter (:class:`CounterCheck`).
 
-Example::
-
-    >>> check = CounterCheck()
-    >>> check.steps(("overrun",), now=(3,), before=(5,), restarted=False)  # went backwards: no count, a fault
-    [0]
-    >>> print(check.words())  # doctest: +NORMALIZE_WHITESPACE
-    the plate reported counters that cannot be true (overrun went from 5 to 3, not a wrap or a restart;
-    1 such value in all): they were not counted
+Examples
+--------
+>>> check = CounterCheck()
+>>> check.steps(("overrun",), now=(3,), before=(5,), restarted=False)  # went backwards: no count, a fault
+[0]
+>>> print(check.words())  # doctest: +NORMALIZE_WHITESPACE
+the plate reported counters that cannot be true (overrun went from 5 to 3, not a wrap or a restart;
+1 such value in all): they were not counted
 """
 
 from __future__ import annotations

@@ -13,12 +13,12 @@ reachable friction with the least squared error over the horizon (the compiled
 :func:`contrast_transfer` says how much of a grating's contrast survives, felt, at a speed: the felt
 ratio's swing over the target's, with the instantaneous or the planned renderer.
 
-Example::
-
-    >>> from ultraglide.render.physics.dynamics import FrictionDynamics
-    >>> kept = contrast_transfer(FrictionDynamics(), period_mm=1.0, speed_mm_s=100.0, floor=0.1)
-    >>> 0.0 < kept.planned <= 1.0 and 0.0 < kept.instantaneous <= 1.0
-    True
+Examples
+--------
+>>> from ultraglide.render.physics.dynamics import FrictionDynamics
+>>> kept = contrast_transfer(FrictionDynamics(), period_mm=1.0, speed_mm_s=100.0, floor=0.1)
+>>> 0.0 < kept.planned <= 1.0 and 0.0 < kept.instantaneous <= 1.0
+True
 """
 
 from __future__ import annotations

@@ -412,5 +412,24 @@ def test_every_docstring_heads_its_sections_with_numpys_names():
                 doc = ast.get_docstring(node)
                 for heading in sorted(_sections(doc or "") - NUMPY_SECTIONS):
                     wrong.append(f"{path.relative_to(ROOT)}:{getattr(node, 'lineno', 1)} {heading!r}")
+                if _doctest_in_a_literal_block(doc or ""):
+                    wrong.append(f"{path.relative_to(ROOT)}:{getattr(node, 'lineno', 1)} a >>> example under "
+                                 "'Example::' (an rST literal block), not an Examples section")
     assert modules > 200
     assert not wrong, f"{len(wrong)} docstring headings numpydoc does not know: {wrong}"
+
+
+def _doctest_in_a_literal_block(doc: str) -> bool:
+    """Whether a ``>>>`` line sits in an rST literal block under a bare ``Example::`` or ``Examples::``: a heading in
+    disguise, which doctest runs but numpydoc and readers of the sections do not see. Such a block of plain code (a
+    sketch that needs hardware), or a sentence ending ``::`` that introduces an example, is fine."""
+    lines = doc.split("\n")
+    for k, line in enumerate(lines):
+        if line.strip() in ("Example::", "Examples::"):
+            indent = len(line) - len(line.lstrip())
+            for inner in lines[k + 1:]:
+                if inner.strip() and len(inner) - len(inner.lstrip()) <= indent:
+                    break
+                if inner.strip().startswith(">>>"):
+                    return True
+    return False

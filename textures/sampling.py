@@ -9,13 +9,13 @@ copy of the one before); a query that moves ``step_mm`` between successive sampl
 reads the level whose pixels are ``step_mm`` wide, blending the two nearest (trilinear), so detail
 finer than the sampling can follow averages out instead of aliasing to a false low frequency.
 
-Example::
-
-    >>> import numpy as np
-    >>> from ultraglide.textures.procedural import grating
-    >>> sampler = Sampler(grating(wavelength_mm=2.0, size_mm=(20, 10)))
-    >>> [round(float(r), 2) for r in sampler.ratio(np.array([1.0, 2.0]), np.array([5.0, 5.0]))]
-    [0.4, 1.0]
+Examples
+--------
+>>> import numpy as np
+>>> from ultraglide.textures.procedural import grating
+>>> sampler = Sampler(grating(wavelength_mm=2.0, size_mm=(20, 10)))
+>>> [round(float(r), 2) for r in sampler.ratio(np.array([1.0, 2.0]), np.array([5.0, 5.0]))]
+[0.4, 1.0]
 """
 
 from __future__ import annotations

@@ -27,15 +27,15 @@ Counted: samples limited (lowered by more than 0.1 % of the limit: with overdriv
 settling onto the limit is lowered by ever smaller amounts that nobody feels), and the worst
 excess (how far a request went above what was let through, µm p-p of drive).
 
-Example::
-
-    >>> from ultraglide.devices.profiles import PlateProfile
-    >>> plate = PlateProfile("p", 25000.0, 200.0, 8.0, 2.0)       # full scale 8, limit 2
-    >>> limiter = DriveLimiter(plate, control_rate_hz=12000)
-    >>> limiter.process(np.array([1.0, 4.0, 8.0])).tolist()
-    [1.0, 2.0, 2.0]
-    >>> limiter.limited_samples, limiter.worst_excess_um_pp
-    (2, 6.0)
+Examples
+--------
+>>> from ultraglide.devices.profiles import PlateProfile
+>>> plate = PlateProfile("p", 25000.0, 200.0, 8.0, 2.0)       # full scale 8, limit 2
+>>> limiter = DriveLimiter(plate, control_rate_hz=12000)
+>>> limiter.process(np.array([1.0, 4.0, 8.0])).tolist()
+[1.0, 2.0, 2.0]
+>>> limiter.limited_samples, limiter.worst_excess_um_pp
+(2, 6.0)
 """
 
 from __future__ import annotations

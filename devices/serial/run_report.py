@@ -23,12 +23,12 @@ When several happened the largest status wins (a cut outranks a loss, a loss a f
 overruns, damaged frames, telemetry gaps and host stalls are said in words and leave the status alone:
 they degrade a run without invalidating it.
 
-Example::
-
-    >>> lost = Incident(1.02, "lost", "plate disconnected at 1.02 s, back at 1.53 s; 6120 setpoints not sent")
-    >>> report = RunReport.of([lost], ["device faults: none"])
-    >>> report.exit_status, report.verdict
-    (4, 'the plate was lost (exit status 4)')
+Examples
+--------
+>>> lost = Incident(1.02, "lost", "plate disconnected at 1.02 s, back at 1.53 s; 6120 setpoints not sent")
+>>> report = RunReport.of([lost], ["device faults: none"])
+>>> report.exit_status, report.verdict
+(4, 'the plate was lost (exit status 4)')
 """
 
 from __future__ import annotations

@@ -27,14 +27,14 @@ and lateral force the sensors measure over those samples. The physics runs in ch
 (the sensors' delay lets it run behind the blocks), so a plate rendering 0.25 ms blocks pays for it once a
 millisecond.
 
-Example::
-
-    >>> import numpy as np
-    >>> finger = SimulatedFinger(lambda a, f: np.exp(-(a / 3.0) ** 2), ForceScript.constant(0.5, 100.0),
-    ...                          FingerParams(drift=0.0, moisture=0.0), ForceSensorParams(noise_n=0.0))
-    >>> normal, lateral = finger.forces(0.0, np.full(480, 3.0))
-    >>> round(float(normal[-1]), 3), round(float(lateral[-1]), 3)   # mu0 1, ratio exp(-1): 0.5 N x 0.368
-    (0.5, 0.184)
+Examples
+--------
+>>> import numpy as np
+>>> finger = SimulatedFinger(lambda a, f: np.exp(-(a / 3.0) ** 2), ForceScript.constant(0.5, 100.0),
+...                          FingerParams(drift=0.0, moisture=0.0), ForceSensorParams(noise_n=0.0))
+>>> normal, lateral = finger.forces(0.0, np.full(480, 3.0))
+>>> round(float(normal[-1]), 3), round(float(lateral[-1]), 3)   # mu0 1, ratio exp(-1): 0.5 N x 0.368
+(0.5, 0.184)
 """
 
 from __future__ import annotations

@@ -24,14 +24,14 @@ take a model (``dynamic`` is the default static model with the published dynamic
 other). Its amplitude ↔ ratio maps are the static model's (the steady state); :meth:`felt` runs the
 dynamics.
 
-Example::
-
-    >>> import numpy as np
-    >>> dynamics = FrictionDynamics()
-    >>> step = np.full(120, 0.0)                         # 10 ms at 12 kHz of a step from 1 down to 0
-    >>> felt = dynamics.respond(step, 12000.0, speed_mm_s=22.0, felt=1.0)
-    >>> round(float(felt[59]), 3)                          # 5 ms: one onset time constant, 1/e left
-    0.368
+Examples
+--------
+>>> import numpy as np
+>>> dynamics = FrictionDynamics()
+>>> step = np.full(120, 0.0)                         # 10 ms at 12 kHz of a step from 1 down to 0
+>>> felt = dynamics.respond(step, 12000.0, speed_mm_s=22.0, felt=1.0)
+>>> round(float(felt[59]), 3)                          # 5 ms: one onset time constant, 1/e left
+0.368
 """
 
 from __future__ import annotations

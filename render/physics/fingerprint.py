@@ -5,11 +5,11 @@ force. Everything here is a pure function of a normal force and one immutable
 :class:`FingerParams`; forces in newtons, stiffness in N/m, areas in m² unless a name says mm²,
 and amplitudes in micrometres **peak-to-peak** (see ``docs/physics.md``).
 
-Example::
-
-    >>> from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp
-    >>> round(float(detach_amplitude_um_pp(0.15, FingerParams())), 2)
-    1.15
+Examples
+--------
+>>> from ultraglide.render.physics.fingerprint import FingerParams, detach_amplitude_um_pp
+>>> round(float(detach_amplitude_um_pp(0.15, FingerParams())), 2)
+1.15
 """
 
 from __future__ import annotations

@@ -4,13 +4,13 @@ Every model maps a vibration amplitude (µm peak-to-peak) and a normal force (N)
 ratio mu/mu0 (1 = plate at rest), and inverts that: which amplitude gives a target ratio. All
 functions are vectorised over numpy arrays; the inverse is the real-time hot path.
 
-Example::
-
-    >>> from ultraglide.render.physics.friction_models import ExponentialModel
-    >>> model = ExponentialModel()
-    >>> result = model.amplitude_um_pp([1.0, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
-    >>> result.amplitude_um_pp.round(2).tolist(), result.clamped
-    ([0.0, 3.11, 5.0], 1)
+Examples
+--------
+>>> from ultraglide.render.physics.friction_models import ExponentialModel
+>>> model = ExponentialModel()
+>>> result = model.amplitude_um_pp([1.0, 0.5, 0.01], force_n=0.5, limit_um_pp=5.0)
+>>> result.amplitude_um_pp.round(2).tolist(), result.clamped
+([0.0, 3.11, 5.0], 1)
 
 Ratios the plate cannot reach (below the ratio at the amplitude limit) are clamped to the limit
 and counted in ``clamped``; ratios above 1 mean rest (0 µm). No amplitude ever exceeds

@@ -10,12 +10,12 @@ never listed here: they are ours, and the pages label them so.
 beside a cited author's name must be a figure listed here for that author (or be marked as ours), and
 every figure here must name its place. So a new attributed number cannot be added without a source.
 
-Example::
-
-    >>> from ultraglide.render.physics.sources import FIGURES
-    >>> meyer = [f for f in FIGURES if f.key == "recovery_s"][0]
-    >>> meyer.value, meyer.author
-    ('70 ms', 'Meyer')
+Examples
+--------
+>>> from ultraglide.render.physics.sources import FIGURES
+>>> meyer = [f for f in FIGURES if f.key == "recovery_s"][0]
+>>> meyer.value, meyer.author
+('70 ms', 'Meyer')
 """
 
 from __future__ import annotations
