@@ -483,6 +483,26 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                     if span >= steps or c == levels:
                         break
                     span *= 2
+            delay = 1  # or follow the greedy command for 1, 2, 4, ... steps first, then hold a level: a rise begun
+            while delay < steps:  # later than now (holding a level from now is either too early or never)
+                for c in range(levels):
+                    level = floor + (ceiling - floor) * c / (levels - 1)
+                    cost = 0.0
+                    y = felt
+                    first = level
+                    for j in range(steps):
+                        r = goals[j]
+                        x = _greedy(y, r, floor, ceiling, hold_on, hold_rec) if j < delay else level
+                        if j == 0:
+                            first = x
+                        y = _held(y, x, hold_on, hold_rec)
+                        cost += (y - r) * (y - r)
+                        if cost >= best_cost:
+                            break
+                    if cost < best_cost:
+                        best_cost = cost
+                        best = first
+                delay *= 2
             command = best
         x = command
         felt += (k_onset if x < felt else k_recovery) * (x - felt)
