@@ -376,6 +376,26 @@ def _held(y, x, hold_on, hold_rec):
 
 
 @njit(cache=True, nogil=True)
+def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, hold_on, hold_rec, enough):
+    """The squared error over the horizon of a plan, and its first step's command: ``level`` held for the first
+    ``switch`` steps and the greedy command after (``level_first``), or the greedy command first and ``level``
+    after. Stops adding once the cost reaches ``enough`` (a plan already beaten)."""
+    cost = 0.0
+    y = felt
+    first = level
+    for j in range(steps):
+        r = goals[j]
+        x = level if (j < switch) == level_first else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
+        if j == 0:
+            first = x
+        y = _held(y, x, hold_on, hold_rec)
+        cost += (y - r) * (y - r)
+        if cost >= enough:
+            break
+    return cost, first
+
+
+@njit(cache=True, nogil=True)
 def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, levels, felt,
                   phase, command, gate, out, goals):
     """The command that makes the felt friction follow ``target`` as closely as the dynamics allow.
@@ -468,18 +488,11 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                     level = _greedy(felt, r0, floor, ceiling, hold_on, hold_rec)
                 span = 1
                 while True:
-                    cost = 0.0
-                    y = felt
-                    for j in range(steps):
-                        r = goals[j]
-                        x = level if j < span else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
-                        y = _held(y, x, hold_on, hold_rec)
-                        cost += (y - r) * (y - r)
-                        if cost >= best_cost:
-                            break
+                    cost, first = _plan_cost(felt, goals, steps, level, span, True, floor, ceiling, hold_on,
+                                             hold_rec, best_cost)
                     if cost < best_cost:
                         best_cost = cost
-                        best = level
+                        best = first
                     if span >= steps or c == levels:
                         break
                     span *= 2
@@ -487,18 +500,8 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
             while delay < steps:  # later than now (holding a level from now is either too early or never)
                 for c in range(levels):
                     level = floor + (ceiling - floor) * c / (levels - 1)
-                    cost = 0.0
-                    y = felt
-                    first = level
-                    for j in range(steps):
-                        r = goals[j]
-                        x = _greedy(y, r, floor, ceiling, hold_on, hold_rec) if j < delay else level
-                        if j == 0:
-                            first = x
-                        y = _held(y, x, hold_on, hold_rec)
-                        cost += (y - r) * (y - r)
-                        if cost >= best_cost:
-                            break
+                    cost, first = _plan_cost(felt, goals, steps, level, delay, False, floor, ceiling, hold_on,
+                                             hold_rec, best_cost)
                     if cost < best_cost:
                         best_cost = cost
                         best = first
