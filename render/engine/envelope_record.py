@@ -2,27 +2,39 @@
 
 The block path copies each block's columns into a ring made once (:meth:`EnvelopeRecord.add`: no allocation,
 no I/O); a writer thread drains the ring to ``FILE.part`` and renames it to ``FILE`` when closed. Columns:
-``t_s`` (perf_counter s: when the renderer meant the sample to reach the plate, the clock every ultraglide log
-uses; the renderer re-anchors it only when it drifts 20 ms), ``index`` (the sample's number in the device's
-stream: a plate driver's SENSORS name the index playing, which ``play --sensors-csv`` records), ``x_mm``,
-``y_mm``, ``down``, ``target_ratio`` (the texture's friction there), ``target_um_pp`` (the model's amplitude
-for it: the closed loop's, when it follows) and ``commanded_um_pp`` (what the device was given, after the
-limiter). A writer that falls a whole ring behind loses rows: they are counted
+``t_s`` (perf_counter s, the clock every ultraglide log uses: when the value plays on the plate, see below),
+``index`` (the sample's number in the device's stream: a plate driver's SENSORS name the index playing, which
+``play --sensors-csv`` records), ``x_mm``, ``y_mm``, ``down``, ``target_ratio`` (the texture's friction there),
+``target_um_pp`` (the model's amplitude for it: the closed loop's, when it follows), ``commanded_um_pp`` (what
+the device was given, after the limiter) and ``plan_s`` (perf_counter s: when the renderer meant the value to
+reach the plate). A writer that falls a whole ring behind loses rows: they are counted
 (:attr:`EnvelopeRecord.dropped`) and the run says so.
+
+``t_s``, with a play clock (:attr:`EnvelopeRecord.clock`, a
+:class:`~ultraglide.render.engine.play_clock.PlayClock` fed by a plate driver's SENSORS frames, which say which
+value plays when): when the value plays by the plate's own account. The writer holds rows back half the clock's
+window and a piece (1.2 s: the frames read around their time have come) and places each ``PIECE_S`` of them by
+the clock's origin there. Rows the clock cannot place (no frame read within its window: before the stream plays,
+a plate that sends no SENSORS) and every row of a device without a sensor listener (a wav file, an audio output,
+the null device) keep the plan, ``t_s`` = ``plan_s``: the renderer re-anchors its plan only when the plate's
+buffer drifts past its deadband, and values play up to a few ms after it (bench/bench_record_timing.py).
 """
 
 from __future__ import annotations
 
 import os
 import threading
+import time
 
 import numpy as np
 from ultraglide.render.engine.csv_record import CsvRecord
 
-COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp")
+COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp", "plan_s")
+RING_COLUMNS = len(COLUMNS) - 1  # the plan's time is the ring's t_s, copied by the writer
 RING_ROWS = 1 << 17  # 11 s at 12 kHz
 WRITE_PERIOD_S = 0.2
-FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f")
+FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f", "%.6f")
+PIECE_S = 0.2  # rows placed by one reading of the play clock
 
 
 class EnvelopeRecord(CsvRecord):
@@ -52,10 +64,11 @@ class EnvelopeRecord(CsvRecord):
 
     def __init__(self, path: str | os.PathLike):
         super().__init__(path, COLUMNS)
-        self._ring = np.zeros((RING_ROWS, len(COLUMNS)))
+        self._ring = np.zeros((RING_ROWS, RING_COLUMNS))
         self._steps = np.arange(RING_ROWS, dtype=float)
         self._written = 0  # rows added (the block path's count)
         self._taken = 0  # rows written out (the writer's)
+        self.clock = None  # a PlayClock: rows written at its times (see the module docstring); None: the plan's
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="envelope-record", daemon=True)
         self._thread.start()
@@ -118,19 +131,38 @@ class EnvelopeRecord(CsvRecord):
         while not self._stop.wait(WRITE_PERIOD_S):
             self._drain()
 
-    def _drain(self) -> None:
+    def _drain(self, finish: bool = False) -> None:
         written = self._written
         if written - self._taken > RING_ROWS:  # overwritten before the writer came: lost
             self.dropped += written - self._taken - RING_ROWS
             self._taken = written - RING_ROWS
         if written == self._taken or self.error is not None:
             return
-        rows = np.take(self._ring, np.arange(self._taken, written) % RING_ROWS, axis=0)
-        self._taken = written
+        ring_rows = np.take(self._ring, np.arange(self._taken, written) % RING_ROWS, axis=0)
+        rows = np.column_stack((ring_rows, ring_rows[:, 0]))  # plan_s: the renderer's time, kept
+        clock = self.clock
+        if clock is not None:
+            if not finish:  # the rows whose time is half the clock's window and a piece past: its frames have come
+                late = rows[:, 0] > time.perf_counter() - (clock.window_s / 2 + PIECE_S)
+                rows = rows[:int(np.argmax(late))] if late.any() else rows
+                if not len(rows):
+                    return
+            self._place(rows, clock)
+        self._taken += len(rows)
         self._write_rows(rows, FORMAT)
+
+    @staticmethod
+    def _place(rows: np.ndarray, clock) -> None:
+        """``t_s`` of ``rows`` (in place) by the play clock, ``PIECE_S`` at a time; rows it cannot place keep theirs."""
+        piece = max(1, int(PIECE_S * clock.stream_rate_hz))
+        for start in range(0, len(rows), piece):
+            part = rows[start:start + piece]
+            times = clock.times_s(part[:, 1], float(part[len(part) // 2, 0]))
+            if times is not None:
+                part[:, 0] = times
 
     def _stop_writer(self, finish: bool) -> None:
         self._stop.set()
         self._thread.join(timeout=5)
         if finish:
-            self._drain()
+            self._drain(finish=True)

@@ -577,6 +577,11 @@ def engine_main(config, shared_name: str, conn) -> None:
             from ultraglide.render.engine.envelope_record import EnvelopeRecord
 
             source.record = EnvelopeRecord(config.envelope_csv)
+            if hasattr(device, "add_sensor_listener"):  # a plate driver's SENSORS say when each value plays
+                from ultraglide.render.engine.play_clock import PlayClock
+
+                source.record.clock = PlayClock(source.rate_hz)
+                listeners.append(source.record.clock.take_frame)
         if config.sensors_csv:
             from ultraglide.render.engine.sensor_record import SensorRecord
 
@@ -599,6 +604,10 @@ def engine_main(config, shared_name: str, conn) -> None:
             check_sensors(device, loop)
         if source.sensor_record is not None and getattr(device.hello(), "sensor_rate_hz", 0):
             source.sensor_record.stream_per_sample = source.rate_hz / device.hello().sensor_rate_hz
+        clock = getattr(source.record, "clock", None)
+        if clock is not None and getattr(device.hello(), "sensor_rate_hz", 0):  # the rates the device states
+            clock.sensor_rate_hz = float(device.hello().sensor_rate_hz)
+            clock.link_bytes_per_s = float(device.hello().link_bytes_per_s if device.hello().states_link else 0)
     except errors as error:
         close_device(device)
         for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
