@@ -1,9 +1,10 @@
 """The play clock (render/engine/play_clock.py): when each stream index plays, from SENSORS frames' arrival.
 
-Synthetic frames from a plate with a known clock: index k plays at host time ``origin + k (1 + drift) / rate``;
-a frame of 10 samples (1 kHz) starts at index 120 f and is read a random, positive delay after its last sample.
-The clock's origin must never be early (beyond what the drift's estimate allows) and late by no more than the
-fastest frame's delay within its window.
+Synthetic plates with a known clock: the device's sample m (1 kHz) is taken at host time ``A + m (1 + drift) / 1000``;
+a frame of 10 samples from sample 10 f names the index playing at its first sample (12 values a sample at 12 kHz,
+fewer after a stall), and is read a random, positive delay after its last sample. Index k truly plays at
+``A + (k + stalled) (1 + drift) / 12000``. Every index must be placed never early (beyond what the drift's estimate
+allows) and late by no more than the fastest frame's delay among those the clock looked at.
 """
 
 from __future__ import annotations
@@ -11,83 +12,90 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ultraglide.devices.protocol.reports import parse_sensors, sensor_samples, sensors_payload
-from ultraglide.render.engine.play_clock import NOT_PLAYING, PlayClock
+from ultraglide.render.engine.play_clock import AHEAD_S, NOT_PLAYING, WINDOW_S, WRAP, PlayClock
 
 RATE, SENSOR_RATE, FRAME = 12000.0, 1000.0, 10  # Hz, Hz, samples a frame
 PER_FRAME = int(RATE * FRAME / SENSOR_RATE)  # stream values a frame spans (120)
+A = 50.0  # the host time of the device's sample 0
 
 
-def plate_frames(seconds: float, delays, origin: float = 50.0, drift: float = 0.0, step_at_s=None, step_s=0.0):
-    """(index, samples, received_s, delay_s) of each frame of a plate whose index k plays at
-    origin + k (1 + drift) / RATE (+ step_s from step_at_s on: an underrun's stall)."""
-    frames = []
-    for f in range(int(seconds * SENSOR_RATE / FRAME)):
-        index = PER_FRAME * f
-        start = origin + index * (1 + drift) / RATE
-        if step_at_s is not None and start - origin >= step_at_s:
-            start += step_s
-        last_sample_end = start + FRAME * (1 + drift) / SENSOR_RATE
-        delay = float(delays[f])
-        frames.append((index, FRAME, last_sample_end + delay, delay))
-    return frames
+class Plate:
+    """A plate's frames: (index, samples, received_s, first_sample), and each frame's delay."""
+
+    def __init__(self, seconds: float, delays, drift: float = 0.0, stall_frame: int | None = None, stalled: int = 0):
+        self.drift, self.stall_frame, self.stalled = drift, stall_frame, stalled
+        self.frames, self.delays = [], []
+        for f in range(int(seconds * SENSOR_RATE / FRAME)):
+            index = PER_FRAME * f - (stalled if stall_frame is not None and f >= stall_frame else 0)
+            received = A + (FRAME * f + FRAME) * (1 + drift) / SENSOR_RATE + float(delays[f])
+            self.frames.append((index, FRAME, received, FRAME * f))
+            self.delays.append(float(delays[f]))
+        self.received = np.array([frame[2] for frame in self.frames])
+
+    def feed(self, clock: PlayClock) -> PlayClock:
+        for frame in self.frames:
+            clock.take(*frame)
+        return clock
+
+    def plays_at(self, index: np.ndarray) -> np.ndarray:
+        """When each index truly plays (host s)."""
+        after = index >= PER_FRAME * self.stall_frame - self.stalled if self.stall_frame is not None else False
+        return A + (index + np.where(after, self.stalled, 0)) * (1 + self.drift) / RATE
+
+    def fastest_near(self, at_s: float) -> float:
+        """The fastest delay among the frames a clock looks at for ``at_s``."""
+        near = (self.received >= at_s - WINDOW_S) & (self.received <= at_s + AHEAD_S)
+        return float(np.array(self.delays)[near].min())
 
 
-def true_origin(at_s: float, origin: float = 50.0, drift: float = 0.0) -> float:
-    """When index 0 would play by the plate's clock around ``at_s``: the index playing then, less its count."""
-    index = (at_s - origin) * RATE / (1 + drift)
-    return at_s - index / RATE
+def late_by(clock: PlayClock, plate: Plate, at_s: float) -> np.ndarray:
+    """How late the clock places the 120 indices that play from ``at_s`` (s)."""
+    first = int((at_s - A) * RATE)
+    index = np.arange(first, first + PER_FRAME, dtype=float)
+    if plate.stall_frame is not None and first >= PER_FRAME * plate.stall_frame:
+        index -= plate.stalled
+    return clock.times_s(index, at_s) - plate.plays_at(index)
 
 
-def test_without_drift_the_origin_is_never_early_and_late_by_the_fastest_frames_delay_in_its_window():
+def test_without_drift_every_index_is_placed_never_early_and_late_by_the_fastest_frame_it_saw():
     rng = np.random.default_rng(3)
-    delays = 0.2e-3 + rng.exponential(3e-3, 2000)  # every frame at least 0.2 ms late, most a few ms
-    frames = plate_frames(20.0, delays)
-    clock = PlayClock(RATE, SENSOR_RATE, window_s=2.0)
-    for index, samples, received, _ in frames:
-        clock.take(index, samples, received)
-    received = np.array([frame[2] for frame in frames])
-    delay = np.array([frame[3] for frame in frames])
-    for at in np.arange(51.0, 69.0, 0.37):
-        fastest = delay[np.abs(received - at) <= 1.0].min()
-        late = clock.origin_s(at) - 50.0
-        assert -2e-6 <= late <= fastest + 2e-6  # the drift's estimate (under 1 ppm of none here) moves bounds by µs
-        assert late < 0.5e-3  # a fast frame comes within every 2 s here
+    plate = Plate(20.0, 0.2e-3 + rng.exponential(3e-3, 2000))  # every frame at least 0.2 ms late, most a few ms
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
+    for at in np.arange(50.5, 69.5, 0.37):
+        late = late_by(clock, plate, at)
+        # the drift's estimate (under a ppm of none here) moves bounds by µs
+        assert late.min() >= -2e-6 and late.max() <= plate.fastest_near(at) + 2e-6
+        assert late.max() < 0.5e-3  # a fast frame comes within 9 s here
 
 
 def test_a_drifting_plate_is_followed_with_its_drift_estimated_from_the_lower_hull():
     rng = np.random.default_rng(4)
-    drift = 80e-6  # the plate plays 80 ppm slower than the host counts: 1.6 ms over the 20 s
-    frames = plate_frames(20.0, 0.1e-3 + rng.uniform(0.0, 4e-3, 2000), drift=drift)
-    clock = PlayClock(RATE, SENSOR_RATE)
-    for index, samples, received, _ in frames:
-        clock.take(index, samples, received)
+    drift = 80e-6  # the plate's clock 80 ppm slower than the host's: 1.6 ms over the 20 s
+    plate = Plate(20.0, 0.1e-3 + rng.uniform(0.0, 4e-3, 2000), drift=drift)
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
     assert clock.drift() == pytest.approx(drift, abs=5e-6)
-    errors = [clock.origin_s(at) - true_origin(at, drift=drift) for at in np.arange(51.0, 69.0, 0.5)]
-    assert min(errors) > -20e-6 and max(errors) < 0.3e-3  # never early beyond the drift's error; late < 0.3 ms
+    late = np.concatenate([late_by(clock, plate, at) for at in np.arange(50.5, 69.5, 0.5)])
+    assert late.min() > -50e-6 and late.max() < 0.3e-3  # never early beyond the drift's error (5 ppm over 8 s)
 
 
-def test_without_drift_terms_a_drifting_plate_is_still_placed_within_its_windows_drift():
+def test_before_the_drift_is_known_a_drifting_plate_is_placed_within_its_windows_drift():
     rng = np.random.default_rng(5)
     drift = 50e-6
-    frames = plate_frames(5.0, 0.1e-3 + rng.uniform(0.0, 2e-3, 500), drift=drift)  # under DRIFT_SPAN_S: no drift
-    clock = PlayClock(RATE, SENSOR_RATE, window_s=2.0)
-    for index, samples, received, _ in frames:
-        clock.take(index, samples, received)
+    plate = Plate(5.0, 0.1e-3 + rng.uniform(0.0, 2e-3, 500), drift=drift)  # under DRIFT_SPAN_S: no drift taken
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
     assert clock.drift() == 0.0
-    for at in (51.0, 52.5, 54.0):
-        assert abs(clock.origin_s(at) - true_origin(at, drift=drift)) < 0.3e-3 + drift * 1.0
+    for at in (50.5, 52.5, 54.5):
+        late = late_by(clock, plate, at)
+        assert np.all(np.abs(late) < 0.3e-3 + drift * 5.0)
 
 
-def test_after_a_stall_the_origin_moves_up_once_the_window_has_passed_it():
+def test_after_a_stall_later_indices_play_later_by_what_the_devices_counts_say_at_once():
     rng = np.random.default_rng(6)
-    frames = plate_frames(10.0, 0.1e-3 + rng.uniform(0.0, 1e-3, 1000), step_at_s=5.0, step_s=3e-3)
-    clock = PlayClock(RATE, SENSOR_RATE, window_s=2.0)
-    for index, samples, received, _ in frames:
-        clock.take(index, samples, received)
-    before, after = clock.origin_s(53.0) - 50.0, clock.origin_s(57.5) - 50.0
-    assert 0.0 <= before < 0.3e-3  # the old clock
-    assert 3e-3 <= after < 3.3e-3  # the new one, 3 ms later
-    assert clock.origin_s(55.2) - 50.0 < 1e-3  # within the window of the stall: the earlier bound
+    plate = Plate(10.0, 0.1e-3 + rng.uniform(0.0, 1e-3, 1000), stall_frame=500, stalled=36)  # 3 ms at 55.0 s
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
+    for at in (53.0, 54.9, 55.01, 55.5, 58.0):  # just after the stall too: no window to wait out
+        late = late_by(clock, plate, at)
+        assert late.min() >= -1e-9 and late.max() < 0.3e-3
 
 
 def test_a_links_byte_time_is_taken_off_and_a_long_frame_counts_as_a_regular_one():
@@ -95,37 +103,48 @@ def test_a_links_byte_time_is_taken_off_and_a_long_frame_counts_as_a_regular_one
     rng = np.random.default_rng(7)
     link = 92160.0
     wire = (18 + 12 * FRAME) / link
-    frames = plate_frames(4.0, wire + 0.05e-3 + rng.uniform(0.0, 2e-3, 400))
+    plate = Plate(4.0, wire + 0.05e-3 + rng.uniform(0.0, 2e-3, 400))
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE, link_bytes_per_s=link))
+    late = late_by(clock, plate, 52.0)
+    assert late.min() >= 0.0 and late.max() < 0.1e-3
+    # a 60-sample frame (sent at once on a link that does not pace its bytes): a 10-sample frame's time taken off
     clock = PlayClock(RATE, SENSOR_RATE, link_bytes_per_s=link)
-    for index, samples, received, _ in frames:
-        clock.take(index, samples, received)
-    late = clock.origin_s(52.0) - 50.0
-    assert 0.0 <= late < 0.1e-3
-    # a 60-sample frame (sent at once on a link that does not pace its bytes) is taken off a 10-sample frame's time
-    clock = PlayClock(RATE, SENSOR_RATE, link_bytes_per_s=link)
-    clock.take(0, 60, 50.0 + 0.060 + wire + 0.2e-3)
-    assert clock.origin_s(50.0) - 50.0 == pytest.approx(0.2e-3, abs=1e-9)
+    clock.take(0, 60, A + 0.060 + wire + 0.2e-3, 0)
+    assert clock.times_s(np.array([0.0]), A)[0] - A == pytest.approx(0.2e-3, abs=1e-9)
 
 
-def test_frames_while_nothing_plays_say_nothing_and_any_index_is_taken():
+def test_frames_while_nothing_plays_say_nothing_and_counts_wrap():
     clock = PlayClock(RATE, SENSOR_RATE)
-    clock.take(NOT_PLAYING, FRAME, 10.0)
-    clock.take(7, 0, 10.0)
-    assert clock.frames == 0 and clock.origin_s(10.0) is None and clock.times_s(np.arange(3), 10.0) is None
-    clock.take(NOT_PLAYING - 1, FRAME, 400000.0)  # an index near the wrap (4 days at 12 kHz) is an index
-    assert clock.origin_s(400000.0) == pytest.approx(400000.0 - 0.01 - (NOT_PLAYING - 1) / RATE, abs=1e-6)
+    clock.take(NOT_PLAYING, FRAME, 10.0, 0)
+    clock.take(7, 0, 10.0, 0)
+    assert clock.frames == 0 and clock.times_s(np.arange(3), 10.0) is None
+    # the device's sample number and the index both wrap past 2**32 between two frames: one clock goes on
+    clock.take(WRAP - 60, FRAME, 10.0105, WRAP - 5)  # read 0.5 ms after its last sample
+    clock.take(60, FRAME, 10.0205 + 0.3e-3, 5)  # 10 samples on, 120 values on: read 0.8 ms after
+    times = clock.times_s(np.array([WRAP - 60, WRAP + 60.0]), 10.0)
+    np.testing.assert_allclose(times, [10.0005, 10.0105], atol=1e-8)  # by the first, the faster
+
+
+def test_a_device_that_restarts_is_a_new_clock():
+    clock = PlayClock(RATE, SENSOR_RATE)
+    for f in range(100):  # one second of a first connection's frames, read 0.1 ms late
+        clock.take(1000 + PER_FRAME * f, FRAME, 20.0 + 0.01 * f + 0.0101, 5000 + FRAME * f)
+    for f in range(100):  # restarted: samples from 0 again, its stream from index 0, read 0.4 ms late
+        clock.take(PER_FRAME * f, FRAME, 30.0 + 0.01 * f + 0.0104, FRAME * f)
+    assert clock.times_s(np.array([0.0, 6000.0]), 30.5).round(6).tolist() == [30.0004, 30.5004]
 
 
 def test_a_packed_sensors_frame_places_the_indices_that_follow_it():
     clock = PlayClock(RATE, SENSOR_RATE)
     frame = parse_sensors(sensors_payload(1000, 24000, sensor_samples(np.full(FRAME, 3.0))))
-    clock.take_frame(frame, 20.0105)  # 10 samples from index 24000 (2 s in), read 0.5 ms after the last
-    times = clock.times_s(np.array([24000, 24012, 36000]), 20.0)
-    np.testing.assert_allclose(times, [20.0005, 20.0015, 21.0005], atol=1e-9)
+    clock.take_frame(frame, 20.0105)  # samples 1000-1009 from index 24000, read 0.5 ms after the last
+    np.testing.assert_allclose(clock.times_s(np.array([24000, 24012, 36000]), 20.0),
+                               [20.0005, 20.0015, 21.0005], atol=1e-9)
 
 
 @pytest.mark.parametrize("kwargs", [{"stream_rate_hz": 0.0}, {"stream_rate_hz": RATE, "sensor_rate_hz": -1.0},
                                     {"stream_rate_hz": RATE, "window_s": 0.0},
+                                    {"stream_rate_hz": RATE, "ahead_s": -1.0},
                                     {"stream_rate_hz": RATE, "link_bytes_per_s": -5.0}])
 def test_a_clock_that_cannot_be_is_refused(kwargs):
     with pytest.raises(ValueError, match="play clock"):

@@ -12,9 +12,9 @@ reach the plate). A writer that falls a whole ring behind loses rows: they are c
 
 ``t_s``, with a play clock (:attr:`EnvelopeRecord.clock`, a
 :class:`~ultraglide.render.engine.play_clock.PlayClock` fed by a plate driver's SENSORS frames, which say which
-value plays when): when the value plays by the plate's own account. The writer holds rows back half the clock's
-window and a piece (1.2 s: the frames read around their time have come) and places each ``PIECE_S`` of them by
-the clock's origin there. Rows the clock cannot place (no frame read within its window: before the stream plays,
+value plays when): when the value plays by the plate's own account. The writer holds rows back the clock's look
+ahead and a piece (1.2 s: the frames read up to 1 s after their time have come) and places each ``PIECE_S`` of
+them by the clock there. Rows the clock cannot place (no frame read within its window: before the stream plays,
 a plate that sends no SENSORS) and every row of a device without a sensor listener (a wav file, an audio output,
 the null device) keep the plan, ``t_s`` = ``plan_s``: the renderer re-anchors its plan only when the plate's
 buffer drifts past its deadband, and values play up to a few ms after it (bench/bench_record_timing.py).
@@ -142,8 +142,8 @@ class EnvelopeRecord(CsvRecord):
         rows = np.column_stack((ring_rows, ring_rows[:, 0]))  # plan_s: the renderer's time, kept
         clock = self.clock
         if clock is not None:
-            if not finish:  # the rows whose time is half the clock's window and a piece past: its frames have come
-                late = rows[:, 0] > time.perf_counter() - (clock.window_s / 2 + PIECE_S)
+            if not finish:  # the rows whose time is the clock's look ahead and a piece past: its frames have come
+                late = rows[:, 0] > time.perf_counter() - (clock.ahead_s + PIECE_S)
                 rows = rows[:int(np.argmax(late))] if late.any() else rows
                 if not len(rows):
                     return

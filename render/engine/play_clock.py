@@ -1,38 +1,41 @@
 """When each stream value plays on the plate, on the host's clock, from the plate's own SENSORS frames.
 
-A plate driver's SENSORS frame names the stream index that was playing at its first sample (``setpoint_index``)
-and carries ``n`` samples of ``1 / sensor_rate_hz`` each; the host reads it at ``received_s`` (perf_counter s).
-A frame cannot arrive before its last sample was taken, so::
+A plate driver's SENSORS frame carries ``n`` consecutive sensor samples from its sample ``first_sample`` (numbered
+on the device's clock at ``sensor_rate_hz``) and names the stream index playing at the first one
+(``setpoint_index``); the host reads it at ``received_s`` (perf_counter s). Two things follow:
 
-    received_s - n / sensor_rate_hz - setpoint_index / stream_rate_hz  >=  the host time index 0 played
+- *Where the device's clock is.* A frame cannot arrive before its last sample was taken, so::
 
-(the *origin* of the play clock: index ``k`` plays at ``origin + k / stream_rate_hz``), and the excess is the
-frame's delay (the link, the device's send loop, the reader thread) plus the part of a value's period already played
-at the first sample (< ``1 / stream_rate_hz``): never negative. The lowest bound over recent frames is the origin
-within the fastest frame's delay. :class:`PlayClock` keeps every frame's bound in a ring (the reader thread: a few
-float stores, no allocation) and answers, for a time ``at_s``, the lowest bound of the frames read within
-``window_s`` around it (:meth:`PlayClock.origin_s`), each moved to ``at_s`` by the plate's clock drift against the
-host's: the slope of the lower hull of every bound kept (the line under all of them that passes closest to them,
-the linear-programming estimate of a clock's skew), believed once the bounds span ``DRIFT_SPAN_S`` and within
-``MAX_DRIFT`` (a crystal's tolerance is tens of parts per million).
+      received_s - (first_sample + n) / sensor_rate_hz  >=  the host time of the device's sample 0
 
-A plate whose playback stalls (an underrun) plays every later index later: the origin moves up, and the bounds
-follow once the window has passed the stall. A link whose rate is known (``link_bytes_per_s``, as a device states
-it in its handshake) carries a frame of ``n`` samples in no less than its bytes' time, ``(18 + 12 n)`` bytes
-(docs/protocol.md), which is taken off its bound; ``n`` counted up to one ``SENSORS_PERIOD_MS`` of samples (a frame
-that took longer to fill was sent at once on a link that does not pace its bytes, the simulated plate's pty).
+  (the clock's *origin*), and the excess is the frame's delay: the link, the device's send loop, the reader thread;
+  never negative. A link whose rate is known (``link_bytes_per_s``, as a device states it in its handshake) carries
+  a frame in no less than its bytes' time, ``18 + 12 n`` bytes (docs/protocol.md), which is taken off too, ``n``
+  counted up to one ``SENSORS_PERIOD_MS`` of samples (a longer frame was sent at once on a link that does not pace
+  its bytes: the simulated plate's pty). The lowest bound over the frames read from ``window_s`` before a time to
+  ``ahead_s`` after it is the origin there, within the fastest frame's delay, each bound moved to that time by the
+  plate's clock drift against the host's: the slope of the lower hull of every bound kept (the line under all of
+  them that passes closest to them, the linear-programming estimate of a clock's skew), believed once the bounds
+  span ``DRIFT_SPAN_S`` and within ``MAX_DRIFT`` (a crystal's tolerance is tens of parts per million).
+- *When each index plays on it.* Index ``k`` plays ``(k - setpoint_index) / stream_rate_hz`` after the first sample
+  of the last frame that named an index at or below it. A stall (an underrun: the index holds while the samples go
+  on) or a skip moves every later index by exactly what the device's own counts say: no window to wait out.
 
-Example: frames read a random, positive 0.1–3 ms after their last sample; the origin is found within the fastest
+:class:`PlayClock` keeps each frame in a ring (the reader thread: a few float stores, no allocation) and places
+indices on request (:meth:`PlayClock.times_s`, a record's writer thread). A device that restarts numbers its samples
+from 0 again: the frames before are a clock of their own, and only the present one's are used.
+
+Example: frames read a random, positive 0.1–3 ms after their last sample; an index is placed within the fastest
 frame's delay:
 
 >>> import numpy as np
 >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
 >>> rng = np.random.default_rng(1)
->>> for frame in range(300):                                      # 3 s of 10-sample frames, every 10 ms
-...     index = 120 * frame                                       # index 0 played at 100.0 s
-...     clock.take(index, 10, 100.0 + frame * 0.01 + 0.01 + rng.uniform(0.1e-3, 3e-3))
->>> round((clock.origin_s(101.5) - 100.0) * 1e3, 1)                # ms late: the fastest frame's delay
-0.1
+>>> for frame in range(300):                          # 3 s of 10-sample frames; the device's sample 0 at 100.0 s
+...     clock.take(120 * frame, 10, 100.0 + frame * 0.01 + 0.01 + rng.uniform(0.1e-3, 3e-3), 10 * frame)
+>>> late_s = clock.times_s(np.array([18000]), 101.5)[0] - 101.5   # index 18 000 plays at 101.5 s
+>>> bool(0.0 <= late_s < 0.2e-3)
+True
 """
 
 from __future__ import annotations
@@ -44,10 +47,13 @@ import numpy as np
 from ultraglide.devices.protocol.spec import NOT_PLAYING, SENSORS_PERIOD_MS
 
 SENSORS_BYTES = (18, 12)  # a SENSORS frame on the wire: 18 bytes and 12 a sample (n <= 19; docs/protocol.md)
-WINDOW_S = 2.0  # frames read within this window around a time give its origin (decided from sim runs: docs)
+WINDOW_S = 8.0  # frames read up to this long before a time give the origin there (decided from sim runs: docs)
+AHEAD_S = 1.0  # ... and up to this long after it (a record's writer waits that long)
 KEPT = 4096  # frames kept (41 s at 100 a second): the drift's span
 DRIFT_SPAN_S = 8.0  # the drift is believed once the kept frames span this much
-MAX_DRIFT = 100e-6  # a slope beyond this is no crystal's drift (a stall's step): the drift is then taken as 0
+MAX_DRIFT = 100e-6  # a slope beyond this is no crystal's drift: the drift is then taken as 0
+WRAP = 1 << 32  # the device's sample numbers and stream indices are u32
+MAX_GAP_S = 10.0  # frames further apart on the device's clock (or back) belong to another clock (a restart)
 
 
 class PlayClock:
@@ -59,41 +65,44 @@ class PlayClock:
         The stream's values a second (the device's setpoint rate), Hz.
     sensor_rate_hz : float
         The device's sensor samples a second, Hz (settable later: a device says it in its handshake).
-    window_s : float
-        Frames read within this window around a time (s) give the origin there.
+    window_s, ahead_s : float
+        Frames read from ``window_s`` before a time to ``ahead_s`` after it (s) give the origin there.
     link_bytes_per_s : float
         The link's bytes a second (0: unknown, no delay assumed); settable later.
 
     Raises
     ------
     ValueError
-        A rate or a window that is not positive, a link rate that is negative.
+        A rate or a window that is not positive, a look ahead or a link rate that is negative.
 
     Examples
     --------
     No frame yet, no clock (the record keeps the renderer's plan):
 
+    >>> import numpy as np
     >>> clock = PlayClock(stream_rate_hz=12000.0)
-    >>> print(clock.origin_s(5.0), clock.frames)
+    >>> print(clock.times_s(np.arange(3), 5.0), clock.frames)
     None 0
     """
 
     def __init__(self, stream_rate_hz: float, sensor_rate_hz: float = 1000.0, window_s: float = WINDOW_S,
-                 link_bytes_per_s: float = 0.0):
+                 link_bytes_per_s: float = 0.0, ahead_s: float = AHEAD_S):
         if not (stream_rate_hz > 0 and sensor_rate_hz > 0):
             raise ValueError(f"the play clock needs positive rates, not {stream_rate_hz:g} Hz and "
                              f"{sensor_rate_hz:g} Hz")
-        if not window_s > 0 or not link_bytes_per_s >= 0:
-            raise ValueError(f"the play clock needs a positive window and a link rate >= 0, not {window_s:g} s and "
-                             f"{link_bytes_per_s:g} bytes/s")
+        if not window_s > 0 or not ahead_s >= 0 or not link_bytes_per_s >= 0:
+            raise ValueError(f"the play clock needs a positive window, a look ahead and a link rate >= 0, not "
+                             f"{window_s:g} s, {ahead_s:g} s and {link_bytes_per_s:g} bytes/s")
         self.stream_rate_hz = float(stream_rate_hz)
         self.sensor_rate_hz = float(sensor_rate_hz)
         self.window_s = float(window_s)
+        self.ahead_s = float(ahead_s)
         self.link_bytes_per_s = float(link_bytes_per_s)
         self._received = np.zeros(KEPT)  # perf_counter s
-        self._index = np.zeros(KEPT)  # the stream index at the frame's first sample
+        self._first = np.zeros(KEPT)  # the frame's first sample number (u32)
+        self._index = np.zeros(KEPT)  # the stream index playing at it (u32)
         self._samples = np.zeros(KEPT)  # its samples
-        self.frames = 0  # frames taken (bounds written: the reader thread's count)
+        self.frames = 0  # frames taken (the reader thread's count)
         self._lock = threading.Lock()  # the readers' (a record's writer and a caller): not the reader thread's
 
     # ---- the device's reader thread ----
@@ -109,20 +118,22 @@ class PlayClock:
 
         Examples
         --------
-        A frame packed and parsed as the wire carries it: 2 samples from index 480, read at 1.0 s:
+        A frame packed and parsed as the wire carries it: samples 40 and 41 with index 480 at the first, read at
+        1.0 s: index 480 played at 1.0 - 2 ms at the latest:
 
+        >>> import numpy as np
         >>> from ultraglide.devices.protocol.reports import parse_sensors, sensor_samples, sensors_payload
         >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
         >>> clock.take_frame(parse_sensors(sensors_payload(40, 480, sensor_samples([3.0, 3.2]))), 1.0)
-        >>> round(clock.origin_s(1.0), 6)                          # 1.0 - 2 ms - 480 / 12 kHz
-        0.958
+        >>> clock.times_s(np.array([480, 492]), 1.0).round(6).tolist()
+        [0.998, 0.999]
         """
         self.take(frame.setpoint_index, len(frame.samples),
-                  time.perf_counter() if received_s is None else received_s)
+                  time.perf_counter() if received_s is None else received_s, frame.first_sample)
 
-    def take(self, setpoint_index: int, samples: int, received_s: float) -> None:
-        """One frame: the index playing at its first sample, its samples, when it was read (perf_counter s). A
-        frame while nothing plays (``NOT_PLAYING``) or without samples says nothing of the clock.
+    def take(self, setpoint_index: int, samples: int, received_s: float, first_sample: int) -> None:
+        """One frame: the index playing at its first sample, its samples, when it was read (perf_counter s), its
+        first sample's number. A frame while nothing plays (``NOT_PLAYING``) or without samples says nothing.
 
         Parameters
         ----------
@@ -132,37 +143,52 @@ class PlayClock:
             Its sensor samples.
         received_s : float
             When it was read, perf_counter s.
+        first_sample : int
+            Its first sample's number on the device's clock.
 
         Examples
         --------
+        >>> import numpy as np
         >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
-        >>> clock.take(NOT_PLAYING, 10, 1.0); clock.frames
+        >>> clock.take(NOT_PLAYING, 10, 1.0, 0); clock.frames
         0
-        >>> clock.take(1200, 10, 1.0); round(clock.origin_s(1.0), 6)
-        0.89
+        >>> clock.take(1200, 10, 1.0, 990); clock.times_s(np.array([1200]), 1.0).round(6).tolist()
+        [0.99]
         """
         if setpoint_index == NOT_PLAYING or samples <= 0:
             return
         slot = self.frames % KEPT
         self._received[slot] = received_s
+        self._first[slot] = first_sample
         self._index[slot] = setpoint_index
         self._samples[slot] = samples
         self.frames += 1  # after the slot is whole: a reader takes only slots below the count
 
     # ---- readers (a record's writer thread) ----
-    def _kept(self) -> tuple[np.ndarray, np.ndarray]:
-        """The frames kept, oldest first: when each was read and its bound on the origin (perf_counter s; with the
-        rates as they are now: a device states them in its handshake, after its first frames may have come)."""
+    def _kept(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The frames of the device's present clock, oldest first: when each was read, its bound on the origin, its
+        first sample's time after the origin (s, unwrapped) and its index (unwrapped); with the rates as they are
+        now (a device states them in its handshake, after its first frames may have come)."""
         with self._lock:
             count = self.frames
             n = min(count, KEPT)
             order = np.arange(count - n, count) % KEPT
-            received, samples = self._received[order], self._samples[order]
-            bound = received - samples / self.sensor_rate_hz - self._index[order] / self.stream_rate_hz
-            if self.link_bytes_per_s > 0:
-                regular = max(1.0, round(self.sensor_rate_hz * SENSORS_PERIOD_MS / 1000.0))
-                bound -= (SENSORS_BYTES[0] + SENSORS_BYTES[1] * np.minimum(samples, regular)) / self.link_bytes_per_s
-            return received, bound
+            received, first = self._received[order], self._first[order]
+            index, samples = self._index[order], self._samples[order]
+        if n == 0:
+            return received, received, received, received
+        steps = (np.diff(first) % WRAP) if n > 1 else np.zeros(0)
+        broken = (steps < samples[:-1]) | (steps > MAX_GAP_S * self.sensor_rate_hz)  # back, or too far: a restart
+        start = int(np.flatnonzero(broken)[-1]) + 1 if broken.any() else 0
+        received, samples = received[start:], samples[start:]
+        sample = first[start] + np.concatenate(([0.0], np.cumsum(steps[start:])))  # unwrapped
+        moved = (np.diff(index[start:]) + WRAP // 2) % WRAP - WRAP // 2  # signed: a device may play one again
+        index = index[start] + np.concatenate(([0.0], np.cumsum(moved)))
+        bound = received - (sample + samples) / self.sensor_rate_hz
+        if self.link_bytes_per_s > 0:
+            regular = max(1.0, round(self.sensor_rate_hz * SENSORS_PERIOD_MS / 1000.0))
+            bound -= (SENSORS_BYTES[0] + SENSORS_BYTES[1] * np.minimum(samples, regular)) / self.link_bytes_per_s
+        return received, bound, sample / self.sensor_rate_hz, index
 
     def drift(self) -> float:
         """The plate's clock against the host's (s a host second): the slope of the lower hull of every bound kept,
@@ -171,79 +197,61 @@ class PlayClock:
         Returns
         -------
         float
-            The origin's slope (positive: the plate plays slower than the host counts).
+            The origin's slope (positive: the plate's clock runs slower than the host's).
 
         Examples
         --------
-        A plate 100 ppm slow, frames every 10 ms with a random delay of 0 to 2 ms, 20 s:
+        A plate 60 ppm slow, frames every 10 ms with a random delay of 0 to 2 ms, 20 s:
 
         >>> import numpy as np
         >>> clock = PlayClock(stream_rate_hz=12000.0)
         >>> rng = np.random.default_rng(0)
         >>> for frame in range(2000):
-        ...     played = frame * 0.01 * (1 + 100e-6)                      # index 120 * frame starts here
-        ...     clock.take(120 * frame, 10, played + 0.01 + rng.uniform(0, 2e-3))
-        >>> abs(clock.drift() * 1e6 - 100) < 5                        # parts per million
+        ...     sampled = (frame + 1) * 0.01 * (1 + 60e-6)                   # its last sample ends here
+        ...     clock.take(120 * frame, 10, sampled + rng.uniform(0, 2e-3), 10 * frame)
+        >>> abs(clock.drift() * 1e6 - 60) < 5                                # parts per million
         True
         """
-        received, bound = self._kept()
+        received, bound, _, _ = self._kept()
         return _hull_slope(received, bound)
 
-    def origin_s(self, at_s: float) -> float | None:
-        """When index 0 plays (perf_counter s) by the frames read within ``window_s`` around ``at_s``; None when
-        none was.
-
-        Parameters
-        ----------
-        at_s : float
-            The time the origin is wanted at, perf_counter s.
-
-        Returns
-        -------
-        float or None
-            The origin, perf_counter s; None without a frame near ``at_s``.
-
-        Examples
-        --------
-        >>> clock = PlayClock(stream_rate_hz=1000.0, sensor_rate_hz=1000.0)
-        >>> clock.take(0, 1, 0.0015); clock.take(10, 1, 0.0112)             # read 0.5 ms and 0.2 ms late
-        >>> round(clock.origin_s(0.02) * 1e3, 3), clock.origin_s(10.0)
-        (0.2, None)
-        """
-        received, bound = self._kept()
-        near = np.abs(received - at_s) <= self.window_s / 2
-        if not near.any():
-            return None
-        slope = _hull_slope(received, bound)
-        return float(np.min(bound[near] + slope * (at_s - received[near])))
-
     def times_s(self, index: np.ndarray, at_s: float) -> np.ndarray | None:
-        """When each stream index plays (perf_counter s) by the clock around ``at_s``; None without one.
+        """When each stream index plays (perf_counter s), by the device's clock placed with the frames read from
+        ``window_s`` before ``at_s`` to ``ahead_s`` after it; None when none was.
 
         Parameters
         ----------
         index : numpy.ndarray
-            Stream indices.
+            Stream indices, in the host's count (the device's, unwrapped).
         at_s : float
             Where on the host's clock they play (roughly: the plan's time), perf_counter s.
 
         Returns
         -------
         numpy.ndarray or None
-            Their times, perf_counter s.
+            Their times, perf_counter s; None without a frame near ``at_s``.
 
         Examples
         --------
+        Index 10 at sample 100 (1 kHz), read 0.5 ms after it; then the plate stalled 3 ms (index 20 at sample 113,
+        not 110): index 22 plays 3 ms later than the first frame alone would say:
+
         >>> import numpy as np
         >>> clock = PlayClock(stream_rate_hz=1000.0, sensor_rate_hz=1000.0)
-        >>> clock.take(0, 1, 0.0105)
-        >>> clock.times_s(np.array([0, 1, 2]), 0.0).round(4).tolist()
-        [0.0095, 0.0105, 0.0115]
+        >>> clock.take(10, 1, 0.1015, 100); clock.take(20, 1, 0.1145, 113)
+        >>> (clock.times_s(np.array([10, 22]), 0.1) * 1e3).round(3).tolist(), clock.times_s(np.array([1]), 9.0)
+        ([100.5, 115.5], None)
         """
-        origin = self.origin_s(at_s)
-        if origin is None:
+        received, bound, sampled_s, at_index = self._kept()
+        near = (received >= at_s - self.window_s) & (received <= at_s + self.ahead_s)  # (none without frames)
+        if not near.any():
             return None
-        return origin + np.asarray(index, dtype=float) / self.stream_rate_hz
+        slope = _hull_slope(received, bound)
+        origin = float(np.min(bound[near] + slope * (at_s - received[near])))
+        index = np.asarray(index, dtype=float)
+        frame = np.clip(np.searchsorted(np.maximum.accumulate(at_index), index, side="right") - 1, 0,
+                        len(at_index) - 1)
+        return origin + sampled_s[frame] + (index - at_index[frame]) / self.stream_rate_hz
 
 
 def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:
@@ -269,4 +277,3 @@ def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:
             slope = (ys[b] - ys[a]) / (xs[b] - xs[a])
             return slope if abs(slope) <= MAX_DRIFT else 0.0
     return 0.0
-
