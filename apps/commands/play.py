@@ -51,8 +51,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                            "with normal and lateral force sensors; its amplitude loop too); on sim, a simulated "
                            "finger (the default one unless --finger)")
     output_option(play, "--envelope-csv", kind="log", metavar="FILE.csv",
-                      help="record the envelope as it plays: t_s (perf_counter s), x_mm, y_mm, down, target_ratio, "
-                           "target_um_pp, commanded_um_pp (what the device was given)")
+                      help="record the envelope as it plays: t_s (perf_counter s: when the value plays, by a plate "
+                           "driver's SENSORS; else the renderer's plan), index, x_mm, y_mm, down, target_ratio, "
+                           "target_um_pp, commanded_um_pp (what the device was given), plan_s (the renderer's plan)")
     output_option(play, "--sensors-csv", kind="log", metavar="FILE.csv",
                       help="record the plate's sensor samples as they come: sample, setpoint_index (the stream index "
                            "playing: the envelope CSV's index), received_s, amplitude_um_pp, normal_force_n, "
