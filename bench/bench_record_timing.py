@@ -12,7 +12,11 @@ the run was disturbed (underruns, a re-anchored clock: tenths of a µm).
 
 Each run is fitted twice: by ``t_s`` (when the value plays: the plate's own SENSORS place it, the play clock,
 render/engine/play_clock.py) and by ``plan_s`` (when the renderer meant it to reach the plate: what ``t_s`` was
-before the play clock).
+before the play clock). And each is placed against the plate's sample clock, value by value: the run's
+``--sensors-csv`` names the index playing at each sensor sample (1 kHz), whose time is the finger log's origin (the
+plate's sample 0) plus its number; where the index advanced evenly (12 a sample, none of the 20 samples before
+uneven), index k plays ``(k - setpoint_index) / 12 kHz`` after it. The error's median and largest say how late
+each column is (negative: early), stalls and all.
 
 Aim (issue 43): ``t_s`` is when each value plays, so |lag| <= 0.5 ms in every run, with the fit's residual as
 small as the plan's.
@@ -34,6 +38,7 @@ from scipy.signal import lfilter
 
 LAGS_S = np.arange(-20e-3, 20e-3, 0.05e-3)  # the shifts tried, s
 EDGE_S = 0.2  # the run's first and last 0.2 s are left out (the swipe's start and its tail)
+SENSOR_RATE_HZ = 1000.0  # the simulated plate's sensor samples a second
 
 
 def read_columns(path: Path) -> dict[str, np.ndarray]:
@@ -62,18 +67,43 @@ def best_lag(envelope: dict, log: dict, tau_s: float, column: str = "t_s") -> tu
     return float(LAGS_S[best]), errors[best]
 
 
+def against_sample_clock(envelope: dict, sensors: dict, log: dict, column: str, rate_hz: float,
+                         sensor_rate_hz: float) -> tuple[float, float]:
+    """How late ``column`` places each value (s; median, largest by magnitude) by the plate's sample clock."""
+    index = sensors["setpoint_index"]
+    start_s = log["t_s"][0] + sensors["sample"] / sensor_rate_hz
+    per = round(rate_hz / sensor_rate_hz)  # values a sensor sample
+    step = np.diff(index)
+    even = np.flatnonzero((step == per) & (index[:-1] >= 0))
+    uneven = np.flatnonzero(step != per)
+    k = envelope["index"]
+    at = np.searchsorted(index[even], k, side="right") - 1
+    rows = np.flatnonzero((at >= 0) & (k < index[even[np.clip(at, 0, None)]] + per))
+    sample = even[at[rows]]
+    since = sample - uneven[np.clip(np.searchsorted(uneven, sample) - 1, 0, None)] if len(uneven) else sample + 21
+    rows, sample = rows[since > 20], sample[since > 20]
+    late = envelope[column][rows] - (start_s[sample] + (k[rows] - index[sample]) / rate_hz)
+    return float(np.median(late)), float(late[np.argmax(np.abs(late))])
+
+
 def one_run(folder: Path, run: int, device: str, tau_s: float) -> dict:
-    envelope, log = folder / f"envelope-{run}.csv", folder / f"finger-{run}.csv"
+    envelope, log, sensors = folder / f"envelope-{run}.csv", folder / f"finger-{run}.csv", folder / f"sensors-{run}.csv"
     result = subprocess.run([sys.executable, "-m", "ultraglide", "play", "grating-1mm", "--device", device,
-                             "--duration-s", "3", "--envelope-csv", str(envelope), "--finger-log", str(log)],
+                             "--duration-s", "3", "--envelope-csv", str(envelope), "--finger-log", str(log),
+                             "--sensors-csv", str(sensors)],
                             capture_output=True, text=True, timeout=600)
     if result.returncode != 0:
         raise SystemExit(f"play failed: {result.stderr.strip().splitlines()[-1]}")
-    envelope, log = read_columns(envelope), read_columns(log)
-    figures = {}
+    envelope, log, sensors = read_columns(envelope), read_columns(log), read_columns(sensors)
+    rate_hz = float(round(1.0 / float(np.median(np.diff(envelope["plan_s"])))))  # the stream's values a second
+    index = sensors["setpoint_index"]
+    playing = (index[:-1] >= 0) & (index[1:] >= 0)
+    figures = {"stalls": int(np.sum(playing & (np.diff(index) != round(rate_hz / SENSOR_RATE_HZ))))}
     for name, column in (("plan", "plan_s"), ("played", "t_s")):
         lag_s, rms = best_lag(envelope, log, tau_s, column)
-        figures[name] = {"lag_ms": round(1000 * lag_s, 2), "fit_rms_um_pp": round(rms, 4)}
+        median_s, largest_s = against_sample_clock(envelope, sensors, log, column, rate_hz, SENSOR_RATE_HZ)
+        figures[name] = {"lag_ms": round(1000 * lag_s, 2), "fit_rms_um_pp": round(rms, 4),
+                         "late_median_ms": round(1000 * median_s, 3), "late_largest_ms": round(1000 * largest_s, 3)}
     return figures
 
 
@@ -97,9 +127,12 @@ def main() -> int:
     print(f"{load}; the plate's envelope time constant {1000 * tau_s:.2f} ms")
     for run, figures in enumerate(runs):
         plan, played = figures["plan"], figures["played"]
-        print(f"run {run + 1}: the values play {played['lag_ms']:+.2f} ms after the record's t_s "
-              f"(fit RMS {1000 * played['fit_rms_um_pp']:.0f} nm p-p); {plan['lag_ms']:+.2f} ms after the "
-              f"renderer's plan, plan_s (fit RMS {1000 * plan['fit_rms_um_pp']:.0f} nm p-p)")
+        print(f"run {run + 1} ({figures['stalls']} stalls or skips of the index playing): the values play "
+              f"{played['lag_ms']:+.2f} ms after the record's t_s (fit RMS {1000 * played['fit_rms_um_pp']:.0f} nm "
+              f"p-p), {plan['lag_ms']:+.2f} ms after the renderer's plan, plan_s (fit RMS "
+              f"{1000 * plan['fit_rms_um_pp']:.0f} nm p-p); by the plate's sample clock, t_s is "
+              f"{played['late_median_ms']:+.3f} ms late (median; largest {played['late_largest_ms']:+.3f}), plan_s "
+              f"{plan['late_median_ms']:+.3f} ms (largest {plan['late_largest_ms']:+.3f})")
     return 0
 
 
