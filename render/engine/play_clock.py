@@ -52,6 +52,7 @@ AHEAD_S = 1.0  # ... and up to this long after it (a record's writer waits that 
 KEPT = 4096  # frames kept (41 s at 100 a second): the drift's span
 DRIFT_SPAN_S = 8.0  # the drift is believed once the kept frames span this much
 MAX_DRIFT = 100e-6  # a slope beyond this is no crystal's drift: the drift is then taken as 0
+HULL_BIN_S = 0.1  # the drift's hull is taken over each 0.1 s's lowest bound (its vertices, within 10 µs)
 WRAP = 1 << 32  # the device's sample numbers and stream indices are u32
 MAX_GAP_S = 10.0  # frames further apart on the device's clock (or back) belong to another clock (a restart)
 
@@ -256,12 +257,15 @@ class PlayClock:
 
 def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:
     """The slope of the lower hull's edge above the frames' mean time (the line under every bound that minimises the
-    sum of the gaps to them), 0 over less than ``DRIFT_SPAN_S`` or beyond ``MAX_DRIFT``."""
+    sum of the gaps to them), over each ``HULL_BIN_S``'s lowest bound; 0 over less than ``DRIFT_SPAN_S`` or beyond
+    ``MAX_DRIFT``."""
     if len(received) < 2 or received.max() - received.min() < DRIFT_SPAN_S:
         return 0.0
-    order = np.argsort(received, kind="stable")
-    t0 = float(received[order[0]])
-    xs, ys = (received[order] - t0).tolist(), bound[order].tolist()
+    t0 = float(received.min())
+    bins = ((received - t0) / HULL_BIN_S).astype(np.int64)
+    order = np.lexsort((bound, bins))  # by bin, lowest first
+    lowest = order[np.concatenate(([True], np.diff(bins[order]) != 0))]
+    xs, ys = (received[lowest] - t0).tolist(), bound[lowest].tolist()
     hull: list[int] = []
     for i in range(len(xs)):  # Andrew's monotone chain, lower part
         while len(hull) >= 2:
@@ -271,7 +275,7 @@ def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:
             else:
                 break
         hull.append(i)
-    mean = sum(xs) / len(xs)
+    mean = float(np.mean(received)) - t0
     for a, b in zip(hull[:-1], hull[1:], strict=True):
         if xs[a] <= mean <= xs[b] and xs[b] > xs[a]:
             slope = (ys[b] - ys[a]) / (xs[b] - xs[a])
