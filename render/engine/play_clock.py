@@ -25,8 +25,10 @@ on the device's clock at ``sensor_rate_hz``) and names the stream index playing 
 indices on request (:meth:`PlayClock.times_s`, a record's writer thread). A device that restarts numbers its samples
 from 0 again: the frames before are a clock of their own, and only the present one's are used.
 
-Example: frames read a random, positive 0.1–3 ms after their last sample; an index is placed within the fastest
-frame's delay:
+Examples
+--------
+Frames read a random, positive 0.1–3 ms after their last sample; an index is placed within the fastest frame's
+delay:
 
 >>> import numpy as np
 >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
