@@ -14,8 +14,8 @@ Each run is fitted twice: by ``t_s`` (when the value plays: the plate's own SENS
 render/engine/play_clock.py) and by ``plan_s`` (when the renderer meant it to reach the plate: what ``t_s`` was
 before the play clock). And each is placed against the plate's sample clock, value by value: the run's
 ``--sensors-csv`` names the index playing at each sensor sample (1 kHz), whose time is the finger log's origin (the
-plate's sample 0) plus its number; where the index advanced evenly (12 a sample, none of the 20 samples before
-uneven), index k plays ``(k - setpoint_index) / 12 kHz`` after it. The error's median and largest say how late
+plate's sample 0) plus its number; where the index advanced evenly (12 a sample, none of the 20 samples before or
+after uneven), index k plays ``(k - setpoint_index) / 12 kHz`` after it. The error's median and largest say how late
 each column is (negative: early), stalls and all.
 
 Aim (issue 43): ``t_s`` is when each value plays, so |lag| <= 0.5 ms in every run, with the fit's residual as
@@ -81,8 +81,12 @@ def against_sample_clock(envelope: dict, sensors: dict, log: dict, column: str, 
     at = np.searchsorted(index[even], k, side="right") - 1
     rows = np.flatnonzero((at >= 0) & (k < index[even[np.clip(at, 0, None)]] + per))
     sample = even[at[rows]]
-    since = sample - uneven[np.clip(np.searchsorted(uneven, sample) - 1, 0, None)] if len(uneven) else sample + 21
-    rows, sample = rows[since > 20], sample[since > 20]
+    if len(uneven):  # where it stalled the frames say only between which samples: 20 samples either side are left out
+        place = np.searchsorted(uneven, sample)
+        since = sample - uneven[np.clip(place - 1, 0, None)]
+        until = uneven[np.clip(place, None, len(uneven) - 1)] - sample
+        clear = ((since > 20) | (place == 0)) & ((until > 20) | (place == len(uneven)))
+        rows, sample = rows[clear], sample[clear]
     late = envelope[column][rows] - (start_s[sample] + (k[rows] - index[sample]) / rate_hz)
     return float(np.median(late)), float(late[np.argmax(np.abs(late))])
 

@@ -96,6 +96,11 @@ def test_after_a_stall_later_indices_play_later_by_what_the_devices_counts_say_a
     for at in (53.0, 54.9, 55.01, 55.5, 58.0):  # just after the stall too: no window to wait out
         late = late_by(clock, plate, at)
         assert late.min() >= -1e-9 and late.max() < 0.3e-3
+    # the values of the frame the stall came in (it came at its end here; the frames cannot say where): placed at
+    # the latest they can have played, never early, late by no more than the stall; the one it names, exactly
+    index = np.arange(PER_FRAME * 499, PER_FRAME * 500 - 36, dtype=float)
+    late = clock.times_s(index, 55.0) - plate.plays_at(index)
+    assert late[0] < 0.3e-3 and np.all((late[1:] >= 0.0) & (late[1:] < 3e-3 + 0.3e-3))
 
 
 def test_a_links_byte_time_is_taken_off_and_a_long_frame_counts_as_a_regular_one():

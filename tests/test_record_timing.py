@@ -57,11 +57,12 @@ def test_the_envelope_records_times_are_when_the_plate_plays_each_value(tmp_path
         frame_received.append(sensors["received_s"][frame[0]])
         frame_excess.append(sensors["received_s"][frame[0]] - (start_s[frame[-1]] + 1 / SENSOR_RATE) - wire_s)
     frame_received, frame_excess = np.array(frame_received), np.array(frame_excess)
-    assert len(frame_received) > 400  # 5 s of 10 ms frames
+    assert len(frame_received) > 200  # 5 s of 10 ms frames (frames read at once show as one)
     assert frame_received[-1] - frame_received[0] < DRIFT_SPAN_S  # too short to take a drift: the plate has none
 
-    # the truth of each row's index, where the index advanced evenly from 20 samples before its sample (a stall
-    # within the frame that names it is placed after the frame: that frame's values play later than it can say)
+    # the truth of each row's index, where the index advanced evenly from 20 samples before its sample to 20 after
+    # (the record's index within a frame is counted on from the one it names: where it stalled, the frames say
+    # only between which samples)
     step = np.diff(index)
     even = np.flatnonzero((step == RATE / SENSOR_RATE) & (index[:-1] >= 0))
     uneven = np.flatnonzero(step != RATE / SENSOR_RATE)
@@ -70,9 +71,12 @@ def test_the_envelope_records_times_are_when_the_plate_plays_each_value(tmp_path
     inside = (at >= 0) & (k < index[even[np.clip(at, 0, None)]] + RATE / SENSOR_RATE)
     rows = np.flatnonzero(inside)
     sample = even[at[rows]]
-    since = sample - uneven[np.clip(np.searchsorted(uneven, sample) - 1, 0, None)]
-    rows, sample = rows[since > 20], sample[since > 20]
-    assert len(rows) > 4 * RATE  # most of the 5 s
+    place = np.searchsorted(uneven, sample)
+    since = sample - uneven[np.clip(place - 1, 0, None)]
+    until = uneven[np.clip(place, None, len(uneven) - 1)] - sample
+    clear = ((since > 20) | (place == 0)) & ((until > 20) | (place == len(uneven)))
+    rows, sample = rows[clear], sample[clear]
+    assert len(rows) > 3 * RATE  # most of the 5 s (not the 20 ms about each stall)
     truth = start_s[sample] + (k[rows] - index[sample]) / RATE
     late = envelope["t_s"][rows] - truth
     assert late.min() > -1.0 / RATE - 1e-6  # never early

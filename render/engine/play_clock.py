@@ -18,8 +18,11 @@ on the device's clock at ``sensor_rate_hz``) and names the stream index playing 
   them that passes closest to them, the linear-programming estimate of a clock's skew), believed once the bounds
   span ``DRIFT_SPAN_S`` and within ``MAX_DRIFT`` (a crystal's tolerance is tens of parts per million).
 - *When each index plays on it.* Index ``k`` plays ``(k - setpoint_index) / stream_rate_hz`` after the first sample
-  of the last frame that named an index at or below it. A stall (an underrun: the index holds while the samples go
-  on) or a skip moves every later index by exactly what the device's own counts say: no window to wait out.
+  of the last frame that named an index at or below it, and no later than ``(next index - k) / stream_rate_hz``
+  before the next frame's first sample: where the two differ, a stall (the index held while the samples went on)
+  or a skip came between, at a sample the frames do not say, and the later of the two is taken (never early; an
+  index a frame names plays at its sample).
+  Every later index moves by exactly what the device's own counts say: no window to wait out.
 
 :class:`PlayClock` keeps each frame in a ring (the reader thread: a few float stores, no allocation) and places
 indices on request (:meth:`PlayClock.times_s`, a record's writer thread). A device that restarts numbers its samples
@@ -236,14 +239,15 @@ class PlayClock:
 
         Examples
         --------
-        Index 10 at sample 100 (1 kHz), read 0.5 ms after it; then the plate stalled 3 ms (index 20 at sample 113,
-        not 110): index 22 plays 3 ms later than the first frame alone would say:
+        Index 10 at sample 100 (1 kHz), read 0.5 ms after it; the next frame names index 20 at sample 113, not 110:
+        the plate stalled 3 ms between them. Index 22 plays 3 ms later than the first frame alone would say; index 15,
+        between, is placed at the latest it can have played (3 ms earlier if the stall came after it):
 
         >>> import numpy as np
         >>> clock = PlayClock(stream_rate_hz=1000.0, sensor_rate_hz=1000.0)
         >>> clock.take(10, 1, 0.1015, 100); clock.take(20, 1, 0.1145, 113)
-        >>> (clock.times_s(np.array([10, 22]), 0.1) * 1e3).round(3).tolist(), clock.times_s(np.array([1]), 9.0)
-        ([100.5, 115.5], None)
+        >>> (clock.times_s(np.array([10, 15, 22]), 0.1) * 1e3).round(3).tolist(), clock.times_s(np.array([1]), 9.0)
+        ([100.5, 108.5, 115.5], None)
         """
         received, bound, sampled_s, at_index = self._kept()
         near = (received >= at_s - self.window_s) & (received <= at_s + self.ahead_s)  # (none without frames)
@@ -254,7 +258,11 @@ class PlayClock:
         index = np.asarray(index, dtype=float)
         frame = np.clip(np.searchsorted(np.maximum.accumulate(at_index), index, side="right") - 1, 0,
                         len(at_index) - 1)
-        return origin + sampled_s[frame] + (index - at_index[frame]) / self.stream_rate_hz
+        after = origin + sampled_s[frame] + (index - at_index[frame]) / self.stream_rate_hz  # from its frame on
+        following = np.minimum(frame + 1, len(at_index) - 1)  # ... and back from the next frame, where there is one
+        before = origin + sampled_s[following] - (at_index[following] - index) / self.stream_rate_hz
+        named = (following == frame) | (index == at_index[frame])  # the frame named it: it played at its sample
+        return np.where(named, after, np.maximum(after, before))
 
 
 def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:
