@@ -13,11 +13,12 @@ reach the plate). A writer that falls a whole ring behind loses rows: they are c
 ``t_s``, with a play clock (:attr:`EnvelopeRecord.clock`, a
 :class:`~ultraglide.render.engine.play_clock.PlayClock` fed by a plate driver's SENSORS frames, which say which
 value plays when): when the value plays by the plate's own account. The writer holds rows back the clock's look
-ahead and a piece (1.2 s: the frames read up to 1 s after their time have come) and places each ``PIECE_S`` of
-them by the clock there. Rows the clock cannot place (no frame read within its window: before the stream plays,
-a plate that sends no SENSORS) and every row of a device without a sensor listener (a wav file, an audio output,
-the null device) keep the plan, ``t_s`` = ``plan_s``: the renderer re-anchors its plan only when the plate's
-buffer drifts past its deadband, and values play up to a few ms after it (bench/bench_record_timing.py).
+ahead and a piece (4.2 s at 12 kHz, less where its ring holds less: :func:`hold_s`; the frames read up to 4 s after
+their time have come) and places each ``PIECE_S`` of them by the clock there. Rows the clock cannot place (no
+frame read within its window: before the stream plays, a plate that sends no SENSORS) and every row of a device
+without a sensor listener (a wav file, an audio output, the null device) keep the plan, ``t_s`` = ``plan_s``: the
+renderer re-anchors its plan only when the plate's buffer drifts past its deadband, and values play up to a few
+ms after it (bench/bench_record_timing.py).
 """
 
 from __future__ import annotations
@@ -143,7 +144,7 @@ class EnvelopeRecord(CsvRecord):
         clock = self.clock
         if clock is not None:
             if not finish:  # the rows whose time is the clock's look ahead and a piece past: its frames have come
-                late = rows[:, 0] > time.perf_counter() - (clock.ahead_s + PIECE_S)
+                late = rows[:, 0] > time.perf_counter() - (hold_s(clock) + PIECE_S)
                 rows = rows[:int(np.argmax(late))] if late.any() else rows
                 if not len(rows):
                     return
@@ -166,3 +167,26 @@ class EnvelopeRecord(CsvRecord):
         self._thread.join(timeout=5)
         if finish:
             self._drain(finish=True)
+
+
+def hold_s(clock) -> float:
+    """How long the writer holds rows back for ``clock`` (s): its look ahead, within half the ring at its rate.
+
+    Parameters
+    ----------
+    clock : PlayClock
+        The record's play clock.
+
+    Returns
+    -------
+    float
+        The hold, s.
+
+    Examples
+    --------
+    >>> from ultraglide.render.engine.play_clock import PlayClock
+    >>> hold_s(PlayClock(12000.0)), round(hold_s(PlayClock(48000.0)), 3)     # 4 s; half of 2.73 s of rows
+    (4.0, 1.365)
+    """
+    return min(clock.ahead_s, RING_ROWS / clock.stream_rate_hz / 2)
+

@@ -53,7 +53,7 @@ from ultraglide.devices.protocol.spec import NOT_PLAYING, SENSORS_PERIOD_MS
 
 SENSORS_BYTES = (18, 12)  # a SENSORS frame on the wire: 18 bytes and 12 a sample (n <= 19; docs/protocol.md)
 WINDOW_S = 8.0  # frames read up to this long before a time give the origin there (decided from sim runs: docs)
-AHEAD_S = 1.0  # ... and up to this long after it (a record's writer waits that long)
+AHEAD_S = 4.0  # ... and up to this long after it (a record's writer waits that long, its ring allowing)
 KEPT = 4096  # frames kept (41 s at 100 a second): the drift's span
 DRIFT_SPAN_S = 8.0  # the drift is believed once the kept frames span this much
 MAX_DRIFT = 100e-6  # a slope beyond this is no crystal's drift: the drift is then taken as 0
