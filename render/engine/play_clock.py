@@ -177,7 +177,7 @@ class PlayClock:
         now (a device states them in its handshake, after its first frames may have come)."""
         with self._lock:
             count = self.frames
-            n = min(count, KEPT)
+            n = min(count, KEPT - 1)  # not the oldest slot: the next frame is written over it meanwhile
             order = np.arange(count - n, count) % KEPT
             received, first = self._received[order], self._first[order]
             index, samples = self._index[order], self._samples[order]
