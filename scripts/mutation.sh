@@ -24,7 +24,8 @@ files=("$@")
 # process at nice 19 on a loaded machine starves (a missed watchdog deadline fails the baseline)
 tests=${MUTATION_TESTS:-"tests/test_carrier.py tests/test_envelope.py tests/test_sampling.py tests/test_renderer.py \
 tests/test_limiter.py tests/test_textures.py tests/test_effects.py tests/test_friction_models.py tests/test_doctests.py \
-tests/test_export_parallel.py tests/test_api.py tests/test_block_path.py tests/test_calibration.py"}
+tests/test_export_parallel.py tests/test_api.py tests/test_block_path.py tests/test_calibration.py \
+tests/test_friction_planning.py"}
 [ -x .venv/bin/python ] || { echo "mutation.sh: no .venv here; run ./run tests first" >&2; exit 1; }
 .venv/bin/python -c 'import mutmut' 2>/dev/null || .venv/bin/python -m pip install -q -e ".[mutation]"
 

@@ -19,7 +19,7 @@ TESTS = {
     "render/envelope.py": ["tests/test_envelope.py", "tests/test_renderer.py"],
     "render/renderer.py": ["tests/test_renderer.py", "tests/test_envelope.py",
                            "tests/test_doctests.py::test_docstring_examples[ultraglide.render.renderer]",
-                           "tests/test_effects.py"],
+                           "tests/test_effects.py", "tests/test_friction_planning.py"],
     "devices/output/limiter.py": ["tests/test_limiter.py",
                            "tests/test_doctests.py::test_docstring_examples[ultraglide.devices.output.limiter]"],
     "textures/sampling.py": ["tests/test_sampling.py",

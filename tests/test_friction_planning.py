@@ -75,6 +75,36 @@ def test_a_slow_texture_is_followed_closely():
     assert planner.below_floor == 0
 
 
+@pytest.mark.parametrize("speed_mm_s", [40.0, 150.0])
+def test_the_renderer_plans_at_the_speed_the_finger_slides(speed_mm_s):
+    """The recovery the plan is made against is the dynamics' at the path's own speed (mm/s, from its positions):
+    per sample, 1 - exp(-1 / (rate tau(v)))."""
+    model = load_model("dynamic")
+    path = RecordedTrajectory([0.0, 1.0], [5.0, 5.0 + speed_mm_s], [25.0, 25.0])
+    renderer = Renderer(resolve_texture("grating-1mm"), model, load_profile("sim-plate"), RenderSettings(plan=True),
+                        trajectory=path)
+    renderer.control(120)
+    tau = float(model.dynamics.recovery_at_s(speed_mm_s))
+    assert math.isclose(renderer.planner.k_recovery, 1.0 - math.exp(-1.0 / (RATE * tau)), rel_tol=1e-3)
+
+
+def test_the_planned_renderer_counts_every_target_below_the_plates_floor_as_clipped():
+    """A texture asking 0.05 everywhere, below what sim-plate reaches at its limit: each sample the finger touches
+    is one the plate cannot give (the renderer's clipped count, planned as unplanned)."""
+    from ultraglide.textures.texture import Texture
+
+    texture = Texture(np.full((4, 4), 0.05, dtype=np.float32), 40.0, 40.0, name="slippery")
+    path = RecordedTrajectory([0.0, 1.0], [5.0, 35.0], [20.0, 20.0])
+    counts = []
+    for plan in (True, False):
+        renderer = Renderer(texture, load_model("dynamic"), load_profile("sim-plate"), RenderSettings(plan=plan),
+                            trajectory=path)
+        for _ in range(5):
+            renderer.control(120)
+        counts.append(renderer.counters.clipped_samples)
+    assert counts == [600, 600]
+
+
 @pytest.mark.parametrize("speed_mm_s", [50.0, 100.0, 200.0])
 def test_a_rise_is_begun_as_early_as_the_best_plan_begins_it(speed_mm_s):
     """A step up from 0.3 to 1, felt through first-order recovery (tau): asked at the edge, the felt error is
