@@ -276,6 +276,75 @@ def _clean(**fields) -> dict:
     return {key: value for key, value in fields.items() if value is not None}
 
 
+_PHASE_TEXT = {phase: f'"{phase}"' for phase in ("down", "move", "up", "cancel")}
+
+
+def _number_text(value) -> str | None:
+    """A plain finite float or int as ``json.dumps`` writes it (its ``repr``); None for anything else (a bool, a
+    numpy number, NaN, an infinity), which the general encoder then handles or refuses."""
+    kind = type(value)
+    if kind is float:
+        return float.__repr__(value) if value - value == 0.0 else None
+    if kind is int:
+        return int.__repr__(value)
+    return None
+
+
+def touch_text(x, y, phase: str, pointer, t, pressure=None, force_n=None) -> str | None:
+    """The usual ``touch`` message as JSON text, character for character what the general encoder writes, in a
+    fraction of its time; None when a field is not a plain finite number or a known phase (the general path then).
+
+    A pointer event is the one message sent a thousand times a second, and on a machine where a program sleeps
+    between events its code runs cold: ``json.dumps`` of a touch took 0.1 ms there, this 0.01 ms (``docs/
+    performance.md``, the service's section).
+
+    Parameters
+    ----------
+    x, y : float
+        Where, in the view's units.
+    phase : str
+        ``down``, ``move``, ``up`` or ``cancel``.
+    pointer : int
+        The pointer's id.
+    t : float
+        When, the program's ``time.perf_counter()`` s.
+    pressure, force_n : float, optional
+        The pointer's pressure (0-1) and force (N).
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> touch_text(20.5, 50, "move", 0, 12.25)
+    '{"type":"touch","x":20.5,"y":50,"phase":"move","pointer":0,"t":12.25}'
+    >>> import json
+    >>> touch_text(1e-7, -0.0, "down", 3, 5.0, pressure=0.5) == json.dumps({"type": "touch", "x": 1e-7, "y": -0.0,
+    ...     "phase": "down", "pointer": 3, "pressure": 0.5, "t": 5.0}, separators=(",", ":"))
+    True
+    >>> print(touch_text(float("nan"), 1.0, "move", 0, 1.0), touch_text(1.0, 1.0, "hover", 0, 1.0))
+    None None
+    """
+    texts = [_number_text(x), _number_text(y), _PHASE_TEXT.get(phase), _number_text(pointer), _number_text(t)]
+    if None in texts:
+        return None
+    middle = ""
+    if pressure is not None:
+        number = _number_text(pressure)
+        if number is None:
+            return None
+        middle += ',"pressure":' + number
+    if force_n is not None:
+        number = _number_text(force_n)
+        if number is None:
+            return None
+        middle += ',"force_n":' + number
+    x_text, y_text, phase_text, pointer_text, t_text = texts
+    return (f'{{"type":"touch","x":{x_text},"y":{y_text},"phase":{phase_text},"pointer":{pointer_text}{middle},'
+            f'"t":{t_text}}}')
+
+
 class _Messages:
     """The protocol's messages, one method each; ``_request`` (answered) and ``_post`` (not) send them."""
 
@@ -459,6 +528,23 @@ class _Messages:
         return self._request("state")
 
 
+def _frame_parts(ws) -> tuple | None:
+    """What :meth:`Client._write_text` needs of a websockets connection (its masking function, its OPEN state, its
+    lock), or None where this version of websockets has not the same (the general path then)."""
+    try:
+        from websockets.protocol import OPEN
+        try:
+            from websockets.speedups import apply_mask
+        except ImportError:
+            from websockets.utils import apply_mask
+    except ImportError:
+        return None
+    mutex = getattr(ws, "protocol_mutex", None)
+    if mutex is None or not all(hasattr(ws, name) for name in ("protocol", "socket", "send_in_progress")):
+        return None
+    return apply_mask, OPEN, mutex
+
+
 class Client(_Messages):
     """A connection to ``ultraglide serve`` (see the module docstring). ``url``: ``ws://HOST:PORT/ws[?token=...]``
     as the server printed, or ``ws+unix:PATH``; ``role``: ``control`` (one client at a time) or ``observe``.
@@ -548,6 +634,8 @@ class Client(_Messages):
                                    proxy=None, max_queue=MAX_EVENTS).__enter__()
         except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
             raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
+        self._frame_parts = _frame_parts(self._ws)
+        self._masks, self._mask_at = b"", 0
         try:
             self.welcome = self._request("hello", protocol=PROTOCOL_VERSION, role=role, client=name)
         except BaseException:
@@ -565,6 +653,78 @@ class Client(_Messages):
 
     def _post(self, kind: str, **fields) -> None:
         self._send({"type": kind, **_clean(**fields)})
+
+    def touch(self, x: float, y: float, phase: str = "move", *, pointer: int = 0, view: str | None = None,
+              pressure: float | None = None, force_n: float | None = None, t: float | None = None,
+              pointer_type: str | None = None) -> None:
+        """A pointer event, sent at once and not answered (a refusal comes later, in :attr:`errors`).
+
+        The usual event (plain numbers, no ``view`` or ``pointer_type``) takes a short path: its JSON written by
+        :func:`touch_text` and its WebSocket frame by this client, straight onto the socket under the connection's
+        lock; anything else, or a connection that is not open, takes the general one (same bytes on the wire but
+        the mask, same errors).
+
+        Parameters
+        ----------
+        x, y : float
+            Where, in the view's units.
+        phase : {"down", "move", "up", "cancel"}
+            The pointer's phase.
+        pointer : int
+            The pointer's id (several may be down at once).
+        view : str, optional
+            The view (default: the one the engine renders).
+        pressure : float, optional
+            The pointer's pressure, 0-1.
+        force_n : float, optional
+            The finger's force, N.
+        t : float, optional
+            When it happened, this program's ``time.perf_counter()`` s (default: now).
+        pointer_type : str, optional
+            ``touch``, ``pen`` or ``mouse``.
+
+        Raises
+        ------
+        BadMessage
+            A number that is not finite (nothing is sent).
+        ConnectionFailed
+            The connection was lost.
+
+        Examples
+        --------
+        >>> plate.touch(40, 50, "down"); plate.touch(60, 50); plate.touch(60, 50, "up")    # doctest: +SKIP
+        """
+        if t is None:
+            t = time.perf_counter()
+        if view is None and pointer_type is None and self._frame_parts is not None:
+            text = touch_text(x, y, phase, pointer, t, pressure, force_n)
+            if text is not None and self._write_text(text):
+                return None
+        return self._post("touch", x=x, y=y, phase=phase, pointer=pointer, view=view, pressure=pressure,
+                          force_n=force_n, t=t, pointer_type=pointer_type)
+
+    def _write_text(self, text: str) -> bool:
+        """``text`` as one masked text frame (RFC 6455 5.2: a client's frames are masked, each with 4 bytes of its
+        own from the OS's random source), written onto the socket under the connection's lock, as websockets
+        writes its own; False (nothing written) if the connection is not open or the message is long."""
+        apply_mask, open_state, mutex = self._frame_parts
+        payload = text.encode()
+        if len(payload) > 125:  # a longer length takes more header bytes: the general path
+            return False
+        if self._mask_at + 4 > len(self._masks):
+            self._masks, self._mask_at = os.urandom(4096), 0
+        mask = self._masks[self._mask_at:self._mask_at + 4]
+        self._mask_at += 4
+        frame = bytes((0x81, 0x80 | len(payload))) + mask + apply_mask(payload, mask)  # FIN, text; masked, length
+        ws = self._ws
+        with mutex:
+            if ws.protocol.state is not open_state or ws.send_in_progress:
+                return False
+            try:
+                ws.socket.sendall(frame)
+            except OSError:
+                return False  # the general path meets the same failure and closes the connection as it should
+        return True
 
     def _request(self, kind: str, **fields) -> dict:
         request_id = next(self._ids)
