@@ -166,12 +166,13 @@ def _serve(service, args, feed=None) -> str | None:
     import threading
 
     from ultraglide.apps.service.protocol import MAX_MESSAGE_BYTES
-    from ultraglide.apps.service.server import ServiceError
+    from ultraglide.apps.service.server import ServiceError, short_path_connection
     from websockets.asyncio.server import serve, unix_serve
 
     async def main() -> str | None:
         options = {"max_size": MAX_MESSAGE_BYTES, "max_queue": 64, "write_limit": 256 * 1024,
-                   "ping_interval": 5.0, "ping_timeout": 10.0, "compression": None}
+                   "ping_interval": 5.0, "ping_timeout": 10.0, "compression": None,
+                   "create_connection": short_path_connection()}
         try:
             if args.unix:
                 server = await unix_serve(service.handle, args.unix, **options)
@@ -293,24 +294,76 @@ def run_loop_bounded(coroutine):
         loop.close()
 
 
-def _loop_in_real_time(service) -> str:
-    """The loop's thread (this one: touches, lifts) at nice -10 where the OS allows: at ordinary priority on a
-    busy machine it went unscheduled for 60-80 ms, and a client that died with its finger down was noticed that
-    late. Not SCHED_FIFO, as the engine's threads are: a flood of messages would then keep the engine's and a
-    simulated plate's threads of equal priority off the CPU (a test saw the engine's clock jump 170 ms). The
-    worker (textures decoded, views composed) is started first and keeps the ordinary priority: it is heavy and
-    not on the touch path."""
+LOOP_SLICE_S = 0.0001  # the loop thread's time slice (Linux 6.12+'s EEVDF, for ordinary threads; 0.1 ms its least)
+
+
+def _loop_in_real_time(service, slice_s: float = LOOP_SLICE_S) -> str:
+    """The loop's thread (this one: touches, lifts) at nice -10 where the OS allows, with a short time slice: at
+    ordinary priority on a busy machine it went unscheduled for 60-80 ms, and a client that died with its finger down
+    was noticed that late. Not SCHED_FIFO, as the engine's threads are: a flood of messages would then keep the
+    engine's and a simulated plate's threads of equal priority off the CPU (a test saw the engine's clock jump 170
+    ms). The worker (textures decoded, views composed) is started first and keeps the ordinary priority: it is heavy
+    and not on the touch path; the threads started after (the publisher, a touch panel's reader) inherit both.
+
+    The slice (``slice_s``, 0: the kernel's own, 1.4 ms here): Linux's scheduler (EEVDF, 6.12 and later) lets a
+    thread that wakes preempt the one running only when its slice is the shorter; at the kernel's slice a touch that
+    woke the loop waited for the ordinary program running on its CPU to finish its own. A shorter slice gives the loop
+    no more CPU than its nice does, only sooner (see :func:`_short_slice`). Older kernels ignore it.
+
+    Returns
+    -------
+    str
+        The loop's scheduling in words: ``nice -10, a 0.1 ms slice``, ``nice -5`` ...
+    """
     import os
     import threading
 
     service.worker.submit(int).result()  # its thread exists now, and keeps the ordinary priority
+    words = "normal (no permission to raise it)"
     for nice in (-10, -5):
         try:
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)  # this thread only (Linux)
-            return f"nice {nice}"
+            words = f"nice {nice}"
+            break
         except (OSError, AttributeError):
             continue
-    return "normal (no permission to raise it)"
+    if slice_s > 0 and _short_slice(slice_s):
+        words += f", a {slice_s * 1e3:g} ms slice"
+    return words
+
+
+_SCHED_SETATTR = {"x86_64": (314, 315), "aarch64": (274, 275), "riscv64": (274, 275), "armv7l": (380, 381),
+                  "i686": (351, 352)}  # Linux's sched_setattr and sched_getattr, by machine
+_SCHED_ATTR = "IIQiIQQQ"  # struct sched_attr as of Linux 3.14 (48 bytes): size, policy, flags, nice, priority,
+# runtime (an ordinary thread's slice since 6.12, ns), deadline, period
+
+
+def _short_slice(slice_s: float) -> bool:
+    """This thread's time slice (``slice_s``, s) where Linux allows it, its nice kept; whether the kernel took it (read
+    back: a kernel before 6.12 keeps its own). Only an ordinary (SCHED_OTHER) thread's is changed."""
+    import ctypes
+    import os
+    import platform
+    import struct
+    import threading
+
+    numbers = _SCHED_SETATTR.get(platform.machine())
+    if numbers is None or not hasattr(os, "sched_getscheduler") or os.sched_getscheduler(0) != os.SCHED_OTHER:
+        return False
+    wanted = round(slice_s * 1e9)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # this thread's (Linux)
+        attr = ctypes.create_string_buffer(struct.pack(_SCHED_ATTR, struct.calcsize(_SCHED_ATTR), os.SCHED_OTHER, 0,
+                                                       nice, 0, wanted, 0, 0))
+        if libc.syscall(numbers[0], 0, attr, 0) != 0:
+            return False
+        read = ctypes.create_string_buffer(struct.calcsize(_SCHED_ATTR))
+        if libc.syscall(numbers[1], 0, read, struct.calcsize(_SCHED_ATTR), 0) != 0:
+            return False
+        return struct.unpack(_SCHED_ATTR, read.raw)[5] == wanted
+    except (OSError, AttributeError):
+        return False
 
 
 def _remove_socket(path: str) -> None:
