@@ -1,6 +1,7 @@
 """What ``ultraglide serve`` adds to the engine's touch-to-output latency, and what 1000 pointer events a second do.
 
-Run: .venv/bin/python bench/bench_service.py [--touches 300] [--rounds 2] [--soak-s 60] [--browser]
+Run: .venv/bin/python bench/bench_service.py [--touches 300] [--rounds 2] [--soak-s 60] [--browser] [--unix]
+[--loop-slice-ms 0.1] [--no-short-path] [--client-general] [--pace spin|sleep]
 
 One engine (on the simulated plate, as ``serve`` starts it) and the service in this process, its loop set up as
 ``serve``'s (:func:`apps.commands.serve._loop_in_real_time`: the loop thread's priority; the interpreter's switch
@@ -12,8 +13,20 @@ socket, subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not
   the engine's own touch-to-output latency) and sent by the client (its event time: its clock when it sent it). For
   each, the engine's own record (``Engine.latencies``): when the block that first rendered it was presented.
   Aim (issue 41): the service adds at most 1 ms at p99.
+* **the floor**, in each round too: the same touches, the same pacing, from a bare socket in another process to a
+  bare asyncio protocol on the service's own loop (no WebSocket, no service): the client's send to the loop's read,
+  what two Python processes do on this machine for one small message; and the service's same hop beside it.
 * **soak**: 1000 pointer events a second for ``--soak-s`` seconds, first put into the engine directly, then sent by
   the client: the engine's late blocks in each (none beyond the engine's own), and this process's memory.
+* ``--unix``: the client and the floor through a Unix socket (``serve --unix``) instead of TCP on loopback.
+* ``--loop-slice-ms``: the loop thread's time slice (serve's, :data:`apps.commands.serve.LOOP_SLICE_S`; 0: the
+  kernel's default), for a before/after.
+* ``--no-short-path``: the service's connections without serve's short path
+  (:func:`apps.service.server.short_path_connection`: a message handled as websockets reads it), for a before/after.
+* ``--client-general``: the client's touches through its general path (``json.dumps``, websockets' ``send``), not
+  its short one (:func:`ultraglide.client.touch_text` and its own frame), for a before/after.
+* ``--pace``: how each client waits for its next touch: ``spin`` (the default: short sleeps, then a busy wait) or
+  ``sleep`` (one sleep, as a program woken by its input).
 * ``--browser``: the page in headless Chromium (``serve --page``), 200 synthesized touch moves: the milliseconds from
   each pointer event's time stamp to its message sent (the browser's own part, reported apart).
 """
@@ -31,27 +44,107 @@ import time
 
 import numpy as np
 
+PACE = r"""
+def wait_until(due, pace):
+    if pace == "sleep":
+        time.sleep(max(0.0, due - time.perf_counter()))
+        return
+    while time.perf_counter() < due:
+        if due - time.perf_counter() > 0.0005:
+            time.sleep(0.0002)
+"""
+
 CLIENT = r"""
 import json, sys, time
 from ultraglide.client import Client
-url, count, rate, status_hz = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
+url, count, rate, status_hz, pace = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), sys.argv[5]
+general = sys.argv[6] == "general"
+""" + PACE + r"""
 sent = []
 with Client(url) as plate:
+    if general:
+        plate._frame_parts = None  # (--client-general) every touch through json.dumps and websockets' send
     if status_hz:
         plate.subscribe(status=status_hz)  # as the page does
+    schedstat = open("/proc/thread-self/schedstat").read().split()
     start = time.perf_counter()
     for k in range(count):
-        due = start + k / rate
-        while time.perf_counter() < due:
-            if due - time.perf_counter() > 0.0005:
-                time.sleep(0.0002)
+        wait_until(start + k / rate, pace)
         t = time.perf_counter()
         plate.touch(20.0 + (k % 100) * 0.5, 50.0, "down" if k == 0 else "move", t=t)
         sent.append((t, time.perf_counter()))  # its time, and when the client's call returned (its frame written)
+    ran = [b - a for a, b in zip(map(int, schedstat), map(int, open("/proc/thread-self/schedstat").read().split()))]
     plate.touch(20.0, 50.0, "up")
     plate.state()  # everything sent has arrived
+print(json.dumps({"sent": sent, "waited_ns": ran[1], "runs": ran[2]}))  # its thread's wait for a CPU, its runs
+"""
+
+
+FLOOR_CLIENT = r"""
+import json, socket, sys, time
+address, count, rate, pace = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+""" + PACE + r"""
+if address.startswith("unix:"):
+    sock = socket.socket(socket.AF_UNIX)
+    sock.connect(address[len("unix:"):])
+else:
+    sock = socket.create_connection(("127.0.0.1", int(address)))
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # as websockets' and asyncio's sockets
+sent = []
+start = time.perf_counter()
+for k in range(count):
+    wait_until(start + k / rate, pace)
+    t = time.perf_counter()
+    message = {"type": "touch", "x": 20.0 + (k % 100) * 0.5, "y": 50.0, "phase": "down" if k == 0 else "move",
+               "pointer": 0, "t": t}  # the client's touch, as JSON, a line each
+    sock.sendall(json.dumps(message, separators=(",", ":")).encode() + b"\n")
+    sent.append((t, time.perf_counter()))
+sock.sendall(b'{"type":"end"}\n')
+sock.recv(1)  # the server has read everything
 print(json.dumps(sent))
 """
+
+
+class Floor:
+    """A bare asyncio protocol on the bench's loop: each line's time (the client's) and when it was read."""
+
+    def __init__(self):
+        self.reads: list[tuple[float, float]] = []
+        self.ended = None
+        self.buffer = b""
+
+    def __call__(self):
+        import asyncio
+
+        floor = self
+
+        class Lines(asyncio.Protocol):
+            def connection_made(self, transport):
+                self.transport = transport
+
+            def data_received(self, data):
+                read = time.perf_counter()
+                floor.buffer += data
+                while b"\n" in floor.buffer:
+                    line, floor.buffer = floor.buffer.split(b"\n", 1)
+                    message = json.loads(line)
+                    if message["type"] == "end":
+                        self.transport.write(b"!")
+                        floor.ended.set()
+                    else:
+                        floor.reads.append((message["t"], read))
+
+        return Lines()
+
+
+async def by_floor(floor: Floor, address: str, count: int, rate: float, pace: str) -> np.ndarray:
+    """The floor's touches: each one's time and when it was read by the loop, perf_counter s."""
+    floor.reads, floor.buffer, floor.ended = [], b"", asyncio.Event()
+    process = await asyncio.create_subprocess_exec(sys.executable, "-c", FLOOR_CLIENT, address, str(count), str(rate),
+                                                   pace, stdout=subprocess.PIPE)
+    await process.communicate()
+    await asyncio.wait_for(floor.ended.wait(), 30)
+    return np.asarray(floor.reads).reshape(-1, 2)
 
 
 def rss_mb() -> tuple[float, float]:
@@ -88,12 +181,33 @@ async def direct(engine, count: int, rate: float) -> list[float]:
     return sent
 
 
-async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0) -> np.ndarray:
-    """The client's touches: each one's time and when its call to the client returned, perf_counter s."""
+async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0, pace: str = "spin",
+                    path: str = "short", waits: list | None = None) -> np.ndarray:
+    """The client's touches: each one's time and when its call to the client returned, perf_counter s; and how
+    long its thread and the loop's waited for a CPU (``waits``: [client's, loop's] ns and runs, appended)."""
+    loop_before = loop_schedstat()
     process = await asyncio.create_subprocess_exec(sys.executable, "-c", CLIENT, url, str(count), str(rate),
-                                                   str(status_hz), stdout=subprocess.PIPE)
+                                                   str(status_hz), pace, path, stdout=subprocess.PIPE)
     out, _ = await process.communicate()
-    return np.asarray(json.loads(out)).reshape(-1, 2)
+    loop_after = loop_schedstat()
+    result = json.loads(out)
+    if waits is not None:
+        waits.append((result["waited_ns"], result["runs"], loop_after[1] - loop_before[1],
+                      loop_after[2] - loop_before[2]))
+    return np.asarray(result["sent"]).reshape(-1, 2)
+
+
+def loop_schedstat() -> list[int]:
+    """This thread's (the loop's) time run, time waited for a CPU (ns) and runs, from the kernel's schedstat."""
+    return [int(v) for v in open(f"/proc/self/task/{threading.get_native_id()}/schedstat").read().split()]
+
+
+def waited(waits) -> str:
+    """Each side's mean wait for a CPU per run (the kernel's schedstat), µs."""
+    client_ns, client_runs, loop_ns, loop_runs = np.sum(np.asarray(waits, dtype=float), axis=0)
+    return (f"the client's thread waited {client_ns / max(client_runs, 1) / 1e3:.0f} µs for a CPU per run "
+            f"({client_runs:.0f} runs), the service loop's {loop_ns / max(loop_runs, 1) / 1e3:.0f} µs "
+            f"({loop_runs:.0f})")
 
 
 def figures(values_s) -> str:
@@ -102,39 +216,62 @@ def figures(values_s) -> str:
 
 
 async def measure(args) -> None:
+    import tempfile
+
     from ultraglide.apps.commands.serve import _loop_in_real_time
-    from websockets.asyncio.server import serve
+    from ultraglide.apps.service.server import short_path_connection
+    from websockets.asyncio.server import serve, unix_serve
 
     engine, service = args.engine, args.service
-    service.priority = _loop_in_real_time(service)  # as serve's loop: its thread's priority
+    service.priority = _loop_in_real_time(service) if args.loop_slice_ms is None else \
+        _loop_in_real_time(service, args.loop_slice_ms / 1e3)  # as serve's loop: its thread's scheduling
     print(f"the service's loop: {service.priority}, switch interval {sys.getswitchinterval() * 1e3:g} ms; status "
-          f"subscribed at {args.status_hz:g} Hz")
+          f"subscribed at {args.status_hz:g} Hz; {'a Unix socket' if args.unix else 'TCP on loopback'}; clients "
+          f"pace by {args.pace}; the service's {'short path' if args.short_path else 'websockets queue'}; the "
+          f"client's {args.client_path} path")
+    loop = asyncio.get_running_loop()
     stop = threading.Event()
-    publisher = threading.Thread(target=service.publish, args=(asyncio.get_running_loop(), stop),
-                                 name="ultraglide-publisher", daemon=True)
+    publisher = threading.Thread(target=service.publish, args=(loop, stop), name="ultraglide-publisher", daemon=True)
     publisher.start()  # as serve's
-    server = await serve(service.handle, "127.0.0.1", 0, origins=[None], compression=None)
-    async with server:
+    folder = tempfile.TemporaryDirectory()
+    floor = Floor()
+    options = {"compression": None}  # as serve's connections (its short path; --no-short-path: websockets' own)
+    if args.short_path:
+        options["create_connection"] = short_path_connection()
+    if args.unix:
+        server = await unix_serve(service.handle, f"{folder.name}/service.sock", **options)
+        url = f"ws+unix:{folder.name}/service.sock"
+        floor_server = await loop.create_unix_server(floor, f"{folder.name}/floor.sock")
+        floor_address = f"unix:{folder.name}/floor.sock"
+    else:
+        server = await serve(service.handle, "127.0.0.1", 0, origins=[None], **options)
         url = f"ws://127.0.0.1:{server.sockets[0].getsockname()[1]}/ws"
+        floor_server = await loop.create_server(floor, "127.0.0.1", 0)
+        floor_address = str(floor_server.sockets[0].getsockname()[1])
+    async with server, floor_server:
         await asyncio.sleep(0.5)
-        own, through = [], []
+        own, through, arrivals, returned, floors, waits = [], [], [], [], [], []
         for _ in range(args.rounds):
             sent = await direct(engine, args.touches, 100.0)
             await asyncio.sleep(0.05)
             own.append(matched(engine.latencies(), sent))
-            sent = await by_client(url, args.touches, 100.0, args.status_hz)
+            service.arrivals = []
+            sent = await by_client(url, args.touches, 100.0, args.status_hz, args.pace, args.client_path, waits)
             await asyncio.sleep(0.05)
             through.append(matched(engine.latencies(), sent[:, 0]))
-        own, through = np.concatenate(own), np.concatenate(through)
-        service.arrivals = []
-        sent = await by_client(url, args.touches, 100.0, args.status_hz)
-        arrivals = np.asarray([row for row in service.arrivals if row[0] is not None])
-        service.arrivals = None
-        returned = sent[np.clip(np.searchsorted(sent[:, 0], arrivals[:, 0] - 1e-9), 0, len(sent) - 1), 1]
+            rows = np.asarray([row for row in service.arrivals if row[0] is not None])
+            service.arrivals = None
+            arrivals.append(rows)
+            returned.append(sent[np.clip(np.searchsorted(sent[:, 0], rows[:, 0] - 1e-9), 0, len(sent) - 1), 1])
+            floors.append(await by_floor(floor, floor_address, args.touches, 100.0, args.pace))
+        own, through, floors = np.concatenate(own), np.concatenate(through), np.concatenate(floors)
+        arrivals, returned = np.concatenate(arrivals), np.concatenate(returned)
+        print(f"the floor (a bare socket in another process to a bare asyncio protocol on this loop), from the "
+              f"client's send to the loop's read {figures(floors[:, 1] - floors[:, 0])}")
         print(f"through the service, from the client's send to the message read by the service's loop "
               f"{figures(arrivals[:, 1] - arrivals[:, 0])} (of it, the client's call, its encoding and its socket "
               f"write: {figures(returned - arrivals[:, 0])}); from read to the engine's ring "
-              f"{figures(arrivals[:, 2] - arrivals[:, 1])}")
+              f"{figures(arrivals[:, 2] - arrivals[:, 1])}; {waited(waits)}")
         print(f"latency, touch to its block presented (sim): engine alone {figures(own)}; "
               f"through the service {figures(through)}")
         added = np.percentile(through, 99) - np.percentile(own, 99)
@@ -146,7 +283,7 @@ async def measure(args) -> None:
             await direct(engine, count, 1000.0)
             middle = engine.status(0.0)
             rss_before, _ = rss_mb()
-            sent = await by_client(url, count, 1000.0, args.status_hz)
+            sent = await by_client(url, count, 1000.0, args.status_hz, args.pace, args.client_path)
             after = engine.status(0.0)
             rss_after, peak = rss_mb()
             print(f"soak, 1000 events/s for {args.soak_s:g} s: late blocks {middle.late_blocks - before.late_blocks} "
@@ -156,6 +293,7 @@ async def measure(args) -> None:
                   f"{rss_before:.0f} MB before the service's soak, {rss_after:.0f} MB after (peak {peak:.0f} MB)")
     stop.set()
     publisher.join(10)
+    folder.cleanup()
 
 
 def browser_send_times(count: int = 200) -> None:
@@ -209,6 +347,17 @@ def main() -> None:
     parser.add_argument("--browser", action="store_true", help="also time the page in headless Chromium")
     parser.add_argument("--no-subscribe", dest="status_hz", action="store_const", const=0.0, default=2.0,
                         help="the client subscribes to nothing (default: the status at 2 Hz, as the page)")
+    parser.add_argument("--unix", action="store_true", help="through a Unix socket (serve --unix), not TCP")
+    parser.add_argument("--loop-slice-ms", type=float, default=None, metavar="MS",
+                        help="the service loop thread's time slice, ms (default: serve's; 0: the kernel's)")
+    parser.add_argument("--no-short-path", dest="short_path", action="store_false",
+                        help="messages through websockets' queue and the handler's task, not serve's short path")
+    parser.add_argument("--client-general", dest="client_path", action="store_const", const="general",
+                        default="short", help="the client's touches through its general path (json.dumps and "
+                                              "websockets' send), not its short one")
+    parser.add_argument("--pace", choices=("spin", "sleep"), default="spin",
+                        help="how the clients wait for each touch's time (default: spin, short sleeps then a busy "
+                             "wait; sleep: one sleep, as a program its input wakes)")
     args = parser.parse_args()
     from ultraglide.apps.service.server import Service
     from ultraglide.devices.profiles import load_profile
