@@ -4,6 +4,7 @@ touch arriving then waited for."""
 
 import asyncio
 import threading
+import time
 
 import numpy as np
 from ultraglide.apps.service.server import Service, Session
@@ -11,9 +12,10 @@ from ultraglide.devices.profiles import load_profile
 from ultraglide.render.engine import Engine, EngineConfig
 
 
-def _publish_until(service: Service, sessions, enough) -> None:
+def _publish_until(service: Service, sessions, enough, woke: list | None = None) -> None:
     """Run the publisher as serve does (a thread handing messages to this loop) until ``enough()`` holds, looked at
-    whenever the first session is handed a message."""
+    whenever the first session is handed a message; ``woke``: (its thread's wake-ups as the kernel counts them,
+    the seconds it ran) appended."""
 
     async def watch():
         loop = asyncio.get_running_loop()
@@ -22,6 +24,7 @@ def _publish_until(service: Service, sessions, enough) -> None:
             service.sessions.add(session)
         stop = threading.Event()
         publisher = threading.Thread(target=service.publish, args=(loop, stop), daemon=True)
+        started = time.perf_counter()
         publisher.start()
         try:
             deadline = loop.time() + 60.0
@@ -30,11 +33,22 @@ def _publish_until(service: Service, sessions, enough) -> None:
                 sessions[0].wake.clear()
                 if not enough():
                     await asyncio.wait_for(sessions[0].wake.wait(), max(0.0, deadline - loop.time()))
+            if woke is not None:
+                woke.append((_voluntary_switches(publisher.native_id), time.perf_counter() - started))
         finally:
             stop.set()
             await asyncio.to_thread(publisher.join, 10.0)
 
     asyncio.run(watch())
+
+
+def _voluntary_switches(thread_id: int) -> int:
+    """How many times thread ``thread_id`` of this process gave up its CPU to wait (the kernel's count): each
+    sleep it woke from, and each wait for the interpreter's lock."""
+    for line in open(f"/proc/self/task/{thread_id}/status"):
+        if line.startswith("voluntary_ctxt_switches:"):
+            return int(line.split()[1])
+    raise AssertionError("no voluntary_ctxt_switches in /proc")
 
 
 def _pushes(session: Session, kind: str) -> list[dict]:
@@ -72,3 +86,21 @@ def test_output_rows_at_a_low_rate_are_read_at_that_rate_and_none_is_lost():
     assert gaps.max() < 0.1, gaps.max()
     seconds = times[-1] - times[0]
     assert service.status_reads <= seconds / 0.05 + 3, (service.status_reads, seconds)  # at 20 Hz, not 100
+
+
+def test_with_a_status_subscriber_at_2_hz_the_publisher_wakes_a_few_times_a_second_not_a_hundred():
+    """Each wake-up of the publisher takes the interpreter from the loop; it slept 10 ms at a time whoever had
+    subscribed (100 wake-ups a second, as often as a pointer's touches at 100 Hz)."""
+    service = Service(None, load_profile("sim-plate"))
+    with Engine.start(EngineConfig(texture=service.first_texture(), device="null", realtime_priority=False)) \
+            as engine:
+        engine.wait_ready(60.0)
+        service.engine = engine
+        page = Session(None, 1, role="control", status_hz=2.0)
+        woke = []
+        _publish_until(service, [page], lambda: len(_pushes(page, "status")) >= 4, woke)
+    switches, seconds = woke[0]
+    assert seconds >= 1.4  # 4 statuses at 2 Hz: the first at once, the fourth 1.5 s later
+    # asleep until the next status is due (at most 0.25 s at a time), a few more for the interpreter's lock: the old
+    # 10 ms sleeps alone made 100 a second
+    assert switches <= 20 * seconds, (switches, seconds)

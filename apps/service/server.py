@@ -35,6 +35,7 @@ import os
 import secrets
 import struct
 import tempfile
+import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -248,6 +249,7 @@ class Service:
         self.touches = 0
         self.touches_ignored = 0
         self.status_reads = 0  # the engine's status read by the publisher (for its subscribers)
+        self.publisher_wake = threading.Event()  # a subscription changed: the publisher looks again at once
         self.origins: list = [None]
         self.priority = "normal"  # the loop thread's scheduling, in words
         self.arrivals: list | None = None  # a list to note each touch's times in (a bench's), or None
@@ -494,6 +496,7 @@ class Service:
             session.touch_seen = message["touch"]
         if "scene" in message.fields:
             session.scene = message["scene"]
+        self.publisher_wake.set()
         return {"status": session.status_hz, "output": session.output_hz, "touch": session.touch_seen,
                 "scene": session.scene}
 
@@ -861,41 +864,52 @@ class Service:
     def publish(self, loop, stop) -> None:
         """Status, output and the touch as seen, to the clients that subscribed, each at its own rate: on a thread
         of its own (the engine's status takes 2-7 ms to read on a busy machine, which the loop must not wait),
-        handing each message to the loop. Runs until ``stop`` (a threading.Event) is set.
+        handing each message to the loop. Runs until ``stop`` (a threading.Event) is set, seen within
+        :data:`PUBLISH_IDLE_S`.
 
         The engine's status is read only when a subscriber is due (:func:`_due`): every read holds the
         interpreter's lock for about a millisecond of Python, which the loop, woken by a touch, waits for; it was
-        read every 10 ms for a page's status at 2 Hz (100 reads a second, 2 needed)."""
-        while not stop.wait(PUBLISH_S):
+        read every 10 ms for a page's status at 2 Hz (100 reads a second, 2 needed). And the thread sleeps until the
+        first subscriber is due (:func:`_next_due`; a subscription wakes it): each of its wake-ups takes the
+        interpreter too, and it woke every 10 ms, as often as the touches came, whoever had subscribed."""
+        wake = self.publisher_wake
+        while not stop.is_set():
             now = time.perf_counter()
-            wanted = [s for s in list(self.sessions) if s.role and _due(s, now)]
-            if not wanted:
-                continue
-            status = self.engine.status(history_s=0.25)
-            self.status_reads += 1
-            for session in wanted:
-                if session.output_hz:
-                    session.next_output_s = now + min(1.0 / session.output_hz, OUTPUT_EVERY_S)
-                messages = []
-                if session.status_hz and now >= session.next_status_s:
-                    session.next_status_s = now + 1.0 / session.status_hz
-                    messages.append(self._status_message(status, session))
-                if session.output_hz:
-                    message = _output_message(status.history, session)
-                    if message is not None:
-                        messages.append(message)
-                if session.touch_seen and status.last_touch is not None:
-                    x, y, force, down = status.last_touch
-                    seen = (x, y, down)
-                    if session.last_seen != seen:
-                        session.last_seen = seen
-                        view = self.views.get(self.active_view)
-                        sprite = sprite_at(view, list(self.sprites.values()), x, y) if view and down else None
-                        messages.append({"type": "touch.seen", "view": self.active_view, "x_mm": x, "y_mm": y,
-                                         "force_n": None if math.isnan(force) else force, "down": bool(down),
-                                         "sprite": sprite.name if sprite else None})
-                for message in messages:
-                    loop.call_soon_threadsafe(session.send, message, True)
+            sessions = [s for s in list(self.sessions) if s.role]
+            wanted = [s for s in sessions if _due(s, now)]
+            if wanted:
+                self._publish_to(wanted, loop, now)
+            first = min((_next_due(s) for s in sessions), default=math.inf)
+            if wake.wait(min(max(first - time.perf_counter(), PUBLISH_S), PUBLISH_IDLE_S)):
+                wake.clear()
+
+    def _publish_to(self, wanted: list, loop, now: float) -> None:
+        """One read of the engine's status, and each due subscriber's messages from it, handed to the loop."""
+        status = self.engine.status(history_s=0.25)
+        self.status_reads += 1
+        for session in wanted:
+            if session.output_hz:
+                session.next_output_s = now + min(1.0 / session.output_hz, OUTPUT_EVERY_S)
+            messages = []
+            if session.status_hz and now >= session.next_status_s:
+                session.next_status_s = now + 1.0 / session.status_hz
+                messages.append(self._status_message(status, session))
+            if session.output_hz:
+                message = _output_message(status.history, session)
+                if message is not None:
+                    messages.append(message)
+            if session.touch_seen and status.last_touch is not None:
+                x, y, force, down = status.last_touch
+                seen = (x, y, down)
+                if session.last_seen != seen:
+                    session.last_seen = seen
+                    view = self.views.get(self.active_view)
+                    sprite = sprite_at(view, list(self.sprites.values()), x, y) if view and down else None
+                    messages.append({"type": "touch.seen", "view": self.active_view, "x_mm": x, "y_mm": y,
+                                     "force_n": None if math.isnan(force) else force, "down": bool(down),
+                                     "sprite": sprite.name if sprite else None})
+            for message in messages:
+                loop.call_soon_threadsafe(session.send, message, True)
 
     def _status_message(self, status, session: Session) -> dict:
         return {"type": "status", "device": status.device, "state": status.state, "faults": list(status.faults),
@@ -907,7 +921,8 @@ class Service:
                 "pushes_dropped": session.pushes_dropped}
 
 
-PUBLISH_S = 0.01  # how often the publisher looks whether a subscriber is due
+PUBLISH_S = 0.01  # the publisher's shortest sleep: a touch-as-seen subscriber is looked at this often
+PUBLISH_IDLE_S = 0.25  # its longest: how soon it sees its stop
 OUTPUT_EVERY_S = 0.1  # an output subscriber's rows are sent at least this often (the status read keeps 0.25 s of them)
 
 
@@ -916,6 +931,27 @@ def _due(session: Session, now: float) -> bool:
     :data:`OUTPUT_EVERY_S`), the touch as seen at every look (it is sent when it changed)."""
     return bool(session.touch_seen or session.status_hz and now >= session.next_status_s
                 or session.output_hz and now >= session.next_output_s)
+
+
+def _next_due(session: Session) -> float:
+    """When ``session`` next wants a push, ``perf_counter`` s (its status, its output rows; the touch as seen: at
+    every look, -inf); +inf for none.
+
+    Examples
+    --------
+    >>> _next_due(Session(None, 1, status_hz=2.0, next_status_s=10.5, output_hz=20.0, next_output_s=10.2))
+    10.2
+    >>> _next_due(Session(None, 2)), _next_due(Session(None, 3, touch_seen=True))
+    (inf, -inf)
+    """
+    if session.touch_seen:
+        return -math.inf
+    due = math.inf
+    if session.status_hz:
+        due = min(due, session.next_status_s)
+    if session.output_hz:
+        due = min(due, session.next_output_s)
+    return due
 
 
 def _output_message(history, session: Session) -> dict | None:
