@@ -27,6 +27,7 @@ socket, subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not
   its short one (:func:`ultraglide.client.touch_text` and its own frame), for a before/after.
 * ``--pace``: how each client waits for its next touch: ``spin`` (the default: short sleeps, then a busy wait) or
   ``sleep`` (one sleep, as a program woken by its input).
+* The client's refusals by the service (the rate, ...), when there are any, are printed as they came.
 * ``--browser``: the page in headless Chromium (``serve --page``), 200 synthesized touch moves: the milliseconds from
   each pointer event's time stamp to its message sent (the browser's own part, reported apart).
 """
@@ -76,7 +77,11 @@ with Client(url) as plate:
     ran = [b - a for a, b in zip(map(int, schedstat), map(int, open("/proc/thread-self/schedstat").read().split()))]
     plate.touch(20.0, 50.0, "up")
     plate.state()  # everything sent has arrived
-print(json.dumps({"sent": sent, "waited_ns": ran[1], "runs": ran[2]}))  # its thread's wait for a CPU, its runs
+refused = {}
+for error in plate.errors:  # the service's refusals of unanswered messages (rate, ...): the last said of each code
+    refused[error.code] = str(error)
+print(json.dumps({"sent": sent, "waited_ns": ran[1], "runs": ran[2], "refused": refused}))  # its thread's wait for a
+# CPU and its runs (the kernel's), what the service refused
 """
 
 
@@ -191,6 +196,8 @@ async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0, p
     out, _ = await process.communicate()
     loop_after = loop_schedstat()
     result = json.loads(out)
+    if result["refused"]:
+        print(f"the service refused some of the client's messages (the last refusal of each kind): {result['refused']}")
     if waits is not None:
         waits.append((result["waited_ns"], result["runs"], loop_after[1] - loop_before[1],
                       loop_after[2] - loop_before[2]))
