@@ -692,7 +692,32 @@ class Client(_Messages):
 
         Examples
         --------
-        >>> plate.touch(40, 50, "down"); plate.touch(60, 50); plate.touch(60, 50, "up")    # doctest: +SKIP
+        A service in this process, as ``ultraglide serve --device null --unix PATH`` runs one (see :class:`Client`):
+
+        >>> import asyncio, pathlib, tempfile, threading
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+        >>> listening, stop = threading.Event(), threading.Event()
+        >>> async def serve():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         listening.set(); await asyncio.to_thread(stop.wait)
+        >>> server = threading.Thread(target=asyncio.run, args=(serve(),)); server.start(); listening.wait(10)
+        True
+
+        A swipe in the view's units (mm here), then a request, answered once every message before it is taken:
+
+        >>> with Client("ws+unix:" + socket_path) as plate:
+        ...     plate.touch(40, 50, "down"); plate.touch(60, 50, "move", pressure=0.5); plate.touch(60, 50, "up")
+        ...     _ = plate.state()
+        >>> service.touches                                    # the three rendered, in their order
+        3
+        >>> stop.set(); server.join(10); service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
         """
         if t is None:
             t = time.perf_counter()
