@@ -1,6 +1,6 @@
-"""The serial link under the plate driver: opening the port, what a stream costs in bytes and how it is paced,
-which stream fits what the device's link carries (:func:`choose_stream`, after a :func:`probe_hello`), its
-counters; the driver's constants."""
+"""The serial link under the plate driver: opening the port, writing frames on it (:class:`FrameWriter`), what a
+stream costs in bytes and how it is paced, which stream fits what the device's link carries (:func:`choose_stream`,
+after a :func:`probe_hello`), its counters; the driver's constants."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import contextlib
 import errno
 import math
 import os
+import select
 import time
 from dataclasses import dataclass, field
 
@@ -87,6 +88,97 @@ def open_port(port: str, baudrate: int, write_timeout_s: float = 0.5) -> serial.
         with contextlib.suppress(OSError):
             fcntl.ioctl(fd, termios.TIOCEXCL)
     return opened
+
+
+class FrameWriter:
+    """Whole frames written to one opened port, within its write timeout, without polling the port after a write
+    the kernel took whole.
+
+    pyserial's ``Serial.write`` calls ``select()`` on the port after every ``os.write``, even a complete one. On a
+    terminal (a UART's or a pseudo-terminal's) that poll is ``n_tty_poll``, which first waits for the tty's
+    flip-buffer work on a kworker at ordinary priority: beside busy real-time threads (an emulated board's
+    processor) and CPU hogs, the real-time writer waited 20-290 ms in it for nothing (docs/performance.md). So on a
+    device node (pyserial's POSIX class, its descriptor kept ``O_NONBLOCK``) a frame is ``os.write``-n at once;
+    only when the kernel takes part of it, or none (``EAGAIN``: its buffer is full), is the port polled for room,
+    until ``timeout_s`` has passed since the first wait: then ``serial.SerialTimeoutException("Write timeout")``,
+    as pyserial says it. A port of a pyserial URL handler (``loop://``, ``socket://``, ...) keeps ``port.write``.
+    The complete write allocates nothing; a partial one a ``memoryview`` and the poll's answer.
+
+    Parameters
+    ----------
+    port : serial.Serial
+        The opened port (:func:`open_port`).
+    timeout_s : float or None
+        How long a frame may wait for room on the port (s); None: for ever.
+
+    Raises
+    ------
+    serial.SerialException
+        From :meth:`write`: the port is closed (``PortNotOpenError``), the write failed (``write failed: ...``,
+        with the OS's words, e.g. ``Input/output error`` when the far end went away), or timed out
+        (``SerialTimeoutException``).
+
+    Examples
+    --------
+    >>> import pty
+    >>> host_end, plate_end = pty.openpty()
+    >>> port = open_port(os.ttyname(plate_end), 115200, write_timeout_s=0.2)
+    >>> writer = FrameWriter(port, 0.2)
+    >>> writer.direct, writer.write(b"ab\\x00"), os.read(host_end, 16)
+    (True, None, b'ab\\x00')
+    >>> port.close(); os.close(host_end); os.close(plate_end)
+    """
+
+    def __init__(self, port: serial.Serial, timeout_s: float | None):
+        self.port, self.timeout_s = port, timeout_s
+        posix = getattr(serial, "serialposix", None)  # pyserial's class for device nodes (POSIX systems only)
+        fd = getattr(port, "fd", None)
+        self.direct = posix is not None and isinstance(port, posix.Serial) and isinstance(fd, int)
+        self._poll = None
+        if self.direct:
+            os.set_blocking(fd, False)  # pyserial opens it so; a write must never block the writer
+            self._poll = select.poll()  # made once: a wait for room makes no poll object
+            self._poll.register(fd, select.POLLOUT)
+
+    def write(self, frame: bytes) -> None:
+        """Write ``frame`` whole (see the class); SerialException if the port is closed or fails, or the frame
+        waited ``timeout_s`` for room."""
+        port = self.port
+        if not self.direct:
+            port.write(frame)
+            return
+        fd = port.fd
+        if fd is None:  # closed under us
+            raise serial.PortNotOpenError()
+        try:
+            written = os.write(fd, frame)
+        except BlockingIOError:  # the kernel's buffer is full: wait for room
+            written = 0
+        except OSError as error:
+            raise serial.SerialException(f"write failed: {error}") from None
+        if written < len(frame):
+            self._write_rest(fd, frame, written)
+
+    def _write_rest(self, fd: int, frame: bytes, written: int) -> None:
+        """The rest of ``frame`` from byte ``written``, each time the port has room, until the timeout."""
+        view = memoryview(frame)
+        deadline = None if self.timeout_s is None else time.monotonic() + self.timeout_s
+        while written < len(frame):
+            wait_ms = None
+            if deadline is not None:
+                wait_ms = (deadline - time.monotonic()) * 1000.0
+                if wait_ms <= 0.0:
+                    raise serial.SerialTimeoutException("Write timeout")
+            events = self._poll.poll(wait_ms)
+            if not events:
+                raise serial.SerialTimeoutException("Write timeout")
+            try:
+                written += os.write(fd, view[written:])
+            except BlockingIOError:
+                if events[0][1] & (select.POLLHUP | select.POLLERR | select.POLLNVAL):  # no room will come
+                    raise serial.SerialException("write failed: the port hung up") from None
+            except OSError as error:
+                raise serial.SerialException(f"write failed: {error}") from None
 
 
 def stream_bytes_per_s(rate_hz: int, batch_s: float = p.BATCH_S) -> float:

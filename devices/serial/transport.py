@@ -14,7 +14,7 @@ import numpy as np
 import serial
 import serial.threaded
 from ultraglide.devices import protocol as p
-from ultraglide.devices.serial.link import SerialCounters, open_port, port_failure
+from ultraglide.devices.serial.link import FrameWriter, SerialCounters, open_port, port_failure
 from ultraglide.devices.serial.locks import DriverLocks
 
 
@@ -51,6 +51,7 @@ class Transport:
         self.locks, self.counters = locks, counters
         self.on_frame, self.on_bad_frames, self.on_lost = on_frame, on_bad_frames, on_lost
         self.serial: serial.Serial | None = None
+        self.writer: FrameWriter | None = None  # the open port's frame writer (no poll after a whole write)
         self._reader: serial.threaded.ReaderThread | None = None
         self.seq = 0
         self.index = 0  # the stream's index: the next setpoint sent plays as this one
@@ -67,6 +68,7 @@ class Transport:
         port = open_port(self.port, self.baudrate, write_timeout_s=self.write_timeout_s)
         with contextlib.suppress(serial.SerialException, OSError):
             port.reset_input_buffer()  # what a previous session left unread is not ours
+        self.writer = FrameWriter(port, self.write_timeout_s)
         self.serial = port
         self._reader = serial.threaded.ReaderThread(port, lambda: FrameReader(self))
         self._reader.daemon = True
@@ -75,6 +77,7 @@ class Transport:
     def close(self) -> None:
         reader, self._reader = self._reader, None
         port, self.serial = self.serial, None
+        self.writer = None
         if reader is not None:
             with contextlib.suppress(Exception):
                 reader.stop()
@@ -90,10 +93,12 @@ class Transport:
              setpoints: np.ndarray | None = None, force: p.ForceReference | None = None) -> int:
         """Write one frame; returns its seq. ``expect(seq)`` is called before the write (its answer will be
         awaited). ``setpoints`` (fractions of full scale): a SETPOINTS frame at the stream's index instead (the
-        index moves on by their number), or with ``force`` a SETPOINTS_FORCE frame. SerialException if closed."""
+        index moves on by their number), or with ``force`` a SETPOINTS_FORCE frame. SerialException if closed,
+        if the port fails, or if the frame waited ``write_timeout_s`` for room (``SerialTimeoutException``):
+        :class:`.link.FrameWriter`, which never polls the port after a write the kernel took whole."""
         with self.locks.write:
-            port = self.serial
-            if port is None:
+            writer = self.writer
+            if writer is None:
                 raise serial.SerialException("not connected")
             self.seq = seq = (self.seq + 1) & 0xFFFF
             self._sent_kinds[seq] = kind if force is None else p.SETPOINTS_FORCE
@@ -101,9 +106,9 @@ class Transport:
             if expect is not None:
                 expect(seq)
             if setpoints is None:
-                port.write(p.encode_frame(kind, seq, payload))
+                writer.write(p.encode_frame(kind, seq, payload))
             else:
-                port.write(self._framer.frame(seq, self.index, setpoints, force))
+                writer.write(self._framer.frame(seq, self.index, setpoints, force))
                 self.index += len(setpoints)
         self.counters.frames_sent += 1
         return seq
