@@ -308,7 +308,8 @@ def _loop_in_real_time(service, slice_s: float = LOOP_SLICE_S) -> str:
     The slice (``slice_s``, 0: the kernel's own, 1.4 ms here): Linux's scheduler (EEVDF, 6.12 and later) lets a
     thread that wakes preempt the one running only when its slice is the shorter; at the kernel's slice a touch that
     woke the loop waited for the ordinary program running on its CPU to finish its own. A shorter slice gives the loop
-    no more CPU than its nice does, only sooner (see :func:`_short_slice`). Older kernels ignore it.
+    no more CPU than its nice does, only sooner
+    (:func:`~ultraglide.render.engine.realtime.short_time_slice`). Older kernels ignore it.
 
     Returns
     -------
@@ -327,43 +328,11 @@ def _loop_in_real_time(service, slice_s: float = LOOP_SLICE_S) -> str:
             break
         except (OSError, AttributeError):
             continue
-    if slice_s > 0 and _short_slice(slice_s):
+    from ultraglide.render.engine.realtime import short_time_slice
+
+    if slice_s > 0 and short_time_slice(slice_s):
         words += f", a {slice_s * 1e3:g} ms slice"
     return words
-
-
-_SCHED_SETATTR = {"x86_64": (314, 315), "aarch64": (274, 275), "riscv64": (274, 275), "armv7l": (380, 381),
-                  "i686": (351, 352)}  # Linux's sched_setattr and sched_getattr, by machine
-_SCHED_ATTR = "IIQiIQQQ"  # struct sched_attr as of Linux 3.14 (48 bytes): size, policy, flags, nice, priority,
-# runtime (an ordinary thread's slice since 6.12, ns), deadline, period
-
-
-def _short_slice(slice_s: float) -> bool:
-    """This thread's time slice (``slice_s``, s) where Linux allows it, its nice kept; whether the kernel took it (read
-    back: a kernel before 6.12 keeps its own). Only an ordinary (SCHED_OTHER) thread's is changed."""
-    import ctypes
-    import os
-    import platform
-    import struct
-    import threading
-
-    numbers = _SCHED_SETATTR.get(platform.machine())
-    if numbers is None or not hasattr(os, "sched_getscheduler") or os.sched_getscheduler(0) != os.SCHED_OTHER:
-        return False
-    wanted = round(slice_s * 1e9)
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())  # this thread's (Linux)
-        attr = ctypes.create_string_buffer(struct.pack(_SCHED_ATTR, struct.calcsize(_SCHED_ATTR), os.SCHED_OTHER, 0,
-                                                       nice, 0, wanted, 0, 0))
-        if libc.syscall(numbers[0], 0, attr, 0) != 0:
-            return False
-        read = ctypes.create_string_buffer(struct.calcsize(_SCHED_ATTR))
-        if libc.syscall(numbers[1], 0, read, struct.calcsize(_SCHED_ATTR), 0) != 0:
-            return False
-        return struct.unpack(_SCHED_ATTR, read.raw)[5] == wanted
-    except (OSError, AttributeError):
-        return False
 
 
 def _remove_socket(path: str) -> None:
