@@ -3,6 +3,7 @@ a subscriber is due, not at every look: each read holds the interpreter for abou
 touch arriving then waited for."""
 
 import asyncio
+import contextlib
 import threading
 import time
 
@@ -51,16 +52,23 @@ def _voluntary_switches(thread_id: int) -> int:
     raise AssertionError("no voluntary_ctxt_switches in /proc")
 
 
-def _pushes(session: Session, kind: str) -> list[dict]:
-    return [message for push, message in session.queue if push and message["type"] == kind]
-
-
-def test_a_status_subscriber_at_2_hz_costs_the_engine_one_status_read_per_status_sent():
+@contextlib.contextmanager
+def _service_on_null():
+    """A service whose engine (its real process) renders to the null device, ready."""
     service = Service(None, load_profile("sim-plate"))
     with Engine.start(EngineConfig(texture=service.first_texture(), device="null", realtime_priority=False)) \
             as engine:
         engine.wait_ready(60.0)
         service.engine = engine
+        yield service
+
+
+def _pushes(session: Session, kind: str) -> list[dict]:
+    return [message for push, message in session.queue if push and message["type"] == kind]
+
+
+def test_a_status_subscriber_at_2_hz_costs_the_engine_one_status_read_per_status_sent():
+    with _service_on_null() as service:
         page = Session(None, 1, role="control", status_hz=2.0)
         quiet = Session(None, 2, role="observe")  # subscribed to nothing: never a reason to read
         _publish_until(service, [page, quiet], lambda: len(_pushes(page, "status")) >= 3)
@@ -71,11 +79,7 @@ def test_a_status_subscriber_at_2_hz_costs_the_engine_one_status_read_per_status
 
 
 def test_output_rows_at_a_low_rate_are_read_at_that_rate_and_none_is_lost():
-    service = Service(None, load_profile("sim-plate"))
-    with Engine.start(EngineConfig(texture=service.first_texture(), device="null", realtime_priority=False)) \
-            as engine:
-        engine.wait_ready(60.0)
-        service.engine = engine
+    with _service_on_null() as service:
         watcher = Session(None, 1, role="observe", output_hz=20.0)
         _publish_until(service, [watcher], lambda: sum(len(m["t"]) for m in _pushes(watcher, "output")) >= 20)
     times = [t for message in _pushes(watcher, "output") for t in message["t"]]
@@ -91,11 +95,7 @@ def test_output_rows_at_a_low_rate_are_read_at_that_rate_and_none_is_lost():
 def test_with_a_status_subscriber_at_2_hz_the_publisher_wakes_a_few_times_a_second_not_a_hundred():
     """Each wake-up of the publisher takes the interpreter from the loop; it slept 10 ms at a time whoever had
     subscribed (100 wake-ups a second, as often as a pointer's touches at 100 Hz)."""
-    service = Service(None, load_profile("sim-plate"))
-    with Engine.start(EngineConfig(texture=service.first_texture(), device="null", realtime_priority=False)) \
-            as engine:
-        engine.wait_ready(60.0)
-        service.engine = engine
+    with _service_on_null() as service:
         page = Session(None, 1, role="control", status_hz=2.0)
         woke = []
         _publish_until(service, [page], lambda: len(_pushes(page, "status")) >= 4, woke)
