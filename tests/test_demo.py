@@ -657,7 +657,9 @@ def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
     t_ms = np.arange(len(envelope)) + 0.5
     x_at = np.interp(t_ms / 1000, log.t_s, log.x_mm)
     crossing_ms = 1000 * np.interp(100.0, log.x_mm, log.t_s)
-    settled = (t_ms > 30) & (np.abs(t_ms - crossing_ms) > 30) & (t_ms < 1000 * log.t_s[-1])
+    # away from the edge in time and in space: the lookup is bilinear on 1 mm texels, so within a texel of the edge
+    # the finger feels a mix of the halves, however long a slow step of a loaded demo leaves it there
+    settled = (t_ms > 30) & (np.abs(t_ms - crossing_ms) > 30) & (t_ms < 1000 * log.t_s[-1]) & (np.abs(x_at - 100) > 1)
     slippery, sticky = settled & (x_at < 100), settled & (x_at > 100)
     assert slippery.sum() > 50 and sticky.sum() > 50
     assert envelope[slippery].min() > 0.3, envelope[slippery].min()  # strong vibration over 0.2 friction

@@ -22,6 +22,15 @@ def test_the_fingers_speed_is_its_path_over_the_last_150_ms():
     assert finger_speed_mm_s(resting, 0.25, 1.09) is None
 
 
+def test_a_busy_ui_reading_few_reports_takes_the_speed_from_its_last_three():
+    # a report every 100 ms (a UI drawing slowly), 10 px each at 0.25 mm a pixel: 25 mm/s from the last three
+    sparse = [(1.0 + k * 0.1, 500.0 + 10 * k, 300.0) for k in range(6)]
+    assert finger_speed_mm_s(sparse, 0.25, 1.55) == pytest.approx(25.0)
+    # but three reports spread over more than half a second say nothing about the finger now
+    stale = [(1.0 + k * 0.3, 500.0 + 10 * k, 300.0) for k in range(3)]
+    assert finger_speed_mm_s(stale, 0.25, 1.65) is None
+
+
 def test_the_figures_are_the_planners_at_each_speed_and_interpolated_in_log_speed_between():
     texture = procedural.grating(2.0, (60.0, 40.0))
     model = load_model("dynamic")

@@ -4,7 +4,8 @@ With a model that has the finger's friction dynamics (``--model dynamic``), a fi
 with less contrast than it asks (``render.planning``). :class:`FeltContrast` works out, once per texture and
 model and in a thread of its own (a swipe rendered at five speeds takes about a tenth of a second), what a swipe
 keeps at 25-400 mm/s, planned and asked instantly; the status line reads it at the finger's speed, taken from the
-driving finger's last 150 ms (:func:`finger_speed_mm_s`).
+driving finger's last 150 ms, or its last three reports on a UI too busy to read three in that time
+(:func:`finger_speed_mm_s`).
 """
 
 from __future__ import annotations
@@ -16,15 +17,20 @@ import numpy as np
 
 SPEEDS_MM_S = (25.0, 50.0, 100.0, 200.0, 400.0)
 SPEED_WINDOW_S = 0.15  # the finger's speed: its path over this long
+LONGEST_SPEED_WINDOW_S = 0.5  # or over its last three reports, when a busy UI read fewer in that time, up to this
 MIN_SPEED_MM_S = 5.0  # slower than this the finger is taken as resting: no figure
 
 
 def finger_speed_mm_s(trace, mm_per_px: float, now_s: float) -> float | None:
     """The driving finger's speed over its last :data:`SPEED_WINDOW_S` (path length / time), mm/s; None when it
-    rests or has too few reports. ``trace``: ``(perf_counter s, x px, y px)`` tuples, oldest first."""
+    rests or has too few reports. A UI busy drawing (a loaded machine) may read fewer than three reports in that
+    time: then the last three, if they came within :data:`LONGEST_SPEED_WINDOW_S`. ``trace``: ``(perf_counter s,
+    x px, y px)`` tuples, oldest first."""
     recent = [(t, x, y) for t, x, y in trace if now_s - t <= SPEED_WINDOW_S]
     if len(recent) < 3:
-        return None
+        recent = list(trace)[-3:]
+        if len(recent) < 3 or now_s - recent[0][0] > LONGEST_SPEED_WINDOW_S:
+            return None
     t, x, y = (np.array(column, dtype=float) for column in zip(*recent, strict=True))
     span = t[-1] - t[0]
     if span <= 0:
