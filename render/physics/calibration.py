@@ -301,11 +301,16 @@ def calibration_from_document(document: dict, where: str) -> FrictionModel:
         values[key] = spec.check(parameters[key], where)
     fitted = _fitted_forces(document.get("fit"), where)
     dynamics = _fitted_dynamics(document.get("dynamics"), where)
+    speed_law = _speed_law(document.get("speed"), where)
     try:
         model = build_model(kind, values)
     except ValueError as error:  # FingerParams: a combination it refuses
         raise ModelError(f"{where}: {str(error).splitlines()[0]}") from None
     model.fitted = fitted
+    if speed_law is not None:
+        from ultraglide.render.physics.speed_law import SpeedLawModel
+
+        model = SpeedLawModel(model, speed_law)
     if dynamics is not None:
         from ultraglide.render.physics.dynamics import DynamicFrictionModel
 
@@ -340,6 +345,35 @@ def _fitted_dynamics(table, where: str):
         raise ModelError(f"{where}: [dynamics] {error}") from None
 
 
+SPEED_KEYS = ("exponent", "reference_speed_mm_s", "source")
+
+
+def _speed_law(table, where: str):
+    """The :class:`SpeedLaw` a calibration file's ``[speed]`` table gives (``exponent`` 0-1; optional
+    ``reference_speed_mm_s``, 22 mm/s by default, and ``source`` in words), checked; None when it has none or its
+    exponent is 0. ``calibrate`` does not fit it: the table is written by hand."""
+    if table is None:
+        return None
+    from ultraglide.render.physics.dynamics import REFERENCE_SPEED_MM_S
+    from ultraglide.render.physics.speed_law import SpeedLaw
+
+    if not isinstance(table, dict):
+        raise ModelError(f"{where}: [speed] must be a table: exponent = S (0-1), optionally reference_speed_mm_s")
+    unknown = sorted(set(table) - set(SPEED_KEYS))
+    if unknown:
+        raise ModelError(f"{where}: unknown key {shown(unknown[0])} in [speed]; expected {', '.join(SPEED_KEYS)}")
+    if "exponent" not in table:
+        raise ModelError(f"{where}: [speed] needs exponent = S (0-1, the reduction's speed exponent)")
+    source = table.get("source", "")
+    if not isinstance(source, str):
+        raise ModelError(f"{where}: [speed] source must be text")
+    try:
+        law = SpeedLaw(table["exponent"], table.get("reference_speed_mm_s", REFERENCE_SPEED_MM_S), source[:200])
+    except ModelError as error:
+        raise ModelError(f"{where}: [speed] {error}") from None
+    return law if law.exponent > 0.0 else None
+
+
 MAX_FITTED_FORCES = 10_000  # a calibration's data hold at most 100 000 points
 
 
@@ -367,8 +401,10 @@ def load_model(spec: str) -> FrictionModel:
         ``stretched`` (the default for rendering: force-aware), ``squeeze-film``, ``exponential``,
         ``paper``, ``paper-uniform``, ``table:FILE.csv`` (measured points) or a calibration file
         ``CAL.toml`` (``ultraglide calibrate``: a :class:`DynamicFrictionModel` where its ``[dynamics]`` were fitted
-        on the plate); ``dynamic`` (the default model with the published friction
-        dynamics) or ``dynamic:NAME`` (any of these with them).
+        on the plate; with its ``[speed]`` table, a speed law); ``dynamic`` (the default model with the published
+        friction dynamics) or ``dynamic:NAME`` (any of these with them); ``speed:S:NAME`` (any of these whose
+        settled reduction weakens with sliding speed, exponent S in 0-1, assumed:
+        :mod:`~ultraglide.render.physics.speed_law`).
 
     Returns
     -------
@@ -385,6 +421,8 @@ def load_model(spec: str) -> FrictionModel:
     >>> round(float(model.amplitude_um_pp(0.5, 0.5).amplitude_um_pp), 2)   # µm p-p to halve the friction
     3.11
     """
+    if spec.startswith("speed:"):
+        return _with_speed_law(spec)
     if spec == "dynamic" or spec.startswith("dynamic:"):
         from ultraglide.render.physics.dynamics import DynamicFrictionModel
 
@@ -412,8 +450,38 @@ def load_model(spec: str) -> FrictionModel:
         return read_calibration(spec)
     raise ModelError(
         f"unknown model {spec!r}; use stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv, "
-        "CAL.toml, or dynamic[:NAME] (one of these with the finger's friction dynamics)"
+        "CAL.toml, dynamic[:NAME] (one of these with the finger's friction dynamics) or speed:S:NAME (with the "
+        "reduction weakening with sliding speed)"
     )
+
+
+SPEED_SPEC = "speed:S:NAME, S the reduction's speed exponent in 0-1 (0: none), NAME any model"
+
+
+def _with_speed_law(spec: str) -> FrictionModel:
+    """``speed:S:NAME``: the model NAME with the settled speed law of exponent S (a dynamic NAME keeps its
+    dynamics around the static model with the law)."""
+    from ultraglide.render.physics.dynamics import DynamicFrictionModel
+    from ultraglide.render.physics.speed_law import SpeedLaw, SpeedLawModel
+
+    _, _, rest = spec.partition(":")
+    exponent, colon, inner = rest.partition(":")
+    if not colon or not inner:
+        raise ModelError(f"{spec!r}: give {SPEED_SPEC} (e.g. speed:0.5:stretched)")
+    try:
+        value = float(exponent)
+    except ValueError:
+        raise ModelError(f"{spec!r}: {exponent!r} is not a number; give {SPEED_SPEC}") from None
+    try:
+        law = SpeedLaw(value)
+    except ModelError as error:
+        raise ModelError(f"{spec!r}: {error}") from None
+    model = load_model(inner)
+    if getattr(model, "speed_law", None) is not None:
+        raise ModelError(f"{spec!r}: {inner} has a speed law already (give it once)")
+    if isinstance(model, DynamicFrictionModel):
+        return DynamicFrictionModel(SpeedLawModel(model.static, law), model.dynamics)
+    return SpeedLawModel(model, law)
 
 
 __all__ = [  # the calibration's names, the fitting's and the parameters' (one import for the commands)

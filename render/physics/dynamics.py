@@ -255,6 +255,18 @@ class DynamicFrictionModel(FrictionModel):
         self.fitted = static.fitted
         self.default_floor = static.default_floor
 
+    @property
+    def speed_law(self):
+        """The static model's settled speed law (:mod:`~ultraglide.render.physics.speed_law`), None without one.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> print(DynamicFrictionModel(StretchedExponentialModel()).speed_law)
+        None
+        """
+        return getattr(self.static, "speed_law", None)
+
     def warm_up(self) -> None:
         """Load the static model's compiled inverse and the dynamics' kernel before a real-time block needs them.
 

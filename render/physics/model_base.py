@@ -53,8 +53,8 @@ def remembered(owner, memo: str, key, compute):
         values = owner.__dict__[memo] = {}
     value = values.get(key)
     if value is None:
-        if len(values) >= SCALAR_CACHE:
-            values.clear()
+        if len(values) >= SCALAR_CACHE:  # the oldest goes: the dict's size stays put once full (a floor asked at a
+            del values[next(iter(values))]  # new limit each block, under a speed law, keeps nothing more per block)
         value = values[key] = compute()
     return value
 
