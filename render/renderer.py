@@ -33,6 +33,7 @@ from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.friction_models import FrictionModel
+from ultraglide.render.physics.speed_law import scaled_inverse, speed_law_of
 from ultraglide.render.planning import Planner
 from ultraglide.render.trajectory import FingerState, LiveTrajectory, RecordedTrajectory
 from ultraglide.textures.sampling import Sampler
@@ -450,6 +451,8 @@ class Renderer:
         self.effects = self._player(texture)
         self.planner: Planner | None = None  # set for a model with friction dynamics (settings.plan)
         self._plan_buffers(model)
+        self._speed_law = speed_law_of(model)  # the settled reduction's speed law (None: no dependence)
+        self.speed_scale = 1.0  # its amplitude scale at the last block's finger speed (1: none, or at v_ref)
 
     def _plan_buffers(self, model: FrictionModel) -> None:
         """A planner and its buffers for a model with friction dynamics (built outside any real-time block)."""
@@ -670,6 +673,9 @@ class Renderer:
             self._plan_buffers(model)
         else:
             self.planner = None
+        self._speed_law = speed_law_of(model)
+        if self._speed_law is None:
+            self.speed_scale = 1.0
         self.model = model
 
     def set_default_force(self, force_n: float) -> None:
@@ -853,16 +859,23 @@ class Renderer:
         down = finger.down & self._running & (not self.paused)  # a bool for a live finger, else one per sample
         planner = self.planner
         asked = ratio
-        if planner is not None:
-            asked = self._planned(times, finger, ratio, force, down, step, direction, n)
-        inversion = self.model.amplitude_um_pp(asked, force, self.limit_um_pp,
-                                               out=None if block is None else block.target_um_pp)
+        law = self._speed_law
+        if planner is not None or law is not None:
+            speed, one_step, heading = self._speed(finger, step, direction, n)
+            # the settled reduction's speed law: the amplitude a ratio needs at this block's speed over the
+            # model's (1 without a law); the inverse is asked within limit / scale (render/physics/speed_law.py)
+            self.speed_scale = law.one_scale(speed) if law is not None else 1.0
+            if planner is not None:
+                asked = self._planned(times, ratio, force, down, speed, one_step, heading, n)
+        scale = self.speed_scale
+        inversion = scaled_inverse(self.model, asked, force, self.limit_um_pp, scale,
+                                   out=None if block is None else block.target_um_pp)
         if planner is not None:
             self.counters.clipped_samples += self._unreachable
         elif np.all(down):
             self.counters.clipped_samples += inversion.clamped
         elif inversion.clamped and np.any(down):  # count only the clamps while the finger touches
-            floor = self.model.floor_ratio(force, self.limit_um_pp)
+            floor = self.model.floor_ratio(force, self.limit_um_pp / scale)
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
         target = inversion.amplitude_um_pp
         if block is not None:  # the real-time path: timed by its caller, nothing appended
@@ -888,19 +901,21 @@ class Renderer:
             observer(block)
         return block
 
-    def _planned(self, times, finger: FingerState, ratio, force, down, step, direction, n: int) -> np.ndarray:
-        """The planning stage: the static ratio to command so the felt friction follows ``ratio`` (the texture's
-        targets), from the texture along the finger's path over the planner's horizon; sets the count of
-        unreachable targets (below the floor, while the finger touches)."""
-        planner = self.planner
-        rate = self.settings.control_rate_hz
+    def _speed(self, finger: FingerState, step, direction, n: int) -> tuple[float, float, tuple]:
+        """The finger's speed over the block (mm/s, one a block), its step per control sample (mm) and its heading:
+        a live prediction's velocity, else the mean step of the block times the control rate."""
         if finger.velocity_mm_s is not None:
-            speed = math.hypot(*finger.velocity_mm_s)
-            one_step, heading = step, direction
-        else:
-            one_step = float(np.mean(step)) if n else 0.0
-            speed = one_step * rate
-            heading = (float(direction[0][n - 1]), float(direction[1][n - 1])) if n else (0.0, 0.0)
+            return math.hypot(*finger.velocity_mm_s), step, direction
+        one_step = float(np.mean(step)) if n else 0.0
+        heading = (float(direction[0][n - 1]), float(direction[1][n - 1])) if n else (0.0, 0.0)
+        return one_step * self.settings.control_rate_hz, one_step, heading
+
+    def _planned(self, times, ratio, force, down, speed: float, one_step: float, heading, n: int) -> np.ndarray:
+        """The planning stage: the static ratio to command so the felt friction follows ``ratio`` (the texture's
+        targets), from the texture along the finger's path over the planner's horizon, at the finger's ``speed``
+        (mm/s) with its step (mm) and heading; sets the count of unreachable targets (below the floor at that
+        speed, while the finger touches)."""
+        planner = self.planner
         planner.set_speed(speed)
         steps = planner.steps
         ahead_t = planner.ahead_times(float(times[0]) if n else 0.0, n, out=self._ahead_t)
@@ -911,7 +926,8 @@ class Renderer:
                                          direction=heading, out=self._ahead_ratio[:steps])
         touching = bool(np.any(down))
         scalar_force = float(force) if not isinstance(force, np.ndarray) else float(np.mean(force))
-        floor = self.model._floor(scalar_force, min(float(self.limit_um_pp), self.model.max_amplitude_um_pp))
+        floor = self.model._floor(scalar_force, min(float(self.limit_um_pp) / self.speed_scale,
+                                                    self.model.max_amplitude_um_pp))
         if len(self._command) < n:
             self._command = np.empty(n)  # a catch-up block longer than any before: once
         below = planner.below_floor

@@ -85,8 +85,11 @@ def block_path_memory(texture: str, model: str, signal: str, frames: int, blocks
                                                     ("bumps", "paper", "audio"),
                                                     ("bumps", "stretched", "control"),
                                                     ("grating-1mm", TABLE, "audio"),
-                                                    ("grating-1mm", "dynamic", "control")],
-                         ids=["exponential", "paper", "stretched", "table", "dynamic-planned"])
+                                                    ("grating-1mm", "dynamic", "control"),
+                                                    ("grating-1mm", "speed:0.5:stretched", "audio"),
+                                                    ("grating-1mm", "speed:0.5:dynamic", "control")],
+                         ids=["exponential", "paper", "stretched", "table", "dynamic-planned", "speed-law",
+                              "speed-law-planned"])
 def test_the_engine_block_path_allocates_nothing_once_running(texture, model, signal):
     """A block of 8 control samples (64 audio frames) and one of 1024 (8192 frames) use the same memory:
     one array of the block's length made anywhere on the path (a lookup, an inverse, the envelope, knots,

@@ -424,6 +424,20 @@ class ClosedLoopInverse:
         """
         return getattr(self.base, "dynamics", None)
 
+    @property
+    def speed_law(self):
+        """The host model's settled speed law (None without one): the renderer scales the loop's amplitudes by it at
+        the finger's speed as it does open loop (:func:`~ultraglide.render.physics.speed_law.scaled_inverse`), and
+        the estimator fits the finger through it.
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> print(ClosedLoopInverse(StretchedExponentialModel()).speed_law)
+        None
+        """
+        return getattr(self.base, "speed_law", None)
+
     def _floor(self, force_n, limit: float):
         """The floor ratio for the planner: the host model's at the limit the loop's scale leaves it (µm p-p)."""
         following, command, _ = self.following_now()

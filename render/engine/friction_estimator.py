@@ -535,6 +535,8 @@ class FrictionEstimator:
         self._confirm = max(1, int(round(settings.confirm_s * self.sensor_rate_hz)))
         self.estimate = FrictionEstimate(mu0=settings.prior_mu0)
         self._dynamics = getattr(model, "dynamics", None)  # a model with friction dynamics: the finger lags
+        law = getattr(model, "speed_law", None)  # a settled speed law: the model's amplitude axis scales with speed
+        self._speed_law = law if law is not None and law.exponent > 0.0 else None
         self._felt = np.ones(3)  # the ratio, slope and intended ratio through those dynamics: their states
 
     def __repr__(self) -> str:
@@ -658,8 +660,11 @@ class FrictionEstimator:
                             zi=[self._force_alpha * self._force_state])
         self._force_state = float(smooth[-1])
         model_force = np.maximum(smooth, s.min_force_n)
-        # the model and its slope in ln k at the present scale, as the force sensors would see them
-        u = a / self.scale
+        # the model and its slope in ln k at the present scale, as the force sensors would see them; with a settled
+        # speed law, at the panel's speed (the reference speed's scale when unknown), as the renderer's inverse was
+        law = self._speed_law
+        u = a / (self.scale * (law.one_scale(panel_speed_mm_s) if law is not None and panel_speed_mm_s is not None
+                               else 1.0))
         h = DIFFERENCE_STEP
         try:
             ratio = self.model.relative_friction(u, model_force)

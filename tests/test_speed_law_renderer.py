@@ -1,0 +1,143 @@
+"""The renderer under a settled speed law: at each block's finger speed the inverse is the static one times
+k = (v / 22 mm/s)^s, within the limit / k, open loop and through the closed loop's inverse; with s = 0 nothing
+changes, bit for bit. The felt ratio is computed here by the static model's forward law at the effective
+amplitude a / k, with k from the block's own finger positions, never by the renderer's inverse."""
+
+import math
+
+import numpy as np
+import pytest
+from ultraglide.devices.profiles import load_profile
+from ultraglide.render.engine.friction_controller import ClosedLoopInverse, LoopCommand
+from ultraglide.render.engine.friction_estimator import EstimatorSettings, FrictionEstimator
+from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.friction_models import StretchedExponentialModel
+from ultraglide.render.physics.speed_law import SpeedLaw, SpeedLawModel
+from ultraglide.render.renderer import Renderer
+from ultraglide.render.trajectory import RecordedTrajectory
+from ultraglide.textures.procedural import grating
+
+RATE_HZ = 12000.0
+BLOCK = 60  # 5 ms
+FORCE_N = 0.5  # the renderer's default: the path logs no force
+V_REF = 22.0
+STATIC = StretchedExponentialModel()
+PROFILE = load_profile("sim-plate")
+LIMIT = PROFILE.max_amplitude_um_pp  # 6 µm p-p
+SEGMENTS = ((0.25, 20.0), (0.25, 80.0), (0.25, 200.0))  # (s, mm/s): a swipe that speeds up
+
+
+def speeding_swipe() -> RecordedTrajectory:
+    """Left to right at 20, then 80, then 200 mm/s, a quarter second each, knots every 5 ms (linear between)."""
+    t, x = [0.0], [5.0]
+    for duration, speed in SEGMENTS:
+        for _ in range(int(round(duration / 0.005))):
+            t.append(t[-1] + 0.005)
+            x.append(x[-1] + speed * 0.005)
+    return RecordedTrajectory(t, x, np.full(len(t), 25.0))
+
+
+TEXTURE = grating(wavelength_mm=8.0, size_mm=(120.0, 50.0), ratio_range=(0.15, 1.0))
+
+
+def render(model, trajectory=None, blocks=150):
+    renderer = Renderer(TEXTURE, model, PROFILE, trajectory=trajectory or speeding_swipe())
+    out = []
+    for _ in range(blocks):
+        block = renderer.control(BLOCK)
+        x = block.x_mm.copy()
+        steps = np.abs(np.diff(x))  # each sample's move from the one before; the first takes the second's (a jump
+        steps = np.r_[steps[0], steps]  # between blocks is not motion): the block's speed is their mean × the rate
+        out.append({"ratio": block.ratio.astype(float), "target": block.target_um_pp.copy(),
+                    "amplitude": block.amplitude_um_pp.copy(), "drive": block.drive_um_pp.copy(),
+                    "plate": block.plate_um_pp.copy(), "speed": float(np.mean(steps)) * RATE_HZ,
+                    "down": np.broadcast_to(block.down, x.shape).copy()})
+    return renderer, out
+
+
+def test_s_zero_renders_bit_for_bit_what_the_model_alone_renders():
+    for plain, with_law in (("stretched", "speed:0:stretched"), ("dynamic", "speed:0:dynamic")):
+        _, expected = render(load_model(plain))
+        renderer, got = render(load_model(with_law))
+        assert renderer.speed_scale == 1.0
+        for a, b in zip(expected, got, strict=True):
+            for key in ("target", "amplitude", "drive", "plate"):
+                assert np.array_equal(a[key], b[key]), (plain, key)
+
+
+def test_open_loop_the_felt_ratio_follows_the_target_where_reachable_at_the_fingers_speed():
+    law = SpeedLaw(0.5)
+    renderer, blocks = render(SpeedLawModel(STATIC, law))
+    unreachable = reachable = 0
+    fast_clipped = slow_clipped = 0
+    for block in blocks:
+        k = (max(block["speed"], 2.0) / V_REF) ** 0.5  # by hand: the block's mean step × the control rate
+        floor = float(STATIC.relative_friction(LIMIT / k, FORCE_N))
+        felt = STATIC.relative_friction(block["target"] / k, FORCE_N)  # the static law at a_eff = a / k
+        ok = block["ratio"] >= floor + 1e-6
+        assert felt[ok] == pytest.approx(block["ratio"][ok], abs=1e-6)
+        out = block["ratio"] < floor - 1e-6
+        assert np.all(block["target"][out] == LIMIT)
+        unreachable += int(np.count_nonzero(block["ratio"] < floor))
+        reachable += int(np.count_nonzero(ok))
+        if block["speed"] > 150:
+            fast_clipped += int(np.count_nonzero(out))
+        elif block["speed"] < 30:
+            slow_clipped += int(np.count_nonzero(out))
+        for key in ("target", "amplitude", "plate"):
+            assert block[key].max() <= LIMIT
+        assert block["drive"].max() <= PROFILE.max_drive_um_pp
+    assert renderer.counters.clipped_samples == unreachable
+    assert reachable > 3000 and fast_clipped > 500  # the floor rises with speed: most clipping is at 200 mm/s
+    assert slow_clipped < fast_clipped / 10
+    # the last block's scale: (200 / 22)^0.5, the amplitude a ratio needs there over what it needs at 22 mm/s
+    assert renderer.speed_scale == pytest.approx((200.0 / V_REF) ** 0.5, rel=1e-3)
+
+
+def test_the_closed_loops_feed_forward_goes_through_the_same_speed_scaled_inverse():
+    """Following with an adapted scale of 1.25 at a measured 0.5 N: the amplitude is 1.25 k A(r), within the limit;
+    the felt ratio by the static law at a / (1.25 k) is the target where reachable."""
+    model = SpeedLawModel(STATIC, SpeedLaw(0.5))
+    inverse = ClosedLoopInverse(model, clock=lambda: 100.0)
+    inverse.command = LoopCommand(following=True, scale=1.25, force_n=FORCE_N, since_s=0.0, sensors_s=99.99,
+                                  words="closed loop: following")
+    renderer, blocks = render(inverse)
+    assert inverse.closed_samples == 150 * BLOCK and inverse.open_samples == 0
+    for block in blocks:
+        k = 1.25 * (max(block["speed"], 2.0) / V_REF) ** 0.5
+        floor = float(STATIC.relative_friction(LIMIT / k, FORCE_N))
+        ok = block["ratio"] >= floor + 1e-6
+        felt = STATIC.relative_friction(block["target"] / k, FORCE_N)
+        assert felt[ok] == pytest.approx(block["ratio"][ok], abs=1e-6)
+        assert np.all(block["target"][block["ratio"] < floor - 1e-6] == pytest.approx(LIMIT, abs=1e-12))
+        assert block["target"].max() <= LIMIT and block["amplitude"].max() <= LIMIT
+
+
+def test_with_friction_dynamics_the_planned_render_stays_within_the_limit_and_counts_what_speed_puts_out_of_reach():
+    slow = render(load_model("dynamic"), blocks=150)[0].counters.clipped_samples
+    renderer, blocks = render(load_model("speed:0.5:dynamic"), blocks=150)
+    assert renderer.planner is not None
+    assert all(block["amplitude"].max() <= LIMIT and block["target"].max() <= LIMIT for block in blocks)
+    assert renderer.counters.clipped_samples > slow + 500  # the floor at 200 mm/s is far above the one at 22
+
+
+def test_the_estimator_fits_the_finger_through_the_speed_law_at_the_panels_speed():
+    """Sensor samples of a finger whose amplitude scale is 0.8 of the static law's and whose law weakens as
+    (22 / v)^0.5, sliding at 88 mm/s (k = 2): a host with the law finds the finger's own 0.8; one without it takes
+    the speed for the finger (1.6)."""
+    finger_scale, mu0, speed = 0.8, 0.7, 88.0
+    t = np.arange(8000) / 1000.0
+    amplitude = 3.0 + 2.5 * np.sin(2 * math.pi * 1.5 * t)
+    force = np.full(t.shape, FORCE_N)
+    lateral = mu0 * STATIC.relative_friction(amplitude / (finger_scale * 2.0), force) * force
+    settings = EstimatorSettings(sensor_delay_s=0.0, sensor_bandwidth_hz=0.0, identify_sensors=False)
+    found = {}
+    for name, host in (("law", SpeedLawModel(STATIC, SpeedLaw(0.5))), ("none", STATIC)):
+        estimator = FrictionEstimator(host, settings, sensor_rate_hz=1000.0)
+        for first in range(0, len(t), 10):
+            estimator.update(first, amplitude[first:first + 10], force[first:first + 10],
+                             lateral[first:first + 10], panel_speed_mm_s=speed)
+        found[name] = (estimator.scale, estimator.mu0)
+    assert found["law"][0] == pytest.approx(finger_scale, rel=0.02)
+    assert found["none"][0] == pytest.approx(2.0 * finger_scale, rel=0.02)
+    assert found["law"][1] == pytest.approx(mu0, rel=0.02)
