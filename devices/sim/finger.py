@@ -114,6 +114,40 @@ class FingerDynamics:
 
 
 SLOWEST_RECOVERY_MM_S = 2.0  # the recovery of a finger sliding slower is held at this speed's
+FASTEST_LAW_MM_S = 2000.0  # the speed law holds a faster finger at this speed (and a slower one at 2 mm/s)
+
+
+@dataclass(frozen=True)
+class FingerSpeedLaw:
+    """How the finger's settled friction reduction weakens with its sliding speed: the law is evaluated at the
+    effective amplitude a (``reference_speed_mm_s`` / v)^``exponent``, v held within 2-2000 mm/s. The plate's own
+    implementation of the assumed law of docs/physics.md ("Sliding speed"), independent of the host's: exponent 0
+    (no dependence) to 1, reference 1-1000 mm/s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> FingerSpeedLaw(0.5).efficacy(np.array([22.0, 88.0, 1.0])).round(6).tolist()   # 1 mm/s as 2 mm/s
+    [1.0, 0.5, 3.316625]
+    """
+
+    exponent: float = 0.0
+    reference_speed_mm_s: float = 22.0
+
+    def __post_init__(self) -> None:
+        checks = (("speed law's exponent", self.exponent, 0.0, 1.0),
+                  ("speed law's reference speed", self.reference_speed_mm_s, 1.0, 1000.0))
+        for name, value, low, high in checks:
+            if not (math.isfinite(value) and low <= value <= high):
+                raise DeviceError(f"the finger's {name} must lie in {low:g}..{high:g}, got {value}")
+
+    def efficacy(self, speed_mm_s: np.ndarray) -> np.ndarray:
+        """(v_ref / v)^s at each speed (mm/s): what the vibration's amplitude is worth at that speed."""
+        speed = np.minimum(np.maximum(speed_mm_s, SLOWEST_RECOVERY_MM_S), FASTEST_LAW_MM_S)
+        return (self.reference_speed_mm_s / speed) ** self.exponent
+
+    def words(self) -> str:
+        return f"reduction x ({self.reference_speed_mm_s:g} mm/s / v)^{self.exponent:g} in amplitude"
 
 
 @dataclass(frozen=True)
@@ -347,9 +381,11 @@ class SimulatedFinger:
 
     def __init__(self, law: FrictionLaw, script: ForceScript | None = None, params: FingerParams | None = None,
                  sensors: ForceSensorParams | None = None, log=None, sample_rate_hz: int = 48000, name: str = "",
-                 faults: tuple[SensorFault, ...] = (), dynamics: FingerDynamics | None = None):
+                 faults: tuple[SensorFault, ...] = (), dynamics: FingerDynamics | None = None,
+                 speed_law: FingerSpeedLaw | None = None):
         self.law = law
         self.dynamics = dynamics
+        self.speed_law = speed_law if speed_law is not None and speed_law.exponent > 0.0 else None
         self._felt = 1.0  # the lagging friction ratio carried between chunks
         if dynamics is not None:  # compile (or load) the lag before the plate's first chunk needs it
             kernels.friction_lag(np.ones(2), np.ones(2), np.ones(2), LIFTED_N, 48000.0, 0.005, 0.07, 22.0, 0.5, 2.0,
@@ -384,6 +420,7 @@ class SimulatedFinger:
     def __repr__(self) -> str:
         p = self.params
         lag = f", {self.dynamics.words()}" if self.dynamics is not None else ""
+        lag += f", {self.speed_law.words()}" if self.speed_law is not None else ""
         return (f"SimulatedFinger({self.name}, {self.script.words()}, mu0 {p.mu0:g}, drift ±{100 * p.drift:g} % "
                 f"over {p.drift_period_s:g} s, moisture +{100 * p.moisture:g} % ({p.moisture_tau_s:g} s){lag}, "
                 f"{self.sensors.params.words()})")
@@ -411,7 +448,10 @@ class SimulatedFinger:
         mu0 = self.params.mu0 * (1.0 + self.params.moisture * wet[0])
         scale = self.params.scale_at(t_s)
         amplitude = np.maximum(np.asarray(amplitude_um_pp, dtype=float), 0.0)
-        ratio = np.asarray(self.law(amplitude / scale, force if steady else np.maximum(force, LIFTED_N)), dtype=float)
+        effective = amplitude / scale
+        if self.speed_law is not None:  # the reduction weakens with speed: the law at a (v_ref / v)^s
+            effective *= self.speed_law.efficacy(speed)
+        ratio = np.asarray(self.law(effective, force if steady else np.maximum(force, LIFTED_N)), dtype=float)
         if ratio.shape != amplitude.shape:
             ratio = np.broadcast_to(ratio, amplitude.shape)
         ratio = np.minimum(np.maximum(ratio, 0.0), 1.0)  # np.clip's values, without its wrapper

@@ -22,6 +22,7 @@ import numpy as np
 from ultraglide.devices.sim.finger import (
     FingerDynamics,
     FingerParams,
+    FingerSpeedLaw,
     ForceScript,
     SensorFault,
     SimulatedFinger,
@@ -81,8 +82,9 @@ class FingerConfig:
         >>> FingerConfig().lags, FingerConfig(law="dynamic:stretched").lags, FingerConfig(dynamics=True).lags
         (False, True, True)
         """
-        return (self.dynamics or self.law == "dynamic" or self.law.startswith("dynamic:")
-                or _fitted_dynamics(self.law) is not None)
+        inner = self.law.split(":", 2)[-1] if self.law.startswith("speed:") else self.law  # speed:S:NAME's NAME
+        return (self.dynamics or inner == "dynamic" or inner.startswith("dynamic:")
+                or _fitted_dynamics(inner) is not None)
 
     @property
     def law_scale(self) -> float:
@@ -186,6 +188,45 @@ def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
     return FingerDynamics() if config.lags else None
 
 
+@functools.lru_cache(maxsize=16)
+def _speed_law(law: str):
+    """The settled speed law a law holds (``speed:S:NAME``, a calibration's ``[speed]``), else None."""
+    if law == DEFAULT_LAW or not (law.startswith("speed:") or law.endswith(".toml")):
+        return None
+    from ultraglide.render.physics.calibration import load_model
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return getattr(load_model(law), "speed_law", None)
+    except Exception:  # noqa: BLE001 - refused with its words where the law itself is built
+        return None
+
+
+def finger_speed_law(config: FingerConfig) -> FingerSpeedLaw | None:
+    """How the simulated finger's settled reduction weakens with its speed: the law its model spec holds
+    (``--finger speed:S:NAME``, a calibration's ``[speed]``), handed to the plate's own implementation; None for
+    no dependence.
+
+    Parameters
+    ----------
+    config : FingerConfig
+
+    Returns
+    -------
+    FingerSpeedLaw or None
+
+    Examples
+    --------
+    >>> finger_speed_law(FingerConfig()) is None, finger_speed_law(FingerConfig(law="speed:0.5:stretched")).exponent
+    (True, 0.5)
+    """
+    law = _speed_law(config.law)
+    if law is None or law.exponent == 0.0:
+        return None
+    return FingerSpeedLaw(law.exponent, law.reference_speed_mm_s)
+
+
 def finger_law(config: FingerConfig):
     """The finger's friction law, ratio = law(amplitude_um_pp, force_n), as the config says.
 
@@ -232,6 +273,7 @@ def finger_law(config: FingerConfig):
         model = (StretchedExponentialModel(residual_ratio=0.0) if config.law == DEFAULT_LAW
                  else load_model(config.law))
         model = getattr(model, "static", model)
+        model = getattr(model, "static", model)  # a speed law's static model (its law: finger_speed_law)
     law = _stretched_law(model) or _gridded_law(model)
     law.__qualname__ = config.law_words()
     return adjusted_law(law, config.law_scale, config.law_floor)
@@ -327,7 +369,7 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
     log = FingerLog(config.log, rate_hz=config.log_hz, sample_rate_hz=sample_rate_hz) if config.log else None
     dynamics = finger_dynamics(config)
     return SimulatedFinger(law, script, params, sensors, log, sample_rate_hz, name=config.law_words(), faults=faults,
-                           dynamics=dynamics)
+                           dynamics=dynamics, speed_law=finger_speed_law(config))
 
 
 def finger_words(config: FingerConfig) -> str:
