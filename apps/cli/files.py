@@ -163,9 +163,13 @@ def texture_file(spec: str | None) -> Path | None:
 
 
 def model_file(spec: str | None) -> Path | None:
-    """The file a ``--model`` reads: ``table:FILE.csv`` or ``CAL.toml``; None for a model by name."""
+    """The file a ``--model`` reads: ``table:FILE.csv`` or ``CAL.toml``, also wrapped in ``dynamic:`` or
+    ``speed:S:``; None for a model by name."""
     if spec is None:
         return None
+    while spec.startswith(("dynamic:", "speed:")):
+        inner = spec.partition(":")[2]  # dynamic:NAME's NAME, or speed:S:NAME's S:NAME
+        spec = inner if spec.startswith("dynamic:") else inner.partition(":")[2]
     if spec.startswith("table:"):
         return Path(spec.removeprefix("table:"))
     return Path(spec) if spec.endswith(".toml") else None

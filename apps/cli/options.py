@@ -60,7 +60,8 @@ def refuse_ignored(args, options: dict[str, object], why: str) -> None:
 
 
 MODEL_HELP = ("friction model: stretched, squeeze-film, exponential, paper, paper-uniform, table:FILE.csv or "
-              "CAL.toml")
+              "CAL.toml; dynamic[:NAME] with the finger's friction dynamics; speed:S:NAME with the reduction "
+              "weakening with sliding speed as (22 mm/s / v)^S, S in 0-1 (assumed)")
 
 
 def add_model_option(parser: argparse.ArgumentParser, default: str = "paper") -> None:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.options import add_figure_width_option, add_model_option, output_option, refuse_ignored
 from ultraglide.apps.cli.output import print_json
-from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, ratio
+from ultraglide.apps.cli.types import CARRIER_HZ, FORCE_N, PRELOAD_N, Bounded, ratio
 from ultraglide.apps.figures import PAPER_FIGURES, both_formats
 
 if TYPE_CHECKING:
@@ -24,6 +24,8 @@ EXAMPLE_DATA = Path(__file__).parent.parent / "data" / "monnoyer2018-fit.csv"
 DYNAMICS_SPEEDS_MM_S = (50.0, 100.0, 200.0)
 DYNAMICS_LIMIT_UM_PP = 6.0  # the grating's trough: the floor within a typical plate's limit (sim-plate's)
 DYNAMICS_FIGURES = ("friction-in-time", "contrast-transfer")
+SPEED_FIGURES = ("speed-law",)
+SLIDING_SPEED = Bounded(0.0, 2000.0, "mm/s", what="sliding speed")
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -39,10 +41,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     add_model_option(model)
     model.add_argument("--ratio", type=ratio, metavar="R",
                        help="also give the amplitude that yields friction ratio R")
+    model.add_argument("--speed-mm-s", type=SLIDING_SPEED, metavar="V",
+                       help="the finger's sliding speed, mm/s: the curve, the floor and --ratio's amplitude at it, "
+                            "through the model's speed law (speed:S:NAME; a model without one: no dependence; "
+                            "default: the law's reference speed)")
     model.add_argument("--json", action="store_true", help="print one JSON object")
-    output_option(model, "--plots", kind="folder", also=both_formats(PAPER_FIGURES + DYNAMICS_FIGURES),
+    output_option(model, "--plots", kind="folder",
+                  also=both_formats(PAPER_FIGURES + DYNAMICS_FIGURES + SPEED_FIGURES),
                   metavar="DIR", help="write the paper's figures 2-9 here, each as a 300 dpi PNG and a PDF (and, for a "
-                                      "dynamic model, friction-in-time and contrast-transfer)")
+                                      "dynamic model, friction-in-time and contrast-transfer; for a model with a "
+                                      "speed law, speed-law)")
     output_option(model, "--report", metavar="FILE.pdf",
                        help="write one page on the model at this force: parameters, curve, inverse, contact")
     model.add_argument("--data", metavar="CSV",
@@ -60,8 +68,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 def _finger(model: FrictionModel) -> FingerParams | None:
     """The ridge model's parameters of a model built on the paper's ridges, else None."""
     from ultraglide.render.physics.friction_models import PaperModel
+    from ultraglide.render.physics.speed_law import SpeedLawModel
     from ultraglide.render.physics.squeeze_film import SqueezeFilmModel
 
+    model = model.static if isinstance(model, SpeedLawModel) else model  # the ridges are the static model's
     if isinstance(model, PaperModel):
         return model.params
     if isinstance(model, SqueezeFilmModel):
@@ -70,8 +80,9 @@ def _finger(model: FrictionModel) -> FingerParams | None:
 
 
 def summary(force_n: float, model: FrictionModel | str, ratio: float | None, preload_n: float = 0.0,
-            carrier_hz: float | None = None) -> dict:
-    """Everything ``ultraglide model`` reports, as plain JSON-able values: what the chosen model has."""
+            carrier_hz: float | None = None, speed_mm_s: float | None = None) -> dict:
+    """Everything ``ultraglide model`` reports, as plain JSON-able values: what the chosen model has; at a sliding
+    speed (mm/s) where one is given, through the model's speed law (none: the same as without)."""
     import numpy as np
     from ultraglide.render.physics.calibration import load_model
     from ultraglide.render.physics.fingerprint import (
@@ -85,11 +96,18 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
         ridge_shear_resonance_hz,
         tangential_stiffness_n_per_m,
     )
+    from ultraglide.render.physics.speed_law import scaled_inverse, speed_law_of
 
     model = load_model(model) if isinstance(model, str) else model
     params = _finger(model)
+    law = speed_law_of(model)
+
+    def scale_at(speed: float | None) -> float:  # the amplitude a ratio needs at this speed over the model's
+        return 1.0 if law is None or speed is None else law.one_scale(speed)
+
+    scale = scale_at(speed_mm_s)
     amplitude = np.arange(0.0, CURVE_END_UM + 1e-9, CURVE_STEP_UM)
-    curve = model.relative_friction(amplitude, force_n)
+    curve = model.relative_friction(amplitude / scale, force_n)  # the static model at a_eff = a / k(v)
     low, high = model.valid_force_range_n()
     result = {
         "force_n": force_n,
@@ -97,6 +115,10 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
         "force_law": model.force_law(),
         "valid_force_range_n": [low, high],
     }
+    if speed_mm_s is not None:
+        result["speed_mm_s"] = speed_mm_s
+        result["speed_law"] = (law.describe() if law is not None else "no dependence on sliding speed (s = 0)")
+        result["amplitude_scale"] = scale
     if params is not None:
         result.update({
             "contact_area_mm2": float(contact_area_mm2(force_n, params)),
@@ -120,23 +142,26 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
     if dynamics is not None:
         from ultraglide.render.planning import contrast_transfer
 
-        floor = float(model.floor_ratio(force_n, DYNAMICS_LIMIT_UM_PP))
+        floor = float(model.floor_ratio(force_n, DYNAMICS_LIMIT_UM_PP / scale))
+        floors = {v: float(model.floor_ratio(force_n, DYNAMICS_LIMIT_UM_PP / scale_at(v)))
+                  for v in DYNAMICS_SPEEDS_MM_S}
         result["dynamics"] = {
             **dynamics.parameters(),
             "words": dynamics.describe(),
             "recovery_s_at_mm_s": {f"{v:g}": float(dynamics.recovery_at_s(v)) for v in DYNAMICS_SPEEDS_MM_S},
-            "grating_1mm": [{"speed_mm_s": v, **_kept(contrast_transfer(dynamics, 1.0, v, floor))}
-                            for v in DYNAMICS_SPEEDS_MM_S],
+            "grating_1mm": [{"speed_mm_s": v, "floor_at_limit": floors[v],
+                             **_kept(contrast_transfer(dynamics, 1.0, v, floors[v]))} for v in DYNAMICS_SPEEDS_MM_S],
             "floor_at_limit": floor,
             "limit_um_pp": DYNAMICS_LIMIT_UM_PP,
         }
     result["curve"] = [[float(a), round(float(r), 6)] for a, r in zip(amplitude, curve, strict=True)]
     if ratio is not None:
-        inversion = model.amplitude_um_pp(ratio, force_n)
+        ceiling = model.max_amplitude_um_pp  # the model's own range of amplitudes, at the speed asked
+        inversion = scaled_inverse(model, ratio, force_n, ceiling, scale)
         result["ratio"] = ratio
         result["amplitude_for_ratio_um_pp"] = float(inversion.amplitude_um_pp)
         result["ratio_reachable"] = inversion.clamped == 0
-        result["lowest_reachable_ratio"] = float(model.floor_ratio(force_n))
+        result["lowest_reachable_ratio"] = float(model.floor_ratio(force_n, ceiling / scale))
     return result
 
 
@@ -149,10 +174,14 @@ def format_text(result: dict) -> str:
     from ultraglide.render.physics.friction_models import CEILING_UM_PP
 
     low, high = result["valid_force_range_n"]
+    speed = f" sliding at {result['speed_mm_s']:g} mm/s" if "speed_mm_s" in result else ""
     lines = [
-        f"Finger at {result['force_n']:g} N  (model: {result['model']})",
+        f"Finger at {result['force_n']:g} N{speed}  (model: {result['model']})",
         f"  force law: {result['force_law']}; holds on {low:.3g}-{high:.3g} N",
     ]
+    if speed:
+        lines.append(f"  speed law: {result['speed_law']}; at {result['speed_mm_s']:g} mm/s a ratio needs "
+                     f"{result['amplitude_scale']:.3g} x the amplitude it needs at the reference")
     if "contact_area_mm2" in result:
         lines += [
             f"  contact area          {result['contact_area_mm2']:10.2f} mm²      eq. (3), at most a fingertip's",
@@ -175,6 +204,9 @@ def format_text(result: dict) -> str:
         lines += ["", f"  friction in time: {d['words']}",
                   f"  a 1 mm grating (1 down to {d['floor_at_limit']:.2f}, the floor within {d['limit_um_pp']:g} µm), "
                   f"felt contrast and RMS error (ours):"]
+        if len({g["floor_at_limit"] for g in d["grating_1mm"]}) > 1:
+            lines.append("    (the floor rises with speed: " + ", ".join(
+                f"{g['floor_at_limit']:.2f} at {g['speed_mm_s']:g} mm/s" for g in d["grating_1mm"]) + ")")
         lines += [f"    {g['speed_mm_s']:5g} mm/s: instantaneous {100 * g['contrast_instantaneous']:3.0f} % "
                   f"(error {g['rms_instantaneous']:.3f}), planned {100 * g['contrast_planned']:3.0f} % "
                   f"(error {g['rms_planned']:.3f})" for g in d["grating_1mm"]]
@@ -212,7 +244,7 @@ def run(args) -> int:
     if args.preload_n and params is not None and not args.preload_n < params.static_friction * force:
         raise UsageError(f"--preload-n {args.preload_n:g} N is gross slip already at {force:g} N: it must be below "
                          f"mu_s F = {params.static_friction * force:g} N")
-    result = summary(force, model, args.ratio, args.preload_n, args.carrier_hz)
+    result = summary(force, model, args.ratio, args.preload_n, args.carrier_hz, args.speed_mm_s)
     if args.plots:
         from ultraglide.apps.figures.paper import write_paper_figures
 
@@ -229,6 +261,13 @@ def run(args) -> int:
                                             args.figure_width)[0])
             written.append(contrast_figure(Path(args.plots) / "contrast-transfer.png", model.dynamics, floor,
                                            args.figure_width)[0])
+        from ultraglide.render.physics.speed_law import speed_law_of
+
+        if speed_law_of(model) is not None:
+            from ultraglide.apps.figures.speed_law import speed_figure
+
+            written += speed_figure(Path(args.plots) / "speed-law.png", model, force, DYNAMICS_LIMIT_UM_PP,
+                                    args.figure_width)[:1]
         result["plots"] = [str(path) for path in written]
     if args.report:
         from ultraglide.apps.figures.model_report import write_report

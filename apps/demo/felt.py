@@ -46,9 +46,10 @@ class FeltContrast:
         self._lock = threading.Lock()
         self._table: dict[tuple[int, str], list[tuple[float, float, float]] | None] = {}
 
-    def request(self, texture, model_name: str, model, floor: float) -> None:
+    def request(self, texture, model_name: str, model, floor) -> None:
         """Work out the figures for ``texture`` under ``model`` (one with ``dynamics``) unless done or under way.
-        ``floor``: the lowest friction ratio the plate reaches (the model at the plate's limit)."""
+        ``floor``: the lowest friction ratio the plate reaches (the model at the plate's limit), one for every
+        speed or, under a speed law, a mapping from each of :data:`SPEEDS_MM_S` to the floor at that speed."""
         key = (id(texture), model_name)
         with self._lock:
             if key in self._table:
@@ -64,7 +65,8 @@ class FeltContrast:
         key = (id(texture), model_name)
         rows = []
         for speed in SPEEDS_MM_S:
-            kept = swipe_contrast(texture, dynamics, speed, floor, longest_s=0.5)
+            kept = swipe_contrast(texture, dynamics, speed, floor[speed] if isinstance(floor, dict) else floor,
+                                  longest_s=0.5)
             rows.append((speed, kept.planned, kept.instantaneous))
         with self._lock:
             self._table[key] = rows
@@ -94,7 +96,13 @@ def felt_part_words(app, now_s: float) -> tuple[str, str] | None:
     if model is None or texture is None or getattr(texture, "kind", "") != "friction" \
             or texture.cols * texture.rows > MAX_PIXELS:
         return None
-    floor = float(model.relative_friction(np.array([app.link.profile.max_amplitude_um_pp]), app.force_n)[0])
+    limit = app.link.profile.max_amplitude_um_pp
+    law = getattr(model, "speed_law", None)  # under a settled speed law the floor rises with speed
+    if law is None or law.exponent == 0.0:
+        floor = float(model.relative_friction(np.array([limit]), app.force_n)[0])
+    else:
+        floor = {speed: float(model.relative_friction(np.array([limit / law.one_scale(speed)]), app.force_n)[0])
+                 for speed in SPEEDS_MM_S}
     app.felt.request(texture, app.link.model_name, model, floor)
     speed = finger_speed_mm_s(app.driver.trace, app.mm_per_px, now_s)
     kept = app.felt.at(texture, app.link.model_name, speed) if speed is not None else None

@@ -1,0 +1,44 @@
+"""The settled speed law on the command line: ``--model speed:S:NAME`` and ``model --speed-mm-s``."""
+
+import json
+
+import pytest
+from conftest import assert_one_line_error, run_cli
+from ultraglide.render.physics.friction_models import StretchedExponentialModel
+
+STATIC = StretchedExponentialModel()
+
+
+def test_model_prints_the_curve_and_the_amplitude_for_a_ratio_at_a_speed():
+    data = json.loads(run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "88", "--ratio", "0.5",
+                              "--json", check=True).stdout)
+    assert data["speed_mm_s"] == 88.0 and data["amplitude_scale"] == 2.0
+    assert "(assumed, ours)" in data["model"] and "(assumed, ours)" in data["speed_law"]
+    for amplitude, ratio in data["curve"]:
+        assert ratio == pytest.approx(float(STATIC.relative_friction(amplitude / 2.0, 0.5)), abs=1e-6)
+    at_reference = float(STATIC.amplitude_um_pp(0.5, 0.5).amplitude_um_pp)
+    assert data["amplitude_for_ratio_um_pp"] == pytest.approx(2.0 * at_reference, rel=1e-9)
+    text = run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "88", check=True).stdout
+    assert "sliding at 88 mm/s" in text and "needs 2 x the amplitude" in text
+
+
+def test_a_model_without_a_law_gives_the_same_curve_at_any_speed():
+    plain = json.loads(run_cli("model", "--model", "stretched", "--json", check=True).stdout)
+    fast = json.loads(run_cli("model", "--model", "stretched", "--speed-mm-s", "500", "--json", check=True).stdout)
+    assert fast["curve"] == plain["curve"] and fast["speed_law"].startswith("no dependence")
+
+
+@pytest.mark.parametrize("args, words", [(("--model", "speed:1.5:stretched"), "must lie in 0-1"),
+                                         (("--model", "speed:x:stretched"), "is not a number"),
+                                         (("--speed-mm-s", "-3"), "--speed-mm-s"),
+                                         (("--speed-mm-s", "9000"), "--speed-mm-s")])
+def test_a_bad_speed_law_or_speed_is_one_line_and_exit_2(args, words):
+    result = run_cli("model", *args)
+    assert result.returncode == 2 and result.stdout == ""
+    assert words in assert_one_line_error(result)
+
+
+def test_export_refuses_a_bad_speed_law_before_it_writes_anything(tmp_path):
+    result = run_cli("export", "grating-1mm", "--model", "speed:2:stretched", "-o", tmp_path / "out.wav")
+    assert result.returncode == 2 and not (tmp_path / "out.wav").exists()
+    assert "speed exponent" in assert_one_line_error(result)
