@@ -451,8 +451,7 @@ class Renderer:
         self.effects = self._player(texture)
         self.planner: Planner | None = None  # set for a model with friction dynamics (settings.plan)
         self._plan_buffers(model)
-        self._speed_law = speed_law_of(model)  # the settled reduction's speed law (None: no dependence)
-        self.speed_scale = 1.0  # its amplitude scale at the last block's finger speed (1: none, or at v_ref)
+        self.speed_scale = 1.0  # the settled speed law's amplitude scale at the last block's finger speed (1: none)
 
     def _plan_buffers(self, model: FrictionModel) -> None:
         """A planner and its buffers for a model with friction dynamics (built outside any real-time block)."""
@@ -673,9 +672,6 @@ class Renderer:
             self._plan_buffers(model)
         else:
             self.planner = None
-        self._speed_law = speed_law_of(model)
-        if self._speed_law is None:
-            self.speed_scale = 1.0
         self.model = model
 
     def set_default_force(self, force_n: float) -> None:
@@ -859,7 +855,9 @@ class Renderer:
         down = finger.down & self._running & (not self.paused)  # a bool for a live finger, else one per sample
         planner = self.planner
         asked = ratio
-        law = self._speed_law
+        law = speed_law_of(self.model)  # read each block: a closed loop's host model may change under it
+        if law is None:
+            self.speed_scale = 1.0
         if planner is not None or law is not None:
             speed, one_step, heading = self._speed(finger, step, direction, n)
             # the settled reduction's speed law: the amplitude a ratio needs at this block's speed over the
