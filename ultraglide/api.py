@@ -174,7 +174,8 @@ class Renderer(_Renderer):
         ``width_mm`` (see :func:`ultraglide.textures.library.as_texture`).
     model : FrictionModel or str
         A friction model or its name: ``stretched`` (the default, force-aware), ``squeeze-film``,
-        ``exponential``, ``paper``, ``table:FILE.csv``, ``CAL.toml``.
+        ``exponential``, ``paper``, ``table:FILE.csv``, ``CAL.toml``, ``dynamic[:NAME]``, ``speed:S:NAME`` (the
+        reduction weakening with sliding speed, an assumed law: rendered at the finger's speed, block by block).
     profile : PlateProfile or str
         The plate's profile or its bundled name or file (default ``sim-plate``).
     settings : RenderSettings
