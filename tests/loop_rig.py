@@ -26,6 +26,7 @@ from ultraglide.devices.sim.finger import FingerParams, ForceScript, SimulatedFi
 from ultraglide.devices.sim.finger_log import FingerLog
 from ultraglide.devices.sim.force_sensors import ForceSensorParams
 from ultraglide.render.engine.friction_loop import FrictionLoop, LoopSettings
+from ultraglide.render.physics.speed_law import scaled_inverse
 
 FS = 48000
 CONTROL_HZ = 12000
@@ -60,7 +61,7 @@ class LoopRig:
                  sensors: ForceSensorParams | None = None, closed: bool = True, settings: LoopSettings | None = None,
                  limit_um_pp: float = 6.0, panel_force_n: float = 0.5, buffer_s: float = 0.010,
                  plate_tau_s: float = 0.0011, link_s: float = 0.002, panel_speed_mm_s: float | None = 100.0,
-                 precompensate_s: float = 0.0, dynamics=None):
+                 precompensate_s: float = 0.0, dynamics=None, speed_law=None):
         self.now = 0.0
         self.model = host_model
         self.loop = FrictionLoop(host_model, CONTROL_HZ, 1000.0, settings, clock=lambda: self.now) if closed else None
@@ -68,7 +69,11 @@ class LoopRig:
             self.loop.panel_speed_mm_s = panel_speed_mm_s
         self.log = FingerLog(None, rate_hz=2000.0, clock_origin_s=0.0)
         self.finger = SimulatedFinger(finger_law, script or ForceScript.constant(0.5), params or FingerParams(),
-                                      sensors or ForceSensorParams(), log=self.log, dynamics=dynamics)
+                                      sensors or ForceSensorParams(), log=self.log, dynamics=dynamics,
+                                      speed_law=speed_law)
+        # a host model with a settled speed law: its inverse scaled at the panel's speed, as the renderer does
+        law = getattr(host_model, "speed_law", None)
+        self.speed_scale = law.one_scale(panel_speed_mm_s) if law is not None and panel_speed_mm_s else 1.0
         self.limit = limit_um_pp
         self.panel_force_n = panel_force_n
         self.delay_ms = int(round(buffer_s * 1000))
@@ -103,7 +108,8 @@ class LoopRig:
             t_play = np.concatenate([(at + self.delay_ms) / 1000.0 + within for at in range(ms, ms + count)])
             ratio = np.asarray(target(t_play), dtype=float)
             inverse = self.loop.inverse if self.loop is not None else self.model
-            amplitude = inverse.amplitude_um_pp(ratio, self.panel_force_n, self.limit).amplitude_um_pp.copy()
+            amplitude = scaled_inverse(inverse, ratio, self.panel_force_n, self.limit,
+                                       self.speed_scale).amplitude_um_pp.copy()
             if self.beta:  # drive the inverse of the lag the host expects, within [0, limit]
                 beta, modelled, limit, driven = self.beta, self.modelled, self.limit, []
                 for y in amplitude.tolist():

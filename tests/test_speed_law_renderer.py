@@ -141,3 +141,26 @@ def test_the_estimator_fits_the_finger_through_the_speed_law_at_the_panels_speed
     assert found["law"][0] == pytest.approx(finger_scale, rel=0.02)
     assert found["none"][0] == pytest.approx(2.0 * finger_scale, rel=0.02)
     assert found["law"][1] == pytest.approx(mu0, rel=0.02)
+
+
+def test_the_closed_loop_on_a_finger_with_the_law_identifies_the_finger_and_follows_it():
+    """The friction loop around the simulated finger (tests/loop_rig.py) carrying the law s = 0.5 at 88 mm/s (k = 2),
+    a host with the same law: the estimator finds the finger's own amplitude scale (0.8), not the speed's doubling,
+    and the finger's true friction follows a slow grating, as closely as open loop with the finger's scale known."""
+    from loop_rig import LoopRig
+    from ultraglide.devices.sim.finger import FingerParams, FingerSpeedLaw, ForceScript
+
+    finger_scale = 0.8
+
+    def run(host, law):
+        rig = LoopRig(host, lambda a, f: STATIC.relative_friction(a / finger_scale, f),
+                      ForceScript.constant(0.5, 88.0), FingerParams(mu0=0.8, drift=0.0, moisture=0.0),
+                      panel_speed_mm_s=88.0, speed_law=law)
+        # 0.5-0.9: reachable at 88 mm/s (the finger's floor within 6 µm there is 0.43)
+        return rig, rig.run(lambda t: 0.7 + 0.2 * np.cos(2 * math.pi * 2.0 * t), 6.0).rms_error(3.0)
+
+    rig, error = run(SpeedLawModel(STATIC, SpeedLaw(0.5)), FingerSpeedLaw(0.5))
+    assert rig.speed_scale == 2.0
+    assert rig.loop.estimator.scale == pytest.approx(finger_scale, rel=0.05)
+    _, without = run(STATIC, None)  # the same finger and loop with no speed law anywhere
+    assert error < without + 0.005
