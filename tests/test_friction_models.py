@@ -437,7 +437,8 @@ def test_the_stretched_models_parameters_are_refused_outside_their_ranges_in_wor
         assert StretchedExponentialModel(force_exponent=exponent).force_exponent == exponent
     refusals = {"force_exponent": (2.01, "force_exponent must lie in [-2, 2], got 2.01"),
                 "shape": (9.0, "shape must lie in [0.3, 8], got 9.0"),
-                "scale_um_pp": (200.0, "scale_um_pp must lie in [0.05, 100] µm p-p, got 200.0")}
+                "scale_um_pp": (200.0, "scale_um_pp must lie in [0.05, 100] µm p-p, got 200.0"),
+                "residual_ratio": (0.95, "residual_ratio must lie in [0, 0.9], got 0.95")}
     for name, (value, message) in refusals.items():
         with pytest.raises(ModelError) as error:
             StretchedExponentialModel(**{name: value})

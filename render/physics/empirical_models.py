@@ -38,9 +38,9 @@ def _in_range(name: str, value: float, allowed: tuple[float, float], unit: str =
 
 RESIDUAL_RANGE = (0.0, 0.9)  # a floor of friction vibration does not remove, as a share of friction at rest
 # The default model's floor: the mean ratio measured at full amplitude, 6 µm p-p at 29 kHz, across people (0.02-0.30
-# from one person to another): Wiertlewski, Fenton Friesen and Colgate (PNAS 2016); see sources.FIGURES "floor_mean".
+# from one person to another): Wiertlewski, Fenton Friesen and Colgate (PNAS 2016); see sources.FIGURES "floor_mean"
+# and "floor_range".
 MEASURED_FLOOR = 0.10
-MEASURED_FLOOR_RANGE = (0.02, 0.30)
 ASSUMED_FORCE_EXPONENT = 1.0 / 3.0  # W_c ∝ F^(1/3): eq. (6) with eq. (3)'s A ∝ F^(2/3)
 
 
