@@ -80,8 +80,8 @@ def test_a_client_may_send_its_burst_then_the_rate():
 
     from ultraglide.apps.service.server import RATE_BURST, RATE_PER_S, Session
 
+    started = time.perf_counter()
     session = Session(connection=None, number=1)
-    started = time.monotonic()
-    allowed = sum(session.allow() for _ in range(int(RATE_BURST) + 3000))
-    elapsed = time.monotonic() - started
+    allowed = sum(session.allow(time.perf_counter()) for _ in range(int(RATE_BURST) + 3000))
+    elapsed = time.perf_counter() - started
     assert RATE_BURST <= allowed <= RATE_BURST + RATE_PER_S * elapsed + 1

@@ -348,6 +348,7 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
     """The run's summary (words, or JSON with ``--json``) and its exit status: a failure's 1, a lost engine's 7 (its
     words from the supervisor: what happened, when, what made the device safe), else the device's report's."""
     from ultraglide.apps.cli.output import print_json
+    from ultraglide.apps.service.server import RATE_PER_S
     from ultraglide.devices.serial.run_report import RunReport
 
     figures = final.summary() if final is not None else {}
@@ -358,6 +359,7 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
     summary = {"device": figures.get("device"), "blocks": figures.get("blocks"),
                "late_blocks": figures.get("late_blocks"), "underruns": figures.get("underruns"),
                "touches": service.touches, "touches_ignored": service.touches_ignored,
+               "messages": service.messages_read, "rate_refused": service.rate_refusals,
                "faults": device_status.get("fault_counts") or {}, "limiter": device_status.get("limiter", ""),
                "error": failure, "engine_lost": None if loss is None else loss.lines(started)}
     if feed is not None:
@@ -368,6 +370,9 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
         print(f"served on {final.device}: {final.blocks} blocks rendered, {final.late_blocks} late, "
               f"{final.underruns} device underruns; {service.touches} touches from "
               f"{'the touch panel' if feed is not None else 'clients'}")
+        if service.rate_refusals:
+            print(f"{service.rate_refusals} of {service.messages_read} messages refused: their client sent more "
+                  f"than {RATE_PER_S:g} a second")
         if summary["limiter"]:
             print(summary["limiter"])
         for line in report.lines:

@@ -18,6 +18,8 @@ PROTOCOL_VERSION = 1
 MAX_MESSAGE_BYTES = 4 * 1024 * 1024  # the largest message: a PNG of some 3 MB in base64 (the socket refuses more)
 MAX_SMALL_MESSAGE_BYTES = 64 * 1024  # every message but a texture's bytes
 MAX_NAME = 64  # ids of textures, views, sprites, effects' events
+MAX_TOUCH_CHARS = 1024  # a touch as clients write it is shorter (~400 with every field at its longest); a longer
+# message is not parsed for its own time while its client is over its rate as read (server.Session.may_send)
 MAX_DEPTH = 16  # JSON nesting (an effects description nests some 10 levels)
 PHASES = ("down", "move", "up", "cancel")
 ROLES = ("control", "observe")

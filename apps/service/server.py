@@ -155,8 +155,12 @@ class Session:
     role: str | None = None  # None until its hello
     client: str = ""
     clock_offset_s: float | None = None  # our perf_counter minus its clock, the least seen (the quickest delivery)
-    tokens: float = RATE_BURST
-    refilled_s: float = field(default_factory=time.monotonic)
+    tokens: float = RATE_BURST  # the bucket refilled by the client's own pace (Session.allow)
+    read_tokens: float = RATE_BURST  # the bucket refilled by the time its messages are read
+    bucket_s: float = field(default_factory=time.perf_counter)  # the bucket is refilled up to this time (ours)
+    read_s: float = field(default_factory=time.perf_counter)  # when its last message was read
+    client_s: float | None = None  # the last message's own time (its ``t``, its clock), None before one came
+    client_bucket_s: float = 0.0  # bucket_s at that message
     rate_refusals: int = 0
     touch_refusals: int = 0
     status_hz: float = 0.0
@@ -184,14 +188,75 @@ class Session:
             self.clock_offset_s = offset
         return min(client_t + self.clock_offset_s, received_s)
 
-    def allow(self) -> bool:
-        """A token from the bucket, if one is left."""
-        now = time.monotonic()
-        self.tokens = min(RATE_BURST, self.tokens + (now - self.refilled_s) * RATE_PER_S)
-        self.refilled_s = now
-        if self.tokens < 1.0:
+    def may_send(self, received_s: float, short: bool) -> bool:
+        """Whether a message read at ``received_s`` could be given a token (:meth:`allow`) at all: one that could
+        not is refused unparsed, so a flood costs no parsing. ``short``: it could be a touch (whose own time may
+        refill the bucket up to the read time)."""
+        return (self.read_tokens + (received_s - self.read_s) * RATE_PER_S >= 1.0
+                or self.tokens + (received_s - (self.read_s if not short else self.bucket_s)) * RATE_PER_S >= 1.0)
+
+    def allow(self, received_s: float, client_t: float | None = None) -> bool:
+        """A token for a message read at ``received_s`` (``perf_counter`` s), if its client is within its rate.
+
+        Two buckets of :data:`RATE_BURST` tokens, :data:`RATE_PER_S` a second, every message taken spending one
+        of each; a message is refused when both are empty. One is refilled by the time the messages are read
+        (the rate as read). The other by the time that passed *at the client* between them, by its own clock
+        (``client_t``: a touch's ``t``, since its last touch that had one; else the time between reads), never
+        beyond the time they were read and never back: the rate as sent. A steady 1000 touches a second is not
+        refused when the service, late (descheduled, stalled), reads seconds of them in one burst: as read that
+        is a flood, as sent it is not. A flood still is one: the time each bucket is refilled by never passes the
+        read time, so whatever times a client claims, it is given at most :data:`RATE_BURST` and
+        :data:`RATE_PER_S` a second of reading; and a client whose own times are closer than 1/:data:`RATE_PER_S`,
+        or that gives none, is refused past the burst however its messages are read.
+
+        Parameters
+        ----------
+        received_s : float
+            When the message was read, ``perf_counter`` s.
+        client_t : float, optional
+            Its own time (the client's clock, s), if it has one.
+
+        Returns
+        -------
+        bool
+            Whether it may be taken (a token of each bucket spent).
+
+        Examples
+        --------
+        A client connects at 0 s; the service reads nothing of it until 5 s, then 4000 touches it sent 1 ms apart
+        (each stamped with its ``t``): all are taken. 6000 sent 0.3 ms apart (3333 a second), read the same way,
+        are taken while the burst and the 1.8 s they span last, at most 2000 + 1.8 s × 2000 = 5600:
+
+        >>> steady = Session(None, 1, bucket_s=0.0, read_s=0.0)
+        >>> sum(steady.allow(5.0, 1.0 + 0.001 * k) for k in range(4000))
+        4000
+        >>> flood = Session(None, 2, bucket_s=0.0, read_s=0.0)
+        >>> sum(flood.allow(5.0, 1.0 + 0.0003 * k) for k in range(6000))
+        5599
+
+        Times a client claims do not refill it faster than it is read: 6000 touches claiming to be a second
+        apart, all read within 1 ms of its connecting, get the burst and what that millisecond refills:
+
+        >>> liar = Session(None, 3, bucket_s=0.0, read_s=0.0)
+        >>> sum(liar.allow(1e-3 * k / 6000, float(k)) for k in range(6000))
+        2001
+        """
+        self.read_tokens = min(RATE_BURST, self.read_tokens + (received_s - self.read_s) * RATE_PER_S)
+        if client_t is None:
+            sent_s = self.bucket_s + (received_s - self.read_s)  # no time of its own: the pace it is read at
+        elif self.client_s is None:
+            sent_s = self.bucket_s  # its first time: nothing to pace it by yet
+        else:
+            sent_s = self.client_bucket_s + (client_t - self.client_s)  # its own pace since its last time
+        sent_s = min(max(sent_s, self.bucket_s), received_s)
+        self.tokens = min(RATE_BURST, self.tokens + (sent_s - self.bucket_s) * RATE_PER_S)
+        self.bucket_s, self.read_s = sent_s, received_s
+        if client_t is not None:
+            self.client_s, self.client_bucket_s = client_t, sent_s
+        if self.tokens < 1.0 and self.read_tokens < 1.0:
             return False
         self.tokens -= 1.0
+        self.read_tokens -= 1.0
         return True
 
     def send(self, message: dict, push: bool = False) -> None:
@@ -248,6 +313,8 @@ class Service:
         self._scene_push_due = False
         self.touches = 0
         self.touches_ignored = 0
+        self.messages_read = 0  # every client's messages read (taken or refused)
+        self.rate_refusals = 0  # of them, refused by their client's rate
         self.status_reads = 0  # the engine's status read by the publisher (for its subscribers)
         self.publisher_wake = threading.Event()  # a subscription changed: the publisher looks again at once
         self.origins: list = [None]
@@ -382,16 +449,23 @@ class Service:
             self.controller = None
 
     def _receive(self, session: Session, text, received_s: float) -> None:
-        if not session.allow():
+        self.messages_read += 1
+        message = refused = None
+        if session.may_send(received_s, len(text) <= p.MAX_TOUCH_CHARS):  # else refused unread
+            try:
+                message = p.parse(text, self.extra_specs)
+            except p.ProtocolError as error:
+                refused = error
+        client_t = message.fields.get("t") if message is not None and message.type == "touch" else None
+        if not session.allow(received_s, client_t):
             session.rate_refusals += 1
+            self.rate_refusals += 1
             if session.rate_refusals == 1 or session.rate_refusals % 1000 == 0:  # one line, not one per message
                 session.send(p.error_reply(p.RATE, f"more than {RATE_PER_S:g} messages a second: "
                                            f"{session.rate_refusals} refused so far; send fewer"))
             return
-        try:
-            message = p.parse(text, self.extra_specs)
-        except p.ProtocolError as error:
-            session.send(p.error_reply(error.code, str(error), error.request_id))
+        if refused is not None:
+            session.send(p.error_reply(refused.code, str(refused), refused.request_id))
             return
         if session.queue and session.replies_queued >= MAX_QUEUED_REPLIES:
             # it does not read what it is sent: it goes at once, its socket dropped (a closing handshake would
