@@ -1,6 +1,7 @@
-"""The client's short path for a touch (``Client.touch``): its JSON is what the general encoder writes, character
-for character, and its frames are WebSocket frames a real websockets server reads as the messages sent, in order,
-with the general path's refusals and failures."""
+"""The clients' short path for a touch (``Client.touch``, ``AsyncClient.touch``): its JSON is what the general
+encoder writes, character for character, and its frames are WebSocket frames a real websockets server reads as the
+messages sent, in order, with the general path's refusals and failures; the asyncio client's touch is on its way
+when its call returns."""
 
 import asyncio
 import json
@@ -11,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from ultraglide.client import BadMessage, Client, ConnectionFailed, touch_text
+from ultraglide.client import AsyncClient, BadMessage, Client, ConnectionFailed, touch_text
 
 NUMBERS = [0.0, -0.0, 1.0, -1.5, 20.5, 0.1 + 0.2, 1e-7, 1.5e-5, 123456789.125, 1e16, 1.7976931348623157e308,
            5e-324, 2.2250738585072014e-308, 3, 0, -7, 2**53 + 1, 10**30]
@@ -112,7 +113,7 @@ def test_short_and_general_touches_reach_a_websockets_server_as_sent_and_in_orde
                     sent.append({"type": "touch", "x": x, "y": y, "phase": "down" if k == 0 else "move",
                                  "pointer": k % 4, "pressure": 0.25, "t": float(k)})
             plate.state()  # answered: the server has read everything before it
-        received = server.wait_for(len(sent) + 3)
+        received = server.wait_for(len(sent) + 2)
     assert [m["type"] for m in received[:1]] == ["hello"]
     assert received[1:len(sent) + 1] == sent  # every one, in order, as sent
     assert received[len(sent) + 1]["type"] == "state"
@@ -142,5 +143,87 @@ def test_touches_after_the_service_closed_the_connection_raise_connection_failed
                 plate.touch(1.0, 2.0, "move")
                 time.sleep(0.005)
         plate.close()
+        received = server.wait_for(3)
+    assert [m["type"] for m in received[:3]] == ["hello", "touch", "goodbye"]
+
+
+def test_async_short_and_general_touches_reach_a_websockets_server_as_sent_and_in_order():
+    async def swipe(url):
+        async with await AsyncClient.connect(url) as plate:
+            assert plate._frame_parts is not None, "this websockets has what the async short path needs"
+            sent = []
+            for k in range(300):
+                x, y = 0.5 * k + 0.1, 100.0 - k / 3
+                if k % 7 == 3:  # a view or a pointer type: the general path (a task), and the touches behind it
+                    plate.touch(x, y, "move", pointer=k % 4, t=float(k), view="main", pointer_type="pen")
+                    sent.append({"type": "touch", "x": x, "y": y, "phase": "move", "pointer": k % 4, "view": "main",
+                                 "t": float(k), "pointer_type": "pen"})
+                else:
+                    plate.touch(x, y, "down" if k == 0 else "move", pointer=k % 4, t=float(k), pressure=0.25)
+                    sent.append({"type": "touch", "x": x, "y": y, "phase": "down" if k == 0 else "move",
+                                 "pointer": k % 4, "pressure": 0.25, "t": float(k)})
+                if k % 5 == 0:
+                    await asyncio.sleep(0)  # the loop turns: the general path's tasks run, the short path resumes
+            await plate.state()  # answered: the server has read everything before it
+            return sent
+
+    with Recorder() as server:
+        sent = asyncio.run(swipe(server.url))
+        received = server.wait_for(len(sent) + 2)
+    assert [m["type"] for m in received[:1]] == ["hello"]
+    assert received[1:len(sent) + 1] == sent  # every one, in order, as sent
+    assert received[len(sent) + 1]["type"] == "state"
+    assert server.closes and server.closes[0][0] == 1000, server.closes  # every frame read as valid
+
+
+def test_an_async_short_touch_is_on_its_way_when_the_call_returns_and_one_behind_a_general_one_comes_after_it():
+    """The program's loop held (a blocking wait inside it): a usual touch still reaches the server (written by the
+    call); one with a view (a task, once the loop turns), and a usual one made just after it, arrive in order."""
+    async def touches(server):
+        async with await AsyncClient.connect(server.url) as plate:
+            plate.touch(1.0, 2.0, "down", t=1.0)
+            arrived_while_held = len(server.wait_for(2, timeout_s=30.0))  # (blocks this loop: nothing of it runs)
+            plate.touch(3.0, 4.0, "move", t=2.0, view="main")
+            plate.touch(5.0, 6.0, "move", t=3.0)  # behind a touch not yet written: after it, by the same path
+            await plate.state()
+            return arrived_while_held
+
+    with Recorder() as server:
+        arrived_while_held = asyncio.run(touches(server))
+        received = server.wait_for(5)
+    assert arrived_while_held == 2
+    assert [(m["type"], m.get("x")) for m in received] == [("hello", None), ("touch", 1.0), ("touch", 3.0),
+                                                           ("touch", 5.0), ("state", None)]
+    assert received[2]["view"] == "main" and "view" not in received[3]
+
+
+def test_an_async_touch_that_is_not_finite_is_refused_and_nothing_of_it_is_sent():
+    async def touches(url):
+        async with await AsyncClient.connect(url) as plate:
+            with pytest.raises(BadMessage, match="finite"):
+                plate.touch(math.nan, 1.0)
+            plate.touch(1.0, 2.0, t=5.0)
+            await plate.state()
+
+    with Recorder() as server:
+        asyncio.run(touches(server.url))
+        received = server.wait_for(3)
+    assert [m["type"] for m in received] == ["hello", "touch", "state"] and received[1]["x"] == 1.0
+
+
+def test_async_touches_after_the_service_closed_the_connection_raise_connection_failed():
+    async def touches(url):
+        plate = await AsyncClient.connect(url)
+        plate.touch(1.0, 2.0, "down")
+        await plate._send({"type": "goodbye"})  # the server closes the connection when it reads this
+        deadline = time.monotonic() + 30.0
+        with pytest.raises(ConnectionFailed, match="lost"):
+            while time.monotonic() < deadline:
+                plate.touch(1.0, 2.0, "move")
+                await asyncio.sleep(0.005)
+        await plate.close()
+
+    with Recorder() as server:
+        asyncio.run(touches(server.url))
         received = server.wait_for(3)
     assert [m["type"] for m in received[:3]] == ["hello", "touch", "goodbye"]

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import base64
 import collections
+import contextlib
 import itertools
 import json
 import os
@@ -528,9 +529,8 @@ class _Messages:
         return self._request("state")
 
 
-def _frame_parts(ws) -> tuple | None:
-    """What :meth:`Client._write_text` needs of a websockets connection (its masking function, its OPEN state, its
-    lock), or None where this version of websockets has not the same (the general path then)."""
+def _masking():
+    """websockets' masking function and its OPEN state, or None where this version of websockets has not the same."""
     try:
         from websockets.protocol import OPEN
         try:
@@ -539,13 +539,52 @@ def _frame_parts(ws) -> tuple | None:
             from websockets.utils import apply_mask
     except ImportError:
         return None
+    return apply_mask, OPEN
+
+
+def _frame_parts(ws) -> tuple | None:
+    """What :meth:`Client._write_text` needs of a websockets connection (its masking function, its OPEN state, its
+    lock), or None where this version of websockets has not the same (the general path then)."""
+    masking = _masking()
     mutex = getattr(ws, "protocol_mutex", None)
-    if mutex is None or not all(hasattr(ws, name) for name in ("protocol", "socket", "send_in_progress")):
+    if masking is None or mutex is None or not all(hasattr(ws, name)
+                                                   for name in ("protocol", "socket", "send_in_progress")):
         return None
-    return apply_mask, OPEN, mutex
+    return (*masking, mutex)
 
 
-class Client(_Messages):
+def _async_frame_parts(ws) -> tuple | None:
+    """What :meth:`AsyncClient._write_text` needs of a websockets asyncio connection (its masking function, its
+    OPEN state), or None where this version of websockets has not the same (its ``protocol``, ``transport``,
+    ``send_in_progress`` and flow control's ``paused``: the general path then)."""
+    masking = _masking()
+    if masking is None or not all(hasattr(ws, name) for name in ("protocol", "transport", "send_in_progress",
+                                                                  "paused")):
+        return None
+    return masking
+
+
+class _Frames:
+    """A client's own WebSocket frames for short texts (the short path of a touch)."""
+
+    _masks = b""
+    _mask_at = 0
+
+    def _frame(self, text: str, apply_mask) -> bytes | None:
+        """``text`` as one masked text frame (RFC 6455 5.2: a client's frames are masked, each with 4 bytes of its
+        own from the OS's random source); None if it is longer than 125 bytes (its length takes more header bytes:
+        the general path then)."""
+        payload = text.encode()
+        if len(payload) > 125:
+            return None
+        if self._mask_at + 4 > len(self._masks):
+            self._masks, self._mask_at = os.urandom(4096), 0
+        mask = self._masks[self._mask_at:self._mask_at + 4]
+        self._mask_at += 4
+        return bytes((0x81, 0x80 | len(payload))) + mask + apply_mask(payload, mask)  # FIN, text; masked, length
+
+
+class Client(_Frames, _Messages):
     """A connection to ``ultraglide serve`` (see the module docstring). ``url``: ``ws://HOST:PORT/ws[?token=...]``
     as the server printed, or ``ws+unix:PATH``; ``role``: ``control`` (one client at a time) or ``observe``.
     Use from one thread; pushes arrive in :meth:`events`.
@@ -635,7 +674,6 @@ class Client(_Messages):
         except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
             raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
         self._frame_parts = _frame_parts(self._ws)
-        self._masks, self._mask_at = b"", 0
         try:
             self.welcome = self._request("hello", protocol=PROTOCOL_VERSION, role=role, client=name)
         except BaseException:
@@ -729,18 +767,13 @@ class Client(_Messages):
                           force_n=force_n, t=t, pointer_type=pointer_type)
 
     def _write_text(self, text: str) -> bool:
-        """``text`` as one masked text frame (RFC 6455 5.2: a client's frames are masked, each with 4 bytes of its
-        own from the OS's random source), written onto the socket under the connection's lock, as websockets
-        writes its own; False (nothing written) if the connection is not open or the message is long."""
+        """``text`` as one masked text frame (:meth:`_frame`), written onto the socket under the connection's lock,
+        as websockets writes its own; False (nothing written) if the connection is not open or the message is
+        long."""
         apply_mask, open_state, mutex = self._frame_parts
-        payload = text.encode()
-        if len(payload) > 125:  # a longer length takes more header bytes: the general path
+        frame = self._frame(text, apply_mask)
+        if frame is None:
             return False
-        if self._mask_at + 4 > len(self._masks):
-            self._masks, self._mask_at = os.urandom(4096), 0
-        mask = self._masks[self._mask_at:self._mask_at + 4]
-        self._mask_at += 4
-        frame = bytes((0x81, 0x80 | len(payload))) + mask + apply_mask(payload, mask)  # FIN, text; masked, length
         ws = self._ws
         with mutex:
             if ws.protocol.state is not open_state or ws.send_in_progress:
@@ -936,7 +969,7 @@ class Client(_Messages):
         self.close()
 
 
-class AsyncClient(_Messages):
+class AsyncClient(_Frames, _Messages):
     """:class:`Client` for asyncio: ``client = await AsyncClient.connect(url)``; every call is awaited but
     :meth:`touch`, which sends at once and returns None. Pushes come through :meth:`next_event`.
 
@@ -980,6 +1013,9 @@ class AsyncClient(_Messages):
         self._reader = None
         self.welcome: dict = {}
         self.timeout_s = DEFAULT_TIMEOUT_S
+        self._frame_parts = None  # (the short path's: _async_frame_parts)
+        self._posting = 0  # messages handed to a task of the general path and not yet written
+        self._last_post = None  # the last of those tasks
 
     @classmethod
     async def connect(cls, url: str, *, role: str = "control", name: str = "python-asyncio",
@@ -1051,6 +1087,7 @@ class AsyncClient(_Messages):
                                          proxy=None)
         except (OSError, InvalidHandshake, InvalidURI, TimeoutError) as error:
             raise ConnectionFailed(f"cannot connect to {url}: {error}") from None
+        self._frame_parts = _async_frame_parts(self._ws)
         self._reader = asyncio.ensure_future(self._read())
         try:
             self.welcome = await self._request("hello", protocol=PROTOCOL_VERSION, role=role, client=name)
@@ -1085,12 +1122,115 @@ class AsyncClient(_Messages):
             with __import__("contextlib").suppress(asyncio.QueueFull):
                 self._events.put_nowait(None)
 
+    def touch(self, x: float, y: float, phase: str = "move", *, pointer: int = 0, view: str | None = None,
+              pressure: float | None = None, force_n: float | None = None, t: float | None = None,
+              pointer_type: str | None = None) -> None:
+        """A pointer event, on its way when the call returns (not awaited, not answered: a refusal comes later,
+        in :attr:`errors`).
+
+        The usual event (plain numbers, no ``view`` or ``pointer_type``) takes a short path, as
+        :meth:`Client.touch`'s: its JSON written by :func:`touch_text` and its WebSocket frame by this client,
+        straight into the connection's transport. Anything else, a connection that is not open or whose writes
+        are held back (its transport's buffer full: websockets' flow control), or a touch behind one still
+        waiting on those, takes the general path: a task that sends it with websockets' ``send``, in order. (A
+        request not yet awaited is not yet sent: a touch made after it goes first.)
+
+        Parameters
+        ----------
+        x, y : float
+            Where, in the view's units.
+        phase : {"down", "move", "up", "cancel"}
+            The pointer's phase.
+        pointer : int
+            The pointer's id (several may be down at once).
+        view : str, optional
+            The view (default: the one the engine renders).
+        pressure : float, optional
+            The pointer's pressure, 0-1.
+        force_n : float, optional
+            The finger's force, N.
+        t : float, optional
+            When it happened, this program's ``time.perf_counter()`` s (default: now).
+        pointer_type : str, optional
+            ``touch``, ``pen`` or ``mouse``.
+
+        Raises
+        ------
+        BadMessage
+            A number that is not finite (nothing is sent).
+        ConnectionFailed
+            The connection has ended.
+
+        Examples
+        --------
+        A service in this process, in the program's own event loop, as ``ultraglide serve --device null --unix PATH``
+        runs one (see :class:`AsyncClient`):
+
+        >>> import asyncio, pathlib, tempfile
+        >>> from websockets.asyncio.server import unix_serve
+        >>> from ultraglide.apps.service.server import Service
+        >>> from ultraglide.devices.profiles import load_profile
+        >>> from ultraglide.render.engine import Engine, EngineConfig
+        >>> folder = tempfile.TemporaryDirectory(); socket_path = str(pathlib.Path(folder.name) / "plate.sock")
+        >>> service = Service(None, load_profile("sim-plate"))
+        >>> service.engine = Engine.start(EngineConfig(texture=service.first_texture(), device="null",
+        ...                                            realtime_priority=False))
+
+        A swipe in the view's units (mm here), then a request, answered once every message before it is taken:
+
+        >>> async def swipe():
+        ...     async with unix_serve(service.handle, socket_path):
+        ...         async with await AsyncClient.connect("ws+unix:" + socket_path) as plate:
+        ...             plate.touch(40, 50, "down"); plate.touch(60, 50, "move", pressure=0.5)
+        ...             plate.touch(60, 50, "up")
+        ...             await plate.state()
+        >>> asyncio.run(swipe())
+        >>> service.touches                                    # the three rendered, in their order
+        3
+        >>> service.worker.shutdown(); _ = service.engine.stop(); folder.cleanup()
+        """
+        if t is None:
+            t = time.perf_counter()
+        if view is None and pointer_type is None and self._frame_parts is not None and not self._posting:
+            text = touch_text(x, y, phase, pointer, t, pressure, force_n)
+            if text is not None and self._write_text(text):
+                return None
+        return self._post("touch", x=x, y=y, phase=phase, pointer=pointer, view=view, pressure=pressure,
+                          force_n=force_n, t=t, pointer_type=pointer_type)
+
+    def _write_text(self, text: str) -> bool:
+        """``text`` as one masked text frame (:meth:`_frame`), written into the connection's transport, as
+        websockets writes its own (the loop is this thread: nothing of websockets' runs in between); False
+        (nothing written) if the connection is not open, a fragmented message is being sent, its writes are held
+        back (flow control), or the message is long."""
+        apply_mask, open_state = self._frame_parts
+        ws = self._ws
+        if ws.protocol.state is not open_state or ws.send_in_progress is not None or ws.paused \
+                or ws.transport.is_closing():
+            return False
+        frame = self._frame(text, apply_mask)
+        if frame is None:
+            return False
+        ws.transport.write(frame)
+        return True
+
     def _post(self, kind: str, **fields) -> None:
         import asyncio
 
         message = {"type": kind, **_clean(**fields)}
         _encoded(message)  # refused here, not in a task nobody awaits
-        asyncio.ensure_future(self._send(message))
+        if self._reader is not None and self._reader.done():
+            raise ConnectionFailed("the connection to the service was lost")
+        self._posting += 1
+        self._last_post = asyncio.ensure_future(self._send(message))
+        self._last_post.add_done_callback(self._posted)
+
+    def _posted(self, task) -> None:
+        """A message of :meth:`_post` written (or not: the connection ended, which the reader learns and the next
+        call says)."""
+        self._posting -= 1
+        if not task.cancelled():
+            task.exception()  # retrieved: a send that failed is the connection's end, not an error left unseen
 
     async def _send(self, message: dict) -> None:
         from websockets.exceptions import ConnectionClosed
@@ -1107,6 +1247,10 @@ class AsyncClient(_Messages):
         request_id = next(self._ids)
         future = asyncio.get_running_loop().create_future()
         self._waiting[request_id] = future
+        last = self._last_post
+        if self._posting and not last.done():  # touches made before it and handed to tasks go first: once the last
+            with contextlib.suppress(Exception):  # has been sent, every one before it has been written
+                await asyncio.shield(last)
         await self._send({"type": kind, "id": request_id, **_clean(**fields)})
         try:
             message = await asyncio.wait_for(future, self.timeout_s)
