@@ -1,7 +1,7 @@
 """What ``ultraglide serve`` adds to the engine's touch-to-output latency, and what 1000 pointer events a second do.
 
 Run: .venv/bin/python bench/bench_service.py [--touches 300] [--rounds 2] [--soak-s 60] [--browser] [--unix]
-[--loop-slice-ms 0.1] [--no-short-path] [--client-general] [--pace spin|sleep]
+[--loop-slice-ms 0.1] [--no-short-path] [--client-general] [--client sync|async] [--pace spin|sleep]
 
 One engine (on the simulated plate, as ``serve`` starts it) and the service in this process, its loop set up as
 ``serve``'s (:func:`apps.commands.serve._loop_in_real_time`: the loop thread's priority; the interpreter's switch
@@ -17,7 +17,9 @@ socket, subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not
   bare asyncio protocol on the service's own loop (no WebSocket, no service): the client's send to the loop's read,
   what two Python processes do on this machine for one small message; and the service's same hop beside it.
 * **soak**: 1000 pointer events a second for ``--soak-s`` seconds, first put into the engine directly, then sent by
-  the client: the engine's late blocks in each (none beyond the engine's own), and this process's memory.
+  the client: the engine's late blocks in each (none beyond the engine's own), this process's memory, and where
+  every touch the client sent went: sent late (its own lateness), lost on the socket, refused over the rate, taken
+  and not rendered, reached the engine, dropped by its ring, unaccounted for; and how late the service read them.
 * ``--unix``: the client and the floor through a Unix socket (``serve --unix``) instead of TCP on loopback.
 * ``--loop-slice-ms``: the loop thread's time slice (serve's, :data:`apps.commands.serve.LOOP_SLICE_S`; 0: the
   kernel's default), for a before/after.
@@ -25,6 +27,8 @@ socket, subscribed to the status at 2 Hz as the page is (``--no-subscribe``: not
   (:func:`apps.service.server.short_path_connection`: a message handled as websockets reads it), for a before/after.
 * ``--client-general``: the client's touches through its general path (``json.dumps``, websockets' ``send``), not
   its short one (:func:`ultraglide.client.touch_text` and its own frame), for a before/after.
+* ``--client async``: the client is :class:`ultraglide.client.AsyncClient` (its touch not awaited), in the rounds
+  and the soak; with ``--client-general``, its touches through websockets' ``send`` in a task each.
 * ``--pace``: how each client waits for its next touch: ``spin`` (the default: short sleeps, then a busy wait) or
   ``sleep`` (one sleep, as a program woken by its input).
 * The client's refusals by the service (the rate, ...), when there are any, are printed as they came.
@@ -55,6 +59,18 @@ def wait_until(due, pace):
             time.sleep(0.0002)
 """
 
+REPORT = r"""
+refused = {}
+for error in errors:  # the service's refusals of unanswered messages (rate, ...): how many lines, the last said of each
+    count_of, _ = refused.get(error.code, (0, ""))
+    refused[error.code] = (count_of + 1, str(error))
+late = [t - (start + k / rate) for k, (t, _) in enumerate(sent)]  # how late each touch was sent, s
+print(json.dumps({"sent": sent, "waited_ns": ran[1], "runs": ran[2], "refused": refused, "messages": messages + count
+                  + 1, "late_max_s": max(late), "late_over_10ms": sum(v > 0.01 for v in late)}))
+# its thread's wait for a CPU and its runs (the kernel's), what the service refused, the messages it sent (touches, the
+# lift, its hello, subscription and last request), how late it sent its touches
+"""
+
 CLIENT = r"""
 import json, sys, time
 from ultraglide.client import Client
@@ -63,10 +79,12 @@ general = sys.argv[6] == "general"
 """ + PACE + r"""
 sent = []
 with Client(url) as plate:
+    messages = 2  # its hello, and its last request
     if general:
         plate._frame_parts = None  # (--client-general) every touch through json.dumps and websockets' send
     if status_hz:
         plate.subscribe(status=status_hz)  # as the page does
+        messages += 1
     schedstat = open("/proc/thread-self/schedstat").read().split()
     start = time.perf_counter()
     for k in range(count):
@@ -77,13 +95,45 @@ with Client(url) as plate:
     ran = [b - a for a, b in zip(map(int, schedstat), map(int, open("/proc/thread-self/schedstat").read().split()))]
     plate.touch(20.0, 50.0, "up")
     plate.state()  # everything sent has arrived
-refused = {}
-for error in plate.errors:  # the service's refusals of unanswered messages (rate, ...): the last said of each code
-    refused[error.code] = str(error)
-print(json.dumps({"sent": sent, "waited_ns": ran[1], "runs": ran[2], "refused": refused}))  # its thread's wait for a
-# CPU and its runs (the kernel's), what the service refused
-"""
+    errors = list(plate.errors)
+""" + REPORT
 
+ASYNC_CLIENT = r"""
+import asyncio, json, sys, time
+from ultraglide.client import AsyncClient
+url, count, rate, status_hz, pace = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), sys.argv[5]
+general = sys.argv[6] == "general"
+
+async def wait_until(due, pace):  # asyncio's timers wake within a millisecond: the last one yields to the loop only
+    if pace == "sleep":
+        await asyncio.sleep(max(0.0, due - time.perf_counter()))
+        return
+    while time.perf_counter() < due:
+        await asyncio.sleep(0.0002 if due - time.perf_counter() > 0.0015 else 0)
+
+async def main():
+    sent = []
+    async with await AsyncClient.connect(url) as plate:
+        messages = 2  # its hello, and its last request
+        if general:
+            plate._frame_parts = None  # (--client-general) every touch through json.dumps and websockets' send
+        if status_hz:
+            await plate.subscribe(status=status_hz)  # as the page does
+            messages += 1
+        schedstat = open("/proc/thread-self/schedstat").read().split()
+        start = time.perf_counter()
+        for k in range(count):
+            await wait_until(start + k / rate, pace)
+            t = time.perf_counter()
+            plate.touch(20.0 + (k % 100) * 0.5, 50.0, "down" if k == 0 else "move", t=t)
+            sent.append((t, time.perf_counter()))  # its time, and when the call returned (on its way or in a task)
+        ran = [b - a for a, b in zip(map(int, schedstat), map(int, open("/proc/thread-self/schedstat").read().split()))]
+        plate.touch(20.0, 50.0, "up")
+        await plate.state()  # everything sent has arrived
+        return sent, ran, start, messages, list(plate.errors)
+
+sent, ran, start, messages, errors = asyncio.run(main())
+""" + REPORT
 
 FLOOR_CLIENT = r"""
 import json, socket, sys, time
@@ -187,21 +237,52 @@ async def direct(engine, count: int, rate: float) -> list[float]:
 
 
 async def by_client(url: str, count: int, rate: float, status_hz: float = 2.0, pace: str = "spin",
-                    path: str = "short", waits: list | None = None) -> np.ndarray:
+                    path: str = "short", waits: list | None = None, flavour: str = "sync",
+                    said: dict | None = None) -> np.ndarray:
     """The client's touches: each one's time and when its call to the client returned, perf_counter s; and how
-    long its thread and the loop's waited for a CPU (``waits``: [client's, loop's] ns and runs, appended)."""
+    long its thread and the loop's waited for a CPU (``waits``: [client's, loop's] ns and runs, appended).
+    ``flavour``: ``sync`` (:class:`ultraglide.client.Client`) or ``async`` (:class:`~ultraglide.client.AsyncClient`);
+    ``said``: a dict to update with the rest of what the client said (its refusals, messages, lateness)."""
     loop_before = loop_schedstat()
-    process = await asyncio.create_subprocess_exec(sys.executable, "-c", CLIENT, url, str(count), str(rate),
-                                                   str(status_hz), pace, path, stdout=subprocess.PIPE)
+    process = await asyncio.create_subprocess_exec(sys.executable, "-c", CLIENT if flavour == "sync" else ASYNC_CLIENT,
+                                                   url, str(count), str(rate), str(status_hz), pace, path,
+                                                   stdout=subprocess.PIPE)
     out, _ = await process.communicate()
     loop_after = loop_schedstat()
     result = json.loads(out)
     if result["refused"]:
-        print(f"the service refused some of the client's messages (the last refusal of each kind): {result['refused']}")
+        print(f"the service refused some of the client's messages (lines received, the last of each kind): "
+              f"{result['refused']}")
     if waits is not None:
         waits.append((result["waited_ns"], result["runs"], loop_after[1] - loop_before[1],
                       loop_after[2] - loop_before[2]))
+    if said is not None:
+        said.update({key: value for key, value in result.items() if key != "sent"})
     return np.asarray(result["sent"]).reshape(-1, 2)
+
+
+class Rows:
+    """``Service.arrivals`` for the soak: its rows in an array made beforehand (its memory is not the service's)."""
+
+    def __init__(self, count: int):
+        self.array = np.full((count, 3), np.nan)
+        self.count = 0
+
+    def append(self, row) -> None:
+        if self.count < len(self.array):
+            self.array[self.count] = [np.nan if v is None else v for v in row]
+            self.count += 1
+
+
+async def engine_touches(engine, expected: int, before: int, timeout_s: float = 5.0):
+    """The engine's status once it has taken ``expected`` touches since ``before`` (its count), or after
+    ``timeout_s``: it drains its ring once a block."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        status = engine.status(0.0)
+        if status.touches - before >= expected or time.monotonic() > deadline:
+            return status
+        await asyncio.sleep(0.01)
 
 
 def loop_schedstat() -> list[int]:
@@ -263,7 +344,8 @@ async def measure(args) -> None:
             await asyncio.sleep(0.05)
             own.append(matched(engine.latencies(), sent))
             service.arrivals = []
-            sent = await by_client(url, args.touches, 100.0, args.status_hz, args.pace, args.client_path, waits)
+            sent = await by_client(url, args.touches, 100.0, args.status_hz, args.pace, args.client_path, waits,
+                                   args.client)
             await asyncio.sleep(0.05)
             through.append(matched(engine.latencies(), sent[:, 0]))
             rows = np.asarray([row for row in service.arrivals if row[0] is not None])
@@ -288,19 +370,65 @@ async def measure(args) -> None:
             count = int(args.soak_s * 1000)
             before = engine.status(0.0)
             await direct(engine, count, 1000.0)
-            middle = engine.status(0.0)
+            middle = await engine_touches(engine, count + 1, before.touches)
+            rows = Rows(count + 10)
+            service.arrivals = rows
+            read_before, refused_before = counters(service)
+            counted_before, ignored_before = service.touches, service.touches_ignored
             rss_before, _ = rss_mb()
-            sent = await by_client(url, count, 1000.0, args.status_hz, args.pace, args.client_path)
-            after = engine.status(0.0)
+            said = {}
+            loop_before = loop_schedstat()
+            sent = await by_client(url, count, 1000.0, args.status_hz, args.pace, args.client_path,
+                                   flavour=args.client, said=said)
+            loop_after = loop_schedstat()
+            counted = service.touches - counted_before
+            after = await engine_touches(engine, counted, middle.touches)
             rss_after, peak = rss_mb()
+            service.arrivals = None
             print(f"soak, 1000 events/s for {args.soak_s:g} s: late blocks {middle.late_blocks - before.late_blocks} "
-                  f"(engine alone), {after.late_blocks - middle.late_blocks} (through the service; {len(sent)} events "
-                  f"sent, {after.touches - middle.touches} reached the engine, {after.touches_dropped} dropped "
-                  f"by its ring); device underruns {after.underruns - before.underruns}; this process's memory "
-                  f"{rss_before:.0f} MB before the service's soak, {rss_after:.0f} MB after (peak {peak:.0f} MB)")
+                  f"(engine alone), {after.late_blocks - middle.late_blocks} (through the service); device underruns "
+                  f"{after.underruns - before.underruns}; this process's memory {rss_before:.0f} MB before the "
+                  f"service's soak, {rss_after:.0f} MB after (peak {peak:.0f} MB); the service loop's thread ran "
+                  f"{(loop_after[0] - loop_before[0]) / 1e9:.2f} s and waited "
+                  f"{(loop_after[1] - loop_before[1]) / 1e9:.2f} s for a CPU")
+            read_after, refused_after = counters(service)
+            print(soak_account(len(sent) + 1, said, read_after - read_before, refused_after - refused_before, counted,
+                               service.touches_ignored - ignored_before, after.touches - middle.touches,
+                               after.touches_dropped - middle.touches_dropped, rows))
     stop.set()
     publisher.join(10)
     folder.cleanup()
+
+
+def counters(service) -> tuple[float, float]:
+    """The service's messages read and refused over the rate so far; NaN for a service without the counts (the
+    code before them, for a before/after)."""
+    return getattr(service, "messages_read", np.nan), getattr(service, "rate_refusals", np.nan)
+
+
+def soak_account(touches: int, said: dict, read: int, rate_refused: int, counted: int, ignored: int, reached: int,
+                 dropped: int, rows: Rows) -> str:
+    """Where every touch of the soak went, in words: sent by the client (and how late it sent them), read by the
+    service (the rest lost on the socket), refused over the rate (and the lines the client received saying so), taken
+    but not rendered (a pointer that does not drive), put into the engine's ring: taken by the engine or dropped by
+    its ring; and what is left unaccounted for (nothing on this path merges events: none should be); how late the
+    service read the touches it took, after the client's time."""
+    lost = said["messages"] - read  # of every message it sent: its touches, and its hello, subscription, last request
+    lines, _ = said["refused"].get("rate", (0, ""))
+    unaccounted = touches - lost - rate_refused - ignored - reached - dropped
+    if np.isnan(read):  # a service without the counts: what is not otherwise accounted for was lost or refused
+        lost = rate_refused = "?"
+        unaccounted = f"{touches - ignored - reached - dropped} lost or refused (this service does not count them), 0"
+    arrivals = rows.array[:rows.count]
+    delay = (arrivals[:, 1] - arrivals[:, 0]) * 1e3
+    delay = delay[np.isfinite(delay)]
+    return (f"where the soak's {touches} touches went: the client sent {said['late_over_10ms']} of them more than "
+            f"10 ms after their time (the latest by {said['late_max_s'] * 1e3:.1f} ms); {lost} messages lost on the "
+            f"socket (of {said['messages']} sent); {rate_refused} refused over the rate ({lines} error lines at the "
+            f"client); {ignored} taken and not rendered; {counted} into the engine's ring: {reached} reached the "
+            f"engine, {dropped} dropped by its ring; {unaccounted} unaccounted for. The service read those it took "
+            f"{np.percentile(delay, 50):.2f} ms after the client's time at p50, {np.percentile(delay, 99):.2f} ms at "
+            f"p99, {delay.max():.0f} ms at most")
 
 
 def browser_send_times(count: int = 200) -> None:
@@ -362,6 +490,8 @@ def main() -> None:
     parser.add_argument("--client-general", dest="client_path", action="store_const", const="general",
                         default="short", help="the client's touches through its general path (json.dumps and "
                                               "websockets' send), not its short one")
+    parser.add_argument("--client", choices=("sync", "async"), default="sync",
+                        help="the client: ultraglide.client.Client (the default) or AsyncClient")
     parser.add_argument("--pace", choices=("spin", "sleep"), default="spin",
                         help="how the clients wait for each touch's time (default: spin, short sleeps then a busy "
                              "wait; sleep: one sleep, as a program its input wakes)")
