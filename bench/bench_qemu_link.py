@@ -1,13 +1,13 @@
 """What the emulated board's link carries: the figure the QEMU image states in HELLO_REPLY (``link_bytes_per_s``).
 
 Run: .venv/bin/python bench/bench_qemu_link.py [--seconds 5] [--runs 3] [--offer BYTES_PER_S] [--json]
-Boots the netduinoplus2 QEMU image (``plate-sim --board qemu``'s), writes HEARTBEAT frames to its link (paced at
-``--offer`` bytes a second, or as fast as the pseudo-terminal takes them), drains what the board sends, and reads
-the board's own ``rx_bytes`` counter from its statistics lines (one a second on its debug console): bytes the
-firmware took, over the seconds between the first and last line. QEMU's USART hands the firmware one byte per
-round trip between two of its threads, so the figure depends on how busy the machine is: the load is printed. The
-image states the highest offer it was seen to take whole (``BOARD_QEMU_LINK_BYTES_PER_S`` in
-ports/netduinoplus2/board.h); the host streams at most half of it.
+Boots the netduinoplus2 QEMU image (``plate-sim --board qemu``'s, or ``--board mps2-an386``'s), writes HEARTBEAT
+frames to its link as the engine's writer does (``FrameWriter``; paced at ``--offer`` bytes a second, or as fast as
+the pseudo-terminal takes them), drains what the board sends, and reads the board's own ``rx_bytes`` counter from
+its statistics lines (one a second on its debug console): bytes the firmware took, over the seconds between the
+first and last line. QEMU's USART hands the firmware one byte per round trip between two of its threads, so the
+figure depends on how busy the machine is: the load is printed. The image states the highest offer it was seen to
+take whole (``BOARD_QEMU_LINK_BYTES_PER_S`` in ports/netduinoplus2/board.h); the host streams at most half of it.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import time
 from ultraglide.devices import protocol as p
 from ultraglide.devices.firmware.boards import build_images
 from ultraglide.devices.firmware.qemu import QemuPlate
-from ultraglide.devices.serial.link import open_port
+from ultraglide.devices.serial.link import FrameWriter, open_port
 
 
 def stats_lines(plate: QemuPlate, count: int, timeout_s: float) -> list[dict]:
@@ -42,6 +42,7 @@ def one_run(elf: str, seconds: int, offer: int = 0, machine: str = "netduinoplus
     frame = p.encode_frame(p.HEARTBEAT, 1)
     with QemuPlate(elf, machine=machine) as plate:
         port = open_port(plate.path, 921600, write_timeout_s=2.0)
+        frames = FrameWriter(port, 2.0)  # as the engine writes: the port polled only when the kernel took part
         stop = threading.Event()
         written = [0]
 
@@ -53,7 +54,7 @@ def one_run(elf: str, seconds: int, offer: int = 0, machine: str = "netduinoplus
                     ahead = written[0] / offer - (time.monotonic() - started)
                     if ahead > 0:
                         time.sleep(ahead)
-                port.write(chunk)
+                frames.write(chunk)
                 written[0] += len(chunk)
 
         def drain() -> None:  # the board's telemetry, read and dropped: a full pty would stall its UART

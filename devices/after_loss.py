@@ -98,7 +98,7 @@ def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -
     >>> disable_serial_plate("/nonexistent/ttyACM9", 921600).startswith("the plate could not be disabled")
     True
     """
-    from ultraglide.devices.serial.link import open_port
+    from ultraglide.devices.serial.link import FrameWriter, open_port
 
     sent_s = None
     try:
@@ -107,8 +107,7 @@ def disable_serial_plate(port: str, baud: int, wait_ack_s: float = ACK_WAIT_S) -
         return f"the plate could not be disabled ({error}); its own watchdog rests it"
     try:
         link.reset_input_buffer()
-        link.write(disable_frame())
-        link.flush()
+        FrameWriter(link, WRITE_WAIT_S).write(disable_frame())  # as the engine writes: no poll after it
         sent_s = time.perf_counter()
         link.timeout = 0.01
         return "ENABLE 0 sent" + _awaited_ack(lambda: link.read(256), sent_s, wait_ack_s)
@@ -231,19 +230,22 @@ class BorrowedPort:
         self.failure: str | None = None
 
     def send(self) -> None:
-        """Write the disable (:func:`disable_frame`) on the port, within ``WRITE_WAIT_S``; never raises."""
+        """Write the disable (:func:`disable_frame`) on the port, within ``WRITE_WAIT_S``; never raises. Written at
+        once as the engine's writer does (:func:`.serial.link.write_frame_fd`): the port is polled for room only if
+        the kernel took part of the frame (a poll of a terminal waits for its flip-buffer work, on a kworker at
+        ordinary priority)."""
+        import serial
+        from ultraglide.devices.serial.link import write_frame_fd
+
         try:
             with contextlib.suppress(termios.error):
                 termios.tcflush(self.fd, termios.TCIFLUSH)  # what the lost process had not read: not the ACK
-            data = memoryview(disable_frame())
-            deadline = time.perf_counter() + WRITE_WAIT_S
-            while data:
-                if not select.select([], [self.fd], [], max(0.0, deadline - time.perf_counter()))[1]:
-                    raise OSError(f"the port took no byte for {1000 * WRITE_WAIT_S:.0f} ms")
-                data = data[os.write(self.fd, data):]
+            write_frame_fd(self.fd, disable_frame(), WRITE_WAIT_S)
             self.sent_s = time.perf_counter()
-        except OSError as error:
-            self.failure = str(error.strerror or error)
+        except serial.SerialTimeoutException:
+            self.failure = f"the port took no byte for {1000 * WRITE_WAIT_S:.0f} ms"
+        except (serial.SerialException, OSError) as error:
+            self.failure = str(getattr(error, "strerror", None) or error)
 
     def finish(self, wait_ack_s: float = ACK_WAIT_S) -> str:
         """The disable's ACK awaited (until ``wait_ack_s`` after it was sent), the port closed; what happened in

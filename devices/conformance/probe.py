@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
-from ultraglide.devices.serial.link import open_port
+from ultraglide.devices.serial.link import FrameWriter, open_port
 
 PASS, FAIL, NOT_CHECKED = "pass", "fail", "not checked"
 EXIT_NONCONFORMING = 6  # a rule failed (the exit statuses of a run, 3-5, are in run_report)
@@ -142,6 +142,7 @@ class Probe:
     def __init__(self, port: str, baudrate: int = 921600):
         self.port = port
         self.serial = open_port(port, baudrate, write_timeout_s=WRITE_TIMEOUT_S)
+        self.writer = FrameWriter(self.serial, WRITE_TIMEOUT_S)  # as the engine writes: no poll after a whole write
         self.decoder = p.FrameDecoder()
         self.frames: list[tuple[float, p.Frame]] = []
         self.first_seq: int | None = None
@@ -203,10 +204,11 @@ class Probe:
         return seq, time.perf_counter()
 
     def send_bytes(self, data: bytes) -> None:
+        """``data`` written whole (:class:`.link.FrameWriter`: the port is polled only when the kernel takes part of
+        it, within ``WRITE_TIMEOUT_S``); Abort if the port failed or took no byte for that long."""
         with self._write_lock:
             try:
-                self.serial.write(data)
-                self.serial.flush()
+                self.writer.write(data)
             except Exception as error:  # noqa: BLE001 - the device is gone: the check stops
                 raise Abort(f"{self.port}: the port failed ({error})") from None
 

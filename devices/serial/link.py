@@ -157,28 +157,72 @@ class FrameWriter:
         except OSError as error:
             raise serial.SerialException(f"write failed: {error}") from None
         if written < len(frame):
-            self._write_rest(fd, frame, written)
+            _write_rest(fd, self._poll, frame, written, self.timeout_s)
 
-    def _write_rest(self, fd: int, frame: bytes, written: int) -> None:
-        """The rest of ``frame`` from byte ``written``, each time the port has room, until the timeout."""
-        view = memoryview(frame)
-        deadline = None if self.timeout_s is None else time.monotonic() + self.timeout_s
-        while written < len(frame):
-            wait_ms = None
-            if deadline is not None:
-                wait_ms = (deadline - time.monotonic()) * 1000.0
-                if wait_ms <= 0.0:
-                    raise serial.SerialTimeoutException("Write timeout")
-            events = self._poll.poll(wait_ms)
-            if not events:
+
+def _write_rest(fd: int, poller, frame: bytes, written: int, timeout_s: float | None) -> None:
+    """The rest of ``frame`` from byte ``written`` on the non-blocking ``fd``, each time ``poller`` (a
+    ``select.poll`` with ``fd`` registered for POLLOUT) says it has room, until ``timeout_s`` after the first
+    wait: SerialException as :meth:`FrameWriter.write` raises them."""
+    view = memoryview(frame)
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    while written < len(frame):
+        wait_ms = None
+        if deadline is not None:
+            wait_ms = (deadline - time.monotonic()) * 1000.0
+            if wait_ms <= 0.0:
                 raise serial.SerialTimeoutException("Write timeout")
-            try:
-                written += os.write(fd, view[written:])
-            except BlockingIOError:
-                if events[0][1] & (select.POLLHUP | select.POLLERR | select.POLLNVAL):  # no room will come
-                    raise serial.SerialException("write failed: the port hung up") from None
-            except OSError as error:
-                raise serial.SerialException(f"write failed: {error}") from None
+        events = poller.poll(wait_ms)
+        if not events:
+            raise serial.SerialTimeoutException("Write timeout")
+        try:
+            written += os.write(fd, view[written:])
+        except BlockingIOError:
+            if events[0][1] & (select.POLLHUP | select.POLLERR | select.POLLNVAL):  # no room will come
+                raise serial.SerialException("write failed: the port hung up") from None
+        except OSError as error:
+            raise serial.SerialException(f"write failed: {error}") from None
+
+
+def write_frame_fd(fd: int, frame: bytes, timeout_s: float | None) -> None:
+    """Write ``frame`` whole on a terminal's descriptor ``fd`` as :class:`FrameWriter` does on a port: at once,
+    polling the descriptor for room only when the kernel took part of it or none (a poll of a terminal waits for its
+    flip-buffer work, on an ordinary-priority kworker). ``fd`` is made non-blocking (its open file's flag: every
+    descriptor of that file, in any process, shares it).
+
+    Parameters
+    ----------
+    fd : int
+        The terminal's descriptor (a serial port's, a pseudo-terminal's).
+    frame : bytes
+        What to write.
+    timeout_s : float or None
+        How long the frame may wait for room (s) from the first wait; None: for ever.
+
+    Raises
+    ------
+    serial.SerialException
+        The write failed (``write failed: ...``) or waited ``timeout_s`` for room (``SerialTimeoutException``).
+
+    Examples
+    --------
+    >>> import pty
+    >>> host_end, plate_end = pty.openpty()
+    >>> write_frame_fd(plate_end, b"ab\\x00", 0.2); os.read(host_end, 16)
+    b'ab\\x00'
+    >>> os.close(host_end); os.close(plate_end)
+    """
+    os.set_blocking(fd, False)
+    try:
+        written = os.write(fd, frame)
+    except BlockingIOError:
+        written = 0
+    except OSError as error:
+        raise serial.SerialException(f"write failed: {error}") from None
+    if written < len(frame):
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        _write_rest(fd, poller, frame, written, timeout_s)
 
 
 def stream_bytes_per_s(rate_hz: int, batch_s: float = p.BATCH_S) -> float:
