@@ -427,7 +427,7 @@ def probe_hello(port: str, baudrate: int, timeout_s: float = p.HOST_ACK_TIMEOUT_
     opened = open_port(port, baudrate)
     try:
         opened.reset_input_buffer()
-        opened.write(p.encode_frame(p.HELLO, 0, p.hello_payload()))
+        FrameWriter(opened, opened.write_timeout).write(p.encode_frame(p.HELLO, 0, p.hello_payload()))  # no poll
         decoder = p.FrameDecoder()
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
