@@ -61,8 +61,9 @@ QEMU_NICE = -10  # QEMU's USART passes a byte per round trip between two of its 
 # board cannot tell that from a hang. With -icount the virtual clock advances 2^shift ns per instruction executed,
 # and with real time only while the processor sleeps (sleep=on, WFI); align=on holds the processor back when it gets
 # ahead of real time. A descheduled processor then stops the board's clock too: its watchdog expires only on a
-# board that ran. The mps2-an386 image never sleeps (its board_wait_for_interrupt spins), so its clock never keeps
-# real time through a stall either: it pauses, and catches real time up while the board runs. shift=4 (16 ns an
+# board that ran. The mps2-an386 image sleeps (WFI) between its interrupts, so QEMU's processor thread leaves its core
+# to the host's other work then; a stall of the host while it sleeps is a jump of its clock, which its watchdog
+# excuses and survives (ports/mps2-an386/board.c, watchdog_rearm). shift=4 (16 ns an
 # instruction, a 62.5 MIPS processor) is about what QEMU runs the mps2-an386
 # image at on this two-core machine (docs/performance.md): faster would let the board's clock fall behind real time
 # (shift=3 ran it at 0.79-0.84 of real time under load), slower starves its main loop (shift=5: resets at once).

@@ -272,20 +272,35 @@ void board_watchdog_start(void)
 
 /* The block interrupt, after its mark: refresh only when the main loop's was set too. The boot window stays until
    BOARD_WATCHDOG_WARM_REFRESHES refreshes, then shortens to the timeout (writing LOAD reloads the counter).
-   QEMU is not a board: it runs this image with its instruction counter (devices/firmware/qemu.py), and the image
-   never sleeps (board_wait_for_interrupt), so its clock moves only with the instructions it runs and a stall of
-   its host pauses it. What follows is for a clock that jumps nonetheless (QEMU on the host's clock, or a board that
-   slept, whose clock keeps real time, through a stall of its host). The block interrupt then comes
-   this much later than the last (`stalled`), or has blocks to catch up that fell due meanwhile while the main loop
-   had no turn through no fault of its own (`catching_up`, excused up to BOARD_WATCHDOG_BUSY_US since both marks
-   were last seen): the window restarts, counted in board_watchdog_stalls (the statistics' watchdog_stalls). A
-   hung block interrupt never gets here; a hung main loop never sleeps, so the clock never jumps under it. */
+   QEMU is not a board: it runs this image with its instruction counter (devices/firmware/qemu.py), on which a busy
+   processor's clock moves only with the instructions it runs (a stall of its host pauses it) but a sleeping one's
+   keeps real time (board_wait_for_interrupt), so a stall of the host while the board slept is a jump of the clock
+   when QEMU runs again. The block interrupt then comes this much later than the last (`stalled`), or has blocks to
+   catch up that fell due meanwhile while the main loop had no turn through no fault of its own (`catching_up`,
+   excused up to BOARD_WATCHDOG_BUSY_US since both marks were last seen): the window restarts, counted in
+   board_watchdog_stalls (the statistics' watchdog_stalls). A hung block interrupt never gets here; a hang keeps the
+   processor busy (it never sleeps), so the clock never jumps under it. */
 static uint32_t watchdog_ok_at;
 static uint32_t watchdog_excuses;  /* NMIs excused in a row (board_watchdog_expired) */
 static uint32_t watchdog_millis;   /* the blocks run when the window last started */
 static volatile uint32_t block_irq_at;  /* the board's clock when the block interrupt last started */
 
 static uint32_t watchdog_warm_refreshes;
+
+/* The counter restarted from a whole window, whatever stopped it. A jump of the clock of more than two windows
+   passes both of the watchdog's expiries at once, and the second stops the counter (its reset is off under QEMU,
+   BOARD_WATCHDOG_RESEN): QEMU 7.2's model (up to 9.1) starts it again only when LOAD is written, later ones only when
+   CONTROL's INTEN goes from 0 to 1; a hardware watchdog reloads on either. Both, after every excused stall: without
+   them the board ran on with no watchdog after one such jump (injected hangs never caught; docs/firmware.md). */
+static void watchdog_rearm(void)
+{
+    uint32_t window_us = watchdog_warm ? BOARD_WATCHDOG_US : BOARD_WATCHDOG_BOOT_US;
+    uint32_t control = WDOG_CONTROL_INTEN | (BOARD_WATCHDOG_RESEN ? WDOG_CONTROL_RESEN : 0u);
+    watchdog_write(&WDOG_INTCLR, 1u);
+    watchdog_write(&WDOG_CONTROL, 0u);
+    watchdog_write(&WDOG_CONTROL, control);
+    watchdog_write(&WDOG_LOAD, window_us * BOARD_TICKS_PER_US);
+}
 
 static void watchdog_refresh(uint32_t now)
 {
@@ -310,6 +325,7 @@ static void watchdog_service(bool stalled, bool catching_up)
     } else if (stalled || (catching_up && (ug_marks_peek() & 1u)
                                              && now - watchdog_ok_at < BOARD_WATCHDOG_BUSY_US * BOARD_TICKS_PER_US)) {
         watchdog_refresh(now);
+        watchdog_rearm();  /* a jump of the clock may have stopped the counter (watchdog_rearm) */
         watchdog_stalls++;
     }
 }
@@ -354,7 +370,7 @@ void board_watchdog_expired(const uint32_t *frame)
     if ((late || (!block_running && main_alive) || (block_running && block_progress))
         && watchdog_excuses < BOARD_WATCHDOG_EXCUSES) {
         watchdog_excuses++;
-        watchdog_write(&WDOG_INTCLR, 1u);
+        watchdog_rearm();  /* the interrupt cleared; the counter restarted should the jump have stopped it */
         watchdog_refreshed_at = now;
         watchdog_millis = millis;
         watchdog_stalls++;
@@ -495,14 +511,13 @@ void board_fault_stop(void)
     }
 }
 
-/* The QEMU image never sleeps: under QEMU's instruction counter (devices/firmware/qemu.py) a sleeping board's clock
-   keeps real time, so a stall of QEMU's host while it sleeps becomes a jump of the clock as QEMU runs again, and a
-   jump of more than two windows passes both of the watchdog's expiries at once: QEMU 7.2's model then stops the
-   counter for good (RESEN off), leaving the board without a watchdog (injected isr-hangs were then never caught).
-   A board that keeps executing has a clock that moves only with its instructions: a stall of the host pauses it,
-   and the instruction counter's alignment (align=on) catches real time up while the board runs, refreshing as it
-   goes. The main loop spins instead, looking for work again; a hardware image would sleep here (WFI). */
+/* The board sleeps until its next interrupt, as a hardware image does. Under QEMU's instruction counter
+   (devices/firmware/qemu.py: sleep=on) a sleeping board's clock keeps real time, so a stall of QEMU's host while it
+   sleeps is a jump of the clock when QEMU runs again; the watchdog survives one (watchdog_rearm). An image that spun
+   here instead held one of the host's cores with QEMU's processor thread at SCHED_FIFO all the time, starving the
+   kernel's ordinary-priority work that carries the link's bytes (a pseudo-terminal's flip-buffer kworker: up to
+   297 ms), so that a loaded host's stream to the board ran dry (docs/performance.md). */
 void board_wait_for_interrupt(void)
 {
-    __asm__ volatile("nop");
+    __asm__ volatile("wfi");
 }

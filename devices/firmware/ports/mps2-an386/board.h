@@ -56,10 +56,11 @@
                                          descheduled it while the board slept), not the board; the window restarts,
                                          counted */
 /* The watchdog's second expiry (RESEN) resets the board in hardware should the NMI's handler never run. Left off
-   under QEMU: should its clock jump by more than two windows (QEMU on the host's clock, descheduled; or a board that
-   slept under the instruction counter, whose clock keeps real time, through a stall of its host) both expiries pass
-   at once and the board would reset with no record ("power-on"; on the host's clock, three of six 3 s boots at
-   load 12 reset so). The QEMU image never sleeps (board.c, board_wait_for_interrupt), so its clock does not jump. A
+   under QEMU: should its clock jump by more than two windows (QEMU on the host's clock, descheduled; or the board
+   sleeping under the instruction counter, whose clock then keeps real time, through a stall of its host) both
+   expiries pass at once and the board would reset with no record ("power-on"; on the host's clock, three of six 3 s
+   boots at load 12 reset so). The QEMU image sleeps (board.c, board_wait_for_interrupt), so its clock does jump: the
+   NMI's handler excuses the jump and restarts the counter, which the second expiry stopped (watchdog_rearm). A
    hardware image sets it to 1. */
 #ifndef BOARD_WATCHDOG_RESEN
 #define BOARD_WATCHDOG_RESEN 0
