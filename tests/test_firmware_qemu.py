@@ -2,8 +2,8 @@
 under QEMU (``ultraglide plate-sim --board qemu``) with its UART on a real pseudo-terminal: the protocol
 answered by the firmware core on the board, a texture played from the host never above the limit (read back
 from the firmware's own tap of its link), the watchdog on the board's clock, a plate sweep finding the emulated
-plate's resonance. Marked ``qemu`` and ``slow``; skipped where the cross compiler or QEMU is missing
-(``./run tests`` installs both).
+plate's resonance; and ``plate check`` passing against it and against the mps2-an386's image. Marked ``qemu`` and
+``slow``; skipped where the cross compiler or QEMU is missing (``./run tests`` installs both).
 
 QEMU's USART hands the firmware one byte per round trip between two of its threads (about 14 kB/s measured at
 load 12 on this two-core machine; see devices/firmware/qemu.py), so streams here run at 1 000 setpoints/s in 10 ms
@@ -581,11 +581,12 @@ LOST_BOUND = 0.02  # setpoints the board may count lost or late, as a fraction o
 
 
 class ServedBoard:
-    """``ultraglide plate-sim --board qemu --json`` serving ``link``: its lines read as they come (a thread), its
-    closing line once stopped."""
+    """``ultraglide plate-sim --board BOARD --json`` serving ``link`` (``board``: ``qemu``, the netduinoplus2, unless
+    given): its lines read as they come (a thread), its closing line once stopped."""
 
-    def __init__(self, link, *args):
-        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", "qemu", "--json",
+    def __init__(self, link, *args, board: str = "qemu"):
+        self.board = board
+        self.process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--board", board, "--json",
                                          "--link", str(link), *map(str, args)], stdout=subprocess.PIPE,
                                         stderr=subprocess.PIPE, text=True, cwd=ROOT)
         self.lines: queue.Queue = queue.Queue()
@@ -613,7 +614,7 @@ class ServedBoard:
                 if event["event"] == name:
                     return event
             assert self.process.poll() is None, self.process.stderr.read()
-        raise AssertionError(f"no '{name}' line from plate-sim --board qemu within {timeout} s")
+        raise AssertionError(f"no '{name}' line from plate-sim --board {self.board} within {timeout} s")
 
     def stop(self) -> dict:
         """SIGTERM; the closing line (the board's counts as of its last statistics line after the stop). The events
@@ -749,18 +750,24 @@ def test_plate_sweep_on_the_board_measures_the_emulated_plate(one_qemu, tmp_path
     assert measured.max_amplitude_um_pp == 6.0  # the limit is kept
 
 
-def test_plate_check_passes_against_the_board(one_qemu, tmp_path):
-    """The host's conformance run (docs/protocol.md) against the firmware core on the board: every rule it can check
-    without driving the plate over its limit passes, and the plate itself never moved past 15 % of that limit."""
-    board = ServedBoard(tmp_path / "plate")
+@pytest.mark.parametrize(("board_option", "board_name"), [("qemu", "netduinoplus2"), ("mps2-an386", "mps2-an386")])
+def test_plate_check_passes_against_the_board(one_qemu, tmp_path, board_option, board_name):
+    """The host's conformance run (docs/protocol.md) against the firmware core on each emulated board: every rule it
+    can check without driving the plate over its limit passes, and the plate itself never moved past 15 % of that
+    limit (the one the board states on its debug console as it boots)."""
+    board = ServedBoard(tmp_path / "plate", board=board_option)
     try:
-        board.next("boot")
+        boot = board.next("boot")
         result = run_cli("plate", "check", "--device", board.url, "--json", timeout=600)  # with its defaults
     finally:
         stopped = board.stop()
+    assert boot["board"] == board_name
     report = json.loads(result.stdout)
     assert result.returncode == 0, [rule for rule in report["rules"] if rule["verdict"] == "fail"]
-    assert report["device"]["name"] == NAME and report["failed"] == 0 and report["aborted"] is None
+    assert report["device"]["name"] == f"ultraglide {board_name} (QEMU)"
+    assert report["failed"] == 0 and report["aborted"] is None
+    limit = boot["max_amplitude_um_pp"]  # sim-plate's, the image's own emulation block: its handshake says the same
+    assert report["device"]["max_amplitude_um_pp"] == pytest.approx(limit, abs=0.001)
     verdicts = {rule["rule"]: rule["verdict"] for rule in report["rules"]}
     assert {rule for rule, verdict in verdicts.items() if verdict != "pass"} <= {"R-OVER-LIMIT", "R-TRIP"}
-    assert stopped["plate_peak_um_pp"] <= 0.15 * 6.0 * 1.005 and stopped["trips"] == 0  # sim-plate: limit 6
+    assert stopped["plate_peak_um_pp"] <= 0.15 * limit * 1.005 and stopped["trips"] == 0
