@@ -111,7 +111,12 @@ def test_the_scaled_inverse_never_exceeds_the_limit_and_writes_in_place():
         result = scaled_inverse(model, ratios, 0.5, 6.0, scale, out)
         assert result.amplitude_um_pp is out
         assert out.max() <= 6.0 and out.min() >= 0.0
-        assert result.clamped == int(np.count_nonzero(ratios < float(model.floor_ratio(0.5, 6.0 / scale))))
+        # asked within a limit under 0.1 % inside 6 / scale (so its floor repeats across speeds): what it clamps is
+        # what is out of reach at 6 / scale, and at most what is out of reach at 6 / (1.001 scale)
+        exact = int(np.count_nonzero(ratios < float(model.floor_ratio(0.5, 6.0 / scale))))
+        assert exact <= result.clamped <= int(np.count_nonzero(ratios < float(model.floor_ratio(0.5, 6.0 / scale
+                                                                                                 / 1.001))))
+        assert np.all(out[ratios < float(model.floor_ratio(0.5, 6.0 / scale))] == 6.0)
 
 
 def test_s_zero_is_the_static_inverse_bit_for_bit():
@@ -184,3 +189,28 @@ def test_a_bad_speed_table_is_refused_naming_the_file(tmp_path, table, words):
     with pytest.raises(ModelError, match=words) as caught:
         read_calibration(path)
     assert str(caught.value).startswith(str(path)) and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("kind", ["stretched", "table"])
+def test_the_floor_at_a_scaled_limit_is_evaluated_once_a_rung_not_once_a_speed(kind):
+    """The block path asks within limit / k, a new k whenever the speed changes: after one pass over the speeds the
+    static model is never evaluated forward again for its floor, and nothing exceeds the limit."""
+    model = (StretchedExponentialModel() if kind == "stretched"
+             else TableModel(read_measurements(ROOT / "apps" / "data" / "monnoyer2018-fit.csv")))
+    law = SpeedLaw(1.0)
+    calls = []
+    forward = model.relative_friction
+    ratios = np.linspace(0.05, 1.0, 60)
+    out = np.empty(60)
+    speeds = 2.0 * 1000.0 ** np.random.default_rng(7).random(300)  # 2-2000 mm/s, no two alike
+    for speed in speeds:  # the warm-up: once over the speeds
+        scaled_inverse(model, ratios, 0.5, 6.0, law.one_scale(speed), out)
+    model.relative_friction = lambda *args: calls.append(args) or forward(*args)
+    for speed in speeds + 1e-6:  # new floats for k, the same rungs (1e-6 mm/s moves k by far under 0.1 %)
+        result = scaled_inverse(model, ratios, 0.5, 6.0, law.one_scale(speed), out)
+        assert out.max() <= 6.0
+        k = law.one_scale(speed)
+        in_reach = ratios >= float(forward(6.0 / k / 1.001, 0.5)) + 1e-9
+        assert forward(out[in_reach] / k, 0.5) == pytest.approx(ratios[in_reach], abs=1e-6)
+        assert result.clamped >= int(np.count_nonzero(ratios < float(forward(6.0 / k, 0.5))))
+    assert calls == []

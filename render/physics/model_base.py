@@ -21,10 +21,11 @@ TOUCH_FORCE_RANGE_N = (0.0, MAX_FORCE_N)  # what a command accepts as a finger's
 CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
 RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
 SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
+FLOOR_CACHE = 8192  # floors remembered per model: a speed law's rungs of limit / k (6909 over 2-2000 mm/s at s = 1)
 
 
-def remembered(owner, memo: str, key, compute):
-    """``compute()``, remembered in ``owner``'s dict named ``memo`` for the last ``SCALAR_CACHE`` keys.
+def remembered(owner, memo: str, key, compute, size: int = SCALAR_CACHE):
+    """``compute()``, remembered in ``owner``'s dict named ``memo`` for the last ``size`` keys.
 
     Parameters
     ----------
@@ -36,6 +37,8 @@ def remembered(owner, memo: str, key, compute):
         What the value is for.
     compute : callable
         Makes the value when it is not kept.
+    size : int
+        How many keys are kept (:data:`SCALAR_CACHE` by default).
 
     Returns
     -------
@@ -53,7 +56,7 @@ def remembered(owner, memo: str, key, compute):
         values = owner.__dict__[memo] = {}
     value = values.get(key)
     if value is None:
-        if len(values) >= SCALAR_CACHE:  # the oldest goes: the dict's size stays put once full (a floor asked at a
+        if len(values) >= size:  # the oldest goes: the dict's size stays put once full (a floor asked at a
             del values[next(iter(values))]  # new limit each block, under a speed law, keeps nothing more per block)
         value = values[key] = compute()
     return value
@@ -552,7 +555,7 @@ class FrictionModel(ABC):
         if isinstance(force_n, np.ndarray) and force_n.ndim:
             return self.relative_friction(limit, force_n)
         return remembered(self, "_floors", (float(force_n), limit),
-                          lambda: float(self.relative_friction(limit, force_n)))
+                          lambda: float(self.relative_friction(limit, force_n)), FLOOR_CACHE)
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The lowest ratio reachable at this force within the amplitude limit.

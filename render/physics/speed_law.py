@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 from ultraglide.render.physics.dynamics import (
     REFERENCE_SPEED_MM_S,
@@ -50,6 +51,35 @@ from ultraglide.render.physics.model_base import DEFAULT_FORCE_N, FrictionModel,
 
 EXPONENT_RANGE = (0.0, 1.0)  # 0: none; 1: amplitude and speed enter only through their ratio (see above)
 FASTEST_SPEED_MM_S = 2000.0  # no finger swipes faster: a faster estimate is held here
+REACH_STEP = math.log(1.001)  # the limit / k the inverse is asked within steps by 0.1 % in k (see reach_scale)
+
+
+def reach_scale(scale: float) -> float:
+    """k rounded up to the next of a fixed ladder of steps 0.1 % apart: the inverse is asked within
+    ``limit / reach_scale(k)``, so the reachable limit only shrinks (by under 0.1 %), and the floor at it, remembered
+    by its limit, is computed once a rung, not once a speed (the block path asks at a new k whenever the speed
+    changes).
+
+    Parameters
+    ----------
+    scale : float
+        k > 0.
+
+    Returns
+    -------
+    float
+        The rung at or above k: the same float for every k on its rung.
+
+    Examples
+    --------
+    >>> reach_scale(2.0) == reach_scale(2.0005), 2.0 <= reach_scale(2.0) < 2.0 * 1.001, reach_scale(1.0)
+    (True, True, 1.0)
+    """
+    if scale == 1.0:
+        return 1.0
+    rung = math.ceil(math.log(scale) / REACH_STEP)
+    value = math.exp(rung * REACH_STEP)
+    return value if value >= scale else math.exp((rung + 1) * REACH_STEP)
 
 
 def _checked(name: str, value, allowed: tuple[float, float], unit: str) -> float:
@@ -182,9 +212,11 @@ class SpeedLaw:
 def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, limit_um_pp: float, scale: float,
                    out: np.ndarray | None = None) -> Inversion:
     """The amplitude for each target ratio at a speed whose amplitude scale is ``scale`` (:meth:`SpeedLaw.one_scale`):
-    ``model``'s inverse within ``limit_um_pp / scale``, times ``scale``. What it clamps is what is out of reach at
-    that speed; no amplitude exceeds ``limit_um_pp``. With ``out`` (float64, the ratios' length) and a compiled
-    model, nothing is allocated: the scaling is in place.
+    ``model``'s inverse within ``limit_um_pp / reach_scale(scale)`` (:func:`reach_scale`: under 0.1 % inside
+    ``limit_um_pp / scale``, so the floor there is remembered across speeds), times ``scale``. What it clamps is
+    what is out of reach at that speed, or within 0.1 % of it (its amplitude is the limit); no amplitude exceeds
+    ``limit_um_pp``. With ``out`` (float64, the ratios' length) and a compiled model, nothing is allocated: the
+    scaling is in place.
 
     Parameters
     ----------
@@ -219,11 +251,29 @@ def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, l
     """
     if scale == 1.0:
         return model.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-    inversion = model.amplitude_um_pp(ratio, force_n, limit_um_pp / scale, out)
+    reached = limit_um_pp / reach_scale(scale)
+    inversion = model.amplitude_um_pp(ratio, force_n, reached, out)
     amplitude = inversion.amplitude_um_pp
-    amplitude *= scale
-    np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
+    if isinstance(amplitude, np.ndarray) and amplitude.ndim == 1 and amplitude.dtype == np.float64:
+        _scale_within(amplitude, float(scale), float(min(reached, model.max_amplitude_um_pp)), float(limit_um_pp))
+    else:
+        clamped = amplitude >= min(reached, model.max_amplitude_um_pp)
+        amplitude *= scale
+        amplitude[clamped] = limit_um_pp
+        np.minimum(amplitude, limit_um_pp, out=amplitude)
     return inversion
+
+
+@njit(cache=True, nogil=True)
+def _scale_within(amplitude, scale, reached, limit):  # pragma: no cover - compiled
+    """In place: each amplitude times ``scale``, within ``limit``; one at the inverse's own limit (``reached``,
+    clamped there) becomes ``limit`` exactly (the most the plate may give, not 0.1 % less)."""
+    for i in range(amplitude.shape[0]):
+        value = amplitude[i]
+        if value >= reached:
+            amplitude[i] = limit
+        else:
+            amplitude[i] = min(value * scale, limit)
 
 
 class SpeedLawModel(FrictionModel):
@@ -277,6 +327,7 @@ class SpeedLawModel(FrictionModel):
         >>> SpeedLawModel(ExponentialModel(), SpeedLaw(0.5)).warm_up()
         """
         self.static.warm_up()
+        _scale_within(np.zeros(1), 2.0, 1.0, 2.0)  # compiled (or loaded) here, not in the first block
 
     def force_law(self) -> str:
         """The static model's force law.
