@@ -49,6 +49,8 @@ def test_a_finger_given_a_speed_law_model_carries_the_law():
     assert "reduction x (22 mm/s / v)^0.5" in repr(finger)
     lagging = FingerConfig(law="speed:0.5:dynamic")
     assert lagging.lags and build_finger(lagging).speed_law == FingerSpeedLaw(0.5)
+    spelled = FingerConfig(law="dynamic:speed:0.5:stretched")  # the spelling docs/physics.md lists
+    assert spelled.lags and build_finger(spelled).speed_law == FingerSpeedLaw(0.5)
     assert build_finger(FingerConfig(law="stretched")).speed_law is None
 
 

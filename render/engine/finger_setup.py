@@ -188,10 +188,10 @@ def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
     return FingerDynamics() if config.lags else None
 
 
-@functools.lru_cache(maxsize=16)
 def _speed_law(law: str):
-    """The settled speed law a law holds (``speed:S:NAME``, a calibration's ``[speed]``), else None."""
-    if law == DEFAULT_LAW or not (law.startswith("speed:") or law.endswith(".toml")):
+    """The settled speed law a law holds (``speed:S:NAME``, ``dynamic:speed:S:NAME``, a calibration's ``[speed]``),
+    else None. Read again each time (once a finger is built): a calibration file edited since is read as it is."""
+    if law == DEFAULT_LAW:
         return None
     from ultraglide.render.physics.calibration import load_model
 
@@ -205,8 +205,8 @@ def _speed_law(law: str):
 
 def finger_speed_law(config: FingerConfig) -> FingerSpeedLaw | None:
     """How the simulated finger's settled reduction weakens with its speed: the law its model spec holds
-    (``--finger speed:S:NAME``, a calibration's ``[speed]``), handed to the plate's own implementation; None for
-    no dependence.
+    (``--finger speed:S:NAME`` or ``dynamic:speed:S:NAME``, a calibration's ``[speed]``), handed to the plate's
+    own implementation; None for no dependence.
 
     Parameters
     ----------
