@@ -214,3 +214,10 @@ def test_the_floor_at_a_scaled_limit_is_evaluated_once_a_rung_not_once_a_speed(k
         assert forward(out[in_reach] / k, 0.5) == pytest.approx(ratios[in_reach], abs=1e-6)
         assert result.clamped >= int(np.count_nonzero(ratios < float(forward(6.0 / k, 0.5))))
     assert calls == []
+
+
+def test_the_array_scale_is_taken_against_the_laws_own_reference_speed():
+    """(v / v_ref)^s by hand at v_ref = 50 mm/s, s = 1: an array of speeds and one speed agree; NaN is the reference."""
+    law = SpeedLaw(1.0, reference_speed_mm_s=50.0)
+    assert law.amplitude_scale(np.array([200.0, 25.0, np.nan, 1.0])).tolist() == [4.0, 0.5, 1.0, 2.0 / 50.0]
+    assert [law.amplitude_scale(v) for v in (200.0, 25.0)] == [4.0, 0.5]

@@ -83,3 +83,12 @@ def test_the_renderer_with_the_law_compensates_a_finger_whose_reduction_weakens_
     ignored = felt_error(STATIC)
     assert compensated < 0.02  # what is left: the envelope's band limit and slew on the grating's edges
     assert ignored > 4 * compensated
+
+
+def test_a_finger_given_a_calibration_with_a_speed_table_carries_its_reference_speed(tmp_path):
+    """The file's reference speed reaches the finger; the file edited since is read as it is now."""
+    path = tmp_path / "finger.toml"
+    for reference in (40.0, 60.0):
+        path.write_text('ultraglide_calibration = 1\nmodel = "exponential"\n[speed]\nexponent = 0.5\n'
+                        f"reference_speed_mm_s = {reference}\n[parameters]\ntau_um_zp = 1.0\n", encoding="utf-8")
+        assert build_finger(FingerConfig(law=str(path))).speed_law == FingerSpeedLaw(0.5, reference)

@@ -202,3 +202,27 @@ def test_a_changing_speed_evaluates_the_static_model_forward_only_in_the_first_p
     assert len({round(block["speed"], 6) for block in blocks}) > 100  # a new speed (a new k) nearly every block
     assert calls == []
     assert all(block["amplitude"].max() <= LIMIT and block["target"].max() <= LIMIT for block in blocks)
+
+
+def test_a_block_the_finger_leaves_counts_its_clamps_at_the_floor_at_that_speed():
+    """A swipe at 200 mm/s that ends 2.5 ms into a block, in a trough of the grating: in that block only the samples
+    still touching are counted, against the floor at that speed (the static floor at LIMIT / k), not the floor at the
+    reference speed."""
+    t = np.arange(0.0, 0.1026, 0.0025)
+    renderer, blocks = render(SpeedLawModel(STATIC, SpeedLaw(0.5)),
+                              RecordedTrajectory(t, 7.0 + 200.0 * t, np.full(len(t), 25.0)), blocks=21)
+    partial = [b for b in blocks if 0 < np.count_nonzero(b["down"]) < BLOCK]
+    assert len(partial) == 1
+    low = high = 0
+    for block in blocks:
+        k = (max(block["speed"], 2.0) / V_REF) ** 0.5
+        low += int(np.count_nonzero((block["ratio"] < float(STATIC.relative_friction(LIMIT / k, FORCE_N)))
+                                    & block["down"]))
+        inner = float(STATIC.relative_friction(LIMIT / k / 1.001, FORCE_N))  # see the open-loop test
+        high += int(np.count_nonzero((block["ratio"] < inner) & block["down"]))
+    block = partial[0]
+    k = (max(block["speed"], 2.0) / V_REF) ** 0.5
+    assert k > 2.0  # the block is fast (half of it moving): its floor is far above the one at 22 mm/s
+    assert np.count_nonzero((block["ratio"] < float(STATIC.relative_friction(LIMIT / k, FORCE_N))) & block["down"]) \
+        > np.count_nonzero((block["ratio"] < float(STATIC.relative_friction(LIMIT, FORCE_N))) & block["down"])
+    assert low <= renderer.counters.clipped_samples <= high
