@@ -226,3 +226,16 @@ def test_a_block_the_finger_leaves_counts_its_clamps_at_the_floor_at_that_speed(
     assert np.count_nonzero((block["ratio"] < float(STATIC.relative_friction(LIMIT / k, FORCE_N))) & block["down"]) \
         > np.count_nonzero((block["ratio"] < float(STATIC.relative_friction(LIMIT, FORCE_N))) & block["down"])
     assert low <= renderer.counters.clipped_samples <= high
+
+
+def test_the_estimators_reset_starts_its_sensors_at_the_ratio_the_law_gives_at_the_panels_speed():
+    """Through a 20 ms sensor delay the first samples seen are the reset's: the settled ratio at 4 µm p-p and
+    88 mm/s (k = 2), the static law at 2 µm p-p, not at 4."""
+    settings = EstimatorSettings(sensor_delay_s=0.02, sensor_bandwidth_hz=0.0, identify_sensors=False)
+    estimator = FrictionEstimator(SpeedLawModel(STATIC, SpeedLaw(0.5)), settings, sensor_rate_hz=1000.0)
+    expected = float(STATIC.relative_friction(2.0, FORCE_N))
+    amplitude, force = np.full(500, 4.0), np.full(500, FORCE_N)  # one batch: long enough to be trusted as sliding
+    result = estimator.update(0, amplitude, force, 0.7 * expected * force, panel_speed_mm_s=88.0)
+    assert result.used.all()
+    assert expected != pytest.approx(float(STATIC.relative_friction(4.0, FORCE_N)), abs=0.05)
+    assert result.intended_ratio[:20] == pytest.approx(np.full(20, expected), abs=1e-9)

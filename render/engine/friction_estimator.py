@@ -650,9 +650,14 @@ class FrictionEstimator:
             return self._fault("the amplitude sensor reads out of range", first_sample, n)
         s = self.settings
         a = np.maximum(a, 0.0)
+        # with a settled speed law, the model at the panel's speed (the reference speed's scale when unknown), as the
+        # renderer's inverse was: the reset below and the model's values further down alike
+        law = self._speed_law
+        at_speed = self.scale * (law.one_scale(panel_speed_mm_s) if law is not None and panel_speed_mm_s is not None
+                                 else 1.0)
         fresh = self._next_sample is None or first_sample != self._next_sample
         if fresh:  # the start, or samples were lost
-            settled = float(self.predicted_ratio(a[0], max(force[0], s.min_force_n)))
+            settled = float(self.model.relative_friction(a[0] / at_speed, max(force[0], s.min_force_n)))
             self._sensors.reset(np.array([settled, 0.0, settled]))
             self._force_state = float(force[0])
         self._next_sample = first_sample + n
@@ -660,11 +665,8 @@ class FrictionEstimator:
                             zi=[self._force_alpha * self._force_state])
         self._force_state = float(smooth[-1])
         model_force = np.maximum(smooth, s.min_force_n)
-        # the model and its slope in ln k at the present scale, as the force sensors would see them; with a settled
-        # speed law, at the panel's speed (the reference speed's scale when unknown), as the renderer's inverse was
-        law = self._speed_law
-        u = a / (self.scale * (law.one_scale(panel_speed_mm_s) if law is not None and panel_speed_mm_s is not None
-                               else 1.0))
+        # the model and its slope in ln k at the present scale (and speed), as the force sensors would see them
+        u = a / at_speed
         h = DIFFERENCE_STEP
         try:
             ratio = self.model.relative_friction(u, model_force)
