@@ -37,7 +37,8 @@ def test_slower_than_2_mm_s_is_held_at_2_mm_s_and_faster_than_2000_at_2000():
     law = SpeedLaw(1.0)
     assert law.amplitude_scale([0.0, 1.0, 2.0]).tolist() == [2.0 / 22.0] * 3
     assert law.one_scale(0.0) == law.one_scale(2.0) == 2.0 / 22.0
-    assert law.one_scale(5000.0) == 2000.0 / 22.0
+    assert law.one_scale(5000.0) == law.one_scale(math.inf) == 2000.0 / 22.0
+    assert law.amplitude_scale(np.array([5000.0, np.inf, np.nan])).tolist() == [2000.0 / 22.0] * 2 + [1.0]
     assert law.one_scale(math.nan) == 1.0  # no speed known: the model as it is
 
 
@@ -221,3 +222,9 @@ def test_the_array_scale_is_taken_against_the_laws_own_reference_speed():
     law = SpeedLaw(1.0, reference_speed_mm_s=50.0)
     assert law.amplitude_scale(np.array([200.0, 25.0, np.nan, 1.0])).tolist() == [4.0, 0.5, 1.0, 2.0 / 50.0]
     assert [law.amplitude_scale(v) for v in (200.0, 25.0)] == [4.0, 0.5]
+
+
+def test_a_files_source_is_kept_and_said_to_be_the_files_not_ours(tmp_path):
+    model = read_calibration(calibration(tmp_path, '[speed]\nexponent = 0.5\nsource = "sweeps on my plate"\n'))
+    assert model.describe().endswith("a_eff = a (22 mm/s / v)^0.5 (given, not ours: sweeps on my plate)")
+    assert "assumed, ours" not in model.describe()

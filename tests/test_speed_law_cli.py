@@ -19,7 +19,13 @@ def test_model_prints_the_curve_and_the_amplitude_for_a_ratio_at_a_speed():
     at_reference = float(STATIC.amplitude_um_pp(0.5, 0.5).amplitude_um_pp)
     assert data["amplitude_for_ratio_um_pp"] == pytest.approx(2.0 * at_reference, rel=1e-9)
     text = run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "88", check=True).stdout
-    assert "sliding at 88 mm/s" in text and "needs 2 x the amplitude" in text
+    assert "sliding at 88 mm/s" in text and "needs 2 x the amplitude" in text and "held" not in text
+
+
+def test_model_at_a_speed_below_2_mm_s_says_it_is_held_at_2():
+    text = run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "0", check=True).stdout
+    assert "sliding at 0 mm/s (held at 2 mm/s)" in text
+    assert f"needs {(2.0 / 22.0) ** 0.5:.3g} x the amplitude" in text  # (2 / 22)^0.5 by hand
 
 
 def test_a_model_without_a_law_gives_the_same_curve_at_any_speed():

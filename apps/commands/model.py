@@ -172,15 +172,20 @@ def _kept(kept) -> dict:
 
 def format_text(result: dict) -> str:
     from ultraglide.render.physics.friction_models import CEILING_UM_PP
+    from ultraglide.render.physics.speed_law import FASTEST_SPEED_MM_S, SLOWEST_SPEED_MM_S
 
     low, high = result["valid_force_range_n"]
-    speed = f" sliding at {result['speed_mm_s']:g} mm/s" if "speed_mm_s" in result else ""
+    at = f"{result['speed_mm_s']:g} mm/s" if "speed_mm_s" in result else ""
+    if at and not SLOWEST_SPEED_MM_S <= result["speed_mm_s"] <= FASTEST_SPEED_MM_S:  # where the law holds it
+        held = SLOWEST_SPEED_MM_S if result["speed_mm_s"] < SLOWEST_SPEED_MM_S else FASTEST_SPEED_MM_S
+        at += f" (held at {held:g} mm/s)"
+    speed = f" sliding at {at}" if at else ""
     lines = [
         f"Finger at {result['force_n']:g} N{speed}  (model: {result['model']})",
         f"  force law: {result['force_law']}; holds on {low:.3g}-{high:.3g} N",
     ]
     if speed:
-        lines.append(f"  speed law: {result['speed_law']}; at {result['speed_mm_s']:g} mm/s a ratio needs "
+        lines.append(f"  speed law: {result['speed_law']}; at {at} a ratio needs "
                      f"{result['amplitude_scale']:.3g} x the amplitude it needs at the reference")
     if "contact_area_mm2" in result:
         lines += [

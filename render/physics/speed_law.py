@@ -3,8 +3,9 @@
 A static model (:mod:`ultraglide.render.physics.friction_models`) gives the settled friction ratio for an
 amplitude and a force, at whatever speed its data were taken. The intermittent-contact reading of friction
 reduction says the faster the finger slides relative to the plate's vibration velocity, the less the vibration
-reduces friction. The literature reports that direction; no source available to this project gives the law
-with numbers (the bundled paper and data notes have none), so the law here is **ours, an assumption**:
+reduces friction: that direction is what an intermittent-contact reading predicts (our reading, not a reported
+finding), and no source available to this project gives the law with numbers (the bundled paper and data notes have
+none), so the law here is **ours, an assumption**:
 
     the static model is evaluated at an effective amplitude a_eff = a (v_ref / max(v, v_min))^s
 
@@ -132,8 +133,8 @@ class SpeedLaw:
             "the reduction's reference speed", self.reference_speed_mm_s, REFERENCE_SPEED_RANGE_MM_S, " mm/s"))
 
     def amplitude_scale(self, speed_mm_s: ArrayLike) -> np.ndarray | float:
-        """k = (v / v_ref)^s at the sliding speed v (mm/s, held within 2-2000 mm/s; NaN: the reference): the
-        amplitude a ratio needs at v over what it needs at v_ref.
+        """k = (v / v_ref)^s at the sliding speed v (mm/s, held within 2-2000 mm/s, infinity too; NaN: the
+        reference): the amplitude a ratio needs at v over what it needs at v_ref.
 
         Parameters
         ----------
@@ -153,7 +154,7 @@ class SpeedLaw:
         if np.ndim(speed_mm_s) == 0:
             return self.one_scale(float(speed_mm_s))
         speed = np.asarray(speed_mm_s, dtype=float)
-        speed = np.where(np.isfinite(speed), speed, self.reference_speed_mm_s)
+        speed = np.where(np.isnan(speed), self.reference_speed_mm_s, speed)
         speed = np.minimum(np.maximum(speed, SLOWEST_SPEED_MM_S), FASTEST_SPEED_MM_S)
         return (speed / self.reference_speed_mm_s) ** self.exponent
 
@@ -164,8 +165,10 @@ class SpeedLaw:
         --------
         >>> SpeedLaw(0.5).one_scale(88.0), SpeedLaw(0.5).one_scale(float("nan"))
         (2.0, 1.0)
+        >>> SpeedLaw(1.0).one_scale(float("inf")) == SpeedLaw(1.0).one_scale(2000.0) == 2000.0 / 22.0
+        True
         """
-        if self.exponent == 0.0 or not math.isfinite(speed_mm_s):
+        if self.exponent == 0.0 or math.isnan(speed_mm_s):
             return 1.0
         speed = min(max(speed_mm_s, SLOWEST_SPEED_MM_S), FASTEST_SPEED_MM_S)
         return (speed / self.reference_speed_mm_s) ** self.exponent
@@ -183,19 +186,21 @@ class SpeedLaw:
         return float(result) if np.ndim(result) == 0 else result
 
     def describe(self) -> str:
-        """One line: the law and that it is assumed.
+        """One line: the law and whose it is: assumed, ours, or the source a calibration file gives (its writer's).
 
         Examples
         --------
         >>> SpeedLaw(0.5).describe()
         'the reduction weakens with sliding speed: a_eff = a (22 mm/s / v)^0.5 (assumed, ours)'
+        >>> SpeedLaw(0.5, source="my sweeps").describe()
+        'the reduction weakens with sliding speed: a_eff = a (22 mm/s / v)^0.5 (given, not ours: my sweeps)'
         >>> SpeedLaw().describe()
         'no dependence on sliding speed (s = 0)'
         """
         if self.exponent == 0.0:
             return "no dependence on sliding speed (s = 0)"
         return (f"the reduction weakens with sliding speed: a_eff = a ({self.reference_speed_mm_s:g} mm/s / v)"
-                f"^{self.exponent:g} ({self.source or 'assumed, ours'})")
+                f"^{self.exponent:g} ({f'given, not ours: {self.source}' if self.source else 'assumed, ours'})")
 
     def parameters(self) -> dict[str, float]:
         """``reduction_speed_exponent`` and ``reduction_reference_speed_mm_s`` (mm/s): for files, JSON.
