@@ -33,7 +33,7 @@ from ultraglide.render.envelope import EnvelopeChain
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.friction_models import FrictionModel
-from ultraglide.render.physics.speed_law import reach_scale, scaled_inverse, speed_law_of
+from ultraglide.render.physics.speed_law import reach_limit, scaled_inverse, speed_law_of
 from ultraglide.render.planning import Planner
 from ultraglide.render.trajectory import FingerState, LiveTrajectory, RecordedTrajectory
 from ultraglide.textures.sampling import Sampler
@@ -873,7 +873,7 @@ class Renderer:
         elif np.all(down):
             self.counters.clipped_samples += inversion.clamped
         elif inversion.clamped and np.any(down):  # count only the clamps while the finger touches
-            floor = self.model.floor_ratio(force, self.limit_um_pp / reach_scale(scale))
+            floor = self.model.floor_ratio(force, reach_limit(self.limit_um_pp, scale))
             self.counters.clipped_samples += int(np.count_nonzero((ratio < floor) & down))
         target = inversion.amplitude_um_pp
         if block is not None:  # the real-time path: timed by its caller, nothing appended
@@ -924,7 +924,7 @@ class Renderer:
                                          direction=heading, out=self._ahead_ratio[:steps])
         touching = bool(np.any(down))
         scalar_force = float(force) if not isinstance(force, np.ndarray) else float(np.mean(force))
-        floor = self.model._floor(scalar_force, min(float(self.limit_um_pp) / reach_scale(self.speed_scale),
+        floor = self.model._floor(scalar_force, min(reach_limit(float(self.limit_um_pp), self.speed_scale),
                                                     self.model.max_amplitude_um_pp))
         if len(self._command) < n:
             self._command = np.empty(n)  # a catch-up block longer than any before: once

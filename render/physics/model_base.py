@@ -5,6 +5,7 @@ See :mod:`ultraglide.render.physics.friction_models` for what every model promis
 
 from __future__ import annotations
 
+import math
 import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -21,7 +22,48 @@ TOUCH_FORCE_RANGE_N = (0.0, MAX_FORCE_N)  # what a command accepts as a finger's
 CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
 RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
 SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
-FLOOR_CACHE = 8192  # floors remembered per model: a speed law's rungs of limit / k (6909 over 2-2000 mm/s at s = 1)
+LADDER_STEP = math.log(1.001)  # the rungs of the amplitude-limit ladder, 0.1 % apart (see ladder_limit)
+LADDER_RUNGS = (-6910, 6910)  # 0.001-1000 µm p-p: any limit a plate and a speed law's k can make
+
+
+def ladder_limit(limit_um_pp: float) -> float:
+    """The rung of a fixed ladder (steps 0.1 % apart, 0.001-1000 µm p-p) at or just below an amplitude limit: a
+    limit that moves by a fraction (a speed law's limit / k, new whenever the speed changes) is asked on a rung, so
+    the floor there is computed once a rung and kept in a table made once a force (:meth:`FrictionModel._floor`).
+
+    Parameters
+    ----------
+    limit_um_pp : float
+        µm p-p, > 0.
+
+    Returns
+    -------
+    float
+        The rung (µm p-p), within 0.1 % below the limit, the same float for every limit on it; the limit itself
+        outside the ladder's range.
+
+    Examples
+    --------
+    >>> ladder_limit(3.0) == ladder_limit(2.9995), 3.0 / 1.001 < ladder_limit(3.0) <= 3.0
+    (True, True)
+    """
+    if not (limit_um_pp > 0.0 and math.isfinite(limit_um_pp)):
+        return limit_um_pp
+    rung = math.floor(math.log(limit_um_pp) / LADDER_STEP)
+    if not LADDER_RUNGS[0] <= rung < LADDER_RUNGS[1]:
+        return limit_um_pp
+    value = math.exp(rung * LADDER_STEP)
+    return value if value <= limit_um_pp else math.exp((rung - 1) * LADDER_STEP)
+
+
+def _ladder_rung(limit: float) -> int | None:
+    """The rung index of a limit on the ladder (exactly), else None."""
+    if not (limit > 0.0 and math.isfinite(limit)):
+        return None
+    rung = round(math.log(limit) / LADDER_STEP)
+    if LADDER_RUNGS[0] <= rung < LADDER_RUNGS[1] and math.exp(rung * LADDER_STEP) == limit:
+        return rung
+    return None
 
 
 def remembered(owner, memo: str, key, compute, size: int = SCALAR_CACHE):
@@ -551,11 +593,21 @@ class FrictionModel(ABC):
 
     def _floor(self, force_n, limit: float):
         """The floor ratio, remembered for the last few scalar forces and limits (the live case: a closed loop
-        asks at its measured force and at ±5 % of it, its limit moving with its scale)."""
+        asks at its measured force and at ±5 % of it, its limit moving with its scale); a limit on the ladder
+        (:func:`ladder_limit`) in a fixed table a force, nothing kept per call."""
         if isinstance(force_n, np.ndarray) and force_n.ndim:
             return self.relative_friction(limit, force_n)
+        rung = _ladder_rung(limit)
+        if rung is not None:  # a limit on the ladder (a speed law's): a table a force, made once, filled once a rung
+            table = remembered(self, "_ladder_floors", float(force_n),
+                               lambda: np.full(LADDER_RUNGS[1] - LADDER_RUNGS[0], np.nan))
+            index = rung - LADDER_RUNGS[0]
+            value = table[index]
+            if value != value:  # NaN: not yet
+                value = table[index] = float(self.relative_friction(limit, force_n))
+            return float(value)
         return remembered(self, "_floors", (float(force_n), limit),
-                          lambda: float(self.relative_friction(limit, force_n)), FLOOR_CACHE)
+                          lambda: float(self.relative_friction(limit, force_n)))
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The lowest ratio reachable at this force within the amplitude limit.

@@ -48,39 +48,10 @@ from ultraglide.render.physics.dynamics import (
     DynamicFrictionModel,
 )
 from ultraglide.render.physics.errors import ModelError
-from ultraglide.render.physics.model_base import DEFAULT_FORCE_N, FrictionModel, Inversion
+from ultraglide.render.physics.model_base import DEFAULT_FORCE_N, FrictionModel, Inversion, ladder_limit
 
 EXPONENT_RANGE = (0.0, 1.0)  # 0: none; 1: amplitude and speed enter only through their ratio (see above)
 FASTEST_SPEED_MM_S = 2000.0  # no finger swipes faster: a faster estimate is held here
-REACH_STEP = math.log(1.001)  # the limit / k the inverse is asked within steps by 0.1 % in k (see reach_scale)
-
-
-def reach_scale(scale: float) -> float:
-    """k rounded up to the next of a fixed ladder of steps 0.1 % apart: the inverse is asked within
-    ``limit / reach_scale(k)``, so the reachable limit only shrinks (by under 0.1 %), and the floor at it, remembered
-    by its limit, is computed once a rung, not once a speed (the block path asks at a new k whenever the speed
-    changes).
-
-    Parameters
-    ----------
-    scale : float
-        k > 0.
-
-    Returns
-    -------
-    float
-        The rung at or above k: the same float for every k on its rung.
-
-    Examples
-    --------
-    >>> reach_scale(2.0) == reach_scale(2.0005), 2.0 <= reach_scale(2.0) < 2.0 * 1.001, reach_scale(1.0)
-    (True, True, 1.0)
-    """
-    if scale == 1.0:
-        return 1.0
-    rung = math.ceil(math.log(scale) / REACH_STEP)
-    value = math.exp(rung * REACH_STEP)
-    return value if value >= scale else math.exp((rung + 1) * REACH_STEP)
 
 
 def _checked(name: str, value, allowed: tuple[float, float], unit: str) -> float:
@@ -217,8 +188,9 @@ class SpeedLaw:
 def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, limit_um_pp: float, scale: float,
                    out: np.ndarray | None = None) -> Inversion:
     """The amplitude for each target ratio at a speed whose amplitude scale is ``scale`` (:meth:`SpeedLaw.one_scale`):
-    ``model``'s inverse within ``limit_um_pp / reach_scale(scale)`` (:func:`reach_scale`: under 0.1 % inside
-    ``limit_um_pp / scale``, so the floor there is remembered across speeds), times ``scale``. What it clamps is
+    ``model``'s inverse within ``ladder_limit(limit_um_pp / scale)``
+    (:func:`~ultraglide.render.physics.model_base.ladder_limit`: under 0.1 % inside ``limit_um_pp / scale``, on a
+    rung, so the floor there is computed once a rung, not once a speed), times ``scale``. What it clamps is
     what is out of reach at that speed, or within 0.1 % of it (its amplitude is the limit); no amplitude exceeds
     ``limit_um_pp``. With ``out`` (float64, the ratios' length) and a compiled model, nothing is allocated: the
     scaling is in place.
@@ -256,7 +228,7 @@ def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, l
     """
     if scale == 1.0:
         return model.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
-    reached = limit_um_pp / reach_scale(scale)
+    reached = reach_limit(limit_um_pp, scale)
     inversion = model.amplitude_um_pp(ratio, force_n, reached, out)
     amplitude = inversion.amplitude_um_pp
     if isinstance(amplitude, np.ndarray) and amplitude.ndim == 1 and amplitude.dtype == np.float64:
@@ -267,6 +239,19 @@ def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, l
         amplitude[clamped] = limit_um_pp
         np.minimum(amplitude, limit_um_pp, out=amplitude)
     return inversion
+
+
+def reach_limit(limit_um_pp: float, scale: float) -> float:
+    """The limit (µm p-p) a static inverse is asked within at amplitude scale ``scale``: ``limit_um_pp / scale`` on
+    the ladder's rung at or below it (:func:`~ultraglide.render.physics.model_base.ladder_limit`), so the reachable
+    limit only shrinks, by under 0.1 %; ``limit_um_pp`` itself at ``scale`` 1.
+
+    Examples
+    --------
+    >>> reach_limit(6.0, 1.0), 3.0 / 1.001 < reach_limit(6.0, 2.0) <= 3.0
+    (6.0, True)
+    """
+    return limit_um_pp if scale == 1.0 else ladder_limit(limit_um_pp / scale)
 
 
 @njit(cache=True, nogil=True)
