@@ -44,7 +44,8 @@ def ladder_limit(limit_um_pp: float) -> float:
 
     Examples
     --------
-    >>> ladder_limit(3.0) == ladder_limit(2.9995), 3.0 / 1.001 < ladder_limit(3.0) <= 3.0
+    >>> rung = ladder_limit(3.0)
+    >>> ladder_limit(rung * 1.0005) == ladder_limit(rung) == rung, 3.0 / 1.001 < rung <= 3.0
     (True, True)
     """
     if not (limit_um_pp > 0.0 and math.isfinite(limit_um_pp)):
