@@ -57,10 +57,14 @@ SPEED_EXPONENT_RANGE = (0.0, 1.5)
 REFERENCE_SPEED_RANGE_MM_S = (1.0, 1000.0)
 
 
-def _checked(name: str, value: float, allowed: tuple[float, float], unit: str) -> float:
+def checked_in_range(name: str, value, allowed: tuple[float, float], unit: str) -> float:
+    """``value`` as a float if it is a finite number within ``allowed`` (ends included), else a one-line
+    :class:`ModelError` naming ``name``, the range and its ``unit``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ModelError(f"{name} must be a number in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value!r}")
     value = float(value)
     if not (math.isfinite(value) and allowed[0] <= value <= allowed[1]):
-        raise ModelError(f"{name} must lie in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value}")
+        raise ModelError(f"{name} must lie in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value:g}")
     return value
 
 
@@ -110,10 +114,11 @@ class FrictionDynamics:
     source: str = field(default="", compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        _checked("the onset time constant", self.onset_s, ONSET_RANGE_S, " s")
-        _checked("the recovery time constant", self.recovery_s, RECOVERY_RANGE_S, " s")
-        _checked("the recovery's reference speed", self.reference_speed_mm_s, REFERENCE_SPEED_RANGE_MM_S, " mm/s")
-        _checked("the recovery's speed exponent", self.speed_exponent, SPEED_EXPONENT_RANGE, "")
+        checked_in_range("the onset time constant", self.onset_s, ONSET_RANGE_S, " s")
+        checked_in_range("the recovery time constant", self.recovery_s, RECOVERY_RANGE_S, " s")
+        checked_in_range("the recovery's reference speed", self.reference_speed_mm_s, REFERENCE_SPEED_RANGE_MM_S,
+                         " mm/s")
+        checked_in_range("the recovery's speed exponent", self.speed_exponent, SPEED_EXPONENT_RANGE, "")
 
     def recovery_at_s(self, speed_mm_s: ArrayLike) -> np.ndarray | float:
         """The recovery's time constant (s) at a sliding speed (mm/s; below 2 mm/s as at 2 mm/s), at most 1 s.

@@ -46,21 +46,13 @@ from ultraglide.render.physics.dynamics import (
     REFERENCE_SPEED_RANGE_MM_S,
     SLOWEST_SPEED_MM_S,
     DynamicFrictionModel,
+    checked_in_range,
 )
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.model_base import DEFAULT_FORCE_N, FrictionModel, Inversion, ladder_limit
 
 EXPONENT_RANGE = (0.0, 1.0)  # 0: none; 1: amplitude and speed enter only through their ratio (see above)
 FASTEST_SPEED_MM_S = 2000.0  # no finger swipes faster: a faster estimate is held here
-
-
-def _checked(name: str, value, allowed: tuple[float, float], unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ModelError(f"{name} must be a number in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value!r}")
-    value = float(value)
-    if not (math.isfinite(value) and allowed[0] <= value <= allowed[1]):
-        raise ModelError(f"{name} must lie in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value:g}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -98,9 +90,9 @@ class SpeedLaw:
     source: str = field(default="", compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "exponent", _checked("the reduction's speed exponent", self.exponent,
+        object.__setattr__(self, "exponent", checked_in_range("the reduction's speed exponent", self.exponent,
                                                       EXPONENT_RANGE, ""))
-        object.__setattr__(self, "reference_speed_mm_s", _checked(
+        object.__setattr__(self, "reference_speed_mm_s", checked_in_range(
             "the reduction's reference speed", self.reference_speed_mm_s, REFERENCE_SPEED_RANGE_MM_S, " mm/s"))
 
     def amplitude_scale(self, speed_mm_s: ArrayLike) -> np.ndarray | float:
