@@ -152,12 +152,18 @@ def _fitted_dynamics(law: str):
     else None; a law that cannot be loaded has none here (``finger_law`` says what is wrong with it)."""
     if law == DEFAULT_LAW or law == "dynamic" or law.startswith("dynamic:") or not law.endswith(".toml"):
         return None
+    return _loaded_part(law, "dynamics")
+
+
+def _loaded_part(law: str, part: str):
+    """The attribute ``part`` of the model ``law`` names, loaded quietly; None where it has none or cannot be
+    loaded (``finger_law`` says what is wrong with such a law, where the law itself is built)."""
     from ultraglide.render.physics.calibration import load_model
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return getattr(load_model(law), "dynamics", None)
+            return getattr(load_model(law), part, None)
     except Exception:  # noqa: BLE001 - refused with its words where the law itself is built
         return None
 
@@ -191,16 +197,7 @@ def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
 def _speed_law(law: str):
     """The settled speed law a law holds (``speed:S:NAME``, ``dynamic:speed:S:NAME``, a calibration's ``[speed]``),
     else None. Read again each time (once a finger is built): a calibration file edited since is read as it is."""
-    if law == DEFAULT_LAW:
-        return None
-    from ultraglide.render.physics.calibration import load_model
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return getattr(load_model(law), "speed_law", None)
-    except Exception:  # noqa: BLE001 - refused with its words where the law itself is built
-        return None
+    return None if law == DEFAULT_LAW else _loaded_part(law, "speed_law")
 
 
 def finger_speed_law(config: FingerConfig) -> FingerSpeedLaw | None:
