@@ -281,6 +281,22 @@ def test_table_with_several_forces_is_exact_at_the_end_of_each_range():
     assert float(model.floor_ratio(0.6)) == pytest.approx(0.7, abs=1e-6)
 
 
+def test_a_table_at_three_forces_spans_them_and_never_rises_above_rest():
+    # a sensor's noise put one point at rest above 1 (friction at rest is the ratio's 1 by definition)
+    amplitude = np.array([0, 2, 4, 6.0] * 3)
+    ratio = np.array([1.08, 0.8, 0.6, 0.4, 1, 0.85, 0.7, 0.55, 1, 0.9, 0.8, 0.7])
+    force = np.array([0.2] * 4 + [0.4] * 4 + [0.6] * 4)
+    model = TableModel(Measurements(amplitude, ratio, force, "three forces"))
+    assert model.valid_force_range_n() == (0.2, 0.6)  # the lightest to the heaviest, not the first two
+    assert repr(model) == "TableModel('three forces', forces 0.2–0.6 N)"
+    for f in (0.2, 0.4, 0.6):
+        assert float(model.relative_friction(np.array([0.0]), f)[0]) == pytest.approx(1.0, abs=1e-9)
+    assert np.all(model.relative_friction(np.linspace(0.0, 6.0, 61), 0.2) <= 1.0)
+    assert float(model.amplitude_um_pp(1.0, 0.2, 6.0).amplitude_um_pp[()]) == 0.0  # rest needs no vibration
+    # 1.08 taken as 1 before the curve is drawn: 0.2 N's points are then on a line, which PCHIP keeps
+    assert model.relative_friction(np.array([0.5, 1.0, 3.0]), 0.2) == pytest.approx([0.95, 0.9, 0.7], abs=1e-6)
+
+
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
 
