@@ -59,7 +59,17 @@ REFERENCE_SPEED_RANGE_MM_S = (1.0, 1000.0)
 
 def checked_in_range(name: str, value, allowed: tuple[float, float], unit: str) -> float:
     """``value`` as a float if it is a finite number within ``allowed`` (ends included), else a one-line
-    :class:`ModelError` naming ``name``, the range and its ``unit``."""
+    :class:`ModelError` naming ``name``, the range and its ``unit``.
+
+    Examples
+    --------
+    >>> checked_in_range("the onset time constant", 0.005, (0.0005, 0.05), " s")
+    0.005
+    >>> checked_in_range("the onset time constant", "fast", (0.0005, 0.05), " s")
+    Traceback (most recent call last):
+    ...
+    ultraglide.render.physics.errors.ModelError: the onset time constant must be a number in 0.0005-0.05 s, got 'fast'
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise ModelError(f"{name} must be a number in {allowed[0]:g}-{allowed[1]:g}{unit}, got {value!r}")
     value = float(value)
