@@ -297,6 +297,13 @@ def test_a_table_at_three_forces_spans_them_and_never_rises_above_rest():
     assert model.relative_friction(np.array([0.5, 1.0, 3.0]), 0.2) == pytest.approx([0.95, 0.9, 0.7], abs=1e-6)
 
 
+def test_a_models_repr_leaves_out_only_a_floor_at_its_class_default():
+    assert repr(StretchedExponentialModel(3.0, 2.0, 0.25)) == \
+        "StretchedExponentialModel(scale_um_pp=3.0, shape=2.0, force_exponent=0.25)"
+    assert repr(StretchedExponentialModel(3.0, 2.0, 0.25, residual_ratio=0.0)) == \
+        "StretchedExponentialModel(scale_um_pp=3.0, shape=2.0, force_exponent=0.25, residual_ratio=0.0)"
+
+
 S0 = 2 * np.sqrt(2) * 1.32  # Monnoyer's curve at 0.5 N, µm p-p
 
 

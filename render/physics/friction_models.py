@@ -44,7 +44,6 @@ from ultraglide.render.physics.model_base import (
     MAX_FORCE_N,
     MIN_FORCE_N,
     RATIO_GRID_POINTS,
-    TOUCH_FORCE_RANGE_N,
     FitRange,
     FrictionModel,
     Inversion,
@@ -59,7 +58,7 @@ from ultraglide.render.physics.table_model import TableModel
 __all__ = [
     "ASSUMED_FORCE_EXPONENT", "CEILING_UM_PP", "DEFAULT_FORCE_N", "FORCE_EXPONENT_RANGE", "MAX_FORCE_N", "MIN_FORCE_N",
     "MONNOYER_SCALE_UM_PP", "MONNOYER_TAU_UM_ZP", "RATIO_GRID_POINTS", "REFERENCE_FORCE_N", "RESIDUAL_RANGE",
-    "SCALE_RANGE_UM_PP", "SHAPE_RANGE", "TAU_RANGE_UM_ZP", "TOUCH_FORCE_RANGE_N", "ExponentialModel", "FitRange",
+    "SCALE_RANGE_UM_PP", "SHAPE_RANGE", "TAU_RANGE_UM_ZP", "ExponentialModel", "FitRange",
     "FrictionModel", "Inversion", "PaperModel", "StretchedExponentialModel", "TableModel", "UniformTable",
     "check_amplitude", "check_force", "check_ratio",
 ]

@@ -18,7 +18,6 @@ from ultraglide.render.physics.errors import ForceRangeWarning, ModelError
 DEFAULT_FORCE_N = 0.5
 MIN_FORCE_N = 0.01  # lighter touches are treated as 10 mN: the finger is lifting off
 MAX_FORCE_N = 10.0  # a fingertip's touch range ends here (a hard press); commands refuse more
-TOUCH_FORCE_RANGE_N = (0.0, MAX_FORCE_N)  # what a command accepts as a finger's normal force
 CEILING_UM_PP = 20.0  # no model is evaluated beyond this: far above any plate's safe amplitude
 RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
 SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
