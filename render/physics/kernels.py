@@ -723,6 +723,19 @@ def friction_response(static, speed, one_speed, rate_hz, onset_s, recovery_s, re
 F64, F32 = np.zeros(4), np.zeros(4, dtype=np.float32)  # the texture's ratio comes as float32
 
 
+@njit(cache=True, nogil=True)
+def scale_within(amplitude, scale, reached, limit):  # pragma: no cover - compiled
+    """In place: each amplitude (µm p-p) times ``scale``, within ``limit``; one at the inverse's own limit
+    (``reached``, clamped there) becomes ``limit`` exactly (the most the plate may give, not 0.1 % less): the speed
+    law's inverse (render/physics/speed_law.py)."""
+    for i in range(amplitude.shape[0]):
+        value = amplitude[i]
+        if value >= reached:
+            amplitude[i] = limit
+        else:
+            amplitude[i] = min(value * scale, limit)
+
+
 @functools.cache
 def warm_up_stretched() -> None:
     """The stretched (and exponential) model's inverses, for one force and one force a sample.
@@ -843,3 +856,4 @@ def warm_up() -> None:
     warm_up_uniform()
     warm_up_table()
     warm_up_film()
+    scale_within(np.zeros(1), 2.0, 1.0, 2.0)

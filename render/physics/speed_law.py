@@ -39,8 +39,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike
+from ultraglide.render.physics import kernels
 from ultraglide.render.physics.dynamics import (
     REFERENCE_SPEED_MM_S,
     REFERENCE_SPEED_RANGE_MM_S,
@@ -224,7 +224,8 @@ def scaled_inverse(model: FrictionModel, ratio: ArrayLike, force_n: ArrayLike, l
     inversion = model.amplitude_um_pp(ratio, force_n, reached, out)
     amplitude = inversion.amplitude_um_pp
     if isinstance(amplitude, np.ndarray) and amplitude.ndim == 1 and amplitude.dtype == np.float64:
-        _scale_within(amplitude, float(scale), float(min(reached, model.max_amplitude_um_pp)), float(limit_um_pp))
+        most = float(min(reached, model.max_amplitude_um_pp))
+        kernels.scale_within(amplitude, float(scale), most, float(limit_um_pp))
     else:
         clamped = amplitude >= min(reached, model.max_amplitude_um_pp)
         amplitude *= scale
@@ -244,18 +245,6 @@ def reach_limit(limit_um_pp: float, scale: float) -> float:
     (6.0, True)
     """
     return limit_um_pp if scale == 1.0 else ladder_limit(limit_um_pp / scale)
-
-
-@njit(cache=True, nogil=True)
-def _scale_within(amplitude, scale, reached, limit):  # pragma: no cover - compiled
-    """In place: each amplitude times ``scale``, within ``limit``; one at the inverse's own limit (``reached``,
-    clamped there) becomes ``limit`` exactly (the most the plate may give, not 0.1 % less)."""
-    for i in range(amplitude.shape[0]):
-        value = amplitude[i]
-        if value >= reached:
-            amplitude[i] = limit
-        else:
-            amplitude[i] = min(value * scale, limit)
 
 
 class SpeedLawModel(FrictionModel):
@@ -309,7 +298,7 @@ class SpeedLawModel(FrictionModel):
         >>> SpeedLawModel(ExponentialModel(), SpeedLaw(0.5)).warm_up()
         """
         self.static.warm_up()
-        _scale_within(np.zeros(1), 2.0, 1.0, 2.0)  # compiled (or loaded) here, not in the first block
+        kernels.scale_within(np.zeros(1), 2.0, 1.0, 2.0)  # compiled (or loaded) here, not in the first block
 
     def force_law(self) -> str:
         """The static model's force law.
