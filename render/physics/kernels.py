@@ -727,7 +727,15 @@ F64, F32 = np.zeros(4), np.zeros(4, dtype=np.float32)  # the texture's ratio com
 def scale_within(amplitude, scale, reached, limit):  # pragma: no cover - compiled
     """In place: each amplitude (µm p-p) times ``scale``, within ``limit``; one at the inverse's own limit
     (``reached``, clamped there) becomes ``limit`` exactly (the most the plate may give, not 0.1 % less): the speed
-    law's inverse (render/physics/speed_law.py)."""
+    law's inverse (render/physics/speed_law.py).
+
+    Examples
+    --------
+    >>> amplitude = np.array([1.0, 2.5, 2.997])      # µm p-p, the last clamped at the inverse's own limit
+    >>> scale_within(amplitude, 2.0, 2.997, 6.0)
+    >>> amplitude.tolist()
+    [2.0, 5.0, 6.0]
+    """
     for i in range(amplitude.shape[0]):
         value = amplitude[i]
         if value >= reached:
