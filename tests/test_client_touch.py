@@ -58,6 +58,7 @@ class Recorder:
         self.closes: list = []
         self.ready = threading.Event()
         self.stop = threading.Event()
+        self.release = threading.Event()  # a connection that read a "hold" reads nothing more until this is set
         self.thread = threading.Thread(target=asyncio.run, args=(self._serve(),), daemon=True)
 
     async def _serve(self):
@@ -71,6 +72,8 @@ class Recorder:
                     if message.get("type") == "goodbye":
                         await connection.close(1000, "goodbye")
                         return
+                    if message.get("type") == "hold":
+                        await asyncio.to_thread(self.release.wait, 60.0)
                     if "id" in message:
                         await connection.send(json.dumps({"type": "ok", "id": message["id"], "role": "control"}))
             finally:
@@ -88,6 +91,7 @@ class Recorder:
 
     def __exit__(self, *exc):
         self.stop.set()
+        self.release.set()
         self.thread.join(30)
 
     def wait_for(self, count: int, timeout_s: float = 30.0) -> list[dict]:
@@ -195,6 +199,44 @@ def test_an_async_short_touch_is_on_its_way_when_the_call_returns_and_one_behind
     assert [(m["type"], m.get("x")) for m in received] == [("hello", None), ("touch", 1.0), ("touch", 3.0),
                                                            ("touch", 5.0), ("state", None)]
     assert received[2]["view"] == "main" and "view" not in received[3]
+
+
+def test_async_touches_whose_writes_are_held_back_go_by_the_general_path_and_all_arrive_in_order():
+    """A server that stops reading: the kernel's socket buffers fill, then the transport's own, and websockets holds
+    the connection's writes back (flow control). Touches made then are not written into the transport (its buffer
+    would grow without bound) but sent by the general path's tasks, in order, once the server reads again."""
+    async def touches(server):
+        async with await AsyncClient.connect(server.url) as plate:
+            await plate._send({"type": "hold"})  # the server reads this, then nothing until released
+            ws, sent, k = plate._ws, [], 0
+            deadline = time.monotonic() + 60.0
+            while not ws.paused and time.monotonic() < deadline:  # short-path touches until the writes are held
+                plate.touch(float(k), 1.0, "down" if k == 0 else "move", t=float(k))
+                sent.append(k)
+                k += 1
+                if k % 500 == 0:
+                    await asyncio.sleep(0)  # the loop turns: the transport tries to write, and says it is full
+            assert ws.paused, f"{k} touches written and the connection's writes never held back"
+            buffered = ws.transport.get_write_buffer_size()
+            for _ in range(2000):  # held back: each takes the general path, a task that waits for the writes
+                plate.touch(float(k), 1.0, "move", t=float(k))
+                sent.append(k)
+                k += 1
+            waiting = plate._posting
+            assert ws.transport.get_write_buffer_size() == buffered  # nothing more put into the full transport
+            server.release.set()
+            await plate.state()  # answered: the server has read everything before it
+            return sent, waiting
+
+    with Recorder() as server:
+        sent, waiting = asyncio.run(touches(server))
+        received = server.wait_for(len(sent) + 3, timeout_s=120.0)
+    assert waiting == 2000
+    assert [m["type"] for m in received[:2]] == ["hello", "hold"]
+    touches_received = received[2:len(sent) + 2]
+    assert [m["t"] for m in touches_received] == [float(k) for k in sent]  # every one, once, in order
+    assert all(m["type"] == "touch" for m in touches_received) and received[len(sent) + 2]["type"] == "state"
+    assert server.closes and server.closes[0][0] == 1000, server.closes  # every frame read as valid
 
 
 def test_an_async_touch_that_is_not_finite_is_refused_and_nothing_of_it_is_sent():
