@@ -209,6 +209,12 @@ def _add_show_and_info(texture_commands) -> None:
     info_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, a library name, or a glTF "
                                                                 "scene (.gltf, .glb: its haptic materials)")
     info_parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_model_option(info_parser, default="stretched")
+    info_parser.add_argument("--profile", default="sim-plate",
+                             help="plate profile: its amplitude limit, which sets the lowest friction a swipe is "
+                                  "felt at (default: sim-plate)")
+    info_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",
+                             help="normal force, N (default: 0.5)")
     info_parser.set_defaults(run=info)
 
 
@@ -337,8 +343,9 @@ def compose(args) -> int:
     return 0
 
 
-def describe(texture, spec: str) -> dict:
-    """What ``texture info`` prints: metadata, friction statistics and seams, JSON-ready."""
+def describe(texture, spec: str, felt_under=None) -> dict:
+    """What ``texture info`` prints: metadata, friction statistics and seams, JSON-ready; with ``felt_under`` (a
+    model, the plate's limit in µm p-p and the force in N), what a swipe keeps of its contrast (:func:`_felt`)."""
     import numpy as np
     from ultraglide.textures.seams import measure_seams
 
@@ -356,30 +363,35 @@ def describe(texture, spec: str) -> dict:
         "seams": {"seam_max": _ratio(seams.seam_max), "interior_max": _ratio(seams.interior_max),
                   "ratio": round(float(seams.ratio), 3), "seamless": seams.seamless, "visible": seams.visible},
         "source": texture.source, "authoring": _readable(texture.authoring),
-        "felt": _felt(texture),
+        "felt": _felt(texture, *felt_under) if felt_under is not None else None,
     }
 
 
 FELT_SPEEDS_MM_S = (50.0, 100.0, 200.0)
-FELT_FLOOR = 0.168  # the default model's floor within 6 µm p-p (sim-plate's limit) at 0.5 N
 FELT_MAX_PIXELS = 4_000_000
 
 
-def _felt(texture) -> list[dict] | None:
-    """What a finger with the published friction dynamics keeps of a friction texture's contrast along a swipe at
-    50, 100 and 200 mm/s (render.planning.swipe_contrast); None for a gradient texture (its friction depends on
-    the direction of the swipe)."""
+def _felt(texture, model, limit_um_pp: float, force_n: float) -> list[dict] | None:
+    """What a finger keeps of a friction texture's contrast along a swipe at 50, 100 and 200 mm/s
+    (render.planning.swipe_contrast): the model's friction dynamics (the published ones for a static model), and
+    its floor within the plate's limit at that force and speed (under a speed law the floor rises with speed);
+    None for a gradient texture (its friction depends on the direction of the swipe)."""
     if texture.kind != "friction" or texture.cols * texture.rows > FELT_MAX_PIXELS:
         return None  # a large map would be resampled for a lookup: not for an info line
     from ultraglide.render.physics.dynamics import FrictionDynamics
+    from ultraglide.render.physics.speed_law import speed_law_of
     from ultraglide.render.planning import swipe_contrast
 
+    dynamics = getattr(model, "dynamics", None) or FrictionDynamics()
+    law = speed_law_of(model)
     felt = []
     for speed in FELT_SPEEDS_MM_S:
-        kept = swipe_contrast(texture, FrictionDynamics(), speed, FELT_FLOOR, longest_s=0.5)
-        felt.append({"speed_mm_s": speed, "contrast_instantaneous": round(kept.instantaneous, 3),
-                     "contrast_planned": round(kept.planned, 3), "rms_instantaneous": round(kept.instantaneous_rms, 3),
-                     "rms_planned": round(kept.planned_rms, 3)})
+        within = limit_um_pp / law.one_scale(speed) if law is not None else limit_um_pp
+        floor = float(model.floor_ratio(force_n, within))
+        kept = swipe_contrast(texture, dynamics, speed, floor, longest_s=0.5)
+        felt.append({"speed_mm_s": speed, "floor": round(floor, 4),
+                     "contrast_instantaneous": round(kept.instantaneous, 3), "contrast_planned": round(kept.planned, 3),
+                     "rms_instantaneous": round(kept.instantaneous_rms, 3), "rms_planned": round(kept.planned_rms, 3)})
     return felt
 
 
@@ -395,8 +407,14 @@ def info(args) -> int:
         from ultraglide.apps.commands.texture_formats import scene_info
 
         return scene_info(args)
+    from ultraglide.devices.profiles import load_profile
+    from ultraglide.render.physics.calibration import load_model
+    from ultraglide.render.physics.speed_law import speed_law_of
+
+    model = load_model(args.model)
+    limit_um_pp = load_profile(args.profile).max_amplitude_um_pp
     texture = _input(args.texture)
-    facts = describe(texture, args.texture)
+    facts = describe(texture, args.texture, (model, limit_um_pp, args.force))
     if args.json:
         print_json(facts)
         return 0
@@ -414,11 +432,14 @@ def info(args) -> int:
         f"  beyond      {beyond}",
     ]
     if facts["felt"]:
-        lines.append("  felt        of its contrast along a swipe, a finger with the published friction dynamics "
-                     "keeps (ours):")
+        whose = "its" if getattr(model, "dynamics", None) is not None else "the published"
+        law = speed_law_of(model)  # the lowest friction reachable then rises with speed: said at each
+        lines.append(f"  felt        of its contrast along a swipe, a finger with {whose} friction dynamics keeps "
+                     f"(ours; {args.model} within {limit_um_pp:g} µm p-p at {args.force:g} N):")
         lines += [f"              {g['speed_mm_s']:5g} mm/s: {100 * g['contrast_instantaneous']:3.0f} % rendered "
                   f"instantly (error {g['rms_instantaneous']:.3f}), {100 * g['contrast_planned']:3.0f} % planned "
-                  f"(error {g['rms_planned']:.3f})" for g in facts["felt"]]
+                  f"(error {g['rms_planned']:.3f})" + (f", lowest friction {g['floor']:.3f}" if law else "")
+                  for g in facts["felt"]]
     if texture.outside == "tile":
         verdict = "seamless" if seams["seamless"] else ("a seam a finger would feel" if seams["visible"] else
                                                         "a slight seam")

@@ -1,0 +1,68 @@
+"""``texture info``'s "felt" figures: what a swipe at 50, 100 and 200 mm/s keeps of a texture's contrast, under the
+model, the plate's limit and the force given, the lowest friction a swipe is felt at rising with speed under a
+settled speed law."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import assert_one_line_error, run_cli
+from ultraglide.render.physics.dynamics import FrictionDynamics
+from ultraglide.render.physics.friction_models import StretchedExponentialModel
+from ultraglide.render.planning import swipe_contrast
+from ultraglide.textures.library import resolve_texture
+
+
+def felt(*options):
+    return json.loads(run_cli("texture", "info", "grating-1mm", "--json", *options, check=True).stdout)["felt"]
+
+
+def stretched_at(amplitude_um_pp: float, force_n: float) -> float:
+    """The stretched model's settled ratio at an amplitude, evaluated forward (not through its floor)."""
+    return float(StretchedExponentialModel().relative_friction(np.array([amplitude_um_pp]), force_n)[0])
+
+
+def test_the_default_is_the_stretched_models_floor_within_sim_plates_limit_and_the_published_dynamics():
+    texture = resolve_texture("grating-1mm")
+    floor = stretched_at(6.0, 0.5)  # sim-plate's limit is 6 µm p-p
+    for entry, speed in zip(felt(), (50.0, 100.0, 200.0), strict=True):
+        assert entry["speed_mm_s"] == speed and entry["floor"] == pytest.approx(floor, abs=1e-4)
+        kept = swipe_contrast(texture, FrictionDynamics(), speed, floor, longest_s=0.5)
+        assert entry["contrast_planned"] == pytest.approx(kept.planned, abs=1e-3)
+        assert entry["rms_instantaneous"] == pytest.approx(kept.instantaneous_rms, abs=1e-3)
+
+
+def test_under_a_speed_law_the_floor_is_the_static_one_within_the_limit_shrunk_by_the_speed():
+    """s = 1: at v the plate's 6 µm act as 6 × 22 / v µm on the settled reduction (hand), so the floor at 200 mm/s
+    is the static model's at 0.66 µm, and a fine grating keeps less of its error to correct."""
+    laws = felt("--model", "speed:1:stretched")
+    for entry in laws:
+        assert entry["floor"] == pytest.approx(stretched_at(6.0 * 22.0 / entry["speed_mm_s"], 0.5), abs=1e-4)
+    floors = [entry["floor"] for entry in laws]
+    assert floors == sorted(floors) and floors[0] > stretched_at(6.0, 0.5)
+    without = felt()
+    assert laws[2]["rms_instantaneous"] < without[2]["rms_instantaneous"]  # less of the grating within reach
+
+
+def test_the_force_and_the_profile_s_limit_set_the_floor():
+    heavier = felt("--force", "1.5")
+    assert heavier[0]["floor"] == pytest.approx(stretched_at(6.0, 1.5), abs=1e-4)
+    assert heavier[0]["floor"] != pytest.approx(stretched_at(6.0, 0.5), abs=1e-3)  # the law depends on force
+
+
+def test_the_words_name_the_model_the_limit_and_the_force():
+    words = run_cli("texture", "info", "grating-1mm", "--model", "dynamic:speed:0.5:stretched", "--force", "1",
+                    check=True).stdout
+    assert "a finger with its friction dynamics keeps (ours; dynamic:speed:0.5:stretched within 6 µm p-p at 1 N)" \
+        in words
+    assert words.count("lowest friction") == 3
+    plain = run_cli("texture", "info", "grating-1mm", check=True).stdout
+    assert "the published friction dynamics keeps (ours; stretched within 6 µm p-p at 0.5 N)" in plain
+    assert "lowest friction" not in plain
+
+
+def test_a_bad_model_or_profile_is_one_line_and_exit_2():
+    for options, said in ((["--model", "speed:3:stretched"], "speed"), (["--profile", "nope"], "profile"),
+                          (["--force", "-1"], "force")):
+        result = run_cli("texture", "info", "grating-1mm", *options)
+        assert result.returncode == 2 and said in assert_one_line_error(result)
