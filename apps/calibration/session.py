@@ -175,9 +175,12 @@ def _fit_and_write(args, recorder, plan, sensors: dict) -> dict:
         recording.write(temporary)
     points = output.with_suffix(".csv")
     with atomic_path(points) as temporary:
-        rows = ["amplitude_um_pp,relative_friction,force_n,participant"]
-        rows += [f"{a:.5f},{r:.5f},{f:.5f},{args.participant}" for a, r, f in
-                 zip(data.amplitude_um_pp, data.relative_friction, data.force_n, strict=True)]
+        # the sliding speed where it is known, so sessions at several speeds, joined, fit the speed law
+        speed = sensors["speed_mm_s"]
+        known = math.isfinite(speed) and speed > 0.0
+        rows = ["amplitude_um_pp,relative_friction,force_n," + ("speed_mm_s," if known else "") + "participant"]
+        rows += [f"{a:.5f},{r:.5f},{f:.5f}," + (f"{speed:g}," if known else "") + str(args.participant)
+                 for a, r, f in zip(data.amplitude_um_pp, data.relative_friction, data.force_n, strict=True)]
         temporary.write_text("\n".join(rows) + "\n")
     with atomic_path(output) as temporary:
         temporary.write_text(calibration_toml(fit, participant=args.participant, procedure=plan.words(),

@@ -218,9 +218,10 @@ def _fit_lines(fit: Fit) -> list[str]:
     return lines
 
 
-def _residual_table(fit: Fit) -> list[str]:
+def _residual_table(fit: Fit, speed=None) -> list[str]:
     data = fit.data
-    lines = ["  amplitude µm p-p   force N   measured   model    residual"]
+    at = f" (at {speed.reference_speed_mm_s:g} mm/s under the speed law)" if speed is not None and speed.kept else ""
+    lines = [f"  amplitude µm p-p   force N   measured   model    residual{at}"]
     forces = data.force_n if data.force_n is not None else [None] * len(data)
     for a, r, f, e in zip(data.amplitude_um_pp, data.relative_friction, forces, fit.residuals, strict=True):
         force = f"{f:7.3g}" if f is not None else "      -"
@@ -228,13 +229,32 @@ def _residual_table(fit: Fit) -> list[str]:
     return lines
 
 
-def _write(fit: Fit, fits: list[Fit], output: Path, width: str = "column") -> list[Path]:
+def _write(fit: Fit, fits: list[Fit], output: Path, width: str = "column", speed=None) -> list[Path]:
     from ultraglide.apps.figures.calibration import write_calibration_figure
     from ultraglide.render.physics.calibration import calibration_toml
 
     with atomic_path(output) as temporary:
-        temporary.write_text(calibration_toml(fit))
+        temporary.write_text(calibration_toml(fit, speed_law=speed.law() if speed is not None else None))
     return [output, *write_calibration_figure(fits, output.with_suffix(".png"), width)]
+
+
+def _speed_law(data, kind: str):
+    """The speed law fitted for ``kind`` where the points carry sliding speeds (:func:`fit_speed_law`), else None."""
+    if data.speed_mm_s is None or kind == "table":
+        return None
+    from ultraglide.render.physics.speed_fit import fit_speed_law
+
+    return fit_speed_law(data, kind)
+
+
+def _at_speed_law(data, speed):
+    """The points as the static model sees them: under a kept speed law, at its reference speed; where speeds were
+    given but no law is kept (the speed cannot be told), as at one speed."""
+    if speed is None:
+        return data
+    from ultraglide.render.physics.speed_fit import at_exponent
+
+    return at_exponent(data, speed.exponent if speed.kept else 0.0, speed.reference_speed_mm_s)
 
 
 def run(args) -> int:
@@ -276,23 +296,34 @@ def run(args) -> int:
         return _run_in_time(args)
     data = _select_participant(read_measurements(args.data), args.participant)
     if args.compare:
-        fits = compare_models(data)
+        # points at several speeds: every model is ranked on them as the stretched law's speed exponent reads them
+        # (fitting each model's own exponent first would take minutes for the paper's); the chosen one fits its own
+        ranked_at = _speed_law(data, "stretched")
+        fits = compare_models(_at_speed_law(data, ranked_at))
         if not fits:
             raise UsageError(f"{data.source}: no model can be fitted to these points")
         chosen = next((f for f in fits if f.kind != "table"), None)
         force_law = choose_force_law(data, chosen.kind) if chosen is not None and chosen.kind in FORCE_LAW_PARAMETER \
             else None
-        if chosen is not None and (args.bootstrap or (force_law is not None and force_law.hold)):
-            chosen = fit_model(data, chosen.kind, cross_validate=True, bootstrap=args.bootstrap,
+        speed = (ranked_at if chosen.kind == "stretched" else _speed_law(data, chosen.kind)) \
+            if chosen is not None else None
+        if chosen is not None and (args.bootstrap or (force_law is not None and force_law.hold)
+                                   or (speed is not None and speed.kept)):
+            chosen = fit_model(_at_speed_law(data, speed), chosen.kind, cross_validate=True, bootstrap=args.bootstrap,
                                hold=force_law.hold if force_law is not None else None)
             fits = [chosen if f.kind == chosen.kind else f for f in fits]
-        written = _write(chosen, fits, output, args.figure_width) if output is not None and chosen is not None else []
+        written = _write(chosen, fits, output, args.figure_width, speed) \
+            if output is not None and chosen is not None else []
         note = selection_note(data)
+        if ranked_at is not None and ranked_at.kept:
+            note += f"; ranked at the stretched law's speed exponent {ranked_at.exponent:.2f}"
         result = {"ranking": [fit_summary(f) for f in fits], "selection": note, "written": [str(p) for p in written]}
         if force_law is not None:
             result["force_law"] = {"model": force_law.kind, "forces": force_law.forces, "kept": force_law.keeps_law,
                                    "held_out_rms_with_law": force_law.held_out_with_law,
                                    "held_out_rms_force_free": force_law.held_out_force_free, "note": force_law.note}
+        if speed is not None:
+            result["speed_law"] = speed.summary()
         if args.json:
             print_json(result)
             return 0
@@ -301,6 +332,8 @@ def run(args) -> int:
             print(f"  {rank}. {fit.kind:14} {_cv_text(fit)}; in-sample {fit.rms_residual:.4f}")
         if force_law is not None:
             print(f"force law of {force_law.kind}: {force_law.note}")
+        if speed is not None:
+            print(f"speed law of {speed.kind}: {speed.note}")
         print()
         for line in _fit_lines(chosen if chosen is not None else fits[0]):
             print(line)
@@ -314,15 +347,19 @@ def run(args) -> int:
             print(f"wrote {', '.join(map(str, written))}")
         return 0
 
-    fit = fit_model(data, args.model, cross_validate=True, bootstrap=args.bootstrap)
+    speed = _speed_law(data, args.model)
+    fit = fit_model(_at_speed_law(data, speed), args.model, cross_validate=True, bootstrap=args.bootstrap)
     if fit.kind == "table" and output is not None:
         raise UsageError("a table model is its CSV: use --model table:FILE.csv rather than a calibration file")
-    written = _write(fit, [fit], output, args.figure_width) if output is not None else []
+    written = _write(fit, [fit], output, args.figure_width, speed) if output is not None else []
     if args.json:
-        print_json({"fit": fit_summary(fit), "written": [str(p) for p in written]})
+        print_json({"fit": fit_summary(fit), "written": [str(p) for p in written]}
+                   | ({"speed_law": speed.summary()} if speed is not None else {}))
         return 0
     print(f"{selection_note(data)}")
-    for line in _fit_lines(fit) + _residual_table(fit):
+    if speed is not None:
+        print(f"speed law: {speed.note}")
+    for line in _fit_lines(fit) + _residual_table(fit, speed):
         print(line)
     for warning in fit.warnings():
         print(f"warning: {warning}; --compare ranks every model on these data")

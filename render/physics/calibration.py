@@ -79,12 +79,14 @@ from ultraglide.inputs import parse_toml, read_input, shown
 
 if TYPE_CHECKING:
     from ultraglide.render.physics.dynamics_fit import DynamicsFit
+    from ultraglide.render.physics.speed_law import SpeedLaw
 
 CALIBRATION_VERSION = 1
 
 
 def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | None = None,
-                     dynamics: DynamicsFit | None = None, recording: str | None = None) -> str:
+                     dynamics: DynamicsFit | None = None, recording: str | None = None,
+                     speed_law: SpeedLaw | None = None) -> str:
     """The calibration file's text for a fit (``ultraglide calibrate`` writes it atomically).
 
     Parameters
@@ -101,6 +103,9 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
         resolve a time constant, the file reads back as a :class:`DynamicFrictionModel` with them.
     recording : str, optional
         The recording's file name (beside the calibration), for ``calibrate --compare`` in time.
+    speed_law : SpeedLaw, optional
+        The reduction's speed law fitted with it (:func:`~ultraglide.render.physics.speed_fit.fit_speed_law`; the
+        fit's parameters are then those at its reference speed): written as ``[speed]``.
 
     Returns
     -------
@@ -154,6 +159,9 @@ def calibration_toml(fit: Fit, participant: str | None = None, procedure: str | 
         document["fit"]["procedure"] = procedure
     if dynamics is not None:
         document["dynamics"] = dynamics_table(dynamics, recording)
+    if speed_law is not None and speed_law.exponent > 0.0:
+        document["speed"] = {"exponent": speed_law.exponent, "reference_speed_mm_s": speed_law.reference_speed_mm_s,
+                             "source": speed_law.source}
     return tomli_w.dumps(document)
 
 
@@ -351,7 +359,8 @@ SPEED_KEYS = ("exponent", "reference_speed_mm_s", "source")
 def _speed_law(table, where: str):
     """The :class:`SpeedLaw` a calibration file's ``[speed]`` table gives (``exponent`` 0-1; optional
     ``reference_speed_mm_s``, 22 mm/s by default, and ``source`` in words), checked; None when it has none or its
-    exponent is 0. ``calibrate`` does not fit it: the table is written by hand."""
+    exponent is 0. ``calibrate`` writes it where points at several speeds support a law
+    (:mod:`~ultraglide.render.physics.speed_fit`); it may also be written by hand."""
     if table is None:
         return None
     from ultraglide.render.physics.dynamics import REFERENCE_SPEED_MM_S

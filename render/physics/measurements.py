@@ -1,9 +1,11 @@
-"""Measured friction points from CSV: ``amplitude_um_pp,relative_friction[,force_n][,participant]``.
+"""Measured friction points from CSV: ``amplitude_um_pp,relative_friction[,force_n][,speed_mm_s][,participant]``.
 
 Lines starting with ``#`` are comments. Amplitudes are peak-to-peak; convert zero-to-peak data
 (as many published fits are) by doubling before saving. ``participant`` is a number naming whose
 finger each point is (for cross-validation across people): an id as experiments write it (``P01``), kept as text;
-a number (``7``, ``7.0``) is the same id however it is written (:func:`participant_id`).
+a number (``7``, ``7.0``) is the same id however it is written (:func:`participant_id`). ``speed_mm_s`` is the
+finger's sliding speed while the point was measured (mm/s), where it was known: points at several speeds let
+``calibrate`` fit the reduction's speed law (:mod:`~ultraglide.render.physics.speed_fit`).
 
 Measurement noise is accepted within a stated tolerance: a ratio down to -0.05 (a tribometer's
 noise about a finger that glides almost freely) is clipped to 0 and counted, and ratios up to 1.2
@@ -27,6 +29,7 @@ AMPLITUDE = Column("amplitude_um_pp", 0.0, 100.0, "µm p-p")  # plates reach a f
 NOISE_BELOW_ZERO = 0.05  # ratios down to -0.05 are noise about a finger that glides almost freely: clipped to 0
 RELATIVE_FRICTION = Column("relative_friction", -NOISE_BELOW_ZERO, 1.2)  # above 1: noise about rest
 FORCE = Column("force_n", 0.0, 50.0, "N", low_open=True)
+SPEED = Column("speed_mm_s", 0.0, 2000.0, "mm/s", low_open=True)  # a sliding finger; the speed law holds above 2000
 PARTICIPANT = "participant"  # whose finger: a text column, read apart from the numbers
 MAX_ID_CHARS = 64
 ID_PUNCTUATION = "-_."
@@ -40,7 +43,8 @@ MIN_FALL = 0.05  # at each force the ratio must fall by at least this over the a
 
 @dataclass(frozen=True)
 class Measurements:
-    """Measured relative friction against amplitude (µm p-p), with the normal force (N) if known.
+    """Measured relative friction against amplitude (µm p-p), with the normal force (N) and the sliding speed
+    (mm/s) if known.
 
     Examples
     --------
@@ -57,6 +61,7 @@ class Measurements:
     participant: np.ndarray | None = None
     clipped_below_zero: int = 0  # ratios read below 0 (within the noise tolerance) and set to 0
     above_one: int = 0  # ratios above 1 (noise about rest), kept as measured
+    speed_mm_s: np.ndarray | None = None  # the finger's sliding speed at each point, mm/s
 
     def __len__(self) -> int:
         return len(self.amplitude_um_pp)
@@ -84,7 +89,37 @@ class Measurements:
         def take(column):
             return None if column is None else column[pick]
         return Measurements(self.amplitude_um_pp[pick], self.relative_friction[pick], take(self.force_n),
-                            self.source, take(self.participant))
+                            self.source, take(self.participant), speed_mm_s=take(self.speed_mm_s))
+
+    def conditions(self) -> list[tuple[str, np.ndarray]]:
+        """The points measured under one condition (a force, a sliding speed, or both, as the data name them), each
+        with its words: where the ratio must fall with amplitude, and amplitudes be distinct.
+
+        Returns
+        -------
+        list of (str, numpy.ndarray)
+            `` at 0.5 N`` / `` at 0.5 N and 100 mm/s`` / ``""`` (one condition), and a boolean mask.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> data = Measurements(np.zeros(3), np.ones(3), np.array([0.5, 0.5, 0.9]), "m",
+        ...                     speed_mm_s=np.array([25.0, 100.0, 25.0]))
+        >>> for words, mask in data.conditions():
+        ...     print(repr(words), mask.tolist())
+        ' at 0.5 N and 25 mm/s' [True, False, False]
+        ' at 0.5 N and 100 mm/s' [False, True, False]
+        ' at 0.9 N and 25 mm/s' [False, False, True]
+        """
+        forces = self.force_n if self.force_n is not None else np.zeros(len(self))
+        speeds = self.speed_mm_s if self.speed_mm_s is not None else np.zeros(len(self))
+        found = []
+        for force in np.unique(forces):
+            for speed in np.unique(speeds[forces == force]):
+                parts = ([] if self.force_n is None else [f"{force:g} N"]) + \
+                    ([] if self.speed_mm_s is None else [f"{speed:g} mm/s"])
+                found.append((f" at {' and '.join(parts)}" if parts else "", (forces == force) & (speeds == speed)))
+        return found
 
     def noise_words(self) -> str:
         """What the reading did with noisy ratios, in words ("" when nothing).
@@ -111,7 +146,7 @@ class Measurements:
 
 def check_describes_reduction(data: Measurements, where: str) -> None:
     """Refuse points that do not describe friction reduction, with the reason: far from 1 at rest
-    (not friction over friction at rest), or not falling with amplitude at some force.
+    (not friction over friction at rest), or not falling with amplitude at some force (and speed).
 
     Parameters
     ----------
@@ -134,11 +169,8 @@ def check_describes_reduction(data: Measurements, where: str) -> None:
     ...
     ultraglide.render.physics.errors.ModelError: bench.csv: at rest (...) relative_friction is 0.5, not about 1: ...
     """
-    forces = data.force_n if data.force_n is not None else np.zeros(len(data))
-    for value in np.unique(forces):
-        pick = forces == value
+    for at, pick in data.conditions():
         amplitude, ratio = data.amplitude_um_pp[pick], data.relative_friction[pick]
-        at = "" if data.force_n is None else f" at {value:g} N"
         rest = amplitude <= REST_UM_PP
         if rest.any() and np.mean(ratio[rest]) < 1.0 - REST_TOLERANCE:
             raise ModelError(f"{where}: at rest (amplitudes up to {REST_UM_PP:g} µm p-p){at} relative_friction is "
@@ -156,10 +188,10 @@ def check_describes_reduction(data: Measurements, where: str) -> None:
 def read_measurements(path: str | Path) -> Measurements:
     """Read and validate a measurement CSV: relative friction against amplitude, maybe per force.
 
-    Columns ``amplitude_um_pp,relative_friction[,force_n][,participant]``. Ranges: amplitude_um_pp
+    Columns ``amplitude_um_pp,relative_friction[,force_n][,speed_mm_s][,participant]``. Ranges: amplitude_um_pp
     0..100, relative_friction in [-0.05, 1.2] (below 0: noise, clipped to 0 and counted), force_n in
-    (0, 50], at most 100 000 rows. There must be two different amplitudes or more, at one force never
-    closer than 0.001 µm, and the points must describe friction reduction
+    (0, 50], speed_mm_s in (0, 2000], at most 100 000 rows. There must be two different amplitudes or more, at one
+    force and speed never closer than 0.001 µm, and the points must describe friction reduction
     (:func:`check_describes_reduction`): a flat table says nothing about how friction falls, so it can
     neither be inverted nor fitted.
 
@@ -187,7 +219,7 @@ def read_measurements(path: str | Path) -> Measurements:
     >>> data.amplitude_um_pp.tolist(), data.relative_friction.tolist()
     ([0.0, 1.0, 2.0, 3.0], [1.0, 0.8, 0.5, 0.3])
     """
-    columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE,), ModelError,
+    columns = read_numeric_csv(path, (AMPLITUDE, RELATIVE_FRICTION), (FORCE, SPEED), ModelError,
                                "measurement file", MAX_ROWS)
     amplitude = columns["amplitude_um_pp"]
     ratio = columns["relative_friction"]
@@ -201,15 +233,15 @@ def read_measurements(path: str | Path) -> Measurements:
     if not np.min(ratio) < 1.0:
         raise ModelError(f"{path}: relative_friction never falls below 1: a flat table cannot be inverted or "
                          "fitted; measure at amplitudes where the finger glides")
-    for value in np.unique(force) if force is not None else [None]:
-        distinct = np.unique(amplitude if value is None else amplitude[force == value])
+    data = Measurements(amplitude, ratio, force, str(path), _participants(path, len(amplitude)), below, above,
+                        columns.get("speed_mm_s"))
+    for at, pick in data.conditions():
+        distinct = np.unique(amplitude[pick])
         steps = np.diff(distinct)
         if len(steps) and steps.min() < MIN_STEP_UM:
             k = int(np.argmin(steps))
-            at = "" if value is None else f" at {value:g} N"
             raise ModelError(f"{path}: amplitudes {distinct[k]:g} and {distinct[k + 1]:g} µm{at} differ by less than "
                              f"{MIN_STEP_UM:g} µm, below any vibrometer's resolution; merge them")
-    data = Measurements(amplitude, ratio, force, str(path), _participants(path, len(amplitude)), below, above)
     check_describes_reduction(data, str(path))
     return data
 

@@ -53,6 +53,7 @@ from ultraglide.render.physics.model_base import DEFAULT_FORCE_N, FrictionModel,
 
 EXPONENT_RANGE = (0.0, 1.0)  # 0: none; 1: amplitude and speed enter only through their ratio (see above)
 FASTEST_SPEED_MM_S = 2000.0  # no finger swipes faster: a faster estimate is held here
+FITTED = "fitted to "  # how a law fitted by ``calibrate`` (render.physics.speed_fit) begins its source
 
 
 @dataclass(frozen=True)
@@ -157,13 +158,17 @@ class SpeedLaw:
         'the reduction weakens with sliding speed: a_eff = a (22 mm/s / v)^0.5 (assumed, ours)'
         >>> SpeedLaw(0.5, source="my sweeps").describe()
         'the reduction weakens with sliding speed: a_eff = a (22 mm/s / v)^0.5 (given, not ours: my sweeps)'
+        >>> SpeedLaw(0.5, source="fitted to 26 points at 25 and 100 mm/s").describe()[-45:]
+        '^0.5 (fitted to 26 points at 25 and 100 mm/s)'
         >>> SpeedLaw().describe()
         'no dependence on sliding speed (s = 0)'
         """
         if self.exponent == 0.0:
             return "no dependence on sliding speed (s = 0)"
+        whose = (self.source if self.source.startswith(FITTED) else f"given, not ours: {self.source}" if self.source
+                 else "assumed, ours")  # calibrate's fit says so itself; another source is its writer's
         return (f"the reduction weakens with sliding speed: a_eff = a ({self.reference_speed_mm_s:g} mm/s / v)"
-                f"^{self.exponent:g} ({f'given, not ours: {self.source}' if self.source else 'assumed, ours'})")
+                f"^{self.exponent:g} ({whose})")
 
     def parameters(self) -> dict[str, float]:
         """``reduction_speed_exponent`` and ``reduction_reference_speed_mm_s`` (mm/s): for files, JSON.

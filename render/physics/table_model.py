@@ -75,6 +75,10 @@ class TableModel(FrictionModel):
         from scipy.optimize import isotonic_regression  # imported here: it loads all of scipy.optimize
 
         check_describes_reduction(data, data.source)
+        if data.speed_mm_s is not None and len(np.unique(data.speed_mm_s)) > 1:
+            raise ModelError(f"{data.source}: a table holds one sliding speed, these points have "
+                             f"{len(np.unique(data.speed_mm_s))}; keep one speed's points, or fit a model and its "
+                             "speed law to them (ultraglide calibrate)")
         forces = data.force_n if data.force_n is not None else np.full(len(data), DEFAULT_FORCE_N)
         self.source = data.source
         self.forces = np.unique(forces)
