@@ -23,6 +23,10 @@ RATIO_GRID_POINTS = 4097  # resolution of the uniform inverse tables
 SCALAR_CACHE = 16  # values remembered per model for scalar forces (a closed loop's few, at once)
 LADDER_STEP = math.log(1.001)  # the rungs of the amplitude-limit ladder, 0.1 % apart (see ladder_limit)
 LADDER_RUNGS = (-6910, 6910)  # 0.001-1000 µm p-p: any limit a plate and a speed law's k can make
+FORCE_RUNG_STEP = math.log(1.01)  # a floor on the ladder is asked at the force's rung: 1 % apart, one at 0.5 N
+LADDER_FLOOR_SLOTS = 4096  # the floors on the ladder a model keeps: (force rung, limit rung) -> ratio, 64 kB
+LADDER_PROBES = 8  # slots looked at for a pair before the first is overwritten
+EMPTY_SLOT = -(2**62)  # no pair's key
 
 
 def ladder_limit(limit_um_pp: float) -> float:
@@ -594,20 +598,47 @@ class FrictionModel(ABC):
     def _floor(self, force_n, limit: float):
         """The floor ratio, remembered for the last few scalar forces and limits (the live case: a closed loop
         asks at its measured force and at ±5 % of it, its limit moving with its scale); a limit on the ladder
-        (:func:`ladder_limit`) in a fixed table a force, nothing kept per call."""
+        (:func:`ladder_limit`) at the force's rung (1 % apart), kept in fixed slots: nothing allocated or kept per
+        call, a model evaluated once a new pair of rungs (a pressure panel's force and a speed law's limit both move
+        block by block)."""
         if isinstance(force_n, np.ndarray) and force_n.ndim:
             return self.relative_friction(limit, force_n)
         rung = _ladder_rung(limit)
-        if rung is not None:  # a limit on the ladder (a speed law's): a table a force, made once, filled once a rung
-            table = remembered(self, "_ladder_floors", float(force_n),
-                               lambda: np.full(LADDER_RUNGS[1] - LADDER_RUNGS[0], np.nan))
-            index = rung - LADDER_RUNGS[0]
-            value = table[index]
-            if value != value:  # NaN: not yet
-                value = table[index] = float(self.relative_friction(limit, force_n))
-            return float(value)
+        force = float(force_n)
+        if rung is not None and force > 0.0 and math.isfinite(force):  # a limit on the ladder (a speed law's)
+            return self._ladder_floor(force, rung, limit)
         return remembered(self, "_floors", (float(force_n), limit),
                           lambda: float(self.relative_friction(limit, force_n)))
+
+    def _ladder_floor(self, force_n: float, rung: int, limit: float) -> float:
+        """The floor at a limit on the ladder (its ``rung``) and the force's rung: kept in one of
+        :data:`LADDER_FLOOR_SLOTS` slots (open addressing over :data:`LADDER_PROBES` slots; when they are all
+        taken, the first is overwritten), made when first asked (the slots are made before a block asks:
+        :meth:`SpeedLawModel.warm_up <ultraglide.render.physics.speed_law.SpeedLawModel.warm_up>`)."""
+        force_rung = round(math.log(force_n / DEFAULT_FORCE_N) / FORCE_RUNG_STEP)
+        key = force_rung * (LADDER_RUNGS[1] - LADDER_RUNGS[0]) + (rung - LADDER_RUNGS[0])
+        keys, values = self._ladder_slots()
+        first = (key * 2654435761) % LADDER_FLOOR_SLOTS  # Knuth's multiplicative mixing: neighbours spread
+        slot = first
+        for probe in range(LADDER_PROBES):
+            slot = (first + probe) % LADDER_FLOOR_SLOTS
+            if keys[slot] == key:
+                return float(values[slot])
+            if keys[slot] == EMPTY_SLOT:
+                break
+        else:
+            slot = first
+        force = DEFAULT_FORCE_N * math.exp(force_rung * FORCE_RUNG_STEP)
+        values[slot] = float(self.relative_friction(limit, force))
+        keys[slot] = key
+        return float(values[slot])
+
+    def _ladder_slots(self) -> tuple[np.ndarray, np.ndarray]:
+        slots = self.__dict__.get("_ladder_floor_slots")
+        if slots is None:
+            slots = self.__dict__["_ladder_floor_slots"] = (np.full(LADDER_FLOOR_SLOTS, EMPTY_SLOT, dtype=np.int64),
+                                                             np.zeros(LADDER_FLOOR_SLOTS))
+        return slots
 
     def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The lowest ratio reachable at this force within the amplitude limit.

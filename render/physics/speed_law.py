@@ -295,7 +295,8 @@ class SpeedLawModel(FrictionModel):
         self.default_floor = static.default_floor
 
     def warm_up(self) -> None:
-        """The static model's compiled inverse, loaded.
+        """The static model's compiled inverse, loaded, and its slots for the floors on the limit ladder made (the
+        law asks its floors there: :meth:`FrictionModel._floor`).
 
         Examples
         --------
@@ -303,6 +304,7 @@ class SpeedLawModel(FrictionModel):
         >>> SpeedLawModel(ExponentialModel(), SpeedLaw(0.5)).warm_up()
         """
         self.static.warm_up()
+        self.static._ladder_slots()
         kernels.scale_within(np.zeros(1), 2.0, 1.0, 2.0)  # compiled (or loaded) here, not in the first block
 
     def force_law(self) -> str:
