@@ -360,7 +360,7 @@ def _target_at(index, target, ahead, first_ahead, stride):
 
 
 PLAN_WORK_ROWS = 20  # rows of the planner's workspace (each at least its steps long): the horizon's goals and the
-PLAN_ITERATIONS = 40  # programme's vectors; and the most interior-point iterations a decision takes (about 12-20)
+PLAN_ITERATIONS = 40  # programme's vectors; and the most interior-point iterations a decision takes (6-20 seen)
 
 
 @njit(cache=True, nogil=True)
