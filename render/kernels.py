@@ -490,7 +490,8 @@ def _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work):
     command = felt + (change / c_on if change < 0.0 else change / c_rec)
     if not math.isfinite(command):  # never seen: hold the felt ratio rather than pass a NaN on
         command = felt
-    span = (ceiling - floor) * 1e-6  # within a millionth of an end: the end (the interior point stops just inside)
+    span = (ceiling - floor) * 1e-4  # within 1e-4 of an end: the end (the interior point stops just inside, by
+    # up to 1e-6 where the goal lies on the end itself, which the division by a step's c magnifies)
     if command < floor + span:
         return floor
     if command > ceiling - span:

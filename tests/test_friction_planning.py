@@ -159,6 +159,23 @@ def test_a_rise_is_begun_as_early_as_the_best_plan_begins_it(speed_mm_s):
     assert best_s * 0.97 < error_s < 1.10 * best_s, (error_s / best_s)  # measured: 1.006, 1.001, 1.021
 
 
+@pytest.mark.parametrize("speed_mm_s", [22.0, 100.0, 400.0])
+def test_friction_at_rest_is_asked_as_rest_once_the_finger_has_recovered(speed_mm_s):
+    """After 0.1 s at 0.5, the texture at rest (1): once recovered the command is exactly 1 (no vibration at all),
+    not a hair below it that the model's inverse would turn into some nanometres of amplitude (the planner's
+    programme stops just inside its ends where the goal lies on one)."""
+    planner = Planner(FrictionDynamics(), RATE)
+    planner.set_speed(speed_mm_s)
+    n = int(RATE)
+    target = np.r_[np.full(int(0.1 * RATE), 0.5), np.ones(n + 4000)]
+    command = np.empty(n)
+    for start in range(0, n, 96):
+        first = start + planner.first_ahead(96)
+        ahead = target[first + planner.stride * np.arange(planner.steps)].astype(np.float32)
+        planner.plan(target[start:start + 96], ahead, 0.168, True, command[start:start + 96])
+    assert np.all(command[n // 2:] == 1.0), np.unique(command[n // 2:])[:3]
+
+
 def test_targets_below_the_floor_are_counted_as_unreachable():
     planner = Planner(FrictionDynamics(), RATE)
     target = np.r_[np.ones(240), np.full(240, 0.05)]
