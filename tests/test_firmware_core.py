@@ -110,7 +110,7 @@ def test_the_cores_protocol_numbers_are_the_hosts():
             "FAULT_BAD_COMMAND", "FAULT_OVERHEAT", "FAULT_BITS", "SENSOR_AMPLITUDE", "SENSOR_NORMAL_FORCE",
             "SENSOR_LATERAL_FORCE", "FEATURE_AMPLITUDE_LOOP", "SETPOINTS_FORCE", "FEATURE_FORCE_CORRECTION",
             "FEATURE_LINK_STATED", "FEATURE_RESET_STATED", "RESTART_POWER_ON", "RESTART_WATCHDOG", "RESTART_FAULT",
-            "RESTART_SOFTWARE", "RESTART_PIN",
+            "RESTART_SOFTWARE", "RESTART_PIN", "CLOCK", "CLOCK_REPLY", "FEATURE_CLOCK_STATED", "MAX_CLOCK_LAG_MS",
             "MAX_FORCE_EXPONENT", "MAX_REFERENCE_FORCE_N", "FORCE_SPAN", "SIM_DROP", "SIM_CORRUPT", "SIM_HANG",
             "SIM_DISCONNECT", "SIM_OVERHEAT"}
     for name in same:
@@ -122,6 +122,7 @@ def test_the_cores_protocol_numbers_are_the_hosts():
     assert number(defines["HELLO_REPLY_V2_SIZE"]) == p.V2_PAYLOAD_SIZES["HELLO_REPLY"]
     assert number(defines["HELLO_REPLY_LINK_SIZE"]) == p.PAYLOAD_SIZES["HELLO_REPLY with link"] == 49
     assert number(defines["HELLO_RESET_SIZE"]) == p.PAYLOAD_SIZES["HELLO_REPLY restart fields"] == 5
+    assert number(defines["CLOCK_REPLY_SIZE"]) == p.PAYLOAD_SIZES["CLOCK_REPLY"] == 8
 
 
 def test_the_rules_the_simulator_breaks_are_the_documents():
@@ -260,6 +261,42 @@ def test_a_refused_frame_changes_nothing_but_feeds_the_watchdog():  # [R-NAK-NO-
     assert device.counts()["watchdog"] == 0
     device.run(11)
     assert device.counts()["watchdog"] == 1
+
+
+# ---- the device's clock (CLOCK, FEATURE_CLOCK_STATED) -----------------------------------------------------
+
+def test_clock_is_answered_at_once_with_the_sensor_clock_it_numbers_sensors_by():  # [R-CLOCK]
+    """At 48 kHz and 1 kHz sensors a sensor sample is 48 drive samples: after 7 ms and 30 samples the sensor
+    clock is 7 + 30/48 = 7.625 samples (7, 40960/65536); with 24 samples more that the port says its ADC took
+    since (``ug_port_samples_since_block``), 8 + 6/48 = 8.125. SENSORS number their samples on the same clock: the
+    next frame continues from the last whole sample sensed, 7."""
+    device = Device()
+    (hello,) = device.send(p.HELLO, p.hello_payload(3))
+    assert p.parse_hello_reply(hello.payload).features & p.FEATURE_CLOCK_STATED
+    sensors = [p.parse_sensors(f.payload) for f in device.run(7) if f.kind == p.SENSORS]
+    device.core.render(30)
+    device.core.sense(np.zeros(30, dtype=np.float32))
+    (reply,) = device.send(p.CLOCK)  # nothing else: no ACK
+    assert reply.kind == p.CLOCK_REPLY and p.parse_clock_reply(reply.payload) == p.ClockReply(device.seq, 7, 40960)
+    device.seq += 1
+    device.core.receive(p.encode_frame(p.CLOCK, device.seq), samples_since=24)
+    (reply,) = device._take()
+    assert p.parse_clock_reply(reply.payload) == p.ClockReply(device.seq, 8, 8192)
+    assert all(s.first_sample + len(s.samples) <= 7 for s in sensors)  # what it sent before: taken before
+    sensors += [p.parse_sensors(f.payload) for f in device.run(60) if f.kind == p.SENSORS]
+    assert sensors[0].first_sample == 0  # numbered from 0, consecutive ([R-SENSORS]): sample 7 began 7 ms in
+    assert [s.first_sample for s in sensors[1:]] == [s.first_sample + len(s.samples) for s in sensors[:-1]]
+    assert device.answer(p.CLOCK, b"\x00") == p.NAK_BAD_LENGTH
+
+
+def test_clock_is_refused_by_a_device_without_sensors_and_in_a_v2_session():  # [R-CLOCK]
+    bare = Device(sensors=0, sensor_rate_hz=0, features=0)
+    (hello,) = bare.send(p.HELLO, p.hello_payload(3))
+    assert not p.parse_hello_reply(hello.payload).features & p.FEATURE_CLOCK_STATED
+    assert bare.answer(p.CLOCK) == p.NAK_UNSUPPORTED
+    old = Device()
+    old.send(p.HELLO, p.hello_payload(2))
+    assert old.answer(p.CLOCK) == p.NAK_UNSUPPORTED
 
 
 # ---- version and HELLO -----------------------------------------------------------------------------------
@@ -751,6 +788,12 @@ def _follows(rule: str, device: Device) -> bool:
     if rule == "R-LOOP":
         _streaming(device)
         return device.answer(p.SET_LOOP, b"\x01") == p.NAK_BAD_VALUE
+    if rule == "R-CLOCK":  # 20 ms and 24 drive samples in: the sensor clock is 20.5 samples
+        device.run(20)
+        device.core.render(24)
+        device.core.sense(np.zeros(24, dtype=np.float32))
+        (reply,) = device.send(p.CLOCK)
+        return p.parse_clock_reply(reply.payload).samples == 20.5
     raise AssertionError(f"no probe for {rule}")
 
 
@@ -821,7 +864,7 @@ def test_fuzzed_sessions_keep_every_invariant(session):
             valid += 1
             if command == p.SETPOINTS and len(payload) >= 10:
                 sent_values[device.seq] = int.from_bytes(payload[8:10], "little")
-            if command in (p.HELLO, p.SET_CARRIER, p.ENABLE, p.CLEAR_FAULTS, p.SET_LOOP, p.SIM_FAULT) or \
+            if command in (p.HELLO, p.SET_CARRIER, p.ENABLE, p.CLEAR_FAULTS, p.SET_LOOP, p.SIM_FAULT, p.CLOCK) or \
                     command not in p.HOST_COMMANDS or (command == p.HEARTBEAT and payload):
                 commands.add(device.seq)
             device._take()
@@ -847,7 +890,7 @@ def test_fuzzed_sessions_keep_every_invariant(session):
         assert np.all(counts >= counts_before)  # counters never go back
         counts_before = counts
     status = device.status()
-    answers = [f for f in device.sent if f.kind in (p.ACK, p.NAK, p.HELLO_REPLY)]
+    answers = [f for f in device.sent if f.kind in (p.ACK, p.NAK, p.HELLO_REPLY, p.CLOCK_REPLY)]
     naks = {p.parse_nak(f.payload)[0] for f in answers if f.kind == p.NAK}
     # every command answered once, refused SETPOINTS and HEARTBEAT too, in the order they were sent
     expected = [(seq, command) for seq, command in sent if seq in commands or seq in naks]
@@ -855,6 +898,8 @@ def test_fuzzed_sessions_keep_every_invariant(session):
     for answer, (seq, command) in zip(answers, expected, strict=True):
         if answer.kind == p.HELLO_REPLY:
             assert command == p.HELLO
+        elif answer.kind == p.CLOCK_REPLY:
+            assert command == p.CLOCK and p.parse_clock_reply(answer.payload).asked_seq == seq
         else:
             assert (p.parse_ack(answer.payload) if answer.kind == p.ACK else p.parse_nak(answer.payload)[0]) == seq
     accepted = sum(n for seq, n in sent_values.items() if seq not in naks)

@@ -72,6 +72,15 @@ def test_messages_round_trip():
         p.parse_setpoints(p.setpoints_payload(0, 12000, np.ones(4))[:-1])
 
 
+def test_a_clock_reply_round_trips_and_its_bytes_are_the_tables():
+    """CLOCK_REPLY: asked_seq u16, sample u32, fraction u16, little-endian (by hand: 0x1234, 0x89ABCDEF, 0x8000)."""
+    reply = p.ClockReply(0x1234, 0x89ABCDEF, 0x8000)
+    assert p.clock_reply_payload(reply) == bytes([0x34, 0x12, 0xEF, 0xCD, 0xAB, 0x89, 0x00, 0x80])
+    assert p.parse_clock_reply(p.clock_reply_payload(reply)) == reply and reply.samples == 0x89ABCDEF + 0.5
+    with pytest.raises(p.ProtocolError):
+        p.parse_clock_reply(p.clock_reply_payload(reply)[:-1])
+
+
 def test_v3_messages_round_trip_and_extend_v2s_layouts_at_their_ends():
     reply = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate", 7.5,
                          p.SENSOR_AMPLITUDE | p.SENSOR_NORMAL_FORCE, 1000, p.FEATURE_AMPLITUDE_LOOP)
@@ -172,9 +181,9 @@ def test_the_documents_message_tables_are_the_codes():
     device = _rows("| type | name | payload |")
     v2 = _rows("| type | name | v2 payload |")
     assert {name for _, name, *_ in host} == {"HELLO", "SET_CARRIER", "ENABLE", "SETPOINTS", "HEARTBEAT",
-                                              "CLEAR_FAULTS", "SET_LOOP", "SETPOINTS_FORCE", "SIM_FAULT"}
+                                              "CLEAR_FAULTS", "SET_LOOP", "SETPOINTS_FORCE", "CLOCK", "SIM_FAULT"}
     assert {getattr(p, name) for _, name, *_ in host} == set(p.HOST_COMMANDS)
-    assert {name for _, name, *_ in device} == {"HELLO_REPLY", "ACK", "NAK", "TELEMETRY", "SENSORS"}
+    assert {name for _, name, *_ in device} == {"HELLO_REPLY", "ACK", "NAK", "TELEMETRY", "SENSORS", "CLOCK_REPLY"}
     assert {name for _, name, *_ in v2} == {"HELLO_REPLY", "TELEMETRY"}
     for kind, name, payload, *_ in host + device:
         assert getattr(p, name) == int(kind, 16), name

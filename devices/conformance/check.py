@@ -312,7 +312,7 @@ class Check(LinkRules, StreamRules, DeviceRules):
             ("R-FAULT-LATCH", self.check_fault_latch), ("R-CLEAR-FAULTS", self.check_clear_faults),
             ("R-HELLO-NO-STATE", self.check_hello_no_state), ("R-SCALING", self.check_scaling),
             ("R-LIMIT", self.check_limit), ("R-OVER-LIMIT", self.check_over_limit), ("R-TRIP", self.check_trip),
-            ("R-SENSORS", self.check_sensors), ("R-LOOP", self.check_loop),
+            ("R-SENSORS", self.check_sensors), ("R-CLOCK", self.check_clock), ("R-LOOP", self.check_loop),
             ("R-FORCE", self.check_force),
             ("R-RATE", self.check_rate),  # last: a device that keeps a stream's rate would refuse every rule after
         ]

@@ -9,8 +9,10 @@ import numpy as np
 from ultraglide.devices import protocol as p
 from ultraglide.devices.conformance.probe import (
     ABORT_FRACTION,
+    ANSWER_SLACK_S,
     OVER_LIMIT,
     SAFE_FRACTION,
+    TIMEOUT_S,
     TRIP,
     Broken,
     Unobservable,
@@ -18,6 +20,9 @@ from ultraglide.devices.conformance.probe import (
 )
 from ultraglide.devices.serial.follow import FOLLOW_FACTOR
 
+CLOCK_ASKED = 20  # [R-CLOCK]: CLOCK requests, one at a time, CLOCK_GAP_S apart
+CLOCK_GAP_S = 0.02
+CLOCK_SLACK_S = 0.2e-3  # the host's timestamps' rounding and a drifting plate clock's share over the check
 SETTLE_WAIT_S = 0.5  # after a stream, how long [R-LIMIT] waits for telemetry of the device 60 ms into its codes
 
 class DeviceRules:
@@ -216,6 +221,69 @@ class DeviceRules:
         lost = f" ({first_gap} between {len(steps)} frames: whole frames lost on the way, the link or this host " \
             "falling behind)" if first_gap else ""
         return f"{len(frames)} frames, {samples} samples, consecutive{lost}; {words}"
+
+    def check_clock(self) -> str:
+        d = self.device
+        if not (self.v3 and d.features & p.FEATURE_CLOCK_STATED):
+            answer = self.command(p.CLOCK)
+            if answer is None or answer[0] != "nak" or answer[1] not in self.unsupported_naks:
+                raise Broken(f"CLOCK on a device that does not state its clock (or a v2 session): "
+                             f"{answer_words(answer)}, not {self.unsupported_words()}")
+            return f"no clock stated: CLOCK refused with NAK {answer[1]}{_v2_words(answer[1])}"
+        # each reply brackets where the device's sample 0 is on this host's clock: written at t1, read at t2, the
+        # clock c (samples) it states: t1 - c / rate - MAX_CLOCK_LAG_MS <= origin <= t2 - c / rate; a SENSORS frame
+        # read at t bounds it from above too, t - (its last sample's end) / rate. A clock stated more than
+        # MAX_CLOCK_LAG_MS behind puts a lower bound above an upper one.
+        # Enabled (and nothing played: no setpoint is sent), its SENSORS leave every 10 ms; the requests feed its
+        # watchdog.
+        rate, probe = d.sensor_rate_hz, self.probe
+        self.enable(True)
+        since = probe.mark()
+        replies, slowest = [], 0.0
+        for _ in range(CLOCK_ASKED):
+            mark = probe.mark()
+            asked = time.perf_counter()
+            seq, _ = probe.send(p.CLOCK)
+            found = probe.wait(lambda f: f.kind == p.CLOCK_REPLY, mark, TIMEOUT_S)
+            if found is None:
+                raise Broken(f"CLOCK: no CLOCK_REPLY within {TIMEOUT_S:g} s")
+            t, frame, _ = found
+            try:
+                reply = p.parse_clock_reply(frame.payload)
+            except p.ProtocolError as error:
+                raise Broken(f"CLOCK: {error}") from None
+            if reply.asked_seq != seq:
+                raise Broken(f"CLOCK_REPLY names seq {reply.asked_seq}, not the request's {seq}")
+            replies.append((asked, t, reply))
+            slowest = max(slowest, t - asked)
+            time.sleep(CLOCK_GAP_S)
+        self.enable(False)
+        frames = [(t, p.parse_sensors(f.payload)) for t, f in probe.received(since, p.SENSORS)]
+        reference = replies[0][2].sample
+
+        def unwrapped(sample: int) -> float:
+            return float((sample - reference + 2**31) % 2**32 - 2**31)
+
+        stated = [unwrapped(reply.sample) + reply.fraction / 65536.0 for _, _, reply in replies]
+        if any(b < a for a, b in zip(stated, stated[1:], strict=False)):
+            raise Broken(f"CLOCK_REPLY's clock went back: {', '.join(f'{c:.2f}' for c in stated[:6])} samples "
+                         "from the first")
+        lower = max(asked - c / rate for (asked, _, _), c in zip(replies, stated, strict=True)) - \
+            p.MAX_CLOCK_LAG_MS / 1000.0
+        uppers = [t - c / rate for (_, t, _), c in zip(replies, stated, strict=True)] + \
+            [t - (unwrapped(s.first_sample) + len(s.samples)) / rate for t, s in frames]
+        upper = min(uppers)
+        if lower > upper + CLOCK_SLACK_S:
+            raise Broken(f"CLOCK_REPLY's clock is more than {p.MAX_CLOCK_LAG_MS} ms behind the device's: by its "
+                         f"replies its sample 0 was at least {1000 * (lower - upper):.2f} ms after where its "
+                         f"{'SENSORS and replies' if frames else 'replies'} place it at the latest")
+        if slowest > p.ACK_DEADLINE_MS / 1000 + ANSWER_SLACK_S:
+            raise Broken(f"CLOCK answered in up to {1000 * slowest:.1f} ms, more than {p.ACK_DEADLINE_MS} ms")
+        fastest = min(t - asked for asked, t, _ in replies)
+        return (f"{len(replies)} CLOCK replies, each naming its request, in {1000 * fastest:.2f}-"
+                f"{1000 * slowest:.2f} ms; their clock never went back, nor behind its SENSORS: they place its "
+                f"sample 0 within {1000 * (upper - lower):.2f} ms (of which {p.MAX_CLOCK_LAG_MS} ms the clock's "
+                "allowed lag)")
 
     def check_force(self) -> str:
         def frame(force_n: float, exponent: float) -> bytes:  # zeros, sent while disabled: discarded if taken

@@ -34,7 +34,7 @@ RULES = {
     "R-PREFILL": "Setpoints", "R-UNDERRUN": "Setpoints", "R-DISCARD": "Setpoints", "R-ENABLE": "Enable",
     "R-LIMIT": "Limits", "R-OVER-LIMIT": "Limits", "R-TRIP": "Limits", "R-WATCHDOG": "Watchdog",
     "R-FAULT-LATCH": "Faults", "R-FAULT-COUNT": "Faults", "R-CLEAR-FAULTS": "Faults",
-    "R-LOOP": "The amplitude loop", "R-FORCE": "The force correction",
+    "R-LOOP": "The amplitude loop", "R-FORCE": "The force correction", "R-CLOCK": "Device → host",
 }
 BAD_COMMAND = p.FAULT_BAD_COMMAND.bit_length() - 1
 UNDERRUN = p.FAULT_UNDERRUN.bit_length() - 1

@@ -149,6 +149,7 @@ def load() -> ctypes.CDLL:
             "ug_sim_sources_digest": (ctypes.c_char_p, []),
             "ug_sim_output_safe_calls": (ctypes.c_uint32, [voidp, ctypes.POINTER(ctypes.c_uint8)]),
             "ug_sim_lost_time": (None, [voidp, ctypes.c_uint32]),
+            "ug_sim_set_samples_since_block": (None, [voidp, ctypes.c_uint32]),
         }
         for name, (result, arguments) in signatures.items():
             function = getattr(lib, name)
@@ -266,11 +267,14 @@ class FirmwareCore:
                 f"{', breaks ' + ' '.join(s.breaks) if s.breaks else ''})")
 
     # ---- the link ----
-    def receive(self, data: bytes, lag_ms: int = 0) -> None:
+    def receive(self, data: bytes, lag_ms: int = 0, samples_since: int = 0) -> None:
         """Bytes from the host (any chunking); frames are handled at once. ``lag_ms``: how far the caller's real
-        time is ahead of the core's clock (a valid frame feeds the watchdog at that time)."""
+        time is ahead of the core's clock (a valid frame feeds the watchdog at that time); ``samples_since``: the
+        same in drive samples past those rendered and sensed (a CLOCK_REPLY states the sensor clock there, as a
+        board reads its ADC's position: ``ug_port_samples_since_block``)."""
         if data:
             buffer = (ctypes.c_char * len(data)).from_buffer_copy(data)
+            self._lib.ug_sim_set_samples_since_block(self._sim, max(0, min(int(samples_since), 0xFFFFFFFF)))
             self._lib.ug_sim_receive(self._sim, buffer, len(data), max(0, int(lag_ms)))
 
     def transmit(self) -> bytes:

@@ -13,6 +13,7 @@ from cobs import cobs
 from ultraglide.devices.protocol.frames import CRC_LAYOUT, HEADER_LAYOUT, ProtocolError
 from ultraglide.devices.protocol.spec import (
     CLEAR_FAULTS,
+    CLOCK,
     ENABLE,
     HEARTBEAT,
     HELLO,
@@ -35,7 +36,7 @@ _SIM_FAULT = struct.Struct("<BH")
 
 # exact payload lengths, where a command has one
 PAYLOAD_LENGTHS = {HELLO: 1, SET_CARRIER: _CARRIER.size, ENABLE: 1, HEARTBEAT: 0, CLEAR_FAULTS: _CLEAR.size,
-                   SET_LOOP: 1, SIM_FAULT: _SIM_FAULT.size}
+                   SET_LOOP: 1, CLOCK: 0, SIM_FAULT: _SIM_FAULT.size}
 
 
 def hello_payload(version: int = PROTOCOL_VERSION) -> bytes:

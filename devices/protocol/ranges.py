@@ -11,6 +11,7 @@ ranges this module enforces, each with its reason.
   line (its limits and rates are what everything after is bound by).
 * :func:`telemetry_out_of_range` and :func:`sensors_out_of_range`: a frame's fields, against the device's
   HELLO_REPLY; a frame with any value that cannot be is not taken (:class:`FieldCheck` counts and words them).
+  :func:`clock_reply_out_of_range`: a CLOCK_REPLY's clock against the SENSORS frames read before it was asked.
   The u32 counters are checked by :mod:`ultraglide.devices.counter_check` (modular, with a plausibility bound).
 
 Examples
@@ -30,14 +31,16 @@ import math
 import threading
 
 import numpy as np
-from ultraglide.devices.protocol.reports import HelloReply, Sensors, Telemetry
+from ultraglide.devices.protocol.reports import ClockReply, HelloReply, Sensors, Telemetry
 from ultraglide.devices.protocol.spec import (
     FAULT_NAMES,
     FEATURE_AMPLITUDE_LOOP,
     FEATURE_BRAKING,
+    FEATURE_CLOCK_STATED,
     FEATURE_FORCE_CORRECTION,
     LOOP_AMPLITUDE,
     LOOP_OPEN,
+    MAX_CLOCK_LAG_MS,
     MAX_SETPOINTS_PER_FRAME,
     MIN_SENSOR_RATE_HZ,
     PLAYBACK_NAMES,
@@ -123,6 +126,8 @@ def hello_out_of_range(hello: HelloReply) -> list[str]:
             said.append("features says braking without the amplitude loop it brakes with")
         if hello.features & FEATURE_FORCE_CORRECTION and not hello.sensors & SENSOR_NORMAL_FORCE:
             said.append("features says force correction without the normal force sensor it needs")
+        if hello.features & FEATURE_CLOCK_STATED and not hello.sensors:
+            said.append("features says it states its sensor clock (CLOCK) without a sensor to have one")
     return [sentence for sentence in said if sentence is not None]
 
 
@@ -215,6 +220,54 @@ def sensors_out_of_range(sensors: Sensors, hello: HelloReply, expected_first: in
             said.append(("first_sample", f"first_sample = {sensors.first_sample}, not the {expected_first} the "
                                          f"frame before leads to (nor a gap of up to {SAMPLE_GAP_S:g} s after it)"))
     return said
+
+
+def clock_reply_out_of_range(reply: ClockReply, hello: HelloReply, sent_end: int | None, since_s: float) \
+        -> list[tuple[str, str]]:
+    """What in one CLOCK_REPLY cannot be true: its clock against the end of the last SENSORS frame read before the
+    CLOCK request was sent (``sent_end``, that frame's ``first_sample`` plus its count; None: no frame yet, nothing
+    to compare). The device had taken those samples before it took the request, so its clock is at most
+    ``MAX_CLOCK_LAG_MS`` behind them; and it is no further ahead than the time since that frame was read
+    (``since_s``) and a second (SENSORS' own allowance for a frame's delay).
+
+    Parameters
+    ----------
+    reply : ClockReply
+        The reply, as parsed.
+    hello : HelloReply
+        What the device said of itself (its ``sensor_rate_hz``).
+    sent_end : int or None
+        The sample number the last SENSORS frame read before the request leads to (mod 2**32).
+    since_s : float
+        Seconds from that frame's reading to the reply's.
+
+    Returns
+    -------
+    list of (str, str)
+        The field's name and a sentence (empty: believed).
+
+    Examples
+    --------
+    >>> from ultraglide.devices import protocol as p
+    >>> hello = p.HelloReply(3, 25000.0, 8.0, 6.0, 1000, 48000, 20000.0, 28000.0, 100, 250, "plate", 7.5, 1, 1000,
+    ...                      p.FEATURE_CLOCK_STATED)
+    >>> clock_reply_out_of_range(p.ClockReply(7, 1003, 0), hello, 1000, 0.01)
+    []
+    >>> clock_reply_out_of_range(p.ClockReply(7, 990, 0), hello, 1000, 0.01)
+    [('sample', 'sample = 990.0, 10 samples behind the 1000 its SENSORS had reached (at most 1 ms: 1 sample)')]
+    """
+    if sent_end is None or not hello.sensor_rate_hz:
+        return []
+    ahead = (reply.sample - sent_end + _WRAP // 2) % _WRAP - _WRAP // 2 + reply.fraction / 65536.0
+    lag = MAX_CLOCK_LAG_MS * hello.sensor_rate_hz / 1000.0
+    most = hello.sensor_rate_hz * (SAMPLE_GAP_S + max(since_s, 0.0))
+    if ahead < -lag:
+        return [("sample", f"sample = {reply.samples:.1f}, {-ahead:g} samples behind the {sent_end} its SENSORS had "
+                           f"reached (at most {MAX_CLOCK_LAG_MS} ms: {lag:g} sample{'s' if lag != 1 else ''})")]
+    if ahead > most:
+        return [("sample", f"sample = {reply.samples:.1f}, {ahead:g} samples ahead of the {sent_end} its SENSORS had "
+                           f"reached {since_s:.3f} s before (at most {SAMPLE_GAP_S:g} s more)")]
+    return []
 
 
 class FieldCheck:

@@ -14,6 +14,7 @@ from ultraglide.devices.protocol.spec import (
     FAULT_BITS,
     FAULT_NAMES,
     FEATURE_AMPLITUDE_LOOP,
+    FEATURE_CLOCK_STATED,
     FEATURE_FORCE_CORRECTION,
     FEATURE_LINK_STATED,
     FEATURE_RESET_STATED,
@@ -43,6 +44,7 @@ _TELEMETRY_V2 = struct.Struct(f"<ffHB7I{FAULT_BITS}I")
 # v2's fields, then overrun_setpoints, expected_index, stream_rate_hz, buffered_setpoints, drive_code, playback, loop
 _TELEMETRY_V3 = struct.Struct(f"<ffHB7I{FAULT_BITS}IIIIHHBB")
 _SENSORS_HEADER = struct.Struct("<IIB")
+_CLOCK_REPLY = struct.Struct("<HIH")  # asked_seq, sample, fraction (of a sample, / 65536)
 _SENSOR_SAMPLE = np.dtype([("amplitude_um_pp", "<f4"), ("normal_force_n", "<f4"), ("lateral_force_n", "<f4")])
 
 
@@ -130,6 +132,11 @@ class HelloReply:
         elif self.restart_reason == RESTART_FAULT and self.restart_detail:
             words += f" (fault status {self.restart_detail:#010x})"
         return words
+
+    @property
+    def states_clock(self) -> bool:
+        """v3's CLOCK: the device answers it at once with its sensor clock (a device with sensors)."""
+        return self.version >= 3 and bool(self.features & FEATURE_CLOCK_STATED) and self.sensor_rate_hz > 0
 
     @property
     def has_force_correction(self) -> bool:
@@ -314,11 +321,37 @@ def parse_sensors(payload: bytes) -> Sensors:
     return Sensors(first, index, np.frombuffer(data, dtype=_SENSOR_SAMPLE).copy())
 
 
+@dataclass(frozen=True)
+class ClockReply:
+    """One CLOCK_REPLY: the device's sensor clock when it took the CLOCK request whose seq was ``asked_seq``, as
+    ``sample`` (numbered as SENSORS' ``first_sample``, wrapping at 2**32) and ``fraction`` / 65536 of a sample;
+    never ahead of its clock then, at most ``MAX_CLOCK_LAG_MS`` behind."""
+
+    asked_seq: int
+    sample: int
+    fraction: int = 0
+
+    @property
+    def samples(self) -> float:
+        """The clock in sensor samples, the fraction included (not unwrapped)."""
+        return self.sample + self.fraction / 65536.0
+
+
+def clock_reply_payload(reply: ClockReply) -> bytes:
+    return _CLOCK_REPLY.pack(reply.asked_seq & 0xFFFF, reply.sample & 0xFFFFFFFF, reply.fraction & 0xFFFF)
+
+
+def parse_clock_reply(payload: bytes) -> ClockReply:
+    if len(payload) != _CLOCK_REPLY.size:
+        raise ProtocolError(f"CLOCK_REPLY of {len(payload)} bytes, not {_CLOCK_REPLY.size}")
+    return ClockReply(*_CLOCK_REPLY.unpack(payload))
+
+
 # fixed parts of payloads (v3), by the names docs/protocol.md's tables use
 PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V3.size, "HELLO_REPLY with link": _HELLO_REPLY_LINK.size,
                  "HELLO_REPLY restart fields": _RESET_FIELDS.size,
                  "ACK": _ACK.size, "NAK": _NAK.size,
-                 "TELEMETRY": _TELEMETRY_V3.size, "SENSORS": _SENSORS_HEADER.size,
+                 "TELEMETRY": _TELEMETRY_V3.size, "SENSORS": _SENSORS_HEADER.size, "CLOCK_REPLY": _CLOCK_REPLY.size,
                  "SETPOINTS header": SETPOINT_HEADER_LAYOUT.size, "SENSORS sample": _SENSOR_SAMPLE.itemsize,
                  "SETPOINTS_FORCE header": SETPOINT_HEADER_LAYOUT.size + FORCE_REFERENCE_LAYOUT.size}
 V2_PAYLOAD_SIZES = {"HELLO_REPLY": _HELLO_REPLY_V2.size, "TELEMETRY": _TELEMETRY_V2.size}

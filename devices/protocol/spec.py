@@ -36,6 +36,7 @@ MIN_SENSOR_RATE_HZ = 1000  # sensor samples a second, at least, on a device that
 MAX_SENSOR_SAMPLES = 80  # samples in one SENSORS frame, at most
 MAX_NAME_BYTES = 64  # the device's name in HELLO_REPLY, UTF-8, at most
 NOT_PLAYING = 0xFFFFFFFF  # SENSORS.setpoint_index while no stream value plays
+MAX_CLOCK_LAG_MS = 1  # CLOCK_REPLY's clock: never ahead of the device's when it took the request, at most this behind
 
 
 def batch_s_for(baud: int, rate_hz: int) -> float:
@@ -54,16 +55,18 @@ HEARTBEAT = 0x05
 CLEAR_FAULTS = 0x06
 SET_LOOP = 0x07  # v3: open loop (0) or the firmware's amplitude loop (1)
 SETPOINTS_FORCE = 0x08  # v3, FEATURE_FORCE_CORRECTION: SETPOINTS whose values carry the force they assumed
+CLOCK = 0x09  # v3, FEATURE_CLOCK_STATED: answered at once with CLOCK_REPLY, the device's sensor clock
 SIM_FAULT = 0x7E  # simulator only: inject a fault for tests
-HOST_COMMANDS = (HELLO, SET_CARRIER, ENABLE, SETPOINTS, HEARTBEAT, CLEAR_FAULTS, SET_LOOP, SETPOINTS_FORCE,
+HOST_COMMANDS = (HELLO, SET_CARRIER, ENABLE, SETPOINTS, HEARTBEAT, CLEAR_FAULTS, SET_LOOP, SETPOINTS_FORCE, CLOCK,
                  SIM_FAULT)
-V3_COMMANDS = (SET_LOOP, SETPOINTS_FORCE)  # refused with NAK 4 in a session negotiated as v2
+V3_COMMANDS = (SET_LOOP, SETPOINTS_FORCE, CLOCK)  # refused with NAK 4 in a session negotiated as v2
 # device → host
 HELLO_REPLY = 0x81
 ACK = 0x82
 NAK = 0x83
 TELEMETRY = 0x90
 SENSORS = 0x91  # v3: sensor samples, sent while the device has any sensor
+CLOCK_REPLY = 0x92  # v3: the answer to CLOCK
 
 # HELLO_REPLY v3: the sensors a device has (bits of ``sensors``) and what its firmware does (``features``)
 SENSOR_AMPLITUDE = 1 << 0  # the vibration amplitude, from a sensing piezo
@@ -76,6 +79,7 @@ FEATURE_BRAKING = 1 << 1  # ... which brakes with an antiphase drive (down to mi
 FEATURE_FORCE_CORRECTION = 1 << 2  # SETPOINTS_FORCE: values rescaled by the force measured at play
 FEATURE_LINK_STATED = 1 << 3  # HELLO_REPLY goes on, before the name, with link_bytes_per_s:u32 and q:f32
 FEATURE_RESET_STATED = 1 << 4  # ... and (after the link's fields, if any) restart_reason:u8, restart_detail:u32
+FEATURE_CLOCK_STATED = 1 << 5  # CLOCK is answered at once with CLOCK_REPLY: the sensor clock when it took it
 # HELLO_REPLY's restart_reason (FEATURE_RESET_STATED): why the board last started
 RESTART_POWER_ON, RESTART_WATCHDOG, RESTART_FAULT, RESTART_SOFTWARE, RESTART_PIN = range(5)
 RESTART_WORDS = {RESTART_POWER_ON: "power-on", RESTART_WATCHDOG: "its watchdog expired",

@@ -24,7 +24,7 @@ from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 
 FRAMES = {"hello": (p.HELLO_REPLY, p.HelloReply), "telemetry": (p.TELEMETRY, p.Telemetry),
-          "sensors": (p.SENSORS, None)}
+          "sensors": (p.SENSORS, None), "clock_reply": (p.CLOCK_REPLY, p.ClockReply)}
 SENSOR_FIELDS = ("first_sample", "setpoint_index", "amplitude_um_pp", "normal_force_n", "lateral_force_n")
 
 
@@ -91,6 +91,9 @@ class Lies:
         if kind == p.TELEMETRY:
             telemetry = p.parse_telemetry(payload)
             return p.telemetry_payload(dataclasses.replace(telemetry, **_typed(telemetry, lies)), telemetry.version)
+        if kind == p.CLOCK_REPLY:
+            reply = p.parse_clock_reply(payload)
+            return p.clock_reply_payload(dataclasses.replace(reply, **_typed(reply, lies)))
         sensors = p.parse_sensors(payload)
         samples = np.array(sensors.samples)
         for name in ("amplitude_um_pp", "normal_force_n", "lateral_force_n"):

@@ -314,8 +314,12 @@ class PlateSimulator:
     def receive(self, data: bytes) -> list[bytes]:
         """Feed received bytes (handled at the time last advanced to); returns the frames to send back."""
         with self._lock:
-            lag_ms = (time.perf_counter() - self._clock) * 1000.0 if self.real_time else 0.0
-            self.core.receive(data, int(lag_ms))
+            now = time.perf_counter()
+            lag_ms = (now - self._clock) * 1000.0 if self.real_time else 0.0
+            # the drive samples due by now that are not rendered yet (never more: a CLOCK_REPLY is never ahead)
+            since = int(self._owed + (now - self._clock) * self.sample_rate_hz * self._clock_rate) \
+                if self.real_time else 0
+            self.core.receive(data, int(lag_ms), since)
             replies = split_frames(self.core.transmit())
             self._take_events()
         return replies

@@ -35,7 +35,7 @@ size_t ug_core_rx_room(const ug_core *core) {
 static bool known(uint8_t type) {
     return type == UG_HELLO || type == UG_SET_CARRIER || type == UG_ENABLE || type == UG_SETPOINTS ||
            type == UG_HEARTBEAT || type == UG_CLEAR_FAULTS || type == UG_SET_LOOP || type == UG_SETPOINTS_FORCE ||
-           type == UG_SIM_FAULT;
+           type == UG_CLOCK || type == UG_SIM_FAULT;
 }
 
 static bool supported(const ug_core *core, uint8_t type) {
@@ -48,6 +48,9 @@ static bool supported(const ug_core *core, uint8_t type) {
     if (type == UG_SETPOINTS_FORCE) {
         return core->session >= 3u && (core->config.features & UG_FEATURE_FORCE_CORRECTION);
     }
+    if (type == UG_CLOCK) { /* the sensor clock: only a device with sensors has one */
+        return core->session >= 3u && core->sensor_decimation != 0u;
+    }
     return true;
 }
 
@@ -55,7 +58,7 @@ static bool length_ok(uint8_t type, const uint8_t *p, size_t n) {
     switch (type) {
     case UG_HELLO: case UG_ENABLE: case UG_SET_LOOP: return n == 1u;
     case UG_SET_CARRIER: return n == 4u;
-    case UG_HEARTBEAT: return n == 0u;
+    case UG_HEARTBEAT: case UG_CLOCK: return n == 0u;
     case UG_CLEAR_FAULTS: return n == 2u;
     case UG_SIM_FAULT: return n == 3u;
     case UG_SETPOINTS: return n >= 10u && n == 10u + 2u * (size_t)ug_get_u16(p + 8);
@@ -182,6 +185,30 @@ static void clear_faults(ug_core *core, uint16_t mask) {
 }
 
 /* one valid frame, in a critical section; returns a SIM_FAULT transport request (kind << 16 | ms) or 0 */
+/* CLOCK: the sensor clock now (the samples the core has taken and those the ADC took since: ug_port.h), in sensor
+   samples and 1/65536 of one, numbered as SENSORS' first_sample; answered at once (inside the frame's section: two
+   divisions and an 8-byte copy) */
+static void clock_reply(ug_core *core, uint16_t seq) {
+    uint8_t payload[UG_CLOCK_REPLY_SIZE];
+    const uint32_t decimation = core->sensor_decimation; /* drive samples a sensor sample (1..1000: config_ok) */
+    uint32_t since = ug_port_samples_since_block(core->port);
+    if (since > core->config.sample_rate_hz) { /* a port's bug: no more than a second (the sums below stay in u32) */
+        since = core->config.sample_rate_hz;
+    }
+    if (UG_BROKEN(core, UG_BREAK_CLOCK)) { /* "states its clock 10 ms behind" */
+        since = 0u;
+    }
+    uint32_t taken = core->sensor_count_in + since;
+    uint32_t sample = core->sensor_next + taken / decimation;
+    if (UG_BROKEN(core, UG_BREAK_CLOCK)) {
+        sample -= core->config.sensor_rate_hz / 100u;
+    }
+    ug_put_u16(payload, seq);
+    ug_put_u32(payload + 2, sample);
+    ug_put_u16(payload + 6, (uint16_t)(((taken % decimation) << 16) / decimation));
+    ug_send(core, UG_CLOCK_REPLY, payload, sizeof payload);
+}
+
 static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *p, size_t n) {
     if (!known(type)) {
         ug_nak(core, type, seq, UG_NAK_UNKNOWN_TYPE);
@@ -258,6 +285,9 @@ static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t 
         setpoints(core, type, seq, p);
         return 0;
     case UG_HEARTBEAT:
+        return 0;
+    case UG_CLOCK:
+        clock_reply(core, seq);
         return 0;
     case UG_CLEAR_FAULTS:
         clear_faults(core, ug_get_u16(p));

@@ -19,7 +19,7 @@ static const char *const rule_names[UG_BREAKS] = {
     "R-FRAMING", "R-CRC", "R-DEVICE-SEQ", "R-SEQ-ECHO", "R-VERSION", "R-HELLO-NO-STATE", "R-NAK-ORDER",
     "R-NAK-NO-EFFECT", "R-ACK", "R-CARRIER", "R-TELEMETRY", "R-SENSORS", "R-RATE", "R-EXPECTED", "R-OVERRUN",
     "R-PREFILL", "R-UNDERRUN", "R-DISCARD", "R-ENABLE", "R-LIMIT", "R-OVER-LIMIT", "R-WATCHDOG",
-    "R-FAULT-LATCH", "R-FAULT-COUNT", "R-CLEAR-FAULTS", "R-LOOP",
+    "R-FAULT-LATCH", "R-FAULT-COUNT", "R-CLEAR-FAULTS", "R-LOOP", "R-CLOCK",
 };
 
 const char *ug_break_rule(unsigned which) { return which < UG_BREAKS ? rule_names[which] : NULL; }
@@ -93,8 +93,9 @@ static bool config_ok(const ug_config *c) {
     if (c->max_version < UG_LOWEST_VERSION || c->max_version > UG_PROTOCOL_VERSION || c->sim_faults > 1u) {
         return false;
     }
-    if (c->reset_stated > 1u || c->reset_reason >= UG_RESTART_REASONS || (c->features & UG_FEATURE_RESET_STATED)) {
-        return false; /* the feature bit is the core's to set, from reset_stated */
+    if (c->reset_stated > 1u || c->reset_reason >= UG_RESTART_REASONS ||
+        (c->features & (UG_FEATURE_RESET_STATED | UG_FEATURE_CLOCK_STATED))) {
+        return false; /* the feature bits are the core's to set, from reset_stated and sensors */
     }
     return memchr(c->name, 0, sizeof c->name) != NULL;
 }

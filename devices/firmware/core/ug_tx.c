@@ -111,6 +111,9 @@ size_t ug_hello_reply(const ug_core *core, uint8_t *p) {
             ug_put_f32(p + 45, c->q);
             n = UG_HELLO_REPLY_LINK_SIZE;
         }
+        if (c->sensors != 0u) { /* CLOCK answered with the sensor clock: the host places its SENSORS on its own clock */
+            p[40] = (uint8_t)(p[40] | UG_FEATURE_CLOCK_STATED);
+        }
         if (c->reset_stated != 0u) { /* why the board last started: a host reconnecting after a reset learns why */
             p[40] = (uint8_t)(p[40] | UG_FEATURE_RESET_STATED);
             p[n] = c->reset_reason;

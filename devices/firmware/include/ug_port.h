@@ -122,6 +122,16 @@ enum {
 };
 void ug_port_output_safe(void *port, uint8_t why);
 
+/*
+ * Drive samples the ADC has taken since the last block the port handed to the core (ug_core_adc_block or
+ * ug_core_block): where its DMA is within the half it fills now; 0 where the board cannot tell. Called from
+ * ug_core_poll() inside a critical section when a CLOCK request is answered (its CLOCK_REPLY states the sensor
+ * clock: the core's samples so far and these). MUST NOT be more than the ADC has taken (the reply's clock is never
+ * ahead of the device's); a port that returns 0 makes it up to a block behind, and its block MUST then be at most
+ * UG_MAX_CLOCK_LAG_MS long (the reference boards' blocks are 1 ms).
+ */
+uint32_t ug_port_samples_since_block(void *port);
+
 #ifdef __cplusplus
 }
 #endif

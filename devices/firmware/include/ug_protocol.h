@@ -36,6 +36,7 @@
 #define UG_CLEAR_FAULTS 0x06u
 #define UG_SET_LOOP 0x07u
 #define UG_SETPOINTS_FORCE 0x08u
+#define UG_CLOCK 0x09u /* v3, UG_FEATURE_CLOCK_STATED: answered at once with CLOCK_REPLY */
 #define UG_SIM_FAULT 0x7Eu
 /* device -> host */
 #define UG_HELLO_REPLY 0x81u
@@ -43,6 +44,7 @@
 #define UG_NAK 0x83u
 #define UG_TELEMETRY 0x90u
 #define UG_SENSORS 0x91u
+#define UG_CLOCK_REPLY 0x92u
 
 /* NAK reasons, checked in this order */
 #define UG_NAK_UNKNOWN_TYPE 1u
@@ -73,6 +75,10 @@
 #define UG_FEATURE_RESET_STATED 0x10u /* HELLO_REPLY goes on (after the link's fields, if any) with
                                          restart_reason:u8 and restart_detail:u32 before the name: why the board
                                          last started (set by the core when ug_config.reset_stated is 1) */
+#define UG_FEATURE_CLOCK_STATED 0x20u /* CLOCK is answered at once with CLOCK_REPLY: the device's sensor clock when it
+                                         took the request (set by the core in a v3 session on a device with sensors) */
+#define UG_MAX_CLOCK_LAG_MS 1u /* CLOCK_REPLY's clock is never ahead of the device's when it took the request, and at
+                                  most this far behind (a board that cannot read its ADC's position within a block) */
 
 /* HELLO_REPLY's restart_reason (UG_FEATURE_RESET_STATED): why the board last started */
 #define UG_RESTART_POWER_ON 0u /* power applied, or no record of anything else */
@@ -106,6 +112,7 @@
 #define UG_TELEMETRY_V3_SIZE 89u
 #define UG_SENSORS_HEADER_SIZE 9u
 #define UG_SENSOR_SAMPLE_SIZE 12u
+#define UG_CLOCK_REPLY_SIZE 8u /* asked_seq:u16, sample:u32, fraction:u16 */
 #define UG_SETPOINTS_HEADER_SIZE 10u
 #define UG_SETPOINTS_FORCE_HEADER_SIZE 20u
 #define UG_MAX_FORCE_EXPONENT 2.0f

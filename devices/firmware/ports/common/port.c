@@ -121,6 +121,12 @@ void ug_port_output_safe(void *port, uint8_t why)
     board_output_safe();  /* both DAC halves to mid-scale: the DMA plays silence from its next word */
 }
 
+uint32_t ug_port_samples_since_block(void *port)
+{
+    (void)port;  /* not read from the DMA: CLOCK_REPLY is up to a block (BOARD_BLOCK_DRIVE, 1 ms) behind */
+    return 0u;
+}
+
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms)
 {
     (void)port;  /* never called: a board answers SIM_FAULT with NAK 4 (config.sim_faults = 0) */

@@ -17,6 +17,14 @@ void ug_port_output_safe(void *port, uint8_t why) {
     }
 }
 
+/* the caller's real time past the core's samples (set for one ug_sim_receive): the sensor clock a CLOCK_REPLY states */
+uint32_t ug_port_samples_since_block(void *port) {
+    const ug_sim *sim = port;
+    return sim != NULL ? sim->samples_since_block : 0u;
+}
+
+void ug_sim_set_samples_since_block(ug_sim *sim, uint32_t samples) { sim->samples_since_block = samples; }
+
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms) {
     ug_sim *sim = port;
     if (sim->faults_queued < UG_SIM_FAULT_QUEUE) {
@@ -69,6 +77,7 @@ size_t ug_sim_receive(ug_sim *sim, const uint8_t *data, size_t n, uint32_t lag_m
         ug_core_poll(&sim->core);
     }
     ug_core_poll(&sim->core);
+    sim->samples_since_block = 0u; /* the samples rendered next take the clock on */
     if (sim->core.frames_ok != frames && lag_ms > 0u && sim->core.state != UG_OFF) {
         sim->core.last_frame_ms = sim->core.now_ms + lag_ms; /* ahead of the core's clock: the tick compares signed */
     }

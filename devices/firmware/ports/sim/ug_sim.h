@@ -26,6 +26,8 @@ typedef struct ug_sim {
     uint8_t telemetry_owed;  /* telemetry fell due while quiet: one frame once the clock is there */
     uint32_t output_safe_calls; /* ug_port_output_safe() calls so far, and the last one's UG_SAFE_* */
     uint8_t output_safe_why;
+    uint32_t samples_since_block; /* drive samples the real clock is past the core's (ug_port_samples_since_block):
+                                     set for one ug_sim_receive */
 } ug_sim;
 
 size_t ug_sim_size(void);
@@ -43,6 +45,10 @@ void ug_sim_poll(ug_sim *sim);
    descheduled): a valid frame among these bytes feeds the watchdog, and setpoints the stream, at the real
    time, as on a board */
 size_t ug_sim_receive(ug_sim *sim, const uint8_t *data, size_t n, uint32_t lag_ms);
+/* how many drive samples the caller's real time is past the samples rendered and sensed, for the next
+   ug_sim_receive only (a CLOCK request among its bytes states the sensor clock at the real time, as a board's DMA
+   position would) */
+void ug_sim_set_samples_since_block(ug_sim *sim, uint32_t samples);
 size_t ug_sim_take_tx(ug_sim *sim, uint8_t *out, size_t max);
 void ug_sim_render(ug_sim *sim, float *drive, size_t n);
 size_t ug_sim_sense(ug_sim *sim, const float *amplitude_um_pp, const float *normal_force_n,
