@@ -139,6 +139,9 @@ class SimPlate:
     def add_sensor_listener(self, listener) -> None:
         self.driver.add_sensor_listener(listener)
 
+    def add_clock_listener(self, listener) -> None:
+        self.driver.add_clock_listener(listener)
+
     def hello(self):
         return self.driver.hello()
 

@@ -131,6 +131,33 @@ def test_sensor_samples_that_cannot_be_are_not_believed_and_are_a_device_fault(l
         assert np.all(np.isfinite(amplitude) & (amplitude >= 0))
 
 
+def test_a_clock_reply_that_cannot_be_is_not_believed_and_is_a_device_fault():
+    """A plate that states its clock (CLOCK_REPLY) as sample 5, far behind the SENSORS it has sent: not believed
+    (docs/protocol.md: at most MAX_CLOCK_LAG_MS behind them), said once, a device fault; nothing reaches a clock
+    listener."""
+    heard = []
+    plate = serve_plate(PROFILE)
+    try:
+        driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+        driver.add_clock_listener(lambda *reply: heard.append(reply))
+        driver.start(Constant(1.0))
+        try:
+            assert wait_for(lambda: len(heard) >= 3, timeout=DEADLINE_S)  # honest replies first: believed
+            plate.lies = Lies.parse(["clock_reply.sample=5", "clock_reply.fraction=0"])
+            assert wait_for(lambda: driver.status()["values_not_believed"].get("CLOCK_REPLY sample", 0) >= 3,
+                            timeout=DEADLINE_S)
+            taken = len(heard)
+        finally:
+            driver.stop()
+    finally:
+        plate.stop()
+    report = driver.report()
+    assert report.exit_status == 3, report.lines
+    said = [line for line in report.lines if line.startswith("the plate reported values that cannot be: ")]
+    assert len(said) == 1 and "CLOCK_REPLY sample (sample = 5.0, " in said[0] and "samples behind" in said[0], said
+    assert len(heard) == taken  # none of the lies reached the listener
+
+
 def test_the_simulators_own_handshake_is_within_every_range():
     # the reference the ranges are drawn against: docs/protocol.md's numbers, as the firmware's core answers them
     plate = serve_plate(PROFILE)

@@ -118,6 +118,66 @@ def test_a_links_byte_time_is_taken_off_and_a_long_frame_counts_as_a_regular_one
     assert clock.times_s(np.array([0.0]), A)[0] - A == pytest.approx(0.2e-3, abs=1e-9)
 
 
+def round_trips(rng, seconds: float, lag_s: float = 0.0, every_s: float = 0.05, drift: float = 0.0):
+    """CLOCK requests every ``every_s`` to the synthetic plate: written at t1, taken at a random moment of a round
+    trip of 0.1-3 ms, its clock then stated ``lag_s`` behind (sensor samples), read back at t2. Returns
+    (stated samples, t1, t2) and each reply's slack, t2 less the time it was taken."""
+    replies, slack = [], []
+    for t1 in A + 0.02 + np.arange(0.0, seconds - 0.05, every_s):
+        trip = rng.uniform(0.1e-3, 3e-3)
+        taken = t1 + rng.uniform(0.0, trip)
+        replies.append(((taken - A) / (1 + drift) * SENSOR_RATE - lag_s * SENSOR_RATE, t1, t1 + trip))
+        slack.append(t1 + trip - taken + lag_s)
+    return replies, np.array(slack)
+
+
+def test_clock_replies_place_every_index_within_the_fastest_round_trip_whatever_the_frames_delay():
+    """Frames 1-4 ms late (a device whose send loop holds them) place indices that late; with CLOCK replies (round
+    trips of 0.1-3 ms, the device's clock taken inside each, stated up to 1 ms behind as allowed) every index is
+    placed never early and late by no more than the tightest reply near it, and within what late_at_most_s says."""
+    rng = np.random.default_rng(8)
+    plate = Plate(20.0, 1e-3 + rng.uniform(0.0, 3e-3, 2000))
+    frames_only = plate.feed(PlayClock(RATE, SENSOR_RATE))
+    assert late_by(frames_only, plate, 55.0).min() > 0.9e-3  # the frames alone: as late as the fastest of them
+    for lag_s in (0.0, 1e-3):
+        replies, slack = round_trips(rng, 20.0, lag_s)
+        clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
+        for reply in replies:
+            clock.take_clock(*reply)
+        asked = np.array([t1 for _, t1, _ in replies])
+        drift = clock.drift()  # none here: what the hull finds moves a bound by its slope over the window
+        assert abs(drift) < 5e-6  # (the hull of random bounds over 20 s: a few ppm at most)
+        for at in np.arange(50.5, 69.5, 0.37):
+            late = late_by(clock, plate, at)
+            near = (asked >= at - WINDOW_S) & (asked <= at + AHEAD_S)
+            moved = abs(drift) * (WINDOW_S + AHEAD_S) + 1e-9
+            assert late.min() >= -moved and late.max() <= slack[near].min() + moved
+            assert late.max() <= clock.late_at_most_s(at) + moved
+    assert frames_only.late_at_most_s(55.0) is None
+
+
+def test_clock_replies_of_a_drifting_plate_and_replies_from_before_a_restart():
+    """A plate 60 ppm slow: the replies join the frames' hull (the drift found as before) and place it within
+    their round trips. Replies stated on a clock the frames have left (a restart: numbers far from theirs) are
+    not taken."""
+    rng = np.random.default_rng(9)
+    drift = 60e-6
+    plate = Plate(20.0, 1e-3 + rng.uniform(0.0, 3e-3, 2000), drift=drift)
+    replies, slack = round_trips(rng, 20.0, drift=drift)
+    clock = plate.feed(PlayClock(RATE, SENSOR_RATE))
+    for reply in replies:
+        clock.take_clock(*reply)
+    assert clock.drift() == pytest.approx(drift, abs=5e-6)
+    late = np.concatenate([late_by(clock, plate, at) for at in np.arange(50.5, 69.5, 0.5)])
+    assert late.min() > -50e-6 and late.max() < 0.3e-3  # the frames alone: 1 ms late at least
+    stale = plate.feed(PlayClock(RATE, SENSOR_RATE))
+    for samples, t1, t2 in replies:
+        stale.take_clock(samples + 3e6, t1, t2)  # another clock's numbers: 50 min away
+    assert stale.late_at_most_s(55.0) is None
+    np.testing.assert_array_equal(late_by(stale, plate, 55.0), late_by(plate.feed(PlayClock(RATE, SENSOR_RATE)),
+                                                                        plate, 55.0))
+
+
 def test_frames_while_nothing_plays_say_nothing_and_counts_wrap():
     clock = PlayClock(RATE, SENSOR_RATE)
     clock.take(NOT_PLAYING, FRAME, 10.0, 0)

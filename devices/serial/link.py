@@ -32,6 +32,9 @@ CUT_WORDS = {"trip": "over-amplitude trip: its measured amplitude went more than
              "overheat": "overheat: its driver stage was too hot"}
 REENABLE_AFTER_S = 0.1  # telemetry says the plate is off this long after an ENABLE 1 (unacknowledged, lost on
 # the link?) while the host streams: ENABLE goes again (the plate discards every setpoint while disabled)
+CLOCK_EVERY_S = 0.05  # a CLOCK request this often while streaming to a device that states its clock, and someone
+# listens (the play clock: 20 round trips a second, 9 bytes each; the fastest of them places the plate's clock)
+CLOCK_GIVE_UP_S = 0.5  # a CLOCK request unanswered this long is given up (its reply, if it comes, is not taken)
 STALL_S = 0.05  # the writer woke this much later than it meant to: the host did not run (not the plate's silence)
 CLEAR_RETRY_S = 0.5  # a CLEAR_FAULTS unanswered this long was lost on the link: sent again
 DEPTH_WINDOW = 10  # v3 telemetry frames (0.2 s) over which the median of the plate's buffer depth is taken

@@ -154,6 +154,14 @@ class SerialPlate:
         it must return quickly. A listener that raises is counted (``sensor_errors``) and left out from then on."""
         self.intake.add_sensor_listener(listener)
 
+    def add_clock_listener(self, listener) -> None:
+        """Call ``listener(samples, asked_s, received_s)`` with each CLOCK_REPLY, on the reader thread: the device's
+        sensor clock (samples, numbered as SENSORS' and wrapping at 2**32; never ahead of its clock, at most
+        ``MAX_CLOCK_LAG_MS`` behind) when it took a CLOCK request written at ``asked_s`` and answered by
+        ``received_s`` (perf_counter s). With a listener, the writer asks every ``CLOCK_EVERY_S`` while it streams,
+        where the device states its clock (``FEATURE_CLOCK_STATED``); elsewhere nothing is asked and nothing comes."""
+        self.intake.add_clock_listener(listener)
+
     def command(self, kind: int, payload: bytes = b"", timeout_s: float | None = None) -> None:
         """Send a command frame and wait for its ACK; DeviceError on a NAK or silence (a test's or a tool's)."""
         self.session.command(kind, payload, timeout_s)

@@ -16,6 +16,8 @@ import numpy as np
 import serial
 from ultraglide.devices import protocol as p
 from ultraglide.devices.serial.link import (
+    CLOCK_EVERY_S,
+    CLOCK_GIVE_UP_S,
     IDLE_AFTER_S,
     STALL_S,
     ZERO_FRACTION,
@@ -59,6 +61,7 @@ class Streamer:
         self._trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
         self._last_sent: float | None = None
         self._quiet_since: float | None = None  # when the run of all-zero setpoints began (perf_counter s)
+        self._clock_asked_s = 0.0  # when the last CLOCK request was sent (perf_counter s)
 
     def run(self, source, rest: Callable[[], None]) -> None:
         """Stream ``source`` until stopped or finished; ``rest`` the plate on the way out, whatever happened."""
@@ -201,6 +204,7 @@ class Streamer:
             self._enable_if_off()
             self._send_setpoints(fractions)
             sent_at = time.perf_counter()
+            self._ask_clock(sent_at)
             if self._last_sent is not None and sent_at - self._last_sent > self._dry_s:  # it may have run dry
                 self._late_frame(sent_at - self._last_sent)
             self._last_sent = sent_at
@@ -251,6 +255,16 @@ class Streamer:
         state.last_heard = max(state.last_heard, time.monotonic())
         self.counters.host_stalls += 1
         self.account.host_stalled(stalled_s, now)
+
+    def _ask_clock(self, now: float) -> None:
+        """A CLOCK request every ``CLOCK_EVERY_S`` while the device states its clock and someone listens (one
+        awaited at a time; one unanswered for ``CLOCK_GIVE_UP_S`` is given up)."""
+        intake, device = self.intake, self.session.state.device
+        if not intake.wants_clock or device is None or not device.states_clock or now - self._clock_asked_s < \
+                CLOCK_EVERY_S or (intake.clock_asked is not None and now - intake.clock_asked[1] < CLOCK_GIVE_UP_S):
+            return
+        self._clock_asked_s = now
+        self.transport.send(p.CLOCK, expect=intake.asking_clock)
 
     def _heartbeat(self) -> None:
         try:

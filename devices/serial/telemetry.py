@@ -8,7 +8,12 @@ import time
 
 from ultraglide.devices import protocol as p
 from ultraglide.devices.counter_check import WRAP, plausible_restart
-from ultraglide.devices.protocol.ranges import SAMPLE_GAP_S, sensors_out_of_range, telemetry_out_of_range
+from ultraglide.devices.protocol.ranges import (
+    SAMPLE_GAP_S,
+    clock_reply_out_of_range,
+    sensors_out_of_range,
+    telemetry_out_of_range,
+)
 from ultraglide.devices.serial.link import (
     CLEAR_RETRY_S,
     CUT_FAULTS,
@@ -135,7 +140,13 @@ class Intake:
         self.sensors_frames = 0
         self.sensor_errors = 0
         self._sensor_listeners: tuple = ()
+        self._clock_listeners: tuple = ()
         self._next_sample: int | None = None  # the sample number the last SENSORS frame leads to
+        self._sensors_read_s = 0.0  # when the last SENSORS frame taken was read (perf_counter s)
+        # the CLOCK request awaiting its reply: (its seq, when it was sent, the sample number the SENSORS read
+        # before it lead to, when the last of them was read); None: none outstanding
+        self.clock_asked: tuple[int, float, int | None, float] | None = None
+        self.clock_replies = 0  # CLOCK_REPLY frames taken over the run
         self._may_begin_again = True  # a restarted device's sample count is believed once a connection
         self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
         self._frames_ok_last = 0
@@ -164,9 +175,13 @@ class Intake:
                 if self._began_again(sensors.first_sample, expected, device):
                     expected = None  # the device restarted: its samples are numbered from 0 again
                 if device is None or self._believed("SENSORS", sensors_out_of_range(sensors, device, expected)):
+                    self._sensors_read_s = time.perf_counter()
                     self._take_sensors(sensors)
+            elif frame.kind == p.CLOCK_REPLY and state.active:
+                self._take_clock(p.parse_clock_reply(frame.payload), time.perf_counter())
             elif frame.kind == p.HELLO_REPLY:
                 self._next_sample = None  # a new connection: its samples are numbered afresh
+                self.clock_asked = None
                 self._may_begin_again = True
                 self.session.replies.hello_arrived(frame.payload)
             elif frame.kind == p.ACK:
@@ -206,6 +221,38 @@ class Intake:
 
     def add_sensor_listener(self, listener) -> None:
         self._sensor_listeners = (*self._sensor_listeners, listener)
+
+    def add_clock_listener(self, listener) -> None:
+        self._clock_listeners = (*self._clock_listeners, listener)
+
+    @property
+    def wants_clock(self) -> bool:
+        """Someone listens for the device's clock."""
+        return bool(self._clock_listeners)
+
+    def asking_clock(self, seq: int) -> None:
+        """A CLOCK request with ``seq`` is about to be written (the writer thread): its reply is awaited."""
+        self.clock_asked = (seq, time.perf_counter(), self._next_sample, self._sensors_read_s)
+
+    def _take_clock(self, reply: p.ClockReply, received_s: float) -> None:
+        """A CLOCK_REPLY: believed against the SENSORS read before it was asked, it goes to the clock listeners as
+        ``listener(samples, asked_s, received_s)``: the device's sensor clock (samples, not unwrapped) when it took
+        a request sent at ``asked_s`` and answered by ``received_s`` (perf_counter s)."""
+        asked, device = self.clock_asked, self.session.state.device
+        if asked is None or asked[0] != reply.asked_seq:
+            return  # not the request awaited (a late reply to one given up on): its sending time is not known
+        self.clock_asked = None
+        _, asked_s, sent_end, read_s = asked
+        if device is not None and not self._believed(
+                "CLOCK_REPLY", clock_reply_out_of_range(reply, device, sent_end, received_s - read_s)):
+            return
+        self.clock_replies += 1
+        for listener in self._clock_listeners:
+            try:
+                listener(reply.samples, asked_s, received_s)
+            except Exception:  # noqa: BLE001 - the link goes on; the listener goes
+                self.sensor_errors += 1
+                self._clock_listeners = tuple(other for other in self._clock_listeners if other is not listener)
 
     def _take_sensors(self, sensors: p.Sensors) -> None:
         self.sensors = sensors

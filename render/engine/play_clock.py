@@ -23,6 +23,15 @@ on the device's clock at ``sensor_rate_hz``) and names the stream index playing 
   or a skip came between, at a sample the frames do not say, and the later of the two is taken (never early; an
   index a frame names plays at its sample).
   Every later index moves by exactly what the device's own counts say: no window to wait out.
+- *A device that states its clock* (``FEATURE_CLOCK_STATED``, docs/protocol.md) answers a CLOCK request at once
+  with its sensor clock when it took it, ``c`` samples (never ahead, at most ``MAX_CLOCK_LAG_MS`` behind): a
+  request written at ``asked_s`` and answered by ``received_s`` brackets the origin,
+  ``asked_s - c / sensor_rate_hz - MAX_CLOCK_LAG_MS <= origin <= received_s - c / sensor_rate_hz``, whatever
+  the device's send loop, its blocks or its link do to its SENSORS frames. The upper bound joins the frames' (the
+  lowest of all places the clock; the fastest round trip, not the fastest frame, decides how late it can be), and
+  :meth:`PlayClock.late_at_most_s` says how late that is at most: the tightest bracket's width. With replies, the
+  frames' bounds take no byte time off: a link that does not pace its bytes (the simulated plate's pty) brings a
+  frame in less than its bytes' time at the stated rate, which made the clock early by up to 0.15 ms there.
 
 :class:`PlayClock` keeps each frame in a ring (the reader thread: a few float stores, no allocation) and places
 indices on request (:meth:`PlayClock.times_s`, a record's writer thread). A device that restarts numbers its samples
@@ -49,7 +58,7 @@ import threading
 import time
 
 import numpy as np
-from ultraglide.devices.protocol.spec import NOT_PLAYING, SENSORS_PERIOD_MS
+from ultraglide.devices.protocol.spec import MAX_CLOCK_LAG_MS, NOT_PLAYING, SENSORS_PERIOD_MS
 
 SENSORS_BYTES = (18, 12)  # a SENSORS frame on the wire: 18 bytes and 12 a sample (n <= 19; docs/protocol.md)
 WINDOW_S = 8.0  # frames read up to this long before a time give the origin there (decided from sim runs: docs)
@@ -109,6 +118,10 @@ class PlayClock:
         self._index = np.zeros(KEPT)  # the stream index playing at it (u32)
         self._samples = np.zeros(KEPT)  # its samples
         self.frames = 0  # frames taken (the reader thread's count)
+        self._clock_received = np.zeros(KEPT)  # a CLOCK_REPLY's arrival, perf_counter s
+        self._clock_asked = np.zeros(KEPT)  # ... its request's sending
+        self._clock_sample = np.zeros(KEPT)  # ... the device's sensor clock it states, samples (not unwrapped)
+        self.clocks = 0  # CLOCK_REPLY frames taken (the reader thread's count)
         self._lock = threading.Lock()  # the readers' (a record's writer and a caller): not the reader thread's
 
     # ---- the device's reader thread ----
@@ -170,19 +183,56 @@ class PlayClock:
         self._samples[slot] = samples
         self.frames += 1  # after the slot is whole: a reader takes only slots below the count
 
+    def take_clock(self, samples: float, asked_s: float, received_s: float) -> None:
+        """A CLOCK_REPLY, as a plate driver's reader thread hands it over (a clock listener): the device's sensor
+        clock when it took a request written at ``asked_s`` and answered by ``received_s``.
+
+        Parameters
+        ----------
+        samples : float
+            The device's sensor clock, samples (numbered as SENSORS' ``first_sample``, wrapping at 2**32).
+        asked_s, received_s : float
+            When the request was written and the reply read, perf_counter s.
+
+        Examples
+        --------
+        Frames read 2 ms after their last sample (a device that sends late), and a round trip of 0.2 ms to a device
+        whose sample 0 was at 10.0 s: the clock places index 1200, played at sample 100, 0.2 ms late at most, not 2:
+
+        >>> import numpy as np
+        >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
+        >>> for frame in range(20):
+        ...     clock.take(120 * frame, 10, 10.0 + (10 * frame + 10) / 1000.0 + 2e-3, 10 * frame)
+        >>> clock.take_clock(150.5, 10.1505, 10.1507)
+        >>> late_s = float(clock.times_s(np.array([1200]), 10.1)[0] - 10.1)
+        >>> round(late_s * 1e3, 3), round(clock.late_at_most_s(10.1) * 1e3, 3)
+        (0.2, 1.2)
+        """
+        slot = self.clocks % KEPT
+        self._clock_received[slot] = received_s
+        self._clock_asked[slot] = asked_s
+        self._clock_sample[slot] = samples
+        self.clocks += 1
+
     # ---- readers (a record's writer thread) ----
-    def _kept(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _kept(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The frames of the device's present clock, oldest first: when each was read, its bound on the origin, its
         first sample's time after the origin (s, unwrapped) and its index (unwrapped); with the rates as they are
-        now (a device states them in its handshake, after its first frames may have come)."""
+        now (a device states them in its handshake, after its first frames may have come). Then the CLOCK replies
+        of that clock: when each was read, its upper bound on the origin and its lower one."""
         with self._lock:
             count = self.frames
             n = min(count, KEPT - 1)  # not the oldest slot: the next frame is written over it meanwhile
             order = np.arange(count - n, count) % KEPT
             received, first = self._received[order], self._first[order]
             index, samples = self._index[order], self._samples[order]
+            clocks = self.clocks
+            m = min(clocks, KEPT - 1)
+            order = np.arange(clocks - m, clocks) % KEPT
+            clock_received, clock_asked = self._clock_received[order], self._clock_asked[order]
+            clock_sample = self._clock_sample[order]
         if n == 0:
-            return received, received, received, received
+            return received, received, received, received, received, received, received
         steps = (np.diff(first) % WRAP) if n > 1 else np.zeros(0)
         broken = (steps < samples[:-1]) | (steps > MAX_GAP_S * self.sensor_rate_hz)  # back, or too far: a restart
         start = int(np.flatnonzero(broken)[-1]) + 1 if broken.any() else 0
@@ -191,10 +241,17 @@ class PlayClock:
         moved = (np.diff(index[start:]) + WRAP // 2) % WRAP - WRAP // 2  # signed: a device may play one again
         index = index[start] + np.concatenate(([0.0], np.cumsum(moved)))
         bound = received - (sample + samples) / self.sensor_rate_hz
-        if self.link_bytes_per_s > 0:
-            regular = max(1.0, round(self.sensor_rate_hz * SENSORS_PERIOD_MS / 1000.0))
+        # the replies of this clock: read after its first frame, numbered within MAX_GAP_S of its frames
+        stamp = first[start] + (clock_sample - first[start] + WRAP // 2) % WRAP - WRAP // 2
+        ours = (clock_received >= received[0]) & (stamp >= sample[0] - MAX_GAP_S * self.sensor_rate_hz) & \
+            (stamp <= sample[-1] + MAX_GAP_S * self.sensor_rate_hz)
+        if self.link_bytes_per_s > 0 and not ours.any():  # (with replies, no frame's byte time is assumed: a link
+            regular = max(1.0, round(self.sensor_rate_hz * SENSORS_PERIOD_MS / 1000.0))  # that does not pace its
             bound -= (SENSORS_BYTES[0] + SENSORS_BYTES[1] * np.minimum(samples, regular)) / self.link_bytes_per_s
-        return received, bound, sample / self.sensor_rate_hz, index
+        stamp_s = stamp[ours] / self.sensor_rate_hz  # bytes, the simulated plate's pty, brings frames in less)
+        clock_received = clock_received[ours]
+        return (received, bound, sample / self.sensor_rate_hz, index, clock_received, clock_received - stamp_s,
+                clock_asked[ours] - stamp_s - MAX_CLOCK_LAG_MS / 1000.0)
 
     def drift(self) -> float:
         """The plate's clock against the host's (s a host second): the slope of the lower hull of every bound kept,
@@ -218,8 +275,8 @@ class PlayClock:
         >>> abs(clock.drift() * 1e6 - 60) < 5                                # parts per million
         True
         """
-        received, bound, _, _ = self._kept()
-        return _hull_slope(received, bound)
+        received, bound, _, _, clock_received, clock_bound, _ = self._kept()
+        return _hull_slope(np.concatenate((received, clock_received)), np.concatenate((bound, clock_bound)))
 
     def times_s(self, index: np.ndarray, at_s: float) -> np.ndarray | None:
         """When each stream index plays (perf_counter s), by the device's clock placed with the frames read from
@@ -249,12 +306,14 @@ class PlayClock:
         >>> (clock.times_s(np.array([10, 15, 22]), 0.1) * 1e3).round(3).tolist(), clock.times_s(np.array([1]), 9.0)
         ([100.5, 108.5, 115.5], None)
         """
-        received, bound, sampled_s, at_index = self._kept()
+        received, bound, sampled_s, at_index, clock_received, clock_bound, _ = self._kept()
         near = (received >= at_s - self.window_s) & (received <= at_s + self.ahead_s)  # (none without frames)
         if not near.any():
             return None
-        slope = _hull_slope(received, bound)
-        origin = float(np.min(bound[near] + slope * (at_s - received[near])))
+        every_received, every_bound = np.concatenate((received, clock_received)), np.concatenate((bound, clock_bound))
+        slope = _hull_slope(every_received, every_bound)
+        near = (every_received >= at_s - self.window_s) & (every_received <= at_s + self.ahead_s)
+        origin = float(np.min(every_bound[near] + slope * (at_s - every_received[near])))
         index = np.asarray(index, dtype=float)
         frame = np.clip(np.searchsorted(np.maximum.accumulate(at_index), index, side="right") - 1, 0,
                         len(at_index) - 1)
@@ -263,6 +322,41 @@ class PlayClock:
         before = origin + sampled_s[following] - (at_index[following] - index) / self.stream_rate_hz
         named = (following == frame) | (index == at_index[frame])  # the frame named it: it played at its sample
         return np.where(named, after, np.maximum(after, before))
+
+    def late_at_most_s(self, at_s: float) -> float | None:
+        """How much later than the truth :meth:`times_s` places an index at ``at_s`` at most (s), by the CLOCK
+        replies read in the same window: the tightest bracket on the origin they give (the lowest upper bound less
+        the highest lower one, each moved to ``at_s`` by the drift); None without a reply there (a device that does
+        not state its clock: the frames alone say no lower bound).
+
+        Parameters
+        ----------
+        at_s : float
+            Where on the host's clock (perf_counter s).
+
+        Returns
+        -------
+        float or None
+            Seconds (at least 0 from an honest device: its brackets overlap).
+
+        Examples
+        --------
+        Two round trips to a device whose sample 0 was at 10.0 s, 0.3 and 0.2 ms long: the origin lies within 0.2 ms
+        and the clock's lag of up to 1 ms:
+
+        >>> clock = PlayClock(stream_rate_hz=12000.0, sensor_rate_hz=1000.0)
+        >>> clock.take(0, 10, 10.012, 0)
+        >>> clock.take_clock(50.0, 10.0499, 10.0502); clock.take_clock(80.0, 10.0800, 10.0802)
+        >>> round(clock.late_at_most_s(10.05) * 1e3, 3)
+        1.2
+        """
+        received, bound, _, _, clock_received, clock_bound, clock_low = self._kept()
+        near = (clock_received >= at_s - self.window_s) & (clock_received <= at_s + self.ahead_s)
+        if len(received) == 0 or not near.any():
+            return None
+        slope = _hull_slope(np.concatenate((received, clock_received)), np.concatenate((bound, clock_bound)))
+        moved = slope * (at_s - clock_received[near])
+        return float(np.min(clock_bound[near] + moved) - np.max(clock_low[near] + moved))
 
 
 def _hull_slope(received: np.ndarray, bound: np.ndarray) -> float:

@@ -582,6 +582,8 @@ def engine_main(config, shared_name: str, conn) -> None:
 
                 source.record.clock = PlayClock(source.rate_hz)
                 listeners.append(source.record.clock.take_frame)
+                if hasattr(device, "add_clock_listener"):  # ... and its CLOCK replies, where it states its clock
+                    device.add_clock_listener(source.record.clock.take_clock)
         if config.sensors_csv:
             from ultraglide.render.engine.sensor_record import SensorRecord
 
