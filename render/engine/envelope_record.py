@@ -10,15 +10,15 @@ the device was given, after the limiter) and ``plan_s`` (perf_counter s: when th
 reach the plate). A writer that falls a whole ring behind loses rows: they are counted
 (:attr:`EnvelopeRecord.dropped`) and the run says so.
 
-``t_s``, with a play clock (:attr:`EnvelopeRecord.clock`, a
-:class:`~ultraglide.render.engine.play_clock.PlayClock` fed by a plate driver's SENSORS frames, which say which
-value plays when): when the value plays by the plate's own account. The writer holds rows back the clock's look
-ahead and a piece (4.2 s at 12 kHz, less where its ring holds less: :func:`hold_s`; the frames read up to 4 s after
-their time have come) and places each ``PIECE_S`` of them by the clock there. Rows the clock cannot place (no
-frame read within its window: before the stream plays, a plate that sends no SENSORS) and every row of a device
-without a sensor listener (a wav file, an audio output, the null device) keep the plan, ``t_s`` = ``plan_s``: the
-renderer re-anchors its plan only when the plate's buffer drifts past its deadband, and values play up to a few
-ms after it (bench/bench_record_timing.py).
+``t_s``, with a play clock (:attr:`EnvelopeRecord.clock`, a :class:`~ultraglide.render.engine.play_clock.PlayClock`
+fed by a plate driver's SENSORS frames, which say which value plays when, and its CLOCK replies where it states its
+clock): when the value plays by the plate's own account. The writer holds rows back the clock's look ahead and a
+piece (4.2 s at 12 kHz, less where its ring holds less: :func:`hold_s`; the frames read up to 4 s after their time
+have come) and places each ``PIECE_S`` of them by the clock there. Rows the clock cannot place (no frame read within
+its window: before the stream plays, a plate that sends no SENSORS) and every row of a device without a sensor
+listener (a wav file, an audio output, the null device) keep the plan, ``t_s`` = ``plan_s``: the renderer re-anchors
+its plan only when the plate's buffer drifts past its deadband, and values play up to a few ms after it
+(bench/bench_record_timing.py).
 """
 
 from __future__ import annotations
