@@ -260,8 +260,9 @@ class Streamer:
         """A CLOCK request every ``CLOCK_EVERY_S`` while the device states its clock and someone listens (one
         awaited at a time; one unanswered for ``CLOCK_GIVE_UP_S`` is given up)."""
         intake, device = self.intake, self.session.state.device
+        awaited = intake.clock_asked  # read once: the reader thread clears it when the reply comes
         if not intake.wants_clock or device is None or not device.states_clock or now - self._clock_asked_s < \
-                CLOCK_EVERY_S or (intake.clock_asked is not None and now - intake.clock_asked[1] < CLOCK_GIVE_UP_S):
+                CLOCK_EVERY_S or (awaited is not None and now - awaited[1] < CLOCK_GIVE_UP_S):
             return
         self._clock_asked_s = now
         self.transport.send(p.CLOCK, expect=intake.asking_clock)
