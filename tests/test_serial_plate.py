@@ -211,6 +211,36 @@ def test_sensors_frames_reach_the_driver_and_its_listeners(tapped):
     assert np.isfinite(amplitudes).all() and abs(amplitudes.max() - 1.0) < 0.05  # the 1 µm p-p it was driven at
 
 
+def test_clock_is_asked_only_with_a_clock_listener_and_each_reply_reaches_it(tapped):
+    """Without a clock listener the driver sends what it always sent (no CLOCK: a device that states its clock
+    sees the host it saw before); with one, a CLOCK request every 50 ms while it streams, one awaited at a time,
+    and each reply reaches the listener with its request's sending time before its arrival."""
+    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+    heard = []
+    driver.add_sensor_listener(heard.append)
+    driver.start(Constant(1.0))
+    try:
+        assert wait_for(lambda: len(heard) >= 50, timeout=DEADLINE_S)  # 0.5 s of SENSORS
+    finally:
+        driver.stop()
+    assert driver.device.states_clock and p.CLOCK not in [kind for kind, _ in tapped.frames]
+
+    replies = []
+    driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+    driver.add_clock_listener(lambda *reply: replies.append(reply))
+    driver.start(Constant(1.0))
+    try:
+        assert wait_for(lambda: len(replies) >= 20, timeout=DEADLINE_S)
+        started = replies[0][1]
+        asked = sum(kind == p.CLOCK for kind, _ in list(tapped.frames))
+    finally:
+        driver.stop()
+    assert all(asked_s < received_s for _, asked_s, received_s in replies)
+    spacing = np.diff([asked_s for _, asked_s, _ in replies])
+    assert spacing.min() >= 0.049 and asked >= len(replies)  # every 50 ms at most often; each reply to a request
+    assert replies[-1][1] - started < 19 * 0.05 * 3  # and not much less often (a loaded machine: a few times)
+
+
 # ---- the port and the link ----------------------------------------------------------------------------------
 def test_a_lock_that_fails_for_another_reason_than_a_holder_says_so_not_in_use(monkeypatch):
     """Only a lock someone holds (EWOULDBLOCK) is "in use"; the kernel refusing the lock for another reason (out of
