@@ -12,11 +12,21 @@ rate) and keeps:
   below, so moments at zero amplitude pin it directly when they occur, and the curve through the other
   amplitudes does in between. The measured ratio is mu / mu0.
 * **the adaptive model**: the host's friction model ``r(a, F)`` with its amplitude axis scaled by ``k``:
-  ``mu = mu0 r(a / k, F)``. ``ln mu0`` and ``ln k`` are fitted by recursive least squares with exponential
-  forgetting (memory ``forgetting_s``), linearised at the present estimates (the slope in ``ln k`` from the
-  model itself, by central differences, so any model works: the stretched law, a table, a calibration).
-  Samples are weighted by the force (the noise of mu goes as 1/F), and the covariance is bounded so that a
-  stretch without excitation (a steady amplitude) does not wind it up.
+  ``mu = mu0 r(a / k, F)``. ``ln mu0`` and ``ln k`` are fitted by recursive least squares, linearised at the
+  present estimates (the slope in ``ln k`` from the model itself, by central differences, so any model works:
+  the stretched law, a table, a calibration), each parameter a random walk of its own (a Kalman filter): the
+  covariance grows each sample by ``diag(q0, q1)``, set from the memories ``mu0_memory_s`` (1 s) and
+  ``scale_memory_s`` (0.1 s). Samples are weighted by the force (the noise of mu goes as 1/F), and the
+  covariance is bounded so that a stretch without excitation (a steady amplitude) does not wind it up.
+
+  Why two memories: where the amplitude never leaves a narrow band, the samples fix only the product
+  ``mu0 r(a / k)``, not mu0 and k apart (a plan that holds a lagging finger's friction steady, issue 43: the
+  two regressors correlated above 0.9). The friction at rest changes slowly (moisture, over tens of seconds);
+  the scale takes what the press changes within a second (a force law unlike the model's). With one forgetting
+  factor for both, the covariance grew along the product's valley and any change the model could not explain
+  moved the estimate along it: mu0 fell, the ratio measured as mu / mu0 rose, the loop drove more vibration,
+  the finger's friction fell with it, and the samples agreed again, until k reached its bound of 4. With k's
+  variance growing a hundred times faster than mu0's, what the samples cannot place goes to k.
 
 The force sensors are slower than the amplitude sensor: the predicted ratio is passed through a model of
 them (a first-order low-pass and a delay, a fraction of a sample allowed) before it is compared with the
@@ -45,6 +55,7 @@ MIN_NORMAL_N = -0.2  # a normal force this negative is a sensor fault (offset dr
 DIFFERENCE_STEP = 0.02  # ln k step of the central difference for the model's slope
 LN_K_RANGE = (math.log(0.25), math.log(4.0))  # the adapted scale stays within 1/4 to 4 x the model's
 LN_MU0_RANGE = (math.log(0.02), math.log(5.0))
+REGRESSOR = 0.7  # a typical regressor (mu at 0.5 N): the memories' nominal scale
 MAX_COVARIANCE = 0.5  # bound on the trace of P (ln units²): no wind-up without excitation
 INITIAL_COVARIANCE = np.diag([0.05, 0.05])
 
@@ -54,7 +65,8 @@ class EstimatorSettings:
     """What the estimator assumes. Times s, frequencies Hz, forces N, speeds mm/s.
 
     ``sensor_delay_s`` and ``sensor_bandwidth_hz``: the host's model of the force sensors (the simulated plate's
-    defaults: 1 ms, 300 Hz); ``forgetting_s``: the adaptive model's memory; ``min_force_n``: lighter is lifted;
+    defaults: 1 ms, 300 Hz); ``mu0_memory_s`` and ``scale_memory_s``: the adaptive model's memories of mu0 and of
+    the scale (nominal: a random walk's, at a regressor of 0.7); ``min_force_n``: lighter is lifted;
     ``min_speed_mm_s``: slower (as the touch panel says) is at rest; ``resting_fraction``: a lateral force below
     this share of the friction the adapted model predicts is a finger at rest; ``prior_mu0``: mu0 before any
     measurement; ``confirm_s``: sliding must last this long before its estimates are trusted.
@@ -68,7 +80,8 @@ class EstimatorSettings:
 
     sensor_delay_s: float = 0.001
     sensor_bandwidth_hz: float = 300.0
-    forgetting_s: float = 2.0
+    mu0_memory_s: float = 1.0
+    scale_memory_s: float = 0.1
     min_force_n: float = 0.05
     min_speed_mm_s: float = 5.0
     resting_fraction: float = 0.25
@@ -79,7 +92,8 @@ class EstimatorSettings:
 
     def __post_init__(self) -> None:
         for name, low, high in (("sensor_delay_s", 0.0, 0.1), ("sensor_bandwidth_hz", 0.0, 20000.0),
-                                ("forgetting_s", 0.05, 600.0), ("min_force_n", 0.0, 5.0),
+                                ("mu0_memory_s", 0.01, 600.0), ("scale_memory_s", 0.01, 600.0),
+                                ("min_force_n", 0.0, 5.0),
                                 ("min_speed_mm_s", 0.0, 1000.0), ("resting_fraction", 0.0, 1.0),
                                 ("prior_mu0", 0.02, 5.0), ("confirm_s", 0.0, 5.0), ("reference_force_n", 0.01, 10.0)):
             value = getattr(self, name)
@@ -523,7 +537,10 @@ class FrictionEstimator:
         self.model = model
         self.settings = settings = settings or EstimatorSettings()
         self.sensor_rate_hz = float(sensor_rate_hz)
-        self.forgetting = 1.0 - 1.0 / (settings.forgetting_s * self.sensor_rate_hz)
+        # each parameter's random walk, per sample: q = (1 / (memory x rate x regressor))², the memory of a scalar
+        # Kalman filter at that regressor and unit noise
+        self.process_noise = tuple((1.0 / (memory * self.sensor_rate_hz * REGRESSOR)) ** 2
+                                   for memory in (settings.mu0_memory_s, settings.scale_memory_s))
         self.theta = np.array([math.log(settings.prior_mu0), 0.0])  # ln mu0, ln k
         self.covariance = INITIAL_COVARIANCE.copy()
         self._sensors = SensorModel(3, self.sensor_rate_hz, settings.sensor_bandwidth_hz, settings.sensor_delay_s)
@@ -755,12 +772,13 @@ class FrictionEstimator:
         return "sliding", "sliding"
 
     def _fit(self, mu: np.ndarray, predicted: np.ndarray, slope: np.ndarray, force: np.ndarray) -> None:
-        """Recursive least squares in (ln mu0, ln k) over these samples, linearised at the batch's start."""
+        """Recursive least squares in (ln mu0, ln k) over these samples, linearised at the batch's start, each
+        parameter a random walk (:attr:`process_noise`)."""
         if not len(mu):
             return
         theta = self.theta
         p = self.covariance
-        lam = self.forgetting
+        q0, q1 = self.process_noise
         weight = force / self.settings.reference_force_n  # the noise of mu goes as 1/F
         p00, p01, p11 = p[0, 0], p[0, 1], p[1, 1]
         t0, t1 = theta[0], theta[1]
@@ -769,12 +787,14 @@ class FrictionEstimator:
             error = (y - yhat) * w
             g0 = p00 * phi0 + p01 * phi1
             g1 = p01 * phi0 + p11 * phi1
-            denominator = lam + phi0 * g0 + phi1 * g1
+            denominator = 1.0 + phi0 * g0 + phi1 * g1
             k0, k1 = g0 / denominator, g1 / denominator
             t0 += k0 * error
             t1 += k1 * error
-            inflate = 1.0 / lam if p00 + p11 < MAX_COVARIANCE else 1.0
-            p00, p01, p11 = ((p00 - k0 * g0) * inflate, (p01 - k0 * g1) * inflate, (p11 - k1 * g1) * inflate)
+            p00, p01, p11 = p00 - k0 * g0, p01 - k0 * g1, p11 - k1 * g1
+            if p00 + p11 < MAX_COVARIANCE:  # the random walks, within the bound
+                p00 += q0
+                p11 += q1
         theta[0] = min(max(t0, LN_MU0_RANGE[0]), LN_MU0_RANGE[1])
         theta[1] = min(max(t1, LN_K_RANGE[0]), LN_K_RANGE[1])
         p[0, 0], p[0, 1], p[1, 0], p[1, 1] = p00, p01, p01, p11
