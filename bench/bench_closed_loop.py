@@ -31,7 +31,11 @@ Figures:
 * **limit**: the largest commanded amplitude, the plate's peak (plate-sim's own) and the drive it received (its
   lowest, braking, and highest) against 6 µm p-p;
 * **faults**: sensor faults (NaN, out of range) mid-run: the loop's state in words, and how far the commanded
-  amplitude rose above the open-loop amplitude after each fault (it must not).
+  amplitude rose above the open-loop amplitude after each fault (it must not);
+* **table fingers** (issue 43): the finger at two forces below, its force walking in 0.2-1 N, in simulated time at
+  100 mm/s, under the static model and under ``--model dynamic`` with and without the finger's own lag: open and
+  closed loop against the texture where the limit allows it and against the friction the plan means felt, the
+  loop's own figure, and its mu0 (against the finger's) and k at the end.
 """
 
 from __future__ import annotations
@@ -218,6 +222,34 @@ def rig_fault_case(texture, seconds: float) -> list[dict]:
     return results, run.status
 
 
+def rig_table_case(folder: Path, texture, seconds: float, model: str, lags: bool, closed: bool) -> dict:
+    """The two-force table finger (its force walking in 0.2-1 N, drifting, gaining mu0 with dwell) in simulated time
+    at 100 mm/s, the host playing ``model``; ``lags``: the finger's friction has the published dynamics."""
+    finger = FingerConfig(law=table_fingers(folder)["two forces"], dynamics=lags)
+    rig = ClosedLoopRig(texture, 100.0, closed, finger=finger, model=model, seconds=seconds)
+    run = rig.run(seconds)
+    config = rig.config
+    truth_mu0 = config.mu0 * (1.0 + config.moisture * (1.0 - math.exp(-float(run.t[-1]) / config.moisture_tau_s)))
+    return {"rms": run.rms_error(LEARN_S, True), "planned": run.planned_error(LEARN_S) if model == "dynamic" else None,
+            "says": run.status.get("friction_error_rms"), "mu0": run.status.get("mu0"),
+            "k": run.status.get("adapted_scale"), "truth_mu0": truth_mu0}
+
+
+def rig_table_table(folder: Path, texture, seconds: float) -> None:
+    """Issue 43's case in simulated time: the two-force table finger under the static and the dynamic model."""
+    print(f"the two-force table finger in simulated time (0.3 and 0.8 N, force walking in 0.2-1 N), 100 mm/s, "
+          f"{seconds:g} s; load average {os.getloadavg()[0]:.1f}; errors after the first 2 s, against the texture "
+          "where the limit allows it and, for --model dynamic, against the friction the plan means felt")
+    print(f"{'model, finger':>26} {'open':>6} {'closed':>7} {'vs plan: open':>14} {'closed':>7} {'loop says':>10} "
+          f"{'mu0 (truth)':>14} {'k':>6}")
+    for model, lags in (("stretched", False), ("dynamic", True), ("dynamic", False)):
+        opened, closed = (rig_table_case(folder, texture, seconds, model, lags, c) for c in (False, True))
+        planned = (f"{opened['planned']:14.3f} {closed['planned']:7.3f}" if model == "dynamic" else f"{'':14} {'':7}")
+        name = f"{model}, {'lagging' if lags else 'no lag'}"
+        print(f"{name:>26} {opened['rms']:6.3f} {closed['rms']:7.3f} {planned} {closed['says']:10.3f} "
+              f"{closed['mu0']:6.3f} ({closed['truth_mu0']:.3f}) {closed['k']:6.3f}")
+
+
 def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, closed: bool, finger: str = "default",
                    dynamics: bool = False, tries: int = 3) -> dict:
     """``plate-sim --finger FINGER [--finger-dynamics]`` and ``play --device serial:... [--model dynamic]``, as a user
@@ -349,6 +381,8 @@ def main() -> None:
               f"began (a SENSORS frame, the link, the jitter buffer), from then on at most "
               f"{fault['largest_above_um_pp']:+.4f} µm p-p above the open-loop amplitude")
     print(f"  the loop fell back {status['loop_fallbacks']} times; at the end: {status['loop']}")
+    print()
+    rig_table_table(folder, sine, seconds)
     if args.real_time:
         print()
         real_time_table(folder, sine_path, seconds)

@@ -54,6 +54,9 @@ class RigRun:
     peak_um_pp: float
     drive_range_um_pp: tuple[float, float]  # the lowest (braking) and highest drive the plate received
     law_at_intended: np.ndarray  # the finger's ratio had the plate reached the intended amplitude at once
+    index: np.ndarray | None = None  # the stream index playing (-1: none)
+    targets: np.ndarray | None = None  # the texture's target of every stream index (NaN: none played)
+    speed_mm_s: float = 100.0
 
     def loop_error(self, after_s: float = 2.0) -> float:
         """The ratio error of the amplitude the model or loop chose, as if the plate reached it at once: the
@@ -71,6 +74,31 @@ class RigRun:
     def rms_error(self, after_s: float = 2.0, reachable: bool = False) -> float:
         pick = self.pick(after_s, reachable)
         return float(np.sqrt(np.mean((self.ratio[pick] - self.target[pick]) ** 2)))
+
+    def planned_felt(self) -> np.ndarray:
+        """Per row, the friction the plan means felt for the value playing (NaN where none): the swipe's targets
+        through the published dynamics and the planner (render/planning.felt_over), at the finger's median floor
+        within the limit, as the real-time bench judges a lagging finger."""
+        from ultraglide.render.physics.dynamics import FrictionDynamics
+        from ultraglide.render.planning import felt_over
+
+        played = np.flatnonzero(np.isfinite(self.targets))
+        felt = np.full(len(self.targets), np.nan)
+        horizon = 2400  # beyond the planner's
+        n = played[-1] - played[0] + 1 - horizon if len(played) else 0
+        if n <= 0:
+            return np.full(len(self.t), np.nan)
+        swiped = self.pick(0.0)
+        floor = float(np.median(self.floor[swiped])) if swiped.any() else 0.1
+        _, planned = felt_over(FrictionDynamics(), self.targets[played[0]:played[-1] + 1], n, self.speed_mm_s, floor)
+        felt[played[0]:played[0] + n] = planned
+        return np.where(self.index >= 0, felt[np.clip(self.index, 0, len(felt) - 1)], np.nan)
+
+    def planned_error(self, after_s: float = 2.0) -> float:
+        """RMS of the finger's ratio against the friction the plan means felt (:meth:`planned_felt`)."""
+        meant = self.planned_felt()
+        pick = self.pick(after_s) & np.isfinite(meant)
+        return float(np.sqrt(np.mean((self.ratio[pick] - meant[pick]) ** 2)))
 
 
 class ClosedLoopRig:
@@ -103,6 +131,7 @@ class ClosedLoopRig:
         self.loop = FrictionLoop(self.model, CONTROL_HZ, clock=lambda: self.now) if closed else None
         seen = AmplitudeLoopPlate.of(self.profile, loop_tau_s) if closed else self.profile
         path = SwipePath("straight", speed_mm_s, seconds, start_mm, force_n=force_n)
+        self.speed_mm_s = speed_mm_s
         self.lead_s = lead_s  # the plate runs this long before the swipe (the finger slides already)
         self.renderer = Renderer(texture, self.loop.inverse if closed else self.model, seen,
                                  RenderSettings(default_force_n=force_n), trajectory=path)
@@ -222,4 +251,5 @@ class ClosedLoopRig:
         return RigRun(t, ratio, amplitude, force, sliding > 0.5, np.where(known, targets[index], np.nan),
                       np.where(known, commanded[index], np.nan), np.where(known, intended[index], np.nan),
                       known & downs[index], floor, status, self.plate.peak_um_pp, self.plate.drive_range_um_pp,
-                      law(chosen / scale, np.maximum(force, 0.01)))
+                      law(chosen / scale, np.maximum(force, 0.01)), np.where(known, index, -1),
+                      np.where(downs, targets, np.nan), self.speed_mm_s)

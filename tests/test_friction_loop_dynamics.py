@@ -6,14 +6,21 @@ rest (mu0) comes out far too low and the loop drives the finger further from its
 finger's dynamics predicts through them and identifies the finger."""
 
 import math
+import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from loop_rig import LoopRig, floored
 from ultraglide.devices.sim.finger import FingerDynamics, FingerParams, ForceScript
 from ultraglide.render.engine.friction_estimator import FrictionEstimator
 from ultraglide.render.physics.calibration import load_model
 from ultraglide.render.physics.dynamics import FrictionDynamics
+
+sys.path.insert(0, str(ROOT / "bench"))
+from closed_loop_rig import ClosedLoopRig  # noqa: E402
+from ultraglide.render.engine.finger_setup import FingerConfig  # noqa: E402
+from ultraglide.textures.procedural import grating as sine_grating  # noqa: E402
 
 STATIC = load_model("stretched")
 DYNAMIC = load_model("dynamic")  # the same static law with the published dynamics
@@ -92,3 +99,35 @@ def test_the_renderer_plans_through_the_loops_inverse_as_through_the_model():
         blocks.append(renderer.control(1200).target_um_pp.copy())
     assert np.array_equal(blocks[0], blocks[1])
     assert Renderer(texture, FrictionLoop(STATIC, 12000.0).inverse, profile).planner is None
+
+
+def two_force_table(folder):
+    """A finger measured at two forces (bench_closed_loop.table_fingers'): the published fit's tau 1.32 -/+ 0.45 µm
+    zero-to-peak at 0.3 and 0.8 N, a floor of 0.1. Its amplitudes grow as F^0.72 between them (the host's law:
+    F^(1/3)) and are held beyond."""
+    rows = ["amplitude_um_pp,relative_friction,force_n"]
+    for force_n, tau_um in ((0.3, 0.87), (0.8, 1.77)):
+        for a in np.linspace(0.0, 6.0, 25):
+            rows.append(f"{a:.3f},{0.1 + 0.9 * math.exp(-((a / 2.0) ** 2) / (2.0 * tau_um ** 2)):.5f},{force_n}")
+    path = folder / "two-force-finger.csv"
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.slow
+def test_on_the_firmware_core_a_lagging_table_finger_with_a_walking_force_does_not_drift(tmp_path):
+    """Issue 43, in simulated time on the firmware core: the two-force table finger with the published lag, its force
+    walking in 0.2-1 N, the host playing --model dynamic on a 1 mm grating at 100 mm/s. The plan holds the felt
+    friction nearly steady, so the samples fix only mu0 r(a / k); the force law unlike the model's moved the fit
+    along that product, mu0 fell to 0.49 by 6 s (the finger's: 1.07) and k rose towards its bound, and the finger
+    missed what the plan means felt by 0.30 rms. Judged by the finger's own truth."""
+    finger = FingerConfig(law=f"table:{two_force_table(tmp_path)}", dynamics=True)
+    rig = ClosedLoopRig(sine_grating(1.0, size_mm=(80.0, 50.0), ratio_range=(0.4, 1.0)), 100.0, True, finger=finger,
+                        model="dynamic", seconds=6.0)
+    run = rig.run(6.0)
+    # the finger's mu0: 1, gaining 25 % with dwell at a time constant of 20 s (plate-sim's finger), touching throughout
+    truth_mu0 = 1.0 + 0.25 * (1.0 - math.exp(-float(run.t[-1]) / 20.0))
+    assert rig.loop.estimator.mu0 == pytest.approx(truth_mu0, rel=0.12)
+    assert run.planned_error(2.0) < 0.05  # issue 43's aim, against what the plan means the lagging finger to feel
+    # the loop's own figure (against the texture, from the sensors) within 0.02 of the finger's truth
+    assert run.status["friction_error_rms"] == pytest.approx(run.rms_error(0.5), abs=0.02)
