@@ -21,12 +21,12 @@ rate) and keeps:
 
   Why two memories: where the amplitude never leaves a narrow band, the samples fix only the product
   ``mu0 r(a / k)``, not mu0 and k apart (a plan that holds a lagging finger's friction steady, issue 43: the
-  two regressors correlated above 0.9). The friction at rest changes slowly (moisture, over tens of seconds);
-  the scale takes what the press changes within a second (a force law unlike the model's). With one forgetting
-  factor for both, the covariance grew along the product's valley and any change the model could not explain
-  moved the estimate along it: mu0 fell, the ratio measured as mu / mu0 rose, the loop drove more vibration,
-  the finger's friction fell with it, and the samples agreed again, until k reached its bound of 4. With k's
-  variance growing a hundred times faster than mu0's, what the samples cannot place goes to k.
+  two regressors correlated 0.8-0.99 over half a second). The friction at rest changes slowly (moisture, over
+  tens of seconds); the scale takes what the press changes within a second (a force law unlike the model's).
+  With one forgetting factor for both, the covariance grew along the product's valley and any change the model
+  could not explain moved the estimate along it: mu0 fell, the ratio measured as mu / mu0 rose, the loop drove
+  more vibration, the finger's friction fell with it, and the samples agreed again, until k reached its bound
+  of 4. With k's variance growing a hundred times faster than mu0's, what the samples cannot place goes to k.
 
 The force sensors are slower than the amplitude sensor: the predicted ratio is passed through a model of
 them (a first-order low-pass and a delay, a fraction of a sample allowed) before it is compared with the
