@@ -359,8 +359,9 @@ def _target_at(index, target, ahead, first_ahead, stride):
     return np.float64(ahead[j])
 
 
-PLAN_WORK_ROWS = 20  # rows of the planner's workspace (each at least its steps long): the horizon's goals and the
-PLAN_ITERATIONS = 40  # programme's vectors; and the most interior-point iterations a decision takes (6-20 seen)
+PLAN_WORK_ROWS = 21  # rows of the planner's workspace (each at least its steps long): the programme's vectors, the
+# iterations the last decision took (work[19, 0]) and the horizon's goals (the last row)
+PLAN_ITERATIONS = 40  # the most interior-point iterations a decision takes (6-22 seen)
 
 
 @njit(cache=True, nogil=True)
@@ -428,9 +429,13 @@ def _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work):
     recovery), so the plans' felt ratios over the horizon form a convex set, two linear constraints a step: the
     least squared error is a convex quadratic programme of ``steps`` unknowns, solved by a primal-dual interior
     point (Mehrotra's predictor and corrector) whose Newton systems are tridiagonal. The command follows from the
-    first step's felt ratio (the one that reaches it). ``work``: ``PLAN_WORK_ROWS`` rows of at least ``steps``.
+    first step's felt ratio (the one that reaches it). ``work``: ``PLAN_WORK_ROWS`` rows of at least ``steps``;
+    work[19, 0] is left with the iterations taken (``PLAN_ITERATIONS``: stopped at the cap).
     """
     n = steps
+    floor = min(floor, ceiling)  # a floor above the ceiling: the ceiling is all the plate reaches
+    if n < 1:  # no horizon: nothing to plan over; hold the felt ratio, within the reachable range
+        return min(max(felt, floor), ceiling)
     low = min(floor, felt)  # a felt ratio outside the reachable range (the floor moved): the programme starts there
     high = max(ceiling, felt)
     c_on, c_rec = 1.0 - hold_on, 1.0 - hold_rec
@@ -443,7 +448,8 @@ def _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work):
         sr[j] = max(c_rec * (high - felt), 1e-3)
         zf[j] = 1.0
         zr[j] = 1.0
-    for _ in range(PLAN_ITERATIONS):
+    work[19, 0] = PLAN_ITERATIONS  # the cap, unless solved before it
+    for iteration in range(PLAN_ITERATIONS):
         worst = 0.0
         gap = 0.0
         for j in range(n):  # residuals: G x + s - h (falls, rises) and 2 (x - goals) + G^T z
@@ -458,6 +464,7 @@ def _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work):
             gap += sf[j] * zf[j] + sr[j] * zr[j]
         mu = gap / (2 * n)
         if (worst < 1e-9 and mu < 1e-12) or not mu > 1e-15:  # solved, or as far as the arithmetic goes
+            work[19, 0] = iteration
             break
         for j in range(n):  # the Newton matrix 2 I + G^T (Z / S) G
             df, dr = zf[j] / sf[j], zr[j] / sr[j]
@@ -511,7 +518,9 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     least squared error to the target at the steps' ends (a convex programme: see ``_plan_qp``), and keeps the
     first, held until the next decision. A step's target is the mean of the block's targets over it; past the
     block it comes from ``ahead`` (one a step from sample ``first_ahead``, which the caller band-limits to the
-    step's length).
+    step's length). Targets are taken within the ratios the felt friction can reach (an infinite one is its end);
+    a NaN is left out of its step's mean, and a step with none keeps the step's before (the first, the latest
+    target in the block, else the felt ratio). A floor above the ceiling is the ceiling.
 
     Parameters
     ----------
@@ -558,12 +567,16 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     >>> (felt, phase, command, below), out.round(9).tolist()
     ((0.1, 0, 0.1, 2), [0.5, 0.5, 0.1, 0.1])
     """
+    floor = min(floor, ceiling)  # a floor above the ceiling: the ceiling is all the plate reaches
     hold_on = (1.0 - k_onset) ** stride
     hold_rec = (1.0 - k_recovery) ** stride
     goals = work[PLAN_WORK_ROWS - 1]
     below = 0
+    known = felt  # the latest target that is not NaN (before the first, the felt ratio)
     for i in range(target.shape[0]):
         r_now = np.float64(target[i])
+        if r_now == r_now:
+            known = r_now
         if r_now < floor:
             below += 1
         if gate == 0:
@@ -572,17 +585,35 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
             phase = 0
             continue
         if phase == 0:
+            # goals within the ratios the felt friction can take (an infinite target is its end); a NaN (no
+            # target) is left out of a step's mean, a step without one keeps the step's before (the first: the
+            # latest target): one NaN does not make the whole decision hold the felt ratio
+            low, high = min(floor, felt), max(ceiling, felt)
+            previous = min(max(known, low), high)
+            if steps < 1:  # no horizon (the Planner never asks it): the target at once
+                command = min(max(previous, floor), ceiling)
             end0 = i + stride - 1
             for j in range(steps):  # each step's mean target within the block (no aliasing), else the lookahead's
                 end = end0 + j * stride
+                goal = previous
                 if end < target.shape[0]:
                     total = 0.0
+                    count = 0
                     for m in range(end - stride + 1, end + 1):
-                        total += np.float64(target[m])
-                    goals[j] = total / stride
+                        value = np.float64(target[m])
+                        if value == value:
+                            total += min(max(value, low), high)
+                            count += 1
+                    if count > 0:
+                        goal = total / count
                 else:
-                    goals[j] = _target_at(end, target, ahead, first_ahead, stride)
-            command = _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work)
+                    value = _target_at(end, target, ahead, first_ahead, stride)
+                    if value == value:
+                        goal = min(max(value, low), high)
+                goals[j] = goal
+                previous = goal
+            if steps >= 1:
+                command = _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work)
         x = command
         felt += (k_onset if x < felt else k_recovery) * (x - felt)
         out[i] = x
