@@ -1,9 +1,58 @@
-"""render/kernels.py's planning kernel ``plan_friction`` takes degenerate inputs (no horizon, NaN or infinite
-targets, a floor above the ceiling) without raising or holding the felt ratio."""
+"""render/kernels.py's planning kernels: one decision (``_plan_qp``) is its programme's optimum, as a separate solver
+(bench/finger_bound.py's, scipy's banded Cholesky, nothing of the kernel's) finds it; and ``plan_friction`` takes
+degenerate inputs (no horizon, NaN or infinite targets, a floor above the ceiling) without raising or holding."""
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from ultraglide.render import kernels
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
+from finger_bound import felt_bound  # noqa: E402
+
+
+def instances():
+    """(felt, goals, floor, hold_on, hold_rec): random ones, then extreme ones (holds near 0 and 1, floors near
+    1, the felt ratio and the goals at the ends, goals beyond them at 0 and 2). Seeded."""
+    rng = np.random.default_rng(20261130)
+    for _ in range(40):
+        n = int(rng.integers(2, 51))
+        floor = rng.uniform(0.05, 0.9)
+        yield (rng.uniform(floor, 1.0), rng.uniform(0.0, 1.2, n), floor, rng.uniform(0.0, 0.9),
+               rng.uniform(0.5, 0.999))
+    for _ in range(60):
+        n = int(rng.integers(2, 51))
+        floor = float(rng.choice([0.05, 0.168, 0.5, 0.99, 0.9999]))
+        hold_on = float(rng.choice([0.0, 0.3, 0.8, rng.uniform(0.0, 0.8)]))
+        hold_rec = float(rng.choice([0.9, 0.99, 0.999, 0.99999, rng.uniform(0.5, 0.99999)]))
+        felt = float(rng.choice([floor, 1.0, (floor + 1.0) / 2.0, rng.uniform(floor, 1.0)]))
+        goals = rng.choice([floor, 1.0, 0.0, 2.0, (floor + 1.0) / 2.0, rng.uniform(0.0, 1.0)], n)
+        yield felt, goals, floor, hold_on, hold_rec
+
+
+@pytest.mark.parametrize("case", list(enumerate(instances())), ids=lambda case: str(case[0]))
+def test_a_decision_is_the_optimum_of_its_programme(case):
+    """The felt ratios the kernel plans over the horizon (work[0]) have the least squared error to the goals any
+    reachable plan has, as the bound's solver finds it on the same step-level programme (a step is its sample,
+    c = 1 - hold), and the command is the one that reaches its first: the reviewer's 700 instances agreed within
+    2e-12 (objective, relative) and 3e-9 (command; the kernel's command within 1e-4 of an end is the end). No
+    decision runs to the iteration cap (median 11, most 22)."""
+    _, (felt, goals, floor, hold_on, hold_rec) = case
+    n = len(goals)
+    work = np.zeros((kernels.PLAN_WORK_ROWS, n))
+    command = kernels._plan_qp(felt, goals, n, floor, 1.0, hold_on, hold_rec, work)
+    assert work[19, 0] < kernels.PLAN_ITERATIONS
+    plan = work[0, :n].copy()
+    best = felt_bound(goals, np.ones(n), floor, 1.0 - hold_on, 1.0 - hold_rec, felt0=felt)
+    assert best.iterations < 200
+    ours, theirs = np.sum((plan - goals) ** 2), best.solver_rms ** 2 * n
+    assert abs(ours - theirs) <= 1e-9 * max(theirs, 1e-3), (ours, theirs)
+    span = 1e-4 * (1.0 - floor)  # the kernel's commands within 1e-4 of an end are the end
+    expected = min(max(best.command[0], floor), 1.0)
+    expected = floor if expected < floor + span else 1.0 if expected > 1.0 - span else expected
+    assert command == pytest.approx(expected, abs=1e-6)
 
 
 def plan(target, floor=0.1, ceiling=1.0, k_onset=0.02, k_recovery=0.002, stride=24, steps=4, felt=1.0, ahead=None):
