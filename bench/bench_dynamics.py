@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from finger_bound import FORCE_N, case_bounds
+from finger_bound import FORCE_N, BoundError, case_bounds
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.sim.finger import FingerDynamics, FingerParams, ForceScript, SimulatedFinger
 from ultraglide.devices.sim.force_sensors import ForceSensorParams
@@ -142,9 +142,14 @@ def main() -> None:
             e_i, c_i, _, target = felt_error(texture, speed, False, start)
             e_p, c_p, cost, _ = felt_error(texture, speed, True, start)
             scored = np.arange(len(target)) >= int(0.05 * RATE)  # as felt_error scores
-            bound, with_plate = case_bounds(target, scored, lambda a: law(a, FORCE_N), FingerDynamics(), speed,
-                                            RATE, profile.max_amplitude_um_pp, profile.time_constant_s,
-                                            profile.max_drive_um_pp)
+            try:
+                bound, with_plate = case_bounds(target, scored, lambda a: law(a, FORCE_N), FingerDynamics(), speed,
+                                                RATE, profile.max_amplitude_um_pp, profile.time_constant_s,
+                                                profile.max_drive_um_pp)
+            except BoundError as error:
+                print(f"{name + f' {speed:g} mm/s':28} {e_i:14.3f} {e_p:9.3f} {e_p / e_i:14.2f} {c_i:15.2f} "
+                      f"{c_p:8.2f} {cost:11.3f} {error}")
+                continue
             print(f"{name + f' {speed:g} mm/s':28} {e_i:14.3f} {e_p:9.3f} {e_p / e_i:14.2f} {c_i:15.2f} {c_p:8.2f} "
                   f"{cost:11.3f} {bound.rms:7.3f} {bound.rms / e_i:12.2f} {with_plate.rms:11.3f} "
                   f"{e_p / bound.rms:14.2f}")

@@ -40,6 +40,10 @@ from ultraglide.devices.sim.finger import LIFTED_N, SLOWEST_RECOVERY_MM_S, Finge
 FORCE_N = 0.5  # the bench's finger presses steadily (above LIFTED_N: always touching)
 
 
+class BoundError(RuntimeError):
+    """The bound's solver found no optimum (it ran out of iterations, or its Newton system failed): no bound."""
+
+
 @dataclass(frozen=True)
 class Bound:
     """A plan and what it is felt as: ``rms`` over the scored samples, ``felt`` and ``command`` (the settled ratio
@@ -78,7 +82,9 @@ def felt_bound(target: np.ndarray, scored: np.ndarray, floor: float, c_onset: fl
     ratios within ``floor``..1 reach, the felt ratio starting at ``felt0`` (see the module docstring).
 
     Returns the programme's optimum (``solver_rms``) and its plan felt again by the first-order law (``rms``,
-    ``felt``; the two agree to the solver's tolerance)."""
+    ``felt``; the two agree to the solver's tolerance). Raises BoundError (one line) where the solver does not
+    converge within ``max_iterations`` or its Newton system cannot be factored (a recovery so slow the system is
+    singular to rounding): an unconverged iterate is neither a bound nor a plan."""
     r = np.asarray(target, dtype=float)
     w = np.asarray(scored, dtype=float)
     n = len(r)
@@ -117,18 +123,27 @@ def felt_bound(target: np.ndarray, scored: np.ndarray, floor: float, c_onset: fl
     s = np.maximum(h - g_times(x), 1e-3)
     z = np.ones(m)
     iterations = 0
-    while iterations < max_iterations:
+    while True:
         rp = g_times(x) + s - h
         rd = p * x + q + g_transposed(z)
         mu = float(s @ z) / m
         if max(np.abs(rp).max(), np.abs(rd).max()) < tolerance and mu < tolerance * 1e-3:
             break
+        if iterations == max_iterations:
+            raise BoundError(f"the bound did not converge in {max_iterations} iterations (residual "
+                             f"{max(np.abs(rp).max(), np.abs(rd).max()):.1e}, gap {mu:.1e}): no bound; raise "
+                             f"max_iterations or loosen the tolerance")
         iterations += 1
         d = z / s
         band = newton_matrix(d)
 
-        def direction(rc, band=band, rd=rd, rp=rp, d=d, s=s, z=z):
-            dx = solveh_banded(band, -rd - g_transposed(d * rp + rc / s), check_finite=False)
+        def direction(rc, band=band, rd=rd, rp=rp, d=d, s=s, z=z, iterations=iterations):
+            try:
+                dx = solveh_banded(band, -rd - g_transposed(d * rp + rc / s), check_finite=False)
+            except np.linalg.LinAlgError:
+                raise BoundError(f"the bound's Newton system is singular to rounding at iteration {iterations} "
+                                 f"(c_onset {c_onset:g}, c_recovery {c_recovery:g}, felt0 {felt0:g}): no bound "
+                                 f"at these parameters") from None
             dz = d * (g_times(dx) + rp) + rc / s
             return dx, dz, (rc - s * dz) / z
 
@@ -263,7 +278,10 @@ if __name__ == "__main__":
         c_on, c_rec = steps_per_sample(FingerDynamics(), speed, rate)
         t = np.arange(int(0.6 * rate)) / rate
         target = np.where((t >= 0.1) & (t < 0.3), 0.3, 1.0)
-        best = felt_bound(target, np.ones(len(t)), 0.3, c_on, c_rec)
+        try:
+            best = felt_bound(target, np.ones(len(t)), 0.3, c_on, c_rec)
+        except BoundError as error:
+            raise SystemExit(f"finger_bound: {error}") from None
         tau = -1.0 / (rate * math.log(1.0 - c_rec))
         hand = math.sqrt(0.49 * (FingerDynamics().onset_s + tau) * (math.log(2.0) - 0.5) / 0.6)
         print(speed, round(best.solver_rms, 5), round(best.rms, 5), "by hand", round(hand, 5), best.iterations)

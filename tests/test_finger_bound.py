@@ -81,3 +81,28 @@ def test_a_floor_below_the_step_lets_the_fall_be_hastened_and_the_bound_only_fal
                          max_iterations=50)
     assert planned.rms >= bound.solver_rms * (1.0 - 1e-9)
     assert planned.rms < held.rms  # the plate's lag costs less than the floor gains (measured: see the bench)
+
+
+def test_a_bound_that_does_not_converge_is_no_bound():
+    """Stopped at its iteration cap the solver's iterate is neither the optimum nor a plan: felt_bound says so in
+    one line rather than returning it; with room enough, the same step converges."""
+    from finger_bound import BoundError
+
+    c_on, c_rec = steps_per_sample(FingerDynamics(), 100.0, RATE)
+    target = step_target()
+    with pytest.raises(BoundError, match="did not converge in 3 iterations") as error:
+        felt_bound(target, np.ones(len(target)), 0.3, c_on, c_rec, max_iterations=3)
+    assert "\n" not in str(error.value)
+    assert felt_bound(target, np.ones(len(target)), 0.3, c_on, c_rec).iterations < 200
+
+
+def test_a_singular_newton_system_is_one_line_not_a_linalg_traceback():
+    """A recovery of 1e-5 a sample from friction at rest (felt0 = 1), goals at and beyond the ends: the Newton
+    system's Cholesky fails to rounding near the optimum (iteration 17; scipy's LinAlgError before)."""
+    from finger_bound import BoundError
+
+    goals = np.array([2.0, 0.525, 0.05, 1.0, 2.0, 1.0, 1.0, 2.0, 0.0, 2.0, 0.5810562472046952, 0.05, 2.0,
+                      0.5810562472046952, 0.5810562472046952, 0.525, 0.05, 2.0, 0.0, 0.525, 0.5810562472046952, 0.525])
+    with pytest.raises(BoundError, match="singular to rounding") as error:
+        felt_bound(goals, np.ones(len(goals)), 0.05, 1.0, 1e-5, felt0=1.0)
+    assert "\n" not in str(error.value)
