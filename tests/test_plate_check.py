@@ -168,6 +168,14 @@ def written_from_v2_alone(plate: PtyPlate) -> PtyPlate:
     (0x42 here, its CRC made anew) and answers NAK 1, where a v3 core held to v2 knows them and answers NAK 4."""
     from ultraglide.devices import protocol as p
 
+    return not_in_its_table(plate, p.V3_COMMANDS)
+
+
+def not_in_its_table(plate: PtyPlate, kinds) -> PtyPlate:
+    """The simulated plate with the command types ``kinds`` missing from its parser's table: it meets them as any
+    unknown type (0x42 here, its CRC made anew) and answers NAK 1."""
+    from ultraglide.devices import protocol as p
+
     receive, pending = plate.simulator.receive, bytearray()
 
     def receive_as_v2(data: bytes) -> list[bytes]:
@@ -181,7 +189,7 @@ def written_from_v2_alone(plate: PtyPlate) -> PtyPlate:
             except p.ProtocolError:  # not a frame of ours: the core counts it as it comes
                 out += packet + b"\x00"
                 continue
-            kind = 0x42 if frame.kind in p.V3_COMMANDS else frame.kind
+            kind = 0x42 if frame.kind in kinds else frame.kind
             out += p.encode_frame(kind, frame.seq, frame.payload) if kind != frame.kind else packet + b"\x00"
         return receive(bytes(out)) if out else []
 
@@ -213,6 +221,31 @@ def test_a_device_written_from_v2_alone_passes_by_its_version():
     assert "NAK 1 for SET_LOOP of 2 bytes in a v2 session" in seen["R-NAK-ORDER"]
     assert "refused with NAK 1" in seen["R-LOOP"] and "refused with NAK 1" in seen["R-FORCE"]
     assert report.device.version == 2 and report.exit_status == 0
+
+
+@pytest.mark.slow
+def test_a_v3_device_built_before_clock_passes_r_clock_with_nak_1():
+    """A v3 device built before CLOCK (0x09) existed: no ``features`` bit 5, and CLOCK not in its table, so it
+    answers NAK 1 as rule 1 of R-NAK-ORDER asks. R-CLOCK passes (it failed, expecting NAK 4 alone)."""
+    from ultraglide.devices import protocol as p
+    from ultraglide.devices.sim.lies import Lies
+
+    plate = not_in_its_table(PtyPlate(PROFILE), (p.CLOCK,)).start()
+    try:
+        probe = c.Probe(plate.path)
+        try:
+            features = probe.hello(3)[0].features
+            plate.lies = Lies({"hello.features": features & ~p.FEATURE_CLOCK_STATED})  # the bit it never had
+            answer = probe.command(p.CLOCK)  # what the device itself answers, before the check judges it
+        finally:
+            probe.close()
+        report = c.check_device(plate.path, PROFILE, only=("R-CLOCK",))
+    finally:
+        plate.stop()
+    assert features & p.FEATURE_CLOCK_STATED and answer[:2] == ("nak", p.NAK_UNKNOWN_TYPE)
+    (verdict,) = report.verdicts
+    assert verdict.outcome == c.PASS, verdict.line()
+    assert "no clock stated: CLOCK refused with NAK 1" in verdict.seen and report.device.features == features - 32
 
 
 def test_a_v3_device_still_owes_nak_4_for_what_it_knows():

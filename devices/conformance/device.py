@@ -224,11 +224,13 @@ class DeviceRules:
     def check_clock(self) -> str:
         d = self.device
         if not (self.v3 and d.features & p.FEATURE_CLOCK_STATED):
+            # NAK 1 whatever the version: a v3 device built before CLOCK (0x09) existed does not know the type
             answer = self.command(p.CLOCK)
-            if answer is None or answer[0] != "nak" or answer[1] not in self.unsupported_naks:
+            if answer is None or answer[0] != "nak" or answer[1] not in (p.NAK_UNKNOWN_TYPE, p.NAK_UNSUPPORTED):
                 raise Broken(f"CLOCK on a device that does not state its clock (or a v2 session): "
-                             f"{answer_words(answer)}, not {self.unsupported_words()}")
-            return f"no clock stated: CLOCK refused with NAK {answer[1]}{_v2_words(answer[1])}"
+                             f"{answer_words(answer)}, not NAK 1 or 4")
+            before = " (a device built before CLOCK: not in its table)" if answer[1] == p.NAK_UNKNOWN_TYPE else ""
+            return f"no clock stated: CLOCK refused with NAK {answer[1]}{before}"
         # The device had taken the samples of every SENSORS frame read before a request was written before it took
         # the request: its clock then is at least their end, less MAX_CLOCK_LAG_MS. Judged on the device's own
         # numbers, not this host's clock (an emulated board's clock is not steady against it: QEMU's stalls and its
