@@ -158,6 +158,42 @@ def test_a_clock_reply_that_cannot_be_is_not_believed_and_is_a_device_fault():
     assert len(heard) == taken  # none of the lies reached the listener
 
 
+class LiesOnce(Lies):
+    """The lies told in one frame of their kind, then no more (a device that restarted answering one CLOCK)."""
+
+    def rewrite(self, frames: list[bytes]) -> list[bytes]:
+        told = super().rewrite(frames)
+        if told != frames:
+            self.fields.clear()  # falsy now: the plate tells no more
+            self._by_frame.clear()
+        return told
+
+
+def test_a_clock_reply_from_a_board_just_restarted_is_dropped_not_a_fault():
+    """A board that restarts mid-run without a new HELLO answers CLOCK at once from near 0, while the request
+    carried the end of the SENSORS read before the restart (here: one reply at sample 3, mid-stream). As SENSORS
+    beginning again once a connection, it is no device fault: the reply is dropped (not heard, not counted), the
+    run ends with status 0, and the replies after it are believed."""
+    heard = []
+    plate = serve_plate(PROFILE)
+    try:
+        driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
+        driver.add_clock_listener(lambda *reply: heard.append(reply))
+        driver.start(Constant(1.0))
+        try:
+            assert wait_for(lambda: len(heard) >= 3, timeout=DEADLINE_S)  # into the stream: SENSORS past sample 3
+            plate.lies = LiesOnce.parse(["clock_reply.sample=3", "clock_reply.fraction=0"])
+            assert wait_for(lambda: not plate.lies, timeout=DEADLINE_S)  # told once
+            after = len(heard)
+            assert wait_for(lambda: len(heard) >= after + 3, timeout=DEADLINE_S)  # honest ones go on being heard
+        finally:
+            driver.stop()
+    finally:
+        plate.stop()
+    assert all(b[0] > a[0] for a, b in zip(heard, heard[1:], strict=False))  # the reply at 3 reached no listener
+    assert driver.status()["values_not_believed"] == {} and driver.report().exit_status == 0, driver.report().lines
+
+
 def test_the_simulators_own_handshake_is_within_every_range():
     # the reference the ranges are drawn against: docs/protocol.md's numbers, as the firmware's core answers them
     plate = serve_plate(PROFILE)

@@ -148,6 +148,7 @@ class Intake:
         self.clock_asked: tuple[int, float, int | None, float] | None = None
         self.clock_replies = 0  # CLOCK_REPLY frames taken over the run
         self._may_begin_again = True  # a restarted device's sample count is believed once a connection
+        self._clock_dropped_end: int | None = None  # the SENSORS' end a CLOCK_REPLY near 0 was dropped against
         self._fault_last: tuple[int, ...] | None = None  # the device's counters at the last telemetry
         self._frames_ok_last = 0
         self._handshakes_seen = 0  # the session's handshakes at the last telemetry taken
@@ -183,6 +184,7 @@ class Intake:
                 self._next_sample = None  # a new connection: its samples are numbered afresh
                 self.clock_asked = None
                 self._may_begin_again = True
+                self._clock_dropped_end = None
                 self.session.replies.hello_arrived(frame.payload)
             elif frame.kind == p.ACK:
                 seq = p.parse_ack(frame.payload)
@@ -210,6 +212,20 @@ class Intake:
         second = device.sensor_rate_hz * SAMPLE_GAP_S
         if first_sample <= second < (first_sample - expected) % WRAP:
             self._may_begin_again = False
+            return True
+        return False
+
+    def _clock_began_again(self, reply: p.ClockReply, device: p.HelloReply | None, sent_end: int | None) -> bool:
+        """Whether a CLOCK_REPLY is dropped (not a fault) as a restarted device's: a board that restarts without a
+        new HELLO answers at once from a clock near 0, while the request carried the SENSORS' end from before the
+        restart. While SENSORS may still begin again once (:meth:`_began_again`), a reply within a second of
+        samples from 0 and behind that end is dropped; again only against the same end (no SENSORS frame read in
+        between: one that was either began again, or leaves the next such reply a value that cannot be)."""
+        if sent_end is None or device is None or not device.sensor_rate_hz or not self._may_begin_again \
+                or self._clock_dropped_end not in (None, sent_end):
+            return False
+        if reply.sample <= device.sensor_rate_hz * SAMPLE_GAP_S < (reply.sample - sent_end) % WRAP:
+            self._clock_dropped_end = sent_end
             return True
         return False
 
@@ -243,6 +259,8 @@ class Intake:
             return  # not the request awaited (a late reply to one given up on): its sending time is not known
         self.clock_asked = None
         _, asked_s, sent_end, read_s = asked
+        if self._clock_began_again(reply, device, sent_end):
+            return  # the device restarted: not a value that cannot be, nor its clock against SENSORS read since
         if device is not None and not self._believed(
                 "CLOCK_REPLY", clock_reply_out_of_range(reply, device, sent_end, received_s - read_s)):
             return
