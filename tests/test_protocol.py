@@ -287,6 +287,15 @@ def test_setpoint_framer_sends_the_bytes_of_the_plain_encoder(seq, first, rate, 
     assert framer.frame(seq, first, values) == expected  # its buffers carry nothing from one frame to the next
 
 
+def test_empty_framer_sends_the_bytes_of_the_plain_encoder_for_every_seq():
+    """The writer's CLOCK frames against the plain path, for all 65536 seqs (zeros in the seq and the CRC move COBS's
+    codes), and the 16 bits of a larger seq kept as the plain encoder keeps them."""
+    framer = p.EmptyFramer(p.CLOCK)
+    for seq in range(65536):
+        assert framer.frame(seq) == p.encode_frame(p.CLOCK, seq), seq
+    assert framer.frame(65536 + 5) == p.encode_frame(p.CLOCK, 5) == p.EmptyFramer(p.CLOCK).frame(5)
+
+
 def test_setpoint_framer_refuses_more_than_a_frame():
     with pytest.raises(ValueError, match="241 setpoints do not fit one frame"):
         p.SetpointFramer(12000).frame(1, 0, np.zeros(241))

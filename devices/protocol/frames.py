@@ -53,6 +53,33 @@ def encode_frame(kind: int, seq: int, payload: bytes = b"") -> bytes:
     return cobs.encode(body) + b"\x00"
 
 
+class EmptyFramer:
+    """Frames of one command without a payload (CLOCK), built in a buffer made once: only the seq and the CRC
+    change, so the serial writer's path makes no payload, header or body of its own for it.
+
+    ``frame(seq)`` gives the bytes of ``encode_frame(kind, seq)``. What it allocates is bytes of the frame's own
+    size (COBS's output and the terminator added), as
+    :class:`~ultraglide.devices.protocol.commands.SetpointFramer` does for SETPOINTS.
+
+    Examples
+    --------
+    >>> framer = EmptyFramer(0x09)
+    >>> framer.frame(513) == encode_frame(0x09, 513)
+    True
+    """
+
+    def __init__(self, kind: int):
+        self.kind = kind
+        self._body = bytearray(HEADER_LAYOUT.size + CRC_LAYOUT.size)
+        self._header = memoryview(self._body)[:HEADER_LAYOUT.size]
+
+    def frame(self, seq: int) -> bytes:
+        body = self._body
+        HEADER_LAYOUT.pack_into(body, 0, self.kind, seq & 0xFFFF)
+        CRC_LAYOUT.pack_into(body, HEADER_LAYOUT.size, binascii.crc32(self._header))
+        return cobs.encode(body) + b"\x00"  # (its C code takes the bytearray itself, not a memoryview)
+
+
 def decode_frame(packet: bytes) -> Frame:
     """Decode one frame's bytes (without its 0x00 terminator)."""
     if not packet:
