@@ -20,6 +20,7 @@ from sources import Constant
 from ultraglide.devices import protocol as p
 from ultraglide.devices.errors import DeviceError
 from ultraglide.devices.profiles import PlateProfile, load_profile
+from ultraglide.devices.serial.link import CLOCK_EVERY_S
 from ultraglide.devices.serial.plate import SerialPlate
 from ultraglide.devices.sim.plate import PlateTruth
 from ultraglide.devices.sim.pty_plate import PtyPlate
@@ -232,13 +233,35 @@ def test_clock_is_asked_only_with_a_clock_listener_and_each_reply_reaches_it(tap
     try:
         assert wait_for(lambda: len(replies) >= 20, timeout=DEADLINE_S)
         started = replies[0][1]
-        asked = sum(kind == p.CLOCK for kind, _ in list(tapped.frames))
     finally:
         driver.stop()
+    asked = sum(kind == p.CLOCK for kind, _ in list(tapped.frames))  # after stop: no reply comes after this count
     assert all(asked_s < received_s for _, asked_s, received_s in replies)
     spacing = np.diff([asked_s for _, asked_s, _ in replies])
-    assert spacing.min() >= 0.049 and asked >= len(replies)  # every 50 ms at most often; each reply to a request
+    # every 50 ms at most often, on the time the writer's gate uses too (exactly); each reply to a request
+    assert spacing.min() >= CLOCK_EVERY_S and asked >= len(replies)
     assert replies[-1][1] - started < 19 * 0.05 * 3  # and not much less often (a loaded machine: a few times)
+
+
+def test_the_writers_half_of_a_clock_request_builds_nothing_and_keeps_the_sends_own_time():
+    """The CLOCK request beside its frame, on the writer's path (the gate, the expect callback inside the
+    transport's send, the intake's record of it, the frame's buffer) builds no tuple, list or dict and reads no clock
+    of its own: their bytecode says so (tracemalloc cannot: small tuples and floats come from free lists). The time
+    kept for the reply is the send's own ``sent_at``, the very float the writer's gate counts from."""
+    import dis
+
+    from ultraglide.devices.serial.streamer import Streamer
+    from ultraglide.devices.serial.telemetry import Intake
+
+    for function in (Streamer._ask_clock, Streamer._asking_clock, Intake.asking_clock, p.EmptyFramer.frame):
+        made = [(i.opname, i.argval) for i in dis.get_instructions(function)
+                if i.opname.startswith("BUILD_") or i.argval in ("perf_counter", "monotonic", "time")]
+        assert made == [], (function.__qualname__, made)
+    driver = SerialPlate("loop://", PROFILE)  # not started: the two halves as the writer and the reader hold them
+    driver.transport.sent_at = sent_at = time.perf_counter()  # as the send takes it, before its expect
+    driver.streamer._expect_clock(40001)
+    assert driver.intake.clock_seq == 40001
+    assert driver.intake._clock_asked_s is sent_at and driver.streamer._clock_asked_s is sent_at
 
 
 # ---- the port and the link ----------------------------------------------------------------------------------

@@ -61,7 +61,8 @@ class Streamer:
         self._trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
         self._last_sent: float | None = None
         self._quiet_since: float | None = None  # when the run of all-zero setpoints began (perf_counter s)
-        self._clock_asked_s = 0.0  # when the last CLOCK request was sent (perf_counter s)
+        self._clock_asked_s = 0.0  # when the last CLOCK request was sent (perf_counter s: the transport's sent_at)
+        self._expect_clock = self._asking_clock  # bound once: none made a request
 
     def run(self, source, rest: Callable[[], None]) -> None:
         """Stream ``source`` until stopped or finished; ``rest`` the plate on the way out, whatever happened."""
@@ -202,9 +203,9 @@ class Streamer:
                 self._last_sent = None
                 return
             self._enable_if_off()
+            self._ask_clock(now)  # before the frame: on a paced link its bytes would wait behind the frame's
             self._send_setpoints(fractions)
             sent_at = time.perf_counter()
-            self._ask_clock(sent_at)
             if self._last_sent is not None and sent_at - self._last_sent > self._dry_s:  # it may have run dry
                 self._late_frame(sent_at - self._last_sent)
             self._last_sent = sent_at
@@ -260,12 +261,17 @@ class Streamer:
         """A CLOCK request every ``CLOCK_EVERY_S`` while the device states its clock and someone listens (one
         awaited at a time; one unanswered for ``CLOCK_GIVE_UP_S`` is given up)."""
         intake, device = self.intake, self.session.state.device
-        awaited = intake.clock_asked  # read once: the reader thread clears it when the reply comes
-        if not intake.wants_clock or device is None or not device.states_clock or now - self._clock_asked_s < \
-                CLOCK_EVERY_S or (awaited is not None and now - awaited[1] < CLOCK_GIVE_UP_S):
+        since = now - self._clock_asked_s  # the time the gate and the request's record share: the send's sent_at
+        if not intake.wants_clock or device is None or not device.states_clock or since < CLOCK_EVERY_S or \
+                (intake.clock_seq is not None and since < CLOCK_GIVE_UP_S):  # (the reader clears it on the reply)
             return
-        self._clock_asked_s = now
-        self.transport.send(p.CLOCK, expect=intake.asking_clock)
+        self.transport.send(p.CLOCK, expect=self._expect_clock)
+
+    def _asking_clock(self, seq: int) -> None:
+        """The CLOCK request ``seq`` is about to be written (inside the transport's send, its ``sent_at`` taken):
+        kept here for the gate and handed to the reader's intake, which awaits the reply; no float made."""
+        self._clock_asked_s = sent_at = self.transport.sent_at
+        self.intake.asking_clock(seq, sent_at)
 
     def _heartbeat(self) -> None:
         try:

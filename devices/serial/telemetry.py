@@ -143,9 +143,14 @@ class Intake:
         self._clock_listeners: tuple = ()
         self._next_sample: int | None = None  # the sample number the last SENSORS frame leads to
         self._sensors_read_s = 0.0  # when the last SENSORS frame taken was read (perf_counter s)
-        # the CLOCK request awaiting its reply: (its seq, when it was sent, the sample number the SENSORS read
-        # before it lead to, when the last of them was read); None: none outstanding
-        self.clock_asked: tuple[int, float, int | None, float] | None = None
+        # the CLOCK request awaiting its reply: its seq (None: none outstanding), when it was sent, the sample number
+        # the SENSORS read before it lead to, when the last of them was read. The writer sets them (no tuple made on
+        # its path): the seq last, after None while it writes the rest; the reader takes them only if the seq is
+        # the reply's before and after it reads them.
+        self.clock_seq: int | None = None
+        self._clock_asked_s = 0.0
+        self._clock_sent_end: int | None = None
+        self._clock_read_s = 0.0
         self.clock_replies = 0  # CLOCK_REPLY frames taken over the run
         self._may_begin_again = True  # a restarted device's sample count is believed once a connection
         self._clock_dropped_end: int | None = None  # the SENSORS' end a CLOCK_REPLY near 0 was dropped against
@@ -182,7 +187,7 @@ class Intake:
                 self._take_clock(p.parse_clock_reply(frame.payload), time.perf_counter())
             elif frame.kind == p.HELLO_REPLY:
                 self._next_sample = None  # a new connection: its samples are numbered afresh
-                self.clock_asked = None
+                self.clock_seq = None
                 self._may_begin_again = True
                 self._clock_dropped_end = None
                 self.session.replies.hello_arrived(frame.payload)
@@ -246,19 +251,26 @@ class Intake:
         """Someone listens for the device's clock."""
         return bool(self._clock_listeners)
 
-    def asking_clock(self, seq: int) -> None:
-        """A CLOCK request with ``seq`` is about to be written (the writer thread): its reply is awaited."""
-        self.clock_asked = (seq, time.perf_counter(), self._next_sample, self._sensors_read_s)
+    def asking_clock(self, seq: int, asked_s: float) -> None:
+        """A CLOCK request with ``seq`` is about to be written at ``asked_s`` (perf_counter s; the writer thread):
+        its reply is awaited. No tuple or float made: the writer's path."""
+        self.clock_seq = None  # a reply read while the rest are written is not taken
+        self._clock_asked_s = asked_s
+        self._clock_sent_end = self._next_sample
+        self._clock_read_s = self._sensors_read_s
+        self.clock_seq = seq
 
     def _take_clock(self, reply: p.ClockReply, received_s: float) -> None:
         """A CLOCK_REPLY: believed against the SENSORS read before it was asked, it goes to the clock listeners as
         ``listener(samples, asked_s, received_s)``: the device's sensor clock (samples, not unwrapped) when it took
         a request sent at ``asked_s`` and answered by ``received_s`` (perf_counter s)."""
-        asked, device = self.clock_asked, self.session.state.device
-        if asked is None or asked[0] != reply.asked_seq:
+        seq, device = self.clock_seq, self.session.state.device
+        if seq is None or seq != reply.asked_seq:
             return  # not the request awaited (a late reply to one given up on): its sending time is not known
-        self.clock_asked = None
-        _, asked_s, sent_end, read_s = asked
+        asked_s, sent_end, read_s = self._clock_asked_s, self._clock_sent_end, self._clock_read_s
+        if self.clock_seq != seq:
+            return  # the writer gave it up and asks anew meanwhile: what was read may be the new request's
+        self.clock_seq = None
         if self._clock_began_again(reply, device, sent_end):
             return  # the device restarted: not a value that cannot be, nor its clock against SENSORS read since
         if device is not None and not self._believed(

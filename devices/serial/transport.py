@@ -58,6 +58,7 @@ class Transport:
         self.sent_at = 0.0  # perf_counter s of the last frame sent
         self._sent_kinds = bytearray(65536)  # the command each seq carried, to name what a NAK refused
         self._framer = p.SetpointFramer(rate_hz)  # SETPOINTS frames built in buffers made once
+        self._clock = p.EmptyFramer(p.CLOCK)  # and CLOCK's, asked every 50 ms while streaming
 
     @property
     def is_open(self) -> bool:
@@ -105,7 +106,9 @@ class Transport:
             self.sent_at = time.perf_counter()
             if expect is not None:
                 expect(seq)
-            if setpoints is None:
+            if kind == p.CLOCK and not payload:
+                writer.write(self._clock.frame(seq))
+            elif setpoints is None:
                 writer.write(p.encode_frame(kind, seq, payload))
             else:
                 writer.write(self._framer.frame(seq, self.index, setpoints, force))
