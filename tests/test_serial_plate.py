@@ -243,6 +243,40 @@ def test_clock_is_asked_only_with_a_clock_listener_and_each_reply_reaches_it(tap
     assert replies[-1][1] - started < 19 * 0.05 * 3  # and not much less often (a loaded machine: a few times)
 
 
+@pytest.mark.parametrize("max_version, without_bit_5", [(3, True), (2, False)])
+def test_no_clock_is_asked_of_a_device_that_does_not_state_it_even_with_a_listener(max_version, without_bit_5):
+    """A clock listener, and a device without ``features`` bit 5 (the simulated plate's HELLO_REPLY without it:
+    its core would still answer) or a v2 session (v2 has no CLOCK): not one CLOCK is written, none refused, none
+    heard, over half a second of streaming (25 TELEMETRY frames)."""
+    from ultraglide.devices.conformance.probe import Probe
+    from ultraglide.devices.sim.lies import Lies
+
+    tapped = Tapped(max_version=max_version)
+    try:
+        if without_bit_5:
+            probe = Probe(tapped.path)
+            try:
+                features = probe.hello(3)[0].features  # what the simulated plate states
+            finally:
+                probe.close()
+            assert features & p.FEATURE_CLOCK_STATED
+            tapped.plate.lies = Lies({"hello.features": features & ~p.FEATURE_CLOCK_STATED})
+            tapped.frames.clear()
+        replies = []
+        driver = SerialPlate(tapped.path, PROFILE, ack_timeout_s=10)
+        driver.add_clock_listener(lambda *reply: replies.append(reply))
+        driver.start(Constant(1.0))
+        try:
+            assert wait_for(lambda: driver.intake.frames >= 25, timeout=DEADLINE_S)
+        finally:
+            driver.stop()
+    finally:
+        tapped.close()
+    assert driver.device.version == max_version and not driver.device.states_clock
+    assert [kind for kind, _ in tapped.frames].count(p.CLOCK) == 0
+    assert driver.counters.naks == 0 and replies == [] and driver.intake.clock_replies == 0
+
+
 def test_the_writers_half_of_a_clock_request_builds_nothing_and_keeps_the_sends_own_time():
     """The CLOCK request beside its frame, on the writer's path (the gate, the expect callback inside the
     transport's send, the intake's record of it, the frame's buffer) builds no tuple, list or dict and reads no clock
