@@ -184,7 +184,6 @@ static void clear_faults(ug_core *core, uint16_t mask) {
     }
 }
 
-/* one valid frame, in a critical section; returns a SIM_FAULT transport request (kind << 16 | ms) or 0 */
 /* CLOCK: the sensor clock now (the samples the core has taken and those the ADC took since: ug_port.h), in sensor
    samples and 1/65536 of one, numbered as SENSORS' first_sample; answered at once (inside the frame's section: two
    divisions and an 8-byte copy) */
@@ -209,6 +208,7 @@ static void clock_reply(ug_core *core, uint16_t seq) {
     ug_send(core, UG_CLOCK_REPLY, payload, sizeof payload);
 }
 
+/* one valid frame, in a critical section; returns a SIM_FAULT transport request (kind << 16 | ms) or 0 */
 static uint32_t handle(ug_core *core, uint8_t type, uint16_t seq, const uint8_t *p, size_t n) {
     if (!known(type)) {
         ug_nak(core, type, seq, UG_NAK_UNKNOWN_TYPE);
