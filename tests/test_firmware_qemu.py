@@ -365,7 +365,7 @@ def test_the_board_answers_with_the_profile_written_into_it_and_reports_on_time(
                     reply.max_setpoint_rate_hz) == (21000.0, 27000.0, 1000, 48000)
             assert (reply.watchdog_ms, reply.buffer_ms, reply.sensors, reply.sensor_rate_hz, reply.features) == \
                 (100, 250, p.SENSOR_AMPLITUDE, 1000,
-                 p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED)
+                 p.FEATURE_AMPLITUDE_LOOP | p.FEATURE_LINK_STATED | p.FEATURE_RESET_STATED | p.FEATURE_CLOCK_STATED)
             assert (reply.link_bytes_per_s, reply.q) == (LINK_BYTES_PER_S, 150.0)  # its link, and the plate's Q
             assert (reply.restart_reason, reply.restart_detail) == (p.RESTART_POWER_ON, 1)  # QEMU started it, RAM said
             assert reply.name == NAME
