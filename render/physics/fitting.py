@@ -412,12 +412,36 @@ def k_fold_groups(data: Measurements, folds: int = K_FOLDS) -> np.ndarray:
     """
     if len(data) < 10:
         return np.arange(len(data))
-    groups = np.empty(len(data), dtype=int)
+    return folds_within(_forces(data), folds)
+
+
+def folds_within(conditions: np.ndarray, folds: int = K_FOLDS) -> np.ndarray:
+    """Each point's fold, drawn within each condition (a force, a speed), so every fold holds points of every
+    condition; the same seed every time.
+
+    Parameters
+    ----------
+    conditions : numpy.ndarray
+        Each point's condition.
+    folds : int
+        The number of folds.
+
+    Returns
+    -------
+    numpy.ndarray of int
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> groups = folds_within(np.repeat([25.0, 100.0], 10), 5)
+    >>> sorted(groups[:10].tolist()), sorted(groups[10:].tolist())
+    ([0, 0, 1, 1, 2, 2, 3, 3, 4, 4], [0, 0, 1, 1, 2, 2, 3, 3, 4, 4])
+    """
+    groups = np.empty(len(conditions), dtype=int)
     rng = np.random.default_rng(0)
-    forces = _forces(data)
     offset = 0
-    for force in np.unique(forces):
-        where = np.flatnonzero(forces == force)
+    for condition in np.unique(conditions):
+        where = np.flatnonzero(conditions == condition)
         groups[where[rng.permutation(len(where))]] = (offset + np.arange(len(where))) % folds
         offset += len(where)
     return groups

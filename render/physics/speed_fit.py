@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from ultraglide.render.physics.errors import ModelError
+from ultraglide.render.physics.fitting import K_FOLDS, folds_within
 from ultraglide.render.physics.measurements import Measurements
 from ultraglide.render.physics.speed_law import EXPONENT_RANGE, FITTED, SpeedLaw
 
-K_FOLDS = 5
 LIKELIHOOD_95 = 3.84  # chi-squared with one degree of freedom, 95 %
 EXPONENT_TOLERANCE = 1e-3
 
@@ -205,18 +205,6 @@ def _held_out(data: Measurements, kind: str, groups: np.ndarray, reference: floa
     return float(np.sqrt(np.mean(residuals ** 2)))
 
 
-def _folds_within_speeds(speeds: np.ndarray, folds: int = K_FOLDS) -> np.ndarray:
-    """Each point's fold, drawn within each speed (so every fold holds points of every speed); the same seed."""
-    groups = np.empty(len(speeds), dtype=int)
-    rng = np.random.default_rng(0)
-    offset = 0
-    for speed in np.unique(speeds):
-        where = np.flatnonzero(speeds == speed)
-        groups[where[rng.permutation(len(where))]] = (offset + np.arange(len(where))) % folds
-        offset += len(where)
-    return groups
-
-
 def fit_speed_law(data: Measurements, kind: str = "stretched", reference_speed_mm_s: float = 22.0) -> SpeedLawFit:
     """Fit the reduction's speed exponent to points at several sliding speeds and judge it out of sample (see the
     module docstring).
@@ -271,7 +259,7 @@ def fit_speed_law(data: Measurements, kind: str = "stretched", reference_speed_m
     if len(speeds) >= 3:
         groups, how = data.speed_mm_s, "each speed predicted from the others"
     else:
-        groups, how = _folds_within_speeds(data.speed_mm_s), f"points held out in {K_FOLDS} folds within each speed"
+        groups, how = folds_within(data.speed_mm_s, K_FOLDS), f"points held out in {K_FOLDS} folds within each speed"
     with_law = _held_out(data, kind, groups, reference_speed_mm_s, True)
     without = _held_out(data, kind, groups, reference_speed_mm_s, False)
     errors = f"{how}: {with_law:.3f} rms with the law, {without:.3f} without"
