@@ -359,168 +359,56 @@ def _target_at(index, target, ahead, first_ahead, stride):
     return np.float64(ahead[j])
 
 
-PLAN_WORK_ROWS = 21  # rows of the planner's workspace (each at least its steps long): the programme's vectors, the
-# iterations the last decision took (work[19, 0]) and the horizon's goals (the last row)
-PLAN_ITERATIONS = 40  # the most interior-point iterations a decision takes (6-22 seen)
+@njit(cache=True, nogil=True)
+def _greedy(y, r, floor, ceiling, hold_on, hold_rec):
+    """The command (static ratio) held over one step that brings the felt ratio ``y`` to ``r`` at its end, within
+    [floor, ceiling] (where out of reach: the nearest reachable)."""
+    hold = hold_on if r < y else hold_rec
+    x = (r - y * hold) / (1.0 - hold)
+    return min(max(x, floor), ceiling)
 
 
 @njit(cache=True, nogil=True)
-def _solve_tridiagonal(diag, off, rhs, n, scratch, out):
-    """Solve the symmetric tridiagonal system (``diag``; ``off[j]`` joins j - 1 and j) for ``rhs`` into ``out``
-    (Thomas's algorithm; the system is positive definite)."""
-    scratch[0] = off[1] / diag[0] if n > 1 else 0.0
-    out[0] = rhs[0] / diag[0]
-    for j in range(1, n):
-        pivot = diag[j] - off[j] * scratch[j - 1]
-        if pivot == 0.0:  # lost to rounding (never seen): a hair off zero rather than a raise in a block
-            pivot = 1e-300
-        scratch[j] = off[j + 1] / pivot if j + 1 < n else 0.0
-        out[j] = (rhs[j] - off[j] * out[j - 1]) / pivot
-    for j in range(n - 2, -1, -1):
-        out[j] -= scratch[j] * out[j + 1]
+def _held(y, x, hold_on, hold_rec):
+    """The felt ratio after a step of command ``x`` from ``y`` (onset where it falls, recovery where it rises)."""
+    hold = hold_on if x < y else hold_rec
+    return x + (y - x) * hold
 
 
 @njit(cache=True, nogil=True)
-def _qp_direction(n, hold_on, hold_rec, work):
-    """One Newton direction of the planner's programme for the complementarity targets in work[17] (falls) and
-    work[18] (rises): work[11] (dx), work[12], work[13] (slacks), work[14], work[15] (multipliers)."""
-    sf, sr, zf, zr = work[1], work[2], work[3], work[4]
-    rf, rr, rd, diag, off, rhs = work[5], work[6], work[7], work[8], work[9], work[10]
-    dx, dsf, dsr, dzf, dzr, scratch, rcf, rcr = work[11], work[12], work[13], work[14], work[15], work[16], work[17], \
-        work[18]
-    for j in range(n):  # v = D r + rc / s, kept in dsf, dsr for the moment
-        dsf[j] = (zf[j] * rf[j] + rcf[j]) / sf[j]
-        dsr[j] = (zr[j] * rr[j] + rcr[j]) / sr[j]
-    for j in range(n):
-        value = -rd[j] + dsf[j] - dsr[j]
-        if j + 1 < n:
-            value -= hold_on * dsf[j + 1] - hold_rec * dsr[j + 1]
-        rhs[j] = value
-    _solve_tridiagonal(diag, off, rhs, n, scratch, dx)
-    for j in range(n):
-        before = dx[j - 1] if j > 0 else 0.0
-        dzf[j] = zf[j] / sf[j] * (hold_on * before - dx[j] + rf[j]) + rcf[j] / sf[j]
-        dzr[j] = zr[j] / sr[j] * (dx[j] - hold_rec * before + rr[j]) + rcr[j] / sr[j]
-        dsf[j] = (rcf[j] - sf[j] * dzf[j]) / zf[j]
-        dsr[j] = (rcr[j] - sr[j] * dzr[j]) / zr[j]
-
-
-@njit(cache=True, nogil=True)
-def _qp_step(n, work):
-    """The longest step (at most 1) along the direction in work[12:16] that keeps slacks and multipliers >= 0."""
-    step = 1.0
-    for row in range(4):
-        values, moves = work[1 + row], work[12 + row]
-        for j in range(n):
-            if moves[j] < 0.0:
-                limit = -values[j] / moves[j]
-                if limit < step:
-                    step = limit
-    return step
-
-
-@njit(cache=True, nogil=True)
-def _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work):
-    """The command for the next step of the plan whose felt ratio at the ends of the horizon's ``steps`` steps has
-    the least squared error to ``goals``, each step's command held within [floor, ceiling].
-
-    From a felt ratio y, a command held over a step reaches exactly the ratios within
-    [hold_on y + (1 - hold_on) floor, hold_rec y + (1 - hold_rec) ceiling] (falling with the onset, rising with the
-    recovery), so the plans' felt ratios over the horizon form a convex set, two linear constraints a step: the
-    least squared error is a convex quadratic programme of ``steps`` unknowns, solved by a primal-dual interior
-    point (Mehrotra's predictor and corrector) whose Newton systems are tridiagonal. The command follows from the
-    first step's felt ratio (the one that reaches it). ``work``: ``PLAN_WORK_ROWS`` rows of at least ``steps``;
-    work[19, 0] is left with the iterations taken (``PLAN_ITERATIONS``: stopped at the cap).
-    """
-    n = steps
-    floor = min(floor, ceiling)  # a floor above the ceiling: the ceiling is all the plate reaches
-    if n < 1:  # no horizon: nothing to plan over; hold the felt ratio, within the reachable range
-        return min(max(felt, floor), ceiling)
-    low = min(floor, felt)  # a felt ratio outside the reachable range (the floor moved): the programme starts there
-    high = max(ceiling, felt)
-    c_on, c_rec = 1.0 - hold_on, 1.0 - hold_rec
-    x, sf, sr, zf, zr = work[0], work[1], work[2], work[3], work[4]
-    rf, rr, rd, diag, off = work[5], work[6], work[7], work[8], work[9]
-    dsf, dsr, dzf, dzr, rcf, rcr = work[12], work[13], work[14], work[15], work[17], work[18]
-    for j in range(n):
-        x[j] = felt
-        sf[j] = max(c_on * (felt - low), 1e-3)
-        sr[j] = max(c_rec * (high - felt), 1e-3)
-        zf[j] = 1.0
-        zr[j] = 1.0
-    work[19, 0] = PLAN_ITERATIONS  # the cap, unless solved before it
-    for iteration in range(PLAN_ITERATIONS):
-        worst = 0.0
-        gap = 0.0
-        for j in range(n):  # residuals: G x + s - h (falls, rises) and 2 (x - goals) + G^T z
-            before = x[j - 1] if j > 0 else felt
-            rf[j] = hold_on * before - x[j] + sf[j] + c_on * low
-            rr[j] = x[j] - hold_rec * before + sr[j] - c_rec * high
-            value = 2.0 * (x[j] - goals[j]) - zf[j] + zr[j]
-            if j + 1 < n:
-                value += hold_on * zf[j + 1] - hold_rec * zr[j + 1]
-            rd[j] = value
-            worst = max(worst, abs(rf[j]), abs(rr[j]), abs(value))
-            gap += sf[j] * zf[j] + sr[j] * zr[j]
-        mu = gap / (2 * n)
-        if (worst < 1e-9 and mu < 1e-12) or not mu > 1e-15:  # solved, or as far as the arithmetic goes
-            work[19, 0] = iteration
+def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, hold_on, hold_rec, enough):
+    """The squared error over the horizon of a plan, and its first step's command: ``level`` held for the first
+    ``switch`` steps and the greedy command after (``level_first``), or the greedy command first and ``level``
+    after. Stops adding once the cost reaches ``enough`` (a plan already beaten)."""
+    cost = 0.0
+    y = felt
+    first = level
+    for j in range(steps):
+        r = goals[j]
+        x = level if (j < switch) == level_first else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
+        if j == 0:
+            first = x
+        y = _held(y, x, hold_on, hold_rec)
+        cost += (y - r) * (y - r)
+        if cost >= enough:
             break
-        for j in range(n):  # the Newton matrix 2 I + G^T (Z / S) G
-            df, dr = zf[j] / sf[j], zr[j] / sr[j]
-            diag[j] = 2.0 + df + dr
-            off[j] = -(hold_on * df + hold_rec * dr)
-            if j > 0:
-                diag[j - 1] += hold_on * hold_on * df + hold_rec * hold_rec * dr
-            rcf[j] = -sf[j] * zf[j]
-            rcr[j] = -sr[j] * zr[j]
-        _qp_direction(n, hold_on, hold_rec, work)
-        step = _qp_step(n, work)
-        after = 0.0
-        for j in range(n):
-            after += (sf[j] + step * dsf[j]) * (zf[j] + step * dzf[j])
-            after += (sr[j] + step * dsr[j]) * (zr[j] + step * dzr[j])
-        sigma = (after / (2 * n) / mu) ** 3
-        for j in range(n):
-            rcf[j] = -sf[j] * zf[j] - dsf[j] * dzf[j] + sigma * mu
-            rcr[j] = -sr[j] * zr[j] - dsr[j] * dzr[j] + sigma * mu
-        _qp_direction(n, hold_on, hold_rec, work)
-        step = min(1.0, 0.99 * _qp_step(n, work))
-        dx = work[11]
-        for j in range(n):
-            x[j] += step * dx[j]
-            sf[j] += step * dsf[j]
-            sr[j] += step * dsr[j]
-            zf[j] += step * dzf[j]
-            zr[j] += step * dzr[j]
-    change = x[0] - felt
-    command = felt + (change / c_on if change < 0.0 else change / c_rec)
-    if not math.isfinite(command):  # never seen: hold the felt ratio rather than pass a NaN on
-        command = felt
-    span = (ceiling - floor) * 1e-4  # within 1e-4 of an end: the end (the interior point stops just inside, by
-    # up to 1e-6 where the goal lies on the end itself, which the division by a step's c magnifies)
-    if command < floor + span:
-        return floor
-    if command > ceiling - span:
-        return ceiling
-    return command
+    return cost, first
 
 
 @njit(cache=True, nogil=True)
-def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, felt,
-                  phase, command, gate, out, work):
+def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, levels, felt,
+                  phase, command, gate, out, goals):
     """The command that makes the felt friction follow ``target`` as closely as the dynamics allow.
 
     The felt ratio y follows the command x (a static friction ratio) through y += k (x - y), k = ``k_onset``
     where x < y, ``k_recovery`` where x > y (per sample). Every ``stride`` samples (``phase`` counts the
-    samples since the last decision, carried between blocks) the planner finds, over ``steps`` steps of
-    ``stride`` samples, the commands (each held a step, within [floor, ceiling]) whose predicted felt ratio has the
-    least squared error to the target at the steps' ends (a convex programme: see ``_plan_qp``), and keeps the
-    first, held until the next decision. A step's target is the mean of the block's targets over it; past the
-    block it comes from ``ahead`` (one a step from sample ``first_ahead``, which the caller band-limits to the
-    step's length). Targets are taken within the ratios the felt friction can reach (an infinite one is its end);
-    a NaN is left out of its step's mean, and a step with none keeps the step's before (the first, the latest
-    target in the block, else the felt ratio). A floor above the ceiling is the ceiling.
+    samples since the last decision, carried between blocks) the planner compares, over ``steps`` steps of
+    ``stride`` samples, the squared error between the predicted felt ratio and the target at each step's end
+    for: holding one of ``levels`` commands evenly spaced in [floor, ceiling], or the greedy command (the one
+    reaching the next step's target, clipped), for 1, 2, 4, ... steps and then following the greedy command;
+    it keeps the first step of the best, held until the next decision. A step's target is the mean of the
+    block's targets over it; past the block it comes from ``ahead`` (one a step from sample ``first_ahead``,
+    which the caller band-limits to the step's length).
 
     Parameters
     ----------
@@ -534,8 +422,8 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
         The friction ratios the plate can reach.
     k_onset, k_recovery : float
         The felt ratio's step per sample towards a lower and a higher command, 0 < k <= 1.
-    stride, steps : int
-        Samples between decisions, and steps looked ahead.
+    stride, steps, levels : int
+        Samples between decisions, steps looked ahead, and levels tried.
     felt : float
         The felt ratio before the block.
     phase : int
@@ -546,8 +434,8 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
         0: the finger is off (the command is the target, the felt ratio 1); 1: on.
     out : numpy.ndarray of float64
         Filled with the command, friction ratio.
-    work : numpy.ndarray of float64
-        ``PLAN_WORK_ROWS`` × at least ``steps``: the horizon's targets (its last row) and the programme's vectors.
+    goals : numpy.ndarray of float64
+        Room for ``steps`` floats (the horizon's targets, gathered once a decision).
 
     Returns
     -------
@@ -561,22 +449,17 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
 
     >>> import numpy as np
     >>> out = np.empty(4)
-    >>> felt, phase, command, below = plan_friction(np.array([0.5, 0.5, 0.05, 0.05]), np.full(3, 0.5, dtype=np.float32),
-    ...                                             5, 0.1, 1.0, 1.0, 1.0, 1, 3, 1.0, 0, 1.0, 1, out,
-    ...                                             np.empty((PLAN_WORK_ROWS, 3)))
-    >>> (felt, phase, command, below), out.round(9).tolist()
-    ((0.1, 0, 0.1, 2), [0.5, 0.5, 0.1, 0.1])
+    >>> plan_friction(np.array([0.5, 0.5, 0.05, 0.05]), np.full(3, 0.5, dtype=np.float32), 5, 0.1, 1.0, 1.0, 1.0,
+    ...               1, 3, 5, 1.0, 0, 1.0, 1, out, np.empty(3))
+    (0.1, 0, 0.1, 2)
+    >>> out.tolist()
+    [0.5, 0.5, 0.1, 0.1]
     """
-    floor = min(floor, ceiling)  # a floor above the ceiling: the ceiling is all the plate reaches
     hold_on = (1.0 - k_onset) ** stride
     hold_rec = (1.0 - k_recovery) ** stride
-    goals = work[PLAN_WORK_ROWS - 1]
     below = 0
-    known = felt  # the latest target that is not NaN (before the first, the felt ratio)
     for i in range(target.shape[0]):
         r_now = np.float64(target[i])
-        if r_now == r_now:
-            known = r_now
         if r_now < floor:
             below += 1
         if gate == 0:
@@ -585,35 +468,45 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
             phase = 0
             continue
         if phase == 0:
-            # goals within the ratios the felt friction can take (an infinite target is its end); a NaN (no
-            # target) is left out of a step's mean, a step without one keeps the step's before (the first: the
-            # latest target): one NaN does not make the whole decision hold the felt ratio
-            low, high = min(floor, felt), max(ceiling, felt)
-            previous = min(max(known, low), high)
-            if steps < 1:  # no horizon (the Planner never asks it): the target at once
-                command = min(max(previous, floor), ceiling)
+            best_cost = np.inf
+            best = command
             end0 = i + stride - 1
             for j in range(steps):  # each step's mean target within the block (no aliasing), else the lookahead's
                 end = end0 + j * stride
-                goal = previous
                 if end < target.shape[0]:
                     total = 0.0
-                    count = 0
                     for m in range(end - stride + 1, end + 1):
-                        value = np.float64(target[m])
-                        if value == value:
-                            total += min(max(value, low), high)
-                            count += 1
-                    if count > 0:
-                        goal = total / count
+                        total += np.float64(target[m])
+                    goals[j] = total / stride
                 else:
-                    value = _target_at(end, target, ahead, first_ahead, stride)
-                    if value == value:
-                        goal = min(max(value, low), high)
-                goals[j] = goal
-                previous = goal
-            if steps >= 1:
-                command = _plan_qp(felt, goals, steps, floor, ceiling, hold_on, hold_rec, work)
+                    goals[j] = _target_at(end, target, ahead, first_ahead, stride)
+            r0 = goals[0]
+            for c in range(levels + 1):
+                if c < levels:
+                    level = floor + (ceiling - floor) * c / (levels - 1)
+                else:
+                    level = _greedy(felt, r0, floor, ceiling, hold_on, hold_rec)
+                span = 1
+                while True:
+                    cost, first = _plan_cost(felt, goals, steps, level, span, True, floor, ceiling, hold_on,
+                                             hold_rec, best_cost)
+                    if cost < best_cost:
+                        best_cost = cost
+                        best = first
+                    if span >= steps or c == levels:
+                        break
+                    span *= 2
+            delay = 1  # or follow the greedy command for 1, 2, 4, ... steps first, then hold a level: a rise begun
+            while delay < steps:  # later than now (holding a level from now is either too early or never)
+                for c in range(levels):
+                    level = floor + (ceiling - floor) * c / (levels - 1)
+                    cost, first = _plan_cost(felt, goals, steps, level, delay, False, floor, ceiling, hold_on,
+                                             hold_rec, best_cost)
+                    if cost < best_cost:
+                        best_cost = cost
+                        best = first
+                delay *= 2
+            command = best
         x = command
         felt += (k_onset if x < felt else k_recovery) * (x - felt)
         out[i] = x
@@ -649,8 +542,8 @@ def warm_up() -> None:
                       np.empty(4), np.empty(4, dtype=np.bool_))
     motion(f64, f64, 0.0, 0.0, np.empty(4), np.empty(4), np.empty(4))
     for ratio in (f64 + 0.5, np.zeros(4, dtype=np.float32) + 0.5):
-        plan_friction(ratio, np.zeros(3, dtype=np.float32) + 0.5, 5, 0.1, 1.0, 0.02, 0.002, 2, 3, 1.0, 0, 1.0, 1,
-                      np.empty(4), np.empty((PLAN_WORK_ROWS, 3)))
+        plan_friction(ratio, np.zeros(3, dtype=np.float32) + 0.5, 5, 0.1, 1.0, 0.02, 0.002, 2, 3, 5, 1.0, 0, 1.0, 1,
+                      np.empty(4), np.empty(3))
     for kind in range(3):
         swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
                    np.empty(4, dtype=np.bool_))

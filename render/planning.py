@@ -5,12 +5,9 @@ within milliseconds when the vibration starts and recovers over tens of millisec
 that asks each instant for the texture's ratio gets a finger that lags the falls a little and the rises a lot:
 a fine grating, swept fast, is felt mostly low. The :class:`Planner` chooses the static ratio to command (the
 amplitude follows from the model's inverse, as before) by predicting the felt ratio over the next tens of
-milliseconds of the texture along the finger's path: of all the commands it could hold step by step over that
-horizon, it takes the ones whose felt friction has the least squared error to the texture (the felt ratios the
-dynamics allow form a convex set, so this is a small convex programme, solved exactly each decision): it holds
-friction up before a rise it could not make in time, lets it fall where the fall is quick, and where a texture
-changes faster than the finger follows (a fine grating swept fast) it lets friction climb at the recovery's pace
-and drops it quickly once a period, the best the finger allows (the compiled
+milliseconds of the texture along the finger's path: it holds friction up before a rise it could not make in
+time, lets it fall where the fall is quick, and where a target cannot be reached in time it commands the
+reachable friction with the least squared error over the horizon (the compiled
 :func:`ultraglide.render.kernels.plan_friction`; no per-sample Python, no allocation in a block).
 
 :func:`contrast_transfer` says how much of a grating's contrast survives, felt, at a speed: the felt
@@ -38,6 +35,7 @@ DECISION_S = 0.002  # the planner decides every 2 ms (the onset's 5 ms is two an
 HORIZON_RECOVERIES = 2.0  # it looks this many recovery time constants ahead
 MAX_HORIZON_S = 0.1
 MIN_HORIZON_S = 0.01
+LEVELS = 9  # commands held, evenly spread over the reachable ratios
 _STEPS = np.arange(int(MAX_HORIZON_S / DECISION_S) + 2, dtype=float)
 
 
@@ -92,7 +90,7 @@ class Planner:
         self._speed = None
         self.k_recovery = 0.0
         self.steps = 1
-        self._work = np.empty((kernels.PLAN_WORK_ROWS, len(_STEPS)))
+        self._goals = np.empty(len(_STEPS))
         self.set_speed(dynamics.reference_speed_mm_s)
 
     def set_speed(self, speed_mm_s: float) -> None:
@@ -226,7 +224,7 @@ class Planner:
         n = len(target)
         self.felt, self.phase, self.command, below = kernels.plan_friction(
             target, ahead, self.first_ahead(n), float(floor), 1.0, self.k_onset, self.k_recovery, self.stride,
-            self.steps, self.felt, self.phase, self.command, 1 if down else 0, out, self._work)
+            self.steps, LEVELS, self.felt, self.phase, self.command, 1 if down else 0, out, self._goals)
         self.below_floor += below
         return out
 

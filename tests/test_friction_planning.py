@@ -2,8 +2,6 @@
 texture than the instantaneous renderer's; slow textures followed; unreachable targets counted."""
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,7 +16,6 @@ from ultraglide.render.trajectory import RecordedTrajectory
 from ultraglide.textures.library import resolve_texture
 
 RATE = 12000.0
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
 
 def felt_by_the_finger(static: np.ndarray, speed_mm_s: float) -> np.ndarray:
@@ -44,34 +41,15 @@ def rendered(plan: bool, speed_mm_s: float):
     ratio, plate = np.concatenate(ratios), np.concatenate(plates)
     felt = felt_by_the_finger(model.static.relative_friction(plate, 0.5), speed_mm_s)
     settled = slice(int(0.1 * RATE), None)
-    return float(np.sqrt(np.mean((felt[settled] - ratio[settled]) ** 2))), renderer, ratio
+    return float(np.sqrt(np.mean((felt[settled] - ratio[settled]) ** 2))), renderer
 
 
 @pytest.mark.parametrize("speed_mm_s", [50.0, 100.0])
 def test_the_planned_renderer_is_felt_closer_to_the_texture_than_the_instantaneous(speed_mm_s):
-    instantaneous, plain, _ = rendered(False, speed_mm_s)
-    planned, renderer, _ = rendered(True, speed_mm_s)
+    instantaneous, plain = rendered(False, speed_mm_s)
+    planned, renderer = rendered(True, speed_mm_s)
     assert plain.planner is None and renderer.planner is not None
-    assert planned < 0.85 * instantaneous  # measured: 0.183 against 0.268 at 50 mm/s, 0.194 against 0.259 at 100
-
-
-@pytest.mark.parametrize("speed_mm_s", [50.0, 100.0])
-def test_the_planned_renderer_comes_close_to_the_least_error_any_plan_reaches_on_a_fine_grating(speed_mm_s):
-    """The 1 mm grating at 50-100 Hz of modulation: the least RMS error any sequence of settled ratios within the
-    plate's floor..1 reaches against the finger's first-order onset and recovery, knowing the whole future
-    (bench/finger_bound.py's convex programme, nothing of the planner's), is a bound the planned renderer, felt by
-    the plate's own finger, must come within 8 % of. The planner that weighed a few held levels held friction at
-    the grating's middle and stayed 11-13 % above it; the best plan lets friction climb at the recovery's pace and
-    drops it quickly once a period."""
-    from finger_bound import felt_bound, steps_per_sample
-
-    planned, _, target = rendered(True, speed_mm_s)
-    model = load_model("dynamic")
-    floor = float(model.static.relative_friction(np.array([6.0]), 0.5)[0])  # sim-plate's limit, 6 µm p-p
-    c_onset, c_recovery = steps_per_sample(FingerDynamics(), speed_mm_s, RATE)
-    scored = np.arange(len(target)) >= int(0.1 * RATE)  # as rendered() scores
-    bound = felt_bound(target.astype(float), scored, floor, c_onset, c_recovery)
-    assert bound.rms <= planned < 1.08 * bound.rms, planned / bound.rms  # measured: 1.04 and 1.05
+    assert planned < 0.85 * instantaneous  # measured: 0.205 against 0.267 at 50 mm/s, 0.206 against 0.258 at 100
 
 
 def test_a_slow_texture_is_followed_closely():
@@ -157,23 +135,6 @@ def test_a_rise_is_begun_as_early_as_the_best_plan_begins_it(speed_mm_s):
     error_s = float(np.sum((felt[window] - target[window][:n]) ** 2)) / RATE
     best_s = 0.49 * tau * (math.log(2.0) - 0.5)
     assert best_s * 0.97 < error_s < 1.10 * best_s, (error_s / best_s)  # measured: 1.006, 1.001, 1.021
-
-
-@pytest.mark.parametrize("speed_mm_s", [22.0, 100.0, 400.0])
-def test_friction_at_rest_is_asked_as_rest_once_the_finger_has_recovered(speed_mm_s):
-    """After 0.1 s at 0.5, the texture at rest (1): once recovered the command is exactly 1 (no vibration at all),
-    not a hair below it that the model's inverse would turn into some nanometres of amplitude (the planner's
-    programme stops just inside its ends where the goal lies on one)."""
-    planner = Planner(FrictionDynamics(), RATE)
-    planner.set_speed(speed_mm_s)
-    n = int(RATE)
-    target = np.r_[np.full(int(0.1 * RATE), 0.5), np.ones(n + 4000)]
-    command = np.empty(n)
-    for start in range(0, n, 96):
-        first = start + planner.first_ahead(96)
-        ahead = target[first + planner.stride * np.arange(planner.steps)].astype(np.float32)
-        planner.plan(target[start:start + 96], ahead, 0.168, True, command[start:start + 96])
-    assert np.all(command[n // 2:] == 1.0), np.unique(command[n // 2:])[:3]
 
 
 def test_targets_below_the_floor_are_counted_as_unreachable():
