@@ -379,15 +379,13 @@ def _felt(texture, model, limit_um_pp: float, force_n: float) -> list[dict] | No
     if texture.kind != "friction" or texture.cols * texture.rows > FELT_MAX_PIXELS:
         return None  # a large map would be resampled for a lookup: not for an info line
     from ultraglide.render.physics.dynamics import FrictionDynamics
-    from ultraglide.render.physics.speed_law import speed_law_of
+    from ultraglide.render.physics.speed_law import floor_at_speed
     from ultraglide.render.planning import swipe_contrast
 
     dynamics = getattr(model, "dynamics", None) or FrictionDynamics()
-    law = speed_law_of(model)
     felt = []
     for speed in FELT_SPEEDS_MM_S:
-        within = limit_um_pp / law.one_scale(speed) if law is not None else limit_um_pp
-        floor = float(model.floor_ratio(force_n, within))
+        floor = floor_at_speed(model, force_n, speed, limit_um_pp)
         kept = swipe_contrast(texture, dynamics, speed, floor, longest_s=0.5)
         felt.append({"speed_mm_s": speed, "floor": round(floor, 4),
                      "contrast_instantaneous": round(kept.instantaneous, 3), "contrast_planned": round(kept.planned, 3),

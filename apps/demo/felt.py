@@ -96,13 +96,13 @@ def felt_part_words(app, now_s: float) -> tuple[str, str] | None:
     if model is None or texture is None or getattr(texture, "kind", "") != "friction" \
             or texture.cols * texture.rows > MAX_PIXELS:
         return None
+    from ultraglide.render.physics.speed_law import floor_at_speed, speed_law_of
+
     limit = app.link.profile.max_amplitude_um_pp
-    law = getattr(model, "speed_law", None)  # under a settled speed law the floor rises with speed
-    if law is None or law.exponent == 0.0:
-        floor = float(model.relative_friction(np.array([limit]), app.force_n)[0])
-    else:
-        floor = {speed: float(model.relative_friction(np.array([limit / law.one_scale(speed)]), app.force_n)[0])
-                 for speed in SPEEDS_MM_S}
+    if speed_law_of(model) is None:
+        floor = floor_at_speed(model, app.force_n, 22.0, limit)
+    else:  # under a settled speed law the floor rises with speed
+        floor = {speed: floor_at_speed(model, app.force_n, speed, limit) for speed in SPEEDS_MM_S}
     app.felt.request(texture, app.link.model_name, model, floor)
     speed = finger_speed_mm_s(app.driver.trace, app.mm_per_px, now_s)
     kept = app.felt.at(texture, app.link.model_name, speed) if speed is not None else None

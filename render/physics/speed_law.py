@@ -469,6 +469,25 @@ class SpeedLawModel(FrictionModel):
         return f"SpeedLawModel({self.static!r}, {self.speed_law!r})"
 
 
+def floor_at_speed(model, force_n: float, speed_mm_s: float, limit_um_pp: float) -> float:
+    """The lowest settled ratio ``model`` reaches within the limit (µm p-p) at a force (N) and sliding speed (mm/s):
+    under its speed law (:func:`speed_law_of`) the floor within limit / k(v), which rises with speed; without one,
+    the floor within the limit.
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.friction_models import ExponentialModel
+    >>> static = ExponentialModel()
+    >>> bool(floor_at_speed(SpeedLawModel(static, SpeedLaw(1.0)), 0.5, 44.0, 6.0) == static.floor_ratio(0.5, 3.0))
+    True
+    >>> bool(floor_at_speed(static, 0.5, 44.0, 6.0) == static.floor_ratio(0.5, 6.0))
+    True
+    """
+    law = speed_law_of(model)
+    within = limit_um_pp / law.one_scale(float(speed_mm_s)) if law is not None else limit_um_pp
+    return float(model.floor_ratio(force_n, within))
+
+
 def speed_law_of(model) -> SpeedLaw | None:
     """The speed law a model (a dynamic one, the closed loop standing in for one) carries, or None (no
     dependence). A law with s = 0 counts as none.
