@@ -533,3 +533,36 @@ def test_a_finger_on_the_plate_reaches_the_host_in_sensors_frames():
     assert late["amplitude_um_pp"] == pytest.approx(np.full(20, 2.0), abs=1e-3)  # 0.25 of 8 µm, settled
     assert late["lateral_force_n"] == pytest.approx(0.2 * late["amplitude_um_pp"], rel=1e-5)
     assert finger.calls[0][0] >= 0 and all(b[0] > a[0] for a, b in zip(finger.calls, finger.calls[1:], strict=False))
+
+
+def test_quiet_gaps_count_the_hosts_silences_while_enabled_and_nothing_else():
+    """``PtyPlate.quiet_gaps``: a silence from the host longer than the watchdog's timeout while the output is
+    enabled is one; a silence while disabled, or one an injected drop made, is none."""
+    plate = PtyPlate(PROFILE).start()
+    try:
+        host = PtyHost(plate)
+        sim = plate.simulator
+
+        def stream(first: int) -> None:
+            for k in range(first, first + 20):
+                host.write(p.encode_frame(p.SETPOINTS, k, p.setpoints_payload(24 * k, RATE, np.full(24, 0.4))))
+
+        assert host.command(p.ENABLE, p.enable_payload(True), 10).kind == p.ACK
+        stream(0)
+        assert wait_for(lambda: sim.fault_counts()["watchdog"] == 1)  # the host fell silent: a trip
+        assert plate.quiet_gaps == 0  # not yet heard again
+        assert host.command(p.CLEAR_FAULTS, p.clear_faults_payload(0), 10) is not None
+        assert plate.quiet_gaps == 1
+        assert host.command(p.ENABLE, p.enable_payload(False), 10).kind == p.ACK
+        host.wait_for(lambda frame: False, 0.3)  # silent 0.3 s while disabled (reading what the plate sends)
+        assert host.command(p.ENABLE, p.enable_payload(True), 10).kind == p.ACK
+        assert plate.quiet_gaps == 1
+        stream(20)
+        plate.inject(p.SIM_DROP, 600.0)  # an injected drop's silence trips the watchdog too, but is not the host's
+        stream(40)
+        assert wait_for(lambda: sim.fault_counts()["watchdog"] == 2)
+        plate.end_injected()
+        assert host.command(p.CLEAR_FAULTS, p.clear_faults_payload(0), 10) is not None
+        assert plate.quiet_gaps == 1 and sim.counters.watchdog_trips == 2
+    finally:
+        plate.stop()

@@ -263,6 +263,7 @@ class SerialCounters:
     naks: int = 0  # frames the device refused
     carrier_changes: int = 0  # SET_CARRIER sent while streaming (sweep or tracking)
     send_stalls: int = 0  # the writer sent nothing for longer than the device's watchdog timeout
+    write_timeouts: int = 0  # a frame waited the write timeout for room: the device took nothing (hung or gone)
     host_stalls: int = 0  # the writer woke more than STALL_S late (the host process did not run)
     late_frames: int = 0  # frames sent longer after the one before than the plate's buffer lasts (it may run dry)
     depth_corrections: int = 0  # the plate's buffer (v3 telemetry) drifted from its depth: the lead moved

@@ -261,6 +261,7 @@ class SerialPlate:
             "frames_sent": c.frames_sent, "setpoints_sent": c.setpoints_sent, "disconnects": c.disconnects,
             "reconnects": c.reconnects, "silences": c.silences, "bad_frames_received": c.bad_frames,
             "naks_received": c.naks, "send_stalls": c.send_stalls, "host_stalls": c.host_stalls,
+            "write_timeouts": c.write_timeouts,
             "late_frames": c.late_frames, "depth_corrections": c.depth_corrections,
             "setpoints_not_sent": c.setpoints_discarded, "setpoints_skipped": c.setpoints_skipped,
             "carrier_hz": round(self.carrier_hz, 2), "carrier_changes": c.carrier_changes,

@@ -215,7 +215,7 @@ class Streamer:
                 self.counters.idle_rests += 1
                 self._last_sent = None
         except (serial.SerialException, OSError) as error:
-            self._lost(port_failure(error))
+            self._port_failed(error)
             self.session.retry_soon()
             self._last_sent = None
 
@@ -277,7 +277,13 @@ class Streamer:
         try:
             self.transport.send(p.HEARTBEAT)
         except (serial.SerialException, OSError) as error:
-            self._lost(port_failure(error))
+            self._port_failed(error)
+
+    def _port_failed(self, error: BaseException) -> None:
+        """A write failed: the link is lost, and a write that waited out its timeout is counted as such."""
+        if isinstance(error, serial.SerialTimeoutException):
+            self.counters.write_timeouts += 1
+        self._lost(port_failure(error))
 
     def _late_frame(self, gap_s: float) -> None:
         """A frame went out ``gap_s`` after the one before, longer than the plate's buffer lasts."""

@@ -61,6 +61,11 @@ class PtyPlate:
         self._disconnect_until = 0.0
         self._rng = np.random.default_rng(0)
         self.dropped_replies = 0  # written while the port's buffer was full (nobody reading)
+        # the host's frames stopped for longer than the watchdog's timeout while the output was enabled, outside
+        # injected faults, as this side's clock saw it: each such gap may trip the watchdog, nothing else may
+        self.quiet_gaps = 0
+        self._last_delivered: float | None = None
+        self._enabled_after_last = False
 
     def _open_pty(self) -> None:
         master, slave = os.openpty()
@@ -107,6 +112,7 @@ class PtyPlate:
             return
         until = time.monotonic() + duration_s
         self.simulator._count_injected(p.SIM_FAULT_KINDS[kind])
+        self._last_delivered = None  # the silence this makes is the injected fault's, not the host's
         if kind == p.SIM_DROP:
             self._drop_until = until
         elif kind == p.SIM_CORRUPT:
@@ -258,15 +264,28 @@ class PtyPlate:
             for index in flips:
                 corrupted[index] ^= 1 << int(self._rng.integers(0, 8))
             data = bytes(corrupted)
+            self._last_delivered = None
+        else:
+            self._note_delivery(now)
         if self._sleeping_long:  # the output stage sleeps until telemetry: bring the core's clock to now first, so a
             self._write(self.simulator.advance())  # frame enabling it is not handled up to 20 ms in the past (the
         replies = self.simulator.receive(data)  # rendering that then caught up played the prefill at once, and ran dry)
+        if self._last_delivered is not None:
+            self._enabled_after_last = self.simulator.enabled
         if self._sleeping_long and self.simulator.enabled:  # the output stage waits for telemetry: its clock starts now
             self._sleeping_long = False
             self._wake.set()
         while self.simulator.fault_requests:
             self.inject(*self.simulator.fault_requests.pop(0))
         return replies
+
+    def _note_delivery(self, now: float) -> None:
+        """Frames arrive at ``now`` (s, monotonic): a gap since the last that began with the output enabled (as
+        the frames then left it) and outlasted the watchdog's timeout is counted."""
+        last = self._last_delivered
+        if last is not None and now - last > p.WATCHDOG_MS / 1000.0 and self._enabled_after_last:
+            self.quiet_gaps += 1
+        self._last_delivered = now
 
     def stop(self) -> None:
         self._stop.set()
