@@ -55,6 +55,8 @@ def port(tmp_path_factory):
         ("ug_usart_baud", u32, [u32, u32]),
         ("ug_timer_arr", u32, [u32, u32]),
         ("ug_timer_rate_hz", u32, [u32, u32]),
+        ("ug_clock_samples_since_block", u32, [u32, u32, u32, u32]),
+        ("ug_dma_samples_since_block", u32, [u32, u32, u32, u32]),
         ("shim_dac_word", ctypes.c_uint16, [ctypes.c_int16]),
         ("shim_dac_code", ctypes.c_uint16, [ctypes.c_uint16]),
         ("ug_dac_block", None, [voidp, voidp, u32]),
@@ -101,6 +103,46 @@ def test_timer_reload_values(port):
     assert port.ug_timer_arr(84_000_000, 240_000) == 349
     assert port.ug_timer_rate_hz(84_000_000, 349) == 240_000
     assert port.ug_timer_arr(84_000_000, 100_000_000) == 1  # never zero: a zero reload stops the timer
+
+
+# The QEMU images' blocks (1 ms, 48 drive samples at 48 kHz) run by a free-running clock: the netduinoplus2's TIM5
+# counts virtual ns (1 000 000 a block, 20 833.3 ns a drive sample), the mps2-an386's TIMER1 its 25 MHz PCLK (25 000
+# a block, 520.83 cycles a drive sample). `due` is when the next block falls due; the last ran up to due - a block.
+@pytest.mark.parametrize(("now", "due", "per_block", "expected"), [
+    (0, 1_000_000, 1_000_000, 0),  # the last block has just ended
+    (20_833, 1_000_000, 1_000_000, 0),  # a drive sample less a third of a ns: not yet whole
+    (20_834, 1_000_000, 1_000_000, 1),
+    (500_000, 1_000_000, 1_000_000, 24),  # half a block
+    (999_999, 1_000_000, 1_000_000, 47),  # 47.99995 samples: 47
+    (1_000_000, 1_000_000, 1_000_000, 47),  # the next block due and not run yet: still at most 47, never ahead
+    (7_300_000, 1_000_000, 1_000_000, 47),  # several due (a late block interrupt)
+    (0, 1_000_001, 1_000_000, 0),  # a reading before the last block's end (out of order): 0, not 2^32 - 1
+    (2**32 - 250_000 + 260, 2**32 - 250_000 + 1_000_000, 1_000_000, 0),  # wrapping: 260 ns past the end
+    (130_000, 2**32 - 250_000 + 1_000_000, 1_000_000, 18),  # 380 000 ns past the end, across the wrap: 18.24
+    (25_000 + 521, 50_000, 25_000, 1),  # TIMER1: 521 cycles are one drive sample (520.83)
+    (25_000 + 520, 50_000, 25_000, 0),
+    (25_000 + 12_500, 50_000, 25_000, 24),
+    (49_999, 50_000, 25_000, 47),
+])
+def test_samples_since_block_from_a_free_running_clock(port, now, due, per_block, expected):
+    assert port.ug_clock_samples_since_block(now % 2**32, due % 2**32, per_block, 48) == expected
+
+
+# The netduinoplus2's ADC DMA: 2 halves of 240 conversions (48 drive samples x 5), NDTR counting down from 480.
+@pytest.mark.parametrize(("ndtr", "pending", "expected"), [
+    (480, 0, 0),  # at the start of the first half
+    (476, 0, 0),  # 4 conversions: not yet a drive sample
+    (475, 0, 1),  # 5 conversions: one
+    (241, 0, 47),  # 239 conversions: 47.8
+    (240, 0, 0),  # the first half done: the second just started (its block given to the core)
+    (120, 0, 24),  # 120 into the second half
+    (1, 0, 47),
+    (0, 0, 0),  # a stream not enabled (NDTR 0): nothing taken
+    (470, 1, 47),  # the second half completed and not yet given to the core: a block behind, 47 at most
+    (200, 1, 47),
+])
+def test_samples_since_block_from_the_adc_dma(port, ndtr, pending, expected):
+    assert port.ug_dma_samples_since_block(ndtr, 240, 5, pending) == expected
 
 
 @pytest.mark.parametrize(("sample", "word", "code"), [(0, 0x8000, 2048), (16, 0x8010, 2049), (-16, 0x7FF0, 2047),

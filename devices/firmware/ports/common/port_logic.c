@@ -42,6 +42,38 @@ uint32_t ug_dma_ring_head(uint32_t ndtr, uint32_t size)
     return ndtr == 0u || ndtr > size ? 0u : (size - ndtr) % size;
 }
 
+uint32_t ug_clock_samples_since_block(uint32_t now, uint32_t next_due, uint32_t ticks_per_block,
+                                      uint32_t samples_per_block)
+{
+    if (ticks_per_block == 0u || samples_per_block == 0u) {
+        return 0u;
+    }
+    uint32_t elapsed = now - (next_due - ticks_per_block);  /* since the last block's end, modulo 2^32 */
+    if (elapsed >= 0x80000000u) {
+        return 0u;  /* before it: never ahead */
+    }
+    if (elapsed >= ticks_per_block) {
+        return samples_per_block - 1u;  /* the next block is due and has not run */
+    }
+    return elapsed * samples_per_block / ticks_per_block;  /* floor: the samples whole by now */
+}
+
+uint32_t ug_dma_samples_since_block(uint32_t ndtr, uint32_t half_transfers, uint32_t oversample, uint32_t pending)
+{
+    if (half_transfers == 0u || oversample == 0u) {
+        return 0u;
+    }
+    uint32_t block = half_transfers / oversample;
+    if (block == 0u) {
+        return 0u;
+    }
+    if (pending) {
+        return block - 1u;
+    }
+    uint32_t in_half = ug_dma_ring_head(ndtr, 2u * half_transfers) % half_transfers;
+    return in_half / oversample;
+}
+
 uint32_t ug_adc_peak_to_peak(const uint16_t *codes, uint32_t count)
 {
     if (count == 0u) {

@@ -46,6 +46,21 @@ void ug_dac_block(const int16_t *samples, uint16_t *words, uint32_t count);
    (the transfers left in this lap, counting down from size: NDTR = size means the start). */
 uint32_t ug_dma_ring_head(uint32_t ndtr, uint32_t size);
 
+/* Drive samples taken since the last block ran, from a free-running board clock (the QEMU images' block clock:
+   the netduinoplus2's TIM5, the mps2-an386's TIMER1): `now` its count, `next_due` its count when the next block
+   falls due (the block last run ended at next_due - ticks_per_block), both wrapping at 2^32. Never ahead of the
+   blocks: a block due but not run yet (the block interrupt masked or late) gives samples_per_block - 1, the most a
+   block's worth can say; a count before the last block's end (never, but a clock read out of order) gives 0.
+   ticks_per_block * samples_per_block must fit in 32 bits. */
+uint32_t ug_clock_samples_since_block(uint32_t now, uint32_t next_due, uint32_t ticks_per_block,
+                                      uint32_t samples_per_block);
+
+/* The same from a circular ADC DMA over two halves of `half_transfers` conversions, `oversample` conversions a
+   drive sample (the netduinoplus2's hardware image: DMA2 stream 0): `ndtr` the stream's transfers left in its lap,
+   `pending` a half's completion flagged and not yet given to the block function (read with the block interrupt
+   masked): the samples of the half filling now, and with a half pending samples_per_block - 1 as above. */
+uint32_t ug_dma_samples_since_block(uint32_t ndtr, uint32_t half_transfers, uint32_t oversample, uint32_t pending);
+
 /* The peak-to-peak swing of a block of sensing-piezo samples (12-bit ADC codes): max − min, in ADC
    codes (a peak detector over the block; at least one carrier period must fit in it). */
 uint32_t ug_adc_peak_to_peak(const uint16_t *codes, uint32_t count);
