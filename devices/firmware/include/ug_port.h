@@ -128,7 +128,10 @@ void ug_port_output_safe(void *port, uint8_t why);
  * ug_core_poll() inside a critical section when a CLOCK request is answered (its CLOCK_REPLY states the sensor
  * clock: the core's samples so far and these). MUST NOT be more than the ADC has taken (the reply's clock is never
  * ahead of the device's); a port that returns 0 makes it up to a block behind, and its block MUST then be at most
- * UG_MAX_CLOCK_LAG_MS long (the reference boards' blocks are 1 ms).
+ * UG_MAX_CLOCK_LAG_MS long (the reference boards' blocks are 1 ms). A block that fell due and has not been handed
+ * over (its interrupt masked or late) leaves the core a block behind the ADC whatever this says (at most a block
+ * less one: never more than one block's worth); the reference boards read their DMA or block clock, and their QEMU
+ * images run a block that fell due before the core's poll (ports/common/ug_board.h).
  */
 uint32_t ug_port_samples_since_block(void *port);
 

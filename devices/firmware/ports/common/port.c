@@ -51,6 +51,9 @@ static volatile uint32_t work;                 /* an interrupt left the main loo
 static volatile uint32_t link_rx_bytes, link_tx_bytes;
 static uint32_t last_stats;
 static uint32_t main_last_us, main_max_gap_us;  /* the longest the main loop went between two turns */
+#ifdef UG_BOARD_QEMU
+static uint32_t clock_reads_told;  /* the board's clock readings the console has told (console_clock_read) */
+#endif
 
 /* what the image is, as its boot line says it (each board's Makefile builds the variants) */
 #if defined(UG_BOARD_BENCH)
@@ -123,8 +126,8 @@ void ug_port_output_safe(void *port, uint8_t why)
 
 uint32_t ug_port_samples_since_block(void *port)
 {
-    (void)port;  /* not read from the DMA: CLOCK_REPLY is up to a block (BOARD_BLOCK_DRIVE, 1 ms) behind */
-    return 0u;
+    (void)port;  /* where the ADC is within the block it fills now (board.c): CLOCK_REPLY to the drive sample */
+    return board_samples_since_block();
 }
 
 void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms)
@@ -312,6 +315,29 @@ static void console_stats(void)
     board_console_write(line);
 }
 
+#ifdef UG_BOARD_QEMU
+/* The raw reading behind the last CLOCK reply's place in its block (board_last_clock_read), one line each: a test
+   checks the reply against the board's own clock with it (tests/test_firmware_qemu.py). */
+static void console_clock_read(void)
+{
+    board_clock_read_t read;
+    board_last_clock_read(&read);
+    if (read.reads == clock_reads_told) {
+        return;
+    }
+    clock_reads_told = read.reads;
+    char line[120];
+    char *end = line + sizeof line;
+    char *at = ug_append_text(line, end, "ev clock_read");
+    at = append_pair(at, end, "reads", read.reads);
+    at = append_pair(at, end, "ticks", read.ticks);
+    at = append_pair(at, end, "due", read.due);
+    at = append_pair(at, end, "blocks", read.blocks);
+    (void)ug_append_text(at, end, "\n");
+    board_console_write(line);
+}
+#endif
+
 /* ---- start-up and the main loop --------------------------------------------------------------------- */
 _Static_assert(UG_RESET_POWER_ON == UG_RESTART_POWER_ON && UG_RESET_WATCHDOG == UG_RESTART_WATCHDOG &&
                UG_RESET_FAULT == UG_RESTART_FAULT && UG_RESET_SOFTWARE == UG_RESTART_SOFTWARE &&
@@ -439,12 +465,18 @@ bool port_service(void)
     }
 #endif
     board_link_service();
+#ifdef UG_BOARD_QEMU
+    board_run_due_blocks();
+#endif
     ug_core_poll(&core);
     board_link_service();
     ug_event event;
     while (ug_core_next_event(&core, &event)) {
         console_event(&event);
     }
+#ifdef UG_BOARD_QEMU
+    console_clock_read();
+#endif
     bool more = false;
 #ifdef UG_LINK_TAP
     uint8_t bytes[64];

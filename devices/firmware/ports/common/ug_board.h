@@ -45,6 +45,24 @@ void board_dac_blank(uint32_t half);
 
 /* Start the carrier's block clock: `block` runs for each block from then on. */
 void board_carrier_start(board_block_fn block, board_lost_fn lost);
+/* Drive samples taken since the block last given to `block` (ug_port_samples_since_block: the CLOCK reply's place
+   within the block), read from the peripheral that clocks the samples (hardware: DMA2 stream 0's count of ADC
+   conversions left; QEMU: the board's free-running clock against when the next block falls due), in
+   [0, BOARD_BLOCK_DRIVE): never ahead of the samples taken; 0 before the carrier starts. With the blocks masked. */
+uint32_t board_samples_since_block(void);
+#ifdef UG_BOARD_QEMU
+/* The raw reading behind the last board_samples_since_block (the console's `ev clock_read`, by which a test checks
+   the CLOCK reply against the board's own clock): the reads so far, the board clock's count then (netduinoplus2:
+   TIM5's virtual ns; mps2-an386: TIMER1's PCLK cycles), its count when the next block falls due, the blocks run. */
+typedef struct {
+    uint32_t reads, ticks, due, blocks;
+} board_clock_read_t;
+void board_last_clock_read(board_clock_read_t *out);
+/* Main loop, before the core's poll: a block the board's clock says is due and QEMU's timer has not yet run (its
+   timers fire late on a loaded host) is run now (the block interrupt pended), as a board's DMA interrupt would
+   have; so the core answers a CLOCK with that block its own. */
+void board_run_due_blocks(void);
+#endif
 
 /* Mask and unmask the block interrupt (BASEPRI), leaving the link's interrupt on; nests when the caller
    keeps what mask returns and gives it back to unmask. */

@@ -527,6 +527,38 @@ __attribute__((naked)) void SysTick_Handler(void)
                      "pop {r4, pc}\n\t");
 }
 
+/* Where the ADC is within its block: TIM5's count past the end of the block last run (block_ticks is when the next
+   one falls due), the clock the blocks themselves are run by. Called from the main loop with the blocks masked, so
+   block_ticks and the blocks the core has are the same blocks. */
+static board_clock_read_t clock_read;  /* the main loop's only (ug_core_poll writes, port_service reads) */
+_Static_assert((uint64_t)TICKS_PER_BLOCK * BOARD_BLOCK_DRIVE < 0x100000000ull, "the samples' product fits 32 bits");
+
+uint32_t board_samples_since_block(void)
+{
+    if (carrier_block == 0) {
+        return 0u;
+    }
+    uint32_t now = TIM_CNT(TIM5_BASE);
+    clock_read.reads++;
+    clock_read.ticks = now;
+    clock_read.due = block_ticks;
+    clock_read.blocks = millis;
+    return ug_clock_samples_since_block(now, block_ticks, TICKS_PER_BLOCK, BOARD_BLOCK_DRIVE);
+}
+
+void board_last_clock_read(board_clock_read_t *out)
+{
+    *out = clock_read;
+}
+
+void board_run_due_blocks(void)
+{
+    if (carrier_block != 0 && TIM_CNT(TIM5_BASE) - block_ticks < 0x80000000u) {
+        NVIC_ISPR(DMA2_Stream0_IRQn / 32u) = 1u << (DMA2_Stream0_IRQn % 32u);  /* runs before the next instruction */
+        __asm__ volatile("dsb\n\tisb" ::: "memory");
+    }
+}
+
 static void run_blocks(void);
 
 void DMA2_Stream0_IRQHandler(void)
@@ -660,6 +692,20 @@ void board_watchdog_service(void)
     if (ug_marks_take()) {
         ug_iwdg_refresh();
     }
+}
+
+/* Where the ADC is within its block: DMA2 stream 0's conversions left in its lap (NDTR, counting down over both
+   halves) place it within the half it fills now; a half's completion flagged and not yet taken (the main loop has
+   the blocks masked) means the core is a block behind the DMA, which can then say no more than a block less one.
+   NDTR first: a half completing between the two reads is then seen as pending (behind, never ahead). */
+uint32_t board_samples_since_block(void)
+{
+    if (carrier_block == 0) {
+        return 0u;
+    }
+    uint32_t ndtr = DMA_SxNDTR(DMA2_BASE, 0);
+    uint32_t pending = DMA_LISR(DMA2_BASE) & (DMA_LISR_HTIF0 | DMA_LISR_TCIF0);
+    return ug_dma_samples_since_block(ndtr, BOARD_BLOCK_SAMPLES, BOARD_OVERSAMPLE, pending);
 }
 
 void DMA2_Stream0_IRQHandler(void)
