@@ -599,6 +599,8 @@ def test_plate_sim_on_qemu_logs_the_boards_events_and_its_counts(one_qemu, tmp_p
         serving = json.loads(board.first)
         profile = load_profile("sim-plate")
         driver = SerialPlate(serving["path"], profile, control_rate_hz=RATE, batch_s=BATCH_S, ack_timeout_s=20)
+        replies = []
+        driver.add_clock_listener(lambda *reply: replies.append(reply))  # CLOCK asked every 50 ms while it streams
         source = Recorded(np.full(RATE, 2.0), RATE)  # a second at 2 µm p-p
         driver.start(source)
         assert wait_for(lambda: source.finished, timeout=120)
@@ -618,6 +620,7 @@ def test_plate_sim_on_qemu_logs_the_boards_events_and_its_counts(one_qemu, tmp_p
     names = [event["event"] for event in lines]
     for expected in ("boot", "hello", "carrier", "enabled", "stream_started", "stream_stopped", "disabled"):
         assert expected in names, names
+    assert len(replies) >= 5 and "clock_read" not in names  # the reading behind each CLOCK reply is the tests'
     assert next(e for e in lines if e["event"] == "stream_started")["rate_hz"] == RATE
     assert next(e for e in lines if e["event"] == "disabled")["reason"] == "host"
     stopped = lines[-1]
