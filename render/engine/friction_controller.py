@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from ultraglide.render.physics.friction_models import DEFAULT_FORCE_N, FrictionModel, Inversion
+from ultraglide.render.physics.speed_law import reach_limit
 
 FORCE_STEP = 0.05  # the central difference's half step in ln F (±5 %)
 MAX_FORCE_EXPONENT = 2.0  # what SETPOINTS_FORCE carries (docs/protocol.md)
@@ -439,9 +440,10 @@ class ClosedLoopInverse:
         return getattr(self.base, "speed_law", None)
 
     def _floor(self, force_n, limit: float):
-        """The floor ratio for the planner: the host model's at the limit the loop's scale leaves it (µm p-p)."""
+        """The floor ratio for the planner: the host model's at the limit the loop's scale leaves it (µm p-p), on
+        the ladder's rung as the inverse asks it (a scale new with every sensors' frame evaluates no model)."""
         following, command, _ = self.following_now()
-        return self.base._floor(force_n, limit / command.scale if following else limit)
+        return self.base._floor(force_n, reach_limit(limit, command.scale) if following else limit)
 
     def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:
         """Whether the block path follows now, the command it acts on, and the state in words.
@@ -530,7 +532,7 @@ class ClosedLoopInverse:
         if blend < 1.0:
             buffer = self._open[:n] if n <= len(self._open) and np.ndim(ratio) == 1 else None
             opened = self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, buffer).amplitude_um_pp
-        closed = self.base.amplitude_um_pp(ratio, command.force_n, limit_um_pp / scale, out)
+        closed = self.base.amplitude_um_pp(ratio, command.force_n, reach_limit(limit_um_pp, scale), out)
         amplitude = closed.amplitude_um_pp
         # the force this block was computed at, for a device that corrects it as the values play; none while
         # blending with the open-loop amplitude (computed at another force)
