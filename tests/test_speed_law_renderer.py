@@ -111,7 +111,9 @@ def test_the_closed_loops_feed_forward_goes_through_the_same_speed_scaled_invers
     for block in blocks:
         k = 1.25 * (max(block["speed"], 2.0) / V_REF) ** 0.5
         floor = float(STATIC.relative_friction(LIMIT / k, FORCE_N))
-        ok = block["ratio"] >= floor + 1e-6
+        # the loop's scale and the speed law each ask within a rung of the limit ladder (under 0.1 % inside)
+        inner_floor = float(STATIC.relative_friction(LIMIT / k / 1.001 ** 2, FORCE_N))
+        ok = block["ratio"] >= inner_floor + 1e-6
         felt = STATIC.relative_friction(block["target"] / k, FORCE_N)
         assert felt[ok] == pytest.approx(block["ratio"][ok], abs=1e-6)
         assert np.all(block["target"][block["ratio"] < floor - 1e-6] == pytest.approx(LIMIT, abs=1e-12))

@@ -275,6 +275,7 @@ class ClosedLoopInverse:
         self.name = model.name
         self.max_amplitude_um_pp = model.max_amplitude_um_pp
         self._open = np.zeros(capacity)
+        self._at_reach = np.zeros(capacity, dtype=bool)
         self.open_samples = 0  # rendered open loop (the loop not following)
         self.closed_samples = 0
         self.fallbacks = 0  # times it fell back from following
@@ -532,7 +533,8 @@ class ClosedLoopInverse:
         if blend < 1.0:
             buffer = self._open[:n] if n <= len(self._open) and np.ndim(ratio) == 1 else None
             opened = self.base.amplitude_um_pp(ratio, force_n, limit_um_pp, buffer).amplitude_um_pp
-        closed = self.base.amplitude_um_pp(ratio, command.force_n, reach_limit(limit_um_pp, scale), out)
+        reach = reach_limit(limit_um_pp, scale)
+        closed = self.base.amplitude_um_pp(ratio, command.force_n, reach, out)
         amplitude = closed.amplitude_um_pp
         # the force this block was computed at, for a device that corrects it as the values play; none while
         # blending with the open-loop amplitude (computed at another force)
@@ -541,7 +543,12 @@ class ClosedLoopInverse:
         else:
             lowest = float(np.minimum.reduce(ratio, axis=None))  # np.min's value without its wrapper
             self._reference = (self.base, lowest, command.force_n)
+        if closed.clamped:  # held at the rung (0.1 % inside limit / scale): at the limit itself once scaled
+            held = self._at_reach[:n] if n <= len(self._at_reach) and amplitude.ndim == 1 else None
+            held = np.greater_equal(amplitude, reach, out=held)
         amplitude *= scale
+        if closed.clamped:
+            np.copyto(amplitude, limit_um_pp, where=held)
         np.minimum(amplitude, limit_um_pp, out=amplitude)  # exactly within the limit, rounding included
         if opened is not None:  # from the open-loop amplitude toward the closed loop's: a - (1 - b)(a - open)
             opened -= amplitude
