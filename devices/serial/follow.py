@@ -13,6 +13,13 @@ are compared, over windows of a second (:data:`WINDOW_FRAMES` telemetry frames),
   (Q / (pi f), 2 ms at Q 180 and 25 kHz), and an honest plate whose full scale or resonance is off by the
   profile's tolerance reads within 2x (the resonance 60 Hz off at Q 180: 0.76x); a plate outside 3x for two
   seconds running does not follow;
+* what is sent, at the readings' instants: a frame's measured amplitude is one reading, not a mean, and an output
+  modulated at a multiple of the frames' 50 Hz is read at one phase of it every frame (a plan's pulses on a 1 mm
+  grating at 100 mm/s: an honest plate read 0.06 or 2.5 µm p-p a second where it was sent 0.7 on average, and was
+  found at fault in 2 of 6 runs). On a v3 device, whose frames say the index playing, each reading is set against
+  the lowest and highest a following plate may read then (:class:`SentHistory`): the window's mean measured
+  within 1/3 of the lowest's mean to 3 times the highest's (only the high side where the lowest is under
+  :data:`MIN_SENT_UM_PP`); a v2 device's against the mean sent, as above;
 * two windows running outside the bound are a fault: said once (the first window's figures), each such window
   counted. A window holds only frames judged: while the output is on and (v3) playing (a frame while the plate's
   buffer ran dry, or the output was off, is left out with the values sent before it); a device without an
@@ -30,7 +37,10 @@ Examples
 
 from __future__ import annotations
 
+import math
 import threading
+
+import numpy as np
 
 WINDOW_FRAMES = 50  # telemetry frames a window (50 a second: 1 s)
 FOLLOW_FACTOR = 3.0  # the measured mean within 1/3..3x the sent mean
@@ -40,6 +50,164 @@ STILL_UM_PP = 1.0  # ... measuring less than this
 WINDOWS_RUNNING = 2  # windows outside the bound in a row: a fault
 
 
+HISTORY_VALUES = 1 << 14  # values sent kept by stream index (1.4 s at 12 kHz: more than the plate buffers)
+HISTORY_TAUS = 8.0  # the plate's response at an index is made from this many time constants of values before it
+READING_WITHIN_S = 0.001  # a reading is taken within this of the index said playing (a block of the device's)
+
+
+class SentHistory:
+    """The amplitudes sent by stream index, and what a plate that follows them may read while it plays one.
+
+    TELEMETRY's measured amplitude is one reading, taken as its frame is made (50 a second), not a mean: an
+    output modulated at a multiple of 50 Hz (a 1 mm grating at 100 mm/s, whose plan pulses the plate once a period)
+    is read at the same phase of each period, so a second's readings can be far from the second's mean sent (an
+    honest plate read at its pulses' foot measured 0.06 µm p-p a second where it was sent 0.68 on average). The
+    frame says the index the device expects next and the values it buffers (v3), so the index playing as the
+    reading was taken is known, within a block: a plate that follows reads then what lies between its resonant
+    envelope's response to the values sent up to it (time constant ``time_constant_s``, the profile's
+    Q / (pi f0): a plate left to itself) and the values themselves (a plate whose amplitude loop drives it onto
+    them faster), over a millisecond either side (the reading's place within its block).
+
+    The writer puts the values it sends (:meth:`put`, a copy into a ring made once); the reader asks
+    :meth:`expected` at each frame.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The stream's rate, values per second.
+    time_constant_s : float
+        The plate's envelope time constant, s.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> history = SentHistory(12000.0, 0.0025)
+    >>> history.put(0, np.full(600, 3.0))            # 50 ms at 3 µm p-p, then 10 ms at 0
+    >>> history.put(600, np.zeros(120))
+    >>> history.expected(500)                        # steady: 3 whichever way the plate follows
+    (3.0, 3.0)
+    >>> low, high = history.expected(647)            # 47 values after the fall: 0 (driven) to 3 e^-(36 / 30)
+    >>> low, round(high, 3)                          # (left: 36 values of 0 played a millisecond before)
+    (0.0, 0.904)
+    >>> history.expected(800) is None                # not sent yet: nothing to say
+    True
+    """
+
+    def __init__(self, rate_hz: float, time_constant_s: float):
+        alpha = math.exp(-1.0 / (rate_hz * time_constant_s)) if time_constant_s > 0 else 0.0
+        span = max(1, min(HISTORY_VALUES // 4, math.ceil(HISTORY_TAUS * rate_hz * time_constant_s)))
+        self._around = max(1, round(rate_hz * READING_WITHIN_S))
+        # the response at an index to the values before it, newest last: (1 - alpha) alpha^k, from rest
+        self._weights = (1.0 - alpha) * alpha ** np.arange(span - 1, -1, -1, dtype=float)
+        self._weights[0] += alpha ** span  # the value before the span held since (the plate at it)
+        self._values = np.zeros(HISTORY_VALUES)
+        self._scratch = np.empty(span + 2 * self._around)
+        self._next: int | None = None  # the index after the last value put
+        self._lock = threading.Lock()
+
+    def put(self, first_index: int, values: np.ndarray) -> None:
+        """Values sent from stream index ``first_index`` on (µm p-p). Indices skipped since the last are zeros
+        (nothing played there).
+
+        Parameters
+        ----------
+        first_index : int
+            The stream index of ``values[0]``.
+        values : numpy.ndarray
+            The amplitudes sent, µm p-p.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> history = SentHistory(1000.0, 0.001)
+        >>> history.put(0, np.full(20, 2.0))
+        >>> history.put(30, np.full(20, 2.0))        # 10 skipped: the plate played nothing there
+        >>> [round(v, 4) for v in history.expected(25)]   # highest: 2 e^-5, 5 values of 0 played by index 24
+        [0.0, 0.0135]
+        """
+        n, ring = len(values), self._values
+        with self._lock:
+            if self._next is None or first_index - self._next >= HISTORY_VALUES:
+                ring[:] = 0.0
+            elif first_index > self._next:
+                start, gap = self._next % HISTORY_VALUES, first_index - self._next
+                ring[start:start + gap] = 0.0
+                ring[:max(0, start + gap - HISTORY_VALUES)] = 0.0
+            if n > HISTORY_VALUES:
+                values, first_index, n = values[-HISTORY_VALUES:], first_index + n - HISTORY_VALUES, HISTORY_VALUES
+            start = first_index % HISTORY_VALUES
+            head = min(n, HISTORY_VALUES - start)
+            ring[start:start + head] = values[:head]
+            ring[:n - head] = values[head:]
+            self._next = first_index + n
+
+    def expected(self, index: int) -> tuple[float, float] | None:
+        """What a following plate may read while index ``index`` plays: (lowest, highest), µm p-p; None where the
+        values that make it were not all sent here (not yet, or no longer held).
+
+        Parameters
+        ----------
+        index : int
+            The stream index playing.
+
+        Returns
+        -------
+        tuple of (float, float) or None
+            The lowest and highest reading of a plate that follows, µm p-p.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> history = SentHistory(1000.0, 0.001)
+        >>> history.put(0, np.full(50, 2.0))
+        >>> history.expected(40)
+        (2.0, 2.0)
+        """
+        span, around = len(self._weights), self._around
+        with self._lock:
+            if self._next is None:
+                return None
+            last = min(index + around, self._next - 1)
+            first = last - span - 2 * around + 1
+            if index >= self._next or first < self._next - HISTORY_VALUES:
+                return None
+            start = first % HISTORY_VALUES
+            head = min(len(self._scratch), HISTORY_VALUES - start)
+            scratch = self._scratch
+            scratch[:head] = self._values[start:start + head]
+            scratch[head:] = self._values[:len(scratch) - head]
+        now = scratch[span - 1:]  # the values within a millisecond either side of the index (the last at `last`)
+        responses = [float(scratch[k:k + span] @ self._weights) for k in (0, around, 2 * around)]
+        return min(min(responses), float(now.min())), max(max(responses), float(now.max()))
+
+    def expected_at_device(self, device_index: int) -> tuple[float, float] | None:
+        """:meth:`expected` at an index as a device numbers it (u32: the host's index modulo 2**32).
+
+        Parameters
+        ----------
+        device_index : int
+            The index playing, as the device's u32 counts it.
+
+        Returns
+        -------
+        tuple of (float, float) or None
+            As :meth:`expected`.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> history = SentHistory(1000.0, 0.001)
+        >>> history.put(2**32 + 10, np.full(50, 2.0))   # the host's index past the device's wrap
+        >>> history.expected_at_device(40)
+        (2.0, 2.0)
+        """
+        with self._lock:
+            last = None if self._next is None else self._next - 1
+        if last is None:
+            return None
+        return self.expected(last - (last - device_index) % (1 << 32))
+
+
 class AmplitudeFollow:
     """The comparison over a run (see the module's docstring); fed from the telemetry reader, read by others."""
 
@@ -47,6 +215,9 @@ class AmplitudeFollow:
         self._lock = threading.Lock()
         self._sent = 0.0
         self._values = 0
+        self._lowest = 0.0  # what a following plate may read at each frame's reading (SentHistory), summed ...
+        self._highest = 0.0
+        self._expected_frames = 0  # ... over the frames that say it
         self._measured = 0.0
         self._frames = 0
         self._start_s = 0.0
@@ -54,11 +225,14 @@ class AmplitudeFollow:
         self._pending: tuple | None = None  # the first window of the present run outside the bound
         self.first: tuple[float, float, float] | None = None  # (at s, sent mean, measured mean) of the fault
         self.windows = 0  # windows outside the bound, counted once the fault stood
+        self.judged = 0  # windows judged (inside or outside the bound)
         self.judging = True  # off while the carrier is swept: off resonance a plate rightly plays less than sent
 
-    def observe(self, sent_um_pp: float, sent_values: int, measured_um_pp: float, judged: bool, at_s: float) -> None:
+    def observe(self, sent_um_pp: float, sent_values: int, measured_um_pp: float, judged: bool, at_s: float,
+                expected_um_pp: tuple[float, float] | None = None) -> None:
         """One telemetry frame: the amplitudes sent since the last (their sum, µm p-p, and count), what the plate
-        measured, whether this frame is judged (output on and playing), when (s into the run)."""
+        measured, whether this frame is judged (output on and playing), when (s into the run), and the lowest and
+        highest a plate that follows may read at this reading (:class:`SentHistory`; None: not known, v2)."""
         if not (judged and self.judging):  # (its values sent are left out with it: the window holds judged frames only)
             return
         if not self._frames:
@@ -66,19 +240,33 @@ class AmplitudeFollow:
         self._sent += sent_um_pp
         self._values += sent_values
         self._measured += measured_um_pp
+        if expected_um_pp is not None:
+            self._lowest += expected_um_pp[0]
+            self._highest += expected_um_pp[1]
+            self._expected_frames += 1
         self._frames += 1
         if self._frames < WINDOW_FRAMES:
             return
-        sent = self._sent / self._values if self._values else 0.0
+        # each reading is one instant's: where every frame says what a following plate may read then, the window's
+        # readings are judged against that, at the same instants (SentHistory); else against the mean sent
+        if self._expected_frames == self._frames:
+            low, high = self._lowest / self._frames, self._highest / self._frames
+        else:
+            low = high = self._sent / self._values if self._values else 0.0
         measured = self._measured / self._frames
         self._sent, self._values, self._measured, self._frames = 0.0, 0, 0.0, 0
-        if sent >= MIN_SENT_UM_PP:
-            outside = not sent / FOLLOW_FACTOR <= measured <= sent * FOLLOW_FACTOR
-        elif sent < STOPPED_UM_PP:
+        self._lowest, self._highest, self._expected_frames = 0.0, 0.0, 0
+        sent = low if measured < low else high
+        if high < STOPPED_UM_PP:
             outside = measured >= STILL_UM_PP
+        elif low >= MIN_SENT_UM_PP:
+            outside = not low / FOLLOW_FACTOR <= measured <= high * FOLLOW_FACTOR
+        elif high >= MIN_SENT_UM_PP:
+            outside = measured > high * FOLLOW_FACTOR  # too little may be read to judge a plate low by
         else:
             return  # between: too little sent to judge a plate by
         with self._lock:
+            self.judged += 1
             if not outside:
                 self._running, self._pending = 0, None
                 return

@@ -192,8 +192,9 @@ class Streamer:
         idle = self._quiet_since is not None and now - self._quiet_since >= IDLE_AFTER_S
         stream = not state.cut and (state.output_on or not idle)
         if stream:  # what was sent, for the resonance tracker and the check that the plate follows (serial/follow.py)
-            played = float(np.clip(fractions, 0.0, 1.0, out=self._clipped[:due]).sum()) * limits.full_scale_um_pp
-            self.intake.drive.add(played, len(fractions))
+            clipped = np.clip(fractions, 0.0, 1.0, out=self._clipped[:due])
+            self.intake.drive.add(float(clipped.sum()) * limits.full_scale_um_pp, len(fractions))
+            self.intake.sent.put(self.transport.index, np.multiply(clipped, limits.full_scale_um_pp, out=clipped))
         try:
             if self.tracker is not None:
                 self._follow_tracker()

@@ -14,6 +14,7 @@ from ultraglide.devices.protocol.ranges import (
     sensors_out_of_range,
     telemetry_out_of_range,
 )
+from ultraglide.devices.serial.follow import SentHistory
 from ultraglide.devices.serial.link import (
     CLEAR_RETRY_S,
     CUT_FAULTS,
@@ -133,6 +134,7 @@ class Intake:
         self.depth = DepthTracker(pacing, locks.trim)
         self.clearing = FaultClearing()
         self.drive = DriveTally(locks.drive)
+        self.sent = SentHistory(pacing.rate_hz, session.profile.time_constant_s)  # by index, for the follow check
         self._arrived = locks.telemetry
         self.telemetry: p.Telemetry | None = None
         self.frames = 0  # TELEMETRY frames taken over the run
@@ -341,7 +343,7 @@ class Intake:
             self._arrived.notify_all()
         total, count = self.drive.take()
         self.account.follow.observe(total, count, telemetry.measured_um_pp, self._judged(telemetry),
-                                    self.account.now_s())
+                                    self.account.now_s(), self._expected(telemetry))
         self.account.carrier_follow.observe(self.session.carrier_hz, telemetry.carrier_hz,
                                             state.output_on and not state.cut and bool(telemetry.enabled),
                                             self.account.now_s())
@@ -353,6 +355,13 @@ class Intake:
                 self.tracker.observe(telemetry.carrier_hz, telemetry.measured_um_pp, total / count, time.perf_counter())
         if state.first_telemetry is not None:
             state.first_telemetry.set()
+
+    def _expected(self, telemetry: p.Telemetry) -> float | None:
+        """What a plate that follows reads at this frame's reading (µm p-p, serial/follow.SentHistory): at the index
+        playing as the frame was made, the one before the values it buffers; None without a v3 stream."""
+        if telemetry.version < 3 or not telemetry.stream_rate_hz or not telemetry.expected_index:
+            return None
+        return self.sent.expected_at_device(telemetry.expected_index - telemetry.buffered_setpoints - 1)
 
     def _judged(self, telemetry: p.Telemetry) -> bool:
         """Whether this frame's amplitude is judged against what was sent (serial/follow.py): the output on and
