@@ -63,14 +63,16 @@ FRAME_VALUES = RATE // 50  # values between two TELEMETRY frames (50 a second)
 PULSES = dict(amplitude_um_pp=5.0, period_values=240, on_values=36)  # 3 ms of 5 µm p-p at 50 Hz, 0.75 on average
 
 
-def pulsed_readings(phase: int, reading=None, seconds: float = 4.0, **pulses):
+def pulsed_readings(phase: int, reading=None, seconds: float = 4.0, plate_tau_s: float = PROFILE.time_constant_s,
+                    driven: bool = False, **pulses):
     """A plate sent pulses (sources.Pulses, ``PULSES`` unless given: a plan's once a period of a 1 mm grating at
     50 mm/s), read once a frame at ``phase`` values into a period: the same phase every frame, as TELEMETRY reads a
     modulation at a multiple of 50 Hz. The plate follows as a resonator's envelope does (first order, the profile's
-    time constant; scipy's lfilter), unless ``reading`` says what it reads. The values are sent 100 ms ahead of
-    what plays, as the driver's buffer holds them. Returns the follow check fed with the instants."""
+    time constant unless ``plate_tau_s``, as an amplitude loop makes it faster; scipy's lfilter), unless ``reading``
+    says what it reads; ``driven``: the check told the plate is under its amplitude loop. The values are sent
+    100 ms ahead of what plays, as the driver's buffer holds them. Returns the follow check fed with the instants."""
     drive = Pulses(**(pulses or PULSES)).pull(int(seconds * RATE), None)
-    alpha = np.exp(-1.0 / (RATE * PROFILE.time_constant_s))
+    alpha = np.exp(-1.0 / (RATE * plate_tau_s))
     plate = lfilter([1.0 - alpha], [1.0, -alpha], drive)
     history, follow = SentHistory(RATE, PROFILE.time_constant_s), AmplitudeFollow()
     ahead = RATE // 10
@@ -79,7 +81,7 @@ def pulsed_readings(phase: int, reading=None, seconds: float = 4.0, **pulses):
         history.put(index - FRAME_VALUES + ahead, drive[index - FRAME_VALUES + ahead:index + ahead])
         sent = drive[index - FRAME_VALUES + ahead:index + ahead].sum()
         measured = plate[index] if reading is None else reading
-        follow.observe(sent, FRAME_VALUES, measured, True, index / RATE, history.expected(index))
+        follow.observe(sent, FRAME_VALUES, measured, True, index / RATE, history.expected(index, driven))
     return follow
 
 
@@ -89,6 +91,15 @@ def pulsed_readings(phase: int, reading=None, seconds: float = 4.0, **pulses):
 def test_a_plate_read_at_one_phase_of_a_pulsed_drive_is_judged_at_its_instants(phase):
     follow = pulsed_readings(phase)
     assert follow.words() is None and follow.judged >= 1  # it followed, and was judged at least once
+
+
+def test_a_plate_under_its_amplitude_loop_may_follow_faster_than_its_own_envelope():
+    """A loop that drives the plate onto the values (a time constant of 0.37 ms, the reference firmware's share of
+    the plate's 2.55) has let it fall to rest 3.7 ms after a pulse, where the plate left to itself still reads
+    0.6-1.2 µm p-p: judged as driven, it follows; judged as a plate left to itself, it would not."""
+    fast = PROFILE.time_constant_s * 0.145
+    assert pulsed_readings(80, plate_tau_s=fast, driven=True).words() is None
+    assert pulsed_readings(80, plate_tau_s=fast, driven=False).words() is not None
 
 
 @pytest.mark.parametrize("pulses, phase, reading", [

@@ -63,10 +63,10 @@ class SentHistory:
     is read at the same phase of each period, so a second's readings can be far from the second's mean sent (an
     honest plate read at its pulses' foot measured 0.06 µm p-p a second where it was sent 0.68 on average). The
     frame says the index the device expects next and the values it buffers (v3), so the index playing as the
-    reading was taken is known, within a block: a plate that follows reads then what lies between its resonant
-    envelope's response to the values sent up to it (time constant ``time_constant_s``, the profile's
-    Q / (pi f0): a plate left to itself) and the values themselves (a plate whose amplitude loop drives it onto
-    them faster), over a millisecond either side (the reading's place within its block).
+    reading was taken is known, within a block: a plate that follows reads then its resonant envelope's response
+    to the values sent up to it (time constant ``time_constant_s``, the profile's Q / (pi f0)), a millisecond
+    either side (the reading's place within its block); under its amplitude loop, which drives it onto the values
+    faster, anything between that response and the values themselves.
 
     The writer puts the values it sends (:meth:`put`, a copy into a ring made once); the reader asks
     :meth:`expected` at each frame.
@@ -86,9 +86,10 @@ class SentHistory:
     >>> history.put(600, np.zeros(120))
     >>> history.expected(500)                        # steady: 3 whichever way the plate follows
     (3.0, 3.0)
-    >>> low, high = history.expected(647)            # 47 values after the fall: 0 (driven) to 3 e^-(36 / 30)
-    >>> low, round(high, 3)                          # (left: 36 values of 0 played a millisecond before)
-    (0.0, 0.904)
+    >>> [round(v, 3) for v in history.expected(647)]  # 47 values after the fall: 3 e^-(60 / 30) to 3 e^-(36 / 30)
+    [0.406, 0.904]
+    >>> [round(v, 3) for v in history.expected(647, driven=True)]  # an amplitude loop may have brought it to 0
+    [0.0, 0.904]
     >>> history.expected(800) is None                # not sent yet: nothing to say
     True
     """
@@ -106,8 +107,8 @@ class SentHistory:
         self._lock = threading.Lock()
 
     def put(self, first_index: int, values: np.ndarray) -> None:
-        """Values sent from stream index ``first_index`` on (µm p-p). Indices skipped since the last are zeros
-        (nothing played there).
+        """Values sent from stream index ``first_index`` on (µm p-p). Indices skipped since the last hold the last
+        value sent (a plate whose buffer runs dry holds it; one told to rest is not judged).
 
         Parameters
         ----------
@@ -121,18 +122,20 @@ class SentHistory:
         >>> import numpy as np
         >>> history = SentHistory(1000.0, 0.001)
         >>> history.put(0, np.full(20, 2.0))
-        >>> history.put(30, np.full(20, 2.0))        # 10 skipped: the plate played nothing there
-        >>> [round(v, 4) for v in history.expected(25)]   # highest: 2 e^-5, 5 values of 0 played by index 24
-        [0.0, 0.0135]
+        >>> history.put(20, np.zeros(5))
+        >>> history.put(30, np.full(20, 2.0))        # 5 skipped: the plate held the last value, 0
+        >>> [round(v, 4) for v in history.expected(27)]   # highest: 2 e^-7, 7 values of 0 played by index 26
+        [0.0, 0.0018]
         """
         n, ring = len(values), self._values
         with self._lock:
-            if self._next is None or first_index - self._next >= HISTORY_VALUES:
+            if self._next is None:
                 ring[:] = 0.0
             elif first_index > self._next:
-                start, gap = self._next % HISTORY_VALUES, first_index - self._next
-                ring[start:start + gap] = 0.0
-                ring[:max(0, start + gap - HISTORY_VALUES)] = 0.0
+                held = ring[(self._next - 1) % HISTORY_VALUES]
+                start, gap = self._next % HISTORY_VALUES, min(first_index - self._next, HISTORY_VALUES)
+                ring[start:start + gap] = held
+                ring[:max(0, start + gap - HISTORY_VALUES)] = held
             if n > HISTORY_VALUES:
                 values, first_index, n = values[-HISTORY_VALUES:], first_index + n - HISTORY_VALUES, HISTORY_VALUES
             start = first_index % HISTORY_VALUES
@@ -141,7 +144,7 @@ class SentHistory:
             ring[:n - head] = values[head:]
             self._next = first_index + n
 
-    def expected(self, index: int) -> tuple[float, float] | None:
+    def expected(self, index: int, driven: bool = False) -> tuple[float, float] | None:
         """What a following plate may read while index ``index`` plays: (lowest, highest), µm p-p; None where the
         values that make it were not all sent here (not yet, or no longer held).
 
@@ -149,6 +152,8 @@ class SentHistory:
         ----------
         index : int
             The stream index playing.
+        driven : bool
+            The plate is under its amplitude loop (it may be anywhere between its response and the values).
 
         Returns
         -------
@@ -176,17 +181,22 @@ class SentHistory:
             scratch = self._scratch
             scratch[:head] = self._values[start:start + head]
             scratch[head:] = self._values[:len(scratch) - head]
-        now = scratch[span - 1:]  # the values within a millisecond either side of the index (the last at `last`)
         responses = [float(scratch[k:k + span] @ self._weights) for k in (0, around, 2 * around)]
-        return min(min(responses), float(now.min())), max(max(responses), float(now.max()))
+        low, high = min(responses), max(responses)
+        if driven:  # with the values within a millisecond either side of the index (the last at `last`)
+            now = scratch[span - 1:]
+            low, high = min(low, float(now.min())), max(high, float(now.max()))
+        return low, high
 
-    def expected_at_device(self, device_index: int) -> tuple[float, float] | None:
+    def expected_at_device(self, device_index: int, driven: bool = False) -> tuple[float, float] | None:
         """:meth:`expected` at an index as a device numbers it (u32: the host's index modulo 2**32).
 
         Parameters
         ----------
         device_index : int
             The index playing, as the device's u32 counts it.
+        driven : bool
+            As :meth:`expected`.
 
         Returns
         -------
@@ -205,7 +215,7 @@ class SentHistory:
             last = None if self._next is None else self._next - 1
         if last is None:
             return None
-        return self.expected(last - (last - device_index) % (1 << 32))
+        return self.expected(last - (last - device_index) % (1 << 32), driven)
 
 
 class AmplitudeFollow:
@@ -223,7 +233,7 @@ class AmplitudeFollow:
         self._start_s = 0.0
         self._running = 0  # windows outside the bound in a row
         self._pending: tuple | None = None  # the first window of the present run outside the bound
-        self.first: tuple[float, float, float] | None = None  # (at s, sent mean, measured mean) of the fault
+        self.first: tuple | None = None  # (at s, sent mean, measured mean, lowest and highest means) of the fault
         self.windows = 0  # windows outside the bound, counted once the fault stood
         self.judged = 0  # windows judged (inside or outside the bound)
         self.judging = True  # off while the carrier is swept: off resonance a plate rightly plays less than sent
@@ -249,14 +259,12 @@ class AmplitudeFollow:
             return
         # each reading is one instant's: where every frame says what a following plate may read then, the window's
         # readings are judged against that, at the same instants (SentHistory); else against the mean sent
-        if self._expected_frames == self._frames:
-            low, high = self._lowest / self._frames, self._highest / self._frames
-        else:
-            low = high = self._sent / self._values if self._values else 0.0
+        sent = self._sent / self._values if self._values else 0.0
+        instants = self._expected_frames == self._frames
+        low, high = (self._lowest / self._frames, self._highest / self._frames) if instants else (sent, sent)
         measured = self._measured / self._frames
         self._sent, self._values, self._measured, self._frames = 0.0, 0, 0.0, 0
         self._lowest, self._highest, self._expected_frames = 0.0, 0.0, 0
-        sent = low if measured < low else high
         if high < STOPPED_UM_PP:
             outside = measured >= STILL_UM_PP
         elif low >= MIN_SENT_UM_PP:
@@ -272,7 +280,8 @@ class AmplitudeFollow:
                 return
             self._running += 1
             if self._running == 1:
-                self._pending = (self._start_s, sent, measured)
+                self._pending = (self._start_s, sent, measured, low, high) if instants else \
+                    (self._start_s, sent, measured, None, None)
             if self._running == WINDOWS_RUNNING:
                 self.first = self.first or self._pending
                 self.windows += WINDOWS_RUNNING
@@ -284,12 +293,14 @@ class AmplitudeFollow:
         with self._lock:
             if self.first is None:
                 return None
-            at_s, sent, measured = self.first
+            at_s, sent, measured, low, high = self.first
             windows = self.windows
+        instants = "" if low is None else \
+            f"; a plate that follows reads {low:.2f} to {high:.2f} on average at the readings' instants"
         return (f"the plate does not follow the amplitude it is sent: from {at_s:.2f} s it was sent {sent:.2f} µm p-p "
                 f"on average over a second and measured {measured:.2f} (the bound: within 1/{FOLLOW_FACTOR:g} to "
                 f"{FOLLOW_FACTOR:g} times what is sent, over seconds sent at least {MIN_SENT_UM_PP:g} µm p-p; under "
-                f"{STILL_UM_PP:g} when sent nothing); {windows} such second{'s' if windows != 1 else ''}")
+                f"{STILL_UM_PP:g} when sent nothing{instants}); {windows} such second{'s' if windows != 1 else ''}")
 
     def first_s(self) -> float:
         with self._lock:

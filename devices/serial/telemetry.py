@@ -361,7 +361,8 @@ class Intake:
         playing as the frame was made, the one before the values it buffers; None without a v3 stream."""
         if telemetry.version < 3 or not telemetry.stream_rate_hz or not telemetry.expected_index:
             return None
-        return self.sent.expected_at_device(telemetry.expected_index - telemetry.buffered_setpoints - 1)
+        return self.sent.expected_at_device(telemetry.expected_index - telemetry.buffered_setpoints - 1,
+                                            telemetry.loop == p.LOOP_AMPLITUDE)
 
     def _judged(self, telemetry: p.Telemetry) -> bool:
         """Whether this frame's amplitude is judged against what was sent (serial/follow.py): the output on and
