@@ -356,9 +356,10 @@ class Intake:
         if state.first_telemetry is not None:
             state.first_telemetry.set()
 
-    def _expected(self, telemetry: p.Telemetry) -> float | None:
-        """What a plate that follows reads at this frame's reading (µm p-p, serial/follow.SentHistory): at the index
-        playing as the frame was made, the one before the values it buffers; None without a v3 stream."""
+    def _expected(self, telemetry: p.Telemetry) -> tuple[float, float] | None:
+        """The lowest and highest a plate that follows may read at this frame's reading (µm p-p,
+        serial/follow.SentHistory): at the index playing as the frame was made, the one before the values it
+        buffers (under the amplitude loop, down or up to the values); None without a v3 stream."""
         if telemetry.version < 3 or not telemetry.stream_rate_hz or not telemetry.expected_index:
             return None
         return self.sent.expected_at_device(telemetry.expected_index - telemetry.buffered_setpoints - 1,
