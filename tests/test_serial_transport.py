@@ -147,6 +147,7 @@ def test_the_transport_sends_frames_whole_in_order_and_its_writer_never_polls(pt
     finally:
         transport.close()
     assert writer_waits == 0
+    assert transport.waited_s == 0.0  # no write waited for room: none of the writer's time was the link's
     frames = heard(ends["far"], 21)
     assert [(frame.kind, frame.seq) for frame in frames[:20]] == [(p.HEARTBEAT, seq) for seq in seqs]
     assert (frames[20].kind, frames[20].seq) == (p.SETPOINTS, setpoints_seq)
@@ -192,13 +193,19 @@ def test_a_port_that_never_has_room_times_out_as_pyserials_write_does(pty_pair):
     port = open_port(path, 921600, write_timeout_s=0.3)
     try:
         _, pyserials, _ = until_timed_out(port.write)  # the control: pyserial's own write on the full port
-        _, ours, waited_s = until_timed_out(FrameWriter(port, 0.3).write)
+        writer = FrameWriter(port, 0.3)
+        began = time.monotonic()
+        _, ours, waited_s = until_timed_out(writer.write)
+        writing_s = time.monotonic() - began
     finally:
         port.close()
     assert type(ours) is type(pyserials) is serial.SerialTimeoutException
     assert str(ours) == str(pyserials) == "Write timeout"
     assert port_failure(ours) == "the port stopped taking data (a write timed out)"
     assert 0.3 <= waited_s < 10.0  # it waited its timeout for room, and no longer than a loaded machine needs
+    # and it counts that wait as the link's (the plate driver's writer does not take it for a host's stall): at
+    # least the failing write's, at most all its writes took
+    assert 0.3 <= writer.waited_s <= writing_s, (writer.waited_s, waited_s, writing_s)
 
 
 def test_the_transports_write_timeout_fails_its_send_and_what_went_before_arrives_whole(pty_pair):

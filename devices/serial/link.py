@@ -138,6 +138,7 @@ class FrameWriter:
         fd = getattr(port, "fd", None)
         self.direct = posix is not None and isinstance(port, posix.Serial) and isinstance(fd, int)
         self._poll = None
+        self.waited_s = 0.0  # the time its writes waited for room on the port (the link's, not the host's), s
         if self.direct:
             os.set_blocking(fd, False)  # pyserial opens it so; a write must never block the writer
             self._poll = select.poll()  # made once: a wait for room makes no poll object
@@ -147,8 +148,12 @@ class FrameWriter:
         """Write ``frame`` whole (see the class); SerialException if the port is closed or fails, or the frame
         waited ``timeout_s`` for room."""
         port = self.port
-        if not self.direct:
-            port.write(frame)
+        if not self.direct:  # (a URL handler's write may block: the link's time)
+            began = time.perf_counter()
+            try:
+                port.write(frame)
+            finally:
+                self.waited_s += time.perf_counter() - began
             return
         fd = port.fd
         if fd is None:  # closed under us
@@ -160,7 +165,11 @@ class FrameWriter:
         except OSError as error:
             raise serial.SerialException(f"write failed: {error}") from None
         if written < len(frame):
-            _write_rest(fd, self._poll, frame, written, self.timeout_s)
+            began = time.perf_counter()
+            try:
+                _write_rest(fd, self._poll, frame, written, self.timeout_s)
+            finally:
+                self.waited_s += time.perf_counter() - began
 
 
 def _write_rest(fd: int, poller, frame: bytes, written: int, timeout_s: float | None) -> None:

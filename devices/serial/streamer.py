@@ -58,6 +58,8 @@ class Streamer:
         self._started = 0.0
         self._position = 0  # values taken from the source; value k plays at started + k / rate
         self._planned: float | None = None  # when the writer meant to wake from its last sleep
+        self._ran_at = 0.0  # the writer's last look at the clock (perf_counter s), to see the host's stalls
+        self._waited_s = 0.0  # the transport's waits for room on the port at that look (the link's time), s
         self._trim = 0  # values the lead moved by: how far the plate's playback lags the host's clock (v3 telemetry)
         self._last_sent: float | None = None
         self._quiet_since: float | None = None  # when the run of all-zero setpoints began (perf_counter s)
@@ -67,7 +69,8 @@ class Streamer:
     def run(self, source, rest: Callable[[], None]) -> None:
         """Stream ``source`` until stopped or finished; ``rest`` the plate on the way out, whatever happened."""
         self.source = source
-        self._started = time.perf_counter()
+        self._started = self._ran_at = time.perf_counter()
+        self._waited_s = self.transport.waited_s
         try:
             while not self.stop.is_set() and not self._turn():
                 pass
@@ -82,8 +85,10 @@ class Streamer:
         """Send what is due (or wait for it); True once the source has finished."""
         pacing, state, source = self.pacing, self.session.state, self.source
         now = time.perf_counter()
-        if self._planned is not None and now - self._planned > STALL_S:  # it overslept: this process did not run
-            self._host_stalled(now - self._planned, now)  # (not a write that blocked: that is the link's)
+        if self._planned is not None:  # it slept: it woke this late
+            self._ran(now, self._planned)
+        else:  # it went on from its last look (before the last turn's writes)
+            self._ran(now, self._ran_at)
         self._planned = None
         request = self.intake.depth.take()
         if request:  # the plate's buffer drifted from its depth: move the lead
@@ -105,6 +110,7 @@ class Streamer:
         if resting and float(values.max()) > ZERO_FRACTION * self.session.limits.full_scale_um_pp:
             values, due = self._wake_values(values, due)  # the drive leaves zero
         self._position += due
+        self._ran(time.perf_counter(), now)  # (the pull's time: the host's)
         if connected and time.monotonic() - state.last_heard > self.silence_s:
             self.counters.silences += 1
             self.session.disconnect()
@@ -120,7 +126,8 @@ class Streamer:
         state.restarted = False
         if not connected:
             self._offline(due)
-            return False
+            self._ran_at, self._waited_s = time.perf_counter(), self.transport.waited_s  # (a handshake's waits:
+            return False  # the link's, not looked at)
         self._send_batch(values, due, now)
         return source.finished
 
@@ -196,6 +203,7 @@ class Streamer:
             self.intake.drive.add(float(clipped.sum()) * limits.full_scale_um_pp, len(fractions))
             self.intake.sent.put(self.transport.index, np.multiply(clipped, limits.full_scale_um_pp, out=clipped))
         try:
+            self._ran(time.perf_counter(), self._ran_at)  # (the batch made ready: the host's; the writes follow)
             if self.tracker is not None:
                 self._follow_tracker()
             self._clear_faults(now)
@@ -249,6 +257,18 @@ class Streamer:
         mask = self.intake.clearing.due(now)
         if mask:
             self.transport.send(p.CLEAR_FAULTS, p.clear_faults_payload(mask))
+
+    def _ran(self, now: float, since: float) -> None:
+        """The writer looks at the clock (``now``) having run, or slept to a planned wake, since ``since``
+        (perf_counter s): more than ``STALL_S`` went by beyond its writes' waits for room on the port (the
+        link's), so this process did not run for a while (descheduled, stopped). Looked at in every turn, not only
+        after a sleep: a stall that came while the writer computed (its pull, its frames) went unseen, and the
+        plate's telemetry, unread meanwhile, was taken for its silence (the plate lost)."""
+        waited = self.transport.waited_s
+        stalled_s = now - since - (waited - self._waited_s)
+        self._ran_at, self._waited_s = now, waited
+        if stalled_s > STALL_S:
+            self._host_stalled(stalled_s, now)
 
     def _host_stalled(self, stalled_s: float, now: float) -> None:
         """The writer woke ``stalled_s`` late: the host did not run. Its silence check starts again (what the

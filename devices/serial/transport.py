@@ -56,6 +56,7 @@ class Transport:
         self.seq = 0
         self.index = 0  # the stream's index: the next setpoint sent plays as this one
         self.sent_at = 0.0  # perf_counter s of the last frame sent
+        self._waited_before = 0.0  # what the writes of the connections before this one waited for room, s
         self._sent_kinds = bytearray(65536)  # the command each seq carried, to name what a NAK refused
         self._framer = p.SetpointFramer(rate_hz)  # SETPOINTS frames built in buffers made once
         self._clock = p.EmptyFramer(p.CLOCK)  # and CLOCK's, asked every 50 ms while streaming
@@ -75,10 +76,19 @@ class Transport:
         self._reader.daemon = True
         self._reader.start()
 
+    @property
+    def waited_s(self) -> float:
+        """How long the writes of the run have waited for room on the port, s: the link's time, not the host's
+        (:meth:`.link.FrameWriter.write`, summed over connections)."""
+        writer = self.writer
+        return self._waited_before + (writer.waited_s if writer is not None else 0.0)
+
     def close(self) -> None:
         reader, self._reader = self._reader, None
         port, self.serial = self.serial, None
-        self.writer = None
+        writer, self.writer = self.writer, None
+        if writer is not None:
+            self._waited_before += writer.waited_s
         if reader is not None:
             with contextlib.suppress(Exception):
                 reader.stop()

@@ -1,0 +1,55 @@
+"""A host that does not run for a while (a loaded machine deschedules it; here SIGSTOP) is not taken for a plate
+that fell silent: the plate driver's writer sees the stall wherever it came (asleep, pulling, making frames, not a
+write that waited for room on the port, which is the link's), starts its silence check again and says it stalled.
+Before, only a stall that came while the writer slept was seen: one that came while it worked left the plate's
+telemetry unread for 0.5 s, and the run ended "the plate was lost" (exit status 4; tests/test_counter_check.py
+failed so beside two CPU hogs)."""
+
+import json
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import ROOT
+from test_exits import DEADLINE_S
+
+STOPS = 12  # each 0.55-0.8 s, longer than the host's 0.5 s silence check
+
+
+def test_a_host_stopped_again_and_again_never_takes_its_plate_for_lost():
+    host = subprocess.Popen([sys.executable, str(ROOT / "tests" / "stalled_host.py")], stdout=subprocess.PIPE,
+                            text=True, cwd=ROOT)
+    stopped_s = []
+    shuffle = random.Random(7)
+    try:
+        assert host.stdout.readline().strip() == "ready"
+        for _ in range(STOPS):  # the stimulus: the host and its plate run 5-80 ms, then are stopped 0.55-0.8 s
+            time.sleep(shuffle.uniform(0.005, 0.08))
+            os.kill(host.pid, signal.SIGSTOP)
+            began = time.perf_counter()
+            try:
+                time.sleep(shuffle.uniform(0.55, 0.8))
+            finally:
+                os.kill(host.pid, signal.SIGCONT)
+            stopped_s.append(time.perf_counter() - began)
+        host.send_signal(signal.SIGTERM)
+        status = json.loads(host.communicate(timeout=DEADLINE_S)[0].splitlines()[-1])
+    finally:
+        if host.poll() is None:
+            os.kill(host.pid, signal.SIGCONT)
+            host.kill()
+            host.communicate()
+    lines = status["report"]["lines"]
+    assert status["silences"] == 0 and status["disconnects"] == 0, lines  # never lost
+    assert status["report"]["exit_status"] == 0, lines  # a clean run that says the host stalled
+    said = [line for line in lines if line.startswith("the host stalled")]
+    assert len(said) == 1, lines
+    # seen: at least one stall (two stops with no turn of the writer between them are one), the longest at least
+    # the shortest stop and at most all of them with the runs between
+    assert 1 <= status["host_stalls"] <= STOPS, status["host_stalls"]
+    longest = float(re.search(r"longest (\d+\.\d+) s", said[0]).group(1))
+    assert min(stopped_s) - 0.01 <= longest <= sum(stopped_s) + STOPS * 0.1, (longest, stopped_s)
