@@ -958,8 +958,17 @@ class Service:
                 wake.clear()
 
     def _publish_to(self, wanted: list, loop, now: float) -> None:
-        """One read of the engine's status, and each due subscriber's messages from it, handed to the loop."""
-        status = self.engine.status(history_s=0.25)
+        """One read of the engine's status, and each due subscriber's messages from it, handed to the loop.
+
+        The history read reaches back to the oldest output subscriber's last block (with
+        :data:`PUBLISH_HISTORY_S` to spare), as far as the engine's ring holds (about 5 s): a publisher woken
+        late (a loaded machine did not run it for 0.15 s or more) loses no row; it read a fixed 0.25 s, and lost
+        the rows older than that."""
+        history_s = PUBLISH_HISTORY_S
+        for session in wanted:
+            if session.output_hz:
+                history_s = max(history_s, now - session.output_from_s + PUBLISH_HISTORY_S)
+        status = self.engine.status(history_s=history_s)
         self.status_reads += 1
         for session in wanted:
             if session.output_hz:
@@ -997,7 +1006,8 @@ class Service:
 
 PUBLISH_S = 0.01  # the publisher's shortest sleep: a touch-as-seen subscriber is looked at this often
 PUBLISH_IDLE_S = 0.25  # its longest: how soon it sees its stop
-OUTPUT_EVERY_S = 0.1  # an output subscriber's rows are sent at least this often (the status read keeps 0.25 s of them)
+OUTPUT_EVERY_S = 0.1  # an output subscriber's rows are sent at least this often
+PUBLISH_HISTORY_S = 0.25  # a status read's history reaches this far before the oldest output subscriber's last row
 
 
 def _due(session: Session, now: float) -> bool:
