@@ -71,6 +71,8 @@ class Streamer:
         self.source = source
         self._started = self._ran_at = time.perf_counter()
         self._waited_s = self.transport.waited_s
+        state = self.session.state  # its silence check starts with it: a stall between the handshake and this
+        state.last_heard = max(state.last_heard, time.monotonic())  # thread's start is none of the device's
         try:
             while not self.stop.is_set() and not self._turn():
                 pass
