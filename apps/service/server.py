@@ -207,7 +207,8 @@ class Session:
         is a flood, as sent it is not. A flood still is one: the time each bucket is refilled by never passes the
         read time, so whatever times a client claims, it is given at most :data:`RATE_BURST` and
         :data:`RATE_PER_S` a second of reading; and a client whose own times are closer than 1/:data:`RATE_PER_S`,
-        or that gives none, is refused past the burst however its messages are read.
+        or that gives none, is refused past the burst whenever its messages are also read faster than that (read
+        slower, they are all taken: no more than the rate passes either way).
 
         Parameters
         ----------
