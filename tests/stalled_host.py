@@ -4,11 +4,13 @@ stop the whole of it (SIGSTOP, as a loaded machine deschedules a process) and se
     python tests/stalled_host.py
 
 Streams a constant drive to a :class:`scripted_plate.ScriptedPlate` (telemetry 50 times a second, ``enabled``
-as the host last set it), prints ``ready`` once the host has had 10 telemetry frames; on SIGTERM stops the driver
-and prints its status (:meth:`SerialPlate.status`) as one JSON line.
+as the host last set it), prints ``ready`` once the host has had 10 telemetry frames; on SIGUSR1 the plate falls
+silent (no telemetry from then on); on SIGTERM stops the driver and prints its status (:meth:`SerialPlate.status`)
+as one JSON line.
 """
 
 import json
+import signal
 import time
 
 from conftest import wait_for
@@ -21,6 +23,7 @@ from ultraglide.devices.serial.plate import SerialPlate
 def main() -> None:
     stopped = stop_on_sigterm()
     with ScriptedPlate(enabled_follows=True) as plate:
+        signal.signal(signal.SIGUSR1, lambda *_: setattr(plate, "telemetry", False))
         driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
         driver.start(Constant(1.0))
         if not wait_for(lambda: driver.telemetry_frames >= 10, timeout=60.0):

@@ -53,3 +53,31 @@ def test_a_host_stopped_again_and_again_never_takes_its_plate_for_lost():
     assert 1 <= status["host_stalls"] <= STOPS, status["host_stalls"]
     longest = float(re.search(r"longest (\d+\.\d+) s", said[0]).group(1))
     assert min(stopped_s) - 0.01 <= longest <= sum(stopped_s) + STOPS * 0.1, (longest, stopped_s)
+
+
+def test_a_plate_silent_between_host_stalls_is_still_found_silent():
+    """Stalls move the silence check on by their own length, not start it again: a plate that falls silent while
+    its host is stopped for 0.1 s every 0.35 s (more often than the check's 0.5 s) is found silent all the same.
+    Had each stall started the check again, the host would never have found it (it is stopped to the end)."""
+    host = subprocess.Popen([sys.executable, str(ROOT / "tests" / "stalled_host.py")], stdout=subprocess.PIPE,
+                            text=True, cwd=ROOT)
+    try:
+        assert host.stdout.readline().strip() == "ready"
+        os.kill(host.pid, signal.SIGUSR1)  # the plate sends no more telemetry
+        for _ in range(12):  # the stimulus: 0.25 s running, 0.1 s stopped, over 4 s
+            time.sleep(0.25)
+            os.kill(host.pid, signal.SIGSTOP)
+            try:
+                time.sleep(0.1)
+            finally:
+                os.kill(host.pid, signal.SIGCONT)
+        host.send_signal(signal.SIGTERM)
+        status = json.loads(host.communicate(timeout=DEADLINE_S)[0].splitlines()[-1])
+    finally:
+        if host.poll() is None:
+            os.kill(host.pid, signal.SIGCONT)
+            host.kill()
+            host.communicate()
+    lines = status["report"]["lines"]
+    assert status["silences"] >= 1 and status["disconnects"] >= 1, (status["host_stalls"], lines)
+    assert status["report"]["exit_status"] == 4, lines  # the plate lost

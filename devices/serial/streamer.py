@@ -273,10 +273,11 @@ class Streamer:
             self._host_stalled(stalled_s, now)
 
     def _host_stalled(self, stalled_s: float, now: float) -> None:
-        """The writer woke ``stalled_s`` late: the host did not run. Its silence check starts again (what the
-        device sent meanwhile is still unread), and the stall is kept for the report."""
+        """The writer woke ``stalled_s`` late: the host did not run. Its silence check is moved on by the stall
+        (what the device sent meanwhile is still unread), not started again: a device silent between stalls that
+        come more often than the check's time is still found silent. The stall is kept for the report."""
         state = self.session.state
-        state.last_heard = max(state.last_heard, time.monotonic())
+        state.last_heard = min(time.monotonic(), state.last_heard + stalled_s)
         self.counters.host_stalls += 1
         self.account.host_stalled(stalled_s, now)
 
