@@ -95,8 +95,8 @@ def next_clock_read(plate: QemuPlate, after: int, timeout_s: float = 20.0) -> di
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         with contextlib.suppress(queue.Empty):
-            event = plate.events.get(timeout=0.1)
-            if event["event"] == "clock_read" and event["reads"] > after:
+            event = plate.clock_reads.get(timeout=0.1)
+            if event["reads"] > after:
                 return event
     raise TimeoutError(f"no clock_read event within {timeout_s} s")
 

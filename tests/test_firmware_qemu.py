@@ -440,7 +440,7 @@ def test_clock_replies_say_where_the_board_is_within_its_block(one_qemu, board):
                 seq = link.send(p.CLOCK)
                 reply = p.parse_clock_reply(link.expect((p.CLOCK_REPLY,)).payload)
                 assert reply.asked_seq == seq
-                read = events_of(plate, "clock_read")[0]
+                read = plate.clock_reads.get(timeout=30.0)
                 assert reads is None or read["reads"] == reads + 1  # one reading a request: this one's
                 reads = read["reads"]
                 found.append((read, reply))

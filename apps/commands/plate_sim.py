@@ -205,8 +205,6 @@ def _plate_sim_qemu(args) -> int:
     plate = QemuPlate(image.elf_path, args.link, plate=truth, machine=board.machine)
 
     def show(event: dict) -> None:
-        if event["event"] == "clock_read":
-            return  # the raw reading behind each CLOCK reply (20 a second while a host listens): for tests
         print_json(event) if args.json else print_line(describe_event(event))
 
     last: dict = {}

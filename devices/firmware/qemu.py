@@ -236,6 +236,9 @@ class QemuPlate:
         self.machine = machine
         self.events: queue.Queue = queue.Queue(MAX_EVENTS)
         self.lines: queue.Queue = queue.Queue(MAX_EVENTS)
+        # the raw reading behind each CLOCK reply (``ev clock_read``, 20 a second while a host listens), kept apart:
+        # in ``events`` and ``lines`` they would fill those within minutes for a reader that drains neither
+        self.clock_reads: queue.Queue = queue.Queue(MAX_EVENTS)
         self.process: subprocess.Popen | None = None
         self._started_at = 0.0
         self._reader: threading.Thread | None = None
@@ -329,9 +332,13 @@ class QemuPlate:
         for raw in self.process.stdout:
             text = raw.decode(errors="replace").rstrip("\r\n")
             t_s = time.perf_counter() - self._started_at
+            event = parse_event(text, t_s)
+            if event is not None and event["event"] == "clock_read":
+                with contextlib.suppress(queue.Full):
+                    self.clock_reads.put_nowait(event)
+                continue
             with contextlib.suppress(queue.Full):
                 self.lines.put_nowait(text)
-            event = parse_event(text, t_s)
             if event is not None:
                 for each in [event, *(restart_events(event) if event["event"] == "boot" else [])]:
                     with contextlib.suppress(queue.Full):
