@@ -23,7 +23,7 @@ static uint16_t dac_codes[2u * BOARD_BLOCK_SAMPLES] __attribute__((aligned(8)));
 static uint16_t adc_codes[2u * BOARD_BLOCK_SAMPLES];
 static volatile uint32_t late_blocks;
 static ug_emulated_plate_t plate;
-static uint32_t block_ticks;  /* the board's clock when the next block is due */
+static volatile uint32_t block_ticks;  /* the board's clock when the next block is due (the block interrupt moves it) */
 static uint32_t next_half;
 static volatile uint32_t skipped_ms;
 static volatile uint32_t injected;

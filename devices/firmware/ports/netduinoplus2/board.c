@@ -378,7 +378,7 @@ uint32_t board_dac_underruns(void)
 #define TICKS_PER_BLOCK (BOARD_QEMU_TIMER_HZ / 1000u)
 
 static ug_emulated_plate_t plate;
-static uint32_t block_ticks;       /* TIM5's count when the next block is due */
+static volatile uint32_t block_ticks;  /* TIM5's count when the next block is due (the block interrupt moves it) */
 static uint32_t next_half;
 static volatile uint32_t skipped_ms;
 
