@@ -10,6 +10,8 @@ import contextlib
 import os
 import re
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -21,6 +23,7 @@ import soundfile
 from test_exits import Command, hidden_files, size_of_hidden, wait_until
 from ultraglide.devices import protocol as p
 from ultraglide.devices.serial.run_report import EXIT_ENGINE_LOST
+from ultraglide.render.engine import supervisor
 from xvfb_demo import XvfbDemo, tools_missing
 
 LOSSES = [signal.SIGKILL, signal.SIGSTOP]
@@ -404,3 +407,39 @@ def test_the_installed_command_ends_after_a_loss_with_its_whole_report_and_no_le
     assert "resource_tracker" not in err and "Traceback" not in err
     ours = (f"ultraglide_{process.pid}_", f"ultraglide_{engine}_")  # (the machine's other runs make their own)
     assert [name for name in set(os.listdir("/dev/shm")) - before if name.startswith(ours)] == []
+
+
+def test_an_engine_kept_from_the_cpu_by_a_busy_machine_is_not_taken_for_frozen(tmp_path):
+    """A loaded machine may keep the engine's threads waiting for a CPU longer than the freeze's 150 ms: that time
+    is the scheduler's (each thread's wait, /proc's schedstat), not the engine's silence. Here its threads are put on
+    CPU 0 at nice 19 beside a busy process at nice 0 (about 1.5 % of the CPU theirs) for 1.5 s: no loss is said,
+    and the run goes on once the CPU is theirs again."""
+    part = tmp_path / "env.csv.part"
+    command = Command(tmp_path, "play", "grating-1mm", "--device", "sim", "--duration-s", "60",
+                      "--envelope-csv", tmp_path / "env.csv")
+    hog = None
+    try:
+        wait_until(lambda: part.exists() and part.stat().st_size > 20000, "the engine to play")
+        engine = engine_of(command.process.pid)
+        hog = subprocess.Popen([sys.executable, "-c", "import os\nos.sched_setaffinity(0, {0})\nwhile 1: pass"])
+        for tid in map(int, os.listdir(f"/proc/{engine}/task")):
+            with contextlib.suppress(OSError):  # (a thread that ended meanwhile)
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+                os.sched_setaffinity(tid, {0})
+                os.setpriority(os.PRIO_PROCESS, tid, 19)
+        waited = supervisor._cpu_waits(engine)
+        threading.Event().wait(1.5)  # the stimulus: 1.5 s kept from the CPU
+        assert alive(engine), command.stdout  # not killed as frozen
+        assert supervisor._longest_wait_since(waited, supervisor._cpu_waits(engine)) > 0.5  # it was kept waiting
+        hog.kill()
+        hog.wait()
+        size = part.stat().st_size
+        wait_until(lambda: part.stat().st_size > size + 20000, "the engine to play on")
+        command.signal(signal.SIGTERM)
+        status = command.wait()
+    finally:
+        if hog is not None and hog.poll() is None:
+            hog.kill()
+        command.kill()
+    assert status != EXIT_ENGINE_LOST and "froze" not in command.stdout and "lost" not in command.stderr, \
+        (status, command.stdout, command.stderr)

@@ -266,6 +266,7 @@ class Supervisor:
         block_beat, engine_beat = fast[shm.HEARTBEAT], fast[shm.ENGINE_BEAT]
         block_seen = engine_seen = last_wake = now
         stopped_since = None  # when the process was first seen stopped (SIGSTOP): judged on its own clock
+        waits_at_silence = None  # the engine's threads' waits for a CPU when a look first found it silent
         timeout_s = self.poll_s
         while True:
             ended = bool(wait([self._sentinel], timeout_s))
@@ -292,6 +293,10 @@ class Supervisor:
             # /proc is read only when no beat came since the last look: a process that beats is not stopped
             stopped = not beating and _process_state(self.pid) in ("T", "t")
             stopped_since = (stopped_since or now) if stopped else None
+            if beating:
+                waits_at_silence = None
+            elif waits_at_silence is None:
+                waits_at_silence = _cpu_waits(self.pid)
             timeout_s = self.poll_s
             if not beating:  # silent: look closer, and again just as the silence would become a freeze
                 judged_at = max(block_seen, engine_seen) + self.frozen_after_s
@@ -307,6 +312,9 @@ class Supervisor:
                 # neither beat: the block path may end as a stop rests the device (the beat thread goes on), and
                 # the beat thread may wait for the interpreter while a block loads a compiled kernel (blocks come)
                 frozen = silent_s > self.frozen_after_s
+                if frozen and waits_at_silence:  # a loaded machine kept it from a CPU: that is not its silence
+                    frozen = silent_s - _longest_wait_since(waits_at_silence, _cpu_waits(self.pid)) > \
+                        self.frozen_after_s
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
             if frozen:
@@ -379,6 +387,24 @@ def _beat_time(stamped_s: float, seen_s: float, now_s: float) -> float:
     (not before the beat seen last, not after now); a watch that looked 50 ms after the last beat would otherwise
     count the silence from its look and judge a freeze 50 ms late."""
     return min(now_s, max(seen_s, stamped_s))
+
+
+def _cpu_waits(pid: int) -> dict[str, int]:
+    """How long each thread of process ``pid`` has waited, runnable, for a CPU (ns, the kernel's schedstat), by
+    thread id; empty where /proc does not say (a kernel without schedstats, the process gone)."""
+    waits = {}
+    with contextlib.suppress(OSError):
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            with contextlib.suppress(OSError, ValueError, IndexError), \
+                    open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as stat:
+                waits[tid] = int(stat.read().split()[1])
+    return waits
+
+
+def _longest_wait_since(before: dict[str, int], after: dict[str, int]) -> float:
+    """The longest any one thread waited for a CPU between two :func:`_cpu_waits` (s): a silence that long is the
+    machine's (its scheduler ran others), not a freeze."""
+    return max((after[tid] - before[tid] for tid in after.keys() & before.keys()), default=0) / 1e9
 
 
 def _process_state(pid: int) -> str:
