@@ -313,8 +313,8 @@ class Supervisor:
                 # the beat thread may wait for the interpreter while a block loads a compiled kernel (blocks come)
                 frozen = silent_s > self.frozen_after_s
                 if frozen and waits_at_silence:  # a loaded machine kept it from a CPU: that is not its silence
-                    frozen = silent_s - _longest_wait_since(waits_at_silence, _cpu_waits(self.pid)) > \
-                        self.frozen_after_s
+                    waited_s = min(silent_s, _waits_since(waits_at_silence, _cpu_waits(self.pid)))
+                    frozen = silent_s - waited_s > self.frozen_after_s
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
             if frozen:
@@ -401,10 +401,12 @@ def _cpu_waits(pid: int) -> dict[str, int]:
     return waits
 
 
-def _longest_wait_since(before: dict[str, int], after: dict[str, int]) -> float:
-    """The longest any one thread waited for a CPU between two :func:`_cpu_waits` (s): a silence that long is the
-    machine's (its scheduler ran others), not a freeze."""
-    return max((after[tid] - before[tid] for tid in after.keys() & before.keys()), default=0) / 1e9
+def _waits_since(before: dict[str, int], after: dict[str, int]) -> float:
+    """How long the threads waited for a CPU between two :func:`_cpu_waits`, summed (s): that much of a silence
+    is the machine's (its scheduler ran others), not the engine's. Summed, not the longest: the interpreter's lock
+    passes between threads, each waiting its turn for a CPU; a frozen engine's threads sleep (a deadlock) or one
+    spins, so their sum stays small where it matters."""
+    return sum(after[tid] - before[tid] for tid in after.keys() & before.keys()) / 1e9
 
 
 def _process_state(pid: int) -> str:
