@@ -315,6 +315,8 @@ class Supervisor:
                 if frozen and waits_at_silence:  # a loaded machine kept it from a CPU: that is not its silence
                     waited_s = min(silent_s, _waits_since(waits_at_silence, _cpu_waits(self.pid)))
                     frozen = silent_s - waited_s > self.frozen_after_s
+                    if not frozen:  # judged again as a silent engine is, not every JUDGE_LATE_S (its wait goes on)
+                        timeout_s = SILENT_POLL_S
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
             if frozen:
