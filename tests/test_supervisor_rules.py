@@ -1,33 +1,37 @@
 """The supervisor's judgement (render/engine/supervisor.py) against a real child process that beats as it is told
 in a shared header: a process whose block path or whose beat thread advances is alive, whatever its state; one
 whose neither advances while it plays is frozen and killed; one that exits before it stopped is a death said with
-its status."""
+its status; and one kept from a CPU by a busy machine is not taken for frozen unless it also sleeps."""
 
 import mmap
 import multiprocessing
 import os
+import threading
 import time
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from cpu_taken import cpu0_taken, free_of_cpu0, keep_on_cpu0
 from ultraglide.render.engine import shm
 from ultraglide.render.engine.supervisor import Supervisor
 
 FROZEN_AFTER_S = 0.5  # long against a child at ordinary priority starved beside two CPU hogs (0.1 s once was not)
 MODE = 0  # the header's first word (SEQ, unused here) tells the child what to beat
-BLOCKS, BEAT_THREAD, NOTHING, EXIT = 1.0, 2.0, 3.0, 4.0
+BLOCKS, BEAT_THREAD, NOTHING, EXIT, DEADLOCK = 1.0, 2.0, 3.0, 4.0, 5.0
 
 
 def child(buffer, state: str) -> None:
     """Beat as the header's MODE says, every 2 ms, with ``state`` published: blocks only, the beat thread only,
-    nothing (busy, running Python), or exit with status 3."""
+    nothing (busy, running Python), exit with status 3, or sleep for good (a deadlock)."""
     fast = np.frombuffer(buffer, dtype=np.float64, count=shm.HEADER)
     fast[shm.STATE] = shm.STATES.index(state)
     while True:
         mode = fast[MODE]
         if mode == EXIT:
             os._exit(3)
+        if mode == DEADLOCK:
+            threading.Event().wait()
         deadline = time.perf_counter() + 0.002
         while time.perf_counter() < deadline:
             pass
@@ -146,3 +150,52 @@ def test_an_exit_before_the_stop_is_a_death_with_its_status():
             assert (loss.kind, loss.cause) == ("died", "its process exited with status 3 before it had stopped")
         finally:
             watched.close()
+
+
+def longest_silence(fast, index: int, seconds: float) -> float:
+    """The longest time (s) the beat at ``index`` went without advancing over the next ``seconds``, from its stamps."""
+    longest, end = 0.0, time.perf_counter() + seconds
+    stamp = {shm.HEARTBEAT: shm.HEARTBEAT_S, shm.ENGINE_BEAT: shm.ENGINE_BEAT_S}[index]
+    while (now := time.perf_counter()) < end:  # the clock read before the stamp: a silence is never overstated
+        longest = max(longest, now - float(fast[stamp]))
+        time.sleep(0.001)
+    return longest
+
+
+def test_a_child_kept_from_the_cpu_by_a_busy_machine_is_not_taken_for_frozen():
+    """Beating every 2 ms but kept on CPU 0 while a real-time process spins there: it runs in bursts (the kernel
+    leaves ordinary threads about 50 ms a second) and waits, runnable, in between, silent far longer than the freeze's
+    time. Those waits are the machine's, counted as they go on (the kernel's own count grows only once a wait ends):
+    no loss, and it beats on once the CPU is its own again."""
+    watched = Watched("running", BLOCKS)
+    try:
+        watched.beats_for(shm.HEARTBEAT, 5)
+        with cpu0_taken():
+            threads = keep_on_cpu0(watched.process.pid)
+            longest = longest_silence(watched.fast, shm.HEARTBEAT, 3.0)
+        free_of_cpu0(threads)
+        watched.beats_for(shm.HEARTBEAT, 50)
+        assert longest > FROZEN_AFTER_S  # the stimulus: silences the watch would have judged a freeze
+        assert watched.supervisor.loss is None and watched.process.is_alive()
+    finally:
+        watched.close()
+
+
+def test_a_deadlocked_child_on_a_busy_cpu_is_still_frozen():
+    """A deadlock sleeps, so it waits for no CPU: the same child on the same taken CPU, once it sleeps for good
+    without a beat, is judged frozen and killed."""
+    watched = Watched("running", BLOCKS)
+    try:
+        watched.beats_for(shm.HEARTBEAT, 5)
+        with cpu0_taken():
+            threads = keep_on_cpu0(watched.process.pid)
+            watched.fast[MODE] = DEADLOCK
+            judged = watched.supervisor.wait(60.0)
+        free_of_cpu0(threads)
+        assert judged, "no freeze judged within 60 s"
+        loss = watched.supervisor.loss
+        assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
+        watched.process.join(30)
+        assert watched.process.exitcode == -9
+    finally:
+        watched.close()

@@ -14,7 +14,8 @@ interpreter). :class:`Supervisor` is a thread of the app that watches:
   block for a while (a plate's handshake after a reconnection, the end of a stop) keeps the engine's beat going,
   and a block that loads a compiled kernel (holding the interpreter, so the beat thread waits) ends with a block's
   beat: neither is taken for a freeze. A watch that did not run itself for a while (this process stopped with the
-  engine by Ctrl-Z, or starved) gives the engine the same time again before judging it.
+  engine by Ctrl-Z, or starved) gives the engine the same time again before judging it, and the time the engine's
+  threads waited, runnable, for a CPU (:class:`CpuWaits`) is the machine's, not counted as its silence.
 
 A frozen engine is killed (SIGKILL: a frozen process takes no other signal). A serial plate's port is taken from
 it first (:func:`devices.after_loss.borrow_port`) and ENABLE 0 sent on it as soon as the kill is sent. Once the
@@ -266,7 +267,7 @@ class Supervisor:
         block_beat, engine_beat = fast[shm.HEARTBEAT], fast[shm.ENGINE_BEAT]
         block_seen = engine_seen = last_wake = now
         stopped_since = None  # when the process was first seen stopped (SIGSTOP): judged on its own clock
-        waits_at_silence = None  # the engine's threads' waits for a CPU when a look first found it silent
+        cpu_waits = None  # the engine's threads' waits for a CPU, watched from the first look that found it silent
         timeout_s = self.poll_s
         while True:
             ended = bool(wait([self._sentinel], timeout_s))
@@ -294,9 +295,7 @@ class Supervisor:
             stopped = not beating and _process_state(self.pid) in ("T", "t")
             stopped_since = (stopped_since or now) if stopped else None
             if beating:
-                waits_at_silence = None
-            elif waits_at_silence is None:
-                waits_at_silence = _cpu_waits(self.pid)
+                cpu_waits = None
             timeout_s = self.poll_s
             if not beating:  # silent: look closer, and again just as the silence would become a freeze
                 judged_at = max(block_seen, engine_seen) + self.frozen_after_s
@@ -311,12 +310,15 @@ class Supervisor:
             elif state in ("running", "paused", "stopping"):
                 # neither beat: the block path may end as a stop rests the device (the beat thread goes on), and
                 # the beat thread may wait for the interpreter while a block loads a compiled kernel (blocks come)
-                frozen = silent_s > self.frozen_after_s
-                if frozen and waits_at_silence:  # a loaded machine kept it from a CPU: that is not its silence
-                    waited_s = min(silent_s, _waits_since(waits_at_silence, _cpu_waits(self.pid)))
-                    frozen = silent_s - waited_s > self.frozen_after_s
-                    if not frozen:  # judged again as a silent engine is, not every JUDGE_LATE_S (its wait goes on)
-                        timeout_s = SILENT_POLL_S
+                waited_s = 0.0  # a loaded machine kept it from a CPU this long: that is not its silence
+                if not beating:
+                    if cpu_waits is None:
+                        cpu_waits = CpuWaits(self.pid, now)
+                    else:
+                        waited_s = min(silent_s, cpu_waits.look(now))
+                frozen = silent_s - waited_s > self.frozen_after_s
+                if not frozen and silent_s > self.frozen_after_s:  # excused: looked at again as a silent engine is,
+                    timeout_s = SILENT_POLL_S  # not every JUDGE_LATE_S (its wait goes on)
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
                 frozen = False
             if frozen:
@@ -391,24 +393,92 @@ def _beat_time(stamped_s: float, seen_s: float, now_s: float) -> float:
     return min(now_s, max(seen_s, stamped_s))
 
 
-def _cpu_waits(pid: int) -> dict[str, int]:
-    """How long each thread of process ``pid`` has waited, runnable, for a CPU (ns, the kernel's schedstat), by
-    thread id; empty where /proc does not say (a kernel without schedstats, the process gone)."""
-    waits = {}
+class CpuWaits:
+    """How long the threads of process ``pid`` have waited, runnable, for a CPU since this was made (s, summed over
+    the threads), as the watch of a silent engine sees it look by look.
+
+    Two parts: the waits that ended (the kernel's schedstat, whose second field grows only as a thread is given a
+    CPU, by the whole wait at once), and the waits going on, which schedstat does not show yet: a thread runnable
+    (state R) whose CPU time has not grown since the last look waits still, counted from the first look that saw it
+    so. A thread that runs (its CPU time grows: an engine spinning in C) is not waiting, and one that sleeps (a
+    deadlock) is not runnable, so a frozen engine's threads add little; waits that began before this was made count
+    once they end. Nothing is counted where /proc does not say (no schedstat, the process gone).
+
+    Parameters
+    ----------
+    pid : int
+        The process whose threads are watched.
+    now_s : float
+        The time of this first look (``time.perf_counter()`` s).
+
+    Examples
+    --------
+    A thread that sleeps waits for no CPU:
+
+    >>> import os, time
+    >>> waits = CpuWaits(os.getpid(), time.perf_counter())
+    >>> time.sleep(0.05)
+    >>> waits.look(time.perf_counter()) < 0.05
+    True
+    """
+
+    def __init__(self, pid: int, now_s: float):
+        self.pid = pid
+        self._first = self._last = _thread_cpu(pid)
+        self._waiting_since = {tid: now_s for tid, (state, _, _) in self._first.items() if state == "R"}
+
+    def look(self, now_s: float) -> float:
+        """Look again.
+
+        Parameters
+        ----------
+        now_s : float
+            The time of this look (``time.perf_counter()`` s).
+
+        Returns
+        -------
+        float
+            How long the threads have waited for a CPU since the first look (s, summed over the threads).
+
+        Examples
+        --------
+        A thread kept busy on its CPU is not waiting for one:
+
+        >>> import os, time
+        >>> waits = CpuWaits(os.getpid(), time.perf_counter())
+        >>> end = time.perf_counter() + 0.05
+        >>> while time.perf_counter() < end:
+        ...     pass
+        >>> waits.look(time.perf_counter()) < 0.05
+        True
+        """
+        threads = _thread_cpu(self.pid)
+        ended_ns = 0
+        waiting_since = {}
+        for tid, (state, ran_ns, waited_ns) in threads.items():
+            if tid in self._first:
+                ended_ns += waited_ns - self._first[tid][2]
+            if state == "R":
+                last = self._last.get(tid)
+                ran = last is None or ran_ns != last[1]  # it ran since the last look: a wait, if any, starts now
+                waiting_since[tid] = now_s if ran else self._waiting_since.get(tid, now_s)
+        self._last, self._waiting_since = threads, waiting_since
+        return ended_ns / 1e9 + sum(now_s - since for since in waiting_since.values())
+
+
+def _thread_cpu(pid: int) -> dict[str, tuple[str, int, int]]:
+    """Each thread of process ``pid`` by thread id: its state (R runnable, S sleeping, ...), its time on a CPU and
+    its ended waits for one (ns, the kernel's schedstat); empty where /proc does not say."""
+    threads = {}
     with contextlib.suppress(OSError):
         for tid in os.listdir(f"/proc/{pid}/task"):
-            with contextlib.suppress(OSError, ValueError, IndexError), \
-                    open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as stat:
-                waits[tid] = int(stat.read().split()[1])
-    return waits
-
-
-def _waits_since(before: dict[str, int], after: dict[str, int]) -> float:
-    """How long the threads waited for a CPU between two :func:`_cpu_waits`, summed (s): that much of a silence
-    is the machine's (its scheduler ran others), not the engine's. Summed, not the longest: the interpreter's lock
-    passes between threads, each waiting its turn for a CPU; a frozen engine's threads sleep (a deadlock) or one
-    spins, so their sum stays small where it matters."""
-    return sum(after[tid] - before[tid] for tid in after.keys() & before.keys()) / 1e9
+            with contextlib.suppress(OSError, ValueError, IndexError):
+                with open(f"/proc/{pid}/task/{tid}/stat", "rb") as stat:
+                    state = stat.read().rsplit(b")", 1)[1].split()[0].decode()
+                with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as schedstat:
+                    ran_ns, waited_ns = map(int, schedstat.read().split()[:2])
+                threads[tid] = (state, ran_ns, waited_ns)
+    return threads
 
 
 def _process_state(pid: int) -> str:
