@@ -254,21 +254,28 @@ def test_the_participants_window_takes_no_cpu_while_it_waits_for_an_answer(tmp_p
     xvfb, display = start_xvfb(1280, 800)
     env = {**os.environ, "DISPLAY": display}
     env.pop("SDL_VIDEODRIVER", None)
-    session = subprocess.Popen([sys.executable, "-m", "ultraglide", "experiment", "threshold", "grating-1mm",
-                                "--method", "staircase", "--afc", "3", "--trials", "4", "--out", str(tmp_path / "s"),
-                                "--device", "null", "--windowed"], env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE)
+    out_path, err_path = tmp_path / "stdout.txt", tmp_path / "stderr.txt"  # files, not pipes nobody reads
+    with open(out_path, "w") as out, open(err_path, "w") as err:  # while it waits (a full pipe would block it)
+        session = subprocess.Popen([sys.executable, "-m", "ultraglide", "experiment", "threshold", "grating-1mm",
+                                    "--method", "staircase", "--afc", "3", "--trials", "4", "--out",
+                                    str(tmp_path / "s"), "--device", "null", "--windowed"], env=env, stdout=out,
+                                   stderr=err)
     last_shot = []  # what the screenshot said last time, for a failure's message
+
+    def said():
+        return out_path.read_text()[-1000:], err_path.read_text()[-2000:]
+
     try:
         def trial_on_screen():  # the first trial's zones are drawn (what the screen shows, as a person sees it)
-            assert session.poll() is None, session.communicate()
+            assert session.poll() is None, said()
             shot = subprocess.run(["import", "-window", "root", "png:-"], env=env, capture_output=True, timeout=60)
             last_shot[:] = [shot.returncode, shot.stderr[-300:]]
             if shot.returncode != 0:
                 return False
             pixels = np.asarray(Image.open(io.BytesIO(shot.stdout)).convert("RGB"))
             return bool(np.all(pixels == ZONE, axis=-1).any())
-        assert conftest.wait_for(trial_on_screen, 120), f"no trial on screen; the last screenshot: {last_shot}"
+        assert conftest.wait_for(trial_on_screen, 120), f"no trial on screen; the last screenshot: {last_shot}; " \
+                                                        f"the session said {said()}"
         cpu_before, wall_before = process_cpu_s(session.pid), time.perf_counter()
         deadline = wall_before + 5.0
         while time.perf_counter() < deadline:  # CPU time, not wall time, is measured: sleeping costs nothing
@@ -277,6 +284,6 @@ def test_the_participants_window_takes_no_cpu_while_it_waits_for_an_answer(tmp_p
         assert share <= 0.01, f"{share:.1%} of a core while waiting for an answer"
     finally:
         session.kill()
-        session.communicate(timeout=60)
+        session.wait(timeout=60)
         xvfb.terminate()
         xvfb.wait(timeout=30)
