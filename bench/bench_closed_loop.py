@@ -261,8 +261,8 @@ def real_time_case(folder: Path, texture: Path, speed: float, seconds: float, cl
             return {**_real_time_run(folder, texture, speed, seconds, closed, finger, dynamics), "lost": lost}
         except PlateLost as error:
             lost.append(str(error))
-    return {"rms": math.nan, "planned_rms": math.nan, "underruns": None, "fallbacks": None, "fallback_reasons": None,
-            "sensors_say": None, "plate_peak": None, "lost": lost}
+    return {"rms": math.nan, "planned_rms": math.nan, "played_rms": math.nan, "underruns": None, "fallbacks": None,
+            "fallback_reasons": None, "sensors_say": None, "plate_peak": None, "lost": lost}
 
 
 def planned_felt(envelope: np.ndarray, speed: float, floor: float) -> np.ndarray:
@@ -285,6 +285,25 @@ def planned_felt(envelope: np.ndarray, speed: float, floor: float) -> np.ndarray
     return felt
 
 
+def played_felt(envelope: np.ndarray, speed: float) -> np.ndarray:
+    """The friction the live plan meant felt, by stream index (NaN where none): the static ratio the renderer asked
+    its model for (the envelope record's ``planned_ratio``: the planner's command) through the published dynamics,
+    from the swipe's first value. Unlike :func:`planned_felt`, it is the plan the renderer made, with the floor and
+    the block timing it had (a plan rebuilt afterwards at another floor, or a sample earlier, differs from it by
+    0.02-0.035 rms on this grating: the planner chooses among nine levels every 2 ms, and a small change flips
+    choices)."""
+    from ultraglide.render.physics.dynamics import FrictionDynamics
+
+    down = np.flatnonzero(envelope["down"] > 0)
+    felt = np.full(int(envelope["index"][-1]) + 1, np.nan)
+    if not len(down) or "planned_ratio" not in envelope.dtype.names:
+        return felt
+    first, last = down[0], down[-1]
+    response = FrictionDynamics().respond(envelope["planned_ratio"][first:last + 1], CONTROL_HZ, speed)
+    felt[envelope["index"][first:last + 1].astype(int)] = response
+    return felt
+
+
 def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, closed: bool, finger: str,
                    dynamics: bool) -> dict:
     slug = Path(finger.removeprefix("table:")).stem + ("-lagging" if dynamics else "")
@@ -301,14 +320,17 @@ def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, cl
     floor = finger_floor(log, line["t"], finger)
     pick &= line["target"] >= floor  # where the limit allows the target, as in simulated time
     error = log["relative_friction"] - line["target"]
-    planned_rms = math.nan
-    if dynamics:  # what the finger's dynamics allow: the friction the plan means felt
-        felt = planned_felt(envelope, speed, float(np.median(floor[pick])))
-        meant = np.where(line["index"] >= 0, felt[np.clip(line["index"], 0, len(felt) - 1).astype(int)], np.nan)
-        judged = pick & np.isfinite(meant)
-        planned_rms = float(np.sqrt(np.mean((log["relative_friction"] - meant)[judged] ** 2)))
+    planned_rms = played_rms = math.nan
+    if dynamics:  # what the finger's dynamics allow: the friction the plan means felt, rebuilt and as played
+        rows = np.clip(line["index"], 0, None).astype(int)
+        for felt, name in ((planned_felt(envelope, speed, float(np.median(floor[pick]))), "rebuilt"),
+                           (played_felt(envelope, speed), "played")):
+            meant = np.where(line["index"] >= 0, felt[np.clip(rows, 0, len(felt) - 1)], np.nan)
+            judged = pick & np.isfinite(meant)
+            rms = float(np.sqrt(np.mean((log["relative_friction"] - meant)[judged] ** 2)))
+            planned_rms, played_rms = (rms, played_rms) if name == "rebuilt" else (planned_rms, rms)
     status = run["status"]
-    return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "planned_rms": planned_rms,
+    return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "planned_rms": planned_rms, "played_rms": played_rms,
             "played_share": float(swiped.mean()), "underruns": status.get("underruns"),
             "fallbacks": status.get("loop_fallbacks"), "fallback_reasons": status.get("loop_fallback_reasons"),
             "sensors_say": status.get("friction_error_rms"), "plate_peak": summary.get("peak_um_pp")}
@@ -399,10 +421,11 @@ def real_time_table(folder: Path, sine_path: Path, seconds: float) -> None:
           f"{seconds:g} s, load average {os.getloadavg()[0]:.1f}: the finger's truth against the target where the "
           "limit allows it (a lagging finger also against the friction the plan means felt)")
     print(f"{'finger':>22} {'open':>7} {'closed':>7} {'loop says':>10} {'planned: open':>14} {'closed':>7} "
-          f"{'underruns':>10} {'fallbacks':>10} {'lost':>5}")
+          f"{'as played: open':>16} {'closed':>7} {'underruns':>10} {'fallbacks':>10} {'lost':>5}")
     for name, spec, dynamics in fingers:
         opened, closed = (real_time_case(folder, sine_path, 100.0, seconds, c, spec, dynamics) for c in (False, True))
-        planned = (f"{opened['planned_rms']:14.3f} {closed['planned_rms']:7.3f}" if dynamics else f"{'':14} {'':7}")
+        planned = (f"{opened['planned_rms']:14.3f} {closed['planned_rms']:7.3f} {opened['played_rms']:16.3f} "
+                   f"{closed['played_rms']:7.3f}" if dynamics else f"{'':14} {'':7} {'':16} {'':7}")
         say = closed["sensors_say"]
         print(f"{name:>22} {opened['rms']:7.3f} {closed['rms']:7.3f} {say if say is not None else math.nan:10.3f} "
               f"{planned} {opened['underruns']}/{closed['underruns']:<8} {closed['fallbacks']!s:>10} "

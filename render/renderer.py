@@ -286,6 +286,9 @@ class ControlBlock:
     amplitude_um_pp: np.ndarray  # after ramps and band/slew limits: what the plate should do
     drive_um_pp: np.ndarray  # what is asked of the output stage: pre-compensated for the plate's dynamics
     plate_um_pp: np.ndarray  # what the plate model says it does
+    # the static ratio the model's inverse was asked for: the planner's command with a model that has friction
+    # dynamics (what the renderer means the finger to feel through them), else ``ratio`` itself
+    planned_ratio: np.ndarray | None = None
 
 
 class ControlBuffers:
@@ -881,10 +884,12 @@ class Renderer:
             if block.x_mm is not x:
                 block.x_mm[:], block.y_mm[:] = x, y
             block.down, block.ratio, block.target_um_pp = finger.down, ratio, target
+            block.planned_ratio = asked  # a view of the planner's buffer (the next block overwrites it), or ratio
         else:
             envelope = self.envelope.process(target, down)
             block = ControlBlock(times, x, y, finger.down, ratio, target, envelope.amplitude_um_pp,
-                                 envelope.drive_um_pp, envelope.plate_um_pp)
+                                 envelope.drive_um_pp, envelope.plate_um_pp,
+                                 asked.copy() if asked is not ratio else ratio)
             self.counters.render_times_s.append(time.perf_counter() - started)
             if len(self.counters.render_times_s) > 100_000:
                 del self.counters.render_times_s[:50_000]

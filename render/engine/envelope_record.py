@@ -6,7 +6,9 @@ no I/O); a writer thread drains the ring to ``FILE.part`` and renames it to ``FI
 ``index`` (the sample's number in the device's stream: a plate driver's SENSORS name the index playing, which
 ``play --sensors-csv`` records), ``x_mm``, ``y_mm``, ``down``, ``target_ratio`` (the texture's friction there),
 ``target_um_pp`` (the model's amplitude for it: the closed loop's, when it follows), ``commanded_um_pp`` (what
-the device was given, after the limiter) and ``plan_s`` (perf_counter s: when the renderer meant the value to
+the device was given, after the limiter), ``planned_ratio`` (the static ratio the model's inverse was asked for:
+with a model that has friction dynamics the planner's command, whose response through them is the friction the
+plan means felt; else the target itself) and ``plan_s`` (perf_counter s: when the renderer meant the value to
 reach the plate). A writer that falls a whole ring behind loses rows: they are counted
 (:attr:`EnvelopeRecord.dropped`) and the run says so.
 
@@ -30,11 +32,12 @@ import time
 import numpy as np
 from ultraglide.render.engine.csv_record import CsvRecord
 
-COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp", "plan_s")
+COLUMNS = ("t_s", "index", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "commanded_um_pp", "planned_ratio",
+           "plan_s")
 RING_COLUMNS = len(COLUMNS) - 1  # the plan's time is the ring's t_s, copied by the writer
 RING_ROWS = 1 << 17  # 11 s at 12 kHz
 WRITE_PERIOD_S = 0.2
-FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f", "%.6f")
+FORMAT = ("%.6f", "%d", "%.4f", "%.4f", "%d", "%.5f", "%.5f", "%.5f", "%.5f", "%.6f")
 PIECE_S = 0.2  # rows placed by one reading of the play clock
 
 
@@ -74,7 +77,8 @@ class EnvelopeRecord(CsvRecord):
         self._thread = threading.Thread(target=self._write_loop, name="envelope-record", daemon=True)
         self._thread.start()
 
-    def add(self, time_s, first_index, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp) -> None:
+    def add(self, time_s, first_index, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp,
+            planned_ratio=None) -> None:
         """One block's columns (arrays of its length; ``down`` a bool or one per sample; ``first_index`` the stream
         index of its first sample). Block path: copies only.
 
@@ -92,6 +96,8 @@ class EnvelopeRecord(CsvRecord):
             The target friction ratio.
         target_um_pp, commanded_um_pp : numpy.ndarray
             The amplitude asked and sent, µm p-p.
+        planned_ratio : numpy.ndarray, optional
+            The static ratio the model's inverse was asked for (the planner's command); None: ``ratio``.
 
         Examples
         --------
@@ -115,7 +121,9 @@ class EnvelopeRecord(CsvRecord):
         start = self._written % RING_ROWS
         first = min(n, RING_ROWS - start)
         ring = self._ring
-        for column, values in enumerate((time_s, None, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp)):
+        planned = ratio if planned_ratio is None else planned_ratio
+        columns = (time_s, None, x_mm, y_mm, down, ratio, target_um_pp, commanded_um_pp, planned)
+        for column, values in enumerate(columns):
             if values is None:  # the stream index: counted, not copied
                 np.add(self._steps[:first], first_index, out=ring[start:start + first, column])
                 np.add(self._steps[first:n], first_index, out=ring[:n - first, column])

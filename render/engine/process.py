@@ -234,12 +234,13 @@ class EngineSource(OutputStage):
         sent = out if self.signal == "control" else block.drive_um_pp  # an audio stage's output is the carrier
         if k == 1:
             self.record.add(block.time_s, self.frames - n, block.x_mm, block.y_mm, block.down, block.ratio,
-                            block.target_um_pp, sent)
+                            block.target_um_pp, sent, block.planned_ratio)
             return
         # a device value per row (each the mean of k control samples): its first sample's time, place and press
         down = block.down if np.ndim(block.down) == 0 else block.down[::k]
         self.record.add(block.time_s[::k], self.frames - n, block.x_mm[::k], block.y_mm[::k], down,
-                        block.ratio.reshape(n, k).mean(axis=1), block.target_um_pp.reshape(n, k).mean(axis=1), sent)
+                        block.ratio.reshape(n, k).mean(axis=1), block.target_um_pp.reshape(n, k).mean(axis=1), sent,
+                        None if block.planned_ratio is None else block.planned_ratio.reshape(n, k).mean(axis=1))
 
     def _tell_loop(self, n: int) -> None:
         """The block's targets (in the order the device streams them) and the finger's speed on the panel."""
