@@ -333,3 +333,22 @@ def test_at_a_steady_amplitude_a_change_of_the_fingers_scale_goes_to_the_scale_n
             assert estimator.mu0 == pytest.approx(1.0, abs=0.01) and estimator.scale == pytest.approx(1.0, abs=0.01)
     assert estimator.mu0 == pytest.approx(1.0, abs=0.03)
     assert estimator.scale == pytest.approx(0.8, rel=0.03)
+
+
+def test_the_planners_floor_is_the_hosts_at_the_force_and_scale_the_loop_inverts_at():
+    """Following, the loop's inverse computes at the measured force and within limit / scale: the floor it gives the
+    planner is the host model's there, not at the renderer's force (a finger pressing 0.9 N where the renderer
+    assumes 0.5 N was planned down to a floor the inverse could not reach: held at the limit, issue 43)."""
+    from ultraglide.render.engine.friction_controller import LoopCommand
+
+    dynamic = load_model("dynamic")
+    inverse = ClosedLoopInverse(dynamic, ControllerSettings(blend_s=0.0), clock=lambda: 10.0)
+    assert inverse._floor(0.5, 6.0) == pytest.approx(float(dynamic.floor_ratio(0.5, 6.0)))  # open loop
+    inverse.command = LoopCommand(True, 1.25, 0.9, 0.0, 10.0, "closed loop: following")
+    reach = ladder_limit(6.0 / 1.25)
+    # the stretched law's floor by hand: d + (1 - d) exp(-(a / s(F))^2), s(F) = s0 (F / 0.5 N)^(1/3)
+    s = dynamic.static.parameters()["scale_um_pp"] * (0.9 / 0.5) ** (1.0 / 3.0)
+    expected = 0.1 + 0.9 * math.exp(-((reach / s) ** 2))
+    assert inverse._floor(0.5, 6.0) == pytest.approx(expected, abs=0.003)  # the force on its 1 % rung
+    assert expected > float(dynamic.floor_ratio(0.5, reach)) + 0.05  # not the renderer's force's
+

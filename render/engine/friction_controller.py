@@ -444,7 +444,9 @@ class ClosedLoopInverse:
         """The floor ratio for the planner: the host model's at the limit the loop's scale leaves it (µm p-p), on
         the ladder's rung as the inverse asks it (a scale new with every sensors' frame evaluates no model)."""
         following, command, _ = self.following_now()
-        return self.base._floor(force_n, reach_limit(limit, command.scale) if following else limit)
+        if not following:
+            return self.base._floor(force_n, limit)
+        return self.base._floor(command.force_n, reach_limit(limit, command.scale))
 
     def following_now(self, now_s: float | None = None) -> tuple[bool, LoopCommand, str]:
         """Whether the block path follows now, the command it acts on, and the state in words.
