@@ -189,7 +189,7 @@ class ClosedLoopRig:
                 self.downs.append(np.full(FRAME, down, dtype=bool) if np.ndim(down) == 0 else
                                   np.array(down, dtype=bool))
                 if self.loop is not None:
-                    self.loop.record(block.ratio, block.down)
+                    self.loop.record(block.ratio, block.down, block.planned_ratio)
                     x, y = block.x_mm, block.y_mm
                     self.loop.panel_speed_mm_s = math.hypot(x[-1] - x[0], y[-1] - y[0]) * CONTROL_HZ / (FRAME - 1)
             else:

@@ -352,3 +352,22 @@ def test_the_planners_floor_is_the_hosts_at_the_force_and_scale_the_loop_inverts
     assert inverse._floor(0.5, 6.0) == pytest.approx(expected, abs=0.003)  # the force on its 1 % rung
     assert expected > float(dynamic.floor_ratio(0.5, reach)) + 0.05  # not the renderer's force's
 
+
+def test_with_friction_dynamics_the_correction_acts_on_the_felt_ratio_the_plan_means():
+    """The finger slides at a steady amplitude whose model ratio is 0.7 and feels exactly that (the model and the
+    estimate agree: no error at the amplitude the plate reached), but the planner asked for 0.6: the plan means 0.6
+    felt, so the correction adds amplitude. Without a plan recorded (the targets themselves) it holds."""
+    dynamic = load_model("dynamic")
+    a = float(dynamic.amplitude_um_pp(np.array([0.7]), 0.5, 6.0).amplitude_um_pp[0])
+    corrections = {}
+    for planned in (0.6, None):
+        loop = FrictionLoop(dynamic, 12000.0, 1000.0, clock=lambda: 1.0)
+        loop.panel_speed_mm_s = 100.0
+        loop.record(np.full(12000, 0.7), True, None if planned is None else np.full(12000, planned))
+        for frame in range(100):  # 1 s of SENSORS frames, 10 samples each, the stream playing 12 values a sample
+            loop.take_sensors(10 * frame, 120 * frame, np.full(10, a), np.full(10, 0.5), np.full(10, 0.35), 1.0)
+        assert loop.estimator.estimate.sliding and loop.estimator.mu0 == pytest.approx(1.0, abs=0.01)
+        corrections[planned] = loop.correction.value
+    assert corrections[None] == pytest.approx(0.0, abs=0.005)
+    assert corrections[0.6] > 0.05  # the amplitude scaled up: the finger's friction brought toward the plan's
+

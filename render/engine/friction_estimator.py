@@ -585,6 +585,19 @@ class FrictionEstimator:
         """
         return math.exp(self.theta[1])
 
+    @property
+    def sensor_timing(self) -> tuple[float, float]:
+        """The force sensors' bandwidth (Hz) and delay (s) the estimator models them with now (the nominal ones until
+        :class:`SensorTiming` identifies others).
+
+        Examples
+        --------
+        >>> from ultraglide.render.physics.friction_models import StretchedExponentialModel
+        >>> FrictionEstimator(StretchedExponentialModel()).sensor_timing
+        (300.0, 0.001)
+        """
+        return self._sensors.bandwidth_hz, self._sensors.delay_s
+
     def predicted_ratio(self, amplitude_um_pp, force_n) -> np.ndarray:
         """The adapted model's ratio: r(a / k, F).
 

@@ -12,6 +12,14 @@
 * anyone reads :meth:`FrictionLoop.status` (a dict of plain values: the state in words, the measured and
   target ratio, the ratio error over the run, the adapted parameters).
 
+With a host model that has friction dynamics the renderer plans (render/planning.py): it asks the inverse for the
+planner's command, recorded beside the targets (:meth:`FrictionLoop.record`'s ``planned``), and what the finger is
+meant to feel is that command through the dynamics. The fast correction then acts on the measured ratio against
+that plan's felt ratio (through the same model of the force sensors), not against the model at the amplitude the
+plate reached: the plan's 2 ms pulses ask the plate for swings it delivers late near the limit (its drive has
+little headroom there), the finger then keeps more friction than planned, and only an error against the plan
+sees it (issue 43: the lagging table finger's error at 0.8-0.95 N was mostly that, +0.03-0.07 on average).
+
 The **ratio error** reported is the measured ratio minus the texture's target *for the setpoint the plate
 was playing* (SENSORS' ``setpoint_index``), the target passed through the same model of the force sensors
 as the estimator's prediction: it includes the plate's dynamics and the sensors' noise (5 mN at 0.2 N is
@@ -184,11 +192,15 @@ class FrictionLoop:
         self.estimator = FrictionEstimator(model, self.settings.estimator, sensor_rate_hz)
         self.correction = FastCorrection(self.settings.controller)
         self.targets = TargetRing()
+        self.plans = TargetRing()  # the static ratio the inverse was asked for (the planner's command), by index
         self._decimated = np.zeros(capacity)  # record_control's per-value targets, made once
         self._decimated_down = np.zeros(capacity, dtype=bool)
         self.panel_speed_mm_s: float | None = None
         est = self.settings.estimator
         self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._plan_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._plan_felt = 1.0  # the plan's felt ratio through the model's dynamics at the newest sample
+        self._plan_fresh = True  # the plan's sensor model starts settled on its first value (a start, a gap)
         self._next_sample: int | None = None
         self._lock = threading.Lock()  # status against the reader thread: held for a copy of a few numbers
         self._error_sum = 0.0
@@ -254,19 +266,25 @@ class FrictionLoop:
         self.estimator = FrictionEstimator(model, est, self.sensor_rate_hz)
         self.correction.reset()
         self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._plan_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
+        self._plan_felt = 1.0
+        self._plan_fresh = True
         self._next_sample = None
         self._memory = math.exp(-1.0 / (ERROR_MEMORY_S * self.sensor_rate_hz))
         self.inverse.command = LoopCommand()
 
     # ---- the block path ----
-    def record(self, ratio: np.ndarray, down) -> None:
-        """The target ratios of the values just handed to the device, in stream order (one per device value).
+    def record(self, ratio: np.ndarray, down, planned: np.ndarray | None = None) -> None:
+        """The target ratios of the values just handed to the device, in stream order (one per device value), and
+        the static ratios the inverse was asked for (``planned``: the planner's command; None: the targets).
 
         Parameters
         ----------
         ratio : numpy.ndarray
             Target ratios, one per device value.
         down : bool or numpy.ndarray
+        planned : numpy.ndarray, optional
+            The ratios the model's inverse was asked for (a renderer that plans against friction dynamics).
 
         Examples
         --------
@@ -278,8 +296,9 @@ class FrictionLoop:
         [0.5, 0.6]
         """
         self.targets.write(ratio, down)
+        self.plans.write(ratio if planned is None else planned, down)
 
-    def record_control(self, ratio: np.ndarray, down, decimation: int) -> None:
+    def record_control(self, ratio: np.ndarray, down, decimation: int, planned: np.ndarray | None = None) -> None:
         """The target ratios of a block of control samples the device streams ``decimation`` times slower (a
         ``serial:PATH?rate=N`` below the control rate): each device value is the mean of ``decimation`` control
         samples, so its target is their targets' mean, and the finger counts as down for it only if down for all
@@ -292,6 +311,8 @@ class FrictionLoop:
         down : bool or numpy.ndarray
         decimation : int
             Control samples per device value.
+        planned : numpy.ndarray, optional
+            The ratios the model's inverse was asked for, one per control sample (None: the targets).
 
         Examples
         --------
@@ -304,8 +325,12 @@ class FrictionLoop:
         >>> loop.targets.read(np.array([0, 1])).round(9).tolist()
         [0.5, 0.9]
         """
+        if planned is not None and planned is not ratio:
+            self._record_plan(planned, down, decimation)
         if decimation == 1:
             self.targets.write(ratio, down)
+            if planned is None or planned is ratio:
+                self.plans.write(ratio, down)
             return
         n = len(ratio) // decimation
         if n > len(self._decimated):
@@ -315,10 +340,26 @@ class FrictionLoop:
         np.mean(ratio[:n * decimation].reshape(n, decimation), axis=1, out=means)
         if np.ndim(down) == 0:
             self.targets.write(means, down)
+            if planned is None or planned is ratio:
+                self.plans.write(means, down)
             return
         downs = self._decimated_down[:n]
         np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
         self.targets.write(means, downs)
+        if planned is None or planned is ratio:
+            self.plans.write(means, downs)
+
+    def _record_plan(self, planned: np.ndarray, down, decimation: int) -> None:
+        """The planner's commands of a block of control samples, as :meth:`record_control` records the targets."""
+        if decimation == 1:
+            self.plans.write(planned, down)
+            return
+        n = len(planned) // decimation
+        means = np.mean(planned[:n * decimation].reshape(n, decimation), axis=1)
+        if np.ndim(down) == 0:
+            self.plans.write(means, down)
+            return
+        self.plans.write(means, np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1))
 
     def skip(self, n: int) -> None:
         """``n`` stream indices the device's writer skipped (no target for them).
@@ -337,6 +378,7 @@ class FrictionLoop:
         [nan, 0.5]
         """
         self.targets.skip(n)
+        self.plans.skip(n)
 
     # ---- the reader thread ----
     def take_sensors_frame(self, frame, received_s: float | None = None) -> None:
@@ -401,16 +443,21 @@ class FrictionLoop:
             return
         if self._next_sample is not None and first_sample != self._next_sample:
             self._target_sensors.reset(None)
+            self._plan_fresh = True
         self._next_sample = first_sample + n
         batch = self.estimator.update(first_sample, amplitude_um_pp, normal_force_n, lateral_force_n,
                                       self.panel_speed_mm_s, self.correction.value)
         estimate = batch.estimate
+        per_sample = self.stream_rate_hz / self.sensor_rate_hz
+        meant = self._plan_meant(setpoint_index, n, per_sample)
         if estimate.sliding:
-            self.correction.update(batch.measured_ratio - batch.intended_ratio, batch.sensitivity,
-                                   n / self.sensor_rate_hz)
+            # with friction dynamics, the plan's felt ratio is what the finger is meant to feel: the error against it
+            # takes in what the plate's delivery of the plan's pulses costs (see the module docstring)
+            intended = batch.intended_ratio if meant is None else np.where(np.isfinite(batch.intended_ratio), meant,
+                                                                            np.nan)
+            self.correction.update(batch.measured_ratio - intended, batch.sensitivity, n / self.sensor_rate_hz)
         targets = np.full(n, np.nan)
         if setpoint_index != NOT_PLAYING:
-            per_sample = self.stream_rate_hz / self.sensor_rate_hz
             indices = setpoint_index + np.round((np.arange(n) + 0.5) * per_sample).astype(np.int64)
             targets = self.targets.read(indices)
         seen = self._target_sensors(np.nan_to_num(targets, nan=1.0)[None, :])[0]
@@ -428,6 +475,37 @@ class FrictionLoop:
             self.measured_ratio = estimate.measured_ratio
             self.target_ratio = nan_mean(seen) if np.isfinite(seen).any() else math.nan
         self._command(estimate, received_s)
+
+    def _plan_meant(self, setpoint_index: int, n: int, per_sample: float) -> np.ndarray | None:
+        """With a host model that has friction dynamics: the felt ratio the plan means for each of ``n`` sensor
+        samples (the mean of the static ratios asked over each sample's values, through the model's dynamics at the
+        finger's speed, then the host's model of the force sensors; NaN where no plan played); None for a static
+        model."""
+        dynamics = getattr(self.estimator.model, "dynamics", None)
+        if dynamics is None:
+            return None
+        asked = np.full(n, np.nan)
+        if setpoint_index != NOT_PLAYING:
+            values = max(1, int(round(per_sample)))
+            indices = (setpoint_index + np.round(np.arange(n) * per_sample).astype(np.int64)[:, None]
+                       + np.arange(values)[None, :])
+            read = self.plans.read(indices.reshape(-1)).reshape(n, values)
+            known = np.isfinite(read).all(axis=1)
+            asked[known] = read[known].mean(axis=1)
+        played = np.isfinite(asked)
+        speed = self.panel_speed_mm_s
+        speed = speed if speed is not None and speed > 0 else dynamics.reference_speed_mm_s
+        felt = dynamics.respond(np.where(played, asked, 1.0), self.sensor_rate_hz, speed, felt=self._plan_felt)
+        self._plan_felt = float(felt[-1])
+        timing = self.estimator.sensor_timing  # as identified: the plan seen as the estimator sees its prediction
+        if timing != (self._plan_sensors.bandwidth_hz, self._plan_sensors.delay_s):
+            self._plan_sensors.set(*timing)
+        if self._plan_fresh:
+            self._plan_sensors.reset(felt[:1])
+            self._plan_fresh = False
+        seen = self._plan_sensors(felt[None, :])[0]
+        seen[~played] = np.nan
+        return seen
 
     def _command(self, estimate, received_s: float) -> None:
         following = estimate.sliding

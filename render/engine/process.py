@@ -250,7 +250,7 @@ class EngineSource(OutputStage):
         if block is None or len(block.ratio) != n * k:  # a block served otherwise (a stop's tail): no targets
             loop.record(self._no_target[:n], False)
             return
-        loop.record_control(block.ratio, block.down, k)
+        loop.record_control(block.ratio, block.down, k, block.planned_ratio)
         x, y = block.x_mm, block.y_mm
         m = n * k
         if m > 1:  # from the block's first sample to its last
