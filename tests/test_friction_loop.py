@@ -371,3 +371,26 @@ def test_with_friction_dynamics_the_correction_acts_on_the_felt_ratio_the_plan_m
     assert corrections[None] == pytest.approx(0.0, abs=0.005)
     assert corrections[0.6] > 0.05  # the amplitude scaled up: the finger's friction brought toward the plan's
 
+
+def test_an_identified_bandwidth_is_kept_unless_another_explains_the_friction_clearly_better():
+    """A busy plan's fits score 0.85-0.95 and the best bandwidth flipped between searches 0.5 s apart (300, 600,
+    420, 300 Hz in one real-time run), each flip starting the adaptive model over. Friction through a 500 Hz sensor
+    with noise: searched afresh, 1.4 x the nominal 300 Hz scores best by 0.014; once 300 Hz was identified, it is
+    kept. A sensor three times faster is still found (its score better by more than the margin)."""
+    from ultraglide.devices.output.kernels import first_order_filter
+    from ultraglide.render.engine.friction_estimator import SensorTiming, lowpass_coefficients
+
+    rng = np.random.default_rng(1)
+    n = SensorTiming.BUFFER
+    ratio = np.repeat(rng.uniform(0.4, 1.0, n // 2 + 1), 2)[:n]  # a plan's 2 ms steps, sampled at 1 kHz
+
+    def timing(bandwidth_hz, noise, found):
+        b, a = lowpass_coefficients(bandwidth_hz, 1000.0)
+        mu = np.roll(first_order_filter(b, a, ratio, zi=[(b[1] - a[1]) * ratio[0]])[0], 1)
+        search = SensorTiming(1000.0, 300.0, 0.001)
+        search.ratio, search.mu, search.found = ratio.copy(), mu + noise * rng.standard_normal(n), found
+        return search.search()
+
+    assert timing(500.0, 0.05, None)[0] == pytest.approx(420.0)
+    assert timing(500.0, 0.05, (300.0, 0.001))[0] == pytest.approx(300.0)
+    assert timing(900.0, 0.0, (300.0, 0.001))[0] >= 600.0

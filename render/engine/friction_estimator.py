@@ -414,6 +414,7 @@ class SensorTiming:
     FIRST_EVERY = 100
     MAX_LAG = 12
     BANDS = (1.0, 1 / 3, 0.5, 0.7, 1.4, 2.0, 3.0)  # the nominal first: another must do clearly better
+    KEEP_MARGIN = 0.03  # once identified, another bandwidth must explain mu this much better (a correlation)
 
     def __init__(self, rate_hz: float, bandwidth_hz: float, delay_s: float):
         self.rate_hz = rate_hz
@@ -484,7 +485,13 @@ class SensorTiming:
         y = y - y.mean()
         best = (-1.0, 0, 0.0, None)
         start = np.nan_to_num(self.ratio, nan=float(np.nanmean(self.ratio)))
-        for multiple in self.BANDS:
+        # the bandwidth in use first: another must do clearly better, by more once one was identified (the fits of a
+        # busy plan score 0.7-0.9 and their best bandwidth flipped between searches, each flip starting the adaptive
+        # model over: issue 43)
+        kept = self.nominal_hz if self.found is None else self.found[0]
+        margin = 0.01 if self.found is None else self.KEEP_MARGIN
+        bands = (kept / self.nominal_hz, *(m for m in self.BANDS if not math.isclose(self.nominal_hz * m, kept)))
+        for multiple in bands:
             b, a = lowpass_coefficients(self.nominal_hz * multiple, self.rate_hz)
             filtered = first_order_filter(b, a, start, zi=[(b[1] - a[1]) * start[0]])[0]
             scores = []
@@ -498,7 +505,9 @@ class SensorTiming:
             top = max(scores)
             near = [lag for lag, score in enumerate(scores) if score >= top - 0.02]
             lag = min(near, key=lambda candidate: abs(candidate - self.nominal_lag))
-            if scores[lag] > best[0] + 0.01:
+            # the bandwidth in use is left for a clear gain; the others compete among themselves as before
+            needed = margin if best[2] == kept else 0.01
+            if best[3] is None or scores[lag] > best[0] + needed:
                 best = (scores[lag], lag, self.nominal_hz * multiple, scores)
         score, lag, bandwidth, scores = best
         if score < 0.7:  # the ratio explains too little of mu: no identification
