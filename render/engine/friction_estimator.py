@@ -736,7 +736,9 @@ class FrictionEstimator:
                 bandwidth, delay = found
                 if (abs(delay - self._sensors.delay_s) * self.sensor_rate_hz > 0.25
                         or abs(math.log(bandwidth / max(self._sensors.bandwidth_hz, 1e-9))) > 0.1):
-                    self.covariance[:] = INITIAL_COVARIANCE  # what was fitted through the old timing: learn again
+                    # what was fitted through the old timing: learn the scale again; mu0 keeps what pinned it
+                    self.covariance[1, 1] = max(self.covariance[1, 1], INITIAL_COVARIANCE[1, 1])
+                    self.covariance[0, 1] = self.covariance[1, 0] = 0.0
                 self._sensors.set(bandwidth, delay)
         # the fit waits for the sensors' timing, unless the ratio is steady (then timing does not matter)
         swing = float(np.maximum.reduce(ratio) - np.minimum.reduce(ratio))  # np.ptp's value
