@@ -301,6 +301,11 @@ def test_a_slower_stream_records_one_target_per_device_value():
     assert loop.targets.written == 3
     loop.record_control(ratio, np.array([1, 1, 1, 1, 0, 1, 1, 1, 1], dtype=bool), 3)
     np.testing.assert_allclose(loop.targets.read([3, 4, 5]), [0.8, np.nan, 0.7])
+    # the planner's commands beside them, by the same rule (without a plan, the targets themselves)
+    planned = np.array([0.4, 0.4, 0.1, 1.0, 1.0, 0.7, 0.2, 0.5, 0.5])
+    loop.record_control(ratio, np.array([1, 1, 1, 1, 1, 1, 0, 1, 1], dtype=bool), 3, planned)
+    np.testing.assert_allclose(loop.plans.read(np.arange(9)), [0.8, 0.5, 0.7, 0.8, np.nan, 0.7, 0.3, 0.9, np.nan])
+    np.testing.assert_allclose(loop.targets.read([6, 7, 8]), [0.8, 0.5, np.nan])
 
 
 def test_estimator_faults_and_words():

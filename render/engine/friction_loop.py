@@ -195,6 +195,7 @@ class FrictionLoop:
         self.plans = TargetRing()  # the static ratio the inverse was asked for (the planner's command), by index
         self._decimated = np.zeros(capacity)  # record_control's per-value targets, made once
         self._decimated_down = np.zeros(capacity, dtype=bool)
+        self._plan_decimated = np.zeros(capacity)  # the same for the planner's commands
         self.panel_speed_mm_s: float | None = None
         est = self.settings.estimator
         self._target_sensors = SensorModel(1, self.sensor_rate_hz, est.sensor_bandwidth_hz, est.sensor_delay_s)
@@ -355,11 +356,18 @@ class FrictionLoop:
             self.plans.write(planned, down)
             return
         n = len(planned) // decimation
-        means = np.mean(planned[:n * decimation].reshape(n, decimation), axis=1)
+        if n > len(self._plan_decimated):
+            self._plan_decimated = np.zeros(n)
+        means = self._plan_decimated[:n]
+        np.mean(planned[:n * decimation].reshape(n, decimation), axis=1, out=means)
         if np.ndim(down) == 0:
             self.plans.write(means, down)
             return
-        self.plans.write(means, np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1))
+        if n > len(self._decimated_down):
+            self._decimated_down = np.zeros(n, dtype=bool)
+        downs = self._decimated_down[:n]  # written again for the targets after this copy
+        np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
+        self.plans.write(means, downs)
 
     def skip(self, n: int) -> None:
         """``n`` stream indices the device's writer skipped (no target for them).
