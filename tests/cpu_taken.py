@@ -1,6 +1,7 @@
 """CPU 0 taken from ordinary threads, as a busy machine takes it: a process spinning there at real-time priority
 (SCHED_FIFO 1). The kernel still leaves ordinary threads a share (its real-time throttling, or the fair class's
-deadline server: 50 ms a second), so threads kept on CPU 0 run in bursts and wait, runnable, in between."""
+deadline server: 50 ms a second), so threads kept on CPU 0 run in bursts and wait, runnable, in between. Or CPU 0
+shared with ordinary busy processes (:func:`cpu0_shared`): a thread kept there runs a share of the time."""
 
 import contextlib
 import os
@@ -35,6 +36,22 @@ def cpu0_taken():
     finally:
         hog.kill()
         hog.wait()
+
+
+@contextlib.contextmanager
+def cpu0_shared(hogs: int = 2):
+    """While the block runs, ``hogs`` ordinary processes (SCHED_OTHER, nice 0) spin on CPU 0."""
+    spin = "import os, sys\nos.sched_setaffinity(0, {0})\nprint('spinning', flush=True)\nwhile True:\n    pass\n"
+    started = []
+    try:
+        for _ in range(hogs):
+            started.append(subprocess.Popen([sys.executable, "-c", spin], stdout=subprocess.PIPE, text=True))
+            assert started[-1].stdout.readline().strip() == "spinning", "a CPU hog did not start"
+        yield started
+    finally:
+        for hog in started:
+            hog.kill()
+            hog.wait()
 
 
 def keep_on_cpu0(pid: int) -> list[int]:

@@ -6,24 +6,26 @@ its status; and one kept from a CPU by a busy machine is not taken for frozen un
 import mmap
 import multiprocessing
 import os
+import re
 import threading
 import time
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from cpu_taken import cpu0_taken, free_of_cpu0, keep_on_cpu0
+from cpu_taken import cpu0_shared, cpu0_taken, free_of_cpu0, keep_on_cpu0
 from ultraglide.render.engine import shm
 from ultraglide.render.engine.supervisor import Supervisor
 
 FROZEN_AFTER_S = 0.5  # long against a child at ordinary priority starved beside two CPU hogs (0.1 s once was not)
 MODE = 0  # the header's first word (SEQ, unused here) tells the child what to beat
-BLOCKS, BEAT_THREAD, NOTHING, EXIT, DEADLOCK = 1.0, 2.0, 3.0, 4.0, 5.0
+BLOCKS, BEAT_THREAD, NOTHING, EXIT, DEADLOCK, SPIN_IN_C = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
 
 
 def child(buffer, state: str) -> None:
     """Beat as the header's MODE says, every 2 ms, with ``state`` published: blocks only, the beat thread only,
-    nothing (busy, running Python), exit with status 3, or sleep for good (a deadlock)."""
+    nothing (busy, running Python), exit with status 3, sleep for good (a deadlock), or spin in C holding the
+    interpreter while 24 threads wait for it."""
     fast = np.frombuffer(buffer, dtype=np.float64, count=shm.HEADER)
     fast[shm.STATE] = shm.STATES.index(state)
     while True:
@@ -32,6 +34,10 @@ def child(buffer, state: str) -> None:
             os._exit(3)
         if mode == DEADLOCK:
             threading.Event().wait()
+        if mode == SPIN_IN_C:
+            for _ in range(24):
+                threading.Thread(target=lambda: [time.sleep(0.001) for _ in iter(int, 1)], daemon=True).start()
+            re.fullmatch(r"(a+)+b", "a" * 64)  # backtracks for longer than anyone waits, holding the interpreter
         deadline = time.perf_counter() + 0.002
         while time.perf_counter() < deadline:
             pass
@@ -67,6 +73,9 @@ class Watched:
         if self.process.is_alive():
             self.fast[MODE] = EXIT
         self.process.join(30)
+        if self.process.is_alive():  # (spinning in C: it reads no mode)
+            self.process.kill()
+            self.process.join(30)
         self.supervisor.close()
 
 
@@ -193,6 +202,28 @@ def test_a_deadlocked_child_on_a_busy_cpu_is_still_frozen():
             judged = watched.supervisor.wait(60.0)
         free_of_cpu0(threads)
         assert judged, "no freeze judged within 60 s"
+        loss = watched.supervisor.loss
+        assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
+        watched.process.join(30)
+        assert watched.process.exitcode == -9
+    finally:
+        watched.close()
+
+
+def test_a_child_spinning_in_c_on_a_busy_cpu_is_still_frozen():
+    """A frozen engine may spin in C holding the interpreter, its other threads waiting for it, on a CPU it shares
+    with busy processes: its threads then wait for the CPU at times, summed far longer than its silence (the watch
+    once excused it all: 4 of 4 runs not judged in 10 s), but the spinner has had the CPU for the freeze's time
+    without a beat: judged frozen and killed (with two hogs beside it, 2-4 s in)."""
+    watched = Watched("running", BLOCKS)
+    try:
+        watched.beats_for(shm.HEARTBEAT, 5)
+        with cpu0_shared(2):
+            threads = keep_on_cpu0(watched.process.pid)
+            watched.fast[MODE] = SPIN_IN_C
+            judged = watched.supervisor.wait(20.0)
+        free_of_cpu0(threads)
+        assert judged, "no freeze judged within 20 s"
         loss = watched.supervisor.loss
         assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
         watched.process.join(30)

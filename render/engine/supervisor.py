@@ -281,6 +281,7 @@ class Supervisor:
                 return
             if now - last_wake > OWN_GAP_S:  # this process did not run: what the engine did meanwhile is unknown
                 block_seen = engine_seen = now
+                cpu_waits = None  # (its waits until now excused a silence forgiven already)
             last_wake = now
             # a process seen stopped twice frozen_after_s apart is frozen, however late this watch ran between (the
             # two stopped together by Ctrl-Z are continued together: the engine is not seen stopped again)
@@ -310,13 +311,14 @@ class Supervisor:
             elif state in ("running", "paused", "stopping"):
                 # neither beat: the block path may end as a stop rests the device (the beat thread goes on), and
                 # the beat thread may wait for the interpreter while a block loads a compiled kernel (blocks come)
-                waited_s = 0.0  # a loaded machine kept it from a CPU this long: that is not its silence
-                if not beating:
+                waited_s = ran_s = 0.0  # a loaded machine kept it from a CPU this long: that is not its silence;
+                if not beating:  # but a thread that had the CPU the freeze's time without a beat is frozen (spinning)
                     if cpu_waits is None:
                         cpu_waits = CpuWaits(self.pid, now)
                     else:
                         waited_s = min(silent_s, cpu_waits.look(now))
-                frozen = silent_s - waited_s > self.frozen_after_s
+                        ran_s = cpu_waits.ran_s
+                frozen = silent_s - waited_s > self.frozen_after_s or ran_s > self.frozen_after_s
                 if not frozen and silent_s > self.frozen_after_s:  # excused: looked at again as a silent engine is,
                     timeout_s = SILENT_POLL_S  # not every JUDGE_LATE_S (its wait goes on)
             else:  # starting: loading, compiling, opening the device (its death is watched, its beat not yet)
@@ -400,9 +402,12 @@ class CpuWaits:
     Two parts: the waits that ended (the kernel's schedstat, whose second field grows only as a thread is given a
     CPU, by the whole wait at once), and the waits going on, which schedstat does not show yet: a thread runnable
     (state R) whose CPU time has not grown since the last look waits still, counted from the first look that saw it
-    so. A thread that runs (its CPU time grows: an engine spinning in C) is not waiting, and one that sleeps (a
-    deadlock) is not runnable, so a frozen engine's threads add little; waits that began before this was made count
-    once they end. Nothing is counted where /proc does not say (no schedstat, the process gone).
+    so. Each thread's is at most the time since the first look (a wait that began before it counts from it). A
+    thread that sleeps (a deadlock) is not runnable; one that spins (an engine stuck in C) waits only while a busy
+    CPU is given to others, and its own CPU time meanwhile (:attr:`ran_s`, the most any one thread had) tells it
+    from a starved one. Schedstat's CPU time moves on at the kernel's ticks (4 ms at 250 Hz) and as a thread leaves
+    its CPU: a thread running now may look waiting for that long. Nothing is counted where /proc does not say (no
+    schedstat, the process gone).
 
     Parameters
     ----------
@@ -425,7 +430,9 @@ class CpuWaits:
     def __init__(self, pid: int, now_s: float):
         self.pid = pid
         self._first = self._last = _thread_cpu(pid)
+        self._first_s = now_s
         self._waiting_since = {tid: now_s for tid, (state, _, _) in self._first.items() if state == "R"}
+        self.ran_s = 0.0  # the most CPU time any one thread had since the first look, s (as of the last look)
 
     def look(self, now_s: float) -> float:
         """Look again.
@@ -453,17 +460,20 @@ class CpuWaits:
         True
         """
         threads = _thread_cpu(self.pid)
-        ended_ns = 0
+        waited_s = ran_s = 0.0
         waiting_since = {}
         for tid, (state, ran_ns, waited_ns) in threads.items():
-            if tid in self._first:
-                ended_ns += waited_ns - self._first[tid][2]
+            first = self._first.get(tid, (state, ran_ns, waited_ns))  # (a thread new since: from now)
+            ongoing_s = 0.0
             if state == "R":
                 last = self._last.get(tid)
                 ran = last is None or ran_ns != last[1]  # it ran since the last look: a wait, if any, starts now
                 waiting_since[tid] = now_s if ran else self._waiting_since.get(tid, now_s)
-        self._last, self._waiting_since = threads, waiting_since
-        return ended_ns / 1e9 + sum(now_s - since for since in waiting_since.values())
+                ongoing_s = now_s - waiting_since[tid]
+            waited_s += min(now_s - self._first_s, (waited_ns - first[2]) / 1e9 + ongoing_s)
+            ran_s = max(ran_s, (ran_ns - first[1]) / 1e9)
+        self._last, self._waiting_since, self.ran_s = threads, waiting_since, ran_s
+        return waited_s
 
 
 def _thread_cpu(pid: int) -> dict[str, tuple[str, int, int]]:
