@@ -53,7 +53,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     output_option(play, "--envelope-csv", kind="log", metavar="FILE.csv",
                       help="record the envelope as it plays: t_s (perf_counter s: when the value plays, by a plate "
                            "driver's SENSORS; else the renderer's plan), index, x_mm, y_mm, down, target_ratio, "
-                           "target_um_pp, commanded_um_pp (what the device was given), plan_s (the renderer's plan)")
+                           "target_um_pp, commanded_um_pp (what the device was given), plan_s (the renderer's plan), "
+                           "planned_ratio (the ratio the model's inverse was asked for: the planner's command)")
     output_option(play, "--sensors-csv", kind="log", metavar="FILE.csv",
                       help="record the plate's sensor samples as they come: sample, setpoint_index (the stream index "
                            "playing: the envelope CSV's index), received_s, amplitude_um_pp, normal_force_n, "

@@ -163,7 +163,11 @@ class FastCorrection:
     scale. (Normalising each batch by its own ``sum(s²)`` divided such errors by a slope near zero: on a plate of
     twice the profile's Q, whose decays are twice as long, each step back to ratio 1 pushed ``g`` up by 0.3-0.5 and
     steps 1 -> 0.5 then settled 5-8 % too slippery.) Measured at the amplitude reached, the error does not grow
-    while the amplitude is held at the limit: nothing winds up; ``g`` also stays within its range.
+    while the amplitude is held at the limit: nothing winds up; ``g`` also stays within its range. With a host
+    model that has friction dynamics, the loop (:class:`render.engine.friction_loop.FrictionLoop`) gives it the
+    measured ratio less the plan's felt ratio instead, so that what the plate's late delivery of the plan costs is
+    corrected too: that error persists where the plate cannot deliver the plan, and ``g`` then rests at the end of
+    its range (``correction_high``), not beyond it.
 
     Examples
     --------
