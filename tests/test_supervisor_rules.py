@@ -190,24 +190,30 @@ def test_a_child_kept_from_the_cpu_by_a_busy_machine_is_not_taken_for_frozen():
         watched.close()
 
 
-def test_a_deadlocked_child_on_a_busy_cpu_is_still_frozen():
-    """A deadlock sleeps, so it waits for no CPU: the same child on the same taken CPU, once it sleeps for good
-    without a beat, is judged frozen and killed."""
+def frozen_on_cpu0(busy, mode: float, within_s: float) -> None:
+    """A child that beat, kept on CPU 0 while ``busy`` (a context) keeps that CPU busy, told ``mode``: it is judged
+    frozen within ``within_s`` and killed."""
     watched = Watched("running", BLOCKS)
     try:
         watched.beats_for(shm.HEARTBEAT, 5)
-        with cpu0_taken():
+        with busy:
             threads = keep_on_cpu0(watched.process.pid)
-            watched.fast[MODE] = DEADLOCK
-            judged = watched.supervisor.wait(60.0)
+            watched.fast[MODE] = mode
+            judged = watched.supervisor.wait(within_s)
         free_of_cpu0(threads)
-        assert judged, "no freeze judged within 60 s"
+        assert judged, f"no freeze judged within {within_s:.0f} s"
         loss = watched.supervisor.loss
         assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
         watched.process.join(30)
         assert watched.process.exitcode == -9
     finally:
         watched.close()
+
+
+def test_a_deadlocked_child_on_a_busy_cpu_is_still_frozen():
+    """A deadlock sleeps, so it waits for no CPU: the same child on the same taken CPU, once it sleeps for good
+    without a beat, is judged frozen and killed."""
+    frozen_on_cpu0(cpu0_taken(), DEADLOCK, 60.0)
 
 
 def test_a_child_spinning_in_c_on_a_busy_cpu_is_still_frozen():
@@ -215,18 +221,4 @@ def test_a_child_spinning_in_c_on_a_busy_cpu_is_still_frozen():
     with busy processes: its threads then wait for the CPU at times, summed far longer than its silence (the watch
     once excused it all: 4 of 4 runs not judged in 10 s), but the spinner has had the CPU for the freeze's time
     without a beat: judged frozen and killed (with two hogs beside it, 2-4 s in)."""
-    watched = Watched("running", BLOCKS)
-    try:
-        watched.beats_for(shm.HEARTBEAT, 5)
-        with cpu0_shared(2):
-            threads = keep_on_cpu0(watched.process.pid)
-            watched.fast[MODE] = SPIN_IN_C
-            judged = watched.supervisor.wait(20.0)
-        free_of_cpu0(threads)
-        assert judged, "no freeze judged within 20 s"
-        loss = watched.supervisor.loss
-        assert loss.kind == "froze" and "its process ran no Python" in loss.cause, loss
-        watched.process.join(30)
-        assert watched.process.exitcode == -9
-    finally:
-        watched.close()
+    frozen_on_cpu0(cpu0_shared(2), SPIN_IN_C, 20.0)
