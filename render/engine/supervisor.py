@@ -429,7 +429,8 @@ class CpuWaits:
 
     def __init__(self, pid: int, now_s: float):
         self.pid = pid
-        self._first = self._last = _thread_cpu(pid)
+        self._first = _thread_cpu(pid)
+        self._last = dict(self._first)
         self._first_s = now_s
         self._waiting_since = {tid: now_s for tid, (state, _, _) in self._first.items() if state == "R"}
         self.ran_s = 0.0  # the most CPU time any one thread had since the first look, s (as of the last look)
@@ -463,7 +464,7 @@ class CpuWaits:
         waited_s = ran_s = 0.0
         waiting_since = {}
         for tid, (state, ran_ns, waited_ns) in threads.items():
-            first = self._first.get(tid, (state, ran_ns, waited_ns))  # (a thread new since: from now)
+            first = self._first.setdefault(tid, (state, ran_ns, waited_ns))  # (a thread new since: from its first)
             ongoing_s = 0.0
             if state == "R":
                 last = self._last.get(tid)
