@@ -418,13 +418,18 @@ class CpuWaits:
 
     Examples
     --------
-    A thread that sleeps waits for no CPU:
+    A process asleep waits for no CPU, however busy the machine:
 
-    >>> import os, time
-    >>> waits = CpuWaits(os.getpid(), time.perf_counter())
+    >>> import subprocess, time
+    >>> asleep = subprocess.Popen(["sleep", "30"])
+    >>> while [state for state, _, _ in _thread_cpu(asleep.pid).values()] != ["S"]:
+    ...     time.sleep(0.01)
+    >>> waits = CpuWaits(asleep.pid, time.perf_counter())
     >>> time.sleep(0.05)
-    >>> waits.look(time.perf_counter()) < 0.05
-    True
+    >>> waits.look(time.perf_counter())
+    0.0
+    >>> asleep.kill(); asleep.wait()
+    -9
     """
 
     def __init__(self, pid: int, now_s: float):
@@ -450,15 +455,19 @@ class CpuWaits:
 
         Examples
         --------
-        A thread kept busy on its CPU is not waiting for one:
+        A thread kept busy has CPU time of its own to show, and whatever it waited is at most the time since the
+        first look:
 
         >>> import os, time
-        >>> waits = CpuWaits(os.getpid(), time.perf_counter())
-        >>> end = time.perf_counter() + 0.05
+        >>> start = time.perf_counter()
+        >>> waits = CpuWaits(os.getpid(), start)
+        >>> end = start + 0.05
         >>> while time.perf_counter() < end:
         ...     pass
-        >>> waits.look(time.perf_counter()) < 0.05
-        True
+        >>> now = time.perf_counter()
+        >>> waited_s = waits.look(now)
+        >>> waits.ran_s > 0, waited_s <= len(_thread_cpu(os.getpid())) * (now - start)
+        (True, True)
         """
         threads = _thread_cpu(self.pid)
         waited_s = ran_s = 0.0
