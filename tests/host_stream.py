@@ -9,12 +9,11 @@ at every multiple of the half period, as a touch that reaches the host then. Pri
 on SIGTERM stops the driver (ramp, zero, disable) and prints its status as one JSON line.
 """
 
-import json
 import sys
 import time
 
 import numpy as np
-from stop_flag import stop_on_sigterm
+from stop_flag import drive_until_sigterm
 from ultraglide.devices.profiles import load_profile
 from ultraglide.devices.serial.plate import SerialPlate
 from ultraglide.render.engine.realtime import threads_started_in_real_time
@@ -40,18 +39,13 @@ class Square:
 
 def main() -> None:
     port, low, high, half = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
-    stopped = stop_on_sigterm()
     driver = SerialPlate(port, load_profile("sim-plate"), ack_timeout_s=10)
     # the driver's writer and reader in real time where allowed, at the priority the engine gives them (SCHED_FIFO
     # 1), from the block's end on; this thread, which only waits, and the start-up and exit stay ordinary: a whole
     # process at a priority above the engine's threads once held another test's engine off its CPU for 140 ms
     with threads_started_in_real_time():
         driver.start(Square(low, high, half))
-    print("ready", flush=True)
-    while not stopped:
-        time.sleep(0.01)
-    driver.stop()
-    print(json.dumps(driver.status()), flush=True)
+    drive_until_sigterm(driver)
 
 
 if __name__ == "__main__":

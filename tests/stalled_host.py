@@ -9,30 +9,23 @@ silent (no telemetry from then on); on SIGTERM stops the driver and prints its s
 as one JSON line.
 """
 
-import json
 import signal
-import time
 
 from conftest import wait_for
 from scripted_plate import PROFILE, ScriptedPlate
 from sources import Constant
-from stop_flag import stop_on_sigterm
+from stop_flag import drive_until_sigterm
 from ultraglide.devices.serial.plate import SerialPlate
 
 
 def main() -> None:
-    stopped = stop_on_sigterm()
     with ScriptedPlate(enabled_follows=True) as plate:
         signal.signal(signal.SIGUSR1, lambda *_: setattr(plate, "telemetry", False))
         driver = SerialPlate(plate.path, PROFILE, ack_timeout_s=10)
         driver.start(Constant(1.0))
         if not wait_for(lambda: driver.telemetry_frames >= 10, timeout=60.0):
             raise SystemExit("the host had no telemetry from the scripted plate within 60 s")
-        print("ready", flush=True)
-        while not stopped:
-            time.sleep(0.01)
-        driver.stop()
-    print(json.dumps(driver.status()), flush=True)
+        drive_until_sigterm(driver)
 
 
 if __name__ == "__main__":
