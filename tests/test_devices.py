@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -325,6 +326,22 @@ def test_play_on_the_audio_device_from_the_command_line(tmp_path):
     played = np.frombuffer(capture.read_bytes(), dtype="<f4")
     assert len(played) > 0 and np.max(np.abs(played)) <= 1.0
     assert np.max(np.abs(played[-960:])) < 1e-3  # rests at the end
+
+
+def test_an_audio_device_with_no_clock_is_held_to_real_time(tmp_path):
+    """ALSA's null PCM takes samples as fast as they come (some twenty times real time here): the file behind it
+    holds the second played, not twenty, and the run says the device had no clock."""
+    capture = tmp_path / "capture.raw"
+    (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=capture))
+    result = run_cli("play", "grating-1mm", "--device", "audio", "--profile", "sim-plate", "--duration-s", "1",
+                     env={"HOME": str(tmp_path)}, check=True)
+    played_s = float(re.search(r"played ([\d.]+) s", result.stdout).group(1))
+    captured_s = capture.stat().st_size / 4 / 96000
+    # the lead allowed: twice the latency, 50 ms and 1 %; then the ramp down and the stream's last buffer
+    assert 1.0 <= captured_s <= played_s + 0.25, (captured_s, played_s)
+    assert "took samples faster than real time (it has no clock of its own" in result.stdout
+    held = float(re.search(r"held it to real time \(([\d.]+) s of waiting\)", result.stdout).group(1))
+    assert 0.5 <= held <= played_s
 
 
 def test_audio_refuses_a_rate_that_cannot_carry_the_carrier(tmp_path):

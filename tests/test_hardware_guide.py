@@ -67,7 +67,7 @@ def test_every_command_of_the_guide_parses(command, tmp_path):
 def test_the_dry_run_runs_as_written(tmp_path):
     """The page's shell blocks, in order, in a scratch folder holding examples/rig.toml: each ends well, and what
     they leave is what the page says (a WAV and PortAudio's capture at the rig's carrier, never above the limit
-    over full scale, 5 / 10; a measured profile)."""
+    over full scale, 5 / 10; the capture as long as the run; a measured profile)."""
     (tmp_path / "examples").mkdir()
     shutil.copy(ROOT / "examples" / "rig.toml", tmp_path / "examples" / "rig.toml")
     env = {**os.environ, "PATH": f"{os.path.dirname(sys.executable)}:{os.environ['PATH']}"}
@@ -80,6 +80,7 @@ def test_the_dry_run_runs_as_written(tmp_path):
         timeout=120).stdout
     samples, rate = soundfile.read(tmp_path / "dry-run.wav")
     played = np.fromfile(tmp_path / "played.raw", "<f4")  # the file PCM writes where the command ran
+    assert 2.0 <= len(played) / 192000 <= 2.4  # the null PCM held to real time: the two seconds played
     for signal, rate_hz in ((samples, rate), (played, 192000)):
         assert 0.2 < np.max(np.abs(signal)) <= 0.5 + 1e-6
         start = int(np.flatnonzero(np.abs(signal) > 0.1)[0])

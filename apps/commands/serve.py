@@ -18,6 +18,7 @@ from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held, stop_requested
 from ultraglide.apps.cli.types import FORCE_N, Bounded
 from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
+from ultraglide.devices.sinks.audio import pacing_words
 
 PORT = Bounded(0, 65535, whole=True)
 VIEW_MM = Bounded(1.0, 2000.0, "mm")
@@ -361,7 +362,8 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
                "touches": service.touches, "touches_ignored": service.touches_ignored,
                "messages": service.messages_read, "rate_refused": service.rate_refusals,
                "faults": device_status.get("fault_counts") or {}, "limiter": device_status.get("limiter", ""),
-               "error": failure, "engine_lost": None if loss is None else loss.lines(started)}
+               "paced_s": device_status.get("paced_s", 0.0), "error": failure,
+               "engine_lost": None if loss is None else loss.lines(started)}
     if feed is not None:
         summary["touch_panel"] = feed.summary()
     if args.json:
@@ -373,6 +375,9 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
         if service.rate_refusals:
             print(f"{service.rate_refusals} of {service.messages_read} messages refused: their client sent more "
                   f"than {RATE_PER_S:g} a second")
+        paced = pacing_words(device_status)
+        if paced:
+            print(paced)
         if summary["limiter"]:
             print(summary["limiter"])
         for line in report.lines:

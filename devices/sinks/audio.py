@@ -5,6 +5,14 @@ A sounddevice OutputStream pulls the modulated carrier in the callback from the 
 callback only copies: no allocation beyond the stage's, no I/O, no locks. The sample rate is the first
 the device accepts that can carry the carrier; underruns are counted; stopping ramps down
 through the source before the stream closes.
+
+A device with no clock of its own (ALSA's ``null`` PCM, or a ``file`` PCM over it: a dry run into a
+file) takes samples as fast as the callback gives them; unpaced, the engine would render tens of times
+faster than real time at real-time priority, starving the machine, and the file would hold far more
+than was played. The callback holds such a device to real time: when the samples taken run ahead of
+the wall clock by more than a clocked device's buffer could (plus 1 % of the time played, far beyond
+any crystal's drift), it sleeps off the lead. A sound card never gets there, so its callback never
+sleeps.
 """
 
 from __future__ import annotations
@@ -18,6 +26,8 @@ from ultraglide.devices.profiles import PlateProfile
 
 CANDIDATE_RATES = (96000, 192000, 88200, 176400, 384000)
 MAX_CARRIER_FRACTION = 0.4
+CLOCK_SLACK_S = 0.05  # a clocked device's lead beyond twice its latency (its buffer filled at the start)
+CLOCK_DRIFT = 0.01  # and beyond this fraction of the time played (a crystal drifts by 1e-4 at most)
 
 
 def import_sounddevice():
@@ -81,6 +91,73 @@ def check_output_device(device) -> None:
         raise DeviceError(f"{which}; {listed} (`ultraglide devices` lists them)")
 
 
+def unclocked_lead_s(frames_taken: int, rate_hz: float, elapsed_s: float, latency_s: float) -> float:
+    """How far a device's intake has run ahead of the wall clock beyond what a clocked device could, s (≤ 0: none).
+
+    A sound card takes ``rate_hz`` samples a second by its own crystal: at most its buffer (about its latency; twice
+    it, and 50 ms, allowed) ahead of the first callback's time, plus its crystal's drift (1 % allowed, a hundred times
+    a poor crystal's). A device that is further ahead has no clock.
+
+    Parameters
+    ----------
+    frames_taken : int
+        Samples the device has taken since the first callback.
+    rate_hz : float
+        The stream's sample rate, Hz.
+    elapsed_s : float
+        Wall-clock time since the first callback, s.
+    latency_s : float
+        The stream's output latency, s.
+
+    Returns
+    -------
+    float
+        The lead to sleep off, s; 0 or less for a device that keeps time.
+
+    Examples
+    --------
+    A sound card with a 20 ms buffer, an hour in, its crystal 100 ppm fast, is well within:
+
+    >>> unclocked_lead_s(round(96000 * 3600 * 1.0001) + 1920, 96000, 3600.0, 0.02) < 0
+    True
+
+    ALSA's null PCM, which took 2 s of samples in 0.1 s:
+
+    >>> round(unclocked_lead_s(2 * 96000, 96000, 0.1, 0.02), 3)
+    1.809
+    """
+    lead_s = frames_taken / rate_hz - elapsed_s
+    return lead_s - (2 * latency_s + CLOCK_SLACK_S + CLOCK_DRIFT * elapsed_s)
+
+
+def pacing_words(device_status: dict) -> str | None:
+    """One line on a device with no clock held to real time (from :meth:`AudioPlate.status`), or None.
+
+    Parameters
+    ----------
+    device_status : dict
+        A device's status; only an audio output's carries ``paced_s``.
+
+    Returns
+    -------
+    str or None
+
+    Examples
+    --------
+    >>> print(pacing_words({"device": "audio:default", "paced_s": 1.93}))  # doctest: +NORMALIZE_WHITESPACE
+    audio:default took samples faster than real time (it has no clock of its own: a null or file sink, not a sound
+    card); ultraglide held it to real time (1.9 s of waiting)
+    >>> pacing_words({"device": "audio:0", "paced_s": 0.0}) is None
+    True
+    """
+    paced_s = device_status.get("paced_s") or 0.0
+    if paced_s <= 0:
+        return None
+    return (f"{device_status.get('device', 'the audio device')} took samples faster than real time (it has no clock "
+            f"of its own: a null or file sink, not a sound card); ultraglide held it to real time "
+            f"({paced_s:.1f} s of waiting)")
+
+
 class AudioPlate:
     """A plate on a sound-card output."""
 
@@ -104,17 +181,29 @@ class AudioPlate:
         self._stream = None
         self._source: BlockSource | None = None
         self._output_latency = 0.0
+        self.paced_s = 0.0  # the time the callback held back a device with no clock (see the module's words)
+        self._frames_taken = 0
+        self._first_callback_s: float | None = None
 
     def _callback(self, outdata, frames, time_info, status) -> None:
         if status.output_underflow:
             self.underruns += 1
         self.callbacks += 1
+        now = time.perf_counter()
+        if self._first_callback_s is None:
+            self._first_callback_s = now
         try:
-            outdata[:, 0] = self._source.pull(frames, time.perf_counter() + self._output_latency)
+            outdata[:, 0] = self._source.pull(frames, now + self._output_latency)
         except Exception as error:  # never let a failing source leave the plate driven
             outdata.fill(0)
             self.errors.append(f"{type(error).__name__}: {error}")
             raise self.sd.CallbackAbort from None
+        self._frames_taken += frames
+        excess_s = unclocked_lead_s(self._frames_taken, self.rate_hz, time.perf_counter() - self._first_callback_s,
+                                    self._output_latency)
+        if excess_s > 0:  # a device with no clock: only a sleep here holds it to real time
+            self.paced_s += excess_s
+            time.sleep(excess_s)
 
     def start(self, source: BlockSource) -> None:
         """Play ``source``'s drive envelope (µm p-p) through the limiter and the carrier."""
@@ -142,4 +231,4 @@ class AudioPlate:
     def status(self) -> dict:
         return {"device": f"audio:{self.device if self.device is not None else 'default'}", "rate_hz": self.rate_hz,
                 "latency_s": self._output_latency, "blocksize": self.blocksize, "underruns": self.underruns,
-                "callbacks": self.callbacks, "errors": self.errors[:5]}
+                "callbacks": self.callbacks, "errors": self.errors[:5], "paced_s": round(self.paced_s, 3)}
