@@ -1,14 +1,12 @@
 """A design's window under SDL's dummy driver: ratings, same-different and typed magnitudes, real pygame events in."""
 
 import csv
-import threading
 import time
 
 import pytest
+from participant import DEADLINE_S, Participant, key, post, wait_for
 
 from ultraglide.experiment import Block, Condition, Design, Stimulus, plan, run
-
-DEADLINE_S = 30.0
 
 
 @pytest.fixture
@@ -17,23 +15,6 @@ def pg(monkeypatch):
     import pygame
 
     return pygame
-
-
-def wait_for(window, what, number):
-    deadline = time.monotonic() + DEADLINE_S
-    while time.monotonic() < deadline:
-        if window.ready.is_set() and window.showing == (what, number):
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"the window never showed {what} {number}")
-
-
-def post(pg, kind, **fields):
-    pg.event.post(pg.event.Event(kind, **fields))
-
-
-def key(pg, name):
-    post(pg, pg.KEYDOWN, key=pg.key.key_code(name), mod=0, unicode=name if len(name) == 1 else "", scancode=0)
 
 
 @pytest.mark.slow
@@ -82,13 +63,11 @@ def test_a_participant_rates_compares_and_estimates_through_the_window(pg, tmp_p
                     time.sleep(0.005)
                 key(pg, "return")
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        session = run(design, "P01", out=tmp_path / "s", responder=window)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant):
+        try:
+            session = run(design, "P01", out=tmp_path / "s", responder=window)
+        finally:
+            window.close()
     with open(tmp_path / "s" / "trials.csv", newline="", encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
     assert session.complete and len(rows) == len(trials) == 2 + 4 + 1 + 1
@@ -140,13 +119,11 @@ def test_a_design_runs_live_through_the_real_time_engine_and_logs_what_it_played
             stroke(pg, window, 0)
             key(pg, "3")
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        session = run(design, "P02", out=tmp_path / "s", responder=window)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant):
+        try:
+            session = run(design, "P02", out=tmp_path / "s", responder=window)
+        finally:
+            window.close()
     with open(tmp_path / "s" / "trials.csv", newline="", encoding="utf-8") as handle:
         rows = {row["condition"]: row for row in csv.DictReader(handle)}
     assert session.complete and set(rows) == {"coarse", "plain"}
@@ -182,13 +159,11 @@ def test_the_window_draws_the_design_s_words(pg, tmp_path):
         for name in ("4", "return"):
             key(pg, name)
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        session = run(design, "P01", responder=window)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant):
+        try:
+            session = run(design, "P01", responder=window)
+        finally:
+            window.close()
     assert session.complete and session.trials[0]["response"] == 4.0
     assert "Essai 1 sur 1" in drawn and "Combien ? (la zone 1 vaut 10)" in drawn and "Valider" in drawn
     assert not any("Trial" in text or text == "OK" for text in drawn)

@@ -6,12 +6,12 @@ import json
 import os
 import subprocess
 import sys
-import threading
 import time
 
 import conftest
 import numpy as np
 import pytest
+from participant import DEADLINE_S, Participant, post, wait_for
 from PIL import Image
 from ultraglide.apps.commands.experiment import design_for
 from ultraglide.apps.experiment.session import SessionConfig, run_session
@@ -19,8 +19,6 @@ from xvfb import start_xvfb
 from xvfb_demo import process_cpu_s, tools_missing
 
 from ultraglide.experiment.procedures import interval_positions
-
-DEADLINE_S = 30.0
 
 
 @pytest.fixture
@@ -46,19 +44,6 @@ def make_window(config):
 
     output.renderer.observers.append(observe)
     return WindowResponder(config, design, screen_width_mm=338.7, windowed=True, output=output), design, felt
-
-
-def wait_for(window, what, number):
-    deadline = time.monotonic() + DEADLINE_S
-    while time.monotonic() < deadline:
-        if window.ready.is_set() and window.showing == (what, number):
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"the window never showed {what} {number}")
-
-
-def post(pg, kind, **fields):
-    pg.event.post(pg.event.Event(kind, **fields))
 
 
 def swipe(pg, window, zone_index):
@@ -110,13 +95,11 @@ def test_a_participant_swipes_taps_clicks_and_keys_through_a_session_with_a_brea
                     w, h = window.screen.get_size()
                     post(pg, pg.FINGERDOWN, x=x / w, y=y / h, dx=0.0, dy=0.0, finger_id=1, touch_id=1, pressure=1.0)
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        outcome = run_session(config, design, window, tmp_path, figures=False)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant):
+        try:
+            outcome = run_session(config, design, window, tmp_path, figures=False)
+        finally:
+            window.close()
     rows = read_rows(tmp_path)
     assert [r["correct"] for r in rows] == ["1", "0", "1", "1", "0", "1"]
     assert [int(r["target"]) for r in rows] == [t + 1 for t in targets]
@@ -138,24 +121,20 @@ def test_escape_stops_the_session_and_resume_continues_it(pg, tmp_path):
             wait_for(window, "trial", trial)
             post(pg, pg.KEYDOWN, key=key, mod=0, unicode="", scancode=0)
 
-    helper = threading.Thread(target=participant, args=([(1, pg.K_1), (2, pg.K_ESCAPE)],), daemon=True)
-    helper.start()
-    try:
-        outcome = run_session(config, design, window, tmp_path, figures=False)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant, [(1, pg.K_1), (2, pg.K_ESCAPE)]):
+        try:
+            outcome = run_session(config, design, window, tmp_path, figures=False)
+        finally:
+            window.close()
     assert not outcome.complete and len(read_rows(tmp_path)) == 1
     assert json.loads((tmp_path / "session.json").read_text())["status"] == "stopped"
 
     window, design, _ = make_window(config)
-    helper = threading.Thread(target=participant, args=([(2, pg.K_2), (3, pg.K_1), (4, pg.K_2)],), daemon=True)
-    helper.start()
-    try:
-        outcome = run_session(config, design, window, tmp_path, resume=True, figures=False)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant, [(2, pg.K_2), (3, pg.K_1), (4, pg.K_2)]):
+        try:
+            outcome = run_session(config, design, window, tmp_path, resume=True, figures=False)
+        finally:
+            window.close()
     rows = read_rows(tmp_path)
     assert [r["trial"] for r in rows] == ["1", "2", "3", "4"] and outcome.complete
     assert [r["response"] for r in rows] == ["1", "2", "1", "2"]
@@ -181,20 +160,18 @@ def test_trials_are_felt_through_the_real_time_engine(pg, tmp_path):
         time.sleep(0.2)
         post(pg, pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="", scancode=0)
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        run_session(config, design, window, tmp_path)
-        engine = window.output.engine  # it takes the touches from its ring as it renders: wait until it has
+    with Participant(pg, window, participant):
+        try:
+            run_session(config, design, window, tmp_path)
+            engine = window.output.engine  # it takes the touches from its ring as it renders: wait until it has
 
-        def felt():
+            def felt():
+                status = engine.status(history_s=30.0)
+                return status.touches >= 40 and float(status.history.target_ratio.min()) < 0.65
+            conftest.wait_for(felt, DEADLINE_S)
             status = engine.status(history_s=30.0)
-            return status.touches >= 40 and float(status.history.target_ratio.min()) < 0.65
-        conftest.wait_for(felt, DEADLINE_S)
-        status = engine.status(history_s=30.0)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+        finally:
+            window.close()
     assert status.touches >= 40 and status.touches_dropped == 0
     assert float(status.history.target_ratio.min()) == pytest.approx(0.6, abs=0.05)
     assert read_rows(tmp_path)[0]["correct"] == "1"
@@ -228,13 +205,11 @@ def test_a_closed_loop_trial_logs_the_target_the_measured_friction_and_the_ampli
         time.sleep(0.2)
         post(pg, pg.KEYDOWN, key=pg.key.key_code(str(target + 1)), mod=0, unicode="", scancode=0)
 
-    helper = threading.Thread(target=participant, daemon=True)
-    helper.start()
-    try:
-        run_session(config, design, window, tmp_path, figures=False)
-    finally:
-        window.close()
-    helper.join(timeout=DEADLINE_S)
+    with Participant(pg, window, participant):
+        try:
+            run_session(config, design, window, tmp_path, figures=False)
+        finally:
+            window.close()
     row = read_rows(tmp_path)[0]
     target_ratio, measured = float(row["target_ratio"]), float(row["measured_ratio"])
     assert 0.6 <= target_ratio < 1.0  # the grating of contrast 0.4 under the swipe: ratios 0.6-1
