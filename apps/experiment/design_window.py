@@ -16,7 +16,6 @@ It is the participant-interface seam's window implementation (:mod:`ultraglide.e
 
 from __future__ import annotations
 
-import time
 from types import SimpleNamespace
 
 from ultraglide.apps.experiment.window import WindowResponder
@@ -143,13 +142,12 @@ class DesignWindow(WindowResponder):
         self._prepare(shown)
         self.level = shown.level
         self.output.show(shown.texture(), shown.trial.number)
-        started = time.perf_counter()
         answer = self._wait_answer(shown.trial.number)
         if not answer.quit and self.mode == "rating":
             answer.response = self.low + answer.response
         friction = getattr(self.output, "trial_friction", None)
         if friction is not None and not answer.quit:
-            answer.friction = friction(started)
+            answer.friction = friction(self.touched_s)  # the previous trial's ramp down is not this one's
         return answer
 
     def _draw_break(self, trial: int) -> None:

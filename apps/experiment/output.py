@@ -52,7 +52,7 @@ def trial_friction(engine, since_s: float) -> dict:
 
     status = engine.status(30.0)
     history = status.history
-    touched = (history.time_s >= since_s) & (history.commanded_um_pp > 0)
+    touched = (history.time_s >= since_s) & (history.down > 0)
     measured = history.measured_ratio[touched]
     measured = measured[np.isfinite(measured)]
     return {"target_ratio": float(history.target_ratio[touched].mean()) if touched.any() else None,

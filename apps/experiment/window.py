@@ -13,6 +13,7 @@ import os
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
+import math  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 
@@ -57,6 +58,7 @@ class WindowResponder:
             output = open_output(config.device, config.profile, config.model, config.force_n, config.closed_loop)
         self.output = output
         self.ready = threading.Event()  # set while a trial (or a break) waits for input: for tests and logs
+        self.touched_s = math.inf  # perf_counter s of the shown trial's first touch on the texture (inf: none yet)
         self.showing: tuple[str, int] = ("", 0)
         self._layout()
 
@@ -168,11 +170,10 @@ class WindowResponder:
         """Show the trial and wait for the answer; the answer carries what the trial played (target and measured
         friction, commanded amplitude, the friction loop's state) where the output says."""
         self.output.show(design.trial_texture(level, target), trial)
-        shown = time.perf_counter()
         answer = self._wait_answer(trial)
         friction = getattr(self.output, "trial_friction", None)
         if friction is not None and not answer.quit:
-            answer.friction = friction(shown)
+            answer.friction = friction(self.touched_s)
         return answer
 
     def _wait_answer(self, trial: int) -> Answer:
@@ -181,6 +182,7 @@ class WindowResponder:
         self._draw_trial(trial)
         shown = time.perf_counter()
         self.showing = ("trial", trial)
+        self.touched_s = math.inf  # the trial's first touch on the texture: what it played is counted from there
         self.ready.set()
         finger_down = False
         try:
@@ -211,6 +213,7 @@ class WindowResponder:
                     if where is None:
                         self.output.touch(now, 0.0, 0.0, down=False)
                     else:
+                        self.touched_s = min(self.touched_s, now)
                         self.output.touch(now, where[0], where[1])
                     if phase == "up":
                         finger_down = False

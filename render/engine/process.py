@@ -326,6 +326,8 @@ class EngineSource(OutputStage):
             row[3] = (0.0 if resting else block.plate_um_pp[-1]) if telemetry is None else telemetry.measured_um_pp
             row[4] = clipped
             row[5] = math.nan if self.loop is None else self.loop.measured_ratio
+            down = block.down
+            row[6] = 0.0 if resting else float(down if np.ndim(down) == 0 else down[-1])
             fast[shm.HISTORY_INDEX] += 1
         if touched:
             latency = self.shared.latency

@@ -39,7 +39,8 @@ BLOCK_TIMES = 4096  # recent block render times, s
 HISTOGRAM_BINS = 1024  # block render times over the whole run, in 2 % wide bins from 1 µs
 HISTOGRAM_RATIO = 1.02
 HISTORY_ROWS = 8192  # about 5 s at 64-frame blocks and 96 kHz
-HISTORY_FIELDS = 6  # t_s, target ratio, commanded µm p-p, plate µm p-p, samples limited, measured ratio (NaN: none)
+HISTORY_FIELDS = 7  # t_s, target ratio, commanded µm p-p, plate µm p-p, samples limited, measured ratio (NaN: none),
+#                     finger down (1) or not (0) at the block's end
 LATENCY_ROWS = 1024  # touch t_s, block rendered at s, block's first sample presented at s
 SLOW_BYTES = 16384
 

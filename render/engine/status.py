@@ -34,6 +34,7 @@ class History:
     plate_um_pp: np.ndarray
     limited_samples: np.ndarray
     measured_ratio: np.ndarray  # the friction ratio measured by the plate's force sensors (NaN: none, open loop)
+    down: np.ndarray  # 1.0 where a finger touched at the block's end, else 0.0
 
 
 @dataclass(frozen=True)
