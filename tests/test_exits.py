@@ -18,6 +18,7 @@ import soundfile
 from conftest import ROOT, assert_one_line_error, run_cli, start_cli
 from ultraglide.apps.cli.signals import Stopped, StopSignals, held
 from ultraglide.devices import protocol as p
+from ultraglide.render.engine.shm import LAYOUT
 
 STOP_SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
 DEADLINE_S = 60.0  # generous: the suite runs on a loaded 2-core machine
@@ -363,9 +364,10 @@ def test_export_renames_no_output_when_another_fails(tmp_path):
 
 def test_play_to_wav_on_a_full_disk(tmp_path):
     out = tmp_path / "live.wav"
-    # the limit lets the engine's shared-memory segment (0.52 MB in /dev/shm, which the file-size limit also
-    # counts) be made, and stops the 0.77 MB recording of a 2 s swipe at 1.5 s
-    result = run_limited(96000 * 4 * 3 // 2, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "2")
+    # the limit lets the engine's shared-memory segment (0.58 MB in /dev/shm, which the file-size limit also
+    # counts) be made, and stops the 0.77 MB recording of a 2 s swipe at 1.75 s
+    assert LAYOUT.size * 8 < 96000 * 4 * 7 // 4
+    result = run_limited(96000 * 4 * 7 // 4, "play", "grating-1mm", "--device", f"wav:{out}", "--duration-s", "2")
     assert_refused_and_nothing_left(result, tmp_path, "live.wav")
 
 

@@ -10,6 +10,9 @@ import sys
 
 import pytest
 from conftest import ROOT
+from ultraglide.render.engine.shm import LAYOUT
+
+SEGMENT_BYTES = LAYOUT.size * 8  # what the engine asks of /dev/shm (581,872 bytes), far over a 64 KiB tmpfs
 
 
 def _namespaces_allowed() -> bool:
@@ -38,11 +41,11 @@ def play_with_shm(options: str) -> tuple[subprocess.CompletedProcess, list[str]]
 
 
 def test_a_full_dev_shm_is_one_line_naming_the_size_and_what_to_do():
-    result, left = play_with_shm("size=64k")  # the segment is 516,336 bytes
+    result, left = play_with_shm("size=64k")
     assert result.returncode == 1, result
     assert result.stdout.splitlines() == [result.stdout.strip()], result.stdout  # one line: no tracker, no traceback
-    assert "the engine's shared memory (516,336 bytes) could not be made: no space left on device; free space in " \
-           "/dev/shm" in result.stdout
+    assert f"the engine's shared memory ({SEGMENT_BYTES:,} bytes) could not be made: no space left on device; " \
+           "free space in /dev/shm" in result.stdout
     assert left == []
 
 

@@ -20,7 +20,6 @@ from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_config
 from ultraglide.apps.commands.render_options import add_render_options, planning_asked
-from ultraglide.devices.sinks.audio import pacing_words
 
 if TYPE_CHECKING:
     from ultraglide.render.engine import EngineConfig
@@ -270,6 +269,8 @@ def run(args) -> int:
         if replayed.skipped:
             print(f"{replayed.skipped} of {replayed.sent + replayed.skipped} touch reports skipped: this process ran "
                   f"too late for them (a busy machine) and sent the newest one due instead")
+        from ultraglide.devices.sinks.audio import pacing_words  # not at import: it brings the output stage
+
         paced = pacing_words(device_status)
         if paced:
             print(paced)

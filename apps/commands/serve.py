@@ -18,7 +18,6 @@ from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held, stop_requested
 from ultraglide.apps.cli.types import FORCE_N, Bounded
 from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
-from ultraglide.devices.sinks.audio import pacing_words
 
 PORT = Bounded(0, 65535, whole=True)
 VIEW_MM = Bounded(1.0, 2000.0, "mm")
@@ -375,6 +374,8 @@ def _report(final, service, args, failure: str | None, feed=None, loss=None, sta
         if service.rate_refusals:
             print(f"{service.rate_refusals} of {service.messages_read} messages refused: their client sent more "
                   f"than {RATE_PER_S:g} a second")
+        from ultraglide.devices.sinks.audio import pacing_words  # not at import: it brings the output stage
+
         paced = pacing_words(device_status)
         if paced:
             print(paced)

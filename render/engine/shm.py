@@ -367,7 +367,7 @@ class SharedBlock:
         >>> block = SharedBlock.create()
         >>> header, times, history, latency = block.read_fast()
         >>> header.shape, times.shape, history.shape, latency.shape
-        ((24,), (4096,), (8192, 6), (1024, 3))
+        ((24,), (4096,), (8192, 7), (1024, 3))
         >>> header[0] = 5.0; float(block.fast[0])                  # a copy: the segment is untouched
         0.0
         >>> block.close()
