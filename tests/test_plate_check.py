@@ -4,12 +4,15 @@ never moves above 15 % of its limit, and the output is one line per rule (or str
 that says whether any rule failed."""
 
 import json
+import math
 import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
+import numpy as np
 import pytest
 from conftest import ROOT, assert_one_line_error, run_cli, wait_for
 from test_plate_sim_cli import Server
@@ -355,3 +358,41 @@ def test_the_commands_guide_and_the_protocol_say_what_plate_check_does():
     guide = (ROOT / "docs" / "guide" / "commands.md").read_text(encoding="utf-8")
     assert "ultraglide plate check" in guide and "exit status 6" in guide
     assert "--break" in DOC and "`ultraglide plate check --device URL`" in DOC
+
+
+def stalled_over_its_limit_codes(plate: PtyPlate, stall_s: float = 0.4) -> threading.Event:
+    """The first time ``plate`` receives R-LIMIT's codes (1.25 × its limit), its whole simulator stops for
+    ``stall_s``, as a descheduled process does: it then renders the stall at once and sends one frame for it,
+    by when its buffer has run dry."""
+    limit_code = int(PROFILE.max_amplitude_um_pp / PROFILE.full_scale_um_pp * 65535)
+    codes = np.full(4, math.ceil(1.25 * limit_code), "<u2").tobytes()
+    stalled = threading.Event()
+    receive = plate.simulator.receive
+
+    def hold() -> None:
+        with plate.simulator._lock:  # what every thread of the simulator takes to render or to read
+            time.sleep(stall_s)  # the stall itself: nothing to wait for
+
+    def stalling(data: bytes) -> list[bytes]:
+        if not stalled.is_set() and codes in data:
+            stalled.set()
+            threading.Thread(target=hold, daemon=True).start()
+        return receive(data)
+
+    plate.simulator.receive = stalling
+    return stalled
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("breaks, outcome", [(("R-LIMIT",), c.FAIL), ((), c.PASS)])
+def test_the_limit_is_judged_on_the_codes_played_when_the_simulator_stalls_over_them(breaks, outcome):
+    """A device whose telemetry skipped the codes (its simulator stalled over them) and then held a value of its
+    own once dry is asked again: a broken limiter is still seen, a sound one still passes."""
+    plate = PtyPlate(PROFILE, breaks=breaks).start()
+    try:
+        stalled = stalled_over_its_limit_codes(plate)
+        report = c.check_device(plate.path, PROFILE, only=("R-LIMIT",))
+    finally:
+        plate.stop()
+    (verdict,) = report.verdicts
+    assert stalled.is_set() and verdict.outcome == outcome, verdict.line()

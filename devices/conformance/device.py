@@ -23,6 +23,7 @@ from ultraglide.devices.serial.follow import FOLLOW_FACTOR
 CLOCK_ASKED = 20  # [R-CLOCK]: CLOCK requests, one at a time, CLOCK_GAP_S apart
 CLOCK_GAP_S = 0.02
 SETTLE_WAIT_S = 0.5  # after a stream, how long [R-LIMIT] waits for telemetry of the device 60 ms into its codes
+LIMIT_TRIES = 3  # [R-LIMIT]'s streams before it says the device was never seen playing them
 
 class DeviceRules:
     """The device's rules: a part of :class:`~ultraglide.devices.conformance.check.Check`."""
@@ -90,33 +91,42 @@ class DeviceRules:
         if expect > SAFE_FRACTION * self.safe_limit_um_pp:
             raise Unobservable(f"at {far:g} Hz, the carrier farthest from resonance, code {above} would still move "
                                f"the plate {expect:.2f} µm p-p, over 15 % of its limit: not asked")
-        since, first = self.probe.mark(), self.index
-        self.stream(0.2, above)
         # judged on the device's own timeline: the value it plays (the next it expects, less those it holds)
         # 60 ms or more into these codes (brief overdrive, where granted, is over by then), however late a loaded
-        # machine or an emulator delivers its frames
+        # machine or an emulator delivers its frames. A pass needs the device seen playing them there: a device
+        # whose buffer ran dry (this host's frames came late, or all were played) holds a value of its own, and a
+        # simulator that stalled sends one frame for the whole stall, so the codes may go unseen: asked again
         settled = round(0.06 * self.rate)
+        for _ in range(LIMIT_TRIES):
+            since, first = self.probe.mark(), self.index
+            self.stream(0.2, above)
+            # a device whose frames came late, or whose clock fell behind this host's (an emulator's does), is still
+            # playing them (its buffer holds the cushion): its telemetry until it is 60 ms in, HEARTBEAT feeding it
+            deadline = time.perf_counter() + SETTLE_WAIT_S
+            while not self.playing_codes(since, first + settled) and time.perf_counter() < deadline:
+                self.telemetry()
+            into = self.telemetry_from(since, first + settled)
+            worst = max((t.drive_code for t in into), default=0)  # a value held over the limit counts too
+            if worst > self.limit_code + 1:
+                raise Broken(f"asked code {above} (1.25 × its limit) at {far:g} Hz: it drove code {worst} "
+                             f"({worst / p.SETPOINT_SCALE * d.full_scale_um_pp:.2f} µm p-p of drive, its limit "
+                             f"{d.max_amplitude_um_pp:g})")
+            if self.playing_codes(since, first + settled):
+                return (f"asked code {above} (1.25 × its limit) at {far:g} Hz, off resonance (the plate moved under "
+                        f"{expect:.2f} µm p-p): it drove at most code {worst}, its limit's {self.limit_code}")
+        raise Unobservable(f"asked code {above} {LIMIT_TRIES} times: the device's telemetry never showed it playing "
+                           f"them 60 ms in (this machine or the device too busy to keep the stream going)")
 
-        def drives() -> list[int]:
-            frames = [p.parse_telemetry(f.payload) for _, f in self.probe.received(since, p.TELEMETRY)]
-            return [t.drive_code for t in frames
-                    if settled <= (t.expected_index - t.buffered_setpoints - first) & 0xFFFFFFFF < 2 ** 31]
+    def telemetry_from(self, since: int, index: int) -> list[p.Telemetry]:
+        """The TELEMETRY frames received since the probe's mark ``since`` of a device that had played up to the
+        stream's ``index`` (its next expected less those it holds; on its own timeline, as a 32-bit counter)."""
+        frames = [p.parse_telemetry(f.payload) for _, f in self.probe.received(since, p.TELEMETRY)]
+        return [t for t in frames if (t.expected_index - t.buffered_setpoints - index) & 0xFFFFFFFF < 2 ** 31]
 
-        # a device whose frames came late, or whose clock fell behind this host's (an emulator's does), is still
-        # playing them (its buffer holds the cushion): its telemetry until it is 60 ms in, HEARTBEAT keeping it fed
-        deadline = time.perf_counter() + SETTLE_WAIT_S
-        while not drives() and time.perf_counter() < deadline:
-            self.telemetry()
-        played = drives()
-        worst = max(played, default=0)
-        if not played:
-            raise Broken("no telemetry while asking for more than the limit")
-        if worst > self.limit_code + 1:
-            raise Broken(f"asked code {above} (1.25 × its limit) at {far:g} Hz: it drove code {worst} "
-                         f"({worst / p.SETPOINT_SCALE * d.full_scale_um_pp:.2f} µm p-p of drive, its limit "
-                         f"{d.max_amplitude_um_pp:g})")
-        return (f"asked code {above} (1.25 × its limit) at {far:g} Hz, off resonance (the plate moved under "
-                f"{expect:.2f} µm p-p): it drove at most code {worst}, its limit's {self.limit_code}")
+    def playing_codes(self, since: int, index: int) -> list[int]:
+        """The drive codes of :meth:`telemetry_from`'s frames sent while the device played its stream (not
+        prefilling, dry or ramping)."""
+        return [t.drive_code for t in self.telemetry_from(since, index) if t.playback == p.PLAYBACK_PLAYING]
 
     def detuned_gain(self, carrier_hz: float) -> float:
         """The plate's steady gain at ``carrier_hz`` by the profile's resonance and Q (for a device that does not
