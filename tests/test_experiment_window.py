@@ -1,5 +1,6 @@
 """The participant's window under SDL's dummy driver: real pygame events in, the log checked."""
 
+import contextlib
 import csv
 import io
 import json
@@ -224,6 +225,38 @@ def test_the_participants_window_takes_no_cpu_while_it_waits_for_an_answer(tmp_p
     """A session on a real X server (Xvfb), its first trial on screen, nobody answering: the command's own process
     (the window and the session; the engine is a process of its own) sleeps until an event comes: at most 1 % of
     a core (measured 0.25 %; looking for events every millisecond took 2.75 %, on a loaded machine)."""
+    with session_on_xvfb(tmp_path) as (session, trial_on_screen, failure):
+        assert conftest.wait_for(trial_on_screen, 120), failure("no trial on screen")
+        cpu_before, wall_before = process_cpu_s(session.pid), time.perf_counter()
+        deadline = wall_before + 5.0
+        while time.perf_counter() < deadline:  # CPU time, not wall time, is measured: sleeping costs nothing
+            time.sleep(0.2)
+        share = (process_cpu_s(session.pid) - cpu_before) / (time.perf_counter() - wall_before)
+        assert share <= 0.01, f"{share:.1%} of a core while waiting for an answer"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(bool(tools_missing()), reason="needs Xvfb, xdotool and ImageMagick (./run tests installs them)")
+def test_the_window_draws_its_trial_again_when_the_x_server_lost_it(tmp_path):
+    """Xvfb keeps no copy of a hidden window: unmapped and mapped again (as a window manager does on a change of
+    workspace, or as a window mapped after its first frame was drawn is), the trial must be drawn again."""
+    with session_on_xvfb(tmp_path) as (session, trial_on_screen, failure):
+        assert conftest.wait_for(trial_on_screen, 120), failure("no trial on screen")
+        env = {**os.environ, "DISPLAY": session.display}
+        found = subprocess.run(["xdotool", "search", "--sync", "--pid", str(session.pid)], env=env,
+                               capture_output=True, text=True, timeout=60)  # (its title: SDL's, UTF-8 only)
+        window = found.stdout.split()[0]
+        subprocess.run(["xdotool", "windowunmap", "--sync", window], env=env, check=True, timeout=60)
+        assert conftest.wait_for(lambda: not trial_on_screen(), 60), failure("the hidden window still on screen")
+        subprocess.run(["xdotool", "windowmap", "--sync", window], env=env, check=True, timeout=60)
+        assert conftest.wait_for(trial_on_screen, 60), failure("the trial was not drawn again once mapped")
+
+
+@contextlib.contextmanager
+def session_on_xvfb(tmp_path):
+    """``experiment threshold`` in a window on a real X server (Xvfb): the session's process (``display`` set on
+    it), a function telling whether a trial's zones are on the screen (as a person would see them), and one that
+    words a failure with the last screenshot's result and what the session said."""
     from ultraglide.apps.experiment.window import ZONE
 
     xvfb, display = start_xvfb(1280, 800)
@@ -235,28 +268,24 @@ def test_the_participants_window_takes_no_cpu_while_it_waits_for_an_answer(tmp_p
                                     "--method", "staircase", "--afc", "3", "--trials", "4", "--out",
                                     str(tmp_path / "s"), "--device", "null", "--windowed"], env=env, stdout=out,
                                    stderr=err)
+    session.display = display
     last_shot = []  # what the screenshot said last time, for a failure's message
 
-    def said():
-        return out_path.read_text()[-1000:], err_path.read_text()[-2000:]
+    def failure(what: str) -> str:
+        return (f"{what}; the last screenshot: {last_shot}; the session said "
+                f"{out_path.read_text()[-1000:], err_path.read_text()[-2000:]}")
+
+    def trial_on_screen() -> bool:
+        assert session.poll() is None, failure("the session ended")
+        shot = subprocess.run(["import", "-window", "root", "png:-"], env=env, capture_output=True, timeout=60)
+        last_shot[:] = [shot.returncode, shot.stderr[-300:]]
+        if shot.returncode != 0:
+            return False
+        pixels = np.asarray(Image.open(io.BytesIO(shot.stdout)).convert("RGB"))
+        return bool(np.all(pixels == ZONE, axis=-1).any())
 
     try:
-        def trial_on_screen():  # the first trial's zones are drawn (what the screen shows, as a person sees it)
-            assert session.poll() is None, said()
-            shot = subprocess.run(["import", "-window", "root", "png:-"], env=env, capture_output=True, timeout=60)
-            last_shot[:] = [shot.returncode, shot.stderr[-300:]]
-            if shot.returncode != 0:
-                return False
-            pixels = np.asarray(Image.open(io.BytesIO(shot.stdout)).convert("RGB"))
-            return bool(np.all(pixels == ZONE, axis=-1).any())
-        assert conftest.wait_for(trial_on_screen, 120), f"no trial on screen; the last screenshot: {last_shot}; " \
-                                                        f"the session said {said()}"
-        cpu_before, wall_before = process_cpu_s(session.pid), time.perf_counter()
-        deadline = wall_before + 5.0
-        while time.perf_counter() < deadline:  # CPU time, not wall time, is measured: sleeping costs nothing
-            time.sleep(0.2)
-        share = (process_cpu_s(session.pid) - cpu_before) / (time.perf_counter() - wall_before)
-        assert share <= 0.01, f"{share:.1%} of a core while waiting for an answer"
+        yield session, trial_on_screen, failure
     finally:
         session.kill()
         session.wait(timeout=60)

@@ -128,12 +128,24 @@ class WindowResponder:
     def _events(self):
         """Pending events; when there are none, a sleep until one comes, so input reaches the plate at once and a
         window waiting for an answer takes next to no CPU (looking every millisecond took 2-3 % of a core)."""
-        events = self.pg.event.get()
+        pg = self.pg
+        events = pg.event.get()
         if not events:
             first = self.waiter.wait(WAIT_S)
-            if first.type != self.pg.NOEVENT:
-                events = [first, *self.pg.event.get()]
+            if first.type != pg.NOEVENT:
+                events = [first, *pg.event.get()]
+        if any(event.type in (pg.WINDOWEXPOSED, pg.VIDEOEXPOSE) for event in events):
+            self._redraw()
         return events
+
+    def _redraw(self) -> None:
+        """Draw again what is shown: an X server without backing store keeps no copy of a window that was hidden,
+        or mapped after its first frame was drawn (a busy machine), and asks for it with an expose event."""
+        what, number = self.showing
+        if what == "trial":
+            self._draw_trial(number)
+        elif what == "break":
+            self._draw_break(number)
 
     def _point(self, event) -> tuple[str, float, float] | None:
         """(phase, x px, y px) of a finger or left-mouse event; None for anything else."""
