@@ -70,6 +70,10 @@ class Participant:
 
     def __exit__(self, kind, value, traceback) -> None:
         self._over.set()
+        if kind is not None:  # the session's own error says it all; the participant may wait on for nothing
+            self._thread.join(1.0)
+            return
         self._thread.join(DEADLINE_S)
-        if self.error is not None and kind is None:
+        if self.error is not None:
             raise AssertionError(f"the participant failed: {self.error}") from self.error
+        assert not self._thread.is_alive(), "the session ended while the participant still waited for the window"

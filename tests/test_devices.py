@@ -329,8 +329,8 @@ def test_play_on_the_audio_device_from_the_command_line(tmp_path):
 
 
 def test_an_audio_device_with_no_clock_is_held_to_real_time(tmp_path):
-    """ALSA's null PCM takes samples as fast as they come (some twenty times real time here): the file behind it
-    holds the second played, not twenty, and the run says the device had no clock."""
+    """ALSA's null PCM takes samples as fast as they come (about fifty times real time here): the file behind it
+    holds the second played, not fifty, and the run says the device had no clock."""
     capture = tmp_path / "capture.raw"
     (tmp_path / ".asoundrc").write_text(ASOUNDRC.format(path=capture))
     result = run_cli("play", "grating-1mm", "--device", "audio", "--profile", "sim-plate", "--duration-s", "1",

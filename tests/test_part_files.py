@@ -11,7 +11,7 @@ from test_supervision import engine_of
 
 def test_play_envelope_csv_on_a_full_disk_leaves_no_part(tmp_path):
     log = tmp_path / "env.csv"
-    # the limit lets the engine's shared memory be made (0.52 MB in /dev/shm, which the limit also counts) and stops
+    # the limit lets the engine's shared memory be made (0.58 MB in /dev/shm, which the limit also counts) and stops
     # the envelope log (some 0.7 MB a second on sim) within the 4 s swipe
     result = run_cli("play", "grating-1mm", "--device", "sim", "--duration-s", "4", "--envelope-csv", log,
                      file_size_limit=1_000_000)

@@ -11,8 +11,8 @@ file) takes samples as fast as the callback gives them; unpaced, the engine woul
 faster than real time at real-time priority, starving the machine, and the file would hold far more
 than was played. The callback holds such a device to real time: when the samples taken run ahead of
 the wall clock by more than a clocked device's buffer could (plus 1 % of the time played, far beyond
-any crystal's drift), it sleeps off the lead. A sound card never gets there, so its callback never
-sleeps.
+any crystal's drift), it sleeps off the lead. A sound card's lead is its buffer, within that bound,
+so its callback does not sleep; a wait under 0.1 s in all is not said (a burst at the start).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ CANDIDATE_RATES = (96000, 192000, 88200, 176400, 384000)
 MAX_CARRIER_FRACTION = 0.4
 CLOCK_SLACK_S = 0.05  # a clocked device's lead beyond twice its latency (its buffer filled at the start)
 CLOCK_DRIFT = 0.01  # and beyond this fraction of the time played (a crystal drifts by 1e-4 at most)
+PACED_WORTH_SAYING_S = 0.1  # less held back in all is a burst, not a device with no clock
 
 
 def import_sounddevice():
@@ -147,11 +148,11 @@ def pacing_words(device_status: dict) -> str | None:
     >>> print(pacing_words({"device": "audio:default", "paced_s": 1.93}))  # doctest: +NORMALIZE_WHITESPACE
     audio:default took samples faster than real time (it has no clock of its own: a null or file sink, not a sound
     card); ultraglide held it to real time (1.9 s of waiting)
-    >>> pacing_words({"device": "audio:0", "paced_s": 0.0}) is None
+    >>> pacing_words({"device": "audio:0", "paced_s": 0.02}) is None  # a burst at the start
     True
     """
     paced_s = device_status.get("paced_s") or 0.0
-    if paced_s <= 0:
+    if paced_s < PACED_WORTH_SAYING_S:
         return None
     return (f"{device_status.get('device', 'the audio device')} took samples faster than real time (it has no clock "
             f"of its own: a null or file sink, not a sound card); ultraglide held it to real time "

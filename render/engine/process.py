@@ -327,7 +327,7 @@ class EngineSource(OutputStage):
             row[4] = clipped
             row[5] = math.nan if self.loop is None else self.loop.measured_ratio
             down = block.down
-            row[6] = 0.0 if resting else float(down if np.ndim(down) == 0 else down[-1])
+            row[6] = 0.0 if resting else float(down[-1] if isinstance(down, np.ndarray) and down.ndim else down)
             fast[shm.HISTORY_INDEX] += 1
         if touched:
             latency = self.shared.latency
