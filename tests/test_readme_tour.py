@@ -13,6 +13,7 @@ tests/test_packaging.py, from a wheel in a clean environment."""
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import shlex
@@ -24,6 +25,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import ROOT, run_cli, source_copy
 from xvfb import start_xvfb
@@ -135,8 +137,23 @@ class Tour:
 
         focus = subprocess.run(["xdotool", "getwindowfocus", "getwindowname"], env=self.env, capture_output=True,
                                text=True, timeout=60)
+        windows = subprocess.run(["xwininfo", "-root", "-children"], env=self.env, capture_output=True, text=True,
+                                 timeout=60)
         return (f"{session.said()}\n{rows} lines in trials.csv; {missed} key presses could not reach the screen; "
-                f"focus: {(focus.stdout + focus.stderr).strip()}\n{where_it_waits(session.process.pid)}")
+                f"focus: {(focus.stdout + focus.stderr).strip()}; {self.trial_words()}\nthe screen's windows: "
+                f"{(windows.stdout + windows.stderr).strip()[-600:]}\n{where_it_waits(session.process.pid)}")
+
+    def trial_words(self) -> str:
+        """Whether a trial's zones are on the screen, as a person would see it."""
+        from PIL import Image
+        from ultraglide.apps.experiment.window import ZONE
+
+        shot = subprocess.run(["import", "-window", "root", "png:-"], env=self.env, capture_output=True, timeout=60)
+        if shot.returncode != 0:
+            return f"no screenshot ({shot.stderr.decode(errors='replace').strip()[-200:]})"
+        pixels = np.asarray(Image.open(io.BytesIO(shot.stdout)).convert("RGB"))
+        zone = int(np.all(pixels == ZONE, axis=-1).sum())
+        return f"the screen shows {zone} pixels of a trial's zones" if zone else "no trial's zones on the screen"
 
     def run(self, line: str) -> None:
         words = shlex.split(line, comments=True)
