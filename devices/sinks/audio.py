@@ -209,6 +209,7 @@ class AudioPlate:
     def start(self, source: BlockSource) -> None:
         """Play ``source``'s drive envelope (µm p-p) through the limiter and the carrier."""
         self._source = output_stage(source, self.profile, self.signal, self.rate_hz, self.carrier_hz)
+        self._frames_taken, self._first_callback_s = 0, None  # each stream's intake is paced from its own start
         try:
             self._stream = self.sd.OutputStream(samplerate=self.rate_hz, channels=1, dtype="float32",
                                                 device=self.device, latency=self.latency,
