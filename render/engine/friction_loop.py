@@ -326,47 +326,17 @@ class FrictionLoop:
         >>> loop.targets.read(np.array([0, 1])).round(9).tolist()
         [0.5, 0.9]
         """
-        if planned is not None and planned is not ratio:
-            self._record_plan(planned, down, decimation)
-        if decimation == 1:
-            self.targets.write(ratio, down)
-            if planned is None or planned is ratio:
-                self.plans.write(ratio, down)
-            return
-        n = len(ratio) // decimation
-        if n > len(self._decimated):
-            self._decimated = np.zeros(n)
-            self._decimated_down = np.zeros(n, dtype=bool)
-        means = self._decimated[:n]
-        np.mean(ratio[:n * decimation].reshape(n, decimation), axis=1, out=means)
-        if np.ndim(down) == 0:
-            self.targets.write(means, down)
-            if planned is None or planned is ratio:
-                self.plans.write(means, down)
-            return
-        downs = self._decimated_down[:n]
-        np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
+        means, self._decimated = _means(ratio, decimation, self._decimated)
+        downs = down
+        if decimation > 1 and np.ndim(down) != 0:  # down for a device value only if down for all its samples
+            n = len(means)
+            if n > len(self._decimated_down):
+                self._decimated_down = np.zeros(n, dtype=bool)
+            downs = self._decimated_down[:n]
+            np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
         self.targets.write(means, downs)
-        if planned is None or planned is ratio:
-            self.plans.write(means, downs)
-
-    def _record_plan(self, planned: np.ndarray, down, decimation: int) -> None:
-        """The planner's commands of a block of control samples, as :meth:`record_control` records the targets."""
-        if decimation == 1:
-            self.plans.write(planned, down)
-            return
-        n = len(planned) // decimation
-        if n > len(self._plan_decimated):
-            self._plan_decimated = np.zeros(n)
-        means = self._plan_decimated[:n]
-        np.mean(planned[:n * decimation].reshape(n, decimation), axis=1, out=means)
-        if np.ndim(down) == 0:
-            self.plans.write(means, down)
-            return
-        if n > len(self._decimated_down):
-            self._decimated_down = np.zeros(n, dtype=bool)
-        downs = self._decimated_down[:n]  # written again for the targets after this copy
-        np.logical_and.reduce(np.asarray(down)[:n * decimation].reshape(n, decimation), axis=1, out=downs)
+        if planned is not None and planned is not ratio:
+            means, self._plan_decimated = _means(planned, decimation, self._plan_decimated)
         self.plans.write(means, downs)
 
     def skip(self, n: int) -> None:
@@ -599,3 +569,16 @@ def _plain(value: float | None) -> float | None:
     if value is None or not math.isfinite(value):
         return None
     return round(float(value), 5)
+
+
+def _means(values: np.ndarray, decimation: int, buffer: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The means of each ``decimation`` values (``values`` itself for 1), in ``buffer`` (grown if too short: made
+    again only for a block longer than any before); the means and the buffer."""
+    if decimation == 1:
+        return values, buffer
+    n = len(values) // decimation
+    if n > len(buffer):
+        buffer = np.zeros(n)
+    means = buffer[:n]
+    np.mean(values[:n * decimation].reshape(n, decimation), axis=1, out=means)
+    return means, buffer
