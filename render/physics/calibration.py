@@ -50,6 +50,7 @@ from ultraglide.render.physics.fitting import (
     fit_range,
     fit_summary,
     k_fold_groups,
+    rank_fits,
     selection_note,
 )
 from ultraglide.render.physics.friction_models import (
@@ -499,5 +500,5 @@ __all__ = [  # the calibration's names, the fitting's and the parameters' (one i
     "FORCE_LAW_PARAMETER", "ForceLawChoice", "bootstrap_errors", "build_model", "choose_force_law",
     "calibration_from_document", "calibration_toml", "compare_models", "dynamics_table",
     "cross_validation_errors", "fit_model", "fit_range", "fit_summary", "k_fold_groups", "load_model", "model_kind",
-    "read_calibration", "selection_note",
+    "rank_fits", "read_calibration", "selection_note",
 ]
