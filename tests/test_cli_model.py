@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image
 
 
@@ -63,6 +63,15 @@ def test_model_plots_writes_figures_2_to_9(tmp_path):
             assert image.info["dpi"][0] == pytest.approx(300, abs=1)  # print quality
         assert file.with_suffix(".pdf").read_bytes().startswith(b"%PDF")  # and a vector copy
     assert "wrote" in result.stdout
+
+
+def test_the_friction_in_time_figure_docs_physics_names_is_the_one_model_plots_writes(tmp_path):
+    physics = (ROOT / "docs" / "physics.md").read_text()
+    said = re.search(r"`ultraglide model --model dynamic` prints the dynamics and, with `--plots DIR`,\s+"
+                     r"draws `([\w-]+)\.png`/`\.pdf`", physics)
+    assert said is not None, "docs/physics.md no longer says which figure model --model dynamic --plots draws"
+    run_cli("model", "--model", "dynamic", "--plots", tmp_path, check=True)
+    assert (tmp_path / f"{said[1]}.png").is_file() and (tmp_path / f"{said[1]}.pdf").is_file()
 
 
 @pytest.mark.parametrize("args, fragment", [
