@@ -52,6 +52,13 @@ def test_model_choice_and_unreachable_ratio():
     assert "out of reach" in paper
 
 
+def test_a_ratio_out_of_a_tables_reach_names_the_tables_largest_amplitude(tmp_path):
+    table = tmp_path / "bench.csv"
+    table.write_text("amplitude_um_pp,relative_friction\n0,1\n2,0.7\n4,0.3\n6,0.1\n")
+    text = run_cli("model", "--model", f"table:{table}", "--ratio", "0.05", check=True).stdout
+    assert "the lowest this model gives within 6 µm is 0.100 (clamped to 6.00 µm p-p)" in text
+
+
 def test_model_plots_writes_figures_2_to_9(tmp_path):
     result = run_cli("model", "--plots", tmp_path / "figs", check=True)
     files = sorted((tmp_path / "figs").glob("*.png"))

@@ -1,6 +1,7 @@
 """The settled speed law on the command line: ``--model speed:S:NAME`` and ``model --speed-mm-s``."""
 
 import json
+import math
 
 import pytest
 from conftest import assert_one_line_error, run_cli
@@ -20,6 +21,17 @@ def test_model_prints_the_curve_and_the_amplitude_for_a_ratio_at_a_speed():
     assert data["amplitude_for_ratio_um_pp"] == pytest.approx(2.0 * at_reference, rel=1e-9)
     text = run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "88", check=True).stdout
     assert "sliding at 88 mm/s" in text and "needs 2 x the amplitude" in text and "held" not in text
+
+
+def test_model_at_a_speed_says_the_floor_there():
+    # the default law within its 20 µm p-p at 200 mm/s under s = 0.5: the static law at 20 (22 / 200)^0.5 µm p-p
+    amplitude = 20.0 * (22.0 / 200.0) ** 0.5
+    floor = 0.1 + 0.9 * math.exp(-((amplitude / (2 * math.sqrt(2) * 1.32)) ** 2))  # 0.138, by hand
+    text = run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "200", check=True).stdout
+    assert f"lowest friction within 20 µm p-p at 200 mm/s: {floor:.3f}" in text
+    data = json.loads(run_cli("model", "--model", "speed:0.5:stretched", "--speed-mm-s", "200", "--json",
+                              check=True).stdout)
+    assert data["lowest_reachable_ratio"] == pytest.approx(floor, rel=1e-3) and data["amplitude_ceiling_um_pp"] == 20
 
 
 def test_model_at_a_speed_below_2_mm_s_says_it_is_held_at_2():
