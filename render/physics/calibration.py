@@ -441,7 +441,8 @@ def load_model(spec: str) -> FrictionModel:
             raise ModelError(f"a dynamic model wraps a static one: {spec!r} wraps another dynamic model")
         static = load_model(inner)
         if isinstance(static, DynamicFrictionModel):
-            raise ModelError(f"{inner} holds the finger's own fitted dynamics: give --model {inner} (dynamic: "
+            whose = "its own, fitted on the plate" if static.dynamics.source else "the published ones"
+            raise ModelError(f"{inner} has friction dynamics already ({whose}): give --model {inner} (dynamic: "
                              "adds the published ones to a static model)")
         return DynamicFrictionModel(static)
     if spec == "paper":
