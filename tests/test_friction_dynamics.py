@@ -72,6 +72,11 @@ def test_the_dynamic_model_settles_on_its_static_model():
 
 def test_dynamic_models_load_by_name():
     assert isinstance(ultraglide.load_model("dynamic").static, StretchedExponentialModel)
+    # the public API names them, as it names the static models
+    assert isinstance(ultraglide.load_model("dynamic"), ultraglide.DynamicFrictionModel)
+    assert ultraglide.load_model("dynamic").dynamics == ultraglide.FrictionDynamics()
+    assert isinstance(ultraglide.load_model("speed:0.5:stretched"), ultraglide.SpeedLawModel)
+    assert ultraglide.load_model("speed:0.5:stretched").speed_law == ultraglide.SpeedLaw(0.5)
     assert isinstance(ultraglide.load_model("dynamic:exponential").static, ExponentialModel)
     assert "in time: onset 5 ms" in ultraglide.load_model("dynamic").describe()
     with pytest.raises(ModelError, match="wraps a static one"):
