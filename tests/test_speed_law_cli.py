@@ -3,6 +3,7 @@
 import json
 import math
 
+import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_cli
 from ultraglide.render.physics.friction_models import StretchedExponentialModel
@@ -60,3 +61,17 @@ def test_export_refuses_a_bad_speed_law_before_it_writes_anything(tmp_path):
     result = run_cli("export", "grating-1mm", "--model", "speed:2:stretched", "-o", tmp_path / "out.wav")
     assert result.returncode == 2 and not (tmp_path / "out.wav").exists()
     assert "speed exponent" in assert_one_line_error(result)
+
+
+@pytest.mark.parametrize("speed_mm_s, scale", [(22.0, 1.0), (88.0, 2.0)])
+def test_export_inverts_at_the_swipes_speed_through_the_block_that_ends_the_stroke(tmp_path, speed_mm_s, scale):
+    # a 0.5 s swipe is one of export's second-long blocks with the lift after it: the law's scale is the swipe's
+    # (22 / 22)^0.5 = 1 and (88 / 22)^0.5 = 2 by hand, not that of a mean speed slowed by the samples after the lift
+    envelope = tmp_path / "envelope.csv"
+    run_cli("export", "grating-2mm", "-o", tmp_path / "out.wav", "--duration-s", "0.5", "--speed-mm-s", speed_mm_s,
+            "--model", "speed:0.5:stretched", "--envelope-csv", envelope, check=True)
+    rows = np.genfromtxt(envelope, delimiter=",", names=True)
+    within = (rows["down"] == 1) & (rows["target_ratio"] > 0.6) & (rows["target_ratio"] < 0.95)  # within 6 µm at 88
+    static = STATIC.amplitude_um_pp(rows["target_ratio"][within], 0.5, 6.0).amplitude_um_pp
+    assert within.sum() > 1000
+    np.testing.assert_allclose(rows["target_um_pp"][within], scale * static, rtol=1e-4)
