@@ -25,7 +25,8 @@ from dataclasses import dataclass
 PAPERS = {
     "Monnoyer2018": "J. Monnoyer, E. Diaz, C. Bourdin, M. Wiertlewski, \"Perception of ultrasonic switches involves "
                     "large discontinuity of the mechanical impedance\", IEEE Trans. Haptics 11(4):579-589, 2018",
-    "Huloux2018": "N. Huloux, J. Monnoyer, M. Boyron, M. Wiertlewski, EuroHaptics 2018, LNCS 10893:326-337",
+    "Huloux2018": "N. Huloux, J. Monnoyer, M. Boyron, M. Wiertlewski, \"Overcoming the variability of fingertip "
+                  "friction with surface-haptic force-feedback\", EuroHaptics 2018, LNCS 10893:326-337",
     "Wiertlewski2016": "M. Wiertlewski, R. Fenton Friesen, J. E. Colgate, \"Partial squeeze film levitation "
                        "modulates fingertip friction\", PNAS 113(33):9210-9215, 2016",
     "Meyer2014": "D. J. Meyer, M. Wiertlewski, M. A. Peshkin, J. E. Colgate, \"Dynamics of ultrasonic and "
@@ -33,8 +34,9 @@ PAPERS = {
                  "Symposium 2014",
     "Monnoyer2023": "J. Monnoyer, L. Willemet, M. Wiertlewski, \"Rapid change of friction causes the illusion of "
                     "touching a receding surface\", J. R. Soc. Interface 20(199):20220718, 2023",
-    "Friesen2018": "R. Fenton Friesen et al., 2018 (friction reduction in reduced air pressure; cited as issue 43 "
-                   "summarises it)",
+    "Friesen2018": "R. Fenton Friesen, M. Wiertlewski, M. A. Peshkin, J. E. Colgate, \"The contribution of air to "
+                   "ultrasonic friction reduction\", conference paper, HAL hal-01771782 (an artificial finger in a "
+                   "vacuum chamber; the year 2018 as issue 43 cites it, not checked)",
     "Bernard2018": "C. Bernard, J. Monnoyer, M. Wiertlewski, \"Harmonious textures\", EuroHaptics 2018",
     "Gueorguiev2017": "D. Gueorguiev et al., J. R. Soc. Interface 2017",
     "Gueorguiev2019": "D. Gueorguiev et al., IEEE Trans. Haptics 2019",
@@ -46,6 +48,10 @@ AUTHORS = {"Monnoyer2018": "Monnoyer", "Huloux2018": "Huloux", "Wiertlewski2016"
            "Gueorguiev2017": "Gueorguiev", "Gueorguiev2019": "Gueorguiev"}
 
 UNLOCATED = "place in the paper not located here (figure as summarised in issue 43)"
+#: data/README.md names these places for the whole of its Monnoyer et al. notes, not one place per figure.
+MONNOYER_PLACES = "§3.1.4, §3.2.1, Figs. 4 and 6, as data/README.md cites them (not per figure)"
+#: data/README.md gives these figures without a section, figure or table.
+README_ONLY = "as data/README.md states it (no section, figure or table given)"
 
 
 @dataclass(frozen=True)
@@ -81,17 +87,15 @@ class Figure:
 
 FIGURES: tuple[Figure, ...] = (
     Figure("monnoyer_tau", "1.32 µm", "tau of mu = mu0 exp(-a²/2tau²), zero-to-peak, fitted over 14 participants "
-           "(± 0.45 µm)", "Monnoyer2018", "§3.1.4, §3.2.1, Figs. 4 and 6 (data/README.md)", True),
-    Figure("monnoyer_tau_spread", "0.45 µm", "spread of tau across participants", "Monnoyer2018",
-           "§3.2.1 (data/README.md)", True),
-    Figure("monnoyer_mu0", "1.2", "friction coefficient at rest (± 0.67)", "Monnoyer2018",
-           "§3.2.1 (data/README.md)", True),
-    Figure("monnoyer_carrier", "34 590 Hz", "the plate's frequency", "Monnoyer2018", "§3.1 (data/README.md)", True),
-    Figure("huloux_f0", "0.8 N", "f0 of f = f0 exp(-a² tau) + d", "Huloux2018", "the fitted law (data/README.md)",
+           "(± 0.45 µm)", "Monnoyer2018", MONNOYER_PLACES, True),
+    Figure("monnoyer_tau_spread", "0.45 µm", "spread of tau across participants", "Monnoyer2018", MONNOYER_PLACES,
            True),
-    Figure("huloux_tau", "0.38 µm⁻²", "tau of the same law", "Huloux2018", "the fitted law (data/README.md)", True),
-    Figure("huloux_carrier", "30 kHz", "the plate's frequency", "Huloux2018", "data/README.md", True),
-    Figure("huloux_amplitude", "2.5 µm", "the largest amplitude of its modulation", "Huloux2018", "data/README.md",
+    Figure("monnoyer_mu0", "1.2", "friction coefficient at rest (± 0.67)", "Monnoyer2018", MONNOYER_PLACES, True),
+    Figure("monnoyer_carrier", "34 590 Hz", "the plate's frequency", "Monnoyer2018", MONNOYER_PLACES, True),
+    Figure("huloux_f0", "0.8 N", "f0 of f = f0 exp(-a² tau) + d", "Huloux2018", README_ONLY, True),
+    Figure("huloux_tau", "0.38 µm⁻²", "tau of the same law", "Huloux2018", README_ONLY, True),
+    Figure("huloux_carrier", "30 kHz", "the plate's frequency", "Huloux2018", README_ONLY, True),
+    Figure("huloux_amplitude", "2.5 µm", "the largest amplitude of its modulation", "Huloux2018", README_ONLY,
            True),
     Figure("huloux_settling", "32-37 ms", "time for friction to settle after a change of vibration", "Huloux2018",
            UNLOCATED, False),
@@ -105,16 +109,19 @@ FIGURES: tuple[Figure, ...] = (
            "slower)", "Meyer2014", UNLOCATED, False),
     Figure("recovery_speed", "22 mm/s", "the sliding speed of that recovery", "Meyer2014", UNLOCATED, False),
     Figure("release_s", "20 ms", "release of the skin's latent elastic strain after the friction reduction is "
-           "switched on, a finger pressing (not sliding)", "Monnoyer2023", "abstract (read for this project)", True),
+           "switched on, a finger pressing (not sliding)", "Monnoyer2023",
+           "abstract (PMC9905974, read for this project)", True),
     Figure("friesen_force", "0.3 ± 0.05 N", "the normal force of its measurements", "Friesen2018", UNLOCATED, False),
     Figure("friesen_amplitude", "1.8 µm", "its amplitudes lay below about this", "Friesen2018", UNLOCATED, False),
-    Figure("bernard_carrier", "39 kHz", "the plate's frequency", "Bernard2018", "data/README.md", True),
-    Figure("bernard_amplitude", "4 µm", "its largest amplitude, p-p", "Bernard2018", "data/README.md", True),
+    Figure("friesen_vacuum", "98 %", "the vacuum of its reduced-pressure condition, against atmospheric pressure, "
+           "with an artificial finger", "Friesen2018", "abstract (HAL hal-01771782, read for this project)", True),
+    Figure("bernard_carrier", "39 kHz", "the plate's frequency", "Bernard2018", README_ONLY, True),
+    Figure("bernard_amplitude", "4 µm", "its largest amplitude, p-p", "Bernard2018", README_ONLY, True),
     Figure("bernard_ratio", "0.25", "ratio near full amplitude (mu about 0.8 to about 0.2)", "Bernard2018",
-           "data/README.md", True),
-    Figure("gueorguiev_weber", "0.11", "Weber fraction for a friction decrease", "Gueorguiev2017", "data/README.md",
+           README_ONLY, True),
+    Figure("gueorguiev_weber", "0.11", "Weber fraction for a friction decrease", "Gueorguiev2017", README_ONLY,
            True),
-    Figure("gueorguiev_transition", "2.3-2.4 ms", "transitions discriminated", "Gueorguiev2019", "data/README.md",
+    Figure("gueorguiev_transition", "2.3-2.4 ms", "transitions discriminated", "Gueorguiev2019", README_ONLY,
            True),
 )
 
@@ -168,7 +175,7 @@ def cite(key: str) -> str:
     Examples
     --------
     >>> cite("monnoyer_tau")
-    '1.32 µm (Monnoyer2018, §3.1.4, §3.2.1, Figs. 4 and 6 (data/README.md))'
+    '1.32 µm (Monnoyer2018, §3.1.4, §3.2.1, Figs. 4 and 6, as data/README.md cites them (not per figure))'
     """
     item = figure(key)
     return f"{item.value} ({item.paper}, {item.where})"
