@@ -23,6 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 PAPERS = {
+    "Vezzoli2015": "E. Vezzoli, B. Dzidek, T. Sednaoui, F. Giraud, M. Adams, B. Lemaire-Semail, \"Role of fingerprint "
+                   "mechanics and non-Coulombic friction in ultrasonic devices\", IEEE World Haptics Conference 2015, "
+                   "HAL hal-01253582 (the seed paper, read whole for this project)",
     "Monnoyer2018": "J. Monnoyer, E. Diaz, C. Bourdin, M. Wiertlewski, \"Perception of ultrasonic switches involves "
                     "large discontinuity of the mechanical impedance\", IEEE Trans. Haptics 11(4):579-589, 2018",
     "Huloux2018": "N. Huloux, J. Monnoyer, M. Boyron, M. Wiertlewski, \"Overcoming the variability of fingertip "
@@ -43,9 +46,10 @@ PAPERS = {
 }
 
 #: The surname each paper is cited by in running text ("Meyer et al. 2014").
-AUTHORS = {"Monnoyer2018": "Monnoyer", "Huloux2018": "Huloux", "Wiertlewski2016": "Wiertlewski",
-           "Meyer2014": "Meyer", "Monnoyer2023": "Monnoyer", "Friesen2018": "Friesen", "Bernard2018": "Bernard",
-           "Gueorguiev2017": "Gueorguiev", "Gueorguiev2019": "Gueorguiev"}
+AUTHORS = {"Vezzoli2015": "Vezzoli", "Monnoyer2018": "Monnoyer", "Huloux2018": "Huloux",
+           "Wiertlewski2016": "Wiertlewski", "Meyer2014": "Meyer", "Monnoyer2023": "Monnoyer",
+           "Friesen2018": "Friesen", "Bernard2018": "Bernard", "Gueorguiev2017": "Gueorguiev",
+           "Gueorguiev2019": "Gueorguiev"}
 
 UNLOCATED = "place in the paper not located here (figure as summarised in issue 43)"
 #: data/README.md names these places for the whole of its Monnoyer et al. notes, not one place per figure.
@@ -86,6 +90,31 @@ class Figure:
 
 
 FIGURES: tuple[Figure, ...] = (
+    Figure("vezzoli_modulus", "1 MPa", "Young's modulus of the ridges (stratum corneum)", "Vezzoli2015", "Table I (i)",
+           True),
+    Figure("vezzoli_poisson", "0.4", "Poisson's ratio of the ridges", "Vezzoli2015", "Table I (ii)", True),
+    Figure("vezzoli_height", "150 µm", "undeformed height of the ridges", "Vezzoli2015", "Table I (iii)", True),
+    Figure("vezzoli_density", "900 kg/m³", "density of the ridges (enters no equation of the paper)", "Vezzoli2015",
+           "Table I (iv)", True),
+    Figure("vezzoli_area", "138.1 mm²/N^(2/3)", "k of A = k F^(2/3), a best fit to its ref. [15]'s data",
+           "Vezzoli2015", "eq. (3), §III.B", True),
+    Figure("vezzoli_friction", "1 and 0.7", "mu_s and mu_d of the lateral analysis", "Vezzoli2015", "§III.C", True),
+    Figure("vezzoli_fig2", "5 µm at 20 kHz and 0.5 N", "the vibration and force of Fig. 2", "Vezzoli2015", "§III.C",
+           True),
+    Figure("vezzoli_actuator", "27.83 kHz", "the lateral actuator's resonance, the stimulation frequency",
+           "Vezzoli2015", "§III.D.1-2", True),
+    Figure("vezzoli_levels", "0, 2 and 4 µm", "amplitudes felt by four participants: 2 µm not told from rest, slip "
+           "reported at 4 µm (peak-to-peak or not is not stated)", "Vezzoli2015", "§III.D.2", True),
+    Figure("vezzoli_glide_force", "0.4 N", "the force at which its model's glide threshold is 4 µm (\"about 0.4 N\", "
+           "typical of touch; not a measured force)", "Vezzoli2015", "§III.D.2", True),
+    Figure("vezzoli_detach", "1.2 µm at 0.15 N", "the detachment example", "Vezzoli2015", "Fig. 4 caption", True),
+    Figure("vezzoli_valid", "20 kHz", "the normal analysis holds above this frequency", "Vezzoli2015", "§IV.B", True),
+    Figure("vezzoli_cycle", "0.1 to 8 µm, 0.5 N, 20 kHz (50 µs)", "the amplitudes, force and frequency of Figs. 5-6",
+           "Vezzoli2015", "§IV.C, Figs. 5-6 captions", True),
+    Figure("vezzoli_fig9", "0.35 N, 25 kHz", "the force of Fig. 9's three measured fingers (its ref. [16]) and the "
+           "frequency", "Vezzoli2015", "§IV.D, Fig. 9 caption", True),
+    Figure("vezzoli_repin", "200 µs", "repinning time of molecular junctions in thin aqueous layers, from its ref. "
+           "[19]", "Vezzoli2015", "§V", True),
     Figure("monnoyer_tau", "1.32 µm", "tau of mu = mu0 exp(-a²/2tau²), zero-to-peak, fitted over 14 participants "
            "(± 0.45 µm)", "Monnoyer2018", MONNOYER_PLACES, True),
     Figure("monnoyer_tau_spread", "0.45 µm", "spread of tau across participants", "Monnoyer2018", MONNOYER_PLACES,
