@@ -120,6 +120,9 @@ FIGURES: tuple[Figure, ...] = (
     Figure("monnoyer_tau_spread", "0.45 µm", "spread of tau across participants", "Monnoyer2018", MONNOYER_PLACES,
            True),
     Figure("monnoyer_mu0", "1.2", "friction coefficient at rest (± 0.67)", "Monnoyer2018", MONNOYER_PLACES, True),
+    Figure("monnoyer_wording", "64 %", "the decrease at a = tau by the text's wording of tau (its printed law, "
+           "exp(-a²/2tau²), gives 39 %: the paper is inconsistent)", "Monnoyer2018",
+           "as data/README.md states it (no section given)", True),
     Figure("monnoyer_carrier", "34 590 Hz", "the plate's frequency", "Monnoyer2018", MONNOYER_PLACES, True),
     Figure("huloux_f0", "0.8 N", "f0 of f = f0 exp(-a² tau) + d", "Huloux2018", README_ONLY, True),
     Figure("huloux_tau", "0.38 µm⁻²", "tau of the same law", "Huloux2018", README_ONLY, True),
