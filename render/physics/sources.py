@@ -2,8 +2,9 @@
 
 Each :class:`Figure` is one number (or range) as its paper states it, with the paper and where in it
 (section, figure, table, abstract). ``checked`` says whether that place was read for this project (the
-bundled ``data/README.md`` notes, or the paper's own text); a figure taken from a summary whose place in
-the paper was not located says so (``checked=False``) instead of inventing a section. Model outputs are
+project's ``data/README.md`` notes, kept with its shared data and not in this repository, or the paper's own
+text); a figure taken from a summary whose place in the paper was not located says so (``checked=False``)
+instead of inventing a section. Model outputs are
 never listed here: they are ours, and the pages label them so.
 
 ``tests/test_attribution.py`` reads this table and the physics pages and docstrings: a number written
