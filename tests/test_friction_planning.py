@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
 
 def felt_by_the_finger(static: np.ndarray, speed_mm_s: float) -> np.ndarray:
-    """What the simulated plate's finger (devices/finger.py's lag, not the host's) feels for a settled ratio."""
+    """What the simulated plate's finger (devices/sim/finger.py's lag, not the host's) feels for a settled ratio."""
     lag = FingerDynamics()
     felt = np.empty(len(static))
     finger_kernels.friction_lag(np.ascontiguousarray(static, dtype=float), np.full(len(static), speed_mm_s),
