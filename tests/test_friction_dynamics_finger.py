@@ -1,4 +1,4 @@
-"""The simulated finger's friction in time (devices/finger.py): the plate's own lag of its law, against the
+"""The simulated finger's friction in time (devices/sim/finger.py): the plate's own lag of its law, against the
 first-order step response, and the options that ask for it."""
 
 import math

@@ -37,8 +37,9 @@ if TYPE_CHECKING:
     from ultraglide.experiment.stimuli import StimulusDesign
 
 PRESETS = {
-    # Vezzoli et al. (2015), section II.D: 0, 2 and 4 µm at the actuator's resonance, in random order,
-    # "more slippery?"; about 0.4 N. The paper gives no number of presentations: 10 each is our choice.
+    # Vezzoli et al. (2015), section III.D: 0, 2 and 4 µm at the actuator's resonance, in random order,
+    # "more slippery?"; 0.4 N is the force at which the paper's model puts the glide threshold at 4 µm (the
+    # participants' force was not measured). The paper gives no number of presentations: 10 each is our choice.
     "vezzoli2015": {"parameter": "amplitude", "levels": (0.0, 2.0, 4.0), "repeats": 10, "intervals": 1,
                     "force_n": 0.4, "question": "More slippery than the plate at rest? (yes / no)",
                     "zone_mm": (60.0, 40.0)},

@@ -10,14 +10,15 @@ once the finger has settled. Measured fingers do not settle at once, and not at 
   32-37 ms. Monnoyer, Willemet and Wiertlewski (2023) saw the skin release its elastic strain over 20 ms
   after the reduction was switched on, a finger pressing rather than sliding.
 
-:class:`FrictionDynamics` models both as first-order lags, the time constant chosen by the direction of the
-change: ``onset_s`` where the static ratio lies below the felt one, the recovery's where it lies above. The
-recovery's dependence on the sliding speed v is ``recovery_s (reference_speed_mm_s / v)^speed_exponent``:
-the source gives one point (70 ms at 22 mm/s) and the direction (slower when slower), not the law, so the
-exponent is **an assumption, exposed as a parameter**: 0.5 by default (our choice: it puts the recovery at
-100 mm/s at 33 ms, inside the 32-37 ms above, whose speed we do not know); 1 would be a fixed sliding
-distance (1.5 mm) to renew the contact, 0 no dependence. Each sample's static value is held for one period,
-so the response to a step is exact: 1 - exp(-t / tau), 63 % at t = tau.
+:class:`FrictionDynamics` models both as first-order lags, with the 5 ms and 70 ms as their time constants (our
+reading: whether the paper's figures are time constants or settling times was not checked here), chosen by the
+direction of the change: ``onset_s`` where the static ratio lies below the felt one, the recovery's where it
+lies above. The recovery's dependence on the sliding speed v is
+``recovery_s (reference_speed_mm_s / v)^speed_exponent``: the source gives one point (70 ms at 22 mm/s) and the
+direction (slower when slower), not the law, so the exponent is **an assumption, exposed as a parameter**: 0.5
+by default (our choice: it puts the recovery at 100 mm/s at 33 ms, inside the 32-37 ms above, whose speed we do
+not know); 1 would be a fixed sliding distance (1.5 mm) to renew the contact, 0 no dependence. Each sample's
+static value is held for one period, so the response to a step is exact: 1 - exp(-t / tau), 63 % at t = tau.
 
 :class:`DynamicFrictionModel` is a static model with dynamics: every command and the API take it where they
 take a model (``dynamic`` is the default static model with the published dynamics; ``dynamic:NAME`` any

@@ -24,7 +24,8 @@ M_TO_UM = 1e6
 
 @dataclass(frozen=True)
 class FingerParams:
-    """Parameters of the finger model; defaults are the paper's Table I and its fits.
+    """Parameters of the finger model; defaults are the paper's Table I, its eq. (3) fit and its mu_s, mu_d
+    (section III.C). The friction exponent n and mu at 1 N are ours: the paper's text gives Fig. 7 as a curve, no n.
 
     ``density_kg_m3`` (Table I) does not enter the paper's quasi-static model, which neglects ridge
     inertia; it sets the ridge layer's shear resonance (:func:`ridge_shear_resonance_hz`), which
@@ -47,8 +48,10 @@ class FingerParams:
     area_exponent: float = 2.0 / 3.0  # the 2/3 of eq. (3)
     static_friction: float = 1.0  # mu_s, section III.C
     dynamic_friction: float = 0.7  # mu_d, section III.C
-    # Non-Coulombic law mu(F) = mu_1N * F^(n-1) (Fig. 7, after Adams et al. 2013 and
-    # Dzidek et al. 2014): friction force grows as F^n with n = 2/3 for Hertzian asperities.
+    # Non-Coulombic law mu(F) = mu_1N * F^(n-1), our power-law reading of Fig. 7 (whose caption cites the
+    # paper's ref. [11]; its text cites ref. [12], Dzidek et al. 2014, for mu falling with force). n = 2/3,
+    # friction growing as F^n as for Hertzian asperities, is our choice (after Adams et al. 2013 and Dzidek
+    # et al. 2014, not checked against them): the paper's text states no n.
     friction_exponent: float = 2.0 / 3.0  # n
     friction_coefficient_at_1n: float = 0.8  # mu at 1 N; 1.0 at 0.5 N, typical of moist fingers
     contact: str = "hertz"  # pressure profile for eq. (9): "hertz" (eq. 8) or "uniform"

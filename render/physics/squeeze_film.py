@@ -1,13 +1,14 @@
 """Intermittent contact cushioned by a squeeze film of air: the ``squeeze-film`` friction model.
 
-The paper's bed of springs (eqs. 1, 3, 6-9) never takes friction below about 0.67: its only
-mechanism is the non-Coulombic law swinging about the load. Measured fingers fall to 0.1-0.2
-within a few µm. Wiertlewski, Friesen and Colgate (PNAS 113:9210, 2016, "Partial squeeze film
-levitation modulates fingertip friction") imaged the contact and found the load at the interface
-shared between the elastic compression of the skin's asperities and a squeeze film of air that has
-no time to escape: fewer asperities touch, and friction falls with them. Fenton Friesen et al.
-(2018) measured friction reduction in reduced air pressure (at 0.3 ± 0.05 N and amplitudes below
-about 1.8 µm, reporting the motor's current); no ratio of theirs is used here.
+The paper's bed of springs (eqs. 1, 3, 6-9) never takes friction below about 0.67 (our evaluation of it,
+up to 20 µm): its only mechanism is the non-Coulombic law swinging about the load. Measured fingers fall
+much further (to 0.10 on average at 6 µm p-p: Wiertlewski, Fenton Friesen and Colgate 2016). Those authors
+(PNAS 113:9210, 2016, "Partial squeeze film levitation modulates fingertip friction") imaged the contact
+and found the load at the interface shared between the elastic compression of the skin's asperities and
+a squeeze film of air that has no time to escape: fewer asperities touch, and friction falls with them.
+Fenton Friesen et al. (2018) measured friction reduction on an artificial finger in a 98 % vacuum (at
+0.3 ± 0.05 N and amplitudes below about 1.8 µm, reporting the motor's current); no ratio of theirs is
+used here.
 
 This model puts the two together, with parameters that are physical:
 
@@ -26,10 +27,11 @@ This model puts the two together, with parameters that are physical:
   (F_c / F)^n R(a / W_c(F_c)), R the paper's relative friction (Fig. 8) and W_c its detachment
   amplitude (eq. 6) at the contact's own load.
 
-With ``film_fraction`` 0 the film carries nothing and the
-model is the paper's, exactly. Because A ∝ F^(2/3), the film's share of the load falls as
-F^(-1/3): lighter touches levitate more, as measured fingers do (Vezzoli et al. 2015, ref. [8] of
-the paper). Frequency enters only through the condition sigma >> 1, which holds on ultrasonic plates
+With ``film_fraction`` 0 the film carries nothing and the model is the paper's, exactly. Because
+A ∝ F^(2/3), the film's share of the load falls as F^(-1/3): lighter touches levitate more. That is
+our model's consequence, not a measurement: the paper's ref. [8] (Vezzoli et al., WHC 2015, "Pressure
+dependence of friction modulation") varied the ambient pressure (0.5 and 1 atm), not the force.
+Frequency enters only through the condition sigma >> 1, which holds on ultrasonic plates
 (:func:`squeeze_number`). Left out: the skin's compliance under the film (the gap is held), its
 inertia and viscoelasticity, and the film's edge losses.
 
