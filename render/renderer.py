@@ -906,10 +906,16 @@ class Renderer:
 
     def _speed(self, finger: FingerState, step, direction, n: int) -> tuple[float, float, tuple]:
         """The finger's speed over the block (mm/s, one a block), its step per control sample (mm) and its heading:
-        a live prediction's velocity, else the mean step of the block times the control rate."""
+        a live prediction's velocity, else the mean step while the finger touches times the control rate (a
+        block that ends a stroke, as an export's second-long blocks do, is not slowed by the samples after it)."""
         if finger.velocity_mm_s is not None:
             return math.hypot(*finger.velocity_mm_s), step, direction
-        one_step = float(np.mean(step)) if n else 0.0
+        down = finger.down
+        touching = np.count_nonzero(down) if isinstance(down, np.ndarray) and n else 0
+        if touching and touching < n:
+            one_step = float(np.add.reduce(step, where=down)) / touching
+        else:
+            one_step = float(np.mean(step)) if n else 0.0
         heading = (float(direction[0][n - 1]), float(direction[1][n - 1])) if n else (0.0, 0.0)
         return one_step * self.settings.control_rate_hz, one_step, heading
 

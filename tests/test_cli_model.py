@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import assert_one_line_error, run_cli
+from conftest import ROOT, assert_one_line_error, run_cli
 from PIL import Image
 
 
@@ -52,6 +52,13 @@ def test_model_choice_and_unreachable_ratio():
     assert "out of reach" in paper
 
 
+def test_a_ratio_out_of_a_tables_reach_names_the_tables_largest_amplitude(tmp_path):
+    table = tmp_path / "bench.csv"
+    table.write_text("amplitude_um_pp,relative_friction\n0,1\n2,0.7\n4,0.3\n6,0.1\n")
+    text = run_cli("model", "--model", f"table:{table}", "--ratio", "0.05", check=True).stdout
+    assert "the lowest this model gives within 6 µm is 0.100 (clamped to 6.00 µm p-p)" in text
+
+
 def test_model_plots_writes_figures_2_to_9(tmp_path):
     result = run_cli("model", "--plots", tmp_path / "figs", check=True)
     files = sorted((tmp_path / "figs").glob("*.png"))
@@ -63,6 +70,15 @@ def test_model_plots_writes_figures_2_to_9(tmp_path):
             assert image.info["dpi"][0] == pytest.approx(300, abs=1)  # print quality
         assert file.with_suffix(".pdf").read_bytes().startswith(b"%PDF")  # and a vector copy
     assert "wrote" in result.stdout
+
+
+def test_the_friction_in_time_figure_docs_physics_names_is_the_one_model_plots_writes(tmp_path):
+    physics = (ROOT / "docs" / "physics.md").read_text()
+    said = re.search(r"`ultraglide model --model dynamic` prints the dynamics and, with `--plots DIR`,\s+"
+                     r"draws `([\w-]+)\.png`/`\.pdf`", physics)
+    assert said is not None, "docs/physics.md no longer says which figure model --model dynamic --plots draws"
+    run_cli("model", "--model", "dynamic", "--plots", tmp_path, check=True)
+    assert (tmp_path / f"{said[1]}.png").is_file() and (tmp_path / f"{said[1]}.pdf").is_file()
 
 
 @pytest.mark.parametrize("args, fragment", [

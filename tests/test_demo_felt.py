@@ -44,6 +44,25 @@ def test_the_figures_are_the_planners_at_each_speed_and_interpolated_in_log_spee
     assert felt.at(texture, "dynamic", 1000.0) == felt.at(texture, "dynamic", 400.0)  # held at the ends
 
 
+def test_figures_asked_for_another_floor_are_worked_out_anew_and_the_old_ones_never_given():
+    # the demo's force keys move the floor within the plate's limit (0.17 at 0.5 N, 0.41 at 1.9 N for the default
+    # model): figures worked out for the old floor must not be said for the new one
+    texture = procedural.grating(4.0, (60.0, 40.0), ratio_range=(0.05, 1.0))
+    model = load_model("dynamic")
+    felt = FeltContrast()
+    expected = {}
+    for floor in (0.17, 0.41):
+        kept = swipe_contrast(texture, model.dynamics, 100.0, floor, longest_s=0.5)
+        expected[floor] = (kept.planned, kept.instantaneous)
+    assert expected[0.17] != pytest.approx(expected[0.41], abs=0.02)  # the floor matters on this texture
+    for floor in (0.17, 0.41):
+        felt.request(texture, "dynamic", model, floor)
+        deadline = time.perf_counter() + 60.0
+        while (said := felt.at(texture, "dynamic", 100.0)) is None and time.perf_counter() < deadline:
+            time.sleep(0.01)  # worked out in its own thread
+        assert said == pytest.approx(expected[floor])
+
+
 def test_the_status_line_says_the_contrast_kept_at_the_fingers_speed(tmp_path, monkeypatch):
     monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
     from ultraglide.apps.demo.app import DemoApp

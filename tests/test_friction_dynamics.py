@@ -72,10 +72,20 @@ def test_the_dynamic_model_settles_on_its_static_model():
 
 def test_dynamic_models_load_by_name():
     assert isinstance(ultraglide.load_model("dynamic").static, StretchedExponentialModel)
+    # the public API names them, as it names the static models
+    assert isinstance(ultraglide.load_model("dynamic"), ultraglide.DynamicFrictionModel)
+    assert ultraglide.load_model("dynamic").dynamics == ultraglide.FrictionDynamics()
+    assert isinstance(ultraglide.load_model("speed:0.5:stretched"), ultraglide.SpeedLawModel)
+    assert ultraglide.load_model("speed:0.5:stretched").speed_law == ultraglide.SpeedLaw(0.5)
     assert isinstance(ultraglide.load_model("dynamic:exponential").static, ExponentialModel)
     assert "in time: onset 5 ms" in ultraglide.load_model("dynamic").describe()
     with pytest.raises(ModelError, match="wraps a static one"):
         ultraglide.load_model("dynamic:dynamic")
+    # a speed law around a dynamic model has the published dynamics, not a finger's fitted ones: said so
+    with pytest.raises(ModelError) as error:
+        ultraglide.load_model("dynamic:speed:0.5:dynamic")
+    assert str(error.value) == ("speed:0.5:dynamic has friction dynamics already (the published ones): give --model "
+                                "speed:0.5:dynamic (dynamic: adds the published ones to a static model)")
 
 
 def test_the_model_command_says_the_dynamics_and_what_a_grating_keeps():

@@ -83,6 +83,9 @@ def test_a_finger_whose_law_is_a_calibration_lags_as_its_fitted_dynamics_say(tmp
                                        noise_n=0.0))
     assert finger.dynamics == FingerDynamics(0.01, 0.05, 100.0, 0.5)
     assert FingerConfig(law=str(fitted)).lags and "friction in time" in finger.name
+    # the words say whose lag: the fit's time constants, not the published 5 and 70 ms
+    assert "friction in time (10 ms down, 50 ms back at 100 mm/s (x (v_ref/v)^0.5))" in finger.name
+    assert "(5 ms down, 70 ms back at 22 mm/s" in FingerConfig(law="exponential", dynamics=True).law_words()
     static = tmp_path / "static.toml"
     static.write_text('ultraglide_calibration = 1\nmodel = "exponential"\n[parameters]\ntau_um_zp = 1.3\n'
                       '[dynamics]\nfitted = false\n')

@@ -488,9 +488,27 @@ def test_the_exponential_law_has_no_force_term_and_its_tau_range_is_0_02_to_35_u
 
 def test_the_stretched_model_describes_itself():
     model = StretchedExponentialModel(3.0, 1.5, 0.25)
-    assert model.describe() == ("stretched: mu/mu0 = exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, beta = 1.5, "
+    assert model.describe() == ("stretched: mu/mu0 = d + (1 - d) exp(-(a/s)^beta), s = 3 µm p-p x (F/0.5 N)^0.25, "
+                                "beta = 1.5, "
                                 "floor d = 0.1 (the mean measured at 6 µm p-p, 0.02-0.30 across people: Wiertlewski "
                                 "et al. 2016); force law: s ∝ F^0.25, as given")
+    # the law as written is the one evaluated: at a = s, d + (1 - d) e^-1, not e^-1
+    assert float(model.relative_friction(3.0, 0.5)) == pytest.approx(0.1 + 0.9 * np.exp(-1.0))
+    floored = ExponentialModel(1.0, residual_ratio=0.2)
+    assert floored.describe().startswith("exponential: mu/mu0 = d + (1 - d) exp(-a²/2tau²), tau = 1 µm zero-to-peak, "
+                                         "floor d = 0.2;")
+    assert float(floored.relative_friction(2.0, 0.5)) == pytest.approx(0.2 + 0.8 * np.exp(-0.5))  # a = tau zp
+
+
+def test_a_table_whose_points_fall_to_0_says_it_reaches_0_and_one_with_a_floor_does_not():
+    amplitude = np.array([0.0, 2.0, 4.0, 6.0])
+    zero = TableModel(Measurements(amplitude, np.array([1.0, 0.6, 0.2, 0.0]), None, "zero.csv"))
+    assert float(zero.floor_ratio(0.5, 6.0)) == pytest.approx(0.0, abs=1e-9)
+    assert zero.describe() == ("table: zero.csv (0.5 N, up to 6 µm p-p), reaches 0 (its points fall to 0), which "
+                               "no measured finger does")
+    floored = TableModel(Measurements(amplitude, np.array([1.0, 0.6, 0.2, 0.05]), None, "floor.csv"))
+    assert float(floored.floor_ratio(0.5, 6.0)) == pytest.approx(0.05)
+    assert "reaches 0" not in floored.describe()
 
 
 def test_a_table_model_needs_two_amplitudes_a_force_and_names_its_source():

@@ -61,6 +61,15 @@ def test_the_words_name_the_model_the_limit_and_the_force():
     assert "lowest friction" not in plain
 
 
+def test_the_json_says_what_the_figures_were_worked_out_under():
+    facts = json.loads(run_cli("texture", "info", "grating-1mm", "--json", "--model", "dynamic", "--force", "1",
+                               check=True).stdout)
+    assert facts["felt_under"] == {"model": "dynamic", "dynamics": "the model's own", "profile": "sim-plate",
+                                   "limit_um_pp": 6.0, "force_n": 1.0}
+    plain = json.loads(run_cli("texture", "info", "grating-1mm", "--json", check=True).stdout)
+    assert plain["felt_under"]["model"] == "stretched" and plain["felt_under"]["dynamics"].startswith("published")
+
+
 def test_a_bad_model_or_profile_is_one_line_and_exit_2():
     for options, said in ((["--model", "speed:3:stretched"], "speed"), (["--profile", "nope"], "profile"),
                           (["--force", "-1"], "force")):

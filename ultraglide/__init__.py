@@ -52,6 +52,10 @@ _EXPORTS: dict[str, str] = {
     "TableModel": "ultraglide.render.physics.friction_models",
     "SqueezeFilmModel": "ultraglide.render.physics.squeeze_film",
     "FilmParams": "ultraglide.render.physics.squeeze_film",
+    "DynamicFrictionModel": "ultraglide.render.physics.dynamics",  # friction in time (load_model("dynamic"))
+    "FrictionDynamics": "ultraglide.render.physics.dynamics",
+    "SpeedLawModel": "ultraglide.render.physics.speed_law",  # the reduction weakening with speed ("speed:S:NAME")
+    "SpeedLaw": "ultraglide.render.physics.speed_law",
     "ForceRangeWarning": "ultraglide.render.physics.errors",
     "load_model": "ultraglide.render.physics.calibration",
     "read_measurements": "ultraglide.render.physics.measurements",
@@ -118,6 +122,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
         load_model,
         read_calibration,
     )
+    from ultraglide.render.physics.dynamics import DynamicFrictionModel, FrictionDynamics
     from ultraglide.render.physics.errors import ForceRangeWarning, ModelError
     from ultraglide.render.physics.friction_models import (
         ExponentialModel,
@@ -127,6 +132,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
         TableModel,
     )
     from ultraglide.render.physics.measurements import read_measurements
+    from ultraglide.render.physics.speed_law import SpeedLaw, SpeedLawModel
     from ultraglide.render.physics.squeeze_film import FilmParams, SqueezeFilmModel
     from ultraglide.render.renderer import RenderSettings
     from ultraglide.render.touch_log import read_touch_log

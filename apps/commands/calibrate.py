@@ -264,6 +264,7 @@ def run(args) -> int:
         compare_models,
         fit_model,
         fit_summary,
+        rank_fits,
         selection_note,
     )
     from ultraglide.render.physics.measurements import read_measurements
@@ -302,13 +303,22 @@ def run(args) -> int:
         fits = compare_models(_at_speed_law(data, ranked_at))
         if not fits:
             raise UsageError(f"{data.source}: no model can be fitted to these points")
+        # a model with a force law competes with the law the data support: refitted force-free where predicting
+        # each force from the others does not support it, and ranked again, before the best is chosen
+        force_law = None
+        lawful = next((f for f in fits if f.kind in FORCE_LAW_PARAMETER), None)
+        if lawful is not None:
+            force_law = choose_force_law(data, lawful.kind)
+            if force_law.hold:
+                held = fit_model(_at_speed_law(data, ranked_at), lawful.kind, cross_validate=True,
+                                 hold=force_law.hold)
+                fits = rank_fits([held if f is lawful else f for f in fits], data)
         chosen = next((f for f in fits if f.kind != "table"), None)
-        force_law = choose_force_law(data, chosen.kind) if chosen is not None and chosen.kind in FORCE_LAW_PARAMETER \
-            else None
+        if chosen is None or force_law is None or chosen.kind != force_law.kind:
+            force_law = None  # the file's model has no force law to choose
         speed = (ranked_at if chosen.kind == "stretched" else _speed_law(data, chosen.kind)) \
             if chosen is not None else None
-        if chosen is not None and (args.bootstrap or (force_law is not None and force_law.hold)
-                                   or (speed is not None and speed.kept)):
+        if chosen is not None and (args.bootstrap or (speed is not None and speed.kept)):
             chosen = fit_model(_at_speed_law(data, speed), chosen.kind, cross_validate=True, bootstrap=args.bootstrap,
                                hold=force_law.hold if force_law is not None else None)
             fits = [chosen if f.kind == chosen.kind else f for f in fits]

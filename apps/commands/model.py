@@ -155,13 +155,15 @@ def summary(force_n: float, model: FrictionModel | str, ratio: float | None, pre
             "limit_um_pp": DYNAMICS_LIMIT_UM_PP,
         }
     result["curve"] = [[float(a), round(float(r), 6)] for a, r in zip(amplitude, curve, strict=True)]
+    ceiling = model.max_amplitude_um_pp  # the model's own range of amplitudes, at the speed asked
+    if ratio is not None or speed_mm_s is not None:  # the floor within it, at that speed
+        result["amplitude_ceiling_um_pp"] = ceiling
+        result["lowest_reachable_ratio"] = float(model.floor_ratio(force_n, ceiling / scale))
     if ratio is not None:
-        ceiling = model.max_amplitude_um_pp  # the model's own range of amplitudes, at the speed asked
         inversion = scaled_inverse(model, ratio, force_n, ceiling, scale)
         result["ratio"] = ratio
         result["amplitude_for_ratio_um_pp"] = float(inversion.amplitude_um_pp)
         result["ratio_reachable"] = inversion.clamped == 0
-        result["lowest_reachable_ratio"] = float(model.floor_ratio(force_n, ceiling / scale))
     return result
 
 
@@ -171,7 +173,6 @@ def _kept(kept) -> dict:
 
 
 def format_text(result: dict) -> str:
-    from ultraglide.render.physics.friction_models import CEILING_UM_PP
     from ultraglide.render.physics.speed_law import FASTEST_SPEED_MM_S, SLOWEST_SPEED_MM_S
 
     low, high = result["valid_force_range_n"]
@@ -187,6 +188,8 @@ def format_text(result: dict) -> str:
     if speed:
         lines.append(f"  speed law: {result['speed_law']}; at {at} a ratio needs "
                      f"{result['amplitude_scale']:.3g} x the amplitude it needs at the reference")
+        lines.append(f"  lowest friction within {result['amplitude_ceiling_um_pp']:g} µm p-p at {at}: "
+                     f"{result['lowest_reachable_ratio']:.3f}")
     if "contact_area_mm2" in result:
         lines += [
             f"  contact area          {result['contact_area_mm2']:10.2f} mm²      eq. (3), at most a fingertip's",
@@ -224,7 +227,7 @@ def format_text(result: dict) -> str:
         else:
             lines.append(
                 f"  ratio {result['ratio']:g} is out of reach: the lowest this model gives within "
-                f"{CEILING_UM_PP:g} µm is {result['lowest_reachable_ratio']:.3f} "
+                f"{result['amplitude_ceiling_um_pp']:g} µm is {result['lowest_reachable_ratio']:.3f} "
                 f"(clamped to {result['amplitude_for_ratio_um_pp']:.2f} µm p-p)"
             )
     return "\n".join(lines)

@@ -413,6 +413,10 @@ def info(args) -> int:
     limit_um_pp = load_profile(args.profile).max_amplitude_um_pp
     texture = _input(args.texture)
     facts = describe(texture, args.texture, (model, limit_um_pp, args.force))
+    if facts["felt"]:  # what the felt figures were worked out under, as the words below say it
+        facts["felt_under"] = {"model": args.model, "dynamics": "the model's own" if getattr(model, "dynamics", None)
+                               is not None else "published (Meyer et al. 2014)", "profile": args.profile,
+                               "limit_um_pp": limit_um_pp, "force_n": args.force}
     if args.json:
         print_json(facts)
         return 0

@@ -19,6 +19,7 @@ SPEEDS_MM_S = (25.0, 50.0, 100.0, 200.0, 400.0)
 SPEED_WINDOW_S = 0.15  # the finger's speed: its path over this long
 LONGEST_SPEED_WINDOW_S = 0.5  # or over its last three reports, when a busy UI read fewer in that time, up to this
 MIN_SPEED_MM_S = 5.0  # slower than this the finger is taken as resting: no figure
+FloorKey = tuple[tuple[float, float], ...]  # a floor asked for, comparable: (speed mm/s, floor) pairs
 
 
 def finger_speed_mm_s(trace, mm_per_px: float, now_s: float) -> float | None:
@@ -40,42 +41,47 @@ def finger_speed_mm_s(trace, mm_per_px: float, now_s: float) -> float | None:
 
 
 class FeltContrast:
-    """The contrast a swipe keeps, per (texture, model), worked out in the background on request."""
+    """The contrast a swipe keeps, per (texture, model), worked out in the background on request, for the floor it
+    was asked with: asked again with another floor (the force changed: the floor within the limit with it), the
+    figures are worked out anew and none are given until they are."""
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._table: dict[tuple[int, str], list[tuple[float, float, float]] | None] = {}
+        # (texture, model) -> (the floor asked, its rows; None while under way)
+        self._table: dict[tuple[int, str], tuple[FloorKey, list[tuple[float, float, float]] | None]] = {}
 
     def request(self, texture, model_name: str, model, floor) -> None:
-        """Work out the figures for ``texture`` under ``model`` (one with ``dynamics``) unless done or under way.
-        ``floor``: the lowest friction ratio the plate reaches (the model at the plate's limit), one for every
-        speed or, under a speed law, a mapping from each of :data:`SPEEDS_MM_S` to the floor at that speed."""
-        key = (id(texture), model_name)
+        """Work out the figures for ``texture`` under ``model`` (one with ``dynamics``) unless done or under way
+        for this ``floor``: the lowest friction ratio the plate reaches (the model at the plate's limit), one for
+        every speed or, under a speed law, a mapping from each of :data:`SPEEDS_MM_S` to the floor at that speed."""
+        key, asked = (id(texture), model_name), _floor_key(floor)
         with self._lock:
-            if key in self._table:
+            if key in self._table and self._table[key][0] == asked:
                 return
-            self._table[key] = None  # under way
+            self._table[key] = (asked, None)  # under way
         threading.Thread(target=self.work_out, args=(texture, model_name, model.dynamics, floor),
                          name="felt-contrast", daemon=True).start()
 
-    def work_out(self, texture, model_name: str, dynamics, floor: float) -> None:
-        """The figures for ``texture`` under ``model_name`` with these ``dynamics``, worked out in this thread."""
+    def work_out(self, texture, model_name: str, dynamics, floor) -> None:
+        """The figures for ``texture`` under ``model_name`` with these ``dynamics``, worked out in this thread;
+        kept unless another floor was asked for meanwhile."""
         from ultraglide.render.planning import swipe_contrast
 
-        key = (id(texture), model_name)
+        key, asked = (id(texture), model_name), _floor_key(floor)
         rows = []
         for speed in SPEEDS_MM_S:
             kept = swipe_contrast(texture, dynamics, speed, floor[speed] if isinstance(floor, dict) else floor,
                                   longest_s=0.5)
             rows.append((speed, kept.planned, kept.instantaneous))
         with self._lock:
-            self._table[key] = rows
+            if key not in self._table or self._table[key][0] == asked:
+                self._table[key] = (asked, rows)
 
     def at(self, texture, model_name: str, speed_mm_s: float) -> tuple[float, float] | None:
         """(planned, instantaneous) contrast kept at ``speed_mm_s``, interpolated in log speed between the worked
         speeds (held at the ends); None until worked out."""
         with self._lock:
-            rows = self._table.get((id(texture), model_name))
+            rows = self._table.get((id(texture), model_name), (None, None))[1]
         if not rows:
             return None
         logs = [math.log(speed) for speed, _, _ in rows]
@@ -83,6 +89,13 @@ class FeltContrast:
         planned = float(np.interp(where, logs, [row[1] for row in rows]))
         instantaneous = float(np.interp(where, logs, [row[2] for row in rows]))
         return planned, instantaneous
+
+
+def _floor_key(floor) -> FloorKey:
+    """A floor as :meth:`FeltContrast.request` takes it (one number, or one per speed), comparable."""
+    if isinstance(floor, dict):
+        return tuple(sorted((float(speed), float(value)) for speed, value in floor.items()))
+    return ((0.0, float(floor)),)
 
 
 MAX_PIXELS = 4_000_000  # a larger map would be resampled for the lookup: not worked out for a status line

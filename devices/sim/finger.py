@@ -109,7 +109,7 @@ class FingerDynamics:
                 raise DeviceError(f"the finger's {name} must lie in {low:g}..{high:g}, got {value}")
 
     def words(self) -> str:
-        return (f"friction lags: {1000 * self.onset_s:g} ms down, {1000 * self.recovery_s:g} ms back at "
+        return (f"friction lags: {1000 * self.onset_s:.3g} ms down, {1000 * self.recovery_s:.3g} ms back at "
                 f"{self.reference_speed_mm_s:g} mm/s (x (v_ref/v)^{self.speed_exponent:g})")
 
 

@@ -119,11 +119,14 @@ class FingerConfig:
         --------
         >>> FingerConfig(law="exponential", floor=0.2).law_words()
         'exponential, floor 0.2'
+        >>> FingerConfig(law="exponential", dynamics=True).law_words()   # which lag: the published one, or a fit's
+        'exponential, friction in time (5 ms down, 70 ms back at 22 mm/s (x (v_ref/v)^0.5))'
         """
         base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
         scale, floor = self.law_scale, self.law_floor
+        lag = finger_dynamics(self) if self.lags else None
         return (base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
-                + (", friction in time" if self.lags else ""))
+                + (f", friction in time ({lag.words().removeprefix('friction lags: ')})" if lag is not None else ""))
 
     def with_log(self, path: str | None) -> FingerConfig:
         """A copy that logs the finger to ``path`` (None: no log).

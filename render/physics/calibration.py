@@ -50,6 +50,7 @@ from ultraglide.render.physics.fitting import (
     fit_range,
     fit_summary,
     k_fold_groups,
+    rank_fits,
     selection_note,
 )
 from ultraglide.render.physics.friction_models import (
@@ -440,7 +441,8 @@ def load_model(spec: str) -> FrictionModel:
             raise ModelError(f"a dynamic model wraps a static one: {spec!r} wraps another dynamic model")
         static = load_model(inner)
         if isinstance(static, DynamicFrictionModel):
-            raise ModelError(f"{inner} holds the finger's own fitted dynamics: give --model {inner} (dynamic: "
+            whose = "its own, fitted on the plate" if static.dynamics.source else "the published ones"
+            raise ModelError(f"{inner} has friction dynamics already ({whose}): give --model {inner} (dynamic: "
                              "adds the published ones to a static model)")
         return DynamicFrictionModel(static)
     if spec == "paper":
@@ -499,5 +501,5 @@ __all__ = [  # the calibration's names, the fitting's and the parameters' (one i
     "FORCE_LAW_PARAMETER", "ForceLawChoice", "bootstrap_errors", "build_model", "choose_force_law",
     "calibration_from_document", "calibration_toml", "compare_models", "dynamics_table",
     "cross_validation_errors", "fit_model", "fit_range", "fit_summary", "k_fold_groups", "load_model", "model_kind",
-    "read_calibration", "selection_note",
+    "rank_fits", "read_calibration", "selection_note",
 ]

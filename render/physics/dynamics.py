@@ -348,7 +348,7 @@ class DynamicFrictionModel(FrictionModel):
         """
         return self.static.amplitude_um_pp(ratio, force_n, limit_um_pp, out)
 
-    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The static model's floor: the lowest steady ratio at this force within the limit (µm p-p).
 
         Examples

@@ -225,6 +225,10 @@ class StretchedExponentialModel(FrictionModel):
                                                 self.force_exponent, REFERENCE_FORCE_N, MIN_FORCE_N, MAX_FORCE_N,
                                                 self.residual_ratio, out)
 
+    def _floor_form(self) -> str:
+        """The law's floor as written before its exponential: "d + (1 - d) " with a floor, "" without."""
+        return "d + (1 - d) " if self.residual_ratio else ""
+
     def _floor_words(self) -> str:
         if not self.residual_ratio:
             return ", no floor: reaches 0, which no measured finger does"
@@ -242,10 +246,15 @@ class StretchedExponentialModel(FrictionModel):
 
         Examples
         --------
+        The law as written is the one evaluated, its floor d included (0.1 by default):
+
         >>> StretchedExponentialModel(scale_um_pp=4.0).describe().split(", floor")[0]
-        'stretched: mu/mu0 = exp(-(a/s)^beta), s = 4 µm p-p x (F/0.5 N)^0.333, beta = 2'
+        'stretched: mu/mu0 = d + (1 - d) exp(-(a/s)^beta), s = 4 µm p-p x (F/0.5 N)^0.333, beta = 2'
+        >>> StretchedExponentialModel(scale_um_pp=4.0, residual_ratio=0.0).describe().split(", ")[0]
+        'stretched: mu/mu0 = exp(-(a/s)^beta)'
         """
-        return (f"stretched: mu/mu0 = exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x (F/0.5 N)^"
+        return (f"stretched: mu/mu0 = {self._floor_form()}exp(-(a/s)^beta), s = {self.scale_um_pp:.4g} µm p-p x "
+                f"(F/0.5 N)^"
                 f"{self.force_exponent:.3g}, beta = {self.shape:.3g}{self._floor_words()}; force law: "
                 f"{self.force_law()}")
 
@@ -337,8 +346,11 @@ class ExponentialModel(StretchedExponentialModel):
         --------
         >>> ExponentialModel().describe().split(",")[0]
         'exponential: mu/mu0 = exp(-a²/2tau²)'
+        >>> ExponentialModel(residual_ratio=0.2).describe().split(",")[0]   # with a floor, the law as evaluated
+        'exponential: mu/mu0 = d + (1 - d) exp(-a²/2tau²)'
         """
-        return (f"exponential: mu/mu0 = exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm zero-to-peak"
+        return (f"exponential: mu/mu0 = {self._floor_form()}exp(-a²/2tau²), tau = {self.tau_um_zp:.4g} µm "
+                f"zero-to-peak"
                 f"{self._floor_words()}; force law: {self.force_law()}")
 
     def parameters(self) -> dict[str, float | str]:

@@ -689,6 +689,36 @@ def compare_models(data: Measurements, kinds: tuple[str, ...] = COMPARED_MODELS)
             fits.append(fit_model(data, kind, cross_validate=True))
         except ModelError:
             continue
+    return rank_fits(fits, data)
+
+
+def rank_fits(fits: list[Fit], data: Measurements) -> list[Fit]:
+    """Fits of ``data`` best first, as :func:`compare_models` ranks them: by leave-one-force-out RMS with three
+    forces or more, else by k-fold RMS; a fit without that error last.
+
+    Parameters
+    ----------
+    fits : list of Fit
+        Fits of ``data``, cross-validated (``fit_model(..., cross_validate=True)``).
+    data : Measurements
+        The points they were fitted to (their forces decide the error ranked by).
+
+    Returns
+    -------
+    list of Fit
+        The same fits, best first.
+
+    Examples
+    --------
+    Monnoyer et al.'s fitted curve: their law ranks before a table of its points:
+
+    >>> from importlib.resources import files
+    >>> from ultraglide import read_measurements
+    >>> data = read_measurements(files("ultraglide.apps.data") / "monnoyer2018-fit.csv")
+    >>> fits = [fit_model(data, kind, cross_validate=True) for kind in ("table", "exponential")]
+    >>> [fit.kind for fit in rank_fits(fits, data)]
+    ['exponential', 'table']
+    """
     ranked_by = "leave_one_force_out" if _distinct_forces(data) >= 3 else "k_fold"
 
     def score(fit: Fit) -> float:

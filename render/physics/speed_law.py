@@ -412,7 +412,7 @@ class SpeedLawModel(FrictionModel):
         return scaled_inverse(self.static, ratio, force_n, limit_um_pp, self.speed_law.one_scale(float(speed_mm_s)),
                               out)
 
-    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf):
+    def floor_ratio(self, force_n: ArrayLike = DEFAULT_FORCE_N, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The static model's floor (at the reference speed) within the limit (µm p-p).
 
         Examples
@@ -424,7 +424,7 @@ class SpeedLawModel(FrictionModel):
         """
         return self.static.floor_ratio(force_n, limit_um_pp)
 
-    def floor_at(self, force_n: ArrayLike, speed_mm_s: float, limit_um_pp: float = np.inf):
+    def floor_at(self, force_n: ArrayLike, speed_mm_s: float, limit_um_pp: float = np.inf) -> np.ndarray | float:
         """The lowest settled ratio reachable within the limit (µm p-p) at a sliding speed (mm/s): the static
         floor within ``limit / k(v)``; it rises with speed.
 

@@ -17,6 +17,8 @@ from ultraglide.render.physics.model_base import (
     check_amplitude,
 )
 
+REACHES_ZERO = 1e-6  # a table whose lowest ratio is at most this reaches 0 (its points' interpolation rounds)
+
 
 class TableModel(FrictionModel):
     """Measured points, interpolated monotonically (PCHIP) in amplitude and linearly in force.
@@ -234,9 +236,16 @@ class TableModel(FrictionModel):
         >>> model = TableModel(points)
         >>> model.describe()
         'table: bench (0.5 N, up to 6 µm p-p)'
+
+        A table whose points fall to 0 says that it reaches 0, as the other models that do say it:
+
+        >>> TableModel(Measurements(np.array([0.0, 3.0, 6.0]), np.array([1.0, 0.4, 0.0]), None, "zero")).describe()
+        'table: zero (0.5 N, up to 6 µm p-p), reaches 0 (its points fall to 0), which no measured finger does'
         """
         forces = ", ".join(f"{f:g}" for f in self.forces)
-        return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p)"
+        zero = ", reaches 0 (its points fall to 0), which no measured finger does" \
+            if min(self.floors) <= REACHES_ZERO else ""
+        return f"table: {self.source} ({forces} N, up to {self.max_amplitude_um_pp:g} µm p-p){zero}"
 
     def parameters(self) -> dict[str, float | str]:
         """``source``: the file the points came from.
