@@ -457,7 +457,7 @@ def contrast_transfer(dynamics: FrictionDynamics, period_mm: float, speed_mm_s: 
 @dataclass(frozen=True)
 class SwipeKept:
     """What a finger with friction dynamics keeps of a texture along a swipe at one speed: the felt friction's
-    standard deviation over the target's (1: all of the texture's contrast), and the RMS error, for the
+    standard deviation over the texture's (1: all of its contrast), and the RMS error from it, for the
     instantaneous and the planned renderer.
 
     Examples
@@ -479,7 +479,9 @@ class SwipeKept:
 def swipe_contrast(texture, dynamics: FrictionDynamics, speed_mm_s: float, floor: float,
                    rate_hz: float = 12000.0, longest_s: float = 1.0) -> SwipeKept:
     """How much of a friction texture's contrast survives, felt, along a left-to-right swipe through its middle at
-    ``speed_mm_s`` (at most ``longest_s`` of it, the first 50 ms left out), targets below ``floor`` held there.
+    ``speed_mm_s`` (at most ``longest_s`` of it, the first 50 ms left out). Both renderers are asked for the
+    texture with its targets below ``floor`` held there; what is felt is judged against the texture itself, so
+    the contrast the floor removes is lost too (a texture wholly below the floor keeps none).
 
     Parameters
     ----------
@@ -512,14 +514,14 @@ def swipe_contrast(texture, dynamics: FrictionDynamics, speed_mm_s: float, floor
     x = speed_mm_s * np.arange(n + extra) / rate_hz
     y = np.full(len(x), texture.height_mm / 2.0)
     step = speed_mm_s / rate_hz
-    target = np.maximum(Sampler(texture).ratio(x, y, step_mm=step, direction=(1.0, 0.0)).astype(float), floor)
-    instant, planned = felt_over(dynamics, target, n, speed_mm_s, floor, rate_hz)
+    texture_ratio = Sampler(texture).ratio(x, y, step_mm=step, direction=(1.0, 0.0)).astype(float)
+    instant, planned = felt_over(dynamics, np.maximum(texture_ratio, floor), n, speed_mm_s, floor, rate_hz)
     kept = slice(int(0.05 * rate_hz), n)
-    spread = float(np.std(target[kept]))
+    spread = float(np.std(texture_ratio[kept]))
 
     def measure(felt):
         share = float(np.std(felt[kept])) / spread if spread > 1e-9 else 1.0
-        return share, float(np.sqrt(np.mean((felt[kept] - target[kept]) ** 2)))
+        return share, float(np.sqrt(np.mean((felt[kept] - texture_ratio[kept]) ** 2)))
 
     (k_i, e_i), (k_p, e_p) = measure(instant), measure(planned)
     return SwipeKept(speed_mm_s, k_i, k_p, e_i, e_p)

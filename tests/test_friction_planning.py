@@ -186,3 +186,20 @@ def test_a_swipe_over_a_coarse_texture_keeps_its_contrast_and_a_fine_one_loses_i
     fine = swipe_contrast(resolve_texture("grating-1mm"), dynamics, 100.0, 0.168)  # 100 Hz
     assert coarse.planned > 0.9 and coarse.planned_rms < 0.05
     assert fine.instantaneous < 0.3 and fine.planned_rms < fine.instantaneous_rms
+
+
+def test_a_texture_below_the_floor_is_judged_against_itself_and_keeps_none_of_its_contrast():
+    """10 mm stripes of 0.05 and 0.12 under a 0.168 floor: no renderer can make them, the finger feels the floor
+    throughout, so none of the contrast survives and the error is the stripes' distance from the floor, by hand
+    sqrt(((0.168 - 0.05)^2 + (0.168 - 0.12)^2) / 2) = 0.090 (the band-limited edges move it a little)."""
+    from ultraglide.render.planning import swipe_contrast
+    from ultraglide.textures.texture import Texture
+
+    columns = (np.arange(200) // 20) % 2  # 0.5 mm pixels: 10 mm stripes over 100 mm
+    stripes = Texture(np.where(columns == 0, 0.05, 0.12)[None, :].repeat(20, axis=0).astype(np.float32), 100.0,
+                      10.0, name="stripes")
+    kept = swipe_contrast(stripes, FrictionDynamics(), 50.0, 0.168)
+    assert kept.instantaneous < 0.05 and kept.planned < 0.05
+    by_hand = math.sqrt(((0.168 - 0.05) ** 2 + (0.168 - 0.12) ** 2) / 2)
+    assert kept.instantaneous_rms == pytest.approx(by_hand, abs=0.005)
+    assert kept.planned_rms == pytest.approx(by_hand, abs=0.005)
