@@ -187,6 +187,29 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     assert not app.running
 
 
+def test_the_model_key_keeps_a_dynamic_models_dynamics_and_comes_back_to_it(halves, monkeypatch):
+    """Started with ``--model dynamic`` (planning against the finger's dynamics), the M key steps through the
+    built-in models with the dynamics kept, and round to the start again; before, it fell to static models."""
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    from ultraglide.apps.demo.app import DemoApp
+
+    demo = DemoApp([halves], model="dynamic", windowed=True, screen_width_mm=338.7)
+    try:
+        demo.wait_ready()
+        pg = demo.pg
+        seen = []
+        for _ in range(4):
+            post(pg, pg.KEYDOWN, key=pg.K_m, mod=0, unicode="m", scancode=0)
+            # the link's model changes once the engine took it (a pipe round trip); a dynamic model's status
+            # names its kind, "dynamic", whatever the static model inside (before: "squeeze-film", static)
+            assert run_until(demo, lambda: demo.link.model_name != (seen or ["dynamic"])[-1]), demo.model_name
+            assert run_until(demo, lambda: engine(demo).model == "dynamic"), engine(demo).model
+            seen.append(demo.link.model_name)
+        assert seen == ["dynamic:squeeze-film", "dynamic:exponential", "dynamic:paper", "dynamic"]
+    finally:
+        demo.close()
+
+
 def test_the_demos_engine_is_forked_from_it_not_spawned(app):
     """Its process is started on the demo's one thread, so it begins with what the demo imported (in a test
     worker: numba and the kernels, a second of CPU a spawned interpreter would spend again)."""

@@ -29,10 +29,10 @@ from ultraglide.apps.demo.layout import Layout
 from ultraglide.apps.demo.link import DemoLink, LinkConfig, LinkStarter
 from ultraglide.apps.demo.options import (
     FORCE_RANGE_N,
-    MODELS,
     START_FORCE_N,
     DemoOptions,
     load_textures,
+    model_cycle,
     seconds_since_launch,
 )
 from ultraglide.apps.demo.painter import CHART_SPAN_S, Painter
@@ -108,6 +108,7 @@ class DemoApp:
         self.mm_per_px = screen_width_mm / self.screen.get_width() if screen_width_mm else DEFAULT_MM_PER_PX
         self.waiter = EventWaiter(pygame)
         self.model_name = model
+        self.model_cycle = model_cycle(model)  # what the M key steps through
         self.force_n = START_FORCE_N
         self.user_paused = False
         self.show_help = False
@@ -267,8 +268,8 @@ class DemoApp:
             if self.link is not None:
                 self.link.set_force(self.force_n)
         elif action == "model":
-            self.model_name = MODELS[(MODELS.index(self.model_name) + 1) % len(MODELS)] \
-                if self.model_name in MODELS else MODELS[0]
+            cycle = self.model_cycle
+            self.model_name = cycle[(cycle.index(self.model_name) + 1) % len(cycle)]
             if self.link is not None:
                 self.link.set_model(self.model_name)
         elif action == "pause":

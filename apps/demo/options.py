@@ -17,6 +17,36 @@ FORCE_RANGE_N = (0.05, 5.0)
 START_FORCE_N = 0.5
 
 
+def model_cycle(start: str) -> tuple[str, ...]:
+    """The models the M key steps through from ``start``: the model the demo started with first, then the
+    built-in ones, each with the friction dynamics where the start has them (so stepping never drops the
+    planning a ``dynamic`` model brings, and comes back to a model given as a file).
+
+    Parameters
+    ----------
+    start : str
+        The model spec the demo started with (``stretched``, ``dynamic``, ``dynamic:NAME``, a file...).
+
+    Returns
+    -------
+    tuple of str
+        Model specs, ``start`` first, none twice.
+
+    Examples
+    --------
+    >>> model_cycle("stretched")
+    ('stretched', 'squeeze-film', 'exponential', 'paper')
+    >>> model_cycle("dynamic")
+    ('dynamic', 'dynamic:squeeze-film', 'dynamic:exponential', 'dynamic:paper')
+    >>> model_cycle("p07.toml")[:2]
+    ('p07.toml', 'stretched')
+    """
+    dynamic = start == "dynamic" or start.startswith("dynamic:")
+    same = {start, "dynamic:stretched"} if start == "dynamic" else {start}
+    built_in = tuple(f"dynamic:{name}" if dynamic else name for name in MODELS)
+    return (start,) + tuple(name for name in built_in if name not in same)
+
+
 @dataclass(frozen=True)
 class DemoOptions:
     """What the demo starts with: texture files or names (shown before the library's), device URL, profile and
