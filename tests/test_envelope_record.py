@@ -56,3 +56,24 @@ def test_play_records_the_ratio_its_model_was_asked_for(tmp_path, model):
         assert np.mean(np.abs(asked - target) > 0.05) > 0.3
     else:
         np.testing.assert_array_equal(asked, target)
+
+
+@pytest.mark.parametrize("model", ["dynamic", "stretched"])
+def test_export_records_the_ratio_its_model_was_asked_for(tmp_path, model):
+    """``export --envelope-csv`` has the same column: each sample's target amplitude is the static model's inverse
+    of the ratio recorded as asked (read back through the model here), the planner's with the dynamic model and
+    the texture's with the static one."""
+    envelope_csv = tmp_path / "envelope.csv"
+    result = run_cli("export", "grating-1mm", "-o", tmp_path / "out.wav", "--duration-s", "1", "--model", model,
+                     "--envelope-csv", envelope_csv)
+    assert result.returncode == 0, result.stderr
+    table = columns(envelope_csv)
+    down = table["down"] > 0
+    assert down.sum() > 6000
+    asked, target = table["planned_ratio"][down], table["target_ratio"][down]
+    amplitude = load_model(model).amplitude_um_pp(asked, 0.5, 6.0).amplitude_um_pp
+    np.testing.assert_allclose(amplitude, table["target_um_pp"][down], rtol=2e-3, atol=2e-3)
+    if model == "dynamic":
+        assert np.mean(np.abs(asked - target) > 0.05) > 0.3
+    else:
+        np.testing.assert_array_equal(asked, target)

@@ -31,8 +31,9 @@ from ultraglide.apps.cli.options import add_figure_width_option, output_option, 
 
 PLOT_POINTS = 200_000
 ENVELOPE_COLUMNS = ("t_s", "x_mm", "y_mm", "down", "target_ratio", "target_um_pp", "amplitude_um_pp",
-                    "drive_um_pp", "plate_um_pp", "sent_um_pp")  # sent: the drive after the limiter
-PLOT_COLUMNS = len(ENVELOPE_COLUMNS) - 1
+                    "drive_um_pp", "plate_um_pp", "sent_um_pp",  # sent: the drive after the limiter
+                    "planned_ratio")  # the ratio the model's inverse was asked for (the planner's command, if any)
+PLOT_COLUMNS = ENVELOPE_COLUMNS.index("sent_um_pp")  # the plot's columns come first
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -118,7 +119,7 @@ class EnvelopeLog:
         block = self._block
         columns = np.column_stack([block.time_s, block.x_mm, block.y_mm, block.down.astype(float), block.ratio,
                                    block.target_um_pp, block.amplitude_um_pp, block.drive_um_pp, block.plate_um_pp,
-                                   drive_um_pp])
+                                   drive_um_pp, block.planned_ratio])
         if self.stream:
             try:
                 np.savetxt(self.stream, columns, delimiter=",", fmt="%.6g")
