@@ -1,4 +1,5 @@
-"""The envelope record (``play --envelope-csv``): the ratio the renderer asked its model for, beside the target.
+"""The envelope record (``play --envelope-csv``, and ``export``'s): the ratio the renderer asked its model for,
+beside the target.
 
 With a model that has friction dynamics the renderer plans: it asks the model's inverse for a static ratio that is
 not the texture's, and only that ratio's response through the dynamics is the friction the plan means felt (issue
