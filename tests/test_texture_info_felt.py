@@ -53,8 +53,8 @@ def test_the_force_and_the_profile_s_limit_set_the_floor():
 def test_the_words_name_the_model_the_limit_and_the_force():
     words = run_cli("texture", "info", "grating-1mm", "--model", "dynamic:speed:0.5:stretched", "--force", "1",
                     check=True).stdout
-    assert "a finger with its friction dynamics keeps (ours; dynamic:speed:0.5:stretched within 6 µm p-p at 1 N)" \
-        in words
+    assert "a finger with the published friction dynamics keeps (ours; dynamic:speed:0.5:stretched within 6 µm " \
+        "p-p at 1 N)" in words
     assert words.count("lowest friction") == 3
     plain = run_cli("texture", "info", "grating-1mm", check=True).stdout
     assert "the published friction dynamics keeps (ours; stretched within 6 µm p-p at 0.5 N)" in plain
@@ -64,10 +64,26 @@ def test_the_words_name_the_model_the_limit_and_the_force():
 def test_the_json_says_what_the_figures_were_worked_out_under():
     facts = json.loads(run_cli("texture", "info", "grating-1mm", "--json", "--model", "dynamic", "--force", "1",
                                check=True).stdout)
-    assert facts["felt_under"] == {"model": "dynamic", "dynamics": "the model's own", "profile": "sim-plate",
-                                   "limit_um_pp": 6.0, "force_n": 1.0}
+    assert facts["felt_under"] == {"model": "dynamic", "dynamics": "published (Meyer et al. 2014)",
+                                   "profile": "sim-plate", "limit_um_pp": 6.0, "force_n": 1.0}
     plain = json.loads(run_cli("texture", "info", "grating-1mm", "--json", check=True).stdout)
     assert plain["felt_under"]["model"] == "stretched" and plain["felt_under"]["dynamics"].startswith("published")
+
+
+def test_a_calibration_with_dynamics_fitted_on_the_plate_is_felt_with_them(tmp_path):
+    """A participant's calibration whose dynamics were fitted on the plate (10 ms down, 50 ms back at 100 mm/s):
+    the figures use them and say so, in words and in the JSON; they differ from the published dynamics' figures."""
+    fitted = tmp_path / "p01.toml"
+    fitted.write_text('ultraglide_calibration = 1\nmodel = "exponential"\n[parameters]\ntau_um_zp = 1.3\n'
+                      '[dynamics]\nfitted = true\nonset_s = 0.01\nrecovery_s = 0.05\nreference_speed_mm_s = 100.0\n'
+                      'speed_exponent = 0.5\nsource = "fitted on the plate, 16 edges (8 onsets, 8 recoveries)"\n')
+    facts = json.loads(run_cli("texture", "info", "grating-1mm", "--json", "--model", fitted, check=True).stdout)
+    assert facts["felt_under"]["dynamics"] == "the model's own, fitted on the plate, 16 edges (8 onsets, 8 recoveries)"
+    words = run_cli("texture", "info", "grating-1mm", "--model", fitted, check=True).stdout
+    assert "a finger with its own friction dynamics keeps" in words
+    published = json.loads(run_cli("texture", "info", "grating-1mm", "--json", "--model", "exponential",
+                                    check=True).stdout)
+    assert facts["felt"] != published["felt"]
 
 
 def test_a_bad_model_or_profile_is_one_line_and_exit_2():

@@ -393,6 +393,17 @@ def _felt(texture, model, limit_um_pp: float, force_n: float) -> list[dict] | No
     return felt
 
 
+def _own_dynamics(model) -> str | None:
+    """Whose friction dynamics the felt figures use, where they are the model's own (fitted on the plate, or time
+    constants it was given); None for the published ones (a static model, or ``dynamic`` as it comes)."""
+    from ultraglide.render.physics.dynamics import FrictionDynamics
+
+    dynamics = getattr(model, "dynamics", None)
+    if dynamics is None or dynamics == FrictionDynamics():
+        return None
+    return f"the model's own, {dynamics.source}" if dynamics.source else "the model's own, given time constants"
+
+
 OUTSIDE_WORDS = {"tile": "it repeats (a tile)", "clamp": "its edges extend", "fixed": "a fixed friction ratio of {:g}"}
 
 
@@ -413,10 +424,10 @@ def info(args) -> int:
     limit_um_pp = load_profile(args.profile).max_amplitude_um_pp
     texture = _input(args.texture)
     facts = describe(texture, args.texture, (model, limit_um_pp, args.force))
+    own = _own_dynamics(model)
     if facts["felt"]:  # what the felt figures were worked out under, as the words below say it
-        facts["felt_under"] = {"model": args.model, "dynamics": "the model's own" if getattr(model, "dynamics", None)
-                               is not None else "published (Meyer et al. 2014)", "profile": args.profile,
-                               "limit_um_pp": limit_um_pp, "force_n": args.force}
+        facts["felt_under"] = {"model": args.model, "dynamics": own or "published (Meyer et al. 2014)",
+                               "profile": args.profile, "limit_um_pp": limit_um_pp, "force_n": args.force}
     if args.json:
         print_json(facts)
         return 0
@@ -434,7 +445,7 @@ def info(args) -> int:
         f"  beyond      {beyond}",
     ]
     if facts["felt"]:
-        whose = "its" if getattr(model, "dynamics", None) is not None else "the published"
+        whose = "its own" if own else "the published"
         law = speed_law_of(model)  # the lowest friction reachable then rises with speed: said at each
         lines.append(f"  felt        of its contrast along a swipe, a finger with {whose} friction dynamics keeps "
                      f"(ours; {args.model} within {limit_um_pp:g} µm p-p at {args.force:g} N):")
