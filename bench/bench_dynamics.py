@@ -154,8 +154,8 @@ def main() -> None:
                   f"{e_p / bound.rms:14.2f}")
     for speed in SPEEDS_MM_S:
         instant, best = step_bound(speed)
-        print(f"step at {speed:g} mm/s by hand: instantaneous {instant:.3f}, the best plan {best:.3f} "
-              f"({best / instant:.2f} of it): halving is out of reach for first-order dynamics")
+        print(f"step at {speed:g} mm/s by hand, settled ratios within 0.3-1: instantaneous {instant:.3f}, the best "
+              f"plan {best:.3f} ({best / instant:.2f} of it): halving is out of reach for first-order dynamics")
     print(f"live block of {LIVE_BLOCK} samples: {live_block_cost(False):.1f} µs instantaneous, "
           f"{live_block_cost(True):.1f} µs planned (median)")
     from ultraglide.render.planning import DECISION_S

@@ -255,8 +255,8 @@ class ForceScript:
 
 def adjusted_law(law: FrictionLaw, scale: float = 1.0, floor: float = 0.0) -> FrictionLaw:
     """``law`` with its amplitude axis stretched by ``scale`` (more than 1: the finger needs more vibration) and a
-    constant floor ``floor``: ``d + (1 - d) law(a / scale, F)``. The form is Huloux et al. (2018)'s, whose d is a
-    bounded disturbance varying in time; a constant d is our simplification, as in docs/physics.md."""
+    constant floor ``floor``: ``d + (1 - d) law(a / scale, F)``. The form is Huloux et al. (2018)'s; whether their
+    d is a floor or a bounded disturbance varying in time was not checked (docs/physics.md): here d is a constant."""
     if not (math.isfinite(scale) and 0.1 <= scale <= 10.0):
         raise DeviceError(f"the finger's law scale must lie in 0.1..10, got {scale}")
     if not (math.isfinite(floor) and 0.0 <= floor < 1.0):

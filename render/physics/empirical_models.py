@@ -54,9 +54,10 @@ class StretchedExponentialModel(FrictionModel):
     ``residual_ratio`` d is the lowest ratio vibration reaches: by default 0.10, the mean measured at full
     amplitude (Wiertlewski, Fenton Friesen and Colgate 2016: 0.10 at 6 µm p-p and 29 kHz, 0.02-0.30
     across people), since measured fingers never reach 0. The form d + (1 - d) exp(...) is Huloux et
-    al. (2018)'s f = f0 exp(-a² tau) + d over friction at rest, where d is a bounded disturbance varying
-    in time: here it is held constant, our simplification. The other defaults are the law Monnoyer et
-    al. fitted (s0 = 2 sqrt 2 x 1.32 µm = 3.73 µm p-p in our units, beta = 2) with p = 1/3,
+    al. (2018)'s f = f0 exp(-a² tau) + d over friction at rest; whether their d is a floor or a bounded
+    disturbance varying in time was not checked against their text (docs/physics.md): here it is a
+    constant. The other defaults are the law Monnoyer et al. fitted (s0 = 2 sqrt 2 x 1.32 µm = 3.73 µm p-p
+    in our units, beta = 2) with p = 1/3,
     **assumed** (no measurement supports it): the force law of the paper's detachment amplitude
     (W_c = 2 F / k_n with A ∝ F^(2/3), eqs. 1, 3, 6), since the bundled curve has a single force. It holds where eq. (3)
     does, up to the force at which the contact area is a fingertip's (2.4 N). A calibration at two
