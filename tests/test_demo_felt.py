@@ -100,3 +100,16 @@ def test_the_status_line_says_the_contrast_kept_at_the_fingers_speed(tmp_path, m
         assert abs(int(said[2]) - 100 * planned) <= 2 and abs(int(said[3]) - 100 * instantaneous) <= 2
     finally:
         app.close()
+
+
+def test_figures_for_a_floor_no_longer_asked_for_are_given_up_before_any_swipe():
+    """A force key held down asks for a new floor at each step; a worker whose floor was superseded stops before
+    its next swipe instead of rendering all five. Its dynamics here are no dynamics at all: a swipe started with
+    them would raise."""
+    texture = procedural.grating(2.0, (60.0, 40.0))
+    felt = FeltContrast()
+    felt.work_out(texture, "dynamic", load_model("dynamic").dynamics, 0.41)  # the figures for the floor now asked
+    felt.work_out(texture, "dynamic", object(), 0.17)  # a worker started for the floor asked before: gives up
+    assert felt.at(texture, "dynamic", 100.0) is not None
+    with pytest.raises(AttributeError):  # a worker for the floor asked now does swipe
+        felt.work_out(texture, "dynamic", object(), 0.41)

@@ -64,12 +64,16 @@ class FeltContrast:
 
     def work_out(self, texture, model_name: str, dynamics, floor) -> None:
         """The figures for ``texture`` under ``model_name`` with these ``dynamics``, worked out in this thread;
-        kept unless another floor was asked for meanwhile."""
+        kept unless another floor was asked for meanwhile, and given up between speeds once one was (a force key
+        held down asks for a floor at each step: the threads it starts end early instead of piling up)."""
         from ultraglide.render.planning import swipe_contrast
 
         key, asked = (id(texture), model_name), _floor_key(floor)
         rows = []
         for speed in SPEEDS_MM_S:
+            with self._lock:
+                if key in self._table and self._table[key][0] != asked:
+                    return
             kept = swipe_contrast(texture, dynamics, speed, floor[speed] if isinstance(floor, dict) else floor,
                                   longest_s=0.5)
             rows.append((speed, kept.planned, kept.instantaneous))
