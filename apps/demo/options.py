@@ -40,8 +40,10 @@ def model_cycle(start: str) -> tuple[str, ...]:
     ('dynamic', 'dynamic:squeeze-film', 'dynamic:exponential', 'dynamic:paper')
     >>> model_cycle("p07.toml")[:2]
     ('p07.toml', 'stretched')
+    >>> model_cycle("speed:0.5:dynamic")[:2]
+    ('speed:0.5:dynamic', 'dynamic:stretched')
     """
-    dynamic = start == "dynamic" or start.startswith("dynamic:")
+    dynamic = "dynamic" in start.split(":")  # dynamic, dynamic:NAME, speed:S:dynamic, ...
     same = {start, "dynamic:stretched"} if start == "dynamic" else {start}
     built_in = tuple(f"dynamic:{name}" if dynamic else name for name in MODELS)
     return (start,) + tuple(name for name in built_in if name not in same)
