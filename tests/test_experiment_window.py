@@ -272,8 +272,11 @@ def session_on_xvfb(tmp_path):
     last_shot = []  # what the screenshot said last time, for a failure's message
 
     def failure(what: str) -> str:
+        from service_run import where_it_waits
+
         return (f"{what}; the last screenshot: {last_shot}; the session said "
-                f"{out_path.read_text()[-1000:], err_path.read_text()[-2000:]}")
+                f"{out_path.read_text()[-1000:], err_path.read_text()[-2000:]}; where it waits:\n"
+                f"{where_it_waits(session.pid)}")
 
     def trial_on_screen() -> bool:
         assert session.poll() is None, failure("the session ended")
