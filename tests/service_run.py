@@ -51,13 +51,15 @@ def stop(process, timeout_s: float = 60.0) -> int:
 
 
 def where_it_waits(pid: int) -> str:
-    """Every thread's stack of process ``pid`` (py-spy, which the dev dependencies install), for a stop that hangs."""
+    """Every thread's stack of process ``pid`` and of its children (an engine is one; py-spy, which the dev
+    dependencies install), for a stop that hangs."""
     import shutil
     import sys
 
     spy = shutil.which("py-spy") or str(Path(sys.executable).with_name("py-spy"))
     try:
-        return subprocess.run([spy, "dump", "--pid", str(pid)], capture_output=True, text=True, timeout=30).stdout
+        return subprocess.run([spy, "dump", "--subprocesses", "--pid", str(pid)], capture_output=True, text=True,
+                              timeout=60).stdout
     except (OSError, subprocess.SubprocessError) as error:
         return f"(py-spy could not look: {error})"
 
