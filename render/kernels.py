@@ -376,10 +376,25 @@ def _held(y, x, hold_on, hold_rec):
 
 
 @njit(cache=True, nogil=True)
-def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, hold_on, hold_rec, enough):
+def _step_sums(k, stride):
+    """(S1, S2) / ``stride``: the means over a step's samples m = 1..stride of h^m and h^2m, h = 1 - k the share of
+    the way left after a sample (the felt ratio within a held step is x + (y0 - x) h^m)."""
+    h = 1.0 - k
+    if h <= 0.0:
+        return 0.0, 0.0
+    s1 = h * (1.0 - h ** stride) / (1.0 - h) if h < 1.0 else float(stride)
+    s2 = h * h * (1.0 - h ** (2 * stride)) / (1.0 - h * h) if h < 1.0 else float(stride)
+    return s1 / stride, s2 / stride
+
+
+@njit(cache=True, nogil=True)
+def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, hold_on, hold_rec, sums, enough):
     """The squared error over the horizon of a plan, and its first step's command: ``level`` held for the first
     ``switch`` steps and the greedy command after (``level_first``), or the greedy command first and ``level``
-    after. Stops adding once the cost reaches ``enough`` (a plan already beaten)."""
+    after. Each step's error is its mean over the step's samples (the felt ratio moves within a step: judged only
+    at the step's end, a deep short drop would look better than it is felt), ``sums`` the means of h^m and h^2m
+    for onset and recovery (:func:`_step_sums`). Stops adding once the cost reaches ``enough`` (a plan already
+    beaten)."""
     cost = 0.0
     y = felt
     first = level
@@ -388,8 +403,13 @@ def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, h
         x = level if (j < switch) == level_first else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
         if j == 0:
             first = x
+        if x < y:
+            m1, m2 = sums[0], sums[1]
+        else:
+            m1, m2 = sums[2], sums[3]
+        d, e = x - r, y - x
+        cost += d * d + 2.0 * d * e * m1 + e * e * m2
         y = _held(y, x, hold_on, hold_rec)
-        cost += (y - r) * (y - r)
         if cost >= enough:
             break
     return cost, first
@@ -403,9 +423,10 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     The felt ratio y follows the command x (a static friction ratio) through y += k (x - y), k = ``k_onset``
     where x < y, ``k_recovery`` where x > y (per sample). Every ``stride`` samples (``phase`` counts the
     samples since the last decision, carried between blocks) the planner compares, over ``steps`` steps of
-    ``stride`` samples, the squared error between the predicted felt ratio and the target at each step's end
-    for: holding one of ``levels`` commands evenly spaced in [floor, ceiling], or the greedy command (the one
-    reaching the next step's target, clipped), for 1, 2, 4, ... steps and then following the greedy command;
+    ``stride`` samples, the squared error between the predicted felt ratio and each step's target, summed over
+    the step's samples (in closed form: within a held step the felt ratio is an exponential), for: holding one
+    of ``levels`` commands evenly spaced in [floor, ceiling], or the greedy command (the one reaching the next
+    step's target, clipped), for 1, 2, 4, ... steps and then following the greedy command;
     it keeps the first step of the best, held until the next decision. A step's target is the mean of the
     block's targets over it; past the block it comes from ``ahead`` (one a step from sample ``first_ahead``,
     which the caller band-limits to the step's length).
@@ -457,6 +478,9 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     """
     hold_on = (1.0 - k_onset) ** stride
     hold_rec = (1.0 - k_recovery) ** stride
+    on1, on2 = _step_sums(k_onset, stride)
+    rec1, rec2 = _step_sums(k_recovery, stride)
+    sums = (on1, on2, rec1, rec2)
     below = 0
     for i in range(target.shape[0]):
         r_now = np.float64(target[i])
@@ -489,7 +513,7 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                 span = 1
                 while True:
                     cost, first = _plan_cost(felt, goals, steps, level, span, True, floor, ceiling, hold_on,
-                                             hold_rec, best_cost)
+                                             hold_rec, sums, best_cost)
                     if cost < best_cost:
                         best_cost = cost
                         best = first
@@ -501,7 +525,7 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                 for c in range(levels):
                     level = floor + (ceiling - floor) * c / (levels - 1)
                     cost, first = _plan_cost(felt, goals, steps, level, delay, False, floor, ceiling, hold_on,
-                                             hold_rec, best_cost)
+                                             hold_rec, sums, best_cost)
                     if cost < best_cost:
                         best_cost = cost
                         best = first
