@@ -396,10 +396,8 @@ def _felt(texture, model, limit_um_pp: float, force_n: float) -> list[dict] | No
 def _own_dynamics(model) -> str | None:
     """Whose friction dynamics the felt figures use, where they are the model's own (fitted on the plate, or time
     constants it was given); None for the published ones (a static model, or ``dynamic`` as it comes)."""
-    from ultraglide.render.physics.dynamics import FrictionDynamics
-
     dynamics = getattr(model, "dynamics", None)
-    if dynamics is None or dynamics == FrictionDynamics():
+    if dynamics is None or (dynamics.published and not dynamics.source):
         return None
     return f"the model's own, {dynamics.source}" if dynamics.source else "the model's own, given time constants"
 

@@ -131,6 +131,21 @@ class FrictionDynamics:
                          " mm/s")
         checked_in_range("the recovery's speed exponent", self.speed_exponent, SPEED_EXPONENT_RANGE, "")
 
+    @property
+    def published(self) -> bool:
+        """Whether these are the published time constants (Meyer et al. 2014's onset, recovery and its speed), not
+        fitted or given ones; the speed exponent, an assumption either way, does not decide it.
+
+        Examples
+        --------
+        >>> FrictionDynamics().published, FrictionDynamics(speed_exponent=1.0).published
+        (True, True)
+        >>> FrictionDynamics(onset_s=0.004).published
+        False
+        """
+        return (self.onset_s, self.recovery_s, self.reference_speed_mm_s) == (ONSET_S, RECOVERY_S,
+                                                                               REFERENCE_SPEED_MM_S)
+
     def recovery_at_s(self, speed_mm_s: ArrayLike) -> np.ndarray | float:
         """The recovery's time constant (s) at a sliding speed (mm/s; below 2 mm/s as at 2 mm/s), at most 1 s.
 
@@ -211,9 +226,7 @@ class FrictionDynamics:
         23.5
         """
         law = ("assumed" if self.speed_exponent == ASSUMED_SPEED_EXPONENT else "as given")
-        published = (self.onset_s, self.recovery_s, self.reference_speed_mm_s) == (ONSET_S, RECOVERY_S,
-                                                                                     REFERENCE_SPEED_MM_S)
-        source = f" ({self.source})" if self.source else " (Meyer et al. 2014)" if published else ""
+        source = f" ({self.source})" if self.source else " (Meyer et al. 2014)" if self.published else ""
         return (f"onset {1000 * self.onset_s:.3g} ms, recovery {1000 * self.recovery_s:.3g} ms at "
                 f"{self.reference_speed_mm_s:g} mm/s{source}, x (v_ref/v)^{self.speed_exponent:g} ({law}): "
                 f"{1000 * self.recovery_at_s(100.0):.3g} ms at 100 mm/s")
