@@ -144,15 +144,17 @@ stop = StopSignals()
 stop.install()
 events = queue.Queue()
 broken = []
+done = threading.Event()
 def hold_the_lock():
     try:
-        while True:
+        while not done.is_set():
             with events.mutex:
                 time.sleep(0.02)
             time.sleep(0.0005)
     except RuntimeError as error:
         broken.append(repr(error))
-threading.Thread(target=hold_the_lock, daemon=True).start()
+holder = threading.Thread(target=hold_the_lock, daemon=True)
+holder.start()
 print("waiting", flush=True)
 try:
     while True:
@@ -162,6 +164,8 @@ try:
             pass
 except Stopped as stopped:
     time.sleep(0.1)  # the holder's next turns: a lock released under it fails there
+    done.set()  # then the holder lets go (a whole lock is free once it has; a lock left held by nobody is not):
+    holder.join(timeout=5)  # taking it while the holder still turns could be starved on a loaded machine
     taken = events.mutex.acquire(timeout=5)
     alarm_back = signal.getsignal(signal.SIGALRM) is signal.SIG_DFL  # the retries' handler gone with the stop
     print(json.dumps({"status": stopped.exit_status, "broken": broken, "lock_taken": taken, "alarm_back": alarm_back}),
