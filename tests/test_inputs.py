@@ -377,7 +377,9 @@ OVERRIDES = {(("texture", "show"), "--dpi"): (10, 2400, False, False, False),
              (("plate", "sweep"), "--from-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--to-hz"): (1000, 200_000, False, False, False),
              (("plate", "sweep"), "--sensor-um-per-unit"): (1e-6, 1e6, False, False, False),
-             (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False)}
+             (("calibrate",), "--bootstrap"): (0, 10_000, False, True, False),
+             # a finger's sliding speed for the model's speed law: at rest (0) is a speed, said as held at 2 mm/s
+             (("model",), "--speed-mm-s"): (0, 2000, False, False, False)}
 TEXT_FORMS = ("--crop", "--region", "--finger-fault", "--participant",
               "--board-fault", "--token")  # typed text of their own form, tested where
 # they belong (--participant: test_calibration_on_plate; --token: test_experiment_browser)
