@@ -386,6 +386,7 @@ TEXT_FORMS = ("--crop", "--region", "--finger-fault", "--participant",
 PAIRS = {"--start": ",", "--size-mm": "x"}  # two numbers in one argument
 TAILS = {("author",): ["in.png", "-o", "o.png"], ("export",): ["g", "-o", "o.wav"], ("play",): ["g"],
          ("calibrate",): ["data.csv"], ("texture", "new"): ["-o", "o.png"], ("texture", "show"): ["g", "-o", "o.png"],
+         ("texture", "info"): ["g"],
          ("texture", "compose", "mask"): ["a", "m", "-o", "o.png"],
          ("texture", "compose", "tile"): ["a", "b", "--region", "1,1,1,1", "-o", "o.png"],
          ("texture", "compose"): ["a", "b", "-o", "o.png"], ("plate", "sweep"): ["-o", "p.toml"],
