@@ -489,9 +489,10 @@ class EffectPlayer:
                 self._start(k, t_s, action == PLAY_HELD)
 
     # ---- the block path ----------------------------------------------------------------------------------
-    def mix(self, times, x, y, down, ratio) -> np.ndarray:
+    def mix(self, times, x, y, down, ratio, also: np.ndarray | None = None) -> np.ndarray:
         """The texture's ``ratio`` with the effects playing at ``times`` (s) subtracted, clipped to [0, 1]. The
         array returned is a buffer of the player's, overwritten by the next block (a copy if n > capacity).
+        ``also``, if given, has the same effects subtracted in place (the planner's command for the texture).
 
         Parameters
         ----------
@@ -503,6 +504,8 @@ class EffectPlayer:
             Whether it touches.
         ratio : numpy.ndarray
             The texture's friction ratio (float32).
+        also : numpy.ndarray, optional
+            Another ratio of the block's length to subtract the same effects from, in place (clipped to [0, 1]).
 
         Returns
         -------
@@ -529,7 +532,7 @@ class EffectPlayer:
                 end = min(n, start + self.capacity)
                 piece_down = down if np.ndim(down) == 0 else down[start:end]
                 out[start:end] = self.mix(times[start:end], x[start:end], y[start:end], piece_down,
-                                          ratio[start:end])
+                                          ratio[start:end], None if also is None else also[start:end])
             return out
         if n == 0:
             return ratio
@@ -558,6 +561,8 @@ class EffectPlayer:
                 self._active -= 1
         mixed = self._mixed[:n]
         self.clipped_samples += _subtract_clipped(ratio, total, mixed)  # above rest; below the floor: the inverse's
+        if also is not None:
+            _subtract_clipped(also, total, also)
         return mixed
 
     @property

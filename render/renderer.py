@@ -847,13 +847,6 @@ class Renderer:
         step, direction = self._motion(finger, n)
         ratio = self.sampler.ratio(x, y, step_mm=step if self.settings.band_limited_lookup else None,
                                    direction=direction, out=None if block is None else out.ratio_view(n))
-        player = self.effects
-        if player is not None:  # mixed before the inverse: the same envelope, clamps and limiter as the texture
-            above = player.clipped_samples
-            ratio = player.mix(times, x, y, finger.down, ratio)
-            self.counters.clipped_samples += player.clipped_samples - above
-            if block is None:
-                ratio = ratio.copy()  # the player's buffer is overwritten by the next block
         force = self._force(finger.force_n)
         down = finger.down & self._running & (not self.paused)  # a bool for a live finger, else one per sample
         planner = self.planner
@@ -866,8 +859,17 @@ class Renderer:
             # the settled reduction's speed law: the amplitude a ratio needs at this block's speed over the
             # model's (1 without a law); the inverse is asked within limit / scale (render/physics/speed_law.py)
             self.speed_scale = law.one_scale(speed) if law is not None else 1.0
-            if planner is not None:
+            if planner is not None:  # the texture is planned (its future is known along the path)...
                 asked = self._planned(times, ratio, force, down, speed, one_step, heading, n)
+        player = self.effects
+        if player is not None:  # ...the effects are not: a tap cannot be foreseen, so they play as authored, mixed
+            above = player.clipped_samples  # before the inverse (the same envelope, clamps and limiter)
+            mixed = player.mix(times, x, y, finger.down, ratio, also=None if asked is ratio else asked)
+            self.counters.clipped_samples += player.clipped_samples - above
+            if block is None:
+                mixed = mixed.copy()  # the player's buffer is overwritten by the next block
+            asked = mixed if asked is ratio else asked
+            ratio = mixed
         scale = self.speed_scale
         inversion = scaled_inverse(self.model, asked, force, self.limit_um_pp, scale,
                                    out=None if block is None else block.target_um_pp)

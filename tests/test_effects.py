@@ -172,21 +172,31 @@ def test_a_moving_trigger_needs_the_speed_and_named_events_start_where_reported(
 
 # ---- through the renderer to the WAV ---------------------------------------------------------------------------
 
-def test_an_edge_crossing_pulse_is_in_the_exported_wav_at_the_crossing_time(tmp_path):
+@pytest.mark.parametrize("model", ["stretched", "dynamic"])
+def test_an_edge_crossing_pulse_is_in_the_exported_wav_at_the_crossing_time(tmp_path, model):
     """An edge at x = 20 mm (ratio 0.8 left, 1 right) saved with a 30 ms pulse of depth 0.6 bound to crossing it.
     The default swipe starts at 10 % of the 40 mm width and goes right at 100 mm/s: it crosses at 0.16 s. Before,
-    the plate gives ratio 0.8; during the pulse 1 − 0.6 = 0.4; after it, the ratio is 1: at rest."""
+    the plate gives ratio 0.8; during the pulse 1 − 0.6 = 0.4; after it, the ratio is 1: at rest.
+
+    Under the default model, dynamic, the renderer plans the texture against the finger's dynamics (it lets
+    friction rise before the edge, so the level before it is not 0.8's), but not the effects: the pulse plays when
+    the finger crosses, as deep as authored below the planned 1."""
     edge = procedural.edge(size_mm=(40.0, 30.0), ratio_range=(0.8, 1.0))
     pulse = Binding(Trigger("cross", lines_mm=(20.0,)), Constant(0.6, 0.03), label="edge pulse")
     path = save_texture(edge.with_(effects=(pulse,)), tmp_path / "edge.png")
     out = tmp_path / "edge.wav"
-    summary = json.loads(run_cli("export", path, "-o", out, "--duration-s", "0.4", "--json", check=True).stdout)
+    summary = json.loads(run_cli("export", path, "-o", out, "--duration-s", "0.4", "--json", "--model", model,
+                                 check=True).stdout)
     assert summary["effects_started"] == 1
     envelope, rate = wav_envelope(out)
     t = np.arange(len(envelope)) / rate
     before, during = amplitude_pp(0.8) / FULL_SCALE_UM_PP, amplitude_pp(0.4) / FULL_SCALE_UM_PP
     window = lambda a, b: envelope[(t >= a) & (t < b)]  # noqa: E731
-    assert window(0.08, 0.15) == pytest.approx(before, rel=0.01)
+    if model == "stretched":
+        assert window(0.08, 0.15) == pytest.approx(before, rel=0.01)
+    else:  # planned: friction rises ahead of the edge (the drive falls below 0.8's) and 0.8 is held before that
+        assert window(0.08, 0.1) == pytest.approx(before, rel=0.01)
+        assert window(0.15, 0.159).max() < 0.5 * before
     assert window(0.165, 0.189) == pytest.approx(during, rel=0.01)
     assert window(0.2, 0.4).max() < 0.01 * before  # at rest on the sticky side once the pulse is over
     # the pulse's onset: the first time the envelope passes halfway from before to during
