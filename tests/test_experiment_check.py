@@ -1,6 +1,7 @@
 """The stimulus check: stimuli built as asked, rendered along the swipe, refused when they do not deliver."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -55,6 +56,25 @@ def test_a_grating_delivers_its_contrast_and_mean_along_the_swipe():
     assert figures.asked_mean == pytest.approx(0.85, abs=0.005)
     assert figures.delivered_contrast == pytest.approx(0.3, rel=0.1)
     assert figures.delivered_mean == pytest.approx(0.85, abs=0.02)
+
+
+def test_under_friction_dynamics_the_check_judges_the_friction_felt():
+    """At 100 mm/s a 1 mm grating modulates friction at 100 Hz: through the finger's fastest time constant (the 5 ms
+    onset) a first-order lag keeps at most 1 / sqrt(1 + (2π 100 Hz 5 ms)²) = 0.30 of a swing, so under half of the
+    0.3 asked is felt and the check refuses it, saying why; the static model's check (the ratio the plate
+    commands) passes it. A 20 mm grating (5 Hz) through the slowest, the 32.8 ms recovery at 100 mm/s, keeps at
+    least 1 / sqrt(1 + (2π 5 Hz 32.8 ms)²) = 0.70 of it: it passes felt too."""
+    fine, coarse = Stimulus("fine", "grating-1mm", contrast=0.3), Stimulus("coarse", "grating-2mm", contrast=0.3,
+                                                                             scale=10.0)
+    static = check_stimuli(rating_design(fine, coarse))
+    felt = check_stimuli(replace(rating_design(fine, coarse), model="dynamic"))
+    assert static.passed, static.failures
+    lowpass = 1 / np.sqrt(1 + (2 * np.pi * 100.0 * 0.005) ** 2)
+    assert felt.figures["fine"].delivered_contrast < lowpass * 0.3 < 0.5 * 0.3
+    assert felt.figures["coarse"].delivered_contrast > 1 / np.sqrt(1 + (2 * np.pi * 5.0 * 0.0328) ** 2) * 0.3 * 0.9
+    assert not felt.passed and len(felt.failures) == 1
+    assert "stimulus 'fine' delivers a friction contrast of" in felt.failures[0]
+    assert "the finger's friction dynamics" in felt.failures[0] and "judged as felt" in felt.failures[0]
 
 
 def test_a_texture_whose_features_the_swipe_never_crosses_is_refused():

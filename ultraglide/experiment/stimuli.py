@@ -488,7 +488,7 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
         sampler = offline_sampler(texture, speed_mm_s, settings)
     along = render_along(texture, path, model, profile, settings, sampler, block_frames)
     x, amplitude, done = along.x_mm, along.plate_um_pp, along.frames
-    ratio = model.relative_friction(amplitude, force_n)
+    ratio = delivered_ratio(model, amplitude, settings.control_rate_hz, force_n, speed_mm_s)
     um_pp, contrast, mean = [], [], []
     for index in range(layout.zones):
         left = layout.zone_left_mm(index)
@@ -503,6 +503,45 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
         contrast.append(float(high - low))
         mean.append(float(np.mean(ratio[inside])))
     return Rendered(done, along.peak, tuple(um_pp), tuple(contrast), tuple(mean))
+
+
+def delivered_ratio(model: FrictionModel, plate_um_pp: np.ndarray, rate_hz: float, force_n,
+                    speed_mm_s) -> np.ndarray:
+    """The friction ratio a finger gets from the plate's amplitude: the model's settled ratio, or, for a model with
+    friction dynamics, the ratio felt (which lags the amplitude: falls in milliseconds, recovers in tens).
+
+    Parameters
+    ----------
+    model : FrictionModel
+    plate_um_pp : numpy.ndarray
+        The plate's amplitude, µm p-p, one a control sample from the finger's first touch.
+    rate_hz : float
+        The control rate, Hz.
+    force_n : float or numpy.ndarray
+        The finger's force, N.
+    speed_mm_s : float or numpy.ndarray
+        The finger's sliding speed, mm/s (the recovery slows at lower speeds).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    A 20 ms burst at 6 µm p-p: the static law's ratio drops at once to 0.168, the felt ratio falls over the 5 ms
+    onset, to 0.168 + (1 − 0.168) e^(−4) = 0.183 after four time constants:
+
+    >>> import numpy as np
+    >>> from ultraglide.render.physics.calibration import load_model
+    >>> burst = np.r_[np.zeros(12), np.full(240, 6.0)]                  # 1 ms at rest, then the burst, at 12 kHz
+    >>> static = delivered_ratio(load_model("stretched"), burst, 12000.0, 0.5, 100.0)
+    >>> felt = delivered_ratio(load_model("dynamic"), burst, 12000.0, 0.5, 100.0)
+    >>> round(float(static[12]), 3), round(float(felt[12]), 3), round(float(felt[-1]), 3)
+    (0.168, 0.986, 0.183)
+    """
+    if getattr(model, "dynamics", None) is None:
+        return model.relative_friction(plate_um_pp, force_n)
+    return model.felt(plate_um_pp, rate_hz, force_n, speed_mm_s)
 
 
 @dataclass(frozen=True)
