@@ -280,7 +280,9 @@ def test_a_slower_serial_stream_lines_targets_up_with_the_plates_values(tmp_path
     steps = np.diff(index)
     assert steps.min() >= 1 and np.mean(steps == 1) > 0.9  # the wire's index: a value a row, a gap where the
     # writer skipped ahead (the host stalled on a loaded machine)
-    target = {int(r["index"]): float(r["target_ratio"]) for r in rows if r["down"] == "1"}
+    # the default model plans against the published lag: the plate is asked for the plan, which this finger
+    # (without lag) follows at once
+    target = {int(r["index"]): float(r["planned_ratio"]) for r in rows if r["down"] == "1"}
     samples = read_rows(sensors)
     playing = [(int(r["sample"]), int(r["setpoint_index"])) for r in samples if int(r["setpoint_index"]) >= 0]
     steps = np.diff([i for _, i in playing]) / np.maximum(np.diff([s for s, _ in playing]), 1)

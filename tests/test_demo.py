@@ -175,8 +175,11 @@ def test_toolbar_and_keys_switch_scene_force_model_and_pause(app):
     post(pg, pg.MOUSEBUTTONDOWN, pos=center("model"), button=1, touch=False)
     run_for(app, 0.05)
     assert run_until(app, lambda: engine(app).force_n == pytest.approx(force * 1.25)), engine(app).force_n
-    assert app.model_name == "squeeze-film" and run_until(app, lambda: engine(app).model == "squeeze-film"), \
-        engine(app).model  # the model button steps from the default, stretched, to the next
+    # the model button steps from the default, dynamic (stretched with the published dynamics), to the next
+    # with the dynamics kept; the link's name changes once the engine took it (the engine names the kind alone)
+    assert app.model_name == "dynamic:squeeze-film" and \
+        run_until(app, lambda: app.link.model_name == "dynamic:squeeze-film"), app.link.model_name
+    assert engine(app).model == "dynamic"
     post(pg, pg.MOUSEBUTTONDOWN, pos=(600, app.area.top + 100), button=1, touch=False)  # a finger on: it runs
     assert run_until(app, lambda: engine(app).state == "running"), engine(app).state
     post(pg, pg.KEYDOWN, key=pg.K_SPACE, mod=0, unicode=" ", scancode=0)
@@ -295,7 +298,7 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
     import re
 
     words = app.status_words()
-    for phrase in ("simulated plate running", "stretched model", "0.50 N (Up/Down keys)",
+    for phrase in ("simulated plate running", "dynamic model", "0.50 N (Up/Down keys)",
                    "within the plate's limit on this texture", "H: help"):
         assert phrase in words, words
     # a loaded machine may starve the simulated plate: then its faults are named and counted
@@ -303,7 +306,7 @@ def test_status_line_says_device_state_model_force_limits_and_faults(app):
     app.act("force+")
     app.act("model")
     run_for(app, 0.05)
-    assert "0.62 N" in app.status_words() and "squeeze-film model" in app.status_words()
+    assert "0.62 N" in app.status_words() and "dynamic:squeeze-film model" in app.status_words()
 
 
 def test_limited_share_is_measured_and_resets_with_the_texture(tmp_path, monkeypatch, halves):
@@ -363,7 +366,7 @@ def test_the_status_line_fits_and_keeps_help_the_recording_and_watch_errors(halv
         assert "recording drag.csv: 0 touches" in line or "rec 0" in line
         assert "cannot reload halves.png" in line and "cannot reload wood.png" in line
         if width_px >= 1280:  # everything the plate does, in words, at the widths of common screens
-            assert "stretched model" in line and "0.50 N" in line and "within the plate's limit" in line
+            assert "dynamic model" in line and "0.50 N" in line and "within the plate's limit" in line
         app.painter.status(force=True)
         pixels = app.pg.surfarray.array3d(app.screen)
         rect = app.layout.status_rect

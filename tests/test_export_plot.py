@@ -18,7 +18,8 @@ def _signals(n):
         time_s=t, x_mm=100 * t, y_mm=np.full(n, 25.0), down=np.ones(n, bool),
         ratio=0.7 + 0.3 * np.cos(2 * np.pi * 100 * t),  # a 1 mm grating at 100 mm/s
         target_um_pp=3 + 2 * np.sin(2 * np.pi * 100 * t), amplitude_um_pp=np.zeros(n),
-        drive_um_pp=3 + 2 * np.sin(2 * np.pi * 100 * t), plate_um_pp=np.full(n, 2.5))
+        drive_um_pp=3 + 2 * np.sin(2 * np.pi * 100 * t), plate_um_pp=np.full(n, 2.5),
+        planned_ratio=0.7 + 0.3 * np.cos(2 * np.pi * 100 * t))
 
 
 def _feed(recorder, signals, sizes):
@@ -37,7 +38,7 @@ def test_recorder_overview_windows_and_spectrum_match_the_signals():
     _feed(recorder, signals, sizes)  # odd block sizes: buckets and segments straddle blocks
     times, low, mean, high = recorder.overview()
     assert len(times) == pytest.approx(BUCKETS, abs=1) and recorder.bucket == 180  # 15 ms stretches
-    drive = 2  # channel order: ratio, target, drive, plate, x, y
+    drive = 2  # channel order: ratio, target, drive, plate, x, y, planned
     # each 15 ms stretch holds 1.5 cycles of the 100 Hz drive: its full swing, 1 to 5 µm
     assert low[drive] == pytest.approx(1.0, abs=1e-3) and high[drive] == pytest.approx(5.0, abs=1e-3)
     assert np.all(np.abs(mean[drive] - 3) < 2 / (1.5 * np.pi) + 1e-9)  # a part cycle's mean strays little
@@ -57,11 +58,11 @@ def test_recorder_memory_does_not_grow_with_the_run():
     short, long = PlotRecorder(int(RATE * 10), RATE), PlotRecorder(int(RATE * 3600), RATE)
     for recorder in (short, long):
         assert recorder.low.shape[1] <= BUCKETS and recorder.power.shape[0] <= 602
-        assert recorder.window_length == 1200 and recorder._hop_buffer.shape == (6, 600)
+        assert recorder.window_length == 1200 and recorder._hop_buffer.shape == (7, 600)
     n = int(RATE * 60)
     _feed(long, _signals(n), [4096] * (n // 4096))
     kept = [window for candidates in long.candidates.values() for _, _, window in candidates]
-    assert len(kept) <= 3 * CANDIDATES and all(window.shape == (6, 1200) for window in kept)
+    assert len(kept) <= 3 * CANDIDATES and all(window.shape == (7, 1200) for window in kept)
 
 
 def _events(n):
@@ -74,7 +75,7 @@ def _events(n):
     plate = np.where((t >= 13.3) & (t < 13.32), 4.0, target)
     return SimpleNamespace(time_s=t, x_mm=50 * t, y_mm=np.full(n, 25.0), down=np.ones(n, bool),
                            ratio=np.where(target > 0, 0.3, 1.0), target_um_pp=target, amplitude_um_pp=target,
-                           drive_um_pp=drive, plate_um_pp=plate)
+                           drive_um_pp=drive, plate_um_pp=plate, planned_ratio=np.where(target > 0, 0.3, 1.0))
 
 
 def test_a_zoom_holds_its_event_in_its_middle_not_at_its_edge():
@@ -87,7 +88,7 @@ def test_a_zoom_holds_its_event_in_its_middle_not_at_its_edge():
     target = np.where(np.arange(n) >= step, 4.0, 1.0)
     signals = SimpleNamespace(time_s=t, x_mm=50 * t, y_mm=np.full(n, 25.0), down=np.ones(n, bool),
                               ratio=np.where(target > 1, 0.3, 0.9), target_um_pp=target, amplitude_um_pp=target,
-                              drive_um_pp=target, plate_um_pp=target)
+                              drive_um_pp=target, plate_um_pp=target, planned_ratio=np.where(target > 1, 0.3, 0.9))
     recorder = PlotRecorder(n, RATE)
     _feed(recorder, signals, [500] * (n // 500))
     zooms = recorder.zooms(limit_um_pp=6.0)
@@ -161,6 +162,47 @@ def test_export_plot_files(tmp_path, suffix):
         assert data.startswith(b"%PDF")
     else:
         assert b"<svg" in data[:2000] and b"spectrogram of the drive" in data
+
+
+def test_the_figure_draws_the_ratio_commanded_where_the_renderer_plans(tmp_path):
+    """Under the default model the renderer plans against the finger's lag: the top panel draws the ratio it
+    commanded beside the texture's, each point the mean of the envelope record's planned_ratio over its stretch
+    (read back from the CSV); under a static model it commands the texture's ratio and draws no second line."""
+    import matplotlib.pyplot as plt
+    from ultraglide.apps.figures import export_plot
+
+    drawn = {}
+    original = export_plot.PlotRecorder.draw
+
+    def keep(self, renderer, width=None):
+        figure = original(self, renderer, width)
+        top = next(axes for axes in figure.axes if axes.get_ylabel() == "friction ratio")
+        drawn[renderer.model.name] = ([(line.get_label(), line.get_xydata()) for line in top.lines], self.bucket)
+        return figure
+
+    for model in ("dynamic", "stretched"):
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(export_plot.PlotRecorder, "draw", keep)
+            export_plot_in_process(tmp_path, model)
+    lines, bucket = drawn["dynamic"]
+    commanded = [xy for label, xy in lines if label.startswith("commanded")]
+    assert len(commanded) == 1
+    table = np.genfromtxt(tmp_path / "dynamic.csv", delimiter=",", names=True)
+    planned = table["planned_ratio"]
+    means = np.add.reduceat(planned, np.arange(0, len(planned), bucket)) / np.diff(
+        np.r_[np.arange(0, len(planned), bucket), len(planned)])
+    np.testing.assert_allclose(commanded[0][:, 1], means[:len(commanded[0])], atol=1e-5)
+    assert np.ptp(planned - table["target_ratio"]) > 0.2  # it plans: the commanded ratio is not the texture's
+    assert not [label for label, _ in drawn["stretched"][0] if label.startswith("commanded")]
+    plt.close("all")
+
+
+def export_plot_in_process(tmp_path, model):
+    from ultraglide.apps.cli.main import main
+
+    code = main(["export", "grating-1mm", "-o", str(tmp_path / f"{model}.wav"), "--duration-s", "0.5", "--model",
+                 model, "--plot", str(tmp_path / f"{model}.png"), "--envelope-csv", str(tmp_path / f"{model}.csv")])
+    assert code in (0, None)
 
 
 def test_export_plot_bad_name_leaves_no_file(tmp_path):

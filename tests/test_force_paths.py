@@ -36,7 +36,8 @@ MONNOYER_SCALE = 2 * math.sqrt(2) * 1.32  # µm p-p: exp(-a²/2tau²) with a = a
 
 
 def hand_amplitude(ratio, force_n):
-    """The default model's inverse by hand: s0 (F / 0.5 N)^(1/3) sqrt(-ln((r - d) / (1 - d))), floor d = 0.1."""
+    """The default model's static inverse (the stretched law's) by hand: s0 (F / 0.5 N)^(1/3)
+    sqrt(-ln((r - d) / (1 - d))), floor d = 0.1."""
     return MONNOYER_SCALE * (force_n / 0.5) ** (1 / 3) * np.sqrt(-np.log((ratio - 0.1) / 0.9))
 
 
@@ -53,18 +54,20 @@ def test_the_default_rendering_model_is_force_aware_and_says_its_law():
 @pytest.mark.slow
 def test_export_force_changes_the_envelope_as_the_stated_law_says(tmp_path):
     envelopes = {}
-    for force in (0.1, 2.0):
-        csv = tmp_path / f"{force}.csv"
-        run_cli("export", "grating-1mm", "-o", tmp_path / f"{force}.wav", "--force", force, "--duration-s", "0.5",
-                "--envelope-csv", csv, check=True)
-        envelopes[force] = np.genfromtxt(csv, delimiter=",", names=True)
-    for force, table in envelopes.items():
-        ratio, target = table["target_ratio"], table["target_um_pp"]
+    for model in ("dynamic", "stretched"):  # the default, which plans, and its static law alone
+        for force in (0.1, 2.0):
+            csv = tmp_path / f"{model}-{force}.csv"
+            run_cli("export", "grating-1mm", "-o", tmp_path / f"{model}-{force}.wav", "--force", force,
+                    "--duration-s", "0.5", "--envelope-csv", csv, "--model", model, check=True)
+            envelopes[model, force] = np.genfromtxt(csv, delimiter=",", names=True)
+    for (_, force), table in envelopes.items():  # the inverse is asked for the planner's ratio where it plans
+        ratio, target = table["planned_ratio"], table["target_um_pp"]
         inside = (ratio < 1) & (target < 6.0)  # below the plate's 6 µm limit
         assert inside.sum() > 100
         np.testing.assert_allclose(target[inside], hand_amplitude(ratio[inside], force), rtol=1e-4, atol=1e-4)
-    low, high = envelopes[0.1]["target_um_pp"], envelopes[2.0]["target_um_pp"]
+    low, high = envelopes["stretched", 0.1]["target_um_pp"], envelopes["stretched", 2.0]["target_um_pp"]
     both = (low > 0.1) & (high < 6.0)
+    assert both.sum() > 100
     np.testing.assert_allclose(high[both] / low[both], 20 ** (1 / 3), rtol=1e-4)  # (2 N / 0.1 N)^(1/3)
 
 
@@ -77,8 +80,9 @@ def test_model_refuses_a_force_beyond_a_fingertips_range_with_the_range():
 def test_export_wav_uses_force_n_for_a_trajectory_without_force(tmp_path):
     trajectory = ultraglide.RecordedTrajectory([0.0, 0.5], [10.0, 60.0], [25.0, 25.0])
     blocks = []
-    ultraglide.export_wav("grating-1mm", tmp_path / "a.wav", trajectory, force_n=2.0,
-                          observers=[lambda block: blocks.append((block.ratio.copy(), block.target_um_pp.copy()))])
+    ultraglide.export_wav("grating-1mm", tmp_path / "a.wav", trajectory, force_n=2.0,  # the inverse's ratio:
+                          observers=[lambda block: blocks.append((block.planned_ratio.copy(),  # the planner's
+                                                                  block.target_um_pp.copy()))])
     ratio = np.concatenate([b[0] for b in blocks])
     target = np.concatenate([b[1] for b in blocks])
     inside = (ratio < 1) & (target < 6.0)

@@ -156,7 +156,7 @@ def test_the_issue_profile_without_overdrive_never_commands_more_than_the_limit(
     assert np.abs(samples).max() <= np.float32(2.0 / 8.0)  # the steady amplitude commanded: at most 2 µm
     assert worst_plate_um_pp(samples, WEAK, 25000.0) <= 2.0 * 1.01
     # the texture asks for less friction than 2 µm gives: said in one line, with the numbers
-    assert "of the time the texture asked for less friction than model stretched reaches at 0.5 N" in \
+    assert "of the time the texture asked for less friction than model dynamic reaches at 0.5 N" in \
         result.stderr and "held at the limit" in result.stderr
     assert "limiter" in result.stdout
 

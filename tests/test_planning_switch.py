@@ -23,12 +23,14 @@ def test_without_planning_the_dynamic_model_plays_its_static_model_and_with_plan
     planned = export(tmp_path, "planned", "--model", "dynamic")
     np.testing.assert_array_equal(unplanned, static)  # `dynamic` is the stretched law with the finger's lag
     assert np.sqrt(np.mean((planned - static) ** 2)) > 0.05 * np.sqrt(np.mean(static**2))
+    np.testing.assert_array_equal(export(tmp_path, "default"), planned)  # the default model plans
 
 
 @pytest.mark.parametrize("command", [["export", "-o", "never.wav"], ["play", "--device", "sim"]])
 def test_no_planning_with_a_model_without_dynamics_is_refused_in_one_line(tmp_path, command):
     result = subprocess.run([sys.executable, "-m", "ultraglide", command[0], "grating-1mm", *command[1:],
-                             "--no-planning"], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+                             "--model", "stretched", "--no-planning"], capture_output=True, text=True, timeout=300,
+                            cwd=tmp_path)
     assert result.returncode != 0 and result.stdout == ""
     assert len(result.stderr.strip().splitlines()) == 1 and "--model dynamic" in result.stderr
     assert not (tmp_path / "never.wav").exists()

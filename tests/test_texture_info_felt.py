@@ -57,7 +57,7 @@ def test_the_words_name_the_model_the_limit_and_the_force():
         "p-p at 1 N)" in words
     assert words.count("lowest friction") == 3
     plain = run_cli("texture", "info", "grating-1mm", check=True).stdout
-    assert "the published friction dynamics keeps (ours; stretched within 6 µm p-p at 0.5 N)" in plain
+    assert "the published friction dynamics keeps (ours; dynamic within 6 µm p-p at 0.5 N)" in plain
     assert "lowest friction" not in plain
 
 
@@ -67,7 +67,7 @@ def test_the_json_says_what_the_figures_were_worked_out_under():
     assert facts["felt_under"] == {"model": "dynamic", "dynamics": "published (Meyer et al. 2014)",
                                    "profile": "sim-plate", "limit_um_pp": 6.0, "force_n": 1.0}
     plain = json.loads(run_cli("texture", "info", "grating-1mm", "--json", check=True).stdout)
-    assert plain["felt_under"]["model"] == "stretched" and plain["felt_under"]["dynamics"].startswith("published")
+    assert plain["felt_under"]["model"] == "dynamic" and plain["felt_under"]["dynamics"].startswith("published")
 
 
 def test_a_calibration_with_dynamics_fitted_on_the_plate_is_felt_with_them(tmp_path):

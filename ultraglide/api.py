@@ -37,6 +37,7 @@ from ultraglide.render.engine.sources import offline_stage
 from ultraglide.render.errors import RenderError
 from ultraglide.render.paths import SwipePath
 from ultraglide.render.physics.calibration import load_model
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.friction_models import MAX_FORCE_N, FrictionModel
 from ultraglide.render.renderer import ControlBlock, RenderSettings
@@ -173,8 +174,9 @@ class Renderer(_Renderer):
         A texture, a library name, a texture or image file, or a 2-D array of friction ratios (0..1) with
         ``width_mm`` (see :func:`ultraglide.textures.library.as_texture`).
     model : FrictionModel or str
-        A friction model or its name: ``stretched`` (the default, force-aware), ``squeeze-film``,
-        ``exponential``, ``paper``, ``table:FILE.csv``, ``CAL.toml``, ``dynamic[:NAME]``, ``speed:S:NAME`` (the
+        A friction model or its name: ``dynamic`` (the default: ``stretched``, force-aware, with the published
+        friction dynamics, so the renderer plans the friction felt), ``stretched``, ``squeeze-film``,
+        ``exponential``, ``paper``, ``table:FILE.csv``, ``CAL.toml``, ``dynamic:NAME``, ``speed:S:NAME`` (the
         reduction weakening with sliding speed, an assumed law: rendered at the finger's speed, block by block).
     profile : PlateProfile or str
         The plate's profile or its bundled name or file (default ``sim-plate``).
@@ -204,7 +206,7 @@ class Renderer(_Renderer):
     (6000, True)
     """
 
-    def __init__(self, texture: TextureLike, model: FrictionModel | str = "stretched",
+    def __init__(self, texture: TextureLike, model: FrictionModel | str = DEFAULT_MODEL,
                  profile: PlateProfile | str = "sim-plate", settings: RenderSettings = RenderSettings(),  # noqa: B008 - frozen
                  trajectory: RecordedTrajectory | SwipePath | LiveTrajectory | None = None,
                  effects: tuple | None = None, sampler: Sampler | None = None, *,
@@ -408,7 +410,7 @@ def _renderer(texture: TextureLike, trajectory: RecordedTrajectory | SwipePath |
 
 def export_wav(texture: TextureLike, path: str | os.PathLike,
                trajectory: RecordedTrajectory | SwipePath | None = None, *,
-               model: FrictionModel | str = "stretched", profile: PlateProfile | str = "sim-plate",
+               model: FrictionModel | str = DEFAULT_MODEL, profile: PlateProfile | str = "sim-plate",
                settings: RenderSettings | None = None, rate_hz: int = 96000, format: str = "float32",
                speed_mm_s: float = 100.0, duration_s: float = 5.0, force_n: float | None = None,
                observers: Iterable[Callable[[ControlBlock], None]] = (), width_mm: float | None = None,
@@ -429,8 +431,8 @@ def export_wav(texture: TextureLike, path: str | os.PathLike,
         The finger's path (:class:`SwipePath`, or a touch log read by :func:`read_touch_log`); by default a
         straight swipe across the middle at ``speed_mm_s`` for ``duration_s``.
     model : FrictionModel or str
-        The friction model or its name (``stretched``, the force-aware default; ``squeeze-film``,
-        ``exponential``, ``paper``, ``table:F.csv``, ``CAL.toml``).
+        The friction model or its name (``dynamic``, the default: ``stretched`` with the published friction
+        dynamics; ``stretched``, ``squeeze-film``, ``exponential``, ``paper``, ``table:F.csv``, ``CAL.toml``).
     profile : PlateProfile or str
         The plate's profile or its name (default ``sim-plate``).
     settings : RenderSettings, optional
@@ -577,7 +579,7 @@ class Rendered:
 
 def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | None = None, *,
                  duration_s: float | None = None, rate_hz: int = 96000, speed_mm_s: float = 100.0,
-                 force_n: float | None = None, model: FrictionModel | str = "stretched",
+                 force_n: float | None = None, model: FrictionModel | str = DEFAULT_MODEL,
                  profile: PlateProfile | str = "sim-plate", settings: RenderSettings | None = None,
                  width_mm: float | None = None, height_mm: float | None = None) -> Rendered:
     """Render a finger's path over a texture to arrays: the audio signal, its rate, and the control signal.
@@ -601,7 +603,7 @@ def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | No
     force_n : float, optional
         The finger's force (N); with a recorded path, only for one that logs no force.
     model : FrictionModel or str
-        The friction model or its name (default ``stretched``).
+        The friction model or its name (default ``dynamic``: ``stretched`` with the published friction dynamics).
     profile : PlateProfile or str
         The plate's profile or its name (default ``sim-plate``).
     settings : RenderSettings, optional

@@ -8,6 +8,7 @@ from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.types import SCREEN_WIDTH_MM
 from ultraglide.apps.commands.finger_options import add_finger_options
 from ultraglide.apps.commands.plate_choice import add_plate_options
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -22,7 +23,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     output_option(demo, "--device", kind="device", metavar="URL",
                   help="output device (default: the rig's device, else sim); audio and serial need --rig or --profile")
     add_plate_options(demo, demo, device_default="sim")
-    demo.add_argument("--model", default="stretched", help="friction model (default: stretched, force-aware)")
+    demo.add_argument("--model", default=DEFAULT_MODEL,
+                      help=f"friction model (default: {DEFAULT_MODEL}: stretched, force-aware, with the published "
+                           "friction dynamics)")
     demo.add_argument("--screen-width-mm", type=SCREEN_WIDTH_MM, help="the display's width in mm, so textures show at "
                                                                "their physical size (default: a 96 dpi screen)")
     demo.add_argument("--windowed", action="store_true", help="a 1280×800 window instead of full screen")

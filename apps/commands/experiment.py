@@ -28,6 +28,7 @@ from ultraglide.apps.cli.types import TRIALS as TRIALS_OPTION
 from ultraglide.apps.commands.plate_choice import add_plate_options
 from ultraglide.apps.experiment.log import RESULT, SESSION
 from ultraglide.apps.figures import SESSION_FIGURES, both_formats
+from ultraglide.render.physics.default_model import EXPERIMENT_MODEL
 
 from ultraglide.errors import UltraglideError
 
@@ -87,7 +88,9 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
                              "(default: posterior; QUEST+ always gives its posterior)")
     parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
                         help="bootstrap samples with --interval bootstrap (default: 200)")
-    parser.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
+    parser.add_argument("--model", default=EXPERIMENT_MODEL, metavar="MODEL",
+                        help=f"{MODEL_HELP} (default: {EXPERIMENT_MODEL}, static: the stimulus check judges the "
+                             "friction felt under a dynamic model)")
     add_plate_options(parser, parser, device_default=None)
     parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
     parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,
@@ -158,7 +161,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 SESSION_DEFAULTS = {"method": "staircase", "afc": None, "rule": "1u2d", "range": None, "start_level": None,
                     "reference": None, "preset": None, "levels": None, "repeats": None, "vary": None, "device": None,
                     "seed": 0, "break_every": 0, "participant": "P01", "session": "1",
-                    "function": "weibull", "interval": "posterior", "bootstrap": 200, "model": "stretched",
+                    "function": "weibull", "interval": "posterior", "bootstrap": 200, "model": EXPERIMENT_MODEL,
                     "profile": "sim-plate", "force": None, "speed_mm_s": 100.0, "closed_loop": False,
                     "accept_check": False}
 

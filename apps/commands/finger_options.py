@@ -26,7 +26,7 @@ def add_finger_options(parser: argparse.ArgumentParser, where: str) -> None:
     group.add_argument("--finger", metavar="LAW",
                        help="a finger on the plate, with force sensors under it: its friction law, any model the "
                             "host takes (exponential, stretched, paper, table:FILE.csv with amplitude_um_pp,"
-                            "relative_friction,force_n, CAL.toml), or default: the host's default law with its "
+                            "relative_friction,force_n, CAL.toml), or default: the host default's static law with its "
                             "scale x0.7 and a floor of 0.1, unlike the host's model")
     group.add_argument("--finger-scale", type=LAW_SCALE, metavar="K",
                        help="stretch the law's amplitude axis by K (default: 0.7 for the default law, else 1)")

@@ -18,6 +18,7 @@ from ultraglide.apps.cli.types import (
     point_mm,
 )
 from ultraglide.apps.commands.plate_choice import add_plate_options
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 # a swipe's options (which a --trajectory does not take) and their defaults, as add_render_options gives them
 SWIPE_DEFAULTS = {"path": "straight", "speed_mm_s": 100.0, "direction_deg": 0.0, "start": None, "duration_s": 5.0,
@@ -40,9 +41,10 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
                       help="normal force of the swipe, or of a --trajectory without a force_n column, N "
                            "(default: 0.5, or the log's force_n column)")
     signal = parser.add_argument_group("the signal")
-    signal.add_argument("--model", default="stretched", metavar="MODEL",
-                        help=f"{MODEL_HELP} (default: stretched, force-aware: its force law is the paper's "
-                             "detachment law W_c ∝ F^(1/3), assumed)")
+    signal.add_argument("--model", default=DEFAULT_MODEL, metavar="MODEL",
+                        help=f"{MODEL_HELP} (default: {DEFAULT_MODEL}, the stretched law with the published "
+                             "friction dynamics: force-aware, its force law the paper's detachment law "
+                             "W_c ∝ F^(1/3), assumed; floor 0.10)")
     add_plate_options(signal, parser, device_default=None)
     signal.add_argument("--carrier-hz", type=CARRIER_HZ, help="carrier frequency (default: the plate's resonance)")
     signal.add_argument("--rate", type=AUDIO_RATE_HZ, default=96000, help="audio sample rate, Hz (default: 96000)")
@@ -51,7 +53,7 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
     signal.add_argument("--no-precompensation", action="store_true",
                         help="do not pre-compensate the plate's slow response")
     signal.add_argument("--no-planning", action="store_true",
-                        help="with a model that has the finger's friction dynamics (--model dynamic[:NAME]), command "
+                        help="with a model that has the finger's friction dynamics (the default), command "
                              "the texture's ratio each instant instead of planning the friction felt")
     effects = signal.add_mutually_exclusive_group()
     effects.add_argument("--effects", metavar="EFFECTS",

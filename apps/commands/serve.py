@@ -18,6 +18,7 @@ from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.signals import held, stop_requested
 from ultraglide.apps.cli.types import FORCE_N, Bounded
 from ultraglide.apps.commands.plate_choice import add_plate_options, plate_of
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 PORT = Bounded(0, 65535, whole=True)
 VIEW_MM = Bounded(1.0, 2000.0, "mm")
@@ -39,7 +40,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                   help="sim, serial:PORT[?baud=N], audio[:NAME_OR_INDEX][?rate=N], wav:PATH or null (default: the "
                        "rig's device, else sim); audio and serial need --rig or --profile")
     add_plate_options(serve, serve, device_default="sim")
-    serve.add_argument("--model", default="stretched", metavar="MODEL", help=f"{MODEL_HELP} (default: stretched)")
+    serve.add_argument("--model", default=DEFAULT_MODEL, metavar="MODEL",
+                       help=f"{MODEL_HELP} (default: {DEFAULT_MODEL})")
     serve.add_argument("--force", type=FORCE_N, metavar="N",
                        help="the finger's force when a touch gives no pressure or force, N (default: 0.5)")
     serve.add_argument("--closed-loop", action="store_true",

@@ -33,6 +33,7 @@ from ultraglide.apps.cli.types import (
     size_mm,
     texture_name,
 )
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 OPTION_NAMES = {  # CLI option → generator keyword
     "wavelength_mm": "wavelength_mm", "angle_deg": "angle_deg", "shape": "shape", "square_mm": "square_mm",
@@ -193,7 +194,7 @@ def _add_show_and_info(texture_commands) -> None:
     where = show_parser.add_mutually_exclusive_group(required=True)
     output_option(where, "-o", "--output", metavar="FILE.png|pdf|svg")
     where.add_argument("--window", action="store_true", help="show it in a window instead (Esc or close to quit)")
-    add_model_option(show_parser, default="stretched")
+    add_model_option(show_parser, default=DEFAULT_MODEL)
     show_parser.add_argument("--profile", default="sim-plate",
                              help="plate profile: its amplitude limit (default: sim-plate)")
     show_parser.add_argument("--force", type=FORCE_N, default=0.5, metavar="N",
@@ -209,7 +210,7 @@ def _add_show_and_info(texture_commands) -> None:
     info_parser.add_argument("texture", metavar="TEXTURE", help="a texture file, an image, a library name, or a glTF "
                                                                 "scene (.gltf, .glb: its haptic materials)")
     info_parser.add_argument("--json", action="store_true", help="print one JSON object")
-    add_model_option(info_parser, default="stretched")
+    add_model_option(info_parser, default=DEFAULT_MODEL)
     info_parser.add_argument("--profile", default="sim-plate",
                              help="plate profile: its amplitude limit, which sets the lowest friction a swipe is "
                                   "felt at (default: sim-plate)")

@@ -42,6 +42,7 @@ from ultraglide.apps.demo.stats import run_stats, write_stats
 from ultraglide.apps.demo.status import status_words
 from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX
 from ultraglide.apps.window.wait import EventWaiter
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 AREA_FRAME_S = 1 / 60  # the texture area while a finger moves or its trace fades
 CHART_FRAME_S = 1 / 20  # the chart while the plate is active
@@ -79,7 +80,7 @@ class Redraw:
 class DemoApp:
     """The demo's state and loop; ``step()`` handles pending events and redraws what is due."""
 
-    def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model="stretched",
+    def __init__(self, texture_specs=(), device_url="sim", profile="sim-plate", model=DEFAULT_MODEL,
                  screen_width_mm: float | None = None, windowed: bool = False, size=(1280, 800),
                  record: str | None = None, report_frames: bool = False, watch: bool = False,
                  closed_loop: bool = False, finger=None, effects: str | None = None, touch_panel=None):

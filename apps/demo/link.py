@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from ultraglide.devices.serial.run_report import RunReport
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 START_TIMEOUT_S = 120.0  # spawning the engine and compiling its kernels on a loaded machine
 
@@ -27,7 +28,7 @@ class LinkConfig:
     """What the link starts with: a texture (a Texture or a name/file), a model spec, a profile spec, a device URL."""
 
     texture: object
-    model: str = "stretched"
+    model: str = DEFAULT_MODEL
     profile: str = "sim-plate"
     device: str = "sim"
     closed_loop: bool = False

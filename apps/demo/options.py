@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.window.screen import display_available
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 MODELS = ("stretched", "squeeze-film", "exponential", "paper")  # the M key cycles through these
 PRESSURE_FULL_SCALE_N = 2.0  # a panel's pressure 1.0 is taken as this force
@@ -58,7 +59,7 @@ class DemoOptions:
     textures: tuple = ()
     device: str = "sim"
     profile: str = "sim-plate"
-    model: str = "stretched"
+    model: str = DEFAULT_MODEL
     screen_width_mm: float | None = None
     windowed: bool = False
     size: tuple[int, int] = (1280, 800)

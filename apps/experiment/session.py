@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from ultraglide.apps.cli.errors import UsageError
 from ultraglide.apps.experiment.log import RESULT, SESSION, TrialLog, read_trials, write_json
+from ultraglide.render.physics.default_model import EXPERIMENT_MODEL
 
 from ultraglide import __version__
 from ultraglide.experiment import psychometric as pf
@@ -60,7 +61,7 @@ class SessionConfig:
     gap_mm: float = 10.0
     speed_mm_s: float = 100.0
     force_n: float = 0.5
-    model: str = "stretched"
+    model: str = EXPERIMENT_MODEL
     profile: str = "sim-plate"
     device: str = "null"
     observer: str | None = None

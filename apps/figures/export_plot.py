@@ -8,7 +8,9 @@ changes most, where the drive goes furthest above the plate's limit, where the p
 most; 100 ms windows looked at every 50 ms, the best few of each kind kept), and a spectrogram of the
 drive (Hann-windowed segments whose power is averaged over about 600 columns).
 
-The target is drawn over the plate and the drive (black), so it is never hidden under them. The drive
+The target is drawn over the plate and the drive (black), so it is never hidden under them. Where the renderer
+plans against the finger's friction dynamics (the default model), the ratio it commanded (orange) is drawn beside
+the texture's: the model target is the amplitude for the commanded ratio, not for the texture's. The drive
 may rise above the plate's limit: that is pre-compensation's overdrive (up to the profile's
 ``max_drive_um_pp``), which speeds the plate's slow response while its own amplitude stays within the
 limit; the figure says so where it happens.
@@ -28,8 +30,8 @@ import numpy as np  # noqa: E402
 from ultraglide.apps.cli.errors import UsageError  # noqa: E402
 from ultraglide.apps.cli.files import atomic_path  # noqa: E402
 
-CHANNELS = ("ratio", "target_um_pp", "drive_um_pp", "plate_um_pp", "x_mm", "y_mm")
-RATIO, TARGET, DRIVE, PLATE, X, Y = range(len(CHANNELS))
+CHANNELS = ("ratio", "target_um_pp", "drive_um_pp", "plate_um_pp", "x_mm", "y_mm", "planned_ratio")
+RATIO, TARGET, DRIVE, PLATE, X, Y, PLANNED = range(len(CHANNELS))
 BUCKETS = 2000
 WINDOW_S = 0.1
 ZOOMS = {  # what a zoomed window shows, and how a window scores for it (the highest wins)
@@ -262,10 +264,15 @@ class PlotRecorder:
                 axes.plot(times, mean[channel], color=colour, lw=0.8, label=label)
 
         top = figure.add_subplot(grid[0, :])
-        band(top, RATIO, "target friction ratio", "C0")
+        band(top, RATIO, "texture (target)", "C0")
+        planned = renderer.planner is not None
+        if planned:  # the ratio the inverse was asked for: the target's amplitudes follow it, not the texture
+            top.plot(times, mean[PLANNED], color="C1", lw=0.8, label="commanded (planned for the finger's lag)")
         top.set(ylabel="friction ratio", ylim=(0, 1.05), xlim=(0, duration_s))
         words = (f"{renderer.texture.name}, {renderer.model.describe()}. Overview of {duration_s:.3g} s: shaded, the "
-                 f"range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean")
+                 f"range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean"
+                 + (". Friction ratio: the texture's (blue) and the one commanded (orange), planned for the finger's "
+                    "lag; the model target is the amplitude for the commanded one" if planned else ""))
         top.set_title(textwrap.fill(words, characters), loc="left")
         amplitude = figure.add_subplot(grid[1, :], sharex=top)
         band(amplitude, DRIVE, drive_label, "C2", line=False, alpha=0.35)  # ranges: a mean of a fast swing
@@ -309,10 +316,12 @@ class PlotRecorder:
                 zoom.set_ylabel("µm p-p")
             twin = zoom.twinx()
             twin.plot(t, window[RATIO], color="C0", lw=0.6, alpha=0.7)
+            if planned:
+                twin.plot(t, window[PLANNED], color="C1", lw=0.6, alpha=0.8)
             twin.set_ylim(0, 1.05)
             twin.grid(False)
             if k == len(zooms) - 1 or not page:
-                twin.set_ylabel("ratio (blue)")
+                twin.set_ylabel("ratio (blue, orange)" if planned else "ratio (blue)")
         spectrum = figure.add_subplot(grid[3 + zoom_rows, :])
         self._draw_spectrogram(figure, spectrum, characters)
         return figure

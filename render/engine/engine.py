@@ -48,6 +48,7 @@ from ultraglide.render.engine.shm import SharedBlock, ring_order
 from ultraglide.render.engine.status import EngineStatus, status_from_shared
 from ultraglide.render.engine.supervisor import FROZEN_AFTER_S, Supervisor
 from ultraglide.render.errors import RenderError
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 if TYPE_CHECKING:
     from ultraglide.textures.texture import Texture
@@ -161,12 +162,12 @@ class EngineConfig:
     Examples
     --------
     >>> config = EngineConfig(texture="wood", device="null")
-    >>> config.model, config.profile, config.rate_hz                      # the defaults: stretched, sim-plate, Hz
-    ('stretched', 'sim-plate', 96000)
+    >>> config.model, config.profile, config.rate_hz                      # the defaults: dynamic, sim-plate, Hz
+    ('dynamic', 'sim-plate', 96000)
     """
 
     texture: object = "grating-1mm"  # str or textures.texture.Texture
-    model: str = "stretched"
+    model: str = DEFAULT_MODEL
     profile: str = "sim-plate"
     device: str = "sim"
     default_force_n: float = 0.5
@@ -788,7 +789,7 @@ class Engine:
         ...     engine.wait_ready(60.0)
         ...     status = engine.status()
         >>> status.device, status.texture, status.model, status.force_n        # the config's, and its defaults
-        ('null', 'grating-1mm', 'stretched', 0.5)
+        ('null', 'grating-1mm', 'dynamic', 0.5)
         """
         if self.shared.words is None:  # stopped: the last status read before the segment was released
             return self.final_status

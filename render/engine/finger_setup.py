@@ -6,7 +6,7 @@ model (``render.physics.load_model``: ``exponential``, ``stretched``, ``paper``,
 measured finger with columns ``amplitude_um_pp,relative_friction,force_n``, a calibration TOML), since the
 finger itself (in ``devices``) only takes a callable.
 
-The default finger is unlike the host's default model on purpose: the stretched law with its amplitude
+The default finger is unlike the host's default model on purpose: its static (stretched) law with its amplitude
 scale times 0.7 (it needs 30 % less vibration) and a floor of 0.1 that vibration does not remove, drifting
 ±30 % in scale over a minute, its friction at rest rising 25 % with a long dwell, pressing with a force
 that wanders in 0.2-1 N, sliding at 100 mm/s.
@@ -32,7 +32,7 @@ from ultraglide.devices.sim.finger_log import FingerLog
 from ultraglide.devices.sim.force_sensors import ForceSensorParams
 
 DEFAULT_LAW = "default"
-DEFAULT_BASE = "stretched"  # the host's default model
+DEFAULT_BASE = "stretched"  # the host's default model's static law (the default is it with dynamics)
 DEFAULT_SCALE = 0.7
 DEFAULT_FLOOR = 0.1
 
@@ -47,7 +47,7 @@ class FingerConfig:
     --------
     >>> config = FingerConfig()
     >>> config.law_scale, config.law_floor, config.lags, config.law_words()
-    (0.7, 0.1, False, "stretched (the host's default), scale x0.7, floor 0.1")
+    (0.7, 0.1, False, "stretched (the host default's static law), scale x0.7, floor 0.1")
     >>> FingerConfig(law="dynamic").lags, config.with_log("finger.csv").log
     (True, 'finger.csv')
     """
@@ -122,7 +122,7 @@ class FingerConfig:
         >>> FingerConfig(law="exponential", dynamics=True).law_words()   # which lag: the published one, or a fit's
         'exponential, friction in time (5 ms down, 70 ms back at 22 mm/s (x (v_ref/v)^0.5))'
         """
-        base = f"{DEFAULT_BASE} (the host's default)" if self.law == DEFAULT_LAW else self.law
+        base = f"{DEFAULT_BASE} (the host default's static law)" if self.law == DEFAULT_LAW else self.law
         scale, floor = self.law_scale, self.law_floor
         lag = finger_dynamics(self) if self.lags else None
         return (base + (f", scale x{scale:g}" if scale != 1.0 else "") + (f", floor {floor:g}" if floor else "")
@@ -354,7 +354,7 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
     --------
     >>> finger = build_finger(FingerConfig(force="0.5"))
     >>> finger.name
-    "stretched (the host's default), scale x0.7, floor 0.1"
+    "stretched (the host default's static law), scale x0.7, floor 0.1"
     """
     params = FingerParams(config.mu0, config.drift, config.drift_period_s, config.moisture, config.moisture_tau_s)
     sensors = ForceSensorParams(config.noise_n, config.bandwidth_hz, config.delay_ms / 1000.0, sensor_rate_hz,
@@ -387,7 +387,7 @@ def finger_words(config: FingerConfig) -> str:
     Examples
     --------
     >>> finger_words(FingerConfig(force="0.5", drift=0.0))  # doctest: +NORMALIZE_WHITESPACE
-    "finger: stretched (the host's default), scale x0.7, floor 0.1; mu0 1, no drift, +25 % with dwell;
+    "finger: stretched (the host default's static law), scale x0.7, floor 0.1; mu0 1, no drift, +25 % with dwell;
     force 0.5 at 100 mm/s; sensors 5 mN, 300 Hz, 1 ms"
     """
     drift = f"drift ±{100 * config.drift:g} % over {config.drift_period_s:g} s" if config.drift else "no drift"

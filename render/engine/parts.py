@@ -30,7 +30,7 @@ def load_parts(config):
     >>> from ultraglide.render.engine import EngineConfig
     >>> texture, model, profile, device = load_parts(EngineConfig(texture="grating-1mm", device="null"))
     >>> texture.name, model.name, profile.name, device.signal
-    ('grating-1mm', 'stretched', 'sim-plate', 'audio')
+    ('grating-1mm', 'dynamic', 'sim-plate', 'audio')
     >>> load_parts(EngineConfig(texture="grating-1mm", device="null", closed_loop=True))
     Traceback (most recent call last):
     ...

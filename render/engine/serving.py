@@ -149,7 +149,7 @@ def renderer_status(renderer) -> dict:
     --------
     >>> from ultraglide import Renderer
     >>> renderer_status(Renderer("grating-1mm"))
-    {'texture': 'grating-1mm', 'model': 'stretched', 'force_n': 0.5, 'effects_started': 0}
+    {'texture': 'grating-1mm', 'model': 'dynamic', 'force_n': 0.5, 'effects_started': 0}
     """
     player = renderer.effects
     return {"texture": renderer.texture.name, "model": getattr(renderer.model, "name", str(renderer.model)),

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import tomli_w
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 from ultraglide.render.physics.errors import ModelError
 from ultraglide.render.physics.fingerprint import FingerParams
 from ultraglide.render.physics.fitting import (
@@ -408,11 +409,12 @@ def load_model(spec: str) -> FrictionModel:
     Parameters
     ----------
     spec : str
-        ``stretched`` (the default for rendering: force-aware), ``squeeze-film``, ``exponential``,
+        ``stretched`` (force-aware, floor 0.10), ``squeeze-film``, ``exponential``,
         ``paper``, ``paper-uniform``, ``table:FILE.csv`` (measured points) or a calibration file
         ``CAL.toml`` (``ultraglide calibrate``: a :class:`DynamicFrictionModel` where its ``[dynamics]`` were fitted
-        on the plate; with its ``[speed]`` table, a speed law); ``dynamic`` (the default model with the published
-        friction dynamics) or ``dynamic:NAME`` (any of these with them); ``speed:S:NAME`` (any of these whose
+        on the plate; with its ``[speed]`` table, a speed law); ``dynamic`` (``stretched`` with the published
+        friction dynamics: :data:`DEFAULT_MODEL`, the default for rendering) or ``dynamic:NAME`` (any of these with
+        them); ``speed:S:NAME`` (any of these whose
         settled reduction weakens with sliding speed, exponent S in 0-1, assumed:
         :mod:`~ultraglide.render.physics.speed_law`).
 
@@ -496,7 +498,7 @@ def _with_speed_law(spec: str) -> FrictionModel:
 
 
 __all__ = [  # the calibration's names, the fitting's and the parameters' (one import for the commands)
-    "BOOTSTRAP_SAMPLES", "CALIBRATION_VERSION", "COMPARED_MODELS", "K_FOLDS", "MAX_FITTED_FORCES",
+    "BOOTSTRAP_SAMPLES", "CALIBRATION_VERSION", "COMPARED_MODELS", "DEFAULT_MODEL", "K_FOLDS", "MAX_FITTED_FORCES",
     "MIN_BOOTSTRAP_GROUPS", "MODEL_NAMES", "OPTIONAL_KEYS", "PARAMETERS", "Fit", "Parameter", "ParameterSpec",
     "FORCE_LAW_PARAMETER", "ForceLawChoice", "bootstrap_errors", "build_model", "choose_force_law",
     "calibration_from_document", "calibration_toml", "compare_models", "dynamics_table",

@@ -32,6 +32,7 @@ import numpy as np
 
 from ultraglide.experiment.errors import ExperimentError
 from ultraglide.experiment.procedures import RULES, ConstantParams, ConstantStimuli, interval_positions
+from ultraglide.render.physics.default_model import EXPERIMENT_MODEL
 
 TASKS = ("constant", "staircase", "quest", "afc", "same_different", "rating", "magnitude", "adjustment")
 ADAPTIVE = ("staircase", "quest")
@@ -300,7 +301,7 @@ class Design:
     gap_mm: float = 10.0
     speed_mm_s: float = 100.0
     force_n: float = 0.5
-    model: str = "stretched"
+    model: str = EXPERIMENT_MODEL
     profile: str = "sim-plate"
     check_paths: tuple[str, ...] = ()  # touch logs (mm from a zone's top-left corner) the check also renders along
     words: dict = field(default_factory=dict)  # the participant's words the design sets (WORDS' keys), else English
@@ -1064,7 +1065,7 @@ def design_from_dict(tables: dict) -> Design:
         break_message=experiment.get("break_message", str, "Take a break. Tap or press space to go on."),
         zone_mm=_pair(zone, "rig.zone_mm"), gap_mm=rig.get("gap_mm", float, 10.0),
         speed_mm_s=rig.get("speed_mm_s", float, 100.0), force_n=rig.get("force_n", float, 0.5),
-        model=rig.get("model", str, "stretched"), profile=rig.get("profile", str, "sim-plate"),
+        model=rig.get("model", str, EXPERIMENT_MODEL), profile=rig.get("profile", str, "sim-plate"),
         check_paths=rig.get("check_paths", "strs", ()), words=dict(words))
     for table in (top, experiment, rig):
         table.done()
