@@ -171,6 +171,22 @@ def _subtract_clipped(ratio, total, out):  # pragma: no cover - compiled
     return above
 
 
+@numba.njit(cache=True, nogil=True)
+def _subtract_below(command, total, down, floor):  # pragma: no cover - compiled
+    """command −= total within [0, 1], in place; returns how many fell below ``floor`` where ``down``."""
+    below = 0
+    for i in range(len(command)):
+        r = command[i] - total[i]
+        if r > 1.0:
+            r = 1.0
+        elif r < 0.0:
+            r = 0.0
+        if r < floor and down[i]:
+            below += 1
+        command[i] = r
+    return below
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) the effects' loops, outside any real-time block.
 
@@ -195,6 +211,7 @@ def warm_up() -> None:
     _accumulate(t, 0.0, 1.0, math.inf, 0.1, out, np.zeros(2))
     _subtract_clipped(t, t, out)
     _subtract_clipped(t.astype(np.float32), t, out)  # the texture's ratio comes as float32
+    _subtract_below(out, t, flags, 0.1)
 
 
 # ---- evaluation plans: each node owns its scratch buffers --------------------------------------------------
@@ -352,7 +369,9 @@ class EffectPlayer:
     One thread calls :meth:`mix` (the block path); :meth:`trigger` may be called from any thread.
     ``starts`` gives (binding index, start time s) of the most recent voices, for tests and status;
     ``clipped_samples`` counts mixed ratios above 1 (more friction than the plate at rest), clipped to 1
-    (ratios below the model's floor are clamped and counted by the inverse, as for textures).
+    (ratios below the model's floor are clamped and counted by the inverse, as for textures; where the renderer
+    plans, the effects are subtracted from its command too, and ``below_floor`` counts the touching samples they
+    take below the plate's floor there).
 
     Parameters
     ----------
@@ -422,6 +441,7 @@ class EffectPlayer:
         self.started = 0
         self._log = np.zeros((LOG, 2))  # (binding, start s) of the latest voices, a ring
         self.clipped_samples = 0
+        self.below_floor = 0
 
     def trigger(self, name: str, t_s: float) -> bool:
         """An app's named event at ``t_s`` (perf_counter s; or the offline clock). False: no binding has it.
@@ -489,10 +509,11 @@ class EffectPlayer:
                 self._start(k, t_s, action == PLAY_HELD)
 
     # ---- the block path ----------------------------------------------------------------------------------
-    def mix(self, times, x, y, down, ratio, also: np.ndarray | None = None) -> np.ndarray:
+    def mix(self, times, x, y, down, ratio, also: np.ndarray | None = None, also_floor: float = 0.0) -> np.ndarray:
         """The texture's ``ratio`` with the effects playing at ``times`` (s) subtracted, clipped to [0, 1]. The
         array returned is a buffer of the player's, overwritten by the next block (a copy if n > capacity).
-        ``also``, if given, has the same effects subtracted in place (the planner's command for the texture).
+        ``also``, if given, has the same effects subtracted in place (the planner's command for the texture); its
+        samples pushed below ``also_floor`` while the finger touches are counted in :attr:`below_floor`.
 
         Parameters
         ----------
@@ -506,6 +527,8 @@ class EffectPlayer:
             The texture's friction ratio (float32).
         also : numpy.ndarray, optional
             Another ratio of the block's length to subtract the same effects from, in place (clipped to [0, 1]).
+        also_floor : float
+            The lowest ratio the plate reaches, for counting ``also``'s samples the effects take below it.
 
         Returns
         -------
@@ -532,7 +555,7 @@ class EffectPlayer:
                 end = min(n, start + self.capacity)
                 piece_down = down if np.ndim(down) == 0 else down[start:end]
                 out[start:end] = self.mix(times[start:end], x[start:end], y[start:end], piece_down,
-                                          ratio[start:end], None if also is None else also[start:end])
+                                          ratio[start:end], None if also is None else also[start:end], also_floor)
             return out
         if n == 0:
             return ratio
@@ -562,7 +585,7 @@ class EffectPlayer:
         mixed = self._mixed[:n]
         self.clipped_samples += _subtract_clipped(ratio, total, mixed)  # above rest; below the floor: the inverse's
         if also is not None:
-            _subtract_clipped(also, total, also)
+            self.below_floor += _subtract_below(also, total, flags, also_floor)
         return mixed
 
     @property

@@ -459,6 +459,7 @@ class Renderer:
     def _plan_buffers(self, model: FrictionModel) -> None:
         """A planner and its buffers for a model with friction dynamics (built outside any real-time block)."""
         dynamics = getattr(model, "dynamics", None)
+        self._plan_floor = 0.0  # the planner's floor, below which the effects mixed after it are counted
         if dynamics is None or not self.settings.plan:
             self.planner = None
             return
@@ -863,12 +864,16 @@ class Renderer:
                 asked = self._planned(times, ratio, force, down, speed, one_step, heading, n)
         player = self.effects
         if player is not None:  # ...the effects are not: a tap cannot be foreseen, so they play as authored, mixed
-            above = player.clipped_samples  # before the inverse (the same envelope, clamps and limiter)
-            mixed = player.mix(times, x, y, finger.down, ratio, also=None if asked is ratio else asked)
-            self.counters.clipped_samples += player.clipped_samples - above
+            above, below = player.clipped_samples, player.below_floor  # before the inverse (the same envelope,
+            planned = asked is not ratio  # clamps and limiter), from the planner's command where it plans
+            mixed = player.mix(times, x, y, finger.down, ratio, also=asked if planned else None,
+                               also_floor=self._plan_floor)
+            self.counters.clipped_samples += player.clipped_samples - above + player.below_floor - below
+            # the planner's felt prediction stays the texture command's own: told what the effect took, it would
+            # raise its command to undo the effect (a 50 Hz buzz would be cancelled)
             if block is None:
                 mixed = mixed.copy()  # the player's buffer is overwritten by the next block
-            asked = mixed if asked is ratio else asked
+            asked = mixed if not planned else asked
             ratio = mixed
         scale = self.speed_scale
         inversion = scaled_inverse(self.model, asked, force, self.limit_um_pp, scale,
@@ -942,6 +947,7 @@ class Renderer:
         if len(self._command) < n:
             self._command = np.empty(n)  # a catch-up block longer than any before: once
         below = planner.below_floor
+        self._plan_floor = floor  # the effects subtracted from the command after it count below it
         command = planner.plan(ratio, ahead_ratio, floor, touching, self._command[:n])
         self._unreachable = (planner.below_floor - below) if touching else 0
         return command

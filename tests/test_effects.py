@@ -211,6 +211,21 @@ def test_an_edge_crossing_pulse_is_in_the_exported_wav_at_the_crossing_time(tmp_
     assert wav_envelope(plain)[0][int(0.17 * RATE)] < 0.01 * before
 
 
+def test_an_effect_that_asks_for_less_than_the_floor_is_counted_whether_or_not_the_renderer_plans(tmp_path):
+    """A 30 ms pulse of depth 0.95 at the edge's crossing, on the sticky side (ratio 1): 1 − 0.95 = 0.05 is below
+    what 6 µm p-p reaches at 0.5 N (0.168), so all 0.03 s × 12 kHz = 360 of its samples are held at the limit and
+    counted, under the static model and under the default, which plans the texture and subtracts the effects from
+    its command."""
+    edge = procedural.edge(size_mm=(40.0, 30.0), ratio_range=(0.8, 1.0))
+    pulse = Binding(Trigger("cross", lines_mm=(20.0,)), Constant(0.95, 0.03), label="deep pulse")
+    path = save_texture(edge.with_(effects=(pulse,)), tmp_path / "edge.png")
+    for model in ("stretched", "dynamic"):
+        result = run_cli("export", path, "-o", tmp_path / f"{model}.wav", "--duration-s", "0.4", "--json",
+                         "--model", model, check=True)
+        assert json.loads(result.stdout)["clipped_samples"] == 360, model
+        assert "of the time the texture asked for less friction" in result.stderr
+
+
 def test_a_50_hz_sine_effect_is_a_50_hz_line_in_the_envelope(tmp_path):
     """A uniform ratio 0.7 with a 50 Hz sine of depth 0.2 while the finger is down: the ratio swings 0.5-0.7,
     so the drive's envelope has a 50 Hz line, and an independent plate (the profile's resonator) swings
