@@ -311,6 +311,21 @@ def test_render_swipe_lasts_the_path_then_the_rest_and_gives_what_export_writes(
         ultraglide.render_swipe("dots", ultraglide.SwipePath(), duration_s=1.0)
 
 
+def test_render_swipe_gives_the_ratio_its_amplitudes_were_asked_for():
+    """Under the default model the renderer plans: the amplitude is the static law's for the planned ratio (read
+    back through the stretched model's own inverse), and the planned ratio is not the texture's; under
+    ``stretched`` it is the texture's."""
+    stretched = ultraglide.load_model("stretched")
+    planned = ultraglide.render_swipe("grating-1mm", duration_s=0.3)
+    inside = planned.touching & (planned.planned_ratio < 1.0)
+    assert inside.sum() > 1000
+    expected = stretched.amplitude_um_pp(planned.planned_ratio[inside], 0.5, planned.limit_um_pp).amplitude_um_pp
+    np.testing.assert_allclose(planned.target_um_pp[inside], expected, rtol=1e-6, atol=1e-9)
+    assert np.abs(planned.planned_ratio - planned.ratio)[planned.touching].max() > 0.2
+    static = ultraglide.render_swipe("grating-1mm", duration_s=0.3, model="stretched")
+    np.testing.assert_array_equal(static.planned_ratio, static.ratio)
+
+
 def test_an_array_with_a_size_is_a_texture_everywhere(tmp_path):
     # bars 2 mm wide (a 4 mm period) over 80 mm: swiped at 100 mm/s, felt at 25 Hz
     bars = np.tile(np.repeat([0.2, 1.0], 2), (10, 20))  # 80 columns, 1 mm each

@@ -523,7 +523,7 @@ class Rendered:
     ratio : numpy.ndarray
         The target friction ratio under the finger (1 = the plate at rest).
     target_um_pp : numpy.ndarray
-        The model's amplitude for that ratio at the finger's force, within the limit (µm p-p).
+        The model's amplitude for ``planned_ratio`` at the finger's force, within the limit (µm p-p).
     envelope_um_pp : numpy.ndarray
         The amplitude the plate should make after ramps and band and slew limits (µm p-p).
     drive_um_pp : numpy.ndarray
@@ -533,6 +533,9 @@ class Rendered:
         and ``envelope_um_pp`` stay within.
     limited_fraction : float
         The fraction of control samples the drive limiter lowered.
+    planned_ratio : numpy.ndarray
+        The ratio the model's inverse was asked for: under friction dynamics (the default model) the planner's
+        command, which leads the texture so the friction felt follows it; else ``ratio``.
 
     Examples
     --------
@@ -559,6 +562,7 @@ class Rendered:
     drive_um_pp: np.ndarray
     limit_um_pp: float
     limited_fraction: float
+    planned_ratio: np.ndarray
 
     @property
     def duration_s(self) -> float:
@@ -660,4 +664,4 @@ def render_swipe(texture: TextureLike, path: SwipePath | RecordedTrajectory | No
                     joined("time_s"), joined("x_mm"), joined("y_mm"), joined("down", bool),
                     joined("ratio"), joined("target_um_pp"), joined("amplitude_um_pp"),
                     np.concatenate(drives) if drives else np.zeros(0), renderer.limit_um_pp,
-                    stage.limiter.limited_fraction)
+                    stage.limiter.limited_fraction, joined("planned_ratio"))
