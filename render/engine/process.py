@@ -618,7 +618,8 @@ def engine_main(config, shared_name: str, conn) -> None:
         for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
             if record is not None:
                 record.discard()
-        conn.send(("failed", describe(error)))
+        with contextlib.suppress(OSError):  # the app may have gone already (stopped while the device started)
+            conn.send(("failed", describe(error)))
         shared.fast[shm.STATE] = shm.STATES.index("failed")
         shared.close()
         return
@@ -631,9 +632,16 @@ def engine_main(config, shared_name: str, conn) -> None:
     threads = raise_other_threads() if config.realtime_priority else "other threads: normal"
     threads = f"{threads}; {pages}"
     source.threads = threads
-    conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
-                         "tail_s": renderer.tail_s, "device_status": device_status(device)}))
-    serve(config, conn, shared, renderer, source, device, stop_requested, threads)
+    try:
+        conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
+                             "tail_s": renderer.tail_s, "device_status": device_status(device)}))
+    except OSError:  # the app was stopped (a signal) while the device started: nobody to serve, rest it and end
+        close_device(device)
+        for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
+            if record is not None:
+                record.discard()
+    else:
+        serve(config, conn, shared, renderer, source, device, stop_requested, threads)
     if probe is not None:
         probe.stop_event.set()
         probe.join(timeout=1)
