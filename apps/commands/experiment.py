@@ -89,8 +89,8 @@ def _add_shared_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bootstrap", type=BOOTSTRAP_SAMPLES, default=200, metavar="N",
                         help="bootstrap samples with --interval bootstrap (default: 200)")
     parser.add_argument("--model", default=EXPERIMENT_MODEL, metavar="MODEL",
-                        help=f"{MODEL_HELP} (default: {EXPERIMENT_MODEL}, static: the stimulus check judges the "
-                             "friction felt under a dynamic model)")
+                        help=f"{MODEL_HELP} (default: {EXPERIMENT_MODEL}, a static law; under a dynamic model the "
+                             "stimulus check judges the friction felt)")
     add_plate_options(parser, parser, device_default=None)
     parser.add_argument("--force", type=FORCE_N, metavar="N", help="the finger's normal force, N (default: 0.5)")
     parser.add_argument("--speed-mm-s", type=SPEED_MM_S, default=100.0,

@@ -39,7 +39,8 @@ HELP = [
     ("G  T  W", "gallery, texture, widgets"),
     ("Left  Right", "previous, next texture"),
     ("Up  Down", "force up, down (×1.25) when the panel reports no pressure"),
-    ("M", "switch the friction model (stretched, squeeze-film, exponential, paper)"),
+    ("M", "switch the friction model (stretched, squeeze-film, exponential, paper; with a dynamic model, each "
+          "with its friction dynamics)"),
     ("Space", "pause: the plate rests"),
     ("R", "restart the engine after it was lost"),
     ("H", "this help"),

@@ -247,7 +247,8 @@ class PlotRecorder:
         duration_s = self.total / self.rate
         zooms = self.zooms(limit)
         zoom_rows = 1 if page else max(len(zooms), 1)
-        heights = [1.0, 1.2, 0.8] + [1.0] * zoom_rows + [1.3]
+        planned = renderer.planner is not None
+        heights = [1.0 if page or not planned else 1.7, 1.2, 0.8] + [1.0] * zoom_rows + [1.3]  # room for the words
         with plt.rc_context(STYLE):
             figure = plt.figure(figsize=(width_in, (2.0 if page else 1.55) * sum(heights) + 1.2), layout="constrained")
         figure.print_width_in = width_in
@@ -265,14 +266,13 @@ class PlotRecorder:
 
         top = figure.add_subplot(grid[0, :])
         band(top, RATIO, "texture (target)", "C0")
-        planned = renderer.planner is not None
         if planned:  # the ratio the inverse was asked for: the target's amplitudes follow it, not the texture
             top.plot(times, mean[PLANNED], color="C1", lw=0.8, label="commanded (planned for the finger's lag)")
         top.set(ylabel="friction ratio", ylim=(0, 1.05), xlim=(0, duration_s))
         words = (f"{renderer.texture.name}, {renderer.model.describe()}. Overview of {duration_s:.3g} s: shaded, the "
                  f"range within each {self.bucket / self.rate * 1000:.3g} ms; line, its mean"
-                 + (". Friction ratio: the texture's (blue) and the one commanded (orange), planned for the finger's "
-                    "lag; the model target is the amplitude for the commanded one" if planned else ""))
+                 + (". Ratios: the texture's (blue), the one commanded (orange: planned for the finger's lag, "
+                    "the model target's)" if planned else ""))
         top.set_title(textwrap.fill(words, characters), loc="left")
         amplitude = figure.add_subplot(grid[1, :], sharex=top)
         band(amplitude, DRIVE, drive_label, "C2", line=False, alpha=0.35)  # ranges: a mean of a fast swing
@@ -321,7 +321,7 @@ class PlotRecorder:
             twin.set_ylim(0, 1.05)
             twin.grid(False)
             if k == len(zooms) - 1 or not page:
-                twin.set_ylabel("ratio (blue, orange)" if planned else "ratio (blue)")
+                twin.set_ylabel("ratio" if planned else "ratio (blue)")
         spectrum = figure.add_subplot(grid[3 + zoom_rows, :])
         self._draw_spectrogram(figure, spectrum, characters)
         return figure

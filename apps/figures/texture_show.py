@@ -47,6 +47,7 @@ class AmplitudeMap:
     clamped: int
     limit_um_pp: float
     description: str
+    lags: bool = False  # the model has friction dynamics: the map is of settled ratios, not what the renderer sends
 
 
 def amplitude_map(texture: Texture, model, limit_um_pp: float, force_n: float, model_name: str = "") -> AmplitudeMap:
@@ -54,7 +55,7 @@ def amplitude_map(texture: Texture, model, limit_um_pp: float, force_n: float, m
     ratio = texture.ratio_map()
     inversion = model.amplitude_um_pp(ratio.astype(float), force_n, limit_um_pp)
     return AmplitudeMap(np.asarray(inversion.amplitude_um_pp).reshape(ratio.shape), inversion.clamped, limit_um_pp,
-                        model_name or model.describe())
+                        model_name or model.describe(), getattr(model, "dynamics", None) is not None)
 
 
 def _page_mm(width=None) -> float:
@@ -116,7 +117,8 @@ def draw(texture: Texture, amplitude: AmplitudeMap, force_n: float, profile_name
     if amplitude.clamped:
         share = amplitude.clamped / ratio.size
         unreachable = f"; {share:.1%} of the map beyond reach, held at the limit"
-    amplitude_axes.set_title(_wrap(f"amplitude needed (µm p-p){unreachable}: {amplitude.description} model, "
+    settled = ", each held until settled (the renderer plans against the finger's lag)" if amplitude.lags else ""
+    amplitude_axes.set_title(_wrap(f"amplitude needed (µm p-p){unreachable}{settled}: {amplitude.description} model, "
                                    f"{force_n:g} N, plate {profile_name} (limit {limit:g} µm p-p)", width_mm),
                              fontsize=TEXT, loc="left")
     amplitude_axes.set_xlabel("x (mm)", fontsize=TEXT)
