@@ -2,7 +2,8 @@
 
 Run: .venv/bin/python bench/bench_realtime.py [--blocks 20000] [--paced]
 Aim (issues 4, 11): one block of 64 frames at 96 kHz, p99 under 10 % of its period (67 µs); the block path
-allocates nothing once running (tests/test_block_path.py).
+allocates nothing once running (tests/test_block_path.py). ``dynamic`` (the default model) plans the friction
+felt: one block in three at 64 frames (every 2 ms) carries the planner's decision.
 
 For each case a spawned process builds the engine's block path (render.engine.process.EngineSource:
 drain the touch ring, render, limit and put on the carrier (the output stage), publish the status)
@@ -100,7 +101,7 @@ def main() -> None:
     print("{:14} {:12} {:>12} {:>10} {:>8} {:>9} {:>10}".format(*header))
     priority = ""
     for texture in ("grating-1mm", "bumps"):
-        for model in ("exponential", "paper"):
+        for model in ("exponential", "paper", "dynamic"):  # dynamic, the default: it plans every 2 ms
             for frames, rate in ((64, 96000), (128, 192000)):
                 t, priority = measure(texture, model, frames, rate, args.blocks, args.paced, args.wake_request)
                 budget = 0.1 * frames / rate * 1e6

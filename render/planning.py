@@ -162,6 +162,38 @@ class Planner:
         out += block_start_s
         return out
 
+    def decides_within(self, n: int) -> bool:
+        """Whether a decision step begins within the next ``n`` samples (the plan then needs the targets ahead;
+        between decisions it holds its command and needs none).
+
+        Parameters
+        ----------
+        n : int
+            The block's samples.
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        Decisions every ``stride`` samples from phase 0: a block of 8 samples holds one, the next two none:
+
+        >>> import numpy as np
+        >>> from ultraglide.render.physics.dynamics import FrictionDynamics
+        >>> planner = Planner(FrictionDynamics(), 12000.0)
+        >>> planner.stride
+        24
+        >>> ahead = np.ones(planner.steps, dtype=np.float32)
+        >>> seen = []
+        >>> for _ in range(4):
+        ...     seen.append(planner.decides_within(8))
+        ...     _ = planner.plan(np.ones(8), ahead, 0.1, True, np.empty(8))
+        >>> seen
+        [True, False, False, True]
+        """
+        return (self.stride - self.phase) % self.stride < n
+
     def first_ahead(self, n: int) -> int:
         """The first sample past a block of ``n`` (counted from its start) where a decision step ends.
 

@@ -934,13 +934,15 @@ class Renderer:
         planner = self.planner
         planner.set_speed(speed)
         steps = planner.steps
-        ahead_t = planner.ahead_times(float(times[0]) if n else 0.0, n, out=self._ahead_t)
-        ahead = self.trajectory.state(ahead_t, out=(self._ahead_x[:steps], self._ahead_y[:steps]))
-        ahead_ratio = self.sampler.ratio(ahead.x_mm, ahead.y_mm,
-                                         step_mm=one_step * planner.stride if self.settings.band_limited_lookup
-                                         else None,
-                                         direction=heading, out=self._ahead_ratio[:steps])
         touching = bool(np.any(down))
+        ahead_ratio = self._ahead_ratio[:steps]  # read only at a decision (the kernel holds its command between)
+        if touching and planner.decides_within(n):  # so the path and the texture ahead are looked up only then
+            ahead_t = planner.ahead_times(float(times[0]) if n else 0.0, n, out=self._ahead_t)
+            ahead = self.trajectory.state(ahead_t, out=(self._ahead_x[:steps], self._ahead_y[:steps]))
+            ahead_ratio = self.sampler.ratio(ahead.x_mm, ahead.y_mm,
+                                             step_mm=one_step * planner.stride if self.settings.band_limited_lookup
+                                             else None,
+                                             direction=heading, out=ahead_ratio)
         scalar_force = float(force) if not isinstance(force, np.ndarray) else float(np.mean(force))
         floor = self.model._floor(scalar_force, min(reach_limit(float(self.limit_um_pp), self.speed_scale),
                                                     self.model.max_amplitude_um_pp))

@@ -219,3 +219,27 @@ def test_a_texture_below_the_floor_is_judged_against_itself_and_keeps_none_of_it
     by_hand = math.sqrt(((0.168 - 0.05) ** 2 + (0.168 - 0.12) ** 2) / 2)
     assert kept.instantaneous_rms == pytest.approx(by_hand, abs=0.005)
     assert kept.planned_rms == pytest.approx(by_hand, abs=0.005)
+
+
+@pytest.mark.parametrize("block", [8, 7])
+def test_blocks_between_decisions_skip_the_look_ahead_and_plan_the_same(block):
+    """The look ahead (the path and the texture over the horizon) is made only in blocks where a decision step
+    begins; the plan rendered in small blocks (a decision every 24 samples: in one block of three at 8 samples, at
+    any sample of one at 7) is the one a renderer looking ahead every block makes, sample for sample, and the look
+    ahead ran in block / 24 of the blocks."""
+    path = RecordedTrajectory([0.0, 0.5], [5.0, 55.0], [25.0, 25.0])
+
+    def planned(every_block: bool):
+        renderer = Renderer(resolve_texture("grating-1mm"), load_model("dynamic"), load_profile("sim-plate"),
+                            trajectory=path)
+        looked = []
+        decides = renderer.planner.decides_within
+        renderer.planner.decides_within = lambda n: looked.append(decides(n)) or every_block or looked[-1]
+        commands = [renderer.control(block).planned_ratio.copy() for _ in range(4800 // block)]
+        return np.concatenate(commands), looked
+
+    skipping, looked = planned(False)
+    always, _ = planned(True)
+    np.testing.assert_array_equal(skipping, always)
+    assert sum(looked) == pytest.approx(len(looked) * block / 24, abs=2)
+    assert np.ptp(skipping) > 0.5  # it plans something
