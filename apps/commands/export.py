@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import THREADS
-from ultraglide.apps.commands.render_options import add_render_options
+from ultraglide.apps.commands.render_options import add_render_options, model_words
 
 if TYPE_CHECKING:
     import numpy as np
@@ -262,6 +262,7 @@ def run(args) -> int:
                           "clipped_samples": counters.clipped_samples,
                           "clipped_fraction": round(clipped_fraction(renderer), 6), "ramps": counters.ramps,
                           "effects_started": 0 if renderer.effects is None else renderer.effects.started,
+                          "model": args.model, "planned": renderer.planner is not None,
                           **limiter_fields(stage),
                           "extra_files": [str(extra) for extra in (args.envelope_csv, args.plot, args.hjif)
                                           if extra]})
@@ -270,6 +271,7 @@ def run(args) -> int:
     played = "" if renderer.effects is None else f", {started} effect{'s' if started != 1 else ''} played"
     print(f"wrote {output}: {duration_s:.2f} s at {rate} Hz, {args.format}, carrier {renderer.carrier_hz:g} Hz, "
           f"{counters.clipped_samples} clipped samples, {counters.ramps} ramps{played}; {stage.limiter.summary()}")
+    print(model_words(args.model, renderer.model, renderer.planner is not None))
     for extra in (args.envelope_csv, args.plot, args.hjif):
         if extra:
             print(f"wrote {extra}")

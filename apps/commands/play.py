@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from ultraglide.apps.cli.options import output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.commands.finger_options import add_finger_options, finger_config
-from ultraglide.apps.commands.render_options import add_render_options, planning_asked
+from ultraglide.apps.commands.render_options import add_render_options, model_words, planning_asked
 
 if TYPE_CHECKING:
     from ultraglide.render.engine import EngineConfig
@@ -220,6 +220,7 @@ def run(args) -> int:
             for note in (engine.ready_info.get("device_status") or {}).get("notes") or []:
                 print(note, flush=True)  # where the device's own limits bind, said once before playing
             print(plate_words(inputs.profile, args.profile), flush=True)  # which plate, chosen by whom
+            print(model_words(args.model, inputs.model, planning_asked(args, inputs.model)), flush=True)
         started = time.perf_counter()
         replay(engine.touch, itertools.chain(first, chunks), started, engine.sleep, replayed)
         engine.touch(time.perf_counter(), float(replayed.last[0]), float(replayed.last[1]), down=False)

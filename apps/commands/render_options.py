@@ -64,6 +64,39 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
                          help="leave out the temporal effects saved with the texture")
 
 
+def model_words(spec: str, model, planned: bool) -> str:
+    """The model a command renders with and whether it plans, in one line, e.g. ``model: dynamic (friction
+    dynamics: Meyer et al. 2014): the friction felt is planned``.
+
+    Parameters
+    ----------
+    spec : str
+        The model as given (``--model``).
+    model : FrictionModel
+        It, loaded.
+    planned : bool
+        Whether the renderer plans (:func:`planning_asked`).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from ultraglide.render.physics.calibration import load_model
+    >>> model_words("stretched", load_model("stretched"), False)
+    "model: stretched (static): each instant's ratio asked for"
+    >>> model_words("dynamic", load_model("dynamic"), True)
+    'model: dynamic (with the published friction dynamics): the friction felt is planned'
+    """
+    dynamics = getattr(model, "dynamics", None)
+    if dynamics is None:
+        return f"model: {spec} (static): each instant's ratio asked for"
+    whose = "the published friction dynamics" if dynamics.published else "its own friction dynamics"
+    how = "the friction felt is planned" if planned else "each instant's ratio asked for (--no-planning)"
+    return f"model: {spec} (with {whose}): {how}"
+
+
 def planning_asked(args, model) -> bool:
     """Whether the renderer plans the friction felt: yes unless ``--no-planning``, which a model without friction
     dynamics refuses (there is nothing to plan against)."""
