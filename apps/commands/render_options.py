@@ -65,8 +65,7 @@ def add_render_options(parser: argparse.ArgumentParser) -> None:
 
 
 def model_words(spec: str, model, planned: bool) -> str:
-    """The model a command renders with and whether it plans, in one line, e.g. ``model: dynamic (friction
-    dynamics: Meyer et al. 2014): the friction felt is planned``.
+    """The model a command renders with and whether it plans, in one line.
 
     Parameters
     ----------

@@ -508,7 +508,9 @@ def render_offline(texture: Texture, layout: Layout, model: FrictionModel, profi
 def delivered_ratio(model: FrictionModel, plate_um_pp: np.ndarray, rate_hz: float, force_n,
                     speed_mm_s) -> np.ndarray:
     """The friction ratio a finger gets from the plate's amplitude: the model's settled ratio, or, for a model with
-    friction dynamics, the ratio felt (which lags the amplitude: falls in milliseconds, recovers in tens).
+    friction dynamics, the ratio felt (which lags the amplitude: falls in milliseconds, recovers in tens). A speed
+    law's weakening of the settled ratio (``speed:S:NAME``) is not applied here: the ratio is the law's at its
+    reference speed.
 
     Parameters
     ----------
