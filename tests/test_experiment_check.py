@@ -75,6 +75,37 @@ def test_under_friction_dynamics_the_check_judges_the_friction_felt():
     assert not felt.passed and len(felt.failures) == 1
     assert "stimulus 'fine' delivers a friction contrast of" in felt.failures[0]
     assert "the finger's friction dynamics" in felt.failures[0] and "judged as felt" in felt.failures[0]
+    assert felt.felt and not static.felt and felt.as_dict()["felt"] is True
+
+
+def test_under_friction_dynamics_a_recorded_path_is_judged_felt_too(tmp_path):
+    """The check's recorded-path branch takes the felt ratio at the path's own speed: a straight stroke at
+    100 mm/s across a 1 mm grating keeps under the 0.30 bound of the 0.3 asked (refused, along that path), and
+    across a 20 mm grating more than 0.70 of it; under the static model both pass along the path."""
+    fine, coarse = Stimulus("fine", "grating-1mm", contrast=0.3), Stimulus("coarse", "grating-2mm", contrast=0.3,
+                                                                             scale=10.0)
+    stroke = touch_log(tmp_path / "stroke.csv", 2.0, 20.0, 38.0, 20.0, seconds=0.36)  # 100 mm/s
+    design = replace(rating_design(fine, coarse), check_paths=(stroke,))
+    static = check_stimuli(design)
+    felt = check_stimuli(replace(design, model="dynamic"))
+    assert not [f for f in static.failures if "recorded path" in f], static.failures
+    along = {name: felt.figures[f"{name} along {stroke}"] for name in ("fine", "coarse")}
+    assert along["fine"].delivered_contrast < 0.30 * 0.3
+    assert along["coarse"].delivered_contrast > 0.70 * 0.3 * 0.9
+    assert any("stimulus 'fine' delivers a friction contrast" in f and f"along the recorded path {stroke}" in f
+               and "judged as felt" in f for f in felt.failures), felt.failures
+
+
+def test_the_check_command_says_the_model_and_that_the_figures_are_felt(tmp_path):
+    from ultraglide.experiment import to_toml
+
+    design = tmp_path / "design.toml"
+    coarse = Stimulus("coarse", "grating-2mm", contrast=0.3, scale=10.0)
+    for model, words in (("dynamic", "felt through the finger's friction dynamics"), ("stretched", "delivered")):
+        design.write_text(to_toml(replace(rating_design(coarse), model=model)))
+        text = run_cli("experiment", "check", str(design), check=True).stdout
+        assert f"model {model})" in text.splitlines()[0]
+        assert f"on the path / {words}; mean ratio asked / {words}):" in text
 
 
 def test_a_texture_whose_features_the_swipe_never_crosses_is_refused():

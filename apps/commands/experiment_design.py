@@ -123,9 +123,11 @@ def run_check(args) -> int:
 
 def plan_text(design, report, trials, participant: str) -> str:
     """The design, its stimuli's figures and its trial plan, in words."""
-    lines = [f"{design.name}: {len(trials)} trials for {participant} (seed {design.seed}, order {design.order})",
+    delivered = "felt through the finger's friction dynamics" if report.felt else "delivered"
+    lines = [f"{design.name}: {len(trials)} trials for {participant} (seed {design.seed}, order {design.order}, "
+             f"model {design.model})",
              "stimuli along the zone's swipe and the recorded paths (friction contrast asked / on the path / "
-             "delivered; mean ratio asked / delivered):"]
+             f"{delivered}; mean ratio asked / {delivered}):"]
     for key, figure in report.figures.items():
         label = key if " along " in key else figure.label
         lines.append(f"  {label}: contrast {figure.asked_contrast:.3f} / {figure.path_contrast:.3f} / "

@@ -358,6 +358,9 @@ class CheckReport:
     ----------
     figures : dict of str to StimulusFigures
     failures : list of str
+    felt : bool
+        The figures are the friction felt through the model's friction dynamics (a dynamic model), not the
+        plate's settled ratio.
 
     Examples
     --------
@@ -368,6 +371,7 @@ class CheckReport:
 
     figures: dict[str, StimulusFigures]
     failures: list[str]
+    felt: bool = False
 
     @property
     def passed(self) -> bool:
@@ -392,7 +396,7 @@ class CheckReport:
         >>> CheckReport({}, []).as_dict()["criteria"]["min_contrast_kept"] == MIN_CONTRAST_KEPT
         True
         """
-        return {"passed": self.passed, "failures": list(self.failures),
+        return {"passed": self.passed, "failures": list(self.failures), "felt": self.felt,
                 "stimuli": {key: value.as_dict() for key, value in self.figures.items()},
                 "criteria": {"min_contrast_kept": MIN_CONTRAST_KEPT, "max_mean_error": MAX_MEAN_ERROR,
                              "max_pair_contrast_ratio": MAX_PAIR_CONTRAST_RATIO,
@@ -676,7 +680,7 @@ def check_stimuli(design: Design, rig: Rig | None = None) -> CheckReport:
                 check(block.modulus_stimulus, None)
             if block.task in ("afc", "same_different"):
                 _check_pair(design, name, figures, failures)
-    return CheckReport(figures, failures)
+    return CheckReport(figures, failures, felt)
 
 
 def refuse_unfit(design: Design, zone_source) -> None:
