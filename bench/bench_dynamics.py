@@ -106,7 +106,7 @@ def step_bound(speed: float) -> tuple[float, float]:
 def decision_cost() -> float:
     """The least µs of one planning decision (the compiled planner on a 24-sample block, a 100 mm/s finger's
     horizon, the felt ratio anywhere from 0.3 to 1 below an edge): its worst case is every candidate weighed."""
-    from ultraglide.render.kernels import plan_friction
+    from ultraglide.render.kernels import PLAN_ROWS, plan_friction
     from ultraglide.render.physics.dynamics import FrictionDynamics
     from ultraglide.render.planning import Planner
 
@@ -115,12 +115,12 @@ def decision_cost() -> float:
     stride, steps = planner.stride, planner.steps
     target = np.full(stride, 0.3)
     ahead = np.r_[np.full(steps // 3, 0.3), np.ones(steps)].astype(np.float32)
-    out, goals = np.empty(stride), np.empty(steps)
+    out, work = np.empty(stride), np.empty((PLAN_ROWS, steps + 1))
     times = []
     for felt in np.tile(np.linspace(0.3, 1.0, 200), 5):
         start = time.perf_counter_ns()
         plan_friction(target, ahead, stride, 0.1, 1.0, planner.k_onset, planner.k_recovery, stride, steps, 9, felt,
-                      0, 0.3, 1, out, goals)
+                      0, 0.3, 1, out, work)
         times.append(time.perf_counter_ns() - start)
     return min(times[1:]) / 1000.0  # the first call may load the compiled kernel
 

@@ -387,37 +387,130 @@ def _step_sums(k, stride):
     return s1 / stride, s2 / stride
 
 
+# rows of the planner's scratch (plan_friction's ``work``), each steps + 1 long: the horizon's targets, their
+# prefix sums and squares, their suffix sums weighted by the hold's powers (onset, recovery), the holds' powers and
+# the sums of their powers and squares, the greedy command's cost from each step on a settled finger (NaN until
+# needed), the greedy path from the felt ratio (its felt ratio and cost so far), and the walks that fill the tails
+_GOAL, _SUM, _SQUARES, _WEIGHTED, _POWER, _POWER_SUM, _SQUARE_SUM, _TAIL, _GREEDY_FELT, _GREEDY_COST, _WALK = (
+    0, 1, 2, 3, 5, 7, 9, 11, 12, 13, 14)
+PLAN_ROWS = 16
+
+
 @njit(cache=True, nogil=True)
-def _plan_cost(felt, goals, steps, level, switch, level_first, floor, ceiling, hold_on, hold_rec, sums, enough):
-    """The squared error over the horizon of a plan, and its first step's command: ``level`` held for the first
-    ``switch`` steps and the greedy command after (``level_first``), or the greedy command first and ``level``
-    after. Each step's error is its mean over the step's samples (the felt ratio moves within a step: judged only
-    at the step's end, a deep short drop would look better than it is felt), ``sums`` the means of h^m and h^2m
-    for onset and recovery (:func:`_step_sums`). Stops adding once the cost reaches ``enough`` (a plan already
-    beaten)."""
+def _greedy_step(y, r, floor, ceiling, hold_on, hold_rec, sums):
+    """One step of the greedy command from the felt ratio ``y`` towards ``r``: (command, its step's squared error
+    summed over its samples as the planner weighs a step, the felt ratio after, whether the command was within
+    reach)."""
+    hold = hold_on if r < y else hold_rec
+    wanted = (r - y * hold) / (1.0 - hold)
+    x = min(max(wanted, floor), ceiling)
+    o = 0 if x < y else 2
+    d, e = x - r, y - x
+    return x, d * d + 2.0 * d * e * sums[o] + e * e * sums[o + 1], _held(y, x, hold_on, hold_rec), x == wanted
+
+
+@njit(cache=True, nogil=True)
+def _greedy_tail(work, start, y, steps, floor, ceiling, hold_on, hold_rec, sums, enough):
+    """The squared error of following the greedy command from step ``start`` (felt ratio ``y``) to the horizon.
+    After its first step within reach the felt ratio is that step's target, and the rest is the settled finger's
+    (:func:`_settled_tail` from the next step). Stops once the error reaches ``enough`` (a plan already beaten)."""
     cost = 0.0
-    y = felt
-    first = level
-    for j in range(steps):
-        r = goals[j]
-        x = level if (j < switch) == level_first else _greedy(y, r, floor, ceiling, hold_on, hold_rec)
-        if j == 0:
-            first = x
-        if x < y:
-            m1, m2 = sums[0], sums[1]
-        else:
-            m1, m2 = sums[2], sums[3]
-        d, e = x - r, y - x
-        cost += d * d + 2.0 * d * e * m1 + e * e * m2
-        y = _held(y, x, hold_on, hold_rec)
+    for j in range(start, steps):
+        _, step_cost, y, reached = _greedy_step(y, work[_GOAL, j], floor, ceiling, hold_on, hold_rec, sums)
+        cost += step_cost
+        if reached:
+            return cost + _settled_tail(work, j + 1, steps, floor, ceiling, hold_on, hold_rec, sums)
         if cost >= enough:
             break
-    return cost, first
+    return cost
+
+
+@njit(cache=True, nogil=True)
+def _settled_tail(work, start, steps, floor, ceiling, hold_on, hold_rec, sums):
+    """The squared error of the greedy command from step ``start`` on, the felt ratio settled at the step before's
+    target: the ``_TAIL`` row, filled where first needed. A walk from a step ends where the greedy command reaches
+    a target, and the tail from the step after is the rest; the walks are kept (``_WALK``: where each began, its
+    error) until one ends on a tail already known or at the horizon, then the tails are summed back."""
+    walks = 0
+    j = start
+    while j < steps and math.isnan(work[_TAIL, j]):
+        y = work[_GOAL, j - 1]
+        cost = 0.0
+        k = j
+        while k < steps:
+            _, step_cost, y, reached = _greedy_step(y, work[_GOAL, k], floor, ceiling, hold_on, hold_rec, sums)
+            cost += step_cost
+            k += 1
+            if reached:
+                break
+        work[_WALK, walks] = j
+        work[_WALK + 1, walks] = cost
+        walks += 1
+        j = k
+    total = work[_TAIL, j] if j < steps else 0.0
+    for walk in range(walks - 1, -1, -1):
+        total += work[_WALK + 1, walk]
+        work[_TAIL, int(work[_WALK, walk])] = total
+    return work[_TAIL, start] if start < steps else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _hold_cost(work, start, stop, x, y, sums):
+    """The squared error of holding the command ``x`` over steps ``start`` to ``stop`` - 1 from the felt ratio ``y``,
+    and the felt ratio after, in closed form: step j's felt ratio is x + (y - x) h^(j - start), h the hold of one
+    step in the direction the finger moves (onset towards a lower command), so its error sums to
+    n x^2 - 2 x sum(r) + sum(r^2) + 2 m1 (y - x) (x sum(h^i) - sum(r_j h^(j - start))) + m2 (y - x)^2 sum(h^2i)."""
+    n = stop - start
+    if n <= 0:
+        return 0.0, y
+    e = y - x
+    o = 0 if x < y else 1
+    m1, m2 = sums[2 * o], sums[2 * o + 1]
+    total = work[_SUM, stop] - work[_SUM, start]
+    squares = work[_SQUARES, stop] - work[_SQUARES, start]
+    power = work[_POWER + o, n]
+    weighted = work[_WEIGHTED + o, start] - power * work[_WEIGHTED + o, stop]
+    cost = (n * x * x - 2.0 * x * total + squares + 2.0 * m1 * e * (x * work[_POWER_SUM + o, n] - weighted)
+            + m2 * e * e * work[_SQUARE_SUM + o, n])
+    return cost, x + e * power
+
+
+@njit(cache=True, nogil=True)
+def _prepare_decision(work, steps, felt, floor, ceiling, hold_on, hold_rec, sums):
+    """Fills ``work``'s rows from its targets (``_GOAL``) for one decision over ``steps`` steps."""
+    work[_SUM, 0] = 0.0
+    work[_SQUARES, 0] = 0.0
+    for o in range(2):
+        hold = hold_on if o == 0 else hold_rec
+        work[_POWER + o, 0] = 1.0
+        work[_POWER_SUM + o, 0] = 0.0
+        work[_SQUARE_SUM + o, 0] = 0.0
+        work[_WEIGHTED + o, steps] = 0.0
+        for n in range(steps):
+            power = work[_POWER + o, n]
+            work[_POWER + o, n + 1] = power * hold
+            work[_POWER_SUM + o, n + 1] = work[_POWER_SUM + o, n] + power
+            work[_SQUARE_SUM + o, n + 1] = work[_SQUARE_SUM + o, n] + power * power
+        for j in range(steps - 1, -1, -1):
+            work[_WEIGHTED + o, j] = work[_GOAL, j] + hold * work[_WEIGHTED + o, j + 1]
+    for j in range(steps):
+        r = work[_GOAL, j]
+        work[_SUM, j + 1] = work[_SUM, j] + r
+        work[_SQUARES, j + 1] = work[_SQUARES, j] + r * r
+    work[_TAIL, :steps] = np.nan
+    work[_TAIL, steps] = 0.0
+    work[_GREEDY_FELT, 0] = felt
+    work[_GREEDY_COST, 0] = 0.0
+    for j in range(steps):
+        _, step_cost, y, _ = _greedy_step(work[_GREEDY_FELT, j], work[_GOAL, j], floor, ceiling, hold_on, hold_rec,
+                                          sums)
+        work[_GREEDY_FELT, j + 1] = y
+        work[_GREEDY_COST, j + 1] = work[_GREEDY_COST, j] + step_cost
 
 
 @njit(cache=True, nogil=True)
 def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recovery, stride, steps, levels, felt,
-                  phase, command, gate, out, goals):
+                  phase, command, gate, out, work):
     """The command that makes the felt friction follow ``target`` as closely as the dynamics allow.
 
     The felt ratio y follows the command x (a static friction ratio) through y += k (x - y), k = ``k_onset``
@@ -427,7 +520,10 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     the step's samples (in closed form: within a held step the felt ratio is an exponential), for: holding one
     of ``levels`` commands evenly spaced in [floor, ceiling], or the greedy command (the one reaching the next
     step's target, clipped), for 1, 2, 4, ... steps and then following the greedy command;
-    it keeps the first step of the best, held until the next decision. A step's target is the mean of the
+    it keeps the first step of the best, held until the next decision. Each plan's error is weighed in closed
+    form over its held stretches (:func:`_hold_cost`) and its greedy ones end, once a target is reached, in the
+    greedy path's error from there, worked out once a decision: a decision costs a few passes over the horizon,
+    not one per plan. A step's target is the mean of the
     block's targets over it; past the block it comes from ``ahead`` (one a step from sample ``first_ahead``,
     which the caller band-limits to the step's length).
 
@@ -455,8 +551,8 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
         0: the finger is off (the command is the target, the felt ratio 1); 1: on.
     out : numpy.ndarray of float64
         Filled with the command, friction ratio.
-    goals : numpy.ndarray of float64
-        Room for ``steps`` floats (the horizon's targets, gathered once a decision).
+    work : numpy.ndarray of float64
+        Room for a decision's sums: :data:`PLAN_ROWS` rows of at least ``steps`` + 1.
 
     Returns
     -------
@@ -471,7 +567,7 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
     >>> import numpy as np
     >>> out = np.empty(4)
     >>> plan_friction(np.array([0.5, 0.5, 0.05, 0.05]), np.full(3, 0.5, dtype=np.float32), 5, 0.1, 1.0, 1.0, 1.0,
-    ...               1, 3, 5, 1.0, 0, 1.0, 1, out, np.empty(3))
+    ...               1, 3, 5, 1.0, 0, 1.0, 1, out, np.empty((PLAN_ROWS, 4)))
     (0.1, 0, 0.1, 2)
     >>> out.tolist()
     [0.5, 0.5, 0.1, 0.1]
@@ -501,22 +597,26 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                     total = 0.0
                     for m in range(end - stride + 1, end + 1):
                         total += np.float64(target[m])
-                    goals[j] = total / stride
+                    work[_GOAL, j] = total / stride
                 else:
-                    goals[j] = _target_at(end, target, ahead, first_ahead, stride)
-            r0 = goals[0]
-            for c in range(levels + 1):
+                    work[_GOAL, j] = _target_at(end, target, ahead, first_ahead, stride)
+            _prepare_decision(work, steps, felt, floor, ceiling, hold_on, hold_rec, sums)
+            greedy_first = _greedy(felt, work[_GOAL, 0], floor, ceiling, hold_on, hold_rec)
+            for c in range(levels + 1):  # hold a level (or the greedy command) for 1, 2, 4, ... steps, then greedy
                 if c < levels:
                     level = floor + (ceiling - floor) * c / (levels - 1)
                 else:
-                    level = _greedy(felt, r0, floor, ceiling, hold_on, hold_rec)
+                    level = greedy_first
                 span = 1
                 while True:
-                    cost, first = _plan_cost(felt, goals, steps, level, span, True, floor, ceiling, hold_on,
-                                             hold_rec, sums, best_cost)
+                    held = min(span, steps)
+                    cost, y = _hold_cost(work, 0, held, level, felt, sums)
+                    if held < steps and cost < best_cost:  # (a tail adds error: a plan already beaten stays so)
+                        cost += _greedy_tail(work, held, y, steps, floor, ceiling, hold_on, hold_rec, sums,
+                                             best_cost - cost)
                     if cost < best_cost:
                         best_cost = cost
-                        best = first
+                        best = level
                     if span >= steps or c == levels:
                         break
                     span *= 2
@@ -524,11 +624,11 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
             while delay < steps:  # later than now (holding a level from now is either too early or never)
                 for c in range(levels):
                     level = floor + (ceiling - floor) * c / (levels - 1)
-                    cost, first = _plan_cost(felt, goals, steps, level, delay, False, floor, ceiling, hold_on,
-                                             hold_rec, sums, best_cost)
+                    cost, _ = _hold_cost(work, delay, steps, level, work[_GREEDY_FELT, delay], sums)
+                    cost += work[_GREEDY_COST, delay]
                     if cost < best_cost:
                         best_cost = cost
-                        best = first
+                        best = greedy_first
                 delay *= 2
             command = best
         x = command
@@ -567,7 +667,7 @@ def warm_up() -> None:
     motion(f64, f64, 0.0, 0.0, np.empty(4), np.empty(4), np.empty(4))
     for ratio in (f64 + 0.5, np.zeros(4, dtype=np.float32) + 0.5):
         plan_friction(ratio, np.zeros(3, dtype=np.float32) + 0.5, 5, 0.1, 1.0, 0.02, 0.002, 2, 3, 5, 1.0, 0, 1.0, 1,
-                      np.empty(4), np.empty(3))
+                      np.empty(4), np.empty((PLAN_ROWS, 4)))
     for kind in range(3):
         swipe_path(kind, f64, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, np.empty(4), np.empty(4),
                    np.empty(4, dtype=np.bool_))

@@ -90,7 +90,7 @@ class Planner:
         self._speed = None
         self.k_recovery = 0.0
         self.steps = 1
-        self._goals = np.empty(len(_STEPS))
+        self._work = np.empty((kernels.PLAN_ROWS, len(_STEPS) + 1))
         self.set_speed(dynamics.reference_speed_mm_s)
 
     def set_speed(self, speed_mm_s: float) -> None:
@@ -256,7 +256,7 @@ class Planner:
         n = len(target)
         self.felt, self.phase, self.command, below = kernels.plan_friction(
             target, ahead, self.first_ahead(n), float(floor), 1.0, self.k_onset, self.k_recovery, self.stride,
-            self.steps, LEVELS, self.felt, self.phase, self.command, 1 if down else 0, out, self._goals)
+            self.steps, LEVELS, self.felt, self.phase, self.command, 1 if down else 0, out, self._work)
         self.below_floor += below
         return out
 
