@@ -676,7 +676,10 @@ def test_recorded_drag_replays_to_a_wav_that_follows_it(halves, tmp_path):
     assert len(log.t_s) > 50 and np.all(log.force_n == 0.5)
 
     wav = tmp_path / "drag.wav"
-    run_cli("export", halves, "--trajectory", record, "-o", wav, check=True)
+    # the static law, whose envelope follows the finger's position: the default plans the friction felt and raises
+    # it before the sticky half by up to its horizon (100 ms), more than the margin below where a loaded demo's
+    # drag lingers near the edge
+    run_cli("export", halves, "--trajectory", record, "--model", "stretched", "-o", wav, check=True)
     signal, rate = soundfile.read(wav)
     window = rate // 1000  # 1 ms: 25 carrier periods
     envelope = np.abs(signal[: len(signal) // window * window]).reshape(-1, window).max(axis=1)
