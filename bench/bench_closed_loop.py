@@ -311,7 +311,8 @@ def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, cl
     log_path = folder / f"{name}-finger.csv"
     options = ("--finger", finger, "--finger-speed-mm-s", speed, *(("--finger-dynamics",) if dynamics else ()))
     with plate_sim(folder, log_path, *options) as (link, summary):
-        run = play(texture, link, folder, name, speed, seconds, closed, *(("--model", "dynamic") if dynamics else ()))
+        run = play(texture, link, folder, name, speed, seconds, closed,
+                   "--model", "dynamic" if dynamics else "stretched")
     log = read(log_path)
     envelope = read(run["envelope"])
     line = lined_up(envelope, read(run["sensors"]), log)
