@@ -309,7 +309,8 @@ def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, cl
     slug = Path(finger.removeprefix("table:")).stem + ("-lagging" if dynamics else "")
     name = f"real-{speed:g}-{slug}-{'closed' if closed else 'open'}"
     log_path = folder / f"{name}-finger.csv"
-    options = ("--finger", finger, "--finger-speed-mm-s", speed, *(("--finger-dynamics",) if dynamics else ()))
+    options = ("--finger", finger, "--finger-speed-mm-s", speed,
+               "--finger-dynamics" if dynamics else "--no-finger-dynamics")
     with plate_sim(folder, log_path, *options) as (link, summary):
         run = play(texture, link, folder, name, speed, seconds, closed,
                    "--model", "dynamic" if dynamics else "stretched")

@@ -102,7 +102,8 @@ class RigRun:
 
 
 class ClosedLoopRig:
-    """See the module docstring. ``texture``: a Texture; ``finger``: its FingerConfig (default: the default finger);
+    """See the module docstring. ``texture``: a Texture; ``finger``: its FingerConfig (default: the default finger
+    without its lag, the static law the loop of issue 25 was built for; ``FingerConfig()`` for the lagging one);
     ``q``: the plate's real Q (None: the profile's); ``closed``: the friction loop on (and the amplitude loop);
     ``braking``: the firmware's amplitude loop may brake (an antiphase drive), else its drive only pushes;
     ``force_correction``: the loop's values sent with the force they were computed at (SETPOINTS_FORCE), which the
@@ -114,7 +115,7 @@ class ClosedLoopRig:
                  lead_s: float = 0.5, loop_tau_s: float | None = None, braking: bool = True,
                  force_correction: bool = True):
         self.profile = load_profile(profile)
-        self.config = (finger or FingerConfig()).with_log(None)
+        self.config = (finger or FingerConfig(dynamics=False)).with_log(None)
         self.finger = build_finger(self.config)
         from ultraglide.devices.sim.finger_log import FingerLog
 

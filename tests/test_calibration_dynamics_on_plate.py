@@ -1,6 +1,6 @@
 """``calibrate --device sim`` fits the simulated finger's friction dynamics, and ``--compare`` ranks models in time.
 
-The simulated finger with ``--finger-dynamics`` lags its law as the published figures say (devices/sim/finger.py,
+The default simulated finger lags its law as the published figures say (devices/sim/finger.py,
 its own implementation): 5 ms where friction falls, 70 ms (22 / v)^0.5 where it recovers, 32.8 ms at the 100 mm/s
 it slides at here. Its force sensors are 300 Hz, 1 ms late, sampled at 1 kHz. The tolerance is the sampling's:
 half a sensor period (0.5 ms) on the onset, one (1 ms) on the recovery (the synthetic tests in
@@ -33,12 +33,12 @@ def calibrated(folder, *finger, passes="2", step_ms="200"):
 
 @pytest.fixture(scope="module")
 def lagging(tmp_path_factory):
-    return calibrated(tmp_path_factory.mktemp("lagging"), "--finger-dynamics")
+    return calibrated(tmp_path_factory.mktemp("lagging"))  # the default finger lags, as measured fingers do
 
 
 @pytest.fixture(scope="module")
 def instantaneous(tmp_path_factory):
-    return calibrated(tmp_path_factory.mktemp("instantaneous"))
+    return calibrated(tmp_path_factory.mktemp("instantaneous"), "--no-finger-dynamics")
 
 
 @pytest.mark.slow

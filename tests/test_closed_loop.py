@@ -259,8 +259,8 @@ def test_a_slower_serial_stream_lines_targets_up_with_the_plates_values(tmp_path
     log, link = tmp_path / "truth.csv", tmp_path / "plate"
     envelope, sensors = tmp_path / "envelope.csv", tmp_path / "sensors.csv"
     process = subprocess.Popen([sys.executable, "-m", "ultraglide", "plate-sim", "--link", str(link), "--json",
-                                "--finger", "default", "--finger-force", "0.5", "--finger-drift", "0",
-                                "--finger-moisture", "0", "--finger-log", str(log)],
+                                "--finger", "default", "--no-finger-dynamics", "--finger-force", "0.5",
+                                "--finger-drift", "0", "--finger-moisture", "0", "--finger-log", str(log)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert json.loads(process.stdout.readline())["event"] == "serving"

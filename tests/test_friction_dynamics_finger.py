@@ -68,7 +68,10 @@ def test_plate_sim_finger_dynamics_option_builds_a_lagging_finger():
     assert config.lags and "friction in time" in config.law_words()
     assert build_finger(config).dynamics == FingerDynamics()
     assert build_finger(FingerConfig(law="dynamic")).dynamics == FingerDynamics()  # a dynamic law lags
-    assert build_finger(FingerConfig()).dynamics is None
+    assert build_finger(FingerConfig()).dynamics == FingerDynamics()  # the default finger lags, as real ones do
+    assert build_finger(FingerConfig(law="exponential")).dynamics is None  # another law follows at once
+    unlagged = finger_config(parser.parse_args(["plate-sim", "--no-finger-dynamics"]))
+    assert not unlagged.lags and build_finger(unlagged).dynamics is None
 
 
 def test_a_finger_whose_law_is_a_calibration_lags_as_its_fitted_dynamics_say(tmp_path):

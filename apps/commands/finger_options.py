@@ -63,10 +63,10 @@ def add_finger_options(parser: argparse.ArgumentParser, where: str) -> None:
                        help="the force sensors misread from START to END s after the plate started: nan, range "
                             "(50 N) or zero (a cut cable); repeat for several")
     group.add_argument("--finger-seed", type=SEED, metavar="N", help="its random walk's seed (default: 0)")
-    group.add_argument("--finger-dynamics", action="store_true", default=None,
+    group.add_argument("--finger-dynamics", action=argparse.BooleanOptionalAction, default=None,
                        help="its friction lags the law as measured fingers' do: 5 ms to fall when the vibration "
                             "starts, 70 ms to recover at 22 mm/s, slower when sliding slower (Meyer et al. 2014; on "
-                            "for a dynamic law)")
+                            "for the default finger and a dynamic law; --no-finger-dynamics: it follows at once)")
 
 
 def _fault(text: str) -> str:

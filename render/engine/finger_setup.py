@@ -9,7 +9,8 @@ finger itself (in ``devices``) only takes a callable.
 The default finger is unlike the host's default model on purpose: its static (stretched) law with its amplitude
 scale times 0.7 (it needs 30 % less vibration) and a floor of 0.1 that vibration does not remove, drifting
 ±30 % in scale over a minute, its friction at rest rising 25 % with a long dwell, pressing with a force
-that wanders in 0.2-1 N, sliding at 100 mm/s.
+that wanders in 0.2-1 N, sliding at 100 mm/s. Like the host's default model and measured fingers, its friction
+lags the law (the published dynamics; ``dynamics=False``, ``--no-finger-dynamics``: it follows at once).
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ class FingerConfig:
     Examples
     --------
     >>> config = FingerConfig()
-    >>> config.law_scale, config.law_floor, config.lags, config.law_words()
-    (0.7, 0.1, False, "stretched (the host default's static law), scale x0.7, floor 0.1")
+    >>> config.law_scale, config.law_floor, config.lags, FingerConfig(dynamics=False).law_words()
+    (0.7, 0.1, True, "stretched (the host default's static law), scale x0.7, floor 0.1")
     >>> FingerConfig(law="dynamic").lags, config.with_log("finger.csv").log
     (True, 'finger.csv')
     """
@@ -70,20 +71,27 @@ class FingerConfig:
     force_points: tuple | None = None  # (times s, forces N): a scripted press instead of ``force`` (a calibration's)
     faults: tuple[str, ...] = ()  # sensor faults, KIND:START-END (devices.finger.SensorFault)
     log_hz: float = 2000.0  # the log's rows a second
-    dynamics: bool = False  # the friction lags the law (5 ms down, 70 ms back at 22 mm/s); on for a dynamic[:X] law
+    # the friction lags the law (5 ms down, 70 ms back at 22 mm/s); None: the law's own way (the default finger,
+    # a dynamic[:X] law and a calibration with fitted dynamics lag, other laws follow at once)
+    dynamics: bool | None = None
 
     @property
     def lags(self) -> bool:
-        """Whether the simulated finger's friction lags in time (the dynamics asked for, a ``dynamic`` law, or a
-        calibration whose dynamics were fitted on the plate).
+        """Whether the simulated finger's friction lags in time: as asked (``dynamics``), else for the default
+        finger (as the host's default model assumes), a ``dynamic`` law, or a calibration whose dynamics were fitted
+        on the plate.
 
         Examples
         --------
-        >>> FingerConfig().lags, FingerConfig(law="dynamic:stretched").lags, FingerConfig(dynamics=True).lags
-        (False, True, True)
+        >>> FingerConfig().lags, FingerConfig(dynamics=False).lags, FingerConfig(law="stretched").lags
+        (True, False, False)
+        >>> FingerConfig(law="dynamic:stretched").lags, FingerConfig(law="stretched", dynamics=True).lags
+        (True, True)
         """
+        if self.dynamics is not None:
+            return self.dynamics
         inner = self.law.split(":", 2)[-1] if self.law.startswith("speed:") else self.law  # speed:S:NAME's NAME
-        return (self.dynamics or inner == "dynamic" or inner.startswith("dynamic:")
+        return (inner == DEFAULT_LAW or inner == "dynamic" or inner.startswith("dynamic:")
                 or _fitted_dynamics(inner) is not None)
 
     @property
@@ -174,7 +182,7 @@ def _loaded_part(law: str, part: str):
 def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
     """How the simulated finger's friction lags its law: the dynamics fitted for this finger where its law is a
     calibration that has them (``calibrate`` on the plate), else the published ones where the config asks for a
-    lag (``--finger-dynamics``, a ``dynamic`` law), else none.
+    lag (the default finger, ``--finger-dynamics``, a ``dynamic`` law), else none.
 
     Parameters
     ----------
@@ -188,7 +196,7 @@ def finger_dynamics(config: FingerConfig) -> FingerDynamics | None:
 
     Examples
     --------
-    >>> finger_dynamics(FingerConfig()) is None, finger_dynamics(FingerConfig(dynamics=True)).recovery_s
+    >>> finger_dynamics(FingerConfig(dynamics=False)) is None, finger_dynamics(FingerConfig()).recovery_s
     (True, 0.07)
     """
     fitted = _fitted_dynamics(config.law)
@@ -353,8 +361,9 @@ def build_finger(config: FingerConfig, sample_rate_hz: int = 48000, sensor_rate_
     Examples
     --------
     >>> finger = build_finger(FingerConfig(force="0.5"))
-    >>> finger.name
-    "stretched (the host default's static law), scale x0.7, floor 0.1"
+    >>> finger.name  # doctest: +NORMALIZE_WHITESPACE
+    "stretched (the host default's static law), scale x0.7, floor 0.1, friction in time (5 ms down, 70 ms back at
+    22 mm/s (x (v_ref/v)^0.5))"
     """
     params = FingerParams(config.mu0, config.drift, config.drift_period_s, config.moisture, config.moisture_tau_s)
     sensors = ForceSensorParams(config.noise_n, config.bandwidth_hz, config.delay_ms / 1000.0, sensor_rate_hz,
@@ -386,7 +395,7 @@ def finger_words(config: FingerConfig) -> str:
 
     Examples
     --------
-    >>> finger_words(FingerConfig(force="0.5", drift=0.0))  # doctest: +NORMALIZE_WHITESPACE
+    >>> finger_words(FingerConfig(force="0.5", drift=0.0, dynamics=False))  # doctest: +NORMALIZE_WHITESPACE
     "finger: stretched (the host default's static law), scale x0.7, floor 0.1; mu0 1, no drift, +25 % with dwell;
     force 0.5 at 100 mm/s; sensors 5 mN, 300 Hz, 1 ms"
     """
