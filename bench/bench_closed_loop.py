@@ -335,7 +335,8 @@ def _real_time_run(folder: Path, texture: Path, speed: float, seconds: float, cl
     return {"rms": float(np.sqrt(np.mean(error[pick] ** 2))), "planned_rms": planned_rms, "played_rms": played_rms,
             "played_share": float(swiped.mean()), "underruns": status.get("underruns"),
             "fallbacks": status.get("loop_fallbacks"), "fallback_reasons": status.get("loop_fallback_reasons"),
-            "sensors_say": status.get("friction_error_rms"), "plate_peak": summary.get("peak_um_pp")}
+            "sensors_say": status.get("friction_error_rms"), "sensors_say_plan": status.get("friction_error_plan_rms"),
+            "plate_peak": summary.get("peak_um_pp")}
 
 
 def main() -> None:
@@ -423,11 +424,13 @@ def real_time_table(folder: Path, sine_path: Path, seconds: float) -> None:
           f"{seconds:g} s, load average {os.getloadavg()[0]:.1f}: the finger's truth against the target where the "
           "limit allows it (a lagging finger also against the friction the plan means felt)")
     print(f"{'finger':>22} {'open':>7} {'closed':>7} {'loop says':>10} {'planned: open':>14} {'closed':>7} "
-          f"{'as played: open':>16} {'closed':>7} {'underruns':>10} {'fallbacks':>10} {'lost':>5}")
+          f"{'as played: open':>16} {'closed':>7} {'loop says':>10} {'underruns':>10} {'fallbacks':>10} {'lost':>5}")
     for name, spec, dynamics in fingers:
         opened, closed = (real_time_case(folder, sine_path, 100.0, seconds, c, spec, dynamics) for c in (False, True))
+        say_plan = closed["sensors_say_plan"]
         planned = (f"{opened['planned_rms']:14.3f} {closed['planned_rms']:7.3f} {opened['played_rms']:16.3f} "
-                   f"{closed['played_rms']:7.3f}" if dynamics else f"{'':14} {'':7} {'':16} {'':7}")
+                   f"{closed['played_rms']:7.3f} {say_plan if say_plan is not None else math.nan:10.3f}" if dynamics
+                   else f"{'':14} {'':7} {'':16} {'':7} {'':10}")
         say = closed["sensors_say"]
         print(f"{name:>22} {opened['rms']:7.3f} {closed['rms']:7.3f} {say if say is not None else math.nan:10.3f} "
               f"{planned} {opened['underruns']}/{closed['underruns']:<8} {closed['fallbacks']!s:>10} "

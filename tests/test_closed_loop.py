@@ -190,6 +190,10 @@ def test_play_closed_loop_on_the_simulator_records_and_reports(tmp_path):
     # the loop's own measure, in real time: underruns on a loaded machine count in it (0.36 at load 15); the loop's
     # accuracy is checked in simulated time above
     assert status["friction_error_rms"] is not None and status["friction_error_rms"] < 0.5
+    # the default model plans against the default finger's lag: the error from what the plan means felt is reported
+    # beside the texture's, and is the smaller (a 1 mm grating swept fast is not felt sharply by any plan)
+    assert status["friction_error_plan_rms"] is not None
+    assert status["friction_error_plan_rms"] < status["friction_error_rms"]
     # the finger's truth on the host's clock, the envelope's target beside what was commanded
     log = read_rows(finger_log)
     assert ",".join(log[0]) == HEADER
@@ -311,3 +315,15 @@ def test_a_slower_serial_stream_lines_targets_up_with_the_plates_values(tmp_path
     if result.returncode == 0:
         status = json.loads(result.stdout)
         assert status["friction_error_rms"] is not None and status["friction_error_rms"] < 0.5  # targets known
+
+
+def test_plays_loop_line_gives_the_error_from_the_plan_only_where_there_is_one():
+    from ultraglide.apps.commands.play import loop_words
+
+    status = {"friction_error_rms": 0.1894, "friction_error_plan_rms": 0.0261, "loop": "closed loop: following",
+              "mu0": 0.859, "adapted_scale": 0.984, "correction": 0.039, "loop_fallbacks": 8}
+    assert loop_words(status) == ("friction loop: ratio error 0.189 rms as the plate's sensors measured it (0.026 "
+                                  "from the friction the plan means felt); at the end closed loop: following; mu0 "
+                                  "0.859, model scale x0.984, correction +0.039; 8 fallbacks to open loop")
+    static = dict(status, friction_error_plan_rms=None)
+    assert "plan" not in loop_words(static) and "ratio error 0.189 rms" in loop_words(static)

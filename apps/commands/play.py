@@ -292,11 +292,13 @@ def run(args) -> int:
 
 
 def loop_words(status: dict) -> str:
-    """The friction loop over the run, in one line: its state at the end, the error the plate's sensors measured,
+    """The friction loop over the run, in one line: its state at the end, the error the plate's sensors measured
+    (against the texture and, with a model that has friction dynamics, against the friction the plan means felt),
     what it adapted."""
-    error = status.get("friction_error_rms")
+    error, from_plan = status.get("friction_error_rms"), status.get("friction_error_plan_rms")
     measured = "no friction measured (the finger never slid)" if error is None else \
-        f"ratio error {error:.3f} rms as the plate's sensors measured it"
+        f"ratio error {error:.3f} rms as the plate's sensors measured it" + (
+            "" if from_plan is None else f" ({from_plan:.3f} from the friction the plan means felt)")
     return (f"friction loop: {measured}; at the end {status['loop']}; mu0 {status['mu0']:.3g}, model scale "
             f"x{status['adapted_scale']:.3g}, correction {status['correction']:+.3f}; "
             f"{status['loop_fallbacks']} fallbacks to open loop")

@@ -206,6 +206,8 @@ class FrictionLoop:
         self._lock = threading.Lock()  # status against the reader thread: held for a copy of a few numbers
         self._error_sum = 0.0
         self._error_count = 0
+        self._plan_error_sum = 0.0  # against the felt ratio the plan means (a model with friction dynamics)
+        self._plan_error_count = 0
         self._recent_square = math.nan  # the error², averaged over about ERROR_MEMORY_S
         self._memory = math.exp(-1.0 / (ERROR_MEMORY_S * self.sensor_rate_hz))
         self.measured_ratio = math.nan  # the newest batch's, for a chart
@@ -450,6 +452,11 @@ class FrictionLoop:
                 for square in (valid * valid).tolist():
                     self._recent_square = square if math.isnan(self._recent_square) else \
                         self._memory * self._recent_square + (1.0 - self._memory) * square
+            if meant is not None:
+                from_plan = batch.measured_ratio - meant
+                from_plan = from_plan[np.isfinite(from_plan)]
+                self._plan_error_sum += float(np.dot(from_plan, from_plan))
+                self._plan_error_count += len(from_plan)
             self.measured_ratio = estimate.measured_ratio
             self.target_ratio = nan_mean(seen) if np.isfinite(seen).any() else math.nan
         self._command(estimate, received_s)
@@ -551,11 +558,13 @@ class FrictionLoop:
         following, command, words = self.inverse.following_now()
         with self._lock:
             rms = math.sqrt(self._error_sum / self._error_count) if self._error_count else None
+            plan_rms = math.sqrt(self._plan_error_sum / self._plan_error_count) if self._plan_error_count else None
             recent = None if math.isnan(self._recent_square) else math.sqrt(self._recent_square)
             measured, target = self.measured_ratio, self.target_ratio
             frames = self.sensor_frames
         return {"loop": words, "loop_state": "following" if following else estimate.state,
-                "friction_error_rms": _plain(rms), "friction_error_recent": _plain(recent),
+                "friction_error_rms": _plain(rms), "friction_error_plan_rms": _plain(plan_rms),
+                "friction_error_recent": _plain(recent),
                 "measured_ratio": _plain(measured), "target_ratio_measured": _plain(target),
                 "mu0": round(estimate.mu0, 4), "adapted_scale": round(estimate.scale, 4),
                 "correction": round(self.correction.value, 4), "measured_force_n": _plain(estimate.force_n),
