@@ -344,6 +344,78 @@ def motion(x, y, x_before, y_before, dx_out, dy_out, step_out):
 
 
 @njit(cache=True, nogil=True)
+def line_path(times, latest_s, shift_s, vx, vy, x_ref, y_ref, x_out, y_out):
+    """Positions (mm) on a straight line at ``times`` (s), each held at ``latest_s`` past which the line is not
+    followed: x = x_ref + vx (min(t, latest_s) + shift_s), the same for y (a live finger's prediction, ``shift_s``
+    its lookahead less the line's reference time). Fills ``x_out`` and ``y_out``.
+
+    Parameters
+    ----------
+    times : numpy.ndarray of float64
+        The instants, s.
+    latest_s, shift_s : float
+        The last instant followed, and the shift added to each instant, s.
+    vx, vy : float
+        The line's velocity, mm/s.
+    x_ref, y_ref : float
+        Its position at the reference time, mm.
+    x_out, y_out : numpy.ndarray of float64
+        The times' length, filled with the positions, mm.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    From (10, 5) mm at 100 mm/s along x, held after 0.05 s:
+
+    >>> import numpy as np
+    >>> x, y = np.empty(3), np.empty(3)
+    >>> line_path(np.array([0.0, 0.02, 0.1]), 0.05, 0.0, 100.0, 0.0, 10.0, 5.0, x, y)
+    >>> x.tolist(), y.tolist()
+    ([10.0, 12.0, 15.0], [5.0, 5.0, 5.0])
+    """
+    for i in range(times.shape[0]):
+        horizon = min(times[i], latest_s) + shift_s
+        x_out[i] = vx * horizon + x_ref
+        y_out[i] = vy * horizon + y_ref
+
+
+@njit(cache=True, nogil=True)
+def spaced_times(start_s, first, stride, rate_hz, out):
+    """Fills ``out`` with the times (s) of samples ``first``, ``first + stride``, ... counted from ``start_s`` at
+    ``rate_hz``: the ends of the planner's steps past a block.
+
+    Parameters
+    ----------
+    start_s : float
+        The time of sample 0, s.
+    first, stride : int
+        The first sample, and the samples between two.
+    rate_hz : float
+        The sample rate, Hz.
+    out : numpy.ndarray of float64
+        Filled, one time a point.
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> out = np.empty(3)
+    >>> spaced_times(1.0, 2, 4, 1000.0, out)
+    >>> out.tolist()
+    [1.002, 1.006, 1.01]
+    """
+    step = 1.0 / rate_hz
+    for i in range(out.shape[0]):
+        out[i] = (i * stride + first) * step + start_s
+
+
+@njit(cache=True, nogil=True)
 def _target_at(index, target, ahead, first_ahead, stride):
     """The target ratio at sample ``index`` of the block (``target``), or past its end at the grid of ``ahead``
     (its first point at sample ``first_ahead``, then every ``stride`` samples; held after its last)."""
@@ -665,6 +737,8 @@ def warm_up() -> None:
         recorded_path(three, three, three, three, has_force, 0.0, 3.0, f64 + 0.5, np.empty(4), np.empty(4),
                       np.empty(4), np.empty(4, dtype=np.bool_))
     motion(f64, f64, 0.0, 0.0, np.empty(4), np.empty(4), np.empty(4))
+    line_path(f64, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, np.empty(4), np.empty(4))
+    spaced_times(0.0, 1, 2, 12000.0, np.empty(4))
     for ratio in (f64 + 0.5, np.zeros(4, dtype=np.float32) + 0.5):
         plan_friction(ratio, np.zeros(3, dtype=np.float32) + 0.5, 5, 0.1, 1.0, 0.02, 0.002, 2, 3, 5, 1.0, 0, 1.0, 1,
                       np.empty(4), np.empty((PLAN_ROWS, 4)))

@@ -36,7 +36,7 @@ HORIZON_RECOVERIES = 2.0  # it looks this many recovery time constants ahead
 MAX_HORIZON_S = 0.1
 MIN_HORIZON_S = 0.01
 LEVELS = 9  # commands held, evenly spread over the reachable ratios
-_STEPS = np.arange(int(MAX_HORIZON_S / DECISION_S) + 2, dtype=float)
+MAX_STEPS = int(MAX_HORIZON_S / DECISION_S) + 2  # room for the longest horizon
 
 
 class Planner:
@@ -90,7 +90,7 @@ class Planner:
         self._speed = None
         self.k_recovery = 0.0
         self.steps = 1
-        self._work = np.empty((kernels.PLAN_ROWS, len(_STEPS) + 1))
+        self._work = np.empty((kernels.PLAN_ROWS, MAX_STEPS + 1))
         self.set_speed(dynamics.reference_speed_mm_s)
 
     def set_speed(self, speed_mm_s: float) -> None:
@@ -154,12 +154,8 @@ class Planner:
         >>> bool(np.isclose(times[0], 1.0 + planner.first_ahead(96) / 12000.0))
         True
         """
-        first = self.first_ahead(n)
         out = np.empty(self.steps) if out is None else out[:self.steps]
-        np.multiply(_STEPS[:self.steps], self.stride, out=out)
-        out += first
-        out *= 1.0 / self.rate_hz
-        out += block_start_s
+        kernels.spaced_times(float(block_start_s), self.first_ahead(n), self.stride, self.rate_hz, out)
         return out
 
     def decides_within(self, n: int) -> bool:

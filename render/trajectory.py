@@ -472,12 +472,9 @@ class LiveTrajectory:
             nothing = np.zeros(times.shape)
             return FingerState(nothing, nothing, np.nan, False, (0.0, 0.0))
         x, y = out if out is not None else (np.empty(times.shape), np.empty(times.shape))
-        np.minimum(times, fit.t_last + self.max_extrapolation_s, out=x)
-        x += self.lookahead_s - fit.t_ref  # x holds the horizon until it is scaled
-        np.multiply(x, fit.vy, out=y)
-        x *= fit.vx
-        x += fit.x_ref
-        y += fit.y_ref
-        moving = times[-1] <= fit.t_last + self.max_extrapolation_s if times.ndim else True
+        latest = fit.t_last + self.max_extrapolation_s
+        kernels.line_path(times.reshape(-1), latest, self.lookahead_s - fit.t_ref, fit.vx, fit.vy, fit.x_ref,
+                          fit.y_ref, x.reshape(-1), y.reshape(-1))  # one compiled pass: every block asks
+        moving = times[-1] <= latest if times.ndim else True
         velocity = (fit.vx, fit.vy) if moving else (0.0, 0.0)
         return FingerState(x, y, fit.force_n, fit.down, velocity)
