@@ -222,6 +222,18 @@ def test_latency_from_touch_to_output(device):
         assert total["p50"] < 100  # tens of ms would be a broken link, not buffering
     human = run_cli("latency", "--device", device, "--steps", "3", check=True).stdout
     assert "engine" in human and "ms median" in human
+    assert figures["model"] == "dynamic" and "model dynamic" in human  # the default, which plans
+
+
+def test_latency_renders_with_the_model_asked_and_refuses_a_bad_one_in_one_line():
+    import json
+
+    figures = json.loads(run_cli("latency", "--device", "null", "--steps", "3", "--model", "stretched", "--json",
+                                 check=True).stdout)
+    assert figures["model"] == "stretched" and figures["engine_ms"]["p50"] > 0
+    result = run_cli("latency", "--device", "null", "--steps", "3", "--model", "no-such-model")
+    assert result.returncode != 0 and result.stdout == ""
+    assert len(result.stderr.strip().splitlines()) == 1 and "no-such-model" in result.stderr
 
 
 def test_latency_on_the_audio_device_reports_portaudios_output_latency(tmp_path):

@@ -22,10 +22,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ultraglide.apps.cli.options import output_option
+from ultraglide.apps.cli.options import MODEL_HELP, output_option
 from ultraglide.apps.cli.output import print_json
 from ultraglide.apps.cli.types import STEPS
 from ultraglide.apps.commands.plate_choice import add_plate_options
+from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
 if TYPE_CHECKING:
     from ultraglide.render.engine import Engine
@@ -57,6 +58,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                          help="sim, serial:PORT, audio[:NAME][?...], wav:PATH or null (default: sim)")
     latency.add_argument("--steps", type=STEPS, default=40, help="how many steps to time, 1 to 10000 (default: 40)")
     add_plate_options(latency, latency, device_default="sim")
+    latency.add_argument("--model", default=DEFAULT_MODEL, metavar="MODEL",
+                         help=f"{MODEL_HELP} (default: {DEFAULT_MODEL}, which plans the friction felt)")
     latency.add_argument("--json", action="store_true", help="print one JSON object")
     latency.set_defaults(run=run)
 
@@ -76,9 +79,10 @@ def _wait(condition, timeout_s: float = STEP_TIMEOUT_S, what: str = "the engine"
 
 
 def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: int = 96000,
-            rest_s: float = 0.0) -> dict:
+            rest_s: float = 0.0, model: str = DEFAULT_MODEL) -> dict:
     """Step the finger ``steps`` times; returns the figures (ms) as a plain dict. ``rest_s``: how long the
-    plate rests before each step beyond the few ms it needs (0.1 lets a serial link go idle, disabled)."""
+    plate rests before each step beyond the few ms it needs (0.1 lets a serial link go idle, disabled); ``model``:
+    the friction model the engine renders with."""
     import numpy as np
     from ultraglide.render.engine import Engine, EngineConfig
     from ultraglide.textures.fileformat import save_texture
@@ -89,7 +93,7 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
         texture = Texture(np.array([[1.0, 0.5]], dtype=np.float32), 80.0, 50.0, outside="clamp", name="step")
         path = save_texture(texture, Path(folder) / "step.png")
         config = EngineConfig(texture=str(path), device=device, profile=profile, predictor="hold", rate_hz=rate_hz,
-                              probe_plate=kind == "sim")
+                              probe_plate=kind == "sim", model=model)
         with Engine.start(config) as engine:
             engine.wait_ready()
             engine_s, device_s, total_s, woke = [], [], [], []
@@ -103,7 +107,7 @@ def measure(device: str, steps: int = 40, profile: str = "sim-plate", rate_hz: i
     periods = np.diff(status.history.time_s)
     block_ms = float(np.median(periods) * 1e3) if len(periods) else None
     return {
-        "device": status.device, "steps": steps,
+        "device": status.device, "steps": steps, "model": model,
         "engine_ms": _percentiles(engine_s), "device_ms": _percentiles(device_s), "total_ms": _percentiles(total_s),
         # a plate driver that had rested its output (50 ms of zeros) is woken with its lead at once and plays on
         # arrival; one still streaming plays the step a buffer's depth later: the two apart
@@ -172,7 +176,8 @@ def describe(figures: dict) -> str:
     e, d, t = figures["engine_ms"], figures["device_ms"], figures["total_ms"]
     verdict = "within" if e["p99"] < figures["engine_aim_ms"] else "over"
     block = f" (the device pulls every {figures['block_ms']:.2f} ms)" if figures["block_ms"] else ""
-    return (f"touch to first output sample on {figures['device']}, {figures['steps']} steps:\n"
+    return (f"touch to first output sample on {figures['device']}, {figures['steps']} steps, model "
+            f"{figures['model']}:\n"
             f"  engine  {e['p50']:.2f} ms median, {e['p99']:.2f} ms p99: waiting for the next pull and "
             f"rendering{block}; {verdict} the {figures['engine_aim_ms']:g} ms aim\n"
             f"  device  {d['p50']:.2f} ms median, {d['p99']:.2f} ms p99: {figures['device_part']}\n"
@@ -199,8 +204,10 @@ def run(args) -> int:
     if args.steps < 2:
         raise UsageError("--steps must be at least 2")
     from ultraglide.devices.serial.run_report import RunReport
+    from ultraglide.render.physics.calibration import load_model
 
-    figures = measure(args.device, args.steps, args.profile)
+    load_model(args.model)  # a bad model is one line before the engine starts
+    figures = measure(args.device, args.steps, args.profile, model=args.model)
     print_json(figures) if args.json else print(describe(figures))
     report = RunReport.from_dict(figures["report"])
     if report.exit_status:  # the plate was lost, cut its output or faulted: the figures are not to be trusted
