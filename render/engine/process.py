@@ -483,6 +483,14 @@ def forked_engine_main(config, shared_name: str, conn, app_end) -> None:
     engine_main(config, shared_name, conn)
 
 
+def _rest_unserved(device, source) -> None:
+    """A device that will not be served: made safe, and the run's records (envelope, sensors) dropped unfinished."""
+    close_device(device)
+    for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
+        if record is not None:
+            record.discard()
+
+
 def engine_main(config, shared_name: str, conn) -> None:
     """The engine process's entry point (spawned by :meth:`render.engine.Engine.start`).
 
@@ -614,10 +622,7 @@ def engine_main(config, shared_name: str, conn) -> None:
             clock.sensor_rate_hz = float(device.hello().sensor_rate_hz)
             clock.link_bytes_per_s = float(device.hello().link_bytes_per_s if device.hello().states_link else 0)
     except errors as error:
-        close_device(device)
-        for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
-            if record is not None:
-                record.discard()
+        _rest_unserved(device, source)
         with contextlib.suppress(OSError):  # the app may have gone already (stopped while the device started)
             conn.send(("failed", describe(error)))
         shared.fast[shm.STATE] = shm.STATES.index("failed")
@@ -636,10 +641,7 @@ def engine_main(config, shared_name: str, conn) -> None:
         conn.send(("ready", {"rate_hz": rate, "carrier_hz": renderer.carrier_hz, "signal": device.signal,
                              "tail_s": renderer.tail_s, "device_status": device_status(device)}))
     except OSError:  # the app was stopped (a signal) while the device started: nobody to serve, rest it and end
-        close_device(device)
-        for record in (getattr(source, "record", None), getattr(source, "sensor_record", None)):
-            if record is not None:
-                record.discard()
+        _rest_unserved(device, source)
     else:
         serve(config, conn, shared, renderer, source, device, stop_requested, threads)
     if probe is not None:
