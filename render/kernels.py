@@ -432,15 +432,6 @@ def _target_at(index, target, ahead, first_ahead, stride):
 
 
 @njit(cache=True, nogil=True)
-def _greedy(y, r, floor, ceiling, hold_on, hold_rec):
-    """The command (static ratio) held over one step that brings the felt ratio ``y`` to ``r`` at its end, within
-    [floor, ceiling] (where out of reach: the nearest reachable)."""
-    hold = hold_on if r < y else hold_rec
-    x = (r - y * hold) / (1.0 - hold)
-    return min(max(x, floor), ceiling)
-
-
-@njit(cache=True, nogil=True)
 def _held(y, x, hold_on, hold_rec):
     """The felt ratio after a step of command ``x`` from ``y`` (onset where it falls, recovery where it rises)."""
     hold = hold_on if x < y else hold_rec
@@ -470,7 +461,8 @@ PLAN_ROWS = 16
 
 @njit(cache=True, nogil=True)
 def _greedy_step(y, r, floor, ceiling, hold_on, hold_rec, sums):
-    """One step of the greedy command from the felt ratio ``y`` towards ``r``: (command, its step's squared error
+    """One step of the greedy command from the felt ratio ``y`` towards ``r`` (the command held over the step that
+    brings the felt ratio to ``r`` at its end, within [floor, ceiling]): (command, its step's squared error
     summed over its samples as the planner weighs a step, the felt ratio after, whether the command was within
     reach)."""
     hold = hold_on if r < y else hold_rec
@@ -673,7 +665,7 @@ def plan_friction(target, ahead, first_ahead, floor, ceiling, k_onset, k_recover
                 else:
                     work[_GOAL, j] = _target_at(end, target, ahead, first_ahead, stride)
             _prepare_decision(work, steps, felt, floor, ceiling, hold_on, hold_rec, sums)
-            greedy_first = _greedy(felt, work[_GOAL, 0], floor, ceiling, hold_on, hold_rec)
+            greedy_first = _greedy_step(felt, work[_GOAL, 0], floor, ceiling, hold_on, hold_rec, sums)[0]
             for c in range(levels + 1):  # hold a level (or the greedy command) for 1, 2, 4, ... steps, then greedy
                 if c < levels:
                     level = floor + (ceiling - floor) * c / (levels - 1)
