@@ -114,7 +114,8 @@ class EngineConfig:
     ``cpu_wake_latency_us`` (:mod:`render.engine.realtime`; None makes no such request). ``closed_loop`` makes the
     friction the plate's force sensors measure follow the texture (a plate driver with normal and lateral force
     sensors; its amplitude loop too, where it has one), and ``finger`` puts a simulated finger on the ``sim``
-    device (:mod:`render.engine.finger_setup`; with ``closed_loop`` on ``sim`` the default one if none is given).
+    device (:mod:`render.engine.finger_setup`; with ``closed_loop`` on ``sim`` the default one if none is given;
+    the default finger lags, unless asked otherwise, only where ``model`` has friction dynamics).
 
     Parameters
     ----------

@@ -78,8 +78,9 @@ class FingerConfig:
     @property
     def lags(self) -> bool:
         """Whether the simulated finger's friction lags in time: as asked (``dynamics``), else for the default
-        finger (as the host's default model assumes), a ``dynamic`` law, or a calibration whose dynamics were fitted
-        on the plate.
+        finger (as the host's default model assumes; on ``--device sim`` the engine asks as its model assumes,
+        :func:`~ultraglide.render.engine.parts.load_parts`), a ``dynamic`` law, or a calibration whose dynamics
+        were fitted on the plate.
 
         Examples
         --------

@@ -1,6 +1,8 @@
 """What the engine's process opens before it renders: the texture, the model, the plate's profile and the
-device (with the simulated finger the config asks for), and, for the closed loop, the check that the device
-has force sensors. Errors are one line, for the app to show (:func:`engine_main` sends them up the pipe).
+device (with the simulated finger the config asks for, or on ``sim`` with the closed loop the default finger; the
+default finger lags where the model has friction dynamics, unless asked otherwise), and, for the closed loop, the
+check that the device has force sensors. Errors are one line, for the app to show (:func:`engine_main` sends them
+up the pipe).
 """
 
 from __future__ import annotations
@@ -55,9 +57,16 @@ def load_parts(config):
 
             raise DeviceError(f"a simulated finger goes on the in-process simulator (--device sim), not on "
                               f"{config.device}; a plate-sim on a port takes its own (plate-sim --finger)")
-        from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
+        from dataclasses import replace
 
-        finger = build_finger(config.finger or FingerConfig())
+        from ultraglide.render.engine.finger_setup import DEFAULT_LAW, FingerConfig, build_finger
+
+        wanted = config.finger or FingerConfig()
+        if wanted.law == DEFAULT_LAW and wanted.dynamics is None:
+            # the default finger lags as the model rendering assumes: a static model's loop reads a lagging finger's
+            # slow recovery as a slipperier finger, never finds its sensors' timing, and measures nothing
+            wanted = replace(wanted, dynamics=getattr(model, "dynamics", None) is not None)
+        finger = build_finger(wanted)
     if config.closed_loop and kind not in ("sim", "serial"):
         from ultraglide.devices.errors import DeviceError
 
