@@ -113,7 +113,7 @@ class Tour:
             self.xvfb.wait(timeout=30)
 
     def screen(self) -> None:
-        """``Xvfb :N -screen 0 1280x800x24 & export DISPLAY=:N``, on a free display."""
+        """``Xvfb :N -screen 0 1280x800x24 -noreset & export DISPLAY=:N``, on a free display."""
         if self.xvfb is not None:
             return
         self.xvfb, self.env["DISPLAY"] = start_xvfb(1280, 800)
@@ -123,8 +123,9 @@ class Tour:
 
     def key_press(self, key: str) -> bool:
         """A participant's key press, which may not land: False when xdotool could not connect to the screen
-        (once in a run beside two CPU hogs, with the session still running; why, not found); the participant
-        presses again, as for a key the window dropped. Any other failure of xdotool fails the test."""
+        (seen beside two CPU hogs before the tests' Xvfb ran with -noreset: it was starting over as its last
+        client left); the participant presses again, as for a key the window dropped. Any other failure of
+        xdotool fails the test."""
         pressed = subprocess.run(["xdotool", "key", key], env=self.env, capture_output=True, text=True, timeout=120)
         if pressed.returncode != 0 and "Can't open display" not in pressed.stderr:
             raise AssertionError(f"xdotool key {key}: {pressed.stderr.strip()}")

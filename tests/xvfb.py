@@ -12,8 +12,10 @@ def start_xvfb(width: int = 1280, height: int = 800) -> tuple[subprocess.Popen, 
     """Xvfb on a display it chose, once it accepts clients: the process and ``DISPLAY`` (``":N"``)."""
     for _ in range(ATTEMPTS):
         read_fd, write_fd = os.pipe()
+        # -noreset: else Xvfb starts over whenever its last client leaves, and a client connecting meanwhile is
+        # refused (5 of 300 xdotool calls in a row beside two CPU hogs; none of 1500 with it)
         xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{width}x{height}x24",
-                                 "-nolisten", "tcp"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL,
+                                 "-nolisten", "tcp", "-noreset"], pass_fds=(write_fd,), stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
         os.close(write_fd)
         with os.fdopen(read_fd) as numbers:  # Xvfb writes its display number once it accepts clients
