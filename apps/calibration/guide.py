@@ -56,14 +56,14 @@ class WindowGuide:
     def __init__(self, participant: str, windowed: bool = False, size=(1280, 800)):
         import pygame
         from ultraglide.apps.cli.errors import UsageError
-        from ultraglide.apps.window.screen import display_available
+        from ultraglide.apps.window.screen import display_available, init_display
 
         if not display_available():
             raise UsageError("no display for the calibration's window (set DISPLAY or run under Xvfb); "
                              "with a simulated finger give --no-window")
         self.pg = pygame
         try:
-            pygame.display.init()
+            init_display(pygame)
             pygame.font.init()
             self.screen = pygame.display.set_mode(size if windowed else (0, 0), 0 if windowed else pygame.FULLSCREEN)
         except pygame.error as error:

@@ -40,7 +40,7 @@ from ultraglide.apps.demo.record import TouchRecorder
 from ultraglide.apps.demo.scenes import Scenes
 from ultraglide.apps.demo.stats import run_stats, write_stats
 from ultraglide.apps.demo.status import status_words
-from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX
+from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX, init_display
 from ultraglide.apps.window.wait import EventWaiter
 from ultraglide.render.physics.default_model import DEFAULT_MODEL
 
@@ -98,7 +98,7 @@ class DemoApp:
 
         self.pg = pygame
         try:
-            pygame.display.init()
+            init_display(pygame)
             pygame.font.init()
             flags = 0 if windowed else pygame.FULLSCREEN
             self.screen = pygame.display.set_mode((0, 0) if not windowed else size, flags)

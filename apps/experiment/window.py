@@ -18,7 +18,7 @@ import threading  # noqa: E402
 import time  # noqa: E402
 
 from ultraglide.apps.cli.errors import UsageError  # noqa: E402
-from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX, display_available  # noqa: E402
+from ultraglide.apps.window.screen import DEFAULT_MM_PER_PX, display_available, init_display  # noqa: E402
 from ultraglide.apps.window.wait import EventWaiter  # noqa: E402
 
 from ultraglide.experiment.responders import Answer  # noqa: E402
@@ -41,7 +41,7 @@ class WindowResponder:
             raise UsageError("no display for the participant's window (set DISPLAY or run under Xvfb); "
                              "for a dry run give --observer sim:threshold=...")
         try:
-            pygame.display.init()
+            init_display(pygame)
             pygame.font.init()
             self.screen = pygame.display.set_mode(size if windowed else (0, 0), 0 if windowed else pygame.FULLSCREEN)
         except pygame.error as error:

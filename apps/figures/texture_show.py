@@ -161,7 +161,12 @@ def show_window(figure, title: str) -> None:
     figure.set_dpi(100)
     figure.canvas.draw()
     pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
-    pygame.display.init()
+    from ultraglide.apps.window.screen import init_display
+
+    try:
+        init_display(pygame)
+    except pygame.error as error:
+        raise UsageError(f"cannot open a window ({error}); write a file with -o FILE.png instead") from None
     try:
         info = pygame.display.Info()
         picture = pygame.surfarray.make_surface(np.ascontiguousarray(pixels.transpose(1, 0, 2)))
