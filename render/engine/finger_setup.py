@@ -10,7 +10,8 @@ The default finger is unlike the host's default model on purpose: its static (st
 scale times 0.7 (it needs 30 % less vibration) and a floor of 0.1 that vibration does not remove, drifting
 ±30 % in scale over a minute, its friction at rest rising 25 % with a long dwell, pressing with a force
 that wanders in 0.2-1 N, sliding at 100 mm/s. Like the host's default model and measured fingers, its friction
-lags the law (the published dynamics; ``dynamics=False``, ``--no-finger-dynamics``: it follows at once).
+lags the law (the published dynamics; ``dynamics=False``, ``--no-finger-dynamics``: it follows at once); on the
+engine's ``--device sim`` it lags as the model rendering assumes (:meth:`FingerConfig.as_the_model_assumes`).
 """
 
 from __future__ import annotations
@@ -78,8 +79,8 @@ class FingerConfig:
     @property
     def lags(self) -> bool:
         """Whether the simulated finger's friction lags in time: as asked (``dynamics``), else for the default
-        finger (as the host's default model assumes; on ``--device sim`` the engine asks as its model assumes,
-        :func:`~ultraglide.render.engine.parts.load_parts`), a ``dynamic`` law, or a calibration whose dynamics
+        finger (as the host's default model assumes; the engine asks as its own model assumes,
+        :meth:`as_the_model_assumes`), a ``dynamic`` law, or a calibration whose dynamics
         were fitted on the plate.
 
         Examples
@@ -156,6 +157,31 @@ class FingerConfig:
         ('finger.csv', 80.0, None)
         """
         return replace(self, log=path)
+
+    def as_the_model_assumes(self, model_lags: bool) -> FingerConfig:
+        """The finger for a host whose model lags or not (``model_lags``): the default finger with no lag asked
+        for lags as that model assumes, since a static model's loop reads a lagging finger's slow recovery as a
+        slipperier finger, never finds its sensors' timing, and measures nothing; any other config as it is.
+
+        Parameters
+        ----------
+        model_lags : bool
+            Whether the host's model has friction dynamics.
+
+        Returns
+        -------
+        FingerConfig
+
+        Examples
+        --------
+        >>> FingerConfig().as_the_model_assumes(False).lags, FingerConfig().as_the_model_assumes(True).lags
+        (False, True)
+        >>> FingerConfig(dynamics=True).as_the_model_assumes(False).lags   # asked for: kept
+        True
+        """
+        if self.law == DEFAULT_LAW and self.dynamics is None:
+            return replace(self, dynamics=model_lags)
+        return self
 
 
 @functools.lru_cache(maxsize=16)

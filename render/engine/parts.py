@@ -57,16 +57,10 @@ def load_parts(config):
 
             raise DeviceError(f"a simulated finger goes on the in-process simulator (--device sim), not on "
                               f"{config.device}; a plate-sim on a port takes its own (plate-sim --finger)")
-        from dataclasses import replace
-
-        from ultraglide.render.engine.finger_setup import DEFAULT_LAW, FingerConfig, build_finger
+        from ultraglide.render.engine.finger_setup import FingerConfig, build_finger
 
         wanted = config.finger or FingerConfig()
-        if wanted.law == DEFAULT_LAW and wanted.dynamics is None:
-            # the default finger lags as the model rendering assumes: a static model's loop reads a lagging finger's
-            # slow recovery as a slipperier finger, never finds its sensors' timing, and measures nothing
-            wanted = replace(wanted, dynamics=getattr(model, "dynamics", None) is not None)
-        finger = build_finger(wanted)
+        finger = build_finger(wanted.as_the_model_assumes(getattr(model, "dynamics", None) is not None))
     if config.closed_loop and kind not in ("sim", "serial"):
         from ultraglide.devices.errors import DeviceError
 
