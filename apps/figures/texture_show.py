@@ -28,6 +28,7 @@ from ultraglide.apps.cli.files import (  # noqa: E402
     texture_file,
 )
 from ultraglide.apps.cli.options import refuse_ignored  # noqa: E402
+from ultraglide.apps.window.screen import display_available, init_display  # noqa: E402
 from ultraglide.textures.texture import Texture  # noqa: E402
 
 MM = 1 / 25.4  # inches per millimetre
@@ -161,8 +162,6 @@ def show_window(figure, title: str) -> None:
     figure.set_dpi(100)
     figure.canvas.draw()
     pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
-    from ultraglide.apps.window.screen import init_display
-
     try:
         init_display(pygame)
     except pygame.error as error:
@@ -202,8 +201,7 @@ def run(args) -> int:
     if args.window:
         refuse_ignored(args, {"dpi": 300.0}, "{option} is the PNG's resolution, and --window writes none: leave it "
                                              "out, or write a file with -o FILE.png")
-    if args.window and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-                            or os.environ.get("SDL_VIDEODRIVER")):
+    if args.window and not display_available():
         raise UsageError("no display for --window; write a file with -o FILE.png instead")
     refuse_overlaps({"-o": output}, {"the texture": texture_file(args.texture), "--model": model_file(args.model),
                                      "--profile": profile_file(args.profile)})
