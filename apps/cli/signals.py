@@ -4,20 +4,25 @@
 raises :class:`Stopped` (a ``KeyboardInterrupt``) in the main thread, so every ``try``/``finally``
 and ``with`` on the way out runs: devices ramp down and rest the plate, temporary files go.
 
-A stop signal that finds the main thread taking a condition's lock back after a wait (the end of every wait on
-an event or a queue, blocked while another thread holds that lock) is raised a moment later: raised there, the
-wait would end without the lock, and the ``with`` around it release the lock under the thread that held it
-("release unlocked lock" there) or leave it held by nobody (plate-sim once never exited: its main thread and
-its frames thread both blocked on its event queue's lock). It is retried every ``RETRY_S`` (SIGALRM, only while
-a stop waits; the wait itself, blocked on its own, is a safe place) and raised anyway after ``RETRY_FOR_S``
-(a lock held that long is held for good: better a stop than a hang).
+A stop signal that finds the main thread where an exception would break something is raised a moment later:
+
+- inside ``threading``'s own lock handling (a condition taking its lock or giving it back, every wait on an
+  event or a queue going in or out), except where it blocks waiting: raised there, the lock stays held by the
+  main thread for good, or the wait ends without it and the ``with`` around it releases it under the thread that
+  held it ("release unlocked lock" there). plate-sim once never exited: its main thread blocked on its event
+  queue's lock, which it had itself taken just before the signal. Raised anyway after ``RETRY_FOR_S`` (a lock
+  held that long is held for good: better a stop than a hang).
+- inside a finaliser (a ``__del__`` the collector runs wherever it runs): Python prints the exception as
+  "Exception ignored in" and drops it, and the command goes on as if nothing had come. Never raised there.
+
+It is retried every ``RETRY_S`` (SIGALRM, only while a stop waits).
 
 A second signal must not cut that clean-up short. Clean-up that must finish (resting a device,
 removing a temporary file) runs inside :func:`held`: a signal arriving there is raised when the
 block ends. Signals that follow the first within ``grace_s`` (a burst: several kills, an impatient
 double Ctrl-C) are ignored wherever they land, since the first is still on its way out and may
 be between two held blocks. A signal after that raises again, so a command whose first stop was
-swallowed (Python drops exceptions raised while it runs a finaliser) can still be stopped.
+lost (caught by a library on its way out, say) can still be stopped.
 """
 
 from __future__ import annotations
@@ -34,25 +39,60 @@ RETRY_S = 0.01
 RETRY_FOR_S = 1.0
 
 
-def _retaking_lines() -> frozenset[int]:
-    """The lines of ``threading.Condition.wait`` that take its lock back after the wait."""
-    try:
-        lines, first = inspect.getsourcelines(threading.Condition.wait)
-    except (OSError, TypeError):
-        return frozenset()
-    return frozenset(first + index for index, line in enumerate(lines) if "_acquire_restore(" in line)
+def _blocking_lines() -> dict[object, frozenset[int]]:
+    """The lines of ``threading`` where a thread blocks in an acquire holding no lock of a condition's: the wait
+    of ``Condition.wait`` and the join of ``Thread._wait_for_tstate_lock``, by their code objects."""
+    lines = {}
+    for function, call in ((threading.Condition.wait, "waiter.acquire("),
+                           (threading.Thread._wait_for_tstate_lock, "lock.acquire(")):
+        try:
+            source, first = inspect.getsourcelines(function)
+        except (OSError, TypeError):
+            continue
+        lines[function.__code__] = frozenset(first + index for index, line in enumerate(source) if call in line)
+    return lines
 
 
-_RETAKING_LINES = _retaking_lines()
+_BLOCKING_LINES = _blocking_lines()
+_THREADING_FILE = threading.Condition.wait.__code__.co_filename
 
 
-def retaking_a_lock(frame) -> bool:
-    """Whether ``frame`` (where a signal found the main thread) is a condition taking its lock back after a wait
-    (every wait on an event, a queue or a semaphore ends there): an exception raised in that acquire leaves the
-    wait without the lock, and the ``with`` around it then releases the lock of whichever thread holds it."""
-    code = frame.f_code if frame is not None else None
-    return code is threading.Condition._acquire_restore.__code__ or (
-        code is threading.Condition.wait.__code__ and frame.f_lineno in _RETAKING_LINES)
+def passing_a_lock(frame) -> bool:
+    """Whether ``frame`` (where a signal found the main thread) is ``threading``'s own code outside a blocking wait:
+    taking a condition's lock, giving it back, or between the two halves of a wait. An exception raised there can
+    leave the lock held for good, or released under another thread (see the module's docstring).
+
+    Examples
+    --------
+    >>> import sys
+    >>> passing_a_lock(sys._getframe())  # this example's own frame
+    False
+    """
+    if frame is None or frame.f_code.co_filename != _THREADING_FILE:
+        return False
+    return frame.f_lineno not in _BLOCKING_LINES.get(frame.f_code, ())
+
+
+def in_a_finaliser(frame) -> bool:
+    """Whether ``frame`` or one of its callers is a ``__del__``: Python drops an exception raised there.
+
+    Examples
+    --------
+    >>> import sys
+    >>> class Noted:
+    ...     def __del__(self):
+    ...         print("in a finaliser:", in_a_finaliser(sys._getframe()))
+    >>> dropped = Noted()
+    >>> del dropped
+    in a finaliser: True
+    >>> in_a_finaliser(sys._getframe())
+    False
+    """
+    while frame is not None:
+        if frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False
 
 
 class Stopped(KeyboardInterrupt):
@@ -91,10 +131,11 @@ class StopSignals:
         if self._held:
             self._pending = True
             return
-        if retaking_a_lock(frame):
+        finaliser = in_a_finaliser(frame)
+        if finaliser or passing_a_lock(frame):
             if self._retrying_since is None:
                 self._retrying_since = time.monotonic()
-            if time.monotonic() - self._retrying_since < RETRY_FOR_S:
+            if finaliser or time.monotonic() - self._retrying_since < RETRY_FOR_S:
                 self._pending = True
                 self._retry_later()
                 return
