@@ -751,7 +751,7 @@ def test_the_demo_on_the_board_with_its_defaults_plays_a_swipe_never_above_the_l
             said = "".join(demo.stdout) + demo.demo.stderr.read()
     finally:
         stopped = board.stop()
-    assert status == 0, said
+    assert status == 0, (said, stopped, dict(board.seen))  # (the board's counts: late blocks, resets ...)
     assert "as the plate driver describes it" in said and "limit 4 µm p-p" in said, said  # its plate, said
     assert stopped["setpoints"] > 0 and stopped["trips"] == 0, stopped
     assert 0.2 * limit_code <= stopped["max_setpoint_code"] <= limit_code, stopped  # the swipe played, bounded
