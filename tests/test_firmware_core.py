@@ -656,28 +656,6 @@ def test_sensors_carry_every_sample_once_with_the_playing_index():  # [R-SENSORS
     assert late == pytest.approx(4.0, abs=1e-3)
 
 
-def test_a_main_loop_held_up_sends_what_waited_as_frames_of_a_period_at_most():  # [R-SENSORS]
-    device = enabled()
-    device.send(p.HELLO, p.hello_payload(3))
-    before = device.run(25, measured=2.0)
-    device.core.hold_main_loop(37)  # behind the block interrupt: samples taken, none sent
-    during = device.run(37, measured=2.0)
-    first_pass = device.run(1, measured=2.0)  # the main loop's first pass after
-    after = device.run(30, measured=2.0)
-    assert before and not [f for f in during if f.kind == p.SENSORS]  # (the stimulus: nothing left meanwhile)
-
-    def sensors_in(frames):
-        return [p.parse_sensors(f.payload) for f in frames if f.kind == p.SENSORS]
-
-    sensors = sensors_in(before + during + first_pass + after)
-    numbers = np.concatenate([s.first_sample + np.arange(len(s.samples)) for s in sensors])
-    assert np.array_equal(numbers, np.arange(numbers[0], numbers[0] + len(numbers)))  # consecutive, none twice
-    assert max(len(s.samples) for s in sensors) <= 10 + 1  # none says more than 10 ms passed between frames
-    # what waited (the 37 ms held and the rest of the frame before) left at once, as three frames or more
-    caught_up = sensors_in(first_pass)
-    assert len(caught_up) >= 3 and caught_up[-1].first_sample + len(caught_up[-1].samples) >= 25 + 37
-
-
 def test_the_carrier_is_a_phase_continuous_sine_at_the_drive():  # [R-CARRIER]
     device = enabled()
     device.setpoints(0, np.full(240, 0.5))

@@ -149,7 +149,6 @@ def load() -> ctypes.CDLL:
             "ug_sim_sources_digest": (ctypes.c_char_p, []),
             "ug_sim_output_safe_calls": (ctypes.c_uint32, [voidp, ctypes.POINTER(ctypes.c_uint8)]),
             "ug_sim_lost_time": (None, [voidp, ctypes.c_uint32]),
-            "ug_sim_hold_main_loop": (None, [voidp, ctypes.c_uint32]),
             "ug_sim_set_samples_since_block": (None, [voidp, ctypes.c_uint32]),
         }
         for name, (result, arguments) in signatures.items():
@@ -343,12 +342,6 @@ class FirmwareCore:
         """A board's late block interrupt: ``milliseconds`` of the core's clock pass with no block run
         (``ug_core_lost_time``); counted in the status's ``lost_ms``."""
         self._lib.ug_sim_lost_time(self._sim, max(0, int(milliseconds)))
-
-    def hold_main_loop(self, milliseconds: int) -> None:
-        """A board's main loop held up behind its interrupts: the next ``milliseconds`` ticks of :meth:`render`
-        run the block interrupt's work (samples taken, setpoints played) but not the main loop's (no frame read
-        or sent); it catches up at the next tick after."""
-        self._lib.ug_sim_hold_main_loop(self._sim, max(0, int(milliseconds)))
 
     def output_safe_calls(self) -> tuple[int, int]:
         """How many times the core asked the port for a silent output (``ug_port_output_safe``) and the last

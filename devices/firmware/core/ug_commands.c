@@ -420,7 +420,7 @@ void ug_core_poll(ug_core *core) {
         }
         ug_port_critical_exit(core->port);
         if (count > 0u) {
-            ug_send_sensors(core, count, first); /* frames of up to 969 bytes, encoded with the blocks running */
+            ug_send_sensors(core, count, first); /* up to a 969-byte frame, encoded with the blocks running */
         }
     }
 }

@@ -57,8 +57,7 @@ void ug_nak(ug_core *core, uint8_t type, uint16_t seq, uint8_t reason);
 size_t ug_hello_reply(const ug_core *core, uint8_t *p);
 /* TELEMETRY's payload into p (inside the lock: a copy of the state); its length */
 size_t ug_telemetry_payload(ug_core *core, uint8_t *p);
-/* SENSORS: swap the rings inside the lock (the samples waiting, and the number of the first), send outside it
-   (as several frames, none longer than a period's samples and one) */
+/* SENSORS: swap the rings inside the lock (the samples waiting, and the number of the first), send outside it */
 uint8_t ug_sensors_swap(ug_core *core, uint32_t *first_number);
 void ug_send_sensors(ug_core *core, uint8_t count, uint32_t first_number);
 /* replies kept while a frame's critical section held (ug_send in it), encoded and queued now */

@@ -176,36 +176,17 @@ uint8_t ug_sensors_swap(ug_core *core, uint32_t *first_number) {
     return count;
 }
 
-/* One SENSORS frame of `count` samples from `offset` in the ring swapped out. */
-static void send_sensors_frame(ug_core *core, unsigned offset, unsigned count, uint32_t first_number) {
+void ug_send_sensors(ug_core *core, uint8_t count, uint32_t first_number) {
     uint8_t *p = core->scratch_payload;
     const unsigned ring = core->sensor_active ^ 1u; /* the one swapped out: the block interrupt no longer writes it */
     ug_put_u32(p, first_number);
-    ug_put_u32(p + 4, core->sensor_ring[ring][offset].index);
-    p[8] = (uint8_t)count;
+    ug_put_u32(p + 4, core->sensor_ring[ring][0].index);
+    p[8] = count;
     for (unsigned i = 0; i < count; i++) {
         for (unsigned k = 0; k < 3u; k++) {
             ug_put_f32(p + UG_SENSORS_HEADER_SIZE + UG_SENSOR_SAMPLE_SIZE * i + 4u * k,
-                       core->sensor_ring[ring][offset + i].value[k]);
+                       core->sensor_ring[ring][i].value[k]);
         }
     }
     ug_send(core, UG_SENSORS, p, UG_SENSORS_HEADER_SIZE + UG_SENSOR_SAMPLE_SIZE * (size_t)count);
-}
-
-void ug_send_sensors(ug_core *core, uint8_t count, uint32_t first_number) {
-    /* A main loop held up past a frame's time (an interrupt storm, an emulator catching its clock up) finds more
-       than a period's samples waiting: they leave as several frames of at most a period's samples and one, split
-       evenly, so that no frame says the device waited longer between frames than it may (R-SENSORS). */
-    const uint32_t period_ms = core->state != UG_OFF ? UG_SENSORS_PERIOD_MS : UG_SENSORS_REST_PERIOD_MS;
-    uint32_t most = core->config.sensor_rate_hz * period_ms / 1000u + 1u;
-    if (most > UG_MAX_SENSOR_SAMPLES) {
-        most = UG_MAX_SENSOR_SAMPLES;
-    }
-    const unsigned frames = (count + most - 1u) / most;
-    unsigned offset = 0;
-    for (unsigned f = 0; f < frames; f++) {
-        const unsigned n = (count - offset) / (frames - f); /* what is left, shared among the frames left */
-        send_sensors_frame(core, offset, n, first_number + offset);
-        offset += n;
-    }
 }

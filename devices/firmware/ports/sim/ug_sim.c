@@ -36,8 +36,6 @@ void ug_port_sim_fault(void *port, uint8_t kind, uint16_t duration_ms) {
 
 void ug_sim_lost_time(ug_sim *sim, uint32_t ms) { ug_core_lost_time(&sim->core, ms); }
 
-void ug_sim_hold_main_loop(ug_sim *sim, uint32_t ms) { sim->main_loop_held_ms = ms; }
-
 uint32_t ug_sim_output_safe_calls(const ug_sim *sim, uint8_t *why) {
     *why = sim->output_safe_why;
     return sim->output_safe_calls;
@@ -117,11 +115,7 @@ void ug_sim_render(ug_sim *sim, float *drive, size_t n) {
         if (sim->samples_to_tick == 0u) {
             ug_core_tick(&sim->core);
             hold_telemetry(sim);
-            if (sim->main_loop_held_ms > 0u) {
-                sim->main_loop_held_ms--;
-            } else {
-                ug_core_poll(&sim->core);
-            }
+            ug_core_poll(&sim->core);
             sim->samples_to_tick = sim->core.config.sample_rate_hz / 1000u;
         }
     }

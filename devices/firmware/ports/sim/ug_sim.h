@@ -28,7 +28,6 @@ typedef struct ug_sim {
     uint8_t output_safe_why;
     uint32_t samples_since_block; /* drive samples the real clock is past the core's (ug_port_samples_since_block):
                                      set for one ug_sim_receive */
-    uint32_t main_loop_held_ms; /* ticks still to run without a poll (ug_sim_hold_main_loop) */
 } ug_sim;
 
 size_t ug_sim_size(void);
@@ -64,8 +63,6 @@ void ug_sim_excuse(ug_sim *sim, uint32_t ms);
 
 void ug_sim_status(const ug_sim *sim, ug_status *out);
 int ug_sim_next_event(ug_sim *sim, ug_event *out);
-/* a board's main loop held up behind its interrupts: the next ms ticks run without a poll of the core */
-void ug_sim_hold_main_loop(ug_sim *sim, uint32_t ms);
 /* blocks' time lost by a port (ug_core_lost_time), ms */
 void ug_sim_lost_time(ug_sim *sim, uint32_t ms);
 /* how many times the core asked for a silent output (ug_port_output_safe), and why the last time */
